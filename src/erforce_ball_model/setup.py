@@ -1,0 +1,32 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "erforce_ball_model"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/launch", glob("launch/*.yaml")),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="ER-Force stack maintainers",
+    maintainer_email="info@robotics-erlangen.de",
+    description=(
+        "Two-phase ball model, vision tracking, parameter identification and robot catch-time prediction (ER-Force ETDP 2016, Sec. 5), with the ball_predictor node."
+    ),
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "ball_predictor = erforce_ball_model.ball_predictor_node:main",
+            "ball_figures = erforce_ball_model.figures:main",
+            "ball_fit = erforce_ball_model.identification:main",
+        ],
+    },
+)

@@ -1,0 +1,33 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "erforce_interfaces"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/launch", glob("launch/*.yaml")),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="ER-Force stack maintainers",
+    maintainer_email="info@robotics-erlangen.de",
+    description=(
+        "Wire contract (topics, message types, QoS, frames, units, conversions), shared robot configuration, parameter helpers, and the launch/topic tools for the ER-Force ROS 2 stack."
+    ),
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "erforce-launch = erforce_interfaces.launcher:main",
+            "erforce-topic = erforce_interfaces.topic_tool:main",
+            "talker = erforce_interfaces.demo_nodes:talker_main",
+            "listener = erforce_interfaces.demo_nodes:listener_main",
+        ],
+    },
+)

@@ -1,0 +1,31 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "erforce_motion"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/launch", glob("launch/*.yaml")),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="ER-Force stack maintainers",
+    maintainer_email="info@robotics-erlangen.de",
+    description=(
+        "Omni-wheel kinematics, PID, main-board velocity control, motor-board cascade with thermal current limit, and Ziegler-Nichols tuning (ER-Force ETDP 2016, Sec. 4), with two nodes."
+    ),
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "velocity_controller = erforce_motion.velocity_controller_node:main",
+            "motor_boards = erforce_motion.motor_boards_node:main",
+        ],
+    },
+)

@@ -1,0 +1,31 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "erforce_sim"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/launch", glob("launch/*.yaml")),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="ER-Force stack maintainers",
+    maintainer_email="info@robotics-erlangen.de",
+    description=(
+        "Physics plant simulator: DC motors, omni-wheel bodies, ball with slide/roll friction, kicker plates, light barrier, vision, /clock; plant node and in-process runner."
+    ),
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "plant = erforce_sim.plant_node:main",
+            "tune_motor = erforce_sim.tuning_experiment:main",
+        ],
+    },
+)
