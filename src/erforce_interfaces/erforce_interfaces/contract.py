@@ -1,0 +1,198 @@
+"""The wire contract of the stack: every topic, its message type, QoS, frame and units.
+
+No node spells a topic string itself: it takes a ``Topic`` from here. Per-robot topics
+are relative names that live under the robot namespace ``robot_<id>`` (a per-robot node
+launched with ``namespace: robot_0`` uses them as they are; a node serving all robots,
+like the plant or the ball predictor, resolves them with ``Topic.for_robot(id)``).
+
+Conventions (REP 103 / REP 105):
+- SI units: metres, seconds, radians, m/s, rad/s, amperes, volts. Temperatures in degrees
+  Celsius, as sensor_msgs/Temperature does.
+- ``field``: the world frame, origin at the field centre, x towards the positive goal,
+  y left, z up (right-handed). ``robot_<id>/base_link``: x forward (dribbler and kicker),
+  y left, z up.
+- Wheels are ``wheel_0 .. wheel_{n-1}`` in the order of RobotConfig.wheel_angles_rad.
+- Lockstep control messages are stamped with the simulation time of the sensor tick
+  they answer, so the plant can pair commands with ticks (see erforce_sim.plant_node).
+- Nothing non-finite is ever published. "Never" in a catch time is ``CATCH_TIME_NEVER``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from geometry_msgs.msg import PointStamped, PoseStamped, Twist
+from nav_msgs.msg import Odometry
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+
+FIELD_FRAME = "field"
+ROBOT_NAMESPACE_PREFIX = "robot_"
+BASE_LINK = "base_link"
+
+#: Published on ``catch_time`` when no catch is possible before the ball leaves the field.
+CATCH_TIME_NEVER = -1.0
+
+#: Values of ``/ball/phase``.
+BALL_PHASES = ("unknown", "sliding", "rolling", "stopped")
+
+# QoS profiles. Vision behaves like a camera: best effort, newest wins. Commands and the
+# lockstep control loop are reliable: a lost duty message would stall a tick.
+QOS_SENSOR = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=5,
+    reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE,
+)
+QOS_COMMAND = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+)
+QOS_CONTROL = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=50,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+)
+QOS_STATE = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+)
+# /clock: reliable publisher, compatible with rclpy's best-effort clock subscription.
+QOS_CLOCK = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+)
+
+QOS_NAMES = {
+    id(QOS_SENSOR): "sensor (best effort, keep last 5)",
+    id(QOS_COMMAND): "command (reliable, keep last 10)",
+    id(QOS_CONTROL): "control (reliable, keep last 50)",
+    id(QOS_STATE): "state (reliable, keep last 10)",
+    id(QOS_CLOCK): "clock (reliable, keep last 1)",
+}
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One topic of the contract."""
+
+    name: str  # absolute ("/clock") or relative to the robot namespace ("cmd_vel")
+    msg_type: type
+    qos: QoSProfile
+    publisher: str
+    subscribers: str
+    units: str
+
+    @property
+    def per_robot(self) -> bool:
+        return not self.name.startswith("/")
+
+    def for_robot(self, robot_id: int) -> str:
+        """Absolute name of a per-robot topic for robot ``robot_id``."""
+        if not self.per_robot:
+            raise ValueError(f"{self.name} is a global topic")
+        return f"/{robot_namespace(robot_id)}/{self.name}"
+
+    @property
+    def type_name(self) -> str:
+        module = self.msg_type.__module__.split(".")[0]
+        return f"{module}/msg/{self.msg_type.__name__}"
+
+
+def robot_namespace(robot_id: int) -> str:
+    if int(robot_id) != robot_id or robot_id < 0:
+        raise ValueError(f"robot id must be a non-negative integer, got {robot_id!r}")
+    return f"{ROBOT_NAMESPACE_PREFIX}{int(robot_id)}"
+
+
+def robot_frame(robot_id: int) -> str:
+    return f"{robot_namespace(robot_id)}/{BASE_LINK}"
+
+
+# ---------------------------------------------------------------- global topics
+CLOCK = Topic("/clock", Clock, QOS_CLOCK, "plant", "every node (use_sim_time)",
+              "simulation time; the plant owns time")
+VISION_BALL = Topic("/vision/ball", PointStamped, QOS_SENSOR, "plant (vision)", "ball_predictor",
+                    "ball centre in `field` [m], stamp = capture time; noisy, delayed, with dropouts")
+BALL_STATE = Topic("/ball/state", Odometry, QOS_STATE, "ball_predictor", "catcher, tools",
+                   "filtered ball: pose [m], twist.linear [m/s] in `field`; covariance from the filter")
+BALL_PHASE = Topic("/ball/phase", String, QOS_STATE, "ball_predictor", "tools",
+                   "one of " + ", ".join(BALL_PHASES))
+BALL_STOP_POINT = Topic("/ball/stop_point", PointStamped, QOS_STATE, "ball_predictor", "catcher, tools",
+                        "where the two-phase model says the ball comes to rest [m], `field`")
+BALL_V_SHOOT = Topic("/ball/v_shoot", Float64, QOS_STATE, "ball_predictor", "tools",
+                     "tracked initial shot speed v_shoot [m/s]")
+BALL_UNCERTAIN = Topic("/ball/uncertain", Bool, QOS_STATE, "ball_predictor", "catcher",
+                       "true after a ricochet until the model fits the observations again")
+BALL_MODEL_PARAMS = Topic("/ball/model_params", Float64MultiArray, QOS_STATE, "ball_predictor", "tools",
+                          "[a_slide_mps2, a_roll_mps2, c_switch] and their standard errors, labelled "
+                          "in layout.dim; from online identification")
+GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant", "tests, tools only",
+                          "true ball: pose [m], twist.linear [m/s], twist.angular = spin [rad/s], `field`")
+SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts", "plant",
+                     "place the ball: pose.position [m], twist.linear [m/s], twist.angular spin [rad/s]")
+SIM_EVENTS = Topic("/sim/events", String, QOS_STATE, "plant", "tools, demo",
+                   "human-readable simulator events: kicks, contacts, lockstep stalls and resumes")
+
+# ------------------------------------------------------------- per-robot topics
+CMD_VEL = Topic("cmd_vel", Twist, QOS_COMMAND, "catcher / AI", "velocity_controller",
+                "desired velocity in `base_link`: linear.x/y [m/s], angular.z [rad/s]")
+WHEEL_STATES = Topic("wheel_states", JointState, QOS_CONTROL, "plant (motor sensors)",
+                     "velocity_controller, motor_boards",
+                     "per wheel: velocity = wheel speed [rad/s], effort = measured motor current [A]; "
+                     "stamp = sensor tick")
+WHEEL_SETPOINTS = Topic("wheel_setpoints", JointState, QOS_CONTROL, "velocity_controller", "motor_boards",
+                        "per wheel: velocity = wheel-speed setpoint [rad/s]; stamp = answered tick")
+MOTOR_DUTY = Topic("motor_duty", JointState, QOS_CONTROL, "motor_boards", "plant",
+                   "per wheel: effort = PWM duty in [-1, 1]; stamp = answered tick")
+MOTOR_STATUS = Topic("motor_status", Float64MultiArray, QOS_STATE, "motor_boards", "tools, demo",
+                     "rows = wheels, columns = [avg_current_a, pwm_limit, saturated, limit_active]")
+KICK = Topic("kick", Float64, QOS_COMMAND, "catcher / AI / scenario", "plant",
+             "kick now with this ball speed [m/s] if the ball is at the kicker")
+BALL_DETECTED = Topic("ball_detected", Bool, QOS_STATE, "plant (light barrier)", "catcher, tools",
+                      "light barrier across the dribbler: ball present")
+VISION_POSE = Topic("vision_pose", PoseStamped, QOS_SENSOR, "plant (vision)", "ball_predictor",
+                    "robot pose in `field` [m, rad]; stamp = capture time; noisy, delayed, with dropouts")
+ODOM = Topic("odom", Odometry, QOS_STATE, "ball_predictor (tracker)", "catcher",
+             "filtered robot pose and velocity in `field`, child frame `robot_<id>/base_link`")
+CATCH_TIME = Topic("catch_time", Float64, QOS_STATE, "ball_predictor", "catcher",
+                   f"seconds from the ball state's stamp until this robot can first catch the ball; "
+                   f"{CATCH_TIME_NEVER:g} = never (ball leaves the field first)")
+CATCH_POINT = Topic("catch_point", PointStamped, QOS_STATE, "ball_predictor", "catcher",
+                    "where the robot centre should be at the catch [m], `field`")
+GROUND_TRUTH_ODOM = Topic("ground_truth/odom", Odometry, QOS_STATE, "plant", "tests, tools only",
+                          "true robot pose and velocity in `field`")
+GROUND_TRUTH_MOTORS = Topic("ground_truth/motors", Float64MultiArray, QOS_STATE, "plant", "tests, tools only",
+                            "rows = wheels, columns = [current_a, winding_temperature_c, wheel_speed_radps]")
+SIM_SET_STATE = Topic("sim/set_state", Odometry, QOS_COMMAND, "scenario scripts", "plant",
+                      "place the robot: pose [m, rad] and twist [m/s, rad/s] in `field`")
+
+TOPICS: tuple[Topic, ...] = (
+    CLOCK, VISION_BALL, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
+    BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, SIM_SET_BALL, SIM_EVENTS,
+    CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED,
+    VISION_POSE, ODOM, CATCH_TIME, CATCH_POINT, GROUND_TRUTH_ODOM, GROUND_TRUTH_MOTORS, SIM_SET_STATE,
+)
+
+MOTOR_STATUS_COLUMNS = ("avg_current_a", "pwm_limit", "saturated", "limit_active")
+GROUND_TRUTH_MOTOR_COLUMNS = ("current_a", "winding_temperature_c", "wheel_speed_radps")
+BALL_MODEL_PARAM_LABELS = ("a_slide_mps2", "a_roll_mps2", "c_switch")
+
+
+def topic_table_markdown() -> str:
+    """The README's topic table, generated from TOPICS (a test keeps the README in sync)."""
+    rows = [
+        "| topic | type | QoS | publisher → subscribers | units, frame, meaning |",
+        "|---|---|---|---|---|",
+    ]
+    for t in TOPICS:
+        name = t.name if not t.per_robot else f"/robot_<id>/{t.name}"
+        rows.append(
+            f"| `{name}` | `{t.type_name}` | {QOS_NAMES[id(t.qos)]} | {t.publisher} → {t.subscribers} "
+            f"| {t.units} |"
+        )
+    return "\n".join(rows)

@@ -1,0 +1,250 @@
+"""Message <-> core conversions: the only place that knows both ROS messages and numpy.
+
+Every ``*_from_msg`` returns plain floats / numpy arrays and raises ``ConversionError``
+(a ValueError) with a message naming the field when a value is non-finite, out of range,
+or an array has the wrong length. Every ``*_msg`` builder refuses non-finite input too,
+so a node cannot publish NaN by accident.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, PointStamped, Pose, PoseStamped, Quaternion, Twist
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
+
+from erforce_interfaces.contract import FIELD_FRAME
+
+#: Largest magnitude accepted for any position [m], speed [m/s] or rate [rad/s] on the wire.
+#: Far beyond anything physical on an SSL field; it keeps "huge" values out of the cores.
+MAX_ABS_VALUE = 1.0e3
+
+
+class ConversionError(ValueError):
+    """A message that the cores must not see (non-finite, absurd, or mis-shaped)."""
+
+
+def _finite(name: str, value: float, limit: float = MAX_ABS_VALUE) -> float:
+    v = float(value)
+    if not math.isfinite(v):
+        raise ConversionError(f"{name} is not finite ({v!r})")
+    if abs(v) > limit:
+        raise ConversionError(f"{name} = {v!r} exceeds the accepted magnitude {limit:g}")
+    return v
+
+
+def _finite_array(name: str, values: Sequence[float], length: int | None, limit: float) -> np.ndarray:
+    arr = np.asarray(values, dtype=float)
+    if arr.ndim != 1:
+        raise ConversionError(f"{name} must be a flat array")
+    if length is not None and arr.size != length:
+        raise ConversionError(f"{name} has {arr.size} entries, expected {length}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        raise ConversionError(f"{name}[{int(np.argmax(bad))}] is not finite")
+    if arr.size and np.max(np.abs(arr)) > limit:
+        raise ConversionError(f"{name} has a value beyond the accepted magnitude {limit:g}")
+    return arr
+
+
+# ----------------------------------------------------------------------- time
+def stamp_to_seconds(stamp: Time) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def stamp_to_nanoseconds(stamp: Time) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def seconds_to_stamp(t_s: float) -> Time:
+    ns = round(_finite("stamp", t_s, limit=4.0e9) * 1e9)
+    if ns < 0:
+        raise ConversionError(f"stamp must not be negative ({t_s!r})")
+    return nanoseconds_to_stamp(ns)
+
+
+def nanoseconds_to_stamp(ns: int) -> Time:
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+# --------------------------------------------------------------------- angles
+def yaw_from_quaternion(q: Quaternion) -> float:
+    w, x, y, z = (_finite(f"orientation.{n}", v, 2.0) for n, v in zip("wxyz", (q.w, q.x, q.y, q.z), strict=True))
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    if norm < 0.5:
+        raise ConversionError("orientation is not a unit quaternion")
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def quaternion_from_yaw(yaw_rad: float) -> Quaternion:
+    half = 0.5 * _finite("yaw", yaw_rad, 1.0e6)
+    return Quaternion(x=0.0, y=0.0, z=math.sin(half), w=math.cos(half))
+
+
+# ---------------------------------------------------------------- positions
+def point_from_msg(msg: PointStamped) -> tuple[float, np.ndarray]:
+    """(stamp [s], xy [m]) of a PointStamped in the field frame."""
+    xy = np.array([_finite("point.x", msg.point.x), _finite("point.y", msg.point.y)])
+    return stamp_to_seconds(msg.header.stamp), xy
+
+
+def point_msg(t_s: float, xy: Sequence[float], frame_id: str = FIELD_FRAME) -> PointStamped:
+    msg = PointStamped()
+    msg.header.stamp = seconds_to_stamp(t_s)
+    msg.header.frame_id = frame_id
+    msg.point = Point(x=_finite("x", xy[0]), y=_finite("y", xy[1]), z=0.0)
+    return msg
+
+
+def pose2d_from_msg(msg: PoseStamped) -> tuple[float, np.ndarray]:
+    """(stamp [s], [x, y, yaw]) of a planar PoseStamped."""
+    p = msg.pose.position
+    pose = np.array([_finite("position.x", p.x), _finite("position.y", p.y), yaw_from_quaternion(msg.pose.orientation)])
+    return stamp_to_seconds(msg.header.stamp), pose
+
+
+def pose2d_msg(t_s: float, pose: Sequence[float], frame_id: str = FIELD_FRAME) -> PoseStamped:
+    msg = PoseStamped()
+    msg.header.stamp = seconds_to_stamp(t_s)
+    msg.header.frame_id = frame_id
+    msg.pose = Pose(position=Point(x=_finite("x", pose[0]), y=_finite("y", pose[1]), z=0.0),
+                    orientation=quaternion_from_yaw(pose[2]))
+    return msg
+
+
+# -------------------------------------------------------------------- twists
+def twist_from_msg(msg: Twist, max_linear_mps: float = MAX_ABS_VALUE,
+                   max_angular_radps: float = MAX_ABS_VALUE) -> np.ndarray:
+    """[vx, vy, wz] of a planar Twist; non-planar components must be zero or absent."""
+    vx = _finite("linear.x", msg.linear.x, max_linear_mps)
+    vy = _finite("linear.y", msg.linear.y, max_linear_mps)
+    wz = _finite("angular.z", msg.angular.z, max_angular_radps)
+    for name, v in (("linear.z", msg.linear.z), ("angular.x", msg.angular.x), ("angular.y", msg.angular.y)):
+        _finite(name, v)
+    return np.array([vx, vy, wz])
+
+
+def twist_msg(twist: Sequence[float]) -> Twist:
+    msg = Twist()
+    msg.linear.x = _finite("vx", twist[0])
+    msg.linear.y = _finite("vy", twist[1])
+    msg.angular.z = _finite("wz", twist[2])
+    return msg
+
+
+# ---------------------------------------------------------------- odometry
+def odometry_msg(t_s: float, pose: Sequence[float], velocity: Sequence[float], child_frame_id: str = "",
+                 frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
+                 position_variance_m2: float | None = None) -> Odometry:
+    """Planar odometry: pose [x, y, yaw], velocity [vx, vy, wz] in the field frame.
+
+    ``spin`` (a ball's angular velocity [wx, wy, wz]) replaces twist.angular when given.
+    """
+    msg = Odometry()
+    msg.header.stamp = seconds_to_stamp(t_s)
+    msg.header.frame_id = frame_id
+    msg.child_frame_id = child_frame_id
+    msg.pose.pose = pose2d_msg(t_s, pose).pose
+    msg.twist.twist.linear.x = _finite("vx", velocity[0])
+    msg.twist.twist.linear.y = _finite("vy", velocity[1])
+    if spin is not None:
+        msg.twist.twist.angular.x = _finite("spin.x", spin[0], 1.0e5)
+        msg.twist.twist.angular.y = _finite("spin.y", spin[1], 1.0e5)
+        msg.twist.twist.angular.z = _finite("spin.z", spin[2], 1.0e5)
+    else:
+        msg.twist.twist.angular.z = _finite("wz", velocity[2])
+    if position_variance_m2 is not None:
+        var = _finite("position variance", position_variance_m2)
+        cov = [0.0] * 36
+        cov[0] = cov[7] = var
+        msg.pose.covariance = cov
+    return msg
+
+
+def odometry_from_msg(msg: Odometry) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """(stamp [s], pose [x, y, yaw], velocity [vx, vy, wz], angular [wx, wy, wz])."""
+    p = msg.pose.pose.position
+    pose = np.array([_finite("pose.position.x", p.x), _finite("pose.position.y", p.y),
+                     yaw_from_quaternion(msg.pose.pose.orientation)])
+    lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
+    angular = np.array([_finite("twist.angular.x", ang.x, 1.0e5), _finite("twist.angular.y", ang.y, 1.0e5),
+                        _finite("twist.angular.z", ang.z, 1.0e5)])
+    velocity = np.array([_finite("twist.linear.x", lin.x), _finite("twist.linear.y", lin.y), angular[2]])
+    return stamp_to_seconds(msg.header.stamp), pose, velocity, angular
+
+
+# ------------------------------------------------------------ joint arrays
+def joint_state_msg(t_ns: int, names: Sequence[str], *, velocity: Sequence[float] | None = None,
+                    effort: Sequence[float] | None = None) -> JointState:
+    msg = JointState()
+    msg.header.stamp = nanoseconds_to_stamp(int(t_ns))
+    msg.name = list(names)
+    if velocity is not None:
+        msg.velocity = _finite_array("velocity", velocity, len(names), MAX_ABS_VALUE).tolist()
+    if effort is not None:
+        msg.effort = _finite_array("effort", effort, len(names), MAX_ABS_VALUE).tolist()
+    return msg
+
+
+def joint_state_from_msg(msg: JointState, num_joints: int, field: str,
+                         limit: float = MAX_ABS_VALUE) -> tuple[int, np.ndarray]:
+    """(stamp [ns], values) of the ``velocity`` or ``effort`` field, checked for length and finiteness.
+
+    When names are given they must be ``wheel_0..wheel_{n-1}`` in order, so a re-ordered
+    or foreign message cannot be applied to the wrong wheel.
+    """
+    if field not in ("velocity", "effort", "position"):
+        raise ValueError(f"unknown JointState field {field!r}")
+    if msg.name and list(msg.name) != [f"wheel_{i}" for i in range(num_joints)]:
+        raise ConversionError(f"joint names {list(msg.name)} are not wheel_0..wheel_{num_joints - 1}")
+    values = _finite_array(field, getattr(msg, field), num_joints, limit)
+    return stamp_to_nanoseconds(msg.header.stamp), values
+
+
+def wheel_states_from_msg(msg: JointState, num_wheels: int) -> tuple[int, np.ndarray, np.ndarray]:
+    """(stamp [ns], wheel speeds [rad/s], motor currents [A]) of a ``wheel_states`` message."""
+    t_ns, speeds = joint_state_from_msg(msg, num_wheels, "velocity")
+    _, currents = joint_state_from_msg(msg, num_wheels, "effort")
+    return t_ns, speeds, currents
+
+
+# ------------------------------------------------------------ scalar & tables
+def float64_msg(value: float, limit: float = MAX_ABS_VALUE) -> Float64:
+    return Float64(data=_finite("data", value, limit))
+
+
+def float64_from_msg(msg: Float64, limit: float = MAX_ABS_VALUE) -> float:
+    return _finite("data", msg.data, limit)
+
+
+def table_msg(rows: np.ndarray, column_labels: Sequence[str], row_label: str = "rows") -> Float64MultiArray:
+    """A 2-D table (rows x labelled columns) as a Float64MultiArray with a self-describing layout.
+
+    The column dimension's label lists the column names separated by commas, so
+    ``erforce-topic echo`` output can be read without this module.
+    """
+    table = np.atleast_2d(np.asarray(rows, dtype=float))
+    if table.shape[1] != len(column_labels):
+        raise ConversionError(f"table has {table.shape[1]} columns, expected {len(column_labels)}")
+    _finite_array("table", table.ravel(), None, 1.0e9)
+    msg = Float64MultiArray()
+    n_rows, n_cols = table.shape
+    msg.layout.dim = [
+        MultiArrayDimension(label=row_label, size=n_rows, stride=n_rows * n_cols),
+        MultiArrayDimension(label=",".join(column_labels), size=n_cols, stride=n_cols),
+    ]
+    msg.data = table.ravel().tolist()
+    return msg
+
+
+def table_from_msg(msg: Float64MultiArray, column_labels: Sequence[str]) -> np.ndarray:
+    if len(msg.layout.dim) != 2 or msg.layout.dim[1].label != ",".join(column_labels):
+        raise ConversionError(f"expected a table with columns {','.join(column_labels)}")
+    n_rows, n_cols = msg.layout.dim[0].size, msg.layout.dim[1].size
+    data = _finite_array("data", msg.data, n_rows * n_cols, 1.0e9)
+    return data.reshape(n_rows, n_cols)

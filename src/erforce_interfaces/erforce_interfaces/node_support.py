@@ -1,0 +1,179 @@
+"""What every node shell of the stack shares: declared parameters with ranges, validation on
+change, throttled warnings, and the standard ``main()``.
+
+A node lists its parameters once as ``ParamSpec`` rows (name, default, range, description,
+ros2_controllers style). ``declare_params`` turns them into ROS parameters with descriptors
+and ranges, and installs one on-set callback that checks finiteness and range first, then
+asks the node to build its core configuration from the proposed values: if the core refuses
+(raises ValueError), the change is rejected with that reason and the old value stays.
+``params_markdown`` renders the same rows as the documentation table.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+ParamValue = bool | int | float | str | list
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One documented, range-checked node parameter."""
+
+    name: str
+    default: ParamValue
+    description: str
+    min: float | None = None
+    max: float | None = None
+    read_only: bool = False
+
+    def check(self, value: Any) -> str | None:
+        """Return why ``value`` is unacceptable, or None."""
+        values = value if isinstance(value, list | tuple) else [value]
+        for v in values:
+            if isinstance(v, float) and not math.isfinite(v):
+                return f"{self.name}: must be finite, got {v!r}"
+            if isinstance(v, int | float) and not isinstance(v, bool):
+                if self.min is not None and v < self.min:
+                    return f"{self.name}: {v!r} is below the minimum {self.min!r}"
+                if self.max is not None and v > self.max:
+                    return f"{self.name}: {v!r} is above the maximum {self.max!r}"
+        return None
+
+    def descriptor(self) -> ParameterDescriptor:
+        d = ParameterDescriptor(description=self.description, read_only=self.read_only)
+        if isinstance(self.default, bool) or (self.min is None and self.max is None):
+            return d
+        lo = -math.inf if self.min is None else self.min
+        hi = math.inf if self.max is None else self.max
+        if isinstance(self.default, int):
+            # rcl encodes "unbounded" integer ranges poorly; clamp to int64.
+            d.integer_range = [IntegerRange(from_value=int(max(lo, -(2**63))), to_value=int(min(hi, 2**63 - 1)))]
+        elif isinstance(self.default, float):
+            d.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
+        return d
+
+    def range_text(self) -> str:
+        if self.min is None and self.max is None:
+            return "—"
+        lo = "−∞" if self.min is None else f"{self.min:g}"
+        hi = "∞" if self.max is None else f"{self.max:g}"
+        return f"[{lo}, {hi}]"
+
+
+def declare_params(
+    node: Node,
+    specs: Sequence[ParamSpec],
+    build: Callable[[dict[str, Any]], Any] | None = None,
+    on_change: Callable[[Any], None] | None = None,
+) -> dict[str, Any]:
+    """Declare ``specs`` on ``node``; return the current values by name.
+
+    ``build(values)`` turns a complete name->value dict into the node's core
+    configuration and raises ValueError when the values are inconsistent. It runs
+    once at start (an invalid launch configuration is fatal: the node refuses to
+    start with the reason) and on every change (an invalid change is rejected and
+    the old value kept). ``on_change(built)`` receives the accepted configuration.
+    """
+    by_name = {s.name: s for s in specs}
+    for s in specs:
+        node.declare_parameter(s.name, s.default, s.descriptor())
+    values = {s.name: node.get_parameter(s.name).value for s in specs}
+    for s in specs:
+        reason = s.check(values[s.name])
+        if reason:
+            raise ValueError(f"invalid parameter {reason}")
+    if build is not None:
+        built = build(dict(values))
+        if on_change is not None:
+            on_change(built)
+
+    def _on_set(params: list[Parameter]) -> SetParametersResult:
+        proposed = dict(values)
+        for p in params:
+            spec = by_name.get(p.name)
+            if spec is None:
+                continue  # e.g. use_sim_time: not ours to judge
+            reason = spec.check(p.value)
+            if reason:
+                node.get_logger().warning(f"rejected parameter change: {reason}")
+                return SetParametersResult(successful=False, reason=reason)
+            proposed[p.name] = p.value
+        built_new = None
+        if build is not None:
+            try:
+                built_new = build(dict(proposed))
+            except (ValueError, TypeError) as exc:
+                node.get_logger().warning(f"rejected parameter change: {exc}")
+                return SetParametersResult(successful=False, reason=str(exc))
+        values.update(proposed)
+        if on_change is not None and built_new is not None:
+            on_change(built_new)
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(_on_set)
+    return values
+
+
+def params_markdown(specs: Iterable[ParamSpec]) -> str:
+    """The documentation table of a node's parameters."""
+    rows = ["| parameter | default | range | description |", "|---|---|---|---|"]
+    for s in specs:
+        rows.append(f"| `{s.name}` | `{s.default!r}` | {s.range_text()} | {s.description} |")
+    return "\n".join(rows)
+
+
+class ThrottledWarner:
+    """At most one warning per key per ``period_s`` of wall time; counts what it swallowed."""
+
+    def __init__(self, node: Node, period_s: float = 2.0) -> None:
+        self._logger = node.get_logger()
+        self._clock = rclpy.clock.Clock(clock_type=rclpy.clock.ClockType.STEADY_TIME)
+        self._period_ns = int(period_s * 1e9)
+        self._last_ns: dict[str, int] = {}
+        self.counts: dict[str, int] = {}
+
+    def warn(self, key: str, text: str) -> None:
+        self.counts[key] = self.counts.get(key, 0) + 1
+        now = self._clock.now().nanoseconds
+        last = self._last_ns.get(key)
+        if last is None or now - last >= self._period_ns:
+            self._last_ns[key] = now
+            n = self.counts[key]
+            self._logger.warning(f"{text} ({n} so far)" if n > 1 else text)
+
+
+def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
+    """Standard node main: init, spin on a SingleThreadedExecutor, clean shutdown.
+
+    Returns the process exit code: 0 after Ctrl-C or external shutdown, 1 when the
+    node refused to start (for example an invalid parameter file).
+    """
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = node_factory()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ValueError as exc:
+        # Invalid configuration at start-up: one clear line, no traceback.
+        rclpy.logging.get_logger("erforce").fatal(f"cannot start: {exc}")
+        code = 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code

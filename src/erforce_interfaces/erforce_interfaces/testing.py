@@ -1,0 +1,357 @@
+"""Test harness for integration tests over real DDS: isolated domains, node processes, probes.
+
+Use it as a pytest plugin (``pytest_plugins = ["erforce_interfaces.testing"]`` in a
+conftest.py) and take the ``ros_graph`` fixture::
+
+    def test_talker(ros_graph):
+        ros_graph.start_node("erforce_interfaces", "talker", params={"rate_hz": 50.0})
+        msg = ros_graph.wait_for_message("/chatter", String, timeout_s=10.0)
+
+Isolation: every ``RosGraph`` claims a DDS domain id nobody else on this machine holds
+(an exclusive ``flock`` on ``$TMPDIR/erforce-ros-domains/<id>.lock``, released when the
+graph closes or the process dies), and restricts discovery to localhost. Two test
+sessions, or two xdist workers, therefore never see each other's topics.
+
+Reaping: every child gets its own process group and an environment tag. ``close()``
+sends SIGINT, then SIGTERM, then SIGKILL with timeouts, and finally kills any process
+still carrying the tag (grandchildren of a launcher killed too early included).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import uuid
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+DOMAIN_ID_RANGE = range(100, 230)  # fastrtps port formula allows up to 232
+_TAG_VAR = "ERFORCE_TEST_TAG"
+
+
+class DomainLease:
+    """An exclusively held DDS domain id (a flock, so a crashed holder frees it)."""
+
+    def __init__(self, lock_dir: Path | None = None) -> None:
+        lock_dir = lock_dir or Path(tempfile.gettempdir()) / "erforce-ros-domains"
+        lock_dir.mkdir(parents=True, exist_ok=True)
+        start = (os.getpid() * 7) % len(DOMAIN_ID_RANGE)  # spread concurrent claimants
+        for k in range(len(DOMAIN_ID_RANGE)):
+            domain_id = DOMAIN_ID_RANGE[(start + k) % len(DOMAIN_ID_RANGE)]
+            fd = os.open(lock_dir / f"{domain_id}.lock", os.O_CREAT | os.O_RDWR, 0o666)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                continue
+            self.domain_id = domain_id
+            self._fd: int | None = fd
+            return
+        raise RuntimeError(f"no free ROS domain id in {DOMAIN_ID_RANGE}")
+
+    def release(self) -> None:
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+
+def _executable_path(name: str) -> str:
+    """Console scripts live next to the interpreter in a venv."""
+    candidate = Path(sys.executable).with_name(name)
+    if candidate.exists():
+        return str(candidate)
+    found = shutil.which(name)
+    if not found:
+        raise FileNotFoundError(f"executable {name!r} not found next to {sys.executable} or on PATH")
+    return found
+
+
+@dataclass
+class NodeProcess:
+    """A child process with its combined output in a log file."""
+
+    name: str
+    popen: subprocess.Popen
+    log_path: Path
+    cmd: list[str] = field(default_factory=list)
+
+    @property
+    def pid(self) -> int:
+        return self.popen.pid
+
+    def output(self) -> str:
+        return self.log_path.read_text(errors="replace") if self.log_path.exists() else ""
+
+    def alive(self) -> bool:
+        return self.popen.poll() is None
+
+    def wait_for_output(self, pattern: str, timeout_s: float = 10.0) -> re.Match:
+        deadline = time.monotonic() + timeout_s
+        regex = re.compile(pattern)
+        while True:
+            m = regex.search(self.output())
+            if m:
+                return m
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{self.name}: no output matching {pattern!r} within {timeout_s} s; "
+                                   f"output so far:\n{self.output()[-3000:]}")
+            if not self.alive() and not regex.search(self.output()):
+                raise RuntimeError(f"{self.name} exited with {self.popen.returncode} before printing "
+                                   f"{pattern!r}; output:\n{self.output()[-3000:]}")
+            time.sleep(0.02)
+
+    def wait_exit(self, timeout_s: float) -> int:
+        return self.popen.wait(timeout=timeout_s)
+
+    def signal(self, sig: int) -> None:
+        if self.alive():
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.popen.pid, sig)
+
+
+def stop_process(popen: subprocess.Popen, sigint_timeout_s: float = 5.0, sigterm_timeout_s: float = 3.0) -> None:
+    """SIGINT, then SIGTERM, then SIGKILL (the process group), waiting after each."""
+    for sig, wait_s in ((signal.SIGINT, sigint_timeout_s), (signal.SIGTERM, sigterm_timeout_s)):
+        if popen.poll() is not None:
+            return
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(popen.pid, sig)
+        try:
+            popen.wait(timeout=wait_s)
+            return
+        except subprocess.TimeoutExpired:
+            pass
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(popen.pid, signal.SIGKILL)
+    with contextlib.suppress(ProcessLookupError):
+        popen.kill()
+    popen.wait(timeout=5.0)
+
+
+def _pids_with_tag(tag: str) -> list[int]:
+    needle = f"{_TAG_VAR}={tag}".encode()
+    pids = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if needle in (entry / "environ").read_bytes().split(b"\0"):
+                pids.append(int(entry.name))
+        except OSError:
+            continue
+    return pids
+
+
+class RosGraph:
+    """Node processes plus an in-process probe node, all in one private DDS domain."""
+
+    def __init__(self, workdir: Path | None = None, lease: DomainLease | None = None) -> None:
+        self.lease = lease or DomainLease()
+        self.domain_id = self.lease.domain_id
+        self.workdir = Path(workdir or tempfile.mkdtemp(prefix="erforce-graph-"))
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.tag = uuid.uuid4().hex
+        self.env = dict(os.environ)
+        self.env.update({
+            "ROS_DOMAIN_ID": str(self.domain_id),
+            "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+            "PYTHONUNBUFFERED": "1",
+            "RCUTILS_COLORIZED_OUTPUT": "0",
+            _TAG_VAR: self.tag,
+        })
+        self.env.pop("ROS_STATIC_PEERS", None)
+        self.processes: list[NodeProcess] = []
+        self._probe = None
+        self._counter = 0
+
+    # ------------------------------------------------------------ processes
+    def start(self, cmd: Sequence[str], name: str | None = None, env: dict[str, str] | None = None) -> NodeProcess:
+        self._counter += 1
+        name = name or f"{Path(cmd[0]).name}-{self._counter}"
+        log_path = self.workdir / f"{self._counter:02d}-{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}.log"
+        full_env = dict(self.env)
+        full_env.update(env or {})
+        log = open(log_path, "wb")
+        popen = subprocess.Popen(list(cmd), stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                 env=full_env, start_new_session=True)
+        log.close()
+        proc = NodeProcess(name=name, popen=popen, log_path=log_path, cmd=list(cmd))
+        self.processes.append(proc)
+        return proc
+
+    def start_node(self, package: str, executable: str, *, name: str | None = None,
+                   namespace: str | None = None, params: dict[str, Any] | None = None,
+                   params_file: str | Path | None = None, remaps: dict[str, str] | None = None,
+                   use_sim_time: bool = False, extra_args: Sequence[str] = ()) -> NodeProcess:
+        """Start one node the way ``ros2 run`` / ``ros2 launch`` would."""
+        del package  # executables are console scripts of the package's distribution
+        cmd = [_executable_path(executable), *extra_args, "--ros-args"]
+        if name:
+            cmd += ["-r", f"__node:={name}"]
+        if namespace:
+            cmd += ["-r", f"__ns:=/{namespace.strip('/')}"]
+        all_params = dict(params or {})
+        if use_sim_time:
+            all_params["use_sim_time"] = True
+        if all_params:
+            path = self.workdir / f"params-{self._counter + 1}-{name or executable}.yaml"
+            path.write_text(yaml.safe_dump({"/**": {"ros__parameters": all_params}}))
+            cmd += ["--params-file", str(path)]
+        if params_file:
+            cmd += ["--params-file", str(params_file)]
+        for src, dst in (remaps or {}).items():
+            cmd += ["-r", f"{src}:={dst}"]
+        return self.start(cmd, name=name or executable)
+
+    def start_launch(self, launch_file: str | Path, **launch_args: Any) -> NodeProcess:
+        cmd = [_executable_path("erforce-launch"), str(launch_file)]
+        cmd += [f"{k}:={v}" for k, v in launch_args.items()]
+        return self.start(cmd, name=f"launch-{Path(launch_file).stem}")
+
+    # ---------------------------------------------------------------- probe
+    @property
+    def probe(self):
+        """An rclpy node in this graph's domain, in its own context (created on first use)."""
+        if self._probe is None:
+            self._probe = _Probe(self.domain_id)
+        return self._probe
+
+    def wait_for_message(self, topic: str, msg_type: type, timeout_s: float = 10.0, qos=None,
+                         predicate: Callable[[Any], bool] | None = None):
+        return self.probe.wait_for_message(topic, msg_type, timeout_s, qos, predicate)
+
+    def subscribe(self, topic: str, msg_type: type, qos=None) -> list:
+        return self.probe.subscribe(topic, msg_type, qos)
+
+    def spin_until(self, condition: Callable[[], bool], timeout_s: float, what: str = "condition") -> None:
+        self.probe.spin_until(condition, timeout_s, what)
+
+    # -------------------------------------------------------------- teardown
+    def close(self) -> None:
+        for proc in reversed(self.processes):
+            stop_process(proc.popen)
+        for pid in _pids_with_tag(self.tag):
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.kill(pid, signal.SIGKILL)
+        if self._probe is not None:
+            self._probe.close()
+            self._probe = None
+        self.lease.release()
+
+    def __enter__(self) -> RosGraph:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class _Probe:
+    def __init__(self, domain_id: int) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node(f"test_probe_{os.getpid()}", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._publishers: dict[tuple[str, type], Any] = {}
+
+    def spin_until(self, condition: Callable[[], bool], timeout_s: float, what: str = "condition") -> None:
+        deadline = time.monotonic() + timeout_s
+        while not condition():
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{what} not reached within {timeout_s} s")
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def spin_for(self, duration_s: float) -> None:
+        deadline = time.monotonic() + duration_s
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=min(0.02, max(0.0, deadline - time.monotonic())))
+
+    def subscribe(self, topic: str, msg_type: type, qos=None) -> list:
+        from erforce_interfaces.contract import QOS_STATE
+
+        received: list = []
+        self.node.create_subscription(msg_type, topic, received.append, qos or QOS_STATE)
+        return received
+
+    def wait_for_message(self, topic: str, msg_type: type, timeout_s: float, qos=None,
+                         predicate: Callable[[Any], bool] | None = None):
+        received = self.subscribe(topic, msg_type, qos)
+        match: list = []
+
+        def found() -> bool:
+            while received:
+                msg = received.pop(0)
+                if predicate is None or predicate(msg):
+                    match.append(msg)
+                    return True
+            return False
+
+        self.spin_until(found, timeout_s, f"a message on {topic}")
+        return match[0]
+
+    def publisher(self, topic: str, msg_type: type, qos=None):
+        from erforce_interfaces.contract import QOS_COMMAND
+
+        key = (topic, msg_type)
+        if key not in self._publishers:
+            self._publishers[key] = self.node.create_publisher(msg_type, topic, qos or QOS_COMMAND)
+        return self._publishers[key]
+
+    def wait_for_subscribers(self, topic: str, msg_type: type, count: int = 1, timeout_s: float = 10.0,
+                             qos=None) -> Any:
+        pub = self.publisher(topic, msg_type, qos)
+        self.spin_until(lambda: pub.get_subscription_count() >= count, timeout_s, f"{count} subscriber(s) on {topic}")
+        return pub
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+# ------------------------------------------------------------- pytest plugin
+try:
+    import pytest
+except ImportError:  # pragma: no cover - the harness is also usable without pytest
+    pytest = None
+
+if pytest is not None:
+
+    @pytest.fixture
+    def ros_graph(tmp_path: Path, request) -> Iterator[RosGraph]:
+        """A private DDS domain with its node processes; logs are shown when the test fails."""
+        graph = RosGraph(workdir=tmp_path / "graph")
+        try:
+            yield graph
+        finally:
+            graph.close()
+            report = getattr(request.node, "rep_call", None)
+            if report is not None and report.failed:
+                for proc in graph.processes:
+                    sys.stderr.write(f"\n----- output of {proc.name} ({' '.join(proc.cmd)}) -----\n")
+                    sys.stderr.write(proc.output()[-4000:])
+
+    @pytest.hookimpl(tryfirst=True, hookwrapper=True)
+    def pytest_runtest_makereport(item, call):
+        outcome = yield
+        rep = outcome.get_result()
+        setattr(item, "rep_" + rep.when, rep)

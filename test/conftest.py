@@ -1,0 +1,3 @@
+"""Shared pytest setup: the DDS test harness (isolated domain per graph, reaped children)."""
+
+pytest_plugins = ["erforce_interfaces.testing"]

@@ -1,0 +1,66 @@
+"""The harness itself: messages cross DDS between processes, domains are isolated, children are reaped."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+from std_msgs.msg import String
+
+from erforce_interfaces.contract import QOS_COMMAND
+from erforce_interfaces.testing import DomainLease, RosGraph
+
+pytestmark = pytest.mark.integration
+
+
+def test_message_crosses_dds_from_a_node_process(ros_graph):
+    ros_graph.start_node("erforce_interfaces", "talker", params={"rate_hz": 20.0, "text": "ping"})
+    msg = ros_graph.wait_for_message("/chatter", String, timeout_s=15.0, qos=QOS_COMMAND)
+    assert msg.data.startswith("ping ")
+
+
+def test_two_concurrent_domains_do_not_cross_talk(tmp_path):
+    with RosGraph(tmp_path / "a") as a, RosGraph(tmp_path / "b") as b:
+        assert a.domain_id != b.domain_id
+        a.start_node("erforce_interfaces", "talker", params={"rate_hz": 50.0, "text": "from-a"})
+        b.start_node("erforce_interfaces", "talker", params={"rate_hz": 50.0, "text": "from-b"})
+        got_a = a.subscribe("/chatter", String, QOS_COMMAND)
+        got_b = b.subscribe("/chatter", String, QOS_COMMAND)
+        a.probe.spin_until(lambda: len(got_a) >= 20, 15.0, "20 messages in domain a")
+        b.probe.spin_until(lambda: len(got_b) >= 20, 15.0, "20 messages in domain b")
+        a.probe.spin_for(0.5)
+        b.probe.spin_for(0.5)
+        assert {m.data.split()[0] for m in got_a} == {"from-a"}
+        assert {m.data.split()[0] for m in got_b} == {"from-b"}
+
+
+def test_domain_leases_are_exclusive_across_processes(tmp_path):
+    """A second test session (another process) never gets a domain this one holds."""
+    held = [DomainLease(tmp_path) for _ in range(3)]
+    try:
+        code = textwrap.dedent(f"""
+            from pathlib import Path
+            from erforce_interfaces.testing import DomainLease
+            print(DomainLease(Path({str(tmp_path)!r})).domain_id)
+        """)
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=30)
+        other = int(out.stdout.strip())
+        assert other not in {lease.domain_id for lease in held}
+        assert len({lease.domain_id for lease in held}) == 3
+    finally:
+        for lease in held:
+            lease.release()
+
+
+def test_close_reaps_children_even_when_they_ignore_sigint(tmp_path):
+    stubborn = (
+        "import signal, time; signal.signal(signal.SIGINT, signal.SIG_IGN); print('up', flush=True); time.sleep(600)"
+    )
+    graph = RosGraph(tmp_path / "g")
+    proc = graph.start([sys.executable, "-c", stubborn], name="stubborn")
+    proc.wait_for_output("up", timeout_s=10.0)
+    graph.close()
+    assert proc.popen.poll() is not None
+    with pytest.raises(ProcessLookupError):
+        os.kill(proc.pid, 0)

@@ -1,0 +1,91 @@
+"""Declared parameters: descriptors, ranges, validation on change, the core's veto."""
+
+import math
+
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.parameter import Parameter
+
+from erforce_interfaces.node_support import ParamSpec, ThrottledWarner, declare_params, params_markdown
+from erforce_interfaces.testing import DomainLease
+
+SPECS = (
+    ParamSpec("gain", 2.0, "a gain", min=0.0, max=10.0),
+    ParamSpec("limit", 1.0, "a limit", min=0.0),
+    ParamSpec("count", 3, "an integer", min=1, max=8),
+    ParamSpec("mode", "linear", "a mode"),
+)
+
+
+@pytest.fixture
+def node():
+    lease = DomainLease()
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=lease.domain_id)
+    n = rclpy.create_node("param_test", context=ctx)
+    yield n
+    n.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+    lease.release()
+
+
+def build(values):
+    if values["mode"] not in ("linear", "inverse_model"):
+        raise ValueError(f"mode must be linear or inverse_model, got {values['mode']!r}")
+    if values["limit"] <= 0.0:
+        raise ValueError("limit must be > 0")
+    return dict(values)
+
+
+def test_declared_with_descriptor_ranges(node):
+    seen = []
+    values = declare_params(node, SPECS, build, seen.append)
+    assert values["gain"] == 2.0 and seen and seen[-1]["mode"] == "linear"
+    desc = node.describe_parameter("gain")
+    assert desc.description == "a gain"
+    assert (desc.floating_point_range[0].from_value, desc.floating_point_range[0].to_value) == (0.0, 10.0)
+    assert node.describe_parameter("count").integer_range[0].to_value == 8
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [("gain", -1.0), ("gain", 11.0), ("gain", math.nan), ("gain", math.inf), ("count", 0), ("limit", 0.0),
+     ("mode", "quadratic")],
+)
+def test_bad_values_are_rejected_and_the_old_value_kept(node, name, value):
+    seen = []
+    declare_params(node, SPECS, build, seen.append)
+    before = node.get_parameter(name).value
+    result = node.set_parameters([Parameter(name, value=value)])[0]
+    assert not result.successful and result.reason
+    assert node.get_parameter(name).value == before
+    assert len(seen) == 1  # only the start-up configuration was applied
+
+
+def test_good_change_reaches_the_core(node):
+    seen = []
+    declare_params(node, SPECS, build, seen.append)
+    assert node.set_parameters([Parameter("gain", value=4.5)])[0].successful
+    assert seen[-1]["gain"] == 4.5
+    assert node.get_parameter("gain").value == 4.5
+
+
+def test_invalid_start_configuration_refuses_to_start(node):
+    node.declare_parameter("mode", "quadratic")  # as if set from a params file
+    with pytest.raises(Exception):  # noqa: B017 - rclpy raises ParameterAlreadyDeclared or ValueError
+        declare_params(node, SPECS, build)
+
+
+def test_markdown_table_lists_every_parameter_with_its_range():
+    text = params_markdown(SPECS)
+    assert "| `gain` | `2.0` | [0, 10] | a gain |" in text
+    assert "| `limit` | `1.0` | [0, ∞] |" in text
+    assert "| `mode` | `'linear'` | — |" in text
+
+
+def test_throttled_warner_counts_everything_but_logs_once_per_period(node):
+    warner = ThrottledWarner(node, period_s=60.0)
+    for _ in range(5):
+        warner.warn("nan", "NaN twist rejected")
+    assert warner.counts["nan"] == 5
