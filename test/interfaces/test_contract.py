@@ -133,6 +133,7 @@ def test_odometry_round_trip_with_spin():
 
 def test_robot_config_validation_and_yaml(tmp_path):
     cfg = RobotConfig.from_yaml(Path(__file__).resolve().parents[2] / "src/erforce_interfaces/config/robot.yaml")
+    assert cfg == RobotConfig()  # the shipped file and the documented defaults agree
     assert cfg.num_wheels == 4 and cfg.wheel_names[-1] == "wheel_3"
     assert math.degrees(cfg.wheel_angles_rad[0]) == pytest.approx(60.0)
     with pytest.raises(ValueError, match="at least 3"):

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from erforce_interfaces.contract import topic_table_markdown
-from erforce_interfaces.node_support import params_markdown
+from erforce_interfaces.node_support import params_markdown, robot_param_specs
 
 # Node modules and the name of their ParamSpec tuple; a module not written yet is skipped.
 NODE_PARAMS = (
@@ -27,7 +27,10 @@ NODE_PARAMS = (
 
 
 def _node_params_section() -> str:
-    parts = []
+    parts = [
+        "#### `robot.*` (every node that needs the robot description; `config/robot.yaml` sets them all)\n\n"
+        + params_markdown(robot_param_specs(), skip_robot=False)
+    ]
     for node, module, attr in NODE_PARAMS:
         try:
             specs = getattr(importlib.import_module(module), attr)
@@ -45,9 +48,9 @@ SECTIONS: dict[str, Callable[[], str]] = {
 
 def render(text: str) -> str:
     for name, make in SECTIONS.items():
-        pattern = re.compile(rf"(<!-- {name}:begin -->\n).*?(\n<!-- {name}:end -->)", re.S)
+        pattern = re.compile(rf"(<!-- {name}:begin -->\n).*?(<!-- {name}:end -->)", re.S)
         if pattern.search(text):
-            text = pattern.sub(lambda m, make=make: m.group(1) + make() + m.group(2), text)
+            text = pattern.sub(lambda m, make=make: m.group(1) + make() + "\n" + m.group(2), text)
     return text
 
 

@@ -22,6 +22,8 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from erforce_interfaces.robot_config import RobotConfig
+
 ParamValue = bool | int | float | str | list
 
 
@@ -124,10 +126,33 @@ def declare_params(
     return values
 
 
-def params_markdown(specs: Iterable[ParamSpec]) -> str:
-    """The documentation table of a node's parameters."""
+ROBOT_PREFIX = "robot."
+
+
+def robot_param_specs() -> tuple[ParamSpec, ...]:
+    """``robot.*`` parameters of every node that needs the robot description (config/robot.yaml)."""
+    defaults = RobotConfig().to_dict()
+    docs = RobotConfig.field_docs()
+    specs = []
+    for name, default in defaults.items():
+        lower = None if name == "ambient_temperature_c" or name == "wheel_angles_rad" else 0.0
+        upper = 1.0 if name == "gear_efficiency" else None
+        specs.append(ParamSpec(ROBOT_PREFIX + name, default, docs[name], min=lower, max=upper))
+    return tuple(specs)
+
+
+def robot_config_from_params(values: dict[str, Any]) -> RobotConfig:
+    """The RobotConfig of a node's ``robot.*`` parameter values (raises ValueError when invalid)."""
+    return RobotConfig.from_dict({k[len(ROBOT_PREFIX):]: v for k, v in values.items() if k.startswith(ROBOT_PREFIX)})
+
+
+def params_markdown(specs: Iterable[ParamSpec], skip_robot: bool = True) -> str:
+    """The documentation table of a node's parameters (``robot.*`` is documented once, separately)."""
     rows = ["| parameter | default | range | description |", "|---|---|---|---|"]
     for s in specs:
+        if skip_robot and s.name.startswith(ROBOT_PREFIX):
+            continue
+
         rows.append(f"| `{s.name}` | `{s.default!r}` | {s.range_text()} | {s.description} |")
     return "\n".join(rows)
 

@@ -27,36 +27,43 @@ def _default_wheel_angles() -> tuple[float, ...]:
     return tuple(math.radians(a) for a in (60.0, 135.0, 225.0, 300.0))
 
 
+def _doc(default, doc: str):
+    """A dataclass field with its documentation (the node parameter descriptions come from it)."""
+    if callable(default):
+        return field(default_factory=default, metadata={"doc": doc})
+    return field(default=default, metadata={"doc": doc})
+
+
 @dataclass(frozen=True)
 class RobotConfig:
     """Geometry, inertia and drive train of one omni-wheel SSL robot."""
 
-    wheel_angles_rad: tuple[float, ...] = field(default_factory=_default_wheel_angles)
-    wheel_radius_m: float = 0.0275
-    wheel_distance_m: float = 0.081  # robot centre to wheel contact point
-    robot_radius_m: float = 0.09
-    mass_kg: float = 2.6
-    inertia_kgm2: float = 0.011  # about z through the centre of mass
-    dribbler_offset_m: float = 0.0815  # robot centre to ball centre when the ball touches the dribbler
-    dribbler_width_m: float = 0.07  # usable width of the dribbler / kicker plate
-    traction_mu: float = 0.8  # wheel-carpet friction coefficient
-
+    wheel_angles_rad: tuple[float, ...] = _doc(
+        _default_wheel_angles, "wheel positions in base_link, CCW from +x [rad]; 3 or more")
+    wheel_radius_m: float = _doc(0.0275, "wheel radius [m]")
+    wheel_distance_m: float = _doc(0.081, "robot centre to wheel contact point [m]")
+    robot_radius_m: float = _doc(0.09, "robot body radius [m]")
+    mass_kg: float = _doc(2.6, "robot mass [kg]")
+    inertia_kgm2: float = _doc(0.011, "robot inertia about z through the centre of mass [kg m^2]")
+    dribbler_offset_m: float = _doc(0.0815, "robot centre to ball centre when the ball touches the dribbler [m]")
+    dribbler_width_m: float = _doc(0.07, "usable width of the dribbler and kicker plate [m]")
+    traction_mu: float = _doc(0.8, "wheel-carpet friction coefficient")
     # Drive train: Maxon EC-45 flat 50 W class motor behind a spur gear.
-    gear_ratio: float = 3.6  # motor revolutions per wheel revolution
-    gear_efficiency: float = 0.9
-    motor_resistance_ohm: float = 0.94
-    motor_inductance_h: float = 0.36e-3
-    motor_torque_constant_nm_per_a: float = 0.036  # equals the back-EMF constant in V*s/rad
-    motor_rotor_inertia_kgm2: float = 1.35e-5
-    wheel_inertia_kgm2: float = 2.0e-5  # wheel with rollers, about its axle
-    motor_viscous_friction_nms: float = 2.0e-6  # at the motor shaft
-    motor_coulomb_friction_nm: float = 1.5e-3  # at the motor shaft
-    supply_voltage_v: float = 24.0
-    winding_thermal_time_constant_s: float = 29.0
-    winding_thermal_resistance_k_per_w: float = 1.9  # winding to housing
-    winding_max_temperature_c: float = 125.0
-    ambient_temperature_c: float = 25.0
-    continuous_current_limit_a: float = 1.3  # the paper's average-current limit
+    gear_ratio: float = _doc(3.6, "motor revolutions per wheel revolution")
+    gear_efficiency: float = _doc(0.9, "gear efficiency, (0, 1]")
+    motor_resistance_ohm: float = _doc(0.94, "winding resistance [ohm]")
+    motor_inductance_h: float = _doc(0.36e-3, "winding inductance [H]")
+    motor_torque_constant_nm_per_a: float = _doc(0.036, "torque constant [N m/A] = back-EMF constant [V s/rad]")
+    motor_rotor_inertia_kgm2: float = _doc(1.35e-5, "rotor inertia [kg m^2]")
+    wheel_inertia_kgm2: float = _doc(2.0e-5, "wheel with rollers, about its axle [kg m^2]")
+    motor_viscous_friction_nms: float = _doc(2.0e-6, "viscous friction at the motor shaft [N m s]")
+    motor_coulomb_friction_nm: float = _doc(1.5e-3, "Coulomb friction at the motor shaft [N m]")
+    supply_voltage_v: float = _doc(24.0, "battery voltage at the motor bridge [V]")
+    winding_thermal_time_constant_s: float = _doc(29.0, "winding thermal time constant [s]")
+    winding_thermal_resistance_k_per_w: float = _doc(1.9, "winding to housing thermal resistance [K/W]")
+    winding_max_temperature_c: float = _doc(125.0, "maximum winding temperature [degC]")
+    ambient_temperature_c: float = _doc(25.0, "ambient temperature [degC]")
+    continuous_current_limit_a: float = _doc(1.3, "the paper's limit on the ~10 s average motor current [A]")
 
     def __post_init__(self) -> None:
         angles = tuple(float(a) for a in self.wheel_angles_rad)
@@ -101,9 +108,17 @@ class RobotConfig:
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> RobotConfig:
-        """Load ``robot:`` from a YAML file (the format of config/robot.yaml)."""
+        """Load a ROS 2 parameter file's ``robot.*`` parameters (the format of config/robot.yaml)."""
         data = yaml.safe_load(Path(path).read_text()) or {}
-        return cls.from_dict(data.get("robot", data))
+        for scope in data.values():  # "/**", or a node name
+            params = (scope or {}).get("ros__parameters", {})
+            if "robot" in params:
+                return cls.from_dict(params["robot"])
+        raise ValueError(f"{path}: no robot parameters (expected <node>: ros__parameters: robot: ...)")
+
+    @classmethod
+    def field_docs(cls) -> dict[str, str]:
+        return {f.name: f.metadata.get("doc", "") for f in fields(cls)}
 
 
 @dataclass(frozen=True)

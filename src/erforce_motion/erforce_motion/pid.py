@@ -171,11 +171,14 @@ class Pid:
             e = np.sign(e) * np.maximum(np.abs(e) - self._deadband, 0.0)
         return e
 
-    def step(self, setpoint, measurement, dt_s: float, feedforward=0.0, output_min=None, output_max=None):
+    def step(self, setpoint, measurement, dt_s: float, feedforward=0.0, output_min=None, output_max=None,
+             hold_integrator=False):
         """One control period; returns the saturated output (new array, length n).
 
         output_min/output_max override the configured output limits for this step only
         (e.g. a limit that moves with the thermal PWM limit); anti-windup uses them.
+        hold_integrator (bool or per-channel mask) freezes the integrator, e.g. while a
+        downstream loop is saturated (conditional integration from outside).
         Raises ValueError for dt_s <= 0 or non-finite, and for non-finite inputs/outputs;
         the state is left unchanged then.
         """
@@ -202,10 +205,15 @@ class Pid:
         u = np.minimum(np.maximum(v, lo), hi)
 
         i_used = self._integrator
-        if self._use_i:
+        if self._use_i and hold_integrator is not True:
             inc = (self._ki * dt_s) * e
+            if hold_integrator is not False:
+                inc = np.where(hold_integrator, 0.0, inc)
             if self._back_calc:
-                new_i = self._integrator + inc + (self._kt * dt_s) * (u - v)
+                track = (self._kt * dt_s) * (u - v)
+                if hold_integrator is not False:
+                    track = np.where(hold_integrator, 0.0, track)
+                new_i = self._integrator + inc + track
             else:
                 blocked = ((v > hi) & (inc > 0.0)) | ((v < lo) & (inc < 0.0))
                 new_i = self._integrator + np.where(blocked, 0.0, inc)

@@ -111,43 +111,59 @@ class BallBody:
     def slip_mps(self) -> tuple[float, float]:
         return self.vx - self.radius * self.wy, self.vy + self.radius * self.wx
 
-    def substep(self, h: float) -> None:
-        if self.at_rest:
-            return
+    def advance(self, m: int, h: float) -> None:
+        """Advance m substeps of h seconds (sliding substep by substep, rolling in closed form)."""
         r = self.radius
-        vx, vy = self.vx, self.vy
-        sx = vx - r * self.wy
-        sy = vy + r * self.wx
-        slip = math.hypot(sx, sy)
-        rest_h = h
-        if slip > 1e-12:
-            dslip_max = self.a_slide * self.slip_gain * h
+        a_slide, a_roll = self.a_slide, self.a_roll
+        dslip_max = a_slide * self.slip_gain * h
+        mr_over_i = self.mass * r / self.inertia
+        for j in range(m):
+            if self.at_rest:
+                return
+            vx, vy = self.vx, self.vy
+            sx = vx - r * self.wy
+            sy = vy + r * self.wx
+            slip = math.hypot(sx, sy)
+            if slip <= 1e-12:
+                self._roll((m - j) * h)
+                return
             frac = 1.0 if slip > dslip_max else slip / dslip_max
-            dv = self.a_slide * h * frac / slip  # friction impulse per unit mass, per unit slip
+            dv = a_slide * h * frac / slip  # friction impulse per unit mass and unit slip
             jx, jy = -dv * sx, -dv * sy
             vx += jx
             vy += jy
-            mr_over_i = self.mass * r / self.inertia
             self.wx += mr_over_i * jy
             self.wy -= mr_over_i * jx
-            rest_h = h * (1.0 - frac)
-        if rest_h > 0.0:
-            # Rolling for the rest of the substep; the spin follows the velocity exactly.
-            speed = math.hypot(vx, vy)
-            dec = self.a_roll * rest_h
-            if speed <= dec:
-                vx = vy = 0.0
+            x0, y0, vx0, vy0 = self.x, self.y, self.vx, self.vy
+            self.vx, self.vy = vx, vy
+            if frac < 1.0:  # slip vanished inside this substep: roll for the rest of it
+                self.x += 0.5 * (vx0 + vx) * h * frac
+                self.y += 0.5 * (vy0 + vy) * h * frac
+                self._roll(h * (1.0 - frac))
             else:
-                scale = (speed - dec) / speed
-                vx *= scale
-                vy *= scale
-            self.wx = -vy / r
-            self.wy = vx / r
-        self.x += 0.5 * (self.vx + vx) * h
-        self.y += 0.5 * (self.vy + vy) * h
-        self.vx, self.vy = vx, vy
-        if vx == 0.0 and vy == 0.0 and self.wx == 0.0 and self.wy == 0.0:
+                self.x = x0 + 0.5 * (vx0 + vx) * h
+                self.y = y0 + 0.5 * (vy0 + vy) * h
+
+    def _roll(self, duration_s: float) -> None:
+        """Pure rolling for duration_s: constant deceleration a_roll along -v, spin follows v, exact stop."""
+        vx, vy = self.vx, self.vy
+        speed = math.hypot(vx, vy)
+        dec = self.a_roll * duration_s
+        if speed <= dec:
+            if speed > 0.0:
+                travel = 0.5 * speed * speed / self.a_roll
+                self.x += vx / speed * travel
+                self.y += vy / speed * travel
+            self.vx = self.vy = self.wx = self.wy = 0.0
             self.at_rest = True
+            return
+        scale = (speed - dec) / speed
+        mean = 0.5 * (1.0 + scale) * duration_s
+        self.x += vx * mean
+        self.y += vy * mean
+        self.vx, self.vy = vx * scale, vy * scale
+        self.wx = -self.vy / self.radius
+        self.wy = self.vx / self.radius
 
     def kinetic_energy_j(self) -> float:
         return 0.5 * self.mass * (self.vx**2 + self.vy**2) + 0.5 * self.inertia * (

@@ -173,8 +173,12 @@ class RobotPlant:
             self.wheel_w[i] = 0.0 if self.locked else vc / k.wheel_radius_m
             self.current[i] = 0.0
 
-    def substep(self, h: float, decay: float, mean_factor: float, c_eff: float) -> None:
-        """Advance motors, wheels and body by h seconds (semi-implicit Euler for the mechanics)."""
+    def advance(self, m: int, h: float, decay: float, mean_factor: float, c_eff: float) -> None:
+        """Advance motors, wheels and body by m substeps of h seconds (semi-implicit Euler mechanics).
+
+        The whole loop runs on local floats; World calls it with m = 1 while contacts are possible
+        and with whole contact-free segments otherwise.
+        """
         k = self.k
         r = k.wheel_radius_m
         dist = k.wheel_distance_m
@@ -189,58 +193,65 @@ class RobotPlant:
         weps = k.coulomb_smoothing_radps
         fmax = k.traction_force_max_n
         h_over_j = h / k.wheel_inertia_total_kgm2
-        ct, st = self.cos_th, self.sin_th
-        vx, vy, w = self.vx, self.vy, self.w
-        u = ct * vx + st * vy
-        v = -st * vx + ct * vy
+        hm = h / k.mass_kg
+        hi = h / k.inertia_kgm2
         lifted = self.lifted
         locked = self.locked
-        wheel_w, current, duty, i2 = self.wheel_w, self.current, self.duty, self.i2_integral
-        fu = fv = tz = 0.0
-        for i, (sa, ca) in enumerate(zip(k.sin_a, k.cos_a, strict=True)):
-            ww = wheel_w[i]
+        wheels = list(zip(k.sin_a, k.cos_a, range(k.num_wheels), strict=True))
+        wheel_w, current, i2 = self.wheel_w, self.current, self.i2_integral
+        drive = [v_over_r * d for d in self.duty]  # steady-state current at standstill
+        x, y, th = self.x, self.y, self.theta
+        ct, st = self.cos_th, self.sin_th
+        vx, vy, w = self.vx, self.vy, self.w
+        two_pi = 2.0 * math.pi
+        for _ in range(m):
+            u = ct * vx + st * vy
+            v = -st * vx + ct * vy
+            fu = fv = tz = 0.0
+            for sa, ca, i in wheels:
+                ww = wheel_w[i]
+                if lifted:
+                    f = 0.0
+                else:
+                    f = c_eff * (r * ww + sa * u - ca * v - dist * w)
+                    if f > fmax:
+                        f = fmax
+                    elif f < -fmax:
+                        f = -fmax
+                    fu -= sa * f
+                    fv += ca * f
+                    tz += f
+                wm = gear * ww
+                iss = drive[i] - ke_over_r * wm
+                di = current[i] - iss
+                imean = iss + di * mean_factor
+                current[i] = iss + di * decay
+                i2[i] += imean * imean * h
+                if locked:
+                    wheel_w[i] = 0.0
+                    continue
+                tsh = kt * imean - bv * wm - tc * wm / (abs(wm) + weps)
+                tw = gear * tsh * (eta if tsh * wm >= 0.0 else inv_eta)
+                wheel_w[i] = ww + (tw - r * f) * h_over_j
             if lifted:
-                f = 0.0
-            else:
-                f = c_eff * (r * ww - (-sa * u + ca * v + dist * w))
-                if f > fmax:
-                    f = fmax
-                elif f < -fmax:
-                    f = -fmax
-                fu -= sa * f
-                fv += ca * f
-                tz += dist * f
-            wm = gear * ww
-            iss = v_over_r * duty[i] - ke_over_r * wm
-            di = current[i] - iss
-            imean = iss + di * mean_factor
-            current[i] = iss + di * decay
-            i2[i] += imean * imean * h
-            if locked:
-                wheel_w[i] = 0.0
+                vx = vy = w = 0.0
                 continue
-            tsh = kt * imean - bv * wm - tc * wm / (abs(wm) + weps)
-            tw = gear * tsh * (eta if tsh * wm >= 0.0 else inv_eta)
-            wheel_w[i] = ww + (tw - r * f) * h_over_j
-        if lifted:
-            self.vx = self.vy = self.w = 0.0
-            return
-        hm = h / k.mass_kg
-        vx += (ct * fu - st * fv) * hm
-        vy += (st * fu + ct * fv) * hm
-        w += tz * h / k.inertia_kgm2
+            vx += (ct * fu - st * fv) * hm
+            vy += (st * fu + ct * fv) * hm
+            w += dist * tz * hi
+            x += vx * h
+            y += vy * h
+            if w != 0.0:
+                th += w * h
+                if th > math.pi:
+                    th -= two_pi
+                elif th <= -math.pi:
+                    th += two_pi
+                ct = math.cos(th)
+                st = math.sin(th)
+        self.x, self.y, self.theta = x, y, th
+        self.cos_th, self.sin_th = ct, st
         self.vx, self.vy, self.w = vx, vy, w
-        self.x += vx * h
-        self.y += vy * h
-        if w != 0.0:
-            th = self.theta + w * h
-            if th > math.pi:
-                th -= 2.0 * math.pi
-            elif th <= -math.pi:
-                th += 2.0 * math.pi
-            self.theta = th
-            self.cos_th = math.cos(th)
-            self.sin_th = math.sin(th)
 
     def update_temperature(self, dt_s: float) -> None:
         """Exact first-order thermal step with the mean Joule power of the last dt_s."""

@@ -1,0 +1,284 @@
+"""Two-phase ball model (ER-Force ETDP 2016, Sec. 5.1, 5.2 and 5.4).
+
+A kicked ball first *slides* with the large deceleration ``a_slide`` until its speed has
+dropped to ``v_switch = c_switch * v_shoot``; from then on it *rolls* with the small
+deceleration ``a_roll`` until it stops (paper Fig. 5). The ball moves on a straight line.
+
+Everything below is derived from these kinematics, not transcribed from the paper's
+Algorithm 1 (which uses ``v_current`` instead of ``v_switch`` in the roll-phase quadratic
+and writes the decelerations in m/s). With ``s0`` the current speed and
+``v_sw = min(s0, c_switch * max(v_shoot, s0))``::
+
+    t_switch = (s0 - v_sw) / |a_slide|          (0 when the ball already rolls)
+    t_stop   = t_switch + v_sw / |a_roll|
+    d(t)     = s0*ts + a_slide*ts^2/2 + v_sw*tr + a_roll*tr^2/2
+               with ts = min(t, t_switch), tr = min(t, t_stop) - ts
+
+``BallTrajectory`` is an immutable value (the ball's future) with closed-form queries
+(``position_at`` is the paper's ballAtTime, ``time_to_distance`` is ballRollTime). It holds
+one ball (position shape ``(2,)``) or a batch (shape ``(..., 2)``); queries broadcast as an
+outer product: a query array of shape ``S`` returns shape ``batch + S`` (plus a trailing 2 for
+vectors), so many balls x many times need no Python loop.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from erforce_interfaces.robot_config import FieldConfig
+
+__all__ = ["BallModelParams", "BallPhase", "BallTrajectory"]
+
+
+class BallPhase(enum.IntEnum):
+    SLIDING = 0
+    ROLLING = 1
+    STOPPED = 2
+
+
+@dataclass(frozen=True)
+class BallModelParams:
+    """Decelerations (m/s^2, negative) and the slide-to-roll speed ratio (paper Sec. 5.2)."""
+
+    a_slide_mps2: float = -2.5
+    a_roll_mps2: float = -0.3
+    c_switch: float = 0.6
+
+    def __post_init__(self) -> None:
+        for name in ("a_slide_mps2", "a_roll_mps2", "c_switch"):
+            value = getattr(self, name)
+            if not isinstance(value, int | float | np.floating | np.integer) or not math.isfinite(value):
+                raise ValueError(f"{name}: must be a finite number, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        if self.a_slide_mps2 >= 0.0 or self.a_roll_mps2 >= 0.0:
+            raise ValueError(
+                f"decelerations must be < 0, got a_slide={self.a_slide_mps2}, a_roll={self.a_roll_mps2}"
+            )
+        if abs(self.a_slide_mps2) <= abs(self.a_roll_mps2):
+            raise ValueError(
+                f"|a_slide| must exceed |a_roll|, got a_slide={self.a_slide_mps2}, a_roll={self.a_roll_mps2}"
+            )
+        if not 0.0 < self.c_switch <= 1.0:
+            raise ValueError(f"c_switch: must be in (0, 1], got {self.c_switch}")
+
+
+def _as_finite(name: str, value, *, allow_inf: bool = False) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if np.isnan(arr).any() or (not allow_inf and np.isinf(arr).any()):
+        raise ValueError(f"{name}: must be finite, got {value!r}")
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class BallTrajectory:
+    """The future of one ball (or a batch of balls) under the two-phase model.
+
+    ``v_shoot_mps`` is the tracked kick speed; when it is below the current speed it is raised
+    to the current speed (the ball cannot be faster than it was kicked). When the current speed
+    is at most ``c_switch * v_shoot`` the ball already rolls.
+    """
+
+    position_m: np.ndarray
+    velocity_mps: np.ndarray
+    v_shoot_mps: np.ndarray | float
+    params: BallModelParams = field(default_factory=BallModelParams)
+
+    def __post_init__(self) -> None:
+        pos = _as_finite("position_m", self.position_m)
+        vel = _as_finite("velocity_mps", self.velocity_mps)
+        if pos.ndim < 1 or pos.shape[-1] != 2:
+            raise ValueError(f"position_m: last axis must have length 2, got shape {pos.shape}")
+        if vel.shape != pos.shape:
+            raise ValueError(f"velocity_mps: shape {vel.shape} must equal position shape {pos.shape}")
+        batch = pos.shape[:-1]
+        v_shoot = _as_finite("v_shoot_mps", self.v_shoot_mps)
+        if (v_shoot < 0.0).any():
+            raise ValueError(f"v_shoot_mps: must be >= 0, got {self.v_shoot_mps!r}")
+        try:
+            v_shoot = np.broadcast_to(v_shoot, batch)
+        except ValueError:
+            raise ValueError(f"v_shoot_mps: shape {v_shoot.shape} does not fit batch {batch}") from None
+        if not isinstance(self.params, BallModelParams):
+            raise ValueError(f"params: expected BallModelParams, got {type(self.params).__name__}")
+
+        p = self.params
+        speed = np.hypot(vel[..., 0], vel[..., 1])
+        if not np.isfinite(speed).all():
+            raise ValueError("velocity_mps: speed overflows")
+        moving = speed > 0.0
+        safe = np.where(moving, speed, 1.0)
+        direction = np.where(moving[..., None], vel / safe[..., None], 0.0)
+        v_shoot = np.maximum(v_shoot, speed)
+        v_switch = np.minimum(speed, p.c_switch * v_shoot)
+        t_switch = (speed - v_switch) / -p.a_slide_mps2
+        d_switch = speed * t_switch + 0.5 * p.a_slide_mps2 * t_switch**2
+        t_roll = v_switch / -p.a_roll_mps2
+        t_stop = t_switch + t_roll
+        d_stop = d_switch + v_switch * t_roll + 0.5 * p.a_roll_mps2 * t_roll**2
+
+        def frozen(a):
+            a = np.array(a, dtype=float)
+            a.setflags(write=False)
+            return a
+
+        for name, value in (
+            ("position_m", pos),
+            ("velocity_mps", vel),
+            ("v_shoot_mps", v_shoot),
+            ("speed_mps", speed),
+            ("direction", direction),
+            ("v_switch_mps", v_switch),
+            ("switch_time_s", t_switch),
+            ("switch_distance_m", d_switch),
+            ("stop_time_s", t_stop),
+            ("stop_distance_m", d_stop),
+        ):
+            object.__setattr__(self, name, frozen(value))
+
+    # -- properties -------------------------------------------------------------------------------
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        return self.position_m.shape[:-1]
+
+    @property
+    def stop_point(self) -> np.ndarray:
+        return self.position_m + self.direction * self.stop_distance_m[..., None]
+
+    @property
+    def switch_point(self) -> np.ndarray:
+        return self.position_m + self.direction * self.switch_distance_m[..., None]
+
+    def __getitem__(self, index) -> BallTrajectory:
+        """One ball (or a sub-batch) of a batch."""
+        if not self.batch_shape:
+            raise IndexError("a single-ball trajectory cannot be indexed")
+        return BallTrajectory(
+            self.position_m[index], self.velocity_mps[index], self.v_shoot_mps[index], self.params
+        )
+
+    # -- broadcasting helpers ----------------------------------------------------------------------
+    def _per_ball(self, value: np.ndarray, query: np.ndarray) -> np.ndarray:
+        """Reshape a per-ball quantity so it broadcasts as an outer product with ``query``."""
+        return value.reshape(value.shape + (1,) * query.ndim)
+
+    def _time(self, t_s) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        if np.isnan(t).any():
+            raise ValueError("t_s: must not be NaN")
+        if (t < 0.0).any():
+            raise ValueError("t_s: must be >= 0 (the trajectory starts now)")
+        return t
+
+    def _split_time(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        t_switch = self._per_ball(self.switch_time_s, t)
+        t_stop = self._per_ball(self.stop_time_s, t)
+        t_clipped = np.minimum(t, t_stop)
+        t_slide = np.minimum(t_clipped, t_switch)
+        return t_slide, t_clipped - t_slide
+
+    # -- queries ----------------------------------------------------------------------------------
+    def distance_at(self, t_s) -> np.ndarray:
+        """Distance travelled along the line of motion after ``t_s`` seconds (monotone)."""
+        t = self._time(t_s)
+        ts, tr = self._split_time(t)
+        p = self.params
+        s0 = self._per_ball(self.speed_mps, t)
+        v_sw = self._per_ball(self.v_switch_mps, t)
+        return ts * (s0 + 0.5 * p.a_slide_mps2 * ts) + tr * (v_sw + 0.5 * p.a_roll_mps2 * tr)
+
+    def speed_at(self, t_s) -> np.ndarray:
+        t = self._time(t_s)
+        ts, tr = self._split_time(t)
+        p = self.params
+        s0 = self._per_ball(self.speed_mps, t)
+        return np.maximum(s0 + p.a_slide_mps2 * ts + p.a_roll_mps2 * tr, 0.0)
+
+    def position_at(self, t_s) -> np.ndarray:
+        """Ball position (paper: ballAtTime); shape ``batch + shape(t_s) + (2,)``."""
+        t = np.asarray(t_s, dtype=float)
+        d = self.distance_at(t)
+        pos = self.position_m.reshape(self.batch_shape + (1,) * t.ndim + (2,))
+        u = self.direction.reshape(pos.shape)
+        return pos + u * d[..., None]
+
+    def velocity_at(self, t_s) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        s = self.speed_at(t)
+        u = self.direction.reshape(self.batch_shape + (1,) * t.ndim + (2,))
+        return u * s[..., None]
+
+    def phase_at(self, t_s) -> np.ndarray:
+        """``BallPhase`` codes (int array): sliding before the switch, stopped from t_stop on."""
+        t = self._time(t_s)
+        t_switch = self._per_ball(self.switch_time_s, t)
+        t_stop = self._per_ball(self.stop_time_s, t)
+        return np.where(
+            t >= t_stop, BallPhase.STOPPED, np.where(t < t_switch, BallPhase.SLIDING, BallPhase.ROLLING)
+        ).astype(np.int8)
+
+    def time_to_distance(self, d_m) -> np.ndarray:
+        """Time until the ball has travelled ``d_m`` (paper: ballRollTime); +inf if it stops short."""
+        d = _as_finite("d_m", d_m, allow_inf=True)
+        if (d < 0.0).any():
+            raise ValueError("d_m: must be >= 0")
+        p = self.params
+        s0 = self._per_ball(self.speed_mps, d)
+        v_sw = self._per_ball(self.v_switch_mps, d)
+        d_sw = self._per_ball(self.switch_distance_m, d)
+        d_stop = self._per_ball(self.stop_distance_m, d)
+        t_stop = self._per_ball(self.stop_time_s, d)
+        # A distance a rounding error beyond the stop distance still means "at the stop point".
+        tol = 1e-12 * (1.0 + d_stop)
+        beyond = d > d_stop + tol
+        d = np.minimum(d, d_stop)
+        d_slide = np.minimum(d, d_sw)
+        d_roll = d - d_slide
+        # Citardauq form 2d/(v + sqrt(v^2 + 2ad)) of the quadratic root: no cancellation.
+        den_s = s0 + np.sqrt(np.maximum(s0 * s0 + 2.0 * p.a_slide_mps2 * d_slide, 0.0))
+        den_r = v_sw + np.sqrt(np.maximum(v_sw * v_sw + 2.0 * p.a_roll_mps2 * d_roll, 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(d_slide > 0.0, 2.0 * d_slide / den_s, 0.0)
+            t = t + np.where(d_roll > 0.0, 2.0 * d_roll / den_r, 0.0)
+        t = np.minimum(t, t_stop)
+        return np.where(beyond, np.inf, t)
+
+    def time_to_leave_field(self, field_config: FieldConfig, margin_m: float = 0.0) -> np.ndarray:
+        """First time the ball crosses the field lines (extended by ``margin_m``); +inf if it stops inside.
+
+        0 when the ball is already outside.
+        """
+        if not isinstance(field_config, FieldConfig):
+            raise ValueError(f"field_config: expected FieldConfig, got {type(field_config).__name__}")
+        if not math.isfinite(margin_m):
+            raise ValueError(f"margin_m: must be finite, got {margin_m!r}")
+        half = np.array([field_config.half_length_m + margin_m, field_config.half_width_m + margin_m])
+        if (half <= 0.0).any():
+            raise ValueError(f"margin_m: {margin_m} leaves no field")
+        pos, u = self.position_m, self.direction
+        with np.errstate(divide="ignore", invalid="ignore"):
+            exit_dist = np.where(u > 0.0, (half - pos) / u, np.where(u < 0.0, (-half - pos) / u, np.inf))
+        d_exit = np.maximum(exit_dist.min(axis=-1), 0.0)
+        outside = (np.abs(pos) > half).any(axis=-1)
+        d_exit = np.where(outside, 0.0, d_exit)
+        p = self.params
+        s0, v_sw, d_sw = self.speed_mps, self.v_switch_mps, self.switch_distance_m
+        beyond = d_exit > self.stop_distance_m
+        d = np.minimum(d_exit, self.stop_distance_m)
+        d_slide = np.minimum(d, d_sw)
+        d_roll = d - d_slide
+        den_s = s0 + np.sqrt(np.maximum(s0 * s0 + 2.0 * p.a_slide_mps2 * d_slide, 0.0))
+        den_r = v_sw + np.sqrt(np.maximum(v_sw * v_sw + 2.0 * p.a_roll_mps2 * d_roll, 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(d_slide > 0.0, 2.0 * d_slide / den_s, 0.0)
+            t = t + np.where(d_roll > 0.0, 2.0 * d_roll / den_r, 0.0)
+        t = np.where(beyond & ~outside, np.inf, t)
+        return t
+
+    def advanced(self, dt_s: float) -> BallTrajectory:
+        """The same ball ``dt_s`` seconds later (same kick speed, so the phases stay consistent)."""
+        pos = self.position_at(dt_s)
+        vel = self.velocity_at(dt_s)
+        return BallTrajectory(pos, vel, self.v_shoot_mps, self.params)

@@ -1,0 +1,85 @@
+"""The receive skill of the paper's Fig. 6: drive to the predicted catch point, face the
+requested direction, arrive in time.
+
+Pure functions, no rclpy: the catcher node feeds them the filtered robot state and the
+ball predictor's catch point and time, and publishes the returned Twist (robot frame).
+
+The translational command follows the same motion model as robotTimeToPos: a
+time-optimal approach with bounded acceleration and speed that arrives at rest,
+``v = min(v_max, sqrt(2 a_max d))`` towards the target. Orientation is a saturated
+proportional law on the heading error. The velocity controller on the robot then
+shapes and tracks it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class CatcherConfig:
+    a_max_mps2: float = 3.0
+    v_max_mps: float = 2.0
+    w_max_radps: float = 6.0
+    heading_gain_per_s: float = 8.0
+    arrive_tolerance_m: float = 0.005  # inside this the robot holds still
+    # The approach aims for rest at the target, but the velocity loop lags; braking a
+    # little earlier than the ideal profile avoids overshooting the catch point.
+    braking_margin: float = 0.85
+
+    def __post_init__(self) -> None:
+        for name in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s", "arrive_tolerance_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        if not (0.0 < self.braking_margin <= 1.0):
+            raise ValueError(f"braking_margin must be in (0, 1], got {self.braking_margin!r}")
+
+
+def wrap_angle(angle_rad: float) -> float:
+    """Angle in [-pi, pi)."""
+    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def field_to_robot(velocity_field: np.ndarray, yaw_rad: float) -> np.ndarray:
+    """Rotate a field-frame planar vector into the robot frame (base_link)."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    vx, vy = float(velocity_field[0]), float(velocity_field[1])
+    return np.array([c * vx + s * vy, -s * vx + c * vy])
+
+
+def approach_velocity(position: np.ndarray, target: np.ndarray, cfg: CatcherConfig) -> np.ndarray:
+    """Field-frame velocity that reaches ``target`` at rest as fast as the limits allow."""
+    delta = np.asarray(target, dtype=float) - np.asarray(position, dtype=float)
+    distance = float(np.hypot(delta[0], delta[1]))
+    if distance <= cfg.arrive_tolerance_m:
+        return np.zeros(2)
+    speed = min(cfg.v_max_mps, math.sqrt(2.0 * cfg.a_max_mps2 * cfg.braking_margin * distance))
+    return delta / distance * speed
+
+
+def catch_twist(pose: np.ndarray, target: np.ndarray, facing_rad: float, cfg: CatcherConfig) -> np.ndarray:
+    """Twist [vx, vy, wz] in the robot frame that drives the robot centre to ``target``
+    while turning to ``facing_rad`` (the direction the dribbler should point)."""
+    pose = np.asarray(pose, dtype=float)
+    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+        raise ValueError(f"pose must be 3 finite values [x, y, yaw], got {pose!r}")
+    target = np.asarray(target, dtype=float)
+    if target.shape != (2,) or not np.all(np.isfinite(target)) or not math.isfinite(facing_rad):
+        raise ValueError("target and facing must be finite")
+    v_field = approach_velocity(pose[:2], target, cfg)
+    v_robot = field_to_robot(v_field, pose[2])
+    heading_error = wrap_angle(facing_rad - pose[2])
+    wz = float(np.clip(cfg.heading_gain_per_s * heading_error, -cfg.w_max_radps, cfg.w_max_radps))
+    return np.array([v_robot[0], v_robot[1], wz])
+
+
+def facing_towards(from_xy: np.ndarray, to_xy: np.ndarray, fallback_rad: float = 0.0) -> float:
+    """Heading that points from ``from_xy`` to ``to_xy`` (fallback when they coincide)."""
+    d = np.asarray(to_xy, dtype=float) - np.asarray(from_xy, dtype=float)
+    if float(np.hypot(d[0], d[1])) < 1e-9:
+        return fallback_rad
+    return math.atan2(d[1], d[0])

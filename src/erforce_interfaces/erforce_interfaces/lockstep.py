@@ -1,0 +1,119 @@
+"""The lockstep protocol: the plant advances a tick only when every live motor board has answered it.
+
+The control loop over DDS, per robot and per tick k (period T, default 1 ms):
+
+    plant ──wheel_states(t_k)──► motor_boards ──motor_duty(t_k)──► plant     (critical path)
+          └─────────────────────► velocity_controller ──wheel_setpoints(t_k)──► motor_boards (used at k+1)
+
+The velocity controller's answer is used one tick later, like a main board whose
+setpoints reach the motor boards over a bus: the critical path is a single round trip,
+and the in-process runner reproduces the same one-tick delay, so both give the same
+trajectory for the same seed.
+
+``DutyGate`` is the plant's side: it pairs answers with the open tick, lets a robot that
+has no motor board (no publisher) pass, reports a peer that does not answer within a
+wall-clock timeout as stalled and stops waiting for it (its motors get zero duty, as a
+dead motor board leaves them), and reports it resumed when it answers again.
+``SetpointJoin`` is the motor board's side: it pairs sensor tick k with the setpoint of
+tick k-1. Both sides live here, next to the contract, because the protocol is part of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class DutyGate:
+    """Pairs motor-duty answers with the plant's open tick."""
+
+    num_robots: int
+    timeout_s: float = 1.0
+    tick_ns: int = -1
+    opened_at_s: float = 0.0
+    duties: dict[int, np.ndarray] = field(default_factory=dict)
+    stalled: set[int] = field(default_factory=set)
+    expected: set[int] = field(default_factory=set)
+
+    def open(self, tick_ns: int, now_s: float, peers_present: set[int]) -> None:
+        """Start waiting for tick ``tick_ns`` from every present, non-stalled peer."""
+        self.tick_ns = tick_ns
+        self.opened_at_s = now_s
+        self.duties = {}
+        self.expected = {r for r in peers_present if r not in self.stalled}
+
+    def offer(self, robot: int, stamp_ns: int, duty: np.ndarray) -> str | None:
+        """Take an answer; returns an event text when a stalled peer comes back."""
+        event = None
+        if robot in self.stalled and stamp_ns >= self.tick_ns:
+            self.stalled.discard(robot)
+            event = f"lockstep: robot_{robot} resumed at t={self.tick_ns * 1e-9:.3f} s"
+        if stamp_ns == self.tick_ns:
+            self.duties[robot] = duty
+            self.expected.add(robot)
+        return event
+
+    def ready(self) -> bool:
+        return self.expected.issubset(self.duties)
+
+    def missing(self) -> set[int]:
+        return self.expected - set(self.duties)
+
+    def check_stall(self, now_s: float) -> list[str]:
+        """Stop waiting for peers silent longer than the timeout; returns event texts."""
+        if now_s - self.opened_at_s < self.timeout_s:
+            return []
+        events = []
+        for robot in sorted(self.missing()):
+            self.stalled.add(robot)
+            self.expected.discard(robot)
+            events.append(
+                f"lockstep: robot_{robot} motor_boards stalled: no answer to t={self.tick_ns * 1e-9:.3f} s "
+                f"within {self.timeout_s:g} s; continuing with zero duty"
+            )
+        return events
+
+    def duty_for(self, robot: int, num_wheels: int) -> np.ndarray:
+        """The duty to apply for this tick: the answer, or zero for a silent or absent peer."""
+        duty = self.duties.get(robot)
+        return duty if duty is not None else np.zeros(num_wheels)
+
+
+@dataclass
+class SetpointJoin:
+    """Motor-board side of lockstep: tick k runs with the setpoint answered at tick k-1.
+
+    ``wait`` false (real-time pacing) never holds a tick back: the newest setpoint is used.
+    """
+
+    wait: bool = True
+    prev_sensor_ns: int | None = None
+    setpoints: dict[int, np.ndarray] = field(default_factory=dict)
+    newest_ns: int | None = None
+
+    def add_setpoint(self, stamp_ns: int, setpoint: np.ndarray) -> None:
+        self.setpoints[stamp_ns] = setpoint
+        if self.newest_ns is None or stamp_ns > self.newest_ns:
+            self.newest_ns = stamp_ns
+        # keep only what a pending tick can still ask for
+        for stale in [s for s in self.setpoints if s < stamp_ns - 1_000_000_000]:
+            del self.setpoints[stale]
+
+    def setpoint_for(self, sensor_ns: int, force: bool = False) -> tuple[bool, np.ndarray | None]:
+        """(ready, setpoint) for sensor tick ``sensor_ns``.
+
+        Not ready: the setpoint answered at the previous tick has not arrived; wait.
+        ``force`` (after a wall-clock timeout) takes the newest setpoint older than the
+        tick instead. A None setpoint means none is known yet: command zero speed.
+        """
+        want = self.prev_sensor_ns
+        if self.wait and not force and want is not None and want < sensor_ns:
+            sp = self.setpoints.get(want)
+            return (sp is not None), sp
+        older = [s for s in self.setpoints if s < sensor_ns]
+        return True, (self.setpoints[max(older)] if older else None)
+
+    def done(self, sensor_ns: int) -> None:
+        self.prev_sensor_ns = sensor_ns

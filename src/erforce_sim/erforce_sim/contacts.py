@@ -1,0 +1,255 @@
+"""Collisions: ball and robots against the field walls and each other (impulses with restitution
+and Coulomb friction, then a position projection out of penetration).
+
+Shapes: the ball is a circle; a robot is a circle of radius R cut by a flat front (the dribbler /
+kicker opening) at x = dribbler_offset - ball_radius in base_link; robots collide with each other
+and with walls as plain circles. Walls are the field boundary walls at +-(half length + boundary)
+and +-(half width + boundary); goals are not modelled as geometry.
+
+Every impulse uses the pre-contact relative velocity, a restitution e <= 1 on the normal part (0 for
+resting contact below 2 cm/s, so nothing jitters) and a tangential impulse cut at the sticking value
+and at mu * normal impulse, so a collision never adds kinetic energy. Tangential impulses at the ball
+act on its vertical spin wz (the contact is at the ball's equator). No rclpy import.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from erforce_sim.ball import BallBody
+from erforce_sim.drivetrain import RobotPlant
+
+RESTING_SPEED_MPS = 0.02  # below this approach speed a contact is treated as resting (e = 0)
+
+
+@dataclass(frozen=True)
+class ContactParams:
+    ball_wall_restitution: float = 0.6
+    ball_wall_friction: float = 0.3
+    ball_robot_restitution: float = 0.4
+    ball_robot_friction: float = 0.3
+    robot_wall_restitution: float = 0.2
+    robot_wall_friction: float = 0.3
+    robot_robot_restitution: float = 0.2
+    robot_robot_friction: float = 0.3
+
+    def __post_init__(self) -> None:
+        for name in self.__dataclass_fields__:
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"ContactParams.{name}: must be finite and >= 0, got {v!r}")
+            if name.endswith("restitution") and v > 1.0:
+                raise ValueError(f"ContactParams.{name}: must be <= 1, got {v!r}")
+
+
+@dataclass(frozen=True)
+class RobotShape:
+    """Robot outline in base_link: circle of radius_m with a flat front at x = front_x_m."""
+
+    radius_m: float
+    front_x_m: float
+
+    def __post_init__(self) -> None:
+        if not (0.0 < self.front_x_m < self.radius_m):
+            raise ValueError(
+                f"RobotShape: front face x ({self.front_x_m}) must lie inside the robot radius ({self.radius_m});"
+                " check dribbler_offset_m and the ball radius"
+            )
+
+    @property
+    def front_half_width_m(self) -> float:
+        return math.sqrt(self.radius_m**2 - self.front_x_m**2)
+
+    def closest_point(self, px: float, py: float) -> tuple[float, float, float, float, float]:
+        """Signed distance from (px, py) (base_link) to the outline.
+
+        Returns (distance, nx, ny, qx, qy): outward unit normal and the surface point; the distance is
+        negative inside the robot.
+        """
+        rad, fx = self.radius_m, self.front_x_m
+        hw = self.front_half_width_m
+        d = math.hypot(px, py)
+        if px <= fx and d <= rad:  # inside: leave through the nearer face
+            depth_front = fx - px
+            depth_round = rad - d
+            if depth_front <= depth_round or d < 1e-12:
+                return -depth_front, 1.0, 0.0, fx, py
+            nx, ny = px / d, py / d
+            return -depth_round, nx, ny, rad * nx, rad * ny
+        if px > fx and abs(py) <= hw:  # in front of the flat face
+            return px - fx, 1.0, 0.0, fx, py
+        if d > 1e-12 and rad * px / d <= fx:  # the round part is nearest
+            nx, ny = px / d, py / d
+            return d - rad, nx, ny, rad * nx, rad * ny
+        cy = hw if py > 0.0 else -hw  # a corner of the flat face
+        dx, dy = px - fx, py - cy
+        dist = math.hypot(dx, dy)
+        if dist < 1e-12:
+            return 0.0, 1.0, 0.0, fx, cy
+        return dist, dx / dist, dy / dist, fx, cy
+
+
+def _tangential_impulse(vt: float, k_t: float, jn: float, mu: float) -> float:
+    jt = -vt / k_t
+    lim = mu * jn
+    if jt > lim:
+        return lim
+    if jt < -lim:
+        return -lim
+    return jt
+
+
+def _restitution(vn: float, e: float) -> float:
+    return e if -vn > RESTING_SPEED_MPS else 0.0
+
+
+def ball_walls(ball: BallBody, half_x: float, half_y: float, p: ContactParams) -> bool:
+    """Ball against the four walls. Returns True when a contact was resolved."""
+    r = ball.radius
+    hit = False
+    for axis in (0, 1):
+        lim = (half_x if axis == 0 else half_y) - r
+        pos = ball.x if axis == 0 else ball.y
+        if -lim <= pos <= lim:
+            continue
+        sign = 1.0 if pos > lim else -1.0
+        nx, ny = (-sign, 0.0) if axis == 0 else (0.0, -sign)  # normal into the field
+        if axis == 0:
+            ball.x = sign * lim
+        else:
+            ball.y = sign * lim
+        hit = True
+        vn = ball.vx * nx + ball.vy * ny
+        if vn >= 0.0:
+            continue
+        inv_m = 1.0 / ball.mass
+        jn = -(1.0 + _restitution(vn, p.ball_wall_restitution)) * vn / inv_m
+        tx, ty = -ny, nx
+        # ball contact point is at -r n: its tangential velocity is v.t - r wz
+        vt = ball.vx * tx + ball.vy * ty - r * ball.wz
+        jt = _tangential_impulse(vt, inv_m + r * r / ball.inertia, jn, p.ball_wall_friction)
+        ball.vx += (jn * nx + jt * tx) * inv_m
+        ball.vy += (jn * ny + jt * ty) * inv_m
+        ball.wz -= r * jt / ball.inertia
+        ball.at_rest = False
+    return hit
+
+
+def robot_walls(rb: RobotPlant, radius: float, half_x: float, half_y: float, p: ContactParams) -> bool:
+    hit = False
+    k = rb.k
+    for axis in (0, 1):
+        lim = (half_x if axis == 0 else half_y) - radius
+        pos = rb.x if axis == 0 else rb.y
+        if -lim <= pos <= lim:
+            continue
+        sign = 1.0 if pos > lim else -1.0
+        nx, ny = (-sign, 0.0) if axis == 0 else (0.0, -sign)
+        if axis == 0:
+            rb.x = sign * lim
+        else:
+            rb.y = sign * lim
+        hit = True
+        vn = rb.vx * nx + rb.vy * ny
+        if vn >= 0.0 or rb.lifted:
+            continue
+        inv_m = 1.0 / k.mass_kg
+        jn = -(1.0 + _restitution(vn, p.robot_wall_restitution)) * vn / inv_m
+        tx, ty = -ny, nx
+        # robot contact point at -R n: tangential velocity v.t - R w
+        vt = rb.vx * tx + rb.vy * ty - radius * rb.w
+        jt = _tangential_impulse(vt, inv_m + radius * radius / k.inertia_kgm2, jn, p.robot_wall_friction)
+        rb.vx += (jn * nx + jt * tx) * inv_m
+        rb.vy += (jn * ny + jt * ty) * inv_m
+        rb.w -= radius * jt / k.inertia_kgm2
+    return hit
+
+
+def robot_robot(a: RobotPlant, ra: float, b: RobotPlant, rb_: float, p: ContactParams) -> bool:
+    dx, dy = b.x - a.x, b.y - a.y
+    dmin = ra + rb_
+    d2 = dx * dx + dy * dy
+    if d2 >= dmin * dmin:
+        return False
+    d = math.sqrt(d2)
+    if d < 1e-12:
+        nx, ny, d = 1.0, 0.0, 0.0
+    else:
+        nx, ny = dx / d, dy / d
+    inv_ma = 0.0 if a.lifted else 1.0 / a.k.mass_kg
+    inv_mb = 0.0 if b.lifted else 1.0 / b.k.mass_kg
+    inv_sum = inv_ma + inv_mb
+    if inv_sum == 0.0:
+        return True
+    depth = dmin - d
+    a.x -= nx * depth * inv_ma / inv_sum
+    a.y -= ny * depth * inv_ma / inv_sum
+    b.x += nx * depth * inv_mb / inv_sum
+    b.y += ny * depth * inv_mb / inv_sum
+    vn = (b.vx - a.vx) * nx + (b.vy - a.vy) * ny
+    if vn >= 0.0:
+        return True
+    jn = -(1.0 + _restitution(vn, p.robot_robot_restitution)) * vn / inv_sum
+    tx, ty = -ny, nx
+    ia = 0.0 if a.lifted else 1.0 / a.k.inertia_kgm2
+    ib = 0.0 if b.lifted else 1.0 / b.k.inertia_kgm2
+    # contact points: a at +ra n, b at -rb n; tangential point velocities v.t + w (r x t)
+    vt = (b.vx * tx + b.vy * ty - rb_ * b.w) - (a.vx * tx + a.vy * ty + ra * a.w)
+    jt = _tangential_impulse(vt, inv_sum + ra * ra * ia + rb_ * rb_ * ib, jn, p.robot_robot_friction)
+    jx, jy = jn * nx + jt * tx, jn * ny + jt * ty  # impulse on b; -impulse on a
+    b.vx += jx * inv_mb
+    b.vy += jy * inv_mb
+    b.w -= rb_ * jt * ib
+    a.vx -= jx * inv_ma
+    a.vy -= jy * inv_ma
+    a.w -= ra * jt * ia
+    return True
+
+
+def ball_robot(ball: BallBody, rb: RobotPlant, shape: RobotShape, p: ContactParams) -> bool:
+    """Ball against one robot outline. Returns True when they touch."""
+    dx, dy = ball.x - rb.x, ball.y - rb.y
+    reach = shape.radius_m + ball.radius
+    if dx * dx + dy * dy >= reach * reach:
+        return False
+    c, s = rb.cos_th, rb.sin_th
+    px, py = c * dx + s * dy, -s * dx + c * dy
+    dist, nxl, nyl, qxl, qyl = shape.closest_point(px, py)
+    r = ball.radius
+    if dist >= r:
+        return False
+    nx, ny = c * nxl - s * nyl, s * nxl + c * nyl  # outward normal, field frame
+    qx, qy = c * qxl - s * qyl, s * qxl + c * qyl  # contact point relative to robot centre
+    depth = r - dist
+    ball.x += nx * depth
+    ball.y += ny * depth
+    # relative velocity of the ball's contact point (at -r n) against the robot's contact point
+    pvx = rb.vx - rb.w * qy
+    pvy = rb.vy + rb.w * qx
+    vn = (ball.vx - pvx) * nx + (ball.vy - pvy) * ny
+    if vn >= 0.0:
+        return True
+    k = rb.k
+    inv_m = 1.0 / ball.mass
+    if rb.lifted:
+        inv_mr = inv_ir = 0.0
+    else:
+        inv_mr, inv_ir = 1.0 / k.mass_kg, 1.0 / k.inertia_kgm2
+    qn = qx * ny - qy * nx
+    jn = -(1.0 + _restitution(vn, p.ball_robot_restitution)) * vn / (inv_m + inv_mr + qn * qn * inv_ir)
+    tx, ty = -ny, nx
+    qt = qx * ty - qy * tx
+    vt = (ball.vx - pvx) * tx + (ball.vy - pvy) * ty - r * ball.wz
+    jt = _tangential_impulse(
+        vt, inv_m + r * r / ball.inertia + inv_mr + qt * qt * inv_ir, jn, p.ball_robot_friction
+    )
+    jx, jy = jn * nx + jt * tx, jn * ny + jt * ty  # impulse on the ball
+    ball.vx += jx * inv_m
+    ball.vy += jy * inv_m
+    ball.wz -= r * jt / ball.inertia
+    ball.at_rest = False
+    rb.vx -= jx * inv_mr
+    rb.vy -= jy * inv_mr
+    rb.w -= (qx * jy - qy * jx) * inv_ir
+    return True

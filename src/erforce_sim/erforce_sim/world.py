@@ -1,0 +1,656 @@
+"""The simulated world: robots (drivetrain.py), ball (ball.py), contacts (contacts.py), kicker and
+light barrier (kicker.py, paper Sec. 2-3) and vision (sensors.py) behind one `World` API.
+
+Used by the plant node (ROS shell) and by the in-process runner. Time ``t_s`` is owned by the world
+and only advances in `step`. Every `step(dt_s)` is cut into ceil(dt_s * substep_hz) equal substeps
+(default 20 kHz); per substep: motors + wheels + bodies, ball, then contacts. Winding temperatures
+and the light barrier are updated once per step; vision frames are captured at the substep that
+crosses each capture time. Deterministic for a given seed (numpy SeedSequence streams for vision,
+light barrier and sensor noise). Inputs are validated: non-finite values raise ValueError, duties
+out of [-1, 1] are clamped and counted, bodies placed outside the field walls raise ValueError.
+
+Quick use::
+
+    world = World(FieldConfig.preset("division_b"), [RobotSpec(x=-1.0)], BallState(0.0, 0.0), seed=1)
+    world.set_duty(0, [0.2, 0.2, 0.2, 0.2])   # returns how many entries were clamped
+    world.step(0.001)
+    world.wheel_speeds_radps(0), world.motor_currents_a(0), world.poll_vision()
+
+No rclpy import.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+
+from erforce_sim.ball import BallBody, BallParams, BallState
+from erforce_sim.contacts import ContactParams, RobotShape, ball_robot, ball_walls, robot_robot, robot_walls
+from erforce_sim.drivetrain import DriveTrainCoefficients, RobotPlant
+from erforce_sim.kicker import DEFAULT_TILT_COMPLIANCE_RAD_PER_M, KickerPlate, beam_hit
+from erforce_sim.sensors import LightBarrierParams, LightBarrierSignal, VisionFrame, VisionParams, VisionSystem
+
+MAX_BODY_SPEED_MPS = 20.0
+MAX_ROBOT_YAW_RATE_RADPS = 100.0
+MAX_BALL_SPIN_RADPS = 2000.0
+
+
+def _finite(name: str, value: float) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: must be finite, got {value!r}")
+    return v
+
+
+def _bounded(name: str, value: float, limit: float) -> float:
+    v = _finite(name, value)
+    if abs(v) > limit:
+        raise ValueError(f"{name}: |{v}| exceeds the plausible limit {limit}")
+    return v
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """One robot to simulate: its description, initial pose, identity and kicker plate."""
+
+    config: RobotConfig = field(default_factory=RobotConfig)
+    x: float = 0.0
+    y: float = 0.0
+    theta: float = 0.0
+    team: str = "yellow"
+    robot_id: int = 0
+    kicker_plate: str = "flat"  # 'flat' | 'curved'
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.config, RobotConfig):
+            raise ValueError(f"RobotSpec.config: must be a RobotConfig, got {type(self.config).__name__}")
+        for name in ("x", "y", "theta"):
+            _finite(f"RobotSpec.{name}", getattr(self, name))
+        if self.team not in ("yellow", "blue"):
+            raise ValueError(f"RobotSpec.team: must be 'yellow' or 'blue', got {self.team!r}")
+        if not isinstance(self.robot_id, int) or self.robot_id < 0:
+            raise ValueError(f"RobotSpec.robot_id: must be an int >= 0, got {self.robot_id!r}")
+        if self.kicker_plate not in ("flat", "curved"):
+            raise ValueError(f"RobotSpec.kicker_plate: must be 'flat' or 'curved', got {self.kicker_plate!r}")
+
+
+@dataclass(frozen=True)
+class PhysicsParams:
+    substep_hz: float = 20000.0  # motor/body/ball substep rate (>= 10 kHz)
+    traction_damping_nspm: float = 300.0  # slip-velocity force law, clipped at mu N
+    coulomb_smoothing_radps: float = 1.0  # motor-shaft speed over which Coulomb friction ramps in
+    contacts: ContactParams = field(default_factory=ContactParams)
+    kick_max_speed_mps: float = 8.0  # kicks above this are clamped (and reported)
+    kick_spin_ratio: float = 0.0  # default w r / v after a kick; < 0 backspin (-0.4 -> c_switch 0.6)
+    kick_tilt_compliance_rad_per_m: float = DEFAULT_TILT_COMPLIANCE_RAD_PER_M  # plunger bending
+    kick_touch_tolerance_m: float = 0.005  # ball surface to front face gap that still counts as touching
+    dribbler_time_constant_s: float = 0.02  # ball velocity relaxes to the bar's velocity when dribbling
+    dribbler_pull_mps2: float = 1.0  # dribbler pulls the touching ball towards the robot
+    wheel_speed_noise_radps: float = 0.0  # motor-board sensor noise (std), default off
+    current_noise_a: float = 0.0
+    max_step_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.substep_hz) and 10000.0 <= self.substep_hz <= 1e6):
+            raise ValueError(f"PhysicsParams.substep_hz: must be in [10000, 1e6], got {self.substep_hz!r}")
+        for name in (
+            "traction_damping_nspm",
+            "coulomb_smoothing_radps",
+            "kick_max_speed_mps",
+            "kick_tilt_compliance_rad_per_m",
+            "kick_touch_tolerance_m",
+            "dribbler_time_constant_s",
+            "max_step_s",
+        ):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"PhysicsParams.{name}: must be finite and > 0, got {v!r}")
+        for name in ("wheel_speed_noise_radps", "current_noise_a", "dribbler_pull_mps2"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"PhysicsParams.{name}: must be finite and >= 0, got {v!r}")
+        if not (math.isfinite(self.kick_spin_ratio) and -1.0 <= self.kick_spin_ratio <= 1.0):
+            raise ValueError(f"PhysicsParams.kick_spin_ratio: must be in [-1, 1], got {self.kick_spin_ratio!r}")
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """Ground truth of one robot: pose and velocity in the field frame, drive train per wheel."""
+
+    x: float
+    y: float
+    theta: float
+    vx: float
+    vy: float
+    w: float
+    wheel_speeds_radps: tuple[float, ...]
+    currents_a: tuple[float, ...]
+    winding_temperatures_c: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class KickResult:
+    fired: bool  # the ball was in the dribbler region and got kicked
+    armed: bool  # not fired yet, waiting for the ball (armed_for_s > 0)
+    speed_mps: float  # kick speed actually used (after clamping)
+    clamped: bool  # the requested speed exceeded kick_max_speed_mps
+    offset_m: float = 0.0  # lateral ball offset on the plate (base_link y), when fired
+    deviation_rad: float = 0.0  # kick direction relative to the robot heading, when fired
+
+
+@dataclass(frozen=True)
+class EnergyBreakdown:
+    bodies_j: float  # robot translation + rotation
+    wheels_j: float  # wheel + reflected rotor rotation
+    magnetic_j: float  # 1/2 L i^2 of all windings
+    ball_j: float  # ball translation + rotation
+
+    @property
+    def total_j(self) -> float:
+        return self.bodies_j + self.wheels_j + self.magnetic_j + self.ball_j
+
+
+@dataclass
+class _Armed:
+    speed_mps: float
+    spin_ratio: float
+    deadline_s: float
+
+
+class World:
+    """Physics world. See the module docstring; all indices are robot list positions (0-based)."""
+
+    def __init__(
+        self,
+        field_config: FieldConfig,
+        robots: Sequence[RobotSpec],
+        ball: BallState | None = None,
+        physics: PhysicsParams | None = None,
+        ball_params: BallParams | None = None,
+        vision: VisionParams | None = None,
+        light_barrier: LightBarrierParams | None = None,
+        seed: int = 0,
+    ) -> None:
+        if not isinstance(field_config, FieldConfig):
+            raise ValueError("field_config: must be a FieldConfig")
+        if not isinstance(seed, int | np.integer) or seed < 0:
+            raise ValueError(f"seed: must be an int >= 0, got {seed!r}")
+        self.field = field_config
+        self.physics = physics or PhysicsParams()
+        self.ball_params = ball_params or BallParams()
+        self.specs: tuple[RobotSpec, ...] = tuple(robots)
+        for s in self.specs:
+            if not isinstance(s, RobotSpec):
+                raise ValueError(f"robots: every entry must be a RobotSpec, got {type(s).__name__}")
+        ids = [(s.team, s.robot_id) for s in self.specs]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"robots: duplicate (team, robot_id) in {ids}")
+        streams = np.random.SeedSequence(int(seed)).spawn(3)
+        self._sensor_rng = np.random.default_rng(streams[2])
+        self.vision = VisionSystem(vision or VisionParams(), np.random.default_rng(streams[0]))
+        lb_params = light_barrier or LightBarrierParams()
+        lb_rng = np.random.default_rng(streams[1])
+        self._half_x = field_config.wall_half_length_m
+        self._half_y = field_config.wall_half_width_m
+        r_ball = self.ball_params.radius_m
+        self._t = 0.0
+        self._coeff_cache: dict[float, list[tuple[float, float, float]]] = {}
+        self._robots: list[RobotPlant] = []
+        self._shapes: list[RobotShape] = []
+        self._plates: list[KickerPlate] = []
+        self._coeffs: list[DriveTrainCoefficients] = []
+        self._barriers: list[LightBarrierSignal] = []
+        self._beam_x: list[float] = []
+        self._dribbler_on: list[bool] = []
+        self._armed: list[_Armed | None] = []
+        self._clamped_duties: list[int] = []
+        for s in self.specs:
+            cfg = s.config
+            co = DriveTrainCoefficients.from_config(
+                cfg, self.physics.traction_damping_nspm, self.physics.coulomb_smoothing_radps
+            )
+            shape = RobotShape(cfg.robot_radius_m, cfg.dribbler_offset_m - r_ball)
+            if 0.5 * cfg.dribbler_width_m > shape.front_half_width_m:
+                raise ValueError(
+                    f"robot {s.team}/{s.robot_id}: dribbler width {cfg.dribbler_width_m} m exceeds the flat front"
+                    f" ({2 * shape.front_half_width_m:.4f} m)"
+                )
+            self._coeffs.append(co)
+            self._shapes.append(shape)
+            self._plates.append(KickerPlate.make(s.kicker_plate, 0.5 * cfg.dribbler_width_m))
+            self._robots.append(RobotPlant(co, 0.0, 0.0, 0.0))
+            self._barriers.append(LightBarrierSignal(lb_params, lb_rng))
+            self._beam_x.append(shape.front_x_m + lb_params.beam_depth_m)
+            self._dribbler_on.append(False)
+            self._armed.append(None)
+            self._clamped_duties.append(0)
+        self._radii = [sh.radius_m for sh in self._shapes]
+        for i, s in enumerate(self.specs):
+            self.place_robot(i, s.x, s.y, s.theta)
+        self._ball = BallBody(self.ball_params, BallState(0.0, 0.0))
+        if ball is not None:
+            self.set_ball_state(ball)
+        self._any_dribbler = False
+        self._any_armed = False
+        self._sample_light_barriers()
+
+    # ------------------------------------------------------------------ basics
+    @property
+    def t_s(self) -> float:
+        """World time in seconds (starts at 0, advanced only by `step`)."""
+        return self._t
+
+    @property
+    def num_robots(self) -> int:
+        return len(self._robots)
+
+    def _index(self, i: int) -> int:
+        if not isinstance(i, int | np.integer) or isinstance(i, bool) or not 0 <= i < len(self._robots):
+            raise ValueError(f"robot index must be an int in [0, {len(self._robots) - 1}], got {i!r}")
+        return int(i)
+
+    def index_of(self, team: str, robot_id: int) -> int:
+        """List position of the robot with this team colour and id."""
+        for i, s in enumerate(self.specs):
+            if s.team == team and s.robot_id == robot_id:
+                return i
+        raise ValueError(f"no robot {team}/{robot_id} in this world")
+
+    # ------------------------------------------------------------------ inputs
+    def set_duty(self, i: int, duty: Sequence[float] | np.ndarray) -> int:
+        """Set robot i's PWM duty per wheel (held until changed).
+
+        NaN/inf or a wrong length raise ValueError; values outside [-1, 1] are clamped. Returns the
+        number of clamped entries (also accumulated in `clamped_duty_count`).
+        """
+        i = self._index(i)
+        n = self._coeffs[i].num_wheels
+        try:
+            arr = np.asarray(duty, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"set_duty: robot {i}: duty must be {n} numbers, got {duty!r}") from None
+        if arr.shape != (n,):
+            raise ValueError(f"set_duty: robot {i}: expected {n} duties, got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"set_duty: robot {i}: duty must be finite, got {arr.tolist()}")
+        clipped = np.clip(arr, -1.0, 1.0)
+        count = int(np.count_nonzero(clipped != arr))
+        self._clamped_duties[i] += count
+        self._robots[i].duty[:] = clipped.tolist()
+        return count
+
+    def duty(self, i: int) -> np.ndarray:
+        return np.array(self._robots[self._index(i)].duty)
+
+    def clamped_duty_count(self, i: int) -> int:
+        """Total number of duty entries clamped into [-1, 1] for robot i so far."""
+        return self._clamped_duties[self._index(i)]
+
+    def set_dribbler(self, i: int, on: bool) -> None:
+        """Dribbler bar on/off: when on, a ball touching the bar is held (damped and pulled in)."""
+        self._dribbler_on[self._index(i)] = bool(on)
+        self._any_dribbler = any(self._dribbler_on)
+
+    def set_lifted(self, i: int, lifted: bool) -> None:
+        """Test rig: robot on a stand (wheels spin freely, no traction, body held at rest)."""
+        rb = self._robots[self._index(i)]
+        rb.lifted = bool(lifted)
+        if rb.lifted:
+            rb.vx = rb.vy = rb.w = 0.0
+
+    def set_wheels_locked(self, i: int, locked: bool) -> None:
+        """Test rig: blocked rotors (wheel speeds held at zero)."""
+        rb = self._robots[self._index(i)]
+        rb.locked = bool(locked)
+        if rb.locked:
+            rb.wheel_w[:] = [0.0] * len(rb.wheel_w)
+
+    def kick(
+        self, i: int, speed_mps: float, spin_ratio: float | None = None, armed_for_s: float = 0.0
+    ) -> KickResult:
+        """Flat kick with robot i at ``speed_mps`` (ball speed relative to the robot).
+
+        Fires only when the ball touches the dribbler region (in front of the flat face, within the
+        dribbler width, gap <= kick_touch_tolerance_m). Otherwise, with ``armed_for_s`` > 0, the kicker
+        stays armed and fires at the first substep the ball is there, until t_s + armed_for_s.
+        ``spin_ratio`` = w r / v given to the ball (None: PhysicsParams.kick_spin_ratio; <0 backspin).
+        Speeds above kick_max_speed_mps are clamped (reported in the result); speed 0 disarms.
+        """
+        i = self._index(i)
+        speed = _finite("kick: speed_mps", speed_mps)
+        if speed < 0.0:
+            raise ValueError(f"kick: speed_mps must be >= 0, got {speed}")
+        spin = self.physics.kick_spin_ratio if spin_ratio is None else _finite("kick: spin_ratio", spin_ratio)
+        if not -1.0 <= spin <= 1.0:
+            raise ValueError(f"kick: spin_ratio must be in [-1, 1], got {spin}")
+        armed_for = _finite("kick: armed_for_s", armed_for_s)
+        if armed_for < 0.0:
+            raise ValueError(f"kick: armed_for_s must be >= 0, got {armed_for}")
+        clamped = speed > self.physics.kick_max_speed_mps
+        speed = min(speed, self.physics.kick_max_speed_mps)
+        if speed == 0.0:
+            self._armed[i] = None
+            self._any_armed = any(a is not None for a in self._armed)
+            return KickResult(False, False, 0.0, clamped)
+        fired = self._try_kick(i, speed, spin)
+        if fired is not None:
+            self._armed[i] = None
+            self._any_armed = any(a is not None for a in self._armed)
+            return KickResult(True, False, speed, clamped, fired[0], fired[1])
+        if armed_for > 0.0:
+            self._armed[i] = _Armed(speed, spin, self._t + armed_for)
+            self._any_armed = True
+            return KickResult(False, True, speed, clamped)
+        return KickResult(False, False, speed, clamped)
+
+    def _ball_in_robot_frame(self, i: int) -> tuple[float, float]:
+        rb, ball = self._robots[i], self._ball
+        dx, dy = ball.x - rb.x, ball.y - rb.y
+        return rb.cos_th * dx + rb.sin_th * dy, -rb.sin_th * dx + rb.cos_th * dy
+
+    def ball_in_dribbler(self, i: int) -> bool:
+        """True when the ball touches robot i's dribbler region (where a kick would act)."""
+        i = self._index(i)
+        px, py = self._ball_in_robot_frame(i)
+        return self._in_dribbler(i, px, py)
+
+    def _in_dribbler(self, i: int, px: float, py: float) -> bool:
+        fx = self._shapes[i].front_x_m
+        gap = px - fx - self._ball.radius
+        return (
+            px > fx and gap <= self.physics.kick_touch_tolerance_m
+            and abs(py) <= 0.5 * self.specs[i].config.dribbler_width_m
+        )
+
+    def _try_kick(self, i: int, speed: float, spin: float) -> tuple[float, float] | None:
+        px, py = self._ball_in_robot_frame(i)
+        if not self._in_dribbler(i, px, py):
+            return None
+        rb, ball = self._robots[i], self._ball
+        dev = self._plates[i].deviation_rad(py, ball.radius, self.physics.kick_tilt_compliance_rad_per_m)
+        ang = rb.theta + dev
+        kx, ky = speed * math.cos(ang), speed * math.sin(ang)
+        # contact point on the plate, field frame, relative to the robot centre
+        fx = self._shapes[i].front_x_m
+        qx = rb.cos_th * fx - rb.sin_th * py
+        qy = rb.sin_th * fx + rb.cos_th * py
+        nvx = rb.vx - rb.w * qy + kx
+        nvy = rb.vy + rb.w * qx + ky
+        jx, jy = ball.mass * (nvx - ball.vx), ball.mass * (nvy - ball.vy)  # impulse on the ball
+        ball.vx, ball.vy = nvx, nvy
+        ball.wx = -spin * ky / ball.radius
+        ball.wy = spin * kx / ball.radius
+        ball.at_rest = False
+        if not rb.lifted:  # recoil
+            k = rb.k
+            rb.vx -= jx / k.mass_kg
+            rb.vy -= jy / k.mass_kg
+            rb.w -= (qx * jy - qy * jx) / k.inertia_kgm2
+        return py, dev
+
+    def place_robot(
+        self, i: int, x: float, y: float, theta: float, vx: float = 0.0, vy: float = 0.0, w: float = 0.0
+    ) -> None:
+        """Teleport robot i (field frame); wheels roll without slip at the given velocity, currents 0."""
+        i = self._index(i)
+        x, y = _finite("place_robot: x", x), _finite("place_robot: y", y)
+        theta = math.remainder(_finite("place_robot: theta", theta), 2.0 * math.pi)
+        vx = _bounded("place_robot: vx", vx, MAX_BODY_SPEED_MPS)
+        vy = _bounded("place_robot: vy", vy, MAX_BODY_SPEED_MPS)
+        w = _bounded("place_robot: w", w, MAX_ROBOT_YAW_RATE_RADPS)
+        rad = self.specs[i].config.robot_radius_m
+        lim_x, lim_y = self._half_x - rad, self._half_y - rad
+        if abs(x) > lim_x or abs(y) > lim_y:
+            raise ValueError(
+                f"place_robot: robot {i} at ({x:.3f}, {y:.3f}) lies outside the field walls; its centre must"
+                f" satisfy |x| <= {lim_x:.3f} and |y| <= {lim_y:.3f} m"
+            )
+        self._robots[i].set_pose_velocity(x, y, theta, vx, vy, 0.0 if self._robots[i].lifted else w)
+
+    def place_ball(
+        self, x: float, y: float, vx: float = 0.0, vy: float = 0.0, spin_ratio: float = 1.0, wz: float = 0.0
+    ) -> None:
+        """Teleport the ball. spin_ratio = w r / v about the rolling axis: 1 rolls, 0 slides, <0 backspin."""
+        vx = _bounded("place_ball: vx", vx, MAX_BODY_SPEED_MPS)
+        vy = _bounded("place_ball: vy", vy, MAX_BODY_SPEED_MPS)
+        s = _finite("place_ball: spin_ratio", spin_ratio)
+        if not -1.0 <= s <= 1.0:
+            raise ValueError(f"place_ball: spin_ratio must be in [-1, 1], got {s}")
+        r = self.ball_params.radius_m
+        self.set_ball_state(BallState(_finite("place_ball: x", x), _finite("place_ball: y", y), vx, vy,
+                                      -s * vy / r, s * vx / r, _finite("place_ball: wz", wz)))
+
+    def set_ball_state(self, state: BallState) -> None:
+        """Teleport the ball with a full state (position, velocity, angular velocity)."""
+        if not isinstance(state, BallState):
+            raise ValueError("set_ball_state: expected a BallState")
+        r = self.ball_params.radius_m
+        lim_x, lim_y = self._half_x - r, self._half_y - r
+        if abs(state.x) > lim_x or abs(state.y) > lim_y:
+            raise ValueError(
+                f"place_ball: ball at ({state.x:.3f}, {state.y:.3f}) lies outside the field walls; its centre"
+                f" must satisfy |x| <= {lim_x:.3f} and |y| <= {lim_y:.3f} m"
+            )
+        _bounded("ball speed", state.speed_mps, MAX_BODY_SPEED_MPS)
+        for name in ("wx", "wy", "wz"):
+            _bounded(f"ball {name}", getattr(state, name), MAX_BALL_SPIN_RADPS)
+        self._ball.set_state(state)
+
+    # ------------------------------------------------------------------ stepping
+    def _substep_coeffs(self, h: float) -> list[tuple[float, float, float]]:
+        co = self._coeff_cache.get(h)
+        if co is None:
+            co = [c.for_substep(h) for c in self._coeffs]
+            if len(self._coeff_cache) > 64:
+                self._coeff_cache.clear()
+            self._coeff_cache[h] = co
+        return co
+
+    def step(self, dt_s: float) -> None:
+        """Advance the world by dt_s (0 < dt_s <= max_step_s) in substeps of <= 1/substep_hz.
+
+        When no contact is possible within dt_s (conservative distance check) every body runs its
+        substeps in one tight loop; otherwise bodies and contacts are interleaved substep by substep.
+        Either way every body is integrated with the same substep h.
+        """
+        dt = _finite("step: dt_s", dt_s)
+        if dt <= 0.0:
+            raise ValueError(f"step: dt_s must be > 0 (time cannot go backwards), got {dt}")
+        if dt > self.physics.max_step_s:
+            raise ValueError(f"step: dt_s must be <= max_step_s = {self.physics.max_step_s}, got {dt}")
+        n = max(1, math.ceil(dt * self.physics.substep_hz - 1e-9))
+        h = dt / n
+        coeffs = self._substep_coeffs(h)
+        t0 = self._t
+        if self._contact_free(dt):
+            done = 0
+            while done < n:
+                # run up to the substep that crosses the next vision capture time
+                j_cap = math.ceil((self.vision.next_capture_s - t0) / h - 1e-9)
+                end = n if j_cap > n else max(j_cap, done + 1)
+                m = end - done
+                for rb, (decay, mean_factor, c_eff) in zip(self._robots, coeffs, strict=True):
+                    rb.advance(m, h, decay, mean_factor, c_eff)
+                self._ball.advance(m, h)
+                done = end
+                if t0 + done * h >= self.vision.next_capture_s - 1e-12:
+                    self._capture(t0 + done * h)
+        else:
+            self._step_with_contacts(n, h, coeffs, t0)
+        self._t = t0 + dt
+        for rb in self._robots:
+            rb.update_temperature(dt)
+        self._sample_light_barriers()
+
+    def _contact_free(self, dt: float) -> bool:
+        """True when no body can touch a wall or another body within dt (bounded acceleration)."""
+        margin = 1e-3 + 10.0 * dt * dt
+        ball = self._ball
+        bspeed = math.hypot(ball.vx, ball.vy)
+        reach_b = bspeed * dt + margin
+        if abs(ball.x) + ball.radius + reach_b >= self._half_x or abs(ball.y) + ball.radius + reach_b >= self._half_y:
+            return False
+        robots, radii = self._robots, self._radii
+        speeds = [math.hypot(rb.vx, rb.vy) for rb in robots]
+        for a, rb in enumerate(robots):
+            ra = radii[a]
+            reach = speeds[a] * dt + margin
+            if abs(rb.x) + ra + reach >= self._half_x or abs(rb.y) + ra + reach >= self._half_y:
+                return False
+            gap = math.hypot(ball.x - rb.x, ball.y - rb.y) - ra - ball.radius
+            if gap <= (speeds[a] + bspeed) * dt + margin:
+                return False
+            for b in range(a + 1, len(robots)):
+                other = robots[b]
+                gap = math.hypot(other.x - rb.x, other.y - rb.y) - ra - radii[b]
+                if gap <= (speeds[a] + speeds[b]) * dt + margin:
+                    return False
+        return True
+
+    def _step_with_contacts(self, n: int, h: float, coeffs: list, t0: float) -> None:
+        robots = self._robots
+        pairs = list(zip(robots, coeffs, strict=True))
+        shapes = self._shapes
+        radii = self._radii
+        ball = self._ball
+        cp = self.physics.contacts
+        hx, hy = self._half_x, self._half_y
+        bx_lim, by_lim = hx - ball.radius, hy - ball.radius
+        nrob = len(robots)
+        vision = self.vision
+        for j in range(n):
+            for rb, (decay, mean_factor, c_eff) in pairs:
+                rb.advance(1, h, decay, mean_factor, c_eff)
+            ball.advance(1, h)
+            if abs(ball.x) > bx_lim or abs(ball.y) > by_lim:
+                ball_walls(ball, hx, hy, cp)
+            for a in range(nrob):
+                rb = robots[a]
+                ra = radii[a]
+                if abs(rb.x) > hx - ra or abs(rb.y) > hy - ra:
+                    robot_walls(rb, ra, hx, hy, cp)
+                for b in range(a + 1, nrob):
+                    other = robots[b]
+                    reach = ra + radii[b]
+                    if abs(other.x - rb.x) < reach and abs(other.y - rb.y) < reach:
+                        robot_robot(rb, ra, other, radii[b], cp)
+                ball_robot(ball, rb, shapes[a], cp)
+            t_sub = t0 + (j + 1) * h
+            if self._any_dribbler:
+                self._dribble(h)
+            if self._any_armed:
+                self._fire_armed(t_sub)
+            if t_sub >= vision.next_capture_s - 1e-12:
+                self._capture(t_sub)
+
+    def _capture(self, t: float) -> None:
+        self.vision.capture(
+            t,
+            (self._ball.x, self._ball.y),
+            [(s.team, s.robot_id, rb.x, rb.y, rb.theta) for s, rb in zip(self.specs, self._robots, strict=True)],
+        )
+
+    def _fire_armed(self, t: float) -> None:
+        for i, a in enumerate(self._armed):
+            if a is None:
+                continue
+            if t > a.deadline_s:
+                self._armed[i] = None
+            elif self._try_kick(i, a.speed_mps, a.spin_ratio) is not None:
+                self._armed[i] = None
+        self._any_armed = any(a is not None for a in self._armed)
+
+    def _dribble(self, h: float) -> None:
+        ball = self._ball
+        alpha = 1.0 - math.exp(-h / self.physics.dribbler_time_constant_s)
+        for i, on in enumerate(self._dribbler_on):
+            if not on:
+                continue
+            px, py = self._ball_in_robot_frame(i)
+            if not self._in_dribbler(i, px, py):
+                continue
+            rb = self._robots[i]
+            qx = rb.cos_th * px - rb.sin_th * py
+            qy = rb.sin_th * px + rb.cos_th * py
+            # the bar's velocity at the ball centre, plus a pull towards the robot
+            tvx = rb.vx - rb.w * qy - self.physics.dribbler_pull_mps2 * h * rb.cos_th
+            tvy = rb.vy + rb.w * qx - self.physics.dribbler_pull_mps2 * h * rb.sin_th
+            ball.vx += (tvx - ball.vx) * alpha
+            ball.vy += (tvy - ball.vy) * alpha
+            ball.wx, ball.wy = -ball.vy / ball.radius, ball.vx / ball.radius
+            ball.at_rest = False
+            break
+
+    def _sample_light_barriers(self) -> None:
+        r = self._ball.radius
+        for i, lb in enumerate(self._barriers):
+            px, py = self._ball_in_robot_frame(i)
+            hit = beam_hit(px, py, r, self._beam_x[i], 0.5 * self.specs[i].config.dribbler_width_m)
+            lb.sample(self._t, hit)
+
+    # ------------------------------------------------------------------ sensors
+    def wheel_speeds_radps(self, i: int) -> np.ndarray:
+        """Wheel speeds as the motor boards measure them (rad/s at the wheel, optional noise)."""
+        rb = self._robots[self._index(i)]
+        out = np.array(rb.wheel_w)
+        if self.physics.wheel_speed_noise_radps > 0.0:
+            out += self._sensor_rng.normal(0.0, self.physics.wheel_speed_noise_radps, out.shape)
+        return out
+
+    def motor_currents_a(self, i: int) -> np.ndarray:
+        """Motor winding currents (A, instantaneous at t_s, optional noise)."""
+        rb = self._robots[self._index(i)]
+        out = np.array(rb.current)
+        if self.physics.current_noise_a > 0.0:
+            out += self._sensor_rng.normal(0.0, self.physics.current_noise_a, out.shape)
+        return out
+
+    def winding_temperature_c(self, i: int) -> np.ndarray:
+        return np.array(self._robots[self._index(i)].temp_c)
+
+    def light_barrier(self, i: int) -> bool:
+        """Robot i's light barrier output (beam interrupted by the ball), with latency and false flips."""
+        return self._barriers[self._index(i)].value
+
+    def poll_vision(self) -> list[VisionFrame]:
+        """Vision frames released by now (t_s), oldest first; each frame is returned once."""
+        return self.vision.poll(self._t)
+
+    # ------------------------------------------------------------------ ground truth
+    def ball_state(self) -> BallState:
+        return self._ball.state()
+
+    def ball_slip_mps(self) -> float:
+        """Speed of the ball's contact point on the carpet (0 while rolling)."""
+        return math.hypot(*self._ball.slip_mps())
+
+    def robot_state(self, i: int) -> RobotState:
+        rb = self._robots[self._index(i)]
+        return RobotState(
+            rb.x, rb.y, rb.theta, rb.vx, rb.vy, rb.w, tuple(rb.wheel_w), tuple(rb.current), tuple(rb.temp_c)
+        )
+
+    def energy(self) -> EnergyBreakdown:
+        """Kinetic + magnetic energy now; without inputs (duty 0, no kick/dribbler) it never increases."""
+        bodies = wheels = magnetic = 0.0
+        for rb in self._robots:
+            k = rb.k
+            bodies += 0.5 * k.mass_kg * (rb.vx**2 + rb.vy**2) + 0.5 * k.inertia_kgm2 * rb.w**2
+            wheels += 0.5 * k.wheel_inertia_total_kgm2 * sum(ww * ww for ww in rb.wheel_w)
+            magnetic += rb.magnetic_energy_j()
+        return EnergyBreakdown(bodies, wheels, magnetic, self._ball.kinetic_energy_j())
+
+    def all_finite(self) -> bool:
+        """True when every state variable is finite (used by the property tests)."""
+        b = self._ball
+        vals = [b.x, b.y, b.vx, b.vy, b.wx, b.wy, b.wz, self._t]
+        for rb in self._robots:
+            vals += [rb.x, rb.y, rb.theta, rb.vx, rb.vy, rb.w, *rb.wheel_w, *rb.current, *rb.temp_c]
+        return all(math.isfinite(v) for v in vals)

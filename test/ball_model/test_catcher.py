@@ -1,0 +1,58 @@
+"""The receive skill: approach law, frames, heading."""
+
+import math
+
+import numpy as np
+import pytest
+
+from erforce_ball_model.catcher import (
+    CatcherConfig,
+    approach_velocity,
+    catch_twist,
+    facing_towards,
+    field_to_robot,
+    wrap_angle,
+)
+
+CFG = CatcherConfig(a_max_mps2=3.0, v_max_mps=2.0, braking_margin=1.0)
+
+
+def test_approach_speed_is_the_arrive_at_rest_profile():
+    # 0.24 m away with a = 3 m/s^2: v = sqrt(2 * 3 * 0.24) = 1.2 m/s, below v_max
+    v = approach_velocity(np.array([0.0, 0.0]), np.array([0.0, 0.24]), CFG)
+    np.testing.assert_allclose(v, [0.0, 1.2])
+    # far away: capped at v_max, pointing at the target
+    v = approach_velocity(np.array([1.0, 1.0]), np.array([4.0, 5.0]), CFG)
+    np.testing.assert_allclose(v, [2.0 * 0.6, 2.0 * 0.8])
+    assert approach_velocity(np.zeros(2), np.array([0.001, 0.0]), CFG).tolist() == [0.0, 0.0]
+
+
+def test_field_to_robot_rotation():
+    # robot facing +y (yaw 90 deg): field +y is robot forward (+x), field +x is robot right (-y)
+    np.testing.assert_allclose(field_to_robot(np.array([0.0, 1.0]), math.pi / 2), [1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(field_to_robot(np.array([1.0, 0.0]), math.pi / 2), [0.0, -1.0], atol=1e-12)
+
+
+def test_catch_twist_turns_the_short_way_and_saturates():
+    twist = catch_twist(np.array([0.0, 0.0, math.radians(170)]), np.zeros(2), math.radians(-170), CFG)
+    assert twist[2] == pytest.approx(CFG.heading_gain_per_s * math.radians(20))  # +20 deg, not -340
+    twist = catch_twist(np.array([0.0, 0.0, 0.0]), np.zeros(2), math.pi / 2, CFG)
+    assert twist[2] == CFG.w_max_radps
+
+
+def test_wrap_and_facing():
+    assert wrap_angle(3 * math.pi) == pytest.approx(-math.pi)
+    assert facing_towards(np.zeros(2), np.array([-1.0, 0.0])) == pytest.approx(math.pi)
+    assert facing_towards(np.zeros(2), np.zeros(2), fallback_rad=0.3) == 0.3
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_bad_input_raises(bad):
+    with pytest.raises(ValueError):
+        catch_twist(np.array([bad, 0.0, 0.0]), np.zeros(2), 0.0, CFG)
+    with pytest.raises(ValueError):
+        catch_twist(np.zeros(3), np.array([0.0, bad]), 0.0, CFG)
+    with pytest.raises(ValueError):
+        CatcherConfig(a_max_mps2=bad)
+    with pytest.raises(ValueError):
+        CatcherConfig(v_max_mps=-1.0)

@@ -1,0 +1,68 @@
+"""The lockstep pairing rules, without DDS."""
+
+import numpy as np
+
+from erforce_interfaces.lockstep import DutyGate, SetpointJoin
+
+MS = 1_000_000
+
+
+def test_gate_waits_for_every_present_peer_and_only_for_the_open_tick():
+    gate = DutyGate(num_robots=3, timeout_s=1.0)
+    gate.open(5 * MS, now_s=0.0, peers_present={0, 2})
+    assert not gate.ready() and gate.missing() == {0, 2}
+    gate.offer(0, 4 * MS, np.ones(4))  # an answer to an old tick does not count
+    assert gate.missing() == {0, 2}
+    gate.offer(0, 5 * MS, np.ones(4))
+    gate.offer(2, 5 * MS, np.full(4, 0.5))
+    assert gate.ready()
+    np.testing.assert_array_equal(gate.duty_for(1, 4), np.zeros(4))  # robot 1 has no motor board
+    np.testing.assert_array_equal(gate.duty_for(2, 4), np.full(4, 0.5))
+
+
+def test_gate_reports_a_stall_after_the_timeout_then_resumes():
+    gate = DutyGate(num_robots=2, timeout_s=0.5)
+    gate.open(1 * MS, now_s=10.0, peers_present={0, 1})
+    gate.offer(0, 1 * MS, np.ones(4))
+    assert gate.check_stall(now_s=10.4) == []
+    events = gate.check_stall(now_s=10.6)
+    assert len(events) == 1 and "robot_1" in events[0] and "stalled" in events[0]
+    assert gate.ready()  # no longer waiting for robot 1
+    np.testing.assert_array_equal(gate.duty_for(1, 4), np.zeros(4))
+    gate.open(2 * MS, now_s=10.7, peers_present={0, 1})
+    assert gate.expected == {0}  # a stalled peer does not gate the next tick
+    event = gate.offer(1, 2 * MS, np.full(4, 0.25))
+    assert event is not None and "resumed" in event
+    gate.offer(0, 2 * MS, np.ones(4))
+    assert gate.ready() and gate.duty_for(1, 4)[0] == 0.25
+
+
+def test_join_uses_the_previous_ticks_setpoint_and_waits_for_it():
+    join = SetpointJoin(wait=True)
+    ready, sp = join.setpoint_for(1 * MS)
+    assert ready and sp is None  # first tick: nothing known, command zero
+    join.done(1 * MS)
+    ready, _ = join.setpoint_for(2 * MS)
+    assert not ready  # the answer to tick 1 has not arrived
+    join.add_setpoint(1 * MS, np.array([1.0, 2.0]))
+    ready, sp = join.setpoint_for(2 * MS)
+    assert ready and sp.tolist() == [1.0, 2.0]
+    join.done(2 * MS)
+    join.add_setpoint(2 * MS, np.array([3.0, 4.0]))
+    join.add_setpoint(3 * MS, np.array([5.0, 6.0]))  # answers tick 3: must not be used at tick 3
+    ready, sp = join.setpoint_for(3 * MS)
+    assert ready and sp.tolist() == [3.0, 4.0]
+
+
+def test_join_force_and_realtime_take_the_newest_older_setpoint():
+    join = SetpointJoin(wait=True)
+    join.done(1 * MS)
+    join.add_setpoint(0, np.array([7.0]))
+    assert join.setpoint_for(2 * MS) == (False, None)
+    ready, sp = join.setpoint_for(2 * MS, force=True)
+    assert ready and sp.tolist() == [7.0]
+    realtime = SetpointJoin(wait=False)
+    realtime.done(1 * MS)
+    realtime.add_setpoint(1 * MS, np.array([8.0]))
+    realtime.add_setpoint(3 * MS, np.array([9.0]))
+    assert realtime.setpoint_for(2 * MS)[1].tolist() == [8.0]
