@@ -161,6 +161,9 @@ def _limits_arrays(limits: RobotLimits, shape) -> tuple[np.ndarray, np.ndarray]:
     return a, v
 
 
+NB = 6
+
+
 def robot_time_to_pos(
     robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits, iterations: int = 20
 ) -> np.ndarray:
@@ -194,7 +197,7 @@ def robot_time_to_pos(
     eps = 1e-9  # keeps both shares > 0 so the gap is finite at the bracket ends
     lo = np.full(shape, eps)
     hi = np.full(shape, 0.5 * math.pi - eps)
-    num_bisect = 6
+    num_bisect = NB
     for _ in range(num_bisect):
         mid = 0.5 * (lo + hi)
         late_x = gap_and_time(mid)[0] > 0.0

@@ -42,14 +42,14 @@ ThermalMode = Literal["average", "i2t"]
 class MotorBoardConfig:
     """Gains and limits of Fig. 3 (defaults tuned on plant_model at 1 kHz, see bench). None = from RobotConfig."""
 
-    speed_kp_a_per_radps: float = 0.6
-    speed_ki_a_per_rad: float = 12.0
+    speed_kp_a_per_radps: float = 1.5
+    speed_ki_a_per_rad: float = 15.0
     speed_kd_as_per_rad: float = 0.0
     speed_derivative_tau_s: float = 0.002
     peak_current_a: float = 8.0
     current_kp: float = 0.2
     current_ki_per_s: float = 200.0
-    anti_windup: AntiWindup = "back_calculation"
+    anti_windup: AntiWindup = "clamp"
     actuator_mode: ActuatorMode = "inverse_model"
     linear_duty_per_a: float | None = None  # default R / V_supply
     thermal_mode: ThermalMode = "average"
@@ -256,16 +256,19 @@ class MotorBoard:
         self._i_cmd = np.zeros(self.n_wheels)
 
     @property
+    def saturated(self) -> np.ndarray:
+        """Per wheel: speed loop at +-peak current, or duty at the PWM limit (feed to the velocity loop)."""
+        return self._speed_pid.status.saturated | (np.abs(self._duty) >= self.thermal.pwm_limit - 1e-12)
+
+    @property
     def status(self) -> MotorBoardStatus:
         limit = self.thermal.pwm_limit.copy()
-        speed_sat = self._speed_pid.status.saturated
-        duty_sat = np.abs(self._duty) >= limit - 1e-12
         return MotorBoardStatus(
             duty=self._duty.copy(),
             desired_current_a=self._i_des.copy(),
             current_command_a=self._i_cmd.copy(),
             pwm_limit=limit,
             average_current_a=self.thermal.average_current_a,
-            saturated=speed_sat | duty_sat,
+            saturated=self.saturated,
             limit_active=limit < 1.0,
         )

@@ -34,15 +34,15 @@ class VelocityControlConfig:
     max_angular_accel_radps2: float = 60.0
     feedforward_enabled: bool = True
     kp_translation: float = 1.0  # (m/s) per (m/s)
-    ki_translation: float = 20.0  # 1/s
+    ki_translation: float = 5.0  # 1/s
     kd_translation: float = 0.0
     kp_rotation: float = 1.0
-    ki_rotation: float = 20.0
+    ki_rotation: float = 5.0
     kd_rotation: float = 0.0
     derivative_filter_tau_s: float = 0.005
     command_limit_mps: float = 5.0  # PID output (incl. feedforward) per axis
     command_limit_radps: float = 15.0
-    anti_windup: AntiWindup = "back_calculation"
+    anti_windup: AntiWindup = "clamp"
 
     def __post_init__(self) -> None:
         for name in (

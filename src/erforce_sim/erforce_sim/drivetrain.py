@@ -144,6 +144,8 @@ class RobotPlant:
         "wheel_w",
         "x",
         "y",
+        "_consts",
+        "_consts_h",
     )
 
     def __init__(self, coeffs: DriveTrainCoefficients, x: float, y: float, theta: float) -> None:
@@ -159,6 +161,8 @@ class RobotPlant:
         self.temp_c = [coeffs.ambient_c] * n
         self.lifted = False  # on a stand: no traction, body held still
         self.locked = False  # blocked-rotor rig: wheels held at zero speed
+        self._consts_h = -1.0
+        self._consts: tuple[float, ...] = ()
 
     def set_pose_velocity(self, x: float, y: float, theta: float, vx: float, vy: float, w: float) -> None:
         """Place the body; wheels are set rolling without slip at that velocity, currents zero."""
@@ -180,65 +184,51 @@ class RobotPlant:
         and with whole contact-free segments otherwise.
         """
         k = self.k
-        r = k.wheel_radius_m
-        dist = k.wheel_distance_m
-        gear = k.gear_ratio
-        eta = k.gear_efficiency
-        inv_eta = 1.0 / eta
-        kt = k.torque_constant
-        v_over_r = k.supply_voltage_v / k.resistance_ohm
-        ke_over_r = kt / k.resistance_ohm
-        bv = k.viscous_nms
-        tc = k.coulomb_nm
-        weps = k.coulomb_smoothing_radps
-        fmax = k.traction_force_max_n
-        h_over_j = h / k.wheel_inertia_total_kgm2
-        hm = h / k.mass_kg
-        hi = h / k.inertia_kgm2
-        lifted = self.lifted
-        locked = self.locked
-        wheels = list(zip(k.sin_a, k.cos_a, range(k.num_wheels), strict=True))
-        wheel_w, current, i2 = self.wheel_w, self.current, self.i2_integral
-        drive = [v_over_r * d for d in self.duty]  # steady-state current at standstill
+        if self.lifted or self.locked:
+            self._advance_rig(m, h, decay, mean_factor)
+            return
+        if self._consts_h != h:
+            self._consts = self._substep_constants(h)
+            self._consts_h = h
+        (r, dist, gear, kt, ke_over_r, bv, tc, weps, fmax, drive_gain, back_gain, r_hj, hm, hi, v_over_r) = (
+            self._consts
+        )
+        wheel_w, current = self.wheel_w, self.current
+        i_sq = [0.0] * k.num_wheels
+        wheels = tuple(
+            zip(range(k.num_wheels), k.sin_a, k.cos_a, [v_over_r * d for d in self.duty], strict=True)
+        )
         x, y, th = self.x, self.y, self.theta
         ct, st = self.cos_th, self.sin_th
         vx, vy, w = self.vx, self.vy, self.w
         two_pi = 2.0 * math.pi
+        cos, sin = math.cos, math.sin
         for _ in range(m):
             u = ct * vx + st * vy
             v = -st * vx + ct * vy
             fu = fv = tz = 0.0
-            for sa, ca, i in wheels:
+            dw = dist * w
+            for i, sa, ca, i_stall in wheels:
                 ww = wheel_w[i]
-                if lifted:
-                    f = 0.0
-                else:
-                    f = c_eff * (r * ww + sa * u - ca * v - dist * w)
-                    if f > fmax:
-                        f = fmax
-                    elif f < -fmax:
-                        f = -fmax
-                    fu -= sa * f
-                    fv += ca * f
-                    tz += f
+                f = c_eff * (r * ww + sa * u - ca * v - dw)  # rim speed minus contact-point speed
+                if f > fmax:
+                    f = fmax
+                elif f < -fmax:
+                    f = -fmax
+                fu -= sa * f
+                fv += ca * f
+                tz += f
                 wm = gear * ww
-                iss = drive[i] - ke_over_r * wm
+                iss = i_stall - ke_over_r * wm
                 di = current[i] - iss
                 imean = iss + di * mean_factor
                 current[i] = iss + di * decay
-                i2[i] += imean * imean * h
-                if locked:
-                    wheel_w[i] = 0.0
-                    continue
+                i_sq[i] += imean * imean
                 tsh = kt * imean - bv * wm - tc * wm / (abs(wm) + weps)
-                tw = gear * tsh * (eta if tsh * wm >= 0.0 else inv_eta)
-                wheel_w[i] = ww + (tw - r * f) * h_over_j
-            if lifted:
-                vx = vy = w = 0.0
-                continue
+                wheel_w[i] = ww + tsh * (drive_gain if tsh * wm >= 0.0 else back_gain) - r_hj * f
             vx += (ct * fu - st * fv) * hm
             vy += (st * fu + ct * fv) * hm
-            w += dist * tz * hi
+            w += tz * hi
             x += vx * h
             y += vy * h
             if w != 0.0:
@@ -247,11 +237,81 @@ class RobotPlant:
                     th -= two_pi
                 elif th <= -math.pi:
                     th += two_pi
-                ct = math.cos(th)
-                st = math.sin(th)
+                ct = cos(th)
+                st = sin(th)
         self.x, self.y, self.theta = x, y, th
         self.cos_th, self.sin_th = ct, st
         self.vx, self.vy, self.w = vx, vy, w
+        for i in range(k.num_wheels):
+            self.i2_integral[i] += i_sq[i] * h
+
+    def _substep_constants(self, h: float) -> tuple[float, ...]:
+        k = self.k
+        h_over_j = h / k.wheel_inertia_total_kgm2
+        return (
+            k.wheel_radius_m,
+            k.wheel_distance_m,
+            k.gear_ratio,
+            k.torque_constant,
+            k.torque_constant / k.resistance_ohm,
+            k.viscous_nms,
+            k.coulomb_nm,
+            k.coulomb_smoothing_radps,
+            k.traction_force_max_n,
+            k.gear_ratio * k.gear_efficiency * h_over_j,  # shaft torque -> wheel speed, motor driving
+            k.gear_ratio / k.gear_efficiency * h_over_j,  # ... wheel back-driving the motor
+            k.wheel_radius_m * h_over_j,
+            h / k.mass_kg,
+            k.wheel_distance_m * h / k.inertia_kgm2,
+            k.supply_voltage_v / k.resistance_ohm,
+        )
+
+    def _advance_rig(self, m: int, h: float, decay: float, mean_factor: float) -> None:
+        """Test-rig variant (slow, clear): lifted = on a stand (no traction, body held still);
+        locked = blocked rotors (wheel speed held at 0; on the floor the locked wheels still brake
+        the body through traction). Same equations as `advance`."""
+        k = self.k
+        gear, kt = k.gear_ratio, k.torque_constant
+        ke_over_r = kt / k.resistance_ohm
+        v_over_r = k.supply_voltage_v / k.resistance_ohm
+        h_over_j = h / k.wheel_inertia_total_kgm2
+        c_eff = k.for_substep(h)[2]
+        for _ in range(m):
+            ct, st = self.cos_th, self.sin_th
+            u = ct * self.vx + st * self.vy
+            v = -st * self.vx + ct * self.vy
+            fu = fv = tz = 0.0
+            for i in range(k.num_wheels):
+                ww = self.wheel_w[i]
+                f = 0.0
+                if not self.lifted:
+                    vc = -k.sin_a[i] * u + k.cos_a[i] * v + k.wheel_distance_m * self.w
+                    f = max(-k.traction_force_max_n, min(k.traction_force_max_n, c_eff * (k.wheel_radius_m * ww - vc)))
+                    fu -= k.sin_a[i] * f
+                    fv += k.cos_a[i] * f
+                    tz += k.wheel_distance_m * f
+                wm = gear * ww
+                iss = v_over_r * self.duty[i] - ke_over_r * wm
+                di = self.current[i] - iss
+                imean = iss + di * mean_factor
+                self.current[i] = iss + di * decay
+                self.i2_integral[i] += imean * imean * h
+                if self.locked:
+                    self.wheel_w[i] = 0.0
+                    continue
+                tsh = kt * imean - k.viscous_nms * wm - k.coulomb_nm * wm / (abs(wm) + k.coulomb_smoothing_radps)
+                eta = k.gear_efficiency if tsh * wm >= 0.0 else 1.0 / k.gear_efficiency
+                self.wheel_w[i] = ww + (gear * tsh * eta - k.wheel_radius_m * f) * h_over_j
+            if self.lifted:
+                self.vx = self.vy = self.w = 0.0
+                continue
+            self.vx += (ct * fu - st * fv) * h / k.mass_kg
+            self.vy += (st * fu + ct * fv) * h / k.mass_kg
+            self.w += tz * h / k.inertia_kgm2
+            self.x += self.vx * h
+            self.y += self.vy * h
+            self.theta = math.remainder(self.theta + self.w * h, 2.0 * math.pi)
+            self.cos_th, self.sin_th = math.cos(self.theta), math.sin(self.theta)
 
     def update_temperature(self, dt_s: float) -> None:
         """Exact first-order thermal step with the mean Joule power of the last dt_s."""

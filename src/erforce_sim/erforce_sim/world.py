@@ -83,7 +83,7 @@ class RobotSpec:
 
 @dataclass(frozen=True)
 class PhysicsParams:
-    substep_hz: float = 20000.0  # motor/body/ball substep rate (>= 10 kHz)
+    substep_hz: float = 10000.0  # motor/body/ball substep rate (>= 10 kHz; exact-exponential electrics)
     traction_damping_nspm: float = 300.0  # slip-velocity force law, clipped at mu N
     coulomb_smoothing_radps: float = 1.0  # motor-shaft speed over which Coulomb friction ramps in
     contacts: ContactParams = field(default_factory=ContactParams)
@@ -456,9 +456,10 @@ class World:
     def step(self, dt_s: float) -> None:
         """Advance the world by dt_s (0 < dt_s <= max_step_s) in substeps of <= 1/substep_hz.
 
-        When no contact is possible within dt_s (conservative distance check) every body runs its
-        substeps in one tight loop; otherwise bodies and contacts are interleaved substep by substep.
-        Either way every body is integrated with the same substep h.
+        Bodies that cannot touch anything within dt_s (conservative distance check with bounded
+        acceleration) run their substeps in one tight loop; the others are interleaved substep by
+        substep with their contacts. Every body is integrated with the same substep h, and the step is
+        split at vision capture times so frames see all bodies at the same instant.
         """
         dt = _finite("step: dt_s", dt_s)
         if dt <= 0.0:
@@ -469,86 +470,98 @@ class World:
         h = dt / n
         coeffs = self._substep_coeffs(h)
         t0 = self._t
-        if self._contact_free(dt):
-            done = 0
-            while done < n:
-                # run up to the substep that crosses the next vision capture time
-                j_cap = math.ceil((self.vision.next_capture_s - t0) / h - 1e-9)
-                end = n if j_cap > n else max(j_cap, done + 1)
-                m = end - done
-                for rb, (decay, mean_factor, c_eff) in zip(self._robots, coeffs, strict=True):
-                    rb.advance(m, h, decay, mean_factor, c_eff)
-                self._ball.advance(m, h)
-                done = end
-                if t0 + done * h >= self.vision.next_capture_s - 1e-12:
-                    self._capture(t0 + done * h)
-        else:
-            self._step_with_contacts(n, h, coeffs, t0)
+        ball_wall, robot_wall, robot_pairs, ball_robots = self._contact_candidates(dt)
+        involved = set(robot_wall) | set(ball_robots)
+        for a, b in robot_pairs:
+            involved.update((a, b))
+        ball_involved = ball_wall or bool(ball_robots)
+        free = [(rb, coeffs[i]) for i, rb in enumerate(self._robots) if i not in involved]
+        busy = [(i, self._robots[i], coeffs[i]) for i in sorted(involved)]
+        ball = self._ball
+        done = 0
+        while done < n:
+            # run up to the substep that crosses the next vision capture time
+            j_cap = math.ceil((self.vision.next_capture_s - t0) / h - 1e-9)
+            end = n if j_cap > n else max(j_cap, done + 1)
+            m = end - done
+            for rb, (decay, mean_factor, c_eff) in free:
+                rb.advance(m, h, decay, mean_factor, c_eff)
+            if not ball_involved:
+                ball.advance(m, h)
+            if busy or ball_involved:
+                self._substeps_with_contacts(
+                    m, h, t0 + done * h, busy, ball_involved, ball_wall, robot_wall, robot_pairs, ball_robots
+                )
+            done = end
+            if t0 + done * h >= self.vision.next_capture_s - 1e-12:
+                self._capture(t0 + done * h)
         self._t = t0 + dt
+        if self._any_armed:
+            self._armed = [a if a is not None and a.deadline_s >= self._t else None for a in self._armed]
+            self._any_armed = any(a is not None for a in self._armed)
         for rb in self._robots:
             rb.update_temperature(dt)
         self._sample_light_barriers()
 
-    def _contact_free(self, dt: float) -> bool:
-        """True when no body can touch a wall or another body within dt (bounded acceleration)."""
-        margin = 1e-3 + 10.0 * dt * dt
+    def _contact_candidates(self, dt: float) -> tuple[bool, list[int], list[tuple[int, int]], list[int]]:
+        """Contacts possible within dt: (ball-wall, robots near a wall, robot pairs, robots near the ball)."""
+        margin = 2e-3 + self.physics.kick_touch_tolerance_m + 10.0 * dt * dt
         ball = self._ball
         bspeed = math.hypot(ball.vx, ball.vy)
-        reach_b = bspeed * dt + margin
-        if abs(ball.x) + ball.radius + reach_b >= self._half_x or abs(ball.y) + ball.radius + reach_b >= self._half_y:
-            return False
+        reach_b = ball.radius + bspeed * dt + margin
+        ball_wall = abs(ball.x) + reach_b >= self._half_x or abs(ball.y) + reach_b >= self._half_y
         robots, radii = self._robots, self._radii
         speeds = [math.hypot(rb.vx, rb.vy) for rb in robots]
+        robot_wall: list[int] = []
+        pairs: list[tuple[int, int]] = []
+        near_ball: list[int] = []
         for a, rb in enumerate(robots):
             ra = radii[a]
-            reach = speeds[a] * dt + margin
-            if abs(rb.x) + ra + reach >= self._half_x or abs(rb.y) + ra + reach >= self._half_y:
-                return False
-            gap = math.hypot(ball.x - rb.x, ball.y - rb.y) - ra - ball.radius
-            if gap <= (speeds[a] + bspeed) * dt + margin:
-                return False
+            reach = ra + speeds[a] * dt + margin
+            if abs(rb.x) + reach >= self._half_x or abs(rb.y) + reach >= self._half_y:
+                robot_wall.append(a)
+            if math.hypot(ball.x - rb.x, ball.y - rb.y) <= reach + reach_b:
+                near_ball.append(a)
             for b in range(a + 1, len(robots)):
                 other = robots[b]
-                gap = math.hypot(other.x - rb.x, other.y - rb.y) - ra - radii[b]
-                if gap <= (speeds[a] + speeds[b]) * dt + margin:
-                    return False
-        return True
+                if math.hypot(other.x - rb.x, other.y - rb.y) <= reach + radii[b] + speeds[b] * dt:
+                    pairs.append((a, b))
+        return ball_wall, robot_wall, pairs, near_ball
 
-    def _step_with_contacts(self, n: int, h: float, coeffs: list, t0: float) -> None:
-        robots = self._robots
-        pairs = list(zip(robots, coeffs, strict=True))
-        shapes = self._shapes
-        radii = self._radii
+    def _substeps_with_contacts(
+        self,
+        m: int,
+        h: float,
+        t_start: float,
+        busy: list,
+        ball_involved: bool,
+        ball_wall: bool,
+        robot_wall: list[int],
+        robot_pairs: list[tuple[int, int]],
+        ball_robots: list[int],
+    ) -> None:
+        robots, shapes, radii = self._robots, self._shapes, self._radii
         ball = self._ball
         cp = self.physics.contacts
         hx, hy = self._half_x, self._half_y
-        bx_lim, by_lim = hx - ball.radius, hy - ball.radius
-        nrob = len(robots)
-        vision = self.vision
-        for j in range(n):
-            for rb, (decay, mean_factor, c_eff) in pairs:
+        for j in range(m):
+            for _, rb, (decay, mean_factor, c_eff) in busy:
                 rb.advance(1, h, decay, mean_factor, c_eff)
-            ball.advance(1, h)
-            if abs(ball.x) > bx_lim or abs(ball.y) > by_lim:
+            if ball_involved:
+                ball.advance(1, h)
+            if ball_wall:
                 ball_walls(ball, hx, hy, cp)
-            for a in range(nrob):
-                rb = robots[a]
-                ra = radii[a]
-                if abs(rb.x) > hx - ra or abs(rb.y) > hy - ra:
-                    robot_walls(rb, ra, hx, hy, cp)
-                for b in range(a + 1, nrob):
-                    other = robots[b]
-                    reach = ra + radii[b]
-                    if abs(other.x - rb.x) < reach and abs(other.y - rb.y) < reach:
-                        robot_robot(rb, ra, other, radii[b], cp)
-                ball_robot(ball, rb, shapes[a], cp)
-            t_sub = t0 + (j + 1) * h
-            if self._any_dribbler:
-                self._dribble(h)
-            if self._any_armed:
-                self._fire_armed(t_sub)
-            if t_sub >= vision.next_capture_s - 1e-12:
-                self._capture(t_sub)
+            for a in robot_wall:
+                robot_walls(robots[a], radii[a], hx, hy, cp)
+            for a, b in robot_pairs:
+                robot_robot(robots[a], radii[a], robots[b], radii[b], cp)
+            for a in ball_robots:
+                ball_robot(ball, robots[a], shapes[a], cp)
+            if ball_robots:
+                if self._any_dribbler:
+                    self._dribble(h)
+                if self._any_armed:
+                    self._fire_armed(t_start + (j + 1) * h)
 
     def _capture(self, t: float) -> None:
         self.vision.capture(
