@@ -39,30 +39,39 @@ def test_gate_reports_a_stall_after_the_timeout_then_resumes():
 
 def test_join_uses_the_previous_ticks_setpoint_and_waits_for_it():
     join = SetpointJoin(wait=True)
-    ready, sp = join.setpoint_for(1 * MS)
-    assert ready and sp is None  # first tick: nothing known, command zero
+    assert join.setpoint_for(1 * MS) == (True, None)  # first tick: nothing known, command zero
     join.done(1 * MS)
-    ready, _ = join.setpoint_for(2 * MS)
-    assert not ready  # the answer to tick 1 has not arrived
+    assert join.setpoint_for(2 * MS) == (False, None)  # the answer to tick 1 has not arrived
     join.add_setpoint(1 * MS, np.array([1.0, 2.0]))
-    ready, sp = join.setpoint_for(2 * MS)
-    assert ready and sp.tolist() == [1.0, 2.0]
+    ready, (stamp, sp) = join.setpoint_for(2 * MS)
+    assert ready and stamp == 1 * MS and sp.tolist() == [1.0, 2.0]
     join.done(2 * MS)
     join.add_setpoint(2 * MS, np.array([3.0, 4.0]))
     join.add_setpoint(3 * MS, np.array([5.0, 6.0]))  # answers tick 3: must not be used at tick 3
-    ready, sp = join.setpoint_for(3 * MS)
-    assert ready and sp.tolist() == [3.0, 4.0]
+    ready, (stamp, sp) = join.setpoint_for(3 * MS)
+    assert ready and stamp == 2 * MS and sp.tolist() == [3.0, 4.0]
 
 
-def test_join_force_and_realtime_take_the_newest_older_setpoint():
+def test_join_forced_once_then_stops_waiting_until_setpoints_return():
     join = SetpointJoin(wait=True)
-    join.done(1 * MS)
     join.add_setpoint(0, np.array([7.0]))
+    join.done(1 * MS)
     assert join.setpoint_for(2 * MS) == (False, None)
-    ready, sp = join.setpoint_for(2 * MS, force=True)
-    assert ready and sp.tolist() == [7.0]
+    ready, (stamp, sp) = join.setpoint_for(2 * MS, force=True)
+    assert ready and stamp == 0 and sp.tolist() == [7.0]
+    join.done(2 * MS)
+    ready, (stamp, _) = join.setpoint_for(3 * MS)  # silent source: no second wait
+    assert ready and stamp == 0
+    join.done(3 * MS)
+    join.add_setpoint(3 * MS, np.array([8.0]))  # the main board is back
+    join.done(4 * MS)
+    assert join.setpoint_for(5 * MS) == (False, None)  # waits again for tick 4's answer
+
+
+def test_join_in_realtime_takes_the_newest_older_setpoint():
     realtime = SetpointJoin(wait=False)
     realtime.done(1 * MS)
     realtime.add_setpoint(1 * MS, np.array([8.0]))
     realtime.add_setpoint(3 * MS, np.array([9.0]))
-    assert realtime.setpoint_for(2 * MS)[1].tolist() == [8.0]
+    ready, (stamp, sp) = realtime.setpoint_for(2 * MS)
+    assert ready and stamp == 1 * MS and sp.tolist() == [8.0]

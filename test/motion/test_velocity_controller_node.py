@@ -5,9 +5,6 @@ import math
 import numpy as np
 import pytest
 from geometry_msgs.msg import Twist
-from rcl_interfaces.msg import Parameter as ParameterMsg
-from rcl_interfaces.msg import ParameterType, ParameterValue
-from rcl_interfaces.srv import SetParameters
 from sensor_msgs.msg import JointState
 
 from erforce_interfaces import contract
@@ -117,36 +114,31 @@ def test_command_timeout_stops_the_robot(ros_graph):
     assert np.allclose(kin.forward(speeds), 0.0, atol=1e-3)
 
 
-def _set_param(graph, name, value: ParameterValue):
-    client = graph.probe.node.create_client(SetParameters, "/robot_0/velocity_controller/set_parameters")
-    assert client.wait_for_service(timeout_sec=10.0)
-    future = client.call_async(SetParameters.Request(parameters=[ParameterMsg(name=name, value=value)]))
-    graph.probe.spin_until(future.done, 10.0, "set_parameters")
-    return future.result().results[0]
+NODE = "/robot_0/velocity_controller"
 
 
 @pytest.mark.parametrize(
     ("name", "value"),
     [
-        ("kp_translation", ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=-1.0)),
-        ("kp_translation", ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=0.0)),
-        ("max_accel_mps2", ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=math.nan)),
-        ("robot.wheel_radius_m", ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=0.0)),
-        ("robot.wheel_angles_rad", ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY,
-                                                  double_array_value=[0.0, 1.0])),
-        ("anti_windup", ParameterValue(type=ParameterType.PARAMETER_STRING, string_value="none")),
+        ("kp_translation", -1.0),
+        ("kp_translation", 0.0),
+        ("max_accel_mps2", math.nan),
+        ("robot.wheel_radius_m", 0.0),
+        ("robot.wheel_angles_rad", [0.0, 1.0]),
+        ("anti_windup", "none"),
     ],
 )
 def test_bad_parameters_rejected_old_value_kept(ros_graph, name, value):
     rig = Rig(ros_graph)
-    result = _set_param(ros_graph, name, value)
+    before = ros_graph.probe.get_parameter(NODE, name)
+    result = ros_graph.probe.set_parameter(NODE, name, value)
     assert not result.successful and result.reason
+    assert ros_graph.probe.get_parameter(NODE, name) == before
     assert np.all(np.isfinite(rig.tick()))
 
 
 def test_good_parameter_change_is_accepted(ros_graph):
     rig = Rig(ros_graph)
-    result = _set_param(ros_graph, "kp_translation",
-                        ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=2.0))
-    assert result.successful
+    assert ros_graph.probe.set_parameter(NODE, "kp_translation", 2.0).successful
+    assert ros_graph.probe.get_parameter(NODE, "kp_translation") == 2.0
     assert np.all(np.isfinite(rig.tick()))

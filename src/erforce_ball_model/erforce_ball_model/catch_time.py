@@ -24,10 +24,10 @@ robotTimeToBall (beyond the paper)
     Guarantee: every interval of length >= h contains a grid point, so the robot's first catch
     window (an interval where f <= 0) is never missed when it is at least h wide; in that case the
     returned time is feasible (f <= 0 there), never earlier than the true first crossing and at most
-    ``h / refine_points**2`` later (about 10 us with the defaults h = 10 ms, 32 points). Narrower
-    windows can be missed; then the next window (or the paper's fallback) is returned. The crossing
-    is refined by two sub-grid passes instead of a bisection, which also copes with the
-    discontinuity of f the paper mentions (the leftmost feasible sub-point is taken).
+    ``h / refine_points`` later (78 us with the defaults h = 10 ms, 128 points). Narrower windows
+    can be missed; then the next window (or the paper's fallback) is returned. The crossing is
+    refined by one sub-grid pass instead of a bisection, which also copes with the discontinuity
+    of f the paper mentions (the leftmost feasible sub-point is taken).
 """
 
 from __future__ import annotations
@@ -146,7 +146,7 @@ def _axis_max_inv_accel(d, w, t_budget, rho):
     with np.errstate(divide="ignore", invalid="ignore"):
         x = np.where(b >= 0.0, -2.0 * c / (b + disc), (disc - b) / (2.0 * a2))
     x = np.where(fast, 2.0 * (t - d / ws) / ws, x)
-    x = np.where(t > 0.0, np.maximum(np.nan_to_num(x, nan=0.0), 0.0), 0.0)
+    x = np.where(t > 0.0, np.fmax(x, 0.0), 0.0)  # fmax also maps a NaN from 0/0 to 0
     return np.where((d == 0.0) & (w == 0.0), inf, x)
 
 
@@ -161,11 +161,8 @@ def _limits_arrays(limits: RobotLimits, shape) -> tuple[np.ndarray, np.ndarray]:
     return a, v
 
 
-NB = 6
-
-
 def robot_time_to_pos(
-    robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits, iterations: int = 20
+    robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits, iterations: int = 24
 ) -> np.ndarray:
     """Time (s) for a robot to reach ``target_m`` and stop there (paper: robotTimeToPos).
 
@@ -173,7 +170,7 @@ def robot_time_to_pos(
     angle alpha solves ``t_x(alpha) = t_y(alpha)`` (t_x grows, t_y falls with alpha): a few
     bisection steps, then Illinois false-position steps (superlinear; t_x - t_y is piecewise
     smooth). Returns ``max(t_x, t_y)`` at the better bracket end, an upper bound that is within
-    ~1e-9 s of the synchronized time after the default 20 iterations.
+    1e-6 s of the synchronized time with the default 24 iterations (measured on 200k random cases).
     """
     p0 = _vec2("robot_pos_m", robot_pos_m)
     v0 = _vec2("robot_vel_mps", robot_vel_mps)
@@ -197,7 +194,7 @@ def robot_time_to_pos(
     eps = 1e-9  # keeps both shares > 0 so the gap is finite at the bracket ends
     lo = np.full(shape, eps)
     hi = np.full(shape, 0.5 * math.pi - eps)
-    num_bisect = NB
+    num_bisect = iterations - 8
     for _ in range(num_bisect):
         mid = 0.5 * (lo + hi)
         late_x = gap_and_time(mid)[0] > 0.0
@@ -228,13 +225,18 @@ def can_reach_in_time(d_m, w_mps, t_budget_s, a_max_mps2, v_max_mps) -> np.ndarr
     """
     d = np.asarray(d_m, dtype=float)
     w = np.asarray(w_mps, dtype=float)
-    a = np.asarray(a_max_mps2, dtype=float)
-    rho = np.asarray(v_max_mps, dtype=float) / a
-    t = np.asarray(t_budget_s, dtype=float)
-    dd = np.stack(np.broadcast_arrays(d[..., 0], d[..., 1], w[..., 0], w[..., 1], t, a, rho))
-    x = _axis_max_inv_accel(dd[0:2], dd[2:4], dd[4], dd[6])
+    dx, dy, wx, wy, t, a, vmax = np.broadcast_arrays(
+        d[..., 0], d[..., 1], w[..., 0], w[..., 1], t_budget_s, a_max_mps2, v_max_mps
+    )
+    return _can_reach(dx, dy, wx, wy, np.asarray(t, float), np.asarray(a, float), np.asarray(vmax, float))
+
+
+def _can_reach(dx, dy, wx, wy, t, a, vmax):
+    """can_reach_in_time on same-shape arrays (hot path: no broadcasting or validation)."""
+    rho = vmax / a
+    x = _axis_max_inv_accel(np.stack([dx, dy]), np.stack([wx, wy]), t, rho)
     with np.errstate(divide="ignore"):
-        share = 1.0 / (dd[5] * x)
+        share = 1.0 / (a * x)
     return share[0] ** 2 + share[1] ** 2 <= 1.0
 
 
@@ -272,7 +274,7 @@ def robot_time_to_ball(
     field: FieldConfig | None = None,
     field_margin_m: float = 0.0,
     grid_step_s: float = 0.01,
-    refine_points: int = 32,
+    refine_points: int = 128,
 ) -> CatchResult:
     """Earliest time each robot can touch the ball with its dribbler while facing ``facing_rad``.
 
@@ -315,36 +317,46 @@ def robot_time_to_ball(
     dy = ball_grid[None, :, 1] - start[:, 1:2]
     s0 = np.hypot(v0[:, 0], v0[:, 1])[:, None]
     maybe = dx * dx + dy * dy <= (_reach_bound_m(t_grid[None, :], s0, a[:, None], vmax[:, None]) + 1e-9) ** 2
-    rows, cols = np.nonzero(maybe)
+    # Only each robot's first feasible grid point matters: scan in growing chunks of columns and
+    # drop the robots that already found one.
     feasible = np.zeros((n, num), dtype=bool)
-    if rows.size:
-        d = np.stack([dx[rows, cols], dy[rows, cols]], axis=-1)
-        feasible[rows, cols] = can_reach_in_time(d, v0[rows], t_grid[cols], a[rows], vmax[rows])
+    active = np.ones(n, dtype=bool)
+    col, chunk = 0, 48
+    while col < num and active.any():
+        end = min(num, col + chunk)
+        rows, cols = np.nonzero(maybe[:, col:end] & active[:, None])
+        if rows.size:
+            cols += col
+            feasible[rows, cols] = _can_reach(
+                dx[rows, cols], dy[rows, cols], v0[rows, 0], v0[rows, 1], t_grid[cols], a[rows], vmax[rows]
+            )
+            active &= ~feasible[:, col:end].any(axis=1)
+        col, chunk = end, 4 * chunk
     found = feasible.any(axis=1)
     first = feasible.argmax(axis=1)
-
     time_s = np.full(n, np.inf)
     time_s[found & (first == 0)] = 0.0
     refine = np.nonzero(found & (first > 0))[0]
     if refine.size:
+        # One sub-grid pass over (t_{k-1}, t_k]: the leftmost feasible sub-point (robust to the
+        # discontinuity of f, unlike a bisection). t_k itself is known to be feasible.
         left = t_grid[first[refine] - 1]
         right = t_grid[first[refine]]
-        frac = np.arange(1, refine_points + 1) / refine_points
-        for _ in range(2):
-            sub = left[:, None] + (right - left)[:, None] * frac[None, :]  # last column == right
-            sub[:, -1] = right
-            pts = ball.position_at(sub)  # (Rb, M, 2)
-            d = pts - start[refine, None, :]
-            ok = can_reach_in_time(
-                d, v0[refine, None, :], sub, a[refine, None], vmax[refine, None]
-            )
-            ok[:, -1] = True  # known feasible (grid point / previous pass)
-            j = ok.argmax(axis=1)
-            rows_b = np.arange(refine.size)
-            new_right = sub[rows_b, j]
-            left = np.where(j > 0, sub[rows_b, np.maximum(j - 1, 0)], left)
-            right = new_right
-        time_s[refine] = right
+        frac = np.arange(1, refine_points) / refine_points
+        sub = left[:, None] + (right - left)[:, None] * frac[None, :]
+        pts = ball.position_at(sub)  # (Rb, M-1, 2)
+        shape = sub.shape
+        ok = _can_reach(
+            pts[..., 0] - start[refine, 0:1],
+            pts[..., 1] - start[refine, 1:2],
+            np.broadcast_to(v0[refine, 0:1], shape),
+            np.broadcast_to(v0[refine, 1:2], shape),
+            sub,
+            np.broadcast_to(a[refine, None], shape),
+            np.broadcast_to(vmax[refine, None], shape),
+        )
+        j = ok.argmax(axis=1)
+        time_s[refine] = np.where(ok.any(axis=1), sub[np.arange(refine.size), j], right)
 
     kind = np.where(found, CatchKind.MOVING, CatchKind.NEVER).astype(np.int8)
     rest = ~found & (t_stop < t_out)

@@ -141,7 +141,10 @@ def load_launch_entries(path: Path, shown: str) -> MarkedList:
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = f":{mark.line + 1}" if mark else ""
-        raise LaunchError(f"{shown}{line}", f"invalid YAML: {exc.problem or exc.context}") from None
+        started = ""
+        if exc.context and exc.context_mark and exc.problem and exc.context_mark is not mark:
+            started = f" ({exc.context} started at line {exc.context_mark.line + 1})"
+        raise LaunchError(f"{shown}{line}", f"invalid YAML: {exc.problem or exc.context}{started}") from None
     except yaml.YAMLError as exc:
         raise LaunchError(shown, f"invalid YAML: {exc}") from None
     if not isinstance(doc, MarkedDict) or "launch" not in doc:

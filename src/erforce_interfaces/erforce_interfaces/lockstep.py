@@ -86,34 +86,41 @@ class SetpointJoin:
     """Motor-board side of lockstep: tick k runs with the setpoint answered at tick k-1.
 
     ``wait`` false (real-time pacing) never holds a tick back: the newest setpoint is used.
+    After one forced tick (the velocity controller was silent past a wall-clock timeout)
+    the join stops waiting until a setpoint arrives again, so a dead main board costs
+    one timeout, not one per tick.
     """
 
     wait: bool = True
     prev_sensor_ns: int | None = None
     setpoints: dict[int, np.ndarray] = field(default_factory=dict)
-    newest_ns: int | None = None
+    source_silent: bool = False
 
     def add_setpoint(self, stamp_ns: int, setpoint: np.ndarray) -> None:
         self.setpoints[stamp_ns] = setpoint
-        if self.newest_ns is None or stamp_ns > self.newest_ns:
-            self.newest_ns = stamp_ns
-        # keep only what a pending tick can still ask for
+        self.source_silent = False
         for stale in [s for s in self.setpoints if s < stamp_ns - 1_000_000_000]:
             del self.setpoints[stale]
 
-    def setpoint_for(self, sensor_ns: int, force: bool = False) -> tuple[bool, np.ndarray | None]:
-        """(ready, setpoint) for sensor tick ``sensor_ns``.
+    def setpoint_for(self, sensor_ns: int, force: bool = False) -> tuple[bool, tuple[int, np.ndarray] | None]:
+        """(ready, (stamp_ns, setpoint) or None) for sensor tick ``sensor_ns``.
 
         Not ready: the setpoint answered at the previous tick has not arrived; wait.
         ``force`` (after a wall-clock timeout) takes the newest setpoint older than the
-        tick instead. A None setpoint means none is known yet: command zero speed.
+        tick instead. None means no setpoint is known yet: command zero speed.
         """
         want = self.prev_sensor_ns
-        if self.wait and not force and want is not None and want < sensor_ns:
-            sp = self.setpoints.get(want)
-            return (sp is not None), sp
+        if self.wait and not self.source_silent and want is not None and want < sensor_ns:
+            if want in self.setpoints:
+                return True, (want, self.setpoints[want])
+            if not force:
+                return False, None
+            self.source_silent = True
         older = [s for s in self.setpoints if s < sensor_ns]
-        return True, (self.setpoints[max(older)] if older else None)
+        if not older:
+            return True, None
+        newest = max(older)
+        return True, (newest, self.setpoints[newest])
 
     def done(self, sensor_ns: int) -> None:
         self.prev_sensor_ns = sensor_ns

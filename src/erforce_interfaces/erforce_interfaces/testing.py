@@ -320,6 +320,35 @@ class _Probe:
         self.spin_until(lambda: pub.get_subscription_count() >= count, timeout_s, f"{count} subscriber(s) on {topic}")
         return pub
 
+    def set_parameter(self, node_name: str, name: str, value: Any, timeout_s: float = 10.0):
+        """Set one parameter of a remote node (``/robot_0/motor_boards``); returns SetParametersResult."""
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        client = self.node.create_client(SetParameters, f"{node_name}/set_parameters")
+        try:
+            self.spin_until(client.service_is_ready, timeout_s, f"{node_name}/set_parameters")
+            request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+            future = client.call_async(request)
+            self.spin_until(future.done, timeout_s, f"{node_name}/set_parameters answer")
+            return future.result().results[0]
+        finally:
+            self.node.destroy_client(client)
+
+    def get_parameter(self, node_name: str, name: str, timeout_s: float = 10.0):
+        """The current value of a remote node's parameter (Python value)."""
+        from rcl_interfaces.srv import GetParameters
+        from rclpy.parameter import parameter_value_to_python
+
+        client = self.node.create_client(GetParameters, f"{node_name}/get_parameters")
+        try:
+            self.spin_until(client.service_is_ready, timeout_s, f"{node_name}/get_parameters")
+            future = client.call_async(GetParameters.Request(names=[name]))
+            self.spin_until(future.done, timeout_s, f"{node_name}/get_parameters answer")
+            return parameter_value_to_python(future.result().values[0])
+        finally:
+            self.node.destroy_client(client)
+
     def close(self) -> None:
         import rclpy
 

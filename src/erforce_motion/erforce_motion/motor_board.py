@@ -121,6 +121,7 @@ class ThermalCurrentLimiter:
         self._sum = np.zeros(n_wheels)
         self._i2 = np.zeros(n_wheels)  # filtered i^2 in 'i2t' mode
         self.pwm_limit = np.ones(n_wheels)
+        self._at_full = True
         self.over_limit = np.zeros(n_wheels, dtype=bool)
 
     @property
@@ -146,10 +147,15 @@ class ThermalCurrentLimiter:
         else:
             self._i2 += (1.0 - math.exp(-dt_s / self.i2t_time_constant_s)) * (a * a - self._i2)
             over = self._i2 > self.current_limit_a * self.current_limit_a
-        lowered = np.maximum(np.abs(last_duty) - self.pwm_decrement, 0.0)
-        raised = np.minimum(self.pwm_limit + self.recovery_rate_per_s * dt_s, 1.0)
-        self.pwm_limit = np.where(over, lowered, raised)
         self.over_limit = over
+        if over.any():
+            lowered = np.maximum(np.abs(last_duty) - self.pwm_decrement, 0.0)
+            raised = np.minimum(self.pwm_limit + self.recovery_rate_per_s * dt_s, 1.0)
+            self.pwm_limit = np.where(over, lowered, raised)
+            self._at_full = False
+        elif not self._at_full:  # skipped in the common case: nothing to raise
+            self.pwm_limit = np.minimum(self.pwm_limit + self.recovery_rate_per_s * dt_s, 1.0)
+            self._at_full = bool((self.pwm_limit >= 1.0).all())
         return self.pwm_limit
 
 
@@ -223,12 +229,12 @@ class MotorBoard:
         if sp.shape != (n,) or w.shape != (n,) or i_meas.shape != (n,):
             raise ValueError(
                 f"need {n} values each, got shapes {sp.shape}, {w.shape}, {i_meas.shape}")
-        # One finite check for all inputs before any state changes (inf/NaN propagate into the sum).
-        if not math.isfinite(float(sp @ sp + w @ w + i_meas @ i_meas)):
-            raise ValueError("motor board inputs must be finite (and not astronomically large)")
-
-        limit = self.thermal.update(i_meas, self._duty, dt_s)
+        # Finite checks before any state changes: the current here, setpoint and speed inside
+        # the speed PID (which raises before it changes its state).
+        if not np.isfinite(i_meas).all():
+            raise ValueError(f"measured_current_a: must be finite, got {i_meas!r}")
         i_des = self._speed_pid.step(sp, w, dt_s)
+        limit = self.thermal.update(i_meas, self._duty, dt_s)
         if self._inverse:
             emf = self._emf_duty_per_radps * w
             i_hi = (limit - emf) * self._v_over_r
@@ -258,7 +264,7 @@ class MotorBoard:
     @property
     def saturated(self) -> np.ndarray:
         """Per wheel: speed loop at +-peak current, or duty at the PWM limit (feed to the velocity loop)."""
-        return self._speed_pid.status.saturated | (np.abs(self._duty) >= self.thermal.pwm_limit - 1e-12)
+        return self._speed_pid.saturated | (np.abs(self._duty) >= self.thermal.pwm_limit - 1e-12)
 
     @property
     def status(self) -> MotorBoardStatus:

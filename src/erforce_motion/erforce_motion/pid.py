@@ -215,8 +215,10 @@ class Pid:
                     track = np.where(hold_integrator, 0.0, track)
                 new_i = self._integrator + inc + track
             else:
-                blocked = ((v > hi) & (inc > 0.0)) | ((v < lo) & (inc < 0.0))
-                new_i = self._integrator + np.where(blocked, 0.0, inc)
+                sat = v != u
+                if sat.any():  # conditional integration: no step that pushes further into saturation
+                    inc = np.where(sat & ((v - u) * inc > 0.0), 0.0, inc)
+                new_i = self._integrator + inc
             if self._limit_integrator:
                 np.clip(new_i, self._int_lo, self._int_hi, out=new_i)
             self._integrator = new_i
@@ -253,6 +255,12 @@ class Pid:
             self._have_y_prev = False
         self._integrator = np.clip(hold - p - ff, self._int_lo, self._int_hi)
         self._d_filtered = np.zeros(self._n)
+
+    @property
+    def saturated(self) -> np.ndarray:
+        """Per channel: was the last output clipped by the output limits (cheaper than `status`)."""
+        u, v = self._last[0], self._last[1]
+        return np.broadcast_to(v != u, (self._n,)).copy()
 
     @property
     def status(self) -> PidStatus:

@@ -91,8 +91,8 @@ class PhysicsParams:
     kick_spin_ratio: float = 0.0  # default w r / v after a kick; < 0 backspin (-0.4 -> c_switch 0.6)
     kick_tilt_compliance_rad_per_m: float = DEFAULT_TILT_COMPLIANCE_RAD_PER_M  # plunger bending
     kick_touch_tolerance_m: float = 0.005  # ball surface to front face gap that still counts as touching
-    dribbler_time_constant_s: float = 0.02  # ball velocity relaxes to the bar's velocity when dribbling
-    dribbler_pull_mps2: float = 1.0  # dribbler pulls the touching ball towards the robot
+    dribbler_time_constant_s: float = 0.005  # ball velocity relaxes to the bar's velocity when dribbling
+    dribbler_pull_mps2: float = 2.0  # dribbler pulls the touching ball towards the robot
     wheel_speed_noise_radps: float = 0.0  # motor-board sensor noise (std), default off
     current_noise_a: float = 0.0
     max_step_s: float = 0.1

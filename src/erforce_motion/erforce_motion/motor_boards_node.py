@@ -1,0 +1,175 @@
+"""motor_boards: the motor boards of one robot (paper Fig. 3) as a ROS 2 node.
+
+Runs in the robot's namespace. Each ``wheel_states`` tick (measured wheel speeds and
+motor currents) is answered with ``motor_duty`` stamped with that tick, computed with
+the velocity controller's setpoint of the previous tick (erforce_interfaces.lockstep).
+``motor_status`` reports the average current, PWM limit and flags per wheel. All maths
+is in erforce_motion.firmware / motor_board.
+"""
+
+from __future__ import annotations
+
+import collections
+import time
+from typing import Any
+
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import (
+    ConversionError,
+    joint_state_from_msg,
+    joint_state_msg,
+    table_msg,
+    wheel_states_from_msg,
+)
+from erforce_interfaces.lockstep import SetpointJoin
+from erforce_interfaces.node_support import (
+    ParamSpec,
+    ThrottledWarner,
+    declare_params,
+    robot_config_from_params,
+    robot_param_specs,
+    run_node,
+)
+from erforce_motion.firmware import MotorBoardLoop
+from erforce_motion.motor_board import MotorBoardConfig
+
+PARAMS = (
+    ParamSpec("loop_rate_hz", 1000.0, "motor-board loop rate; slower than the sensor ticks holds the duty [Hz]",
+              min=1.0, max=50000.0),
+    ParamSpec("lockstep_sync", True, "wait for the previous tick's setpoint before answering a tick "
+              "(deterministic lockstep); false answers at once with the newest setpoint"),
+    ParamSpec("setpoint_wait_s", 0.05, "wall-clock wait for a late setpoint before going on without it [s]",
+              min=0.001, max=10.0),
+    ParamSpec("setpoint_timeout_s", 0.1, "stop the wheels when the newest setpoint is older than this "
+              "(robot time) [s]", min=0.001, max=10.0),
+    ParamSpec("status_rate_hz", 50.0, "rate of motor_status (robot time) [Hz]", min=0.1, max=1000.0),
+    ParamSpec("speed_kp_a_per_radps", 1.5, "speed PID proportional gain [A/(rad/s)]", min=1e-6, max=100.0),
+    ParamSpec("speed_ki_a_per_rad", 15.0, "speed PID integral gain [A/rad]", min=0.0, max=10000.0),
+    ParamSpec("speed_kd_as_per_rad", 0.0, "speed PID derivative gain [A s/rad]", min=0.0, max=10.0),
+    ParamSpec("speed_derivative_tau_s", 0.002, "low-pass time constant of the speed derivative [s]",
+              min=0.0, max=1.0),
+    ParamSpec("peak_current_a", 8.0, "speed loop output limit: the largest current it asks for [A]",
+              min=0.01, max=100.0),
+    ParamSpec("current_kp", 0.2, "current PID proportional gain [A/A]", min=1e-6, max=100.0),
+    ParamSpec("current_ki_per_s", 200.0, "current PID integral gain [1/s]", min=0.0, max=100000.0),
+    ParamSpec("anti_windup", "clamp", "integrator anti-windup of both PIDs: clamp | back_calculation"),
+    ParamSpec("actuator_mode", "inverse_model", "current -> PWM: linear (the paper's factor) | inverse_model "
+              "(inverse DC motor)"),
+    ParamSpec("linear_duty_per_a", 0.0, "duty per ampere of the linear actuator; 0 = R / V_supply [1/A]",
+              min=0.0, max=10.0),
+    ParamSpec("thermal_mode", "average", "thermal protection: average (the paper's ~10 s mean current) | i2t"),
+    ParamSpec("average_window_s", 10.0, "averaging window of the current limit [s]", min=0.01, max=600.0),
+    ParamSpec("pwm_decrement", 0.01, "PWM limit step below the last PWM while over the limit (1 % = 0.01)",
+              min=1e-6, max=1.0),
+    ParamSpec("pwm_recovery_rate_per_s", 0.2, "how fast the PWM limit rises once under the limit [1/s]",
+              min=1e-6, max=100.0),
+) + robot_param_specs()
+
+_CONFIG_KEYS = (
+    "speed_kp_a_per_radps", "speed_ki_a_per_rad", "speed_kd_as_per_rad", "speed_derivative_tau_s",
+    "peak_current_a", "current_kp", "current_ki_per_s", "anti_windup", "actuator_mode", "thermal_mode",
+    "average_window_s", "pwm_decrement", "pwm_recovery_rate_per_s",
+)
+
+
+def build_loop(values: dict[str, Any]) -> MotorBoardLoop:
+    """The motor-board loop for a complete set of parameter values (raises ValueError when invalid)."""
+    if values["anti_windup"] not in ("clamp", "back_calculation"):
+        raise ValueError(f"anti_windup must be clamp or back_calculation, got {values['anti_windup']!r}")
+    robot = robot_config_from_params(values)
+    period_s = 1.0 / values["loop_rate_hz"]
+    config = MotorBoardConfig(
+        **{k: values[k] for k in _CONFIG_KEYS},
+        linear_duty_per_a=values["linear_duty_per_a"] or None,
+        loop_period_s=period_s,
+        average_current_limit_a=robot.continuous_current_limit_a,
+        i2t_time_constant_s=robot.winding_thermal_time_constant_s,
+    )
+    return MotorBoardLoop(robot, config, period_s, values["setpoint_timeout_s"])
+
+
+class MotorBoardsNode(Node):
+    def __init__(self) -> None:
+        super().__init__("motor_boards")
+        self._warn = ThrottledWarner(self)
+        self._loop: MotorBoardLoop | None = None
+        self._values = declare_params(self, PARAMS, build_loop, self._apply)
+        self._join = SetpointJoin(wait=self._values["lockstep_sync"])
+        self._pending: collections.deque = collections.deque()  # (stamp_ns, speeds, currents, wall_s)
+        self._last_status_ns: int | None = None
+        self._duty_pub = self.create_publisher(JointState, contract.MOTOR_DUTY.name, contract.MOTOR_DUTY.qos)
+        self._status_pub = self.create_publisher(Float64MultiArray, contract.MOTOR_STATUS.name,
+                                                 contract.MOTOR_STATUS.qos)
+        self.create_subscription(JointState, contract.WHEEL_STATES.name, self._on_wheel_states,
+                                 contract.WHEEL_STATES.qos)
+        self.create_subscription(JointState, contract.WHEEL_SETPOINTS.name, self._on_setpoints,
+                                 contract.WHEEL_SETPOINTS.qos)
+        # Wall-clock timer: a silent velocity controller must not hold a tick forever.
+        self.create_timer(0.01, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _apply(self, loop: MotorBoardLoop) -> None:
+        if self._loop is not None:
+            loop.take_over(self._loop)
+        self._loop = loop
+        if hasattr(self, "_join"):
+            self._join.wait = self._values["lockstep_sync"]
+
+    def _on_wheel_states(self, msg: JointState) -> None:
+        try:
+            t_ns, speeds, currents = wheel_states_from_msg(msg, self._loop.robot.num_wheels)
+        except ConversionError as exc:
+            self._warn.warn("wheel_states", f"rejected wheel_states: {exc}")
+            return
+        self._pending.append((t_ns, speeds, currents, time.monotonic()))
+        self._drain()
+
+    def _on_setpoints(self, msg: JointState) -> None:
+        try:
+            t_ns, setpoints = joint_state_from_msg(msg, self._loop.robot.num_wheels, "velocity")
+        except ConversionError as exc:
+            self._warn.warn("wheel_setpoints", f"rejected wheel_setpoints: {exc}")
+            return
+        self._join.add_setpoint(t_ns, setpoints)
+        self._drain()
+
+    def _drain(self) -> None:
+        while self._pending:
+            t_ns, speeds, currents, arrived_s = self._pending[0]
+            late = time.monotonic() - arrived_s > self._values["setpoint_wait_s"]
+            ready, entry = self._join.setpoint_for(t_ns, force=late or len(self._pending) > 1)
+            if not ready:
+                return
+            self._pending.popleft()
+            if late and entry is not None:
+                self._warn.warn("late", "no setpoint from velocity_controller in time; using the newest known")
+            self._answer(t_ns, speeds, currents, entry)
+
+    def _answer(self, t_ns: int, speeds, currents, entry) -> None:
+        loop = self._loop
+        if entry is not None:
+            loop.set_setpoint(entry[0] * 1e-9, entry[1])
+        duty = loop.tick(t_ns * 1e-9, speeds, currents)
+        if loop.notice:
+            self._warn.warn("notice", loop.notice)
+        self._join.done(t_ns)
+        self._duty_pub.publish(joint_state_msg(t_ns, loop.robot.wheel_names, effort=duty))
+        period_ns = int(1e9 / self._values["status_rate_hz"])
+        if self._last_status_ns is None or t_ns - self._last_status_ns >= period_ns or t_ns < self._last_status_ns:
+            self._last_status_ns = t_ns
+            st = loop.board.status
+            rows = [[st.average_current_a[i], st.pwm_limit[i], float(st.saturated[i]), float(st.limit_active[i])]
+                    for i in range(loop.robot.num_wheels)]
+            self._status_pub.publish(table_msg(rows, contract.MOTOR_STATUS_COLUMNS, "wheels"))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(MotorBoardsNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,386 @@
+"""erforce-launch: YAML launch files resolved like ros2 launch, real processes, one-line errors.
+
+Resolution tests run in-process (fast, no DDS); the graph tests start the launcher as a real
+process in a private DDS domain (the ``ros_graph`` harness) and tear it down with signals.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import sys
+import tempfile
+import textwrap
+from pathlib import Path
+
+import pytest
+import yaml
+from hypothesis import given
+from hypothesis import strategies as st
+
+from erforce_interfaces.launcher import (
+    Resolver,
+    Subst,
+    SubstitutionError,
+    declared_args,
+    main,
+    parse_substitutions,
+    prefix_namespace,
+)
+
+HERE = Path(__file__).parent / "launch_files"
+REPO = Path(__file__).resolve().parents[2]
+TALKER_LISTENER = REPO / "src" / "erforce_interfaces" / "launch" / "talker_listener.launch.yaml"
+LAUNCHER = str(Path(sys.executable).with_name("erforce-launch"))
+BIN = Path(sys.executable).parent
+
+
+def resolve(path: Path, **args: str) -> dict:
+    """label -> ProcessSpec of a launch file, resolved without starting anything."""
+    with tempfile.TemporaryDirectory() as param_dir:
+        specs = Resolver(args, Path(param_dir)).resolve(path, path.name)
+        for spec in specs:  # the generated files exist while resolving; keep what they said
+            assert all(Path(p).read_text() == content for p, content in spec.param_files)
+    return {s.label: s for s in specs}
+
+
+def params_of(spec) -> dict:
+    """The generated (inline) parameter files of a spec, merged in order."""
+    merged: dict = {}
+    for _, content in spec.param_files:
+        for key, body in yaml.safe_load(content).items():
+            merged.setdefault(key, {}).update(body["ros__parameters"])
+    return merged
+
+
+def ros_args(spec) -> list[str]:
+    return spec.cmd[spec.cmd.index("--ros-args") :]
+
+
+def alive(pid: int) -> bool:
+    """A pid that still runs (a zombie nobody reaped counts as gone)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def started_pids(output: str) -> list[int]:
+    return [int(p) for p in re.findall(r"process started with pid \[(\d+)\]", output)]
+
+
+# ============================================================ substitutions and namespaces
+def test_substitutions_parse_nested_and_quoted_arguments():
+    parts = parse_substitutions("a $(find-pkg-share $(var pkg))/x $(env 'MY VAR' \"d $(var y)\")!")
+    assert parts[0] == "a "
+    assert parts[1] == Subst("find-pkg-share", ((Subst("var", (("pkg",),)),),))
+    assert parts[2] == "/x "
+    assert parts[3] == Subst("env", (("MY VAR",), ("d ", Subst("var", (("y",),)))))
+    assert parts[4] == "!"
+
+
+@pytest.mark.parametrize("text", ["$(var x", "$(", "$(var 'x)", "$(var)x"])
+def test_substitution_syntax_errors_are_reported(text):
+    with pytest.raises(SubstitutionError):
+        parse_substitutions(text)
+
+
+@given(st.text(alphabet=st.characters(blacklist_characters="$"), max_size=40))
+def test_text_without_substitutions_is_literal(text):
+    assert parse_substitutions(text) == ([text] if text else [])
+
+
+@given(st.from_regex(r"[A-Za-z][A-Za-z0-9_]{0,12}", fullmatch=True), st.text(alphabet="ab _.'\"", max_size=8))
+def test_any_let_value_comes_back_through_var(name, value):
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "roundtrip.launch.yaml"
+        path.write_text(yaml.safe_dump({"launch": [
+            {"let": {"name": name, "value": value}},
+            {"executable": {"cmd": "true", "name": f"x$(var {name})y"}}]}))
+        (spec,) = resolve(path).values()
+    assert spec.label == f"x{value}y-1"
+
+
+@pytest.mark.parametrize(("base", "ns", "expected"), [
+    (None, None, None), (None, "a", "a"), ("a", None, "a"), ("/a", "b", "/a/b"), ("/a", "/b", "/b"),
+    ("/", "b", "/b"), ("a/", "b", "a/b"), ("", "b", "b"),
+])
+def test_prefix_namespace_like_launch_ros(base, ns, expected):
+    assert prefix_namespace(base, ns) == expected
+
+
+# ====================================================================== resolution (--print)
+def test_talker_listener_resolves_to_the_ros2_launch_command_lines(tmp_path):
+    specs = resolve(TALKER_LISTENER, rate_hz="33.0", ns="/x/y")
+    assert list(specs) == ["talker-1", "listener-2"]
+    talker, listener = specs["talker-1"], specs["listener-2"]
+    assert talker.cmd[0] == str(BIN / "talker")
+    assert ros_args(talker)[:5] == ["--ros-args", "-r", "__node:=talker", "-r", "__ns:=/x/y"]
+    assert ros_args(talker)[5] == "--params-file"
+    # name and namespace known: launch_ros keys the generated file by the full node name
+    assert params_of(talker) == {"/x/y/talker": {"rate_hz": 33.0, "text": "hello from the talker"}}
+    assert ros_args(listener) == ["--ros-args", "-r", "__node:=listener", "-r", "__ns:=/x/y"]
+    assert talker.output == listener.output == "screen"
+
+
+def test_include_groups_and_namespaces_resolve_like_ros2_launch():
+    specs = resolve(HERE / "outer.launch.yaml", with_optional="true")
+    talker = specs["talker-1"]
+    params_file = str(HERE / "talker_params.yaml")
+    assert ros_args(talker) == [
+        "--ros-args", "-r", "__node:=talker", "-r", "__ns:=/team/bot1",  # pushed 'team' + include arg
+        "--params-file", os.path.abspath(params_file),  # 'from' entries keep their order...
+        "--params-file", talker.param_files[0][0],  # ...before the later inline entries
+        "-r", "chatter:=/bot1/chat",
+    ]
+    assert params_of(talker) == {"/team/bot1/talker": {
+        "text": "from bot1", "gains": [1.0, 2.5], "nested": {"flag": True, "words": "x y"},
+        "share_dir": str(REPO / "src" / "erforce_interfaces"),  # $(find-pkg-share $(var pkg))
+    }}
+    assert (talker.respawn, talker.respawn_delay_s, talker.output) == (True, 0.5, "both")
+    assert talker.env["ERFORCE_LAUNCH_TEST"] == "outer-bot1"
+    # the unscoped group's namespace leaks out; the scoped group's 'team' does not
+    assert ros_args(specs["listener-2"]) == ["--ros-args", "-r", "__node:=after_unscoped", "-r", "__ns:=/abs"]
+    # forwarding: false starts from nothing but 'keep': no namespace, no set_env, no 'robot'
+    isolated = specs["listener-3"]
+    assert isolated.cmd[1:3] == ["--flag", "k-bot1"]
+    assert ros_args(isolated) == ["--ros-args", "-r", "__node:=isolated"]
+    assert "ERFORCE_LAUNCH_TEST" not in isolated.env
+    # 'if' true, 'ros_namespace' alias, no name: relative namespace below the leaked /abs
+    assert ros_args(specs["listener-4"]) == ["--ros-args", "-r", "__ns:=/abs/opt"]
+    assert "listener-4" not in resolve(HERE / "outer.launch.yaml", with_optional="false")
+
+
+def test_command_line_arg_overrides_defaults_also_inside_includes(tmp_path):
+    inner = tmp_path / "inner.launch.yaml"
+    inner.write_text(textwrap.dedent("""\
+        launch:
+          - arg: {name: who, default: "inner-default"}
+          - let: {name: leaked, value: "from-inner"}
+          - executable: {cmd: "true", name: "i-$(var who)"}
+        """))
+    outer = tmp_path / "outer.launch.yaml"
+    outer.write_text(textwrap.dedent("""\
+        launch:
+          - include: {file: "$(dirname)/inner.launch.yaml"}
+          - executable: {cmd: "true", name: "o-$(var leaked)"}
+          - include: {file: "$(dirname)/inner.launch.yaml", arg: [{name: who, value: "passed"}]}
+        """))
+    assert list(resolve(outer)) == ["i-inner-default-1", "o-from-inner-2", "i-passed-3"]
+    # a command-line value wins over the default, but an include's own arg wins over both
+    assert list(resolve(outer, who="cli")) == ["i-cli-1", "o-from-inner-2", "i-passed-3"]
+
+
+def test_global_actions_conditions_and_env(tmp_path, monkeypatch):
+    monkeypatch.setenv("ERFORCE_DROP_ME", "1")
+    path = tmp_path / "misc.launch.yaml"
+    path.write_text(textwrap.dedent("""\
+        launch:
+          - arg: {name: on, default: "True"}
+          - set-remap: {from: "/tf", to: "tf"}
+          - set_parameter: {name: use_sim_time, value: "$(var on)"}
+          - unset_env: {name: ERFORCE_DROP_ME}
+          - node: {pkg: erforce_interfaces, exec: talker, unless: "$(var on)"}
+          - node:
+              pkg: erforce_interfaces
+              exec: talker
+              exec_name: renamed
+              args: "--a 'b c'"
+              ros_args: "--log-level debug"
+              env: [{name: ERFORCE_X, value: "$(optenv ERFORCE_NOT_SET fallback)"}]
+              remap: [{from: a, to: b}]
+              launch-prefix: "nice -n 1"
+        """))
+    (spec,) = resolve(path).values()
+    assert spec.label == "renamed-1"
+    assert spec.cmd == ["nice", "-n", "1", str(BIN / "talker"), "--a", "b c", "--ros-args", "--log-level", "debug",
+                        "--ros-args", "-p", "use_sim_time:=true", "-r", "/tf:=tf", "-r", "a:=b"]
+    assert spec.env["ERFORCE_X"] == "fallback"
+    assert "ERFORCE_DROP_ME" not in spec.env
+
+
+def test_print_and_pkg_file_form_on_the_command_line(capsys):
+    assert main(["erforce_interfaces", "talker_listener.launch.yaml", "rate_hz:=12.5", "--print"]) == 0
+    out = capsys.readouterr().out
+    first = out.splitlines()[0]
+    assert first.startswith(f"[talker-1] {BIN / 'talker'} --ros-args -r __node:=talker -r __ns:=/demo --params-file ")
+    assert "        rate_hz: 12.5" in out.splitlines()
+    assert re.search(r"^\[listener-2\] .*/listener --ros-args -r __node:=listener -r __ns:=/demo$", out, re.M)
+
+
+def test_show_args_lists_names_descriptions_and_defaults(capsys):
+    assert main([str(HERE / "outer.launch.yaml"), "--show-args"]) == 0
+    out = capsys.readouterr().out
+    assert "    'robot':\n        robot name passed to the include\n        (default: 'bot1')" in out
+    # args of the include are found too (its path is resolvable statically)
+    assert "    'robot_name':\n        the robot (required)\n        (required)" in out
+    assert [a[0] for a in declared_args(HERE / "outer.launch.yaml")] == ["robot", "robot_name", "share"]
+
+
+# ======================================================================= one-line errors
+ERRORS = [
+    ("malformed", "launch:\n  - node: {pkg: x\n  - arg: {name: a}\n", 3, "invalid YAML"),
+    ("unknown key", "launch:\n  - node:\n      pkg: erforce_interfaces\n      exec: talker\n      nmae: t\n",
+     5, "unknown key 'nmae' in 'node'"),
+    ("unknown action", "launch:\n  - arg: {name: a, default: '1'}\n  - nod: {}\n", 3, "unknown action 'nod'"),
+    ("unknown package", "launch:\n  - node:\n      pkg: no_such_pkg\n      exec: talker\n", 3,
+     "package 'no_such_pkg' not found"),
+    ("unknown executable", "launch:\n  - node:\n      exec: talkr\n      pkg: erforce_interfaces\n", 4,
+     "package 'erforce_interfaces' has no executable 'talkr' (executables: "),
+    ("missing arg", "launch:\n  - arg: {name: a, default: '1'}\n  - arg: {name: robot, description: r}\n", 3,
+     "required argument 'robot' not given; arguments of bad.launch.yaml: a='1', robot (required)"),
+    ("unquoted default", "launch:\n  - arg: {name: a, default: 10}\n", 2, "'default' must be a string"),
+    ("undefined var", "launch:\n  - let: {name: a, value: 'x'}\n  - let: {name: b, value: '$(var c)'}\n", 3,
+     "launch configuration 'c' is not set"),
+    ("unset env", "launch:\n  - let: {name: b, value: '$(env ERFORCE_SURELY_UNSET_VAR)'}\n", 2,
+     "environment variable 'ERFORCE_SURELY_UNSET_VAR' is not set"),
+    ("find-pkg-share", "launch:\n  - include: {file: '$(find-pkg-share nope_pkg)/x.yaml'}\n", 2,
+     "package 'nope_pkg' not found"),
+    ("duplicate key", "launch:\n  - node: {pkg: a, exec: b,\n      pkg: c}\n", 3, "duplicate key 'pkg'"),
+    ("bad bool", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, respawn: maybe}\n", 2,
+     "'respawn' must be true or false"),
+    ("bad output", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, output: tty}\n", 2,
+     "'output' must be screen, log or both"),
+    ("negative delay", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, respawn_delay: -1}\n", 2,
+     "'respawn_delay' must be a finite number >= 0"),
+    ("bad name", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, name: a-b}\n", 2,
+     "invalid node name 'a-b'"),
+    ("bad namespace", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, namespace: '1x'}\n", 2,
+     "invalid namespace '/1x'"),
+    ("param file", "launch:\n  - node:\n      pkg: erforce_interfaces\n      exec: talker\n"
+     "      param: [{from: /nonexistent/p.yaml}]\n", 5, "parameter file not found"),
+    ("mixed list", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, param: [{name: x, value: [1, a]}]}\n",
+     2, "a list parameter needs elements of one type"),
+    ("no launch key", "nodes: []\n", 1, "expected a top-level 'launch:' list"),
+    ("include missing", "launch:\n  - include: {file: 'nope/x.launch.yaml'}\n", 2, "included file not found"),
+    ("eval", "launch:\n  - let: {name: a, value: '$(eval 1)'}\n", 2, "unsupported substitution '$(eval)'"),
+    ("choice", "launch:\n  - arg: {name: m, default: 'c', choice: [{value: a}, {value: b}]}\n", 2,
+     "argument 'm' is 'c', not one of: a, b"),
+]
+
+
+@pytest.mark.parametrize(("content", "line", "what"), [e[1:] for e in ERRORS], ids=[e[0] for e in ERRORS])
+def test_bad_launch_files_fail_with_one_line_naming_file_and_line(tmp_path, monkeypatch, capsys, content, line, what):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "bad.launch.yaml").write_text(content)
+    assert main(["bad.launch.yaml"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert err.startswith(f"erforce-launch: error: bad.launch.yaml:{line}: "), err
+    assert what in err
+
+
+def test_unknown_executable_error_lists_the_package_executables(tmp_path, capsys):
+    (tmp_path / "x.yaml").write_text("launch:\n  - node: {pkg: erforce_interfaces, exec: talkr}\n")
+    main([str(tmp_path / "x.yaml")])
+    listed = capsys.readouterr().err.split("(executables: ")[1].rstrip(")\n").split(", ")
+    assert {"talker", "listener", "erforce-launch"} <= set(listed)
+
+
+@pytest.mark.parametrize("argv", [["nothere.launch.yaml"], ["erforce_interfaces", "nothere.yaml"],
+                                  ["no_such_pkg", "x.yaml"], ["a", "b", "c"], ["x.yaml", ":=v"]])
+def test_bad_command_lines_fail_with_one_line(capsys, argv):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("erforce-launch: error: ")
+
+
+def test_console_script_prints_exactly_one_line_for_a_bad_file(ros_graph, tmp_path):
+    bad = tmp_path / "bad.launch.yaml"
+    bad.write_text("launch:\n  - node:\n      pkg: erforce_interfaces\n      exec: talker\n      nmae: t\n")
+    proc = ros_graph.start([LAUNCHER, str(bad)], name="bad")
+    assert proc.wait_exit(30.0) == 2
+    assert proc.output().startswith(f"erforce-launch: error: {bad}:5: unknown key 'nmae' in 'node' (known: ")
+    assert proc.output().count("\n") == 1
+
+
+# ============================================================================ real processes
+@pytest.mark.integration
+def test_talker_listener_launch_runs_and_ctrl_c_reaps_both(ros_graph):
+    launch = ros_graph.start([LAUNCHER, str(TALKER_LISTENER), "rate_hz:=20.0"], name="launch")
+    launch.wait_for_output(r"\[listener-2\] .*I heard: hello from the talker \d+", timeout_s=30.0)
+    pids = started_pids(launch.output())
+    assert len(pids) == 2 and all(alive(p) for p in pids)
+    launch.signal(signal.SIGINT)
+    assert launch.wait_exit(15.0) == 0
+    out = launch.output()
+    assert "[WARNING] [launch]: user interrupted with ctrl-c (SIGINT)" in out
+    assert f"[INFO] [talker-1]: process has finished cleanly [pid {pids[0]}]" in out
+    assert f"[INFO] [listener-2]: process has finished cleanly [pid {pids[1]}]" in out
+    assert not any(alive(p) for p in pids)
+
+
+@pytest.mark.integration
+def test_params_from_file_and_remap_reach_the_real_nodes(ros_graph):
+    launch = ros_graph.start([LAUNCHER, str(HERE / "params_remap.launch.yaml")], name="launch")
+    # the text comes from talker_params.yaml; /b/listener only hears /a/chatter through its remap
+    launch.wait_for_output(r"\[listener-2\] .*\[b\.listener\]: I heard: text from the params file \d+", 30.0)
+    launch.signal(signal.SIGINT)
+    assert launch.wait_exit(15.0) == 0
+
+
+@pytest.mark.integration
+def test_a_dead_node_is_reported_and_makes_the_exit_code_nonzero(ros_graph):
+    launch = ros_graph.start([LAUNCHER, str(HERE / "talker_only.launch.yaml"), "rate_hz:=-1.0"], name="launch")
+    assert launch.wait_exit(30.0) == 1  # the only process died: the launch ends by itself
+    out = launch.output()
+    (pid,) = started_pids(out)
+    assert re.search(rf"\[ERROR\] \[talker-1\]: process has died \[pid {pid}, exit code 1, cmd '.*/talker "
+                     r"--ros-args -r __node:=talker --params-file \S+'\]\.", out)
+    assert re.search(r"\[talker-1\] .*rate_hz", out)  # the node's own reason, relayed with the prefix
+
+
+@pytest.mark.integration
+def test_respawn_restarts_a_dying_node_until_ctrl_c(ros_graph):
+    launch = ros_graph.start([LAUNCHER, str(HERE / "talker_only.launch.yaml"), "rate_hz:=-1.0", "respawn:=true"],
+                             name="launch")
+    launch.wait_for_output(r"(?s)(?:process started with pid.*?){3}", timeout_s=45.0)
+    assert "[INFO] [talker-1]: respawning in 0.2 s" in launch.output()
+    launch.signal(signal.SIGINT)
+    assert launch.wait_exit(15.0) == 0  # respawning processes' deaths are not failures
+    assert not any(alive(p) for p in started_pids(launch.output()))
+
+
+@pytest.mark.parametrize(("ignore", "launcher_signal", "last_rung"), [
+    ("INT", signal.SIGINT, "SIGTERM"), ("INT,TERM", signal.SIGTERM, "SIGKILL")])
+def test_shutdown_ladder_escalates_and_reaps_children_and_grandchildren(ros_graph, ignore, launcher_signal,
+                                                                         last_rung):
+    launch = ros_graph.start([LAUNCHER, str(HERE / "stubborn.launch.yaml"), f"ignore:={ignore}",
+                              "--sigterm-timeout", "0.3", "--sigkill-timeout", "0.3"], name="launch",
+                             env={"ERFORCE_TEST_PYTHON": sys.executable})
+    launch.wait_for_output(r"(?s)(?:\] ready pid=\d+ grandchild=\d+\n.*?){2}", timeout_s=30.0)
+    out = launch.output()
+    pids = started_pids(out) + [int(p) for p in re.findall(r"grandchild=(\d+)", out)]
+    assert len(pids) == 4 and all(alive(p) for p in pids)
+    launch.signal(launcher_signal)
+    assert launch.wait_exit(10.0) == 0
+    out = launch.output()
+    reason = "user interrupted with ctrl-c (SIGINT)" if launcher_signal == signal.SIGINT else "received SIGTERM"
+    assert f"[WARNING] [launch]: {reason}" in out
+    assert "failed to terminate '0.3' seconds after receiving 'SIGINT', escalating to 'SIGTERM'" in out
+    assert (f"escalating to '{last_rung}'" in out) and (last_rung == "SIGTERM" or "exit code -9" in out)
+    assert "[INFO] [polite-2]: process has finished cleanly" in out  # SIGINT was enough for it
+    assert "[polite-2]: process failed to terminate" not in out
+    assert not any(alive(p) for p in pids)
+
+
+def test_log_output_goes_to_files_and_a_partial_last_line_is_kept(ros_graph, tmp_path):
+    path = tmp_path / "echo.launch.yaml"
+    path.write_text(textwrap.dedent("""\
+        launch:
+          - executable: {cmd: "printf 'one\\\\ntwo'", name: quiet, output: log}
+          - executable: {cmd: "printf 'a\\\\nno newline'", name: loud, output: screen}
+          - executable: {cmd: "sh -c 'echo oops >&2; exit 3'", name: failing, output: both}
+        """))
+    launch = ros_graph.start([LAUNCHER, str(path)], name="launch", env={"ROS_LOG_DIR": str(tmp_path / "logs")})
+    assert launch.wait_exit(20.0) == 1  # 'failing' exited 3
+    out = launch.output()
+    assert "[loud-2] a\n" in out and "[loud-2] no newline\n" in out
+    assert "[quiet-1] one" not in out
+    assert "[failing-3] oops\n" in out and "exit code 3" in out
+    (log_dir,) = (tmp_path / "logs").iterdir()
+    assert (log_dir / "quiet-1-stdout.log").read_text() == "one\ntwo\n"
+    assert (log_dir / "failing-3-stderr.log").read_text() == "oops\n"
+    assert not (log_dir / "loud-2-stdout.log").exists()

@@ -1,0 +1,145 @@
+"""motor_boards over DDS: lockstep answers, the setpoint join, status, bad input, parameters."""
+
+import math
+
+import numpy as np
+import pytest
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import joint_state_msg, table_from_msg
+from erforce_interfaces.robot_config import RobotConfig
+
+pytestmark = pytest.mark.integration
+
+NAMES = RobotConfig().wheel_names
+MS = 1_000_000
+
+
+def stamp_ns(msg):
+    return msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+
+
+class Rig:
+    def __init__(self, graph, **params):
+        self.graph = graph
+        self.node = graph.start_node("erforce_motion", "motor_boards", namespace="robot_0", params=params)
+        probe = graph.probe
+        self.duties = probe.subscribe("/robot_0/motor_duty", JointState, contract.QOS_CONTROL)
+        self.status = probe.subscribe("/robot_0/motor_status", Float64MultiArray, contract.QOS_STATE)
+        self.states = probe.wait_for_subscribers("/robot_0/wheel_states", JointState, timeout_s=20.0,
+                                                 qos=contract.QOS_CONTROL)
+        self.setpoints = probe.wait_for_subscribers("/robot_0/wheel_setpoints", JointState, timeout_s=20.0,
+                                                    qos=contract.QOS_CONTROL)
+        probe.spin_until(lambda: probe.node.count_publishers("/robot_0/motor_duty") > 0, 20.0, "duty publisher")
+
+    def send_state(self, t_ns, speeds=None, currents=None):
+        self.states.publish(joint_state_msg(t_ns, NAMES, velocity=np.zeros(4) if speeds is None else speeds,
+                                            effort=np.zeros(4) if currents is None else currents))
+
+    def answer(self, t_ns, timeout_s=5.0):
+        self.graph.probe.spin_until(lambda: any(stamp_ns(m) == t_ns for m in self.duties), timeout_s,
+                                    f"duty for {t_ns}")
+        return np.array([m for m in self.duties if stamp_ns(m) == t_ns][0].effort)
+
+
+def test_duty_answers_each_tick_with_the_previous_ticks_setpoint(ros_graph):
+    rig = Rig(ros_graph)
+    rig.send_state(1 * MS)
+    assert np.all(rig.answer(1 * MS) == 0.0)  # no setpoint yet: zero speed, at rest -> zero duty
+    rig.setpoints.publish(joint_state_msg(1 * MS, NAMES, velocity=[50.0, 50.0, 50.0, 50.0]))
+    rig.send_state(2 * MS)
+    duty = rig.answer(2 * MS)
+    # inverse model at rest: duty = R/V * i_cmd > 0 for a positive speed error
+    assert np.all(duty > 0.0) and np.all(duty <= 1.0)
+
+
+def test_lockstep_join_holds_the_tick_until_the_setpoint_arrives(ros_graph):
+    rig = Rig(ros_graph, setpoint_wait_s=5.0)
+    rig.send_state(1 * MS)
+    rig.answer(1 * MS)
+    rig.send_state(2 * MS)  # the answer needs tick 1's setpoint, not sent yet
+    ros_graph.probe.spin_for(0.3)
+    assert not any(stamp_ns(m) == 2 * MS for m in rig.duties)
+    rig.setpoints.publish(joint_state_msg(1 * MS, NAMES, velocity=[-30.0] * 4))
+    assert np.all(rig.answer(2 * MS) < 0.0)
+
+
+def test_silent_velocity_controller_costs_one_wait_then_wheels_stop(ros_graph):
+    rig = Rig(ros_graph, setpoint_wait_s=0.05, setpoint_timeout_s=0.005)
+    rig.send_state(1 * MS)
+    rig.answer(1 * MS)
+    rig.setpoints.publish(joint_state_msg(1 * MS, NAMES, velocity=[40.0] * 4))
+    rig.send_state(2 * MS)
+    rig.answer(2 * MS)
+    for k in range(3, 20):  # the controller went silent: answered after one wall-clock wait
+        rig.send_state(k * MS)
+        rig.answer(k * MS, timeout_s=2.0)
+    rig.node.wait_for_output("no setpoint for 0.005 s: stopping the wheels", timeout_s=5.0)
+
+
+def test_status_reports_average_current_and_limit(ros_graph):
+    rig = Rig(ros_graph, status_rate_hz=1000.0)
+    rig.send_state(1 * MS, currents=[2.0, 0.0, 0.0, 0.0])
+    rig.answer(1 * MS)
+    ros_graph.probe.spin_until(lambda: len(rig.status) > 0, 5.0, "motor_status")
+    table = table_from_msg(rig.status[-1], contract.MOTOR_STATUS_COLUMNS)
+    assert table.shape == (4, 4)
+    # one 1 ms sample of 2 A in a 10 s boxcar that starts from zero: 2 A / 10000
+    assert table[0, 0] == pytest.approx(2.0 / 10000)
+    assert np.all(table[:, 1] == 1.0)  # full PWM allowed
+
+
+@pytest.mark.parametrize("bad", ["nan_speed", "nan_current", "short", "huge"])
+def test_bad_wheel_states_rejected_node_keeps_answering(ros_graph, bad):
+    rig = Rig(ros_graph)
+    msg = JointState(velocity=[0.0] * 4, effort=[0.0] * 4)
+    msg.header.stamp.sec = 1
+    if bad == "nan_speed":
+        msg.velocity[1] = math.nan
+    elif bad == "nan_current":
+        msg.effort[2] = math.inf
+    elif bad == "short":
+        msg.velocity = [0.0] * 3
+    else:
+        msg.velocity[0] = 1e12
+    rig.states.publish(msg)
+    rig.node.wait_for_output("rejected wheel_states", timeout_s=10.0)
+    rig.send_state(2 * MS)
+    assert np.all(np.isfinite(rig.answer(2 * MS)))
+    assert not any(not np.all(np.isfinite(m.effort)) for m in rig.duties)
+
+
+def test_time_going_backwards_resets_and_stays_finite(ros_graph):
+    rig = Rig(ros_graph)
+    for k in (5, 6, 7):
+        rig.send_state(k * MS)
+        rig.answer(k * MS)
+    rig.send_state(1 * MS)
+    rig.node.wait_for_output("time went backwards", timeout_s=10.0)
+
+
+NODE = "/robot_0/motor_boards"
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [("speed_kp_a_per_radps", 0.0), ("current_ki_per_s", -5.0), ("robot.continuous_current_limit_a", 0.0),
+     ("robot.motor_resistance_ohm", -0.94), ("peak_current_a", math.inf), ("actuator_mode", "magic"),
+     ("loop_rate_hz", 0.0)],
+)
+def test_bad_parameters_rejected_old_value_kept(ros_graph, name, value):
+    rig = Rig(ros_graph)
+    before = ros_graph.probe.get_parameter(NODE, name)
+    result = ros_graph.probe.set_parameter(NODE, name, value)
+    assert not result.successful and result.reason
+    assert ros_graph.probe.get_parameter(NODE, name) == before
+    rig.send_state(1 * MS)
+    assert np.all(np.isfinite(rig.answer(1 * MS)))
+
+
+def test_current_limit_parameter_change_is_accepted(ros_graph):
+    Rig(ros_graph)
+    assert ros_graph.probe.set_parameter(NODE, "robot.continuous_current_limit_a", 1.0).successful
+    assert ros_graph.probe.get_parameter(NODE, "robot.continuous_current_limit_a") == 1.0
