@@ -18,9 +18,7 @@ setup(
     zip_safe=True,
     maintainer="ER-Force stack maintainers",
     maintainer_email="info@robotics-erlangen.de",
-    description=(
-        "Two-phase ball model, vision tracking, parameter identification and robot catch-time prediction (ER-Force ETDP 2016, Sec. 5), with the ball_predictor node."
-    ),
+    description="Two-phase ball model, tracking and catch-time prediction (ETDP 2016 Sec. 5)",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

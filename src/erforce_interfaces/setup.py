@@ -18,9 +18,7 @@ setup(
     zip_safe=True,
     maintainer="ER-Force stack maintainers",
     maintainer_email="info@robotics-erlangen.de",
-    description=(
-        "Wire contract (topics, message types, QoS, frames, units, conversions), shared robot configuration, parameter helpers, and the launch/topic tools for the ER-Force ROS 2 stack."
-    ),
+    description="Wire contract, shared robot config, node helpers, launch and topic tools",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

@@ -18,9 +18,7 @@ setup(
     zip_safe=True,
     maintainer="ER-Force stack maintainers",
     maintainer_email="info@robotics-erlangen.de",
-    description=(
-        "Omni-wheel kinematics, PID, main-board velocity control, motor-board cascade with thermal current limit, and Ziegler-Nichols tuning (ER-Force ETDP 2016, Sec. 4), with two nodes."
-    ),
+    description="Omni-wheel velocity control and motor-board cascade (ETDP 2016 Sec. 4)",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

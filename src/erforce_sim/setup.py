@@ -18,9 +18,7 @@ setup(
     zip_safe=True,
     maintainer="ER-Force stack maintainers",
     maintainer_email="info@robotics-erlangen.de",
-    description=(
-        "Physics plant simulator: DC motors, omni-wheel bodies, ball with slide/roll friction, kicker plates, light barrier, vision, /clock; plant node and in-process runner."
-    ),
+    description="Physics plant simulator for the ER-Force stack (ETDP 2016 Sec. 2-3)",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

@@ -81,7 +81,7 @@ def test_substitutions_parse_nested_and_quoted_arguments():
     assert parts[4] == "!"
 
 
-@pytest.mark.parametrize("text", ["$(var x", "$(", "$(var 'x)", "$(var)x"])
+@pytest.mark.parametrize("text", ["$(var x", "$(", "$(var 'x)", "$(1var)", "$(var$(x))"])
 def test_substitution_syntax_errors_are_reported(text):
     with pytest.raises(SubstitutionError):
         parse_substitutions(text)

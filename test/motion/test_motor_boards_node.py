@@ -41,7 +41,7 @@ class Rig:
     def answer(self, t_ns, timeout_s=5.0):
         self.graph.probe.spin_until(lambda: any(stamp_ns(m) == t_ns for m in self.duties), timeout_s,
                                     f"duty for {t_ns}")
-        return np.array([m for m in self.duties if stamp_ns(m) == t_ns][0].effort)
+        return np.array(next(m for m in self.duties if stamp_ns(m) == t_ns).effort)
 
 
 def test_duty_answers_each_tick_with_the_previous_ticks_setpoint(ros_graph):
