@@ -12,6 +12,7 @@ import signal
 import sys
 import tempfile
 import textwrap
+import time
 from pathlib import Path
 
 import pytest
@@ -178,11 +179,11 @@ def test_global_actions_conditions_and_env(tmp_path, monkeypatch):
     path = tmp_path / "misc.launch.yaml"
     path.write_text(textwrap.dedent("""\
         launch:
-          - arg: {name: on, default: "True"}
+          - arg: {name: sim, default: "True"}
           - set-remap: {from: "/tf", to: "tf"}
-          - set_parameter: {name: use_sim_time, value: "$(var on)"}
+          - set_parameter: {name: use_sim_time, value: "$(var sim)"}
           - unset_env: {name: ERFORCE_DROP_ME}
-          - node: {pkg: erforce_interfaces, exec: talker, unless: "$(var on)"}
+          - node: {pkg: erforce_interfaces, exec: talker, unless: "$(var sim)"}
           - node:
               pkg: erforce_interfaces
               exec: talker
@@ -360,10 +361,51 @@ def test_shutdown_ladder_escalates_and_reaps_children_and_grandchildren(ros_grap
     reason = "user interrupted with ctrl-c (SIGINT)" if launcher_signal == signal.SIGINT else "received SIGTERM"
     assert f"[WARNING] [launch]: {reason}" in out
     assert "failed to terminate '0.3' seconds after receiving 'SIGINT', escalating to 'SIGTERM'" in out
-    assert (f"escalating to '{last_rung}'" in out) and (last_rung == "SIGTERM" or "exit code -9" in out)
+    if last_rung == "SIGTERM":  # SIGTERM was enough
+        assert "escalating to 'SIGKILL'" not in out and "exit code -15" in out
+    else:
+        assert "escalating to 'SIGKILL'" in out and "exit code -9" in out
     assert "[INFO] [polite-2]: process has finished cleanly" in out  # SIGINT was enough for it
     assert "[polite-2]: process failed to terminate" not in out
     assert not any(alive(p) for p in pids)
+
+
+def test_second_ctrl_c_skips_the_wait(ros_graph):
+    launch = ros_graph.start([LAUNCHER, str(HERE / "stubborn.launch.yaml"), "ignore:=INT", "--sigterm-timeout", "60"],
+                             name="launch", env={"ERFORCE_TEST_PYTHON": sys.executable})
+    launch.wait_for_output(r"(?s)(?:\] ready pid=\d+ grandchild=\d+\n.*?){2}", timeout_s=30.0)
+    launch.signal(signal.SIGINT)
+    launch.wait_for_output(r"polite-2\]: process has finished cleanly", timeout_s=10.0)
+    launch.signal(signal.SIGINT)
+    assert launch.wait_exit(10.0) == 0  # long before the 60 s SIGINT timeout
+    out = launch.output()
+    assert "user interrupted with ctrl-c (SIGINT) again, escalating" in out
+    assert re.search(r"\[stubborn-1\]: process has died \[pid \d+, exit code -15,", out)
+
+
+def test_children_die_with_a_sigkilled_launcher(ros_graph):
+    launch = ros_graph.start([LAUNCHER, str(HERE / "stubborn.launch.yaml"), "ignore:=NONE"], name="launch",
+                             env={"ERFORCE_TEST_PYTHON": sys.executable})
+    launch.wait_for_output(r"(?s)(?:\] ready pid=\d+ grandchild=\d+\n.*?){2}", timeout_s=30.0)
+    children = started_pids(launch.output())
+    launch.signal(signal.SIGKILL)
+    launch.wait_exit(10.0)
+    deadline = time.monotonic() + 10.0
+    while any(alive(p) for p in children) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(alive(p) for p in children)  # PR_SET_PDEATHSIG sent them SIGTERM
+
+
+def test_shutdown_on_exit_stops_the_rest_when_one_process_ends(ros_graph, tmp_path):
+    path = tmp_path / "short.launch.yaml"
+    path.write_text("launch:\n  - executable: {cmd: 'sleep 600', output: screen}\n"
+                    "  - executable: {cmd: 'sleep 0.2', output: screen}\n")
+    launch = ros_graph.start([LAUNCHER, str(path), "--shutdown-on-exit"], name="launch")
+    assert launch.wait_exit(10.0) == 0
+    out = launch.output()
+    assert "[INFO] [sleep-2]: process has finished cleanly" in out
+    assert "--shutdown-on-exit is set" in out
+    assert re.search(r"\[sleep-1\]: process has died \[pid \d+, exit code -2,", out)  # our SIGINT: no failure
 
 
 def test_log_output_goes_to_files_and_a_partial_last_line_is_kept(ros_graph, tmp_path):

@@ -29,11 +29,19 @@ def test_gate_reports_a_stall_after_the_timeout_then_resumes():
     assert len(events) == 1 and "robot_1" in events[0] and "stalled" in events[0]
     assert gate.ready()  # no longer waiting for robot 1
     np.testing.assert_array_equal(gate.duty_for(1, 4), np.zeros(4))
-    gate.open(2 * MS, now_s=10.7, peers_present={0, 1})
-    assert gate.expected == {0}  # a stalled peer does not gate the next tick
-    event = gate.offer(1, 2 * MS, np.full(4, 0.25))
+    for k in range(2, 6):  # the plant goes on without robot 1
+        gate.open(k * MS, now_s=10.7, peers_present={0, 1})
+        assert gate.expected == {0}  # a stalled peer does not gate the next ticks
+        gate.offer(0, k * MS, np.ones(4))
+        assert gate.ready()
+    assert gate.offer(1, 0, np.zeros(4)) is None  # an answer from before the stall proves nothing
+    event = gate.offer(1, 3 * MS, np.full(4, 0.25))  # late, but alive again
     assert event is not None and "resumed" in event
-    gate.offer(0, 2 * MS, np.ones(4))
+    gate.open(6 * MS, now_s=10.8, peers_present={0, 1})
+    assert gate.expected == {0, 1}  # gates the plant again
+    gate.offer(0, 6 * MS, np.ones(4))
+    assert not gate.ready()
+    gate.offer(1, 6 * MS, np.full(4, 0.25))
     assert gate.ready() and gate.duty_for(1, 4)[0] == 0.25
 
 

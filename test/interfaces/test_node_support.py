@@ -89,3 +89,12 @@ def test_throttled_warner_counts_everything_but_logs_once_per_period(node):
     for _ in range(5):
         warner.warn("nan", "NaN twist rejected")
     assert warner.counts["nan"] == 5
+
+
+@pytest.mark.integration
+def test_out_of_range_launch_parameter_refuses_to_start_with_one_clear_line(ros_graph):
+    proc = ros_graph.start_node("erforce_motion", "velocity_controller", params={"max_accel_mps2": -3.0})
+    assert proc.wait_exit(30.0) == 1
+    out = proc.output()
+    assert "cannot start: invalid parameter max_accel_mps2" in out
+    assert "Traceback" not in out

@@ -54,7 +54,7 @@ def test_vectorized_batch_shapes():
 @given(st.lists(finite, min_size=4, max_size=4))
 def test_slip_residual_equals_null_space_projection_from_svd(pattern):
     w = np.array(pattern)
-    u, sv, _ = np.linalg.svd(KIN.wheel_matrix)  # column space = first 3 columns of U
+    u, _sv, _ = np.linalg.svd(KIN.wheel_matrix)  # column space = first 3 columns of U
     null_basis = u[:, 3:]
     expected = null_basis @ (null_basis.T @ w)
     residual, norm = KIN.slip_residual(w)

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.kicker import KickerPlate, deviation_table
 from erforce_sim.world import PhysicsParams, RobotSpec, World
@@ -64,8 +65,10 @@ def world_with_ball_on_plate(plate: str, offset_m: float, theta: float = 0.4) ->
     return w
 
 
-@pytest.mark.parametrize(("plate", "offset", "expected_deg"), [("flat", 0.03, 12.0), ("flat", -0.015, -6.0),
-                                                              ("curved", 0.03, 0.0), ("curved", -0.035, 0.0)])
+@pytest.mark.parametrize(
+    ("plate", "offset", "expected_deg"),
+    [("flat", 0.03, 12.0), ("flat", -0.015, -6.0), ("curved", 0.03, 0.0), ("curved", -0.035, 0.0)],
+)
 def test_world_kick_direction(plate, offset, expected_deg):
     w = world_with_ball_on_plate(plate, offset)
     assert w.ball_in_dribbler(0)

@@ -4,9 +4,10 @@ import math
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
+
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.world import PhysicsParams, RobotSpec, World
-from scipy.optimize import brentq
 
 CFG = RobotConfig()
 FIELD = FieldConfig.preset("division_b")

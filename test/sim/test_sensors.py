@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.kicker import beam_hit
 from erforce_sim.sensors import LightBarrierParams, VisionParams
@@ -45,9 +46,7 @@ def test_light_barrier_sees_ball_in_dribbler_with_latency():
 
 def test_light_barrier_false_flips_seeded():
     def run(seed):
-        w = World(
-            FIELD, [RobotSpec(x=-1.0)], light_barrier=LightBarrierParams(false_flip_prob=0.2), seed=seed
-        )
+        w = World(FIELD, [RobotSpec(x=-1.0)], light_barrier=LightBarrierParams(false_flip_prob=0.2), seed=seed)
         out = []
         for _ in range(1000):
             w.step(0.001)
@@ -100,8 +99,9 @@ def test_vision_rate_latency_and_release():
 
 
 def test_vision_noise_and_dropouts():
-    w = make_vision_world(position_noise_m=0.003, orientation_noise_rad=0.02, ball_dropout_prob=0.3,
-                          robot_dropout_prob=0.1)
+    w = make_vision_world(
+        position_noise_m=0.003, orientation_noise_rad=0.02, ball_dropout_prob=0.3, robot_dropout_prob=0.1
+    )
     frames = collect(w, 4.0)
     n = len(frames)
     ball_seen = sum(len(f.balls) for f in frames)

@@ -4,11 +4,12 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallState
 from erforce_sim.world import PhysicsParams, RobotSpec, World
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 CFG = RobotConfig()
 FIELD = FieldConfig.preset("division_b")  # walls at |x| <= 4.8, |y| <= 3.3
@@ -84,15 +85,15 @@ def test_robot_stays_inside_walls_and_robots_do_not_overlap():
 
 
 def coasting_world() -> World:
-    specs = [RobotSpec(x=4.4, y=2.0, theta=0.5), RobotSpec(x=3.5, y=2.0, robot_id=1, kicker_plate="curved")]
+    specs = [RobotSpec(x=4.4, y=2.0, theta=0.5), RobotSpec(x=4.0, y=2.05, robot_id=1, kicker_plate="curved")]
     w = World(FIELD, specs, seed=0)
-    w.place_ball(3.0, 2.0, 4.0, 0.3, spin_ratio=0.0)  # sliding into robot 1, then robot 0 / the wall
-    w.place_robot(0, 4.4, 2.0, 0.5, vx=2.0, vy=1.0, w=4.0)  # towards the corner
-    w.place_robot(1, 3.5, 2.0, 0.0, vx=2.0, vy=0.0, w=-3.0)  # chasing robot 0
+    w.place_ball(3.5, 2.0, 5.0, 0.3, spin_ratio=0.0)  # sliding into robot 1
+    w.place_robot(0, 4.4, 2.0, 0.5, vx=2.5, vy=1.0, w=4.0)  # towards the corner
+    w.place_robot(1, 4.0, 2.05, 0.0, vx=3.0, vy=0.0, w=-3.0)  # chasing robot 0
     # spin the motors up so currents and wheel slip start non-zero, then coast with duty 0
     w.set_duty(0, [0.5, -0.7, 0.9, -0.2])
     w.set_duty(1, [-0.4, 0.6, 0.3, 0.8])
-    for _ in range(50):
+    for _ in range(20):
         w.step(0.001)
     w.set_duty(0, [0.0] * 4)
     w.set_duty(1, [0.0] * 4)

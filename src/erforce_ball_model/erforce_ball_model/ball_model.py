@@ -28,9 +28,15 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
 from erforce_interfaces.robot_config import FieldConfig
 
-__all__ = ["BallModelParams", "BallPhase", "BallTrajectory"]
+__all__ = ["MAX_POSITION_M", "MAX_SPEED_MPS", "BallModelParams", "BallPhase", "BallTrajectory"]
+
+# Sanity bounds: far beyond any SSL ball (6.5 m/s kick limit, 12 m field), they only catch garbage
+# (unit mix-ups, uninitialized memory) before it overflows the arithmetic.
+MAX_SPEED_MPS = 100.0
+MAX_POSITION_M = 1e4
 
 
 class BallPhase(enum.IntEnum):
@@ -106,8 +112,10 @@ class BallTrajectory:
 
         p = self.params
         speed = np.hypot(vel[..., 0], vel[..., 1])
-        if not np.isfinite(speed).all():
-            raise ValueError("velocity_mps: speed overflows")
+        if (speed > MAX_SPEED_MPS).any() or (v_shoot > MAX_SPEED_MPS).any():
+            raise ValueError(f"velocity_mps / v_shoot_mps: speed above {MAX_SPEED_MPS} m/s is not a ball")
+        if (np.abs(pos) > MAX_POSITION_M).any():
+            raise ValueError(f"position_m: beyond {MAX_POSITION_M} m")
         moving = speed > 0.0
         safe = np.where(moving, speed, 1.0)
         direction = np.where(moving[..., None], vel / safe[..., None], 0.0)

@@ -37,9 +37,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 from erforce_ball_model.ball_model import BallTrajectory
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 __all__ = [
     "CatchKind",
@@ -108,8 +108,9 @@ def axis_time(d_m, w_mps, inv_accel_s2pm, rho_s) -> np.ndarray:
     root_q = np.sqrt(np.maximum(dp * x + 0.5 * wp * wp * x * x, 0.0))
     t = -wp * x + 2.0 * root_q + np.maximum(root_q - rho, 0.0) ** 2 / rho
     fast = ~over & (wp * x > rho)  # already faster than the speed share: cruise, then brake
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         t = np.where(fast, dp / wp + 0.5 * wp * x, t)
+    t = np.maximum(t, 0.0)  # rounding with subnormal speeds
     return np.where(no_authority, np.where((d == 0.0) & (w == 0.0), 0.0, np.inf), t)
 
 
@@ -143,9 +144,9 @@ def _axis_max_inv_accel(d, w, t_budget, rho):
     b = sgn * np.where(trap, d - w * rho, 4.0 * d - 2.0 * t * w)
     c = np.where(trap, rho * (rho - t), -t * t)
     disc = np.sqrt(np.maximum(b * b - 4.0 * a2 * c, 0.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         x = np.where(b >= 0.0, -2.0 * c / (b + disc), (disc - b) / (2.0 * a2))
-    x = np.where(fast, 2.0 * (t - d / ws) / ws, x)
+        x = np.where(fast, 2.0 * (t - d / ws) / ws, x)
     x = np.where(t > 0.0, np.fmax(x, 0.0), 0.0)  # fmax also maps a NaN from 0/0 to 0
     return np.where((d == 0.0) & (w == 0.0), inf, x)
 
@@ -234,8 +235,8 @@ def can_reach_in_time(d_m, w_mps, t_budget_s, a_max_mps2, v_max_mps) -> np.ndarr
 def _can_reach(dx, dy, wx, wy, t, a, vmax):
     """can_reach_in_time on same-shape arrays (hot path: no broadcasting or validation)."""
     rho = vmax / a
-    x = _axis_max_inv_accel(np.stack([dx, dy]), np.stack([wx, wy]), t, rho)
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):  # subnormal/huge inputs
+        x = _axis_max_inv_accel(np.stack([dx, dy]), np.stack([wx, wy]), t, rho)
         share = 1.0 / (a * x)
     return share[0] ** 2 + share[1] ** 2 <= 1.0
 

@@ -91,7 +91,7 @@ class KalmanCV2D:
 @dataclass(frozen=True)
 class TrackerConfig:
     position_noise_m: float = 0.002
-    accel_noise_psd: float = 0.5  # (m/s^2)^2/Hz of the residual acceleration beyond the model
+    accel_noise_psd: float = 0.05  # (m/s^2)^2/Hz of the residual acceleration beyond the model
     gate_sigma: float = 5.0
     gate_min_m: float = 0.01
     kick_threshold_mps: float = 0.5
@@ -135,6 +135,7 @@ class BallTracker:
         self._prev_obs: tuple[float, float, float] | None = None
         self._shoot_samples: list[float] = []
         self._fit_ok: deque[bool] = deque(maxlen=self.config.fit_frames)
+        self._rolling = False  # latched once the speed fell below the switch speed (no flicker)
 
     # -- state ----------------------------------------------------------------------------------
     @property
@@ -153,11 +154,17 @@ class BallTracker:
     def velocity_std_mps(self) -> float:
         return float(math.sqrt(max(self.kf.p[2, 2], self.kf.p[3, 3])))
 
+    def _effective_v_shoot(self, speed: float) -> float:
+        # Once rolling, stay rolling until the next kick or ricochet: speed noise around the switch
+        # speed must not flip the model back to sliding.
+        return max(self.v_shoot_mps, speed / self.params.c_switch) if self._rolling else self.v_shoot_mps
+
     def trajectory(self) -> BallTrajectory:
         """The ball's future from the latest filtered state (at time ``self.t_s``)."""
         if not self.initialized:
             raise RuntimeError("BallTracker: no observation yet")
-        return BallTrajectory(self.kf.x[:2], self.kf.x[2:], self.v_shoot_mps, self.params)
+        speed = float(np.hypot(*self.kf.x[2:]))
+        return BallTrajectory(self.kf.x[:2], self.kf.x[2:], self._effective_v_shoot(speed), self.params)
 
     @property
     def phase(self) -> BallPhase:
@@ -169,7 +176,7 @@ class BallTracker:
         speed = float(np.hypot(*v))
         if speed < 1e-6:
             return np.zeros(2)
-        sliding = speed > self.params.c_switch * max(self.v_shoot_mps, speed)
+        sliding = speed > self.params.c_switch * max(self._effective_v_shoot(speed), speed)
         a = self.params.a_slide_mps2 if sliding else self.params.a_roll_mps2
         return a * v / speed
 
@@ -244,6 +251,7 @@ class BallTracker:
                 self.ricochet = True
                 self.ricochet_count += 1
         if self.kicked or self.ricochet:
+            self._rolling = False
             self.last_event_time_s = t_event
             self.v_shoot_mps = speed_new
             self._shoot_samples = []
@@ -263,6 +271,9 @@ class BallTracker:
                 self.v_shoot_mps = float(np.median(self._shoot_samples))
         elif speed > self.v_shoot_mps + 3.0 * self.velocity_std_mps + 0.05:
             self.v_shoot_mps = speed  # the paper's rule, above the noise
+            self._rolling = False
+        if speed < self.params.c_switch * self.v_shoot_mps - self.velocity_std_mps:
+            self._rolling = True
         if len(self._fit_ok) == cfg.fit_frames and all(self._fit_ok):
             self.uncertain = False
 
@@ -273,7 +284,7 @@ class RobotTracker:
     def __init__(
         self,
         position_noise_m: float = 0.002,
-        accel_noise_psd: float = 20.0,
+        accel_noise_psd: float = 1.0,
         heading_noise_rad: float = 0.01,
         angular_accel_noise_psd: float = 200.0,
     ) -> None:

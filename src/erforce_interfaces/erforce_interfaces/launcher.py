@@ -25,8 +25,12 @@ spellings too), ``log``; ``if``/``unless`` on every action. Substitutions: ``var
 Signals (a decision): every child runs in its own process group, so a terminal Ctrl-C reaches the
 launcher only, and the launcher alone decides: SIGINT to each child's group, after
 ``sigterm_timeout`` (5 s) SIGTERM, after ``sigkill_timeout`` (5 s) SIGKILL, always reaped. A second
-Ctrl-C skips the current wait. Children also get PR_SET_PDEATHSIG=SIGTERM, so a SIGKILLed launcher
-does not leave orphans behind.
+Ctrl-C skips the current wait. Children also get PR_SET_PDEATHSIG=SIGTERM, so even a SIGKILLed
+launcher takes its direct children with it.
+
+Output, as ros2 launch: ``output: screen`` relays each line as ``[talker-1] ...`` (child stdout to our
+stdout, stderr to stderr), ``log`` (the default) writes ``<label>-stdout.log``/``-stderr.log`` below
+``$ROS_LOG_DIR`` (or ``~/.ros/log``)/<stamp>-<host>-<pid>/, ``both`` does both.
 
 Deviations from ``ros2 launch`` (all deliberate, see the report in the issue):
 - everything is resolved before the first process starts (errors never leave half a graph);
@@ -89,14 +93,14 @@ class MarkedDict(dict):
     """A YAML mapping that remembers its own line and the line of each key (1-based)."""
 
     line: int = 0
-    key_lines: dict
+    key_lines: dict = {}  # noqa: RUF012 - replaced per instance by the loader, never mutated
 
 
 class MarkedList(list):
     """A YAML sequence that remembers its own line and the line of each item (1-based)."""
 
     line: int = 0
-    item_lines: list
+    item_lines: tuple | list = ()
 
 
 class _MarkedLoader(yaml.SafeLoader):
@@ -493,9 +497,9 @@ class Resolver:
         self._depth -= 1
 
     def _do_group(self, f: _File, d: MarkedDict, scope: Scope) -> None:
-        children = d.get("children", MarkedList())
+        children = d.get("children")
         if not isinstance(children, MarkedList):
-            raise LaunchError(f.at(_line(d, "children")), "'children' of 'group' must be a list of actions")
+            raise LaunchError(f.at(_line(d, "children")), "'group' needs 'children': a list of actions")
         scoped = self._bool(f, d, "scoped", scope, True)
         forwarding = self._bool(f, d, "forwarding", scope, True)
         keep = [(self._str(f, k, "name", scope, required=True), self._str(f, k, "value", scope, required=True))
@@ -529,14 +533,13 @@ class Resolver:
         print(f"[INFO] [launch.user]: {self._str(f, d, 'message', scope, required=True)}", file=self.out, flush=True)
 
     def _do_executable(self, f: _File, d: MarkedDict, scope: Scope) -> None:
-        cmd = shlex.split(self._str(f, d, "cmd", scope, required=True))
+        cmd = self._split(f, d, "cmd", scope)
         if not cmd:
             raise LaunchError(f.at(_line(d, "cmd")), "'cmd' of 'executable' is empty")
-        if "/" not in cmd[0]:
-            found = shutil.which(cmd[0], path=scope.env.get("PATH"))
-            if not found:
-                raise LaunchError(f.at(_line(d, "cmd")), f"executable '{cmd[0]}' not found on PATH")
-            cmd[0] = found
+        found = shutil.which(cmd[0], path=scope.env.get("PATH"))
+        if not found:
+            raise LaunchError(f.at(_line(d, "cmd")), f"executable '{cmd[0]}' not found (or not executable)")
+        cmd[0] = found
         label = f"{self._str(f, d, 'name', scope) or Path(cmd[0]).name}-{next(self._count)}"
         self.processes.append(self._process(f, d, scope, label, cmd))
 
@@ -555,8 +558,8 @@ class Resolver:
                 raise LaunchError(where, f"executable '{exe}' not found on PATH (give 'pkg' to search a package)")
             cmd = [found]
         label = f"{self._str(f, d, 'exec_name', scope) or Path(exe).name}-{next(self._count)}"
-        cmd += shlex.split(self._str(f, d, "args", scope) or "")
-        ros_args = shlex.split(self._str(f, d, "ros_args", scope) or "")
+        cmd += self._split(f, d, "args", scope)
+        ros_args = self._split(f, d, "ros_args", scope)
         cmd += ["--ros-args", *ros_args] if ros_args else []
         cmd.append("--ros-args")
         name = self._str(f, d, "name", scope)
@@ -662,7 +665,7 @@ class Resolver:
         cwd = self._str(f, d, "cwd", scope)
         if cwd is not None and not os.path.isdir(cwd):
             raise LaunchError(f.at(_line(d, "cwd")), f"'cwd' is not a directory: {cwd}")
-        prefix = shlex.split(self._str(f, d, "launch-prefix", scope) or "")
+        prefix = self._split(f, d, "launch-prefix", scope)
         self._bool(f, d, "emulate_tty", scope, False)  # accepted; our children never get a tty
         return ProcessSpec(
             label=label, cmd=prefix + cmd, env=env, cwd=cwd, output=output,
@@ -696,6 +699,12 @@ class Resolver:
     def _str(self, f: _File, d: MarkedDict, key: str, scope: Scope, required: bool = False) -> str | None:
         raw = self._raw(f, d, key, required)
         return None if raw is None else self._sub(raw, scope, f, _line(d, key))
+
+    def _split(self, f: _File, d: MarkedDict, key: str, scope: Scope) -> list[str]:
+        try:
+            return shlex.split(self._str(f, d, key, scope) or "")
+        except ValueError as exc:
+            raise LaunchError(f.at(_line(d, key)), f"cannot split '{key}' into arguments: {exc}") from None
 
     def _bool(self, f: _File, d: MarkedDict, key: str, scope: Scope, default: bool) -> bool:
         value = d.get(key, default)
@@ -907,8 +916,13 @@ class Runner:
                 _PRCTL = ctypes.CDLL(None, use_errno=True).prctl
 
     def info(self, who: str, text: str, level: str = "INFO") -> None:
-        self.out.write(f"[{level}] [{who}]: {text}\n")
-        self.out.flush()
+        self._write(self.out, f"[{level}] [{who}]: {text}\n")
+
+    @staticmethod
+    def _write(stream: TextIO, text: str) -> None:
+        with contextlib.suppress(OSError, ValueError):  # a closed pager must not take the graph down
+            stream.write(text)
+            stream.flush()
 
     def run(self) -> int:
         wake_r, wake_w = os.pipe()
@@ -967,7 +981,7 @@ class Runner:
         for pipe, screen, name in ((popen.stdout, self.out, "stdout"), (popen.stderr, self.err, "stderr")):
             fd = pipe.fileno()
             os.set_blocking(fd, False)
-            log = open(self._logs() / f"{s.label}-{name}.log", "a") if s.output != "screen" else None
+            log = open(self._logs() / f"{s.label.replace('/', '_')}-{name}.log", "a") if s.output != "screen" else None
             p.streams[fd] = (pipe, screen if s.output != "log" else None, log, bytearray())
             self._sel.register(fd, selectors.EVENT_READ, p)
         self.info(s.label, f"process started with pid [{popen.pid}]")
@@ -1017,8 +1031,7 @@ class Runner:
         _, screen, log, _ = p.streams[fd]
         lines = [raw.decode("utf-8", "replace").rstrip("\r") for raw in chunk.split(b"\n")]
         if screen is not None:
-            screen.write("".join(f"[{p.spec.label}] {line}\n" for line in lines))
-            screen.flush()
+            self._write(screen, "".join(f"[{p.spec.label}] {line}\n" for line in lines))
         if log is not None:
             log.write("".join(line + "\n" for line in lines))
             log.flush()
@@ -1107,13 +1120,15 @@ class Runner:
 # ========================================================================== command line
 def _parse_cli(argv: list[str] | None) -> tuple[argparse.Namespace, Path, str, dict[str, str]]:
     parser = argparse.ArgumentParser(
-        prog=PROG, description="Run a ROS 2 YAML launch file (the ros2 launch format) without launch_ros.",
+        prog=PROG, usage=f"{PROG} [options] FILE | PKG FILE [name:=value ...]",
+        description="Run a ROS 2 YAML launch file (the ros2 launch format) without launch_ros.",
         epilog="Examples: erforce-launch erforce_interfaces talker_listener.launch.yaml rate_hz:=20.0   |   "
                "erforce-launch path/to/file.launch.yaml --print")
-    parser.add_argument("targets", nargs="+", metavar="FILE | PKG FILE [name:=value ...]")
+    parser.add_argument("targets", nargs="+", metavar="TARGET", help="FILE, or PKG FILE, then name:=value arguments")
     parser.add_argument("-s", "--show-args", action="store_true", help="show the launch arguments and exit")
     parser.add_argument("-p", "--print", action="store_true", dest="print_only",
-                        help="dry run: print the resolved command lines and parameter files, start nothing")
+                        help="dry run: print the resolved command lines and the generated parameter files "
+                             "(shown inline; their temporary paths are removed on exit), start nothing")
     parser.add_argument("--sigterm-timeout", type=float, default=5.0, metavar="S",
                         help="seconds between SIGINT and SIGTERM at shutdown (default 5)")
     parser.add_argument("--sigkill-timeout", type=float, default=5.0, metavar="S",

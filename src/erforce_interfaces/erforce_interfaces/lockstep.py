@@ -34,7 +34,7 @@ class DutyGate:
     tick_ns: int = -1
     opened_at_s: float = 0.0
     duties: dict[int, np.ndarray] = field(default_factory=dict)
-    stalled: set[int] = field(default_factory=set)
+    stalled: dict[int, int] = field(default_factory=dict)  # robot -> tick it stalled at
     expected: set[int] = field(default_factory=set)
 
     def open(self, tick_ns: int, now_s: float, peers_present: set[int]) -> None:
@@ -45,10 +45,15 @@ class DutyGate:
         self.expected = {r for r in peers_present if r not in self.stalled}
 
     def offer(self, robot: int, stamp_ns: int, duty: np.ndarray) -> str | None:
-        """Take an answer; returns an event text when a stalled peer comes back."""
+        """Take an answer; returns an event text when a stalled peer comes back.
+
+        A stalled peer is back with any answer to a tick after the one it missed: the
+        plant has moved on meanwhile, so its answers are late, but it is alive; from the
+        next tick on it gates the plant again.
+        """
         event = None
-        if robot in self.stalled and stamp_ns >= self.tick_ns:
-            self.stalled.discard(robot)
+        if robot in self.stalled and stamp_ns >= self.stalled[robot]:
+            del self.stalled[robot]
             event = f"lockstep: robot_{robot} resumed at t={self.tick_ns * 1e-9:.3f} s"
         if stamp_ns == self.tick_ns:
             self.duties[robot] = duty
@@ -67,7 +72,7 @@ class DutyGate:
             return []
         events = []
         for robot in sorted(self.missing()):
-            self.stalled.add(robot)
+            self.stalled[robot] = self.tick_ns
             self.expected.discard(robot)
             events.append(
                 f"lockstep: robot_{robot} motor_boards stalled: no answer to t={self.tick_ns * 1e-9:.3f} s "

@@ -18,6 +18,7 @@ from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -88,7 +89,11 @@ def declare_params(
     """
     by_name = {s.name: s for s in specs}
     for s in specs:
-        node.declare_parameter(s.name, s.default, s.descriptor())
+        try:
+            node.declare_parameter(s.name, s.default, s.descriptor())
+        except (InvalidParameterValueException, InvalidParameterTypeException) as exc:
+            # e.g. a launch file sets a value outside the declared range: one clear line
+            raise ValueError(f"invalid parameter {s.name}: {exc}") from None
     values = {s.name: node.get_parameter(s.name).value for s in specs}
     for s in specs:
         reason = s.check(values[s.name])
@@ -187,16 +192,19 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
     node = None
     code = 0
     try:
-        node = node_factory()
+        try:
+            node = node_factory()
+        except ValueError as exc:
+            # Invalid configuration at start-up: one clear line, no traceback.
+            rclpy.logging.get_logger("erforce").fatal(f"cannot start: {exc}")
+            return 1
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except ValueError as exc:
-        # Invalid configuration at start-up: one clear line, no traceback.
-        rclpy.logging.get_logger("erforce").fatal(f"cannot start: {exc}")
-        code = 1
+    except SystemExit as exc:  # a node may end itself (e.g. the plant's stop_after_s)
+        code = exc.code if isinstance(exc.code, int) else 0
     finally:
         if node is not None:
             node.destroy_node()

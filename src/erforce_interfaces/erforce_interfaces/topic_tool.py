@@ -101,6 +101,14 @@ def _idl_type_name(t: Any) -> str:
     return "unknown"
 
 
+def new_message(cls: type) -> Any:
+    """An instance whose setters check types and bounds (off by default in Jazzy)."""
+    try:
+        return cls(check_fields=True)
+    except TypeError:  # message classes generated before check_fields existed
+        return cls()
+
+
 def _slot_types(msg: Any) -> dict[str, Any]:
     return dict(zip(msg.get_fields_and_field_types(), msg.SLOT_TYPES, strict=True))
 
@@ -243,7 +251,10 @@ def get_field(msg: Any, path: Sequence[str | int]) -> Any:
 # --------------------------------------------------------------------------------------------------
 
 _FLOAT_TYPES = {"float", "double", "long double"}
-_INT_TYPES = {"int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64", "char", "wchar"}
+_INT_RANGES = {
+    f"{sign}int{bits}": (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if sign == "" else (0, 2**bits - 1)
+    for sign in ("", "u") for bits in (8, 16, 32, 64)
+} | {"char": (0, 255), "wchar": (0, 0xFFFF)}
 
 #: Sets a ``builtin_interfaces/Time`` inside a message; pub calls these before each publish.
 StampSetter = Callable[[Any], None]
@@ -259,14 +270,17 @@ def _basic_value(typename: str, value: Any, where: str) -> Any:
         if isinstance(value, int | float) and not isinstance(value, bool):
             return float(value)
         raise ToolError(f"field '{where}': expected a number, got {value!r}")
-    if typename in _INT_TYPES:
-        if isinstance(value, float) and value.is_integer():
-            value = int(value)
-        if isinstance(value, int) and not isinstance(value, bool):
-            return value
+    if typename in _INT_RANGES:
         if typename in ("char", "wchar") and isinstance(value, str) and len(value) == 1:
             return value
-        raise ToolError(f"field '{where}': expected an integer, got {value!r}")
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise ToolError(f"field '{where}': expected an integer, got {value!r}")
+        lo, hi = _INT_RANGES[typename]
+        if not lo <= value <= hi:
+            raise ToolError(f"field '{where}': {value} is out of the {typename} range [{lo}, {hi}]")
+        return value
     if typename == "boolean":
         if isinstance(value, bool):
             return value
@@ -286,14 +300,14 @@ def _field_value(t: Any, current: Any, value: Any, where: str, stamps: list[Stam
         cls = type(current) if current is not None else _class_of_namespaced(t)
         full = "/".join(t.namespaced_name())
         if full == "std_msgs/msg/Header" and value == "auto":
-            header = cls()
+            header = new_message(cls)
             stamps.append(lambda stamp: setattr(header, "stamp", stamp))
             return header
         if full == "builtin_interfaces/msg/Time" and value == "now":
-            stamp = cls()
+            stamp = new_message(cls)
             stamps.append(lambda now: (setattr(stamp, "sec", now.sec), setattr(stamp, "nanosec", now.nanosec)))
             return stamp
-        sub = cls()
+        sub = new_message(cls)
         _set_fields(sub, value, where, stamps)
         return sub
     if isinstance(t, idl.AbstractNestedType):
@@ -674,7 +688,7 @@ def cmd_pub(s: Session, args: argparse.Namespace) -> int:
         raise ToolError(f"invalid YAML: {' '.join(str(exc).split())}") from None
     if values is not None and not isinstance(values, dict):
         raise ToolError("The passed value needs to be a dictionary in YAML format")
-    msg = cls()
+    msg = new_message(cls)
     stamps = set_message_fields(msg, values)
     times = 1 if args.once else args.times
 

@@ -40,6 +40,7 @@ class MainBoardLoop:
         self._setpoints = np.zeros(robot.num_wheels)
         self._last_run_s: float | None = None
         self._now_s = -math.inf
+        self._feed_at_first_tick = False
         self.notice: str | None = None  # what the last call noticed (for the node's log)
 
     @property
@@ -62,6 +63,8 @@ class MainBoardLoop:
         self._command = twist
         if math.isfinite(self._now_s):
             self.watchdog.feed(self._now_s)
+        else:
+            self._feed_at_first_tick = True  # a command sent before the robot's first tick counts
 
     def stop(self) -> None:
         """Drop the current command (e.g. after a rejected message): decelerate to rest."""
@@ -77,6 +80,9 @@ class MainBoardLoop:
             self._command = np.zeros(3)
             self._last_run_s = None
         self._now_s = t_s
+        if self._feed_at_first_tick:
+            self._feed_at_first_tick = False
+            self.watchdog.feed(t_s)
         if self._last_run_s is not None and t_s - self._last_run_s < self.loop_period_s - _TICK_TOLERANCE_S:
             return self._setpoints
         dt = self.loop_period_s if self._last_run_s is None else t_s - self._last_run_s

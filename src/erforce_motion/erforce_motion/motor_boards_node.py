@@ -38,42 +38,101 @@ from erforce_interfaces.node_support import (
 from erforce_motion.firmware import MotorBoardLoop
 from erforce_motion.motor_board import MotorBoardConfig
 
+_MB = MotorBoardConfig()  # node defaults are the core's defaults
+
 PARAMS = (
-    ParamSpec("loop_rate_hz", 1000.0, "motor-board loop rate; slower than the sensor ticks holds the duty [Hz]",
-              min=1.0, max=50000.0),
-    ParamSpec("lockstep_sync", True, "wait for the previous tick's setpoint before answering a tick "
-              "(deterministic lockstep); false answers at once with the newest setpoint"),
-    ParamSpec("setpoint_wait_s", 0.05, "wall-clock wait for a late setpoint before going on without it [s]",
-              min=0.001, max=10.0),
-    ParamSpec("setpoint_timeout_s", 0.1, "stop the wheels when the newest setpoint is older than this "
-              "(robot time) [s]", min=0.001, max=10.0),
+    ParamSpec(
+        "loop_rate_hz",
+        1000.0,
+        "motor-board loop rate; slower than the sensor ticks holds the duty [Hz]",
+        min=1.0,
+        max=50000.0,
+    ),
+    ParamSpec(
+        "lockstep_sync",
+        True,
+        "wait for the previous tick's setpoint before answering a tick "
+        "(deterministic lockstep); false answers at once with the newest setpoint",
+    ),
+    ParamSpec(
+        "setpoint_wait_s",
+        0.05,
+        "wall-clock wait for a late setpoint before going on without it [s]",
+        min=0.001,
+        max=10.0,
+    ),
+    ParamSpec(
+        "setpoint_timeout_s",
+        0.1,
+        "stop the wheels when the newest setpoint is older than this (robot time) [s]",
+        min=0.001,
+        max=10.0,
+    ),
     ParamSpec("status_rate_hz", 50.0, "rate of motor_status (robot time) [Hz]", min=0.1, max=1000.0),
-    ParamSpec("speed_kp_a_per_radps", 1.5, "speed PID proportional gain [A/(rad/s)]", min=1e-6, max=100.0),
-    ParamSpec("speed_ki_a_per_rad", 15.0, "speed PID integral gain [A/rad]", min=0.0, max=10000.0),
-    ParamSpec("speed_kd_as_per_rad", 0.0, "speed PID derivative gain [A s/rad]", min=0.0, max=10.0),
-    ParamSpec("speed_derivative_tau_s", 0.002, "low-pass time constant of the speed derivative [s]",
-              min=0.0, max=1.0),
-    ParamSpec("peak_current_a", 8.0, "speed loop output limit: the largest current it asks for [A]",
-              min=0.01, max=100.0),
-    ParamSpec("current_kp", 0.2, "current PID proportional gain [A/A]", min=1e-6, max=100.0),
-    ParamSpec("current_ki_per_s", 200.0, "current PID integral gain [1/s]", min=0.0, max=100000.0),
-    ParamSpec("anti_windup", "clamp", "integrator anti-windup of both PIDs: clamp | back_calculation"),
-    ParamSpec("actuator_mode", "inverse_model", "current -> PWM: linear (the paper's factor) | inverse_model "
-              "(inverse DC motor)"),
-    ParamSpec("linear_duty_per_a", 0.0, "duty per ampere of the linear actuator; 0 = R / V_supply [1/A]",
-              min=0.0, max=10.0),
-    ParamSpec("thermal_mode", "average", "thermal protection: average (the paper's ~10 s mean current) | i2t"),
-    ParamSpec("average_window_s", 10.0, "averaging window of the current limit [s]", min=0.01, max=600.0),
-    ParamSpec("pwm_decrement", 0.01, "PWM limit step below the last PWM while over the limit (1 % = 0.01)",
-              min=1e-6, max=1.0),
-    ParamSpec("pwm_recovery_rate_per_s", 0.2, "how fast the PWM limit rises once under the limit [1/s]",
-              min=1e-6, max=100.0),
+    ParamSpec(
+        "speed_kp_a_per_radps", _MB.speed_kp_a_per_radps, "speed PID proportional gain [A/(rad/s)]", min=1e-6, max=100.0
+    ),
+    ParamSpec("speed_ki_a_per_rad", _MB.speed_ki_a_per_rad, "speed PID integral gain [A/rad]", min=0.0, max=10000.0),
+    ParamSpec("speed_kd_as_per_rad", _MB.speed_kd_as_per_rad, "speed PID derivative gain [A s/rad]", min=0.0, max=10.0),
+    ParamSpec(
+        "speed_derivative_tau_s",
+        _MB.speed_derivative_tau_s,
+        "low-pass time constant of the speed derivative [s]",
+        min=0.0,
+        max=1.0,
+    ),
+    ParamSpec(
+        "peak_current_a",
+        _MB.peak_current_a,
+        "speed loop output limit: the largest current it asks for [A]",
+        min=0.01,
+        max=100.0,
+    ),
+    ParamSpec("current_kp", _MB.current_kp, "current PID proportional gain [A/A]", min=1e-6, max=100.0),
+    ParamSpec("current_ki_per_s", _MB.current_ki_per_s, "current PID integral gain [1/s]", min=0.0, max=100000.0),
+    ParamSpec("anti_windup", _MB.anti_windup, "integrator anti-windup of both PIDs: clamp | back_calculation"),
+    ParamSpec(
+        "actuator_mode",
+        _MB.actuator_mode,
+        "current -> PWM: linear (the paper's factor) | inverse_model (inverse DC motor)",
+    ),
+    ParamSpec(
+        "linear_duty_per_a", 0.0, "duty per ampere of the linear actuator; 0 = R / V_supply [1/A]", min=0.0, max=10.0
+    ),
+    ParamSpec("thermal_mode", _MB.thermal_mode, "thermal protection: average (the paper's ~10 s mean current) | i2t"),
+    ParamSpec(
+        "average_window_s", _MB.average_window_s, "averaging window of the current limit [s]", min=0.01, max=600.0
+    ),
+    ParamSpec(
+        "pwm_decrement",
+        _MB.pwm_decrement,
+        "PWM limit step below the last PWM while over the limit (1 % = 0.01)",
+        min=1e-6,
+        max=1.0,
+    ),
+    ParamSpec(
+        "pwm_recovery_rate_per_s",
+        _MB.pwm_recovery_rate_per_s,
+        "how fast the PWM limit rises once under the limit [1/s]",
+        min=1e-6,
+        max=100.0,
+    ),
 ) + robot_param_specs()
 
 _CONFIG_KEYS = (
-    "speed_kp_a_per_radps", "speed_ki_a_per_rad", "speed_kd_as_per_rad", "speed_derivative_tau_s",
-    "peak_current_a", "current_kp", "current_ki_per_s", "anti_windup", "actuator_mode", "thermal_mode",
-    "average_window_s", "pwm_decrement", "pwm_recovery_rate_per_s",
+    "speed_kp_a_per_radps",
+    "speed_ki_a_per_rad",
+    "speed_kd_as_per_rad",
+    "speed_derivative_tau_s",
+    "peak_current_a",
+    "current_kp",
+    "current_ki_per_s",
+    "anti_windup",
+    "actuator_mode",
+    "thermal_mode",
+    "average_window_s",
+    "pwm_decrement",
+    "pwm_recovery_rate_per_s",
 )
 
 
@@ -103,12 +162,15 @@ class MotorBoardsNode(Node):
         self._pending: collections.deque = collections.deque()  # (stamp_ns, speeds, currents, wall_s)
         self._last_status_ns: int | None = None
         self._duty_pub = self.create_publisher(JointState, contract.MOTOR_DUTY.name, contract.MOTOR_DUTY.qos)
-        self._status_pub = self.create_publisher(Float64MultiArray, contract.MOTOR_STATUS.name,
-                                                 contract.MOTOR_STATUS.qos)
-        self.create_subscription(JointState, contract.WHEEL_STATES.name, self._on_wheel_states,
-                                 contract.WHEEL_STATES.qos)
-        self.create_subscription(JointState, contract.WHEEL_SETPOINTS.name, self._on_setpoints,
-                                 contract.WHEEL_SETPOINTS.qos)
+        self._status_pub = self.create_publisher(
+            Float64MultiArray, contract.MOTOR_STATUS.name, contract.MOTOR_STATUS.qos
+        )
+        self.create_subscription(
+            JointState, contract.WHEEL_STATES.name, self._on_wheel_states, contract.WHEEL_STATES.qos
+        )
+        self.create_subscription(
+            JointState, contract.WHEEL_SETPOINTS.name, self._on_setpoints, contract.WHEEL_SETPOINTS.qos
+        )
         # Wall-clock timer: a silent velocity controller must not hold a tick forever.
         self.create_timer(0.01, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -162,8 +224,10 @@ class MotorBoardsNode(Node):
         if self._last_status_ns is None or t_ns - self._last_status_ns >= period_ns or t_ns < self._last_status_ns:
             self._last_status_ns = t_ns
             st = loop.board.status
-            rows = [[st.average_current_a[i], st.pwm_limit[i], float(st.saturated[i]), float(st.limit_active[i])]
-                    for i in range(loop.robot.num_wheels)]
+            rows = [
+                [st.average_current_a[i], st.pwm_limit[i], float(st.saturated[i]), float(st.limit_active[i])]
+                for i in range(loop.robot.num_wheels)
+            ]
             self._status_pub.publish(table_msg(rows, contract.MOTOR_STATUS_COLUMNS, "wheels"))
 
 

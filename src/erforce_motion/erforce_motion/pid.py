@@ -100,7 +100,8 @@ class PidConfig:
             )
         }
         if self.tracking_gain_kt is None:
-            out["tracking_gain_kt"] = out["ki"] / out["kp"]
+            with np.errstate(divide="ignore", invalid="ignore"):  # kp <= 0 is rejected by the caller
+                out["tracking_gain_kt"] = out["ki"] / out["kp"]
         else:
             out["tracking_gain_kt"] = _channel_values(self.tracking_gain_kt, n, "tracking_gain_kt")
         return out

@@ -26,7 +26,14 @@ from erforce_motion.pid import AntiWindup, Pid, PidConfig
 
 @dataclass(frozen=True)
 class VelocityControlConfig:
-    """Limits and gains of the main-board loop (defaults tuned on plant_model at 1 kHz, see bench)."""
+    """Limits and gains of the main-board loop.
+
+    Defaults (tuned on plant_model at 1 kHz with the default motor boards, bench/bench_motion.py):
+    feedforward on, PI kp 1, ki 5/s per axis: the feedforward does the work, the PI only
+    corrects. Pass the motor boards' saturation flags to `step` (wheels_saturated) or the
+    integrator winds up while the wheels are current-limited. `pid_only()` is the
+    feedforward-free design with kp 2, ki 40/s.
+    """
 
     max_speed_mps: float = 4.0
     max_accel_mps2: float = 6.0  # below the traction limit mu*g ~ 7.8 m/s^2
@@ -60,6 +67,16 @@ class VelocityControlConfig:
                 raise ValueError(f"{name}: must be finite and >= 0, got {v!r}")
         if not isinstance(self.feedforward_enabled, bool):
             raise ValueError("feedforward_enabled: must be a bool")
+        if self.anti_windup not in ("clamp", "back_calculation"):
+            raise ValueError(f"anti_windup: 'clamp' or 'back_calculation', got {self.anti_windup!r}")
+
+    @classmethod
+    def pid_only(cls, **overrides) -> VelocityControlConfig:
+        """The paper's current design (no feedforward) with PI gains tuned for it on plant_model."""
+        values = {"feedforward_enabled": False, "kp_translation": 2.0, "ki_translation": 40.0,
+                  "kp_rotation": 2.0, "ki_rotation": 40.0}
+        values.update(overrides)
+        return cls(**values)
 
     def pid_config(self) -> PidConfig:
         lim = (self.command_limit_mps, self.command_limit_mps, self.command_limit_radps)

@@ -31,36 +31,85 @@ from erforce_interfaces.node_support import (
 from erforce_motion.firmware import MainBoardLoop
 from erforce_motion.velocity_control import VelocityControlConfig
 
+_VC = VelocityControlConfig()  # node defaults are the core's defaults
+
 PARAMS = (
-    ParamSpec("loop_rate_hz", 1000.0, "velocity loop rate; slower than the sensor ticks holds the setpoints [Hz]",
-              min=1.0, max=20000.0),
-    ParamSpec("command_timeout_s", 0.2, "stop when no cmd_vel arrived for this long (robot time) [s]",
-              min=0.001, max=10.0),
-    ParamSpec("reject_linear_above_mps", 10.0, "a cmd_vel faster than this is absurd: rejected, robot stops [m/s]",
-              min=0.1, max=100.0),
-    ParamSpec("reject_angular_above_radps", 60.0, "a cmd_vel turning faster than this is rejected [rad/s]",
-              min=0.1, max=1000.0),
-    ParamSpec("feedforward_enabled", True, "pass the shaped setpoint through; the PID only corrects"),
-    ParamSpec("max_speed_mps", 4.0, "speed limit of the setpoint shaper [m/s]", min=0.01, max=20.0),
-    ParamSpec("max_accel_mps2", 6.0, "acceleration limit of the setpoint shaper [m/s^2]", min=0.01, max=100.0),
-    ParamSpec("max_angular_speed_radps", 10.0, "angular speed limit [rad/s]", min=0.01, max=200.0),
-    ParamSpec("max_angular_accel_radps2", 60.0, "angular acceleration limit [rad/s^2]", min=0.01, max=2000.0),
-    ParamSpec("kp_translation", 1.0, "PID proportional gain, vx and vy [(m/s)/(m/s)]", min=1e-6, max=1000.0),
-    ParamSpec("ki_translation", 20.0, "PID integral gain, vx and vy [1/s]", min=0.0, max=10000.0),
-    ParamSpec("kd_translation", 0.0, "PID derivative gain, vx and vy [s]", min=0.0, max=100.0),
-    ParamSpec("kp_rotation", 1.0, "PID proportional gain, wz", min=1e-6, max=1000.0),
-    ParamSpec("ki_rotation", 20.0, "PID integral gain, wz [1/s]", min=0.0, max=10000.0),
-    ParamSpec("kd_rotation", 0.0, "PID derivative gain, wz [s]", min=0.0, max=100.0),
-    ParamSpec("derivative_filter_tau_s", 0.005, "low-pass time constant of the derivative [s]", min=0.0, max=1.0),
-    ParamSpec("command_limit_mps", 5.0, "PID output limit per linear axis [m/s]", min=0.01, max=50.0),
-    ParamSpec("command_limit_radps", 15.0, "PID output limit, wz [rad/s]", min=0.01, max=500.0),
-    ParamSpec("anti_windup", "back_calculation", "integrator anti-windup: clamp | back_calculation"),
+    ParamSpec(
+        "loop_rate_hz",
+        1000.0,
+        "velocity loop rate; slower than the sensor ticks holds the setpoints [Hz]",
+        min=1.0,
+        max=20000.0,
+    ),
+    ParamSpec(
+        "command_timeout_s", 0.2, "stop when no cmd_vel arrived for this long (robot time) [s]", min=0.001, max=3600.0
+    ),
+    ParamSpec(
+        "reject_linear_above_mps",
+        10.0,
+        "a cmd_vel faster than this is absurd: rejected, robot stops [m/s]",
+        min=0.1,
+        max=100.0,
+    ),
+    ParamSpec(
+        "reject_angular_above_radps",
+        60.0,
+        "a cmd_vel turning faster than this is rejected [rad/s]",
+        min=0.1,
+        max=1000.0,
+    ),
+    ParamSpec(
+        "feedforward_enabled", _VC.feedforward_enabled, "pass the shaped setpoint through; the PID only corrects"
+    ),
+    ParamSpec("max_speed_mps", _VC.max_speed_mps, "speed limit of the setpoint shaper [m/s]", min=0.01, max=20.0),
+    ParamSpec(
+        "max_accel_mps2", _VC.max_accel_mps2, "acceleration limit of the setpoint shaper [m/s^2]", min=0.01, max=100.0
+    ),
+    ParamSpec(
+        "max_angular_speed_radps", _VC.max_angular_speed_radps, "angular speed limit [rad/s]", min=0.01, max=200.0
+    ),
+    ParamSpec(
+        "max_angular_accel_radps2",
+        _VC.max_angular_accel_radps2,
+        "angular acceleration limit [rad/s^2]",
+        min=0.01,
+        max=2000.0,
+    ),
+    ParamSpec(
+        "kp_translation", _VC.kp_translation, "PID proportional gain, vx and vy [(m/s)/(m/s)]", min=1e-6, max=1000.0
+    ),
+    ParamSpec("ki_translation", _VC.ki_translation, "PID integral gain, vx and vy [1/s]", min=0.0, max=10000.0),
+    ParamSpec("kd_translation", _VC.kd_translation, "PID derivative gain, vx and vy [s]", min=0.0, max=100.0),
+    ParamSpec("kp_rotation", _VC.kp_rotation, "PID proportional gain, wz", min=1e-6, max=1000.0),
+    ParamSpec("ki_rotation", _VC.ki_rotation, "PID integral gain, wz [1/s]", min=0.0, max=10000.0),
+    ParamSpec("kd_rotation", _VC.kd_rotation, "PID derivative gain, wz [s]", min=0.0, max=100.0),
+    ParamSpec(
+        "derivative_filter_tau_s",
+        _VC.derivative_filter_tau_s,
+        "low-pass time constant of the derivative [s]",
+        min=0.0,
+        max=1.0,
+    ),
+    ParamSpec("command_limit_mps", _VC.command_limit_mps, "PID output limit per linear axis [m/s]", min=0.01, max=50.0),
+    ParamSpec("command_limit_radps", _VC.command_limit_radps, "PID output limit, wz [rad/s]", min=0.01, max=500.0),
+    ParamSpec("anti_windup", _VC.anti_windup, "integrator anti-windup: clamp | back_calculation"),
 ) + robot_param_specs()
 
 _CONFIG_KEYS = (
-    "feedforward_enabled", "max_speed_mps", "max_accel_mps2", "max_angular_speed_radps",
-    "max_angular_accel_radps2", "kp_translation", "ki_translation", "kd_translation", "kp_rotation",
-    "ki_rotation", "kd_rotation", "derivative_filter_tau_s", "command_limit_mps", "command_limit_radps",
+    "feedforward_enabled",
+    "max_speed_mps",
+    "max_accel_mps2",
+    "max_angular_speed_radps",
+    "max_angular_accel_radps2",
+    "kp_translation",
+    "ki_translation",
+    "kd_translation",
+    "kp_rotation",
+    "ki_rotation",
+    "kd_rotation",
+    "derivative_filter_tau_s",
+    "command_limit_mps",
+    "command_limit_radps",
     "anti_windup",
 )
 
@@ -70,8 +119,9 @@ def build_loop(values: dict[str, Any]) -> MainBoardLoop:
     if values["anti_windup"] not in ("clamp", "back_calculation"):
         raise ValueError(f"anti_windup must be clamp or back_calculation, got {values['anti_windup']!r}")
     config = VelocityControlConfig(**{k: values[k] for k in _CONFIG_KEYS})
-    return MainBoardLoop(robot_config_from_params(values), config, 1.0 / values["loop_rate_hz"],
-                         values["command_timeout_s"])
+    return MainBoardLoop(
+        robot_config_from_params(values), config, 1.0 / values["loop_rate_hz"], values["command_timeout_s"]
+    )
 
 
 class VelocityControllerNode(Node):
@@ -81,10 +131,12 @@ class VelocityControllerNode(Node):
         self._loop: MainBoardLoop | None = None
         self._values = declare_params(self, PARAMS, build_loop, self._apply)
         self._setpoint_pub = self.create_publisher(
-            JointState, contract.WHEEL_SETPOINTS.name, contract.WHEEL_SETPOINTS.qos)
+            JointState, contract.WHEEL_SETPOINTS.name, contract.WHEEL_SETPOINTS.qos
+        )
         self.create_subscription(Twist, contract.CMD_VEL.name, self._on_cmd_vel, contract.CMD_VEL.qos)
-        self.create_subscription(JointState, contract.WHEEL_STATES.name, self._on_wheel_states,
-                                 contract.WHEEL_STATES.qos)
+        self.create_subscription(
+            JointState, contract.WHEEL_STATES.name, self._on_wheel_states, contract.WHEEL_STATES.qos
+        )
 
     def _apply(self, loop: MainBoardLoop) -> None:
         if self._loop is not None:
@@ -93,8 +145,9 @@ class VelocityControllerNode(Node):
 
     def _on_cmd_vel(self, msg: Twist) -> None:
         try:
-            twist = twist_from_msg(msg, self._values["reject_linear_above_mps"],
-                                   self._values["reject_angular_above_radps"])
+            twist = twist_from_msg(
+                msg, self._values["reject_linear_above_mps"], self._values["reject_angular_above_radps"]
+            )
         except ConversionError as exc:
             self._loop.stop()
             self._warn.warn("cmd_vel", f"rejected cmd_vel ({exc}); stopping")

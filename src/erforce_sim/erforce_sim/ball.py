@@ -88,8 +88,22 @@ class BallState:
 class BallBody:
     """Mutable ball state and its substep integrator (see module docstring)."""
 
-    __slots__ = ("a_roll", "a_slide", "at_rest", "inertia", "mass", "radius", "slip_gain", "vx", "vy", "wx",
-                 "wy", "wz", "x", "y")
+    __slots__ = (
+        "a_roll",
+        "a_slide",
+        "at_rest",
+        "inertia",
+        "mass",
+        "radius",
+        "slip_gain",
+        "vx",
+        "vy",
+        "wx",
+        "wy",
+        "wz",
+        "x",
+        "y",
+    )
 
     def __init__(self, params: BallParams, state: BallState) -> None:
         self.radius = params.radius_m
@@ -114,7 +128,7 @@ class BallBody:
     def advance(self, m: int, h: float) -> None:
         """Advance m substeps of h seconds (sliding substep by substep, rolling in closed form)."""
         r = self.radius
-        a_slide, a_roll = self.a_slide, self.a_roll
+        a_slide = self.a_slide
         dslip_max = a_slide * self.slip_gain * h
         mr_over_i = self.mass * r / self.inertia
         for j in range(m):
@@ -166,6 +180,4 @@ class BallBody:
         self.wy = self.vx / self.radius
 
     def kinetic_energy_j(self) -> float:
-        return 0.5 * self.mass * (self.vx**2 + self.vy**2) + 0.5 * self.inertia * (
-            self.wx**2 + self.wy**2 + self.wz**2
-        )
+        return 0.5 * self.mass * (self.vx**2 + self.vy**2) + 0.5 * self.inertia * (self.wx**2 + self.wy**2 + self.wz**2)

@@ -241,9 +241,7 @@ def ball_robot(ball: BallBody, rb: RobotPlant, shape: RobotShape, p: ContactPara
     tx, ty = -ny, nx
     qt = qx * ty - qy * tx
     vt = (ball.vx - pvx) * tx + (ball.vy - pvy) * ty - r * ball.wz
-    jt = _tangential_impulse(
-        vt, inv_m + r * r / ball.inertia + inv_mr + qt * qt * inv_ir, jn, p.ball_robot_friction
-    )
+    jt = _tangential_impulse(vt, inv_m + r * r / ball.inertia + inv_mr + qt * qt * inv_ir, jn, p.ball_robot_friction)
     jx, jy = jn * nx + jt * tx, jn * ny + jt * ty  # impulse on the ball
     ball.vx += jx * inv_m
     ball.vy += jy * inv_m

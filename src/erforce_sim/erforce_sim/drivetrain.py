@@ -68,9 +68,7 @@ class DriveTrainCoefficients:
         if not (math.isfinite(traction_damping_nspm) and traction_damping_nspm > 0.0):
             raise ValueError(f"traction_damping_nspm: must be finite and > 0, got {traction_damping_nspm!r}")
         if not (math.isfinite(coulomb_smoothing_radps) and coulomb_smoothing_radps > 0.0):
-            raise ValueError(
-                f"coulomb_smoothing_radps: must be finite and > 0, got {coulomb_smoothing_radps!r}"
-            )
+            raise ValueError(f"coulomb_smoothing_radps: must be finite and > 0, got {coulomb_smoothing_radps!r}")
         g = cfg.gear_ratio
         return cls(
             num_wheels=cfg.num_wheels,
@@ -128,6 +126,8 @@ class RobotPlant:
     """
 
     __slots__ = (
+        "_consts",
+        "_consts_h",
         "cos_th",
         "current",
         "duty",
@@ -144,8 +144,6 @@ class RobotPlant:
         "wheel_w",
         "x",
         "y",
-        "_consts",
-        "_consts_h",
     )
 
     def __init__(self, coeffs: DriveTrainCoefficients, x: float, y: float, theta: float) -> None:
@@ -190,14 +188,10 @@ class RobotPlant:
         if self._consts_h != h:
             self._consts = self._substep_constants(h)
             self._consts_h = h
-        (r, dist, gear, kt, ke_over_r, bv, tc, weps, fmax, drive_gain, back_gain, r_hj, hm, hi, v_over_r) = (
-            self._consts
-        )
+        (r, dist, gear, kt, ke_over_r, bv, tc, weps, fmax, drive_gain, back_gain, r_hj, hm, hi, v_over_r) = self._consts
         wheel_w, current = self.wheel_w, self.current
         i_sq = [0.0] * k.num_wheels
-        wheels = tuple(
-            zip(range(k.num_wheels), k.sin_a, k.cos_a, [v_over_r * d for d in self.duty], strict=True)
-        )
+        wheels = tuple(zip(range(k.num_wheels), k.sin_a, k.cos_a, [v_over_r * d for d in self.duty], strict=True))
         x, y, th = self.x, self.y, self.theta
         ct, st = self.cos_th, self.sin_th
         vx, vy, w = self.vx, self.vy, self.w

@@ -102,9 +102,7 @@ class VisionSystem:
             nth = rng.normal(0.0, p.orientation_noise_rad) if p.orientation_noise_rad > 0 else 0.0
             th_m = math.remainder(th + float(nth), 2.0 * math.pi)
             dets.append(RobotDetection(team, rid, x + float(nx), y + float(ny), th_m))
-        self._pending.append(
-            VisionFrame(self._frame_number, t_s, t_s + p.latency_s, balls, tuple(dets))
-        )
+        self._pending.append(VisionFrame(self._frame_number, t_s, t_s + p.latency_s, balls, tuple(dets)))
         self._frame_number += 1
         self.next_capture_s = self._frame_number * self._period
 

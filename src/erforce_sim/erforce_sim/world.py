@@ -26,8 +26,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallBody, BallParams, BallState
 from erforce_sim.contacts import ContactParams, RobotShape, ball_robot, ball_walls, robot_robot, robot_walls
 from erforce_sim.drivetrain import DriveTrainCoefficients, RobotPlant
@@ -312,9 +312,7 @@ class World:
         if rb.locked:
             rb.wheel_w[:] = [0.0] * len(rb.wheel_w)
 
-    def kick(
-        self, i: int, speed_mps: float, spin_ratio: float | None = None, armed_for_s: float = 0.0
-    ) -> KickResult:
+    def kick(self, i: int, speed_mps: float, spin_ratio: float | None = None, armed_for_s: float = 0.0) -> KickResult:
         """Flat kick with robot i at ``speed_mps`` (ball speed relative to the robot).
 
         Fires only when the ball touches the dribbler region (in front of the flat face, within the
@@ -365,7 +363,8 @@ class World:
         fx = self._shapes[i].front_x_m
         gap = px - fx - self._ball.radius
         return (
-            px > fx and gap <= self.physics.kick_touch_tolerance_m
+            px > fx
+            and gap <= self.physics.kick_touch_tolerance_m
             and abs(py) <= 0.5 * self.specs[i].config.dribbler_width_m
         )
 
@@ -424,8 +423,17 @@ class World:
         if not -1.0 <= s <= 1.0:
             raise ValueError(f"place_ball: spin_ratio must be in [-1, 1], got {s}")
         r = self.ball_params.radius_m
-        self.set_ball_state(BallState(_finite("place_ball: x", x), _finite("place_ball: y", y), vx, vy,
-                                      -s * vy / r, s * vx / r, _finite("place_ball: wz", wz)))
+        self.set_ball_state(
+            BallState(
+                _finite("place_ball: x", x),
+                _finite("place_ball: y", y),
+                vx,
+                vy,
+                -s * vy / r,
+                s * vx / r,
+                _finite("place_ball: wz", wz),
+            )
+        )
 
     def set_ball_state(self, state: BallState) -> None:
         """Teleport the ball with a full state (position, velocity, angular velocity)."""

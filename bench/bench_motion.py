@@ -1,0 +1,261 @@
+"""Motion-control bench (paper Sec. 4) on the in-core plant model at a 1 kHz loop.
+
+Rows: robot velocity step 0 -> 2 m/s and one wheel-speed step (2 % settling time,
+overshoot), figure-eight velocity tracking with and without feedforward, a locked-wheel
+stall against the 1.3 A / 10 s thermal limit, and the cost of one controller tick
+(velocity controller + motor board of a 4-wheel robot).
+
+    python bench/bench_motion.py [--quick] [--figures DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from erforce_interfaces.robot_config import RobotConfig
+from erforce_motion.motor_board import MotorBoard, MotorBoardConfig
+from erforce_motion.plant_model import OmniRobotPlant, WheelPlant
+from erforce_motion.tuning import plot_tuning, run_tuning_experiment
+from erforce_motion.velocity_control import VelocityControlConfig, VelocityController
+
+DT_S = 0.001
+ROBOT = RobotConfig()
+
+
+def step_metrics(t: np.ndarray, y: np.ndarray, target: float, band: float = 0.02) -> tuple[float, float]:
+    """(settling time to +-band of target [s], overshoot [%]); settling = last exit from the band."""
+    outside = np.nonzero(np.abs(y - target) > band * abs(target))[0]
+    if outside.size == 0:
+        settle = 0.0
+    elif outside[-1] + 1 >= len(t):
+        settle = math.inf
+    else:
+        settle = float(t[outside[-1] + 1])
+    overshoot = max(0.0, float((np.max(y * np.sign(target)) - abs(target)) / abs(target) * 100.0))
+    return settle, overshoot
+
+
+def robot_step(vc_cfg: VelocityControlConfig, target=(2.0, 0.0, 0.0), seconds: float = 0.6):
+    vc = VelocityController(ROBOT, vc_cfg)
+    mb = MotorBoard(robot=ROBOT)
+    plant = OmniRobotPlant(ROBOT)
+    w, i = np.zeros(4), np.zeros(4)
+    n = round(seconds / DT_S)
+    twist = np.zeros((n, 3))
+    for k in range(n):
+        sp = vc.step(target, w, DT_S, mb.saturated)
+        w, i = plant.step(mb.step(sp, w, i, DT_S), DT_S)
+        twist[k] = plant.twist
+    return np.arange(1, n + 1) * DT_S, twist
+
+
+def wheel_step(target_radps: float = 50.0, seconds: float = 0.4, mb_cfg: MotorBoardConfig | None = None):
+    mb = MotorBoard(mb_cfg, ROBOT, n_wheels=1)
+    plant = WheelPlant(ROBOT, n_wheels=1)  # lumped load: wheel, rotor and a quarter of the robot mass
+    w, i = np.zeros(1), np.zeros(1)
+    n = round(seconds / DT_S)
+    ys, cur = np.zeros(n), np.zeros(n)
+    for k in range(n):
+        w, i = plant.step(mb.step(np.array([target_radps]), w, i, DT_S), DT_S)
+        ys[k], cur[k] = w[0], i[0]
+    return np.arange(1, n + 1) * DT_S, ys, cur
+
+
+def figure_eight(vc_cfg: VelocityControlConfig, periods: int = 2, period_s: float = 5.0,
+                 a_m: float = 1.5, b_m: float = 0.75):
+    """Field path x = a sin(wt), y = b sin(2wt) at constant heading: velocity RMS error after one warm-up period."""
+    vc = VelocityController(ROBOT, vc_cfg)
+    mb = MotorBoard(robot=ROBOT)
+    plant = OmniRobotPlant(ROBOT)
+    w, i = np.zeros(4), np.zeros(4)
+    om = 2.0 * math.pi / period_s
+    n = round((periods + 1) * period_s / DT_S)
+    desired, actual, pose = np.zeros((n, 2)), np.zeros((n, 2)), np.zeros((n, 2))
+    for k in range(n):
+        t = k * DT_S
+        vfx, vfy = a_m * om * math.cos(om * t), 2.0 * b_m * om * math.cos(2.0 * om * t)
+        c, s = math.cos(plant.pose[2]), math.sin(plant.pose[2])
+        vb = (c * vfx + s * vfy, -s * vfx + c * vfy, 0.0)  # field -> robot frame
+        sp = vc.step(vb, w, DT_S, mb.saturated)
+        w, i = plant.step(mb.step(sp, w, i, DT_S), DT_S)
+        desired[k] = vb[:2]
+        actual[k] = plant.twist[:2]
+        pose[k] = plant.pose[:2]
+    warm = round(period_s / DT_S)
+    err = np.linalg.norm(desired[warm:] - actual[warm:], axis=1)
+    return float(np.sqrt(np.mean(err**2))), (pose[warm:], err), om, a_m, b_m
+
+
+def stall(seconds: float):
+    mb = MotorBoard(robot=ROBOT, n_wheels=1)
+    plant = WheelPlant(ROBOT, n_wheels=1, substeps=1)
+    plant.locked[:] = True
+    w, i = np.zeros(1), np.zeros(1)
+    n = round(seconds / DT_S)
+    cur, limit = np.zeros(n), np.zeros(n)
+    for k in range(n):
+        w, i = plant.step(mb.step(np.array([100.0]), w, i, DT_S), DT_S)
+        cur[k], limit[k] = abs(i[0]), mb.thermal.pwm_limit[0]
+    window = round(10.0 / DT_S)
+    avg = np.convolve(np.concatenate([np.zeros(window - 1), cur]), np.ones(window) / window, "valid")
+    return np.arange(1, n + 1) * DT_S, cur, avg, limit
+
+
+def tick_cost_us(n: int) -> float:
+    vc = VelocityController(ROBOT)
+    mb = MotorBoard(robot=ROBOT)
+    w = np.array([10.0, -12.0, 11.0, -9.0])
+    i = np.array([0.5, 0.6, 0.4, 0.5])
+    desired = (1.0, 0.5, 0.2)
+    samples = np.empty(n)
+    clock = time.perf_counter_ns
+    for k in range(n):
+        t0 = clock()
+        sp = vc.step(desired, w, DT_S, mb.saturated)
+        mb.step(sp, w, i, DT_S)
+        samples[k] = clock() - t0
+    return float(np.median(samples[n // 10:]) / 1e3)
+
+
+def run(quick: bool = False, figures: str | Path | None = None) -> list[dict]:
+    rows: list[dict] = []
+    raw_step = dataclasses.replace(VelocityControlConfig(), max_accel_mps2=1000.0)
+    t, tw = robot_step(raw_step)
+    settle, over = step_metrics(t, tw[:, 0], 2.0)
+    rows += [
+        {"name": "robot vx step 0->2 m/s: settling (2 %)", "value": settle * 1e3, "unit": "ms",
+         "target": "< 200", "note": "loop step (shaper accel limit 1000 m/s^2), feedforward on"},
+        {"name": "robot vx step 0->2 m/s: overshoot", "value": over, "unit": "%", "target": "< 5",
+         "note": f"max |wz| {np.abs(tw[:, 2]).max():.2g} rad/s, max |vy| {np.abs(tw[:, 1]).max():.2g} m/s"},
+    ]
+    ts, tws = robot_step(VelocityControlConfig(), seconds=0.8)
+    s2, o2 = step_metrics(ts, tws[:, 0], 2.0)
+    rows.append({"name": "robot vx step 0->2 m/s, default shaper: settling", "value": s2 * 1e3, "unit": "ms",
+                 "target": "-", "note": f"6 m/s^2 ramp alone takes 333 ms; overshoot {o2:.2f} %"})
+    tws_w, yw, cw = wheel_step()
+    s3, o3 = step_metrics(tws_w, yw, 50.0)
+    rows += [
+        {"name": "wheel speed step 0->50 rad/s: settling (2 %)", "value": s3 * 1e3, "unit": "ms",
+         "target": "< 200", "note": f"lumped load, peak current {np.abs(cw).max():.1f} A"},
+        {"name": "wheel speed step 0->50 rad/s: overshoot", "value": o3, "unit": "%", "target": "< 5",
+         "note": "motor-board cascade, inverse-model actuator"},
+    ]
+    periods = 1 if quick else 2
+    rms_ff, pose_ff, om, a_m, b_m = figure_eight(VelocityControlConfig(), periods)
+    rms_pid, pose_pid, *_ = figure_eight(VelocityControlConfig.pid_only(), periods)
+    rms_same, *_ = figure_eight(dataclasses.replace(VelocityControlConfig(), feedforward_enabled=False), periods)
+    rows += [
+        {"name": "figure-eight velocity RMS error, feedforward", "value": rms_ff, "unit": "m/s", "target": "-",
+         "note": "1.5 x 0.75 m, 5 s period, peak 1.9 m/s, after 1 warm-up period"},
+        {"name": "figure-eight velocity RMS error, no feedforward", "value": rms_pid, "unit": "m/s",
+         "target": "-", "note": f"PI kp=2, ki=40 (pid_only); with the ff gains: {rms_same:.3f} m/s"},
+        {"name": "figure-eight: no-ff / ff error ratio", "value": rms_pid / rms_ff, "unit": "x",
+         "target": ">= 2", "note": ""},
+    ]
+    ts_st, cur, avg, limit = stall(25.0 if quick else 40.0)
+    first = int(np.argmax(avg > 1.3))
+    late = ts_st > 15.0
+    rows += [
+        {"name": "stall: peak 10 s average current", "value": float(avg.max()), "unit": "A",
+         "target": "~1.3", "note": f"first above 1.3 A at {ts_st[first]:.2f} s; overshoot = the 1 %/loop ramp"},
+        {"name": "stall: mean of the 10 s average after 15 s", "value": float(avg[late].mean()), "unit": "A",
+         "target": "<= 1.3", "note": f"min after first burst {avg[ts_st > 10.05].min():.3f} A; "
+                                       f"peak current {cur.max():.1f} A"},
+    ]
+    rows.append({"name": "controller tick (velocity + motor board, 4 wheels)",
+                 "value": tick_cost_us(5000 if quick else 30000), "unit": "us (median)", "target": "< 50",
+                 "note": "incl. saturation flags to the velocity loop"})
+    tune = run_tuning_experiment()
+    chr0 = tune.gains["chr_0"]["PI"]
+    zn = tune.gains["zn"]["PI"]
+    rows.append({"name": "ZN tuning of the speed loop: Tu / Tg", "value": tune.times.delay_time_tu_s * 1e3,
+                 "unit": "ms (Tu)", "target": "-",
+                 "note": f"Tg {tune.times.balance_time_tg_s * 1e3:.1f} ms, K {tune.fit.gain:.2f} (rad/s)/A; "
+                         f"PI ZN kp {zn.kp:.2f} ki {zn.ki:.0f}; CHR-0% kp {chr0.kp:.2f} ki {chr0.ki:.1f}"})
+    if figures is not None:
+        _figures(Path(figures), t, tw, ts, tws, tws_w, yw, pose_ff, pose_pid, om, a_m, b_m, ts_st, cur, avg, limit,
+                 tune)
+    return rows
+
+
+def _figures(out, t, tw, ts, tws, tw_t, yw, pose_ff, pose_pid, om, a_m, b_m, ts_st, cur, avg, limit, tune):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
+    ax[0].plot(t, tw[:, 0], label="loop step (no ramp)")
+    ax[0].plot(ts, tws[:, 0], label="default shaper (6 m/s^2)")
+    ax[0].axhspan(1.96, 2.04, color="g", alpha=0.15, label="2 % band")
+    ax[0].set(xlabel="time [s]", ylabel="vx [m/s]", title="robot velocity step 0 -> 2 m/s")
+    ax[0].legend(fontsize=8)
+    ax[1].plot(tw_t, yw)
+    ax[1].axhspan(49.0, 51.0, color="g", alpha=0.15)
+    ax[1].set(xlabel="time [s]", ylabel="wheel speed [rad/s]", title="wheel speed step 0 -> 50 rad/s")
+    for a in ax:
+        a.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "motion_step_responses.png", dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    s = np.linspace(0, 2 * math.pi, 400)
+    ax[0].plot(a_m * np.sin(s), b_m * np.sin(2 * s), "k--", lw=1, label="commanded path")
+    for (pose, _), label in ((pose_ff, "feedforward + PID"), (pose_pid, "PID only")):
+        ax[0].plot(pose[:, 0] - pose[:, 0].mean(), pose[:, 1] - pose[:, 1].mean(), lw=1, label=label)
+    ax[0].set(xlabel="x [m]", ylabel="y [m]", title="figure-eight, dead reckoning (start-up offset removed)")
+    ax[0].axis("equal")
+    ax[0].legend(fontsize=8)
+    for (_, err), label in ((pose_ff, "feedforward + PID"), (pose_pid, "PID only")):
+        ax[1].semilogy(np.arange(1, len(err) + 1) * DT_S + 2 * math.pi / om, err, lw=0.8, label=label)
+    ax[1].set(xlabel="time [s]", ylabel="|v_cmd - v| [m/s]", title="velocity tracking error after warm-up")
+    ax[1].legend(fontsize=8)
+    for a in ax:
+        a.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "motion_figure_eight.png", dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    ax[0].plot(ts_st, cur, lw=0.6, label="|motor current|")
+    ax[0].plot(ts_st, avg, lw=1.5, label="10 s average")
+    ax[0].axhline(1.3, color="r", ls="--", label="1.3 A limit")
+    ax[0].set(ylabel="current [A]", title="locked wheel, setpoint 100 rad/s")
+    ax[0].legend(fontsize=8)
+    ax[1].plot(ts_st, limit)
+    ax[1].set(xlabel="time [s]", ylabel="PWM limit")
+    for a in ax:
+        a.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / "motion_stall_current.png", dpi=110)
+    plt.close(fig)
+    plot_tuning(tune, out / "motion_tuning_fig4.png", title="speed-loop plant: PT2 fit and inflection tangent")
+
+
+def format_table(rows: list[dict]) -> str:
+    lines = ["| name | value | unit | target | note |", "|---|---|---|---|---|"]
+    for r in rows:
+        v = r["value"]
+        vs = f"{v:.4g}" if isinstance(v, float) else str(v)
+        lines.append(f"| {r['name']} | {vs} | {r['unit']} | {r['target']} | {r['note']} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="shorter runs")
+    parser.add_argument("--figures", metavar="DIR", help="write PNG figures into DIR")
+    args = parser.parse_args(argv)
+    print(format_table(run(args.quick, args.figures)))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,409 @@
+"""plant: the simulated world as a ROS 2 node. It owns time.
+
+Every tick (``control_period_s``) it publishes ``/clock`` and each robot's
+``wheel_states`` (what the motor boards' sensors see), stamped with the tick's time,
+applies the robots' ``motor_duty`` and steps the physics. Vision frames, light-barrier
+state and ground truth go out as they fall due.
+
+Pacing (parameter ``pacing``):
+- ``lockstep``: a tick advances only after every live motor board answered it
+  (erforce_interfaces.lockstep), so runs are deterministic. A silent peer is reported on
+  ``/sim/events`` after ``lockstep_timeout_s`` and the plant goes on with zero duty for
+  it until it answers again. ``real_time_factor`` > 0 caps the speed for watching.
+- ``realtime``: ticks follow the wall clock times ``real_time_factor``; the newest duty
+  of each robot is applied, nobody is waited for.
+
+Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state``
+(nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``. A body
+placed outside the field walls is refused with an error naming it.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from nav_msgs.msg import Odometry
+from rclpy.clock import Clock as RclClock
+from rclpy.clock import ClockType
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import (
+    ConversionError,
+    float64_from_msg,
+    joint_state_from_msg,
+    joint_state_msg,
+    nanoseconds_to_stamp,
+    odometry_from_msg,
+    odometry_msg,
+    point_msg,
+    pose2d_msg,
+    table_msg,
+)
+from erforce_interfaces.lockstep import DutyGate
+from erforce_interfaces.node_support import (
+    ParamSpec,
+    ThrottledWarner,
+    declare_params,
+    robot_config_from_params,
+    robot_param_specs,
+    run_node,
+)
+from erforce_sim.runner import PlantSetup, build_world
+from erforce_sim.sensors import VisionParams
+from erforce_sim.world import PhysicsParams
+
+PARAMS = (
+    ParamSpec("field", "division_b", "field preset: division_a (12 x 9 m) | division_b (9 x 6 m)", read_only=True),
+    ParamSpec(
+        "robot_poses",
+        [-1.0, 0.0, 0.0],
+        "initial poses, x y yaw per robot, flattened [m, m, rad]; the number of robots is len / 3",
+        read_only=True,
+    ),
+    ParamSpec("kicker_plates", ["curved"], "kicker plate per robot (or one for all): flat | curved", read_only=True),
+    ParamSpec("controlled", [True], "per robot (or one for all): has motor boards the plant waits for", read_only=True),
+    ParamSpec("ball", [0.0, 0.0, 0.0, 0.0], "initial ball x, y [m], vx, vy [m/s] (rolling)", read_only=True),
+    ParamSpec(
+        "seed", 0, "random seed of vision noise, dropouts and sensor noise", min=0, max=2**31 - 1, read_only=True
+    ),
+    ParamSpec(
+        "control_period_s",
+        0.001,
+        "tick period: sensor samples and duty updates [s]",
+        min=1e-4,
+        max=0.05,
+        read_only=True,
+    ),
+    ParamSpec(
+        "substep_hz", 10000.0, "physics substep rate (motors, bodies, ball) [Hz]", min=10000.0, max=1e6, read_only=True
+    ),
+    ParamSpec(
+        "kick_spin_ratio",
+        -0.2,
+        "ball spin w r / v given by a kick (< 0 backspin lowers c_switch)",
+        min=-1.0,
+        max=1.0,
+        read_only=True,
+    ),
+    ParamSpec("vision_rate_hz", 70.0, "camera frame rate [Hz]", min=1.0, max=1000.0, read_only=True),
+    ParamSpec("vision_latency_s", 0.015, "capture to publication [s]", min=0.0, max=1.0, read_only=True),
+    ParamSpec("vision_noise_m", 0.002, "position noise, standard deviation [m]", min=0.0, max=0.1, read_only=True),
+    ParamSpec(
+        "vision_dropout", 0.02, "probability an object is missing from a frame", min=0.0, max=1.0, read_only=True
+    ),
+    ParamSpec("pacing", "lockstep", "lockstep (deterministic; waits for motor boards) | realtime"),
+    ParamSpec(
+        "real_time_factor",
+        1.0,
+        "simulated seconds per wall second; 0 = as fast as possible (lockstep only)",
+        min=0.0,
+        max=1000.0,
+    ),
+    ParamSpec(
+        "lockstep_timeout_s",
+        2.0,
+        "wall time to wait for a motor board before reporting a stall [s]",
+        min=0.01,
+        max=60.0,
+    ),
+    ParamSpec(
+        "startup_timeout_s", 30.0, "wall time to wait for the controlled robots' nodes at start [s]", min=0.0, max=600.0
+    ),
+    ParamSpec(
+        "ground_truth_rate_hz", 100.0, "rate of the ground-truth topics (simulated time) [Hz]", min=1.0, max=1000.0
+    ),
+    ParamSpec(
+        "clock_rate_hz", 1000.0, "rate of /clock (simulated time) [Hz]; at most one per tick", min=1.0, max=10000.0
+    ),
+    ParamSpec("stop_after_s", 0.0, "shut down after this much simulated time; 0 = run forever [s]", min=0.0, max=1e6),
+) + robot_param_specs()
+
+_MAX_TICKS_PER_PUMP = 50  # keep the executor responsive when nobody gates the ticks
+_RETRY_S = 0.1  # re-publish an unanswered tick (lost message, late joiner); duplicates are harmless
+
+
+def setup_from_params(values: dict[str, Any]) -> PlantSetup:
+    poses = list(values["robot_poses"])
+    if len(poses) % 3 or not poses:
+        raise ValueError(f"robot_poses: need x, y, yaw per robot, got {len(poses)} values")
+    robot = robot_config_from_params(values)
+    return PlantSetup(
+        field_preset=values["field"],
+        robot_poses=tuple(tuple(poses[i : i + 3]) for i in range(0, len(poses), 3)),
+        kicker_plates=tuple(values["kicker_plates"]),
+        controlled=tuple(bool(c) for c in values["controlled"]),
+        ball=tuple(values["ball"]),
+        control_period_s=values["control_period_s"],
+        seed=values["seed"],
+        robot=robot,
+        physics=PhysicsParams(substep_hz=values["substep_hz"], kick_spin_ratio=values["kick_spin_ratio"]),
+        vision=VisionParams(
+            rate_hz=values["vision_rate_hz"],
+            latency_s=values["vision_latency_s"],
+            position_noise_m=values["vision_noise_m"],
+            ball_dropout_prob=values["vision_dropout"],
+            robot_dropout_prob=values["vision_dropout"],
+        ),
+    )
+
+
+def _validate(values: dict[str, Any]) -> dict[str, Any]:
+    if values["pacing"] not in ("lockstep", "realtime"):
+        raise ValueError(f"pacing must be lockstep or realtime, got {values['pacing']!r}")
+    if values["pacing"] == "realtime" and values["real_time_factor"] <= 0.0:
+        raise ValueError("realtime pacing needs real_time_factor > 0")
+    setup = setup_from_params(values)
+    build_world(setup)  # refuses bodies off the field with a clear error, at start
+    return values
+
+
+class PlantNode(Node):
+    def __init__(self) -> None:
+        super().__init__("plant")
+        self._warn = ThrottledWarner(self)
+        self._values = declare_params(self, PARAMS, _validate)
+        self.setup = setup_from_params(self._values)
+        self.world = build_world(self.setup)
+        n = self.setup.num_robots
+        self._wheels = self.setup.robot.wheel_names
+        self._controlled = {i for i in range(n) if self.setup.is_controlled(i)}
+        self._gate = DutyGate(n, self._values["lockstep_timeout_s"])
+        self._latest_duty = {i: None for i in range(n)}
+        self._tick = 0
+        self._period_ns = self.setup.period_ns
+        self._started = False
+        self._start_wall = time.monotonic()
+        self._pace_origin: tuple[float, int] | None = None
+        self._last_publish_wall = 0.0
+        self._last_clock_ns = -(10**18)
+        self._last_truth_ns = -(10**18)
+        self._barrier_state = [None] * n
+
+        q = contract
+        self._clock_pub = self.create_publisher(Clock, q.CLOCK.name, q.CLOCK.qos)
+        self._events_pub = self.create_publisher(String, q.SIM_EVENTS.name, q.SIM_EVENTS.qos)
+        self._vision_ball_pub = self.create_publisher(q.VISION_BALL.msg_type, q.VISION_BALL.name, q.VISION_BALL.qos)
+        self._truth_ball_pub = self.create_publisher(Odometry, q.GROUND_TRUTH_BALL.name, q.GROUND_TRUTH_BALL.qos)
+        self._pubs: list[dict[str, Any]] = []
+        for i in range(n):
+
+            def topic(t, i=i):
+                return t.for_robot(i)
+
+            self._pubs.append(
+                {
+                    "states": self.create_publisher(JointState, topic(q.WHEEL_STATES), q.WHEEL_STATES.qos),
+                    "vision": self.create_publisher(q.VISION_POSE.msg_type, topic(q.VISION_POSE), q.VISION_POSE.qos),
+                    "barrier": self.create_publisher(Bool, topic(q.BALL_DETECTED), q.BALL_DETECTED.qos),
+                    "truth": self.create_publisher(Odometry, topic(q.GROUND_TRUTH_ODOM), q.GROUND_TRUTH_ODOM.qos),
+                    "motors": self.create_publisher(
+                        Float64MultiArray, topic(q.GROUND_TRUTH_MOTORS), q.GROUND_TRUTH_MOTORS.qos
+                    ),
+                }
+            )
+            self.create_subscription(
+                JointState, topic(q.MOTOR_DUTY), lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.qos
+            )
+            self.create_subscription(Float64, topic(q.KICK), lambda m, i=i: self._on_kick(i, m), q.KICK.qos)
+            self.create_subscription(
+                Odometry, topic(q.SIM_SET_STATE), lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.qos
+            )
+        self.create_subscription(Odometry, q.SIM_SET_BALL.name, self._on_set_ball, q.SIM_SET_BALL.qos)
+        self.create_timer(0.001, self._pump, clock=RclClock(clock_type=ClockType.STEADY_TIME))
+        self.get_logger().info(
+            f"plant: {n} robot(s), {self.setup.field_preset}, tick {self.setup.control_period_s * 1e3:g} ms, "
+            f"{self._values['pacing']} pacing"
+        )
+
+    # ---------------------------------------------------------------- inputs
+    def _event(self, text: str, warn: bool = False) -> None:
+        if warn:  # rclpy ties a severity to each call site: two call sites
+            self.get_logger().warning(text)
+        else:
+            self.get_logger().info(text)
+        self._events_pub.publish(String(data=f"t={self.world.t_s:.3f} {text}"))
+
+    def _on_duty(self, robot: int, msg: JointState) -> None:
+        try:
+            t_ns, duty = joint_state_from_msg(msg, len(self._wheels), "effort")
+        except ConversionError as exc:
+            # A broken answer still answers the tick, with the motors off: lockstep goes on.
+            self._warn.warn(f"duty{robot}", f"robot_{robot}: rejected motor_duty ({exc}); motors off")
+            t_ns = self._tick * self._period_ns
+            duty = None
+        if duty is not None:
+            self._latest_duty[robot] = duty
+        event = self._gate.offer(robot, t_ns, duty if duty is not None else np.zeros(len(self._wheels)))
+        if event:
+            self._event(event)
+        self._pump()
+
+    def _on_kick(self, robot: int, msg: Float64) -> None:
+        try:
+            speed = float64_from_msg(msg, limit=100.0)
+            result = self.world.kick(robot, speed, armed_for_s=0.1)
+        except (ConversionError, ValueError) as exc:
+            self._warn.warn(f"kick{robot}", f"robot_{robot}: rejected kick: {exc}")
+            return
+        state = "fired" if result.fired else ("armed" if result.armed else "no ball at the kicker")
+        clamped = " (clamped)" if result.clamped else ""
+        self._event(f"robot_{robot} kick {result.speed_mps:.2f} m/s{clamped}: {state}")
+
+    def _on_set_ball(self, msg: Odometry) -> None:
+        try:
+            _, pose, velocity, _ = odometry_from_msg(msg)
+            self.world.place_ball(pose[0], pose[1], velocity[0], velocity[1])
+        except (ConversionError, ValueError) as exc:
+            self._warn.warn("set_ball", f"rejected /sim/set_ball: {exc}")
+            return
+        self._event(f"ball placed at ({pose[0]:.3f}, {pose[1]:.3f}) with ({velocity[0]:.2f}, {velocity[1]:.2f}) m/s")
+
+    def _on_set_robot(self, robot: int, msg: Odometry) -> None:
+        try:
+            _, pose, velocity, _ = odometry_from_msg(msg)
+            self.world.place_robot(robot, pose[0], pose[1], pose[2], velocity[0], velocity[1], velocity[2])
+        except (ConversionError, ValueError) as exc:
+            self._warn.warn(f"set_robot{robot}", f"rejected robot_{robot}/sim/set_state: {exc}")
+            return
+        self._event(f"robot_{robot} placed at ({pose[0]:.3f}, {pose[1]:.3f}, {pose[2]:.3f})")
+
+    # ---------------------------------------------------------------- ticking
+    def _peers_present(self) -> set[int]:
+        q = contract
+        return {i for i in self._controlled if self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0}
+
+    def _ready_to_start(self) -> bool:
+        q = contract
+        waited = time.monotonic() - self._start_wall
+        ok = all(
+            self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0
+            and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= 2
+            for i in self._controlled
+        )
+        if not ok and waited > self._values["startup_timeout_s"]:
+            self._event(f"starting without all controlled robots after {waited:.1f} s", warn=True)
+            return True
+        return ok
+
+    def _pump(self) -> None:
+        now = time.monotonic()
+        if not self._started:
+            if not self._ready_to_start():
+                return
+            self._started = True
+            self._pace_origin = (now, 0)
+            self._publish_tick()
+            return
+        lockstep = self._values["pacing"] == "lockstep"
+        for _ in range(_MAX_TICKS_PER_PUMP):
+            if lockstep:
+                for event in self._gate.check_stall(now):
+                    self._event(event, warn=True)
+                if not self._gate.ready():
+                    if now - self._last_publish_wall > _RETRY_S:
+                        self._publish_tick(retry=True)
+                    return
+            if not self._pace_allows(now):
+                return
+            self._advance(lockstep)
+            if self._finished():
+                return
+            now = time.monotonic()
+
+    def _pace_allows(self, now: float) -> bool:
+        rtf = self._values["real_time_factor"]
+        if rtf <= 0.0:
+            return True
+        wall0, tick0 = self._pace_origin
+        sim_elapsed = (self._tick + 1 - tick0) * self._period_ns * 1e-9
+        return sim_elapsed <= rtf * (now - wall0)
+
+    def _advance(self, lockstep: bool) -> None:
+        n_wheels = len(self._wheels)
+        for i in range(self.setup.num_robots):
+            if lockstep:
+                duty = self._gate.duty_for(i, n_wheels)
+            else:
+                duty = self._latest_duty[i] if self._latest_duty[i] is not None else np.zeros(n_wheels)
+            clamped = self.world.set_duty(i, duty)
+            if clamped:
+                self._warn.warn(f"clamp{i}", f"robot_{i}: {clamped} duty value(s) outside [-1, 1] clamped")
+        self.world.step(self.setup.control_period_s)
+        self._tick += 1
+        if not self.world.all_finite():  # never publish a broken state; stop loudly instead
+            self._event("physics produced a non-finite state; stopping", warn=True)
+            raise SystemExit(1)
+        self._publish_tick()
+
+    def _finished(self) -> bool:
+        stop = self._values["stop_after_s"]
+        if stop > 0.0 and self._tick * self._period_ns * 1e-9 >= stop - 1e-12:
+            self._event(f"stop_after_s reached at t={self.world.t_s:.3f} s")
+            raise SystemExit(0)
+        return False
+
+    def _publish_tick(self, retry: bool = False) -> None:
+        t_ns = self._tick * self._period_ns
+        now = time.monotonic()
+        self._last_publish_wall = now
+        world = self.world
+        if t_ns - self._last_clock_ns >= 1e9 / self._values["clock_rate_hz"] - 1 and not retry:
+            self._last_clock_ns = t_ns
+            self._clock_pub.publish(Clock(clock=nanoseconds_to_stamp(t_ns)))
+        for i in range(self.setup.num_robots):
+            if i in self._controlled:
+                self._pubs[i]["states"].publish(
+                    joint_state_msg(
+                        t_ns, self._wheels, velocity=world.wheel_speeds_radps(i), effort=world.motor_currents_a(i)
+                    )
+                )
+        if retry:
+            return
+        self._gate.open(t_ns, now, self._peers_present())
+        for frame in world.poll_vision():
+            self._publish_vision(frame)
+        for i in range(self.setup.num_robots):
+            detected = world.light_barrier(i)
+            if detected != self._barrier_state[i] or t_ns % 100_000_000 == 0:
+                self._barrier_state[i] = detected
+                self._pubs[i]["barrier"].publish(Bool(data=bool(detected)))
+        if t_ns - self._last_truth_ns >= 1e9 / self._values["ground_truth_rate_hz"] - 1:
+            self._last_truth_ns = t_ns
+            self._publish_truth(t_ns * 1e-9)
+
+    def _publish_vision(self, frame) -> None:
+        t = frame.t_capture_s
+        for ball in frame.balls:
+            self._vision_ball_pub.publish(point_msg(t, (ball.x, ball.y)))
+        for det in frame.robots:
+            self._pubs[det.robot_id]["vision"].publish(pose2d_msg(t, (det.x, det.y, det.theta)))
+
+    def _publish_truth(self, t_s: float) -> None:
+        b = self.world.ball_state()
+        self._truth_ball_pub.publish(
+            odometry_msg(t_s, (b.x, b.y, 0.0), (b.vx, b.vy, 0.0), "ball", spin=(b.wx, b.wy, b.wz))
+        )
+        for i in range(self.setup.num_robots):
+            r = self.world.robot_state(i)
+            self._pubs[i]["truth"].publish(
+                odometry_msg(t_s, (r.x, r.y, r.theta), (r.vx, r.vy, r.w), contract.robot_frame(i))
+            )
+            rows = [
+                [r.currents_a[k], r.winding_temperatures_c[k], r.wheel_speeds_radps[k]]
+                for k in range(len(self._wheels))
+            ]
+            self._pubs[i]["motors"].publish(table_msg(rows, contract.GROUND_TRUTH_MOTOR_COLUMNS, "wheels"))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(PlantNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,203 @@
+"""Two-phase ball model (paper Sec. 5.1, 5.2, 5.4): hand numbers, physics identities, bad input."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
+from erforce_interfaces.robot_config import FieldConfig
+
+SHOT = BallTrajectory([0.0, 0.0], [3.3, 0.0], 3.3)
+
+
+def test_hand_numbers_3_3_mps_shot_paper_defaults():
+    # Sliding until 0.6 * 3.3 = 1.98 m/s at -2.5 m/s^2, then rolling at -0.3 m/s^2.
+    t_sw = (0.6 * 3.3 - 3.3) / -2.5
+    assert t_sw == pytest.approx(0.528)
+    assert SHOT.switch_time_s == pytest.approx(0.528)
+    assert SHOT.v_switch_mps == pytest.approx(1.98)
+    d_sw = 3.3 * 0.528 - 0.5 * 2.5 * 0.528**2  # 1.39392
+    assert SHOT.switch_distance_m == pytest.approx(1.39392)
+    assert SHOT.distance_at(0.528) == pytest.approx(d_sw)
+    assert SHOT.stop_time_s == pytest.approx(0.528 + 1.98 / 0.3)  # 7.128
+    assert SHOT.stop_distance_m == pytest.approx(d_sw + 1.98**2 / 0.6)  # 7.92792
+    np.testing.assert_allclose(SHOT.stop_point, [7.92792, 0.0])
+    np.testing.assert_allclose(SHOT.velocity_at(1.0), [1.98 - 0.3 * 0.472, 0.0])
+    np.testing.assert_allclose(SHOT.position_at(2.0), [d_sw + 1.98 * 1.472 - 0.15 * 1.472**2, 0.0])
+    assert SHOT.time_to_distance(1.0) == pytest.approx((3.3 - math.sqrt(3.3**2 - 5.0)) / 2.5)
+    # Roll-phase quadratic uses v_switch (the paper's Algorithm 1 uses v_current there).
+    tau = (1.98 - math.sqrt(1.98**2 - 0.6 * 2.0)) / 0.3
+    assert SHOT.time_to_distance(d_sw + 2.0) == pytest.approx(0.528 + tau)
+    assert math.isinf(SHOT.time_to_distance(8.0))
+
+
+def test_direction_and_phases():
+    ball = BallTrajectory([1.0, 2.0], [0.0, -3.3], 3.3)
+    np.testing.assert_allclose(ball.stop_point, [1.0, 2.0 - 7.92792])
+    assert list(ball.phase_at([0.0, 0.5, 0.6, 7.2])) == [
+        BallPhase.SLIDING, BallPhase.SLIDING, BallPhase.ROLLING, BallPhase.STOPPED
+    ]
+
+
+def test_already_rolling_when_speed_below_switch_speed():
+    ball = BallTrajectory([0.0, 0.0], [1.0, 0.0], 3.0)  # 1.0 <= 0.6 * 3.0
+    assert ball.switch_time_s == 0.0
+    assert ball.stop_time_s == pytest.approx(1.0 / 0.3)
+    assert ball.stop_distance_m == pytest.approx(1.0 / 0.6)
+    assert ball.phase_at(0.0) == BallPhase.ROLLING
+
+
+def test_v_shoot_below_current_speed_is_raised_to_it():
+    low = BallTrajectory([0.0, 0.0], [2.0, 0.0], 1.0)
+    same = BallTrajectory([0.0, 0.0], [2.0, 0.0], 2.0)
+    assert low.v_shoot_mps == 2.0
+    assert low.stop_time_s == pytest.approx(same.stop_time_s)
+    assert low.switch_time_s == pytest.approx((2.0 - 1.2) / 2.5)
+
+
+def test_ball_at_rest():
+    ball = BallTrajectory([1.0, 1.0], [0.0, 0.0], 0.0)
+    assert ball.stop_time_s == 0.0
+    np.testing.assert_allclose(ball.position_at([0.0, 3.0]), [[1.0, 1.0], [1.0, 1.0]])
+    assert ball.time_to_distance(0.0) == 0.0
+    assert math.isinf(ball.time_to_distance(0.1))
+    assert math.isinf(ball.time_to_leave_field(FieldConfig.preset("division_b")))
+
+
+def test_batch_outer_product_matches_single_balls():
+    rng = np.random.default_rng(0)
+    pos, vel = rng.normal(size=(5, 2)), rng.normal(0, 3, size=(5, 2))
+    shoot = rng.uniform(0, 6, 5)
+    batch = BallTrajectory(pos, vel, shoot)
+    t = np.linspace(0, 6, 7)
+    out = batch.position_at(t)
+    assert out.shape == (5, 7, 2)
+    for i in range(5):
+        single = BallTrajectory(pos[i], vel[i], shoot[i])
+        np.testing.assert_allclose(out[i], single.position_at(t))
+        np.testing.assert_allclose(batch[i].stop_point, single.stop_point)
+    assert batch.time_to_distance(np.array([0.1, 0.2])).shape == (5, 2)
+
+
+speeds = st.floats(0.0, 8.0)
+shoots = st.floats(0.0, 10.0)
+params = st.builds(
+    BallModelParams,
+    a_slide_mps2=st.floats(-6.0, -1.0),
+    a_roll_mps2=st.floats(-0.9, -0.05),
+    c_switch=st.floats(0.3, 1.0),
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(speeds, st.floats(0, 2 * math.pi), shoots, params, st.floats(0.0, 1.0))
+def test_time_to_distance_inverts_distance_at(speed, ang, shoot, p, frac):
+    ball = BallTrajectory([0.0, 0.0], [speed * math.cos(ang), speed * math.sin(ang)], shoot, p)
+    t = frac * float(ball.stop_time_s)
+    assert ball.time_to_distance(ball.distance_at(t)) == pytest.approx(t, abs=1e-7)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(0.1, 8.0), shoots, params)
+def test_monotone_and_continuous(speed, shoot, p):
+    ball = BallTrajectory([0.0, 0.0], [speed, 0.0], shoot, p)
+    t = np.linspace(0.0, float(ball.stop_time_s) * 1.2 + 0.1, 2001)
+    d = ball.distance_at(t)
+    v = ball.speed_at(t)
+    assert np.all(np.diff(d) >= -1e-12)  # never moves backwards
+    assert np.all(np.diff(v) <= 1e-12)  # speed never increases
+    assert v[0] == pytest.approx(speed)
+    # Continuity of position and velocity across the switch.
+    ts = float(ball.switch_time_s)
+    eps = 1e-7
+    if ts > eps:
+        jump = float(ball.distance_at(ts + eps)) - float(ball.distance_at(ts - eps))
+        assert 0.0 <= jump <= 2.0 * eps * speed + 1e-12  # no jump beyond the motion in 2 eps
+        assert float(ball.speed_at(ts + eps)) == pytest.approx(float(ball.speed_at(ts - eps)), abs=1e-5)
+    # Speed is the derivative of distance (central differences, away from the kinks).
+    mid = 0.5 * (t[1:] + t[:-1])
+    fd = np.diff(d) / np.diff(t)
+    smooth = (np.abs(mid - ts) > 2 * (t[1] - t[0])) & (mid < float(ball.stop_time_s) - 2 * (t[1] - t[0]))
+    np.testing.assert_allclose(fd[smooth], ball.speed_at(mid[smooth]), atol=1e-6)
+
+
+def test_leaving_field_division_a_and_b():
+    ball = BallTrajectory([0.0, 0.0], [6.5, 0.0], 6.5)
+    # Division B: line at x = 4.5 m, reached while sliding: 4.5 = 6.5 t - 1.25 t^2.
+    t_b = (6.5 - math.sqrt(6.5**2 - 5.0 * 4.5)) / 2.5
+    assert ball.time_to_leave_field(FieldConfig.preset("division_b")) == pytest.approx(t_b)
+    # Division A: line at x = 6 m, reached while rolling (switch at 1.04 s, 5.408 m, 3.9 m/s).
+    tau = (3.9 - math.sqrt(3.9**2 - 0.6 * (6.0 - 5.408))) / 0.3
+    assert ball.time_to_leave_field(FieldConfig.preset("division_a")) == pytest.approx(1.04 + tau)
+    # Margin extends the field.
+    assert ball.time_to_leave_field(FieldConfig.preset("division_b"), 0.3) > t_b
+    # Diagonal: the side line (y = 3 m) comes first.
+    diag = BallTrajectory([0.0, 2.0], [3.0, 3.0], 5.0)
+    t_side = float(diag.time_to_distance(math.sqrt(2.0)))
+    assert diag.time_to_leave_field(FieldConfig.preset("division_b")) == pytest.approx(t_side)
+    # Stops inside: +inf; already outside: 0.
+    assert math.isinf(BallTrajectory([0.0, 0.0], [1.0, 0.0], 1.0).time_to_leave_field(FieldConfig.preset("division_b")))
+    assert BallTrajectory([5.0, 0.0], [-1.0, 0.0], 1.0).time_to_leave_field(FieldConfig.preset("division_b")) == 0.0
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(a_slide_mps2=2.5),
+        dict(a_roll_mps2=0.0),
+        dict(a_slide_mps2=-0.2, a_roll_mps2=-0.3),
+        dict(c_switch=0.0),
+        dict(c_switch=1.2),
+        dict(a_slide_mps2=float("nan")),
+        dict(a_roll_mps2=float("-inf")),
+        dict(c_switch="0.6"),
+    ],
+)
+def test_params_validation(kwargs):
+    with pytest.raises(ValueError):
+        BallModelParams(**kwargs)
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ([np.nan, 0.0], [1.0, 0.0], 1.0),
+        ([0.0, 0.0], [np.inf, 0.0], 1.0),
+        ([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], 1.0),
+        ([0.0, 0.0], [1.0, 0.0, 0.0], 1.0),
+        ([0.0, 0.0], [1.0, 0.0], -1.0),
+        ([0.0, 0.0], [1.0, 0.0], np.nan),
+        ([0.0, 0.0], [1e308, 1e308], 1.0),
+        (np.zeros((3, 2)), np.zeros((3, 2)), np.ones(4)),
+    ],
+)
+def test_trajectory_validation(args):
+    with pytest.raises(ValueError):
+        BallTrajectory(*args)
+
+
+def test_query_validation():
+    with pytest.raises(ValueError):
+        SHOT.position_at(-0.1)
+    with pytest.raises(ValueError):
+        SHOT.distance_at(np.nan)
+    with pytest.raises(ValueError):
+        SHOT.time_to_distance(-1.0)
+    with pytest.raises(ValueError):
+        SHOT.time_to_distance(np.nan)
+    with pytest.raises(ValueError):
+        SHOT.time_to_leave_field("division_a")
+    with pytest.raises(ValueError):
+        SHOT.time_to_leave_field(FieldConfig.preset("division_b"), -10.0)
+    np.testing.assert_allclose(SHOT.position_at(np.inf), SHOT.stop_point)  # +inf: at rest
+
+
+def test_immutable_and_advanced():
+    with pytest.raises(ValueError):
+        SHOT.position_m[0] = 1.0
+    later = SHOT.advanced(1.0)
+    np.testing.assert_allclose(later.position_at(0.5), SHOT.position_at(1.5))
+    assert later.stop_time_s == pytest.approx(SHOT.stop_time_s - 1.0)

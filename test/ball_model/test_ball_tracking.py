@@ -1,0 +1,163 @@
+"""Ball and robot tracking from noisy vision (paper Sec. 5.2 v_shoot, Sec. 5.3 ricochets)."""
+
+import math
+
+import numpy as np
+import pytest
+from ballmodel_sim import observe, simulate
+
+from erforce_ball_model.ball_model import BallPhase
+from erforce_ball_model.tracking import BallTracker, KalmanCV2D, RobotTracker, TrackerConfig, UpdateStatus
+
+
+def run_tracker(tracker, t, xy):
+    statuses = []
+    for ti, (x, y) in zip(t, xy, strict=True):
+        statuses.append(tracker.update(ti, x, y))
+    return statuses
+
+
+@pytest.mark.parametrize("kick", [(3.3, 0.8), (6.0, -1.0), (-1.2, 0.5)])
+def test_kick_velocity_and_v_shoot(kick):
+    t_kick = 0.2
+    t, pos, vel = simulate([(t_kick, kick)], 3.0, p0=(0.5, -0.3))
+    ft, xy, idx = observe(t, pos, fps=70.0, noise_m=0.002, dropout=0.1, seed=1)
+    tr = BallTracker()
+    kick_frame = None
+    errors = []
+    for k, (ti, (x, y)) in enumerate(zip(ft, xy, strict=True)):
+        tr.update(ti, x, y)
+        if tr.kicked:
+            assert kick_frame is None, "one kick only"
+            kick_frame = k
+        if ti > t_kick + 0.2:
+            errors.append(float(np.hypot(*(tr.velocity_mps - vel[idx[k]]))))
+    first_after = int(np.argmax(ft > t_kick))
+    assert kick_frame is not None and kick_frame - first_after <= 3  # within 3 frames
+    assert tr.kick_count == 1 and tr.ricochet_count == 0
+    v_shoot_true = math.hypot(*kick)
+    assert tr.v_shoot_mps == pytest.approx(v_shoot_true, rel=0.03)
+    errors = np.array(errors)
+    assert np.sqrt(np.mean(errors**2)) < 0.05  # m/s
+    assert errors.max() < 0.15
+    assert not tr.uncertain
+
+
+def test_phase_and_prediction_follow_the_simulation():
+    t, pos, _ = simulate([(0.1, (3.3, 0.0))], 2.5)
+    ft, xy, idx = observe(t, pos, seed=2, dropout=0.0)
+    tr = BallTracker()
+    phases = {}
+    for k, (ti, (x, y)) in enumerate(zip(ft, xy, strict=True)):
+        tr.update(ti, x, y)
+        phases[round(ti, 3)] = (tr.phase, idx[k])
+        if abs(ti - 0.4) < 0.008:
+            pred = tr.trajectory().position_at(1.0)  # 1 s ahead
+            true = pos[min(idx[k] + 10000, len(pos) - 1)]
+            assert np.hypot(*(pred - true)) < 0.05
+    sliding_until = 0.1 + (3.3 - 0.6 * 3.3) / 2.5  # 0.628 s in the simulation
+    for tk, (phase, _) in phases.items():
+        if 0.25 < tk < sliding_until - 0.05:
+            assert phase == BallPhase.SLIDING
+        if sliding_until + 0.05 < tk < 2.4:
+            assert phase == BallPhase.ROLLING
+
+
+def test_ricochet_detected_and_uncertain_until_the_model_fits_again():
+    # Diagonal shot reflects off a wall at t = 0.5 s: vy flips, 20 % energy lost.
+    t_pre, pos_pre, _ = simulate([(0.1, (2.0, 2.0))], 0.5)
+    v_hit = (pos_pre[-1] - pos_pre[-2]) / (t_pre[1] - t_pre[0])
+    v_after = 0.8 * np.array([v_hit[0], -v_hit[1]])
+    t, pos, _ = simulate([(0.1, (2.0, 2.0)), (0.5, tuple(v_after))], 2.0)
+    ft, xy, _ = observe(t, pos, seed=3, dropout=0.05)
+    tr = BallTracker()
+    ricochet_at = None
+    uncertain_after = []
+    for ti, (x, y) in zip(ft, xy, strict=True):
+        tr.update(ti, x, y)
+        if tr.ricochet:
+            ricochet_at = ti
+            assert tr.uncertain
+            assert tr.v_shoot_mps == pytest.approx(np.hypot(*v_after), rel=0.15)
+        if ricochet_at is not None:
+            uncertain_after.append((ti, tr.uncertain))
+    assert ricochet_at is not None and 0.5 < ricochet_at < 0.5 + 4 / 70
+    assert tr.kick_count == 1 and tr.ricochet_count == 1
+    # Uncertain right after, certain again once the model fits (within 0.3 s).
+    assert uncertain_after[0][1]
+    assert not any(u for ti, u in uncertain_after if ti > ricochet_at + 0.3)
+    assert tr.v_shoot_mps == pytest.approx(np.hypot(*v_after), rel=0.03)
+
+
+def test_no_false_events_on_a_rolling_ball():
+    t, pos, _ = simulate([(0.0, (1.5, 0.3))], 5.0)
+    ft, xy, _ = observe(t, pos, seed=4, noise_m=0.003, fps=60.0)
+    tr = BallTracker(config=TrackerConfig(position_noise_m=0.003))
+    statuses = run_tracker(tr, ft[3:], xy[3:])  # start after the kick: the ball is already moving
+    assert UpdateStatus.MANEUVER not in statuses[5:]
+    assert tr.ricochet_count == 0
+
+
+def test_single_outlier_is_held_back_and_dropped():
+    t, pos, _ = simulate([(0.0, (1.0, 0.0))], 1.0)
+    ft, xy, _ = observe(t, pos, seed=5, dropout=0.0)
+    xy = xy.copy()
+    xy[30] += [0.3, 0.2]  # a false detection
+    tr = BallTracker()
+    statuses = run_tracker(tr, ft[2:], xy[2:])
+    assert statuses[28] == UpdateStatus.HELD_BACK
+    assert statuses[29] == UpdateStatus.ACCEPTED
+    assert UpdateStatus.MANEUVER not in statuses[5:]
+
+
+def test_bad_input_is_rejected_without_changing_the_state():
+    tr = BallTracker()
+    assert tr.update(1.0, 0.0, 0.0) == UpdateStatus.INITIALIZED
+    assert tr.update(1.02, 0.001, 0.0) == UpdateStatus.ACCEPTED
+    state = tr.position_m.copy(), tr.velocity_mps.copy()
+    assert tr.update(1.01, 0.5, 0.5) == UpdateStatus.REJECTED_TIME  # going backwards
+    assert tr.update(1.02, 0.5, 0.5) == UpdateStatus.REJECTED_TIME  # repeated stamp
+    assert tr.update(1.03, math.nan, 0.0) == UpdateStatus.REJECTED_INVALID
+    assert tr.update(math.inf, 0.0, 0.0) == UpdateStatus.REJECTED_INVALID
+    assert tr.update(1.03, "x", 0.0) == UpdateStatus.REJECTED_INVALID
+    np.testing.assert_array_equal(tr.position_m, state[0])
+    np.testing.assert_array_equal(tr.velocity_mps, state[1])
+    # A long gap re-initializes.
+    assert tr.update(5.0, 1.0, 1.0) == UpdateStatus.INITIALIZED
+    with pytest.raises(RuntimeError):
+        BallTracker().trajectory()
+
+
+@pytest.mark.parametrize("kwargs", [dict(position_noise_m=0.0), dict(gate_sigma=math.nan), dict(fit_frames=-1)])
+def test_config_validation(kwargs):
+    with pytest.raises(ValueError):
+        TrackerConfig(**kwargs)
+
+
+def test_kalman_validation():
+    with pytest.raises(ValueError):
+        KalmanCV2D(-1.0, 1.0)
+    with pytest.raises(ValueError):
+        KalmanCV2D(0.01, math.inf)
+
+
+def test_robot_tracker_velocity_and_heading_wrap():
+    rng = np.random.default_rng(6)
+    tr = RobotTracker()
+    omega = 2.0  # rad/s, crosses +-pi several times
+    velocities = []
+    for k in range(200):
+        t = k / 70.0
+        theta = math.remainder(3.0 + omega * t, 2 * math.pi)
+        tr.update(t, 1.0 + 0.5 * t + rng.normal(0, 0.002), -0.8 * t + rng.normal(0, 0.002), theta)
+        velocities.append(tr.velocity_mps)
+    np.testing.assert_allclose(np.mean(velocities[-100:], axis=0), [0.5, -0.8], atol=0.03)
+    assert np.max(np.abs(np.array(velocities[-100:]) - [0.5, -0.8])) < 0.4
+    assert tr.angular_velocity_radps == pytest.approx(omega, abs=0.1)
+    expected = math.remainder(3.0 + omega * 199 / 70.0, 2 * math.pi)
+    assert abs(math.remainder(tr.heading_rad - expected, 2 * math.pi)) < 0.02
+    assert tr.update(1.0, 0.0, 0.0) == UpdateStatus.REJECTED_TIME
+    assert tr.update(10.0, 0.0, math.nan) == UpdateStatus.REJECTED_INVALID
+    no_heading = RobotTracker()
+    no_heading.update(0.0, 0.0, 0.0)
+    assert no_heading.heading_rad is None

@@ -1,0 +1,235 @@
+"""robotTimeToPos / robotTimeToBall (paper Sec. 5.5, Algorithm 2): hand cases and brute force."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from erforce_ball_model.ball_model import BallTrajectory
+from erforce_ball_model.catch_time import (
+    CatchKind,
+    RobotLimits,
+    axis_time,
+    can_reach_in_time,
+    robot_time_to_ball,
+    robot_time_to_pos,
+)
+from erforce_interfaces.robot_config import FieldConfig
+
+OFFSET = 0.0815
+DIV_B = FieldConfig.preset("division_b")
+
+
+# --- 1D and 2D bang-bang ----------------------------------------------------------------------
+def test_axis_time_hand_cases():
+    # from rest, 1 m, A = 1: triangle 2*sqrt(d/A) = 2 s (speed limit 100 m/s not reached)
+    assert axis_time(1.0, 0.0, 1.0, 100.0) == pytest.approx(2.0)
+    # 4 m with A = 1, V = 1: 1 s up, 3 s cruise, 1 s down
+    assert axis_time(4.0, 0.0, 1.0, 1.0) == pytest.approx(5.0)
+    # symmetric in the sign of the distance
+    assert axis_time(-1.0, 0.0, 1.0, 100.0) == pytest.approx(2.0)
+    # moving at 1 m/s towards a target exactly at the stopping distance 0.5 m: brake only, 1 s
+    assert axis_time(0.5, 1.0, 1.0, 100.0) == pytest.approx(1.0)
+    # moving away at 1 m/s from a target 1 m ahead: 1 s to stop (0.5 m back), then 1.5 m from rest
+    assert axis_time(1.0, -1.0, 1.0, 100.0) == pytest.approx(1.0 + 2.0 * math.sqrt(1.5))
+    # overshoot: 2 m/s towards a target 1 m ahead (stopping needs 2 m): 2 s, then 1 m back
+    assert axis_time(1.0, 2.0, 1.0, 100.0) == pytest.approx(2.0 + 2.0)
+    # at the target at rest: 0, even without any authority on the axis
+    assert axis_time(0.0, 0.0, np.inf, 1.0) == 0.0
+    assert math.isinf(axis_time(0.1, 0.0, np.inf, 1.0))
+
+
+def test_robot_time_to_pos_hand_cases():
+    lim = RobotLimits(2.0, 3.0)
+    # straight along x from rest: the whole budget goes to x, 2*sqrt(2/2) = 2 s
+    assert robot_time_to_pos([0.0, 0.0], [0.0, 0.0], [2.0, 0.0], lim) == pytest.approx(2.0, abs=1e-6)
+    # diagonal from rest: alpha = 45 deg is the straight-line optimum, 2*sqrt(D/a) with D = sqrt(2)
+    assert robot_time_to_pos([0.0, 0.0], [0.0, 0.0], [1.0, 1.0], lim) == pytest.approx(
+        2.0 * math.sqrt(math.sqrt(2.0) / 2.0), abs=1e-6
+    )
+    # long distance: trapezoid with the speed limit 3: 1.5 s up, 1.5 s down, (10 - 4.5) / 3 cruise
+    assert robot_time_to_pos([0.0, 0.0], [0.0, 0.0], [0.0, -10.0], lim) == pytest.approx(3.0 + 5.5 / 3.0, abs=1e-6)
+    # already there at rest
+    assert robot_time_to_pos([1.0, 1.0], [0.0, 0.0], [1.0, 1.0], lim) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_robot_time_to_pos_broadcasts_over_robots_and_targets():
+    rng = np.random.default_rng(0)
+    robots = rng.uniform(-3, 3, (4, 1, 2))
+    targets = rng.uniform(-3, 3, (1, 6, 2))
+    lim = RobotLimits(np.array([1.0, 2.0, 3.0, 4.0])[:, None], 2.5)
+    out = robot_time_to_pos(robots, np.zeros((4, 1, 2)), targets, lim)
+    assert out.shape == (4, 6)
+    one = robot_time_to_pos(robots[2, 0], [0.0, 0.0], targets[0, 5], RobotLimits(3.0, 2.5))
+    assert out[2, 5] == pytest.approx(float(one))
+
+
+vec = st.tuples(st.floats(-4, 4), st.floats(-4, 4))
+
+
+@settings(max_examples=300, deadline=None)
+@given(vec, vec, vec, st.floats(0.5, 6.0), st.floats(0.5, 4.0), st.floats(0.5, 1.5))
+def test_reachability_test_agrees_with_alpha_search(p0, v0, target, a_max, v_max, factor):
+    """The closed-form sign test is exactly the alpha-search time compared with the budget."""
+    lim = RobotLimits(a_max, v_max)
+    t = float(robot_time_to_pos(p0, v0, target, lim))
+    assert math.isfinite(t) and t >= 0.0
+    d = np.subtract(target, p0)
+    budget = t * factor
+    if abs(factor - 1.0) * t > 1e-5:
+        assert bool(can_reach_in_time(d, v0, budget, a_max, v_max)) == (factor > 1.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-5, 5), st.floats(-4, 4), st.floats(0.05, 5.0), st.floats(0.05, 3.0))
+def test_axis_time_monotone_in_acceleration_share(d, w, inv_a, rho):
+    t = axis_time(d, w, inv_a, rho)
+    assert axis_time(d, w, inv_a * 1.01, rho) >= t - 1e-12
+
+
+# --- robotTimeToBall: hand cases ---------------------------------------------------------------
+def test_robot_at_rest_on_the_path_facing_the_ball():
+    # Ball rolling along +x at 2 m/s; robot at (2, 0) facing it (left); a = 3, v_max = 3.
+    # The robot meets the ball when 1.9185 - d(t) = a t^2 / 4 (triangle from rest, moving left):
+    # 1.9185 - 2t + 0.15t^2 = 0.75t^2  ->  0.6t^2 + 2t - 1.9185 = 0.
+    ball = BallTrajectory([0.0, 0.0], [2.0, 0.0], 2.0 / 0.6)
+    res = robot_time_to_ball(ball, [[2.0, 0.0]], [[0.0, 0.0]], RobotLimits(3.0, 3.0), math.pi)
+    t_hand = (-2.0 + math.sqrt(4.0 + 4.0 * 0.6 * (2.0 - OFFSET))) / 1.2
+    assert res.kind[0] == CatchKind.MOVING
+    assert t_hand - 1e-9 <= res.time_s[0] <= t_hand + 1e-4  # never early, at most one sub-step late
+    d = 2.0 * res.time_s[0] - 0.15 * res.time_s[0] ** 2
+    np.testing.assert_allclose(res.ball_position_m[0], [d, 0.0], atol=1e-9)
+    np.testing.assert_allclose(res.robot_target_m[0], [d + OFFSET, 0.0], atol=1e-9)
+
+
+def test_ball_already_stopped():
+    ball = BallTrajectory([1.0, 0.0], [0.0, 0.0], 0.0)
+    res = robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], RobotLimits(2.0, 3.0), 0.0, field=DIV_B)
+    assert res.kind[0] == CatchKind.AT_REST
+    assert res.time_s[0] == pytest.approx(2.0 * math.sqrt((1.0 - OFFSET) / 2.0), abs=1e-6)
+    np.testing.assert_allclose(res.robot_target_m[0], [1.0 - OFFSET, 0.0])
+
+
+def test_robot_standing_at_the_catch_point_of_a_resting_ball_catches_at_zero():
+    ball = BallTrajectory([1.0, 0.0], [0.0, 0.0], 0.0)
+    res = robot_time_to_ball(ball, [[1.0 - OFFSET, 0.0]], [[0.0, 0.0]], RobotLimits(2.0, 3.0), 0.0)
+    assert res.time_s[0] == 0.0 and res.kind[0] == CatchKind.MOVING
+
+
+def test_ball_leaving_the_field_is_never_caught():
+    ball = BallTrajectory([3.5, 0.0], [5.0, 0.0], 5.0)
+    res = robot_time_to_ball(ball, [[-4.0, 0.0]], [[0.0, 0.0]], RobotLimits(3.0, 3.0), 0.0, field=DIV_B)
+    assert res.kind[0] == CatchKind.NEVER
+    assert math.isinf(res.time_s[0])
+    assert np.isnan(res.ball_position_m[0]).all()
+    # Without a field the ball stops 18.2 m further on; a slow robot (0.5 m/s) only gets it at rest.
+    slow = RobotLimits(1.0, 0.5)
+    res = robot_time_to_ball(ball, [[-4.0, 0.0]], [[0.0, 0.0]], slow, 0.0)
+    assert res.kind[0] == CatchKind.AT_REST
+    target = ball.stop_point - [OFFSET, 0.0]
+    assert res.time_s[0] == pytest.approx(float(robot_time_to_pos([-4.0, 0.0], [0.0, 0.0], target, slow)), abs=1e-9)
+    assert res.time_s[0] > ball.stop_time_s
+
+
+def test_fig6_situation_finds_the_early_window():
+    from erforce_ball_model.figures import fig6_curves
+
+    c = fig6_curves(4000)
+    ok = c["t_robot"] <= c["t_ball"]
+    edges = np.flatnonzero(np.diff(ok.astype(int)))
+    assert edges.size >= 3  # window opens, closes, catch-up opens
+    first_window_m = c["dist"][edges[1]] - c["dist"][edges[0]]
+    assert 0.2 <= first_window_m <= 0.3  # "a small window of roughly 0.25 m"
+    t_catch = float(c["catch"].time_s[0])
+    assert float(c["ball"].distance_at(t_catch)) == pytest.approx(c["dist"][edges[0] + 1], abs=2e-3)
+
+
+# --- robotTimeToBall: brute force --------------------------------------------------------------
+def _dense_first_crossing(ball, p0, v0, lim, facing, t_max, step=1e-3):
+    """Reference from the alpha-search time alone (not the sign test): dense grid + bisection."""
+    grid = np.append(np.arange(0.0, t_max, step), t_max)
+    off = OFFSET * np.array([math.cos(facing), math.sin(facing)])
+    f = robot_time_to_pos(p0, v0, ball.position_at(grid) - off, lim) - grid
+    idx = np.flatnonzero(f <= 0.0)
+    if idx.size == 0:
+        return math.inf, 0.0
+    k = idx[0]
+    gaps = np.flatnonzero(f[k:] > 0.0)
+    width = (gaps[0] if gaps.size else grid.size - k) * step
+    if k == 0:
+        return 0.0, width
+    lo, hi = grid[k - 1], grid[k]
+    for _ in range(25):
+        mid = 0.5 * (lo + hi)
+        if float(robot_time_to_pos(p0, v0, ball.position_at(mid) - off, lim)) <= mid:
+            hi = mid
+        else:
+            lo = mid
+    return hi, width
+
+
+def test_matches_dense_search_on_random_scenarios():
+    rng = np.random.default_rng(42)
+    checked = wide = 0
+    for _ in range(16):
+        pos = rng.uniform([-3.0, -2.0], [3.0, 2.0])
+        speed = rng.uniform(0.5, 5.0)
+        ang = rng.uniform(0, 2 * math.pi)
+        ball = BallTrajectory(pos, speed * np.array([math.cos(ang), math.sin(ang)]), speed * rng.uniform(1, 1.5))
+        n = 20
+        robots = pos + ball.direction * rng.uniform(0, 3, (n, 1)) + rng.normal(0, 0.8, (n, 2))
+        vels = rng.normal(0, 0.7, (n, 2))
+        facing = rng.uniform(0, 2 * math.pi, n)
+        a_max, v_max = rng.uniform(1.5, 4.0, n), rng.uniform(1.5, 3.5, n)
+        res = robot_time_to_ball(ball, robots, vels, RobotLimits(a_max, v_max), facing, field=DIV_B)
+        t_max = min(float(ball.stop_time_s), float(ball.time_to_leave_field(DIV_B)))
+        for r in range(n):
+            lim = RobotLimits(a_max[r], v_max[r])
+            t_ref, width = _dense_first_crossing(ball, robots[r], vels[r], lim, facing[r], t_max)
+            checked += 1
+            if math.isinf(t_ref):
+                assert res.kind[r] != CatchKind.MOVING
+                continue
+            if width >= 0.02:  # the stated guarantee: windows >= h = 10 ms are never missed
+                wide += 1
+                assert res.kind[r] == CatchKind.MOVING
+                assert t_ref - 1e-5 <= res.time_s[r] <= t_ref + 1e-3
+            # found time is always feasible
+            if res.kind[r] == CatchKind.MOVING:
+                off = OFFSET * np.array([math.cos(facing[r]), math.sin(facing[r])])
+                tgt = ball.position_at(res.time_s[r]) - off
+                assert float(robot_time_to_pos(robots[r], vels[r], tgt, lim)) <= res.time_s[r] + 1e-5
+    assert checked == 320 and wide > 40
+
+
+# --- bad input ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("a, v", [(0.0, 1.0), (1.0, -1.0), (np.nan, 1.0), (1.0, np.inf), ([1.0, 2.0], [1.0, 2.0, 3.0])])
+def test_limits_validation(a, v):
+    with pytest.raises(ValueError):
+        RobotLimits(a, v)
+
+
+def test_bad_input_raises():
+    ball = BallTrajectory([0.0, 0.0], [1.0, 0.0], 1.0)
+    lim = RobotLimits(2.0, 2.0)
+    with pytest.raises(ValueError):
+        robot_time_to_pos([np.nan, 0.0], [0.0, 0.0], [1.0, 0.0], lim)
+    with pytest.raises(ValueError):
+        robot_time_to_pos([0.0, 0.0, 0.0], [0.0, 0.0], [1.0, 0.0], lim)
+    with pytest.raises(ValueError):
+        robot_time_to_pos([0.0, 0.0], [0.0, 0.0], [1.0, 0.0], limits=2.0)
+    with pytest.raises(ValueError):
+        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0], [1.0, 1.0]], lim)
+    with pytest.raises(ValueError):
+        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, facing_rad=np.nan)
+    with pytest.raises(ValueError):
+        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, grid_step_s=0.0)
+    with pytest.raises(ValueError):
+        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, dribbler_offset_m=-0.1)
+    with pytest.raises(ValueError):
+        robot_time_to_ball(ball, [[0.0, 0.0]] * 2, [[0.0, 0.0]] * 2, RobotLimits([1.0, 2.0, 3.0], 2.0))
+    batch = BallTrajectory(np.zeros((2, 2)), np.ones((2, 2)), 1.0)
+    with pytest.raises(ValueError):
+        robot_time_to_ball(batch, [[0.0, 0.0]], [[0.0, 0.0]], lim)

@@ -1,0 +1,167 @@
+"""The plant node over DDS: closed loop in lockstep, determinism vs. the in-process runner,
+stall reporting, scenarios and bad input."""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, String
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import joint_state_msg, odometry_from_msg, odometry_msg, stamp_to_nanoseconds
+from erforce_motion.velocity_control import VelocityControlConfig
+from erforce_sim.runner import InProcessRunner, PlantSetup
+
+pytestmark = pytest.mark.integration
+
+ROBOT_YAML = Path(__file__).resolve().parents[2] / "src/erforce_interfaces/config/robot.yaml"
+
+
+def start_robot(graph, robot="robot_0", **vc_params):
+    graph.start_node("erforce_motion", "velocity_controller", namespace=robot, params_file=ROBOT_YAML,
+                     params={"use_sim_time": True, **vc_params})
+    graph.start_node("erforce_motion", "motor_boards", namespace=robot, params_file=ROBOT_YAML,
+                     params={"use_sim_time": True})
+
+
+def start_plant(graph, **params):
+    defaults = {"robot_poses": [0.0, 0.0, 0.0], "ball": [2.0, 2.0, 0.0, 0.0], "real_time_factor": 0.0}
+    defaults.update(params)
+    return graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params=defaults)
+
+
+def send_cmd_vel(graph, vx, vy=0.0, wz=0.0, robot="robot_0"):
+    pub = graph.probe.wait_for_subscribers(f"/{robot}/cmd_vel", Twist, timeout_s=20.0)
+    msg = Twist()
+    msg.linear.x, msg.linear.y, msg.angular.z = vx, vy, wz
+    pub.publish(msg)
+    return pub, msg
+
+
+def test_twist_drives_the_simulated_robot_in_lockstep(ros_graph):
+    """Twist -> velocity_controller -> motor_boards -> plant -> measured body velocity."""
+    start_robot(ros_graph, command_timeout_s=30.0)
+    send_cmd_vel(ros_graph, 1.0, 0.5)
+    ros_graph.probe.spin_for(0.3)
+    start_plant(ros_graph)
+    truth = ros_graph.subscribe("/robot_0/ground_truth/odom", Odometry)
+    ros_graph.probe.spin_until(lambda: truth and odometry_from_msg(truth[-1])[0] > 1.0, 60.0, "1 s of sim time")
+    t, pose, vel, _ = odometry_from_msg(truth[-1])
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    v_robot = (c * vel[0] + s * vel[1], -s * vel[0] + c * vel[1])  # cmd_vel is in base_link
+    assert v_robot[0] == pytest.approx(1.0, rel=0.03) and v_robot[1] == pytest.approx(0.5, rel=0.03)
+    assert abs(vel[2]) < 0.05
+    stamps = [stamp_to_nanoseconds(m.header.stamp) for m in truth]
+    assert stamps == sorted(stamps) and all(np.isfinite(odometry_from_msg(m)[1]).all() for m in truth)
+
+
+def test_lockstep_dds_graph_reproduces_the_in_process_trajectory(ros_graph):
+    twist = (0.8, -0.3, 1.0)
+    start_robot(ros_graph, command_timeout_s=30.0)
+    send_cmd_vel(ros_graph, *twist)
+    ros_graph.probe.spin_for(0.3)
+    start_plant(ros_graph, seed=7, stop_after_s=0.6)
+    truth = ros_graph.subscribe("/robot_0/ground_truth/odom", Odometry)
+    ros_graph.probe.spin_until(lambda: truth and odometry_from_msg(truth[-1])[0] >= 0.5, 60.0, "0.5 s")
+    dds = {stamp_to_nanoseconds(m.header.stamp): odometry_from_msg(m) for m in truth}
+
+    runner = InProcessRunner(PlantSetup(robot_poses=((0.0, 0.0, 0.0),), ball=(2.0, 2.0, 0.0, 0.0), seed=7),
+                             VelocityControlConfig(), command_timeout_s=30.0)
+    runner.command(0, twist)
+    compared = 0
+    for _ in range(500):
+        if runner.t_ns in dds:
+            _, pose, vel, _ = dds[runner.t_ns]
+            s = runner.world.robot_state(0)
+            np.testing.assert_allclose(pose, [s.x, s.y, s.theta], rtol=0, atol=1e-9)
+            np.testing.assert_allclose(vel, [s.vx, s.vy, s.w], rtol=0, atol=1e-9)
+            compared += 1
+        runner.tick()
+    assert compared >= 40  # ground truth at 100 Hz over 0.5 s
+    assert abs(runner.world.robot_state(0).vx) > 0.3  # it did move
+
+
+def test_clock_is_published_and_monotonic(ros_graph):
+    clocks = ros_graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
+    start_plant(ros_graph, controlled=[False], pacing="realtime", real_time_factor=1.0, stop_after_s=5.0)
+    ros_graph.probe.spin_until(lambda: clocks and stamp_to_nanoseconds(clocks[-1].clock) >= 500_000_000, 30.0,
+                               "/clock to 0.5 s")
+    stamps = [stamp_to_nanoseconds(c.clock) for c in clocks]
+    assert stamps == sorted(stamps)
+
+
+def test_a_silent_motor_board_is_reported_and_the_plant_goes_on(ros_graph):
+    # A fake motor board that answers the first ticks, then falls silent. The plant waits
+    # (up to startup_timeout_s) for a second wheel_states reader that never comes, by which
+    # time it has discovered the fake, so tick 0 already waits for it.
+    events = ros_graph.subscribe("/sim/events", String)
+    states = ros_graph.subscribe("/robot_0/wheel_states", JointState, contract.QOS_CONTROL)
+    duty_pub = ros_graph.probe.publisher("/robot_0/motor_duty", JointState, contract.QOS_CONTROL)
+    plant = start_plant(ros_graph, lockstep_timeout_s=0.3, startup_timeout_s=3.0)
+    answered = set()
+
+    def answer_some():
+        for m in list(states):
+            t = stamp_to_nanoseconds(m.header.stamp)
+            if t not in answered and t <= 20_000_000:
+                answered.add(t)
+                duty_pub.publish(joint_state_msg(t, [f"wheel_{i}" for i in range(4)], effort=[0.0] * 4))
+        return any("stalled" in e.data for e in events)
+
+    ros_graph.probe.spin_until(answer_some, 30.0, "a stall report")
+    # after the report the plant advances without the silent board
+    ros_graph.probe.spin_until(lambda: states and stamp_to_nanoseconds(states[-1].header.stamp) > 100_000_000,
+                               30.0, "ticks after the stall")
+    duty_pub.publish(joint_state_msg(stamp_to_nanoseconds(states[-1].header.stamp), [f"wheel_{i}" for i in range(4)],
+                                     effort=[0.0] * 4))
+    ros_graph.probe.spin_until(lambda: any("resumed" in e.data for e in events), 30.0, "a resume report")
+    assert plant.alive()
+
+
+@pytest.mark.parametrize("bad", ["nan", "short", "huge"])
+def test_bad_duty_is_rejected_or_clamped_plant_survives(ros_graph, bad):
+    plant = start_plant(ros_graph, startup_timeout_s=0.0, pacing="realtime", real_time_factor=1.0)
+    duty_pub = ros_graph.probe.wait_for_subscribers("/robot_0/motor_duty", JointState, qos=contract.QOS_CONTROL)
+    effort = {"nan": [math.nan, 0.0, 0.0, 0.0], "short": [0.1, 0.1], "huge": [5.0, -5.0, 0.0, 0.0]}[bad]
+    msg = JointState(effort=effort)
+    duty_pub.publish(msg)
+    plant.wait_for_output("clamped" if bad == "huge" else "rejected motor_duty", timeout_s=15.0)
+    truth = ros_graph.subscribe("/robot_0/ground_truth/odom", Odometry)
+    ros_graph.probe.spin_until(lambda: len(truth) > 5, 20.0, "ground truth after bad duty")
+    assert all(np.isfinite(odometry_from_msg(m)[1]).all() for m in truth)
+    assert plant.alive()
+
+
+def test_scenario_topics_place_and_kick_and_refuse_off_field(ros_graph):
+    plant = start_plant(ros_graph, controlled=[False], pacing="realtime", real_time_factor=1.0,
+                        kicker_plates=["curved"])
+    events = ros_graph.subscribe("/sim/events", String)
+    set_ball = ros_graph.probe.wait_for_subscribers("/sim/set_ball", Odometry)
+    # ball at rest touching the robot's dribbler (robot at the origin facing +x)
+    set_ball.publish(odometry_msg(0.0, (0.0815 + 0.001, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    ros_graph.probe.spin_until(lambda: any("ball placed" in e.data for e in events), 15.0, "ball placed")
+    kick = ros_graph.probe.wait_for_subscribers("/robot_0/kick", Float64)
+    kick.publish(Float64(data=3.0))
+    ros_graph.probe.spin_until(lambda: any("kick 3.00 m/s" in e.data and "fired" in e.data for e in events),
+                               15.0, "kick fired")
+    truth = ros_graph.subscribe("/ground_truth/ball", Odometry)
+    ros_graph.probe.spin_until(lambda: truth and odometry_from_msg(truth[-1])[2][0] > 1.0, 15.0, "ball moving")
+    _, _, vel, _ = odometry_from_msg(truth[-1])
+    assert abs(math.degrees(math.atan2(vel[1], vel[0]))) < 1.0  # curved plate: straight
+    set_ball.publish(odometry_msg(0.0, (40.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    plant.wait_for_output("rejected /sim/set_ball: .*outside the field walls", timeout_s=15.0)
+    set_robot = ros_graph.probe.wait_for_subscribers("/robot_0/sim/set_state", Odometry)
+    set_robot.publish(odometry_msg(0.0, (0.0, -9.0, 0.0), (0.0, 0.0, 0.0)))
+    plant.wait_for_output("rejected robot_0/sim/set_state: .*outside the field walls", timeout_s=15.0)
+    assert plant.alive()
+
+
+def test_plant_refuses_to_start_with_a_body_off_the_field(ros_graph):
+    plant = start_plant(ros_graph, robot_poses=[30.0, 0.0, 0.0])
+    assert plant.wait_exit(30.0) == 1
+    assert "outside the field walls" in plant.output()
