@@ -25,6 +25,7 @@ setup(
             "ball_predictor = erforce_ball_model.ball_predictor_node:main",
             "ball_figures = erforce_ball_model.figures:main",
             "ball_fit = erforce_ball_model.identification:main",
+            "catcher = erforce_ball_model.catcher_node:main",
         ],
     },
 )

@@ -24,6 +24,7 @@ setup(
         "console_scripts": [
             "erforce-launch = erforce_interfaces.launcher:main",
             "erforce-topic = erforce_interfaces.topic_tool:main",
+            "erforce-record = erforce_interfaces.recording:main",
             "talker = erforce_interfaces.demo_nodes:talker_main",
             "listener = erforce_interfaces.demo_nodes:listener_main",
         ],

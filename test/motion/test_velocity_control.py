@@ -49,7 +49,8 @@ def test_shaper_angular_limits():
 
 def test_feedforward_passes_shaped_setpoint_when_tracking():
     vc = VelocityController(ROBOT, VelocityControlConfig())
-    target = (0.05, -0.03, 0.2)  # reachable in one 10 ms step with the default limits
+    # reachable in one 10 ms step with the default limits (2 m/s^2, 8 rad/s^2: below the traction limit)
+    target = (0.02, -0.012, 0.08)
     out = vc.step(target, KIN.inverse(target), 0.01)
     np.testing.assert_allclose(out, KIN.inverse(target), atol=1e-12)
 

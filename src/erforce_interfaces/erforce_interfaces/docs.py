@@ -22,7 +22,7 @@ NODE_PARAMS = (
     ("velocity_controller", "erforce_motion.velocity_controller_node", "PARAMS"),
     ("motor_boards", "erforce_motion.motor_boards_node", "PARAMS"),
     ("plant", "erforce_sim.plant_node", "PARAMS"),
-    ("catcher", "erforce_sim.catcher_node", "PARAMS"),
+    ("catcher", "erforce_ball_model.catcher_node", "PARAMS"),
 )
 
 

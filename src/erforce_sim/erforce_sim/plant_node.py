@@ -215,7 +215,11 @@ class PlantNode(Node):
                 Odometry, topic(q.SIM_SET_STATE), lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.qos
             )
         self.create_subscription(Odometry, q.SIM_SET_BALL.name, self._on_set_ball, q.SIM_SET_BALL.qos)
-        self.create_timer(0.001, self._pump, clock=RclClock(clock_type=ClockType.STEADY_TIME))
+        self._peers: set[int] = set()
+        steady = RclClock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(0.001, self._pump, clock=steady)
+        # Who answers is a graph query (slow): refreshed 5 times a second, not every tick.
+        self.create_timer(0.2, self._refresh_peers, clock=steady)
         self.get_logger().info(
             f"plant: {n} robot(s), {self.setup.field_preset}, tick {self.setup.control_period_s * 1e3:g} ms, "
             f"{self._values['pacing']} pacing"
@@ -274,9 +278,9 @@ class PlantNode(Node):
         self._event(f"robot_{robot} placed at ({pose[0]:.3f}, {pose[1]:.3f}, {pose[2]:.3f})")
 
     # ---------------------------------------------------------------- ticking
-    def _peers_present(self) -> set[int]:
+    def _refresh_peers(self) -> None:
         q = contract
-        return {i for i in self._controlled if self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0}
+        self._peers = {i for i in self._controlled if self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0}
 
     def _ready_to_start(self) -> bool:
         q = contract
@@ -297,6 +301,7 @@ class PlantNode(Node):
             if not self._ready_to_start():
                 return
             self._started = True
+            self._refresh_peers()
             self._pace_origin = (now, 0)
             self._publish_tick()
             return
@@ -365,7 +370,7 @@ class PlantNode(Node):
                 )
         if retry:
             return
-        self._gate.open(t_ns, now, self._peers_present())
+        self._gate.open(t_ns, now, self._peers)
         for frame in world.poll_vision():
             self._publish_vision(frame)
         for i in range(self.setup.num_robots):

@@ -1,0 +1,500 @@
+"""ball_predictor: ball and robot tracking plus catch-time prediction (paper Sec. 5) as a ROS 2 node.
+
+Serves all robots from one process. Every ``/vision/ball`` frame runs the ball tracker
+(tracking.BallTracker: v_shoot, phase, ricochets) and answers with the ball state, phase,
+stop point, v_shoot and the uncertain flag, and, for every robot whose pose is known,
+``/robot_<i>/catch_time`` and ``catch_point`` from one vectorized robotTimeToBall call
+(catch_time.robot_time_to_ball, Algorithm 2). All outputs carry the observation's stamp;
+catch times count from it. ``/robot_<i>/vision_pose`` feeds one RobotTracker per robot and
+is answered with ``/robot_<i>/odom``.
+
+With ``online_identification`` the frames also feed identification.ShotAccumulator; each
+completed shot triggers a refit in a worker thread, the result goes out on
+``/ball/model_params`` and replaces the model in use once its standard errors are small
+enough. Setting a model parameter by hand puts that value back in use.
+
+Bad input (non-finite, outside the field, stamps not increasing) is dropped with a
+throttled warning and answered with nothing. All maths is in the cores.
+"""
+
+from __future__ import annotations
+
+import collections
+import concurrent.futures
+import inspect
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from geometry_msgs.msg import PointStamped, PoseStamped
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+
+from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
+from erforce_ball_model.catch_time import CatchKind, RobotLimits, robot_time_to_ball
+from erforce_ball_model.catcher import CatcherConfig
+from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
+from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import (
+    ConversionError,
+    float64_msg,
+    odometry_msg,
+    point_from_msg,
+    point_msg,
+    pose2d_from_msg,
+    table_msg,
+)
+from erforce_interfaces.node_support import (
+    ParamSpec,
+    ThrottledWarner,
+    declare_params,
+    robot_config_from_params,
+    robot_param_specs,
+    run_node,
+)
+from erforce_interfaces.robot_config import FieldConfig
+
+# Node defaults are the cores' defaults.
+_MODEL = BallModelParams()
+_TRACK = TrackerConfig()
+_CATCHER = CatcherConfig()  # the robot limits must match what the catcher drives with
+_GRID_STEP_S = inspect.signature(robot_time_to_ball).parameters["grid_step_s"].default
+
+FACING_MODES = ("towards_ball", "fixed")
+PHASE_NAMES = {BallPhase.SLIDING: "sliding", BallPhase.ROLLING: "rolling", BallPhase.STOPPED: "stopped"}
+MODEL_PARAM_ROWS = ("fit", "std_error", "in_use")
+
+PARAMS = (
+    ParamSpec("num_robots", 11, "robots robot_0 .. robot_{n-1} served by this node", min=1, max=64, read_only=True),
+    ParamSpec("a_slide_mps2", _MODEL.a_slide_mps2, "sliding deceleration (< 0, |a_slide| > |a_roll|) [m/s^2]",
+              min=-100.0, max=0.0),
+    ParamSpec("a_roll_mps2", _MODEL.a_roll_mps2, "rolling deceleration (< 0) [m/s^2]", min=-100.0, max=0.0),
+    ParamSpec("c_switch", _MODEL.c_switch, "v_switch / v_shoot, in (0, 1]", min=0.0, max=1.0),
+    ParamSpec("field", "division_b", "field preset: division_a (12 x 9 m) | division_b (9 x 6 m)"),
+    ParamSpec(
+        "field_margin_m",
+        0.0,
+        "the catch search ends where the ball crosses the field lines extended by this [m]",
+        min=-1.0,
+        max=2.0,
+    ),
+    ParamSpec(
+        "vision_reject_margin_m",
+        0.5,
+        "observations farther than this outside the field lines are rejected (walls at 0.3 m) [m]",
+        min=0.0,
+        max=5.0,
+    ),
+    ParamSpec(
+        "robot_a_max_mps2", _CATCHER.a_max_mps2, "robot acceleration limit of robotTimeToPos [m/s^2]",
+        min=1e-3, max=100.0,
+    ),
+    ParamSpec("robot_v_max_mps", _CATCHER.v_max_mps, "robot speed limit of robotTimeToPos [m/s]", min=1e-3, max=20.0),
+    ParamSpec(
+        "facing_mode",
+        ["towards_ball"],
+        "per robot (or one for all): towards_ball (dribbler against the ball's motion; towards the ball "
+        "when it rests) | fixed (facing_rad)",
+    ),
+    ParamSpec(
+        "facing_rad",
+        [math.pi],
+        "per robot (or one for all): dribbler direction in `field` for facing_mode fixed [rad]",
+        min=-2.0 * math.pi,
+        max=2.0 * math.pi,
+    ),
+    ParamSpec(
+        "rest_speed_mps",
+        0.1,
+        "a slower filtered ball is reported stopped and faced from the robot (vision noise keeps the "
+        "estimate of a resting ball at a few cm/s) [m/s]",
+        min=0.0,
+        max=1.0,
+    ),
+    ParamSpec(
+        "robot_timeout_s",
+        1.0,
+        "a robot not seen for this long (vision stamps) gets no catch outputs [s]",
+        min=0.001,
+        max=3600.0,
+    ),
+    ParamSpec("grid_step_s", _GRID_STEP_S, "sampling step of the catch search (Algorithm 2) [s]", min=1e-4, max=0.5),
+    ParamSpec("position_noise_m", _TRACK.position_noise_m, "ball vision noise, standard deviation [m]",
+              min=1e-5, max=0.5),
+    ParamSpec(
+        "accel_noise_psd",
+        _TRACK.accel_noise_psd,
+        "ball process noise beyond the two-phase model [(m/s^2)^2/Hz]",
+        min=1e-6,
+        max=1e4,
+    ),
+    ParamSpec("gate_sigma", _TRACK.gate_sigma, "innovation gate of the ball filter [sigma]", min=1.0, max=100.0),
+    ParamSpec(
+        "kick_threshold_mps", _TRACK.kick_threshold_mps, "speed gain that counts as a kick [m/s]", min=0.01, max=10.0
+    ),
+    ParamSpec(
+        "ricochet_angle_rad",
+        _TRACK.ricochet_angle_rad,
+        "direction change that counts as a ricochet [rad]",
+        min=0.01,
+        max=math.pi,
+    ),
+    ParamSpec("max_gap_s", _TRACK.max_gap_s, "a longer gap between frames restarts the ball filter [s]",
+              min=0.01, max=60.0),
+    ParamSpec("online_identification", False, "fit a_slide, a_roll, c_switch from completed shots and use them"),
+    ParamSpec("ident_min_shots", 3, "shots needed before a fit may replace the model", min=1, max=50),
+    ParamSpec(
+        "ident_max_std_a_slide_mps2", 0.1, "accept a fit when the std error of a_slide is below [m/s^2]",
+        min=0.0, max=10.0,
+    ),
+    ParamSpec(
+        "ident_max_std_a_roll_mps2", 0.02, "accept a fit when the std error of a_roll is below [m/s^2]",
+        min=0.0, max=10.0,
+    ),
+    ParamSpec("ident_max_std_c_switch", 0.03, "accept a fit when the std error of c_switch is below",
+              min=0.0, max=1.0),
+    ParamSpec(
+        "timing_log_every",
+        0,
+        "log the in-node processing time (median, p99) of every N ball frames; 0 = off",
+        min=0,
+        max=1_000_000,
+    ),
+) + robot_param_specs()
+
+
+@dataclass(frozen=True, eq=False)
+class PredictorConfig:
+    """Everything the node computes with, built and validated from the parameter values."""
+
+    num_robots: int
+    model: BallModelParams
+    tracker: TrackerConfig
+    field: FieldConfig
+    field_margin_m: float
+    vision_reject_margin_m: float
+    limits: RobotLimits
+    facing_fixed: np.ndarray  # (R,) bool: fixed heading instead of towards the ball
+    facing_rad: np.ndarray  # (R,)
+    dribbler_offset_m: float
+    rest_speed_mps: float
+    grid_step_s: float
+    robot_timeout_s: float
+    online_identification: bool
+    ident_min_shots: int
+    ident_max_std: tuple[float, float, float]
+    timing_log_every: int
+
+
+def _per_robot(name: str, values: list, n: int) -> list:
+    values = list(values)
+    if len(values) == 1:
+        return values * n
+    if len(values) != n:
+        raise ValueError(f"{name}: need one value or one per robot ({n}), got {len(values)}")
+    return values
+
+
+def build_config(values: dict[str, Any]) -> PredictorConfig:
+    """The node configuration for a complete set of parameter values (raises ValueError when invalid)."""
+    n = values["num_robots"]
+    modes = _per_robot("facing_mode", values["facing_mode"], n)
+    unknown = sorted({m for m in modes if m not in FACING_MODES})
+    if unknown:
+        raise ValueError(f"facing_mode must be towards_ball or fixed, got {', '.join(map(repr, unknown))}")
+    facing_rad = np.array(_per_robot("facing_rad", values["facing_rad"], n), dtype=float)
+    # Array parameters arrive as array.array, which ParamSpec.check does not look into.
+    if not (np.isfinite(facing_rad).all() and (np.abs(facing_rad) <= 2.0 * math.pi).all()):
+        raise ValueError(f"facing_rad: must be finite angles in [-2 pi, 2 pi], got {facing_rad.tolist()}")
+    return PredictorConfig(
+        num_robots=n,
+        model=BallModelParams(values["a_slide_mps2"], values["a_roll_mps2"], values["c_switch"]),
+        tracker=TrackerConfig(
+            position_noise_m=values["position_noise_m"],
+            accel_noise_psd=values["accel_noise_psd"],
+            gate_sigma=values["gate_sigma"],
+            kick_threshold_mps=values["kick_threshold_mps"],
+            ricochet_angle_rad=values["ricochet_angle_rad"],
+            max_gap_s=values["max_gap_s"],
+        ),
+        field=FieldConfig.preset(values["field"]),
+        field_margin_m=values["field_margin_m"],
+        vision_reject_margin_m=values["vision_reject_margin_m"],
+        limits=RobotLimits(values["robot_a_max_mps2"], values["robot_v_max_mps"]),
+        facing_fixed=np.array([m == "fixed" for m in modes]),
+        facing_rad=facing_rad,
+        dribbler_offset_m=robot_config_from_params(values).dribbler_offset_m,
+        rest_speed_mps=values["rest_speed_mps"],
+        grid_step_s=values["grid_step_s"],
+        robot_timeout_s=values["robot_timeout_s"],
+        online_identification=values["online_identification"],
+        ident_min_shots=values["ident_min_shots"],
+        ident_max_std=(
+            values["ident_max_std_a_slide_mps2"],
+            values["ident_max_std_a_roll_mps2"],
+            values["ident_max_std_c_switch"],
+        ),
+        timing_log_every=values["timing_log_every"],
+    )
+
+
+def facing_angles(
+    fixed: np.ndarray, fixed_rad: np.ndarray, ball: BallTrajectory, robot_pos_m: np.ndarray, rest_speed_mps: float
+) -> np.ndarray:
+    """Dribbler direction per robot: the fixed angle, or against the ball's motion (towards a resting ball)."""
+    if ball.speed_mps > rest_speed_mps:
+        towards = np.full(len(robot_pos_m), math.atan2(-ball.velocity_mps[1], -ball.velocity_mps[0]))
+    else:
+        d = ball.position_m - robot_pos_m
+        towards = np.arctan2(d[:, 1], d[:, 0])  # atan2(0, 0) = 0: a robot on the ball faces +x
+    return np.where(fixed, fixed_rad, towards)
+
+
+def model_params_table(fit: FitResult, in_use: BallModelParams) -> Float64MultiArray:
+    rows = [
+        [fit.params.a_slide_mps2, fit.params.a_roll_mps2, fit.params.c_switch],
+        [fit.a_slide_std, fit.a_roll_std, fit.c_switch_std],
+        [in_use.a_slide_mps2, in_use.a_roll_mps2, in_use.c_switch],
+    ]
+    return table_msg(rows, contract.BALL_MODEL_PARAM_LABELS, ",".join(MODEL_PARAM_ROWS))
+
+
+class BallPredictorNode(Node):
+    def __init__(self) -> None:
+        super().__init__("ball_predictor")
+        self._warn = ThrottledWarner(self)
+        self._config: PredictorConfig | None = None
+        self._model: BallModelParams | None = None  # in use: configured or identified
+        self._ball: BallTracker | None = None
+        self._shots: ShotAccumulator | None = None
+        self._fitted_shot = None  # the newest shot a fit was started with
+        self._values = declare_params(self, PARAMS, build_config, self._apply)
+        n = self._config.num_robots
+        self._robots: list[RobotTracker | None] = [None] * n
+        self._fit_pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ball_fit")
+        self._fit_future: concurrent.futures.Future | None = None
+        self._frame_times_s: collections.deque[float] = collections.deque()
+
+        q = contract
+        self._state_pub = self.create_publisher(Odometry, q.BALL_STATE.name, q.BALL_STATE.qos)
+        self._phase_pub = self.create_publisher(String, q.BALL_PHASE.name, q.BALL_PHASE.qos)
+        self._stop_pub = self.create_publisher(PointStamped, q.BALL_STOP_POINT.name, q.BALL_STOP_POINT.qos)
+        self._v_shoot_pub = self.create_publisher(Float64, q.BALL_V_SHOOT.name, q.BALL_V_SHOOT.qos)
+        self._uncertain_pub = self.create_publisher(Bool, q.BALL_UNCERTAIN.name, q.BALL_UNCERTAIN.qos)
+        self._params_pub = self.create_publisher(
+            Float64MultiArray, q.BALL_MODEL_PARAMS.name, q.BALL_MODEL_PARAMS.qos
+        )
+        self._odom_pubs = [self.create_publisher(Odometry, q.ODOM.for_robot(i), q.ODOM.qos) for i in range(n)]
+        self._catch_time_pubs = [
+            self.create_publisher(Float64, q.CATCH_TIME.for_robot(i), q.CATCH_TIME.qos) for i in range(n)
+        ]
+        self._catch_point_pubs = [
+            self.create_publisher(PointStamped, q.CATCH_POINT.for_robot(i), q.CATCH_POINT.qos) for i in range(n)
+        ]
+        self.create_subscription(PointStamped, q.VISION_BALL.name, self._on_ball, q.VISION_BALL.qos)
+        for i in range(n):
+            self.create_subscription(
+                PoseStamped, q.VISION_POSE.for_robot(i), lambda m, i=i: self._on_robot(i, m), q.VISION_POSE.qos
+            )
+        self.get_logger().info(
+            f"ball_predictor: {n} robot(s), {self._values['field']}, a_slide {self._model.a_slide_mps2:g}, "
+            f"a_roll {self._model.a_roll_mps2:g}, c_switch {self._model.c_switch:g} "
+            f"(online identification {'on' if self._config.online_identification else 'off'})"
+        )
+
+    # -------------------------------------------------------------- parameters
+    def _apply(self, config: PredictorConfig) -> None:
+        old = self._config
+        self._config = config
+        if old is None or config.model != old.model:
+            self._model = config.model  # a hand-set model wins over an identified one
+        if self._ball is None or config.tracker != old.tracker:
+            self._ball = BallTracker(self._model, config.tracker)  # filter state is lost: re-seeds
+        self._ball.params = self._model
+        if config.online_identification and (self._shots is None or config.tracker != old.tracker):
+            self._shots = ShotAccumulator(tracker_config=config.tracker)
+            self._fitted_shot = None
+        elif not config.online_identification:
+            self._shots = None
+
+    # ------------------------------------------------------------------ robots
+    def _on_robot(self, robot: int, msg: PoseStamped) -> None:
+        cfg = self._config
+        try:
+            t_s, pose = pose2d_from_msg(msg)
+        except ConversionError as exc:
+            self._warn.warn(f"pose{robot}", f"robot_{robot}: rejected vision_pose: {exc}")
+            return
+        if not cfg.field.contains(pose[0], pose[1], cfg.vision_reject_margin_m):
+            self._warn.warn(f"pose{robot}", f"robot_{robot}: rejected vision_pose outside the field: "
+                                            f"({pose[0]:.3f}, {pose[1]:.3f}) m")
+            return
+        tracker = self._robots[robot] or RobotTracker()
+        status = tracker.update(t_s, pose[0], pose[1], pose[2])
+        if status == UpdateStatus.REJECTED_TIME:
+            self._warn.warn(f"pose{robot}", f"robot_{robot}: rejected vision_pose: stamp {t_s:.6f} s is not "
+                                            f"after the previous one {tracker.t_s:.6f} s")
+            return
+        if status == UpdateStatus.REJECTED_INVALID:
+            self._warn.warn(f"pose{robot}", f"robot_{robot}: rejected vision_pose: invalid")
+            return
+        self._robots[robot] = tracker
+        vel = tracker.velocity_mps
+        try:
+            odom = odometry_msg(
+                t_s, (*tracker.position_m, tracker.heading_rad), (vel[0], vel[1], tracker.angular_velocity_radps),
+                child_frame_id=contract.robot_frame(robot),
+            )
+        except ConversionError as exc:
+            self._warn.warn(f"odom{robot}", f"robot_{robot}: odom not published: {exc}")
+            return
+        self._odom_pubs[robot].publish(odom)
+
+    def _known_robots(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Indices, positions and velocities at ``t_s`` (constant-velocity extrapolation) of the fresh robots."""
+        ids, pos, vel = [], [], []
+        timeout = self._config.robot_timeout_s
+        for i, tr in enumerate(self._robots):
+            if tr is None or abs(t_s - tr.t_s) > timeout:
+                continue
+            v = tr.velocity_mps
+            ids.append(i)
+            pos.append(tr.position_m + v * (t_s - tr.t_s))
+            vel.append(v)
+        return np.array(ids, dtype=int), np.array(pos).reshape(-1, 2), np.array(vel).reshape(-1, 2)
+
+    # -------------------------------------------------------------------- ball
+    def _on_ball(self, msg: PointStamped) -> None:
+        start = time.perf_counter()
+        cfg = self._config
+        try:
+            t_s, xy = point_from_msg(msg)
+        except ConversionError as exc:
+            self._warn.warn("ball_invalid", f"rejected vision/ball: {exc}")
+            return
+        if not cfg.field.contains(xy[0], xy[1], cfg.vision_reject_margin_m):
+            self._warn.warn("ball_outside", f"rejected vision/ball outside the field: ({xy[0]:.3f}, {xy[1]:.3f}) m")
+            return
+        ball = self._ball
+        last_t = ball.t_s
+        status = ball.update(t_s, xy[0], xy[1])
+        if status == UpdateStatus.REJECTED_TIME:
+            self._warn.warn("ball_time", f"rejected vision/ball: stamp {t_s:.6f} s is not after the previous one "
+                                    f"{last_t:.6f} s (time went backwards or repeated)")
+            return
+        if status == UpdateStatus.REJECTED_INVALID:
+            self._warn.warn("ball_invalid", "rejected vision/ball: invalid")
+            return
+        try:
+            messages = self._predict(t_s, status)
+        except ValueError as exc:  # e.g. an absurd speed from two frames 1 us apart: publish nothing
+            self._warn.warn("predict", f"no prediction for the frame at {t_s:.6f} s: {exc}")
+            return
+        for pub, out in messages:
+            pub.publish(out)
+        self._frame_done(time.perf_counter() - start)
+        if self._shots is not None:
+            self._identify(t_s, xy)
+
+    def _predict(self, t_s: float, status: UpdateStatus) -> list[tuple[Any, Any]]:
+        """All messages of one frame, in publishing order (built first: a failure publishes nothing)."""
+        cfg, ball = self._config, self._ball
+        traj = ball.trajectory()
+        if status == UpdateStatus.HELD_BACK:  # the filter waits for the next frame: predict to this stamp
+            traj = traj.advanced(t_s - ball.t_s)
+        variance = float(max(ball.kf.p[0, 0], ball.kf.p[1, 1]))
+        state = odometry_msg(t_s, (*traj.position_m, 0.0), (*traj.velocity_mps, 0.0), child_frame_id="ball",
+                             position_variance_m2=variance)
+        messages: list[tuple[Any, Any]] = [(self._state_pub, state)]
+
+        ids, pos, vel = self._known_robots(t_s)
+        if ids.size:
+            facing = facing_angles(cfg.facing_fixed[ids], cfg.facing_rad[ids], traj, pos, cfg.rest_speed_mps)
+            catch = robot_time_to_ball(
+                traj, pos, vel, cfg.limits, facing, dribbler_offset_m=cfg.dribbler_offset_m, field=cfg.field,
+                field_margin_m=cfg.field_margin_m, grid_step_s=cfg.grid_step_s,
+            )
+            never = catch.kind == CatchKind.NEVER
+            times = np.where(never, contract.CATCH_TIME_NEVER, catch.time_s)
+            points = []
+            for k, i in enumerate(ids):
+                messages.append((self._catch_time_pubs[i], float64_msg(times[k])))
+                if not never[k]:  # "never" has no catch point: catch_time says so
+                    points.append((self._catch_point_pubs[i], point_msg(t_s, catch.robot_target_m[k])))
+            messages += points
+
+        if status == UpdateStatus.INITIALIZED:
+            phase = "unknown"
+        elif traj.speed_mps <= cfg.rest_speed_mps:
+            phase = "stopped"
+        else:
+            phase = PHASE_NAMES[BallPhase(int(traj.phase_at(0.0)))]
+        messages += [
+            (self._phase_pub, String(data=phase)),
+            (self._stop_pub, point_msg(t_s, traj.stop_point)),
+            (self._v_shoot_pub, float64_msg(float(traj.v_shoot_mps))),
+            (self._uncertain_pub, Bool(data=bool(ball.uncertain))),
+        ]
+        return messages
+
+    def _frame_done(self, elapsed_s: float) -> None:
+        every = self._config.timing_log_every
+        if every <= 0:
+            return
+        self._frame_times_s.append(elapsed_s)
+        if len(self._frame_times_s) >= every:
+            ms = 1e3 * np.array(self._frame_times_s)
+            self._frame_times_s.clear()
+            self.get_logger().info(
+                f"ball frame processing over {ms.size} frames: median {np.median(ms):.3f} ms, "
+                f"p99 {np.percentile(ms, 99):.3f} ms, max {ms.max():.3f} ms"
+            )
+
+    # ---------------------------------------------------------- identification
+    def _identify(self, t_s: float, xy: np.ndarray) -> None:
+        shots = self._shots
+        shots.add(t_s, xy[0], xy[1])
+        future = self._fit_future
+        if future is not None and future.done():
+            self._fit_future = None
+            try:
+                self._fit_done(future.result())
+            except ValueError as exc:  # too few points, singular fit, ...
+                self._warn.warn("fit", f"online identification: fit failed: {exc}")
+        if self._fit_future is None and shots.shots and shots.shots[-1] is not self._fitted_shot:
+            self._fitted_shot = shots.shots[-1]  # refit once per completed shot, one fit at a time
+            self._fit_future = self._fit_pool.submit(fit_shots, list(shots.shots), self._model)
+
+    def _fit_done(self, fit: FitResult) -> None:
+        cfg = self._config
+        stds = (fit.a_slide_std, fit.a_roll_std, fit.c_switch_std)
+        good = fit.num_shots >= cfg.ident_min_shots and all(
+            math.isfinite(s) and s < limit for s, limit in zip(stds, cfg.ident_max_std, strict=True)
+        )
+        if good:
+            self._model = fit.params
+            self._ball.params = fit.params
+            self.get_logger().info(
+                f"online identification: now using a_slide {fit.params.a_slide_mps2:.4f}, a_roll "
+                f"{fit.params.a_roll_mps2:.4f}, c_switch {fit.params.c_switch:.4f} ({fit.num_shots} shots)"
+            )
+        try:
+            self._params_pub.publish(model_params_table(fit, self._model))
+        except ConversionError as exc:
+            self._warn.warn("fit", f"online identification: result not published: {exc}")
+
+    def destroy_node(self) -> None:
+        self._fit_pool.shutdown(wait=False, cancel_futures=True)
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(BallPredictorNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,162 @@
+"""catcher: the receive behaviour of the paper's Fig. 6 for one robot, as a ROS 2 node.
+
+Runs in the robot's namespace. It reads its robot's catch time and catch point from the
+ball predictor and drives there with ``cmd_vel``, facing the incoming ball (the
+predictor computed the catch for that facing). It holds still when no catch is possible
+or its inputs are stale, and once the light barrier sees the ball. The maths is in
+erforce_ball_model.catcher.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from geometry_msgs.msg import PointStamped, Twist
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from std_msgs.msg import Bool, Float64
+
+from erforce_ball_model.catcher import CatcherConfig, catch_twist
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import (
+    ConversionError,
+    float64_from_msg,
+    odometry_from_msg,
+    point_from_msg,
+    twist_msg,
+)
+from erforce_interfaces.node_support import ParamSpec, ThrottledWarner, declare_params, run_node
+
+_CC = CatcherConfig()
+
+PARAMS = (
+    ParamSpec("rate_hz", 100.0, "cmd_vel rate (robot time) [Hz]", min=1.0, max=1000.0),
+    ParamSpec("a_max_mps2", _CC.a_max_mps2, "acceleration of the approach profile [m/s^2]; keep equal to the "
+              "ball predictor's robot limit", min=0.01, max=50.0),
+    ParamSpec("v_max_mps", _CC.v_max_mps, "speed of the approach profile [m/s]; keep equal to the ball "
+              "predictor's robot limit", min=0.01, max=10.0),
+    ParamSpec("w_max_radps", _CC.w_max_radps, "turn rate limit [rad/s]", min=0.01, max=50.0),
+    ParamSpec("heading_gain_per_s", _CC.heading_gain_per_s, "heading error to turn rate [1/s]", min=0.01,
+              max=100.0),
+    ParamSpec("arrive_tolerance_m", _CC.arrive_tolerance_m, "hold still this close to the target [m]",
+              min=1e-4, max=1.0),
+    ParamSpec("braking_margin", _CC.braking_margin, "fraction of a_max used for braking (velocity-loop lag)",
+              min=0.05, max=1.0),
+    ParamSpec("stale_after_s", 0.25, "inputs older than this (robot time) stop the robot [s]", min=0.01,
+              max=10.0),
+    ParamSpec("min_ball_speed_mps", 0.1, "a ball faster than this engages the catcher [m/s]",
+              min=0.0, max=10.0),
+    ParamSpec("fetch_resting_ball", False, "also drive to a ball that is not moving"),
+    ParamSpec("disengage_after_rest_s", 2.0, "an engaged catcher gives up after the ball rested this long [s]",
+              min=0.0, max=60.0),
+)
+
+
+def build_config(values: dict[str, Any]) -> CatcherConfig:
+    return CatcherConfig(**{k: values[k] for k in ("a_max_mps2", "v_max_mps", "w_max_radps",
+                                                    "heading_gain_per_s", "arrive_tolerance_m",
+                                                    "braking_margin")})
+
+
+class CatcherNode(Node):
+    def __init__(self) -> None:
+        super().__init__("catcher")
+        self._warn = ThrottledWarner(self)
+        self._config = _CC
+        self._values = declare_params(self, PARAMS, build_config, self._set_config)
+        self._pose = None  # (t_s, [x, y, yaw])
+        self._target = None  # (t_s, [x, y])
+        self._catch_time = None  # (t_s of arrival, seconds or CATCH_TIME_NEVER)
+        self._ball_velocity = None  # (t_s, [vx, vy])
+        self._holding_ball = False
+        self._engaged = False
+        self._ball_moving_at = -math.inf  # robot time the ball was last seen moving
+        q = contract
+        self._cmd_pub = self.create_publisher(Twist, q.CMD_VEL.name, q.CMD_VEL.qos)
+        self.create_subscription(Odometry, q.ODOM.name, self._on_odom, q.ODOM.qos)
+        self.create_subscription(Float64, q.CATCH_TIME.name, self._on_catch_time, q.CATCH_TIME.qos)
+        self.create_subscription(PointStamped, q.CATCH_POINT.name, self._on_catch_point, q.CATCH_POINT.qos)
+        self.create_subscription(Odometry, q.BALL_STATE.name, self._on_ball, q.BALL_STATE.qos)
+        self.create_subscription(Bool, q.BALL_DETECTED.name, self._on_barrier, q.BALL_DETECTED.qos)
+        self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
+
+    def _set_config(self, config: CatcherConfig) -> None:
+        self._config = config
+
+    def _now_s(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _on_odom(self, msg: Odometry) -> None:
+        try:
+            _t, pose, _, _ = odometry_from_msg(msg)
+        except ConversionError as exc:
+            self._warn.warn("odom", f"rejected odom: {exc}")
+            return
+        self._pose = (self._now_s(), pose)
+
+    def _on_catch_time(self, msg: Float64) -> None:
+        try:
+            self._catch_time = (self._now_s(), float64_from_msg(msg))
+        except ConversionError as exc:
+            self._warn.warn("catch_time", f"rejected catch_time: {exc}")
+
+    def _on_catch_point(self, msg: PointStamped) -> None:
+        try:
+            _, xy = point_from_msg(msg)
+        except ConversionError as exc:
+            self._warn.warn("catch_point", f"rejected catch_point: {exc}")
+            return
+        self._target = (self._now_s(), xy)
+
+    def _on_ball(self, msg: Odometry) -> None:
+        try:
+            _, _, velocity, _ = odometry_from_msg(msg)
+        except ConversionError as exc:
+            self._warn.warn("ball", f"rejected ball state: {exc}")
+            return
+        now = self._now_s()
+        self._ball_velocity = (now, velocity[:2])
+        if math.hypot(velocity[0], velocity[1]) >= self._values["min_ball_speed_mps"]:
+            self._ball_moving_at = now
+            if not self._holding_ball:
+                self._engaged = True
+
+    def _on_barrier(self, msg: Bool) -> None:
+        if msg.data and not self._holding_ball:
+            self.get_logger().info("light barrier: ball received")
+            self._engaged = False
+        self._holding_ball = bool(msg.data)
+
+    def _fresh(self, stamped, now: float) -> bool:
+        return stamped is not None and now - stamped[0] <= self._values["stale_after_s"]
+
+    def _tick(self) -> None:
+        now = self._now_s()
+        twist = (0.0, 0.0, 0.0)
+        if now - self._ball_moving_at > self._values["disengage_after_rest_s"]:
+            self._engaged = False
+        active = self._engaged or self._values["fetch_resting_ball"]
+        usable = (self._fresh(self._pose, now) and self._fresh(self._target, now)
+                  and self._fresh(self._catch_time, now) and self._catch_time[1] != contract.CATCH_TIME_NEVER)
+        if active and usable and not self._holding_ball:
+            pose = self._pose[1]
+            facing = pose[2]
+            if self._fresh(self._ball_velocity, now):
+                vx, vy = self._ball_velocity[1]
+                if math.hypot(vx, vy) >= self._values["min_ball_speed_mps"]:
+                    facing = math.atan2(-vy, -vx)  # face the incoming ball, as the predictor assumed
+            try:
+                twist = catch_twist(pose, self._target[1], facing, self._config)
+            except ValueError as exc:
+                self._warn.warn("twist", f"no command: {exc}")
+                twist = (0.0, 0.0, 0.0)
+        self._cmd_pub.publish(twist_msg(twist))
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(CatcherNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,422 @@
+"""The main job: the paper's story end to end on the full node graph (``./run demo``).
+
+It launches launch/demo.launch.yaml (plant, ball_predictor, robot_0's velocity_controller,
+motor_boards and catcher; robot_1 is the kicker), records every topic into a rosbag2/MCAP
+bag, and plays a scene sequence through the plant's scenario topics:
+
+1. the paper's Fig. 6: robot_0 at rest, the ball rolling right at 2.0 m/s, caught facing left;
+2. kicks from 1 to 6.5 m/s by robot_1 (curved plate): some straight at robot_0, some passing
+   it at a distance, one off the side wall.
+
+For each scene it prints the predicted catch time (the ball predictor's prediction 0.15 s
+after the kick, as absolute simulation time) against the actual one (the rising edge of
+robot_0's light barrier), and whether the ball was caught. A scene counts as reachable
+when the ball's true path (ground truth) passes a point robot_0 could have reached in
+time under the planning limits (robotTimeToPos from its start, after a reaction delay),
+independent of the predictor. At the end it writes report/<time>/: the bag, PNG plots and
+summary.md (see erforce_sim.report).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PointStamped
+from nav_msgs.msg import Odometry
+from rclpy.executors import SingleThreadedExecutor
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+
+from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import (
+    odometry_from_msg,
+    odometry_msg,
+    stamp_to_nanoseconds,
+    stamp_to_seconds,
+    table_from_msg,
+)
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.testing import stop_process
+
+RECEIVER, KICKER = 0, 1
+LAUNCH_FILE = Path(__file__).resolve().parents[1] / "launch" / "demo.launch.yaml"
+PREDICTION_DELAY_S = 0.15  # the prediction compared with the truth: this long after the kick
+REACTION_S = 0.1  # vision latency + tracking before any robot can react (reachability)
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    receiver_pose: tuple[float, float, float]
+    kicker_pose: tuple[float, float, float] = (-3.5, -2.0, 0.0)
+    ball: tuple[float, float, float, float] | None = None  # a rolling ball (x, y, vx, vy); None: kick
+    kick_speed_mps: float = 0.0
+    timeout_s: float = 5.0
+
+
+def _kick_scene(name: str, speed: float, kicker_xy, aim_xy, receiver_pose, timeout_s: float = 5.0) -> Scene:
+    yaw = math.atan2(aim_xy[1] - kicker_xy[1], aim_xy[0] - kicker_xy[0])
+    return Scene(name, receiver_pose, (kicker_xy[0], kicker_xy[1], yaw), None, speed, timeout_s)
+
+
+def default_scenes(field_config: FieldConfig) -> list[Scene]:
+    """Fig. 6, then kicks from 1 to 6.5 m/s: straight, passing, and one off the wall."""
+    k = (-3.0, 0.0)
+    r = (1.0, 0.0, math.pi)
+    wall_y = field_config.wall_half_width_m
+    receiver_wall = (0.5, 1.6, math.pi)
+    mirror = (receiver_wall[0], 2 * wall_y - receiver_wall[1])  # aim at the mirror image: bank shot
+    return [
+        Scene(
+            "Fig. 6: ball rolls right at 2.0 m/s, robot at rest catches facing left",
+            (-0.5, 0.3, math.pi),
+            (-3.5, -2.0, 0.0),
+            (-2.0, 0.0, 2.0, 0.0),
+            0.0,
+            4.0,
+        ),
+        _kick_scene("kick 1.0 m/s straight", 1.0, (-1.0, 0.0), r[:2], r, 6.0),
+        _kick_scene("kick 2.0 m/s passing 0.5 m beside", 2.0, k, (1.0, 0.5), r),
+        _kick_scene("kick 3.0 m/s straight", 3.0, k, r[:2], r),
+        _kick_scene("kick 3.5 m/s off the side wall", 3.5, k, mirror, receiver_wall),
+        _kick_scene("kick 4.0 m/s passing 0.4 m beside", 4.0, k, (1.0, -0.4), r),
+        _kick_scene("kick 5.0 m/s straight", 5.0, k, r[:2], r),
+        _kick_scene("kick 5.5 m/s passing 0.3 m beside", 5.5, k, (1.0, 0.3), r),
+        _kick_scene("kick 6.5 m/s straight", 6.5, k, r[:2], r),
+    ]
+
+
+@dataclass
+class SceneResult:
+    scene: Scene
+    t_start_s: float
+    t_end_s: float
+    predicted_s: float | None  # absolute sim time of the predicted catch; None = "never"
+    actual_s: float | None  # light barrier rising edge; None = not caught
+    reachable: bool = False
+    kick_fired: bool = True
+
+    @property
+    def caught(self) -> bool:
+        return self.actual_s is not None
+
+    @property
+    def error_s(self) -> float | None:
+        if self.predicted_s is None or self.actual_s is None:
+            return None
+        return self.predicted_s - self.actual_s
+
+
+@dataclass
+class Series:
+    """Time series the report needs, gathered live (the bag has everything too)."""
+
+    ball_truth: list = field(default_factory=list)  # t, x, y, vx, vy
+    robot_truth: list = field(default_factory=list)  # t, x, y, yaw, vx, vy, w
+    motors: list = field(default_factory=list)  # t, currents(4), temps(4), speeds(4)
+    motor_status: list = field(default_factory=list)  # t, avg current(4), pwm limit(4)
+    ball_state: list = field(default_factory=list)  # t, x, y, vx, vy
+    v_shoot: list = field(default_factory=list)  # t, v_shoot
+    predictions: list = field(default_factory=list)  # obs t, catch time (relative)
+    catch_points: list = field(default_factory=list)  # obs t, x, y
+    model_params: list = field(default_factory=list)  # t, a_slide, a_roll, c_switch
+    vision_sent_ns: dict = field(default_factory=dict)  # vision stamp -> DDS source timestamp (plant's send)
+    latency_s: list = field(default_factory=list)  # plant sends vision -> predictor sends the catch point
+
+
+class Director:
+    """The scenario player: an rclpy node in the demo process."""
+
+    def __init__(self, node, robot: RobotConfig) -> None:
+        self.node = node
+        self.robot = robot
+        self.sim_ns = -1
+        self.series = Series()
+        self.barrier_edges: list[float] = []
+        self._barrier = False
+        self.events: list[str] = []
+        q = contract
+        sub = node.create_subscription
+        sub(Clock, q.CLOCK.name, self._on_clock, q.QOS_CLOCK)
+        sub(Odometry, q.GROUND_TRUTH_BALL.name, self._on_ball_truth, q.GROUND_TRUTH_BALL.qos)
+        sub(Odometry, q.GROUND_TRUTH_ODOM.for_robot(RECEIVER), self._on_robot_truth, q.GROUND_TRUTH_ODOM.qos)
+        sub(Float64MultiArray, q.GROUND_TRUTH_MOTORS.for_robot(RECEIVER), self._on_motors, q.GROUND_TRUTH_MOTORS.qos)
+        sub(Float64MultiArray, q.MOTOR_STATUS.for_robot(RECEIVER), self._on_status, q.MOTOR_STATUS.qos)
+        sub(Odometry, q.BALL_STATE.name, self._on_ball_state, q.BALL_STATE.qos)
+        sub(Float64, q.BALL_V_SHOOT.name, self._on_v_shoot, q.BALL_V_SHOOT.qos)
+        sub(Float64MultiArray, q.BALL_MODEL_PARAMS.name, self._on_params, q.BALL_MODEL_PARAMS.qos)
+        sub(Float64, q.CATCH_TIME.for_robot(RECEIVER), self._on_catch_time, q.CATCH_TIME.qos)
+        sub(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), self._on_catch_point, q.CATCH_POINT.qos)
+        sub(Bool, q.BALL_DETECTED.for_robot(RECEIVER), self._on_barrier, q.BALL_DETECTED.qos)
+        sub(String, q.SIM_EVENTS.name, lambda m: self.events.append(m.data), q.SIM_EVENTS.qos)
+        sub(q.VISION_BALL.msg_type, q.VISION_BALL.name, self._on_vision, q.VISION_BALL.qos)
+        self.set_ball = node.create_publisher(Odometry, q.SIM_SET_BALL.name, q.SIM_SET_BALL.qos)
+        self.set_robot = {
+            i: node.create_publisher(Odometry, q.SIM_SET_STATE.for_robot(i), q.SIM_SET_STATE.qos)
+            for i in (RECEIVER, KICKER)
+        }
+        self.kick = node.create_publisher(Float64, q.KICK.for_robot(KICKER), q.KICK.qos)
+        self._last_catch_time: float | None = None
+
+    @property
+    def sim_s(self) -> float:
+        return self.sim_ns * 1e-9
+
+    # ------------------------------------------------------------ listeners
+    def _on_clock(self, msg: Clock) -> None:
+        self.sim_ns = stamp_to_nanoseconds(msg.clock)
+
+    def _on_ball_truth(self, msg: Odometry) -> None:
+        t, pose, vel, _ = odometry_from_msg(msg)
+        self.series.ball_truth.append((t, pose[0], pose[1], vel[0], vel[1]))
+
+    def _on_robot_truth(self, msg: Odometry) -> None:
+        t, pose, vel, _ = odometry_from_msg(msg)
+        self.series.robot_truth.append((t, *pose, *vel))
+
+    def _on_motors(self, msg: Float64MultiArray) -> None:
+        table = table_from_msg(msg, contract.GROUND_TRUTH_MOTOR_COLUMNS)
+        self.series.motors.append((self.sim_s, *table[:, 0], *table[:, 1], *table[:, 2]))
+
+    def _on_status(self, msg: Float64MultiArray) -> None:
+        table = table_from_msg(msg, contract.MOTOR_STATUS_COLUMNS)
+        self.series.motor_status.append((self.sim_s, *table[:, 0], *table[:, 1]))
+
+    def _on_ball_state(self, msg: Odometry) -> None:
+        t, pose, vel, _ = odometry_from_msg(msg)
+        self.series.ball_state.append((t, pose[0], pose[1], vel[0], vel[1]))
+
+    def _on_v_shoot(self, msg: Float64) -> None:
+        self.series.v_shoot.append((self.sim_s, msg.data))
+
+    def _on_params(self, msg: Float64MultiArray) -> None:
+        if len(msg.data) >= 3:
+            self.series.model_params.append((self.sim_s, *msg.data[:3]))
+
+    def _on_catch_time(self, msg: Float64) -> None:
+        self._last_catch_time = msg.data
+
+    def _on_catch_point(self, msg: PointStamped, info) -> None:
+        t_obs = stamp_to_seconds(msg.header.stamp)
+        if self._last_catch_time is not None:
+            self.series.predictions.append((t_obs, self._last_catch_time))
+        self.series.catch_points.append((t_obs, msg.point.x, msg.point.y))
+        # Latency inside the graph from the DDS source timestamps (the senders' clocks): not
+        # skewed by how late this observer gets to its queue.
+        sent = self.series.vision_sent_ns.pop(stamp_to_nanoseconds(msg.header.stamp), None)
+        if sent is not None:
+            self.series.latency_s.append((info["source_timestamp"] - sent) * 1e-9)
+
+    def _on_vision(self, msg, info) -> None:
+        self.series.vision_sent_ns[stamp_to_nanoseconds(msg.header.stamp)] = info["source_timestamp"]
+        if len(self.series.vision_sent_ns) > 1000:
+            self.series.vision_sent_ns.pop(next(iter(self.series.vision_sent_ns)))
+
+    def _on_barrier(self, msg: Bool) -> None:
+        if msg.data and not self._barrier:
+            self.barrier_edges.append(self.sim_s)
+        self._barrier = bool(msg.data)
+
+    # ------------------------------------------------------------- actions
+    def place_robot(self, robot: int, pose) -> None:
+        self.set_robot[robot].publish(odometry_msg(0.0, pose, (0.0, 0.0, 0.0)))
+
+    def place_ball(self, x: float, y: float, vx: float = 0.0, vy: float = 0.0) -> None:
+        self.set_ball.publish(odometry_msg(0.0, (x, y, 0.0), (vx, vy, 0.0)))
+
+    def ball_at_kicker(self, kicker_pose) -> tuple[float, float]:
+        d = self.robot.dribbler_offset_m + 0.002
+        return kicker_pose[0] + d * math.cos(kicker_pose[2]), kicker_pose[1] + d * math.sin(kicker_pose[2])
+
+
+class Demo:
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self.out = Path(args.out) / time.strftime("%Y%m%d-%H%M%S")
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.robot = RobotConfig()
+        self.field = FieldConfig.preset(args.field)
+        rclpy.init()
+        self.node = rclpy.create_node("demo_director")
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self.director = Director(self.node, self.robot)
+        self.launch: subprocess.Popen | None = None
+        self.recorder: subprocess.Popen | None = None
+
+    def spin_until(self, condition, timeout_wall_s: float, what: str) -> bool:
+        deadline = time.monotonic() + timeout_wall_s
+        while not condition():
+            if time.monotonic() > deadline:
+                return False
+            if self.launch is not None and self.launch.poll() is not None:
+                raise RuntimeError(
+                    f"the node graph exited (code {self.launch.returncode}) while waiting for "
+                    f"{what}; see {self.out / 'graph.log'}"
+                )
+            self.executor.spin_once(timeout_sec=0.01)
+        return True
+
+    def wait_sim(self, duration_s: float) -> None:
+        end = self.director.sim_s + duration_s
+        if not self.spin_until(lambda: self.director.sim_s >= end, 60.0 + 20 * duration_s, "simulated time"):
+            raise RuntimeError("simulated time stopped advancing")
+
+    def start_graph(self) -> None:
+        cmd = [
+            str(Path(sys.executable).with_name("erforce-launch")),
+            str(LAUNCH_FILE),
+            f"pacing:={self.args.pacing}",
+            f"real_time_factor:={self.args.real_time_factor}",
+            f"seed:={self.args.seed}",
+            f"field:={self.args.field}",
+            "output:=screen",
+            f"robot_a_max_mps2:={float(self.args.robot_a_max)}",
+            f"robot_v_max_mps:={float(self.args.robot_v_max)}",
+        ]
+        log = open(self.out / "graph.log", "wb")
+        self.launch = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        # The recorder is a process of its own, like `ros2 bag record -a`.
+        self.recorder = subprocess.Popen(
+            [str(Path(sys.executable).with_name("erforce-record")), str(self.out / "bag")],
+            stdout=open(self.out / "record.log", "wb"),
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+        print(f"graph starting (log: {self.out / 'graph.log'}) ...", flush=True)
+        if not self.spin_until(lambda: self.director.sim_ns > 0 and self.director.series.ball_state, 90.0, "the graph"):
+            raise RuntimeError(f"the graph did not come up within 90 s; see {self.out / 'graph.log'}")
+
+    def play(self, scene: Scene) -> SceneResult:
+        d = self.director
+        d.place_robot(RECEIVER, scene.receiver_pose)
+        d.place_robot(KICKER, scene.kicker_pose)
+        if scene.ball is None:
+            d.place_ball(*d.ball_at_kicker(scene.kicker_pose))
+        else:
+            d.place_ball(*scene.ball[:2])  # at rest first: the catcher stays idle while we set up
+        self.wait_sim(0.7)
+        d.place_robot(RECEIVER, scene.receiver_pose)  # undo any drift while settling
+        self.wait_sim(0.3)
+        n_edges = len(d.barrier_edges)
+        t_start = d.sim_s
+        fired = True
+        if scene.ball is None:
+            n_events = len(d.events)
+            d.kick.publish(Float64(data=scene.kick_speed_mps))
+            fired = self.spin_until(lambda: any("fired" in e for e in d.events[n_events:]), 10.0, "the kick")
+        else:
+            d.place_ball(*scene.ball)
+        end = t_start + scene.timeout_s
+        self.spin_until(
+            lambda: len(d.barrier_edges) > n_edges or d.sim_s >= end, 60.0 + 20 * scene.timeout_s, "the catch"
+        )
+        actual = d.barrier_edges[n_edges] if len(d.barrier_edges) > n_edges else None
+        return SceneResult(scene, t_start, d.sim_s, self._prediction(t_start), actual, kick_fired=fired)
+
+    def _prediction(self, t_start: float) -> float | None:
+        for t_obs, catch in self.director.series.predictions:
+            if t_obs >= t_start + PREDICTION_DELAY_S:
+                return None if catch == contract.CATCH_TIME_NEVER else t_obs + catch
+        return None
+
+    def _reachable(self, result: SceneResult) -> bool:
+        """Could robot_0 have met the true ball path in time (independent of the predictor)?"""
+        t_start = result.t_start_s
+        t_end = result.actual_s if result.actual_s is not None else result.t_end_s
+        truth = np.array([b for b in self.director.series.ball_truth if t_start <= b[0] <= t_end])
+        if len(truth) < 2:
+            return False
+        limits = RobotLimits(self.args.robot_a_max, self.args.robot_v_max)
+        start = np.array(result.scene.receiver_pose[:2])
+        velocity = truth[:, 3:5]
+        speed = np.hypot(velocity[:, 0], velocity[:, 1])
+        # facing the incoming ball, the robot centre stands one dribbler offset ahead of the ball
+        ahead = np.where(speed[:, None] > 1e-3, velocity / np.maximum(speed, 1e-9)[:, None], 0.0)
+        targets = truth[:, 1:3] + ahead * self.robot.dribbler_offset_m
+        inside = (np.abs(truth[:, 1]) <= self.field.half_length_m) & (np.abs(truth[:, 2]) <= self.field.half_width_m)
+        t_robot = robot_time_to_pos(start, np.zeros(2), targets, limits)
+        return bool(np.any(inside & (t_robot + REACTION_S <= truth[:, 0] - t_start)))
+
+    def run(self) -> int:
+        from erforce_sim.report import write_report
+
+        results: list[SceneResult] = []
+        wall0 = sim0 = None
+        try:
+            self.start_graph()
+            wall0, sim0 = time.monotonic(), self.director.sim_s
+            scenes = default_scenes(self.field)[: self.args.scenes or None]
+            print(f"{'#':>2} {'scene':<52} {'predicted':>10} {'actual':>10} {'error':>9}  caught")
+            for i, scene in enumerate(scenes, 1):
+                r = self.play(scene)
+                results.append(r)
+                pred = "never" if r.predicted_s is None else f"{r.predicted_s - r.t_start_s:.3f} s"
+                act = "—" if r.actual_s is None else f"{r.actual_s - r.t_start_s:.3f} s"
+                err = "—" if r.error_s is None else f"{r.error_s * 1e3:+.0f} ms"
+                print(f"{i:>2} {scene.name[:52]:<52} {pred:>10} {act:>10} {err:>9}  {'yes' if r.caught else 'no'}",
+                      flush=True)
+        finally:
+            wall = time.monotonic() - wall0 if wall0 is not None else 0.0
+            sim = self.director.sim_s - sim0 if sim0 is not None else 0.0
+            if self.launch is not None and self.launch.poll() is None:
+                self.executor.spin_once(timeout_sec=0.0)
+                deadline = time.monotonic() + 2.0  # drain what is still queued for the director
+                while time.monotonic() < deadline:
+                    self.executor.spin_once(timeout_sec=0.01)
+            if self.launch is not None:
+                stop_process(self.launch, sigint_timeout_s=10.0)
+            if self.recorder is not None:
+                stop_process(self.recorder, sigint_timeout_s=20.0)
+            self.node.destroy_node()
+            rclpy.try_shutdown()
+        for r in results:
+            r.reachable = self._reachable(r)
+        record_log = (self.out / "record.log").read_text(errors="replace").strip().splitlines()
+        summary = write_report(
+            self.out,
+            results,
+            self.director.series,
+            self.robot,
+            real_time_factor=sim / wall if wall > 0 else 0.0,
+            recording=record_log[-1] if record_log else "no recording",
+        )
+        print(summary.split("\n\n")[0], flush=True)
+        print(f"report: {self.out}")
+        reachable = [r for r in results if r.reachable]
+        caught = [r for r in reachable if r.caught]
+        return 0 if not reachable or len(caught) >= 0.9 * len(reachable) else 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="./run demo", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", default="report", help="report folder (a timestamped subfolder is created)")
+    parser.add_argument("--pacing", default="lockstep", choices=("lockstep", "realtime"))
+    parser.add_argument(
+        "--real-time-factor",
+        type=float,
+        default=0.0,
+        help="cap on simulated seconds per wall second; 0 = as fast as lockstep goes",
+    )
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--field", default="division_b", choices=("division_a", "division_b"))
+    parser.add_argument("--scenes", type=int, default=0, help="play only the first N scenes")
+    parser.add_argument("--robot-a-max", type=float, default=3.0, help="planning acceleration [m/s^2]")
+    parser.add_argument("--robot-v-max", type=float, default=2.0, help="planning speed [m/s]")
+    args = parser.parse_args(argv)
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    return Demo(args).run()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

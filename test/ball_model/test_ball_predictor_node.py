@@ -1,0 +1,350 @@
+"""ball_predictor over DDS: ball state and stop point, catch times, online identification, bad input.
+
+Observations are generated here from an independent closed form of the two-phase model (a kick
+from rest) and fed frame by frame, each answered before the next is sent. Expected catch times
+come from a brute-force search with the 1D bang-bang robot time (the robot is at rest on the
+ball's line, so the 2D problem is 1D).
+"""
+
+import math
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import PointStamped, PoseStamped
+from nav_msgs.msg import Odometry
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import (
+    odometry_from_msg,
+    point_from_msg,
+    pose2d_msg,
+    stamp_to_seconds,
+    table_from_msg,
+)
+from erforce_interfaces.robot_config import RobotConfig
+
+pytestmark = pytest.mark.integration
+
+NODE = "/ball_predictor"
+FPS = 70.0
+OFFSET_M = RobotConfig().dribbler_offset_m
+A_SLIDE, A_ROLL, C_SWITCH = 2.5, 0.3, 0.6  # the node's defaults (magnitudes), paper Sec. 5.2
+
+
+def kicked(tau, v0, a_slide=A_SLIDE, a_roll=A_ROLL, c_switch=C_SWITCH):
+    """(distance [m], speed [m/s]) ``tau`` seconds after a kick from rest at ``v0``."""
+    tau = np.maximum(np.asarray(tau, dtype=float), 0.0)
+    v_sw = c_switch * v0
+    t_sw = (v0 - v_sw) / a_slide
+    ts = np.minimum(tau, t_sw)
+    tr = np.clip(tau - t_sw, 0.0, v_sw / a_roll)
+    dist = v0 * ts - 0.5 * a_slide * ts**2 + v_sw * tr - 0.5 * a_roll * tr**2
+    speed = np.where(tau <= t_sw, v0 - a_slide * ts, v_sw - a_roll * tr)
+    return dist, np.maximum(speed, 0.0)
+
+
+def stop_distance(v0, a_slide=A_SLIDE, a_roll=A_ROLL, c_switch=C_SWITCH):
+    v_sw = c_switch * v0
+    return (v0**2 - v_sw**2) / (2.0 * a_slide) + v_sw**2 / (2.0 * a_roll)
+
+
+def shot_frames(t_start, p0, direction, v0, rest_frames=10, tail_s=0.3, **model):
+    """Frame stamps and positions: ``rest_frames`` at rest, then a kick between two frames."""
+    u = np.asarray(direction, dtype=float) / np.hypot(*direction)
+    t_kick = t_start + (rest_frames - 0.5) / FPS
+    v_sw = model.get("c_switch", C_SWITCH) * v0
+    t_stop = (v0 - v_sw) / model.get("a_slide", A_SLIDE) + v_sw / model.get("a_roll", A_ROLL)
+    t = t_start + np.arange(round((t_kick - t_start + t_stop + tail_s) * FPS)) / FPS
+    dist, speed = kicked(t - t_kick, v0, **model)
+    return t, np.asarray(p0) + dist[:, None] * u, speed[:, None] * u, t_kick
+
+
+def robot_time_1d(d_m, a_max, v_max):
+    """Bang-bang time from rest to rest over ``d_m`` (triangle or trapezoid profile)."""
+    d = np.abs(d_m)
+    return np.where(d <= v_max**2 / a_max, 2.0 * np.sqrt(d / a_max), d / v_max + v_max / a_max)
+
+
+def stamp_s(msg):
+    return round(stamp_to_seconds(msg.header.stamp), 6)
+
+
+def ball_msg(t_s, x, y):
+    msg = PointStamped()  # built by hand: the conversions would refuse NaN
+    msg.header.stamp.sec = int(math.floor(t_s))
+    msg.header.stamp.nanosec = int(round((t_s - math.floor(t_s)) * 1e9))
+    msg.header.frame_id = contract.FIELD_FRAME
+    msg.point.x, msg.point.y = float(x), float(y)
+    return msg
+
+
+class Rig:
+    def __init__(self, graph, **params):
+        params.setdefault("num_robots", 2)
+        self.graph = graph
+        self.n = params["num_robots"]
+        self.node = graph.start_node("erforce_ball_model", "ball_predictor", params=params)
+        probe = graph.probe
+        q = contract
+        self.state = probe.subscribe(q.BALL_STATE.name, Odometry, q.BALL_STATE.qos)
+        self.phase = probe.subscribe(q.BALL_PHASE.name, String, q.BALL_PHASE.qos)
+        self.stop = probe.subscribe(q.BALL_STOP_POINT.name, PointStamped, q.BALL_STOP_POINT.qos)
+        self.v_shoot = probe.subscribe(q.BALL_V_SHOOT.name, Float64, q.BALL_V_SHOOT.qos)
+        self.uncertain = probe.subscribe(q.BALL_UNCERTAIN.name, Bool, q.BALL_UNCERTAIN.qos)
+        self.model_params = probe.subscribe(q.BALL_MODEL_PARAMS.name, Float64MultiArray, q.BALL_MODEL_PARAMS.qos)
+        self.catch_time = [probe.subscribe(q.CATCH_TIME.for_robot(i), Float64, q.CATCH_TIME.qos)
+                           for i in range(self.n)]
+        self.catch_point = [probe.subscribe(q.CATCH_POINT.for_robot(i), PointStamped, q.CATCH_POINT.qos)
+                            for i in range(self.n)]
+        self.odom = [probe.subscribe(q.ODOM.for_robot(i), Odometry, q.ODOM.qos) for i in range(self.n)]
+        self.ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=20.0,
+                                                   qos=q.VISION_BALL.qos)
+        self.pose_pubs = [probe.wait_for_subscribers(q.VISION_POSE.for_robot(i), PoseStamped, timeout_s=20.0,
+                                                     qos=q.VISION_POSE.qos) for i in range(self.n)]
+        # Our readers must have matched the node's writers, or the first answers are lost.
+        readers = [s for s in probe.node.subscriptions if s.topic_name.startswith(("/ball/", "/robot_"))]
+        probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 20.0, "node publishers")
+        probe.spin_for(0.2)
+
+    def ball(self, t_s, x, y, answered=True):
+        """Send one frame; wait for its last message (uncertain) or make sure nothing comes."""
+        before = len(self.uncertain), len(self.state)
+        self.ball_pub.publish(ball_msg(t_s, x, y))
+        probe = self.graph.probe
+        if answered:
+            probe.spin_until(lambda: len(self.uncertain) > before[0] and len(self.state) > before[1], 5.0,
+                             f"answer to the frame at {t_s}")
+            assert stamp_s(self.state[-1]) == round(t_s, 6)
+        else:
+            probe.spin_for(0.3)
+            assert (len(self.uncertain), len(self.state)) == before, f"frame at {t_s} must not be answered"
+
+    def robot(self, i, t_s, x, y, yaw, answered=True):
+        before = len(self.odom[i])
+        msg = pose2d_msg(t_s, (0.0, 0.0, yaw))  # position set by hand: the conversions refuse NaN
+        msg.pose.position.x, msg.pose.position.y = float(x), float(y)
+        self.pose_pubs[i].publish(msg)
+        probe = self.graph.probe
+        if answered:
+            probe.spin_until(lambda: len(self.odom[i]) > before, 5.0, f"odom of robot_{i}")
+        else:
+            probe.spin_for(0.3)
+            assert len(self.odom[i]) == before
+
+    def settle(self):
+        self.graph.probe.spin_for(0.2)  # the catch messages of the last frame
+
+    def all_finite(self):
+        ok = all(np.isfinite(odometry_from_msg(m)[1]).all() and np.isfinite(odometry_from_msg(m)[2]).all()
+                 for m in self.state + sum(self.odom, []))
+        ok &= all(np.isfinite(point_from_msg(m)[1]).all() for m in self.stop + sum(self.catch_point, []))
+        ok &= all(math.isfinite(m.data) for m in self.v_shoot + sum(self.catch_time, []))
+        return ok
+
+
+def test_rolling_ball_state_stop_point_and_phases_match_the_closed_form(ros_graph):
+    rig = Rig(ros_graph)
+    v0, p0, u = 2.0, np.array([-2.0, 0.5]), np.array([0.8, -0.6])
+    t, xy, vel, t_kick = shot_frames(1.0, p0, u, v0)
+    for ti, (x, y) in zip(t, xy, strict=True):
+        rig.ball(ti, x, y)
+    rig.settle()
+    assert len(rig.state) == len(t)
+    phases = [m.data for m in rig.phase]
+    assert phases[0] == "unknown" and set(phases) <= set(contract.BALL_PHASES)
+    assert phases[5] == "stopped" and phases[-1] == "stopped"  # before the kick and after the stop
+
+    stop_true = p0 + stop_distance(v0) * u  # 2.912 m along u
+    t_switch = t_kick + (1.0 - C_SWITCH) * v0 / A_SLIDE  # 0.32 s after the kick
+    t_stop = t_switch + C_SWITCH * v0 / A_ROLL
+    checked = 0
+    for k, ti in enumerate(t):
+        _, pose, velocity, _ = odometry_from_msg(rig.state[k])
+        if t_kick + 0.1 < ti < t_switch - 0.05:
+            assert phases[k] == "sliding"
+        if t_switch + 0.3 < ti < t_stop - 0.5:  # rolling, settled after the switch
+            assert phases[k] == "rolling"
+            assert np.hypot(*(velocity[:2] - vel[k])) < 0.02
+            assert np.hypot(*(pose[:2] - xy[k])) < 0.005
+            assert np.hypot(*(point_from_msg(rig.stop[k])[1] - stop_true)) < 0.02
+            assert rig.v_shoot[k].data == pytest.approx(v0, rel=0.03)
+            checked += 1
+    assert checked > 150
+    assert not rig.uncertain[-1].data
+    assert all(len(c) == 0 for c in rig.catch_time)  # no robot seen: no catch outputs
+    assert rig.all_finite()
+
+
+@pytest.mark.parametrize("a_max", [3.0, 0.001])
+def test_robot_on_the_path_facing_the_ball_catches_it_when_brute_force_says(ros_graph, a_max):
+    """Ball kicked along +x at 2 m/s from x = -2; robot at rest at x = 0.5 on its line (default facing:
+    against the ball's motion, so the dribbler points to -x and touches the ball at x = 0.5 - offset)."""
+    v_max, x_robot = 2.0, 0.5
+    # With a_max = 1 mm/s^2 the catch window is only ~6 ms wide: a 2 ms grid is sure to see it.
+    rig = Rig(ros_graph, num_robots=1, robot_a_max_mps2=a_max, robot_v_max_mps=v_max, robot_timeout_s=100.0,
+              grid_step_s=0.01 if a_max > 1.0 else 0.002)
+    v0, p0 = 2.0, np.array([-2.0, 0.0])
+    t, xy, _, t_kick = shot_frames(1.0, p0, (1.0, 0.0), v0)
+    for ts in (0.90, 0.95):
+        rig.robot(0, ts, x_robot, 0.0, math.pi)
+    _, pose, velocity, _ = odometry_from_msg(rig.odom[0][-1])
+    assert np.allclose(pose[:2], [x_robot, 0.0]) and math.cos(pose[2]) == pytest.approx(-1.0)
+    assert np.allclose(velocity, 0.0)
+    x_dribbler = x_robot - OFFSET_M
+    for ti, (x, y) in zip(t, xy, strict=True):
+        rig.ball(ti, x, y)
+        if x > x_dribbler + 0.2:
+            break
+    rig.settle()
+    times = [m.data for m in rig.catch_time[0]]
+    assert len(times) == len(rig.state)
+
+    # Brute force: first s with robot_time(distance from robot to the catch position at s) <= s.
+    s = np.arange(0.0, 5.0, 1e-5)
+    checked = 0
+    for k, ti in enumerate(t[: len(times)]):
+        if not t_kick + 0.15 < ti < t_kick + 0.9:  # the kick is detected and the ball still far away
+            continue
+        ball_x = p0[0] + kicked(ti + s - t_kick, v0)[0]
+        robot_x_needed = ball_x + OFFSET_M  # robot centre behind the dribbler
+        feasible = robot_time_1d(robot_x_needed - x_robot, a_max, v_max) <= s
+        expected = s[np.argmax(feasible)]
+        t_drib = s[np.argmax(ball_x >= x_dribbler)]  # ball reaches the resting robot's dribbler
+        assert expected <= t_drib
+        assert times[k] == pytest.approx(expected, abs=0.003)
+        if a_max < 0.01:
+            # A robot that can hardly move catches when the ball arrives, minus the little it can
+            # still meet it: 2 sqrt(v_ball (T - s) / a) <= s gives T - s <= a T^2 / (4 v_ball) (3.4 ms here).
+            v_ball = kicked(ti + t_drib - t_kick, v0)[1]
+            early = t_drib - times[k]
+            assert -0.002 < early < a_max * t_drib**2 / (4.0 * v_ball) + 0.002
+        else:
+            assert times[k] < t_drib - 0.1  # it drives towards the ball instead
+        point = rig.catch_point[0][k]
+        assert stamp_s(point) == round(ti, 6)
+        catch_x = p0[0] + kicked(ti + expected - t_kick, v0)[0] + OFFSET_M
+        assert point_from_msg(point)[1] == pytest.approx([catch_x, 0.0], abs=0.01)
+        checked += 1
+    assert checked > 40
+    assert rig.all_finite()
+
+
+def test_ball_leaving_the_field_far_from_the_robot_is_never_caught(ros_graph):
+    """division_b: goal line at x = 4.5. Ball kicked from (3.0, 2.0) along +x at 4 m/s leaves after
+    ~0.4 s; the robot at (-4, -2.5) is 7 m away, which takes it more than 3.5 s at 2 m/s."""
+    rig = Rig(ros_graph, num_robots=1, robot_timeout_s=100.0)
+    rig.robot(0, 0.9, -4.0, -2.5, 0.0)
+    t, xy, _, t_kick = shot_frames(1.0, (3.0, 2.0), (1.0, 0.0), 4.0)
+    sent = 0
+    for ti, (x, y) in zip(t, xy, strict=True):
+        if x > 4.5 + 0.5:  # beyond vision_reject_margin_m the node would ignore it
+            break
+        rig.ball(ti, x, y)
+        sent += 1
+    rig.settle()
+    times = [m.data for m in rig.catch_time[0]]
+    assert len(times) == sent
+    after_kick = [c for c, ti in zip(times, t, strict=False) if ti > t_kick + 0.1]
+    assert len(after_kick) >= 10 and all(c == contract.CATCH_TIME_NEVER for c in after_kick)
+    assert times[0] > 0.0  # the resting ball before the kick can be fetched
+    n_never = sum(c == contract.CATCH_TIME_NEVER for c in times)
+    assert len(rig.catch_point[0]) == len(times) - n_never  # "never" has no catch point
+    assert rig.all_finite()
+
+
+def test_no_robots_seen_gives_no_catch_outputs_until_one_is_seen(ros_graph):
+    rig = Rig(ros_graph, num_robots=2)
+    for k in range(5):
+        rig.ball(1.0 + k / FPS, 1.0, 1.0)
+    rig.settle()
+    assert all(len(c) == 0 for c in rig.catch_time) and all(len(c) == 0 for c in rig.catch_point)
+    rig.robot(1, 1.06, 0.0, 1.0, 0.0)  # robot_1 at rest 1 m left of a resting ball, facing it
+    rig.ball(1.08, 1.0, 1.0)
+    rig.settle()
+    assert len(rig.catch_time[0]) == 0 and len(rig.catch_time[1]) == 1
+    # resting ball: drive 1 - offset m from rest (triangle profile: 2 sqrt(d / a), d <= v^2 / a)
+    d = 1.0 - OFFSET_M
+    assert rig.catch_time[1][0].data == pytest.approx(2.0 * math.sqrt(d / 3.0), abs=1e-3)
+    assert point_from_msg(rig.catch_point[1][0])[1] == pytest.approx([d, 1.0], abs=1e-3)
+
+
+def test_bad_observations_are_dropped_with_a_warning_and_nothing_non_finite_is_published(ros_graph):
+    rig = Rig(ros_graph, num_robots=1, robot_timeout_s=100.0)
+    rig.robot(0, 0.9, -1.0, 0.0, 0.0)
+    rig.ball(1.00, 0.0, 0.0)
+    rig.ball(1.01, 0.0, 0.0)
+    rig.ball(1.02, math.nan, 0.0, answered=False)
+    rig.node.wait_for_output("rejected vision/ball: point.x is not finite", timeout_s=5.0)
+    rig.ball(1.03, 0.0, math.inf, answered=False)
+    rig.ball(1.04, 1e9, 0.0, answered=False)
+    rig.ball(1.05, 9.0, 0.0, answered=False)  # division_b: |x| <= 4.5 + 0.5
+    rig.node.wait_for_output("rejected vision/ball outside the field", timeout_s=5.0)
+    rig.ball(0.50, 0.0, 0.0, answered=False)  # time went backwards
+    rig.node.wait_for_output("time went backwards", timeout_s=5.0)
+    rig.ball(1.01, 0.0, 0.0, answered=False)  # repeated stamp
+    rig.ball(1.06, 0.0, 0.0)  # the node goes on where it was
+    _, pose, velocity, _ = odometry_from_msg(rig.state[-1])
+    assert np.allclose(pose[:2], 0.0, atol=1e-9) and np.allclose(velocity[:2], 0.0, atol=1e-9)
+
+    rig.robot(0, 0.95, math.nan, 0.0, 0.0, answered=False)
+    rig.node.wait_for_output("robot_0: rejected vision_pose", timeout_s=5.0)
+    rig.robot(0, 0.96, 20.0, 0.0, 0.0, answered=False)
+    rig.robot(0, 0.80, -1.0, 0.0, 0.0, answered=False)
+    rig.robot(0, 0.97, -1.0, 0.0, 0.0)
+    rig.settle()
+    assert len(rig.catch_time[0]) == 3 and rig.all_finite()
+    assert rig.node.alive()
+
+
+BAD_PARAMS = [
+    ("a_slide_mps2", 0.0), ("a_slide_mps2", 2.5), ("a_slide_mps2", -0.2),  # |a_slide| must exceed |a_roll|
+    ("a_roll_mps2", 0.0), ("a_roll_mps2", 0.3), ("a_roll_mps2", math.nan),
+    ("c_switch", 0.0), ("c_switch", -0.6), ("c_switch", 1.5),
+    ("field", "division_c"), ("robot_a_max_mps2", 0.0), ("robot_v_max_mps", -2.0), ("grid_step_s", 0.0),
+    ("facing_mode", ["sideways"]), ("facing_mode", ["fixed", "fixed", "fixed"]), ("facing_rad", [math.inf]),
+    ("num_robots", 5),  # read-only
+]
+
+
+def test_bad_parameters_are_rejected_and_the_old_value_kept(ros_graph):
+    rig = Rig(ros_graph, num_robots=2)
+    probe = ros_graph.probe
+    for name, value in BAD_PARAMS:
+        before = probe.get_parameter(NODE, name)
+        result = probe.set_parameter(NODE, name, value)
+        assert not result.successful, (name, value)
+        assert probe.get_parameter(NODE, name) == before, name
+    rig.ball(1.0, 0.5, 0.5)
+    # A valid change is taken: a fixed facing of +x for both robots; the catch point of a resting
+    # ball is then the ball minus the offset along x.
+    assert probe.set_parameter(NODE, "facing_mode", ["fixed"]).successful
+    assert probe.set_parameter(NODE, "facing_rad", [0.0]).successful
+    assert probe.set_parameter(NODE, "a_roll_mps2", -0.4).successful
+    assert probe.get_parameter(NODE, "a_roll_mps2") == -0.4
+    rig.robot(0, 1.005, -1.0, 0.5, 0.0)
+    rig.ball(1.01, 0.5, 0.5)
+    rig.settle()
+    assert point_from_msg(rig.catch_point[0][-1])[1] == pytest.approx([0.5 - OFFSET_M, 0.5], abs=1e-6)
+    assert rig.all_finite()
+
+
+def test_online_identification_replaces_the_model_with_the_fitted_one(ros_graph):
+    true = {"a_slide": 3.0, "a_roll": 0.4, "c_switch": 0.65}  # not the node's defaults
+    rig = Rig(ros_graph, num_robots=1, online_identification=True, ident_min_shots=2)
+    rng = np.random.default_rng(5)
+    t0, x = 1.0, -4.0
+    for sign in (1.0, -1.0, 1.0):
+        t, xy, _, _ = shot_frames(t0, (x, 0.3), (sign, 0.0), 3.0, rest_frames=12, **true)
+        noisy = xy + rng.normal(0.0, 0.001, xy.shape)
+        for ti, (xi, yi) in zip(t, noisy, strict=True):
+            rig.ball(ti, xi, yi)
+        t0, x = t[-1] + 1.0 / FPS, xy[-1, 0]
+    ros_graph.probe.spin_until(lambda: len(rig.model_params) >= 2, 20.0, "two fits")
+    rig.node.wait_for_output("online identification: now using", timeout_s=10.0)
+    table = table_from_msg(rig.model_params[-1], contract.BALL_MODEL_PARAM_LABELS)
+    assert rig.model_params[-1].layout.dim[0].label == "fit,std_error,in_use"
+    fit, std, in_use = table
+    assert np.all(std < [0.1, 0.02, 0.03])
+    assert fit == pytest.approx([-true["a_slide"], -true["a_roll"], true["c_switch"]], abs=0.05)
+    assert np.array_equal(in_use, fit)
