@@ -371,14 +371,14 @@ def plant_model_rows(quick: bool = False, figures: str | Path | None = None) -> 
     settle, over = step_metrics(t, tw[:, 0], 2.0)
     rows += [
         {"name": "robot vx step 0->2 m/s: settling (2 %)", "value": settle * 1e3, "unit": "ms",
-         "target": "< 200", "note": "loop step (shaper 1000 m/s^2, no traction limit: the rigid model has none), ff on"},
+         "target": "< 200", "note": "loop step (1000 m/s^2, no traction limit), ff on"},
         {"name": "robot vx step 0->2 m/s: overshoot", "value": over, "unit": "%", "target": "< 5",
          "note": f"max |wz| {np.abs(tw[:, 2]).max():.2g} rad/s, max |vy| {np.abs(tw[:, 1]).max():.2g} m/s"},
     ]
     ts, tws = robot_step(VelocityControlConfig(), seconds=0.8)
     s2, o2 = step_metrics(ts, tws[:, 0], 2.0)
     rows.append({"name": "robot vx step 0->2 m/s, default shaper: settling", "value": s2 * 1e3, "unit": "ms",
-                 "target": "-", "note": f"traction-limited ramp (5.1 m/s^2 along +x) alone 393 ms; overshoot {o2:.2f} %"})
+                 "target": "-", "note": f"traction-limited ramp alone 393 ms; overshoot {o2:.2f} %"})
     tws_w, yw, cw = wheel_step()
     s3, o3 = step_metrics(tws_w, yw, 50.0)
     rows += [

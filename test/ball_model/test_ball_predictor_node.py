@@ -14,6 +14,7 @@ from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
+from erforce_ball_model.catcher import CatcherConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     odometry_from_msg,
@@ -66,14 +67,19 @@ def robot_time_1d(d_m, a_max, v_max):
     return np.where(d <= v_max**2 / a_max, 2.0 * np.sqrt(d / a_max), d / v_max + v_max / a_max)
 
 
+# Test times are relative; the node sees them shifted, so the handshake frame (below) comes first
+# and more than max_gap_s earlier: every test starts with a freshly initialized ball filter.
+T_SHIFT_S = 5.0
+
+
 def stamp_s(msg):
-    return round(stamp_to_seconds(msg.header.stamp), 6)
+    return round(stamp_to_seconds(msg.header.stamp) - T_SHIFT_S, 6)
 
 
 def ball_msg(t_s, x, y):
     msg = PointStamped()  # built by hand: the conversions would refuse NaN
-    msg.header.stamp.sec = int(math.floor(t_s))
-    msg.header.stamp.nanosec = int(round((t_s - math.floor(t_s)) * 1e9))
+    ns = round(t_s * 1e9)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
     msg.header.frame_id = contract.FIELD_FRAME
     msg.point.x, msg.point.y = float(x), float(y)
     return msg
@@ -105,15 +111,26 @@ class Rig:
         # Our readers must have matched the node's writers, or the first answers are lost.
         readers = [s for s in probe.node.subscriptions if s.topic_name.startswith(("/ball/", "/robot_"))]
         probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 20.0, "node publishers")
+        # ... and the node's writers ours (not observable from here): a handshake frame, resent until answered.
+        for attempt in range(20):
+            self.ball_pub.publish(ball_msg(0.5 + 0.001 * attempt, 0.0, 0.0))
+            try:
+                probe.spin_until(lambda: self.state and self.uncertain, 1.0, "handshake")
+                break
+            except TimeoutError:
+                continue
         probe.spin_for(0.2)
+        assert self.state, "ball_predictor never answered"
+        for received in (self.state, self.phase, self.stop, self.v_shoot, self.uncertain):
+            received.clear()
 
     def ball(self, t_s, x, y, answered=True):
         """Send one frame; wait for its last message (uncertain) or make sure nothing comes."""
         before = len(self.uncertain), len(self.state)
-        self.ball_pub.publish(ball_msg(t_s, x, y))
+        self.ball_pub.publish(ball_msg(t_s + T_SHIFT_S, x, y))
         probe = self.graph.probe
         if answered:
-            probe.spin_until(lambda: len(self.uncertain) > before[0] and len(self.state) > before[1], 5.0,
+            probe.spin_until(lambda: len(self.uncertain) > before[0] and len(self.state) > before[1], 10.0,
                              f"answer to the frame at {t_s}")
             assert stamp_s(self.state[-1]) == round(t_s, 6)
         else:
@@ -122,12 +139,12 @@ class Rig:
 
     def robot(self, i, t_s, x, y, yaw, answered=True):
         before = len(self.odom[i])
-        msg = pose2d_msg(t_s, (0.0, 0.0, yaw))  # position set by hand: the conversions refuse NaN
+        msg = pose2d_msg(t_s + T_SHIFT_S, (0.0, 0.0, yaw))  # position set by hand: the conversions refuse NaN
         msg.pose.position.x, msg.pose.position.y = float(x), float(y)
         self.pose_pubs[i].publish(msg)
         probe = self.graph.probe
         if answered:
-            probe.spin_until(lambda: len(self.odom[i]) > before, 5.0, f"odom of robot_{i}")
+            probe.spin_until(lambda: len(self.odom[i]) > before, 10.0, f"odom of robot_{i}")
         else:
             probe.spin_for(0.3)
             assert len(self.odom[i]) == before
@@ -136,11 +153,13 @@ class Rig:
         self.graph.probe.spin_for(0.2)  # the catch messages of the last frame
 
     def all_finite(self):
+        odoms = self.state + [m for msgs in self.odom for m in msgs]
+        points = self.stop + [m for msgs in self.catch_point for m in msgs]
+        floats = self.v_shoot + [m for msgs in self.catch_time for m in msgs]
         ok = all(np.isfinite(odometry_from_msg(m)[1]).all() and np.isfinite(odometry_from_msg(m)[2]).all()
-                 for m in self.state + sum(self.odom, []))
-        ok &= all(np.isfinite(point_from_msg(m)[1]).all() for m in self.stop + sum(self.catch_point, []))
-        ok &= all(math.isfinite(m.data) for m in self.v_shoot + sum(self.catch_time, []))
-        return ok
+                 for m in odoms)
+        ok &= all(np.isfinite(point_from_msg(m)[1]).all() for m in points)
+        return ok and all(math.isfinite(m.data) for m in floats)
 
 
 def test_rolling_ball_state_stop_point_and_phases_match_the_closed_form(ros_graph):
@@ -176,12 +195,12 @@ def test_rolling_ball_state_stop_point_and_phases_match_the_closed_form(ros_grap
     assert rig.all_finite()
 
 
-@pytest.mark.parametrize("a_max", [3.0, 0.001])
+@pytest.mark.parametrize("a_max", [3.0, 0.005])
 def test_robot_on_the_path_facing_the_ball_catches_it_when_brute_force_says(ros_graph, a_max):
     """Ball kicked along +x at 2 m/s from x = -2; robot at rest at x = 0.5 on its line (default facing:
     against the ball's motion, so the dribbler points to -x and touches the ball at x = 0.5 - offset)."""
     v_max, x_robot = 2.0, 0.5
-    # With a_max = 1 mm/s^2 the catch window is only ~6 ms wide: a 2 ms grid is sure to see it.
+    # With a_max = 5 mm/s^2 the catch window is only a T^2 / (2 v_ball) >= 12 ms wide: use a 2 ms grid.
     rig = Rig(ros_graph, num_robots=1, robot_a_max_mps2=a_max, robot_v_max_mps=v_max, robot_timeout_s=100.0,
               grid_step_s=0.01 if a_max > 1.0 else 0.002)
     v0, p0 = 2.0, np.array([-2.0, 0.0])
@@ -202,10 +221,13 @@ def test_robot_on_the_path_facing_the_ball_catches_it_when_brute_force_says(ros_
 
     # Brute force: first s with robot_time(distance from robot to the catch position at s) <= s.
     s = np.arange(0.0, 5.0, 1e-5)
+    t_switch = t_kick + (1.0 - C_SWITCH) * v0 / A_SLIDE
     checked = 0
     for k, ti in enumerate(t[: len(times)]):
         if not t_kick + 0.15 < ti < t_kick + 0.9:  # the kick is detected and the ball still far away
             continue
+        if t_switch - 0.03 < ti < t_switch + 0.12:
+            continue  # the filter lags the switch to rolling by a few mm/s for ~0.1 s (up to 13 ms in T)
         ball_x = p0[0] + kicked(ti + s - t_kick, v0)[0]
         robot_x_needed = ball_x + OFFSET_M  # robot centre behind the dribbler
         feasible = robot_time_1d(robot_x_needed - x_robot, a_max, v_max) <= s
@@ -215,7 +237,7 @@ def test_robot_on_the_path_facing_the_ball_catches_it_when_brute_force_says(ros_
         assert times[k] == pytest.approx(expected, abs=0.003)
         if a_max < 0.01:
             # A robot that can hardly move catches when the ball arrives, minus the little it can
-            # still meet it: 2 sqrt(v_ball (T - s) / a) <= s gives T - s <= a T^2 / (4 v_ball) (3.4 ms here).
+            # still meet it: 2 sqrt(v_ball (T - s) / a) <= s gives T - s <= a T^2 / (4 v_ball).
             v_ball = kicked(ti + t_drib - t_kick, v0)[1]
             early = t_drib - times[k]
             assert -0.002 < early < a_max * t_drib**2 / (4.0 * v_ball) + 0.002
@@ -233,7 +255,7 @@ def test_robot_on_the_path_facing_the_ball_catches_it_when_brute_force_says(ros_
 def test_ball_leaving_the_field_far_from_the_robot_is_never_caught(ros_graph):
     """division_b: goal line at x = 4.5. Ball kicked from (3.0, 2.0) along +x at 4 m/s leaves after
     ~0.4 s; the robot at (-4, -2.5) is 7 m away, which takes it more than 3.5 s at 2 m/s."""
-    rig = Rig(ros_graph, num_robots=1, robot_timeout_s=100.0)
+    rig = Rig(ros_graph, num_robots=1, robot_timeout_s=100.0, robot_a_max_mps2=3.0, robot_v_max_mps=2.0)
     rig.robot(0, 0.9, -4.0, -2.5, 0.0)
     t, xy, _, t_kick = shot_frames(1.0, (3.0, 2.0), (1.0, 0.0), 4.0)
     sent = 0
@@ -263,9 +285,11 @@ def test_no_robots_seen_gives_no_catch_outputs_until_one_is_seen(ros_graph):
     rig.ball(1.08, 1.0, 1.0)
     rig.settle()
     assert len(rig.catch_time[0]) == 0 and len(rig.catch_time[1]) == 1
-    # resting ball: drive 1 - offset m from rest (triangle profile: 2 sqrt(d / a), d <= v^2 / a)
+    # resting ball: drive 1 - offset m from rest to rest with the catcher's limits (the node's defaults)
     d = 1.0 - OFFSET_M
-    assert rig.catch_time[1][0].data == pytest.approx(2.0 * math.sqrt(d / 3.0), abs=1e-3)
+    limits = CatcherConfig()
+    expected = float(robot_time_1d(d, limits.a_max_mps2, limits.v_max_mps))
+    assert rig.catch_time[1][0].data == pytest.approx(expected, abs=1e-3)
     assert point_from_msg(rig.catch_point[1][0])[1] == pytest.approx([d, 1.0], abs=1e-3)
 
 
@@ -310,6 +334,9 @@ BAD_PARAMS = [
 def test_bad_parameters_are_rejected_and_the_old_value_kept(ros_graph):
     rig = Rig(ros_graph, num_robots=2)
     probe = ros_graph.probe
+    # the robot limits default to what the catcher drives with
+    assert probe.get_parameter(NODE, "robot_a_max_mps2") == CatcherConfig().a_max_mps2
+    assert probe.get_parameter(NODE, "robot_v_max_mps") == CatcherConfig().v_max_mps
     for name, value in BAD_PARAMS:
         before = probe.get_parameter(NODE, name)
         result = probe.set_parameter(NODE, name, value)

@@ -142,7 +142,8 @@ action = st.one_of(
     st.tuples(st.just("duty"), st.integers(0, 1), st.lists(duty, min_size=4, max_size=4)),
     st.tuples(st.just("kick"), st.integers(0, 1), st.floats(0.0, 20.0), st.floats(-1.0, 1.0)),
     st.tuples(st.just("robot"), st.integers(0, 1), position, st.floats(-5.0, 5.0), st.floats(-5.0, 5.0)),
-    st.tuples(st.just("ball"), position, st.floats(-15.0, 15.0), st.floats(-15.0, 15.0), st.floats(-1.0, 1.0)),
+    # |v| <= 14.1 * sqrt(2) < 20 m/s, World's plausibility limit (beyond it place_ball refuses, tested elsewhere)
+    st.tuples(st.just("ball"), position, st.floats(-14.1, 14.1), st.floats(-14.1, 14.1), st.floats(-1.0, 1.0)),
     st.tuples(st.just("dribble"), st.integers(0, 1), st.booleans()),
 )
 
@@ -171,3 +172,12 @@ def test_random_inputs_never_produce_non_finite_state(actions, dt):
         assert math.isfinite(w.energy().total_j)
         b = w.ball_state()
         assert abs(b.x) <= 4.8 and abs(b.y) <= 3.3
+
+
+def test_implausible_placements_are_refused_with_the_limit_in_the_message():
+    w = World(FIELD, [RobotSpec(x=-0.5)], BallState(0.0, 0.2), seed=1)
+    with pytest.raises(ValueError, match="exceeds the plausible limit 20"):
+        w.place_ball(0.0, 0.0, 15.0, 15.0)  # 21.2 m/s
+    with pytest.raises(ValueError, match="place_robot: vx"):
+        w.place_robot(0, 0.0, 0.0, 0.0, vx=25.0)
+    assert w.all_finite()

@@ -19,7 +19,6 @@ throttled warning and answered with nothing. All maths is in the cores.
 
 from __future__ import annotations
 
-import collections
 import concurrent.futures
 import inspect
 import math
@@ -272,12 +271,12 @@ class BallPredictorNode(Node):
         self._ball: BallTracker | None = None
         self._shots: ShotAccumulator | None = None
         self._fitted_shot = None  # the newest shot a fit was started with
+        self._frame_times_s: list[float] = []
         self._values = declare_params(self, PARAMS, build_config, self._apply)
         n = self._config.num_robots
         self._robots: list[RobotTracker | None] = [None] * n
         self._fit_pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ball_fit")
         self._fit_future: concurrent.futures.Future | None = None
-        self._frame_times_s: collections.deque[float] = collections.deque()
 
         q = contract
         self._state_pub = self.create_publisher(Odometry, q.BALL_STATE.name, q.BALL_STATE.qos)
@@ -315,6 +314,8 @@ class BallPredictorNode(Node):
         if self._ball is None or config.tracker != old.tracker:
             self._ball = BallTracker(self._model, config.tracker)  # filter state is lost: re-seeds
         self._ball.params = self._model
+        if old is None or config.timing_log_every != old.timing_log_every:
+            self._frame_times_s.clear()  # a new window starts with the change
         if config.online_identification and (self._shots is None or config.tracker != old.tracker):
             self._shots = ShotAccumulator(tracker_config=config.tracker)
             self._fitted_shot = None

@@ -1,0 +1,183 @@
+"""Latency of the ball_predictor node (paper Sec. 5.5 in the loop): vision frame -> catch time over DDS.
+
+A probe node publishes ``/vision/ball`` frames of a kicked ball (two-phase model, 2 mm noise) at
+the 70 Hz vision rate to a ball_predictor process that knows 22 robots (division A, both
+teams), and takes the wall time at which the frame's answers arrive: ``/ball/state`` (the first
+message of a frame) and ``/robot_21/catch_time`` (the last catch time of a frame). Frames are
+sent one at a time (the next after the answer), so there is no queueing. The node's own
+processing time per frame (callback entry to last publish) comes from its timing log
+(parameter ``timing_log_every``), collected over exactly the measured frames.
+
+Runs in a private DDS domain (erforce_interfaces.testing.RosGraph).
+
+    python bench/bench_ball_predictor.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+import time
+
+import numpy as np
+from geometry_msgs.msg import PointStamped
+from nav_msgs.msg import Odometry
+from std_msgs.msg import Float64
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import point_msg, pose2d_msg
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.testing import RosGraph
+
+NUM_ROBOTS = 22
+FPS = 70.0
+FIELD = FieldConfig.preset("division_a")
+A_SLIDE, A_ROLL, C_SWITCH = 2.5, 0.3, 0.6
+WARMUP_FRAMES = 30
+TIMING_RE = re.compile(r"processing over (\d+) frames: median ([\d.]+) ms, p99 ([\d.]+) ms, max ([\d.]+) ms")
+
+
+def _distance(tau: np.ndarray, v0: float) -> np.ndarray:
+    """Two-phase distance after a kick from rest (paper Sec. 5.1)."""
+    v_sw = C_SWITCH * v0
+    t_sw = (v0 - v_sw) / A_SLIDE
+    ts = np.clip(tau, 0.0, t_sw)
+    tr = np.clip(tau - t_sw, 0.0, v_sw / A_ROLL)
+    return v0 * ts - 0.5 * A_SLIDE * ts**2 + v_sw * tr - 0.5 * A_ROLL * tr**2
+
+
+def ball_frames(num_frames: int, rng: np.random.Generator) -> np.ndarray:
+    """(t, x, y) rows: shots back and forth between two corners, each from rest, 2 mm noise."""
+    a, b = np.array([-5.0, -3.5]), np.array([5.0, 3.5])
+    rows, t = [], 1.0
+    while len(rows) < num_frames:
+        span = float(np.hypot(*(b - a)))
+        v0 = math.sqrt(span / ((1 - C_SWITCH**2) / (2 * A_SLIDE) + C_SWITCH**2 / (2 * A_ROLL)))  # stops at b
+        t_stop = (1 - C_SWITCH) * v0 / A_SLIDE + C_SWITCH * v0 / A_ROLL
+        n = int((t_stop + 0.3) * FPS) + 10
+        tau = np.arange(n) / FPS - 10 / FPS  # 10 frames at rest first
+        xy = a + _distance(tau, v0)[:, None] * (b - a) / span
+        rows += [(t + k / FPS, *p) for k, p in enumerate(xy)]
+        t += n / FPS
+        a, b = b, a
+    out = np.array(rows[:num_frames])
+    out[:, 1:] += rng.normal(0.0, 0.002, (num_frames, 2))
+    return out
+
+
+def measure(num_frames: int) -> dict:
+    rng = np.random.default_rng(1)
+    with RosGraph() as graph:
+        node = graph.start_node(
+            "erforce_ball_model", "ball_predictor",
+            params={"num_robots": NUM_ROBOTS, "field": "division_a", "robot_timeout_s": 3600.0,
+                    "timing_log_every": 0},
+        )
+        probe = graph.probe
+        q = contract
+        state_rx: list[float] = []
+        catch_rx: list[float] = []
+        odom_rx: list[float] = []
+        probe.node.create_subscription(Odometry, q.BALL_STATE.name, lambda _m: state_rx.append(time.perf_counter()),
+                                       q.BALL_STATE.qos)
+        last = q.CATCH_TIME.for_robot(NUM_ROBOTS - 1)
+        probe.node.create_subscription(Float64, last, lambda _m: catch_rx.append(time.perf_counter()),
+                                       q.CATCH_TIME.qos)
+        probe.node.create_subscription(Odometry, q.ODOM.for_robot(NUM_ROBOTS - 1),
+                                       lambda _m: odom_rx.append(time.perf_counter()), q.ODOM.qos)
+        ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=30.0, qos=q.VISION_BALL.qos)
+        pose_pubs = [probe.wait_for_subscribers(q.VISION_POSE.for_robot(i), q.VISION_POSE.msg_type, timeout_s=30.0,
+                                                qos=q.VISION_POSE.qos) for i in range(NUM_ROBOTS)]
+        readers = [s for s in probe.node.subscriptions if s.topic_name.startswith(("/ball/", "/robot_"))]
+        probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 30.0, "node publishers")
+        probe.spin_for(0.3)
+
+        # 22 resting robots: half spread over the field, half near the shots' diagonal.
+        spread = rng.uniform([-5.8, -4.3], [5.8, 4.3], (NUM_ROBOTS // 2, 2))
+        along = rng.uniform(-4.5, 4.5, NUM_ROBOTS - NUM_ROBOTS // 2)
+        near = np.stack([along, along * 0.7], axis=-1) + rng.normal(0.0, 0.4, (along.size, 2))
+        robots = np.clip(np.vstack([spread, near]), [-5.9, -4.4], [5.9, 4.4])
+        for i, (x, y) in enumerate(robots):
+            pose_pubs[i].publish(pose2d_msg(0.5, (x, y, 0.0)))
+        probe.spin_until(lambda: len(odom_rx) > 0, 10.0, "robot odometry")
+
+        frames = ball_frames(WARMUP_FRAMES + num_frames, rng)
+        latency_state, latency_catch, lost = [], [], 0
+        period = 1.0 / FPS
+        next_send = time.perf_counter()
+        for k, (t, x, y) in enumerate(frames):
+            if k == WARMUP_FRAMES:
+                assert probe.set_parameter("/ball_predictor", "timing_log_every", num_frames).successful
+            n_state, n_catch = len(state_rx), len(catch_rx)
+            while time.perf_counter() < next_send:
+                probe.executor.spin_once(timeout_sec=max(0.0, next_send - time.perf_counter()))
+            sent = time.perf_counter()
+            ball_pub.publish(point_msg(t, (x, y)))
+            next_send = sent + period
+            try:
+                probe.spin_until(lambda n=n_catch: len(catch_rx) > n, 2.0, "catch time")
+            except TimeoutError:
+                lost += 1
+                continue
+            if k >= WARMUP_FRAMES and len(state_rx) > n_state:
+                latency_state.append(state_rx[n_state] - sent)
+                latency_catch.append(catch_rx[n_catch] - sent)
+        match = node.wait_for_output(TIMING_RE.pattern, timeout_s=10.0)
+    return {
+        "state_ms": 1e3 * np.array(latency_state),
+        "catch_ms": 1e3 * np.array(latency_catch),
+        "lost": lost,
+        "node_frames": int(match.group(1)),
+        "node_median_ms": float(match.group(2)),
+        "node_p99_ms": float(match.group(3)),
+        "node_max_ms": float(match.group(4)),
+    }
+
+
+def run(quick: bool = False) -> list[dict]:
+    num_frames = 500 if quick else 1200
+    m = measure(num_frames)
+    catch, state = m["catch_ms"], m["state_ms"]
+    note = f"{catch.size} frames, {NUM_ROBOTS} robots known, division A, 70 Hz"
+    return [
+        dict(name="vision -> catch_time (last of 22 robots) latency, p50", value=float(np.median(catch)), unit="ms",
+             target="-", note=note),
+        dict(name="vision -> catch_time (last of 22 robots) latency, p99", value=float(np.percentile(catch, 99)),
+             unit="ms", target="< 3", note=f"max {catch.max():.3f} ms"),
+        dict(name="vision -> ball/state latency, p50", value=float(np.median(state)), unit="ms", target="-",
+             note="first message of a frame"),
+        dict(name="vision -> ball/state latency, p99", value=float(np.percentile(state, 99)), unit="ms",
+             target="-", note=""),
+        dict(name="in-node processing per frame, median", value=m["node_median_ms"], unit="ms", target="-",
+             note=f"tracker + robotTimeToBall (22 robots) + 49 messages; {m['node_frames']} frames"),
+        dict(name="in-node processing per frame, p99", value=m["node_p99_ms"], unit="ms", target="-",
+             note=f"max {m['node_max_ms']:.3f} ms"),
+        dict(name="frames without an answer", value=m["lost"], unit="count", target="0",
+             note="best-effort vision QoS"),
+    ]
+
+
+def _fmt(value) -> str:
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    return f"{value:.4g}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="500 frames instead of 1200")
+    args = parser.parse_args(argv)
+    t0 = time.perf_counter()
+    rows = run(args.quick)
+    print("| benchmark | value | unit | target | note |")
+    print("|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['name']} | {_fmt(r['value'])} | {r['unit']} | {r['target']} | {r['note']} |")
+    print(f"\n(total {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
