@@ -6,7 +6,8 @@ teams), and takes the wall time at which the frame's answers arrive: ``/ball/sta
 message of a frame) and ``/robot_21/catch_time`` (the last catch time of a frame). Frames are
 sent one at a time (the next after the answer), so there is no queueing. The node's own
 processing time per frame (callback entry to last publish) comes from its timing log
-(parameter ``timing_log_every``), collected over exactly the measured frames.
+(parameter ``timing_log_every``), collected over exactly the measured frames. For attribution
+the same frames also run in-process through BallTracker + robot_time_to_ball alone (the cores).
 
 Runs in a private DDS domain (erforce_interfaces.testing.RosGraph).
 
@@ -26,9 +27,12 @@ from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64
 
+from erforce_ball_model.catch_time import RobotLimits, robot_time_to_ball
+from erforce_ball_model.catcher import CatcherConfig
+from erforce_ball_model.tracking import BallTracker
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import point_msg, pose2d_msg
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_interfaces.testing import RosGraph
 
 NUM_ROBOTS = 22
@@ -67,8 +71,35 @@ def ball_frames(num_frames: int, rng: np.random.Generator) -> np.ndarray:
     return out
 
 
+def robot_layout(rng: np.random.Generator) -> np.ndarray:
+    """22 resting robots: half spread over the field, half near the shots' diagonal."""
+    spread = rng.uniform([-5.8, -4.3], [5.8, 4.3], (NUM_ROBOTS // 2, 2))
+    along = rng.uniform(-4.5, 4.5, NUM_ROBOTS - NUM_ROBOTS // 2)
+    near = np.stack([along, along * 0.7], axis=-1) + rng.normal(0.0, 0.4, (along.size, 2))
+    return np.clip(np.vstack([spread, near]), [-5.9, -4.4], [5.9, 4.4])
+
+
+def measure_cores(frames: np.ndarray, robots: np.ndarray) -> np.ndarray:
+    """Per frame [ms]: BallTracker.update + trajectory + robot_time_to_ball for all robots, in-process."""
+    tracker, limits = BallTracker(), CatcherConfig()
+    robot_limits = RobotLimits(limits.a_max_mps2, limits.v_max_mps)
+    offset = RobotConfig().dribbler_offset_m
+    out = []
+    for t, x, y in frames:
+        t0 = time.perf_counter()
+        tracker.update(t, x, y)
+        traj = tracker.trajectory()
+        ball_vel = traj.velocity_mps
+        robot_time_to_ball(traj, robots, np.zeros_like(robots), robot_limits,
+                           math.atan2(-ball_vel[1], -ball_vel[0]), dribbler_offset_m=offset, field=FIELD)
+        out.append(time.perf_counter() - t0)
+    return 1e3 * np.array(out[WARMUP_FRAMES:])
+
+
 def measure(num_frames: int) -> dict:
     rng = np.random.default_rng(1)
+    robots = robot_layout(rng)
+    frames = ball_frames(WARMUP_FRAMES + num_frames, rng)
     with RosGraph() as graph:
         node = graph.start_node(
             "erforce_ball_model", "ball_predictor",
@@ -94,16 +125,10 @@ def measure(num_frames: int) -> dict:
         probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 30.0, "node publishers")
         probe.spin_for(0.3)
 
-        # 22 resting robots: half spread over the field, half near the shots' diagonal.
-        spread = rng.uniform([-5.8, -4.3], [5.8, 4.3], (NUM_ROBOTS // 2, 2))
-        along = rng.uniform(-4.5, 4.5, NUM_ROBOTS - NUM_ROBOTS // 2)
-        near = np.stack([along, along * 0.7], axis=-1) + rng.normal(0.0, 0.4, (along.size, 2))
-        robots = np.clip(np.vstack([spread, near]), [-5.9, -4.4], [5.9, 4.4])
         for i, (x, y) in enumerate(robots):
             pose_pubs[i].publish(pose2d_msg(0.5, (x, y, 0.0)))
         probe.spin_until(lambda: len(odom_rx) > 0, 10.0, "robot odometry")
 
-        frames = ball_frames(WARMUP_FRAMES + num_frames, rng)
         latency_state, latency_catch, lost = [], [], 0
         period = 1.0 / FPS
         next_send = time.perf_counter()
@@ -126,6 +151,7 @@ def measure(num_frames: int) -> dict:
                 latency_catch.append(catch_rx[n_catch] - sent)
         match = node.wait_for_output(TIMING_RE.pattern, timeout_s=10.0)
     return {
+        "cores_ms": measure_cores(frames, robots),
         "state_ms": 1e3 * np.array(latency_state),
         "catch_ms": 1e3 * np.array(latency_catch),
         "lost": lost,
@@ -147,13 +173,18 @@ def run(quick: bool = False) -> list[dict]:
         dict(name="vision -> catch_time (last of 22 robots) latency, p99", value=float(np.percentile(catch, 99)),
              unit="ms", target="< 3", note=f"max {catch.max():.3f} ms"),
         dict(name="vision -> ball/state latency, p50", value=float(np.median(state)), unit="ms", target="-",
-             note="first message of a frame"),
+             note="ball topics go out before the catch search"),
         dict(name="vision -> ball/state latency, p99", value=float(np.percentile(state, 99)), unit="ms",
              target="-", note=""),
         dict(name="in-node processing per frame, median", value=m["node_median_ms"], unit="ms", target="-",
              note=f"tracker + robotTimeToBall (22 robots) + 49 messages; {m['node_frames']} frames"),
         dict(name="in-node processing per frame, p99", value=m["node_p99_ms"], unit="ms", target="-",
              note=f"max {m['node_max_ms']:.3f} ms"),
+        dict(name="cores alone per frame (tracker + robotTimeToBall, 22 robots), median",
+             value=float(np.median(m["cores_ms"])), unit="ms", target="-", note="in-process, same frames"),
+        dict(name="cores alone per frame (tracker + robotTimeToBall, 22 robots), p99",
+             value=float(np.percentile(m["cores_ms"], 99)), unit="ms", target="-",
+             note=f"max {m['cores_ms'].max():.3f} ms"),
         dict(name="frames without an answer", value=m["lost"], unit="count", target="0",
              note="best-effort vision QoS"),
     ]

@@ -70,11 +70,11 @@ def test_lockstep_dds_graph_reproduces_the_in_process_trajectory(ros_graph):
     ros_graph.probe.spin_until(lambda: truth and odometry_from_msg(truth[-1])[0] >= 0.5, 60.0, "0.5 s")
     dds = {stamp_to_nanoseconds(m.header.stamp): odometry_from_msg(m) for m in truth}
 
-    runner = InProcessRunner(PlantSetup(robot_poses=((0.0, 0.0, 0.0),), ball=(2.0, 2.0, 0.0, 0.0), seed=7),
-                             VelocityControlConfig(), command_timeout_s=30.0)
+    setup = PlantSetup(robot_poses=((0.0, 0.0, 0.0),), ball=(2.0, 2.0, 0.0, 0.0), seed=7, control_period_s=0.002)
+    runner = InProcessRunner(setup, VelocityControlConfig(), command_timeout_s=30.0)
     runner.command(0, twist)
     compared = 0
-    for _ in range(500):
+    for _ in range(250):
         if runner.t_ns in dds:
             _, pose, vel, _ = dds[runner.t_ns]
             s = runner.world.robot_state(0)

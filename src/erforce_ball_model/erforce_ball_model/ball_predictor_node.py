@@ -334,7 +334,10 @@ class BallPredictorNode(Node):
             self._warn.warn(f"pose{robot}", f"robot_{robot}: rejected vision_pose outside the field: "
                                             f"({pose[0]:.3f}, {pose[1]:.3f}) m")
             return
-        tracker = self._robots[robot] or RobotTracker()
+        tracker = self._robots[robot]
+        if tracker is not None and self._restarted_clock(tracker.t_s, t_s, f"robot_{robot} tracker"):
+            tracker = None
+        tracker = tracker or RobotTracker()
         status = tracker.update(t_s, pose[0], pose[1], pose[2])
         if status == UpdateStatus.REJECTED_TIME:
             self._warn.warn(f"pose{robot}", f"robot_{robot}: rejected vision_pose: stamp {t_s:.6f} s is not "
@@ -354,6 +357,17 @@ class BallPredictorNode(Node):
             self._warn.warn(f"odom{robot}", f"robot_{robot}: odom not published: {exc}")
             return
         self._odom_pubs[robot].publish(odom)
+
+    def _restarted_clock(self, last_t_s: float | None, t_s: float, what: str) -> bool:
+        """A stamp more than max_gap_s before the newest one: the clock restarted (e.g. the simulator).
+
+        Smaller steps back are reordered or repeated frames and are rejected; after a restart
+        the old newest stamp would reject every frame until the new clock passed it.
+        """
+        if last_t_s is None or t_s >= last_t_s - self._config.tracker.max_gap_s:
+            return False
+        self.get_logger().warning(f"time went backwards ({last_t_s:.6f} -> {t_s:.6f} s): {what} restarted")
+        return True
 
     def _known_robots(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Indices, positions and velocities at ``t_s`` (constant-velocity extrapolation) of the fresh robots."""
@@ -380,6 +394,11 @@ class BallPredictorNode(Node):
         if not cfg.field.contains(xy[0], xy[1], cfg.vision_reject_margin_m):
             self._warn.warn("ball_outside", f"rejected vision/ball outside the field: ({xy[0]:.3f}, {xy[1]:.3f}) m")
             return
+        if self._restarted_clock(self._ball.t_s, t_s, "ball filter"):
+            self._ball = BallTracker(self._model, cfg.tracker)
+            if self._shots is not None:
+                self._shots = ShotAccumulator(tracker_config=cfg.tracker)
+                self._fitted_shot = None
         ball = self._ball
         last_t = ball.t_s
         status = ball.update(t_s, xy[0], xy[1])
@@ -391,55 +410,62 @@ class BallPredictorNode(Node):
             self._warn.warn("ball_invalid", "rejected vision/ball: invalid")
             return
         try:
-            messages = self._predict(t_s, status)
+            traj, messages = self._ball_messages(t_s, status)
         except ValueError as exc:  # e.g. an absurd speed from two frames 1 us apart: publish nothing
             self._warn.warn("predict", f"no prediction for the frame at {t_s:.6f} s: {exc}")
             return
+        for pub, out in messages:
+            pub.publish(out)
+        try:
+            messages = self._catch_messages(t_s, traj)
+        except ValueError as exc:
+            self._warn.warn("catch", f"no catch times for the frame at {t_s:.6f} s: {exc}")
+            messages = []
         for pub, out in messages:
             pub.publish(out)
         self._frame_done(time.perf_counter() - start)
         if self._shots is not None:
             self._identify(t_s, xy)
 
-    def _predict(self, t_s: float, status: UpdateStatus) -> list[tuple[Any, Any]]:
-        """All messages of one frame, in publishing order (built first: a failure publishes nothing)."""
+    def _ball_messages(self, t_s: float, status: UpdateStatus) -> tuple[BallTrajectory, list[tuple[Any, Any]]]:
+        """The ball's future and the ball topics' messages (all built first: a failure publishes nothing)."""
         cfg, ball = self._config, self._ball
         traj = ball.trajectory()
         if status == UpdateStatus.HELD_BACK:  # the filter waits for the next frame: predict to this stamp
             traj = traj.advanced(t_s - ball.t_s)
-        variance = float(max(ball.kf.p[0, 0], ball.kf.p[1, 1]))
-        state = odometry_msg(t_s, (*traj.position_m, 0.0), (*traj.velocity_mps, 0.0), child_frame_id="ball",
-                             position_variance_m2=variance)
-        messages: list[tuple[Any, Any]] = [(self._state_pub, state)]
-
-        ids, pos, vel = self._known_robots(t_s)
-        if ids.size:
-            facing = facing_angles(cfg.facing_fixed[ids], cfg.facing_rad[ids], traj, pos, cfg.rest_speed_mps)
-            catch = robot_time_to_ball(
-                traj, pos, vel, cfg.limits, facing, dribbler_offset_m=cfg.dribbler_offset_m, field=cfg.field,
-                field_margin_m=cfg.field_margin_m, grid_step_s=cfg.grid_step_s,
-            )
-            never = catch.kind == CatchKind.NEVER
-            times = np.where(never, contract.CATCH_TIME_NEVER, catch.time_s)
-            points = []
-            for k, i in enumerate(ids):
-                messages.append((self._catch_time_pubs[i], float64_msg(times[k])))
-                if not never[k]:  # "never" has no catch point: catch_time says so
-                    points.append((self._catch_point_pubs[i], point_msg(t_s, catch.robot_target_m[k])))
-            messages += points
-
         if status == UpdateStatus.INITIALIZED:
             phase = "unknown"
         elif traj.speed_mps <= cfg.rest_speed_mps:
             phase = "stopped"
         else:
             phase = PHASE_NAMES[BallPhase(int(traj.phase_at(0.0)))]
-        messages += [
+        variance = float(max(ball.kf.p[0, 0], ball.kf.p[1, 1]))
+        return traj, [
+            (self._state_pub, odometry_msg(t_s, (*traj.position_m, 0.0), (*traj.velocity_mps, 0.0),
+                                           child_frame_id="ball", position_variance_m2=variance)),
             (self._phase_pub, String(data=phase)),
             (self._stop_pub, point_msg(t_s, traj.stop_point)),
             (self._v_shoot_pub, float64_msg(float(traj.v_shoot_mps))),
             (self._uncertain_pub, Bool(data=bool(ball.uncertain))),
         ]
+
+    def _catch_messages(self, t_s: float, traj: BallTrajectory) -> list[tuple[Any, Any]]:
+        """catch_time and catch_point of every known robot: one vectorized robotTimeToBall call."""
+        cfg = self._config
+        ids, pos, vel = self._known_robots(t_s)
+        if not ids.size:
+            return []
+        facing = facing_angles(cfg.facing_fixed[ids], cfg.facing_rad[ids], traj, pos, cfg.rest_speed_mps)
+        catch = robot_time_to_ball(
+            traj, pos, vel, cfg.limits, facing, dribbler_offset_m=cfg.dribbler_offset_m, field=cfg.field,
+            field_margin_m=cfg.field_margin_m, grid_step_s=cfg.grid_step_s,
+        )
+        never = catch.kind == CatchKind.NEVER
+        times = np.where(never, contract.CATCH_TIME_NEVER, catch.time_s)
+        messages = [(self._catch_time_pubs[i], float64_msg(times[k])) for k, i in enumerate(ids)]
+        # "never" has no catch point: catch_time says so
+        messages += [(self._catch_point_pubs[i], point_msg(t_s, catch.robot_target_m[k]))
+                     for k, i in enumerate(ids) if not never[k]]
         return messages
 
     def _frame_done(self, elapsed_s: float) -> None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from geometry_msgs.msg import PointStamped, Twist
+from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64
@@ -26,7 +26,14 @@ from erforce_interfaces.conversions import (
     point_from_msg,
     twist_msg,
 )
-from erforce_interfaces.node_support import ParamSpec, ThrottledWarner, declare_params, run_node
+from erforce_interfaces.node_support import (
+    ParamSpec,
+    ThrottledWarner,
+    contract_publisher,
+    contract_subscription,
+    declare_params,
+    run_node,
+)
 
 _CC = CatcherConfig()
 
@@ -73,12 +80,12 @@ class CatcherNode(Node):
         self._engaged = False
         self._ball_moving_at = -math.inf  # robot time the ball was last seen moving
         q = contract
-        self._cmd_pub = self.create_publisher(Twist, q.CMD_VEL.name, q.CMD_VEL.qos)
-        self.create_subscription(Odometry, q.ODOM.name, self._on_odom, q.ODOM.qos)
-        self.create_subscription(Float64, q.CATCH_TIME.name, self._on_catch_time, q.CATCH_TIME.qos)
-        self.create_subscription(PointStamped, q.CATCH_POINT.name, self._on_catch_point, q.CATCH_POINT.qos)
-        self.create_subscription(Odometry, q.BALL_STATE.name, self._on_ball, q.BALL_STATE.qos)
-        self.create_subscription(Bool, q.BALL_DETECTED.name, self._on_barrier, q.BALL_DETECTED.qos)
+        self._cmd_pub = contract_publisher(self, q.CMD_VEL)
+        contract_subscription(self, q.ODOM, self._on_odom)
+        contract_subscription(self, q.CATCH_TIME, self._on_catch_time)
+        contract_subscription(self, q.CATCH_POINT, self._on_catch_point)
+        contract_subscription(self, q.BALL_STATE, self._on_ball)
+        contract_subscription(self, q.BALL_DETECTED, self._on_barrier)
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
 
     def _set_config(self, config: CatcherConfig) -> None:

@@ -18,11 +18,13 @@ from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from erforce_interfaces.contract import Topic
 from erforce_interfaces.robot_config import RobotConfig
 
 ParamValue = bool | int | float | str | list
@@ -129,6 +131,27 @@ def declare_params(
 
     node.add_on_set_parameters_callback(_on_set)
     return values
+
+
+def contract_publisher(node: Node, topic: Topic, resolved_name: str | None = None):
+    """A publisher for a contract topic, with the contract's type and QoS.
+
+    It has no default QoS-event handlers: rclpy adds each handler to every wait set, which
+    made a spin of a node with 20 publishers cost 347 us instead of 92 us here. A foreign
+    subscriber with an incompatible QoS still gets rclpy's warning on its own side.
+    """
+    return node.create_publisher(topic.msg_type, resolved_name or topic.name, topic.qos,
+                                 event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
+
+
+def contract_subscription(node: Node, topic: Topic, callback: Callable, resolved_name: str | None = None):
+    """A subscription to a contract topic, with the contract's type and QoS.
+
+    No default QoS-event handler either (see contract_publisher); the topic's QoS comes from
+    the contract on both sides, so they cannot be incompatible within the stack.
+    """
+    return node.create_subscription(topic.msg_type, resolved_name or topic.name, callback, topic.qos,
+                                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
 
 
 ROBOT_PREFIX = "robot."

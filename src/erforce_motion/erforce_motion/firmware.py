@@ -137,6 +137,8 @@ class MotorBoardLoop:
             self.notice = f"time went backwards ({self._now_s:.6f} -> {t_s:.6f} s): motor boards reset"
             self.board.reset()
             self._last_run_s = None
+            # the old time line's setpoint is void (and would overwrite this notice with a timeout)
+            self._setpoint = np.zeros(self.robot.num_wheels)
             self._setpoint_time_s = -math.inf
         self._now_s = t_s
         if self._last_run_s is not None and t_s - self._last_run_s < self.loop_period_s - _TICK_TOLERANCE_S:

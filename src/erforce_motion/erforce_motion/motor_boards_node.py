@@ -16,7 +16,6 @@ from typing import Any
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
@@ -30,6 +29,8 @@ from erforce_interfaces.lockstep import SetpointJoin
 from erforce_interfaces.node_support import (
     ParamSpec,
     ThrottledWarner,
+    contract_publisher,
+    contract_subscription,
     declare_params,
     robot_config_from_params,
     robot_param_specs,
@@ -43,7 +44,7 @@ _MB = MotorBoardConfig()  # node defaults are the core's defaults
 PARAMS = (
     ParamSpec(
         "loop_rate_hz",
-        1000.0,
+        500.0,
         "motor-board loop rate; slower than the sensor ticks holds the duty [Hz]",
         min=1.0,
         max=50000.0,
@@ -161,18 +162,12 @@ class MotorBoardsNode(Node):
         self._join = SetpointJoin(wait=self._values["lockstep_sync"])
         self._pending: collections.deque = collections.deque()  # (stamp_ns, speeds, currents, wall_s)
         self._last_status_ns: int | None = None
-        self._duty_pub = self.create_publisher(JointState, contract.MOTOR_DUTY.name, contract.MOTOR_DUTY.qos)
-        self._status_pub = self.create_publisher(
-            Float64MultiArray, contract.MOTOR_STATUS.name, contract.MOTOR_STATUS.qos
-        )
-        self.create_subscription(
-            JointState, contract.WHEEL_STATES.name, self._on_wheel_states, contract.WHEEL_STATES.qos
-        )
-        self.create_subscription(
-            JointState, contract.WHEEL_SETPOINTS.name, self._on_setpoints, contract.WHEEL_SETPOINTS.qos
-        )
+        self._duty_pub = contract_publisher(self, contract.MOTOR_DUTY)
+        self._status_pub = contract_publisher(self, contract.MOTOR_STATUS)
+        contract_subscription(self, contract.WHEEL_STATES, self._on_wheel_states)
+        contract_subscription(self, contract.WHEEL_SETPOINTS, self._on_setpoints)
         # Wall-clock timer: a silent velocity controller must not hold a tick forever.
-        self.create_timer(0.01, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.create_timer(0.05, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _apply(self, loop: MotorBoardLoop) -> None:
         if self._loop is not None:

@@ -23,6 +23,8 @@ from erforce_interfaces.conversions import (
 from erforce_interfaces.node_support import (
     ParamSpec,
     ThrottledWarner,
+    contract_publisher,
+    contract_subscription,
     declare_params,
     robot_config_from_params,
     robot_param_specs,
@@ -36,7 +38,7 @@ _VC = VelocityControlConfig()  # node defaults are the core's defaults
 PARAMS = (
     ParamSpec(
         "loop_rate_hz",
-        1000.0,
+        500.0,
         "velocity loop rate; slower than the sensor ticks holds the setpoints [Hz]",
         min=1.0,
         max=20000.0,
@@ -134,13 +136,9 @@ class VelocityControllerNode(Node):
         self._warn = ThrottledWarner(self)
         self._loop: MainBoardLoop | None = None
         self._values = declare_params(self, PARAMS, build_loop, self._apply)
-        self._setpoint_pub = self.create_publisher(
-            JointState, contract.WHEEL_SETPOINTS.name, contract.WHEEL_SETPOINTS.qos
-        )
-        self.create_subscription(Twist, contract.CMD_VEL.name, self._on_cmd_vel, contract.CMD_VEL.qos)
-        self.create_subscription(
-            JointState, contract.WHEEL_STATES.name, self._on_wheel_states, contract.WHEEL_STATES.qos
-        )
+        self._setpoint_pub = contract_publisher(self, contract.WHEEL_SETPOINTS)
+        contract_subscription(self, contract.CMD_VEL, self._on_cmd_vel)
+        contract_subscription(self, contract.WHEEL_STATES, self._on_wheel_states)
 
     def _apply(self, loop: MainBoardLoop) -> None:
         if self._loop is not None:

@@ -306,6 +306,7 @@ class Demo:
             "output:=screen",
             f"robot_a_max_mps2:={float(self.args.robot_a_max)}",
             f"robot_v_max_mps:={float(self.args.robot_v_max)}",
+            f"robot_side:={str(self.args.robot_side).lower()}",
         ]
         log = open(self.out / "graph.log", "wb")
         self.launch = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
@@ -434,6 +435,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scenes", type=int, default=0, help="play only the first N scenes")
     parser.add_argument("--robot-a-max", type=float, default=3.0, help="planning acceleration [m/s^2]")
     parser.add_argument("--robot-v-max", type=float, default=2.0, help="planning speed [m/s]")
+    parser.add_argument(
+        "--robot-side",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="start robot_0's velocity_controller and motor_boards; --no-robot-side when they run "
+        "on the robot, another host (see test/two_hosts)",
+    )
     args = parser.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     return Demo(args).run()

@@ -1,0 +1,221 @@
+"""Shared pieces of the fault tests (issue 6): a non-finite field walker, a watch over every
+contract topic of a graph, and the closed-loop graph (plant, one robot, optionally the ball
+predictor and the catcher) started as real node processes."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import odometry_from_msg, stamp_to_seconds
+
+ROBOT_YAML = Path(__file__).resolve().parents[2] / "src/erforce_interfaces/config/robot.yaml"
+
+_FLOAT_TYPES = ("double", "float")
+
+
+def non_finite_fields(msg, prefix: str = "") -> list[str]:
+    """Paths of every non-finite float in ``msg``, walking nested messages, arrays and sequences."""
+    bad: list[str] = []
+    for name, type_name in msg.get_fields_and_field_types().items():
+        value = getattr(msg, name)
+        path = prefix + name
+        base = type_name.split("<")[-1].split("[")[0].rstrip(">").split(",")[0]
+        if type_name in _FLOAT_TYPES:
+            if not math.isfinite(value):
+                bad.append(path)
+        elif base in _FLOAT_TYPES:  # double[36], sequence<double>, sequence<double, 3>
+            arr = np.asarray(value, dtype=float)
+            bad += [f"{path}[{k}]" for k in np.flatnonzero(~np.isfinite(arr))]
+        elif hasattr(value, "get_fields_and_field_types"):
+            bad += non_finite_fields(value, path + ".")
+        elif isinstance(value, list | tuple):
+            for k, item in enumerate(value):
+                if hasattr(item, "get_fields_and_field_types"):
+                    bad += non_finite_fields(item, f"{path}[{k}].")
+    return bad
+
+
+def topic_names(robots: Iterable[int], topics=contract.TOPICS) -> list[tuple[str, contract.Topic]]:
+    """(resolved name, topic) of every contract topic for the given robots."""
+    out = []
+    for t in topics:
+        if t.per_robot:
+            out += [(t.for_robot(i), t) for i in robots]
+        else:
+            out.append((t.name, t))
+    return out
+
+
+class TopicWatch:
+    """Subscribes to contract topics with their QoS; checks every message as it arrives.
+
+    ``non_finite`` collects (topic, field paths) of every message with a non-finite float;
+    ``counts`` the messages per topic; ``keep`` names the topics whose messages are stored.
+    """
+
+    def __init__(self, probe, robots: Iterable[int] = (0,), exclude: Iterable[str] = (),
+                 keep: Iterable[str] = ()) -> None:
+        self.counts: dict[str, int] = {}
+        self.non_finite: list[tuple[str, list[str]]] = []
+        self.latest: dict[str, object] = {}
+        self.kept: dict[str, list] = {name: [] for name in keep}
+        excluded = set(exclude)
+        self.topics = [(n, t) for n, t in topic_names(robots) if n not in excluded]
+        for name, t in self.topics:
+            self.counts[name] = 0
+            probe.node.create_subscription(t.msg_type, name, lambda m, n=name: self._on(n, m), t.qos)
+
+    def _on(self, name: str, msg) -> None:
+        self.counts[name] += 1
+        bad = non_finite_fields(msg)
+        if bad:
+            self.non_finite.append((name, bad))
+        self.latest[name] = msg
+        if name in self.kept:
+            self.kept[name].append(msg)
+
+    def assert_all_finite(self) -> None:
+        assert not self.non_finite, f"non-finite values published: {self.non_finite[:10]}"
+
+
+def body_twist(odom: Odometry) -> np.ndarray:
+    """[vx, vy, wz] of a field-frame odometry, rotated into the robot's base_link."""
+    _, pose, vel, _ = odometry_from_msg(odom)
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return np.array([c * vel[0] + s * vel[1], -s * vel[0] + c * vel[1], vel[2]])
+
+
+class ClosedLoop:
+    """plant + robot_0's velocity_controller and motor_boards (+ ball_predictor, catcher), all watched.
+
+    ``command`` sets a cmd_vel that the spin helpers republish every ``command_period_s`` of
+    wall time, as an AI would; ``None`` stops publishing (the catcher, or nothing, drives).
+    """
+
+    NODES = ("velocity_controller", "motor_boards", "ball_predictor", "catcher", "plant")
+
+    def __init__(self, graph, *, plant: dict | None = None, vc: dict | None = None, mb: dict | None = None,
+                 predictor: dict | None = None, catcher: dict | None = None, with_ball_model: bool = False,
+                 exclude: Iterable[str] = (), command_period_s: float = 0.02,
+                 robot_yaml: Path = ROBOT_YAML) -> None:
+        self.graph = graph
+        self.robot_yaml = robot_yaml
+        self.probe = graph.probe
+        self.params = {
+            "plant": {"robot_poses": [0.0, 0.0, 0.0], "ball": [-2.0, 2.0, 0.0, 0.0], "real_time_factor": 1.0,
+                      "lockstep_timeout_s": 0.3, **(plant or {})},
+            "velocity_controller": {"use_sim_time": True, **(vc or {})},
+            "motor_boards": {"use_sim_time": True, **(mb or {})},
+            "ball_predictor": {"use_sim_time": True, "num_robots": 1, **(predictor or {})},
+            "catcher": {"use_sim_time": True, **(catcher or {})},
+        }
+        self.with_ball_model = with_ball_model
+        self.watch = TopicWatch(self.probe, exclude=exclude,
+                                keep=("/sim/events", "/robot_0/ground_truth/odom", "/robot_0/motor_status",
+                                      "/robot_0/ground_truth/motors", "/robot_0/cmd_vel"))
+        self.procs: dict[str, object] = {}
+        self._twist: Twist | None = None
+        self._cmd_pub = None
+        self._command_period_s = command_period_s
+        self._last_cmd_wall = 0.0
+
+    # ------------------------------------------------------------ processes
+    def start(self, node: str):
+        namespace = "robot_0" if node in ("velocity_controller", "motor_boards", "catcher") else None
+        package = {"plant": "erforce_sim", "ball_predictor": "erforce_ball_model", "catcher": "erforce_ball_model"}
+        params_file = None if node == "catcher" else self.robot_yaml
+        proc = self.graph.start_node(package.get(node, "erforce_motion"), node, namespace=namespace,
+                                     params_file=params_file, params=self.params[node])
+        self.procs[node] = proc
+        return proc
+
+    def start_all(self) -> None:
+        """Robot nodes first: the plant starts ticking once both wheel_states readers are up."""
+        self.start("velocity_controller")
+        self.start("motor_boards")
+        if self.with_ball_model:
+            self.start("ball_predictor")
+            self.start("catcher")
+        self.start("plant")
+        self.spin_until(lambda: self.sim_s() > 0.2, 60.0, "the loop running (0.2 s of sim time)")
+
+    def kill(self, node: str, sig: int) -> int:
+        proc = self.procs[node]
+        proc.signal(sig)
+        deadline = time.monotonic() + 15.0
+        while proc.alive():  # keep spinning: the probe must not fall behind meanwhile
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{node} did not exit after signal {sig}")
+            self.probe.spin_for(0.02)
+        return proc.popen.returncode
+
+    # ------------------------------------------------------------- spinning
+    def command(self, vx: float, vy: float = 0.0, wz: float = 0.0) -> None:
+        if self._cmd_pub is None:
+            self._cmd_pub = self.probe.wait_for_subscribers("/robot_0/cmd_vel", Twist, timeout_s=30.0)
+        msg = Twist()
+        msg.linear.x, msg.linear.y, msg.angular.z = float(vx), float(vy), float(wz)
+        self._twist = msg
+        self._publish_command()
+
+    def stop_commanding(self) -> None:
+        self._twist = None
+
+    def _publish_command(self) -> None:
+        if self._twist is not None:
+            self._cmd_pub.publish(self._twist)
+            self._last_cmd_wall = time.monotonic()
+
+    def spin_until(self, condition, timeout_s: float, what: str) -> None:
+        deadline = time.monotonic() + timeout_s
+        while not condition():
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{what} not reached within {timeout_s} s (sim time {self.sim_s():.3f} s)")
+            if self._twist is not None and time.monotonic() - self._last_cmd_wall > self._command_period_s:
+                self._publish_command()
+            self.probe.executor.spin_once(timeout_sec=0.005)
+
+    def spin_sim(self, duration_s: float, timeout_s: float = 60.0) -> float:
+        """Spin until ``duration_s`` of simulated time has passed; returns the sim time reached."""
+        start = self.sim_s()
+        self.spin_until(lambda: self.sim_s() >= start + duration_s, timeout_s, f"{duration_s} s of sim time")
+        return self.sim_s()
+
+    def spin_wall(self, duration_s: float) -> None:
+        end = time.monotonic() + duration_s
+        self.spin_until(lambda: time.monotonic() >= end, duration_s + 1.0, "wall time")
+
+    # -------------------------------------------------------------- queries
+    def sim_s(self) -> float:
+        """Newest ground-truth stamp (the plant's time, 100 Hz); -1 before the first."""
+        truth = self.watch.latest.get("/robot_0/ground_truth/odom")
+        return stamp_to_seconds(truth.header.stamp) if truth is not None else -1.0
+
+    def events(self) -> list[str]:
+        return [m.data for m in self.watch.kept["/sim/events"]]
+
+    def velocity(self) -> np.ndarray:
+        """robot_0's true body twist [vx, vy, wz] in base_link."""
+        return body_twist(self.watch.latest["/robot_0/ground_truth/odom"])
+
+    def truth(self) -> list[tuple[float, np.ndarray]]:
+        """(t [s], body twist) of every ground-truth odometry received."""
+        return [(stamp_to_seconds(m.header.stamp), body_twist(m)) for m in self.watch.kept["/robot_0/ground_truth/odom"]]
+
+    def assert_follows(self, twist, tol_mps: float = 0.05, settle_s: float = 1.0, timeout_s: float = 60.0) -> None:
+        """Within ``settle_s`` of sim time, the true body twist comes within ``tol_mps`` of ``twist``."""
+        start = self.sim_s()
+        want = np.asarray(twist, dtype=float)
+        self.spin_until(lambda: np.all(np.abs(self.velocity() - want) <= tol_mps) or self.sim_s() > start + settle_s,
+                        timeout_s, f"following {want.tolist()}")
+        assert np.all(np.abs(self.velocity() - want) <= tol_mps), (
+            f"robot does not follow cmd_vel {want.tolist()}: true body twist {self.velocity().round(3).tolist()} "
+            f"after {self.sim_s() - start:.2f} s of sim time")

@@ -1,0 +1,63 @@
+"""Issue 6, fault tests: when cmd_vel stops arriving the robot stops, within the velocity
+controller's command timeout plus the braking time at the setpoint shaper's deceleration."""
+
+import numpy as np
+import pytest
+
+from erforce_interfaces.conversions import stamp_to_seconds
+from erforce_interfaces.robot_config import RobotConfig
+from erforce_motion.velocity_control import SetpointShaper, VelocityControlConfig, wheel_force_per_accel
+from faults_support import ClosedLoop
+
+pytestmark = pytest.mark.integration
+
+COMMAND_TIMEOUT_S = 0.2
+MAX_ACCEL_MPS2 = 3.0
+V0_MPS = 1.0
+REST_MPS = 0.02
+# The robot lags the shaped setpoint by the wheel loops' response (tens of ms, measured
+# ~30 ms on this plant), plus one ground-truth sample (10 ms) and the sim time between the
+# probe's last observation of a tick and the velocity controller reading that cmd_vel
+# (real-time pacing: a few ms).
+LAG_S = 0.06
+
+
+def braking_decel_mps2(direction_xy) -> float:
+    """The shaper's deceleration along a body-frame direction: max_accel or the traction limit."""
+    robot = RobotConfig()
+    config = VelocityControlConfig(max_accel_mps2=MAX_ACCEL_MPS2)
+    limit_n = SetpointShaper(config, robot).wheel_force_limit_n
+    u = np.asarray(direction_xy, dtype=float) / np.hypot(*direction_xy)
+    force_per_mps2 = np.max(np.abs(wheel_force_per_accel(robot)[:, :2] @ u))
+    return min(MAX_ACCEL_MPS2, limit_n / force_per_mps2)
+
+
+def test_robot_stops_within_command_timeout_plus_braking(ros_graph):
+    a_brake = braking_decel_mps2((1.0, 0.0))
+    assert a_brake == MAX_ACCEL_MPS2  # forward, 3 m/s^2 is below the traction limit (5.1 m/s^2)
+    loop = ClosedLoop(ros_graph, plant={"robot_poses": [-3.0, 0.0, 0.0]},
+                      vc={"command_timeout_s": COMMAND_TIMEOUT_S, "max_accel_mps2": MAX_ACCEL_MPS2})
+    loop.start_all()
+    loop.command(V0_MPS)
+    loop.assert_follows((V0_MPS, 0.0, 0.0), tol_mps=0.03, settle_s=2.0)
+    loop.spin_sim(0.3)  # cruising
+
+    loop.command(V0_MPS)  # the last command ...
+    loop.stop_commanding()
+    # ... is read by the velocity controller at a tick no earlier than the newest one seen here
+    t_last_cmd = stamp_to_seconds(loop.watch.latest["/robot_0/wheel_states"].header.stamp)
+    v0 = loop.velocity()[0]
+    loop.spin_until(lambda: loop.sim_s() > t_last_cmd + 3.0, 60.0, "3 s after the last command")
+
+    samples = [(t, v) for t, v in loop.truth() if t >= t_last_cmd]
+    moving = [t for t, v in samples if np.hypot(v[0], v[1]) >= REST_MPS]
+    t_stop = next(t for t, v in samples if t > max(moving))  # at rest from here on
+    assert all(np.hypot(v[0], v[1]) < REST_MPS and abs(v[2]) < 0.05 for t, v in samples if t >= t_stop)
+
+    bound = COMMAND_TIMEOUT_S + v0 / a_brake
+    elapsed = t_stop - t_last_cmd
+    assert elapsed <= bound + LAG_S, f"stopped {elapsed:.3f} s after the last cmd_vel, bound {bound:.3f} s"
+    # and not earlier than the timeout and the shaper's deceleration allow (one sample of slack)
+    assert elapsed >= bound - 0.01, f"stopped {elapsed:.3f} s after the last cmd_vel, before {bound:.3f} s"
+    loop.procs["velocity_controller"].wait_for_output(f"no command for {COMMAND_TIMEOUT_S:g} s: stopping")
+    loop.watch.assert_all_finite()
