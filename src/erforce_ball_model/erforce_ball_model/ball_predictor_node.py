@@ -28,9 +28,8 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import PointStamped, PoseStamped
-from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+from std_msgs.msg import Bool, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
 from erforce_ball_model.catch_time import CatchKind, RobotLimits, robot_time_to_ball
@@ -50,6 +49,8 @@ from erforce_interfaces.conversions import (
 from erforce_interfaces.node_support import (
     ParamSpec,
     ThrottledWarner,
+    contract_publisher,
+    contract_subscription,
     declare_params,
     robot_config_from_params,
     robot_param_specs,
@@ -279,26 +280,20 @@ class BallPredictorNode(Node):
         self._fit_future: concurrent.futures.Future | None = None
 
         q = contract
-        self._state_pub = self.create_publisher(Odometry, q.BALL_STATE.name, q.BALL_STATE.qos)
-        self._phase_pub = self.create_publisher(String, q.BALL_PHASE.name, q.BALL_PHASE.qos)
-        self._stop_pub = self.create_publisher(PointStamped, q.BALL_STOP_POINT.name, q.BALL_STOP_POINT.qos)
-        self._v_shoot_pub = self.create_publisher(Float64, q.BALL_V_SHOOT.name, q.BALL_V_SHOOT.qos)
-        self._uncertain_pub = self.create_publisher(Bool, q.BALL_UNCERTAIN.name, q.BALL_UNCERTAIN.qos)
-        self._params_pub = self.create_publisher(
-            Float64MultiArray, q.BALL_MODEL_PARAMS.name, q.BALL_MODEL_PARAMS.qos
-        )
-        self._odom_pubs = [self.create_publisher(Odometry, q.ODOM.for_robot(i), q.ODOM.qos) for i in range(n)]
-        self._catch_time_pubs = [
-            self.create_publisher(Float64, q.CATCH_TIME.for_robot(i), q.CATCH_TIME.qos) for i in range(n)
-        ]
+        self._state_pub = contract_publisher(self, q.BALL_STATE)
+        self._phase_pub = contract_publisher(self, q.BALL_PHASE)
+        self._stop_pub = contract_publisher(self, q.BALL_STOP_POINT)
+        self._v_shoot_pub = contract_publisher(self, q.BALL_V_SHOOT)
+        self._uncertain_pub = contract_publisher(self, q.BALL_UNCERTAIN)
+        self._params_pub = contract_publisher(self, q.BALL_MODEL_PARAMS)
+        self._odom_pubs = [contract_publisher(self, q.ODOM, q.ODOM.for_robot(i)) for i in range(n)]
+        self._catch_time_pubs = [contract_publisher(self, q.CATCH_TIME, q.CATCH_TIME.for_robot(i)) for i in range(n)]
         self._catch_point_pubs = [
-            self.create_publisher(PointStamped, q.CATCH_POINT.for_robot(i), q.CATCH_POINT.qos) for i in range(n)
+            contract_publisher(self, q.CATCH_POINT, q.CATCH_POINT.for_robot(i)) for i in range(n)
         ]
-        self.create_subscription(PointStamped, q.VISION_BALL.name, self._on_ball, q.VISION_BALL.qos)
+        contract_subscription(self, q.VISION_BALL, self._on_ball)
         for i in range(n):
-            self.create_subscription(
-                PoseStamped, q.VISION_POSE.for_robot(i), lambda m, i=i: self._on_robot(i, m), q.VISION_POSE.qos
-            )
+            contract_subscription(self, q.VISION_POSE, lambda m, i=i: self._on_robot(i, m), q.VISION_POSE.for_robot(i))
         self.get_logger().info(
             f"ball_predictor: {n} robot(s), {self._values['field']}, a_slide {self._model.a_slide_mps2:g}, "
             f"a_roll {self._model.a_roll_mps2:g}, c_switch {self._model.c_switch:g} "

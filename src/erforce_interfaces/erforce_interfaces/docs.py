@@ -40,9 +40,17 @@ def _node_params_section() -> str:
     return "\n\n".join(parts)
 
 
+def _bench_results_section() -> str:
+    results = Path(__file__).resolve().parents[3] / "bench" / "RESULTS.md"
+    if not results.exists():
+        return "No results yet: run `./run bench`."
+    return results.read_text().strip()
+
+
 SECTIONS: dict[str, Callable[[], str]] = {
     "topic-table": topic_table_markdown,
     "node-params": _node_params_section,
+    "bench-results": _bench_results_section,
 }
 
 

@@ -1,0 +1,87 @@
+"""Run every benchmark in bench/ and write bench/RESULTS.md (``./run bench [--quick] [--only NAME]``).
+
+Each bench module has ``run(quick) -> rows`` (name, value, unit, target, note). The results
+file starts with the date and the machine, and the README shows it (a generated section,
+kept current by a test). Speed figures are medians measured in one run; the machine is
+shared, so compare ratios within a run rather than absolute numbers across runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+BENCH_DIR = Path(__file__).resolve().parent
+RESULTS = BENCH_DIR / "RESULTS.md"
+MODULES = (
+    ("ball model (Sec. 5)", "bench_ball_model"),
+    ("ball_predictor node", "bench_ball_predictor"),
+    ("motion control (Sec. 4)", "bench_motion"),
+    ("simulator (Sec. 2-3)", "bench_sim"),
+    ("lockstep over DDS", "bench_lockstep"),
+)
+
+
+def machine() -> str:
+    cpu = "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    mem_gib = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
+    return (f"{cpu}, {os.cpu_count()} cores, {mem_gib:.0f} GiB, {platform.system()} {platform.release()}, "
+            f"Python {platform.python_version()}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="shorter runs (for a smoke test)")
+    parser.add_argument("--only", action="append", default=[], help="run only this module (repeatable)")
+    parser.add_argument("--no-write", action="store_true", help="print only; leave bench/RESULTS.md alone")
+    args = parser.parse_args(argv)
+    sys.path.insert(0, str(BENCH_DIR))
+    lines = [
+        f"Measured {time.strftime('%Y-%m-%d %H:%M %Z')} on {machine()}"
+        + (" (quick mode)" if args.quick else "") + ".",
+        "",
+        "| group | benchmark | value | unit | target | note |",
+        "|---|---|---|---|---|---|",
+    ]
+    failed = []
+    for group, module_name in MODULES:
+        if args.only and module_name not in args.only:
+            continue
+        print(f"[bench] {module_name} ...", file=sys.stderr, flush=True)
+        t0 = time.monotonic()
+        try:
+            rows = importlib.import_module(module_name).run(args.quick)
+        except Exception as exc:  # a broken bench is reported, the others still run
+            failed.append(module_name)
+            lines.append(f"| {group} | {module_name} failed | — | — | — | {type(exc).__name__}: {exc} |")
+            continue
+        for row in rows:
+            sub = f" ({row['group']})" if row.get("group") else ""
+            lines.append(f"| {group}{sub} | {row['name']} | {row['value']} | {row.get('unit', '')} | "
+                         f"{row.get('target', '')} | {row.get('note', '')} |")
+        print(f"[bench] {module_name}: {time.monotonic() - t0:.0f} s", file=sys.stderr, flush=True)
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if not args.no_write:
+        from erforce_interfaces import docs
+
+        RESULTS.write_text(text)
+        docs.main([str(BENCH_DIR.parent / "README.md")])  # the README shows RESULTS.md
+        print(f"[bench] wrote {RESULTS}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
