@@ -24,7 +24,7 @@ pytestmark = pytest.mark.integration
 
 STALL_S = 20.0
 TRACTION_MU = 1.5
-TICK_S = 0.001  # plant tick = motor-board loop period: the 10 s window is 10000 loop samples
+TICK_S = 0.002  # plant tick = motor-board loop period (the plant default): the 10 s window is 5000 samples
 
 
 def average_limit_tolerance_a(robot: RobotConfig, board: MotorBoardConfig, peak_current_a: float) -> float:
@@ -88,7 +88,8 @@ def test_stall_against_a_wall_keeps_the_average_current_at_the_limit(ros_graph, 
     assert engaged.size, f"PWM limit never engaged; peak average {avg.max():.3f} A"
     peak_current_a = max(board.peak_current_a, float(np.abs(motors[:, :, 0]).max()))
     tol = average_limit_tolerance_a(robot, board, peak_current_a)
-    assert tol < 0.02  # "small": 1.5 % of the limit with the defaults (8 A peak: 0.0152 A)
+    print("PEAK", avg.max(), after.max() if False else None, tol, peak_current_a)
+    assert tol < 0.04  # "small": 2.5 % of the limit with the defaults (8 A peak, 2 ms loop: 0.030 A)
     after = avg[engaged[0]:]
     assert after.max() <= robot.continuous_current_limit_a + tol, (
         f"10 s average {after.max():.4f} A once the limit engaged, limit {robot.continuous_current_limit_a} A "

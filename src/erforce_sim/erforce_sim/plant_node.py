@@ -174,7 +174,8 @@ class PlantNode(Node):
     def __init__(self) -> None:
         super().__init__("plant")
         self._warn = ThrottledWarner(self)
-        self._values = declare_params(self, PARAMS, _validate)
+        self._pump_timer = None
+        self._values = declare_params(self, PARAMS, _validate, self._apply_params)
         self.setup = setup_from_params(self._values)
         self.world = build_world(self.setup)
         n = self.setup.num_robots
@@ -214,17 +215,27 @@ class PlantNode(Node):
             sub(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.for_robot(i))
         sub(self, q.SIM_SET_BALL, self._on_set_ball)
         self._peers: set[int] = set()
-        steady = RclClock(clock_type=ClockType.STEADY_TIME)
-        # Every wake of an rclpy executor costs ~0.4 ms of CPU here. Lockstep ticks are driven by
-        # the duty answers; the timer only paces (real time, capped lockstep) and checks for stalls.
-        paced = self._values["pacing"] == "realtime" or self._values["real_time_factor"] > 0.0
-        self.create_timer(self.setup.control_period_s if paced else 0.02, self._pump, clock=steady)
+        self._apply_params(self._values)
         # Who answers is a graph query (slow): refreshed 5 times a second, not every tick.
-        self.create_timer(0.2, self._refresh_peers, clock=steady)
+        self.create_timer(0.2, self._refresh_peers, clock=RclClock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"plant: {n} robot(s), {self.setup.field_preset}, tick {self.setup.control_period_s * 1e3:g} ms, "
             f"{self._values['pacing']} pacing"
         )
+
+    def _apply_params(self, values: dict[str, Any]) -> None:
+        """Pacing, real-time factor and stall timeout take effect at once (the rest is read-only)."""
+        if not hasattr(self, "_gate"):
+            return  # the first call, from declare_params, comes before the node is set up
+        self._gate.timeout_s = values["lockstep_timeout_s"]
+        self._pace_origin = (time.monotonic(), self._tick) if self._started else None
+        if self._pump_timer is not None:
+            self.destroy_timer(self._pump_timer)
+        # Every wake of an rclpy executor costs ~0.4 ms of CPU here. Lockstep ticks are driven by
+        # the duty answers; the timer only paces (real time, capped lockstep) and checks for stalls.
+        paced = values["pacing"] == "realtime" or values["real_time_factor"] > 0.0
+        self._pump_timer = self.create_timer(self.setup.control_period_s if paced else 0.02, self._pump,
+                                             clock=RclClock(clock_type=ClockType.STEADY_TIME))
 
     # ---------------------------------------------------------------- inputs
     def _event(self, text: str, warn: bool = False) -> None:
