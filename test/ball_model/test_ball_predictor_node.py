@@ -14,7 +14,7 @@ from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
-from erforce_ball_model.catcher import CatcherConfig
+from erforce_ball_model.catcher import PLANNING_A_MAX_MPS2, PLANNING_V_MAX_MPS
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     odometry_from_msg,
@@ -288,8 +288,7 @@ def test_no_robots_seen_gives_no_catch_outputs_until_one_is_seen(ros_graph):
     assert len(rig.catch_time[0]) == 0 and len(rig.catch_time[1]) == 1
     # resting ball: drive 1 - offset m from rest to rest with the catcher's limits (the node's defaults)
     d = 1.0 - OFFSET_M
-    limits = CatcherConfig()
-    expected = float(robot_time_1d(d, limits.a_max_mps2, limits.v_max_mps))
+    expected = float(robot_time_1d(d, PLANNING_A_MAX_MPS2, PLANNING_V_MAX_MPS))
     assert rig.catch_time[1][0].data == pytest.approx(expected, abs=1e-3)
     assert point_from_msg(rig.catch_point[1][0])[1] == pytest.approx([d, 1.0], abs=1e-3)
 
@@ -336,8 +335,8 @@ def test_bad_parameters_are_rejected_and_the_old_value_kept(ros_graph):
     rig = Rig(ros_graph, num_robots=2)
     probe = ros_graph.probe
     # the robot limits default to what the catcher drives with
-    assert probe.get_parameter(NODE, "robot_a_max_mps2") == CatcherConfig().a_max_mps2
-    assert probe.get_parameter(NODE, "robot_v_max_mps") == CatcherConfig().v_max_mps
+    assert probe.get_parameter(NODE, "robot_a_max_mps2") == PLANNING_A_MAX_MPS2
+    assert probe.get_parameter(NODE, "robot_v_max_mps") == PLANNING_V_MAX_MPS
     for name, value in BAD_PARAMS:
         before = probe.get_parameter(NODE, name)
         result = probe.set_parameter(NODE, name, value)
@@ -376,3 +375,19 @@ def test_online_identification_replaces_the_model_with_the_fitted_one(ros_graph)
     assert np.all(std < [0.1, 0.02, 0.03])
     assert fit == pytest.approx([-true["a_slide"], -true["a_roll"], true["c_switch"]], abs=0.05)
     assert np.array_equal(in_use, fit)
+
+
+def test_odom_follows_a_moving_robot(ros_graph):
+    """Noise-free poses of a robot moving at (1.0, -0.5) m/s and turning at 2 rad/s through +-pi."""
+    rig = Rig(ros_graph, num_robots=2)
+    for k in range(40):
+        t = 1.0 + k / FPS
+        yaw = math.remainder(3.0 + 2.0 * (t - 1.0), 2.0 * math.pi)
+        rig.robot(1, t, -1.0 + 1.0 * (t - 1.0), 0.5 - 0.5 * (t - 1.0), yaw)
+    odom = rig.odom[1][-1]
+    _, pose, velocity, _ = odometry_from_msg(odom)
+    assert odom.child_frame_id == "robot_1/base_link" and odom.header.frame_id == contract.FIELD_FRAME
+    assert stamp_s(odom) == round(1.0 + 39 / FPS, 6)
+    assert pose[:2] == pytest.approx([-1.0 + 39 / FPS, 0.5 - 0.5 * 39 / FPS], abs=1e-3)
+    assert velocity == pytest.approx([1.0, -0.5, 2.0], abs=0.05)
+    assert len(rig.odom[0]) == 0 and rig.all_finite()

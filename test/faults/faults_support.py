@@ -67,6 +67,7 @@ class TopicWatch:
         self.non_finite: list[tuple[str, list[str]]] = []
         self.latest: dict[str, object] = {}
         self.kept: dict[str, list] = {name: [] for name in keep}
+        self.paused: set[str] = set()  # topics a test is publishing bad messages on right now
         excluded = set(exclude)
         self.topics = [(n, t) for n, t in topic_names(robots) if n not in excluded]
         for name, t in self.topics:
@@ -74,6 +75,8 @@ class TopicWatch:
             probe.node.create_subscription(t.msg_type, name, lambda m, n=name: self._on(n, m), t.qos)
 
     def _on(self, name: str, msg) -> None:
+        if name in self.paused:
+            return
         self.counts[name] += 1
         bad = non_finite_fields(msg)
         if bad:
@@ -120,7 +123,8 @@ class ClosedLoop:
         self.with_ball_model = with_ball_model
         self.watch = TopicWatch(self.probe, exclude=exclude,
                                 keep=("/sim/events", "/robot_0/ground_truth/odom", "/robot_0/motor_status",
-                                      "/robot_0/ground_truth/motors", "/robot_0/cmd_vel"))
+                                      "/robot_0/ground_truth/motors", "/robot_0/cmd_vel",
+                                      "/robot_0/wheel_setpoints"))
         self.procs: dict[str, object] = {}
         self._twist: Twist | None = None
         self._cmd_pub = None
@@ -183,6 +187,14 @@ class ClosedLoop:
                 self._publish_command()
             self.probe.executor.spin_once(timeout_sec=0.005)
 
+    def drain(self, max_callbacks: int = 5000) -> None:
+        """Handle everything that has arrived, so ``latest`` is as fresh as it can be."""
+        for _ in range(max_callbacks):
+            before = sum(self.watch.counts.values())
+            self.probe.executor.spin_once(timeout_sec=0.0)
+            if sum(self.watch.counts.values()) == before:
+                return
+
     def spin_sim(self, duration_s: float, timeout_s: float = 60.0) -> float:
         """Spin until ``duration_s`` of simulated time has passed; returns the sim time reached."""
         start = self.sim_s()
@@ -208,7 +220,8 @@ class ClosedLoop:
 
     def truth(self) -> list[tuple[float, np.ndarray]]:
         """(t [s], body twist) of every ground-truth odometry received."""
-        return [(stamp_to_seconds(m.header.stamp), body_twist(m)) for m in self.watch.kept["/robot_0/ground_truth/odom"]]
+        kept = self.watch.kept["/robot_0/ground_truth/odom"]
+        return [(stamp_to_seconds(m.header.stamp), body_twist(m)) for m in kept]
 
     def assert_follows(self, twist, tol_mps: float = 0.05, settle_s: float = 1.0, timeout_s: float = 60.0) -> None:
         """Within ``settle_s`` of sim time, the true body twist comes within ``tol_mps`` of ``twist``."""

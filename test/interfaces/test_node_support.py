@@ -98,3 +98,15 @@ def test_out_of_range_launch_parameter_refuses_to_start_with_one_clear_line(ros_
     out = proc.output()
     assert "cannot start: invalid parameter max_accel_mps2" in out
     assert "Traceback" not in out
+
+
+def test_array_parameters_are_checked_element_by_element(node):
+    specs = (ParamSpec("gains", [1.0, 2.0], "per-axis gains", min=0.0, max=10.0),)
+    declare_params(node, specs)
+    import array
+
+    for bad in ([1.0, math.inf], [1.0, -1.0], array.array("d", [math.nan])):
+        assert specs[0].check(bad) is not None
+        result = node.set_parameters([Parameter("gains", value=list(bad))])[0]
+        assert not result.successful
+    assert list(node.get_parameter("gains").value) == [1.0, 2.0]

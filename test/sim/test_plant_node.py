@@ -52,7 +52,7 @@ def test_twist_drives_the_simulated_robot_in_lockstep(ros_graph):
     start_plant(ros_graph)
     truth = ros_graph.subscribe("/robot_0/ground_truth/odom", Odometry)
     ros_graph.probe.spin_until(lambda: truth and odometry_from_msg(truth[-1])[0] > 1.0, 60.0, "1 s of sim time")
-    t, pose, vel, _ = odometry_from_msg(truth[-1])
+    _, pose, vel, _ = odometry_from_msg(truth[-1])
     c, s = math.cos(pose[2]), math.sin(pose[2])
     v_robot = (c * vel[0] + s * vel[1], -s * vel[0] + c * vel[1])  # cmd_vel is in base_link
     assert v_robot[0] == pytest.approx(1.0, rel=0.03) and v_robot[1] == pytest.approx(0.5, rel=0.03)

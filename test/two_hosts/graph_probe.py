@@ -8,7 +8,9 @@ that listens to the graph runs as its own process under ``ip netns exec``:
         line {"seen": [...], "missing": [...], "elapsed_s": ...};
     graph_probe.py watch --robot 0
         until SIGINT/SIGTERM, prints one JSON line per kick event on /sim/events and per change of
-        /robot_<id>/ball_detected (the light barrier), each with the simulated time of /clock.
+        /robot_<id>/ball_detected (the light barrier), each with the simulated time of /clock; at
+        the end one line with the number of distinct ticks answered on /robot_<id>/motor_duty that
+        reached this namespace (a best-effort reader: a lower bound).
 """
 
 from __future__ import annotations
@@ -21,11 +23,13 @@ import time
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import stamp_to_seconds
+from erforce_interfaces.conversions import stamp_to_nanoseconds, stamp_to_seconds
 
 
 def _emit(record: dict) -> None:
@@ -68,6 +72,12 @@ def run_watch(node, executor, robot_id: int) -> int:
     node.create_subscription(String, contract.SIM_EVENTS.name, on_event, contract.SIM_EVENTS.qos)
     node.create_subscription(Bool, contract.BALL_DETECTED.for_robot(robot_id), on_barrier,
                              contract.BALL_DETECTED.qos)
+    # best effort: counting must not slow down the lockstep loop with a second reliable reader
+    duty_ticks: set[int] = set()
+    node.create_subscription(JointState, contract.MOTOR_DUTY.for_robot(robot_id),
+                             lambda m: duty_ticks.add(stamp_to_nanoseconds(m.header.stamp)),
+                             QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50,
+                                        reliability=ReliabilityPolicy.BEST_EFFORT))
     stop = {"now": False}
     signal.signal(signal.SIGTERM, lambda *_: stop.update(now=True))
     _emit({"kind": "ready"})
@@ -76,6 +86,7 @@ def run_watch(node, executor, robot_id: int) -> int:
             executor.spin_once(timeout_sec=0.05)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    _emit({"kind": "end", "sim_s": sim["t_s"], "duty_ticks": len(duty_ticks)})
     return 0
 
 

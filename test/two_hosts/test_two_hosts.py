@@ -12,24 +12,27 @@ host's namespace and only runs ``ip``). DDS goes over UDP only:
   builtin transports, so no shared memory; Jazzy's Fast DDS 2.14 reads it from
   FASTRTPS_DEFAULT_PROFILES_FILE (FASTDDS_DEFAULT_PROFILES_FILE is set too, for Fast DDS 3);
 - ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET and ROS_STATIC_PEERS=<the other end's address>. Checked
-  here: with the UDP-only profile, multicast discovery happened to cross the veth even without a
-  multicast route, but with Fast DDS's builtin transports it did not, so discovery uses unicast
-  static peers, as a robot on a WiFi link would;
+  here: the namespaces have no multicast route; with the UDP-only profile multicast discovery
+  still crossed the veth in a quick check (Fast DDS sends multicast out of every interface), but
+  static peers (unicast, as for a robot on WiFi) keep the test independent of that;
 - each side gets its own DDS domain id lease (erforce_interfaces.testing.RosGraph), so nothing
   else on the machine can join even by accident.
 
 What the test checks:
 
-1. the robot-side nodes are discovered from the ai namespace (probe, positive control);
-2. negative control: with the veth down, a fresh probe in "ai" does NOT discover them within a
-   window many times longer than discovery took in 1., so no other path (shared memory, the
-   host's loopback) connects the two sides;
-3. with the veth up again, the demo plays Fig. 6 and a 1.0 m/s kick by robot_1 towards robot_0;
-   the demo reports both caught (exit code 0, its table says "yes" for the kick), and the probe
-   independently sees the kick fire and robot_0's light barrier rise after it;
-4. the lockstep control traffic crossed the veth: the robot end's byte counters grew by at least
-   the irreducible payload of one 4-wheel duty message (4 doubles) per simulated 1 ms tick, in
-   both directions; every DDS process maps no Fast DDS shared-memory segment; and the robot-side
+1. the robot-side nodes are discovered from the ai namespace (probe, positive control), also by
+   a second, fresh probe once they run (here within one 3 s announcement period of Fast DDS);
+2. negative control: with the veth down, a third fresh probe in "ai" does NOT discover them within
+   a window of at least 8 s and twice the second probe's discovery time, so no other path (shared
+   memory, the host's loopback) connects the two sides;
+3. with the veth up again, the demo plays its first two scenes, Fig. 6 and a 1.0 m/s kick by
+   robot_1 towards robot_0; the demo's table says the kick was caught, and the probe independently
+   sees the kick fire and robot_0's light barrier rise after it (the Fig. 6 scene is played but
+   not judged here: the catch quality is the demo's own test, this one is about the transport);
+4. the lockstep control traffic crossed the veth: for every tick whose motor_duty answer the probe
+   received in "ai" (N, counted by stamp), the robot had received that tick's wheel_states and
+   sent the duty, so the robot end's byte counters must have grown by at least N x 4 doubles in
+   each direction; every DDS process maps no Fast DDS shared-memory segment; and the robot-side
    and ai-side processes really sit in their namespaces (/proc/PID/ns/net).
 
 Teardown always runs (a fixture with finally): all processes are stopped (SIGINT, SIGTERM, SIGKILL,
@@ -40,14 +43,15 @@ Run by hand (root, Linux; skipped otherwise, and when ``ip netns add`` is refuse
 
     cd /work/main && .venv/bin/python -m pytest test/two_hosts -v -s
 
-The same setup step by step in a root shell (the profile is the one written by
-``write_udp_only_profile``; DOMAIN any free id):
+The same setup step by step in a root shell (DOMAIN: any free domain id):
 
+    .venv/bin/python -c "import sys, pathlib; sys.path.insert(0, 'test/two_hosts'); import test_two_hosts as t; \
+        t.write_udp_only_profile(pathlib.Path('/tmp/udp_only.xml'))"
     ip netns add robot && ip netns add ai
     ip link add veth-robot netns robot type veth peer name veth-ai netns ai
     ip -n robot addr add 10.213.0.1/30 dev veth-robot && ip -n ai addr add 10.213.0.2/30 dev veth-ai
     for ns in robot ai; do ip -n $ns link set lo up; done
-    ip -n robot link set veth-robot up && ip -n ai link set veth-ai up
+    ip -n robot link set veth-robot up && ip -n ai link set veth-ai up && sleep 1   # see wait_links_running
     export FASTRTPS_DEFAULT_PROFILES_FILE=/tmp/udp_only.xml ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET ROS_DOMAIN_ID=DOMAIN
     ROS_STATIC_PEERS=10.213.0.2 ip netns exec robot .venv/bin/erforce-launch \\
         src/erforce_motion/launch/robot.launch.yaml robot:=robot_0 &
@@ -61,6 +65,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -82,9 +87,8 @@ PROBE = Path(__file__).resolve().with_name("graph_probe.py")
 ROBOT_IP, AI_IP, PREFIX_LEN = "10.213.0.1", "10.213.0.2", 30
 ROBOT_DEV, AI_DEV = "veth-robot", "veth-ai"
 ROBOT_NODES = ("/robot_0/motor_boards", "/robot_0/velocity_controller")
-CONTROL_TICK_S = 0.001  # plant control_period_s default: one duty message per wheel set per tick
-DUTY_PAYLOAD_BYTES = 4 * 8  # 4 wheels x one float64 duty: the least a duty message can carry
-NEGATIVE_WINDOW_S = 6.0
+WHEEL_PAYLOAD_BYTES = 4 * 8  # 4 wheels x one float64: the least a duty or wheel-state message carries
+NEGATIVE_WINDOW_S = 8.0  # > two of Fast DDS's 3 s participant announcement periods
 ROBOT_SIDE = re.compile(r"velocity_controller|motor_boards|robot\.launch\.yaml")
 KICK_ROW = re.compile(r"^\s*2 kick 1\.0 m/s straight.*\s(yes|no)\s*$", re.MULTILINE)
 
@@ -139,6 +143,22 @@ def netns_unavailable_reason() -> str | None:
     return None
 
 
+def wait_links_running(links, timeout_s: float = 10.0) -> None:
+    """Wait until each (namespace, device) has operstate UP.
+
+    Fast DDS lists the interfaces once, when a participant is created. Participants started at
+    once after ``ip link set up`` sometimes (2 of 8 tries) never found the other side and had no
+    socket on the veth address; after this wait (and also with the robot side 3 s ahead) every
+    try found it. The kernel reports carrier asynchronously (linkwatch), hence the wait.
+    """
+    deadline = time.monotonic() + timeout_s
+    for ns, dev in links:
+        while json.loads(_ip("-n", ns, "-j", "link", "show", "dev", dev).stdout)[0].get("operstate") != "UP":
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{dev} in {ns} did not come up within {timeout_s} s")
+            time.sleep(0.05)
+
+
 @dataclass
 class TwoHosts:
     """Two namespaces joined by a veth pair, and a RosGraph that owns every process in them."""
@@ -174,6 +194,8 @@ class TwoHosts:
     def set_link(self, up: bool) -> None:
         _ip("-n", self.ai_ns, "link", "set", AI_DEV, "up" if up else "down")
         _ip("-n", self.robot_ns, "link", "set", ROBOT_DEV, "up" if up else "down")
+        if up:
+            wait_links_running(((self.robot_ns, ROBOT_DEV), (self.ai_ns, AI_DEV)))
 
     def robot_link_stats(self) -> dict:
         """stats64 of the robot's veth end: {"rx": {"bytes", "packets", ...}, "tx": {...}}."""
@@ -204,6 +226,7 @@ def two_hosts(tmp_path: Path, request) -> Iterator[TwoHosts]:
         for ns, dev in ((robot_ns, ROBOT_DEV), (ai_ns, AI_DEV)):
             _ip("-n", ns, "link", "set", "lo", "up")
             _ip("-n", ns, "link", "set", dev, "up")
+        wait_links_running(((robot_ns, ROBOT_DEV), (ai_ns, AI_DEV)))
         graph = RosGraph(workdir=tmp_path / "graph")
         graph.env.pop("ROS_LOCALHOST_ONLY", None)
         yield TwoHosts(robot_ns, ai_ns, graph, tmp_path, write_udp_only_profile(tmp_path / "udp_only.xml"))
@@ -252,15 +275,18 @@ def test_demo_catches_a_kick_with_the_robot_on_another_host(two_hosts: TwoHosts)
     h.start_in(h.robot_ns, [str(Path(sys.executable).with_name("erforce-launch")), str(ROBOT_LAUNCH), "robot:=robot_0"],
                name="robot-side")
 
-    # 1. positive control: the robot's nodes are seen from the ai namespace over the veth
+    # 1. positive control: the robot's nodes are seen from the ai namespace over the veth, first
+    # while they start up, then by a fresh probe (the same situation as the negative control's)
     found = h.probe_nodes(ROBOT_NODES, within_s=30.0)
     assert not found["missing"], f"robot-side nodes not discovered over the veth: {found}"
+    found = h.probe_nodes(ROBOT_NODES, within_s=10.0)
+    assert not found["missing"], f"a fresh probe did not discover the robot-side nodes: {found}"
     discovery_s = found["elapsed_s"]
 
     # 2. negative control: veth down, a fresh probe must not find them in many discovery times
     h.set_link(up=False)
     try:
-        window_s = max(NEGATIVE_WINDOW_S, 5 * discovery_s)
+        window_s = max(NEGATIVE_WINDOW_S, 2 * discovery_s)
         cut = h.probe_nodes(ROBOT_NODES, within_s=window_s)
         assert cut["missing"] == sorted(ROBOT_NODES), f"robot-side nodes seen with the veth down: {cut}"
         assert cut["elapsed_s"] >= window_s - 0.5  # the probe really listened for the whole window
@@ -289,30 +315,36 @@ def test_demo_catches_a_kick_with_the_robot_on_another_host(two_hosts: TwoHosts)
         time.sleep(0.2)
     assert not demo.alive(), f"demo did not finish within 150 s:\n{demo.output()[-3000:]}"
     stats_after = h.robot_link_stats()
-    watch.signal(2)  # SIGINT: the probe prints nothing more and exits
+    watch.signal(signal.SIGINT)
     watch.wait_exit(timeout_s=10.0)
 
     out = demo.output()
-    assert demo.popen.returncode == 0, f"demo failed (exit {demo.popen.returncode}):\n{out[-4000:]}"
+    # exit code 1 only means the demo's overall score (all scenes) is low; a crash prints no report
+    assert demo.popen.returncode in (0, 1) and "report: " in out, f"demo failed:\n{out[-4000:]}"
     row = KICK_ROW.search(out)
     assert row is not None, f"the kick scene was not played:\n{out[-4000:]}"
     assert row.group(1) == "yes", f"the kick was not caught:\n{row.group(0)}"
 
     # the probe's own view: robot_1's kick fired, then robot_0's light barrier rose
     records = _watch_records(watch)
-    fired = [r for r in records if r["kind"] == "kick" and r["text"].startswith("robot_1 ") and "fired" in r["text"]]
+    fired = [r for r in records if r["kind"] == "kick" and "robot_1 kick" in r["text"] and r["text"].endswith("fired")]
     assert fired, f"no fired kick seen by the probe: {records}"
     t_kick = fired[-1]["sim_s"]
     rises = [r for r in records if r["kind"] == "barrier" and r["value"] and r["sim_s"] > t_kick]
     assert rises, f"robot_0's light barrier did not rise after the kick at t={t_kick:.3f} s: {records}"
 
     # 4. the lockstep loop crossed the veth: both directions carried at least one duty payload per tick
-    assert len(dds_pids_checked) >= 7, f"expected >= 7 DDS processes (2 robot-side, 5 ai-side): {dds_pids_checked}"
-    sim_s = max(r["sim_s"] for r in records)
-    min_bytes = sim_s / CONTROL_TICK_S * DUTY_PAYLOAD_BYTES
+    for name in ("velocity_controller", "motor_boards", "plant", "ball_predictor", "catcher", "erforce_sim.demo"):
+        assert any(name in cmd for cmd in dds_pids_checked.values()), f"{name} not checked: {dds_pids_checked}"
+    end = [r for r in records if r["kind"] == "end"]
+    assert end, f"the probe did not report its duty count: {records[-3:]}"
+    sim_s, duty_ticks = end[0]["sim_s"], end[0]["duty_ticks"]
+    assert duty_ticks > 100, f"the probe saw only {duty_ticks} duty answers from robot_0"
+    min_bytes = duty_ticks * WHEEL_PAYLOAD_BYTES
     sent = stats_after["tx"]["bytes"] - stats_before["tx"]["bytes"]
     received = stats_after["rx"]["bytes"] - stats_before["rx"]["bytes"]
     print(f"\ntwo hosts: discovery {discovery_s:.2f} s, negative window {window_s:.1f} s, sim {sim_s:.2f} s, "
+          f"{duty_ticks} duty answers seen, "
           f"robot veth sent {sent / 1e6:.2f} MB received {received / 1e6:.2f} MB, "
           f"wall {time.monotonic() - t0:.1f} s")
     assert sent >= min_bytes, f"robot sent {sent} B over the veth, less than {min_bytes:.0f} B of duty payload"

@@ -33,7 +33,7 @@ from std_msgs.msg import Bool, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
 from erforce_ball_model.catch_time import CatchKind, RobotLimits, robot_time_to_ball
-from erforce_ball_model.catcher import CatcherConfig
+from erforce_ball_model.catcher import PLANNING_A_MAX_MPS2, PLANNING_V_MAX_MPS
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
 from erforce_interfaces import contract
@@ -61,7 +61,6 @@ from erforce_interfaces.robot_config import FieldConfig
 # Node defaults are the cores' defaults.
 _MODEL = BallModelParams()
 _TRACK = TrackerConfig()
-_CATCHER = CatcherConfig()  # the robot limits must match what the catcher drives with
 _GRID_STEP_S = inspect.signature(robot_time_to_ball).parameters["grid_step_s"].default
 
 FACING_MODES = ("towards_ball", "fixed")
@@ -90,10 +89,11 @@ PARAMS = (
         max=5.0,
     ),
     ParamSpec(
-        "robot_a_max_mps2", _CATCHER.a_max_mps2, "robot acceleration limit of robotTimeToPos [m/s^2]",
+        "robot_a_max_mps2", PLANNING_A_MAX_MPS2, "robot acceleration limit of robotTimeToPos [m/s^2]; below "
+        "what the catcher drives with, so robots arrive early",
         min=1e-3, max=100.0,
     ),
-    ParamSpec("robot_v_max_mps", _CATCHER.v_max_mps, "robot speed limit of robotTimeToPos [m/s]", min=1e-3, max=20.0),
+    ParamSpec("robot_v_max_mps", PLANNING_V_MAX_MPS, "robot speed limit of robotTimeToPos [m/s]", min=1e-3, max=20.0),
     ParamSpec(
         "facing_mode",
         ["towards_ball"],
@@ -273,11 +273,11 @@ class BallPredictorNode(Node):
         self._shots: ShotAccumulator | None = None
         self._fitted_shot = None  # the newest shot a fit was started with
         self._frame_times_s: list[float] = []
+        self._fit_pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ball_fit")
+        self._fit_future: concurrent.futures.Future | None = None
         self._values = declare_params(self, PARAMS, build_config, self._apply)
         n = self._config.num_robots
         self._robots: list[RobotTracker | None] = [None] * n
-        self._fit_pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ball_fit")
-        self._fit_future: concurrent.futures.Future | None = None
 
         q = contract
         self._state_pub = contract_publisher(self, q.BALL_STATE)
@@ -316,6 +316,7 @@ class BallPredictorNode(Node):
             self._fitted_shot = None
         elif not config.online_identification:
             self._shots = None
+            self._fit_future = None  # a fit still running is not used
 
     # ------------------------------------------------------------------ robots
     def _on_robot(self, robot: int, msg: PoseStamped) -> None:
@@ -485,7 +486,7 @@ class BallPredictorNode(Node):
             self._fit_future = None
             try:
                 self._fit_done(future.result())
-            except ValueError as exc:  # too few points, singular fit, ...
+            except Exception as exc:  # too few points, singular fit, ...: the node goes on without it
                 self._warn.warn("fit", f"online identification: fit failed: {exc}")
         if self._fit_future is None and shots.shots and shots.shots[-1] is not self._fitted_shot:
             self._fitted_shot = shots.shots[-1]  # refit once per completed shot, one fit at a time

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
 #: The robot limits the ball predictor plans catches with (robotTimeToPos). The catcher
 #: drives with more (CatcherConfig): planning below what the robot can do leaves slack for
 #: vision latency and control lag, so the robot arrives early rather than late.

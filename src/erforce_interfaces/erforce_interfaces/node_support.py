@@ -11,6 +11,7 @@ asks the node to build its core configuration from the proposed values: if the c
 
 from __future__ import annotations
 
+import array
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -43,7 +44,8 @@ class ParamSpec:
 
     def check(self, value: Any) -> str | None:
         """Return why ``value`` is unacceptable, or None."""
-        values = value if isinstance(value, list | tuple) else [value]
+        # array parameters arrive as lists, tuples or array.array
+        values = list(value) if isinstance(value, list | tuple | array.array) else [value]
         for v in values:
             if isinstance(v, float) and not math.isfinite(v):
                 return f"{self.name}: must be finite, got {v!r}"

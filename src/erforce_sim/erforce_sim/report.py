@@ -163,8 +163,9 @@ def summary_markdown(results, series, real_time_factor: float, recording: str) -
         "",
         "Times are seconds after the kick (or after the Fig. 6 ball was released). The prediction is the ball "
         "predictor's newest catch time for robot_0 made at least 0.3 s before the contact (for a ball not "
-        "caught: the one 0.3 s after the kick); the actual contact is robot_0's light-barrier rising edge. Reachable: the true ball path passes a point robot_0 "
-        "could reach in time from its start under the planning limits (robotTimeToPos, 0.1 s reaction).",
+        "caught: the one 0.3 s after the kick); the actual contact is robot_0's light-barrier rising edge. "
+        "Reachable: caught, or the true ball path passes a point robot_0 could reach in time from its start "
+        "under the planning limits (robotTimeToPos, 0.1 s reaction).",
         "",
         f"Median |error| over scenes with both: {np.median(errors) * 1e3:.0f} ms" if errors else "",
         f"Recording (rosbag2, MCAP storage, in bag/): {recording}",
