@@ -7,6 +7,7 @@ import pytest
 
 from erforce_ball_model.catcher import (
     PLANNING_A_MAX_MPS2,
+    on_receive_line,
     PLANNING_V_MAX_MPS,
     CatcherConfig,
     approach_velocity,
@@ -63,3 +64,13 @@ def test_bad_input_raises(bad):
 def test_the_catcher_drives_with_more_than_the_predictor_plans_with():
     cfg = CatcherConfig()
     assert cfg.a_max_mps2 > PLANNING_A_MAX_MPS2 and cfg.v_max_mps > PLANNING_V_MAX_MPS
+
+
+def test_receive_line():
+    pose = np.array([1.0, 0.0, math.pi])  # facing -x; dribbler at x = 1 - 0.08
+    ball, towards = np.array([-2.0, 0.01]), np.array([3.0, 0.0])
+    assert on_receive_line(pose, ball, towards, 0.08, 0.02)  # 1 cm off the line, ahead
+    assert not on_receive_line(pose, np.array([-2.0, 0.05]), towards, 0.08, 0.02)  # 5 cm off
+    assert not on_receive_line(pose, ball, -towards, 0.08, 0.02)  # rolling away
+    assert not on_receive_line(pose, np.array([2.0, 0.0]), towards, 0.08, 0.02)  # already past the dribbler
+    assert not on_receive_line(pose, ball, np.zeros(2), 0.08, 0.02)  # at rest: nothing comes

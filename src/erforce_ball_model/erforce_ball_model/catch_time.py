@@ -162,61 +162,98 @@ def _limits_arrays(limits: RobotLimits, shape) -> tuple[np.ndarray, np.ndarray]:
     return a, v
 
 
+def _axis_time_mirrored(d, half_w2, half_w2_pos, w, x, rho, inv_rho):
+    """``axis_time`` for many splits at once, hot path of the alpha search (no checks, fewer operations).
+
+    Preconditions: ``d >= 0`` (``w`` mirrored with it), ``x = 1/A`` finite and > 0. ``half_w2`` is
+    ``w^2 / 2``, ``half_w2_pos`` the same where ``w > 0`` and 0 elsewhere (only a robot moving
+    towards the target can overshoot).
+    """
+    over = half_w2_pos * x > d
+    wx = w * x
+    dp = np.where(over, -d, d)
+    wpx = np.where(over, -wx, wx)
+    root_q = np.sqrt(np.maximum(x * (dp + half_w2 * x), 0.0))
+    t = 2.0 * root_q - wpx + np.maximum(root_q - rho, 0.0) ** 2 * inv_rho
+    fast = (wpx > rho) & ~over
+    if fast.any():
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(fast, dp * x / wpx + 0.5 * wpx, t)
+    return t
+
+
+_SEARCH_POINTS = 16  # splits evaluated per robot and pass of the alpha search
+
+
+def _time_to_pos(dx, dy, wx, wy, a, vmax, passes: int = 5) -> np.ndarray:
+    """robotTimeToPos on flat (n,) arrays: the alpha search, vectorized over robots *and* splits.
+
+    The split is parametrized by ``u = tan(alpha / 2)`` in (0, 1) (rational cos/sin, no trig;
+    about uniform in alpha). ``t_x - t_y`` grows with u, so each pass evaluates 16 splits per
+    robot in one (2, n, 16) array and keeps the sub-interval where the sign changes (the bracket
+    shrinks 15-fold per pass); one false-position step in the final bracket finishes. Every
+    evaluated split gives an achievable time ``max(t_x, t_y)``; the smallest one is returned, so
+    the result is an upper bound of the synchronized time.
+    """
+    n = dx.shape[0]
+    d = np.stack([dx, dy])
+    w = np.stack([wx, wy])
+    w = np.where(d < 0.0, -w, w)[..., None]  # mirror so that d >= 0
+    d = np.abs(d)[..., None]
+    half_w2 = 0.5 * w * w
+    half_w2_pos = np.where(w > 0.0, half_w2, 0.0)
+    rho = (vmax / a)[:, None]
+    inv_rho = 1.0 / rho
+    inv_a = (1.0 / a)[:, None]
+
+    def gap_and_time(u):
+        k = inv_a * (1.0 + u * u)  # 1/(a cos alpha) = k / (1 - u^2), 1/(a sin alpha) = k / (2u)
+        t = _axis_time_mirrored(d, half_w2, half_w2_pos, w, np.stack([k / (1.0 - u * u), k / (2.0 * u)]),
+                                rho, inv_rho)
+        return t[0] - t[1], np.maximum(t[0], t[1])
+
+    eps = 1e-9  # keeps both shares > 0 so both times stay finite
+    lo = np.full((n, 1), eps)
+    hi = np.full((n, 1), 1.0 - eps)
+    frac = np.linspace(0.0, 1.0, _SEARCH_POINTS)
+    rows = np.arange(n)
+    best = np.full(n, np.inf)
+    for _ in range(passes):
+        u = lo + (hi - lo) * frac
+        gap, t = gap_and_time(u)
+        best = np.minimum(best, t.min(axis=1))
+        j = np.clip(np.count_nonzero(gap <= 0.0, axis=1), 1, _SEARCH_POINTS - 1)
+        lo, hi = u[rows, j - 1, None], u[rows, j, None]
+        g_lo, g_hi = gap[rows, j - 1, None], gap[rows, j, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+    u = np.where(np.isfinite(u) & (u > lo) & (u < hi), u, 0.5 * (lo + hi))
+    return np.minimum(best, gap_and_time(u)[1][:, 0])
+
+
 def robot_time_to_pos(
-    robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits, iterations: int = 24
+    robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits, passes: int = 5
 ) -> np.ndarray:
     """Time (s) for a robot to reach ``target_m`` and stop there (paper: robotTimeToPos).
 
     Arrays broadcast: positions/velocities/targets ``(..., 2)``, limits per robot. The split
-    angle alpha solves ``t_x(alpha) = t_y(alpha)`` (t_x grows, t_y falls with alpha): a few
-    bisection steps, then Illinois false-position steps (superlinear; t_x - t_y is piecewise
-    smooth). Returns ``max(t_x, t_y)`` at the better bracket end, an upper bound that is within
-    1e-6 s of the synchronized time with the default 24 iterations (measured on 200k random cases).
+    angle alpha solves ``t_x(alpha) = t_y(alpha)`` (t_x grows, t_y falls with alpha): ``passes``
+    bracketing passes of 16 splits each, all robots and splits in one array, then one
+    false-position step (see ``_time_to_pos``). Returns an upper bound that is within 3e-6 s of
+    the synchronized time with the default 5 passes (measured on 50k random cases against an
+    80-step search: max 2.7e-6 s, 99.9 % below 7e-7 s).
     """
     p0 = _vec2("robot_pos_m", robot_pos_m)
     v0 = _vec2("robot_vel_mps", robot_vel_mps)
     tgt = _vec2("target_m", target_m)
-    if iterations < 8:
-        raise ValueError("iterations: need at least 8")
+    if passes < 3:
+        raise ValueError("passes: need at least 3")
     d = tgt - p0
     shape = np.broadcast_shapes(d.shape, v0.shape)[:-1]
-    d = np.broadcast_to(d, (*shape, 2))
-    v0 = np.broadcast_to(v0, (*shape, 2))
-    a, vmax = _limits_arrays(limits, shape)
-    rho = vmax / a
-    dd = np.stack([d[..., 0], d[..., 1]])
-    ww = np.stack([v0[..., 0], v0[..., 1]])
-
-    def gap_and_time(alpha):
-        inv = np.stack([1.0 / (a * np.cos(alpha)), 1.0 / (a * np.sin(alpha))])
-        tx, ty = axis_time(dd, ww, inv, rho)
-        return tx - ty, np.maximum(tx, ty)
-
-    eps = 1e-9  # keeps both shares > 0 so the gap is finite at the bracket ends
-    lo = np.full(shape, eps)
-    hi = np.full(shape, 0.5 * math.pi - eps)
-    num_bisect = iterations - 8
-    for _ in range(num_bisect):
-        mid = 0.5 * (lo + hi)
-        late_x = gap_and_time(mid)[0] > 0.0
-        hi = np.where(late_x, mid, hi)
-        lo = np.where(late_x, lo, mid)
-    g_lo, t_lo = gap_and_time(lo)
-    g_hi, t_hi = gap_and_time(hi)
-    side = np.zeros(shape)
-    for _ in range(iterations - num_bisect):
-        with np.errstate(divide="ignore", invalid="ignore"):
-            new = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
-        new = np.where(np.isfinite(new) & (new > lo) & (new < hi), new, 0.5 * (lo + hi))
-        g_new, t_new = gap_and_time(new)
-        right = g_new > 0.0
-        # Illinois: halve the stale end's value when the same end was replaced twice in a row.
-        g_lo = np.where(right & (side > 0), 0.5 * g_lo, g_lo)
-        g_hi = np.where(~right & (side < 0), 0.5 * g_hi, g_hi)
-        hi, g_hi, t_hi = np.where(right, new, hi), np.where(right, g_new, g_hi), np.where(right, t_new, t_hi)
-        lo, g_lo, t_lo = np.where(right, lo, new), np.where(right, g_lo, g_new), np.where(right, t_lo, t_new)
-        side = np.where(right, 1.0, -1.0)
-    return np.minimum(t_lo, t_hi)
+    d = np.broadcast_to(d, (*shape, 2)).reshape(-1, 2)
+    v0 = np.broadcast_to(v0, (*shape, 2)).reshape(-1, 2)
+    a, vmax = (np.ravel(x) for x in _limits_arrays(limits, shape))
+    return _time_to_pos(d[:, 0], d[:, 1], v0[:, 0], v0[:, 1], a, vmax, passes).reshape(shape)
 
 
 def can_reach_in_time(d_m, w_mps, t_budget_s, a_max_mps2, v_max_mps) -> np.ndarray:
@@ -241,11 +278,93 @@ def _can_reach(dx, dy, wx, wy, t, a, vmax):
     return share[0] ** 2 + share[1] ** 2 <= 1.0
 
 
-def _reach_bound_m(t, s0, a, v_max):
-    """Sound upper bound on how far the robot model can get from its start within ``t``."""
-    vcap = np.sqrt(v_max * v_max + s0 * s0)  # an axis may keep a speed above its share
-    t_acc = (vcap - s0) / a
-    return np.where(t < t_acc, t * (s0 + 0.5 * a * t), s0 * t_acc + 0.5 * a * t_acc**2 + vcap * (t - t_acc))
+def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
+    """Cheap necessary condition for ``can_reach_in_time``: False only where the robot surely cannot.
+
+    Project the motion on the direction e to the target: the robot covers the distance D along e
+    and ends at rest, its acceleration along e is at most ``a`` (the split keeps |a_vec| <= a)
+    and its speed at most ``vcap = sqrt(v_max^2 + s0^2)`` (an axis moves at most at its share of
+    v_max or at its own initial speed). In 1D, starting at ``w = v0 . e``, the farthest point
+    reachable at rest within t is ``vp t - (vp^2 + (vp - w)^2) / (2a)`` with peak speed
+    ``vp = min((w + a t) / 2, vcap)`` (accelerate, maybe cruise, brake), and no point at all
+    before ``t = s0 / a`` (braking to rest takes that long). Both bounds are sound, so only
+    cost, never correctness, depends on how tight they are. Shapes broadcast.
+    """
+    dist = np.sqrt(dx * dx + dy * dy)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.where(dist > 0.0, (dx * wx + dy * wy) / dist, 0.0)
+    at = a * t
+    vcap = np.sqrt(vmax * vmax + s0 * s0)
+    vp = np.minimum(0.5 * (w + at), vcap)
+    reach = vp * t - (vp * vp + (vp - w) ** 2) * (0.5 / a)
+    return (dist <= reach + 1e-9 * (1.0 + dist)) & (at >= s0 - 1e-9)
+
+
+# Exact tests per robot in successive rounds: its candidates (grid points the cheap bound keeps)
+# of rank [0, 8), then [8, 64), then the rest, dropping robots that found a feasible point. The
+# first feasible candidate has rank <= 3 for half of the robots and < 64 for 98 % (realistic frames).
+_ROUND_ENDS = (8, 64, None)
+
+
+def _first_feasible(dx, dy, wx, wy, s0, t_grid, a, vmax) -> np.ndarray:
+    """Per robot the first grid column where ``can_reach_in_time`` holds, -1 if none.
+
+    ``dx``, ``dy`` (R, K): target minus start per robot and grid time; the rest per robot (R,)
+    except ``t_grid`` (K,). The exact test runs only on candidates of ``_may_reach``, in rounds.
+    """
+    n, k = dx.shape
+    first = np.full(n, -1)
+    col = lambda x: x[:, None]  # noqa: E731
+    maybe = _may_reach(dx, dy, col(wx), col(wy), col(s0), t_grid, col(a), col(vmax))
+    flat = np.flatnonzero(maybe)  # row-major: by robot, then by time
+    if flat.size == 0:
+        return first
+    rows = flat // k
+    counts = np.bincount(rows, minlength=n)
+    rank = np.arange(flat.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    dx, dy = dx.ravel(), dy.ravel()
+    lo = 0
+    for hi in _ROUND_ENDS:
+        pick = (rank >= lo) & (first[rows] < 0)
+        if hi is not None:
+            pick &= rank < hi
+        idx = np.flatnonzero(pick)
+        if idx.size:
+            f, r = flat[idx], rows[idx]
+            c = f - r * k
+            ok = _can_reach(dx[f], dy[f], wx[r], wy[r], t_grid[c], a[r], vmax[r])
+            r, c = r[ok], c[ok]
+            if r.size:
+                head = np.ones(r.size, dtype=bool)  # first feasible of each robot (sorted by robot, time)
+                head[1:] = r[1:] != r[:-1]
+                first[r[head]] = c[head]
+        if hi is None or not ((counts > hi) & (first < 0)).any():
+            break
+        lo = hi
+    return first
+
+
+def _refine_crossing(ball, start, wx, wy, a, vmax, left, right, levels):
+    """Leftmost feasible sub-point of ``(left, right]`` per robot (``right`` is known feasible).
+
+    ``levels`` sub-grid sizes, e.g. (12, 11): split into 12, take the first feasible part, split
+    that into 11: the resolution is (right - left) / 132 with 22 instead of 131 exact tests per
+    robot. Taking the leftmost feasible sub-point (not a bisection) copes with the discontinuity
+    of f the paper mentions.
+    """
+    idx = np.arange(left.size)
+    for m in levels:
+        frac = np.arange(1, m) / m
+        sub = left[:, None] + (right - left)[:, None] * frac
+        pts = ball.position_at(sub)  # (Rb, m - 1, 2)
+        ok = _can_reach(
+            pts[..., 0] - start[:, 0:1], pts[..., 1] - start[:, 1:2], wx[:, None], wy[:, None], sub,
+            a[:, None], vmax[:, None],
+        )
+        j = np.where(ok.any(axis=1), ok.argmax(axis=1), m - 1)  # index m - 1 stands for ``right``
+        sub = np.concatenate([left[:, None], sub, right[:, None]], axis=1)
+        left, right = sub[idx, j], sub[idx, j + 1]
+    return right
 
 
 class CatchKind(enum.IntEnum):
@@ -311,59 +430,30 @@ def robot_time_to_ball(
     t_grid = np.minimum(np.arange(num) * grid_step_s, t_max)
     offset = dribbler_offset_m * np.stack([np.cos(facing), np.sin(facing)], axis=-1)  # (R, 2)
     start = p0 + offset  # target - start == ball_position - (p0 + offset)
+    wx, wy = v0[:, 0].copy(), v0[:, 1].copy()
+    s0 = np.sqrt(wx * wx + wy * wy)
 
-    # Grid pass. A cheap sound bound first rules out points the robot cannot reach by any means.
+    # Grid pass: all robots x all grid times as one (R, K) array; exact tests only where needed.
     ball_grid = ball.position_at(t_grid)  # (K, 2)
-    dx = ball_grid[None, :, 0] - start[:, 0:1]
-    dy = ball_grid[None, :, 1] - start[:, 1:2]
-    s0 = np.hypot(v0[:, 0], v0[:, 1])[:, None]
-    maybe = dx * dx + dy * dy <= (_reach_bound_m(t_grid[None, :], s0, a[:, None], vmax[:, None]) + 1e-9) ** 2
-    # Only each robot's first feasible grid point matters: scan in growing chunks of columns and
-    # drop the robots that already found one.
-    feasible = np.zeros((n, num), dtype=bool)
-    active = np.ones(n, dtype=bool)
-    col, chunk = 0, 48
-    while col < num and active.any():
-        end = min(num, col + chunk)
-        rows, cols = np.nonzero(maybe[:, col:end] & active[:, None])
-        if rows.size:
-            cols += col
-            feasible[rows, cols] = _can_reach(
-                dx[rows, cols], dy[rows, cols], v0[rows, 0], v0[rows, 1], t_grid[cols], a[rows], vmax[rows]
-            )
-            active &= ~feasible[:, col:end].any(axis=1)
-        col, chunk = end, 4 * chunk
-    found = feasible.any(axis=1)
-    first = feasible.argmax(axis=1)
-    time_s = np.full(n, np.inf)
-    time_s[found & (first == 0)] = 0.0
-    refine = np.nonzero(found & (first > 0))[0]
+    first = _first_feasible(
+        ball_grid[:, 0] - start[:, 0:1], ball_grid[:, 1] - start[:, 1:2], wx, wy, s0, t_grid, a, vmax
+    )
+    found = first >= 0
+    time_s = np.where(first == 0, 0.0, np.inf)
+    refine = np.flatnonzero(first > 0)
     if refine.size:
-        # One sub-grid pass over (t_{k-1}, t_k]: the leftmost feasible sub-point (robust to the
-        # discontinuity of f, unlike a bisection). t_k itself is known to be feasible.
-        left = t_grid[first[refine] - 1]
-        right = t_grid[first[refine]]
-        frac = np.arange(1, refine_points) / refine_points
-        sub = left[:, None] + (right - left)[:, None] * frac[None, :]
-        pts = ball.position_at(sub)  # (Rb, M-1, 2)
-        shape = sub.shape
-        ok = _can_reach(
-            pts[..., 0] - start[refine, 0:1],
-            pts[..., 1] - start[refine, 1:2],
-            np.broadcast_to(v0[refine, 0:1], shape),
-            np.broadcast_to(v0[refine, 1:2], shape),
-            sub,
-            np.broadcast_to(a[refine, None], shape),
-            np.broadcast_to(vmax[refine, None], shape),
+        m1 = math.ceil(math.sqrt(refine_points))
+        levels = (m1, math.ceil(refine_points / m1)) if m1 > 2 else (refine_points,)
+        time_s[refine] = _refine_crossing(
+            ball, start[refine], wx[refine], wy[refine], a[refine], vmax[refine],
+            t_grid[first[refine] - 1], t_grid[first[refine]], levels,
         )
-        j = ok.argmax(axis=1)
-        time_s[refine] = np.where(ok.any(axis=1), sub[np.arange(refine.size), j], right)
 
     kind = np.where(found, CatchKind.MOVING, CatchKind.NEVER).astype(np.int8)
     rest = ~found & (t_stop < t_out)
-    if rest.any():
-        stop = ball.stop_point
-        time_s[rest] = robot_time_to_pos(p0[rest], v0[rest], stop - offset[rest], RobotLimits(a[rest], vmax[rest]))
+    if rest.any():  # one vectorized robotTimeToPos for all of them
+        d = ball.stop_point - start[rest]
+        time_s[rest] = _time_to_pos(d[:, 0], d[:, 1], wx[rest], wy[rest], a[rest], vmax[rest])
         kind[rest] = CatchKind.AT_REST
     ball_pos = np.full((n, 2), np.nan)
     finite = np.isfinite(time_s)

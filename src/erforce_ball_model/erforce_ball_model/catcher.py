@@ -35,12 +35,18 @@ class CatcherConfig:
     # The approach aims for rest at the target, but the velocity loop lags; braking a
     # little earlier than the ideal profile avoids overshooting the catch point.
     braking_margin: float = 0.85
+    # Receive: once the dribbler is on the incoming ball's line, stand still and let the
+    # ball come. The first-catch point ahead has no slack by definition; chasing it moves
+    # the robot towards the ball and makes every arrive-at-rest catch infeasible.
+    receive_line_tolerance_m: float = 0.02
 
     def __post_init__(self) -> None:
         for name in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s", "arrive_tolerance_m"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        if not (math.isfinite(self.receive_line_tolerance_m) and self.receive_line_tolerance_m >= 0.0):
+            raise ValueError(f"receive_line_tolerance_m must be finite and >= 0, got {self.receive_line_tolerance_m!r}")
         if not (0.0 < self.braking_margin <= 1.0):
             raise ValueError(f"braking_margin must be in (0, 1], got {self.braking_margin!r}")
 
@@ -89,3 +95,20 @@ def facing_towards(from_xy: np.ndarray, to_xy: np.ndarray, fallback_rad: float =
     if float(np.hypot(d[0], d[1])) < 1e-9:
         return fallback_rad
     return math.atan2(d[1], d[0])
+
+
+def on_receive_line(pose: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.ndarray, dribbler_offset_m: float,
+                    tolerance_m: float) -> bool:
+    """True when the ball is coming at the robot's dribbler: the dribbler centre lies within
+    ``tolerance_m`` of the ball's line of travel, ahead of the ball."""
+    pose = np.asarray(pose, dtype=float)
+    v = np.asarray(ball_velocity, dtype=float)
+    speed = float(np.hypot(v[0], v[1]))
+    if speed < 1e-6:
+        return False
+    direction = v / speed
+    dribbler = pose[:2] + dribbler_offset_m * np.array([math.cos(pose[2]), math.sin(pose[2])])
+    rel = dribbler - np.asarray(ball_xy, dtype=float)
+    along = float(rel @ direction)
+    across = abs(float(rel[0] * direction[1] - rel[1] * direction[0]))
+    return along > 0.0 and across <= tolerance_m

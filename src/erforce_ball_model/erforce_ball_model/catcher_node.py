@@ -17,7 +17,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64
 
-from erforce_ball_model.catcher import CatcherConfig, catch_twist
+from erforce_ball_model.catcher import CatcherConfig, catch_twist, on_receive_line
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
@@ -32,6 +32,8 @@ from erforce_interfaces.node_support import (
     contract_publisher,
     contract_subscription,
     declare_params,
+    robot_config_from_params,
+    robot_param_specs,
     run_node,
 )
 
@@ -57,13 +59,17 @@ PARAMS = (
     ParamSpec("fetch_resting_ball", False, "also drive to a ball that is not moving"),
     ParamSpec("disengage_after_rest_s", 2.0, "an engaged catcher gives up after the ball rested this long [s]",
               min=0.0, max=60.0),
-)
+    ParamSpec("receive_line_tolerance_m", _CC.receive_line_tolerance_m, "stand still once the dribbler is this "
+              "close to the incoming ball's line [m]", min=0.0, max=0.5),
+) + robot_param_specs()
 
 
-def build_config(values: dict[str, Any]) -> CatcherConfig:
-    return CatcherConfig(**{k: values[k] for k in ("a_max_mps2", "v_max_mps", "w_max_radps",
-                                                    "heading_gain_per_s", "arrive_tolerance_m",
-                                                    "braking_margin")})
+def build_config(values: dict[str, Any]) -> tuple[CatcherConfig, float]:
+    """(catcher config, dribbler offset [m]) for a complete set of parameter values."""
+    config = CatcherConfig(**{k: values[k] for k in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s",
+                                                      "arrive_tolerance_m", "braking_margin",
+                                                      "receive_line_tolerance_m")})
+    return config, robot_config_from_params(values).dribbler_offset_m
 
 
 class CatcherNode(Node):
@@ -76,6 +82,7 @@ class CatcherNode(Node):
         self._target = None  # (t_s, [x, y])
         self._catch_time = None  # (t_s of arrival, seconds or CATCH_TIME_NEVER)
         self._ball_velocity = None  # (t_s, [vx, vy])
+        self._ball_position = None  # [x, y]
         self._holding_ball = False
         self._engaged = False
         self._ball_moving_at = -math.inf  # robot time the ball was last seen moving
@@ -88,8 +95,8 @@ class CatcherNode(Node):
         contract_subscription(self, q.BALL_DETECTED, self._on_barrier)
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
 
-    def _set_config(self, config: CatcherConfig) -> None:
-        self._config = config
+    def _set_config(self, built: tuple[CatcherConfig, float]) -> None:
+        self._config, self._dribbler_offset_m = built
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -118,11 +125,12 @@ class CatcherNode(Node):
 
     def _on_ball(self, msg: Odometry) -> None:
         try:
-            _, _, velocity, _ = odometry_from_msg(msg)
+            _, pose, velocity, _ = odometry_from_msg(msg)
         except ConversionError as exc:
             self._warn.warn("ball", f"rejected ball state: {exc}")
             return
         now = self._now_s()
+        self._ball_position = pose[:2]
         self._ball_velocity = (now, velocity[:2])
         if math.hypot(velocity[0], velocity[1]) >= self._values["min_ball_speed_mps"]:
             self._ball_moving_at = now
@@ -153,8 +161,12 @@ class CatcherNode(Node):
                 vx, vy = self._ball_velocity[1]
                 if math.hypot(vx, vy) >= self._values["min_ball_speed_mps"]:
                     facing = math.atan2(-vy, -vx)  # face the incoming ball, as the predictor assumed
+            receiving = self._fresh(self._ball_velocity, now) and on_receive_line(
+                pose, self._ball_position, self._ball_velocity[1], self._dribbler_offset_m,
+                self._config.receive_line_tolerance_m)
+            target = pose[:2] if receiving else self._target[1]  # on the line: stand, let the ball come
             try:
-                twist = catch_twist(pose, self._target[1], facing, self._config)
+                twist = catch_twist(pose, target, facing, self._config)
             except ValueError as exc:
                 self._warn.warn("twist", f"no command: {exc}")
                 twist = (0.0, 0.0, 0.0)
