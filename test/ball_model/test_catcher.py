@@ -7,13 +7,13 @@ import pytest
 
 from erforce_ball_model.catcher import (
     PLANNING_A_MAX_MPS2,
-    on_receive_line,
     PLANNING_V_MAX_MPS,
     CatcherConfig,
     approach_velocity,
     catch_twist,
     facing_towards,
     field_to_robot,
+    on_receive_line,
     wrap_angle,
 )
 

@@ -8,7 +8,6 @@ the 2 ms control tick, and the catcher meeting the ball a little earlier or late
 planned point while the robot settles (the receiver is already on the ball's line).
 """
 
-from pathlib import Path
 
 import pytest
 
