@@ -24,6 +24,8 @@ def stamp_ns(msg):
 class Rig:
     def __init__(self, graph, **params):
         self.graph = graph
+        # these tests tick every 1 ms (MS), so the boards run at 1 kHz (the node's default is 500 Hz)
+        params = {"loop_rate_hz": 1000.0, **params}
         self.node = graph.start_node("erforce_motion", "motor_boards", namespace="robot_0", params=params)
         probe = graph.probe
         self.duties = probe.subscribe("/robot_0/motor_duty", JointState, contract.QOS_CONTROL)

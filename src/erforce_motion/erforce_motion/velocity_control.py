@@ -72,6 +72,8 @@ class VelocityControlConfig:
     command_limit_mps: float = 5.0  # PID output (incl. feedforward) per axis
     command_limit_radps: float = 15.0
     anti_windup: AntiWindup = "clamp"
+    ff_integrator_limit_mps: float = 0.5  # integrator bound per linear axis while feedforward is on
+    ff_integrator_limit_radps: float = 2.0
     traction_limit_fraction: float | None = 0.9
     slip_hold_threshold_radps: float | None = 1.0
 
@@ -79,6 +81,7 @@ class VelocityControlConfig:
         for name in (
             "max_speed_mps", "max_accel_mps2", "max_angular_speed_radps", "max_angular_accel_radps2",
             "kp_translation", "kp_rotation", "command_limit_mps", "command_limit_radps",
+            "ff_integrator_limit_mps", "ff_integrator_limit_radps",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
@@ -108,7 +111,13 @@ class VelocityControlConfig:
 
     def pid_config(self) -> PidConfig:
         lim = (self.command_limit_mps, self.command_limit_mps, self.command_limit_radps)
+        # With feedforward the integrator only corrects model error; bounding it keeps an outage
+        # of the motor boards (wheels not following at all) from winding it up into a lurch.
+        i_lim = (self.ff_integrator_limit_mps, self.ff_integrator_limit_mps, self.ff_integrator_limit_radps) \
+            if self.feedforward_enabled else lim
         return PidConfig(
+            integrator_min=tuple(-x for x in i_lim),
+            integrator_max=i_lim,
             kp=(self.kp_translation, self.kp_translation, self.kp_rotation),
             ki=(self.ki_translation, self.ki_translation, self.ki_rotation),
             kd=(self.kd_translation, self.kd_translation, self.kd_rotation),

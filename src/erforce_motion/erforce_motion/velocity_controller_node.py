@@ -95,6 +95,10 @@ PARAMS = (
     ParamSpec("command_limit_mps", _VC.command_limit_mps, "PID output limit per linear axis [m/s]", min=0.01, max=50.0),
     ParamSpec("command_limit_radps", _VC.command_limit_radps, "PID output limit, wz [rad/s]", min=0.01, max=500.0),
     ParamSpec("anti_windup", _VC.anti_windup, "integrator anti-windup: clamp | back_calculation"),
+    ParamSpec("ff_integrator_limit_mps", _VC.ff_integrator_limit_mps, "integrator bound per linear axis while "
+              "feedforward is on (no wind-up while the wheels cannot follow) [m/s]", min=1e-3, max=50.0),
+    ParamSpec("ff_integrator_limit_radps", _VC.ff_integrator_limit_radps, "integrator bound, wz, while "
+              "feedforward is on [rad/s]", min=1e-3, max=500.0),
     ParamSpec("traction_limit_fraction", _VC.traction_limit_fraction, "the shaper keeps every wheel's traction "
               "force below this fraction of mu*N", min=0.05, max=1.0),
     ParamSpec("slip_hold_threshold_radps", _VC.slip_hold_threshold_radps, "hold the integrator while the wheel "
@@ -116,7 +120,8 @@ _CONFIG_KEYS = (
     "derivative_filter_tau_s",
     "command_limit_mps",
     "command_limit_radps",
-    "anti_windup", "traction_limit_fraction", "slip_hold_threshold_radps",
+    "anti_windup", "traction_limit_fraction", "slip_hold_threshold_radps", "ff_integrator_limit_mps",
+    "ff_integrator_limit_radps",
 )
 
 
