@@ -89,6 +89,43 @@ def test_axis_time_monotone_in_acceleration_share(d, w, inv_a, rho):
     assert axis_time(d, w, inv_a * 1.01, rho) >= t - 1e-12
 
 
+@settings(max_examples=200, deadline=None)
+@given(vec, vec, vec, st.floats(0.5, 6.0), st.floats(0.5, 4.0))
+def test_robot_time_to_pos_is_certified_by_the_sign_test(p0, v0, target, a_max, v_max):
+    """Achievable (the sign test says reachable) and at most 1e-7 s above the optimum (not just below)."""
+    t = float(robot_time_to_pos(p0, v0, target, RobotLimits(a_max, v_max)))
+    d = np.subtract(target, p0)
+    assert bool(can_reach_in_time(d, v0, t * (1.0 + 1e-12) + 1e-12, a_max, v_max))
+    if t > 1e-6:
+        assert not bool(can_reach_in_time(d, v0, t - 2e-7, a_max, v_max))
+
+
+def test_robot_time_to_pos_never_worse_than_a_dense_alpha_scan():
+    rng = np.random.default_rng(7)
+    alpha = np.linspace(1e-6, 0.5 * math.pi - 1e-6, 20001)
+    for _ in range(40):
+        p0, v0, tgt = rng.uniform(-4, 4, 2), rng.normal(0, 1.5, 2), rng.uniform(-4, 4, 2)
+        a_max, v_max = rng.uniform(1.0, 5.0), rng.uniform(1.0, 4.0)
+        d = tgt - p0
+        tx = axis_time(d[0], v0[0], 1.0 / (a_max * np.cos(alpha)), v_max / a_max)
+        ty = axis_time(d[1], v0[1], 1.0 / (a_max * np.sin(alpha)), v_max / a_max)
+        scan = float(np.maximum(tx, ty).min())
+        t = float(robot_time_to_pos(p0, v0, tgt, RobotLimits(a_max, v_max)))
+        assert scan - 1e-3 <= t <= scan + 1e-7
+
+
+@settings(max_examples=300, deadline=None)
+@given(vec, vec, vec, st.floats(0.0, 4.0), st.floats(0.5, 6.0), st.floats(0.5, 4.0))
+def test_cheap_bound_never_rules_out_a_reachable_point(p0, v0, target, t, a_max, v_max):
+    """robotTimeToBall skips the exact test where _may_reach is False: that must be sound."""
+    from erforce_ball_model.catch_time import _may_reach
+
+    d = np.subtract(target, p0)
+    s0 = math.hypot(*v0)
+    if bool(can_reach_in_time(d, v0, t, a_max, v_max)):
+        assert bool(_may_reach(d[0], d[1], v0[0], v0[1], s0, t, a_max, v_max))
+
+
 # --- robotTimeToBall: hand cases ---------------------------------------------------------------
 def test_robot_at_rest_on_the_path_facing_the_ball():
     # Ball rolling along +x at 2 m/s; robot at (2, 0) facing it (left); a = 3, v_max = 3.
@@ -131,6 +168,17 @@ def test_ball_leaving_the_field_is_never_caught():
     target = ball.stop_point - [OFFSET, 0.0]
     assert res.time_s[0] == pytest.approx(float(robot_time_to_pos([-4.0, 0.0], [0.0, 0.0], target, slow)), abs=1e-9)
     assert res.time_s[0] > ball.stop_time_s
+
+
+def test_at_rest_time_of_a_moving_robot_is_an_upper_bound_within_the_sub_grid_step():
+    ball = BallTrajectory([1.0, 0.5], [0.0, 0.0], 0.0)
+    robots = np.array([[-3.0, 1.0], [2.0, -2.0], [0.0, 3.0]])
+    vels = np.array([[1.0, -0.5], [-1.5, 0.2], [0.3, 0.3]])
+    lim = RobotLimits(2.5, 2.0)
+    res = robot_time_to_ball(ball, robots, vels, lim, 0.0, field=DIV_B)
+    assert (res.kind == CatchKind.AT_REST).all()
+    exact = robot_time_to_pos(robots, vels, ball.stop_point - [OFFSET, 0.0], lim)
+    assert (res.time_s >= exact - 1e-9).all() and (res.time_s <= exact + 0.01 / 128).all()
 
 
 def test_fig6_situation_finds_the_early_window():

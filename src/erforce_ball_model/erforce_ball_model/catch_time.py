@@ -11,11 +11,14 @@ robotTimeToPos
     away or too fast to stop in time, then accelerate, cruise at the speed limit, brake. An axis
     that already moves faster than its share of ``v_max`` (towards the target) keeps its speed
     instead of being forced to brake; this keeps the time monotone in the acceleration share.
+    The search is vectorized over robots and splits and stops on a certificate: a bracket
+    [lo, hi] of the split bounds the synchronized time from both sides (``_time_to_pos``). A
+    robot at rest needs no search (closed form).
 
 Reachability test without the alpha search
     For robotTimeToBall only the sign of ``t_robot(t) - t`` matters. For a time budget T each axis
-    needs a minimal share c of the limits (closed form: the 1D time is piecewise a quadratic in
-    1/A); the robot makes it iff ``c_x^2 + c_y^2 <= 1`` (cos^2 + sin^2 = 1). This gives the exact
+    needs a minimal acceleration A_i (closed form: the 1D time is piecewise a quadratic in 1/A);
+    the robot makes it iff ``A_x^2 + A_y^2 <= a_max^2`` (cos^2 + sin^2 = 1). This gives the exact
     sign of the alpha-search time in one vectorized pass, with no iteration.
 
 robotTimeToBall (beyond the paper)
@@ -26,8 +29,17 @@ robotTimeToBall (beyond the paper)
     returned time is feasible (f <= 0 there), never earlier than the true first crossing and at most
     ``h / refine_points`` later (78 us with the defaults h = 10 ms, 128 points). Narrower windows
     can be missed; then the next window (or the paper's fallback) is returned. The crossing is
-    refined by one sub-grid pass instead of a bisection, which also copes with the discontinuity
-    of f the paper mentions (the leftmost feasible sub-point is taken).
+    refined by sub-grid passes (12 x 11 points) instead of a bisection, which also copes with the
+    discontinuity of f the paper mentions (the leftmost feasible sub-point is taken). The paper's
+    fallback (no window, the ball stops inside) is robotTimeToPos to the stop point, an upper
+    bound at most ``h / refine_points`` above the exact time.
+
+Cost (the grid pass evaluates exactly the same grid points as a plain scan would accept)
+    A sound and cheap bound (``_may_reach``: the motion projected on the line to the target,
+    |acceleration| <= a_max, speed <= sqrt(v_max^2 + |v0|^2), ending at rest) discards the
+    (robot, grid time) pairs the robot surely cannot make; the exact test runs only on the rest,
+    per robot in order of time and in small rounds, so each robot stops at its first feasible
+    point. Columns are processed in cache-sized chunks and finished robots drop out.
 """
 
 from __future__ import annotations
@@ -114,41 +126,39 @@ def axis_time(d_m, w_mps, inv_accel_s2pm, rho_s) -> np.ndarray:
     return np.where(no_authority, np.where((d == 0.0) & (w == 0.0), 0.0, np.inf), t)
 
 
-def _axis_max_inv_accel(d, w, t_budget, rho):
-    """Largest 1/A for which ``axis_time(d, w, 1/A, rho) <= t_budget`` (inverse of axis_time).
+def _axis_min_accel(d, w, t_budget, rho, two_rho2):
+    """Smallest acceleration A >= 0 for which ``axis_time(d, w, 1/A, rho) <= t_budget`` (its inverse).
 
     axis_time is increasing in x = 1/A and on each piece a quadratic in x (after squaring the
-    triangle case), so: find the piece from the times at the piece boundaries, solve its quadratic.
+    triangle case), so: find the piece from the times at the piece boundaries (overshoot, triangle
+    -> trapezoid, speed share below the current speed), solve its quadratic for A in the
+    cancellation-free form. 0 when the axis needs no motion; +inf when it cannot make it (e.g.
+    ``t_budget`` 0 while moving). ``two_rho2`` is ``2 rho^2`` (hoisted by the caller).
     """
-    neg = d < 0.0
+    w = np.copysign(1.0, d) * w  # mirror so that d >= 0
     d = np.abs(d)
-    w = np.where(neg, -w, w)
-    t = t_budget
+    w2 = w * w
     wpos = w > 0.0
-    ws = np.where(wpos, w, 1.0)
-    inf = np.inf
-    s = np.sqrt(d * d + 2.0 * (w * rho) ** 2)
-    # Piece boundaries in x: triangle->trapezoid (x_q), speed share below current speed (rho/w),
-    # overshoot (2d/w^2), triangle->trapezoid after overshoot (x_q2); times there in closed form.
-    t_o = np.where(wpos, 2.0 * d / ws, inf)
-    x_q = 2.0 * rho * rho / np.maximum(d + s, 1e-300)
-    t1 = np.minimum(2.0 * rho - w * x_q, t_o)
-    t2 = np.minimum(np.where(wpos, d / ws + 0.5 * rho, inf), t_o)
-    t4 = np.where(wpos, (d + s) / ws + 2.0 * rho, inf)
-    over = t > t_o
-    trap = (t > t1) & (t <= t_o) | (t > t4)
-    fast = (t > t2) & ~over
-    # Positive root of a2 x^2 + b x + c = 0 (c <= 0) in the cancellation-free form.
-    sgn = np.where(over, -1.0, 1.0)
-    a2 = np.where(trap, 0.5, 1.0) * w * w
-    b = sgn * np.where(trap, d - w * rho, 4.0 * d - 2.0 * t * w)
-    c = np.where(trap, rho * (rho - t), -t * t)
-    disc = np.sqrt(np.maximum(b * b - 4.0 * a2 * c, 0.0))
+    t = t_budget
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        x = np.where(b >= 0.0, -2.0 * c / (b + disc), (disc - b) / (2.0 * a2))
-        x = np.where(fast, 2.0 * (t - d / ws) / ws, x)
-    x = np.where(t > 0.0, np.fmax(x, 0.0), 0.0)  # fmax also maps a NaN from 0/0 to 0
-    return np.where((d == 0.0) & (w == 0.0), inf, x)
+        iw = 1.0 / w
+        ds = d + np.sqrt(d * d + w2 * two_rho2)
+        t_over = np.where(wpos, 2.0 * d * iw, np.inf)  # beyond: cannot stop before the target
+        over = t > t_over
+        t_trap = np.minimum(2.0 * rho - w * (two_rho2 / ds), t_over)  # triangle -> trapezoid
+        trap = np.where(over, t > ds * iw + 2.0 * rho, t > t_trap)
+        fast = wpos & ~over & (t > d * iw + 0.5 * rho)  # keeps its speed above the share
+        tw = t * w
+        # Root in A of  c A^2 + b A + a2 = 0  (x = 1/A of  a2 x^2 + b x + c = 0, c <= 0).
+        b = np.where(trap, d - w * rho, 4.0 * d - 2.0 * tw)
+        b = np.where(over, -b, b)
+        a2 = np.where(trap, 0.5 * w2, w2)
+        c = np.where(trap, rho * (rho - t), -t * t)
+        disc = np.sqrt(np.maximum(b * b - 4.0 * a2 * c, 0.0))
+        q = np.where(b >= 0.0, (b + disc) / (-2.0 * c), 2.0 * a2 / (disc - b))
+        q = np.where(fast, w2 / (2.0 * (tw - d)), q)
+    # No root >= 0 (also the 0/0 of a zero budget): impossible, unless already at rest at the target.
+    return np.where(q >= 0.0, q, np.where((d == 0.0) & (w2 == 0.0), 0.0, np.inf))
 
 
 def _limits_arrays(limits: RobotLimits, shape) -> tuple[np.ndarray, np.ndarray]:
@@ -177,24 +187,44 @@ def _axis_time_mirrored(d, half_w2, half_w2_pos, w, x, rho, inv_rho):
     t = 2.0 * root_q - wpx + np.maximum(root_q - rho, 0.0) ** 2 * inv_rho
     fast = (wpx > rho) & ~over
     if fast.any():
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # subnormal speeds
             t = np.where(fast, dp * x / wpx + 0.5 * wpx, t)
     return t
 
 
-_SEARCH_POINTS = 16  # splits evaluated per robot and pass of the alpha search
+# Alpha search: splits per robot and pass. Passes after the first put 15 splits uniformly in the
+# bracket (it shrinks at least 16-fold per pass, whatever the shape) and 12 close around the
+# false-position estimate (where t_x - t_y is smooth the bracket then shrinks by 1e-4 or more).
+_FIRST_PASS_POINTS = 16
+_UNIFORM_FRAC = np.arange(1, 16) / 16.0
+_CLUSTER_OFFSETS = np.array([-3e-2, -3e-3, -3e-4, -3e-5, -3e-6, -3e-7, 3e-7, 3e-6, 3e-5, 3e-4, 3e-3, 3e-2])
 
 
-def _time_to_pos(dx, dy, wx, wy, a, vmax, passes: int = 5) -> np.ndarray:
+def _time_to_pos(dx, dy, wx, wy, a, vmax, max_passes: int = 12, tol_s: float = 1e-7) -> np.ndarray:
     """robotTimeToPos on flat (n,) arrays: the alpha search, vectorized over robots *and* splits.
 
     The split is parametrized by ``u = tan(alpha / 2)`` in (0, 1) (rational cos/sin, no trig;
-    about uniform in alpha). ``t_x - t_y`` grows with u, so each pass evaluates 16 splits per
-    robot in one (2, n, 16) array and keeps the sub-interval where the sign changes (the bracket
-    shrinks 15-fold per pass); one false-position step in the final bracket finishes. Every
-    evaluated split gives an achievable time ``max(t_x, t_y)``; the smallest one is returned, so
-    the result is an upper bound of the synchronized time.
+    about uniform in alpha). ``t_x - t_y`` grows with u; each pass evaluates many splits per
+    robot in one (2, n, m) array and keeps the sub-interval [lo, hi] where the sign changes.
+    That bracket certifies the synchronized time T*: t_x grows and t_y falls with u, so
+    ``max(t_x(lo), t_y(hi)) <= T* <= min(t_x(hi), t_y(lo))``. Passes stop when every robot's
+    certified gap is below ``tol_s`` (1e-7 s: 4-7 passes for 22 robots at once) or after
+    ``max_passes``; the upper end is returned (an achievable time).
+
+    A robot at rest needs no search: both axes then take ``f(d_i / share_i)`` with the same f,
+    so they arrive together at the split along the line to the target (closed form, exact).
     """
+    rho_all = vmax / a
+    at_rest = (wx == 0.0) & (wy == 0.0)
+    if at_rest.any():
+        dist = np.sqrt(dx * dx + dy * dy)
+        zero = np.zeros_like(dist)
+        out = _axis_time_mirrored(dist, zero, zero, zero, 1.0 / a, rho_all, 1.0 / rho_all)
+        moving = np.flatnonzero(~at_rest)
+        if moving.size:
+            out[moving] = _time_to_pos(dx[moving], dy[moving], wx[moving], wy[moving], a[moving], vmax[moving],
+                                       max_passes, tol_s)
+        return out
     n = dx.shape[0]
     d = np.stack([dx, dy])
     w = np.stack([wx, wy])
@@ -202,58 +232,66 @@ def _time_to_pos(dx, dy, wx, wy, a, vmax, passes: int = 5) -> np.ndarray:
     d = np.abs(d)[..., None]
     half_w2 = 0.5 * w * w
     half_w2_pos = np.where(w > 0.0, half_w2, 0.0)
-    rho = (vmax / a)[:, None]
+    rho = rho_all[:, None]
     inv_rho = 1.0 / rho
     inv_a = (1.0 / a)[:, None]
 
-    def gap_and_time(u):
+    def times(u):
         k = inv_a * (1.0 + u * u)  # 1/(a cos alpha) = k / (1 - u^2), 1/(a sin alpha) = k / (2u)
-        t = _axis_time_mirrored(d, half_w2, half_w2_pos, w, np.stack([k / (1.0 - u * u), k / (2.0 * u)]),
-                                rho, inv_rho)
-        return t[0] - t[1], np.maximum(t[0], t[1])
+        x = np.concatenate([(k / (1.0 - u * u))[None], (k / (2.0 * u))[None]])
+        return _axis_time_mirrored(d, half_w2, half_w2_pos, w, x, rho, inv_rho)
 
-    eps = 1e-9  # keeps both shares > 0 so both times stay finite
-    lo = np.full((n, 1), eps)
-    hi = np.full((n, 1), 1.0 - eps)
-    frac = np.linspace(0.0, 1.0, _SEARCH_POINTS)
     rows = np.arange(n)
-    best = np.full(n, np.inf)
-    for _ in range(passes):
-        u = lo + (hi - lo) * frac
-        gap, t = gap_and_time(u)
-        best = np.minimum(best, t.min(axis=1))
-        j = np.clip(np.count_nonzero(gap <= 0.0, axis=1), 1, _SEARCH_POINTS - 1)
-        lo, hi = u[rows, j - 1, None], u[rows, j, None]
-        g_lo, g_hi = gap[rows, j - 1, None], gap[rows, j, None]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
-    u = np.where(np.isfinite(u) & (u > lo) & (u < hi), u, 0.5 * (lo + hi))
-    return np.minimum(best, gap_and_time(u)[1][:, 0])
+    eps = 1e-9  # keeps both shares > 0 so both times stay finite
+    u = np.broadcast_to(np.linspace(eps, 1.0 - eps, _FIRST_PASS_POINTS), (n, _FIRST_PASS_POINTS))
+    t = times(u)
+    for done in range(1, max_passes + 1):
+        # Bracket: the last split with t_x <= t_y and the next one (u sorted, t_x - t_y increasing).
+        j = np.minimum(np.maximum(np.add.reduce(t[0] <= t[1], axis=1), 1), u.shape[1] - 1)
+        lo, hi = u[rows, j - 1], u[rows, j]
+        t_lo, t_hi = t[:, rows, j - 1], t[:, rows, j]
+        (tx_lo, ty_lo), (tx_hi, ty_hi) = t_lo, t_hi
+        g_lo, g_hi = tx_lo - ty_lo, tx_hi - ty_hi
+        upper = np.minimum(np.maximum(tx_lo, ty_lo), np.maximum(tx_hi, ty_hi))
+        # No sign change (one axis needs nothing): the optimum is at the end of the range, found.
+        open_gap = np.where((g_lo <= 0.0) & (g_hi > 0.0), upper - np.maximum(tx_lo, ty_hi), 0.0)
+        if done == max_passes or (open_gap <= tol_s).all():
+            break
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # log(t_x / t_y): ~linear in u
+            r_lo, r_hi = np.log(tx_lo / ty_lo), np.log(tx_hi / ty_hi)
+            fp = (lo * r_hi - hi * r_lo) / (r_hi - r_lo)
+        span = (hi - lo)[:, None]
+        fp = np.where(np.isfinite(fp), fp, 0.5 * (lo + hi))[:, None]
+        inner = np.concatenate([lo[:, None] + span * _UNIFORM_FRAC, fp + span * _CLUSTER_OFFSETS], axis=1)
+        inner = np.sort(np.minimum(np.maximum(inner, lo[:, None]), hi[:, None]), axis=1)
+        u = np.concatenate([lo[:, None], inner, hi[:, None]], axis=1)
+        t = np.concatenate([t_lo[..., None], times(inner), t_hi[..., None]], axis=2)
+    return np.maximum(upper, 0.0)  # rounding with subnormal speeds
 
 
 def robot_time_to_pos(
-    robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits, passes: int = 5
+    robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits, max_passes: int = 12
 ) -> np.ndarray:
     """Time (s) for a robot to reach ``target_m`` and stop there (paper: robotTimeToPos).
 
     Arrays broadcast: positions/velocities/targets ``(..., 2)``, limits per robot. The split
-    angle alpha solves ``t_x(alpha) = t_y(alpha)`` (t_x grows, t_y falls with alpha): ``passes``
-    bracketing passes of 16 splits each, all robots and splits in one array, then one
-    false-position step (see ``_time_to_pos``). Returns an upper bound that is within 3e-6 s of
-    the synchronized time with the default 5 passes (measured on 50k random cases against an
-    80-step search: max 2.7e-6 s, 99.9 % below 7e-7 s).
+    angle alpha solves ``t_x(alpha) = t_y(alpha)`` (t_x grows, t_y falls with alpha); see
+    ``_time_to_pos``: all robots and splits in one array per pass, at most ``max_passes``
+    passes. Returns an achievable time (an upper bound) certified to be within 1e-7 s of the
+    synchronized time (unless ``max_passes`` ran out first; on random cases one robot needed 2-6
+    passes, 22 robots at once 4-7).
     """
     p0 = _vec2("robot_pos_m", robot_pos_m)
     v0 = _vec2("robot_vel_mps", robot_vel_mps)
     tgt = _vec2("target_m", target_m)
-    if passes < 3:
-        raise ValueError("passes: need at least 3")
+    if max_passes < 1:
+        raise ValueError("max_passes: need at least 1")
     d = tgt - p0
     shape = np.broadcast_shapes(d.shape, v0.shape)[:-1]
     d = np.broadcast_to(d, (*shape, 2)).reshape(-1, 2)
     v0 = np.broadcast_to(v0, (*shape, 2)).reshape(-1, 2)
     a, vmax = (np.ravel(x) for x in _limits_arrays(limits, shape))
-    return _time_to_pos(d[:, 0], d[:, 1], v0[:, 0], v0[:, 1], a, vmax, passes).reshape(shape)
+    return _time_to_pos(d[:, 0], d[:, 1], v0[:, 0], v0[:, 1], a, vmax, max_passes).reshape(shape)
 
 
 def can_reach_in_time(d_m, w_mps, t_budget_s, a_max_mps2, v_max_mps) -> np.ndarray:
@@ -270,12 +308,16 @@ def can_reach_in_time(d_m, w_mps, t_budget_s, a_max_mps2, v_max_mps) -> np.ndarr
 
 
 def _can_reach(dx, dy, wx, wy, t, a, vmax):
-    """can_reach_in_time on same-shape arrays (hot path: no broadcasting or validation)."""
+    """can_reach_in_time on same-shape arrays (hot path: no broadcasting or validation).
+
+    Each axis needs at least the acceleration ``A_i(t)`` (``_axis_min_accel``) and gets
+    ``a cos(alpha)`` resp. ``a sin(alpha)``: some alpha works iff ``A_x^2 + A_y^2 <= a^2``.
+    """
     rho = vmax / a
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):  # subnormal/huge inputs
-        x = _axis_max_inv_accel(np.stack([dx, dy]), np.stack([wx, wy]), t, rho)
-        share = 1.0 / (a * x)
-    return share[0] ** 2 + share[1] ** 2 <= 1.0
+    acc = _axis_min_accel(np.concatenate([dx[None], dy[None]]), np.concatenate([wx[None], wy[None]]), t, rho,
+                          2.0 * rho * rho)
+    with np.errstate(over="ignore"):  # an absurd need overflows to inf: unreachable, as it should
+        return acc[0] * acc[0] + acc[1] * acc[1] <= a * a
 
 
 def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
@@ -291,56 +333,68 @@ def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
     cost, never correctness, depends on how tight they are. Shapes broadcast.
     """
     dist = np.sqrt(dx * dx + dy * dy)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        w = np.where(dist > 0.0, (dx * wx + dy * wy) / dist, 0.0)
+    w = (dx * wx + dy * wy) / (dist + 1e-300)  # 0 at the target itself
     at = a * t
-    vcap = np.sqrt(vmax * vmax + s0 * s0)
-    vp = np.minimum(0.5 * (w + at), vcap)
+    vp = np.minimum(0.5 * (w + at), np.sqrt(vmax * vmax + s0 * s0))
     reach = vp * t - (vp * vp + (vp - w) ** 2) * (0.5 / a)
-    return (dist <= reach + 1e-9 * (1.0 + dist)) & (at >= s0 - 1e-9)
+    return (dist <= reach + 1e-9) & (at >= s0 - 1e-9)
 
 
-# Exact tests per robot in successive rounds: its candidates (grid points the cheap bound keeps)
-# of rank [0, 8), then [8, 64), then the rest, dropping robots that found a feasible point. The
-# first feasible candidate has rank <= 3 for half of the robots and < 64 for 98 % (realistic frames).
+# The grid is scanned in column chunks of about _CHUNK_ELEMENTS robots x columns (the temporaries
+# stay in cache); robots that found their first feasible point drop out of later chunks. Inside a
+# chunk each robot's candidates (the grid points ``_may_reach`` keeps) get the exact test in rounds
+# by rank: [0, 8), [8, 64), then the rest. On realistic frames the first feasible candidate has
+# rank <= 3 for half of the robots and < 64 for 98 % of them: most robots need one small round.
+_CHUNK_ELEMENTS = 6144
 _ROUND_ENDS = (8, 64, None)
 
 
-def _first_feasible(dx, dy, wx, wy, s0, t_grid, a, vmax) -> np.ndarray:
+def _first_feasible(bx, by, sx, sy, wx, wy, s0, t_grid, a, vmax) -> np.ndarray:
     """Per robot the first grid column where ``can_reach_in_time`` holds, -1 if none.
 
-    ``dx``, ``dy`` (R, K): target minus start per robot and grid time; the rest per robot (R,)
-    except ``t_grid`` (K,). The exact test runs only on candidates of ``_may_reach``, in rounds.
+    ``bx``, ``by`` (K,): ball on the grid ``t_grid`` (K,); ``sx``, ``sy`` (R,): robot starts
+    (target minus start is what the robot must cover); velocities and limits (R,).
     """
-    n, k = dx.shape
+    n, k = sx.shape[0], t_grid.shape[0]
     first = np.full(n, -1)
-    col = lambda x: x[:, None]  # noqa: E731
-    maybe = _may_reach(dx, dy, col(wx), col(wy), col(s0), t_grid, col(a), col(vmax))
-    flat = np.flatnonzero(maybe)  # row-major: by robot, then by time
-    if flat.size == 0:
-        return first
-    rows = flat // k
-    counts = np.bincount(rows, minlength=n)
-    rank = np.arange(flat.size) - np.repeat(np.cumsum(counts) - counts, counts)
-    dx, dy = dx.ravel(), dy.ravel()
-    lo = 0
-    for hi in _ROUND_ENDS:
-        pick = (rank >= lo) & (first[rows] < 0)
-        if hi is not None:
-            pick &= rank < hi
-        idx = np.flatnonzero(pick)
-        if idx.size:
-            f, r = flat[idx], rows[idx]
-            c = f - r * k
-            ok = _can_reach(dx[f], dy[f], wx[r], wy[r], t_grid[c], a[r], vmax[r])
-            r, c = r[ok], c[ok]
-            if r.size:
-                head = np.ones(r.size, dtype=bool)  # first feasible of each robot (sorted by robot, time)
-                head[1:] = r[1:] != r[:-1]
-                first[r[head]] = c[head]
-        if hi is None or not ((counts > hi) & (first < 0)).any():
+    col = 0
+    while col < k:
+        robots = np.flatnonzero(first < 0)
+        if robots.size == 0:
             break
-        lo = hi
+        end = min(k, col + max(64, _CHUNK_ELEMENTS // robots.size))
+        t = t_grid[col:end]
+        dx = bx[col:end] - sx[robots, None]
+        dy = by[col:end] - sy[robots, None]
+        rwx, rwy, ra, rv = wx[robots], wy[robots], a[robots], vmax[robots]
+        maybe = _may_reach(dx, dy, rwx[:, None], rwy[:, None], s0[robots, None], t, ra[:, None], rv[:, None])
+        flat = np.flatnonzero(maybe)  # row-major: by robot, then by time
+        if flat.size:
+            width = end - col
+            rows = flat // width
+            counts = np.bincount(rows, minlength=robots.size)
+            rank = np.arange(flat.size) - np.repeat(np.cumsum(counts) - counts, counts)
+            found = np.zeros(robots.size, dtype=bool)
+            dx, dy = dx.ravel(), dy.ravel()
+            lo = 0
+            for hi in _ROUND_ENDS:
+                pick = (rank >= lo) & ~found[rows]
+                if hi is not None:
+                    pick &= rank < hi
+                idx = np.flatnonzero(pick)
+                if idx.size:
+                    f, r = flat[idx], rows[idx]
+                    ok = _can_reach(dx[f], dy[f], rwx[r], rwy[r], t[f - r * width], ra[r], rv[r])
+                    f, r = f[ok], r[ok]
+                    if r.size:  # first feasible of each robot (sorted by robot, then time)
+                        head = np.ones(r.size, dtype=bool)
+                        head[1:] = r[1:] != r[:-1]
+                        found[r[head]] = True
+                        first[robots[r[head]]] = col + f[head] - r[head] * width
+                if hi is None or not ((counts > hi) & ~found).any():
+                    break
+                lo = hi
+        col = end
     return first
 
 
@@ -433,11 +487,9 @@ def robot_time_to_ball(
     wx, wy = v0[:, 0].copy(), v0[:, 1].copy()
     s0 = np.sqrt(wx * wx + wy * wy)
 
-    # Grid pass: all robots x all grid times as one (R, K) array; exact tests only where needed.
+    # Grid pass: all robots at once, exact tests only where the cheap bound leaves a chance.
     ball_grid = ball.position_at(t_grid)  # (K, 2)
-    first = _first_feasible(
-        ball_grid[:, 0] - start[:, 0:1], ball_grid[:, 1] - start[:, 1:2], wx, wy, s0, t_grid, a, vmax
-    )
+    first = _first_feasible(ball_grid[:, 0], ball_grid[:, 1], start[:, 0], start[:, 1], wx, wy, s0, t_grid, a, vmax)
     found = first >= 0
     time_s = np.where(first == 0, 0.0, np.inf)
     refine = np.flatnonzero(first > 0)
@@ -453,7 +505,8 @@ def robot_time_to_ball(
     rest = ~found & (t_stop < t_out)
     if rest.any():  # one vectorized robotTimeToPos for all of them
         d = ball.stop_point - start[rest]
-        time_s[rest] = _time_to_pos(d[:, 0], d[:, 1], wx[rest], wy[rest], a[rest], vmax[rest])
+        time_s[rest] = _time_to_pos(d[:, 0], d[:, 1], wx[rest], wy[rest], a[rest], vmax[rest],
+                                    tol_s=grid_step_s / refine_points)
         kind[rest] = CatchKind.AT_REST
     ball_pos = np.full((n, 2), np.nan)
     finite = np.isfinite(time_s)

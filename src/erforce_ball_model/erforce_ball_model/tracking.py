@@ -70,10 +70,10 @@ class KalmanCV2D:
         x = f @ self.x
         x[:2] += 0.5 * dt * dt * np.asarray(accel)
         x[2:] += dt * np.asarray(accel)
-        q1 = self.q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
-        q = np.zeros((4, 4))
-        q[np.ix_([0, 2], [0, 2])] = q1
-        q[np.ix_([1, 3], [1, 3])] = q1
+        q = np.zeros((4, 4))  # white-acceleration noise, the same 2x2 block for (x, vx) and (y, vy)
+        q[0, 0] = q[1, 1] = self.q * (dt**3 / 3.0)
+        q[0, 2] = q[2, 0] = q[1, 3] = q[3, 1] = self.q * (dt**2 / 2.0)
+        q[2, 2] = q[3, 3] = self.q * dt
         return x, f @ self.p @ f.T + q
 
     def innovation(self, x: np.ndarray, p: np.ndarray, z) -> tuple[np.ndarray, np.ndarray]:

@@ -333,8 +333,11 @@ class Director:
         actual = self.barrier_edges[n_edges] if len(self.barrier_edges) > n_edges else None
         # This observer may lag a flat-out graph: take in the predictions up to the one compared.
         needed = (actual - PREDICTION_LEAD_S) if actual is not None else t_start + PREDICTION_LEAD_S
-        self.spin_until(lambda: self.series.predictions and self.series.predictions[-1][0] >= needed, 10.0,
-                        "the predictions")
+        truth_until = (actual if actual is not None else self.sim_s) + 0.05
+        self.spin_until(lambda: self.series.predictions and self.series.predictions[-1][0] >= needed
+                        and self.series.ball_truth and self.series.ball_truth[-1][0] >= truth_until
+                        and self.series.robot_truth and self.series.robot_truth[-1][0] >= truth_until,
+                        10.0, "the predictions and ground truth")
         return SceneResult(scene, t_start, self.sim_s, self._prediction(t_start, actual), actual, kick_fired=fired)
 
     def _prediction(self, t_start: float, actual: float | None) -> float | None:
