@@ -76,7 +76,7 @@ from pathlib import Path
 
 import pytest
 
-from erforce_interfaces.testing import NodeProcess, RosGraph, _pids_with_tag
+from erforce_interfaces.testing import NodeProcess, RosGraph
 
 pytestmark = [pytest.mark.integration, pytest.mark.root]
 
@@ -305,7 +305,7 @@ def test_demo_catches_a_kick_with_the_robot_on_another_host(two_hosts: TwoHosts)
     while demo.alive() and time.monotonic() < deadline:
         if not dds_pids_checked and any(r.get("kind") == "kick" for r in _watch_records(watch)):
             # mid-run, every process of the two graphs is up: none may use Fast DDS shared memory
-            for pid in _pids_with_tag(h.graph.tag):
+            for pid in h.graph.pids():
                 maps = _maps(pid)
                 if "libfastrtps" in maps:
                     dds_pids_checked[pid] = _cmdline(pid)

@@ -314,6 +314,13 @@ def _can_reach(dx, dy, wx, wy, t, a, vmax):
     ``a cos(alpha)`` resp. ``a sin(alpha)``: some alpha works iff ``A_x^2 + A_y^2 <= a^2``.
     """
     rho = vmax / a
+    if not (wx.any() or wy.any()):
+        # All at rest: both axes are in the same piece (triangle up to t = 2 rho), so the need is
+        # |d| * k(t) with k = 4 / t^2 (triangle) or 1 / (rho (t - rho)) (trapezoid).
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+            k = np.where(t > 2.0 * rho, 1.0 / (rho * (t - rho)), 4.0 / (t * t))
+            d2 = dx * dx + dy * dy
+            return (d2 == 0.0) | (d2 * (k * k) <= a * a)
     acc = _axis_min_accel(np.concatenate([dx[None], dy[None]]), np.concatenate([wx[None], wy[None]]), t, rho,
                           2.0 * rho * rho)
     with np.errstate(over="ignore"):  # an absurd need overflows to inf: unreachable, as it should

@@ -2,9 +2,9 @@
 
 The bag is a rosbag2 directory (metadata.yaml + .mcap), so ``ros2 bag info/play`` and
 Foxglove open it. Messages are taken raw (CDR bytes, no deserialization), which keeps
-recording a kilohertz control loop cheap. Log times are simulation time (the newest
-``/clock``) once the plant runs, as ``ros2 bag record --use-sim-time`` would log them.
-Also usable from the command line: ``erforce-record OUTPUT_DIR [--duration S]``.
+recording a kilohertz control loop cheap. Log times are wall-clock time, or with
+``use_sim_time`` the newest ``/clock`` (0 before the first), as ``ros2 bag record
+--use-sim-time`` logs them. Command line: ``erforce-record OUTPUT_DIR [--use-sim-time] [--duration S]``.
 """
 
 from __future__ import annotations
@@ -34,7 +34,8 @@ def _message_class(type_name: str):
 class BagRecorder:
     """Subscribes to every topic as it appears and writes what arrives into ``path``."""
 
-    def __init__(self, node: Node, path: str | Path, discovery_period_s: float = 0.5) -> None:
+    def __init__(self, node: Node, path: str | Path, discovery_period_s: float = 0.5,
+                 use_sim_time: bool = False) -> None:
         self.node = node
         self.path = Path(path)
         self._typestore = get_typestore(Stores.ROS2_JAZZY)
@@ -42,10 +43,11 @@ class BagRecorder:
         self._writer.open()
         self._connections: dict[str, object] = {}
         self._subscriptions = []
-        self._sim_time_ns: int | None = None
+        self._sim_time_ns: int | None = 0 if use_sim_time else None
         self.counts: dict[str, int] = {}
         self._closed = False
-        node.create_subscription(Clock, "/clock", self._on_clock, QOS_CLOCK)
+        if use_sim_time:
+            node.create_subscription(Clock, "/clock", self._on_clock, QOS_CLOCK)
         self._timer = node.create_timer(discovery_period_s, self.discover)
         self.discover()
 
@@ -89,10 +91,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="erforce-record", description="Record all topics to a rosbag2 MCAP bag.")
     parser.add_argument("output", help="bag directory to create (must not exist)")
     parser.add_argument("--duration", type=float, default=0.0, help="stop after this many wall seconds (0: Ctrl-C)")
+    parser.add_argument("--use-sim-time", action="store_true", help="log times from /clock (0 before the first)")
     args = parser.parse_args(argv)
     rclpy.init()
     node = rclpy.create_node("erforce_record")
-    recorder = BagRecorder(node, args.output)
+    recorder = BagRecorder(node, args.output, use_sim_time=args.use_sim_time)
     deadline = time.monotonic() + args.duration if args.duration > 0 else None
     try:
         while rclpy.ok() and (deadline is None or time.monotonic() < deadline):

@@ -221,6 +221,15 @@ class RosGraph:
         cmd += [f"{k}:={v}" for k, v in launch_args.items()]
         return self.start(cmd, name=f"launch-{Path(launch_file).stem}")
 
+    @staticmethod
+    def probe_executable(name: str) -> str:
+        """Path of a console script of the stack (next to this interpreter)."""
+        return _executable_path(name)
+
+    def pids(self) -> list[int]:
+        """Every live process started by this graph, grandchildren included."""
+        return _pids_with_tag(self.tag)
+
     # ---------------------------------------------------------------- probe
     @property
     def probe(self):

@@ -390,7 +390,7 @@ class Demo:
         self.launch = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         # The recorder is a process of its own, like `ros2 bag record -a`.
         self.recorder = subprocess.Popen(
-            [str(Path(sys.executable).with_name("erforce-record")), str(self.out / "bag")],
+            [str(Path(sys.executable).with_name("erforce-record")), str(self.out / "bag"), "--use-sim-time"],
             stdout=open(self.out / "record.log", "wb"),
             stderr=subprocess.STDOUT,
             start_new_session=True,
