@@ -82,6 +82,21 @@ def test_reachability_test_agrees_with_alpha_search(p0, v0, target, a_max, v_max
         assert bool(can_reach_in_time(d, v0, budget, a_max, v_max)) == (factor > 1.0)
 
 
+@settings(max_examples=300, deadline=None)
+@given(vec, vec, st.floats(0.5, 6.0), st.floats(0.5, 4.0), st.floats(0.5, 1.5))
+def test_reachability_of_robots_at_rest_agrees_with_alpha_search(p0, target, a_max, v_max, factor):
+    """Robots at rest take a closed-form path in the sign test: same answer as the search."""
+    lim = RobotLimits(a_max, v_max)
+    t = float(robot_time_to_pos(p0, [0.0, 0.0], target, lim))
+    d = np.subtract(target, p0)
+    if abs(factor - 1.0) * t > 1e-6:
+        assert bool(can_reach_in_time(d, [0.0, 0.0], t * factor, a_max, v_max)) == (factor > 1.0)
+    # 1D from rest along the line: triangle 2 sqrt(D / a) or trapezoid D / v + v / a
+    dist = math.hypot(*d)
+    expected = 2.0 * math.sqrt(dist / a_max) if dist <= v_max**2 / a_max else dist / v_max + v_max / a_max
+    assert t == pytest.approx(expected, abs=1e-9)
+
+
 @settings(max_examples=200, deadline=None)
 @given(st.floats(-5, 5), st.floats(-4, 4), st.floats(0.05, 5.0), st.floats(0.05, 3.0))
 def test_axis_time_monotone_in_acceleration_share(d, w, inv_a, rho):

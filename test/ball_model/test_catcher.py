@@ -74,3 +74,12 @@ def test_receive_line():
     assert not on_receive_line(pose, ball, -towards, 0.08, 0.02)  # rolling away
     assert not on_receive_line(pose, np.array([2.0, 0.0]), towards, 0.08, 0.02)  # already past the dribbler
     assert not on_receive_line(pose, ball, np.zeros(2), 0.08, 0.02)  # at rest: nothing comes
+
+
+def test_noise_sized_errors_do_not_move_the_robot():
+    cfg = CatcherConfig()
+    # 2 cm and 0.02 rad away: inside the arrive tolerance and the heading deadband
+    twist = catch_twist(np.array([0.0, 0.0, 0.02]), np.array([0.01, 0.0]), 0.0, cfg)
+    np.testing.assert_array_equal(twist, [0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="heading_deadband_rad"):
+        CatcherConfig(heading_deadband_rad=-0.1)

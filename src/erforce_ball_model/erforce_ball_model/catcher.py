@@ -31,7 +31,8 @@ class CatcherConfig:
     v_max_mps: float = 2.5
     w_max_radps: float = 6.0
     heading_gain_per_s: float = 8.0
-    arrive_tolerance_m: float = 0.005  # inside this the robot holds still
+    arrive_tolerance_m: float = 0.015  # inside this the robot holds still (above the 2 mm vision noise)
+    heading_deadband_rad: float = 0.03  # no turning for smaller errors: vision yaw noise is ~0.01 rad
     # The approach aims for rest at the target, but the velocity loop lags; braking a
     # little earlier than the ideal profile avoids overshooting the catch point.
     braking_margin: float = 0.85
@@ -45,6 +46,8 @@ class CatcherConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        if not (math.isfinite(self.heading_deadband_rad) and 0.0 <= self.heading_deadband_rad < math.pi):
+            raise ValueError(f"heading_deadband_rad must be in [0, pi), got {self.heading_deadband_rad!r}")
         if not (math.isfinite(self.receive_line_tolerance_m) and self.receive_line_tolerance_m >= 0.0):
             raise ValueError(f"receive_line_tolerance_m must be finite and >= 0, got {self.receive_line_tolerance_m!r}")
         if not (0.0 < self.braking_margin <= 1.0):
@@ -85,6 +88,8 @@ def catch_twist(pose: np.ndarray, target: np.ndarray, facing_rad: float, cfg: Ca
     v_field = approach_velocity(pose[:2], target, cfg)
     v_robot = field_to_robot(v_field, pose[2])
     heading_error = wrap_angle(facing_rad - pose[2])
+    if abs(heading_error) <= cfg.heading_deadband_rad:
+        heading_error = 0.0
     wz = float(np.clip(cfg.heading_gain_per_s * heading_error, -cfg.w_max_radps, cfg.w_max_radps))
     return np.array([v_robot[0], v_robot[1], wz])
 

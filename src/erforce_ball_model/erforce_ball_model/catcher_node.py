@@ -59,6 +59,8 @@ PARAMS = (
     ParamSpec("fetch_resting_ball", False, "also drive to a ball that is not moving"),
     ParamSpec("disengage_after_rest_s", 2.0, "an engaged catcher gives up after the ball rested this long [s]",
               min=0.0, max=60.0),
+    ParamSpec("heading_deadband_rad", _CC.heading_deadband_rad, "no turning for smaller heading errors [rad]",
+              min=0.0, max=1.0),
     ParamSpec("receive_line_tolerance_m", _CC.receive_line_tolerance_m, "stand still once the dribbler is this "
               "close to the incoming ball's line [m]", min=0.0, max=0.5),
 ) + robot_param_specs()
@@ -68,7 +70,7 @@ def build_config(values: dict[str, Any]) -> tuple[CatcherConfig, float]:
     """(catcher config, dribbler offset [m]) for a complete set of parameter values."""
     config = CatcherConfig(**{k: values[k] for k in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s",
                                                       "arrive_tolerance_m", "braking_margin",
-                                                      "receive_line_tolerance_m")})
+                                                      "receive_line_tolerance_m", "heading_deadband_rad")})
     return config, robot_config_from_params(values).dribbler_offset_m
 
 

@@ -87,8 +87,9 @@ PARAMS = (
     ),
     ParamSpec(
         "kick_spin_ratio",
-        -0.2,
-        "ball spin w r / v given by a kick (< 0 backspin lowers c_switch)",
+        -0.4,
+        "ball spin w r / v given by a kick; backspin lowers c_switch = (5 + 2 s) / 7 for a solid sphere, "
+        "and -0.4 gives the paper's measured 0.6",
         min=-1.0,
         max=1.0,
         read_only=True,
