@@ -14,7 +14,7 @@ from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
-from erforce_ball_model.catcher import PLANNING_A_MAX_MPS2, PLANNING_V_MAX_MPS
+from erforce_ball_model.catcher import CatcherConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     odometry_from_msg,
@@ -202,7 +202,7 @@ def test_robot_on_the_path_facing_the_ball_catches_it_when_brute_force_says(ros_
     v_max, x_robot = 2.0, 0.5
     # With a_max = 5 mm/s^2 the catch window is only a T^2 / (2 v_ball) >= 11 ms wide: use a 2 ms grid.
     rig = Rig(ros_graph, num_robots=1, robot_a_max_mps2=a_max, robot_v_max_mps=v_max, robot_timeout_s=100.0,
-              grid_step_s=0.01 if a_max > 1.0 else 0.002)
+              grid_step_s=0.01 if a_max > 1.0 else 0.002, reaction_s=0.0)  # the brute force has no reaction time
     v0, p0 = 2.0, np.array([-2.0, 0.0])
     t, xy, _, t_kick = shot_frames(1.0, p0, (1.0, 0.0), v0)
     for ts in (0.90, 0.95):
@@ -286,9 +286,10 @@ def test_no_robots_seen_gives_no_catch_outputs_until_one_is_seen(ros_graph):
     rig.ball(1.08, 1.0, 1.0)
     rig.settle()
     assert len(rig.catch_time[0]) == 0 and len(rig.catch_time[1]) == 1
-    # resting ball: drive 1 - offset m from rest to rest with the catcher's limits (the node's defaults)
+    # resting ball: after the reaction time (0.1 s default), drive 1 - offset m from rest to rest with
+    # the catcher's limits (the node's defaults)
     d = 1.0 - OFFSET_M
-    expected = float(robot_time_1d(d, PLANNING_A_MAX_MPS2, PLANNING_V_MAX_MPS))
+    expected = 0.1 + float(robot_time_1d(d, CatcherConfig().a_max_mps2, CatcherConfig().v_max_mps))
     assert rig.catch_time[1][0].data == pytest.approx(expected, abs=1e-3)
     assert point_from_msg(rig.catch_point[1][0])[1] == pytest.approx([d, 1.0], abs=1e-3)
 
@@ -335,8 +336,8 @@ def test_bad_parameters_are_rejected_and_the_old_value_kept(ros_graph):
     rig = Rig(ros_graph, num_robots=2)
     probe = ros_graph.probe
     # the robot limits default to what the catcher drives with
-    assert probe.get_parameter(NODE, "robot_a_max_mps2") == PLANNING_A_MAX_MPS2
-    assert probe.get_parameter(NODE, "robot_v_max_mps") == PLANNING_V_MAX_MPS
+    assert probe.get_parameter(NODE, "robot_a_max_mps2") == CatcherConfig().a_max_mps2
+    assert probe.get_parameter(NODE, "robot_v_max_mps") == CatcherConfig().v_max_mps
     for name, value in BAD_PARAMS:
         before = probe.get_parameter(NODE, name)
         result = probe.set_parameter(NODE, name, value)

@@ -6,8 +6,6 @@ import numpy as np
 import pytest
 
 from erforce_ball_model.catcher import (
-    PLANNING_A_MAX_MPS2,
-    PLANNING_V_MAX_MPS,
     CatcherConfig,
     approach_velocity,
     catch_twist,
@@ -59,11 +57,6 @@ def test_bad_input_raises(bad):
         CatcherConfig(a_max_mps2=bad)
     with pytest.raises(ValueError):
         CatcherConfig(v_max_mps=-1.0)
-
-
-def test_the_catcher_drives_with_more_than_the_predictor_plans_with():
-    cfg = CatcherConfig()
-    assert cfg.a_max_mps2 > PLANNING_A_MAX_MPS2 and cfg.v_max_mps > PLANNING_V_MAX_MPS
 
 
 def test_receive_line():

@@ -33,7 +33,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
 from erforce_ball_model.catch_time import CatchKind, RobotLimits, robot_time_to_ball
-from erforce_ball_model.catcher import PLANNING_A_MAX_MPS2, PLANNING_V_MAX_MPS
+from erforce_ball_model.catcher import CatcherConfig
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
 from erforce_interfaces import contract
@@ -63,6 +63,7 @@ from erforce_interfaces.robot_config import FieldConfig
 # Node defaults are the cores' defaults.
 _MODEL = BallModelParams()
 _TRACK = TrackerConfig()
+_CATCHER = CatcherConfig()  # the robot limits: what the catcher drives with
 _GRID_STEP_S = inspect.signature(robot_time_to_ball).parameters["grid_step_s"].default
 
 FACING_MODES = ("towards_ball", "fixed")
@@ -91,11 +92,11 @@ PARAMS = (
         max=5.0,
     ),
     ParamSpec(
-        "robot_a_max_mps2", PLANNING_A_MAX_MPS2, "robot acceleration limit of robotTimeToPos [m/s^2]; below "
-        "what the catcher drives with, so robots arrive early",
-        min=1e-3, max=100.0,
-    ),
-    ParamSpec("robot_v_max_mps", PLANNING_V_MAX_MPS, "robot speed limit of robotTimeToPos [m/s]", min=1e-3, max=20.0),
+        "robot_a_max_mps2", _CATCHER.a_max_mps2, "robot acceleration limit of robotTimeToPos [m/s^2]; the catcher "
+        "drives with the same", min=1e-3, max=50.0),
+    ParamSpec("robot_v_max_mps", _CATCHER.v_max_mps, "robot speed limit of robotTimeToPos [m/s]", min=1e-3, max=20.0),
+    ParamSpec("reaction_s", 0.1, "robot reaction time: vision latency, tracking and control lag; a robot starts "
+              "to act on a prediction this much later [s]", min=0.0, max=1.0),
     ParamSpec(
         "facing_mode",
         ["towards_ball"],
@@ -180,6 +181,7 @@ class PredictorConfig:
     field_margin_m: float
     vision_reject_margin_m: float
     limits: RobotLimits
+    reaction_s: float
     facing_fixed: np.ndarray  # (R,) bool: fixed heading instead of towards the ball
     facing_rad: np.ndarray  # (R,)
     dribbler_offset_m: float
@@ -227,6 +229,7 @@ def build_config(values: dict[str, Any]) -> PredictorConfig:
         field_margin_m=values["field_margin_m"],
         vision_reject_margin_m=values["vision_reject_margin_m"],
         limits=RobotLimits(values["robot_a_max_mps2"], values["robot_v_max_mps"]),
+        reaction_s=values["reaction_s"],
         facing_fixed=np.array([m == "fixed" for m in modes]),
         facing_rad=facing_rad,
         dribbler_offset_m=robot_config_from_params(values).dribbler_offset_m,
@@ -461,13 +464,18 @@ class BallPredictorNode(Node):
         ids, pos, vel = self._known_robots(t_s)
         if not ids.size:
             return []
+        if cfg.reaction_s > 0.0:
+            # A robot acts on this prediction only after the reaction time: plan from the ball's and
+            # the robots' states that far ahead (robots coasting meanwhile), then count it back in.
+            traj = traj.advanced(cfg.reaction_s)
+            pos = pos + vel * cfg.reaction_s
         facing = facing_angles(cfg.facing_fixed[ids], cfg.facing_rad[ids], traj, pos, cfg.rest_speed_mps)
         catch = robot_time_to_ball(
             traj, pos, vel, cfg.limits, facing, dribbler_offset_m=cfg.dribbler_offset_m, field=cfg.field,
             field_margin_m=cfg.field_margin_m, grid_step_s=cfg.grid_step_s,
         )
         never = catch.kind == CatchKind.NEVER
-        times = np.where(never, contract.CATCH_TIME_NEVER, catch.time_s)
+        times = np.where(never, contract.CATCH_TIME_NEVER, catch.time_s + cfg.reaction_s)
         points = catch.robot_target_m[~never]  # "never" has no catch point: catch_time says so
         # The checks of float64_msg / point_msg, for all robots at once; on a bad value the helper
         # itself raises (same error), before any message is touched.

@@ -18,16 +18,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: The robot limits the ball predictor plans catches with (robotTimeToPos). The catcher
-#: drives with more (CatcherConfig): planning below what the robot can do leaves slack for
-#: vision latency and control lag, so the robot arrives early rather than late.
-PLANNING_A_MAX_MPS2 = 3.0
-PLANNING_V_MAX_MPS = 2.0
-
-
 @dataclass(frozen=True)
 class CatcherConfig:
-    a_max_mps2: float = 4.5  # the velocity controller allows 6 m/s^2; traction ~7.8 m/s^2
+    # The robot's limits for catching; the ball predictor plans with the same (plus a reaction
+    # time), so the catch it predicts is the one this drives. The velocity controller allows
+    # 6 m/s^2 and the traction limit of this wheel layout is 4-6 m/s^2 depending on direction.
+    a_max_mps2: float = 4.5
     v_max_mps: float = 2.5
     w_max_radps: float = 6.0
     heading_gain_per_s: float = 8.0

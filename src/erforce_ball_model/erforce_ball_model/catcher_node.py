@@ -40,7 +40,7 @@ from erforce_interfaces.node_support import (
 _CC = CatcherConfig()
 
 PARAMS = (
-    ParamSpec("rate_hz", 100.0, "cmd_vel rate (robot time) [Hz]", min=1.0, max=1000.0),
+    ParamSpec("rate_hz", 50.0, "cmd_vel rate (robot time) [Hz], like an SSL AI's", min=1.0, max=1000.0),
     ParamSpec("a_max_mps2", _CC.a_max_mps2, "acceleration of the approach profile [m/s^2]; keep equal to the "
               "ball predictor's robot limit", min=0.01, max=50.0),
     ParamSpec("v_max_mps", _CC.v_max_mps, "speed of the approach profile [m/s]; keep equal to the ball "

@@ -65,7 +65,8 @@ class BagRecorder:
             if not publishers:
                 continue
             best_effort = any(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in publishers)
-            qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT if best_effort
+            # deep queues: a recorder running at low priority catches up later instead of dropping
+            qos = QoSProfile(depth=10000, reliability=ReliabilityPolicy.BEST_EFFORT if best_effort
                              else ReliabilityPolicy.RELIABLE)
             self._connections[topic] = self._writer.add_connection(topic, type_name, typestore=self._typestore)
             self.counts[topic] = 0

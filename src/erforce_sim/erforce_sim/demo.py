@@ -394,6 +394,7 @@ class Demo:
             stdout=open(self.out / "record.log", "wb"),
             stderr=subprocess.STDOUT,
             start_new_session=True,
+            preexec_fn=lambda: os.nice(10),  # a logger: it may lag and catch up, the control loop may not
         )
         print(f"graph starting (log: {self.out / 'graph.log'}) ...", flush=True)
         if not self.director.spin_until(
@@ -480,8 +481,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--field", default="division_b", choices=("division_a", "division_b"))
     parser.add_argument("--scenes", type=int, default=0, help="play only the first N scenes")
-    parser.add_argument("--robot-a-max", type=float, default=3.0, help="planning acceleration [m/s^2]")
-    parser.add_argument("--robot-v-max", type=float, default=2.0, help="planning speed [m/s]")
+    parser.add_argument("--robot-a-max", type=float, default=4.5, help="catching acceleration [m/s^2]")
+    parser.add_argument("--robot-v-max", type=float, default=2.5, help="catching speed [m/s]")
     parser.add_argument(
         "--robot-side",
         action=argparse.BooleanOptionalAction,
