@@ -11,6 +11,7 @@ from erforce_ball_model.catcher import (
     catch_twist,
     facing_towards,
     field_to_robot,
+    line_intercept,
     on_receive_line,
     wrap_angle,
 )
@@ -76,3 +77,14 @@ def test_noise_sized_errors_do_not_move_the_robot():
     np.testing.assert_array_equal(twist, [0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="heading_deadband_rad"):
         CatcherConfig(heading_deadband_rad=-0.1)
+
+
+def test_line_intercept_is_the_robots_projection_onto_the_incoming_line():
+    # ball at the origin rolling along +x; robot at (2, -0.3): stand at (2, 0)
+    np.testing.assert_allclose(line_intercept(np.array([2.0, -0.3]), np.zeros(2), np.array([3.0, 0.0]), 0.08),
+                               [2.0, 0.0])
+    # diagonal line: projection of (0, 2) onto the 45 degree line is (1, 1)
+    np.testing.assert_allclose(line_intercept(np.array([0.0, 2.0]), np.zeros(2), np.array([1.0, 1.0]), 0.08),
+                               [1.0, 1.0])
+    assert line_intercept(np.array([-1.0, 0.0]), np.zeros(2), np.array([3.0, 0.0]), 0.08) is None  # passed
+    assert line_intercept(np.array([1.0, 0.0]), np.zeros(2), np.zeros(2), 0.08) is None  # not moving

@@ -465,10 +465,11 @@ class BallPredictorNode(Node):
         if not ids.size:
             return []
         if cfg.reaction_s > 0.0:
-            # A robot acts on this prediction only after the reaction time: plan from the ball's and
-            # the robots' states that far ahead (robots coasting meanwhile), then count it back in.
+            # A robot acts on this prediction only after the reaction time: the ball gets that head
+            # start. The robot meanwhile executes its previous command, which continues its plan, so
+            # it is planned from its present state (coasting it would push a braking robot past its
+            # target and turn a catch in progress into "never").
             traj = traj.advanced(cfg.reaction_s)
-            pos = pos + vel * cfg.reaction_s
         facing = facing_angles(cfg.facing_fixed[ids], cfg.facing_rad[ids], traj, pos, cfg.rest_speed_mps)
         catch = robot_time_to_ball(
             traj, pos, vel, cfg.limits, facing, dribbler_offset_m=cfg.dribbler_offset_m, field=cfg.field,

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+
 @dataclass(frozen=True)
 class CatcherConfig:
     # The robot's limits for catching; the ball predictor plans with the same (plus a reaction
@@ -113,3 +114,23 @@ def on_receive_line(pose: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.nda
     along = float(rel @ direction)
     across = abs(float(rel[0] * direction[1] - rel[1] * direction[0]))
     return along > 0.0 and across <= tolerance_m
+
+
+def line_intercept(robot_xy: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.ndarray,
+                   dribbler_offset_m: float) -> np.ndarray | None:
+    """Where the robot centre must stand to block the incoming ball's line, nearest to it.
+
+    The fallback when no catch is predicted: step onto the ball's line of travel at the
+    robot's own projection onto it, one dribbler offset ahead so the dribbler faces the ball.
+    None when the ball is not moving or has already passed the robot.
+    """
+    v = np.asarray(ball_velocity, dtype=float)
+    speed = float(np.hypot(v[0], v[1]))
+    if speed < 1e-6:
+        return None
+    direction = v / speed
+    ball = np.asarray(ball_xy, dtype=float)
+    along = float((np.asarray(robot_xy, dtype=float) - ball) @ direction)
+    if along <= 0.0:
+        return None
+    return ball + direction * max(along, dribbler_offset_m)

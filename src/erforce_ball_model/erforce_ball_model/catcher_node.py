@@ -17,7 +17,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64
 
-from erforce_ball_model.catcher import CatcherConfig, catch_twist, on_receive_line
+from erforce_ball_model.catcher import CatcherConfig, catch_twist, line_intercept, on_receive_line
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
@@ -41,36 +41,82 @@ _CC = CatcherConfig()
 
 PARAMS = (
     ParamSpec("rate_hz", 50.0, "cmd_vel rate (robot time) [Hz], like an SSL AI's", min=1.0, max=1000.0),
-    ParamSpec("a_max_mps2", _CC.a_max_mps2, "acceleration of the approach profile [m/s^2]; keep equal to the "
-              "ball predictor's robot limit", min=0.01, max=50.0),
-    ParamSpec("v_max_mps", _CC.v_max_mps, "speed of the approach profile [m/s]; keep equal to the ball "
-              "predictor's robot limit", min=0.01, max=10.0),
+    ParamSpec(
+        "a_max_mps2",
+        _CC.a_max_mps2,
+        "acceleration of the approach profile [m/s^2]; keep equal to the ball predictor's robot limit",
+        min=0.01,
+        max=50.0,
+    ),
+    ParamSpec(
+        "v_max_mps",
+        _CC.v_max_mps,
+        "speed of the approach profile [m/s]; keep equal to the ball predictor's robot limit",
+        min=0.01,
+        max=10.0,
+    ),
     ParamSpec("w_max_radps", _CC.w_max_radps, "turn rate limit [rad/s]", min=0.01, max=50.0),
-    ParamSpec("heading_gain_per_s", _CC.heading_gain_per_s, "heading error to turn rate [1/s]", min=0.01,
-              max=100.0),
-    ParamSpec("arrive_tolerance_m", _CC.arrive_tolerance_m, "hold still this close to the target [m]",
-              min=1e-4, max=1.0),
-    ParamSpec("braking_margin", _CC.braking_margin, "fraction of a_max used for braking (velocity-loop lag)",
-              min=0.05, max=1.0),
-    ParamSpec("stale_after_s", 0.25, "inputs older than this (robot time) stop the robot [s]", min=0.01,
-              max=10.0),
-    ParamSpec("min_ball_speed_mps", 0.1, "a ball faster than this engages the catcher [m/s]",
-              min=0.0, max=10.0),
+    ParamSpec("heading_gain_per_s", _CC.heading_gain_per_s, "heading error to turn rate [1/s]", min=0.01, max=100.0),
+    ParamSpec(
+        "arrive_tolerance_m", _CC.arrive_tolerance_m, "hold still this close to the target [m]", min=1e-4, max=1.0
+    ),
+    ParamSpec(
+        "braking_margin",
+        _CC.braking_margin,
+        "fraction of a_max used for braking (velocity-loop lag)",
+        min=0.05,
+        max=1.0,
+    ),
+    ParamSpec(
+        "stale_after_s",
+        0.25,
+        "inputs older than this (robot time) stop the robot [s]",
+        min=0.01,
+        max=10.0,
+    ),
+    ParamSpec("min_ball_speed_mps", 0.1, "a ball faster than this engages the catcher [m/s]", min=0.0, max=10.0),
     ParamSpec("fetch_resting_ball", False, "also drive to a ball that is not moving"),
-    ParamSpec("disengage_after_rest_s", 2.0, "an engaged catcher gives up after the ball rested this long [s]",
-              min=0.0, max=60.0),
-    ParamSpec("heading_deadband_rad", _CC.heading_deadband_rad, "no turning for smaller heading errors [rad]",
-              min=0.0, max=1.0),
-    ParamSpec("receive_line_tolerance_m", _CC.receive_line_tolerance_m, "stand still once the dribbler is this "
-              "close to the incoming ball's line [m]", min=0.0, max=0.5),
+    ParamSpec(
+        "disengage_after_rest_s",
+        2.0,
+        "an engaged catcher gives up after the ball rested this long [s]",
+        min=0.0,
+        max=60.0,
+    ),
+    ParamSpec(
+        "heading_deadband_rad",
+        _CC.heading_deadband_rad,
+        "no turning for smaller heading errors [rad]",
+        min=0.0,
+        max=1.0,
+    ),
+    ParamSpec(
+        "receive_line_tolerance_m",
+        _CC.receive_line_tolerance_m,
+        "stand still once the dribbler is this close to the incoming ball's line [m]",
+        min=0.0,
+        max=0.5,
+    ),
 ) + robot_param_specs()
 
 
 def build_config(values: dict[str, Any]) -> tuple[CatcherConfig, float]:
     """(catcher config, dribbler offset [m]) for a complete set of parameter values."""
-    config = CatcherConfig(**{k: values[k] for k in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s",
-                                                      "arrive_tolerance_m", "braking_margin",
-                                                      "receive_line_tolerance_m", "heading_deadband_rad")})
+    config = CatcherConfig(
+        **{
+            k: values[k]
+            for k in (
+                "a_max_mps2",
+                "v_max_mps",
+                "w_max_radps",
+                "heading_gain_per_s",
+                "arrive_tolerance_m",
+                "braking_margin",
+                "receive_line_tolerance_m",
+                "heading_deadband_rad",
+            )
+        }
+    )
     return config, robot_config_from_params(values).dribbler_offset_m
 
 
@@ -154,25 +200,48 @@ class CatcherNode(Node):
         if now - self._ball_moving_at > self._values["disengage_after_rest_s"]:
             self._engaged = False
         active = self._engaged or self._values["fetch_resting_ball"]
-        usable = (self._fresh(self._pose, now) and self._fresh(self._target, now)
-                  and self._fresh(self._catch_time, now) and self._catch_time[1] != contract.CATCH_TIME_NEVER)
-        if active and usable and not self._holding_ball:
-            pose = self._pose[1]
-            facing = pose[2]
-            if self._fresh(self._ball_velocity, now):
-                vx, vy = self._ball_velocity[1]
-                if math.hypot(vx, vy) >= self._values["min_ball_speed_mps"]:
-                    facing = math.atan2(-vy, -vx)  # face the incoming ball, as the predictor assumed
-            receiving = self._fresh(self._ball_velocity, now) and on_receive_line(
-                pose, self._ball_position, self._ball_velocity[1], self._dribbler_offset_m,
-                self._config.receive_line_tolerance_m)
-            target = pose[:2] if receiving else self._target[1]  # on the line: stand, let the ball come
-            try:
-                twist = catch_twist(pose, target, facing, self._config)
-            except ValueError as exc:
-                self._warn.warn("twist", f"no command: {exc}")
-                twist = (0.0, 0.0, 0.0)
+        if active and self._fresh(self._pose, now) and not self._holding_ball:
+            target = self._choose_target(now)
+            if target is not None:
+                pose, facing = self._pose[1], self._facing(now)
+                try:
+                    twist = catch_twist(pose, target, facing, self._config)
+                except ValueError as exc:
+                    self._warn.warn("twist", f"no command: {exc}")
+                    twist = (0.0, 0.0, 0.0)
         self._cmd_pub.publish(twist_msg(twist))
+
+    def _facing(self, now: float) -> float:
+        """Face the incoming ball, as the predictor assumed; keep the heading otherwise."""
+        if self._fresh(self._ball_velocity, now):
+            vx, vy = self._ball_velocity[1]
+            if math.hypot(vx, vy) >= self._values["min_ball_speed_mps"]:
+                return math.atan2(-vy, -vx)
+        return self._pose[1][2]
+
+    def _choose_target(self, now: float):
+        """Where the robot centre goes: stand when already on the ball's line; else the predicted catch
+        point; when none is predicted, the nearest point of the incoming ball's line (get in the way)."""
+        pose = self._pose[1]
+        ball_fresh = self._fresh(self._ball_velocity, now) and self._ball_position is not None
+        if ball_fresh and on_receive_line(
+            pose,
+            self._ball_position,
+            self._ball_velocity[1],
+            self._dribbler_offset_m,
+            self._config.receive_line_tolerance_m,
+        ):
+            return pose[:2]
+        predicted = (
+            self._fresh(self._target, now)
+            and self._fresh(self._catch_time, now)
+            and self._catch_time[1] != contract.CATCH_TIME_NEVER
+        )
+        if predicted:
+            return self._target[1]
+        if ball_fresh:
+            return line_intercept(pose[:2], self._ball_position, self._ball_velocity[1], self._dribbler_offset_m)
+        return None
 
 
 def main(args: list[str] | None = None) -> int:
