@@ -16,12 +16,12 @@ A first window the fast search misses is binned by its width (measured on the de
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
 
 import numpy as np
+from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_ball_model.ball_model import BallTrajectory
 from erforce_ball_model.catch_time import CatchKind, RobotLimits, can_reach_in_time, robot_time_to_ball
@@ -231,26 +231,8 @@ def run(quick: bool = False) -> list[dict]:
     return bench_queries(quick) + bench_catch_speed(quick) + bench_catch_accuracy(quick)
 
 
-def _fmt(value) -> str:
-    if isinstance(value, int | np.integer):
-        return str(int(value))
-    if abs(value) >= 1e5:
-        return f"{value:.3g}"
-    return f"{value:.4g}"
-
-
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="fewer repeats and scenarios")
-    args = parser.parse_args(argv)
-    t0 = time.perf_counter()
-    rows = run(args.quick)
-    print("| benchmark | value | unit | target | note |")
-    print("|---|---|---|---|---|")
-    for r in rows:
-        print(f"| {r['name']} | {_fmt(r['value'])} | {r['unit']} | {r['target']} | {r['note']} |")
-    print(f"\n(total {time.perf_counter() - t0:.1f} s)")
-    return 0
+    return bench_main(run, __doc__.splitlines()[0], argv, quick_help="fewer repeats and scenarios")
 
 
 if __name__ == "__main__":

@@ -16,7 +16,6 @@ Runs in a private DDS domain (erforce_interfaces.testing.RosGraph).
 
 from __future__ import annotations
 
-import argparse
 import math
 import re
 import sys
@@ -26,6 +25,7 @@ import numpy as np
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64
+from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_ball_model.catch_time import RobotLimits, robot_time_to_ball
 from erforce_ball_model.catcher import CatcherConfig
@@ -193,24 +193,8 @@ def run(quick: bool = False) -> list[dict]:
     ]
 
 
-def _fmt(value) -> str:
-    if isinstance(value, int | np.integer):
-        return str(int(value))
-    return f"{value:.4g}"
-
-
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="500 frames instead of 1200")
-    args = parser.parse_args(argv)
-    t0 = time.perf_counter()
-    rows = run(args.quick)
-    print("| benchmark | value | unit | target | note |")
-    print("|---|---|---|---|---|")
-    for r in rows:
-        print(f"| {r['name']} | {_fmt(r['value'])} | {r['unit']} | {r['target']} | {r['note']} |")
-    print(f"\n(total {time.perf_counter() - t0:.1f} s)")
-    return 0
+    return bench_main(run, __doc__.splitlines()[0], argv, quick_help="500 frames instead of 1200")
 
 
 if __name__ == "__main__":

@@ -10,7 +10,6 @@ reports simulated seconds per wall second plus the CPU time each process spent p
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
@@ -18,6 +17,7 @@ import time
 from pathlib import Path
 
 from rosgraph_msgs.msg import Clock
+from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import stamp_to_nanoseconds
@@ -80,13 +80,7 @@ def run(quick: bool = False) -> list[dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true")
-    args = parser.parse_args(argv)
-    print("| benchmark | value | unit | target | note |\n|---|---|---|---|---|")
-    for row in run(args.quick):
-        print(f"| {row['name']} | {row['value']} | {row['unit']} | {row['target']} | {row['note']} |")
-    return 0
+    return bench_main(run, __doc__.splitlines()[0], argv, quick_help="shorter runs")
 
 
 if __name__ == "__main__":

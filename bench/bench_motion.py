@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from table import markdown_table  # bench/table.py: the shared table format
 
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_motion.motor_board import MotorBoard, MotorBoardConfig
@@ -481,21 +482,12 @@ def _figures(out, t, tw, ts, tws, tw_t, yw, pose_ff, pose_pid, om, a_m, b_m, ts_
     plot_tuning(tune, out / "motion_tuning_fig4.png", title="speed-loop plant: PT2 fit and inflection tangent")
 
 
-def format_table(rows: list[dict]) -> str:
-    lines = ["| group | name | value | unit | target | note |", "|---|---|---|---|---|---|"]
-    for r in rows:
-        v = r["value"]
-        vs = f"{v:.4g}" if isinstance(v, float) else str(v)
-        lines.append(f"| {r.get('group', '')} | {r['name']} | {vs} | {r['unit']} | {r['target']} | {r['note']} |")
-    return "\n".join(lines)
-
-
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter runs")
     parser.add_argument("--figures", metavar="DIR", help="write PNG figures into DIR")
     args = parser.parse_args(argv)
-    print(format_table(run(args.quick, args.figures)))
+    print("\n".join(markdown_table(run(args.quick, args.figures), group="motion")))
 
 
 if __name__ == "__main__":

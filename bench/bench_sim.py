@@ -5,11 +5,12 @@ Run: .venv/bin/python bench/bench_sim.py [--quick]. Prints a markdown table; `ru
 
 from __future__ import annotations
 
-import argparse
 import statistics
+import sys
 import time
 
 import numpy as np
+from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallState
@@ -114,16 +115,9 @@ def run(quick: bool = False) -> list[dict]:
     return rows
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--quick", action="store_true", help="fewer samples (CI)")
-    args = parser.parse_args()
-    rows = run(quick=args.quick)
-    print("| benchmark | value | unit | target | note |")
-    print("|---|---|---|---|---|")
-    for r in rows:
-        print(f"| {r['name']} | {r['value']} | {r['unit']} | {r['target']} | {r['note']} |")
+def main(argv: list[str] | None = None) -> int:
+    return bench_main(run, __doc__.splitlines()[0], argv, quick_help="fewer samples")
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -17,6 +17,9 @@ import time
 from pathlib import Path
 
 BENCH_DIR = Path(__file__).resolve().parent
+sys.path.insert(0, str(BENCH_DIR))
+from table import markdown_table  # noqa: E402 - bench/ is not a package
+
 RESULTS = BENCH_DIR / "RESULTS.md"
 MODULES = (
     ("ball model (Sec. 5)", "bench_ball_model"),
@@ -47,7 +50,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", action="append", default=[], help="run only this module (repeatable)")
     parser.add_argument("--no-write", action="store_true", help="print only; leave bench/RESULTS.md alone")
     args = parser.parse_args(argv)
-    sys.path.insert(0, str(BENCH_DIR))
     lines = [
         f"Measured {time.strftime('%Y-%m-%d %H:%M %Z')} on {machine()}"
         + (" (quick mode)" if args.quick else "") + ".",
@@ -67,10 +69,7 @@ def main(argv: list[str] | None = None) -> int:
             failed.append(module_name)
             lines.append(f"| {group} | {module_name} failed | — | — | — | {type(exc).__name__}: {exc} |")
             continue
-        for row in rows:
-            sub = f" ({row['group']})" if row.get("group") else ""
-            lines.append(f"| {group}{sub} | {row['name']} | {row['value']} | {row.get('unit', '')} | "
-                         f"{row.get('target', '')} | {row.get('note', '')} |")
+        lines += markdown_table(rows, group)[2:]
         print(f"[bench] {module_name}: {time.monotonic() - t0:.0f} s", file=sys.stderr, flush=True)
     text = "\n".join(lines) + "\n"
     print(text)
