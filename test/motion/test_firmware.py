@@ -69,7 +69,7 @@ def test_no_wind_up_while_the_wheels_do_not_follow(feedforward):
         sp = loop.tick(0.002 * k, ZERO)
     vx_command = KIN.forward(sp)[0]
     if feedforward:
-        # shaped 1.0 + P (0.3 * 1.0 error) + I bounded at 0.5: the resume can at most lurch to 1.8 m/s
+        # shaped 1.0 + P (kp * 1.0 error) + the bounded I: the resume can lurch to at most that
         assert vx_command == pytest.approx(1.0 + cfg.kp_translation * 1.0 + cfg.ff_integrator_limit_mps, abs=1e-6)
     else:
         # without feedforward the integrator must be able to produce the whole command

@@ -223,7 +223,9 @@ class CatcherNode(Node):
         """Where the robot centre goes: stand when already on the ball's line; else the predicted catch
         point; when none is predicted, the nearest point of the incoming ball's line (get in the way)."""
         pose = self._pose[1]
-        ball_fresh = self._fresh(self._ball_velocity, now) and self._ball_position is not None
+        # A resting ball's velocity is vision noise in a random direction: its "line" means nothing.
+        ball_fresh = (self._fresh(self._ball_velocity, now) and self._ball_position is not None
+                      and math.hypot(*self._ball_velocity[1]) >= self._values["min_ball_speed_mps"])
         if ball_fresh and on_receive_line(
             pose,
             self._ball_position,

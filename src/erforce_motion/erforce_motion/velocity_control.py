@@ -72,8 +72,8 @@ class VelocityControlConfig:
     command_limit_mps: float = 5.0  # PID output (incl. feedforward) per axis
     command_limit_radps: float = 15.0
     anti_windup: AntiWindup = "clamp"
-    ff_integrator_limit_mps: float = 0.5  # integrator bound per linear axis while feedforward is on
-    ff_integrator_limit_radps: float = 2.0
+    ff_integrator_limit_mps: float = 0.3  # integrator bound per linear axis while feedforward is on
+    ff_integrator_limit_radps: float = 0.3
     traction_limit_fraction: float | None = 0.9
     slip_hold_threshold_radps: float | None = 1.0
 

@@ -134,6 +134,7 @@ PARAMS = (
 
 _MAX_TICKS_PER_PUMP = 50  # keep the executor responsive when nobody gates the ticks
 _RETRY_S = 0.1  # re-publish an unanswered tick (lost message, late joiner); duplicates are harmless
+_STARTUP_GRACE_S = 0.5
 
 
 def setup_from_params(values: dict[str, Any]) -> PlantSetup:
@@ -188,6 +189,7 @@ class PlantNode(Node):
         self._period_ns = self.setup.period_ns
         self._started = False
         self._start_wall = time.monotonic()
+        self._peers_seen_at: float | None = None
         self._pace_origin: tuple[float, int] | None = None
         self._last_publish_wall = 0.0
         self._last_clock_ns = -(10**18)
@@ -306,7 +308,14 @@ class PlantNode(Node):
         if not ok and waited > self._values["startup_timeout_s"]:
             self._event(f"starting without all controlled robots after {waited:.1f} s", warn=True)
             return True
-        return ok
+        # Discovery is not symmetric: seeing a reader does not mean it has matched this writer yet.
+        # Start once the peers have been there for a moment, so tick 0 reaches everyone.
+        if not ok:
+            self._peers_seen_at = None
+            return False
+        if self._peers_seen_at is None:
+            self._peers_seen_at = time.monotonic()
+        return time.monotonic() - self._peers_seen_at >= _STARTUP_GRACE_S
 
     def _pump(self) -> None:
         now = time.monotonic()
