@@ -261,7 +261,7 @@ class Pid:
     def saturated(self) -> np.ndarray:
         """Per channel: was the last output clipped by the output limits (cheaper than `status`)."""
         u, v = self._last[0], self._last[1]
-        return np.broadcast_to(v != u, (self._n,)).copy()
+        return (v != u) | np.zeros(self._n, dtype=bool)  # a fresh (n,) array; broadcast_to costs more here
 
     @property
     def status(self) -> PidStatus:
