@@ -144,7 +144,8 @@ def summary_markdown(results, series, real_time_factor: float, recording: str) -
     caught = [r for r in reachable if r.caught]
     errors = [abs(r.error_s) for r in results if r.error_s is not None]
     rate = f"{len(caught)}/{len(reachable)} reachable scenes caught" + (
-        f" ({100 * len(caught) / len(reachable):.0f} %)" if reachable else "")
+        f" ({100 * len(caught) / len(reachable):.0f} %, target >= 90 %: "
+        f"{'met' if len(caught) >= 0.9 * len(reachable) else 'not met'})" if reachable else "")
     lines = [
         f"Demo summary: {rate}; real-time factor {real_time_factor:.2f} (lockstep); "
         f"vision → catch point p50 {_percentile_ms(series.latency_s, 50):.2f} ms, "
