@@ -83,3 +83,12 @@ def test_join_in_realtime_takes_the_newest_older_setpoint():
     realtime.add_setpoint(3 * MS, np.array([9.0]))
     ready, (stamp, sp) = realtime.setpoint_for(2 * MS)
     assert ready and stamp == 1 * MS and sp.tolist() == [8.0]
+
+
+def test_join_keeps_one_second_of_setpoints_and_forgets_them_when_time_goes_back():
+    join = SetpointJoin(wait=True)
+    for k in range(1000):  # 2 s at 2 ms
+        join.add_setpoint(k * 2 * MS, np.array([float(k)]))
+    assert min(join.setpoints) == 1998 * MS - 1000 * MS and len(join.setpoints) == 501
+    join.add_setpoint(4 * MS, np.array([-1.0]))  # a restarted plant starts again near 0
+    assert list(join.setpoints) == [4 * MS]

@@ -102,10 +102,14 @@ class SetpointJoin:
     source_silent: bool = False
 
     def add_setpoint(self, stamp_ns: int, setpoint: np.ndarray) -> None:
+        if self.setpoints and stamp_ns < next(reversed(self.setpoints)):
+            self.setpoints.clear()  # time went backwards (a restarted plant): the old ones mean nothing
         self.setpoints[stamp_ns] = setpoint
         self.source_silent = False
-        for stale in [s for s in self.setpoints if s < stamp_ns - 1_000_000_000]:
-            del self.setpoints[stale]
+        # Stamps arrive in order, so the oldest are at the front: drop what no pending tick can ask for.
+        cutoff = stamp_ns - 1_000_000_000
+        while next(iter(self.setpoints)) < cutoff:
+            del self.setpoints[next(iter(self.setpoints))]
 
     def setpoint_for(self, sensor_ns: int, force: bool = False) -> tuple[bool, tuple[int, np.ndarray] | None]:
         """(ready, (stamp_ns, setpoint) or None) for sensor tick ``sensor_ns``.
