@@ -110,6 +110,24 @@ def test_single_outlier_is_held_back_and_dropped():
     assert UpdateStatus.MANEUVER not in statuses[5:]
 
 
+def test_ball_put_down_elsewhere_is_at_rest_not_fast():
+    # A resting ball that reappears 1.5 m away (ball placement) must not look like a kick: the
+    # two frames at the new place only differ by vision noise (sigma_v = sqrt(2) 2 mm / dt).
+    rng = np.random.default_rng(3)
+    tr = BallTracker()
+    speeds, events = [], 0
+    for k in range(140):
+        here = (0.0, 0.0) if k < 70 else (1.5, -0.4)
+        x, y = np.array(here) + rng.normal(0.0, 0.002, 2)
+        tr.update(k / 70.0, x, y)
+        events += tr.kicked or tr.ricochet
+        if k >= 70:
+            speeds.append(float(np.hypot(*tr.velocity_mps)))
+    assert events == 0
+    assert max(speeds) < 0.1  # the catcher engages above 0.1 m/s
+    np.testing.assert_allclose(tr.position_m, [1.5, -0.4], atol=0.005)
+
+
 def test_bad_input_is_rejected_without_changing_the_state():
     tr = BallTracker()
     assert tr.update(1.0, 0.0, 0.0) == UpdateStatus.INITIALIZED

@@ -156,6 +156,21 @@ def test_robot_at_rest_on_the_path_facing_the_ball():
     np.testing.assert_allclose(res.robot_target_m[0], [d + OFFSET, 0.0], atol=1e-9)
 
 
+def test_fast_ball_at_a_robot_standing_on_its_path_is_caught_however_narrow_the_window():
+    # A 5.3 m/s ball 0.38 m before the dribbler of a robot at rest on its path: the window is only
+    # about a t^2 / (2 v) = 3 ms wide (the robot can shift a t^2 / 4 while the ball passes), far
+    # narrower than the 10 ms grid, yet the robot that just stands there catches it.
+    ball = BallTrajectory([0.534, 0.0], [5.3, 0.0], 6.5)
+    robot = [[0.534 + 0.38 + OFFSET, 0.0]]
+    lim = RobotLimits(4.5, 2.5)
+    res = robot_time_to_ball(ball, robot, [[0.0, 0.0]], lim, math.pi, field=DIV_B)
+    t_arrive = float(ball.time_to_distance(0.38))  # the ball reaches the standing dribbler
+    t_ref, width = _dense_first_crossing(ball, np.array(robot[0]), np.zeros(2), lim, math.pi, 1.0, step=1e-5)
+    assert width < 0.005 and t_ref <= t_arrive + 1e-9
+    assert res.kind[0] == CatchKind.MOVING
+    assert t_ref - 1e-6 <= res.time_s[0] <= t_arrive + 1e-9
+
+
 def test_ball_already_stopped():
     ball = BallTrajectory([1.0, 0.0], [0.0, 0.0], 0.0)
     res = robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], RobotLimits(2.0, 3.0), 0.0, field=DIV_B)

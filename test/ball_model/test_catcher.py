@@ -13,8 +13,10 @@ from erforce_ball_model.catcher import (
     field_to_robot,
     line_intercept,
     on_receive_line,
+    receive_point,
     wrap_angle,
 )
+from erforce_interfaces.robot_config import FieldConfig
 
 CFG = CatcherConfig(a_max_mps2=3.0, v_max_mps=2.0, braking_margin=1.0)
 
@@ -88,3 +90,24 @@ def test_line_intercept_is_the_robots_projection_onto_the_incoming_line():
                                [1.0, 1.0])
     assert line_intercept(np.array([-1.0, 0.0]), np.zeros(2), np.array([3.0, 0.0]), 0.08) is None  # passed
     assert line_intercept(np.array([1.0, 0.0]), np.zeros(2), np.zeros(2), 0.08) is None  # not moving
+
+
+def test_receive_point_needs_slack_a_ball_that_arrives_and_the_field():
+    cfg = CatcherConfig(a_max_mps2=4.5, v_max_mps=2.5, receive_slack_s=0.15)
+    robot, still = np.array([1.0, 0.4]), np.zeros(2)
+    ball, vel = np.array([-2.0, 0.0]), np.array([4.0, 0.0])
+    # From rest 0.4 m sideways: triangle profile 2 sqrt(0.4 / 4.5) = 0.596 s; the ball needs
+    # (3.0 - 0.08) / 4 = 0.73 s to the dribbler at its present speed: 0.596 + 0.15 <= 0.73 fails by 16 ms.
+    assert receive_point(robot, still, ball, vel, None, 0.08, cfg) is None
+    # 0.3 m sideways: 2 sqrt(0.3 / 4.5) = 0.516 s, + 0.15 <= 0.73: receive at the projection (1, 0).
+    np.testing.assert_allclose(receive_point(np.array([1.0, 0.3]), still, ball, vel, None, 0.08, cfg), [1.0, 0.0])
+    # The same, but the ball stops 2.5 m along its line, short of the dribbler (2.92 m): no.
+    assert receive_point(np.array([1.0, 0.3]), still, ball, vel, np.array([0.5, 0.0]), 0.08, cfg) is None
+    # The projection lies off the field (division B: |x| <= 4.5, robot radius 0.09): no.
+    field = FieldConfig.preset("division_b")
+    far = np.array([4.45, 0.3])
+    assert receive_point(far, still, ball, vel, None, 0.08, cfg, field, 0.09) is None
+    assert receive_point(far - [0.1, 0.0], still, ball, vel, None, 0.08, cfg, field, 0.09) is not None
+    # A robot already moving away from the line needs longer (it brakes first) than one at rest.
+    away = np.array([0.0, 1.5])
+    assert receive_point(np.array([1.0, 0.3]), away, ball, vel, None, 0.08, cfg) is None

@@ -28,7 +28,10 @@ robotTimeToBall (beyond the paper)
     window (an interval where f <= 0) is never missed when it is at least h wide; in that case the
     returned time is feasible (f <= 0 there), never earlier than the true first crossing and at most
     ``h / refine_points`` later (78 us with the defaults h = 10 ms, 128 points). Narrower windows
-    can be missed; then the next window (or the paper's fallback) is returned. The crossing is
+    can be missed; then the next window (or the paper's fallback) is returned, with one exception
+    that is never missed however narrow: the moment the ball passes the robot's own spot (its
+    braking point projected on the path), tested exactly. That is the window of a robot standing
+    on the path of a fast ball, which is only ``a t^2 / (2 v_ball)`` wide. The crossing is
     refined by sub-grid passes (12 x 11 points) instead of a bisection, which also copes with the
     discontinuity of f the paper mentions (the leftmost feasible sub-point is taken). The paper's
     fallback (no window, the ball stops inside) is robotTimeToPos to the stop point, an upper
@@ -428,6 +431,19 @@ def _refine_crossing(ball, start, wx, wy, a, vmax, left, right, levels):
     return right
 
 
+def _pass_times(ball: BallTrajectory, start: np.ndarray, wx, wy, a, t_max: float) -> np.ndarray:
+    """Per robot the time the ball passes the robot's spot on its path, +inf if not before ``t_max``.
+
+    The spot is the projection on the ball's path of where the robot comes to rest when it brakes
+    now (its position, for a robot at rest). Only a candidate: the caller tests it exactly.
+    """
+    brake = 0.5 / a
+    spot = start + np.stack([wx * np.abs(wx), wy * np.abs(wy)], axis=-1) * brake[:, None]
+    along = (spot - ball.position_m) @ ball.direction
+    t = ball.time_to_distance(np.maximum(along, 0.0))
+    return np.where((along > 0.0) & (t <= t_max), t, np.inf)
+
+
 class CatchKind(enum.IntEnum):
     MOVING = 0  # caught while the ball is still on its way (the first window)
     AT_REST = 1  # the robot only gets there after the ball stopped inside the field
@@ -497,15 +513,31 @@ def robot_time_to_ball(
     # Grid pass: all robots at once, exact tests only where the cheap bound leaves a chance.
     ball_grid = ball.position_at(t_grid)  # (K, 2)
     first = _first_feasible(ball_grid[:, 0], ball_grid[:, 1], start[:, 0], start[:, 1], wx, wy, s0, t_grid, a, vmax)
-    found = first >= 0
-    time_s = np.where(first == 0, 0.0, np.inf)
-    refine = np.flatnonzero(first > 0)
+    right = np.where(first >= 0, t_grid[np.maximum(first, 0)], np.inf)  # known feasible
+    left_idx = first - 1  # the grid point before it, known infeasible (-1: none)
+
+    # Witness: the moment the ball passes the robot's spot. A robot on or near the ball's path has
+    # a window there however narrow it is (a fast ball with little time left is narrower than the
+    # grid step, and it is then the only window): test that moment exactly.
+    t_pass = _pass_times(ball, start, wx, wy, a, t_max)
+    cand = np.flatnonzero(t_pass < right)
+    if cand.size:
+        pts = ball.position_at(t_pass[cand])
+        ok = _can_reach(pts[:, 0] - start[cand, 0], pts[:, 1] - start[cand, 1], wx[cand], wy[cand], t_pass[cand],
+                        a[cand], vmax[cand])
+        cand = cand[ok]
+        right[cand] = t_pass[cand]
+        left_idx[cand] = np.searchsorted(t_grid, t_pass[cand], side="left") - 1
+
+    found = np.isfinite(right)
+    time_s = np.where(found & (left_idx < 0), right, np.inf)  # feasible at 0 (or nothing before it)
+    refine = np.flatnonzero(found & (left_idx >= 0))
     if refine.size:
         m1 = math.ceil(math.sqrt(refine_points))
         levels = (m1, math.ceil(refine_points / m1)) if m1 > 2 else (refine_points,)
         time_s[refine] = _refine_crossing(
             ball, start[refine], wx[refine], wy[refine], a[refine], vmax[refine],
-            t_grid[first[refine] - 1], t_grid[first[refine]], levels,
+            t_grid[left_idx[refine]], right[refine], levels,
         )
 
     kind = np.where(found, CatchKind.MOVING, CatchKind.NEVER).astype(np.int8)

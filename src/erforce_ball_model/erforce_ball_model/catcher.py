@@ -4,6 +4,14 @@ requested direction, arrive in time.
 Pure functions, no rclpy: the catcher node feeds them the filtered robot state and the
 ball predictor's catch point and time, and publishes the returned Twist (robot frame).
 
+Where to receive: a robot already on the ball's line stands still. Otherwise, when the ball
+will pass the robot's projection on its line (before it stops and inside the field) and the
+robot gets there with ``receive_slack_s`` to spare (``receive_point``), it goes there: the
+nearest place to receive, the receiver's choice in a pass. Else it drives to the ball
+predictor's catch point, the first moment it can catch the ball (the paper's Fig. 6). That
+point has no slack by definition, so a robot that lags behind its plan loses it; the
+receive point is the robust choice whenever it exists.
+
 The translational command follows the same motion model as robotTimeToPos: a
 time-optimal approach with bounded acceleration and speed that arrives at rest,
 ``v = min(v_max, sqrt(2 a_max d))`` towards the target. Orientation is a saturated
@@ -17,6 +25,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
+from erforce_interfaces.robot_config import FieldConfig
 
 
 @dataclass(frozen=True)
@@ -37,6 +48,9 @@ class CatcherConfig:
     # ball come. The first-catch point ahead has no slack by definition; chasing it moves
     # the robot towards the ball and makes every arrive-at-rest catch infeasible.
     receive_line_tolerance_m: float = 0.02
+    # Take the receive point on the ball's line only when the robot gets there this much before
+    # the ball (the ball's time is a lower bound: constant speed): control lag and vision latency.
+    receive_slack_s: float = 0.15
 
     def __post_init__(self) -> None:
         for name in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s", "arrive_tolerance_m"):
@@ -47,6 +61,8 @@ class CatcherConfig:
             raise ValueError(f"heading_deadband_rad must be in [0, pi), got {self.heading_deadband_rad!r}")
         if not (math.isfinite(self.receive_line_tolerance_m) and self.receive_line_tolerance_m >= 0.0):
             raise ValueError(f"receive_line_tolerance_m must be finite and >= 0, got {self.receive_line_tolerance_m!r}")
+        if not (math.isfinite(self.receive_slack_s) and self.receive_slack_s >= 0.0):
+            raise ValueError(f"receive_slack_s must be finite and >= 0, got {self.receive_slack_s!r}")
         if not (0.0 < self.braking_margin <= 1.0):
             raise ValueError(f"braking_margin must be in (0, 1], got {self.braking_margin!r}")
 
@@ -134,3 +150,39 @@ def line_intercept(robot_xy: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.
     if along <= 0.0:
         return None
     return ball + direction * max(along, dribbler_offset_m)
+
+
+def receive_point(
+    robot_xy: np.ndarray,
+    robot_velocity: np.ndarray,
+    ball_xy: np.ndarray,
+    ball_velocity: np.ndarray,
+    ball_stop_xy: np.ndarray | None,
+    dribbler_offset_m: float,
+    cfg: CatcherConfig,
+    field: FieldConfig | None = None,
+    robot_radius_m: float = 0.0,
+) -> np.ndarray | None:
+    """The nearest place to receive the ball: the robot's projection on the ball's line, if it has slack.
+
+    Returns the robot centre target on the line (the dribbler then faces the ball), or None when
+    the ball is not coming (not moving, already past), stops before the dribbler
+    (``ball_stop_xy``), the target is off the field, or the robot cannot be there
+    ``cfg.receive_slack_s`` before the ball. The ball's arrival is taken at its present speed, a
+    lower bound since it only slows down; the robot's time is robotTimeToPos with the catcher's
+    limits, from its present velocity.
+    """
+    target = line_intercept(robot_xy, ball_xy, ball_velocity, dribbler_offset_m)
+    if target is None:
+        return None
+    ball = np.asarray(ball_xy, dtype=float)
+    v = np.asarray(ball_velocity, dtype=float)
+    speed = float(np.hypot(v[0], v[1]))
+    contact_m = float((target - ball) @ (v / speed)) - dribbler_offset_m  # ball travel to the dribbler
+    if ball_stop_xy is not None and float((np.asarray(ball_stop_xy, dtype=float) - ball) @ (v / speed)) < contact_m:
+        return None
+    if field is not None and not field.contains(target[0], target[1], -robot_radius_m):
+        return None
+    t_robot = float(robot_time_to_pos(np.asarray(robot_xy, dtype=float), np.asarray(robot_velocity, dtype=float),
+                                      target, RobotLimits(cfg.a_max_mps2, cfg.v_max_mps)))
+    return target if t_robot + cfg.receive_slack_s <= contact_m / speed else None

@@ -2,7 +2,8 @@
 
 Runs in the robot's namespace. It reads its robot's catch time and catch point from the
 ball predictor and drives there with ``cmd_vel``, facing the incoming ball (the
-predictor computed the catch for that facing). It holds still when no catch is possible
+predictor computed the catch for that facing), unless a nearer place to receive on the
+ball's line has time to spare (catcher.receive_point). It holds still when no catch is possible
 or its inputs are stale, and once the light barrier sees the ball. The maths is in
 erforce_ball_model.catcher.
 """
@@ -12,12 +13,13 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64
 
-from erforce_ball_model.catcher import CatcherConfig, catch_twist, line_intercept, on_receive_line
+from erforce_ball_model.catcher import CatcherConfig, catch_twist, line_intercept, on_receive_line, receive_point
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
@@ -36,6 +38,7 @@ from erforce_interfaces.node_support import (
     robot_param_specs,
     run_node,
 )
+from erforce_interfaces.robot_config import FieldConfig
 
 _CC = CatcherConfig()
 
@@ -97,11 +100,20 @@ PARAMS = (
         min=0.0,
         max=0.5,
     ),
+    ParamSpec(
+        "receive_slack_s",
+        _CC.receive_slack_s,
+        "receive at the robot's projection on the ball's line when it gets there this much before the ball "
+        "(else drive to the predicted catch point) [s]",
+        min=0.0,
+        max=5.0,
+    ),
+    ParamSpec("field", "division_b", "field preset: division_a | division_b (receive points stay inside it)"),
 ) + robot_param_specs()
 
 
-def build_config(values: dict[str, Any]) -> tuple[CatcherConfig, float]:
-    """(catcher config, dribbler offset [m]) for a complete set of parameter values."""
+def build_config(values: dict[str, Any]) -> tuple[CatcherConfig, float, float, FieldConfig]:
+    """(catcher config, dribbler offset [m], robot radius [m], field) for a complete set of parameter values."""
     config = CatcherConfig(
         **{
             k: values[k]
@@ -114,10 +126,12 @@ def build_config(values: dict[str, Any]) -> tuple[CatcherConfig, float]:
                 "braking_margin",
                 "receive_line_tolerance_m",
                 "heading_deadband_rad",
+                "receive_slack_s",
             )
         }
     )
-    return config, robot_config_from_params(values).dribbler_offset_m
+    robot = robot_config_from_params(values)
+    return config, robot.dribbler_offset_m, robot.robot_radius_m, FieldConfig.preset(values["field"])
 
 
 class CatcherNode(Node):
@@ -127,10 +141,12 @@ class CatcherNode(Node):
         self._config = _CC
         self._values = declare_params(self, PARAMS, build_config, self._set_config)
         self._pose = None  # (t_s, [x, y, yaw])
+        self._velocity = np.zeros(2)  # field frame [m/s], with the pose
         self._target = None  # (t_s, [x, y])
         self._catch_time = None  # (t_s of arrival, seconds or CATCH_TIME_NEVER)
         self._ball_velocity = None  # (t_s, [vx, vy])
         self._ball_position = None  # [x, y]
+        self._ball_stop = None  # (t_s, [x, y])
         self._holding_ball = False
         self._engaged = False
         self._ball_moving_at = -math.inf  # robot time the ball was last seen moving
@@ -140,22 +156,24 @@ class CatcherNode(Node):
         contract_subscription(self, q.CATCH_TIME, self._on_catch_time)
         contract_subscription(self, q.CATCH_POINT, self._on_catch_point)
         contract_subscription(self, q.BALL_STATE, self._on_ball)
+        contract_subscription(self, q.BALL_STOP_POINT, self._on_stop_point)
         contract_subscription(self, q.BALL_DETECTED, self._on_barrier)
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
 
-    def _set_config(self, built: tuple[CatcherConfig, float]) -> None:
-        self._config, self._dribbler_offset_m = built
+    def _set_config(self, built: tuple[CatcherConfig, float, float, FieldConfig]) -> None:
+        self._config, self._dribbler_offset_m, self._robot_radius_m, self._field = built
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _on_odom(self, msg: Odometry) -> None:
         try:
-            _t, pose, _, _ = odometry_from_msg(msg)
+            _t, pose, velocity, _ = odometry_from_msg(msg)
         except ConversionError as exc:
             self._warn.warn("odom", f"rejected odom: {exc}")
             return
         self._pose = (self._now_s(), pose)
+        self._velocity = velocity[:2]
 
     def _on_catch_time(self, msg: Float64) -> None:
         try:
@@ -170,6 +188,14 @@ class CatcherNode(Node):
             self._warn.warn("catch_point", f"rejected catch_point: {exc}")
             return
         self._target = (self._now_s(), xy)
+
+    def _on_stop_point(self, msg: PointStamped) -> None:
+        try:
+            _, xy = point_from_msg(msg)
+        except ConversionError as exc:
+            self._warn.warn("stop_point", f"rejected ball stop point: {exc}")
+            return
+        self._ball_stop = (self._now_s(), xy)
 
     def _on_ball(self, msg: Odometry) -> None:
         try:
@@ -220,20 +246,23 @@ class CatcherNode(Node):
         return self._pose[1][2]
 
     def _choose_target(self, now: float):
-        """Where the robot centre goes: stand when already on the ball's line; else the predicted catch
-        point; when none is predicted, the nearest point of the incoming ball's line (get in the way)."""
+        """Where the robot centre goes: stand when already on the ball's line; else the nearest receive
+        point with time to spare; else the predicted catch point; when none is predicted, the nearest
+        point of the incoming ball's line inside the field (get in the way)."""
         pose = self._pose[1]
         # A resting ball's velocity is vision noise in a random direction: its "line" means nothing.
         ball_fresh = (self._fresh(self._ball_velocity, now) and self._ball_position is not None
                       and math.hypot(*self._ball_velocity[1]) >= self._values["min_ball_speed_mps"])
-        if ball_fresh and on_receive_line(
-            pose,
-            self._ball_position,
-            self._ball_velocity[1],
-            self._dribbler_offset_m,
-            self._config.receive_line_tolerance_m,
-        ):
-            return pose[:2]
+        if ball_fresh:
+            ball_velocity = self._ball_velocity[1]
+            if on_receive_line(pose, self._ball_position, ball_velocity, self._dribbler_offset_m,
+                               self._config.receive_line_tolerance_m):
+                return pose[:2]
+            stop = self._ball_stop[1] if self._fresh(self._ball_stop, now) else None
+            target = receive_point(pose[:2], self._velocity, self._ball_position, ball_velocity, stop,
+                                   self._dribbler_offset_m, self._config, self._field, self._robot_radius_m)
+            if target is not None:
+                return target
         predicted = (
             self._fresh(self._target, now)
             and self._fresh(self._catch_time, now)
@@ -242,7 +271,9 @@ class CatcherNode(Node):
         if predicted:
             return self._target[1]
         if ball_fresh:
-            return line_intercept(pose[:2], self._ball_position, self._ball_velocity[1], self._dribbler_offset_m)
+            target = line_intercept(pose[:2], self._ball_position, self._ball_velocity[1], self._dribbler_offset_m)
+            if target is not None and self._field.contains(target[0], target[1], -self._robot_radius_m):
+                return target
         return None
 
 

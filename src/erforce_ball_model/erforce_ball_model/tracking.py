@@ -36,6 +36,8 @@ from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajec
 
 __all__ = ["BallTracker", "KalmanCV2D", "RobotTracker", "TrackerConfig", "UpdateStatus"]
 
+RESTING_VELOCITY_STD_MPS = 0.05  # velocity uncertainty of a ball that reappeared at rest elsewhere
+
 
 class UpdateStatus(enum.IntEnum):
     INITIALIZED = 0  # first observation (or re-initialization after a long gap)
@@ -233,8 +235,15 @@ class BallTracker:
         p_old = self.kf.x[:2] + v_old * (t1 - self.t_s)
         speed_new, speed_old = float(np.hypot(*v_new)), float(np.hypot(*v_old))
         sigma_v = math.sqrt(2.0) * cfg.position_noise_m / dt
+        var_v = 2.0 * sigma_v**2 + 0.01
+        if speed_new <= 3.0 * sigma_v:
+            # Two frames at the new place, no motion above the noise: a ball put down there (ball
+            # placement, a vision swap), not a fast one. Start it at rest with a confident velocity,
+            # or the noise of the next frames reads as tenths of m/s; a real slow motion is picked
+            # up through the process noise.
+            v_new, speed_new, var_v = np.zeros(2), 0.0, RESTING_VELOCITY_STD_MPS**2
         t_prev = self._prev_obs[0] if self._prev_obs else t1
-        self.kf.reset(z, v_new, cfg.position_noise_m**2, 2.0 * sigma_v**2 + 0.01)
+        self.kf.reset(z, v_new, cfg.position_noise_m**2, var_v)
         self.t_s, self._held, self._prev_obs = t_s, None, (t_s, *z)
         self._fit_ok.clear()
         self.uncertain = True
