@@ -92,22 +92,36 @@ def test_line_intercept_is_the_robots_projection_onto_the_incoming_line():
     assert line_intercept(np.array([1.0, 0.0]), np.zeros(2), np.zeros(2), 0.08) is None  # not moving
 
 
+def _first_receive_hand(robot, ball, speed, step=0.05, slack=0.15, a=4.5, offset=0.08):
+    """Ball along +x from ``ball``; robot at rest: 2 sqrt(d / a) (triangle profile) to each point."""
+    for k in range(31):
+        x = robot[0] + k * step
+        d = math.hypot(x - robot[0], robot[1] - ball[1])
+        if 2.0 * math.sqrt(d / a) + slack <= (x - offset - ball[0]) / speed:
+            return np.array([x, ball[1]])
+    return None
+
+
 def test_receive_point_needs_slack_a_ball_that_arrives_and_the_field():
     cfg = CatcherConfig(a_max_mps2=4.5, v_max_mps=2.5, receive_slack_s=0.15)
-    robot, still = np.array([1.0, 0.4]), np.zeros(2)
+    still = np.zeros(2)
     ball, vel = np.array([-2.0, 0.0]), np.array([4.0, 0.0])
-    # From rest 0.4 m sideways: triangle profile 2 sqrt(0.4 / 4.5) = 0.596 s; the ball needs
-    # (3.0 - 0.08) / 4 = 0.73 s to the dribbler at its present speed: 0.596 + 0.15 <= 0.73 fails by 16 ms.
-    assert receive_point(robot, still, ball, vel, None, 0.08, cfg) is None
-    # 0.3 m sideways: 2 sqrt(0.3 / 4.5) = 0.516 s, + 0.15 <= 0.73: receive at the projection (1, 0).
+    # 0.3 m sideways: 2 sqrt(0.3 / 4.5) = 0.516 s, + 0.15 <= (3.0 - 0.08) / 4 = 0.73: the projection (1, 0).
     np.testing.assert_allclose(receive_point(np.array([1.0, 0.3]), still, ball, vel, None, 0.08, cfg), [1.0, 0.0])
-    # The same, but the ball stops 2.5 m along its line, short of the dribbler (2.92 m): no.
+    # 0.4 m sideways: 0.596 + 0.15 > 0.73 at the projection; a little further along the ball is later.
+    got = receive_point(np.array([1.0, 0.4]), still, ball, vel, None, 0.08, cfg)
+    expected = _first_receive_hand((1.0, 0.4), ball, 4.0)
+    assert expected is not None and expected[0] > 1.0
+    np.testing.assert_allclose(got, expected, atol=1e-9)
+    # 1.5 m sideways against a 6 m/s ball: 1.15 s + 0.15 never fits within the 1.5 m searched.
+    assert _first_receive_hand((1.0, 1.5), ball, 6.0) is None
+    assert receive_point(np.array([1.0, 1.5]), still, ball, vel * 1.5, None, 0.08, cfg) is None
+    # The ball stops 2.5 m along its line, short of every dribbler position: no.
     assert receive_point(np.array([1.0, 0.3]), still, ball, vel, np.array([0.5, 0.0]), 0.08, cfg) is None
-    # The projection lies off the field (division B: |x| <= 4.5, robot radius 0.09): no.
+    # Off the field (division B: |x| <= 4.5 - 0.09 for the centre): the projection at x = 4.45 is out.
     field = FieldConfig.preset("division_b")
-    far = np.array([4.45, 0.3])
-    assert receive_point(far, still, ball, vel, None, 0.08, cfg, field, 0.09) is None
-    assert receive_point(far - [0.1, 0.0], still, ball, vel, None, 0.08, cfg, field, 0.09) is not None
-    # A robot already moving away from the line needs longer (it brakes first) than one at rest.
-    away = np.array([0.0, 1.5])
-    assert receive_point(np.array([1.0, 0.3]), away, ball, vel, None, 0.08, cfg) is None
+    assert receive_point(np.array([4.45, 0.3]), still, ball, vel, None, 0.08, cfg, field, 0.09) is None
+    np.testing.assert_allclose(receive_point(np.array([4.35, 0.3]), still, ball, vel, None, 0.08, cfg, field, 0.09),
+                               [4.35, 0.0])
+    # A robot moving away from the line brakes first: later than the one at rest, here no point fits.
+    assert receive_point(np.array([1.0, 0.3]), np.array([0.0, 2.0]), ball, vel, None, 0.08, cfg) is None

@@ -4,10 +4,10 @@ requested direction, arrive in time.
 Pure functions, no rclpy: the catcher node feeds them the filtered robot state and the
 ball predictor's catch point and time, and publishes the returned Twist (robot frame).
 
-Where to receive: a robot already on the ball's line stands still. Otherwise, when the ball
-will pass the robot's projection on its line (before it stops and inside the field) and the
-robot gets there with ``receive_slack_s`` to spare (``receive_point``), it goes there: the
-nearest place to receive, the receiver's choice in a pass. Else it drives to the ball
+Where to receive: a robot already on the ball's line stands still. Otherwise, when there is
+a point on the ball's line, at or beyond the robot's projection on it, that the ball reaches
+(before it stops, inside the field) and the robot reaches ``receive_slack_s`` earlier
+(``receive_point``), it goes to the nearest such point: the receiver's choice in a pass. Else it drives to the ball
 predictor's catch point, the first moment it can catch the ball (the paper's Fig. 6). That
 point has no slack by definition, so a robot that lags behind its plan loses it; the
 receive point is the robust choice whenever it exists.
@@ -65,6 +65,10 @@ class CatcherConfig:
             raise ValueError(f"receive_slack_s must be finite and >= 0, got {self.receive_slack_s!r}")
         if not (0.0 < self.braking_margin <= 1.0):
             raise ValueError(f"braking_margin must be in (0, 1], got {self.braking_margin!r}")
+
+
+RECEIVE_SEARCH_M = 1.5  # receive_point looks this far along the ball's line beyond the robot's projection
+RECEIVE_STEP_M = 0.05
 
 
 def wrap_angle(angle_rad: float) -> float:
@@ -136,9 +140,9 @@ def line_intercept(robot_xy: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.
                    dribbler_offset_m: float) -> np.ndarray | None:
     """Where the robot centre must stand to block the incoming ball's line, nearest to it.
 
-    The fallback when no catch is predicted: step onto the ball's line of travel at the
-    robot's own projection onto it, one dribbler offset ahead so the dribbler faces the ball.
-    None when the ball is not moving or has already passed the robot.
+    The robot's own projection onto the ball's line of travel, at least one dribbler offset
+    ahead of the ball (receive_point's candidate). None when the ball is not moving or has
+    already passed the robot.
     """
     v = np.asarray(ball_velocity, dtype=float)
     speed = float(np.hypot(v[0], v[1]))
@@ -163,26 +167,36 @@ def receive_point(
     field: FieldConfig | None = None,
     robot_radius_m: float = 0.0,
 ) -> np.ndarray | None:
-    """The nearest place to receive the ball: the robot's projection on the ball's line, if it has slack.
+    """The nearest place to receive the ball on its line that the robot reaches with time to spare.
 
-    Returns the robot centre target on the line (the dribbler then faces the ball), or None when
-    the ball is not coming (not moving, already past), stops before the dribbler
-    (``ball_stop_xy``), the target is off the field, or the robot cannot be there
-    ``cfg.receive_slack_s`` before the ball. The ball's arrival is taken at its present speed, a
-    lower bound since it only slows down; the robot's time is robotTimeToPos with the catcher's
-    limits, from its present velocity.
+    Candidates are robot centre targets on the ball's line (the dribbler then faces the ball):
+    the robot's projection onto the line and points further along it, every
+    ``RECEIVE_STEP_M`` up to ``RECEIVE_SEARCH_M``. The first one is returned where the robot,
+    by robotTimeToPos with the catcher's limits from its present velocity, arrives
+    ``cfg.receive_slack_s`` before the ball, that the ball reaches before it stops
+    (``ball_stop_xy``) and that lies on the field. None when there is none or the ball is not
+    coming (not moving, already past). The ball's arrival is taken at its present speed: a
+    lower bound, since it only slows down.
     """
-    target = line_intercept(robot_xy, ball_xy, ball_velocity, dribbler_offset_m)
-    if target is None:
+    projection = line_intercept(robot_xy, ball_xy, ball_velocity, dribbler_offset_m)
+    if projection is None:
         return None
     ball = np.asarray(ball_xy, dtype=float)
     v = np.asarray(ball_velocity, dtype=float)
     speed = float(np.hypot(v[0], v[1]))
-    contact_m = float((target - ball) @ (v / speed)) - dribbler_offset_m  # ball travel to the dribbler
-    if ball_stop_xy is not None and float((np.asarray(ball_stop_xy, dtype=float) - ball) @ (v / speed)) < contact_m:
+    u = v / speed
+    along = float((projection - ball) @ u) + np.arange(0.0, RECEIVE_SEARCH_M + 1e-9, RECEIVE_STEP_M)
+    contact_m = along - dribbler_offset_m  # ball travel to the dribbler
+    targets = ball + along[:, None] * u
+    ok = np.ones(along.size, dtype=bool)
+    if ball_stop_xy is not None:
+        ok &= contact_m <= float((np.asarray(ball_stop_xy, dtype=float) - ball) @ u)
+    if field is not None:
+        inside = field.half_length_m - robot_radius_m, field.half_width_m - robot_radius_m
+        ok &= (np.abs(targets[:, 0]) <= inside[0]) & (np.abs(targets[:, 1]) <= inside[1])
+    if not ok.any():
         return None
-    if field is not None and not field.contains(target[0], target[1], -robot_radius_m):
-        return None
-    t_robot = float(robot_time_to_pos(np.asarray(robot_xy, dtype=float), np.asarray(robot_velocity, dtype=float),
-                                      target, RobotLimits(cfg.a_max_mps2, cfg.v_max_mps)))
-    return target if t_robot + cfg.receive_slack_s <= contact_m / speed else None
+    t_robot = robot_time_to_pos(np.asarray(robot_xy, dtype=float), np.asarray(robot_velocity, dtype=float),
+                                targets, RobotLimits(cfg.a_max_mps2, cfg.v_max_mps))
+    ok &= t_robot + cfg.receive_slack_s <= contact_m / speed
+    return targets[int(np.argmax(ok))] if ok.any() else None

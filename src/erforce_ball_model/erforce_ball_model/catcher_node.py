@@ -19,7 +19,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64
 
-from erforce_ball_model.catcher import CatcherConfig, catch_twist, line_intercept, on_receive_line, receive_point
+from erforce_ball_model.catcher import CatcherConfig, catch_twist, on_receive_line, receive_point
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
@@ -247,8 +247,9 @@ class CatcherNode(Node):
 
     def _choose_target(self, now: float):
         """Where the robot centre goes: stand when already on the ball's line; else the nearest receive
-        point with time to spare; else the predicted catch point; when none is predicted, the nearest
-        point of the incoming ball's line inside the field (get in the way)."""
+        point with time to spare; else the predicted catch point; else hold (None). Chasing the ball's
+        line without a predicted catch only gets in its way: it deflects a ball that a wall would have
+        returned, or that the next prediction would have caught."""
         pose = self._pose[1]
         # A resting ball's velocity is vision noise in a random direction: its "line" means nothing.
         ball_fresh = (self._fresh(self._ball_velocity, now) and self._ball_position is not None
@@ -268,13 +269,7 @@ class CatcherNode(Node):
             and self._fresh(self._catch_time, now)
             and self._catch_time[1] != contract.CATCH_TIME_NEVER
         )
-        if predicted:
-            return self._target[1]
-        if ball_fresh:
-            target = line_intercept(pose[:2], self._ball_position, self._ball_velocity[1], self._dribbler_offset_m)
-            if target is not None and self._field.contains(target[0], target[1], -self._robot_radius_m):
-                return target
-        return None
+        return self._target[1] if predicted else None
 
 
 def main(args: list[str] | None = None) -> int:
