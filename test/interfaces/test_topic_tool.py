@@ -292,7 +292,9 @@ def test_a_steady_stream_has_rate_one_over_period_and_no_spread(period_ns, n):
     for k in range(n):
         w.add(k * period_ns)
     s = w.stats()
-    assert s.rate_hz == pytest.approx(1e9 / period_ns) and s.std_dev_s == pytest.approx(0.0, abs=1e-15)
+    # No spread up to rounding: a few ulps of the period in seconds (8 s periods gave 1.8e-15 s).
+    spread_tol_s = 1e-14 * max(1.0, period_ns * 1e-9)
+    assert s.rate_hz == pytest.approx(1e9 / period_ns) and s.std_dev_s == pytest.approx(0.0, abs=spread_tol_s)
     assert s.window == n - 1
 
 
