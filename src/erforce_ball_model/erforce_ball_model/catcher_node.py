@@ -181,21 +181,19 @@ class CatcherNode(Node):
         except ConversionError as exc:
             self._warn.warn("catch_time", f"rejected catch_time: {exc}")
 
-    def _on_catch_point(self, msg: PointStamped) -> None:
+    def _stamped_point(self, msg: PointStamped, what: str):
+        """(robot time of arrival, [x, y]), or None with a throttled warning for a bad point."""
         try:
-            _, xy = point_from_msg(msg)
+            return self._now_s(), point_from_msg(msg)[1]
         except ConversionError as exc:
-            self._warn.warn("catch_point", f"rejected catch_point: {exc}")
-            return
-        self._target = (self._now_s(), xy)
+            self._warn.warn(what, f"rejected {what}: {exc}")
+            return None
+
+    def _on_catch_point(self, msg: PointStamped) -> None:
+        self._target = self._stamped_point(msg, "catch_point") or self._target
 
     def _on_stop_point(self, msg: PointStamped) -> None:
-        try:
-            _, xy = point_from_msg(msg)
-        except ConversionError as exc:
-            self._warn.warn("stop_point", f"rejected ball stop point: {exc}")
-            return
-        self._ball_stop = (self._now_s(), xy)
+        self._ball_stop = self._stamped_point(msg, "stop_point") or self._ball_stop
 
     def _on_ball(self, msg: Odometry) -> None:
         try:
