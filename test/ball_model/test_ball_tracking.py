@@ -179,3 +179,31 @@ def test_robot_tracker_velocity_and_heading_wrap():
     no_heading = RobotTracker()
     no_heading.update(0.0, 0.0, 0.0)
     assert no_heading.heading_rad is None
+
+
+def test_kalman_filter_matches_the_textbook_4x4_filter():
+    """The per-axis float filter against the matrix form: F P F^T + Q, K = P H^T S^-1, Joseph update."""
+    rng = np.random.default_rng(7)
+    r, q = 0.002**2, 0.05
+    kf = KalmanCV2D(math.sqrt(r), q)
+    kf.reset((0.1, -0.2), (1.0, 0.5), 4e-6, 1.0)
+    x = np.array([0.1, -0.2, 1.0, 0.5])
+    p = np.diag([4e-6, 4e-6, 1.0, 1.0])
+    h = np.hstack([np.eye(2), np.zeros((2, 2))])
+    for _ in range(200):
+        dt = float(rng.uniform(0.005, 0.03))
+        accel = rng.normal(size=2)
+        f = np.eye(4)
+        f[0, 2] = f[1, 3] = dt
+        g = np.array([[0.5 * dt * dt, 0.0], [0.0, 0.5 * dt * dt], [dt, 0.0], [0.0, dt]])
+        qm = q * np.kron(np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]]), np.eye(2))
+        x, p = f @ x + g @ accel, f @ p @ f.T + qm
+        z = h @ x + rng.normal(scale=0.002, size=2)
+        k = p @ h.T @ np.linalg.inv(h @ p @ h.T + r * np.eye(2))
+        x = x + k @ (z - h @ x)
+        ikh = np.eye(4) - k @ h
+        p = ikh @ p @ ikh.T + r * k @ k.T
+        xp, pp = kf.predicted(dt, tuple(accel))
+        kf.correct(xp, pp, tuple(z))
+        np.testing.assert_allclose(kf.x, x, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(kf.p, p, rtol=1e-9, atol=1e-15)

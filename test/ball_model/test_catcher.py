@@ -9,6 +9,7 @@ from erforce_ball_model.catcher import (
     CatcherConfig,
     approach_velocity,
     catch_twist,
+    choose_target,
     facing_towards,
     field_to_robot,
     line_intercept,
@@ -16,6 +17,7 @@ from erforce_ball_model.catcher import (
     receive_point,
     wrap_angle,
 )
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
 from erforce_interfaces.robot_config import FieldConfig
 
 CFG = CatcherConfig(a_max_mps2=3.0, v_max_mps=2.0, braking_margin=1.0)
@@ -92,36 +94,81 @@ def test_line_intercept_is_the_robots_projection_onto_the_incoming_line():
     assert line_intercept(np.array([1.0, 0.0]), np.zeros(2), np.zeros(2), 0.08) is None  # not moving
 
 
-def _first_receive_hand(robot, ball, speed, step=0.05, slack=0.15, a=4.5, offset=0.08):
-    """Ball along +x from ``ball``; robot at rest: 2 sqrt(d / a) (triangle profile) to each point."""
+def _rolling_ball(speed, x0=-2.0):
+    """A ball at (x0, 0) rolling along +x at ``speed`` (already rolling: v_shoot = speed / c_switch)."""
+    return BallTrajectory(np.array([x0, 0.0]), np.array([speed, 0.0]), speed / 0.6, BallModelParams())
+
+
+def _roll_time(d, speed, a_roll=0.3):
+    """Time for a rolling ball to cover d (d = v t - a t^2 / 2), inf if it stops first."""
+    disc = speed * speed - 2.0 * a_roll * d
+    return math.inf if disc < 0.0 else (speed - math.sqrt(disc)) / a_roll
+
+
+def _first_receive_hand(robot, ball_x, speed, step=0.05, slack=0.15, a=4.5, offset=0.08):
+    """Robot at rest: 2 sqrt(d / a) (triangle profile, below v_max here) to each point on the line."""
     for k in range(31):
         x = robot[0] + k * step
-        d = math.hypot(x - robot[0], robot[1] - ball[1])
-        if 2.0 * math.sqrt(d / a) + slack <= (x - offset - ball[0]) / speed:
-            return np.array([x, ball[1]])
+        d = math.hypot(x - robot[0], robot[1])
+        if 2.0 * math.sqrt(d / a) + slack <= _roll_time(x - offset - ball_x, speed):
+            return np.array([x, 0.0])
     return None
 
 
 def test_receive_point_needs_slack_a_ball_that_arrives_and_the_field():
     cfg = CatcherConfig(a_max_mps2=4.5, v_max_mps=2.5, receive_slack_s=0.15)
     still = np.zeros(2)
-    ball, vel = np.array([-2.0, 0.0]), np.array([4.0, 0.0])
-    # 0.3 m sideways: 2 sqrt(0.3 / 4.5) = 0.516 s, + 0.15 <= (3.0 - 0.08) / 4 = 0.73: the projection (1, 0).
-    np.testing.assert_allclose(receive_point(np.array([1.0, 0.3]), still, ball, vel, None, 0.08, cfg), [1.0, 0.0])
-    # 0.4 m sideways: 0.596 + 0.15 > 0.73 at the projection; a little further along the ball is later.
-    got = receive_point(np.array([1.0, 0.4]), still, ball, vel, None, 0.08, cfg)
-    expected = _first_receive_hand((1.0, 0.4), ball, 4.0)
+    ball = _rolling_ball(4.0)
+    # 0.3 m sideways: 2 sqrt(0.3 / 4.5) = 0.516 s, + 0.15 <= 0.751 s for the ball to roll 2.92 m: the projection.
+    assert 0.516 + 0.15 < _roll_time(2.92, 4.0) < 0.752
+    np.testing.assert_allclose(receive_point(np.array([1.0, 0.3]), still, ball, 0.08, cfg), [1.0, 0.0])
+    # 0.42 m sideways: 0.611 + 0.15 > 0.751 at the projection; 5 cm further along the ball is later (0.764 s).
+    got = receive_point(np.array([1.0, 0.42]), still, ball, 0.08, cfg)
+    expected = _first_receive_hand((1.0, 0.42), -2.0, 4.0)
     assert expected is not None and expected[0] > 1.0
     np.testing.assert_allclose(got, expected, atol=1e-9)
     # 1.5 m sideways against a 6 m/s ball: 1.15 s + 0.15 never fits within the 1.5 m searched.
-    assert _first_receive_hand((1.0, 1.5), ball, 6.0) is None
-    assert receive_point(np.array([1.0, 1.5]), still, ball, vel * 1.5, None, 0.08, cfg) is None
-    # The ball stops 2.5 m along its line, short of every dribbler position: no.
-    assert receive_point(np.array([1.0, 0.3]), still, ball, vel, np.array([0.5, 0.0]), 0.08, cfg) is None
+    assert _first_receive_hand((1.0, 1.5), -2.0, 6.0) is None
+    assert receive_point(np.array([1.0, 1.5]), still, _rolling_ball(6.0), 0.08, cfg) is None
+    # A 1 m/s ball stops after 1 / 0.6 = 1.67 m, short of every dribbler position: no.
+    assert receive_point(np.array([1.0, 0.3]), still, _rolling_ball(1.0), 0.08, cfg) is None
     # Off the field (division B: |x| <= 4.5 - 0.09 for the centre): the projection at x = 4.45 is out.
     field = FieldConfig.preset("division_b")
-    assert receive_point(np.array([4.45, 0.3]), still, ball, vel, None, 0.08, cfg, field, 0.09) is None
-    np.testing.assert_allclose(receive_point(np.array([4.35, 0.3]), still, ball, vel, None, 0.08, cfg, field, 0.09),
+    assert receive_point(np.array([4.45, 0.3]), still, ball, 0.08, cfg, field, 0.09) is None
+    np.testing.assert_allclose(receive_point(np.array([4.35, 0.3]), still, ball, 0.08, cfg, field, 0.09),
                                [4.35, 0.0])
-    # A robot moving away from the line brakes first: later than the one at rest, here no point fits.
-    assert receive_point(np.array([1.0, 0.3]), np.array([0.0, 2.0]), ball, vel, None, 0.08, cfg) is None
+    # Moving away from the line at 2 m/s: braking alone takes 0.44 s and 0.44 m, coming back 0.74 m another
+    # 0.81 s; + 0.15 is past the ball's 1.15 s to the farthest point searched (4.42 m): none fits.
+    assert 0.44 + 0.81 + 0.15 > _roll_time(4.42, 4.0)
+    assert receive_point(np.array([1.0, 0.3]), np.array([0.0, 2.0]), ball, 0.08, cfg) is None
+
+
+def test_choose_target_prefers_the_line_then_the_receive_point_then_the_catch_point():
+    cfg = CatcherConfig(a_max_mps2=4.5, v_max_mps=2.5, receive_slack_s=0.15)
+    still = np.zeros(2)
+    ball = _rolling_ball(4.0)
+    catch_point = np.array([0.5, 0.2])
+    # The dribbler (8 cm ahead of the centre, facing -x) is 1 cm off the line: stand still.
+    on_line = np.array([1.08, 0.01, math.pi])
+    np.testing.assert_allclose(choose_target(on_line, still, ball, catch_point, 0.08, cfg), on_line[:2])
+    # 0.3 m off with time to spare: the receive point (its projection), not the catch point.
+    np.testing.assert_allclose(choose_target(np.array([1.0, 0.3, math.pi]), still, ball, catch_point, 0.08, cfg),
+                               [1.0, 0.0])
+    # 1.5 m off a 6 m/s ball: no receive point; the predictor's catch point, else hold.
+    far = np.array([1.0, 1.5, math.pi])
+    fast = _rolling_ball(6.0)
+    np.testing.assert_allclose(choose_target(far, still, fast, catch_point, 0.08, cfg), catch_point)
+    assert choose_target(far, still, fast, None, 0.08, cfg) is None
+    # Committed to this ball and 0.25 m off its line: block the line at the robot's projection rather
+    # than brake where it is. 1.5 m off: too far, chasing the line would only get in the ball's way.
+    near = np.array([1.0, 0.25, math.pi])
+    assert choose_target(near, still, fast, None, 0.08, cfg) is None
+    np.testing.assert_allclose(choose_target(near, np.array([0.0, 2.5]), fast, None, 0.08, cfg, committed=True),
+                               [1.0, 0.0])
+    assert choose_target(far, still, fast, None, 0.08, cfg, committed=True) is None
+    # A resting ball (None) has no line: only the catch point counts, committed or not.
+    assert choose_target(far, still, None, None, 0.08, cfg, committed=True) is None
+    np.testing.assert_allclose(choose_target(far, still, None, catch_point, 0.08, cfg), catch_point)
+    # The ball already passed the robot: nothing to block.
+    behind = np.array([-2.5, 0.2, math.pi])
+    assert choose_target(behind, still, fast, None, 0.08, cfg, committed=True) is None

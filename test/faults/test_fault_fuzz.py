@@ -108,6 +108,16 @@ def bad_message(msg_type, rng):
         return Bool(data=bool(rng.integers(2)))
     if msg_type is Clock:
         return Clock(clock=_stamp(rng))
+    if msg_type is Float64MultiArray:  # a labelled table: right or wrong labels and sizes, bad values
+        from std_msgs.msg import MultiArrayDimension
+
+        rows, cols = int(rng.integers(0, 4)), int(rng.integers(0, 4))
+        labels = [",".join(contract.BALL_MODEL_PARAM_LABELS), "a,b", ""][int(rng.integers(3))]
+        msg = Float64MultiArray()
+        msg.layout.dim = [MultiArrayDimension(label="fit,std_error,in_use", size=rows, stride=rows * cols),
+                          MultiArrayDimension(label=labels, size=cols, stride=cols)][: int(rng.integers(3))]
+        msg.data = [_bad(rng) if rng.random() < 0.7 else -2.5 for _ in range(int(rng.choice([0, 3, 9, rows * cols])))]
+        return msg
     raise AssertionError(f"no fuzzer for {msg_type.__name__}")
 
 

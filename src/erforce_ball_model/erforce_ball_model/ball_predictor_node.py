@@ -68,7 +68,6 @@ _GRID_STEP_S = inspect.signature(robot_time_to_ball).parameters["grid_step_s"].d
 
 FACING_MODES = ("towards_ball", "fixed")
 PHASE_NAMES = {BallPhase.SLIDING: "sliding", BallPhase.ROLLING: "rolling", BallPhase.STOPPED: "stopped"}
-MODEL_PARAM_ROWS = ("fit", "std_error", "in_use")
 
 PARAMS = (
     ParamSpec("num_robots", 11, "robots robot_0 .. robot_{n-1} served by this node", min=1, max=64, read_only=True),
@@ -266,7 +265,7 @@ def model_params_table(fit: FitResult, in_use: BallModelParams) -> Float64MultiA
         [fit.a_slide_std, fit.a_roll_std, fit.c_switch_std],
         [in_use.a_slide_mps2, in_use.a_roll_mps2, in_use.c_switch],
     ]
-    return table_msg(rows, contract.BALL_MODEL_PARAM_LABELS, ",".join(MODEL_PARAM_ROWS))
+    return table_msg(rows, contract.BALL_MODEL_PARAM_LABELS, ",".join(contract.BALL_MODEL_PARAM_ROWS))
 
 
 class BallPredictorNode(Node):
@@ -454,7 +453,7 @@ class BallPredictorNode(Node):
             phase = "stopped"
         else:
             phase = PHASE_NAMES[BallPhase(int(traj.phase_at(0.0)))]
-        variance = float(max(ball.kf.p[0, 0], ball.kf.p[1, 1]))
+        variance = ball.position_variance_m2
         return [
             (self._state_pub, odometry_msg(t_s, (*traj.position_m, 0.0), (*traj.velocity_mps, 0.0),
                                            child_frame_id="ball", position_variance_m2=variance)),

@@ -4,11 +4,12 @@ requested direction, arrive in time.
 Pure functions, no rclpy: the catcher node feeds them the filtered robot state and the
 ball predictor's catch point and time, and publishes the returned Twist (robot frame).
 
-Where to receive: a robot already on the ball's line stands still. Otherwise, when there is
-a point on the ball's line, at or beyond the robot's projection on it, that the ball reaches
-(before it stops, inside the field) and the robot reaches ``receive_slack_s`` earlier
-(``receive_point``), it goes to the nearest such point: the receiver's choice in a pass. Else it drives to the ball
-predictor's catch point, the first moment it can catch the ball (the paper's Fig. 6). That
+Where to receive (``choose_target``): a robot already on the ball's line stands still.
+Otherwise, when there is a point on the ball's line, at or beyond the robot's projection on
+it, that the ball reaches (before it stops, inside the field; ballRollTime of the two-phase
+model) and the robot reaches ``receive_slack_s`` earlier (``receive_point``), it goes to the
+nearest such point: the receiver's choice in a pass. Else it drives to the ball predictor's
+catch point, the first moment it can catch the ball (the paper's Fig. 6). That
 point has no slack by definition, so a robot that lags behind its plan loses it; the
 receive point is the robust choice whenever it exists.
 
@@ -26,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from erforce_ball_model.ball_model import BallTrajectory
 from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
 from erforce_interfaces.robot_config import FieldConfig
 
@@ -41,9 +43,11 @@ class CatcherConfig:
     heading_gain_per_s: float = 8.0
     arrive_tolerance_m: float = 0.015  # inside this the robot holds still (above the 2 mm vision noise)
     heading_deadband_rad: float = 0.03  # no turning for smaller errors: vision yaw noise is ~0.01 rad
-    # The approach aims for rest at the target, but the velocity loop lags; braking a
-    # little earlier than the ideal profile avoids overshooting the catch point.
-    braking_margin: float = 0.85
+    # The approach aims for rest at the target with this fraction of a_max: the robot realized
+    # about 2.2 m/s^2 sideways in the simulated Fig. 6 scene (traction, velocity-loop lag), and a
+    # profile planned with more overshoots the catch point across the ball's line. 0.5 caught
+    # earlier and more often than 0.6-0.85 in the in-process closed loop of the demo scenes.
+    braking_margin: float = 0.5
     # Receive: once the dribbler is on the incoming ball's line, stand still and let the
     # ball come. The first-catch point ahead has no slack by definition; chasing it moves
     # the robot towards the ball and makes every arrive-at-rest catch infeasible.
@@ -51,6 +55,9 @@ class CatcherConfig:
     # Take the receive point on the ball's line only when the robot gets there this much before
     # the ball (the ball's time is a lower bound: constant speed): control lag and vision latency.
     receive_slack_s: float = 0.15
+    # A committed robot (see choose_target) keeps blocking the ball's line only when its projection
+    # on it is this close: it nearly made it. Farther off, chasing the line deflects bank shots.
+    commit_distance_m: float = 0.3
 
     def __post_init__(self) -> None:
         for name in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s", "arrive_tolerance_m"):
@@ -61,8 +68,10 @@ class CatcherConfig:
             raise ValueError(f"heading_deadband_rad must be in [0, pi), got {self.heading_deadband_rad!r}")
         if not (math.isfinite(self.receive_line_tolerance_m) and self.receive_line_tolerance_m >= 0.0):
             raise ValueError(f"receive_line_tolerance_m must be finite and >= 0, got {self.receive_line_tolerance_m!r}")
-        if not (math.isfinite(self.receive_slack_s) and self.receive_slack_s >= 0.0):
-            raise ValueError(f"receive_slack_s must be finite and >= 0, got {self.receive_slack_s!r}")
+        for name in ("receive_slack_s", "commit_distance_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
         if not (0.0 < self.braking_margin <= 1.0):
             raise ValueError(f"braking_margin must be in (0, 1], got {self.braking_margin!r}")
 
@@ -159,9 +168,7 @@ def line_intercept(robot_xy: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.
 def receive_point(
     robot_xy: np.ndarray,
     robot_velocity: np.ndarray,
-    ball_xy: np.ndarray,
-    ball_velocity: np.ndarray,
-    ball_stop_xy: np.ndarray | None,
+    ball: BallTrajectory,
     dribbler_offset_m: float,
     cfg: CatcherConfig,
     field: FieldConfig | None = None,
@@ -173,24 +180,19 @@ def receive_point(
     the robot's projection onto the line and points further along it, every
     ``RECEIVE_STEP_M`` up to ``RECEIVE_SEARCH_M``. The first one is returned where the robot,
     by robotTimeToPos with the catcher's limits from its present velocity, arrives
-    ``cfg.receive_slack_s`` before the ball, that the ball reaches before it stops
-    (``ball_stop_xy``) and that lies on the field. None when there is none or the ball is not
-    coming (not moving, already past). The ball's arrival is taken at its present speed: a
-    lower bound, since it only slows down.
+    ``cfg.receive_slack_s`` before the ball (ballRollTime of the two-phase model), that the
+    ball reaches before it stops and that lies on the field. None when there is none or the
+    ball is not coming (not moving, already past).
     """
-    projection = line_intercept(robot_xy, ball_xy, ball_velocity, dribbler_offset_m)
+    projection = line_intercept(robot_xy, ball.position_m, ball.velocity_mps, dribbler_offset_m)
     if projection is None:
         return None
-    ball = np.asarray(ball_xy, dtype=float)
-    v = np.asarray(ball_velocity, dtype=float)
-    speed = float(np.hypot(v[0], v[1]))
-    u = v / speed
-    along = float((projection - ball) @ u) + np.arange(0.0, RECEIVE_SEARCH_M + 1e-9, RECEIVE_STEP_M)
+    start, u = ball.position_m, ball.direction
+    along = float((projection - start) @ u) + np.arange(0.0, RECEIVE_SEARCH_M + 1e-9, RECEIVE_STEP_M)
     contact_m = along - dribbler_offset_m  # ball travel to the dribbler
-    targets = ball + along[:, None] * u
-    ok = np.ones(along.size, dtype=bool)
-    if ball_stop_xy is not None:
-        ok &= contact_m <= float((np.asarray(ball_stop_xy, dtype=float) - ball) @ u)
+    targets = start + along[:, None] * u
+    t_ball = ball.time_to_distance(np.maximum(contact_m, 0.0))  # +inf where it stops short
+    ok = np.isfinite(t_ball)
     if field is not None:
         inside = field.half_length_m - robot_radius_m, field.half_width_m - robot_radius_m
         ok &= (np.abs(targets[:, 0]) <= inside[0]) & (np.abs(targets[:, 1]) <= inside[1])
@@ -198,5 +200,43 @@ def receive_point(
         return None
     t_robot = robot_time_to_pos(np.asarray(robot_xy, dtype=float), np.asarray(robot_velocity, dtype=float),
                                 targets, RobotLimits(cfg.a_max_mps2, cfg.v_max_mps))
-    ok &= t_robot + cfg.receive_slack_s <= contact_m / speed
+    ok &= t_robot + cfg.receive_slack_s <= t_ball
     return targets[int(np.argmax(ok))] if ok.any() else None
+
+
+def choose_target(
+    pose: np.ndarray,
+    robot_velocity: np.ndarray,
+    ball: BallTrajectory | None,
+    catch_point: np.ndarray | None,
+    dribbler_offset_m: float,
+    cfg: CatcherConfig,
+    field: FieldConfig | None = None,
+    robot_radius_m: float = 0.0,
+    committed: bool = False,
+) -> np.ndarray | None:
+    """Where the robot centre goes, in this order: stay when the dribbler is already on the incoming
+    ball's line; the nearest receive point with time to spare; the predicted catch point (None when
+    the predictor has none); when ``committed``, the robot's projection on the ball's line if it
+    is within ``cfg.commit_distance_m``; else hold (None).
+
+    ``ball`` is the moving ball's trajectory (None when it rests: the velocity of a resting ball is
+    vision noise in a random direction, its "line" means nothing). ``committed``: the robot was
+    driving to a target for this ball moments ago. Its plan can turn infeasible on the way (it
+    lags, arrives fast); holding then brakes it wherever it is, often across the line, while
+    blocking the line may still catch. Chasing the line from farther away only gets in the ball's
+    way: it deflects a ball that a wall would have returned.
+    """
+    if ball is not None:
+        if on_receive_line(pose, ball.position_m, ball.velocity_mps, dribbler_offset_m, cfg.receive_line_tolerance_m):
+            return np.asarray(pose[:2], dtype=float)
+        target = receive_point(pose[:2], robot_velocity, ball, dribbler_offset_m, cfg, field, robot_radius_m)
+        if target is not None:
+            return target
+    if catch_point is not None:
+        return catch_point
+    if committed and ball is not None:
+        block = line_intercept(pose[:2], ball.position_m, ball.velocity_mps, dribbler_offset_m)
+        if block is not None and math.dist(block, pose[:2]) <= cfg.commit_distance_m:
+            return block
+    return None

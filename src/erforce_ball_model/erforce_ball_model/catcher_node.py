@@ -17,15 +17,17 @@ import numpy as np
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from std_msgs.msg import Bool, Float64
+from std_msgs.msg import Bool, Float64, Float64MultiArray
 
-from erforce_ball_model.catcher import CatcherConfig, catch_twist, on_receive_line, receive_point
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.catcher import CatcherConfig, catch_twist, choose_target
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
     float64_from_msg,
     odometry_from_msg,
     point_from_msg,
+    table_from_msg,
     twist_msg,
 )
 from erforce_interfaces.node_support import (
@@ -41,6 +43,7 @@ from erforce_interfaces.node_support import (
 from erforce_interfaces.robot_config import FieldConfig
 
 _CC = CatcherConfig()
+MODEL_IN_USE_ROW = contract.BALL_MODEL_PARAM_ROWS.index("in_use")
 
 PARAMS = (
     ParamSpec("rate_hz", 50.0, "cmd_vel rate (robot time) [Hz], like an SSL AI's", min=1.0, max=1000.0),
@@ -108,6 +111,14 @@ PARAMS = (
         min=0.0,
         max=5.0,
     ),
+    ParamSpec(
+        "commit_s",
+        0.3,
+        "a robot that had a target for the moving ball this recently keeps blocking the ball's line when its "
+        "plan turns infeasible (it lags, arrives fast) instead of holding; 0 = hold [s]",
+        min=0.0,
+        max=5.0,
+    ),
     ParamSpec("field", "division_b", "field preset: division_a | division_b (receive points stay inside it)"),
 ) + robot_param_specs()
 
@@ -146,17 +157,20 @@ class CatcherNode(Node):
         self._catch_time = None  # (t_s of arrival, seconds or CATCH_TIME_NEVER)
         self._ball_velocity = None  # (t_s, [vx, vy])
         self._ball_position = None  # [x, y]
-        self._ball_stop = None  # (t_s, [x, y])
+        self._v_shoot = None  # (t_s, m/s)
+        self._ball_model = BallModelParams()  # the predictor's model in use
         self._holding_ball = False
         self._engaged = False
         self._ball_moving_at = -math.inf  # robot time the ball was last seen moving
+        self._target_at = -math.inf  # robot time a target was last chosen
         q = contract
         self._cmd_pub = contract_publisher(self, q.CMD_VEL)
         contract_subscription(self, q.ODOM, self._on_odom)
         contract_subscription(self, q.CATCH_TIME, self._on_catch_time)
         contract_subscription(self, q.CATCH_POINT, self._on_catch_point)
         contract_subscription(self, q.BALL_STATE, self._on_ball)
-        contract_subscription(self, q.BALL_STOP_POINT, self._on_stop_point)
+        contract_subscription(self, q.BALL_V_SHOOT, self._on_v_shoot)
+        contract_subscription(self, q.BALL_MODEL_PARAMS, self._on_model_params)
         contract_subscription(self, q.BALL_DETECTED, self._on_barrier)
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
 
@@ -192,8 +206,18 @@ class CatcherNode(Node):
     def _on_catch_point(self, msg: PointStamped) -> None:
         self._target = self._stamped_point(msg, "catch_point") or self._target
 
-    def _on_stop_point(self, msg: PointStamped) -> None:
-        self._ball_stop = self._stamped_point(msg, "stop_point") or self._ball_stop
+    def _on_v_shoot(self, msg: Float64) -> None:
+        try:
+            self._v_shoot = (self._now_s(), float64_from_msg(msg))
+        except ConversionError as exc:
+            self._warn.warn("v_shoot", f"rejected v_shoot: {exc}")
+
+    def _on_model_params(self, msg: Float64MultiArray) -> None:
+        try:
+            row = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS)[MODEL_IN_USE_ROW]
+            self._ball_model = BallModelParams(*row.tolist())
+        except (ConversionError, IndexError, ValueError) as exc:
+            self._warn.warn("model_params", f"rejected model_params: {exc}")
 
     def _on_ball(self, msg: Odometry) -> None:
         try:
@@ -233,6 +257,8 @@ class CatcherNode(Node):
                 except ValueError as exc:
                     self._warn.warn("twist", f"no command: {exc}")
                     twist = (0.0, 0.0, 0.0)
+        else:
+            self._target_at = -math.inf  # a commitment is to one ball in flight
         self._cmd_pub.publish(twist_msg(twist))
 
     def _facing(self, now: float) -> float:
@@ -244,30 +270,33 @@ class CatcherNode(Node):
         return self._pose[1][2]
 
     def _choose_target(self, now: float):
-        """Where the robot centre goes: stand when already on the ball's line; else the nearest receive
-        point with time to spare; else the predicted catch point; else hold (None). Chasing the ball's
-        line without a predicted catch only gets in its way: it deflects a ball that a wall would have
-        returned, or that the next prediction would have caught."""
-        pose = self._pose[1]
-        # A resting ball's velocity is vision noise in a random direction: its "line" means nothing.
-        ball_fresh = (self._fresh(self._ball_velocity, now) and self._ball_position is not None
-                      and math.hypot(*self._ball_velocity[1]) >= self._values["min_ball_speed_mps"])
-        if ball_fresh:
-            ball_velocity = self._ball_velocity[1]
-            if on_receive_line(pose, self._ball_position, ball_velocity, self._dribbler_offset_m,
-                               self._config.receive_line_tolerance_m):
-                return pose[:2]
-            stop = self._ball_stop[1] if self._fresh(self._ball_stop, now) else None
-            target = receive_point(pose[:2], self._velocity, self._ball_position, ball_velocity, stop,
-                                   self._dribbler_offset_m, self._config, self._field, self._robot_radius_m)
-            if target is not None:
-                return target
+        """catcher.choose_target with the newest inputs; stale ones count as missing."""
         predicted = (
             self._fresh(self._target, now)
             and self._fresh(self._catch_time, now)
             and self._catch_time[1] != contract.CATCH_TIME_NEVER
         )
-        return self._target[1] if predicted else None
+        committed = now - self._target_at <= self._values["commit_s"]
+        target = choose_target(self._pose[1], self._velocity, self._moving_ball(now),
+                               self._target[1] if predicted else None, self._dribbler_offset_m, self._config,
+                               self._field, self._robot_radius_m, committed)
+        if target is not None:
+            self._target_at = now
+        return target
+
+    def _moving_ball(self, now: float) -> BallTrajectory | None:
+        """The ball's future from the newest state, or None when it rests or is not known."""
+        if not (self._fresh(self._ball_velocity, now) and self._ball_position is not None):
+            return None
+        velocity = self._ball_velocity[1]
+        if math.hypot(*velocity) < self._values["min_ball_speed_mps"]:
+            return None
+        v_shoot = self._v_shoot[1] if self._fresh(self._v_shoot, now) else 0.0  # 0: raised to the speed
+        try:
+            return BallTrajectory(self._ball_position, velocity, max(v_shoot, 0.0), self._ball_model)
+        except ValueError as exc:
+            self._warn.warn("ball", f"ball state not usable: {exc}")
+            return None
 
 
 def main(args: list[str] | None = None) -> int:

@@ -49,7 +49,13 @@ class UpdateStatus(enum.IntEnum):
 
 
 class KalmanCV2D:
-    """Constant-velocity Kalman filter on (x, y, vx, vy) in the field frame."""
+    """Constant-velocity Kalman filter on (x, y, vx, vy) in the field frame.
+
+    The axes are independent (per-axis motion model, isotropic noise), and both start from the
+    same variances and see the same updates, so they share one 2x2 covariance
+    ``(var_pos, cov_pos_vel, var_vel)``; the update is a few float operations per frame
+    (numpy arrays for 4 states cost more in call overhead than the arithmetic).
+    """
 
     def __init__(self, position_noise_m: float, accel_noise_psd: float) -> None:
         if not (math.isfinite(position_noise_m) and position_noise_m > 0.0):
@@ -58,36 +64,45 @@ class KalmanCV2D:
             raise ValueError(f"accel_noise_psd: must be finite and > 0, got {accel_noise_psd!r}")
         self.r = position_noise_m**2
         self.q = accel_noise_psd
-        self.x = np.zeros(4)
-        self.p = np.eye(4)
+        self.state: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # x, y, vx, vy
+        self.cov: tuple[float, float, float] = (1.0, 0.0, 1.0)  # per axis: var_pos, cov_pos_vel, var_vel
+
+    @property
+    def x(self) -> np.ndarray:
+        return np.array(self.state)
+
+    @property
+    def p(self) -> np.ndarray:
+        """The full 4x4 covariance of (x, y, vx, vy)."""
+        a, b, c = self.cov
+        return np.array([[a, 0.0, b, 0.0], [0.0, a, 0.0, b], [b, 0.0, c, 0.0], [0.0, b, 0.0, c]])
 
     def reset(self, position, velocity, position_var: float, velocity_var: float) -> None:
-        self.x = np.array([position[0], position[1], velocity[0], velocity[1]], dtype=float)
-        self.p = np.diag([position_var, position_var, velocity_var, velocity_var])
+        self.state = (float(position[0]), float(position[1]), float(velocity[0]), float(velocity[1]))
+        self.cov = (float(position_var), 0.0, float(velocity_var))
 
-    def predicted(self, dt: float, accel=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
-        """State and covariance after ``dt`` (does not change the filter)."""
-        f = np.eye(4)
-        f[0, 2] = f[1, 3] = dt
-        x = f @ self.x
-        x[:2] += 0.5 * dt * dt * np.asarray(accel)
-        x[2:] += dt * np.asarray(accel)
-        q = np.zeros((4, 4))  # white-acceleration noise, the same 2x2 block for (x, vx) and (y, vy)
-        q[0, 0] = q[1, 1] = self.q * (dt**3 / 3.0)
-        q[0, 2] = q[2, 0] = q[1, 3] = q[3, 1] = self.q * (dt**2 / 2.0)
-        q[2, 2] = q[3, 3] = self.q * dt
-        return x, f @ self.p @ f.T + q
+    def predicted(self, dt: float, accel=(0.0, 0.0)) -> tuple[tuple, tuple]:
+        """State and covariance after ``dt`` with a known acceleration (does not change the filter)."""
+        px, py, vx, vy = self.state
+        ax, ay = accel
+        h = 0.5 * dt * dt
+        x = (px + vx * dt + h * ax, py + vy * dt + h * ay, vx + dt * ax, vy + dt * ay)
+        a, b, c = self.cov
+        q = self.q  # white-acceleration noise: q dt^3/3, q dt^2/2, q dt
+        return x, (a + dt * (2.0 * b + dt * c) + q * dt**3 / 3.0, b + dt * c + q * h, c + q * dt)
 
-    def innovation(self, x: np.ndarray, p: np.ndarray, z) -> tuple[np.ndarray, np.ndarray]:
-        return np.asarray(z, dtype=float) - x[:2], p[:2, :2] + self.r * np.eye(2)
+    def innovation(self, x: tuple, p: tuple, z) -> tuple[tuple[float, float], float]:
+        """Innovation (x, y) and its variance, the same on both axes."""
+        return (z[0] - x[0], z[1] - x[1]), p[0] + self.r
 
-    def correct(self, x: np.ndarray, p: np.ndarray, z) -> None:
-        nu, s = self.innovation(x, p, z)
-        k = p[:, :2] @ np.linalg.inv(s)
-        self.x = x + k @ nu
-        ikh = np.eye(4)
-        ikh[:, :2] -= k
-        self.p = ikh @ p @ ikh.T + self.r * k @ k.T  # Joseph form: stays symmetric positive
+    def correct(self, x: tuple, p: tuple, z) -> None:
+        (nx, ny), s = self.innovation(x, p, z)
+        a, b, c = p
+        kp, kv = a / s, b / s  # gain for position and velocity
+        self.state = (x[0] + kp * nx, x[1] + kp * ny, x[2] + kv * nx, x[3] + kv * ny)
+        # Joseph form (I - K H) P (I - K H)^T + K r K^T: stays symmetric positive.
+        r, m = self.r, 1.0 - kp
+        self.cov = (m * m * a + kp * kp * r, m * (b - kv * a) + kp * kv * r, kv * kv * (a + r) - 2.0 * kv * b + c)
 
 
 @dataclass(frozen=True)
@@ -146,15 +161,22 @@ class BallTracker:
 
     @property
     def position_m(self) -> np.ndarray:
-        return self.kf.x[:2].copy()
+        return np.array(self.kf.state[:2])
 
     @property
     def velocity_mps(self) -> np.ndarray:
-        return self.kf.x[2:].copy()
+        return np.array(self.kf.state[2:])
 
     @property
     def velocity_std_mps(self) -> float:
-        return float(math.sqrt(max(self.kf.p[2, 2], self.kf.p[3, 3])))
+        return math.sqrt(self.kf.cov[2])
+
+    @property
+    def position_variance_m2(self) -> float:
+        return self.kf.cov[0]
+
+    def _speed(self) -> float:
+        return math.hypot(self.kf.state[2], self.kf.state[3])
 
     def _effective_v_shoot(self, speed: float) -> float:
         # Once rolling, stay rolling until the next kick or ricochet: speed noise around the switch
@@ -165,37 +187,31 @@ class BallTracker:
         """The ball's future from the latest filtered state (at time ``self.t_s``)."""
         if not self.initialized:
             raise RuntimeError("BallTracker: no observation yet")
-        speed = float(np.hypot(*self.kf.x[2:]))
-        return BallTrajectory(self.kf.x[:2], self.kf.x[2:], self._effective_v_shoot(speed), self.params)
+        x = self.kf.state
+        return BallTrajectory(np.array(x[:2]), np.array(x[2:]), self._effective_v_shoot(self._speed()), self.params)
 
     @property
     def phase(self) -> BallPhase:
         return BallPhase(int(self.trajectory().phase_at(0.0)))
 
     # -- update ---------------------------------------------------------------------------------
-    def _model_accel(self) -> np.ndarray:
-        v = self.kf.x[2:]
-        speed = float(np.hypot(*v))
+    def _predict(self, dt: float) -> tuple[tuple, tuple]:
+        """The filter prediction with the two-phase model's deceleration along the motion."""
+        speed = self._speed()
         if speed < 1e-6:
-            return np.zeros(2)
+            return self.kf.predicted(dt)
         sliding = speed > self.params.c_switch * max(self._effective_v_shoot(speed), speed)
-        a = self.params.a_slide_mps2 if sliding else self.params.a_roll_mps2
-        return a * v / speed
-
-    def _predict(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        accel = self._model_accel()
-        speed = float(np.hypot(*self.kf.x[2:]))
-        a = float(np.hypot(*accel))
-        if a > 0.0 and speed < a * dt:  # the ball stops within dt: do not let it turn back
-            accel = accel * (speed / (a * dt))
-        return self.kf.predicted(dt, accel)
+        decel = -(self.params.a_slide_mps2 if sliding else self.params.a_roll_mps2)
+        decel = min(decel, speed / dt)  # the ball stops within dt: do not let it turn back
+        k = -decel / speed
+        return self.kf.predicted(dt, (k * self.kf.state[2], k * self.kf.state[3]))
 
     def update(self, t_s: float, x_m: float, y_m: float) -> UpdateStatus:
         self.kicked = False
         self.ricochet = False
         if not _check_obs(t_s, (x_m, y_m)):
             return UpdateStatus.REJECTED_INVALID
-        t_s, z = float(t_s), np.array([float(x_m), float(y_m)])
+        t_s, z = float(t_s), (float(x_m), float(y_m))
         cfg = self.config
         if self.t_s is not None and t_s <= self.t_s:
             return UpdateStatus.REJECTED_TIME
@@ -207,15 +223,15 @@ class BallTracker:
             return UpdateStatus.INITIALIZED
 
         x_pred, p_pred = self._predict(t_s - self.t_s)
-        nu, s = self.kf.innovation(x_pred, p_pred, z)
-        sigma = np.sqrt(np.diag(s))
-        gate = np.maximum(cfg.gate_sigma * sigma, cfg.gate_min_m)
-        if np.all(np.abs(nu) <= gate):
+        (nu_x, nu_y), s = self.kf.innovation(x_pred, p_pred, z)
+        sigma = math.sqrt(s)
+        worst = max(abs(nu_x), abs(nu_y))
+        if worst <= max(cfg.gate_sigma * sigma, cfg.gate_min_m):
             self._held = None
             self.kf.correct(x_pred, p_pred, z)
             self.t_s = t_s
             self._prev_obs = (t_s, *z)
-            self._fit_ok.append(bool(np.all(np.abs(nu) <= 3.0 * sigma)))
+            self._fit_ok.append(worst <= 3.0 * sigma)
             self._after_accept()
             return UpdateStatus.ACCEPTED
 
@@ -226,12 +242,12 @@ class BallTracker:
         self._maneuver(t_s, z)
         return UpdateStatus.MANEUVER
 
-    def _maneuver(self, t_s: float, z: np.ndarray) -> None:
+    def _maneuver(self, t_s: float, z: tuple[float, float]) -> None:
         cfg = self.config
         t1, x1, y1 = self._held
         dt = t_s - t1
-        v_new = (z - np.array([x1, y1])) / dt
-        v_old = self.kf.x[2:].copy()
+        v_new = (np.array(z) - np.array([x1, y1])) / dt
+        v_old = self.kf.x[2:]
         p_old = self.kf.x[:2] + v_old * (t1 - self.t_s)
         speed_new, speed_old = float(np.hypot(*v_new)), float(np.hypot(*v_old))
         sigma_v = math.sqrt(2.0) * cfg.position_noise_m / dt
@@ -271,7 +287,7 @@ class BallTracker:
 
     def _after_accept(self) -> None:
         cfg = self.config
-        speed = float(np.hypot(*self.kf.x[2:]))
+        speed = self._speed()
         t_ev = self.last_event_time_s
         if t_ev is not None and self.t_s - t_ev <= cfg.shoot_window_s:
             # v_shoot from the speed extrapolated back to the kick, over the sliding phase only.
@@ -330,16 +346,16 @@ class RobotTracker:
 
     @property
     def position_m(self) -> np.ndarray:
-        return self.kf.x[:2].copy()
+        return np.array(self.kf.state[:2])
 
     @property
     def velocity_mps(self) -> np.ndarray:
-        return self.kf.x[2:].copy()
+        return np.array(self.kf.state[2:])
 
     @property
     def heading_rad(self) -> float | None:
-        return math.remainder(float(self.heading.x[0]), 2.0 * math.pi) if self._has_heading else None
+        return math.remainder(self.heading.state[0], 2.0 * math.pi) if self._has_heading else None
 
     @property
     def angular_velocity_radps(self) -> float | None:
-        return float(self.heading.x[2]) if self._has_heading else None
+        return self.heading.state[2] if self._has_heading else None

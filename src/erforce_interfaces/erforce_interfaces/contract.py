@@ -122,15 +122,15 @@ BALL_STATE = Topic("/ball/state", Odometry, QOS_STATE, "ball_predictor", "catche
                    "filtered ball: pose [m], twist.linear [m/s] in `field`; covariance from the filter")
 BALL_PHASE = Topic("/ball/phase", String, QOS_STATE, "ball_predictor", "tools",
                    "one of " + ", ".join(BALL_PHASES))
-BALL_STOP_POINT = Topic("/ball/stop_point", PointStamped, QOS_STATE, "ball_predictor", "catcher, tools",
+BALL_STOP_POINT = Topic("/ball/stop_point", PointStamped, QOS_STATE, "ball_predictor", "tools",
                         "where the two-phase model says the ball comes to rest [m], `field`")
-BALL_V_SHOOT = Topic("/ball/v_shoot", Float64, QOS_STATE, "ball_predictor", "tools",
+BALL_V_SHOOT = Topic("/ball/v_shoot", Float64, QOS_STATE, "ball_predictor", "catcher, tools",
                      "tracked initial shot speed v_shoot [m/s]")
-BALL_UNCERTAIN = Topic("/ball/uncertain", Bool, QOS_STATE, "ball_predictor", "catcher",
+BALL_UNCERTAIN = Topic("/ball/uncertain", Bool, QOS_STATE, "ball_predictor", "tools",
                        "true after a ricochet until the model fits the observations again")
-BALL_MODEL_PARAMS = Topic("/ball/model_params", Float64MultiArray, QOS_STATE, "ball_predictor", "tools",
-                          "[a_slide_mps2, a_roll_mps2, c_switch] and their standard errors, labelled "
-                          "in layout.dim; from online identification")
+BALL_MODEL_PARAMS = Topic("/ball/model_params", Float64MultiArray, QOS_STATE, "ball_predictor", "catcher, tools",
+                          "rows fit, std_error, in_use of [a_slide_mps2, a_roll_mps2, c_switch], labelled "
+                          "in layout.dim; after each online identification fit")
 GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant", "tests, tools only",
                           "true ball: pose [m], twist.linear [m/s], twist.angular = spin [rad/s], `field`")
 SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts", "plant",
@@ -181,6 +181,7 @@ TOPICS: tuple[Topic, ...] = (
 MOTOR_STATUS_COLUMNS = ("avg_current_a", "pwm_limit", "saturated", "limit_active")
 GROUND_TRUTH_MOTOR_COLUMNS = ("current_a", "winding_temperature_c", "wheel_speed_radps")
 BALL_MODEL_PARAM_LABELS = ("a_slide_mps2", "a_roll_mps2", "c_switch")
+BALL_MODEL_PARAM_ROWS = ("fit", "std_error", "in_use")
 
 
 def topic_table_markdown() -> str:
