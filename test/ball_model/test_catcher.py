@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
 from erforce_ball_model.catcher import (
     CatcherConfig,
     approach_velocity,
@@ -17,7 +18,6 @@ from erforce_ball_model.catcher import (
     receive_point,
     wrap_angle,
 )
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
 from erforce_interfaces.robot_config import FieldConfig
 
 CFG = CatcherConfig(a_max_mps2=3.0, v_max_mps=2.0, braking_margin=1.0)
