@@ -53,7 +53,7 @@ class CatcherConfig:
     # the robot towards the ball and makes every arrive-at-rest catch infeasible.
     receive_line_tolerance_m: float = 0.02
     # Take the receive point on the ball's line only when the robot gets there this much before
-    # the ball (the ball's time is a lower bound: constant speed): control lag and vision latency.
+    # the ball (ballRollTime of the two-phase model): control lag and vision latency.
     receive_slack_s: float = 0.15
     # A committed robot (see choose_target) keeps blocking the ball's line only when its projection
     # on it is this close: it nearly made it. Farther off, chasing the line deflects bank shots.

@@ -106,8 +106,8 @@ PARAMS = (
     ParamSpec(
         "receive_slack_s",
         _CC.receive_slack_s,
-        "receive at the robot's projection on the ball's line when it gets there this much before the ball "
-        "(else drive to the predicted catch point) [s]",
+        "receive on the ball's line (at the robot's projection or further along) when the robot gets there this "
+        "much before the ball, by the two-phase model (else drive to the predicted catch point) [s]",
         min=0.0,
         max=5.0,
     ),
@@ -116,6 +116,13 @@ PARAMS = (
         0.3,
         "a robot that had a target for the moving ball this recently keeps blocking the ball's line when its "
         "plan turns infeasible (it lags, arrives fast) instead of holding; 0 = hold [s]",
+        min=0.0,
+        max=5.0,
+    ),
+    ParamSpec(
+        "commit_distance_m",
+        _CC.commit_distance_m,
+        "a committed robot blocks the ball's line only when its projection on it is this close [m]",
         min=0.0,
         max=5.0,
     ),
@@ -138,6 +145,7 @@ def build_config(values: dict[str, Any]) -> tuple[CatcherConfig, float, float, F
                 "receive_line_tolerance_m",
                 "heading_deadband_rad",
                 "receive_slack_s",
+                "commit_distance_m",
             )
         }
     )
