@@ -76,7 +76,7 @@ from pathlib import Path
 
 import pytest
 
-from erforce_interfaces.testing import NodeProcess, RosGraph
+from erforce_interfaces.testing import NodeProcess, RosGraph, show_outputs_if_failed
 
 pytestmark = [pytest.mark.integration, pytest.mark.root]
 
@@ -233,11 +233,7 @@ def two_hosts(tmp_path: Path, request) -> Iterator[TwoHosts]:
     finally:
         if graph is not None:
             graph.close()
-            report = getattr(request.node, "rep_call", None)
-            if report is not None and report.failed:
-                for proc in graph.processes:
-                    sys.stderr.write(f"\n----- output of {proc.name} ({' '.join(proc.cmd)}) -----\n")
-                    sys.stderr.write(proc.output()[-4000:])
+            show_outputs_if_failed(graph, request)
         for ns in created:
             _ip("netns", "del", ns, check=False)
         leftover = set(_ip("netns", "list", check=False).stdout.split()) & set(created)

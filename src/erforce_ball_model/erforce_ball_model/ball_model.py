@@ -232,7 +232,6 @@ class BallTrajectory:
         d = _as_finite("d_m", d_m, allow_inf=True)
         if (d < 0.0).any():
             raise ValueError("d_m: must be >= 0")
-        p = self.params
         s0 = self._per_ball(self.speed_mps, d)
         v_sw = self._per_ball(self.v_switch_mps, d)
         d_sw = self._per_ball(self.switch_distance_m, d)
@@ -241,7 +240,12 @@ class BallTrajectory:
         # A distance a rounding error beyond the stop distance still means "at the stop point".
         tol = 1e-12 * (1.0 + d_stop)
         beyond = d > d_stop + tol
-        d = np.minimum(d, d_stop)
+        t = np.minimum(self._travel_time(np.minimum(d, d_stop), s0, v_sw, d_sw), t_stop)
+        return np.where(beyond, np.inf, t)
+
+    def _travel_time(self, d, s0, v_sw, d_sw) -> np.ndarray:
+        """Time to travel ``d`` (at most the stop distance); per-ball values broadcast with it."""
+        p = self.params
         d_slide = np.minimum(d, d_sw)
         d_roll = d - d_slide
         # Citardauq form 2d/(v + sqrt(v^2 + 2ad)) of the quadratic root: no cancellation.
@@ -249,9 +253,7 @@ class BallTrajectory:
         den_r = v_sw + np.sqrt(np.maximum(v_sw * v_sw + 2.0 * p.a_roll_mps2 * d_roll, 0.0))
         with np.errstate(divide="ignore", invalid="ignore"):
             t = np.where(d_slide > 0.0, 2.0 * d_slide / den_s, 0.0)
-            t = t + np.where(d_roll > 0.0, 2.0 * d_roll / den_r, 0.0)
-        t = np.minimum(t, t_stop)
-        return np.where(beyond, np.inf, t)
+            return t + np.where(d_roll > 0.0, 2.0 * d_roll / den_r, 0.0)
 
     def time_to_leave_field(self, field_config: FieldConfig, margin_m: float = 0.0) -> np.ndarray:
         """First time the ball crosses the field lines (extended by ``margin_m``); +inf if it stops inside.
@@ -271,19 +273,10 @@ class BallTrajectory:
         d_exit = np.maximum(exit_dist.min(axis=-1), 0.0)
         outside = (np.abs(pos) > half).any(axis=-1)
         d_exit = np.where(outside, 0.0, d_exit)
-        p = self.params
-        s0, v_sw, d_sw = self.speed_mps, self.v_switch_mps, self.switch_distance_m
         beyond = d_exit > self.stop_distance_m
-        d = np.minimum(d_exit, self.stop_distance_m)
-        d_slide = np.minimum(d, d_sw)
-        d_roll = d - d_slide
-        den_s = s0 + np.sqrt(np.maximum(s0 * s0 + 2.0 * p.a_slide_mps2 * d_slide, 0.0))
-        den_r = v_sw + np.sqrt(np.maximum(v_sw * v_sw + 2.0 * p.a_roll_mps2 * d_roll, 0.0))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = np.where(d_slide > 0.0, 2.0 * d_slide / den_s, 0.0)
-            t = t + np.where(d_roll > 0.0, 2.0 * d_roll / den_r, 0.0)
-        t = np.where(beyond & ~outside, np.inf, t)
-        return t
+        t = self._travel_time(np.minimum(d_exit, self.stop_distance_m), self.speed_mps, self.v_switch_mps,
+                              self.switch_distance_m)
+        return np.where(beyond & ~outside, np.inf, t)
 
     def advanced(self, dt_s: float) -> BallTrajectory:
         """The same ball ``dt_s`` seconds later (same kick speed, so the phases stay consistent)."""

@@ -197,28 +197,22 @@ class CatcherNode(Node):
         self._pose = (self._now_s(), pose)
         self._velocity = velocity[:2]
 
-    def _on_catch_time(self, msg: Float64) -> None:
+    def _stamped(self, msg, what: str, convert):
+        """(robot time of arrival, converted value), or None with a throttled warning for a bad message."""
         try:
-            self._catch_time = (self._now_s(), float64_from_msg(msg))
-        except ConversionError as exc:
-            self._warn.warn("catch_time", f"rejected catch_time: {exc}")
-
-    def _stamped_point(self, msg: PointStamped, what: str):
-        """(robot time of arrival, [x, y]), or None with a throttled warning for a bad point."""
-        try:
-            return self._now_s(), point_from_msg(msg)[1]
+            return self._now_s(), convert(msg)
         except ConversionError as exc:
             self._warn.warn(what, f"rejected {what}: {exc}")
             return None
 
+    def _on_catch_time(self, msg: Float64) -> None:
+        self._catch_time = self._stamped(msg, "catch_time", float64_from_msg) or self._catch_time
+
     def _on_catch_point(self, msg: PointStamped) -> None:
-        self._target = self._stamped_point(msg, "catch_point") or self._target
+        self._target = self._stamped(msg, "catch_point", lambda m: point_from_msg(m)[1]) or self._target
 
     def _on_v_shoot(self, msg: Float64) -> None:
-        try:
-            self._v_shoot = (self._now_s(), float64_from_msg(msg))
-        except ConversionError as exc:
-            self._warn.warn("v_shoot", f"rejected v_shoot: {exc}")
+        self._v_shoot = self._stamped(msg, "v_shoot", float64_from_msg) or self._v_shoot
 
     def _on_model_params(self, msg: Float64MultiArray) -> None:
         try:

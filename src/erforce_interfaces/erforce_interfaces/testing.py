@@ -367,6 +367,15 @@ class _Probe:
 
 
 # ------------------------------------------------------------- pytest plugin
+def show_outputs_if_failed(graph: RosGraph, request) -> None:
+    """After a failed test (``request`` of a pytest fixture), the tail of each process's output on stderr."""
+    report = getattr(request.node, "rep_call", None)
+    if report is not None and report.failed:
+        for proc in graph.processes:
+            sys.stderr.write(f"\n----- output of {proc.name} ({' '.join(proc.cmd)}) -----\n")
+            sys.stderr.write(proc.output()[-4000:])
+
+
 try:
     import pytest
 except ImportError:  # pragma: no cover - the harness is also usable without pytest
@@ -382,11 +391,7 @@ if pytest is not None:
             yield graph
         finally:
             graph.close()
-            report = getattr(request.node, "rep_call", None)
-            if report is not None and report.failed:
-                for proc in graph.processes:
-                    sys.stderr.write(f"\n----- output of {proc.name} ({' '.join(proc.cmd)}) -----\n")
-                    sys.stderr.write(proc.output()[-4000:])
+            show_outputs_if_failed(graph, request)
 
     @pytest.hookimpl(tryfirst=True, hookwrapper=True)
     def pytest_runtest_makereport(item, call):
