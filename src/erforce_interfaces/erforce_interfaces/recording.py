@@ -27,7 +27,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 
-from erforce_interfaces.contract import QOS_CLOCK
+from erforce_interfaces.contract import CLOCK
 from erforce_interfaces.conversions import stamp_to_nanoseconds
 
 POLL_PERIOD_S = 0.05
@@ -52,7 +52,7 @@ class BagRecorder:
         self._subscriptions: list[tuple[str, object]] = []
         # (received wall ns, simulated ns) of each /clock message: the log time of a message is
         # the simulated time of the newest clock received before it.
-        self._clock_sub = node.create_subscription(Clock, "/clock", lambda _: None, QOS_CLOCK) if use_sim_time else None
+        self._clock_sub = node.create_subscription(Clock, CLOCK.name, lambda _: None, CLOCK.qos) if use_sim_time else None
         self._clock_received_ns: list[int] = [0]
         self._clock_sim_ns: list[int] = [0]
         self.counts: dict[str, int] = {}
