@@ -52,7 +52,8 @@ class BagRecorder:
         self._subscriptions: list[tuple[str, object]] = []
         # (received wall ns, simulated ns) of each /clock message: the log time of a message is
         # the simulated time of the newest clock received before it.
-        self._clock_sub = node.create_subscription(Clock, CLOCK.name, lambda _: None, CLOCK.qos) if use_sim_time else None
+        self._clock_sub = (node.create_subscription(Clock, CLOCK.name, lambda _: None, CLOCK.qos)
+                           if use_sim_time else None)
         self._clock_received_ns: list[int] = [0]
         self._clock_sim_ns: list[int] = [0]
         self.counts: dict[str, int] = {}
