@@ -68,18 +68,26 @@ def test_ball_at_rest():
 
 
 def test_batch_outer_product_matches_single_balls():
+    """A single ball is set up in floats, a batch in arrays: both must derive the same phases."""
     rng = np.random.default_rng(0)
-    pos, vel = rng.normal(size=(5, 2)), rng.normal(0, 3, size=(5, 2))
-    shoot = rng.uniform(0, 6, 5)
+    pos, vel = rng.normal(size=(8, 2)), rng.normal(0, 3, size=(8, 2))
+    shoot = rng.uniform(0, 6, 8)
+    vel[5] = 0.0  # at rest
+    shoot[6] = 0.5 * np.hypot(*vel[6])  # v_shoot below the speed: raised to it
+    shoot[7] = 3.0 * np.hypot(*vel[7])  # already rolling
     batch = BallTrajectory(pos, vel, shoot)
     t = np.linspace(0, 6, 7)
     out = batch.position_at(t)
-    assert out.shape == (5, 7, 2)
-    for i in range(5):
+    assert out.shape == (8, 7, 2)
+    for i in range(8):
         single = BallTrajectory(pos[i], vel[i], shoot[i])
         np.testing.assert_allclose(out[i], single.position_at(t))
         np.testing.assert_allclose(batch[i].stop_point, single.stop_point)
-    assert batch.time_to_distance(np.array([0.1, 0.2])).shape == (5, 2)
+        for name in ("v_shoot_mps", "speed_mps", "direction", "v_switch_mps", "switch_time_s", "switch_distance_m",
+                     "stop_time_s", "stop_distance_m"):
+            np.testing.assert_allclose(getattr(single, name), getattr(batch, name)[i], rtol=1e-15, err_msg=name)
+            assert getattr(single, name).shape == getattr(batch, name).shape[1:]
+    assert batch.time_to_distance(np.array([0.1, 0.2])).shape == (8, 2)
 
 
 speeds = st.floats(0.0, 8.0)
@@ -179,6 +187,9 @@ def test_params_validation(kwargs):
         ([0.0, 0.0], [1.0, 0.0], -1.0),
         ([0.0, 0.0], [1.0, 0.0], np.nan),
         ([0.0, 0.0], [1e308, 1e308], 1.0),
+        ([0.0, 0.0], [1.0, 0.0], 101.0),
+        ([2e4, 0.0], [1.0, 0.0], 1.0),
+        ([0.0, 0.0], [1.0, 0.0], 1.0, "not params"),
         (np.zeros((3, 2)), np.zeros((3, 2)), np.ones(4)),
     ],
 )

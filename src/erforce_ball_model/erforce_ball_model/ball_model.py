@@ -93,6 +93,11 @@ class BallTrajectory:
     params: BallModelParams = field(default_factory=BallModelParams)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.params, BallModelParams):
+            raise ValueError(f"params: expected BallModelParams, got {type(self.params).__name__}")
+        if np.shape(self.position_m) == (2,) and np.shape(self.velocity_mps) == (2,) and np.ndim(self.v_shoot_mps) == 0:
+            self._init_single()  # the predictor's case, every frame: scalar maths is ~5x cheaper
+            return
         pos = _as_finite("position_m", self.position_m)
         vel = _as_finite("velocity_mps", self.velocity_mps)
         if pos.ndim < 1 or pos.shape[-1] != 2:
@@ -107,10 +112,6 @@ class BallTrajectory:
             v_shoot = np.broadcast_to(v_shoot, batch)
         except ValueError:
             raise ValueError(f"v_shoot_mps: shape {v_shoot.shape} does not fit batch {batch}") from None
-        if not isinstance(self.params, BallModelParams):
-            raise ValueError(f"params: expected BallModelParams, got {type(self.params).__name__}")
-
-        p = self.params
         speed = np.hypot(vel[..., 0], vel[..., 1])
         if (speed > MAX_SPEED_MPS).any() or (v_shoot > MAX_SPEED_MPS).any():
             raise ValueError(f"velocity_mps / v_shoot_mps: speed above {MAX_SPEED_MPS} m/s is not a ball")
@@ -119,19 +120,37 @@ class BallTrajectory:
         moving = speed > 0.0
         safe = np.where(moving, speed, 1.0)
         direction = np.where(moving[..., None], vel / safe[..., None], 0.0)
-        v_shoot = np.maximum(v_shoot, speed)
-        v_switch = np.minimum(speed, p.c_switch * v_shoot)
+        self._freeze(pos, vel, speed, direction, np.maximum(v_shoot, speed), np.minimum)
+
+    def _init_single(self) -> None:
+        """``__post_init__`` for one ball, in floats (same checks, same formulas)."""
+        x, y = (float(v) for v in self.position_m)
+        vx, vy = (float(v) for v in self.velocity_mps)
+        v_shoot = float(self.v_shoot_mps)
+        checks = (("position_m", (x, y), self.position_m), ("velocity_mps", (vx, vy), self.velocity_mps),
+                  ("v_shoot_mps", (v_shoot,), self.v_shoot_mps))
+        for name, values, raw in checks:
+            if not all(map(math.isfinite, values)):
+                raise ValueError(f"{name}: must be finite, got {raw!r}")
+        if v_shoot < 0.0:
+            raise ValueError(f"v_shoot_mps: must be >= 0, got {self.v_shoot_mps!r}")
+        speed = math.hypot(vx, vy)
+        if speed > MAX_SPEED_MPS or v_shoot > MAX_SPEED_MPS:
+            raise ValueError(f"velocity_mps / v_shoot_mps: speed above {MAX_SPEED_MPS} m/s is not a ball")
+        if abs(x) > MAX_POSITION_M or abs(y) > MAX_POSITION_M:
+            raise ValueError(f"position_m: beyond {MAX_POSITION_M} m")
+        direction = (vx / speed, vy / speed) if speed > 0.0 else (0.0, 0.0)
+        self._freeze((x, y), (vx, vy), speed, direction, max(v_shoot, speed), min)
+
+    def _freeze(self, pos, vel, speed, direction, v_shoot, minimum) -> None:
+        """Derive the phase switch and stop (module docstring) and store everything read-only."""
+        p = self.params
+        v_switch = minimum(speed, p.c_switch * v_shoot)
         t_switch = (speed - v_switch) / -p.a_slide_mps2
         d_switch = speed * t_switch + 0.5 * p.a_slide_mps2 * t_switch**2
         t_roll = v_switch / -p.a_roll_mps2
         t_stop = t_switch + t_roll
         d_stop = d_switch + v_switch * t_roll + 0.5 * p.a_roll_mps2 * t_roll**2
-
-        def frozen(a):
-            a = np.array(a, dtype=float)
-            a.setflags(write=False)
-            return a
-
         for name, value in (
             ("position_m", pos),
             ("velocity_mps", vel),
@@ -144,7 +163,9 @@ class BallTrajectory:
             ("stop_time_s", t_stop),
             ("stop_distance_m", d_stop),
         ):
-            object.__setattr__(self, name, frozen(value))
+            a = np.array(value, dtype=float)
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
 
     # -- properties -------------------------------------------------------------------------------
     @property

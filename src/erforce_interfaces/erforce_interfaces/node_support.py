@@ -21,11 +21,12 @@ import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from erforce_interfaces.contract import Topic
+from erforce_interfaces.executor import DirectExecutor
 from erforce_interfaces.robot_config import RobotConfig
 
 ParamValue = bool | int | float | str | list
@@ -208,7 +209,7 @@ class ThrottledWarner:
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
-    """Standard node main: init, spin on a SingleThreadedExecutor, clean shutdown.
+    """Standard node main: init, spin on a DirectExecutor (erforce_interfaces.executor), clean shutdown.
 
     Returns the process exit code: 0 after Ctrl-C or external shutdown, 1 when the
     node refused to start (for example an invalid parameter file).
@@ -223,7 +224,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
             # Invalid configuration at start-up: one clear line, no traceback.
             rclpy.logging.get_logger("erforce").fatal(f"cannot start: {exc}")
             return 1
-        executor = SingleThreadedExecutor()
+        executor = DirectExecutor()
         executor.add_node(node)
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):

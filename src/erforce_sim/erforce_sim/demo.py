@@ -33,7 +33,6 @@ import numpy as np
 import rclpy
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
-from rclpy.executors import SingleThreadedExecutor
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
@@ -46,6 +45,7 @@ from erforce_interfaces.conversions import (
     stamp_to_seconds,
     table_from_msg,
 )
+from erforce_interfaces.executor import DirectExecutor
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_interfaces.testing import stop_process
 
@@ -361,7 +361,7 @@ class Demo:
         self.field = FieldConfig.preset(args.field)
         rclpy.init()
         self.node = rclpy.create_node("demo_director")
-        self.executor = SingleThreadedExecutor()
+        self.executor = DirectExecutor()
         self.executor.add_node(self.node)
         self.launch: subprocess.Popen | None = None
         self.recorder: subprocess.Popen | None = None

@@ -1,0 +1,176 @@
+"""DirectExecutor (erforce_interfaces.executor): every entity kind a node has is served, in one wait.
+
+Each test runs one node in its own context and DDS domain; publisher and subscription meet in the
+same process over DDS. Waits are deadline-bound loops of ``spin_once``, never fixed sleeps.
+"""
+
+import threading
+import time
+
+import pytest
+import rclpy
+from rcl_interfaces.srv import SetParameters
+from rclpy.context import Context
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.executors import ExternalShutdownException
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Int32
+
+from erforce_interfaces.executor import DirectExecutor
+from erforce_interfaces.node_support import ParamSpec, declare_params
+from erforce_interfaces.testing import DomainLease
+
+RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+
+
+@pytest.fixture
+def env():
+    lease = DomainLease()
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=lease.domain_id)
+    node = rclpy.create_node("executor_test", context=ctx)
+    executor = DirectExecutor(context=ctx)
+    executor.add_node(node)
+    yield ctx, node, executor
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.try_shutdown(context=ctx)
+    lease.release()
+
+
+def spin_until(executor, condition, timeout_s=10.0):
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, "condition not reached before the deadline"
+        executor.spin_once(timeout_sec=0.05)
+
+
+def connected(pub, sub):
+    return lambda: pub.get_subscription_count() > 0 and sub.get_publisher_count() > 0
+
+
+def test_subscriptions_receive_every_message_in_order_with_or_without_info(env):
+    _, node, executor = env
+    plain, with_info = [], []
+    sub = node.create_subscription(Int32, "/exec/a", lambda m: plain.append(m.data), RELIABLE)
+    node.create_subscription(Int32, "/exec/a", lambda m, info: with_info.append((m.data, info)), RELIABLE)
+    pub = node.create_publisher(Int32, "/exec/a", RELIABLE)
+    spin_until(executor, lambda: pub.get_subscription_count() == 2 and sub.get_publisher_count() == 1)
+    for k in range(50):
+        pub.publish(Int32(data=k))
+    spin_until(executor, lambda: len(plain) == 50 and len(with_info) == 50)
+    assert plain == list(range(50))
+    assert [d for d, _ in with_info] == list(range(50))
+    assert all(info["source_timestamp"] > 0 for _, info in with_info)
+
+
+def test_timer_runs_at_its_period(env):
+    _, node, executor = env
+    calls = []
+    node.create_timer(0.01, lambda: calls.append(time.monotonic()))
+    spin_until(executor, lambda: len(calls) >= 11)
+    # a 10 ms timer: the mean gap is its period (scheduling jitter averages out over 10 gaps)
+    assert 0.008 <= (calls[-1] - calls[0]) / (len(calls) - 1) <= 0.03
+
+
+def test_a_subscription_created_while_spinning_is_served(env):
+    _, node, executor = env
+    pub = node.create_publisher(Int32, "/exec/late", RELIABLE)
+    executor.spin_once(timeout_sec=0.0)  # entities gathered without the subscription
+    got = []
+    sub = node.create_subscription(Int32, "/exec/late", lambda m: got.append(m.data), RELIABLE)
+    spin_until(executor, connected(pub, sub))
+    pub.publish(Int32(data=7))
+    spin_until(executor, lambda: got == [7])
+
+
+def test_a_callback_may_destroy_its_own_subscription(env):
+    _, node, executor = env
+    got = []
+
+    def once(msg):
+        got.append(msg.data)
+        node.destroy_subscription(sub)
+
+    sub = node.create_subscription(Int32, "/exec/once", once, RELIABLE)
+    pub = node.create_publisher(Int32, "/exec/once", RELIABLE)
+    spin_until(executor, connected(pub, sub))
+    pub.publish(Int32(data=1))
+    pub.publish(Int32(data=2))
+    spin_until(executor, lambda: got)
+    for _ in range(5):
+        executor.spin_once(timeout_sec=0.02)
+    assert got == [1]
+
+
+def test_parameter_services_validate_through_the_executor(env):
+    """A client (served by this executor too) sets parameters; the node's on-set check answers."""
+    _, node, executor = env
+    declare_params(node, (ParamSpec("gain", 2.0, "a gain", min=0.0, max=10.0),))
+    client = node.create_client(SetParameters, "/executor_test/set_parameters")
+    spin_until(executor, client.service_is_ready)
+
+    def set_gain(value):
+        request = SetParameters.Request(parameters=[Parameter("gain", value=value).to_parameter_msg()])
+        future = client.call_async(request)
+        executor.spin_until_future_complete(future, timeout_sec=10.0)
+        assert future.done()
+        return future.result().results[0]
+
+    assert set_gain(4.0).successful and node.get_parameter("gain").value == 4.0
+    rejected = set_gain(11.0)
+    assert not rejected.successful and "out of range" in rejected.reason
+    assert node.get_parameter("gain").value == 4.0
+
+
+def test_guard_condition_callback_runs_when_triggered_from_another_thread(env):
+    _, node, executor = env
+    hits = []
+    gc = node.create_guard_condition(lambda: hits.append(threading.get_ident()))
+    threading.Thread(target=gc.trigger).start()
+    spin_until(executor, lambda: hits)
+    assert hits == [threading.get_ident()]  # the callback ran in the spinning thread
+
+
+def test_qos_event_waitables_are_served(env):
+    """An incompatible QoS pair raises events on both sides; their handlers are waitables."""
+    _, node, executor = env
+    events = []
+    on_pub = PublisherEventCallbacks(incompatible_qos=lambda e: events.append("pub"))
+    on_sub = SubscriptionEventCallbacks(incompatible_qos=lambda e: events.append("sub"))
+    best_effort = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+    node.create_publisher(Int32, "/exec/qos", best_effort, event_callbacks=on_pub)
+    node.create_subscription(Int32, "/exec/qos", lambda m: None, RELIABLE, event_callbacks=on_sub)
+    spin_until(executor, lambda: {"pub", "sub"} <= set(events))
+
+
+def test_a_callback_that_awaits_is_refused(env):
+    _, node, executor = env
+    never = rclpy.task.Future()
+
+    async def waits(msg):
+        await never
+
+    sub = node.create_subscription(Int32, "/exec/async", waits, RELIABLE)
+    pub = node.create_publisher(Int32, "/exec/async", RELIABLE)
+    spin_until(executor, connected(pub, sub))
+    pub.publish(Int32(data=1))
+    with pytest.raises(RuntimeError, match="awaited a future"):
+        spin_until(executor, lambda: False, timeout_s=5.0)
+
+
+def test_shutdown_ends_spin(env):
+    _, _, executor = env
+    threading.Timer(0.2, executor.shutdown).start()
+    t0 = time.monotonic()
+    executor.spin()
+    assert time.monotonic() - t0 < 5.0
+
+
+def test_context_shutdown_raises_external_shutdown(env):
+    ctx, _, executor = env
+    threading.Timer(0.2, lambda: rclpy.try_shutdown(context=ctx)).start()
+    with pytest.raises(ExternalShutdownException):
+        for _ in range(200):
+            executor.spin_once(timeout_sec=0.05)
