@@ -40,11 +40,13 @@ def measure(num_robots: int, sim_s: float, period_s: float = 0.002) -> dict:
                                  params={"use_sim_time": True, "loop_rate_hz": 1.0 / period_s})
         poses = [v for i in range(num_robots) for v in (-3.0 + 1.0 * i, 0.0, 0.0)]
         clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
-        # warm-up ticks, then the measured stretch; the plant ends itself after stop_after_s
+        # warm-up ticks, then the measured stretch; the plant ends itself after stop_after_s. It starts
+        # once this probe and both nodes of every robot subscribe to /clock, so the probe sees the warm-up.
         warmup_s = 0.5
         plant = graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params={
             "robot_poses": poses, "controlled": [True], "real_time_factor": 0.0, "control_period_s": period_s,
-            "stop_after_s": warmup_s + sim_s, "startup_timeout_s": 60.0})
+            "stop_after_s": warmup_s + sim_s, "startup_timeout_s": 60.0,
+            "start_clock_subscribers": 2 * num_robots + 1})
         graph.probe.spin_until(lambda: clocks and stamp_to_nanoseconds(clocks[-1].clock) >= warmup_s * 1e9, 120.0,
                                "warm-up")
         t0_sim = stamp_to_nanoseconds(clocks[-1].clock) * 1e-9

@@ -96,6 +96,21 @@ def test_clock_is_published_and_monotonic(ros_graph):
     assert stamps == sorted(stamps)
 
 
+def test_start_clock_subscribers_holds_the_first_tick_until_time_zero_can_be_seen(ros_graph):
+    """With start_clock_subscribers the plant waits for that many /clock readers: the probe, which
+    subscribes only after the plant is up, still receives the clock from its very first tick."""
+    truth = ros_graph.subscribe(contract.GROUND_TRUTH_BALL.name, Odometry, contract.GROUND_TRUTH_BALL.qos)
+    plant = start_plant(ros_graph, controlled=[False], start_clock_subscribers=1, stop_after_s=0.5)
+    plant.wait_for_output(r"lockstep pacing", timeout_s=30.0)
+    # Longer than the start-up grace (0.5 s): a plant free to start would have run its 0.5 s by now.
+    ros_graph.probe.spin_for(2.0)
+    assert plant.alive() and not truth
+    clocks = ros_graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
+    ros_graph.probe.spin_until(lambda: not plant.alive(), 30.0, "the plant to run its 0.5 s")
+    stamps = [stamp_to_nanoseconds(c.clock) for c in clocks]
+    assert stamps[0] == 0 and stamps[-1] >= 490_000_000
+
+
 def test_a_silent_motor_board_is_reported_and_the_plant_goes_on(ros_graph):
     # A fake motor board that answers the first ticks, then falls silent. The plant waits
     # (up to startup_timeout_s) for a second wheel_states reader that never comes, by which

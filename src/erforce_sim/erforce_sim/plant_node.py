@@ -119,6 +119,15 @@ PARAMS = (
         "startup_timeout_s", 30.0, "wall time to wait for the controlled robots' nodes at start [s]", min=0.0, max=600.0
     ),
     ParamSpec(
+        "start_clock_subscribers",
+        0,
+        "also wait (up to startup_timeout_s) for this many /clock subscribers before the first tick, for tools "
+        "that must see time 0; use_sim_time nodes count too",
+        min=0,
+        max=10000,
+        read_only=True,
+    ),
+    ParamSpec(
         "ground_truth_rate_hz", 100.0, "rate of the ground-truth topics (simulated time) [Hz]", min=1.0, max=1000.0
     ),
     ParamSpec(
@@ -304,9 +313,9 @@ class PlantNode(Node):
             self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0
             and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= 2
             for i in self._controlled
-        )
+        ) and self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
         if not ok and waited > self._values["startup_timeout_s"]:
-            self._event(f"starting without all controlled robots after {waited:.1f} s", warn=True)
+            self._event(f"starting without all controlled robots or /clock subscribers after {waited:.1f} s", warn=True)
             return True
         # Discovery is not symmetric: seeing a reader does not mean it has matched this writer yet.
         # Start once the peers have been there for a moment, so tick 0 reaches everyone.
