@@ -10,7 +10,6 @@ import time
 import pytest
 import rclpy
 from rcl_interfaces.srv import SetParameters
-from rclpy.context import Context
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException
 from rclpy.parameter import Parameter
@@ -19,24 +18,18 @@ from std_msgs.msg import Int32
 
 from erforce_interfaces.executor import DirectExecutor
 from erforce_interfaces.node_support import ParamSpec, declare_params
-from erforce_interfaces.testing import DomainLease
+from erforce_interfaces.testing import isolated_node
 
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
 
 @pytest.fixture
 def env():
-    lease = DomainLease()
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=lease.domain_id)
-    node = rclpy.create_node("executor_test", context=ctx)
-    executor = DirectExecutor(context=ctx)
-    executor.add_node(node)
-    yield ctx, node, executor
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.try_shutdown(context=ctx)
-    lease.release()
+    with isolated_node("executor_test") as node:
+        executor = DirectExecutor(context=node.context)
+        executor.add_node(node)
+        yield node.context, node, executor
+        executor.shutdown()
 
 
 def spin_until(executor, condition, timeout_s=10.0):

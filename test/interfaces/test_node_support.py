@@ -3,12 +3,10 @@
 import math
 
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
 
 from erforce_interfaces.node_support import ParamSpec, ThrottledWarner, declare_params, params_markdown
-from erforce_interfaces.testing import DomainLease
+from erforce_interfaces.testing import isolated_node
 
 SPECS = (
     ParamSpec("gain", 2.0, "a gain", min=0.0, max=10.0),
@@ -20,14 +18,8 @@ SPECS = (
 
 @pytest.fixture
 def node():
-    lease = DomainLease()
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=lease.domain_id)
-    n = rclpy.create_node("param_test", context=ctx)
-    yield n
-    n.destroy_node()
-    rclpy.try_shutdown(context=ctx)
-    lease.release()
+    with isolated_node("param_test") as n:
+        yield n
 
 
 def build(values):

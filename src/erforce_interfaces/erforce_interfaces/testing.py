@@ -68,6 +68,24 @@ class DomainLease:
             self._fd = None
 
 
+@contextlib.contextmanager
+def isolated_node(name: str):
+    """One rclpy node in a context of its own and a private DDS domain, for in-process tests."""
+    import rclpy
+    from rclpy.context import Context
+
+    lease = DomainLease()
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=lease.domain_id)
+    node = rclpy.create_node(name, context=ctx)
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        lease.release()
+
+
 def _executable_path(name: str) -> str:
     """Console scripts live next to the interpreter in a venv."""
     candidate = Path(sys.executable).with_name(name)
