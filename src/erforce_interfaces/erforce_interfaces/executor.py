@@ -71,10 +71,6 @@ class DirectExecutor(SingleThreadedExecutor):
         self._entities = None  # something changed: gather the entities again
         super().wake()
 
-    def spin(self) -> None:
-        while self._context.ok() and not self._is_shutdown:
-            self.spin_once()
-
     def spin_once_until_future_complete(self, future, timeout_sec=None) -> None:
         # spin_until_future_complete comes here; the future's done callback wakes the wait.
         self.spin_once(timeout_sec.timeout if isinstance(timeout_sec, TimeoutObject) else timeout_sec)
