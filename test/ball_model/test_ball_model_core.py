@@ -87,6 +87,14 @@ def test_batch_outer_product_matches_single_balls():
                      "stop_time_s", "stop_distance_m"):
             np.testing.assert_allclose(getattr(single, name), getattr(batch, name)[i], rtol=1e-15, err_msg=name)
             assert getattr(single, name).shape == getattr(batch, name).shape[1:]
+        # advanced() and time_to_leave_field() also have a float path for one ball
+        for dt in (0.0, 0.05, 0.7, 2.5, 30.0):
+            later = single.advanced(dt)
+            np.testing.assert_allclose(later.position_m, batch.position_at(dt)[i], rtol=1e-14, atol=1e-15)
+            np.testing.assert_allclose(later.velocity_mps, batch.velocity_at(dt)[i], rtol=1e-14, atol=1e-15)
+        for field, margin in ((FieldConfig.preset("division_b"), 0.0), (FieldConfig.preset("division_a"), -4.0)):
+            np.testing.assert_allclose(single.time_to_leave_field(field, margin),
+                                       batch.time_to_leave_field(field, margin)[i], rtol=1e-15)
     assert batch.time_to_distance(np.array([0.1, 0.2])).shape == (8, 2)
 
 

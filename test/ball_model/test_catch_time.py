@@ -311,3 +311,27 @@ def test_bad_input_raises():
     batch = BallTrajectory(np.zeros((2, 2)), np.ones((2, 2)), 1.0)
     with pytest.raises(ValueError):
         robot_time_to_ball(batch, [[0.0, 0.0]], [[0.0, 0.0]], lim)
+
+
+def test_compiled_ball_closed_forms_agree_with_ball_trajectory():
+    """The search kernel restates distance_at and time_to_distance in scalar form: they must agree."""
+    from erforce_ball_model.ball_model import BallModelParams
+    from erforce_ball_model.catch_time import _ball_constants, _ball_distance, _ball_time_to_distance
+
+    rng = np.random.default_rng(3)
+    for k in range(200):
+        params = BallModelParams(rng.uniform(-6.0, -1.0), rng.uniform(-0.9, -0.05), rng.uniform(0.3, 1.0))
+        speed = 0.0 if k % 10 == 0 else rng.uniform(0.01, 7.0)
+        ang = rng.uniform(-math.pi, math.pi)
+        ball = BallTrajectory(rng.uniform(-4.0, 4.0, 2), speed * np.array([math.cos(ang), math.sin(ang)]),
+                              speed * rng.uniform(0.8, 2.0), params)
+        consts = _ball_constants(ball)
+        stop = float(ball.stop_time_s)
+        for t in (0.0, 0.3 * float(ball.switch_time_s), float(ball.switch_time_s), 0.5 * (stop + 1e-3), stop,
+                  stop + 1.0):
+            assert _ball_distance(consts, t) == pytest.approx(float(ball.distance_at(t)), rel=1e-12, abs=1e-15)
+        d_stop = float(ball.stop_distance_m)
+        for d in (0.0, 0.1 * d_stop, 0.9 * d_stop, d_stop, d_stop * 1.01 + 1e-3):
+            want = float(ball.time_to_distance(d))
+            got = _ball_time_to_distance(consts, d)
+            assert got == pytest.approx(want, rel=1e-12, abs=1e-15) or (math.isinf(got) and math.isinf(want))

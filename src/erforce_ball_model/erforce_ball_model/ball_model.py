@@ -213,17 +213,18 @@ class BallTrajectory:
         """Distance travelled along the line of motion after ``t_s`` seconds (monotone)."""
         t = self._time(t_s)
         ts, tr = self._split_time(t)
-        p = self.params
-        s0 = self._per_ball(self.speed_mps, t)
-        v_sw = self._per_ball(self.v_switch_mps, t)
-        return ts * (s0 + 0.5 * p.a_slide_mps2 * ts) + tr * (v_sw + 0.5 * p.a_roll_mps2 * tr)
+        return self._kinematics(ts, tr, self._per_ball(self.speed_mps, t), self._per_ball(self.v_switch_mps, t))[0]
 
     def speed_at(self, t_s) -> np.ndarray:
         t = self._time(t_s)
         ts, tr = self._split_time(t)
+        return np.maximum(self._kinematics(ts, tr, self._per_ball(self.speed_mps, t), 0.0)[1], 0.0)
+
+    def _kinematics(self, ts, tr, s0, v_switch):
+        """Distance and speed after ``ts`` seconds of sliding and ``tr`` of rolling (floats or arrays)."""
         p = self.params
-        s0 = self._per_ball(self.speed_mps, t)
-        return np.maximum(s0 + p.a_slide_mps2 * ts + p.a_roll_mps2 * tr, 0.0)
+        distance = ts * (s0 + 0.5 * p.a_slide_mps2 * ts) + tr * (v_switch + 0.5 * p.a_roll_mps2 * tr)
+        return distance, s0 + p.a_slide_mps2 * ts + p.a_roll_mps2 * tr
 
     def position_at(self, t_s) -> np.ndarray:
         """Ball position (paper: ballAtTime); shape ``batch + shape(t_s) + (2,)``."""
@@ -288,6 +289,18 @@ class BallTrajectory:
         half = np.array([field_config.half_length_m + margin_m, field_config.half_width_m + margin_m])
         if (half <= 0.0).any():
             raise ValueError(f"margin_m: {margin_m} leaves no field")
+        if not self.batch_shape:  # one ball (every predictor frame): the same in floats
+            d_exit = math.inf
+            for p, u, h in zip(self.position_m.tolist(), self.direction.tolist(), half.tolist(), strict=True):
+                if abs(p) > h:
+                    return np.float64(0.0)  # already outside
+                if u != 0.0:
+                    d_exit = min(d_exit, ((h if u > 0.0 else -h) - p) / u)
+            d_stop = float(self.stop_distance_m)
+            if max(d_exit, 0.0) > d_stop:
+                return np.float64(math.inf)
+            return self._travel_time(max(d_exit, 0.0), float(self.speed_mps), float(self.v_switch_mps),
+                                     float(self.switch_distance_m))
         pos, u = self.position_m, self.direction
         with np.errstate(divide="ignore", invalid="ignore"):
             exit_dist = np.where(u > 0.0, (half - pos) / u, np.where(u < 0.0, (-half - pos) / u, np.inf))
@@ -301,6 +314,14 @@ class BallTrajectory:
 
     def advanced(self, dt_s: float) -> BallTrajectory:
         """The same ball ``dt_s`` seconds later (same kick speed, so the phases stay consistent)."""
+        if not self.batch_shape and isinstance(dt_s, int | float) and math.isfinite(dt_s) and dt_s >= 0.0:
+            # One ball, one time (the predictor, every frame): the same in floats.
+            t = min(dt_s, float(self.stop_time_s))
+            ts = min(t, float(self.switch_time_s))
+            d, s = self._kinematics(ts, t - ts, float(self.speed_mps), float(self.v_switch_mps))
+            (x, y), (ux, uy) = self.position_m.tolist(), self.direction.tolist()
+            s = max(s, 0.0)
+            return BallTrajectory((x + ux * d, y + uy * d), (ux * s, uy * s), float(self.v_shoot_mps), self.params)
         pos = self.position_at(dt_s)
         vel = self.velocity_at(dt_s)
         return BallTrajectory(pos, vel, self.v_shoot_mps, self.params)

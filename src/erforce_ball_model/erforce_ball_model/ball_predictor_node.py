@@ -288,8 +288,8 @@ class BallPredictorNode(Node):
         self._robot_t_s = np.full(n, np.nan)
         self._robot_pos_m = np.zeros((n, 2))
         self._robot_vel_mps = np.zeros((n, 2))
-        # Catch outputs are refilled, not rebuilt, every frame: publish() serializes at once, and
-        # constructing 44 messages per frame was a third of the node's own time.
+        # Catch outputs are refilled, not rebuilt, every frame: constructing 44 messages per frame
+        # was a third of the node's own time.
         self._catch_time_msgs = [Float64() for _ in range(n)]
         self._catch_point_msgs = [PointStamped() for _ in range(n)]
         for msg in self._catch_point_msgs:
@@ -430,8 +430,7 @@ class BallPredictorNode(Node):
         # Catch times go out first: they are what the robots act on, and each publish costs tens
         # of microseconds. The ball topics follow.
         try:
-            for pub, out in self._catch_messages(t_s, traj):
-                pub.publish(out)
+            self._publish_catch_outputs(t_s, traj)
         except ValueError as exc:
             self._warn.warn("catch", f"no catch times for the frame at {t_s:.6f} s: {exc}")
         catch_out = time.perf_counter()
@@ -463,12 +462,16 @@ class BallPredictorNode(Node):
             (self._uncertain_pub, Bool(data=bool(ball.uncertain))),
         ]
 
-    def _catch_messages(self, t_s: float, traj: BallTrajectory) -> list[tuple[Any, Any]]:
-        """catch_time and catch_point of every known robot: one vectorized robotTimeToBall call."""
+    def _publish_catch_outputs(self, t_s: float, traj: BallTrajectory) -> None:
+        """catch_time, then catch_point, of every known robot: one vectorized robotTimeToBall call.
+
+        All values are checked before the first publish (a bad one raises ValueError and nothing
+        goes out); the catch times go out before the points are even filled in.
+        """
         cfg = self._config
         ids, pos, vel = self._known_robots(t_s)
         if not ids.size:
-            return []
+            return
         if cfg.reaction_s > 0.0:
             # A robot acts on this prediction only after the reaction time: the ball gets that head
             # start. The robot meanwhile executes its previous command, which continues its plan, so
@@ -489,19 +492,21 @@ class BallPredictorNode(Node):
             float64_msg(times[k])
         for k in np.flatnonzero(~(np.abs(points) <= MAX_ABS_VALUE).all(axis=1)):
             point_msg(t_s, points[k])
-        stamp = seconds_to_stamp(t_s)
-        messages = []
+        # Refilled, not rebuilt: publish() serializes at once.
+        time_msgs, time_pubs = self._catch_time_msgs, self._catch_time_pubs
         for i, value in zip(ids.tolist(), times.tolist(), strict=True):
-            msg = self._catch_time_msgs[i]
+            msg = time_msgs[i]
             msg.data = value
-            messages.append((self._catch_time_pubs[i], msg))
+            time_pubs[i].publish(msg)
+        stamp = seconds_to_stamp(t_s)
+        point_msgs, point_pubs = self._catch_point_msgs, self._catch_point_pubs
         for i, (x, y) in zip(ids[~never].tolist(), points.tolist(), strict=True):
-            msg = self._catch_point_msgs[i]
+            msg = point_msgs[i]
             msg.header.stamp = stamp
-            msg.point.x = x
-            msg.point.y = y
-            messages.append((self._catch_point_pubs[i], msg))
-        return messages
+            point = msg.point
+            point.x = x
+            point.y = y
+            point_pubs[i].publish(msg)
 
     def _frame_done(self, catch_out_s: float, elapsed_s: float) -> None:
         every = self._config.timing_log_every

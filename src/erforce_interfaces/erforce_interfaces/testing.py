@@ -289,12 +289,13 @@ class _Probe:
     def __init__(self, domain_id: int) -> None:
         import rclpy
         from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
+
+        from erforce_interfaces.executor import DirectExecutor  # the nodes' executor: the same receive cost
 
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.node = rclpy.create_node(f"test_probe_{os.getpid()}", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor = DirectExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._publishers: dict[tuple[str, type], Any] = {}
 
