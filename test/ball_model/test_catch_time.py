@@ -311,6 +311,11 @@ def test_bad_input_raises():
     batch = BallTrajectory(np.zeros((2, 2)), np.ones((2, 2)), 1.0)
     with pytest.raises(ValueError):
         robot_time_to_ball(batch, [[0.0, 0.0]], [[0.0, 0.0]], lim)
+    # A ball that takes ~3e6 s to stop (a_roll -1e-6 m/s^2): refused at once, not searched for days.
+    from erforce_ball_model.ball_model import BallModelParams
+    crawler = BallTrajectory([0.0, 0.0], [3.0, 0.0], 3.0, BallModelParams(-2.5, -1e-6, 0.99))
+    with pytest.raises(ValueError, match="grid points"):
+        robot_time_to_ball(crawler, [[50.0, 50.0]], [[0.0, 0.0]], RobotLimits(1e-3, 1e-3))
 
 
 def test_compiled_ball_closed_forms_agree_with_ball_trajectory():

@@ -77,6 +77,9 @@ __all__ = [
 ]
 
 DEFAULT_DRIBBLER_OFFSET_M = RobotConfig().dribbler_offset_m
+# A longer search (a ball that takes hours to stop, from an absurd deceleration) is refused, not run:
+# realistic horizons are seconds (about 2,200 points for a 6.5 m/s ball at the default 10 ms step).
+MAX_GRID_POINTS = 1_000_000
 
 
 def _jit(signature: str):
@@ -506,10 +509,14 @@ def robot_time_to_ball(
 
     t_stop = float(ball.stop_time_s)
     t_out = float(ball.time_to_leave_field(field, field_margin_m)) if field is not None else math.inf
+    t_max = min(t_stop, t_out)
+    if t_max / grid_step_s > MAX_GRID_POINTS:  # e.g. a deceleration of micrometres per s^2
+        raise ValueError(f"search horizon {t_max:.6g} s needs more than {MAX_GRID_POINTS} grid points of "
+                         f"{grid_step_s} s")
     m1 = math.ceil(math.sqrt(refine_points))
     m1, m2 = (m1, math.ceil(refine_points / m1)) if m1 > 2 else (refine_points, 0)
     result = CatchResult(np.empty(n), np.empty((n, 2)), np.empty((n, 2)), np.empty(n, dtype=np.int8))
-    _catch_search(_ball_constants(ball), min(t_stop, t_out), grid_step_s, t_stop < t_out, m1, m2,
+    _catch_search(_ball_constants(ball), t_max, grid_step_s, t_stop < t_out, m1, m2,
                   grid_step_s / refine_points, dribbler_offset_m, _kernel_array(p0), _kernel_array(v0),
                   _kernel_array(np.broadcast_to(facing, (n,))), a, vmax, result.time_s, result.kind,
                   result.ball_position_m, result.robot_target_m)
