@@ -1,6 +1,7 @@
 """Two-phase ball model (paper Sec. 5.1, 5.2, 5.4): hand numbers, physics identities, bad input."""
 
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -95,6 +96,14 @@ def test_batch_outer_product_matches_single_balls():
         for field, margin in ((FieldConfig.preset("division_b"), 0.0), (FieldConfig.preset("division_a"), -4.0)):
             np.testing.assert_allclose(single.time_to_leave_field(field, margin),
                                        batch.time_to_leave_field(field, margin)[i], rtol=1e-15)
+        # The one-ball floats are the batch's numbers, and the phase now is phase_at(0).
+        f = BallTrajectory(tuple(pos[i]), tuple(vel[i]), float(shoot[i])).floats
+        np.testing.assert_allclose(f[:2], pos[i], rtol=0)
+        np.testing.assert_allclose(f[2:4], vel[i], rtol=0)
+        np.testing.assert_allclose(f[4:6], batch.direction[i], rtol=1e-15)
+        np.testing.assert_allclose(f[6:], [getattr(batch, name)[i] for name in f._fields[6:]], rtol=1e-15)
+        assert single.phase == batch.phase[i] == batch.phase_at(0.0)[i]
+    assert batch.floats is None
     assert batch.time_to_distance(np.array([0.1, 0.2])).shape == (8, 2)
 
 
@@ -225,6 +234,13 @@ def test_query_validation():
 def test_immutable_and_advanced():
     with pytest.raises(ValueError):
         SHOT.position_m[0] = 1.0
+    with pytest.raises(AttributeError):
+        SHOT.position_m = np.zeros(2)
+    with pytest.raises(AttributeError):
+        SHOT.floats = None
+    copy = pickle.loads(pickle.dumps(SHOT))
+    np.testing.assert_array_equal(copy.position_at([0.0, 1.0, 9.0]), SHOT.position_at([0.0, 1.0, 9.0]))
+    assert copy.floats == SHOT.floats
     later = SHOT.advanced(1.0)
     np.testing.assert_allclose(later.position_at(0.5), SHOT.position_at(1.5))
     assert later.stop_time_s == pytest.approx(SHOT.stop_time_s - 1.0)

@@ -4,12 +4,13 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from erforce_ball_model.ball_model import BallTrajectory
 from erforce_ball_model.catch_time import (
     CatchKind,
+    CatchSearch,
     RobotLimits,
     axis_time,
     can_reach_in_time,
@@ -129,8 +130,37 @@ def test_robot_time_to_pos_never_worse_than_a_dense_alpha_scan():
         assert scan - 1e-3 <= t <= scan + 1e-7
 
 
+def test_prepared_search_reused_over_frames_equals_one_off_calls():
+    """CatchSearch (the predictor's per-frame form) gives what robot_time_to_ball gives, frame after frame."""
+    rng = np.random.default_rng(11)
+    robots, vels = rng.uniform(-4, 4, (5, 2)), rng.normal(0, 1, (5, 2))
+    lim = RobotLimits(rng.uniform(2, 5, 5), 2.5)
+    search = CatchSearch(5, lim, field=DIV_B, grid_step_s=0.02)
+    for _ in range(20):
+        ball = BallTrajectory(tuple(rng.uniform(-4, 4, 2)), tuple(rng.normal(0, 3, 2)), float(rng.uniform(0, 6)))
+        facing = rng.uniform(-math.pi, math.pi, 5)
+        got = search.run(ball, robots, vels, facing)
+        want = robot_time_to_ball(ball, robots, vels, lim, facing, field=DIV_B, grid_step_s=0.02)
+        for name in ("time_s", "kind", "ball_position_m", "robot_target_m"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name), err_msg=name)
+    assert search.run(ball, robots, vels, 0.0) is got  # the result arrays are reused
+    with pytest.raises(ValueError, match="must both be"):
+        search.run(ball, robots[:4], vels[:4])
+    with pytest.raises(ValueError, match="facing_rad"):
+        search.run(ball, robots, vels, np.zeros(4))
+    bad = robots.copy()
+    bad[3, 1] = np.inf
+    with pytest.raises(ValueError, match="finite"):
+        search.run(ball, bad, vels)
+    with pytest.raises(ValueError, match="single-ball"):
+        search.run(BallTrajectory(robots, vels, 1.0), robots, vels)
+    with pytest.raises(ValueError):
+        CatchSearch(0, lim)
+
+
 @settings(max_examples=300, deadline=None)
 @given(vec, vec, vec, st.floats(0.0, 4.0), st.floats(0.5, 6.0), st.floats(0.5, 4.0))
+@example((0.0, 0.0), (0.0, 0.25), (0.0, 2.1245449335086068e-218), 1.0, 1.0, 1.0)  # |d|^2 underflows to 0
 def test_cheap_bound_never_rules_out_a_reachable_point(p0, v0, target, t, a_max, v_max):
     """robotTimeToBall skips the exact test where _may_reach is False: that must be sound."""
     from erforce_ball_model.catch_time import _may_reach

@@ -131,6 +131,19 @@ def test_odometry_round_trip_with_spin():
     np.testing.assert_allclose(ang, [10.0, -5.0, 1.0])
 
 
+def test_refilled_messages_equal_new_ones():
+    """Publishers refill their messages every tick: a refill leaves nothing of the previous one."""
+    odom = conv.odometry_msg(1.0, [1.0, 2.0, 0.5], [3.0, 4.0, 0.0], "ball", spin=[1.0, 2.0, 3.0],
+                             position_variance_m2=0.25)
+    refilled = conv.odometry_msg(2.5, [-1.0, 0.5, -1.0], [0.1, 0.2, 0.3], "robot_0", out=odom)
+    assert refilled is odom
+    assert odom == conv.odometry_msg(2.5, [-1.0, 0.5, -1.0], [0.1, 0.2, 0.3], "robot_0")
+    point = conv.point_msg(1.0, (1.0, 2.0), frame_id="other")
+    assert conv.point_msg(3.0, (4.0, 5.0), out=point) == conv.point_msg(3.0, (4.0, 5.0))
+    assert conv.point_from_msg(point) == (3.0, (4.0, 5.0))
+    assert all(type(v) is float for v in conv.point_from_msg(point)[1])
+
+
 def test_robot_config_validation_and_yaml(tmp_path):
     cfg = RobotConfig.from_yaml(Path(__file__).resolve().parents[2] / "src/erforce_interfaces/config/robot.yaml")
     assert cfg == RobotConfig()  # the shipped file and the documented defaults agree

@@ -25,13 +25,14 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from erforce_interfaces.robot_config import FieldConfig
 
-__all__ = ["MAX_POSITION_M", "MAX_SPEED_MPS", "BallModelParams", "BallPhase", "BallTrajectory"]
+__all__ = ["MAX_POSITION_M", "MAX_SPEED_MPS", "BallFloats", "BallModelParams", "BallPhase", "BallTrajectory"]
 
 # Sanity bounds: far beyond any SSL ball (6.5 m/s kick limit, 12 m field), they only catch garbage
 # (unit mix-ups, uninitialized memory) before it overflows the arithmetic.
@@ -78,36 +79,123 @@ def _as_finite(name: str, value, *, allow_inf: bool = False) -> np.ndarray:
     return arr
 
 
-@dataclass(frozen=True, eq=False)
+_NUMBER = int | float | np.floating | np.integer
+
+
+def _is_pair(value) -> bool:
+    """One 2-vector (tuple, list or shape-(2,) array): the one-ball case."""
+    if isinstance(value, np.ndarray):
+        return value.shape == (2,)
+    return isinstance(value, tuple | list) and len(value) == 2 and all(isinstance(v, _NUMBER) for v in value)
+
+
+def _read_only(value) -> np.ndarray:
+    a = np.array(value, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+class BallFloats(NamedTuple):
+    """A one-ball trajectory's numbers as plain floats, for scalar code and compiled kernels."""
+
+    x_m: float
+    y_m: float
+    vx_mps: float
+    vy_mps: float
+    ux: float  # unit direction of motion ((0, 0) at rest)
+    uy: float
+    v_shoot_mps: float
+    speed_mps: float
+    v_switch_mps: float
+    switch_time_s: float
+    switch_distance_m: float
+    stop_time_s: float
+    stop_distance_m: float
+
+
+class _BallArray:
+    """A read-only array attribute of BallTrajectory; for one ball made from ``floats`` on first access."""
+
+    def __init__(self, index: int | slice) -> None:
+        self.index = index
+
+    def __set_name__(self, owner, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        arrays = obj._arrays
+        value = arrays.get(self.name)
+        if value is None:
+            value = arrays[self.name] = _read_only(obj.floats[self.index])
+        return value
+
+
 class BallTrajectory:
-    """The future of one ball (or a batch of balls) under the two-phase model.
+    """The future of one ball (or a batch of balls) under the two-phase model. Immutable.
 
     ``v_shoot_mps`` is the tracked kick speed; when it is below the current speed it is raised
     to the current speed (the ball cannot be faster than it was kicked). When the current speed
     is at most ``c_switch * v_shoot`` the ball already rolls.
+
+    For one ball the numbers live in ``floats`` (BallFloats) and the array attributes are made
+    on first access: the predictor builds two trajectories per vision frame and reads them in
+    scalar code, where making ten arrays would cost more than all of its arithmetic. A batch
+    has ``floats`` None.
     """
 
-    position_m: np.ndarray
-    velocity_mps: np.ndarray
-    v_shoot_mps: np.ndarray | float
-    params: BallModelParams = field(default_factory=BallModelParams)
+    __slots__ = ("_arrays", "floats", "params")
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.params, BallModelParams):
-            raise ValueError(f"params: expected BallModelParams, got {type(self.params).__name__}")
-        if np.shape(self.position_m) == (2,) and np.shape(self.velocity_mps) == (2,) and np.ndim(self.v_shoot_mps) == 0:
-            self._init_single()  # the predictor's case, every frame: scalar maths is ~5x cheaper
-            return
-        pos = _as_finite("position_m", self.position_m)
-        vel = _as_finite("velocity_mps", self.velocity_mps)
+    # In BallFloats order; a batch stores them in _arrays at construction.
+    position_m = _BallArray(slice(0, 2))
+    velocity_mps = _BallArray(slice(2, 4))
+    direction = _BallArray(slice(4, 6))  # unit vector of motion, zero at rest
+    v_shoot_mps = _BallArray(6)
+    speed_mps = _BallArray(7)
+    v_switch_mps = _BallArray(8)
+    switch_time_s = _BallArray(9)
+    switch_distance_m = _BallArray(10)
+    stop_time_s = _BallArray(11)
+    stop_distance_m = _BallArray(12)
+
+    def __init__(self, position_m, velocity_mps, v_shoot_mps, params: BallModelParams | None = None) -> None:
+        params = BallModelParams() if params is None else params
+        if not isinstance(params, BallModelParams):
+            raise ValueError(f"params: expected BallModelParams, got {type(params).__name__}")
+        init = object.__setattr__
+        init(self, "params", params)
+        init(self, "_arrays", {})
+        one_ball = _is_pair(position_m) and _is_pair(velocity_mps) and (
+            isinstance(v_shoot_mps, _NUMBER) or (isinstance(v_shoot_mps, np.ndarray) and v_shoot_mps.ndim == 0))
+        init(self, "floats", self._one_ball(position_m, velocity_mps, v_shoot_mps) if one_ball else None)
+        if not one_ball:
+            self._batch(position_m, velocity_mps, v_shoot_mps)
+
+    def __setattr__(self, name, value):
+        raise AttributeError(f"BallTrajectory is immutable (cannot set {name})")
+
+    def __delattr__(self, name):
+        raise AttributeError(f"BallTrajectory is immutable (cannot delete {name})")
+
+    def __reduce__(self):
+        return BallTrajectory, (self.position_m, self.velocity_mps, self.v_shoot_mps, self.params)
+
+    def __repr__(self) -> str:
+        return (f"BallTrajectory(position_m={self.position_m!r}, velocity_mps={self.velocity_mps!r}, "
+                f"v_shoot_mps={self.v_shoot_mps!r}, params={self.params!r})")
+
+    def _batch(self, position_m, velocity_mps, v_shoot_mps) -> None:
+        pos = _as_finite("position_m", position_m)
+        vel = _as_finite("velocity_mps", velocity_mps)
         if pos.ndim < 1 or pos.shape[-1] != 2:
             raise ValueError(f"position_m: last axis must have length 2, got shape {pos.shape}")
         if vel.shape != pos.shape:
             raise ValueError(f"velocity_mps: shape {vel.shape} must equal position shape {pos.shape}")
         batch = pos.shape[:-1]
-        v_shoot = _as_finite("v_shoot_mps", self.v_shoot_mps)
+        v_shoot = _as_finite("v_shoot_mps", v_shoot_mps)
         if (v_shoot < 0.0).any():
-            raise ValueError(f"v_shoot_mps: must be >= 0, got {self.v_shoot_mps!r}")
+            raise ValueError(f"v_shoot_mps: must be >= 0, got {v_shoot_mps!r}")
         try:
             v_shoot = np.broadcast_to(v_shoot, batch)
         except ValueError:
@@ -120,30 +208,33 @@ class BallTrajectory:
         moving = speed > 0.0
         safe = np.where(moving, speed, 1.0)
         direction = np.where(moving[..., None], vel / safe[..., None], 0.0)
-        self._freeze(pos, vel, speed, direction, np.maximum(v_shoot, speed), np.minimum)
+        v_shoot = np.maximum(v_shoot, speed)
+        values = (pos, vel, direction, v_shoot, speed, *self._derive(speed, v_shoot, np.minimum))
+        names = ("position_m", "velocity_mps", "direction", *BallFloats._fields[6:])
+        self._arrays.update((name, _read_only(v)) for name, v in zip(names, values, strict=True))
 
-    def _init_single(self) -> None:
-        """``__post_init__`` for one ball, in floats (same checks, same formulas)."""
-        x, y = (float(v) for v in self.position_m)
-        vx, vy = (float(v) for v in self.velocity_mps)
-        v_shoot = float(self.v_shoot_mps)
-        checks = (("position_m", (x, y), self.position_m), ("velocity_mps", (vx, vy), self.velocity_mps),
-                  ("v_shoot_mps", (v_shoot,), self.v_shoot_mps))
+    def _one_ball(self, position_m, velocity_mps, v_shoot_mps) -> BallFloats:
+        """The batch path's checks and formulas for one ball, in floats."""
+        (x, y), (vx, vy) = position_m, velocity_mps
+        x, y, vx, vy, v_shoot = float(x), float(y), float(vx), float(vy), float(v_shoot_mps)
+        checks = (("position_m", (x, y), position_m), ("velocity_mps", (vx, vy), velocity_mps),
+                  ("v_shoot_mps", (v_shoot,), v_shoot_mps))
         for name, values, raw in checks:
             if not all(map(math.isfinite, values)):
                 raise ValueError(f"{name}: must be finite, got {raw!r}")
         if v_shoot < 0.0:
-            raise ValueError(f"v_shoot_mps: must be >= 0, got {self.v_shoot_mps!r}")
+            raise ValueError(f"v_shoot_mps: must be >= 0, got {v_shoot_mps!r}")
         speed = math.hypot(vx, vy)
         if speed > MAX_SPEED_MPS or v_shoot > MAX_SPEED_MPS:
             raise ValueError(f"velocity_mps / v_shoot_mps: speed above {MAX_SPEED_MPS} m/s is not a ball")
         if abs(x) > MAX_POSITION_M or abs(y) > MAX_POSITION_M:
             raise ValueError(f"position_m: beyond {MAX_POSITION_M} m")
-        direction = (vx / speed, vy / speed) if speed > 0.0 else (0.0, 0.0)
-        self._freeze((x, y), (vx, vy), speed, direction, max(v_shoot, speed), min)
+        ux, uy = (vx / speed, vy / speed) if speed > 0.0 else (0.0, 0.0)
+        v_shoot = max(v_shoot, speed)
+        return BallFloats(x, y, vx, vy, ux, uy, v_shoot, speed, *self._derive(speed, v_shoot, min))
 
-    def _freeze(self, pos, vel, speed, direction, v_shoot, minimum) -> None:
-        """Derive the phase switch and stop (module docstring) and store everything read-only."""
+    def _derive(self, speed, v_shoot, minimum) -> tuple:
+        """Switch speed, switch time and distance, stop time and distance (module docstring)."""
         p = self.params
         v_switch = minimum(speed, p.c_switch * v_shoot)
         t_switch = (speed - v_switch) / -p.a_slide_mps2
@@ -151,26 +242,22 @@ class BallTrajectory:
         t_roll = v_switch / -p.a_roll_mps2
         t_stop = t_switch + t_roll
         d_stop = d_switch + v_switch * t_roll + 0.5 * p.a_roll_mps2 * t_roll**2
-        for name, value in (
-            ("position_m", pos),
-            ("velocity_mps", vel),
-            ("v_shoot_mps", v_shoot),
-            ("speed_mps", speed),
-            ("direction", direction),
-            ("v_switch_mps", v_switch),
-            ("switch_time_s", t_switch),
-            ("switch_distance_m", d_switch),
-            ("stop_time_s", t_stop),
-            ("stop_distance_m", d_stop),
-        ):
-            a = np.array(value, dtype=float)
-            a.setflags(write=False)
-            object.__setattr__(self, name, a)
+        return v_switch, t_switch, d_switch, t_stop, d_stop
 
     # -- properties -------------------------------------------------------------------------------
     @property
     def batch_shape(self) -> tuple[int, ...]:
-        return self.position_m.shape[:-1]
+        return () if self.floats is not None else self._arrays["position_m"].shape[:-1]
+
+    @property
+    def phase(self) -> BallPhase | np.ndarray:
+        """The phase now: ``phase_at(0)``, a BallPhase for one ball."""
+        f = self.floats
+        if f is None:
+            return self.phase_at(0.0)
+        if f.stop_time_s <= 0.0:
+            return BallPhase.STOPPED
+        return BallPhase.SLIDING if f.switch_time_s > 0.0 else BallPhase.ROLLING
 
     @property
     def stop_point(self) -> np.ndarray:
@@ -187,6 +274,7 @@ class BallTrajectory:
         return BallTrajectory(
             self.position_m[index], self.velocity_mps[index], self.v_shoot_mps[index], self.params
         )
+
 
     # -- broadcasting helpers ----------------------------------------------------------------------
     def _per_ball(self, value: np.ndarray, query: np.ndarray) -> np.ndarray:
@@ -286,22 +374,21 @@ class BallTrajectory:
             raise ValueError(f"field_config: expected FieldConfig, got {type(field_config).__name__}")
         if not math.isfinite(margin_m):
             raise ValueError(f"margin_m: must be finite, got {margin_m!r}")
-        half = np.array([field_config.half_length_m + margin_m, field_config.half_width_m + margin_m])
-        if (half <= 0.0).any():
+        half = (field_config.half_length_m + margin_m, field_config.half_width_m + margin_m)
+        if min(half) <= 0.0:
             raise ValueError(f"margin_m: {margin_m} leaves no field")
-        if not self.batch_shape:  # one ball (every predictor frame): the same in floats
+        f = self.floats
+        if f is not None:  # one ball (every predictor frame): the same in floats
             d_exit = math.inf
-            for p, u, h in zip(self.position_m.tolist(), self.direction.tolist(), half.tolist(), strict=True):
+            for p, u, h in ((f.x_m, f.ux, half[0]), (f.y_m, f.uy, half[1])):
                 if abs(p) > h:
                     return np.float64(0.0)  # already outside
                 if u != 0.0:
                     d_exit = min(d_exit, ((h if u > 0.0 else -h) - p) / u)
-            d_stop = float(self.stop_distance_m)
-            if max(d_exit, 0.0) > d_stop:
+            if max(d_exit, 0.0) > f.stop_distance_m:
                 return np.float64(math.inf)
-            return self._travel_time(max(d_exit, 0.0), float(self.speed_mps), float(self.v_switch_mps),
-                                     float(self.switch_distance_m))
-        pos, u = self.position_m, self.direction
+            return self._travel_time(max(d_exit, 0.0), f.speed_mps, f.v_switch_mps, f.switch_distance_m)
+        pos, u, half = self.position_m, self.direction, np.array(half)
         with np.errstate(divide="ignore", invalid="ignore"):
             exit_dist = np.where(u > 0.0, (half - pos) / u, np.where(u < 0.0, (-half - pos) / u, np.inf))
         d_exit = np.maximum(exit_dist.min(axis=-1), 0.0)
@@ -314,14 +401,15 @@ class BallTrajectory:
 
     def advanced(self, dt_s: float) -> BallTrajectory:
         """The same ball ``dt_s`` seconds later (same kick speed, so the phases stay consistent)."""
-        if not self.batch_shape and isinstance(dt_s, int | float) and math.isfinite(dt_s) and dt_s >= 0.0:
+        f = self.floats
+        if f is not None and isinstance(dt_s, int | float) and math.isfinite(dt_s) and dt_s >= 0.0:
             # One ball, one time (the predictor, every frame): the same in floats.
-            t = min(dt_s, float(self.stop_time_s))
-            ts = min(t, float(self.switch_time_s))
-            d, s = self._kinematics(ts, t - ts, float(self.speed_mps), float(self.v_switch_mps))
-            (x, y), (ux, uy) = self.position_m.tolist(), self.direction.tolist()
+            t = min(dt_s, f.stop_time_s)
+            ts = min(t, f.switch_time_s)
+            d, s = self._kinematics(ts, t - ts, f.speed_mps, f.v_switch_mps)
             s = max(s, 0.0)
-            return BallTrajectory((x + ux * d, y + uy * d), (ux * s, uy * s), float(self.v_shoot_mps), self.params)
+            return BallTrajectory((f.x_m + f.ux * d, f.y_m + f.uy * d), (f.ux * s, f.uy * s), f.v_shoot_mps,
+                                  self.params)
         pos = self.position_at(dt_s)
         vel = self.velocity_at(dt_s)
         return BallTrajectory(pos, vel, self.v_shoot_mps, self.params)

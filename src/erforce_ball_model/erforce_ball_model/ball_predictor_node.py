@@ -3,8 +3,8 @@
 Serves all robots from one process. Every ``/vision/ball`` frame runs the ball tracker
 (tracking.BallTracker: v_shoot, phase, ricochets) and answers with the ball state, phase,
 stop point, v_shoot and the uncertain flag, and, for every robot whose pose is known,
-``/robot_<i>/catch_time`` and ``catch_point`` from one vectorized robotTimeToBall call
-(catch_time.robot_time_to_ball, Algorithm 2). All outputs carry the observation's stamp;
+``/robot_<i>/catch_time`` and ``catch_point`` from one robotTimeToBall run for the team
+(catch_time.CatchSearch, Algorithm 2). All outputs carry the observation's stamp;
 catch times count from it. ``/robot_<i>/vision_pose`` feeds one RobotTracker per robot and
 is answered with ``/robot_<i>/odom``.
 
@@ -22,17 +22,19 @@ from __future__ import annotations
 import concurrent.futures
 import inspect
 import math
+import os
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from geometry_msgs.msg import PointStamped, PoseStamped
+from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
-from erforce_ball_model.catch_time import CatchKind, RobotLimits, robot_time_to_ball
+from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits
 from erforce_ball_model.catcher import CatcherConfig
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
@@ -64,9 +66,10 @@ from erforce_interfaces.robot_config import FieldConfig
 _MODEL = BallModelParams()
 _TRACK = TrackerConfig()
 _CATCHER = CatcherConfig()  # the robot limits: what the catcher drives with
-_GRID_STEP_S = inspect.signature(robot_time_to_ball).parameters["grid_step_s"].default
+_GRID_STEP_S = inspect.signature(CatchSearch).parameters["grid_step_s"].default
 
 FACING_MODES = ("towards_ball", "fixed")
+_NEVER = int(CatchKind.NEVER)
 PHASE_NAMES = {BallPhase.SLIDING: "sliding", BallPhase.ROLLING: "rolling", BallPhase.STOPPED: "stopped"}
 
 PARAMS = (
@@ -249,10 +252,16 @@ def build_config(values: dict[str, Any]) -> PredictorConfig:
 
 def facing_angles(
     fixed: np.ndarray, fixed_rad: np.ndarray, ball: BallTrajectory, robot_pos_m: np.ndarray, rest_speed_mps: float
-) -> np.ndarray:
-    """Dribbler direction per robot: the fixed angle, or against the ball's motion (towards a resting ball)."""
-    if ball.speed_mps > rest_speed_mps:
-        towards = np.full(len(robot_pos_m), math.atan2(-ball.velocity_mps[1], -ball.velocity_mps[0]))
+) -> np.ndarray | float:
+    """Dribbler direction per robot: the fixed angle, or against the ball's motion (towards a resting ball).
+
+    One float when every robot faces against the moving ball (the common case, no array work).
+    """
+    f = ball.floats
+    if f.speed_mps > rest_speed_mps:
+        towards = math.atan2(-f.vy_mps, -f.vx_mps)
+        if not fixed.any():
+            return towards
     else:
         d = ball.position_m - robot_pos_m
         towards = np.arctan2(d[:, 1], d[:, 0])  # atan2(0, 0) = 0: a robot on the ball faces +x
@@ -268,6 +277,16 @@ def model_params_table(fit: FitResult, in_use: BallModelParams) -> Float64MultiA
     return table_msg(rows, contract.BALL_MODEL_PARAM_LABELS, ",".join(contract.BALL_MODEL_PARAM_ROWS))
 
 
+class _BallMessages(NamedTuple):
+    """The ball topics' messages, refilled every frame."""
+
+    state: Odometry
+    phase: String
+    stop: PointStamped
+    v_shoot: Float64
+    uncertain: Bool
+
+
 class BallPredictorNode(Node):
     def __init__(self) -> None:
         super().__init__("ball_predictor")
@@ -280,13 +299,13 @@ class BallPredictorNode(Node):
         self._frame_times_s: list[tuple[float, float]] = []  # (to the catch times out, to the end)
         self._fit_pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ball_fit")
         self._fit_future: concurrent.futures.Future | None = None
+        self._search: CatchSearch | None = None  # robotTimeToBall for the team, rebuilt on a change
         self._values = declare_params(self, PARAMS, build_config, self._apply)
         n = self._config.num_robots
         self._robots: list[RobotTracker | None] = [None] * n
-        # The trackers' state after their last accepted pose, as arrays: a ball frame extrapolates
-        # all robots at once instead of looping over the trackers. NaN stamp: not seen yet.
-        self._robot_t_s = np.full(n, np.nan)
-        self._robot_pos_m = np.zeros((n, 2))
+        # The trackers' state after their last accepted pose, (t_s, x, y, vx, vy) per robot (NaN
+        # stamp: not seen yet), and the velocities as the array the catch search takes.
+        self._robot_states = [(math.nan, 0.0, 0.0, 0.0, 0.0)] * n
         self._robot_vel_mps = np.zeros((n, 2))
         # Catch outputs are refilled, not rebuilt, every frame: constructing 44 messages per frame
         # was a third of the node's own time.
@@ -295,6 +314,7 @@ class BallPredictorNode(Node):
         for msg in self._catch_point_msgs:
             msg.header.frame_id = contract.FIELD_FRAME
 
+        self._ball_msgs = _BallMessages(Odometry(), String(), PointStamped(), Float64(), Bool())
         q = contract
         self._state_pub = contract_publisher(self, q.BALL_STATE)
         self._phase_pub = contract_publisher(self, q.BALL_PHASE)
@@ -322,6 +342,10 @@ class BallPredictorNode(Node):
         self._config = config
         if old is None or config.model != old.model:
             self._model = config.model  # a hand-set model wins over an identified one
+        self._search = CatchSearch(
+            config.num_robots, config.limits, dribbler_offset_m=config.dribbler_offset_m, field=config.field,
+            field_margin_m=config.field_margin_m, grid_step_s=config.grid_step_s,
+        )
         if self._ball is None or config.tracker != old.tracker:
             self._ball = BallTracker(self._model, config.tracker)  # filter state is lost: re-seeds
         self._ball.params = self._model
@@ -360,8 +384,7 @@ class BallPredictorNode(Node):
             return
         self._robots[robot] = tracker
         vel = tracker.velocity_mps
-        self._robot_t_s[robot] = tracker.t_s
-        self._robot_pos_m[robot] = tracker.position_m
+        self._robot_states[robot] = (tracker.t_s, *tracker.position_m.tolist(), *vel.tolist())
         self._robot_vel_mps[robot] = vel
         try:
             odom = odometry_msg(
@@ -384,12 +407,23 @@ class BallPredictorNode(Node):
         self.get_logger().warning(f"time went backwards ({last_t_s:.6f} -> {t_s:.6f} s): {what} restarted")
         return True
 
-    def _known_robots(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Indices, positions and velocities at ``t_s`` (constant-velocity extrapolation) of the fresh robots."""
-        age_s = t_s - self._robot_t_s
-        ids = np.flatnonzero(np.abs(age_s) <= self._config.robot_timeout_s)  # NaN (never seen) is not
-        vel = self._robot_vel_mps[ids]
-        return ids, self._robot_pos_m[ids] + vel * age_s[ids, None], vel
+    def _robots_now(self, t_s: float) -> tuple[list[int], np.ndarray]:
+        """The robots fresh at ``t_s``, and all robots' positions then (constant-velocity extrapolation).
+
+        Stale and never-seen robots stay where they were last (the origin): the search runs for
+        the whole team in one call and their outputs are not published. A loop over 22 tuples is
+        cheaper here than the numpy calls for the same.
+        """
+        timeout_s = self._config.robot_timeout_s
+        fresh, rows = [], []
+        for i, (t_i, x, y, vx, vy) in enumerate(self._robot_states):
+            age_s = t_s - t_i
+            if abs(age_s) <= timeout_s:  # NaN (never seen) is not
+                fresh.append(i)
+                rows.append((x + vx * age_s, y + vy * age_s))
+            else:
+                rows.append((x, y))
+        return fresh, np.array(rows)
 
     # -------------------------------------------------------------------- ball
     def _on_ball(self, msg: PointStamped) -> None:
@@ -422,9 +456,7 @@ class BallPredictorNode(Node):
             traj = ball.trajectory()
             if status == UpdateStatus.HELD_BACK:  # the filter waits for the next frame: predict to this stamp
                 traj = traj.advanced(t_s - ball.t_s)
-            if not np.all(np.abs(traj.velocity_mps) <= MAX_ABS_VALUE):  # e.g. two frames 1 us apart
-                raise ValueError(f"absurd ball velocity {traj.velocity_mps.tolist()} m/s")
-        except ValueError as exc:  # publish nothing for this frame
+        except ValueError as exc:  # publish nothing for this frame (e.g. 100 m/s from two frames 1 us apart)
             self._warn.warn("predict", f"no prediction for the frame at {t_s:.6f} s: {exc}")
             return
         # Catch times go out first: they are what the robots act on, and each publish costs tens
@@ -435,42 +467,45 @@ class BallPredictorNode(Node):
             self._warn.warn("catch", f"no catch times for the frame at {t_s:.6f} s: {exc}")
         catch_out = time.perf_counter()
         try:
-            for pub, out in self._ball_messages(t_s, status, traj):
-                pub.publish(out)
+            self._publish_ball_outputs(t_s, status, traj)
         except ValueError as exc:
             self._warn.warn("predict", f"no ball state for the frame at {t_s:.6f} s: {exc}")
         self._frame_done(catch_out - start, time.perf_counter() - start)
         if self._shots is not None:
             self._identify(t_s, xy)
 
-    def _ball_messages(self, t_s: float, status: UpdateStatus, traj: BallTrajectory) -> list[tuple[Any, Any]]:
-        """The ball topics' messages (all built first: a failure publishes none of them)."""
-        cfg, ball = self._config, self._ball
+    def _publish_ball_outputs(self, t_s: float, status: UpdateStatus, traj: BallTrajectory) -> None:
+        """The ball topics, refilled; all are filled (and checked) before the first goes out."""
+        cfg, ball, f = self._config, self._ball, traj.floats
         if status == UpdateStatus.INITIALIZED:
             phase = "unknown"
-        elif traj.speed_mps <= cfg.rest_speed_mps:
+        elif f.speed_mps <= cfg.rest_speed_mps:
             phase = "stopped"
         else:
-            phase = PHASE_NAMES[BallPhase(int(traj.phase_at(0.0)))]
-        variance = ball.position_variance_m2
-        return [
-            (self._state_pub, odometry_msg(t_s, (*traj.position_m, 0.0), (*traj.velocity_mps, 0.0),
-                                           child_frame_id="ball", position_variance_m2=variance)),
-            (self._phase_pub, String(data=phase)),
-            (self._stop_pub, point_msg(t_s, traj.stop_point)),
-            (self._v_shoot_pub, float64_msg(float(traj.v_shoot_mps))),
-            (self._uncertain_pub, Bool(data=bool(ball.uncertain))),
-        ]
+            phase = PHASE_NAMES[traj.phase]
+        stop = (f.x_m + f.ux * f.stop_distance_m, f.y_m + f.uy * f.stop_distance_m)
+        msgs = self._ball_msgs
+        odometry_msg(t_s, (f.x_m, f.y_m, 0.0), (f.vx_mps, f.vy_mps, 0.0), child_frame_id="ball",
+                     position_variance_m2=ball.position_variance_m2, out=msgs.state)
+        point_msg(t_s, stop, out=msgs.stop)
+        msgs.v_shoot.data = float64_msg(f.v_shoot_mps).data
+        msgs.phase.data = phase
+        msgs.uncertain.data = bool(ball.uncertain)
+        self._state_pub.publish(msgs.state)
+        self._phase_pub.publish(msgs.phase)
+        self._stop_pub.publish(msgs.stop)
+        self._v_shoot_pub.publish(msgs.v_shoot)
+        self._uncertain_pub.publish(msgs.uncertain)
 
     def _publish_catch_outputs(self, t_s: float, traj: BallTrajectory) -> None:
-        """catch_time, then catch_point, of every known robot: one vectorized robotTimeToBall call.
+        """catch_time, then catch_point, of every fresh robot: one robotTimeToBall run for the team.
 
         All values are checked before the first publish (a bad one raises ValueError and nothing
         goes out); the catch times go out before the points are even filled in.
         """
         cfg = self._config
-        ids, pos, vel = self._known_robots(t_s)
-        if not ids.size:
+        ids, pos = self._robots_now(t_s)
+        if not ids:
             return
         if cfg.reaction_s > 0.0:
             # A robot acts on this prediction only after the reaction time: the ball gets that head
@@ -478,35 +513,38 @@ class BallPredictorNode(Node):
             # it is planned from its present state (coasting it would push a braking robot past its
             # target and turn a catch in progress into "never").
             traj = traj.advanced(cfg.reaction_s)
-        facing = facing_angles(cfg.facing_fixed[ids], cfg.facing_rad[ids], traj, pos, cfg.rest_speed_mps)
-        catch = robot_time_to_ball(
-            traj, pos, vel, cfg.limits, facing, dribbler_offset_m=cfg.dribbler_offset_m, field=cfg.field,
-            field_margin_m=cfg.field_margin_m, grid_step_s=cfg.grid_step_s,
-        )
-        never = catch.kind == CatchKind.NEVER
-        times = np.where(never, contract.CATCH_TIME_NEVER, catch.time_s + cfg.reaction_s)
-        points = catch.robot_target_m[~never]  # "never" has no catch point: catch_time says so
-        # The checks of float64_msg / point_msg, for all robots at once; on a bad value the helper
-        # itself raises (same error), before any message is touched.
-        for k in np.flatnonzero(~(np.abs(times) <= MAX_ABS_VALUE)):
-            float64_msg(times[k])
-        for k in np.flatnonzero(~(np.abs(points) <= MAX_ABS_VALUE).all(axis=1)):
-            point_msg(t_s, points[k])
+        facing = facing_angles(cfg.facing_fixed, cfg.facing_rad, traj, pos, cfg.rest_speed_mps)
+        catch = self._search.run(traj, pos, self._robot_vel_mps, facing)
+        # Per robot in plain floats (22 values; numpy calls cost more than they save here). All are
+        # checked before the first publish, with the checks of float64_msg / point_msg.
+        kinds, times, points = catch.kind.tolist(), catch.time_s.tolist(), catch.robot_target_m.tolist()
+        for i in ids:
+            if kinds[i] == _NEVER:
+                times[i] = contract.CATCH_TIME_NEVER  # and no catch point: catch_time says so
+            else:
+                times[i] += cfg.reaction_s
+                x, y = points[i]
+                if not (abs(times[i]) <= MAX_ABS_VALUE and abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE):
+                    float64_msg(times[i])
+                    point_msg(t_s, points[i])
         # Refilled, not rebuilt: publish() serializes at once.
         time_msgs, time_pubs = self._catch_time_msgs, self._catch_time_pubs
-        for i, value in zip(ids.tolist(), times.tolist(), strict=True):
+        for i in ids:
             msg = time_msgs[i]
-            msg.data = value
+            msg.data = times[i]
             time_pubs[i].publish(msg)
+        # The catch times' readers are often woken onto this CPU (the scheduler places a wakee
+        # beside its waker) and would wait behind the rest of this frame: let them run first.
+        os.sched_yield()
         stamp = seconds_to_stamp(t_s)
         point_msgs, point_pubs = self._catch_point_msgs, self._catch_point_pubs
-        for i, (x, y) in zip(ids[~never].tolist(), points.tolist(), strict=True):
-            msg = point_msgs[i]
-            msg.header.stamp = stamp
-            point = msg.point
-            point.x = x
-            point.y = y
-            point_pubs[i].publish(msg)
+        for i in ids:
+            if kinds[i] != _NEVER:
+                msg = point_msgs[i]
+                msg.header.stamp = stamp
+                point = msg.point
+                point.x, point.y = points[i]
+                point_pubs[i].publish(msg)
 
     def _frame_done(self, catch_out_s: float, elapsed_s: float) -> None:
         every = self._config.timing_log_every

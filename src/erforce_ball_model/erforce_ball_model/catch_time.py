@@ -52,6 +52,9 @@ Compiled scalar loops
     functions keep numpy's broadcasting interface. The ball enters the kernel as its derived
     constants (``_ball_constants``) with the two-phase closed forms of ball_model restated in
     ``_ball_distance`` / ``_ball_time_to_distance``; a test checks them against BallTrajectory.
+    ``CatchSearch`` checks the team's limits and settings and allocates the outputs once, so a
+    caller that asks every vision frame (the predictor) pays one compiled call and a few checks;
+    ``robot_time_to_ball`` is the one-off form of the same search.
 """
 
 from __future__ import annotations
@@ -69,6 +72,7 @@ from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 __all__ = [
     "CatchKind",
     "CatchResult",
+    "CatchSearch",
     "RobotLimits",
     "axis_time",
     "can_reach_in_time",
@@ -93,7 +97,8 @@ def _jit(signature: str):
 
 def _kernel_array(x) -> np.ndarray:
     """``x`` as the compiled functions take arrays: float64, C-contiguous, writeable (copied if not)."""
-    return np.require(x, dtype=float, requirements="CW")
+    a = np.ascontiguousarray(x, dtype=float)  # ``x`` itself when it already is one (no np.require overhead)
+    return a if a.flags.writeable else a.copy()
 
 
 @dataclass(frozen=True, eq=False)
@@ -332,6 +337,8 @@ def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
     if at < s0 - 1e-9:
         return False
     dist = math.sqrt(dx * dx + dy * dy)
+    if dist < 1e-150:  # the squares may have underflowed (hypot is exact but slower)
+        dist = math.hypot(dx, dy)
     w = (dx * wx + dy * wy) / (dist + 1e-300)  # 0 at the target itself
     vp = min(0.5 * (w + at), math.sqrt(vmax * vmax + s0 * s0))
     return dist <= vp * t - (vp * vp + (vp - w) ** 2) * (0.5 / a) + 1e-9
@@ -344,11 +351,9 @@ _BALL_FIELDS = ("px", "py", "ux", "uy", "s0", "v_switch", "t_switch", "t_stop", 
 
 
 def _ball_constants(ball: BallTrajectory) -> np.ndarray:
-    (px, py), (ux, uy) = ball.position_m.tolist(), ball.direction.tolist()
-    p = ball.params
-    return np.array([px, py, ux, uy, float(ball.speed_mps), float(ball.v_switch_mps), float(ball.switch_time_s),
-                     float(ball.stop_time_s), float(ball.switch_distance_m), float(ball.stop_distance_m),
-                     p.a_slide_mps2, p.a_roll_mps2])
+    f, p = ball.floats, ball.params
+    return np.array((f.x_m, f.y_m, f.ux, f.uy, f.speed_mps, f.v_switch_mps, f.switch_time_s, f.stop_time_s,
+                     f.switch_distance_m, f.stop_distance_m, p.a_slide_mps2, p.a_roll_mps2))
 
 
 @_jit("float64(float64[::1], float64)")
@@ -399,7 +404,7 @@ class CatchResult:
 _MOVING, _AT_REST, _NEVER = int(CatchKind.MOVING), int(CatchKind.AT_REST), int(CatchKind.NEVER)
 
 
-@_jit("void(float64[::1], float64, float64, boolean, int64, int64, float64, float64, float64[:, ::1], "
+@_jit("boolean(float64[::1], float64, float64, boolean, int64, int64, float64, float64, float64[:, ::1], "
       "float64[:, ::1], float64[::1], float64[::1], float64[::1], float64[::1], int8[::1], float64[:, ::1], "
       "float64[:, ::1])")
 def _catch_search(ball, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, pos, vel, facing, a, vmax,
@@ -409,8 +414,13 @@ def _catch_search(ball, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, po
     Grid pass: points ``min(k h, t_max)``, the exact test only where ``_may_reach`` leaves a
     chance. Witness: the moment the ball passes the robot's spot. Refinement: leftmost feasible
     sub-point on ``m1`` then ``m2`` sub-grids (``m2`` 0: one level). No window: robotTimeToPos to
-    the stop point when ``stops_inside``, else never.
+    the stop point when ``stops_inside``, else never. False (and nothing computed) when an input
+    of a robot is not finite.
     """
+    for r in range(pos.shape[0]):
+        for v in (pos[r, 0], pos[r, 1], vel[r, 0], vel[r, 1], facing[r]):
+            if not math.isfinite(v):
+                return False
     num = int(math.ceil(t_max / h - 1e-9)) + 1  # noqa: RUF046 (int64 in numba, whatever ceil returns)
     for r in range(pos.shape[0]):
         ox, oy = offset_m * math.cos(facing[r]), offset_m * math.sin(facing[r])
@@ -461,6 +471,74 @@ def _catch_search(ball, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, po
         time_out[r], kind_out[r] = right, kind
         ball_out[r, 0], ball_out[r, 1] = ball[0] + ball[2] * d, ball[1] + ball[3] * d
         target_out[r, 0], target_out[r, 1] = ball_out[r, 0] - ox, ball_out[r, 1] - oy
+    return True
+
+
+class CatchSearch:
+    """robotTimeToBall for a fixed team of ``num_robots``, prepared once and run every vision frame.
+
+    The limits, dribbler offset, field and grid are checked at construction and the outputs are
+    allocated once, so ``run`` is a few checks and one compiled call (the predictor's hot path).
+    The arrays of the returned CatchResult are reused by the next ``run``: copy what you keep.
+    """
+
+    def __init__(
+        self,
+        num_robots: int,
+        limits: RobotLimits,
+        *,
+        dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
+        field: FieldConfig | None = None,
+        field_margin_m: float = 0.0,
+        grid_step_s: float = 0.01,
+        refine_points: int = 128,
+    ) -> None:
+        if not (isinstance(num_robots, int) and num_robots >= 1):
+            raise ValueError(f"num_robots: must be an int >= 1, got {num_robots!r}")
+        if not (math.isfinite(dribbler_offset_m) and dribbler_offset_m >= 0.0):
+            raise ValueError(f"dribbler_offset_m: must be finite and >= 0, got {dribbler_offset_m!r}")
+        if not (math.isfinite(grid_step_s) and grid_step_s > 0.0):
+            raise ValueError(f"grid_step_s: must be finite and > 0, got {grid_step_s!r}")
+        if refine_points < 2:
+            raise ValueError("refine_points: must be >= 2")
+        if field is not None and not isinstance(field, FieldConfig):
+            raise ValueError(f"field: expected FieldConfig or None, got {type(field).__name__}")
+        self.num_robots = num_robots
+        self._a, self._vmax = (_kernel_array(x) for x in _limits_arrays(limits, (num_robots,)))
+        self._offset_m, self._field, self._margin_m, self._h = dribbler_offset_m, field, field_margin_m, grid_step_s
+        m1 = math.ceil(math.sqrt(refine_points))
+        self._m1, self._m2 = (m1, math.ceil(refine_points / m1)) if m1 > 2 else (refine_points, 0)
+        self._rest_tol_s = grid_step_s / refine_points
+        self._facing = np.zeros(num_robots)
+        self._result = CatchResult(np.empty(num_robots), np.empty((num_robots, 2)), np.empty((num_robots, 2)),
+                                   np.empty(num_robots, dtype=np.int8))
+
+    def run(self, ball: BallTrajectory, robot_pos_m: np.ndarray, robot_vel_mps: np.ndarray,
+            facing_rad=0.0) -> CatchResult:
+        """Catch times of all robots: positions and field-frame velocities (R, 2), facing scalar or (R,)."""
+        if not isinstance(ball, BallTrajectory) or ball.floats is None:
+            raise ValueError("ball: expected a single-ball BallTrajectory")
+        shape = (self.num_robots, 2)
+        if np.shape(robot_pos_m) != shape or np.shape(robot_vel_mps) != shape:
+            raise ValueError(f"robot_pos_m {np.shape(robot_pos_m)} and robot_vel_mps {np.shape(robot_vel_mps)} "
+                             f"must both be {shape}")
+        try:
+            self._facing[:] = facing_rad
+        except (ValueError, TypeError):
+            raise ValueError(f"facing_rad: must be a number or one per robot ({self.num_robots})") from None
+        t_stop = ball.floats.stop_time_s
+        t_out = float(ball.time_to_leave_field(self._field, self._margin_m)) if self._field is not None else math.inf
+        t_max = min(t_stop, t_out)
+        if t_max / self._h > MAX_GRID_POINTS:  # e.g. a deceleration of micrometres per s^2
+            raise ValueError(f"search horizon {t_max:.6g} s needs more than {MAX_GRID_POINTS} grid points of "
+                             f"{self._h} s")
+        res = self._result
+        if not _catch_search(_ball_constants(ball), t_max, self._h, t_stop < t_out, self._m1, self._m2,
+                             self._rest_tol_s, self._offset_m, _kernel_array(robot_pos_m),
+                             _kernel_array(robot_vel_mps), self._facing, self._a, self._vmax, res.time_s, res.kind,
+                             res.ball_position_m, res.robot_target_m):
+            raise ValueError("robot_pos_m, robot_vel_mps and facing_rad: must be finite")
+        return res
 
 
 def robot_time_to_ball(
@@ -484,40 +562,13 @@ def robot_time_to_ball(
     ``min(t_stop, t_out)``; ``t_out`` from ``field`` (None: the ball never leaves). If there is no
     window: the robot's time to the stop point when the ball stops first (CatchKind.AT_REST),
     else +inf (CatchKind.NEVER). See the module docstring for the window-detection guarantee.
+    One-off calls; a caller that asks every frame keeps a ``CatchSearch``.
     """
-    if not isinstance(ball, BallTrajectory) or ball.batch_shape != ():
-        raise ValueError("ball: expected a single-ball BallTrajectory")
-    p0 = _vec2("robot_pos_m", robot_pos_m)
-    v0 = _vec2("robot_vel_mps", robot_vel_mps)
-    if p0.ndim == 1:
-        p0 = p0[None]
-    if v0.ndim == 1:
-        v0 = v0[None]
-    if p0.ndim != 2 or v0.shape != p0.shape:
+    p0 = np.asarray(robot_pos_m, dtype=float)
+    v0 = np.asarray(robot_vel_mps, dtype=float)
+    p0, v0 = (p0[None] if p0.shape == (2,) else p0), (v0[None] if v0.shape == (2,) else v0)
+    if p0.ndim != 2 or p0.shape[-1] != 2 or v0.shape != p0.shape:
         raise ValueError(f"robot_pos_m {p0.shape} and robot_vel_mps {v0.shape} must both be (R, 2)")
-    n = p0.shape[0]
-    facing = np.asarray(facing_rad, dtype=float)
-    if facing.shape not in ((), (n,)) or not np.isfinite(facing).all():
-        raise ValueError("facing_rad: must be finite, scalar or one per robot")
-    if not (math.isfinite(dribbler_offset_m) and dribbler_offset_m >= 0.0):
-        raise ValueError(f"dribbler_offset_m: must be finite and >= 0, got {dribbler_offset_m!r}")
-    if not (math.isfinite(grid_step_s) and grid_step_s > 0.0):
-        raise ValueError(f"grid_step_s: must be finite and > 0, got {grid_step_s!r}")
-    if refine_points < 2:
-        raise ValueError("refine_points: must be >= 2")
-    a, vmax = (_kernel_array(x) for x in _limits_arrays(limits, (n,)))
-
-    t_stop = float(ball.stop_time_s)
-    t_out = float(ball.time_to_leave_field(field, field_margin_m)) if field is not None else math.inf
-    t_max = min(t_stop, t_out)
-    if t_max / grid_step_s > MAX_GRID_POINTS:  # e.g. a deceleration of micrometres per s^2
-        raise ValueError(f"search horizon {t_max:.6g} s needs more than {MAX_GRID_POINTS} grid points of "
-                         f"{grid_step_s} s")
-    m1 = math.ceil(math.sqrt(refine_points))
-    m1, m2 = (m1, math.ceil(refine_points / m1)) if m1 > 2 else (refine_points, 0)
-    result = CatchResult(np.empty(n), np.empty((n, 2)), np.empty((n, 2)), np.empty(n, dtype=np.int8))
-    _catch_search(_ball_constants(ball), t_max, grid_step_s, t_stop < t_out, m1, m2,
-                  grid_step_s / refine_points, dribbler_offset_m, _kernel_array(p0), _kernel_array(v0),
-                  _kernel_array(np.broadcast_to(facing, (n,))), a, vmax, result.time_s, result.kind,
-                  result.ball_position_m, result.robot_target_m)
-    return result
+    search = CatchSearch(p0.shape[0], limits, dribbler_offset_m=dribbler_offset_m, field=field,
+                         field_margin_m=field_margin_m, grid_step_s=grid_step_s, refine_points=refine_points)
+    return search.run(ball, p0, v0, facing_rad)

@@ -209,7 +209,7 @@ class CatcherNode(Node):
         self._catch_time = self._stamped(msg, "catch_time", float64_from_msg) or self._catch_time
 
     def _on_catch_point(self, msg: PointStamped) -> None:
-        self._target = self._stamped(msg, "catch_point", lambda m: point_from_msg(m)[1]) or self._target
+        self._target = self._stamped(msg, "catch_point", lambda m: np.array(point_from_msg(m)[1])) or self._target
 
     def _on_v_shoot(self, msg: Float64) -> None:
         self._v_shoot = self._stamped(msg, "v_shoot", float64_from_msg) or self._v_shoot

@@ -188,11 +188,11 @@ class BallTracker:
         if not self.initialized:
             raise RuntimeError("BallTracker: no observation yet")
         x = self.kf.state
-        return BallTrajectory(np.array(x[:2]), np.array(x[2:]), self._effective_v_shoot(self._speed()), self.params)
+        return BallTrajectory(x[:2], x[2:], self._effective_v_shoot(self._speed()), self.params)
 
     @property
     def phase(self) -> BallPhase:
-        return BallPhase(int(self.trajectory().phase_at(0.0)))
+        return self.trajectory().phase
 
     # -- update ---------------------------------------------------------------------------------
     def _predict(self, dt: float) -> tuple[tuple, tuple]:

@@ -1,6 +1,6 @@
 """Message <-> core conversions: the only place that knows both ROS messages and numpy.
 
-Every ``*_from_msg`` returns plain floats / numpy arrays and raises ``ConversionError``
+Every ``*_from_msg`` returns plain floats, tuples or numpy arrays and raises ``ConversionError``
 (a ValueError) with a message naming the field when a value is non-finite, out of range,
 or an array has the wrong length. Every ``*_msg`` builder refuses non-finite input too,
 so a node cannot publish NaN by accident.
@@ -87,17 +87,22 @@ def quaternion_from_yaw(yaw_rad: float) -> Quaternion:
 
 
 # ---------------------------------------------------------------- positions
-def point_from_msg(msg: PointStamped) -> tuple[float, np.ndarray]:
-    """(stamp [s], xy [m]) of a PointStamped in the field frame."""
-    xy = np.array([_finite("point.x", msg.point.x), _finite("point.y", msg.point.y)])
-    return stamp_to_seconds(msg.header.stamp), xy
+def point_from_msg(msg: PointStamped) -> tuple[float, tuple[float, float]]:
+    """(stamp [s], (x, y) [m]) of a PointStamped in the field frame (floats: the predictor's hot path)."""
+    point = msg.point
+    return stamp_to_seconds(msg.header.stamp), (_finite("point.x", point.x), _finite("point.y", point.y))
 
 
-def point_msg(t_s: float, xy: Sequence[float], frame_id: str = FIELD_FRAME) -> PointStamped:
-    msg = PointStamped()
+def point_msg(t_s: float, xy: Sequence[float], frame_id: str = FIELD_FRAME,
+              out: PointStamped | None = None) -> PointStamped:
+    """``out``: refill this message instead of building one (as in odometry_msg)."""
+    msg = PointStamped() if out is None else out
     msg.header.stamp = seconds_to_stamp(t_s)
     msg.header.frame_id = frame_id
-    msg.point = Point(x=_finite("x", xy[0]), y=_finite("y", xy[1]), z=0.0)
+    point = msg.point
+    point.x = _finite("x", xy[0])
+    point.y = _finite("y", xy[1])
+    point.z = 0.0
     return msg
 
 
@@ -140,29 +145,38 @@ def twist_msg(twist: Sequence[float]) -> Twist:
 # ---------------------------------------------------------------- odometry
 def odometry_msg(t_s: float, pose: Sequence[float], velocity: Sequence[float], child_frame_id: str = "",
                  frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
-                 position_variance_m2: float | None = None) -> Odometry:
+                 position_variance_m2: float | None = None, out: Odometry | None = None) -> Odometry:
     """Planar odometry: pose [x, y, yaw], velocity [vx, vy, wz] in the field frame.
 
     ``spin`` (a ball's angular velocity [wx, wy, wz]) replaces twist.angular when given.
+    ``out``: refill this message instead of building one (publishers that send every tick; a
+    message from this function was refilled completely, but one that raised is half-filled).
     """
-    msg = Odometry()
+    msg = Odometry() if out is None else out
     msg.header.stamp = seconds_to_stamp(t_s)
     msg.header.frame_id = frame_id
     msg.child_frame_id = child_frame_id
-    msg.pose.pose = pose2d_msg(t_s, pose).pose
-    msg.twist.twist.linear.x = _finite("vx", velocity[0])
-    msg.twist.twist.linear.y = _finite("vy", velocity[1])
+    position = msg.pose.pose.position
+    position.x = _finite("x", pose[0])
+    position.y = _finite("y", pose[1])
+    position.z = 0.0
+    msg.pose.pose.orientation = quaternion_from_yaw(pose[2])
+    twist = msg.twist.twist
+    twist.linear.x = _finite("vx", velocity[0])
+    twist.linear.y = _finite("vy", velocity[1])
+    twist.linear.z = 0.0
+    angular = twist.angular
     if spin is not None:
-        msg.twist.twist.angular.x = _finite("spin.x", spin[0], 1.0e5)
-        msg.twist.twist.angular.y = _finite("spin.y", spin[1], 1.0e5)
-        msg.twist.twist.angular.z = _finite("spin.z", spin[2], 1.0e5)
+        angular.x = _finite("spin.x", spin[0], 1.0e5)
+        angular.y = _finite("spin.y", spin[1], 1.0e5)
+        angular.z = _finite("spin.z", spin[2], 1.0e5)
     else:
-        msg.twist.twist.angular.z = _finite("wz", velocity[2])
+        angular.x = angular.y = 0.0
+        angular.z = _finite("wz", velocity[2])
+    cov = msg.pose.covariance
+    cov.fill(0.0)
     if position_variance_m2 is not None:
-        var = _finite("position variance", position_variance_m2)
-        cov = [0.0] * 36
-        cov[0] = cov[7] = var
-        msg.pose.covariance = cov
+        cov[0] = cov[7] = _finite("position variance", position_variance_m2)
     return msg
 
 
