@@ -533,9 +533,6 @@ class BallPredictorNode(Node):
             msg = time_msgs[i]
             msg.data = times[i]
             time_pubs[i].publish(msg)
-        # The catch times' readers are often woken onto this CPU (the scheduler places a wakee
-        # beside its waker) and would wait behind the rest of this frame: let them run first.
-        os.sched_yield()
         stamp = seconds_to_stamp(t_s)
         point_msgs, point_pubs = self._catch_point_msgs, self._catch_point_pubs
         for i in ids:
@@ -545,6 +542,9 @@ class BallPredictorNode(Node):
                 point = msg.point
                 point.x, point.y = points[i]
                 point_pubs[i].publish(msg)
+        # The catch outputs' readers are often woken onto this CPU (the scheduler places a wakee
+        # beside its waker) and would wait behind the rest of this frame: let them run first.
+        os.sched_yield()
 
     def _frame_done(self, catch_out_s: float, elapsed_s: float) -> None:
         every = self._config.timing_log_every

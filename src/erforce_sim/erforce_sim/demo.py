@@ -132,7 +132,10 @@ class Series:
     catch_points: list = field(default_factory=list)  # obs t, x, y
     model_params: list = field(default_factory=list)  # t, a_slide, a_roll, c_switch
     vision_sent_ns: dict = field(default_factory=dict)  # vision stamp -> DDS source timestamp (plant's send)
-    latency_s: list = field(default_factory=list)  # plant sends vision -> predictor sends the catch point
+    # Inside the graph, from DDS source timestamps: the plant sends a vision frame -> the predictor
+    # sends robot_0's catch time for it (the target) / its catch point (after all catch times).
+    catch_time_latency_s: list = field(default_factory=list)
+    catch_point_latency_s: list = field(default_factory=list)
 
 
 def reachable(
@@ -205,6 +208,7 @@ class Director:
         }
         self.kick = node.create_publisher(Float64, q.KICK.for_robot(KICKER), q.KICK.qos)
         self._last_catch_time: float | None = None
+        self._catch_time_sent_ns: int | None = None
 
     @property
     def sim_s(self) -> float:
@@ -241,8 +245,9 @@ class Director:
         if len(msg.data) >= 3:
             self.series.model_params.append((self.sim_s, *msg.data[:3]))
 
-    def _on_catch_time(self, msg: Float64) -> None:
+    def _on_catch_time(self, msg: Float64, info) -> None:
         self._last_catch_time = msg.data
+        self._catch_time_sent_ns = info["source_timestamp"]
         if msg.data == contract.CATCH_TIME_NEVER and self.series.ball_state:
             # no catch point comes with "never": the predictor sent this cycle's ball state first
             self.series.predictions.append((self.series.ball_state[-1][0], msg.data))
@@ -253,10 +258,15 @@ class Director:
             self.series.predictions.append((t_obs, self._last_catch_time))
         self.series.catch_points.append((t_obs, msg.point.x, msg.point.y))
         # Latency inside the graph from the DDS source timestamps (the senders' clocks): not
-        # skewed by how late this observer gets to its queue.
+        # skewed by how late this observer gets to its queue. The predictor sends a frame's catch
+        # time just before its catch point, which carries the frame's stamp.
         sent = self.series.vision_sent_ns.pop(stamp_to_nanoseconds(msg.header.stamp), None)
+        point_sent = info["source_timestamp"]
         if sent is not None:
-            self.series.latency_s.append((info["source_timestamp"] - sent) * 1e-9)
+            self.series.catch_point_latency_s.append((point_sent - sent) * 1e-9)
+            time_sent = self._catch_time_sent_ns
+            if time_sent is not None and sent < time_sent <= point_sent:
+                self.series.catch_time_latency_s.append((time_sent - sent) * 1e-9)
 
     def _on_vision(self, msg, info) -> None:
         self.series.vision_sent_ns[stamp_to_nanoseconds(msg.header.stamp)] = info["source_timestamp"]
