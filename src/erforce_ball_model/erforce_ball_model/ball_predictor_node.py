@@ -410,9 +410,9 @@ class BallPredictorNode(Node):
     def _robots_now(self, t_s: float) -> tuple[list[int], np.ndarray]:
         """The robots fresh at ``t_s``, and all robots' positions then (constant-velocity extrapolation).
 
-        Stale and never-seen robots stay where they were last (the origin): the search runs for
-        the whole team in one call and their outputs are not published. A loop over 22 tuples is
-        cheaper here than the numpy calls for the same.
+        Stale robots stay where they were last seen, never-seen ones at the origin: the search runs
+        for the whole team in one call and their outputs are not published. A loop over 22 tuples
+        is cheaper here than the numpy calls for the same.
         """
         timeout_s = self._config.robot_timeout_s
         fresh, rows = [], []
