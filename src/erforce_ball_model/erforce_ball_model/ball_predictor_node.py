@@ -461,11 +461,13 @@ class BallPredictorNode(Node):
             return
         # Catch times go out first: they are what the robots act on, and each publish costs tens
         # of microseconds. The ball topics follow.
+        catch_out = None
         try:
-            self._publish_catch_outputs(t_s, traj)
+            catch_out = self._publish_catch_outputs(t_s, traj)
         except ValueError as exc:
             self._warn.warn("catch", f"no catch times for the frame at {t_s:.6f} s: {exc}")
-        catch_out = time.perf_counter()
+        if catch_out is None:  # none went out
+            catch_out = time.perf_counter()
         try:
             self._publish_ball_outputs(t_s, status, traj)
         except ValueError as exc:
@@ -497,16 +499,17 @@ class BallPredictorNode(Node):
         self._v_shoot_pub.publish(msgs.v_shoot)
         self._uncertain_pub.publish(msgs.uncertain)
 
-    def _publish_catch_outputs(self, t_s: float, traj: BallTrajectory) -> None:
+    def _publish_catch_outputs(self, t_s: float, traj: BallTrajectory) -> float | None:
         """catch_time, then catch_point, of every fresh robot: one robotTimeToBall run for the team.
 
         All values are checked before the first publish (a bad one raises ValueError and nothing
-        goes out); the catch times go out before the points are even filled in.
+        goes out); the catch times go out before the points are even filled in. Returns when the
+        last catch time went out (perf_counter), None when no robot is fresh.
         """
         cfg = self._config
         ids, pos = self._robots_now(t_s)
         if not ids:
-            return
+            return None
         if cfg.reaction_s > 0.0:
             # A robot acts on this prediction only after the reaction time: the ball gets that head
             # start. The robot meanwhile executes its previous command, which continues its plan, so
@@ -533,6 +536,7 @@ class BallPredictorNode(Node):
             msg = time_msgs[i]
             msg.data = times[i]
             time_pubs[i].publish(msg)
+        times_out = time.perf_counter()
         stamp = seconds_to_stamp(t_s)
         point_msgs, point_pubs = self._catch_point_msgs, self._catch_point_pubs
         for i in ids:
@@ -545,6 +549,7 @@ class BallPredictorNode(Node):
         # The catch outputs' readers are often woken onto this CPU (the scheduler places a wakee
         # beside its waker) and would wait behind the rest of this frame: let them run first.
         os.sched_yield()
+        return times_out
 
     def _frame_done(self, catch_out_s: float, elapsed_s: float) -> None:
         every = self._config.timing_log_every
