@@ -275,7 +275,6 @@ class BallTrajectory:
             self.position_m[index], self.velocity_mps[index], self.v_shoot_mps[index], self.params
         )
 
-
     # -- broadcasting helpers ----------------------------------------------------------------------
     def _per_ball(self, value: np.ndarray, query: np.ndarray) -> np.ndarray:
         """Reshape a per-ball quantity so it broadcasts as an outer product with ``query``."""

@@ -346,11 +346,8 @@ def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
 
 # The ball inside the search kernel: the two-phase closed forms of ball_model.BallTrajectory
 # (distance_at and time_to_distance) for one ball and one time, from its derived constants.
-_BALL_FIELDS = ("px", "py", "ux", "uy", "s0", "v_switch", "t_switch", "t_stop", "d_switch", "d_stop",
-                "a_slide", "a_roll")
-
-
 def _ball_constants(ball: BallTrajectory) -> np.ndarray:
+    """[px, py, ux, uy, s0, v_switch, t_switch, t_stop, d_switch, d_stop, a_slide, a_roll]: what the kernels index."""
     f, p = ball.floats, ball.params
     return np.array((f.x_m, f.y_m, f.ux, f.uy, f.speed_mps, f.v_switch_mps, f.switch_time_s, f.stop_time_s,
                      f.switch_distance_m, f.stop_distance_m, p.a_slide_mps2, p.a_roll_mps2))
