@@ -25,7 +25,8 @@ def director(ros_graph):
     d = Director(ros_graph.probe.node, RobotConfig(), ros_graph.probe.executor,
                  graph_alive=launch.alive, graph_hint="see the launch output below")
     assert d.spin_until(lambda: d.sim_ns > 0 and d.series.ball_state, 120.0, "the graph"), launch.output()[-3000:]
-    return d
+    yield d
+    d.close()
 
 
 def scene(name_start: str):

@@ -29,6 +29,7 @@ from rosgraph_msgs.msg import Clock
 
 from erforce_interfaces.contract import CLOCK
 from erforce_interfaces.conversions import stamp_to_nanoseconds
+from erforce_interfaces.node_support import take_queued
 
 POLL_PERIOD_S = 0.05
 DISCOVERY_PERIOD_S = 0.5
@@ -80,26 +81,17 @@ class BagRecorder:
             sub = self.node.create_subscription(_message_class(type_name), topic, lambda _: None, qos, raw=True)
             self._subscriptions.append((topic, sub))
 
-    @staticmethod
-    def _take_all(sub):
-        """Everything queued on a subscription: (message, info) pairs, without an executor."""
-        taken = []
-        with sub.handle:
-            while (item := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
-                taken.append(item)
-        return taken
-
     def poll(self) -> int:
         """Write every message that arrived since the last poll, in order of reception; returns how many."""
         if self._closed:
             return 0
         if self._clock_sub is not None:
-            for msg, info in self._take_all(self._clock_sub):
+            for msg, info in take_queued(self._clock_sub):
                 self._clock_received_ns.append(info["received_timestamp"])
                 self._clock_sim_ns.append(stamp_to_nanoseconds(msg.clock))
         batch = []
         for topic, sub in self._subscriptions:
-            batch.extend((info["received_timestamp"], topic, data) for data, info in self._take_all(sub))
+            batch.extend((info["received_timestamp"], topic, data) for data, info in take_queued(sub))
         batch.sort(key=lambda item: item[0])
         for received_ns, topic, data in batch:
             if self._clock_sub is not None:
