@@ -185,7 +185,7 @@ class Director:
     Tests drive scenes with it as the demo does.
     """
 
-    FEED_DEPTH = 1000  # messages a topic may queue between two pumps (~1 s of the fastest topic)
+    FEED_DEPTH = 1000  # messages a topic may queue between two pumps (10 s of the fastest, 100 Hz)
 
     def __init__(self, node, robot: RobotConfig, executor, graph_alive=lambda: True, graph_hint: str = "") -> None:
         self.node = node

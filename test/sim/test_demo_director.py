@@ -1,0 +1,64 @@
+"""The demo's director takes its topics in batches and replays them in the order they were sent.
+
+It pumps long after the messages arrived, so a light-barrier edge must still get the simulated
+time of the /clock sent just before it, not the newest clock, and a catch point must pair with
+the catch time sent before it.
+"""
+
+import time
+
+import pytest
+from geometry_msgs.msg import PointStamped
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Bool, Float64
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import nanoseconds_to_stamp, point_msg
+from erforce_interfaces.executor import DirectExecutor
+from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.testing import isolated_node
+from erforce_sim.demo import RECEIVER, Director
+
+pytestmark = pytest.mark.integration
+
+
+def test_a_late_pump_replays_in_send_order():
+    with isolated_node("director_probe") as node:
+        executor = DirectExecutor(context=node.context)
+        executor.add_node(node)
+        director = Director(node, RobotConfig(), executor)
+        try:
+            q = contract
+            clock = node.create_publisher(Clock, q.CLOCK.name, q.QOS_CLOCK)
+            barrier = node.create_publisher(Bool, q.BALL_DETECTED.for_robot(RECEIVER), q.BALL_DETECTED.qos)
+            vision = node.create_publisher(PointStamped, q.VISION_BALL.name, q.VISION_BALL.qos)
+            catch_time = node.create_publisher(Float64, q.CATCH_TIME.for_robot(RECEIVER), q.CATCH_TIME.qos)
+            catch_point = node.create_publisher(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos)
+            publishers = (clock, barrier, vision, catch_time, catch_point)
+            deadline = time.monotonic() + 10.0
+            while any(p.get_subscription_count() < 1 for p in publishers):
+                assert time.monotonic() < deadline, "the director's subscriptions did not match"
+                executor.spin_once(timeout_sec=0.05)
+
+            def tick(t_ns: int) -> None:
+                clock.publish(Clock(clock=nanoseconds_to_stamp(t_ns)))
+
+            tick(1_000_000_000)
+            barrier.publish(Bool(data=True))  # edge at 1.00 s
+            tick(1_010_000_000)
+            barrier.publish(Bool(data=False))
+            vision.publish(point_msg(1.015, (0.0, 0.0)))
+            catch_time.publish(Float64(data=0.5))
+            catch_point.publish(point_msg(1.015, (1.0, 0.0)))
+            tick(1_020_000_000)
+            barrier.publish(Bool(data=True))  # edge at 1.02 s
+            catch_time.publish(Float64(data=0.25))  # a later frame's catch time, after the point above
+            tick(1_030_000_000)
+
+            assert director.spin_until(lambda: director.sim_ns == 1_030_000_000, 10.0, "the messages")
+            assert director.barrier_edges == pytest.approx([1.00, 1.02])
+            assert director.series.predictions == [(pytest.approx(1.015), 0.5)]
+            assert len(director.series.catch_time_latency_s) == 1
+            assert 0.0 < director.series.catch_time_latency_s[0] <= director.series.catch_point_latency_s[0]
+        finally:
+            director.close()
