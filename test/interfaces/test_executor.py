@@ -11,12 +11,12 @@ import pytest
 import rclpy
 from rcl_interfaces.srv import SetParameters
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Int32
 
-from erforce_interfaces.executor import DirectExecutor
+from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
 from erforce_interfaces.node_support import ParamSpec, declare_params
 from erforce_interfaces.testing import isolated_node
 
@@ -167,3 +167,58 @@ def test_context_shutdown_raises_external_shutdown(env):
     with pytest.raises(ExternalShutdownException):
         for _ in range(200):
             executor.spin_once(timeout_sec=0.05)
+
+
+def test_a_sampled_subscription_waits_for_its_node(env):
+    _, node, executor = env
+    sampled, ordinary = [], []
+    sub = sample_only(node.create_subscription(Int32, "/exec/sampled", lambda m: sampled.append(m.data), RELIABLE))
+    node.create_subscription(Int32, "/exec/ordinary", lambda m: ordinary.append(m.data), RELIABLE)
+    pub = node.create_publisher(Int32, "/exec/sampled", RELIABLE)
+    marker = node.create_publisher(Int32, "/exec/ordinary", RELIABLE)
+    spin_until(executor, lambda: connected(pub, sub)() and marker.get_subscription_count() == 1)
+    for k in range(5):
+        pub.publish(Int32(data=k))
+    marker.publish(Int32(data=0))  # sent after the five: once it ran, they are queued too
+    spin_until(executor, lambda: ordinary == [0])
+    t0 = time.monotonic()
+    executor.spin_once(timeout_sec=0.3)  # five queued messages do not end the wait
+    assert time.monotonic() - t0 >= 0.25
+    assert sampled == []
+    assert run_sampled([sub]) == 5
+    assert sampled == [0, 1, 2, 3, 4]
+    assert run_sampled([sub]) == 0
+
+
+def test_run_sampled_replays_several_subscriptions_in_send_order(env):
+    _, node, executor = env
+    seen = []
+    subs = [sample_only(node.create_subscription(Int32, f"/exec/s{i}", lambda m, i=i: seen.append((i, m.data)),
+                                                 RELIABLE)) for i in range(2)]
+    pubs = [node.create_publisher(Int32, f"/exec/s{i}", RELIABLE) for i in range(2)]
+    spin_until(executor, lambda: all(connected(p, s)() for p, s in zip(pubs, subs, strict=True)))
+    expected = []
+    for k in range(20):
+        i = (k * 7) % 3 % 2  # an irregular interleaving of the two topics
+        pubs[i].publish(Int32(data=k))
+        expected.append((i, k))
+    deadline = time.monotonic() + 10.0
+    while len(seen) < len(expected):
+        assert time.monotonic() < deadline, f"only {len(seen)} of {len(expected)} arrived"
+        executor.spin_once(timeout_sec=0.02)
+        run_sampled(reversed(subs))  # the take order does not decide the replay order
+    assert seen == expected
+
+
+def test_a_sampled_subscription_is_ordinary_under_rclpy_executors():
+    with isolated_node("sampled_elsewhere") as node:
+        executor = SingleThreadedExecutor(context=node.context)
+        executor.add_node(node)
+        got = []
+        sub = sample_only(node.create_subscription(Int32, "/exec/elsewhere", lambda m: got.append(m.data), RELIABLE))
+        pub = node.create_publisher(Int32, "/exec/elsewhere", RELIABLE)
+        spin_until(executor, connected(pub, sub))
+        for k in range(3):
+            pub.publish(Int32(data=k))
+        spin_until(executor, lambda: got == [0, 1, 2])
+        executor.shutdown()

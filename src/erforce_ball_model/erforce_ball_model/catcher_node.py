@@ -6,6 +6,11 @@ predictor computed the catch for that facing), unless a nearer place to receive 
 ball's line has time to spare (catcher.receive_point). It holds still when no catch is possible
 or its inputs are stale, and once the light barrier sees the ball. The maths is in
 erforce_ball_model.catcher.
+
+It acts only in its ``rate_hz`` tick, on the newest inputs, so it does not wake for each of
+the ~6 messages per vision frame: its subscriptions are sampled at the tick
+(erforce_interfaces.executor.sample_only / run_sampled), in the order they were sent, and an
+input's arrival time, by which its staleness is judged, is the tick that took it.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ from erforce_interfaces.conversions import (
     table_from_msg,
     twist_msg,
 )
+from erforce_interfaces.executor import run_sampled, sample_only
 from erforce_interfaces.node_support import (
     ParamSpec,
     ThrottledWarner,
@@ -173,13 +179,18 @@ class CatcherNode(Node):
         self._target_at = -math.inf  # robot time a target was last chosen
         q = contract
         self._cmd_pub = contract_publisher(self, q.CMD_VEL)
-        contract_subscription(self, q.ODOM, self._on_odom)
-        contract_subscription(self, q.CATCH_TIME, self._on_catch_time)
-        contract_subscription(self, q.CATCH_POINT, self._on_catch_point)
-        contract_subscription(self, q.BALL_STATE, self._on_ball)
-        contract_subscription(self, q.BALL_V_SHOOT, self._on_v_shoot)
-        contract_subscription(self, q.BALL_MODEL_PARAMS, self._on_model_params)
-        contract_subscription(self, q.BALL_DETECTED, self._on_barrier)
+        self._inputs = [
+            sample_only(contract_subscription(self, topic, callback))
+            for topic, callback in (
+                (q.ODOM, self._on_odom),
+                (q.CATCH_TIME, self._on_catch_time),
+                (q.CATCH_POINT, self._on_catch_point),
+                (q.BALL_STATE, self._on_ball),
+                (q.BALL_V_SHOOT, self._on_v_shoot),
+                (q.BALL_MODEL_PARAMS, self._on_model_params),
+                (q.BALL_DETECTED, self._on_barrier),
+            )
+        ]
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
 
     def _set_config(self, built: tuple[CatcherConfig, float, float, FieldConfig]) -> None:
@@ -245,6 +256,7 @@ class CatcherNode(Node):
         return stamped is not None and now - stamped[0] <= self._values["stale_after_s"]
 
     def _tick(self) -> None:
+        run_sampled(self._inputs)
         now = self._now_s()
         twist = (0.0, 0.0, 0.0)
         if now - self._ball_moving_at > self._values["disengage_after_rest_s"]:

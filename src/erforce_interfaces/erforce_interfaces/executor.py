@@ -15,11 +15,22 @@ callback that returns a coroutine is driven to completion, and one that suspends
 is an error (use rclpy's executors for such nodes). Callback groups have nothing to arbitrate
 in a single thread and are ignored. The entity lists are rebuilt when the executor is woken
 (a node creates or destroys an entity, a node is added, shutdown) and otherwise reused.
+
+Sampled subscriptions: on this machine every message a process takes through an executor is a
+wake of its own, a few hundred microseconds of CPU. A node that acts at its own rate on the
+newest inputs (a controller's timer) or an observer that only needs every message eventually
+marks such subscriptions with ``sample_only``: DirectExecutor then never waits on them, and
+the node calls ``run_sampled`` when it wants them, which runs their callbacks for everything
+queued, in the order it was sent; their QoS-event handlers are not served either. Under another
+executor they stay ordinary subscriptions (a callback per message), so the node behaves the same
+there. ``take_queued`` is the raw form.
 """
 
 from __future__ import annotations
 
 import inspect
+import weakref
+from collections.abc import Iterable
 
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor, TimeoutObject
@@ -27,10 +38,45 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
 from rclpy.utilities import timeout_sec_to_nsec
 
-__all__ = ["DirectExecutor"]
+__all__ = ["DirectExecutor", "run_sampled", "sample_only", "take_queued"]
 
 
 _KINDS = ("subscription", "timer", "guard_condition", "service", "client")
+_SAMPLED: weakref.WeakSet = weakref.WeakSet()  # subscriptions DirectExecutor leaves to their nodes
+
+
+def sample_only(subscription: Subscription) -> Subscription:
+    """Leave ``subscription`` out of DirectExecutor's waits: its node runs it with ``run_sampled``."""
+    _SAMPLED.add(subscription)
+    return subscription
+
+
+def take_queued(subscription: Subscription) -> list:
+    """Everything queued on a subscription, as (message, info) pairs, without an executor."""
+    taken = []
+    with subscription.handle:
+        while (item := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
+            taken.append(item)
+    return taken
+
+
+def run_sampled(subscriptions: Iterable[Subscription]) -> int:
+    """Run the callbacks of everything queued on ``subscriptions``, oldest sent first (DDS source
+    timestamps; taken in the given order, which also breaks ties). Returns how many ran."""
+    batch = []
+    for sub in subscriptions:
+        batch.extend((info["source_timestamp"], sub, msg, info) for msg, info in take_queued(sub))
+    batch.sort(key=lambda item: item[0])
+    for _, sub, msg, info in batch:
+        _run_callback(sub, msg, info)
+    return len(batch)
+
+
+def _run_callback(sub: Subscription, msg, info) -> None:
+    if sub._callback_type is Subscription.CallbackType.MessageOnly:
+        _finish(sub.callback(msg))
+    else:
+        _finish(sub.callback(msg, info))
 
 
 def _ready(entities, ready_pointers):
@@ -132,12 +178,16 @@ class DirectExecutor(SingleThreadedExecutor):
     def _gather(self) -> None:
         subs, timers, guards, services, clients, waitables = [], [], [], [], [], []
         for node in self.get_nodes():
-            subs.extend(node.subscriptions)
+            sampled = [s for s in node.subscriptions if s in _SAMPLED]
+            subs.extend(s for s in node.subscriptions if s not in _SAMPLED)
             timers.extend(node.timers)
             guards.extend(node.guards)
             services.extend(node.services)
             clients.extend(node.clients)
-            waitables.extend(node.waitables)
+            # A sampled subscription's QoS-event handlers stay out too: with Fast DDS they share
+            # the reader's status condition, so a queued message would end every wait.
+            skip = {id(h) for s in sampled for h in s.event_handlers}
+            waitables.extend(w for w in node.waitables if id(w) not in skip)
         self._entities = subs, timers, guards, services, clients, waitables
         self._handles = [e.handle for e in (*subs, *timers, *guards, *services, *clients)] + waitables
         self._wait_set = None  # sized for these entities
@@ -168,12 +218,8 @@ class DirectExecutor(SingleThreadedExecutor):
             taken = sub.handle.take_message(sub.msg_type, sub.raw)
         except InvalidHandle:
             return
-        if taken is None:
-            return
-        if sub._callback_type is Subscription.CallbackType.MessageOnly:
-            _finish(sub.callback(taken[0]))
-        else:
-            _finish(sub.callback(*taken))
+        if taken is not None:
+            _run_callback(sub, *taken)
 
     def _take_response(self, client) -> None:
         try:

@@ -157,20 +157,6 @@ def contract_subscription(node: Node, topic: Topic, callback: Callable, resolved
                                     event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
 
 
-def take_queued(subscription) -> list:
-    """Everything queued on a subscription, as (message, info) pairs, without an executor.
-
-    For observers that need every message but not at once (a recorder, the demo's director):
-    a subscription on a node no executor spins is never waited on, and emptying its queue
-    every few tens of milliseconds costs microseconds per message instead of a wake each.
-    """
-    taken = []
-    with subscription.handle:
-        while (item := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
-            taken.append(item)
-    return taken
-
-
 ROBOT_PREFIX = "robot."
 
 

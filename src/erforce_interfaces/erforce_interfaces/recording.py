@@ -29,7 +29,7 @@ from rosgraph_msgs.msg import Clock
 
 from erforce_interfaces.contract import CLOCK
 from erforce_interfaces.conversions import stamp_to_nanoseconds
-from erforce_interfaces.node_support import take_queued
+from erforce_interfaces.executor import take_queued
 
 POLL_PERIOD_S = 0.05
 DISCOVERY_PERIOD_S = 0.5

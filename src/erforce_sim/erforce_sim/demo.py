@@ -47,8 +47,7 @@ from erforce_interfaces.conversions import (
     stamp_to_seconds,
     table_from_msg,
 )
-from erforce_interfaces.executor import DirectExecutor
-from erforce_interfaces.node_support import take_queued
+from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_interfaces.testing import stop_process
 
@@ -174,12 +173,12 @@ def reachable(
 class Director:
     """The scenario player: places bodies, kicks, watches; its node spins on ``executor``.
 
-    It watches without an executor wake per message: its subscriptions live on a second
-    node that no executor spins, and ``pump()`` (called while it waits) empties their queues
-    and hands the messages to the listeners in the order they were sent (DDS source
-    timestamps), as erforce-record does. One wake per message made this observer the third
-    busiest process of the demo (~20 % of a core at ~900 messages/s), and being a normal-
-    priority process it preempted the simulated world and the predictor on each one.
+    It watches without an executor wake per message: its subscriptions are sampled
+    (erforce_interfaces.executor.sample_only), and ``pump()`` (called while it waits) runs their
+    listeners for everything queued, in the order it was sent (DDS source timestamps). One wake
+    per message made this observer the third busiest process of the demo (~20 % of a core at
+    ~900 messages/s), and being a normal-priority process it preempted the simulated world and
+    the predictor on each one.
 
     ``graph_alive`` is asked while waiting, so a dead graph fails fast with ``graph_hint``.
     Tests drive scenes with it as the demo does.
@@ -199,9 +198,7 @@ class Director:
         self._barrier = False
         self.events: list[str] = []
         q = contract
-        self._feed_node = rclpy.create_node(f"{node.get_name()}_feed", context=node.context,
-                                            start_parameter_services=False)
-        self._feeds: list[tuple[object, Callable, bool]] = []
+        self._feeds = []
         feed = self._feed
         feed(q.GROUND_TRUTH_BALL.msg_type, q.GROUND_TRUTH_BALL.name, q.GROUND_TRUTH_BALL.qos, self._on_ball_truth)
         feed(Odometry, q.GROUND_TRUTH_ODOM.for_robot(RECEIVER), q.GROUND_TRUTH_ODOM.qos, self._on_robot_truth)
@@ -210,12 +207,11 @@ class Director:
         feed(Odometry, q.BALL_STATE.name, q.BALL_STATE.qos, self._on_ball_state)
         feed(Float64, q.BALL_V_SHOOT.name, q.BALL_V_SHOOT.qos, self._on_v_shoot)
         feed(Float64MultiArray, q.BALL_MODEL_PARAMS.name, q.BALL_MODEL_PARAMS.qos, self._on_params)
-        feed(Float64, q.CATCH_TIME.for_robot(RECEIVER), q.CATCH_TIME.qos, self._on_catch_time, with_info=True)
-        feed(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos, self._on_catch_point,
-             with_info=True)
+        feed(Float64, q.CATCH_TIME.for_robot(RECEIVER), q.CATCH_TIME.qos, self._on_catch_time)
+        feed(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos, self._on_catch_point)
         feed(Bool, q.BALL_DETECTED.for_robot(RECEIVER), q.BALL_DETECTED.qos, self._on_barrier)
         feed(String, q.SIM_EVENTS.name, q.SIM_EVENTS.qos, lambda m: self.events.append(m.data))
-        feed(q.VISION_BALL.msg_type, q.VISION_BALL.name, q.VISION_BALL.qos, self._on_vision, with_info=True)
+        feed(q.VISION_BALL.msg_type, q.VISION_BALL.name, q.VISION_BALL.qos, self._on_vision)
         # /clock is taken last, so every clock sent before a message taken in the same pump is
         # there too: a message's simulated time is that of the newest clock sent before it.
         feed(Clock, q.CLOCK.name, q.QOS_CLOCK, self._on_clock)
@@ -228,30 +224,19 @@ class Director:
         self._last_catch_time: float | None = None
         self._catch_time_sent_ns: int | None = None
 
-    def _feed(self, msg_type, topic: str, qos: QoSProfile, listener: Callable, with_info: bool = False) -> None:
+    def _feed(self, msg_type, topic: str, qos: QoSProfile, listener: Callable) -> None:
         deep = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=self.FEED_DEPTH, reliability=qos.reliability,
                           durability=qos.durability)
-        sub = self._feed_node.create_subscription(msg_type, topic, lambda _: None, deep)
-        self._feeds.append((sub, listener, with_info))
+        self._feeds.append(sample_only(self.node.create_subscription(msg_type, topic, listener, deep)))
 
     def pump(self) -> int:
-        """Hand everything that arrived to the listeners, oldest sent first; returns how many."""
-        batch = []
-        for rank, (sub, listener, with_info) in enumerate(self._feeds):
-            # /clock (taken last) sorts first among equal stamps: a tick's clock goes out first.
-            order = -1 if rank == len(self._feeds) - 1 else rank
-            batch.extend((info["source_timestamp"], order, listener, with_info, msg, info)
-                         for msg, info in take_queued(sub))
-        batch.sort(key=lambda item: item[:2])
-        for _, _, listener, with_info, msg, info in batch:
-            if with_info:
-                listener(msg, info)
-            else:
-                listener(msg)
-        return len(batch)
+        """Run the listeners for everything that arrived, oldest sent first; returns how many."""
+        return run_sampled(self._feeds)
 
     def close(self) -> None:
-        self._feed_node.destroy_node()
+        for sub in self._feeds:
+            self.node.destroy_subscription(sub)
+        self._feeds = []
 
     @property
     def sim_s(self) -> float:
