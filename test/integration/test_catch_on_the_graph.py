@@ -24,7 +24,7 @@ def director(ros_graph):
     launch = ros_graph.start_launch(LAUNCH_FILE, real_time_factor="0.0", output="screen")
     d = Director(ros_graph.probe.node, RobotConfig(), ros_graph.probe.executor,
                  graph_alive=launch.alive, graph_hint="see the launch output below")
-    assert d.spin_until(lambda: d.sim_ns > 0 and d.series.ball_state, 120.0, "the graph"), launch.output()[-3000:]
+    assert d.spin_until(d.graph_ready, 120.0, "the graph"), launch.output()[-3000:]
     yield d
     d.close()
 
