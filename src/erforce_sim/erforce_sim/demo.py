@@ -197,6 +197,7 @@ class Director:
         self.barrier_edges: list[float] = []
         self._barrier = False
         self.events: list[str] = []
+        self.commands_seen = 0  # robot_0's cmd_vel messages
         q = contract
         self._feeds = []
         feed = self._feed
@@ -210,6 +211,7 @@ class Director:
         feed(Float64, q.CATCH_TIME.for_robot(RECEIVER), q.CATCH_TIME.qos, self._on_catch_time)
         feed(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos, self._on_catch_point)
         feed(Bool, q.BALL_DETECTED.for_robot(RECEIVER), q.BALL_DETECTED.qos, self._on_barrier)
+        feed(q.CMD_VEL.msg_type, q.CMD_VEL.for_robot(RECEIVER), q.CMD_VEL.qos, self._on_command)
         feed(String, q.SIM_EVENTS.name, q.SIM_EVENTS.qos, lambda m: self.events.append(m.data))
         feed(q.VISION_BALL.msg_type, q.VISION_BALL.name, q.VISION_BALL.qos, self._on_vision)
         # /clock is taken last, so every clock sent before a message taken in the same pump is
@@ -243,13 +245,13 @@ class Director:
         return self.sim_ns * 1e-9
 
     def graph_ready(self) -> bool:
-        """Time runs, the predictor answers, and robot_0's catcher is up (its cmd_vel publisher exists).
+        """Time runs, the predictor answers, and robot_0's catcher commands.
 
-        The catcher imports the compiled ball model at start, which can take seconds on a busy
-        machine: a scene played before it is up goes uncaught.
+        A catcher whose publisher exists is not yet a catcher that acts: its timer runs on
+        simulated time, so it commands nothing until its /clock subscription has matched the
+        plant's, which on a busy machine took seconds after the first scene had begun.
         """
-        return (self.sim_ns > 0 and bool(self.series.ball_state)
-                and self.node.count_publishers(contract.CMD_VEL.for_robot(RECEIVER)) > 0)
+        return self.sim_ns > 0 and bool(self.series.ball_state) and self.commands_seen > 0
 
     # ------------------------------------------------------------ listeners
     def _on_clock(self, msg: Clock) -> None:
@@ -309,6 +311,9 @@ class Director:
         self.series.vision_sent_ns[stamp_to_nanoseconds(msg.header.stamp)] = info["source_timestamp"]
         if len(self.series.vision_sent_ns) > 1000:
             self.series.vision_sent_ns.pop(next(iter(self.series.vision_sent_ns)))
+
+    def _on_command(self, _msg) -> None:
+        self.commands_seen += 1
 
     def _on_barrier(self, msg: Bool) -> None:
         if msg.data and not self._barrier:
