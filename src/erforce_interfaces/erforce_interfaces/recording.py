@@ -80,6 +80,7 @@ class BagRecorder:
             self.counts[topic] = 0
             sub = self.node.create_subscription(_message_class(type_name), topic, lambda _: None, qos, raw=True)
             self._subscriptions.append((topic, sub))
+            self.node.get_logger().info(f"Subscribed to topic '{topic}'")  # as ros2 bag record logs it
 
     def poll(self) -> int:
         """Write every message that arrived since the last poll, in order of reception; returns how many."""

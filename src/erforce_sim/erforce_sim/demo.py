@@ -463,10 +463,20 @@ class Demo:
         for tid in os.listdir("/proc/self/task"):
             _idle_priority(int(tid))
         print(f"graph starting (log: {self.out / 'graph.log'}) ...", flush=True)
-        if not self.director.spin_until(
-            self.director.graph_ready, 90.0, "the graph"
-        ):
-            raise RuntimeError(f"the graph did not come up within 90 s; see {self.out / 'graph.log'}")
+        if not self.director.spin_until(lambda: self.director.graph_ready() and self._recording_everything(),
+                                        90.0, "the graph"):
+            raise RuntimeError(f"the graph or the recorder did not come up within 90 s; see {self.out / 'graph.log'} "
+                               f"and {self.out / 'record.log'}")
+
+    def _recording_everything(self) -> bool:
+        """erforce-record has subscribed to every topic that has a publisher now (it logs each one).
+
+        The recorder starts as slowly as any node; scenes wait for it, so the bag holds all of them.
+        """
+        log = (self.out / "record.log").read_text(errors="replace")
+        return all(f"'{topic}'" in log for topic, _ in self.node.get_topic_names_and_types()
+                   if not topic.startswith("/rosout") and "parameter_events" not in topic
+                   and self.node.count_publishers(topic) > 0)
 
     def _reachable(self, result: SceneResult) -> bool:
         if result.caught:
