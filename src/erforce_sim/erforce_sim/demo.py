@@ -247,9 +247,8 @@ class Director:
     def graph_ready(self) -> bool:
         """Time runs, the predictor answers, and robot_0's catcher commands.
 
-        A catcher whose publisher exists is not yet a catcher that acts: its timer runs on
-        simulated time, so it commands nothing until its /clock subscription has matched the
-        plant's, which on a busy machine took seconds after the first scene had begun.
+        A catcher whose publisher exists need not act yet: its timer runs on simulated time, so
+        it commands nothing until its /clock subscription has matched the plant's.
         """
         return self.sim_ns > 0 and bool(self.series.ball_state) and self.commands_seen > 0
 
