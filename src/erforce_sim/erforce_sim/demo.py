@@ -198,6 +198,7 @@ class Director:
         self._barrier = False
         self.events: list[str] = []
         self.commands_seen = 0  # robot_0's cmd_vel messages
+        self.setpoints_seen = False  # robot_0's velocity controller has answered a tick
         q = contract
         self._feeds = []
         feed = self._feed
@@ -212,6 +213,10 @@ class Director:
         feed(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos, self._on_catch_point)
         feed(Bool, q.BALL_DETECTED.for_robot(RECEIVER), q.BALL_DETECTED.qos, self._on_barrier)
         feed(q.CMD_VEL.msg_type, q.CMD_VEL.for_robot(RECEIVER), q.CMD_VEL.qos, self._on_command)
+        # robot_0's velocity controller answers (500 Hz: dropped once seen, see pump)
+        feed(q.WHEEL_SETPOINTS.msg_type, q.WHEEL_SETPOINTS.for_robot(RECEIVER), q.WHEEL_SETPOINTS.qos,
+             self._on_setpoints)
+        self._setpoints_feed = self._feeds[-1]
         feed(String, q.SIM_EVENTS.name, q.SIM_EVENTS.qos, lambda m: self.events.append(m.data))
         feed(q.VISION_BALL.msg_type, q.VISION_BALL.name, q.VISION_BALL.qos, self._on_vision)
         # /clock is taken last, so every clock sent before a message taken in the same pump is
@@ -233,7 +238,12 @@ class Director:
 
     def pump(self) -> int:
         """Run the listeners for everything that arrived, oldest sent first; returns how many."""
-        return run_sampled(self._feeds)
+        ran = run_sampled(self._feeds)
+        if self.setpoints_seen and self._setpoints_feed is not None:
+            self._feeds.remove(self._setpoints_feed)
+            self.node.destroy_subscription(self._setpoints_feed)
+            self._setpoints_feed = None
+        return ran
 
     def close(self) -> None:
         for sub in self._feeds:
@@ -245,12 +255,15 @@ class Director:
         return self.sim_ns * 1e-9
 
     def graph_ready(self) -> bool:
-        """Time runs, the predictor answers, and robot_0's catcher commands.
+        """Time runs, the predictor answers, robot_0's catcher commands and its velocity controller answers.
 
-        A catcher whose publisher exists need not act yet: its timer runs on simulated time, so
-        it commands nothing until its /clock subscription has matched the plant's.
+        The plant starts once the motor boards answer and two readers take wheel_states; a recorder
+        can be the second one, and a velocity controller still starting then leaves robot_0 deaf to
+        the catcher (it once missed the whole Fig. 6 scene). A catcher whose publisher exists need not
+        act yet either: its timer runs on simulated time, so it commands nothing until its /clock
+        subscription has matched the plant's.
         """
-        return self.sim_ns > 0 and bool(self.series.ball_state) and self.commands_seen > 0
+        return self.sim_ns > 0 and bool(self.series.ball_state) and self.commands_seen > 0 and self.setpoints_seen
 
     # ------------------------------------------------------------ listeners
     def _on_clock(self, msg: Clock) -> None:
@@ -313,6 +326,9 @@ class Director:
 
     def _on_command(self, _msg) -> None:
         self.commands_seen += 1
+
+    def _on_setpoints(self, _msg) -> None:
+        self.setpoints_seen = True
 
     def _on_barrier(self, msg: Bool) -> None:
         if msg.data and not self._barrier:

@@ -69,9 +69,7 @@ PARAMS = (
         read_only=True,
     ),
     ParamSpec("kicker_plates", ["curved"], "kicker plate per robot (or one for all): flat | curved", read_only=True),
-    ParamSpec("controlled", [True],
-              "per robot (or one for all): has motor boards and a velocity controller the plant waits for",
-              read_only=True),
+    ParamSpec("controlled", [True], "per robot (or one for all): has motor boards the plant waits for", read_only=True),
     ParamSpec("ball", [0.0, 0.0, 0.0, 0.0], "initial ball x, y [m], vx, vy [m/s] (rolling)", read_only=True),
     ParamSpec(
         "seed", 0, "random seed of vision noise, dropouts and sensor noise", min=0, max=2**31 - 1, read_only=True
@@ -311,12 +309,8 @@ class PlantNode(Node):
     def _ready_to_start(self) -> bool:
         q = contract
         waited = time.monotonic() - self._start_wall
-        # Each controlled robot's motor_boards (motor_duty) and velocity_controller (wheel_setpoints)
-        # must be there: counting wheel_states readers alone let a recorder stand in for a late
-        # velocity controller, and the robot then ignored its commands for the first seconds.
         ok = all(
             self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0
-            and self.count_publishers(q.WHEEL_SETPOINTS.for_robot(i)) > 0
             and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= 2
             for i in self._controlled
         ) and self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
