@@ -259,7 +259,7 @@ class Director:
 
         The plant starts once the motor boards answer and two readers take wheel_states; a recorder
         can be the second one, and a velocity controller still starting then leaves robot_0 deaf to
-        the catcher (it once missed the whole Fig. 6 scene). A catcher whose publisher exists need not
+        the catcher (the Fig. 6 scene went uncaught that way). A catcher whose publisher exists need not
         act yet either: its timer runs on simulated time, so it commands nothing until its /clock
         subscription has matched the plant's.
         """
