@@ -36,7 +36,7 @@ from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import HistoryPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
 from erforce_interfaces import contract
@@ -202,26 +202,24 @@ class Director:
         q = contract
         self._feeds = []
         feed = self._feed
-        feed(q.GROUND_TRUTH_BALL.msg_type, q.GROUND_TRUTH_BALL.name, q.GROUND_TRUTH_BALL.qos, self._on_ball_truth)
-        feed(Odometry, q.GROUND_TRUTH_ODOM.for_robot(RECEIVER), q.GROUND_TRUTH_ODOM.qos, self._on_robot_truth)
-        feed(Float64MultiArray, q.GROUND_TRUTH_MOTORS.for_robot(RECEIVER), q.GROUND_TRUTH_MOTORS.qos, self._on_motors)
-        feed(Float64MultiArray, q.MOTOR_STATUS.for_robot(RECEIVER), q.MOTOR_STATUS.qos, self._on_status)
-        feed(Odometry, q.BALL_STATE.name, q.BALL_STATE.qos, self._on_ball_state)
-        feed(Float64, q.BALL_V_SHOOT.name, q.BALL_V_SHOOT.qos, self._on_v_shoot)
-        feed(Float64MultiArray, q.BALL_MODEL_PARAMS.name, q.BALL_MODEL_PARAMS.qos, self._on_params)
-        feed(Float64, q.CATCH_TIME.for_robot(RECEIVER), q.CATCH_TIME.qos, self._on_catch_time)
-        feed(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos, self._on_catch_point)
-        feed(Bool, q.BALL_DETECTED.for_robot(RECEIVER), q.BALL_DETECTED.qos, self._on_barrier)
-        feed(q.CMD_VEL.msg_type, q.CMD_VEL.for_robot(RECEIVER), q.CMD_VEL.qos, self._on_command)
+        feed(q.GROUND_TRUTH_BALL, self._on_ball_truth)
+        feed(q.GROUND_TRUTH_ODOM, self._on_robot_truth, RECEIVER)
+        feed(q.GROUND_TRUTH_MOTORS, self._on_motors, RECEIVER)
+        feed(q.MOTOR_STATUS, self._on_status, RECEIVER)
+        feed(q.BALL_STATE, self._on_ball_state)
+        feed(q.BALL_V_SHOOT, self._on_v_shoot)
+        feed(q.BALL_MODEL_PARAMS, self._on_params)
+        feed(q.CATCH_TIME, self._on_catch_time, RECEIVER)
+        feed(q.CATCH_POINT, self._on_catch_point, RECEIVER)
+        feed(q.BALL_DETECTED, self._on_barrier, RECEIVER)
+        feed(q.CMD_VEL, self._on_command, RECEIVER)
         # robot_0's velocity controller answers (500 Hz: dropped once seen, see pump)
-        feed(q.WHEEL_SETPOINTS.msg_type, q.WHEEL_SETPOINTS.for_robot(RECEIVER), q.WHEEL_SETPOINTS.qos,
-             self._on_setpoints)
-        self._setpoints_feed = self._feeds[-1]
-        feed(String, q.SIM_EVENTS.name, q.SIM_EVENTS.qos, lambda m: self.events.append(m.data))
-        feed(q.VISION_BALL.msg_type, q.VISION_BALL.name, q.VISION_BALL.qos, self._on_vision)
+        self._setpoints_feed = feed(q.WHEEL_SETPOINTS, self._on_setpoints, RECEIVER)
+        feed(q.SIM_EVENTS, lambda m: self.events.append(m.data))
+        feed(q.VISION_BALL, self._on_vision)
         # /clock is taken last, so every clock sent before a message taken in the same pump is
         # there too: a message's simulated time is that of the newest clock sent before it.
-        feed(Clock, q.CLOCK.name, q.QOS_CLOCK, self._on_clock)
+        feed(q.CLOCK, self._on_clock)
         self.set_ball = node.create_publisher(Odometry, q.SIM_SET_BALL.name, q.SIM_SET_BALL.qos)
         self.set_robot = {
             i: node.create_publisher(Odometry, q.SIM_SET_STATE.for_robot(i), q.SIM_SET_STATE.qos)
@@ -231,10 +229,14 @@ class Director:
         self._last_catch_time: float | None = None
         self._catch_time_sent_ns: int | None = None
 
-    def _feed(self, msg_type, topic: str, qos: QoSProfile, listener: Callable) -> None:
-        deep = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=self.FEED_DEPTH, reliability=qos.reliability,
-                          durability=qos.durability)
-        self._feeds.append(sample_only(self.node.create_subscription(msg_type, topic, listener, deep)))
+    def _feed(self, topic: contract.Topic, listener: Callable, robot: int | None = None):
+        """A sampled subscription to a contract topic (of ``robot``), with a deep queue."""
+        deep = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=self.FEED_DEPTH, reliability=topic.qos.reliability,
+                          durability=topic.qos.durability)
+        name = topic.name if robot is None else topic.for_robot(robot)
+        sub = sample_only(self.node.create_subscription(topic.msg_type, name, listener, deep))
+        self._feeds.append(sub)
+        return sub
 
     def pump(self) -> int:
         """Run the listeners for everything that arrived, oldest sent first; returns how many."""
