@@ -2,14 +2,18 @@
 
 import math
 import re
+import struct
 from pathlib import Path
 
 import numpy as np
 import pytest
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseStamped, Twist
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
 
 from erforce_interfaces import contract as c
 from erforce_interfaces import conversions as conv
@@ -111,6 +115,103 @@ def test_joint_state_length_names_and_finiteness():
         conv.joint_state_from_msg(JointState(velocity=[1.0, math.nan, 3.0]), 3, "velocity")
     with pytest.raises(conv.ConversionError):
         conv.joint_state_msg(0, ["wheel_0"], velocity=[math.inf])
+
+
+# A JointState as rmw_fastrtps serializes it (plain CDR, little endian), by hand: the 4-byte
+# encapsulation header, then from payload offset 0: stamp (sec, nanosec); frame_id (length 1,
+# "\0", 3 bytes padding); 4 names ("wheel_k\0": length 8, no padding); position: count 0 at 68;
+# velocity: count 4 at 72, padding to 80, 4 doubles; effort: count 4 at 112, padding to 120, 4 doubles.
+def _hand_serialized_wheel_state(sec, nanosec, velocity, effort) -> bytes:
+    out = b"\x00\x01\x00\x00" + struct.pack("<iI", sec, nanosec) + struct.pack("<I", 1) + b"\x00" + bytes(3)
+    out += struct.pack("<I", 4) + b"".join(struct.pack("<I", 8) + f"wheel_{k}".encode() + b"\x00" for k in range(4))
+    out += struct.pack("<I", 0) + struct.pack("<I", 4) + bytes(4) + struct.pack("<4d", *velocity)
+    return out + struct.pack("<I", 4) + bytes(4) + struct.pack("<4d", *effort)
+
+
+def test_serialized_joint_state_matches_a_hand_made_layout():
+    names = [f"wheel_{k}" for k in range(4)]
+    velocity, effort = [1.5, -2.0, 0.0, 1e-3], [0.25, 0.5, -0.75, 1.0]
+    hand = _hand_serialized_wheel_state(3, 500, velocity, effort)
+    assert len(hand) == 4 + 152
+    assert conv.joint_state_cdr(3_000_000_500, names, velocity=velocity, effort=effort) == hand
+    t_ns, speeds, currents = conv.wheel_states_from_msg(hand, 4)
+    assert t_ns == 3_000_000_500 and speeds.tolist() == velocity and currents.tolist() == effort
+    # rclpy's own serializer agrees on every byte but the padding, which it leaves uninitialized
+    reference = serialize_message(conv.joint_state_msg(3_000_000_500, names, velocity=velocity, effort=effort))
+    padding = {17, 18, 19, 80, 81, 82, 83, 120, 121, 122, 123}  # file offsets (payload offset + 4)
+    assert len(reference) >= len(hand)
+    assert [b for i, b in enumerate(reference[: len(hand)]) if i not in padding] == [
+        b for i, b in enumerate(hand) if i not in padding]
+
+
+_any_floats = st.lists(st.floats(width=64), max_size=6)  # NaN, inf and huge values included
+
+
+@settings(max_examples=300, deadline=None)
+@given(names=st.lists(st.text(max_size=10), max_size=5), frame=st.text(max_size=9),
+       position=_any_floats, velocity=_any_floats, effort=_any_floats,
+       sec=st.integers(-(2**31), 2**31 - 1), nanosec=st.integers(0, 2**32 - 1), num_joints=st.integers(0, 5))
+def test_serialized_and_message_forms_are_read_alike(names, frame, position, velocity, effort, sec, nanosec,
+                                                      num_joints):
+    """Whatever rclpy serializes, the byte reader accepts exactly what the message reader accepts,
+    with the same values, or rejects it as well (a ConversionError, never another exception)."""
+    msg = JointState(header=Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=frame), name=names,
+                     position=position, velocity=velocity, effort=effort)
+    data = serialize_message(msg)
+    for field in ("position", "velocity", "effort"):
+        outcomes = []
+        for form in (msg, data):
+            try:
+                t_ns, values = conv.joint_state_from_msg(form, num_joints, field)
+                outcomes.append((t_ns, values.tolist()))
+            except conv.ConversionError:
+                outcomes.append("rejected")
+        assert outcomes[0] == outcomes[1], field
+
+
+@settings(max_examples=200, deadline=None)
+@given(t_ns=st.integers(0, 2**31 * 10**9 - 1), values=st.lists(st.floats(-1e3, 1e3), min_size=1, max_size=6),
+       with_effort=st.booleans())
+def test_serialized_builder_round_trips_through_rclpy(t_ns, values, with_effort):
+    names = [f"wheel_{k}" for k in range(len(values))]
+    effort = [v / 2 for v in values] if with_effort else None
+    data = conv.joint_state_cdr(t_ns, names, velocity=values, effort=effort)
+    assert deserialize_message(data, JointState) == conv.joint_state_msg(t_ns, names, velocity=values, effort=effort)
+
+
+def test_serialized_builder_refuses_what_the_message_builder_refuses():
+    for bad in ([math.nan, 0.0], [math.inf, 0.0], [-math.inf, 0.0], [2e3, 0.0], [0.0, -2e3], [0.0]):
+        with pytest.raises(conv.ConversionError):
+            conv.joint_state_msg(0, ["wheel_0", "wheel_1"], velocity=bad)
+        with pytest.raises(conv.ConversionError):
+            conv.joint_state_cdr(0, ["wheel_0", "wheel_1"], velocity=bad)
+    with pytest.raises(conv.ConversionError, match="negative"):
+        conv.joint_state_cdr(-1, ["wheel_0"], effort=[0.0])
+    for build in (conv.joint_state_msg, conv.joint_state_cdr):  # beyond int32 seconds (year 2038)
+        with pytest.raises(conv.ConversionError, match="int32"):
+            build(2**31 * 10**9, ["wheel_0"], effort=[0.0])
+
+
+def test_malformed_bytes_are_a_conversion_error():
+    good = _hand_serialized_wheel_state(1, 2, [1.0] * 4, [0.5] * 4)
+    for cut in range(len(good)):  # every truncation
+        with pytest.raises(conv.ConversionError):
+            conv.wheel_states_from_msg(good[:cut], 4)
+    big_endian = b"\x00\x00" + good[2:]
+    huge_count = good[:20] + struct.pack("<I", 2**31) + good[24:]  # the name count
+    for bad in (big_endian, huge_count, b"", bytes(3)):
+        with pytest.raises(conv.ConversionError):
+            conv.wheel_states_from_msg(bad, 4)
+
+
+@settings(max_examples=300, deadline=None)
+@given(garbage=st.binary(max_size=200))
+def test_random_bytes_never_raise_anything_but_a_conversion_error(garbage):
+    for data in (garbage, b"\x00\x01\x00\x00" + garbage):
+        try:
+            conv.wheel_states_from_msg(data, 4)
+        except conv.ConversionError:
+            pass
 
 
 def test_table_round_trip_and_labels():

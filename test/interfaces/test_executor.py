@@ -9,15 +9,18 @@ import time
 
 import pytest
 import rclpy
+from builtin_interfaces.msg import Time
 from rcl_interfaces.srv import SetParameters
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Int32
 
+from erforce_interfaces import contract
 from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
-from erforce_interfaces.node_support import ParamSpec, declare_params
+from erforce_interfaces.node_support import ParamSpec, declare_params, sample_clock
 from erforce_interfaces.testing import isolated_node
 
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
@@ -188,6 +191,56 @@ def test_a_sampled_subscription_waits_for_its_node(env):
     assert run_sampled([sub]) == 5
     assert sampled == [0, 1, 2, 3, 4]
     assert run_sampled([sub]) == 0
+
+
+def _queue_behind_marker(executor, node, publish) -> None:
+    """Call ``publish``, then send a marker on an ordinary subscription and spin until it ran:
+    whatever ``publish`` sent is queued by then. (The marker stays: destroying it would wake
+    the executor's next wait.)"""
+    seen = []
+    topic = f"/exec/marker{len(list(node.subscriptions))}"
+    marker_sub = node.create_subscription(Int32, topic, lambda m: seen.append(m.data), RELIABLE)
+    marker = node.create_publisher(Int32, topic, RELIABLE)
+    spin_until(executor, connected(marker, marker_sub))
+    publish()
+    marker.publish(Int32(data=1))
+    spin_until(executor, lambda: seen == [1])
+
+
+def _wait_lasts(executor, timeout_s: float) -> float:
+    t0 = time.monotonic()
+    executor.spin_once(timeout_sec=timeout_s)
+    return time.monotonic() - t0
+
+
+def test_a_sampled_subscription_can_be_waited_on_again_and_back(env):
+    _, node, executor = env
+    got = []
+    sub = sample_only(node.create_subscription(Int32, "/exec/toggle", lambda m: got.append(m.data), RELIABLE))
+    pub = node.create_publisher(Int32, "/exec/toggle", RELIABLE)
+    spin_until(executor, connected(pub, sub))
+    _queue_behind_marker(executor, node, lambda: pub.publish(Int32(data=0)))
+    assert _wait_lasts(executor, 0.3) >= 0.25 and got == []
+    sample_only(sub, False)  # waited on again: the queued message ends the next wait
+    assert _wait_lasts(executor, 5.0) < 2.0 and got == [0]
+    sample_only(sub)  # and sampled once more
+    _queue_behind_marker(executor, node, lambda: pub.publish(Int32(data=1)))
+    assert _wait_lasts(executor, 0.3) >= 0.25 and got == [0]
+    assert run_sampled([sub]) == 1 and got == [0, 1]
+
+
+def test_sample_clock_takes_sim_time_when_the_node_runs_not_per_message(env):
+    _, node, executor = env
+    node.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
+    subs = sample_clock(node)
+    assert [s.topic_name for s in subs] == ["/clock"]
+    pub = node.create_publisher(Clock, "/clock", contract.QOS_CLOCK)
+    spin_until(executor, connected(pub, subs[0]))
+    _queue_behind_marker(executor, node, lambda: pub.publish(Clock(clock=Time(sec=42, nanosec=5))))
+    assert _wait_lasts(executor, 0.3) >= 0.25
+    assert node.get_clock().now().nanoseconds == 0  # sim time not taken yet
+    assert run_sampled(subs) == 1
+    assert node.get_clock().now().nanoseconds == 42_000_000_005
 
 
 def test_run_sampled_replays_several_subscriptions_in_send_order(env):

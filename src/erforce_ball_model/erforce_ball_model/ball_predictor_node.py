@@ -50,6 +50,7 @@ from erforce_interfaces.conversions import (
     seconds_to_stamp,
     table_msg,
 )
+from erforce_interfaces.executor import run_sampled
 from erforce_interfaces.node_support import (
     ParamSpec,
     ThrottledWarner,
@@ -59,6 +60,7 @@ from erforce_interfaces.node_support import (
     robot_config_from_params,
     robot_param_specs,
     run_node,
+    sample_clock,
 )
 from erforce_interfaces.robot_config import FieldConfig
 
@@ -330,6 +332,8 @@ class BallPredictorNode(Node):
         contract_subscription(self, q.VISION_BALL, self._on_ball)
         for i in range(n):
             contract_subscription(self, q.VISION_POSE, lambda m, i=i: self._on_robot(i, m), q.VISION_POSE.for_robot(i))
+        # Everything runs on vision stamps; ROS time only stamps the logs: no wake per /clock.
+        self._clock_subs = sample_clock(self)
         self.get_logger().info(
             f"ball_predictor: {n} robot(s), {self._values['field']}, a_slide {self._model.a_slide_mps2:g}, "
             f"a_roll {self._model.a_roll_mps2:g}, c_switch {self._model.c_switch:g} "
@@ -427,6 +431,12 @@ class BallPredictorNode(Node):
 
     # -------------------------------------------------------------------- ball
     def _on_ball(self, msg: PointStamped) -> None:
+        try:
+            self._ball_frame(msg)
+        finally:
+            run_sampled(self._clock_subs)  # after the outputs: not on the latency path
+
+    def _ball_frame(self, msg: PointStamped) -> None:
         start = time.perf_counter()
         cfg = self._config
         try:

@@ -8,7 +8,9 @@ so a node cannot publish NaN by accident.
 
 from __future__ import annotations
 
+import functools
 import math
+import struct
 from collections.abc import Sequence
 
 import numpy as np
@@ -69,7 +71,15 @@ def seconds_to_stamp(t_s: float) -> Time:
 
 
 def nanoseconds_to_stamp(ns: int) -> Time:
-    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+    sec, nanosec = _stamp_parts(ns)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def _stamp_parts(ns: int) -> tuple[int, int]:
+    sec = ns // 1_000_000_000
+    if not -(2**31) <= sec < 2**31:
+        raise ConversionError(f"stamp {ns} ns does not fit builtin_interfaces/Time (int32 seconds)")
+    return sec, ns % 1_000_000_000
 
 
 # --------------------------------------------------------------------- angles
@@ -205,26 +215,145 @@ def joint_state_msg(t_ns: int, names: Sequence[str], *, velocity: Sequence[float
     return msg
 
 
-def joint_state_from_msg(msg: JointState, num_joints: int, field: str,
+def joint_state_from_msg(msg: JointState | bytes, num_joints: int, field: str,
                          limit: float = MAX_ABS_VALUE) -> tuple[int, np.ndarray]:
-    """(stamp [ns], values) of the ``velocity`` or ``effort`` field, checked for length and finiteness.
+    """(stamp [ns], values) of the ``velocity``, ``effort`` or ``position`` field, checked for length
+    and finiteness. ``msg`` is a JointState or its serialized form (a raw subscription's bytes).
 
     When names are given they must be ``wheel_0..wheel_{n-1}`` in order, so a re-ordered
     or foreign message cannot be applied to the wrong wheel.
     """
-    if field not in ("velocity", "effort", "position"):
-        raise ValueError(f"unknown JointState field {field!r}")
-    if msg.name and list(msg.name) != [f"wheel_{i}" for i in range(num_joints)]:
-        raise ConversionError(f"joint names {list(msg.name)} are not wheel_0..wheel_{num_joints - 1}")
-    values = _finite_array(field, getattr(msg, field), num_joints, limit)
-    return stamp_to_nanoseconds(msg.header.stamp), values
+    t_ns, (values,) = _joint_fields(msg, num_joints, (field,), limit)
+    return t_ns, values
 
 
-def wheel_states_from_msg(msg: JointState, num_wheels: int) -> tuple[int, np.ndarray, np.ndarray]:
+def wheel_states_from_msg(msg: JointState | bytes, num_wheels: int) -> tuple[int, np.ndarray, np.ndarray]:
     """(stamp [ns], wheel speeds [rad/s], motor currents [A]) of a ``wheel_states`` message."""
-    t_ns, speeds = joint_state_from_msg(msg, num_wheels, "velocity")
-    _, currents = joint_state_from_msg(msg, num_wheels, "effort")
+    t_ns, (speeds, currents) = _joint_fields(msg, num_wheels, ("velocity", "effort"), MAX_ABS_VALUE)
     return t_ns, speeds, currents
+
+
+_JOINT_FIELDS = ("position", "velocity", "effort")
+
+
+def _joint_fields(msg: JointState | bytes, num_joints: int, fields: Sequence[str],
+                  limit: float) -> tuple[int, list[np.ndarray]]:
+    for field in fields:
+        if field not in _JOINT_FIELDS:
+            raise ValueError(f"unknown JointState field {field!r}")
+    if isinstance(msg, bytes | bytearray | memoryview):
+        t_ns, names, arrays = _decode_joint_state(msg)
+        found = dict(zip(_JOINT_FIELDS, arrays, strict=True))
+    else:
+        t_ns, names = stamp_to_nanoseconds(msg.header.stamp), list(msg.name)
+        found = {field: getattr(msg, field) for field in fields}
+    if names and names != [f"wheel_{i}" for i in range(num_joints)]:
+        raise ConversionError(f"joint names {names} are not wheel_0..wheel_{num_joints - 1}")
+    return t_ns, [_checked_values(field, found[field], num_joints, limit) for field in fields]
+
+
+def _checked_values(name: str, values: Sequence[float], length: int, limit: float) -> np.ndarray:
+    return np.array(_checked_floats(name, values, length, limit))
+
+
+def _checked_floats(name: str, values: Sequence[float], length: int, limit: float) -> list[float]:
+    """The values as floats: exactly ``length`` of them, finite and within +-limit (plain Python:
+    for a handful of values it is several times faster than numpy)."""
+    values = values.tolist() if isinstance(values, np.ndarray) else [float(v) for v in values]
+    if len(values) != length:
+        raise ConversionError(f"{name} has {len(values)} entries, expected {length}")
+    for i, v in enumerate(values):
+        if not -limit <= v <= limit:  # also false for NaN
+            if not math.isfinite(v):
+                raise ConversionError(f"{name}[{i}] is not finite")
+            raise ConversionError(f"{name} has a value beyond the accepted magnitude {limit:g}")
+    return values
+
+
+# ------------------------------------------------- joint arrays, serialized
+# The lockstep topics (one JointState per robot and tick, 500 Hz) are published and taken in
+# their serialized form: on this machine building a JointState and letting rclpy convert it
+# cost more than the motor-board maths it carries. The wire format is what rmw_fastrtps writes
+# (plain CDR, little endian, doubles aligned to 8 bytes from the start of the payload), so any
+# ROS 2 subscriber or publisher of sensor_msgs/JointState talks to these nodes unchanged;
+# test_contract.py checks both directions against rclpy.serialization.
+_CDR_LE = b"\x00\x01\x00\x00"  # encapsulation header: CDR, little endian
+_MAX_JOINTS = 1024  # a count beyond this is garbage, not a robot
+_u32 = struct.Struct("<I")
+_stamp = struct.Struct("<iI")
+
+
+def joint_state_cdr(t_ns: int, names: Sequence[str], *, velocity: Sequence[float] | None = None,
+                    effort: Sequence[float] | None = None) -> bytes:
+    """``joint_state_msg`` serialized (for ``Publisher.publish``), with the same checks."""
+    t_ns = int(t_ns)
+    if t_ns < 0:
+        raise ConversionError(f"stamp must not be negative ({t_ns} ns)")
+    parts = [_CDR_LE, _stamp.pack(*_stamp_parts(t_ns)), _cdr_names(tuple(names))]
+    offset = 8 + len(parts[2])
+    for name, values in (("position", None), ("velocity", velocity), ("effort", effort)):
+        if values is None:
+            parts.append(_u32.pack(0))
+            offset += 4
+            continue
+        values = _checked_floats(name, values, len(names), MAX_ABS_VALUE)
+        n = len(values)
+        pad = -(offset + 4) % 8 if n else 0
+        parts.append(_u32.pack(n) + bytes(pad) + struct.pack(f"<{n}d", *values))
+        offset += 4 + pad + 8 * n
+    return b"".join(parts)
+
+
+@functools.lru_cache(maxsize=64)
+def _cdr_names(names: tuple[str, ...]) -> bytes:
+    """frame_id (empty) and the name sequence, from offset 8 of the payload (after the stamp)."""
+    out = bytearray(_u32.pack(1) + b"\x00")
+    out += bytes(-len(out) % 4) + _u32.pack(len(names))
+    for name in names:
+        raw = name.encode() + b"\x00"
+        out += bytes(-(8 + len(out)) % 4) + _u32.pack(len(raw)) + raw
+    out += bytes(-(8 + len(out)) % 4)
+    return bytes(out)
+
+
+def _decode_joint_state(data: bytes) -> tuple[int, list[str], list[tuple[float, ...]]]:
+    """(stamp [ns], names, (position, velocity, effort)) of a serialized JointState."""
+    data = bytes(data)
+    if data[:2] != _CDR_LE[:2]:
+        raise ConversionError("not a little-endian CDR JointState")
+    # p: offset in the payload, which starts after the 4-byte encapsulation header (CDR aligns to it)
+    try:
+        sec, nanosec = _stamp.unpack_from(data, 4)
+        p = 12 + _u32.unpack_from(data, 12)[0]  # frame_id is not used
+        p += -p % 4
+        count = _u32.unpack_from(data, 4 + p)[0]
+        if count > _MAX_JOINTS:
+            raise ConversionError(f"{count} joint names")
+        p += 4
+        names = []
+        for _ in range(count):
+            p += -p % 4
+            length = _u32.unpack_from(data, 4 + p)[0]
+            if length < 1 or 8 + p + length > len(data):
+                raise ConversionError("a joint name runs past the message")
+            names.append(data[8 + p : 7 + p + length].decode("utf-8", "replace"))
+            p += 4 + length
+        arrays = []
+        for _ in _JOINT_FIELDS:
+            p += -p % 4
+            count = _u32.unpack_from(data, 4 + p)[0]
+            if count > _MAX_JOINTS:
+                raise ConversionError(f"{count} joint values")
+            p += 4
+            if count:
+                p += -p % 8
+                arrays.append(struct.unpack_from(f"<{count}d", data, 4 + p))
+                p += 8 * count
+            else:
+                arrays.append(())
+    except struct.error as exc:
+        raise ConversionError(f"truncated JointState ({exc})") from None
+    return sec * 1_000_000_000 + nanosec, names, arrays
 
 
 # ------------------------------------------------------------ scalar & tables

@@ -21,9 +21,11 @@ wake of its own, a few hundred microseconds of CPU. A node that acts at its own 
 newest inputs (a controller's timer) or an observer that only needs every message eventually
 marks such subscriptions with ``sample_only``: DirectExecutor then never waits on them, and
 the node calls ``run_sampled`` when it wants them, which runs their callbacks for everything
-queued, in the order it was sent; their QoS-event handlers are not served either. Under another
-executor they stay ordinary subscriptions (a callback per message), so the node behaves the same
-there. ``take_queued`` is the raw form.
+queued, in the order it was sent; their QoS-event handlers are not served either. A node that
+normally finds an input already queued when it runs, but must wait when it is late (the motor
+boards' setpoint), switches it back with ``sample_only(sub, False)`` for as long as it waits.
+Under another executor they stay ordinary subscriptions (a callback per message), so the node
+behaves the same there. ``take_queued`` is the raw form.
 """
 
 from __future__ import annotations
@@ -43,11 +45,19 @@ __all__ = ["DirectExecutor", "run_sampled", "sample_only", "take_queued"]
 
 _KINDS = ("subscription", "timer", "guard_condition", "service", "client")
 _SAMPLED: weakref.WeakSet = weakref.WeakSet()  # subscriptions DirectExecutor leaves to their nodes
+_sampled_changes = 0  # DirectExecutor gathers its entities again when this moves
 
 
-def sample_only(subscription: Subscription) -> Subscription:
-    """Leave ``subscription`` out of DirectExecutor's waits: its node runs it with ``run_sampled``."""
-    _SAMPLED.add(subscription)
+def sample_only(subscription: Subscription, sampled: bool = True) -> Subscription:
+    """Leave ``subscription`` out of DirectExecutor's waits (its node runs it with ``run_sampled``),
+    or with ``sampled=False`` wait on it again; takes effect at the executor's next wait."""
+    global _sampled_changes
+    if sampled != (subscription in _SAMPLED):
+        if sampled:
+            _SAMPLED.add(subscription)
+        else:
+            _SAMPLED.discard(subscription)
+        _sampled_changes += 1
     return subscription
 
 
@@ -110,6 +120,7 @@ class DirectExecutor(SingleThreadedExecutor):
     def __init__(self, *, context=None) -> None:
         super().__init__(context=context)
         self._entities = None  # (subscriptions, timers, guards, services, clients, waitables)
+        self._gathered_at = -1  # _sampled_changes when the entities were gathered
         self._handles = []
         self._wait_set = None
 
@@ -126,7 +137,7 @@ class DirectExecutor(SingleThreadedExecutor):
         guard, sigint = self._guard, self._sigint_gc
         if self._is_shutdown or guard is None or sigint is None:
             return
-        if self._entities is None:
+        if self._entities is None or self._gathered_at != _sampled_changes:
             self._gather()
         subs, timers, guards, services, clients, waitables = self._entities
         # Mark every handle in use while rcl waits on it, as rclpy's executors do: an entity
@@ -176,6 +187,7 @@ class DirectExecutor(SingleThreadedExecutor):
         self._dispatch(ready, subs, timers, guards, services, clients, ready_waitables)
 
     def _gather(self) -> None:
+        self._gathered_at = _sampled_changes
         subs, timers, guards, services, clients, waitables = [], [], [], [], [], []
         for node in self.get_nodes():
             sampled = [s for s in node.subscriptions if s in _SAMPLED]

@@ -25,8 +25,8 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from erforce_interfaces.contract import Topic
-from erforce_interfaces.executor import DirectExecutor
+from erforce_interfaces.contract import CLOCK, Topic
+from erforce_interfaces.executor import DirectExecutor, sample_only
 from erforce_interfaces.robot_config import RobotConfig
 
 ParamValue = bool | int | float | str | list
@@ -147,14 +147,30 @@ def contract_publisher(node: Node, topic: Topic, resolved_name: str | None = Non
                                  event_callbacks=PublisherEventCallbacks(use_default_callbacks=False))
 
 
-def contract_subscription(node: Node, topic: Topic, callback: Callable, resolved_name: str | None = None):
+def contract_subscription(node: Node, topic: Topic, callback: Callable, resolved_name: str | None = None,
+                          raw: bool = False):
     """A subscription to a contract topic, with the contract's type and QoS.
 
     No default QoS-event handler either (see contract_publisher); the topic's QoS comes from
-    the contract on both sides, so they cannot be incompatible within the stack.
+    the contract on both sides, so they cannot be incompatible within the stack. ``raw``: the
+    callback gets the serialized message (bytes), for the lockstep topics' codec in conversions.
     """
     return node.create_subscription(topic.msg_type, resolved_name or topic.name, callback, topic.qos,
-                                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False))
+                                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+                                    raw=raw)
+
+
+def sample_clock(node: Node) -> list:
+    """Take ``/clock`` only when the node runs (erforce_interfaces.executor.sample_only); returns
+    the subscriptions for ``run_sampled``.
+
+    For nodes that act on message stamps and need ROS time only for their logs: they then do not
+    wake for each ``/clock`` message. Not for nodes with sim-time timers, which /clock drives.
+    """
+    subs = [s for s in node.subscriptions if s.topic_name == CLOCK.name]
+    for sub in subs:
+        sample_only(sub)
+    return subs
 
 
 ROBOT_PREFIX = "robot."

@@ -11,15 +11,15 @@ from typing import Any
 
 from geometry_msgs.msg import Twist
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
-    joint_state_msg,
+    joint_state_cdr,
     twist_from_msg,
     wheel_states_from_msg,
 )
+from erforce_interfaces.executor import run_sampled
 from erforce_interfaces.node_support import (
     ParamSpec,
     ThrottledWarner,
@@ -29,6 +29,7 @@ from erforce_interfaces.node_support import (
     robot_config_from_params,
     robot_param_specs,
     run_node,
+    sample_clock,
 )
 from erforce_motion.firmware import MainBoardLoop
 from erforce_motion.velocity_control import VelocityControlConfig
@@ -143,7 +144,8 @@ class VelocityControllerNode(Node):
         self._values = declare_params(self, PARAMS, build_loop, self._apply)
         self._setpoint_pub = contract_publisher(self, contract.WHEEL_SETPOINTS)
         contract_subscription(self, contract.CMD_VEL, self._on_cmd_vel)
-        contract_subscription(self, contract.WHEEL_STATES, self._on_wheel_states)
+        contract_subscription(self, contract.WHEEL_STATES, self._on_wheel_states, raw=True)  # see motor_boards
+        self._clock_subs = sample_clock(self)  # runs on the ticks' stamps: no wake per /clock
 
     def _apply(self, loop: MainBoardLoop) -> None:
         if self._loop is not None:
@@ -161,7 +163,8 @@ class VelocityControllerNode(Node):
             return
         self._loop.command(twist)
 
-    def _on_wheel_states(self, msg: JointState) -> None:
+    def _on_wheel_states(self, msg: bytes) -> None:
+        run_sampled(self._clock_subs)
         loop = self._loop
         try:
             t_ns, speeds, _ = wheel_states_from_msg(msg, loop.robot.num_wheels)
@@ -171,7 +174,7 @@ class VelocityControllerNode(Node):
         setpoints = loop.tick(t_ns * 1e-9, speeds)
         if loop.notice:
             self._warn.warn("notice", loop.notice)
-        self._setpoint_pub.publish(joint_state_msg(t_ns, loop.robot.wheel_names, velocity=setpoints))
+        self._setpoint_pub.publish(joint_state_cdr(t_ns, loop.robot.wheel_names, velocity=setpoints))
 
 
 def main(args: list[str] | None = None) -> int:

@@ -1,7 +1,7 @@
 """plant: the simulated world as a ROS 2 node. It owns time.
 
-Every tick (``control_period_s``) it publishes ``/clock`` and each robot's
-``wheel_states`` (what the motor boards' sensors see), stamped with the tick's time,
+Every tick (``control_period_s``) it publishes each robot's ``wheel_states`` (what the
+motor boards' sensors see) and ``/clock`` (at ``clock_rate_hz``), stamped with the tick's time,
 applies the robots' ``motor_duty`` and steps the physics. Vision frames, light-barrier
 state and ground truth go out as they fall due.
 
@@ -29,15 +29,14 @@ from rclpy.clock import Clock as RclClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, String
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
     float64_from_msg,
+    joint_state_cdr,
     joint_state_from_msg,
-    joint_state_msg,
     nanoseconds_to_stamp,
     odometry_from_msg,
     odometry_msg,
@@ -222,7 +221,7 @@ class PlantNode(Node):
                     "motors": pub(self, q.GROUND_TRUTH_MOTORS, q.GROUND_TRUTH_MOTORS.for_robot(i)),
                 }
             )
-            sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.for_robot(i))
+            sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.for_robot(i), raw=True)
             sub(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.KICK.for_robot(i))
             sub(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.for_robot(i))
         sub(self, q.SIM_SET_BALL, self._on_set_ball)
@@ -257,7 +256,7 @@ class PlantNode(Node):
             self.get_logger().info(text)
         self._events_pub.publish(String(data=f"t={self.world.t_s:.3f} {text}"))
 
-    def _on_duty(self, robot: int, msg: JointState) -> None:
+    def _on_duty(self, robot: int, msg: bytes) -> None:
         try:
             t_ns, duty = joint_state_from_msg(msg, len(self._wheels), "effort")
         except ConversionError as exc:
@@ -389,18 +388,20 @@ class PlantNode(Node):
         now = time.monotonic()
         self._last_publish_wall = now
         world = self.world
-        if t_ns - self._last_clock_ns >= 1e9 / self._values["clock_rate_hz"] - 1 and not retry:
-            self._last_clock_ns = t_ns
-            self._clock_pub.publish(Clock(clock=nanoseconds_to_stamp(t_ns)))
+        # The tick's sensor values first: they start the motor boards' answer, which the next
+        # tick waits for; everything else is published while the motor boards compute.
         for i in range(self.setup.num_robots):
             if i in self._controlled:
-                self._pubs[i]["states"].publish(
-                    joint_state_msg(
+                self._pubs[i]["states"].publish(  # serialized, as motor_boards explains
+                    joint_state_cdr(
                         t_ns, self._wheels, velocity=world.wheel_speeds_radps(i), effort=world.motor_currents_a(i)
                     )
                 )
         if retry:
             return
+        if t_ns - self._last_clock_ns >= 1e9 / self._values["clock_rate_hz"] - 1:
+            self._last_clock_ns = t_ns
+            self._clock_pub.publish(Clock(clock=nanoseconds_to_stamp(t_ns)))
         self._gate.open(t_ns, now, self._peers)
         for frame in world.poll_vision():
             self._publish_vision(frame)
