@@ -286,10 +286,7 @@ _stamp = struct.Struct("<iI")
 def joint_state_cdr(t_ns: int, names: Sequence[str], *, velocity: Sequence[float] | None = None,
                     effort: Sequence[float] | None = None) -> bytes:
     """``joint_state_msg`` serialized (for ``Publisher.publish``), with the same checks."""
-    t_ns = int(t_ns)
-    if t_ns < 0:
-        raise ConversionError(f"stamp must not be negative ({t_ns} ns)")
-    parts = [_CDR_LE, _stamp.pack(*_stamp_parts(t_ns)), _cdr_names(tuple(names))]
+    parts = [_CDR_LE, _stamp.pack(*_stamp_parts(int(t_ns))), _cdr_names(tuple(names))]
     offset = 8 + len(parts[2])
     for name, values in (("position", None), ("velocity", velocity), ("effort", effort)):
         if values is None:
