@@ -36,6 +36,18 @@ def start_plant(graph, **params):
     return graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params=defaults)
 
 
+def start_plant_watched(graph, **params):
+    """Start the plant once this probe takes robot_0's ground truth, and return what it receives.
+
+    The plant runs flat out: without holding its first tick until the probe reads (here: /clock,
+    subscribed after the truth), a slow discovery let the robot drive into the wall unseen.
+    """
+    truth = graph.subscribe("/robot_0/ground_truth/odom", Odometry)
+    graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
+    start_plant(graph, start_clock_subscribers=3, **params)  # velocity_controller, motor_boards, probe
+    return truth
+
+
 def send_cmd_vel(graph, vx, vy=0.0, wz=0.0, robot="robot_0"):
     pub = graph.probe.wait_for_subscribers(f"/{robot}/cmd_vel", Twist, timeout_s=20.0)
     msg = Twist()
@@ -49,8 +61,7 @@ def test_twist_drives_the_simulated_robot_in_lockstep(ros_graph):
     start_robot(ros_graph, command_timeout_s=30.0)
     send_cmd_vel(ros_graph, 1.0, 0.5)
     ros_graph.probe.spin_for(0.3)
-    start_plant(ros_graph)
-    truth = ros_graph.subscribe("/robot_0/ground_truth/odom", Odometry)
+    truth = start_plant_watched(ros_graph)
     ros_graph.probe.spin_until(lambda: truth and odometry_from_msg(truth[-1])[0] > 1.0, 60.0, "1 s of sim time")
     _, pose, vel, _ = odometry_from_msg(truth[-1])
     c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -66,8 +77,7 @@ def test_lockstep_dds_graph_reproduces_the_in_process_trajectory(ros_graph):
     start_robot(ros_graph, command_timeout_s=30.0)
     send_cmd_vel(ros_graph, *twist)
     ros_graph.probe.spin_for(0.3)
-    start_plant(ros_graph, seed=7, stop_after_s=0.6)
-    truth = ros_graph.subscribe("/robot_0/ground_truth/odom", Odometry)
+    truth = start_plant_watched(ros_graph, seed=7, stop_after_s=0.6)
     ros_graph.probe.spin_until(lambda: truth and odometry_from_msg(truth[-1])[0] >= 0.5, 60.0, "0.5 s")
     dds = {stamp_to_nanoseconds(m.header.stamp): odometry_from_msg(m) for m in truth}
 
