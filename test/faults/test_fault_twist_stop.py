@@ -37,7 +37,10 @@ def test_robot_stops_within_command_timeout_plus_braking(ros_graph):
     loop = ClosedLoop(ros_graph, plant={"robot_poses": [-3.0, 0.0, 0.0]},
                       vc={"command_timeout_s": COMMAND_TIMEOUT_S, "max_accel_mps2": MAX_ACCEL_MPS2})
     loop.start_all()
-    loop.command(V0_MPS)
+    loop.command(V0_MPS)  # repeated while the probe spins
+    # The first command waits for discovery between the probe and the velocity controller as
+    # well, which took up to ~2 s of the real-time-paced sim here: time the follow from the start.
+    loop.spin_until(lambda: loop.velocity()[0] > 0.5 * V0_MPS, 60.0, "robot_0 moving on the first command")
     loop.assert_follows((V0_MPS, 0.0, 0.0), tol_mps=0.03, settle_s=2.0)
     loop.spin_sim(0.3)  # cruising
 
