@@ -173,7 +173,7 @@ class MotorBoardsNode(Node):
         contract_subscription(self, contract.WHEEL_STATES, self._on_wheel_states, raw=True)
         self._setpoint_sub = sample_only(
             contract_subscription(self, contract.WHEEL_SETPOINTS, self._on_setpoints, raw=True))
-        self._clock_subs = sample_clock(self)
+        self._sampled = [*sample_clock(self), self._setpoint_sub]  # taken with each tick
         # Wall-clock timer: a silent velocity controller must not hold a tick forever.
         self.create_timer(0.05, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -185,7 +185,7 @@ class MotorBoardsNode(Node):
             self._join.wait = self._values["lockstep_sync"]
 
     def _on_wheel_states(self, msg: bytes) -> None:
-        run_sampled([*self._clock_subs, self._setpoint_sub])
+        run_sampled(self._sampled)
         try:
             t_ns, speeds, currents = wheel_states_from_msg(msg, self._loop.robot.num_wheels)
         except ConversionError as exc:

@@ -197,7 +197,7 @@ class Director:
         self.barrier_edges: list[float] = []
         self._barrier = False
         self.events: list[str] = []
-        self.commands_seen = 0  # robot_0's cmd_vel messages
+        self.commanded = False  # robot_0's catcher has sent a cmd_vel
         self.setpoints_seen = False  # robot_0's velocity controller has answered a tick
         q = contract
         self._feeds = []
@@ -265,7 +265,7 @@ class Director:
         act yet either: its timer runs on simulated time, so it commands nothing until its /clock
         subscription has matched the plant's.
         """
-        return self.sim_ns > 0 and bool(self.series.ball_state) and self.commands_seen > 0 and self.setpoints_seen
+        return self.sim_ns > 0 and bool(self.series.ball_state) and self.commanded and self.setpoints_seen
 
     # ------------------------------------------------------------ listeners
     def _on_clock(self, msg: Clock) -> None:
@@ -327,7 +327,7 @@ class Director:
             self.series.vision_sent_ns.pop(next(iter(self.series.vision_sent_ns)))
 
     def _on_command(self, _msg) -> None:
-        self.commands_seen += 1
+        self.commanded = True
 
     def _on_setpoints(self, _msg) -> None:
         self.setpoints_seen = True
