@@ -5,6 +5,8 @@ time of the /clock sent just before it, not the newest clock, and a catch point 
 the catch time sent before it.
 """
 
+import os
+import sys
 import time
 
 import pytest
@@ -16,8 +18,8 @@ from erforce_interfaces import contract
 from erforce_interfaces.conversions import nanoseconds_to_stamp, point_msg
 from erforce_interfaces.executor import DirectExecutor
 from erforce_interfaces.robot_config import RobotConfig
-from erforce_interfaces.testing import isolated_node
-from erforce_sim.demo import RECEIVER, Director
+from erforce_interfaces.testing import isolated_node, stop_process
+from erforce_sim.demo import RECEIVER, Director, spawn_in_session
 
 pytestmark = pytest.mark.integration
 
@@ -62,3 +64,17 @@ def test_a_late_pump_replays_in_send_order():
             assert 0.0 < director.series.catch_time_latency_s[0] <= director.series.catch_point_latency_s[0]
         finally:
             director.close()
+
+
+def test_graph_processes_share_the_demos_session(tmp_path):
+    """SCHED_IDLE ranks threads only within one autogroup (one per session): the demo's graph and
+    recorder must stay in its session, each in a process group of its own for stop_process."""
+    child = spawn_in_session([sys.executable, "-c", "import time; time.sleep(30)"], tmp_path / "log", idle=True)
+    try:
+        assert os.getsid(child.pid) == os.getsid(0)
+        assert os.getpgid(child.pid) == child.pid != os.getpgrp()
+        if hasattr(os, "SCHED_IDLE"):
+            assert os.sched_getscheduler(child.pid) == os.SCHED_IDLE
+    finally:
+        stop_process(child, sigint_timeout_s=2.0)
+    assert child.returncode is not None
