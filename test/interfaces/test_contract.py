@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Header
+from std_msgs.msg import Float64, Header
 
 from erforce_interfaces import contract as c
 from erforce_interfaces import conversions as conv
@@ -212,6 +212,114 @@ def test_random_bytes_never_raise_anything_but_a_conversion_error(garbage):
             conv.wheel_states_from_msg(data, 4)
         except conv.ConversionError:
             pass
+
+
+# A PointStamped by hand: header stamp at payload offset 0, frame_id "field" (length 6 with its NUL)
+# at 8, padding 18..23, then x, y, z from 24 (a multiple of 8); a PoseStamped continues with the
+# orientation (qx, qy, qz, qw) from 48.
+def test_serialized_point_and_pose_match_a_hand_made_layout():
+    header = b"\x00\x01\x00\x00" + struct.pack("<iI", 7, 250_000_000) + struct.pack("<I", 6) + b"field\x00" + bytes(6)
+    point = header + struct.pack("<3d", 1.25, -2.5, 0.0)
+    assert conv.point_cdr(7.25, (1.25, -2.5)) == point
+    assert conv.point_from_msg(point) == (7.25, (1.25, -2.5))
+    half = 0.5 * 0.75
+    pose = header + struct.pack("<7d", 1.25, -2.5, 0.0, 0.0, 0.0, math.sin(half), math.cos(half))
+    assert conv.pose2d_cdr(7.25, (1.25, -2.5, 0.75)) == pose
+    t_s, xy_yaw = conv.pose2d_from_msg(pose)
+    assert t_s == 7.25 and xy_yaw.tolist() == pytest.approx([1.25, -2.5, 0.75], abs=1e-15)
+    assert conv.float64_cdr(-0.5) == b"\x00\x01\x00\x00" + struct.pack("<d", -0.5)
+    padding = set(range(22, 28))  # file offsets; rclpy leaves them uninitialized
+    references = (conv.point_msg(7.25, (1.25, -2.5)), conv.pose2d_msg(7.25, (1.25, -2.5, 0.75)))
+    for built, reference in zip((point, pose), references, strict=True):
+        ref = serialize_message(reference)
+        assert len(ref) >= len(built)
+        assert [b for i, b in enumerate(ref[: len(built)]) if i not in padding] == [
+            b for i, b in enumerate(built) if i not in padding]
+
+
+def _read_both_ways(read, msg):
+    """read(message) and read(its bytes): the values, or "rejected" (a ConversionError)."""
+    outcomes = []
+    for form in (msg, serialize_message(msg)):
+        try:
+            t, values = read(form)
+            outcomes.append((t, np.asarray(values, dtype=float).tolist()))
+        except conv.ConversionError:
+            outcomes.append("rejected")
+    return outcomes
+
+
+_any_float = st.floats(width=64)
+_stamps = dict(sec=st.integers(-(2**31), 2**31 - 1), nanosec=st.integers(0, 2**32 - 1), frame=st.text(max_size=12))
+
+
+@settings(max_examples=300, deadline=None)
+@given(x=_any_float, y=_any_float, z=_any_float, qx=_any_float, qy=_any_float, qz=_any_float, qw=_any_float,
+       value=_any_float, **_stamps)
+def test_serialized_point_pose_and_float64_are_read_like_messages(x, y, z, qx, qy, qz, qw, value, sec, nanosec, frame):
+    """As for JointState: every message rclpy serializes reads alike from its bytes, or both are refused."""
+    header = Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=frame)
+    point = PointStamped(header=header)
+    point.point.x, point.point.y, point.point.z = x, y, z
+    pose = PoseStamped(header=header)
+    pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = x, y, z
+    o = pose.pose.orientation
+    o.x, o.y, o.z, o.w = qx, qy, qz, qw
+    for read, msg in ((conv.point_from_msg, point), (conv.pose2d_from_msg, pose),
+                      (lambda m: (0.0, conv.float64_from_msg(m)), Float64(data=value))):
+        outcomes = _read_both_ways(read, msg)
+        assert outcomes[0] == outcomes[1], type(msg).__name__
+
+
+@settings(max_examples=200, deadline=None)
+@given(t_s=st.floats(0.0, 2.0**31 - 1.0), x=st.floats(-1e3, 1e3), y=st.floats(-1e3, 1e3), yaw=st.floats(-1e6, 1e6),
+       frame=st.text(max_size=12))
+def test_serialized_point_pose_and_float64_builders_round_trip_through_rclpy(t_s, x, y, yaw, frame):
+    assert deserialize_message(conv.point_cdr(t_s, (x, y), frame), PointStamped) == conv.point_msg(t_s, (x, y), frame)
+    assert deserialize_message(conv.pose2d_cdr(t_s, (x, y, yaw), frame), PoseStamped) == conv.pose2d_msg(
+        t_s, (x, y, yaw), frame)
+    assert deserialize_message(conv.float64_cdr(x), Float64) == conv.float64_msg(x)
+
+
+def test_serialized_point_pose_and_float64_builders_refuse_what_the_message_builders_refuse():
+    for bad in (math.nan, math.inf, -math.inf, 2e3):
+        for build in (conv.point_msg, conv.point_cdr):
+            with pytest.raises(conv.ConversionError):
+                build(1.0, (bad, 0.0))
+        for build in (conv.pose2d_msg, conv.pose2d_cdr):
+            with pytest.raises(conv.ConversionError):
+                build(1.0, (0.0, bad, 0.0))
+        for build in (conv.float64_msg, conv.float64_cdr):
+            with pytest.raises(conv.ConversionError):
+                build(bad)
+    for build in (conv.point_msg, conv.point_cdr):
+        for bad_stamp in (-1.0, math.nan, 5e9):
+            with pytest.raises(conv.ConversionError, match="stamp"):
+                build(bad_stamp, (0.0, 0.0))
+
+
+def test_malformed_point_pose_and_float64_bytes_are_a_conversion_error():
+    for good, read in ((conv.point_cdr(1.0, (0.5, 0.5)), conv.point_from_msg),
+                       (conv.pose2d_cdr(1.0, (0.5, 0.5, 0.1)), conv.pose2d_from_msg),
+                       (conv.float64_cdr(0.5), conv.float64_from_msg)):
+        for cut in range(len(good)):  # every truncation
+            with pytest.raises(conv.ConversionError):
+                read(good[:cut])
+        for bad in (b"\x00\x00" + good[2:], good[:12] + struct.pack("<I", 2**31) + good[16:]):
+            if read is not conv.float64_from_msg or bad[:2] != good[:2]:
+                with pytest.raises(conv.ConversionError):
+                    read(bad)
+
+
+@settings(max_examples=300, deadline=None)
+@given(garbage=st.binary(max_size=120))
+def test_random_bytes_never_raise_anything_but_a_conversion_error_for_any_codec(garbage):
+    for data in (garbage, b"\x00\x01\x00\x00" + garbage):
+        for read in (conv.point_from_msg, conv.pose2d_from_msg, conv.float64_from_msg):
+            try:
+                read(data)
+            except conv.ConversionError:
+                pass
 
 
 def test_table_round_trip_and_labels():

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
-from geometry_msgs.msg import PointStamped, PoseStamped
+from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
@@ -42,8 +42,10 @@ from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     MAX_ABS_VALUE,
     ConversionError,
+    float64_cdr,
     float64_msg,
     odometry_msg,
+    point_cdr,
     point_from_msg,
     point_msg,
     pose2d_from_msg,
@@ -309,13 +311,6 @@ class BallPredictorNode(Node):
         # stamp: not seen yet), and the velocities as the array the catch search takes.
         self._robot_states = [(math.nan, 0.0, 0.0, 0.0, 0.0)] * n
         self._robot_vel_mps = np.zeros((n, 2))
-        # Catch outputs are refilled, not rebuilt, every frame: constructing 44 messages per frame
-        # was a third of the node's own time.
-        self._catch_time_msgs = [Float64() for _ in range(n)]
-        self._catch_point_msgs = [PointStamped() for _ in range(n)]
-        for msg in self._catch_point_msgs:
-            msg.header.frame_id = contract.FIELD_FRAME
-
         self._ball_msgs = _BallMessages(Odometry(), String(), PointStamped(), Float64(), Bool())
         q = contract
         self._state_pub = contract_publisher(self, q.BALL_STATE)
@@ -329,9 +324,12 @@ class BallPredictorNode(Node):
         self._catch_point_pubs = [
             contract_publisher(self, q.CATCH_POINT, q.CATCH_POINT.for_robot(i)) for i in range(n)
         ]
-        contract_subscription(self, q.VISION_BALL, self._on_ball)
+        # Vision comes in and catch outputs go out serialized (conversions' codec): on the path
+        # from a frame to its catch times rclpy's message objects cost more than the maths.
+        contract_subscription(self, q.VISION_BALL, self._on_ball, raw=True)
         for i in range(n):
-            contract_subscription(self, q.VISION_POSE, lambda m, i=i: self._on_robot(i, m), q.VISION_POSE.for_robot(i))
+            contract_subscription(self, q.VISION_POSE, lambda m, i=i: self._on_robot(i, m), q.VISION_POSE.for_robot(i),
+                                  raw=True)
         # Everything runs on vision stamps; ROS time only stamps the logs: no wake per /clock.
         self._clock_subs = sample_clock(self)
         self.get_logger().info(
@@ -363,7 +361,7 @@ class BallPredictorNode(Node):
             self._fit_future = None  # a fit still running is not used
 
     # ------------------------------------------------------------------ robots
-    def _on_robot(self, robot: int, msg: PoseStamped) -> None:
+    def _on_robot(self, robot: int, msg: bytes) -> None:
         cfg = self._config
         try:
             t_s, pose = pose2d_from_msg(msg)
@@ -430,13 +428,13 @@ class BallPredictorNode(Node):
         return fresh, np.array(rows)
 
     # -------------------------------------------------------------------- ball
-    def _on_ball(self, msg: PointStamped) -> None:
+    def _on_ball(self, msg: bytes) -> None:
         try:
             self._ball_frame(msg)
         finally:
             run_sampled(self._clock_subs)  # after the outputs: not on the latency path
 
-    def _ball_frame(self, msg: PointStamped) -> None:
+    def _ball_frame(self, msg: bytes) -> None:
         start = time.perf_counter()
         cfg = self._config
         try:
@@ -513,7 +511,7 @@ class BallPredictorNode(Node):
         """catch_time, then catch_point, of every fresh robot: one robotTimeToBall run for the team.
 
         All values are checked before the first publish (a bad one raises ValueError and nothing
-        goes out); the catch times go out before the points are even filled in. Returns when the
+        goes out); the catch times go out before the points are even serialized. Returns when the
         last catch time went out (perf_counter), None when no robot is fresh.
         """
         cfg = self._config
@@ -529,33 +527,26 @@ class BallPredictorNode(Node):
         facing = facing_angles(cfg.facing_fixed, cfg.facing_rad, traj, pos, cfg.rest_speed_mps)
         catch = self._search.run(traj, pos, self._robot_vel_mps, facing)
         # Per robot in plain floats (22 values; numpy calls cost more than they save here). All are
-        # checked before the first publish, with the checks of float64_msg / point_msg.
+        # checked before the first publish, with the checks of float64_cdr / point_cdr.
         kinds, times, points = catch.kind.tolist(), catch.time_s.tolist(), catch.robot_target_m.tolist()
+        seconds_to_stamp(t_s)  # the points' stamp
         for i in ids:
             if kinds[i] == _NEVER:
                 times[i] = contract.CATCH_TIME_NEVER  # and no catch point: catch_time says so
             else:
                 times[i] += cfg.reaction_s
                 x, y = points[i]
-                if not (abs(times[i]) <= MAX_ABS_VALUE and abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE):
-                    float64_msg(times[i])
-                    point_msg(t_s, points[i])
-        # Refilled, not rebuilt: publish() serializes at once.
-        time_msgs, time_pubs = self._catch_time_msgs, self._catch_time_pubs
-        for i in ids:
-            msg = time_msgs[i]
-            msg.data = times[i]
-            time_pubs[i].publish(msg)
+                if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE):
+                    point_cdr(t_s, points[i])  # raises, naming the value
+        time_data = [float64_cdr(times[i]) for i in ids]
+        time_pubs = self._catch_time_pubs
+        for i, data in zip(ids, time_data, strict=True):
+            time_pubs[i].publish(data)
         times_out = time.perf_counter()
-        stamp = seconds_to_stamp(t_s)
-        point_msgs, point_pubs = self._catch_point_msgs, self._catch_point_pubs
+        point_pubs = self._catch_point_pubs
         for i in ids:
             if kinds[i] != _NEVER:
-                msg = point_msgs[i]
-                msg.header.stamp = stamp
-                point = msg.point
-                point.x, point.y = points[i]
-                point_pubs[i].publish(msg)
+                point_pubs[i].publish(point_cdr(t_s, points[i]))
         # The catch outputs' readers are often woken onto this CPU (the scheduler places a wakee
         # beside its waker) and would wait behind the rest of this frame: let them run first.
         os.sched_yield()

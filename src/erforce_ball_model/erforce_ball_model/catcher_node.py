@@ -19,7 +19,6 @@ import math
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray
@@ -179,16 +178,18 @@ class CatcherNode(Node):
         self._target_at = -math.inf  # robot time a target was last chosen
         q = contract
         self._cmd_pub = contract_publisher(self, q.CMD_VEL)
+        # catch_time and catch_point come serialized, as the predictor publishes them (conversions'
+        # codec reads both forms)
         self._inputs = [
-            sample_only(contract_subscription(self, topic, callback))
-            for topic, callback in (
-                (q.ODOM, self._on_odom),
-                (q.CATCH_TIME, self._on_catch_time),
-                (q.CATCH_POINT, self._on_catch_point),
-                (q.BALL_STATE, self._on_ball),
-                (q.BALL_V_SHOOT, self._on_v_shoot),
-                (q.BALL_MODEL_PARAMS, self._on_model_params),
-                (q.BALL_DETECTED, self._on_barrier),
+            sample_only(contract_subscription(self, topic, callback, raw=raw))
+            for topic, callback, raw in (
+                (q.ODOM, self._on_odom, False),
+                (q.CATCH_TIME, self._on_catch_time, True),
+                (q.CATCH_POINT, self._on_catch_point, True),
+                (q.BALL_STATE, self._on_ball, False),
+                (q.BALL_V_SHOOT, self._on_v_shoot, False),
+                (q.BALL_MODEL_PARAMS, self._on_model_params, False),
+                (q.BALL_DETECTED, self._on_barrier, False),
             )
         ]
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
@@ -216,10 +217,10 @@ class CatcherNode(Node):
             self._warn.warn(what, f"rejected {what}: {exc}")
             return None
 
-    def _on_catch_time(self, msg: Float64) -> None:
+    def _on_catch_time(self, msg: bytes) -> None:
         self._catch_time = self._stamped(msg, "catch_time", float64_from_msg) or self._catch_time
 
-    def _on_catch_point(self, msg: PointStamped) -> None:
+    def _on_catch_point(self, msg: bytes) -> None:
         self._target = self._stamped(msg, "catch_point", lambda m: np.array(point_from_msg(m)[1])) or self._target
 
     def _on_v_shoot(self, msg: Float64) -> None:

@@ -40,8 +40,8 @@ from erforce_interfaces.conversions import (
     nanoseconds_to_stamp,
     odometry_from_msg,
     odometry_msg,
-    point_msg,
-    pose2d_msg,
+    point_cdr,
+    pose2d_cdr,
     table_msg,
 )
 from erforce_interfaces.lockstep import DutyGate
@@ -415,11 +415,12 @@ class PlantNode(Node):
             self._publish_truth(t_ns * 1e-9)
 
     def _publish_vision(self, frame) -> None:
+        # serialized, as the ball predictor takes them (conversions' codec)
         t = frame.t_capture_s
         for ball in frame.balls:
-            self._vision_ball_pub.publish(point_msg(t, (ball.x, ball.y)))
+            self._vision_ball_pub.publish(point_cdr(t, (ball.x, ball.y)))
         for det in frame.robots:
-            self._pubs[det.robot_id]["vision"].publish(pose2d_msg(t, (det.x, det.y, det.theta)))
+            self._pubs[det.robot_id]["vision"].publish(pose2d_cdr(t, (det.x, det.y, det.theta)))
 
     def _publish_truth(self, t_s: float) -> None:
         b = self.world.ball_state()
