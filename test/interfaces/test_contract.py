@@ -11,9 +11,11 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseStamped, Twist
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64, Header
+from std_msgs.msg import Float64, Float64MultiArray, Header
 
 from erforce_interfaces import contract as c
 from erforce_interfaces import conversions as conv
@@ -145,6 +147,7 @@ def test_serialized_joint_state_matches_a_hand_made_layout():
 
 
 _any_floats = st.lists(st.floats(width=64), max_size=6)  # NaN, inf and huge values included
+_ros_text = st.text(st.characters(codec="utf-8", exclude_characters="\x00"), max_size=12)  # a ROS string ends at its first NUL
 
 
 @settings(max_examples=300, deadline=None)
@@ -273,7 +276,7 @@ def test_serialized_point_pose_and_float64_are_read_like_messages(x, y, z, qx, q
 
 @settings(max_examples=200, deadline=None)
 @given(t_s=st.floats(0.0, 2.0**31 - 1.0), x=st.floats(-1e3, 1e3), y=st.floats(-1e3, 1e3), yaw=st.floats(-1e6, 1e6),
-       frame=st.text(max_size=12))
+       frame=_ros_text)
 def test_serialized_point_pose_and_float64_builders_round_trip_through_rclpy(t_s, x, y, yaw, frame):
     assert deserialize_message(conv.point_cdr(t_s, (x, y), frame), PointStamped) == conv.point_msg(t_s, (x, y), frame)
     assert deserialize_message(conv.pose2d_cdr(t_s, (x, y, yaw), frame), PoseStamped) == conv.pose2d_msg(
@@ -320,6 +323,68 @@ def test_random_bytes_never_raise_anything_but_a_conversion_error_for_any_codec(
                 read(data)
             except conv.ConversionError:
                 pass
+
+
+def test_serialized_odometry_matches_rclpy_but_for_the_padding():
+    """Header "field" and child "ball": frame_id at payload 8, padding 18-19, child_frame_id at 20,
+    padding 29-31, then 85 doubles from 32 (pose, its covariance, twist, its covariance)."""
+    args = (3.5, (1.0, -2.0, 0.5), (0.25, -0.5, 0.0), "ball")
+    kwargs = dict(spin=(1.0, 2.0, 3.0), position_variance_m2=4e-6)
+    built = conv.odometry_cdr(*args, **kwargs)
+    assert len(built) == 4 + 32 + 85 * 8
+    assert struct.unpack_from("<85d", built, 36)[:8] == (1.0, -2.0, 0.0, 0.0, 0.0, math.sin(0.25), math.cos(0.25), 4e-6)
+    reference = serialize_message(conv.odometry_msg(*args, **kwargs))
+    padding = {22, 23, 33, 34, 35}  # file offsets (payload offset + 4)
+    assert [b for i, b in enumerate(reference[: len(built)]) if i not in padding] == [
+        b for i, b in enumerate(built) if i not in padding]
+    assert deserialize_message(built, Odometry) == conv.odometry_msg(*args, **kwargs)
+
+
+_small = st.floats(-1e3, 1e3)
+
+
+@settings(max_examples=200, deadline=None)
+@given(t_s=st.floats(0.0, 2.0**31 - 1.0), pose=st.tuples(_small, _small, st.floats(-1e6, 1e6)),
+       velocity=st.tuples(_small, _small, _small), spin=st.none() | st.tuples(*[st.floats(-1e5, 1e5)] * 3),
+       variance=st.none() | _small, child=_ros_text, frame=_ros_text)
+def test_serialized_odometry_round_trips_through_rclpy(t_s, pose, velocity, spin, variance, child, frame):
+    kwargs = dict(child_frame_id=child, frame_id=frame, spin=spin, position_variance_m2=variance)
+    expected = conv.odometry_msg(t_s, pose, velocity, **kwargs)
+    assert deserialize_message(conv.odometry_cdr(t_s, pose, velocity, **kwargs), Odometry) == expected
+
+
+def test_serialized_odometry_refuses_what_the_message_builder_refuses():
+    good = dict(t_s=1.0, pose=(0.0, 0.0, 0.0), velocity=(0.0, 0.0, 0.0))
+    for bad in (math.nan, math.inf, 2e3):
+        for change in (dict(pose=(bad, 0.0, 0.0)), dict(velocity=(0.0, bad, 0.0)), dict(velocity=(0.0, 0.0, bad)),
+                       dict(spin=(0.0, 0.0, bad * 1e3)), dict(position_variance_m2=bad), dict(t_s=-bad)):
+            for build in (conv.odometry_msg, conv.odometry_cdr):
+                with pytest.raises(conv.ConversionError):
+                    build(**{**good, **change})
+
+
+@settings(max_examples=200, deadline=None)
+@given(rows=st.integers(1, 4).flatmap(lambda n: st.lists(st.lists(st.floats(-1e9, 1e9), min_size=n, max_size=n),
+                                                         min_size=1, max_size=5).map(lambda r, n=n: (n, r))),
+       row_label=_ros_text)
+def test_serialized_table_round_trips_through_rclpy(rows, row_label):
+    n_cols, table = rows
+    labels = [f"c{k}" for k in range(n_cols)]
+    built = conv.table_cdr(table, labels, row_label)
+    assert deserialize_message(built, Float64MultiArray) == conv.table_msg(table, labels, row_label)
+
+
+def test_serialized_table_refuses_what_the_message_builder_refuses():
+    labels = ["a", "b"]
+    for bad in ([[1.0, math.nan]], [[math.inf, 0.0]], [[2e9, 0.0]], [[1.0, 2.0, 3.0]], [[1.0]]):
+        for build in (conv.table_msg, conv.table_cdr):
+            with pytest.raises(conv.ConversionError):
+                build(bad, labels)
+
+
+@given(t_ns=st.integers(0, 2**31 * 10**9 - 1))
+def test_serialized_clock_round_trips_through_rclpy(t_ns):
+    assert deserialize_message(conv.clock_cdr(t_ns), Clock) == Clock(clock=conv.nanoseconds_to_stamp(t_ns))
 
 
 def test_table_round_trip_and_labels():

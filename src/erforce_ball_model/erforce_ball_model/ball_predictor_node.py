@@ -28,10 +28,8 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
-from geometry_msgs.msg import PointStamped
-from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from std_msgs.msg import Bool, Float64, Float64MultiArray, String
+from std_msgs.msg import Bool, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
 from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits
@@ -43,11 +41,9 @@ from erforce_interfaces.conversions import (
     MAX_ABS_VALUE,
     ConversionError,
     float64_cdr,
-    float64_msg,
-    odometry_msg,
+    odometry_cdr,
     point_cdr,
     point_from_msg,
-    point_msg,
     pose2d_from_msg,
     seconds_to_stamp,
     table_msg,
@@ -282,12 +278,9 @@ def model_params_table(fit: FitResult, in_use: BallModelParams) -> Float64MultiA
 
 
 class _BallMessages(NamedTuple):
-    """The ball topics' messages, refilled every frame."""
+    """The ball topics' small messages, refilled every frame (the others go out serialized)."""
 
-    state: Odometry
     phase: String
-    stop: PointStamped
-    v_shoot: Float64
     uncertain: Bool
 
 
@@ -311,7 +304,7 @@ class BallPredictorNode(Node):
         # stamp: not seen yet), and the velocities as the array the catch search takes.
         self._robot_states = [(math.nan, 0.0, 0.0, 0.0, 0.0)] * n
         self._robot_vel_mps = np.zeros((n, 2))
-        self._ball_msgs = _BallMessages(Odometry(), String(), PointStamped(), Float64(), Bool())
+        self._ball_msgs = _BallMessages(String(), Bool())
         q = contract
         self._state_pub = contract_publisher(self, q.BALL_STATE)
         self._phase_pub = contract_publisher(self, q.BALL_PHASE)
@@ -389,7 +382,7 @@ class BallPredictorNode(Node):
         self._robot_states[robot] = (tracker.t_s, *tracker.position_m.tolist(), *vel.tolist())
         self._robot_vel_mps[robot] = vel
         try:
-            odom = odometry_msg(
+            odom = odometry_cdr(
                 t_s, (*tracker.position_m, tracker.heading_rad), (vel[0], vel[1], tracker.angular_velocity_radps),
                 child_frame_id=contract.robot_frame(robot),
             )
@@ -485,7 +478,7 @@ class BallPredictorNode(Node):
             self._identify(t_s, xy)
 
     def _publish_ball_outputs(self, t_s: float, status: UpdateStatus, traj: BallTrajectory) -> None:
-        """The ball topics, refilled; all are filled (and checked) before the first goes out."""
+        """The ball topics; all are built (and checked) before the first goes out."""
         cfg, ball, f = self._config, self._ball, traj.floats
         if status == UpdateStatus.INITIALIZED:
             phase = "unknown"
@@ -495,16 +488,16 @@ class BallPredictorNode(Node):
             phase = PHASE_NAMES[traj.phase]
         stop = (f.x_m + f.ux * f.stop_distance_m, f.y_m + f.uy * f.stop_distance_m)
         msgs = self._ball_msgs
-        odometry_msg(t_s, (f.x_m, f.y_m, 0.0), (f.vx_mps, f.vy_mps, 0.0), child_frame_id="ball",
-                     position_variance_m2=ball.position_variance_m2, out=msgs.state)
-        point_msg(t_s, stop, out=msgs.stop)
-        msgs.v_shoot.data = float64_msg(f.v_shoot_mps).data
+        state = odometry_cdr(t_s, (f.x_m, f.y_m, 0.0), (f.vx_mps, f.vy_mps, 0.0), child_frame_id="ball",
+                             position_variance_m2=ball.position_variance_m2)
+        stop_point = point_cdr(t_s, stop)
+        v_shoot = float64_cdr(f.v_shoot_mps)
         msgs.phase.data = phase
         msgs.uncertain.data = bool(ball.uncertain)
-        self._state_pub.publish(msgs.state)
+        self._state_pub.publish(state)
         self._phase_pub.publish(msgs.phase)
-        self._stop_pub.publish(msgs.stop)
-        self._v_shoot_pub.publish(msgs.v_shoot)
+        self._stop_pub.publish(stop_point)
+        self._v_shoot_pub.publish(v_shoot)
         self._uncertain_pub.publish(msgs.uncertain)
 
     def _publish_catch_outputs(self, t_s: float, traj: BallTrajectory) -> float | None:

@@ -218,6 +218,23 @@ def odometry_msg(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     return msg
 
 
+def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], child_frame_id: str = "",
+                 frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
+                 position_variance_m2: float | None = None) -> bytes:
+    """``odometry_msg`` serialized (see the codec below), with the same checks."""
+    x, y, q = _finite("x", pose[0]), _finite("y", pose[1]), quaternion_from_yaw(pose[2])
+    vx, vy = _finite("vx", velocity[0]), _finite("vy", velocity[1])
+    if spin is not None:
+        angular = tuple(_finite(f"spin.{axis}", value, 1.0e5) for axis, value in zip("xyz", spin[:3], strict=True))
+    else:
+        angular = (0.0, 0.0, _finite("wz", velocity[2]))
+    variance = 0.0 if position_variance_m2 is None else _finite("position variance", position_variance_m2)
+    stamp = _stamp.pack(*_stamp_parts(_seconds_to_ns(t_s)))
+    # pose (position, orientation), its 6x6 covariance, twist (linear, angular), its covariance
+    return _CDR_LE + stamp + _strings_cdr((frame_id, child_frame_id)) + _odometry_doubles.pack(
+        x, y, 0.0, q.x, q.y, q.z, q.w, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy, 0.0, *angular, *_ZEROS)
+
+
 def odometry_from_msg(msg: Odometry) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
     """(stamp [s], pose [x, y, yaw], velocity [vx, vy, wz], angular [wx, wy, wz])."""
     p = msg.pose.pose.position
@@ -349,16 +366,28 @@ def _cdr_names(names: tuple[str, ...]) -> bytes:
 _f64 = struct.Struct("<d")
 
 
-@functools.lru_cache(maxsize=16)
-def _frame_id_cdr(frame_id: str) -> bytes:
-    raw = frame_id.encode() + b"\x00"
-    out = _u32.pack(len(raw)) + raw
-    return out + bytes(-(8 + len(out)) % 8)
+_odometry_doubles = struct.Struct("<85d")
+_ZEROS = (0.0,) * 36
+
+
+@functools.lru_cache(maxsize=64)
+def _strings_cdr(strings: tuple[str, ...]) -> bytes:
+    """Strings that follow the stamp (from payload offset 8), padded so that doubles come next."""
+    out = bytearray()
+    for text in strings:
+        raw = text.encode() + b"\x00"
+        out += bytes(-(8 + len(out)) % 4) + _u32.pack(len(raw)) + raw
+    return bytes(out + bytes(-(8 + len(out)) % 8))
 
 
 def _stamped_cdr(t_s: float, frame_id: str, values: tuple[float, ...]) -> bytes:
     stamp = _stamp.pack(*_stamp_parts(_seconds_to_ns(t_s)))
-    return _CDR_LE + stamp + _frame_id_cdr(frame_id) + struct.pack(f"<{len(values)}d", *values)
+    return _CDR_LE + stamp + _strings_cdr((frame_id,)) + struct.pack(f"<{len(values)}d", *values)
+
+
+def clock_cdr(t_ns: int) -> bytes:
+    """A rosgraph_msgs/Clock at ``t_ns`` serialized (the plant sends one per tick)."""
+    return _CDR_LE + _stamp.pack(*_stamp_parts(int(t_ns)))
 
 
 def _decode_stamped(data: bytes, num_doubles: int, what: str) -> tuple[float, tuple[float, ...]]:
@@ -451,6 +480,30 @@ def table_msg(rows: np.ndarray, column_labels: Sequence[str], row_label: str = "
     ]
     msg.data = table.ravel().tolist()
     return msg
+
+
+def table_cdr(rows: Sequence[Sequence[float]], column_labels: Sequence[str], row_label: str = "rows") -> bytes:
+    """``table_msg`` serialized, with the same checks (rows: a list of equal-length rows)."""
+    columns = tuple(column_labels)
+    flat = [float(v) for row in rows for v in row]
+    n_rows = len(rows)
+    if any(len(row) != len(columns) for row in rows):
+        raise ConversionError(f"table rows must have {len(columns)} columns")
+    flat = _checked_floats("table", flat, n_rows * len(columns), 1.0e9)
+    return _CDR_LE + _table_layout_cdr(row_label, n_rows, columns) + struct.pack(f"<{len(flat)}d", *flat)
+
+
+@functools.lru_cache(maxsize=64)
+def _table_layout_cdr(row_label: str, n_rows: int, columns: tuple[str, ...]) -> bytes:
+    """Float64MultiArray up to its doubles: the two dimensions, data_offset 0 and the data count."""
+    n_cols = len(columns)
+    out = bytearray(_u32.pack(2))
+    for label, size, stride in ((row_label, n_rows, n_rows * n_cols), (",".join(columns), n_cols, n_cols)):
+        raw = label.encode() + b"\x00"
+        out += bytes(-len(out) % 4) + _u32.pack(len(raw)) + raw
+        out += bytes(-len(out) % 4) + _u32.pack(size) + _u32.pack(stride)
+    out += bytes(-len(out) % 4) + _u32.pack(0) + _u32.pack(n_rows * n_cols)
+    return bytes(out + (bytes(-len(out) % 8) if n_rows * n_cols else b""))
 
 
 def table_from_msg(msg: Float64MultiArray, column_labels: Sequence[str]) -> np.ndarray:

@@ -21,7 +21,7 @@ from erforce_interfaces.conversions import (
     ConversionError,
     joint_state_cdr,
     joint_state_from_msg,
-    table_msg,
+    table_cdr,
     wheel_states_from_msg,
 )
 from erforce_interfaces.executor import run_sampled, sample_only
@@ -241,7 +241,7 @@ class MotorBoardsNode(Node):
                 [st.average_current_a[i], st.pwm_limit[i], float(st.saturated[i]), float(st.limit_active[i])]
                 for i in range(loop.robot.num_wheels)
             ]
-            self._status_pub.publish(table_msg(rows, contract.MOTOR_STATUS_COLUMNS, "wheels"))
+            self._status_pub.publish(table_cdr(rows, contract.MOTOR_STATUS_COLUMNS, "wheels"))
 
 
 def main(args: list[str] | None = None) -> int:
