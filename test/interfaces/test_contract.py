@@ -147,7 +147,8 @@ def test_serialized_joint_state_matches_a_hand_made_layout():
 
 
 _any_floats = st.lists(st.floats(width=64), max_size=6)  # NaN, inf and huge values included
-_ros_text = st.text(st.characters(codec="utf-8", exclude_characters="\x00"), max_size=12)  # a ROS string ends at its first NUL
+# a ROS string ends at its first NUL
+_ros_text = st.text(st.characters(codec="utf-8", exclude_characters="\x00"), max_size=12)
 
 
 @settings(max_examples=300, deadline=None)
