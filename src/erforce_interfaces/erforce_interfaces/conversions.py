@@ -360,7 +360,7 @@ def _cdr_names(names: tuple[str, ...]) -> bytes:
 
 # PointStamped, PoseStamped and Float64 likewise: the ball predictor's path from a vision frame to
 # its catch times takes and publishes them, and there rclpy's message objects cost more than the
-# maths (a PointStamped took 137 us to take as a message and 26 us as bytes, medians in the demo).
+# maths (a PointStamped took 139 us to take as a message and 26 us as bytes, medians in the demo).
 # Layout: the stamp, frame_id (length, characters, NUL), padding so that the doubles start at a
 # multiple of 8 from the payload start, then the doubles (Point: x y z; Pose: x y z, qx qy qz qw).
 _f64 = struct.Struct("<d")
