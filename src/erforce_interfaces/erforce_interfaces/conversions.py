@@ -229,7 +229,7 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     else:
         angular = (0.0, 0.0, _finite("wz", velocity[2]))
     variance = 0.0 if position_variance_m2 is None else _finite("position variance", position_variance_m2)
-    stamp = _stamp.pack(*_stamp_parts(_seconds_to_ns(t_s)))
+    stamp = _stamp_cdr(_seconds_to_ns(t_s))
     # pose (position, orientation), its 6x6 covariance, twist (linear, angular), its covariance
     return _CDR_LE + stamp + _strings_cdr((frame_id, child_frame_id)) + _odometry_doubles.pack(
         x, y, 0.0, q.x, q.y, q.z, q.w, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy, 0.0, *angular, *_ZEROS)
@@ -328,10 +328,14 @@ _u32 = struct.Struct("<I")
 _stamp = struct.Struct("<iI")
 
 
+def _stamp_cdr(t_ns: int) -> bytes:
+    return _stamp.pack(*_stamp_parts(int(t_ns)))
+
+
 def joint_state_cdr(t_ns: int, names: Sequence[str], *, velocity: Sequence[float] | None = None,
                     effort: Sequence[float] | None = None) -> bytes:
     """``joint_state_msg`` serialized (for ``Publisher.publish``), with the same checks."""
-    parts = [_CDR_LE, _stamp.pack(*_stamp_parts(int(t_ns))), _cdr_names(tuple(names))]
+    parts = [_CDR_LE, _stamp_cdr(t_ns), _cdr_names(tuple(names))]
     offset = 8 + len(parts[2])
     for name, values in (("position", None), ("velocity", velocity), ("effort", effort)):
         if values is None:
@@ -358,14 +362,13 @@ def _cdr_names(names: tuple[str, ...]) -> bytes:
     return bytes(out)
 
 
-# PointStamped, PoseStamped and Float64 likewise: the ball predictor's path from a vision frame to
-# its catch times takes and publishes them, and there rclpy's message objects cost more than the
-# maths (a PointStamped took 139 us to take as a message and 26 us as bytes, medians in the demo).
-# Layout: the stamp, frame_id (length, characters, NUL), padding so that the doubles start at a
-# multiple of 8 from the payload start, then the doubles (Point: x y z; Pose: x y z, qx qy qz qw).
+# The stamped messages sent often (PointStamped, PoseStamped, Odometry, Clock) and Float64 likewise:
+# on the ball predictor's path and in the plant's every tick rclpy's message objects cost more than
+# the maths (a PointStamped took 139 us to take as a message and 26 us as bytes, medians in the demo).
+# Layout: the stamp, the header's strings (length, characters, NUL), padding so that the doubles start
+# at a multiple of 8 from the payload start, then the doubles (Point: x y z; Pose: x y z, qx qy qz qw;
+# Odometry: pose, its 6x6 covariance, twist, its covariance).
 _f64 = struct.Struct("<d")
-
-
 _odometry_doubles = struct.Struct("<85d")
 _ZEROS = (0.0,) * 36
 
@@ -381,13 +384,13 @@ def _strings_cdr(strings: tuple[str, ...]) -> bytes:
 
 
 def _stamped_cdr(t_s: float, frame_id: str, values: tuple[float, ...]) -> bytes:
-    stamp = _stamp.pack(*_stamp_parts(_seconds_to_ns(t_s)))
-    return _CDR_LE + stamp + _strings_cdr((frame_id,)) + struct.pack(f"<{len(values)}d", *values)
+    return (_CDR_LE + _stamp_cdr(_seconds_to_ns(t_s)) + _strings_cdr((frame_id,))
+            + struct.pack(f"<{len(values)}d", *values))
 
 
 def clock_cdr(t_ns: int) -> bytes:
     """A rosgraph_msgs/Clock at ``t_ns`` serialized (the plant sends one per tick)."""
-    return _CDR_LE + _stamp.pack(*_stamp_parts(int(t_ns)))
+    return _CDR_LE + _stamp_cdr(t_ns)
 
 
 def _decode_stamped(data: bytes, num_doubles: int, what: str) -> tuple[float, tuple[float, ...]]:
@@ -485,12 +488,10 @@ def table_msg(rows: np.ndarray, column_labels: Sequence[str], row_label: str = "
 def table_cdr(rows: Sequence[Sequence[float]], column_labels: Sequence[str], row_label: str = "rows") -> bytes:
     """``table_msg`` serialized, with the same checks (rows: a list of equal-length rows)."""
     columns = tuple(column_labels)
-    flat = [float(v) for row in rows for v in row]
-    n_rows = len(rows)
     if any(len(row) != len(columns) for row in rows):
         raise ConversionError(f"table rows must have {len(columns)} columns")
-    flat = _checked_floats("table", flat, n_rows * len(columns), 1.0e9)
-    return _CDR_LE + _table_layout_cdr(row_label, n_rows, columns) + struct.pack(f"<{len(flat)}d", *flat)
+    flat = _checked_floats("table", [v for row in rows for v in row], len(rows) * len(columns), 1.0e9)
+    return _CDR_LE + _table_layout_cdr(row_label, len(rows), columns) + struct.pack(f"<{len(flat)}d", *flat)
 
 
 @functools.lru_cache(maxsize=64)
