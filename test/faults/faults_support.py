@@ -112,9 +112,13 @@ class ClosedLoop:
         self.graph = graph
         self.robot_yaml = robot_yaml
         self.probe = graph.probe
+        # The first tick waits for the /clock reader of every use_sim_time node and of the watch:
+        # otherwise sim time runs ahead while a slow starter (the ball predictor loads its numba
+        # kernels) comes up, and a test's sim-time budget is spent before that node takes part.
+        clock_readers = 2 + 2 * with_ball_model + (contract.CLOCK.name not in set(exclude))
         self.params = {
             "plant": {"robot_poses": [0.0, 0.0, 0.0], "ball": [-2.0, 2.0, 0.0, 0.0], "real_time_factor": 1.0,
-                      "lockstep_timeout_s": 0.3, **(plant or {})},
+                      "lockstep_timeout_s": 0.3, "start_clock_subscribers": clock_readers, **(plant or {})},
             "velocity_controller": {"use_sim_time": True, **(vc or {})},
             "motor_boards": {"use_sim_time": True, **(mb or {})},
             "ball_predictor": {"use_sim_time": True, "num_robots": 1, **(predictor or {})},

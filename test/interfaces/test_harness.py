@@ -20,6 +20,16 @@ def test_message_crosses_dds_from_a_node_process(ros_graph):
     assert msg.data.startswith("ping ")
 
 
+def test_wait_for_subscribers_does_not_count_the_probes_own_reader(ros_graph):
+    """A test that watches a topic it publishes on must still wait for the node under test."""
+    ros_graph.subscribe("/chatter", String, QOS_COMMAND)  # the probe's own reader matches its writer
+    with pytest.raises(TimeoutError):
+        ros_graph.probe.wait_for_subscribers("/chatter", String, timeout_s=1.0)
+    ros_graph.start_node("erforce_interfaces", "listener")
+    pub = ros_graph.probe.wait_for_subscribers("/chatter", String, timeout_s=15.0)
+    assert pub.get_subscription_count() == 2  # the listener and the probe's own reader
+
+
 def test_two_concurrent_domains_do_not_cross_talk(tmp_path):
     with RosGraph(tmp_path / "a") as a, RosGraph(tmp_path / "b") as b:
         assert a.domain_id != b.domain_id

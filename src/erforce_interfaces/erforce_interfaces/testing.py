@@ -344,8 +344,16 @@ class _Probe:
 
     def wait_for_subscribers(self, topic: str, msg_type: type, count: int = 1, timeout_s: float = 10.0,
                              qos=None) -> Any:
+        """The probe's publisher on ``topic`` once ``count`` readers of other nodes have matched it.
+
+        The probe's own readers of the topic (a test watching it) match its writer too and are not
+        counted: counting them let a test publish before the node under test had been discovered,
+        which here sometimes takes over a second.
+        """
         pub = self.publisher(topic, msg_type, qos)
-        self.spin_until(lambda: pub.get_subscription_count() >= count, timeout_s, f"{count} subscriber(s) on {topic}")
+        own = sum(1 for sub in self.node.subscriptions if sub.topic_name == pub.topic_name)
+        self.spin_until(lambda: pub.get_subscription_count() - own >= count, timeout_s,
+                        f"{count} subscriber(s) on {topic} besides the probe's own {own}")
         return pub
 
     def set_parameter(self, node_name: str, name: str, value: Any, timeout_s: float = 10.0):
