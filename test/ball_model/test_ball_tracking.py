@@ -128,6 +128,41 @@ def test_ball_put_down_elsewhere_is_at_rest_not_fast():
     np.testing.assert_allclose(tr.position_m, [1.5, -0.4], atol=0.005)
 
 
+def test_ball_put_down_elsewhere_right_after_a_held_frame_is_tracked_at_once():
+    # Seen in the demo: a kicked ball is caught (it stops dead), the receiver nudges it 2 cm (one
+    # frame outside the gate, held back), and the next frame shows it put down 3.8 m away. Those
+    # two frames imply 260 m/s; read as one motion they made a 260 m/s v_shoot that stuck, and no
+    # prediction came out until the next kick.
+    rng = np.random.default_rng(7)
+    dt = 1.0 / 70.0
+    tr = BallTracker()
+
+    def frame(k, xy):
+        x, y = np.asarray(xy, dtype=float) + rng.normal(0.0, 0.002, 2)
+        return tr.update(k * dt, x, y)
+
+    frame(0, (-1.0, 0.0))  # at rest, then kicked at 2 m/s along +x
+    for k in range(1, 40):
+        frame(k, (-1.0 + 2.0 * (k - 1) * dt, 0.0))
+    assert tr.kick_count == 1 and tr.v_shoot_mps == pytest.approx(2.0, abs=0.15)
+    stop = np.array([-1.0 + 2.0 * 38 * dt, 0.0])
+    for k in range(40, 50):  # caught: it stops dead
+        frame(k, stop)
+    assert np.hypot(*tr.velocity_mps) < 0.1
+    assert frame(50, stop + [0.02, 0.0]) == UpdateStatus.HELD_BACK  # nudged
+    placed = np.array([-2.9, 0.0])
+    # The frame after the held one cannot have followed it (3.8 m in 14 ms): it is held instead,
+    # and the next frame at the new place confirms a ball at rest there.
+    assert frame(51, placed) == UpdateStatus.HELD_BACK
+    assert frame(52, placed) == UpdateStatus.MANEUVER
+    assert frame(53, placed) == UpdateStatus.ACCEPTED
+    traj = tr.trajectory()  # raised "speed above 100 m/s" here before
+    assert np.hypot(*traj.velocity_at(0.0)) < 0.1
+    np.testing.assert_allclose(tr.position_m, placed, atol=0.005)
+    assert tr.v_shoot_mps == 0.0  # a ball at rest has no shot
+    assert tr.kick_count == 1 and tr.ricochet_count == 0
+
+
 def test_bad_input_is_rejected_without_changing_the_state():
     tr = BallTracker()
     assert tr.update(1.0, 0.0, 0.0) == UpdateStatus.INITIALIZED

@@ -150,6 +150,9 @@ PARAMS = (
     ),
     ParamSpec("max_gap_s", _TRACK.max_gap_s, "a longer gap between frames restarts the ball filter [s]",
               min=0.01, max=60.0),
+    ParamSpec("max_ball_speed_mps", _TRACK.max_ball_speed_mps,
+              "two vision frames further apart than this speed allows are not one motion (a ball put down "
+              "elsewhere, a false detection): the newer is held back [m/s]", min=1.0, max=100.0),
     ParamSpec("online_identification", False, "fit a_slide, a_roll, c_switch from completed shots and use them"),
     ParamSpec("ident_min_shots", 3, "shots needed before a fit may replace the model", min=1, max=50),
     ParamSpec(
@@ -227,6 +230,7 @@ def build_config(values: dict[str, Any]) -> PredictorConfig:
             kick_threshold_mps=values["kick_threshold_mps"],
             ricochet_angle_rad=values["ricochet_angle_rad"],
             max_gap_s=values["max_gap_s"],
+            max_ball_speed_mps=values["max_ball_speed_mps"],
         ),
         field=FieldConfig.preset(values["field"]),
         field_margin_m=values["field_margin_m"],

@@ -10,9 +10,10 @@ provides both, made robust to vision noise (1-3 mm, 60-75 Hz, dropouts):
   has on a decelerating ball.
 * Maneuver detection by innovation gating: one observation outside the gate is held back as a
   possible outlier; a second consecutive one confirms a maneuver and the filter is re-seeded from
-  the two observations. A maneuver that raises the speed by more than ``kick_threshold_mps`` (and
-  3 sigma of the two-point velocity) is a *kick*; one that turns the direction by more than
-  ``ricochet_angle_rad`` while moving is a *ricochet* (paper Sec. 5.3).
+  the two observations; two frames further apart than ``max_ball_speed_mps`` allows are not one
+  motion, and the newer is held back instead. A maneuver that raises the speed by more than
+  ``kick_threshold_mps`` (and 3 sigma of the two-point velocity) is a *kick*; one that turns the
+  direction by more than ``ricochet_angle_rad`` while moving is a *ricochet* (paper Sec. 5.3).
 * ``v_shoot``: after a kick (or ricochet) it is the median, over the next frames while the ball
   slides, of ``speed + |a_slide| * (t - t_event)`` (the speed extrapolated back to the event), so
   single noisy velocity estimates do not move it. Otherwise the paper rule applies with a noise
@@ -117,6 +118,8 @@ class TrackerConfig:
     shoot_window_s: float = 0.15
     fit_frames: int = 6
     max_gap_s: float = 1.0  # longer gaps re-initialize the filter
+    # Two frames further apart than this speed allows are not one motion (the SSL limit is 6.5 m/s).
+    max_ball_speed_mps: float = 10.0
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
@@ -235,12 +238,18 @@ class BallTracker:
             self._after_accept()
             return UpdateStatus.ACCEPTED
 
-        if self._held is None:
-            self._held = (t_s, *z)  # maybe an outlier: wait for the next frame
+        if self._held is None or not self._one_motion(t_s, z):
+            # Maybe an outlier: wait for the next frame. A held frame this one cannot have followed
+            # (a ball put down elsewhere right after it was seen, a false detection) is dropped for it.
+            self._held = (t_s, *z)
             self._fit_ok.append(False)
             return UpdateStatus.HELD_BACK
         self._maneuver(t_s, z)
         return UpdateStatus.MANEUVER
+
+    def _one_motion(self, t_s: float, z: tuple[float, float]) -> bool:
+        t1, x1, y1 = self._held
+        return math.hypot(z[0] - x1, z[1] - y1) <= self.config.max_ball_speed_mps * (t_s - t1)
 
     def _maneuver(self, t_s: float, z: tuple[float, float]) -> None:
         cfg = self.config
@@ -258,6 +267,8 @@ class BallTracker:
             # or the noise of the next frames reads as tenths of m/s; a real slow motion is picked
             # up through the process noise.
             v_new, speed_new, var_v = np.zeros(2), 0.0, RESTING_VELOCITY_STD_MPS**2
+            # A ball at rest has no shot: the kick speed of its past must not shape its next motion.
+            self.v_shoot_mps, self.last_event_time_s, self._shoot_samples, self._rolling = 0.0, None, [], False
         t_prev = self._prev_obs[0] if self._prev_obs else t1
         self.kf.reset(z, v_new, cfg.position_noise_m**2, var_v)
         self.t_s, self._held, self._prev_obs = t_s, None, (t_s, *z)
