@@ -125,3 +125,30 @@ def test_run_node_takes_the_start_up_objects_out_of_the_gc_before_spinning():
     finally:
         gc.unfreeze()
     assert seen and seen[0] > 10_000  # rclpy and numpy alone leave tens of thousands
+
+
+def test_run_node_ends_cleanly_when_ctrl_c_shut_the_context_under_a_publishing_callback():
+    """SIGINT shuts the context down at once; a callback that publishes right after got
+    "publisher's context is invalid" and the node died with a traceback (a restarted motor board in
+    a fault test). That is the shutdown: exit code 0. The same error with the context alive is not."""
+    from rclpy.impl.implementation_singleton import rclpy_implementation
+    from std_msgs.msg import Empty
+
+    RCLError = rclpy_implementation.RCLError
+
+    class PublishesAfterShutdown(rclpy.node.Node):
+        def __init__(self, shut_down_first):
+            super().__init__("shutdown_probe")
+            self._pub = self.create_publisher(Empty, "shutdown_probe", 1)
+            self._shut_down_first = shut_down_first
+            self.create_timer(0.01, self._tick)
+
+        def _tick(self):
+            if not self._shut_down_first:
+                raise RCLError("a publish failed with the context alive")  # a real fault
+            self.context.shutdown()  # what rclpy's SIGINT handler does
+            self._pub.publish(Empty())
+
+    assert run_node(lambda: PublishesAfterShutdown(True), args=[]) == 0
+    with pytest.raises(RCLError, match="context alive"):
+        run_node(lambda: PublishesAfterShutdown(False), args=[])

@@ -23,6 +23,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -253,6 +254,11 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         pass
     except SystemExit as exc:  # a node may end itself (e.g. the plant's stop_after_s)
         code = exc.code if isinstance(exc.code, int) else 0
+    except _rclpy.RCLError:
+        # Ctrl-C shuts the context down at once, also under a callback that is about to publish;
+        # its "context is invalid" is the shutdown, not a fault.
+        if node is None or node.context.ok():
+            raise
     finally:
         if node is not None:
             node.destroy_node()
