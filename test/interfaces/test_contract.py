@@ -440,3 +440,12 @@ def test_field_presets():
     assert a.contains(5.9, 4.4) and not a.contains(6.1, 0.0)
     with pytest.raises(ValueError, match="unknown field preset"):
         FieldConfig.preset("division_c")
+
+
+def test_dds_profile_env_points_at_the_stacks_profile_unless_one_is_named():
+    path = c.dds_profile_path()
+    assert path.name == "fastdds_profile.xml" and "<leaseAnnouncement>" in path.read_text()
+    assert c.dds_profile_env({}) == dict.fromkeys(c.DDS_PROFILE_VARIABLES, str(path))
+    assert c.dds_profile_env({"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"}) == {}
+    assert c.dds_profile_env({"FASTDDS_DEFAULT_PROFILES_FILE": "/mine.xml"}) == {}
+    assert c.dds_profile_env({"FASTRTPS_DEFAULT_PROFILES_FILE": ""}) != {}  # empty is unset

@@ -20,6 +20,7 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
+from erforce_interfaces.contract import DDS_PROFILE_VARIABLES
 from erforce_interfaces.launcher import (
     Resolver,
     Subst,
@@ -209,6 +210,22 @@ def test_print_and_pkg_file_form_on_the_command_line(capsys):
     assert first.startswith(f"[talker-1] {BIN / 'talker'} --ros-args -r __node:=talker -r __ns:=/demo --params-file ")
     assert "        rate_hz: 12.5" in out.splitlines()
     assert re.search(r"^\[listener-2\] .*/listener --ros-args -r __node:=listener -r __ns:=/demo$", out, re.M)
+
+
+@pytest.mark.parametrize("launch_file", ["erforce_sim/launch/demo.launch.yaml",
+                                         "erforce_sim/launch/sim_one_robot.launch.yaml",
+                                         "erforce_motion/launch/robot.launch.yaml"])
+def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(launch_file, monkeypatch):
+    path = REPO / "src" / launch_file
+    for name in DDS_PROFILE_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    specs = resolve(path)
+    assert specs
+    for spec in specs.values():
+        assert {name: spec.env[name] for name in DDS_PROFILE_VARIABLES} == dict.fromkeys(
+            DDS_PROFILE_VARIABLES, str(REPO / "src/erforce_interfaces/config/fastdds_profile.xml"))
+    monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", "/robot/udp_only.xml")  # the user's own
+    assert {spec.env["FASTRTPS_DEFAULT_PROFILES_FILE"] for spec in resolve(path).values()} == {"/robot/udp_only.xml"}
 
 
 def test_show_args_lists_names_descriptions_and_defaults(capsys):

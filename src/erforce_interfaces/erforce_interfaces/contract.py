@@ -19,7 +19,10 @@ Conventions (REP 103 / REP 105):
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 from geometry_msgs.msg import PointStamped, PoseStamped, Twist
 from nav_msgs.msg import Odometry
@@ -42,6 +45,32 @@ CATCH_TIME_NEVER = -1.0
 
 #: Values of ``/ball/phase``.
 BALL_PHASES = ("unknown", "sliding", "rolling", "stopped")
+
+# DDS participant settings (config/fastdds_profile.xml): announce every 0.5 s, so that a node that
+# (re)starts is matched within about a second. Fast DDS 2 (Jazzy) reads the first variable, 3 the second.
+DDS_PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+
+
+def dds_profile_path() -> Path:
+    """The stack's Fast DDS profile: in the source tree, or in the installed share directory."""
+    source = Path(__file__).resolve().parents[1] / "config" / "fastdds_profile.xml"
+    if source.is_file():
+        return source
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        installed = Path(prefix) / "share" / "erforce_interfaces" / "config" / "fastdds_profile.xml"
+        if prefix and installed.is_file():
+            return installed
+    raise FileNotFoundError("fastdds_profile.xml of erforce_interfaces not found (source tree or AMENT_PREFIX_PATH)")
+
+
+def dds_profile_env(environ: Mapping[str, str] = os.environ) -> dict[str, str]:
+    """The variables to add to a process environment for the stack's profile; none when ``environ``
+    already names a profile (the user's own, or the two-host test's UDP-only one)."""
+    if any(environ.get(name) for name in DDS_PROFILE_VARIABLES):
+        return {}
+    path = str(dds_profile_path())
+    return dict.fromkeys(DDS_PROFILE_VARIABLES, path)
+
 
 # QoS profiles. Vision behaves like a camera: best effort, newest wins. Commands and the
 # lockstep control loop are reliable: a lost duty message would stall a tick.

@@ -191,6 +191,9 @@ class RosGraph:
             _TAG_VAR: self.tag,
         })
         self.env.pop("ROS_STATIC_PEERS", None)
+        from erforce_interfaces.contract import dds_profile_env
+
+        self.env.update(dds_profile_env(self.env))  # a restarted node is matched within ~1 s
         self.processes: list[NodeProcess] = []
         self._probe = None
         self._counter = 0
@@ -409,6 +412,13 @@ except ImportError:  # pragma: no cover - the harness is also usable without pyt
     pytest = None
 
 if pytest is not None:
+
+    def pytest_configure(config) -> None:
+        """The probes in this process use the stack's DDS profile too (Fast DDS reads it once, at the
+        process's first participant): a new node is matched quickly only if both sides announce often."""
+        from erforce_interfaces.contract import dds_profile_env
+
+        os.environ.update(dds_profile_env())
 
     @pytest.fixture
     def ros_graph(tmp_path: Path, request) -> Iterator[RosGraph]:

@@ -593,6 +593,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    os.environ.update(contract.dds_profile_env())  # for the director and the recorder too
     return Demo(args).run()
 
 
