@@ -52,15 +52,14 @@ DDS_PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROF
 
 
 def dds_profile_path() -> Path:
-    """The stack's Fast DDS profile: in the source tree, or in the installed share directory."""
-    source = Path(__file__).resolve().parents[1] / "config" / "fastdds_profile.xml"
-    if source.is_file():
-        return source
-    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        installed = Path(prefix) / "share" / "erforce_interfaces" / "config" / "fastdds_profile.xml"
-        if prefix and installed.is_file():
-            return installed
-    raise FileNotFoundError("fastdds_profile.xml of erforce_interfaces not found (source tree or AMENT_PREFIX_PATH)")
+    """The stack's Fast DDS profile, in erforce_interfaces' share directory (as $(find-pkg-share))."""
+    from erforce_interfaces.launcher import find_package_share  # nodes that never need it skip the import
+
+    share = find_package_share("erforce_interfaces")
+    path = None if share is None else share / "config" / "fastdds_profile.xml"
+    if path is None or not path.is_file():
+        raise FileNotFoundError("config/fastdds_profile.xml of erforce_interfaces not found")
+    return path
 
 
 def dds_profile_env(environ: Mapping[str, str] = os.environ) -> dict[str, str]:
