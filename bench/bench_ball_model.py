@@ -163,7 +163,7 @@ def bench_catch_speed(quick: bool) -> list[dict]:
 def _dense_reference(ball, robots, rv, facing, limits):
     """First crossing per robot by dense sampling + bisection; also the first window's width."""
     t_stop = float(ball.stop_time_s)
-    t_max = min(t_stop, float(ball.time_to_leave_field(FIELD)))
+    t_max = min(t_stop, float(ball.time_in_field(FIELD)[1]))
     grid = np.arange(0.0, t_max, DENSE_STEP_S)
     grid = np.append(grid, t_max)
     start = robots + OFFSET_M * np.stack([np.cos(facing), np.sin(facing)], axis=-1)

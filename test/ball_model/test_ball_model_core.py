@@ -65,7 +65,7 @@ def test_ball_at_rest():
     np.testing.assert_allclose(ball.position_at([0.0, 3.0]), [[1.0, 1.0], [1.0, 1.0]])
     assert ball.time_to_distance(0.0) == 0.0
     assert math.isinf(ball.time_to_distance(0.1))
-    assert math.isinf(ball.time_to_leave_field(FieldConfig.preset("division_b")))
+    assert ball.time_in_field(FieldConfig.preset("division_b")) == (0.0, math.inf)
 
 
 def test_batch_outer_product_matches_single_balls():
@@ -88,14 +88,14 @@ def test_batch_outer_product_matches_single_balls():
                      "stop_time_s", "stop_distance_m"):
             np.testing.assert_allclose(getattr(single, name), getattr(batch, name)[i], rtol=1e-15, err_msg=name)
             assert getattr(single, name).shape == getattr(batch, name).shape[1:]
-        # advanced() and time_to_leave_field() also have a float path for one ball
+        # advanced() and time_in_field() also have a float path for one ball
         for dt in (0.0, 0.05, 0.7, 2.5, 30.0):
             later = single.advanced(dt)
             np.testing.assert_allclose(later.position_m, batch.position_at(dt)[i], rtol=1e-14, atol=1e-15)
             np.testing.assert_allclose(later.velocity_mps, batch.velocity_at(dt)[i], rtol=1e-14, atol=1e-15)
         for field, margin in ((FieldConfig.preset("division_b"), 0.0), (FieldConfig.preset("division_a"), -4.0)):
-            np.testing.assert_allclose(single.time_to_leave_field(field, margin),
-                                       batch.time_to_leave_field(field, margin)[i], rtol=1e-15)
+            for one, many in zip(single.time_in_field(field, margin), batch.time_in_field(field, margin), strict=True):
+                np.testing.assert_allclose(one, many[i], rtol=1e-15)
         # The one-ball floats are the batch's numbers, and the phase now is phase_at(0).
         f = BallTrajectory(tuple(pos[i]), tuple(vel[i]), float(shoot[i])).floats
         np.testing.assert_allclose(f[:2], pos[i], rtol=0)
@@ -157,23 +157,72 @@ def test_monotone_and_continuous(speed, shoot, p):
     np.testing.assert_allclose(fd[smooth], ball.speed_at(mid[smooth]), atol=1e-6)
 
 
+def _leave(ball, field, margin=0.0):
+    return float(ball.time_in_field(field, margin)[1])
+
+
 def test_leaving_field_division_a_and_b():
     ball = BallTrajectory([0.0, 0.0], [6.5, 0.0], 6.5)
     # Division B: line at x = 4.5 m, reached while sliding: 4.5 = 6.5 t - 1.25 t^2.
     t_b = (6.5 - math.sqrt(6.5**2 - 5.0 * 4.5)) / 2.5
-    assert ball.time_to_leave_field(FieldConfig.preset("division_b")) == pytest.approx(t_b)
+    assert ball.time_in_field(FieldConfig.preset("division_b")) == (0.0, pytest.approx(t_b))
     # Division A: line at x = 6 m, reached while rolling (switch at 1.04 s, 5.408 m, 3.9 m/s).
     tau = (3.9 - math.sqrt(3.9**2 - 0.6 * (6.0 - 5.408))) / 0.3
-    assert ball.time_to_leave_field(FieldConfig.preset("division_a")) == pytest.approx(1.04 + tau)
+    assert _leave(ball, FieldConfig.preset("division_a")) == pytest.approx(1.04 + tau)
     # Margin extends the field.
-    assert ball.time_to_leave_field(FieldConfig.preset("division_b"), 0.3) > t_b
+    assert _leave(ball, FieldConfig.preset("division_b"), 0.3) > t_b
     # Diagonal: the side line (y = 3 m) comes first.
     diag = BallTrajectory([0.0, 2.0], [3.0, 3.0], 5.0)
     t_side = float(diag.time_to_distance(math.sqrt(2.0)))
-    assert diag.time_to_leave_field(FieldConfig.preset("division_b")) == pytest.approx(t_side)
-    # Stops inside: +inf; already outside: 0.
-    assert math.isinf(BallTrajectory([0.0, 0.0], [1.0, 0.0], 1.0).time_to_leave_field(FieldConfig.preset("division_b")))
-    assert BallTrajectory([5.0, 0.0], [-1.0, 0.0], 1.0).time_to_leave_field(FieldConfig.preset("division_b")) == 0.0
+    assert _leave(diag, FieldConfig.preset("division_b")) == pytest.approx(t_side)
+    # Stops inside: +inf.
+    assert math.isinf(_leave(BallTrajectory([0.0, 0.0], [1.0, 0.0], 1.0), FieldConfig.preset("division_b")))
+
+
+def test_entering_field_from_the_run_off_area():
+    div_b = FieldConfig.preset("division_b")
+    # 0.5 m outside the goal line, rolling back in at 1 m/s (v_shoot 1: rolls after 0.128 m of sliding,
+    # stops after 0.728 m). It crosses x = 4.5 after 0.5 m and stops inside.
+    ball = BallTrajectory([5.0, 0.0], [-1.0, 0.0], 1.0)
+    t_in, t_out = ball.time_in_field(div_b)
+    assert t_in == pytest.approx(float(ball.time_to_distance(0.5))) and math.isinf(t_out)
+    # Across a corner of the field and out again: in at the side line y = -3, out at the goal line x = 4.5.
+    cross = BallTrajectory([4.0, -3.3], [3.0, 3.0], 6.0)
+    t_in, t_out = cross.time_in_field(div_b)
+    assert t_in == pytest.approx(float(cross.time_to_distance(0.3 * math.sqrt(2.0))))
+    assert t_out == pytest.approx(float(cross.time_to_distance(0.5 * math.sqrt(2.0))))
+    # Outside and moving away, stopping short, passing beside the field, or at rest outside: never.
+    for never in (BallTrajectory([5.0, 0.0], [1.0, 0.0], 1.0), BallTrajectory([5.0, 0.0], [-0.3, 0.0], 0.3),
+                  BallTrajectory([5.0, 3.2], [-3.0, 0.0], 3.0), BallTrajectory([5.0, 0.0], [0.0, 0.0], 0.0)):
+        assert never.time_in_field(div_b) == (math.inf, math.inf)
+
+
+def test_time_in_field_matches_brute_force():
+    """The closed form against the path sampled every 0.1 ms (independent: position_at and a box test)."""
+    rng = np.random.default_rng(11)
+    div_b = FieldConfig.preset("division_b")
+    half = np.array([div_b.half_length_m, div_b.half_width_m])
+    balls = BallTrajectory(rng.uniform(-6.0, 6.0, (200, 2)), rng.uniform(-5.0, 5.0, (200, 2)),
+                           rng.uniform(0.0, 7.0, 200))
+    t_in, t_out = balls.time_in_field(div_b)
+    dt = 1e-4
+    for i in range(200):
+        ball = balls[i]
+        t = np.arange(0.0, float(ball.stop_time_s) + dt, dt)
+        inside = (np.abs(ball.position_at(t)) <= half).all(axis=-1)
+        assert (float(t_in[i]), float(t_out[i])) == pytest.approx(ball.time_in_field(div_b))  # one ball alike
+        if not inside.any():
+            assert math.isinf(t_in[i]) and math.isinf(t_out[i])
+            continue
+        first = int(np.argmax(inside))
+        assert t[max(first - 1, 0)] <= t_in[i] <= t[first] + 1e-12
+        after = ~inside[first:]
+        if not after.any():
+            assert math.isinf(t_out[i])
+        else:
+            k = first + int(np.argmax(after))
+            assert t[k - 1] <= t_out[i] <= t[k] + 1e-12
+            assert inside[first:k].all()  # one stretch: the path never comes back in
 
 
 @pytest.mark.parametrize(
@@ -225,9 +274,9 @@ def test_query_validation():
     with pytest.raises(ValueError):
         SHOT.time_to_distance(np.nan)
     with pytest.raises(ValueError):
-        SHOT.time_to_leave_field("division_a")
+        SHOT.time_in_field("division_a")
     with pytest.raises(ValueError):
-        SHOT.time_to_leave_field(FieldConfig.preset("division_b"), -10.0)
+        SHOT.time_in_field(FieldConfig.preset("division_b"), -10.0)
     np.testing.assert_allclose(SHOT.position_at(np.inf), SHOT.stop_point)  # +inf: at rest
 
 

@@ -230,6 +230,37 @@ def test_ball_leaving_the_field_is_never_caught():
     assert res.time_s[0] > ball.stop_time_s
 
 
+
+def test_ball_rolling_back_in_from_the_run_off_area_is_caught_inside_only():
+    """Off a wall the ball is outside the side line, coming back in: the paper's bound (t_out = 0) would say
+    never; the search covers the stretch inside the field instead, from where the ball crosses the line."""
+    # In the run-off area, 0.25 m beyond the side line, rolling (v_shoot 2 m/s) back in.
+    ball = BallTrajectory([0.0, 3.25], [0.9, -0.3], 2.0)
+    t_in = float(ball.time_in_field(DIV_B)[0])
+    assert t_in == pytest.approx(float(ball.time_to_distance(0.25 * math.hypot(0.9, 0.3) / 0.3)))
+    facing = math.atan2(0.3, -0.9)  # against the ball's motion
+    lim = RobotLimits(3.0, 2.5)
+    # A robot waiting where the ball crosses into the field catches it there, not before: the spot next
+    # to it, outside, is excluded even though the robot would be in time for it.
+    crossing = ball.position_at(t_in)
+    robot = crossing - OFFSET * np.array([math.cos(facing), math.sin(facing)])
+    res = robot_time_to_ball(ball, robot, [0.0, 0.0], lim, facing, field=DIV_B)
+    assert res.kind[0] == CatchKind.MOVING
+    assert res.time_s[0] == pytest.approx(t_in, abs=1e-9)
+    # Robots farther inside: the first crossing of t_robot(t) = t after t_in, by a dense reference.
+    t_max = float(ball.stop_time_s)
+    robots = np.array([[1.0, 1.5], [2.0, 2.0], [-1.0, 1.0]])
+    res = robot_time_to_ball(ball, robots, np.zeros((3, 2)), lim, facing, field=DIV_B)
+    for r in range(3):
+        t_ref, _ = _dense_first_crossing(ball, robots[r], np.zeros(2), lim, facing, t_max, t_min=t_in)
+        assert res.kind[r] == CatchKind.MOVING
+        assert t_ref - 1e-5 <= res.time_s[r] <= t_ref + 1e-3
+        assert abs(res.ball_position_m[r, 1]) <= DIV_B.half_width_m + 1e-9
+    # Moving away from the field, or stopping before the line: never.
+    for away in (BallTrajectory([0.0, 3.25], [0.8, 0.02], 0.85), BallTrajectory([0.0, 3.25], [0.0, -0.3], 0.3)):
+        res = robot_time_to_ball(away, [[0.0, 2.5]], [[0.0, 0.0]], lim, facing, field=DIV_B)
+        assert res.kind[0] == CatchKind.NEVER
+
 def test_at_rest_time_of_a_moving_robot_is_an_upper_bound_within_the_sub_grid_step():
     ball = BallTrajectory([1.0, 0.5], [0.0, 0.0], 0.0)
     robots = np.array([[-3.0, 1.0], [2.0, -2.0], [0.0, 3.0]])
@@ -255,9 +286,9 @@ def test_fig6_situation_finds_the_early_window():
 
 
 # --- robotTimeToBall: brute force --------------------------------------------------------------
-def _dense_first_crossing(ball, p0, v0, lim, facing, t_max, step=1e-3):
+def _dense_first_crossing(ball, p0, v0, lim, facing, t_max, step=1e-3, t_min=0.0):
     """Reference from the alpha-search time alone (not the sign test): dense grid + bisection."""
-    grid = np.append(np.arange(0.0, t_max, step), t_max)
+    grid = np.append(np.arange(t_min, t_max, step), t_max)
     off = OFFSET * np.array([math.cos(facing), math.sin(facing)])
     f = robot_time_to_pos(p0, v0, ball.position_at(grid) - off, lim) - grid
     idx = np.flatnonzero(f <= 0.0)
@@ -267,7 +298,7 @@ def _dense_first_crossing(ball, p0, v0, lim, facing, t_max, step=1e-3):
     gaps = np.flatnonzero(f[k:] > 0.0)
     width = (gaps[0] if gaps.size else grid.size - k) * step
     if k == 0:
-        return 0.0, width
+        return t_min, width
     lo, hi = grid[k - 1], grid[k]
     for _ in range(25):
         mid = 0.5 * (lo + hi)
@@ -292,7 +323,7 @@ def test_matches_dense_search_on_random_scenarios():
         facing = rng.uniform(0, 2 * math.pi, n)
         a_max, v_max = rng.uniform(1.5, 4.0, n), rng.uniform(1.5, 3.5, n)
         res = robot_time_to_ball(ball, robots, vels, RobotLimits(a_max, v_max), facing, field=DIV_B)
-        t_max = min(float(ball.stop_time_s), float(ball.time_to_leave_field(DIV_B)))
+        t_max = min(float(ball.stop_time_s), float(ball.time_in_field(DIV_B)[1]))
         for r in range(n):
             lim = RobotLimits(a_max[r], v_max[r])
             t_ref, width = _dense_first_crossing(ball, robots[r], vels[r], lim, facing[r], t_max)

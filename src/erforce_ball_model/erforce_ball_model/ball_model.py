@@ -364,10 +364,13 @@ class BallTrajectory:
             t = np.where(d_slide > 0.0, 2.0 * d_slide / den_s, 0.0)
             return t + np.where(d_roll > 0.0, 2.0 * d_roll / den_r, 0.0)
 
-    def time_to_leave_field(self, field_config: FieldConfig, margin_m: float = 0.0) -> np.ndarray:
-        """First time the ball crosses the field lines (extended by ``margin_m``); +inf if it stops inside.
+    def time_in_field(self, field_config: FieldConfig, margin_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """When the ball is inside the field lines (extended by ``margin_m``): ``(t_enter, t_leave)``.
 
-        0 when the ball is already outside.
+        The straight path meets the field rectangle in one stretch. ``t_enter`` is 0 for a ball
+        inside, the moment it crosses into the field for a ball outside heading in (off a wall, in
+        the run-off area), +inf when it stops before. ``t_leave`` is when it crosses out again,
+        +inf when it stops inside (or never enters). On a line counts as inside.
         """
         if not isinstance(field_config, FieldConfig):
             raise ValueError(f"field_config: expected FieldConfig, got {type(field_config).__name__}")
@@ -378,25 +381,39 @@ class BallTrajectory:
             raise ValueError(f"margin_m: {margin_m} leaves no field")
         f = self.floats
         if f is not None:  # one ball (every predictor frame): the same in floats
-            d_exit = math.inf
+            s_in, s_out = 0.0, math.inf  # the stretch of the path, as distances along it
             for p, u, h in ((f.x_m, f.ux, half[0]), (f.y_m, f.uy, half[1])):
-                if abs(p) > h:
-                    return np.float64(0.0)  # already outside
-                if u != 0.0:
-                    d_exit = min(d_exit, ((h if u > 0.0 else -h) - p) / u)
-            if max(d_exit, 0.0) > f.stop_distance_m:
-                return np.float64(math.inf)
-            return self._travel_time(max(d_exit, 0.0), f.speed_mps, f.v_switch_mps, f.switch_distance_m)
+                if u == 0.0:
+                    if abs(p) > h:
+                        s_in = math.inf
+                    continue
+                s1, s2 = (-h - p) / u, (h - p) / u
+                s_in, s_out = max(s_in, min(s1, s2)), min(s_out, max(s1, s2))
+            d_stop = f.stop_distance_m
+            if s_in > s_out or s_in > d_stop:
+                return np.float64(math.inf), np.float64(math.inf)
+            t_in = self._travel_time(s_in, f.speed_mps, f.v_switch_mps, f.switch_distance_m) if s_in > 0.0 else 0.0
+            if s_out > d_stop:
+                return np.float64(t_in), np.float64(math.inf)
+            return np.float64(t_in), np.float64(self._travel_time(s_out, f.speed_mps, f.v_switch_mps,
+                                                                  f.switch_distance_m))
         pos, u, half = self.position_m, self.direction, np.array(half)
         with np.errstate(divide="ignore", invalid="ignore"):
-            exit_dist = np.where(u > 0.0, (half - pos) / u, np.where(u < 0.0, (-half - pos) / u, np.inf))
-        d_exit = np.maximum(exit_dist.min(axis=-1), 0.0)
-        outside = (np.abs(pos) > half).any(axis=-1)
-        d_exit = np.where(outside, 0.0, d_exit)
-        beyond = d_exit > self.stop_distance_m
-        t = self._travel_time(np.minimum(d_exit, self.stop_distance_m), self.speed_mps, self.v_switch_mps,
-                              self.switch_distance_m)
-        return np.where(beyond & ~outside, np.inf, t)
+            s1, s2 = (-half - pos) / u, (half - pos) / u
+        still = u == 0.0  # no motion along the axis: inside for all s, or never
+        lo = np.where(still, np.where(np.abs(pos) > half, np.inf, -np.inf), np.minimum(s1, s2))
+        hi = np.where(still, np.inf, np.maximum(s1, s2))
+        s_in = np.maximum(lo.max(axis=-1), 0.0)
+        s_out = hi.min(axis=-1)
+        d_stop = self.stop_distance_m
+        never = (s_in > s_out) | (s_in > d_stop)
+        travel = self._travel_time  # of distances at most the stop distance
+        t_in = np.where(never, np.inf, travel(np.minimum(s_in, d_stop), self.speed_mps, self.v_switch_mps,
+                                               self.switch_distance_m))
+        t_out = np.where(never | (s_out > d_stop), np.inf,
+                         travel(np.clip(s_out, 0.0, d_stop), self.speed_mps, self.v_switch_mps,
+                                self.switch_distance_m))
+        return t_in, t_out
 
     def advanced(self, dt_s: float) -> BallTrajectory:
         """The same ball ``dt_s`` seconds later (same kick speed, so the phases stay consistent)."""

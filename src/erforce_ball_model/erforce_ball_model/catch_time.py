@@ -23,7 +23,10 @@ Reachability test without the alpha search
 
 robotTimeToBall (beyond the paper)
     ``f(t) = t_robot(ball_position_at(t) - offset) - t`` is sampled per robot on a
-    grid of step h over ``[0, min(t_stop, t_out)]`` (grid points 0, h, 2h, ... and the end point).
+    grid of step h over ``[t_in, min(t_stop, t_out)]`` (grid points t_in, t_in + h, ... and the end
+    point), the stretch of the path inside the field (``BallTrajectory.time_in_field``). The paper's
+    interval starts at 0; ``t_in`` > 0 is a ball in the run-off area rolling back in (off a wall),
+    whose catch points inside the field the paper's bound (``t_out`` = 0) would never search.
     Guarantee: every interval of length >= h contains a grid point, so the robot's first catch
     window (an interval where f <= 0) is never missed when it is at least h wide; in that case the
     returned time is feasible (f <= 0 there), never earlier than the true first crossing and at most
@@ -401,15 +404,16 @@ class CatchResult:
 _MOVING, _AT_REST, _NEVER = int(CatchKind.MOVING), int(CatchKind.AT_REST), int(CatchKind.NEVER)
 
 
-@_jit("boolean(float64[::1], float64, float64, boolean, int64, int64, float64, float64, float64[:, ::1], "
-      "float64[:, ::1], float64[::1], float64[::1], float64[::1], float64[::1], int8[::1], float64[:, ::1], "
-      "float64[:, ::1])")
-def _catch_search(ball, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, pos, vel, facing, a, vmax,
+@_jit("boolean(float64[::1], float64, float64, float64, boolean, int64, int64, float64, float64, "
+      "float64[:, ::1], float64[:, ::1], float64[::1], float64[::1], float64[::1], float64[::1], int8[::1], "
+      "float64[:, ::1], float64[:, ::1])")
+def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, pos, vel, facing, a, vmax,
                   time_out, kind_out, ball_out, target_out):
     """robotTimeToBall per robot (the module docstring): time, kind, ball position and robot target.
 
-    Grid pass: points ``min(k h, t_max)``, the exact test only where ``_may_reach`` leaves a
-    chance. Witness: the moment the ball passes the robot's spot. Refinement: leftmost feasible
+    Grid pass: points ``min(t_min + k h, t_max)`` (none when ``t_min > t_max``: the ball is never
+    in the field), the exact test only where ``_may_reach`` leaves a chance. Witness: the moment
+    the ball passes the robot's spot, if in ``[t_min, t_max]``. Refinement: leftmost feasible
     sub-point on ``m1`` then ``m2`` sub-grids (``m2`` 0: one level). No window: robotTimeToPos to
     the stop point when ``stops_inside``, else never. False (and nothing computed) when an input
     of a robot is not finite.
@@ -418,7 +422,9 @@ def _catch_search(ball, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, po
         for v in (pos[r, 0], pos[r, 1], vel[r, 0], vel[r, 1], facing[r]):
             if not math.isfinite(v):
                 return False
-    num = int(math.ceil(t_max / h - 1e-9)) + 1  # noqa: RUF046 (int64 in numba, whatever ceil returns)
+    num = 0
+    if t_min <= t_max:
+        num = int(math.ceil((t_max - t_min) / h - 1e-9)) + 1  # noqa: RUF046 (int64 in numba, whatever ceil returns)
     for r in range(pos.shape[0]):
         ox, oy = offset_m * math.cos(facing[r]), offset_m * math.sin(facing[r])
         rx, ry = pos[r, 0] + ox, pos[r, 1] + oy  # target - start == ball position - (robot + offset)
@@ -427,7 +433,7 @@ def _catch_search(ball, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, po
         right = math.inf  # known feasible
         left_idx = -1  # the grid point before it, known infeasible (-1: none)
         for k in range(num):
-            t = min(k * h, t_max)
+            t = min(t_min + k * h, t_max)
             d = _ball_distance(ball, t)
             dx, dy = ball[0] + ball[2] * d - rx, ball[1] + ball[3] * d - ry
             if _may_reach(dx, dy, rwx, rwy, s0, t, ra, rv) and _can_reach(dx, dy, rwx, rwy, t, ra, rv):
@@ -439,15 +445,16 @@ def _catch_search(ball, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, po
         along = (rx + rwx * abs(rwx) * brake - ball[0]) * ball[2] + (ry + rwy * abs(rwy) * brake - ball[1]) * ball[3]
         if along > 0.0:
             t_pass = _ball_time_to_distance(ball, along)
-            if t_pass <= t_max and t_pass < right and _feasible(ball, t_pass, rx, ry, rwx, rwy, ra, rv):
+            if (t_min <= t_pass <= t_max and t_pass < right
+                    and _feasible(ball, t_pass, rx, ry, rwx, rwy, ra, rv)):
                 right = t_pass
-                left_idx = min(int(t_pass / h), num - 1)  # the last grid point before t_pass
-                while left_idx >= 0 and min(left_idx * h, t_max) >= t_pass:
+                left_idx = min(int((t_pass - t_min) / h), num - 1)  # the last grid point before t_pass
+                while left_idx >= 0 and min(t_min + left_idx * h, t_max) >= t_pass:
                     left_idx -= 1
-                while left_idx + 1 < num and min((left_idx + 1) * h, t_max) < t_pass:
+                while left_idx + 1 < num and min(t_min + (left_idx + 1) * h, t_max) < t_pass:
                     left_idx += 1
         if right < math.inf and left_idx >= 0:
-            left = min(left_idx * h, t_max)
+            left = min(t_min + left_idx * h, t_max)
             for m in (m1, m2):
                 if m == 0:
                     break
@@ -524,13 +531,16 @@ class CatchSearch:
         except (ValueError, TypeError):
             raise ValueError(f"facing_rad: must be a number or one per robot ({self.num_robots})") from None
         t_stop = ball.floats.stop_time_s
-        t_out = float(ball.time_to_leave_field(self._field, self._margin_m)) if self._field is not None else math.inf
+        t_in, t_out = 0.0, math.inf
+        if self._field is not None:
+            t_in, t_out = (float(t) for t in ball.time_in_field(self._field, self._margin_m))
         t_max = min(t_stop, t_out)
-        if t_max / self._h > MAX_GRID_POINTS:  # e.g. a deceleration of micrometres per s^2
-            raise ValueError(f"search horizon {t_max:.6g} s needs more than {MAX_GRID_POINTS} grid points of "
-                             f"{self._h} s")
+        if t_in <= t_max and (t_max - t_in) / self._h > MAX_GRID_POINTS:  # e.g. a_roll of micrometres per s^2
+            raise ValueError(f"search horizon {t_max - t_in:.6g} s needs more than {MAX_GRID_POINTS} grid points "
+                             f"of {self._h} s")
+        stops_inside = t_in < math.inf and t_out == math.inf
         res = self._result
-        if not _catch_search(_ball_constants(ball), t_max, self._h, t_stop < t_out, self._m1, self._m2,
+        if not _catch_search(_ball_constants(ball), t_in, t_max, self._h, stops_inside, self._m1, self._m2,
                              self._rest_tol_s, self._offset_m, _kernel_array(robot_pos_m),
                              _kernel_array(robot_vel_mps), self._facing, self._a, self._vmax, res.time_s, res.kind,
                              res.ball_position_m, res.robot_target_m):
@@ -555,9 +565,9 @@ def robot_time_to_ball(
 
     Robots are vectorized: ``robot_pos_m``/``robot_vel_mps`` of shape (R, 2) (or (2,)),
     ``facing_rad`` scalar or (R,), limits per robot. The robot centre must be at
-    ``ball_position_at(t) - dribbler_offset_m * (cos, sin)(facing)``. Search horizon
-    ``min(t_stop, t_out)``; ``t_out`` from ``field`` (None: the ball never leaves). If there is no
-    window: the robot's time to the stop point when the ball stops first (CatchKind.AT_REST),
+    ``ball_position_at(t) - dribbler_offset_m * (cos, sin)(facing)``. Search interval
+    ``[t_in, min(t_stop, t_out)]``, while the ball is inside ``field`` (None: always). If there is
+    no window: the robot's time to the stop point when the ball stops inside (CatchKind.AT_REST),
     else +inf (CatchKind.NEVER). See the module docstring for the window-detection guarantee.
     One-off calls; a caller that asks every frame keeps a ``CatchSearch``.
     """
