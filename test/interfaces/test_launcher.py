@@ -73,6 +73,14 @@ def started_pids(output: str) -> list[int]:
     return [int(p) for p in re.findall(r"process started with pid \[(\d+)\]", output)]
 
 
+def substituted(tmp_path: Path, text: str, **args: str) -> str:
+    """What ``text`` substitutes to in a launch file (read back as an executable's name)."""
+    path = tmp_path / "subst.launch.yaml"
+    path.write_text(yaml.safe_dump({"launch": [{"executable": {"cmd": "true", "name": text}}]}))
+    (label,) = resolve(path, **args)
+    return label.removesuffix("-1")
+
+
 # ============================================================ substitutions and namespaces
 def test_substitutions_parse_nested_and_quoted_arguments():
     parts = parse_substitutions("a $(find-pkg-share $(var pkg))/x $(env 'MY VAR' \"d $(var y)\")!")
@@ -103,6 +111,49 @@ def test_any_let_value_comes_back_through_var(name, value):
             {"executable": {"cmd": "true", "name": f"x$(var {name})y"}}]}))
         (spec,) = resolve(path).values()
     assert spec.label == f"x{value}y-1"
+
+
+# launch's EqualsSubstitution: both in true/false/1/0 (any case) -> booleans; both floats -> math.isclose; else text
+EQUALS = [
+    ("1.0", "1", True), ("1", "1.0", True), ("1e3", "1000", True), ("0.0", "-0", True),
+    ("1", "1.0000000001", True), ("1", "1.00001", False), ("nan", "nan", False), ("1", "2", False),
+    ("true", "1", True), ("True", "TRUE", True), ("false", "0", True), ("FALSE", "1", False), ("true", "0", False),
+    ("yes", "true", False),  # 'yes' is no bool for equals (only for not/and/or), and no float: text
+    ("abc", "abc", True), ("abc", "ABC", False), ("", "", True), ("a b", "a b", True), ("1", "one", False),
+]
+
+
+@pytest.mark.parametrize(("left", "right", "equal"), EQUALS, ids=[f"{a!r}-{b!r}" for a, b, _ in EQUALS])
+def test_equals_and_not_equals_like_jazzy(tmp_path, left, right, equal):
+    assert substituted(tmp_path, f"$(equals '{left}' '{right}')") == str(equal).lower()
+    assert substituted(tmp_path, f"$(not-equals '{left}' '{right}')") == str(not equal).lower()
+    # the same through launch configurations
+    assert substituted(tmp_path, "$(equals $(var a) $(var b))", a=left, b=right) == str(equal).lower()
+
+
+@pytest.mark.parametrize(("value", "negated"), [
+    ("true", "false"), ("false", "true"), ("1", "false"), ("0", "true"), ("True", "false"), ("FALSE", "true"),
+    ("yes", "false"), ("No", "true"), ("on", "false"), ("OFF", "true"),  # YAML 1.1 booleans, as launch reads them
+])
+def test_not_takes_what_launch_coerces_to_bool(tmp_path, value, negated):
+    assert substituted(tmp_path, f"$(not {value})") == negated
+
+
+@pytest.mark.parametrize(("left", "right", "conj", "disj"), [
+    ("true", "true", "true", "true"), ("true", "false", "false", "true"),
+    ("false", "true", "false", "true"), ("false", "false", "false", "false"),
+    ("1", "True", "true", "true"), ("yes", "0", "false", "true"), ("0", "off", "false", "false"),
+    ("no", "On", "false", "true"),
+])
+def test_and_or_truth_tables(tmp_path, left, right, conj, disj):
+    assert substituted(tmp_path, f"$(and {left} {right})") == conj
+    assert substituted(tmp_path, f"$(or {left} {right})") == disj
+
+
+@pytest.mark.parametrize(("a", "expected"), [("1", "false"), ("1.0", "false"), ("2", "true"), ("x", "true")])
+def test_boolean_substitutions_nest(tmp_path, a, expected):
+    assert substituted(tmp_path, "$(not $(equals $(var a) 1))", a=a) == expected
+    assert substituted(tmp_path, "$(and $(not-equals $(var a) 1) $(or $(var f) 1))", a=a, f="false") == expected
 
 
 @pytest.mark.parametrize(("base", "ns", "expected"), [
@@ -203,6 +254,37 @@ def test_global_actions_conditions_and_env(tmp_path, monkeypatch):
     assert "ERFORCE_DROP_ME" not in spec.env
 
 
+def test_boolean_conditions_choose_includes_and_nodes(tmp_path):
+    (tmp_path / "second.launch.yaml").write_text(textwrap.dedent("""\
+        launch:
+          - arg: {name: who}
+          - node: {pkg: erforce_interfaces, exec: listener, name: "$(var who)"}
+        """))
+    path = tmp_path / "receivers.launch.yaml"
+    path.write_text(textwrap.dedent("""\
+        launch:
+          - arg: {name: receivers, default: "1"}
+          - arg: {name: sim, default: "false"}
+          - include:
+              if: $(not-equals $(var receivers) 1)
+              file: "$(dirname)/second.launch.yaml"
+              arg: [{name: who, value: second}]
+          - node: {pkg: erforce_interfaces, exec: listener, exec_name: only_two, if: "$(equals $(var receivers) 2)"}
+          - node:
+              pkg: erforce_interfaces
+              exec: talker
+              unless: $(or $(var sim) $(equals $(var receivers) 0))
+        """))
+    assert list(resolve(path)) == ["talker-1"]
+    assert list(resolve(path, receivers="1.0")) == ["talker-1"]  # equal as numbers
+    specs = resolve(path, receivers="2")
+    assert list(specs) == ["listener-1", "only_two-2", "talker-3"]
+    assert ros_args(specs["listener-1"]) == ["--ros-args", "-r", "__node:=second"]
+    assert list(resolve(path, receivers="3")) == ["listener-1", "talker-2"]
+    assert list(resolve(path, receivers="0")) == ["listener-1"]
+    assert list(resolve(path, receivers="2", sim="True")) == ["listener-1", "only_two-2"]
+
+
 def test_print_and_pkg_file_form_on_the_command_line(capsys):
     assert main(["erforce_interfaces", "talker_listener.launch.yaml", "rate_hz:=12.5", "--print"]) == 0
     out = capsys.readouterr().out
@@ -212,20 +294,26 @@ def test_print_and_pkg_file_form_on_the_command_line(capsys):
     assert re.search(r"^\[listener-2\] .*/listener --ros-args -r __node:=listener -r __ns:=/demo$", out, re.M)
 
 
-@pytest.mark.parametrize("launch_file", ["erforce_sim/launch/demo.launch.yaml",
-                                         "erforce_sim/launch/sim_one_robot.launch.yaml",
-                                         "erforce_motion/launch/robot.launch.yaml"])
-def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(launch_file, monkeypatch):
+@pytest.mark.parametrize(("launch_file", "args"), [
+    ("erforce_sim/launch/demo.launch.yaml", {}),
+    ("erforce_sim/launch/demo.launch.yaml", {"receivers": "3"}),
+    ("erforce_sim/launch/receiver.launch.yaml", {"robot": "robot_2", "team_robot_ids": "[0, 2]",
+                                                 "robot_side": "false"}),
+    ("erforce_sim/launch/sim_one_robot.launch.yaml", {}),
+    ("erforce_motion/launch/robot.launch.yaml", {}),
+])
+def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(launch_file, args, monkeypatch):
     path = REPO / "src" / launch_file
     for name in DDS_PROFILE_VARIABLES:
         monkeypatch.delenv(name, raising=False)
-    specs = resolve(path)
+    specs = resolve(path, **args)
     assert specs
     for spec in specs.values():
         assert {name: spec.env[name] for name in DDS_PROFILE_VARIABLES} == dict.fromkeys(
             DDS_PROFILE_VARIABLES, str(REPO / "src/erforce_interfaces/config/fastdds_profile.xml"))
     monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", "/robot/udp_only.xml")  # the user's own
-    assert {spec.env["FASTRTPS_DEFAULT_PROFILES_FILE"] for spec in resolve(path).values()} == {"/robot/udp_only.xml"}
+    assert {spec.env["FASTRTPS_DEFAULT_PROFILES_FILE"] for spec in resolve(path, **args).values()} == {
+        "/robot/udp_only.xml"}
 
 
 def test_show_args_lists_names_descriptions_and_defaults(capsys):
@@ -274,6 +362,26 @@ ERRORS = [
     ("no launch key", "nodes: []\n", 1, "expected a top-level 'launch:' list"),
     ("include missing", "launch:\n  - include: {file: 'nope/x.launch.yaml'}\n", 2, "included file not found"),
     ("eval", "launch:\n  - let: {name: a, value: '$(eval 1)'}\n", 2, "unsupported substitution '$(eval)'"),
+    ("eval lists the boolean ones", "launch:\n  - let: {name: a, value: '$(eval 1)'}\n", 2,
+     "anon, equals, not-equals, not, and, or)"),
+    ("not arity", "launch:\n  - let: {name: a, value: x}\n  - let: {name: b, value: '$(not true false)'}\n", 3,
+     "'$(not)' takes 1..1 argument(s), got 2"),
+    ("and arity", "launch:\n  - node:\n      pkg: erforce_interfaces\n      exec: talker\n      if: $(and 1)\n", 5,
+     "'$(and)' takes 2..2 argument(s), got 1"),
+    ("or arity", "launch:\n  - let: {name: b, value: '$(or 1 1 1)'}\n", 2, "'$(or)' takes 2..2 argument(s), got 3"),
+    ("equals arity", "launch:\n  - let: {name: b, value: '$(equals a)'}\n", 2,
+     "'$(equals)' takes 2..2 argument(s), got 1"),
+    ("not-equals arity", "launch:\n  - let: {name: b, value: '$(not-equals)'}\n", 2,
+     "'$(not-equals)' takes 2..2 argument(s), got 0"),
+    ("not a bool", "launch:\n  - arg: {name: n, default: '2'}\n  - node:\n      pkg: erforce_interfaces\n"
+     "      exec: talker\n      unless: $(not $(var n))\n", 6,
+     "'$(not)' needs a boolean (true/false, 1/0, yes/no, on/off), got '2' (in '$(not $(var n))')"),
+    ("and not a bool", "launch:\n  - let: {name: b, value: '$(and true maybe)'}\n", 2,
+     "'$(and)' needs a boolean (true/false, 1/0, yes/no, on/off), got 'maybe'"),
+    ("or empty", "launch:\n  - let: {name: b, value: \"$(or '' true)\"}\n", 2, "'$(or)' needs a boolean"),
+    ("any", "launch:\n  - let: {name: b, value: '$(any true false)'}\n", 2,
+     "'$(any)' fails in ros2 launch on Jazzy (TypeError from its parser); nest '$(or)' instead"),
+    ("all", "launch:\n  - let: {name: b, value: '$(all)'}\n", 2, "'$(all)' fails in ros2 launch on Jazzy"),
     ("choice", "launch:\n  - arg: {name: m, default: 'c', choice: [{value: a}, {value: b}]}\n", 2,
      "argument 'm' is 'c', not one of: a, b"),
 ]

@@ -20,7 +20,10 @@ launch-prefix, sigterm_timeout, sigkill_timeout), ``executable`` (cmd and the pr
 ``push_ros_namespace``, ``set_env``, ``unset_env``, ``set_remap``, ``set_parameter`` (dashed
 spellings too), ``log``; ``if``/``unless`` on every action. Substitutions: ``var``, ``env``,
 ``optenv``, ``find-pkg-share``, ``find-pkg-prefix``, ``find-exec``, ``dirname``, ``filename``,
-``anon``, nested and quoted arguments.
+``anon``, nested and quoted arguments, and launch's boolean ones, each giving 'true' or 'false':
+``equals A B``/``not-equals A B`` (two of true/false/1/0 in any case compare as booleans, two
+numbers with math.isclose, anything else as text), ``not X``, ``and A B``, ``or A B`` (arguments:
+'1', '0' or what YAML reads as a boolean: true, off, Yes, ...; anything else is an error).
 
 Signals (a decision): every child runs in its own process group, so a terminal Ctrl-C reaches the
 launcher only, and the launcher alone decides: SIGINT to each child's group, after
@@ -39,7 +42,8 @@ Deviations from ``ros2 launch`` (all deliberate, see the report in the issue):
 - a missing ``param: {from: ...}`` file is an error (ros2 launch warns and skips it);
 - ``args``/``cmd`` are split with shlex after substitution;
 - an included file's required args may also come from the including scope;
-- no ``$(eval)``, ``$(command)``, Python/XML launch files, event handlers or composable nodes.
+- no ``$(eval)``, ``$(command)``, Python/XML launch files, event handlers or composable nodes;
+  ``$(any)``/``$(all)`` are an error as in ros2 launch on Jazzy, whose YAML/XML parser cannot build them.
 Exit status: 0, or 1 when a non-respawning process failed before shutdown began, 2 for a bad
 command line or launch file (then nothing was started).
 """
@@ -53,6 +57,7 @@ import datetime
 import importlib.metadata
 import importlib.util
 import itertools
+import math
 import os
 import re
 import selectors
@@ -748,7 +753,13 @@ class Resolver:
         args = [self._evaluate(a, scope, f) for a in sub.args]
         arity = {"var": (1, 1), "env": (1, 2), "optenv": (1, 2), "find-pkg-share": (1, 1),
                  "find-pkg-prefix": (1, 1), "find-exec": (1, 1), "dirname": (0, 0), "filename": (0, 0),
-                 "anon": (1, 1)}
+                 "anon": (1, 1), "equals": (2, 2), "not-equals": (2, 2), "not": (1, 1), "and": (2, 2),
+                 "or": (2, 2)}
+        if sub.name in ("any", "all"):
+            # launch exposes them, but its parser calls AnySubstitution(args=[...]) while the constructor
+            # takes *args: the TypeError makes ros2 launch reject every file that uses them
+            raise SubstitutionError(f"'$({sub.name})' fails in ros2 launch on Jazzy (TypeError from its parser); "
+                                    f"nest '$({'or' if sub.name == 'any' else 'and'})' instead")
         if sub.name not in arity:
             raise SubstitutionError(f"unsupported substitution '$({sub.name})' (supported: {', '.join(arity)})")
         lo, hi = arity[sub.name]
@@ -778,7 +789,35 @@ class Resolver:
             return str(f.path.parent)
         if sub.name == "filename":
             return str(f.path)
+        if sub.name in ("equals", "not-equals"):
+            return str(_equals(*args) == (sub.name == "equals")).lower()
+        if sub.name in ("not", "and", "or"):
+            values = [_launch_bool(sub.name, a) for a in args]  # all checked first, as launch does
+            result = not values[0] if sub.name == "not" else (all if sub.name == "and" else any)(values)
+            return str(result).lower()
         return self._anon.setdefault(args[0], f"{args[0]}_{uuid.uuid4().hex[:12]}")  # anon
+
+
+def _equals(left: str, right: str) -> bool:
+    """launch's EqualsSubstitution: bool-like pair as booleans, number pair with math.isclose, else as text."""
+    bools = ("true", "false", "1", "0")
+    if left.lower() in bools and right.lower() in bools:
+        return (left.lower() in ("true", "1")) == (right.lower() in ("true", "1"))
+    try:
+        return math.isclose(float(left), float(right))
+    except ValueError:
+        return left == right
+
+
+def _launch_bool(name: str, text: str) -> bool:
+    """launch's coerce_to_type(text, bool): exactly '1'/'0', else whatever YAML 1.1 loads as a bool."""
+    try:
+        value = yaml.safe_load({"1": "true", "0": "false"}.get(text, text))
+    except yaml.YAMLError:  # launch turns a YAML failure into "cannot convert"
+        value = None
+    if not isinstance(value, bool):
+        raise SubstitutionError(f"'$({name})' needs a boolean (true/false, 1/0, yes/no, on/off), got '{text}'")
+    return value
 
 
 def _type_name(value: Any) -> str:
