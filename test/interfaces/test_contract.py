@@ -52,6 +52,14 @@ def test_per_robot_topics_resolve_under_the_robot_namespace():
         c.robot_namespace(-1)
 
 
+def test_robot_id_of_namespace_inverts_robot_namespace():
+    for i in (0, 3, 17):
+        assert c.robot_id_of_namespace("/" + c.robot_namespace(i)) == i
+        assert c.robot_id_of_namespace(c.robot_namespace(i)) == i
+    for other in ("/", "", "/robot_", "/robot_x", "/robot_-1", "/team/robot_1", "/robot_1/x", "/robot_١"):
+        assert c.robot_id_of_namespace(other) is None, other
+
+
 def test_qos_vision_is_best_effort_and_commands_reliable():
     from rclpy.qos import ReliabilityPolicy
 

@@ -71,6 +71,27 @@ def test_invalid_start_configuration_refuses_to_start(node):
         declare_params(node, SPECS, build)
 
 
+def test_array_parameter_with_an_empty_default_is_typed_and_takes_values_later(node):
+    seen = []
+    specs = (ParamSpec("team", [], "robot ids", min=0, empty_array_of=int),)
+    assert declare_params(node, specs, dict, seen.append)["team"] == []
+    assert seen == [{"team": []}]
+    assert node.set_parameters([Parameter("team", value=[0, 2])])[0].successful
+    assert seen[-1] == {"team": [0, 2]} and list(node.get_parameter("team").value) == [0, 2]
+    assert not node.set_parameters([Parameter("team", value=[0, -1])])[0].successful  # below min
+    assert not node.set_parameters([Parameter("team", value=["a"])])[0].successful  # not integers
+    assert seen[-1] == {"team": [0, 2]}
+
+
+def test_empty_array_default_needs_its_element_type():
+    with pytest.raises(ValueError, match="empty_array_of"):
+        ParamSpec("team", [], "robot ids")
+    with pytest.raises(ValueError, match="empty_array_of"):
+        ParamSpec("team", [1], "robot ids", empty_array_of=int)
+    with pytest.raises(ValueError, match="empty_array_of"):
+        ParamSpec("team", [], "robot ids", empty_array_of=dict)
+
+
 def test_markdown_table_lists_every_parameter_with_its_range():
     text = params_markdown(SPECS)
     assert "| `gain` | `2.0` | [0, 10] | a gain |" in text

@@ -137,6 +137,15 @@ def robot_namespace(robot_id: int) -> str:
     return f"{ROBOT_NAMESPACE_PREFIX}{int(robot_id)}"
 
 
+def robot_id_of_namespace(namespace: str) -> int | None:
+    """The robot id of a robot namespace (``/robot_3`` or ``robot_3`` -> 3); None for any other namespace."""
+    name = namespace.strip("/")
+    digits = name[len(ROBOT_NAMESPACE_PREFIX):]
+    if not name.startswith(ROBOT_NAMESPACE_PREFIX) or not digits.isascii() or not digits.isdigit():
+        return None
+    return int(digits)
+
+
 def robot_frame(robot_id: int) -> str:
     return f"{robot_namespace(robot_id)}/{BASE_LINK}"
 

@@ -21,7 +21,11 @@ from typing import Any
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.exceptions import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    ParameterUninitializedException,
+)
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
@@ -36,7 +40,12 @@ ParamValue = bool | int | float | str | list
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One documented, range-checked node parameter."""
+    """One documented, range-checked node parameter.
+
+    An array parameter whose default is empty names its element type in ``empty_array_of``
+    (int, float, str or bool): ROS cannot type an empty list, so it is declared typed and unset, and
+    reads as ``[]`` until a launch file or a parameter file gives it values.
+    """
 
     name: str
     default: ParamValue
@@ -44,6 +53,13 @@ class ParamSpec:
     min: float | None = None
     max: float | None = None
     read_only: bool = False
+    empty_array_of: type | None = None
+
+    def __post_init__(self) -> None:
+        if (self.default == []) != (self.empty_array_of is not None) or (
+                self.empty_array_of is not None and self.empty_array_of not in _ARRAY_TYPES):
+            raise ValueError(f"{self.name}: an empty default needs empty_array_of (int, float, str or bool), "
+                             "and only an empty default takes it")
 
     def check(self, value: Any) -> str | None:
         """Return why ``value`` is unacceptable, or None."""
@@ -80,6 +96,17 @@ class ParamSpec:
         return f"[{lo}, {hi}]"
 
 
+_ARRAY_TYPES = {int: Parameter.Type.INTEGER_ARRAY, float: Parameter.Type.DOUBLE_ARRAY,
+                str: Parameter.Type.STRING_ARRAY, bool: Parameter.Type.BOOL_ARRAY}
+
+
+def _param_value(node: Node, spec: ParamSpec) -> ParamValue:
+    try:
+        return node.get_parameter(spec.name).value
+    except ParameterUninitializedException:  # a typed, empty array parameter (ParamSpec.empty_array_of)
+        return []
+
+
 def declare_params(
     node: Node,
     specs: Sequence[ParamSpec],
@@ -97,11 +124,12 @@ def declare_params(
     by_name = {s.name: s for s in specs}
     for s in specs:
         try:
-            node.declare_parameter(s.name, s.default, s.descriptor())
+            default = s.default if s.empty_array_of is None else _ARRAY_TYPES[s.empty_array_of]
+            node.declare_parameter(s.name, default, s.descriptor())
         except (InvalidParameterValueException, InvalidParameterTypeException) as exc:
             # e.g. a launch file sets a value outside the declared range: one clear line
             raise ValueError(f"invalid parameter {s.name}: {exc}") from None
-    values = {s.name: node.get_parameter(s.name).value for s in specs}
+    values = {s.name: _param_value(node, s) for s in specs}
     for s in specs:
         reason = s.check(values[s.name])
         if reason:
