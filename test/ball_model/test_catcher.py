@@ -16,6 +16,7 @@ from erforce_ball_model.catcher import (
     line_intercept,
     on_receive_line,
     receive_point,
+    team_receiver,
     wrap_angle,
 )
 from erforce_interfaces.robot_config import FieldConfig
@@ -172,3 +173,20 @@ def test_choose_target_prefers_the_line_then_the_receive_point_then_the_catch_po
     # The ball already passed the robot: nothing to block.
     behind = np.array([-2.5, 0.2, math.pi])
     assert choose_target(behind, still, fast, None, 0.08, cfg, committed=True) is None
+
+
+def test_team_receiver_is_the_first_to_the_ball_and_keeps_the_role_within_the_margin():
+    never = -1.0  # CATCH_TIME_NEVER
+    assert team_receiver({0: 1.2, 2: 0.9, 3: 1.5}, None, 0.1) == 2
+    assert team_receiver({0: 1.2, 2: never, 3: math.inf}, None, 0.1) == 0  # who cannot catch is left out
+    assert team_receiver({0: never, 2: math.nan}, None, 0.1) is None
+    assert team_receiver({}, 3, 0.1) is None
+    assert team_receiver({0: 1.0, 2: 1.0}, None, 0.1) == 0  # a tie goes to the lower id
+    # The receiver keeps the ball while nobody is earlier by more than the margin ...
+    assert team_receiver({0: 1.05, 2: 0.96}, 0, 0.1) == 0
+    # ... and hands it over beyond it, or when it can no longer catch, or when it is not known.
+    assert team_receiver({0: 1.07, 2: 0.96}, 0, 0.1) == 2
+    assert team_receiver({0: never, 2: 1.5}, 0, 0.1) == 2
+    assert team_receiver({2: 1.5, 3: 1.45}, 0, 0.1) == 3
+    with pytest.raises(ValueError):
+        team_receiver({0: 1.0}, None, -0.1)

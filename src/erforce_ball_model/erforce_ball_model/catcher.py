@@ -13,6 +13,9 @@ catch point, the first moment it can catch the ball (the paper's Fig. 6). That
 point has no slack by definition, so a robot that lags behind its plan loses it; the
 receive point is the robust choice whenever it exists.
 
+In a team (``team_receiver``) only the robot that can catch the ball first receives; the others
+hold, so that several catchers on one field do not all run for the same ball.
+
 The translational command follows the same motion model as robotTimeToPos: a
 time-optimal approach with bounded acceleration and speed that arrives at rest,
 ``v = min(v_max, sqrt(2 a_max d))`` towards the target. Orientation is a saturated
@@ -23,6 +26,7 @@ shapes and tracks it.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -240,3 +244,23 @@ def choose_target(
         if block is not None and math.dist(block, pose[:2]) <= cfg.commit_distance_m:
             return block
     return None
+
+
+def team_receiver(catch_times_s: Mapping[int, float], previous: int | None, switch_margin_s: float) -> int | None:
+    """The robot of a team that receives the ball: the one with the earliest catch time (robotTimeToBall).
+
+    ``catch_times_s`` maps robot id to its catch time; a robot that cannot catch the ball (``inf``, or a
+    negative time such as CATCH_TIME_NEVER) or is not known is left out. The ``previous`` receiver keeps
+    the role unless another robot is earlier by more than ``switch_margin_s``: every robot of the team
+    decides alone, from predictions that jitter frame by frame, and a role that flaps makes two robots
+    start and stop. Ties go to the lower id. None when nobody can catch the ball.
+    """
+    if not (math.isfinite(switch_margin_s) and switch_margin_s >= 0.0):
+        raise ValueError(f"switch_margin_s must be finite and >= 0, got {switch_margin_s!r}")
+    able = {i: t for i, t in catch_times_s.items() if 0.0 <= t < math.inf}  # NaN fails both comparisons
+    if not able:
+        return None
+    first = min(able, key=lambda i: (able[i], i))
+    if previous in able and able[previous] <= able[first] + switch_margin_s:
+        return previous
+    return first

@@ -7,6 +7,9 @@ ball's line has time to spare (catcher.receive_point). It holds still when no ca
 or its inputs are stale, and once the light barrier sees the ball. The maths is in
 erforce_ball_model.catcher.
 
+In a team (``team_robot_ids``) it also reads the teammates' catch times, and only the robot that
+can catch the ball first drives to it (catcher.team_receiver); the others hold.
+
 It acts only in its ``rate_hz`` tick, on the newest inputs, so it does not wake for each of
 the ~6 messages per vision frame: its subscriptions are sampled at the tick
 (erforce_interfaces.executor.sample_only / run_sampled), in the order they were sent, and an
@@ -24,7 +27,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
-from erforce_ball_model.catcher import CatcherConfig, catch_twist, choose_target
+from erforce_ball_model.catcher import CatcherConfig, catch_twist, choose_target, team_receiver
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
@@ -132,6 +135,23 @@ PARAMS = (
         max=5.0,
     ),
     ParamSpec("field", "division_b", "field preset: division_a | division_b (receive points stay inside it)"),
+    ParamSpec(
+        "team_robot_ids",
+        [],
+        "robot ids of the team's catchers, this robot's included (it runs in namespace robot_<id>): only the "
+        "one that can catch the ball first receives, the others hold; empty = this robot alone",
+        min=0,
+        max=1_000_000,
+        read_only=True,
+        empty_array_of=int,
+    ),
+    ParamSpec(
+        "team_switch_margin_s",
+        0.1,
+        "the team's receiver keeps the ball until another robot's catch time is this much earlier [s]",
+        min=0.0,
+        max=5.0,
+    ),
 ) + robot_param_specs()
 
 
@@ -192,7 +212,25 @@ class CatcherNode(Node):
                 (q.BALL_DETECTED, self._on_barrier, False),
             )
         ]
+        self._team = self._team_inputs(self._values["team_robot_ids"])
+        self._receiver = None  # the team's receiver as this robot last decided
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
+
+    def _team_inputs(self, team_ids) -> dict[int, list]:
+        """The teammates' catch times ({id: [robot time of arrival, seconds]}), sampled at the tick."""
+        team = {int(i) for i in team_ids}
+        if not team:
+            return {}
+        self._own_id = contract.robot_id_of_namespace(self.get_namespace())
+        if self._own_id is None or self._own_id not in team:
+            raise ValueError(f"team_robot_ids {sorted(team)}: a team catcher runs in the namespace of one of its "
+                             f"robots (robot_<id>), this one runs in '{self.get_namespace()}'")
+        times = {i: [-math.inf, contract.CATCH_TIME_NEVER] for i in team if i != self._own_id}
+        for i in times:
+            sub = contract_subscription(self, contract.CATCH_TIME, lambda m, i=i: self._on_team_catch_time(i, m),
+                                        contract.CATCH_TIME.for_robot(i), raw=True)
+            self._inputs.append(sample_only(sub))
+        return times
 
     def _set_config(self, built: tuple[CatcherConfig, float, float, FieldConfig]) -> None:
         self._config, self._dribbler_offset_m, self._robot_radius_m, self._field = built
@@ -222,6 +260,11 @@ class CatcherNode(Node):
 
     def _on_catch_point(self, msg: bytes) -> None:
         self._target = self._stamped(msg, "catch_point", lambda m: np.array(point_from_msg(m)[1])) or self._target
+
+    def _on_team_catch_time(self, robot: int, msg: bytes) -> None:
+        stamped = self._stamped(msg, f"robot_{robot} catch_time", float64_from_msg)
+        if stamped is not None:
+            self._team[robot][:] = stamped
 
     def _on_v_shoot(self, msg: Float64) -> None:
         self._v_shoot = self._stamped(msg, "v_shoot", float64_from_msg) or self._v_shoot
@@ -263,7 +306,7 @@ class CatcherNode(Node):
         if now - self._ball_moving_at > self._values["disengage_after_rest_s"]:
             self._engaged = False
         active = self._engaged or self._values["fetch_resting_ball"]
-        if active and self._fresh(self._pose, now) and not self._holding_ball:
+        if active and self._fresh(self._pose, now) and not self._holding_ball and self._receives(now):
             target = self._choose_target(now)
             if target is not None:
                 pose, facing = self._pose[1], self._facing(now)
@@ -275,6 +318,18 @@ class CatcherNode(Node):
         else:
             self._target_at = -math.inf  # a commitment is to one ball in flight
         self._cmd_pub.publish(twist_msg(twist))
+
+    def _receives(self, now: float) -> bool:
+        """Alone, always; in a team, when it is the team's receiver, or nobody can catch the ball by the
+        predictions (then each robot judges alone, as on the ball's line)."""
+        if not self._team:
+            return True
+        stale_s = self._values["stale_after_s"]
+        times = {i: t for i, (t_arrived, t) in self._team.items() if now - t_arrived <= stale_s}
+        if self._fresh(self._catch_time, now):
+            times[self._own_id] = self._catch_time[1]
+        self._receiver = team_receiver(times, self._receiver, self._values["team_switch_margin_s"])
+        return self._receiver is None or self._receiver == self._own_id
 
     def _facing(self, now: float) -> float:
         """Face the incoming ball, as the predictor assumed; keep the heading otherwise."""

@@ -52,6 +52,9 @@ from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_interfaces.testing import stop_process
 
 RECEIVER, KICKER = 0, 1
+# --receivers 2 and 3 add these receivers, in this order; their catchers form a team with robot_0's (the
+# first to the ball receives). They wait at these poses in every scene, downfield of robot_0.
+TEAMMATE_POSES = {2: (2.5, -1.0, math.pi), 3: (2.5, 1.0, math.pi)}
 LAUNCH_FILE = Path(__file__).resolve().parents[1] / "launch" / "demo.launch.yaml"
 PREDICTION_LEAD_S = 0.3  # the prediction compared with the truth: made this long before the contact
 REACTION_S = 0.1  # vision latency + tracking before any robot can react (reachability)
@@ -108,10 +111,17 @@ class SceneResult:
     actual_s: float | None  # light barrier rising edge; None = not caught
     reachable: bool = False
     kick_fired: bool = True
+    caught_by: int | None = None  # the receiver whose light barrier fired
 
     @property
     def caught(self) -> bool:
         return self.actual_s is not None
+
+    @property
+    def caught_text(self) -> str:
+        if not self.caught:
+            return "no"
+        return "yes" if self.caught_by in (None, RECEIVER) else f"yes, robot_{self.caught_by}"
 
     @property
     def error_s(self) -> float | None:
@@ -130,7 +140,9 @@ class Series:
     motor_status: list = field(default_factory=list)  # t, avg current(4), pwm limit(4)
     ball_state: list = field(default_factory=list)  # t, x, y, vx, vy
     v_shoot: list = field(default_factory=list)  # t, v_shoot
-    predictions: list = field(default_factory=list)  # obs t, catch time (relative)
+    predictions: list = field(default_factory=list)  # robot_0's: obs t, catch time (relative)
+    teammate_predictions: dict = field(default_factory=dict)  # robot id -> the same, for --receivers > 1
+    teammate_truth: dict = field(default_factory=dict)  # robot id -> rows like robot_truth
     catch_points: list = field(default_factory=list)  # obs t, x, y
     model_params: list = field(default_factory=list)  # t, a_slide, a_roll, c_switch
     vision_sent_ns: dict = field(default_factory=dict)  # vision stamp -> DDS source timestamp (plant's send)
@@ -186,18 +198,23 @@ class Director:
 
     FEED_DEPTH = 1000  # messages a topic may queue between two pumps (10 s of the fastest, 100 Hz)
 
-    def __init__(self, node, robot: RobotConfig, executor, graph_alive=lambda: True, graph_hint: str = "") -> None:
+    def __init__(self, node, robot: RobotConfig, executor, graph_alive=lambda: True, graph_hint: str = "",
+                 receivers: int = 1) -> None:
+        if not 1 <= receivers <= 1 + len(TEAMMATE_POSES):
+            raise ValueError(f"receivers: 1 to {1 + len(TEAMMATE_POSES)}, got {receivers!r}")
         self.node = node
         self.robot = robot
         self.executor = executor
         self._graph_alive = graph_alive
         self._graph_hint = graph_hint
+        self.receivers = (RECEIVER, *list(TEAMMATE_POSES)[: receivers - 1])
         self.sim_ns = -1
         self.series = Series()
-        self.barrier_edges: list[float] = []
-        self._barrier = False
+        self.barrier_edges: list[float] = []  # rising edges of any receiver's light barrier
+        self.edge_robots: list[int] = []  # whose, per edge
+        self._barrier = dict.fromkeys(self.receivers, False)
         self.events: list[str] = []
-        self.commanded = False  # robot_0's catcher has sent a cmd_vel
+        self.commanded: set[int] = set()  # receivers whose catcher has sent a cmd_vel
         self.setpoints_seen = False  # robot_0's velocity controller has answered a tick
         q = contract
         self._feeds = []
@@ -211,8 +228,16 @@ class Director:
         feed(q.BALL_MODEL_PARAMS, self._on_params)
         feed(q.CATCH_TIME, self._on_catch_time, RECEIVER)
         feed(q.CATCH_POINT, self._on_catch_point, RECEIVER)
-        feed(q.BALL_DETECTED, self._on_barrier, RECEIVER)
-        feed(q.CMD_VEL, self._on_command, RECEIVER)
+        self._teammate_catch_time: dict[int, float] = {}
+        for r in self.receivers:
+            feed(q.BALL_DETECTED, lambda m, r=r: self._on_barrier(r, m), r)
+            feed(q.CMD_VEL, lambda _m, r=r: self.commanded.add(r), r)
+            if r != RECEIVER:
+                self.series.teammate_predictions[r] = []
+                self.series.teammate_truth[r] = []
+                feed(q.GROUND_TRUTH_ODOM, lambda m, r=r: self._on_robot_truth(m, self.series.teammate_truth[r]), r)
+                feed(q.CATCH_TIME, lambda m, r=r: self._on_teammate_catch_time(r, m), r)
+                feed(q.CATCH_POINT, lambda m, r=r: self._on_teammate_catch_point(r, m), r)
         # robot_0's velocity controller answers (500 Hz: dropped once seen, see pump)
         self._setpoints_feed = feed(q.WHEEL_SETPOINTS, self._on_setpoints, RECEIVER)
         feed(q.SIM_EVENTS, lambda m: self.events.append(m.data))
@@ -223,7 +248,7 @@ class Director:
         self.set_ball = node.create_publisher(Odometry, q.SIM_SET_BALL.name, q.SIM_SET_BALL.qos)
         self.set_robot = {
             i: node.create_publisher(Odometry, q.SIM_SET_STATE.for_robot(i), q.SIM_SET_STATE.qos)
-            for i in (RECEIVER, KICKER)
+            for i in (*self.receivers, KICKER)
         }
         self.kick = node.create_publisher(Float64, q.KICK.for_robot(KICKER), q.KICK.qos)
         self._last_catch_time: float | None = None
@@ -265,7 +290,8 @@ class Director:
         act yet either: its timer runs on simulated time, so it commands nothing until its /clock
         subscription has matched the plant's.
         """
-        return self.sim_ns > 0 and bool(self.series.ball_state) and self.commanded and self.setpoints_seen
+        return (self.sim_ns > 0 and bool(self.series.ball_state) and self.commanded == set(self.receivers)
+                and self.setpoints_seen)
 
     # ------------------------------------------------------------ listeners
     def _on_clock(self, msg: Clock) -> None:
@@ -275,9 +301,9 @@ class Director:
         t, pose, vel, _ = odometry_from_msg(msg)
         self.series.ball_truth.append((t, pose[0], pose[1], vel[0], vel[1]))
 
-    def _on_robot_truth(self, msg: Odometry) -> None:
+    def _on_robot_truth(self, msg: Odometry, rows: list | None = None) -> None:
         t, pose, vel, _ = odometry_from_msg(msg)
-        self.series.robot_truth.append((t, *pose, *vel))
+        (self.series.robot_truth if rows is None else rows).append((t, *pose, *vel))
 
     def _on_motors(self, msg: Float64MultiArray) -> None:
         table = table_from_msg(msg, contract.GROUND_TRUTH_MOTOR_COLUMNS)
@@ -321,21 +347,29 @@ class Director:
             if time_sent is not None and sent < time_sent <= point_sent:
                 self.series.catch_time_latency_s.append((time_sent - sent) * 1e-9)
 
+    def _on_teammate_catch_time(self, robot: int, msg: Float64) -> None:
+        self._teammate_catch_time[robot] = msg.data
+        if msg.data == contract.CATCH_TIME_NEVER and self.series.ball_state:
+            self.series.teammate_predictions[robot].append((self.series.ball_state[-1][0], msg.data))
+
+    def _on_teammate_catch_point(self, robot: int, msg: PointStamped) -> None:
+        t = self._teammate_catch_time.get(robot)
+        if t is not None:
+            self.series.teammate_predictions[robot].append((stamp_to_seconds(msg.header.stamp), t))
+
     def _on_vision(self, msg, info) -> None:
         self.series.vision_sent_ns[stamp_to_nanoseconds(msg.header.stamp)] = info["source_timestamp"]
         if len(self.series.vision_sent_ns) > 1000:
             self.series.vision_sent_ns.pop(next(iter(self.series.vision_sent_ns)))
 
-    def _on_command(self, _msg) -> None:
-        self.commanded = True
-
     def _on_setpoints(self, _msg) -> None:
         self.setpoints_seen = True
 
-    def _on_barrier(self, msg: Bool) -> None:
-        if msg.data and not self._barrier:
+    def _on_barrier(self, robot: int, msg: Bool) -> None:
+        if msg.data and not self._barrier[robot]:
             self.barrier_edges.append(self.sim_s)
-        self._barrier = bool(msg.data)
+            self.edge_robots.append(robot)
+        self._barrier[robot] = bool(msg.data)
 
     # ------------------------------------------------------------- actions
     def place_robot(self, robot: int, pose) -> None:
@@ -345,7 +379,7 @@ class Director:
         self.set_ball.publish(odometry_msg(0.0, (x, y, 0.0), (vx, vy, 0.0)))
 
     def receiver_speed(self) -> float:
-        """Speed of robot_0 from the newest ground truth [m/s]."""
+        """Speed of robot_0 from the newest ground truth [m/s] (teammates start where they stopped)."""
         if not self.series.robot_truth:
             return math.inf
         _, _, _, _, vx, vy, w = self.series.robot_truth[-1]
@@ -377,6 +411,8 @@ class Director:
         """Set the scene up, kick (or release the rolling ball), and wait for the catch or the timeout."""
         self.place_robot(RECEIVER, scene.receiver_pose)
         self.place_robot(KICKER, scene.kicker_pose)
+        for r in self.receivers[1:]:
+            self.place_robot(r, TEAMMATE_POSES[r])
         if scene.ball is None:
             self.place_ball(*self.ball_at_kicker(scene.kicker_pose))
         else:
@@ -402,6 +438,7 @@ class Director:
         self.spin_until(lambda: len(self.barrier_edges) > n_edges or self.sim_s >= end,
                         60.0 + 20 * scene.timeout_s, "the catch")
         actual = self.barrier_edges[n_edges] if len(self.barrier_edges) > n_edges else None
+        by = self.edge_robots[n_edges] if actual is not None else None
         # This observer may lag a flat-out graph: take in the predictions up to the one compared.
         needed = (actual - PREDICTION_LEAD_S) if actual is not None else t_start + PREDICTION_LEAD_S
         truth_until = (actual if actual is not None else self.sim_s) + 0.05
@@ -409,10 +446,13 @@ class Director:
                         and self.series.ball_truth and self.series.ball_truth[-1][0] >= truth_until
                         and self.series.robot_truth and self.series.robot_truth[-1][0] >= truth_until,
                         10.0, "the predictions and ground truth")
-        return SceneResult(scene, t_start, self.sim_s, self._prediction(t_start, actual), actual, kick_fired=fired)
+        return SceneResult(scene, t_start, self.sim_s, self._prediction(t_start, actual, by), actual,
+                           kick_fired=fired, caught_by=by)
 
-    def _prediction(self, t_start: float, actual: float | None) -> float | None:
-        preds = self.series.predictions
+    def _prediction(self, t_start: float, actual: float | None, robot: int | None = None) -> float | None:
+        """The catching robot's (robot_0's when none caught) prediction to compare with the contact."""
+        s = self.series
+        preds = s.predictions if robot in (None, RECEIVER) else s.teammate_predictions[robot]
         if actual is not None and actual - t_start >= PREDICTION_LEAD_S:
             chosen = [max((p for p in preds if t_start <= p[0] <= actual - PREDICTION_LEAD_S), default=None)]
         else:
@@ -464,6 +504,7 @@ class Demo:
             self.executor,
             graph_alive=lambda: self.launch is None or self.launch.poll() is None,
             graph_hint=f"see {self.out / 'graph.log'}",
+            receivers=args.receivers,
         )
 
     def start_graph(self) -> None:
@@ -478,6 +519,7 @@ class Demo:
             f"robot_a_max_mps2:={float(self.args.robot_a_max)}",
             f"robot_v_max_mps:={float(self.args.robot_v_max)}",
             f"robot_side:={str(self.args.robot_side).lower()}",
+            f"receivers:={self.args.receivers}",
         ]
         self.launch = spawn_in_session(cmd, self.out / "graph.log")
         # The recorder is a process of its own, like `ros2 bag record -a`.
@@ -508,15 +550,18 @@ class Demo:
     def _reachable(self, result: SceneResult) -> bool:
         if result.caught:
             return True  # it was reached
-        t_end = result.t_end_s
-        return reachable(
-            np.array(self.director.series.ball_truth),
-            result.t_start_s,
-            t_end,
-            np.array(result.scene.receiver_pose[:2]),
-            RobotLimits(self.args.robot_a_max, self.args.robot_v_max),
-            self.robot.dribbler_offset_m,
-            self.field,
+        starts = [result.scene.receiver_pose] + [TEAMMATE_POSES[r] for r in self.director.receivers[1:]]
+        return any(
+            reachable(
+                np.array(self.director.series.ball_truth),
+                result.t_start_s,
+                result.t_end_s,
+                np.array(start[:2]),
+                RobotLimits(self.args.robot_a_max, self.args.robot_v_max),
+                self.robot.dribbler_offset_m,
+                self.field,
+            )
+            for start in starts
         )
 
     def run(self) -> int:
@@ -536,7 +581,7 @@ class Demo:
                 act = "—" if r.actual_s is None else f"{r.actual_s - r.t_start_s:.3f} s"
                 err = "—" if r.error_s is None else f"{r.error_s * 1e3:+.0f} ms"
                 print(
-                    f"{i:>2} {scene.name[:52]:<52} {pred:>10} {act:>10} {err:>9}  {'yes' if r.caught else 'no'}",
+                    f"{i:>2} {scene.name[:52]:<52} {pred:>10} {act:>10} {err:>9}  {r.caught_text}",
                     flush=True,
                 )
         finally:
@@ -582,6 +627,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--field", default="division_b", choices=("division_a", "division_b"))
     parser.add_argument("--scenes", type=int, default=0, help="play only the first N scenes")
+    parser.add_argument(
+        "--receivers",
+        type=int,
+        default=1,
+        choices=(1, 2, 3),
+        help="receiving robots: robot_0, and robot_2 and robot_3 waiting downfield; the first to the ball receives",
+    )
     parser.add_argument("--robot-a-max", type=float, default=4.5, help="catching acceleration [m/s^2]")
     parser.add_argument("--robot-v-max", type=float, default=2.5, help="catching speed [m/s]")
     parser.add_argument(

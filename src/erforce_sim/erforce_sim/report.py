@@ -160,15 +160,16 @@ def summary_markdown(results, series, real_time_factor: float, recording: str) -
         pred = "never" if r.predicted_s is None else f"{r.predicted_s - r.t_start_s:.3f}"
         act = "—" if r.actual_s is None else f"{r.actual_s - r.t_start_s:.3f}"
         err = "—" if r.error_s is None else f"{r.error_s * 1e3:+.0f}"
-        lines.append(f"| {i} | {r.scene.name} | {pred} | {act} | {err} | {'yes' if r.caught else 'no'} | "
+        lines.append(f"| {i} | {r.scene.name} | {pred} | {act} | {err} | {r.caught_text} | "
                      f"{'yes' if r.reachable else 'no'} |")
     lines += [
         "",
         "Times are seconds after the kick (or after the Fig. 6 ball was released). The prediction is the ball "
-        "predictor's newest catch time for robot_0 made at least 0.3 s before the contact (for a ball not "
-        "caught: the one 0.3 s after the kick); the actual contact is robot_0's light-barrier rising edge. "
-        "Reachable: caught, or the true ball path passes a point robot_0 could reach in time from its start "
-        "under the planning limits (robotTimeToPos, 0.1 s reaction).",
+        "predictor's newest catch time for the receiver (robot_0, or the teammate that caught the ball) made "
+        "at least 0.3 s before the contact (for a ball not caught: robot_0's, 0.3 s after the kick); the actual "
+        "contact is that receiver's light-barrier rising edge. Reachable: caught, or the true ball path passes "
+        "a point a receiver could reach in time from its start under the planning limits (robotTimeToPos, "
+        "0.1 s reaction).",
         "",
         f"Median |error| over scenes with both: {np.median(errors) * 1e3:.0f} ms" if errors else "",
         f"Recording (rosbag2, MCAP storage, in bag/): {recording}",
