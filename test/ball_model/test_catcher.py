@@ -175,6 +175,26 @@ def test_choose_target_prefers_the_line_then_the_receive_point_then_the_catch_po
     assert choose_target(behind, still, fast, None, 0.08, cfg, committed=True) is None
 
 
+def test_a_committed_robot_keeps_its_receive_point_without_the_slack():
+    """Fig. 6 a moment before the line: the robot 4 cm off it, moving towards it at 0.6 m/s, brakes to rest
+    exactly there (0.6^2 / (2 * 4.5) = 0.04 m) in 0.6 / 4.5 = 0.133 s. The ball, rolling at 2 m/s, needs
+    (2 - sqrt(4 - 0.6 * 0.5)) / 0.3 = 0.255 s for the 0.5 m to the dribbler: 0.122 s to spare, less than
+    the 0.15 s that starts a receive. A robot already on its way keeps the line; a new one takes the
+    predicted catch point instead."""
+    cfg = CatcherConfig(a_max_mps2=4.5, v_max_mps=2.5, receive_slack_s=0.15)
+    pose, moving = np.array([-0.5, 0.04, math.pi]), np.array([0.0, -0.6])
+    ball = _rolling_ball(2.0, x0=-0.5 - 0.08 - 0.5)
+    assert _roll_time(0.5, 2.0) == pytest.approx(0.2549, abs=1e-4)
+    later_window = np.array([0.2, 0.0])
+    np.testing.assert_allclose(choose_target(pose, moving, ball, later_window, 0.08, cfg), later_window)
+    np.testing.assert_allclose(choose_target(pose, moving, ball, later_window, 0.08, cfg, committed=True),
+                               [-0.5, 0.0], atol=1e-12)
+    # Committed or not, a receive point the robot cannot reach before the ball is no receive point.
+    late = _rolling_ball(2.0, x0=-0.5 - 0.08 - 0.2)  # 0.2 m: (2 - sqrt(4 - 0.12)) / 0.3 = 0.101 s < 0.133 s
+    np.testing.assert_allclose(choose_target(pose, moving, late, later_window, 0.08, cfg, committed=True),
+                               later_window)
+
+
 def test_team_receiver_is_the_first_to_the_ball_and_keeps_the_role_within_the_margin():
     never = -1.0  # CATCH_TIME_NEVER
     assert team_receiver({0: 1.2, 2: 0.9, 3: 1.5}, None, 0.1) == 2

@@ -177,6 +177,7 @@ def receive_point(
     cfg: CatcherConfig,
     field: FieldConfig | None = None,
     robot_radius_m: float = 0.0,
+    slack_s: float | None = None,
 ) -> np.ndarray | None:
     """The nearest place to receive the ball on its line that the robot reaches with time to spare.
 
@@ -184,7 +185,7 @@ def receive_point(
     the robot's projection onto the line and points further along it, every
     ``RECEIVE_STEP_M`` up to ``RECEIVE_SEARCH_M``. The first one is returned where the robot,
     by robotTimeToPos with the catcher's limits from its present velocity, arrives
-    ``cfg.receive_slack_s`` before the ball (ballRollTime of the two-phase model), that the
+    ``slack_s`` (default ``cfg.receive_slack_s``) before the ball (ballRollTime of the two-phase model), that the
     ball reaches before it stops and that lies on the field. None when there is none or the
     ball is not coming (not moving, already past).
     """
@@ -204,7 +205,7 @@ def receive_point(
         return None
     t_robot = robot_time_to_pos(np.asarray(robot_xy, dtype=float), np.asarray(robot_velocity, dtype=float),
                                 targets, RobotLimits(cfg.a_max_mps2, cfg.v_max_mps))
-    ok &= t_robot + cfg.receive_slack_s <= t_ball
+    ok &= t_robot + (cfg.receive_slack_s if slack_s is None else slack_s) <= t_ball
     return targets[int(np.argmax(ok))] if ok.any() else None
 
 
@@ -220,21 +221,28 @@ def choose_target(
     committed: bool = False,
 ) -> np.ndarray | None:
     """Where the robot centre goes, in this order: stay when the dribbler is already on the incoming
-    ball's line; the nearest receive point with time to spare; the predicted catch point (None when
-    the predictor has none); when ``committed``, the robot's projection on the ball's line if it
-    is within ``cfg.commit_distance_m``; else hold (None).
+    ball's line; the nearest receive point with time to spare (for a ``committed`` robot: reached at
+    all before the ball); the predicted catch point (None when the predictor has none); when
+    ``committed``, the robot's projection on the ball's line if it is within ``cfg.commit_distance_m``;
+    else hold (None).
 
     ``ball`` is the moving ball's trajectory (None when it rests: the velocity of a resting ball is
     vision noise in a random direction, its "line" means nothing). ``committed``: the robot was
     driving to a target for this ball moments ago. Its plan can turn infeasible on the way (it
     lags, arrives fast); holding then brakes it wherever it is, often across the line, while
     blocking the line may still catch. Chasing the line from farther away only gets in the ball's
-    way: it deflects a ball that a wall would have returned.
+    way: it deflects a ball that a wall would have returned. The slack is what starts a receive; a
+    robot on its way keeps it while it still gets there first. With the slack, the Fig. 6 robot a few
+    centimetres before the line (moving, so with 0.1 s to spare, not 0.15 s) was sent to the
+    predicted catch of a later window, turned and ran from the ball, which then hit its side: in
+    the in-process loop of the demo's Fig. 6 scene, 12 of 20 seeds caught the ball only after that,
+    against 0 of 20 with this hysteresis.
     """
     if ball is not None:
         if on_receive_line(pose, ball.position_m, ball.velocity_mps, dribbler_offset_m, cfg.receive_line_tolerance_m):
             return np.asarray(pose[:2], dtype=float)
-        target = receive_point(pose[:2], robot_velocity, ball, dribbler_offset_m, cfg, field, robot_radius_m)
+        target = receive_point(pose[:2], robot_velocity, ball, dribbler_offset_m, cfg, field, robot_radius_m,
+                               slack_s=0.0 if committed else None)
         if target is not None:
             return target
     if catch_point is not None:
