@@ -379,7 +379,7 @@ class Director:
         self.set_ball.publish(odometry_msg(0.0, (x, y, 0.0), (vx, vy, 0.0)))
 
     def receiver_speed(self) -> float:
-        """Speed of robot_0 from the newest ground truth [m/s] (teammates start where they stopped)."""
+        """Speed of robot_0 from the newest ground truth [m/s] (teammates are placed at rest and hold)."""
         if not self.series.robot_truth:
             return math.inf
         _, _, _, _, vx, vy, w = self.series.robot_truth[-1]
