@@ -8,6 +8,7 @@ import pytest
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
 from erforce_ball_model.catcher import (
     CatcherConfig,
+    Receiver,
     approach_velocity,
     catch_twist,
     choose_target,
@@ -210,3 +211,81 @@ def test_team_receiver_is_the_first_to_the_ball_and_keeps_the_role_within_the_ma
     assert team_receiver({2: 1.5, 3: 1.45}, 0, 0.1) == 3
     with pytest.raises(ValueError):
         team_receiver({0: 1.0}, None, -0.1)
+
+
+# --- Receiver: the behaviour over time ---------------------------------------------------------
+OFFSET = 0.08
+RCFG = CatcherConfig(a_max_mps2=4.5, v_max_mps=2.5)
+
+
+def _receiver(**kw):
+    return Receiver(kw.pop("cfg", RCFG), OFFSET, **kw)
+
+
+def _feed_fig6(rx: Receiver, now: float, ball_speed=2.0) -> None:
+    """Robot at rest 0.3 m off the line of a ball rolling along +x, 1.5 m away: the line is the receive point."""
+    rx.on_odom(now, [-0.5, 0.3, math.pi], [0.0, 0.0])
+    rx.on_ball(now, [-2.0, 0.0], [ball_speed, 0.0])
+    rx.on_v_shoot(now, ball_speed / 0.6)
+
+
+def test_receiver_engages_on_a_moving_ball_and_drives_to_its_line():
+    rx = _receiver()
+    rx.on_odom(0.0, [-0.5, 0.3, math.pi], [0.0, 0.0])
+    assert rx.tick(0.0).tolist() == [0.0, 0.0, 0.0]  # no ball yet: hold
+    _feed_fig6(rx, 0.01)
+    twist = rx.tick(0.02)
+    # Facing -x, the field direction -y (towards the line) is the robot's +y; the approach speed to
+    # the line 0.3 m away is min(2.5, sqrt(2 * 4.5 * 0.5 * 0.3)) = 1.162 m/s.
+    np.testing.assert_allclose(twist, [0.0, math.sqrt(2 * 4.5 * 0.5 * 0.3), 0.0], atol=1e-9)
+
+
+def test_receiver_holds_on_stale_inputs_and_after_the_catch():
+    rx = _receiver()
+    _feed_fig6(rx, 0.0)
+    assert np.any(rx.tick(0.1) != 0.0)
+    assert rx.tick(0.0 + RCFG.stale_after_s + 0.01).tolist() == [0.0, 0.0, 0.0]  # odom too old
+    _feed_fig6(rx, 1.0)
+    assert rx.on_barrier(True) and not rx.on_barrier(True)  # one rising edge
+    assert rx.tick(1.01).tolist() == [0.0, 0.0, 0.0]  # holding the ball
+    rx.on_barrier(False)
+    assert rx.tick(1.02).tolist() == [0.0, 0.0, 0.0]  # disengaged by the catch until the ball moves again
+    _feed_fig6(rx, 1.03)
+    assert np.any(rx.tick(1.04) != 0.0)
+
+
+def test_receiver_gives_up_once_the_ball_rested():
+    rx = _receiver()
+    _feed_fig6(rx, 0.0)
+    assert np.any(rx.tick(0.01) != 0.0)
+    driving = []
+    for t in np.arange(0.1, RCFG.disengage_after_rest_s + 0.3, 0.1):  # the ball lies still from t = 0.1
+        rx.on_odom(t, [-0.5, 0.3, math.pi], [0.0, 0.0])
+        rx.on_ball(t, [-1.0, 0.0], [0.0, 0.0])
+        rx.on_catch_time(t, 0.5)
+        rx.on_catch_point(t, [-1.08, 0.0])
+        driving.append((round(t, 1), bool(np.any(rx.tick(t) != 0.0))))
+    # A resting ball has no line, so the engaged robot drives to the catch point at the ball until the
+    # ball rested disengage_after_rest_s = 2 s after it was last seen moving (t = 0).
+    assert driving == [(round(t, 1), t <= 2.0) for t, _ in driving]
+
+
+def test_receiver_in_a_team_drives_only_while_it_is_first_to_the_ball():
+    rx = _receiver(robot_id=0, team_robot_ids=[0, 2])
+    _feed_fig6(rx, 0.0)
+    rx.on_catch_time(0.0, 0.9)
+    rx.on_teammate_catch_time(2, 0.0, 0.5)  # robot_2 is earlier by more than the margin
+    assert rx.tick(0.01).tolist() == [0.0, 0.0, 0.0]
+    rx.on_teammate_catch_time(2, 0.02, -1.0)  # robot_2 can no longer catch it
+    assert np.any(rx.tick(0.03) != 0.0)
+    rx.on_teammate_catch_time(5, 0.04, 0.1)  # not a teammate: ignored
+    assert np.any(rx.tick(0.05) != 0.0)
+    with pytest.raises(ValueError, match="not one of them"):
+        _receiver(robot_id=3, team_robot_ids=[0, 2])
+
+
+def test_catch_time_never_is_the_contracts():
+    from erforce_ball_model.catcher import CATCH_TIME_NEVER
+    from erforce_interfaces.contract import CATCH_TIME_NEVER as contract_never
+
+    assert CATCH_TIME_NEVER == contract_never

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_sim.demo import LAUNCH_FILE, RECEIVER, TEAMMATE_POSES, Director, Scene, default_scenes
+from erforce_sim.demo import LAUNCH_FILE, Director
+from erforce_sim.scenes import RECEIVER, TEAMMATE_POSES, Scene, default_scenes
 
 pytestmark = pytest.mark.integration
 

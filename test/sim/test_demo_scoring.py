@@ -6,7 +6,7 @@ import numpy as np
 
 from erforce_ball_model.catch_time import RobotLimits
 from erforce_interfaces.robot_config import FieldConfig
-from erforce_sim.demo import default_scenes, reachable
+from erforce_sim.scenes import default_scenes, reachable
 
 FIELD = FieldConfig.preset("division_b")
 LIMITS = RobotLimits(3.0, 2.0)

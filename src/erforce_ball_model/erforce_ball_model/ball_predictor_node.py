@@ -32,7 +32,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
-from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits
+from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, facing_angles
 from erforce_ball_model.catcher import CatcherConfig
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
@@ -252,24 +252,6 @@ def build_config(values: dict[str, Any]) -> PredictorConfig:
         ),
         timing_log_every=values["timing_log_every"],
     )
-
-
-def facing_angles(
-    fixed: np.ndarray, fixed_rad: np.ndarray, ball: BallTrajectory, robot_pos_m: np.ndarray, rest_speed_mps: float
-) -> np.ndarray | float:
-    """Dribbler direction per robot: the fixed angle, or against the ball's motion (towards a resting ball).
-
-    One float when every robot faces against the moving ball (the common case, no array work).
-    """
-    f = ball.floats
-    if f.speed_mps > rest_speed_mps:
-        towards = math.atan2(-f.vy_mps, -f.vx_mps)
-        if not fixed.any():
-            return towards
-    else:
-        d = ball.position_m - robot_pos_m
-        towards = np.arctan2(d[:, 1], d[:, 0])  # atan2(0, 0) = 0: a robot on the ball faces +x
-    return np.where(fixed, fixed_rad, towards)
 
 
 def model_params_table(fit: FitResult, in_use: BallModelParams) -> Float64MultiArray:

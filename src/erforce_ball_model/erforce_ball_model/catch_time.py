@@ -79,6 +79,7 @@ __all__ = [
     "RobotLimits",
     "axis_time",
     "can_reach_in_time",
+    "facing_angles",
     "robot_time_to_ball",
     "robot_time_to_pos",
 ]
@@ -579,3 +580,21 @@ def robot_time_to_ball(
     search = CatchSearch(p0.shape[0], limits, dribbler_offset_m=dribbler_offset_m, field=field,
                          field_margin_m=field_margin_m, grid_step_s=grid_step_s, refine_points=refine_points)
     return search.run(ball, p0, v0, facing_rad)
+
+
+def facing_angles(
+    fixed: np.ndarray, fixed_rad: np.ndarray, ball: BallTrajectory, robot_pos_m: np.ndarray, rest_speed_mps: float
+) -> np.ndarray | float:
+    """Dribbler direction per robot: the fixed angle, or against the ball's motion (towards a resting ball).
+
+    One float when every robot faces against the moving ball (the common case, no array work).
+    """
+    f = ball.floats
+    if f.speed_mps > rest_speed_mps:
+        towards = math.atan2(-f.vy_mps, -f.vx_mps)
+        if not fixed.any():
+            return towards
+    else:
+        d = ball.position_m - robot_pos_m
+        towards = np.arctan2(d[:, 1], d[:, 0])  # atan2(0, 0) = 0: a robot on the ball faces +x
+    return np.where(fixed, fixed_rad, towards)

@@ -1,8 +1,9 @@
 """The receive skill of the paper's Fig. 6: drive to the predicted catch point, face the
 requested direction, arrive in time.
 
-Pure functions, no rclpy: the catcher node feeds them the filtered robot state and the
-ball predictor's catch point and time, and publishes the returned Twist (robot frame).
+No rclpy: ``Receiver`` is one robot's behaviour over time (the catcher node feeds it the filtered
+robot state, the ball state and the ball predictor's catch point and time as they arrive, and
+publishes the Twist its ``tick`` returns, robot frame); the functions below are its steps.
 
 Where to receive (``choose_target``): a robot already on the ball's line stands still.
 Otherwise, when there is a point on the ball's line, at or beyond the robot's projection on
@@ -31,9 +32,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallTrajectory
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
 from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
 from erforce_interfaces.robot_config import FieldConfig
+
+CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract)
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,16 @@ class CatcherConfig:
     # A committed robot (see choose_target) keeps blocking the ball's line only when its projection
     # on it is this close: it nearly made it. Farther off, chasing the line deflects bank shots.
     commit_distance_m: float = 0.3
+    # Receiver (over time): inputs older than stale_after_s count as missing; a ball faster than
+    # min_ball_speed_mps engages; an engaged robot gives up once the ball rested disengage_after_rest_s;
+    # a robot that had a target within commit_s is committed (choose_target); in a team the receiver
+    # keeps the ball until another robot's catch time is team_switch_margin_s earlier.
+    stale_after_s: float = 0.25
+    min_ball_speed_mps: float = 0.1
+    fetch_resting_ball: bool = False
+    disengage_after_rest_s: float = 2.0
+    commit_s: float = 0.3
+    team_switch_margin_s: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s", "arrive_tolerance_m"):
@@ -72,10 +85,13 @@ class CatcherConfig:
             raise ValueError(f"heading_deadband_rad must be in [0, pi), got {self.heading_deadband_rad!r}")
         if not (math.isfinite(self.receive_line_tolerance_m) and self.receive_line_tolerance_m >= 0.0):
             raise ValueError(f"receive_line_tolerance_m must be finite and >= 0, got {self.receive_line_tolerance_m!r}")
-        for name in ("receive_slack_s", "commit_distance_m"):
+        for name in ("receive_slack_s", "commit_distance_m", "min_ball_speed_mps", "disengage_after_rest_s",
+                     "commit_s", "team_switch_margin_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
+        if not (math.isfinite(self.stale_after_s) and self.stale_after_s > 0.0):
+            raise ValueError(f"stale_after_s must be finite and > 0, got {self.stale_after_s!r}")
         if not (0.0 < self.braking_margin <= 1.0):
             raise ValueError(f"braking_margin must be in (0, 1], got {self.braking_margin!r}")
 
@@ -235,8 +251,8 @@ def choose_target(
     robot on its way keeps it while it still gets there first. With the slack, the Fig. 6 robot a few
     centimetres before the line (moving, so with 0.1 s to spare, not 0.15 s) was sent to the
     predicted catch of a later window, turned and ran from the ball, which then hit its side: in
-    the in-process loop of the demo's Fig. 6 scene, 12 of 20 seeds caught the ball only after that,
-    against 0 of 20 with this hysteresis.
+    the demo's Fig. 6 scene played in one process (erforce_sim.scenes), 5 of 20 seeds caught the
+    ball only after that, against 0 of 20 with this hysteresis.
     """
     if ball is not None:
         if on_receive_line(pose, ball.position_m, ball.velocity_mps, dribbler_offset_m, cfg.receive_line_tolerance_m):
@@ -272,3 +288,136 @@ def team_receiver(catch_times_s: Mapping[int, float], previous: int | None, swit
     if previous in able and able[previous] <= able[first] + switch_margin_s:
         return previous
     return first
+
+
+class Receiver:
+    """One robot's receive behaviour over time: what the catcher node does, without ROS.
+
+    Feed it what arrives, each with the robot time it arrived (``on_*``), and ask ``tick(now)`` for
+    the Twist [vx, vy, wz] (robot frame) at the command rate. Inputs older than ``stale_after_s``
+    count as missing. The robot engages when the ball moves, holds once its light barrier sees the
+    ball (and disengages), and gives up once the ball rested ``disengage_after_rest_s``. While
+    engaged it drives to ``choose_target``, facing the incoming ball as the predictor assumed. In a
+    team (``team_robot_ids``, its own id among them) it drives only while ``team_receiver`` names it,
+    or nobody can catch the ball by the predictions (then each robot judges alone). ``notice`` says
+    what the last call could not use, for the node's throttled log (None: nothing).
+    """
+
+    def __init__(self, cfg: CatcherConfig, dribbler_offset_m: float, robot_radius_m: float = 0.0,
+                 field: FieldConfig | None = None, robot_id: int | None = None, team_robot_ids=()) -> None:
+        team = {int(i) for i in team_robot_ids}
+        if team and robot_id not in team:
+            raise ValueError(f"team_robot_ids {sorted(team)}: robot {robot_id} is not one of them")
+        self.set_config(cfg, dribbler_offset_m, robot_radius_m, field)
+        self.robot_id = robot_id
+        self._teammates = {i: (-math.inf, CATCH_TIME_NEVER) for i in team - {robot_id}}
+        self._receiver: int | None = None  # the team's receiver as this robot last decided
+        self._pose = None  # (t, [x, y, yaw], field velocity [vx, vy])
+        self._catch_time = None  # (t, seconds or CATCH_TIME_NEVER)
+        self._catch_point = None  # (t, [x, y])
+        self._ball = None  # (t, position, velocity)
+        self._v_shoot = None  # (t, m/s)
+        self._model = BallModelParams()
+        self._holding_ball = False
+        self._engaged = False
+        self._ball_moving_at = -math.inf
+        self._target_at = -math.inf
+        self.notice: str | None = None
+
+    def set_config(self, cfg: CatcherConfig, dribbler_offset_m: float, robot_radius_m: float = 0.0,
+                   field: FieldConfig | None = None) -> None:
+        self.cfg, self.field = cfg, field
+        self.dribbler_offset_m, self.robot_radius_m = dribbler_offset_m, robot_radius_m
+
+    # -- inputs -----------------------------------------------------------------------------------
+    def on_odom(self, now: float, pose, velocity) -> None:
+        """The filtered robot pose [x, y, yaw] and field velocity [vx, vy]."""
+        self._pose = (now, np.asarray(pose, dtype=float), np.asarray(velocity, dtype=float)[:2])
+
+    def on_catch_time(self, now: float, seconds: float) -> None:
+        self._catch_time = (now, float(seconds))
+
+    def on_catch_point(self, now: float, point) -> None:
+        self._catch_point = (now, np.asarray(point, dtype=float))
+
+    def on_teammate_catch_time(self, robot: int, now: float, seconds: float) -> None:
+        if robot in self._teammates:
+            self._teammates[robot] = (now, float(seconds))
+
+    def on_ball(self, now: float, position, velocity) -> None:
+        position, velocity = np.asarray(position, dtype=float)[:2], np.asarray(velocity, dtype=float)[:2]
+        self._ball = (now, position, velocity)
+        if math.hypot(velocity[0], velocity[1]) >= self.cfg.min_ball_speed_mps:
+            self._ball_moving_at = now
+            if not self._holding_ball:
+                self._engaged = True
+
+    def on_v_shoot(self, now: float, v_shoot_mps: float) -> None:
+        self._v_shoot = (now, float(v_shoot_mps))
+
+    def on_model(self, params: BallModelParams) -> None:
+        """The ball model the predictor uses (it may identify its own)."""
+        self._model = params
+
+    def on_barrier(self, detected: bool) -> bool:
+        """The light barrier; True on the rising edge (the ball is received)."""
+        edge = bool(detected) and not self._holding_ball
+        if edge:
+            self._engaged = False
+        self._holding_ball = bool(detected)
+        return edge
+
+    # -- decision ---------------------------------------------------------------------------------
+    def _fresh(self, stamped, now: float) -> bool:
+        return stamped is not None and now - stamped[0] <= self.cfg.stale_after_s
+
+    def tick(self, now: float) -> np.ndarray:
+        """The Twist to command now (zeros: hold)."""
+        self.notice = None
+        cfg = self.cfg
+        if now - self._ball_moving_at > cfg.disengage_after_rest_s:
+            self._engaged = False
+        active = self._engaged or cfg.fetch_resting_ball
+        if not (active and self._fresh(self._pose, now) and not self._holding_ball and self._receives(now)):
+            self._target_at = -math.inf  # a commitment is to one ball in flight
+            return np.zeros(3)
+        _, pose, velocity = self._pose
+        ball = self._moving_ball(now)
+        predicted = (self._fresh(self._catch_point, now) and self._fresh(self._catch_time, now)
+                     and self._catch_time[1] != CATCH_TIME_NEVER)
+        target = choose_target(pose, velocity, ball, self._catch_point[1] if predicted else None,
+                               self.dribbler_offset_m, cfg, self.field, self.robot_radius_m,
+                               committed=now - self._target_at <= cfg.commit_s)
+        if target is None:
+            return np.zeros(3)
+        self._target_at = now
+        # Face the incoming ball, as the predictor assumed; keep the heading otherwise.
+        facing = math.atan2(-ball.velocity_mps[1], -ball.velocity_mps[0]) if ball is not None else pose[2]
+        try:
+            return catch_twist(pose, target, facing, cfg)
+        except ValueError as exc:
+            self.notice = f"no command: {exc}"
+            return np.zeros(3)
+
+    def _receives(self, now: float) -> bool:
+        if not self._teammates:
+            return True
+        times = {i: t for i, (arrived, t) in self._teammates.items() if now - arrived <= self.cfg.stale_after_s}
+        if self._fresh(self._catch_time, now):
+            times[self.robot_id] = self._catch_time[1]
+        self._receiver = team_receiver(times, self._receiver, self.cfg.team_switch_margin_s)
+        return self._receiver is None or self._receiver == self.robot_id
+
+    def _moving_ball(self, now: float) -> BallTrajectory | None:
+        """The ball's future from the newest state; None when it rests, is stale or is not usable."""
+        if not self._fresh(self._ball, now):
+            return None
+        _, position, velocity = self._ball
+        if math.hypot(velocity[0], velocity[1]) < self.cfg.min_ball_speed_mps:
+            return None
+        v_shoot = self._v_shoot[1] if self._fresh(self._v_shoot, now) else 0.0  # 0: raised to the speed
+        try:
+            return BallTrajectory(position, velocity, max(v_shoot, 0.0), self._model)
+        except ValueError as exc:
+            self.notice = f"ball state not usable: {exc}"
+            return None

@@ -38,7 +38,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
-from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
+from erforce_ball_model.catch_time import RobotLimits
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     odometry_from_msg,
@@ -50,56 +50,17 @@ from erforce_interfaces.conversions import (
 from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_interfaces.testing import stop_process
+from erforce_sim.scenes import (
+    KICKER,
+    PREDICTION_LEAD_S,
+    RECEIVER,
+    TEAMMATE_POSES,
+    Scene,
+    default_scenes,
+    reachable,
+)
 
-RECEIVER, KICKER = 0, 1
-# --receivers 2 and 3 add these receivers, in this order; their catchers form a team with robot_0's (the
-# first to the ball receives). They wait at these poses in every scene, downfield of robot_0.
-TEAMMATE_POSES = {2: (2.5, -1.0, math.pi), 3: (2.5, 1.0, math.pi)}
 LAUNCH_FILE = Path(__file__).resolve().parents[1] / "launch" / "demo.launch.yaml"
-PREDICTION_LEAD_S = 0.3  # the prediction compared with the truth: made this long before the contact
-REACTION_S = 0.1  # vision latency + tracking before any robot can react (reachability)
-
-
-@dataclass(frozen=True)
-class Scene:
-    name: str
-    receiver_pose: tuple[float, float, float]
-    kicker_pose: tuple[float, float, float] = (-3.5, -2.0, 0.0)
-    ball: tuple[float, float, float, float] | None = None  # a rolling ball (x, y, vx, vy); None: kick
-    kick_speed_mps: float = 0.0
-    timeout_s: float = 5.0
-
-
-def _kick_scene(name: str, speed: float, kicker_xy, aim_xy, receiver_pose, timeout_s: float = 5.0) -> Scene:
-    yaw = math.atan2(aim_xy[1] - kicker_xy[1], aim_xy[0] - kicker_xy[0])
-    return Scene(name, receiver_pose, (kicker_xy[0], kicker_xy[1], yaw), None, speed, timeout_s)
-
-
-def default_scenes(field_config: FieldConfig) -> list[Scene]:
-    """Fig. 6, then kicks from 1 to 6.5 m/s: straight, passing, and one off the wall."""
-    k = (-3.0, 0.0)
-    r = (1.0, 0.0, math.pi)
-    wall_y = field_config.wall_half_width_m
-    receiver_wall = (0.5, 1.6, math.pi)
-    mirror = (receiver_wall[0], 2 * wall_y - receiver_wall[1])  # aim at the mirror image: bank shot
-    return [
-        Scene(
-            "Fig. 6: ball rolls right at 2.0 m/s, robot at rest catches facing left",
-            (-0.5, 0.3, math.pi),
-            (-3.5, -2.0, 0.0),
-            (-2.0, 0.0, 2.0, 0.0),
-            0.0,
-            4.0,
-        ),
-        _kick_scene("kick 1.0 m/s straight", 1.0, (-1.0, 0.0), r[:2], r, 6.0),
-        _kick_scene("kick 2.0 m/s passing 0.5 m beside", 2.0, k, (1.0, 0.5), r),
-        _kick_scene("kick 3.0 m/s straight", 3.0, k, r[:2], r),
-        _kick_scene("kick 3.5 m/s off the side wall", 3.5, k, mirror, receiver_wall),
-        _kick_scene("kick 4.0 m/s passing 0.4 m beside", 4.0, k, (1.0, -0.4), r),
-        _kick_scene("kick 5.0 m/s straight", 5.0, k, r[:2], r),
-        _kick_scene("kick 5.5 m/s passing 0.3 m beside", 5.5, k, (1.0, 0.3), r),
-        _kick_scene("kick 6.5 m/s straight", 6.5, k, r[:2], r),
-    ]
 
 
 @dataclass
@@ -150,36 +111,6 @@ class Series:
     # sends robot_0's catch time for it (the target) / its catch point (after all catch times).
     catch_time_latency_s: list = field(default_factory=list)
     catch_point_latency_s: list = field(default_factory=list)
-
-
-def reachable(
-    ball_truth: np.ndarray,
-    t_start: float,
-    t_end: float,
-    start_xy: np.ndarray,
-    limits: RobotLimits,
-    dribbler_offset_m: float,
-    field_config: FieldConfig,
-    reaction_s: float = REACTION_S,
-) -> bool:
-    """Could a robot at rest at ``start_xy`` have met the true ball path in time?
-
-    ``ball_truth`` rows are (t, x, y, vx, vy). The robot, facing the incoming ball, must
-    stand one dribbler offset ahead of the ball when it arrives, inside the field, and
-    needs robotTimeToPos plus a reaction delay to get there. Independent of the predictor.
-    """
-    if ball_truth.size == 0:
-        return False
-    truth = ball_truth[(ball_truth[:, 0] >= t_start) & (ball_truth[:, 0] <= t_end)]
-    if len(truth) < 2:
-        return False
-    velocity = truth[:, 3:5]
-    speed = np.hypot(velocity[:, 0], velocity[:, 1])
-    ahead = np.where(speed[:, None] > 1e-3, velocity / np.maximum(speed, 1e-9)[:, None], 0.0)
-    targets = truth[:, 1:3] + ahead * dribbler_offset_m
-    inside = (np.abs(truth[:, 1]) <= field_config.half_length_m) & (np.abs(truth[:, 2]) <= field_config.half_width_m)
-    t_robot = robot_time_to_pos(np.asarray(start_xy, dtype=float), np.zeros(2), targets, limits)
-    return bool(np.any(inside & (t_robot + reaction_s <= truth[:, 0] - t_start)))
 
 
 class Director:

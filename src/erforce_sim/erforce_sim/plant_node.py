@@ -85,7 +85,7 @@ PARAMS = (
     ),
     ParamSpec(
         "kick_spin_ratio",
-        -0.4,
+        PhysicsParams().kick_spin_ratio,
         "ball spin w r / v given by a kick; backspin lowers c_switch = (5 + 2 s) / 7 for a solid sphere, "
         "and -0.4 gives the paper's measured 0.6",
         min=-1.0,

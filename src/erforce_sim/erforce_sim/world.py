@@ -88,7 +88,7 @@ class PhysicsParams:
     coulomb_smoothing_radps: float = 1.0  # motor-shaft speed over which Coulomb friction ramps in
     contacts: ContactParams = field(default_factory=ContactParams)
     kick_max_speed_mps: float = 8.0  # kicks above this are clamped (and reported)
-    kick_spin_ratio: float = 0.0  # default w r / v after a kick; < 0 backspin (-0.4 -> c_switch 0.6)
+    kick_spin_ratio: float = -0.4  # default w r / v after a kick; < 0 backspin: -0.4 gives the paper's c_switch 0.6
     kick_tilt_compliance_rad_per_m: float = DEFAULT_TILT_COMPLIANCE_RAD_PER_M  # plunger bending
     kick_touch_tolerance_m: float = 0.005  # ball surface to front face gap that still counts as touching
     dribbler_time_constant_s: float = 0.005  # ball velocity relaxes to the bar's velocity when dribbling

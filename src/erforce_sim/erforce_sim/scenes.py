@@ -1,0 +1,268 @@
+"""The demo's scenes, how a scene is scored, and the scenes played in one process.
+
+``default_scenes`` is the sequence ``./run demo`` plays over DDS (erforce_sim.demo): the paper's
+Fig. 6, then kicks from 1 to 6.5 m/s by robot_1's curved plate at robot_0, passing it, and one off
+the side wall. ``reachable`` decides from the ball's true path whether a robot could have caught it.
+
+``play_in_process`` plays a scene with the whole stack in one process and no DDS: the plant and
+robot_0's motion control (runner.InProcessRunner: the same cores, order and one-tick setpoint
+delay as the lockstep graph), the ball predictor's cores on every vision frame as it is released
+(ball and robot tracking, robotTimeToBall after the reaction time), and robot_0's catcher
+(catcher.Receiver) at its 50 Hz tick. A seed fixes everything, so a run repeats exactly: this is
+where the catcher is tuned and its behaviour tested, seconds for what takes the DDS graph minutes.
+What it leaves out: DDS delivery and scheduling (the predictor's output reaches the catcher at once),
+the predictor's online identification, and the teammates of ``--receivers``.
+
+    python -m erforce_sim.scenes --seeds 20        # every scene, 20 seeds: caught, contact times
+
+No rclpy import.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, facing_angles, robot_time_to_pos
+from erforce_ball_model.catcher import CATCH_TIME_NEVER, CatcherConfig, Receiver
+from erforce_ball_model.tracking import BallTracker, RobotTracker, UpdateStatus
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_sim.runner import InProcessRunner, PlantSetup
+from erforce_sim.sensors import VisionFrame
+
+RECEIVER, KICKER = 0, 1
+# --receivers 2 and 3 add these receivers, in this order; their catchers form a team with robot_0's (the
+# first to the ball receives). They wait at these poses in every scene, downfield of robot_0.
+TEAMMATE_POSES = {2: (2.5, -1.0, math.pi), 3: (2.5, 1.0, math.pi)}
+REACTION_S = 0.1  # vision latency + tracking before any robot can react (reachability)
+PREDICTION_LEAD_S = 0.3  # the prediction compared with the truth: made this long before the contact
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    receiver_pose: tuple[float, float, float]
+    kicker_pose: tuple[float, float, float] = (-3.5, -2.0, 0.0)
+    ball: tuple[float, float, float, float] | None = None  # a rolling ball (x, y, vx, vy); None: kick
+    kick_speed_mps: float = 0.0
+    timeout_s: float = 5.0
+
+
+def _kick_scene(name: str, speed: float, kicker_xy, aim_xy, receiver_pose, timeout_s: float = 5.0) -> Scene:
+    yaw = math.atan2(aim_xy[1] - kicker_xy[1], aim_xy[0] - kicker_xy[0])
+    return Scene(name, receiver_pose, (kicker_xy[0], kicker_xy[1], yaw), None, speed, timeout_s)
+
+
+def default_scenes(field_config: FieldConfig) -> list[Scene]:
+    """Fig. 6, then kicks from 1 to 6.5 m/s: straight, passing, and one off the wall."""
+    k = (-3.0, 0.0)
+    r = (1.0, 0.0, math.pi)
+    wall_y = field_config.wall_half_width_m
+    receiver_wall = (0.5, 1.6, math.pi)
+    mirror = (receiver_wall[0], 2 * wall_y - receiver_wall[1])  # aim at the mirror image: bank shot
+    return [
+        Scene(
+            "Fig. 6: ball rolls right at 2.0 m/s, robot at rest catches facing left",
+            (-0.5, 0.3, math.pi),
+            (-3.5, -2.0, 0.0),
+            (-2.0, 0.0, 2.0, 0.0),
+            0.0,
+            4.0,
+        ),
+        _kick_scene("kick 1.0 m/s straight", 1.0, (-1.0, 0.0), r[:2], r, 6.0),
+        _kick_scene("kick 2.0 m/s passing 0.5 m beside", 2.0, k, (1.0, 0.5), r),
+        _kick_scene("kick 3.0 m/s straight", 3.0, k, r[:2], r),
+        _kick_scene("kick 3.5 m/s off the side wall", 3.5, k, mirror, receiver_wall),
+        _kick_scene("kick 4.0 m/s passing 0.4 m beside", 4.0, k, (1.0, -0.4), r),
+        _kick_scene("kick 5.0 m/s straight", 5.0, k, r[:2], r),
+        _kick_scene("kick 5.5 m/s passing 0.3 m beside", 5.5, k, (1.0, 0.3), r),
+        _kick_scene("kick 6.5 m/s straight", 6.5, k, r[:2], r),
+    ]
+
+
+def reachable(
+    ball_truth: np.ndarray,
+    t_start: float,
+    t_end: float,
+    start_xy: np.ndarray,
+    limits: RobotLimits,
+    dribbler_offset_m: float,
+    field_config: FieldConfig,
+    reaction_s: float = REACTION_S,
+) -> bool:
+    """Could a robot at rest at ``start_xy`` have met the true ball path in time?
+
+    ``ball_truth`` rows are (t, x, y, vx, vy). The robot, facing the incoming ball, must
+    stand one dribbler offset ahead of the ball when it arrives, inside the field, and
+    needs robotTimeToPos plus a reaction delay to get there. Independent of the predictor.
+    """
+    if ball_truth.size == 0:
+        return False
+    truth = ball_truth[(ball_truth[:, 0] >= t_start) & (ball_truth[:, 0] <= t_end)]
+    if len(truth) < 2:
+        return False
+    velocity = truth[:, 3:5]
+    speed = np.hypot(velocity[:, 0], velocity[:, 1])
+    ahead = np.where(speed[:, None] > 1e-3, velocity / np.maximum(speed, 1e-9)[:, None], 0.0)
+    targets = truth[:, 1:3] + ahead * dribbler_offset_m
+    inside = (np.abs(truth[:, 1]) <= field_config.half_length_m) & (np.abs(truth[:, 2]) <= field_config.half_width_m)
+    t_robot = robot_time_to_pos(np.asarray(start_xy, dtype=float), np.zeros(2), targets, limits)
+    return bool(np.any(inside & (t_robot + reaction_s <= truth[:, 0] - t_start)))
+
+
+# ----------------------------------------------------------------------------- in one process
+@dataclass(frozen=True)
+class InProcessResult:
+    """Times in seconds after the kick (or the rolling ball's release), as the demo reports them."""
+
+    scene: Scene
+    seed: int
+    contact_s: float | None  # robot_0's light barrier, rising edge; None: not caught before the timeout
+    predicted_s: float | None  # the newest catch time made PREDICTION_LEAD_S before the contact (or after
+    #                             the kick when not caught); None: "never"
+    reachable: bool
+
+
+def play_in_process(scene: Scene, seed: int = 0, catcher: CatcherConfig | None = None,
+                    field_preset: str = "division_b", control_period_s: float = 0.002,
+                    catcher_rate_hz: float = 50.0, settle_s: float = 2.5) -> InProcessResult:
+    """Play one scene with the stack in one process (module docstring); deterministic for a seed.
+
+    The catcher's limits are also the predictor's planning limits, as in demo.launch.yaml. The
+    bodies rest ``settle_s`` before the kick, so that the trackers know them, and the catcher starts
+    after that: a ball that appears looks like a moving one to the tracker for a moment, which would
+    engage it (the demo's director waits until robot_0 stands still for the same reason).
+    """
+    field = FieldConfig.preset(field_preset)
+    robot = RobotConfig()
+    cfg = catcher or CatcherConfig()
+    runner = InProcessRunner(PlantSetup(field_preset=field_preset, robot_poses=(scene.receiver_pose, scene.kicker_pose),
+                                        controlled=(True, False), ball=(0.0, 0.0, 0.0, 0.0),
+                                        control_period_s=control_period_s, seed=seed, robot=robot))
+    world = runner.world
+    kx, ky, kyaw = scene.kicker_pose
+    reach = robot.dribbler_offset_m + 0.002
+    start_xy = (kx + reach * math.cos(kyaw), ky + reach * math.sin(kyaw)) if scene.ball is None else scene.ball[:2]
+    world.place_ball(*start_xy)
+    predictor = _Predictor(cfg, robot, field)
+    runner.vision_listeners.append(predictor.on_frame)
+    ticks_per_command = max(1, round(1.0 / (catcher_rate_hz * control_period_s)))
+
+    def run_until(t_end_s: float, stop=lambda: False) -> None:
+        while runner.t_s < t_end_s - 1e-9 and not stop():
+            if predictor.receiver is not None and runner.tick_index % ticks_per_command == 0:
+                runner.command(RECEIVER, predictor.receiver.tick(runner.t_s))
+            runner.tick()
+            predictor.record_barrier(runner.t_s, world.light_barrier(RECEIVER))
+
+    run_until(settle_s)
+    predictor.receiver = Receiver(cfg, robot.dribbler_offset_m, robot.robot_radius_m, field)
+    run_until(settle_s + 0.1)  # it learns the robot's pose and the resting ball
+    t_start = runner.t_s
+    if scene.ball is None:
+        world.kick(KICKER, scene.kick_speed_mps, armed_for_s=0.1)
+    else:
+        world.place_ball(*scene.ball)
+    truth = []
+    edges_before = len(predictor.barrier_edges)
+
+    def caught() -> bool:
+        b = world.ball_state()
+        truth.append((runner.t_s, b.x, b.y, b.vx, b.vy))
+        return len(predictor.barrier_edges) > edges_before
+
+    run_until(t_start + scene.timeout_s, caught)
+    contact = predictor.barrier_edges[edges_before] if len(predictor.barrier_edges) > edges_before else None
+    if contact is not None and contact - t_start >= PREDICTION_LEAD_S:
+        made = [p for p in predictor.predictions if t_start <= p[0] <= contact - PREDICTION_LEAD_S]
+        chosen = made[-1] if made else None
+    else:
+        chosen = next((p for p in predictor.predictions if p[0] >= t_start + PREDICTION_LEAD_S), None)
+    predicted = None if chosen is None or chosen[1] == CATCH_TIME_NEVER else chosen[0] + chosen[1] - t_start
+    limits = RobotLimits(cfg.a_max_mps2, cfg.v_max_mps)
+    could = contact is not None or reachable(np.array(truth), t_start, runner.t_s, np.array(scene.receiver_pose[:2]),
+                                             limits, robot.dribbler_offset_m, field)
+    return InProcessResult(scene, seed, None if contact is None else contact - t_start, predicted, could)
+
+
+class _Predictor:
+    """The ball predictor's per-frame work for robot_0 (ball_predictor_node, without its topics), feeding
+    robot_0's Receiver at the frame's release, as the node's outputs would reach the catcher."""
+
+    def __init__(self, cfg: CatcherConfig, robot: RobotConfig, field: FieldConfig, reaction_s: float = 0.1,
+                 rest_speed_mps: float = 0.1) -> None:
+        self.receiver: Receiver | None = None  # robot_0's catcher, once started
+        self.ball = BallTracker(BallModelParams())
+        self.robot = RobotTracker()
+        self.search = CatchSearch(1, RobotLimits(cfg.a_max_mps2, cfg.v_max_mps),
+                                  dribbler_offset_m=robot.dribbler_offset_m, field=field)
+        self.reaction_s, self.rest_speed_mps = reaction_s, rest_speed_mps
+        self.predictions: list[tuple[float, float]] = []  # (frame capture time, catch time after it)
+        self.barrier_edges: list[float] = []
+        self._no_fixed = np.zeros(1, dtype=bool)
+
+    def record_barrier(self, t_s: float, detected: bool) -> None:
+        if self.receiver is not None and self.receiver.on_barrier(detected):
+            self.barrier_edges.append(t_s)
+
+    def on_frame(self, frame: VisionFrame) -> None:
+        now, t = frame.t_release_s, frame.t_capture_s
+        rx = self.receiver
+        for r in frame.robots:
+            if r.robot_id == RECEIVER and self.robot.update(t, r.x, r.y, r.theta) in (UpdateStatus.INITIALIZED,
+                                                                                       UpdateStatus.ACCEPTED):
+                if rx is not None:
+                    rx.on_odom(now, (*self.robot.position_m, self.robot.heading_rad), self.robot.velocity_mps)
+        if not frame.balls:
+            return
+        b = frame.balls[0]
+        status = self.ball.update(t, b.x, b.y)
+        if rx is None or self.robot.t_s is None or status in (UpdateStatus.REJECTED_TIME,
+                                                               UpdateStatus.REJECTED_INVALID):
+            return
+        traj = self.ball.trajectory()
+        if status == UpdateStatus.HELD_BACK:
+            traj = traj.advanced(t - self.ball.t_s)
+        rx.on_ball(now, traj.position_m, traj.velocity_mps)
+        rx.on_v_shoot(now, traj.floats.v_shoot_mps)
+        # as the node: robot positions at the frame's time, the ball a reaction time ahead
+        position = self.robot.position_m + self.robot.velocity_mps * (t - self.robot.t_s)
+        ahead = traj.advanced(self.reaction_s)
+        facing = facing_angles(self._no_fixed, self._no_fixed, ahead, position[None], self.rest_speed_mps)
+        res = self.search.run(ahead, position[None], self.robot.velocity_mps[None], facing)
+        never = res.kind[0] == CatchKind.NEVER
+        catch_time = CATCH_TIME_NEVER if never else float(res.time_s[0]) + self.reaction_s
+        rx.on_catch_time(now, catch_time)
+        if not never:
+            rx.on_catch_point(now, res.robot_target_m[0].copy())
+        self.predictions.append((t, catch_time))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m erforce_sim.scenes", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seeds", type=int, default=10, help="seeds 0 .. N-1 per scene")
+    parser.add_argument("--scene", type=int, action="append", help="only this scene (index; repeatable)")
+    args = parser.parse_args(argv)
+    scenes = default_scenes(FieldConfig.preset("division_b"))
+    print("| # | scene | caught | contact median / max [s] | |predicted - contact| median [ms] |")
+    print("|---|---|---|---|---|")
+    for i, scene in enumerate(scenes):
+        if args.scene and i not in args.scene:
+            continue
+        results = [play_in_process(scene, seed) for seed in range(args.seeds)]
+        contacts = [r.contact_s for r in results if r.contact_s is not None]
+        errors = [abs(r.predicted_s - r.contact_s) * 1e3 for r in results
+                  if r.contact_s is not None and r.predicted_s is not None]
+        reach = sum(r.reachable for r in results)
+        times = f"{np.median(contacts):.2f} / {max(contacts):.2f}" if contacts else "—"
+        err = f"{np.median(errors):.0f}" if errors else "—"
+        print(f"| {i + 1} | {scene.name} | {len(contacts)}/{reach} | {times} | {err} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
