@@ -32,7 +32,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
-from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, facing_angles
+from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, catch_after_reaction
 from erforce_ball_model.catcher import CatcherConfig
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
@@ -497,14 +497,8 @@ class BallPredictorNode(Node):
         ids, pos = self._robots_now(t_s)
         if not ids:
             return None
-        if cfg.reaction_s > 0.0:
-            # A robot acts on this prediction only after the reaction time: the ball gets that head
-            # start. The robot meanwhile executes its previous command, which continues its plan, so
-            # it is planned from its present state (coasting it would push a braking robot past its
-            # target and turn a catch in progress into "never").
-            traj = traj.advanced(cfg.reaction_s)
-        facing = facing_angles(cfg.facing_fixed, cfg.facing_rad, traj, pos, cfg.rest_speed_mps)
-        catch = self._search.run(traj, pos, self._robot_vel_mps, facing)
+        catch = catch_after_reaction(self._search, traj, pos, self._robot_vel_mps, cfg.reaction_s, cfg.facing_fixed,
+                                     cfg.facing_rad, cfg.rest_speed_mps)
         # Per robot in plain floats (22 values; numpy calls cost more than they save here). All are
         # checked before the first publish, with the checks of float64_cdr / point_cdr.
         kinds, times, points = catch.kind.tolist(), catch.time_s.tolist(), catch.robot_target_m.tolist()

@@ -79,6 +79,7 @@ __all__ = [
     "RobotLimits",
     "axis_time",
     "can_reach_in_time",
+    "catch_after_reaction",
     "facing_angles",
     "robot_time_to_ball",
     "robot_time_to_pos",
@@ -598,3 +599,19 @@ def facing_angles(
         d = ball.position_m - robot_pos_m
         towards = np.arctan2(d[:, 1], d[:, 0])  # atan2(0, 0) = 0: a robot on the ball faces +x
     return np.where(fixed, fixed_rad, towards)
+
+
+def catch_after_reaction(search: CatchSearch, ball: BallTrajectory, robot_pos_m: np.ndarray,
+                         robot_vel_mps: np.ndarray, reaction_s: float, facing_fixed: np.ndarray,
+                         facing_rad: np.ndarray, rest_speed_mps: float) -> CatchResult:
+    """robotTimeToBall for robots that act on this prediction only ``reaction_s`` from now (the predictor's
+    question every frame): the ball gets that head start, facing as ``facing_angles``.
+
+    The robots are planned from their present state: meanwhile they execute their previous command,
+    which continues their plan (coasting them would push a braking robot past its target and turn a
+    catch in progress into "never"). The times count from the end of the reaction: add ``reaction_s``
+    for times from now. The result's arrays are the search's, reused by its next run.
+    """
+    ahead = ball.advanced(reaction_s) if reaction_s > 0.0 else ball
+    facing = facing_angles(facing_fixed, facing_rad, ahead, robot_pos_m, rest_speed_mps)
+    return search.run(ahead, robot_pos_m, robot_vel_mps, facing)

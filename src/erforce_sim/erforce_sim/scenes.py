@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, facing_angles, robot_time_to_pos
+from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, catch_after_reaction, robot_time_to_pos
 from erforce_ball_model.catcher import CATCH_TIME_NEVER, CatcherConfig, Receiver
 from erforce_ball_model.tracking import BallTracker, RobotTracker, UpdateStatus
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
@@ -229,11 +229,10 @@ class _Predictor:
             traj = traj.advanced(t - self.ball.t_s)
         rx.on_ball(now, traj.position_m, traj.velocity_mps)
         rx.on_v_shoot(now, traj.floats.v_shoot_mps)
-        # as the node: robot positions at the frame's time, the ball a reaction time ahead
+        # as the node: the robot's position at the frame's time, the ball a reaction time ahead
         position = self.robot.position_m + self.robot.velocity_mps * (t - self.robot.t_s)
-        ahead = traj.advanced(self.reaction_s)
-        facing = facing_angles(self._no_fixed, self._no_fixed, ahead, position[None], self.rest_speed_mps)
-        res = self.search.run(ahead, position[None], self.robot.velocity_mps[None], facing)
+        res = catch_after_reaction(self.search, traj, position[None], self.robot.velocity_mps[None], self.reaction_s,
+                                   self._no_fixed, self._no_fixed, self.rest_speed_mps)
         never = res.kind[0] == CatchKind.NEVER
         catch_time = CATCH_TIME_NEVER if never else float(res.time_s[0]) + self.reaction_s
         rx.on_catch_time(now, catch_time)
