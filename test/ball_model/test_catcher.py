@@ -240,6 +240,21 @@ def test_receiver_engages_on_a_moving_ball_and_drives_to_its_line():
     np.testing.assert_allclose(twist, [0.0, math.sqrt(2 * 4.5 * 0.5 * 0.3), 0.0], atol=1e-9)
 
 
+def test_receiver_engages_on_travel_not_on_noise():
+    """Right after a ball appears its filtered velocity is noise of up to ~0.25 m/s while the ball lies
+    still: only a ball that moved engage_distance_m (5 cm) from where it rested engages the robot."""
+    rx = _receiver()
+    rx.on_odom(0.0, [-0.5, 0.3, math.pi], [0.0, 0.0])
+    rx.on_ball(0.0, [-2.0, 0.0], [0.0, 0.0])  # at rest
+    for k, noise in enumerate(([0.10, 0.02], [0.24, -0.05], [-0.1, 0.2])):
+        rx.on_ball(0.014 * (k + 1), [-2.0 + 0.002 * k, 0.001], noise)  # fast, but nowhere
+        assert rx.tick(0.014 * (k + 1)).tolist() == [0.0, 0.0, 0.0]
+    rx.on_ball(0.06, [-1.96, 0.0], [2.0, 0.0])  # kicked: 4 cm on
+    assert rx.tick(0.06).tolist() == [0.0, 0.0, 0.0]
+    rx.on_ball(0.07, [-1.94, 0.0], [2.0, 0.0])  # 6 cm
+    assert np.any(rx.tick(0.07) != 0.0)
+
+
 def test_receiver_holds_on_stale_inputs_and_after_the_catch():
     rx = _receiver()
     _feed_fig6(rx, 0.0)
@@ -249,9 +264,12 @@ def test_receiver_holds_on_stale_inputs_and_after_the_catch():
     assert rx.on_barrier(True) and not rx.on_barrier(True)  # one rising edge
     assert rx.tick(1.01).tolist() == [0.0, 0.0, 0.0]  # holding the ball
     rx.on_barrier(False)
-    assert rx.tick(1.02).tolist() == [0.0, 0.0, 0.0]  # disengaged by the catch until the ball moves again
-    _feed_fig6(rx, 1.03)
-    assert np.any(rx.tick(1.04) != 0.0)
+    assert rx.tick(1.02).tolist() == [0.0, 0.0, 0.0]  # disengaged by the catch
+    _feed_fig6(rx, 1.03)  # the ball bounced off the dribbler, moving: received already, not chased
+    assert rx.tick(1.04).tolist() == [0.0, 0.0, 0.0]
+    rx.on_ball(1.05, [-2.0, 0.0], [0.0, 0.0])  # a ball at rest, then a new pass
+    rx.on_ball(1.06, [-1.9, 0.0], [2.0, 0.0])
+    assert np.any(rx.tick(1.07) != 0.0)
 
 
 def test_receiver_gives_up_once_the_ball_rested():

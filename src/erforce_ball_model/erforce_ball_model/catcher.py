@@ -66,11 +66,14 @@ class CatcherConfig:
     # on it is this close: it nearly made it. Farther off, chasing the line deflects bank shots.
     commit_distance_m: float = 0.3
     # Receiver (over time): inputs older than stale_after_s count as missing; a ball faster than
-    # min_ball_speed_mps engages; an engaged robot gives up once the ball rested disengage_after_rest_s;
-    # a robot that had a target within commit_s is committed (choose_target); in a team the receiver
-    # keeps the ball until another robot's catch time is team_switch_margin_s earlier.
+    # min_ball_speed_mps that has also travelled engage_distance_m from where it rested engages (vision
+    # noise fakes speed, above all right after a ball appears, but not travel); an engaged robot gives up
+    # once the ball rested disengage_after_rest_s; a robot that had a target within commit_s is committed
+    # (choose_target); in a team the receiver keeps the ball until another robot's catch time is
+    # team_switch_margin_s earlier.
     stale_after_s: float = 0.25
     min_ball_speed_mps: float = 0.1
+    engage_distance_m: float = 0.05
     fetch_resting_ball: bool = False
     disengage_after_rest_s: float = 2.0
     commit_s: float = 0.3
@@ -85,8 +88,8 @@ class CatcherConfig:
             raise ValueError(f"heading_deadband_rad must be in [0, pi), got {self.heading_deadband_rad!r}")
         if not (math.isfinite(self.receive_line_tolerance_m) and self.receive_line_tolerance_m >= 0.0):
             raise ValueError(f"receive_line_tolerance_m must be finite and >= 0, got {self.receive_line_tolerance_m!r}")
-        for name in ("receive_slack_s", "commit_distance_m", "min_ball_speed_mps", "disengage_after_rest_s",
-                     "commit_s", "team_switch_margin_s"):
+        for name in ("receive_slack_s", "commit_distance_m", "min_ball_speed_mps", "engage_distance_m",
+                     "disengage_after_rest_s", "commit_s", "team_switch_margin_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
@@ -296,7 +299,10 @@ class Receiver:
     Feed it what arrives, each with the robot time it arrived (``on_*``), and ask ``tick(now)`` for
     the Twist [vx, vy, wz] (robot frame) at the command rate. Inputs older than ``stale_after_s``
     count as missing. The robot engages when the ball moves, holds once its light barrier sees the
-    ball (and disengages), and gives up once the ball rested ``disengage_after_rest_s``. While
+    ball (and disengages), and gives up once the ball rested ``disengage_after_rest_s``; a ball engages
+    it once it moves and has travelled ``engage_distance_m`` from where it last rested, and after a
+    catch only a ball that rested since (a pass is received once: a ball that bounces off the dribbler
+    or is carried away is the next skill's). While
     engaged it drives to ``choose_target``, facing the incoming ball as the predictor assumed. In a
     team (``team_robot_ids``, its own id among them) it drives only while ``team_receiver`` names it,
     or nobody can catch the ball by the predictions (then each robot judges alone). ``notice`` says
@@ -316,6 +322,8 @@ class Receiver:
         self._catch_time = None  # (t, seconds or CATCH_TIME_NEVER)
         self._catch_point = None  # (t, [x, y])
         self._ball = None  # (t, position, velocity)
+        self._rest_position = None  # where the ball was last seen at rest
+        self._received = False  # caught, and the ball not seen at rest since
         self._v_shoot = None  # (t, m/s)
         self._model = BallModelParams()
         self._holding_ball = False
@@ -347,10 +355,16 @@ class Receiver:
     def on_ball(self, now: float, position, velocity) -> None:
         position, velocity = np.asarray(position, dtype=float)[:2], np.asarray(velocity, dtype=float)[:2]
         self._ball = (now, position, velocity)
-        if math.hypot(velocity[0], velocity[1]) >= self.cfg.min_ball_speed_mps:
-            self._ball_moving_at = now
-            if not self._holding_ball:
-                self._engaged = True
+        if math.hypot(velocity[0], velocity[1]) < self.cfg.min_ball_speed_mps:
+            self._rest_position = position
+            self._received = False
+            return
+        self._ball_moving_at = now
+        rest = self._rest_position
+        if self._holding_ball or self._received:
+            return
+        if rest is None or math.dist(position, rest) >= self.cfg.engage_distance_m:
+            self._engaged = True
 
     def on_v_shoot(self, now: float, v_shoot_mps: float) -> None:
         self._v_shoot = (now, float(v_shoot_mps))
@@ -364,6 +378,7 @@ class Receiver:
         edge = bool(detected) and not self._holding_ball
         if edge:
             self._engaged = False
+            self._received = True
         self._holding_ball = bool(detected)
         return edge
 

@@ -86,8 +86,11 @@ PARAMS = (
         min=0.01,
         max=10.0,
     ),
-    ParamSpec("min_ball_speed_mps", _CC.min_ball_speed_mps, "a ball faster than this engages the catcher [m/s]",
-              min=0.0, max=10.0),
+    ParamSpec("min_ball_speed_mps", _CC.min_ball_speed_mps, "a ball faster than this engages the catcher once it "
+              "has travelled engage_distance_m [m/s]", min=0.0, max=10.0),
+    ParamSpec("engage_distance_m", _CC.engage_distance_m, "a moving ball engages the catcher once it is this far "
+              "from where it rested: vision noise fakes speed, above all when a ball appears, but not travel [m]",
+              min=0.0, max=1.0),
     ParamSpec("fetch_resting_ball", _CC.fetch_resting_ball, "also drive to a ball that is not moving"),
     ParamSpec(
         "disengage_after_rest_s",

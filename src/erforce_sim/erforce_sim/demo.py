@@ -340,16 +340,21 @@ class Director:
 
     def play(self, scene: Scene) -> SceneResult:
         """Set the scene up, kick (or release the rolling ball), and wait for the catch or the timeout."""
-        self.place_robot(RECEIVER, scene.receiver_pose)
+        # The kicker, the ball (at rest, also a rolling one: the catcher stays idle while we set up), then
+        # the receivers, each placement taken before the next: a body put down where another is pushes
+        # it, the receiver still holds the last ball, and a ball seen moving engages the catcher, which
+        # then drives and heats its motors.
         self.place_robot(KICKER, scene.kicker_pose)
-        for r in self.receivers[1:]:
-            self.place_robot(r, TEAMMATE_POSES[r])
+        self.wait_sim(0.02)
         if scene.ball is None:
             self.place_ball(*self.ball_at_kicker(scene.kicker_pose))
         else:
-            self.place_ball(*scene.ball[:2])  # at rest first: the catcher stays idle while we set up
-        # A teleported ball looks like a fast one to the tracker for a moment, which engages the
-        # catcher: start only once the receiver stands still at its pose.
+            self.place_ball(*scene.ball[:2])
+        self.wait_sim(0.02)
+        self.place_robot(RECEIVER, scene.receiver_pose)
+        for r in self.receivers[1:]:
+            self.place_robot(r, TEAMMATE_POSES[r])
+        # Start only once the receiver stands still at its pose.
         self.wait_sim(0.7)
         for _ in range(10):
             self.place_robot(RECEIVER, scene.receiver_pose)

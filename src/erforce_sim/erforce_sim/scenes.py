@@ -129,13 +129,11 @@ class InProcessResult:
 
 def play_in_process(scene: Scene, seed: int = 0, catcher: CatcherConfig | None = None,
                     field_preset: str = "division_b", control_period_s: float = 0.002,
-                    catcher_rate_hz: float = 50.0, settle_s: float = 2.5) -> InProcessResult:
+                    catcher_rate_hz: float = 50.0, settle_s: float = 0.5) -> InProcessResult:
     """Play one scene with the stack in one process (module docstring); deterministic for a seed.
 
     The catcher's limits are also the predictor's planning limits, as in demo.launch.yaml. The
-    bodies rest ``settle_s`` before the kick, so that the trackers know them, and the catcher starts
-    after that: a ball that appears looks like a moving one to the tracker for a moment, which would
-    engage it (the demo's director waits until robot_0 stands still for the same reason).
+    bodies rest ``settle_s`` before the kick, so that the trackers know them.
     """
     field = FieldConfig.preset(field_preset)
     robot = RobotConfig()
@@ -149,6 +147,7 @@ def play_in_process(scene: Scene, seed: int = 0, catcher: CatcherConfig | None =
     start_xy = (kx + reach * math.cos(kyaw), ky + reach * math.sin(kyaw)) if scene.ball is None else scene.ball[:2]
     world.place_ball(*start_xy)
     predictor = _Predictor(cfg, robot, field)
+    predictor.receiver = Receiver(cfg, robot.dribbler_offset_m, robot.robot_radius_m, field)
     runner.vision_listeners.append(predictor.on_frame)
     ticks_per_command = max(1, round(1.0 / (catcher_rate_hz * control_period_s)))
 
@@ -160,8 +159,6 @@ def play_in_process(scene: Scene, seed: int = 0, catcher: CatcherConfig | None =
             predictor.record_barrier(runner.t_s, world.light_barrier(RECEIVER))
 
     run_until(settle_s)
-    predictor.receiver = Receiver(cfg, robot.dribbler_offset_m, robot.robot_radius_m, field)
-    run_until(settle_s + 0.1)  # it learns the robot's pose and the resting ball
     t_start = runner.t_s
     if scene.ball is None:
         world.kick(KICKER, scene.kick_speed_mps, armed_for_s=0.1)
