@@ -146,14 +146,13 @@ def play_in_process(scene: Scene, seed: int = 0, catcher: CatcherConfig | None =
     reach = robot.dribbler_offset_m + 0.002
     start_xy = (kx + reach * math.cos(kyaw), ky + reach * math.sin(kyaw)) if scene.ball is None else scene.ball[:2]
     world.place_ball(*start_xy)
-    predictor = _Predictor(cfg, robot, field)
-    predictor.receiver = Receiver(cfg, robot.dribbler_offset_m, robot.robot_radius_m, field)
+    predictor = _Predictor(cfg, robot, field, Receiver(cfg, robot.dribbler_offset_m, robot.robot_radius_m, field))
     runner.vision_listeners.append(predictor.on_frame)
     ticks_per_command = max(1, round(1.0 / (catcher_rate_hz * control_period_s)))
 
     def run_until(t_end_s: float, stop=lambda: False) -> None:
         while runner.t_s < t_end_s - 1e-9 and not stop():
-            if predictor.receiver is not None and runner.tick_index % ticks_per_command == 0:
+            if runner.tick_index % ticks_per_command == 0:
                 runner.command(RECEIVER, predictor.receiver.tick(runner.t_s))
             runner.tick()
             predictor.record_barrier(runner.t_s, world.light_barrier(RECEIVER))
@@ -190,9 +189,9 @@ class _Predictor:
     """The ball predictor's per-frame work for robot_0 (ball_predictor_node, without its topics), feeding
     robot_0's Receiver at the frame's release, as the node's outputs would reach the catcher."""
 
-    def __init__(self, cfg: CatcherConfig, robot: RobotConfig, field: FieldConfig, reaction_s: float = 0.1,
-                 rest_speed_mps: float = 0.1) -> None:
-        self.receiver: Receiver | None = None  # robot_0's catcher, once started
+    def __init__(self, cfg: CatcherConfig, robot: RobotConfig, field: FieldConfig, receiver: Receiver,
+                 reaction_s: float = 0.1, rest_speed_mps: float = 0.1) -> None:
+        self.receiver = receiver
         self.ball = BallTracker(BallModelParams())
         self.robot = RobotTracker()
         self.search = CatchSearch(1, RobotLimits(cfg.a_max_mps2, cfg.v_max_mps),
@@ -203,7 +202,7 @@ class _Predictor:
         self._no_fixed = np.zeros(1, dtype=bool)
 
     def record_barrier(self, t_s: float, detected: bool) -> None:
-        if self.receiver is not None and self.receiver.on_barrier(detected):
+        if self.receiver.on_barrier(detected):
             self.barrier_edges.append(t_s)
 
     def on_frame(self, frame: VisionFrame) -> None:
@@ -212,14 +211,12 @@ class _Predictor:
         for r in frame.robots:
             if r.robot_id == RECEIVER and self.robot.update(t, r.x, r.y, r.theta) in (UpdateStatus.INITIALIZED,
                                                                                        UpdateStatus.ACCEPTED):
-                if rx is not None:
-                    rx.on_odom(now, (*self.robot.position_m, self.robot.heading_rad), self.robot.velocity_mps)
+                rx.on_odom(now, (*self.robot.position_m, self.robot.heading_rad), self.robot.velocity_mps)
         if not frame.balls:
             return
         b = frame.balls[0]
         status = self.ball.update(t, b.x, b.y)
-        if rx is None or self.robot.t_s is None or status in (UpdateStatus.REJECTED_TIME,
-                                                               UpdateStatus.REJECTED_INVALID):
+        if self.robot.t_s is None or status in (UpdateStatus.REJECTED_TIME, UpdateStatus.REJECTED_INVALID):
             return
         traj = self.ball.trajectory()
         if status == UpdateStatus.HELD_BACK:
