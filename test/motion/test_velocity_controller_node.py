@@ -46,6 +46,18 @@ class Rig:
             5.0, f"answer to tick {t}")
         return np.array(self.setpoints[-1].velocity)
 
+    def command(self, twist: Twist, max_ticks: int = 2000) -> np.ndarray:
+        """Send cmd_vel and tick, feeding the setpoints back as the measured speeds, until the output moves:
+        the node takes the command when it arrives, which may be some ticks later (DDS orders no two topics).
+        Returns the first moving output, one tick into the command."""
+        self.cmd.publish(twist)
+        speeds = np.zeros(4)
+        for _ in range(max_ticks):
+            speeds = self.tick(speeds)
+            if np.any(speeds != 0.0):
+                return speeds
+        raise AssertionError(f"no response to cmd_vel within {max_ticks} ticks")
+
 
 def test_answers_each_tick_and_accelerates_toward_cmd_vel(ros_graph):
     # 4 m/s^2: below the shaper's traction limit along +x (0.9 * 5.66 m/s^2 for the default robot)
@@ -53,12 +65,10 @@ def test_answers_each_tick_and_accelerates_toward_cmd_vel(ros_graph):
     rig.tick()
     msg = Twist()
     msg.linear.x = 1.0
-    rig.cmd.publish(msg)
-    ros_graph.probe.spin_for(0.2)
     # Wheels "follow" perfectly: feed back the setpoint as the measured speed, so the
     # shaped ramp is what comes out: 4 m/s^2 * 1 ms per tick.
-    speeds = np.zeros(4)
-    for _ in range(50):
+    speeds = rig.command(msg)
+    for _ in range(49):
         speeds = rig.tick(speeds)
     kin = OmniKinematics.from_robot_config(ROBOT)
     twist = kin.forward(speeds)
@@ -72,9 +82,7 @@ def test_bad_twist_is_rejected_robot_stops_node_survives(ros_graph, bad):
     rig.tick()
     good = Twist()
     good.linear.x = 1.0
-    rig.cmd.publish(good)
-    ros_graph.probe.spin_for(0.2)
-    speeds = np.zeros(4)
+    speeds = rig.command(good)
     for _ in range(30):
         speeds = rig.tick(speeds)
     moving = OmniKinematics.from_robot_config(ROBOT).forward(speeds)[0]
@@ -82,12 +90,11 @@ def test_bad_twist_is_rejected_robot_stops_node_survives(ros_graph, bad):
     bad_msg = Twist()
     bad_msg.linear.x = bad
     rig.cmd.publish(bad_msg)
-    ros_graph.probe.spin_for(0.2)
+    rig.node.wait_for_output("rejected cmd_vel", timeout_s=5.0)
     for _ in range(30):
         speeds = rig.tick(speeds)
         assert np.all(np.isfinite(speeds))
     assert OmniKinematics.from_robot_config(ROBOT).forward(speeds)[0] < moving  # decelerating, not NaN
-    rig.node.wait_for_output("rejected cmd_vel", timeout_s=5.0)
     assert rig.node.alive()
 
 
@@ -104,10 +111,8 @@ def test_command_timeout_stops_the_robot(ros_graph):
     msg = Twist()
     # 0.05 m/s sideways: reached in 12 ms at the shaper's traction limit (0.9 * 4.74 m/s^2 along y)
     msg.linear.y = 0.05
-    rig.cmd.publish(msg)
-    ros_graph.probe.spin_for(0.2)
-    speeds = np.zeros(4)
-    for _ in range(15):  # 15 ms < timeout: moving
+    speeds = rig.command(msg)
+    for _ in range(14):  # 15 ms < timeout: moving
         speeds = rig.tick(speeds)
     kin = OmniKinematics.from_robot_config(ROBOT)
     assert kin.forward(speeds)[1] == pytest.approx(0.05, rel=0.05)
