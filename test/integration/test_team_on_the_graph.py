@@ -11,7 +11,10 @@ import math
 
 import numpy as np
 import pytest
+from geometry_msgs.msg import Twist
+from std_msgs.msg import Float64
 
+from erforce_interfaces import contract
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.demo import LAUNCH_FILE, Director
 from erforce_sim.scenes import RECEIVER, TEAMMATE_POSES, Scene, default_scenes
@@ -63,3 +66,17 @@ def test_a_catcher_outside_its_team_refuses_to_start_with_one_clear_line(ros_gra
     out = proc.output()
     assert "cannot start: team_robot_ids [0, 2]: a team catcher runs in the namespace of one of its robots" in out
     assert "Traceback" not in out
+
+
+def test_a_team_catcher_rejects_bad_teammate_catch_times_and_keeps_commanding(ros_graph):
+    proc = ros_graph.start_node("erforce_ball_model", "catcher", namespace="robot_0", params={"team_robot_ids": [0, 2]})
+    commands = ros_graph.subscribe("/robot_0/cmd_vel", Twist, contract.CMD_VEL.qos)
+    teammate = ros_graph.probe.wait_for_subscribers(contract.CATCH_TIME.for_robot(TEAMMATE), Float64, timeout_s=20.0,
+                                                    qos=contract.CATCH_TIME.qos)
+    for bad in (math.nan, math.inf, -math.inf, 1e300):
+        teammate.publish(Float64(data=bad))
+    proc.wait_for_output(f"rejected robot_{TEAMMATE} catch_time", timeout_s=10.0)
+    seen = len(commands)
+    ros_graph.spin_until(lambda: len(commands) >= seen + 5, 10.0, "cmd_vel after the bad catch times")
+    assert all(math.isfinite(v) for m in commands for v in (m.linear.x, m.linear.y, m.angular.z))
+    assert proc.alive()
