@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 
 from erforce_ball_model.catch_time import RobotLimits
 from erforce_interfaces.robot_config import FieldConfig
@@ -50,3 +51,14 @@ def test_scene_sequence_covers_the_issue():
     assert min(speeds) == 1.0 and max(speeds) == 6.5
     assert any("wall" in s.name for s in kicks) and any("passing" in s.name for s in kicks)
     assert any("straight" in s.name for s in kicks)
+
+
+def test_the_prediction_compared_is_the_newest_made_a_lead_before_the_contact():
+    from erforce_sim.scenes import compared_prediction
+
+    preds = [(10.1, 1.0), (10.3, 0.75), (10.5, -1.0), (10.7, 0.2)]  # (made at, catch time after it)
+    assert compared_prediction(preds, 10.0, 11.0) == pytest.approx(10.7 + 0.2)  # newest made by 10.7 s
+    assert compared_prediction(preds, 10.0, 10.85) is None  # newest made by 10.55 s says "never"
+    assert compared_prediction(preds, 10.0, None) == pytest.approx(10.3 + 0.75)  # not caught: 0.3 s after start
+    assert compared_prediction(preds, 10.0, 10.2) == pytest.approx(10.3 + 0.75)  # caught sooner than the lead
+    assert compared_prediction([], 10.0, 11.0) is None

@@ -56,6 +56,7 @@ from erforce_sim.scenes import (
     RECEIVER,
     TEAMMATE_POSES,
     Scene,
+    compared_prediction,
     default_scenes,
     reachable,
 )
@@ -389,14 +390,7 @@ class Director:
         """The catching robot's (robot_0's when none caught) prediction to compare with the contact."""
         s = self.series
         preds = s.predictions if robot in (None, RECEIVER) else s.teammate_predictions[robot]
-        if actual is not None and actual - t_start >= PREDICTION_LEAD_S:
-            chosen = [max((p for p in preds if t_start <= p[0] <= actual - PREDICTION_LEAD_S), default=None)]
-        else:
-            chosen = [min((p for p in preds if p[0] >= t_start + PREDICTION_LEAD_S), default=None)]
-        chosen = [c for c in chosen if c is not None]
-        if not chosen or chosen[0][1] == contract.CATCH_TIME_NEVER:
-            return None
-        return chosen[0][0] + chosen[0][1]
+        return compared_prediction(preds, t_start, actual)
 
 
 def _idle_priority(thread_id: int) -> None:

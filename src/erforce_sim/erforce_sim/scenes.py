@@ -114,6 +114,22 @@ def reachable(
     return bool(np.any(inside & (t_robot + reaction_s <= truth[:, 0] - t_start)))
 
 
+def compared_prediction(predictions, t_start_s: float, contact_s: float | None) -> float | None:
+    """The prediction a scene compares with its contact, as an absolute time; None for "never" or none.
+
+    ``predictions`` are (observation time, catch time after it) pairs, CATCH_TIME_NEVER for "never". The
+    newest made at least PREDICTION_LEAD_S before the contact (a useful lead for a receiver); for a ball
+    not caught (or caught sooner), the first made PREDICTION_LEAD_S after the scene started.
+    """
+    if contact_s is not None and contact_s - t_start_s >= PREDICTION_LEAD_S:
+        chosen = max((p for p in predictions if t_start_s <= p[0] <= contact_s - PREDICTION_LEAD_S), default=None)
+    else:
+        chosen = min((p for p in predictions if p[0] >= t_start_s + PREDICTION_LEAD_S), default=None)
+    if chosen is None or chosen[1] == CATCH_TIME_NEVER:
+        return None
+    return chosen[0] + chosen[1]
+
+
 # ----------------------------------------------------------------------------- in one process
 @dataclass(frozen=True)
 class InProcessResult:
@@ -173,16 +189,12 @@ def play_in_process(scene: Scene, seed: int = 0, catcher: CatcherConfig | None =
 
     run_until(t_start + scene.timeout_s, caught)
     contact = predictor.barrier_edges[edges_before] if len(predictor.barrier_edges) > edges_before else None
-    if contact is not None and contact - t_start >= PREDICTION_LEAD_S:
-        made = [p for p in predictor.predictions if t_start <= p[0] <= contact - PREDICTION_LEAD_S]
-        chosen = made[-1] if made else None
-    else:
-        chosen = next((p for p in predictor.predictions if p[0] >= t_start + PREDICTION_LEAD_S), None)
-    predicted = None if chosen is None or chosen[1] == CATCH_TIME_NEVER else chosen[0] + chosen[1] - t_start
+    predicted = compared_prediction(predictor.predictions, t_start, contact)
     limits = RobotLimits(cfg.a_max_mps2, cfg.v_max_mps)
     could = contact is not None or reachable(np.array(truth), t_start, runner.t_s, np.array(scene.receiver_pose[:2]),
                                              limits, robot.dribbler_offset_m, field)
-    return InProcessResult(scene, seed, None if contact is None else contact - t_start, predicted, could)
+    return InProcessResult(scene, seed, None if contact is None else contact - t_start,
+                           None if predicted is None else predicted - t_start, could)
 
 
 class _Predictor:
