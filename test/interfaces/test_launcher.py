@@ -551,3 +551,31 @@ def test_log_output_goes_to_files_and_a_partial_last_line_is_kept(ros_graph, tmp
     assert (log_dir / "quiet-1-stdout.log").read_text() == "one\ntwo\n"
     assert (log_dir / "failing-3-stderr.log").read_text() == "oops\n"
     assert not (log_dir / "loud-2-stdout.log").exists()
+
+
+LAUNCH_FILES = sorted((REPO / "src").glob("*/launch/*.launch.yaml"))
+
+
+@pytest.mark.parametrize("path", LAUNCH_FILES, ids=lambda p: p.name)
+@pytest.mark.parametrize("user_range", [None, "SUBNET"])
+def test_discovery_stays_on_this_computer_unless_the_user_chose_a_range(path, user_range, monkeypatch):
+    """Safe by default (README, "DDS discovery"): every node of every launch file, under erforce-launch
+    and (through the files' own set_env) under ros2 launch, discovers only this computer's participants
+    unless ROS_AUTOMATIC_DISCOVERY_RANGE is set, as the two-host test sets it."""
+    if user_range is None:
+        monkeypatch.delenv("ROS_AUTOMATIC_DISCOVERY_RANGE", raising=False)
+    else:
+        monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", user_range)
+    assert "$(optenv ROS_AUTOMATIC_DISCOVERY_RANGE LOCALHOST)" in path.read_text()
+    specs = resolve(path, **({"robot": "robot_0", "team_robot_ids": "[0]"} if path.name == "receiver.launch.yaml"
+                             else {}))
+    assert specs
+    assert {s.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] for s in specs.values()} == {user_range or "LOCALHOST"}
+
+
+def test_erforce_launch_defaults_to_localhost_also_for_a_file_that_says_nothing(tmp_path, monkeypatch):
+    monkeypatch.delenv("ROS_AUTOMATIC_DISCOVERY_RANGE", raising=False)
+    path = tmp_path / "bare.launch.yaml"
+    path.write_text("launch:\n  - node: {pkg: erforce_interfaces, exec: talker}\n")
+    (spec,) = resolve(path).values()
+    assert spec.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"

@@ -52,6 +52,7 @@ from erforce_interfaces.executor import run_sampled
 from erforce_interfaces.node_support import (
     ParamSpec,
     ThrottledWarner,
+    check_stamp,
     contract_publisher,
     contract_subscription,
     declare_params,
@@ -61,6 +62,7 @@ from erforce_interfaces.node_support import (
     sample_clock,
 )
 from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.stamps import StampFilter, StampVerdict
 
 # Node defaults are the cores' defaults.
 _MODEL = BallModelParams()
@@ -286,6 +288,7 @@ class BallPredictorNode(Node):
         self._values = declare_params(self, PARAMS, build_config, self._apply)
         n = self._config.num_robots
         self._robots: list[RobotTracker | None] = [None] * n
+        self._ball_stamps, self._robot_stamps = StampFilter(), [StampFilter() for _ in range(n)]
         # The trackers' state after their last accepted pose, (t_s, x, y, vx, vy) per robot (NaN
         # stamp: not seen yet), and the velocities as the array the catch search takes.
         self._robot_states = [(math.nan, 0.0, 0.0, 0.0, 0.0)] * n
@@ -351,9 +354,11 @@ class BallPredictorNode(Node):
             self._warn.warn(f"pose{robot}", f"robot_{robot}: rejected vision_pose outside the field: "
                                             f"({pose[0]:.3f}, {pose[1]:.3f}) m")
             return
-        tracker = self._robots[robot]
-        if tracker is not None and self._restarted_clock(tracker.t_s, t_s, f"robot_{robot} tracker"):
-            tracker = None
+        verdict = check_stamp(self._robot_stamps[robot], round(t_s * 1e9), self._warn,
+                              f"robot_{robot}/vision_pose", self)
+        if verdict is StampVerdict.DROP:
+            return
+        tracker = None if verdict is StampVerdict.RESTART else self._robots[robot]
         tracker = tracker or RobotTracker()
         status = tracker.update(t_s, pose[0], pose[1], pose[2])
         if status == UpdateStatus.REJECTED_TIME:
@@ -376,17 +381,6 @@ class BallPredictorNode(Node):
             self._warn.warn(f"odom{robot}", f"robot_{robot}: odom not published: {exc}")
             return
         self._odom_pubs[robot].publish(odom)
-
-    def _restarted_clock(self, last_t_s: float | None, t_s: float, what: str) -> bool:
-        """A stamp more than max_gap_s before the newest one: the clock restarted (e.g. the simulator).
-
-        Smaller steps back are reordered or repeated frames and are rejected; after a restart
-        the old newest stamp would reject every frame until the new clock passed it.
-        """
-        if last_t_s is None or t_s >= last_t_s - self._config.tracker.max_gap_s:
-            return False
-        self.get_logger().warning(f"time went backwards ({last_t_s:.6f} -> {t_s:.6f} s): {what} restarted")
-        return True
 
     def _robots_now(self, t_s: float) -> tuple[list[int], np.ndarray]:
         """The robots fresh at ``t_s``, and all robots' positions then (constant-velocity extrapolation).
@@ -424,7 +418,10 @@ class BallPredictorNode(Node):
         if not cfg.field.contains(xy[0], xy[1], cfg.vision_reject_margin_m):
             self._warn.warn("ball_outside", f"rejected vision/ball outside the field: ({xy[0]:.3f}, {xy[1]:.3f}) m")
             return
-        if self._restarted_clock(self._ball.t_s, t_s, "ball filter"):
+        verdict = check_stamp(self._ball_stamps, round(t_s * 1e9), self._warn, "vision/ball", self)
+        if verdict is StampVerdict.DROP:
+            return
+        if verdict is StampVerdict.RESTART:
             self._ball = BallTracker(self._model, cfg.tracker)
             if self._shots is not None:
                 self._shots = ShotAccumulator(tracker_config=cfg.tracker)

@@ -175,6 +175,7 @@ class CatcherNode(Node):
         if team and own_id not in team:
             raise ValueError(f"team_robot_ids {sorted(team)}: a team catcher runs in the namespace of one of its "
                              f"robots (robot_<id>), this one runs in '{self.get_namespace()}'")
+        self._team = (own_id, team)
         self._receiver = Receiver(*self._built, robot_id=own_id, team_robot_ids=team)
         q = contract
         self._cmd_pub = contract_publisher(self, q.CMD_VEL)
@@ -202,6 +203,11 @@ class CatcherNode(Node):
         self._built = built
         if self._receiver is not None:
             self._receiver.set_config(*built)
+
+    def on_clock_restart(self) -> None:
+        """A new /clock time line (node_support.guard_clock): the inputs' arrival times are void."""
+        own_id, team = self._team
+        self._receiver = Receiver(*self._built, robot_id=own_id, team_robot_ids=team)
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -246,7 +252,8 @@ class CatcherNode(Node):
 
     def _on_model_params(self, msg: Float64MultiArray) -> None:
         try:
-            row = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS)[MODEL_IN_USE_ROW]
+            table = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS, len(contract.BALL_MODEL_PARAM_ROWS))
+            row = table[MODEL_IN_USE_ROW]
             self._receiver.on_model(BallModelParams(*row.tolist()))
         except (ConversionError, IndexError, ValueError) as exc:
             self._warn.warn("model_params", f"rejected model_params: {exc}")

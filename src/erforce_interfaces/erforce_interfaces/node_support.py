@@ -14,6 +14,7 @@ from __future__ import annotations
 import array
 import gc
 import math
+import traceback
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -32,8 +33,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from erforce_interfaces.contract import CLOCK, Topic
-from erforce_interfaces.executor import DirectExecutor, sample_only
+from erforce_interfaces.executor import DirectExecutor, sample_only, set_callback_fault_handler
 from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
 
 ParamValue = bool | int | float | str | list
 
@@ -254,8 +256,84 @@ class ThrottledWarner:
             self._logger.warning(f"{text} ({n} so far)" if n > 1 else text)
 
 
+#: Starts the warning of the callback guard; the test harness (erforce_interfaces.testing) fails a
+#: test whose node logged it, unless the test declared it expects it.
+CALLBACK_FAULT = "callback fault"
+
+
+def guard_callbacks(node: Node) -> ThrottledWarner:
+    """The one guard around every subscription callback of ``node``'s process (executor.py).
+
+    The nodes reject bad input they know of with their own warnings ("rejected ..."); an exception
+    that still escapes a callback is bad input nobody foresaw or a bug of ours. Either way the message
+    is dropped and the node lives on: a throttled warning names the topic, the exception and where it
+    was raised, and counts them per topic (``counts``). After shutdown (Ctrl-C under a publish) the
+    exception propagates, as run_node expects.
+    """
+    warner = ThrottledWarner(node)
+
+    def on_fault(sub, exc: Exception) -> None:
+        if not node.context.ok():
+            raise exc
+        topic = sub.topic_name
+        frames = traceback.extract_tb(exc.__traceback__)
+        last = frames[-1] if frames else None
+        where = f" at {last.filename.rsplit('/', 1)[-1]}:{last.lineno} in {last.name}" if last else ""
+        warner.warn(topic, f"{CALLBACK_FAULT} on {topic}: {type(exc).__name__}: {exc}{where}; message dropped")
+
+    set_callback_fault_handler(on_fault)
+    return warner
+
+
+def guard_clock(node: Node, max_jump_s: float = 2.0) -> StampFilter | None:
+    """Put the stack's time rule (stamps.StampFilter) in front of rclpy's ``/clock`` callback.
+
+    rclpy's TimeSource raises on a negative clock and follows any other, so a single far-future or
+    backwards ``/clock`` from any participant moved every sim-time node's time. Now such a clock is
+    dropped with a throttled warning, and a confirmed new time line (a restarted simulator) resets
+    the node's clock and calls ``node.on_clock_restart()`` when the node has one. Returns the filter
+    (None without use_sim_time: no /clock subscription).
+    """
+    subs = [s for s in node.subscriptions if s.topic_name == CLOCK.name]
+    if not subs:
+        return None
+    stamps = StampFilter(max_jump_s)
+    warner = ThrottledWarner(node)
+    for sub in subs:
+        set_time = sub.callback
+
+        def on_clock(msg, set_time=set_time) -> None:
+            verdict = stamps.offer(stamp_ns(msg.clock.sec, msg.clock.nanosec))
+            if verdict is StampVerdict.DROP:
+                warner.warn("clock", f"dropped /clock: {stamps.reason}")
+                return
+            set_time(msg)
+            if verdict is StampVerdict.RESTART:
+                node.get_logger().warning(f"/clock: {stamps.reason}; resetting")
+                restart = getattr(node, "on_clock_restart", None)
+                if restart is not None:
+                    restart()
+
+        sub.callback = on_clock
+    return stamps
+
+
+def check_stamp(stamps: StampFilter, t_ns: int | None, warner: ThrottledWarner, topic: str,
+                node: Node) -> StampVerdict:
+    """The time rule for one input's header stamp: a dropped stamp warns (throttled, per topic), a
+    restart is logged; the caller drops the message on DROP and resets its state on RESTART."""
+    verdict = stamps.offer(t_ns)
+    if verdict is StampVerdict.DROP:
+        warner.warn(f"stamp {topic}", f"rejected {topic}: {stamps.reason}")
+    elif verdict is StampVerdict.RESTART:
+        node.get_logger().warning(f"{topic}: {stamps.reason}; resetting")
+    return verdict
+
+
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
     """Standard node main: init, spin on a DirectExecutor (erforce_interfaces.executor), clean shutdown.
+
+    Every node gets the callback guard (guard_callbacks) and the time rule on /clock (guard_clock).
 
     Returns the process exit code: 0 after Ctrl-C or external shutdown, 1 when the
     node refused to start (for example an invalid parameter file).
@@ -270,6 +348,8 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
             # Invalid configuration at start-up: one clear line, no traceback.
             rclpy.logging.get_logger("erforce").fatal(f"cannot start: {exc}")
             return 1
+        guard_callbacks(node)
+        guard_clock(node)
         executor = DirectExecutor()
         executor.add_node(node)
         # The imports (numpy, numba, rclpy) leave ~130k objects that the cyclic GC would scan in every
@@ -288,6 +368,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         if node is None or node.context.ok():
             raise
     finally:
+        set_callback_fault_handler(None)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -29,6 +29,7 @@ from erforce_interfaces.lockstep import SetpointJoin
 from erforce_interfaces.node_support import (
     ParamSpec,
     ThrottledWarner,
+    check_stamp,
     contract_publisher,
     contract_subscription,
     declare_params,
@@ -37,6 +38,7 @@ from erforce_interfaces.node_support import (
     run_node,
     sample_clock,
 )
+from erforce_interfaces.stamps import StampFilter, StampVerdict
 from erforce_motion.firmware import MotorBoardLoop
 from erforce_motion.motor_board import MotorBoardConfig
 
@@ -163,6 +165,7 @@ class MotorBoardsNode(Node):
         self._join = SetpointJoin(wait=self._values["lockstep_sync"])
         self._pending: collections.deque = collections.deque()  # (stamp_ns, speeds, currents, wall_s)
         self._last_status_ns: int | None = None
+        self._tick_stamps, self._setpoint_stamps = StampFilter(), StampFilter()
         self._duty_pub = contract_publisher(self, contract.MOTOR_DUTY)
         self._status_pub = contract_publisher(self, contract.MOTOR_STATUS)
         # The lockstep topics travel serialized (conversions.joint_state_cdr): rclpy's message
@@ -194,6 +197,11 @@ class MotorBoardsNode(Node):
         except ConversionError as exc:
             self._warn.warn("wheel_states", f"rejected wheel_states: {exc}")
             return
+        verdict = check_stamp(self._tick_stamps, t_ns, self._warn, "wheel_states", self)
+        if verdict is StampVerdict.DROP:
+            return
+        if verdict is StampVerdict.RESTART:
+            self._pending.clear()  # ticks of the old time line need no answer any more
         self._pending.append((t_ns, speeds, currents, time.monotonic()))
         self._drain()
 
@@ -202,6 +210,8 @@ class MotorBoardsNode(Node):
             t_ns, setpoints = joint_state_from_msg(msg, self._loop.robot.num_wheels, "velocity")
         except ConversionError as exc:
             self._warn.warn("wheel_setpoints", f"rejected wheel_setpoints: {exc}")
+            return
+        if check_stamp(self._setpoint_stamps, t_ns, self._warn, "wheel_setpoints", self) is StampVerdict.DROP:
             return
         self._join.add_setpoint(t_ns, setpoints)
         self._drain()

@@ -19,10 +19,11 @@ from erforce_interfaces.conversions import (
     twist_from_msg,
     wheel_states_from_msg,
 )
-from erforce_interfaces.executor import run_sampled
+from erforce_interfaces.executor import run_sampled, sample_only
 from erforce_interfaces.node_support import (
     ParamSpec,
     ThrottledWarner,
+    check_stamp,
     contract_publisher,
     contract_subscription,
     declare_params,
@@ -31,6 +32,7 @@ from erforce_interfaces.node_support import (
     run_node,
     sample_clock,
 )
+from erforce_interfaces.stamps import StampFilter, StampVerdict
 from erforce_motion.firmware import MainBoardLoop
 from erforce_motion.velocity_control import VelocityControlConfig
 
@@ -143,9 +145,12 @@ class VelocityControllerNode(Node):
         self._loop: MainBoardLoop | None = None
         self._values = declare_params(self, PARAMS, build_loop, self._apply)
         self._setpoint_pub = contract_publisher(self, contract.WHEEL_SETPOINTS)
-        contract_subscription(self, contract.CMD_VEL, self._on_cmd_vel)
+        self._stamps = StampFilter()
+        # cmd_vel counts from the next tick on, so it is taken with each tick (the newest of what is queued
+        # wins): a flood of cmd_vel then costs no wake per message and cannot starve the ticks.
+        cmd_sub = sample_only(contract_subscription(self, contract.CMD_VEL, self._on_cmd_vel))
         contract_subscription(self, contract.WHEEL_STATES, self._on_wheel_states, raw=True)  # see motor_boards
-        self._clock_subs = sample_clock(self)  # runs on the ticks' stamps: no wake per /clock
+        self._sampled = [*sample_clock(self), cmd_sub]  # runs on the ticks' stamps: no wake per /clock
 
     def _apply(self, loop: MainBoardLoop) -> None:
         if self._loop is not None:
@@ -164,12 +169,14 @@ class VelocityControllerNode(Node):
         self._loop.command(twist)
 
     def _on_wheel_states(self, msg: bytes) -> None:
-        run_sampled(self._clock_subs)
+        run_sampled(self._sampled)
         loop = self._loop
         try:
             t_ns, speeds, _ = wheel_states_from_msg(msg, loop.robot.num_wheels)
         except ConversionError as exc:
             self._warn.warn("wheel_states", f"rejected wheel_states: {exc}")
+            return
+        if check_stamp(self._stamps, t_ns, self._warn, "wheel_states", self) is StampVerdict.DROP:
             return
         setpoints = loop.tick(t_ns * 1e-9, speeds)
         if loop.notice:

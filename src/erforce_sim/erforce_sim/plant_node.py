@@ -392,8 +392,9 @@ class PlantNode(Node):
         for i in range(self.setup.num_robots):
             if i in self._controlled:
                 self._pubs[i]["states"].publish(  # serialized, as motor_boards explains
-                    joint_state_cdr(
-                        t_ns, self._wheels, velocity=world.wheel_speeds_radps(i), effort=world.motor_currents_a(i)
+                    joint_state_cdr(  # the sensors saturate (conversions explains the choice)
+                        t_ns, self._wheels, velocity=world.wheel_speeds_radps(i), effort=world.motor_currents_a(i),
+                        saturate=True,
                     )
                 )
         if retry:

@@ -1,0 +1,75 @@
+"""The one rule for time that every node applies to ``/clock`` and to the stamps of its inputs.
+
+A stream of stamps from one source (the ``/clock`` topic, or the header stamps of one input topic)
+moves forward in small steps. ``StampFilter`` judges each stamp against the newest one it accepted:
+
+- ``ACCEPT``: at or after the newest accepted stamp and at most ``max_jump_s`` later (a repeat, such
+  as the plant's re-sent tick, is accepted; the node's core decides what a repeat means).
+- ``DROP``: not a time at all (negative, nanoseconds >= 1e9) or a jump: before the newest accepted
+  stamp, or more than ``max_jump_s`` after it. A jump is dropped but remembered.
+- ``RESTART``: a stamp that confirms the remembered jump (at or at most ``max_jump_s`` after it, and
+  itself a jump from the old time line): a new time line, such as a restarted simulator that starts
+  again at 0. It is accepted, and the node resets what it keeps from the old time line.
+
+So a single zero, far-future or backwards stamp from a careless or hostile participant is dropped
+with a warning, and a genuine restart costs one message. Nothing here knows ROS.
+"""
+
+from __future__ import annotations
+
+import enum
+
+_NS = 1_000_000_000
+_INT32_MAX = 2**31 - 1
+
+
+class StampVerdict(enum.Enum):
+    ACCEPT = "accept"
+    DROP = "drop"
+    RESTART = "restart"
+
+
+def stamp_ns(sec: int, nanosec: int) -> int | None:
+    """A builtin_interfaces/Time as nanoseconds, or None when it is no valid time (rclpy's
+    ``Time.from_msg`` raises on these: negative seconds, nanoseconds out of range)."""
+    if not (0 <= sec <= _INT32_MAX and 0 <= nanosec < _NS):
+        return None
+    return sec * _NS + nanosec
+
+
+class StampFilter:
+    """Judges the stamps of one source (see the module docstring). ``reason`` says why the last
+    stamp was dropped or restarted the time line, for the node's warning."""
+
+    def __init__(self, max_jump_s: float = 2.0) -> None:
+        if not max_jump_s > 0.0:
+            raise ValueError(f"max_jump_s must be > 0, got {max_jump_s!r}")
+        self.max_jump_ns = int(max_jump_s * _NS)
+        self.newest_ns: int | None = None
+        self._jump_ns: int | None = None  # the last dropped jump, which the next stamp may confirm
+        self.reason = ""
+
+    def _on_line(self, line_ns: int, t_ns: int) -> bool:
+        return line_ns <= t_ns <= line_ns + self.max_jump_ns
+
+    def offer(self, t_ns: int | None) -> StampVerdict:
+        """The verdict on stamp ``t_ns`` [ns] (None: not a valid time)."""
+        if t_ns is None or t_ns < 0:
+            self.reason = "not a valid time (negative, or nanoseconds out of range)"
+            return StampVerdict.DROP
+        newest = self.newest_ns
+        if newest is None or self._on_line(newest, t_ns):
+            self.newest_ns, self._jump_ns = t_ns, None
+            return StampVerdict.ACCEPT
+        jump = self._jump_ns
+        if jump is not None and self._on_line(jump, t_ns):
+            self.reason = f"time line restarted: {newest / _NS:.6f} s -> {t_ns / _NS:.6f} s"
+            self.newest_ns, self._jump_ns = t_ns, None
+            return StampVerdict.RESTART
+        self._jump_ns = t_ns
+        direction = "before" if t_ns < newest else f"more than {self.max_jump_ns / _NS:g} s after"
+        self.reason = f"stamp {t_ns / _NS:.6f} s is {direction} the newest accepted {newest / _NS:.6f} s"
+        return StampVerdict.DROP
+
+    def reset(self) -> None:
+        self.newest_ns = self._jump_ns = None
