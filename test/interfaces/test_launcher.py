@@ -469,6 +469,28 @@ def test_respawn_restarts_a_dying_node_until_ctrl_c(ros_graph):
     assert not any(alive(p) for p in started_pids(launch.output()))
 
 
+@pytest.mark.integration
+def test_a_respawned_node_gets_its_generated_parameter_file_for_as_long_as_the_launcher_runs(ros_graph):
+    launch = ros_graph.start([LAUNCHER, str(HERE / "respawn_talker.launch.yaml")], name="launch")
+    launch.wait_for_output(r"I heard: from the generated file \d+", 30.0)
+    first = started_pids(launch.output())[0]
+    os.kill(first, signal.SIGKILL)
+    launch.wait_for_output(r"respawning in 0.2 s", 15.0)
+    died = re.search(r"process has died \[pid \d+, exit code -9, cmd '.*--params-file (\S+)'\]", launch.output())
+    params_file = Path(died.group(1))
+    assert params_file.exists()  # kept: the respawn and a restart by hand need it
+    n = launch.output().count("I heard: from the generated file")
+    deadline = time.monotonic() + 30.0
+    while launch.output().count("I heard: from the generated file") < n + 5:  # the respawned talker's
+        assert time.monotonic() < deadline, launch.output()[-2000:]
+        time.sleep(0.05)
+    second = started_pids(launch.output())[-1]
+    assert second != first and alive(second)
+    launch.signal(signal.SIGINT)
+    assert launch.wait_exit(15.0) == 0
+    assert not params_file.exists()  # removed once the launcher ends
+
+
 @pytest.mark.parametrize(("ignore", "launcher_signal", "last_rung"), [
     ("INT", signal.SIGINT, "SIGTERM"), ("INT,TERM", signal.SIGTERM, "SIGKILL")])
 def test_shutdown_ladder_escalates_and_reaps_children_and_grandchildren(ros_graph, ignore, launcher_signal,
