@@ -316,6 +316,25 @@ def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(l
         "/robot/udp_only.xml"}
 
 
+@pytest.mark.parametrize(("launch_file", "args"), [
+    ("erforce_sim/launch/demo.launch.yaml", {"receivers": "3"}),
+    ("erforce_sim/launch/sim_one_robot.launch.yaml", {}),
+    ("erforce_motion/launch/robot.launch.yaml", {}),
+])
+def test_launch_files_restart_every_node_after_a_delay_unless_told_not_to(launch_file, args):
+    path = REPO / "src" / launch_file
+    specs = resolve(path, **args).values()
+    assert specs and all(s.respawn and s.respawn_delay_s == 0.5 and s.respawn_max_retries == -1 for s in specs)
+    assert not any(s.respawn for s in resolve(path, respawn="false", **args).values())
+    assert {s.respawn_delay_s for s in resolve(path, respawn_delay="2.0", **args).values()} == {2.0}
+
+
+def test_a_plant_that_stops_itself_is_not_restarted():
+    specs = resolve(REPO / "src/erforce_sim/launch/sim_one_robot.launch.yaml", stop_after_s="5.0")
+    assert {label.split("-")[0]: s.respawn for label, s in specs.items()} == {
+        "plant": False, "velocity_controller": True, "motor_boards": True}
+
+
 def test_show_args_lists_names_descriptions_and_defaults(capsys):
     assert main([str(HERE / "outer.launch.yaml"), "--show-args"]) == 0
     out = capsys.readouterr().out
