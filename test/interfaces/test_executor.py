@@ -20,7 +20,8 @@ from std_msgs.msg import Int32
 
 from erforce_interfaces import contract
 from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
-from erforce_interfaces.node_support import ParamSpec, declare_params, sample_clock
+from erforce_interfaces.node_support import NodeParams, sample_clock
+from erforce_interfaces.param_schema import ParamSchema, ParamSpec
 from erforce_interfaces.testing import isolated_node
 
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
@@ -103,7 +104,8 @@ def test_a_callback_may_destroy_its_own_subscription(env):
 def test_parameter_services_validate_through_the_executor(env):
     """A client (served by this executor too) sets parameters; the node's on-set check answers."""
     _, node, executor = env
-    declare_params(node, (ParamSpec("gain", 2.0, "a gain", min=0.0, max=10.0),))
+    NodeParams(node, ParamSchema("executor_test", [ParamSpec("gain", "double", 2.0, "a gain", 0.0, 10.0)])).on_change(
+        lambda config: None)
     client = node.create_client(SetParameters, "/executor_test/set_parameters")
     spin_until(executor, client.service_is_ready)
 

@@ -316,6 +316,25 @@ def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(l
         "/robot/udp_only.xml"}
 
 
+@pytest.mark.parametrize(("launch_file", "args"), [
+    ("erforce_sim/launch/demo.launch.yaml", {"receivers": "3"}),
+    ("erforce_sim/launch/sim_one_robot.launch.yaml", {}),
+    ("erforce_motion/launch/robot.launch.yaml", {}),
+])
+def test_launch_files_restart_every_node_after_a_delay_unless_told_not_to(launch_file, args):
+    path = REPO / "src" / launch_file
+    specs = resolve(path, **args).values()
+    assert specs and all(s.respawn and s.respawn_delay_s == 0.5 and s.respawn_max_retries == -1 for s in specs)
+    assert not any(s.respawn for s in resolve(path, respawn="false", **args).values())
+    assert {s.respawn_delay_s for s in resolve(path, respawn_delay="2.0", **args).values()} == {2.0}
+
+
+def test_a_plant_that_stops_itself_is_not_restarted():
+    specs = resolve(REPO / "src/erforce_sim/launch/sim_one_robot.launch.yaml", stop_after_s="5.0")
+    assert {label.split("-")[0]: s.respawn for label, s in specs.items()} == {
+        "plant": False, "velocity_controller": True, "motor_boards": True}
+
+
 def test_show_args_lists_names_descriptions_and_defaults(capsys):
     assert main([str(HERE / "outer.launch.yaml"), "--show-args"]) == 0
     out = capsys.readouterr().out
@@ -467,6 +486,28 @@ def test_respawn_restarts_a_dying_node_until_ctrl_c(ros_graph):
     launch.signal(signal.SIGINT)
     assert launch.wait_exit(15.0) == 0  # respawning processes' deaths are not failures
     assert not any(alive(p) for p in started_pids(launch.output()))
+
+
+@pytest.mark.integration
+def test_a_respawned_node_gets_its_generated_parameter_file_for_as_long_as_the_launcher_runs(ros_graph):
+    launch = ros_graph.start([LAUNCHER, str(HERE / "respawn_talker.launch.yaml")], name="launch")
+    launch.wait_for_output(r"I heard: from the generated file \d+", 30.0)
+    first = started_pids(launch.output())[0]
+    os.kill(first, signal.SIGKILL)
+    launch.wait_for_output(r"respawning in 0.2 s", 15.0)
+    died = re.search(r"process has died \[pid \d+, exit code -9, cmd '.*--params-file (\S+)'\]", launch.output())
+    params_file = Path(died.group(1))
+    assert params_file.exists()  # kept: the respawn and a restart by hand need it
+    n = launch.output().count("I heard: from the generated file")
+    deadline = time.monotonic() + 30.0
+    while launch.output().count("I heard: from the generated file") < n + 5:  # the respawned talker's
+        assert time.monotonic() < deadline, launch.output()[-2000:]
+        time.sleep(0.05)
+    second = started_pids(launch.output())[-1]
+    assert second != first and alive(second)
+    launch.signal(signal.SIGINT)
+    assert launch.wait_exit(15.0) == 0
+    assert not params_file.exists()  # removed once the launcher ends
 
 
 @pytest.mark.parametrize(("ignore", "launcher_signal", "last_rung"), [
