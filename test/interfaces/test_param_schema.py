@@ -158,7 +158,8 @@ def test_what_a_node_cannot_apply_while_running_is_read_only():
     plant = load_schema("erforce_sim", "plant")
     robot = [s for s in plant.specs if s.name.startswith("robot.")]
     assert robot and all(s.read_only for s in robot)  # the world is built once
-    assert all(s.read_only for s in plant.specs if s.name in ("field", "robot_poses", "seed", "control_period_s"))
+    assert all(s.read_only for s in plant.specs
+               if s.name in ("field", "robot_poses", "seed", "control_period_s", "startup_timeout_s"))
     assert load_schema("erforce_ball_model", "catcher").by_name["rate_hz"].read_only  # its timer is made once
     for node in ("velocity_controller", "motor_boards"):  # they rebuild their loop on any change
         assert not any(s.read_only for s in load_schema("erforce_motion", node).specs)

@@ -185,7 +185,7 @@ def robot_param_specs(read_only: bool = False) -> tuple[ParamSpec, ...]:
         default = defaults[f.name]
         kind = "double_array" if isinstance(default, list) else _TYPE_OF_DEFAULT[type(default)]
         specs.append(ParamSpec(ROBOT_PREFIX + f.name, kind, default, meta.get("doc", ""),
-                               lower=meta.get("gt", meta.get("ge")), lower_open="gt" in meta,
+                               lower=meta.get("gt"), lower_open="gt" in meta,
                                upper=meta.get("le"), min_size=meta.get("min_size", 0), read_only=read_only))
     return tuple(specs)
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from erforce_interfaces.robot_config import RobotConfig
 from erforce_motion.kinematics import OmniKinematics
-from erforce_motion.pid import ANTI_WINDUP_MODES, AntiWindup, Pid, PidConfig
+from erforce_motion.pid import AntiWindup, Pid, PidConfig
 
 GRAVITY_MPS2 = 9.81
 
@@ -98,8 +98,7 @@ class VelocityControlConfig:
                 raise ValueError(f"{name}: must be None or finite and > 0, got {v!r}")
         if not isinstance(self.feedforward_enabled, bool):
             raise ValueError("feedforward_enabled: must be a bool")
-        if self.anti_windup not in ANTI_WINDUP_MODES:
-            raise ValueError(f"anti_windup: must be one of {ANTI_WINDUP_MODES}, got {self.anti_windup!r}")
+        self.pid_config()  # the PID's own checks (anti-windup mode, limits), in one place: pid.py
 
     @classmethod
     def pid_only(cls, **overrides) -> VelocityControlConfig:
