@@ -104,6 +104,14 @@ def measure(topics: tuple[str, ...], duration_s: float = 1.0) -> list[dict]:
             "robot_poses": [0.0, 0.0, 0.0], "real_time_factor": 1.0, "startup_timeout_s": 60.0,
             "start_clock_subscribers": 2})
         graph.probe.spin_until(lambda: samples and samples[-1][1] > 1.0, 120.0, "the loop running")
+        t0 = time.monotonic()  # the same window without a flood: what this machine's load alone costs
+        graph.probe.spin_for(duration_s + 2.0)
+        sim = [s for w, s in samples if t0 <= w <= t0 + duration_s]
+        rows.append({"name": "no flood (baseline)", "value": round(longest_stall_s(samples, t0 - 0.5, t0 + duration_s
+                                                                                    + 2.0), 3),
+                     "unit": "s longest stall", "target": "≤ 0.5 s",
+                     "note": f"real-time factor {(sim[-1] - sim[0]) / duration_s:.2f}; load average "
+                             f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs"})
         for name in topics:
             flooder = graph.start([sys.executable, __file__, "--flood", name, "--duration", str(duration_s)],
                                   name=f"flood{name.replace('/', '_')}")
