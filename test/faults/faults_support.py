@@ -17,7 +17,7 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_from_msg, stamp_to_seconds
+from erforce_interfaces.conversions import odometry_from_msg, odometry_msg, stamp_to_seconds
 
 ROBOT_YAML = Path(__file__).resolve().parents[2] / "src/erforce_interfaces/config/robot.yaml"
 
@@ -299,3 +299,23 @@ class LaunchedDemo:
         assert self.pid(node) != old, f"{node}: the loop closed, but not by a respawned process"
         first_back = next(t for t in self.arrivals[node] if t > t_back)
         return max(next(t for t in times if t > first_back) for times in self.arrivals.values()) - t_kill
+
+def closes_the_loop(loop, timeout_s: float = 60.0) -> None:
+    """Ball at rest 1.5 m from robot_0: the catcher (fetch_resting_ball) drives the robot to it, through
+    vision, the ball predictor, the catcher, the velocity controller, the motor boards and the plant."""
+    probe = loop.probe
+    probe.wait_for_subscribers("/robot_0/sim/set_state", Odometry).publish(
+        odometry_msg(0.0, (-1.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    probe.wait_for_subscribers("/sim/set_ball", Odometry).publish(odometry_msg(0.0, (0.5, 0.3, 0.0), (0.0, 0.0, 0.0)))
+
+    def distance_m(target=None) -> float:
+        odom = loop.watch.latest.get("/robot_0/ground_truth/odom")
+        ball = loop.watch.latest.get("/ground_truth/ball")
+        if odom is None or ball is None:
+            return math.inf
+        r, b = odom.pose.pose.position, ball.pose.pose.position
+        tx, ty = target if target is not None else (b.x, b.y)
+        return math.hypot(r.x - tx, r.y - ty)
+
+    loop.spin_until(lambda: distance_m((-1.0, 0.0)) < 0.2, 10.0, "robot_0 placed")
+    loop.spin_until(lambda: distance_m() < 0.25, timeout_s, "robot_0 at the ball")

@@ -160,7 +160,9 @@ def test_plant_killed_and_restarted_time_goes_backwards(ros_graph):
     # drives again
     _follows_catcher(loop, settle_s=3.0)
     assert loop.sim_s() < t_before  # recovered in the new time line, not by outliving the old one
-    loop.procs["ball_predictor"].wait_for_output("went backwards", timeout_s=5.0)
+    # the time rule (erforce_interfaces.stamps): a new time line once the old one fell silent
+    loop.procs["ball_predictor"].wait_for_output("vision/ball: time line restarted", timeout_s=5.0)
+    loop.procs["catcher"].wait_for_output("/clock: time line restarted", timeout_s=5.0)
     assert_nodes_alive(loop, "plant", "velocity_controller", "motor_boards", "ball_predictor", "catcher")
     loop.watch.assert_all_finite()
 

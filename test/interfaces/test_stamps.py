@@ -19,9 +19,10 @@ A, D, R = StampVerdict.ACCEPT, StampVerdict.DROP, StampVerdict.RESTART
 S = 1_000_000_000
 
 
-def verdicts(stamps_s, max_jump_s=2.0):
+def verdicts(stamps_s, max_jump_s=2.0, wall_step_s=0.3):
+    """Verdicts on stamps arriving ``wall_step_s`` apart (longer than the default silence_s, 0.2 s)."""
     f = StampFilter(max_jump_s)
-    return [f.offer(None if t is None else round(t * S)) for t in stamps_s]
+    return [f.offer(None if t is None else round(t * S), k * wall_step_s) for k, t in enumerate(stamps_s)]
 
 
 def test_stamp_ns_refuses_what_is_no_time():
@@ -45,9 +46,24 @@ def test_a_single_zero_far_future_or_backwards_stamp_is_dropped_and_the_line_goe
 
 def test_a_restarted_clock_is_a_restart_at_its_second_stamp():
     assert verdicts([10.0, 0.0, 0.002, 0.004]) == [A, D, R, A]
-    assert verdicts([10.0, 0.0, 0.0]) == [A, D, R]  # the plant re-sends an unanswered tick
+    assert verdicts([10.0, 0.0, 0.0, 0.0, 0.0]) == [A, D, D, D, R]  # re-sent: a restart once the old line is dead
+    assert verdicts([10.0, 0.0], wall_step_s=1.5) == [A, R]  # a source that died and came back: at once
     assert verdicts([0.5, 0.0, 0.01]) == [A, D, R]  # also a restart shortly after the start
     assert verdicts([10.0, 100.0, 100.5]) == [A, D, R]  # a confirmed jump ahead
+
+
+def test_a_flood_off_the_time_line_cannot_take_over_while_the_real_source_goes_on():
+    """Say every message of a flood is stamped 0: while the real ticks keep coming (2 ms apart here),
+    the old line is never silent for silence_s, so the flood confirms nothing."""
+    stamps = [10.0]
+    for k in range(1, 200):
+        stamps += [0.0, 0.0, 10.0 + 0.002 * k]
+    got = verdicts(stamps, wall_step_s=0.0007)
+    assert got[3::3] == [A] * 199 and set(got[1::3] + got[2::3]) == {D}
+    # the real source stops (a dead simulator) and a new one starts: restart once the old line was silent
+    f = StampFilter(silence_s=0.2)
+    assert [f.offer(t, w) for t, w in ((10 * S, 0.0), (0, 0.05), (0, 0.1), (0, 0.25), (S // 100, 0.3),
+                                       (S // 50, 0.31))] == [A, D, D, D, R, A]
 
 
 def test_two_unrelated_bad_stamps_confirm_nothing():
@@ -58,6 +74,10 @@ def test_two_unrelated_bad_stamps_confirm_nothing():
 def test_the_filter_refuses_a_useless_jump_limit_and_resets():
     with pytest.raises(ValueError):
         StampFilter(0.0)
+    with pytest.raises(ValueError):
+        StampFilter(silence_s=-1.0)
+    with pytest.raises(ValueError):
+        StampFilter(silence_s=2.0, dead_s=1.0)
     f = StampFilter()
     f.offer(10 * S)
     f.reset()

@@ -8,9 +8,10 @@ two processes, half of it executor overhead; that is most of a 2 ms lockstep tic
 processes take part (bench/bench_lockstep.py).
 
 ``DirectExecutor`` has the same semantics for what the stack's nodes use: after one wait it
-runs every ready timer, subscription, guard condition, service, client response and QoS event
-once, in that order, node by node, then waits again (everything it waits on is level-triggered,
-so a second queued message wakes the next wait at once). Callbacks run in this thread; a
+runs every ready timer, subscription (everything queued on it, up to 64 messages), guard
+condition, service, client response and QoS event once, in that order, node by node, then
+waits again (everything it waits on is level-triggered, so what is left wakes the next wait
+at once). Callbacks run in this thread; a
 callback that returns a coroutine is driven to completion, and one that suspends on a future
 is an error (use rclpy's executors for such nodes). Callback groups have nothing to arbitrate
 in a single thread and are ignored. The entity lists are rebuilt when the executor is woken
@@ -48,10 +49,12 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
 from rclpy.utilities import timeout_sec_to_nsec
 
-__all__ = ["DirectExecutor", "run_sampled", "sample_only", "set_callback_fault_handler", "take_queued"]
+__all__ = ["DirectExecutor", "run_newest", "run_sampled", "sample_only", "set_callback_fault_handler",
+           "take_queued"]
 
 
 _KINDS = ("subscription", "timer", "guard_condition", "service", "client")
+_MAX_TAKES_PER_WAKE = 64  # messages taken from one ready subscription per wait
 _SAMPLED: weakref.WeakSet = weakref.WeakSet()  # subscriptions DirectExecutor leaves to their nodes
 _sampled_changes = 0  # DirectExecutor gathers its entities again when this moves
 _fault_handler: Callable[[Subscription, Exception], None] | None = None
@@ -105,6 +108,23 @@ def run_sampled(subscriptions: Iterable[Subscription]) -> int:
     for _, sub, msg, info in batch:
         _run_callback(sub, msg, info)
     return len(batch)
+
+
+def run_newest(subscriptions: Iterable[Subscription]) -> int:
+    """Like ``run_sampled``, but only the newest queued message of each subscription runs: for commands
+    where the last one wins (placing a body, a kick), so that a flood costs one callback per call.
+    Returns how many messages were dropped."""
+    batch, dropped = [], 0
+    for sub in subscriptions:
+        taken = take_queued(sub)
+        if taken:
+            dropped += len(taken) - 1
+            msg, info = taken[-1]
+            batch.append((info["source_timestamp"], sub, msg, info))
+    batch.sort(key=lambda item: item[0])
+    for _, sub, msg, info in batch:
+        _run_callback(sub, msg, info)
+    return dropped
 
 
 def _run_callback(sub: Subscription, msg, info) -> None:
@@ -256,16 +276,22 @@ class DirectExecutor(SingleThreadedExecutor):
 
     @staticmethod
     def _take_and_run(sub: Subscription) -> None:
-        try:
-            taken = sub.handle.take_message(sub.msg_type, sub.raw)
-        except InvalidHandle:
-            return
-        except Exception as exc:  # a sample rmw cannot deserialize
-            if _fault_handler is None:
-                raise
-            _fault_handler(sub, exc)
-            return
-        if taken is not None:
+        # Everything queued (up to a bound, so that the other entities are served too): under a flood
+        # a wake per message cannot keep up, and a keep-last reader then drops the oldest samples,
+        # the real ones among them.
+        for _ in range(_MAX_TAKES_PER_WAKE):
+            try:
+                with sub.handle:  # raises InvalidHandle once a callback destroyed the subscription
+                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+            except InvalidHandle:
+                return
+            except Exception as exc:  # a sample rmw cannot deserialize
+                if _fault_handler is None:
+                    raise
+                _fault_handler(sub, exc)
+                return
+            if taken is None:
+                return
             _run_callback(sub, *taken)
 
     def _take_response(self, client) -> None:

@@ -91,7 +91,6 @@ class MotorBoardsNode(Node):
         self._join.wait = self._values["lockstep_sync"]
 
     def _on_wheel_states(self, msg: bytes) -> None:
-        run_sampled(self._sampled)
         try:
             t_ns, speeds, currents = wheel_states_from_msg(msg, self._loop.robot.num_wheels)
         except ConversionError as exc:
@@ -99,7 +98,8 @@ class MotorBoardsNode(Node):
             return
         verdict = check_stamp(self._tick_stamps, t_ns, self._warn, "wheel_states", self)
         if verdict is StampVerdict.DROP:
-            return
+            return  # before anything else: a flood of these must cost little
+        run_sampled(self._sampled)
         if verdict is StampVerdict.RESTART:
             self._pending.clear()  # ticks of the old time line need no answer any more
         self._pending.append((t_ns, speeds, currents, time.monotonic()))

@@ -81,7 +81,6 @@ class VelocityControllerNode(Node):
         self._loop.command(twist)
 
     def _on_wheel_states(self, msg: bytes) -> None:
-        run_sampled(self._sampled)
         loop = self._loop
         try:
             t_ns, speeds, _ = wheel_states_from_msg(msg, loop.robot.num_wheels)
@@ -89,7 +88,8 @@ class VelocityControllerNode(Node):
             self._warn.warn("wheel_states", f"rejected wheel_states: {exc}")
             return
         if check_stamp(self._stamps, t_ns, self._warn, "wheel_states", self) is StampVerdict.DROP:
-            return
+            return  # before anything else: a flood of these must cost little
+        run_sampled(self._sampled)
         setpoints = loop.tick(t_ns * 1e-9, speeds)
         if loop.notice:
             self._warn.warn("notice", loop.notice)

@@ -15,7 +15,8 @@ Pacing (parameter ``pacing``):
 
 Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state``
 (nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``. A body
-placed outside the field walls is refused with an error naming it.
+placed outside the field walls is refused with an error naming it. They act at the next tick;
+of several that arrived meanwhile on one topic, the newest.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from erforce_interfaces.conversions import (
     pose2d_cdr,
     table_cdr,
 )
+from erforce_interfaces.executor import run_newest, sample_only
 from erforce_interfaces.lockstep import DutyGate
 from erforce_interfaces.node_support import (
     NodeParams,
@@ -59,7 +61,8 @@ from erforce_sim.world import PhysicsParams
 SCHEMA = load_schema("erforce_sim", "plant")
 
 _MAX_TICKS_PER_PUMP = 50  # keep the executor responsive when nobody gates the ticks
-_RETRY_S = 0.1  # re-publish an unanswered tick (lost message, late joiner); duplicates are harmless
+_RETRY_S = 0.05  # re-publish an unanswered tick (lost message, late joiner, a flood that pushed it out of a
+# reader's queue); duplicates are harmless
 _STARTUP_GRACE_S = 0.5
 
 
@@ -127,6 +130,7 @@ class PlantNode(Node):
         self._vision_ball_pub = pub(self, q.VISION_BALL)
         self._truth_ball_pub = pub(self, q.GROUND_TRUTH_BALL)
         self._pubs: list[dict[str, Any]] = []
+        self._scenario_subs: list = []
         for i in range(n):
             self._pubs.append(
                 {
@@ -138,9 +142,14 @@ class PlantNode(Node):
                 }
             )
             sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.for_robot(i), raw=True)
-            sub(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.KICK.for_robot(i))
-            sub(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.for_robot(i))
-        sub(self, q.SIM_SET_BALL, self._on_set_ball)
+            self._scenario_subs += [
+                sub(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.KICK.for_robot(i)),
+                sub(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.for_robot(i))]
+        self._scenario_subs.append(sub(self, q.SIM_SET_BALL, self._on_set_ball))
+        # Scenario commands act at the next tick, the newest of each (executor.run_newest): a flood of
+        # them then costs one placement or kick per tick, not one (with its event) per message.
+        for scenario_sub in self._scenario_subs:
+            sample_only(scenario_sub)
         self._peers: set[int] = set()
         self._apply_params(self._params.config)
         self._params.on_change(self._apply_params)
@@ -184,7 +193,8 @@ class PlantNode(Node):
         event = self._gate.offer(robot, t_ns, duty if duty is not None else np.zeros(len(self._wheels)))
         if event:
             self._event(event)
-        self._pump()
+        if t_ns == self._gate.tick_ns:  # only an answer to the open tick can let it advance (a flood of others
+            self._pump()                # costs no pump each; the pacing timer still runs)
 
     def _on_kick(self, robot: int, msg: Float64) -> None:
         try:
@@ -275,6 +285,9 @@ class PlantNode(Node):
         return sim_elapsed <= rtf * (now - wall0)
 
     def _advance(self, lockstep: bool) -> None:
+        dropped = run_newest(self._scenario_subs)
+        if dropped:
+            self._warn.warn("scenario_flood", f"{dropped} scenario command(s) overtaken by newer ones in one tick")
         n_wheels = len(self._wheels)
         for i in range(self.setup.num_robots):
             if lockstep:
