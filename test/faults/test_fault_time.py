@@ -11,6 +11,7 @@ from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from erforce_interfaces import contract
 
@@ -62,7 +63,7 @@ def test_bad_clocks_and_stamps_are_dropped_by_every_node_and_the_loop_still_clos
 
     wheels = [f"wheel_{i}" for i in range(4)]
     loop.watch.paused.update({"/robot_0/wheel_states", "/robot_0/wheel_setpoints", "/robot_0/motor_duty",
-                              "/robot_0/odom", "/vision/ball"})
+                              "/robot_0/odom", "/vision/ball", "/ball/model_params"})
     send("/robot_0/wheel_states", JointState, joint_states(wheels, "velocity"), contract.QOS_CONTROL, 2)
     send("/robot_0/wheel_setpoints", JointState, joint_states(wheels, "velocity"), contract.QOS_CONTROL)
     send("/robot_0/motor_duty", JointState, joint_states(wheels, "effort"), contract.QOS_CONTROL)
@@ -80,6 +81,11 @@ def test_bad_clocks_and_stamps_are_dropped_by_every_node_and_the_loop_still_clos
     send("/vision/ball", PointStamped, balls, contract.QOS_SENSOR)
     send("/robot_0/vision_pose", PoseStamped, poses, contract.QOS_SENSOR)
     send("/robot_0/odom", Odometry, odoms, contract.QOS_STATE)
+    # not time, but the other single message that killed the catcher: 4 columns under the right label
+    table = Float64MultiArray(data=[-2.5, -0.3, 0.6, 1.0] * 3)
+    table.layout.dim = [MultiArrayDimension(label="fit,std_error,in_use", size=3, stride=12),
+                        MultiArrayDimension(label=",".join(contract.BALL_MODEL_PARAM_LABELS), size=4, stride=4)]
+    send("/ball/model_params", Float64MultiArray, [table], contract.QOS_STATE)
     loop.spin_wall(0.5)
     loop.watch.paused.clear()
 
@@ -88,7 +94,8 @@ def test_bad_clocks_and_stamps_are_dropped_by_every_node_and_the_loop_still_clos
                                 "rejected wheel_states: stamp 0.000000 s is before"],
         "motor_boards": ["dropped /clock", "rejected wheel_states: stamp", "rejected wheel_setpoints: stamp"],
         "ball_predictor": ["dropped /clock", "rejected vision/ball: stamp", "rejected robot_0/vision_pose: stamp"],
-        "catcher": ["dropped /clock", "rejected odom: stamp -1 s 0 ns is not a valid time"],
+        "catcher": ["dropped /clock", "rejected odom: stamp -1 s 0 ns is not a valid time",
+                    "rejected model_params: table has 4 columns, its labels name 3"],
     }
     for node, texts in expected.items():
         out = loop.procs[node].output()
