@@ -13,7 +13,7 @@ processing time per frame (callback entry to last publish) comes from its timing
 (parameter ``timing_log_every``), collected over exactly the measured frames. For attribution
 the same frames also run in-process through BallTracker + robot_time_to_ball alone (the cores).
 
-Runs in a private DDS domain (erforce_interfaces.testing.RosGraph).
+Runs in a private DDS domain (erforce_interfaces.tools.testing.RosGraph).
 
     python bench/bench_ball_predictor.py [--quick]
 """
@@ -37,7 +37,7 @@ from erforce_ball_model.tracking import BallTracker
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import point_msg, pose2d_msg
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_interfaces.testing import RosGraph
+from erforce_interfaces.tools.testing import RosGraph
 
 NUM_ROBOTS = 22
 FPS = 70.0

@@ -1,7 +1,7 @@
 """Floods: 5000 messages/s for 1 s on one input of the lockstep graph; how long does the tick stall?
 
 The graph is the plant (lockstep, real time) with robot_0's velocity_controller and motor_boards,
-real node processes in a private DDS domain (erforce_interfaces.testing). A separate flooder process
+real node processes in a private DDS domain (erforce_interfaces.tools.testing). A separate flooder process
 publishes the careless kind of message a tool sends (`erforce-topic pub -r 5000`: a well-formed
 message, stamp 0) on one topic at a time, in bursts of 5 every millisecond. The probe watches
 robot_0's ground truth (100 Hz of simulated time) and reports the longest wall-clock gap in which
@@ -26,7 +26,7 @@ from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import stamp_to_seconds
-from erforce_interfaces.testing import RosGraph
+from erforce_interfaces.tools.testing import RosGraph
 
 ROBOT_YAML = Path(__file__).resolve().parents[1] / "src/erforce_interfaces/config/robot.yaml"
 RATE_HZ = 5000

@@ -1,6 +1,6 @@
 """Real-time factor of the DDS graph in lockstep: plant + velocity_controller + motor_boards per robot.
 
-Each run starts real node processes in a private DDS domain (erforce_interfaces.testing),
+Each run starts real node processes in a private DDS domain (erforce_interfaces.tools.testing),
 lets the plant run flat out (real_time_factor 0) for a stretch of simulated time, and
 reports simulated seconds per wall second plus the CPU time each process spent per tick
 (from /proc, so it is measured, not estimated).
@@ -21,7 +21,7 @@ from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import stamp_to_nanoseconds
-from erforce_interfaces.testing import RosGraph
+from erforce_interfaces.tools.testing import RosGraph
 
 ROBOT_YAML = Path(__file__).resolve().parents[1] / "src/erforce_interfaces/config/robot.yaml"
 

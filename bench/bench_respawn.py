@@ -1,6 +1,6 @@
 """Self-healing: how long the launched demo graph takes to close the loop again after one node is killed.
 
-demo.launch.yaml runs under erforce-launch in a private DDS domain (erforce_interfaces.testing);
+demo.launch.yaml runs under erforce-launch in a private DDS domain (erforce_interfaces.tools.testing);
 each node type is killed (SIGKILL) in turn, ``rounds`` times, and the time from the kill until the
 respawned node's output is back and every other node's output came after it (the lockstep loop went
 round: test/faults/faults_support.LaunchedDemo) is reported per node type. The restart itself (Python
@@ -22,7 +22,7 @@ from table import bench_main  # bench/table.py: the shared table format
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "faults"))
 from faults_support import LaunchedDemo  # the fault tests' measurement, run as a bench
 
-from erforce_interfaces.testing import RosGraph
+from erforce_interfaces.tools.testing import RosGraph
 
 NODES = ("catcher", "ball_predictor", "velocity_controller", "motor_boards", "plant")
 RESPAWN_DELAY_S = 0.5

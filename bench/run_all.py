@@ -75,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
     text = "\n".join(lines) + "\n"
     print(text)
     if not args.no_write:
-        from erforce_interfaces import docs
+        from erforce_interfaces.tools import docs
 
         RESULTS.write_text(text)
         docs.main([str(BENCH_DIR.parent / "README.md")])  # the README shows RESULTS.md

@@ -25,9 +25,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "erforce-launch = erforce_interfaces.launcher:main",
-            "erforce-topic = erforce_interfaces.topic_tool:main",
-            "erforce-record = erforce_interfaces.recording:main",
+            "erforce-launch = erforce_interfaces.tools.launcher:main",
+            "erforce-topic = erforce_interfaces.tools.topic_tool:main",
+            "erforce-record = erforce_interfaces.tools.recording:main",
             "talker = erforce_interfaces.demo_nodes:talker_main",
             "listener = erforce_interfaces.demo_nodes:listener_main",
         ],

@@ -26,7 +26,7 @@ setup(
     entry_points={
         "console_scripts": [
             "plant = erforce_sim.plant_node:main",
-            "tune_motor = erforce_sim.tuning_experiment:main",
+            "tune_motor = erforce_sim.closed_loop.tuning_experiment:main",
         ],
     },
 )

@@ -25,13 +25,13 @@ README = Path(__file__).resolve().parents[2] / "README.md"
 
 
 def test_readme_generated_sections_are_current():
-    from erforce_interfaces import docs
+    from erforce_interfaces.tools import docs
 
     text = README.read_text()
     for name in docs.SECTIONS:
         assert f"<!-- {name}:begin -->" in text, name
     assert docs.render(text) == text, (
-        "README tables are stale: run `./run exec python -m erforce_interfaces.docs README.md`"
+        "README tables are stale: run `./run exec python -m erforce_interfaces.tools.docs README.md`"
     )
     assert c.topic_table_markdown() in text
 

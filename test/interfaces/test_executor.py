@@ -22,7 +22,7 @@ from erforce_interfaces import contract
 from erforce_interfaces.executor import DirectExecutor, run_newest, run_sampled, sample_only
 from erforce_interfaces.node_support import NodeParams, sample_clock
 from erforce_interfaces.param_schema import ParamSchema, ParamSpec
-from erforce_interfaces.testing import isolated_node
+from erforce_interfaces.tools.testing import isolated_node
 
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 

@@ -11,7 +11,7 @@ import pytest
 from std_msgs.msg import String
 
 from erforce_interfaces.contract import QOS_COMMAND
-from erforce_interfaces.testing import DomainLease, RosGraph
+from erforce_interfaces.tools.testing import DomainLease, RosGraph
 
 pytestmark = pytest.mark.integration
 
@@ -69,7 +69,7 @@ def test_domain_leases_are_exclusive_across_processes(tmp_path):
     try:
         code = textwrap.dedent(f"""
             from pathlib import Path
-            from erforce_interfaces.testing import DomainLease
+            from erforce_interfaces.tools.testing import DomainLease
             print(DomainLease(Path({str(tmp_path)!r})).domain_id)
         """)
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=30)

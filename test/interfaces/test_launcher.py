@@ -21,7 +21,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from erforce_interfaces.contract import DDS_PROFILE_VARIABLES
-from erforce_interfaces.launcher import (
+from erforce_interfaces.tools.launcher import (
     Resolver,
     Subst,
     SubstitutionError,

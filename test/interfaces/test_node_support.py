@@ -10,7 +10,7 @@ from rclpy.parameter import Parameter
 
 from erforce_interfaces.node_support import NodeParams, ThrottledWarner, run_node
 from erforce_interfaces.param_schema import ParamSchema
-from erforce_interfaces.testing import isolated_node
+from erforce_interfaces.tools.testing import isolated_node
 
 SCHEMA = ParamSchema.from_yaml_text("""
 param_test:

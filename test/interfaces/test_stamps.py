@@ -13,7 +13,7 @@ from erforce_interfaces import contract
 from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only, set_callback_fault_handler
 from erforce_interfaces.node_support import CALLBACK_FAULT, guard_callbacks, guard_clock
 from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
-from erforce_interfaces.testing import isolated_node
+from erforce_interfaces.tools.testing import isolated_node
 
 A, D, R = StampVerdict.ACCEPT, StampVerdict.DROP, StampVerdict.RESTART
 S = 1_000_000_000

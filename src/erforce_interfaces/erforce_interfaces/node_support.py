@@ -175,7 +175,7 @@ class ThrottledWarner:
             self._logger.warning(f"{text} ({n} so far)" if n > 1 else text)
 
 
-#: Starts the warning of the callback guard; the test harness (erforce_interfaces.testing) fails a
+#: Starts the warning of the callback guard; the test harness (erforce_interfaces.tools.testing) fails a
 #: test whose node logged it, unless the test declared it expects it.
 CALLBACK_FAULT = "callback fault"
 

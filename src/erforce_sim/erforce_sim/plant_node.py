@@ -54,7 +54,7 @@ from erforce_interfaces.node_support import (
     run_node,
 )
 from erforce_interfaces.param_schema import load_schema
-from erforce_sim.runner import PlantSetup, build_world
+from erforce_sim.closed_loop.runner import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
 from erforce_sim.world import PhysicsParams
 

@@ -15,7 +15,7 @@ a receiver); for a ball that was not caught, the one made 0.3 s after the kick. 
 when the ball's true path (ground truth) passes a point robot_0 could have reached in
 time under the planning limits (robotTimeToPos from its start, after a reaction delay),
 independent of the predictor. At the end it writes report/<time>/: the bag, PNG plots and
-summary.md (see erforce_sim.report).
+summary.md (see erforce_sim.closed_loop.report).
 """
 
 from __future__ import annotations
@@ -49,8 +49,8 @@ from erforce_interfaces.conversions import (
 )
 from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_interfaces.testing import stop_process
-from erforce_sim.scenes import (
+from erforce_interfaces.tools.testing import stop_process
+from erforce_sim.closed_loop.scenes import (
     KICKER,
     PREDICTION_LEAD_S,
     RECEIVER,
@@ -61,7 +61,7 @@ from erforce_sim.scenes import (
     reachable,
 )
 
-LAUNCH_FILE = Path(__file__).resolve().parents[1] / "launch" / "demo.launch.yaml"
+LAUNCH_FILE = Path(__file__).resolve().parents[2] / "launch" / "demo.launch.yaml"
 
 
 @dataclass
@@ -495,7 +495,7 @@ class Demo:
         )
 
     def run(self) -> int:
-        from erforce_sim.report import write_report
+        from erforce_sim.closed_loop.report import write_report
 
         results: list[SceneResult] = []
         wall0 = sim0 = None

@@ -1,7 +1,7 @@
 """Keeps the generated sections of README.md in sync with the code.
 
 A section sits between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->``. Regenerate all
-with ``./run exec python -m erforce_interfaces.docs README.md``; a test fails when any
+with ``./run exec python -m erforce_interfaces.tools.docs README.md``; a test fails when any
 section is stale, so the README's topic and parameter tables cannot drift.
 """
 
@@ -41,7 +41,7 @@ def _node_params_section() -> str:
 
 
 def _bench_results_section() -> str:
-    results = Path(__file__).resolve().parents[3] / "bench" / "RESULTS.md"
+    results = Path(__file__).resolve().parents[4] / "bench" / "RESULTS.md"
     if not results.exists():
         return "No results yet: run `./run bench`."
     return results.read_text().strip()

@@ -1,6 +1,6 @@
 """Test harness for integration tests over real DDS: isolated domains, node processes, probes.
 
-Use it as a pytest plugin (``pytest_plugins = ["erforce_interfaces.testing"]`` in a
+Use it as a pytest plugin (``pytest_plugins = ["erforce_interfaces.tools.testing"]`` in a
 conftest.py) and take the ``ros_graph`` fixture::
 
     def test_talker(ros_graph):
