@@ -16,8 +16,8 @@ from erforce_ball_model.catch_time import CatchSearch
 from erforce_ball_model.catcher import CatcherConfig
 from erforce_ball_model.tracking import TrackerConfig
 from erforce_interfaces import lockstep
-from erforce_interfaces.tools.docs import NODE_SCHEMAS
 from erforce_interfaces.param_schema import ParamSchema, fields_for, load_schema
+from erforce_interfaces.tools.docs import NODE_SCHEMAS
 from erforce_motion.motor_board import MotorBoardConfig
 from erforce_motion.pid import ANTI_WINDUP_MODES
 from erforce_motion.velocity_control import VelocityControlConfig

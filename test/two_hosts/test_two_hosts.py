@@ -55,7 +55,8 @@ The same setup step by step in a root shell (DOMAIN: any free domain id):
     export FASTRTPS_DEFAULT_PROFILES_FILE=/tmp/udp_only.xml ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET ROS_DOMAIN_ID=DOMAIN
     ROS_STATIC_PEERS=10.213.0.2 ip netns exec robot .venv/bin/erforce-launch \\
         src/erforce_motion/launch/robot.launch.yaml robot:=robot_0 &
-    ROS_STATIC_PEERS=10.213.0.1 ip netns exec ai .venv/bin/python -m erforce_sim.closed_loop.demo --no-robot-side --scenes 2
+    ROS_STATIC_PEERS=10.213.0.1 ip netns exec ai .venv/bin/python -m erforce_sim.closed_loop.demo \
+        --no-robot-side --scenes 2
     kill %1; ip netns del robot; ip netns del ai
 """
 
@@ -293,7 +294,8 @@ def test_demo_catches_a_kick_with_the_robot_on_another_host(two_hosts: TwoHosts)
     watch = h.start_in(h.ai_ns, [sys.executable, str(PROBE), "watch", "--robot", "0"], name="probe-watch")
     watch.wait_for_output(r'"kind": "ready"', timeout_s=30.0)
     stats_before = h.robot_link_stats()
-    demo = h.start_in(h.ai_ns, [sys.executable, "-m", "erforce_sim.closed_loop.demo", "--no-robot-side", "--scenes", "2",
+    demo = h.start_in(h.ai_ns, [sys.executable, "-m", "erforce_sim.closed_loop.demo", "--no-robot-side",
+                                "--scenes", "2",
                                 "--out", str(h.workdir / "report")], name="demo")
 
     dds_pids_checked: dict[int, str] = {}
@@ -330,7 +332,8 @@ def test_demo_catches_a_kick_with_the_robot_on_another_host(two_hosts: TwoHosts)
     assert rises, f"robot_0's light barrier did not rise after the kick at t={t_kick:.3f} s: {records}"
 
     # 4. the lockstep loop crossed the veth: both directions carried at least one duty payload per tick
-    for name in ("velocity_controller", "motor_boards", "plant", "ball_predictor", "catcher", "erforce_sim.closed_loop.demo"):
+    for name in ("velocity_controller", "motor_boards", "plant", "ball_predictor", "catcher",
+                 "erforce_sim.closed_loop.demo"):
         assert any(name in cmd for cmd in dds_pids_checked.values()), f"{name} not checked: {dds_pids_checked}"
     end = [r for r in records if r["kind"] == "end"]
     assert end, f"the probe did not report its duty count: {records[-3:]}"

@@ -248,7 +248,8 @@ class _Predictor:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m erforce_sim.closed_loop.scenes", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m erforce_sim.closed_loop.scenes",
+                                     description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=10, help="seeds 0 .. N-1 per scene")
     parser.add_argument("--scene", type=int, action="append", help="only this scene (index; repeatable)")
     args = parser.parse_args(argv)
