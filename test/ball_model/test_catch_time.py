@@ -152,8 +152,8 @@ def test_prepared_search_reused_over_frames_equals_one_off_calls():
     bad[3, 1] = np.inf
     with pytest.raises(ValueError, match="finite"):
         search.run(ball, bad, vels)
-    with pytest.raises(ValueError, match="single-ball"):
-        search.run(BallTrajectory(robots, vels, 1.0), robots, vels)
+    with pytest.raises(ValueError, match="BallTrajectory"):
+        search.run(ball.floats, robots, vels)
     with pytest.raises(ValueError):
         CatchSearch(0, lim)
 
@@ -369,9 +369,8 @@ def test_bad_input_raises():
         robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, dribbler_offset_m=-0.1)
     with pytest.raises(ValueError):
         robot_time_to_ball(ball, [[0.0, 0.0]] * 2, [[0.0, 0.0]] * 2, RobotLimits([1.0, 2.0, 3.0], 2.0))
-    batch = BallTrajectory(np.zeros((2, 2)), np.ones((2, 2)), 1.0)
     with pytest.raises(ValueError):
-        robot_time_to_ball(batch, [[0.0, 0.0]], [[0.0, 0.0]], lim)
+        robot_time_to_ball("ball", [[0.0, 0.0]], [[0.0, 0.0]], lim)
     # A ball that takes ~3e6 s to stop (a_roll -1e-6 m/s^2): refused at once, not searched for days.
     from erforce_ball_model.ball_model import BallModelParams
     crawler = BallTrajectory([0.0, 0.0], [3.0, 0.0], 3.0, BallModelParams(-2.5, -1e-6, 0.99))
@@ -379,25 +378,25 @@ def test_bad_input_raises():
         robot_time_to_ball(crawler, [[50.0, 50.0]], [[0.0, 0.0]], RobotLimits(1e-3, 1e-3))
 
 
-def test_compiled_ball_closed_forms_agree_with_ball_trajectory():
-    """The search kernel restates distance_at and time_to_distance in scalar form: they must agree."""
-    from erforce_ball_model.ball_model import BallModelParams
-    from erforce_ball_model.catch_time import _ball_constants, _ball_distance, _ball_time_to_distance
+def test_compiled_ball_closed_forms_agree_with_the_python_ones():
+    """ball_model's closed forms run as Python on floats and compiled inside the kernels: both must agree."""
+    from erforce_ball_model.ball_model import BallModelParams, ball_distance, ball_time_to_distance
 
     rng = np.random.default_rng(3)
     for k in range(200):
         params = BallModelParams(rng.uniform(-6.0, -1.0), rng.uniform(-0.9, -0.05), rng.uniform(0.3, 1.0))
         speed = 0.0 if k % 10 == 0 else rng.uniform(0.01, 7.0)
         ang = rng.uniform(-math.pi, math.pi)
-        ball = BallTrajectory(rng.uniform(-4.0, 4.0, 2), speed * np.array([math.cos(ang), math.sin(ang)]),
+        ball = BallTrajectory(tuple(rng.uniform(-4.0, 4.0, 2)), (speed * math.cos(ang), speed * math.sin(ang)),
                               speed * rng.uniform(0.8, 2.0), params)
-        consts = _ball_constants(ball)
-        stop = float(ball.stop_time_s)
-        for t in (0.0, 0.3 * float(ball.switch_time_s), float(ball.switch_time_s), 0.5 * (stop + 1e-3), stop,
-                  stop + 1.0):
-            assert _ball_distance(consts, t) == pytest.approx(float(ball.distance_at(t)), rel=1e-12, abs=1e-15)
-        d_stop = float(ball.stop_distance_m)
-        for d in (0.0, 0.1 * d_stop, 0.9 * d_stop, d_stop, d_stop * 1.01 + 1e-3):
-            want = float(ball.time_to_distance(d))
-            got = _ball_time_to_distance(consts, d)
+        stop = ball.stop_time_s
+        times = np.array([0.0, 0.3 * ball.switch_time_s, ball.switch_time_s, 0.5 * (stop + 1e-3), stop, stop + 1.0])
+        compiled = ball.distance_at(times)  # an array query runs compiled
+        for t, got in zip(times, compiled, strict=True):
+            assert got == pytest.approx(ball_distance(ball.floats, float(t)), rel=1e-12, abs=1e-15)
+        d_stop = ball.stop_distance_m
+        distances = np.array([0.0, 0.1 * d_stop, 0.9 * d_stop, d_stop, d_stop * 1.01 + 1e-3])
+        for d, got in zip(distances, ball.time_to_distance(distances), strict=True):
+            want = ball_time_to_distance(ball.floats, float(d))
             assert got == pytest.approx(want, rel=1e-12, abs=1e-15) or (math.isinf(got) and math.isinf(want))
+

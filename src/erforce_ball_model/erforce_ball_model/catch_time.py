@@ -52,9 +52,9 @@ Compiled scalar loops
     operations per frame, 2-3x slower again when the caches are cold between vision frames). So
     the functions marked ``_jit`` are scalar loops compiled by numba (``@njit``, compiled at
     import for fixed float64 signatures and cached on disk beside this module); the public
-    functions keep numpy's broadcasting interface. The ball enters the kernel as its derived
-    constants (``_ball_constants``) with the two-phase closed forms of ball_model restated in
-    ``_ball_distance`` / ``_ball_time_to_distance``; a test checks them against BallTrajectory.
+    functions keep numpy's broadcasting interface. The ball enters the kernel as its
+    ``BallFloats`` (read by name) and moves by ball_model's own closed forms (``ball_distance``,
+    ``ball_time_to_distance``), compiled into the kernel.
     ``CatchSearch`` checks the team's limits and settings and allocates the outputs once, so a
     caller that asks every vision frame (the predictor) pays one compiled call and a few checks;
     ``robot_time_to_ball`` is the one-off form of the same search.
@@ -69,7 +69,12 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from erforce_ball_model.ball_model import BallTrajectory
+from erforce_ball_model.ball_model import (
+    BALL_FLOATS_TYPE,
+    BallTrajectory,
+    ball_distance,
+    ball_time_to_distance,
+)
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 __all__ = [
@@ -349,42 +354,11 @@ def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
     return dist <= vp * t - (vp * vp + (vp - w) ** 2) * (0.5 / a) + 1e-9
 
 
-# The ball inside the search kernel: the two-phase closed forms of ball_model.BallTrajectory
-# (distance_at and time_to_distance) for one ball and one time, from its derived constants.
-def _ball_constants(ball: BallTrajectory) -> np.ndarray:
-    """[px, py, ux, uy, s0, v_switch, t_switch, t_stop, d_switch, d_stop, a_slide, a_roll]: what the kernels index."""
-    f, p = ball.floats, ball.params
-    return np.array((f.x_m, f.y_m, f.ux, f.uy, f.speed_mps, f.v_switch_mps, f.switch_time_s, f.stop_time_s,
-                     f.switch_distance_m, f.stop_distance_m, p.a_slide_mps2, p.a_roll_mps2))
-
-
-@_jit("float64(float64[::1], float64)")
-def _ball_distance(ball, t):
-    ts = min(min(t, ball[7]), ball[6])
-    tr = min(t, ball[7]) - ts
-    return ts * (ball[4] + 0.5 * ball[10] * ts) + tr * (ball[5] + 0.5 * ball[11] * tr)
-
-
-@_jit("float64(float64[::1], float64)")
-def _ball_time_to_distance(ball, d):
-    if d > ball[9] + 1e-12 * (1.0 + ball[9]):
-        return math.inf  # the ball stops short
-    d = min(d, ball[9])
-    d_slide = min(d, ball[8])
-    d_roll = d - d_slide
-    t = 0.0
-    if d_slide > 0.0:  # citardauq form 2d / (v + sqrt(v^2 + 2ad)): no cancellation
-        t += 2.0 * d_slide / (ball[4] + math.sqrt(max(ball[4] * ball[4] + 2.0 * ball[10] * d_slide, 0.0)))
-    if d_roll > 0.0:
-        t += 2.0 * d_roll / (ball[5] + math.sqrt(max(ball[5] * ball[5] + 2.0 * ball[11] * d_roll, 0.0)))
-    return min(t, ball[7])
-
-
-@_jit("boolean(float64[::1], float64, float64, float64, float64, float64, float64, float64)")
+@_jit(numba.boolean(BALL_FLOATS_TYPE, *[numba.float64] * 7))
 def _feasible(ball, t, sx, sy, wx, wy, a, vmax):
     """f(t) <= 0: the robot (start ``sx, sy`` = its centre plus the dribbler offset) reaches the ball at ``t``."""
-    d = _ball_distance(ball, t)
-    return _can_reach(ball[0] + ball[2] * d - sx, ball[1] + ball[3] * d - sy, wx, wy, t, a, vmax)
+    d = ball_distance(ball, t)
+    return _can_reach(ball.x_m + ball.ux * d - sx, ball.y_m + ball.uy * d - sy, wx, wy, t, a, vmax)
 
 
 class CatchKind(enum.IntEnum):
@@ -406,9 +380,11 @@ class CatchResult:
 _MOVING, _AT_REST, _NEVER = int(CatchKind.MOVING), int(CatchKind.AT_REST), int(CatchKind.NEVER)
 
 
-@_jit("boolean(float64[::1], float64, float64, float64, boolean, int64, int64, float64, float64, "
-      "float64[:, ::1], float64[:, ::1], float64[::1], float64[::1], float64[::1], float64[::1], int8[::1], "
-      "float64[:, ::1], float64[:, ::1])")
+_F, _VEC, _MAT = numba.float64, numba.float64[::1], numba.float64[:, ::1]
+
+
+@_jit(numba.boolean(BALL_FLOATS_TYPE, _F, _F, _F, numba.boolean, numba.int64, numba.int64, _F, _F, _MAT, _MAT, _VEC,
+                    _VEC, _VEC, _VEC, numba.int8[::1], _MAT, _MAT))
 def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, pos, vel, facing, a, vmax,
                   time_out, kind_out, ball_out, target_out):
     """robotTimeToBall per robot (the module docstring): time, kind, ball position and robot target.
@@ -436,17 +412,17 @@ def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offse
         left_idx = -1  # the grid point before it, known infeasible (-1: none)
         for k in range(num):
             t = min(t_min + k * h, t_max)
-            d = _ball_distance(ball, t)
-            dx, dy = ball[0] + ball[2] * d - rx, ball[1] + ball[3] * d - ry
+            d = ball_distance(ball, t)
+            dx, dy = ball.x_m + ball.ux * d - rx, ball.y_m + ball.uy * d - ry
             if _may_reach(dx, dy, rwx, rwy, s0, t, ra, rv) and _can_reach(dx, dy, rwx, rwy, t, ra, rv):
                 right, left_idx = t, k - 1
                 break
         # Witness: the ball passes the robot's spot (where it comes to rest when it brakes now,
         # projected on the path). A robot on or near the path has a window there however narrow.
         brake = 0.5 / ra
-        along = (rx + rwx * abs(rwx) * brake - ball[0]) * ball[2] + (ry + rwy * abs(rwy) * brake - ball[1]) * ball[3]
+        along = (rx + rwx * abs(rwx) * brake - ball.x_m) * ball.ux + (ry + rwy * abs(rwy) * brake - ball.y_m) * ball.uy
         if along > 0.0:
-            t_pass = _ball_time_to_distance(ball, along)
+            t_pass = ball_time_to_distance(ball, along)
             if (t_min <= t_pass <= t_max and t_pass < right
                     and _feasible(ball, t_pass, rx, ry, rwx, rwy, ra, rv)):
                 right = t_pass
@@ -468,14 +444,15 @@ def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offse
                         break
                     lo = s
         if right < math.inf:
-            kind, d = _MOVING, _ball_distance(ball, right)
+            kind, d = _MOVING, ball_distance(ball, right)
         elif stops_inside:
-            kind, d = _AT_REST, ball[9]
-            right = _time_to_pos(ball[0] + ball[2] * d - rx, ball[1] + ball[3] * d - ry, rwx, rwy, ra, rv, rest_tol_s)
+            kind, d = _AT_REST, ball.stop_distance_m
+            right = _time_to_pos(ball.x_m + ball.ux * d - rx, ball.y_m + ball.uy * d - ry, rwx, rwy, ra, rv,
+                                 rest_tol_s)
         else:
             kind, d = _NEVER, math.nan
         time_out[r], kind_out[r] = right, kind
-        ball_out[r, 0], ball_out[r, 1] = ball[0] + ball[2] * d, ball[1] + ball[3] * d
+        ball_out[r, 0], ball_out[r, 1] = ball.x_m + ball.ux * d, ball.y_m + ball.uy * d
         target_out[r, 0], target_out[r, 1] = ball_out[r, 0] - ox, ball_out[r, 1] - oy
     return True
 
@@ -535,14 +512,14 @@ class CatchSearch:
         t_stop = ball.floats.stop_time_s
         t_in, t_out = 0.0, math.inf
         if self._field is not None:
-            t_in, t_out = (float(t) for t in ball.time_in_field(self._field, self._margin_m))
+            t_in, t_out = ball.time_in_field(self._field, self._margin_m)
         t_max = min(t_stop, t_out)
         if t_in <= t_max and (t_max - t_in) / self._h > MAX_GRID_POINTS:  # e.g. a_roll of micrometres per s^2
             raise ValueError(f"search horizon {t_max - t_in:.6g} s needs more than {MAX_GRID_POINTS} grid points "
                              f"of {self._h} s")
         stops_inside = t_in < math.inf and t_out == math.inf
         res = self._result
-        if not _catch_search(_ball_constants(ball), t_in, t_max, self._h, stops_inside, self._m1, self._m2,
+        if not _catch_search(ball.floats, t_in, t_max, self._h, stops_inside, self._m1, self._m2,
                              self._rest_tol_s, self._offset_m, _kernel_array(robot_pos_m),
                              _kernel_array(robot_vel_mps), self._facing, self._a, self._vmax, res.time_s, res.kind,
                              res.ball_position_m, res.robot_target_m):
