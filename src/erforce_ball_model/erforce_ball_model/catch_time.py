@@ -78,6 +78,8 @@ from erforce_ball_model.ball_model import (
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 __all__ = [
+    "ROBOT_A_MAX_MPS2",
+    "ROBOT_V_MAX_MPS",
     "CatchKind",
     "CatchResult",
     "CatchSearch",
@@ -91,6 +93,11 @@ __all__ = [
 ]
 
 DEFAULT_DRIBBLER_OFFSET_M = RobotConfig().dribbler_offset_m
+# The robot's limits for catching: what robotTimeToPos plans with and the catcher drives with. The one
+# default of each; CatcherConfig, the nodes' parameters, the launch files and the README take it from here
+# (test/ball_model/test_defaults.py fails on drift).
+ROBOT_A_MAX_MPS2 = 4.5
+ROBOT_V_MAX_MPS = 2.5
 # A longer search (a ball that takes hours to stop, from an absurd deceleration) is refused, not run:
 # realistic horizons are seconds (about 2,200 points for a 6.5 m/s ball at the default 10 ms step).
 MAX_GRID_POINTS = 1_000_000
@@ -115,8 +122,8 @@ def _kernel_array(x) -> np.ndarray:
 class RobotLimits:
     """Acceleration and speed limits of one robot or of many robots (arrays broadcast)."""
 
-    a_max_mps2: np.ndarray | float = 3.0
-    v_max_mps: np.ndarray | float = 2.5
+    a_max_mps2: np.ndarray | float = ROBOT_A_MAX_MPS2
+    v_max_mps: np.ndarray | float = ROBOT_V_MAX_MPS
 
     def __post_init__(self) -> None:
         for name in ("a_max_mps2", "v_max_mps"):
