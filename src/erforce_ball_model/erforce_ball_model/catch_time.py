@@ -88,6 +88,7 @@ __all__ = [
     "can_reach_in_time",
     "catch_after_reaction",
     "facing_angles",
+    "robot_time_curve",
     "robot_time_to_ball",
     "robot_time_to_pos",
 ]
@@ -278,12 +279,17 @@ def _time_to_pos_many(dx, dy, wx, wy, a, vmax, tol_s, out):
         out[i] = _time_to_pos(dx[i], dy[i], wx[i], wy[i], a[i], vmax[i], tol_s)
 
 
-def robot_time_to_pos(robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits, tol_s: float = 1e-7) -> np.ndarray:
+def robot_time_to_pos(robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits,
+                      tol_s: float = 1e-7) -> float | np.ndarray:
     """Time (s) for a robot to reach ``target_m`` and stop there (paper: robotTimeToPos).
 
-    Arrays broadcast: positions/velocities/targets ``(..., 2)``, limits per robot. The split
-    angle alpha solves ``t_x(alpha) = t_y(alpha)`` (``_time_to_pos``). Returns an achievable
-    time (an upper bound) certified to be within ``tol_s`` of the synchronized time.
+    Arrays broadcast: positions/velocities/targets ``(..., 2)``, limits per robot; one robot and
+    one target give a float. The split angle alpha solves ``t_x(alpha) = t_y(alpha)``
+    (``_time_to_pos``). Returns an achievable time (an upper bound) certified to be within
+    ``tol_s`` of the synchronized time.
+
+    >>> round(robot_time_to_pos((0.0, 0.0), (0.0, 0.0), (2.0, 0.0), RobotLimits(a_max_mps2=2.0, v_max_mps=3.0)), 3)
+    2.0
     """
     p0 = _vec2("robot_pos_m", robot_pos_m)
     v0 = _vec2("robot_vel_mps", robot_vel_mps)
@@ -298,7 +304,7 @@ def robot_time_to_pos(robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits,
     out = np.empty(a.shape)
     _time_to_pos_many(_kernel_array(d[:, 0]), _kernel_array(d[:, 1]), _kernel_array(v0[:, 0]),
                       _kernel_array(v0[:, 1]), a, vmax, tol_s, out)
-    return out.reshape(shape)
+    return float(out[0]) if shape == () else out.reshape(shape)
 
 
 def can_reach_in_time(d_m, w_mps, t_budget_s, a_max_mps2, v_max_mps) -> np.ndarray:
@@ -376,12 +382,16 @@ class CatchKind(enum.IntEnum):
 
 @dataclass(frozen=True, eq=False)
 class CatchResult:
-    """Per robot: catch time, where the ball and the robot centre are then, and which case applied."""
+    """Per robot: catch time, where the ball and the robot centre are then, and which case applied.
 
-    time_s: np.ndarray
+    Arrays over the robots (R,) and (R, 2); for a single-robot call of ``robot_time_to_ball`` a float,
+    two (2,) arrays and a CatchKind.
+    """
+
+    time_s: np.ndarray | float
     ball_position_m: np.ndarray
     robot_target_m: np.ndarray
-    kind: np.ndarray
+    kind: np.ndarray | CatchKind
 
 
 _MOVING, _AT_REST, _NEVER = int(CatchKind.MOVING), int(CatchKind.AT_REST), int(CatchKind.NEVER)
@@ -464,8 +474,19 @@ def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offse
     return True
 
 
+def _check_field(field: FieldConfig | None, unbounded: bool) -> None:
+    if field is None and not unbounded:
+        raise ValueError("field: the search ends where the ball leaves the field: give the FieldConfig, or "
+                         "unbounded=True to follow the ball until it stops wherever that is")
+    if field is not None and unbounded:
+        raise ValueError("field and unbounded=True: give one of them")
+
+
 class CatchSearch:
     """robotTimeToBall for a fixed team of ``num_robots``, prepared once and run every vision frame.
+
+    ``field`` (FieldConfig) bounds the search to the ball's stretch inside it; ``unbounded=True`` is the
+    explicit choice of no field (the paper's interval up to the ball's stop, wherever that is).
 
     The limits, dribbler offset, field and grid are checked at construction and the outputs are
     allocated once, so ``run`` is a few checks and one compiled call (the predictor's hot path).
@@ -479,10 +500,12 @@ class CatchSearch:
         *,
         dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
         field: FieldConfig | None = None,
+        unbounded: bool = False,
         field_margin_m: float = 0.0,
         grid_step_s: float = 0.01,
         refine_points: int = 128,
     ) -> None:
+        _check_field(field, unbounded)
         if not (isinstance(num_robots, int) and num_robots >= 1):
             raise ValueError(f"num_robots: must be an int >= 1, got {num_robots!r}")
         if not (math.isfinite(dribbler_offset_m) and dribbler_offset_m >= 0.0):
@@ -541,30 +564,69 @@ def robot_time_to_ball(
     limits: RobotLimits,
     facing_rad=0.0,
     *,
-    dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
     field: FieldConfig | None = None,
+    unbounded: bool = False,
+    dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
     field_margin_m: float = 0.0,
     grid_step_s: float = 0.01,
     refine_points: int = 128,
 ) -> CatchResult:
     """Earliest time each robot can touch the ball with its dribbler while facing ``facing_rad``.
 
-    Robots are vectorized: ``robot_pos_m``/``robot_vel_mps`` of shape (R, 2) (or (2,)),
-    ``facing_rad`` scalar or (R,), limits per robot. The robot centre must be at
-    ``ball_position_at(t) - dribbler_offset_m * (cos, sin)(facing)``. Search interval
-    ``[t_in, min(t_stop, t_out)]``, while the ball is inside ``field`` (None: always). If there is
-    no window: the robot's time to the stop point when the ball stops inside (CatchKind.AT_REST),
-    else +inf (CatchKind.NEVER). See the module docstring for the window-detection guarantee.
-    One-off calls; a caller that asks every frame keeps a ``CatchSearch``.
+    Robots are vectorized: ``robot_pos_m``/``robot_vel_mps`` of shape (R, 2), ``facing_rad`` scalar
+    or (R,), limits per robot; one robot given as (2,) gets a single-robot result (a float time).
+    The robot centre must be at ``ball_position_at(t) - dribbler_offset_m * (cos, sin)(facing)``.
+    Search interval ``[t_in, min(t_stop, t_out)]``, while the ball is inside ``field``; the field
+    is required, or ``unbounded=True`` for none. If there is no window: the robot's time to the
+    stop point when the ball stops inside (CatchKind.AT_REST), else +inf (CatchKind.NEVER). See the
+    module docstring for the window-detection guarantee. One-off calls; a caller that asks every
+    frame keeps a ``CatchSearch``.
+
+    >>> from erforce_ball_model.ball_model import BallTrajectory
+    >>> ball = BallTrajectory((-2.0, 0.0), (2.0, 0.0), v_shoot_mps=2.0 / 0.6)  # rolling at 2 m/s along +x
+    >>> catch = robot_time_to_ball(ball, (-0.5, 0.3), (0.0, 0.0), RobotLimits(a_max_mps2=2.0, v_max_mps=2.0),
+    ...                            facing_rad=math.pi, field=FieldConfig.preset("division_b"))
+    >>> catch.kind.name, round(catch.time_s, 3), (catch.robot_target_m.round(3) + 0.0).tolist()
+    ('MOVING', 0.78, [-0.45, 0.0])
     """
     p0 = np.asarray(robot_pos_m, dtype=float)
     v0 = np.asarray(robot_vel_mps, dtype=float)
-    p0, v0 = (p0[None] if p0.shape == (2,) else p0), (v0[None] if v0.shape == (2,) else v0)
+    one = p0.shape == (2,)
+    p0, v0 = (p0[None] if one else p0), (v0[None] if v0.shape == (2,) else v0)
     if p0.ndim != 2 or p0.shape[-1] != 2 or v0.shape != p0.shape:
-        raise ValueError(f"robot_pos_m {p0.shape} and robot_vel_mps {v0.shape} must both be (R, 2)")
-    search = CatchSearch(p0.shape[0], limits, dribbler_offset_m=dribbler_offset_m, field=field,
+        raise ValueError(f"robot_pos_m {p0.shape} and robot_vel_mps {v0.shape} must both be (R, 2) or (2,)")
+    search = CatchSearch(p0.shape[0], limits, dribbler_offset_m=dribbler_offset_m, field=field, unbounded=unbounded,
                          field_margin_m=field_margin_m, grid_step_s=grid_step_s, refine_points=refine_points)
-    return search.run(ball, p0, v0, facing_rad)
+    res = search.run(ball, p0, v0, facing_rad)
+    if one:
+        return CatchResult(float(res.time_s[0]), res.ball_position_m[0].copy(), res.robot_target_m[0].copy(),
+                           CatchKind(int(res.kind[0])))
+    return res
+
+
+def robot_time_curve(ball: BallTrajectory, t_ball_s, robot_pos_m, robot_vel_mps, limits: RobotLimits, *,
+                     facing_rad: float = 0.0,
+                     dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M) -> float | np.ndarray:
+    """The paper's t_robot(t_ball), the curve of Fig. 7: the time one robot needs to stand, facing
+    ``facing_rad``, with its dribbler where the ball is at ``t_ball_s`` (robotTimeToPos to that point).
+
+    Where ``t_robot <= t_ball`` the robot is there first (catch possible); robotTimeToBall is the
+    first such ``t_ball``. A float for one time, an array of the shape of ``t_ball_s`` for many.
+
+    >>> from erforce_ball_model.ball_model import BallTrajectory
+    >>> ball = BallTrajectory((-2.0, 0.0), (2.0, 0.0), v_shoot_mps=2.0 / 0.6)
+    >>> limits = RobotLimits(a_max_mps2=2.0, v_max_mps=2.0)
+    >>> robot_time_curve(ball, [0.5, 1.0], (-0.5, 0.3), (0.0, 0.0), limits, facing_rad=math.pi).round(3).tolist()
+    [1.045, 1.025]
+    """
+    p0, v0 = _vec2("robot_pos_m", robot_pos_m), _vec2("robot_vel_mps", robot_vel_mps)
+    if p0.shape != (2,) or v0.shape != (2,):
+        raise ValueError(f"robot_pos_m {p0.shape} and robot_vel_mps {v0.shape}: one robot, (2,) each")
+    if not (math.isfinite(facing_rad) and math.isfinite(dribbler_offset_m) and dribbler_offset_m >= 0.0):
+        raise ValueError(f"facing_rad and dribbler_offset_m: must be finite (offset >= 0), got {facing_rad!r}, "
+                         f"{dribbler_offset_m!r}")
+    offset = dribbler_offset_m * np.array([math.cos(facing_rad), math.sin(facing_rad)])
+    return robot_time_to_pos(p0, v0, ball.position_at(t_ball_s) - offset, limits)
 
 
 def facing_angles(

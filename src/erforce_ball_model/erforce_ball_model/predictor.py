@@ -24,7 +24,7 @@ True
 >>> frame.catch_robots, frame.phase
 ([0], 'sliding')
 >>> round(frame.catch_times_s[0], 2)  # seconds from the frame's stamp, the reaction time included
-1.39
+1.21
 
 No rclpy import.
 """
