@@ -31,21 +31,61 @@ behaves the same there. ``take_queued`` is the raw form.
 from __future__ import annotations
 
 import inspect
+import os
 import weakref
 from collections.abc import Iterable
 
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor, TimeoutObject
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
 from rclpy.utilities import timeout_sec_to_nsec
 
-__all__ = ["DirectExecutor", "run_sampled", "sample_only", "take_queued"]
+from erforce_interfaces import rclpy_internals as internal  # every private rclpy name used here
+
+__all__ = ["EXECUTOR_ENV", "EXECUTOR_KINDS", "DirectExecutor", "make_executor", "run_sampled", "sample_only",
+           "take_queued"]
+
+EXECUTOR_ENV = "ERFORCE_EXECUTOR"  # the executor run_node spins on: one of EXECUTOR_KINDS (bench/bench_executor.py)
+EXECUTOR_KINDS = ("direct", "single", "events")
 
 
 _KINDS = ("subscription", "timer", "guard_condition", "service", "client")
 _SAMPLED: weakref.WeakSet = weakref.WeakSet()  # subscriptions DirectExecutor leaves to their nodes
 _sampled_changes = 0  # DirectExecutor gathers its entities again when this moves
+
+
+def make_executor(kind: str | None = None, *, context=None):
+    """The executor a node spins on: ``direct`` (DirectExecutor, the default), ``single`` (rclpy's
+    SingleThreadedExecutor) or ``events`` (rclpy.experimental.EventsExecutor); ``kind`` None reads
+    the environment variable ERFORCE_EXECUTOR, so a bench can run the same nodes on each."""
+    kind = kind or os.environ.get(EXECUTOR_ENV) or "direct"
+    if kind == "direct":
+        return DirectExecutor(context=context)
+    if kind == "single":
+        return SingleThreadedExecutor(context=context)
+    if kind == "events":
+        return _SpinOnceLoop(context)
+    raise ValueError(f"{EXECUTOR_ENV}: one of {', '.join(EXECUTOR_KINDS)}, got {kind!r}")
+
+
+class _SpinOnceLoop:
+    """rclpy.experimental.EventsExecutor (a C++ object: no subclass) whose ``spin`` is a loop of ``spin_once``:
+    in rclpy 7.1 its own ``spin()`` neither ran a timer nor returned after shutdown within 20 s
+    (bench/bench_executor.py)."""
+
+    def __init__(self, context) -> None:
+        from rclpy.experimental import EventsExecutor
+        from rclpy.utilities import get_default_context
+
+        self._context = context or get_default_context()
+        self.executor = EventsExecutor(context=self._context)
+
+    def __getattr__(self, name: str):
+        return getattr(self.executor, name)
+
+    def spin(self) -> None:
+        while self._context.ok():
+            self.executor.spin_once(timeout_sec=0.5)
 
 
 def sample_only(subscription: Subscription, sampled: bool = True) -> Subscription:
@@ -64,9 +104,8 @@ def sample_only(subscription: Subscription, sampled: bool = True) -> Subscriptio
 def take_queued(subscription: Subscription) -> list:
     """Everything queued on a subscription, as (message, info) pairs, without an executor."""
     taken = []
-    with subscription.handle:
-        while (item := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
-            taken.append(item)
+    while (item := internal.take_message(subscription)) is not None:
+        taken.append(item)
     return taken
 
 
@@ -83,10 +122,7 @@ def run_sampled(subscriptions: Iterable[Subscription]) -> int:
 
 
 def _run_callback(sub: Subscription, msg, info) -> None:
-    if sub._callback_type is Subscription.CallbackType.MessageOnly:
-        _finish(sub.callback(msg))
-    else:
-        _finish(sub.callback(msg, info))
+    _finish(internal.run_subscription_callback(sub, msg, info))
 
 
 def _ready(entities, ready_pointers):
@@ -95,7 +131,7 @@ def _ready(entities, ready_pointers):
         return
     for e in entities:
         try:
-            is_ready = e.handle.pointer in ready_pointers
+            is_ready = internal.handle_pointer(e) in ready_pointers
         except InvalidHandle:
             continue
         if is_ready:
@@ -134,9 +170,10 @@ class DirectExecutor(SingleThreadedExecutor):
 
     def spin_once(self, timeout_sec: float | None = None) -> None:
         """Wait up to ``timeout_sec`` (None: forever) and run every callback that is ready."""
-        guard, sigint = self._guard, self._sigint_gc
-        if self._is_shutdown or guard is None or sigint is None:
+        guard, sigint = internal.executor_guard_conditions(self)
+        if internal.executor_is_shutdown(self) or guard is None or sigint is None:
             return
+        context = internal.executor_context(self)
         if self._entities is None or self._gathered_at != _sampled_changes:
             self._gather()
         subs, timers, guards, services, clients, waitables = self._entities
@@ -145,7 +182,7 @@ class DirectExecutor(SingleThreadedExecutor):
         in_use = []
         try:
             try:
-                for h in (*self._handles, guard.handle, sigint.handle, self._context.handle):
+                for h in (*self._handles, guard.handle, sigint.handle, context.handle):
                     h.__enter__()
                     in_use.append(h)
             except InvalidHandle:  # destroyed since the entities were gathered
@@ -154,9 +191,9 @@ class DirectExecutor(SingleThreadedExecutor):
             ws = self._wait_set
             if ws is None:
                 num_events = sum(w.get_num_entities().num_events for w in waitables)
-                ws = self._wait_set = _rclpy.WaitSet(
+                ws = self._wait_set = internal.WaitSet(
                     len(subs), len(guards) + 2, len(timers), len(clients), len(services), num_events,
-                    self._context.handle)
+                    context.handle)
             ws.clear_entities()
             for e in subs:
                 ws.add_subscription(e.handle)
@@ -173,13 +210,13 @@ class DirectExecutor(SingleThreadedExecutor):
             for e in waitables:
                 e.add_to_wait_set(ws)
             ws.wait(timeout_sec_to_nsec(timeout_sec))
-            if self._is_shutdown:
+            if internal.executor_is_shutdown(self):
                 return
-            if not self._context.ok():
+            if not context.ok():
                 raise ExternalShutdownException()
             ready = {kind: ws.get_ready_entities(kind) for kind in _KINDS}
             ready_waitables = [w for w in waitables if w.is_ready(ws)]  # needs this wait set
-            if guard.handle.pointer in ready["guard_condition"]:
+            if internal.handle_pointer(guard) in ready["guard_condition"]:
                 self._entities = None  # woken: entities may have changed
         finally:
             for h in reversed(in_use):
@@ -207,8 +244,7 @@ class DirectExecutor(SingleThreadedExecutor):
     def _dispatch(self, ready, subs, timers, guards, services, clients, ready_waitables) -> None:
         # A callback may destroy entities: each is checked when its turn comes.
         for t in _ready(timers, ready["timer"]):
-            if t.handle.is_timer_ready():
-                t.handle.call_timer()
+            if internal.call_timer(t):
                 _finish(t.callback())
         for s in _ready(subs, ready["subscription"]):
             self._take_and_run(s)
@@ -216,7 +252,7 @@ class DirectExecutor(SingleThreadedExecutor):
             if g.callback is not None:
                 _finish(g.callback())
         for srv in _ready(services, ready["service"]):
-            request, header = srv.handle.service_take_request(srv.srv_type.Request)
+            request, header = internal.take_request(srv)
             if header is not None:
                 srv.send_response(srv.callback(request, srv.srv_type.Response()), header)
         for c in _ready(clients, ready["client"]):
@@ -227,7 +263,7 @@ class DirectExecutor(SingleThreadedExecutor):
     @staticmethod
     def _take_and_run(sub: Subscription) -> None:
         try:
-            taken = sub.handle.take_message(sub.msg_type, sub.raw)
+            taken = internal.take_message(sub)
         except InvalidHandle:
             return
         if taken is not None:
@@ -235,7 +271,7 @@ class DirectExecutor(SingleThreadedExecutor):
 
     def _take_response(self, client) -> None:
         try:
-            header, response = client.handle.take_response(client.srv_type.Response)
+            header, response = internal.take_response(client)
         except InvalidHandle:
             return
         if header is None:
@@ -244,5 +280,5 @@ class DirectExecutor(SingleThreadedExecutor):
             future = client.get_pending_request(header.request_id.sequence_number)
         except KeyError:
             return  # the request was cancelled
-        future._set_executor(self)
+        internal.set_future_executor(future, self)
         future.set_result(response)

@@ -27,12 +27,12 @@ from rclpy.exceptions import (
     ParameterUninitializedException,
 )
 from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from erforce_interfaces.contract import CLOCK, Topic
-from erforce_interfaces.executor import DirectExecutor, sample_only
+from erforce_interfaces.executor import make_executor, sample_only
+from erforce_interfaces.rclpy_internals import RCLError
 from erforce_interfaces.robot_config import RobotConfig
 
 ParamValue = bool | int | float | str | list
@@ -255,7 +255,7 @@ class ThrottledWarner:
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
-    """Standard node main: init, spin on a DirectExecutor (erforce_interfaces.executor), clean shutdown.
+    """Standard node main: init, spin on a DirectExecutor (erforce_interfaces.executor.make_executor), clean shutdown.
 
     Returns the process exit code: 0 after Ctrl-C or external shutdown, 1 when the
     node refused to start (for example an invalid parameter file).
@@ -270,7 +270,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
             # Invalid configuration at start-up: one clear line, no traceback.
             rclpy.logging.get_logger("erforce").fatal(f"cannot start: {exc}")
             return 1
-        executor = DirectExecutor()
+        executor = make_executor()  # DirectExecutor unless ERFORCE_EXECUTOR says otherwise
         executor.add_node(node)
         # The imports (numpy, numba, rclpy) leave ~130k objects that the cyclic GC would scan in every
         # full collection: ~50 ms each back to back, while the node's loop waits. They live as long
@@ -282,7 +282,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         pass
     except SystemExit as exc:  # a node may end itself (e.g. the plant's stop_after_s)
         code = exc.code if isinstance(exc.code, int) else 0
-    except _rclpy.RCLError:
+    except RCLError:
         # Ctrl-C shuts the context down at once, also under a callback that is about to publish;
         # its "context is invalid" is the shutdown, not a fault.
         if node is None or node.context.ok():
