@@ -12,13 +12,15 @@ from erforce_ball_model.catch_time import (
     CatchKind,
     CatchSearch,
     RobotLimits,
-    axis_time,
+    _axis_time,
     can_reach_in_time,
     robot_time_curve,
     robot_time_to_ball,
     robot_time_to_pos,
 )
 from erforce_interfaces.robot_config import FieldConfig
+
+axis_time = np.vectorize(_axis_time, otypes=[float])  # the compiled 1D bang-bang time, over arrays
 
 OFFSET = 0.0815
 DIV_B = FieldConfig.preset("division_b")

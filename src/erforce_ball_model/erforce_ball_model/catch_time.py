@@ -84,7 +84,6 @@ __all__ = [
     "CatchResult",
     "CatchSearch",
     "RobotLimits",
-    "axis_time",
     "can_reach_in_time",
     "catch_after_reaction",
     "facing_angles",
@@ -151,20 +150,11 @@ def _vec2(name: str, value) -> np.ndarray:
 
 
 # --- 1D bang-bang ---------------------------------------------------------------------------------
-def axis_time(d_m, w_mps, inv_accel_s2pm, rho_s) -> np.ndarray:
-    """Minimal 1D time to travel ``d_m`` and stop, starting at speed ``w_mps`` (arrays broadcast).
-
-    ``inv_accel_s2pm`` is 1/A (may be +inf: no authority on this axis); the speed limit is
-    ``V = rho_s * A`` (rho = v_max / a_max is the same for both axes of the alpha split).
-    """
-    args = np.broadcast_arrays(d_m, w_mps, inv_accel_s2pm, rho_s)
-    out = np.empty(args[0].shape)
-    _axis_time_many(*(_kernel_array(x).ravel() for x in args), out.ravel())
-    return out
-
-
 @_jit("float64(float64, float64, float64, float64)")
 def _axis_time(d, w, x, rho):
+    """Minimal 1D time to travel ``d`` and stop, starting at speed ``w``: ``x`` is 1/A (may be +inf: no
+    authority on this axis), the speed limit ``V = rho * A`` (rho = v_max / a_max, the same for both
+    axes of the alpha split)."""
     if d < 0.0:  # mirror so that d >= 0
         d, w = -d, -w
     if math.isinf(x):  # no authority on this axis
@@ -175,12 +165,6 @@ def _axis_time(d, w, x, rho):
         return max(d / w + 0.5 * w * x, 0.0)  # already faster than the speed share: cruise, then brake
     root_q = math.sqrt(max(d * x + 0.5 * w * w * x * x, 0.0))
     return max(-w * x + 2.0 * root_q + max(root_q - rho, 0.0) ** 2 / rho, 0.0)  # (max: subnormal speeds)
-
-
-@_jit("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1])")
-def _axis_time_many(d, w, x, rho, out):
-    for i in range(out.shape[0]):
-        out[i] = _axis_time(d[i], w[i], x[i], rho[i])
 
 
 @_jit("float64(float64, float64, float64, float64, float64)")
