@@ -255,7 +255,7 @@ class ThrottledWarner:
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
-    """Standard node main: init, spin on a DirectExecutor (erforce_interfaces.executor.make_executor), clean shutdown.
+    """Standard node main: init, spin on EventsExecutor (erforce_interfaces.executor.make_executor), clean shutdown.
 
     Returns the process exit code: 0 after Ctrl-C or external shutdown, 1 when the
     node refused to start (for example an invalid parameter file).
@@ -270,7 +270,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
             # Invalid configuration at start-up: one clear line, no traceback.
             rclpy.logging.get_logger("erforce").fatal(f"cannot start: {exc}")
             return 1
-        executor = make_executor()  # DirectExecutor unless ERFORCE_EXECUTOR says otherwise
+        executor = make_executor()  # EventsExecutor unless ERFORCE_EXECUTOR says otherwise
         executor.add_node(node)
         # The imports (numpy, numba, rclpy) leave ~130k objects that the cyclic GC would scan in every
         # full collection: ~50 ms each back to back, while the node's loop waits. They live as long
