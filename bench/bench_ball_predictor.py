@@ -11,7 +11,7 @@ subscriber sees, including its own executor's wake. Frames are sent one at a tim
 the answer), so there is no queueing. The node's own
 processing time per frame (callback entry to last publish) comes from its timing log
 (parameter ``timing_log_every``), collected over exactly the measured frames. For attribution
-the same frames also run in-process through BallTracker + robot_time_to_ball alone (the cores).
+the same frames also run in-process through predictor.BallPredictor, the object the node runs.
 
 Runs in a private DDS domain (erforce_interfaces.tools.testing.RosGraph).
 
@@ -31,12 +31,10 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64
 from table import bench_main  # bench/table.py: the shared table format
 
-from erforce_ball_model.catch_time import RobotLimits, robot_time_to_ball
-from erforce_ball_model.catcher import CatcherConfig
-from erforce_ball_model.tracking import BallTracker
+from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import point_msg, pose2d_msg
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.tools.testing import RosGraph
 
 NUM_ROBOTS = 22
@@ -85,14 +83,14 @@ def robot_layout(rng: np.random.Generator) -> np.ndarray:
 
 
 def measure_cores(frames: np.ndarray, robots: np.ndarray, paced: bool) -> np.ndarray:
-    """Per frame [ms]: BallTracker.update + trajectory + robot_time_to_ball for all robots, in-process.
+    """Per frame [ms]: BallPredictor.ball_frame for all robots, in-process: the node's own per-frame object.
 
     ``paced``: one frame per 1/70 s as in the node (sleeping in between) instead of back to back;
     on this VM code that waited 14 ms runs markedly slower (cold caches).
     """
-    tracker, limits = BallTracker(), CatcherConfig()
-    robot_limits = RobotLimits(limits.a_max_mps2, limits.v_max_mps)
-    offset = RobotConfig().dribbler_offset_m
+    predictor = BallPredictor(PredictorConfig(num_robots=NUM_ROBOTS, field=FIELD, robot_timeout_s=3600.0))
+    for i, (x, y) in enumerate(robots):
+        predictor.robot_frame(i, 0.5, x, y, 0.0)
     out = []
     next_frame = time.perf_counter()
     for t, x, y in frames:
@@ -100,11 +98,7 @@ def measure_cores(frames: np.ndarray, robots: np.ndarray, paced: bool) -> np.nda
             next_frame += 1.0 / FPS
             time.sleep(max(0.0, next_frame - time.perf_counter()))
         t0 = time.perf_counter()
-        tracker.update(t, x, y)
-        traj = tracker.trajectory()
-        ball_vel = traj.velocity_mps
-        robot_time_to_ball(traj, robots, np.zeros_like(robots), robot_limits,
-                           math.atan2(-ball_vel[1], -ball_vel[0]), dribbler_offset_m=offset, field=FIELD)
+        predictor.ball_frame(t, x, y)
         out.append(time.perf_counter() - t0)
     return 1e3 * np.array(out[WARMUP_FRAMES:])
 
@@ -213,14 +207,16 @@ def run(quick: bool = False) -> list[dict]:
              note=f"tracker + robotTimeToBall (22 robots) + 49 messages; {m['node_frames']} frames"),
         dict(name="in-node processing per frame, p99", value=m["node_p99_ms"], unit="ms", target="-",
              note=f"max {m['node_max_ms']:.3f} ms"),
-        dict(name="cores alone per frame (tracker + robotTimeToBall, 22 robots), median",
+        dict(name="BallPredictor.ball_frame alone (tracking + robotTimeToBall, 22 robots), median",
              value=float(np.median(m["cores_ms"])), unit="ms", target="-", note="in-process, same frames"),
-        dict(name="cores alone per frame (tracker + robotTimeToBall, 22 robots), p99",
+        dict(name="BallPredictor.ball_frame alone (tracking + robotTimeToBall, 22 robots), p99",
              value=float(np.percentile(m["cores_ms"], 99)), unit="ms", target="-",
              note=f"max {m['cores_ms'].max():.3f} ms"),
-        dict(name="cores alone, paced at 70 Hz like the node, median", value=float(np.median(m["cores_paced_ms"])),
+        dict(name="BallPredictor.ball_frame alone, paced at 70 Hz like the node, median",
+             value=float(np.median(m["cores_paced_ms"])),
              unit="ms", target="-", note="same frames; sleeping between frames costs cache warmth on this VM"),
-        dict(name="cores alone, paced at 70 Hz like the node, p99", value=float(np.percentile(m["cores_paced_ms"], 99)),
+        dict(name="BallPredictor.ball_frame alone, paced at 70 Hz like the node, p99",
+             value=float(np.percentile(m["cores_paced_ms"], 99)),
              unit="ms", target="-", note=f"max {m['cores_paced_ms'].max():.3f} ms"),
         dict(name="frames without an answer", value=m["lost"], unit="count", target="0",
              note="best-effort vision QoS"),

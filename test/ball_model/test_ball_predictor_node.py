@@ -369,14 +369,32 @@ def test_online_identification_replaces_the_model_with_the_fitted_one(ros_graph)
         for ti, (xi, yi) in zip(t, noisy, strict=True):
             rig.ball(ti, xi, yi)
         t0, x = t[-1] + 1.0 / FPS, xy[-1, 0]
-    ros_graph.probe.spin_until(lambda: len(rig.model_params) >= 2, 20.0, "two fits")
+    ros_graph.probe.spin_until(lambda: len(rig.model_params) >= 3, 20.0, "the model at start and two fits")
     rig.node.wait_for_output("online identification: now using", timeout_s=10.0)
     table = table_from_msg(rig.model_params[-1], contract.BALL_MODEL_PARAM_LABELS)
-    assert rig.model_params[-1].layout.dim[0].label == "fit,std_error,in_use"
-    fit, std, in_use = table
+    assert rig.model_params[-1].layout.dim[0].label == "in_use,fit,std_error"
+    in_use, fit, std = table
     assert np.all(std < [0.1, 0.02, 0.03])
     assert fit == pytest.approx([-true["a_slide"], -true["a_roll"], true["c_switch"]], abs=0.05)
     assert np.array_equal(in_use, fit)
+
+
+def test_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ros_graph):
+    rig = Rig(ros_graph, num_robots=1)
+    probe = ros_graph.probe
+    probe.spin_until(lambda: rig.model_params, 10.0, "the model in use at start")
+    first = rig.model_params[-1]
+    assert first.layout.dim[0].label == "in_use"
+    assert table_from_msg(first, contract.BALL_MODEL_PARAM_LABELS)[0] == pytest.approx([-A_SLIDE, -A_ROLL, C_SWITCH])
+    assert probe.set_parameter(NODE, "a_roll_mps2", -0.5).successful
+    probe.spin_until(lambda: len(rig.model_params) >= 2, 10.0, "the changed model")
+    assert table_from_msg(rig.model_params[-1], contract.BALL_MODEL_PARAM_LABELS)[0] == pytest.approx(
+        [-A_SLIDE, -0.5, C_SWITCH])
+    # A reader that joins late gets the model in use at once (transient local), not the first one.
+    late = probe.subscribe(contract.BALL_MODEL_PARAMS.name, Float64MultiArray, contract.BALL_MODEL_PARAMS.qos)
+    probe.spin_until(lambda: late, 10.0, "the latched model")
+    assert len(late) == 1
+    assert table_from_msg(late[0], contract.BALL_MODEL_PARAM_LABELS)[0] == pytest.approx([-A_SLIDE, -0.5, C_SWITCH])
 
 
 def test_odom_follows_a_moving_robot(ros_graph):

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
-from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
+from erforce_ball_model.catch_time import ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS, RobotLimits, robot_time_to_pos
 from erforce_interfaces.robot_config import FieldConfig
 
 CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract)
@@ -44,8 +44,8 @@ class CatcherConfig:
     # The robot's limits for catching; the ball predictor plans with the same (plus a reaction
     # time), so the catch it predicts is the one this drives. The velocity controller allows
     # 6 m/s^2 and the traction limit of this wheel layout is 4-6 m/s^2 depending on direction.
-    a_max_mps2: float = 4.5
-    v_max_mps: float = 2.5
+    a_max_mps2: float = ROBOT_A_MAX_MPS2  # the planner's limits (catch_time): the predictor plans with them
+    v_max_mps: float = ROBOT_V_MAX_MPS
     w_max_radps: float = 6.0
     heading_gain_per_s: float = 8.0
     arrive_tolerance_m: float = 0.015  # inside this the robot holds still (above the 2 mm vision noise)

@@ -96,12 +96,19 @@ QOS_CLOCK = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
 )
 
+# State that a late joiner needs at once (the ball model in use): the newest value is kept for it.
+QOS_LATCHED = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
 QOS_NAMES = {
     id(QOS_SENSOR): "sensor (best effort, keep last 5)",
     id(QOS_COMMAND): "command (reliable, keep last 10)",
     id(QOS_CONTROL): "control (reliable, keep last 50)",
     id(QOS_STATE): "state (reliable, keep last 10)",
     id(QOS_CLOCK): "clock (reliable, keep last 1)",
+    id(QOS_LATCHED): "latched (reliable, transient local, keep last 1)",
 }
 
 
@@ -166,9 +173,10 @@ BALL_V_SHOOT = Topic("/ball/v_shoot", Float64, QOS_STATE, "ball_predictor", "cat
                      "tracked initial shot speed v_shoot [m/s]")
 BALL_UNCERTAIN = Topic("/ball/uncertain", Bool, QOS_STATE, "ball_predictor", "tools",
                        "true after a ricochet until the model fits the observations again")
-BALL_MODEL_PARAMS = Topic("/ball/model_params", Float64MultiArray, QOS_STATE, "ball_predictor", "catcher, tools",
-                          "rows fit, std_error, in_use of [a_slide_mps2, a_roll_mps2, c_switch], labelled "
-                          "in layout.dim; after each online identification fit")
+BALL_MODEL_PARAMS = Topic("/ball/model_params", Float64MultiArray, QOS_LATCHED, "ball_predictor", "catcher, tools",
+                          "the two-phase model in use: row in_use of [a_slide_mps2, a_roll_mps2, c_switch], then "
+                          "rows fit, std_error of the last online fit once there is one (labelled in layout.dim); "
+                          "at start and on every change")
 GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant", "tests, tools only",
                           "true ball: pose [m], twist.linear [m/s], twist.angular = spin [rad/s], `field`")
 SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts", "plant",
@@ -219,7 +227,7 @@ TOPICS: tuple[Topic, ...] = (
 MOTOR_STATUS_COLUMNS = ("avg_current_a", "pwm_limit", "saturated", "limit_active")
 GROUND_TRUTH_MOTOR_COLUMNS = ("current_a", "winding_temperature_c", "wheel_speed_radps")
 BALL_MODEL_PARAM_LABELS = ("a_slide_mps2", "a_roll_mps2", "c_switch")
-BALL_MODEL_PARAM_ROWS = ("fit", "std_error", "in_use")
+BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
 
 
 def topic_table_markdown() -> str:

@@ -28,13 +28,13 @@ from rclpy.exceptions import (
     ParameterUninitializedException,
 )
 from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from erforce_interfaces.contract import CLOCK, Topic
-from erforce_interfaces.executor import DirectExecutor, sample_only, set_callback_fault_handler
+from erforce_interfaces.executor import make_executor, sample_only, set_callback_fault_handler
 from erforce_interfaces.param_schema import ParamSchema, ParamSpec
+from erforce_interfaces.rclpy_internals import RCLError
 from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
 
 _ARRAY_TYPES = {"int": Parameter.Type.INTEGER_ARRAY, "double": Parameter.Type.DOUBLE_ARRAY,
@@ -250,7 +250,7 @@ def check_stamp(stamps: StampFilter, t_ns: int | None, warner: ThrottledWarner, 
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
-    """Standard node main: init, spin on a DirectExecutor (erforce_interfaces.executor), clean shutdown.
+    """Standard node main: init, spin on DirectExecutor (erforce_interfaces.executor.make_executor), clean shutdown.
 
     Every node gets the callback guard (guard_callbacks) and the time rule on /clock (guard_clock).
 
@@ -269,7 +269,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
             return 1
         guard_callbacks(node)
         guard_clock(node)
-        executor = DirectExecutor()
+        executor = make_executor()  # DirectExecutor unless ERFORCE_EXECUTOR says otherwise
         executor.add_node(node)
         # The imports (numpy, numba, rclpy) leave ~130k objects that the cyclic GC would scan in every
         # full collection: ~50 ms each back to back, while the node's loop waits. They live as long
@@ -281,7 +281,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         pass
     except SystemExit as exc:  # a node may end itself (e.g. the plant's stop_after_s)
         code = exc.code if isinstance(exc.code, int) else 0
-    except _rclpy.RCLError:
+    except RCLError:
         # Ctrl-C shuts the context down at once, also under a callback that is about to publish;
         # its "context is invalid" is the shutdown, not a fault.
         if node is None or node.context.ok():

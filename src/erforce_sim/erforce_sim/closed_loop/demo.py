@@ -106,7 +106,7 @@ class Series:
     teammate_predictions: dict = field(default_factory=dict)  # robot id -> the same, for --receivers > 1
     teammate_truth: dict = field(default_factory=dict)  # robot id -> rows like robot_truth
     catch_points: list = field(default_factory=list)  # obs t, x, y
-    model_params: list = field(default_factory=list)  # t, a_slide, a_roll, c_switch
+    model_params: list = field(default_factory=list)  # t, a_slide, a_roll, c_switch of the model in use
     vision_sent_ns: dict = field(default_factory=dict)  # vision stamp -> DDS source timestamp (plant's send)
     # Inside the graph, from DDS source timestamps: the plant sends a vision frame -> the predictor
     # sends robot_0's catch time for it (the target) / its catch point (after all catch times).

@@ -6,8 +6,8 @@ the side wall. ``reachable`` decides from the ball's true path whether a robot c
 
 ``play_in_process`` plays a scene with the whole stack in one process and no DDS: the plant and
 robot_0's motion control (runner.InProcessRunner: the same cores, order and one-tick setpoint
-delay as the lockstep graph), the ball predictor's cores on every vision frame as it is released
-(ball and robot tracking, robotTimeToBall after the reaction time), and robot_0's catcher
+delay as the lockstep graph), the ball predictor on every vision frame as it is released (the
+node's own predictor.BallPredictor object: tracking, robotTimeToBall after the reaction time), and robot_0's catcher
 (catcher.Receiver) at its 50 Hz tick. A seed fixes everything, so a run repeats exactly: this is
 where the catcher is tuned and its behaviour tested, seconds for what takes the DDS graph minutes.
 What it leaves out: DDS delivery and scheduling (the predictor's output reaches the catcher at once),
@@ -26,10 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, catch_after_reaction, robot_time_to_pos
+from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
 from erforce_ball_model.catcher import CATCH_TIME_NEVER, CatcherConfig, Receiver
-from erforce_ball_model.tracking import BallTracker, RobotTracker, UpdateStatus
+from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.closed_loop.runner import InProcessRunner, PlantSetup
 from erforce_sim.sensors import VisionFrame
@@ -38,7 +37,7 @@ RECEIVER, KICKER = 0, 1
 # --receivers 2 and 3 add these receivers, in this order; their catchers form a team with robot_0's (the
 # first to the ball receives). They wait at these poses in every scene, downfield of robot_0.
 TEAMMATE_POSES = {2: (2.5, -1.0, math.pi), 3: (2.5, 1.0, math.pi)}
-REACTION_S = 0.1  # vision latency + tracking before any robot can react (reachability)
+REACTION_S = PredictorConfig.reaction_s  # vision latency + tracking before a robot can react (reachability)
 PREDICTION_LEAD_S = 0.3  # the prediction compared with the truth: made this long before the contact
 
 
@@ -198,20 +197,17 @@ def play_in_process(scene: Scene, seed: int = 0, catcher: CatcherConfig | None =
 
 
 class _Predictor:
-    """The ball predictor's per-frame work for robot_0 (ball_predictor_node, without its topics), feeding
-    robot_0's Receiver at the frame's release, as the node's outputs would reach the catcher."""
+    """The ball predictor (predictor.BallPredictor, the object the ball_predictor node runs) for robot_0,
+    feeding robot_0's Receiver at each vision frame's release, as the node's outputs would reach the catcher."""
 
-    def __init__(self, cfg: CatcherConfig, robot: RobotConfig, field: FieldConfig, receiver: Receiver,
-                 reaction_s: float = 0.1, rest_speed_mps: float = 0.1) -> None:
+    def __init__(self, cfg: CatcherConfig, robot: RobotConfig, field: FieldConfig, receiver: Receiver) -> None:
         self.receiver = receiver
-        self.ball = BallTracker(BallModelParams())
-        self.robot = RobotTracker()
-        self.search = CatchSearch(1, RobotLimits(cfg.a_max_mps2, cfg.v_max_mps),
-                                  dribbler_offset_m=robot.dribbler_offset_m, field=field)
-        self.reaction_s, self.rest_speed_mps = reaction_s, rest_speed_mps
+        self.predictor = BallPredictor(PredictorConfig(
+            num_robots=1, field=field, limits=RobotLimits(a_max_mps2=cfg.a_max_mps2, v_max_mps=cfg.v_max_mps),
+            dribbler_offset_m=robot.dribbler_offset_m))
+        receiver.on_model(self.predictor.model)
         self.predictions: list[tuple[float, float]] = []  # (frame capture time, catch time after it)
         self.barrier_edges: list[float] = []
-        self._no_fixed = np.zeros(1, dtype=bool)
 
     def record_barrier(self, t_s: float, detected: bool) -> None:
         if self.receiver.on_barrier(detected):
@@ -219,32 +215,22 @@ class _Predictor:
 
     def on_frame(self, frame: VisionFrame) -> None:
         now, t = frame.t_release_s, frame.t_capture_s
-        rx = self.receiver
+        rx, predictor = self.receiver, self.predictor
         for r in frame.robots:
-            if r.robot_id == RECEIVER and self.robot.update(t, r.x, r.y, r.theta) in (UpdateStatus.INITIALIZED,
-                                                                                       UpdateStatus.ACCEPTED):
-                rx.on_odom(now, (*self.robot.position_m, self.robot.heading_rad), self.robot.velocity_mps)
-        if not frame.balls:
-            return
-        b = frame.balls[0]
-        status = self.ball.update(t, b.x, b.y)
-        if self.robot.t_s is None or status in (UpdateStatus.REJECTED_TIME, UpdateStatus.REJECTED_INVALID):
-            return
-        traj = self.ball.trajectory()
-        if status == UpdateStatus.HELD_BACK:
-            traj = traj.advanced(t - self.ball.t_s)
-        rx.on_ball(now, traj.position_m, traj.velocity_mps)
-        rx.on_v_shoot(now, traj.floats.v_shoot_mps)
-        # as the node: the robot's position at the frame's time, the ball a reaction time ahead
-        position = self.robot.position_m + self.robot.velocity_mps * (t - self.robot.t_s)
-        res = catch_after_reaction(self.search, traj, position[None], self.robot.velocity_mps[None], self.reaction_s,
-                                   self._no_fixed, self._no_fixed, self.rest_speed_mps)
-        never = res.kind[0] == CatchKind.NEVER
-        catch_time = CATCH_TIME_NEVER if never else float(res.time_s[0]) + self.reaction_s
-        rx.on_catch_time(now, catch_time)
-        if not never:
-            rx.on_catch_point(now, res.robot_target_m[0].copy())
-        self.predictions.append((t, catch_time))
+            if r.robot_id == RECEIVER and (tracker := predictor.robot_frame(RECEIVER, t, r.x, r.y, r.theta)):
+                rx.on_odom(now, (*tracker.position_m, tracker.heading_rad), tracker.velocity_mps)
+        for b in frame.balls[:1]:
+            answer = predictor.ball_frame(t, b.x, b.y)
+            if answer is None:
+                continue
+            if answer.catch_robots:  # robot_0 is fresh: catch time first, as the node publishes
+                rx.on_catch_time(now, answer.catch_times_s[0])
+                if answer.catch_points_m[0] is not None:
+                    rx.on_catch_point(now, np.array(answer.catch_points_m[0]))
+                self.predictions.append((t, answer.catch_times_s[0]))
+            traj = answer.trajectory
+            rx.on_ball(now, traj.position_m, traj.velocity_mps)
+            rx.on_v_shoot(now, traj.floats.v_shoot_mps)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,362 @@
+"""The ball predictor's per-frame work (paper Sec. 5 in the loop) as one object with no ROS.
+
+``BallPredictor`` serves a team of robots. Each ``/vision/ball`` frame (``ball_frame``) runs
+the ball tracker (tracking.BallTracker: v_shoot, phase, ricochets) and, for every robot seen
+within ``robot_timeout_s``, one robotTimeToBall run for the team after the reaction time
+(catch_time.catch_after_reaction); each robot pose (``robot_frame``) feeds that robot's
+RobotTracker. It owns every per-frame decision: vision rejection outside the field, clock
+restarts (a stamp far behind the newest restarts the filter), robot freshness and their
+constant-velocity extrapolation to the frame's stamp, the reaction-time offset, the mapping of
+"no catch" to CATCH_TIME_NEVER, and the ball model in use: the configured one, or an online
+fit (identification.ShotAccumulator, fitted in a worker thread) once its standard errors are
+small enough. A model set by configuration wins over a fit until the next accepted fit.
+
+The ball_predictor node converts messages and publishes what this object answers; the
+in-process scenes (erforce_sim.closed_loop.scenes) and the bench (bench/bench_ball_predictor.py) run the
+same object, so the catcher is tuned on the code that runs.
+
+>>> from erforce_ball_model.predictor import BallPredictor, PredictorConfig
+>>> predictor = BallPredictor(PredictorConfig(num_robots=1))
+>>> predictor.robot_frame(0, 1.0, 1.0, 0.0, math.pi) is not None
+True
+>>> for k in range(8):  # a ball at 2 m/s towards robot_0 (taken for a fresh kick), 100 Hz vision
+...     frame = predictor.ball_frame(1.0 + 0.01 * k, -2.0 + 0.02 * k, 0.0)
+>>> frame.catch_robots, frame.phase
+([0], 'sliding')
+>>> round(frame.catch_times_s[0], 2)  # seconds from the frame's stamp, the reaction time included
+1.21
+
+No rclpy import.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from dataclasses import field as _default
+
+import numpy as np
+
+from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
+from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, catch_after_reaction
+from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
+from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+
+__all__ = ["CATCH_TIME_NEVER", "PHASE_NAMES", "BallFrame", "BallPredictor", "PredictorConfig"]
+
+CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract says the same)
+PHASE_NAMES = {BallPhase.SLIDING: "sliding", BallPhase.ROLLING: "rolling", BallPhase.STOPPED: "stopped"}
+_NEVER = int(CatchKind.NEVER)
+
+
+@dataclass(frozen=True, eq=False)
+class PredictorConfig:
+    """Everything the predictor computes with. ``facing_fixed`` / ``facing_rad``: one value for all
+    robots (shape () or (1,)) or one per robot; fixed False faces against the ball's motion."""
+
+    num_robots: int = 1
+    model: BallModelParams = _default(default_factory=BallModelParams)
+    tracker: TrackerConfig = _default(default_factory=TrackerConfig)
+    field: FieldConfig = _default(default_factory=lambda: FieldConfig.preset("division_b"))
+    field_margin_m: float = 0.0  # the catch search ends where the ball crosses the field lines extended by this
+    vision_reject_margin_m: float = 0.5  # observations farther outside the field lines are rejected
+    limits: RobotLimits = _default(default_factory=RobotLimits)
+    reaction_s: float = 0.1  # a robot acts on a prediction this much later
+    facing_fixed: np.ndarray = _default(default_factory=lambda: np.zeros(1, dtype=bool))
+    facing_rad: np.ndarray = _default(default_factory=lambda: np.full(1, math.pi))
+    dribbler_offset_m: float = RobotConfig().dribbler_offset_m
+    rest_speed_mps: float = 0.1  # a slower filtered ball is reported stopped and faced from the robot
+    grid_step_s: float = 0.01
+    robot_timeout_s: float = 1.0  # a robot not seen for this long (vision stamps) gets no catch answer
+    online_identification: bool = False
+    ident_min_shots: int = 3
+    ident_max_std: tuple[float, float, float] = (0.1, 0.02, 0.03)  # a_slide, a_roll, c_switch
+    timing_log_every: int = 0  # the node's timing log (not used here)
+
+    def __post_init__(self) -> None:
+        n = self.num_robots
+        if not (isinstance(n, int) and n >= 1):
+            raise ValueError(f"num_robots: must be an int >= 1, got {n!r}")
+        for name, dtype in (("facing_fixed", bool), ("facing_rad", float)):
+            values = np.array(getattr(self, name), dtype=dtype).reshape(-1)
+            if values.size == 1:
+                values = np.repeat(values, n)
+            if values.size != n:
+                raise ValueError(f"{name}: need one value or one per robot ({n}), got {values.size}")
+            values.setflags(write=False)
+            object.__setattr__(self, name, values)
+        if not (np.isfinite(self.facing_rad).all() and (np.abs(self.facing_rad) <= 2.0 * math.pi).all()):
+            raise ValueError(f"facing_rad: must be finite angles in [-2 pi, 2 pi], got {self.facing_rad.tolist()}")
+        for name in ("field_margin_m", "vision_reject_margin_m", "reaction_s", "rest_speed_mps", "robot_timeout_s"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{name}: must be finite, got {getattr(self, name)!r}")
+        if self.reaction_s < 0.0:
+            raise ValueError(f"reaction_s: must be >= 0, got {self.reaction_s!r}")
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class BallFrame:
+    """The answer to one accepted ball observation. Catch times count from ``t_s`` (the observation's
+    stamp) and include the reaction time; CATCH_TIME_NEVER (and no point) when the ball leaves the
+    field first. ``catch_robots`` are the robots fresh at ``t_s``, in order."""
+
+    t_s: float
+    xy_m: tuple[float, float]  # the observation
+    status: UpdateStatus
+    trajectory: BallTrajectory  # the ball at t_s
+    phase: str  # unknown (first frame) | sliding | rolling | stopped
+    uncertain: bool
+    position_variance_m2: float
+    catch_robots: list[int]
+    catch_times_s: list[float]
+    catch_points_m: list[tuple[float, float] | None]
+
+    @property
+    def stop_point_m(self) -> tuple[float, float]:
+        f = self.trajectory.floats
+        return f.x_m + f.ux * f.stop_distance_m, f.y_m + f.uy * f.stop_distance_m
+
+
+def _ignore(*_args) -> None:
+    return None
+
+
+class BallPredictor:
+    """Ball and robot tracking plus robotTimeToBall for a team (module docstring).
+
+    ``warn(key, text)`` receives what was rejected or went wrong (``key`` groups repeats, for a
+    throttled log); ``info(text)`` what changed (clock restarts, an accepted fit). Fits run in a
+    worker thread and are collected by ``identify``; ``close`` stops it.
+    """
+
+    def __init__(self, config: PredictorConfig, *, warn: Callable[[str, str], None] = _ignore,
+                 info: Callable[[str], None] = _ignore) -> None:
+        self._warn, self._info = warn, info
+        self.config: PredictorConfig | None = None
+        self.model: BallModelParams = config.model  # in use: configured or identified
+        self.last_fit: FitResult | None = None
+        self._ball: BallTracker | None = None
+        self._search: CatchSearch | None = None
+        self._shots: ShotAccumulator | None = None
+        self._fitted_shot = None  # the newest shot a fit was started with
+        self._fit_pool: concurrent.futures.ThreadPoolExecutor | None = None
+        self._fit_future: concurrent.futures.Future | None = None
+        n = config.num_robots
+        self._robots: list[RobotTracker | None] = [None] * n
+        # Each tracker's state after its last accepted pose, (t_s, x, y, vx, vy) (NaN stamp: not seen
+        # yet), and the velocities as the array the catch search takes.
+        self._robot_states = [(math.nan, 0.0, 0.0, 0.0, 0.0)] * n
+        self._robot_vel_mps = np.zeros((n, 2))
+        self.configure(config)
+
+    # ------------------------------------------------------------------ configuration
+    def configure(self, config: PredictorConfig) -> bool:
+        """Apply a new configuration (the number of robots is fixed); True when the model in use changed.
+
+        A changed model replaces the model in use, even an identified one. A changed tracker
+        configuration restarts the ball filter (and the shot collection).
+        """
+        old = self.config
+        if old is not None and config.num_robots != old.num_robots:
+            raise ValueError(f"num_robots is fixed at {old.num_robots}, got {config.num_robots}")
+        self.config = config
+        model_before = self.model
+        if old is None or config.model != old.model:
+            self.model = config.model
+        self._search = CatchSearch(config.num_robots, config.limits, dribbler_offset_m=config.dribbler_offset_m,
+                                   field=config.field, field_margin_m=config.field_margin_m,
+                                   grid_step_s=config.grid_step_s)
+        if self._ball is None or config.tracker != old.tracker:
+            self._ball = BallTracker(self.model, config.tracker)  # the filter state is lost: it re-seeds
+        self._ball.params = self.model
+        if config.online_identification and (self._shots is None or config.tracker != old.tracker):
+            self._shots = ShotAccumulator(tracker_config=config.tracker)
+            self._fitted_shot = None
+        elif not config.online_identification:
+            self._shots = None
+            self._fit_future = None  # a fit still running is not used
+        return old is None or self.model != model_before
+
+    def close(self) -> None:
+        """Stop the fit worker (a fit in progress is dropped)."""
+        if self._fit_pool is not None:
+            self._fit_pool.shutdown(wait=False, cancel_futures=True)
+            self._fit_pool = None
+        self._fit_future = None
+
+    # ------------------------------------------------------------------ robots
+    def robot_frame(self, robot: int, t_s: float, x_m: float, y_m: float, heading_rad: float) -> RobotTracker | None:
+        """A vision pose of ``robot``: its tracker after the update, or None when the pose was rejected."""
+        cfg, key = self.config, f"pose{robot}"
+        if not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m):
+            self._warn(key, f"robot_{robot}: rejected vision_pose outside the field: ({x_m:.3f}, {y_m:.3f}) m")
+            return None
+        tracker = self._robots[robot]
+        if tracker is not None and self._restarted_clock(tracker.t_s, t_s, f"robot_{robot} tracker"):
+            tracker = None
+        tracker = tracker or RobotTracker()
+        status = tracker.update(t_s, x_m, y_m, heading_rad)
+        if status == UpdateStatus.REJECTED_TIME:
+            self._warn(key, f"robot_{robot}: rejected vision_pose: stamp {t_s:.6f} s is not after the previous one "
+                            f"{tracker.t_s:.6f} s")
+            return None
+        if status == UpdateStatus.REJECTED_INVALID:
+            self._warn(key, f"robot_{robot}: rejected vision_pose: invalid")
+            return None
+        self._robots[robot] = tracker
+        vel = tracker.velocity_mps
+        self._robot_states[robot] = (tracker.t_s, *tracker.position_m.tolist(), *vel.tolist())
+        self._robot_vel_mps[robot] = vel
+        return tracker
+
+    def _restarted_clock(self, last_t_s: float | None, t_s: float, what: str) -> bool:
+        """A stamp more than max_gap_s before the newest one: the clock restarted (e.g. the simulator).
+
+        Smaller steps back are reordered or repeated frames and are rejected; after a restart
+        the old newest stamp would reject every frame until the new clock passed it.
+        """
+        if last_t_s is None or t_s >= last_t_s - self.config.tracker.max_gap_s:
+            return False
+        self._info(f"time went backwards ({last_t_s:.6f} -> {t_s:.6f} s): {what} restarted")
+        return True
+
+    def _robots_now(self, t_s: float) -> tuple[list[int], np.ndarray]:
+        """The robots fresh at ``t_s``, and all robots' positions then (constant-velocity extrapolation).
+
+        Stale robots stay where they were last seen, never-seen ones at the origin: the search runs
+        for the whole team in one call and their answers are dropped. A loop over 22 tuples is
+        cheaper here than the numpy calls for the same.
+        """
+        timeout_s = self.config.robot_timeout_s
+        fresh, rows = [], []
+        for i, (t_i, x, y, vx, vy) in enumerate(self._robot_states):
+            age_s = t_s - t_i
+            if abs(age_s) <= timeout_s:  # NaN (never seen) is not
+                fresh.append(i)
+                rows.append((x + vx * age_s, y + vy * age_s))
+            else:
+                rows.append((x, y))
+        return fresh, np.array(rows)
+
+    # -------------------------------------------------------------------- ball
+    def ball_frame(self, t_s: float, x_m: float, y_m: float) -> BallFrame | None:
+        """A vision observation of the ball: the ball's state and every fresh robot's catch; None when
+        the observation was rejected or no prediction could be made (with a warning)."""
+        cfg = self.config
+        if not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m):
+            self._warn("ball_outside", f"rejected vision/ball outside the field: ({x_m:.3f}, {y_m:.3f}) m")
+            return None
+        if self._restarted_clock(self._ball.t_s, t_s, "ball filter"):
+            self._ball = BallTracker(self.model, cfg.tracker)
+            if self._shots is not None:
+                self._shots = ShotAccumulator(tracker_config=cfg.tracker)
+                self._fitted_shot = None
+        ball = self._ball
+        last_t = ball.t_s
+        status = ball.update(t_s, x_m, y_m)
+        if status == UpdateStatus.REJECTED_TIME:
+            self._warn("ball_time", f"rejected vision/ball: stamp {t_s:.6f} s is not after the previous one "
+                                    f"{last_t:.6f} s (time went backwards or repeated)")
+            return None
+        if status == UpdateStatus.REJECTED_INVALID:
+            self._warn("ball_invalid", "rejected vision/ball: invalid")
+            return None
+        try:
+            traj = ball.trajectory()
+            if status == UpdateStatus.HELD_BACK:  # the filter waits for the next frame: predict to this stamp
+                traj = traj.advanced(t_s - ball.t_s)
+        except ValueError as exc:  # e.g. 100 m/s from two frames 1 us apart
+            self._warn("predict", f"no prediction for the frame at {t_s:.6f} s: {exc}")
+            return None
+        robots, times, points = self._catches(t_s, traj)
+        f = traj.floats
+        if status == UpdateStatus.INITIALIZED:
+            phase = "unknown"
+        elif f.speed_mps <= cfg.rest_speed_mps:
+            phase = "stopped"
+        else:
+            phase = PHASE_NAMES[traj.phase]
+        return BallFrame(t_s, (x_m, y_m), status, traj, phase, bool(ball.uncertain), ball.position_variance_m2,
+                         robots, times, points)
+
+    def _catches(self, t_s: float, traj: BallTrajectory) -> tuple[list[int], list[float], list]:
+        """Catch time and robot target of every fresh robot: one robotTimeToBall run for the team."""
+        cfg = self.config
+        ids, pos = self._robots_now(t_s)
+        if not ids:
+            return [], [], []
+        try:
+            catch = catch_after_reaction(self._search, traj, pos, self._robot_vel_mps, cfg.reaction_s,
+                                         cfg.facing_fixed, cfg.facing_rad, cfg.rest_speed_mps)
+        except ValueError as exc:
+            self._warn("catch", f"no catch times for the frame at {t_s:.6f} s: {exc}")
+            return [], [], []
+        # Per robot in plain floats (22 values; numpy calls cost more than they save here).
+        kinds, times, points = catch.kind.tolist(), catch.time_s.tolist(), catch.robot_target_m.tolist()
+        reaction_s = cfg.reaction_s
+        out_times, out_points = [], []
+        for i in ids:
+            if kinds[i] == _NEVER:
+                out_times.append(CATCH_TIME_NEVER)
+                out_points.append(None)
+            else:
+                out_times.append(times[i] + reaction_s)
+                out_points.append(tuple(points[i]))
+        return ids, out_times, out_points
+
+    # ---------------------------------------------------------- identification
+    def identify(self, frame: BallFrame) -> FitResult | None:
+        """Online identification (when configured): feed the frame's observation, collect a finished
+        fit and start the next one per completed shot. Returns a fit that finished (``model`` is
+        its parameters when it was accepted), else None. Off the latency path: call it after the
+        frame's answers went out."""
+        shots = self._shots
+        if shots is None:
+            return None
+        shots.add(frame.t_s, *frame.xy_m)
+        finished = None
+        future = self._fit_future
+        if future is not None and future.done():
+            self._fit_future = None
+            try:
+                finished = self._fit_done(future.result())
+            except Exception as exc:  # too few points, singular fit, ...: go on without it
+                self._warn("fit", f"online identification: fit failed: {exc}")
+        if self._fit_future is None and shots.shots and shots.shots[-1] is not self._fitted_shot:
+            self._fitted_shot = shots.shots[-1]  # refit once per completed shot, one fit at a time
+            if self._fit_pool is None:
+                self._fit_pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ball_fit")
+            self._fit_future = self._fit_pool.submit(fit_shots, list(shots.shots), self.model)
+        return finished
+
+    def wait_for_fit(self, timeout_s: float | None = None) -> FitResult | None:
+        """Block until the running fit finishes and collect it as ``identify`` would (offline runs)."""
+        future = self._fit_future
+        if future is None:
+            return None
+        concurrent.futures.wait([future], timeout=timeout_s)
+        if not future.done():
+            return None
+        self._fit_future = None
+        try:
+            return self._fit_done(future.result())
+        except Exception as exc:
+            self._warn("fit", f"online identification: fit failed: {exc}")
+            return None
+
+    def _fit_done(self, fit: FitResult) -> FitResult:
+        cfg = self.config
+        stds = (fit.a_slide_std, fit.a_roll_std, fit.c_switch_std)
+        good = fit.num_shots >= cfg.ident_min_shots and all(
+            math.isfinite(s) and s < limit for s, limit in zip(stds, cfg.ident_max_std, strict=True)
+        )
+        self.last_fit = fit
+        if good:
+            self.model = fit.params
+            self._ball.params = fit.params
+            self._info(f"online identification: now using a_slide {fit.params.a_slide_mps2:.4f}, a_roll "
+                       f"{fit.params.a_roll_mps2:.4f}, c_switch {fit.params.c_switch:.4f} ({fit.num_shots} shots)")
+        return fit
