@@ -31,6 +31,7 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64
 from table import bench_main  # bench/table.py: the shared table format
 
+from erforce_ball_model.ball_model import kick_distance
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import point_msg, pose2d_msg
@@ -46,15 +47,6 @@ TIMING_RE = re.compile(r"processing over (\d+) frames: median ([\d.]+) ms, p99 (
                        r"catch times out after: median ([\d.]+) ms, p99 ([\d.]+) ms")
 
 
-def _distance(tau: np.ndarray, v0: float) -> np.ndarray:
-    """Two-phase distance after a kick from rest (paper Sec. 5.1)."""
-    v_sw = C_SWITCH * v0
-    t_sw = (v0 - v_sw) / A_SLIDE
-    ts = np.clip(tau, 0.0, t_sw)
-    tr = np.clip(tau - t_sw, 0.0, v_sw / A_ROLL)
-    return v0 * ts - 0.5 * A_SLIDE * ts**2 + v_sw * tr - 0.5 * A_ROLL * tr**2
-
-
 def ball_frames(num_frames: int, rng: np.random.Generator) -> np.ndarray:
     """(t, x, y) rows: shots back and forth between two corners, each from rest, 2 mm noise."""
     a, b = np.array([-5.0, -3.5]), np.array([5.0, 3.5])
@@ -65,7 +57,7 @@ def ball_frames(num_frames: int, rng: np.random.Generator) -> np.ndarray:
         t_stop = (1 - C_SWITCH) * v0 / A_SLIDE + C_SWITCH * v0 / A_ROLL
         n = int((t_stop + 0.3) * FPS) + 10
         tau = np.arange(n) / FPS - 10 / FPS  # 10 frames at rest first
-        xy = a + _distance(tau, v0)[:, None] * (b - a) / span
+        xy = a + kick_distance(np.maximum(tau, 0.0), v0, -A_SLIDE, -A_ROLL, C_SWITCH)[:, None] * (b - a) / span
         rows += [(t + k / FPS, *p) for k, p in enumerate(xy)]
         t += n / FPS
         a, b = b, a

@@ -67,3 +67,12 @@ def test_the_predictor_core_defaults_are_the_nodes_parameter_defaults():
             np.testing.assert_array_equal(got, want, err_msg=f.name)
         else:
             assert got == want, f.name
+
+
+def test_the_predictor_core_speaks_the_contract():
+    from erforce_ball_model import predictor
+    from erforce_interfaces import contract
+
+    assert predictor.CATCH_TIME_NEVER == contract.CATCH_TIME_NEVER
+    assert predictor.MODEL_ROWS == contract.BALL_MODEL_PARAM_ROWS
+    assert set(predictor.PHASE_NAMES.values()) | {"unknown"} == set(contract.BALL_PHASES)

@@ -20,14 +20,12 @@ from __future__ import annotations
 import os
 import time
 
-import numpy as np
 from rclpy.node import Node
-from std_msgs.msg import Bool, Float64MultiArray, String
+from std_msgs.msg import Bool, String
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import RobotLimits
-from erforce_ball_model.identification import FitResult
-from erforce_ball_model.predictor import BallFrame, BallPredictor, PredictorConfig
+from erforce_ball_model.predictor import BallFrame, BallPredictor, FrameTimes, PredictorConfig
 from erforce_ball_model.tracking import TrackerConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
@@ -90,25 +88,15 @@ def build_config(c) -> PredictorConfig:
     )
 
 
-def model_params_table(in_use: BallModelParams, fit: FitResult | None) -> Float64MultiArray:
-    """/ball/model_params: the model in use, then the last fit and its standard errors once there is one."""
-    rows = [[in_use.a_slide_mps2, in_use.a_roll_mps2, in_use.c_switch]]
-    if fit is not None:
-        rows += [[fit.params.a_slide_mps2, fit.params.a_roll_mps2, fit.params.c_switch],
-                 [fit.a_slide_std, fit.a_roll_std, fit.c_switch_std]]
-    labels = contract.BALL_MODEL_PARAM_ROWS[:len(rows)]
-    return table_msg(rows, contract.BALL_MODEL_PARAM_LABELS, ",".join(labels))
-
-
 class BallPredictorNode(Node):
     def __init__(self) -> None:
         super().__init__("ball_predictor")
         self._warn = ThrottledWarner(self)
-        self._frame_times_s: list[tuple[float, float]] = []  # (to the catch times out, to the end)
         self._params = NodeParams(self, SCHEMA, build_config)
         self._values = self._params.values
         predictor = self._predictor = BallPredictor(self._params.built, warn=self._warn.warn,
                                                     info=self.get_logger().info)
+        self._times = FrameTimes(predictor.config.timing_log_every)
         n = predictor.config.num_robots
         # The time rule (erforce_interfaces.stamps) per input stream, before the core sees a frame.
         self._ball_stamps, self._robot_stamps = StampFilter(), [StampFilter() for _ in range(n)]
@@ -143,14 +131,16 @@ class BallPredictorNode(Node):
         self._params.on_change(self._apply)
 
     def _apply(self, config: PredictorConfig) -> None:
-        if config.timing_log_every != self._predictor.config.timing_log_every:
-            self._frame_times_s.clear()  # a new window starts with the change
+        if config.timing_log_every != self._times.every:
+            self._times = FrameTimes(config.timing_log_every)  # a new window starts with the change
         if self._predictor.configure(config):
             self._publish_model()
 
     def _publish_model(self) -> None:
+        rows = self._predictor.model_rows()
         try:
-            self._params_pub.publish(model_params_table(self._predictor.model, self._predictor.last_fit))
+            self._params_pub.publish(table_msg(rows, contract.BALL_MODEL_PARAM_LABELS,
+                                               ",".join(contract.BALL_MODEL_PARAM_ROWS[:len(rows)])))
         except ConversionError as exc:
             self._warn.warn("model_params", f"model_params not published: {exc}")
 
@@ -209,9 +199,10 @@ class BallPredictorNode(Node):
             self._publish_ball_outputs(frame)
         except ValueError as exc:
             self._warn.warn("predict", f"no ball state for the frame at {t_s:.6f} s: {exc}")
-        self._frame_done(catch_out - start, time.perf_counter() - start)
-        fit = self._predictor.identify(frame)
-        if fit is not None:
+        summary = self._times.add(catch_out - start, time.perf_counter() - start)
+        if summary:
+            self.get_logger().info(summary)
+        if self._predictor.identify(frame) is not None:  # a fit finished
             self._publish_model()
 
     def _publish_ball_outputs(self, frame: BallFrame) -> None:
@@ -256,20 +247,6 @@ class BallPredictorNode(Node):
         # beside its waker) and would wait behind the rest of this frame: let them run first.
         os.sched_yield()
         return times_out
-
-    def _frame_done(self, catch_out_s: float, elapsed_s: float) -> None:
-        every = self._predictor.config.timing_log_every
-        if every <= 0:
-            return
-        self._frame_times_s.append((catch_out_s, elapsed_s))
-        if len(self._frame_times_s) >= every:
-            catch_ms, ms = 1e3 * np.array(self._frame_times_s).T
-            self._frame_times_s.clear()
-            self.get_logger().info(
-                f"ball frame processing over {ms.size} frames: median {np.median(ms):.3f} ms, "
-                f"p99 {np.percentile(ms, 99):.3f} ms, max {ms.max():.3f} ms; catch times out after: median "
-                f"{np.median(catch_ms):.3f} ms, p99 {np.percentile(catch_ms, 99):.3f} ms"
-            )
 
     def destroy_node(self) -> None:
         if self._predictor is not None:

@@ -45,9 +45,11 @@ from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_sh
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
-__all__ = ["CATCH_TIME_NEVER", "PHASE_NAMES", "BallFrame", "BallPredictor", "PredictorConfig"]
+__all__ = ["CATCH_TIME_NEVER", "MODEL_ROWS", "PHASE_NAMES", "BallFrame", "BallPredictor", "FrameTimes",
+           "PredictorConfig"]
 
 CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract says the same)
+MODEL_ROWS = ("in_use", "fit", "std_error")  # the rows of model_rows (erforce_interfaces.contract says the same)
 PHASE_NAMES = {BallPhase.SLIDING: "sliding", BallPhase.ROLLING: "rolling", BallPhase.STOPPED: "stopped"}
 _NEVER = int(CatchKind.NEVER)
 
@@ -307,6 +309,16 @@ class BallPredictor:
                 out_points.append(tuple(points[i]))
         return ids, out_times, out_points
 
+    def model_rows(self) -> list[list[float]]:
+        """[a_slide, a_roll, c_switch] of the model in use, then of the last fit and its standard errors
+        once there is one (MODEL_ROWS): what /ball/model_params carries."""
+        m, fit = self.model, self.last_fit
+        rows = [[m.a_slide_mps2, m.a_roll_mps2, m.c_switch]]
+        if fit is not None:
+            rows += [[fit.params.a_slide_mps2, fit.params.a_roll_mps2, fit.params.c_switch],
+                     [fit.a_slide_std, fit.a_roll_std, fit.c_switch_std]]
+        return rows
+
     # ---------------------------------------------------------- identification
     def identify(self, frame: BallFrame) -> FitResult | None:
         """Online identification (when configured): feed the frame's observation, collect a finished
@@ -360,3 +372,24 @@ class BallPredictor:
             self._info(f"online identification: now using a_slide {fit.params.a_slide_mps2:.4f}, a_roll "
                        f"{fit.params.a_roll_mps2:.4f}, c_switch {fit.params.c_switch:.4f} ({fit.num_shots} shots)")
         return fit
+
+
+class FrameTimes:
+    """The processing time of ``every`` frames (to the catch times out, to the end), summarized in one line."""
+
+    def __init__(self, every: int) -> None:
+        self.every = every
+        self._times_s: list[tuple[float, float]] = []
+
+    def add(self, catch_out_s: float, elapsed_s: float) -> str | None:
+        """Record one frame; the summary once ``every`` frames are in (then a new window starts), else None."""
+        if self.every <= 0:
+            return None
+        self._times_s.append((catch_out_s, elapsed_s))
+        if len(self._times_s) < self.every:
+            return None
+        catch_ms, ms = 1e3 * np.array(self._times_s).T
+        self._times_s.clear()
+        return (f"ball frame processing over {ms.size} frames: median {np.median(ms):.3f} ms, "
+                f"p99 {np.percentile(ms, 99):.3f} ms, max {ms.max():.3f} ms; catch times out after: median "
+                f"{np.median(catch_ms):.3f} ms, p99 {np.percentile(catch_ms, 99):.3f} ms")
