@@ -83,9 +83,9 @@ def test_bad_clocks_and_stamps_are_dropped_by_every_node_and_the_loop_still_clos
     send("/robot_0/odom", Odometry, odoms, contract.QOS_STATE)
     # not time, but the other single message that killed the catcher: 4 columns under the right label
     table = Float64MultiArray(data=[-2.5, -0.3, 0.6, 1.0] * 3)
-    table.layout.dim = [MultiArrayDimension(label="fit,std_error,in_use", size=3, stride=12),
+    table.layout.dim = [MultiArrayDimension(label=",".join(contract.BALL_MODEL_PARAM_ROWS), size=3, stride=12),
                         MultiArrayDimension(label=",".join(contract.BALL_MODEL_PARAM_LABELS), size=4, stride=4)]
-    send("/ball/model_params", Float64MultiArray, [table], contract.QOS_STATE)
+    send("/ball/model_params", Float64MultiArray, [table], contract.BALL_MODEL_PARAMS.qos)
     loop.spin_wall(0.5)
     loop.watch.paused.clear()
 

@@ -142,7 +142,10 @@ class CatcherNode(Node):
 
     def _on_model_params(self, msg: Float64MultiArray) -> None:
         try:
-            table = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS, len(contract.BALL_MODEL_PARAM_ROWS))
+            table = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS)
+            rows = msg.layout.dim[0].label.split(",")
+            if rows != list(contract.BALL_MODEL_PARAM_ROWS[:len(rows)]) or len(rows) != len(table):
+                raise ConversionError(f"rows labelled {rows}, expected the first of {contract.BALL_MODEL_PARAM_ROWS}")
             row = table[MODEL_IN_USE_ROW]
             self._receiver.on_model(BallModelParams(*row.tolist()))
         except (ConversionError, IndexError, ValueError) as exc:
