@@ -26,6 +26,8 @@ setup(
             "erforce-launch = erforce_interfaces.launcher:main",
             "erforce-topic = erforce_interfaces.topic_tool:main",
             "erforce-record = erforce_interfaces.recording:main",
+            "ssl_sim_bridge = erforce_interfaces.ssl_sim_bridge_node:main",
+            "ssl_log_replay = erforce_interfaces.ssl_log_replay:main",
             "talker = erforce_interfaces.demo_nodes:talker_main",
             "listener = erforce_interfaces.demo_nodes:listener_main",
         ],

@@ -172,7 +172,7 @@ GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant", "t
                           "true ball: pose [m], twist.linear [m/s], twist.angular = spin [rad/s], `field`")
 SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts", "plant",
                      "place the ball: pose.position [m], twist.linear [m/s], twist.angular spin [rad/s]")
-SIM_EVENTS = Topic("/sim/events", String, QOS_STATE, "plant", "tools, demo",
+SIM_EVENTS = Topic("/sim/events", String, QOS_STATE, "plant, ssl_sim_bridge", "tools, demo",
                    "human-readable simulator events: kicks, contacts, lockstep stalls and resumes")
 
 # ------------------------------------------------------------- per-robot topics
@@ -190,8 +190,11 @@ MOTOR_STATUS = Topic("motor_status", Float64MultiArray, QOS_STATE, "motor_boards
                      "rows = wheels, columns = [avg_current_a, pwm_limit, saturated, limit_active]")
 KICK = Topic("kick", Float64, QOS_COMMAND, "catcher / AI / scenario", "plant",
              "kick now with this ball speed [m/s] if the ball is at the kicker")
-BALL_DETECTED = Topic("ball_detected", Bool, QOS_STATE, "plant (light barrier)", "catcher, tools",
-                      "light barrier across the dribbler: ball present")
+BALL_DETECTED = Topic("ball_detected", Bool, QOS_STATE, "plant (light barrier), ssl_sim_bridge", "catcher, tools",
+                      "light barrier across the dribbler: ball present (from an external simulator: its "
+                      "dribbler ball contact)")
+DRIBBLER = Topic("dribbler", Float64, QOS_COMMAND, "catcher / AI", "ssl_sim_bridge",
+                 "dribbler speed [rad/s], 0 = off; our plant has no dribbler, external simulators do")
 VISION_POSE = Topic("vision_pose", PoseStamped, QOS_SENSOR, "plant (vision)", "ball_predictor",
                     "robot pose in `field` [m, rad]; stamp = capture time; noisy, delayed, with dropouts")
 ODOM = Topic("odom", Odometry, QOS_STATE, "ball_predictor (tracker)", "catcher",
@@ -211,7 +214,7 @@ SIM_SET_STATE = Topic("sim/set_state", Odometry, QOS_COMMAND, "scenario scripts"
 TOPICS: tuple[Topic, ...] = (
     CLOCK, VISION_BALL, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
     BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, SIM_SET_BALL, SIM_EVENTS,
-    CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED,
+    CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED, DRIBBLER,
     VISION_POSE, ODOM, CATCH_TIME, CATCH_POINT, GROUND_TRUTH_ODOM, GROUND_TRUTH_MOTORS, SIM_SET_STATE,
 )
 

@@ -373,3 +373,55 @@ def encode_simulator_response(errors: Iterable[SimError] = ()) -> bytes:
     msg = ssl_simulation_control_pb2.SimulatorResponse()
     _add_errors(msg.errors, errors)
     return msg.SerializeToString()
+
+
+# ------------------------------------------------------------------ the bridge's per-robot state
+class BridgeCommands:
+    """The newest command of each controlled robot, as the bridge sends them every period.
+
+    A velocity older than ``command_timeout_s`` goes out as zero (a silent AI stops its robots, as
+    the velocity controller does). A kick stays armed for ``kick_hold_s``: a simulator kicks when
+    the ball touches the kicker while the command's kick speed is set, and the contract's ``kick``
+    is one message. Times are any monotonic seconds.
+    """
+
+    def __init__(self, robot_ids: Iterable[int], command_timeout_s: float = 0.2, kick_hold_s: float = 0.1) -> None:
+        self.robot_ids = tuple(sorted({int(i) for i in robot_ids}))
+        if not self.robot_ids:
+            raise ValueError("robot_ids: need at least one robot")
+        for i in self.robot_ids:
+            RobotCommand(i)  # checks the id
+        self.command_timeout_s = float(command_timeout_s)
+        self.kick_hold_s = float(kick_hold_s)
+        never = -math.inf
+        self._velocity = {i: ((0.0, 0.0, 0.0), never) for i in self.robot_ids}
+        self._kick = {i: (0.0, never) for i in self.robot_ids}
+        self._dribbler = dict.fromkeys(self.robot_ids, 0.0)
+
+    def set_velocity(self, robot_id: int, now_s: float, forward_mps: float, left_mps: float,
+                     angular_radps: float) -> None:
+        RobotCommand(robot_id, forward_mps, left_mps, angular_radps)  # refuses bad values with the reason
+        self._velocity[robot_id] = ((float(forward_mps), float(left_mps), float(angular_radps)), now_s)
+
+    def stop(self, robot_id: int) -> None:
+        self._velocity[robot_id] = ((0.0, 0.0, 0.0), -math.inf)
+
+    def kick(self, robot_id: int, now_s: float, speed_mps: float) -> None:
+        RobotCommand(robot_id, kick_speed_mps=speed_mps)
+        self._kick[robot_id] = (float(speed_mps), now_s)
+
+    def set_dribbler(self, robot_id: int, radps: float) -> None:
+        RobotCommand(robot_id, dribbler_radps=radps)
+        self._dribbler[robot_id] = float(radps)
+
+    def commands(self, now_s: float) -> list[RobotCommand]:
+        out = []
+        for i in self.robot_ids:
+            velocity, t_velocity = self._velocity[i]
+            if now_s - t_velocity > self.command_timeout_s:
+                velocity = (0.0, 0.0, 0.0)
+            kick, t_kick = self._kick[i]
+            if now_s - t_kick > self.kick_hold_s:
+                kick = 0.0
+            out.append(RobotCommand(i, *velocity, kick_speed_mps=kick, dribbler_radps=self._dribbler[i]))
+        return out
