@@ -24,6 +24,7 @@ setup(
         "console_scripts": [
             "plant = erforce_sim.plant_node:main",
             "tune_motor = erforce_sim.tuning_experiment:main",
+            "ssl_sim_server = erforce_sim.ssl_sim_server_node:main",
         ],
     },
 )

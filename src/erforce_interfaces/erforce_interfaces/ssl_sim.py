@@ -425,3 +425,52 @@ class BridgeCommands:
                 kick = 0.0
             out.append(RobotCommand(i, *velocity, kick_speed_mps=kick, dribbler_radps=self._dribbler[i]))
         return out
+
+
+# ------------------------------------------------------------------ a simulator's decisions
+@dataclass(frozen=True)
+class RobotAction:
+    """What a simulator with velocity-commanded robots and flat kickers does for one RobotCommand."""
+
+    robot_id: int
+    twist: tuple[float, float, float] | None  # forward, left [m/s], angular [rad/s]; None: no move command
+    kick_speed_mps: float  # 0: no kick
+
+
+def plan_robot_control(requests: Iterable[MoveRequest], robot_ids: Iterable[int],
+                       yaw_of, dribbler: bool = False) -> tuple[list[RobotAction], list[SimError]]:
+    """Turn decoded robot commands into actions for the robots in ``robot_ids``.
+
+    ``yaw_of(robot_id)`` gives a robot's heading [rad] (or None when unknown) for global velocities.
+    Unsupported features (wheel velocities, chip kicks, a dribbler when ``dribbler`` is False) give
+    one SimError each per packet, as the protocol recommends, and the rest of the command still acts.
+    """
+    served = set(robot_ids)
+    actions: list[RobotAction] = []
+    errors: dict[str, SimError] = {}
+    for r in requests:
+        if r.robot_id not in served:
+            errors.setdefault(f"robot{r.robot_id}", SimError(
+                ERROR_UNKNOWN_ROBOT, f"robot {r.robot_id} is not simulated here (robots {sorted(served)})"))
+            continue
+        twist = None
+        if r.kind == "local":
+            twist = r.velocity
+        elif r.kind == "global":
+            yaw = yaw_of(r.robot_id)
+            if yaw is None:
+                errors.setdefault(f"pose{r.robot_id}", SimError(
+                    ERROR_INVALID, f"robot {r.robot_id}: no pose yet for a global velocity"))
+            else:
+                twist = (*local_from_global(r.velocity[0], r.velocity[1], yaw), r.velocity[2])
+        elif r.kind == "wheel":
+            errors.setdefault("wheel", SimError(
+                ERROR_UNSUPPORTED, "wheel velocities are not supported: send local or global velocities", "wheel"))
+        kick = r.kick_speed_mps
+        if kick > 0.0 and r.kick_angle_deg != 0.0:
+            errors.setdefault("chip", SimError(ERROR_UNSUPPORTED, "chip kicks are not simulated (kick_angle != 0)"))
+            kick = 0.0
+        if r.dribbler_rpm != 0.0 and not dribbler:
+            errors.setdefault("dribbler", SimError(ERROR_UNSUPPORTED, "this simulator has no dribbler motor"))
+        actions.append(RobotAction(r.robot_id, twist, kick))
+    return actions, list(errors.values())

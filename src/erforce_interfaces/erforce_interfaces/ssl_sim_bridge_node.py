@@ -88,7 +88,6 @@ class SslSimBridgeNode(Node):
         self._status_sock = None
         if self._grsim:
             self._status_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            self._status_sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             self._status_sock.setblocking(False)
             self._status_sock.bind(("0.0.0.0", v["grsim_status_port"] or ssl_sim.GRSIM_STATUS_PORTS[self._team]))
         self._events_pub = contract_publisher(self, contract.SIM_EVENTS)
