@@ -50,13 +50,14 @@ class LogRecord:
     payload: bytes
 
 
-def _open(path: str | Path) -> BinaryIO:
+def _open(path: str | Path) -> tuple[BinaryIO, BinaryIO]:
+    """(the stream to read, the file under it)"""
     raw = open(path, "rb")  # handed to the reader, closed by it
     magic = raw.read(2)
     raw.seek(0)
     if magic == GZIP_MAGIC:
-        return gzip.GzipFile(fileobj=raw, mode="rb")
-    return raw
+        return gzip.GzipFile(fileobj=raw, mode="rb"), raw
+    return raw, raw
 
 
 class LogReader:
@@ -65,8 +66,8 @@ class LogReader:
     counts index records left out."""
 
     def __init__(self, source: str | Path | BinaryIO) -> None:
-        self._stream = _open(source) if isinstance(source, str | Path) else source
         self._owns = isinstance(source, str | Path)
+        self._stream, self._raw = _open(source) if self._owns else (source, source)
         self.truncated_bytes = 0
         self.skipped = 0
         self.version = self._read_header()
@@ -81,6 +82,13 @@ class LogReader:
         if version != FORMAT_VERSION:
             raise LogFormatError(f"SSL log format version {version} is not supported (only {FORMAT_VERSION})")
         return version
+
+    def position(self) -> int:
+        """Bytes of the file read so far (compressed bytes for a gzip file), for progress bars."""
+        try:
+            return self._raw.tell()
+        except (OSError, ValueError):  # closed, or a stream without tell
+            return 0
 
     def __iter__(self) -> Iterator[LogRecord]:
         read = self._stream.read
@@ -108,6 +116,7 @@ class LogReader:
         finally:
             if self._owns:
                 self._stream.close()
+                self._raw.close()
 
 
 def read_log(source: str | Path | BinaryIO | bytes) -> list[LogRecord]:
