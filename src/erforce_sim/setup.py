@@ -25,6 +25,7 @@ setup(
             "plant = erforce_sim.plant_node:main",
             "tune_motor = erforce_sim.tuning_experiment:main",
             "ssl_sim_server = erforce_sim.ssl_sim_server_node:main",
+            "ssl_game_log = erforce_sim.ssl_game_log:main",
         ],
     },
 )
