@@ -2,8 +2,7 @@
 
 Per file (one field): the ball's track is taken from the vision records (cameras merged; of several
 candidates the one nearest the previous ball wins, else the one most cameras see), cut into shots at
-kicks (``identification``'s
-``ShotAccumulator``: the ball at rest, then a kick), and each shot is checked:
+kicks (``identification``'s ``ShotAccumulator``: the ball at rest, then a kick), and each shot is checked:
 
 * a *ricochet* (a maneuver of a moving ball that is no kick) starts no shot, and a shot that does
   not lie on one line (perpendicular rms above ``max_line_rms_m``) is left out: both are counted;
