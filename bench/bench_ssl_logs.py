@@ -24,7 +24,6 @@ from erforce_sim.ball import BallParams
 from erforce_sim.drivetrain import GRAVITY_MPS2
 from erforce_sim.ssl_game_log import GameConfig, write_game_log
 
-
 _RECEIVER = """
 import socket, sys
 sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
