@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import socket
 import subprocess
 import sys
 import time
@@ -450,6 +451,7 @@ class Demo:
             f"robot_v_max_mps:={float(self.args.robot_v_max)}",
             f"robot_side:={str(self.args.robot_side).lower()}",
             f"receivers:={self.args.receivers}",
+            *ssl_vision_launch_args(self.args.vision),
         ]
         self.launch = spawn_in_session(cmd, self.out / "graph.log")
         # The recorder is a process of its own, like `ros2 bag record -a`.
@@ -544,6 +546,16 @@ class Demo:
         return 0 if len(results) == len(default_scenes(self.field)[: self.args.scenes or None]) else 1
 
 
+def ssl_vision_launch_args(vision: str) -> list[str]:
+    """``--vision ssl``: the plant sends SSL-Vision over loopback multicast to a free UDP port."""
+    if vision != "ssl":
+        return []
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    return ["vision:=ssl", f"ssl_vision_port:={port}"]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="./run demo", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="report", help="report folder (a timestamped subfolder is created)")
@@ -572,6 +584,13 @@ def main(argv: list[str] | None = None) -> int:
         default=True,
         help="start robot_0's velocity_controller and motor_boards; --no-robot-side when they run "
         "on the robot, another host (see test/two_hosts)",
+    )
+    parser.add_argument(
+        "--vision",
+        default="ros",
+        choices=("ros", "ssl"),
+        help="ssl: vision goes as SSL-Vision packets from 4 simulated cameras through ssl_vision_bridge "
+        "(loopback multicast) instead of the plant's vision topics",
     )
     args = parser.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
