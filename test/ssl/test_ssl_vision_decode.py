@@ -127,7 +127,8 @@ def test_geometry_round_trip_and_a_bad_ball_model_is_dropped():
 
 def test_frame_round_trip():
     frame = CameraFrame(3, 11, 5.0, 5.02, (BallCandidate(0.5, -0.25, 0.5),),
-                        (RobotSighting("yellow", 2, 1.0, -1.0, 0.5, 1.0), RobotSighting("blue", 0, 0.0, 0.0, None, 1.0)))
+                        (RobotSighting("yellow", 2, 1.0, -1.0, 0.5, 1.0),
+                         RobotSighting("blue", 0, 0.0, 0.0, None, 1.0)))
     out = decode_wrapper(encode_frame(frame)).frame
     assert out.balls == frame.balls
     assert set(out.robots) == set(frame.robots)
@@ -157,7 +158,7 @@ def test_a_camera_clock_jump_is_confirmed_then_followed_and_a_single_late_packet
         clock.to_receiver(1, t_receive, t_receive, t_receive + 0.5)  # one packet 0.5 s late
     assert clock.offset_s(1) == 0.0
     # the camera's clock jumps back by 100 s: four frames refused, the fifth follows the new offset
-    for k in range(4):
+    for _ in range(4):
         t_receive += 1 / 60.0
         with pytest.raises(ClockJump):
             clock.to_receiver(1, t_receive - 100.0 - 0.01, t_receive - 100.0, t_receive)
