@@ -16,7 +16,8 @@ import select
 import socket
 import struct
 import threading
-from collections import Counter
+import time
+from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -68,9 +69,11 @@ PARAMS = (
     ParamSpec("publish_detections", True, "publish every camera frame on /vision/detections"),
     ParamSpec("receive_buffer_bytes", 4 * 1024 * 1024, "kernel receive buffer requested for the socket",
               min=65536, max=1 << 30, read_only=True),
-    ParamSpec("max_batch", 512, "datagrams read per round before processing them", min=1, max=100000,
+    ParamSpec("max_batch", 4096, "datagrams read per round before processing them", min=1, max=100000,
               read_only=True),
-    ParamSpec("flood_batch", 128, "a round with more datagrams keeps only each camera's newest frame",
+    ParamSpec("stats_period_s", 10.0, "log counts and CPU per datagram this often (wall time) [s]", min=0.1,
+              max=1e6, read_only=True),
+    ParamSpec("flood_batch", 2048, "a round with more datagrams keeps only each camera's newest frame",
               min=1, max=100000, read_only=True),
 )
 
@@ -135,6 +138,9 @@ class SslVisionBridge(Node):
         self._values = declare_params(self, PARAMS, _checked_config, self._apply)
         v = self._values
         self.stats: Counter[str] = Counter()
+        self.cpu_ns: deque[int] = deque(maxlen=100_000)  # per datagram, since the last statistics line
+        self._stats_period_s = v["stats_period_s"]
+        self._stats_logged = time.monotonic()
         self._n_ours = v["num_robots"]
         q = contract
         self._ball_pub = contract_publisher(self, q.VISION_BALL)
@@ -193,8 +199,9 @@ class SslVisionBridge(Node):
     def handle_batch(self, batch: list[bytes], t_receive_s: float) -> None:
         """Decode, track and publish a batch of datagrams received at ``t_receive_s`` (ROS clock)."""
         self.stats["datagrams"] += len(batch)
-        decoded: list[DecodedPacket] = []
+        decoded: list[tuple[DecodedPacket, int]] = []  # with the CPU time of its decoding [ns]
         for data in batch:
+            t0 = time.thread_time_ns()
             try:
                 packet = decode_wrapper(data)
             except SslDecodeError as exc:
@@ -203,24 +210,41 @@ class SslVisionBridge(Node):
                 continue
             for problem in packet.problems:
                 self._warn.warn("detection", f"ssl_vision_bridge: {problem}")
-            decoded.append(packet)
+            decoded.append((packet, time.thread_time_ns() - t0))
         if len(batch) > self._flood_batch:
             decoded = self._newest_per_camera(decoded)
         with self._lock:
-            for packet in decoded:
+            for packet, cpu_ns in decoded:
+                t0 = time.thread_time_ns()
                 if packet.geometry is not None:
                     self._on_geometry(packet.geometry)
                 if packet.frame is not None:
                     self._on_frame(packet.frame, t_receive_s)
+                self.cpu_ns.append(cpu_ns + time.thread_time_ns() - t0)
+        self._log_stats()
 
-    def _newest_per_camera(self, packets: list[DecodedPacket]) -> list[DecodedPacket]:
-        newest: dict[int, DecodedPacket] = {}
+    def _log_stats(self) -> None:
+        now = time.monotonic()
+        if now - self._stats_logged < self._stats_period_s or not self.cpu_ns:
+            return
+        self._stats_logged = now
+        ms = sorted(self.cpu_ns)
+        self.cpu_ns.clear()
+        s = self.stats
+        self.get_logger().info(
+            f"ssl_vision_bridge: {s['datagrams']} datagrams, {s['frames']} camera frames; dropped: {s['dropped_bad']} "
+            f"bad, {s['dropped_clock']} clock, {s['superseded_in_flood']} superseded in floods; CPU per datagram "
+            f"median {ms[len(ms) // 2] * 1e-6:.3f} ms, p99 {ms[int(0.99 * (len(ms) - 1))] * 1e-6:.3f} ms"
+        )
+
+    def _newest_per_camera(self, packets: list[tuple[DecodedPacket, int]]) -> list[tuple[DecodedPacket, int]]:
+        newest: dict[int, tuple[DecodedPacket, int]] = {}
         kept = []
-        for packet in packets:
-            if packet.frame is None:
-                kept.append(packet)
+        for item in packets:
+            if item[0].frame is None:
+                kept.append(item)
             else:
-                newest[packet.frame.camera_id] = packet
+                newest[item[0].frame.camera_id] = item
         kept += newest.values()
         superseded = len(packets) - len(kept)
         self.stats["superseded_in_flood"] += superseded
