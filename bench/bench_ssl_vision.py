@@ -19,10 +19,10 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from table import bench_main  # noqa: E402 - bench/ is not a package
+from table import bench_main
 
-from erforce_interfaces.robot_config import FieldConfig  # noqa: E402
-from erforce_interfaces.ssl_vision import (  # noqa: E402
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.ssl_vision import (
     BallCandidate,
     BallModelFromVision,
     CameraFrame,
@@ -31,8 +31,8 @@ from erforce_interfaces.ssl_vision import (  # noqa: E402
     encode_frame,
     encode_geometry,
 )
-from erforce_interfaces.testing import RosGraph  # noqa: E402
-from erforce_sim.ssl_cameras import open_multicast_sender  # noqa: E402
+from erforce_interfaces.testing import RosGraph
+from erforce_sim.ssl_cameras import open_multicast_sender
 
 GROUP = "224.5.23.2"
 RATE_HZ = 75.0
