@@ -206,10 +206,10 @@ class SslVisionBridge(Node):
                 packet = decode_wrapper(data)
             except SslDecodeError as exc:
                 self.stats["dropped_bad"] += 1
-                self._warn.warn("decode", f"ssl_vision_bridge: dropped a datagram: {exc}")
+                self._warn.warn(f"decode_{exc.kind}", f"ssl_vision_bridge: dropped a datagram: {exc}")
                 continue
-            for problem in packet.problems:
-                self._warn.warn("detection", f"ssl_vision_bridge: {problem}")
+            if packet.problems:
+                self._warn.warn("detection", "ssl_vision_bridge: " + "; ".join(packet.problems))
             decoded.append((packet, time.thread_time_ns() - t0))
         if len(batch) > self._flood_batch:
             decoded = self._newest_per_camera(decoded)
@@ -311,7 +311,7 @@ class SslVisionBridge(Node):
             for p in poses:
                 self._publish_pose(cfg, p)
             if cfg.publish_detections:
-                self._publish_detections(cfg, frame.camera_id, t_s, balls, robots)
+                self._publish_detections(cfg, frame.camera_id, t_receive_s - t_s, balls, robots)
         except ConversionError as exc:
             self._warn.warn("publish", f"ssl_vision_bridge: camera {frame.camera_id}: not published: {exc}")
 
@@ -334,10 +334,10 @@ class SslVisionBridge(Node):
                     self, contract.VISION_POSE, contract.opponent_topic(contract.VISION_POSE, p.robot_id))
             pub.publish(data)
 
-    def _publish_detections(self, cfg, camera_id: int, t_s: float, balls, robots) -> None:
-        rows = [[camera_id, t_s, _KIND["ball"], -1.0, x, y, 0.0, c] for x, y, c in balls]
+    def _publish_detections(self, cfg, camera_id: int, age_s: float, balls, robots) -> None:
+        rows = [[camera_id, age_s, _KIND["ball"], -1.0, x, y, 0.0, c] for x, y, c in balls]
         rows += [
-            [camera_id, t_s, _KIND["ours"] if team == cfg.ours else _KIND["opponent"], rid, x, y,
+            [camera_id, age_s, _KIND["ours"] if team == cfg.ours else _KIND["opponent"], rid, x, y,
              0.0 if theta is None else theta, 1.0]
             for team, rid, x, y, theta in robots
         ]

@@ -203,7 +203,8 @@ SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts",
                      "place the ball: pose.position [m], twist.linear [m/s], twist.angular spin [rad/s]")
 VISION_DETECTIONS = Topic("/vision/detections", Float64MultiArray, QOS_SENSOR, "ssl_vision_bridge", "tools",
                           "one message per SSL camera frame, a table with columns VISION_DETECTION_COLUMNS: every "
-                          "ball candidate and robot the camera saw, in `field` [m, rad], t = capture on the ROS clock")
+                          "ball candidate and robot the camera saw, in `field` [m, rad]; age_s = receipt - capture "
+                          "on the ROS clock [s]")
 VISION_FIELD = Topic("/vision/field", Float64MultiArray, QOS_LATCHED, "ssl_vision_bridge", "ball_predictor, tools",
                      "field size from SSL geometry, one row of VISION_FIELD_COLUMNS [m]")
 VISION_BALL_MODEL = Topic("/vision/ball_model", Float64MultiArray, QOS_LATCHED, "ssl_vision_bridge",
@@ -256,7 +257,7 @@ MOTOR_STATUS_COLUMNS = ("avg_current_a", "pwm_limit", "saturated", "limit_active
 GROUND_TRUTH_MOTOR_COLUMNS = ("current_a", "winding_temperature_c", "wheel_speed_radps")
 BALL_MODEL_PARAM_LABELS = ("a_slide_mps2", "a_roll_mps2", "c_switch")
 BALL_MODEL_PARAM_ROWS = ("fit", "std_error", "in_use")
-VISION_DETECTION_COLUMNS = ("camera_id", "t_s", "kind", "robot_id", "x_m", "y_m", "theta_rad", "confidence")
+VISION_DETECTION_COLUMNS = ("camera_id", "age_s", "kind", "robot_id", "x_m", "y_m", "theta_rad", "confidence")
 #: ``kind`` values of /vision/detections (theta_rad is 0 for balls and robots without orientation)
 VISION_DETECTION_KINDS = {"ball": 0.0, "ours": 1.0, "opponent": 2.0}
 VISION_FIELD_COLUMNS = ("length_m", "width_m", "boundary_m", "goal_width_m", "goal_depth_m")

@@ -34,7 +34,12 @@ SSL_SIMULATOR_VISION_PORT = 10020
 
 
 class SslDecodeError(ValueError):
-    """A datagram that is not a usable SSL_WrapperPacket; the message says why."""
+    """A datagram that is not a usable SSL_WrapperPacket; the message says why, ``kind`` what class of problem
+    (for throttling warnings per kind): empty, size, garbage, missing, content, counts, camera, time."""
+
+    def __init__(self, kind: str, message: str) -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 @dataclass(frozen=True)
@@ -113,7 +118,7 @@ class DecodedPacket:
 
 def _time(name: str, value: float, limits: DecodeLimits) -> float:
     if not (math.isfinite(value) and 0.0 <= value <= limits.max_time_s):
-        raise SslDecodeError(f"{name} {value!r} is not a time in [0, {limits.max_time_s:g}] s")
+        raise SslDecodeError("time", f"{name} {value!r} is not a time in [0, {limits.max_time_s:g}] s")
     return value
 
 
@@ -124,20 +129,20 @@ def _coordinate_ok(value: float, limits: DecodeLimits) -> bool:
 def decode_wrapper(data: bytes, limits: DecodeLimits = DecodeLimits()) -> DecodedPacket:
     """One datagram -> its detection frame and/or geometry; raises SslDecodeError when unusable."""
     if not data:
-        raise SslDecodeError("empty datagram")
+        raise SslDecodeError("empty", "empty datagram")
     if len(data) > limits.max_datagram_bytes:
-        raise SslDecodeError(f"datagram of {len(data)} bytes exceeds {limits.max_datagram_bytes}")
+        raise SslDecodeError("size", f"datagram of {len(data)} bytes exceeds {limits.max_datagram_bytes}")
     packet = wrapper_pb2.SSL_WrapperPacket()
     try:
         packet.ParseFromString(data)
     except DecodeError:
-        raise SslDecodeError(f"not an SSL_WrapperPacket ({len(data)} bytes: truncated or garbage)") from None
+        raise SslDecodeError("garbage", f"not an SSL_WrapperPacket ({len(data)} bytes: truncated or garbage)") from None
     if not packet.IsInitialized():
         missing = ", ".join(packet.FindInitializationErrors()[:4])
-        raise SslDecodeError(f"SSL_WrapperPacket without required fields ({missing})")
+        raise SslDecodeError("missing", f"SSL_WrapperPacket without required fields ({missing})")
     has_detection, has_geometry = packet.HasField("detection"), packet.HasField("geometry")
     if not (has_detection or has_geometry):
-        raise SslDecodeError("SSL_WrapperPacket with neither detection nor geometry")
+        raise SslDecodeError("content", "SSL_WrapperPacket with neither detection nor geometry")
     out = DecodedPacket()
     if has_detection:
         out.frame = _decode_frame(packet.detection, limits, out.problems)
@@ -149,13 +154,13 @@ def decode_wrapper(data: bytes, limits: DecodeLimits = DecodeLimits()) -> Decode
 def _decode_frame(det, limits: DecodeLimits, problems: list[str]) -> CameraFrame:
     camera_id = det.camera_id
     if camera_id > limits.max_camera_id:
-        raise SslDecodeError(f"camera_id {camera_id} exceeds {limits.max_camera_id}")
+        raise SslDecodeError("camera", f"camera_id {camera_id} exceeds {limits.max_camera_id}")
     t_capture = _time("t_capture", det.t_capture, limits)
     t_sent = _time("t_sent", det.t_sent, limits)
     n_balls, n_yellow, n_blue = len(det.balls), len(det.robots_yellow), len(det.robots_blue)
     if n_balls > limits.max_balls or max(n_yellow, n_blue) > limits.max_robots_per_team:
         raise SslDecodeError(
-            f"camera {camera_id}: absurd counts ({n_balls} balls, {n_blue} blue, {n_yellow} yellow robots)"
+            "counts", f"camera {camera_id}: absurd counts ({n_balls} balls, {n_blue} blue, {n_yellow} yellow robots)"
         )
     max_mm = limits.max_abs_coordinate_m / MM
     balls = []
