@@ -11,7 +11,7 @@ import random
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.tracking import UpdateStatus
-from erforce_ball_model.vision_tracking import VisionTracker
+from erforce_ball_model.vision_tracking import VisionTracker, VisionTrackingConfig
 from erforce_interfaces.robot_config import FieldConfig
 
 FIELD = FieldConfig(9.0, 6.0, 0.3)
@@ -115,7 +115,8 @@ def test_at_start_the_ball_inside_the_field_wins_over_the_one_in_the_run_off_are
 
 
 def test_a_ball_put_down_elsewhere_is_followed_after_lost_after_s():
-    tracker = VisionTracker(FIELD, PARAMS)
+    config = VisionTrackingConfig(lost_after_s=0.1)
+    tracker = VisionTracker(FIELD, PARAMS, config=config)
     for k in range(10):
         tracker.frame(0, k / 60.0, [(0.0, 0.0, 1.0)])
     switched_at = None
@@ -123,8 +124,9 @@ def test_a_ball_put_down_elsewhere_is_followed_after_lost_after_s():
         ball, _ = tracker.frame(0, k / 60.0, [(2.0, 1.0, 1.0)])
         if ball is not None and switched_at is None:
             switched_at = k / 60.0
-    # last seen at 9/60 s; the new place is confirmed after 3 frames, used once 0.1 s passed
-    assert switched_at is not None and 9 / 60 + 0.1 <= switched_at <= 9 / 60 + 0.1 + 1 / 60 + 1e-9
+    # last seen at 9/60 s; the new place is confirmed after 3 frames, used once 0.1 s passed: the
+    # first frame at or after 9/60 + 0.1 s, 15/60 s (up to rounding)
+    assert 9 / 60 + 0.1 - 1e-9 <= switched_at <= 9 / 60 + 0.1 + 1 / 60 - 1e-9
     assert tracker.switches == 1
 
 

@@ -44,7 +44,9 @@ class VisionTrackingConfig:
     ball_gate_m: float = 0.15  # gate radius around the prediction, plus the growth below
     max_ball_speed_mps: float = 10.0  # the gate grows at this speed while the ball is unseen ...
     max_ball_gate_m: float = 1.5  # ... up to this radius
-    lost_after_s: float = 0.1  # unseen this long while another confirmed candidate is: switch
+    # unseen this long while another confirmed candidate is: switch (3-4 frames; a scenario or a referee
+    # puts the ball down elsewhere, and every frame waited for is one the predictor lacks)
+    lost_after_s: float = 0.05
     confirm_frames: int = 3  # sightings of a hypothesis ...
     confirm_window_s: float = 0.06  # ... within this time (a flickering reflection is not a ball) ...
     fresh_s: float = 0.05  # ... the last one this recent
@@ -115,6 +117,7 @@ class VisionTracker:
         self._tracker_config = tracker_config or TrackerConfig()
         self.ball = BallTracker(self._params, self._tracker_config)
         self._t_ball_s: float | None = None  # stamp of the newest ball observation used
+        self._last_used: tuple[float, float, float] | None = None  # (t_s, x_m, y_m) of it
         self._t_newest_s: float | None = None  # newest frame stamp of any camera
         self._hypotheses: list[_Hypothesis] = []
         self._robots: dict[tuple[str, int], _RobotTrack] = {}
@@ -162,23 +165,28 @@ class VisionTracker:
             self._t_newest_s = t_s
         return ball, self._robot_poses(camera_id, t_s, robots)
 
-    def _gate_m(self, t_s: float) -> float:
+    def _gate_m(self, t_s: float, t_ref_s: float) -> float:
         cfg = self.config
-        dt = max(t_s - self._t_ball_s, 0.0)
-        return min(cfg.ball_gate_m + cfg.max_ball_speed_mps * dt, cfg.max_ball_gate_m)
+        return min(cfg.ball_gate_m + cfg.max_ball_speed_mps * max(t_s - t_ref_s, 0.0), cfg.max_ball_gate_m)
 
     def _pick_ball(self, camera_id: int, t_s: float, candidates: list) -> BallObservation | None:
         chosen = None
         if self._t_ball_s is not None and self.ball.initialized:
-            # constant velocity is close enough for the gate: the deceleration moves the ball < 2 cm in 0.1 s
+            # Two gates: around the filter's prediction (constant velocity is close enough: the
+            # deceleration moves the ball < 2 cm in 0.1 s), and around the last observation used,
+            # which the filter may hold back (a kick: the filter still has the ball at rest).
             x, y, vx, vy = self.ball.kf.state
             dt = t_s - self.ball.t_s
-            px, py = x + vx * dt, y + vy * dt
-            best = self._gate_m(t_s)
-            for x, y, _c in candidates:
-                d = math.hypot(x - px, y - py)
-                if d <= best:
-                    chosen, best = (x, y), d
+            gates = [(x + vx * dt, y + vy * dt, self._gate_m(t_s, self.ball.t_s))]
+            last = self._last_used
+            if last is not None and last[0] > self.ball.t_s:
+                gates.append((last[1], last[2], self._gate_m(t_s, last[0])))
+            best = math.inf
+            for cx, cy, _c in candidates:
+                for px, py, radius in gates:
+                    d = math.hypot(cx - px, cy - py)
+                    if d <= radius and d < best:
+                        chosen, best = (cx, cy), d
             self.false_candidates += len(candidates) - (chosen is not None)
             other = None
             if chosen is None and t_s - self._t_ball_s >= self.config.lost_after_s:
@@ -203,6 +211,7 @@ class VisionTracker:
             return None
         self.kicks += int(self.ball.kicked)
         self._t_ball_s = t_s
+        self._last_used = (t_s, chosen[0], chosen[1])
         return BallObservation(t_s, chosen[0], chosen[1], camera_id, status)
 
     def _update_hypotheses(self, t_s: float, candidates: Sequence[tuple[float, float, float]]) -> None:
