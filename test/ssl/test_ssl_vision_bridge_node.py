@@ -65,7 +65,7 @@ def bridge(ros_graph):
     port = free_udp_port()
     node = ros_graph.start_node("erforce_ball_model", "ssl_vision_bridge", params={
         "port": port, "interface": "127.0.0.1", "team_color": "yellow", "defend_side": "positive_x",
-        "num_robots": 4, "stats_period_s": 0.5})
+        "num_robots": 4, "stats_period_s": 0.5, "publish_detections": True})
     node.wait_for_output(r"ssl_vision_bridge: 224\.5\.23\.2", timeout_s=60.0)
     sender = Sender(port)
     yield ros_graph, node, sender

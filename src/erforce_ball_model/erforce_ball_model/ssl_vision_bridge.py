@@ -66,7 +66,8 @@ PARAMS = (
               "vision: t_capture is already ROS time (our plant in simulated time)"),
     ParamSpec("clock_window_s", 2.0, "window of the clock-offset estimate [s]", min=0.1, max=60.0),
     ParamSpec("clock_jump_s", 0.25, "an offset change beyond this is a camera clock jump [s]", min=0.001, max=1e6),
-    ParamSpec("publish_detections", True, "publish every camera frame on /vision/detections"),
+    ParamSpec("publish_detections", False, "publish every camera frame on /vision/detections (for tools; one "
+              "more message per datagram)"),
     ParamSpec("receive_buffer_bytes", 4 * 1024 * 1024, "kernel receive buffer requested for the socket",
               min=65536, max=1 << 30, read_only=True),
     ParamSpec("max_batch", 4096, "datagrams read per round before processing them", min=1, max=100000,

@@ -50,7 +50,7 @@ class VisionTrackingConfig:
     confirm_frames: int = 3  # sightings of a hypothesis ...
     confirm_window_s: float = 0.06  # ... within this time (a flickering reflection is not a ball) ...
     fresh_s: float = 0.05  # ... the last one this recent
-    hypothesis_timeout_s: float = 0.3
+    hypothesis_timeout_s: float = 0.1  # a candidate not seen again this long is forgotten
     min_confidence: float = 0.05
     outside_margin_m: float = 0.5  # candidates farther outside the field lines are not on our field
     max_robot_speed_mps: float = 6.0
