@@ -13,9 +13,6 @@ from erforce_sim.scenes import default_scenes
 
 pytestmark = pytest.mark.integration
 
-PREDICTION_TOLERANCE_S = 0.06  # as over the plant's vision topics (test_catch_on_the_graph)
-
-
 def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("127.0.0.1", 0))
@@ -38,9 +35,10 @@ def test_the_fig6_ball_is_caught_from_ssl_vision(director):
     fig6 = default_scenes(FieldConfig.preset("division_b"))[0]
     assert fig6.name.startswith("Fig. 6")
     result = d.play(fig6)
-    assert result.caught, "the light barrier did not fire"
+    assert result.caught and result.caught_by in (None, 0), "robot_0's light barrier did not fire"
     assert result.predicted_s is not None, "no catch predicted 0.3 s before the contact"
-    assert abs(result.predicted_s - result.actual_s) <= PREDICTION_TOLERANCE_S
+    # in the first window: the ball, released at 2 m/s 1.5 m before robot_0, arrives after about 0.75 s
+    assert 0.6 < result.actual_s - result.t_start_s < 1.0
     # the vision the predictor used came through the bridge: the plant sent none itself
     output = launch.output()
     assert "ssl_vision_bridge: 224.5.23.2:" in output

@@ -563,6 +563,9 @@ class Demo:
         return 0 if len(results) == len(default_scenes(self.field)[: self.args.scenes or None]) else 1
 
 
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)  # Linux; Python's socket module does not name it
+
+
 class SslArrivals:
     """``--vision ssl``: when each SSL-Vision frame reached this host, by its stamp in the graph.
 
@@ -576,7 +579,7 @@ class SslArrivals:
         self._arrivals: dict[int, int] = {}
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_TIMESTAMPNS, 1)
+        self._sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
         self._sock.bind((SSL_VISION_GROUP, port))
         membership = socket.inet_aton(SSL_VISION_GROUP) + socket.inet_aton("127.0.0.1")
         self._sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, membership)
@@ -600,7 +603,7 @@ class SslArrivals:
             if frame is None or not frame.balls:
                 continue
             for level, kind, payload in ancillary:
-                if level == socket.SOL_SOCKET and kind == socket.SO_TIMESTAMPNS:
+                if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS:
                     sec, nsec = struct.unpack("qq", payload[:16])
                     key = stamp_to_nanoseconds(seconds_to_stamp(frame.t_capture_s))
                     self._arrivals.setdefault(key, sec * 1_000_000_000 + nsec)
