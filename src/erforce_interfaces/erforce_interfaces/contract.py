@@ -25,7 +25,8 @@ so the rest of the graph cannot tell them apart:
 - the ball the multi-camera tracker picks goes to ``/vision/ball``, one frame at a time with
   increasing stamps; our team's robots to ``/robot_<id>/vision_pose``, the opponents' to
   ``/opponent_<id>/vision_pose`` (``OPPONENT_NAMESPACE_PREFIX``);
-- every camera frame, all candidates included, to ``/vision/detections`` (a table);
+- with ``publish_detections``, every camera frame, all candidates included, to ``/vision/detections``
+  (a table);
 - geometry to ``/vision/field`` and the two-phase ball model to ``/vision/ball_model``, both
   transient local: a node that starts later still gets the last one.
 """
