@@ -26,6 +26,7 @@ setup(
             "ball_figures = erforce_ball_model.figures:main",
             "ball_fit = erforce_ball_model.ball_fit:main",
             "catcher = erforce_ball_model.catcher_node:main",
+            "ssl_vision_bridge = erforce_ball_model.ssl_vision_bridge:main",
         ],
     },
 )

@@ -20,6 +20,7 @@ throttled warning and answered with nothing. All maths is in the cores.
 from __future__ import annotations
 
 import concurrent.futures
+import dataclasses
 import inspect
 import math
 import os
@@ -46,6 +47,7 @@ from erforce_interfaces.conversions import (
     point_from_msg,
     pose2d_from_msg,
     seconds_to_stamp,
+    table_from_msg,
     table_msg,
 )
 from erforce_interfaces.executor import run_sampled
@@ -153,6 +155,8 @@ PARAMS = (
     ParamSpec("max_ball_speed_mps", _TRACK.max_ball_speed_mps,
               "two vision frames further apart than this speed allows are not one motion (a ball put down "
               "elsewhere, a false detection): the newer is held back [m/s]", min=1.0, max=100.0),
+    ParamSpec("use_vision_geometry", True, "take the field size and ball model from SSL geometry (/vision/field, "
+              "/vision/ball_model) when they arrive; false pins field and a_slide/a_roll/c_switch to the parameters"),
     ParamSpec("online_identification", False, "fit a_slide, a_roll, c_switch from completed shots and use them"),
     ParamSpec("ident_min_shots", 3, "shots needed before a fit may replace the model", min=1, max=50),
     ParamSpec(
@@ -309,6 +313,8 @@ class BallPredictorNode(Node):
         for i in range(n):
             contract_subscription(self, q.VISION_POSE, lambda m, i=i: self._on_robot(i, m), q.VISION_POSE.for_robot(i),
                                   raw=True)
+        contract_subscription(self, q.VISION_FIELD, self._on_vision_field)
+        contract_subscription(self, q.VISION_BALL_MODEL, self._on_vision_ball_model)
         # Everything runs on vision stamps; ROS time only stamps the logs: no wake per /clock.
         self._clock_subs = sample_clock(self)
         self.get_logger().info(
@@ -338,6 +344,34 @@ class BallPredictorNode(Node):
         elif not config.online_identification:
             self._shots = None
             self._fit_future = None  # a fit still running is not used
+
+    # ------------------------------------------------------------- SSL geometry
+    def _on_vision_field(self, msg: Float64MultiArray) -> None:
+        if not self._values["use_vision_geometry"]:
+            return
+        try:
+            length, width, boundary, *_ = table_from_msg(msg, contract.VISION_FIELD_COLUMNS)[0].tolist()
+            field = FieldConfig(length, width, boundary)
+        except (ConversionError, ValueError, IndexError) as exc:
+            self._warn.warn("vision_field", f"rejected /vision/field: {exc}")
+            return
+        if field != self._config.field:
+            self._apply(dataclasses.replace(self._config, field=field))
+            self.get_logger().info(f"field from SSL geometry: {length:g} x {width:g} m")
+
+    def _on_vision_ball_model(self, msg: Float64MultiArray) -> None:
+        if not self._values["use_vision_geometry"]:
+            return
+        try:
+            model = BallModelParams(*table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS)[0].tolist())
+        except (ConversionError, ValueError, IndexError, TypeError) as exc:
+            self._warn.warn("vision_model", f"rejected /vision/ball_model: {exc}")
+            return
+        if model != self._model:
+            self._model = model
+            self._ball.params = model
+            self.get_logger().info(f"ball model from SSL geometry: a_slide {model.a_slide_mps2:g}, a_roll "
+                                   f"{model.a_roll_mps2:g}, c_switch {model.c_switch:g}")
 
     # ------------------------------------------------------------------ robots
     def _on_robot(self, robot: int, msg: bytes) -> None:

@@ -23,6 +23,7 @@ NODE_PARAMS = (
     ("motor_boards", "erforce_motion.motor_boards_node", "PARAMS"),
     ("plant", "erforce_sim.plant_node", "PARAMS"),
     ("catcher", "erforce_ball_model.catcher_node", "PARAMS"),
+    ("ssl_vision_bridge", "erforce_ball_model.ssl_vision_bridge", "PARAMS"),
     ("ssl_sim_bridge", "erforce_interfaces.ssl_sim_bridge_node", "PARAMS"),
     ("ssl_sim_server", "erforce_sim.ssl_sim_server_node", "PARAMS"),
 )

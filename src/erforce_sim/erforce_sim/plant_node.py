@@ -20,6 +20,7 @@ placed outside the field walls is refused with an error naming it.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -30,6 +31,7 @@ from rclpy.clock import ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, String
 
+from erforce_ball_model.ball_model import BallModelParams
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
@@ -54,8 +56,11 @@ from erforce_interfaces.node_support import (
     robot_param_specs,
     run_node,
 )
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.ssl_vision import SSL_SIMULATOR_VISION_PORT, SSL_VISION_GROUP, BallModelFromVision
 from erforce_sim.runner import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
+from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras
 from erforce_sim.world import PhysicsParams
 
 PARAMS = (
@@ -136,9 +141,18 @@ PARAMS = (
         min=1.0,
         max=10000.0,
     ),
+    ParamSpec("vision_output", "ros", "where vision goes: ros (/vision/ball, vision_pose) | ssl (SSL-Vision packets "
+              "from 4 simulated cameras, multicast) | both", read_only=True),
+    ParamSpec("ssl_vision_group", SSL_VISION_GROUP, "multicast group of the SSL-Vision packets", read_only=True),
+    ParamSpec("ssl_vision_port", SSL_SIMULATOR_VISION_PORT, "UDP port of the SSL-Vision packets", min=1, max=65535,
+              read_only=True),
+    ParamSpec("ssl_vision_interface", "127.0.0.1", "IPv4 address of the interface the packets leave by (TTL 0: "
+              "they never leave this host)", read_only=True),
     ParamSpec("stop_after_s", 0.0, "shut down after this much simulated time; 0 = run forever [s]", min=0.0, max=1e6),
 ) + robot_param_specs()
 
+VISION_OUTPUTS = ("ros", "ssl", "both")
+_GEOMETRY_PERIOD_S = 1.0  # SSL-Vision repeats its geometry; late joiners get it within this
 _MAX_TICKS_PER_PUMP = 50  # keep the executor responsive when nobody gates the ticks
 _RETRY_S = 0.1  # re-publish an unanswered tick (lost message, late joiner); duplicates are harmless
 _STARTUP_GRACE_S = 0.5
@@ -172,6 +186,8 @@ def setup_from_params(values: dict[str, Any]) -> PlantSetup:
 def _validate(values: dict[str, Any]) -> dict[str, Any]:
     if values["pacing"] not in ("lockstep", "realtime"):
         raise ValueError(f"pacing must be lockstep or realtime, got {values['pacing']!r}")
+    if values["vision_output"] not in VISION_OUTPUTS:
+        raise ValueError(f"vision_output must be ros, ssl or both, got {values['vision_output']!r}")
     if values["pacing"] == "realtime" and values["real_time_factor"] <= 0.0:
         raise ValueError("realtime pacing needs real_time_factor > 0")
     setup = setup_from_params(values)
@@ -225,6 +241,7 @@ class PlantNode(Node):
             sub(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.for_robot(i))
         sub(self, q.SIM_SET_BALL, self._on_set_ball)
         self._peers: set[int] = set()
+        self._setup_ssl_vision()
         self._apply_params(self._values)
         # Who answers is a graph query (slow): refreshed 5 times a second, not every tick.
         self.create_timer(0.2, self._refresh_peers, clock=RclClock(clock_type=ClockType.STEADY_TIME))
@@ -402,8 +419,11 @@ class PlantNode(Node):
             self._last_clock_ns = t_ns
             self._clock_pub.publish(clock_cdr(t_ns))
         self._gate.open(t_ns, now, self._peers)
-        for frame in world.poll_vision():
+        frames = world.poll_vision()
+        for frame in frames:
             self._publish_vision(frame)
+        if self._ssl is not None:
+            self._publish_ssl_vision(frames)
         for i in range(self.setup.num_robots):
             detected = world.light_barrier(i)
             if detected != self._barrier_state[i] or t_ns % 100_000_000 == 0:
@@ -413,7 +433,45 @@ class PlantNode(Node):
             self._last_truth_ns = t_ns
             self._publish_truth(t_ns * 1e-9)
 
+    def _setup_ssl_vision(self) -> None:
+        v = self._values
+        self._ros_vision = v["vision_output"] in ("ros", "both")
+        self._ssl = None
+        if v["vision_output"] == "ros":
+            return
+        field = FieldConfig.preset(self.setup.field_preset)
+        model = BallModelParams()  # the plant's ball physics reproduces the paper's model (ball.py)
+        self._ssl = SslCameraSplitter(
+            quadrant_cameras(field), field, BallModelFromVision(model.a_slide_mps2, model.a_roll_mps2, model.c_switch),
+            latency_s=self.setup.vision.latency_s, seed=self.setup.seed,
+        )
+        self._ssl_sock = open_multicast_sender(v["ssl_vision_interface"])
+        self._ssl_address = (v["ssl_vision_group"], v["ssl_vision_port"])
+        self._ssl_queue: list[tuple[float, bytes]] = []
+        self._ssl_geometry_t = -math.inf
+
+    def _send_ssl(self, data: bytes) -> None:
+        try:
+            self._ssl_sock.sendto(data, self._ssl_address)
+        except OSError as exc:  # a full socket buffer or no route: this frame is lost, as on a network
+            self._warn.warn("ssl_send", f"SSL-Vision packet not sent: {exc}")
+
+    def _publish_ssl_vision(self, frames) -> None:
+        t = self.world.t_s
+        if t - self._ssl_geometry_t >= _GEOMETRY_PERIOD_S:
+            self._ssl_geometry_t = t
+            self._send_ssl(self._ssl.geometry_packet())
+        for frame in frames:
+            self._ssl_queue.extend(self._ssl.packets(frame))
+        due = [p for p in self._ssl_queue if p[0] <= t + 1e-9]
+        if due:
+            self._ssl_queue = [p for p in self._ssl_queue if p[0] > t + 1e-9]
+            for _release, data in sorted(due, key=lambda p: p[0]):
+                self._send_ssl(data)
+
     def _publish_vision(self, frame) -> None:
+        if not self._ros_vision:
+            return
         # serialized, as the ball predictor takes them (conversions' codec)
         t = frame.t_capture_s
         for ball in frame.balls:
