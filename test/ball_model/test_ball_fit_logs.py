@@ -86,12 +86,14 @@ def test_cut_shots_tells_kicks_chips_and_ricochets_apart():
     assert cut.straight[1].t_s[-1] < pre[-1][0] + 3 * FRAME_S
 
 
-def _packet(t, camera, balls, geometry=None):
+def _packet(t, camera, balls, geometry=None, z_m=None):
     p = ssl_vision_wrapper_pb2.SSL_WrapperPacket()
     d = p.detection
     d.frame_number, d.t_capture, d.t_sent, d.camera_id = 0, t, t, camera
     for x, y in balls:
-        d.balls.add(confidence=0.9, x=x * 1e3, y=y * 1e3, pixel_x=0.0, pixel_y=0.0)
+        b = d.balls.add(confidence=0.9, x=x * 1e3, y=y * 1e3, pixel_x=0.0, pixel_y=0.0)
+        if z_m is not None:
+            b.z = z_m * 1e3
     if geometry is not None:
         f = p.geometry.field
         f.field_length, f.field_width, f.goal_width, f.goal_depth, f.boundary_width = 9000, 6000, 1000, 180, 300
@@ -109,12 +111,14 @@ def test_track_merges_cameras_and_ignores_false_candidates(tmp_path):
             # camera 1 lists a reflection at the field edge first; camera 0 sees the ball 2 mm apart
             log.write(int(t * 1e9), MessageType.VISION_2014, _packet(t, 1, [(4.4, 2.9), (x + 0.001, 0.0)]))
             log.write(int(t * 1e9), MessageType.VISION_2014,
-                      _packet(t, 0, [(x - 0.001, 0.0)], geometry=(-3.0, -0.4, 0.7) if k == 5 else None))
+                      _packet(t, 0, [(x - 0.001, 0.0)], geometry=(-3.0, -0.4, 0.7) if k == 5 else None,
+                              z_m=0.15 if k == 7 else None))  # a chipped ball in the air, as simulators say
         log.write(int(2000 * 1e9), MessageType.VISION_2014, b"\xff\xff garbage")
     track = ball_fit.track_from_log(path)
     assert track.t_s == pytest.approx(np.arange(20) * FRAME_S, abs=1e-4)
     assert track.xy_m[:, 0] == pytest.approx(0.1 * np.arange(20), abs=1e-6)
     assert track.geometry_model == BallModelParams(-3.0, -0.4, 0.7)
+    assert track.z_m[7] == pytest.approx(0.15) and track.z_m[6] == 0.0
     assert track.undecodable == 1
 
 

@@ -49,42 +49,29 @@ class BallTrack:
 
 
 def track_from_log(path: str | Path) -> BallTrack:
-    """The ball track of an SSL log's vision records (SSL_WrapperPacket, message type VISION_2014)."""
-    from google.protobuf.message import DecodeError
-
+    """The ball track of an SSL log's vision records (SSL_WrapperPacket, message type VISION_2014),
+    decoded and checked by the bridge's decoder (``erforce_interfaces.ssl_vision.decode_wrapper``)."""
     from erforce_interfaces.ssl_log import LogReader, MessageType
-    from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2
+    from erforce_interfaces.ssl_vision import SslDecodeError, decode_wrapper
 
     frames: dict[float, list[tuple[float, float, float, float]]] = {}
     geometry_model = None
     undecodable = 0
-    packet = ssl_vision_wrapper_pb2.SSL_WrapperPacket()
     for rec in LogReader(path):
         if rec.message_type != MessageType.VISION_2014:
             continue
         try:
-            packet.ParseFromString(rec.payload)
-        except DecodeError:
+            packet = decode_wrapper(rec.payload)
+        except SslDecodeError:
             undecodable += 1
             continue
-        if packet.HasField("geometry") and packet.geometry.models.HasField("straight_two_phase"):
-            m = packet.geometry.models.straight_two_phase
-            try:
-                geometry_model = BallModelParams(m.acc_slide, m.acc_roll, m.k_switch)
-            except ValueError:
-                geometry_model = None
-        if not packet.HasField("detection"):
+        if packet.geometry is not None and packet.geometry.ball_model is not None:
+            m = packet.geometry.ball_model
+            geometry_model = BallModelParams(m.a_slide_mps2, m.a_roll_mps2, m.c_switch)
+        if packet.frame is None:
             continue
-        det = packet.detection
-        if not math.isfinite(det.t_capture):
-            undecodable += 1
-            continue
-        key = round(det.t_capture, 4)  # cameras capture together: one frame of the field
-        cands = frames.setdefault(key, [])
-        for b in det.balls:
-            values = (b.x * 1e-3, b.y * 1e-3, (b.z if b.HasField("z") else 0.0) * 1e-3, b.confidence)
-            if all(math.isfinite(v) for v in values) and abs(values[0]) < 100 and abs(values[1]) < 100:
-                cands.append(values)
+        key = round(packet.frame.t_capture_s, 4)  # cameras capture together: one frame of the field
+        frames.setdefault(key, []).extend((b.x_m, b.y_m, b.z_m, b.confidence) for b in packet.frame.balls)
     times = sorted(frames)
     t_out, xy_out, z_out = [], [], []
     last = None

@@ -7,8 +7,8 @@ default, the league's), referee records (``REFBOX_2013``) to 224.5.23.1:10003; o
 are counted and skipped. ``--speed 2`` plays twice as fast, ``--speed 0`` as fast as possible; gaps
 in the log longer than ``--max-gap-s`` are shortened to it (a log paused at half time).
 
-The multicast interface defaults to loopback (127.0.0.1), so nothing leaves the machine unless you
-name a network interface's address. No rclpy here.
+The multicast interface defaults to loopback (127.0.0.1) with TTL 0, so nothing leaves the machine
+unless you name a network interface's address and ``--ttl 1``. No rclpy here.
 """
 
 from __future__ import annotations
@@ -80,8 +80,9 @@ def replay(records: Iterable[LogRecord], send: Callable[[int, bytes], None], spe
     return stats
 
 
-def multicast_sender(interface: str, ttl: int = 1) -> socket.socket:
-    """A UDP socket that sends multicast on ``interface`` (an address), looped back to this host."""
+def multicast_sender(interface: str, ttl: int = 0) -> socket.socket:
+    """A UDP socket that sends multicast on ``interface`` (an address), looped back to this host;
+    TTL 0 keeps the packets on this host."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, ttl)
     sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
@@ -108,13 +109,15 @@ def main(argv: list[str] | None = None) -> int:
                         help="where referee packets go (default 224.5.23.1:10003)")
     parser.add_argument("--no-referee", action="store_true", help="send vision only")
     parser.add_argument("--interface", default="127.0.0.1", help="address of the interface multicast leaves on")
+    parser.add_argument("--ttl", type=int, default=0, choices=range(256), metavar="0..255",
+                        help="multicast TTL: 0 stays on this host, 1 reaches the local network")
     parser.add_argument("--max-gap-s", type=float, default=5.0, help="shorten longer pauses in the log to this [s]")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     if not (args.speed >= 0.0 and math.isfinite(args.speed)):
         parser.error("--speed must be finite and >= 0")
     try:
-        sock = multicast_sender(args.interface)
+        sock = multicast_sender(args.interface, args.ttl)
         reader = LogReader(args.log)
     except (OSError, LogFormatError) as exc:
         print(f"ssl_log_replay: {exc}", file=sys.stderr)

@@ -59,6 +59,7 @@ class BallCandidate(NamedTuple):  # named tuples: cheaper to build than frozen d
     x_m: float
     y_m: float
     confidence: float
+    z_m: float = 0.0  # height, when the packet has one (simulators' chipped balls); 0 otherwise
 
 
 class RobotSighting(NamedTuple):
@@ -166,8 +167,9 @@ def _decode_frame(det, limits: DecodeLimits, problems: list[str]) -> CameraFrame
     balls = []
     for ball in det.balls:
         x, y, c = ball.x, ball.y, ball.confidence
-        if abs(x) <= max_mm and abs(y) <= max_mm and 0.0 <= c <= 1.0:  # False for NaN
-            balls.append(BallCandidate(x * MM, y * MM, c))
+        z = ball.z if ball.HasField("z") else 0.0
+        if abs(x) <= max_mm and abs(y) <= max_mm and 0.0 <= c <= 1.0 and abs(z) <= max_mm:  # False for NaN
+            balls.append(BallCandidate(x * MM, y * MM, c, z * MM))
         else:
             problems.append(f"camera {camera_id}: ball at ({x!r}, {y!r}) mm, confidence {c!r} dropped")
     robots = []
@@ -246,7 +248,9 @@ def encode_frame(frame: CameraFrame) -> bytes:
     det.t_sent = frame.t_sent_s
     det.camera_id = frame.camera_id
     for ball in frame.balls:
-        det.balls.add(confidence=ball.confidence, x=ball.x_m / MM, y=ball.y_m / MM, pixel_x=0.0, pixel_y=0.0)
+        b = det.balls.add(confidence=ball.confidence, x=ball.x_m / MM, y=ball.y_m / MM, pixel_x=0.0, pixel_y=0.0)
+        if ball.z_m:
+            b.z = ball.z_m / MM
     for robot in frame.robots:
         team = det.robots_blue if robot.team == "blue" else det.robots_yellow
         r = team.add(confidence=robot.confidence, robot_id=robot.robot_id, x=robot.x_m / MM, y=robot.y_m / MM,

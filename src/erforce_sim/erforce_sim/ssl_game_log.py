@@ -6,10 +6,10 @@ and direction (``place_ball`` with the kick's spin ratio) such that the two-phas
 inside the field; the next kick comes ``rest_s`` after it stopped (or after ``max_shot_s``).
 The plant's vision (noise, dropouts, latency) observes it. Twelve scripted robots (6 per team,
 smooth loops, no contacts: simulating their drive trains would cost 20x the ball) fill the frames,
-so packets have a game's size. Four cameras each see a quadrant plus an overlap; each frame is
-one ``SSL_WrapperPacket`` per camera (``VISION_2014`` records), with geometry (field size, camera
-calibration and the true ball model as ``SSL_BallModelStraightTwoPhase``) once a second per
-camera, and a referee message (``REFBOX_2013``) at 10 Hz.
+so packets have a game's size. The plant's four quadrant cameras (``ssl_cameras``) each send their
+part of every frame as an ``SSL_WrapperPacket`` (``VISION_2014`` records, the shared encoder of
+``erforce_interfaces.ssl_vision``); a geometry packet (field size, cameras and the true ball model as
+``SSL_BallModelStraightTwoPhase``) goes out once a second, a referee message (``REFBOX_2013``) at 10 Hz.
 
 The true ball parameters are known: a_slide = -mu_slide g, a_roll = -mu_roll g, and
 c_switch = BallParams.switch_ratio(kick spin ratio); ``ball_fit`` should recover them.
@@ -29,16 +29,25 @@ import numpy as np
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_log import LogWriter, MessageType
-from erforce_interfaces.ssl_proto import ssl_gc_referee_message_pb2, ssl_vision_wrapper_pb2
+from erforce_interfaces.ssl_proto import ssl_gc_referee_message_pb2
+from erforce_interfaces.ssl_vision import (
+    BallCandidate,
+    BallModelFromVision,
+    CameraFrame,
+    CameraPose,
+    FieldGeometry,
+    RobotSighting,
+    encode_frame,
+    encode_geometry,
+)
 from erforce_sim.ball import BallParams
 from erforce_sim.drivetrain import GRAVITY_MPS2
 from erforce_sim.sensors import VisionParams
+from erforce_sim.ssl_cameras import CAMERA_HEIGHT_M, quadrant_cameras
 from erforce_sim.world import World
 
 EPOCH_S = 1_700_000_000.0  # the vision host's clock at game time 0 (t_capture is wall time)
 ROBOTS_PER_TEAM = 6
-CAMERA_OVERLAP_M = 0.4
-CAMERA_HEIGHT_M = 4.0
 REFEREE_PERIOD_S = 0.1
 GEOMETRY_PERIOD_S = 1.0
 
@@ -81,30 +90,6 @@ class GameSummary:
     true_model: BallModelParams
 
 
-@dataclass(frozen=True)
-class Camera:
-    camera_id: int
-    x_range: tuple[float, float]
-    y_range: tuple[float, float]
-
-    @property
-    def centre(self) -> tuple[float, float]:
-        return 0.5 * sum(self.x_range), 0.5 * sum(self.y_range)
-
-    def sees(self, x: float, y: float) -> bool:
-        return self.x_range[0] <= x <= self.x_range[1] and self.y_range[0] <= y <= self.y_range[1]
-
-
-def quadrant_cameras(field_config: FieldConfig, overlap_m: float = CAMERA_OVERLAP_M) -> list[Camera]:
-    hx, hy = field_config.wall_half_length_m, field_config.wall_half_width_m
-    cams = []
-    for k, (sx, sy) in enumerate(((-1, -1), (-1, 1), (1, -1), (1, 1))):
-        xr = (-hx, overlap_m) if sx < 0 else (-overlap_m, hx)
-        yr = (-hy, overlap_m) if sy < 0 else (-overlap_m, hy)
-        cams.append(Camera(k, xr, yr))
-    return cams
-
-
 def scripted_robots(t_s: float, field_config: FieldConfig) -> list[tuple[str, int, float, float, float]]:
     """(team, id, x, y, heading) of the extras: each drives a loop of 0.4 m radius around its post."""
     out = []
@@ -119,69 +104,26 @@ def scripted_robots(t_s: float, field_config: FieldConfig) -> list[tuple[str, in
     return out
 
 
-class PacketRenderer:
-    """Turns frames into SSL-Vision wrapper packets (millimetres, one packet per camera)."""
+def frame_packets(frame, robots, cameras, frame_numbers: list[int], latency_s: float) -> list[bytes]:
+    """One detection datagram per camera for a world frame (the shared SSL-Vision encoder)."""
+    out = []
+    t_capture = EPOCH_S + frame.t_capture_s
+    for k, cam in enumerate(cameras):
+        balls = tuple(BallCandidate(b.x, b.y, 0.95) for b in frame.balls if cam.sees(b.x, b.y))
+        seen = tuple(RobotSighting(team, rid, x, y, th, 0.9) for team, rid, x, y, th in robots if cam.sees(x, y))
+        frame_numbers[k] += 1
+        out.append(encode_frame(CameraFrame(cam.camera_id, frame_numbers[k], t_capture, t_capture + latency_s,
+                                            balls, seen)))
+    return out
 
-    def __init__(self, field_config: FieldConfig, cameras: list[Camera], model: BallModelParams, seed: int) -> None:
-        self.field = field_config
-        self.cameras = cameras
-        self.model = model
-        self._rng = np.random.default_rng(seed)
-        self._frame_numbers = dict.fromkeys((c.camera_id for c in cameras), 0)
 
-    def _pixel(self, cam: Camera, x: float, y: float) -> tuple[float, float]:
-        cx, cy = cam.centre
-        return 390.0 + (x - cx) * 150.0, 290.0 - (y - cy) * 150.0
-
-    def geometry(self, packet) -> None:
-        g = packet.geometry
-        f = g.field
-        f.field_length = round(self.field.length_m * 1000)
-        f.field_width = round(self.field.width_m * 1000)
-        f.goal_width = 1000
-        f.goal_depth = 180
-        f.boundary_width = round(self.field.boundary_m * 1000)
-        for cam in self.cameras:
-            c = g.calib.add()
-            cx, cy = cam.centre
-            c.camera_id = cam.camera_id
-            c.focal_length = 600.0
-            c.principal_point_x, c.principal_point_y, c.distortion = 390.0, 290.0, 0.0
-            c.q0, c.q1, c.q2, c.q3 = 1.0, 0.0, 0.0, 0.0
-            c.tx, c.ty, c.tz = -cx * 1000.0, -cy * 1000.0, CAMERA_HEIGHT_M * 1000.0
-            c.derived_camera_world_tx, c.derived_camera_world_ty = cx * 1000.0, cy * 1000.0
-            c.derived_camera_world_tz = CAMERA_HEIGHT_M * 1000.0
-        two_phase = g.models.straight_two_phase
-        two_phase.acc_slide = self.model.a_slide_mps2
-        two_phase.acc_roll = self.model.a_roll_mps2
-        two_phase.k_switch = self.model.c_switch
-
-    def packets(self, t_capture_s: float, latency_s: float, balls, robots, with_geometry: bool) -> list[bytes]:
-        out = []
-        noise = self._rng.normal(0.0, 0.002, (len(robots), 2))
-        for cam in self.cameras:
-            packet = ssl_vision_wrapper_pb2.SSL_WrapperPacket()
-            det = packet.detection
-            det.frame_number = self._frame_numbers[cam.camera_id]
-            self._frame_numbers[cam.camera_id] += 1
-            det.t_capture = EPOCH_S + t_capture_s
-            det.t_sent = EPOCH_S + t_capture_s + latency_s
-            det.camera_id = cam.camera_id
-            for b in balls:
-                if cam.sees(b.x, b.y):
-                    px, py = self._pixel(cam, b.x, b.y)
-                    det.balls.add(confidence=0.95, area=80, x=b.x * 1000.0, y=b.y * 1000.0, pixel_x=px, pixel_y=py)
-            for (team, rid, x, y, th), (nx, ny) in zip(robots, noise, strict=True):
-                x, y = x + nx, y + ny
-                if cam.sees(x, y):
-                    px, py = self._pixel(cam, x, y)
-                    target = det.robots_yellow if team == "yellow" else det.robots_blue
-                    target.add(confidence=0.9, robot_id=rid, x=x * 1000.0, y=y * 1000.0, orientation=th,
-                               pixel_x=px, pixel_y=py, height=150.0)
-            if with_geometry:
-                self.geometry(packet)
-            out.append(packet.SerializeToString())
-        return out
+def geometry_packet(field_config: FieldConfig, cameras, model: BallModelParams) -> bytes:
+    return encode_geometry(FieldGeometry(
+        length_m=field_config.length_m, width_m=field_config.width_m, boundary_m=field_config.boundary_m,
+        goal_width_m=1.0 if field_config.length_m < 10.0 else 1.8, goal_depth_m=0.18,
+        ball_model=BallModelFromVision(model.a_slide_mps2, model.a_roll_mps2, model.c_switch),
+        cameras=tuple(CameraPose(c.camera_id, 0.5 * sum(c.x_range_m), 0.5 * sum(c.y_range_m), CAMERA_HEIGHT_M)
+                      for c in cameras)))
 
 
 def referee_packet(t_s: float, duration_s: float, counter: int) -> bytes:
@@ -229,7 +171,9 @@ def write_game_log(path: str | Path, config: GameConfig | None = None) -> GameSu
     field_config = FieldConfig.preset(config.field_preset)
     rng = np.random.default_rng(config.seed)
     world = World(field_config, [], ball_params=config.ball, vision=config.vision, seed=config.seed)
-    renderer = PacketRenderer(field_config, quadrant_cameras(field_config), config.true_model, config.seed + 1)
+    cameras = quadrant_cameras(field_config)
+    frame_numbers = [0] * len(cameras)
+    geometry = geometry_packet(field_config, cameras, config.true_model)
     kicker = Kicker(config, field_config, rng)
     latency_s = config.vision.latency_s
     shots = 0
@@ -258,12 +202,12 @@ def write_game_log(path: str | Path, config: GameConfig | None = None) -> GameSu
                     next_event_s = t + config.rest_s
             world.step(config.step_s)
             for frame in world.poll_vision():
-                geometry = frame.t_capture_s - last_geometry_s >= GEOMETRY_PERIOD_S
-                if geometry:
-                    last_geometry_s = frame.t_capture_s
-                robots = scripted_robots(frame.t_capture_s, field_config)
                 receive_ns = round((EPOCH_S + frame.t_release_s) * 1e9)
-                for data in renderer.packets(frame.t_capture_s, latency_s, frame.balls, robots, geometry):
+                if frame.t_capture_s - last_geometry_s >= GEOMETRY_PERIOD_S:
+                    last_geometry_s = frame.t_capture_s
+                    log.write(receive_ns, MessageType.VISION_2014, geometry)
+                robots = scripted_robots(frame.t_capture_s, field_config)
+                for data in frame_packets(frame, robots, cameras, frame_numbers, latency_s):
                     log.write(receive_ns, MessageType.VISION_2014, data)
             if world.t_s - last_referee_s >= REFEREE_PERIOD_S:
                 last_referee_s = world.t_s
