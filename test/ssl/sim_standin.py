@@ -26,6 +26,7 @@ class SimStandIn:
         self.packets = 0
         self.error_text: str | None = None  # sent in every answer while set
         self.garbage_next = False
+        self.flood_next = 0  # send this many garbage datagrams with the next answer
         self._last_t: float | None = None
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -73,6 +74,9 @@ class SimStandIn:
             self._answer(contact, addr)
 
     def _answer(self, contact: dict[int, bool], addr) -> None:
+        for k in range(self.flood_next):
+            self.sock.sendto(b"\x0a\xff flood %d" % k, addr)
+        self.flood_next = 0
         if self.garbage_next:
             self.garbage_next = False
             reply = b"\xff\x00garbage"

@@ -80,7 +80,13 @@ def test_bridge_drives_the_simulator_and_maps_its_answers_back(ros_graph, standi
     node.wait_for_output("dropped a simulator answer", timeout_s=10.0)
     sent = standin.packets
     probe.spin_until(lambda: standin.packets > sent + 20, 10.0, "commands after the garbage answer")
+    # a flood of 3000 garbage answers: dropped with throttled warnings, commands keep going out
+    standin.flood_next = 3000
+    probe.spin_until(lambda: standin.flood_next == 0, 10.0, "the flood sent")
+    sent = standin.packets
+    probe.spin_until(lambda: standin.packets > sent + 50, 20.0, "commands during and after the flood")
     assert node.alive()
+    assert node.output().count("dropped a simulator answer") < 20  # throttled, not one line per datagram
 
 
 def test_bridge_speaks_grsim(ros_graph):

@@ -135,6 +135,16 @@ def test_a_protocol_client_drives_and_places_our_plant(ros_graph):
     assert any(e.unsupported_capability == 2 for e in fb.errors)  # MOVE_WHEEL_VELOCITY
     fb = ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString(client.ask(b"\xff\xfe", client.robot_addr))
     assert [e.code for e in fb.errors] == [ssl_sim.ERROR_INVALID]
+    # a flood of garbage: every datagram is answered with an error, and a good command is served after it
+    for _ in range(2000):
+        client.sock.sendto(b"\xff\xfe flood", client.robot_addr)
+
+    def served() -> bool:
+        client.sock.sendto(client.local(0, 0.0), client.robot_addr)
+        return any(not r.errors and r.feedback for r in map(
+            ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString, client.answers()))
+
+    probe.spin_until(served, 30.0, "a good command answered after the flood")
     speed = ssl_simulation_control_pb2.SimulatorCommand()
     speed.control.simulation_speed = 2.0
     errors = ssl_sim.decode_simulator_response(client.ask(speed.SerializeToString(), client.control_addr))
