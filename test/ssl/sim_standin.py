@@ -9,7 +9,12 @@ import socket
 import threading
 import time
 
-from erforce_interfaces.ssl_proto import grsim_pb2, ssl_simulation_robot_control_pb2, ssl_simulation_robot_feedback_pb2
+from erforce_interfaces.ssl_proto import (
+    grsim_pb2,
+    ssl_simulation_control_pb2,
+    ssl_simulation_robot_control_pb2,
+    ssl_simulation_robot_feedback_pb2,
+)
 
 
 class SimStandIn:
@@ -20,6 +25,11 @@ class SimStandIn:
         self.sock.bind(("127.0.0.1", 0))
         self.sock.settimeout(0.1)
         self.port = self.sock.getsockname()[1]
+        self.control = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # simulator control (teleports)
+        self.control.bind(("127.0.0.1", 0))
+        self.control.settimeout(0.1)
+        self.control_port = self.control.getsockname()[1]
+        self.teleports: list = []  # SimulatorCommand messages received
         self.status_port = status_port
         self.poses: dict[int, list[float]] = {}  # id -> [x, y, yaw]
         self.kicks: list[tuple[int, float]] = []  # (id, kick speed) of every command with a kick
@@ -32,6 +42,8 @@ class SimStandIn:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
+        self._control_thread = threading.Thread(target=self._run_control, daemon=True)
+        self._control_thread.start()
 
     def pose(self, robot_id: int) -> list[float]:
         with self._lock:
@@ -73,6 +85,17 @@ class SimStandIn:
                     contact[robot_id] = x > self.contact_x_m
             self._answer(contact, addr)
 
+    def _run_control(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data, addr = self.control.recvfrom(65536)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            self.teleports.append(ssl_simulation_control_pb2.SimulatorCommand.FromString(data))
+            self.control.sendto(ssl_simulation_control_pb2.SimulatorResponse().SerializeToString(), addr)
+
     def _answer(self, contact: dict[int, bool], addr) -> None:
         for k in range(self.flood_next):
             self.sock.sendto(b"\x0a\xff flood %d" % k, addr)
@@ -98,4 +121,6 @@ class SimStandIn:
     def close(self) -> None:
         self._stop.set()
         self._thread.join(timeout=2.0)
+        self._control_thread.join(timeout=2.0)
         self.sock.close()
+        self.control.close()

@@ -7,10 +7,12 @@ import time
 
 import pytest
 from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
 from sim_standin import SimStandIn
 from std_msgs.msg import Bool, Float64, String
 
 from erforce_interfaces import contract, ssl_sim
+from erforce_interfaces.conversions import odometry_msg
 
 pytestmark = pytest.mark.integration
 
@@ -46,7 +48,8 @@ def standin():
 
 def test_bridge_drives_the_simulator_and_maps_its_answers_back(ros_graph, standin):
     node = ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={
-        "team": "blue", "robot_ids": [0, 1], "command_port": standin.port, "rate_hz": 100.0})
+        "team": "blue", "robot_ids": [0, 1], "command_port": standin.port, "control_port": standin.control_port,
+        "rate_hz": 100.0})
     probe = ros_graph.probe
     contact = probe.subscribe(contract.BALL_DETECTED.for_robot(0), Bool)
     events = probe.subscribe(contract.SIM_EVENTS.name, String)
@@ -72,6 +75,17 @@ def test_bridge_drives_the_simulator_and_maps_its_answers_back(ros_graph, standi
     probe.spin_for(0.3)
     armed = [k for k in standin.kicks if k[0] == 1]
     assert 3 <= len(armed) <= 25
+
+    # scenario commands become teleports at the simulator's control port
+    set_ball = probe.wait_for_subscribers(contract.SIM_SET_BALL.name, Odometry, timeout_s=20.0)
+    set_ball.publish(odometry_msg(0.0, (1.5, -1.0, 0.0), (2.0, 0.0, 0.0)))
+    set_robot = probe.wait_for_subscribers(contract.SIM_SET_STATE.for_robot(1), Odometry, timeout_s=20.0)
+    set_robot.publish(odometry_msg(0.0, (-2.0, 0.5, 1.0), (0.0, 0.0, 0.0)))
+    probe.spin_until(lambda: len(standin.teleports) >= 2, 10.0, "two teleports at the simulator")
+    ball, robot = standin.teleports[0].control.teleport_ball, standin.teleports[1].control.teleport_robot[0]
+    assert (ball.x, ball.y, ball.vx, ball.vy) == (1.5, -1.0, 2.0, 0.0)
+    assert (robot.id.id, robot.id.team, robot.x, robot.y) == (1, 2, -2.0, 0.5)  # team 2 = BLUE
+    assert robot.orientation == pytest.approx(1.0)
 
     # a simulator error reaches /sim/events; a garbage answer is dropped and the bridge goes on
     standin.error_text = "no such robot"

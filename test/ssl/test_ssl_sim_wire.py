@@ -122,6 +122,16 @@ def test_teleport_encoding_equals_the_hand_bytes():
     assert ssl_sim.encode_teleport((1.0, -0.5, 2.0, 0.0), [("yellow", 1, 1.0, 2.0, 0.0)]) == hand
 
 
+def test_grsim_replacement_encoding_equals_the_hand_bytes():
+    d0, dm1, d2, d90 = bytes(8), bytes.fromhex("000000000000f0bf"), bytes.fromhex("0000000000000040"), \
+        bytes.fromhex("0000000000805640")  # 0.0, -1.0, 2.0, 90.0 (doubles)
+    ball = b"\x09" + D1_5 + b"\x11" + dm1 + b"\x19" + d2 + b"\x21" + d0
+    robot = b"\x09" + dm1 + b"\x11" + d2 + b"\x19" + d90 + b"\x20\x04" + b"\x28\x01" + b"\x30\x01"
+    hand = b"\x12" + length(b"\x0a" + length(ball) + b"\x12" + length(robot))
+    out = ssl_sim.encode_grsim_replacement((1.5, -1.0, 2.0, 0.0), [("yellow", 4, -1.0, 2.0, math.pi / 2)])
+    assert out == hand
+
+
 def test_simulator_response_round_trip_through_hand_bytes():
     hand = b"\x0a" + length(b"\x0a" + length(b"C") + b"\x1a" + length(b"m"))
     assert ssl_sim.encode_simulator_response([SimError("C", "m")]) == hand

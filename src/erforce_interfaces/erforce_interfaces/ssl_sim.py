@@ -91,7 +91,8 @@ def _parse(message, data: bytes, what: str):
     return message
 
 
-def _finite(what: str, value: float, limit: float) -> float:
+def finite_value(what: str, value: float, limit: float) -> float:
+    """``value`` as a float; WireError when it is not finite or beyond +-``limit``."""
     value = float(value)
     if not math.isfinite(value):
         raise WireError(f"{what} is not finite ({value!r})")
@@ -131,7 +132,7 @@ class RobotCommand:
                   ("dribbler_radps", MAX_DRIBBLER_RPM / RPM_PER_RADPS))
         for name, limit in limits:
             try:
-                _finite(name, getattr(self, name), limit)
+                finite_value(name, getattr(self, name), limit)
             except WireError as exc:
                 raise ValueError(str(exc)) from None
         if self.kick_speed_mps < 0.0:
@@ -226,6 +227,20 @@ def encode_teleport(ball: Sequence[float] | None = None,
     return msg.SerializeToString()
 
 
+def encode_grsim_replacement(ball: Sequence[float] | None = None,
+                             robots: Iterable[tuple[str, int, float, float, float]] = ()) -> bytes:
+    """A ``grSim_Packet`` that places the ball (x, y, vx, vy) and robots (team, id, x, y, yaw [rad]);
+    grSim takes the robot's direction in degrees."""
+    packet = grsim_pb2.grSim_Packet()
+    if ball is not None:
+        b = packet.replacement.ball
+        b.x, b.y, b.vx, b.vy = (float(v) for v in ball)
+    for team, robot_id, x, y, yaw in robots:
+        packet.replacement.robots.add(x=float(x), y=float(y), dir=math.degrees(float(yaw)), id=int(robot_id),
+                                      yellowteam=check_team(team) == "yellow", turnon=True)
+    return packet.SerializeToString()
+
+
 def decode_simulator_response(data: bytes) -> tuple[str, ...]:
     msg = _parse(ssl_simulation_control_pb2.SimulatorResponse(), data, "SimulatorResponse")
     _count("SimulatorResponse.errors", msg.errors)
@@ -268,14 +283,14 @@ def decode_robot_control(data: bytes) -> list[MoveRequest]:
         else:
             values, kind, limits = (), "none", ()
         limits = limits + (MAX_ANGULAR_RADPS,) * (len(values) - len(limits))
-        velocity = tuple(_finite(f"{what} {kind} velocity", v, lim) for v, lim in zip(values, limits, strict=True))
-        kick = _finite(f"{what} kick_speed", cmd.kick_speed, MAX_KICK_MPS)
+        velocity = tuple(finite_value(f"{what} {kind} velocity", v, lim) for v, lim in zip(values, limits, strict=True))
+        kick = finite_value(f"{what} kick_speed", cmd.kick_speed, MAX_KICK_MPS)
         if kick < 0.0:
             raise WireError(f"{what} kick_speed = {kick:g} is negative")
         requests.append(MoveRequest(
             robot_id, kind, velocity, kick,
-            _finite(f"{what} kick_angle", cmd.kick_angle, 90.0),
-            _finite(f"{what} dribbler_speed", cmd.dribbler_speed, MAX_DRIBBLER_RPM),
+            finite_value(f"{what} kick_angle", cmd.kick_angle, 90.0),
+            finite_value(f"{what} dribbler_speed", cmd.dribbler_speed, MAX_DRIBBLER_RPM),
         ))
     return requests
 
@@ -344,7 +359,7 @@ def decode_simulator_command(data: bytes) -> SimulatorRequest:
         b = control.teleport_ball
         lim = (MAX_POSITION_M, MAX_POSITION_M, MAX_LINEAR_MPS, MAX_LINEAR_MPS)
         names = ("x", "y", "vx", "vy")
-        ball = tuple(_finite(f"teleport_ball.{n}", getattr(b, n), m) for n, m in zip(names, lim, strict=True))
+        ball = tuple(finite_value(f"teleport_ball.{n}", getattr(b, n), m) for n, m in zip(names, lim, strict=True))
         unsupported = [n for n in ("z", "vz") if b.HasField(n) and getattr(b, n) != 0.0]
         unsupported += [n for n in ("by_force",) if b.by_force]
     _count("SimulatorControl.teleport_robot", control.teleport_robot)
@@ -356,15 +371,19 @@ def decode_simulator_command(data: bytes) -> SimulatorRequest:
         robot_id = _robot_id("teleport_robot", r.id.id)
 
         def opt(name: str, limit: float, r=r, robot_id=robot_id):
-            return _finite(f"teleport_robot {robot_id}.{name}", getattr(r, name), limit) if r.HasField(name) else None
+            if not r.HasField(name):
+                return None
+            return finite_value(f"teleport_robot {robot_id}.{name}", getattr(r, name), limit)
 
         robots.append(TeleportRequest(
             team, robot_id, opt("x", MAX_POSITION_M), opt("y", MAX_POSITION_M), opt("orientation", 1e3),
-            (_finite("v_x", r.v_x, MAX_LINEAR_MPS), _finite("v_y", r.v_y, MAX_LINEAR_MPS),
-             _finite("v_angular", r.v_angular, MAX_ANGULAR_RADPS)),
+            (finite_value("v_x", r.v_x, MAX_LINEAR_MPS), finite_value("v_y", r.v_y, MAX_LINEAR_MPS),
+             finite_value("v_angular", r.v_angular, MAX_ANGULAR_RADPS)),
             r.present if r.HasField("present") else None, bool(r.by_force),
         ))
-    speed = _finite("simulation_speed", control.simulation_speed, 1e3) if control.HasField("simulation_speed") else None
+    speed = None
+    if control.HasField("simulation_speed"):
+        speed = finite_value("simulation_speed", control.simulation_speed, 1e3)
     has_config = len(unknown_fields.UnknownFieldSet(msg)) > 0  # SimulatorConfig, not defined here
     return SimulatorRequest(ball, tuple(unsupported), tuple(robots), speed, has_config)
 

@@ -9,7 +9,9 @@ control port (10301 blue, 10302 yellow); with ``protocol: grsim`` a ``grSim_Pack
 The simulator's answers go back onto the contract: dribbler ball contact (``RobotControlResponse``,
 or grSim's robot status on 30011 / 30012) on ``robot_<id>/ball_detected``, its errors as warnings and
 on ``/sim/events``. A cmd_vel older than ``command_timeout_s`` is sent as zero. Garbage answers are
-dropped with a throttled warning.
+dropped with a throttled warning. The scenario topics ``/sim/set_ball`` and ``robot_<id>/sim/set_state``
+become teleports (``SimulatorCommand`` to ``control_port``, or grSim's replacement packet), so scenario
+scripts place the ball and robots in the external simulator as in our plant.
 
 Vision comes back from the simulator as SSL-Vision packets (its vision port), for ssl_vision_bridge.
 Sockets are polled in the send timer: feedback is at most one period old.
@@ -22,13 +24,14 @@ import time
 from typing import Any
 
 from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
 from rclpy.clock import Clock as RclClock
 from rclpy.clock import ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, String
 
 from erforce_interfaces import contract, ssl_sim
-from erforce_interfaces.conversions import ConversionError, float64_from_msg, twist_from_msg
+from erforce_interfaces.conversions import ConversionError, float64_from_msg, odometry_from_msg, twist_from_msg
 from erforce_interfaces.node_support import (
     ParamSpec,
     ThrottledWarner,
@@ -47,6 +50,9 @@ PARAMS = (
     ParamSpec("simulator_host", "127.0.0.1", "address of the simulator", read_only=True),
     ParamSpec("command_port", 0, "simulator port for robot commands; 0 = the default of protocol and team "
               "(ssl: 10301 blue, 10302 yellow; grsim: 20011)", min=0, max=65535, read_only=True),
+    ParamSpec("control_port", ssl_sim.SIM_CONTROL_PORT, "simulator control port for teleports (ssl protocol; "
+              "grSim takes them on command_port); 0 = do not forward /sim/set_ball and sim/set_state",
+              min=0, max=65535, read_only=True),
     ParamSpec("grsim_status_port", 0, "local port grSim sends robot status to; 0 = grSim's default for the team "
               "(30011 blue, 30012 yellow)", min=0, max=65535, read_only=True),
     ParamSpec("rate_hz", 100.0, "command rate (wall time) [Hz]", min=1.0, max=1000.0, read_only=True),
@@ -99,6 +105,13 @@ class SslSimBridgeNode(Node):
             contract_subscription(self, q.CMD_VEL, lambda m, i=i: self._on_cmd_vel(i, m), q.CMD_VEL.for_robot(i))
             contract_subscription(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.KICK.for_robot(i))
             contract_subscription(self, q.DRIBBLER, lambda m, i=i: self._on_dribbler(i, m), q.DRIBBLER.for_robot(i))
+        self._control_target = None
+        if v["control_port"]:
+            self._control_target = self._target if self._grsim else (v["simulator_host"], v["control_port"])
+            contract_subscription(self, q.SIM_SET_BALL, self._on_set_ball)
+            for i in self._state.robot_ids:
+                contract_subscription(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m),
+                                      q.SIM_SET_STATE.for_robot(i))
         self._last_errors: tuple[str, ...] = ()
         self.sent = 0
         self.create_timer(1.0 / v["rate_hz"], self._tick, clock=RclClock(clock_type=ClockType.STEADY_TIME))
@@ -126,6 +139,37 @@ class SslSimBridgeNode(Node):
             self._state.set_dribbler(robot, float64_from_msg(msg, ssl_sim.MAX_DRIBBLER_RPM / ssl_sim.RPM_PER_RADPS))
         except (ConversionError, ValueError) as exc:
             self._warn.warn(f"dribbler{robot}", f"robot_{robot}: rejected dribbler: {exc}")
+
+    # ---------------------------------------------------------------- scenario commands -> teleports
+    def _teleport(self, ball=None, robots=()) -> None:
+        if self._grsim:
+            data = ssl_sim.encode_grsim_replacement(ball, robots)
+        else:
+            data = ssl_sim.encode_teleport(ball, robots)
+        try:
+            self._sock.sendto(data, self._control_target)
+        except OSError as exc:
+            self._warn.warn("teleport", f"cannot send a teleport to {self._control_target}: {exc}")
+
+    def _on_set_ball(self, msg: Odometry) -> None:
+        try:
+            _, pose, velocity, _ = odometry_from_msg(msg)
+            ball = tuple(ssl_sim.finite_value(n, v, lim) for n, v, lim in (
+                ("x", pose[0], ssl_sim.MAX_POSITION_M), ("y", pose[1], ssl_sim.MAX_POSITION_M),
+                ("vx", velocity[0], ssl_sim.MAX_LINEAR_MPS), ("vy", velocity[1], ssl_sim.MAX_LINEAR_MPS)))
+        except (ConversionError, ssl_sim.WireError) as exc:
+            self._warn.warn("set_ball", f"rejected /sim/set_ball: {exc}")
+            return
+        self._teleport(ball=ball)
+
+    def _on_set_robot(self, robot: int, msg: Odometry) -> None:
+        try:
+            _, pose, _, _ = odometry_from_msg(msg)
+            x, y = (ssl_sim.finite_value(n, v, ssl_sim.MAX_POSITION_M) for n, v in (("x", pose[0]), ("y", pose[1])))
+        except (ConversionError, ssl_sim.WireError) as exc:
+            self._warn.warn(f"set_state{robot}", f"rejected robot_{robot}/sim/set_state: {exc}")
+            return
+        self._teleport(robots=[(self._team, robot, x, y, float(pose[2]))])
 
     # ---------------------------------------------------------------- the simulator
     def _tick(self) -> None:
