@@ -1,6 +1,8 @@
-"""ssl_sim_bridge over DDS and real UDP, against a stand-in simulator that only speaks the protocol:
+"""ssl_sim_bridge over DDS and real UDP, against a stand-in simulator that only speaks the protocols:
 cmd_vel drives the simulator's robots, a kick goes out armed for a while, ball contact comes back on
-ball_detected, simulator errors reach /sim/events, and a garbage answer does not stop the bridge."""
+ball_detected, scenario topics become teleports, simulator errors reach /sim/events, garbage and floods
+do not stop the bridge; and the stack's predictor and catcher receive a ball in the stand-in, which they
+see only through its SSL-Vision and drive only through the bridge."""
 
 import socket
 import time
@@ -8,7 +10,7 @@ import time
 import pytest
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
-from sim_standin import SimStandIn
+from sim_standin import SimStandIn, VisionSimStandIn
 from std_msgs.msg import Bool, Float64, String
 
 from erforce_interfaces import contract, ssl_sim
@@ -136,3 +138,30 @@ def test_bridge_commands_zero_a_stale_velocity_and_hold_a_kick():
     assert [(c.forward_mps, c.kick_speed_mps) for c in later] == [(0.0, 0.0), (0.0, 0.0)]
     with pytest.raises(ValueError, match="not finite"):
         state.set_velocity(0, 11.0, float("nan"), 0.0, 0.0)
+
+
+def test_the_stacks_catcher_receives_a_ball_in_an_external_simulator(ros_graph):
+    """The whole loop through the protocols only: the stand-in's SSL-Vision -> ssl_vision_bridge ->
+    ball_predictor -> catcher -> cmd_vel -> ssl_sim_bridge -> RobotControl -> the stand-in's robot, which
+    drives into the rolling ball's path; its ball contact comes back on ball_detected."""
+    vision_port = free_udp_port()
+    sim = VisionSimStandIn(vision_port)
+    try:
+        ros_graph.start_node("erforce_ball_model", "ssl_vision_bridge", params={
+            "interface": "127.0.0.1", "port": vision_port, "num_robots": 1})
+        ros_graph.start_node("erforce_ball_model", "ball_predictor", params={"num_robots": 1})
+        ros_graph.start_node("erforce_ball_model", "catcher", namespace="robot_0")
+        ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={
+            "team": "blue", "robot_ids": [0], "command_port": sim.port, "control_port": 0})
+        probe = ros_graph.probe
+        odom = probe.subscribe(contract.ODOM.for_robot(0), Odometry, contract.ODOM.qos)
+        contact = probe.subscribe(contract.BALL_DETECTED.for_robot(0), Bool)
+        probe.spin_until(lambda: odom and sim.packets > 50, 60.0, "robot_0 tracked from the simulator's vision")
+        assert not any(m.data for m in contact)
+        sim.kick(2.5, 0.6, -1.6, 0.0)  # rolls along y = 0.6, past robot_0 at the origin
+        probe.spin_until(lambda: any(m.data for m in contact), 30.0, "robot_0 receiving the ball")
+        _, y, _ = sim.pose(0)
+        assert y > 0.3  # it drove into the ball's line
+        assert sim.caught_at is not None and sim.caught_at[0] > 0.0  # before the ball passed it
+    finally:
+        sim.close()
