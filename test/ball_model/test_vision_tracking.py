@@ -175,3 +175,15 @@ def test_a_robot_put_down_elsewhere_is_reseeded_after_two_agreeing_sightings():
     assert tracker.frame(0, 0.02, [], [("yellow", 3, 3.0, 2.0, None)])[1] == []  # held back
     (pose,) = tracker.frame(0, 0.04, [], [("yellow", 3, 3.0, 2.0, None)])[1]
     assert (pose.x_m, pose.y_m) == (3.0, 2.0)
+
+
+def test_a_ball_in_the_run_off_area_takes_over_only_after_the_track_is_long_gone():
+    tracker = VisionTracker(FIELD, PARAMS)  # the ball filter restarts after 1 s (TrackerConfig.max_gap_s)
+    for k in range(10):
+        tracker.frame(0, k / 60.0, [(0.0, 0.0, 1.0)])
+    used = []
+    for k in range(10, 150):  # the ball on the field vanished; one lies in the run-off area
+        ball, _ = tracker.frame(0, k / 60.0, [SPARE_BALL + (1.0,)])
+        if ball is not None:
+            used.append(k / 60.0)
+    assert used and 9 / 60 + 1.0 - 1e-9 <= used[0] <= 9 / 60 + 1.0 + 1 / 60 + 1e-9

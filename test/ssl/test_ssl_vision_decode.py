@@ -148,24 +148,41 @@ def test_the_offset_is_the_smallest_delay_seen():
     assert clock.offset_s(0) == pytest.approx(offset + 0.001, abs=1e-9)
 
 
-def test_a_camera_clock_jump_is_confirmed_then_followed_and_a_single_late_packet_is_not():
-    clock = VisionClock(window_s=2.0, jump_s=0.25, confirm_packets=5)
-    t_receive = 0.0
+def test_late_packets_keep_the_offset_and_clock_jumps_are_followed_once_confirmed():
+    clock = VisionClock(window_s=2.0, jump_s=0.25, confirm_packets=5, confirm_s=0.19)  # 12 frame periods
+    t_receive = 500.0
     for k in range(30):
         t_receive = 500.0 + k / 60.0
         clock.to_receiver(1, t_receive - 0.01, t_receive, t_receive)  # offset 0
-    with pytest.raises(ClockJump, match="camera 1"):
-        clock.to_receiver(1, t_receive, t_receive, t_receive + 0.5)  # one packet 0.5 s late
-    assert clock.offset_s(1) == 0.0
-    # the camera's clock jumps back by 100 s: four frames refused, the fifth follows the new offset
-    for _ in range(4):
+    # a 0.5 s stall: its backlog of 20 frames arrives at once, each stamped with the offset it had
+    stall_end = t_receive + 0.5
+    for k in range(20):
+        t_sent = t_receive + (k + 1) / 60.0
+        assert clock.to_receiver(1, t_sent - 0.01, t_sent, stall_end) == pytest.approx(t_sent - 0.01, abs=1e-9)
+    t_receive = stall_end
+    assert clock.offset_s(1) == 0.0 and clock.jumps_confirmed == 0
+    # the camera's clock steps back by 100 s: stamped with the old offset (too early: the tracker
+    # drops them as late) until 5 frames over 0.19 s agree (the 13th); then the new offset
+    stamps = []
+    for _ in range(14):
         t_receive += 1 / 60.0
-        with pytest.raises(ClockJump):
-            clock.to_receiver(1, t_receive - 100.0 - 0.01, t_receive - 100.0, t_receive)
-    t_receive += 1 / 60.0
-    stamp = clock.to_receiver(1, t_receive - 100.0 - 0.01, t_receive - 100.0, t_receive)
-    assert stamp == pytest.approx(t_receive - 0.01, abs=1e-9)
-    assert clock.jumps_confirmed == 1
+        stamps.append(clock.to_receiver(1, t_receive - 100.0 - 0.01, t_receive - 100.0, t_receive))
+    assert stamps[0] == pytest.approx(t_receive - 13 / 60.0 - 100.01, abs=1e-9)
+    assert stamps[-1] == pytest.approx(t_receive - 0.01, abs=1e-9) and clock.jumps_confirmed == 1
+    # the clock steps forward again by 100 s: refused until confirmed, then followed
+    refused = 0
+    for _ in range(14):
+        t_receive += 1 / 60.0
+        try:
+            stamp = clock.to_receiver(1, t_receive - 0.01, t_receive, t_receive)
+        except ClockJump as exc:
+            assert "camera 1: clock offset" in str(exc) and "jumped forward" in str(exc)
+            refused += 1
+    assert refused == 12 and stamp == pytest.approx(t_receive - 0.01, abs=1e-9)
+    # a single bogus t_sent far ahead is refused and moves nothing
+    with pytest.raises(ClockJump):
+        clock.to_receiver(1, t_receive, t_receive + 1000.0, t_receive + 0.01)
+    assert clock.offset_s(1) == pytest.approx(0.0, abs=1e-9)
     # other cameras keep their own offset
     assert clock.to_receiver(2, 1.0, 1.0, 3.0) == 3.0
 

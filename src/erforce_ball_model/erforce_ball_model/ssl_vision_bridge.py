@@ -91,6 +91,11 @@ class BridgeConfig:
 
 
 def build_config(values: dict[str, Any]) -> BridgeConfig:
+    for name in ("group", "interface"):
+        try:
+            socket.inet_aton(values[name])
+        except OSError:
+            raise ValueError(f"{name} must be an IPv4 address, got {values[name]!r}") from None
     if values["team_color"] not in TEAMS:
         raise ValueError(f"team_color must be blue or yellow, got {values['team_color']!r}")
     if values["defend_side"] not in SIDES:
@@ -106,16 +111,6 @@ def build_config(values: dict[str, Any]) -> BridgeConfig:
         clock_jump_s=values["clock_jump_s"],
         publish_detections=values["publish_detections"],
     )
-
-
-def _checked_config(values: dict[str, Any]) -> BridgeConfig:
-    try:
-        for name in ("group", "interface"):
-            socket.inet_aton(values[name])
-    except OSError:
-        raise ValueError(f"group and interface must be IPv4 addresses, got {values['group']!r}, "
-                         f"{values['interface']!r}") from None
-    return build_config(values)
 
 
 def open_multicast_socket(group: str, port: int, interface: str, receive_buffer_bytes: int) -> socket.socket:
@@ -136,7 +131,7 @@ class SslVisionBridge(Node):
         self._warn = ThrottledWarner(self)
         self._config: BridgeConfig | None = None
         self._lock = threading.Lock()  # parameter changes vs the receive thread
-        self._values = declare_params(self, PARAMS, _checked_config, self._apply)
+        self._values = declare_params(self, PARAMS, build_config, self._apply)
         v = self._values
         self.stats: Counter[str] = Counter()
         self.cpu_ns: deque[int] = deque(maxlen=100_000)  # per datagram, since the last statistics line
@@ -153,7 +148,10 @@ class SslVisionBridge(Node):
         ]
         self._their_pubs: dict[int, Any] = {}
         self._last_geometry = None
-        self._sock = open_multicast_socket(v["group"], v["port"], v["interface"], v["receive_buffer_bytes"])
+        try:
+            self._sock = open_multicast_socket(v["group"], v["port"], v["interface"], v["receive_buffer_bytes"])
+        except OSError as exc:  # no such interface, no multicast route, ...: one clear line at start
+            raise ValueError(f"cannot join {v['group']}:{v['port']} on {v['interface']}: {exc}") from None
         self._max_batch, self._flood_batch = v["max_batch"], v["flood_batch"]
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._receive_loop, name="ssl_vision_rx", daemon=True)

@@ -15,7 +15,7 @@ Without a track the best confirmed one (inside the field lines first, then the h
 confidence) starts it. A track moves to a confirmed hypothesis inside the field lines when its
 ball has not been seen for ``lost_after_s`` (a ball put down elsewhere) or while it follows a
 ball in the run-off area (the game ball is the one on the field); a ball in the run-off area
-never takes over a track.
+takes over a track only after the track has been gone for the ball filter's ``max_gap_s``.
 
 Order: a camera frame whose capture time is not after the newest one used is older news; its
 ball is not used (another camera saw the ball later already) and neither are its robots that
@@ -118,7 +118,6 @@ class VisionTracker:
         self.ball = BallTracker(self._params, self._tracker_config)
         self._t_ball_s: float | None = None  # stamp of the newest ball observation used
         self._last_used: tuple[float, float, float] | None = None  # (t_s, x_m, y_m) of it
-        self._t_newest_s: float | None = None  # newest frame stamp of any camera
         self._hypotheses: list[_Hypothesis] = []
         self._robots: dict[tuple[str, int], _RobotTrack] = {}
         # counters for the node's statistics and the tests
@@ -161,8 +160,6 @@ class VisionTracker:
                 self.late_balls += 1
         elif candidates:
             ball = self._pick_ball(camera_id, t_s, candidates)
-        if self._t_newest_s is None or t_s > self._t_newest_s:
-            self._t_newest_s = t_s
         return ball, self._robot_poses(camera_id, t_s, robots)
 
     def _gate_m(self, t_s: float, t_ref_s: float) -> float:
@@ -189,8 +186,10 @@ class VisionTracker:
                         chosen, best = (cx, cy), d
             self.false_candidates += len(candidates) - (chosen is not None)
             other = None
-            if chosen is None and t_s - self._t_ball_s >= self.config.lost_after_s:
-                other = self._best_confirmed(t_s, inside_only=True)
+            unseen_s = t_s - self._t_ball_s
+            if chosen is None and unseen_s >= self.config.lost_after_s:
+                # long gone (a filter restart's gap): any confirmed ball, also one in the run-off area
+                other = self._best_confirmed(t_s, inside_only=unseen_s < self._tracker_config.max_gap_s)
             elif chosen is not None and not self.field.contains(*chosen):
                 # tracking a ball in the run-off area: a confirmed one on the field is the game ball
                 other = self._best_confirmed(t_s, inside_only=True)

@@ -10,8 +10,8 @@ in ``DecodedPacket.problems``; the rest of the frame is kept. ``encode_frame`` a
 clock: per camera, the offset is the smallest ``t_receive - t_sent`` seen over a sliding window
 (network and scheduling delays only ever add to it), so ``t_capture + offset`` is the capture
 time on the receiver's clock. A camera whose clock jumps is noticed when its samples leave the
-window's offset by more than ``jump_s`` several packets in a row; until then its frames are
-refused, after that the window restarts from the new samples.
+window's offset by more than ``jump_s`` for several packets over ``confirm_s``; then the window
+restarts from the new samples (details in the class).
 """
 
 from __future__ import annotations
@@ -295,14 +295,24 @@ class ClockJump(ValueError):
 
 
 class VisionClock:
-    """Per camera: vision-clock capture times -> receiver-clock stamps (see the module docstring)."""
+    """Per camera: vision-clock capture times -> receiver-clock stamps (see the module docstring).
 
-    def __init__(self, window_s: float = 2.0, jump_s: float = 0.25, confirm_packets: int = 5) -> None:
-        if not (window_s > 0.0 and jump_s > 0.0 and confirm_packets >= 1):
-            raise ValueError("VisionClock: window_s and jump_s must be > 0, confirm_packets >= 1")
+    A sample more than ``jump_s`` above the window's offset is a late packet (a stall of the
+    receiver or the network) or the camera's clock stepping back: the frame is stamped with the
+    window's offset, right for a late packet. A sample more than ``jump_s`` below is the clock
+    stepping forward or a bogus ``t_sent``: the frame is refused (``ClockJump``). Either becomes
+    the new offset once ``confirm_packets`` consecutive samples agree over at least ``confirm_s``
+    of receive time; a stall's backlog arrives within milliseconds and never confirms.
+    """
+
+    def __init__(self, window_s: float = 2.0, jump_s: float = 0.25, confirm_packets: int = 5,
+                 confirm_s: float = 0.2) -> None:
+        if not (window_s > 0.0 and jump_s > 0.0 and confirm_packets >= 1 and confirm_s >= 0.0):
+            raise ValueError("VisionClock: window_s and jump_s must be > 0, confirm_packets >= 1, confirm_s >= 0")
         self.window_s = window_s
         self.jump_s = jump_s
         self.confirm_packets = confirm_packets
+        self.confirm_s = confirm_s
         # per camera: samples (t_receive, offset) with increasing offsets (a monotonic queue: its
         # head is the window's minimum), and the samples of a suspected jump
         self._windows: dict[int, deque[tuple[float, float]]] = {}
@@ -314,26 +324,29 @@ class VisionClock:
         return window[0][1] if window else None
 
     def to_receiver(self, camera_id: int, t_capture_s: float, t_sent_s: float, t_receive_s: float) -> float:
-        """The capture time on the receiver's clock; raises ClockJump for a frame of a suspected jump."""
+        """The capture time on the receiver's clock; raises ClockJump for a frame of a suspected forward jump."""
         sample = t_receive_s - t_sent_s
         window = self._windows.setdefault(camera_id, deque())
         while window and window[0][0] < t_receive_s - self.window_s:
             window.popleft()
-        if window and abs(sample - window[0][1]) > self.jump_s:
+        deviation = sample - window[0][1] if window else 0.0
+        if abs(deviation) > self.jump_s:
             pending = self._jumps.setdefault(camera_id, [])
             if pending and abs(sample - pending[-1][1]) > self.jump_s:
                 pending.clear()  # not one consistent jump: start counting again
             pending.append((t_receive_s, sample))
-            if len(pending) < self.confirm_packets:
+            if len(pending) >= self.confirm_packets and pending[-1][0] - pending[0][0] >= self.confirm_s:
+                window.clear()
+                for item in pending:
+                    self._push(window, item)
+                pending.clear()
+                self.jumps_confirmed += 1
+            elif deviation < 0.0:
                 raise ClockJump(
-                    f"camera {camera_id}: clock offset {sample:+.3f} s differs from {window[0][1]:+.3f} s "
-                    f"by more than {self.jump_s:g} s (clock jump?); frame refused until confirmed"
+                    f"camera {camera_id}: clock offset {sample:+.3f} s is {-deviation:.3f} s below "
+                    f"{window[0][1]:+.3f} s (the camera's clock jumped forward, or a bogus t_sent); frame refused "
+                    "until confirmed"
                 )
-            window.clear()
-            for item in pending:
-                self._push(window, item)
-            pending.clear()
-            self.jumps_confirmed += 1
         else:
             self._jumps.pop(camera_id, None)
             self._push(window, (t_receive_s, sample))
