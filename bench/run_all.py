@@ -27,6 +27,7 @@ MODULES = (
     ("motion control (Sec. 4)", "bench_motion"),
     ("simulator (Sec. 2-3)", "bench_sim"),
     ("lockstep over DDS", "bench_lockstep"),
+    ("self-healing graph", "bench_respawn"),
     ("SSL-Vision in", "bench_ssl_vision"),
     ("SSL logs", "bench_ssl_logs"),
 )

@@ -28,17 +28,14 @@ from erforce_ball_model.vision_tracking import VisionTracker
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import ConversionError, point_cdr, pose2d_cdr, table_cdr
 from erforce_interfaces.node_support import (
-    ParamSpec,
+    NodeParams,
     ThrottledWarner,
     contract_publisher,
-    declare_params,
     run_node,
 )
+from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import (
-    SSL_VISION_GROUP,
-    SSL_VISION_PORT,
-    TEAMS,
     ClockJump,
     DecodedPacket,
     SslDecodeError,
@@ -46,37 +43,9 @@ from erforce_interfaces.ssl_vision import (
     decode_wrapper,
 )
 
-TIME_SOURCES = ("estimate", "vision")
-SIDES = ("negative_x", "positive_x")
 _KIND = contract.VISION_DETECTION_KINDS
 
-PARAMS = (
-    ParamSpec("group", SSL_VISION_GROUP, "multicast group of SSL-Vision", read_only=True),
-    ParamSpec("port", SSL_VISION_PORT, "UDP port: 10006 SSL-Vision, 10020 ER-Force's simulator and grSim",
-              min=1, max=65535, read_only=True),
-    ParamSpec("interface", "0.0.0.0", "IPv4 address of the interface that joins the group (0.0.0.0: the "
-              "kernel's choice; 127.0.0.1 for a simulator on this machine)", read_only=True),
-    ParamSpec("team_color", "blue", "our team's colour: blue | yellow"),
-    ParamSpec("defend_side", "negative_x", "the goal our team defends in the vision frame: negative_x | "
-              "positive_x (then the bridge turns the field by half a turn)"),
-    ParamSpec("num_robots", 11, "our robots robot_0 .. robot_{n-1} get vision_pose topics; higher ids are dropped",
-              min=1, max=32, read_only=True),
-    ParamSpec("field", "division_b", "field preset used until SSL geometry arrives: division_a | division_b"),
-    ParamSpec("time_source", "estimate", "estimate: stamps = t_capture + the estimated vision->ROS clock offset; "
-              "vision: t_capture is already ROS time (our plant in simulated time)"),
-    ParamSpec("clock_window_s", 2.0, "window of the clock-offset estimate [s]", min=0.1, max=60.0),
-    ParamSpec("clock_jump_s", 0.25, "an offset change beyond this is a camera clock jump [s]", min=0.001, max=1e6),
-    ParamSpec("publish_detections", False, "publish every camera frame on /vision/detections (for tools; one "
-              "more message per datagram)"),
-    ParamSpec("receive_buffer_bytes", 4 * 1024 * 1024, "kernel receive buffer requested for the socket",
-              min=65536, max=1 << 30, read_only=True),
-    ParamSpec("max_batch", 4096, "datagrams read per round before processing them", min=1, max=100000,
-              read_only=True),
-    ParamSpec("stats_period_s", 10.0, "log counts and CPU per datagram this often (wall time) [s]", min=0.1,
-              max=1e6, read_only=True),
-    ParamSpec("flood_batch", 2048, "a round with more datagrams keeps only each camera's newest frame",
-              min=1, max=100000, read_only=True),
-)
+SCHEMA = load_schema("erforce_ball_model", "ssl_vision_bridge")
 
 
 @dataclass(frozen=True)
@@ -90,26 +59,21 @@ class BridgeConfig:
     publish_detections: bool
 
 
-def build_config(values: dict[str, Any]) -> BridgeConfig:
+def build_config(c) -> BridgeConfig:
+    """The bridge configuration for a config object of the schema (raises ValueError when invalid)."""
     for name in ("group", "interface"):
         try:
-            socket.inet_aton(values[name])
+            socket.inet_aton(getattr(c, name))
         except OSError:
-            raise ValueError(f"{name} must be an IPv4 address, got {values[name]!r}") from None
-    if values["team_color"] not in TEAMS:
-        raise ValueError(f"team_color must be blue or yellow, got {values['team_color']!r}")
-    if values["defend_side"] not in SIDES:
-        raise ValueError(f"defend_side must be negative_x or positive_x, got {values['defend_side']!r}")
-    if values["time_source"] not in TIME_SOURCES:
-        raise ValueError(f"time_source must be estimate or vision, got {values['time_source']!r}")
+            raise ValueError(f"{name} must be an IPv4 address, got {getattr(c, name)!r}") from None
     return BridgeConfig(
-        ours=values["team_color"],
-        flip=values["defend_side"] == "positive_x",
-        field=FieldConfig.preset(values["field"]),
-        time_source=values["time_source"],
-        clock_window_s=values["clock_window_s"],
-        clock_jump_s=values["clock_jump_s"],
-        publish_detections=values["publish_detections"],
+        ours=c.team_color,
+        flip=c.defend_side == "positive_x",
+        field=FieldConfig.preset(c.field),
+        time_source=c.time_source,
+        clock_window_s=c.clock_window_s,
+        clock_jump_s=c.clock_jump_s,
+        publish_detections=c.publish_detections,
     )
 
 
@@ -131,8 +95,9 @@ class SslVisionBridge(Node):
         self._warn = ThrottledWarner(self)
         self._config: BridgeConfig | None = None
         self._lock = threading.Lock()  # parameter changes vs the receive thread
-        self._values = declare_params(self, PARAMS, build_config, self._apply)
-        v = self._values
+        self._params = NodeParams(self, SCHEMA, build_config)
+        v = self._values = self._params.values
+        self._apply(self._params.built)
         self.stats: Counter[str] = Counter()
         self.cpu_ns: deque[int] = deque(maxlen=100_000)  # per datagram, since the last statistics line
         self._stats_period_s = v["stats_period_s"]
@@ -160,6 +125,7 @@ class SslVisionBridge(Node):
             f"ssl_vision_bridge: {v['group']}:{v['port']} on {v['interface']}, we are {v['team_color']} defending "
             f"{v['defend_side']}, stamps: {v['time_source']}"
         )
+        self._params.on_change(self._apply)
 
     def _apply(self, config: BridgeConfig) -> None:
         with self._lock:

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import socket
 import time
-from typing import Any
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -33,56 +32,36 @@ from std_msgs.msg import Bool, Float64, String
 from erforce_interfaces import contract, ssl_sim
 from erforce_interfaces.conversions import ConversionError, float64_from_msg, odometry_from_msg, twist_from_msg
 from erforce_interfaces.node_support import (
-    ParamSpec,
+    NodeParams,
     ThrottledWarner,
     contract_publisher,
     contract_subscription,
-    declare_params,
     run_node,
 )
+from erforce_interfaces.param_schema import load_schema
 
-PARAMS = (
-    ParamSpec("team", "blue", "colour of the robots this bridge drives: blue | yellow", read_only=True),
-    ParamSpec("robot_ids", [0], "robot ids to drive; robot_<id> topics map onto the simulator's robot <id>",
-              read_only=True),
-    ParamSpec("protocol", "ssl", "ssl (ssl-simulation-protocol: ER-Force's simulator and others) | grsim",
-              read_only=True),
-    ParamSpec("simulator_host", "127.0.0.1", "address of the simulator", read_only=True),
-    ParamSpec("command_port", 0, "simulator port for robot commands; 0 = the default of protocol and team "
-              "(ssl: 10301 blue, 10302 yellow; grsim: 20011)", min=0, max=65535, read_only=True),
-    ParamSpec("control_port", ssl_sim.SIM_CONTROL_PORT, "simulator control port for teleports (ssl protocol; "
-              "grSim takes them on command_port); 0 = do not forward /sim/set_ball and sim/set_state",
-              min=0, max=65535, read_only=True),
-    ParamSpec("grsim_status_port", 0, "local port grSim sends robot status to; 0 = grSim's default for the team "
-              "(30011 blue, 30012 yellow)", min=0, max=65535, read_only=True),
-    ParamSpec("rate_hz", 100.0, "command rate (wall time) [Hz]", min=1.0, max=1000.0, read_only=True),
-    ParamSpec("command_timeout_s", 0.2, "send zero velocity when no cmd_vel arrived for this long [s]",
-              min=0.001, max=60.0, read_only=True),
-    ParamSpec("kick_hold_s", 0.1, "a kick message keeps the kicker armed this long [s]", min=0.0, max=10.0,
-              read_only=True),
-)
+SCHEMA = load_schema("erforce_interfaces", "ssl_sim_bridge")
 
 _MAX_DATAGRAMS_PER_PERIOD = 256  # a flood cannot starve the send timer
 _BARRIER_REPEAT_S = 0.1  # ball_detected goes out on change and at least this often
 
 
-def _config(values: dict[str, Any]) -> dict[str, Any]:
-    ssl_sim.check_team(values["team"])
-    if values["protocol"] not in ("ssl", "grsim"):
-        raise ValueError(f"protocol must be ssl or grsim, got {values['protocol']!r}")
-    ssl_sim.BridgeCommands(values["robot_ids"])  # refuses bad ids
+def _check(c):
+    """Refuses ids and a host the bridge cannot use (the schema checked the rest); every parameter is read-only."""
+    ssl_sim.BridgeCommands(c.robot_ids)  # refuses bad ids
     try:
-        socket.getaddrinfo(values["simulator_host"], None, socket.AF_INET, socket.SOCK_DGRAM)
+        socket.getaddrinfo(c.simulator_host, None, socket.AF_INET, socket.SOCK_DGRAM)
     except OSError as exc:
-        raise ValueError(f"simulator_host {values['simulator_host']!r}: {exc}") from None
-    return values
+        raise ValueError(f"simulator_host {c.simulator_host!r}: {exc}") from None
+    return c
 
 
 class SslSimBridgeNode(Node):
     def __init__(self) -> None:
         super().__init__("ssl_sim_bridge")
         self._warn = ThrottledWarner(self)
-        v = self._values = declare_params(self, PARAMS, _config)
+        self._params = NodeParams(self, SCHEMA, _check)
+        v = self._values = self._params.values
         self._team = v["team"]
         self._grsim = v["protocol"] == "grsim"
         self._state = ssl_sim.BridgeCommands(v["robot_ids"], v["command_timeout_s"], v["kick_hold_s"])

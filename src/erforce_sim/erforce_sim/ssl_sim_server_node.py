@@ -36,39 +36,29 @@ from std_msgs.msg import Bool, Float64
 from erforce_interfaces import contract, ssl_sim
 from erforce_interfaces.conversions import ConversionError, odometry_from_msg, odometry_msg, twist_msg
 from erforce_interfaces.node_support import (
-    ParamSpec,
+    NodeParams,
     ThrottledWarner,
     contract_publisher,
     contract_subscription,
-    declare_params,
     run_node,
 )
+from erforce_interfaces.param_schema import load_schema
 
-PARAMS = (
-    ParamSpec("team", "blue", "colour the plant's robots answer to: blue | yellow", read_only=True),
-    ParamSpec("robot_ids", [0], "the plant's robots (robot_<id>) this server drives; other ids get an error",
-              read_only=True),
-    ParamSpec("bind_address", "127.0.0.1", "address to listen on (0.0.0.0 for AIs on other hosts)", read_only=True),
-    ParamSpec("control_port", ssl_sim.SIM_CONTROL_PORT, "simulator control port", min=0, max=65535,
-              read_only=True),
-    ParamSpec("robot_control_port", 0, "robot control port; 0 = the protocol's default for the team "
-              "(10301 blue, 10302 yellow)", min=0, max=65535, read_only=True),
-    ParamSpec("kick_repeat_s", 0.05, "a kick command that stays set re-arms the kicker this often [s]",
-              min=0.001, max=1.0, read_only=True),
-)
+SCHEMA = load_schema("erforce_sim", "ssl_sim_server")
 
 
-def _config(values: dict[str, Any]) -> dict[str, Any]:
-    ssl_sim.check_team(values["team"])
-    ssl_sim.BridgeCommands(values["robot_ids"])  # refuses bad ids
-    return values
+def _check(c):
+    """Refuses robot ids the protocol cannot carry (the schema checked the rest); every parameter is read-only."""
+    ssl_sim.BridgeCommands(c.robot_ids)
+    return c
 
 
 class SslSimServerNode(Node):
     def __init__(self) -> None:
         super().__init__("ssl_sim_server")
         self._warn = ThrottledWarner(self)
-        v = self._values = declare_params(self, PARAMS, _config)
+        self._params = NodeParams(self, SCHEMA, _check)
+        v = self._values = self._params.values
         self._team = v["team"]
         self._ids = tuple(sorted(set(v["robot_ids"])))
         q = contract
