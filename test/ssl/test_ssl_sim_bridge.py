@@ -125,7 +125,7 @@ def test_bridge_speaks_grsim(ros_graph):
 def test_bridge_refuses_a_bad_configuration(ros_graph):
     node = ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={"team": "green"})
     assert node.wait_exit(timeout_s=20.0) == 1
-    assert "team must be blue or yellow" in node.output()
+    assert "invalid parameter team: must be one of blue, yellow" in node.output()
 
 
 def test_bridge_commands_zero_a_stale_velocity_and_hold_a_kick():
