@@ -9,9 +9,11 @@ import time
 from pathlib import Path
 
 import pytest
+from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 
 from erforce_interfaces import contract, ssl_sim
+from erforce_interfaces.conversions import odometry_msg
 from erforce_interfaces.ssl_proto import (
     ssl_simulation_control_pb2,
     ssl_simulation_robot_control_pb2,
@@ -163,3 +165,25 @@ def test_plan_robot_control_rotates_global_velocities_and_reports_each_unsupport
     assert actions[1] == ssl_sim.RobotAction(1, None, 0.0)  # the chip kick is refused, no move
     messages = sorted(e.message.split()[0] for e in errors)
     assert messages == ["chip", "robot", "this", "wheel"]  # one each: chip, unknown robot 9, dribbler, wheel
+
+
+def test_a_stale_pose_does_not_turn_global_velocities(ros_graph):
+    """The time rule on ground_truth/odom: a pose stamped before the newest one is dropped, so a global
+    velocity is still turned by the newest yaw (facing +x: field +x is the robot's forward)."""
+    robot_port, control_port = free_udp_ports(2)
+    server = ros_graph.start_node("erforce_sim", "ssl_sim_server", params={
+        "robot_ids": [0], "robot_control_port": robot_port, "control_port": control_port})
+    server.wait_for_output("ssl_sim_server: blue robots", timeout_s=20.0)
+    probe = ros_graph.probe
+    cmd = probe.subscribe(contract.CMD_VEL.for_robot(0), Twist, contract.CMD_VEL.qos)
+    odom = probe.wait_for_subscribers(contract.GROUND_TRUTH_ODOM.for_robot(0), Odometry, timeout_s=20.0,
+                                      qos=contract.GROUND_TRUTH_ODOM.qos)
+    odom.publish(odometry_msg(10.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    odom.publish(odometry_msg(9.0, (0.0, 0.0, math.pi / 2), (0.0, 0.0, 0.0)))  # from the past
+    server.wait_for_output("stamp 9.000000 s is before the newest accepted 10.000000 s", timeout_s=10.0)
+    msg = ssl_simulation_robot_control_pb2.RobotControl()
+    v = msg.robot_commands.add(id=0).move_command.global_velocity
+    v.vel_x, v.vel_y, v.vel_angular = 1.0, 0.0, 0.0
+    client = Client(robot_port, control_port)
+    drive(ros_graph, client, msg.SerializeToString(), lambda: cmd, 20.0, "cmd_vel from a global velocity")
+    assert (cmd[-1].linear.x, cmd[-1].linear.y) == pytest.approx((1.0, 0.0))

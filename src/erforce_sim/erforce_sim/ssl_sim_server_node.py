@@ -34,15 +34,23 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, Float64
 
 from erforce_interfaces import contract, ssl_sim
-from erforce_interfaces.conversions import ConversionError, odometry_from_msg, odometry_msg, twist_msg
+from erforce_interfaces.conversions import (
+    ConversionError,
+    odometry_from_msg,
+    odometry_msg,
+    stamp_to_nanoseconds,
+    twist_msg,
+)
 from erforce_interfaces.node_support import (
     NodeParams,
     ThrottledWarner,
+    check_stamp,
     contract_publisher,
     contract_subscription,
     run_node,
 )
 from erforce_interfaces.param_schema import load_schema
+from erforce_interfaces.stamps import StampFilter, StampVerdict
 
 SCHEMA = load_schema("erforce_sim", "ssl_sim_server")
 
@@ -64,6 +72,7 @@ class SslSimServerNode(Node):
         q = contract
         self._pubs: dict[int, dict[str, Any]] = {}
         self._pose: dict[int, tuple[float, float, float]] = {}
+        self._odom_stamps = {i: StampFilter() for i in self._ids}  # the time rule: a stale pose is not the newest
         self._contact: dict[int, bool] = dict.fromkeys(self._ids, False)
         self._last_kick: dict[int, float] = dict.fromkeys(self._ids, -math.inf)
         for i in self._ids:
@@ -107,6 +116,10 @@ class SslSimServerNode(Node):
             _, pose, _, _ = odometry_from_msg(msg)
         except ConversionError as exc:
             self._warn.warn(f"odom{robot}", f"robot_{robot}: rejected ground_truth/odom: {exc}")
+            return
+        verdict = check_stamp(self._odom_stamps[robot], stamp_to_nanoseconds(msg.header.stamp), self._warn,
+                              f"robot_{robot}/ground_truth/odom", self)
+        if verdict is StampVerdict.DROP:
             return
         self._pose[robot] = (float(pose[0]), float(pose[1]), float(pose[2]))
 
