@@ -29,6 +29,8 @@ MODULES = (
     ("lockstep over DDS", "bench_lockstep"),
     ("self-healing graph", "bench_respawn"),
     ("executors", "bench_executor"),
+    ("SSL-Vision in", "bench_ssl_vision"),
+    ("SSL logs", "bench_ssl_logs"),
 )
 
 

@@ -27,8 +27,9 @@ setup(
         "console_scripts": [
             "ball_predictor = erforce_ball_model.ball_predictor_node:main",
             "ball_figures = erforce_ball_model.figures:main",
-            "ball_fit = erforce_ball_model.identification:main",
+            "ball_fit = erforce_ball_model.ball_fit:main",
             "catcher = erforce_ball_model.catcher_node:main",
+            "ssl_vision_bridge = erforce_ball_model.ssl_vision_bridge:main",
         ],
     },
 )

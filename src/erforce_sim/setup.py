@@ -27,6 +27,8 @@ setup(
         "console_scripts": [
             "plant = erforce_sim.plant_node:main",
             "tune_motor = erforce_sim.closed_loop.tuning_experiment:main",
+            "ssl_sim_server = erforce_sim.ssl_sim_server_node:main",
+            "ssl_game_log = erforce_sim.closed_loop.ssl_game_log:main",
         ],
     },
 )

@@ -306,9 +306,12 @@ def test_bad_observations_are_dropped_with_a_warning_and_nothing_non_finite_is_p
     rig.ball(1.04, 1e9, 0.0, answered=False)
     rig.ball(1.05, 9.0, 0.0, answered=False)  # division_b: |x| <= 4.5 + 0.5
     rig.node.wait_for_output("rejected vision/ball outside the field", timeout_s=5.0)
-    rig.ball(0.50, 0.0, 0.0, answered=False)  # a lone stamp from the past (erforce_interfaces.stamps)
+    # Rejected frames do not keep the time line alive: after dead_s (1 s) of them the next stamp, even one
+    # from the past, would start a new line (erforce_interfaces.stamps). A good frame first.
+    rig.ball(1.05, 0.0, 0.0)
+    rig.ball(0.50, 0.0, 0.0, answered=False)  # a lone stamp from the past
     rig.node.wait_for_output(r"rejected vision/ball: stamp 5\.500000 s is before the newest accepted", timeout_s=5.0)
-    rig.ball(1.01, 0.0, 0.0, answered=False)  # repeated stamp
+    rig.ball(1.05, 0.0, 0.0, answered=False)  # repeated stamp: on the line, but not after the previous frame
     rig.ball(1.06, 0.0, 0.0)  # the node goes on where it was
     _, pose, velocity, _ = odometry_from_msg(rig.state[-1])
     assert np.allclose(pose[:2], 0.0, atol=1e-9) and np.allclose(velocity[:2], 0.0, atol=1e-9)
@@ -316,10 +319,11 @@ def test_bad_observations_are_dropped_with_a_warning_and_nothing_non_finite_is_p
     rig.robot(0, 0.95, math.nan, 0.0, 0.0, answered=False)
     rig.node.wait_for_output("robot_0: rejected vision_pose", timeout_s=5.0)
     rig.robot(0, 0.96, 20.0, 0.0, 0.0, answered=False)
+    rig.robot(0, 0.965, -1.0, 0.0, 0.0)  # the time line alive again, as for the ball
     rig.robot(0, 0.80, -1.0, 0.0, 0.0, answered=False)
     rig.robot(0, 0.97, -1.0, 0.0, 0.0)
     rig.settle()
-    assert len(rig.catch_time[0]) == 3 and rig.all_finite()
+    assert len(rig.catch_time[0]) == 4 and rig.all_finite()  # the ball frames at 1.00, 1.01, 1.05, 1.06
     assert rig.node.alive()
 
 

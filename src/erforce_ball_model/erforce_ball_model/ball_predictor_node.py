@@ -17,11 +17,12 @@ warning and answered with nothing. This module converts messages and publishes; 
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 
 from rclpy.node import Node
-from std_msgs.msg import Bool, String
+from std_msgs.msg import Bool, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import RobotLimits
@@ -37,6 +38,7 @@ from erforce_interfaces.conversions import (
     point_from_msg,
     pose2d_from_msg,
     seconds_to_stamp,
+    table_from_msg,
     table_msg,
 )
 from erforce_interfaces.executor import run_sampled
@@ -120,6 +122,8 @@ class BallPredictorNode(Node):
         for i in range(n):
             contract_subscription(self, q.VISION_POSE, lambda m, i=i: self._on_robot(i, m), q.VISION_POSE.for_robot(i),
                                   raw=True)
+        contract_subscription(self, q.VISION_FIELD, self._on_vision_field)
+        contract_subscription(self, q.VISION_BALL_MODEL, self._on_vision_ball_model)
         # Everything runs on vision stamps; ROS time only stamps the logs: no wake per /clock.
         self._clock_subs = sample_clock(self)
         model = predictor.model
@@ -143,6 +147,33 @@ class BallPredictorNode(Node):
                                                ",".join(contract.BALL_MODEL_PARAM_ROWS[:len(rows)])))
         except ConversionError as exc:
             self._warn.warn("model_params", f"model_params not published: {exc}")
+
+    # ------------------------------------------------------------- SSL geometry
+    def _on_vision_field(self, msg: Float64MultiArray) -> None:
+        if not self._values["use_vision_geometry"]:
+            return
+        try:
+            length, width, boundary, *_ = table_from_msg(msg, contract.VISION_FIELD_COLUMNS)[0].tolist()
+            field = FieldConfig(length, width, boundary)
+        except (ConversionError, ValueError, IndexError) as exc:
+            self._warn.warn("vision_field", f"rejected /vision/field: {exc}")
+            return
+        if field != self._predictor.config.field:
+            self._apply(dataclasses.replace(self._predictor.config, field=field))
+            self.get_logger().info(f"field from SSL geometry: {length:g} x {width:g} m")
+
+    def _on_vision_ball_model(self, msg: Float64MultiArray) -> None:
+        if not self._values["use_vision_geometry"]:
+            return
+        try:
+            model = BallModelParams(*table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS)[0].tolist())
+        except (ConversionError, ValueError, IndexError, TypeError) as exc:
+            self._warn.warn("vision_model", f"rejected /vision/ball_model: {exc}")
+            return
+        if model != self._predictor.model:
+            self._apply(dataclasses.replace(self._predictor.config, model=model))
+            self.get_logger().info(f"ball model from SSL geometry: a_slide {model.a_slide_mps2:g}, a_roll "
+                                   f"{model.a_roll_mps2:g}, c_switch {model.c_switch:g}")
 
     def _on_robot(self, robot: int, msg: bytes) -> None:
         try:

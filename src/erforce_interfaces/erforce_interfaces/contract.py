@@ -15,6 +15,20 @@ Conventions (REP 103 / REP 105):
 - Lockstep control messages are stamped with the simulation time of the sensor tick
   they answer, so the plant can pair commands with ticks (see erforce_sim.plant_node).
 - Nothing non-finite is ever published. "Never" in a catch time is ``CATCH_TIME_NEVER``.
+
+SSL-Vision (the ``ssl_vision_bridge`` node; erforce_ball_model.ssl_vision_bridge): the bridge
+takes the league's multicast packets and publishes on the same topics the plant's vision uses,
+so the rest of the graph cannot tell them apart:
+- millimetres become metres; the vision frame becomes ``field`` (turned by half a turn when our
+  team defends the goal at positive x, so that in ``field`` we always defend negative x);
+- ``t_capture`` becomes the stamp, on the ROS clock (erforce_interfaces.ssl_vision.VisionClock);
+- the ball the multi-camera tracker picks goes to ``/vision/ball``, one frame at a time with
+  increasing stamps; our team's robots to ``/robot_<id>/vision_pose``, the opponents' to
+  ``/opponent_<id>/vision_pose`` (``OPPONENT_NAMESPACE_PREFIX``);
+- with ``publish_detections``, every camera frame, all candidates included, to ``/vision/detections``
+  (a table);
+- geometry to ``/vision/field`` and the two-phase ball model to ``/vision/ball_model``, both
+  transient local: a node that starts later still gets the last one.
 """
 
 from __future__ import annotations
@@ -40,6 +54,7 @@ from erforce_interfaces.ament_index import find_package_share
 
 FIELD_FRAME = "field"
 ROBOT_NAMESPACE_PREFIX = "robot_"
+OPPONENT_NAMESPACE_PREFIX = "opponent_"
 BASE_LINK = "base_link"
 
 #: Published on ``catch_time`` when no catch is possible before the ball leaves the field.
@@ -89,6 +104,11 @@ QOS_CONTROL = QoSProfile(
 QOS_STATE = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
+)
+# Models and geometry: the last value reaches late joiners.
+QOS_LATCHED = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 # /clock: reliable publisher, compatible with rclpy's best-effort clock subscription.
 QOS_CLOCK = QoSProfile(
@@ -154,6 +174,15 @@ def robot_id_of_namespace(namespace: str) -> int | None:
     return int(digits)
 
 
+def opponent_topic(topic: Topic, robot_id: int) -> str:
+    """Absolute name of a per-robot topic for the opponents' robot ``robot_id`` (``/opponent_3/vision_pose``)."""
+    if not topic.per_robot:
+        raise ValueError(f"{topic.name} is a global topic")
+    if int(robot_id) != robot_id or robot_id < 0:
+        raise ValueError(f"robot id must be a non-negative integer, got {robot_id!r}")
+    return f"/{OPPONENT_NAMESPACE_PREFIX}{int(robot_id)}/{topic.name}"
+
+
 def robot_frame(robot_id: int) -> str:
     return f"{robot_namespace(robot_id)}/{BASE_LINK}"
 
@@ -181,7 +210,16 @@ GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant", "t
                           "true ball: pose [m], twist.linear [m/s], twist.angular = spin [rad/s], `field`")
 SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts", "plant",
                      "place the ball: pose.position [m], twist.linear [m/s], twist.angular spin [rad/s]")
-SIM_EVENTS = Topic("/sim/events", String, QOS_STATE, "plant", "tools, demo",
+VISION_DETECTIONS = Topic("/vision/detections", Float64MultiArray, QOS_SENSOR, "ssl_vision_bridge", "tools",
+                          "one message per SSL camera frame, a table with columns VISION_DETECTION_COLUMNS: every "
+                          "ball candidate and robot the camera saw, in `field` [m, rad]; age_s = receipt - capture "
+                          "on the ROS clock [s]")
+VISION_FIELD = Topic("/vision/field", Float64MultiArray, QOS_LATCHED, "ssl_vision_bridge", "ball_predictor, tools",
+                     "field size from SSL geometry, one row of VISION_FIELD_COLUMNS [m]")
+VISION_BALL_MODEL = Topic("/vision/ball_model", Float64MultiArray, QOS_LATCHED, "ssl_vision_bridge",
+                          "ball_predictor", "SSL geometry's two-phase ball model, one row [a_slide_mps2, "
+                          "a_roll_mps2, c_switch]")
+SIM_EVENTS = Topic("/sim/events", String, QOS_STATE, "plant, ssl_sim_bridge", "tools, demo",
                    "human-readable simulator events: kicks, contacts, lockstep stalls and resumes")
 
 # ------------------------------------------------------------- per-robot topics
@@ -199,8 +237,11 @@ MOTOR_STATUS = Topic("motor_status", Float64MultiArray, QOS_STATE, "motor_boards
                      "rows = wheels, columns = [avg_current_a, pwm_limit, saturated, limit_active]")
 KICK = Topic("kick", Float64, QOS_COMMAND, "catcher / AI / scenario", "plant",
              "kick now with this ball speed [m/s] if the ball is at the kicker")
-BALL_DETECTED = Topic("ball_detected", Bool, QOS_STATE, "plant (light barrier)", "catcher, tools",
-                      "light barrier across the dribbler: ball present")
+BALL_DETECTED = Topic("ball_detected", Bool, QOS_STATE, "plant (light barrier), ssl_sim_bridge", "catcher, tools",
+                      "light barrier across the dribbler: ball present (from an external simulator: its "
+                      "dribbler ball contact)")
+DRIBBLER = Topic("dribbler", Float64, QOS_COMMAND, "catcher / AI", "ssl_sim_bridge",
+                 "dribbler speed [rad/s], 0 = off; our plant has no dribbler, external simulators do")
 VISION_POSE = Topic("vision_pose", PoseStamped, QOS_SENSOR, "plant (vision)", "ball_predictor",
                     "robot pose in `field` [m, rad]; stamp = capture time; noisy, delayed, with dropouts")
 ODOM = Topic("odom", Odometry, QOS_STATE, "ball_predictor (tracker)", "catcher",
@@ -219,8 +260,8 @@ SIM_SET_STATE = Topic("sim/set_state", Odometry, QOS_COMMAND, "scenario scripts"
 
 TOPICS: tuple[Topic, ...] = (
     CLOCK, VISION_BALL, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
-    BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, SIM_SET_BALL, SIM_EVENTS,
-    CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED,
+    BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL, SIM_SET_BALL, SIM_EVENTS,
+    CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED, DRIBBLER,
     VISION_POSE, ODOM, CATCH_TIME, CATCH_POINT, GROUND_TRUTH_ODOM, GROUND_TRUTH_MOTORS, SIM_SET_STATE,
 )
 
@@ -228,6 +269,10 @@ MOTOR_STATUS_COLUMNS = ("avg_current_a", "pwm_limit", "saturated", "limit_active
 GROUND_TRUTH_MOTOR_COLUMNS = ("current_a", "winding_temperature_c", "wheel_speed_radps")
 BALL_MODEL_PARAM_LABELS = ("a_slide_mps2", "a_roll_mps2", "c_switch")
 BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
+VISION_DETECTION_COLUMNS = ("camera_id", "age_s", "kind", "robot_id", "x_m", "y_m", "theta_rad", "confidence")
+#: ``kind`` values of /vision/detections (theta_rad is 0 for balls and robots without orientation)
+VISION_DETECTION_KINDS = {"ball": 0.0, "ours": 1.0, "opponent": 2.0}
+VISION_FIELD_COLUMNS = ("length_m", "width_m", "boundary_m", "goal_width_m", "goal_depth_m")
 
 
 def topic_table_markdown() -> str:

@@ -188,8 +188,8 @@ def point_cdr(t_s: float, xy: Sequence[float], frame_id: str = FIELD_FRAME) -> b
 
 def pose2d_cdr(t_s: float, pose: Sequence[float], frame_id: str = FIELD_FRAME) -> bytes:
     """``pose2d_msg`` serialized, with the same checks."""
-    x, y, q = _finite("x", pose[0]), _finite("y", pose[1]), quaternion_from_yaw(pose[2])
-    return _stamped_cdr(t_s, frame_id, (x, y, 0.0, q.x, q.y, q.z, q.w))
+    x, y, half = _finite("x", pose[0]), _finite("y", pose[1]), 0.5 * _finite("yaw", pose[2], 1.0e6)
+    return _stamped_cdr(t_s, frame_id, (x, y, 0.0, 0.0, 0.0, math.sin(half), math.cos(half)))  # no Quaternion object
 
 
 # -------------------------------------------------------------------- twists

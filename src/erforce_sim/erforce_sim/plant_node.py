@@ -21,6 +21,7 @@ of several that arrived meanwhile on one topic, the newest.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -54,12 +55,16 @@ from erforce_interfaces.node_support import (
     run_node,
 )
 from erforce_interfaces.param_schema import load_schema
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.ssl_vision import BallModelFromVision
 from erforce_sim.closed_loop.runner import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
+from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras
 from erforce_sim.world import PhysicsParams
 
 SCHEMA = load_schema("erforce_sim", "plant")
 
+_GEOMETRY_PERIOD_S = 1.0  # SSL-Vision repeats its geometry; late joiners get it within this
 _MAX_TICKS_PER_PUMP = 50  # keep the executor responsive when nobody gates the ticks
 _RETRY_S = 0.05  # re-publish an unanswered tick (lost message, late joiner, a flood that pushed it out of a
 # reader's queue); duplicates are harmless
@@ -151,6 +156,7 @@ class PlantNode(Node):
         for scenario_sub in self._scenario_subs:
             sample_only(scenario_sub)
         self._peers: set[int] = set()
+        self._setup_ssl_vision()
         self._apply_params(self._params.config)
         self._params.on_change(self._apply_params)
         # Who answers is a graph query (slow): refreshed 5 times a second, not every tick.
@@ -332,8 +338,11 @@ class PlantNode(Node):
             self._last_clock_ns = t_ns
             self._clock_pub.publish(clock_cdr(t_ns))
         self._gate.open(t_ns, now, self._peers)
-        for frame in world.poll_vision():
+        frames = world.poll_vision()
+        for frame in frames:
             self._publish_vision(frame)
+        if self._ssl is not None:
+            self._publish_ssl_vision(frames)
         for i in range(self.setup.num_robots):
             detected = world.light_barrier(i)
             if detected != self._barrier_state[i] or t_ns % 100_000_000 == 0:
@@ -343,7 +352,49 @@ class PlantNode(Node):
             self._last_truth_ns = t_ns
             self._publish_truth(t_ns * 1e-9)
 
+    def _setup_ssl_vision(self) -> None:
+        v = self._values
+        self._ros_vision = v["vision_output"] in ("ros", "both")
+        self._ssl = None
+        if v["vision_output"] == "ros":
+            return
+        field = FieldConfig.preset(self.setup.field_preset)
+        # The geometry's two-phase model is the plant's own ball physics in the paper's terms (ball.py):
+        # decelerations mu g, and c_switch from the kick's backspin.
+        ball = self.world.ball_params
+        model = BallModelFromVision(-ball.a_slide_mps2, -ball.a_roll_mps2,
+                                    ball.switch_ratio(self.setup.physics.kick_spin_ratio))
+        self._ssl = SslCameraSplitter(
+            quadrant_cameras(field), field, model,
+            latency_s=self.setup.vision.latency_s, seed=self.setup.seed,
+        )
+        self._ssl_sock = open_multicast_sender(v["ssl_vision_interface"])
+        self._ssl_address = (v["ssl_vision_group"], v["ssl_vision_port"])
+        self._ssl_queue: list[tuple[float, bytes]] = []
+        self._ssl_geometry_t = -math.inf
+
+    def _send_ssl(self, data: bytes) -> None:
+        try:
+            self._ssl_sock.sendto(data, self._ssl_address)
+        except OSError as exc:  # a full socket buffer or no route: this frame is lost, as on a network
+            self._warn.warn("ssl_send", f"SSL-Vision packet not sent: {exc}")
+
+    def _publish_ssl_vision(self, frames) -> None:
+        t = self.world.t_s
+        if t - self._ssl_geometry_t >= _GEOMETRY_PERIOD_S:
+            self._ssl_geometry_t = t
+            self._send_ssl(self._ssl.geometry_packet())
+        for frame in frames:
+            self._ssl_queue.extend(self._ssl.packets(frame))
+        due = [p for p in self._ssl_queue if p[0] <= t + 1e-9]
+        if due:
+            self._ssl_queue = [p for p in self._ssl_queue if p[0] > t + 1e-9]
+            for _release, data in sorted(due, key=lambda p: p[0]):
+                self._send_ssl(data)
+
     def _publish_vision(self, frame) -> None:
+        if not self._ros_vision:
+            return
         # serialized, as the ball predictor takes them (conversions' codec)
         t = frame.t_capture_s
         for ball in frame.balls:

@@ -22,6 +22,9 @@ NODE_SCHEMAS = (
     ("erforce_motion", "motor_boards"),
     ("erforce_sim", "plant"),
     ("erforce_ball_model", "catcher"),
+    ("erforce_ball_model", "ssl_vision_bridge"),
+    ("erforce_interfaces", "ssl_sim_bridge"),
+    ("erforce_sim", "ssl_sim_server"),
 )
 
 

@@ -23,8 +23,11 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import socket
+import struct
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -43,12 +46,14 @@ from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     odometry_from_msg,
     odometry_msg,
+    seconds_to_stamp,
     stamp_to_nanoseconds,
     stamp_to_seconds,
     table_from_msg,
 )
 from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.ssl_vision import SSL_VISION_GROUP, SslDecodeError, decode_wrapper
 from erforce_interfaces.tools.testing import stop_process
 from erforce_sim.closed_loop.scenes import (
     KICKER,
@@ -185,6 +190,8 @@ class Director:
         self.kick = node.create_publisher(Float64, q.KICK.for_robot(KICKER), q.KICK.qos)
         self._last_catch_time: float | None = None
         self._catch_time_sent_ns: int | None = None
+        # When vision enters the graph elsewhere (--vision ssl): the time its frame was sent, by stamp
+        self.vision_sent_ns_of: Callable[[int], int | None] | None = None
 
     def _feed(self, topic: contract.Topic, listener: Callable, robot: int | None = None):
         """A sampled subscription to a contract topic (of ``robot``), with a deep queue."""
@@ -290,7 +297,11 @@ class Director:
             self.series.teammate_predictions[robot].append((stamp_to_seconds(msg.header.stamp), t))
 
     def _on_vision(self, msg, info) -> None:
-        self.series.vision_sent_ns[stamp_to_nanoseconds(msg.header.stamp)] = info["source_timestamp"]
+        stamp_ns = stamp_to_nanoseconds(msg.header.stamp)
+        sent_ns = info["source_timestamp"] if self.vision_sent_ns_of is None else self.vision_sent_ns_of(stamp_ns)
+        if sent_ns is None:
+            return
+        self.series.vision_sent_ns[stamp_ns] = sent_ns
         if len(self.series.vision_sent_ns) > 1000:
             self.series.vision_sent_ns.pop(next(iter(self.series.vision_sent_ns)))
 
@@ -428,6 +439,7 @@ class Demo:
         self.executor.add_node(self.node)
         self.launch: subprocess.Popen | None = None
         self.recorder: subprocess.Popen | None = None
+        self.ssl_arrivals: SslArrivals | None = None
         self.director = Director(
             self.node,
             self.robot,
@@ -451,6 +463,11 @@ class Demo:
             f"robot_side:={str(self.args.robot_side).lower()}",
             f"receivers:={self.args.receivers}",
         ]
+        if self.args.vision == "ssl":  # the plant sends SSL-Vision over loopback multicast to a free port
+            port = free_udp_port()
+            self.ssl_arrivals = SslArrivals(port)
+            self.director.vision_sent_ns_of = self.ssl_arrivals.arrival_ns
+            cmd += ["vision:=ssl", f"ssl_vision_port:={port}"]
         self.launch = spawn_in_session(cmd, self.out / "graph.log")
         # The recorder is a process of its own, like `ros2 bag record -a`.
         self.recorder = spawn_in_session(
@@ -525,6 +542,8 @@ class Demo:
             if self.recorder is not None:
                 stop_process(self.recorder, sigint_timeout_s=20.0)
             self.director.close()
+            if self.ssl_arrivals is not None:
+                self.ssl_arrivals.close()
             self.node.destroy_node()
             rclpy.try_shutdown()
         for r in results:
@@ -542,6 +561,68 @@ class Demo:
         print(f"report: {self.out}")
         # The exit code says whether the demo ran; the summary says how well robot_0 caught.
         return 0 if len(results) == len(default_scenes(self.field)[: self.args.scenes or None]) else 1
+
+
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)  # Linux; Python's socket module does not name it
+
+
+class SslArrivals:
+    """``--vision ssl``: when each SSL-Vision frame reached this host, by its stamp in the graph.
+
+    The kernel's receive timestamp (SO_TIMESTAMPNS, the system clock like the DDS source
+    timestamps) of the first camera datagram with a ball, keyed by ``t_capture`` (the bridge's
+    stamp in simulated time): the latency measured from there covers UDP, the bridge, DDS and
+    the predictor.
+    """
+
+    def __init__(self, port: int) -> None:
+        self._arrivals: dict[int, int] = {}
+        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self._sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+        self._sock.bind((SSL_VISION_GROUP, port))
+        membership = socket.inet_aton(SSL_VISION_GROUP) + socket.inet_aton("127.0.0.1")
+        self._sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, membership)
+        self._sock.settimeout(0.2)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="ssl_arrivals", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data, ancillary, _flags, _addr = self._sock.recvmsg(65536, 256)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            try:
+                frame = decode_wrapper(data).frame
+            except SslDecodeError:
+                continue
+            if frame is None or not frame.balls:
+                continue
+            for level, kind, payload in ancillary:
+                if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS:
+                    sec, nsec = struct.unpack("qq", payload[:16])
+                    key = stamp_to_nanoseconds(seconds_to_stamp(frame.t_capture_s))
+                    self._arrivals.setdefault(key, sec * 1_000_000_000 + nsec)
+                    if len(self._arrivals) > 5000:
+                        self._arrivals.pop(next(iter(self._arrivals)))
+
+    def arrival_ns(self, stamp_ns: int) -> int | None:
+        return self._arrivals.get(stamp_ns)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=1.0)
+        self._sock.close()
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -572,6 +653,13 @@ def main(argv: list[str] | None = None) -> int:
         default=True,
         help="start robot_0's velocity_controller and motor_boards; --no-robot-side when they run "
         "on the robot, another host (see test/two_hosts)",
+    )
+    parser.add_argument(
+        "--vision",
+        default="ros",
+        choices=("ros", "ssl"),
+        help="ssl: vision goes as SSL-Vision packets from 4 simulated cameras through ssl_vision_bridge "
+        "(loopback multicast) instead of the plant's vision topics",
     )
     args = parser.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

@@ -1,0 +1,323 @@
+"""ssl_vision_bridge: SSL-Vision multicast in, the contract's vision topics out (see contract's docstring).
+
+A receive thread waits on the socket and drains it in batches (non-blocking reads until the
+kernel queue is empty, at most ``max_batch`` per round): the kernel buffer (``receive_buffer_bytes``)
+absorbs bursts while a batch is processed, and a round that still finds more than
+``flood_batch`` datagrams keeps only each camera's newest frame (older ones are superseded) and
+says so. Every datagram goes through erforce_interfaces.ssl_vision (decoding, checks, vision
+clock) and erforce_ball_model.vision_tracking (the true ball, robot streams); the node converts
+and publishes. Bad datagrams are dropped with a throttled warning naming the problem.
+"""
+
+from __future__ import annotations
+
+import math
+import select
+import socket
+import struct
+import threading
+import time
+from collections import Counter, deque
+from dataclasses import dataclass
+from typing import Any
+
+from rclpy.node import Node
+
+from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.vision_tracking import VisionTracker
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import ConversionError, point_cdr, pose2d_cdr, table_cdr
+from erforce_interfaces.node_support import (
+    NodeParams,
+    ThrottledWarner,
+    contract_publisher,
+    run_node,
+)
+from erforce_interfaces.param_schema import load_schema
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.ssl_vision import (
+    ClockJump,
+    DecodedPacket,
+    SslDecodeError,
+    VisionClock,
+    decode_wrapper,
+)
+
+_KIND = contract.VISION_DETECTION_KINDS
+
+SCHEMA = load_schema("erforce_ball_model", "ssl_vision_bridge")
+
+
+@dataclass(frozen=True)
+class BridgeConfig:
+    ours: str
+    flip: bool
+    field: FieldConfig
+    time_source: str
+    clock_window_s: float
+    clock_jump_s: float
+    publish_detections: bool
+
+
+def build_config(c) -> BridgeConfig:
+    """The bridge configuration for a config object of the schema (raises ValueError when invalid)."""
+    for name in ("group", "interface"):
+        try:
+            socket.inet_aton(getattr(c, name))
+        except OSError:
+            raise ValueError(f"{name} must be an IPv4 address, got {getattr(c, name)!r}") from None
+    return BridgeConfig(
+        ours=c.team_color,
+        flip=c.defend_side == "positive_x",
+        field=FieldConfig.preset(c.field),
+        time_source=c.time_source,
+        clock_window_s=c.clock_window_s,
+        clock_jump_s=c.clock_jump_s,
+        publish_detections=c.publish_detections,
+    )
+
+
+def open_multicast_socket(group: str, port: int, interface: str, receive_buffer_bytes: int) -> socket.socket:
+    """A non-blocking UDP socket that has joined ``group`` on ``interface`` (several listeners may share it)."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer_bytes)
+    sock.bind((group, port))  # only this group's datagrams, not every packet to the port
+    membership = struct.pack("4s4s", socket.inet_aton(group), socket.inet_aton(interface))
+    sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, membership)
+    sock.setblocking(False)
+    return sock
+
+
+class SslVisionBridge(Node):
+    def __init__(self) -> None:
+        super().__init__("ssl_vision_bridge")
+        self._warn = ThrottledWarner(self)
+        self._config: BridgeConfig | None = None
+        self._lock = threading.Lock()  # parameter changes vs the receive thread
+        self._params = NodeParams(self, SCHEMA, build_config)
+        v = self._values = self._params.values
+        self._apply(self._params.built)
+        self.stats: Counter[str] = Counter()
+        self.cpu_ns: deque[int] = deque(maxlen=100_000)  # per datagram, since the last statistics line
+        self._stats_period_s = v["stats_period_s"]
+        self._stats_logged = time.monotonic()
+        self._n_ours = v["num_robots"]
+        q = contract
+        self._ball_pub = contract_publisher(self, q.VISION_BALL)
+        self._detections_pub = contract_publisher(self, q.VISION_DETECTIONS)
+        self._field_pub = contract_publisher(self, q.VISION_FIELD)
+        self._model_pub = contract_publisher(self, q.VISION_BALL_MODEL)
+        self._our_pubs = [
+            contract_publisher(self, q.VISION_POSE, q.VISION_POSE.for_robot(i)) for i in range(self._n_ours)
+        ]
+        self._their_pubs: dict[int, Any] = {}
+        self._last_geometry = None
+        try:
+            self._sock = open_multicast_socket(v["group"], v["port"], v["interface"], v["receive_buffer_bytes"])
+        except OSError as exc:  # no such interface, no multicast route, ...: one clear line at start
+            raise ValueError(f"cannot join {v['group']}:{v['port']} on {v['interface']}: {exc}") from None
+        self._max_batch, self._flood_batch = v["max_batch"], v["flood_batch"]
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._receive_loop, name="ssl_vision_rx", daemon=True)
+        self._thread.start()
+        self.get_logger().info(
+            f"ssl_vision_bridge: {v['group']}:{v['port']} on {v['interface']}, we are {v['team_color']} defending "
+            f"{v['defend_side']}, stamps: {v['time_source']}"
+        )
+        self._params.on_change(self._apply)
+
+    def _apply(self, config: BridgeConfig) -> None:
+        with self._lock:
+            old = self._config
+            self._config = config
+            if old is None or (config.clock_window_s, config.clock_jump_s) != (old.clock_window_s, old.clock_jump_s):
+                self._vision_clock = VisionClock(config.clock_window_s, config.clock_jump_s)
+            if old is None:
+                self._tracker = VisionTracker(config.field)
+            elif config.field != old.field and self._last_geometry is None:
+                self._tracker.field = config.field
+
+    # ------------------------------------------------------------------ receiving
+    def _receive_loop(self) -> None:
+        sock = self._sock
+        while not self._stop.is_set():
+            try:
+                ready, _, _ = select.select([sock], [], [], 0.2)
+            except (OSError, ValueError):
+                return  # socket closed at shutdown
+            if not ready:
+                continue
+            batch = []
+            try:
+                while len(batch) < self._max_batch:
+                    batch.append(sock.recv(65536))
+            except BlockingIOError:
+                pass
+            except OSError:
+                return
+            try:
+                self.handle_batch(batch, self.get_clock().now().nanoseconds * 1e-9)
+            except Exception as exc:  # never let the thread die: log, go on with the next batch
+                self._warn.warn("batch", f"ssl_vision_bridge: batch failed: {exc!r}")
+
+    def handle_batch(self, batch: list[bytes], t_receive_s: float) -> None:
+        """Decode, track and publish a batch of datagrams received at ``t_receive_s`` (ROS clock)."""
+        self.stats["datagrams"] += len(batch)
+        decoded: list[tuple[DecodedPacket, int]] = []  # with the CPU time of its decoding [ns]
+        for data in batch:
+            t0 = time.thread_time_ns()
+            try:
+                packet = decode_wrapper(data)
+            except SslDecodeError as exc:
+                self.stats["dropped_bad"] += 1
+                self._warn.warn(f"decode_{exc.kind}", f"ssl_vision_bridge: dropped a datagram: {exc}")
+                continue
+            if packet.problems:
+                self._warn.warn("detection", "ssl_vision_bridge: " + "; ".join(packet.problems))
+            decoded.append((packet, time.thread_time_ns() - t0))
+        if len(batch) > self._flood_batch:
+            decoded = self._newest_per_camera(decoded)
+        with self._lock:
+            for packet, cpu_ns in decoded:
+                t0 = time.thread_time_ns()
+                if packet.geometry is not None:
+                    self._on_geometry(packet.geometry)
+                if packet.frame is not None:
+                    self._on_frame(packet.frame, t_receive_s)
+                self.cpu_ns.append(cpu_ns + time.thread_time_ns() - t0)
+        self._log_stats()
+
+    def _log_stats(self) -> None:
+        now = time.monotonic()
+        if now - self._stats_logged < self._stats_period_s or not self.cpu_ns:
+            return
+        self._stats_logged = now
+        ms = sorted(self.cpu_ns)
+        self.cpu_ns.clear()
+        s = self.stats
+        self.get_logger().info(
+            f"ssl_vision_bridge: {s['datagrams']} datagrams, {s['frames']} camera frames; dropped: {s['dropped_bad']} "
+            f"bad, {s['dropped_clock']} clock, {s['superseded_in_flood']} superseded in floods; CPU per datagram "
+            f"median {ms[len(ms) // 2] * 1e-6:.3f} ms, p99 {ms[int(0.99 * (len(ms) - 1))] * 1e-6:.3f} ms"
+        )
+
+    def _newest_per_camera(self, packets: list[tuple[DecodedPacket, int]]) -> list[tuple[DecodedPacket, int]]:
+        newest: dict[int, tuple[DecodedPacket, int]] = {}
+        kept = []
+        for item in packets:
+            if item[0].frame is None:
+                kept.append(item)
+            else:
+                newest[item[0].frame.camera_id] = item
+        kept += newest.values()
+        superseded = len(packets) - len(kept)
+        self.stats["superseded_in_flood"] += superseded
+        self._warn.warn("flood", f"ssl_vision_bridge: packet flood ({len(packets)} datagrams in one read): "
+                                 f"{superseded} older camera frames skipped")
+        return kept
+
+    # ----------------------------------------------------------------- geometry
+    def _on_geometry(self, geometry) -> None:
+        key = (geometry.length_m, geometry.width_m, geometry.boundary_m, geometry.ball_model)
+        if key == self._last_geometry:
+            return
+        self._last_geometry = key
+        try:
+            field = FieldConfig(geometry.length_m, geometry.width_m, geometry.boundary_m)
+            self._field_pub.publish(table_cdr(
+                [[geometry.length_m, geometry.width_m, geometry.boundary_m, geometry.goal_width_m,
+                  geometry.goal_depth_m]], contract.VISION_FIELD_COLUMNS, "field"))
+            self._tracker.field = field
+            model = geometry.ball_model
+            if model is not None:
+                params = BallModelParams(model.a_slide_mps2, model.a_roll_mps2, model.c_switch)
+                self._model_pub.publish(table_cdr([[params.a_slide_mps2, params.a_roll_mps2, params.c_switch]],
+                                                  contract.BALL_MODEL_PARAM_LABELS, "model"))
+                self._tracker.params = params
+        except (ValueError, ConversionError) as exc:
+            self._warn.warn("geometry", f"ssl_vision_bridge: geometry not used: {exc}")
+            return
+        self.get_logger().info(
+            f"SSL geometry: field {geometry.length_m:g} x {geometry.width_m:g} m"
+            + ("" if model is None else f", ball model a_slide {model.a_slide_mps2:g}, a_roll "
+               f"{model.a_roll_mps2:g}, k_switch {model.c_switch:g}")
+        )
+
+    # ------------------------------------------------------------------- frames
+    def _on_frame(self, frame, t_receive_s: float) -> None:
+        cfg = self._config
+        if cfg.time_source == "vision":
+            t_s = frame.t_capture_s
+        else:
+            try:
+                t_s = self._vision_clock.to_receiver(frame.camera_id, frame.t_capture_s, frame.t_sent_s, t_receive_s)
+            except ClockJump as exc:
+                self.stats["dropped_clock"] += 1
+                self._warn.warn(f"clock{frame.camera_id}", f"ssl_vision_bridge: {exc}")
+                return
+        if not (math.isfinite(t_s) and t_s >= 0.0):
+            self.stats["dropped_clock"] += 1
+            self._warn.warn("stamp", f"ssl_vision_bridge: camera {frame.camera_id}: no valid stamp ({t_s!r})")
+            return
+        s = -1.0 if cfg.flip else 1.0
+        balls = [(s * b.x_m, s * b.y_m, b.confidence) for b in frame.balls]
+        robots = [
+            (r.team, r.robot_id, s * r.x_m, s * r.y_m,
+             None if r.theta_rad is None else (math.remainder(r.theta_rad + math.pi, 2 * math.pi) if cfg.flip
+                                              else r.theta_rad))
+            for r in frame.robots
+        ]
+        ball, poses = self._tracker.frame(frame.camera_id, t_s, balls, robots)
+        self.stats["frames"] += 1
+        try:
+            if ball is not None:
+                self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
+            for p in poses:
+                self._publish_pose(cfg, p)
+            if cfg.publish_detections:
+                self._publish_detections(cfg, frame.camera_id, t_receive_s - t_s, balls, robots)
+        except ConversionError as exc:
+            self._warn.warn("publish", f"ssl_vision_bridge: camera {frame.camera_id}: not published: {exc}")
+
+    def _publish_pose(self, cfg: BridgeConfig, p) -> None:
+        if p.theta_rad is None:
+            self._warn.warn("theta", f"ssl_vision_bridge: {p.team} robot {p.robot_id} without orientation: "
+                                     "no vision_pose")
+            return
+        data = pose2d_cdr(p.t_s, (p.x_m, p.y_m, p.theta_rad))
+        if p.team == cfg.ours:
+            if p.robot_id >= self._n_ours:
+                self._warn.warn("our_id", f"ssl_vision_bridge: our robot {p.robot_id} beyond num_robots "
+                                          f"{self._n_ours}: dropped")
+                return
+            self._our_pubs[p.robot_id].publish(data)
+        else:
+            pub = self._their_pubs.get(p.robot_id)
+            if pub is None:
+                pub = self._their_pubs[p.robot_id] = contract_publisher(
+                    self, contract.VISION_POSE, contract.opponent_topic(contract.VISION_POSE, p.robot_id))
+            pub.publish(data)
+
+    def _publish_detections(self, cfg, camera_id: int, age_s: float, balls, robots) -> None:
+        rows = [[camera_id, age_s, _KIND["ball"], -1.0, x, y, 0.0, c] for x, y, c in balls]
+        rows += [
+            [camera_id, age_s, _KIND["ours"] if team == cfg.ours else _KIND["opponent"], rid, x, y,
+             0.0 if theta is None else theta, 1.0]
+            for team, rid, x, y, theta in robots
+        ]
+        self._detections_pub.publish(table_cdr(rows, contract.VISION_DETECTION_COLUMNS, "detections"))
+
+    def destroy_node(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=1.0)
+        self._sock.close()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(SslVisionBridge, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

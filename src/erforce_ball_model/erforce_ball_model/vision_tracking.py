@@ -1,0 +1,276 @@
+"""Tracking from real vision: several overlapping cameras, false ball candidates, frames out of order.
+
+SSL-Vision sends one frame per camera, each camera at its own rate and latency. A frame may list
+several ball candidates (the ball, a reflection at the field edge, a second ball lying in the
+run-off area) or none, and the ball may be in two cameras' views at once. ``VisionTracker`` turns
+those frames into what the single-stream trackers of ``tracking`` take: one ball observation and
+one pose per robot at strictly increasing stamps.
+
+Ball: the candidate nearest to the tracked ball's prediction within a gate that grows with the
+time since it was last seen (``max_ball_speed_mps``) is the ball; it is fed to a
+``tracking.BallTracker``, which keeps v_shoot, kick and ricochet detection. Every candidate is
+also a hypothesis; one seen in ``confirm_frames`` frames within ``confirm_window_s``, each time
+where the previous sighting could have moved, and last seen within ``fresh_s`` is confirmed.
+Without a track the best confirmed one (inside the field lines first, then the highest summed
+confidence) starts it. A track moves to a confirmed hypothesis inside the field lines when its
+ball has not been seen for ``lost_after_s`` (a ball put down elsewhere) or while it follows a
+ball in the run-off area (the game ball is the one on the field); a ball in the run-off area
+takes over a track only after the track has been gone for the ball filter's ``max_gap_s``.
+
+Order: a camera frame whose capture time is not after the newest one used is older news; its
+ball is not used (another camera saw the ball later already) and neither are its robots that
+were seen later. Robots: per team and id, a sighting that the last pose cannot reach at
+``max_robot_speed_mps`` is held back; two consecutive held-back sightings that agree re-seed
+the robot (it was put down elsewhere). Duplicate ids in one frame: the nearest to the last pose.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.tracking import BallTracker, TrackerConfig, UpdateStatus
+from erforce_interfaces.robot_config import FieldConfig
+
+__all__ = ["BallObservation", "RobotObservation", "VisionTracker", "VisionTrackingConfig"]
+
+
+@dataclass(frozen=True)
+class VisionTrackingConfig:
+    ball_gate_m: float = 0.15  # gate radius around the prediction, plus the growth below
+    max_ball_speed_mps: float = 10.0  # the gate grows at this speed while the ball is unseen ...
+    max_ball_gate_m: float = 1.5  # ... up to this radius
+    # unseen this long while another confirmed candidate is: switch (3-4 frames; a scenario or a referee
+    # puts the ball down elsewhere, and every frame waited for is one the predictor lacks)
+    lost_after_s: float = 0.05
+    confirm_frames: int = 3  # sightings of a hypothesis ...
+    confirm_window_s: float = 0.06  # ... within this time (a flickering reflection is not a ball) ...
+    fresh_s: float = 0.05  # ... the last one this recent
+    hypothesis_timeout_s: float = 0.1  # a candidate not seen again this long is forgotten
+    min_confidence: float = 0.05
+    outside_margin_m: float = 0.5  # candidates farther outside the field lines are not on our field
+    max_robot_speed_mps: float = 6.0
+    robot_gate_m: float = 0.1
+    max_hypotheses: int = 16
+
+    def __post_init__(self) -> None:
+        for name, value in self.__dict__.items():
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name}: must be finite and >= 0, got {value!r}")
+        if self.confirm_frames < 1 or self.max_hypotheses < 1:
+            raise ValueError("confirm_frames and max_hypotheses must be >= 1")
+
+
+class BallObservation(NamedTuple):
+    t_s: float
+    x_m: float
+    y_m: float
+    camera_id: int
+    status: UpdateStatus
+
+
+class RobotObservation(NamedTuple):
+    team: str
+    robot_id: int
+    t_s: float
+    x_m: float
+    y_m: float
+    theta_rad: float | None
+    camera_id: int
+
+
+@dataclass
+class _Hypothesis:
+    t_s: float
+    x_m: float
+    y_m: float
+    hit_times: deque
+    confidence_sum: float
+    inside: bool
+
+
+@dataclass
+class _RobotTrack:
+    t_s: float
+    x_m: float
+    y_m: float
+    held: tuple[float, float, float] | None = None
+
+
+class VisionTracker:
+    """Multi-camera frames in; ball observations and robot poses out (see the module docstring).
+
+    ``frame(camera_id, t_s, balls, robots)`` takes one camera frame with stamps already on the
+    receiver's clock: ``balls`` as (x_m, y_m, confidence), ``robots`` as (team, id, x_m, y_m,
+    theta_rad or None). It returns the ball observation to use (or None) and the robot poses to use.
+    """
+
+    def __init__(self, field: FieldConfig, params: BallModelParams | None = None,
+                 tracker_config: TrackerConfig | None = None, config: VisionTrackingConfig | None = None) -> None:
+        self.field = field
+        self.config = config or VisionTrackingConfig()
+        self._params = params or BallModelParams()
+        self._tracker_config = tracker_config or TrackerConfig()
+        self.ball = BallTracker(self._params, self._tracker_config)
+        self._t_ball_s: float | None = None  # stamp of the newest ball observation used
+        self._last_used: tuple[float, float, float] | None = None  # (t_s, x_m, y_m) of it
+        self._hypotheses: list[_Hypothesis] = []
+        self._robots: dict[tuple[str, int], _RobotTrack] = {}
+        # counters for the node's statistics and the tests
+        self.frames = 0
+        self.late_balls = 0
+        self.false_candidates = 0
+        self.switches = 0
+        self.kicks = 0
+
+    @property
+    def params(self) -> BallModelParams:
+        return self._params
+
+    @params.setter
+    def params(self, value: BallModelParams) -> None:
+        self._params = value
+        self.ball.params = value
+
+    # ------------------------------------------------------------------------------ ball
+    def frame(
+        self,
+        camera_id: int,
+        t_s: float,
+        balls: Iterable[tuple[float, float, float]],
+        robots: Iterable[tuple[str, int, float, float, float | None]] = (),
+    ) -> tuple[BallObservation | None, list[RobotObservation]]:
+        if not math.isfinite(t_s):
+            raise ValueError(f"frame stamp {t_s!r} is not finite")
+        self.frames += 1
+        cfg = self.config
+        margin = cfg.outside_margin_m
+        candidates = [
+            (x, y, c) for x, y, c in balls
+            if c >= cfg.min_confidence and math.isfinite(x) and math.isfinite(y) and self.field.contains(x, y, margin)
+        ]
+        self._update_hypotheses(t_s, candidates)
+        ball = None
+        if self._t_ball_s is not None and t_s <= self._t_ball_s:
+            if candidates:
+                self.late_balls += 1
+        elif candidates:
+            ball = self._pick_ball(camera_id, t_s, candidates)
+        return ball, self._robot_poses(camera_id, t_s, robots)
+
+    def _gate_m(self, t_s: float, t_ref_s: float) -> float:
+        cfg = self.config
+        return min(cfg.ball_gate_m + cfg.max_ball_speed_mps * max(t_s - t_ref_s, 0.0), cfg.max_ball_gate_m)
+
+    def _pick_ball(self, camera_id: int, t_s: float, candidates: list) -> BallObservation | None:
+        chosen = None
+        if self._t_ball_s is not None and self.ball.initialized:
+            # Two gates: around the filter's prediction (constant velocity is close enough: the
+            # deceleration moves the ball < 2 cm in 0.1 s), and around the last observation used,
+            # which the filter may hold back (a kick: the filter still has the ball at rest).
+            x, y, vx, vy = self.ball.kf.state
+            dt = t_s - self.ball.t_s
+            gates = [(x + vx * dt, y + vy * dt, self._gate_m(t_s, self.ball.t_s))]
+            last = self._last_used
+            if last is not None and last[0] > self.ball.t_s:
+                gates.append((last[1], last[2], self._gate_m(t_s, last[0])))
+            best = math.inf
+            for cx, cy, _c in candidates:
+                for px, py, radius in gates:
+                    d = math.hypot(cx - px, cy - py)
+                    if d <= radius and d < best:
+                        chosen, best = (cx, cy), d
+            self.false_candidates += len(candidates) - (chosen is not None)
+            other = None
+            unseen_s = t_s - self._t_ball_s
+            if chosen is None and unseen_s >= self.config.lost_after_s:
+                # long gone (a filter restart's gap): any confirmed ball, also one in the run-off area
+                other = self._best_confirmed(t_s, inside_only=unseen_s < self._tracker_config.max_gap_s)
+            elif chosen is not None and not self.field.contains(*chosen):
+                # tracking a ball in the run-off area: a confirmed one on the field is the game ball
+                other = self._best_confirmed(t_s, inside_only=True)
+                if other is not None and math.dist(other, chosen) <= self.config.ball_gate_m:
+                    other = None
+            if other is not None:
+                chosen = other
+                self.switches += 1
+                self.ball = BallTracker(self._params, self._tracker_config)  # a new ball: no history
+        else:
+            chosen = self._best_confirmed(t_s)
+            if chosen is not None:
+                self.false_candidates += len(candidates) - 1
+        if chosen is None:
+            return None
+        status = self.ball.update(t_s, chosen[0], chosen[1])
+        if status in (UpdateStatus.REJECTED_TIME, UpdateStatus.REJECTED_INVALID):
+            return None
+        self.kicks += int(self.ball.kicked)
+        self._t_ball_s = t_s
+        self._last_used = (t_s, chosen[0], chosen[1])
+        return BallObservation(t_s, chosen[0], chosen[1], camera_id, status)
+
+    def _update_hypotheses(self, t_s: float, candidates: Sequence[tuple[float, float, float]]) -> None:
+        cfg = self.config
+        hyps = [h for h in self._hypotheses if abs(t_s - h.t_s) <= cfg.hypothesis_timeout_s]
+        for x, y, c in candidates:
+            best, best_d = None, math.inf
+            for h in hyps:
+                reach = cfg.ball_gate_m + cfg.max_ball_speed_mps * abs(t_s - h.t_s)
+                d = math.hypot(x - h.x_m, y - h.y_m)
+                if d <= reach and d < best_d:
+                    best, best_d = h, d
+            inside = self.field.contains(x, y)
+            if best is None:
+                if len(hyps) < cfg.max_hypotheses:
+                    hyps.append(_Hypothesis(t_s, x, y, deque([t_s], maxlen=cfg.confirm_frames), c, inside))
+            elif t_s > best.t_s:  # a new sighting (not the same instant from an overlapping camera)
+                best.t_s, best.x_m, best.y_m, best.inside = t_s, x, y, inside
+                best.hit_times.append(t_s)
+                best.confidence_sum += c
+        self._hypotheses = hyps
+
+    def _best_confirmed(self, t_s: float, inside_only: bool = False) -> tuple[float, float] | None:
+        cfg = self.config
+        confirmed = [
+            h for h in self._hypotheses
+            if len(h.hit_times) == cfg.confirm_frames and h.hit_times[-1] - h.hit_times[0] <= cfg.confirm_window_s
+            and t_s - h.hit_times[-1] <= cfg.fresh_s and (h.inside or not inside_only)
+        ]
+        if not confirmed:
+            return None
+        best = max(confirmed, key=lambda h: (h.inside, h.confidence_sum))
+        return best.x_m, best.y_m
+
+    # ---------------------------------------------------------------------------- robots
+    def _robot_poses(self, camera_id: int, t_s: float, robots) -> list[RobotObservation]:
+        cfg = self.config
+        # One sighting per robot: a duplicate id in one frame counts as the one nearer the last pose.
+        chosen: dict[tuple[str, int], tuple] = {}
+        for sighting in robots:
+            key = (sighting[0], sighting[1])
+            other = chosen.get(key)
+            track = self._robots.get(key)
+            if other is None or (track is not None and math.hypot(sighting[2] - track.x_m, sighting[3] - track.y_m)
+                                 < math.hypot(other[2] - track.x_m, other[3] - track.y_m)):
+                chosen[key] = sighting
+        out = []
+        for key, (team, robot_id, x, y, theta) in chosen.items():
+            track = self._robots.get(key)
+            if track is not None:
+                if t_s <= track.t_s:
+                    continue  # seen later already (another camera)
+                reach = cfg.robot_gate_m + cfg.max_robot_speed_mps * (t_s - track.t_s)
+                if math.hypot(x - track.x_m, y - track.y_m) > reach:
+                    held = track.held
+                    if held is None or math.hypot(x - held[1], y - held[2]) > (
+                        cfg.robot_gate_m + cfg.max_robot_speed_mps * (t_s - held[0])
+                    ):
+                        track.held = (t_s, x, y)  # a jump: wait for a second sighting there
+                        continue
+            self._robots[key] = _RobotTrack(t_s, x, y)
+            out.append(RobotObservation(team, robot_id, t_s, x, y, theta, camera_id))
+        return out

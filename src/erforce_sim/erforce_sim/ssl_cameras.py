@@ -1,0 +1,108 @@
+"""The plant's vision as SSL-Vision: the world's vision frames split over simulated cameras.
+
+Each ``SimCamera`` sees a rectangle of the field (quadrants overlapping by ``overlap_m`` for the
+default four) and sends its part of every world frame as an ``SSL_WrapperPacket`` with its own
+extra latency and its own noise; the ball in an overlap is in two cameras' frames. ``t_capture``
+is the world time of the image (shifted by ``clock_offset_s``, the vision host's clock) and
+``t_sent`` the time the packet leaves. Geometry (field size, camera positions, the ball model)
+goes out as its own packet every ``geometry_period_s``, as SSL-Vision does.
+"""
+
+from __future__ import annotations
+
+import random
+import socket
+from dataclasses import dataclass
+
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.ssl_vision import (
+    BallCandidate,
+    BallModelFromVision,
+    CameraFrame,
+    CameraPose,
+    FieldGeometry,
+    RobotSighting,
+    encode_frame,
+    encode_geometry,
+)
+from erforce_sim.sensors import VisionFrame
+
+CAMERA_HEIGHT_M = 4.0
+
+
+@dataclass(frozen=True)
+class SimCamera:
+    camera_id: int
+    x_range_m: tuple[float, float]
+    y_range_m: tuple[float, float]
+    extra_latency_s: float
+
+    def sees(self, x: float, y: float) -> bool:
+        return self.x_range_m[0] <= x <= self.x_range_m[1] and self.y_range_m[0] <= y <= self.y_range_m[1]
+
+
+def quadrant_cameras(field: FieldConfig, overlap_m: float = 0.5,
+                     extra_latencies_s: tuple[float, ...] = (0.0, 0.002, 0.001, 0.003)) -> tuple[SimCamera, ...]:
+    """Four cameras, one per quadrant of the area inside the walls, overlapping by ``overlap_m`` across the axes."""
+    hx, hy, h = field.wall_half_length_m, field.wall_half_width_m, 0.5 * overlap_m
+    xs = ((-hx, h), (-h, hx))
+    ys = ((-h, hy), (-hy, h))
+    cams = []
+    for i, (yr, xr) in enumerate((y, x) for y in ys for x in xs):
+        cams.append(SimCamera(i, xr, yr, extra_latencies_s[i % len(extra_latencies_s)]))
+    return tuple(cams)
+
+
+class SslCameraSplitter:
+    """World vision frames -> per-camera SSL datagrams with release times (world clock)."""
+
+    def __init__(self, cameras: tuple[SimCamera, ...], field: FieldConfig, ball_model: BallModelFromVision | None,
+                 our_team: str = "blue", latency_s: float = 0.015, camera_noise_m: float = 0.0005,
+                 clock_offset_s: float = 0.0, seed: int = 0) -> None:
+        self.cameras = cameras
+        self.latency_s = latency_s
+        self.camera_noise_m = camera_noise_m
+        self.clock_offset_s = clock_offset_s
+        self.our_team = our_team
+        self._rng = random.Random(seed)
+        self._frame_numbers = [0] * len(cameras)
+        self.geometry = FieldGeometry(
+            length_m=field.length_m, width_m=field.width_m, boundary_m=field.boundary_m,
+            goal_width_m=1.0 if field.length_m < 10.0 else 1.8, goal_depth_m=0.18, ball_model=ball_model,
+            cameras=tuple(CameraPose(c.camera_id, 0.5 * sum(c.x_range_m), 0.5 * sum(c.y_range_m), CAMERA_HEIGHT_M)
+                          for c in cameras),
+        )
+
+    def geometry_packet(self) -> bytes:
+        return encode_geometry(self.geometry)
+
+    def packets(self, frame: VisionFrame) -> list[tuple[float, bytes]]:
+        """(release time, datagram) per camera for one world frame; the world frame's latency is the base."""
+        out = []
+        gauss, noise = self._rng.gauss, self.camera_noise_m
+        t_capture = frame.t_capture_s + self.clock_offset_s
+        for k, cam in enumerate(self.cameras):
+            balls = tuple(
+                BallCandidate(b.x + gauss(0.0, noise), b.y + gauss(0.0, noise), 0.9)
+                for b in frame.balls if cam.sees(b.x, b.y)
+            )
+            robots = tuple(
+                RobotSighting(self.our_team, r.robot_id, r.x + gauss(0.0, noise), r.y + gauss(0.0, noise), r.theta, 1.0)
+                for r in frame.robots if cam.sees(r.x, r.y)
+            )
+            self._frame_numbers[k] += 1
+            release = frame.t_capture_s + self.latency_s + cam.extra_latency_s
+            packet = CameraFrame(cam.camera_id, self._frame_numbers[k], t_capture,
+                                 release + self.clock_offset_s, balls, robots)
+            out.append((release, encode_frame(packet)))
+        return out
+
+
+def open_multicast_sender(interface: str = "127.0.0.1", ttl: int = 0) -> socket.socket:
+    """A UDP socket sending multicast out of ``interface`` only; TTL 0 keeps it on this host."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
+    sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF, socket.inet_aton(interface))
+    sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, ttl)
+    sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
+    sock.setblocking(False)
+    return sock

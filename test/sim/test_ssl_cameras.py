@@ -1,0 +1,50 @@
+"""The plant's SSL-Vision cameras: which camera sees what, stamps and latencies, geometry."""
+
+import pytest
+
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.ssl_vision import BallModelFromVision, decode_wrapper
+from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame
+from erforce_sim.ssl_cameras import SslCameraSplitter, quadrant_cameras
+
+FIELD = FieldConfig.preset("division_b")  # 9 x 6 m, walls 0.3 m outside the lines
+
+
+def test_four_quadrants_overlap_across_the_axes_and_cover_up_to_the_walls():
+    cams = quadrant_cameras(FIELD, overlap_m=0.5)
+    assert [c.camera_id for c in cams] == [0, 1, 2, 3]
+    assert sum(c.sees(0.0, 0.0) for c in cams) == 4  # the centre: all four
+    assert sum(c.sees(0.2, 2.0) for c in cams) == 2  # within 0.25 m of x = 0: two
+    assert sum(c.sees(0.3, 2.0) for c in cams) == 1
+    for corner in ((4.8, 3.3), (-4.8, 3.3), (4.8, -3.3), (-4.8, -3.3)):
+        assert sum(c.sees(*corner) for c in cams) == 1
+    assert not any(c.sees(4.81, 0.0) for c in cams)
+
+
+def test_each_camera_sends_what_it_sees_with_its_own_latency():
+    cams = quadrant_cameras(FIELD, extra_latencies_s=(0.0, 0.002, 0.001, 0.003))
+    splitter = SslCameraSplitter(cams, FIELD, BallModelFromVision(-2.5, -0.3, 0.6), latency_s=0.015,
+                                 camera_noise_m=0.0, clock_offset_s=1000.0)
+    frame = VisionFrame(1, 2.0, 2.015, (BallDetection(0.1, 1.0),),
+                        (RobotDetection("blue", 0, -2.0, 1.0, 0.5), RobotDetection("blue", 1, 2.0, -1.0, -0.5)))
+    packets = splitter.packets(frame)
+    assert [release for release, _ in packets] == pytest.approx([2.015, 2.017, 2.016, 2.018])
+    decoded = [decode_wrapper(data).frame for _, data in packets]
+    for k, f in enumerate(decoded):
+        assert f.camera_id == k and f.frame_number == 1
+        assert f.t_capture_s == 1002.0 and f.t_sent_s == pytest.approx(1000.0 + packets[k][0])
+    # the ball at x = 0.1, y = 1: in the upper two cameras (0: x < 0.25, 1: x > -0.25); robots one each
+    assert [len(f.balls) for f in decoded] == [1, 1, 0, 0]
+    assert decoded[0].balls[0].x_m == pytest.approx(0.1) and decoded[0].balls[0].y_m == pytest.approx(1.0)
+    assert [[r.robot_id for r in f.robots] for f in decoded] == [[0], [], [], [1]]
+    assert decoded[0].robots[0].theta_rad == pytest.approx(0.5)
+
+
+def test_the_geometry_packet_carries_the_field_cameras_and_ball_model():
+    cams = quadrant_cameras(FIELD)
+    splitter = SslCameraSplitter(cams, FIELD, BallModelFromVision(-2.5, -0.3, 0.6))
+    geometry = decode_wrapper(splitter.geometry_packet()).geometry
+    assert (geometry.length_m, geometry.width_m, geometry.boundary_m) == (9.0, 6.0, 0.3)
+    assert geometry.ball_model == BallModelFromVision(-2.5, -0.3, 0.6)
+    assert [c.camera_id for c in geometry.cameras] == [0, 1, 2, 3]
+    assert all(c.z_m == 4.0 for c in geometry.cameras)

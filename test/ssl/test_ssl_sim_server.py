@@ -1,0 +1,189 @@
+"""ssl_sim_server: the plant driven over UDP with the ssl-simulation-protocol, as a team's AI would drive
+ER-Force's simulator. Local and global velocities move the simulated robot through its velocity
+controller and motor boards; teleports place ball and robot; unsupported features and garbage are
+answered with errors."""
+
+import math
+import socket
+import time
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+
+from erforce_interfaces import contract, ssl_sim
+from erforce_interfaces.conversions import odometry_msg
+from erforce_interfaces.ssl_proto import (
+    ssl_simulation_control_pb2,
+    ssl_simulation_robot_control_pb2,
+    ssl_simulation_robot_feedback_pb2,
+)
+
+pytestmark = pytest.mark.integration
+
+LAUNCH = Path(__file__).resolve().parents[2] / "src/erforce_sim/launch/sim_one_robot.launch.yaml"
+
+
+def free_udp_ports(n: int) -> list[int]:
+    socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(n)]
+    for s in socks:
+        s.bind(("127.0.0.1", 0))
+    ports = [s.getsockname()[1] for s in socks]
+    for s in socks:
+        s.close()
+    return ports
+
+
+class Client:
+    """A team's AI, speaking only the protocol."""
+
+    def __init__(self, robot_port: int, control_port: int) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.settimeout(0.05)
+        self.robot_addr = ("127.0.0.1", robot_port)
+        self.control_addr = ("127.0.0.1", control_port)
+
+    def answers(self) -> list[bytes]:
+        out = []
+        while True:
+            try:
+                out.append(self.sock.recv(65536))
+            except TimeoutError:
+                return out
+
+    def local(self, robot_id: int, forward: float) -> bytes:
+        msg = ssl_simulation_robot_control_pb2.RobotControl()
+        v = msg.robot_commands.add(id=robot_id).move_command.local_velocity
+        v.forward, v.left, v.angular = forward, 0.0, 0.0
+        return msg.SerializeToString()
+
+    def ask(self, data: bytes, addr, timeout_s: float = 5.0) -> bytes:
+        deadline = time.monotonic() + timeout_s
+        self.answers()  # drop older answers
+        self.sock.sendto(data, addr)
+        while time.monotonic() < deadline:
+            try:
+                return self.sock.recv(65536)
+            except TimeoutError:
+                continue
+        raise TimeoutError("no answer from ssl_sim_server")
+
+
+def drive(graph, client, data, condition, timeout_s, what):
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise TimeoutError(what)
+        client.sock.sendto(data, client.robot_addr)
+        graph.probe.spin_for(0.05)
+
+
+def test_a_protocol_client_drives_and_places_our_plant(ros_graph):
+    robot_port, control_port = free_udp_ports(2)
+    ros_graph.start_launch(LAUNCH)
+    server = ros_graph.start_node("erforce_sim", "ssl_sim_server", params={
+        "team": "yellow", "robot_ids": [0], "robot_control_port": robot_port, "control_port": control_port})
+    server.wait_for_output("ssl_sim_server: yellow robots", timeout_s=20.0)
+    probe = ros_graph.probe
+    truth = probe.subscribe(contract.GROUND_TRUTH_ODOM.for_robot(0), Odometry)
+    ball = probe.subscribe(contract.GROUND_TRUTH_BALL.name, Odometry)
+    client = Client(robot_port, control_port)
+    probe.spin_until(lambda: truth, 30.0, "the plant's ground truth")
+
+    # local velocity -> cmd_vel -> velocity controller -> motor boards -> plant: the robot drives forward
+    drive(ros_graph, client, client.local(0, 1.0), lambda: truth[-1].pose.pose.position.x > 0.3, 30.0,
+          "robot_0 driving forward")
+    assert abs(truth[-1].pose.pose.position.y) < 0.05
+    fb = ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString(
+        client.ask(client.local(0, 0.0), client.robot_addr))
+    assert [f.id for f in fb.feedback] == [0] and fb.feedback[0].HasField("dribbler_ball_contact")
+    assert not fb.errors
+
+    # teleport the robot to face +y, then a global velocity along +x moves it sideways in its own frame
+    reply = client.ask(ssl_sim.encode_teleport(None, [("yellow", 0, -1.0, 0.0, math.pi / 2)]), client.control_addr)
+    assert ssl_sim.decode_simulator_response(reply) == ()
+
+    def settled_at_teleport() -> bool:
+        m = truth[-1]
+        return abs(m.pose.pose.position.x + 1.0) < 0.05 and math.hypot(m.twist.twist.linear.x,
+                                                                       m.twist.twist.linear.y) < 0.02
+
+    probe.spin_until(settled_at_teleport, 20.0, "the robot teleported and at rest")
+    x0, y0 = truth[-1].pose.pose.position.x, truth[-1].pose.pose.position.y
+    glob = ssl_simulation_robot_control_pb2.RobotControl()
+    g = glob.robot_commands.add(id=0).move_command.global_velocity
+    g.vel_x, g.vel_y, g.vel_angular = 1.0, 0.0, 0.0
+    drive(ros_graph, client, glob.SerializeToString(), lambda: truth[-1].pose.pose.position.x > x0 + 0.3, 30.0,
+          "robot_0 driving along field x")
+    assert abs(truth[-1].pose.pose.position.y - y0) < 0.05
+
+    # the ball teleport reaches the plant
+    assert ssl_sim.decode_simulator_response(
+        client.ask(ssl_sim.encode_teleport((2.0, -1.0, 0.0, 0.0)), client.control_addr)) == ()
+    probe.spin_until(lambda: ball and abs(ball[-1].pose.pose.position.x - 2.0) < 1e-3
+                     and abs(ball[-1].pose.pose.position.y + 1.0) < 1e-3, 10.0, "the ball teleport")
+
+    # unsupported features and unknown robots get errors; garbage gets ERFORCE_INVALID; the server goes on
+    bad = ssl_simulation_robot_control_pb2.RobotControl()
+    w = bad.robot_commands.add(id=0).move_command.wheel_velocity
+    w.front_right = w.back_right = w.back_left = w.front_left = 1.0
+    bad.robot_commands.add(id=7)
+    fb = ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString(client.ask(bad.SerializeToString(),
+                                                                                     client.robot_addr))
+    codes = sorted(e.code for e in fb.errors)
+    assert codes == [ssl_sim.ERROR_UNKNOWN_ROBOT, ssl_sim.ERROR_UNSUPPORTED]
+    assert any(e.unsupported_capability == 2 for e in fb.errors)  # MOVE_WHEEL_VELOCITY
+    fb = ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString(client.ask(b"\xff\xfe", client.robot_addr))
+    assert [e.code for e in fb.errors] == [ssl_sim.ERROR_INVALID]
+    # a flood of garbage: every datagram is answered with an error, and a good command is served after it
+    for _ in range(2000):
+        client.sock.sendto(b"\xff\xfe flood", client.robot_addr)
+
+    def served() -> bool:
+        client.sock.sendto(client.local(0, 0.0), client.robot_addr)
+        return any(not r.errors and r.feedback for r in map(
+            ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString, client.answers()))
+
+    probe.spin_until(served, 30.0, "a good command answered after the flood")
+    speed = ssl_simulation_control_pb2.SimulatorCommand()
+    speed.control.simulation_speed = 2.0
+    errors = ssl_sim.decode_simulator_response(client.ask(speed.SerializeToString(), client.control_addr))
+    assert len(errors) == 1 and "real_time_factor" in errors[0]
+    assert server.alive()
+
+
+def test_plan_robot_control_rotates_global_velocities_and_reports_each_unsupported_feature_once():
+    reqs = [ssl_sim.MoveRequest(0, "global", (1.0, 0.0, 0.5), 0.0, 0.0, 0.0),
+            ssl_sim.MoveRequest(1, "wheel", (1.0, 1.0, 1.0, 1.0), 3.0, 30.0, 100.0),
+            ssl_sim.MoveRequest(2, "wheel", (1.0, 1.0, 1.0, 1.0), 0.0, 0.0, 0.0),
+            ssl_sim.MoveRequest(9, "local", (1.0, 0.0, 0.0), 0.0, 0.0, 0.0)]
+    actions, errors = ssl_sim.plan_robot_control(reqs, [0, 1, 2], {0: math.pi / 2, 1: 0.0, 2: 0.0}.get)
+    a0 = actions[0]
+    assert a0.twist == pytest.approx((0.0, -1.0, 0.5))  # +x in the field is the robot's right when it faces +y
+    assert actions[1] == ssl_sim.RobotAction(1, None, 0.0)  # the chip kick is refused, no move
+    messages = sorted(e.message.split()[0] for e in errors)
+    assert messages == ["chip", "robot", "this", "wheel"]  # one each: chip, unknown robot 9, dribbler, wheel
+
+
+def test_a_stale_pose_does_not_turn_global_velocities(ros_graph):
+    """The time rule on ground_truth/odom: a pose stamped before the newest one is dropped, so a global
+    velocity is still turned by the newest yaw (facing +x: field +x is the robot's forward)."""
+    robot_port, control_port = free_udp_ports(2)
+    server = ros_graph.start_node("erforce_sim", "ssl_sim_server", params={
+        "robot_ids": [0], "robot_control_port": robot_port, "control_port": control_port})
+    server.wait_for_output("ssl_sim_server: blue robots", timeout_s=20.0)
+    probe = ros_graph.probe
+    cmd = probe.subscribe(contract.CMD_VEL.for_robot(0), Twist, contract.CMD_VEL.qos)
+    odom = probe.wait_for_subscribers(contract.GROUND_TRUTH_ODOM.for_robot(0), Odometry, timeout_s=20.0,
+                                      qos=contract.GROUND_TRUTH_ODOM.qos)
+    odom.publish(odometry_msg(10.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    odom.publish(odometry_msg(9.0, (0.0, 0.0, math.pi / 2), (0.0, 0.0, 0.0)))  # from the past
+    server.wait_for_output("stamp 9.000000 s is before the newest accepted 10.000000 s", timeout_s=10.0)
+    msg = ssl_simulation_robot_control_pb2.RobotControl()
+    v = msg.robot_commands.add(id=0).move_command.global_velocity
+    v.vel_x, v.vel_y, v.vel_angular = 1.0, 0.0, 0.0
+    client = Client(robot_port, control_port)
+    drive(ros_graph, client, msg.SerializeToString(), lambda: cmd, 20.0, "cmd_vel from a global velocity")
+    assert (cmd[-1].linear.x, cmd[-1].linear.y) == pytest.approx((1.0, 0.0))

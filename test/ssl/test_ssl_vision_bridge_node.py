@@ -1,0 +1,196 @@
+"""ssl_vision_bridge over real UDP (loopback multicast, TTL 0) and DDS: the mapping onto the contract's
+topics (units, side, team, namespaces, stamps), geometry to the latched topics and into the ball
+predictor, and bad input between good packets: garbage, absurd counts, NaN, a camera clock jump, a flood."""
+
+from __future__ import annotations
+
+import math
+import re
+import socket
+import time
+
+import pytest
+from geometry_msgs.msg import PointStamped, PoseStamped
+from std_msgs.msg import Float64MultiArray
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import (
+    point_from_msg,
+    pose2d_from_msg,
+    table_from_msg,
+    table_msg,
+)
+from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
+from erforce_interfaces.ssl_vision import (
+    SSL_VISION_GROUP,
+    BallCandidate,
+    BallModelFromVision,
+    CameraFrame,
+    FieldGeometry,
+    RobotSighting,
+    encode_frame,
+    encode_geometry,
+)
+from erforce_sim.ssl_cameras import open_multicast_sender
+
+pytestmark = pytest.mark.integration
+
+VISION_EPOCH_S = 1.7e9  # the vision host's clock: Unix time, far from the ROS clock of the test
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+class Sender:
+    def __init__(self, port: int) -> None:
+        self.sock = open_multicast_sender("127.0.0.1")
+        self.address = (SSL_VISION_GROUP, port)
+        self.frame_number = 0
+
+    def send(self, data: bytes) -> None:
+        self.sock.sendto(data, self.address)
+
+    def frame(self, camera: int, t: float, balls=(), robots=(), clock_offset_s: float = 0.0) -> bytes:
+        self.frame_number += 1
+        t_capture = VISION_EPOCH_S + t + clock_offset_s
+        return encode_frame(CameraFrame(camera, self.frame_number, t_capture, t_capture + 0.005,
+                                        tuple(balls), tuple(robots)))
+
+
+@pytest.fixture
+def bridge(ros_graph):
+    port = free_udp_port()
+    node = ros_graph.start_node("erforce_ball_model", "ssl_vision_bridge", params={
+        "port": port, "interface": "127.0.0.1", "team_color": "yellow", "defend_side": "positive_x",
+        "num_robots": 4, "stats_period_s": 0.5, "publish_detections": True})
+    node.wait_for_output(r"ssl_vision_bridge: 224\.5\.23\.2", timeout_s=60.0)
+    sender = Sender(port)
+    yield ros_graph, node, sender
+    sender.sock.close()
+
+
+def collect(graph, topic, msg_type, qos):
+    return graph.subscribe(topic, msg_type, qos)
+
+
+def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_ones(bridge):
+    graph, node, sender = bridge
+    q = contract
+    balls = collect(graph, q.VISION_BALL.name, PointStamped, q.VISION_BALL.qos)
+    ours = collect(graph, q.VISION_POSE.for_robot(3), PoseStamped, q.VISION_POSE.qos)
+    theirs = collect(graph, q.opponent_topic(q.VISION_POSE, 5), PoseStamped, q.VISION_POSE.qos)
+    detections = collect(graph, q.VISION_DETECTIONS.name, Float64MultiArray, q.VISION_DETECTIONS.qos)
+    # the bridge's readers exist once its publishers are matched: send until the first ball arrives
+    ball = BallCandidate(1.0, 0.5, 0.9)
+    ours_robot = RobotSighting("yellow", 3, -2.0, 1.0, 0.5, 1.0)
+    theirs_robot = RobotSighting("blue", 5, 3.0, -1.0, -2.0, 1.0)
+    k = 0
+    while not balls:
+        k += 1
+        sender.send(sender.frame(0, k / 60.0, [ball], [ours_robot, theirs_robot]))
+        graph.probe.spin_for(1 / 60.0)
+        assert k < 600, node.output()[-3000:]
+    bad = [
+        b"\x00\x01garbage",
+        sender.frame(1, k / 60.0)[:-3],  # truncated
+        b"\x0a\x02\x08\x01",  # a frame without its required fields
+    ]
+    absurd = wrap.SSL_WrapperPacket.FromString(sender.frame(1, k / 60.0, [ball]))
+    for _ in range(100):
+        absurd.detection.balls.add(confidence=1.0, x=0.0, y=0.0, pixel_x=0.0, pixel_y=0.0)
+    bad.append(absurd.SerializeToString())
+    nan_ball = sender.frame(1, k / 60.0, [BallCandidate(math.nan, 0.0, 0.9), BallCandidate(1e12, 0.0, 0.9)])
+    bad.append(nan_ball)
+    n_before = len(balls)
+    for j, data in enumerate(bad):  # at the camera's pace: the vision clock runs with the ROS clock
+        sender.send(data)
+        sender.send(sender.frame(0, (k + 1 + j) / 60.0, [ball], [ours_robot, theirs_robot]))
+        graph.probe.spin_for(1 / 60.0)
+    graph.probe.spin_until(lambda: len(balls) >= n_before + len(bad), 10.0, "good frames between the bad ones")
+    for text in ("not an SSL_WrapperPacket", "without required fields (detection.t_capture",
+                 "absurd counts (101 balls", "ball at (nan, 0.0) mm, confidence 0.8999999761581421 dropped; camera 1: "
+                 "ball at (999999986991104.0, 0.0) mm"):
+        node.wait_for_output(re.escape(text), timeout_s=10.0)
+    graph.probe.spin_until(lambda: ours and theirs and detections, 10.0, "robots and detections")
+
+    # defend_side positive_x: the field turns by half a turn; metres; our team (yellow) under robot_<id>
+    t, (x, y) = point_from_msg(balls[-1])
+    assert (x, y) == pytest.approx((-1.0, -0.5), abs=1e-6)
+    _, pose = pose2d_from_msg(ours[-1])
+    assert pose.tolist() == pytest.approx([2.0, -1.0, 0.5 - math.pi], abs=1e-6)
+    _, pose = pose2d_from_msg(theirs[-1])
+    assert pose.tolist() == pytest.approx([-3.0, 1.0, -2.0 + math.pi], abs=1e-6)
+    # stamps on the ROS clock (the test's wall clock), not on the vision clock
+    assert abs(t - time.time()) < 5.0
+    table = table_from_msg(detections[-1], contract.VISION_DETECTION_COLUMNS)
+    assert sorted(table[:, 2].tolist()) == [0.0, 1.0, 2.0]  # ball, ours, opponent
+    assert node.alive()
+
+
+def test_geometry_is_latched_and_a_clock_jump_and_a_flood_are_survived(bridge):
+    graph, node, sender = bridge
+    q = contract
+    geometry = FieldGeometry(12.0, 9.0, 0.3, 1.8, 0.18, ball_model=BallModelFromVision(-3.0, -0.26, 0.64))
+    sender.send(encode_geometry(geometry))
+    node.wait_for_output(r"SSL geometry: field 12 x 9 m, ball model a_slide -3", timeout_s=10.0)
+    # a reader that joins later still gets them (transient local)
+    model = graph.wait_for_message(q.VISION_BALL_MODEL.name, Float64MultiArray, 10.0, qos=q.VISION_BALL_MODEL.qos)
+    assert table_from_msg(model, contract.BALL_MODEL_PARAM_LABELS).tolist() == [[-3.0, -0.26, 0.64]]
+    field = graph.wait_for_message(q.VISION_FIELD.name, Float64MultiArray, 10.0, qos=q.VISION_FIELD.qos)
+    assert table_from_msg(field, contract.VISION_FIELD_COLUMNS).tolist()[0][:3] == [12.0, 9.0, 0.3]
+
+    balls = collect(graph, q.VISION_BALL.name, PointStamped, q.VISION_BALL.qos)
+    ball = [BallCandidate(0.0, 0.0, 0.9)]
+    t = 0.0
+    while len(balls) < 5:
+        t += 1 / 60.0
+        sender.send(sender.frame(2, t, ball))
+        graph.probe.spin_for(1 / 60.0)
+        assert t < 10.0
+    # camera 2's clock jumps forward by 100 s: refused with a warning, then followed
+    stamp_before = point_from_msg(balls[-1])[0]
+    n = len(balls)
+    for _ in range(30):
+        t += 1 / 60.0
+        sender.send(sender.frame(2, t, ball, clock_offset_s=100.0))
+        graph.probe.spin_for(1 / 60.0)
+    node.wait_for_output(r"camera 2: clock offset .* jumped forward", timeout_s=10.0)
+    graph.probe.spin_until(lambda: len(balls) >= n + 4, 5.0, "frames after the jump")
+    assert 0.0 < point_from_msg(balls[-1])[0] - stamp_before < 1.0  # still on the ROS clock
+
+    # a flood: 5000 datagrams at once; the node stays up and serves the next good frame
+    flood = sender.frame(3, t, ball)
+    for _ in range(5000):
+        sender.send(flood)
+    n = len(balls)
+    for _ in range(100):
+        t += 1 / 60.0
+        sender.send(sender.frame(2, t, ball, clock_offset_s=100.0))
+        graph.probe.spin_for(1 / 60.0)
+        if len(balls) > n + 3:
+            break
+    assert len(balls) > n + 3
+    node.wait_for_output(r"ssl_vision_bridge: \d+ datagrams", timeout_s=10.0)
+    assert node.alive()
+    for msg in balls:
+        _, xy = point_from_msg(msg)
+        assert all(math.isfinite(v) for v in xy)
+
+
+def test_the_ball_predictor_takes_the_ball_model_from_ssl_geometry_unless_pinned(ros_graph):
+    q = contract
+    pub = ros_graph.probe.publisher(q.VISION_BALL_MODEL.name, Float64MultiArray, q.VISION_BALL_MODEL.qos)
+    pub.publish(table_msg([[-4.0, -0.5, 0.7]], contract.BALL_MODEL_PARAM_LABELS, "model"))
+    field_pub = ros_graph.probe.publisher(q.VISION_FIELD.name, Float64MultiArray, q.VISION_FIELD.qos)
+    field_pub.publish(table_msg([[12.0, 9.0, 0.3, 1.8, 0.18]], contract.VISION_FIELD_COLUMNS, "field"))
+    follows = ros_graph.start_node("erforce_ball_model", "ball_predictor", name="follows", params={"num_robots": 1})
+    pinned = ros_graph.start_node("erforce_ball_model", "ball_predictor", name="pinned",
+                                  params={"num_robots": 1, "use_vision_geometry": False})
+    follows.wait_for_output(r"ball model from SSL geometry: a_slide -4, a_roll -0\.5, c_switch 0\.7", 60.0)
+    follows.wait_for_output(r"field from SSL geometry: 12 x 9 m", 10.0)
+    pinned.wait_for_output(r"ball_predictor: 1 robot", 60.0)
+    ros_graph.probe.spin_for(2.0)  # the latched messages have reached both by now
+    assert "from SSL geometry" not in pinned.output()

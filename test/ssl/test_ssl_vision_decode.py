@@ -1,0 +1,266 @@
+"""erforce_interfaces.ssl_vision: decoding with checks (bad input named, never non-finite output),
+the vision clock (offset estimate, clock jumps), and a hypothesis fuzz test of every decoder."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
+from erforce_interfaces.ssl_vision import (
+    BallCandidate,
+    BallModelFromVision,
+    CameraFrame,
+    CameraPose,
+    ClockJump,
+    FieldGeometry,
+    RobotSighting,
+    SslDecodeError,
+    VisionClock,
+    decode_wrapper,
+    encode_frame,
+    encode_geometry,
+)
+
+
+def detection_packet(**frame_fields) -> wrap.SSL_WrapperPacket:
+    packet = wrap.SSL_WrapperPacket()
+    det = packet.detection
+    det.frame_number, det.t_capture, det.t_sent, det.camera_id = 7, 100.0, 100.01, 2
+    for name, value in frame_fields.items():
+        setattr(det, name, value)
+    return packet
+
+
+def add_ball(packet, x, y, confidence=0.8):
+    packet.detection.balls.add(confidence=confidence, x=x, y=y, pixel_x=0.0, pixel_y=0.0)
+
+
+def add_robot(packet, team, x, y, robot_id=None, orientation=None):
+    robots = packet.detection.robots_blue if team == "blue" else packet.detection.robots_yellow
+    r = robots.add(confidence=1.0, x=x, y=y, pixel_x=0.0, pixel_y=0.0)
+    if robot_id is not None:
+        r.robot_id = robot_id
+    if orientation is not None:
+        r.orientation = orientation
+
+
+def test_millimetres_become_metres_and_both_teams_are_kept():
+    packet = detection_packet()
+    add_ball(packet, 1250.0, -300.0)
+    add_robot(packet, "blue", -2000.0, 1000.0, robot_id=4, orientation=1.0)
+    add_robot(packet, "yellow", 500.0, 0.0, robot_id=9, orientation=7.0)  # 7 rad = 7 - 2 pi
+    frame = decode_wrapper(packet.SerializeToString()).frame
+    assert (frame.camera_id, frame.frame_number, frame.t_capture_s, frame.t_sent_s) == (2, 7, 100.0, 100.01)
+    assert frame.balls == (BallCandidate(1.25, -0.3, pytest.approx(0.8)),)
+    blue, yellow = frame.robots
+    assert (blue.team, blue.robot_id, blue.x_m, blue.y_m, blue.theta_rad) == ("blue", 4, -2.0, 1.0, 1.0)
+    assert (yellow.team, yellow.robot_id) == ("yellow", 9)
+    assert yellow.theta_rad == pytest.approx(7.0 - 2.0 * math.pi)
+
+
+@pytest.mark.parametrize(
+    ("data", "message"),
+    [
+        (b"", "empty datagram"),
+        (b"\xff\xff\xff\xff\xff", "truncated or garbage"),
+        (b"\x0a\x02\x08\x01", "without required fields (detection.t_capture"),
+        (b"\x18\x05", "neither detection nor geometry"),  # only an unknown field 3
+    ],
+)
+def test_unusable_datagrams_are_named(data, message):
+    with pytest.raises(SslDecodeError, match=re.escape(message)):
+        decode_wrapper(data)
+
+
+def test_absurd_counts_bad_times_and_camera_ids_reject_the_frame():
+    packet = detection_packet()
+    for _ in range(40):
+        add_ball(packet, 0.0, 0.0)
+    with pytest.raises(SslDecodeError, match="absurd counts"):
+        decode_wrapper(packet.SerializeToString())
+    with pytest.raises(SslDecodeError, match="t_capture nan"):
+        decode_wrapper(detection_packet(t_capture=math.nan).SerializeToString())
+    with pytest.raises(SslDecodeError, match="camera_id 99"):
+        decode_wrapper(detection_packet(camera_id=99).SerializeToString())
+
+
+def test_bad_detections_are_dropped_by_name_and_the_good_ones_kept():
+    packet = detection_packet()
+    add_ball(packet, math.nan, 0.0)
+    add_ball(packet, 1e9, 0.0)  # a million metres
+    add_ball(packet, 100.0, 200.0)
+    add_ball(packet, 0.0, 0.0, confidence=3.0)
+    add_robot(packet, "blue", 0.0, 0.0)  # no robot_id
+    add_robot(packet, "yellow", math.inf, 0.0, robot_id=1)
+    add_robot(packet, "yellow", 10.0, 20.0, robot_id=2, orientation=math.nan)
+    out = decode_wrapper(packet.SerializeToString())
+    assert out.frame.balls == (BallCandidate(0.1, 0.2, pytest.approx(0.8)),)
+    (robot,) = out.frame.robots
+    assert (robot.robot_id, robot.theta_rad) == (2, None)
+    text = "\n".join(out.problems)
+    assert len(out.problems) == 6
+    assert "ball at (nan, 0.0) mm" in text and "blue robot without a valid id" in text
+    assert "yellow robot 1 at (inf, 0.0) mm" in text and "orientation nan" in text
+
+
+GEOMETRY = FieldGeometry(9.0, 6.0, 0.3, 1.0, 0.18, ball_model=BallModelFromVision(-3.0, -0.26, 0.64),
+                         cameras=(CameraPose(0, -2.0, 1.5, 4.0),))
+
+
+def test_geometry_round_trip_and_a_bad_ball_model_is_dropped():
+    out = decode_wrapper(encode_geometry(GEOMETRY))
+    assert out.frame is None and out.problems == []
+    assert out.geometry == GEOMETRY
+    packet = wrap.SSL_WrapperPacket.FromString(encode_geometry(GEOMETRY))
+    packet.geometry.models.straight_two_phase.acc_roll = 0.5  # accelerates: not a ball model
+    out = decode_wrapper(packet.SerializeToString())
+    assert out.geometry.ball_model is None and "ball model dropped" in out.problems[0]
+    packet.geometry.field.field_length = 0
+    out = decode_wrapper(packet.SerializeToString())
+    assert out.geometry is None and "field sizes" in out.problems[-1]
+
+
+def test_frame_round_trip():
+    frame = CameraFrame(3, 11, 5.0, 5.02, (BallCandidate(0.5, -0.25, 0.5),),
+                        (RobotSighting("yellow", 2, 1.0, -1.0, 0.5, 1.0),
+                         RobotSighting("blue", 0, 0.0, 0.0, None, 1.0)))
+    out = decode_wrapper(encode_frame(frame)).frame
+    assert out.balls == frame.balls
+    assert set(out.robots) == set(frame.robots)
+
+
+# ------------------------------------------------------------------------------- vision clock
+def test_the_offset_is_the_smallest_delay_seen():
+    clock = VisionClock(window_s=2.0)
+    offset = 1000.0  # ROS time = vision time + 1000 s
+    delays = [0.004, 0.001, 0.003, 0.002, 0.005]
+    for k in range(50):
+        t_capture = 10.0 + k / 60.0
+        t_sent = t_capture + 0.01
+        stamp = clock.to_receiver(0, t_capture, t_sent, t_sent + offset + delays[k % 5])
+    # after the 0.001 s sample: every stamp is the capture time + offset + 1 ms
+    assert stamp == pytest.approx(t_capture + offset + 0.001, abs=1e-9)
+    assert clock.offset_s(0) == pytest.approx(offset + 0.001, abs=1e-9)
+
+
+def test_late_packets_keep_the_offset_and_clock_jumps_are_followed_once_confirmed():
+    clock = VisionClock(window_s=2.0, jump_s=0.25, confirm_packets=5, confirm_s=0.19)  # 12 frame periods
+    t_receive = 500.0
+    for k in range(30):
+        t_receive = 500.0 + k / 60.0
+        clock.to_receiver(1, t_receive - 0.01, t_receive, t_receive)  # offset 0
+    # a 0.5 s stall: its backlog of 20 frames arrives at once, each stamped with the offset it had
+    stall_end = t_receive + 0.5
+    for k in range(20):
+        t_sent = t_receive + (k + 1) / 60.0
+        assert clock.to_receiver(1, t_sent - 0.01, t_sent, stall_end) == pytest.approx(t_sent - 0.01, abs=1e-9)
+    t_receive = stall_end
+    assert clock.offset_s(1) == 0.0 and clock.jumps_confirmed == 0
+    # the camera's clock steps back by 100 s: stamped with the old offset (too early: the tracker
+    # drops them as late) until 5 frames over 0.19 s agree (the 13th); then the new offset
+    stamps = []
+    for _ in range(14):
+        t_receive += 1 / 60.0
+        stamps.append(clock.to_receiver(1, t_receive - 100.0 - 0.01, t_receive - 100.0, t_receive))
+    assert stamps[0] == pytest.approx(t_receive - 13 / 60.0 - 100.01, abs=1e-9)
+    assert stamps[-1] == pytest.approx(t_receive - 0.01, abs=1e-9) and clock.jumps_confirmed == 1
+    # the clock steps forward again by 100 s: refused until confirmed, then followed
+    refused = 0
+    for _ in range(14):
+        t_receive += 1 / 60.0
+        try:
+            stamp = clock.to_receiver(1, t_receive - 0.01, t_receive, t_receive)
+        except ClockJump as exc:
+            assert "camera 1: clock offset" in str(exc) and "jumped forward" in str(exc)
+            refused += 1
+    assert refused == 12 and stamp == pytest.approx(t_receive - 0.01, abs=1e-9)
+    # a single bogus t_sent far ahead is refused and moves nothing
+    with pytest.raises(ClockJump):
+        clock.to_receiver(1, t_receive, t_receive + 1000.0, t_receive + 0.01)
+    assert clock.offset_s(1) == pytest.approx(0.0, abs=1e-9)
+    # other cameras keep their own offset
+    assert clock.to_receiver(2, 1.0, 1.0, 3.0) == 3.0
+
+
+def test_a_stamp_is_never_after_its_arrival():
+    clock = VisionClock()
+    clock.to_receiver(0, 10.0, 10.0, 10.0)
+    assert clock.to_receiver(0, 10.5, 10.1, 10.1) == 10.1  # t_capture after t_sent: a broken sender
+
+
+# -------------------------------------------------------------------------------------- fuzz
+def _finite_out(out) -> bool:
+    values = []
+    if out.frame is not None:
+        f = out.frame
+        values += [f.t_capture_s, f.t_sent_s]
+        values += [v for b in f.balls for v in (b.x_m, b.y_m, b.confidence)]
+        values += [v for r in f.robots for v in (r.x_m, r.y_m, r.confidence, r.theta_rad or 0.0)]
+    if out.geometry is not None:
+        g = out.geometry
+        values += [g.length_m, g.width_m, g.boundary_m]
+        if g.ball_model is not None:
+            values += [g.ball_model.a_slide_mps2, g.ball_model.a_roll_mps2, g.ball_model.c_switch]
+    return all(math.isfinite(v) and abs(v) <= 1e10 for v in values)
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.binary(max_size=300))
+def test_fuzz_arbitrary_bytes(data):
+    try:
+        out = decode_wrapper(data)
+    except SslDecodeError:
+        return
+    assert _finite_out(out)
+
+
+floats = st.floats(allow_nan=True, allow_infinity=True, width=32)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    balls=st.lists(st.tuples(floats, floats, floats), max_size=40),
+    robots=st.lists(st.tuples(st.sampled_from(["blue", "yellow"]), st.one_of(st.none(), st.integers(0, 2**32 - 1)),
+                              floats, floats, st.one_of(st.none(), floats)), max_size=40),
+    t_capture=st.floats(allow_nan=True, allow_infinity=True),
+    camera_id=st.integers(0, 2**32 - 1),
+    cut=st.integers(0, 10_000),
+)
+def test_fuzz_structured_frames_and_their_truncations(balls, robots, t_capture, camera_id, cut):
+    packet = detection_packet(t_capture=t_capture, camera_id=camera_id)
+    for x, y, c in balls:
+        add_ball(packet, x, y, c)
+    for team, rid, x, y, theta in robots:
+        add_robot(packet, team, x, y, rid, theta)
+    data = packet.SerializeToString()
+    for chunk in (data, data[: cut % (len(data) + 1)]):
+        try:
+            out = decode_wrapper(chunk)
+        except SslDecodeError:
+            continue
+        assert _finite_out(out)
+
+
+@settings(max_examples=200, deadline=None)
+@given(sizes=st.lists(st.integers(-2**31, 2**31 - 1), min_size=5, max_size=5),
+       model=st.tuples(st.floats(), st.floats(), st.floats()), flip=st.integers(0, 10_000))
+def test_fuzz_geometry(sizes, model, flip):
+    packet = wrap.SSL_WrapperPacket()
+    f = packet.geometry.field
+    f.field_length, f.field_width, f.goal_width, f.goal_depth, f.boundary_width = sizes
+    m = packet.geometry.models.straight_two_phase
+    m.acc_slide, m.acc_roll, m.k_switch = model
+    data = bytearray(packet.SerializeToString())
+    for chunk in (bytes(data), bytes(data[: flip % len(data)]) + b"\x00" + bytes(data[flip % len(data):])):
+        try:
+            out = decode_wrapper(chunk)
+        except SslDecodeError:
+            continue
+        assert _finite_out(out)
+        if out.geometry is not None:
+            assert out.geometry.length_m > 0 and out.geometry.width_m > 0
