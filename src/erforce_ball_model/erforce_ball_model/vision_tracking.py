@@ -251,6 +251,8 @@ class VisionTracker:
         # One sighting per robot: a duplicate id in one frame counts as the one nearer the last pose.
         chosen: dict[tuple[str, int], tuple] = {}
         for sighting in robots:
+            if not (math.isfinite(sighting[2]) and math.isfinite(sighting[3])):
+                continue
             key = (sighting[0], sighting[1])
             other = chosen.get(key)
             track = self._robots.get(key)
