@@ -9,6 +9,9 @@ import itertools
 import math
 import random
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.tracking import UpdateStatus
 from erforce_ball_model.vision_tracking import VisionTracker, VisionTrackingConfig
@@ -187,3 +190,33 @@ def test_a_ball_in_the_run_off_area_takes_over_only_after_the_track_is_long_gone
         if ball is not None:
             used.append(k / 60.0)
     assert used and 9 / 60 + 1.0 - 1e-9 <= used[0] <= 9 / 60 + 1.0 + 1 / 60 + 1e-9
+
+
+coordinate = st.floats(-20.0, 20.0) | st.just(math.nan) | st.just(math.inf)
+frames_strategy = st.lists(
+    st.tuples(
+        st.integers(0, 7),
+        st.floats(0.0, 5.0),
+        st.lists(st.tuples(coordinate, coordinate, st.floats(0.0, 1.0)), max_size=4),
+        st.lists(st.tuples(st.sampled_from(["blue", "yellow"]), st.integers(0, 3), coordinate, coordinate,
+                           st.none() | st.floats(-math.pi, math.pi)), max_size=4),
+    ),
+    max_size=60,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(frames_strategy)
+def test_any_frame_sequence_gives_finite_outputs_at_increasing_stamps(stream):
+    tracker = VisionTracker(FIELD, PARAMS)
+    last_ball = -math.inf
+    last_robot: dict = {}
+    for cam, t, balls, robots in stream:
+        ball, poses = tracker.frame(cam, t, balls, robots)
+        if ball is not None:
+            assert math.isfinite(ball.x_m) and math.isfinite(ball.y_m) and ball.t_s > last_ball
+            last_ball = ball.t_s
+        for p in poses:
+            assert math.isfinite(p.x_m) and math.isfinite(p.y_m)
+            assert p.t_s > last_robot.get((p.team, p.robot_id), -math.inf)
+            last_robot[(p.team, p.robot_id)] = p.t_s

@@ -215,14 +215,16 @@ class VisionTracker:
 
     def _update_hypotheses(self, t_s: float, candidates: Sequence[tuple[float, float, float]]) -> None:
         cfg = self.config
-        hyps = [h for h in self._hypotheses if abs(t_s - h.t_s) <= cfg.hypothesis_timeout_s]
+        timeout_s, gate_m, speed = cfg.hypothesis_timeout_s, cfg.ball_gate_m, cfg.max_ball_speed_mps
+        hyps = [h for h in self._hypotheses if abs(t_s - h.t_s) <= timeout_s]
         for x, y, c in candidates:
-            best, best_d = None, math.inf
-            for h in hyps:
-                reach = cfg.ball_gate_m + cfg.max_ball_speed_mps * abs(t_s - h.t_s)
-                d = math.hypot(x - h.x_m, y - h.y_m)
-                if d <= reach and d < best_d:
-                    best, best_d = h, d
+            best, best_d2 = None, math.inf
+            for h in hyps:  # squared distances: this loop runs for every candidate of every frame
+                reach = gate_m + speed * abs(t_s - h.t_s)
+                dx, dy = x - h.x_m, y - h.y_m
+                d2 = dx * dx + dy * dy
+                if d2 <= reach * reach and d2 < best_d2:
+                    best, best_d2 = h, d2
             inside = self.field.contains(x, y)
             if best is None:
                 if len(hyps) < cfg.max_hypotheses:
@@ -251,6 +253,8 @@ class VisionTracker:
         # One sighting per robot: a duplicate id in one frame counts as the one nearer the last pose.
         chosen: dict[tuple[str, int], tuple] = {}
         for sighting in robots:
+            if not (math.isfinite(sighting[2]) and math.isfinite(sighting[3])):
+                continue
             key = (sighting[0], sighting[1])
             other = chosen.get(key)
             track = self._robots.get(key)
