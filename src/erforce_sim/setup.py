@@ -12,7 +12,8 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/launch", glob("launch/*.yaml")),
-        ("share/" + package_name + "/config", glob("config/*.yaml")),
+        ("share/" + package_name + "/config", glob("config/*.yaml") + glob("config/*.json")),
+        ("share/" + package_name + "/web", glob("web/*")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
@@ -24,6 +25,7 @@ setup(
         "console_scripts": [
             "plant = erforce_sim.plant_node:main",
             "tune_motor = erforce_sim.tuning_experiment:main",
+            "field_view = erforce_sim.field_view_node:main",
         ],
     },
 )

@@ -1,0 +1,381 @@
+"""The field view's core: the newest world state of the graph, and what the page draws of it.
+
+``WorldState`` takes the graph's messages one at a time (``apply(topic, message)``, a message
+decoded or, for the stamped types the conversions read from bytes, its CDR bytes) and keeps the
+newest of each: the ball (true, seen, filtered), the robots (true or seen pose, catch time and
+point, motor currents, light barrier), the ball model in use and the simulator's events.
+``frame()`` turns it into one JSON-ready dict, the page's frame: what it draws, in field
+coordinates [m]. The predicted path is the ball model's own BallTrajectory (sliding stretch to
+the switch point, rolling stretch to the stop point), with the parameters the predictor last
+published on /ball/model_params; the team's receiver is catcher.team_receiver of the catch times,
+as each catcher decides it. No rclpy here: the node (field_view_node) feeds it live, ``BagReplay``
+from a recorded bag.
+"""
+
+from __future__ import annotations
+
+import bisect
+import copy
+import math
+from collections import deque
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.catcher import team_receiver
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import (
+    ConversionError,
+    float64_from_msg,
+    odometry_from_msg,
+    point_from_msg,
+    pose2d_from_msg,
+    table_from_msg,
+)
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+
+#: SSL rules: centre circle radius [m] (drawn only).
+CENTRE_CIRCLE_RADIUS_M = 0.5
+#: Speed above which the model's curve for the speed plot is started anew: a kick or a push [m/s].
+KICK_SPEED_JUMP_MPS = 0.3
+#: Marks along the predicted path, this far apart in time [s].
+PATH_MARK_PERIOD_S = 0.25
+#: A robot whose newest pose is this much older than the newest in the world is left out [s].
+ROBOT_STALE_S = 1.0
+#: The team's receiver keeps its role unless another is earlier by this much (as the catchers' default).
+RECEIVER_SWITCH_MARGIN_S = 0.1
+
+# Topics the view takes, global and per robot (relative names).
+GLOBAL_TOPICS = (
+    contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_STATE, contract.BALL_PHASE,
+    contract.BALL_STOP_POINT, contract.BALL_V_SHOOT, contract.BALL_UNCERTAIN, contract.BALL_MODEL_PARAMS,
+    contract.SIM_EVENTS,
+)
+ROBOT_TOPICS = (
+    contract.GROUND_TRUTH_ODOM, contract.VISION_POSE, contract.ODOM, contract.CATCH_TIME, contract.CATCH_POINT,
+    contract.MOTOR_STATUS, contract.GROUND_TRUTH_MOTORS, contract.BALL_DETECTED,
+)
+#: Types whose CDR bytes the conversions read directly (the others are deserialized first).
+BYTES_TYPES = frozenset(t.type_name for t in (contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_V_SHOOT,
+                                              contract.VISION_POSE))
+_AVG_CURRENT = contract.MOTOR_STATUS_COLUMNS.index("avg_current_a")
+_LIMIT_ACTIVE = contract.MOTOR_STATUS_COLUMNS.index("limit_active")
+_CURRENT = contract.GROUND_TRUTH_MOTOR_COLUMNS.index("current_a")
+_IN_USE = contract.BALL_MODEL_PARAM_ROWS.index("in_use")
+
+
+def view_topic(name: str) -> tuple[contract.Topic, int | None] | None:
+    """The contract topic and robot id (None: global) of an absolute topic name the view takes."""
+    for topic in GLOBAL_TOPICS:
+        if name == topic.name:
+            return topic, None
+    parts = name.strip("/").split("/", 1)
+    if len(parts) == 2:
+        robot = contract.robot_id_of_namespace(parts[0])
+        if robot is not None:
+            for topic in ROBOT_TOPICS:
+                if parts[1] == topic.name:
+                    return topic, robot
+    return None
+
+
+@dataclass
+class RobotView:
+    robot_id: int
+    t_s: float = -math.inf
+    pose: tuple[float, float, float] | None = None  # x, y, yaw [m, rad]
+    velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    truth: bool = False  # pose from ground truth (else from vision / the tracker)
+    catch_time_s: float | None = None  # None: none published; CATCH_TIME_NEVER: never
+    catch_point: tuple[float, float] | None = None
+    avg_current_a: tuple[float, ...] = ()
+    limit_active: tuple[bool, ...] = ()
+    current_a: tuple[float, ...] = ()
+    ball_detected: bool = False
+
+
+@dataclass
+class WorldState:
+    """The newest of everything the view shows (see the module docstring)."""
+
+    field: FieldConfig
+    current_limit_a: float = RobotConfig().continuous_current_limit_a
+    robot_radius_m: float = RobotConfig().robot_radius_m
+    opponent_ids: frozenset[int] = frozenset()
+    team_ids: frozenset[int] = frozenset()  # the catchers' team that picks a receiver; empty: all but opponents
+    t_s: float = 0.0  # newest stamp seen [s]
+    ball_truth: tuple[float, float, float, float] | None = None  # x, y, vx, vy
+    ball_truth_t_s: float = -math.inf
+    ball_seen: tuple[float, float] | None = None
+    ball_state: tuple[float, float, float, float] | None = None
+    ball_state_t_s: float = -math.inf
+    phase: str = "unknown"
+    stop_point: tuple[float, float] | None = None
+    v_shoot_mps: float = 0.0
+    uncertain: bool = False
+    model: BallModelParams = field(default_factory=BallModelParams)
+    robots: dict[int, RobotView] = field(default_factory=dict)
+    events: deque = field(default_factory=lambda: deque(maxlen=8))
+    receiver: int | None = None
+    rejected: int = 0  # messages refused (bad numbers, mis-shaped)
+    _speed_model: tuple[float, BallTrajectory] | None = None  # (anchor time, trajectory) for the speed plot
+
+    # -------------------------------------------------------------- input
+    def apply(self, topic_name: str, msg: Any) -> bool:
+        """Take one message of ``topic_name``; False when the view does not take the topic or
+        the message was refused (counted in ``rejected``)."""
+        found = view_topic(topic_name)
+        if found is None:
+            return False
+        topic, robot = found
+        try:
+            if robot is None:
+                self._apply_global(topic, msg)
+            else:
+                self._apply_robot(topic, self.robot(robot), msg)
+        except (ConversionError, ValueError, AttributeError, IndexError, TypeError):
+            self.rejected += 1
+            return False
+        return True
+
+    def robot(self, robot_id: int) -> RobotView:
+        view = self.robots.get(robot_id)
+        if view is None:
+            view = self.robots[robot_id] = RobotView(robot_id)
+        return view
+
+    def _stamp(self, t_s: float) -> None:
+        self.t_s = max(self.t_s, t_s)
+
+    def _apply_global(self, topic: contract.Topic, msg: Any) -> None:
+        c = contract
+        if topic is c.GROUND_TRUTH_BALL:
+            t, pose, vel, _ = odometry_from_msg(msg)
+            self.ball_truth = (float(pose[0]), float(pose[1]), float(vel[0]), float(vel[1]))
+            self.ball_truth_t_s = t
+            self._stamp(t)
+        elif topic is c.VISION_BALL:
+            _, self.ball_seen = point_from_msg(msg)
+        elif topic is c.BALL_STATE:
+            t, pose, vel, _ = odometry_from_msg(msg)
+            self.ball_state = (float(pose[0]), float(pose[1]), float(vel[0]), float(vel[1]))
+            self.ball_state_t_s = t
+            self._stamp(t)
+            self._update_speed_model(t)
+        elif topic is c.BALL_PHASE:
+            self.phase = msg.data if msg.data in c.BALL_PHASES else "unknown"
+        elif topic is c.BALL_STOP_POINT:
+            _, self.stop_point = point_from_msg(msg)
+        elif topic is c.BALL_V_SHOOT:
+            self.v_shoot_mps = float64_from_msg(msg, limit=100.0)
+        elif topic is c.BALL_UNCERTAIN:
+            self.uncertain = bool(msg.data)
+        elif topic is c.BALL_MODEL_PARAMS:
+            rows = table_from_msg(msg, c.BALL_MODEL_PARAM_LABELS)
+            self.model = BallModelParams(*(float(v) for v in rows[_IN_USE]))
+        elif topic is c.SIM_EVENTS:
+            self.events.append(str(msg.data)[:200])
+
+    def _apply_robot(self, topic: contract.Topic, robot: RobotView, msg: Any) -> None:
+        c = contract
+        if topic is c.GROUND_TRUTH_ODOM or (topic is c.ODOM and not robot.truth):
+            t, pose, vel, _ = odometry_from_msg(msg)
+            robot.pose, robot.velocity, robot.t_s = tuple(map(float, pose)), tuple(map(float, vel)), t
+            robot.truth = topic is c.GROUND_TRUTH_ODOM
+            self._stamp(t)
+        elif topic is c.VISION_POSE and robot.pose is None:
+            robot.t_s, pose = pose2d_from_msg(msg)
+            robot.pose = tuple(map(float, pose))
+        elif topic is c.CATCH_TIME:
+            value = float64_from_msg(msg, limit=1e6)
+            robot.catch_time_s = value if value >= 0.0 else c.CATCH_TIME_NEVER
+            if value < 0.0:
+                robot.catch_point = None
+            self._choose_receiver()
+        elif topic is c.CATCH_POINT:
+            _, robot.catch_point = point_from_msg(msg)
+        elif topic is c.MOTOR_STATUS:
+            table = table_from_msg(msg, c.MOTOR_STATUS_COLUMNS)
+            robot.avg_current_a = tuple(float(v) for v in table[:, _AVG_CURRENT])
+            robot.limit_active = tuple(bool(v) for v in table[:, _LIMIT_ACTIVE])
+        elif topic is c.GROUND_TRUTH_MOTORS:
+            table = table_from_msg(msg, c.GROUND_TRUTH_MOTOR_COLUMNS)
+            robot.current_a = tuple(float(v) for v in table[:, _CURRENT])
+        elif topic is c.BALL_DETECTED:
+            robot.ball_detected = bool(msg.data)
+
+    def _choose_receiver(self) -> None:
+        times = {i: r.catch_time_s for i, r in self.robots.items()
+                 if r.catch_time_s is not None and i not in self.opponent_ids
+                 and (not self.team_ids or i in self.team_ids)}
+        self.receiver = team_receiver(times, self.receiver, RECEIVER_SWITCH_MARGIN_S)
+
+    def _update_speed_model(self, t: float) -> None:
+        """Start the model's speed curve anew at a kick: the filtered speed jumped above the curve."""
+        x, y, vx, vy = self.ball_state
+        speed = math.hypot(vx, vy)
+        if self._speed_model is not None:
+            t0, trajectory = self._speed_model
+            if t >= t0 and speed <= float(trajectory.speed_at(t - t0)) + KICK_SPEED_JUMP_MPS:
+                return
+        if speed > KICK_SPEED_JUMP_MPS:
+            self._speed_model = (t, BallTrajectory((x, y), (vx, vy), max(self.v_shoot_mps, speed), self.model))
+        else:
+            self._speed_model = None
+
+    # ------------------------------------------------------------- output
+    def prediction(self) -> BallTrajectory | None:
+        if self.ball_state is None:
+            return None
+        x, y, vx, vy = self.ball_state
+        try:
+            return BallTrajectory((x, y), (vx, vy), self.v_shoot_mps, self.model)
+        except ValueError:
+            return None
+
+    def frame(self) -> dict[str, Any]:
+        """What the page draws now (field coordinates [m], times [s]; JSON-ready)."""
+        ball: dict[str, Any] = {"phase": self.phase, "v_shoot": _r(self.v_shoot_mps), "uncertain": self.uncertain}
+        if self.ball_truth is not None:
+            ball["truth"] = _rs(self.ball_truth)
+            ball["truth_t"] = _r(self.ball_truth_t_s)
+        if self.ball_seen is not None:
+            ball["seen"] = _rs(self.ball_seen)
+        if self.ball_state is not None:
+            ball["state"] = _rs(self.ball_state)
+        path = None
+        trajectory = self.prediction()
+        if trajectory is not None and trajectory.floats.stop_time_s > 0.0:
+            f = trajectory.floats
+            marks_t = [k * PATH_MARK_PERIOD_S for k in range(1, int(f.stop_time_s / PATH_MARK_PERIOD_S) + 1)][:40]
+            path = {
+                "start": [_r(f.x_m), _r(f.y_m)],
+                "switch": _rs(trajectory.switch_point),
+                "stop": _rs(trajectory.stop_point),
+                "switch_time": _r(f.switch_time_s),
+                "stop_time": _r(f.stop_time_s),
+                "marks": [_rs(p) for p in trajectory.position_at(marks_t)] if marks_t else [],
+            }
+        robots = []
+        for r in sorted(self.robots.values(), key=lambda v: v.robot_id):
+            if r.pose is None or r.t_s < self.t_s - ROBOT_STALE_S:
+                continue
+            robots.append({
+                "id": r.robot_id,
+                "team": "opponent" if r.robot_id in self.opponent_ids else "ours",
+                "pose": _rs(r.pose),
+                "speed": _r(math.hypot(r.velocity[0], r.velocity[1])),
+                "truth": r.truth,
+                "catch_time": None if r.catch_time_s is None else _r(r.catch_time_s),
+                "catch_point": None if r.catch_point is None or r.catch_time_s == contract.CATCH_TIME_NEVER
+                else _rs(r.catch_point),
+                "avg_current": _rs(r.avg_current_a),
+                "limit_active": list(r.limit_active),
+                "current": _rs(r.current_a),
+                "ball_detected": r.ball_detected,
+            })
+        receiver = None
+        if self.receiver is not None:
+            r = self.robots.get(self.receiver)
+            if r is not None and r.catch_point is not None:
+                receiver = {"id": self.receiver, "target": _rs(r.catch_point), "catch_time": _r(r.catch_time_s)}
+        speed = {"t": _r(self.t_s)}
+        if self.ball_truth is not None:
+            speed["truth"] = _r(math.hypot(self.ball_truth[2], self.ball_truth[3]))
+        if self.ball_state is not None:
+            speed["filtered"] = _r(math.hypot(self.ball_state[2], self.ball_state[3]))
+        if self._speed_model is not None and self.ball_state_t_s >= self._speed_model[0]:
+            t0, model = self._speed_model
+            speed["model"] = _r(float(model.speed_at(self.t_s - t0)))
+        p = self.model
+        return {
+            "t": _r(self.t_s),
+            "field": {"length": self.field.length_m, "width": self.field.width_m, "boundary": self.field.boundary_m,
+                      "centre_circle": CENTRE_CIRCLE_RADIUS_M},
+            "robot_radius": self.robot_radius_m,
+            "current_limit": self.current_limit_a,
+            "model": {"a_slide": p.a_slide_mps2, "a_roll": p.a_roll_mps2, "c_switch": p.c_switch},
+            "ball": ball,
+            "path": path,
+            "stop_point": None if self.stop_point is None else _rs(self.stop_point),
+            "robots": robots,
+            "receiver": receiver,
+            "speed": speed,
+            "events": list(self.events),
+            "rejected": self.rejected,
+        }
+
+
+def _r(value: float) -> float:
+    """Rounded for the wire (0.1 mm, 0.1 ms); JSON has no NaN, and no value here is one."""
+    return round(float(value), 4)
+
+
+def _rs(values: Iterable[float]) -> list[float]:
+    return [_r(v) for v in values]
+
+
+# --------------------------------------------------------------------------------- replay
+class BagReplay:
+    """A recorded bag (the demo's rosbag2/MCAP) as frames at any time: ``frame_at(t_s)``.
+
+    The view's topics are read once (``decode(type_name, cdr_bytes)`` gives what ``apply`` takes) and
+    a snapshot of the state is kept every ``checkpoint_period_s`` of log time, so a jump anywhere
+    replays at most that much; playing forward applies only what is new.
+    """
+
+    def __init__(self, path: str | Path, decode: Callable[[str, bytes], Any], field: FieldConfig,
+                 checkpoint_period_s: float = 1.0, **state_kwargs) -> None:
+        from rosbags.rosbag2 import Reader  # only a replay needs it
+
+        self.path = Path(path)
+        self._times: list[int] = []
+        self._messages: list[tuple[str, Any]] = []
+        with Reader(self.path) as reader:
+            connections = [c for c in reader.connections if view_topic(c.topic) is not None]
+            for connection, t_ns, data in reader.messages(connections=connections):
+                try:
+                    msg = decode(connection.msgtype, bytes(data))
+                except Exception:
+                    continue
+                self._times.append(t_ns)
+                self._messages.append((connection.topic, msg))
+        if not self._times:
+            raise ValueError(f"{self.path}: no message of the view's topics")
+        self.start_s = self._times[0] * 1e-9
+        self.end_s = self._times[-1] * 1e-9
+        self._blank = WorldState(field, **state_kwargs)
+        self._checkpoints: list[tuple[int, WorldState]] = [(0, copy.deepcopy(self._blank))]
+        state = copy.deepcopy(self._blank)
+        next_checkpoint = self._times[0] + int(checkpoint_period_s * 1e9)
+        for i, (topic, msg) in enumerate(self._messages):
+            if self._times[i] >= next_checkpoint:
+                self._checkpoints.append((i, copy.deepcopy(state)))
+                next_checkpoint = self._times[i] + int(checkpoint_period_s * 1e9)
+            state.apply(topic, msg)
+        self._cursor = 0
+        self._state = copy.deepcopy(self._blank)
+
+    def __len__(self) -> int:
+        return len(self._messages)
+
+    def frame_at(self, t_s: float) -> dict[str, Any]:
+        """The frame of the bag's state at log time ``t_s`` (clamped to the bag)."""
+        if not math.isfinite(t_s):
+            raise ValueError(f"replay time must be finite, got {t_s!r}")
+        t_ns = round(min(max(t_s, self.start_s), self.end_s) * 1e9)
+        end = bisect.bisect_right(self._times, t_ns)
+        if end < self._cursor or end - self._cursor > 2 * self._checkpoint_span():
+            index = bisect.bisect_right([i for i, _ in self._checkpoints], end) - 1
+            self._cursor, self._state = self._checkpoints[index][0], copy.deepcopy(self._checkpoints[index][1])
+        for topic, msg in self._messages[self._cursor:end]:
+            self._state.apply(topic, msg)
+        self._cursor = end
+        frame = self._state.frame()
+        frame["replay"] = {"start": _r(self.start_s), "end": _r(self.end_s), "t": _r(t_ns * 1e-9)}
+        return frame
+
+    def _checkpoint_span(self) -> int:
+        return max(1, len(self._messages) // max(1, len(self._checkpoints)))
