@@ -335,7 +335,8 @@ class BagReplay:
         self._messages: list[tuple[str, Any]] = []
         with Reader(self.path) as reader:
             connections = [c for c in reader.connections if view_topic(c.topic) is not None]
-            for connection, t_ns, data in reader.messages(connections=connections):
+            # (no connection given reads them all)
+            for connection, t_ns, data in reader.messages(connections=connections) if connections else ():
                 try:
                     msg = decode(connection.msgtype, bytes(data))
                 except Exception:

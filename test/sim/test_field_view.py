@@ -1,0 +1,210 @@
+"""The field view's core (erforce_sim.field_view): what a frame says, from hand-built messages.
+
+Path numbers are worked by hand from the two-phase kinematics (module docstring of ball_model):
+a ball at 2 m/s with v_shoot 2 m/s and the default model (a_slide -2.5, a_roll -0.3 m/s^2,
+c_switch 0.6) switches at 1.2 m/s after (2 - 1.2) / 2.5 = 0.32 s and 2 * 0.32 - 1.25 * 0.32^2
+= 0.512 m, then rolls 1.2 / 0.3 = 4 s and 1.2 * 4 - 0.15 * 16 = 2.4 m: it stops 2.912 m on, at 4.32 s.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from geometry_msgs.msg import Twist
+from rclpy.serialization import serialize_message
+from std_msgs.msg import Bool, Float64, String
+
+from erforce_interfaces import contract as c
+from erforce_interfaces.conversions import (
+    float64_cdr,
+    odometry_cdr,
+    odometry_msg,
+    point_cdr,
+    pose2d_cdr,
+    table_msg,
+)
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_sim.field_view import BagReplay, WorldState, view_topic
+from erforce_sim.field_view_node import decode
+
+FIELD = FieldConfig.preset("division_b")
+
+
+def ball_state(state: WorldState, t: float, xy, v) -> None:
+    assert state.apply(c.BALL_STATE.name, odometry_cdr(t, (*xy, 0.0), (*v, 0.0)))
+
+
+def robot(state: WorldState, robot_id: int, t: float, pose, catch_time=None, catch_point=None) -> None:
+    assert state.apply(c.GROUND_TRUTH_ODOM.for_robot(robot_id), odometry_cdr(t, pose, (0.0, 0.0, 0.0)))
+    if catch_time is not None:
+        assert state.apply(c.CATCH_TIME.for_robot(robot_id), float64_cdr(catch_time))
+    if catch_point is not None:
+        assert state.apply(c.CATCH_POINT.for_robot(robot_id), point_cdr(t, catch_point))
+
+
+def test_topics_of_the_view_are_recognised_by_name():
+    assert view_topic("/robot_3/catch_time") == (c.CATCH_TIME, 3)
+    assert view_topic("/ball/state") == (c.BALL_STATE, None)
+    for other in ("/robot_x/catch_time", "/robot_3/cmd_vel", "/clock", "/robot_3", "catch_time", ""):
+        assert view_topic(other) is None
+
+
+def test_the_predicted_path_is_the_ball_models_sliding_and_rolling_stretches():
+    state = WorldState(FIELD)
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0))
+    ball_state(state, 1.0, (1.0, -1.0), (0.0, 2.0))  # along +y
+    path = state.frame()["path"]
+    assert path["start"] == [1.0, -1.0]
+    assert path["switch"] == pytest.approx([1.0, -1.0 + 0.512], abs=1e-4)
+    assert path["stop"] == pytest.approx([1.0, -1.0 + 2.912], abs=1e-4)
+    assert path["switch_time"] == pytest.approx(0.32, abs=1e-4)
+    assert path["stop_time"] == pytest.approx(4.32, abs=1e-4)
+    assert len(path["marks"]) == 17  # every 0.25 s up to 4.32 s
+    # at 0.25 s the ball still slides: 2 * 0.25 - 1.25 * 0.0625 = 0.421875 m
+    assert path["marks"][0] == pytest.approx([1.0, -1.0 + 0.421875], abs=1e-4)
+
+
+def test_the_path_uses_the_model_the_predictor_publishes():
+    """In use: a_slide -5, a_roll -0.5, c_switch 0.5. From 2 m/s: switch at 1 m/s after 0.2 s and
+    2 * 0.2 - 2.5 * 0.04 = 0.3 m, then 1 / 0.5 = 2 s rolling over 1 * 2 - 0.25 * 4 = 1 m: stop at 1.3 m."""
+    state = WorldState(FIELD)
+    rows = [[-2.4, -0.31, 0.61], [0.1, 0.01, 0.02], [-5.0, -0.5, 0.5]]  # fit, std_error, in_use
+    assert state.apply(c.BALL_MODEL_PARAMS.name, table_msg(rows, c.BALL_MODEL_PARAM_LABELS, "fit,std_error,in_use"))
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0))
+    ball_state(state, 1.0, (0.0, 0.0), (2.0, 0.0))
+    frame = state.frame()
+    assert frame["path"]["switch"] == pytest.approx([0.3, 0.0], abs=1e-4)
+    assert frame["path"]["stop"] == pytest.approx([1.3, 0.0], abs=1e-4)
+    assert frame["model"] == {"a_slide": -5.0, "a_roll": -0.5, "c_switch": 0.5}
+
+
+def test_a_ball_at_rest_has_no_path():
+    state = WorldState(FIELD)
+    ball_state(state, 1.0, (0.5, 0.5), (0.0, 0.0))
+    assert state.frame()["path"] is None
+
+
+def test_the_receiver_is_the_teams_earliest_catcher_and_its_target_its_catch_point():
+    state = WorldState(FIELD, opponent_ids=frozenset({1}))
+    robot(state, 0, 1.0, (0.0, 0.0, 0.0), 1.2, (0.5, 0.0))
+    robot(state, 1, 1.0, (1.0, 0.0, 0.0), 0.1, (1.0, 0.1))  # an opponent is earlier: not ours
+    robot(state, 2, 1.0, (2.0, 0.0, 0.0), 0.8, (2.0, 0.2))
+    frame = state.frame()
+    assert frame["receiver"] == {"id": 2, "target": [2.0, 0.2], "catch_time": 0.8}
+    assert [(r["id"], r["team"]) for r in frame["robots"]] == [(0, "ours"), (1, "opponent"), (2, "ours")]
+    # robot_2 cannot catch any more: robot_0 receives; "never" shows no catch point
+    robot(state, 2, 1.1, (2.0, 0.0, 0.0), c.CATCH_TIME_NEVER)
+    frame = state.frame()
+    assert frame["receiver"]["id"] == 0
+    robot_2 = next(r for r in frame["robots"] if r["id"] == 2)
+    assert robot_2["catch_time"] == c.CATCH_TIME_NEVER and robot_2["catch_point"] is None
+
+
+def test_a_team_limits_who_receives():
+    state = WorldState(FIELD, team_ids=frozenset({0}))
+    robot(state, 0, 1.0, (0.0, 0.0, 0.0), 1.2, (0.5, 0.0))
+    robot(state, 1, 1.0, (1.0, 0.0, 0.0), 0.3, (1.0, 0.1))  # the kicker: no catcher of the team
+    assert state.frame()["receiver"]["id"] == 0
+
+
+def test_robots_poses_headings_and_staleness():
+    state = WorldState(FIELD)
+    robot(state, 4, 1.0, (1.5, -0.5, math.pi / 2))
+    assert state.apply(c.VISION_POSE.for_robot(7), pose2d_cdr(1.0, (0.2, 0.3, -1.0)))  # seen only
+    frame = state.frame()
+    assert [(r["id"], r["pose"], r["truth"]) for r in frame["robots"]] == [
+        (4, [1.5, -0.5, round(math.pi / 2, 4)], True), (7, [0.2, 0.3, -1.0], False)]
+    ball_state(state, 1.0 + 1.5, (0.0, 0.0), (0.0, 0.0))  # 1.5 s later nothing new of either robot
+    assert state.frame()["robots"] == []
+
+
+def test_motor_currents_and_the_limit_flags_per_wheel():
+    state = WorldState(FIELD)
+    robot(state, 0, 1.0, (0.0, 0.0, 0.0))
+    status = [[1.0, 0.9, 0.0, 0.0], [1.4, 0.5, 1.0, 1.0], [0.2, 1.0, 0.0, 0.0], [0.3, 1.0, 0.0, 0.0]]
+    assert state.apply(c.MOTOR_STATUS.for_robot(0), table_msg(status, c.MOTOR_STATUS_COLUMNS, "wheels"))
+    truth = [[1.5, 40.0, 10.0], [-2.0, 45.0, -3.0], [0.1, 30.0, 1.0], [0.0, 30.0, 0.0]]
+    assert state.apply(c.GROUND_TRUTH_MOTORS.for_robot(0), table_msg(truth, c.GROUND_TRUTH_MOTOR_COLUMNS, "wheels"))
+    r = state.frame()["robots"][0]
+    assert r["avg_current"] == [1.0, 1.4, 0.2, 0.3]
+    assert r["limit_active"] == [False, True, False, False]
+    assert r["current"] == [1.5, -2.0, 0.1, 0.0]
+    assert state.frame()["current_limit"] == 1.3
+
+
+def test_the_speed_plot_follows_the_model_from_the_kick():
+    """Kicked at 3 m/s (v_shoot 3): 0.2 s later the model says 3 - 2.5 * 0.2 = 2.5 m/s (still sliding)."""
+    state = WorldState(FIELD)
+    ball_state(state, 1.0, (0.0, 0.0), (0.0, 0.0))
+    assert "model" not in state.frame()["speed"]
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(3.0))
+    ball_state(state, 2.0, (0.0, 0.0), (3.0, 0.0))
+    ball_state(state, 2.2, (0.55, 0.0), (2.45, 0.0))  # slower than the model: no new start
+    speed = state.frame()["speed"]
+    assert speed["model"] == pytest.approx(2.5, abs=1e-4)
+    assert speed["filtered"] == pytest.approx(2.45)
+    ball_state(state, 2.3, (0.8, 0.0), (4.0, 0.0))  # a second kick: the curve starts there
+    assert state.frame()["speed"]["model"] == pytest.approx(4.0)
+
+
+def test_bad_messages_are_refused_counted_and_never_reach_the_frame():
+    state = WorldState(FIELD)
+    ball_state(state, 1.0, (0.5, 0.5), (1.0, 0.0))
+    nan_ball = odometry_msg(1.1, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    nan_ball.pose.pose.position.x = math.nan
+    assert not state.apply(c.BALL_STATE.name, nan_ball)
+    assert not state.apply(c.BALL_STATE.name, b"\x00\x01\x00\x00garbage")
+    assert not state.apply(c.CATCH_TIME.for_robot(0), Float64(data=math.inf))
+    assert not state.apply(c.BALL_MODEL_PARAMS.name, table_msg([[1.0, 2.0, 3.0]], ("a", "b", "c")))
+    assert state.apply(c.BALL_PHASE.name, String(data="flying"))  # not a phase: shown as unknown
+    frame = state.frame()
+    assert frame["ball"]["state"] == [0.5, 0.5, 1.0, 0.0] and frame["ball"]["phase"] == "unknown"
+    assert frame["rejected"] == 4
+    json.dumps(frame, allow_nan=False)
+
+
+def _write_bag(path, messages) -> None:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = {}
+        for t_ns, topic, type_name, msg in messages:
+            if topic not in connections:
+                connections[topic] = writer.add_connection(topic, type_name, typestore=store)
+            writer.write(connections[topic], t_ns, serialize_message(msg))
+
+
+def test_a_bag_replays_as_frames_at_any_time(tmp_path):
+    """A ball rolling along x at 1 m/s, its truth every 10 ms from 1 s to 3 s; robot_0 sees it from 2 s."""
+    messages = []
+    for k in range(201):
+        t = 1.0 + 0.01 * k
+        messages.append((round(t * 1e9), c.GROUND_TRUTH_BALL.name, "nav_msgs/msg/Odometry",
+                         odometry_msg(t, (t, 0.0, 0.0), (1.0, 0.0, 0.0))))
+        if t >= 2.0:
+            messages.append((round(t * 1e9), c.BALL_DETECTED.for_robot(0), "std_msgs/msg/Bool", Bool(data=True)))
+    messages.append((round(3.0e9), "/robot_0/cmd_vel", "geometry_msgs/msg/Twist", Twist()))  # not the view's
+    _write_bag(tmp_path / "bag", messages)
+    replay = BagReplay(tmp_path / "bag", decode, FIELD, checkpoint_period_s=0.5)
+    assert len(replay) == 201 + 101
+    assert (replay.start_s, replay.end_s) == (1.0, 3.0)
+    for t in (2.5, 1.25, 2.97, 1.0, 2.0, 1.6):  # forward, back, jumps
+        frame = replay.frame_at(t)
+        assert frame["ball"]["truth"][0] == pytest.approx(t, abs=1e-9)
+        assert frame["replay"] == {"start": 1.0, "end": 3.0, "t": t}
+    assert replay.frame_at(99.0)["ball"]["truth"][0] == 3.0  # clamped to the bag
+    assert replay.frame_at(1.5)["ball"]["truth"][0] == 1.5
+    with pytest.raises(ValueError):
+        replay.frame_at(math.nan)
+    assert not replay.frame_at(1.9)["robots"]  # robot_0 has no pose: not drawn, its light barrier kept
+    assert replay.frame_at(2.5)["t"] == 2.5
+
+
+def test_an_empty_bag_is_a_clear_error(tmp_path):
+    _write_bag(tmp_path / "bag", [(1, "/other", "std_msgs/msg/String", String(data="x"))])
+    with pytest.raises(ValueError, match="no message of the view's topics"):
+        BagReplay(tmp_path / "bag", decode, FIELD)
