@@ -26,7 +26,7 @@
   const replay = { available: null, active: false, playing: true, speed: 1, t: 0, pending: false, lastWall: null };
 
   const fieldView = {
-    drawn: null, frames: 0, fps: 0, messages: 0, errors: [],
+    drawn: null, frames: 0, fps: 0, messages: 0, errors: [], drawMs: 0, // drawMs: mean time of one redraw
     worldToPixel: (x, y) => [canvas.clientWidth / 2 + (x - view.cx) * view.scale,
                              canvas.clientHeight / 2 - (y - view.cy) * view.scale],
     pixelToWorld: (px, py) => [view.cx + (px - canvas.clientWidth / 2) / view.scale,
@@ -362,9 +362,11 @@
   function animate(now) {
     stepReplay(now);
     if (latest) {
+      const start = performance.now();
       drawFrame(latest);
       drawPlots(latest);
       drawNumbers(latest);
+      fieldView.drawMs += (performance.now() - start - fieldView.drawMs) * 0.05;
       fieldView.frames += 1; fpsCount += 1;
     }
     if (now - fpsStart >= 1000) { fieldView.fps = fpsCount * 1000 / (now - fpsStart); fpsCount = 0; fpsStart = now; }
