@@ -22,7 +22,6 @@ from erforce_interfaces.conversions import (
     odometry_cdr,
     odometry_msg,
     point_cdr,
-    pose2d_cdr,
     table_msg,
 )
 from erforce_interfaces.robot_config import FieldConfig
@@ -47,7 +46,8 @@ def robot(state: WorldState, robot_id: int, t: float, pose, catch_time=None, cat
 def test_topics_of_the_view_are_recognised_by_name():
     assert view_topic("/robot_3/catch_time") == (c.CATCH_TIME, 3)
     assert view_topic("/ball/state") == (c.BALL_STATE, None)
-    for other in ("/robot_x/catch_time", "/robot_3/cmd_vel", "/clock", "/robot_3", "catch_time", ""):
+    for other in ("/robot_x/catch_time", "/robot_3/cmd_vel", "/robot_3/vision_pose", "/clock", "/robot_3",
+                  "catch_time", ""):
         assert view_topic(other) is None
 
 
@@ -112,7 +112,7 @@ def test_a_team_limits_who_receives():
 def test_robots_poses_headings_and_staleness():
     state = WorldState(FIELD)
     robot(state, 4, 1.0, (1.5, -0.5, math.pi / 2))
-    assert state.apply(c.VISION_POSE.for_robot(7), pose2d_cdr(1.0, (0.2, 0.3, -1.0)))  # seen only
+    assert state.apply(c.ODOM.for_robot(7), odometry_cdr(1.0, (0.2, 0.3, -1.0), (0.0, 0.0, 0.0)))  # tracked only
     frame = state.frame()
     assert [(r["id"], r["pose"], r["truth"]) for r in frame["robots"]] == [
         (4, [1.5, -0.5, round(math.pi / 2, 4)], True), (7, [0.2, 0.3, -1.0], False)]

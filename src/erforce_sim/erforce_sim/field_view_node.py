@@ -146,8 +146,10 @@ class FieldViewNode(Node):
         wanted = self._server.client_count > 0 or (self._foxglove is not None and self._foxglove.has_clients())
         if not wanted:
             return
+        taken = 0
         for topic, sub in self._subs.items():
             for data, _info in take_queued(sub):
+                taken += 1
                 try:
                     msg = decode(self._types[topic], data)
                 except Exception as exc:
@@ -155,6 +157,8 @@ class FieldViewNode(Node):
                     continue
                 if not self._state.apply(topic, msg):
                     self._warn.warn(f"bad:{topic}", f"{topic}: message refused (non-finite or mis-shaped)")
+        if not taken:
+            return  # nothing new: the pages keep the last frame
         frame = self._state.frame()
         self._server.publish(frame_text(frame))
         if self._foxglove is not None:

@@ -66,6 +66,7 @@ class ViewServer:
         self._stop: asyncio.Event | None = None
         self._started = threading.Event()
         self._error: BaseException | None = None
+        self._last_text: str | None = None  # the newest frame, for a page that connects now
         self.frames_dropped = 0
         self.requests_refused = 0
 
@@ -111,6 +112,7 @@ class ViewServer:
     # -------------------------------------------------------------------- output
     def publish(self, text: str) -> None:
         """Queue ``text`` for every client (thread-safe; never blocks)."""
+        self._last_text = text
         loop = self._loop
         if loop is None or not self._clients:
             return
@@ -156,6 +158,9 @@ class ViewServer:
     async def _handle(self, connection: ServerConnection) -> None:
         client = _Client(connection, self.client_queue_depth)
         self._clients.add(client)
+        if self._last_text is not None:
+            client.queue.append(self._last_text)
+            client.ready.set()
         sender = asyncio.create_task(self._send(client))
         try:
             async for message in connection:
