@@ -80,6 +80,19 @@ def test_the_path_uses_the_model_the_predictor_publishes():
     assert frame["model"] == {"a_slide": -5.0, "a_roll": -0.5, "c_switch": 0.5}
 
 
+def test_a_short_path_has_no_marks_but_its_ends():
+    """From 0.5 m/s, rolling already (v_shoot 2: 0.5 <= 0.6 * 2): it stops 0.5^2 / 0.6 = 0.41667 m on after 1.6667 s."""
+    state = WorldState(FIELD)
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0))
+    ball_state(state, 1.0, (0.0, 0.0), (0.0, -0.5))
+    path = state.frame()["path"]
+    assert path["switch"] == [0.0, 0.0] and path["stop"] == pytest.approx([0.0, -0.41667], abs=1e-4)
+    assert len(path["marks"]) == 6 and path["stop_time"] == pytest.approx(1.6667, abs=1e-4)
+    state.apply(c.BALL_STATE.name, odometry_cdr(1.1, (0.0, 0.0, 0.0), (0.0, -0.05, 0.0)))  # 0.1667 s: no mark
+    path = state.frame()["path"]
+    assert path["marks"] == [] and path["stop"] == pytest.approx([0.0, -0.05**2 / 0.6], abs=1e-4)
+
+
 def test_a_ball_at_rest_has_no_path():
     state = WorldState(FIELD)
     ball_state(state, 1.0, (0.5, 0.5), (0.0, 0.0))

@@ -309,9 +309,12 @@ class WorldState:
 
 
 def _wire(values) -> list:
-    """Numbers as the page gets them: plain floats rounded to 0.1 mm / 0.1 ms, in one numpy call
-    (Python's round() per value cost more than everything else a frame takes)."""
-    return np.round(np.asarray(values, dtype=float), 4).tolist()
+    """Numbers as the page gets them: plain floats rounded to 0.1 mm / 0.1 ms (JSON has no NaN, and the
+    conversions let none in). Many values in one numpy call: round() per value cost more than the
+    rest of a frame; a few in Python, where numpy's call overhead is the larger."""
+    if isinstance(values, np.ndarray) and (values.ndim > 1 or values.size > 8):
+        return np.round(values.astype(float), 4).tolist()
+    return [round(float(v), 4) for v in values]
 
 
 # --------------------------------------------------------------------------------- replay
