@@ -25,6 +25,7 @@ import math
 import os
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -477,17 +478,20 @@ class Demo:
                "-p", f"field:={self.args.field}", "-p", f"team_robot_ids:=[{team}]",
                "-p", f"foxglove_port:={self.args.foxglove_port}"]
         self.view = spawn_in_session(cmd, self.out / "view.log", idle=True)
+        threading.Thread(target=self._announce_view, daemon=True).start()
+
+    def _announce_view(self) -> None:
+        """Print the view's address once it serves (it starts beside the graph, at idle priority)."""
         log = self.out / "view.log"
-        deadline = time.monotonic() + 30.0
-        while "field view at" not in log.read_text(errors="replace"):
-            if self.view.poll() is not None or time.monotonic() > deadline:
-                print(f"the field view did not start; see {log}", flush=True)
+        while self.view is not None and self.view.poll() is None:
+            if "field view at" in log.read_text(errors="replace"):
+                print(f"field view: http://127.0.0.1:{self.args.view_port}/", flush=True)
+                if self.args.foxglove_port:
+                    print(f"Foxglove: ws://127.0.0.1:{self.args.foxglove_port} (layout: "
+                          f"{Path(__file__).resolve().parents[1] / 'config' / 'foxglove_layout.json'})", flush=True)
                 return
-            time.sleep(0.1)
-        print(f"field view: http://127.0.0.1:{self.args.view_port}/", flush=True)
-        if self.args.foxglove_port:
-            print(f"Foxglove: ws://127.0.0.1:{self.args.foxglove_port} (layout: "
-                  f"{Path(__file__).resolve().parents[1] / 'config' / 'foxglove_layout.json'})", flush=True)
+            time.sleep(0.2)
+        print(f"the field view did not start; see {log}", flush=True)
 
     def _recording_everything(self) -> bool:
         """erforce-record has subscribed to every topic that has a publisher now (it logs each one).
