@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import socket
 import struct
 import time
@@ -81,6 +82,19 @@ def test_foxglove_clients_get_the_graphs_topics_as_cdr_with_ros2msg_schemas(ros_
     plots = json.loads(payloads[2])
     assert plots["current_limit_a"] == 1.3 and plots["ball_speed_true"] >= 0.0
     assert len(payloads[1]) > 100  # a SceneUpdate (protobuf): field lines, two robots, the ball
+
+
+def test_a_taken_port_or_a_missing_bag_is_one_clear_line_and_exit_1(ros_graph, tmp_path):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        view = ros_graph.start_node("erforce_sim", "field_view", params={"port": port})
+        assert view.wait_exit(60.0) == 1
+    assert re.search(rf"cannot start: cannot serve on 127.0.0.1:{port}", view.output())
+    view = ros_graph.start_node("erforce_sim", "field_view", params={"port": 0, "bag": str(tmp_path / "none")})
+    assert view.wait_exit(60.0) == 1
+    assert "cannot start: cannot replay" in view.output() and "Traceback" not in view.output()
 
 
 def write_rolling_ball_bag(path: Path) -> None:

@@ -103,12 +103,18 @@ class FieldViewNode(Node):
         self._state = WorldState(FieldConfig.preset(v["field"]), **looks)
         self._replay: BagReplay | None = None
         if v["bag"]:
-            self._replay = BagReplay(v["bag"], decode, self._state.field, **looks)
+            try:
+                self._replay = BagReplay(v["bag"], decode, self._state.field, **looks)
+            except Exception as exc:  # rosbags raises its own errors for a damaged bag
+                raise ValueError(f"cannot replay {v['bag']}: {exc}") from None
             self.get_logger().info(f"replay: {v['bag']} ({len(self._replay)} messages, "
                                    f"{self._replay.start_s:.1f} to {self._replay.end_s:.1f} s)")
         self._server = ViewServer(web_dir(), v["host"], v["port"], v["max_clients"], on_request=self._on_request,
                                   logger=None)
-        self._server.start()
+        try:
+            self._server.start()
+        except (OSError, RuntimeError) as exc:  # e.g. the port is taken: one clear line (run_node)
+            raise ValueError(str(exc)) from None
         self.get_logger().info(f"field view at {self._server.url}")
         self._subs: dict[str, Any] = {}  # topic -> raw subscription of the view
         self._types: dict[str, str] = {}
