@@ -221,3 +221,31 @@ def test_an_empty_bag_is_a_clear_error(tmp_path):
     _write_bag(tmp_path / "bag", [(1, "/other", "std_msgs/msg/String", String(data="x"))])
     with pytest.raises(ValueError, match="no message of the view's topics"):
         BagReplay(tmp_path / "bag", decode, FIELD)
+
+
+def test_the_foxglove_scene_draws_what_the_page_draws():
+    from erforce_sim.foxglove_bridge import plots_message, scene_shapes, scene_update
+
+    state = WorldState(FIELD, opponent_ids=frozenset({1}))
+    robot(state, 0, 1.0, (1.0, 0.5, 0.25), 0.8, (0.5, 0.0))
+    robot(state, 1, 1.0, (-1.0, -0.5, 0.0))
+    assert state.apply(c.GROUND_TRUTH_BALL.name, odometry_cdr(1.0, (-0.5, 0.0, 0.0), (2.0, 0.0, 0.0)))
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0))
+    ball_state(state, 1.0, (-0.5, 0.0), (2.0, 0.0))
+    frame = state.frame()
+    shapes = scene_shapes(frame)
+    assert set(shapes) == {"field", "robots", "ball"}
+    outline = shapes["field"]["lines"][1]  # the field lines: 9 x 6 m
+    assert outline["loop"] and outline["points"] == [(-4.5, -3.0), (4.5, -3.0), (4.5, 3.0), (-4.5, 3.0)]
+    bodies = shapes["robots"]["cylinders"]
+    assert [(b["x"], b["y"], b["color"]) for b in bodies] == [(1.0, 0.5, "#2f7de1"), (-1.0, -0.5, "#f2d22e")]
+    assert shapes["robots"]["arrows"][0]["yaw"] == 0.25
+    assert [t["text"] for t in shapes["robots"]["texts"]] == ["0", "0: 0.80 s", "1"]
+    assert shapes["ball"]["spheres"] == [{"x": -0.5, "y": 0.0, "diameter": 0.043, "color": "#ff8a00"}]
+    sliding, rolling, target = shapes["ball"]["lines"]  # no stop point published; robot_0's target
+    assert sliding["points"] == [(-0.5, 0.0), (pytest.approx(-0.5 + 0.512), 0.0)]
+    assert rolling["points"][1] == (pytest.approx(-0.5 + 2.912), 0.0)
+    assert target["loop"] and math.dist(target["points"][0], (0.5, 0.0)) == pytest.approx(0.1)
+    assert len(scene_update(frame, 1_000_000_000).encode()) > 500  # the foxglove message builds and encodes
+    assert plots_message(frame) == {"t": 1.0, "current_limit_a": 1.3, "robot": 0, "ball_speed_true": 2.0,
+                                    "ball_speed_filtered": 2.0, "ball_speed_model": 2.0, "avg_current_a": []}

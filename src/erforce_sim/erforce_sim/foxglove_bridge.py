@@ -82,19 +82,19 @@ def _pose(x: float, y: float, z: float = 0.0, yaw: float = 0.0) -> Pose:
                                                                           w=math.cos(yaw / 2)))
 
 
-def _line(points, color: str, thickness_px: float, loop: bool = False) -> LinePrimitive:
-    return LinePrimitive(type=LinePrimitiveLineType.LineLoop if loop else LinePrimitiveLineType.LineStrip,
-                         pose=_pose(0.0, 0.0), thickness=thickness_px, scale_invariant=True,
-                         points=[Point3(x=p[0], y=p[1], z=0.002) for p in points], color=_color(color))
-
-
 def _circle(x: float, y: float, radius: float, n: int = 32) -> list[tuple[float, float]]:
     return [(x + radius * math.cos(2 * math.pi * k / n), y + radius * math.sin(2 * math.pi * k / n)) for k in range(n)]
 
 
-def scene_update(frame: dict[str, Any], stamp_ns: int) -> SceneUpdate:
-    """The page's drawing of ``frame`` as foxglove scene entities in frame ``field``."""
-    stamp = Timestamp(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000)
+def _line(points, color: str, thickness_px: float, loop: bool = False) -> dict:
+    return {"points": [(float(p[0]), float(p[1])) for p in points], "color": color, "thickness": thickness_px,
+            "loop": loop}
+
+
+def scene_shapes(frame: dict[str, Any]) -> dict[str, dict[str, list[dict]]]:
+    """The page's drawing of ``frame`` as plain shapes per scene entity (``field``, ``robots``, ``ball``),
+    in field coordinates: lines (polylines, thickness in pixels), cylinders (robot bodies), arrows
+    (headings), texts, spheres (the ball). ``scene_update`` makes the foxglove messages of them."""
     f = frame["field"]
     half_l, half_w, b = f["length"] / 2, f["width"] / 2, f["boundary"]
     field_lines = [
@@ -105,50 +105,63 @@ def scene_update(frame: dict[str, Any], stamp_ns: int) -> SceneUpdate:
         _line([(0.0, -half_w), (0.0, half_w)], COLORS["lines"], 2),
         _line(_circle(0.0, 0.0, f["centre_circle"], 48), COLORS["lines"], 2, loop=True),
     ]
-    entities = [SceneEntity(timestamp=stamp, frame_id="field", id="field", lines=field_lines)]
     radius = frame["robot_radius"]
-    cylinders, arrows, texts, lines = [], [], [], []
+    robots: dict[str, list[dict]] = {"cylinders": [], "arrows": [], "texts": [], "lines": []}
     for r in frame["robots"]:
         x, y, yaw = r["pose"]
         color = COLORS["opponent" if r["team"] == "opponent" else "ours"]
-        cylinders.append(CylinderPrimitive(pose=_pose(x, y, ROBOT_HEIGHT_M / 2),
-                                           size=Vector3(x=2 * radius, y=2 * radius, z=ROBOT_HEIGHT_M),
-                                           bottom_scale=1.0, top_scale=1.0, color=_color(color)))
-        arrows.append(ArrowPrimitive(pose=_pose(x, y, ROBOT_HEIGHT_M + 0.01, yaw), shaft_length=radius,
-                                     shaft_diameter=0.02, head_length=0.04, head_diameter=0.05,
-                                     color=_color("#0b0d10")))
-        texts.append(TextPrimitive(pose=_pose(x, y, ROBOT_HEIGHT_M + 0.05), billboard=True, font_size=14,
-                                   scale_invariant=True, color=_color("#ffffff"), text=str(r["id"])))
+        robots["cylinders"].append({"x": x, "y": y, "radius": radius, "color": color})
+        robots["arrows"].append({"x": x, "y": y, "yaw": yaw, "length": radius})
+        robots["texts"].append({"x": x, "y": y, "text": str(r["id"]), "size": 14, "color": "#ffffff"})
         if r["catch_point"]:
             cx, cy = r["catch_point"]
-            lines.append(_line(_circle(cx, cy, 0.06), COLORS["catch"], 2, loop=True))
-            texts.append(TextPrimitive(pose=_pose(cx, cy + 0.12, 0.05), billboard=True, font_size=12,
-                                       scale_invariant=True, color=_color(COLORS["catch"]),
-                                       text=f"{r['id']}: {r['catch_time']:.2f} s"))
-    entities.append(SceneEntity(timestamp=stamp, frame_id="field", id="robots", cylinders=cylinders, arrows=arrows,
-                                texts=texts, lines=lines))
-    spheres, lines = [], []
-    ball = frame["ball"]
-    shown = ball.get("truth") or ball.get("state")
+            robots["lines"].append(_line(_circle(cx, cy, 0.06), COLORS["catch"], 2, loop=True))
+            robots["texts"].append({"x": cx, "y": cy + 0.12, "text": f"{r['id']}: {r['catch_time']:.2f} s",
+                                    "size": 12, "color": COLORS["catch"]})
+    ball: dict[str, list[dict]] = {"spheres": [], "lines": []}
+    shown = frame["ball"].get("truth") or frame["ball"].get("state")
     if shown:
-        d = BALL_DIAMETER_M
-        spheres.append(SpherePrimitive(pose=_pose(shown[0], shown[1], d / 2), size=Vector3(x=d, y=d, z=d),
-                                       color=_color(COLORS["ball"])))
+        ball["spheres"].append({"x": shown[0], "y": shown[1], "diameter": BALL_DIAMETER_M, "color": COLORS["ball"]})
     path = frame["path"]
     if path:
-        lines.append(_line([path["start"], path["switch"]], COLORS["slide"], 4))
-        lines.append(_line([path["switch"], path["stop"]], COLORS["roll"], 4))
+        ball["lines"].append(_line([path["start"], path["switch"]], COLORS["slide"], 4))
+        ball["lines"].append(_line([path["switch"], path["stop"]], COLORS["roll"], 4))
     if frame["stop_point"]:
         sx, sy = frame["stop_point"]
-        lines.append(LinePrimitive(type=LinePrimitiveLineType.LineList, pose=_pose(0.0, 0.0), thickness=2,
-                                   scale_invariant=True, color=_color(COLORS["stop"]),
-                                   points=[Point3(x=sx - 0.06, y=sy - 0.06, z=0.003), Point3(x=sx + 0.06, y=sy + 0.06,
-                                           z=0.003), Point3(x=sx - 0.06, y=sy + 0.06, z=0.003),
-                                           Point3(x=sx + 0.06, y=sy - 0.06, z=0.003)]))
+        ball["lines"].append(_line([(sx - 0.06, sy - 0.06), (sx + 0.06, sy + 0.06)], COLORS["stop"], 2))
+        ball["lines"].append(_line([(sx - 0.06, sy + 0.06), (sx + 0.06, sy - 0.06)], COLORS["stop"], 2))
     if frame["receiver"]:
         tx, ty = frame["receiver"]["target"]
-        lines.append(_line(_circle(tx, ty, 0.1), COLORS["target"], 4, loop=True))
-    entities.append(SceneEntity(timestamp=stamp, frame_id="field", id="ball", spheres=spheres, lines=lines))
+        ball["lines"].append(_line(_circle(tx, ty, 0.1), COLORS["target"], 4, loop=True))
+    return {"field": {"lines": field_lines}, "robots": robots, "ball": ball}
+
+
+def scene_update(frame: dict[str, Any], stamp_ns: int) -> SceneUpdate:
+    """``scene_shapes`` of ``frame`` as a foxglove SceneUpdate in frame ``field``."""
+    stamp = Timestamp(stamp_ns // 1_000_000_000, stamp_ns % 1_000_000_000)
+    entities = []
+    for entity_id, shapes in scene_shapes(frame).items():
+        parts: dict[str, list] = {}
+        parts["lines"] = [LinePrimitive(
+            type=LinePrimitiveLineType.LineLoop if ln["loop"] else LinePrimitiveLineType.LineStrip,
+            pose=_pose(0.0, 0.0), thickness=ln["thickness"], scale_invariant=True,
+            points=[Point3(x=x, y=y, z=0.002) for x, y in ln["points"]], color=_color(ln["color"]))
+            for ln in shapes.get("lines", ())]
+        parts["cylinders"] = [CylinderPrimitive(
+            pose=_pose(c["x"], c["y"], ROBOT_HEIGHT_M / 2),
+            size=Vector3(x=2 * c["radius"], y=2 * c["radius"], z=ROBOT_HEIGHT_M), bottom_scale=1.0, top_scale=1.0,
+            color=_color(c["color"])) for c in shapes.get("cylinders", ())]
+        parts["arrows"] = [ArrowPrimitive(
+            pose=_pose(a["x"], a["y"], ROBOT_HEIGHT_M + 0.01, a["yaw"]), shaft_length=a["length"], shaft_diameter=0.02,
+            head_length=0.04, head_diameter=0.05, color=_color("#0b0d10")) for a in shapes.get("arrows", ())]
+        parts["texts"] = [TextPrimitive(
+            pose=_pose(t["x"], t["y"], ROBOT_HEIGHT_M + 0.05), billboard=True, font_size=t["size"],
+            scale_invariant=True, color=_color(t["color"]), text=t["text"]) for t in shapes.get("texts", ())]
+        parts["spheres"] = [SpherePrimitive(
+            pose=_pose(b["x"], b["y"], b["diameter"] / 2), size=Vector3(x=b["diameter"], y=b["diameter"],
+                                                                         z=b["diameter"]),
+            color=_color(b["color"])) for b in shapes.get("spheres", ())]
+        entities.append(SceneEntity(timestamp=stamp, frame_id="field", id=entity_id, **parts))
     return SceneUpdate(entities=entities)
 
 
