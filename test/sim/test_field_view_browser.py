@@ -93,6 +93,39 @@ def canvas_pixel(browser: Browser, x_m: float, y_m: float) -> tuple[int, int]:
     return round(left + width / 2 + x_m * scale), round(top + height / 2 - y_m * scale)
 
 
+def check_follow_zoom_and_fit(browser: Browser, drawn: dict) -> None:
+    """Click robot_1: its numbers show. Wheel: zoom by exp(-deltaY * 0.0015) about the cursor, whose field
+    point stays put. Double-click: the default fit again."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    canvas = browser.driver.find_element(By.ID, "field")
+    width, height = browser.js("const r = arguments[0].getBoundingClientRect(); return [r.width, r.height];", canvas)
+    px, py = drawn["robot_px"][str(KICKER)]
+    ActionChains(browser.driver).move_to_element_with_offset(canvas, round(px - width / 2),
+                                                             round(py - height / 2)).click().perform()
+    deadline = time.monotonic() + 10.0
+    while browser.js("return document.getElementById('followtitle').textContent") != f"Robot {KICKER} (ours)":
+        assert time.monotonic() < deadline, "clicking robot_1 did not follow it"
+        time.sleep(0.05)
+    scale0 = browser.js("return window.fieldView.drawn.scale")
+    under = browser.js("return window.fieldView.pixelToWorld(300, 200)")
+    browser.js("const r = arguments[0].getBoundingClientRect(); arguments[0].dispatchEvent(new WheelEvent('wheel', "
+               "{deltaY: -400, clientX: r.left + 300, clientY: r.top + 200, bubbles: true, cancelable: true}));",
+               canvas)
+    deadline = time.monotonic() + 10.0
+    while browser.js("return window.fieldView.drawn.scale") == scale0:
+        assert time.monotonic() < deadline, "the wheel did not zoom"
+        time.sleep(0.05)
+    assert browser.js("return window.fieldView.drawn.scale") == pytest.approx(scale0 * math.exp(0.6), rel=1e-9)
+    assert browser.js("return window.fieldView.pixelToWorld(300, 200)") == pytest.approx(under, abs=1e-9)
+    ActionChains(browser.driver).double_click(canvas).perform()
+    deadline = time.monotonic() + 10.0
+    while browser.js("return window.fieldView.drawn.scale") != pytest.approx(scale0, rel=1e-9):
+        assert time.monotonic() < deadline, "double-click did not fit the field again"
+        time.sleep(0.05)
+
+
 def is_ball_orange(rgb) -> bool:
     r, g, b = rgb
     return r > 200 and 100 < g < 170 and b < 60
@@ -127,6 +160,7 @@ def test_the_page_draws_the_graphs_robots_ball_and_catch_point(graph_and_view):
     # and the orange is the ball there, not the whole neighbourhood
     assert not any(is_ball_orange(image.getpixel((px + dx, py + dy))) for dx, dy in ((12, 0), (-12, 0), (0, 12)))
     before = {c["id"]: c["world"] for c in drawn["catch_points"]}
+    check_follow_zoom_and_fit(browser, drawn)
 
     # Kick at robot_0: the path, robot_0's catch point near it and the receiver's target appear.
     n_events = len(director.events)
