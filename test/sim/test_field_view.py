@@ -217,6 +217,22 @@ def test_a_bag_replays_as_frames_at_any_time(tmp_path):
     assert replay.frame_at(2.5)["t"] == 2.5
 
 
+def test_a_damaged_record_is_skipped_and_counted(tmp_path):
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    with Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        phase = writer.add_connection(c.BALL_PHASE.name, "std_msgs/msg/String",
+                                      typestore=get_typestore(Stores.ROS2_JAZZY))
+        writer.write(phase, 1_000_000_000, serialize_message(String(data="rolling")))
+        writer.write(phase, 1_500_000_000, b"\x00\x01\x00\x00\xff\xff\xff\x7f")  # a string 2^31 long
+        writer.write(phase, 2_000_000_000, serialize_message(String(data="stopped")))
+    replay = BagReplay(tmp_path / "bag", decode, FIELD)
+    assert (len(replay), replay.skipped) == (2, 1)
+    assert replay.frame_at(1.7)["ball"]["phase"] == "rolling"
+    assert replay.frame_at(2.0)["ball"]["phase"] == "stopped"
+
+
 def test_an_empty_bag_is_a_clear_error(tmp_path):
     _write_bag(tmp_path / "bag", [(1, "/other", "std_msgs/msg/String", String(data="x"))])
     with pytest.raises(ValueError, match="no message of the view's topics"):

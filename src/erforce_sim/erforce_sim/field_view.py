@@ -333,13 +333,15 @@ class BagReplay:
         self.path = Path(path)
         self._times: list[int] = []
         self._messages: list[tuple[str, Any]] = []
+        self.skipped = 0  # records that did not decode
         with Reader(self.path) as reader:
             connections = [c for c in reader.connections if view_topic(c.topic) is not None]
             # (no connection given reads them all)
             for connection, t_ns, data in reader.messages(connections=connections) if connections else ():
                 try:
                     msg = decode(connection.msgtype, bytes(data))
-                except Exception:
+                except Exception:  # a damaged record: the rest plays
+                    self.skipped += 1
                     continue
                 self._times.append(t_ns)
                 self._messages.append((connection.topic, msg))
@@ -356,6 +358,7 @@ class BagReplay:
                 self._checkpoints.append((i, copy.deepcopy(state)))
                 next_checkpoint = self._times[i] + int(checkpoint_period_s * 1e9)
             state.apply(topic, msg)
+        self._checkpoint_index = [i for i, _ in self._checkpoints]
         self._cursor = 0
         self._state = copy.deepcopy(self._blank)
 
@@ -369,7 +372,7 @@ class BagReplay:
         t_ns = round(min(max(t_s, self.start_s), self.end_s) * 1e9)
         end = bisect.bisect_right(self._times, t_ns)
         if end < self._cursor or end - self._cursor > 2 * self._checkpoint_span():
-            index = bisect.bisect_right([i for i, _ in self._checkpoints], end) - 1
+            index = bisect.bisect_right(self._checkpoint_index, end) - 1
             self._cursor, self._state = self._checkpoints[index][0], copy.deepcopy(self._checkpoints[index][1])
         for topic, msg in self._messages[self._cursor:end]:
             self._state.apply(topic, msg)

@@ -107,7 +107,8 @@ class FieldViewNode(Node):
                 self._replay = BagReplay(v["bag"], decode, self._state.field, **looks)
             except Exception as exc:  # rosbags raises its own errors for a damaged bag
                 raise ValueError(f"cannot replay {v['bag']}: {exc}") from None
-            self.get_logger().info(f"replay: {v['bag']} ({len(self._replay)} messages, "
+            skipped = f", {self._replay.skipped} undecodable skipped" if self._replay.skipped else ""
+            self.get_logger().info(f"replay: {v['bag']} ({len(self._replay)} messages{skipped}, "
                                    f"{self._replay.start_s:.1f} to {self._replay.end_s:.1f} s)")
         self._server = ViewServer(web_dir(), v["host"], v["port"], v["max_clients"], on_request=self._on_request,
                                   logger=None)
