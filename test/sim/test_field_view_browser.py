@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import sys
 import time
 from pathlib import Path
 
@@ -185,3 +186,14 @@ def test_the_page_draws_the_graphs_robots_ball_and_catch_point(graph_and_view):
     t_ball, bx, by, *_ = truth_at(director.series.ball_truth, drawn["ball_t"])
     assert abs(t_ball - drawn["ball_t"]) < 1e-3 and math.dist(drawn["ball_world"], (bx, by)) < 0.003
     assert re.search(r"field view at", view.output())
+
+
+def test_without_chromium_the_browser_tests_fail_under_ci_and_skip_elsewhere(monkeypatch):
+    module = sys.modules[__name__]
+    monkeypatch.setattr(module, "chromium_missing", lambda: ["/usr/bin/chromium"])
+    monkeypatch.setenv("CI", "true")
+    with pytest.raises(pytest.fail.Exception, match="chromium missing"):
+        require_chromium()
+    monkeypatch.delenv("CI")
+    with pytest.raises(pytest.skip.Exception):
+        require_chromium()
