@@ -28,6 +28,7 @@ MODULES = (
     ("simulator (Sec. 2-3)", "bench_sim"),
     ("lockstep over DDS", "bench_lockstep"),
     ("field view", "bench_field_view"),
+    ("self-healing graph", "bench_respawn"),
 )
 
 

@@ -20,12 +20,11 @@ throttled warning and answered with nothing. All maths is in the cores.
 from __future__ import annotations
 
 import concurrent.futures
-import inspect
 import math
 import os
 import time
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 from rclpy.node import Node
@@ -33,7 +32,6 @@ from std_msgs.msg import Bool, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
 from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, catch_after_reaction
-from erforce_ball_model.catcher import CatcherConfig
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
 from erforce_interfaces import contract
@@ -50,130 +48,22 @@ from erforce_interfaces.conversions import (
 )
 from erforce_interfaces.executor import run_sampled
 from erforce_interfaces.node_support import (
-    ParamSpec,
+    NodeParams,
     ThrottledWarner,
+    check_stamp,
     contract_publisher,
     contract_subscription,
-    declare_params,
-    robot_config_from_params,
-    robot_param_specs,
     run_node,
     sample_clock,
 )
+from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.stamps import StampFilter, StampVerdict
 
-# Node defaults are the cores' defaults.
-_MODEL = BallModelParams()
-_TRACK = TrackerConfig()
-_CATCHER = CatcherConfig()  # the robot limits: what the catcher drives with
-_GRID_STEP_S = inspect.signature(CatchSearch).parameters["grid_step_s"].default
+SCHEMA = load_schema("erforce_ball_model", "ball_predictor")
 
-FACING_MODES = ("towards_ball", "fixed")
 _NEVER = int(CatchKind.NEVER)
 PHASE_NAMES = {BallPhase.SLIDING: "sliding", BallPhase.ROLLING: "rolling", BallPhase.STOPPED: "stopped"}
-
-PARAMS = (
-    ParamSpec("num_robots", 11, "robots robot_0 .. robot_{n-1} served by this node", min=1, max=64, read_only=True),
-    ParamSpec("a_slide_mps2", _MODEL.a_slide_mps2, "sliding deceleration (< 0, |a_slide| > |a_roll|) [m/s^2]",
-              min=-100.0, max=0.0),
-    ParamSpec("a_roll_mps2", _MODEL.a_roll_mps2, "rolling deceleration (< 0) [m/s^2]", min=-100.0, max=0.0),
-    ParamSpec("c_switch", _MODEL.c_switch, "v_switch / v_shoot, in (0, 1]", min=0.0, max=1.0),
-    ParamSpec("field", "division_b", "field preset: division_a (12 x 9 m) | division_b (9 x 6 m)"),
-    ParamSpec(
-        "field_margin_m",
-        0.0,
-        "the catch search ends where the ball crosses the field lines extended by this [m]",
-        min=-1.0,
-        max=2.0,
-    ),
-    ParamSpec(
-        "vision_reject_margin_m",
-        0.5,
-        "observations farther than this outside the field lines are rejected (walls at 0.3 m) [m]",
-        min=0.0,
-        max=5.0,
-    ),
-    ParamSpec(
-        "robot_a_max_mps2", _CATCHER.a_max_mps2, "robot acceleration limit of robotTimeToPos [m/s^2]; the catcher "
-        "drives with the same", min=1e-3, max=50.0),
-    ParamSpec("robot_v_max_mps", _CATCHER.v_max_mps, "robot speed limit of robotTimeToPos [m/s]", min=1e-3, max=20.0),
-    ParamSpec("reaction_s", 0.1, "robot reaction time: vision latency, tracking and control lag; a robot starts "
-              "to act on a prediction this much later [s]", min=0.0, max=1.0),
-    ParamSpec(
-        "facing_mode",
-        ["towards_ball"],
-        "per robot (or one for all): towards_ball (dribbler against the ball's motion; towards the ball "
-        "when it rests) | fixed (facing_rad)",
-    ),
-    ParamSpec(
-        "facing_rad",
-        [math.pi],
-        "per robot (or one for all): dribbler direction in `field` for facing_mode fixed [rad]",
-        min=-2.0 * math.pi,
-        max=2.0 * math.pi,
-    ),
-    ParamSpec(
-        "rest_speed_mps",
-        0.1,
-        "a slower filtered ball is reported stopped and faced from the robot (vision noise keeps the "
-        "estimate of a resting ball at a few cm/s) [m/s]",
-        min=0.0,
-        max=1.0,
-    ),
-    ParamSpec(
-        "robot_timeout_s",
-        1.0,
-        "a robot not seen for this long (vision stamps) gets no catch outputs [s]",
-        min=0.001,
-        max=3600.0,
-    ),
-    ParamSpec("grid_step_s", _GRID_STEP_S, "sampling step of the catch search (Algorithm 2) [s]", min=1e-4, max=0.5),
-    ParamSpec("position_noise_m", _TRACK.position_noise_m, "ball vision noise, standard deviation [m]",
-              min=1e-5, max=0.5),
-    ParamSpec(
-        "accel_noise_psd",
-        _TRACK.accel_noise_psd,
-        "ball process noise beyond the two-phase model [(m/s^2)^2/Hz]",
-        min=1e-6,
-        max=1e4,
-    ),
-    ParamSpec("gate_sigma", _TRACK.gate_sigma, "innovation gate of the ball filter [sigma]", min=1.0, max=100.0),
-    ParamSpec(
-        "kick_threshold_mps", _TRACK.kick_threshold_mps, "speed gain that counts as a kick [m/s]", min=0.01, max=10.0
-    ),
-    ParamSpec(
-        "ricochet_angle_rad",
-        _TRACK.ricochet_angle_rad,
-        "direction change that counts as a ricochet [rad]",
-        min=0.01,
-        max=math.pi,
-    ),
-    ParamSpec("max_gap_s", _TRACK.max_gap_s, "a longer gap between frames restarts the ball filter [s]",
-              min=0.01, max=60.0),
-    ParamSpec("max_ball_speed_mps", _TRACK.max_ball_speed_mps,
-              "two vision frames further apart than this speed allows are not one motion (a ball put down "
-              "elsewhere, a false detection): the newer is held back [m/s]", min=1.0, max=100.0),
-    ParamSpec("online_identification", False, "fit a_slide, a_roll, c_switch from completed shots and use them"),
-    ParamSpec("ident_min_shots", 3, "shots needed before a fit may replace the model", min=1, max=50),
-    ParamSpec(
-        "ident_max_std_a_slide_mps2", 0.1, "accept a fit when the std error of a_slide is below [m/s^2]",
-        min=0.0, max=10.0,
-    ),
-    ParamSpec(
-        "ident_max_std_a_roll_mps2", 0.02, "accept a fit when the std error of a_roll is below [m/s^2]",
-        min=0.0, max=10.0,
-    ),
-    ParamSpec("ident_max_std_c_switch", 0.03, "accept a fit when the std error of c_switch is below",
-              min=0.0, max=1.0),
-    ParamSpec(
-        "timing_log_every",
-        0,
-        "log the in-node processing time (median, p99) of every N ball frames, to the last catch time "
-        "published and to the end of the frame; 0 = off",
-        min=0,
-        max=1_000_000,
-    ),
-) + robot_param_specs()
 
 
 @dataclass(frozen=True, eq=False)
@@ -209,48 +99,37 @@ def _per_robot(name: str, values: list, n: int) -> list:
     return values
 
 
-def build_config(values: dict[str, Any]) -> PredictorConfig:
-    """The node configuration for a complete set of parameter values (raises ValueError when invalid)."""
-    n = values["num_robots"]
-    modes = _per_robot("facing_mode", values["facing_mode"], n)
-    unknown = sorted({m for m in modes if m not in FACING_MODES})
-    if unknown:
-        raise ValueError(f"facing_mode must be towards_ball or fixed, got {', '.join(map(repr, unknown))}")
-    facing_rad = np.array(_per_robot("facing_rad", values["facing_rad"], n), dtype=float)
-    # Array parameters arrive as array.array, which ParamSpec.check does not look into.
-    if not (np.isfinite(facing_rad).all() and (np.abs(facing_rad) <= 2.0 * math.pi).all()):
-        raise ValueError(f"facing_rad: must be finite angles in [-2 pi, 2 pi], got {facing_rad.tolist()}")
+def build_config(c) -> PredictorConfig:
+    """The node configuration for a config object of the schema (raises ValueError when invalid)."""
+    n = c.num_robots
+    modes = _per_robot("facing_mode", c.facing_mode, n)
     return PredictorConfig(
         num_robots=n,
-        model=BallModelParams(values["a_slide_mps2"], values["a_roll_mps2"], values["c_switch"]),
+        model=BallModelParams(c.a_slide_mps2, c.a_roll_mps2, c.c_switch),
         tracker=TrackerConfig(
-            position_noise_m=values["position_noise_m"],
-            accel_noise_psd=values["accel_noise_psd"],
-            gate_sigma=values["gate_sigma"],
-            kick_threshold_mps=values["kick_threshold_mps"],
-            ricochet_angle_rad=values["ricochet_angle_rad"],
-            max_gap_s=values["max_gap_s"],
-            max_ball_speed_mps=values["max_ball_speed_mps"],
+            position_noise_m=c.position_noise_m,
+            accel_noise_psd=c.accel_noise_psd,
+            gate_sigma=c.gate_sigma,
+            kick_threshold_mps=c.kick_threshold_mps,
+            ricochet_angle_rad=c.ricochet_angle_rad,
+            max_gap_s=c.max_gap_s,
+            max_ball_speed_mps=c.max_ball_speed_mps,
         ),
-        field=FieldConfig.preset(values["field"]),
-        field_margin_m=values["field_margin_m"],
-        vision_reject_margin_m=values["vision_reject_margin_m"],
-        limits=RobotLimits(values["robot_a_max_mps2"], values["robot_v_max_mps"]),
-        reaction_s=values["reaction_s"],
+        field=FieldConfig.preset(c.field),
+        field_margin_m=c.field_margin_m,
+        vision_reject_margin_m=c.vision_reject_margin_m,
+        limits=RobotLimits(c.robot_a_max_mps2, c.robot_v_max_mps),
+        reaction_s=c.reaction_s,
         facing_fixed=np.array([m == "fixed" for m in modes]),
-        facing_rad=facing_rad,
-        dribbler_offset_m=robot_config_from_params(values).dribbler_offset_m,
-        rest_speed_mps=values["rest_speed_mps"],
-        grid_step_s=values["grid_step_s"],
-        robot_timeout_s=values["robot_timeout_s"],
-        online_identification=values["online_identification"],
-        ident_min_shots=values["ident_min_shots"],
-        ident_max_std=(
-            values["ident_max_std_a_slide_mps2"],
-            values["ident_max_std_a_roll_mps2"],
-            values["ident_max_std_c_switch"],
-        ),
-        timing_log_every=values["timing_log_every"],
+        facing_rad=np.array(_per_robot("facing_rad", c.facing_rad, n), dtype=float),
+        dribbler_offset_m=c.robot.dribbler_offset_m,
+        rest_speed_mps=c.rest_speed_mps,
+        grid_step_s=c.grid_step_s,
+        robot_timeout_s=c.robot_timeout_s,
+        online_identification=c.online_identification,
+        ident_min_shots=c.ident_min_shots,
+        ident_max_std=(c.ident_max_std_a_slide_mps2, c.ident_max_std_a_roll_mps2, c.ident_max_std_c_switch),
+        timing_log_every=c.timing_log_every,
     )
 
 
@@ -283,9 +162,12 @@ class BallPredictorNode(Node):
         self._fit_pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ball_fit")
         self._fit_future: concurrent.futures.Future | None = None
         self._search: CatchSearch | None = None  # robotTimeToBall for the team, rebuilt on a change
-        self._values = declare_params(self, PARAMS, build_config, self._apply)
+        self._params = NodeParams(self, SCHEMA, build_config)
+        self._values = self._params.values
+        self._apply(self._params.built)
         n = self._config.num_robots
         self._robots: list[RobotTracker | None] = [None] * n
+        self._ball_stamps, self._robot_stamps = StampFilter(), [StampFilter() for _ in range(n)]
         # The trackers' state after their last accepted pose, (t_s, x, y, vx, vy) per robot (NaN
         # stamp: not seen yet), and the velocities as the array the catch search takes.
         self._robot_states = [(math.nan, 0.0, 0.0, 0.0, 0.0)] * n
@@ -316,6 +198,7 @@ class BallPredictorNode(Node):
             f"a_roll {self._model.a_roll_mps2:g}, c_switch {self._model.c_switch:g} "
             f"(online identification {'on' if self._config.online_identification else 'off'})"
         )
+        self._params.on_change(self._apply)
 
     # -------------------------------------------------------------- parameters
     def _apply(self, config: PredictorConfig) -> None:
@@ -351,9 +234,11 @@ class BallPredictorNode(Node):
             self._warn.warn(f"pose{robot}", f"robot_{robot}: rejected vision_pose outside the field: "
                                             f"({pose[0]:.3f}, {pose[1]:.3f}) m")
             return
-        tracker = self._robots[robot]
-        if tracker is not None and self._restarted_clock(tracker.t_s, t_s, f"robot_{robot} tracker"):
-            tracker = None
+        verdict = check_stamp(self._robot_stamps[robot], round(t_s * 1e9), self._warn,
+                              f"robot_{robot}/vision_pose", self)
+        if verdict is StampVerdict.DROP:
+            return
+        tracker = None if verdict is StampVerdict.RESTART else self._robots[robot]
         tracker = tracker or RobotTracker()
         status = tracker.update(t_s, pose[0], pose[1], pose[2])
         if status == UpdateStatus.REJECTED_TIME:
@@ -376,17 +261,6 @@ class BallPredictorNode(Node):
             self._warn.warn(f"odom{robot}", f"robot_{robot}: odom not published: {exc}")
             return
         self._odom_pubs[robot].publish(odom)
-
-    def _restarted_clock(self, last_t_s: float | None, t_s: float, what: str) -> bool:
-        """A stamp more than max_gap_s before the newest one: the clock restarted (e.g. the simulator).
-
-        Smaller steps back are reordered or repeated frames and are rejected; after a restart
-        the old newest stamp would reject every frame until the new clock passed it.
-        """
-        if last_t_s is None or t_s >= last_t_s - self._config.tracker.max_gap_s:
-            return False
-        self.get_logger().warning(f"time went backwards ({last_t_s:.6f} -> {t_s:.6f} s): {what} restarted")
-        return True
 
     def _robots_now(self, t_s: float) -> tuple[list[int], np.ndarray]:
         """The robots fresh at ``t_s``, and all robots' positions then (constant-velocity extrapolation).
@@ -424,7 +298,10 @@ class BallPredictorNode(Node):
         if not cfg.field.contains(xy[0], xy[1], cfg.vision_reject_margin_m):
             self._warn.warn("ball_outside", f"rejected vision/ball outside the field: ({xy[0]:.3f}, {xy[1]:.3f}) m")
             return
-        if self._restarted_clock(self._ball.t_s, t_s, "ball filter"):
+        verdict = check_stamp(self._ball_stamps, round(t_s * 1e9), self._warn, "vision/ball", self)
+        if verdict is StampVerdict.DROP:
+            return
+        if verdict is StampVerdict.RESTART:
             self._ball = BallTracker(self._model, cfg.tracker)
             if self._shots is not None:
                 self._shots = ShotAccumulator(tracker_config=cfg.tracker)

@@ -8,9 +8,10 @@ two processes, half of it executor overhead; that is most of a 2 ms lockstep tic
 processes take part (bench/bench_lockstep.py).
 
 ``DirectExecutor`` has the same semantics for what the stack's nodes use: after one wait it
-runs every ready timer, subscription, guard condition, service, client response and QoS event
-once, in that order, node by node, then waits again (everything it waits on is level-triggered,
-so a second queued message wakes the next wait at once). Callbacks run in this thread; a
+runs every ready timer, subscription (everything queued on it, up to 64 messages), guard
+condition, service, client response and QoS event once, in that order, node by node, then
+waits again (everything it waits on is level-triggered, so what is left wakes the next wait
+at once). Callbacks run in this thread; a
 callback that returns a coroutine is driven to completion, and one that suspends on a future
 is an error (use rclpy's executors for such nodes). Callback groups have nothing to arbitrate
 in a single thread and are ignored. The entity lists are rebuilt when the executor is woken
@@ -26,13 +27,21 @@ normally finds an input already queued when it runs, but must wait when it is la
 boards' setpoint), switches it back with ``sample_only(sub, False)`` for as long as it waits.
 Under another executor they stay ordinary subscriptions (a callback per message), so the node
 behaves the same there. ``take_queued`` is the raw form.
+
+Callback faults: a subscription callback that raises would end ``spin`` and with it the node, so
+one malformed message from any participant could kill a node. ``set_callback_fault_handler``
+installs the one guard (``node_support.run_node`` does, for every node of the stack): every
+subscription callback this module runs, executor or ``run_sampled``, runs inside it, and an
+exception is handed to the handler instead of ending the spin. Without a handler (tests, tools)
+exceptions propagate as before. Timers, services and the rest are not guarded: they run on
+the node's own state, where an exception is a bug that must stop the node.
 """
 
 from __future__ import annotations
 
 import inspect
 import weakref
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor, TimeoutObject
@@ -40,12 +49,22 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
 from rclpy.utilities import timeout_sec_to_nsec
 
-__all__ = ["DirectExecutor", "run_sampled", "sample_only", "take_queued"]
+__all__ = ["DirectExecutor", "run_newest", "run_sampled", "sample_only", "set_callback_fault_handler",
+           "take_queued"]
 
 
 _KINDS = ("subscription", "timer", "guard_condition", "service", "client")
+_MAX_TAKES_PER_WAKE = 64  # messages taken from one ready subscription per wait
 _SAMPLED: weakref.WeakSet = weakref.WeakSet()  # subscriptions DirectExecutor leaves to their nodes
 _sampled_changes = 0  # DirectExecutor gathers its entities again when this moves
+_fault_handler: Callable[[Subscription, Exception], None] | None = None
+
+
+def set_callback_fault_handler(handler: Callable[[Subscription, Exception], None] | None) -> None:
+    """Guard every subscription callback of this process (module doc); None removes the guard.
+    The handler gets the subscription and the exception; it may re-raise."""
+    global _fault_handler
+    _fault_handler = handler
 
 
 def sample_only(subscription: Subscription, sampled: bool = True) -> Subscription:
@@ -65,7 +84,16 @@ def take_queued(subscription: Subscription) -> list:
     """Everything queued on a subscription, as (message, info) pairs, without an executor."""
     taken = []
     with subscription.handle:
-        while (item := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
+        while True:
+            try:
+                item = subscription.handle.take_message(subscription.msg_type, subscription.raw)
+            except Exception as exc:  # a sample rmw cannot deserialize
+                if _fault_handler is None:
+                    raise
+                _fault_handler(subscription, exc)
+                break
+            if item is None:
+                break
             taken.append(item)
     return taken
 
@@ -82,11 +110,33 @@ def run_sampled(subscriptions: Iterable[Subscription]) -> int:
     return len(batch)
 
 
+def run_newest(subscriptions: Iterable[Subscription]) -> int:
+    """Like ``run_sampled``, but only the newest queued message of each subscription runs: for commands
+    where the last one wins (placing a body, a kick), so that a flood costs one callback per call.
+    Returns how many messages were dropped."""
+    batch, dropped = [], 0
+    for sub in subscriptions:
+        taken = take_queued(sub)
+        if taken:
+            dropped += len(taken) - 1
+            msg, info = taken[-1]
+            batch.append((info["source_timestamp"], sub, msg, info))
+    batch.sort(key=lambda item: item[0])
+    for _, sub, msg, info in batch:
+        _run_callback(sub, msg, info)
+    return dropped
+
+
 def _run_callback(sub: Subscription, msg, info) -> None:
-    if sub._callback_type is Subscription.CallbackType.MessageOnly:
-        _finish(sub.callback(msg))
-    else:
-        _finish(sub.callback(msg, info))
+    try:
+        if sub._callback_type is Subscription.CallbackType.MessageOnly:
+            _finish(sub.callback(msg))
+        else:
+            _finish(sub.callback(msg, info))
+    except Exception as exc:
+        if _fault_handler is None:
+            raise
+        _fault_handler(sub, exc)
 
 
 def _ready(entities, ready_pointers):
@@ -226,11 +276,22 @@ class DirectExecutor(SingleThreadedExecutor):
 
     @staticmethod
     def _take_and_run(sub: Subscription) -> None:
-        try:
-            taken = sub.handle.take_message(sub.msg_type, sub.raw)
-        except InvalidHandle:
-            return
-        if taken is not None:
+        # Everything queued (up to a bound, so that the other entities are served too): under a flood
+        # a wake per message cannot keep up, and a keep-last reader then drops the oldest samples,
+        # the real ones among them.
+        for _ in range(_MAX_TAKES_PER_WAKE):
+            try:
+                with sub.handle:  # raises InvalidHandle once a callback destroyed the subscription
+                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+            except InvalidHandle:
+                return
+            except Exception as exc:  # a sample rmw cannot deserialize
+                if _fault_handler is None:
+                    raise
+                _fault_handler(sub, exc)
+                return
+            if taken is None:
+                return
             _run_callback(sub, *taken)
 
     def _take_response(self, client) -> None:

@@ -428,6 +428,9 @@ class Resolver:
         self._anon: dict[str, str] = {}
         self._depth = 0
         self._base_env = dict(os.environ)
+        # Safe by default: discovery stays on this computer unless the user chose a range (README,
+        # "DDS discovery"); the launch files say the same for `ros2 launch`.
+        self._base_env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
     def resolve(self, path: Path, shown: str) -> list[ProcessSpec]:
         self._run_file(path, shown, Scope(dict(self.cli_args), dict(self._base_env)))
