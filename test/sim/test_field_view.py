@@ -133,6 +133,37 @@ def test_robots_poses_headings_and_staleness():
     assert state.frame()["robots"] == []
 
 
+def test_live_stamps_follow_the_time_rule():
+    """A lone backwards or far-future stamp is refused; a new time line (a restarted simulator, here a
+    filter that takes any jump as one) forgets the old line's newer robots and ball."""
+    from erforce_interfaces.stamps import StampFilter
+
+    state = WorldState(FIELD, stamp_filters={})
+    robot(state, 4, 10.0, (1.5, -0.5, 0.0))
+    robot(state, 5, 10.0, (0.5, 0.5, 0.0))
+    ball_state(state, 10.0, (0.0, 0.0), (0.0, 0.0))
+    for stray in (0.0, 9.0, 10.0 + 3.0):  # back, back, more than max_jump_s (2 s) on
+        assert not state.apply(c.GROUND_TRUTH_ODOM.for_robot(4), odometry_cdr(stray, (3.0, 3.0, 0.0), (0, 0, 0)))
+    assert state.rejected == 3
+    assert [(r["id"], r["pose"]) for r in state.frame()["robots"]] == [(4, [1.5, -0.5, 0.0]), (5, [0.5, 0.5, 0.0])]
+    assert state.frame()["t"] == 10.0
+
+    state.stamp_filters[c.GROUND_TRUTH_ODOM.for_robot(4)] = restarting = StampFilter(silence_s=0.0, dead_s=0.0)
+    restarting.offer(10_000_000_000)
+    robot(state, 4, 0.5, (2.0, 1.0, 0.0))  # the new line: robot 5 and the ball are of the old one
+    frame = state.frame()
+    assert frame["t"] == 0.5
+    assert [(r["id"], r["pose"]) for r in frame["robots"]] == [(4, [2.0, 1.0, 0.0])]
+    assert "state" not in frame["ball"]
+
+
+def test_a_replay_takes_the_bags_stamps_as_they_are():
+    state = WorldState(FIELD)  # no stamp_filters: a bag's gaps and seeks are not a broken time line
+    robot(state, 4, 10.0, (1.5, -0.5, 0.0))
+    robot(state, 4, 20.0, (1.0, 0.0, 0.0))
+    assert state.frame()["robots"][0]["pose"] == [1.0, 0.0, 0.0]
+
+
 def test_motor_currents_and_the_limit_flags_per_wheel():
     state = WorldState(FIELD)
     robot(state, 0, 1.0, (0.0, 0.0, 0.0))

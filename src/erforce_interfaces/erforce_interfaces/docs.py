@@ -22,6 +22,7 @@ NODE_SCHEMAS = (
     ("erforce_motion", "motor_boards"),
     ("erforce_sim", "plant"),
     ("erforce_ball_model", "catcher"),
+    ("erforce_sim", "field_view"),
 )
 
 

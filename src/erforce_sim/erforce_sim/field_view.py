@@ -37,6 +37,7 @@ from erforce_interfaces.conversions import (
     table_from_msg,
 )
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.stamps import StampFilter, StampVerdict
 
 #: SSL rules: centre circle radius [m] (drawn only).
 CENTRE_CIRCLE_RADIUS_M = 0.5
@@ -123,7 +124,9 @@ class WorldState:
     robots: dict[int, RobotView] = field(default_factory=dict)
     events: deque = field(default_factory=lambda: deque(maxlen=8))
     receiver: int | None = None
-    rejected: int = 0  # messages refused (bad numbers, mis-shaped)
+    rejected: int = 0  # messages refused (bad numbers, mis-shaped, a stamp off the time line)
+    # live: the stack's time rule (stamps.py) per stamped input; None in a replay, whose stamps are the bag's
+    stamp_filters: dict[str, StampFilter] | None = None
     _speed_model: tuple[float, BallTrajectory] | None = None  # (anchor time, trajectory) for the speed plot
 
     # -------------------------------------------------------------- input
@@ -136,9 +139,9 @@ class WorldState:
         topic, robot = found
         try:
             if robot is None:
-                self._apply_global(topic, msg)
+                self._apply_global(topic_name, topic, msg)
             else:
-                self._apply_robot(topic, self.robot(robot), msg)
+                self._apply_robot(topic_name, topic, self.robot(robot), msg)
         except (ConversionError, ValueError, AttributeError, IndexError, TypeError):
             self.rejected += 1
             return False
@@ -150,23 +153,43 @@ class WorldState:
             view = self.robots[robot_id] = RobotView(robot_id)
         return view
 
-    def _stamp(self, t_s: float) -> None:
+    def _stamp(self, source: str, t_s: float) -> None:
+        """Take ``t_s`` of ``source`` as the newest time, by the time rule when live: a stamp off the
+        line raises ValueError (the message is refused); a new time line (a restarted simulator)
+        forgets what is newer than it, so the old line's robots and ball neither linger nor hide."""
+        if self.stamp_filters is not None:
+            stamps = self.stamp_filters.setdefault(source, StampFilter())
+            verdict = stamps.offer(round(t_s * 1e9))
+            if verdict is StampVerdict.DROP:
+                raise ValueError(f"{source}: {stamps.reason}")
+            if verdict is StampVerdict.RESTART and t_s < self.t_s:
+                self._restart(t_s)
         self.t_s = max(self.t_s, t_s)
 
-    def _apply_global(self, topic: contract.Topic, msg: Any) -> None:
+    def _restart(self, t_s: float) -> None:
+        self.t_s = t_s
+        for robot in self.robots.values():
+            if robot.t_s > t_s:
+                robot.t_s = -math.inf
+        if self.ball_truth_t_s > t_s:
+            self.ball_truth, self.ball_truth_t_s = None, -math.inf
+        if self.ball_state_t_s > t_s:
+            self.ball_state, self.ball_state_t_s, self._speed_model = None, -math.inf, None
+
+    def _apply_global(self, name: str, topic: contract.Topic, msg: Any) -> None:
         c = contract
         if topic is c.GROUND_TRUTH_BALL:
             t, pose, vel, _ = odometry_from_msg(msg)
+            self._stamp(name, t)
             self.ball_truth = _wire((pose[0], pose[1], vel[0], vel[1]))
             self.ball_truth_t_s = t
-            self._stamp(t)
         elif topic is c.VISION_BALL:
             self.ball_seen = _wire(point_from_msg(msg)[1])
         elif topic is c.BALL_STATE:
             t, pose, vel, _ = odometry_from_msg(msg)
+            self._stamp(name, t)
             self.ball_state = _wire((pose[0], pose[1], vel[0], vel[1]))
             self.ball_state_t_s = t
-            self._stamp(t)
             self._update_speed_model(t)
         elif topic is c.BALL_PHASE:
             self.phase = msg.data if msg.data in c.BALL_PHASES else "unknown"
@@ -182,14 +205,14 @@ class WorldState:
         elif topic is c.SIM_EVENTS:
             self.events.append(str(msg.data)[:200])
 
-    def _apply_robot(self, topic: contract.Topic, robot: RobotView, msg: Any) -> None:
+    def _apply_robot(self, name: str, topic: contract.Topic, robot: RobotView, msg: Any) -> None:
         c = contract
         if topic is c.GROUND_TRUTH_ODOM or (topic is c.ODOM and not robot.truth):
             t, pose, vel, _ = odometry_from_msg(msg)
+            self._stamp(name, t)
             robot.pose, robot.t_s = _wire(pose), t
             robot.speed_mps = _wire((math.hypot(vel[0], vel[1]),))[0]
             robot.truth = topic is c.GROUND_TRUTH_ODOM
-            self._stamp(t)
         elif topic is c.CATCH_TIME:
             value = float64_from_msg(msg, limit=1e6)
             robot.catch_time_s = round(value, 4) if value >= 0.0 else c.CATCH_TIME_NEVER

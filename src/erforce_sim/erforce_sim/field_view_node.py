@@ -29,37 +29,20 @@ from rclpy.serialization import deserialize_message
 from erforce_interfaces import contract
 from erforce_interfaces.executor import sample_only, take_queued
 from erforce_interfaces.launcher import find_package_share
-from erforce_interfaces.node_support import (
-    ParamSpec,
-    ThrottledWarner,
-    declare_params,
-    robot_config_from_params,
-    robot_param_specs,
-    run_node,
-)
+from erforce_interfaces.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
+from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_sim.field_view import BYTES_TYPES, BagReplay, WorldState, view_topic
 from erforce_sim.view_server import ViewServer, frame_text
 
 DISCOVERY_PERIOD_S = 1.0
+SCHEMA = load_schema("erforce_sim", "field_view")
 
-PARAMS = (
-    ParamSpec("host", "127.0.0.1", "address the page is served on (127.0.0.1: this machine only)", read_only=True),
-    ParamSpec("port", 8090, "HTTP port of the page (0: any free port, logged)", min=0, max=65535, read_only=True),
-    ParamSpec("rate_hz", 30.0, "frames sent to the pages per wall second, at most (the page redraws at the "
-              "display's rate; 70 sends every vision frame, at about twice the CPU)", min=1.0, max=200.0,
-              read_only=True),
-    ParamSpec("max_clients", 32, "pages served at once; more get HTTP 503", min=1, max=1000, read_only=True),
-    ParamSpec("field", "division_b", "field preset: division_a (12 x 9 m) | division_b (9 x 6 m)", read_only=True),
-    ParamSpec("opponent_robot_ids", [], "robots drawn in the opponents' colour", empty_array_of=int, read_only=True),
-    ParamSpec("team_robot_ids", [], "the catchers' team, of which the view marks the receiver (as the catchers' "
-              "parameter); empty: every robot but the opponents", empty_array_of=int, read_only=True),
-    ParamSpec("bag", "", "a recorded bag (rosbag2 MCAP directory) the page can replay; '' = live only",
-              read_only=True),
-    ParamSpec("foxglove_port", 0, "port of the Foxglove WebSocket server (0: none)", min=0, max=65535,
-              read_only=True),
-    *robot_param_specs(),
-)
+
+def check_config(config):
+    """The schema's config object, once the field preset is known (raises ValueError otherwise)."""
+    FieldConfig.preset(config.field)
+    return config
 
 
 def message_class(type_name: str) -> type:
@@ -94,13 +77,13 @@ class FieldViewNode(Node):
     def __init__(self) -> None:
         super().__init__("field_view")
         self._warn = ThrottledWarner(self)
-        self._values = declare_params(self, PARAMS, self._build)
-        v = self._values
-        robot = robot_config_from_params(v)
+        self._params = NodeParams(self, SCHEMA, check_config)
+        self._values = v = self._params.values
+        robot = self._params.config.robot
         looks = dict(current_limit_a=robot.continuous_current_limit_a, robot_radius_m=robot.robot_radius_m,
                      opponent_ids=frozenset(int(i) for i in v["opponent_robot_ids"]),
                      team_ids=frozenset(int(i) for i in v["team_robot_ids"]))
-        self._state = WorldState(FieldConfig.preset(v["field"]), **looks)
+        self._state = WorldState(FieldConfig.preset(v["field"]), **looks, stamp_filters={})
         self._replay: BagReplay | None = None
         if v["bag"]:
             try:
@@ -130,12 +113,7 @@ class FieldViewNode(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(DISCOVERY_PERIOD_S, self._discover, clock=steady)
         self.create_timer(1.0 / v["rate_hz"], self._tick, clock=steady)
-
-    @staticmethod
-    def _build(values: dict) -> dict:
-        FieldConfig.preset(values["field"])
-        robot_config_from_params(values)
-        return values
+        self._params.on_change(lambda _config: None)  # every parameter is read-only
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
@@ -152,7 +130,7 @@ class FieldViewNode(Node):
             depth = 20 if found is contract.SIM_EVENTS else 1
             qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.BEST_EFFORT,
                              durability=DurabilityPolicy.VOLATILE)
-            sub = self.create_subscription(found.msg_type, topic, lambda _msg: None, qos, raw=True)
+            sub = contract_subscription(self, found, lambda _msg: None, topic, raw=True, qos=qos)
             self._subs[topic] = sample_only(sub)
             if depth > 1:
                 self._deep.add(topic)
@@ -176,7 +154,7 @@ class FieldViewNode(Node):
                     self._warn.warn(f"decode:{topic}", f"{topic}: undecodable message ({exc})")
                     continue
                 if not self._state.apply(topic, msg):
-                    self._warn.warn(f"bad:{topic}", f"{topic}: message refused (non-finite or mis-shaped)")
+                    self._warn.warn(f"bad:{topic}", f"{topic}: refused (bad numbers, shape or stamp)")
         if not taken:
             return  # nothing new: the pages keep the last frame
         frame = self._state.frame()
