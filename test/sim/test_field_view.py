@@ -164,6 +164,17 @@ def test_a_replay_takes_the_bags_stamps_as_they_are():
     assert state.frame()["robots"][0]["pose"] == [1.0, 0.0, 0.0]
 
 
+def test_a_robots_tracked_pose_is_left_untaken_once_its_true_pose_arrives():
+    state = WorldState(FIELD)
+    assert state.takes(c.ODOM.for_robot(3)) and state.takes(c.GROUND_TRUTH_ODOM.for_robot(3))
+    assert state.apply(c.ODOM.for_robot(3), odometry_cdr(1.0, (0.2, 0.3, 0.0), (0.0, 0.0, 0.0)))
+    assert state.takes(c.ODOM.for_robot(3))  # tracked only, so far
+    robot(state, 3, 1.0, (1.0, 1.0, 0.0))
+    assert not state.takes(c.ODOM.for_robot(3))
+    assert state.takes(c.ODOM.for_robot(4)) and state.takes(c.CATCH_TIME.for_robot(3))
+    assert not state.takes("/robot_3/cmd_vel")
+
+
 def test_motor_currents_and_the_limit_flags_per_wheel():
     state = WorldState(FIELD)
     robot(state, 0, 1.0, (0.0, 0.0, 0.0))

@@ -122,7 +122,10 @@ def yaw_from_quaternion(q: Quaternion) -> float:
 
 
 def _yaw(*wxyz: float) -> float:
-    w, x, y, z = (_finite(f"orientation.{n}", v, 2.0) for n, v in zip("wxyz", wxyz, strict=True))
+    return _unit_quaternion_yaw(*(_finite(f"orientation.{n}", v, 2.0) for n, v in zip("wxyz", wxyz, strict=True)))
+
+
+def _unit_quaternion_yaw(w: float, x: float, y: float, z: float) -> float:
     norm = math.sqrt(w * w + x * x + y * y + z * z)
     if norm < 0.5:
         raise ConversionError("orientation is not a unit quaternion")
@@ -301,6 +304,13 @@ def _odometry_from_cdr(data: bytes) -> tuple[float, np.ndarray, np.ndarray, np.n
     if frame and frame != _FIELD_FRAME_BYTES:
         _check_frame(frame.decode("utf-8", "replace"))
     _checked_stamp_ns(sec, nanosec)
+    x, y, qx, qy, qz, qw, vx, vy, wx, wy, wz = v[0], v[1], v[3], v[4], v[5], v[6], v[43], v[44], v[46], v[47], v[48]
+    # One check for the usual message: a sum of magnitudes is NaN or inf when any term is, and within the
+    # tightest limit each term is within its own; else the per-field checks below name the bad field.
+    if (abs(x) + abs(y) + abs(vx) + abs(vy) <= MAX_ABS_VALUE and abs(wx) + abs(wy) + abs(wz) <= 1.0e5
+            and abs(qx) + abs(qy) + abs(qz) + abs(qw) <= 2.0):
+        return (sec + nanosec * 1e-9, np.array([x, y, _unit_quaternion_yaw(qw, qx, qy, qz)]),
+                np.array([vx, vy, wz]), np.array([wx, wy, wz]))
     pose = np.array([_finite("pose.position.x", v[0]), _finite("pose.position.y", v[1]), _yaw(v[6], v[3], v[4], v[5])])
     angular = np.array([_finite(f"twist.angular.{axis}", value, 1.0e5)
                         for axis, value in zip("xyz", v[46:49], strict=True)])

@@ -147,6 +147,15 @@ class WorldState:
             return False
         return True
 
+    def takes(self, topic_name: str) -> bool:
+        """Whether a message of ``topic_name`` would change what the page draws now: a robot's tracked
+        pose (odom) does not once its true pose arrives. The node then leaves it untaken, undecoded."""
+        found = view_topic(topic_name)
+        if found is None:
+            return False
+        topic, robot = found
+        return not (topic is contract.ODOM and robot in self.robots and self.robots[robot].truth)
+
     def robot(self, robot_id: int) -> RobotView:
         view = self.robots.get(robot_id)
         if view is None:

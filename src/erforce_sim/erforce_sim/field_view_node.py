@@ -144,6 +144,8 @@ class FieldViewNode(Node):
             return
         taken = 0
         for topic, sub in self._subs.items():
+            if not self._state.takes(topic):
+                continue
             # one take for a queue of one (a second, empty take would cost as much again)
             queued = [data for data, _ in take_queued(sub)] if topic in self._deep else _take_one(sub)
             for data in queued:

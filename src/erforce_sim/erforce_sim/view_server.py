@@ -37,7 +37,7 @@ MAX_REQUEST_BYTES = 4096  # a request is a few dozen bytes of JSON
 class _Client:
     def __init__(self, connection: ServerConnection, depth: int) -> None:
         self.connection = connection
-        self.queue: deque[str] = deque(maxlen=depth)
+        self.queue: deque[bytes] = deque(maxlen=depth)  # frames as UTF-8 text
         self.ready = asyncio.Event()
         self.dropped = 0
 
@@ -66,7 +66,7 @@ class ViewServer:
         self._stop: asyncio.Event | None = None
         self._started = threading.Event()
         self._error: BaseException | None = None
-        self._last_text: str | None = None  # the newest frame, for a page that connects now
+        self._last_text: bytes | None = None  # the newest frame (UTF-8), for a page that connects now
         self.frames_dropped = 0
         self.requests_refused = 0
 
@@ -104,15 +104,18 @@ class ViewServer:
         self._loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
         async with serve(self._handle, self.host, self.port, process_request=self._http,
-                         max_size=MAX_REQUEST_BYTES, max_queue=4, logger=self.log) as server:
+                         max_size=MAX_REQUEST_BYTES, max_queue=4, logger=self.log,
+                         # a frame is a few kB 30 times a second, mostly to a page on this machine:
+                         # deflating it per page cost more CPU than the rest of sending it
+                         compression=None) as server:
             self.port = server.sockets[0].getsockname()[1]
             self._started.set()
             await self._stop.wait()
 
     # -------------------------------------------------------------------- output
     def publish(self, text: str) -> None:
-        """Queue ``text`` for every client (thread-safe; never blocks)."""
-        self._last_text = text
+        """Queue ``text`` for every client (thread-safe; never blocks), encoded once for them all."""
+        text = self._last_text = text.encode()
         loop = self._loop
         if loop is None or not self._clients:
             return
@@ -121,7 +124,7 @@ class ViewServer:
         except RuntimeError:  # the loop closed meanwhile
             pass
 
-    def _fan_out(self, text: str) -> None:
+    def _fan_out(self, text: bytes) -> None:
         for client in self._clients:
             if len(client.queue) == client.queue.maxlen:
                 client.dropped += 1
@@ -195,7 +198,7 @@ class ViewServer:
                 await client.ready.wait()
                 client.ready.clear()
                 while client.queue:
-                    await client.connection.send(client.queue.popleft())
+                    await client.connection.send(client.queue.popleft(), text=True)
         except ConnectionClosed:
             pass
 
