@@ -47,6 +47,9 @@ KICK_SPEED_JUMP_MPS = 0.3
 PATH_MARK_PERIOD_S = 0.25
 #: A robot whose newest pose is this much older than the newest in the world is left out [s].
 ROBOT_STALE_S = 1.0
+#: Live, a stamp this much after the last one is still on the time line [s]: the view samples only the
+#: newest message and runs at idle priority, so a starved view sees longer steps than a stream's reader.
+STAMP_MAX_JUMP_S = 10.0
 #: The team's receiver keeps its role unless another is earlier by this much (as the catchers' default).
 RECEIVER_SWITCH_MARGIN_S = 0.1
 
@@ -167,7 +170,7 @@ class WorldState:
         line raises ValueError (the message is refused); a new time line (a restarted simulator)
         forgets what is newer than it, so the old line's robots and ball neither linger nor hide."""
         if self.stamp_filters is not None:
-            stamps = self.stamp_filters.setdefault(source, StampFilter())
+            stamps = self.stamp_filters.setdefault(source, StampFilter(STAMP_MAX_JUMP_S))
             verdict = stamps.offer(round(t_s * 1e9))
             if verdict is StampVerdict.DROP:
                 raise ValueError(f"{source}: {stamps.reason}")
