@@ -27,6 +27,7 @@ MODULES = (
     ("motion control (Sec. 4)", "bench_motion"),
     ("simulator (Sec. 2-3)", "bench_sim"),
     ("lockstep over DDS", "bench_lockstep"),
+    ("field view", "bench_field_view"),
     ("self-healing graph", "bench_respawn"),
     ("executors", "bench_executor"),
     ("SSL-Vision in", "bench_ssl_vision"),

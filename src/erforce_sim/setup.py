@@ -15,7 +15,8 @@ setup(
         ("share/" + package_name + "/launch", glob("launch/*.yaml")),
         # the nodes' parameter schemas (param_schema.py): read from the Python package, also in share/ for tools
         ("share/" + package_name + "/params", glob(package_name + "/params/*.yaml")),
-        ("share/" + package_name + "/config", glob("config/*.yaml")),
+        ("share/" + package_name + "/config", glob("config/*.yaml") + glob("config/*.json")),
+        ("share/" + package_name + "/web", glob("web/*")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
@@ -29,6 +30,7 @@ setup(
             "tune_motor = erforce_sim.closed_loop.tuning_experiment:main",
             "ssl_sim_server = erforce_sim.ssl_sim_server_node:main",
             "ssl_game_log = erforce_sim.closed_loop.ssl_game_log:main",
+            "field_view = erforce_sim.closed_loop.field_view_node:main",
         ],
     },
 )

@@ -8,7 +8,7 @@ import pytest
 from erforce_ball_model import ball_predictor_node, catcher_node
 from erforce_ball_model.catcher import CatcherConfig
 from erforce_motion import motor_boards_node, velocity_controller_node
-from erforce_sim import plant_node
+from erforce_sim import field_view_node, plant_node
 
 
 def config(module, **changes):
@@ -28,6 +28,8 @@ def test_every_node_builds_from_its_defaults():
     assert predictor.num_robots == 11 and predictor.facing_fixed.shape == (11,)
     catcher, dribbler_m, radius_m, field = catcher_node.build_config(config(catcher_node))
     assert catcher == CatcherConfig() and (dribbler_m, radius_m, field.length_m) == (0.0815, 0.09, 9.0)
+    view = field_view_node.check_config(config(field_view_node))
+    assert (view.port, view.rate_hz, view.field, view.robot.robot_radius_m) == (8090, 30.0, "division_b", 0.09)
 
 
 def test_a_wheel_the_motors_cannot_drive_fast_enough_is_refused():

@@ -30,6 +30,7 @@ from rclpy.exceptions import (
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile
 
 from erforce_interfaces.contract import CLOCK, Topic
 from erforce_interfaces.executor import make_executor, sample_only, set_callback_fault_handler
@@ -130,14 +131,15 @@ def contract_publisher(node: Node, topic: Topic, resolved_name: str | None = Non
 
 
 def contract_subscription(node: Node, topic: Topic, callback: Callable, resolved_name: str | None = None,
-                          raw: bool = False):
+                          raw: bool = False, qos: QoSProfile | None = None):
     """A subscription to a contract topic, with the contract's type and QoS.
 
     No default QoS-event handler either (see contract_publisher); the topic's QoS comes from
     the contract on both sides, so they cannot be incompatible within the stack. ``raw``: the
     callback gets the serialized message (bytes), for the lockstep topics' codec in conversions.
+    ``qos``: a reader that may ask for less than the contract (an observer's best effort, keep last 1).
     """
-    return node.create_subscription(topic.msg_type, resolved_name or topic.name, callback, topic.qos,
+    return node.create_subscription(topic.msg_type, resolved_name or topic.name, callback, qos or topic.qos,
                                     event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
                                     raw=raw)
 

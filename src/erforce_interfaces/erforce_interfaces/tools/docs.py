@@ -25,6 +25,7 @@ NODE_SCHEMAS = (
     ("erforce_ball_model", "ssl_vision_bridge"),
     ("erforce_interfaces", "ssl_sim_bridge"),
     ("erforce_sim", "ssl_sim_server"),
+    ("erforce_sim", "field_view"),
 )
 
 

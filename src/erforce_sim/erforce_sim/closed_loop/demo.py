@@ -440,6 +440,7 @@ class Demo:
         self.launch: subprocess.Popen | None = None
         self.recorder: subprocess.Popen | None = None
         self.ssl_arrivals: SslArrivals | None = None
+        self.view: subprocess.Popen | None = None
         self.director = Director(
             self.node,
             self.robot,
@@ -474,6 +475,8 @@ class Demo:
             [str(Path(sys.executable).with_name("erforce-record")), str(self.out / "bag"), "--use-sim-time"],
             self.out / "record.log", idle=True,
         )
+        if self.args.view:
+            self.start_view()
         # Both observers take their topics in batches and may lag and catch up; the AI nodes and
         # the control loop may not. Under SCHED_IDLE neither preempts them when its DDS threads wake.
         for tid in os.listdir("/proc/self/task"):
@@ -483,6 +486,28 @@ class Demo:
                                         90.0, "the graph"):
             raise RuntimeError(f"the graph or the recorder did not come up within 90 s; see {self.out / 'graph.log'} "
                                f"and {self.out / 'record.log'}")
+
+    def start_view(self) -> None:
+        """The field view (erforce_sim.closed_loop.field_view_node) beside the graph, an observer like the recorder."""
+        team = ",".join(str(r) for r in self.director.receivers)
+        cmd = [str(Path(sys.executable).with_name("field_view")), "--ros-args", "-p", f"port:={self.args.view_port}",
+               "-p", f"field:={self.args.field}", "-p", f"team_robot_ids:=[{team}]",
+               "-p", f"foxglove_port:={self.args.foxglove_port}"]
+        self.view = spawn_in_session(cmd, self.out / "view.log", idle=True)
+        threading.Thread(target=self._announce_view, daemon=True).start()
+
+    def _announce_view(self) -> None:
+        """Print the view's address once it serves (it starts beside the graph, at idle priority)."""
+        log = self.out / "view.log"
+        while self.view is not None and self.view.poll() is None:
+            if "field view at" in log.read_text(errors="replace"):
+                print(f"field view: http://127.0.0.1:{self.args.view_port}/", flush=True)
+                if self.args.foxglove_port:
+                    print(f"Foxglove: ws://127.0.0.1:{self.args.foxglove_port} (layout: "
+                          f"{Path(__file__).resolve().parents[1] / 'config' / 'foxglove_layout.json'})", flush=True)
+                return
+            time.sleep(0.2)
+        print(f"the field view did not start; see {log}", flush=True)
 
     def _recording_everything(self) -> bool:
         """erforce-record has subscribed to every topic that has a publisher now (it logs each one).
@@ -541,6 +566,8 @@ class Demo:
                 stop_process(self.launch, sigint_timeout_s=10.0)
             if self.recorder is not None:
                 stop_process(self.recorder, sigint_timeout_s=20.0)
+            if self.view is not None:
+                stop_process(self.view, sigint_timeout_s=5.0)
             self.director.close()
             if self.ssl_arrivals is not None:
                 self.ssl_arrivals.close()
@@ -661,6 +688,11 @@ def main(argv: list[str] | None = None) -> int:
         help="ssl: vision goes as SSL-Vision packets from 4 simulated cameras through ssl_vision_bridge "
         "(loopback multicast) instead of the plant's vision topics",
     )
+    parser.add_argument("--view", action="store_true",
+                        help="serve the field view in a browser while the demo runs (prints its address)")
+    parser.add_argument("--view-port", type=int, default=8090, help="HTTP port of the field view")
+    parser.add_argument("--foxglove-port", type=int, default=0,
+                        help="with --view: also a Foxglove WebSocket server on this port (0: none)")
     args = parser.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.update(contract.dds_profile_env())  # for the director and the recorder too

@@ -1,0 +1,193 @@
+"""field_view: the field drawn live in a browser, a recorded bag replayed on the same page, and a
+Foxglove WebSocket server, as a ROS 2 node.
+
+It serves http://127.0.0.1:<port>/ (erforce_sim.closed_loop.view_server; the page's files ship in
+share/erforce_sim/web). Every ``1 / rate_hz`` of wall time it takes the newest message of each
+topic the view shows (erforce_sim.closed_loop.field_view lists them; robots are found as their topics appear),
+hands them to the core (erforce_sim.closed_loop.field_view.WorldState) and sends its frame to the pages. Its
+subscriptions are best effort and keep one message: the view never holds up a publisher, and it
+takes nothing while no page is open. With ``bag`` set, the page can also replay that bag
+(``{"replay": t}`` requests; erforce_sim.closed_loop.field_view.BagReplay).
+
+With ``foxglove_port`` > 0 it also starts a Foxglove WebSocket server (the ``foxglove`` SDK) that
+forwards every topic of the graph as it is, CDR with its ROS 2 message definition (schema encoding
+``ros2msg``), plus ``/field_view/scene`` (a foxglove SceneUpdate of what the page draws) and
+``/field_view/plots`` (the page's plot values); config/foxglove_layout.json lays them out.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from typing import Any
+
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+
+from erforce_interfaces import contract
+from erforce_interfaces.ament_index import find_package_share
+from erforce_interfaces.executor import sample_only, take_queued
+from erforce_interfaces.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
+from erforce_interfaces.param_schema import load_schema
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_sim.closed_loop.field_view import BYTES_TYPES, BagReplay, WorldState, view_topic
+from erforce_sim.closed_loop.view_server import ViewServer, frame_text
+
+DISCOVERY_PERIOD_S = 1.0
+SCHEMA = load_schema("erforce_sim", "field_view")
+
+
+def check_config(config):
+    """The schema's config object, once the field preset is known (raises ValueError otherwise)."""
+    FieldConfig.preset(config.field)
+    return config
+
+
+def message_class(type_name: str) -> type:
+    pkg, _, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+def decode(type_name: str, data: bytes) -> Any:
+    """What WorldState.apply takes of a message's CDR bytes: the bytes themselves for the types the
+    conversions read directly, else the deserialized message."""
+    if type_name in BYTES_TYPES:
+        return data
+    return deserialize_message(data, message_class(type_name))
+
+
+def web_dir():
+    share = find_package_share("erforce_sim")
+    path = None if share is None else share / "web"
+    if path is None or not (path / "index.html").is_file():
+        raise FileNotFoundError("web/index.html of erforce_sim not found (the page's files)")
+    return path
+
+
+def _take_one(subscription) -> list[bytes]:
+    """The one queued message of a keep-last-1 subscription (raw), or none."""
+    with subscription.handle:
+        item = subscription.handle.take_message(subscription.msg_type, subscription.raw)
+    return [] if item is None else [item[0]]
+
+
+class FieldViewNode(Node):
+    def __init__(self) -> None:
+        super().__init__("field_view")
+        self._warn = ThrottledWarner(self)
+        self._params = NodeParams(self, SCHEMA, check_config)
+        self._values = v = self._params.values
+        robot = self._params.config.robot
+        looks = dict(current_limit_a=robot.continuous_current_limit_a, robot_radius_m=robot.robot_radius_m,
+                     opponent_ids=frozenset(int(i) for i in v["opponent_robot_ids"]),
+                     team_ids=frozenset(int(i) for i in v["team_robot_ids"]))
+        self._state = WorldState(FieldConfig.preset(v["field"]), **looks, stamp_filters={})
+        self._replay: BagReplay | None = None
+        if v["bag"]:
+            try:
+                self._replay = BagReplay(v["bag"], decode, self._state.field, **looks)
+            except Exception as exc:  # rosbags raises its own errors for a damaged bag
+                raise ValueError(f"cannot replay {v['bag']}: {exc}") from None
+            skipped = f", {self._replay.skipped} undecodable skipped" if self._replay.skipped else ""
+            self.get_logger().info(f"replay: {v['bag']} ({len(self._replay)} messages{skipped}, "
+                                   f"{self._replay.start_s:.1f} to {self._replay.end_s:.1f} s)")
+        self._server = ViewServer(web_dir(), v["host"], v["port"], v["max_clients"], on_request=self._on_request,
+                                  logger=None)
+        try:
+            self._server.start()
+        except (OSError, RuntimeError) as exc:  # e.g. the port is taken: one clear line (run_node)
+            raise ValueError(str(exc)) from None
+        self.get_logger().info(f"field view at {self._server.url}")
+        self._subs: dict[str, Any] = {}  # topic -> raw subscription of the view
+        self._types: dict[str, str] = {}
+        self._deep: set[str] = set()  # topics whose queue holds more than the newest message
+        self._foxglove = None
+        if v["foxglove_port"]:
+            from erforce_sim.closed_loop.foxglove_bridge import FoxgloveBridge
+
+            self._foxglove = FoxgloveBridge(v["host"], v["foxglove_port"])
+            self.get_logger().info(f"Foxglove WebSocket server at ws://{v['host']}:{v['foxglove_port']}")
+        self._discover()
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(DISCOVERY_PERIOD_S, self._discover, clock=steady)
+        self.create_timer(1.0 / v["rate_hz"], self._tick, clock=steady)
+        self._params.on_change(lambda _config: None)  # every parameter is read-only
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if not types:
+                continue
+            if self._foxglove is not None:
+                self._foxglove.offer(self, topic, types[0])
+            if topic in self._subs or view_topic(topic) is None:
+                continue
+            found = view_topic(topic)[0]
+            if types[0] != found.type_name:
+                self._warn.warn(f"type:{topic}", f"{topic} has type {types[0]}, not {found.type_name}: not shown")
+                continue
+            depth = 20 if found is contract.SIM_EVENTS else 1
+            qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.BEST_EFFORT,
+                             durability=DurabilityPolicy.VOLATILE)
+            sub = contract_subscription(self, found, lambda _msg: None, topic, raw=True, qos=qos)
+            self._subs[topic] = sample_only(sub)
+            if depth > 1:
+                self._deep.add(topic)
+            self._types[topic] = found.type_name
+
+    def _tick(self) -> None:
+        if self._foxglove is not None:
+            self._foxglove.forward()
+        wanted = self._server.client_count > 0 or (self._foxglove is not None and self._foxglove.has_clients())
+        if not wanted:
+            return
+        taken = 0
+        for topic, sub in self._subs.items():
+            if not self._state.takes(topic):
+                continue
+            # one take for a queue of one (a second, empty take would cost as much again)
+            queued = [data for data, _ in take_queued(sub)] if topic in self._deep else _take_one(sub)
+            for data in queued:
+                taken += 1
+                try:
+                    msg = decode(self._types[topic], data)
+                except Exception as exc:
+                    self._warn.warn(f"decode:{topic}", f"{topic}: undecodable message ({exc})")
+                    continue
+                if not self._state.apply(topic, msg):
+                    self._warn.warn(f"bad:{topic}", f"{topic}: refused (bad numbers, shape or stamp)")
+        if not taken:
+            return  # nothing new: the pages keep the last frame
+        frame = self._state.frame()
+        self._server.publish(frame_text(frame))
+        if self._foxglove is not None:
+            self._foxglove.publish_frame(frame)
+
+    def _on_request(self, request: dict) -> dict:
+        """A page's requests (in the server's thread): ``{"info": 1}``, ``{"replay": t_s}``."""
+        if "info" in request:
+            replay = self._replay
+            return {"info": {"replay": None if replay is None else {"start": replay.start_s, "end": replay.end_s}}}
+        if "replay" in request:
+            if self._replay is None:
+                return {"error": "no bag to replay (parameter bag)"}
+            t = request["replay"]
+            if not isinstance(t, int | float) or isinstance(t, bool):
+                raise ValueError(f"replay: a time in seconds, got {t!r}")
+            return {"frame": self._replay.frame_at(float(t))}
+        raise ValueError(f"unknown request {json.dumps(request)[:80]}")
+
+    def destroy_node(self) -> None:
+        self._server.stop()
+        if self._foxglove is not None:
+            self._foxglove.stop()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node(FieldViewNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

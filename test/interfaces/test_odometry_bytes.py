@@ -1,0 +1,63 @@
+"""odometry_from_msg reads an Odometry's bytes (a raw subscription's, a bag's) as it reads the message."""
+
+import math
+import struct
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from nav_msgs.msg import Odometry
+from rclpy.serialization import serialize_message
+
+from erforce_interfaces import conversions as conv
+
+_text = st.text(st.characters(codec="utf-8", exclude_characters="\x00"), max_size=12)
+
+
+def _outcome(msg):
+    try:
+        t, pose, velocity, angular = conv.odometry_from_msg(msg)
+    except conv.ConversionError:
+        return "rejected"
+    return t, pose.tolist(), velocity.tolist(), angular.tolist()
+
+
+@settings(max_examples=300, deadline=None)
+@given(sec=st.integers(0, 2**31 - 1), nanosec=st.integers(0, 999_999_999), frame=_text, child=_text,
+       values=st.lists(st.floats(width=64), min_size=13, max_size=13),
+       covariance=st.floats(width=64))
+def test_bytes_read_like_the_message_from_rclpy(sec, nanosec, frame, child, values, covariance):
+    msg = Odometry()
+    msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id = sec, nanosec, frame
+    msg.child_frame_id = child
+    p, o = msg.pose.pose.position, msg.pose.pose.orientation
+    lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
+    (p.x, p.y, p.z, o.x, o.y, o.z, o.w, lin.x, lin.y, lin.z, ang.x, ang.y, ang.z) = values
+    msg.pose.covariance[7] = msg.twist.covariance[35] = covariance
+    assert _outcome(msg) == _outcome(serialize_message(msg))
+
+
+def test_a_hand_built_message_reads_its_numbers():
+    """Pose (1.5, -2, yaw 0.75), velocity (0.25, -0.5), spin (1, 2, 3), stamp 3.5 s."""
+    data = conv.odometry_cdr(3.5, (1.5, -2.0, 0.75), (0.25, -0.5, 0.0), "robot_3/base_link", spin=(1.0, 2.0, 3.0))
+    t, pose, velocity, angular = conv.odometry_from_msg(data)
+    assert t == 3.5
+    assert pose == pytest.approx([1.5, -2.0, 0.75], abs=1e-12)
+    assert velocity.tolist() == [0.25, -0.5, 3.0]
+    assert angular.tolist() == [1.0, 2.0, 3.0]
+
+
+def test_truncated_or_foreign_bytes_are_a_conversion_error():
+    good = conv.odometry_cdr(1.0, (0.5, 0.5, 0.1), (0.0, 0.0, 0.0), "ball")
+    for cut in range(len(good)):
+        with pytest.raises(conv.ConversionError):
+            conv.odometry_from_msg(good[:cut])
+    for bad in (b"\x00\x00" + good[2:], good[:12] + struct.pack("<I", 2**31) + good[16:]):
+        with pytest.raises(conv.ConversionError):
+            conv.odometry_from_msg(bad)
+    nan_x = bytearray(good)
+    struct.pack_into("<d", nan_x, 4 + 32, math.nan)  # pose.position.x (payload offset 32 with "field"/"ball")
+    with pytest.raises(conv.ConversionError, match="position.x"):
+        conv.odometry_from_msg(bytes(nan_x))
+    assert np.isfinite(conv.odometry_from_msg(good)[1]).all()

@@ -1,0 +1,310 @@
+"""The field view's core (erforce_sim.closed_loop.field_view): what a frame says, from hand-built messages.
+
+Path numbers are worked by hand from the two-phase kinematics (module docstring of ball_model):
+a ball at 2 m/s with v_shoot 2 m/s and the default model (a_slide -2.5, a_roll -0.3 m/s^2,
+c_switch 0.6) switches at 1.2 m/s after (2 - 1.2) / 2.5 = 0.32 s and 2 * 0.32 - 1.25 * 0.32^2
+= 0.512 m, then rolls 1.2 / 0.3 = 4 s and 1.2 * 4 - 0.15 * 16 = 2.4 m: it stops 2.912 m on, at 4.32 s.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from geometry_msgs.msg import Twist
+from rclpy.serialization import serialize_message
+from std_msgs.msg import Bool, Float64, String
+
+from erforce_interfaces import contract as c
+from erforce_interfaces.conversions import (
+    float64_cdr,
+    odometry_cdr,
+    odometry_msg,
+    point_cdr,
+    table_msg,
+)
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.stamps import StampFilter
+from erforce_sim.closed_loop.field_view import STAMP_MAX_JUMP_S, BagReplay, WorldState, view_topic
+from erforce_sim.closed_loop.field_view_node import decode
+
+FIELD = FieldConfig.preset("division_b")
+
+
+def ball_state(state: WorldState, t: float, xy, v) -> None:
+    assert state.apply(c.BALL_STATE.name, odometry_cdr(t, (*xy, 0.0), (*v, 0.0)))
+
+
+def robot(state: WorldState, robot_id: int, t: float, pose, catch_time=None, catch_point=None) -> None:
+    assert state.apply(c.GROUND_TRUTH_ODOM.for_robot(robot_id), odometry_cdr(t, pose, (0.0, 0.0, 0.0)))
+    if catch_time is not None:
+        assert state.apply(c.CATCH_TIME.for_robot(robot_id), float64_cdr(catch_time))
+    if catch_point is not None:
+        assert state.apply(c.CATCH_POINT.for_robot(robot_id), point_cdr(t, catch_point))
+
+
+def test_topics_of_the_view_are_recognised_by_name():
+    assert view_topic("/robot_3/catch_time") == (c.CATCH_TIME, 3)
+    assert view_topic("/ball/state") == (c.BALL_STATE, None)
+    for other in ("/robot_x/catch_time", "/robot_3/cmd_vel", "/robot_3/vision_pose", "/clock", "/robot_3",
+                  "catch_time", ""):
+        assert view_topic(other) is None
+
+
+def test_the_predicted_path_is_the_ball_models_sliding_and_rolling_stretches():
+    state = WorldState(FIELD)
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0))
+    ball_state(state, 1.0, (1.0, -1.0), (0.0, 2.0))  # along +y
+    path = state.frame()["path"]
+    assert path["start"] == [1.0, -1.0]
+    assert path["switch"] == pytest.approx([1.0, -1.0 + 0.512], abs=1e-4)
+    assert path["stop"] == pytest.approx([1.0, -1.0 + 2.912], abs=1e-4)
+    assert path["switch_time"] == pytest.approx(0.32, abs=1e-4)
+    assert path["stop_time"] == pytest.approx(4.32, abs=1e-4)
+    assert len(path["marks"]) == 17  # every 0.25 s up to 4.32 s
+    # at 0.25 s the ball still slides: 2 * 0.25 - 1.25 * 0.0625 = 0.421875 m
+    assert path["marks"][0] == pytest.approx([1.0, -1.0 + 0.421875], abs=1e-4)
+
+
+def test_the_path_uses_the_model_the_predictor_publishes():
+    """In use: a_slide -5, a_roll -0.5, c_switch 0.5. From 2 m/s: switch at 1 m/s after 0.2 s and
+    2 * 0.2 - 2.5 * 0.04 = 0.3 m, then 1 / 0.5 = 2 s rolling over 1 * 2 - 0.25 * 4 = 1 m: stop at 1.3 m."""
+    state = WorldState(FIELD)
+    rows = [[-2.4, -0.31, 0.61], [0.1, 0.01, 0.02], [-5.0, -0.5, 0.5]]  # fit, std_error, in_use
+    assert state.apply(c.BALL_MODEL_PARAMS.name, table_msg(rows, c.BALL_MODEL_PARAM_LABELS, "fit,std_error,in_use"))
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0))
+    ball_state(state, 1.0, (0.0, 0.0), (2.0, 0.0))
+    frame = state.frame()
+    assert frame["path"]["switch"] == pytest.approx([0.3, 0.0], abs=1e-4)
+    assert frame["path"]["stop"] == pytest.approx([1.3, 0.0], abs=1e-4)
+    assert frame["model"] == {"a_slide": -5.0, "a_roll": -0.5, "c_switch": 0.5}
+
+
+def test_a_short_path_has_no_marks_but_its_ends():
+    """From 0.5 m/s, rolling already (v_shoot 2: 0.5 <= 0.6 * 2): it stops 0.5^2 / 0.6 = 0.41667 m on after 1.6667 s."""
+    state = WorldState(FIELD)
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0))
+    ball_state(state, 1.0, (0.0, 0.0), (0.0, -0.5))
+    path = state.frame()["path"]
+    assert path["switch"] == [0.0, 0.0] and path["stop"] == pytest.approx([0.0, -0.41667], abs=1e-4)
+    assert len(path["marks"]) == 6 and path["stop_time"] == pytest.approx(1.6667, abs=1e-4)
+    state.apply(c.BALL_STATE.name, odometry_cdr(1.1, (0.0, 0.0, 0.0), (0.0, -0.05, 0.0)))  # 0.1667 s: no mark
+    path = state.frame()["path"]
+    assert path["marks"] == [] and path["stop"] == pytest.approx([0.0, -0.05**2 / 0.6], abs=1e-4)
+
+
+def test_a_ball_at_rest_has_no_path():
+    state = WorldState(FIELD)
+    ball_state(state, 1.0, (0.5, 0.5), (0.0, 0.0))
+    assert state.frame()["path"] is None
+
+
+def test_the_receiver_is_the_teams_earliest_catcher_and_its_target_its_catch_point():
+    state = WorldState(FIELD, opponent_ids=frozenset({1}))
+    robot(state, 0, 1.0, (0.0, 0.0, 0.0), 1.2, (0.5, 0.0))
+    robot(state, 1, 1.0, (1.0, 0.0, 0.0), 0.1, (1.0, 0.1))  # an opponent is earlier: not ours
+    robot(state, 2, 1.0, (2.0, 0.0, 0.0), 0.8, (2.0, 0.2))
+    frame = state.frame()
+    assert frame["receiver"] == {"id": 2, "target": [2.0, 0.2], "catch_time": 0.8}
+    assert [(r["id"], r["team"]) for r in frame["robots"]] == [(0, "ours"), (1, "opponent"), (2, "ours")]
+    # robot_2 cannot catch any more: robot_0 receives; "never" shows no catch point
+    robot(state, 2, 1.1, (2.0, 0.0, 0.0), c.CATCH_TIME_NEVER)
+    frame = state.frame()
+    assert frame["receiver"]["id"] == 0
+    robot_2 = next(r for r in frame["robots"] if r["id"] == 2)
+    assert robot_2["catch_time"] == c.CATCH_TIME_NEVER and robot_2["catch_point"] is None
+
+
+def test_a_team_limits_who_receives():
+    state = WorldState(FIELD, team_ids=frozenset({0}))
+    robot(state, 0, 1.0, (0.0, 0.0, 0.0), 1.2, (0.5, 0.0))
+    robot(state, 1, 1.0, (1.0, 0.0, 0.0), 0.3, (1.0, 0.1))  # the kicker: no catcher of the team
+    assert state.frame()["receiver"]["id"] == 0
+
+
+def test_robots_poses_headings_and_staleness():
+    state = WorldState(FIELD)
+    robot(state, 4, 1.0, (1.5, -0.5, math.pi / 2))
+    assert state.apply(c.ODOM.for_robot(7), odometry_cdr(1.0, (0.2, 0.3, -1.0), (0.0, 0.0, 0.0)))  # tracked only
+    frame = state.frame()
+    assert [(r["id"], r["pose"], r["truth"]) for r in frame["robots"]] == [
+        (4, [1.5, -0.5, round(math.pi / 2, 4)], True), (7, [0.2, 0.3, -1.0], False)]
+    ball_state(state, 1.0 + 1.5, (0.0, 0.0), (0.0, 0.0))  # 1.5 s later nothing new of either robot
+    assert state.frame()["robots"] == []
+
+
+def test_live_stamps_follow_the_time_rule():
+    """A lone backwards or far-future stamp is refused; a new time line (a restarted simulator, here a
+    filter that takes any jump as one) forgets the old line's newer robots and ball."""
+    # the default filter for every topic but robot 4's true pose, which keeps its old line however slow the test
+    state = WorldState(FIELD, stamp_filters={
+        c.GROUND_TRUTH_ODOM.for_robot(4): StampFilter(STAMP_MAX_JUMP_S, silence_s=60.0, dead_s=60.0)})
+    robot(state, 4, 10.0, (1.5, -0.5, 0.0))
+    robot(state, 5, 10.0, (0.5, 0.5, 0.0))
+    ball_state(state, 10.0, (0.0, 0.0), (0.0, 0.0))
+    for stray in (0.0, 10.0 + 10.5, 9.0):  # back, more than STAMP_MAX_JUMP_S (10 s) on, back
+        assert not state.apply(c.GROUND_TRUTH_ODOM.for_robot(4), odometry_cdr(stray, (3.0, 3.0, 0.0), (0, 0, 0)))
+    assert state.rejected == 3
+    assert [(r["id"], r["pose"]) for r in state.frame()["robots"]] == [(4, [1.5, -0.5, 0.0]), (5, [0.5, 0.5, 0.0])]
+    assert state.frame()["t"] == 10.0
+
+    state.stamp_filters[c.GROUND_TRUTH_ODOM.for_robot(4)] = restarting = StampFilter(silence_s=0.0, dead_s=0.0)
+    restarting.offer(10_000_000_000)
+    robot(state, 4, 0.5, (2.0, 1.0, 0.0))  # the new line: robot 5 and the ball are of the old one
+    frame = state.frame()
+    assert frame["t"] == 0.5
+    assert [(r["id"], r["pose"]) for r in frame["robots"]] == [(4, [2.0, 1.0, 0.0])]
+    assert "state" not in frame["ball"]
+
+
+def test_a_replay_takes_the_bags_stamps_as_they_are():
+    state = WorldState(FIELD)  # no stamp_filters: a bag's gaps and seeks are not a broken time line
+    robot(state, 4, 10.0, (1.5, -0.5, 0.0))
+    robot(state, 4, 30.0, (1.0, 0.0, 0.0))
+    assert state.frame()["robots"][0]["pose"] == [1.0, 0.0, 0.0]
+
+
+def test_a_robots_tracked_pose_is_left_untaken_once_its_true_pose_arrives():
+    state = WorldState(FIELD)
+    assert state.takes(c.ODOM.for_robot(3)) and state.takes(c.GROUND_TRUTH_ODOM.for_robot(3))
+    assert state.apply(c.ODOM.for_robot(3), odometry_cdr(1.0, (0.2, 0.3, 0.0), (0.0, 0.0, 0.0)))
+    assert state.takes(c.ODOM.for_robot(3))  # tracked only, so far
+    robot(state, 3, 1.0, (1.0, 1.0, 0.0))
+    assert not state.takes(c.ODOM.for_robot(3))
+    assert state.takes(c.ODOM.for_robot(4)) and state.takes(c.CATCH_TIME.for_robot(3))
+    assert not state.takes("/robot_3/cmd_vel")
+
+
+def test_motor_currents_and_the_limit_flags_per_wheel():
+    state = WorldState(FIELD)
+    robot(state, 0, 1.0, (0.0, 0.0, 0.0))
+    status = [[1.0, 0.9, 0.0, 0.0], [1.4, 0.5, 1.0, 1.0], [0.2, 1.0, 0.0, 0.0], [0.3, 1.0, 0.0, 0.0]]
+    assert state.apply(c.MOTOR_STATUS.for_robot(0), table_msg(status, c.MOTOR_STATUS_COLUMNS, "wheels"))
+    truth = [[1.5, 40.0, 10.0], [-2.0, 45.0, -3.0], [0.1, 30.0, 1.0], [0.0, 30.0, 0.0]]
+    assert state.apply(c.GROUND_TRUTH_MOTORS.for_robot(0), table_msg(truth, c.GROUND_TRUTH_MOTOR_COLUMNS, "wheels"))
+    r = state.frame()["robots"][0]
+    assert r["avg_current"] == [1.0, 1.4, 0.2, 0.3]
+    assert r["limit_active"] == [False, True, False, False]
+    assert r["current"] == [1.5, -2.0, 0.1, 0.0]
+    assert state.frame()["current_limit"] == 1.3
+
+
+def test_the_speed_plot_follows_the_model_from_the_kick():
+    """Kicked at 3 m/s (v_shoot 3): 0.2 s later the model says 3 - 2.5 * 0.2 = 2.5 m/s (still sliding)."""
+    state = WorldState(FIELD)
+    ball_state(state, 1.0, (0.0, 0.0), (0.0, 0.0))
+    assert "model" not in state.frame()["speed"]
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(3.0))
+    ball_state(state, 2.0, (0.0, 0.0), (3.0, 0.0))
+    ball_state(state, 2.2, (0.55, 0.0), (2.45, 0.0))  # slower than the model: no new start
+    speed = state.frame()["speed"]
+    assert speed["model"] == pytest.approx(2.5, abs=1e-4)
+    assert speed["filtered"] == pytest.approx(2.45)
+    ball_state(state, 2.3, (0.8, 0.0), (4.0, 0.0))  # a second kick: the curve starts there
+    assert state.frame()["speed"]["model"] == pytest.approx(4.0)
+
+
+def test_bad_messages_are_refused_counted_and_never_reach_the_frame():
+    state = WorldState(FIELD)
+    ball_state(state, 1.0, (0.5, 0.5), (1.0, 0.0))
+    nan_ball = odometry_msg(1.1, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    nan_ball.pose.pose.position.x = math.nan
+    assert not state.apply(c.BALL_STATE.name, nan_ball)
+    assert not state.apply(c.BALL_STATE.name, b"\x00\x01\x00\x00garbage")
+    assert not state.apply(c.CATCH_TIME.for_robot(0), Float64(data=math.inf))
+    assert not state.apply(c.BALL_MODEL_PARAMS.name, table_msg([[1.0, 2.0, 3.0]], ("a", "b", "c")))
+    assert state.apply(c.BALL_PHASE.name, String(data="flying"))  # not a phase: shown as unknown
+    frame = state.frame()
+    assert frame["ball"]["state"] == [0.5, 0.5, 1.0, 0.0] and frame["ball"]["phase"] == "unknown"
+    assert frame["rejected"] == 4
+    json.dumps(frame, allow_nan=False)
+
+
+def _write_bag(path, messages) -> None:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = {}
+        for t_ns, topic, type_name, msg in messages:
+            if topic not in connections:
+                connections[topic] = writer.add_connection(topic, type_name, typestore=store)
+            writer.write(connections[topic], t_ns, serialize_message(msg))
+
+
+def test_a_bag_replays_as_frames_at_any_time(tmp_path):
+    """A ball rolling along x at 1 m/s, its truth every 10 ms from 1 s to 3 s; robot_0 sees it from 2 s."""
+    messages = []
+    for k in range(201):
+        t = 1.0 + 0.01 * k
+        messages.append((round(t * 1e9), c.GROUND_TRUTH_BALL.name, "nav_msgs/msg/Odometry",
+                         odometry_msg(t, (t, 0.0, 0.0), (1.0, 0.0, 0.0))))
+        if t >= 2.0:
+            messages.append((round(t * 1e9), c.BALL_DETECTED.for_robot(0), "std_msgs/msg/Bool", Bool(data=True)))
+    messages.append((round(3.0e9), "/robot_0/cmd_vel", "geometry_msgs/msg/Twist", Twist()))  # not the view's
+    _write_bag(tmp_path / "bag", messages)
+    replay = BagReplay(tmp_path / "bag", decode, FIELD, checkpoint_period_s=0.5)
+    assert len(replay) == 201 + 101
+    assert (replay.start_s, replay.end_s) == (1.0, 3.0)
+    for t in (2.5, 1.25, 2.97, 1.0, 2.0, 1.6):  # forward, back, jumps
+        frame = replay.frame_at(t)
+        assert frame["ball"]["truth"][0] == pytest.approx(t, abs=1e-9)
+        assert frame["replay"] == {"start": 1.0, "end": 3.0, "t": t}
+    assert replay.frame_at(99.0)["ball"]["truth"][0] == 3.0  # clamped to the bag
+    assert replay.frame_at(1.5)["ball"]["truth"][0] == 1.5
+    with pytest.raises(ValueError):
+        replay.frame_at(math.nan)
+    assert not replay.frame_at(1.9)["robots"]  # robot_0 has no pose: not drawn, its light barrier kept
+    assert replay.frame_at(2.5)["t"] == 2.5
+
+
+def test_a_damaged_record_is_skipped_and_counted(tmp_path):
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    with Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        phase = writer.add_connection(c.BALL_PHASE.name, "std_msgs/msg/String",
+                                      typestore=get_typestore(Stores.ROS2_JAZZY))
+        writer.write(phase, 1_000_000_000, serialize_message(String(data="rolling")))
+        writer.write(phase, 1_500_000_000, b"\x00\x01\x00\x00\xff\xff\xff\x7f")  # a string 2^31 long
+        writer.write(phase, 2_000_000_000, serialize_message(String(data="stopped")))
+    replay = BagReplay(tmp_path / "bag", decode, FIELD)
+    assert (len(replay), replay.skipped) == (2, 1)
+    assert replay.frame_at(1.7)["ball"]["phase"] == "rolling"
+    assert replay.frame_at(2.0)["ball"]["phase"] == "stopped"
+
+
+def test_an_empty_bag_is_a_clear_error(tmp_path):
+    _write_bag(tmp_path / "bag", [(1, "/other", "std_msgs/msg/String", String(data="x"))])
+    with pytest.raises(ValueError, match="no message of the view's topics"):
+        BagReplay(tmp_path / "bag", decode, FIELD)
+
+
+def test_the_foxglove_scene_draws_what_the_page_draws():
+    from erforce_sim.closed_loop.foxglove_bridge import plots_message, scene_shapes, scene_update
+
+    state = WorldState(FIELD, opponent_ids=frozenset({1}))
+    robot(state, 0, 1.0, (1.0, 0.5, 0.25), 0.8, (0.5, 0.0))
+    robot(state, 1, 1.0, (-1.0, -0.5, 0.0))
+    assert state.apply(c.GROUND_TRUTH_BALL.name, odometry_cdr(1.0, (-0.5, 0.0, 0.0), (2.0, 0.0, 0.0)))
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0))
+    ball_state(state, 1.0, (-0.5, 0.0), (2.0, 0.0))
+    frame = state.frame()
+    shapes = scene_shapes(frame)
+    assert set(shapes) == {"field", "robots", "ball"}
+    outline = shapes["field"]["lines"][1]  # the field lines: 9 x 6 m
+    assert outline["loop"] and outline["points"] == [(-4.5, -3.0), (4.5, -3.0), (4.5, 3.0), (-4.5, 3.0)]
+    bodies = shapes["robots"]["cylinders"]
+    assert [(b["x"], b["y"], b["color"]) for b in bodies] == [(1.0, 0.5, "#2f7de1"), (-1.0, -0.5, "#f2d22e")]
+    assert shapes["robots"]["arrows"][0]["yaw"] == 0.25
+    assert [t["text"] for t in shapes["robots"]["texts"]] == ["0", "0: 0.80 s", "1"]
+    assert shapes["ball"]["spheres"] == [{"x": -0.5, "y": 0.0, "diameter": 0.043, "color": "#ff8a00"}]
+    sliding, rolling, target = shapes["ball"]["lines"]  # no stop point published; robot_0's target
+    assert sliding["points"] == [(-0.5, 0.0), (pytest.approx(-0.5 + 0.512), 0.0)]
+    assert rolling["points"][1] == (pytest.approx(-0.5 + 2.912), 0.0)
+    assert target["loop"] and math.dist(target["points"][0], (0.5, 0.0)) == pytest.approx(0.1)
+    assert len(scene_update(frame, 1_000_000_000).encode()) > 500  # the foxglove message builds and encodes
+    assert plots_message(frame) == {"t": 1.0, "current_limit_a": 1.3, "robot": 0, "ball_speed_true": 2.0,
+                                    "ball_speed_filtered": 2.0, "ball_speed_model": 2.0, "avg_current_a": []}
