@@ -1,8 +1,9 @@
 """One default per physical quantity: the robot's catching limits and the predictor's settings agree everywhere.
 
 The planner (catch_time.RobotLimits), the catcher (CatcherConfig), both nodes' parameters, the launch
-files and the README all carry catch_time.ROBOT_A_MAX_MPS2 / ROBOT_V_MAX_MPS; the predictor's core
-configuration has the node's parameter defaults. Any copy that drifts fails here.
+files and the parameter reference (docs/reference.md) all carry catch_time.ROBOT_A_MAX_MPS2 /
+ROBOT_V_MAX_MPS; the predictor's core configuration has the node's parameter defaults. Any copy that
+drifts fails here.
 """
 
 import dataclasses
@@ -46,8 +47,8 @@ def test_launch_files_default_to_the_same_robot_limits(path):
     assert float(args["robot_v_max_mps"]) == ROBOT_V_MAX_MPS
 
 
-def test_readme_parameter_tables_show_the_same_robot_limits():
-    text = (ROOT / "README.md").read_text()
+def test_the_parameter_reference_shows_the_same_robot_limits():
+    text = (ROOT / "docs" / "reference.md").read_text()
     for name, value in (("robot_a_max_mps2", ROBOT_A_MAX_MPS2), ("a_max_mps2", ROBOT_A_MAX_MPS2),
                         ("robot_v_max_mps", ROBOT_V_MAX_MPS), ("v_max_mps", ROBOT_V_MAX_MPS)):
         rows = re.findall(rf"^\| `{name}` \| [a-z_]+ \| `([^`]*)` \|", text, flags=re.MULTILINE)

@@ -21,17 +21,18 @@ from erforce_interfaces import contract as c
 from erforce_interfaces import conversions as conv
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
-README = Path(__file__).resolve().parents[2] / "README.md"
+REFERENCE = Path(__file__).resolve().parents[2] / "docs" / "reference.md"
 
 
-def test_readme_generated_sections_are_current():
+def test_reference_generated_sections_are_current():
     from erforce_interfaces.tools import docs
 
-    text = README.read_text()
+    assert docs.REFERENCE == REFERENCE
+    text = REFERENCE.read_text()
     for name in docs.SECTIONS:
         assert f"<!-- {name}:begin -->" in text, name
     assert docs.render(text) == text, (
-        "README tables are stale: run `./run exec python -m erforce_interfaces.tools.docs README.md`"
+        "docs/reference.md is stale: run `./run exec python -m erforce_interfaces.tools.docs`"
     )
     assert c.topic_table_markdown() in text
 

@@ -1,8 +1,8 @@
-"""Keeps the generated sections of README.md in sync with the code.
+"""Keeps the generated sections of docs/reference.md in sync with the code.
 
 A section sits between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->``. Regenerate all
-with ``./run exec python -m erforce_interfaces.tools.docs README.md``; a test fails when any
-section is stale, so the README's topic and parameter tables cannot drift.
+with ``./run exec python -m erforce_interfaces.tools.docs [FILE ...]`` (default docs/reference.md); a
+test fails when any section is stale, so the topic and parameter tables cannot drift.
 """
 
 from __future__ import annotations
@@ -14,6 +14,8 @@ from pathlib import Path
 
 from erforce_interfaces.contract import topic_table_markdown
 from erforce_interfaces.param_schema import ParamSchema, load_schema, robot_param_specs
+
+REFERENCE = Path(__file__).resolve().parents[4] / "docs" / "reference.md"
 
 # (package, node) of every node's parameter schema (<package>/params/<node>.yaml)
 NODE_SCHEMAS = (
@@ -44,17 +46,9 @@ def _node_params_section() -> str:
     return "\n\n".join(parts)
 
 
-def _bench_results_section() -> str:
-    results = Path(__file__).resolve().parents[4] / "bench" / "RESULTS.md"
-    if not results.exists():
-        return "No results yet: run `./run bench`."
-    return results.read_text().strip()
-
-
 SECTIONS: dict[str, Callable[[], str]] = {
     "topic-table": topic_table_markdown,
     "node-params": _node_params_section,
-    "bench-results": _bench_results_section,
 }
 
 
@@ -68,12 +62,12 @@ def render(text: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    path = Path(argv[0] if argv else "README.md")
-    old = path.read_text()
-    new = render(old)
-    if new != old:
-        path.write_text(new)
-        print(f"updated {path}")
+    for path in [Path(a) for a in argv] or [REFERENCE]:
+        old = path.read_text()
+        new = render(old)
+        if new != old:
+            path.write_text(new)
+            print(f"updated {path}")
     return 0
 
 
