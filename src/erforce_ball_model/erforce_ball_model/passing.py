@@ -14,8 +14,11 @@ question) for every robot on the field, on the ball the kick would make:
   receiver is the receivable one (``PassConfig.arrive_speed_mps``), the kick speed follows.
 - ``evaluate_passes`` builds, per candidate receiver, the ball the kick makes (from the ball's
   position towards the receiver's centre) and runs one robotTimeToBall for the whole field: the
-  receiver's catch time and the earliest opponent's. ``margin_s`` = opponent - receiver; a pass
-  is safe when the margin is at least ``PassConfig.safe_margin_s``.
+  earliest opponent's catch time, and whether the receiver can catch it at all. The receiver
+  receives where it stands (catcher.Receiver takes the point on the ball's line it reaches with
+  time to spare), so its catch is the ball's arrival at its dribbler (ballRollTime), later than
+  its robotTimeToBall, which runs to meet the ball. ``margin_s`` = opponent - arrival; a pass is
+  safe when the margin is at least ``PassConfig.safe_margin_s``.
 - ``select_pass``: of the safe passes the one whose catch comes earliest; when none is safe, the
   one with the largest margin (rated unsafe; the caller may still play it).
 - ``press_targets``: where opponents wait while a robot of ours holds the ball: each covers the
@@ -79,8 +82,8 @@ class PassOption:
     receiver: int  # index into the team
     kick_speed_mps: float
     direction_rad: float  # kick direction in `field`
-    receiver_catch_s: float  # from the kick, the reaction time included; inf: it cannot catch it
-    opponent_catch_s: float  # the earliest opponent's; inf: no opponent can
+    receiver_catch_s: float  # the ball at the receiver's dribbler, from the kick; inf: it cannot catch it
+    opponent_catch_s: float  # the earliest opponent's robotTimeToBall, the reaction time included; inf: none can
     first_opponent: int | None  # index into the opponents
 
     @property
@@ -150,7 +153,9 @@ def evaluate_passes(
                        cfg.reaction_s)
         opp = times[n_team:]
         first = int(np.argmin(opp)) if len(opp) and math.isfinite(opp.min()) else None
-        options.append(PassOption(int(j), v0, math.atan2(u[1], u[0]), float(times[j]),
+        arrival_s = float(traj.time_to_distance(max(distance - dribbler_offset_m, 0.0)))
+        receiver_s = arrival_s if math.isfinite(times[j]) else math.inf
+        options.append(PassOption(int(j), v0, math.atan2(u[1], u[0]), receiver_s,
                                   math.inf if first is None else float(opp[first]), first))
     return options
 
