@@ -413,7 +413,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{s['completed']}/{s['passes']} completed, {s['intercepted']} intercepted, {s['lost']} lost; "
           f"rated safe {s['rated_safe']}, of them completed {s['safe_completed']}; {game.resets} ball(s) put back; "
           f"{game.runner.t_s:.1f} s simulated in {wall:.1f} s; predictor per vision frame "
-          f"({cfg.team_size + cfg.opponents} robots), CPU: median {np.median(costs):.3f} ms, p99 {np.percentile(costs, 99):.3f} ms")
+          f"({cfg.team_size + cfg.opponents} robots), CPU: median {np.median(costs):.3f} ms, "
+          f"p99 {np.percentile(costs, 99):.3f} ms")
     if args.plot:
         plot_passes(records, game.field, args.plot)
     return 0
