@@ -117,6 +117,15 @@ PARAMS = (
         "startup_timeout_s", 30.0, "wall time to wait for the controlled robots' nodes at start [s]", min=0.0, max=600.0
     ),
     ParamSpec(
+        "wheel_states_readers",
+        2,
+        "wait (up to startup_timeout_s) for this many readers of each controlled robot's wheel_states before the "
+        "first tick: 2 for a velocity_controller and a motor_boards per robot, 1 for a team_firmware",
+        min=1,
+        max=100,
+        read_only=True,
+    ),
+    ParamSpec(
         "start_clock_subscribers",
         0,
         "also wait (up to startup_timeout_s) for this many /clock subscribers before the first tick, for tools "
@@ -309,7 +318,7 @@ class PlantNode(Node):
         waited = time.monotonic() - self._start_wall
         ok = all(
             self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0
-            and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= 2
+            and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= self._values["wheel_states_readers"]
             for i in self._controlled
         ) and self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
         if not ok and waited > self._values["startup_timeout_s"]:
