@@ -25,8 +25,13 @@ from geometry_msgs.msg import Twist
 from rclpy.node import Node
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import ConversionError, joint_state_cdr, table_cdr, twist_from_msg, \
-    wheel_states_from_msg
+from erforce_interfaces.conversions import (
+    ConversionError,
+    joint_state_cdr,
+    table_cdr,
+    twist_from_msg,
+    wheel_states_from_msg,
+)
 from erforce_interfaces.executor import run_sampled
 from erforce_interfaces.node_support import (
     ParamSpec,

@@ -60,6 +60,7 @@ class GameConfig:
     aim_tolerance_rad: float = 0.03
     turn_rate_radps: float = 3.0  # a holder turns at most this fast (the dribbler keeps the ball)
     switch_margin_s: float = 0.2  # a holder changes its chosen receiver for one this much earlier
+    wait_for_safe_s: float = 1.5  # a holder without a safe pass keeps the ball this long, then plays the best
     pass_timeout_s: float = 6.0
     settle_s: float = 0.3  # the trackers learn every robot before the first decision
     passing: PassConfig = field(default_factory=PassConfig)
@@ -158,6 +159,7 @@ class PassingGame:
         self._hold_since = 0.0
         self._choice: PassOption | None = None
         self._pass: dict | None = None
+        self._last_passer: int | None = None
         self._barriers = [False] * n
 
     # -------------------------------------------------------------------- vision -> predictor -> skills
@@ -204,6 +206,13 @@ class PassingGame:
                                self.velocities[n:], [k for k in range(n) if k != holder], self.pass_search,
                                self.predictor.model, self.cfg.passing, self.robot.dribbler_offset_m)
 
+    def _candidates(self, holder: int) -> list[int]:
+        """Every teammate but the holder and, so that the ball travels along a chain, the one who passed
+        to it (while there is another)."""
+        others = [k for k in range(self.n_team) if k != holder]
+        chain = [k for k in others if k != self._last_passer]
+        return chain or others
+
     def _ball_at_dribbler(self, i: int) -> tuple[float, float]:
         x, y, yaw = self.poses[i]
         d = self.robot.dribbler_offset_m
@@ -234,7 +243,8 @@ class PassingGame:
                 twist[2] = float(np.clip(twist[2], -cfg.turn_rate_radps, cfg.turn_rate_radps))
                 commands[h] = twist
                 aimed = abs(wrap_angle(choice.direction_rad - self.world.robot_state(h).theta)) <= cfg.aim_tolerance_rad
-                if aimed and now - self._hold_since >= cfg.hold_min_s and self.world.light_barrier(h):
+                patient = not choice.safe(cfg.passing) and now - self._hold_since < cfg.wait_for_safe_s
+                if aimed and not patient and now - self._hold_since >= cfg.hold_min_s and self.world.light_barrier(h):
                     self._kick(h, choice, now)
                     commands[h] = np.zeros(3)
             targets = press_targets(self._ball_at_dribbler(h), self.poses[:n, :2], self.poses[n:, :2], h,
@@ -251,7 +261,7 @@ class PassingGame:
     def _kick(self, holder: int, choice: PassOption, now: float) -> None:
         self.world.set_dribbler(holder, False)
         self.world.kick(holder, choice.kick_speed_mps, armed_for_s=0.1)
-        self._holder = None
+        self._holder, self._last_passer = None, holder
         cc = self.cfg.catcher
         offset, radius = self.robot.dribbler_offset_m, self.robot.robot_radius_m
         self.receivers = {choice.receiver: Receiver(cc, offset, radius, self.field)}
@@ -292,6 +302,7 @@ class PassingGame:
     def _restart(self, now: float) -> None:
         """The ball to the dribbler of our robot farthest from every opponent."""
         self.resets += 1
+        self._last_passer = None
         n = self.n_team
         truth = [self.world.robot_state(i) for i in range(n + self.n_opp)]
         if self.n_opp:
