@@ -23,7 +23,7 @@ def test_passes_go_along_a_chain_and_arrive_when_predicted():
     records = PassingGame(SMALL, seed=1).play()
     assert [r.outcome for r in records] == ["completed"] * 3
     for before, after in itertools.pairwise(records):
-        assert after.passer == before.receiver
+        assert after.passer == before.receiver and after.receiver != before.passer  # on along the chain
     for r in records:
         assert r.caught_by == f"robot_{r.receiver}"
         assert r.actual_catch_s == pytest.approx(r.predicted_catch_s, abs=0.15)

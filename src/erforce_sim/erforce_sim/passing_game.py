@@ -203,7 +203,7 @@ class PassingGame:
         n = self.n_team
         ball_xy = (ball.x, ball.y) if self._holder is None else self._ball_at_dribbler(holder)
         return evaluate_passes(ball_xy, self.poses[:n, :2], self.velocities[:n], self.poses[n:, :2],
-                               self.velocities[n:], [k for k in range(n) if k != holder], self.pass_search,
+                               self.velocities[n:], self._candidates(holder), self.pass_search,
                                self.predictor.model, self.cfg.passing, self.robot.dribbler_offset_m)
 
     def _candidates(self, holder: int) -> list[int]:
