@@ -76,7 +76,8 @@ def measure(num_robots: int, sim_s: float, period_s: float = 0.002, deployment: 
         while plant.alive():
             try:
                 cpu1 = {name: _cpu_s(pid) for name, pid in pids.items() if Path(f"/proc/{pid}").exists()}
-                rss = {name: _rss_mib(pid) for name, pid in pids.items()}
+                for name, pid in pids.items():  # the peak seen (an exited process reads 0)
+                    rss[name] = max(rss.get(name, 0.0), _rss_mib(pid))
             except OSError:  # the plant ended between the check and the read
                 pass
             graph.probe.spin_for(0.05)

@@ -41,3 +41,24 @@ def test_an_opponent_on_the_only_lane_intercepts_and_the_record_says_why():
     assert record.outcome == "intercepted" and record.caught_by == "opponent_0"
     assert record.actual_catch_s < record.predicted_catch_s
     assert "predicted first opponent opponent_0" in record.line()
+
+
+def test_the_passing_scenario_writes_the_plot_the_summary_and_a_bag(tmp_path):
+    """``./run demo --scenario passing``: each pass on the terminal, and report/<time>/ with passes.png,
+    summary.md (a row per pass) and a rosbag2/MCAP bag of the ground truth of every robot and the pass events."""
+    from rosbags.rosbag2 import Reader
+
+    from erforce_sim.demo import main
+
+    assert main(["--scenario", "passing", "--team", "2", "--opponents", "1", "--passes", "1", "--seed", "0",
+                 "--out", str(tmp_path)]) == 0
+    (report,) = tmp_path.iterdir()
+    assert (report / "passes.png").stat().st_size > 10_000
+    summary_text = (report / "summary.md").read_text()
+    assert "| 1 | robot_0 | robot_1 |" in summary_text
+    with Reader(report / "bag") as bag:
+        counts = {c.topic: c.msgcount for c in bag.connections}
+    assert counts["/sim/events"] == 1
+    for topic in ("/clock", "/ground_truth/ball", "/robot_0/ground_truth/odom", "/robot_1/ground_truth/odom",
+                  "/opponent_0/ground_truth/odom"):
+        assert counts[topic] > 100  # 100 Hz over more than a second

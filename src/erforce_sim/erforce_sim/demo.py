@@ -547,6 +547,12 @@ class Demo:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="./run demo", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="report", help="report folder (a timestamped subfolder is created)")
+    parser.add_argument("--scenario", default="scenes", choices=("scenes", "passing"),
+                        help="scenes: the paper's story on the DDS graph (below); passing: the passing game of a team "
+                             "against opponents, in one process (erforce_sim.passing_report)")
+    parser.add_argument("--team", type=int, default=11, help="passing: our robots (2..11)")
+    parser.add_argument("--opponents", type=int, default=3, help="passing: opponents (0..6)")
+    parser.add_argument("--passes", type=int, default=20, help="passing: the game ends after this many passes")
     parser.add_argument("--pacing", default="lockstep", choices=("lockstep", "realtime"))
     parser.add_argument(
         "--real-time-factor",
@@ -574,6 +580,10 @@ def main(argv: list[str] | None = None) -> int:
         "on the robot, another host (see test/two_hosts)",
     )
     args = parser.parse_args(argv)
+    if args.scenario == "passing":
+        from erforce_sim import passing_report  # no DDS graph: the game runs in this process
+
+        return passing_report.run(args)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.update(contract.dds_profile_env())  # for the director and the recorder too
     return Demo(args).run()

@@ -131,10 +131,12 @@ def setup_for(cfg: GameConfig, seed: int) -> PlantSetup:
 
 
 class PassingGame:
-    """One game (module docstring); ``play`` returns the passes, ``on_pass`` sees each as it ends."""
+    """One game (module docstring); ``play`` returns the passes, ``on_pass`` sees each as it ends and
+    ``on_tick`` the game after every control tick (a recorder)."""
 
-    def __init__(self, cfg: GameConfig, seed: int = 0, on_pass: Callable[[PassRecord], None] | None = None) -> None:
-        self.cfg, self.seed, self.on_pass = cfg, seed, on_pass
+    def __init__(self, cfg: GameConfig, seed: int = 0, on_pass: Callable[[PassRecord], None] | None = None,
+                 on_tick: Callable[[PassingGame], None] | None = None) -> None:
+        self.cfg, self.seed, self.on_pass, self.on_tick = cfg, seed, on_pass, on_tick
         self.setup = setup_for(cfg, seed)
         self.runner = InProcessRunner(self.setup)
         self.world = self.runner.world
@@ -333,6 +335,8 @@ class PassingGame:
                     self._pass["path"].append((b.x, b.y))
             runner.tick()
             self._check(runner.t_s)
+            if self.on_tick is not None:
+                self.on_tick(self)
         return self.records
 
     def _check(self, now: float) -> None:
