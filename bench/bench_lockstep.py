@@ -61,10 +61,10 @@ def measure(num_robots: int, sim_s: float, period_s: float = 0.002, deployment: 
         warmup_s = 0.5
         plant = graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params={
             "robot_poses": poses, "controlled": [True], "real_time_factor": 0.0, "control_period_s": period_s,
-            "stop_after_s": warmup_s + sim_s, "startup_timeout_s": 120.0,
+            "stop_after_s": warmup_s + sim_s, "startup_timeout_s": 300.0,
             "wheel_states_readers": 1 if deployment == "team" else 2,
             "start_clock_subscribers": clock_readers + 1})
-        graph.probe.spin_until(lambda: clocks and stamp_to_nanoseconds(clocks[-1].clock) >= warmup_s * 1e9, 120.0,
+        graph.probe.spin_until(lambda: clocks and stamp_to_nanoseconds(clocks[-1].clock) >= warmup_s * 1e9, 400.0,
                                "warm-up")
         t0_sim = stamp_to_nanoseconds(clocks[-1].clock) * 1e-9
         t0_wall = time.monotonic()

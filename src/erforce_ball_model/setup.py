@@ -26,6 +26,7 @@ setup(
             "ball_figures = erforce_ball_model.figures:main",
             "ball_fit = erforce_ball_model.identification:main",
             "catcher = erforce_ball_model.catcher_node:main",
+            "team_catcher = erforce_ball_model.team_catcher_node:main",
         ],
     },
 )
