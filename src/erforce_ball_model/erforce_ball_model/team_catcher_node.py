@@ -41,12 +41,13 @@ from erforce_interfaces.node_support import (
     run_node,
 )
 
-PARAMS = (
+OWN_PARAMS = (
     ParamSpec("robot_ids", [0], "the robots this process runs the catchers of (namespaces robot_<id>)",
               min=0, max=1_000_000, read_only=True),
     ParamSpec("as_team", True, "the robots form a team: only the one that can catch the ball first receives",
               read_only=True),
-) + tuple(s for s in catcher_node.PARAMS if s.name != "team_robot_ids")
+)
+PARAMS = OWN_PARAMS + tuple(s for s in catcher_node.PARAMS if s.name != "team_robot_ids")
 
 
 def build(values: dict[str, Any]):

@@ -23,6 +23,9 @@ NODE_PARAMS = (
     ("motor_boards", "erforce_motion.motor_boards_node", "PARAMS"),
     ("plant", "erforce_sim.plant_node", "PARAMS"),
     ("catcher", "erforce_ball_model.catcher_node", "PARAMS"),
+    # the team hosts: their own parameters; the rest are the per-robot nodes' (README, "A team on the graph")
+    ("team_firmware", "erforce_motion.team_firmware_node", "OWN_PARAMS"),
+    ("team_catcher", "erforce_ball_model.team_catcher_node", "OWN_PARAMS"),
 )
 
 

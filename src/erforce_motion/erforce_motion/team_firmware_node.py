@@ -56,11 +56,12 @@ def _prefixed(prefix: str, specs, skip=()) -> tuple[ParamSpec, ...]:
                  if not s.name.startswith("robot.") and s.name not in skip)
 
 
-PARAMS = (
+OWN_PARAMS = (
     ParamSpec("robot_ids", [0], "the robots this process runs the firmware of (namespaces robot_<id>)",
               min=0, max=1000, read_only=True),
     ParamSpec("publish_setpoints", False, "also publish each robot's wheel_setpoints (for tools)"),
-) + _prefixed(MAIN_PREFIX, velocity_controller_node.PARAMS) + _prefixed(
+)
+PARAMS = OWN_PARAMS + _prefixed(MAIN_PREFIX, velocity_controller_node.PARAMS) + _prefixed(
     MOTOR_PREFIX, motor_boards_node.PARAMS, _MOTOR_DDS_ONLY) + robot_param_specs()
 
 _MOTOR_DEFAULTS = {s.name: s.default for s in motor_boards_node.PARAMS if s.name in _MOTOR_DDS_ONLY}
