@@ -72,7 +72,7 @@ class GameBag:
 
 
 def summary_markdown(records: list[PassRecord], cfg: GameConfig, seed: int, sim_s: float, wall_s: float,
-                     frame_costs_ms: np.ndarray) -> str:
+                     frame_costs_ms: np.ndarray, resets: int = 0, drops: int = 0) -> str:
     s = summary(records, cfg.passing)
     safe = s["rated_safe"]
     lines = [
@@ -81,6 +81,8 @@ def summary_markdown(records: list[PassRecord], cfg: GameConfig, seed: int, sim_
         f"- passes: {s['passes']}; completed {s['completed']}, intercepted {s['intercepted']}, lost {s['lost']}",
         f"- rated safe (margin >= {cfg.passing.safe_margin_s:.2f} s): {safe}, of them completed {s['safe_completed']}"
         + (f" ({100.0 * s['safe_completed'] / safe:.0f} %)" if safe else ""),
+        f"- the ball was put back at a teammate {resets} time(s) (after interceptions and losses; {drops} time(s) "
+        "because the holder lost it before kicking)",
         f"- {sim_s:.1f} s simulated in {wall_s:.1f} s of wall time (one process; the machine's load counts)",
         f"- ball predictor per vision frame, all {cfg.team_size + cfg.opponents} robots (CPU): median "
         f"{np.median(frame_costs_ms):.3f} ms, p99 {np.percentile(frame_costs_ms, 99):.3f} ms",
@@ -124,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - wall0
     plot_passes(records, game.field, out / "passes.png",
                 f"{cfg.team_size} v {cfg.opponents}, seed {args.seed}: true ball path of every pass")
-    text = summary_markdown(records, cfg, args.seed, game.runner.t_s, wall, np.array(game.frame_costs_s) * 1e3)
+    text = summary_markdown(records, cfg, args.seed, game.runner.t_s, wall, np.array(game.frame_costs_s) * 1e3,
+                            game.resets, game.drops)
     (out / "summary.md").write_text(text)
     print("\n" + text, flush=True)
     print(f"report: {out}")
