@@ -54,13 +54,14 @@ def measure(num_robots: int, sim_s: float, period_s: float = 0.002, deployment: 
                     graph.start_node("erforce_motion", exe, namespace=f"robot_{i}", params_file=ROBOT_YAML,
                                      params={"use_sim_time": True, "loop_rate_hz": 1.0 / period_s})
         clock_readers = 1 if deployment == "team" else 2 * num_robots
-        poses = [v for i in range(num_robots) for v in (-3.0 + 1.0 * i, 0.0, 0.0)]
+        # a row of 11 per team on the Division A field (12 x 9 m)
+        poses = [v for i in range(num_robots) for v in (-5.0 + 1.0 * (i % 11), -1.0 + 2.0 * (i // 11), 0.0)]
         clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
         # warm-up ticks, then the measured stretch; the plant ends itself after stop_after_s. It starts
         # once this probe and both nodes of every robot subscribe to /clock, so the probe sees the warm-up.
         warmup_s = 0.5
         plant = graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params={
-            "robot_poses": poses, "controlled": [True], "real_time_factor": 0.0, "control_period_s": period_s,
+            "robot_poses": poses, "field": "division_a", "controlled": [True], "real_time_factor": 0.0, "control_period_s": period_s,
             "stop_after_s": warmup_s + sim_s, "startup_timeout_s": 300.0,
             "wheel_states_readers": 1 if deployment == "team" else 2,
             "start_clock_subscribers": clock_readers + 1})
