@@ -61,7 +61,8 @@ def measure(num_robots: int, sim_s: float, period_s: float = 0.002, deployment: 
         # once this probe and both nodes of every robot subscribe to /clock, so the probe sees the warm-up.
         warmup_s = 0.5
         plant = graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params={
-            "robot_poses": poses, "field": "division_a", "controlled": [True], "real_time_factor": 0.0, "control_period_s": period_s,
+            "robot_poses": poses, "field": "division_a", "controlled": [True], "real_time_factor": 0.0,
+            "control_period_s": period_s,
             "stop_after_s": warmup_s + sim_s, "startup_timeout_s": 300.0,
             "wheel_states_readers": 1 if deployment == "team" else 2,
             "start_clock_subscribers": clock_readers + 1})
