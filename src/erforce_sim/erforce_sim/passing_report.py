@@ -100,7 +100,7 @@ def summary_markdown(records: list[PassRecord], cfg: GameConfig, seed: int, sim_
     failed = [r for r in records if r.outcome != "completed"]
     if failed:
         lines += ["", "## Interceptions and losses", ""]
-        lines += [f"- pass {r.index}: {r.line().split('  ', 1)[1]}" for r in failed]
+        lines += [f"- pass {r.index}: {r.line()[len(f'pass {r.index:2d}  '):]}" for r in failed]
     return "\n".join(lines) + "\n"
 
 
