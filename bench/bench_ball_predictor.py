@@ -13,7 +13,7 @@ processing time per frame (callback entry to last publish) comes from its timing
 (parameter ``timing_log_every``), collected over exactly the measured frames. For attribution
 the same frames also run in-process through predictor.BallPredictor, the object the node runs.
 
-Runs in a private DDS domain (erforce_interfaces.testing.RosGraph).
+Runs in a private DDS domain (erforce_interfaces.tools.testing.RosGraph).
 
     python bench/bench_ball_predictor.py [--quick]
 """
@@ -35,7 +35,7 @@ from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import point_msg, pose2d_msg
 from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.testing import RosGraph
+from erforce_interfaces.tools.testing import RosGraph
 
 NUM_ROBOTS = 22
 FPS = 70.0

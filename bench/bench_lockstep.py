@@ -1,7 +1,7 @@
 """Real-time factor of the DDS graph in lockstep: the plant and every robot's firmware, per robot
 (velocity_controller + motor_boards in each namespace) or as a team (one team_firmware process).
 
-Each run starts real node processes in a private DDS domain (erforce_interfaces.testing),
+Each run starts real node processes in a private DDS domain (erforce_interfaces.tools.testing),
 lets the plant run flat out (real_time_factor 0) for a stretch of simulated time, and
 reports simulated seconds per wall second, the CPU time each kind of process spent per tick
 (from /proc, so it is measured, not estimated; firmware per robot) and the resident memory
@@ -24,7 +24,7 @@ from table import bench_main, markdown_table  # bench/table.py: the shared table
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import stamp_to_nanoseconds
-from erforce_interfaces.testing import RosGraph
+from erforce_interfaces.tools.testing import RosGraph
 
 ROBOT_YAML = Path(__file__).resolve().parents[1] / "src/erforce_interfaces/config/robot.yaml"
 

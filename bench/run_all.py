@@ -27,6 +27,8 @@ MODULES = (
     ("motion control (Sec. 4)", "bench_motion"),
     ("simulator (Sec. 2-3)", "bench_sim"),
     ("lockstep over DDS", "bench_lockstep"),
+    ("self-healing graph", "bench_respawn"),
+    ("executors", "bench_executor"),
 )
 
 
@@ -74,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     text = "\n".join(lines) + "\n"
     print(text)
     if not args.no_write:
-        from erforce_interfaces import docs
+        from erforce_interfaces.tools import docs
 
         RESULTS.write_text(text)
         docs.main([str(BENCH_DIR.parent / "README.md")])  # the README shows RESULTS.md

@@ -2,7 +2,7 @@
 
 import pytest
 
-pytest_plugins = ["erforce_interfaces.testing"]
+pytest_plugins = ["erforce_interfaces.tools.testing"]
 
 
 def pytest_collection_modifyitems(items):

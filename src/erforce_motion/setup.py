@@ -8,10 +8,13 @@ setup(
     name=package_name,
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
+    package_data={package_name: ["params/*.yaml"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/launch", glob("launch/*.yaml")),
+        # the nodes' parameter schemas (param_schema.py): read from the Python package, also in share/ for tools
+        ("share/" + package_name + "/params", glob(package_name + "/params/*.yaml")),
         ("share/" + package_name + "/config", glob("config/*.yaml")),
     ],
     install_requires=["setuptools"],

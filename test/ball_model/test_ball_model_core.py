@@ -68,43 +68,31 @@ def test_ball_at_rest():
     assert ball.time_in_field(FieldConfig.preset("division_b")) == (0.0, math.inf)
 
 
-def test_batch_outer_product_matches_single_balls():
-    """A single ball is set up in floats, a batch in arrays: both must derive the same phases."""
+def test_array_queries_match_scalar_queries_and_advanced():
+    """An array of times runs compiled, a number in Python: both the same closed forms, element by element."""
     rng = np.random.default_rng(0)
     pos, vel = rng.normal(size=(8, 2)), rng.normal(0, 3, size=(8, 2))
     shoot = rng.uniform(0, 6, 8)
     vel[5] = 0.0  # at rest
     shoot[6] = 0.5 * np.hypot(*vel[6])  # v_shoot below the speed: raised to it
     shoot[7] = 3.0 * np.hypot(*vel[7])  # already rolling
-    batch = BallTrajectory(pos, vel, shoot)
     t = np.linspace(0, 6, 7)
-    out = batch.position_at(t)
-    assert out.shape == (8, 7, 2)
     for i in range(8):
-        single = BallTrajectory(pos[i], vel[i], shoot[i])
-        np.testing.assert_allclose(out[i], single.position_at(t))
-        np.testing.assert_allclose(batch[i].stop_point, single.stop_point)
-        for name in ("v_shoot_mps", "speed_mps", "direction", "v_switch_mps", "switch_time_s", "switch_distance_m",
-                     "stop_time_s", "stop_distance_m"):
-            np.testing.assert_allclose(getattr(single, name), getattr(batch, name)[i], rtol=1e-15, err_msg=name)
-            assert getattr(single, name).shape == getattr(batch, name).shape[1:]
-        # advanced() and time_in_field() also have a float path for one ball
+        ball = BallTrajectory(pos[i], vel[i], shoot[i])
+        positions, speeds, phases = ball.position_at(t), ball.speed_at(t), ball.phase_at(t)
+        assert positions.shape == (7, 2) and speeds.shape == phases.shape == (7,)
+        for k, tk in enumerate(t):
+            assert isinstance(ball.distance_at(tk), float) and isinstance(ball.speed_at(tk), float)
+            np.testing.assert_allclose(positions[k], ball.position_at(float(tk)), rtol=1e-15)
+            assert speeds[k] == pytest.approx(ball.speed_at(float(tk)), rel=1e-15, abs=0.0)
+            assert phases[k] == ball.phase_at(float(tk))
+        assert ball.phase == ball.phase_at(0.0)
         for dt in (0.0, 0.05, 0.7, 2.5, 30.0):
-            later = single.advanced(dt)
-            np.testing.assert_allclose(later.position_m, batch.position_at(dt)[i], rtol=1e-14, atol=1e-15)
-            np.testing.assert_allclose(later.velocity_mps, batch.velocity_at(dt)[i], rtol=1e-14, atol=1e-15)
-        for field, margin in ((FieldConfig.preset("division_b"), 0.0), (FieldConfig.preset("division_a"), -4.0)):
-            for one, many in zip(single.time_in_field(field, margin), batch.time_in_field(field, margin), strict=True):
-                np.testing.assert_allclose(one, many[i], rtol=1e-15)
-        # The one-ball floats are the batch's numbers, and the phase now is phase_at(0).
-        f = BallTrajectory(tuple(pos[i]), tuple(vel[i]), float(shoot[i])).floats
-        np.testing.assert_allclose(f[:2], pos[i], rtol=0)
-        np.testing.assert_allclose(f[2:4], vel[i], rtol=0)
-        np.testing.assert_allclose(f[4:6], batch.direction[i], rtol=1e-15)
-        np.testing.assert_allclose(f[6:], [getattr(batch, name)[i] for name in f._fields[6:]], rtol=1e-15)
-        assert single.phase == batch.phase[i] == batch.phase_at(0.0)[i]
-    assert batch.floats is None
-    assert batch.time_to_distance(np.array([0.1, 0.2])).shape == (8, 2)
+            later = ball.advanced(dt)
+            np.testing.assert_allclose(later.position_m, ball.position_at(dt), rtol=1e-14, atol=1e-15)
+            np.testing.assert_allclose(later.velocity_mps, ball.velocity_at(dt), rtol=1e-14, atol=1e-15)
+    with pytest.raises(ValueError, match="one ball"):
+        BallTrajectory(pos, vel, shoot)
 
 
 speeds = st.floats(0.0, 8.0)
@@ -202,26 +190,25 @@ def test_time_in_field_matches_brute_force():
     rng = np.random.default_rng(11)
     div_b = FieldConfig.preset("division_b")
     half = np.array([div_b.half_length_m, div_b.half_width_m])
-    balls = BallTrajectory(rng.uniform(-6.0, 6.0, (200, 2)), rng.uniform(-5.0, 5.0, (200, 2)),
-                           rng.uniform(0.0, 7.0, 200))
-    t_in, t_out = balls.time_in_field(div_b)
+    positions, velocities = rng.uniform(-6.0, 6.0, (200, 2)), rng.uniform(-5.0, 5.0, (200, 2))
+    shots = rng.uniform(0.0, 7.0, 200)
     dt = 1e-4
     for i in range(200):
-        ball = balls[i]
+        ball = BallTrajectory(positions[i], velocities[i], shots[i])
+        t_in, t_out = ball.time_in_field(div_b)
         t = np.arange(0.0, float(ball.stop_time_s) + dt, dt)
         inside = (np.abs(ball.position_at(t)) <= half).all(axis=-1)
-        assert (float(t_in[i]), float(t_out[i])) == pytest.approx(ball.time_in_field(div_b))  # one ball alike
         if not inside.any():
-            assert math.isinf(t_in[i]) and math.isinf(t_out[i])
+            assert math.isinf(t_in) and math.isinf(t_out)
             continue
         first = int(np.argmax(inside))
-        assert t[max(first - 1, 0)] <= t_in[i] <= t[first] + 1e-12
+        assert t[max(first - 1, 0)] <= t_in <= t[first] + 1e-12
         after = ~inside[first:]
         if not after.any():
-            assert math.isinf(t_out[i])
+            assert math.isinf(t_out)
         else:
             k = first + int(np.argmax(after))
-            assert t[k - 1] <= t_out[i] <= t[k] + 1e-12
+            assert t[k - 1] <= t_out <= t[k] + 1e-12
             assert inside[first:k].all()  # one stretch: the path never comes back in
 
 

@@ -12,12 +12,15 @@ from erforce_ball_model.catch_time import (
     CatchKind,
     CatchSearch,
     RobotLimits,
-    axis_time,
+    _axis_time,
     can_reach_in_time,
+    robot_time_curve,
     robot_time_to_ball,
     robot_time_to_pos,
 )
 from erforce_interfaces.robot_config import FieldConfig
+
+axis_time = np.vectorize(_axis_time, otypes=[float])  # the compiled 1D bang-bang time, over arrays
 
 OFFSET = 0.0815
 DIV_B = FieldConfig.preset("division_b")
@@ -152,10 +155,10 @@ def test_prepared_search_reused_over_frames_equals_one_off_calls():
     bad[3, 1] = np.inf
     with pytest.raises(ValueError, match="finite"):
         search.run(ball, bad, vels)
-    with pytest.raises(ValueError, match="single-ball"):
-        search.run(BallTrajectory(robots, vels, 1.0), robots, vels)
+    with pytest.raises(ValueError, match="BallTrajectory"):
+        search.run(ball.floats, robots, vels)
     with pytest.raises(ValueError):
-        CatchSearch(0, lim)
+        CatchSearch(0, lim, field=DIV_B)
 
 
 @settings(max_examples=300, deadline=None)
@@ -177,7 +180,7 @@ def test_robot_at_rest_on_the_path_facing_the_ball():
     # The robot meets the ball when 1.9185 - d(t) = a t^2 / 4 (triangle from rest, moving left):
     # 1.9185 - 2t + 0.15t^2 = 0.75t^2  ->  0.6t^2 + 2t - 1.9185 = 0.
     ball = BallTrajectory([0.0, 0.0], [2.0, 0.0], 2.0 / 0.6)
-    res = robot_time_to_ball(ball, [[2.0, 0.0]], [[0.0, 0.0]], RobotLimits(3.0, 3.0), math.pi)
+    res = robot_time_to_ball(ball, [[2.0, 0.0]], [[0.0, 0.0]], RobotLimits(3.0, 3.0), math.pi, unbounded=True)
     t_hand = (-2.0 + math.sqrt(4.0 + 4.0 * 0.6 * (2.0 - OFFSET))) / 1.2
     assert res.kind[0] == CatchKind.MOVING
     assert t_hand - 1e-9 <= res.time_s[0] <= t_hand + 1e-4  # never early, at most one sub-step late
@@ -211,7 +214,7 @@ def test_ball_already_stopped():
 
 def test_robot_standing_at_the_catch_point_of_a_resting_ball_catches_at_zero():
     ball = BallTrajectory([1.0, 0.0], [0.0, 0.0], 0.0)
-    res = robot_time_to_ball(ball, [[1.0 - OFFSET, 0.0]], [[0.0, 0.0]], RobotLimits(2.0, 3.0), 0.0)
+    res = robot_time_to_ball(ball, [[1.0 - OFFSET, 0.0]], [[0.0, 0.0]], RobotLimits(2.0, 3.0), 0.0, unbounded=True)
     assert res.time_s[0] == 0.0 and res.kind[0] == CatchKind.MOVING
 
 
@@ -223,7 +226,7 @@ def test_ball_leaving_the_field_is_never_caught():
     assert np.isnan(res.ball_position_m[0]).all()
     # Without a field the ball stops 18.2 m further on; a slow robot (0.5 m/s) only gets it at rest.
     slow = RobotLimits(1.0, 0.5)
-    res = robot_time_to_ball(ball, [[-4.0, 0.0]], [[0.0, 0.0]], slow, 0.0)
+    res = robot_time_to_ball(ball, [[-4.0, 0.0]], [[0.0, 0.0]], slow, 0.0, unbounded=True)
     assert res.kind[0] == CatchKind.AT_REST
     target = ball.stop_point - [OFFSET, 0.0]
     assert res.time_s[0] == pytest.approx(float(robot_time_to_pos([-4.0, 0.0], [0.0, 0.0], target, slow)), abs=1e-9)
@@ -244,9 +247,9 @@ def test_ball_rolling_back_in_from_the_run_off_area_is_caught_inside_only():
     # to it, outside, is excluded even though the robot would be in time for it.
     crossing = ball.position_at(t_in)
     robot = crossing - OFFSET * np.array([math.cos(facing), math.sin(facing)])
-    res = robot_time_to_ball(ball, robot, [0.0, 0.0], lim, facing, field=DIV_B)
-    assert res.kind[0] == CatchKind.MOVING
-    assert res.time_s[0] == pytest.approx(t_in, abs=1e-9)
+    res = robot_time_to_ball(ball, robot, [0.0, 0.0], lim, facing, field=DIV_B)  # one robot: floats
+    assert res.kind == CatchKind.MOVING
+    assert isinstance(res.time_s, float) and res.time_s == pytest.approx(t_in, abs=1e-9)
     # Robots farther inside: the first crossing of t_robot(t) = t after t_in, by a dense reference.
     t_max = float(ball.stop_time_s)
     robots = np.array([[1.0, 1.5], [2.0, 2.0], [-1.0, 1.0]])
@@ -281,7 +284,7 @@ def test_fig6_situation_finds_the_early_window():
     assert edges.size >= 3  # window opens, closes, catch-up opens
     first_window_m = c["dist"][edges[1]] - c["dist"][edges[0]]
     assert 0.2 <= first_window_m <= 0.3  # "a small window of roughly 0.25 m"
-    t_catch = float(c["catch"].time_s[0])
+    t_catch = c["catch"].time_s
     assert float(c["ball"].distance_at(t_catch)) == pytest.approx(c["dist"][edges[0] + 1], abs=2e-3)
 
 
@@ -360,44 +363,68 @@ def test_bad_input_raises():
     with pytest.raises(ValueError):
         robot_time_to_pos([0.0, 0.0], [0.0, 0.0], [1.0, 0.0], limits=2.0)
     with pytest.raises(ValueError):
-        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0], [1.0, 1.0]], lim)
+        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0], [1.0, 1.0]], lim, field=DIV_B)
     with pytest.raises(ValueError):
-        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, facing_rad=np.nan)
+        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, facing_rad=np.nan, field=DIV_B)
     with pytest.raises(ValueError):
-        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, grid_step_s=0.0)
+        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, grid_step_s=0.0, field=DIV_B)
     with pytest.raises(ValueError):
-        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, dribbler_offset_m=-0.1)
+        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, dribbler_offset_m=-0.1, field=DIV_B)
     with pytest.raises(ValueError):
-        robot_time_to_ball(ball, [[0.0, 0.0]] * 2, [[0.0, 0.0]] * 2, RobotLimits([1.0, 2.0, 3.0], 2.0))
-    batch = BallTrajectory(np.zeros((2, 2)), np.ones((2, 2)), 1.0)
+        robot_time_to_ball(ball, [[0.0, 0.0]] * 2, [[0.0, 0.0]] * 2, RobotLimits([1.0, 2.0, 3.0], 2.0), field=DIV_B)
     with pytest.raises(ValueError):
-        robot_time_to_ball(batch, [[0.0, 0.0]], [[0.0, 0.0]], lim)
+        robot_time_to_ball("ball", [[0.0, 0.0]], [[0.0, 0.0]], lim, field=DIV_B)
+    # No field is an explicit choice: a forgotten field would search a ball rolling far off the field.
+    with pytest.raises(ValueError, match="unbounded"):
+        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim)
+    with pytest.raises(ValueError, match="one of them"):
+        robot_time_to_ball(ball, [[0.0, 0.0]], [[0.0, 0.0]], lim, field=DIV_B, unbounded=True)
     # A ball that takes ~3e6 s to stop (a_roll -1e-6 m/s^2): refused at once, not searched for days.
     from erforce_ball_model.ball_model import BallModelParams
     crawler = BallTrajectory([0.0, 0.0], [3.0, 0.0], 3.0, BallModelParams(-2.5, -1e-6, 0.99))
     with pytest.raises(ValueError, match="grid points"):
-        robot_time_to_ball(crawler, [[50.0, 50.0]], [[0.0, 0.0]], RobotLimits(1e-3, 1e-3))
+        robot_time_to_ball(crawler, [[50.0, 50.0]], [[0.0, 0.0]], RobotLimits(1e-3, 1e-3), unbounded=True)
 
 
-def test_compiled_ball_closed_forms_agree_with_ball_trajectory():
-    """The search kernel restates distance_at and time_to_distance in scalar form: they must agree."""
-    from erforce_ball_model.ball_model import BallModelParams
-    from erforce_ball_model.catch_time import _ball_constants, _ball_distance, _ball_time_to_distance
+def test_compiled_ball_closed_forms_agree_with_the_python_ones():
+    """ball_model's closed forms run as Python on floats and compiled inside the kernels: both must agree."""
+    from erforce_ball_model.ball_model import BallModelParams, ball_distance, ball_time_to_distance
 
     rng = np.random.default_rng(3)
     for k in range(200):
         params = BallModelParams(rng.uniform(-6.0, -1.0), rng.uniform(-0.9, -0.05), rng.uniform(0.3, 1.0))
         speed = 0.0 if k % 10 == 0 else rng.uniform(0.01, 7.0)
         ang = rng.uniform(-math.pi, math.pi)
-        ball = BallTrajectory(rng.uniform(-4.0, 4.0, 2), speed * np.array([math.cos(ang), math.sin(ang)]),
+        ball = BallTrajectory(tuple(rng.uniform(-4.0, 4.0, 2)), (speed * math.cos(ang), speed * math.sin(ang)),
                               speed * rng.uniform(0.8, 2.0), params)
-        consts = _ball_constants(ball)
-        stop = float(ball.stop_time_s)
-        for t in (0.0, 0.3 * float(ball.switch_time_s), float(ball.switch_time_s), 0.5 * (stop + 1e-3), stop,
-                  stop + 1.0):
-            assert _ball_distance(consts, t) == pytest.approx(float(ball.distance_at(t)), rel=1e-12, abs=1e-15)
-        d_stop = float(ball.stop_distance_m)
-        for d in (0.0, 0.1 * d_stop, 0.9 * d_stop, d_stop, d_stop * 1.01 + 1e-3):
-            want = float(ball.time_to_distance(d))
-            got = _ball_time_to_distance(consts, d)
+        stop = ball.stop_time_s
+        times = np.array([0.0, 0.3 * ball.switch_time_s, ball.switch_time_s, 0.5 * (stop + 1e-3), stop, stop + 1.0])
+        compiled = ball.distance_at(times)  # an array query runs compiled
+        for t, got in zip(times, compiled, strict=True):
+            assert got == pytest.approx(ball_distance(ball.floats, float(t)), rel=1e-12, abs=1e-15)
+        d_stop = ball.stop_distance_m
+        distances = np.array([0.0, 0.1 * d_stop, 0.9 * d_stop, d_stop, d_stop * 1.01 + 1e-3])
+        for d, got in zip(distances, ball.time_to_distance(distances), strict=True):
+            want = ball_time_to_distance(ball.floats, float(d))
             assert got == pytest.approx(want, rel=1e-12, abs=1e-15) or (math.isinf(got) and math.isinf(want))
+
+
+
+def test_robot_time_curve_is_fig7s_t_robot_and_its_first_crossing_is_robot_time_to_ball():
+    """t_robot(t_ball) by hand for a robot at rest on the ball's line, and the first t with t_robot <= t equals
+    robotTimeToBall's catch time (within the search's sub-step)."""
+    ball = BallTrajectory([0.0, 0.0], [2.0, 0.0], 2.0 / 0.6)  # rolling at 2 m/s along +x
+    lim = RobotLimits(3.0, 3.0)
+    robot = (2.0, 0.0)
+    t = np.linspace(0.0, 2.0, 2001)
+    curve = robot_time_curve(ball, t, robot, (0.0, 0.0), lim, facing_rad=math.pi, dribbler_offset_m=OFFSET)
+    # The dribbler point of the robot must move to d(t) + OFFSET: |2 - OFFSET - d(t)| on a line, triangle
+    # profile from rest (v_max 3 is never reached over < 2 m at a = 3): 2 sqrt(distance / a).
+    d = 2.0 * t - 0.15 * t**2
+    np.testing.assert_allclose(curve, 2.0 * np.sqrt(np.abs(2.0 - OFFSET - d) / 3.0), rtol=1e-6, atol=1e-6)
+    one = robot_time_curve(ball, 0.5, robot, (0.0, 0.0), lim, facing_rad=math.pi, dribbler_offset_m=OFFSET)
+    assert isinstance(one, float) and one == pytest.approx(curve[500], abs=1e-9)
+    first = t[int(np.argmax(curve <= t))]
+    catch = robot_time_to_ball(ball, robot, (0.0, 0.0), lim, math.pi, dribbler_offset_m=OFFSET, unbounded=True)
+    assert isinstance(catch.time_s, float) and catch.kind == CatchKind.MOVING
+    assert first - 1e-3 <= catch.time_s <= first + 1e-9

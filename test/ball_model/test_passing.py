@@ -67,7 +67,7 @@ def test_select_pass_without_a_safe_one_takes_the_largest_margin():
 
 
 def _search(n):
-    return CatchSearch(n, RobotLimits(4.5, 2.5), dribbler_offset_m=OFFSET)
+    return CatchSearch(n, RobotLimits(4.5, 2.5), dribbler_offset_m=OFFSET, unbounded=True)
 
 
 def test_an_opponent_on_the_lane_makes_a_pass_unsafe_and_the_free_teammate_is_chosen():

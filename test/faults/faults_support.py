@@ -5,6 +5,9 @@ predictor and the catcher) started as real node processes."""
 from __future__ import annotations
 
 import math
+import os
+import re
+import signal
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -14,7 +17,7 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_from_msg, stamp_to_seconds
+from erforce_interfaces.conversions import odometry_from_msg, odometry_msg, stamp_to_seconds
 
 ROBOT_YAML = Path(__file__).resolve().parents[2] / "src/erforce_interfaces/config/robot.yaml"
 
@@ -236,3 +239,83 @@ class ClosedLoop:
         assert np.all(np.abs(self.velocity() - want) <= tol_mps), (
             f"robot does not follow cmd_vel {want.tolist()}: true body twist {self.velocity().round(3).tolist()} "
             f"after {self.sim_s() - start:.2f} s of sim time")
+
+
+# ------------------------------------------------------------------ the launched graph, respawning
+DEMO_LAUNCH = Path(__file__).resolve().parents[2] / "src/erforce_sim/launch/demo.launch.yaml"
+
+# What closes the loop: each node's output that the next one acts on, per tick or frame.
+LOOP_OUTPUTS = {
+    "plant": (contract.CLOCK, contract.CLOCK.name),
+    "velocity_controller": (contract.WHEEL_SETPOINTS, contract.WHEEL_SETPOINTS.for_robot(0)),
+    "motor_boards": (contract.MOTOR_DUTY, contract.MOTOR_DUTY.for_robot(0)),
+    "ball_predictor": (contract.CATCH_TIME, contract.CATCH_TIME.for_robot(0)),
+    "catcher": (contract.CMD_VEL, contract.CMD_VEL.for_robot(0)),
+}
+
+
+class LaunchedDemo:
+    """demo.launch.yaml under erforce-launch (respawn on by default), with the arrival times (wall clock)
+    of every node's loop output (``LOOP_OUTPUTS``)."""
+
+    def __init__(self, graph, **launch_args) -> None:
+        self.graph = graph
+        self.probe = graph.probe
+        self.arrivals: dict[str, list[float]] = {node: [] for node in LOOP_OUTPUTS}
+        for node, (topic, name) in LOOP_OUTPUTS.items():
+            self.probe.node.create_subscription(topic.msg_type, name,
+                                                lambda _m, n=node: self.arrivals[n].append(time.monotonic()),
+                                                topic.qos)
+        args = {"output": "screen", "sim_launch_prefix": "", **launch_args}
+        self.launch = graph.start_launch(DEMO_LAUNCH, **args)
+
+    def pid(self, node: str) -> int | None:
+        """The newest process of ``node`` the launcher started (None before the first)."""
+        found = re.findall(rf"\[{node}-\d+\]: process started with pid \[(\d+)\]", self.launch.output())
+        return int(found[-1]) if found else None
+
+    def all_flowing_since(self, t_s: float) -> bool:
+        return all(times and times[-1] > t_s for times in self.arrivals.values())
+
+    def wait_running(self, timeout_s: float = 120.0) -> None:
+        start = time.monotonic()
+        self.probe.spin_until(lambda: self.all_flowing_since(max(start, time.monotonic() - 0.5)), timeout_s,
+                              "every node's loop output flowing")
+
+    def kill_and_heal(self, node: str, respawn_delay_s: float, timeout_s: float = 60.0) -> float:
+        """SIGKILL ``node``; wall seconds until the loop is closed again without help: the respawned node's
+        output is back and after it every other node's output came again (the lockstep loop went round)."""
+        old = self.pid(node)
+        t_kill = time.monotonic()
+        os.kill(old, signal.SIGKILL)
+        # nothing that arrives before the respawn delay can be the new process's
+        t_back = t_kill + respawn_delay_s
+
+        def healed() -> bool:
+            mine = [t for t in self.arrivals[node] if t > t_back]
+            return bool(mine) and self.all_flowing_since(mine[0])
+
+        self.probe.spin_until(healed, timeout_s, f"the loop closed again after {node} was killed")
+        assert self.pid(node) != old, f"{node}: the loop closed, but not by a respawned process"
+        first_back = next(t for t in self.arrivals[node] if t > t_back)
+        return max(next(t for t in times if t > first_back) for times in self.arrivals.values()) - t_kill
+
+def closes_the_loop(loop, timeout_s: float = 60.0) -> None:
+    """Ball at rest 1.5 m from robot_0: the catcher (fetch_resting_ball) drives the robot to it, through
+    vision, the ball predictor, the catcher, the velocity controller, the motor boards and the plant."""
+    probe = loop.probe
+    probe.wait_for_subscribers("/robot_0/sim/set_state", Odometry).publish(
+        odometry_msg(0.0, (-1.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    probe.wait_for_subscribers("/sim/set_ball", Odometry).publish(odometry_msg(0.0, (0.5, 0.3, 0.0), (0.0, 0.0, 0.0)))
+
+    def distance_m(target=None) -> float:
+        odom = loop.watch.latest.get("/robot_0/ground_truth/odom")
+        ball = loop.watch.latest.get("/ground_truth/ball")
+        if odom is None or ball is None:
+            return math.inf
+        r, b = odom.pose.pose.position, ball.pose.pose.position
+        tx, ty = target if target is not None else (b.x, b.y)
+        return math.hypot(r.x - tx, r.y - ty)
+
+    loop.spin_until(lambda: distance_m((-1.0, 0.0)) < 0.2, 10.0, "robot_0 placed")
+    loop.spin_until(lambda: distance_m() < 0.25, timeout_s, "robot_0 at the ball")

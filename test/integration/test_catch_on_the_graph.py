@@ -12,8 +12,8 @@ planned point while the robot settles (the receiver is already on the ball's lin
 import pytest
 
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_sim.demo import LAUNCH_FILE, Director
-from erforce_sim.scenes import default_scenes
+from erforce_sim.closed_loop.demo import LAUNCH_FILE, Director
+from erforce_sim.closed_loop.scenes import default_scenes
 
 pytestmark = pytest.mark.integration
 

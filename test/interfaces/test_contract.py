@@ -25,13 +25,13 @@ README = Path(__file__).resolve().parents[2] / "README.md"
 
 
 def test_readme_generated_sections_are_current():
-    from erforce_interfaces import docs
+    from erforce_interfaces.tools import docs
 
     text = README.read_text()
     for name in docs.SECTIONS:
         assert f"<!-- {name}:begin -->" in text, name
     assert docs.render(text) == text, (
-        "README tables are stale: run `./run exec python -m erforce_interfaces.docs README.md`"
+        "README tables are stale: run `./run exec python -m erforce_interfaces.tools.docs README.md`"
     )
     assert c.topic_table_markdown() in text
 
@@ -457,3 +457,58 @@ def test_dds_profile_env_points_at_the_stacks_profile_unless_one_is_named():
     assert c.dds_profile_env({"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"}) == {}
     assert c.dds_profile_env({"FASTDDS_DEFAULT_PROFILES_FILE": "/mine.xml"}) == {}
     assert c.dds_profile_env({"FASTRTPS_DEFAULT_PROFILES_FILE": ""}) != {}  # empty is unset
+
+
+def test_a_table_whose_shape_disagrees_with_its_labels_is_refused():
+    """The catcher died on a /ball/model_params table with 4 columns under the right label."""
+    good = conv.table_msg([[-2.5, -0.3, 0.6]] * 3, c.BALL_MODEL_PARAM_LABELS)
+    assert conv.table_from_msg(good, c.BALL_MODEL_PARAM_LABELS, 3).shape == (3, 3)
+    four = conv.table_msg([[-2.5, -0.3, 0.6]] * 3, c.BALL_MODEL_PARAM_LABELS)
+    four.layout.dim[1].size, four.data = 4, [-2.5, -0.3, 0.6, 1.0] * 3
+    with pytest.raises(conv.ConversionError, match="4 columns"):
+        conv.table_from_msg(four, c.BALL_MODEL_PARAM_LABELS)
+    with pytest.raises(conv.ConversionError, match="1 rows, expected 3"):
+        conv.table_from_msg(conv.table_msg([[-2.5, -0.3, 0.6]], c.BALL_MODEL_PARAM_LABELS),
+                            c.BALL_MODEL_PARAM_LABELS, 3)
+    good.layout.data_offset = 2
+    with pytest.raises(conv.ConversionError, match="data_offset"):
+        conv.table_from_msg(good, c.BALL_MODEL_PARAM_LABELS)
+
+
+def test_world_frame_inputs_must_be_in_field_or_unnamed_and_stamps_must_be_times():
+    for frame in ("field", ""):
+        point = PointStamped(header=Header(frame_id=frame, stamp=Time(sec=2, nanosec=5)))
+        assert conv.point_from_msg(point)[0] == conv.point_from_msg(serialize_message(point))[0] == 2.000000005
+    for frame in ("map", "robot_0/base_link", "x" * 300):
+        for read in (conv.point_from_msg, conv.pose2d_from_msg):
+            msg = (PointStamped if read is conv.point_from_msg else PoseStamped)(header=Header(frame_id=frame))
+            msg_q = getattr(msg, "pose", None)
+            if msg_q is not None:
+                msg_q.orientation.w = 1.0
+            for form in (msg, serialize_message(msg)):
+                with pytest.raises(conv.ConversionError, match="frame_id"):
+                    read(form)
+        with pytest.raises(conv.ConversionError, match="frame_id"):
+            conv.odometry_from_msg(Odometry(header=Header(frame_id=frame)))
+    for sec, nanosec in ((-1, 0), (3, 1_000_000_000), (-(2**31), 999)):
+        stamp = Time(sec=sec, nanosec=nanosec)
+        js = JointState(header=Header(stamp=stamp), velocity=[0.0], effort=[0.0])
+        for form in (js, serialize_message(js)):
+            with pytest.raises(conv.ConversionError, match="not a valid time"):
+                conv.joint_state_from_msg(form, 1, "velocity")
+        with pytest.raises(conv.ConversionError, match="not a valid time"):
+            conv.point_from_msg(serialize_message(PointStamped(header=Header(stamp=stamp))))
+
+
+def test_a_saturating_sensor_clips_finite_values_and_still_refuses_non_finite_ones():
+    """The plant's wheel sensors (conversions' docstring): a robot placed at 20 m/s while turning at
+    100 rad/s spins its wheels past the wire's range; the reading saturates instead of failing."""
+    names = ("wheel_0", "wheel_1")
+    with pytest.raises(conv.ConversionError):
+        conv.joint_state_cdr(0, names, velocity=[1022.0, 0.0])
+    data = conv.joint_state_cdr(7, names, velocity=[1022.0, -5e6], effort=[125.0, -1.0], saturate=True)
+    t_ns, speeds, currents = conv.wheel_states_from_msg(data, 2)
+    assert t_ns == 7 and speeds.tolist() == [conv.MAX_ABS_VALUE, -conv.MAX_ABS_VALUE]
+    assert currents.tolist() == [125.0, -1.0]
+    with pytest.raises(conv.ConversionError, match="not finite"):
+        conv.joint_state_cdr(0, names, velocity=[math.nan, 0.0], saturate=True)

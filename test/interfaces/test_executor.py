@@ -19,9 +19,10 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Int32
 
 from erforce_interfaces import contract
-from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
-from erforce_interfaces.node_support import ParamSpec, declare_params, sample_clock
-from erforce_interfaces.testing import isolated_node
+from erforce_interfaces.executor import DirectExecutor, run_newest, run_sampled, sample_only
+from erforce_interfaces.node_support import NodeParams, sample_clock
+from erforce_interfaces.param_schema import ParamSchema, ParamSpec
+from erforce_interfaces.tools.testing import isolated_node
 
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -103,7 +104,8 @@ def test_a_callback_may_destroy_its_own_subscription(env):
 def test_parameter_services_validate_through_the_executor(env):
     """A client (served by this executor too) sets parameters; the node's on-set check answers."""
     _, node, executor = env
-    declare_params(node, (ParamSpec("gain", 2.0, "a gain", min=0.0, max=10.0),))
+    NodeParams(node, ParamSchema("executor_test", [ParamSpec("gain", "double", 2.0, "a gain", 0.0, 10.0)])).on_change(
+        lambda config: None)
     client = node.create_client(SetParameters, "/executor_test/set_parameters")
     spin_until(executor, client.service_is_ready)
 
@@ -275,3 +277,27 @@ def test_a_sampled_subscription_is_ordinary_under_rclpy_executors():
             pub.publish(Int32(data=k))
         spin_until(executor, lambda: got == [0, 1, 2])
         executor.shutdown()
+
+
+def test_run_newest_runs_only_the_newest_queued_message_of_each_subscription(env):
+    """The plant's scenario commands: of what arrived since the last tick, only the newest acts."""
+    _, node, executor = env
+    got = []
+    subs = [sample_only(node.create_subscription(Int32, f"/exec/newest_{k}", lambda m, k=k: got.append((k, m.data)),
+                                                 RELIABLE)) for k in range(2)]
+    pubs = [node.create_publisher(Int32, f"/exec/newest_{k}", RELIABLE) for k in range(2)]
+    spin_until(executor, lambda: all(connected(p, s)() for p, s in zip(pubs, subs, strict=True)))
+    for value in range(5):
+        pubs[0].publish(Int32(data=value))
+    pubs[1].publish(Int32(data=7))
+    dropped = 0
+    deadline = time.monotonic() + 10.0
+    while not ((0, 4) in got and (1, 7) in got):
+        assert time.monotonic() < deadline, got
+        before = len(got)
+        dropped += run_newest(subs)
+        assert len(got) - before <= 2  # at most one callback per subscription and call
+        executor.spin_once(timeout_sec=0.02)
+    assert dropped + len(got) == 6
+    firsts = [v for k, v in got if k == 0]
+    assert firsts == sorted(firsts) and firsts[-1] == 4

@@ -11,7 +11,7 @@ import pytest
 from std_msgs.msg import String
 
 from erforce_interfaces.contract import QOS_COMMAND
-from erforce_interfaces.testing import DomainLease, RosGraph
+from erforce_interfaces.tools.testing import DomainLease, RosGraph
 
 pytestmark = pytest.mark.integration
 
@@ -69,7 +69,7 @@ def test_domain_leases_are_exclusive_across_processes(tmp_path):
     try:
         code = textwrap.dedent(f"""
             from pathlib import Path
-            from erforce_interfaces.testing import DomainLease
+            from erforce_interfaces.tools.testing import DomainLease
             print(DomainLease(Path({str(tmp_path)!r})).domain_id)
         """)
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=30)
@@ -92,3 +92,49 @@ def test_close_reaps_children_even_when_they_ignore_sigint(tmp_path):
     assert proc.popen.poll() is not None
     with pytest.raises(ProcessLookupError):
         os.kill(proc.pid, 0)
+
+
+BUGGY_NODE = textwrap.dedent("""\
+    import sys
+    from rclpy.node import Node
+    from std_msgs.msg import String
+    from erforce_interfaces.node_support import run_node
+
+    class Buggy(Node):
+        def __init__(self):
+            super().__init__("buggy")
+            self.create_subscription(String, "/buggy", self.on_text, 10)
+            self.echo = self.create_publisher(String, "/buggy_echo", 10)
+
+        def on_text(self, msg):
+            if msg.data == "bad":
+                raise KeyError("a bug of ours")
+            self.echo.publish(msg)
+
+    sys.exit(run_node(Buggy))
+""")
+
+
+def test_a_callback_fault_keeps_the_node_alive_and_fails_the_test_unless_declared(tmp_path):
+    """node_support.guard_callbacks in a node process, and the harness's check: a message that raises in
+    a callback is dropped with a warning and the node goes on; the fixture fails a test whose processes
+    logged such a warning unless the test declared it."""
+    graph = RosGraph(tmp_path / "g")
+    try:
+        node = graph.start([sys.executable, "-c", BUGGY_NODE], name="buggy")
+        echoes = graph.subscribe("/buggy_echo", String, QOS_COMMAND)
+        pub = graph.probe.wait_for_subscribers("/buggy", String, timeout_s=20.0, qos=QOS_COMMAND)
+        graph.probe.spin_until(lambda: graph.probe.node.count_publishers("/buggy_echo") > 0, 20.0, "echo publisher")
+        assert graph.unexpected_callback_faults() == []
+        pub.publish(String(data="bad"))
+        pub.publish(String(data="good"))
+        graph.probe.spin_until(lambda: [m.data for m in echoes] == ["good"], 20.0, "the echo after the bad message")
+        assert node.alive()
+        node.wait_for_output(r"callback fault on /buggy: KeyError: 'a bug of ours' at <string>:\d+ in on_text; "
+                             "message dropped", timeout_s=5.0)
+        (fault,) = graph.unexpected_callback_faults()
+        assert fault.startswith("buggy: ") and "KeyError" in fault
+        graph.expect_callback_faults("buggy")
+        assert graph.unexpected_callback_faults() == []
+    finally:
+        graph.close()

@@ -21,7 +21,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from erforce_interfaces.contract import DDS_PROFILE_VARIABLES
-from erforce_interfaces.launcher import (
+from erforce_interfaces.tools.launcher import (
     Resolver,
     Subst,
     SubstitutionError,
@@ -331,6 +331,27 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
         "robot_ids"] == [0, 2, 5]
 
 
+@pytest.mark.parametrize(("launch_file", "args"), [
+    ("erforce_sim/launch/demo.launch.yaml", {"receivers": "3"}),
+    ("erforce_sim/launch/sim_one_robot.launch.yaml", {}),
+    ("erforce_motion/launch/robot.launch.yaml", {}),
+    ("erforce_motion/launch/team.launch.yaml", {}),
+    ("erforce_sim/launch/team_sim.launch.yaml", {}),
+])
+def test_launch_files_restart_every_node_after_a_delay_unless_told_not_to(launch_file, args):
+    path = REPO / "src" / launch_file
+    specs = resolve(path, **args).values()
+    assert specs and all(s.respawn and s.respawn_delay_s == 0.5 and s.respawn_max_retries == -1 for s in specs)
+    assert not any(s.respawn for s in resolve(path, respawn="false", **args).values())
+    assert {s.respawn_delay_s for s in resolve(path, respawn_delay="2.0", **args).values()} == {2.0}
+
+
+def test_a_plant_that_stops_itself_is_not_restarted():
+    specs = resolve(REPO / "src/erforce_sim/launch/sim_one_robot.launch.yaml", stop_after_s="5.0")
+    assert {label.split("-")[0]: s.respawn for label, s in specs.items()} == {
+        "plant": False, "velocity_controller": True, "motor_boards": True}
+
+
 def test_show_args_lists_names_descriptions_and_defaults(capsys):
     assert main([str(HERE / "outer.launch.yaml"), "--show-args"]) == 0
     out = capsys.readouterr().out
@@ -484,6 +505,28 @@ def test_respawn_restarts_a_dying_node_until_ctrl_c(ros_graph):
     assert not any(alive(p) for p in started_pids(launch.output()))
 
 
+@pytest.mark.integration
+def test_a_respawned_node_gets_its_generated_parameter_file_for_as_long_as_the_launcher_runs(ros_graph):
+    launch = ros_graph.start([LAUNCHER, str(HERE / "respawn_talker.launch.yaml")], name="launch")
+    launch.wait_for_output(r"I heard: from the generated file \d+", 30.0)
+    first = started_pids(launch.output())[0]
+    os.kill(first, signal.SIGKILL)
+    launch.wait_for_output(r"respawning in 0.2 s", 15.0)
+    died = re.search(r"process has died \[pid \d+, exit code -9, cmd '.*--params-file (\S+)'\]", launch.output())
+    params_file = Path(died.group(1))
+    assert params_file.exists()  # kept: the respawn and a restart by hand need it
+    n = launch.output().count("I heard: from the generated file")
+    deadline = time.monotonic() + 30.0
+    while launch.output().count("I heard: from the generated file") < n + 5:  # the respawned talker's
+        assert time.monotonic() < deadline, launch.output()[-2000:]
+        time.sleep(0.05)
+    second = started_pids(launch.output())[-1]
+    assert second != first and alive(second)
+    launch.signal(signal.SIGINT)
+    assert launch.wait_exit(15.0) == 0
+    assert not params_file.exists()  # removed once the launcher ends
+
+
 @pytest.mark.parametrize(("ignore", "launcher_signal", "last_rung"), [
     ("INT", signal.SIGINT, "SIGTERM"), ("INT,TERM", signal.SIGTERM, "SIGKILL")])
 def test_shutdown_ladder_escalates_and_reaps_children_and_grandchildren(ros_graph, ignore, launcher_signal,
@@ -566,3 +609,31 @@ def test_log_output_goes_to_files_and_a_partial_last_line_is_kept(ros_graph, tmp
     assert (log_dir / "quiet-1-stdout.log").read_text() == "one\ntwo\n"
     assert (log_dir / "failing-3-stderr.log").read_text() == "oops\n"
     assert not (log_dir / "loud-2-stdout.log").exists()
+
+
+LAUNCH_FILES = sorted((REPO / "src").glob("*/launch/*.launch.yaml"))
+
+
+@pytest.mark.parametrize("path", LAUNCH_FILES, ids=lambda p: p.name)
+@pytest.mark.parametrize("user_range", [None, "SUBNET"])
+def test_discovery_stays_on_this_computer_unless_the_user_chose_a_range(path, user_range, monkeypatch):
+    """Safe by default (README, "DDS discovery"): every node of every launch file, under erforce-launch
+    and (through the files' own set_env) under ros2 launch, discovers only this computer's participants
+    unless ROS_AUTOMATIC_DISCOVERY_RANGE is set, as the two-host test sets it."""
+    if user_range is None:
+        monkeypatch.delenv("ROS_AUTOMATIC_DISCOVERY_RANGE", raising=False)
+    else:
+        monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", user_range)
+    assert "$(optenv ROS_AUTOMATIC_DISCOVERY_RANGE LOCALHOST)" in path.read_text()
+    specs = resolve(path, **({"robot": "robot_0", "team_robot_ids": "[0]"} if path.name == "receiver.launch.yaml"
+                             else {}))
+    assert specs
+    assert {s.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] for s in specs.values()} == {user_range or "LOCALHOST"}
+
+
+def test_erforce_launch_defaults_to_localhost_also_for_a_file_that_says_nothing(tmp_path, monkeypatch):
+    monkeypatch.delenv("ROS_AUTOMATIC_DISCOVERY_RANGE", raising=False)
+    path = tmp_path / "bare.launch.yaml"
+    path.write_text("launch:\n  - node: {pkg: erforce_interfaces, exec: talker}\n")
+    (spec,) = resolve(path).values()
+    assert spec.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"

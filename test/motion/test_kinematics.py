@@ -28,7 +28,8 @@ def test_rigid_motion_has_no_slip_residual(twist):
 
 def test_hand_computed_four_wheel_layout():
     # wheels at 45, 135, 225, 315 deg, R = 0.1 m, r = 0.05 m
-    kin = OmniKinematics(tuple(math.radians(a) for a in (45, 135, 225, 315)), 0.1, 0.05)
+    kin = OmniKinematics(wheel_angles_rad=tuple(math.radians(a) for a in (45, 135, 225, 315)), wheel_distance_m=0.1,
+                         wheel_radius_m=0.05)
     s = math.sqrt(0.5)
     # vx = 1 m/s: w_i = -sin(theta_i) / r
     np.testing.assert_allclose(kin.inverse([1.0, 0.0, 0.0]), [-s / 0.05, -s / 0.05, s / 0.05, s / 0.05])
@@ -69,8 +70,14 @@ def test_non_rigid_pattern_has_expected_residual_norm():
     assert norm == pytest.approx(3.0)
 
 
+def test_lengths_and_angles_are_keyword_only():
+    with pytest.raises(TypeError):
+        OmniKinematics((0.0, 2.0, 4.0), 0.08, 0.03)
+
+
 def test_three_wheel_layout_has_no_null_space():
-    kin = OmniKinematics(tuple(math.radians(a) for a in (0, 120, 240)), 0.08, 0.03)
+    kin = OmniKinematics(wheel_angles_rad=tuple(math.radians(a) for a in (0, 120, 240)), wheel_distance_m=0.08,
+                         wheel_radius_m=0.03)
     _, norm = kin.slip_residual([1.0, -2.0, 5.0])
     assert norm < 1e-9
 
@@ -91,15 +98,16 @@ def test_bad_wheel_speeds_raise(bad):
 
 def test_bad_geometry_raises():
     with pytest.raises(ValueError):
-        OmniKinematics((0.0, 1.0), 0.08, 0.03)
+        OmniKinematics(wheel_angles_rad=(0.0, 1.0), wheel_distance_m=0.08, wheel_radius_m=0.03)
     with pytest.raises(ValueError):
-        OmniKinematics((0.0, 1.0, 2.0), -0.08, 0.03)
+        OmniKinematics(wheel_angles_rad=(0.0, 1.0, 2.0), wheel_distance_m=-0.08, wheel_radius_m=0.03)
     with pytest.raises(ValueError):
-        OmniKinematics((0.0, 1.0, 2.0), 0.08, math.nan)
+        OmniKinematics(wheel_angles_rad=(0.0, 1.0, 2.0), wheel_distance_m=0.08, wheel_radius_m=math.nan)
     with pytest.raises(ValueError):
-        OmniKinematics((0.0, 0.0, 0.0), 0.08, 0.03)  # all wheels in one place: rank 2
+        # all wheels in one place: rank 2
+        OmniKinematics(wheel_angles_rad=(0.0, 0.0, 0.0), wheel_distance_m=0.08, wheel_radius_m=0.03)
     with pytest.raises(ValueError):
-        OmniKinematics((0.0, math.inf, 2.0), 0.08, 0.03)
+        OmniKinematics(wheel_angles_rad=(0.0, math.inf, 2.0), wheel_distance_m=0.08, wheel_radius_m=0.03)
 
 
 def test_is_frozen():

@@ -21,7 +21,7 @@ from erforce_motion.velocity_control import (
     VelocityController,
     wheel_force_per_accel,
 )
-from erforce_sim.runner import InProcessRunner, PlantSetup
+from erforce_sim.closed_loop.runner import InProcessRunner, PlantSetup
 
 ROBOT = RobotConfig()
 KIN = OmniKinematics.from_robot_config(ROBOT)

@@ -18,12 +18,12 @@ def test_average_limiter_crosses_at_predicted_sample_then_drops_one_percent_per_
     lim = ThermalCurrentLimiter(1, 1.3, window_s=10.0, loop_period_s=0.001)
     duty = np.ones(1)
     for k in range(1, 6501):
-        assert lim.update(np.array([2.0]), duty, 0.001)[0] == 1.0, k
+        assert lim.update(np.array([2.0]), duty)[0] == 1.0, k
     assert lim.average_current_a[0] == pytest.approx(1.3)
     expected = 1.0
     for _ in range(50):  # the duty follows the limit, so the limit falls 0.01 per loop
         expected -= 0.01
-        duty = lim.update(np.array([2.0]), duty, 0.001).copy()
+        duty = lim.update(np.array([2.0]), duty).copy()
         assert duty[0] == pytest.approx(expected)
         assert lim.over_limit[0]
 
@@ -31,7 +31,7 @@ def test_average_limiter_crosses_at_predicted_sample_then_drops_one_percent_per_
 def test_limit_follows_the_last_pwm_not_the_old_limit():
     lim = ThermalCurrentLimiter(1, 1.3, window_s=0.01, loop_period_s=0.001)
     for _ in range(7):  # 7 * 2 A / 10 samples = 1.4 A > 1.3 A on the 7th
-        out = lim.update(np.array([2.0]), np.array([-0.3]), 0.001)
+        out = lim.update(np.array([2.0]), np.array([-0.3]))
     assert out[0] == pytest.approx(0.29)  # |last PWM| - 1 %
 
 
@@ -44,7 +44,7 @@ def test_recovery_rate_hand_computed():
     seq = []
     for k in range(1, 1200):
         current = 2.0 if k <= 7 else 0.0
-        seq.append(float(lim.update(np.array([current]), last, 0.001)[0]))
+        seq.append(float(lim.update(np.array([current]), last)[0]))
     assert seq[5] == 1.0  # k = 6: average 1.2
     assert seq[6:10] == pytest.approx([0.49] * 4)  # k = 7..10
     assert seq[10] == pytest.approx(0.4905)
@@ -62,9 +62,9 @@ def test_i2t_mode_crosses_at_predicted_sample():
     k_star = math.ceil(math.log(1.0 - 1.69 / 4.0) / math.log(a))
     assert k_star == 550
     for k in range(1, k_star):
-        lim.update(np.array([2.0]), np.ones(1), 0.001)
+        lim.update(np.array([2.0]), np.ones(1))
         assert not lim.over_limit[0], k
-    lim.update(np.array([2.0]), np.ones(1), 0.001)
+    lim.update(np.array([2.0]), np.ones(1))
     assert lim.over_limit[0]
 
 

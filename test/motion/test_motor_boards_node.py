@@ -113,13 +113,28 @@ def test_bad_wheel_states_rejected_node_keeps_answering(ros_graph, bad):
     assert not any(not np.all(np.isfinite(m.effort)) for m in rig.duties)
 
 
-def test_time_going_backwards_resets_and_stays_finite(ros_graph):
+def test_a_lone_backwards_tick_is_dropped_and_a_confirmed_one_resets(ros_graph):
+    """The time rule (erforce_interfaces.stamps): one stamp from the past is dropped, a second that
+    continues from it is a restarted plant, and the boards reset and answer it."""
     rig = Rig(ros_graph)
     for k in (5, 6, 7):
         rig.send_state(k * MS)
         rig.answer(k * MS)
-    rig.send_state(1 * MS)
+    for stamp_sec in (-1, 0):  # no valid time; then a lone zero stamp
+        msg = joint_state_msg(0, NAMES, velocity=np.zeros(4), effort=np.zeros(4))
+        msg.header.stamp.sec = stamp_sec
+        rig.states.publish(msg)
+    rig.node.wait_for_output("rejected wheel_states: stamp -1 s 0 ns is not a valid time", timeout_s=10.0)
+    rig.node.wait_for_output(r"rejected wheel_states: stamp 0\.000000 s is before the newest accepted", timeout_s=10.0)
+    rig.send_state(8 * MS)
+    rig.answer(8 * MS)  # the time line goes on
+    ros_graph.probe.spin_for(0.3)  # the old plant fell silent (stamps.StampFilter.silence_s) ...
+    rig.send_state(1 * MS)  # ... and a new one starts: its first tick is held as a possible restart ...
+    rig.send_state(2 * MS)  # ... which its next one confirms
+    assert np.all(np.isfinite(rig.answer(2 * MS)))
+    rig.node.wait_for_output("time line restarted", timeout_s=10.0)
     rig.node.wait_for_output("time went backwards", timeout_s=10.0)
+    assert not any(stamp_ns(m) in (0, 1 * MS) for m in rig.duties)
 
 
 NODE = "/robot_0/motor_boards"

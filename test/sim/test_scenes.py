@@ -1,4 +1,4 @@
-"""The demo's scenes played in one process (erforce_sim.scenes.play_in_process): the whole stack
+"""The demo's scenes played in one process (erforce_sim.closed_loop.scenes.play_in_process): the whole stack
 without DDS, deterministic per seed."""
 
 import math
@@ -6,7 +6,7 @@ import math
 import pytest
 
 from erforce_interfaces.robot_config import FieldConfig
-from erforce_sim.scenes import default_scenes, play_in_process
+from erforce_sim.closed_loop.scenes import default_scenes, play_in_process
 
 SCENES = default_scenes(FieldConfig.preset("division_b"))
 FIG6 = SCENES[0]

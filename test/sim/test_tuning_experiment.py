@@ -7,9 +7,9 @@ import pytest
 import yaml
 
 from erforce_interfaces.robot_config import RobotConfig
-from erforce_motion.motor_boards_node import PARAMS
+from erforce_motion.motor_boards_node import SCHEMA
 from erforce_motion.tuning import pt2_tangent_times
-from erforce_sim.tuning_experiment import (
+from erforce_sim.closed_loop.tuning_experiment import (
     MOTOR_BOARDS_NODE_KEY,
     lifted_wheel_response,
     main,
@@ -18,7 +18,7 @@ from erforce_sim.tuning_experiment import (
 )
 
 ROBOT = RobotConfig()
-SPECS = {p.name: p for p in PARAMS}
+SPECS = SCHEMA.by_name
 LOOP_S = 0.001
 
 

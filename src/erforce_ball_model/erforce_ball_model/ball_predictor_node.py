@@ -17,19 +17,15 @@ warning and answered with nothing. This module converts messages and publishes; 
 
 from __future__ import annotations
 
-import inspect
-import math
 import os
 import time
-from typing import Any
 
 import numpy as np
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.catch_time import CatchSearch, RobotLimits
-from erforce_ball_model.catcher import CatcherConfig
+from erforce_ball_model.catch_time import RobotLimits
 from erforce_ball_model.identification import FitResult
 from erforce_ball_model.predictor import BallFrame, BallPredictor, PredictorConfig
 from erforce_ball_model.tracking import TrackerConfig
@@ -47,166 +43,50 @@ from erforce_interfaces.conversions import (
 )
 from erforce_interfaces.executor import run_sampled
 from erforce_interfaces.node_support import (
-    ParamSpec,
+    NodeParams,
     ThrottledWarner,
+    check_stamp,
     contract_publisher,
     contract_subscription,
-    declare_params,
-    robot_config_from_params,
-    robot_param_specs,
     run_node,
     sample_clock,
 )
+from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.stamps import StampFilter, StampVerdict
 
-# Node defaults are the cores' defaults.
-_MODEL = BallModelParams()
-_TRACK = TrackerConfig()
-_CATCHER = CatcherConfig()  # the robot limits: what the catcher drives with
-_GRID_STEP_S = inspect.signature(CatchSearch).parameters["grid_step_s"].default
-
-FACING_MODES = ("towards_ball", "fixed")
-
-PARAMS = (
-    ParamSpec("num_robots", 11, "robots robot_0 .. robot_{n-1} served by this node", min=1, max=64, read_only=True),
-    ParamSpec("a_slide_mps2", _MODEL.a_slide_mps2, "sliding deceleration (< 0, |a_slide| > |a_roll|) [m/s^2]",
-              min=-100.0, max=0.0),
-    ParamSpec("a_roll_mps2", _MODEL.a_roll_mps2, "rolling deceleration (< 0) [m/s^2]", min=-100.0, max=0.0),
-    ParamSpec("c_switch", _MODEL.c_switch, "v_switch / v_shoot, in (0, 1]", min=0.0, max=1.0),
-    ParamSpec("field", "division_b", "field preset: division_a (12 x 9 m) | division_b (9 x 6 m)"),
-    ParamSpec(
-        "field_margin_m",
-        0.0,
-        "the catch search ends where the ball crosses the field lines extended by this [m]",
-        min=-1.0,
-        max=2.0,
-    ),
-    ParamSpec(
-        "vision_reject_margin_m",
-        0.5,
-        "observations farther than this outside the field lines are rejected (walls at 0.3 m) [m]",
-        min=0.0,
-        max=5.0,
-    ),
-    ParamSpec(
-        "robot_a_max_mps2", _CATCHER.a_max_mps2, "robot acceleration limit of robotTimeToPos [m/s^2]; the catcher "
-        "drives with the same", min=1e-3, max=50.0),
-    ParamSpec("robot_v_max_mps", _CATCHER.v_max_mps, "robot speed limit of robotTimeToPos [m/s]", min=1e-3, max=20.0),
-    ParamSpec("reaction_s", 0.1, "robot reaction time: vision latency, tracking and control lag; a robot starts "
-              "to act on a prediction this much later [s]", min=0.0, max=1.0),
-    ParamSpec(
-        "facing_mode",
-        ["towards_ball"],
-        "per robot (or one for all): towards_ball (dribbler against the ball's motion; towards the ball "
-        "when it rests) | fixed (facing_rad)",
-    ),
-    ParamSpec(
-        "facing_rad",
-        [math.pi],
-        "per robot (or one for all): dribbler direction in `field` for facing_mode fixed [rad]",
-        min=-2.0 * math.pi,
-        max=2.0 * math.pi,
-    ),
-    ParamSpec(
-        "rest_speed_mps",
-        0.1,
-        "a slower filtered ball is reported stopped and faced from the robot (vision noise keeps the "
-        "estimate of a resting ball at a few cm/s) [m/s]",
-        min=0.0,
-        max=1.0,
-    ),
-    ParamSpec(
-        "robot_timeout_s",
-        1.0,
-        "a robot not seen for this long (vision stamps) gets no catch outputs [s]",
-        min=0.001,
-        max=3600.0,
-    ),
-    ParamSpec("grid_step_s", _GRID_STEP_S, "sampling step of the catch search (Algorithm 2) [s]", min=1e-4, max=0.5),
-    ParamSpec("position_noise_m", _TRACK.position_noise_m, "ball vision noise, standard deviation [m]",
-              min=1e-5, max=0.5),
-    ParamSpec(
-        "accel_noise_psd",
-        _TRACK.accel_noise_psd,
-        "ball process noise beyond the two-phase model [(m/s^2)^2/Hz]",
-        min=1e-6,
-        max=1e4,
-    ),
-    ParamSpec("gate_sigma", _TRACK.gate_sigma, "innovation gate of the ball filter [sigma]", min=1.0, max=100.0),
-    ParamSpec(
-        "kick_threshold_mps", _TRACK.kick_threshold_mps, "speed gain that counts as a kick [m/s]", min=0.01, max=10.0
-    ),
-    ParamSpec(
-        "ricochet_angle_rad",
-        _TRACK.ricochet_angle_rad,
-        "direction change that counts as a ricochet [rad]",
-        min=0.01,
-        max=math.pi,
-    ),
-    ParamSpec("max_gap_s", _TRACK.max_gap_s, "a longer gap between frames restarts the ball filter [s]",
-              min=0.01, max=60.0),
-    ParamSpec("max_ball_speed_mps", _TRACK.max_ball_speed_mps,
-              "two vision frames further apart than this speed allows are not one motion (a ball put down "
-              "elsewhere, a false detection): the newer is held back [m/s]", min=1.0, max=100.0),
-    ParamSpec("online_identification", False, "fit a_slide, a_roll, c_switch from completed shots and use them"),
-    ParamSpec("ident_min_shots", 3, "shots needed before a fit may replace the model", min=1, max=50),
-    ParamSpec(
-        "ident_max_std_a_slide_mps2", 0.1, "accept a fit when the std error of a_slide is below [m/s^2]",
-        min=0.0, max=10.0,
-    ),
-    ParamSpec(
-        "ident_max_std_a_roll_mps2", 0.02, "accept a fit when the std error of a_roll is below [m/s^2]",
-        min=0.0, max=10.0,
-    ),
-    ParamSpec("ident_max_std_c_switch", 0.03, "accept a fit when the std error of c_switch is below",
-              min=0.0, max=1.0),
-    ParamSpec(
-        "timing_log_every",
-        0,
-        "log the in-node processing time (median, p99) of every N ball frames, to the last catch time "
-        "published and to the end of the frame; 0 = off",
-        min=0,
-        max=1_000_000,
-    ),
-) + robot_param_specs()
+SCHEMA = load_schema("erforce_ball_model", "ball_predictor")
 
 
-def build_config(values: dict[str, Any]) -> PredictorConfig:
-    """The node configuration for a complete set of parameter values (raises ValueError when invalid)."""
-    unknown = sorted({m for m in values["facing_mode"] if m not in FACING_MODES})
-    if unknown:
-        raise ValueError(f"facing_mode must be towards_ball or fixed, got {', '.join(map(repr, unknown))}")
+def build_config(c) -> PredictorConfig:
+    """The predictor's configuration for a config object of the schema (raises ValueError when invalid)."""
     return PredictorConfig(
-        num_robots=values["num_robots"],
-        model=BallModelParams(values["a_slide_mps2"], values["a_roll_mps2"], values["c_switch"]),
+        num_robots=c.num_robots,
+        model=BallModelParams(c.a_slide_mps2, c.a_roll_mps2, c.c_switch),
         tracker=TrackerConfig(
-            position_noise_m=values["position_noise_m"],
-            accel_noise_psd=values["accel_noise_psd"],
-            gate_sigma=values["gate_sigma"],
-            kick_threshold_mps=values["kick_threshold_mps"],
-            ricochet_angle_rad=values["ricochet_angle_rad"],
-            max_gap_s=values["max_gap_s"],
-            max_ball_speed_mps=values["max_ball_speed_mps"],
+            position_noise_m=c.position_noise_m,
+            accel_noise_psd=c.accel_noise_psd,
+            gate_sigma=c.gate_sigma,
+            kick_threshold_mps=c.kick_threshold_mps,
+            ricochet_angle_rad=c.ricochet_angle_rad,
+            max_gap_s=c.max_gap_s,
+            max_ball_speed_mps=c.max_ball_speed_mps,
         ),
-        field=FieldConfig.preset(values["field"]),
-        field_margin_m=values["field_margin_m"],
-        vision_reject_margin_m=values["vision_reject_margin_m"],
-        limits=RobotLimits(values["robot_a_max_mps2"], values["robot_v_max_mps"]),
-        reaction_s=values["reaction_s"],
-        facing_fixed=[m == "fixed" for m in values["facing_mode"]],
-        facing_rad=list(values["facing_rad"]),
-        dribbler_offset_m=robot_config_from_params(values).dribbler_offset_m,
-        rest_speed_mps=values["rest_speed_mps"],
-        grid_step_s=values["grid_step_s"],
-        robot_timeout_s=values["robot_timeout_s"],
-        online_identification=values["online_identification"],
-        ident_min_shots=values["ident_min_shots"],
-        ident_max_std=(
-            values["ident_max_std_a_slide_mps2"],
-            values["ident_max_std_a_roll_mps2"],
-            values["ident_max_std_c_switch"],
-        ),
-        timing_log_every=values["timing_log_every"],
+        field=FieldConfig.preset(c.field),
+        field_margin_m=c.field_margin_m,
+        vision_reject_margin_m=c.vision_reject_margin_m,
+        limits=RobotLimits(c.robot_a_max_mps2, c.robot_v_max_mps),
+        reaction_s=c.reaction_s,
+        facing_fixed=[m == "fixed" for m in c.facing_mode],
+        facing_rad=list(c.facing_rad),
+        dribbler_offset_m=c.robot.dribbler_offset_m,
+        rest_speed_mps=c.rest_speed_mps,
+        grid_step_s=c.grid_step_s,
+        robot_timeout_s=c.robot_timeout_s,
+        online_identification=c.online_identification,
+        ident_min_shots=c.ident_min_shots,
+        ident_max_std=(c.ident_max_std_a_slide_mps2, c.ident_max_std_a_roll_mps2, c.ident_max_std_c_switch),
+        timing_log_every=c.timing_log_every,
     )
 
 
@@ -224,12 +104,14 @@ class BallPredictorNode(Node):
     def __init__(self) -> None:
         super().__init__("ball_predictor")
         self._warn = ThrottledWarner(self)
-        self._predictor: BallPredictor | None = None
-        self._params_pub = None
         self._frame_times_s: list[tuple[float, float]] = []  # (to the catch times out, to the end)
-        self._values = declare_params(self, PARAMS, build_config, self._apply)
-        predictor = self._predictor
+        self._params = NodeParams(self, SCHEMA, build_config)
+        self._values = self._params.values
+        predictor = self._predictor = BallPredictor(self._params.built, warn=self._warn.warn,
+                                                    info=self.get_logger().info)
         n = predictor.config.num_robots
+        # The time rule (erforce_interfaces.stamps) per input stream, before the core sees a frame.
+        self._ball_stamps, self._robot_stamps = StampFilter(), [StampFilter() for _ in range(n)]
         q = contract
         self._params_pub = contract_publisher(self, q.BALL_MODEL_PARAMS)
         self._publish_model()
@@ -258,11 +140,9 @@ class BallPredictorNode(Node):
             f"a_roll {model.a_roll_mps2:g}, c_switch {model.c_switch:g} "
             f"(online identification {'on' if predictor.config.online_identification else 'off'})"
         )
+        self._params.on_change(self._apply)
 
     def _apply(self, config: PredictorConfig) -> None:
-        if self._predictor is None:
-            self._predictor = BallPredictor(config, warn=self._warn.warn, info=self.get_logger().info)
-            return
         if config.timing_log_every != self._predictor.config.timing_log_every:
             self._frame_times_s.clear()  # a new window starts with the change
         if self._predictor.configure(config):
@@ -279,6 +159,10 @@ class BallPredictorNode(Node):
             t_s, pose = pose2d_from_msg(msg)
         except ConversionError as exc:
             self._warn.warn(f"pose{robot}", f"robot_{robot}: rejected vision_pose: {exc}")
+            return
+        verdict = check_stamp(self._robot_stamps[robot], round(t_s * 1e9), self._warn,
+                              f"robot_{robot}/vision_pose", self)
+        if verdict is StampVerdict.DROP:
             return
         tracker = self._predictor.robot_frame(robot, t_s, pose[0], pose[1], pose[2])
         if tracker is None:
@@ -306,6 +190,8 @@ class BallPredictorNode(Node):
             t_s, xy = point_from_msg(msg)
         except ConversionError as exc:
             self._warn.warn("ball_invalid", f"rejected vision/ball: {exc}")
+            return
+        if check_stamp(self._ball_stamps, round(t_s * 1e9), self._warn, "vision/ball", self) is StampVerdict.DROP:
             return
         frame = self._predictor.ball_frame(t_s, xy[0], xy[1])
         if frame is None:

@@ -52,9 +52,9 @@ Compiled scalar loops
     operations per frame, 2-3x slower again when the caches are cold between vision frames). So
     the functions marked ``_jit`` are scalar loops compiled by numba (``@njit``, compiled at
     import for fixed float64 signatures and cached on disk beside this module); the public
-    functions keep numpy's broadcasting interface. The ball enters the kernel as its derived
-    constants (``_ball_constants``) with the two-phase closed forms of ball_model restated in
-    ``_ball_distance`` / ``_ball_time_to_distance``; a test checks them against BallTrajectory.
+    functions keep numpy's broadcasting interface. The ball enters the kernel as its
+    ``BallFloats`` (read by name) and moves by ball_model's own closed forms (``ball_distance``,
+    ``ball_time_to_distance``), compiled into the kernel.
     ``CatchSearch`` checks the team's limits and settings and allocates the outputs once, so a
     caller that asks every vision frame (the predictor) pays one compiled call and a few checks;
     ``robot_time_to_ball`` is the one-off form of the same search.
@@ -69,23 +69,35 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from erforce_ball_model.ball_model import BallTrajectory
+from erforce_ball_model.ball_model import (
+    BALL_FLOATS_TYPE,
+    BallTrajectory,
+    ball_distance,
+    ball_time_to_distance,
+)
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 __all__ = [
+    "ROBOT_A_MAX_MPS2",
+    "ROBOT_V_MAX_MPS",
     "CatchKind",
     "CatchResult",
     "CatchSearch",
     "RobotLimits",
-    "axis_time",
     "can_reach_in_time",
     "catch_after_reaction",
     "facing_angles",
+    "robot_time_curve",
     "robot_time_to_ball",
     "robot_time_to_pos",
 ]
 
 DEFAULT_DRIBBLER_OFFSET_M = RobotConfig().dribbler_offset_m
+# The robot's limits for catching: what robotTimeToPos plans with and the catcher drives with. The one
+# default of each; CatcherConfig, the nodes' parameters, the launch files and the README take it from here
+# (test/ball_model/test_defaults.py fails on drift).
+ROBOT_A_MAX_MPS2 = 4.5
+ROBOT_V_MAX_MPS = 2.5
 # A longer search (a ball that takes hours to stop, from an absurd deceleration) is refused, not run:
 # realistic horizons are seconds (about 2,200 points for a 6.5 m/s ball at the default 10 ms step).
 MAX_GRID_POINTS = 1_000_000
@@ -110,8 +122,8 @@ def _kernel_array(x) -> np.ndarray:
 class RobotLimits:
     """Acceleration and speed limits of one robot or of many robots (arrays broadcast)."""
 
-    a_max_mps2: np.ndarray | float = 3.0
-    v_max_mps: np.ndarray | float = 2.5
+    a_max_mps2: np.ndarray | float = ROBOT_A_MAX_MPS2
+    v_max_mps: np.ndarray | float = ROBOT_V_MAX_MPS
 
     def __post_init__(self) -> None:
         for name in ("a_max_mps2", "v_max_mps"):
@@ -138,20 +150,11 @@ def _vec2(name: str, value) -> np.ndarray:
 
 
 # --- 1D bang-bang ---------------------------------------------------------------------------------
-def axis_time(d_m, w_mps, inv_accel_s2pm, rho_s) -> np.ndarray:
-    """Minimal 1D time to travel ``d_m`` and stop, starting at speed ``w_mps`` (arrays broadcast).
-
-    ``inv_accel_s2pm`` is 1/A (may be +inf: no authority on this axis); the speed limit is
-    ``V = rho_s * A`` (rho = v_max / a_max is the same for both axes of the alpha split).
-    """
-    args = np.broadcast_arrays(d_m, w_mps, inv_accel_s2pm, rho_s)
-    out = np.empty(args[0].shape)
-    _axis_time_many(*(_kernel_array(x).ravel() for x in args), out.ravel())
-    return out
-
-
 @_jit("float64(float64, float64, float64, float64)")
 def _axis_time(d, w, x, rho):
+    """Minimal 1D time to travel ``d`` and stop, starting at speed ``w``: ``x`` is 1/A (may be +inf: no
+    authority on this axis), the speed limit ``V = rho * A`` (rho = v_max / a_max, the same for both
+    axes of the alpha split)."""
     if d < 0.0:  # mirror so that d >= 0
         d, w = -d, -w
     if math.isinf(x):  # no authority on this axis
@@ -162,12 +165,6 @@ def _axis_time(d, w, x, rho):
         return max(d / w + 0.5 * w * x, 0.0)  # already faster than the speed share: cruise, then brake
     root_q = math.sqrt(max(d * x + 0.5 * w * w * x * x, 0.0))
     return max(-w * x + 2.0 * root_q + max(root_q - rho, 0.0) ** 2 / rho, 0.0)  # (max: subnormal speeds)
-
-
-@_jit("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1])")
-def _axis_time_many(d, w, x, rho, out):
-    for i in range(out.shape[0]):
-        out[i] = _axis_time(d[i], w[i], x[i], rho[i])
 
 
 @_jit("float64(float64, float64, float64, float64, float64)")
@@ -266,12 +263,17 @@ def _time_to_pos_many(dx, dy, wx, wy, a, vmax, tol_s, out):
         out[i] = _time_to_pos(dx[i], dy[i], wx[i], wy[i], a[i], vmax[i], tol_s)
 
 
-def robot_time_to_pos(robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits, tol_s: float = 1e-7) -> np.ndarray:
+def robot_time_to_pos(robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits,
+                      tol_s: float = 1e-7) -> float | np.ndarray:
     """Time (s) for a robot to reach ``target_m`` and stop there (paper: robotTimeToPos).
 
-    Arrays broadcast: positions/velocities/targets ``(..., 2)``, limits per robot. The split
-    angle alpha solves ``t_x(alpha) = t_y(alpha)`` (``_time_to_pos``). Returns an achievable
-    time (an upper bound) certified to be within ``tol_s`` of the synchronized time.
+    Arrays broadcast: positions/velocities/targets ``(..., 2)``, limits per robot; one robot and
+    one target give a float. The split angle alpha solves ``t_x(alpha) = t_y(alpha)``
+    (``_time_to_pos``). Returns an achievable time (an upper bound) certified to be within
+    ``tol_s`` of the synchronized time.
+
+    >>> round(robot_time_to_pos((0.0, 0.0), (0.0, 0.0), (2.0, 0.0), RobotLimits(a_max_mps2=2.0, v_max_mps=3.0)), 3)
+    2.0
     """
     p0 = _vec2("robot_pos_m", robot_pos_m)
     v0 = _vec2("robot_vel_mps", robot_vel_mps)
@@ -286,7 +288,7 @@ def robot_time_to_pos(robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits,
     out = np.empty(a.shape)
     _time_to_pos_many(_kernel_array(d[:, 0]), _kernel_array(d[:, 1]), _kernel_array(v0[:, 0]),
                       _kernel_array(v0[:, 1]), a, vmax, tol_s, out)
-    return out.reshape(shape)
+    return float(out[0]) if shape == () else out.reshape(shape)
 
 
 def can_reach_in_time(d_m, w_mps, t_budget_s, a_max_mps2, v_max_mps) -> np.ndarray:
@@ -349,42 +351,11 @@ def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
     return dist <= vp * t - (vp * vp + (vp - w) ** 2) * (0.5 / a) + 1e-9
 
 
-# The ball inside the search kernel: the two-phase closed forms of ball_model.BallTrajectory
-# (distance_at and time_to_distance) for one ball and one time, from its derived constants.
-def _ball_constants(ball: BallTrajectory) -> np.ndarray:
-    """[px, py, ux, uy, s0, v_switch, t_switch, t_stop, d_switch, d_stop, a_slide, a_roll]: what the kernels index."""
-    f, p = ball.floats, ball.params
-    return np.array((f.x_m, f.y_m, f.ux, f.uy, f.speed_mps, f.v_switch_mps, f.switch_time_s, f.stop_time_s,
-                     f.switch_distance_m, f.stop_distance_m, p.a_slide_mps2, p.a_roll_mps2))
-
-
-@_jit("float64(float64[::1], float64)")
-def _ball_distance(ball, t):
-    ts = min(min(t, ball[7]), ball[6])
-    tr = min(t, ball[7]) - ts
-    return ts * (ball[4] + 0.5 * ball[10] * ts) + tr * (ball[5] + 0.5 * ball[11] * tr)
-
-
-@_jit("float64(float64[::1], float64)")
-def _ball_time_to_distance(ball, d):
-    if d > ball[9] + 1e-12 * (1.0 + ball[9]):
-        return math.inf  # the ball stops short
-    d = min(d, ball[9])
-    d_slide = min(d, ball[8])
-    d_roll = d - d_slide
-    t = 0.0
-    if d_slide > 0.0:  # citardauq form 2d / (v + sqrt(v^2 + 2ad)): no cancellation
-        t += 2.0 * d_slide / (ball[4] + math.sqrt(max(ball[4] * ball[4] + 2.0 * ball[10] * d_slide, 0.0)))
-    if d_roll > 0.0:
-        t += 2.0 * d_roll / (ball[5] + math.sqrt(max(ball[5] * ball[5] + 2.0 * ball[11] * d_roll, 0.0)))
-    return min(t, ball[7])
-
-
-@_jit("boolean(float64[::1], float64, float64, float64, float64, float64, float64, float64)")
+@_jit(numba.boolean(BALL_FLOATS_TYPE, *[numba.float64] * 7))
 def _feasible(ball, t, sx, sy, wx, wy, a, vmax):
     """f(t) <= 0: the robot (start ``sx, sy`` = its centre plus the dribbler offset) reaches the ball at ``t``."""
-    d = _ball_distance(ball, t)
-    return _can_reach(ball[0] + ball[2] * d - sx, ball[1] + ball[3] * d - sy, wx, wy, t, a, vmax)
+    d = ball_distance(ball, t)
+    return _can_reach(ball.x_m + ball.ux * d - sx, ball.y_m + ball.uy * d - sy, wx, wy, t, a, vmax)
 
 
 class CatchKind(enum.IntEnum):
@@ -395,20 +366,26 @@ class CatchKind(enum.IntEnum):
 
 @dataclass(frozen=True, eq=False)
 class CatchResult:
-    """Per robot: catch time, where the ball and the robot centre are then, and which case applied."""
+    """Per robot: catch time, where the ball and the robot centre are then, and which case applied.
 
-    time_s: np.ndarray
+    Arrays over the robots (R,) and (R, 2); for a single-robot call of ``robot_time_to_ball`` a float,
+    two (2,) arrays and a CatchKind.
+    """
+
+    time_s: np.ndarray | float
     ball_position_m: np.ndarray
     robot_target_m: np.ndarray
-    kind: np.ndarray
+    kind: np.ndarray | CatchKind
 
 
 _MOVING, _AT_REST, _NEVER = int(CatchKind.MOVING), int(CatchKind.AT_REST), int(CatchKind.NEVER)
 
 
-@_jit("boolean(float64[::1], float64, float64, float64, boolean, int64, int64, float64, float64, "
-      "float64[:, ::1], float64[:, ::1], float64[::1], float64[::1], float64[::1], float64[::1], int8[::1], "
-      "float64[:, ::1], float64[:, ::1])")
+_F, _VEC, _MAT = numba.float64, numba.float64[::1], numba.float64[:, ::1]
+
+
+@_jit(numba.boolean(BALL_FLOATS_TYPE, _F, _F, _F, numba.boolean, numba.int64, numba.int64, _F, _F, _MAT, _MAT, _VEC,
+                    _VEC, _VEC, _VEC, numba.int8[::1], _MAT, _MAT))
 def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, pos, vel, facing, a, vmax,
                   time_out, kind_out, ball_out, target_out):
     """robotTimeToBall per robot (the module docstring): time, kind, ball position and robot target.
@@ -436,17 +413,17 @@ def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offse
         left_idx = -1  # the grid point before it, known infeasible (-1: none)
         for k in range(num):
             t = min(t_min + k * h, t_max)
-            d = _ball_distance(ball, t)
-            dx, dy = ball[0] + ball[2] * d - rx, ball[1] + ball[3] * d - ry
+            d = ball_distance(ball, t)
+            dx, dy = ball.x_m + ball.ux * d - rx, ball.y_m + ball.uy * d - ry
             if _may_reach(dx, dy, rwx, rwy, s0, t, ra, rv) and _can_reach(dx, dy, rwx, rwy, t, ra, rv):
                 right, left_idx = t, k - 1
                 break
         # Witness: the ball passes the robot's spot (where it comes to rest when it brakes now,
         # projected on the path). A robot on or near the path has a window there however narrow.
         brake = 0.5 / ra
-        along = (rx + rwx * abs(rwx) * brake - ball[0]) * ball[2] + (ry + rwy * abs(rwy) * brake - ball[1]) * ball[3]
+        along = (rx + rwx * abs(rwx) * brake - ball.x_m) * ball.ux + (ry + rwy * abs(rwy) * brake - ball.y_m) * ball.uy
         if along > 0.0:
-            t_pass = _ball_time_to_distance(ball, along)
+            t_pass = ball_time_to_distance(ball, along)
             if (t_min <= t_pass <= t_max and t_pass < right
                     and _feasible(ball, t_pass, rx, ry, rwx, rwy, ra, rv)):
                 right = t_pass
@@ -468,20 +445,32 @@ def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offse
                         break
                     lo = s
         if right < math.inf:
-            kind, d = _MOVING, _ball_distance(ball, right)
+            kind, d = _MOVING, ball_distance(ball, right)
         elif stops_inside:
-            kind, d = _AT_REST, ball[9]
-            right = _time_to_pos(ball[0] + ball[2] * d - rx, ball[1] + ball[3] * d - ry, rwx, rwy, ra, rv, rest_tol_s)
+            kind, d = _AT_REST, ball.stop_distance_m
+            right = _time_to_pos(ball.x_m + ball.ux * d - rx, ball.y_m + ball.uy * d - ry, rwx, rwy, ra, rv,
+                                 rest_tol_s)
         else:
             kind, d = _NEVER, math.nan
         time_out[r], kind_out[r] = right, kind
-        ball_out[r, 0], ball_out[r, 1] = ball[0] + ball[2] * d, ball[1] + ball[3] * d
+        ball_out[r, 0], ball_out[r, 1] = ball.x_m + ball.ux * d, ball.y_m + ball.uy * d
         target_out[r, 0], target_out[r, 1] = ball_out[r, 0] - ox, ball_out[r, 1] - oy
     return True
 
 
+def _check_field(field: FieldConfig | None, unbounded: bool) -> None:
+    if field is None and not unbounded:
+        raise ValueError("field: the search ends where the ball leaves the field: give the FieldConfig, or "
+                         "unbounded=True to follow the ball until it stops wherever that is")
+    if field is not None and unbounded:
+        raise ValueError("field and unbounded=True: give one of them")
+
+
 class CatchSearch:
     """robotTimeToBall for a fixed team of ``num_robots``, prepared once and run every vision frame.
+
+    ``field`` (FieldConfig) bounds the search to the ball's stretch inside it; ``unbounded=True`` is the
+    explicit choice of no field (the paper's interval up to the ball's stop, wherever that is).
 
     The limits, dribbler offset, field and grid are checked at construction and the outputs are
     allocated once, so ``run`` is a few checks and one compiled call (the predictor's hot path).
@@ -495,10 +484,12 @@ class CatchSearch:
         *,
         dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
         field: FieldConfig | None = None,
+        unbounded: bool = False,
         field_margin_m: float = 0.0,
         grid_step_s: float = 0.01,
         refine_points: int = 128,
     ) -> None:
+        _check_field(field, unbounded)
         if not (isinstance(num_robots, int) and num_robots >= 1):
             raise ValueError(f"num_robots: must be an int >= 1, got {num_robots!r}")
         if not (math.isfinite(dribbler_offset_m) and dribbler_offset_m >= 0.0):
@@ -535,14 +526,14 @@ class CatchSearch:
         t_stop = ball.floats.stop_time_s
         t_in, t_out = 0.0, math.inf
         if self._field is not None:
-            t_in, t_out = (float(t) for t in ball.time_in_field(self._field, self._margin_m))
+            t_in, t_out = ball.time_in_field(self._field, self._margin_m)
         t_max = min(t_stop, t_out)
         if t_in <= t_max and (t_max - t_in) / self._h > MAX_GRID_POINTS:  # e.g. a_roll of micrometres per s^2
             raise ValueError(f"search horizon {t_max - t_in:.6g} s needs more than {MAX_GRID_POINTS} grid points "
                              f"of {self._h} s")
         stops_inside = t_in < math.inf and t_out == math.inf
         res = self._result
-        if not _catch_search(_ball_constants(ball), t_in, t_max, self._h, stops_inside, self._m1, self._m2,
+        if not _catch_search(ball.floats, t_in, t_max, self._h, stops_inside, self._m1, self._m2,
                              self._rest_tol_s, self._offset_m, _kernel_array(robot_pos_m),
                              _kernel_array(robot_vel_mps), self._facing, self._a, self._vmax, res.time_s, res.kind,
                              res.ball_position_m, res.robot_target_m):
@@ -557,30 +548,69 @@ def robot_time_to_ball(
     limits: RobotLimits,
     facing_rad=0.0,
     *,
-    dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
     field: FieldConfig | None = None,
+    unbounded: bool = False,
+    dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
     field_margin_m: float = 0.0,
     grid_step_s: float = 0.01,
     refine_points: int = 128,
 ) -> CatchResult:
     """Earliest time each robot can touch the ball with its dribbler while facing ``facing_rad``.
 
-    Robots are vectorized: ``robot_pos_m``/``robot_vel_mps`` of shape (R, 2) (or (2,)),
-    ``facing_rad`` scalar or (R,), limits per robot. The robot centre must be at
-    ``ball_position_at(t) - dribbler_offset_m * (cos, sin)(facing)``. Search interval
-    ``[t_in, min(t_stop, t_out)]``, while the ball is inside ``field`` (None: always). If there is
-    no window: the robot's time to the stop point when the ball stops inside (CatchKind.AT_REST),
-    else +inf (CatchKind.NEVER). See the module docstring for the window-detection guarantee.
-    One-off calls; a caller that asks every frame keeps a ``CatchSearch``.
+    Robots are vectorized: ``robot_pos_m``/``robot_vel_mps`` of shape (R, 2), ``facing_rad`` scalar
+    or (R,), limits per robot; one robot given as (2,) gets a single-robot result (a float time).
+    The robot centre must be at ``ball_position_at(t) - dribbler_offset_m * (cos, sin)(facing)``.
+    Search interval ``[t_in, min(t_stop, t_out)]``, while the ball is inside ``field``; the field
+    is required, or ``unbounded=True`` for none. If there is no window: the robot's time to the
+    stop point when the ball stops inside (CatchKind.AT_REST), else +inf (CatchKind.NEVER). See the
+    module docstring for the window-detection guarantee. One-off calls; a caller that asks every
+    frame keeps a ``CatchSearch``.
+
+    >>> from erforce_ball_model.ball_model import BallTrajectory
+    >>> ball = BallTrajectory((-2.0, 0.0), (2.0, 0.0), v_shoot_mps=2.0 / 0.6)  # rolling at 2 m/s along +x
+    >>> catch = robot_time_to_ball(ball, (-0.5, 0.3), (0.0, 0.0), RobotLimits(a_max_mps2=2.0, v_max_mps=2.0),
+    ...                            facing_rad=math.pi, field=FieldConfig.preset("division_b"))
+    >>> catch.kind.name, round(catch.time_s, 3), (catch.robot_target_m.round(3) + 0.0).tolist()
+    ('MOVING', 0.78, [-0.45, 0.0])
     """
     p0 = np.asarray(robot_pos_m, dtype=float)
     v0 = np.asarray(robot_vel_mps, dtype=float)
-    p0, v0 = (p0[None] if p0.shape == (2,) else p0), (v0[None] if v0.shape == (2,) else v0)
+    one = p0.shape == (2,)
+    p0, v0 = (p0[None] if one else p0), (v0[None] if v0.shape == (2,) else v0)
     if p0.ndim != 2 or p0.shape[-1] != 2 or v0.shape != p0.shape:
-        raise ValueError(f"robot_pos_m {p0.shape} and robot_vel_mps {v0.shape} must both be (R, 2)")
-    search = CatchSearch(p0.shape[0], limits, dribbler_offset_m=dribbler_offset_m, field=field,
+        raise ValueError(f"robot_pos_m {p0.shape} and robot_vel_mps {v0.shape} must both be (R, 2) or (2,)")
+    search = CatchSearch(p0.shape[0], limits, dribbler_offset_m=dribbler_offset_m, field=field, unbounded=unbounded,
                          field_margin_m=field_margin_m, grid_step_s=grid_step_s, refine_points=refine_points)
-    return search.run(ball, p0, v0, facing_rad)
+    res = search.run(ball, p0, v0, facing_rad)
+    if one:
+        return CatchResult(float(res.time_s[0]), res.ball_position_m[0].copy(), res.robot_target_m[0].copy(),
+                           CatchKind(int(res.kind[0])))
+    return res
+
+
+def robot_time_curve(ball: BallTrajectory, t_ball_s, robot_pos_m, robot_vel_mps, limits: RobotLimits, *,
+                     facing_rad: float = 0.0,
+                     dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M) -> float | np.ndarray:
+    """The paper's t_robot(t_ball), the curve of Fig. 7: the time one robot needs to stand, facing
+    ``facing_rad``, with its dribbler where the ball is at ``t_ball_s`` (robotTimeToPos to that point).
+
+    Where ``t_robot <= t_ball`` the robot is there first (catch possible); robotTimeToBall is the
+    first such ``t_ball``. A float for one time, an array of the shape of ``t_ball_s`` for many.
+
+    >>> from erforce_ball_model.ball_model import BallTrajectory
+    >>> ball = BallTrajectory((-2.0, 0.0), (2.0, 0.0), v_shoot_mps=2.0 / 0.6)
+    >>> limits = RobotLimits(a_max_mps2=2.0, v_max_mps=2.0)
+    >>> robot_time_curve(ball, [0.5, 1.0], (-0.5, 0.3), (0.0, 0.0), limits, facing_rad=math.pi).round(3).tolist()
+    [1.045, 1.025]
+    """
+    p0, v0 = _vec2("robot_pos_m", robot_pos_m), _vec2("robot_vel_mps", robot_vel_mps)
+    if p0.shape != (2,) or v0.shape != (2,):
+        raise ValueError(f"robot_pos_m {p0.shape} and robot_vel_mps {v0.shape}: one robot, (2,) each")
+    if not (math.isfinite(facing_rad) and math.isfinite(dribbler_offset_m) and dribbler_offset_m >= 0.0):
+        raise ValueError(f"facing_rad and dribbler_offset_m: must be finite (offset >= 0), got {facing_rad!r}, "
+                         f"{dribbler_offset_m!r}")
+    offset = dribbler_offset_m * np.array([math.cos(facing_rad), math.sin(facing_rad)])
+    return robot_time_to_pos(p0, v0, ball.position_at(t_ball_s) - offset, limits)
 
 
 def facing_angles(

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
-from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
+from erforce_ball_model.catch_time import ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS, RobotLimits, robot_time_to_pos
 from erforce_interfaces.robot_config import FieldConfig
 
 CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract)
@@ -44,8 +44,8 @@ class CatcherConfig:
     # The robot's limits for catching; the ball predictor plans with the same (plus a reaction
     # time), so the catch it predicts is the one this drives. The velocity controller allows
     # 6 m/s^2 and the traction limit of this wheel layout is 4-6 m/s^2 depending on direction.
-    a_max_mps2: float = 4.5
-    v_max_mps: float = 2.5
+    a_max_mps2: float = ROBOT_A_MAX_MPS2  # the planner's limits (catch_time): the predictor plans with them
+    v_max_mps: float = ROBOT_V_MAX_MPS
     w_max_radps: float = 6.0
     heading_gain_per_s: float = 8.0
     arrive_tolerance_m: float = 0.015  # inside this the robot holds still (above the 2 mm vision noise)
@@ -254,7 +254,7 @@ def choose_target(
     robot on its way keeps it while it still gets there first. With the slack, the Fig. 6 robot a few
     centimetres before the line (moving, so with 0.1 s to spare, not 0.15 s) was sent to the
     predicted catch of a later window, turned and ran from the ball, which then hit its side: in
-    the demo's Fig. 6 scene played in one process (erforce_sim.scenes), 5 of 20 seeds caught the
+    the demo's Fig. 6 scene played in one process (erforce_sim.closed_loop.scenes), 5 of 20 seeds caught the
     ball only after that, against 0 of 20 with this hysteresis.
     """
     if ball is not None:

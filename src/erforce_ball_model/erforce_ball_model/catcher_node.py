@@ -18,8 +18,6 @@ input's arrival time, by which its staleness is judged, is the tick that took it
 
 from __future__ import annotations
 
-from typing import Any
-
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray
@@ -37,145 +35,39 @@ from erforce_interfaces.conversions import (
 )
 from erforce_interfaces.executor import run_sampled, sample_only
 from erforce_interfaces.node_support import (
-    ParamSpec,
+    NodeParams,
     ThrottledWarner,
     contract_publisher,
     contract_subscription,
-    declare_params,
-    robot_config_from_params,
-    robot_param_specs,
     run_node,
 )
+from erforce_interfaces.param_schema import fields_for, load_schema
 from erforce_interfaces.robot_config import FieldConfig
 
-_CC = CatcherConfig()
+SCHEMA = load_schema("erforce_ball_model", "catcher")
 MODEL_IN_USE_ROW = contract.BALL_MODEL_PARAM_ROWS.index("in_use")
 
-PARAMS = (
-    ParamSpec("rate_hz", 50.0, "cmd_vel rate (robot time) [Hz], like an SSL AI's", min=1.0, max=1000.0),
-    ParamSpec(
-        "a_max_mps2",
-        _CC.a_max_mps2,
-        "acceleration of the approach profile [m/s^2]; keep equal to the ball predictor's robot limit",
-        min=0.01,
-        max=50.0,
-    ),
-    ParamSpec(
-        "v_max_mps",
-        _CC.v_max_mps,
-        "speed of the approach profile [m/s]; keep equal to the ball predictor's robot limit",
-        min=0.01,
-        max=10.0,
-    ),
-    ParamSpec("w_max_radps", _CC.w_max_radps, "turn rate limit [rad/s]", min=0.01, max=50.0),
-    ParamSpec("heading_gain_per_s", _CC.heading_gain_per_s, "heading error to turn rate [1/s]", min=0.01, max=100.0),
-    ParamSpec(
-        "arrive_tolerance_m", _CC.arrive_tolerance_m, "hold still this close to the target [m]", min=1e-4, max=1.0
-    ),
-    ParamSpec(
-        "braking_margin",
-        _CC.braking_margin,
-        "fraction of a_max used for braking (velocity-loop lag)",
-        min=0.05,
-        max=1.0,
-    ),
-    ParamSpec(
-        "stale_after_s",
-        _CC.stale_after_s,
-        "inputs older than this (robot time) stop the robot [s]",
-        min=0.01,
-        max=10.0,
-    ),
-    ParamSpec("min_ball_speed_mps", _CC.min_ball_speed_mps, "a ball faster than this engages the catcher once it "
-              "has travelled engage_distance_m [m/s]", min=0.0, max=10.0),
-    ParamSpec("engage_distance_m", _CC.engage_distance_m, "a moving ball engages the catcher once it is this far "
-              "from where it rested: vision noise fakes speed, above all when a ball appears, but not travel [m]",
-              min=0.0, max=1.0),
-    ParamSpec("fetch_resting_ball", _CC.fetch_resting_ball, "also drive to a ball that is not moving"),
-    ParamSpec(
-        "disengage_after_rest_s",
-        _CC.disengage_after_rest_s,
-        "an engaged catcher gives up after the ball rested this long [s]",
-        min=0.0,
-        max=60.0,
-    ),
-    ParamSpec(
-        "heading_deadband_rad",
-        _CC.heading_deadband_rad,
-        "no turning for smaller heading errors [rad]",
-        min=0.0,
-        max=1.0,
-    ),
-    ParamSpec(
-        "receive_line_tolerance_m",
-        _CC.receive_line_tolerance_m,
-        "stand still once the dribbler is this close to the incoming ball's line [m]",
-        min=0.0,
-        max=0.5,
-    ),
-    ParamSpec(
-        "receive_slack_s",
-        _CC.receive_slack_s,
-        "receive on the ball's line (at the robot's projection or further along) when the robot gets there this "
-        "much before the ball, by the two-phase model (else drive to the predicted catch point) [s]",
-        min=0.0,
-        max=5.0,
-    ),
-    ParamSpec(
-        "commit_s",
-        _CC.commit_s,
-        "a robot that had a target for the moving ball this recently keeps blocking the ball's line when its "
-        "plan turns infeasible (it lags, arrives fast) instead of holding; 0 = hold [s]",
-        min=0.0,
-        max=5.0,
-    ),
-    ParamSpec(
-        "commit_distance_m",
-        _CC.commit_distance_m,
-        "a committed robot blocks the ball's line only when its projection on it is this close [m]",
-        min=0.0,
-        max=5.0,
-    ),
-    ParamSpec("field", "division_b", "field preset: division_a | division_b (receive points stay inside it)"),
-    ParamSpec(
-        "team_robot_ids",
-        [],
-        "robot ids of the team's catchers, this robot's included (it runs in namespace robot_<id>): only the "
-        "one that can catch the ball first receives, the others hold; empty = this robot alone",
-        min=0,
-        max=1_000_000,
-        read_only=True,
-        empty_array_of=int,
-    ),
-    ParamSpec(
-        "team_switch_margin_s",
-        _CC.team_switch_margin_s,
-        "the team's receiver keeps the ball until another robot's catch time is this much earlier [s]",
-        min=0.0,
-        max=5.0,
-    ),
-) + robot_param_specs()
 
-
-def build_config(values: dict[str, Any]) -> tuple[CatcherConfig, float, float, FieldConfig]:
-    """(catcher config, dribbler offset [m], robot radius [m], field) for a complete set of parameter values."""
-    config = CatcherConfig(**{k: values[k] for k in CatcherConfig.__dataclass_fields__})
-    robot = robot_config_from_params(values)
-    return config, robot.dribbler_offset_m, robot.robot_radius_m, FieldConfig.preset(values["field"])
+def build_config(config) -> tuple[CatcherConfig, float, float, FieldConfig]:
+    """(catcher config, dribbler offset [m], robot radius [m], field) for a config object of the schema."""
+    robot = config.robot
+    return (CatcherConfig(**fields_for(CatcherConfig, config)), robot.dribbler_offset_m, robot.robot_radius_m,
+            FieldConfig.preset(config.field))
 
 
 class CatcherNode(Node):
     def __init__(self) -> None:
         super().__init__("catcher")
         self._warn = ThrottledWarner(self)
-        self._receiver: Receiver | None = None
-        self._values = declare_params(self, PARAMS, build_config, self._set_config)
+        self._params = NodeParams(self, SCHEMA, build_config)
+        self._values = self._params.values
         team = [int(i) for i in self._values["team_robot_ids"]]
         own_id = contract.robot_id_of_namespace(self.get_namespace())
         if team and own_id not in team:
             raise ValueError(f"team_robot_ids {sorted(team)}: a team catcher runs in the namespace of one of its "
                              f"robots (robot_<id>), this one runs in '{self.get_namespace()}'")
-        self._receiver = Receiver(*self._built, robot_id=own_id, team_robot_ids=team)
+        self._team = (own_id, team)
+        self._receiver = Receiver(*self._params.built, robot_id=own_id, team_robot_ids=team)
         q = contract
         self._cmd_pub = contract_publisher(self, q.CMD_VEL)
         # catch_time and catch_point come serialized, as the predictor publishes them (conversions'
@@ -197,11 +89,15 @@ class CatcherNode(Node):
                                         q.CATCH_TIME.for_robot(i), raw=True)
             self._inputs.append(sample_only(sub))
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
+        self._params.on_change(self._set_config)
 
     def _set_config(self, built: tuple[CatcherConfig, float, float, FieldConfig]) -> None:
-        self._built = built
-        if self._receiver is not None:
-            self._receiver.set_config(*built)
+        self._receiver.set_config(*built)
+
+    def on_clock_restart(self) -> None:
+        """A new /clock time line (node_support.guard_clock): the inputs' arrival times are void."""
+        own_id, team = self._team
+        self._receiver = Receiver(*self._params.built, robot_id=own_id, team_robot_ids=team)
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -246,7 +142,8 @@ class CatcherNode(Node):
 
     def _on_model_params(self, msg: Float64MultiArray) -> None:
         try:
-            row = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS)[MODEL_IN_USE_ROW]
+            table = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS, len(contract.BALL_MODEL_PARAM_ROWS))
+            row = table[MODEL_IN_USE_ROW]
             self._receiver.on_model(BallModelParams(*row.tolist()))
         except (ConversionError, IndexError, ValueError) as exc:
             self._warn.warn("model_params", f"rejected model_params: {exc}")

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from erforce_ball_model.ball_model import BallTrajectory
-from erforce_ball_model.catch_time import RobotLimits, robot_time_to_ball, robot_time_to_pos
+from erforce_ball_model.catch_time import RobotLimits, robot_time_curve, robot_time_to_ball
 from erforce_ball_model.identification import Shot, fit_shots
 from erforce_ball_model.tracking import BallTracker
 
@@ -118,12 +118,10 @@ def fig6_curves(num: int = 1500) -> dict:
     ball = BallTrajectory(FIG6_BALL_START_M, [FIG6_BALL_SPEED_MPS, 0.0], FIG6_BALL_SPEED_MPS / 0.6)
     dist = np.linspace(0.0, float(ball.stop_distance_m), num)
     t_ball = ball.time_to_distance(dist)
-    offset = 0.0815 * np.array([math.cos(FIG6_FACING_RAD), math.sin(FIG6_FACING_RAD)])
-    targets = ball.position_m + dist[:, None] * ball.direction - offset
-    t_robot = robot_time_to_pos(np.array(FIG6_ROBOT_M), np.zeros(2), targets, FIG6_LIMITS)
-    catch = robot_time_to_ball(
-        ball, np.array([FIG6_ROBOT_M]), np.zeros((1, 2)), FIG6_LIMITS, FIG6_FACING_RAD, dribbler_offset_m=0.0815
-    )
+    t_robot = robot_time_curve(ball, t_ball, FIG6_ROBOT_M, (0.0, 0.0), FIG6_LIMITS, facing_rad=FIG6_FACING_RAD,
+                               dribbler_offset_m=0.0815)
+    catch = robot_time_to_ball(ball, FIG6_ROBOT_M, (0.0, 0.0), FIG6_LIMITS, FIG6_FACING_RAD, unbounded=True,
+                               dribbler_offset_m=0.0815)
     return {"ball": ball, "dist": dist, "t_ball": t_ball, "t_robot": t_robot, "catch": catch}
 
 
@@ -132,7 +130,7 @@ def figure_catch(out: Path) -> Path:
 
     c = fig6_curves()
     dist, t_ball, t_robot = c["dist"], c["t_ball"], c["t_robot"]
-    t_catch = float(c["catch"].time_s[0])
+    t_catch = c["catch"].time_s
     d_catch = float(c["ball"].distance_at(t_catch))
     fig, ax = plt.subplots(figsize=(7, 4))
     ax.plot(dist, t_ball, label="ball time", color="tab:blue")

@@ -7,7 +7,7 @@ Model per shot k (positions projected on the shot's line, s = distance along it)
 
     s(t) = p_k + D(max(t - t_k, 0); v_k, a_slide, a_roll, c_switch)
 
-with D the two-phase distance of ``ball_model`` for a ball kicked at time t_k with speed
+with D the two-phase distance of ``ball_model`` (``kick_distance``) for a ball kicked at time t_k with speed
 v_shoot = v_k from rest at p_k. A segment should start a few frames *before* the kick (the ball at
 rest pins p_k and the kick time; without it c_switch and the kick speed are not separable).
 ``scipy.optimize.least_squares`` fits the 3 shared + 3 per-shot parameters; standard errors come
@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.ball_model import BallModelParams, kick_distance
 from erforce_ball_model.tracking import BallTracker, TrackerConfig, UpdateStatus
 
 __all__ = ["FitResult", "Shot", "ShotAccumulator", "fit_recording", "fit_shots", "main", "split_shots"]
@@ -77,17 +77,6 @@ class FitResult:
         )
 
 
-def _two_phase_distance(tau, v_shoot, a_slide, a_roll, c_switch):
-    """Distance after tau >= 0 for a ball kicked from rest with v_shoot (tolerant to any parameters)."""
-    v_sw = c_switch * v_shoot
-    t_sw = (v_shoot - v_sw) / -a_slide
-    t_stop = t_sw + v_sw / -a_roll
-    tc = np.minimum(tau, t_stop)
-    ts = np.minimum(tc, t_sw)
-    tr = tc - ts
-    return ts * (v_shoot + 0.5 * a_slide * ts) + tr * (v_sw + 0.5 * a_roll * tr)
-
-
 def _project(shot: Shot) -> tuple[np.ndarray, np.ndarray]:
     """Distances along the shot's line (principal direction of the moving part) from the start."""
     xy = shot.xy_m
@@ -123,7 +112,7 @@ def _solve(data, shared0, nuisance0):
         out = []
         for k, (t, s) in enumerate(data):
             p, tk, v = theta[3 + 3 * k : 6 + 3 * k]
-            out.append(p + _two_phase_distance(np.maximum(t - tk, 0.0), v, a_s, a_r, c) - s)
+            out.append(p + kick_distance(np.maximum(t - tk, 0.0), v, a_s, a_r, c) - s)
         return np.concatenate(out)
 
     return least_squares(residuals, x0, bounds=(lo, hi), x_scale="jac", method="trf")

@@ -12,7 +12,7 @@ fit (identification.ShotAccumulator, fitted in a worker thread) once its standar
 small enough. A model set by configuration wins over a fit until the next accepted fit.
 
 The ball_predictor node converts messages and publishes what this object answers; the
-in-process scenes (erforce_sim.scenes) and the bench (bench/bench_ball_predictor.py) run the
+in-process scenes (erforce_sim.closed_loop.scenes) and the bench (bench/bench_ball_predictor.py) run the
 same object, so the catcher is tuned on the code that runs.
 
 >>> from erforce_ball_model.predictor import BallPredictor, PredictorConfig
@@ -24,7 +24,7 @@ True
 >>> frame.catch_robots, frame.phase
 ([0], 'sliding')
 >>> round(frame.catch_times_s[0], 2)  # seconds from the frame's stamp, the reaction time included
-1.39
+1.21
 
 No rclpy import.
 """

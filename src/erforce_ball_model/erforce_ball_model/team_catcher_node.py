@@ -13,8 +13,6 @@ subscriptions' wakes per robot. The parameters are the catcher's (``team_robot_i
 
 from __future__ import annotations
 
-from typing import Any
-
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray
@@ -33,39 +31,39 @@ from erforce_interfaces.conversions import (
 )
 from erforce_interfaces.executor import run_sampled, sample_only
 from erforce_interfaces.node_support import (
-    ParamSpec,
+    NodeParams,
     ThrottledWarner,
     contract_publisher,
     contract_subscription,
-    declare_params,
     run_node,
 )
+from erforce_interfaces.param_schema import HostSchema, load_schema
 
-OWN_PARAMS = (
-    ParamSpec("robot_ids", [0], "the robots this process runs the catchers of (namespaces robot_<id>)",
-              min=0, max=1_000_000, read_only=True),
-    ParamSpec("as_team", True, "the robots form a team: only the one that can catch the ball first receives",
-              read_only=True),
-)
-PARAMS = OWN_PARAMS + tuple(s for s in catcher_node.PARAMS if s.name != "team_robot_ids")
+# the catcher's parameters under their own names; team_robot_ids is robot_ids and as_team here
+SCHEMA = HostSchema(load_schema("erforce_ball_model", "team_catcher"), {
+    "": (catcher_node.SCHEMA, ("team_robot_ids",)),
+})
 
 
-def build(values: dict[str, Any]):
-    ids = list(values["robot_ids"])
+def build(config):
+    """The catcher's (config, dribbler offset, robot radius, field) for every robot (ValueError when invalid)."""
+    own, hosted = config
+    ids = list(own.robot_ids)
     if not ids or len(set(ids)) != len(ids):
         raise ValueError(f"robot_ids: need distinct ids, at least one, got {ids}")
-    return catcher_node.build_config(values)
+    return catcher_node.build_config(hosted[""])
 
 
 class TeamCatcherNode(Node):
     def __init__(self) -> None:
         super().__init__("team_catcher")
         self._warn = ThrottledWarner(self)
-        self._receivers: dict[int, Receiver] = {}
-        self._values = declare_params(self, PARAMS, build, self._set_config)
+        self._params = NodeParams(self, SCHEMA, build)
+        self._values = self._params.values
         ids = [int(i) for i in self._values["robot_ids"]]
-        team = ids if self._values["as_team"] else ()
-        self._receivers = {i: Receiver(*self._built, robot_id=i, team_robot_ids=team) for i in ids}
+        self._team = ids if self._values["as_team"] else ()
+        self._receivers: dict[int, Receiver] = {}
+        self.on_clock_restart()
         q = contract
         self._cmd_pubs = {i: contract_publisher(self, q.CMD_VEL, q.CMD_VEL.for_robot(i)) for i in ids}
         self._inputs = [sample_only(contract_subscription(self, topic, callback))
@@ -79,12 +77,17 @@ class TeamCatcherNode(Node):
                                             raw=raw)
                 self._inputs.append(sample_only(sub))
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
-        self.get_logger().info(f"team_catcher: robots {ids}{' as a team' if team else ''}")
+        self.get_logger().info(f"team_catcher: robots {ids}{' as a team' if self._team else ''}")
+        self._params.on_change(self._set_config)
 
     def _set_config(self, built) -> None:
-        self._built = built
         for receiver in self._receivers.values():
             receiver.set_config(*built)
+
+    def on_clock_restart(self) -> None:
+        """A new /clock time line (node_support.guard_clock): the inputs' arrival times are void."""
+        self._receivers = {i: Receiver(*self._params.built, robot_id=i, team_robot_ids=self._team)
+                           for i in (int(i) for i in self._values["robot_ids"])}
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -112,7 +115,8 @@ class TeamCatcherNode(Node):
 
     def _on_model_params(self, msg: Float64MultiArray) -> None:
         try:
-            row = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS)[catcher_node.MODEL_IN_USE_ROW]
+            table = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS, len(contract.BALL_MODEL_PARAM_ROWS))
+            row = table[catcher_node.MODEL_IN_USE_ROW]
             params = BallModelParams(*row.tolist())
         except (ConversionError, IndexError, ValueError) as exc:
             self._warn.warn("model_params", f"rejected model_params: {exc}")

@@ -36,6 +36,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
+from erforce_interfaces.ament_index import find_package_share
+
 FIELD_FRAME = "field"
 ROBOT_NAMESPACE_PREFIX = "robot_"
 BASE_LINK = "base_link"
@@ -53,7 +55,6 @@ DDS_PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROF
 
 def dds_profile_path() -> Path:
     """The stack's Fast DDS profile, in erforce_interfaces' share directory (as $(find-pkg-share))."""
-    from erforce_interfaces.launcher import find_package_share  # nodes that never need it skip the import
 
     share = find_package_share("erforce_interfaces")
     path = None if share is None else share / "config" / "fastdds_profile.xml"

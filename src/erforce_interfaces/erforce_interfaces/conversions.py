@@ -4,6 +4,16 @@ Every ``*_from_msg`` returns plain floats, tuples or numpy arrays and raises ``C
 (a ValueError) with a message naming the field when a value is non-finite, out of range,
 or an array has the wrong length. Every ``*_msg`` builder refuses non-finite input too,
 so a node cannot publish NaN by accident.
+
+Values our own physics produced must never make a publish raise. Per case, either the physics
+limits what it can produce, or the converter saturates like a sensor at the end of its range:
+- placed bodies and kicks: limited where they are set (world.place_robot / place_ball refuse
+  speeds beyond the plausible limits, kicks and duties are clamped), so poses, twists and spins
+  on the wire stay inside the converters' ranges;
+- measured wheel speeds and motor currents (``wheel_states``): the sensor saturates
+  (``joint_state_cdr(..., saturate=True)`` in the plant). A robot placed at 20 m/s while turning
+  at 100 rad/s spins its wheels past the wire's range for a moment; a real encoder's speed
+  reading saturates too, and the controllers only need to know the wheel is very fast.
 """
 
 from __future__ import annotations
@@ -21,6 +31,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
 from erforce_interfaces.contract import FIELD_FRAME
+from erforce_interfaces.stamps import stamp_ns
 
 #: Largest magnitude accepted for any position [m], speed [m/s] or rate [rad/s] on the wire.
 #: Far beyond anything physical on an SSL field; it keeps "huge" values out of the cores.
@@ -56,11 +67,21 @@ def _finite_array(name: str, values: Sequence[float], length: int | None, limit:
 
 # ----------------------------------------------------------------------- time
 def stamp_to_seconds(stamp: Time) -> float:
+    _checked_stamp_ns(stamp.sec, stamp.nanosec)
     return stamp.sec + stamp.nanosec * 1e-9
 
 
 def stamp_to_nanoseconds(stamp: Time) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
+    return _checked_stamp_ns(stamp.sec, stamp.nanosec)
+
+
+def _checked_stamp_ns(sec: int, nanosec: int) -> int:
+    """A stamp as nanoseconds; ConversionError for what is no time (negative, nanosec >= 1e9), on
+    which rclpy's Time.from_msg raises too."""
+    ns = stamp_ns(sec, nanosec)
+    if ns is None:
+        raise ConversionError(f"stamp {sec} s {nanosec} ns is not a valid time")
+    return ns
 
 
 def seconds_to_stamp(t_s: float) -> Time:
@@ -84,6 +105,15 @@ def _stamp_parts(ns: int) -> tuple[int, int]:
     if not -(2**31) <= sec < 2**31:
         raise ConversionError(f"stamp {ns} ns does not fit builtin_interfaces/Time (int32 seconds)")
     return sec, ns % 1_000_000_000
+
+
+_FIELD_FRAME_BYTES = FIELD_FRAME.encode()
+
+
+def _check_frame(frame_id: str) -> None:
+    """World-frame inputs must be in ``field``; an empty frame_id (a hand-typed message) is taken as it."""
+    if frame_id and frame_id != FIELD_FRAME:
+        raise ConversionError(f"frame_id {frame_id[:40]!r} is not {FIELD_FRAME!r}")
 
 
 # --------------------------------------------------------------------- angles
@@ -111,6 +141,7 @@ def point_from_msg(msg: PointStamped | bytes) -> tuple[float, tuple[float, float
     if isinstance(msg, bytes):
         t_s, (x, y, _z) = _decode_stamped(msg, 3, "PointStamped")
     else:
+        _check_frame(msg.header.frame_id)
         t_s, point = stamp_to_seconds(msg.header.stamp), msg.point
         x, y = point.x, point.y
     return t_s, (_finite("point.x", x), _finite("point.y", y))
@@ -135,6 +166,7 @@ def pose2d_from_msg(msg: PoseStamped | bytes) -> tuple[float, np.ndarray]:
         t_s, (x, y, _z, qx, qy, qz, qw) = _decode_stamped(msg, 7, "PoseStamped")
         yaw = _yaw(qw, qx, qy, qz)
     else:
+        _check_frame(msg.header.frame_id)
         t_s, p = stamp_to_seconds(msg.header.stamp), msg.pose.position
         x, y, yaw = p.x, p.y, yaw_from_quaternion(msg.pose.orientation)
     return t_s, np.array([_finite("position.x", x), _finite("position.y", y), yaw])
@@ -236,7 +268,8 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
 
 
 def odometry_from_msg(msg: Odometry) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
-    """(stamp [s], pose [x, y, yaw], velocity [vx, vy, wz], angular [wx, wy, wz])."""
+    """(stamp [s], pose [x, y, yaw], velocity [vx, vy, wz], angular [wx, wy, wz]) in ``field``."""
+    _check_frame(msg.header.frame_id)
     p = msg.pose.pose.position
     pose = np.array([_finite("pose.position.x", p.x), _finite("pose.position.y", p.y),
                      yaw_from_quaternion(msg.pose.pose.orientation)])
@@ -333,8 +366,9 @@ def _stamp_cdr(t_ns: int) -> bytes:
 
 
 def joint_state_cdr(t_ns: int, names: Sequence[str], *, velocity: Sequence[float] | None = None,
-                    effort: Sequence[float] | None = None) -> bytes:
-    """``joint_state_msg`` serialized (for ``Publisher.publish``), with the same checks."""
+                    effort: Sequence[float] | None = None, saturate: bool = False) -> bytes:
+    """``joint_state_msg`` serialized (for ``Publisher.publish``), with the same checks. ``saturate``:
+    finite values beyond the accepted magnitude are clipped to it instead of refused (a sensor's range)."""
     parts = [_CDR_LE, _stamp_cdr(t_ns), _cdr_names(tuple(names))]
     offset = 8 + len(parts[2])
     for name, values in (("position", None), ("velocity", velocity), ("effort", effort)):
@@ -342,6 +376,8 @@ def joint_state_cdr(t_ns: int, names: Sequence[str], *, velocity: Sequence[float
             parts.append(_u32.pack(0))
             offset += 4
             continue
+        if saturate:
+            values = [min(max(float(v), -MAX_ABS_VALUE), MAX_ABS_VALUE) if math.isfinite(v) else v for v in values]
         values = _checked_floats(name, values, len(names), MAX_ABS_VALUE)
         n = len(values)
         pad = -(offset + 4) % 8 if n else 0
@@ -399,11 +435,17 @@ def _decode_stamped(data: bytes, num_doubles: int, what: str) -> tuple[float, tu
         raise ConversionError(f"not a little-endian CDR {what}")
     try:
         sec, nanosec = _stamp.unpack_from(data, 4)
-        p = 12 + _u32.unpack_from(data, 12)[0]  # payload offset after frame_id (not used)
+        length = _u32.unpack_from(data, 12)[0]
+        frame = data[16 : 15 + length]  # without its NUL
+        p = 12 + length  # payload offset after frame_id
         p += -p % 8
-        return sec + nanosec * 1e-9, struct.unpack_from(f"<{num_doubles}d", data, 4 + p)
+        values = struct.unpack_from(f"<{num_doubles}d", data, 4 + p)
     except struct.error as exc:
         raise ConversionError(f"truncated {what} ({exc})") from None
+    if frame and frame != _FIELD_FRAME_BYTES:
+        _check_frame(frame.decode("utf-8", "replace"))
+    _checked_stamp_ns(sec, nanosec)
+    return sec + nanosec * 1e-9, values
 
 
 def _decode_joint_state(data: bytes) -> tuple[int, list[str], list[tuple[float, ...]]]:
@@ -443,7 +485,7 @@ def _decode_joint_state(data: bytes) -> tuple[int, list[str], list[tuple[float, 
                 arrays.append(())
     except struct.error as exc:
         raise ConversionError(f"truncated JointState ({exc})") from None
-    return sec * 1_000_000_000 + nanosec, names, arrays
+    return _checked_stamp_ns(sec, nanosec), names, arrays
 
 
 # ------------------------------------------------------------ scalar & tables
@@ -507,9 +549,17 @@ def _table_layout_cdr(row_label: str, n_rows: int, columns: tuple[str, ...]) -> 
     return bytes(out + (bytes(-len(out) % 8) if n_rows * n_cols else b""))
 
 
-def table_from_msg(msg: Float64MultiArray, column_labels: Sequence[str]) -> np.ndarray:
+def table_from_msg(msg: Float64MultiArray, column_labels: Sequence[str], num_rows: int | None = None) -> np.ndarray:
+    """The rows x columns table of a ``table_msg``; its shape is checked against the labels (and
+    ``num_rows`` when given), not taken from the message."""
     if len(msg.layout.dim) != 2 or msg.layout.dim[1].label != ",".join(column_labels):
         raise ConversionError(f"expected a table with columns {','.join(column_labels)}")
     n_rows, n_cols = msg.layout.dim[0].size, msg.layout.dim[1].size
+    if n_cols != len(column_labels):
+        raise ConversionError(f"table has {n_cols} columns, its labels name {len(column_labels)}")
+    if num_rows is not None and n_rows != num_rows:
+        raise ConversionError(f"table has {n_rows} rows, expected {num_rows}")
+    if msg.layout.data_offset != 0:
+        raise ConversionError(f"table data_offset is {msg.layout.data_offset}, expected 0")
     data = _finite_array("data", msg.data, n_rows * n_cols, 1.0e9)
     return data.reshape(n_rows, n_cols)

@@ -10,24 +10,20 @@ from rclpy.node import Node
 from std_msgs.msg import String
 
 from erforce_interfaces.contract import QOS_COMMAND
-from erforce_interfaces.node_support import ParamSpec, declare_params, run_node
+from erforce_interfaces.node_support import NodeParams, run_node
+from erforce_interfaces.param_schema import load_schema
 
 CHATTER = "chatter"
-
-TALKER_PARAMS = (
-    ParamSpec("rate_hz", 10.0, "publish rate [Hz]", min=0.1, max=1000.0),
-    ParamSpec("text", "hello", "message prefix; a counter is appended"),
-)
 
 
 class Talker(Node):
     def __init__(self) -> None:
         super().__init__("talker")
-        values = declare_params(self, TALKER_PARAMS)
-        self._text = values["text"]
+        config = NodeParams(self, load_schema("erforce_interfaces", "talker")).config
+        self._text = config.text
         self._count = 0
         self._pub = self.create_publisher(String, CHATTER, QOS_COMMAND)
-        self._timer = self.create_timer(1.0 / values["rate_hz"], self._tick)
+        self._timer = self.create_timer(1.0 / config.rate_hz, self._tick)
 
     def _tick(self) -> None:
         self._pub.publish(String(data=f"{self._text} {self._count}"))

@@ -8,9 +8,10 @@ two processes, half of it executor overhead; that is most of a 2 ms lockstep tic
 processes take part (bench/bench_lockstep.py).
 
 ``DirectExecutor`` has the same semantics for what the stack's nodes use: after one wait it
-runs every ready timer, subscription, guard condition, service, client response and QoS event
-once, in that order, node by node, then waits again (everything it waits on is level-triggered,
-so a second queued message wakes the next wait at once). Callbacks run in this thread; a
+runs every ready timer, subscription (everything queued on it, up to 64 messages), guard
+condition, service, client response and QoS event once, in that order, node by node, then
+waits again (everything it waits on is level-triggered, so what is left wakes the next wait
+at once). Callbacks run in this thread; a
 callback that returns a coroutine is driven to completion, and one that suspends on a future
 is an error (use rclpy's executors for such nodes). Callback groups have nothing to arbitrate
 in a single thread and are ignored. The entity lists are rebuilt when the executor is woken
@@ -26,26 +27,90 @@ normally finds an input already queued when it runs, but must wait when it is la
 boards' setpoint), switches it back with ``sample_only(sub, False)`` for as long as it waits.
 Under another executor they stay ordinary subscriptions (a callback per message), so the node
 behaves the same there. ``take_queued`` is the raw form.
+
+Callback faults: a subscription callback that raises would end ``spin`` and with it the node, so
+one malformed message from any participant could kill a node. ``set_callback_fault_handler``
+installs the one guard (``node_support.run_node`` does, for every node of the stack): every
+subscription callback this module runs, executor or ``run_sampled``, runs inside it, and an
+exception is handed to the handler instead of ending the spin. Without a handler (tests, tools)
+exceptions propagate as before. Timers, services and the rest are not guarded: they run on
+the node's own state, where an exception is a bug that must stop the node.
 """
 
 from __future__ import annotations
 
 import inspect
+import os
 import weakref
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor, TimeoutObject
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.subscription import Subscription
 from rclpy.utilities import timeout_sec_to_nsec
 
-__all__ = ["DirectExecutor", "run_sampled", "sample_only", "take_queued"]
+from erforce_interfaces import rclpy_internals as internal  # every private rclpy name used here
+
+__all__ = ["EXECUTOR_ENV", "EXECUTOR_KINDS", "DirectExecutor", "make_executor", "run_newest", "run_sampled",
+           "sample_only", "set_callback_fault_handler", "take_queued"]
+
+EXECUTOR_ENV = "ERFORCE_EXECUTOR"  # the executor run_node spins on: one of EXECUTOR_KINDS (bench/bench_executor.py)
+EXECUTOR_KINDS = ("direct", "single", "events")
 
 
 _KINDS = ("subscription", "timer", "guard_condition", "service", "client")
+_MAX_TAKES_PER_WAKE = 64  # messages taken from one ready subscription per wait
 _SAMPLED: weakref.WeakSet = weakref.WeakSet()  # subscriptions DirectExecutor leaves to their nodes
 _sampled_changes = 0  # DirectExecutor gathers its entities again when this moves
+_fault_handler: Callable[[Subscription, Exception], None] | None = None
+
+
+def set_callback_fault_handler(handler: Callable[[Subscription, Exception], None] | None) -> None:
+    """Guard every subscription callback of this process (module doc); None removes the guard.
+    The handler gets the subscription and the exception; it may re-raise."""
+    global _fault_handler
+    _fault_handler = handler
+
+
+def make_executor(kind: str | None = None, *, context=None):
+    """The executor a node spins on: ``direct`` (DirectExecutor, the default), ``events``
+    (rclpy.experimental.EventsExecutor) or ``single`` (rclpy's SingleThreadedExecutor); ``kind`` None
+    reads the environment variable ERFORCE_EXECUTOR, so a bench can run the same nodes on each.
+
+    DirectExecutor stays the default although EventsExecutor kept pace with it in
+    bench/bench_executor.py: only DirectExecutor runs the process's callback guard
+    (``set_callback_fault_handler``, also for samples rmw cannot deserialize), bounds what one ready
+    subscription takes per wake, and leaves ``sample_only`` subscriptions to their nodes, which the
+    hardening against bad input and floods rests on. Under the other two a ``sample_only``
+    subscription is an ordinary one (a callback per message) and an exception ends the node."""
+    kind = kind or os.environ.get(EXECUTOR_ENV) or "direct"
+    if kind == "direct":
+        return DirectExecutor(context=context)
+    if kind == "single":
+        return SingleThreadedExecutor(context=context)
+    if kind == "events":
+        return _SpinOnceLoop(context)
+    raise ValueError(f"{EXECUTOR_ENV}: one of {', '.join(EXECUTOR_KINDS)}, got {kind!r}")
+
+
+class _SpinOnceLoop:
+    """rclpy.experimental.EventsExecutor (a C++ object: no subclass) whose ``spin`` is a loop of ``spin_once``:
+    in rclpy 7.1 its own ``spin()`` neither ran a timer nor returned after shutdown within 20 s
+    (bench/bench_executor.py)."""
+
+    def __init__(self, context) -> None:
+        from rclpy.experimental import EventsExecutor
+        from rclpy.utilities import get_default_context
+
+        self._context = context or get_default_context()
+        self.executor = EventsExecutor(context=self._context)
+
+    def __getattr__(self, name: str):
+        return getattr(self.executor, name)
+
+    def spin(self) -> None:
+        while self._context.ok():
+            self.executor.spin_once(timeout_sec=0.5)
 
 
 def sample_only(subscription: Subscription, sampled: bool = True) -> Subscription:
@@ -64,9 +129,17 @@ def sample_only(subscription: Subscription, sampled: bool = True) -> Subscriptio
 def take_queued(subscription: Subscription) -> list:
     """Everything queued on a subscription, as (message, info) pairs, without an executor."""
     taken = []
-    with subscription.handle:
-        while (item := subscription.handle.take_message(subscription.msg_type, subscription.raw)) is not None:
-            taken.append(item)
+    while True:
+        try:
+            item = internal.take_message(subscription)
+        except Exception as exc:  # a sample rmw cannot deserialize
+            if _fault_handler is None:
+                raise
+            _fault_handler(subscription, exc)
+            break
+        if item is None:
+            break
+        taken.append(item)
     return taken
 
 
@@ -82,11 +155,30 @@ def run_sampled(subscriptions: Iterable[Subscription]) -> int:
     return len(batch)
 
 
+def run_newest(subscriptions: Iterable[Subscription]) -> int:
+    """Like ``run_sampled``, but only the newest queued message of each subscription runs: for commands
+    where the last one wins (placing a body, a kick), so that a flood costs one callback per call.
+    Returns how many messages were dropped."""
+    batch, dropped = [], 0
+    for sub in subscriptions:
+        taken = take_queued(sub)
+        if taken:
+            dropped += len(taken) - 1
+            msg, info = taken[-1]
+            batch.append((info["source_timestamp"], sub, msg, info))
+    batch.sort(key=lambda item: item[0])
+    for _, sub, msg, info in batch:
+        _run_callback(sub, msg, info)
+    return dropped
+
+
 def _run_callback(sub: Subscription, msg, info) -> None:
-    if sub._callback_type is Subscription.CallbackType.MessageOnly:
-        _finish(sub.callback(msg))
-    else:
-        _finish(sub.callback(msg, info))
+    try:
+        _finish(internal.run_subscription_callback(sub, msg, info))
+    except Exception as exc:
+        if _fault_handler is None:
+            raise
+        _fault_handler(sub, exc)
 
 
 def _ready(entities, ready_pointers):
@@ -95,7 +187,7 @@ def _ready(entities, ready_pointers):
         return
     for e in entities:
         try:
-            is_ready = e.handle.pointer in ready_pointers
+            is_ready = internal.handle_pointer(e) in ready_pointers
         except InvalidHandle:
             continue
         if is_ready:
@@ -134,9 +226,10 @@ class DirectExecutor(SingleThreadedExecutor):
 
     def spin_once(self, timeout_sec: float | None = None) -> None:
         """Wait up to ``timeout_sec`` (None: forever) and run every callback that is ready."""
-        guard, sigint = self._guard, self._sigint_gc
-        if self._is_shutdown or guard is None or sigint is None:
+        guard, sigint = internal.executor_guard_conditions(self)
+        if internal.executor_is_shutdown(self) or guard is None or sigint is None:
             return
+        context = internal.executor_context(self)
         if self._entities is None or self._gathered_at != _sampled_changes:
             self._gather()
         subs, timers, guards, services, clients, waitables = self._entities
@@ -145,7 +238,7 @@ class DirectExecutor(SingleThreadedExecutor):
         in_use = []
         try:
             try:
-                for h in (*self._handles, guard.handle, sigint.handle, self._context.handle):
+                for h in (*self._handles, guard.handle, sigint.handle, context.handle):
                     h.__enter__()
                     in_use.append(h)
             except InvalidHandle:  # destroyed since the entities were gathered
@@ -154,9 +247,9 @@ class DirectExecutor(SingleThreadedExecutor):
             ws = self._wait_set
             if ws is None:
                 num_events = sum(w.get_num_entities().num_events for w in waitables)
-                ws = self._wait_set = _rclpy.WaitSet(
+                ws = self._wait_set = internal.WaitSet(
                     len(subs), len(guards) + 2, len(timers), len(clients), len(services), num_events,
-                    self._context.handle)
+                    context.handle)
             ws.clear_entities()
             for e in subs:
                 ws.add_subscription(e.handle)
@@ -173,13 +266,13 @@ class DirectExecutor(SingleThreadedExecutor):
             for e in waitables:
                 e.add_to_wait_set(ws)
             ws.wait(timeout_sec_to_nsec(timeout_sec))
-            if self._is_shutdown:
+            if internal.executor_is_shutdown(self):
                 return
-            if not self._context.ok():
+            if not context.ok():
                 raise ExternalShutdownException()
             ready = {kind: ws.get_ready_entities(kind) for kind in _KINDS}
             ready_waitables = [w for w in waitables if w.is_ready(ws)]  # needs this wait set
-            if guard.handle.pointer in ready["guard_condition"]:
+            if internal.handle_pointer(guard) in ready["guard_condition"]:
                 self._entities = None  # woken: entities may have changed
         finally:
             for h in reversed(in_use):
@@ -207,8 +300,7 @@ class DirectExecutor(SingleThreadedExecutor):
     def _dispatch(self, ready, subs, timers, guards, services, clients, ready_waitables) -> None:
         # A callback may destroy entities: each is checked when its turn comes.
         for t in _ready(timers, ready["timer"]):
-            if t.handle.is_timer_ready():
-                t.handle.call_timer()
+            if internal.call_timer(t):
                 _finish(t.callback())
         for s in _ready(subs, ready["subscription"]):
             self._take_and_run(s)
@@ -216,7 +308,7 @@ class DirectExecutor(SingleThreadedExecutor):
             if g.callback is not None:
                 _finish(g.callback())
         for srv in _ready(services, ready["service"]):
-            request, header = srv.handle.service_take_request(srv.srv_type.Request)
+            request, header = internal.take_request(srv)
             if header is not None:
                 srv.send_response(srv.callback(request, srv.srv_type.Response()), header)
         for c in _ready(clients, ready["client"]):
@@ -226,16 +318,26 @@ class DirectExecutor(SingleThreadedExecutor):
 
     @staticmethod
     def _take_and_run(sub: Subscription) -> None:
-        try:
-            taken = sub.handle.take_message(sub.msg_type, sub.raw)
-        except InvalidHandle:
-            return
-        if taken is not None:
+        # Everything queued (up to a bound, so that the other entities are served too): under a flood
+        # a wake per message cannot keep up, and a keep-last reader then drops the oldest samples,
+        # the real ones among them.
+        for _ in range(_MAX_TAKES_PER_WAKE):
+            try:
+                taken = internal.take_message(sub)  # raises InvalidHandle once a callback destroyed it
+            except InvalidHandle:
+                return
+            except Exception as exc:  # a sample rmw cannot deserialize
+                if _fault_handler is None:
+                    raise
+                _fault_handler(sub, exc)
+                return
+            if taken is None:
+                return
             _run_callback(sub, *taken)
 
     def _take_response(self, client) -> None:
         try:
-            header, response = client.handle.take_response(client.srv_type.Response)
+            header, response = internal.take_response(client)
         except InvalidHandle:
             return
         if header is None:
@@ -244,5 +346,5 @@ class DirectExecutor(SingleThreadedExecutor):
             future = client.get_pending_request(header.request_id.sequence_number)
         except KeyError:
             return  # the request was cancelled
-        future._set_executor(self)
+        internal.set_future_executor(future, self)
         future.set_result(response)

@@ -1,6 +1,7 @@
 """The lockstep protocol: the plant advances a tick only when every live motor board has answered it.
 
-The control loop over DDS, per robot and per tick k (period T, default 1 ms):
+The control loop over DDS, per robot and per tick k (period T: the plant's ``control_period_s``,
+default ``TICK_PERIOD_S``, 2 ms):
 
     plant ──wheel_states(t_k)──► motor_boards ──motor_duty(t_k)──► plant     (critical path)
           └─────────────────────► velocity_controller ──wheel_setpoints(t_k)──► motor_boards (used at k+1)
@@ -23,6 +24,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
+# The lockstep tick over DDS: the plant's control_period_s and the robot nodes' loop_rate_hz
+# default to it (their schemas; test_param_schema fails when they drift apart). The in-process
+# runner keeps 1 kHz (README, "Time, lockstep and the control loop").
+TICK_PERIOD_S = 0.002
 
 
 @dataclass

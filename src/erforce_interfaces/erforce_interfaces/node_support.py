@@ -1,12 +1,13 @@
-"""What every node shell of the stack shares: declared parameters with ranges, validation on
-change, throttled warnings, and the standard ``main()``.
+"""What every node shell of the stack shares: declared parameters, validation on change,
+throttled warnings, and the standard ``main()``.
 
-A node lists its parameters once as ``ParamSpec`` rows (name, default, range, description,
-ros2_controllers style). ``declare_params`` turns them into ROS parameters with descriptors
-and ranges, and installs one on-set callback that checks finiteness and range first, then
-asks the node to build its core configuration from the proposed values: if the core refuses
-(raises ValueError), the change is rejected with that reason and the old value stays.
-``params_markdown`` renders the same rows as the documentation table.
+A node's parameters are described once, in its schema file (erforce_interfaces.param_schema).
+``NodeParams`` declares them with descriptors and ranges and reads and checks them; the node
+builds its core from the config object once it is set up itself, then ``NodeParams.on_change``
+installs one on-set callback that checks every change against the schema and asks the node's
+build function for the new core: if it refuses (raises ValueError), the change is rejected with
+that reason and the old value stays. A parameter the node cannot apply while running is
+declared read-only in the schema.
 """
 
 from __future__ import annotations
@@ -14,8 +15,8 @@ from __future__ import annotations
 import array
 import gc
 import math
-from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+import traceback
+from collections.abc import Callable
 from typing import Any
 
 import rclpy
@@ -27,143 +28,94 @@ from rclpy.exceptions import (
     ParameterUninitializedException,
 )
 from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from erforce_interfaces.contract import CLOCK, Topic
-from erforce_interfaces.executor import DirectExecutor, sample_only
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.executor import make_executor, sample_only, set_callback_fault_handler
+from erforce_interfaces.param_schema import ParamSchema, ParamSpec
+from erforce_interfaces.rclpy_internals import RCLError
+from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
 
-ParamValue = bool | int | float | str | list
+_ARRAY_TYPES = {"int": Parameter.Type.INTEGER_ARRAY, "double": Parameter.Type.DOUBLE_ARRAY,
+                "string": Parameter.Type.STRING_ARRAY, "bool": Parameter.Type.BOOL_ARRAY}
 
 
-@dataclass(frozen=True)
-class ParamSpec:
-    """One documented, range-checked node parameter.
-
-    An array parameter whose default is empty names its element type in ``empty_array_of``
-    (int, float, str or bool): ROS cannot type an empty list, so it is declared typed and unset, and
-    reads as ``[]`` until a launch file or a parameter file gives it values.
-    """
-
-    name: str
-    default: ParamValue
-    description: str
-    min: float | None = None
-    max: float | None = None
-    read_only: bool = False
-    empty_array_of: type | None = None
-
-    def __post_init__(self) -> None:
-        if (self.default == []) != (self.empty_array_of is not None) or (
-                self.empty_array_of is not None and self.empty_array_of not in _ARRAY_TYPES):
-            raise ValueError(f"{self.name}: an empty default needs empty_array_of (int, float, str or bool), "
-                             "and only an empty default takes it")
-
-    def check(self, value: Any) -> str | None:
-        """Return why ``value`` is unacceptable, or None."""
-        # array parameters arrive as lists, tuples or array.array
-        values = list(value) if isinstance(value, list | tuple | array.array) else [value]
-        for v in values:
-            if isinstance(v, float) and not math.isfinite(v):
-                return f"{self.name}: must be finite, got {v!r}"
-            if isinstance(v, int | float) and not isinstance(v, bool):
-                if self.min is not None and v < self.min:
-                    return f"{self.name}: {v!r} is below the minimum {self.min!r}"
-                if self.max is not None and v > self.max:
-                    return f"{self.name}: {v!r} is above the maximum {self.max!r}"
-        return None
-
-    def descriptor(self) -> ParameterDescriptor:
-        d = ParameterDescriptor(description=self.description, read_only=self.read_only)
-        if isinstance(self.default, bool) or (self.min is None and self.max is None):
-            return d
-        lo = -math.inf if self.min is None else self.min
-        hi = math.inf if self.max is None else self.max
-        if isinstance(self.default, int):
-            # rcl encodes "unbounded" integer ranges poorly; clamp to int64.
-            d.integer_range = [IntegerRange(from_value=int(max(lo, -(2**63))), to_value=int(min(hi, 2**63 - 1)))]
-        elif isinstance(self.default, float):
-            d.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
+def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    d = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
+    constraints = spec.constraint_text()
+    if constraints != "—":
+        d.additional_constraints = constraints
+    if spec.element_type not in ("int", "double") or (spec.lower is None and spec.upper is None):
         return d
-
-    def range_text(self) -> str:
-        if self.min is None and self.max is None:
-            return "—"
-        lo = "−∞" if self.min is None else f"{self.min:g}"
-        hi = "∞" if self.max is None else f"{self.max:g}"
-        return f"[{lo}, {hi}]"
-
-
-_ARRAY_TYPES = {int: Parameter.Type.INTEGER_ARRAY, float: Parameter.Type.DOUBLE_ARRAY,
-                str: Parameter.Type.STRING_ARRAY, bool: Parameter.Type.BOOL_ARRAY}
-
-
-def _param_value(node: Node, spec: ParamSpec) -> ParamValue:
-    try:
-        return node.get_parameter(spec.name).value
-    except ParameterUninitializedException:  # a typed, empty array parameter (ParamSpec.empty_array_of)
-        return []
+    lo = -math.inf if spec.lower is None else spec.lower
+    hi = math.inf if spec.upper is None else spec.upper
+    if spec.element_type == "int":
+        # rcl encodes "unbounded" integer ranges poorly; clamp to int64. Open bounds: the next integer.
+        lo = lo + 1 if spec.lower_open else lo
+        hi = hi - 1 if spec.upper_open else hi
+        d.integer_range = [IntegerRange(from_value=int(max(lo, -(2**63))), to_value=int(min(hi, 2**63 - 1)))]
+    else:  # open bounds are the schema's check; the descriptor shows the closed range
+        d.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi))]
+    return d
 
 
-def declare_params(
-    node: Node,
-    specs: Sequence[ParamSpec],
-    build: Callable[[dict[str, Any]], Any] | None = None,
-    on_change: Callable[[Any], None] | None = None,
-) -> dict[str, Any]:
-    """Declare ``specs`` on ``node``; return the current values by name.
+class NodeParams:
+    """A node's parameters, declared from its schema; ``values`` (by name) and ``config`` stay current.
 
-    ``build(values)`` turns a complete name->value dict into the node's core
-    configuration and raises ValueError when the values are inconsistent. It runs
-    once at start (an invalid launch configuration is fatal: the node refuses to
-    start with the reason) and on every change (an invalid change is rejected and
-    the old value kept). ``on_change(built)`` receives the accepted configuration.
+    Construction declares every parameter and checks the values a launch file or parameter file gave
+    (ValueError naming the first bad one: the node refuses to start). ``build(config)`` turns a
+    config object into what the node runs (its core), raising ValueError for a combination it cannot
+    run; ``built`` is its result for the start values. The node sets itself up from ``built`` and
+    then calls ``on_change(apply)``: from then on each accepted change is built and handed to
+    ``apply``, and a change that fails the schema or the build is rejected with the reason.
     """
-    by_name = {s.name: s for s in specs}
-    for s in specs:
-        try:
-            default = s.default if s.empty_array_of is None else _ARRAY_TYPES[s.empty_array_of]
-            node.declare_parameter(s.name, default, s.descriptor())
-        except (InvalidParameterValueException, InvalidParameterTypeException) as exc:
-            # e.g. a launch file sets a value outside the declared range: one clear line
-            raise ValueError(f"invalid parameter {s.name}: {exc}") from None
-    values = {s.name: _param_value(node, s) for s in specs}
-    for s in specs:
-        reason = s.check(values[s.name])
-        if reason:
-            raise ValueError(f"invalid parameter {reason}")
-    if build is not None:
-        built = build(dict(values))
-        if on_change is not None:
-            on_change(built)
 
-    def _on_set(params: list[Parameter]) -> SetParametersResult:
-        proposed = dict(values)
-        for p in params:
-            spec = by_name.get(p.name)
-            if spec is None:
-                continue  # e.g. use_sim_time: not ours to judge
-            reason = spec.check(p.value)
-            if reason:
-                node.get_logger().warning(f"rejected parameter change: {reason}")
-                return SetParametersResult(successful=False, reason=reason)
-            proposed[p.name] = p.value
-        built_new = None
-        if build is not None:
+    def __init__(self, node: Node, schema: ParamSchema, build: Callable[[Any], Any] | None = None) -> None:
+        self._node = node
+        self.schema = schema
+        self._build = build or (lambda config: config)
+        for s in schema.specs:
+            default = _ARRAY_TYPES[s.element_type] if s.is_array and not s.default else s.default
+            if s.is_array and s.default:
+                default = list(default)
             try:
-                built_new = build(dict(proposed))
-            except (ValueError, TypeError) as exc:
-                node.get_logger().warning(f"rejected parameter change: {exc}")
-                return SetParametersResult(successful=False, reason=str(exc))
-        values.update(proposed)
-        if on_change is not None and built_new is not None:
-            on_change(built_new)
-        return SetParametersResult(successful=True)
+                node.declare_parameter(s.name, default, _descriptor(s))
+            except (InvalidParameterValueException, InvalidParameterTypeException) as exc:
+                # e.g. a launch file sets a value outside the declared range: one clear line
+                raise ValueError(f"invalid parameter {s.name}: {exc}") from None
+        self.values: dict[str, Any] = {s.name: self._read(s.name) for s in schema.specs}
+        self.config = schema.parse(self.values)
+        self.built = self._build(self.config)
 
-    node.add_on_set_parameters_callback(_on_set)
-    return values
+    def _read(self, name: str) -> Any:
+        try:
+            value = self._node.get_parameter(name).value
+        except ParameterUninitializedException:  # a typed, empty array parameter
+            return []
+        return list(value) if isinstance(value, list | tuple | array.array) else value
+
+    def on_change(self, apply: Callable[[Any], None]) -> None:
+        """From now on, check and build every change and hand what was built to ``apply``."""
+
+        def _on_set(params: list[Parameter]) -> SetParametersResult:
+            proposed = dict(self.values)
+            for p in params:
+                if p.name in self.schema.by_name:  # others (use_sim_time) are not ours to judge
+                    value = p.value
+                    proposed[p.name] = list(value) if isinstance(value, list | tuple | array.array) else value
+            try:
+                config = self.schema.parse(proposed)
+                built = self._build(config)
+            except (ValueError, TypeError) as exc:
+                self._node.get_logger().warning(f"rejected parameter change: {exc}")
+                return SetParametersResult(successful=False, reason=str(exc))
+            self.values.update(proposed)
+            self.config, self.built = config, built
+            apply(built)
+            return SetParametersResult(successful=True)
+
+        self._node.add_on_set_parameters_callback(_on_set)
 
 
 def contract_publisher(node: Node, topic: Topic, resolved_name: str | None = None):
@@ -203,37 +155,6 @@ def sample_clock(node: Node) -> list:
     return subs
 
 
-ROBOT_PREFIX = "robot."
-
-
-def robot_param_specs() -> tuple[ParamSpec, ...]:
-    """``robot.*`` parameters of every node that needs the robot description (config/robot.yaml)."""
-    defaults = RobotConfig().to_dict()
-    docs = RobotConfig.field_docs()
-    specs = []
-    for name, default in defaults.items():
-        lower = None if name == "ambient_temperature_c" or name == "wheel_angles_rad" else 0.0
-        upper = 1.0 if name == "gear_efficiency" else None
-        specs.append(ParamSpec(ROBOT_PREFIX + name, default, docs[name], min=lower, max=upper))
-    return tuple(specs)
-
-
-def robot_config_from_params(values: dict[str, Any]) -> RobotConfig:
-    """The RobotConfig of a node's ``robot.*`` parameter values (raises ValueError when invalid)."""
-    return RobotConfig.from_dict({k[len(ROBOT_PREFIX):]: v for k, v in values.items() if k.startswith(ROBOT_PREFIX)})
-
-
-def params_markdown(specs: Iterable[ParamSpec], skip_robot: bool = True) -> str:
-    """The documentation table of a node's parameters (``robot.*`` is documented once, separately)."""
-    rows = ["| parameter | default | range | description |", "|---|---|---|---|"]
-    for s in specs:
-        if skip_robot and s.name.startswith(ROBOT_PREFIX):
-            continue
-
-        rows.append(f"| `{s.name}` | `{s.default!r}` | {s.range_text()} | {s.description} |")
-    return "\n".join(rows)
-
-
 class ThrottledWarner:
     """At most one warning per key per ``period_s`` of wall time; counts what it swallowed."""
 
@@ -254,8 +175,84 @@ class ThrottledWarner:
             self._logger.warning(f"{text} ({n} so far)" if n > 1 else text)
 
 
+#: Starts the warning of the callback guard; the test harness (erforce_interfaces.tools.testing) fails a
+#: test whose node logged it, unless the test declared it expects it.
+CALLBACK_FAULT = "callback fault"
+
+
+def guard_callbacks(node: Node) -> ThrottledWarner:
+    """The one guard around every subscription callback of ``node``'s process (executor.py).
+
+    The nodes reject bad input they know of with their own warnings ("rejected ..."); an exception
+    that still escapes a callback is bad input nobody foresaw or a bug of ours. Either way the message
+    is dropped and the node lives on: a throttled warning names the topic, the exception and where it
+    was raised, and counts them per topic (``counts``). After shutdown (Ctrl-C under a publish) the
+    exception propagates, as run_node expects.
+    """
+    warner = ThrottledWarner(node)
+
+    def on_fault(sub, exc: Exception) -> None:
+        if not node.context.ok():
+            raise exc
+        topic = sub.topic_name
+        frames = traceback.extract_tb(exc.__traceback__)
+        last = frames[-1] if frames else None
+        where = f" at {last.filename.rsplit('/', 1)[-1]}:{last.lineno} in {last.name}" if last else ""
+        warner.warn(topic, f"{CALLBACK_FAULT} on {topic}: {type(exc).__name__}: {exc}{where}; message dropped")
+
+    set_callback_fault_handler(on_fault)
+    return warner
+
+
+def guard_clock(node: Node, max_jump_s: float = 2.0) -> StampFilter | None:
+    """Put the stack's time rule (stamps.StampFilter) in front of rclpy's ``/clock`` callback.
+
+    rclpy's TimeSource raises on a negative clock and follows any other, so a single far-future or
+    backwards ``/clock`` from any participant moved every sim-time node's time. Now such a clock is
+    dropped with a throttled warning, and a confirmed new time line (a restarted simulator) resets
+    the node's clock and calls ``node.on_clock_restart()`` when the node has one. Returns the filter
+    (None without use_sim_time: no /clock subscription).
+    """
+    subs = [s for s in node.subscriptions if s.topic_name == CLOCK.name]
+    if not subs:
+        return None
+    stamps = StampFilter(max_jump_s)
+    warner = ThrottledWarner(node)
+    for sub in subs:
+        set_time = sub.callback
+
+        def on_clock(msg, set_time=set_time) -> None:
+            verdict = stamps.offer(stamp_ns(msg.clock.sec, msg.clock.nanosec))
+            if verdict is StampVerdict.DROP:
+                warner.warn("clock", f"dropped /clock: {stamps.reason}")
+                return
+            set_time(msg)
+            if verdict is StampVerdict.RESTART:
+                node.get_logger().warning(f"/clock: {stamps.reason}; resetting")
+                restart = getattr(node, "on_clock_restart", None)
+                if restart is not None:
+                    restart()
+
+        sub.callback = on_clock
+    return stamps
+
+
+def check_stamp(stamps: StampFilter, t_ns: int | None, warner: ThrottledWarner, topic: str,
+                node: Node) -> StampVerdict:
+    """The time rule for one input's header stamp: a dropped stamp warns (throttled, per topic), a
+    restart is logged; the caller drops the message on DROP and resets its state on RESTART."""
+    verdict = stamps.offer(t_ns)
+    if verdict is StampVerdict.DROP:
+        warner.warn(f"stamp {topic}", f"rejected {topic}: {stamps.reason}")
+    elif verdict is StampVerdict.RESTART:
+        node.get_logger().warning(f"{topic}: {stamps.reason}; resetting")
+    return verdict
+
+
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
-    """Standard node main: init, spin on a DirectExecutor (erforce_interfaces.executor), clean shutdown.
+    """Standard node main: init, spin on DirectExecutor (erforce_interfaces.executor.make_executor), clean shutdown.
+
+    Every node gets the callback guard (guard_callbacks) and the time rule on /clock (guard_clock).
 
     Returns the process exit code: 0 after Ctrl-C or external shutdown, 1 when the
     node refused to start (for example an invalid parameter file).
@@ -270,7 +267,9 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
             # Invalid configuration at start-up: one clear line, no traceback.
             rclpy.logging.get_logger("erforce").fatal(f"cannot start: {exc}")
             return 1
-        executor = DirectExecutor()
+        guard_callbacks(node)
+        guard_clock(node)
+        executor = make_executor()  # DirectExecutor unless ERFORCE_EXECUTOR says otherwise
         executor.add_node(node)
         # The imports (numpy, numba, rclpy) leave ~130k objects that the cyclic GC would scan in every
         # full collection: ~50 ms each back to back, while the node's loop waits. They live as long
@@ -282,12 +281,13 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         pass
     except SystemExit as exc:  # a node may end itself (e.g. the plant's stop_after_s)
         code = exc.code if isinstance(exc.code, int) else 0
-    except _rclpy.RCLError:
+    except RCLError:
         # Ctrl-C shuts the context down at once, also under a callback that is about to publish;
         # its "context is invalid" is the shutdown, not a fault.
         if node is None or node.context.ok():
             raise
     finally:
+        set_callback_fault_handler(None)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -18,6 +18,7 @@ import math
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 
@@ -27,11 +28,21 @@ def _default_wheel_angles() -> tuple[float, ...]:
     return tuple(math.radians(a) for a in (60.0, 135.0, 225.0, 300.0))
 
 
-def _doc(default, doc: str):
-    """A dataclass field with its documentation (the node parameter descriptions come from it)."""
+def _doc(default, doc: str, **bounds):
+    """A dataclass field with its documentation and bounds (``gt``, ``le``, ``min_size``); the node
+    parameter descriptors and the checks in ``RobotConfig.__post_init__`` both come from them."""
+    meta = {"doc": doc, **bounds}
     if callable(default):
-        return field(default_factory=default, metadata={"doc": doc})
-    return field(default=default, metadata={"doc": doc})
+        return field(default_factory=default, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def _positive(default, doc: str):
+    return _doc(default, doc, gt=0.0)
+
+
+# A wheel layout whose matrix is this ill-conditioned turns small body commands into huge wheel speeds.
+MAX_WHEEL_LAYOUT_CONDITION = 100.0
 
 
 @dataclass(frozen=True)
@@ -39,48 +50,80 @@ class RobotConfig:
     """Geometry, inertia and drive train of one omni-wheel SSL robot."""
 
     wheel_angles_rad: tuple[float, ...] = _doc(
-        _default_wheel_angles, "wheel positions in base_link, CCW from +x [rad]; 3 or more")
-    wheel_radius_m: float = _doc(0.0275, "wheel radius [m]")
-    wheel_distance_m: float = _doc(0.081, "robot centre to wheel contact point [m]")
-    robot_radius_m: float = _doc(0.09, "robot body radius [m]")
-    mass_kg: float = _doc(2.6, "robot mass [kg]")
-    inertia_kgm2: float = _doc(0.011, "robot inertia about z through the centre of mass [kg m^2]")
-    dribbler_offset_m: float = _doc(0.0815, "robot centre to ball centre when the ball touches the dribbler [m]")
-    dribbler_width_m: float = _doc(0.07, "usable width of the dribbler and kicker plate [m]")
-    traction_mu: float = _doc(0.8, "wheel-carpet friction coefficient")
+        _default_wheel_angles, "wheel positions in base_link, CCW from +x [rad]; 3 or more, spread so that "
+        "the wheels can produce every twist", min_size=3)
+    wheel_radius_m: float = _positive(0.0275, "wheel radius [m]")
+    wheel_distance_m: float = _positive(0.081, "robot centre to wheel contact point [m]")
+    robot_radius_m: float = _positive(0.09, "robot body radius [m]")
+    mass_kg: float = _positive(2.6, "robot mass [kg]")
+    inertia_kgm2: float = _positive(0.011, "robot inertia about z through the centre of mass [kg m^2]")
+    dribbler_offset_m: float = _positive(0.0815, "robot centre to ball centre when the ball touches the dribbler [m]")
+    dribbler_width_m: float = _positive(0.07, "usable width of the dribbler and kicker plate [m]")
+    traction_mu: float = _positive(0.8, "wheel-carpet friction coefficient")
     # Drive train: Maxon EC-45 flat 50 W class motor behind a spur gear.
-    gear_ratio: float = _doc(3.6, "motor revolutions per wheel revolution")
-    gear_efficiency: float = _doc(0.9, "gear efficiency, (0, 1]")
-    motor_resistance_ohm: float = _doc(0.94, "winding resistance [ohm]")
-    motor_inductance_h: float = _doc(0.36e-3, "winding inductance [H]")
-    motor_torque_constant_nm_per_a: float = _doc(0.036, "torque constant [N m/A] = back-EMF constant [V s/rad]")
-    motor_rotor_inertia_kgm2: float = _doc(1.35e-5, "rotor inertia [kg m^2]")
-    wheel_inertia_kgm2: float = _doc(2.0e-5, "wheel with rollers, about its axle [kg m^2]")
-    motor_viscous_friction_nms: float = _doc(2.0e-6, "viscous friction at the motor shaft [N m s]")
-    motor_coulomb_friction_nm: float = _doc(1.5e-3, "Coulomb friction at the motor shaft [N m]")
-    supply_voltage_v: float = _doc(24.0, "battery voltage at the motor bridge [V]")
-    winding_thermal_time_constant_s: float = _doc(29.0, "winding thermal time constant [s]")
-    winding_thermal_resistance_k_per_w: float = _doc(1.9, "winding to housing thermal resistance [K/W]")
-    winding_max_temperature_c: float = _doc(125.0, "maximum winding temperature [degC]")
+    gear_ratio: float = _positive(3.6, "motor revolutions per wheel revolution")
+    gear_efficiency: float = _doc(0.9, "gear efficiency", gt=0.0, le=1.0)
+    motor_resistance_ohm: float = _positive(0.94, "winding resistance [ohm]")
+    motor_inductance_h: float = _positive(0.36e-3, "winding inductance [H]")
+    motor_torque_constant_nm_per_a: float = _positive(0.036, "torque constant [N m/A] = back-EMF constant [V s/rad]")
+    motor_rotor_inertia_kgm2: float = _positive(1.35e-5, "rotor inertia [kg m^2]")
+    wheel_inertia_kgm2: float = _positive(2.0e-5, "wheel with rollers, about its axle [kg m^2]")
+    motor_viscous_friction_nms: float = _positive(2.0e-6, "viscous friction at the motor shaft [N m s]")
+    motor_coulomb_friction_nm: float = _positive(1.5e-3, "Coulomb friction at the motor shaft [N m]")
+    supply_voltage_v: float = _positive(24.0, "battery voltage at the motor bridge [V]")
+    winding_thermal_time_constant_s: float = _positive(29.0, "winding thermal time constant [s]")
+    winding_thermal_resistance_k_per_w: float = _positive(1.9, "winding to housing thermal resistance [K/W]")
+    winding_max_temperature_c: float = _positive(125.0, "maximum winding temperature [degC]")
     ambient_temperature_c: float = _doc(25.0, "ambient temperature [degC]")
-    continuous_current_limit_a: float = _doc(1.3, "the paper's limit on the ~10 s average motor current [A]")
+    continuous_current_limit_a: float = _positive(1.3, "the paper's limit on the ~10 s average motor current [A]")
 
     def __post_init__(self) -> None:
         angles = tuple(float(a) for a in self.wheel_angles_rad)
         object.__setattr__(self, "wheel_angles_rad", angles)
-        if len(angles) < 3:
-            raise ValueError(f"wheel_angles_rad: need at least 3 wheels, got {len(angles)}")
         for f in fields(self):
             value = getattr(self, f.name)
             values = value if isinstance(value, tuple) else (value,)
-            if not all(math.isfinite(v) for v in values):
-                raise ValueError(f"{f.name}: must be finite, got {value!r}")
-            if f.name not in ("wheel_angles_rad", "ambient_temperature_c") and value <= 0.0:
-                raise ValueError(f"{f.name}: must be > 0, got {value!r}")
-        if self.gear_efficiency > 1.0:
-            raise ValueError(f"gear_efficiency: must be <= 1, got {self.gear_efficiency}")
+            if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in values):
+                raise ValueError(f"{f.name}: must be finite numbers, got {value!r}")
+            meta = f.metadata
+            if len(values) < meta.get("min_size", 0):
+                raise ValueError(f"{f.name}: need at least {meta['min_size']} values, got {len(values)}")
+            if "gt" in meta and value <= meta["gt"]:
+                raise ValueError(f"{f.name}: must be > {meta['gt']:g}, got {value!r}")
+            if "le" in meta and value > meta["le"]:
+                raise ValueError(f"{f.name}: must be <= {meta['le']:g}, got {value!r}")
+        self._check_as_a_whole()
+
+    def _check_as_a_whole(self) -> None:
+        """What no single value shows: the parts must make one robot that can drive."""
         if self.winding_max_temperature_c <= self.ambient_temperature_c:
             raise ValueError("winding_max_temperature_c must exceed ambient_temperature_c")
+        if self.wheel_distance_m > self.robot_radius_m:
+            raise ValueError(f"wheel_distance_m: {self.wheel_distance_m} m puts the wheels outside the body "
+                             f"(robot_radius_m {self.robot_radius_m} m)")
+        condition = self.wheel_layout_condition
+        if not condition <= MAX_WHEEL_LAYOUT_CONDITION:
+            degrees = ", ".join(f"{math.degrees(a):.1f}" for a in self.wheel_angles_rad)
+            raise ValueError(f"wheel_angles_rad: the wheels at [{degrees}] deg cannot produce every twist (wheel "
+                             f"matrix condition number {condition:.3g}, at most {MAX_WHEEL_LAYOUT_CONDITION:g}); "
+                             "spread them around the robot")
+
+    @property
+    def wheel_layout_condition(self) -> float:
+        """Condition number of the wheel matrix rows [-sin a, cos a, 1] (the rotation column in units of
+        the wheel distance, so that it does not depend on the robot's size); inf when its rank is < 3."""
+        rows = [(-math.sin(a), math.cos(a), 1.0) for a in self.wheel_angles_rad]
+        return float(np.linalg.cond(np.array(rows)))
+
+    @property
+    def wheel_no_load_speed_radps(self) -> float:
+        """The fastest the motors turn a wheel: supply voltage over back-EMF constant, through the gear."""
+        return self.supply_voltage_v / (self.motor_torque_constant_nm_per_a * self.gear_ratio)
+
+    @property
+    def top_wheel_speed_mps(self) -> float:
+        """Speed of a wheel's rim at the motors' no-load speed: no robot motion asks more of one wheel."""
+        return self.wheel_radius_m * self.wheel_no_load_speed_radps
 
     @property
     def num_wheels(self) -> int:
@@ -108,13 +151,35 @@ class RobotConfig:
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> RobotConfig:
-        """Load a ROS 2 parameter file's ``robot.*`` parameters (the format of config/robot.yaml)."""
+        """Load a ROS 2 parameter file's ``robot.*`` parameters (the format of config/robot.yaml).
+
+        Every node of a graph loads the same file; a file that gives the nodes different robots (one
+        ``robot`` section per node name, not all equal) is refused, naming what differs. Nested maps
+        and the dotted form (``robot.mass_kg: 2.6``) are both read, as ROS reads them.
+        """
         data = yaml.safe_load(Path(path).read_text()) or {}
-        for scope in data.values():  # "/**", or a node name
-            params = (scope or {}).get("ros__parameters", {})
-            if "robot" in params:
-                return cls.from_dict(params["robot"])
-        raise ValueError(f"{path}: no robot parameters (expected <node>: ros__parameters: robot: ...)")
+        if not isinstance(data, dict):
+            raise ValueError(f"{path}: expected a ROS 2 parameter file (<node>: ros__parameters: ...)")
+        found: dict[str, RobotConfig] = {}
+        for scope, content in data.items():  # "/**", or a node name
+            params = (content or {}).get("ros__parameters", {}) if isinstance(content, dict) else {}
+            robot = dict(params.get("robot") or {})
+            robot.update({k[len("robot."):]: v for k, v in params.items() if k.startswith("robot.")})
+            if robot:
+                try:
+                    found[scope] = cls.from_dict(robot)
+                except (ValueError, TypeError) as exc:
+                    raise ValueError(f"{path}: {scope}: robot.{exc}") from None
+        if not found:
+            raise ValueError(f"{path}: no robot parameters (expected <node>: ros__parameters: robot: ...)")
+        (first_scope, first), *others = found.items()
+        for scope, other in others:
+            if other != first:
+                a, b = first.to_dict(), other.to_dict()
+                diff = ", ".join(f"{k} {a[k]!r} vs {b[k]!r}" for k in a if a[k] != b[k])
+                raise ValueError(f"{path}: the nodes {first_scope!r} and {scope!r} get different robots ({diff}); "
+                                 "one robot description serves every node")
+        return first
 
     @classmethod
     def field_docs(cls) -> dict[str, str]:

@@ -32,9 +32,16 @@ def _as_finite_array(values, last_dim: int, name: str) -> np.ndarray:
     return arr
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class OmniKinematics:
-    """Twist <-> wheel speed maps of an omni-wheel robot with n >= 3 wheels at arbitrary angles."""
+    """Twist <-> wheel speed maps of an omni-wheel robot with n >= 3 wheels at arbitrary angles.
+
+    Keyword-only (two lengths side by side are easy to swap):
+
+    >>> kin = OmniKinematics(wheel_angles_rad=(0.0, 2.0944, 4.1888), wheel_distance_m=0.08, wheel_radius_m=0.03)
+    >>> kin.inverse([0.0, 0.0, 1.0]).round(3).tolist()  # turning at 1 rad/s: every wheel at d / r
+    [2.667, 2.667, 2.667]
+    """
 
     wheel_angles_rad: tuple[float, ...]
     wheel_distance_m: float
@@ -71,7 +78,8 @@ class OmniKinematics:
 
     @classmethod
     def from_robot_config(cls, cfg: RobotConfig) -> OmniKinematics:
-        return cls(cfg.wheel_angles_rad, cfg.wheel_distance_m, cfg.wheel_radius_m)
+        return cls(wheel_angles_rad=cfg.wheel_angles_rad, wheel_distance_m=cfg.wheel_distance_m,
+                   wheel_radius_m=cfg.wheel_radius_m)
 
     @property
     def num_wheels(self) -> int:

@@ -95,7 +95,16 @@ class MotorBoardConfig:
 
 
 class ThermalCurrentLimiter:
-    """The paper's PWM limit from the ~10 s average current (see module docstring)."""
+    """The paper's PWM limit from the ~10 s average current (see module docstring).
+
+    One ``update`` per loop run of ``loop_period_s`` (the one tick length it knows):
+
+    >>> limiter = ThermalCurrentLimiter(1, current_limit_a=1.3, window_s=0.01, loop_period_s=0.001)
+    >>> for _ in range(10):  # 2 A for 10 ms: the 10 ms average reaches the limit
+    ...     limit = limiter.update(np.array([2.0]), last_duty=np.array([0.5]))
+    >>> limit.round(2).tolist()  # lowered below the last duty by pwm_decrement
+    [0.49]
+    """
 
     def __init__(
         self,
@@ -120,6 +129,7 @@ class ThermalCurrentLimiter:
             raise ValueError(f"n_wheels: must be >= 1, got {n_wheels}")
         self.n_wheels = n_wheels
         self.current_limit_a = float(current_limit_a)
+        self.loop_period_s = float(loop_period_s)
         self.window_samples = max(1, round(window_s / loop_period_s))
         self.pwm_decrement = float(pwm_decrement)
         self.recovery_rate_per_s = float(recovery_rate_per_s)
@@ -140,8 +150,9 @@ class ThermalCurrentLimiter:
             return np.sqrt(self._i2)
         return self._sum / self.window_samples
 
-    def update(self, measured_current_a, last_duty, dt_s: float) -> np.ndarray:
+    def update(self, measured_current_a, last_duty) -> np.ndarray:
         """Feed one loop sample; returns the PWM limit in [0, 1] for this loop run (a view, do not keep)."""
+        dt_s = self.loop_period_s
         a = np.abs(measured_current_a)
         if self.mode == "average":
             k = self._index
@@ -243,7 +254,7 @@ class MotorBoard:
         if not np.isfinite(i_meas).all():
             raise ValueError(f"measured_current_a: must be finite, got {i_meas!r}")
         i_des = self._speed_pid.step(sp, w, dt_s)
-        limit = self.thermal.update(i_meas, self._duty, dt_s)
+        limit = self.thermal.update(i_meas, self._duty)
         if self._inverse:
             emf = self._emf_duty_per_radps * w
             i_hi = (limit - emf) * self._v_over_r

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import collections
 import time
-from typing import Any
 
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -27,142 +26,47 @@ from erforce_interfaces.conversions import (
 from erforce_interfaces.executor import run_sampled, sample_only
 from erforce_interfaces.lockstep import SetpointJoin
 from erforce_interfaces.node_support import (
-    ParamSpec,
+    NodeParams,
     ThrottledWarner,
+    check_stamp,
     contract_publisher,
     contract_subscription,
-    declare_params,
-    robot_config_from_params,
-    robot_param_specs,
     run_node,
     sample_clock,
 )
+from erforce_interfaces.param_schema import fields_for, load_schema
+from erforce_interfaces.stamps import StampFilter, StampVerdict
 from erforce_motion.firmware import MotorBoardLoop
 from erforce_motion.motor_board import MotorBoardConfig
 
-_MB = MotorBoardConfig()  # node defaults are the core's defaults
-
-PARAMS = (
-    ParamSpec(
-        "loop_rate_hz",
-        500.0,
-        "motor-board loop rate; slower than the sensor ticks holds the duty [Hz]",
-        min=1.0,
-        max=50000.0,
-    ),
-    ParamSpec(
-        "lockstep_sync",
-        True,
-        "wait for the previous tick's setpoint before answering a tick "
-        "(deterministic lockstep); false answers at once with the newest setpoint",
-    ),
-    ParamSpec(
-        "setpoint_wait_s",
-        0.05,
-        "wall-clock wait for a late setpoint before going on without it [s]",
-        min=0.001,
-        max=10.0,
-    ),
-    ParamSpec(
-        "setpoint_timeout_s",
-        0.1,
-        "stop the wheels when the newest setpoint is older than this (robot time) [s]",
-        min=0.001,
-        max=10.0,
-    ),
-    ParamSpec("status_rate_hz", 50.0, "rate of motor_status (robot time) [Hz]", min=0.1, max=1000.0),
-    ParamSpec(
-        "speed_kp_a_per_radps", _MB.speed_kp_a_per_radps, "speed PID proportional gain [A/(rad/s)]", min=1e-6, max=100.0
-    ),
-    ParamSpec("speed_ki_a_per_rad", _MB.speed_ki_a_per_rad, "speed PID integral gain [A/rad]", min=0.0, max=10000.0),
-    ParamSpec("speed_kd_as_per_rad", _MB.speed_kd_as_per_rad, "speed PID derivative gain [A s/rad]", min=0.0, max=10.0),
-    ParamSpec(
-        "speed_derivative_tau_s",
-        _MB.speed_derivative_tau_s,
-        "low-pass time constant of the speed derivative [s]",
-        min=0.0,
-        max=1.0,
-    ),
-    ParamSpec(
-        "peak_current_a",
-        _MB.peak_current_a,
-        "speed loop output limit: the largest current it asks for [A]",
-        min=0.01,
-        max=100.0,
-    ),
-    ParamSpec("current_kp", _MB.current_kp, "current PID proportional gain [A/A]", min=1e-6, max=100.0),
-    ParamSpec("current_ki_per_s", _MB.current_ki_per_s, "current PID integral gain [1/s]", min=0.0, max=100000.0),
-    ParamSpec("anti_windup", _MB.anti_windup, "integrator anti-windup of both PIDs: clamp | back_calculation"),
-    ParamSpec(
-        "actuator_mode",
-        _MB.actuator_mode,
-        "current -> PWM: linear (the paper's factor) | inverse_model (inverse DC motor)",
-    ),
-    ParamSpec(
-        "linear_duty_per_a", 0.0, "duty per ampere of the linear actuator; 0 = R / V_supply [1/A]", min=0.0, max=10.0
-    ),
-    ParamSpec("thermal_mode", _MB.thermal_mode, "thermal protection: average (the paper's ~10 s mean current) | i2t"),
-    ParamSpec(
-        "average_window_s", _MB.average_window_s, "averaging window of the current limit [s]", min=0.01, max=600.0
-    ),
-    ParamSpec(
-        "pwm_decrement",
-        _MB.pwm_decrement,
-        "PWM limit step below the last PWM while over the limit (1 % = 0.01)",
-        min=1e-6,
-        max=1.0,
-    ),
-    ParamSpec(
-        "pwm_recovery_rate_per_s",
-        _MB.pwm_recovery_rate_per_s,
-        "how fast the PWM limit rises once under the limit [1/s]",
-        min=1e-6,
-        max=100.0,
-    ),
-) + robot_param_specs()
-
-_CONFIG_KEYS = (
-    "speed_kp_a_per_radps",
-    "speed_ki_a_per_rad",
-    "speed_kd_as_per_rad",
-    "speed_derivative_tau_s",
-    "peak_current_a",
-    "current_kp",
-    "current_ki_per_s",
-    "anti_windup",
-    "actuator_mode",
-    "thermal_mode",
-    "average_window_s",
-    "pwm_decrement",
-    "pwm_recovery_rate_per_s",
-)
+SCHEMA = load_schema("erforce_motion", "motor_boards")
 
 
-def build_loop(values: dict[str, Any]) -> MotorBoardLoop:
-    """The motor-board loop for a complete set of parameter values (raises ValueError when invalid)."""
-    if values["anti_windup"] not in ("clamp", "back_calculation"):
-        raise ValueError(f"anti_windup must be clamp or back_calculation, got {values['anti_windup']!r}")
-    robot = robot_config_from_params(values)
-    period_s = 1.0 / values["loop_rate_hz"]
-    config = MotorBoardConfig(
-        **{k: values[k] for k in _CONFIG_KEYS},
-        linear_duty_per_a=values["linear_duty_per_a"] or None,
+def build_loop(config) -> MotorBoardLoop:
+    """The motor-board loop for a config object of the schema (raises ValueError when it cannot run)."""
+    robot = config.robot
+    period_s = 1.0 / config.loop_rate_hz
+    board = MotorBoardConfig(**fields_for(
+        MotorBoardConfig, config,
+        linear_duty_per_a=config.linear_duty_per_a or None,
         loop_period_s=period_s,
         average_current_limit_a=robot.continuous_current_limit_a,
         i2t_time_constant_s=robot.winding_thermal_time_constant_s,
-    )
-    return MotorBoardLoop(robot, config, period_s, values["setpoint_timeout_s"])
+    ))
+    return MotorBoardLoop(robot, board, period_s, config.setpoint_timeout_s)
 
 
 class MotorBoardsNode(Node):
     def __init__(self) -> None:
         super().__init__("motor_boards")
         self._warn = ThrottledWarner(self)
-        self._loop: MotorBoardLoop | None = None
-        self._values = declare_params(self, PARAMS, build_loop, self._apply)
+        self._params = NodeParams(self, SCHEMA, build_loop)
+        self._values = self._params.values
+        self._loop: MotorBoardLoop = self._params.built
         self._join = SetpointJoin(wait=self._values["lockstep_sync"])
         self._pending: collections.deque = collections.deque()  # (stamp_ns, speeds, currents, wall_s)
         self._last_status_ns: int | None = None
+        self._tick_stamps, self._setpoint_stamps = StampFilter(), StampFilter()
         self._duty_pub = contract_publisher(self, contract.MOTOR_DUTY)
         self._status_pub = contract_publisher(self, contract.MOTOR_STATUS)
         # The lockstep topics travel serialized (conversions.joint_state_cdr): rclpy's message
@@ -179,21 +83,25 @@ class MotorBoardsNode(Node):
         # ~25 us more per DDS round trip on this VM.
         self._hold_timer = self.create_timer(0.05, self._drain, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._hold_timer.cancel()
+        self._params.on_change(self._apply)
 
     def _apply(self, loop: MotorBoardLoop) -> None:
-        if self._loop is not None:
-            loop.take_over(self._loop)
+        loop.take_over(self._loop)
         self._loop = loop
-        if hasattr(self, "_join"):
-            self._join.wait = self._values["lockstep_sync"]
+        self._join.wait = self._values["lockstep_sync"]
 
     def _on_wheel_states(self, msg: bytes) -> None:
-        run_sampled(self._sampled)
         try:
             t_ns, speeds, currents = wheel_states_from_msg(msg, self._loop.robot.num_wheels)
         except ConversionError as exc:
             self._warn.warn("wheel_states", f"rejected wheel_states: {exc}")
             return
+        verdict = check_stamp(self._tick_stamps, t_ns, self._warn, "wheel_states", self)
+        if verdict is StampVerdict.DROP:
+            return  # before anything else: a flood of these must cost little
+        run_sampled(self._sampled)
+        if verdict is StampVerdict.RESTART:
+            self._pending.clear()  # ticks of the old time line need no answer any more
         self._pending.append((t_ns, speeds, currents, time.monotonic()))
         self._drain()
 
@@ -202,6 +110,8 @@ class MotorBoardsNode(Node):
             t_ns, setpoints = joint_state_from_msg(msg, self._loop.robot.num_wheels, "velocity")
         except ConversionError as exc:
             self._warn.warn("wheel_setpoints", f"rejected wheel_setpoints: {exc}")
+            return
+        if check_stamp(self._setpoint_stamps, t_ns, self._warn, "wheel_setpoints", self) is StampVerdict.DROP:
             return
         self._join.add_setpoint(t_ns, setpoints)
         self._drain()

@@ -32,7 +32,7 @@ from typing import Literal
 import numpy as np
 
 AntiWindup = Literal["clamp", "back_calculation"]
-_ANTI_WINDUP_MODES = ("clamp", "back_calculation")
+ANTI_WINDUP_MODES = ("clamp", "back_calculation")
 
 
 def _channel_values(value, n: int, name: str) -> np.ndarray:
@@ -70,8 +70,8 @@ class PidConfig:
         n = self.n_channels
         if not isinstance(n, int) or isinstance(n, bool) or n < 1:
             raise ValueError(f"n_channels: must be an int >= 1, got {n!r}")
-        if self.anti_windup not in _ANTI_WINDUP_MODES:
-            raise ValueError(f"anti_windup: must be one of {_ANTI_WINDUP_MODES}, got {self.anti_windup!r}")
+        if self.anti_windup not in ANTI_WINDUP_MODES:
+            raise ValueError(f"anti_windup: must be one of {ANTI_WINDUP_MODES}, got {self.anti_windup!r}")
         arrays = self.arrays()
         for name in ("kp", "ki", "kd", "derivative_filter_tau_s", "deadband", "tracking_gain_kt"):
             a = arrays[name]

@@ -4,7 +4,7 @@ The same contract as one ``velocity_controller`` plus one ``motor_boards`` per r
 its namespace ``robot_<id>``): per robot in ``robot_ids`` it takes ``/robot_<id>/cmd_vel`` and
 ``/robot_<id>/wheel_states`` and answers each tick with ``/robot_<id>/motor_duty`` and, at its
 rate, ``motor_status``. Inside, the main board's setpoint reaches the motor boards without DDS,
-one tick later, exactly as erforce_sim.runner.InProcessRunner steps the same cores
+one tick later, exactly as erforce_sim.closed_loop.runner.InProcessRunner steps the same cores
 (erforce_motion.firmware), so the lockstep graph computes the same trajectory with either
 deployment. ``wheel_setpoints`` is published only with ``publish_setpoints`` (for tools):
 nobody in the graph needs it, and it would be a message per robot per tick.
@@ -17,9 +17,6 @@ starting the node with another list.
 """
 
 from __future__ import annotations
-
-import dataclasses
-from typing import Any
 
 from geometry_msgs.msg import Twist
 from rclpy.node import Node
@@ -34,15 +31,16 @@ from erforce_interfaces.conversions import (
 )
 from erforce_interfaces.executor import run_sampled
 from erforce_interfaces.node_support import (
-    ParamSpec,
+    NodeParams,
     ThrottledWarner,
+    check_stamp,
     contract_publisher,
     contract_subscription,
-    declare_params,
-    robot_param_specs,
     run_node,
     sample_clock,
 )
+from erforce_interfaces.param_schema import HostSchema, load_schema
+from erforce_interfaces.stamps import StampFilter, StampVerdict
 from erforce_motion import motor_boards_node, velocity_controller_node
 from erforce_motion.firmware import MainBoardLoop, MotorBoardLoop
 
@@ -50,39 +48,20 @@ MAIN_PREFIX, MOTOR_PREFIX = "main_board.", "motor_boards."
 # The motor boards' DDS-side parameters (waiting for the main board's setpoint) mean nothing here.
 _MOTOR_DDS_ONLY = ("lockstep_sync", "setpoint_wait_s")
 
-
-def _prefixed(prefix: str, specs, skip=()) -> tuple[ParamSpec, ...]:
-    return tuple(dataclasses.replace(s, name=prefix + s.name) for s in specs
-                 if not s.name.startswith("robot.") and s.name not in skip)
-
-
-OWN_PARAMS = (
-    ParamSpec("robot_ids", [0], "the robots this process runs the firmware of (namespaces robot_<id>)",
-              min=0, max=1000, read_only=True),
-    ParamSpec("publish_setpoints", False, "also publish each robot's wheel_setpoints (for tools)"),
-)
-PARAMS = OWN_PARAMS + _prefixed(MAIN_PREFIX, velocity_controller_node.PARAMS) + _prefixed(
-    MOTOR_PREFIX, motor_boards_node.PARAMS, _MOTOR_DDS_ONLY) + robot_param_specs()
-
-_MOTOR_DEFAULTS = {s.name: s.default for s in motor_boards_node.PARAMS if s.name in _MOTOR_DDS_ONLY}
+SCHEMA = HostSchema(load_schema("erforce_motion", "team_firmware"), {
+    MAIN_PREFIX: (velocity_controller_node.SCHEMA, ()),
+    MOTOR_PREFIX: (motor_boards_node.SCHEMA, _MOTOR_DDS_ONLY),
+})
 
 
-def _values_for(prefix: str, values: dict[str, Any], extra: dict[str, Any] | None = None) -> dict[str, Any]:
-    out = {k[len(prefix):]: v for k, v in values.items() if k.startswith(prefix)}
-    out.update({k: v for k, v in values.items() if k.startswith("robot.")})
-    out.update(extra or {})
-    return out
-
-
-def build_loops(values: dict[str, Any]) -> dict[int, tuple[MainBoardLoop, MotorBoardLoop]]:
+def build_loops(config) -> dict[int, tuple[MainBoardLoop, MotorBoardLoop]]:
     """One main-board and one motor-board loop per robot id (raises ValueError when invalid)."""
-    ids = list(values["robot_ids"])
+    own, hosted = config
+    ids = list(own.robot_ids)
     if not ids or len(set(ids)) != len(ids):
         raise ValueError(f"robot_ids: need distinct ids, at least one, got {ids}")
-    main_values = _values_for(MAIN_PREFIX, values)
-    motor_values = _values_for(MOTOR_PREFIX, values, _MOTOR_DEFAULTS)
-    return {int(i): (velocity_controller_node.build_loop(main_values), motor_boards_node.build_loop(motor_values))
-            for i in ids}
+    return {int(i): (velocity_controller_node.build_loop(hosted[MAIN_PREFIX]),
+                     motor_boards_node.build_loop(hosted[MOTOR_PREFIX])) for i in ids}
 
 
 class _Robot:
@@ -92,6 +71,7 @@ class _Robot:
         self.robot_id, self.main, self.motor = robot_id, main, motor
         self.previous_setpoint = None  # (t_s, setpoints) of the last tick
         self.last_status_ns: int | None = None
+        self.stamps = StampFilter()  # the time rule for this robot's ticks
         self.duty_pub = contract_publisher(node, contract.MOTOR_DUTY, contract.MOTOR_DUTY.for_robot(robot_id))
         self.status_pub = contract_publisher(node, contract.MOTOR_STATUS, contract.MOTOR_STATUS.for_robot(robot_id))
         self.setpoint_pub = contract_publisher(node, contract.WHEEL_SETPOINTS,
@@ -103,7 +83,9 @@ class TeamFirmwareNode(Node):
         super().__init__("team_firmware")
         self._warn = ThrottledWarner(self)
         self._robots: dict[int, _Robot] = {}
-        self._values = declare_params(self, PARAMS, build_loops, self._apply)
+        self._params = NodeParams(self, SCHEMA, build_loops)
+        self._values = self._params.values
+        self._apply(self._params.built)
         for i, robot in self._robots.items():
             contract_subscription(self, contract.CMD_VEL, lambda m, r=robot: self._on_cmd_vel(r, m),
                                   contract.CMD_VEL.for_robot(i))
@@ -111,6 +93,7 @@ class TeamFirmwareNode(Node):
                                   contract.WHEEL_STATES.for_robot(i), raw=True)
         self._clock_subs = sample_clock(self)
         self.get_logger().info(f"team_firmware: robots {sorted(self._robots)}")
+        self._params.on_change(self._apply)
 
     def _apply(self, loops: dict[int, tuple[MainBoardLoop, MotorBoardLoop]]) -> None:
         for i, (main, motor) in loops.items():
@@ -143,6 +126,11 @@ class TeamFirmwareNode(Node):
         except ConversionError as exc:
             self._warn.warn(f"wheel_states{robot.robot_id}", f"robot_{robot.robot_id}: rejected wheel_states: {exc}")
             return
+        verdict = check_stamp(robot.stamps, t_ns, self._warn, f"robot_{robot.robot_id}/wheel_states", self)
+        if verdict is StampVerdict.DROP:
+            return
+        if verdict is StampVerdict.RESTART:
+            robot.previous_setpoint = robot.last_status_ns = None  # of the old time line
         t_s = t_ns * 1e-9
         setpoint = main.tick(t_s, speeds).copy()
         if robot.previous_setpoint is not None and robot.previous_setpoint[0] < t_s:

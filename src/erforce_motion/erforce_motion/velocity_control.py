@@ -98,8 +98,7 @@ class VelocityControlConfig:
                 raise ValueError(f"{name}: must be None or finite and > 0, got {v!r}")
         if not isinstance(self.feedforward_enabled, bool):
             raise ValueError("feedforward_enabled: must be a bool")
-        if self.anti_windup not in ("clamp", "back_calculation"):
-            raise ValueError(f"anti_windup: 'clamp' or 'back_calculation', got {self.anti_windup!r}")
+        self.pid_config()  # the PID's own checks (anti-windup mode, limits), in one place: pid.py
 
     @classmethod
     def pid_only(cls, **overrides) -> VelocityControlConfig:
@@ -223,6 +222,12 @@ class VelocityController:
     def __init__(self, robot: RobotConfig | None = None, config: VelocityControlConfig | None = None) -> None:
         self.robot = robot if robot is not None else RobotConfig()
         self.config = config if config is not None else VelocityControlConfig()
+        top_mps = self.robot.top_wheel_speed_mps
+        if self.config.max_speed_mps > top_mps:
+            raise ValueError(
+                f"max_speed_mps {self.config.max_speed_mps:g} m/s is out of the motors' reach with this robot: "
+                f"they turn a wheel at most {self.robot.wheel_no_load_speed_radps:.4g} rad/s, its rim "
+                f"(robot.wheel_radius_m {self.robot.wheel_radius_m:g} m) at {top_mps:.3g} m/s")
         self.kinematics = OmniKinematics.from_robot_config(self.robot)
         self._n = self.kinematics.num_wheels
         self._j = np.array(self.kinematics.wheel_matrix)
@@ -238,6 +243,13 @@ class VelocityController:
         self._shaped = np.zeros(3)
         self._command = np.zeros(3)
         self._wheels = np.zeros(self._n)
+
+    @property
+    def max_setpoint_radps(self) -> float:
+        """The largest wheel speed setpoint ``step`` can return: the PID output limits through the wheel matrix."""
+        limits = np.array([self.config.command_limit_mps, self.config.command_limit_mps,
+                           self.config.command_limit_radps])
+        return float((np.abs(self._j) @ limits).max())
 
     def step(self, desired_twist, measured_wheel_speeds_radps, dt_s: float, wheels_saturated=False) -> np.ndarray:
         """One control period; returns the wheel speed setpoints [rad/s] (new array, length n).

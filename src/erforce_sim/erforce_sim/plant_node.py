@@ -15,7 +15,8 @@ Pacing (parameter ``pacing``):
 
 Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state``
 (nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``. A body
-placed outside the field walls is refused with an error naming it.
+placed outside the field walls is refused with an error naming it. They act at the next tick;
+of several that arrived meanwhile on one topic, the newest.
 """
 
 from __future__ import annotations
@@ -43,149 +44,58 @@ from erforce_interfaces.conversions import (
     pose2d_cdr,
     table_cdr,
 )
+from erforce_interfaces.executor import run_newest, sample_only
 from erforce_interfaces.lockstep import DutyGate
 from erforce_interfaces.node_support import (
-    ParamSpec,
+    NodeParams,
     ThrottledWarner,
     contract_publisher,
     contract_subscription,
-    declare_params,
-    robot_config_from_params,
-    robot_param_specs,
     run_node,
 )
-from erforce_sim.runner import PlantSetup, build_world
+from erforce_interfaces.param_schema import load_schema
+from erforce_sim.closed_loop.runner import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
 from erforce_sim.world import PhysicsParams
 
-PARAMS = (
-    ParamSpec("field", "division_b", "field preset: division_a (12 x 9 m) | division_b (9 x 6 m)", read_only=True),
-    ParamSpec(
-        "robot_poses",
-        [-1.0, 0.0, 0.0],
-        "initial poses, x y yaw per robot, flattened [m, m, rad]; the number of robots is len / 3",
-        read_only=True,
-    ),
-    ParamSpec("kicker_plates", ["curved"], "kicker plate per robot (or one for all): flat | curved", read_only=True),
-    ParamSpec("controlled", [True], "per robot (or one for all): has motor boards the plant waits for", read_only=True),
-    ParamSpec("ball", [0.0, 0.0, 0.0, 0.0], "initial ball x, y [m], vx, vy [m/s] (rolling)", read_only=True),
-    ParamSpec(
-        "seed", 0, "random seed of vision noise, dropouts and sensor noise", min=0, max=2**31 - 1, read_only=True
-    ),
-    ParamSpec(
-        "control_period_s",
-        0.002,
-        "tick period: sensor samples and duty updates [s]",
-        min=1e-4,
-        max=0.05,
-        read_only=True,
-    ),
-    ParamSpec(
-        "substep_hz", 10000.0, "physics substep rate (motors, bodies, ball) [Hz]", min=10000.0, max=1e6, read_only=True
-    ),
-    ParamSpec(
-        "kick_spin_ratio",
-        PhysicsParams().kick_spin_ratio,
-        "ball spin w r / v given by a kick; backspin lowers c_switch = (5 + 2 s) / 7 for a solid sphere, "
-        "and -0.4 gives the paper's measured 0.6",
-        min=-1.0,
-        max=1.0,
-        read_only=True,
-    ),
-    ParamSpec("vision_rate_hz", 70.0, "camera frame rate [Hz]", min=1.0, max=1000.0, read_only=True),
-    ParamSpec("vision_latency_s", 0.015, "capture to publication [s]", min=0.0, max=1.0, read_only=True),
-    ParamSpec("vision_noise_m", 0.002, "position noise, standard deviation [m]", min=0.0, max=0.1, read_only=True),
-    ParamSpec(
-        "vision_dropout", 0.02, "probability an object is missing from a frame", min=0.0, max=1.0, read_only=True
-    ),
-    ParamSpec("pacing", "lockstep", "lockstep (deterministic; waits for motor boards) | realtime"),
-    ParamSpec(
-        "real_time_factor",
-        1.0,
-        "simulated seconds per wall second; 0 = as fast as possible (lockstep only)",
-        min=0.0,
-        max=1000.0,
-    ),
-    ParamSpec(
-        "lockstep_timeout_s",
-        2.0,
-        "wall time to wait for a motor board before reporting a stall [s]",
-        min=0.01,
-        max=60.0,
-    ),
-    ParamSpec(
-        "startup_timeout_s", 30.0, "wall time to wait for the controlled robots' nodes at start [s]", min=0.0, max=600.0
-    ),
-    ParamSpec(
-        "wheel_states_readers",
-        2,
-        "wait (up to startup_timeout_s) for this many readers of each controlled robot's wheel_states before the "
-        "first tick: 2 for a velocity_controller and a motor_boards per robot, 1 for a team_firmware",
-        min=1,
-        max=100,
-        read_only=True,
-    ),
-    ParamSpec(
-        "start_clock_subscribers",
-        0,
-        "also wait (up to startup_timeout_s) for this many /clock subscribers before the first tick, for tools "
-        "that must see time 0; use_sim_time nodes count too",
-        min=0,
-        max=10000,
-        read_only=True,
-    ),
-    ParamSpec(
-        "ground_truth_rate_hz", 100.0, "rate of the ground-truth topics (simulated time) [Hz]", min=1.0, max=1000.0
-    ),
-    ParamSpec(
-        "clock_rate_hz",
-        100.0,
-        "rate of /clock (simulated time) [Hz]; at most one per tick. Every use_sim_time node wakes for each one "
-        "(~0.4 ms of CPU per wake here), and sim-time timers tick at most this often",
-        min=1.0,
-        max=10000.0,
-    ),
-    ParamSpec("stop_after_s", 0.0, "shut down after this much simulated time; 0 = run forever [s]", min=0.0, max=1e6),
-) + robot_param_specs()
+SCHEMA = load_schema("erforce_sim", "plant")
 
 _MAX_TICKS_PER_PUMP = 50  # keep the executor responsive when nobody gates the ticks
-_RETRY_S = 0.1  # re-publish an unanswered tick (lost message, late joiner); duplicates are harmless
+_RETRY_S = 0.05  # re-publish an unanswered tick (lost message, late joiner, a flood that pushed it out of a
+# reader's queue); duplicates are harmless
 _STARTUP_GRACE_S = 0.5
 
 
-def setup_from_params(values: dict[str, Any]) -> PlantSetup:
-    poses = list(values["robot_poses"])
-    if len(poses) % 3 or not poses:
+def setup_from_params(config) -> PlantSetup:
+    """The world's setup from a config object of the schema (all of it read-only: fixed at start)."""
+    poses = config.robot_poses
+    if len(poses) % 3:
         raise ValueError(f"robot_poses: need x, y, yaw per robot, got {len(poses)} values")
-    robot = robot_config_from_params(values)
     return PlantSetup(
-        field_preset=values["field"],
+        field_preset=config.field,
         robot_poses=tuple(tuple(poses[i : i + 3]) for i in range(0, len(poses), 3)),
-        kicker_plates=tuple(values["kicker_plates"]),
-        controlled=tuple(bool(c) for c in values["controlled"]),
-        ball=tuple(values["ball"]),
-        control_period_s=values["control_period_s"],
-        seed=values["seed"],
-        robot=robot,
-        physics=PhysicsParams(substep_hz=values["substep_hz"], kick_spin_ratio=values["kick_spin_ratio"]),
+        kicker_plates=config.kicker_plates,
+        controlled=tuple(bool(c) for c in config.controlled),
+        ball=config.ball,
+        control_period_s=config.control_period_s,
+        seed=config.seed,
+        robot=config.robot,
+        physics=PhysicsParams(substep_hz=config.substep_hz, kick_spin_ratio=config.kick_spin_ratio),
         vision=VisionParams(
-            rate_hz=values["vision_rate_hz"],
-            latency_s=values["vision_latency_s"],
-            position_noise_m=values["vision_noise_m"],
-            ball_dropout_prob=values["vision_dropout"],
-            robot_dropout_prob=values["vision_dropout"],
+            rate_hz=config.vision_rate_hz,
+            latency_s=config.vision_latency_s,
+            position_noise_m=config.vision_noise_m,
+            ball_dropout_prob=config.vision_dropout,
+            robot_dropout_prob=config.vision_dropout,
         ),
     )
 
 
-def _validate(values: dict[str, Any]) -> dict[str, Any]:
-    if values["pacing"] not in ("lockstep", "realtime"):
-        raise ValueError(f"pacing must be lockstep or realtime, got {values['pacing']!r}")
-    if values["pacing"] == "realtime" and values["real_time_factor"] <= 0.0:
+def _check_pacing(config):
+    """The parameters that change at run time, as a whole (pacing, real_time_factor)."""
+    if config.pacing == "realtime" and config.real_time_factor <= 0.0:
         raise ValueError("realtime pacing needs real_time_factor > 0")
-    setup = setup_from_params(values)
-    build_world(setup)  # refuses bodies off the field with a clear error, at start
-    return values
+    return config
 
 
 class PlantNode(Node):
@@ -193,9 +103,10 @@ class PlantNode(Node):
         super().__init__("plant")
         self._warn = ThrottledWarner(self)
         self._pump_timer = None
-        self._values = declare_params(self, PARAMS, _validate, self._apply_params)
-        self.setup = setup_from_params(self._values)
-        self.world = build_world(self.setup)
+        self._params = NodeParams(self, SCHEMA, _check_pacing)
+        self._values = self._params.values
+        self.setup = setup_from_params(self._params.config)
+        self.world = build_world(self.setup)  # refuses bodies off the field with a clear error
         n = self.setup.num_robots
         self._wheels = self.setup.robot.wheel_names
         self._controlled = {i for i in range(n) if self.setup.is_controlled(i)}
@@ -219,6 +130,7 @@ class PlantNode(Node):
         self._vision_ball_pub = pub(self, q.VISION_BALL)
         self._truth_ball_pub = pub(self, q.GROUND_TRUTH_BALL)
         self._pubs: list[dict[str, Any]] = []
+        self._scenario_subs: list = []
         for i in range(n):
             self._pubs.append(
                 {
@@ -230,11 +142,17 @@ class PlantNode(Node):
                 }
             )
             sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.for_robot(i), raw=True)
-            sub(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.KICK.for_robot(i))
-            sub(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.for_robot(i))
-        sub(self, q.SIM_SET_BALL, self._on_set_ball)
+            self._scenario_subs += [
+                sub(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.KICK.for_robot(i)),
+                sub(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.for_robot(i))]
+        self._scenario_subs.append(sub(self, q.SIM_SET_BALL, self._on_set_ball))
+        # Scenario commands act at the next tick, the newest of each (executor.run_newest): a flood of
+        # them then costs one placement or kick per tick, not one (with its event) per message.
+        for scenario_sub in self._scenario_subs:
+            sample_only(scenario_sub)
         self._peers: set[int] = set()
-        self._apply_params(self._values)
+        self._apply_params(self._params.config)
+        self._params.on_change(self._apply_params)
         # Who answers is a graph query (slow): refreshed 5 times a second, not every tick.
         self.create_timer(0.2, self._refresh_peers, clock=RclClock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
@@ -242,17 +160,15 @@ class PlantNode(Node):
             f"{self._values['pacing']} pacing"
         )
 
-    def _apply_params(self, values: dict[str, Any]) -> None:
+    def _apply_params(self, config) -> None:
         """Pacing, real-time factor and stall timeout take effect at once (the rest is read-only)."""
-        if not hasattr(self, "_gate"):
-            return  # the first call, from declare_params, comes before the node is set up
-        self._gate.timeout_s = values["lockstep_timeout_s"]
+        self._gate.timeout_s = config.lockstep_timeout_s
         self._pace_origin = (time.monotonic(), self._tick) if self._started else None
         if self._pump_timer is not None:
             self.destroy_timer(self._pump_timer)
         # Every wake of an rclpy executor costs ~0.4 ms of CPU here. Lockstep ticks are driven by
         # the duty answers; the timer only paces (real time, capped lockstep) and checks for stalls.
-        paced = values["pacing"] == "realtime" or values["real_time_factor"] > 0.0
+        paced = config.pacing == "realtime" or config.real_time_factor > 0.0
         self._pump_timer = self.create_timer(self.setup.control_period_s if paced else 0.02, self._pump,
                                              clock=RclClock(clock_type=ClockType.STEADY_TIME))
 
@@ -277,7 +193,8 @@ class PlantNode(Node):
         event = self._gate.offer(robot, t_ns, duty if duty is not None else np.zeros(len(self._wheels)))
         if event:
             self._event(event)
-        self._pump()
+        if t_ns == self._gate.tick_ns:  # only an answer to the open tick can let it advance (a flood of others
+            self._pump()                # costs no pump each; the pacing timer still runs)
 
     def _on_kick(self, robot: int, msg: Float64) -> None:
         try:
@@ -368,6 +285,9 @@ class PlantNode(Node):
         return sim_elapsed <= rtf * (now - wall0)
 
     def _advance(self, lockstep: bool) -> None:
+        dropped = run_newest(self._scenario_subs)
+        if dropped:
+            self._warn.warn("scenario_flood", f"{dropped} scenario command(s) overtaken by newer ones in one tick")
         n_wheels = len(self._wheels)
         for i in range(self.setup.num_robots):
             if lockstep:
@@ -401,8 +321,9 @@ class PlantNode(Node):
         for i in range(self.setup.num_robots):
             if i in self._controlled:
                 self._pubs[i]["states"].publish(  # serialized, as motor_boards explains
-                    joint_state_cdr(
-                        t_ns, self._wheels, velocity=world.wheel_speeds_radps(i), effort=world.motor_currents_a(i)
+                    joint_state_cdr(  # the sensors saturate (conversions explains the choice)
+                        t_ns, self._wheels, velocity=world.wheel_speeds_radps(i), effort=world.motor_currents_a(i),
+                        saturate=True,
                     )
                 )
         if retry:

@@ -1,50 +1,50 @@
 """Keeps the generated sections of README.md in sync with the code.
 
 A section sits between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->``. Regenerate all
-with ``./run exec python -m erforce_interfaces.docs README.md``; a test fails when any
+with ``./run exec python -m erforce_interfaces.tools.docs README.md``; a test fails when any
 section is stale, so the README's topic and parameter tables cannot drift.
 """
 
 from __future__ import annotations
 
-import importlib
 import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
 from erforce_interfaces.contract import topic_table_markdown
-from erforce_interfaces.node_support import params_markdown, robot_param_specs
+from erforce_interfaces.param_schema import ParamSchema, load_schema, robot_param_specs
 
-# Node modules and the name of their ParamSpec tuple; a module not written yet is skipped.
-NODE_PARAMS = (
-    ("ball_predictor", "erforce_ball_model.ball_predictor_node", "PARAMS"),
-    ("velocity_controller", "erforce_motion.velocity_controller_node", "PARAMS"),
-    ("motor_boards", "erforce_motion.motor_boards_node", "PARAMS"),
-    ("plant", "erforce_sim.plant_node", "PARAMS"),
-    ("catcher", "erforce_ball_model.catcher_node", "PARAMS"),
+# (package, node) of every node's parameter schema (<package>/params/<node>.yaml)
+NODE_SCHEMAS = (
+    ("erforce_ball_model", "ball_predictor"),
+    ("erforce_motion", "velocity_controller"),
+    ("erforce_motion", "motor_boards"),
+    ("erforce_sim", "plant"),
+    ("erforce_ball_model", "catcher"),
     # the team hosts: their own parameters; the rest are the per-robot nodes' (README, "A team on the graph")
-    ("team_firmware", "erforce_motion.team_firmware_node", "OWN_PARAMS"),
-    ("team_catcher", "erforce_ball_model.team_catcher_node", "OWN_PARAMS"),
+    ("erforce_motion", "team_firmware"),
+    ("erforce_ball_model", "team_catcher"),
 )
 
 
 def _node_params_section() -> str:
+    robot = ParamSchema("robot", robot_param_specs())
     parts = [
         "#### `robot.*` (every node that needs the robot description; `config/robot.yaml` sets them all)\n\n"
-        + params_markdown(robot_param_specs(), skip_robot=False)
+        + robot.markdown(skip_robot=False)
     ]
-    for node, module, attr in NODE_PARAMS:
-        try:
-            specs = getattr(importlib.import_module(module), attr)
-        except ModuleNotFoundError:
-            continue
-        parts.append(f"#### `{node}`\n\n{params_markdown(specs)}")
+    for package, node in NODE_SCHEMAS:
+        schema = load_schema(package, node)
+        where = f"`src/{package}/{package}/params/{node}.yaml`"
+        read_only = [s for s in schema.specs if s.name.startswith("robot.") and s.read_only]
+        note = "; `robot.*` read-only" if read_only else ""
+        parts.append(f"#### `{node}` ({where}{note})\n\n{schema.markdown()}")
     return "\n\n".join(parts)
 
 
 def _bench_results_section() -> str:
-    results = Path(__file__).resolve().parents[3] / "bench" / "RESULTS.md"
+    results = Path(__file__).resolve().parents[4] / "bench" / "RESULTS.md"
     if not results.exists():
         return "No results yet: run `./run bench`."
     return results.read_text().strip()

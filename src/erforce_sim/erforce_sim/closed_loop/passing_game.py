@@ -1,7 +1,7 @@
 """The passing game played in one process: a team passes along a chain, opponents try to intercept.
 
 Everything runs in one process with no DDS, deterministic per seed, like the demo's scenes
-(erforce_sim.scenes): the plant with every robot under motion control (runner.InProcessRunner,
+(erforce_sim.closed_loop.scenes): the plant with every robot under motion control (runner.InProcessRunner,
 our team and the opponents, erforce_sim world), the ball predictor's object (predictor.BallPredictor)
 on every vision frame for all robots of both teams, and the behaviours at a 50 Hz AI tick:
 
@@ -19,7 +19,7 @@ A pass ends when a light barrier sees the ball: our receiver (completed), anothe
 (lost). After an interception or a loss the ball is put at the dribbler of our robot farthest
 from the opponents and the chain goes on. Each pass is reported as it ends (``PassRecord``).
 
-    python -m erforce_sim.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
+    python -m erforce_sim.closed_loop.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
 
 No rclpy import.
 """
@@ -39,7 +39,7 @@ from erforce_ball_model.catcher import CatcherConfig, Receiver, catch_twist, wra
 from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_sim.runner import OPPONENT_TEAM, InProcessRunner, PlantSetup
+from erforce_sim.closed_loop.runner import OPPONENT_TEAM, InProcessRunner, PlantSetup
 from erforce_sim.sensors import VisionFrame
 
 # Division A (12 x 9 m). Our team: the first ``team_size`` of these; robot 0 starts with the ball.
@@ -420,7 +420,8 @@ def plot_passes(records: list[PassRecord], field_config: FieldConfig, path, titl
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m erforce_sim.passing_game", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m erforce_sim.closed_loop.passing_game",
+                                     description=__doc__.split("\n\n")[0])
     parser.add_argument("--team", type=int, default=11, help="our robots (2..11)")
     parser.add_argument("--opponents", type=int, default=3)
     parser.add_argument("--passes", type=int, default=10)

@@ -1,4 +1,4 @@
-"""``./run demo --scenario passing``: the passing game (erforce_sim.passing_game) with a report.
+"""``./run demo --scenario passing``: the passing game (erforce_sim.closed_loop.passing_game) with a report.
 
 The game runs in one process (deterministic per seed); each pass is printed as it ends. It
 writes report/<time>/: ``passes.png`` (every pass on the field), ``summary.md`` (one row per pass,
@@ -21,7 +21,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import clock_cdr, odometry_cdr
-from erforce_sim.passing_game import GameConfig, PassingGame, PassRecord, plot_passes, summary
+from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame, PassRecord, plot_passes, summary
 
 OPPONENT_NAMESPACE_PREFIX = "opponent_"
 TRUTH_PERIOD_NS = 10_000_000  # 100 Hz, as the plant's ground_truth_rate_hz

@@ -54,8 +54,6 @@ import argparse
 import contextlib
 import ctypes
 import datetime
-import importlib.metadata
-import importlib.util
 import itertools
 import math
 import os
@@ -71,11 +69,19 @@ import tempfile
 import time
 import uuid
 from dataclasses import dataclass, field
-from functools import cache
 from pathlib import Path
 from typing import Any, TextIO
 
 import yaml
+
+from erforce_interfaces.ament_index import (
+    ament_prefixes,
+    console_scripts,
+    distribution,
+    find_package_prefix,
+    find_package_share,
+    package_executables,
+)
 
 PROG = "erforce-launch"
 
@@ -241,79 +247,14 @@ def _parse_subst(text: str, pos: int) -> tuple[Subst, int]:
             args.append(tuple(arg))
 
 
-# ================================================================= packages and executables
-def _ament_prefixes() -> list[Path]:
-    return [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-
-
-@cache
-def _python_share_dir(pkg: str) -> Path | None:
-    """An importable Python package whose parent directory holds package.xml (our editable installs)."""
-    if not pkg.isidentifier():
-        return None
-    try:
-        spec = importlib.util.find_spec(pkg)
-    except (ImportError, ValueError):
-        return None
-    for location in (spec.submodule_search_locations or []) if spec else []:
-        source_dir = Path(location).parent
-        if (source_dir / "package.xml").is_file():
-            return source_dir
-    return None
-
-
-@cache
-def _distribution(pkg: str) -> importlib.metadata.Distribution | None:
-    try:
-        return importlib.metadata.distribution(pkg)
-    except (importlib.metadata.PackageNotFoundError, ValueError):
-        return None
-
-
-def _ament_prefix(pkg: str) -> Path | None:
-    for prefix in _ament_prefixes():
-        if (prefix / "share" / "ament_index" / "resource_index" / "packages" / pkg).exists():
-            return prefix
-    return None
-
-
-def find_package_share(pkg: str) -> Path | None:
-    """share dir: 1) Python source dir with package.xml, 2) the ament index in AMENT_PREFIX_PATH."""
-    source = _python_share_dir(pkg)
-    if source is not None:
-        return source
-    prefix = _ament_prefix(pkg)
-    return None if prefix is None else prefix / "share" / pkg
-
-
-def find_package_prefix(pkg: str) -> Path | None:
-    """The ament prefix; a source-only package counts as its own prefix (a deviation)."""
-    return _ament_prefix(pkg) or _python_share_dir(pkg)
-
-
-def _console_scripts(pkg: str) -> dict[str, importlib.metadata.EntryPoint]:
-    dist = _distribution(pkg)
-    if dist is None:
-        return {}
-    return {ep.name: ep for ep in dist.entry_points if ep.group == "console_scripts"}
-
-
-def package_executables(pkg: str) -> list[str]:
-    names = set(_console_scripts(pkg))
-    for prefix in _ament_prefixes():
-        lib = prefix / "lib" / pkg
-        if lib.is_dir():
-            names.update(p.name for p in lib.iterdir() if p.is_file() and os.access(p, os.X_OK))
-    return sorted(names)
-
-
+# ================================================================= executables
 def find_executable(pkg: str, exe: str) -> list[str]:
     """The command that runs ``exe`` of ``pkg``; raises SubstitutionError naming what is missing."""
-    for prefix in _ament_prefixes():
+    for prefix in ament_prefixes():
         candidate = prefix / "lib" / pkg / exe
         if candidate.is_file() and os.access(candidate, os.X_OK):
             return [str(candidate)]
-    script = _console_scripts(pkg).get(exe)
+    script = console_scripts(pkg).get(exe)
     if script is not None:
         beside_python = Path(sys.executable).parent / exe
         if beside_python.is_file() and os.access(beside_python, os.X_OK):
@@ -321,8 +262,8 @@ def find_executable(pkg: str, exe: str) -> list[str]:
         code = (f"import importlib, sys\nf = importlib.import_module({script.module!r})\n"
                 f"for a in {script.attr.split('.')!r}: f = getattr(f, a)\nsys.exit(f())")
         return [sys.executable, "-c", code]
-    known = find_package_share(pkg) or _distribution(pkg) or any(
-        (p / "lib" / pkg).is_dir() for p in _ament_prefixes())
+    known = find_package_share(pkg) or distribution(pkg) or any(
+        (p / "lib" / pkg).is_dir() for p in ament_prefixes())
     if not known:
         raise SubstitutionError(f"package '{pkg}' not found")
     listing = ", ".join(package_executables(pkg)) or "none"
@@ -428,6 +369,9 @@ class Resolver:
         self._anon: dict[str, str] = {}
         self._depth = 0
         self._base_env = dict(os.environ)
+        # Safe by default: discovery stays on this computer unless the user chose a range (README,
+        # "DDS discovery"); the launch files say the same for `ros2 launch`.
+        self._base_env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
     def resolve(self, path: Path, shown: str) -> list[ProcessSpec]:
         self._run_file(path, shown, Scope(dict(self.cli_args), dict(self._base_env)))

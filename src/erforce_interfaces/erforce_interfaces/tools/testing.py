@@ -1,6 +1,6 @@
 """Test harness for integration tests over real DDS: isolated domains, node processes, probes.
 
-Use it as a pytest plugin (``pytest_plugins = ["erforce_interfaces.testing"]`` in a
+Use it as a pytest plugin (``pytest_plugins = ["erforce_interfaces.tools.testing"]`` in a
 conftest.py) and take the ``ros_graph`` fixture::
 
     def test_talker(ros_graph):
@@ -11,6 +11,11 @@ Isolation: every ``RosGraph`` claims a DDS domain id nobody else on this machine
 (an exclusive ``flock`` on ``$TMPDIR/erforce-ros-domains/<id>.lock``, released when the
 graph closes or the process dies), and restricts discovery to localhost. Two test
 sessions, or two xdist workers, therefore never see each other's topics.
+
+Callback faults: every node runs its subscription callbacks inside one guard
+(node_support.guard_callbacks) that turns an exception into a warning instead of a dead node.
+So that a bug of ours does not hide behind it, the ``ros_graph`` fixture fails a test whose
+processes logged such a warning, unless the test declared it with ``expect_callback_faults``.
 
 Reaping: every child gets its own process group and an environment tag. ``close()``
 sends SIGINT, then SIGTERM, then SIGKILL with timeouts, and finally kills any process
@@ -197,6 +202,7 @@ class RosGraph:
         self.processes: list[NodeProcess] = []
         self._probe = None
         self._counter = 0
+        self._expected_faults: set[str] | None = set()  # process names; None: any
 
     # ------------------------------------------------------------ processes
     def start(self, cmd: Sequence[str], name: str | None = None, env: dict[str, str] | None = None) -> NodeProcess:
@@ -250,6 +256,23 @@ class RosGraph:
     def pids(self) -> list[int]:
         """Every live process started by this graph, grandchildren included."""
         return _pids_with_tag(self.tag)
+
+    def expect_callback_faults(self, *names: str) -> None:
+        """Declare that this test provokes callback faults (node_support.CALLBACK_FAULT) in the named
+        processes (their ``NodeProcess.name``), or, without names, in any."""
+        if not names:
+            self._expected_faults = None
+        elif self._expected_faults is not None:
+            self._expected_faults.update(names)
+
+    def unexpected_callback_faults(self) -> list[str]:
+        """The callback-fault warnings logged by processes the test did not declare (see above)."""
+        from erforce_interfaces.node_support import CALLBACK_FAULT
+
+        if self._expected_faults is None:
+            return []
+        return [f"{proc.name}: {line.strip()}" for proc in self.processes if proc.name not in self._expected_faults
+                for line in proc.output().splitlines() if CALLBACK_FAULT in line]
 
     # ---------------------------------------------------------------- probe
     @property
@@ -429,6 +452,11 @@ if pytest is not None:
         finally:
             graph.close()
             show_outputs_if_failed(graph, request)
+        report = getattr(request.node, "rep_call", None)
+        faults = graph.unexpected_callback_faults()
+        if faults and report is not None and report.passed:
+            pytest.fail("a node dropped a message in its callback guard (a bug, or bad input the test does not "
+                        "declare with ros_graph.expect_callback_faults):\n" + "\n".join(faults[:20]), pytrace=False)
 
     @pytest.hookimpl(tryfirst=True, hookwrapper=True)
     def pytest_runtest_makereport(item, call):

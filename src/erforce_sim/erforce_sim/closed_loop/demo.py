@@ -15,7 +15,7 @@ a receiver); for a ball that was not caught, the one made 0.3 s after the kick. 
 when the ball's true path (ground truth) passes a point robot_0 could have reached in
 time under the planning limits (robotTimeToPos from its start, after a reaction delay),
 independent of the predictor. At the end it writes report/<time>/: the bag, PNG plots and
-summary.md (see erforce_sim.report).
+summary.md (see erforce_sim.closed_loop.report).
 """
 
 from __future__ import annotations
@@ -49,8 +49,8 @@ from erforce_interfaces.conversions import (
 )
 from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_interfaces.testing import stop_process
-from erforce_sim.scenes import (
+from erforce_interfaces.tools.testing import stop_process
+from erforce_sim.closed_loop.scenes import (
     KICKER,
     PREDICTION_LEAD_S,
     RECEIVER,
@@ -61,7 +61,7 @@ from erforce_sim.scenes import (
     reachable,
 )
 
-LAUNCH_FILE = Path(__file__).resolve().parents[1] / "launch" / "demo.launch.yaml"
+LAUNCH_FILE = Path(__file__).resolve().parents[2] / "launch" / "demo.launch.yaml"
 
 
 @dataclass
@@ -495,7 +495,7 @@ class Demo:
         )
 
     def run(self) -> int:
-        from erforce_sim.report import write_report
+        from erforce_sim.closed_loop.report import write_report
 
         results: list[SceneResult] = []
         wall0 = sim0 = None
@@ -549,7 +549,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="report", help="report folder (a timestamped subfolder is created)")
     parser.add_argument("--scenario", default="scenes", choices=("scenes", "passing"),
                         help="scenes: the paper's story on the DDS graph (below); passing: the passing game of a team "
-                             "against opponents, in one process (erforce_sim.passing_report)")
+                             "against opponents, in one process (erforce_sim.closed_loop.passing_report)")
     parser.add_argument("--team", type=int, default=11, help="passing: our robots (2..11)")
     parser.add_argument("--opponents", type=int, default=3, help="passing: opponents (0..6)")
     parser.add_argument("--passes", type=int, default=20, help="passing: the game ends after this many passes")
@@ -581,7 +581,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     if args.scenario == "passing":
-        from erforce_sim import passing_report  # no DDS graph: the game runs in this process
+        from erforce_sim.closed_loop import passing_report  # no DDS graph: the game runs in this process
 
         return passing_report.run(args)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

@@ -1,0 +1,69 @@
+"""One default per physical quantity: the robot's catching limits and the predictor's settings agree everywhere.
+
+The planner (catch_time.RobotLimits), the catcher (CatcherConfig), both nodes' parameters, the launch
+files and the README all carry catch_time.ROBOT_A_MAX_MPS2 / ROBOT_V_MAX_MPS; the predictor's core
+configuration has the node's parameter defaults. Any copy that drifts fails here.
+"""
+
+import dataclasses
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from erforce_ball_model import ball_predictor_node, catcher_node
+from erforce_ball_model.catch_time import ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS, RobotLimits
+from erforce_ball_model.catcher import CatcherConfig
+from erforce_ball_model.predictor import PredictorConfig
+
+ROOT = Path(__file__).resolve().parents[2]
+LAUNCH_FILES = ("src/erforce_sim/launch/demo.launch.yaml", "src/erforce_sim/launch/receiver.launch.yaml")
+
+
+def _defaults(specs) -> dict:
+    return {s.name: s.default for s in specs}
+
+
+def test_the_robot_limits_have_one_default():
+    limits = RobotLimits()
+    assert (float(limits.a_max_mps2), float(limits.v_max_mps)) == (ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS)
+    assert (CatcherConfig().a_max_mps2, CatcherConfig().v_max_mps) == (ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS)
+    predictor = _defaults(ball_predictor_node.PARAMS)
+    assert (predictor["robot_a_max_mps2"], predictor["robot_v_max_mps"]) == (ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS)
+    catcher = _defaults(catcher_node.PARAMS)
+    assert (catcher["a_max_mps2"], catcher["v_max_mps"]) == (ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS)
+    config = PredictorConfig()
+    assert (float(config.limits.a_max_mps2), float(config.limits.v_max_mps)) == (ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS)
+
+
+@pytest.mark.parametrize("path", LAUNCH_FILES)
+def test_launch_files_default_to_the_same_robot_limits(path):
+    args = {a["arg"]["name"]: a["arg"].get("default") for a in yaml.safe_load((ROOT / path).read_text())["launch"]
+            if "arg" in a}
+    assert float(args["robot_a_max_mps2"]) == ROBOT_A_MAX_MPS2
+    assert float(args["robot_v_max_mps"]) == ROBOT_V_MAX_MPS
+
+
+def test_readme_parameter_tables_show_the_same_robot_limits():
+    text = (ROOT / "README.md").read_text()
+    for name, value in (("robot_a_max_mps2", ROBOT_A_MAX_MPS2), ("a_max_mps2", ROBOT_A_MAX_MPS2),
+                        ("robot_v_max_mps", ROBOT_V_MAX_MPS), ("v_max_mps", ROBOT_V_MAX_MPS)):
+        rows = re.findall(rf"^\| `{name}` \| `([^`]*)` \|", text, flags=re.MULTILINE)
+        assert rows and all(float(r) == value for r in rows), (name, rows)
+
+
+def test_the_predictor_core_defaults_are_the_nodes_parameter_defaults():
+    """The in-process scenes and the bench build PredictorConfig() themselves: it must be the node's configuration."""
+    values = _defaults(ball_predictor_node.PARAMS)
+    from_params = ball_predictor_node.build_config(values)
+    core = PredictorConfig(num_robots=values["num_robots"])
+    for f in dataclasses.fields(PredictorConfig):
+        got, want = getattr(core, f.name), getattr(from_params, f.name)
+        if isinstance(want, RobotLimits):
+            assert (float(got.a_max_mps2), float(got.v_max_mps)) == (float(want.a_max_mps2), float(want.v_max_mps))
+        elif isinstance(want, np.ndarray):
+            np.testing.assert_array_equal(got, want, err_msg=f.name)
+        else:
+            assert got == want, f.name

@@ -1,0 +1,112 @@
+"""Issue 19, fault tests: bad time in a running graph, per node. Negative, zero, far-future and backwards
+``/clock`` messages and input stamps are dropped with a warning by every node that reads them (the one
+rule of erforce_interfaces.stamps, applied by node_support), nothing dies, nothing non-finite comes out,
+and the graph closes the loop afterwards: the catcher still drives robot_0 to the ball."""
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Time
+from faults_support import ClosedLoop, closes_the_loop
+from geometry_msgs.msg import PointStamped, PoseStamped
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+from erforce_interfaces import contract
+
+pytestmark = pytest.mark.integration
+
+NODES = ("plant", "velocity_controller", "motor_boards", "ball_predictor", "catcher")
+SIM_TIME_NODES = ("velocity_controller", "motor_boards", "ball_predictor", "catcher")
+
+
+def bad_times(now_s: float) -> list[Time]:
+    """Negative, no valid time, zero, the far future, backwards, ahead by more than the rule's 2 s."""
+    back = max(now_s - 1.0, 0.0)
+    return [Time(sec=-1, nanosec=0), Time(sec=1, nanosec=1_500_000_000), Time(sec=0, nanosec=0),
+            Time(sec=2**31 - 1, nanosec=999_999_999), Time(sec=int(back), nanosec=int(back % 1 * 1e9)),
+            Time(sec=int(now_s) + 30, nanosec=0)]
+
+
+def test_bad_clocks_and_stamps_are_dropped_by_every_node_and_the_loop_still_closes(ros_graph):
+    loop = ClosedLoop(
+        ros_graph, with_ball_model=True, exclude=("/clock",),  # the watch's own /clock would see the bad ones
+        plant={"robot_poses": [-1.0, 0.0, 0.0], "ball": [1.5, 1.5, 0.0, 0.0], "vision_dropout": 0.0,
+               "start_clock_subscribers": 4},
+        catcher={"fetch_resting_ball": True, "v_max_mps": 1.0, "a_max_mps2": 2.0},
+        predictor={"robot_v_max_mps": 1.0, "robot_a_max_mps2": 2.0},
+    )
+    loop.start_all()
+    outputs = ("/robot_0/wheel_setpoints", "/robot_0/motor_duty", "/ball/state", "/robot_0/cmd_vel")
+    loop.spin_until(lambda: all(loop.watch.counts[t] > 0 for t in outputs), 30.0, "every node publishing")
+    probe = loop.probe
+
+    def send(topic, msg_type, messages, qos, readers=1):
+        pub = probe.wait_for_subscribers(topic, msg_type, readers, timeout_s=20.0, qos=qos)
+        for msg in messages:
+            pub.publish(msg)
+            loop.spin_wall(0.05)  # /clock readers keep only the newest: one at a time
+
+    send("/clock", Clock, [Clock(clock=t) for t in bad_times(loop.sim_s())], contract.QOS_CLOCK, 4)
+
+    def joint_states(names, field):
+        out = []
+        for t in bad_times(loop.sim_s()):
+            msg = JointState(name=list(names))
+            msg.header.stamp = t
+            setattr(msg, field, [0.0] * len(names))
+            if field == "velocity":
+                msg.effort = [0.0] * len(names)
+            out.append(msg)
+        return out
+
+    wheels = [f"wheel_{i}" for i in range(4)]
+    loop.watch.paused.update({"/robot_0/wheel_states", "/robot_0/wheel_setpoints", "/robot_0/motor_duty",
+                              "/robot_0/odom", "/vision/ball", "/ball/model_params"})
+    send("/robot_0/wheel_states", JointState, joint_states(wheels, "velocity"), contract.QOS_CONTROL, 2)
+    send("/robot_0/wheel_setpoints", JointState, joint_states(wheels, "velocity"), contract.QOS_CONTROL)
+    send("/robot_0/motor_duty", JointState, joint_states(wheels, "effort"), contract.QOS_CONTROL)
+    balls, poses, odoms = [], [], []
+    for t in bad_times(loop.sim_s()):
+        ball = PointStamped()
+        ball.header.stamp, ball.header.frame_id = t, contract.FIELD_FRAME
+        pose = PoseStamped()
+        pose.header.stamp, pose.pose.orientation.w = t, 1.0
+        odom = Odometry()
+        odom.header.stamp, odom.pose.pose.orientation.w = t, 1.0
+        balls.append(ball)
+        poses.append(pose)
+        odoms.append(odom)
+    send("/vision/ball", PointStamped, balls, contract.QOS_SENSOR)
+    send("/robot_0/vision_pose", PoseStamped, poses, contract.QOS_SENSOR)
+    send("/robot_0/odom", Odometry, odoms, contract.QOS_STATE)
+    # not time, but the other single message that killed the catcher: 4 columns under the right label
+    table = Float64MultiArray(data=[-2.5, -0.3, 0.6, 1.0] * 3)
+    table.layout.dim = [MultiArrayDimension(label="fit,std_error,in_use", size=3, stride=12),
+                        MultiArrayDimension(label=",".join(contract.BALL_MODEL_PARAM_LABELS), size=4, stride=4)]
+    send("/ball/model_params", Float64MultiArray, [table], contract.QOS_STATE)
+    loop.spin_wall(0.5)
+    loop.watch.paused.clear()
+
+    expected = {
+        "velocity_controller": ["dropped /clock", "rejected wheel_states: stamp -1 s 0 ns is not a valid time",
+                                "rejected wheel_states: stamp 0.000000 s is before"],
+        "motor_boards": ["dropped /clock", "rejected wheel_states: stamp", "rejected wheel_setpoints: stamp"],
+        "ball_predictor": ["dropped /clock", "rejected vision/ball: stamp", "rejected robot_0/vision_pose: stamp"],
+        "catcher": ["dropped /clock", "rejected odom: stamp -1 s 0 ns is not a valid time",
+                    "rejected model_params: table has 4 columns, its labels name 3"],
+    }
+    for node, texts in expected.items():
+        out = loop.procs[node].output()
+        for text in texts:
+            assert text in out, f"{node} did not log {text!r}:\n{out[-3000:]}"
+        assert "time line restarted" not in out, f"{node} took a bad stamp for a restart:\n{out[-3000:]}"
+    for node in NODES:
+        assert loop.procs[node].alive(), f"{node} died:\n{loop.procs[node].output()[-3000:]}"
+
+    closes_the_loop(loop)
+    odom = loop.watch.latest["/robot_0/odom"]
+    assert abs(odom.header.stamp.sec + odom.header.stamp.nanosec * 1e-9 - loop.sim_s()) < 0.5
+    loop.watch.assert_all_finite()
+    assert np.all(np.isfinite(loop.velocity()))

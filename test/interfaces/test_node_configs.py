@@ -1,0 +1,56 @@
+"""The nodes' build functions, without ROS: a config object of each node's schema becomes the core it
+runs, and combinations no single parameter shows are refused with the reason."""
+
+import math
+
+import pytest
+
+from erforce_ball_model import ball_predictor_node, catcher_node
+from erforce_ball_model.catcher import CatcherConfig
+from erforce_motion import motor_boards_node, velocity_controller_node
+from erforce_sim import plant_node
+
+
+def config(module, **changes):
+    values = module.SCHEMA.defaults()
+    values.update(changes)
+    return module.SCHEMA.parse(values)
+
+
+def test_every_node_builds_from_its_defaults():
+    loop = velocity_controller_node.build_loop(config(velocity_controller_node))
+    assert loop.loop_period_s == pytest.approx(1.0 / 500.0)
+    board = motor_boards_node.build_loop(config(motor_boards_node))
+    assert board.robot.num_wheels == 4
+    setup = plant_node.setup_from_params(config(plant_node))
+    assert setup.num_robots == 1 and setup.control_period_s == 0.002
+    predictor = ball_predictor_node.build_config(config(ball_predictor_node))
+    assert predictor.num_robots == 11 and predictor.facing_fixed.shape == (11,)
+    catcher, dribbler_m, radius_m, field = catcher_node.build_config(config(catcher_node))
+    assert catcher == CatcherConfig() and (dribbler_m, radius_m, field.length_m) == (0.0815, 0.09, 9.0)
+
+
+def test_a_wheel_the_motors_cannot_drive_fast_enough_is_refused():
+    # 24 V / (0.036 V s/rad * 3.6) = 185 rad/s at the wheel; at a 1 mm radius the rim makes 0.19 m/s
+    with pytest.raises(ValueError, match=r"max_speed_mps 4 m/s is out of the motors' reach.*0\.185 m/s"):
+        velocity_controller_node.build_loop(config(velocity_controller_node, **{"robot.wheel_radius_m": 0.001}))
+
+
+def test_wheel_speeds_beyond_the_wire_are_refused():
+    # 1000 V: the motors reach 7716 rad/s, 7.7 m/s at the rim; but the PID's limits (5 m/s per axis,
+    # 15 rad/s) need up to (|sin a| + |cos a|) 5 / r + 15 d / r rad/s, far beyond the wire's 1000.
+    cfg = config(velocity_controller_node, **{"robot.wheel_radius_m": 0.001, "robot.supply_voltage_v": 1000.0})
+    worst = max(abs(math.sin(a)) + abs(math.cos(a)) for a in cfg.robot.wheel_angles_rad) * 5.0 / 0.001
+    worst += 15.0 * 0.081 / 0.001
+    with pytest.raises(ValueError, match=rf"wheel speeds up to {worst:.4g} rad/s .* beyond the wire's 1000"):
+        velocity_controller_node.build_loop(cfg)
+
+
+def test_per_robot_lists_and_the_plants_robots_must_agree():
+    with pytest.raises(ValueError, match="facing_mode: need one value or one per robot"):
+        ball_predictor_node.build_config(config(ball_predictor_node, num_robots=2,
+                                                facing_mode=["fixed", "fixed", "fixed"]))
+    with pytest.raises(ValueError, match="robot_poses: need x, y, yaw per robot"):
+        plant_node.setup_from_params(config(plant_node, robot_poses=[0.0, 0.0, 0.0, 1.0]))
+    with pytest.raises(ValueError, match="realtime pacing needs real_time_factor > 0"):
+        plant_node._check_pacing(config(plant_node, pacing="realtime", real_time_factor=0.0))

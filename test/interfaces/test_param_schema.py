@@ -1,0 +1,165 @@
+"""Node parameter schemas (erforce_interfaces.param_schema): the rules, the shipped files, and one
+default per quantity across the schemas, the cores and the docs."""
+
+import dataclasses
+import inspect
+import math
+import os
+import runpy
+from pathlib import Path
+
+import pytest
+import setuptools
+
+from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.catch_time import CatchSearch
+from erforce_ball_model.catcher import CatcherConfig
+from erforce_ball_model.tracking import TrackerConfig
+from erforce_interfaces import lockstep
+from erforce_interfaces.param_schema import ParamSchema, fields_for, load_schema
+from erforce_interfaces.tools.docs import NODE_SCHEMAS
+from erforce_motion.motor_board import MotorBoardConfig
+from erforce_motion.pid import ANTI_WINDUP_MODES
+from erforce_motion.velocity_control import VelocityControlConfig
+
+ROOT = Path(__file__).resolve().parents[2]
+ALL = (*NODE_SCHEMAS, ("erforce_interfaces", "talker"))
+
+
+@pytest.mark.parametrize(("package", "node"), ALL, ids=[n for _, n in ALL])
+def test_every_schema_loads_and_ships_in_share(package, node):
+    schema = load_schema(package, node)
+    assert schema.node == node and schema.specs
+    for spec in schema.specs:
+        assert spec.check(spec.default) is None and spec.description
+    # installed with the package: package data of the Python package, and in share/<package>/params
+    setup = _setup_kwargs(package)
+    assert "params/*.yaml" in setup["package_data"][package]
+    shared = {f for dest, files in setup["data_files"] if dest == f"share/{package}/params" for f in files}
+    assert f"{package}/params/{node}.yaml" in shared
+
+
+def _setup_kwargs(package: str) -> dict:
+    """The arguments setup.py gives setuptools.setup (run with setup() replaced)."""
+    seen = {}
+    saved, cwd = setuptools.setup, os.getcwd()
+    setuptools.setup = lambda **kw: seen.update(kw)
+    try:
+        os.chdir(ROOT / "src" / package)
+        runpy.run_path("setup.py")
+    finally:
+        setuptools.setup = saved
+        os.chdir(cwd)
+    return seen
+
+
+def _schema(body: str) -> ParamSchema:
+    return ParamSchema.from_yaml_text("n:\n" + body)
+
+
+@pytest.mark.parametrize(("body", "match"), [
+    ("  a: {type: double, default_value: 1.0}\n", "needs type, default_value, description"),
+    ("  a: {type: float, default_value: 1.0, description: x}\n", "unknown type"),
+    ("  a: {type: double, default_value: 1.0, description: x, validation: {positive<>: []}}\n",
+     "unknown validation"),
+    ("  a: {type: double, default_value: 1.0, description: x, validation: {bounds<>: [1e-6, 2.0]}}\n",
+     "not a number"),  # YAML 1.1 reads 1e-6 as a string
+    ("  a: {type: double, default_value: 3.0, description: x, validation: {bounds<>: [0.0, 2.0]}}\n",
+     "default of a: 3.0 is above the maximum"),
+    ("  a: {type: string, default_value: c, description: x, validation: {one_of<>: [[a, b]]}}\n", "one of a, b"),
+    ("  robot: {shared: something_else}\n", "the only shared group is robot"),
+])
+def test_schema_files_with_mistakes_are_refused_naming_them(body, match):
+    with pytest.raises(ValueError, match=match):
+        _schema(body)
+
+
+def test_validation_rules_match_generate_parameter_library_meanings():
+    s = _schema(
+        "  gt: {type: double, default_value: 1.0, description: x, validation: {gt<>: [0.0]}}\n"
+        "  lt_eq: {type: int, default_value: 1, description: x, validation: {lt_eq<>: [3]}}\n"
+        "  ids: {type: int_array, default_value: [], description: x, validation: {bounds<>: [0, 9]}}\n"
+        "  xy: {type: double_array, default_value: [0.0, 0.0], description: x, validation: {fixed_size<>: [2]}}\n"
+        "  modes: {type: string_array, default_value: [a], description: x, validation: {subset_of<>: [[a, b]]}}\n")
+    spec = s.by_name
+    assert spec["gt"].check(0.0) and spec["gt"].check(1e-9) is None  # strictly greater
+    assert spec["lt_eq"].check(3) is None and spec["lt_eq"].check(4)
+    assert spec["lt_eq"].check(True) and spec["gt"].check(math.nan) and spec["gt"].check("1.0")
+    assert spec["ids"].check([0, 9]) is None and spec["ids"].check([0, 10]) and spec["ids"].check([1.5])
+    assert spec["xy"].check([1.0]) and spec["xy"].check([1.0, 2.0]) is None and spec["xy"].check([1.0, math.inf])
+    assert spec["modes"].check(["b", "a"]) is None and spec["modes"].check(["a", "c"])
+    config = s.parse(s.defaults())
+    assert (config.gt, config.ids, config.xy, config.modes) == (1.0, (), (0.0, 0.0), ("a",))
+    assert not hasattr(config, "robot")
+    with pytest.raises(ValueError, match="invalid parameter gt"):
+        s.parse({**s.defaults(), "gt": -1.0})
+
+
+def test_fields_for_refuses_a_core_option_the_node_does_not_declare():
+    @dataclasses.dataclass
+    class Core:
+        gain: float = 1.0
+        added_later: float = 2.0
+
+    s = _schema("  gain: {type: double, default_value: 3.0, description: x}\n")
+    with pytest.raises(TypeError, match="Core.added_later"):
+        fields_for(Core, s.parse(s.defaults()))
+    assert fields_for(Core, s.parse(s.defaults()), added_later=5.0) == {"gain": 3.0, "added_later": 5.0}
+
+
+# ------------------------------------------------------------------ one default per quantity
+def _core_defaults(cls) -> dict:
+    return {f.name: f.default for f in dataclasses.fields(cls)}
+
+
+@pytest.mark.parametrize(("package", "node", "core", "skip"), [
+    ("erforce_motion", "velocity_controller", VelocityControlConfig, ()),
+    ("erforce_motion", "motor_boards", MotorBoardConfig,
+     ("linear_duty_per_a", "loop_period_s", "average_current_limit_a", "i2t_time_constant_s")),
+    ("erforce_ball_model", "catcher", CatcherConfig, ()),
+    ("erforce_ball_model", "ball_predictor", TrackerConfig, None),
+    ("erforce_ball_model", "ball_predictor", BallModelParams, None),
+])
+def test_node_defaults_are_the_cores_defaults(package, node, core, skip):
+    """The schema declares a core option's default for the node; the core's own default must agree."""
+    schema = load_schema(package, node)
+    shared = [n for n in _core_defaults(core) if n in schema.by_name and n not in (skip or ())]
+    if skip is not None:  # the node maps every option of the core except these
+        assert set(shared) == set(_core_defaults(core)) - set(skip)
+    assert shared
+    for name in shared:
+        assert schema.default(name) == _core_defaults(core)[name], name
+
+
+def test_the_predictor_plans_with_the_limits_and_grid_the_catcher_and_search_use():
+    predictor = load_schema("erforce_ball_model", "ball_predictor")
+    catcher = load_schema("erforce_ball_model", "catcher")
+    assert predictor.default("robot_a_max_mps2") == catcher.default("a_max_mps2") == CatcherConfig().a_max_mps2
+    assert predictor.default("robot_v_max_mps") == catcher.default("v_max_mps") == CatcherConfig().v_max_mps
+    grid = inspect.signature(CatchSearch).parameters["grid_step_s"].default
+    assert predictor.default("grid_step_s") == grid
+
+
+def test_one_lockstep_tick_for_plant_robot_nodes_and_docs():
+    tick_s = lockstep.TICK_PERIOD_S
+    assert load_schema("erforce_sim", "plant").default("control_period_s") == tick_s
+    for node in ("velocity_controller", "motor_boards"):
+        assert load_schema("erforce_motion", node).default("loop_rate_hz") == pytest.approx(1.0 / tick_s)
+    assert f"default ``TICK_PERIOD_S``, {tick_s * 1e3:g} ms" in lockstep.__doc__
+    assert f"Each tick ({tick_s * 1e3:g} ms by" in (ROOT / "README.md").read_text()
+
+
+def test_anti_windup_choices_are_the_pids():
+    for node in ("velocity_controller", "motor_boards"):
+        assert load_schema("erforce_motion", node).by_name["anti_windup"].one_of == ANTI_WINDUP_MODES
+
+
+def test_what_a_node_cannot_apply_while_running_is_read_only():
+    plant = load_schema("erforce_sim", "plant")
+    robot = [s for s in plant.specs if s.name.startswith("robot.")]
+    assert robot and all(s.read_only for s in robot)  # the world is built once
+    assert all(s.read_only for s in plant.specs
+               if s.name in ("field", "robot_poses", "seed", "control_period_s", "startup_timeout_s"))
+    assert load_schema("erforce_ball_model", "catcher").by_name["rate_hz"].read_only  # its timer is made once
+    for node in ("velocity_controller", "motor_boards"):  # they rebuild their loop on any change
+        assert not any(s.read_only for s in load_schema("erforce_motion", node).specs)

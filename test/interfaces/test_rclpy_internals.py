@@ -1,0 +1,92 @@
+"""The rclpy internals DirectExecutor relies on (erforce_interfaces.rclpy_internals) exist and behave as it
+assumes, on the installed rclpy. An rclpy update that moves one fails here, by name.
+"""
+
+import time
+
+import pytest
+from rcl_interfaces.srv import SetParameters
+from rclpy.exceptions import InvalidHandle
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from std_msgs.msg import Int32
+
+from erforce_interfaces import rclpy_internals as internal
+from erforce_interfaces.executor import DirectExecutor, make_executor
+from erforce_interfaces.tools.testing import isolated_node
+
+RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def _until(condition, timeout_s=10.0):
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, "condition not reached before the deadline"
+        time.sleep(0.005)
+
+
+def test_the_c_extension_names():
+    assert isinstance(internal.WaitSet, type)
+    assert issubclass(internal.RCLError, Exception)
+
+
+def test_executor_base_class_state():
+    with isolated_node("internals_executor") as node:
+        executor = DirectExecutor(context=node.context)
+        guard, sigint = internal.executor_guard_conditions(executor)
+        assert isinstance(internal.handle_pointer(guard), int) and isinstance(internal.handle_pointer(sigint), int)
+        assert internal.executor_context(executor) is node.context
+        assert internal.executor_is_shutdown(executor) is False
+        future = Future()
+        internal.set_future_executor(future, executor)
+        executor.shutdown()
+        assert internal.executor_is_shutdown(executor) is True
+
+
+def test_messages_are_taken_from_a_subscription_and_its_callback_run_with_or_without_info():
+    with isolated_node("internals_take") as node:
+        plain, with_info = [], []
+        sub = node.create_subscription(Int32, "/internals/a", plain.append, RELIABLE)
+        sub_info = node.create_subscription(Int32, "/internals/a", lambda m, i: with_info.append((m, i)), RELIABLE)
+        pub = node.create_publisher(Int32, "/internals/a", RELIABLE)
+        _until(lambda: pub.get_subscription_count() == 2)
+        assert internal.take_message(sub) is None  # nothing queued yet
+        pub.publish(Int32(data=7))
+        taken = []
+        _until(lambda: taken.append(internal.take_message(sub)) or taken[-1] is not None)
+        msg, info = taken[-1]
+        assert msg.data == 7 and "source_timestamp" in info
+        internal.run_subscription_callback(sub, msg, info)
+        assert [m.data for m in plain] == [7]
+        internal.run_subscription_callback(sub_info, msg, info)
+        assert with_info[0][0].data == 7 and with_info[0][1] is info
+        assert isinstance(internal.handle_pointer(sub), int)
+        node.destroy_subscription(sub)
+        with pytest.raises(InvalidHandle):
+            internal.take_message(sub)
+
+
+def test_timer_call_and_service_and_client_takes():
+    with isolated_node("internals_services") as node:
+        timer = node.create_timer(0.001, lambda: None)
+        _until(lambda: internal.call_timer(timer))
+        service = node.create_service(SetParameters, "/internals/set", lambda req, resp: resp)
+        client = node.create_client(SetParameters, "/internals/set")
+        _request, header = internal.take_request(service)
+        assert header is None  # nothing waiting
+        header, _response = internal.take_response(client)
+        assert header is None
+
+
+def test_make_executor_names_the_three_executors():
+    from rclpy.executors import SingleThreadedExecutor
+
+    with isolated_node("internals_kinds") as node:
+        assert type(make_executor("direct", context=node.context)) is DirectExecutor
+        assert type(make_executor("single", context=node.context)) is SingleThreadedExecutor
+        events = make_executor(context=node.context)  # the default
+        assert type(events.executor).__name__ == "EventsExecutor"
+        events.add_node(node)
+        assert node in events.get_nodes()
+        with pytest.raises(ValueError, match="ERFORCE_EXECUTOR"):
+            make_executor("multi", context=node.context)
