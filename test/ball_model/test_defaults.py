@@ -22,17 +22,17 @@ ROOT = Path(__file__).resolve().parents[2]
 LAUNCH_FILES = ("src/erforce_sim/launch/demo.launch.yaml", "src/erforce_sim/launch/receiver.launch.yaml")
 
 
-def _defaults(specs) -> dict:
-    return {s.name: s.default for s in specs}
+def _defaults(node_module) -> dict:
+    return {s.name: s.default for s in node_module.SCHEMA.specs}
 
 
 def test_the_robot_limits_have_one_default():
     limits = RobotLimits()
     assert (float(limits.a_max_mps2), float(limits.v_max_mps)) == (ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS)
     assert (CatcherConfig().a_max_mps2, CatcherConfig().v_max_mps) == (ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS)
-    predictor = _defaults(ball_predictor_node.PARAMS)
+    predictor = _defaults(ball_predictor_node)
     assert (predictor["robot_a_max_mps2"], predictor["robot_v_max_mps"]) == (ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS)
-    catcher = _defaults(catcher_node.PARAMS)
+    catcher = _defaults(catcher_node)
     assert (catcher["a_max_mps2"], catcher["v_max_mps"]) == (ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS)
     config = PredictorConfig()
     assert (float(config.limits.a_max_mps2), float(config.limits.v_max_mps)) == (ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS)
@@ -50,14 +50,14 @@ def test_readme_parameter_tables_show_the_same_robot_limits():
     text = (ROOT / "README.md").read_text()
     for name, value in (("robot_a_max_mps2", ROBOT_A_MAX_MPS2), ("a_max_mps2", ROBOT_A_MAX_MPS2),
                         ("robot_v_max_mps", ROBOT_V_MAX_MPS), ("v_max_mps", ROBOT_V_MAX_MPS)):
-        rows = re.findall(rf"^\| `{name}` \| `([^`]*)` \|", text, flags=re.MULTILINE)
+        rows = re.findall(rf"^\| `{name}` \| [a-z_]+ \| `([^`]*)` \|", text, flags=re.MULTILINE)
         assert rows and all(float(r) == value for r in rows), (name, rows)
 
 
 def test_the_predictor_core_defaults_are_the_nodes_parameter_defaults():
     """The in-process scenes and the bench build PredictorConfig() themselves: it must be the node's configuration."""
-    values = _defaults(ball_predictor_node.PARAMS)
-    from_params = ball_predictor_node.build_config(values)
+    values = _defaults(ball_predictor_node)
+    from_params = ball_predictor_node.build_config(ball_predictor_node.SCHEMA.parse(values))
     core = PredictorConfig(num_robots=values["num_robots"])
     for f in dataclasses.fields(PredictorConfig):
         got, want = getattr(core, f.name), getattr(from_params, f.name)

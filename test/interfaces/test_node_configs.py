@@ -47,7 +47,7 @@ def test_wheel_speeds_beyond_the_wire_are_refused():
 
 
 def test_per_robot_lists_and_the_plants_robots_must_agree():
-    with pytest.raises(ValueError, match="facing_mode: need one value or one per robot"):
+    with pytest.raises(ValueError, match="facing_fixed: need one value or one per robot"):
         ball_predictor_node.build_config(config(ball_predictor_node, num_robots=2,
                                                 facing_mode=["fixed", "fixed", "fixed"]))
     with pytest.raises(ValueError, match="robot_poses: need x, y, yaw per robot"):
