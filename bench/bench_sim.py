@@ -14,6 +14,7 @@ from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallState
+from erforce_sim.closed_loop.runner import InProcessRunner, PlantSetup
 from erforce_sim.kicker import deviation_table
 from erforce_sim.world import PhysicsParams, RobotSpec, World
 
@@ -21,8 +22,26 @@ FIELD = FieldConfig.preset("division_a")
 CONTROL_DT_S = 0.001
 
 
+def _layout(n_robots: int) -> list[tuple[float, float]]:
+    """Up to 6 on a diagonal (as before), more on a grid of 11 per row (two teams of Division A)."""
+    if n_robots <= 6:
+        return [(-4.0 + 1.5 * k, -2.0 + 0.8 * k) for k in range(n_robots)]
+    return [(-5.0 + 1.0 * (k % 11), -3.5 + 1.4 * (k // 11)) for k in range(n_robots)]
+
+
+def _runner_real_time_factor(n_robots: int, sim_s: float) -> float:
+    """The in-process simulator with every robot under motion control (runner.InProcessRunner, 1 kHz)."""
+    poses = tuple((x, y, 0.3 * k) for k, (x, y) in enumerate(_layout(n_robots)))
+    runner = InProcessRunner(PlantSetup(field_preset="division_a", robot_poses=poses, control_period_s=CONTROL_DT_S))
+    for k in range(n_robots):
+        runner.command(k, (0.5, 0.2, 0.5))
+    t = time.perf_counter()
+    runner.run(sim_s)
+    return sim_s / (time.perf_counter() - t)
+
+
 def _world(n_robots: int, substep_hz: float, dribbling: bool = False) -> World:
-    specs = [RobotSpec(x=-4.0 + 1.5 * k, y=-2.0 + 0.8 * k, theta=0.3 * k, robot_id=k) for k in range(n_robots)]
+    specs = [RobotSpec(x=x, y=y, theta=0.3 * k, robot_id=k) for k, (x, y) in enumerate(_layout(n_robots))]
     w = World(FIELD, specs, BallState(1.0, 3.0, 2.0, -0.5), physics=PhysicsParams(substep_hz=substep_hz), seed=1)
     rng = np.random.default_rng(0)
     for k in range(n_robots):
@@ -83,7 +102,7 @@ def run(quick: bool = False) -> list[dict]:
             note="median, contacts checked every substep",
         )
     )
-    for n in (1, 6):
+    for n in (1, 6, 22):
         rows.append(
             dict(
                 name=f"real-time factor, {n} robot(s) + ball, {hz / 1000:.0f} kHz substeps",
@@ -93,6 +112,16 @@ def run(quick: bool = False) -> list[dict]:
                 note=f"{sim_s:.0f} s simulated, 1 kHz control calls",
             )
         )
+    rows.append(
+        dict(
+            name=f"real-time factor, 22 robots under motion control + ball, {hz / 1000:.0f} kHz substeps",
+            value=round(_runner_real_time_factor(22, sim_s / 5.0), 2),
+            unit="x",
+            target=">= 5",
+            note=f"runner.InProcessRunner, main board and motor boards of each robot at 1 kHz; {sim_s / 5.0:.1f} s "
+                 "simulated",
+        )
+    )
     rows.append(
         dict(
             name="real-time factor, 1 robot + ball, 20 kHz substeps",

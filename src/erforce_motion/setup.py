@@ -27,6 +27,7 @@ setup(
         "console_scripts": [
             "velocity_controller = erforce_motion.velocity_controller_node:main",
             "motor_boards = erforce_motion.motor_boards_node:main",
+            "team_firmware = erforce_motion.team_firmware_node:main",
         ],
     },
 )

@@ -301,6 +301,8 @@ def test_print_and_pkg_file_form_on_the_command_line(capsys):
                                                  "robot_side": "false"}),
     ("erforce_sim/launch/sim_one_robot.launch.yaml", {}),
     ("erforce_motion/launch/robot.launch.yaml", {}),
+    ("erforce_motion/launch/team.launch.yaml", {}),
+    ("erforce_sim/launch/team_sim.launch.yaml", {}),
 ])
 def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(launch_file, args, monkeypatch):
     path = REPO / "src" / launch_file
@@ -316,10 +318,25 @@ def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(l
         "/robot/udp_only.xml"}
 
 
+def test_team_sim_takes_its_robots_as_a_list_argument():
+    """14 robots by default (11 and 3 opponents) in one team_firmware, the plant and the predictor sized alike;
+    a robot is removed or added by the list, without editing a file."""
+    specs = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml")
+    assert [label.rsplit("-", 1)[0] for label in specs] == ["plant", "ball_predictor", "team_firmware"]
+    params = {label.rsplit("-", 1)[0]: params_of(spec)["/**"] for label, spec in specs.items()}
+    assert params["team_firmware"]["robot_ids"] == list(range(14))
+    assert len(params["plant"]["robot_poses"]) == 3 * 14 and params["ball_predictor"]["num_robots"] == 14
+    three = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", robot_ids="[0, 2, 5]")
+    assert params_of(next(s for label, s in three.items() if label.startswith("team_firmware")))["/**"][
+        "robot_ids"] == [0, 2, 5]
+
+
 @pytest.mark.parametrize(("launch_file", "args"), [
     ("erforce_sim/launch/demo.launch.yaml", {"receivers": "3"}),
     ("erforce_sim/launch/sim_one_robot.launch.yaml", {}),
     ("erforce_motion/launch/robot.launch.yaml", {}),
+    ("erforce_motion/launch/team.launch.yaml", {}),
+    ("erforce_sim/launch/team_sim.launch.yaml", {}),
 ])
 def test_launch_files_restart_every_node_after_a_delay_unless_told_not_to(launch_file, args):
     path = REPO / "src" / launch_file

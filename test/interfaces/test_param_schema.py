@@ -16,7 +16,7 @@ from erforce_ball_model.catch_time import CatchSearch
 from erforce_ball_model.catcher import CatcherConfig
 from erforce_ball_model.tracking import TrackerConfig
 from erforce_interfaces import lockstep
-from erforce_interfaces.param_schema import ParamSchema, fields_for, load_schema
+from erforce_interfaces.param_schema import HostSchema, ParamSchema, fields_for, load_schema, robot_param_specs
 from erforce_interfaces.tools.docs import NODE_SCHEMAS
 from erforce_motion.motor_board import MotorBoardConfig
 from erforce_motion.pid import ANTI_WINDUP_MODES
@@ -163,3 +163,23 @@ def test_what_a_node_cannot_apply_while_running_is_read_only():
     assert load_schema("erforce_ball_model", "catcher").by_name["rate_hz"].read_only  # its timer is made once
     for node in ("velocity_controller", "motor_boards"):  # they rebuild their loop on any change
         assert not any(s.read_only for s in load_schema("erforce_motion", node).specs)
+
+
+def test_a_host_schema_declares_the_hosted_parameters_under_a_prefix_and_parses_each_as_its_own():
+    own = ParamSchema.from_yaml_text(
+        "host:\n  ids: {type: int_array, default_value: [0], description: ids}\n  robot: {shared: robot_description}\n")
+    hosted = ParamSchema.from_yaml_text(
+        "part:\n  rate_hz: {type: double, default_value: 50.0, description: r, validation: {bounds<>: [1.0, 900.0]}}\n"
+        "  wait: {type: bool, default_value: true, description: wait}\n  robot: {shared: robot_description}\n")
+    host = HostSchema(own, {"a.": (hosted, ("wait",))})
+    names = [s.name for s in host.specs]
+    assert names[:2] == ["ids", "a.rate_hz"] and "a.wait" not in names and "wait" not in names
+    assert sum(n.startswith("robot.") for n in names) == len(robot_param_specs())  # once, for the host
+    values = host.defaults() | {"a.rate_hz": 200.0, "robot.mass_kg": 3.0}
+    own_config, parts = host.parse(values)
+    assert own_config.ids == (0,) and own_config.robot.mass_kg == 3.0
+    assert (parts["a."].rate_hz, parts["a."].wait, parts["a."].robot.mass_kg) == (200.0, True, 3.0)
+    with pytest.raises(ValueError, match="a.rate_hz"):
+        host.parse(values | {"a.rate_hz": 1000.0})
+    with pytest.raises(ValueError, match="listed twice"):
+        HostSchema(own, {"": (own, ())})

@@ -264,6 +264,42 @@ class ParamSchema:
         return "\n".join(rows)
 
 
+
+class HostSchema(ParamSchema):
+    """The parameters of a node that hosts other nodes' cores (a team's firmware in one process).
+
+    Its own schema's parameters, then each hosted node's under a prefix (the same names, ranges and
+    defaults, one truth), then ``robot.*`` once. A hosted parameter listed in ``skip`` means nothing in
+    the host: it is not declared and keeps its default. ``parse`` gives ``(own config, {prefix: hosted
+    config})``, each the object its own schema makes, so the hosted nodes' build functions apply as is.
+    """
+
+    def __init__(self, own: ParamSchema, hosted: Mapping[str, tuple[ParamSchema, Iterable[str]]]) -> None:
+        self.own = own
+        self.hosted = {prefix: (schema, frozenset(skip)) for prefix, (schema, skip) in hosted.items()}
+        specs = [s for s in own.specs if not s.name.startswith(ROBOT_PREFIX)]
+        for prefix, (schema, skip) in self.hosted.items():
+            specs += [dataclasses.replace(s, name=prefix + s.name) for s in schema.specs
+                      if not s.name.startswith(ROBOT_PREFIX) and s.name not in skip]
+        specs += [s for s in own.specs if s.name.startswith(ROBOT_PREFIX)]
+        self.node, self.specs, self.has_robot = own.node, tuple(specs), own.has_robot
+        self.by_name = {s.name: s for s in self.specs}
+        if len(self.by_name) != len(self.specs):
+            raise ValueError(f"{own.node}: a parameter is listed twice")
+        self.config_type = None
+
+    def parse(self, values: Mapping[str, Any]):
+        self.check(values)
+        own = self.own.parse({s.name: values[s.name] for s in self.own.specs})
+        hosted = {}
+        for prefix, (schema, skip) in self.hosted.items():
+            hosted[prefix] = schema.parse({
+                s.name: s.default if s.name in skip else values[s.name if s.name.startswith(ROBOT_PREFIX) else
+                                                                prefix + s.name]
+                for s in schema.specs})
+        return own, hosted
+
+
 def fields_for(cls: type, config: Any, **given: Any) -> dict[str, Any]:
     """The constructor arguments of dataclass ``cls`` taken by name from a node's config object.
 

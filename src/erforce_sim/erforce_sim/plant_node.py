@@ -241,7 +241,7 @@ class PlantNode(Node):
         waited = time.monotonic() - self._start_wall
         ok = all(
             self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0
-            and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= 2
+            and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= self._values["wheel_states_readers"]
             for i in self._controlled
         ) and self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
         if not ok and waited > self._values["startup_timeout_s"]:

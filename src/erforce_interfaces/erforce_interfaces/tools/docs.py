@@ -28,6 +28,9 @@ NODE_SCHEMAS = (
     ("erforce_interfaces", "ssl_sim_bridge"),
     ("erforce_sim", "ssl_sim_server"),
     ("erforce_sim", "field_view"),
+    # the team hosts: their own parameters; the rest are the per-robot nodes' (README, "A team")
+    ("erforce_motion", "team_firmware"),
+    ("erforce_ball_model", "team_catcher"),
 )
 
 

@@ -31,6 +31,7 @@ from erforce_sim.sensors import VisionFrame, VisionParams
 from erforce_sim.world import PhysicsParams, RobotSpec, World
 
 PLATES = ("flat", "curved")
+OPPONENT_TEAM = "blue"  # our robots are RobotSpec's default team, yellow
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,9 @@ class PlantSetup:
     kicker_plates: tuple[str, ...] = ("curved",)  # one per robot, or one for all
     controlled: tuple[bool, ...] = (True,)  # robots with motor boards; one per robot, or one for all
     ball: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # x, y [m], vx, vy [m/s], rolling
+    # The second team (blue, ids 0 .. M-1), under the same physics and with motion control; in the
+    # world and the runner they come after our robots: index num_robots + j.
+    opponent_poses: tuple[tuple[float, float, float], ...] = ()
     control_period_s: float = 0.001
     seed: int = 0
     robot: RobotConfig = field(default_factory=RobotConfig)
@@ -53,7 +57,7 @@ class PlantSetup:
         n = len(self.robot_poses)
         if n < 1:
             raise ValueError("robot_poses: need at least one robot")
-        for pose in self.robot_poses:
+        for pose in self.robot_poses + self.opponent_poses:
             if len(pose) != 3 or not all(math.isfinite(v) for v in pose):
                 raise ValueError(f"robot_poses: each pose is 3 finite values (x, y, yaw), got {pose!r}")
         for name in ("kicker_plates", "controlled"):
@@ -76,6 +80,10 @@ class PlantSetup:
         return len(self.robot_poses)
 
     @property
+    def num_opponents(self) -> int:
+        return len(self.opponent_poses)
+
+    @property
     def period_ns(self) -> int:
         return round(self.control_period_s * 1e9)
 
@@ -91,6 +99,9 @@ def build_world(setup: PlantSetup) -> World:
     specs = [
         RobotSpec(config=setup.robot, x=x, y=y, theta=yaw, robot_id=i, kicker_plate=setup.plate(i))
         for i, (x, y, yaw) in enumerate(setup.robot_poses)
+    ] + [
+        RobotSpec(config=setup.robot, x=x, y=y, theta=yaw, team=OPPONENT_TEAM, robot_id=j, kicker_plate="curved")
+        for j, (x, y, yaw) in enumerate(setup.opponent_poses)
     ]
     world = World(
         FieldConfig.preset(setup.field_preset), specs, None, physics=setup.physics, vision=setup.vision, seed=setup.seed
@@ -101,7 +112,9 @@ def build_world(setup: PlantSetup) -> World:
 
 
 class InProcessRunner:
-    """Plant + main boards + motor boards of the controlled robots, stepped tick by tick."""
+    """Plant + main boards + motor boards of the controlled robots, stepped tick by tick.
+
+    Robots are world indices: ours 0 .. num_robots - 1, then the opponents (all controlled)."""
 
     def __init__(
         self,
@@ -117,8 +130,8 @@ class InProcessRunner:
         motor_config = motor_config or MotorBoardConfig(loop_period_s=period)
         self.main_boards: dict[int, MainBoardLoop] = {}
         self.motor_boards: dict[int, MotorBoardLoop] = {}
-        for i in range(setup.num_robots):
-            if setup.is_controlled(i):
+        for i in range(setup.num_robots + setup.num_opponents):
+            if i >= setup.num_robots or setup.is_controlled(i):
                 self.main_boards[i] = MainBoardLoop(
                     setup.robot, velocity_config or VelocityControlConfig(), period, command_timeout_s
                 )

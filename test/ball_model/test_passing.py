@@ -1,0 +1,110 @@
+"""The passing game's decisions (erforce_ball_model.passing), from hand-computed cases."""
+
+import math
+
+import numpy as np
+import pytest
+
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.catch_time import CatchSearch, RobotLimits
+from erforce_ball_model.passing import (
+    PassConfig,
+    PassOption,
+    evaluate_passes,
+    kick_speed_for,
+    press_targets,
+    select_pass,
+)
+
+MODEL = BallModelParams(a_slide_mps2=-2.5, a_roll_mps2=-0.3, c_switch=0.6)
+OFFSET = 0.0815
+CFG = PassConfig()
+
+
+def test_kick_speed_arriving_while_rolling():
+    """2 m, 1.5 m/s left: sliding would need sqrt(1.5^2 + 2*2.5*2) = 3.5 m/s, but 0.6*3.5 = 2.1 > 1.5, so the
+    ball rolls on arrival: v0^2 = (2.25 + 2*0.3*2) / (0.36 + 0.64*0.3/2.5) = 3.45 / 0.4368."""
+    v0 = kick_speed_for(2.0, 1.5, MODEL)
+    assert v0 == pytest.approx(math.sqrt(3.45 / 0.4368), rel=1e-12)
+    ball = BallTrajectory((0.0, 0.0), (v0, 0.0), v0, MODEL)  # the forward model agrees
+    assert float(ball.speed_at(ball.time_to_distance(2.0))) == pytest.approx(1.5, abs=1e-9)
+
+
+def test_kick_speed_arriving_while_sliding():
+    """0.5 m, 3 m/s left: v0 = sqrt(9 + 2*2.5*0.5) = sqrt(11.5) = 3.391; 0.6*3.391 = 2.03 < 3: still sliding."""
+    v0 = kick_speed_for(0.5, 3.0, MODEL)
+    assert v0 == pytest.approx(math.sqrt(11.5), rel=1e-12)
+    ball = BallTrajectory((0.0, 0.0), (v0, 0.0), v0, MODEL)
+    assert float(ball.speed_at(ball.time_to_distance(0.5))) == pytest.approx(3.0, abs=1e-9)
+
+
+def test_kick_speed_edge_and_bad_input():
+    assert kick_speed_for(0.0, 2.0, MODEL) == pytest.approx(2.0)
+    with pytest.raises(ValueError, match="finite"):
+        kick_speed_for(-1.0, 1.0, MODEL)
+    with pytest.raises(ValueError, match="finite"):
+        kick_speed_for(1.0, math.nan, MODEL)
+
+
+def _option(receiver, t_receiver, t_opponent):
+    return PassOption(receiver, 3.0, 0.0, t_receiver, t_opponent, 0 if math.isfinite(t_opponent) else None)
+
+
+def test_select_pass_takes_the_earliest_safe_catch():
+    options = [_option(1, 1.0, 1.2),  # margin 0.2 < 0.3: unsafe although earliest
+               _option(2, 1.5, 3.0),  # safe, margin 1.5
+               _option(3, 1.3, 1.7),  # safe, margin 0.4, earlier: chosen
+               _option(4, 1.4, math.inf)]  # no opponent can catch it: safe
+    assert select_pass(options, CFG).receiver == 3
+
+
+def test_select_pass_without_a_safe_one_takes_the_largest_margin():
+    options = [_option(1, 1.0, 0.5), _option(2, 2.0, 2.1), _option(3, math.inf, 5.0)]
+    chosen = select_pass(options, CFG)
+    assert chosen.receiver == 2 and chosen.margin_s == pytest.approx(0.1) and not chosen.safe(CFG)
+    assert select_pass([_option(1, math.inf, 1.0)], CFG) is None
+    assert select_pass([], CFG) is None
+
+
+def _search(n):
+    return CatchSearch(n, RobotLimits(4.5, 2.5), dribbler_offset_m=OFFSET, unbounded=True)
+
+
+def test_an_opponent_on_the_lane_makes_a_pass_unsafe_and_the_free_teammate_is_chosen():
+    """Ball at the origin (passer 0 behind it). Teammate 1 at (2, 0) has an opponent standing at (1, 0) on its
+    lane: the ball reaches that opponent's dribbler first, so its margin is negative. Teammate 2 at (0, 2)
+    is free (the opponent is 2.2 m from its lane's end and behind its line), and is chosen."""
+    team = np.array([[-0.1, 0.0], [2.0, 0.0], [0.0, 2.0]])
+    opponents = np.array([[1.0, 0.0]])
+    options = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1, 2],
+                              _search(4), MODEL, CFG, OFFSET)
+    by = {o.receiver: o for o in options}
+    assert by[1].margin_s < 0.0 and by[1].first_opponent == 0
+    assert by[2].safe(CFG)
+    assert select_pass(options, CFG).receiver == 2
+    # The receiver receives where it stands: its catch is the ball's arrival at its dribbler, 1.9185 m, at
+    # 1.5 m/s, rolling (v0 * 0.6 > 1.5): t = t_switch + (v_switch - 1.5) / 0.3.
+    o = by[2]
+    v0 = o.kick_speed_mps
+    t_arrive = (v0 - 0.6 * v0) / 2.5 + (0.6 * v0 - 1.5) / 0.3
+    assert o.receiver_catch_s == pytest.approx(t_arrive, abs=1e-9)
+    assert o.direction_rad == pytest.approx(math.pi / 2)
+    assert o.kick_speed_mps == pytest.approx(kick_speed_for(2.0 - OFFSET, CFG.arrive_speed_mps, MODEL))
+
+
+def test_teammates_out_of_range_are_no_option():
+    team = np.array([[0.0, 0.0], [0.5, 0.0], [7.0, 0.0]])
+    opponents = np.array([[0.0, 3.0]])
+    options = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1, 2],
+                              _search(4), MODEL, CFG, OFFSET)
+    assert options == []
+
+
+def test_press_targets_cover_one_lane_each_then_double_up():
+    """Ball at the origin with robot 0; mates at (2, 0) and (0, 2); half way along the lanes are (1, 0) and
+    (0, 1). The opponent nearest to (2, 0) takes that lane, the other the second; a third doubles up on the
+    lane of the mate nearest to it."""
+    team = np.array([[0.0, 0.0], [2.0, 0.0], [0.0, 2.0]])
+    opponents = np.array([[2.2, 0.1], [0.1, 1.5], [3.0, 0.0]])
+    targets = press_targets((0.0, 0.0), team, opponents, 0, CFG)
+    np.testing.assert_allclose(targets, [[1.0, 0.0], [0.0, 1.0], [1.0, 0.0]])

@@ -1,0 +1,68 @@
+"""The catchers of a team per robot (a catcher in each namespace with team_robot_ids) and in one process
+(team_catcher with robot_ids): the same inputs give the same decision, who of the team receives."""
+
+import math
+
+import pytest
+from geometry_msgs.msg import PointStamped, Twist
+from nav_msgs.msg import Odometry
+from std_msgs.msg import Float64
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import odometry_msg, point_msg
+
+pytestmark = pytest.mark.integration
+
+IDS = (0, 2)
+POSES = {0: (-0.5, 0.3, math.pi), 2: (2.5, -1.0, math.pi)}
+POINTS = {0: (-0.4, 0.0), 2: (1.0, 0.0)}
+
+
+def _start(graph, deployment):
+    params = {"field": "division_b"}
+    if deployment == "team":
+        return [graph.start_node("erforce_ball_model", "team_catcher", params={**params, "robot_ids": list(IDS)})]
+    return [graph.start_node("erforce_ball_model", "catcher", namespace=f"robot_{i}",
+                             params={**params, "team_robot_ids": list(IDS)}) for i in IDS]
+
+
+@pytest.mark.parametrize("deployment", ["per_robot", "team"])
+def test_the_robot_with_the_earlier_catch_receives_the_other_holds(ros_graph, deployment):
+    """A ball rolls along y = 0 at 2 m/s. With robot_0's catch 0.6 s and robot_2's 1.5 s away, robot_0 drives
+    (to the ball's line: -y in the field, +y in its base_link as it faces -x) and robot_2 holds; with the
+    times swapped, robot_2 drives and robot_0 holds."""
+    procs = _start(ros_graph, deployment)
+    probe = ros_graph.probe
+    commands = {i: ros_graph.subscribe(f"/robot_{i}/cmd_vel", Twist, contract.CMD_VEL.qos) for i in IDS}
+    pubs = {"ball": probe.wait_for_subscribers(contract.BALL_STATE.name, Odometry, timeout_s=30.0,
+                                               qos=contract.BALL_STATE.qos)}
+    for i in IDS:
+        pubs[("odom", i)] = probe.wait_for_subscribers(contract.ODOM.for_robot(i), Odometry, timeout_s=30.0,
+                                                       qos=contract.ODOM.qos)
+        pubs[("time", i)] = probe.wait_for_subscribers(contract.CATCH_TIME.for_robot(i), Float64, timeout_s=30.0,
+                                                       qos=contract.CATCH_TIME.qos)
+        pubs[("point", i)] = probe.wait_for_subscribers(contract.CATCH_POINT.for_robot(i), PointStamped,
+                                                        timeout_s=30.0, qos=contract.CATCH_POINT.qos)
+
+    def feed(times, seconds):
+        for k in range(round(seconds / 0.05)):
+            t = 0.05 * k
+            pubs["ball"].publish(odometry_msg(t, (-3.0 + 2.0 * t, 0.0, 0.0), (2.0, 0.0, 0.0)))
+            for i in IDS:
+                pubs[("odom", i)].publish(odometry_msg(t, POSES[i], (0.0, 0.0, 0.0)))
+                pubs[("time", i)].publish(Float64(data=times[i]))
+                pubs[("point", i)].publish(point_msg(t, POINTS[i]))
+            probe.spin_for(0.05)
+
+    def moving(i, since):
+        return [m for m in commands[i][since:] if math.hypot(m.linear.x, m.linear.y) > 0.05]
+
+    for receiver, times in ((0, {0: 0.6, 2: 1.5}), (2, {0: 1.5, 2: 0.6})):
+        other = 2 if receiver == 0 else 0
+        feed(times, 0.5)  # the switch (0.1 s margin, 0.25 s staleness) settles
+        since = {i: len(commands[i]) for i in IDS}
+        feed(times, 0.6)
+        assert len(commands[receiver]) - since[receiver] >= 10 and len(commands[other]) - since[other] >= 10
+        assert len(moving(receiver, since[receiver])) >= 10, f"robot_{receiver} should drive"
+        assert moving(other, since[other]) == [], f"robot_{other} should hold"
+    assert all(p.alive() for p in procs)

@@ -1,0 +1,117 @@
+"""Many robots' firmware over DDS: per robot (velocity_controller + motor_boards in each namespace) and
+in one team_firmware process give the in-process runner's trajectory; robots come and go by parameter;
+a killed firmware process stalls only its robot."""
+
+import signal
+from pathlib import Path
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import String
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import odometry_from_msg, stamp_to_nanoseconds
+from erforce_motion.velocity_control import VelocityControlConfig
+from erforce_sim.closed_loop.runner import InProcessRunner, PlantSetup
+
+pytestmark = pytest.mark.integration
+
+ROBOT_YAML = Path(__file__).resolve().parents[2] / "src/erforce_interfaces/config/robot.yaml"
+POSES = ((-1.0, 0.0, 0.0), (0.0, 1.0, 0.5), (1.0, -1.0, 3.0))
+TWISTS = {0: (0.8, -0.3, 1.0), 2: (-0.5, 0.6, -2.0)}  # robot_1 has no firmware: it stays put
+
+
+def _start_firmware(graph, deployment, ids, **params):
+    common = {"use_sim_time": True}
+    if deployment == "team":
+        return [graph.start_node("erforce_motion", "team_firmware", params_file=ROBOT_YAML,
+                                 params={**common, "robot_ids": list(ids), "main_board.command_timeout_s": 30.0,
+                                         **params})]
+    procs = []
+    for i in ids:
+        procs.append(graph.start_node("erforce_motion", "velocity_controller", namespace=f"robot_{i}",
+                                      params_file=ROBOT_YAML, params={**common, "command_timeout_s": 30.0}))
+        procs.append(graph.start_node("erforce_motion", "motor_boards", namespace=f"robot_{i}",
+                                      params_file=ROBOT_YAML, params=common))
+    return procs
+
+
+def _command(graph, robot, twist):
+    pub = graph.probe.wait_for_subscribers(f"/robot_{robot}/cmd_vel", Twist, timeout_s=30.0)
+    msg = Twist()
+    msg.linear.x, msg.linear.y, msg.angular.z = twist
+    pub.publish(msg)
+
+
+def _start_plant(graph, deployment, readers, **params):
+    """The plant once this probe reads every robot's ground truth (and /clock, which holds the first tick)."""
+    truths = {i: graph.subscribe(f"/robot_{i}/ground_truth/odom", Odometry) for i in range(len(POSES))}
+    clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
+    plant = graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params={
+        "robot_poses": [v for p in POSES for v in p], "controlled": [True, False, True], "ball": [3.0, 2.0, 0.0, 0.0],
+        "real_time_factor": 0.0, "wheel_states_readers": 1 if deployment == "team" else 2,
+        "start_clock_subscribers": readers + 1, **params})
+    return plant, truths, clocks
+
+
+@pytest.mark.parametrize("deployment", ["per_robot", "team"])
+def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deployment):
+    """robot_0 and robot_2 have firmware (the team process by its robot_ids parameter [0, 2]), robot_1 none:
+    both deployments give the in-process runner's trajectories of all three to 1e-9 at every ground-truth
+    stamp, so they agree with each other."""
+    _start_firmware(ros_graph, deployment, TWISTS)
+    for i, twist in TWISTS.items():
+        _command(ros_graph, i, twist)
+    ros_graph.probe.spin_for(0.3)
+    readers = 1 if deployment == "team" else 2 * len(TWISTS)  # use_sim_time nodes subscribe to /clock
+    _, truths, _ = _start_plant(ros_graph, deployment, readers, seed=7, stop_after_s=0.5)
+    ros_graph.probe.spin_until(lambda: all(t and odometry_from_msg(t[-1])[0] >= 0.4 for t in truths.values()),
+                               120.0, "0.4 s of every robot")
+    dds = {i: {stamp_to_nanoseconds(m.header.stamp): odometry_from_msg(m) for m in t} for i, t in truths.items()}
+
+    runner = InProcessRunner(PlantSetup(robot_poses=POSES, controlled=(True, False, True), ball=(3.0, 2.0, 0.0, 0.0),
+                                        seed=7, control_period_s=0.002), VelocityControlConfig(),
+                             command_timeout_s=30.0)
+    for i, twist in TWISTS.items():
+        runner.command(i, twist)
+    compared = 0
+    for _ in range(201):
+        for i in range(len(POSES)):
+            if runner.t_ns in dds[i]:
+                _, pose, vel, _ = dds[i][runner.t_ns]
+                s = runner.world.robot_state(i)
+                np.testing.assert_allclose(pose, [s.x, s.y, s.theta], rtol=0, atol=1e-9)
+                np.testing.assert_allclose(vel, [s.vx, s.vy, s.w], rtol=0, atol=1e-9)
+                compared += 1
+        runner.tick()
+    assert compared >= 3 * 35  # ground truth at 100 Hz over 0.4 s, each robot
+    assert abs(runner.world.robot_state(0).vx) > 0.3 and abs(runner.world.robot_state(2).w) > 1.0  # they moved
+    assert runner.world.robot_state(1).vx == 0.0
+
+
+def test_a_killed_firmware_process_stalls_only_its_robot(ros_graph):
+    """Per-robot deployment: robot_2's motor boards are killed; the plant reports the stall and goes on in
+    lockstep with robot_0, which keeps driving its command."""
+    procs = _start_firmware(ros_graph, "per_robot", TWISTS)
+    for i, twist in TWISTS.items():
+        _command(ros_graph, i, twist)
+    ros_graph.probe.spin_for(0.3)
+    events = ros_graph.subscribe("/sim/events", String)
+    plant, truths, clocks = _start_plant(ros_graph, "per_robot", 2 * len(TWISTS), lockstep_timeout_s=0.5)
+    ros_graph.probe.spin_until(lambda: clocks and stamp_to_nanoseconds(clocks[-1].clock) > 0.3e9, 60.0, "0.3 s")
+    motor_boards_2 = procs[3]
+    assert motor_boards_2.name == "motor_boards"
+    motor_boards_2.signal(signal.SIGKILL)
+    ros_graph.probe.spin_until(lambda: any("robot_2 motor_boards stalled" in e.data for e in events), 30.0,
+                               "the stall report")
+    t_stall = stamp_to_nanoseconds(clocks[-1].clock)
+    ros_graph.probe.spin_until(lambda: stamp_to_nanoseconds(clocks[-1].clock) > t_stall + 1.0e9, 60.0,
+                               "1 s after the stall")
+    _, pose, vel, _ = odometry_from_msg(truths[0][-1])
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    assert c * vel[0] + s * vel[1] == pytest.approx(TWISTS[0][0], abs=0.1)  # robot_0 still drives its command
+    assert vel[2] == pytest.approx(TWISTS[0][2], abs=0.1)
+    assert plant.alive() and not motor_boards_2.alive()

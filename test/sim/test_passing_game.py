@@ -1,0 +1,64 @@
+"""The passing game in one process (erforce_sim.closed_loop.passing_game): deterministic per seed, a chain of
+completed passes, and an interception counted and explained."""
+
+import dataclasses
+import itertools
+
+import pytest
+
+from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame, summary
+
+SMALL = GameConfig(team_size=3, opponents=1, passes=3)
+
+
+def test_a_seed_repeats_exactly():
+    cfg = dataclasses.replace(SMALL, passes=1)
+    assert PassingGame(cfg, seed=3).play() == PassingGame(cfg, seed=3).play()
+
+
+def test_passes_go_along_a_chain_and_arrive_when_predicted():
+    """Three of ours, one opponent far from the lanes' receivers: every pass completes, the receiver of
+    one pass kicks the next, and the light barrier sees the ball when the two-phase model said the ball
+    reaches the receiver's dribbler (the receiver steps onto the line, a little towards the ball)."""
+    records = PassingGame(SMALL, seed=1).play()
+    assert [r.outcome for r in records] == ["completed"] * 3
+    for before, after in itertools.pairwise(records):
+        assert after.passer == before.receiver and after.receiver != before.passer  # on along the chain
+    for r in records:
+        assert r.caught_by == f"robot_{r.receiver}"
+        assert r.actual_catch_s == pytest.approx(r.predicted_catch_s, abs=0.15)
+    s = summary(records, SMALL.passing)
+    assert s["completed"] == 3 and s["safe_completed"] == s["rated_safe"]
+
+
+def test_an_opponent_on_the_only_lane_intercepts_and_the_record_says_why():
+    """Two of ours 3 m apart with an opponent half-way on the line between them: the only pass is rated
+    unsafe (the opponent's catch comes before ours), it is played, and the opponent intercepts it."""
+    cfg = GameConfig(team_size=2, opponents=1, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)),
+                     opponent_positions=((-3.0, 0.4),))
+    (record,) = PassingGame(cfg, seed=0).play()
+    assert not record.rated_safe and record.margin_s < 0.0 and record.first_opponent == 0
+    assert record.outcome == "intercepted" and record.caught_by == "opponent_0"
+    assert record.actual_catch_s < record.predicted_catch_s
+    assert "predicted first opponent opponent_0" in record.line()
+
+
+def test_the_passing_scenario_writes_the_plot_the_summary_and_a_bag(tmp_path):
+    """``./run demo --scenario passing``: each pass on the terminal, and report/<time>/ with passes.png,
+    summary.md (a row per pass) and a rosbag2/MCAP bag of the ground truth of every robot and the pass events."""
+    from rosbags.rosbag2 import Reader
+
+    from erforce_sim.closed_loop.demo import main
+
+    assert main(["--scenario", "passing", "--team", "2", "--opponents", "1", "--passes", "1", "--seed", "0",
+                 "--out", str(tmp_path)]) == 0
+    (report,) = tmp_path.iterdir()
+    assert (report / "passes.png").stat().st_size > 10_000
+    summary_text = (report / "summary.md").read_text()
+    assert "| 1 | robot_0 | robot_1 |" in summary_text
+    with Reader(report / "bag") as bag:
+        counts = {c.topic: c.msgcount for c in bag.connections}
+    assert counts["/sim/events"] == 1
+    for topic in ("/clock", "/ground_truth/ball", "/robot_0/ground_truth/odom", "/robot_1/ground_truth/odom",
+                  "/opponent_0/ground_truth/odom"):
+        assert counts[topic] > 100  # 100 Hz over more than a second
