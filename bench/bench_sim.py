@@ -14,9 +14,9 @@ from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallState
-from erforce_sim.closed_loop.runner import InProcessRunner, PlantSetup
+from erforce_sim.closed_loop.runner import InProcessRunner
 from erforce_sim.kicker import deviation_table
-from erforce_sim.world import PhysicsParams, RobotSpec, World
+from erforce_sim.world import PhysicsParams, PlantSetup, RobotSpec, World
 
 FIELD = FieldConfig.preset("division_a")
 CONTROL_DT_S = 0.001

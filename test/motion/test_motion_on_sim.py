@@ -21,7 +21,8 @@ from erforce_motion.velocity_control import (
     VelocityController,
     wheel_force_per_accel,
 )
-from erforce_sim.closed_loop.runner import InProcessRunner, PlantSetup
+from erforce_sim.closed_loop.runner import InProcessRunner
+from erforce_sim.world import PlantSetup
 
 ROBOT = RobotConfig()
 KIN = OmniKinematics.from_robot_config(ROBOT)

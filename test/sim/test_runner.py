@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from erforce_motion.motor_board import MotorBoardConfig
-from erforce_sim.closed_loop.runner import InProcessRunner, PlantSetup
+from erforce_sim.closed_loop.runner import InProcessRunner
+from erforce_sim.world import PlantSetup
 
 
 def run_step(period_s: float, command, duration_s: float = 1.2):

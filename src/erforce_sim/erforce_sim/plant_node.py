@@ -57,10 +57,9 @@ from erforce_interfaces.node_support import (
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import BallModelFromVision
-from erforce_sim.closed_loop.runner import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras
-from erforce_sim.world import PhysicsParams
+from erforce_sim.world import PhysicsParams, PlantSetup, build_world
 
 SCHEMA = load_schema("erforce_sim", "plant")
 

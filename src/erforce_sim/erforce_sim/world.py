@@ -675,3 +675,85 @@ class World:
         for rb in self._robots:
             vals += [rb.x, rb.y, rb.theta, rb.vx, rb.vy, rb.w, *rb.wheel_w, *rb.current, *rb.temp_c]
         return all(math.isfinite(v) for v in vals)
+
+
+# ---------------------------------------------------------------------- a scenario for the plant
+PLATES = ("flat", "curved")
+OPPONENT_TEAM = "blue"  # our robots are RobotSpec's default team, yellow
+
+
+@dataclass(frozen=True)
+class PlantSetup:
+    """A scenario for the plant: what is on the field at t = 0 and how the plant ticks."""
+
+    field_preset: str = "division_b"
+    robot_poses: tuple[tuple[float, float, float], ...] = ((-1.0, 0.0, 0.0),)  # x [m], y [m], yaw [rad]
+    kicker_plates: tuple[str, ...] = ("curved",)  # one per robot, or one for all
+    controlled: tuple[bool, ...] = (True,)  # robots with motor boards; one per robot, or one for all
+    ball: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # x, y [m], vx, vy [m/s], rolling
+    # The second team (blue, ids 0 .. M-1), under the same physics and with motion control; in the
+    # world and the runner they come after our robots: index num_robots + j.
+    opponent_poses: tuple[tuple[float, float, float], ...] = ()
+    control_period_s: float = 0.001
+    seed: int = 0
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    physics: PhysicsParams = field(default_factory=PhysicsParams)
+    vision: VisionParams = field(default_factory=VisionParams)
+
+    def __post_init__(self) -> None:
+        FieldConfig.preset(self.field_preset)
+        n = len(self.robot_poses)
+        if n < 1:
+            raise ValueError("robot_poses: need at least one robot")
+        for pose in self.robot_poses + self.opponent_poses:
+            if len(pose) != 3 or not all(math.isfinite(v) for v in pose):
+                raise ValueError(f"robot_poses: each pose is 3 finite values (x, y, yaw), got {pose!r}")
+        for name in ("kicker_plates", "controlled"):
+            values = getattr(self, name)
+            if len(values) not in (1, n):
+                raise ValueError(f"{name}: give 1 value or one per robot ({n}), got {len(values)}")
+        for plate in self.kicker_plates:
+            if plate not in PLATES:
+                raise ValueError(f"kicker_plates: each must be one of {PLATES}, got {plate!r}")
+        if len(self.ball) != 4 or not all(math.isfinite(v) for v in self.ball):
+            raise ValueError(f"ball: 4 finite values (x, y, vx, vy), got {self.ball!r}")
+        if not (math.isfinite(self.control_period_s) and 1e-4 <= self.control_period_s <= 0.05):
+            raise ValueError(f"control_period_s must be in [0.0001, 0.05] s, got {self.control_period_s!r}")
+        period_ns = self.control_period_s * 1e9
+        if abs(period_ns - round(period_ns)) > 1e-3:
+            raise ValueError("control_period_s must be a whole number of nanoseconds")
+
+    @property
+    def num_robots(self) -> int:
+        return len(self.robot_poses)
+
+    @property
+    def num_opponents(self) -> int:
+        return len(self.opponent_poses)
+
+    @property
+    def period_ns(self) -> int:
+        return round(self.control_period_s * 1e9)
+
+    def plate(self, i: int) -> str:
+        return self.kicker_plates[0 if len(self.kicker_plates) == 1 else i]
+
+    def is_controlled(self, i: int) -> bool:
+        return bool(self.controlled[0 if len(self.controlled) == 1 else i])
+
+
+def build_world(setup: PlantSetup) -> World:
+    """The World of a scenario; raises ValueError (naming the body) when something is off the field."""
+    specs = [
+        RobotSpec(config=setup.robot, x=x, y=y, theta=yaw, robot_id=i, kicker_plate=setup.plate(i))
+        for i, (x, y, yaw) in enumerate(setup.robot_poses)
+    ] + [
+        RobotSpec(config=setup.robot, x=x, y=y, theta=yaw, team=OPPONENT_TEAM, robot_id=j, kicker_plate="curved")
+        for j, (x, y, yaw) in enumerate(setup.opponent_poses)
+    ]
+    world = World(
+        FieldConfig.preset(setup.field_preset), specs, None, physics=setup.physics, vision=setup.vision, seed=setup.seed
+    )
+    x, y, vx, vy = setup.ball
+    world.place_ball(x, y, vx, vy)
+    return world

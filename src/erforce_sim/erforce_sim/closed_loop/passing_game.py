@@ -39,8 +39,9 @@ from erforce_ball_model.catcher import CatcherConfig, Receiver, catch_twist, wra
 from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_sim.closed_loop.runner import OPPONENT_TEAM, InProcessRunner, PlantSetup
+from erforce_sim.closed_loop.runner import InProcessRunner
 from erforce_sim.sensors import VisionFrame
+from erforce_sim.world import OPPONENT_TEAM, PlantSetup
 
 # Division A (12 x 9 m). Our team: the first ``team_size`` of these; robot 0 starts with the ball.
 TEAM_POSITIONS = ((-4.5, 0.0), (-3.0, -2.5), (-3.0, 2.5), (-1.5, 0.0), (0.0, -3.0), (0.0, 3.0), (1.5, 0.0),

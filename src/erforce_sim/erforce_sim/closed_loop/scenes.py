@@ -30,8 +30,9 @@ from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
 from erforce_ball_model.catcher import CATCH_TIME_NEVER, CatcherConfig, Receiver
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_sim.closed_loop.runner import InProcessRunner, PlantSetup
+from erforce_sim.closed_loop.runner import InProcessRunner
 from erforce_sim.sensors import VisionFrame
+from erforce_sim.world import PlantSetup
 
 RECEIVER, KICKER = 0, 1
 # --receivers 2 and 3 add these receivers, in this order; their catchers form a team with robot_0's (the
