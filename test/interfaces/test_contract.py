@@ -513,3 +513,17 @@ def test_a_saturating_sensor_clips_finite_values_and_still_refuses_non_finite_on
     assert currents.tolist() == [125.0, -1.0]
     with pytest.raises(conv.ConversionError, match="not finite"):
         conv.joint_state_cdr(0, names, velocity=[math.nan, 0.0], saturate=True)
+
+
+def test_model_in_use_is_the_first_row_of_the_model_table():
+    in_use, fit, std = [-2.5, -0.3, 0.6], [-2.4, -0.31, 0.61], [0.01, 0.002, 0.003]
+    labels = c.BALL_MODEL_PARAM_LABELS
+    assert conv.model_in_use_from_msg(conv.table_msg([in_use], labels, "in_use")) == (-2.5, -0.3, 0.6)
+    three = conv.table_msg([in_use, fit, std], labels, "in_use,fit,std_error")
+    assert conv.model_in_use_from_msg(three) == (-2.5, -0.3, 0.6)
+    for rows, label in (([fit, std, in_use], "fit,std_error,in_use"), ([in_use, fit], "in_use,fit,std_error")):
+        with pytest.raises(conv.ConversionError):
+            conv.model_in_use_from_msg(conv.table_msg(rows, labels, label))
+    four_columns = conv.table_msg([[*in_use, 1.0]], (*labels, "extra"), "in_use")
+    with pytest.raises(conv.ConversionError, match="columns"):
+        conv.model_in_use_from_msg(four_columns)

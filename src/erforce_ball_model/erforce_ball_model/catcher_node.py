@@ -28,9 +28,9 @@ from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
     float64_from_msg,
+    model_in_use_from_msg,
     odometry_from_msg,
     point_from_msg,
-    table_from_msg,
     twist_msg,
 )
 from erforce_interfaces.executor import run_sampled, sample_only
@@ -45,7 +45,6 @@ from erforce_interfaces.param_schema import fields_for, load_schema
 from erforce_interfaces.robot_config import FieldConfig
 
 SCHEMA = load_schema("erforce_ball_model", "catcher")
-MODEL_IN_USE_ROW = contract.BALL_MODEL_PARAM_ROWS.index("in_use")
 
 
 def build_config(config) -> tuple[CatcherConfig, float, float, FieldConfig]:
@@ -142,12 +141,7 @@ class CatcherNode(Node):
 
     def _on_model_params(self, msg: Float64MultiArray) -> None:
         try:
-            table = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS)
-            rows = msg.layout.dim[0].label.split(",")
-            if rows != list(contract.BALL_MODEL_PARAM_ROWS[:len(rows)]) or len(rows) != len(table):
-                raise ConversionError(f"rows labelled {rows}, expected the first of {contract.BALL_MODEL_PARAM_ROWS}")
-            row = table[MODEL_IN_USE_ROW]
-            self._receiver.on_model(BallModelParams(*row.tolist()))
+            self._receiver.on_model(BallModelParams(*model_in_use_from_msg(msg)))
         except (ConversionError, IndexError, ValueError) as exc:
             self._warn.warn("model_params", f"rejected model_params: {exc}")
 

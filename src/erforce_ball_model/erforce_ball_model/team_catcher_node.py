@@ -24,9 +24,9 @@ from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
     float64_from_msg,
+    model_in_use_from_msg,
     odometry_from_msg,
     point_from_msg,
-    table_from_msg,
     twist_msg,
 )
 from erforce_interfaces.executor import run_sampled, sample_only
@@ -115,9 +115,7 @@ class TeamCatcherNode(Node):
 
     def _on_model_params(self, msg: Float64MultiArray) -> None:
         try:
-            table = table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS, len(contract.BALL_MODEL_PARAM_ROWS))
-            row = table[catcher_node.MODEL_IN_USE_ROW]
-            params = BallModelParams(*row.tolist())
+            params = BallModelParams(*model_in_use_from_msg(msg))
         except (ConversionError, IndexError, ValueError) as exc:
             self._warn.warn("model_params", f"rejected model_params: {exc}")
             return

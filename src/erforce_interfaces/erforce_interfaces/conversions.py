@@ -30,7 +30,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
-from erforce_interfaces.contract import FIELD_FRAME
+from erforce_interfaces.contract import BALL_MODEL_PARAM_LABELS, BALL_MODEL_PARAM_ROWS, FIELD_FRAME
 from erforce_interfaces.stamps import stamp_ns
 
 #: Largest magnitude accepted for any position [m], speed [m/s] or rate [rad/s] on the wire.
@@ -601,3 +601,14 @@ def table_from_msg(msg: Float64MultiArray, column_labels: Sequence[str], num_row
         raise ConversionError(f"table data_offset is {msg.layout.data_offset}, expected 0")
     data = _finite_array("data", msg.data, n_rows * n_cols, 1.0e9)
     return data.reshape(n_rows, n_cols)
+
+
+def model_in_use_from_msg(msg: Float64MultiArray) -> tuple[float, float, float]:
+    """(a_slide_mps2, a_roll_mps2, c_switch) of the model in use on ``/ball/model_params``: a table whose
+    rows are the first one or all of ``BALL_MODEL_PARAM_ROWS`` (in_use, then a fit once there is one)."""
+    table = table_from_msg(msg, BALL_MODEL_PARAM_LABELS)
+    rows = msg.layout.dim[0].label.split(",")
+    if len(rows) != len(table) or rows != list(BALL_MODEL_PARAM_ROWS[:len(rows)]):
+        raise ConversionError(f"rows labelled {rows}, expected the first of {','.join(BALL_MODEL_PARAM_ROWS)}")
+    a_slide, a_roll, c_switch = table[0].tolist()
+    return a_slide, a_roll, c_switch

@@ -32,6 +32,7 @@ from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
     float64_from_msg,
+    model_in_use_from_msg,
     odometry_from_msg,
     point_from_msg,
     table_from_msg,
@@ -68,7 +69,6 @@ BYTES_TYPES = frozenset(t.type_name for t in (contract.GROUND_TRUTH_BALL, contra
 _AVG_CURRENT = contract.MOTOR_STATUS_COLUMNS.index("avg_current_a")
 _LIMIT_ACTIVE = contract.MOTOR_STATUS_COLUMNS.index("limit_active")
 _CURRENT = contract.GROUND_TRUTH_MOTOR_COLUMNS.index("current_a")
-_IN_USE = contract.BALL_MODEL_PARAM_ROWS.index("in_use")
 
 
 @functools.lru_cache(maxsize=4096)
@@ -212,8 +212,7 @@ class WorldState:
         elif topic is c.BALL_UNCERTAIN:
             self.uncertain = bool(msg.data)
         elif topic is c.BALL_MODEL_PARAMS:
-            rows = table_from_msg(msg, c.BALL_MODEL_PARAM_LABELS)
-            self.model = BallModelParams(*(float(v) for v in rows[_IN_USE]))
+            self.model = BallModelParams(*model_in_use_from_msg(msg))
         elif topic is c.SIM_EVENTS:
             self.events.append(str(msg.data)[:200])
 
