@@ -118,7 +118,8 @@ def bad_message(msg_type, rng):
         rows, cols = int(rng.integers(0, 4)), int(rng.integers(0, 6))  # 4 columns killed the catcher
         labels = [",".join(contract.BALL_MODEL_PARAM_LABELS), "a,b", ""][int(rng.integers(3))]
         msg = Float64MultiArray()
-        msg.layout.dim = [MultiArrayDimension(label="fit,std_error,in_use", size=rows, stride=rows * cols),
+        msg.layout.dim = [MultiArrayDimension(label=",".join(contract.BALL_MODEL_PARAM_ROWS[:max(rows, 1)]), size=rows,
+                                              stride=rows * cols),
                           MultiArrayDimension(label=labels, size=cols, stride=cols)][: int(rng.integers(3))]
         msg.data = [_bad(rng) if rng.random() < 0.5 else -2.5 for _ in range(int(rng.choice([0, 3, 9, rows * cols])))]
         msg.layout.data_offset = int(rng.choice([0, 0, 1, 2**32 - 1]))

@@ -71,8 +71,8 @@ def test_the_path_uses_the_model_the_predictor_publishes():
     """In use: a_slide -5, a_roll -0.5, c_switch 0.5. From 2 m/s: switch at 1 m/s after 0.2 s and
     2 * 0.2 - 2.5 * 0.04 = 0.3 m, then 1 / 0.5 = 2 s rolling over 1 * 2 - 0.25 * 4 = 1 m: stop at 1.3 m."""
     state = WorldState(FIELD)
-    rows = [[-2.4, -0.31, 0.61], [0.1, 0.01, 0.02], [-5.0, -0.5, 0.5]]  # fit, std_error, in_use
-    assert state.apply(c.BALL_MODEL_PARAMS.name, table_msg(rows, c.BALL_MODEL_PARAM_LABELS, "fit,std_error,in_use"))
+    rows = [[-5.0, -0.5, 0.5], [-2.4, -0.31, 0.61], [0.1, 0.01, 0.02]]  # in_use, fit, std_error
+    assert state.apply(c.BALL_MODEL_PARAMS.name, table_msg(rows, c.BALL_MODEL_PARAM_LABELS, "in_use,fit,std_error"))
     assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0))
     ball_state(state, 1.0, (0.0, 0.0), (2.0, 0.0))
     frame = state.frame()
