@@ -33,6 +33,7 @@ class SimStandIn:
         self.control.settimeout(0.1)
         self.control_port = self.control.getsockname()[1]
         self.teleports: list = []  # SimulatorCommand messages received
+        self.bad_control = 0  # datagrams on the control port that were no SimulatorCommand
         self.status_port = status_port
         self.poses: dict[int, list[float]] = {}  # id -> [x, y, yaw]
         self.kicks: list[tuple[int, float]] = []  # (id, kick speed) of every command with a kick
@@ -105,7 +106,11 @@ class SimStandIn:
                 continue
             except OSError:
                 return
-            self.teleports.append(ssl_simulation_control_pb2.SimulatorCommand.FromString(data))
+            try:
+                self.teleports.append(ssl_simulation_control_pb2.SimulatorCommand.FromString(data))
+            except DecodeError:  # a stray datagram on a reused port is no command: counted, not answered
+                self.bad_control += 1
+                continue
             self.control.sendto(ssl_simulation_control_pb2.SimulatorResponse().SerializeToString(), addr)
 
     def _answer(self, contact: dict[int, bool], addr) -> None:
