@@ -103,6 +103,36 @@ def test_array_parameter_with_an_empty_default_is_typed_and_takes_values_later(n
     assert seen[-1].team == (0, 2)
 
 
+def test_an_integer_start_value_for_a_double_is_taken_as_that_double():
+    """rclpy 7.1 refuses an INTEGER override for a DOUBLE parameter (InvalidParameterTypeException); a
+    parameter file or ``-p gain:=3`` writes 3 for 3.0. Integers stay integers where the type is int."""
+    overrides = [Parameter("gain", value=3), Parameter("gains", value=[1, 4]), Parameter("count", value=5)]
+    with isolated_node("param_test", parameter_overrides=overrides) as node:
+        params = NodeParams(node, SCHEMA, lambda c: c)
+        assert params.values["gain"] == 3.0 and isinstance(params.values["gain"], float)
+        assert node.get_parameter("gain").type_ == Parameter.Type.DOUBLE
+        assert params.values["gains"] == [1.0, 4.0] and all(isinstance(v, float) for v in params.values["gains"])
+        assert node.get_parameter("gains").type_ == Parameter.Type.DOUBLE_ARRAY
+        assert params.values["count"] == 5 and node.get_parameter("count").type_ == Parameter.Type.INTEGER
+    with isolated_node("param_test", parameter_overrides=[Parameter("gain", value="3")]) as node:
+        with pytest.raises(ValueError, match="invalid parameter gain"):  # a string is still no double
+            NodeParams(node, SCHEMA, build)
+
+
+def test_an_integer_change_for_a_double_is_taken_as_that_double(node):
+    seen = []
+    params = NodeParams(node, SCHEMA, build)
+    params.on_change(seen.append)
+    assert node.set_parameters([Parameter("gain", value=4)])[0].successful
+    assert seen[-1].gain == 4.0 and node.get_parameter("gain").type_ == Parameter.Type.DOUBLE
+    assert node.set_parameters([Parameter("gains", value=[0, 7])])[0].successful
+    assert seen[-1].gains == (0.0, 7.0)
+    result = node.set_parameters([Parameter("gain", value=11)])[0]  # converted, then judged by the range
+    assert not result.successful and params.values["gain"] == 4.0
+    assert not node.set_parameters([Parameter("count", value=2.0)])[0].successful  # no double for an int
+    assert not node.set_parameters([Parameter("gain", value=True)])[0].successful  # a bool is no number here
+
+
 def test_markdown_table_lists_every_parameter_with_what_is_valid():
     text = SCHEMA.markdown()
     assert "| `gain` | double | `2.0` | [0, 10] | a gain |" in text
@@ -125,6 +155,23 @@ def test_out_of_range_launch_parameter_refuses_to_start_with_one_clear_line(ros_
     out = proc.output()
     assert "cannot start: invalid parameter max_accel_mps2" in out
     assert "Traceback" not in out
+
+
+@pytest.mark.integration
+def test_the_plant_takes_an_integer_from_its_parameter_file_for_a_double(ros_graph):
+    """What ``ros2 launch`` writes into the parameter file for ``real_time_factor:=0``: the integer 0. The
+    plant starts with 0.0 (flat out) and takes an integer change as that double too."""
+    params = ros_graph.workdir / "plant_integers.yaml"
+    params.write_text("/**:\n  ros__parameters:\n    real_time_factor: 0\n    robot_poses: [0, 0, 0]\n")
+    plant = ros_graph.start_node("erforce_sim", "plant", params_file=params)
+    probe = ros_graph.probe
+    value = probe.get_parameter("/plant", "real_time_factor", timeout_s=30.0)
+    assert value == 0.0 and isinstance(value, float)
+    assert list(probe.get_parameter("/plant", "robot_poses")) == [0.0, 0.0, 0.0]
+    assert probe.set_parameter("/plant", "real_time_factor", 2).successful
+    value = probe.get_parameter("/plant", "real_time_factor")
+    assert value == 2.0 and isinstance(value, float)
+    assert plant.alive(), plant.output()
 
 
 def test_run_node_takes_the_start_up_objects_out_of_the_gc_before_spinning():

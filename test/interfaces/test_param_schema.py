@@ -16,7 +16,14 @@ from erforce_ball_model.catch_time import CatchSearch
 from erforce_ball_model.catcher import CatcherConfig
 from erforce_ball_model.tracking import TrackerConfig
 from erforce_interfaces import lockstep
-from erforce_interfaces.param_schema import HostSchema, ParamSchema, fields_for, load_schema, robot_param_specs
+from erforce_interfaces.param_schema import (
+    HostSchema,
+    ParamSchema,
+    ParamSpec,
+    fields_for,
+    load_schema,
+    robot_param_specs,
+)
 from erforce_interfaces.tools.docs import NODE_SCHEMAS
 from erforce_motion.motor_board import MotorBoardConfig
 from erforce_motion.pid import ANTI_WINDUP_MODES
@@ -183,3 +190,17 @@ def test_a_host_schema_declares_the_hosted_parameters_under_a_prefix_and_parses_
         host.parse(values | {"a.rate_hz": 1000.0})
     with pytest.raises(ValueError, match="listed twice"):
         HostSchema(own, {"": (own, ())})
+
+
+@pytest.mark.parametrize(("kind", "given", "taken"), [
+    ("double", 0, 0.0), ("double", -3, -3.0), ("double", 2.5, 2.5), ("double", True, True), ("double", "1", "1"),
+    ("double_array", [1, 2.5], [1.0, 2.5]), ("double_array", (0,), [0.0]), ("int", 3, 3), ("int_array", [1], [1]),
+    ("string", "0", "0"), ("bool", False, False),
+])
+def test_coerce_takes_an_integer_for_a_double_and_leaves_the_rest_to_check(kind, given, taken):
+    default = {"double": 1.0, "double_array": [1.0], "int": 1, "int_array": [1], "string": "a", "bool": True}[kind]
+    spec = ParamSpec("p", kind, default, "a parameter")
+    value = spec.coerce(given)
+    assert value == taken and type(value) is type(taken)
+    if isinstance(taken, list):
+        assert [type(v) for v in value] == [type(v) for v in taken]

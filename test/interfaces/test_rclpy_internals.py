@@ -91,3 +91,13 @@ def test_make_executor_names_the_three_executors():
         assert node in events.get_nodes()
         with pytest.raises(ValueError, match="ERFORCE_EXECUTOR"):
             make_executor("multi", context=node.context)
+
+
+def test_parameter_overrides_are_what_declare_parameter_takes():
+    from rclpy.parameter import Parameter
+
+    with isolated_node("internals_overrides", parameter_overrides=[Parameter("x", value=3)]) as node:
+        overrides = internal.parameter_overrides(node)
+        assert overrides["x"].value == 3
+        overrides["x"] = Parameter("x", value=4.5)
+        assert node.declare_parameter("x", 1.0).value == 4.5

@@ -35,11 +35,23 @@ from rclpy.qos import QoSProfile
 from erforce_interfaces.contract import CLOCK, Topic
 from erforce_interfaces.executor import make_executor, sample_only, set_callback_fault_handler
 from erforce_interfaces.param_schema import ParamSchema, ParamSpec
-from erforce_interfaces.rclpy_internals import RCLError
+from erforce_interfaces.rclpy_internals import RCLError, parameter_overrides
 from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
 
 _ARRAY_TYPES = {"int": Parameter.Type.INTEGER_ARRAY, "double": Parameter.Type.DOUBLE_ARRAY,
                 "string": Parameter.Type.STRING_ARRAY, "bool": Parameter.Type.BOOL_ARRAY}
+_INTEGER_FOR_DOUBLE = {Parameter.Type.INTEGER: Parameter.Type.DOUBLE,
+                       Parameter.Type.INTEGER_ARRAY: Parameter.Type.DOUBLE_ARRAY}
+
+
+def _as_declared(spec: ParamSpec | None, param: Parameter) -> Parameter:
+    """An integer (array) for a double (array) parameter, as the double it means; anything else as given.
+
+    rclpy (7.1) refuses an INTEGER for a parameter declared DOUBLE, both as a start value and as a
+    change; ``ros2 launch`` writes ``real_time_factor:=0`` as the integer 0 into the parameter file."""
+    if spec is None or spec.element_type != "double" or param.type_ not in _INTEGER_FOR_DOUBLE:
+        return param
+    return Parameter(param.name, _INTEGER_FOR_DOUBLE[param.type_], spec.coerce(param.value))
 
 
 def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
@@ -76,6 +88,13 @@ class NodeParams:
         self._node = node
         self.schema = schema
         self._build = build or (lambda config: config)
+        # Start values: rclpy declares from the overrides as they are, so they are converted there; changes
+        # pass the pre-set callback, which rclpy calls before it checks the type.
+        overrides = parameter_overrides(node)
+        for name, given in list(overrides.items()):
+            overrides[name] = _as_declared(schema.by_name.get(name), given)
+        node.add_pre_set_parameters_callback(
+            lambda params: [_as_declared(schema.by_name.get(p.name), p) for p in params])
         for s in schema.specs:
             default = _ARRAY_TYPES[s.element_type] if s.is_array and not s.default else s.default
             if s.is_array and s.default:

@@ -90,6 +90,20 @@ class ParamSpec:
     def element_type(self) -> str:
         return self.type.removesuffix("_array")
 
+    def coerce(self, value: Any) -> Any:
+        """``value`` as this parameter takes it: an integer for a double (also inside a double array)
+        becomes that float, as a YAML or launch file writes ``0`` for 0.0; anything else is returned as
+        it is, for ``check`` to judge."""
+        if self.element_type != "double":
+            return value
+
+        def one(v: Any) -> Any:
+            return float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+
+        if self.is_array:
+            return [one(v) for v in value] if isinstance(value, list | tuple | array.array) else value
+        return one(value)
+
     def check(self, value: Any) -> str | None:
         """Why ``value`` is unacceptable (a sentence naming the parameter), or None."""
         if self.is_array:

@@ -3,7 +3,8 @@
 DirectExecutor (executor.py) waits and dispatches by itself, which rclpy has no public API for: it
 builds its own rcl wait set, reads the executor base class's guard conditions and shutdown flag,
 takes messages, requests, responses and timer calls from the entities' C handles, and hands a
-client's future its executor. The node helpers catch the C extension's RCLError. Only this module
+client's future its executor. The node helpers catch the C extension's RCLError and read the
+parameter overrides a node was started with (NodeParams takes an integer for a double). Only this module
 names those internals; test/interfaces/test_rclpy_internals.py checks each one against the installed
 rclpy, so an rclpy update that moves one fails there, by name, instead of inside a running node.
 """
@@ -21,6 +22,7 @@ __all__ = [
     "executor_guard_conditions",
     "executor_is_shutdown",
     "handle_pointer",
+    "parameter_overrides",
     "run_subscription_callback",
     "set_future_executor",
     "take_message",
@@ -84,3 +86,9 @@ def take_response(client):
 def set_future_executor(future, executor) -> None:
     """Let a client's future schedule its done callbacks on ``executor`` (what rclpy's executors do)."""
     future._set_executor(executor)
+
+
+def parameter_overrides(node) -> dict:
+    """name -> Parameter: the values the command line and parameter files gave the node, which
+    ``declare_parameter`` takes; the same dict, so a replaced entry is what the declaration sees."""
+    return node._parameter_overrides

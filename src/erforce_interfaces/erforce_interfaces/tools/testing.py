@@ -74,15 +74,16 @@ class DomainLease:
 
 
 @contextlib.contextmanager
-def isolated_node(name: str):
-    """One rclpy node in a context of its own and a private DDS domain, for in-process tests."""
+def isolated_node(name: str, **node_kwargs):
+    """One rclpy node in a context of its own and a private DDS domain, for in-process tests
+    (``node_kwargs`` go to rclpy.create_node, e.g. ``parameter_overrides``)."""
     import rclpy
     from rclpy.context import Context
 
     lease = DomainLease()
     ctx = Context()
     rclpy.init(context=ctx, domain_id=lease.domain_id)
-    node = rclpy.create_node(name, context=ctx)
+    node = rclpy.create_node(name, context=ctx, **node_kwargs)
     try:
         yield node
     finally:
