@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 
 from erforce_interfaces.contract import DDS_PROFILE_VARIABLES
 from erforce_interfaces.tools.launcher import (
+    LaunchError,
     Resolver,
     Subst,
     SubstitutionError,
@@ -215,11 +216,11 @@ def test_command_line_arg_overrides_defaults_also_inside_includes(tmp_path):
           - executable: {cmd: "true", name: "i-$(var who)"}
         """))
     outer = tmp_path / "outer.launch.yaml"
-    outer.write_text(textwrap.dedent("""\
+    outer.write_text(textwrap.dedent(f"""\
         launch:
-          - include: {file: "$(dirname)/inner.launch.yaml"}
-          - executable: {cmd: "true", name: "o-$(var leaked)"}
-          - include: {file: "$(dirname)/inner.launch.yaml", arg: [{name: who, value: "passed"}]}
+          - include: {{file: "$(dirname)/inner.launch.yaml"}}
+          - executable: {{cmd: "true", name: "o-$(var leaked)"}}
+          - include: {{file: "{inner}", arg: [{{name: who, value: "passed"}}]}}
         """))
     assert list(resolve(outer)) == ["i-inner-default-1", "o-from-inner-2", "i-passed-3"]
     # a command-line value wins over the default, but an include's own arg wins over both
@@ -242,7 +243,7 @@ def test_global_actions_conditions_and_env(tmp_path, monkeypatch):
               exec_name: renamed
               args: "--a 'b c'"
               ros_args: "--log-level debug"
-              env: [{name: ERFORCE_X, value: "$(optenv ERFORCE_NOT_SET fallback)"}]
+              env: [{name: ERFORCE_X, value: "$(env ERFORCE_NOT_SET fallback)"}]
               remap: [{from: a, to: b}]
               launch-prefix: "nice -n 1"
         """))
@@ -359,6 +360,192 @@ def test_show_args_lists_names_descriptions_and_defaults(capsys):
     # args of the include are found too (its path is resolvable statically)
     assert "    'robot_name':\n        the robot (required)\n        (required)" in out
     assert [a[0] for a in declared_args(HERE / "outer.launch.yaml")] == ["robot", "robot_name", "share"]
+
+
+# ================================================= strict as ros2 launch on Jazzy (issue 24)
+LAUNCH_FILES = sorted((REPO / "src").glob("*/launch/*.launch.yaml"))
+# what ros2 launch needs on the command line for a file; every node each file starts
+REQUIRED_ARGS = {"receiver.launch.yaml": ["robot:=robot_0", "team_robot_ids:=[0]"]}
+NODES = {
+    "talker_listener.launch.yaml": ["talker-1", "listener-2"],
+    "robot.launch.yaml": ["velocity_controller-1", "motor_boards-2"],
+    "team.launch.yaml": ["team_firmware-1"],
+    "demo.launch.yaml": ["plant-1", "ball_predictor-2", "velocity_controller-3", "motor_boards-4", "catcher-5"],
+    "receiver.launch.yaml": ["velocity_controller-1", "motor_boards-2", "catcher-3"],
+    "sim_one_robot.launch.yaml": ["plant-1", "velocity_controller-2", "motor_boards-3"],
+    "team_sim.launch.yaml": ["plant-1", "ball_predictor-2", "team_firmware-3"],
+}
+
+
+@pytest.mark.parametrize("path", LAUNCH_FILES, ids=lambda p: p.name)
+def test_every_launch_file_in_src_loads_strictly_and_starts_every_node(path, capsys):
+    assert main([str(path), *REQUIRED_ARGS.get(path.name, []), "--print"]) == 0, capsys.readouterr().err
+    assert re.findall(r"^\[(\S+)\] ", capsys.readouterr().out, re.M) == NODES[path.name]
+
+
+# one fixture per construct that ros2 launch on Jazzy rejects or gets wrong: (file, line, the one line)
+STRICT = [
+    ("strict_optenv.launch.yaml", 8,
+     "Unknown substitution: optenv (a ROS 1 substitution; ROS 2 writes $(env NAME default)) "
+     "(in '$(optenv ERFORCE_X fallback)')"),
+    ("strict_include_missing_arg.launch.yaml", 7,
+     "Included launch description missing required argument 'robot_name' (description: 'the robot (required)'), "
+     "given: [share]; pass it in the include's 'arg' list"),
+    ("strict_dirname_after_include.launch.yaml", 10,
+     f"'$(dirname)' after an include is refused: ros2 launch on Jazzy resolves it to the folder of the last "
+     f"included file ({HERE}), not to strict_dirname_after_include.launch.yaml's (ros2/launch#618); write "
+     "$(find-pkg-share PKG)/... or use it before the first include (in '$(dirname)/talker_params.yaml')"),
+]
+
+
+@pytest.mark.parametrize(("name", "line", "message"), STRICT, ids=[s[0] for s in STRICT])
+def test_what_ros2_launch_rejects_fails_with_one_line_before_anything_starts(name, line, message, capsys,
+                                                                              monkeypatch):
+    monkeypatch.chdir(HERE)
+    assert main([name]) == 2  # not --print: the launcher would run the graph if it resolved
+    out, err = capsys.readouterr()
+    assert err == f"erforce-launch: error: {name}:{line}: {message}\n"
+    assert out == ""  # no process started, no log directory announced
+
+
+def test_the_launch_files_need_their_required_args_on_the_command_line(capsys):
+    path = REPO / "src/erforce_sim/launch/receiver.launch.yaml"
+    assert main([str(path), "robot:=robot_0", "--print"]) == 2
+    err = capsys.readouterr().err
+    assert "receiver.launch.yaml:6: required argument 'team_robot_ids' not given" in err
+    assert "pass team_robot_ids:=VALUE" in err
+
+
+def test_receivers_get_the_team_from_their_include(capsys):
+    specs = resolve(REPO / "src/erforce_sim/launch/demo.launch.yaml", receivers="3")
+    catchers = {label: params_of(s) for label, s in specs.items() if label.startswith("catcher")}
+    assert [next(iter(p.values()))["team_robot_ids"] for p in catchers.values()] == [[0, 2, 3]] * 3
+    assert [next(iter(p)) for p in catchers.values()] == ["/robot_0/catcher", "/robot_2/catcher", "/robot_3/catcher"]
+
+
+def _write(path: Path, text: str) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def test_required_args_below_an_include_are_checked_ahead_as_launch_does(tmp_path):
+    """launch looks ahead into every include whose path needs no context ($(find-pkg-share), a plain
+    path; not $(var) or $(dirname)), whatever its condition, and checks the required args there against
+    the include's arg names; a skipped include it cannot look into is never checked."""
+    child = _write(tmp_path / "child.launch.yaml", """\
+        launch:
+          - arg: {name: who}
+          - executable: {cmd: "true", name: "$(var who)"}
+        """)
+    ahead = _write(tmp_path / "ahead.launch.yaml", f"""\
+        launch:
+          - let: {{name: who, value: "from the scope"}}
+          - include: {{file: "{child}", if: "false"}}
+        """)
+    with pytest.raises(LaunchError, match=r"ahead.launch.yaml:3: Included launch description missing required "
+                                          r"argument 'who' \(description: ''\), given: \[\]"):
+        resolve(ahead)
+    behind_var = _write(tmp_path / "behind_var.launch.yaml", f"""\
+        launch:
+          - let: {{name: folder, value: "{tmp_path}"}}
+          - include: {{file: "$(var folder)/child.launch.yaml", if: "false"}}
+          - executable: {{cmd: "true", name: ran}}
+        """)
+    assert list(resolve(behind_var)) == ["ran-1"]
+    passed = _write(tmp_path / "passed.launch.yaml", f"""\
+        launch:
+          - include: {{file: "{child}", arg: [{{name: who, value: given}}]}}
+        """)
+    assert list(resolve(passed)) == ["given-1"]
+
+
+def test_an_unconditional_required_arg_of_the_command_line_file_needs_the_command_line(tmp_path):
+    """ros2 launch includes the given file with the command-line args: a let before the arg does not count,
+    an arg under a condition is only checked when it runs."""
+    path = _write(tmp_path / "top.launch.yaml", """\
+        launch:
+          - let: {name: who, value: "let"}
+          - arg: {name: who}
+          - group:
+              if: "true"
+              children:
+                - arg: {name: later}
+        """)
+    with pytest.raises(LaunchError, match=r"top.launch.yaml:3: required argument 'who' not given"):
+        resolve(path)
+    with pytest.raises(LaunchError, match=r"top.launch.yaml:7: required argument 'later' not given"):
+        resolve(path, who="cli")
+    assert resolve(path, who="cli", later="x") == {}
+
+
+def test_dirname_in_an_include_arg_value_is_the_included_files_folder(tmp_path):
+    """launch makes the included file the current one before it sets the include's args."""
+    child = _write(tmp_path / "b" / "child.launch.yaml", """\
+        launch:
+          - arg: {name: where}
+          - executable: {cmd: "echo $(var where) $(dirname)", name: child}
+        """)
+    parent = _write(tmp_path / "a" / "parent.launch.yaml", f"""\
+        launch:
+          - include: {{file: "{child}", arg: [{{name: where, value: "$(dirname)"}}]}}
+        """)
+    (spec,) = resolve(parent).values()
+    assert spec.cmd[1:] == [str(tmp_path / "b"), str(tmp_path / "b")]
+
+
+def test_filename_after_an_include_is_refused_too(tmp_path):
+    _write(tmp_path / "empty.launch.yaml", "launch: []\n")
+    path = _write(tmp_path / "uses.launch.yaml", """\
+        launch:
+          - executable: {cmd: "echo $(filename)", name: before}
+          - include: {file: "$(dirname)/empty.launch.yaml"}
+          - executable: {cmd: "echo $(filename)", name: after}
+        """)
+    with pytest.raises(LaunchError, match=r"uses.launch.yaml:4: '\$\(filename\)' after an include is refused: "
+                                          r"ros2 launch on Jazzy resolves it to the last included file \(.*"
+                                          r"empty.launch.yaml\)"):
+        resolve(path)
+
+
+@pytest.mark.parametrize(("text", "what"), [
+    ("$(optenv A)", "Unknown substitution: optenv (a ROS 1 substitution"),
+    ("$(arg a)", "Unknown substitution: arg (a ROS 1 substitution; ROS 2 writes $(var NAME))"),
+    ("$(nosuch x)", "Unknown substitution: nosuch (known: var, env, "),
+    ("$(env $(optenv A))", "Unknown substitution: optenv"),
+    ("$(eval 1)", "unsupported substitution '$(eval)'"),
+])
+def test_substitutions_are_checked_when_the_file_loads_in_every_branch(tmp_path, text, what):
+    path = _write(tmp_path / "x.launch.yaml", f"""\
+        launch:
+          - group:
+              if: "false"
+              children:
+                - executable: {{cmd: "true", name: "{text}"}}
+        """)
+    with pytest.raises(LaunchError, match=r"x.launch.yaml:5: ") as err:
+        resolve(path)
+    assert what in str(err.value)
+
+
+def test_typed_launch_arguments_reach_parameters_with_the_declared_type(tmp_path):
+    """launch_ros types an inline value by YAML ('0' is the integer 0); the node's schema says what it is."""
+    plant = resolve(REPO / "src/erforce_sim/launch/demo.launch.yaml", real_time_factor="0")["plant-1"]
+    rtf = params_of(plant)["/**"]["real_time_factor"]
+    assert rtf == 0.0 and isinstance(rtf, float)
+    specs = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", robot_poses="[0, 1, 0]", num_robots="1",
+                    robot_ids="[0]")
+    poses = params_of(specs["plant-1"])["/**"]["robot_poses"]
+    assert poses == [0.0, 1.0, 0.0] and all(isinstance(v, float) for v in poses)
+    assert params_of(specs["ball_predictor-2"])["/**"]["num_robots"] == 1  # an int stays an int
+    talker = resolve(TALKER_LISTENER, rate_hz="20")["talker-1"]
+    assert params_of(talker)["/demo/talker"]["rate_hz"] == 20.0
+    other = _write(tmp_path / "other.launch.yaml", """\
+        launch:
+          - node: {pkg: erforce_interfaces, exec: listener, param: [{name: x, value: "1"}]}
+        """)
+    (listener,) = resolve(other).values()
+    assert params_of(listener)["/**"]["x"] == 1  # no schema: as launch_ros types it
 
 
 # ======================================================================= one-line errors
@@ -611,9 +798,6 @@ def test_log_output_goes_to_files_and_a_partial_last_line_is_kept(ros_graph, tmp
     assert not (log_dir / "loud-2-stdout.log").exists()
 
 
-LAUNCH_FILES = sorted((REPO / "src").glob("*/launch/*.launch.yaml"))
-
-
 @pytest.mark.parametrize("path", LAUNCH_FILES, ids=lambda p: p.name)
 @pytest.mark.parametrize("user_range", [None, "SUBNET"])
 def test_discovery_stays_on_this_computer_unless_the_user_chose_a_range(path, user_range, monkeypatch):
@@ -624,7 +808,7 @@ def test_discovery_stays_on_this_computer_unless_the_user_chose_a_range(path, us
         monkeypatch.delenv("ROS_AUTOMATIC_DISCOVERY_RANGE", raising=False)
     else:
         monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", user_range)
-    assert "$(optenv ROS_AUTOMATIC_DISCOVERY_RANGE LOCALHOST)" in path.read_text()
+    assert "$(env ROS_AUTOMATIC_DISCOVERY_RANGE LOCALHOST)" in path.read_text()
     specs = resolve(path, **({"robot": "robot_0", "team_robot_ids": "[0]"} if path.name == "receiver.launch.yaml"
                              else {}))
     assert specs

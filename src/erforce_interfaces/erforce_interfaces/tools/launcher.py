@@ -18,12 +18,26 @@ remap, args, ros_args, output, respawn, respawn_delay, respawn_max_retries, env,
 launch-prefix, sigterm_timeout, sigkill_timeout), ``executable`` (cmd and the process keys),
 ``include`` (file, arg/let), ``group`` (list form, or scoped/forwarding/keep/children),
 ``push_ros_namespace``, ``set_env``, ``unset_env``, ``set_remap``, ``set_parameter`` (dashed
-spellings too), ``log``; ``if``/``unless`` on every action. Substitutions: ``var``, ``env``,
-``optenv``, ``find-pkg-share``, ``find-pkg-prefix``, ``find-exec``, ``dirname``, ``filename``,
-``anon``, nested and quoted arguments, and launch's boolean ones, each giving 'true' or 'false':
-``equals A B``/``not-equals A B`` (two of true/false/1/0 in any case compare as booleans, two
-numbers with math.isclose, anything else as text), ``not X``, ``and A B``, ``or A B`` (arguments:
-'1', '0' or what YAML reads as a boolean: true, off, Yes, ...; anything else is an error).
+spellings too), ``log``; ``if``/``unless`` on every action. Substitutions: ``var``, ``env`` (with
+an optional default), ``find-pkg-share``, ``find-pkg-prefix``, ``find-exec``, ``dirname``,
+``filename``, ``anon``, nested and quoted arguments, and launch's boolean ones, each giving 'true'
+or 'false': ``equals A B``/``not-equals A B`` (two of true/false/1/0 in any case compare as
+booleans, two numbers with math.isclose, anything else as text), ``not X``, ``and A B``, ``or A B``
+(arguments: '1', '0' or what YAML reads as a boolean: true, off, Yes, ...; anything else is an error).
+
+As strict as ``ros2 launch`` on Jazzy (launch 3.4, launch_ros 0.26), whose rules these are:
+- a file's substitutions are all parsed when it loads, also in actions that will not run: an
+  unknown one (ROS 1's ``$(optenv)``, ``$(arg)``, ``$(find)``) is "Unknown substitution: NAME";
+- an include is not scoped: its args are set in the including scope one after the other and stay
+  set, as do the included file's own configurations (wrap it in a group to scope it); an included
+  file sees the including file's configurations, so an ``arg`` with a default takes a value set there;
+- a required ``arg`` (no default, not under a condition) must be among the include's arg names, a
+  value in the including scope does not count: "Included launch description missing required
+  argument 'X'". launch checks this when it includes a file, the command line's file too, and looks
+  ahead into every include whose path needs no context (no ``$(var)``/``$(dirname)``), whatever its
+  condition, counting the arg names of the includes there;
+- ``$(dirname)``/``$(filename)`` name the file being read, and inside an include's arg values already
+  the included file.
 
 Signals (a decision): every child runs in its own process group, so a terminal Ctrl-C reaches the
 launcher only, and the launcher alone decides: SIGINT to each child's group, after
@@ -35,15 +49,23 @@ Output, as ros2 launch: ``output: screen`` relays each line as ``[talker-1] ...`
 stdout, stderr to stderr), ``log`` (the default) writes ``<label>-stdout.log``/``-stderr.log`` below
 ``$ROS_LOG_DIR`` (or ``~/.ros/log``)/<stamp>-<host>-<pid>/, ``both`` does both.
 
-Deviations from ``ros2 launch`` (all deliberate, see the report in the issue):
-- everything is resolved before the first process starts (errors never leave half a graph);
+Deviations from ``ros2 launch`` (each deliberate):
+- everything is resolved before the first process starts, so an error never leaves half a graph
+  running (ros2 launch starts each node as it reaches it and fails at a later include);
+- ``$(dirname)``/``$(filename)`` after an include in the same file are refused: Jazzy resolves them
+  to the last included file (a known bug, ros2/launch#618, fixed upstream by #862 but present in
+  Jazzy's launch 3.4.3), so the same file would mean something else under ros2 launch;
+- an inline parameter value takes the type the node's schema declares (``params/<exec>.yaml``,
+  erforce_interfaces.param_schema): ``real_time_factor:=0`` gives 0.0 where launch_ros writes the
+  integer 0; the nodes take that integer as well (node_support.NodeParams), so both launchers work;
 - consecutive inline params share one temporary file (ros2 launch writes one per entry;
   the override order is the same), and the files are deleted when the launcher exits;
 - a missing ``param: {from: ...}`` file is an error (ros2 launch warns and skips it);
 - ``args``/``cmd`` are split with shlex after substitution;
-- an included file's required args may also come from the including scope;
-- no ``$(eval)``, ``$(command)``, Python/XML launch files, event handlers or composable nodes;
-  ``$(any)``/``$(all)`` are an error as in ros2 launch on Jazzy, whose YAML/XML parser cannot build them.
+- ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST unless set (README, "DDS discovery"): safe by default;
+- no ``$(eval)``, ``$(command)``, ``$(exec-in-pkg)``, ``$(param)``, Python/XML launch files, event
+  handlers or composable nodes; ``$(any)``/``$(all)`` are an error as in ros2 launch on Jazzy, whose
+  YAML/XML parser cannot build them.
 Exit status: 0, or 1 when a non-respawning process failed before shutdown began, 2 for a bad
 command line or launch file (then nothing was started).
 """
@@ -54,6 +76,8 @@ import argparse
 import contextlib
 import ctypes
 import datetime
+import functools
+import importlib.util
 import itertools
 import math
 import os
@@ -82,6 +106,7 @@ from erforce_interfaces.ament_index import (
     find_package_share,
     package_executables,
 )
+from erforce_interfaces.param_schema import ParamSchema
 
 PROG = "erforce-launch"
 
@@ -172,6 +197,7 @@ def load_launch_entries(path: Path, shown: str) -> MarkedList:
         return MarkedList()
     if not isinstance(entries, MarkedList):
         raise LaunchError(f"{shown}:{doc.key_lines['launch']}", "'launch' must be a list of actions")
+    _check_file_substitutions(entries, shown, doc.key_lines["launch"])
     return entries
 
 
@@ -247,6 +273,56 @@ def _parse_subst(text: str, pos: int) -> tuple[Subst, int]:
             args.append(tuple(arg))
 
 
+# (min, max) argument count of each substitution erforce-launch evaluates
+SUBSTITUTIONS = {"var": (1, 1), "env": (1, 2), "find-pkg-share": (1, 1), "find-pkg-prefix": (1, 1),
+                 "find-exec": (1, 1), "dirname": (0, 0), "filename": (0, 0), "anon": (1, 1), "equals": (2, 2),
+                 "not-equals": (2, 2), "not": (1, 1), "and": (2, 2), "or": (2, 2)}
+# launch and launch_ros have these too; erforce-launch does not evaluate them
+_NOT_EVALUATED = ("eval", "command", "exec-in-pkg", "param")
+_UNKNOWN_HINTS = {"optenv": "a ROS 1 substitution; ROS 2 writes $(env NAME default)",
+                  "arg": "a ROS 1 substitution; ROS 2 writes $(var NAME)",
+                  "find": "a ROS 1 substitution; ROS 2 writes $(find-pkg-share PKG)"}
+
+
+def check_substitution(sub: Subst) -> None:
+    """Reject what ros2 launch's parser rejects, when it loads the file: an unknown name, a wrong count."""
+    if sub.name in ("any", "all"):
+        # launch exposes them, but its parser calls AnySubstitution(args=[...]) while the constructor
+        # takes *args: the TypeError makes ros2 launch reject every file that uses them
+        raise SubstitutionError(f"'$({sub.name})' fails in ros2 launch on Jazzy (TypeError from its parser); "
+                                f"nest '$({'or' if sub.name == 'any' else 'and'})' instead")
+    if sub.name in _NOT_EVALUATED:
+        raise SubstitutionError(f"unsupported substitution '$({sub.name})' (supported: {', '.join(SUBSTITUTIONS)})")
+    if sub.name not in SUBSTITUTIONS:
+        hint = _UNKNOWN_HINTS.get(sub.name, f"known: {', '.join(SUBSTITUTIONS)}")
+        raise SubstitutionError(f"Unknown substitution: {sub.name} ({hint})")
+    lo, hi = SUBSTITUTIONS[sub.name]
+    if not lo <= len(sub.args) <= hi:
+        raise SubstitutionError(f"'$({sub.name})' takes {lo}..{hi} argument(s), got {len(sub.args)}")
+    for arg in sub.args:
+        for part in arg:
+            if isinstance(part, Subst):
+                check_substitution(part)
+
+
+def _check_file_substitutions(node: Any, shown: str, line: int) -> None:
+    """Parse every substitution of a loaded file, taken branch or not, as ros2 launch's parser does."""
+    if isinstance(node, MarkedDict):
+        for key, value in node.items():
+            if key != "description":  # launch takes an arg's description as plain text
+                _check_file_substitutions(value, shown, node.key_lines.get(key, node.line))
+    elif isinstance(node, MarkedList):
+        for value, item_line in zip(node, node.item_lines, strict=True):
+            _check_file_substitutions(value, shown, item_line)
+    elif isinstance(node, str) and "$(" in node:
+        try:
+            for part in parse_substitutions(node):
+                if isinstance(part, Subst):
+                    check_substitution(part)
+        except SubstitutionError as exc:
+            raise LaunchError(f"{shown}:{line}", f"{exc} (in '{node}')") from None
+
+
 # ================================================================= executables
 def find_executable(pkg: str, exe: str) -> list[str]:
     """The command that runs ``exe`` of ``pkg``; raises SubstitutionError naming what is missing."""
@@ -268,6 +344,37 @@ def find_executable(pkg: str, exe: str) -> list[str]:
         raise SubstitutionError(f"package '{pkg}' not found")
     listing = ", ".join(package_executables(pkg)) or "none"
     raise SubstitutionError(f"package '{pkg}' has no executable '{exe}' (executables: {listing})")
+
+
+@functools.cache
+def node_schema(pkg: str, exe: str) -> ParamSchema | None:
+    """The parameter schema of executable ``exe`` of ``pkg`` (``params/<exe>.yaml`` in the Python package or
+    the share folder, erforce_interfaces.param_schema), or None; the package is not imported."""
+    folders = []
+    try:
+        spec = importlib.util.find_spec(pkg) if pkg.isidentifier() else None
+    except (ImportError, ValueError):
+        spec = None
+    folders += [Path(loc) for loc in (spec.submodule_search_locations or [])] if spec else []
+    share = find_package_share(pkg)
+    folders += [share] if share is not None else []
+    for folder in folders:
+        path = folder / "params" / f"{exe}.yaml"
+        if path.is_file():
+            try:
+                schema = ParamSchema.from_yaml_text(path.read_text(), str(path))
+            except (ValueError, yaml.YAMLError):
+                return None
+            return schema if schema.node == exe else None
+    return None
+
+
+def _as_declared(schema: ParamSchema | None, name: str, value: Any) -> Any:
+    """An inline parameter's value with the type its node declares it (0 for a double is 0.0)."""
+    if isinstance(value, dict):
+        return {k: _as_declared(schema, f"{name}.{k}", v) for k, v in value.items()}
+    spec = schema.by_name.get(name) if schema is not None else None
+    return value if spec is None else spec.coerce(value)
 
 
 # ====================================================================== 2. resolve: scopes
@@ -306,9 +413,34 @@ class Scope:
 class _File:
     path: Path  # absolute
     shown: str  # as the user wrote it, for messages
+    after_include: bool = False  # an include ran since this file began: Jazzy's $(dirname) is wrong from here
+    static: bool = False  # launch's look-ahead without a context: no $(dirname), no $(var)
 
     def at(self, line: int) -> str:
         return f"{self.shown}:{line}"
+
+
+_NO_FILE = _File(Path("/"), "<static>", static=True)
+
+
+@dataclass
+class _Declared:
+    """An ``arg`` as launch's look-ahead sees it (DeclareLaunchArgument)."""
+
+    name: str
+    description: str
+    has_default: bool
+    conditional: bool
+    where: str  # FILE:LINE of the declaration
+
+
+@dataclass
+class _IncludeChain:
+    """The includes below one include of the checked file, as launch lists them for its check: one list per
+    include of the checked file, which every include below it joins, before or after the arg."""
+
+    where: str  # FILE:LINE of the checked file's include
+    names: list[list[str] | None] = field(default_factory=list)  # per include its arg names (None: not static)
 
 
 _COND = {"if", "unless"}
@@ -368,19 +500,99 @@ class Resolver:
         self._count = itertools.count(1)
         self._anon: dict[str, str] = {}
         self._depth = 0
+        self._last_included: Path | None = None  # what Jazzy's $(dirname) says after an include
         self._base_env = dict(os.environ)
         # Safe by default: discovery stays on this computer unless the user chose a range (README,
         # "DDS discovery"); the launch files say the same for `ros2 launch`.
         self._base_env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
     def resolve(self, path: Path, shown: str) -> list[ProcessSpec]:
-        self._run_file(path, shown, Scope(dict(self.cli_args), dict(self._base_env)))
+        # ros2 launch includes the file it is given with the command-line args as the include's args
+        f = _File(path.resolve(), shown)
+        entries = load_launch_entries(path, shown)
+        self._check_required_args(f, entries, list(self.cli_args), "")
+        self._run_entries(f, entries, Scope(dict(self.cli_args), dict(self._base_env)))
         return self.processes
 
+    # ------------------------------------------------------- launch's required-argument check
+    def _check_required_args(self, f: _File, entries: MarkedList, given: list[str], where: str) -> None:
+        """launch's check when it includes a file (the command line's file too), before any of it runs.
+
+        Every ``arg`` without a default that is not under a condition, in the file and in the files its
+        includes name statically (a path without $(var)/$(dirname)), must be among the include's arg names
+        or, for one below an include of the file, the arg names of the includes there. As in launch, the
+        names found accumulate over the check, and a required arg's value from the including scope does
+        not count."""
+        names = list(given)
+        for arg, chain in self._declarations(f, entries):
+            if arg.conditional or arg.has_default:
+                continue
+            if chain is not None:
+                for more in chain.names:
+                    names.extend(more or [])
+            if arg.name in names:
+                continue
+            if not where and chain is None:  # the command line's own file: say how to pass it
+                raise LaunchError(arg.where, f"required argument '{arg.name}' not given; arguments of "
+                                  f"{f.shown}: {_describe_args(declared_args(f.path))}; pass {arg.name}:=VALUE")
+            raise LaunchError(chain.where if chain is not None and not where else where,
+                              f"Included launch description missing required argument '{arg.name}' "
+                              f"(description: '{arg.description}'), given: [{', '.join(names)}]; pass it in "
+                              "the include's 'arg' list")
+
+    def _declarations(self, f: _File, entries: MarkedList) -> list[tuple[_Declared, _IncludeChain | None]]:
+        """The args launch's look-ahead finds, first declaration of a name only, each with the include chain
+        it sits below (None: in the file itself)."""
+        found: list[tuple[_Declared, _IncludeChain | None]] = []
+        static_scope = Scope({}, dict(os.environ))
+
+        def walk(shown: str, items: Any, conditional: bool, chain: _IncludeChain | None, depth: int) -> None:
+            for item in items if isinstance(items, MarkedList) else []:
+                if not isinstance(item, MarkedDict) or len(item) != 1:
+                    continue
+                ((kind, body),) = item.items()
+                kind = _ALIASES.get(kind, kind)
+                own_condition = isinstance(body, MarkedDict) and bool(_COND & set(body))
+                if kind == "arg" and isinstance(body, MarkedDict) and isinstance(body.get("name"), str):
+                    if all(a.name != body["name"] for a, _ in found):
+                        found.append((_Declared(body["name"], str(body.get("description", "")), "default" in body,
+                                                conditional or own_condition, f"{shown}:{body.line}"), chain))
+                elif kind == "group":
+                    children = body if isinstance(body, MarkedList) else body.get("children") \
+                        if isinstance(body, MarkedDict) else None
+                    if isinstance(body, MarkedDict) and body.get("scoped", True) is not False \
+                            and body.get("forwarding", True) is False:
+                        continue  # launch's look-ahead stops at the reset of the configurations
+                    walk(shown, children, own_condition, chain, depth)  # a condition marks direct children only
+                elif kind == "include" and isinstance(body, MarkedDict) and depth < self.MAX_INCLUDE_DEPTH:
+                    line = _line(body, "file")
+                    below = chain or _IncludeChain(f"{shown}:{line}")
+                    below.names.append(self._static_names(body, static_scope))
+                    included = self._static_load(body, static_scope)
+                    if included is not None:
+                        walk(*included, False, below, depth + 1)  # an include's condition does not count
+
+        walk(f.shown, entries, False, None, 0)
+        return found
+
+    def _static_names(self, body: MarkedDict, scope: Scope) -> list[str] | None:
+        try:
+            return [self._str(_NO_FILE, e, "name", scope, required=True)
+                    for e in self._dicts(_NO_FILE, body, "arg", "include") + self._dicts(_NO_FILE, body, "let",
+                                                                                           "include")]
+        except LaunchError:
+            return None
+
+    def _static_load(self, body: MarkedDict, scope: Scope) -> tuple[str, MarkedList] | None:
+        """(shown, entries) of an include's file when its path needs no context, else None (launch skips it)."""
+        try:
+            path = Path(self._str(_NO_FILE, body, "file", scope, required=True))
+            shown = _shown(path)
+            return shown, load_launch_entries(path, shown)
+        except LaunchError:
+            return None
+
     # ------------------------------------------------------------------ files and actions
-    def _run_file(self, path: Path, shown: str, scope: Scope) -> None:
-        f = _File(path.resolve(), shown)
-        self._run_entries(f, load_launch_entries(path, shown), scope)
 
     def _run_entries(self, f: _File, entries: MarkedList, scope: Scope) -> None:
         for item, line in zip(entries, entries.item_lines, strict=True):
@@ -433,16 +645,24 @@ class Resolver:
         path = Path(text) if Path(text).is_absolute() else Path.cwd() / text
         if not path.is_file():
             raise LaunchError(where, f"included file not found: {text} (relative paths are taken from the "
-                              "working directory, as in ros2 launch: write $(dirname)/...)")
+                              "working directory, as in ros2 launch: write $(find-pkg-share PKG)/...)")
         if path.suffix not in (".yaml", ".yml"):
             raise LaunchError(where, f"only YAML launch files can be included, not '{path.name}'")
-        for entry in self._dicts(f, d, "arg", "include") + self._dicts(f, d, "let", "include"):
-            # ros2 launch sets them in the current scope (an include is not scoped): same here
-            self._do_let(f, entry, scope)
         self._depth += 1
         if self._depth > self.MAX_INCLUDE_DEPTH:
             raise LaunchError(where, f"includes nested deeper than {self.MAX_INCLUDE_DEPTH} (an include cycle?)")
-        self._run_file(path, _shown(path), scope)
+        args = self._dicts(f, d, "arg", "include") + self._dicts(f, d, "let", "include")
+        names = [self._str(f, a, "name", scope, required=True) for a in args]
+        child = _File(path.resolve(), _shown(path))
+        entries = load_launch_entries(path, child.shown)  # launch parses the whole file first
+        self._check_required_args(child, entries, names, where)
+        # From here launch's "current launch file" is the included one, for its args' values too, and in
+        # Jazzy it stays so in this file after the include (ros2/launch#618)
+        f.after_include, self._last_included = True, child.path
+        for a, name in zip(args, names, strict=True):
+            # set in the current scope (an include is not scoped), one after the other
+            scope.configs[name] = self._str(f, a, "value", scope, required=True, here=child)
+        self._run_entries(child, entries, scope)
         self._depth -= 1
 
     def _do_group(self, f: _File, d: MarkedDict, scope: Scope) -> None:
@@ -528,7 +748,7 @@ class Resolver:
             cmd += ["-p", f"{pname}:={pvalue}"]
         # launch_ros keys inline parameters by the full node name when name and namespace are known
         param_key = prefix_namespace(namespace, name) if name is not None and namespace is not None else "/**"
-        files = self._params(f, d, scope, label, param_key, cmd)
+        files = self._params(f, d, scope, label, param_key, cmd, node_schema(pkg, exe) if pkg else None)
         remaps = list(scope.remaps)
         for r in self._dicts(f, d, "remap", "node"):
             remaps.append((self._str(f, r, "from", scope, required=True), self._str(f, r, "to", scope, required=True)))
@@ -540,7 +760,7 @@ class Resolver:
 
     # ------------------------------------------------------------------------ parameters
     def _params(self, f: _File, d: MarkedDict, scope: Scope, label: str, key: str,
-                cmd: list[str]) -> list[tuple[str, str]]:
+                cmd: list[str], schema: ParamSchema | None = None) -> list[tuple[str, str]]:
         files: list[tuple[str, str]] = []
         pending: dict[str, Any] = {}
 
@@ -574,7 +794,7 @@ class Resolver:
                     cmd.extend(["--params-file", path])
             else:
                 name, value = self._param_entry(f, entry, scope)
-                pending[name] = value
+                pending[name] = _as_declared(schema, name, value)
         flush()
         return files
 
@@ -627,9 +847,10 @@ class Resolver:
         )
 
     # ------------------------------------------------------------------ typed attributes
-    def _sub(self, text: str, scope: Scope, f: _File, line: int) -> str:
+    def _sub(self, text: str, scope: Scope, f: _File, line: int, here: _File | None = None) -> str:
+        """``text`` substituted; errors name ``f``'s line; ``$(dirname)`` is ``here``'s folder (default ``f``)."""
         try:
-            return self._evaluate(parse_substitutions(text), scope, f)
+            return self._evaluate(parse_substitutions(text), scope, here or f)
         except SubstitutionError as exc:
             raise LaunchError(f.at(line), f"{exc} (in '{text}')") from None
 
@@ -645,9 +866,10 @@ class Resolver:
                               f"{value!r} (quote it)")
         return value
 
-    def _str(self, f: _File, d: MarkedDict, key: str, scope: Scope, required: bool = False) -> str | None:
+    def _str(self, f: _File, d: MarkedDict, key: str, scope: Scope, required: bool = False,
+             here: _File | None = None) -> str | None:
         raw = self._raw(f, d, key, required)
-        return None if raw is None else self._sub(raw, scope, f, _line(d, key))
+        return None if raw is None else self._sub(raw, scope, f, _line(d, key), here)
 
     def _split(self, f: _File, d: MarkedDict, key: str, scope: Scope) -> list[str]:
         try:
@@ -694,30 +916,17 @@ class Resolver:
         return "".join(p if isinstance(p, str) else self._apply(p, scope, f) for p in parts)
 
     def _apply(self, sub: Subst, scope: Scope, f: _File) -> str:
+        check_substitution(sub)
         args = [self._evaluate(a, scope, f) for a in sub.args]
-        arity = {"var": (1, 1), "env": (1, 2), "optenv": (1, 2), "find-pkg-share": (1, 1),
-                 "find-pkg-prefix": (1, 1), "find-exec": (1, 1), "dirname": (0, 0), "filename": (0, 0),
-                 "anon": (1, 1), "equals": (2, 2), "not-equals": (2, 2), "not": (1, 1), "and": (2, 2),
-                 "or": (2, 2)}
-        if sub.name in ("any", "all"):
-            # launch exposes them, but its parser calls AnySubstitution(args=[...]) while the constructor
-            # takes *args: the TypeError makes ros2 launch reject every file that uses them
-            raise SubstitutionError(f"'$({sub.name})' fails in ros2 launch on Jazzy (TypeError from its parser); "
-                                    f"nest '$({'or' if sub.name == 'any' else 'and'})' instead")
-        if sub.name not in arity:
-            raise SubstitutionError(f"unsupported substitution '$({sub.name})' (supported: {', '.join(arity)})")
-        lo, hi = arity[sub.name]
-        if not lo <= len(args) <= hi:
-            raise SubstitutionError(f"'$({sub.name})' takes {lo}..{hi} argument(s), got {len(args)}")
         if sub.name == "var":
             if args[0] not in scope.configs:
                 raise SubstitutionError(f"launch configuration '{args[0]}' is not set (declare it with arg or let)")
             return scope.configs[args[0]]
-        if sub.name in ("env", "optenv"):
+        if sub.name == "env":
             if args[0] in scope.env:
                 return scope.env[args[0]]
-            if len(args) == 2 or sub.name == "optenv":
-                return args[1] if len(args) == 2 else ""
+            if len(args) == 2:
+                return args[1]
             raise SubstitutionError(f"environment variable '{args[0]}' is not set")
         if sub.name in ("find-pkg-share", "find-pkg-prefix"):
             found = (find_package_share if sub.name == "find-pkg-share" else find_package_prefix)(args[0])
@@ -729,10 +938,18 @@ class Resolver:
             if found is None:
                 raise SubstitutionError(f"executable '{args[0]}' not found on PATH")
             return found
-        if sub.name == "dirname":
-            return str(f.path.parent)
-        if sub.name == "filename":
-            return str(f.path)
+        if sub.name in ("dirname", "filename"):
+            if f.static:
+                raise SubstitutionError(f"'$({sub.name})' needs a launch file")
+            if f.after_include:
+                last = self._last_included
+                said = f"the folder of the last included file ({last.parent if last else '?'})" \
+                    if sub.name == "dirname" else f"the last included file ({last})"
+                raise SubstitutionError(
+                    f"'$({sub.name})' after an include is refused: ros2 launch on Jazzy resolves it to {said}, "
+                    f"not to {f.shown}'s (ros2/launch#618); write $(find-pkg-share PKG)/... or use it before "
+                    "the first include")
+            return str(f.path.parent if sub.name == "dirname" else f.path)
         if sub.name in ("equals", "not-equals"):
             return str(_equals(*args) == (sub.name == "equals")).lower()
         if sub.name in ("not", "and", "or"):
