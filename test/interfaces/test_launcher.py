@@ -399,13 +399,19 @@ STRICT = [
 
 
 @pytest.mark.parametrize(("name", "line", "message"), STRICT, ids=[s[0] for s in STRICT])
-def test_what_ros2_launch_rejects_fails_with_one_line_before_anything_starts(name, line, message, capsys,
-                                                                              monkeypatch):
+def test_what_ros2_launch_rejects_fails_with_one_line(name, line, message, capsys, monkeypatch):
     monkeypatch.chdir(HERE)
-    assert main([name]) == 2  # not --print: the launcher would run the graph if it resolved
+    assert main([name, "--print"]) == 2
     out, err = capsys.readouterr()
-    assert err == f"erforce-launch: error: {name}:{line}: {message}\n"
-    assert out == ""  # no process started, no log directory announced
+    assert (out, err) == ("", f"erforce-launch: error: {name}:{line}: {message}\n")
+
+
+def test_a_failing_include_leaves_no_half_graph(ros_graph):
+    """ros2 launch would have started the listener before it reached the include; erforce-launch starts nothing."""
+    launch = ros_graph.start([LAUNCHER, str(HERE / "strict_include_missing_arg.launch.yaml")], name="launch")
+    assert launch.wait_exit(30.0) == 2
+    assert "process started" not in launch.output()
+    assert launch.output().count("\n") == 1 and "missing required argument 'robot_name'" in launch.output()
 
 
 def test_the_launch_files_need_their_required_args_on_the_command_line(capsys):
