@@ -827,3 +827,21 @@ def test_erforce_launch_defaults_to_localhost_also_for_a_file_that_says_nothing(
     path.write_text("launch:\n  - node: {pkg: erforce_interfaces, exec: talker}\n")
     (spec,) = resolve(path).values()
     assert spec.env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+
+
+def test_a_groups_keep_entries_are_set_one_after_the_other_unless_the_group_forwards_nothing(tmp_path):
+    path = _write(tmp_path / "keep.launch.yaml", """\
+        launch:
+          - let: {name: a, value: outer}
+          - group:
+              keep: [{name: a, value: inner}, {name: b, value: "$(var a)"}]
+              children:
+                - executable: {cmd: "true", name: "$(var a)-$(var b)"}
+          - group:
+              forwarding: false
+              keep: [{name: a, value: inner}, {name: b, value: "$(var a)"}]
+              children:
+                - executable: {cmd: "true", name: "$(var a)-$(var b)"}
+          - executable: {cmd: "true", name: "$(var a)"}
+        """)
+    assert list(resolve(path)) == ["inner-inner-1", "inner-outer-2", "outer-3"]

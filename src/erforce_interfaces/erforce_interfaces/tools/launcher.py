@@ -671,12 +671,18 @@ class Resolver:
             raise LaunchError(f.at(_line(d, "children")), "'group' needs 'children': a list of actions")
         scoped = self._bool(f, d, "scoped", scope, True)
         forwarding = self._bool(f, d, "forwarding", scope, True)
-        keep = [(self._str(f, k, "name", scope, required=True), self._str(f, k, "value", scope, required=True))
-                for k in self._dicts(f, d, "keep", "group")]
-        inner = scope.copy() if scoped else scope
+        keeps = self._dicts(f, d, "keep", "group")
         if scoped and not forwarding:
-            inner = Scope({}, dict(self._base_env))
-        inner.configs.update(keep)
+            # launch evaluates them all, then clears the configurations (namespace, remaps, global
+            # parameters too) and the environment, and sets them
+            kept = {self._str(f, k, "name", scope, required=True): self._str(f, k, "value", scope, required=True)
+                    for k in keeps}
+            inner = Scope(kept, dict(self._base_env))
+        else:
+            inner = scope.copy() if scoped else scope
+            for k in keeps:  # set one after the other, in the group's scope
+                inner.configs[self._str(f, k, "name", inner, required=True)] = self._str(f, k, "value", inner,
+                                                                                        required=True)
         self._run_entries(f, children, inner)
 
     def _do_push_ros_namespace(self, f: _File, d: MarkedDict, scope: Scope) -> None:
