@@ -845,3 +845,11 @@ def test_a_groups_keep_entries_are_set_one_after_the_other_unless_the_group_forw
           - executable: {cmd: "true", name: "$(var a)"}
         """)
     assert list(resolve(path)) == ["inner-inner-1", "inner-outer-2", "outer-3"]
+
+
+def test_show_args_names_each_argument_once_with_its_first_declaration():
+    args = declared_args(REPO / "src/erforce_sim/launch/demo.launch.yaml")
+    names = [name for name, _, _ in args]
+    assert len(names) == len(set(names))
+    assert {"receivers", "robot", "team_robot_ids", "lockstep_sync"} <= set(names)  # the includes' too
+    assert dict((n, d) for n, d, _ in args)["launch_prefix"] == ""  # receiver.launch.yaml's, the first

@@ -1028,6 +1028,8 @@ def declared_args(path: Path, cli_args: dict[str, str] | None = None) -> list[tu
                 continue
             ((kind, body),) = item.items()
             if kind == "arg" and isinstance(body, MarkedDict) and isinstance(body.get("name"), str):
+                if any(name == body["name"] for name, _, _ in found):
+                    continue  # the first declaration of a name counts, as in ros2 launch --show-args
                 default, desc = body.get("default"), body.get("description")
                 found.append((body["name"], default if isinstance(default, str) else None,
                               desc if isinstance(desc, str) else ""))
