@@ -1,6 +1,7 @@
-"""Shared pieces of the fault tests (issue 6): a non-finite field walker, a watch over every
-contract topic of a graph, and the closed-loop graph (plant, one robot, optionally the ball
-predictor and the catcher) started as real node processes."""
+"""Shared pieces of the fault tests (issues 6 and 19): a non-finite field walker, malformed messages of
+every contract type, a watch over every contract topic of a graph, and the closed-loop graph started as
+real node processes: per robot (plant, one robot's velocity_controller and motor_boards, optionally the
+ball predictor and the catcher) or as a team (plant, team_firmware, ball predictor, team_catcher)."""
 
 from __future__ import annotations
 
@@ -13,8 +14,12 @@ from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
-from geometry_msgs.msg import Twist
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PointStamped, PoseStamped, Twist
 from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64, Float64MultiArray, Header, MultiArrayDimension
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import odometry_from_msg, odometry_msg, stamp_to_seconds
@@ -55,6 +60,106 @@ def topic_names(robots: Iterable[int], topics=contract.TOPICS) -> list[tuple[str
         else:
             out.append((t.name, t))
     return out
+
+
+def subscribed_topics(node: str, robots: Iterable[int] = (0,)) -> list[tuple[str, contract.Topic]]:
+    """The topics ``node`` subscribes to according to the contract (all use /clock: use_sim_time)."""
+    return [(name, t) for name, t in topic_names(robots)
+            if re.search(rf"\b{node}\b", t.subscribers) or (t is contract.CLOCK and node != "plant")]
+
+
+# ------------------------------------------------------------------ malformed messages
+BAD = (math.nan, math.inf, -math.inf, 1e300, -1e300, 1e12, -1.0, 0.0)
+BURST = 25  # bad messages per topic
+
+
+def bad_times(now_s: float) -> list[Time]:
+    """Negative, no valid time, zero, the far future, backwards, ahead by more than the rule's 2 s."""
+    back = max(now_s - 1.0, 0.0)
+    return [Time(sec=-1, nanosec=0), Time(sec=1, nanosec=1_500_000_000), Time(sec=0, nanosec=0),
+            Time(sec=2**31 - 1, nanosec=999_999_999), Time(sec=int(back), nanosec=int(back % 1 * 1e9)),
+            Time(sec=int(now_s) + 30, nanosec=0)]
+
+
+def _stamp(rng) -> Time:
+    kind = rng.integers(5)
+    if kind == 0:
+        return Time(sec=0, nanosec=0)
+    if kind == 1:
+        return Time(sec=2**31 - 1, nanosec=999_999_999)  # the far future
+    if kind == 2:
+        return Time(sec=int(rng.integers(0, 100)), nanosec=4_000_000_000)  # nanosec out of range
+    if kind == 3:
+        return Time(sec=int(rng.integers(-(2**31), 0)), nanosec=0)  # negative: rclpy's Time.from_msg raises
+    return Time(sec=int(rng.integers(0, 5)), nanosec=int(rng.integers(0, 1_000_000_000)))  # backwards or on
+
+
+def _bad(rng) -> float:
+    return float(BAD[rng.integers(len(BAD))])
+
+
+def _quaternion(q, rng) -> None:
+    kind = rng.integers(4)
+    q.x, q.y, q.z, q.w = {0: (0.0, 0.0, 0.0, 0.0), 1: (0.0, 0.0, 0.0, 2.0), 2: (math.nan, 0.0, 0.0, 1.0),
+                          3: (_bad(rng), _bad(rng), _bad(rng), _bad(rng))}[int(kind)]
+
+
+def bad_message(msg_type, rng):
+    """One malformed message of ``msg_type`` with randomized bad fields."""
+    if msg_type is JointState:
+        n = int(rng.choice([0, 1, 3, 4, 5, 8]))
+        names = [f"wheel_{i}" for i in range(4)]
+        msg = JointState(header=_Header(rng))
+        # empty, right, swapped, too few, foreign
+        msg.name = [[], names, names[::-1], names[:2], ["x"] * n][int(rng.integers(5))]
+        msg.velocity = [_bad(rng) for _ in range(n)]
+        msg.effort = [_bad(rng) for _ in range(int(rng.choice([0, n, 4])))]
+        msg.position = [_bad(rng) for _ in range(int(rng.integers(3)))]
+        return msg
+    if msg_type is Twist:
+        msg = Twist()
+        for part in (msg.linear, msg.angular):
+            part.x, part.y, part.z = (_bad(rng) if rng.random() < 0.5 else 0.0 for _ in range(3))
+        return msg
+    if msg_type is Odometry:
+        msg = Odometry(header=_Header(rng), child_frame_id="fuzz")
+        p = msg.pose.pose.position
+        p.x, p.y, p.z = _bad(rng), _bad(rng), _bad(rng)
+        _quaternion(msg.pose.pose.orientation, rng)
+        t = msg.twist.twist
+        t.linear.x, t.linear.y, t.angular.z = _bad(rng), _bad(rng), _bad(rng)
+        msg.pose.covariance = [_bad(rng) for _ in range(36)]
+        return msg
+    if msg_type is PoseStamped:
+        msg = PoseStamped(header=_Header(rng))
+        msg.pose.position.x, msg.pose.position.y = _bad(rng), _bad(rng)
+        _quaternion(msg.pose.orientation, rng)
+        return msg
+    if msg_type is PointStamped:
+        msg = PointStamped(header=_Header(rng))
+        msg.point.x, msg.point.y, msg.point.z = _bad(rng), _bad(rng), _bad(rng)
+        return msg
+    if msg_type is Float64:
+        return Float64(data=_bad(rng))
+    if msg_type is Bool:
+        return Bool(data=bool(rng.integers(2)))
+    if msg_type is Clock:
+        return Clock(clock=_stamp(rng))
+    if msg_type is Float64MultiArray:  # a labelled table: right or wrong labels and sizes, bad values
+        rows, cols = int(rng.integers(0, 4)), int(rng.integers(0, 6))  # 4 columns killed the catcher
+        labels = [",".join(contract.BALL_MODEL_PARAM_LABELS), "a,b", ""][int(rng.integers(3))]
+        msg = Float64MultiArray()
+        msg.layout.dim = [MultiArrayDimension(label=",".join(contract.BALL_MODEL_PARAM_ROWS[:max(rows, 1)]), size=rows,
+                                              stride=rows * cols),
+                          MultiArrayDimension(label=labels, size=cols, stride=cols)][: int(rng.integers(3))]
+        msg.data = [_bad(rng) if rng.random() < 0.5 else -2.5 for _ in range(int(rng.choice([0, 3, 9, rows * cols])))]
+        msg.layout.data_offset = int(rng.choice([0, 0, 1, 2**32 - 1]))
+        return msg
+    raise AssertionError(f"no fuzzer for {msg_type.__name__}")
+
+
+def _Header(rng):
+    return Header(stamp=_stamp(rng), frame_id=["", "field", "nonsense"][int(rng.integers(3))])
 
 
 class TopicWatch:
@@ -241,8 +346,63 @@ class ClosedLoop:
             f"after {self.sim_s() - start:.2f} s of sim time")
 
 
+TEAM_HOSTS = {"team_firmware": ("velocity_controller", "motor_boards"), "team_catcher": ("catcher",)}
+_TEAM_PACKAGES = {"team_firmware": "erforce_motion", "ball_predictor": "erforce_ball_model",
+                  "team_catcher": "erforce_ball_model", "plant": "erforce_sim"}
+
+
+class TeamLoop(ClosedLoop):
+    """The team deployment of the same loop: the plant with ``robots`` under control, one team_firmware
+    (their main and motor boards), the ball predictor and one team_catcher (their catchers, as a team).
+
+    ``TEAM_HOSTS`` names the per-robot nodes whose contract each team node fulfils for every robot in
+    it: the fault tests derive a team node's inputs from the contract through them."""
+
+    NODES = ("team_firmware", "ball_predictor", "team_catcher", "plant")
+
+    def __init__(self, graph, *, robots: tuple[int, ...] = (0, 1), plant: dict | None = None,
+                 firmware: dict | None = None, predictor: dict | None = None, catcher: dict | None = None,
+                 exclude: Iterable[str] = (), robot_yaml: Path = ROBOT_YAML) -> None:
+        self.graph = graph
+        self.robot_yaml = robot_yaml
+        self.probe = graph.probe
+        self.robots = tuple(robots)
+        poses = [c for i in self.robots for c in (-1.0 - 1.5 * i, 1.5 * i, 0.0)]
+        ids = list(self.robots)
+        clock_readers = 3 + (contract.CLOCK.name not in set(exclude))  # as ClosedLoop: nobody misses tick 0
+        self.params = {
+            "plant": {"robot_poses": poses, "controlled": [True] * len(ids), "wheel_states_readers": 1,
+                      "ball": [-2.0, 2.0, 0.0, 0.0], "real_time_factor": 1.0, "lockstep_timeout_s": 0.3,
+                      "start_clock_subscribers": clock_readers, **(plant or {})},
+            "team_firmware": {"use_sim_time": True, "robot_ids": ids, **(firmware or {})},
+            "ball_predictor": {"use_sim_time": True, "num_robots": len(ids), **(predictor or {})},
+            "team_catcher": {"use_sim_time": True, "robot_ids": ids, **(catcher or {})},
+        }
+        self.with_ball_model = True
+        per_robot = ("ground_truth/odom", "cmd_vel", "motor_status", "ground_truth/motors")
+        self.watch = TopicWatch(self.probe, robots=self.robots, exclude=exclude,
+                                keep=("/sim/events", *(f"/robot_{i}/{t}" for i in self.robots for t in per_robot)))
+        self.procs: dict[str, object] = {}
+        self._twist: Twist | None = None
+        self._cmd_pub = None
+        self._command_period_s = 0.02
+        self._last_cmd_wall = 0.0
+
+    def start(self, node: str):
+        params_file = None if node == "team_catcher" else self.robot_yaml
+        proc = self.graph.start_node(_TEAM_PACKAGES[node], node, params_file=params_file, params=self.params[node])
+        self.procs[node] = proc
+        return proc
+
+    def start_all(self) -> None:
+        for node in self.NODES:
+            self.start(node)
+        self.spin_until(lambda: self.sim_s() > 0.2, 60.0, "the loop running (0.2 s of sim time)")
+
+
 # ------------------------------------------------------------------ the launched graph, respawning
 DEMO_LAUNCH = Path(__file__).resolve().parents[2] / "src/erforce_sim/launch/demo.launch.yaml"
+TEAM_SIM_LAUNCH = Path(__file__).resolve().parents[2] / "src/erforce_sim/launch/team_sim.launch.yaml"
 
 # What closes the loop: each node's output that the next one acts on, per tick or frame.
 LOOP_OUTPUTS = {
@@ -255,19 +415,20 @@ LOOP_OUTPUTS = {
 
 
 class LaunchedDemo:
-    """demo.launch.yaml under erforce-launch (respawn on by default), with the arrival times (wall clock)
-    of every node's loop output (``LOOP_OUTPUTS``)."""
+    """demo.launch.yaml (or ``launch_file``) under erforce-launch (respawn on by default), with the arrival
+    times (wall clock) of every node's loop output (``loop_outputs``: node name -> (topic, resolved name))."""
 
-    def __init__(self, graph, **launch_args) -> None:
+    def __init__(self, graph, launch_file: Path = DEMO_LAUNCH, loop_outputs=None, **launch_args) -> None:
         self.graph = graph
         self.probe = graph.probe
-        self.arrivals: dict[str, list[float]] = {node: [] for node in LOOP_OUTPUTS}
-        for node, (topic, name) in LOOP_OUTPUTS.items():
+        loop_outputs = LOOP_OUTPUTS if loop_outputs is None else loop_outputs
+        self.arrivals: dict[str, list[float]] = {node: [] for node in loop_outputs}
+        for node, (topic, name) in loop_outputs.items():
             self.probe.node.create_subscription(topic.msg_type, name,
                                                 lambda _m, n=node: self.arrivals[n].append(time.monotonic()),
                                                 topic.qos)
         args = {"output": "screen", "sim_launch_prefix": "", **launch_args}
-        self.launch = graph.start_launch(DEMO_LAUNCH, **args)
+        self.launch = graph.start_launch(launch_file, **args)
 
     def pid(self, node: str) -> int | None:
         """The newest process of ``node`` the launcher started (None before the first)."""

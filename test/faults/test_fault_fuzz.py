@@ -6,15 +6,11 @@ that moment, no message may end in a node's callback guard (the harness fails th
 afterwards the graph still closes the loop. Deterministic (seeded)."""
 
 import math
-import re
 
 import numpy as np
 import pytest
-from builtin_interfaces.msg import Time
-from faults_support import ClosedLoop, closes_the_loop, non_finite_fields, topic_names
-from geometry_msgs.msg import PointStamped, PoseStamped, Twist
+from faults_support import BURST, ClosedLoop, bad_message, closes_the_loop, non_finite_fields, subscribed_topics
 from nav_msgs.msg import Odometry
-from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
@@ -24,14 +20,6 @@ from erforce_interfaces.conversions import odometry_msg, stamp_to_seconds
 pytestmark = pytest.mark.integration
 
 NODES = ("plant", "velocity_controller", "motor_boards", "ball_predictor", "catcher")
-BAD = (math.nan, math.inf, -math.inf, 1e300, -1e300, 1e12, -1.0, 0.0)
-BURST = 25  # bad messages per topic
-
-
-def subscribed_topics(node: str) -> list[tuple[str, contract.Topic]]:
-    """The topics ``node`` subscribes to according to the contract (all use /clock: use_sim_time)."""
-    return [(name, t) for name, t in topic_names((0,))
-            if re.search(rf"\b{node}\b", t.subscribers) or (t is contract.CLOCK and node != "plant")]
 
 
 def test_non_finite_fields_walks_nested_messages_arrays_and_sequences():
@@ -46,91 +34,6 @@ def test_non_finite_fields_walks_nested_messages_arrays_and_sequences():
     assert non_finite_fields(table) == ["data[2]"]
     assert non_finite_fields(Float64(data=1e300)) == []  # huge but finite
     assert non_finite_fields(Bool(data=True)) == []
-
-
-def _stamp(rng) -> Time:
-    kind = rng.integers(5)
-    if kind == 0:
-        return Time(sec=0, nanosec=0)
-    if kind == 1:
-        return Time(sec=2**31 - 1, nanosec=999_999_999)  # the far future
-    if kind == 2:
-        return Time(sec=int(rng.integers(0, 100)), nanosec=4_000_000_000)  # nanosec out of range
-    if kind == 3:
-        return Time(sec=int(rng.integers(-(2**31), 0)), nanosec=0)  # negative: rclpy's Time.from_msg raises
-    return Time(sec=int(rng.integers(0, 5)), nanosec=int(rng.integers(0, 1_000_000_000)))  # backwards or on
-
-
-def _bad(rng) -> float:
-    return float(BAD[rng.integers(len(BAD))])
-
-
-def _quaternion(q, rng) -> None:
-    kind = rng.integers(4)
-    q.x, q.y, q.z, q.w = {0: (0.0, 0.0, 0.0, 0.0), 1: (0.0, 0.0, 0.0, 2.0), 2: (math.nan, 0.0, 0.0, 1.0),
-                          3: (_bad(rng), _bad(rng), _bad(rng), _bad(rng))}[int(kind)]
-
-
-def bad_message(msg_type, rng):
-    """One malformed message of ``msg_type`` with randomized bad fields."""
-    if msg_type is JointState:
-        n = int(rng.choice([0, 1, 3, 4, 5, 8]))
-        names = [f"wheel_{i}" for i in range(4)]
-        msg = JointState(header=_Header(rng))
-        # empty, right, swapped, too few, foreign
-        msg.name = [[], names, names[::-1], names[:2], ["x"] * n][int(rng.integers(5))]
-        msg.velocity = [_bad(rng) for _ in range(n)]
-        msg.effort = [_bad(rng) for _ in range(int(rng.choice([0, n, 4])))]
-        msg.position = [_bad(rng) for _ in range(int(rng.integers(3)))]
-        return msg
-    if msg_type is Twist:
-        msg = Twist()
-        for part in (msg.linear, msg.angular):
-            part.x, part.y, part.z = (_bad(rng) if rng.random() < 0.5 else 0.0 for _ in range(3))
-        return msg
-    if msg_type is Odometry:
-        msg = Odometry(header=_Header(rng), child_frame_id="fuzz")
-        p = msg.pose.pose.position
-        p.x, p.y, p.z = _bad(rng), _bad(rng), _bad(rng)
-        _quaternion(msg.pose.pose.orientation, rng)
-        t = msg.twist.twist
-        t.linear.x, t.linear.y, t.angular.z = _bad(rng), _bad(rng), _bad(rng)
-        msg.pose.covariance = [_bad(rng) for _ in range(36)]
-        return msg
-    if msg_type is PoseStamped:
-        msg = PoseStamped(header=_Header(rng))
-        msg.pose.position.x, msg.pose.position.y = _bad(rng), _bad(rng)
-        _quaternion(msg.pose.orientation, rng)
-        return msg
-    if msg_type is PointStamped:
-        msg = PointStamped(header=_Header(rng))
-        msg.point.x, msg.point.y, msg.point.z = _bad(rng), _bad(rng), _bad(rng)
-        return msg
-    if msg_type is Float64:
-        return Float64(data=_bad(rng))
-    if msg_type is Bool:
-        return Bool(data=bool(rng.integers(2)))
-    if msg_type is Clock:
-        return Clock(clock=_stamp(rng))
-    if msg_type is Float64MultiArray:  # a labelled table: right or wrong labels and sizes, bad values
-        from std_msgs.msg import MultiArrayDimension
-
-        rows, cols = int(rng.integers(0, 4)), int(rng.integers(0, 6))  # 4 columns killed the catcher
-        labels = [",".join(contract.BALL_MODEL_PARAM_LABELS), "a,b", ""][int(rng.integers(3))]
-        msg = Float64MultiArray()
-        msg.layout.dim = [MultiArrayDimension(label=",".join(contract.BALL_MODEL_PARAM_ROWS[:max(rows, 1)]), size=rows,
-                                              stride=rows * cols),
-                          MultiArrayDimension(label=labels, size=cols, stride=cols)][: int(rng.integers(3))]
-        msg.data = [_bad(rng) if rng.random() < 0.5 else -2.5 for _ in range(int(rng.choice([0, 3, 9, rows * cols])))]
-        msg.layout.data_offset = int(rng.choice([0, 0, 1, 2**32 - 1]))
-        return msg
-    raise AssertionError(f"no fuzzer for {msg_type.__name__}")
-
-
-def _Header(rng):
-    from std_msgs.msg import Header
-
-    return Header(stamp=_stamp(rng), frame_id=["", "field", "nonsense"][int(rng.integers(3))])
 
 
 # What each node publishes: it must still publish after the fuzzing (it still answers).

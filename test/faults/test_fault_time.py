@@ -5,8 +5,7 @@ and the graph closes the loop afterwards: the catcher still drives robot_0 to th
 
 import numpy as np
 import pytest
-from builtin_interfaces.msg import Time
-from faults_support import ClosedLoop, closes_the_loop
+from faults_support import ClosedLoop, bad_times, closes_the_loop
 from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
@@ -19,14 +18,6 @@ pytestmark = pytest.mark.integration
 
 NODES = ("plant", "velocity_controller", "motor_boards", "ball_predictor", "catcher")
 SIM_TIME_NODES = ("velocity_controller", "motor_boards", "ball_predictor", "catcher")
-
-
-def bad_times(now_s: float) -> list[Time]:
-    """Negative, no valid time, zero, the far future, backwards, ahead by more than the rule's 2 s."""
-    back = max(now_s - 1.0, 0.0)
-    return [Time(sec=-1, nanosec=0), Time(sec=1, nanosec=1_500_000_000), Time(sec=0, nanosec=0),
-            Time(sec=2**31 - 1, nanosec=999_999_999), Time(sec=int(back), nanosec=int(back % 1 * 1e9)),
-            Time(sec=int(now_s) + 30, nanosec=0)]
 
 
 def test_bad_clocks_and_stamps_are_dropped_by_every_node_and_the_loop_still_closes(ros_graph):

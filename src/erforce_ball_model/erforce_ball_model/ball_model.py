@@ -39,10 +39,9 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-import numba
 import numpy as np
-from numba.extending import register_jitable
 
+from erforce_interfaces.numba_support import numba, register_jitable
 from erforce_interfaces.robot_config import FieldConfig
 
 __all__ = [

@@ -66,7 +66,6 @@ import enum
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from erforce_ball_model.ball_model import (
@@ -75,6 +74,7 @@ from erforce_ball_model.ball_model import (
     ball_distance,
     ball_time_to_distance,
 )
+from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 __all__ = [

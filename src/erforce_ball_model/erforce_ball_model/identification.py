@@ -27,7 +27,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from erforce_ball_model.ball_model import BallModelParams, kick_distance
 from erforce_ball_model.tracking import BallTracker, TrackerConfig, UpdateStatus
@@ -100,6 +99,10 @@ def _initial_shot_guess(t: np.ndarray, s: np.ndarray) -> tuple[float, float, flo
 
 
 def _solve(data, shared0, nuisance0):
+    # Imported here: scipy.optimize costs a ball predictor ~0.5 s of CPU at start (and a respawn as
+    # long), yet it fits only with online_identification, on its worker thread.
+    from scipy.optimize import least_squares
+
     lo = [-30.0, -5.0, 0.05]
     hi = [-0.05, -0.005, 1.0]
     for t, _ in data:

@@ -32,9 +32,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import RobotConfig
 
 GRAVITY_MPS2 = 9.81

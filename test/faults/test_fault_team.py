@@ -1,0 +1,227 @@
+"""Issue 19, the adversarial suite against the team deployment: team_firmware (the main and motor boards of
+several robots in one process) and team_catcher (their catchers, as a team) in the lockstep graph with the
+plant and the ball predictor, for a team of two. Each team node fulfils, for every robot in it, the
+contract of the per-robot nodes it hosts (faults_support.TEAM_HOSTS): its inputs come from the contract
+through them, so the suite follows the contract as topics are added.
+
+Every input fuzzed (NaN/inf/huge values, wrong lengths, table shapes, bad stamps and frame ids), bad
+/clock and stamps, parameter changes that do not describe a robot or that a node cannot apply, each team
+node killed and restarted, and the launched team graph healing itself: no process dies, nothing
+non-finite is published, no message ends in a callback guard (the harness fails the test on any), and
+the loop closes again afterwards. Deterministic (seeded)."""
+
+import math
+import re
+import signal
+
+import numpy as np
+import pytest
+from faults_support import (
+    BURST,
+    TEAM_HOSTS,
+    TEAM_SIM_LAUNCH,
+    LaunchedDemo,
+    TeamLoop,
+    bad_message,
+    bad_times,
+    closes_the_loop,
+    subscribed_topics,
+)
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+from erforce_interfaces import contract
+from erforce_interfaces.conversions import odometry_msg, stamp_to_seconds
+
+pytestmark = pytest.mark.integration
+
+ROBOTS = (0, 1)
+TEAM_NODES = tuple(TEAM_HOSTS)
+CATCHER = {"fetch_resting_ball": True, "v_max_mps": 1.0, "a_max_mps2": 2.0}
+PREDICTOR = {"robot_v_max_mps": 1.0, "robot_a_max_mps2": 2.0}
+# What each node publishes, for every robot where it is per robot: it must still publish afterwards.
+OUTPUTS = {
+    "plant": [contract.WHEEL_STATES.for_robot(i) for i in ROBOTS],
+    "team_firmware": [contract.MOTOR_DUTY.for_robot(i) for i in ROBOTS],
+    "ball_predictor": [contract.BALL_STATE.name, *(contract.CATCH_TIME.for_robot(i) for i in ROBOTS)],
+    "team_catcher": [contract.CMD_VEL.for_robot(i) for i in ROBOTS],
+}
+
+
+def team_inputs() -> dict[str, contract.Topic]:
+    """Every topic a team node subscribes to: its hosted nodes' inputs, for every robot of the team."""
+    return {name: topic for hosted in TEAM_HOSTS.values() for node in hosted
+            for name, topic in subscribed_topics(node, ROBOTS)}
+
+
+def _loop(ros_graph, **plant) -> TeamLoop:
+    loop = TeamLoop(ros_graph, robots=ROBOTS, catcher=CATCHER, predictor=PREDICTOR,
+                    plant={"ball": [3.5, 0.5, 0.0, 0.0], "vision_dropout": 0.0, **plant})
+    loop.start_all()
+    wait_publishing(loop)
+    return loop
+
+
+def wait_publishing(loop, more_than: dict[str, int] | None = None) -> None:
+    """Every output of every node arrives (more than ``more_than`` of them where given)."""
+    seen = more_than or {}
+    names = [n for outs in OUTPUTS.values() for n in outs]
+    loop.spin_until(lambda: all(loop.watch.counts[n] > seen.get(n, 0) for n in names), 60.0, "every node publishing")
+
+
+def assert_all_alive(loop) -> None:
+    for node, proc in loop.procs.items():
+        assert proc.alive(), f"{node} died:\n{proc.output()[-3000:]}"
+
+
+def test_team_inputs_cover_both_robots_and_every_hosted_contract():
+    inputs = team_inputs()
+    for i in ROBOTS:
+        for topic in (contract.CMD_VEL, contract.WHEEL_STATES, contract.ODOM, contract.CATCH_TIME,
+                      contract.CATCH_POINT, contract.BALL_DETECTED):
+            assert topic.for_robot(i) in inputs
+    for topic in (contract.CLOCK, contract.BALL_STATE, contract.BALL_V_SHOOT, contract.BALL_MODEL_PARAMS):
+        assert topic.name in inputs
+    assert contract.VISION_BALL.name not in inputs  # the predictor's, not a team node's
+
+
+def test_fuzzed_inputs_and_bad_time_crash_no_team_node_and_the_loop_still_closes(ros_graph):
+    rng = np.random.default_rng(20160707)
+    loop = _loop(ros_graph, robot_poses=[-1.0, 0.0, 0.0, -2.5, 1.5, 0.0], ball=[1.0, 0.5, 0.0, 0.0])
+
+    for name, topic in team_inputs().items():
+        loop.watch.paused.add(name)  # the bad messages echo back to the watch: not a node's output
+        pub = loop.probe.publisher(name, topic.msg_type, topic.qos)
+        for _ in range(BURST):
+            pub.publish(bad_message(topic.msg_type, rng))
+            loop.probe.spin_for(0.002)
+        loop.spin_wall(0.3)  # let the burst arrive and be answered
+        loop.watch.paused.discard(name)
+
+    # bad time, one message at a time (a /clock reader keeps only the newest): negative, invalid, zero,
+    # far future, backwards, too far ahead; on /clock and on the stamps the team nodes check
+    def send(topic, msg_type, messages, qos):
+        loop.watch.paused.add(topic)
+        pub = loop.probe.publisher(topic, msg_type, qos)
+        for msg in messages:
+            pub.publish(msg)
+            loop.spin_wall(0.05)
+        loop.watch.paused.discard(topic)
+
+    send("/clock", Clock, [Clock(clock=t) for t in bad_times(loop.sim_s())], contract.QOS_CLOCK)
+    wheels = [f"wheel_{k}" for k in range(4)]
+    for i in ROBOTS:
+        states = []
+        for t in bad_times(loop.sim_s()):
+            msg = JointState(name=wheels, velocity=[0.0] * 4, effort=[0.0] * 4)
+            msg.header.stamp = t
+            states.append(msg)
+        send(contract.WHEEL_STATES.for_robot(i), JointState, states, contract.QOS_CONTROL)
+        odoms = []
+        for t in bad_times(loop.sim_s()):
+            odom = Odometry()
+            odom.header.stamp, odom.pose.pose.orientation.w = t, 1.0
+            odoms.append(odom)
+        send(contract.ODOM.for_robot(i), Odometry, odoms, contract.QOS_STATE)
+
+    # inside the plant's plausibility limits, past the wheels' range: both robots of the team at once
+    for i in ROBOTS:
+        loop.probe.wait_for_subscribers(contract.SIM_SET_STATE.for_robot(i), Odometry).publish(
+            odometry_msg(0.0, (-1.0 - 1.5 * i, 1.5 * i, 0.0), (20.0, 0.0, 100.0)))
+    loop.spin_wall(0.3)
+
+    wait_publishing(loop, {n: loop.watch.counts[n] + 5 for outs in OUTPUTS.values() for n in outs})
+    t_now = loop.sim_s()
+    for i in ROBOTS:
+        stamp = stamp_to_seconds(loop.watch.latest[contract.ODOM.for_robot(i)].header.stamp)
+        assert abs(stamp - t_now) < 0.5, f"robot_{i} odom stamped {stamp:.3f} s, plant at {t_now:.3f} s"
+    assert_all_alive(loop)
+    for node in TEAM_NODES:
+        out = loop.procs[node].output()
+        assert "rejected" in out, f"{node} logged no rejection: the fuzz did not reach it"
+        assert "dropped /clock" in out, f"{node} did not drop the bad /clock:\n{out[-3000:]}"
+        for i in ROBOTS:
+            assert f"robot_{i}: rejected" in out or f"rejected robot_{i} " in out, (
+                f"{node} logged no rejection for robot_{i}:\n{out[-3000:]}")
+    loop.watch.assert_all_finite()
+    closes_the_loop(loop)
+    loop.watch.assert_all_finite()
+
+
+def test_team_nodes_refuse_what_does_not_describe_a_robot_or_what_they_cannot_change(ros_graph):
+    loop = _loop(ros_graph, robot_poses=[-3.5, 0.0, 0.0, -3.5, 2.0, 0.0])
+    probe = loop.probe
+    before = list(probe.get_parameter("/team_firmware", "robot.wheel_angles_rad"))
+    for path in ("/team_firmware", "/team_catcher"):
+        result = probe.set_parameter(path, "robot.wheel_angles_rad", [0.0, 0.0, 0.0, 0.0])
+        assert not result.successful and "cannot produce every twist" in result.reason, (path, result.reason)
+        assert list(probe.get_parameter(path, "robot.wheel_angles_rad")) == pytest.approx(before), path
+        # the team is fixed at start: a robot is added or removed by starting the node with another list
+        result = probe.set_parameter(path, "robot_ids", [0, 1, 2])
+        assert not result.successful and re.search("read.only", result.reason), (path, result.reason)
+        assert list(probe.get_parameter(path, "robot_ids")) == list(ROBOTS), path
+    result = probe.set_parameter("/team_catcher", "as_team", False)
+    assert not result.successful and probe.get_parameter("/team_catcher", "as_team") is True
+
+    # a wheel this small: the motors reach 0.19 m/s at its rim, the main boards' speed limit is 4 m/s
+    result = probe.set_parameter("/team_firmware", "robot.wheel_radius_m", 0.001)
+    assert not result.successful and "out of the motors' reach" in result.reason, result.reason
+    result = probe.set_parameter("/team_firmware", "robot.mass_kg", -1.0)
+    assert not result.successful and "mass_kg" in result.reason
+    result = probe.set_parameter("/team_firmware", "main_board.command_timeout_s", math.nan)
+    assert not result.successful
+    assert probe.get_parameter("/team_firmware", "robot.mass_kg") == pytest.approx(2.6)
+
+    # changes the nodes can apply still go through, and every robot's loop keeps closing
+    assert probe.set_parameter("/team_firmware", "robot.mass_kg", 2.7).successful
+    assert probe.set_parameter("/team_catcher", "robot.robot_radius_m", 0.091).successful
+    duty = [contract.MOTOR_DUTY.for_robot(i) for i in ROBOTS]
+    counts = {n: loop.watch.counts[n] for n in duty}
+    loop.spin_sim(0.5)
+    for n in duty:  # one answer per tick, 100 Hz
+        assert loop.watch.counts[n] > counts[n] + 40, n
+    assert_all_alive(loop)
+    loop.watch.assert_all_finite()
+    closes_the_loop(loop)
+    loop.watch.assert_all_finite()
+
+
+def test_each_team_node_killed_and_restarted_the_loop_closes_again(ros_graph):
+    loop = _loop(ros_graph, robot_poses=[-1.0, 0.0, 0.0, -2.5, 1.5, 0.0], ball=[1.0, 0.5, 0.0, 0.0])
+    for node in TEAM_NODES:
+        loop.kill(node, signal.SIGKILL)
+        # the graph goes on without it: the plant ticks on (it reports the firmware stalled), the predictor
+        # and the plant still publish
+        n_clock = loop.watch.counts[contract.GROUND_TRUTH_ODOM.for_robot(0)]
+        loop.spin_until(lambda n=n_clock: loop.watch.counts[contract.GROUND_TRUTH_ODOM.for_robot(0)] > n + 50, 30.0,
+                        f"the plant ticking without {node}")
+        if node == "team_firmware":
+            assert any("stalled" in e for e in loop.events()), loop.events()[-5:]
+        counts = {n: loop.watch.counts[n] for n in OUTPUTS[node]}
+        loop.start(node)
+        loop.spin_until(lambda c=counts: all(loop.watch.counts[n] > c[n] for n in c), 60.0,
+                        f"every output of the restarted {node}")
+        if node == "team_firmware":
+            loop.spin_until(lambda: any("resumed" in e for e in loop.events()), 30.0, "the plant's resume report")
+    closes_the_loop(loop)
+    assert_all_alive(loop)
+    loop.watch.assert_all_finite()
+
+
+def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_single_kill(ros_graph):
+    """team_sim.launch.yaml for a team of two: each node SIGKILLed once, erforce-launch restarts it after
+    respawn_delay and the loop closes again with nobody restarting anything."""
+    outputs = {"plant": (contract.CLOCK, contract.CLOCK.name),
+               "team_firmware": (contract.MOTOR_DUTY, contract.MOTOR_DUTY.for_robot(1)),
+               "ball_predictor": (contract.CATCH_TIME, contract.CATCH_TIME.for_robot(1))}
+    demo = LaunchedDemo(ros_graph, TEAM_SIM_LAUNCH, outputs, robot_ids="[0, 1]", num_robots="2",
+                        robot_poses="[-4.0, 0.0, 0.0, -3.0, 2.0, 0.0]")
+    demo.wait_running()
+    for node in ("team_firmware", "ball_predictor", "plant"):
+        assert demo.kill_and_heal(node, 0.5, timeout_s=90.0) > 0.5
+    out = demo.launch.output()
+    for node in outputs:
+        assert re.search(rf"\[{node}-\d+\]: respawning in 0.5 s", out), node
+    assert demo.launch.alive()
+    assert "Traceback" not in out, out[-3000:]
