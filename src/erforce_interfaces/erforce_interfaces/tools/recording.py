@@ -30,6 +30,8 @@ from rosgraph_msgs.msg import Clock
 from erforce_interfaces.contract import CLOCK
 from erforce_interfaces.conversions import stamp_to_nanoseconds
 from erforce_interfaces.executor import take_queued
+from erforce_interfaces.node_support import QuietInterrupt
+from erforce_interfaces.rclpy_internals import RCLError
 
 POLL_PERIOD_S = 0.05
 DISCOVERY_PERIOD_S = 0.5
@@ -115,13 +117,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=0.0, help="stop after this many wall seconds (0: Ctrl-C)")
     parser.add_argument("--use-sim-time", action="store_true", help="log times from /clock (0 before the first)")
     args = parser.parse_args(argv)
-    rclpy.init()
-    # No executor spins this node (see the module docstring), so it offers no parameter services.
-    node = rclpy.create_node("erforce_record", start_parameter_services=False)
-    recorder = BagRecorder(node, args.output, use_sim_time=args.use_sim_time)
-    deadline = time.monotonic() + args.duration if args.duration > 0 else None
-    next_discovery = time.monotonic() + DISCOVERY_PERIOD_S
+    interrupt = QuietInterrupt()  # a forwarded second Ctrl-C must not break the bag's closing
+    node = recorder = None
     try:
+        rclpy.init()
+        # No executor spins this node (see the module docstring), so it offers no parameter services.
+        node = rclpy.create_node("erforce_record", start_parameter_services=False)
+        recorder = BagRecorder(node, args.output, use_sim_time=args.use_sim_time)
+        deadline = time.monotonic() + args.duration if args.duration > 0 else None
+        next_discovery = time.monotonic() + DISCOVERY_PERIOD_S
+        interrupt.raising = False  # from here on Ctrl-C ends the loop through rclpy.ok()
         while rclpy.ok() and (deadline is None or time.monotonic() < deadline):
             time.sleep(POLL_PERIOD_S)
             recorder.poll()
@@ -130,12 +135,18 @@ def main(argv: list[str] | None = None) -> int:
                 recorder.discover()
     except KeyboardInterrupt:
         pass
+    except RCLError:
+        if rclpy.ok():  # "context is invalid" under a poll or discovery: that is Ctrl-C, not a fault
+            raise
     finally:
-        recorder.close()
-        total = sum(recorder.counts.values())
-        print(f"recorded {total} messages on {len(recorder.counts)} topics into {args.output}")
-        node.destroy_node()
+        if recorder is not None:
+            recorder.close()
+            total = sum(recorder.counts.values())
+            print(f"recorded {total} messages on {len(recorder.counts)} topics into {args.output}")
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()
+        interrupt.restore()
     return 0
 
 
