@@ -16,6 +16,7 @@ import array
 import gc
 import math
 import signal
+import threading
 import traceback
 from collections.abc import Callable
 from typing import Any
@@ -267,7 +268,9 @@ class QuietInterrupt:
     def __init__(self) -> None:
         self.received = False
         self.raising = True
-        self._previous = signal.signal(signal.SIGINT, self._handle)
+        # Python handles signals in the main thread only; a node run in another thread keeps the default.
+        in_main = threading.current_thread() is threading.main_thread()
+        self._previous = signal.signal(signal.SIGINT, self._handle) if in_main else None
 
     def _handle(self, _signum, _frame) -> None:
         self.received = True
@@ -279,7 +282,8 @@ class QuietInterrupt:
         """Give SIGINT back to the previous handler, unless one arrived: then the process is on its way
         out and further SIGINTs are ignored until it has exited (Python's finalization would reset a
         handler of its own to the default, which a late SIGINT kills the process by: exit code -2)."""
-        signal.signal(signal.SIGINT, signal.SIG_IGN if self.received else self._previous)
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, signal.SIG_IGN if self.received else self._previous)
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
