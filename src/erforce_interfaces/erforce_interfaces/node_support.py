@@ -260,9 +260,10 @@ class QuietInterrupt:
     calls the Python handler. Python's default raises KeyboardInterrupt wherever the main thread is:
     when Ctrl-C in a terminal reaches a whole process group, ``ros2 launch`` forwards a second SIGINT
     to each node, which then interrupted ``destroy_node()`` in the cleanup (a traceback, exit code -2).
-    This handler raises only while the node is starting (an interrupted start-up must stop, and the
-    executor's wait is not there yet to see the shut-down context), and only once: install it before
-    ``rclpy.init`` (rclpy calls the handler it found) and set ``raising = False`` before the loop.
+    This handler raises only once, and only while ``raising``: run_node leaves it on while the node
+    starts and spins (the first SIGINT ends either; in the spin the exception also covers rclpy waking
+    the executor before it has shut the context down) and turns it off first thing in its cleanup.
+    Install it before ``rclpy.init`` (rclpy calls the handler it found).
     """
 
     def __init__(self) -> None:
@@ -315,8 +316,6 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         # as the process, so they leave the GC's generations once, here.
         gc.collect()
         gc.freeze()
-        # From here on a SIGINT ends the spin through the shut-down context, and raises nowhere.
-        interrupt.raising = False
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -328,6 +327,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         if node is None or node.context.ok():
             raise
     finally:
+        interrupt.raising = False  # a further SIGINT must not break the cleanup
         set_callback_fault_handler(None)
         if node is not None:
             node.destroy_node()

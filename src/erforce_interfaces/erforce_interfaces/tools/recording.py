@@ -238,7 +238,9 @@ def main(argv: list[str] | None = None) -> int:
         recorder = BagRecorder(node, args.output, use_sim_time=args.use_sim_time)
         deadline = time.monotonic() + args.duration if args.duration > 0 else None
         next_discovery = time.monotonic() + DISCOVERY_PERIOD_S
-        interrupt.raising = False  # from here on Ctrl-C ends the loop through rclpy.ok()
+        # From here on Ctrl-C ends the loop through rclpy.ok() (at most one poll later): no exception
+        # can break a message half written into the bag.
+        interrupt.raising = False
         while rclpy.ok() and (deadline is None or time.monotonic() < deadline):
             time.sleep(POLL_PERIOD_S)
             recorder.poll()
