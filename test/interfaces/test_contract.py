@@ -527,3 +527,11 @@ def test_model_in_use_is_the_first_row_of_the_model_table():
     four_columns = conv.table_msg([[*in_use, 1.0]], (*labels, "extra"), "in_use")
     with pytest.raises(conv.ConversionError, match="columns"):
         conv.model_in_use_from_msg(four_columns)
+
+
+@pytest.mark.parametrize(("name", "topic"), [
+    ("/clock", c.CLOCK), ("/ball/state", c.BALL_STATE), ("/robot_3/odom", c.ODOM),
+    ("/robot_0/ground_truth/odom", c.GROUND_TRUTH_ODOM), ("/opponent_1/vision_pose", c.VISION_POSE),
+    ("/odom", None), ("/robot_x/odom", None), ("/team/odom", None), ("/robot_0/ball/state", None), ("/chatter", None)])
+def test_topic_of_name_finds_the_contract_topic_of_an_absolute_name(name, topic):
+    assert c.topic_of_name(name) is topic

@@ -36,7 +36,9 @@ HERE = Path(__file__).parent / "launch_files"
 REPO = Path(__file__).resolve().parents[2]
 TALKER_LISTENER = REPO / "src" / "erforce_interfaces" / "launch" / "talker_listener.launch.yaml"
 LAUNCHER = str(Path(sys.executable).with_name("erforce-launch"))
-BIN = Path(sys.executable).parent
+# the ament index ./run setup registers the packages in: <prefix>/lib/<pkg>/<exe> and <prefix>/share/<pkg>
+BIN = Path(sys.prefix) / "lib" / "erforce_interfaces"
+SHARE = Path(sys.prefix) / "share"
 
 
 def resolve(path: Path, **args: str) -> dict:
@@ -191,7 +193,7 @@ def test_include_groups_and_namespaces_resolve_like_ros2_launch():
     ]
     assert params_of(talker) == {"/team/bot1/talker": {
         "text": "from bot1", "gains": [1.0, 2.5], "nested": {"flag": True, "words": "x y"},
-        "share_dir": str(REPO / "src" / "erforce_interfaces"),  # $(find-pkg-share $(var pkg))
+        "share_dir": str(SHARE / "erforce_interfaces"),  # $(find-pkg-share $(var pkg))
     }}
     assert (talker.respawn, talker.respawn_delay_s, talker.output) == (True, 0.5, "both")
     assert talker.env["ERFORCE_LAUNCH_TEST"] == "outer-bot1"
@@ -313,7 +315,7 @@ def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(l
     assert specs
     for spec in specs.values():
         assert {name: spec.env[name] for name in DDS_PROFILE_VARIABLES} == dict.fromkeys(
-            DDS_PROFILE_VARIABLES, str(REPO / "src/erforce_interfaces/config/fastdds_profile.xml"))
+            DDS_PROFILE_VARIABLES, str(SHARE / "erforce_interfaces/config/fastdds_profile.xml"))
     monkeypatch.setenv("FASTRTPS_DEFAULT_PROFILES_FILE", "/robot/udp_only.xml")  # the user's own
     assert {spec.env["FASTRTPS_DEFAULT_PROFILES_FILE"] for spec in resolve(path, **args).values()} == {
         "/robot/udp_only.xml"}

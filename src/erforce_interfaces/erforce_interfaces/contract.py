@@ -183,6 +183,19 @@ def opponent_topic(topic: Topic, robot_id: int) -> str:
     return f"/{OPPONENT_NAMESPACE_PREFIX}{int(robot_id)}/{topic.name}"
 
 
+def topic_of_name(name: str) -> Topic | None:
+    """The contract topic an absolute name stands for (``/robot_3/odom``, ``/opponent_1/vision_pose``: ODOM,
+    VISION_POSE; ``/clock``: CLOCK), or None for a topic outside the contract."""
+    namespace, _, relative = name.strip("/").partition("/")
+    digits = namespace.removeprefix(OPPONENT_NAMESPACE_PREFIX)
+    per_robot = relative and (robot_id_of_namespace(namespace) is not None
+                              or (digits != namespace and digits.isascii() and digits.isdigit()))
+    for topic in TOPICS:
+        if (topic.name == relative if topic.per_robot else topic.name == name) and (per_robot or not topic.per_robot):
+            return topic
+    return None
+
+
 def robot_frame(robot_id: int) -> str:
     return f"{robot_namespace(robot_id)}/{BASE_LINK}"
 

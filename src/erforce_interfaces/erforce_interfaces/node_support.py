@@ -15,6 +15,8 @@ from __future__ import annotations
 import array
 import gc
 import math
+import signal
+import threading
 import traceback
 from collections.abc import Callable
 from typing import Any
@@ -270,18 +272,54 @@ def check_stamp(stamps: StampFilter, t_ns: int | None, warner: ThrottledWarner, 
     return verdict
 
 
+class QuietInterrupt:
+    """The Python side of SIGINT while a node process runs (run_node; the recorder's own loop).
+
+    rclpy's handler (installed by ``rclpy.init``) shuts the context down, which ends the spin, and then
+    calls the Python handler. Python's default raises KeyboardInterrupt wherever the main thread is:
+    when Ctrl-C in a terminal reaches a whole process group, ``ros2 launch`` forwards a second SIGINT
+    to each node, which then interrupted ``destroy_node()`` in the cleanup (a traceback, exit code -2).
+    This handler raises only once, and only while ``raising``: run_node leaves it on while the node
+    starts and spins (the first SIGINT ends either; in the spin the exception also covers rclpy waking
+    the executor before it has shut the context down) and turns it off first thing in its cleanup.
+    Install it before ``rclpy.init`` (rclpy calls the handler it found).
+    """
+
+    def __init__(self) -> None:
+        self.received = False
+        self.raising = True
+        # Python handles signals in the main thread only; a node run in another thread keeps the default.
+        in_main = threading.current_thread() is threading.main_thread()
+        self._previous = signal.signal(signal.SIGINT, self._handle) if in_main else None
+
+    def _handle(self, _signum, _frame) -> None:
+        self.received = True
+        if self.raising:
+            self.raising = False
+            raise KeyboardInterrupt
+
+    def restore(self) -> None:
+        """Give SIGINT back to the previous handler, unless one arrived: then the process is on its way
+        out and further SIGINTs are ignored until it has exited (Python's finalization would reset a
+        handler of its own to the default, which a late SIGINT kills the process by: exit code -2)."""
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, signal.SIG_IGN if self.received else self._previous)
+
+
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
     """Standard node main: init, spin on DirectExecutor (erforce_interfaces.executor.make_executor), clean shutdown.
 
     Every node gets the callback guard (guard_callbacks) and the time rule on /clock (guard_clock).
 
-    Returns the process exit code: 0 after Ctrl-C or external shutdown, 1 when the
-    node refused to start (for example an invalid parameter file).
+    Returns the process exit code: 0 after Ctrl-C (one SIGINT or several, to the process alone or to
+    its process group; see QuietInterrupt) or external shutdown, 1 when the node refused to start
+    (for example an invalid parameter file).
     """
-    rclpy.init(args=args)
+    interrupt = QuietInterrupt()
     node = None
     code = 0
     try:
+        rclpy.init(args=args)
         try:
             node = node_factory()
         except ValueError as exc:
@@ -308,8 +346,10 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         if node is None or node.context.ok():
             raise
     finally:
+        interrupt.raising = False  # a further SIGINT must not break the cleanup
         set_callback_fault_handler(None)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        interrupt.restore()
     return code

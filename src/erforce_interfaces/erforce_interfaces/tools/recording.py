@@ -9,6 +9,13 @@ Each message is logged at its DDS reception time (``received_timestamp``), or wi
 ``use_sim_time`` at the newest ``/clock`` received before it (0 before the first), which
 is what a recorder with a callback per message would log. Command line:
 ``erforce-record OUTPUT_DIR [--use-sim-time] [--duration S]``.
+
+What ``ros2 bag play`` needs to offer each topic as it was offered is written as rosbag2 (Jazzy, bag
+version 9) writes it: per topic the offered QoS profiles, one per publisher (``offered_qos_profiles``), and
+the type hash of the publisher's type support (``type_description_hash``), in metadata.yaml and in the MCAP
+channel's metadata (``offered_qos_profiles``, ``topic_type_hash``), and ``ros_distro: jazzy``. A contract
+topic's profile is the contract's (discovery does not carry history and depth); a publisher that offers
+other reliability or durability, and every topic outside the contract, get the profile discovery reports.
 """
 
 from __future__ import annotations
@@ -18,26 +25,126 @@ import bisect
 import importlib
 import sys
 import time
+from io import BytesIO
 from pathlib import Path
+from typing import ClassVar
 
 import rclpy
+import yaml
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.rosbag2.metadata import dump_qos_v9
+from rosbags.rosbag2.storage_mcap import Channel, McapWriter, write_channel, write_string
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 
-from erforce_interfaces.contract import CLOCK
+from erforce_interfaces.contract import CLOCK, topic_of_name
 from erforce_interfaces.conversions import stamp_to_nanoseconds
 from erforce_interfaces.executor import take_queued
+from erforce_interfaces.node_support import QuietInterrupt
+from erforce_interfaces.rclpy_internals import RCLError
 
 POLL_PERIOD_S = 0.05
 DISCOVERY_PERIOD_S = 0.5
 
 
+ROS_DISTRO = "jazzy"
+BAG_VERSION = 9
+# rosbag2's order of the keys of metadata.yaml (rosbag2_storage's metadata_io), which yaml-cpp keeps
+_METADATA_KEYS = ("version", "storage_identifier", "duration", "starting_time", "message_count",
+                  "topics_with_message_count", "compression_format", "compression_mode", "relative_file_paths",
+                  "files", "custom_data", "ros_distro")
+_TOPIC_KEYS = ("name", "type", "serialization_format", "offered_qos_profiles", "type_description_hash")
+_QOS_KEYS = ("history", "depth", "reliability", "durability", "deadline", "lifespan", "liveliness",
+             "liveliness_lease_duration", "avoid_ros_namespace_conventions")
+_TIME_KEYS = ("sec", "nsec")
+_FILE_KEYS = ("path", "starting_time", "duration", "message_count")
+
+
 def _message_class(type_name: str):
     pkg, _, name = type_name.split("/")
     return getattr(importlib.import_module(f"{pkg}.msg"), name)
+
+
+def _qos_time(duration: Duration) -> QosTime:
+    sec, nsec = divmod(duration.nanoseconds, 1_000_000_000)
+    return QosTime(sec, nsec)
+
+
+def bag_qos(profile: QoSProfile) -> Qos:
+    """An rclpy QoS profile as the bag stores it (the policies by name: rmw's strings, e.g. keep_last)."""
+    return Qos(QosHistory[profile.history.name], profile.depth, QosReliability[profile.reliability.name],
+               QosDurability[profile.durability.name], _qos_time(profile.deadline), _qos_time(profile.lifespan),
+               QosLiveliness[profile.liveliness.name], _qos_time(profile.liveliness_lease_duration),
+               profile.avoid_ros_namespace_conventions)
+
+
+def offered_qos(topic: str, discovered: QoSProfile) -> QoSProfile:
+    """What a publisher of ``topic`` offers: the contract's profile when it agrees with what discovery
+    reports, else the discovered one."""
+    contract = topic_of_name(topic)
+    if contract is not None and (contract.qos.reliability, contract.qos.durability) == (
+            discovered.reliability, discovered.durability):
+        return contract.qos
+    return discovered
+
+
+def _qos_dicts(profiles: list[dict]) -> list[dict]:
+    """QoS profiles as dictionaries in rosbag2's key order."""
+    return [{k: {t: p[k][t] for t in _TIME_KEYS} if isinstance(p[k], dict) else p[k] for k in _QOS_KEYS}
+            for p in profiles]
+
+
+def _qos_yaml(profiles: list[Qos]) -> str:
+    """The QoS profiles as rosbag2 serializes them into an MCAP channel's metadata (a YAML sequence)."""
+    return yaml.safe_dump(_qos_dicts(dump_qos_v9(profiles)), sort_keys=False, default_flow_style=False).strip()
+
+
+def _rosbag2_metadata(info: dict) -> dict:
+    """rosbags' bag information with rosbag2's key order and our distro."""
+    info = {**info, "ros_distro": ROS_DISTRO,
+            "files": [{k: f[k] for k in _FILE_KEYS} for f in info["files"]],
+            "topics_with_message_count": [
+                {"topic_metadata": {k: _qos_dicts(t["topic_metadata"][k]) if k == "offered_qos_profiles"
+                                    else t["topic_metadata"][k] for k in _TOPIC_KEYS},
+                 "message_count": t["message_count"]} for t in info["topics_with_message_count"]]}
+    return {k: info[k] for k in _METADATA_KEYS}
+
+
+class _McapStorage(McapWriter):
+    """rosbags' MCAP storage with what rosbag2 also writes: the type hash in each channel's metadata
+    (``topic_type_hash``), and ``ros_distro`` in the bag information inside the file."""
+
+    def add_connection(self, connection, offered_qos_profiles: str) -> None:
+        metadata = BytesIO()
+        for key, value in (("offered_qos_profiles", _qos_yaml(connection.ext.offered_qos_profiles)),
+                           ("topic_type_hash", connection.digest)):
+            write_string(metadata, key)
+            write_string(metadata, value)
+        self.channels.append(Channel(connection.id, connection.msgtype, connection.topic,
+                                     connection.ext.serialization_format, metadata.getvalue()))
+        self.channel_stats[connection.id] = 0
+        write_channel(self.chunk.bio, self.channels[-1], self.schemas)
+
+    def close(self, version: int, metadata: str) -> None:
+        info = _rosbag2_metadata(yaml.safe_load(metadata))
+        super().close(version, yaml.safe_dump(info, sort_keys=False, default_flow_style=False).strip())
+
+
+class _BagWriter(Writer):
+    STORAGE_PLUGINS: ClassVar = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: _McapStorage}
+
+    def close(self) -> None:
+        super().close()
+        info = yaml.safe_load(self.metapath.read_text())["rosbag2_bagfile_information"]
+        text = yaml.safe_dump({"rosbag2_bagfile_information": _rosbag2_metadata(info)}, sort_keys=False,
+                              default_flow_style=False)
+        tmp = self.metapath.with_suffix(".yaml.tmp")
+        tmp.write_text(text)
+        tmp.replace(self.metapath)
 
 
 class BagRecorder:
@@ -47,7 +154,7 @@ class BagRecorder:
         self.node = node
         self.path = Path(path)
         self._typestore = get_typestore(Stores.ROS2_JAZZY)
-        self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer = _BagWriter(self.path, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
         self._writer.open()
         self._connections: dict[str, object] = {}
         self._subscriptions: list[tuple[str, object]] = []
@@ -76,7 +183,14 @@ class BagRecorder:
             # Deep queues: they hold what arrives between two polls (and more when the recorder lags).
             qos = QoSProfile(depth=10000, reliability=ReliabilityPolicy.BEST_EFFORT if best_effort
                              else ReliabilityPolicy.RELIABLE)
-            self._connections[topic] = self._writer.add_connection(topic, type_name, typestore=self._typestore)
+            # The type hash of the publisher's type support, as rosbag2 takes it (rosbags computes the
+            # same from the definition, for a publisher that reports none).
+            type_hash = next((str(p.topic_type_hash) for p in publishers if p.topic_type_hash.version > 0),
+                             self._typestore.hash_rihs01(type_name))
+            msgdef, _ = self._typestore.generate_msgdef(type_name, ros_version=2)
+            self._connections[topic] = self._writer.add_connection(
+                topic, type_name, msgdef=msgdef, rihs01=type_hash,
+                offered_qos_profiles=[bag_qos(offered_qos(topic, p.qos_profile)) for p in publishers])
             self.counts[topic] = 0
             sub = self.node.create_subscription(_message_class(type_name), topic, lambda _: None, qos, raw=True)
             self._subscriptions.append((topic, sub))
@@ -115,13 +229,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=0.0, help="stop after this many wall seconds (0: Ctrl-C)")
     parser.add_argument("--use-sim-time", action="store_true", help="log times from /clock (0 before the first)")
     args = parser.parse_args(argv)
-    rclpy.init()
-    # No executor spins this node (see the module docstring), so it offers no parameter services.
-    node = rclpy.create_node("erforce_record", start_parameter_services=False)
-    recorder = BagRecorder(node, args.output, use_sim_time=args.use_sim_time)
-    deadline = time.monotonic() + args.duration if args.duration > 0 else None
-    next_discovery = time.monotonic() + DISCOVERY_PERIOD_S
+    interrupt = QuietInterrupt()  # a forwarded second Ctrl-C must not break the bag's closing
+    node = recorder = None
     try:
+        rclpy.init()
+        # No executor spins this node (see the module docstring), so it offers no parameter services.
+        node = rclpy.create_node("erforce_record", start_parameter_services=False)
+        recorder = BagRecorder(node, args.output, use_sim_time=args.use_sim_time)
+        deadline = time.monotonic() + args.duration if args.duration > 0 else None
+        next_discovery = time.monotonic() + DISCOVERY_PERIOD_S
+        # From here on Ctrl-C ends the loop through rclpy.ok() (at most one poll later): no exception
+        # can break a message half written into the bag.
+        interrupt.raising = False
         while rclpy.ok() and (deadline is None or time.monotonic() < deadline):
             time.sleep(POLL_PERIOD_S)
             recorder.poll()
@@ -130,12 +249,18 @@ def main(argv: list[str] | None = None) -> int:
                 recorder.discover()
     except KeyboardInterrupt:
         pass
+    except RCLError:
+        if rclpy.ok():  # "context is invalid" under a poll or discovery: that is Ctrl-C, not a fault
+            raise
     finally:
-        recorder.close()
-        total = sum(recorder.counts.values())
-        print(f"recorded {total} messages on {len(recorder.counts)} topics into {args.output}")
-        node.destroy_node()
+        if recorder is not None:
+            recorder.close()
+            total = sum(recorder.counts.values())
+            print(f"recorded {total} messages on {len(recorder.counts)} topics into {args.output}")
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()
+        interrupt.restore()
     return 0
 
 

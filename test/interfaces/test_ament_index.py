@@ -1,0 +1,90 @@
+"""./run setup registers the four packages in the ament index of .venv as colcon build --symlink-install
+would: what each setup.py says (data_files, console_scripts) is there, the data files as symlinks to the
+sources, and ROS 2's own index library and CLI (ament_index_python) find the packages."""
+
+import os
+import runpy
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import setuptools
+from ament_index_python.packages import get_package_prefix, get_package_share_directory, get_packages_with_prefixes
+
+from erforce_interfaces import ament_index
+
+REPO = Path(__file__).resolve().parents[2]
+PACKAGES = ("erforce_interfaces", "erforce_ball_model", "erforce_motion", "erforce_sim")
+PREFIX = Path(sys.prefix)  # the venv ./run setup prepared
+
+
+def setup_arguments(package_dir: Path, monkeypatch) -> dict:
+    """The keyword arguments setup.py passes to setuptools.setup (run with a stand-in, in its folder)."""
+    captured = {}
+    with monkeypatch.context() as m:
+        m.setattr(setuptools, "setup", lambda **kwargs: captured.update(kwargs))
+        m.chdir(package_dir)
+        runpy.run_path("setup.py")
+    return captured
+
+
+def expected_index(package_dir: Path, monkeypatch) -> tuple[dict[Path, Path], set[str]]:
+    """{path in the prefix: source file} of the data files, and the console script names."""
+    args = setup_arguments(package_dir, monkeypatch)
+    files = {Path(dest) / Path(name).name: package_dir / name for dest, names in args["data_files"] for name in names}
+    scripts = {spec.split("=")[0].strip() for spec in args["entry_points"]["console_scripts"]}
+    return files, scripts
+
+
+@pytest.mark.parametrize("pkg", PACKAGES)
+def test_the_index_in_the_venv_holds_what_setup_py_installs(pkg, monkeypatch):
+    files, scripts = expected_index(REPO / "src" / pkg, monkeypatch)
+    assert Path("share/ament_index/resource_index/packages") / pkg in files
+    assert any(p.parts[:3] == ("share", pkg, "launch") for p in files) or pkg == "erforce_ball_model"
+    for installed, source in files.items():
+        path = PREFIX / installed
+        assert path.is_symlink() and path.samefile(source), installed  # a source edit shows at once
+    share = PREFIX / "share" / pkg
+    assert {p.relative_to(PREFIX) for p in share.rglob("*") if not p.is_dir()} == {
+        p for p in files if p.parts[:2] == ("share", pkg)}  # nothing stale
+    lib = PREFIX / "lib" / pkg
+    assert {p.name for p in lib.iterdir()} == scripts
+    for exe in lib.iterdir():
+        assert os.access(exe, os.X_OK) and exe.read_text().startswith(f"#!{sys.executable}\n")
+
+
+def test_ros2s_own_index_library_and_cli_find_the_packages(monkeypatch):
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(PREFIX))
+    found = get_packages_with_prefixes()
+    for pkg in PACKAGES:
+        assert found[pkg] == str(PREFIX) and get_package_prefix(pkg) == str(PREFIX)
+        assert Path(get_package_share_directory(pkg)) == PREFIX / "share" / pkg
+        assert ament_index.find_package_share(pkg) == PREFIX / "share" / pkg  # ours prefers the index
+    listing = subprocess.run([str(PREFIX / "bin" / "ament_index"), "packages"], capture_output=True, text=True,
+                             check=True, env={**os.environ, "AMENT_PREFIX_PATH": str(PREFIX)}).stdout
+    assert {line.split()[0] for line in listing.splitlines() if line.startswith("erforce_")} == set(PACKAGES)
+
+
+def test_without_the_index_a_package_is_found_in_its_sources(monkeypatch):
+    monkeypatch.setenv("AMENT_PREFIX_PATH", "")
+    assert ament_index.find_package_share("erforce_sim") == REPO / "src" / "erforce_sim"
+
+
+def test_a_registered_executable_runs_as_ros2_run_would_start_it():
+    result = subprocess.run([str(PREFIX / "lib" / "erforce_interfaces" / "erforce-launch"), "--help"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0 and "usage: erforce-launch" in result.stdout
+
+
+def test_registering_again_replaces_what_is_stale(tmp_path, monkeypatch):
+    stale_launch = tmp_path / "share/erforce_motion/launch/gone.launch.yaml"
+    stale_exe = tmp_path / "lib/erforce_motion/gone"
+    for path in (stale_launch, stale_exe):
+        path.parent.mkdir(parents=True)
+        path.write_text("stale")
+    ament_index.register_package(tmp_path, REPO / "src" / "erforce_motion")
+    files, scripts = expected_index(REPO / "src" / "erforce_motion", monkeypatch)
+    assert not stale_launch.exists() and not stale_exe.exists()
+    assert {p.relative_to(tmp_path) for p in tmp_path.rglob("*") if not p.is_dir()} == set(files) | {
+        Path("lib/erforce_motion") / name for name in scripts}

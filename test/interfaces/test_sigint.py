@@ -1,0 +1,106 @@
+"""Every node executable of the packages exits quietly with code 0 on SIGINT: sent to the process alone,
+to its process group, and to the group followed by more SIGINTs to the process while it stops. The last
+is what a terminal's Ctrl-C under ``ros2 launch`` delivers (the terminal signals the whole group, then
+launch forwards SIGINT to each child); before node_support.QuietInterrupt the second one raised
+KeyboardInterrupt in run_node's cleanup (a traceback, exit code -2).
+
+The executables are the console scripts the packages register (their setup.py, as installed); each is
+either a node here or a tool listed in TOOLS, so a new one cannot slip past this test.
+"""
+
+import importlib.metadata
+import os
+import signal
+import socket
+import time
+
+import pytest
+from std_msgs.msg import String
+
+PACKAGES = ("erforce_interfaces", "erforce_ball_model", "erforce_motion", "erforce_sim")
+
+# Console scripts that are command line tools, not nodes: they end by themselves or have their own
+# SIGINT rules (the launcher's are in test_launcher.py, the topic tool's in test_topic_tool.py).
+TOOLS = {"erforce-launch", "erforce-topic", "ssl_log_replay", "ball_figures", "ball_fit", "tune_motor",
+         "ssl_game_log"}
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def node_params(executable: str) -> dict:
+    """What a node needs to start on its own without taking a port another test or a running stack uses."""
+    if executable == "ssl_vision_bridge":
+        return {"interface": "127.0.0.1", "port": free_udp_port()}
+    if executable == "ssl_sim_server":
+        return {"control_port": free_udp_port(), "robot_control_port": free_udp_port()}
+    if executable == "ssl_sim_bridge":
+        return {"command_port": free_udp_port()}
+    if executable == "field_view":
+        return {"port": 0}
+    return {}
+
+
+def console_scripts() -> list[str]:
+    return sorted(ep.name for pkg in PACKAGES for ep in importlib.metadata.distribution(pkg).entry_points
+                  if ep.group == "console_scripts")
+
+
+NODES = [name for name in console_scripts() if name not in TOOLS]
+
+
+def test_every_console_script_is_a_node_or_a_listed_tool():
+    assert set(TOOLS) <= set(console_scripts())
+    assert {"talker", "plant", "motor_boards", "ball_predictor", "erforce-record"} <= set(NODES)
+
+
+def interrupt_alone(proc) -> None:
+    os.kill(proc.pid, signal.SIGINT)
+
+
+def interrupt_group(proc) -> None:
+    os.killpg(proc.pid, signal.SIGINT)
+
+
+def interrupt_group_then_forwarded(proc, deadline_s: float = 20.0) -> None:
+    """The group's SIGINT, then one to the process every 5 ms until it has exited: some land in its cleanup."""
+    os.killpg(proc.pid, signal.SIGINT)
+    deadline = time.monotonic() + deadline_s
+    while proc.alive() and time.monotonic() < deadline:
+        time.sleep(0.005)
+        proc.signal(signal.SIGINT)
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("interrupt", [interrupt_alone, interrupt_group, interrupt_group_then_forwarded],
+                         ids=["alone", "group", "group-then-forwarded"])
+def test_every_node_exits_quietly_with_0_on_sigint(ros_graph, tmp_path, interrupt):
+    # All at once: each start costs seconds of CPU (imports), the test would take minutes one by one.
+    procs = {}
+    for exe in NODES:
+        if exe == "erforce-record":
+            procs[exe] = ros_graph.start([ros_graph.probe_executable(exe), str(tmp_path / "bag")], name=exe)
+        else:
+            procs[exe] = ros_graph.start_node("", exe, name=f"sigint_{exe}", params=node_params(exe))
+    # Up: a node answers on its parameter service only once its executor spins; the recorder, which has
+    # no services, logs each topic it subscribes to from inside its loop.
+    probe = ros_graph.probe
+    chatter = probe.publisher("/sigint_probe", String)
+    chatter.publish(String(data="up?"))
+    for exe, proc in procs.items():
+        if exe == "erforce-record":
+            proc.wait_for_output("Subscribed to topic '/sigint_probe'", timeout_s=120.0)
+        else:
+            assert probe.get_parameter(f"/sigint_{exe}", "use_sim_time", timeout_s=120.0) is False, exe
+    for proc in procs.values():
+        interrupt(proc)
+    failures = []
+    for exe, proc in procs.items():
+        code = proc.wait_exit(30.0)
+        out = proc.output()
+        if code != 0 or "Traceback" in out or "KeyboardInterrupt" in out:
+            failures.append(f"{exe}: exit code {code}\n{out[-1500:]}")
+    assert not failures, "\n".join(failures)
