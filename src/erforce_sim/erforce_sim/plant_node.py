@@ -13,6 +13,12 @@ Pacing (parameter ``pacing``):
 - ``realtime``: ticks follow the wall clock times ``real_time_factor``; the newest duty
   of each robot is applied, nobody is waited for.
 
+Lockstep topics (parameter ``lockstep_topics``): ``per_robot`` serves ``/robot_<id>/wheel_states`` and
+``motor_duty`` (one velocity_controller + motor_boards per robot, or a team_firmware on them); ``team``
+serves one ``/team/wheel_states`` per tick for all controlled robots and takes ``/team/motor_duty``
+answers, each for the robots of one team_firmware process (contract: joints ``robot_<id>/wheel_<k>``);
+``both`` serves both, and a robot's answer counts from either. The gate is per robot either way.
+
 Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state``
 (nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``. A body
 placed outside the field walls is refused with an error naming it. They act at the next tick;
@@ -39,6 +45,8 @@ from erforce_interfaces.conversions import (
     float64_from_msg,
     joint_state_cdr,
     joint_state_from_msg,
+    team_joint_state_cdr,
+    team_joint_state_from_msg,
     odometry_cdr,
     odometry_from_msg,
     point_cdr,
@@ -126,6 +134,11 @@ class PlantNode(Node):
         self._last_clock_ns = -(10**18)
         self._last_truth_ns = -(10**18)
         self._barrier_state = [None] * n
+        topics = self._values["lockstep_topics"]
+        self._per_robot_lockstep = topics in ("per_robot", "both")
+        self._team_lockstep = topics in ("team", "both")
+        self._controlled_ids = sorted(self._controlled)
+        self._team_named: set[int] = set()  # robots some /team/motor_duty answer was for
 
         q = contract
         pub, sub = contract_publisher, contract_subscription
@@ -138,18 +151,23 @@ class PlantNode(Node):
         for i in range(n):
             self._pubs.append(
                 {
-                    "states": pub(self, q.WHEEL_STATES, q.WHEEL_STATES.for_robot(i)),
+                    "states": pub(self, q.WHEEL_STATES, q.WHEEL_STATES.for_robot(i)) if self._per_robot_lockstep
+                    else None,
                     "vision": pub(self, q.VISION_POSE, q.VISION_POSE.for_robot(i)),
                     "barrier": pub(self, q.BALL_DETECTED, q.BALL_DETECTED.for_robot(i)),
                     "truth": pub(self, q.GROUND_TRUTH_ODOM, q.GROUND_TRUTH_ODOM.for_robot(i)),
                     "motors": pub(self, q.GROUND_TRUTH_MOTORS, q.GROUND_TRUTH_MOTORS.for_robot(i)),
                 }
             )
-            sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.for_robot(i), raw=True)
+            if self._per_robot_lockstep:
+                sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.for_robot(i), raw=True)
             self._scenario_subs += [
                 sub(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.KICK.for_robot(i)),
                 sub(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.for_robot(i))]
         self._scenario_subs.append(sub(self, q.SIM_SET_BALL, self._on_set_ball))
+        if self._team_lockstep:
+            self._team_states_pub = pub(self, q.TEAM_WHEEL_STATES)
+            sub(self, q.TEAM_MOTOR_DUTY, self._on_team_duty, raw=True)
         # Scenario commands act at the next tick, the newest of each (executor.run_newest): a flood of
         # them then costs one placement or kick per tick, not one (with its event) per message.
         for scenario_sub in self._scenario_subs:
@@ -162,7 +180,7 @@ class PlantNode(Node):
         self.create_timer(0.2, self._refresh_peers, clock=RclClock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"plant: {n} robot(s), {self.setup.field_preset}, tick {self.setup.control_period_s * 1e3:g} ms, "
-            f"{self._values['pacing']} pacing"
+            f"{self._values['pacing']} pacing, {topics} lockstep topics"
         )
 
     def _apply_params(self, config) -> None:
@@ -193,13 +211,32 @@ class PlantNode(Node):
             self._warn.warn(f"duty{robot}", f"robot_{robot}: rejected motor_duty ({exc}); motors off")
             t_ns = self._tick * self._period_ns
             duty = None
+        self._take_duty(robot, t_ns, duty)
+        if t_ns == self._gate.tick_ns:  # only an answer to the open tick can let it advance (a flood of others
+            self._pump()                # costs no pump each; the pacing timer still runs)
+
+    def _on_team_duty(self, msg: bytes) -> None:
+        try:
+            t_ns, ids, (duties,) = team_joint_state_from_msg(msg, len(self._wheels), ("effort",))
+        except ConversionError as exc:  # no robot to answer for: the robots stall, and are reported, if it lasts
+            self._warn.warn("team_duty", f"rejected /team/motor_duty ({exc})")
+            return
+        for k, robot in enumerate(ids):
+            if robot not in self._controlled:
+                self._warn.warn(f"team_duty{robot}", f"/team/motor_duty for robot_{robot}, which is not a controlled "
+                                f"robot of this plant; ignored")
+                continue
+            self._team_named.add(robot)
+            self._take_duty(robot, t_ns, duties[k])
+        if t_ns == self._gate.tick_ns:
+            self._pump()
+
+    def _take_duty(self, robot: int, t_ns: int, duty: np.ndarray | None) -> None:
         if duty is not None:
             self._latest_duty[robot] = duty
         event = self._gate.offer(robot, t_ns, duty if duty is not None else np.zeros(len(self._wheels)))
         if event:
             self._event(event)
-        if t_ns == self._gate.tick_ns:  # only an answer to the open tick can let it advance (a flood of others
-            self._pump()                # costs no pump each; the pacing timer still runs)
 
     def _on_kick(self, robot: int, msg: Float64) -> None:
         try:
@@ -233,16 +270,29 @@ class PlantNode(Node):
     # ---------------------------------------------------------------- ticking
     def _refresh_peers(self) -> None:
         q = contract
-        self._peers = {i for i in self._controlled if self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0}
+        peers = set()
+        if self._per_robot_lockstep:
+            peers = {i for i in self._controlled if self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0}
+        # A team answer names its robots; until the first one, every controlled robot is taken as served
+        # (one that is not stalls once, after lockstep_timeout_s, and is reported).
+        if self._team_lockstep and self.count_publishers(q.TEAM_MOTOR_DUTY.name) > 0:
+            peers |= self._team_named or self._controlled
+        self._peers = peers
 
     def _ready_to_start(self) -> bool:
         q = contract
         waited = time.monotonic() - self._start_wall
-        ok = all(
+        readers = self._values["wheel_states_readers"]
+        per_robot_ok = self._per_robot_lockstep and all(
             self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0
-            and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= self._values["wheel_states_readers"]
+            and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= readers
             for i in self._controlled
-        ) and self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
+        )
+        team_ok = self._team_lockstep and (
+            not self._controlled or self.count_publishers(q.TEAM_MOTOR_DUTY.name) > 0
+            and self.count_subscribers(q.TEAM_WHEEL_STATES.name) >= readers
+        )
+        ok = (per_robot_ok or team_ok) and self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
         if not ok and waited > self._values["startup_timeout_s"]:
             self._event(f"starting without all controlled robots or /clock subscribers after {waited:.1f} s", warn=True)
             return True
@@ -323,14 +373,19 @@ class PlantNode(Node):
         world = self.world
         # The tick's sensor values first: they start the motor boards' answer, which the next
         # tick waits for; everything else is published while the motor boards compute.
-        for i in range(self.setup.num_robots):
-            if i in self._controlled:
+        sensed = [(world.wheel_speeds_radps(i), world.motor_currents_a(i)) for i in self._controlled_ids]
+        if self._per_robot_lockstep:
+            for i, (speeds, currents) in zip(self._controlled_ids, sensed, strict=True):
                 self._pubs[i]["states"].publish(  # serialized, as motor_boards explains
                     joint_state_cdr(  # the sensors saturate (conversions explains the choice)
-                        t_ns, self._wheels, velocity=world.wheel_speeds_radps(i), effort=world.motor_currents_a(i),
-                        saturate=True,
+                        t_ns, self._wheels, velocity=speeds, effort=currents, saturate=True,
                     )
                 )
+        if self._team_lockstep and sensed:
+            self._team_states_pub.publish(team_joint_state_cdr(
+                t_ns, self._controlled_ids, self._wheels, velocity=[s for s, _ in sensed],
+                effort=[c for _, c in sensed], saturate=True,
+            ))
         if retry:
             return
         if t_ns - self._last_clock_ns >= 1e9 / self._values["clock_rate_hz"] - 1:
