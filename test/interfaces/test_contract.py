@@ -297,7 +297,8 @@ def test_team_state_values_are_checked_both_ways():
         conv.team_joint_state_cdr(0, [0, 1], ("wheel_0", "wheel_1"), effort=np.zeros(3))
     with pytest.raises(conv.ConversionError, match="increasing"):
         conv.team_joint_state_cdr(0, [1, 0], ("wheel_0", "wheel_1"), effort=ok)
-    saturated = conv.team_joint_state_cdr(0, [0, 1], ("wheel_0", "wheel_1"), effort=[[5e3, 0], [0, -5e3]], saturate=True)
+    saturated = conv.team_joint_state_cdr(0, [0, 1], ("wheel_0", "wheel_1"), effort=[[5e3, 0], [0, -5e3]],
+                                          saturate=True)
     assert list(deserialize_message(saturated, JointState).effort) == [1e3, 0.0, 0.0, -1e3]
     short = JointState(name=list(c.team_joint_names([0, 1], ("wheel_0", "wheel_1"))), effort=[0.0] * 3)
     for form in (short, serialize_message(short)):

@@ -32,10 +32,11 @@ LOCKSTEP_TOPICS = {"per_robot": "per_robot", "team": "per_robot", "team_topics":
 
 def _start_firmware(graph, deployment, ids, **params):
     common = {"use_sim_time": True}
-    if deployment == "two_teams":  # one team_firmware per robot on the shared team topics: each answers for its own
-        return [graph.start_node("erforce_motion", "team_firmware", name=f"team_firmware_{i}", params_file=ROBOT_YAML,
-                                 params={**common, "robot_ids": [i], "main_board.command_timeout_s": 30.0,
-                                         "lockstep_topics": "team", **params}) for i in ids]
+    if deployment == "two_teams":  # a team_firmware per robot on the shared team topics, each answering for its own
+        return [graph.start_node("erforce_motion", "team_firmware", name=f"team_firmware_{i}",
+                                 params_file=ROBOT_YAML, params={**common, "robot_ids": [i], "lockstep_topics": "team",
+                                                                 "main_board.command_timeout_s": 30.0, **params})
+                for i in ids]
     if deployment != "per_robot":
         return [graph.start_node("erforce_motion", "team_firmware", params_file=ROBOT_YAML,
                                  params={**common, "robot_ids": list(ids), "main_board.command_timeout_s": 30.0,
@@ -70,13 +71,14 @@ def _start_plant(graph, deployment, readers, **params):
 @pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams"])
 def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deployment):
     """robot_0 and robot_2 have firmware (the team process by its robot_ids parameter [0, 2]), robot_1 none:
-    every deployment (two team_firmware processes sharing the team topics too) gives the in-process runner's trajectories of all three to 1e-9 at every ground-truth
-    stamp, so they agree with each other."""
+    every deployment (two team_firmware processes sharing the team topics too) gives the in-process runner's
+    trajectories of all three to 1e-9 at every ground-truth stamp, so they agree with each other."""
     _start_firmware(ros_graph, deployment, TWISTS)
     for i, twist in TWISTS.items():
         _command(ros_graph, i, twist)
     ros_graph.probe.spin_for(0.3)
-    readers = {"per_robot": 2 * len(TWISTS), "two_teams": len(TWISTS)}.get(deployment, 1)  # use_sim_time nodes subscribe to /clock
+    # use_sim_time nodes subscribe to /clock
+    readers = {"per_robot": 2 * len(TWISTS), "two_teams": len(TWISTS)}.get(deployment, 1)
     _, truths, _ = _start_plant(ros_graph, deployment, readers, seed=7, stop_after_s=0.5)
     ros_graph.probe.spin_until(lambda: all(t and odometry_from_msg(t[-1])[0] >= 0.4 for t in truths.values()),
                                120.0, "0.4 s of every robot")

@@ -45,13 +45,13 @@ from erforce_interfaces.conversions import (
     float64_from_msg,
     joint_state_cdr,
     joint_state_from_msg,
-    team_joint_state_cdr,
-    team_joint_state_from_msg,
     odometry_cdr,
     odometry_from_msg,
     point_cdr,
     pose2d_cdr,
     table_cdr,
+    team_joint_state_cdr,
+    team_joint_state_from_msg,
 )
 from erforce_interfaces.executor import run_newest, sample_only
 from erforce_interfaces.lockstep import DutyGate
@@ -289,10 +289,12 @@ class PlantNode(Node):
             for i in self._controlled
         )
         team_ok = self._team_lockstep and (
-            not self._controlled or self.count_publishers(q.TEAM_MOTOR_DUTY.name) > 0
-            and self.count_subscribers(q.TEAM_WHEEL_STATES.name) >= readers
+            not self._controlled
+            or (self.count_publishers(q.TEAM_MOTOR_DUTY.name) > 0
+                and self.count_subscribers(q.TEAM_WHEEL_STATES.name) >= readers)
         )
-        ok = (per_robot_ok or team_ok) and self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
+        clock_ok = self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
+        ok = (per_robot_ok or team_ok) and clock_ok
         if not ok and waited > self._values["startup_timeout_s"]:
             self._event(f"starting without all controlled robots or /clock subscribers after {waited:.1f} s", warn=True)
             return True
