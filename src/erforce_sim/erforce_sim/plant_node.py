@@ -53,7 +53,6 @@ from erforce_interfaces.conversions import (
     team_joint_state_cdr,
     team_joint_state_from_msg,
 )
-from erforce_interfaces.executor import run_newest, sample_only
 from erforce_interfaces.lockstep import DutyGate
 from erforce_interfaces.node_support import (
     NodeParams,
@@ -147,7 +146,18 @@ class PlantNode(Node):
         self._vision_ball_pub = pub(self, q.VISION_BALL)
         self._truth_ball_pub = pub(self, q.GROUND_TRUTH_BALL)
         self._pubs: list[dict[str, Any]] = []
-        self._scenario_subs: list = []
+        # Scenario commands act at the next tick, the newest of each: a callback only keeps the message, so
+        # a flood costs a take per message, not a placement or kick (with its event) each, and a tick costs
+        # nothing for the many scenario topics nobody publishes on.
+        self._scenario_pending: dict[str, Any] = {}
+        self._scenario_overtaken = 0
+
+        def scenario(key, apply):
+            def keep(msg):
+                self._scenario_overtaken += key in self._scenario_pending
+                self._scenario_pending.pop(key, None)  # the newest goes last: commands act in arrival order
+                self._scenario_pending[key] = lambda: apply(msg)
+            return keep
         for i in range(n):
             self._pubs.append(
                 {
@@ -161,17 +171,13 @@ class PlantNode(Node):
             )
             if self._per_robot_lockstep:
                 sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.for_robot(i), raw=True)
-            self._scenario_subs += [
-                sub(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.KICK.for_robot(i)),
-                sub(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.for_robot(i))]
-        self._scenario_subs.append(sub(self, q.SIM_SET_BALL, self._on_set_ball))
+            sub(self, q.KICK, scenario(f"kick{i}", lambda m, i=i: self._on_kick(i, m)), q.KICK.for_robot(i))
+            sub(self, q.SIM_SET_STATE, scenario(f"set{i}", lambda m, i=i: self._on_set_robot(i, m)),
+                q.SIM_SET_STATE.for_robot(i))
+        sub(self, q.SIM_SET_BALL, scenario("ball", self._on_set_ball))
         if self._team_lockstep:
             self._team_states_pub = pub(self, q.TEAM_WHEEL_STATES)
             sub(self, q.TEAM_MOTOR_DUTY, self._on_team_duty, raw=True)
-        # Scenario commands act at the next tick, the newest of each (executor.run_newest): a flood of
-        # them then costs one placement or kick per tick, not one (with its event) per message.
-        for scenario_sub in self._scenario_subs:
-            sample_only(scenario_sub)
         self._peers: set[int] = set()
         self._setup_ssl_vision()
         self._apply_params(self._params.config)
@@ -342,9 +348,14 @@ class PlantNode(Node):
         return sim_elapsed <= rtf * (now - wall0)
 
     def _advance(self, lockstep: bool) -> None:
-        dropped = run_newest(self._scenario_subs)
-        if dropped:
-            self._warn.warn("scenario_flood", f"{dropped} scenario command(s) overtaken by newer ones in one tick")
+        if self._scenario_pending:
+            pending, self._scenario_pending = self._scenario_pending, {}
+            for apply in pending.values():
+                apply()
+        if self._scenario_overtaken:
+            self._warn.warn("scenario_flood", f"{self._scenario_overtaken} scenario command(s) overtaken by newer "
+                            "ones in one tick")
+            self._scenario_overtaken = 0
         n_wheels = len(self._wheels)
         for i in range(self.setup.num_robots):
             if lockstep:

@@ -272,6 +272,11 @@ class World:
         """
         i = self._index(i)
         n = self._coeffs[i].num_wheels
+        if isinstance(duty, np.ndarray) and duty.dtype == np.float64 and duty.shape == (n,):
+            values = duty.tolist()
+            if all(-1.0 <= v <= 1.0 for v in values):  # the usual case, in plain Python (false for NaN too)
+                self._robots[i].duty[:] = values
+                return 0
         try:
             arr = np.asarray(duty, dtype=float)
         except (TypeError, ValueError):
@@ -674,7 +679,7 @@ class World:
         vals = [b.x, b.y, b.vx, b.vy, b.wx, b.wy, b.wz, self._t]
         for rb in self._robots:
             vals += [rb.x, rb.y, rb.theta, rb.vx, rb.vy, rb.w, *rb.wheel_w, *rb.current, *rb.temp_c]
-        return all(math.isfinite(v) for v in vals)
+        return math.isfinite(sum(vals))  # inf or NaN in any term makes the sum so (and so would 1e308 + 1e308)
 
 
 # ---------------------------------------------------------------------- a scenario for the plant
