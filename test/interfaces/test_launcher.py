@@ -330,6 +330,8 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
     assert len(params["plant"]["robot_poses"]) == 3 * 14 and params["ball_predictor"]["num_robots"] == 14
     assert params["plant"]["lockstep_topics"] == params["team_firmware"]["lockstep_topics"] == "team"
     assert params["team_catcher"]["robot_ids"] == [11, 12, 13] and params["team_catcher"]["as_team"]
+    assert params["plant"]["ground_truth_rate_hz"] == 10.0
+    assert params["team_firmware"]["motor_boards.status_rate_hz"] == 10.0
     per_robot = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", lockstep_topics="per_robot",
                         opponents_intercept="false")
     assert [label.rsplit("-", 1)[0] for label in per_robot] == ["plant", "ball_predictor", "team_firmware"]
