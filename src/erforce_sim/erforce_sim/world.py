@@ -679,7 +679,7 @@ class World:
         vals = [b.x, b.y, b.vx, b.vy, b.wx, b.wy, b.wz, self._t]
         for rb in self._robots:
             vals += [rb.x, rb.y, rb.theta, rb.vx, rb.vy, rb.w, *rb.wheel_w, *rb.current, *rb.temp_c]
-        return math.isfinite(sum(vals))  # inf or NaN in any term makes the sum so (and so would 1e308 + 1e308)
+        return all(math.isfinite(v) for v in vals)
 
 
 # ---------------------------------------------------------------------- a scenario for the plant
