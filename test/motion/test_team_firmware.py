@@ -27,7 +27,8 @@ TWISTS = {0: (0.8, -0.3, 1.0), 2: (-0.5, 0.6, -2.0)}  # robot_1 has no firmware:
 
 
 # deployment -> the plant's and team_firmware's lockstep_topics
-LOCKSTEP_TOPICS = {"per_robot": "per_robot", "team": "per_robot", "team_topics": "team", "two_teams": "team"}
+LOCKSTEP_TOPICS = {"per_robot": "per_robot", "team": "per_robot", "team_topics": "team", "two_teams": "team",
+                   "mixed": "both"}
 
 
 def _start_firmware(graph, deployment, ids, **params):
@@ -37,6 +38,9 @@ def _start_firmware(graph, deployment, ids, **params):
                                  params_file=ROBOT_YAML, params={**common, "robot_ids": [i], "lockstep_topics": "team",
                                                                  "main_board.command_timeout_s": 30.0, **params})
                 for i in ids]
+    if deployment == "mixed":  # robot_0 per robot on its own topics, robot_2 in a team_firmware on the team topics
+        first, *rest = ids
+        return [*_start_firmware(graph, "per_robot", [first]), *_start_firmware(graph, "team_topics", rest)]
     if deployment != "per_robot":
         return [graph.start_node("erforce_motion", "team_firmware", params_file=ROBOT_YAML,
                                  params={**common, "robot_ids": list(ids), "main_board.command_timeout_s": 30.0,
@@ -68,17 +72,18 @@ def _start_plant(graph, deployment, readers, **params):
     return plant, truths, clocks
 
 
-@pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams"])
+@pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams", "mixed"])
 def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deployment):
     """robot_0 and robot_2 have firmware (the team process by its robot_ids parameter [0, 2]), robot_1 none:
-    every deployment (two team_firmware processes sharing the team topics too) gives the in-process runner's
+    every deployment (two team_firmware processes sharing the team topics too, and a plant serving both kinds
+    of topics to a per-robot pair and a team_firmware) gives the in-process runner's
     trajectories of all three to 1e-9 at every ground-truth stamp, so they agree with each other."""
     _start_firmware(ros_graph, deployment, TWISTS)
     for i, twist in TWISTS.items():
         _command(ros_graph, i, twist)
     ros_graph.probe.spin_for(0.3)
     # use_sim_time nodes subscribe to /clock
-    readers = {"per_robot": 2 * len(TWISTS), "two_teams": len(TWISTS)}.get(deployment, 1)
+    readers = {"per_robot": 2 * len(TWISTS), "two_teams": len(TWISTS), "mixed": 3}.get(deployment, 1)
     _, truths, _ = _start_plant(ros_graph, deployment, readers, seed=7, stop_after_s=0.5)
     ros_graph.probe.spin_until(lambda: all(t and odometry_from_msg(t[-1])[0] >= 0.4 for t in truths.values()),
                                120.0, "0.4 s of every robot")
