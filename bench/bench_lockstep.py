@@ -1,19 +1,29 @@
 """Real-time factor of the DDS graph in lockstep: the plant and every robot's firmware, per robot
-(velocity_controller + motor_boards in each namespace) or as a team (one team_firmware process).
+(velocity_controller + motor_boards in each namespace, per-robot topics) or as a team (one team_firmware
+process on the team-level topics /team/wheel_states and /team/motor_duty).
 
 Each run starts real node processes in a private DDS domain (erforce_interfaces.tools.testing),
 lets the plant run flat out (real_time_factor 0) for a stretch of simulated time, and
-reports simulated seconds per wall second, the CPU time each kind of process spent per tick
-(from /proc, so it is measured, not estimated; firmware per robot) and the resident memory
-of the whole graph and per robot (VmRSS at the end of the run).
+reports simulated seconds per wall second, the CPU time each process spent per tick
+(from /proc, so it is measured, not estimated) and the resident memory of the whole graph and
+per robot (the peak VmRSS seen).
 
     ./run exec python bench/bench_lockstep.py [--quick] [--robots 1 6 11 14] [--deployment team]
+
+``--launch-runs N``: the 14-robot graph as a user starts it, N times back to back, one command each
+(``erforce-launch src/erforce_sim/launch/team_sim.launch.yaml real_time_factor:=0.0
+predictor_timing_log_every:=100``, plus ``--launch-args``): per run the real-time factor over
+``--launch-sim-s`` simulated seconds after a warm-up, the ball predictor's in-node time from a vision
+frame to the last of the 14 catch times published (p99 of its worst window of 100 frames), CPU per
+tick per process and the graph's RSS; then the median and range over the runs.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
+import statistics
 import sys
 import tempfile
 import time
@@ -26,7 +36,9 @@ from erforce_interfaces import contract
 from erforce_interfaces.conversions import stamp_to_nanoseconds
 from erforce_interfaces.tools.testing import RosGraph
 
-ROBOT_YAML = Path(__file__).resolve().parents[1] / "src/erforce_interfaces/config/robot.yaml"
+REPO = Path(__file__).resolve().parents[1]
+ROBOT_YAML = REPO / "src/erforce_interfaces/config/robot.yaml"
+TEAM_SIM = REPO / "src/erforce_sim/launch/team_sim.launch.yaml"
 
 
 def _cpu_s(pid: int) -> float:
@@ -41,19 +53,29 @@ def _rss_mib(pid: int) -> float:
     return 0.0
 
 
-def measure(num_robots: int, sim_s: float, period_s: float = 0.002, deployment: str = "per_robot") -> dict:
+TEAM_SIZE = 11  # robots beyond it are the opponents (in the same team_firmware, as team_sim.launch.yaml has them)
+# deployment -> the lockstep topics of the plant and the team_firmware processes
+DEPLOYMENTS = {"per_robot": "per_robot", "team": "team", "team_firmware": "per_robot"}
+
+
+def measure(num_robots: int, sim_s: float, period_s: float = 0.002, deployment: str = "per_robot",
+            plant_params: dict | None = None) -> dict:
     """Sim seconds per wall second, CPU per tick and RSS for ``num_robots`` controlled robots."""
+    topics = DEPLOYMENTS[deployment]
+    teams = [list(range(num_robots))]
     with RosGraph(Path(tempfile.mkdtemp(prefix="bench-lockstep-"))) as graph:
-        if deployment == "team":
-            graph.start_node("erforce_motion", "team_firmware", params_file=ROBOT_YAML, params={
-                "use_sim_time": True, "robot_ids": list(range(num_robots)),
-                "main_board.loop_rate_hz": 1.0 / period_s, "motor_boards.loop_rate_hz": 1.0 / period_s})
+        if deployment != "per_robot":
+            for k, ids in enumerate(teams):
+                graph.start_node("erforce_motion", "team_firmware", name=f"team_firmware_{k}", params_file=ROBOT_YAML,
+                                 params={"use_sim_time": True, "robot_ids": ids, "lockstep_topics": topics,
+                                         "main_board.loop_rate_hz": 1.0 / period_s,
+                                         "motor_boards.loop_rate_hz": 1.0 / period_s})
         else:
             for i in range(num_robots):
                 for exe in ("velocity_controller", "motor_boards"):
                     graph.start_node("erforce_motion", exe, namespace=f"robot_{i}", params_file=ROBOT_YAML,
                                      params={"use_sim_time": True, "loop_rate_hz": 1.0 / period_s})
-        clock_readers = 1 if deployment == "team" else 2 * num_robots
+        clock_readers = len(teams) if deployment != "per_robot" else 2 * num_robots
         # a row of 11 per team on the Division A field (12 x 9 m)
         poses = [v for i in range(num_robots) for v in (-5.0 + 1.0 * (i % 11), -1.0 + 2.0 * (i // 11), 0.0)]
         clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
@@ -64,14 +86,14 @@ def measure(num_robots: int, sim_s: float, period_s: float = 0.002, deployment: 
             "robot_poses": poses, "field": "division_a", "controlled": [True], "real_time_factor": 0.0,
             "control_period_s": period_s,
             "stop_after_s": warmup_s + sim_s, "startup_timeout_s": 300.0,
-            "wheel_states_readers": 1 if deployment == "team" else 2,
-            "start_clock_subscribers": clock_readers + 1})
+            "wheel_states_readers": {"per_robot": 2, "team": len(teams)}.get(deployment, 1),
+            "lockstep_topics": topics,
+            "start_clock_subscribers": clock_readers + 1, **(plant_params or {})})
         graph.probe.spin_until(lambda: clocks and stamp_to_nanoseconds(clocks[-1].clock) >= warmup_s * 1e9, 400.0,
                                "warm-up")
         t0_sim = stamp_to_nanoseconds(clocks[-1].clock) * 1e-9
         t0_wall = time.monotonic()
-        pids = {proc.name + ("" if proc.name == "plant" else f"/{k}"): proc.pid
-                for k, proc in enumerate(graph.processes)}
+        pids = {f"{proc.name}/{k}": proc.pid for k, proc in enumerate(graph.processes)}
         cpu0 = {name: _cpu_s(pid) for name, pid in pids.items()}
         cpu1 = dict(cpu0)
         rss = {}
@@ -86,18 +108,26 @@ def measure(num_robots: int, sim_s: float, period_s: float = 0.002, deployment: 
         wall = time.monotonic() - t0_wall
         sim = warmup_s + sim_s - t0_sim  # the plant ends itself exactly there
     ticks = max(sim / period_s, 1.0)
-    per_tick_us = {}
-    for name in cpu1:
-        kind = name.split("/")[0]
-        per_tick_us[kind] = per_tick_us.get(kind, 0.0) + (cpu1[name] - cpu0[name]) / ticks * 1e6 / (
-            1 if kind == "plant" else num_robots)
-    firmware_rss = sum(v for k, v in rss.items() if k != "plant")
+    per_process_us = {name: (cpu1[name] - cpu0[name]) / ticks * 1e6 for name in cpu1}
+    plant_us = sum(v for k, v in per_process_us.items() if k.startswith("plant/"))
+    firmware_us = sum(v for k, v in per_process_us.items() if not k.startswith("plant/"))
+    firmware_processes = sum(1 for k in per_process_us if not k.startswith("plant/"))
+    firmware_rss = sum(v for k, v in rss.items() if not k.startswith("plant/"))
     return {"robots": num_robots, "sim_s": sim, "wall_s": wall, "rtf": sim / wall if wall > 0 else 0.0,
-            "cpu_us_per_tick": per_tick_us, "rss_total_mib": sum(rss.values()),
+            "cpu_plant_us": plant_us, "cpu_firmware_us": firmware_us, "firmware_processes": firmware_processes,
+            "cpu_us_per_process": per_process_us, "rss_total_mib": sum(rss.values()),
             "rss_firmware_per_robot_mib": firmware_rss / num_robots}
 
 
 ROBOT_COUNTS = (1, 6, 11, 14)  # 14: our 11 and 3 opponents, all under motion control
+LABELS = {"per_robot": "per robot (velocity_controller + motor_boards each), per-robot topics",
+          "team": "team_firmware per team, team topics",
+          "team_firmware": "team_firmware per team, per-robot topics"}
+TICK_S = 0.002
+
+
+def _robots_label(n: int) -> str:
+    return f"{TEAM_SIZE} + {n - TEAM_SIZE} robots" if n > TEAM_SIZE else f"{n} robot{'s' if n > 1 else ''}"
 
 
 def run(quick: bool = False, robots=ROBOT_COUNTS, deployments=("per_robot", "team")) -> list[dict]:
@@ -105,15 +135,103 @@ def run(quick: bool = False, robots=ROBOT_COUNTS, deployments=("per_robot", "tea
     for n in robots:
         for deployment in deployments:
             r = measure(n, sim_s=1.0 if quick else 4.0, deployment=deployment)
-            cpu = ", ".join(f"{k} {v:.0f} µs" for k, v in sorted(r["cpu_us_per_tick"].items()))
-            label = "per robot" if deployment == "per_robot" else "team_firmware"
-            rows.append({"name": f"lockstep over DDS, {n} robot(s), {label}, 2 ms tick", "value": round(r["rtf"], 2),
-                         "unit": "× real time", "target": "≥ 1× (14 robots)" if n == 14 else "—",
-                         "note": f"{r['sim_s']:.1f} s simulated in {r['wall_s']:.1f} s; CPU per tick: {cpu} "
-                                 f"(firmware per robot); RSS {r['rss_total_mib']:.0f} MiB in all, firmware "
-                                 f"{r['rss_firmware_per_robot_mib']:.0f} MiB per robot"})
-            print(rows[-1], file=sys.stderr, flush=True)
+            full = n == 14
+            cpu_total = r["cpu_plant_us"] + r["cpu_firmware_us"]
+            rows.append({"name": f"lockstep over DDS, {_robots_label(n)}, {LABELS[deployment]}",
+                         "value": round(r["rtf"], 2), "unit": "× real time",
+                         "target": "≥ 1.0× (11 + 3 robots)" if full else "—",
+                         "note": f"{r['sim_s']:.1f} s simulated in {r['wall_s']:.1f} s; CPU per {TICK_S * 1e3:g} ms "
+                                 f"tick: plant {r['cpu_plant_us']:.0f} µs, firmware {r['cpu_firmware_us']:.0f} µs in "
+                                 f"{r['firmware_processes']} process(es) ({r['cpu_firmware_us'] / n:.0f} µs per "
+                                 f"robot), all {cpu_total:.0f} µs = {cpu_total * 1e-6 / TICK_S:.2f} cores at 1×"})
+            rows.append({"name": f"RSS, {_robots_label(n)}, {LABELS[deployment]}",
+                         "value": round(r["rss_total_mib"]), "unit": "MiB",
+                         "target": "< 2048 MiB (11 + 3 robots)" if full else "—",
+                         "note": f"firmware {r['rss_firmware_per_robot_mib']:.0f} MiB per robot"})
+            print(rows[-2], rows[-1], file=sys.stderr, flush=True)
     return rows
+
+
+_CATCH_P99 = re.compile(r"catch times out after: median [0-9.]+ ms, p99 ([0-9.]+) ms")
+_EXECUTABLES = ("plant", "team_firmware", "ball_predictor", "team_catcher", "erforce-launch")
+
+
+def _process_name(pid: int) -> str:
+    argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    for arg in argv[:3]:
+        name = Path(arg.decode(errors="replace")).name
+        if name in _EXECUTABLES:
+            return name
+    return Path(argv[0].decode(errors="replace")).name
+
+
+def launch_run(sim_s: float, warmup_s: float, launch_args: dict[str, str]) -> dict:
+    """One start of team_sim.launch.yaml: real-time factor, the predictor's p99 to the catch times, CPU per
+    tick per process, RSS."""
+    with RosGraph(Path(tempfile.mkdtemp(prefix="bench-team-sim-"))) as graph:
+        clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
+        launch = graph.start_launch(TEAM_SIM, **{"real_time_factor": "0.0", "predictor_timing_log_every": "100",
+                                                 "output": "screen", **launch_args})
+
+        def sim_now() -> float:
+            return stamp_to_nanoseconds(clocks[-1].clock) * 1e-9 if clocks else -1.0
+
+        graph.probe.spin_until(lambda: sim_now() >= warmup_s, 600.0, "the warm-up")
+        pids = {pid: f"{_process_name(pid)}/{pid}" for pid in graph.pids()}  # the launcher too
+        cpu0 = {pid: _cpu_s(pid) for pid in pids}
+        t0_sim, t0_wall, log0 = sim_now(), time.monotonic(), len(launch.output())
+        rss: dict[int, float] = {}
+        while sim_now() < t0_sim + sim_s:
+            for pid in pids:
+                rss[pid] = max(rss.get(pid, 0.0), _rss_mib(pid))
+            graph.probe.spin_for(0.2)
+            if not launch.alive():
+                raise RuntimeError("the launch ended:\n" + launch.output()[-3000:])
+        sim, wall = sim_now() - t0_sim, time.monotonic() - t0_wall
+        cpu1 = {pid: _cpu_s(pid) for pid in pids}
+        p99s = [float(m.group(1)) for m in _CATCH_P99.finditer(launch.output()[log0:])]
+    ticks = sim / TICK_S
+    cpu = {pids[pid]: (cpu1[pid] - cpu0[pid]) / ticks * 1e6 for pid in pids}
+    return {"rtf": sim / wall, "sim_s": sim, "wall_s": wall, "catch_p99_ms": max(p99s) if p99s else float("nan"),
+            "windows": len(p99s), "cpu_us_per_tick": cpu, "rss_total_mib": sum(rss.values()),
+            "rss_mib": {pids[pid]: v for pid, v in rss.items()}}
+
+
+def launch_runs(runs: int, sim_s: float, warmup_s: float, launch_args: dict[str, str]) -> list[dict]:
+    results = []
+    for k in range(runs):
+        r = launch_run(sim_s, warmup_s, launch_args)
+        results.append(r)
+        cpu = ", ".join(f"{name.split('/')[0]} {v:.0f}" for name, v in sorted(r["cpu_us_per_tick"].items()))
+        print(f"run {k + 1}/{runs}: {r['rtf']:.3f}× real time ({r['sim_s']:.1f} s in {r['wall_s']:.1f} s), vision → "
+              f"catch times p99 {r['catch_p99_ms']:.2f} ms (worst of {r['windows']} windows), RSS "
+              f"{r['rss_total_mib']:.0f} MiB; CPU µs per tick: {cpu}; load average {os.getloadavg()[0]:.1f}",
+              file=sys.stderr, flush=True)
+
+    def spread(values, unit, digits):
+        values = sorted(values)
+        return (f"median {statistics.median(values):.{digits}f}{unit}, range {values[0]:.{digits}f}–"
+                f"{values[-1]:.{digits}f}{unit} over {len(values)} runs")
+
+    command = "erforce-launch src/erforce_sim/launch/team_sim.launch.yaml " + " ".join(
+        f"{k}:={v}" for k, v in {"real_time_factor": "0.0", "predictor_timing_log_every": "100",
+                                 **launch_args}.items())
+    per_process: dict[str, list[float]] = {}
+    for r in results:
+        for name, v in r["cpu_us_per_tick"].items():
+            per_process.setdefault(name.split("/")[0], []).append(v)
+    cpu_note = ", ".join(f"{name} {statistics.median(v):.0f} µs" for name, v in sorted(per_process.items()))
+    return [
+        {"name": "14-robot graph (11 + 3 opponents + ball, lockstep over DDS), one command, real-time factor",
+         "value": round(statistics.median(r["rtf"] for r in results), 2), "unit": "× real time", "target": "≥ 1.0×",
+         "note": f"{spread([r['rtf'] for r in results], '×', 2)}; `{command}`; CPU per tick (median): {cpu_note}"},
+        {"name": "14-robot graph: vision → catch times of all 14 published (ball_predictor, in-node), p99",
+         "value": round(statistics.median(r["catch_p99_ms"] for r in results), 2), "unit": "ms", "target": "< 3 ms",
+         "note": spread([r["catch_p99_ms"] for r in results], " ms", 2) + "; per run the worst window of 100 frames"},
+        {"name": "14-robot graph: RSS of all its processes", "value": round(statistics.median(
+            r["rss_total_mib"] for r in results)), "unit": "MiB", "target": "< 2048 MiB",
+         "note": spread([r["rss_total_mib"] for r in results], " MiB", 0)},
+    ]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -122,8 +240,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter runs")
     parser.add_argument("--robots", type=int, nargs="+", default=list(ROBOT_COUNTS))
-    parser.add_argument("--deployment", choices=("per_robot", "team"), action="append")
+    parser.add_argument("--deployment", choices=tuple(DEPLOYMENTS), action="append",
+                        help="per_robot and team by default; team_firmware: team processes on the per-robot topics")
+    parser.add_argument("--launch-runs", type=int, default=0, help="instead: N runs of team_sim.launch.yaml")
+    parser.add_argument("--launch-sim-s", type=float, default=10.0, help="simulated seconds measured per run")
+    parser.add_argument("--launch-warmup-s", type=float, default=1.0, help="simulated seconds before measuring")
+    parser.add_argument("--launch-args", nargs="*", default=[], metavar="NAME:=VALUE",
+                        help="more launch arguments, e.g. lockstep_topics:=per_robot")
     args = parser.parse_args(argv)
+    if args.launch_runs:
+        extra = dict(a.split(":=", 1) for a in args.launch_args)
+        rows = launch_runs(args.launch_runs, args.launch_sim_s, args.launch_warmup_s, extra)
+        print("\n".join(markdown_table(rows)))
+        return 0
     rows = run(args.quick, args.robots, tuple(args.deployment or ("per_robot", "team")))
     print("\n".join(markdown_table(rows)))
     return 0

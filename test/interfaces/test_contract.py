@@ -227,6 +227,108 @@ def test_random_bytes_never_raise_anything_but_a_conversion_error(garbage):
             pass
 
 
+# A team-level JointState by hand (contract: /team/wheel_states): robots 3 and 5 with two wheels each.
+# Payload offsets: stamp 0..7, frame_id "" (length 1) at 8, names count at 16, four names of 16 bytes with
+# their NUL ("robot_3/wheel_0") each after its length (20, 40, 60, 80), position count 0 at 100, velocity
+# count at 104, padding 108..111, doubles from 112; effort count at 144, padding, doubles from 152.
+def _hand_serialized_team_state(sec, nanosec, velocity, effort):
+    names = b"".join(struct.pack("<I", 16) + f"robot_{r}/wheel_{k}".encode() + b"\x00" for r in (3, 5) for k in (0, 1))
+    payload = (struct.pack("<iI", sec, nanosec) + struct.pack("<I", 1) + bytes(4) + struct.pack("<I", 4) + names
+               + struct.pack("<I", 0) + struct.pack("<I", 4) + bytes(4) + struct.pack("<4d", *velocity)
+               + struct.pack("<I", 4) + bytes(4) + struct.pack("<4d", *effort))
+    assert len(payload) == 184
+    return b"\x00\x01\x00\x00" + payload
+
+
+def test_team_joint_names_are_robot_then_wheel():
+    assert c.team_joint_names([3, 5], ("wheel_0", "wheel_1")) == (
+        "robot_3/wheel_0", "robot_3/wheel_1", "robot_5/wheel_0", "robot_5/wheel_1")
+
+
+def test_serialized_team_state_matches_a_hand_made_layout_and_reads_back_per_robot():
+    velocity, effort = [1.5, -2.0, 0.0, 1e-3], [0.25, 0.5, -0.75, 1.0]
+    hand = _hand_serialized_team_state(3, 500, velocity, effort)
+    built = conv.team_joint_state_cdr(3_000_000_500, [3, 5], ("wheel_0", "wheel_1"),
+                                      velocity=np.reshape(velocity, (2, 2)), effort=np.reshape(effort, (2, 2)))
+    assert built == hand
+    msg = deserialize_message(hand, JointState)  # rclpy reads our bytes as the joints we meant
+    assert list(msg.name) == ["robot_3/wheel_0", "robot_3/wheel_1", "robot_5/wheel_0", "robot_5/wheel_1"]
+    assert list(msg.velocity) == velocity and list(msg.effort) == effort
+    for form in (hand, hand, msg):  # bytes twice: the second read takes the remembered names block
+        t_ns, ids, (speeds, currents) = conv.team_joint_state_from_msg(form, 2, ("velocity", "effort"))
+        assert t_ns == 3_000_000_500 and ids == (3, 5)
+        assert speeds.tolist() == [[1.5, -2.0], [0.0, 1e-3]] and currents.tolist() == [[0.25, 0.5], [-0.75, 1.0]]
+
+
+def test_a_team_state_with_a_frame_id_is_read_like_the_message():
+    msg = JointState(header=Header(stamp=Time(sec=1, nanosec=2), frame_id="somewhere"),
+                     name=list(c.team_joint_names([0, 7], ("wheel_0",))), effort=[0.5, -0.5])
+    for form in (serialize_message(msg), msg):
+        t_ns, ids, (duty,) = conv.team_joint_state_from_msg(form, 1, ("effort",))
+        assert (t_ns, ids, duty.tolist()) == (1_000_000_002, (0, 7), [[0.5], [-0.5]])
+
+
+@pytest.mark.parametrize("names", [
+    ["robot_3/wheel_1", "robot_3/wheel_0"],  # wheel order
+    ["robot_5/wheel_0", "robot_5/wheel_1", "robot_3/wheel_0", "robot_3/wheel_1"],  # robot order
+    ["robot_3/wheel_0", "robot_3/wheel_1", "robot_3/wheel_0", "robot_3/wheel_1"],  # a robot twice
+    ["robot_3/wheel_0"],  # half a robot
+    ["opponent_3/wheel_0", "opponent_3/wheel_1"], ["robot_x/wheel_0", "robot_x/wheel_1"], ["wheel_0", "wheel_1"],
+])
+def test_team_state_names_must_be_robots_in_order_with_all_their_wheels(names):
+    msg = JointState(name=names, effort=[0.0] * len(names))
+    for form in (msg, serialize_message(msg)):
+        with pytest.raises(conv.ConversionError, match="joint name"):
+            conv.team_joint_state_from_msg(form, 2, ("effort",))
+
+
+def test_team_state_values_are_checked_both_ways():
+    ok = np.zeros((2, 2))
+    for bad in (math.nan, math.inf, 2e3):
+        values = ok.copy()
+        values[1, 0] = bad
+        with pytest.raises(conv.ConversionError, match="effort"):
+            conv.team_joint_state_cdr(0, [0, 1], ("wheel_0", "wheel_1"), effort=values)
+        msg = JointState(name=list(c.team_joint_names([0, 1], ("wheel_0", "wheel_1"))), effort=values.ravel().tolist())
+        for form in (msg, serialize_message(msg)):
+            with pytest.raises(conv.ConversionError, match="effort"):
+                conv.team_joint_state_from_msg(form, 2, ("effort",))
+    with pytest.raises(conv.ConversionError, match="expected 4"):
+        conv.team_joint_state_cdr(0, [0, 1], ("wheel_0", "wheel_1"), effort=np.zeros(3))
+    with pytest.raises(conv.ConversionError, match="increasing"):
+        conv.team_joint_state_cdr(0, [1, 0], ("wheel_0", "wheel_1"), effort=ok)
+    saturated = conv.team_joint_state_cdr(0, [0, 1], ("wheel_0", "wheel_1"), effort=[[5e3, 0], [0, -5e3]],
+                                          saturate=True)
+    assert list(deserialize_message(saturated, JointState).effort) == [1e3, 0.0, 0.0, -1e3]
+    short = JointState(name=list(c.team_joint_names([0, 1], ("wheel_0", "wheel_1"))), effort=[0.0] * 3)
+    for form in (short, serialize_message(short)):
+        with pytest.raises(conv.ConversionError, match="expected 4"):
+            conv.team_joint_state_from_msg(form, 2, ("effort",))
+
+
+def test_malformed_team_bytes_are_a_conversion_error():
+    good = _hand_serialized_team_state(1, 2, [1.0] * 4, [0.5] * 4)
+    conv.team_joint_state_from_msg(good, 2, ("velocity", "effort"))  # its names block is now remembered
+    for cut in range(len(good)):  # every truncation, with the names known and (cut short) unknown
+        with pytest.raises(conv.ConversionError):
+            conv.team_joint_state_from_msg(good[:cut], 2, ("velocity", "effort"))
+    huge_count = good[:108] + struct.pack("<I", 2**31) + good[112:]  # the velocity count
+    for bad in (b"\x00\x00" + good[2:], huge_count, b"", bytes(3)):
+        with pytest.raises(conv.ConversionError):
+            conv.team_joint_state_from_msg(bad, 2, ("velocity", "effort"))
+
+
+@settings(max_examples=300, deadline=None)
+@given(garbage=st.binary(max_size=200))
+def test_random_bytes_never_raise_anything_but_a_conversion_error_for_team_states(garbage):
+    known = _hand_serialized_team_state(1, 2, [1.0] * 4, [0.5] * 4)
+    for data in (garbage, b"\x00\x01\x00\x00" + garbage, known[:100] + garbage):
+        try:
+            conv.team_joint_state_from_msg(data, 2, ("velocity", "effort"))
+        except conv.ConversionError:
+            pass
+
+
 # A PointStamped by hand: header stamp at payload offset 0, frame_id "field" (length 6 with its NUL)
 # at 8, padding 18..23, then x, y, z from 24 (a multiple of 8); a PoseStamped continues with the
 # orientation (qx, qy, qz, qw) from 48.

@@ -322,13 +322,24 @@ def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(l
 
 
 def test_team_sim_takes_its_robots_as_a_list_argument():
-    """14 robots by default (11 and 3 opponents) in one team_firmware, the plant and the predictor sized alike;
-    a robot is removed or added by the list, without editing a file."""
+    """14 robots by default (11 and 3 opponents) in one team_firmware on the team lockstep topics, the plant and
+    the predictor sized alike, the 3 opponents driven by an interceptor; a robot is removed or added by the
+    list, without editing a file."""
     specs = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml")
-    assert [label.rsplit("-", 1)[0] for label in specs] == ["plant", "ball_predictor", "team_firmware"]
+    assert [label.rsplit("-", 1)[0] for label in specs] == [
+        "plant", "ball_predictor", "team_catcher", "team_firmware"]
     params = {label.rsplit("-", 1)[0]: params_of(spec)["/**"] for label, spec in specs.items()}
     assert params["team_firmware"]["robot_ids"] == list(range(14))
     assert len(params["plant"]["robot_poses"]) == 3 * 14 and params["ball_predictor"]["num_robots"] == 14
+    assert params["plant"]["lockstep_topics"] == params["team_firmware"]["lockstep_topics"] == "team"
+    assert params["team_catcher"]["robot_ids"] == [11, 12, 13] and params["team_catcher"]["as_team"]
+    assert params["plant"]["ground_truth_rate_hz"] == 10.0
+    assert params["team_firmware"]["motor_boards.status_rate_hz"] == 10.0
+    per_robot = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", lockstep_topics="per_robot",
+                        opponents_intercept="false")
+    assert [label.rsplit("-", 1)[0] for label in per_robot] == ["plant", "ball_predictor", "team_firmware"]
+    assert {params_of(s)["/**"]["lockstep_topics"] for s in per_robot.values() if "lockstep_topics" in
+            params_of(s)["/**"]} == {"per_robot"}
     three = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", robot_ids="[0, 2, 5]")
     assert params_of(next(s for label, s in three.items() if label.startswith("team_firmware")))["/**"][
         "robot_ids"] == [0, 2, 5]

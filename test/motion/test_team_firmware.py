@@ -1,5 +1,6 @@
-"""Many robots' firmware over DDS: per robot (velocity_controller + motor_boards in each namespace) and
-in one team_firmware process give the in-process runner's trajectory; robots come and go by parameter;
+"""Many robots' firmware over DDS: per robot (velocity_controller + motor_boards in each namespace), in one
+team_firmware process on the per-robot topics and on the team-level ones (/team/wheel_states, motor_duty)
+give the in-process runner's trajectory; robots come and go by parameter;
 a killed firmware process stalls only its robot."""
 
 import signal
@@ -25,12 +26,25 @@ POSES = ((-1.0, 0.0, 0.0), (0.0, 1.0, 0.5), (1.0, -1.0, 3.0))
 TWISTS = {0: (0.8, -0.3, 1.0), 2: (-0.5, 0.6, -2.0)}  # robot_1 has no firmware: it stays put
 
 
+# deployment -> the plant's and team_firmware's lockstep_topics
+LOCKSTEP_TOPICS = {"per_robot": "per_robot", "team": "per_robot", "team_topics": "team", "two_teams": "team",
+                   "mixed": "both"}
+
+
 def _start_firmware(graph, deployment, ids, **params):
     common = {"use_sim_time": True}
-    if deployment == "team":
+    if deployment == "two_teams":  # a team_firmware per robot on the shared team topics, each answering for its own
+        return [graph.start_node("erforce_motion", "team_firmware", name=f"team_firmware_{i}",
+                                 params_file=ROBOT_YAML, params={**common, "robot_ids": [i], "lockstep_topics": "team",
+                                                                 "main_board.command_timeout_s": 30.0, **params})
+                for i in ids]
+    if deployment == "mixed":  # robot_0 per robot on its own topics, robot_2 in a team_firmware on the team topics
+        first, *rest = ids
+        return [*_start_firmware(graph, "per_robot", [first]), *_start_firmware(graph, "team_topics", rest)]
+    if deployment != "per_robot":
         return [graph.start_node("erforce_motion", "team_firmware", params_file=ROBOT_YAML,
                                  params={**common, "robot_ids": list(ids), "main_board.command_timeout_s": 30.0,
-                                         **params})]
+                                         "lockstep_topics": LOCKSTEP_TOPICS[deployment], **params})]
     procs = []
     for i in ids:
         procs.append(graph.start_node("erforce_motion", "velocity_controller", namespace=f"robot_{i}",
@@ -53,21 +67,23 @@ def _start_plant(graph, deployment, readers, **params):
     clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
     plant = graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params={
         "robot_poses": [v for p in POSES for v in p], "controlled": [True, False, True], "ball": [3.0, 2.0, 0.0, 0.0],
-        "real_time_factor": 0.0, "wheel_states_readers": 1 if deployment == "team" else 2,
-        "start_clock_subscribers": readers + 1, **params})
+        "real_time_factor": 0.0, "wheel_states_readers": 2 if deployment in ("per_robot", "two_teams") else 1,
+        "lockstep_topics": LOCKSTEP_TOPICS[deployment], "start_clock_subscribers": readers + 1, **params})
     return plant, truths, clocks
 
 
-@pytest.mark.parametrize("deployment", ["per_robot", "team"])
+@pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams", "mixed"])
 def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deployment):
     """robot_0 and robot_2 have firmware (the team process by its robot_ids parameter [0, 2]), robot_1 none:
-    both deployments give the in-process runner's trajectories of all three to 1e-9 at every ground-truth
-    stamp, so they agree with each other."""
+    every deployment (two team_firmware processes sharing the team topics too, and a plant serving both kinds
+    of topics to a per-robot pair and a team_firmware) gives the in-process runner's
+    trajectories of all three to 1e-9 at every ground-truth stamp, so they agree with each other."""
     _start_firmware(ros_graph, deployment, TWISTS)
     for i, twist in TWISTS.items():
         _command(ros_graph, i, twist)
     ros_graph.probe.spin_for(0.3)
-    readers = 1 if deployment == "team" else 2 * len(TWISTS)  # use_sim_time nodes subscribe to /clock
+    # use_sim_time nodes subscribe to /clock
+    readers = {"per_robot": 2 * len(TWISTS), "two_teams": len(TWISTS), "mixed": 3}.get(deployment, 1)
     _, truths, _ = _start_plant(ros_graph, deployment, readers, seed=7, stop_after_s=0.5)
     ros_graph.probe.spin_until(lambda: all(t and odometry_from_msg(t[-1])[0] >= 0.4 for t in truths.values()),
                                120.0, "0.4 s of every robot")

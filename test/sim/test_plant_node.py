@@ -210,3 +210,41 @@ def test_pacing_changes_take_effect_at_runtime(ros_graph):
     assert not ros_graph.probe.set_parameter("/plant", "pacing", "warp").successful
     assert not ros_graph.probe.set_parameter("/plant", "real_time_factor", -1.0).successful
     assert plant.alive()
+
+
+def test_team_topics_gate_the_ticks_apply_the_duties_and_refuse_what_is_not_a_team_answer(ros_graph):
+    """lockstep_topics team: one /team/wheel_states per tick with the controlled robot_0 only (robot_1 has no
+    motion control); a fake team_firmware answers on /team/motor_duty, and no tick comes before the previous
+    one is answered; the duty reaches the wheels; malformed answers and answers for robots the plant does not
+    control are refused with a warning, and the plant goes on."""
+    states = ros_graph.subscribe(contract.TEAM_WHEEL_STATES.name, JointState, contract.QOS_CONTROL)
+    duty_pub = ros_graph.probe.publisher(contract.TEAM_MOTOR_DUTY.name, JointState, contract.QOS_CONTROL)
+    plant = start_plant(ros_graph, robot_poses=[0.0, 0.0, 0.0, 1.0, 1.0, 0.0], controlled=[True, False],
+                        lockstep_topics="team", wheel_states_readers=1, lockstep_timeout_s=30.0)
+    wheels = [f"wheel_{k}" for k in range(4)]
+    robot_0 = contract.team_joint_names([0], wheels)
+    answered: list[int] = []
+
+    def answer(t_ns, names=robot_0):
+        duty_pub.publish(joint_state_msg(t_ns, names, effort=[0.5] * 4))
+
+    def answer_new_ticks(until_ns):
+        for m in list(states):
+            t = stamp_to_nanoseconds(m.header.stamp)
+            if t not in answered:
+                assert not answered or t == answered[-1] + 2_000_000, "a tick before the previous one was answered"
+                answered.append(t)
+                answer(t)
+        return answered and answered[-1] >= until_ns
+
+    ros_graph.probe.spin_until(lambda: answer_new_ticks(100_000_000), 60.0, "100 ms of answered ticks")
+    first, last = states[0], states[-1]
+    assert list(first.name) == list(contract.team_joint_names([0], wheels))
+    assert list(first.velocity) == [0.0] * 4 and all(v > 1.0 for v in last.velocity)  # the duty drove the wheels
+    answer(answered[-1], names=["robot_0/wheel_1", "robot_0/wheel_0", "robot_0/wheel_2", "robot_0/wheel_3"])
+    plant.wait_for_output("rejected /team/motor_duty", timeout_s=15.0)
+    answer(answered[-1], names=contract.team_joint_names([1], wheels))
+    plant.wait_for_output("/team/motor_duty for robot_1, which is not a controlled robot", timeout_s=15.0)
+    goal_ns = answered[-1] + 20_000_000
+    ros_graph.probe.spin_until(lambda: answer_new_ticks(goal_ns), 60.0, "ticks after the refusals")
+    assert plant.alive()

@@ -16,6 +16,13 @@ Conventions (REP 103 / REP 105):
   they answer, so the plant can pair commands with ticks (see erforce_sim.plant_node).
 - Nothing non-finite is ever published. "Never" in a catch time is ``CATCH_TIME_NEVER``.
 
+Team-level lockstep topics (``/team/wheel_states``, ``/team/motor_duty``): the same JointState as the
+per-robot ones, for many robots in one message per tick, with joint names ``robot_<id>/wheel_<k>``
+(``team_joint_names``): each robot's wheels in wheel order, robots in increasing id. The plant's
+``lockstep_topics`` parameter chooses which of the two it serves (or both); a team_firmware process
+answers for its own robots only, so two of them (our team, the opponents) share the topics. Per robot,
+the values are exactly those of the per-robot topics, so both give the same trajectory.
+
 SSL-Vision (the ``ssl_vision_bridge`` node; erforce_ball_model.ssl_vision_bridge): the bridge
 takes the league's multicast packets and publishes on the same topics the plant's vision uses,
 so the rest of the graph cannot tell them apart:
@@ -196,6 +203,11 @@ def topic_of_name(name: str) -> Topic | None:
     return None
 
 
+def team_joint_names(robot_ids, wheel_names) -> tuple[str, ...]:
+    """Joint names of a team-level JointState: ``robot_<id>/wheel_<k>`` for each robot, then each wheel."""
+    return tuple(f"{robot_namespace(i)}/{w}" for i in robot_ids for w in wheel_names)
+
+
 def robot_frame(robot_id: int) -> str:
     return f"{robot_namespace(robot_id)}/{BASE_LINK}"
 
@@ -232,6 +244,14 @@ VISION_FIELD = Topic("/vision/field", Float64MultiArray, QOS_LATCHED, "ssl_visio
 VISION_BALL_MODEL = Topic("/vision/ball_model", Float64MultiArray, QOS_LATCHED, "ssl_vision_bridge",
                           "ball_predictor", "SSL geometry's two-phase ball model, one row [a_slide_mps2, "
                           "a_roll_mps2, c_switch]")
+TEAM_WHEEL_STATES = Topic("/team/wheel_states", JointState, QOS_CONTROL, "plant (motor sensors; lockstep_topics "
+                          "team or both)", "team_firmware",
+                          "every controlled robot's wheel_states in one message per tick: joint "
+                          "`robot_<id>/wheel_<k>`, velocity = wheel speed [rad/s], effort = motor current [A]; "
+                          "stamp = sensor tick")
+TEAM_MOTOR_DUTY = Topic("/team/motor_duty", JointState, QOS_CONTROL, "team_firmware (lockstep_topics team)", "plant",
+                        "the motor_duty of the robots one firmware process runs, in one message per tick: joint "
+                        "`robot_<id>/wheel_<k>`, effort = PWM duty in [-1, 1]; stamp = answered tick")
 SIM_EVENTS = Topic("/sim/events", String, QOS_STATE, "plant, ssl_sim_bridge", "tools, demo",
                    "human-readable simulator events: kicks, contacts, lockstep stalls and resumes")
 
@@ -274,6 +294,7 @@ SIM_SET_STATE = Topic("sim/set_state", Odometry, QOS_COMMAND, "scenario scripts"
 TOPICS: tuple[Topic, ...] = (
     CLOCK, VISION_BALL, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
     BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL, SIM_SET_BALL, SIM_EVENTS,
+    TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY,
     CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED, DRIBBLER,
     VISION_POSE, ODOM, CATCH_TIME, CATCH_POINT, GROUND_TRUTH_ODOM, GROUND_TRUTH_MOTORS, SIM_SET_STATE,
 )

@@ -30,7 +30,13 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
-from erforce_interfaces.contract import BALL_MODEL_PARAM_LABELS, BALL_MODEL_PARAM_ROWS, FIELD_FRAME
+from erforce_interfaces.contract import (
+    BALL_MODEL_PARAM_LABELS,
+    BALL_MODEL_PARAM_ROWS,
+    FIELD_FRAME,
+    ROBOT_NAMESPACE_PREFIX,
+    team_joint_names,
+)
 from erforce_interfaces.stamps import stamp_ns
 
 #: Largest magnitude accepted for any position [m], speed [m/s] or rate [rad/s] on the wire.
@@ -434,6 +440,142 @@ def _cdr_names(names: tuple[str, ...]) -> bytes:
         out += bytes(-(8 + len(out)) % 4) + _u32.pack(len(raw)) + raw
     out += bytes(-(8 + len(out)) % 4)
     return bytes(out)
+
+
+# ------------------------------------------- team-level joint arrays, serialized
+# One JointState per tick for many robots (contract: /team/wheel_states, /team/motor_duty), joints
+# ``robot_<id>/wheel_<k>``. Values travel as (robots, wheels) arrays; the names block is the same
+# from tick to tick, so it is built once per robot set and, on the way in, recognised by its bytes.
+def team_joint_state_cdr(t_ns: int, robot_ids: Sequence[int], wheel_names: Sequence[str], *,
+                         velocity: np.ndarray | None = None, effort: np.ndarray | None = None,
+                         saturate: bool = False) -> bytes:
+    """A team-level JointState serialized: ``velocity`` / ``effort`` are (robots, wheels) arrays, rows in
+    ``robot_ids`` order, checked like ``joint_state_cdr`` (``saturate``: a sensor's range)."""
+    names_cdr, n = _team_names_cdr(tuple(int(i) for i in robot_ids), tuple(wheel_names))
+    parts = [_CDR_LE, _stamp_cdr(t_ns), names_cdr]
+    offset = 8 + len(names_cdr)
+    for name, values in (("position", None), ("velocity", velocity), ("effort", effort)):
+        if values is None:
+            parts.append(_u32.pack(0))
+            offset += 4
+            continue
+        arr = np.asarray(values, dtype=float).reshape(-1)
+        if arr.size != n:
+            raise ConversionError(f"{name} has {arr.size} entries, expected {n}")
+        if saturate:
+            arr = np.where(np.isfinite(arr), np.clip(arr, -MAX_ABS_VALUE, MAX_ABS_VALUE), arr)
+        _check_array(name, arr, MAX_ABS_VALUE)
+        pad = -(offset + 4) % 8 if n else 0
+        parts.append(_u32.pack(n) + bytes(pad) + arr.astype("<f8").tobytes())
+        offset += 4 + pad + 8 * n
+    return b"".join(parts)
+
+
+@functools.lru_cache(maxsize=16)
+def _team_names_cdr(robot_ids: tuple[int, ...], wheel_names: tuple[str, ...]) -> tuple[bytes, int]:
+    if len(set(robot_ids)) != len(robot_ids) or list(robot_ids) != sorted(robot_ids):
+        raise ConversionError(f"robot ids {list(robot_ids)} are not distinct and increasing")
+    names = team_joint_names(robot_ids, wheel_names)
+    return _cdr_names(names), len(names)
+
+
+def _check_array(name: str, arr: np.ndarray, limit: float) -> None:
+    inside = np.abs(arr) <= limit  # false for NaN too
+    if not inside.all():
+        k = int(np.argmin(inside))
+        if not math.isfinite(arr[k]):
+            raise ConversionError(f"{name}[{k}] is not finite")
+        raise ConversionError(f"{name} has a value beyond the accepted magnitude {limit:g}")
+
+
+def team_robot_ids_of(names: Sequence[str], num_wheels: int) -> tuple[int, ...]:
+    """The robot ids of a team-level JointState's joint names; raises ConversionError unless the names are
+    ``robot_<id>/wheel_0 .. wheel_{n-1}`` per robot, ids increasing."""
+    if len(names) % num_wheels:
+        raise ConversionError(f"{len(names)} joint names are not {num_wheels} wheels per robot")
+    ids: list[int] = []
+    for r in range(len(names) // num_wheels):
+        first = names[r * num_wheels]
+        head, _, _ = first.partition("/")
+        digits = head[len(ROBOT_NAMESPACE_PREFIX):]
+        if not head.startswith(ROBOT_NAMESPACE_PREFIX) or not digits.isascii() or not digits.isdigit():
+            raise ConversionError(f"joint name {first[:40]!r} is not robot_<id>/wheel_<k>")
+        robot = int(digits)
+        expected = [f"{head}/wheel_{k}" for k in range(num_wheels)]
+        if list(names[r * num_wheels : (r + 1) * num_wheels]) != expected or (ids and robot <= ids[-1]):
+            raise ConversionError(f"joint names of {head[:40]} are not {expected[0]}..wheel_{num_wheels - 1} "
+                                  "in increasing robot order")
+        ids.append(robot)
+    return tuple(ids)
+
+
+# names block (from payload offset 8) -> (robot ids, its length); a few entries: one per sender
+_team_names_seen: dict[bytes, tuple[tuple[int, ...], int]] = {}
+
+
+def team_joint_state_from_msg(msg: JointState | bytes, num_wheels: int, fields: Sequence[str],
+                              limit: float = MAX_ABS_VALUE) -> tuple[int, tuple[int, ...], list[np.ndarray]]:
+    """(stamp [ns], robot ids, one (robots, wheels) array per field) of a team-level JointState, checked
+    for names, lengths and finiteness like ``joint_state_from_msg``."""
+    for field in fields:
+        if field not in _JOINT_FIELDS:
+            raise ValueError(f"unknown JointState field {field!r}")
+    if not isinstance(msg, bytes | bytearray | memoryview):
+        ids = team_robot_ids_of(list(msg.name), num_wheels)
+        arrays = {f: np.asarray(getattr(msg, f), dtype=float) for f in fields}
+        t_ns = stamp_to_nanoseconds(msg.header.stamp)
+    else:
+        t_ns, ids, arrays = _decode_team_joint_state(bytes(msg), num_wheels, fields)
+    n = len(ids) * num_wheels
+    out = []
+    for field in fields:
+        arr = arrays[field]
+        if arr.size != n:
+            raise ConversionError(f"{field} has {arr.size} entries, expected {n}")
+        _check_array(field, arr, limit)
+        out.append(arr.reshape(len(ids), num_wheels))
+    return t_ns, ids, out
+
+
+def _decode_team_joint_state(data: bytes, num_wheels: int,
+                             fields: Sequence[str]) -> tuple[int, tuple[int, ...], dict[str, np.ndarray]]:
+    if data[:2] != _CDR_LE[:2]:
+        raise ConversionError("not a little-endian CDR JointState")
+    known = next(((block, seen) for block, seen in _team_names_seen.items() if data.startswith(block, 12)), None)
+    if known is None:  # a new sender: decode it all, and remember its names block if it is ours (empty frame_id)
+        t_ns, names, values = _decode_joint_state(data)
+        ids = team_robot_ids_of(names, num_wheels)
+        block = _cdr_names(tuple(names))
+        if data.startswith(block, 12):
+            if len(_team_names_seen) >= 8:
+                _team_names_seen.clear()
+            _team_names_seen[block] = (ids, len(block))
+        found = dict(zip(_JOINT_FIELDS, values, strict=True))
+        return t_ns, ids, {f: np.array(found[f], dtype=float) for f in fields}
+    block, (ids, _) = known
+    try:
+        t_ns = _checked_stamp_ns(*_stamp.unpack_from(data, 4))
+    except struct.error as exc:
+        raise ConversionError(f"truncated JointState ({exc})") from None
+    p = 8 + len(block)  # payload offset of the position sequence
+    arrays = {}
+    try:
+        for field in _JOINT_FIELDS:
+            count = _u32.unpack_from(data, 4 + p)[0]
+            if count > _MAX_JOINTS:
+                raise ConversionError(f"{count} joint values")
+            p += 4
+            if count:
+                p += -p % 8
+                if 4 + p + 8 * count > len(data):
+                    raise ConversionError("joint values run past the message")
+                arrays[field] = np.frombuffer(data, "<f8", count, 4 + p).astype(float)
+                p += 8 * count
+            else:
+                arrays[field] = np.empty(0)
+    except struct.error as exc:
+        raise ConversionError(f"truncated JointState ({exc})") from None
+    return t_ns, ids, {f: arrays[f] for f in fields}
 
 
 # The stamped messages sent often (PointStamped, PoseStamped, Odometry, Clock) and Float64 likewise:

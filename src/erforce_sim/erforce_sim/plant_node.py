@@ -13,6 +13,12 @@ Pacing (parameter ``pacing``):
 - ``realtime``: ticks follow the wall clock times ``real_time_factor``; the newest duty
   of each robot is applied, nobody is waited for.
 
+Lockstep topics (parameter ``lockstep_topics``): ``per_robot`` serves ``/robot_<id>/wheel_states`` and
+``motor_duty`` (one velocity_controller + motor_boards per robot, or a team_firmware on them); ``team``
+serves one ``/team/wheel_states`` per tick for all controlled robots and takes ``/team/motor_duty``
+answers, each for the robots of one team_firmware process (contract: joints ``robot_<id>/wheel_<k>``);
+``both`` serves both, and a robot's answer counts from either. The gate is per robot either way.
+
 Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state``
 (nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``. A body
 placed outside the field walls is refused with an error naming it. They act at the next tick;
@@ -44,8 +50,9 @@ from erforce_interfaces.conversions import (
     point_cdr,
     pose2d_cdr,
     table_cdr,
+    team_joint_state_cdr,
+    team_joint_state_from_msg,
 )
-from erforce_interfaces.executor import run_newest, sample_only
 from erforce_interfaces.lockstep import DutyGate
 from erforce_interfaces.node_support import (
     NodeParams,
@@ -126,6 +133,11 @@ class PlantNode(Node):
         self._last_clock_ns = -(10**18)
         self._last_truth_ns = -(10**18)
         self._barrier_state = [None] * n
+        topics = self._values["lockstep_topics"]
+        self._per_robot_lockstep = topics in ("per_robot", "both")
+        self._team_lockstep = topics in ("team", "both")
+        self._controlled_ids = sorted(self._controlled)
+        self._team_named: set[int] = set()  # robots some /team/motor_duty answer was for
 
         q = contract
         pub, sub = contract_publisher, contract_subscription
@@ -134,26 +146,38 @@ class PlantNode(Node):
         self._vision_ball_pub = pub(self, q.VISION_BALL)
         self._truth_ball_pub = pub(self, q.GROUND_TRUTH_BALL)
         self._pubs: list[dict[str, Any]] = []
-        self._scenario_subs: list = []
+        # Scenario commands act at the next tick, the newest of each: a callback only keeps the message, so
+        # a flood costs a take per message, not a placement or kick (with its event) each, and a tick costs
+        # nothing for the many scenario topics nobody publishes on.
+        self._scenario_pending: dict[str, Any] = {}
+        self._scenario_overtaken = 0
+
+        def scenario(key, apply):
+            def keep(msg):
+                self._scenario_overtaken += key in self._scenario_pending
+                self._scenario_pending.pop(key, None)  # the newest goes last: commands act in arrival order
+                self._scenario_pending[key] = lambda: apply(msg)
+            return keep
         for i in range(n):
             self._pubs.append(
                 {
-                    "states": pub(self, q.WHEEL_STATES, q.WHEEL_STATES.for_robot(i)),
+                    "states": pub(self, q.WHEEL_STATES, q.WHEEL_STATES.for_robot(i)) if self._per_robot_lockstep
+                    else None,
                     "vision": pub(self, q.VISION_POSE, q.VISION_POSE.for_robot(i)),
                     "barrier": pub(self, q.BALL_DETECTED, q.BALL_DETECTED.for_robot(i)),
                     "truth": pub(self, q.GROUND_TRUTH_ODOM, q.GROUND_TRUTH_ODOM.for_robot(i)),
                     "motors": pub(self, q.GROUND_TRUTH_MOTORS, q.GROUND_TRUTH_MOTORS.for_robot(i)),
                 }
             )
-            sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.for_robot(i), raw=True)
-            self._scenario_subs += [
-                sub(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.KICK.for_robot(i)),
-                sub(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m), q.SIM_SET_STATE.for_robot(i))]
-        self._scenario_subs.append(sub(self, q.SIM_SET_BALL, self._on_set_ball))
-        # Scenario commands act at the next tick, the newest of each (executor.run_newest): a flood of
-        # them then costs one placement or kick per tick, not one (with its event) per message.
-        for scenario_sub in self._scenario_subs:
-            sample_only(scenario_sub)
+            if self._per_robot_lockstep:
+                sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.for_robot(i), raw=True)
+            sub(self, q.KICK, scenario(f"kick{i}", lambda m, i=i: self._on_kick(i, m)), q.KICK.for_robot(i))
+            sub(self, q.SIM_SET_STATE, scenario(f"set{i}", lambda m, i=i: self._on_set_robot(i, m)),
+                q.SIM_SET_STATE.for_robot(i))
+        sub(self, q.SIM_SET_BALL, scenario("ball", self._on_set_ball))
+        if self._team_lockstep:
+            self._team_states_pub = pub(self, q.TEAM_WHEEL_STATES)
+            sub(self, q.TEAM_MOTOR_DUTY, self._on_team_duty, raw=True)
         self._peers: set[int] = set()
         self._setup_ssl_vision()
         self._apply_params(self._params.config)
@@ -162,7 +186,7 @@ class PlantNode(Node):
         self.create_timer(0.2, self._refresh_peers, clock=RclClock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"plant: {n} robot(s), {self.setup.field_preset}, tick {self.setup.control_period_s * 1e3:g} ms, "
-            f"{self._values['pacing']} pacing"
+            f"{self._values['pacing']} pacing, {topics} lockstep topics"
         )
 
     def _apply_params(self, config) -> None:
@@ -193,13 +217,32 @@ class PlantNode(Node):
             self._warn.warn(f"duty{robot}", f"robot_{robot}: rejected motor_duty ({exc}); motors off")
             t_ns = self._tick * self._period_ns
             duty = None
+        self._take_duty(robot, t_ns, duty)
+        if t_ns == self._gate.tick_ns:  # only an answer to the open tick can let it advance (a flood of others
+            self._pump()                # costs no pump each; the pacing timer still runs)
+
+    def _on_team_duty(self, msg: bytes) -> None:
+        try:
+            t_ns, ids, (duties,) = team_joint_state_from_msg(msg, len(self._wheels), ("effort",))
+        except ConversionError as exc:  # no robot to answer for: the robots stall, and are reported, if it lasts
+            self._warn.warn("team_duty", f"rejected /team/motor_duty ({exc})")
+            return
+        for k, robot in enumerate(ids):
+            if robot not in self._controlled:
+                self._warn.warn(f"team_duty{robot}", f"/team/motor_duty for robot_{robot}, which is not a controlled "
+                                f"robot of this plant; ignored")
+                continue
+            self._team_named.add(robot)
+            self._take_duty(robot, t_ns, duties[k])
+        if t_ns == self._gate.tick_ns:
+            self._pump()
+
+    def _take_duty(self, robot: int, t_ns: int, duty: np.ndarray | None) -> None:
         if duty is not None:
             self._latest_duty[robot] = duty
         event = self._gate.offer(robot, t_ns, duty if duty is not None else np.zeros(len(self._wheels)))
         if event:
             self._event(event)
-        if t_ns == self._gate.tick_ns:  # only an answer to the open tick can let it advance (a flood of others
-            self._pump()                # costs no pump each; the pacing timer still runs)
 
     def _on_kick(self, robot: int, msg: Float64) -> None:
         try:
@@ -233,16 +276,31 @@ class PlantNode(Node):
     # ---------------------------------------------------------------- ticking
     def _refresh_peers(self) -> None:
         q = contract
-        self._peers = {i for i in self._controlled if self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0}
+        peers = set()
+        if self._per_robot_lockstep:
+            peers = {i for i in self._controlled if self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0}
+        # A team answer names its robots; until the first one, every controlled robot is taken as served
+        # (one that is not stalls once, after lockstep_timeout_s, and is reported).
+        if self._team_lockstep and self.count_publishers(q.TEAM_MOTOR_DUTY.name) > 0:
+            peers |= self._team_named or self._controlled
+        self._peers = peers
 
     def _ready_to_start(self) -> bool:
         q = contract
         waited = time.monotonic() - self._start_wall
-        ok = all(
+        readers = self._values["wheel_states_readers"]
+        per_robot_ok = self._per_robot_lockstep and all(
             self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0
-            and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= self._values["wheel_states_readers"]
+            and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= readers
             for i in self._controlled
-        ) and self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
+        )
+        team_ok = self._team_lockstep and (
+            not self._controlled
+            or (self.count_publishers(q.TEAM_MOTOR_DUTY.name) > 0
+                and self.count_subscribers(q.TEAM_WHEEL_STATES.name) >= readers)
+        )
+        clock_ok = self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
+        ok = (per_robot_ok or team_ok) and clock_ok
         if not ok and waited > self._values["startup_timeout_s"]:
             self._event(f"starting without all controlled robots or /clock subscribers after {waited:.1f} s", warn=True)
             return True
@@ -290,9 +348,14 @@ class PlantNode(Node):
         return sim_elapsed <= rtf * (now - wall0)
 
     def _advance(self, lockstep: bool) -> None:
-        dropped = run_newest(self._scenario_subs)
-        if dropped:
-            self._warn.warn("scenario_flood", f"{dropped} scenario command(s) overtaken by newer ones in one tick")
+        if self._scenario_pending:
+            pending, self._scenario_pending = self._scenario_pending, {}
+            for apply in pending.values():
+                apply()
+        if self._scenario_overtaken:
+            self._warn.warn("scenario_flood", f"{self._scenario_overtaken} scenario command(s) overtaken by newer "
+                            "ones in one tick")
+            self._scenario_overtaken = 0
         n_wheels = len(self._wheels)
         for i in range(self.setup.num_robots):
             if lockstep:
@@ -323,14 +386,19 @@ class PlantNode(Node):
         world = self.world
         # The tick's sensor values first: they start the motor boards' answer, which the next
         # tick waits for; everything else is published while the motor boards compute.
-        for i in range(self.setup.num_robots):
-            if i in self._controlled:
+        sensed = [(world.wheel_speeds_radps(i), world.motor_currents_a(i)) for i in self._controlled_ids]
+        if self._per_robot_lockstep:
+            for i, (speeds, currents) in zip(self._controlled_ids, sensed, strict=True):
                 self._pubs[i]["states"].publish(  # serialized, as motor_boards explains
                     joint_state_cdr(  # the sensors saturate (conversions explains the choice)
-                        t_ns, self._wheels, velocity=world.wheel_speeds_radps(i), effort=world.motor_currents_a(i),
-                        saturate=True,
+                        t_ns, self._wheels, velocity=speeds, effort=currents, saturate=True,
                     )
                 )
+        if self._team_lockstep and sensed:
+            self._team_states_pub.publish(team_joint_state_cdr(
+                t_ns, self._controlled_ids, self._wheels, velocity=[s for s, _ in sensed],
+                effort=[c for _, c in sensed], saturate=True,
+            ))
         if retry:
             return
         if t_ns - self._last_clock_ns >= 1e9 / self._values["clock_rate_hz"] - 1:

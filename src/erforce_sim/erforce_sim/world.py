@@ -272,6 +272,11 @@ class World:
         """
         i = self._index(i)
         n = self._coeffs[i].num_wheels
+        if isinstance(duty, np.ndarray) and duty.dtype == np.float64 and duty.shape == (n,):
+            values = duty.tolist()
+            if all(-1.0 <= v <= 1.0 for v in values):  # the usual case, in plain Python (false for NaN too)
+                self._robots[i].duty[:] = values
+                return 0
         try:
             arr = np.asarray(duty, dtype=float)
         except (TypeError, ValueError):
