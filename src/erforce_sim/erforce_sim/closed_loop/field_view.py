@@ -69,8 +69,12 @@ ROBOT_TOPICS = (
 )
 #: What /ball/catches carries for every robot at once: a live view takes it instead of these.
 CATCH_TABLE_REPLACES = (contract.ODOM, contract.CATCH_TIME, contract.CATCH_POINT)
+#: Unstamped values: a message equal to the last one changes nothing (the node skips it undecoded).
+VALUE_TOPICS = (contract.BALL_PHASE, contract.BALL_UNCERTAIN, contract.BALL_V_SHOOT, contract.CATCH_TIME,
+                contract.BALL_DETECTED)
 #: Types whose CDR bytes the conversions read directly (the others are deserialized first).
-BYTES_TYPES = frozenset(t.type_name for t in (contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_V_SHOOT))
+BYTES_TYPES = frozenset(t.type_name for t in (contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_V_SHOOT,
+                                              contract.BALL_CATCHES))
 _AVG_CURRENT = contract.MOTOR_STATUS_COLUMNS.index("avg_current_a")
 _LIMIT_ACTIVE = contract.MOTOR_STATUS_COLUMNS.index("limit_active")
 _CURRENT = contract.GROUND_TRUTH_MOTOR_COLUMNS.index("current_a")

@@ -23,6 +23,7 @@ forwards every topic of the graph as it is, CDR with its ROS 2 message definitio
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib
 import json
 import os
@@ -39,7 +40,14 @@ from erforce_interfaces.executor import sample_only, take_queued
 from erforce_interfaces.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
-from erforce_sim.closed_loop.field_view import BYTES_TYPES, CATCH_TABLE_REPLACES, BagReplay, WorldState, view_topic
+from erforce_sim.closed_loop.field_view import (
+    BYTES_TYPES,
+    CATCH_TABLE_REPLACES,
+    VALUE_TOPICS,
+    BagReplay,
+    WorldState,
+    view_topic,
+)
 from erforce_sim.closed_loop.view_server import ViewServer, frame_text
 
 DISCOVERY_PERIOD_S = 1.0
@@ -52,6 +60,7 @@ def check_config(config):
     return config
 
 
+@functools.cache
 def message_class(type_name: str) -> type:
     pkg, _, name = type_name.split("/")
     return getattr(importlib.import_module(f"{pkg}.msg"), name)
@@ -122,6 +131,7 @@ class FieldViewNode(Node):
         self._subs: dict[str, Any] = {}  # topic -> raw subscription of the view
         self._types: dict[str, str] = {}
         self._deep: set[str] = set()  # topics whose queue holds more than the newest message
+        self._last_value: dict[str, bytes] = {}  # VALUE_TOPICS: the bytes last applied
         self._foxglove = None
         if v["foxglove_port"]:
             from erforce_sim.closed_loop.foxglove_bridge import FoxgloveBridge
@@ -160,6 +170,8 @@ class FieldViewNode(Node):
             self._subs[topic] = sample_only(sub)
             if depth > 1:
                 self._deep.add(topic)
+            if found in VALUE_TOPICS:
+                self._last_value[topic] = b""
             self._types[topic] = found.type_name
 
     def _unsubscribe(self, topic: str) -> None:
@@ -169,6 +181,7 @@ class FieldViewNode(Node):
             self.destroy_subscription(sub)
             self._types.pop(topic, None)
             self._deep.discard(topic)
+            self._last_value.pop(topic, None)
 
     def _tick(self) -> None:
         if self._foxglove is not None:
@@ -183,6 +196,10 @@ class FieldViewNode(Node):
             # one take for a queue of one (a second, empty take would cost as much again)
             queued = [data for data, _ in take_queued(sub)] if topic in self._deep else _take_one(sub)
             for data in queued:
+                if topic in self._last_value:
+                    if data == self._last_value[topic]:
+                        continue  # the same value again (published with every ball frame)
+                    self._last_value[topic] = data
                 taken += 1
                 try:
                     msg = decode(self._types[topic], data)
