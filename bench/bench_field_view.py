@@ -10,9 +10,11 @@ field_view node costs a graph (CPU, and the ball predictor's latency with and wi
    alternating blocks without a field_view process and with one running, its page open (a websocket
    client that reads every frame, standing in for the browser, which may run on another computer);
    a view is started for each such block and stopped after it, and its CPU time over the block is
-   read from /proc. The figures: the view's CPU with 22 robots, and the latency's p50 without and with
-   the view, each the median (range) over the blocks. The load average goes into the notes: on a
-   shared VM the figures move with it.
+   read from /proc. The predictor and the view run in the bench's session, as `./run demo --view` runs
+   the graph and the view: the view's threads are SCHED_IDLE, which ranks them below the graph's only
+   inside one session (Linux's autogroup). The figures: the view's CPU with 22 robots, and the
+   latency's p50 without and with the view, each the median (range) over the blocks. The load
+   average goes into the notes: on a shared VM the figures move with it.
 
 Runs in a private DDS domain (erforce_interfaces.tools.testing.RosGraph).
 
@@ -143,7 +145,8 @@ def measure_graph(frames_per_block: int, pairs: int, num_robots: int = NUM_ROBOT
     out: dict = {"without_p50": [], "with_p50": [], "without_p99": [], "with_p99": [], "view_cpu": [],
                  "page_fps": []}
     with RosGraph() as graph:
-        graph.start_node("erforce_ball_model", "ball_predictor",
+        # The predictor and the view in this process's session, as `./run demo --view` runs the graph and the view
+        graph.start_node("erforce_ball_model", "ball_predictor", own_session=False,
                          params={"num_robots": num_robots, "field": "division_a", "robot_timeout_s": 3600.0})
         probe = graph.probe
         q = contract
@@ -184,7 +187,7 @@ def measure_graph(frames_per_block: int, pairs: int, num_robots: int = NUM_ROBOT
             out["without_p99"].append(np.percentile(lat, 99))
 
         def with_view() -> None:
-            view = graph.start_node("erforce_sim", "field_view", params={"port": 0})
+            view = graph.start_node("erforce_sim", "field_view", params={"port": 0}, own_session=False)
             url = view.wait_for_output(r"field view at (http://\S+)", timeout_s=60.0).group(1)
             stop, seen, page_frames = threading.Event(), [], []
             reader = threading.Thread(target=_page_reader, args=(url, stop, num_robots, seen, page_frames), daemon=True)
