@@ -154,11 +154,11 @@ def measure_graph(frames_per_block: int, pairs: int, num_robots: int = NUM_ROBOT
         last = q.CATCH_TIME.for_robot(num_robots - 1)
         probe.node.create_subscription(Float64, last, lambda _m, info: catch_rx.append(info["source_timestamp"]),
                                        q.CATCH_TIME.qos)
-        ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=30.0, qos=q.VISION_BALL.qos)
-        pose_pubs = [probe.wait_for_subscribers(q.VISION_POSE.for_robot(i), q.VISION_POSE.msg_type, timeout_s=30.0,
+        ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=120.0, qos=q.VISION_BALL.qos)
+        pose_pubs = [probe.wait_for_subscribers(q.VISION_POSE.for_robot(i), q.VISION_POSE.msg_type, timeout_s=120.0,
                                                 qos=q.VISION_POSE.qos) for i in range(num_robots)]
         readers = [s for s in probe.node.subscriptions if s.topic_name.startswith("/robot_")]
-        probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 30.0, "node publishers")
+        probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 120.0, "node publishers")
 
         def run_phase(count: int) -> np.ndarray:
             latencies = []
