@@ -105,6 +105,7 @@ class Rig:
         self.catch_point = [probe.subscribe(q.CATCH_POINT.for_robot(i), PointStamped, q.CATCH_POINT.qos)
                             for i in range(self.n)]
         self.odom = [probe.subscribe(q.ODOM.for_robot(i), Odometry, q.ODOM.qos) for i in range(self.n)]
+        self.catches = probe.subscribe(q.BALL_CATCHES.name, Float64MultiArray, q.BALL_CATCHES.qos)
         self.ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=20.0,
                                                    qos=q.VISION_BALL.qos)
         self.pose_pubs = [probe.wait_for_subscribers(q.VISION_POSE.for_robot(i), PoseStamped, timeout_s=20.0,
@@ -283,6 +284,7 @@ def test_no_robots_seen_gives_no_catch_outputs_until_one_is_seen(ros_graph):
         rig.ball(1.0 + k / FPS, 1.0, 1.0)
     rig.settle()
     assert all(len(c) == 0 for c in rig.catch_time) and all(len(c) == 0 for c in rig.catch_point)
+    assert len(rig.catches) == 0
     rig.robot(1, 1.06, 0.0, 1.0, 0.0)  # robot_1 at rest 1 m left of a resting ball, facing it
     rig.ball(1.08, 1.0, 1.0)
     rig.settle()
@@ -293,6 +295,11 @@ def test_no_robots_seen_gives_no_catch_outputs_until_one_is_seen(ros_graph):
     expected = 0.1 + float(robot_time_1d(d, CatcherConfig().a_max_mps2, CatcherConfig().v_max_mps))
     assert rig.catch_time[1][0].data == pytest.approx(expected, abs=1e-3)
     assert point_from_msg(rig.catch_point[1][0])[1] == pytest.approx([d, 1.0], abs=1e-3)
+    # the team table: the same in one message, with robot_1's pose (at rest, so no extrapolation)
+    ros_graph.probe.spin_until(lambda: len(rig.catches) == 1, 10.0, "/ball/catches")
+    (row,) = table_from_msg(rig.catches[0], contract.CATCH_TABLE_COLUMNS).tolist()
+    assert row == pytest.approx([1, 0.0, 1.0, 0.0, 0.0, 0.0, rig.catch_time[1][0].data, *point_from_msg(
+        rig.catch_point[1][0])[1]], abs=1e-9)
 
 
 def test_bad_observations_are_dropped_with_a_warning_and_nothing_non_finite_is_published(ros_graph):

@@ -486,6 +486,29 @@ def test_serialized_table_round_trips_through_rclpy(rows, row_label):
     assert deserialize_message(built, Float64MultiArray) == conv.table_msg(table, labels, row_label)
 
 
+@settings(max_examples=200, deadline=None)
+@given(rows=st.integers(1, 4).flatmap(lambda n: st.lists(st.lists(st.floats(-1e9, 1e9), min_size=n, max_size=n),
+                                                         min_size=0, max_size=5).map(lambda r, n=n: (n, r))),
+       row_label=_ros_text)
+def test_a_table_reads_the_same_from_its_bytes_as_from_the_message(rows, row_label):
+    n_cols, table = rows
+    labels = [f"c{k}" for k in range(n_cols)]
+    msg = conv.table_msg(np.array(table, dtype=float).reshape(-1, n_cols), labels, row_label)
+    expected = np.array(table, dtype=float).reshape(-1, n_cols)
+    for data in (serialize_message(msg), conv.table_cdr(table, labels, row_label)):  # rclpy pads with garbage
+        np.testing.assert_array_equal(conv.table_from_msg(data, labels), expected)
+
+
+def test_a_tables_malformed_bytes_are_refused():
+    data = conv.table_cdr([[1.0, 2.0, 3.0]] * 2, ("a", "b", "c"))
+    labels = ("a", "b", "c")
+    np.testing.assert_array_equal(conv.table_from_msg(data, labels), [[1.0, 2.0, 3.0]] * 2)
+    for bad in (data[:-1], data[:10], b"\x01" + data[1:], data + bytes(8), data[:4] + b"\xff\xff\xff\x7f" + data[8:],
+                data[:-8] + struct.pack("<d", math.nan)):
+        with pytest.raises(conv.ConversionError):
+            conv.table_from_msg(bad, labels)
+
+
 def test_serialized_table_refuses_what_the_message_builder_refuses():
     labels = ["a", "b"]
     for bad in ([[1.0, math.nan]], [[math.inf, 0.0]], [[2e9, 0.0]], [[1.0, 2.0, 3.0]], [[1.0]]):
@@ -623,9 +646,11 @@ def test_model_in_use_is_the_first_row_of_the_model_table():
     assert conv.model_in_use_from_msg(conv.table_msg([in_use], labels, "in_use")) == (-2.5, -0.3, 0.6)
     three = conv.table_msg([in_use, fit, std], labels, "in_use,fit,std_error")
     assert conv.model_in_use_from_msg(three) == (-2.5, -0.3, 0.6)
+    assert conv.model_in_use_from_msg(serialize_message(three)) == (-2.5, -0.3, 0.6)  # its bytes
     for rows, label in (([fit, std, in_use], "fit,std_error,in_use"), ([in_use, fit], "in_use,fit,std_error")):
-        with pytest.raises(conv.ConversionError):
-            conv.model_in_use_from_msg(conv.table_msg(rows, labels, label))
+        for msg in (conv.table_msg(rows, labels, label), conv.table_cdr(rows, labels, label)):
+            with pytest.raises(conv.ConversionError):
+                conv.model_in_use_from_msg(msg)
     four_columns = conv.table_msg([[*in_use, 1.0]], (*labels, "extra"), "in_use")
     with pytest.raises(conv.ConversionError, match="columns"):
         conv.model_in_use_from_msg(four_columns)

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import json
 import math
+from types import SimpleNamespace
 
 import pytest
 from geometry_msgs.msg import Twist
 from rclpy.serialization import serialize_message
-from std_msgs.msg import Bool, Float64, String
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
+from erforce_ball_model.passing import PassConfig, PassOption
 from erforce_interfaces import contract as c
 from erforce_interfaces.conversions import (
     float64_cdr,
@@ -28,6 +30,8 @@ from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.stamps import StampFilter
 from erforce_sim.closed_loop.field_view import STAMP_MAX_JUMP_S, BagReplay, WorldState, view_topic
 from erforce_sim.closed_loop.field_view_node import decode
+from erforce_sim.closed_loop.passing_game import GameConfig
+from erforce_sim.closed_loop.passing_report import GameBag, pass_choice_cdr
 
 FIELD = FieldConfig.preset("division_b")
 
@@ -308,3 +312,106 @@ def test_the_foxglove_scene_draws_what_the_page_draws():
     assert len(scene_update(frame, 1_000_000_000).encode()) > 500  # the foxglove message builds and encodes
     assert plots_message(frame) == {"t": 1.0, "current_limit_a": 1.3, "robot": 0, "ball_speed_true": 2.0,
                                     "ball_speed_filtered": 2.0, "ball_speed_model": 2.0, "avg_current_a": []}
+
+
+def catch_table(rows) -> Float64MultiArray:
+    return table_msg(rows, c.CATCH_TABLE_COLUMNS)
+
+
+def test_the_predictors_team_table_places_every_robot_and_its_catch():
+    state = WorldState(FIELD)
+    ball_state(state, 2.0, (0.0, 0.0), (1.0, 0.0))
+    # robot 0 at (1, 2) facing -y moving at 3-4-5 m/s, catch at 0.75 s at (1, 0); robot 4 never catches
+    assert state.apply(c.BALL_CATCHES.name, catch_table([[0, 1.0, 2.0, -math.pi / 2, 0.3, 0.4, 0.75, 1.0, 0.0],
+                                                         [4, -1.0, 0.5, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0]]))
+    frame = state.frame()
+    r0, r4 = frame["robots"]
+    assert (r0["id"], r0["pose"], r0["speed"], r0["truth"]) == (0, [1.0, 2.0, round(-math.pi / 2, 4)], 0.5, False)
+    assert (r0["catch_time"], r0["catch_point"]) == (0.75, [1.0, 0.0])
+    assert (r4["id"], r4["catch_time"], r4["catch_point"]) == (4, c.CATCH_TIME_NEVER, None)
+    assert frame["receiver"] == {"id": 0, "target": [1.0, 0.0], "catch_time": 0.75}
+    # a true pose wins over the table's tracked one; the catch still comes from the table
+    robot(state, 0, 2.0, (3.0, -1.0, 0.0))
+    assert state.apply(c.BALL_CATCHES.name, catch_table([[0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.5, 2.0, -1.0]]))
+    r0 = state.frame()["robots"][0]
+    assert (r0["pose"], r0["truth"], r0["catch_time"], r0["catch_point"]) == ([3.0, -1.0, 0.0], True, 0.5, [2.0, -1.0])
+    # robots the table no longer lists go stale like robots whose topics went quiet
+    ball_state(state, 3.5, (0.0, 0.0), (1.0, 0.0))
+    assert [r["id"] for r in state.frame()["robots"]] == []
+    for bad in ([[-1, 0, 0, 0, 0, 0, 0.5, 0, 0]], [[1.5, 0, 0, 0, 0, 0, 0.5, 0, 0]]):
+        assert not state.apply(c.BALL_CATCHES.name, catch_table(bad))
+    assert not state.apply(c.BALL_CATCHES.name, table_msg([[0.0, 1.0]], ("robot_id", "x_m")))  # other columns
+    assert state.rejected == 3
+
+
+def test_opponents_in_their_own_namespace_are_drawn_as_opponents():
+    assert view_topic("/opponent_2/ground_truth/odom") == (c.GROUND_TRUTH_ODOM, "o2")
+    assert view_topic("/opponent_x/ground_truth/odom") is None
+    state = WorldState(FIELD)
+    assert state.apply("/opponent_2/ground_truth/odom", odometry_cdr(1.0, (0.5, 0.5, 0.0), (0.0, 0.0, 0.0)))
+    assert state.apply("/opponent_2/catch_time", float64_cdr(0.2))  # an opponent is never our receiver
+    robot(state, 10, 1.0, (1.0, 1.0, 0.0), 0.9, (1.0, 0.5))
+    robot(state, 2, 1.0, (-1.0, 1.0, 0.0))
+    frame = state.frame()
+    assert [(r["id"], r["team"]) for r in frame["robots"]] == [(2, "ours"), (10, "ours"), ("o2", "opponent")]
+    assert frame["receiver"]["id"] == 10
+
+
+class _Game:
+    """What GameBag reads of a PassingGame: two of ours at rest, one opponent, the ball, the choice."""
+
+    n_team, n_opp = 2, 1
+    cfg = GameConfig(team_size=2, opponents=1)
+    poses = ((0.0, 1.0, 0.0), (2.0, -1.0, math.pi), (1.0, 0.5, 0.0))
+
+    def __init__(self) -> None:
+        self.runner = SimpleNamespace(t_ns=0)
+        self.world = SimpleNamespace(
+            ball_state=lambda: SimpleNamespace(x=0.09, y=1.0, vx=0.0, vy=0.0, wx=0.0, wy=0.0, wz=0.0),
+            robot_state=lambda i: SimpleNamespace(x=self.poses[i][0], y=self.poses[i][1], theta=self.poses[i][2],
+                                                  vx=0.0, vy=0.0, w=0.0))
+        self.choice = None
+
+
+def test_the_passing_games_choice_goes_into_its_bag_and_onto_the_page(tmp_path):
+    """0 to 1 s in 10 ms steps: no choice until 0.3 s, then robot 0 to robot 1 with the opponent there
+    1.4 s after the kick and our catch at 0.9 s (margin 0.5 s, safe at 0.3 s), from 0.6 s a pass no
+    opponent reaches; the bag replays it as the page gets it."""
+    game = _Game()
+    bag = GameBag(tmp_path / "bag", game)
+    contested = PassOption(receiver=1, kick_speed_mps=3.0, direction_rad=-0.7854, receiver_catch_s=0.9,
+                           opponent_catch_s=1.4, first_opponent=0)
+    free = PassOption(receiver=1, kick_speed_mps=2.5, direction_rad=-0.7854, receiver_catch_s=1.1,
+                      opponent_catch_s=math.inf, first_opponent=None)
+    for k in range(101):
+        game.runner.t_ns = k * 10_000_000
+        game.choice = None if k < 30 else (0, contested) if k < 60 else (0, free)
+        bag.tick(game)
+    bag.close()
+    replay = BagReplay(tmp_path / "bag", decode, FIELD)
+    assert replay.frame_at(0.2)["pass"] is None
+    frame = replay.frame_at(0.45)
+    assert frame["pass"] == {"passer": 0, "receiver": 1, "kick_speed": 3.0, "direction": -0.7854,
+                             "receiver_catch": 0.9, "first_opponent": "o0", "opponent_catch": 1.4,
+                             "margin": 0.5, "safe_margin": 0.3, "safe": True}
+    assert [(r["id"], r["team"], r["pose"][:2]) for r in frame["robots"]] == [
+        (0, "ours", [0.0, 1.0]), (1, "ours", [2.0, -1.0]), ("o0", "opponent", [1.0, 0.5])]
+    late = replay.frame_at(0.8)["pass"]
+    assert (late["first_opponent"], late["opponent_catch"], late["margin"], late["safe"]) == (None, None, None, True)
+    # the bag holds a choice only when it changed: none, the contested pass, the free one
+    assert sum(1 for topic, _ in replay._messages if topic == c.PASS_CHOICE.name) == 3
+
+
+def test_an_unsafe_or_malformed_choice():
+    state = WorldState(FIELD)
+    cfg = PassConfig()
+    risky = PassOption(receiver=3, kick_speed_mps=4.0, direction_rad=0.0, receiver_catch_s=1.0,
+                       opponent_catch_s=1.1, first_opponent=2)
+    assert state.apply(c.PASS_CHOICE.name, decode(c.PASS_CHOICE.type_name, pass_choice_cdr((5, risky), cfg)))
+    choice = state.frame()["pass"]
+    assert (choice["passer"], choice["receiver"], choice["margin"], choice["safe"]) == (5, 3, 0.1, False)
+    assert state.apply(c.PASS_CHOICE.name, decode(c.PASS_CHOICE.type_name, pass_choice_cdr(None, cfg)))
+    assert state.frame()["pass"] is None
+    two_rows = table_msg([[0, 1, 2, 0, 1, 2, 0, 1, 0.3, 1]] * 2, c.PASS_CHOICE_COLUMNS)
+    negative = table_msg([[-1, 1, 2, 0, 1, 2, 0, 1, 0.3, 1]], c.PASS_CHOICE_COLUMNS)
+    assert not state.apply(c.PASS_CHOICE.name, two_rows) and not state.apply(c.PASS_CHOICE.name, negative)

@@ -19,11 +19,13 @@ from rosbags.typesys import Stores, get_typestore
 from test_field_view_browser import ARTIFACTS, require_chromium
 from websockets.sync.client import connect
 
+from erforce_ball_model.passing import PassConfig, PassOption
 from erforce_interfaces import contract as c
 from erforce_interfaces.conversions import odometry_msg
 from erforce_sim.closed_loop.demo import LAUNCH_FILE
 from erforce_sim.closed_loop.foxglove_bridge import PLOTS_TOPIC, SCENE_TOPIC, layout_json
 from erforce_sim.closed_loop.headless_browser import Browser
+from erforce_sim.closed_loop.passing_report import pass_choice_cdr
 
 pytestmark = pytest.mark.integration
 
@@ -98,16 +100,29 @@ def test_a_taken_port_or_a_missing_bag_is_one_clear_line_and_exit_1(ros_graph, t
     assert "cannot start: cannot replay" in view.output() and "Traceback" not in view.output()
 
 
+PASSER_XY, RECEIVER_XY, OPPONENT_XY = (0.0, 1.0), (2.0, -1.0), (1.0, 0.5)
+
+
 def write_rolling_ball_bag(path: Path) -> None:
-    """The ball along x: x = t - 2 m for t from 1 to 5 s (truth every 10 ms); robot_0 at rest at (0, 1)."""
+    """The ball along x: x = t - 2 m for t from 1 to 5 s (truth every 10 ms); robot_0 at rest at (0, 1),
+    robot_1 at (2, -1), opponent_0 at (1, 0.5); from 1 s the passing game's choice: robot_0 to robot_1,
+    our catch 0.9 s and the opponent's 1.4 s after the kick (margin 0.5 s, safe at 0.3 s)."""
     store = get_typestore(Stores.ROS2_JAZZY)
+    cfg = PassConfig(safe_margin_s=0.3)
+    choice = PassOption(receiver=1, kick_speed_mps=3.0, direction_rad=-math.pi / 4, receiver_catch_s=0.9,
+                        opponent_catch_s=1.4, first_opponent=0)
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         ball = writer.add_connection(c.GROUND_TRUTH_BALL.name, "nav_msgs/msg/Odometry", typestore=store)
-        robot = writer.add_connection(c.GROUND_TRUTH_ODOM.for_robot(0), "nav_msgs/msg/Odometry", typestore=store)
+        robots = [(writer.add_connection(name, "nav_msgs/msg/Odometry", typestore=store), xy) for name, xy in (
+            (c.GROUND_TRUTH_ODOM.for_robot(0), PASSER_XY), (c.GROUND_TRUTH_ODOM.for_robot(1), RECEIVER_XY),
+            (c.opponent_topic(c.GROUND_TRUTH_ODOM, 0), OPPONENT_XY))]
+        writer.write(writer.add_connection(c.PASS_CHOICE.name, c.PASS_CHOICE.type_name, typestore=store),
+                     round(1e9), pass_choice_cdr((0, choice), cfg))
         for k in range(401):
             t = 1.0 + 0.01 * k
             writer.write(ball, round(t * 1e9), serialize_message(odometry_msg(t, (t - 2.0, 0.0, 0.0), (1.0, 0.0, 0.0))))
-            writer.write(robot, round(t * 1e9), serialize_message(odometry_msg(t, (0.0, 1.0, 0.0), (0.0, 0.0, 0.0))))
+            for robot, (x, y) in robots:
+                writer.write(robot, round(t * 1e9), serialize_message(odometry_msg(t, (x, y, 0.0), (0.0, 0.0, 0.0))))
 
 
 def test_the_page_replays_a_bag_with_slider_pause_and_speed(ros_graph, tmp_path):
@@ -131,8 +146,22 @@ def test_the_page_replays_a_bag_with_slider_pause_and_speed(ros_graph, tmp_path)
         def check_ball(drawn: dict) -> None:
             assert drawn["ball_world"][0] == pytest.approx(drawn["ball_t"] - 2.0, abs=1e-6)
 
-        drawn = drawn_when(lambda d: d["replay"] and d["robots"] == 1, "the bag")  # plays at once, at 1x
+        drawn = drawn_when(lambda d: d["replay"] and d["robots"] == 3 and d["pass"], "the bag")  # plays at once, 1x
         check_ball(drawn)
+        # the passing game's choice: an arrow from the passer to the receiver, its margin, the opponent ringed
+        pass_drawn = drawn["pass"]
+        assert (pass_drawn["passer"], pass_drawn["receiver"], pass_drawn["safe"]) == (0, 1, True)
+        assert pass_drawn["text"] == "pass 0 → 1: margin +0.50 s (safe ≥ 0.30 s)"
+        assert pass_drawn["from_px"] == pytest.approx(drawn["robot_px"]["0"], abs=1e-6)
+        assert pass_drawn["to_px"] == pytest.approx(drawn["robot_px"]["1"], abs=1e-6)
+        assert pass_drawn["opponent_px"] == pytest.approx(drawn["robot_px"]["o0"], abs=1e-6)
+        # and where it is drawn: a quarter of the way from the passer (clear of robots, ball and label) has its colour
+        image = browser.screenshot()
+        (fx, fy), (tx, ty) = pass_drawn["from_px"], pass_drawn["to_px"]
+        left, top = browser.js("const r = document.getElementById('field').getBoundingClientRect();"
+                               "return [r.left, r.top];")
+        r, g, b = image.getpixel((round(left + fx + 0.25 * (tx - fx)), round(top + fy + 0.25 * (ty - fy))))[:3]
+        assert g > 200 and r < 120 and b < 170, (r, g, b)  # #4dff88
         browser.js("document.getElementById('play').click()")  # pause
         time.sleep(0.3)
         paused = browser.js("return window.fieldView.drawn.t")

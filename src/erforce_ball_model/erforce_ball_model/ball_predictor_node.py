@@ -4,7 +4,8 @@ Serves all robots from one process; the per-frame work is predictor.BallPredicto
 robot freshness, the reaction time, robotTimeToBall for the team, the model in use and online
 identification), the same object the in-process scenes and the bench run. Every ``/vision/ball``
 frame is answered with each fresh robot's ``/robot_<i>/catch_time`` and ``catch_point`` (first:
-what the robots act on), then the ball state, phase, stop point, v_shoot and the uncertain flag.
+what the robots act on), then the ball state, phase, stop point, v_shoot and the uncertain flag,
+and, while anyone subscribes to it, ``/ball/catches``: the whole team in one message.
 All outputs carry the observation's stamp; catch times count from it. ``/robot_<i>/vision_pose``
 is answered with ``/robot_<i>/odom``.
 
@@ -38,6 +39,7 @@ from erforce_interfaces.conversions import (
     point_from_msg,
     pose2d_from_msg,
     seconds_to_stamp,
+    table_cdr,
     table_from_msg,
     table_msg,
 )
@@ -110,6 +112,7 @@ class BallPredictorNode(Node):
         self._stop_pub = contract_publisher(self, q.BALL_STOP_POINT)
         self._v_shoot_pub = contract_publisher(self, q.BALL_V_SHOOT)
         self._uncertain_pub = contract_publisher(self, q.BALL_UNCERTAIN)
+        self._catches_pub = contract_publisher(self, q.BALL_CATCHES)
         self._odom_pubs = [contract_publisher(self, q.ODOM, q.ODOM.for_robot(i)) for i in range(n)]
         self._catch_time_pubs = [contract_publisher(self, q.CATCH_TIME, q.CATCH_TIME.for_robot(i)) for i in range(n)]
         self._catch_point_pubs = [
@@ -230,6 +233,11 @@ class BallPredictorNode(Node):
             self._publish_ball_outputs(frame)
         except ValueError as exc:
             self._warn.warn("predict", f"no ball state for the frame at {t_s:.6f} s: {exc}")
+        if frame.catch_robots and self._catches_pub.get_subscription_count() > 0:
+            try:
+                self._catches_pub.publish(self._catch_table(frame))
+            except ValueError as exc:
+                self._warn.warn("catches", f"no /ball/catches for the frame at {t_s:.6f} s: {exc}")
         summary = self._times.add(catch_out - start, time.perf_counter() - start)
         if summary:
             self.get_logger().info(summary)
@@ -250,6 +258,15 @@ class BallPredictorNode(Node):
         self._stop_pub.publish(stop_point)
         self._v_shoot_pub.publish(v_shoot)
         self._uncertain_pub.publish(self._uncertain_msg)
+
+    def _catch_table(self, frame: BallFrame) -> bytes:
+        """/ball/catches: every fresh robot's pose at the frame and its catch, one message for the team
+        (an observer such as the field view takes it instead of three topics per robot)."""
+        states = self._predictor.robot_states_at(frame.t_s, frame.catch_robots)
+        rows = [(i, *state, t, *(point if point is not None else (0.0, 0.0)))
+                for i, state, t, point in zip(frame.catch_robots, states, frame.catch_times_s, frame.catch_points_m,
+                                              strict=True)]
+        return table_cdr(rows, contract.CATCH_TABLE_COLUMNS)
 
     def _publish_catch_outputs(self, frame: BallFrame) -> float | None:
         """catch_time, then catch_point, of every fresh robot.

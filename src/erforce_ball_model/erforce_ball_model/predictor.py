@@ -214,6 +214,18 @@ class BallPredictor:
         self._robot_vel_mps[robot] = vel
         return tracker
 
+    def robot_states_at(self, t_s: float, robots: list[int]) -> list[tuple[float, float, float, float, float]]:
+        """(x, y, heading, vx, vy) [m, rad, m/s] of each of ``robots`` (seen ones) at ``t_s``: the position
+        extrapolated at constant velocity, as the catch search takes it (``_robots_now``); heading 0 before
+        the tracker has one."""
+        out = []
+        for i in robots:
+            t_i, x, y, vx, vy = self._robot_states[i]
+            age_s = t_s - t_i
+            heading = self._robots[i].heading_rad
+            out.append((x + vx * age_s, y + vy * age_s, 0.0 if heading is None else heading, vx, vy))
+        return out
+
     def _restarted_clock(self, last_t_s: float | None, t_s: float, what: str) -> bool:
         """A stamp more than max_gap_s before the newest one: the clock restarted (e.g. the simulator).
 

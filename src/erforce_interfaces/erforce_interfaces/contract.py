@@ -181,6 +181,15 @@ def robot_id_of_namespace(namespace: str) -> int | None:
     return int(digits)
 
 
+def opponent_id_of_namespace(namespace: str) -> int | None:
+    """The opponent robot id of an opponent namespace (``/opponent_3`` -> 3); None for any other namespace."""
+    name = namespace.strip("/")
+    digits = name[len(OPPONENT_NAMESPACE_PREFIX):]
+    if not name.startswith(OPPONENT_NAMESPACE_PREFIX) or not digits.isascii() or not digits.isdigit():
+        return None
+    return int(digits)
+
+
 def opponent_topic(topic: Topic, robot_id: int) -> str:
     """Absolute name of a per-robot topic for the opponents' robot ``robot_id`` (``/opponent_3/vision_pose``)."""
     if not topic.per_robot:
@@ -254,6 +263,16 @@ TEAM_MOTOR_DUTY = Topic("/team/motor_duty", JointState, QOS_CONTROL, "team_firmw
                         "`robot_<id>/wheel_<k>`, effort = PWM duty in [-1, 1]; stamp = answered tick")
 SIM_EVENTS = Topic("/sim/events", String, QOS_STATE, "plant, ssl_sim_bridge", "tools, demo",
                    "human-readable simulator events: kicks, contacts, lockstep stalls and resumes")
+BALL_CATCHES = Topic("/ball/catches", Float64MultiArray, QOS_SENSOR, "ball_predictor (while subscribed)",
+                     "field_view, tools",
+                     "the team at one ball frame, one message for all robots: a table with columns "
+                     "CATCH_TABLE_COLUMNS, a row per robot fresh at the frame (its tracked pose and velocity "
+                     "at the frame's stamp [m, rad, m/s], `field`; its catch_time and catch_point as published "
+                     "per robot, the point 0, 0 with a catch time of never); after the per-robot outputs")
+PASS_CHOICE = Topic("/pass/choice", Float64MultiArray, QOS_STATE, "passing game (its bag)", "field_view, tools",
+                    "the pass the holder has chosen, one row of PASS_CHOICE_COLUMNS (robot ids of our team, "
+                    "times [s] from the kick; safe 1/0 = margin_s >= safe_margin_s); no rows: no choice "
+                    "(nobody holds the ball)")
 
 # ------------------------------------------------------------- per-robot topics
 CMD_VEL = Topic("cmd_vel", Twist, QOS_COMMAND, "catcher / AI", "velocity_controller",
@@ -295,6 +314,7 @@ TOPICS: tuple[Topic, ...] = (
     CLOCK, VISION_BALL, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
     BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL, SIM_SET_BALL, SIM_EVENTS,
     TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY,
+    BALL_CATCHES, PASS_CHOICE,
     CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED, DRIBBLER,
     VISION_POSE, ODOM, CATCH_TIME, CATCH_POINT, GROUND_TRUTH_ODOM, GROUND_TRUTH_MOTORS, SIM_SET_STATE,
 )
@@ -306,6 +326,13 @@ BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
 VISION_DETECTION_COLUMNS = ("camera_id", "age_s", "kind", "robot_id", "x_m", "y_m", "theta_rad", "confidence")
 #: ``kind`` values of /vision/detections (theta_rad is 0 for balls and robots without orientation)
 VISION_DETECTION_KINDS = {"ball": 0.0, "ours": 1.0, "opponent": 2.0}
+CATCH_TABLE_COLUMNS = ("robot_id", "x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "catch_time_s", "catch_x_m",
+                       "catch_y_m")
+#: first_opponent counts the opponents 0.. (``/opponent_<id>``), -1: none can catch the pass; then
+#: opponent_catch_s and margin_s are PASS_NO_OPPONENT_S (a table holds finite numbers only).
+PASS_NO_OPPONENT_S = 1.0e6
+PASS_CHOICE_COLUMNS = ("passer_id", "receiver_id", "kick_speed_mps", "direction_rad", "receiver_catch_s",
+                       "opponent_catch_s", "first_opponent", "margin_s", "safe_margin_s", "safe")
 VISION_FIELD_COLUMNS = ("length_m", "width_m", "boundary_m", "goal_width_m", "goal_depth_m")
 
 

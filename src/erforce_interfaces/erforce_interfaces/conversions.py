@@ -729,27 +729,62 @@ def _table_layout_cdr(row_label: str, n_rows: int, columns: tuple[str, ...]) -> 
     return bytes(out + (bytes(-len(out) % 8) if n_rows * n_cols else b""))
 
 
-def table_from_msg(msg: Float64MultiArray, column_labels: Sequence[str], num_rows: int | None = None) -> np.ndarray:
-    """The rows x columns table of a ``table_msg``; its shape is checked against the labels (and
-    ``num_rows`` when given), not taken from the message."""
-    if len(msg.layout.dim) != 2 or msg.layout.dim[1].label != ",".join(column_labels):
+def _multi_array_parts(msg: Float64MultiArray | bytes) -> tuple[list[tuple[str, int]], int, Sequence[float]]:
+    """(label, size) of each dimension, data_offset and the data of a Float64MultiArray or of its CDR bytes
+    (read in place: rclpy's deserialization of a 200-value table cost as much as the rest of its use)."""
+    if not isinstance(msg, bytes):
+        return [(d.label, d.size) for d in msg.layout.dim], msg.layout.data_offset, msg.data
+    try:
+        if msg[:2] != _CDR_LE[:2]:
+            raise ConversionError("not a little-endian CDR Float64MultiArray")
+        body = memoryview(msg)[4:]  # CDR aligns relative to the end of the encapsulation header
+        (n_dims,), at = _u32.unpack_from(body, 0), 4
+        if n_dims > 8:
+            raise ConversionError(f"a table with {n_dims} dimensions")
+        dims = []
+        for _ in range(n_dims):
+            (length,) = _u32.unpack_from(body, at)
+            label = bytes(body[at + 4:at + 4 + length]).rstrip(b"\x00").decode()
+            at += 4 + length
+            at += -at % 4
+            size, _stride = struct.unpack_from("<II", body, at)
+            dims.append((label, size))
+            at += 8
+        data_offset, count = struct.unpack_from("<II", body, at)
+        at += 8
+        at += -at % 8 if count else 0
+        if not 0 <= len(body) - (at + 8 * count) < 8:  # serializers may pad the end
+            raise ConversionError(f"a table of {count} values in {len(body) - at} bytes")
+        return dims, data_offset, np.frombuffer(body, dtype="<f8", count=count, offset=at)
+    except (struct.error, UnicodeDecodeError, ValueError) as exc:
+        if isinstance(exc, ConversionError):
+            raise
+        raise ConversionError(f"malformed Float64MultiArray: {exc}") from None
+
+
+def table_from_msg(msg: Float64MultiArray | bytes, column_labels: Sequence[str],
+                   num_rows: int | None = None) -> np.ndarray:
+    """The rows x columns table of a ``table_msg`` (or its CDR bytes); its shape is checked against the
+    labels (and ``num_rows`` when given), not taken from the message."""
+    dims, data_offset, values = _multi_array_parts(msg)
+    if len(dims) != 2 or dims[1][0] != ",".join(column_labels):
         raise ConversionError(f"expected a table with columns {','.join(column_labels)}")
-    n_rows, n_cols = msg.layout.dim[0].size, msg.layout.dim[1].size
+    n_rows, n_cols = dims[0][1], dims[1][1]
     if n_cols != len(column_labels):
         raise ConversionError(f"table has {n_cols} columns, its labels name {len(column_labels)}")
     if num_rows is not None and n_rows != num_rows:
         raise ConversionError(f"table has {n_rows} rows, expected {num_rows}")
-    if msg.layout.data_offset != 0:
-        raise ConversionError(f"table data_offset is {msg.layout.data_offset}, expected 0")
-    data = _finite_array("data", msg.data, n_rows * n_cols, 1.0e9)
+    if data_offset != 0:
+        raise ConversionError(f"table data_offset is {data_offset}, expected 0")
+    data = _finite_array("data", values, n_rows * n_cols, 1.0e9)
     return data.reshape(n_rows, n_cols)
 
 
-def model_in_use_from_msg(msg: Float64MultiArray) -> tuple[float, float, float]:
+def model_in_use_from_msg(msg: Float64MultiArray | bytes) -> tuple[float, float, float]:
     """(a_slide_mps2, a_roll_mps2, c_switch) of the model in use on ``/ball/model_params``: a table whose
     rows are the first one or all of ``BALL_MODEL_PARAM_ROWS`` (in_use, then a fit once there is one)."""
     table = table_from_msg(msg, BALL_MODEL_PARAM_LABELS)
-    rows = msg.layout.dim[0].label.split(",")
+    rows = _multi_array_parts(msg)[0][0][0].split(",")
     if len(rows) != len(table) or rows != list(BALL_MODEL_PARAM_ROWS[:len(rows)]):
         raise ConversionError(f"rows labelled {rows}, expected the first of {','.join(BALL_MODEL_PARAM_ROWS)}")
     a_slide, a_roll, c_switch = table[0].tolist()

@@ -9,6 +9,7 @@
     grass: "#2b6b34", lines: "#f4f4f4", ours: "#2f7de1", opponent: "#f2d22e", ball: "#ff8a00",
     seen: "#ffd9a8", state: "#37d0ff", slide: "#ff4d4d", roll: "#37d0ff", stop: "#ffffff",
     catchPoint: "#ffffff", target: "#b6ff3b", follow: "#ff3bd4", wall: "#555c63",
+    passSafe: "#4dff88", passUnsafe: "#ff4d8a",
   };
   const BALL_RADIUS_M = 0.0215;
   const PLOT_WINDOW_S = 6.0;
@@ -214,13 +215,46 @@
     return [px, py];
   }
 
+  // The passing game's choice: an arrow from the passer to the receiver, green when the margin is safe,
+  // the margin written at its middle; the opponent that would be first to the ball ringed.
+  function drawPass(choice, robots) {
+    const passer = robots.find((r) => r.id === choice.passer);
+    const receiver = robots.find((r) => r.id === choice.receiver);
+    if (!passer || !receiver) { return null; }
+    const color = choice.safe ? COLORS.passSafe : COLORS.passUnsafe;
+    const from = passer.pose.slice(0, 2), to = receiver.pose.slice(0, 2);
+    line([from, to], color, 3, choice.safe ? [] : [8, 5]);
+    const [fx, fy] = fieldView.worldToPixel(from[0], from[1]);
+    const [tx, ty] = fieldView.worldToPixel(to[0], to[1]);
+    const angle = Math.atan2(ty - fy, tx - fx), back = Math.max(8, 1.3 * robotPxRadius());
+    const hx = tx - back * Math.cos(angle), hy = ty - back * Math.sin(angle);
+    ctx.beginPath(); ctx.moveTo(hx, hy);
+    ctx.lineTo(hx - 14 * Math.cos(angle - 0.4), hy - 14 * Math.sin(angle - 0.4));
+    ctx.lineTo(hx - 14 * Math.cos(angle + 0.4), hy - 14 * Math.sin(angle + 0.4));
+    ctx.closePath(); ctx.fillStyle = color; ctx.fill();
+    const margin = choice.margin === null ? "no opponent can reach it" : `margin ${choice.margin >= 0 ? "+" : ""}${choice.margin.toFixed(2)} s`;
+    const text = `pass ${choice.passer} → ${choice.receiver}: ${margin} (safe ≥ ${choice.safe_margin.toFixed(2)} s)`;
+    ctx.font = "bold 12px sans-serif"; ctx.textAlign = "center"; ctx.textBaseline = "bottom";
+    ctx.lineWidth = 3; ctx.strokeStyle = "#0b0d10"; ctx.strokeText(text, (fx + tx) / 2, (fy + ty) / 2 - 6);
+    ctx.fillStyle = color; ctx.fillText(text, (fx + tx) / 2, (fy + ty) / 2 - 6);
+    let opponentPx = null;
+    const opponent = choice.first_opponent === null ? null : robots.find((r) => r.id === choice.first_opponent);
+    if (opponent) {
+      opponentPx = disc(opponent.pose[0], opponent.pose[1], robotPxRadius() + 6, null, COLORS.passUnsafe);
+    }
+    return { passer: choice.passer, receiver: choice.receiver, safe: choice.safe, margin: choice.margin,
+             text, from_px: [fx, fy], to_px: [tx, ty], first_opponent: choice.first_opponent, opponent_px: opponentPx };
+  }
+  const robotPxRadius = () => Math.max(4, (latest ? latest.robot_radius : 0.09) * view.scale);
+
   function drawFrame(frame) {
     resize();
     if (!view.fitted) { fit(frame); }
     ctx.fillStyle = "#16191d"; ctx.fillRect(0, 0, canvas.clientWidth, canvas.clientHeight);
     drawField(frame.field);
     const drawn = { t: frame.t, robots: 0, robot_ids: [], robot_px: {}, catch_points: [], path: null,
-                    ball_px: null, ball_world: null, ball_t: null, receiver: null, scale: view.scale, replay: Boolean(frame.replay) };
+                    ball_px: null, ball_world: null, ball_t: null, receiver: null, pass: null, scale: view.scale,
+                    replay: Boolean(frame.replay) };
     const path = frame.path;
     if (path) {
       line([path.start, path.switch], COLORS.slide, 3);
@@ -251,6 +285,7 @@
       ctx.moveTo(tx - 16, ty); ctx.lineTo(tx + 16, ty); ctx.moveTo(tx, ty - 16); ctx.lineTo(tx, ty + 16); ctx.stroke();
       drawn.receiver = { id: frame.receiver.id, target: frame.receiver.target, px: [tx, ty] };
     }
+    if (frame.pass) { drawn.pass = drawPass(frame.pass, frame.robots); }
     for (const r of frame.robots) {
       drawn.robot_px[r.id] = drawRobot(r, frame.robot_radius, follower && r.id === follower.id);
       drawn.robots += 1; drawn.robot_ids.push(r.id);
@@ -335,6 +370,8 @@
         ["catch time", r.catch_time === null ? "—" : r.catch_time < 0 ? "never" : `${f2(r.catch_time)} s`],
         ["catch point", r.catch_point ? `${f2(r.catch_point[0])}, ${f2(r.catch_point[1])} m` : "—"],
         ["receiver", frame.receiver && frame.receiver.id === r.id ? "yes (the team's choice)" : "no"],
+        ["pass", !frame.pass ? "—" : frame.pass.passer === r.id ? `to ${frame.pass.receiver}, ${frame.pass.kick_speed.toFixed(2)} m/s`
+          : frame.pass.receiver === r.id ? `from ${frame.pass.passer}, ball there in ${f2(frame.pass.receiver_catch)} s` : "—"],
         ["avg current", r.avg_current.length ? r.avg_current.map(f2).join(" ") + " A" : "—"],
         ["current", r.current.length ? r.current.map(f2).join(" ") + " A" : "—"],
         ["current limit", limited ? `active (${frame.current_limit} A)` : `off (${frame.current_limit} A)`, limited ? "limit" : ""],

@@ -206,7 +206,11 @@ class RosGraph:
         self._expected_faults: set[str] | None = set()  # process names; None: any
 
     # ------------------------------------------------------------ processes
-    def start(self, cmd: Sequence[str], name: str | None = None, env: dict[str, str] | None = None) -> NodeProcess:
+    def start(self, cmd: Sequence[str], name: str | None = None, env: dict[str, str] | None = None,
+              own_session: bool = True) -> NodeProcess:
+        """Start ``cmd`` in a session of its own, or with ``own_session`` False in this process's session
+        (in a process group of its own), as the demo starts the graph and its observers: Linux ranks
+        threads by scheduling priority only inside one session (autogroup)."""
         self._counter += 1
         name = name or f"{Path(cmd[0]).name}-{self._counter}"
         log_path = self.workdir / f"{self._counter:02d}-{re.sub(r'[^A-Za-z0-9_.-]', '_', name)}.log"
@@ -214,7 +218,8 @@ class RosGraph:
         full_env.update(env or {})
         log = open(log_path, "wb")
         popen = subprocess.Popen(list(cmd), stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                 env=full_env, start_new_session=True)
+                                 env=full_env, start_new_session=own_session,
+                                 process_group=None if own_session else 0)
         log.close()
         proc = NodeProcess(name=name, popen=popen, log_path=log_path, cmd=list(cmd))
         self.processes.append(proc)
@@ -223,8 +228,8 @@ class RosGraph:
     def start_node(self, package: str, executable: str, *, name: str | None = None,
                    namespace: str | None = None, params: dict[str, Any] | None = None,
                    params_file: str | Path | None = None, remaps: dict[str, str] | None = None,
-                   use_sim_time: bool = False, extra_args: Sequence[str] = ()) -> NodeProcess:
-        """Start one node the way ``ros2 run`` / ``ros2 launch`` would."""
+                   use_sim_time: bool = False, extra_args: Sequence[str] = (), own_session: bool = True) -> NodeProcess:
+        """Start one node the way ``ros2 run`` / ``ros2 launch`` would (``own_session``: see ``start``)."""
         del package  # executables are console scripts of the package's distribution
         cmd = [_executable_path(executable), *extra_args, "--ros-args"]
         if name:
@@ -242,7 +247,7 @@ class RosGraph:
             cmd += ["--params-file", str(params_file)]
         for src, dst in (remaps or {}).items():
             cmd += ["-r", f"{src}:={dst}"]
-        return self.start(cmd, name=name or executable)
+        return self.start(cmd, name=name or executable, own_session=own_session)
 
     def start_launch(self, launch_file: str | Path, **launch_args: Any) -> NodeProcess:
         cmd = [_executable_path("erforce-launch"), str(launch_file)]

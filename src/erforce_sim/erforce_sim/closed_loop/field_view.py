@@ -3,7 +3,10 @@
 ``WorldState`` takes the graph's messages one at a time (``apply(topic, message)``, a message
 decoded or, for the stamped types the conversions read from bytes, its CDR bytes) and keeps the
 newest of each: the ball (true, seen, filtered), the robots (true or seen pose, catch time and
-point, motor currents, light barrier), the ball model in use and the simulator's events.
+point, motor currents, light barrier; the predictor's team table ``/ball/catches`` carries the seen
+pose, catch time and point of every robot in one message), the ball model in use, the simulator's
+events and the passing game's choice (``/pass/choice``). Opponents under ``/opponent_<id>`` are
+robots ``o<id>``.
 ``frame()`` turns it into one JSON-ready dict, the page's frame: what it draws, in field
 coordinates [m]. The predicted path is the ball model's own BallTrajectory (sliding stretch to
 the switch point, rolling stretch to the stop point), with the parameters the predictor last
@@ -58,28 +61,48 @@ RECEIVER_SWITCH_MARGIN_S = 0.1
 GLOBAL_TOPICS = (
     contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_STATE, contract.BALL_PHASE,
     contract.BALL_STOP_POINT, contract.BALL_V_SHOOT, contract.BALL_UNCERTAIN, contract.BALL_MODEL_PARAMS,
-    contract.SIM_EVENTS,
+    contract.SIM_EVENTS, contract.BALL_CATCHES, contract.PASS_CHOICE,
 )
 ROBOT_TOPICS = (
     contract.GROUND_TRUTH_ODOM, contract.ODOM, contract.CATCH_TIME, contract.CATCH_POINT,
     contract.MOTOR_STATUS, contract.GROUND_TRUTH_MOTORS, contract.BALL_DETECTED,
 )
+#: What /ball/catches carries for every robot at once: a live view takes it instead of these.
+CATCH_TABLE_REPLACES = (contract.ODOM, contract.CATCH_TIME, contract.CATCH_POINT)
+#: Unstamped values: a message equal to the last one changes nothing (the node skips it undecoded).
+VALUE_TOPICS = (contract.BALL_PHASE, contract.BALL_UNCERTAIN, contract.BALL_V_SHOOT, contract.CATCH_TIME,
+                contract.BALL_DETECTED)
 #: Types whose CDR bytes the conversions read directly (the others are deserialized first).
-BYTES_TYPES = frozenset(t.type_name for t in (contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_V_SHOOT))
+BYTES_TYPES = frozenset(t.type_name for t in (contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_V_SHOOT,
+                                              contract.BALL_CATCHES))
 _AVG_CURRENT = contract.MOTOR_STATUS_COLUMNS.index("avg_current_a")
 _LIMIT_ACTIVE = contract.MOTOR_STATUS_COLUMNS.index("limit_active")
 _CURRENT = contract.GROUND_TRUTH_MOTOR_COLUMNS.index("current_a")
+#: The page's key of opponent ``/opponent_<id>`` (our robots are their ids).
+OPPONENT_KEY_PREFIX = "o"
+RobotKey = int | str
+
+
+def opponent_key(opponent_id: int) -> str:
+    return f"{OPPONENT_KEY_PREFIX}{int(opponent_id)}"
+
+
+def _robot_order(key: RobotKey) -> tuple[int, int]:
+    return (0, key) if isinstance(key, int) else (1, int(key[len(OPPONENT_KEY_PREFIX):]))
 
 
 @functools.lru_cache(maxsize=4096)
-def view_topic(name: str) -> tuple[contract.Topic, int | None] | None:
-    """The contract topic and robot id (None: global) of an absolute topic name the view takes."""
+def view_topic(name: str) -> tuple[contract.Topic, RobotKey | None] | None:
+    """The contract topic and robot key (None: global; ``o<id>``: an opponent) of an absolute topic name
+    the view takes."""
     for topic in GLOBAL_TOPICS:
         if name == topic.name:
             return topic, None
     parts = name.strip("/").split("/", 1)
     if len(parts) == 2:
         robot = contract.robot_id_of_namespace(parts[0])
+        if robot is None and (opponent := contract.opponent_id_of_namespace(parts[0])) is not None:
+            robot = opponent_key(opponent)
         if robot is not None:
             for topic in ROBOT_TOPICS:
                 if parts[1] == topic.name:
@@ -91,7 +114,7 @@ def view_topic(name: str) -> tuple[contract.Topic, int | None] | None:
 class RobotView:
     """One robot's newest numbers, rounded for the wire as they arrive (see ``_wire``)."""
 
-    robot_id: int
+    robot_id: RobotKey
     t_s: float = -math.inf
     pose: list[float] | None = None  # x, y, yaw [m, rad]
     speed_mps: float = 0.0
@@ -127,6 +150,7 @@ class WorldState:
     robots: dict[int, RobotView] = field(default_factory=dict)
     events: deque = field(default_factory=lambda: deque(maxlen=8))
     receiver: int | None = None
+    pass_choice: dict[str, Any] | None = None  # the passing game's, as the page gets it
     rejected: int = 0  # messages refused (bad numbers, mis-shaped, a stamp off the time line)
     # live: the stack's time rule (stamps.py) per stamped input; None in a replay, whose stamps are the bag's
     stamp_filters: dict[str, StampFilter] | None = None
@@ -159,7 +183,7 @@ class WorldState:
         topic, robot = found
         return not (topic is contract.ODOM and robot in self.robots and self.robots[robot].truth)
 
-    def robot(self, robot_id: int) -> RobotView:
+    def robot(self, robot_id: RobotKey) -> RobotView:
         view = self.robots.get(robot_id)
         if view is None:
             view = self.robots[robot_id] = RobotView(robot_id)
@@ -215,6 +239,26 @@ class WorldState:
             self.model = BallModelParams(*model_in_use_from_msg(msg))
         elif topic is c.SIM_EVENTS:
             self.events.append(str(msg.data)[:200])
+        elif topic is c.BALL_CATCHES:
+            self._apply_catch_table(table_from_msg(msg, c.CATCH_TABLE_COLUMNS))
+        elif topic is c.PASS_CHOICE:
+            self.pass_choice = _pass_choice(table_from_msg(msg, c.PASS_CHOICE_COLUMNS))
+
+    def _apply_catch_table(self, table: np.ndarray) -> None:
+        """The team at one ball frame (contract.CATCH_TABLE_COLUMNS): its robots are fresh now."""
+        ids = table[:, 0]
+        if np.any((ids < 0) | (ids > 1e6) | (ids != np.round(ids))):
+            raise ValueError("robot ids of /ball/catches must be whole numbers >= 0")
+        rows = _wire(table)
+        for robot_id, x, y, yaw, vx, vy, catch_s, catch_x, catch_y in rows:
+            robot = self.robot(int(robot_id))
+            if not robot.truth:
+                robot.pose, robot.t_s = [x, y, yaw], self.t_s
+                robot.speed_mps = round(math.hypot(vx, vy), 4)
+            if catch_s >= 0.0:
+                robot.catch_time_s, robot.catch_point = catch_s, [catch_x, catch_y]
+            else:
+                robot.catch_time_s, robot.catch_point = contract.CATCH_TIME_NEVER, None
 
     def _apply_robot(self, name: str, topic: contract.Topic, robot: RobotView, msg: Any) -> None:
         c = contract
@@ -243,7 +287,7 @@ class WorldState:
 
     def _choose_receiver(self) -> None:
         times = {i: r.catch_time_s for i, r in self.robots.items()
-                 if r.catch_time_s is not None and i not in self.opponent_ids
+                 if r.catch_time_s is not None and isinstance(i, int) and i not in self.opponent_ids
                  and (not self.team_ids or i in self.team_ids)}
         self.receiver = team_receiver(times, self.receiver, RECEIVER_SWITCH_MARGIN_S)
 
@@ -292,13 +336,13 @@ class WorldState:
             path = {"start": points[0], "switch": points[1], "stop": points[2], "marks": points[3:],
                     "switch_time": round(f.switch_time_s, 4), "stop_time": round(f.stop_time_s, 4)}
         robots = []
-        for robot_id in sorted(self.robots):
+        for robot_id in sorted(self.robots, key=_robot_order):
             r = self.robots[robot_id]
             if r.pose is None or r.t_s < self.t_s - ROBOT_STALE_S:
                 continue
             robots.append({
                 "id": robot_id,
-                "team": "opponent" if robot_id in self.opponent_ids else "ours",
+                "team": "opponent" if isinstance(robot_id, str) or robot_id in self.opponent_ids else "ours",
                 "pose": r.pose,
                 "speed": r.speed_mps,
                 "truth": r.truth,
@@ -336,10 +380,36 @@ class WorldState:
             "stop_point": self.stop_point,
             "robots": robots,
             "receiver": receiver,
+            "pass": self.pass_choice,
             "speed": speed,
             "events": list(self.events),
             "rejected": self.rejected,
         }
+
+
+def _pass_choice(table: np.ndarray) -> dict[str, Any] | None:
+    """A /pass/choice table (contract.PASS_CHOICE_COLUMNS) as the page draws it; no row: no choice."""
+    if len(table) == 0:
+        return None
+    if len(table) != 1:
+        raise ValueError(f"/pass/choice has {len(table)} rows, expected one or none")
+    row = dict(zip(contract.PASS_CHOICE_COLUMNS, _wire(table[0]), strict=True))
+    ids = (row["passer_id"], row["receiver_id"])
+    if any(i < 0 or i != int(i) for i in ids) or row["first_opponent"] != int(row["first_opponent"]):
+        raise ValueError("/pass/choice: robot ids must be whole numbers, ours >= 0")
+    nobody = row["first_opponent"] < 0  # no opponent can catch the pass
+    return {
+        "passer": int(row["passer_id"]),
+        "receiver": int(row["receiver_id"]),
+        "kick_speed": row["kick_speed_mps"],
+        "direction": row["direction_rad"],
+        "receiver_catch": row["receiver_catch_s"],
+        "first_opponent": None if nobody else opponent_key(int(row["first_opponent"])),
+        "opponent_catch": None if nobody else row["opponent_catch_s"],
+        "margin": None if nobody else row["margin_s"],
+        "safe_margin": row["safe_margin_s"],
+        "safe": row["safe"] != 0.0,
+    }
 
 
 def _wire(values) -> list:

@@ -6,7 +6,12 @@ share/erforce_sim/web). Every ``1 / rate_hz`` of wall time it takes the newest m
 topic the view shows (erforce_sim.closed_loop.field_view lists them; robots are found as their topics appear),
 hands them to the core (erforce_sim.closed_loop.field_view.WorldState) and sends its frame to the pages. Its
 subscriptions are best effort and keep one message: the view never holds up a publisher, and it
-takes nothing while no page is open. With ``bag`` set, the page can also replay that bag
+takes nothing while no page is open. Where the predictor's team table ``/ball/catches`` is on the
+graph the view takes it instead of every robot's odom, catch_time and catch_point: one message per
+ball frame for the whole team instead of three per robot, and the predictor's per-robot outputs, which
+the robots act on, have no reader more. The view is an observer: all its threads run under
+SCHED_IDLE (``observe_only``), so it never takes a core from the nodes of its session when they have
+work, and it takes its topics once per page frame. With ``bag`` set, the page can also replay that bag
 (``{"replay": t}`` requests; erforce_sim.closed_loop.field_view.BagReplay).
 
 With ``foxglove_port`` > 0 it also starts a Foxglove WebSocket server (the ``foxglove`` SDK) that
@@ -17,8 +22,11 @@ forwards every topic of the graph as it is, CDR with its ROS 2 message definitio
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import importlib
 import json
+import os
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
@@ -32,7 +40,14 @@ from erforce_interfaces.executor import sample_only, take_queued
 from erforce_interfaces.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
-from erforce_sim.closed_loop.field_view import BYTES_TYPES, BagReplay, WorldState, view_topic
+from erforce_sim.closed_loop.field_view import (
+    BYTES_TYPES,
+    CATCH_TABLE_REPLACES,
+    VALUE_TOPICS,
+    BagReplay,
+    WorldState,
+    view_topic,
+)
 from erforce_sim.closed_loop.view_server import ViewServer, frame_text
 
 DISCOVERY_PERIOD_S = 1.0
@@ -45,6 +60,7 @@ def check_config(config):
     return config
 
 
+@functools.cache
 def message_class(type_name: str) -> type:
     pkg, _, name = type_name.split("/")
     return getattr(importlib.import_module(f"{pkg}.msg"), name)
@@ -64,6 +80,18 @@ def web_dir():
     if path is None or not (path / "index.html").is_file():
         raise FileNotFoundError("web/index.html of erforce_sim not found (the page's files)")
     return path
+
+
+def observe_only() -> None:
+    """Every thread of this process under SCHED_IDLE (threads started later, such as the DDS ones, inherit
+    it): among the processes of its session (Linux ranks threads by priority only inside one session's
+    scheduling group, the autogroup), such as the demo's graph, the view runs only on a core none of
+    them wants. Its group as a whole keeps its fair share against other sessions: a lower group weight
+    (autogroup nice) starved the view's start on a loaded machine for over a minute."""
+    with contextlib.suppress(AttributeError, OSError):
+        for tid in os.listdir("/proc/self/task"):
+            with contextlib.suppress(OSError):
+                os.sched_setscheduler(int(tid), os.SCHED_IDLE, os.sched_param(0))
 
 
 def _take_one(subscription) -> list[bytes]:
@@ -103,6 +131,7 @@ class FieldViewNode(Node):
         self._subs: dict[str, Any] = {}  # topic -> raw subscription of the view
         self._types: dict[str, str] = {}
         self._deep: set[str] = set()  # topics whose queue holds more than the newest message
+        self._last_value: dict[str, bytes] = {}  # VALUE_TOPICS: the bytes last applied
         self._foxglove = None
         if v["foxglove_port"]:
             from erforce_sim.closed_loop.foxglove_bridge import FoxgloveBridge
@@ -116,14 +145,21 @@ class FieldViewNode(Node):
         self._params.on_change(lambda _config: None)  # every parameter is read-only
 
     def _discover(self) -> None:
-        for topic, types in self.get_topic_names_and_types():
+        graph = self.get_topic_names_and_types()
+        team_table = any(topic == contract.BALL_CATCHES.name for topic, _ in graph)
+        for topic, types in graph:
             if not types:
                 continue
             if self._foxglove is not None:
                 self._foxglove.offer(self, topic, types[0])
-            if topic in self._subs or view_topic(topic) is None:
+            if view_topic(topic) is None:
                 continue
             found = view_topic(topic)[0]
+            if team_table and found in CATCH_TABLE_REPLACES:
+                self._unsubscribe(topic)
+                continue
+            if topic in self._subs:
+                continue
             if types[0] != found.type_name:
                 self._warn.warn(f"type:{topic}", f"{topic} has type {types[0]}, not {found.type_name}: not shown")
                 continue
@@ -134,7 +170,18 @@ class FieldViewNode(Node):
             self._subs[topic] = sample_only(sub)
             if depth > 1:
                 self._deep.add(topic)
+            if found in VALUE_TOPICS:
+                self._last_value[topic] = b""
             self._types[topic] = found.type_name
+
+    def _unsubscribe(self, topic: str) -> None:
+        sub = self._subs.pop(topic, None)
+        if sub is not None:
+            sample_only(sub, False)
+            self.destroy_subscription(sub)
+            self._types.pop(topic, None)
+            self._deep.discard(topic)
+            self._last_value.pop(topic, None)
 
     def _tick(self) -> None:
         if self._foxglove is not None:
@@ -149,6 +196,10 @@ class FieldViewNode(Node):
             # one take for a queue of one (a second, empty take would cost as much again)
             queued = [data for data, _ in take_queued(sub)] if topic in self._deep else _take_one(sub)
             for data in queued:
+                if topic in self._last_value:
+                    if data == self._last_value[topic]:
+                        continue  # the same value again (published with every ball frame)
+                    self._last_value[topic] = data
                 taken += 1
                 try:
                     msg = decode(self._types[topic], data)
@@ -186,6 +237,7 @@ class FieldViewNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
+    observe_only()  # before rclpy starts its threads
     return run_node(FieldViewNode, args)
 
 

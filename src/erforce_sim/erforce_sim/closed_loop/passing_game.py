@@ -168,6 +168,16 @@ class PassingGame:
         self._last_passer: int | None = None
         self._barriers = [False] * n
 
+    @property
+    def choice(self) -> tuple[int, PassOption] | None:
+        """The pass chosen now and its passer: the holder's choice while it holds the ball, the pass being
+        played while the ball rolls; None before a holder has chosen and after a pass ended."""
+        if self._pass is not None:
+            return self._pass["passer"], self._pass["choice"]
+        if self._holder is not None and self._choice is not None:
+            return self._holder, self._choice
+        return None
+
     # -------------------------------------------------------------------- vision -> predictor -> skills
     def _index(self, team: str, robot_id: int) -> int:
         return self.n_team + robot_id if team == OPPONENT_TEAM else robot_id

@@ -5,13 +5,15 @@ writes report/<time>/: ``passes.png`` (every pass on the field), ``summary.md`` 
 the totals, every interception with its predicted margin) and ``bag/``, a rosbag2/MCAP bag of
 the game on the contract's topics and types: ``/clock``, ``/ground_truth/ball``, each robot's
 ``/robot_<id>/ground_truth/odom``, each opponent's ``/opponent_<id>/ground_truth/odom`` (100 Hz,
-simulated time) and one ``/sim/events`` line per kick and per pass. The DDS graph of the 14
+simulated time), one ``/sim/events`` line per kick and per pass, and the holder's choice of pass
+``/pass/choice`` whenever it changes (the field view draws it when it replays the bag). The DDS graph of the 14
 robots is launch/team_sim.launch.yaml; this game's decisions run in this process.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
@@ -19,12 +21,27 @@ import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
+from erforce_ball_model.passing import PassConfig, PassOption
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import clock_cdr, odometry_cdr
+from erforce_interfaces.conversions import clock_cdr, odometry_cdr, table_cdr
 from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame, PassRecord, plot_passes, summary
 
 OPPONENT_NAMESPACE_PREFIX = "opponent_"
 TRUTH_PERIOD_NS = 10_000_000  # 100 Hz, as the plant's ground_truth_rate_hz
+_NOT_WRITTEN = object()  # no /pass/choice in the bag yet (None is "no choice")
+
+
+def pass_choice_cdr(choice: tuple[int, PassOption] | None, cfg: PassConfig) -> bytes:
+    """/pass/choice of a passer and its chosen pass (contract.PASS_CHOICE_COLUMNS); no row for None."""
+    if choice is None:
+        return table_cdr([], contract.PASS_CHOICE_COLUMNS)
+    passer, o = choice
+    never = contract.PASS_NO_OPPONENT_S
+    nobody = o.first_opponent is None or not math.isfinite(o.opponent_catch_s)
+    row = (passer, o.receiver, o.kick_speed_mps, o.direction_rad, min(o.receiver_catch_s, never),
+           never if nobody else o.opponent_catch_s, -1 if nobody else o.first_opponent,
+           never if nobody else max(o.margin_s, -never), cfg.safe_margin_s, 1.0 if o.safe(cfg) else 0.0)
+    return table_cdr([row], contract.PASS_CHOICE_COLUMNS)
 
 
 class GameBag:
@@ -39,6 +56,8 @@ class GameBag:
         self._clock = add(q.CLOCK.name, q.CLOCK)
         self._ball = add(q.GROUND_TRUTH_BALL.name, q.GROUND_TRUTH_BALL)
         self._events = add(q.SIM_EVENTS.name, q.SIM_EVENTS)
+        self._choice = add(q.PASS_CHOICE.name, q.PASS_CHOICE)
+        self._last_choice: tuple | str | None = "none written"
         self._robots = []
         for i in range(game.n_team + game.n_opp):
             ns = contract.robot_namespace(i) if i < game.n_team else f"{OPPONENT_NAMESPACE_PREFIX}{i - game.n_team}"
@@ -62,6 +81,10 @@ class GameBag:
         for i, (conn, frame) in enumerate(self._robots):
             r = w.robot_state(i)
             self._writer.write(conn, t_ns, odometry_cdr(t_s, (r.x, r.y, r.theta), (r.vx, r.vy, r.w), frame))
+        choice = game.choice
+        if choice != self._last_choice:
+            self._writer.write(self._choice, t_ns, pass_choice_cdr(choice, game.cfg.passing))
+            self._last_choice = choice
 
     def event(self, t_s: float, text: str) -> None:
         msg = self._store.types["std_msgs/msg/String"](data=f"t={t_s:.3f} {text}")

@@ -203,6 +203,10 @@ class ViewServer:
             pass
 
 
+# (a frame is a tree of fresh dicts and lists: no cycle to look for)
+_FRAME_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False, check_circular=False)
+
+
 def frame_text(frame: dict[str, Any]) -> str:
     """A frame as the page reads it (compact JSON; a non-finite number is a bug, so it raises)."""
-    return json.dumps({"frame": frame}, separators=(",", ":"), allow_nan=False)
+    return _FRAME_ENCODER.encode({"frame": frame})
