@@ -260,14 +260,15 @@ class SslVisionBridge(Node):
             self.stats["dropped_clock"] += 1
             self._warn.warn("stamp", f"ssl_vision_bridge: camera {frame.camera_id}: no valid stamp ({t_s!r})")
             return
-        s = -1.0 if cfg.flip else 1.0
-        balls = [(s * b.x_m, s * b.y_m, b.confidence) for b in frame.balls]
-        robots = [
-            (r.team, r.robot_id, s * r.x_m, s * r.y_m,
-             None if r.theta_rad is None else (math.remainder(r.theta_rad + math.pi, 2 * math.pi) if cfg.flip
-                                              else r.theta_rad))
-            for r in frame.robots
-        ]
+        if cfg.flip:  # half a turn
+            balls = [(-b.x_m, -b.y_m, b.confidence) for b in frame.balls]
+            robots = [
+                (r.team, r.robot_id, -r.x_m, -r.y_m,
+                 None if r.theta_rad is None else math.remainder(r.theta_rad + math.pi, 2 * math.pi))
+                for r in frame.robots
+            ]
+        else:  # the decoder's tuples as they are: (x, y, confidence, ...), (team, id, x, y, theta, ...)
+            balls, robots = frame.balls, frame.robots
         ball, poses = self._tracker.frame(frame.camera_id, t_s, balls, robots)
         self.stats["frames"] += 1
         try:
@@ -300,11 +301,11 @@ class SslVisionBridge(Node):
             pub.publish(data)
 
     def _publish_detections(self, cfg, camera_id: int, age_s: float, balls, robots) -> None:
-        rows = [[camera_id, age_s, _KIND["ball"], -1.0, x, y, 0.0, c] for x, y, c in balls]
+        rows = [[camera_id, age_s, _KIND["ball"], -1.0, b[0], b[1], 0.0, b[2]] for b in balls]
         rows += [
-            [camera_id, age_s, _KIND["ours"] if team == cfg.ours else _KIND["opponent"], rid, x, y,
-             0.0 if theta is None else theta, 1.0]
-            for team, rid, x, y, theta in robots
+            [camera_id, age_s, _KIND["ours"] if r[0] == cfg.ours else _KIND["opponent"], r[1], r[2], r[3],
+             0.0 if r[4] is None else r[4], 1.0]
+            for r in robots
         ]
         self._detections_pub.publish(table_cdr(rows, contract.VISION_DETECTION_COLUMNS, "detections"))
 
