@@ -101,3 +101,31 @@ def test_the_number_of_robots_is_fixed():
     with pytest.raises(ValueError, match="facing_rad"):
         PredictorConfig(num_robots=2, facing_rad=[0.0, 1.0, 2.0])
     assert RobotLimits().a_max_mps2 == PredictorConfig().limits.a_max_mps2
+
+
+def test_ssl_geometry_outlives_parameter_changes_while_use_vision_geometry_is_on():
+    # A ball at x = 5.5 m: outside division B's lines plus the 0.5 m margin (4.5 + 0.5), inside division A's (6.0).
+    config = PredictorConfig(num_robots=1, field=FIELD)
+    predictor = BallPredictor(config)
+    geometry_field, geometry_model = FieldConfig.preset("division_a"), BallModelParams(-3.0, -0.35, 0.65)
+    assert predictor.set_vision_geometry(field=geometry_field) is False  # the model in use did not change
+    assert predictor.set_vision_geometry(model=geometry_model) is True
+    assert predictor.set_vision_geometry(field=geometry_field, model=geometry_model) is False  # again: nothing new
+    assert (predictor.config.field, predictor.model) == (geometry_field, geometry_model)
+    assert predictor.ball_frame(1.0, 5.5, 0.0) is not None
+
+    # other parameters change, the configured model too: the geometry stays in effect
+    hand = BallModelParams(-2.0, -0.5, 0.5)
+    assert predictor.configure(PredictorConfig(num_robots=1, field=FIELD, reaction_s=0.2, model=hand)) is False
+    assert (predictor.config.field, predictor.model) == (geometry_field, geometry_model)
+    assert predictor.config.reaction_s == 0.2
+    assert predictor.ball_frame(1.01, 5.5, 0.0) is not None
+
+    # turned off: the parameters' field and model; turned on again: the geometry received before
+    assert predictor.configure(PredictorConfig(num_robots=1, field=FIELD, model=hand, use_vision_geometry=False))
+    assert (predictor.config.field, predictor.model) == (FIELD, hand)
+    assert predictor.ball_frame(1.02, 5.5, 0.0) is None
+    assert predictor.set_vision_geometry(model=BallModelParams(-3.5, -0.3, 0.6)) is False  # kept, not used
+    assert predictor.model == hand
+    assert predictor.configure(PredictorConfig(num_robots=1, field=FIELD, model=hand)) is True
+    assert (predictor.config.field, predictor.model) == (geometry_field, BallModelParams(-3.5, -0.3, 0.6))

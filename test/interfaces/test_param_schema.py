@@ -65,7 +65,7 @@ def _schema(body: str) -> ParamSchema:
 
 
 @pytest.mark.parametrize(("body", "match"), [
-    ("  a: {type: double, default_value: 1.0}\n", "needs type, default_value, description"),
+    ("  a: {type: double, default_value: 1.0}\n", "needs type, default_value or default_from, description"),
     ("  a: {type: float, default_value: 1.0, description: x}\n", "unknown type"),
     ("  a: {type: double, default_value: 1.0, description: x, validation: {positive<>: []}}\n",
      "unknown validation"),
@@ -75,10 +75,20 @@ def _schema(body: str) -> ParamSchema:
      "default of a: 3.0 is above the maximum"),
     ("  a: {type: string, default_value: c, description: x, validation: {one_of<>: [[a, b]]}}\n", "one of a, b"),
     ("  robot: {shared: something_else}\n", "the only shared group is robot"),
+    ("  a: {type: int, default_value: 1, default_from: math:pi, description: x}\n", "default_value or default_from"),
+    ("  a: {type: int, default_from: math:no_such_constant, description: x}\n", "is no module:CONSTANT"),
+    ("  a: {type: int, default_from: no_such_module:X, description: x}\n", "is no module:CONSTANT"),
+    ("  a: {type: int, default_from: math:pi, description: x}\n", "default of a: expected int"),  # a double for an int
 ])
 def test_schema_files_with_mistakes_are_refused_naming_them(body, match):
     with pytest.raises(ValueError, match=match):
         _schema(body)
+
+
+def test_a_default_from_code_is_the_constant_itself():
+    schema = _schema("  p: {type: int, default_from: 'erforce_interfaces.ssl_sim:SIM_CONTROL_PORT', description: x}\n"
+                     "  e: {type: double, default_from: 'math:e', description: x}\n")
+    assert schema.defaults() == {"p": 10300, "e": math.e}
 
 
 def test_validation_rules_match_generate_parameter_library_meanings():

@@ -11,11 +11,13 @@ import time
 
 import pytest
 from geometry_msgs.msg import PointStamped, PoseStamped
+from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64MultiArray
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     point_from_msg,
+    point_msg,
     pose2d_from_msg,
     table_from_msg,
     table_msg,
@@ -194,3 +196,21 @@ def test_the_ball_predictor_takes_the_ball_model_from_ssl_geometry_unless_pinned
     pinned.wait_for_output(r"ball_predictor: 1 robot", 60.0)
     ros_graph.probe.spin_for(2.0)  # the latched messages have reached both by now
     assert "from SSL geometry" not in pinned.output()
+
+    # A parameter change keeps the geometry's field: a ball at x = 5.5 m lies inside division A (12 x 9 m)
+    # and outside the parameters' division B plus its 0.5 m margin (4.5 + 0.5), which pinned rejects.
+    probe = ros_graph.probe
+    assert probe.set_parameter("/follows", "reaction_s", 0.15).successful
+    assert probe.set_parameter("/follows", "a_slide_mps2", -2.0).successful
+    states = probe.subscribe(q.BALL_STATE.name, Odometry, q.BALL_STATE.qos)
+    ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, count=2, qos=q.VISION_BALL.qos)
+    deadline = time.monotonic() + 20.0
+    for k in range(1000):  # resent until answered: the node's writer may not have matched our reader yet
+        ball_pub.publish(point_msg(100.0 + 0.01 * k, (5.5, 0.0)))
+        try:
+            probe.spin_until(lambda: states, 0.2, "a ball state")
+            break
+        except TimeoutError:
+            assert time.monotonic() < deadline, "the ball predictor dropped the SSL field on a parameter change"
+    assert states[-1].pose.pose.position.x == pytest.approx(5.5, abs=0.01)
+    pinned.wait_for_output(r"rejected vision/ball outside the field", 10.0)

@@ -18,7 +18,6 @@ warning and answered with nothing. This module converts messages and publishes; 
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import time
 
@@ -89,6 +88,7 @@ def build_config(c) -> PredictorConfig:
         ident_min_shots=c.ident_min_shots,
         ident_max_std=(c.ident_max_std_a_slide_mps2, c.ident_max_std_a_roll_mps2, c.ident_max_std_c_switch),
         timing_log_every=c.timing_log_every,
+        use_vision_geometry=c.use_vision_geometry,
     )
 
 
@@ -152,29 +152,27 @@ class BallPredictorNode(Node):
             self._warn.warn("model_params", f"model_params not published: {exc}")
 
     # ------------------------------------------------------------- SSL geometry
+    # The predictor keeps them (also across parameter changes) and uses them while use_vision_geometry.
     def _on_vision_field(self, msg: Float64MultiArray) -> None:
-        if not self._values["use_vision_geometry"]:
-            return
         try:
             length, width, boundary, *_ = table_from_msg(msg, contract.VISION_FIELD_COLUMNS)[0].tolist()
             field = FieldConfig(length, width, boundary)
         except (ConversionError, ValueError, IndexError) as exc:
             self._warn.warn("vision_field", f"rejected /vision/field: {exc}")
             return
-        if field != self._predictor.config.field:
-            self._apply(dataclasses.replace(self._predictor.config, field=field))
+        before = self._predictor.config.field
+        self._predictor.set_vision_geometry(field=field)
+        if self._predictor.config.field != before:
             self.get_logger().info(f"field from SSL geometry: {length:g} x {width:g} m")
 
     def _on_vision_ball_model(self, msg: Float64MultiArray) -> None:
-        if not self._values["use_vision_geometry"]:
-            return
         try:
             model = BallModelParams(*table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS)[0].tolist())
         except (ConversionError, ValueError, IndexError, TypeError) as exc:
             self._warn.warn("vision_model", f"rejected /vision/ball_model: {exc}")
             return
-        if model != self._predictor.model:
-            self._apply(dataclasses.replace(self._predictor.config, model=model))
+        if self._predictor.set_vision_geometry(model=model):
+            self._publish_model()
             self.get_logger().info(f"ball model from SSL geometry: a_slide {model.a_slide_mps2:g}, a_roll "
                                    f"{model.a_roll_mps2:g}, c_switch {model.c_switch:g}")
 

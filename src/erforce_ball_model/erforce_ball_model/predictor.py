@@ -9,7 +9,9 @@ restarts (a stamp far behind the newest restarts the filter), robot freshness an
 constant-velocity extrapolation to the frame's stamp, the reaction-time offset, the mapping of
 "no catch" to CATCH_TIME_NEVER, and the ball model in use: the configured one, or an online
 fit (identification.ShotAccumulator, fitted in a worker thread) once its standard errors are
-small enough. A model set by configuration wins over a fit until the next accepted fit.
+small enough. A model set by configuration wins over a fit until the next accepted fit. SSL
+geometry (``set_vision_geometry``) replaces the configured field and model while
+``use_vision_geometry`` is on, across later configuration changes.
 
 The ball_predictor node converts messages and publishes what this object answers; the
 in-process scenes (erforce_sim.closed_loop.scenes) and the bench (bench/bench_ball_predictor.py) run the
@@ -32,6 +34,7 @@ No rclpy import.
 from __future__ import annotations
 
 import concurrent.futures
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -77,6 +80,7 @@ class PredictorConfig:
     ident_min_shots: int = 3
     ident_max_std: tuple[float, float, float] = (0.1, 0.02, 0.03)  # a_slide, a_roll, c_switch
     timing_log_every: int = 0  # the node's timing log (not used here)
+    use_vision_geometry: bool = True  # SSL geometry's field and ball model replace field and model
 
     def __post_init__(self) -> None:
         n = self.num_robots
@@ -137,7 +141,10 @@ class BallPredictor:
     def __init__(self, config: PredictorConfig, *, warn: Callable[[str, str], None] = _ignore,
                  info: Callable[[str], None] = _ignore) -> None:
         self._warn, self._info = warn, info
-        self.config: PredictorConfig | None = None
+        self.config: PredictorConfig | None = None  # in effect: SSL geometry's field and model applied
+        self._configured: PredictorConfig | None = None  # as given to configure
+        self._vision_field: FieldConfig | None = None  # the newest SSL geometry, kept also while not used
+        self._vision_model: BallModelParams | None = None
         self.model: BallModelParams = config.model  # in use: configured or identified
         self.last_fit: FitResult | None = None
         self._ball: BallTracker | None = None
@@ -159,11 +166,17 @@ class BallPredictor:
         """Apply a new configuration (the number of robots is fixed); True when the model in use changed.
 
         A changed model replaces the model in use, even an identified one. A changed tracker
-        configuration restarts the ball filter (and the shot collection).
+        configuration restarts the ball filter (and the shot collection). With
+        ``use_vision_geometry`` the field and model of SSL geometry, once set, take the place of
+        ``config.field`` and ``config.model``.
         """
         old = self.config
         if old is not None and config.num_robots != old.num_robots:
             raise ValueError(f"num_robots is fixed at {old.num_robots}, got {config.num_robots}")
+        self._configured = config
+        if config.use_vision_geometry and (self._vision_field or self._vision_model):
+            config = dataclasses.replace(config, field=self._vision_field or config.field,
+                                         model=self._vision_model or config.model)
         self.config = config
         model_before = self.model
         if old is None or config.model != old.model:
@@ -181,6 +194,16 @@ class BallPredictor:
             self._shots = None
             self._fit_future = None  # a fit still running is not used
         return old is None or self.model != model_before
+
+    def set_vision_geometry(self, field: FieldConfig | None = None, model: BallModelParams | None = None) -> bool:
+        """The field and/or ball model of SSL geometry (None: that part unchanged). In effect while
+        ``use_vision_geometry`` (also after later ``configure`` calls), kept for when it is turned on;
+        True when the model in use changed."""
+        field, model = field or self._vision_field, model or self._vision_model
+        if (field, model) == (self._vision_field, self._vision_model):
+            return False
+        self._vision_field, self._vision_model = field, model
+        return self.configure(self._configured)
 
     def close(self) -> None:
         """Stop the fit worker (a fit in progress is dropped)."""

@@ -83,7 +83,7 @@ class RobotObservation(NamedTuple):
     camera_id: int
 
 
-@dataclass
+@dataclass(slots=True)
 class _Hypothesis:
     t_s: float
     x_m: float
@@ -93,8 +93,8 @@ class _Hypothesis:
     inside: bool
 
 
-@dataclass
-class _RobotTrack:
+@dataclass(slots=True)
+class _RobotTrack:  # updated in place: one per robot for the tracker's life, not one per sighting
     t_s: float
     x_m: float
     y_m: float
@@ -105,8 +105,10 @@ class VisionTracker:
     """Multi-camera frames in; ball observations and robot poses out (see the module docstring).
 
     ``frame(camera_id, t_s, balls, robots)`` takes one camera frame with stamps already on the
-    receiver's clock: ``balls`` as (x_m, y_m, confidence), ``robots`` as (team, id, x_m, y_m,
-    theta_rad or None). It returns the ball observation to use (or None) and the robot poses to use.
+    receiver's clock: ``balls`` as (x_m, y_m, confidence, ...), ``robots`` as (team, id, x_m, y_m,
+    theta_rad or None, ...); further items are ignored, so ssl_vision's BallCandidate and
+    RobotSighting go in as they are. It returns the ball observation to use (or None) and the robot
+    poses to use.
     """
 
     def __init__(self, field: FieldConfig, params: BallModelParams | None = None,
@@ -126,6 +128,19 @@ class VisionTracker:
         self.false_candidates = 0
         self.switches = 0
         self.kicks = 0
+
+    @property
+    def field(self) -> FieldConfig:
+        return self._field
+
+    @field.setter
+    def field(self, value: FieldConfig) -> None:
+        self._field = value
+        self._half_length_m, self._half_width_m = value.half_length_m, value.half_width_m
+
+    def _inside(self, x: float, y: float, margin_m: float = 0.0) -> bool:
+        """FieldConfig.contains with the half sizes kept (it runs for every ball candidate)."""
+        return abs(x) <= self._half_length_m + margin_m and abs(y) <= self._half_width_m + margin_m
 
     @property
     def params(self) -> BallModelParams:
@@ -148,10 +163,11 @@ class VisionTracker:
             raise ValueError(f"frame stamp {t_s!r} is not finite")
         self.frames += 1
         cfg = self.config
-        margin = cfg.outside_margin_m
+        min_confidence = cfg.min_confidence
+        max_x, max_y = self._half_length_m + cfg.outside_margin_m, self._half_width_m + cfg.outside_margin_m
         candidates = [
-            (x, y, c) for x, y, c in balls
-            if c >= cfg.min_confidence and math.isfinite(x) and math.isfinite(y) and self.field.contains(x, y, margin)
+            (b[0], b[1], b[2]) for b in balls
+            if b[2] >= min_confidence and abs(b[0]) <= max_x and abs(b[1]) <= max_y  # False for NaN
         ]
         self._update_hypotheses(t_s, candidates)
         ball = None
@@ -190,7 +206,7 @@ class VisionTracker:
             if chosen is None and unseen_s >= self.config.lost_after_s:
                 # long gone (a filter restart's gap): any confirmed ball, also one in the run-off area
                 other = self._best_confirmed(t_s, inside_only=unseen_s < self._tracker_config.max_gap_s)
-            elif chosen is not None and not self.field.contains(*chosen):
+            elif chosen is not None and not self._inside(*chosen):
                 # tracking a ball in the run-off area: a confirmed one on the field is the game ball
                 other = self._best_confirmed(t_s, inside_only=True)
                 if other is not None and math.dist(other, chosen) <= self.config.ball_gate_m:
@@ -225,7 +241,7 @@ class VisionTracker:
                 d2 = dx * dx + dy * dy
                 if d2 <= reach * reach and d2 < best_d2:
                     best, best_d2 = h, d2
-            inside = self.field.contains(x, y)
+            inside = self._inside(x, y)
             if best is None:
                 if len(hyps) < cfg.max_hypotheses:
                     hyps.append(_Hypothesis(t_s, x, y, deque([t_s], maxlen=cfg.confirm_frames), c, inside))
@@ -250,6 +266,7 @@ class VisionTracker:
     # ---------------------------------------------------------------------------- robots
     def _robot_poses(self, camera_id: int, t_s: float, robots) -> list[RobotObservation]:
         cfg = self.config
+        tracks = self._robots
         # One sighting per robot: a duplicate id in one frame counts as the one nearer the last pose.
         chosen: dict[tuple[str, int], tuple] = {}
         for sighting in robots:
@@ -257,24 +274,29 @@ class VisionTracker:
                 continue
             key = (sighting[0], sighting[1])
             other = chosen.get(key)
-            track = self._robots.get(key)
-            if other is None or (track is not None and math.hypot(sighting[2] - track.x_m, sighting[3] - track.y_m)
-                                 < math.hypot(other[2] - track.x_m, other[3] - track.y_m)):
-                chosen[key] = sighting
+            if other is not None:
+                track = tracks.get(key)
+                if track is None or (math.hypot(sighting[2] - track.x_m, sighting[3] - track.y_m)
+                                     >= math.hypot(other[2] - track.x_m, other[3] - track.y_m)):
+                    continue
+            chosen[key] = sighting
         out = []
-        for key, (team, robot_id, x, y, theta) in chosen.items():
-            track = self._robots.get(key)
-            if track is not None:
+        gate_m, speed = cfg.robot_gate_m, cfg.max_robot_speed_mps
+        for key, sighting in chosen.items():
+            team, robot_id, x, y, theta = sighting[:5]
+            track = tracks.get(key)
+            if track is None:
+                tracks[key] = _RobotTrack(t_s, x, y)
+            else:
                 if t_s <= track.t_s:
                     continue  # seen later already (another camera)
-                reach = cfg.robot_gate_m + cfg.max_robot_speed_mps * (t_s - track.t_s)
-                if math.hypot(x - track.x_m, y - track.y_m) > reach:
+                reach = gate_m + speed * (t_s - track.t_s)
+                dx, dy = x - track.x_m, y - track.y_m
+                if dx * dx + dy * dy > reach * reach:
                     held = track.held
-                    if held is None or math.hypot(x - held[1], y - held[2]) > (
-                        cfg.robot_gate_m + cfg.max_robot_speed_mps * (t_s - held[0])
-                    ):
+                    if held is None or math.hypot(x - held[1], y - held[2]) > gate_m + speed * (t_s - held[0]):
                         track.held = (t_s, x, y)  # a jump: wait for a second sighting there
                         continue
-            self._robots[key] = _RobotTrack(t_s, x, y)
+                track.t_s, track.x_m, track.y_m, track.held = t_s, x, y, None
             out.append(RobotObservation(team, robot_id, t_s, x, y, theta, camera_id))
         return out

@@ -192,12 +192,18 @@ def pose2d_msg(t_s: float, pose: Sequence[float], frame_id: str = FIELD_FRAME) -
 
 def point_cdr(t_s: float, xy: Sequence[float], frame_id: str = FIELD_FRAME) -> bytes:
     """``point_msg`` serialized (for ``Publisher.publish``), with the same checks."""
-    return _stamped_cdr(t_s, frame_id, (_finite("x", xy[0]), _finite("y", xy[1]), 0.0))
+    x, y = xy[0], xy[1]
+    if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE):  # one test for the usual point (False for NaN)
+        x, y = _finite("x", x), _finite("y", y)
+    return _stamped_cdr(t_s, frame_id, (x, y, 0.0))
 
 
 def pose2d_cdr(t_s: float, pose: Sequence[float], frame_id: str = FIELD_FRAME) -> bytes:
     """``pose2d_msg`` serialized, with the same checks."""
-    x, y, half = _finite("x", pose[0]), _finite("y", pose[1]), 0.5 * _finite("yaw", pose[2], 1.0e6)
+    x, y, yaw = pose[0], pose[1], pose[2]
+    if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(yaw) <= 1.0e6):  # as in point_cdr
+        x, y, yaw = _finite("x", x), _finite("y", y), _finite("yaw", yaw, 1.0e6)
+    half = 0.5 * yaw
     return _stamped_cdr(t_s, frame_id, (x, y, 0.0, 0.0, 0.0, math.sin(half), math.cos(half)))  # no Quaternion object
 
 
@@ -599,9 +605,19 @@ def _strings_cdr(strings: tuple[str, ...]) -> bytes:
     return bytes(out + bytes(-(8 + len(out)) % 8))
 
 
+@functools.lru_cache(maxsize=64)
+def _stamped_layout(frame_id: str, num_doubles: int) -> tuple[struct.Struct, bytes]:
+    """The whole message as one Struct (encapsulation, stamp, frame_id, doubles): one pack per message."""
+    strings = _strings_cdr((frame_id,))
+    return struct.Struct(f"<4siI{len(strings)}s{num_doubles}d"), strings
+
+
 def _stamped_cdr(t_s: float, frame_id: str, values: tuple[float, ...]) -> bytes:
-    return (_CDR_LE + _stamp_cdr(_seconds_to_ns(t_s)) + _strings_cdr((frame_id,))
-            + struct.pack(f"<{len(values)}d", *values))
+    layout, strings = _stamped_layout(frame_id, len(values))
+    if 0.0 <= t_s < 2.0e9:  # the usual stamp: the checks of _seconds_to_ns and _stamp_parts in one (False for NaN)
+        ns = round(float(t_s) * 1e9)
+        return layout.pack(_CDR_LE, ns // 1_000_000_000, ns % 1_000_000_000, strings, *values)
+    return layout.pack(_CDR_LE, *_stamp_parts(_seconds_to_ns(t_s)), strings, *values)
 
 
 def clock_cdr(t_ns: int) -> bytes:

@@ -25,6 +25,10 @@ Format::
         validation:
           one_of<>: [[clamp, back_calculation]]   # arrays: every element (subset_of<> is the same)
       robot: {shared: robot_description, read_only: false}   # the robot.* group (robot_config.py)
+      port:
+        type: int
+        default_from: erforce_interfaces.ssl_vision:SSL_VISION_PORT   # instead of default_value: a
+        description: "UDP port"               # constant whose home is code (a protocol's well-known port)
 
 Bounds on an array apply to every element; ``size_gt<>`` / ``fixed_size<>`` bound its length.
 Checks that relate several parameters (a per-robot list that must match the robot count) are
@@ -35,6 +39,7 @@ from __future__ import annotations
 
 import array
 import dataclasses
+import importlib
 import importlib.resources
 import math
 from collections.abc import Iterable, Mapping
@@ -152,11 +157,21 @@ class ParamSpec:
         return f"`{self.default!r}`"
 
 
+def _default_from(reference: Any, name: str, where: str) -> Any:
+    """The value of ``package.module:CONSTANT``."""
+    module_name, _, attribute = str(reference).partition(":")
+    try:
+        return getattr(importlib.import_module(module_name), attribute)
+    except (ImportError, AttributeError, ValueError) as exc:
+        raise ValueError(f"{where}: {name}: default_from {reference!r} is no module:CONSTANT ({exc})") from None
+
+
 def _spec_from_yaml(name: str, entry: Mapping[str, Any], where: str) -> ParamSpec:
-    unknown = set(entry) - {"type", "default_value", "description", "read_only", "validation"}
-    if unknown or "type" not in entry or "default_value" not in entry or "description" not in entry:
-        raise ValueError(f"{where}: {name}: needs type, default_value, description (and may have read_only, "
-                         f"validation); unknown keys: {sorted(unknown)}")
+    unknown = set(entry) - {"type", "default_value", "default_from", "description", "read_only", "validation"}
+    if unknown or "type" not in entry or ("default_value" in entry) == ("default_from" in entry) \
+            or "description" not in entry:
+        raise ValueError(f"{where}: {name}: needs type, default_value or default_from, description (and may have "
+                         f"read_only, validation); unknown keys: {sorted(unknown)}")
     kw: dict[str, Any] = {}
     for rule, args in (entry.get("validation") or {}).items():
         args = list(args) if isinstance(args, list | tuple) else [args]
@@ -177,7 +192,7 @@ def _spec_from_yaml(name: str, entry: Mapping[str, Any], where: str) -> ParamSpe
     for key in ("lower", "upper"):
         if key in kw and (isinstance(kw[key], bool) or not isinstance(kw[key], int | float)):
             raise ValueError(f"{where}: {name}: bound {kw[key]!r} is not a number (YAML wants 1.0e-6, not 1e-6)")
-    default = entry["default_value"]
+    default = entry["default_value"] if "default_value" in entry else _default_from(entry["default_from"], name, where)
     if entry["type"] == "double" and isinstance(default, int) and not isinstance(default, bool):
         default = float(default)
     if entry["type"] == "double_array":

@@ -23,8 +23,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from erforce_interfaces.ssl_log import LogFormatError, LogReader, LogRecord, MessageType
+from erforce_interfaces.ssl_vision import SSL_VISION_GROUP, SSL_VISION_PORT
 
-VISION_GROUP = ("224.5.23.2", 10006)
+VISION_GROUP = (SSL_VISION_GROUP, SSL_VISION_PORT)
 REFEREE_GROUP = ("224.5.23.1", 10003)
 
 
@@ -104,9 +105,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("log", type=Path, help="SSL log file (plain or .gz)")
     parser.add_argument("--speed", type=float, default=1.0, help="1 = recorded pace, 2 = twice as fast, 0 = flat out")
     parser.add_argument("--vision", type=_address, default=VISION_GROUP, metavar="ADDRESS:PORT",
-                        help="where vision packets go (default 224.5.23.2:10006)")
+                        help=f"where vision packets go (default {VISION_GROUP[0]}:{VISION_GROUP[1]})")
     parser.add_argument("--referee", type=_address, default=REFEREE_GROUP, metavar="ADDRESS:PORT",
-                        help="where referee packets go (default 224.5.23.1:10003)")
+                        help=f"where referee packets go (default {REFEREE_GROUP[0]}:{REFEREE_GROUP[1]})")
     parser.add_argument("--no-referee", action="store_true", help="send vision only")
     parser.add_argument("--interface", default="127.0.0.1", help="address of the interface multicast leaves on")
     parser.add_argument("--ttl", type=int, default=0, choices=range(256), metavar="0..255",

@@ -163,11 +163,12 @@ def _decode_frame(det, limits: DecodeLimits, problems: list[str]) -> CameraFrame
         raise SslDecodeError(
             "counts", f"camera {camera_id}: absurd counts ({n_balls} balls, {n_blue} blue, {n_yellow} yellow robots)"
         )
+    # Per detection as few calls into the message as possible: this runs for every robot of every frame.
+    # An unset optional field reads as 0, so HasField is needed only where 0 is read.
     max_mm = limits.max_abs_coordinate_m / MM
     balls = []
     for ball in det.balls:
-        x, y, c = ball.x, ball.y, ball.confidence
-        z = ball.z if ball.HasField("z") else 0.0
+        x, y, c, z = ball.x, ball.y, ball.confidence, ball.z  # z: 0 when absent
         if abs(x) <= max_mm and abs(y) <= max_mm and 0.0 <= c <= 1.0 and abs(z) <= max_mm:  # False for NaN
             balls.append(BallCandidate(x * MM, y * MM, c, z * MM))
         else:
@@ -176,15 +177,16 @@ def _decode_frame(det, limits: DecodeLimits, problems: list[str]) -> CameraFrame
     max_id = limits.max_robot_id
     for team, sightings in (("blue", det.robots_blue), ("yellow", det.robots_yellow)):
         for robot in sightings:
-            x, y, c, robot_id = robot.x, robot.y, robot.confidence, robot.robot_id
-            if robot_id > max_id or not robot.HasField("robot_id"):
+            x, y, c, robot_id, theta = robot.x, robot.y, robot.confidence, robot.robot_id, robot.orientation
+            if robot_id > max_id or (robot_id == 0 and not robot.HasField("robot_id")):
                 problems.append(f"camera {camera_id}: {team} robot without a valid id dropped")
                 continue
             if not (abs(x) <= max_mm and abs(y) <= max_mm and 0.0 <= c <= 1.0):
                 problems.append(f"camera {camera_id}: {team} robot {robot_id} at ({x!r}, {y!r}) mm dropped")
                 continue
-            theta = robot.orientation if robot.HasField("orientation") else None
-            if theta is not None and not -math.pi <= theta <= math.pi:
+            if theta == 0.0 and not robot.HasField("orientation"):
+                theta = None
+            elif not -math.pi <= theta <= math.pi:
                 if math.isfinite(theta) and abs(theta) <= 100.0:
                     theta = math.remainder(theta, 2.0 * math.pi)
                 else:
@@ -326,7 +328,9 @@ class VisionClock:
     def to_receiver(self, camera_id: int, t_capture_s: float, t_sent_s: float, t_receive_s: float) -> float:
         """The capture time on the receiver's clock; raises ClockJump for a frame of a suspected forward jump."""
         sample = t_receive_s - t_sent_s
-        window = self._windows.setdefault(camera_id, deque())
+        window = self._windows.get(camera_id)
+        if window is None:
+            window = self._windows[camera_id] = deque()
         while window and window[0][0] < t_receive_s - self.window_s:
             window.popleft()
         deviation = sample - window[0][1] if window else 0.0
