@@ -15,7 +15,6 @@ from erforce_motion.team_cores import NOTICE_COMMAND_TIMEOUT, NOTICE_TIME_BACKWA
 from erforce_motion.velocity_control import VelocityControlConfig
 
 ROBOT = RobotConfig()
-TOL = dict(rtol=1e-9, atol=1e-9)
 
 CONFIGS = {
     # the defaults, with a short thermal window so that the limit bites within the run
@@ -53,15 +52,16 @@ class _ScalarTeam:
 def test_team_firmware_computes_what_the_per_robot_loops_compute(name):
     velocity, motor_fields, main_period, motor_period = CONFIGS[name]
     motor = MotorBoardConfig(loop_period_s=motor_period, **motor_fields)
-    n, w = 5, ROBOT.num_wheels
+    n, w = 3, ROBOT.num_wheels
     rng = np.random.default_rng(7)
     ref = _ScalarTeam(n, velocity, motor, main_period, motor_period)
     team = TeamFirmware(n, ROBOT, velocity, motor, main_period, motor_period, 0.05, 0.03)
     times = np.zeros(n)
     wheels = np.zeros((n, w))
     currents = np.zeros((n, w))
+    worst = 0.0
     seen = {"backwards": 0, "timeout": 0, "limited": 0, "saturated": 0, "held": 0}
-    for _ in range(2000):
+    for _ in range(1500):
         for k in np.flatnonzero(rng.random(n) < 0.02):  # radio commands, some of them large
             twist = rng.normal(0.0, [1.5, 1.5, 4.0])
             ref.main[k].command(twist)
@@ -72,7 +72,7 @@ def test_team_firmware_computes_what_the_per_robot_loops_compute(name):
             team.stop(k)
         active = np.flatnonzero(rng.random(n) < 0.8)  # the others' sensors did not arrive this tick
         for k in active:
-            if rng.random() < 0.001:  # a restarted simulator
+            if rng.random() < 0.004:  # a restarted simulator
                 times[k] = max(0.0, times[k] - rng.uniform(0.01, 0.5))
                 seen["backwards"] += 1
             else:
@@ -81,16 +81,18 @@ def test_team_firmware_computes_what_the_per_robot_loops_compute(name):
         wheels += 0.2 * (team.setpoints - wheels) + rng.normal(0.0, 0.5, (n, w))
         currents = 0.6 * currents + rng.normal(0.0, 3.0, (n, w))
         duty = team.tick(times[active], wheels, currents, active)
+        average, saturated = team.average_current_a, team.saturated
         for k in active:
             setpoint, duty_ref = ref.tick(int(k), float(times[k]), wheels[k].copy(), currents[k].copy())
-            np.testing.assert_allclose(team.setpoints[k], setpoint, **TOL)
-            np.testing.assert_allclose(duty[k], duty_ref, **TOL)
             board = ref.motor[k].board
-            np.testing.assert_allclose(team.pwm_limit[k], board.thermal.pwm_limit, **TOL)
-            np.testing.assert_allclose(team.average_current_a[k], board.thermal.average_current_a, **TOL)
-            np.testing.assert_array_equal(team.saturated[k], board.saturated)
-            np.testing.assert_allclose(team.measured_twist[k], ref.main[k].controller.status.measured_twist,
-                                       **TOL)
+            status = ref.main[k].controller.status
+            # the largest difference of the run, relative to the size of the values (cheaper than asserting here)
+            for mine, theirs in ((team.setpoints[k], setpoint), (duty[k], duty_ref),
+                                 (team.pwm_limit[k], board.thermal.pwm_limit),
+                                 (average[k], board.thermal.average_current_a),
+                                 (team.measured_twist[k], status.measured_twist)):
+                worst = max(worst, float(np.max(np.abs(mine - theirs) / (1.0 + np.abs(theirs)))))
+            assert (saturated[k] == board.saturated).all()
             main_notice, motor_notice = ref.main[k].notice or "", ref.motor[k].notice or ""
             assert bool(team.main_notice[k] & NOTICE_TIME_BACKWARDS) == ("backwards" in main_notice)
             assert bool(team.main_notice[k] & NOTICE_COMMAND_TIMEOUT) == ("no command" in main_notice)
@@ -99,7 +101,8 @@ def test_team_firmware_computes_what_the_per_robot_loops_compute(name):
             seen["timeout"] += "no command" in main_notice
             seen["limited"] += bool((board.thermal.pwm_limit < 1.0).any())
             seen["saturated"] += bool(board.saturated.any())
-            seen["held"] += bool(ref.main[k].controller.status.integrator_held)
+            seen["held"] += bool(status.integrator_held)
+    assert worst < 1e-9
     # the run went through the branches it is meant to compare
     assert seen["backwards"] >= 3 and seen["timeout"] >= 3 and seen["limited"] > 50 and seen["saturated"] > 50
     if velocity.slip_hold_threshold_radps is not None:

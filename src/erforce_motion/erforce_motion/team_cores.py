@@ -459,6 +459,16 @@ class TeamFirmware:
                              self._ring, self._ring_index, self._ring_sum, self._i2, self.pwm_limit, self._at_full,
                              self.over_limit)
 
+        self._kernel_args = (
+            self.main_period_s, self.motor_period_s, _TICK_TOLERANCE_S, self.command_timeout_s, self.setpoint_timeout_s,
+            (self._main_state, self._vpid.arrays()), self._vel_prm, self._vel_flags, self._shaper_prm,
+            self._force_rows, self._kin, (self._motor_state, self._spid.arrays(), self._cpid.arrays()),
+            self._speed_prm, self._speed_flags, self._current_prm, self._current_flags, self._thermal_prm,
+            self._actuator_prm, self.main_notice, self.motor_notice)
+        # Load the compiled kernel now (numba's disk cache; a compile after a code change), not at the first
+        # sensor tick: a node answers its first lockstep tick in time. No robot ticks here.
+        self.tick(0.0, self.duty, self.duty, robots=np.zeros(0, dtype=np.int64))
+
     # ------------------------------------------------------------------ radio side
     def command(self, robot: int, twist) -> None:
         """A new desired twist [vx, vy, wz] (robot frame) for one robot, received at its current time."""
@@ -504,22 +514,26 @@ class TeamFirmware:
         copy what you keep). ``setpoints``, ``main_notice`` and ``motor_notice`` are updated likewise.
         Raises ValueError (changing nothing) for non-finite sensors or times.
         """
-        active = self._all if robots is None else np.asarray(robots, dtype=np.int64)
-        t = np.broadcast_to(np.asarray(t_s, dtype=float), active.shape)
-        w = np.asarray(wheel_speeds_radps, dtype=float)
-        cur = np.asarray(currents_a, dtype=float)
+        if robots is None:
+            active = self._all
+            rows_w, rows_i = wheel_speeds_radps, currents_a
+        else:
+            active = np.asarray(robots, dtype=np.int64)
+            if active.ndim != 1 or (active.size and not 0 <= active.min() <= active.max() < self.n_robots):
+                raise ValueError(f"robots: need row indices in [0, {self.n_robots - 1}], got {robots!r}")
+            rows_w, rows_i = wheel_speeds_radps[active], currents_a[active]
+        if isinstance(t_s, float | int):
+            t = np.full(active.shape, float(t_s))
+        else:
+            t = np.ascontiguousarray(np.broadcast_to(np.asarray(t_s, dtype=float), active.shape))
+        w = np.ascontiguousarray(wheel_speeds_radps, dtype=float)
+        cur = np.ascontiguousarray(currents_a, dtype=float)
         shape = (self.n_robots, self.num_wheels)
         if w.shape != shape or cur.shape != shape:
             raise ValueError(f"sensors: need {shape} arrays, got {w.shape} and {cur.shape}")
-        if not (np.isfinite(t).all() and np.isfinite(w[active]).all() and np.isfinite(cur[active]).all()):
+        if not (np.isfinite(t).all() and np.isfinite(rows_w).all() and np.isfinite(rows_i).all()):
             raise ValueError("tick: times, wheel speeds and currents must be finite")
-        _team_tick(active, np.ascontiguousarray(t), np.ascontiguousarray(w), np.ascontiguousarray(cur),
-                   self.main_period_s, self.motor_period_s, _TICK_TOLERANCE_S, self.command_timeout_s,
-                   self.setpoint_timeout_s, (self._main_state, self._vpid.arrays()), self._vel_prm, self._vel_flags,
-                   self._shaper_prm, self._force_rows, self._kin,
-                   (self._motor_state, self._spid.arrays(), self._cpid.arrays()), self._speed_prm, self._speed_flags,
-                   self._current_prm, self._current_flags, self._thermal_prm, self._actuator_prm,
-                   self.main_notice, self.motor_notice)
+        _team_tick(active, t, w, cur, *self._kernel_args)
         return self.duty
 
     # ------------------------------------------------------------------ status
