@@ -20,11 +20,11 @@ Physics behind the paper's Sec. 4 (motion control, 1.3 A current limit) in simul
   tau = R_th C_th = 29 s (RobotConfig), advanced once per world step with the exact exponential
   using the mean R i^2 of that step, so the paper's current limit can be judged by temperature.
 
-The substep loop is scalar float math over a few wheels, compiled by numba (``_advance``: fixed
-float64 signature, compiled at import and cached on disk beside this module, no fastmath, so the
-IEEE results of the same operations in the same order). It was plain Python: at 10 kHz that cost
-about 0.3 ms of CPU per robot per millisecond simulated, which capped a 22-robot field far below
-real time. No rclpy import.
+The substep loop is scalar float math over a few wheels, compiled by numba (``_advance``, cached on
+disk beside this module, no fastmath, so the IEEE results of the same operations in the same order);
+``advance_robots`` runs it for many robots in one call (World keeps every robot's state in
+per-robot arrays, each RobotPlant works on its rows). As plain Python, at 10 kHz, it cost about
+0.3 ms of CPU per robot per millisecond simulated. No rclpy import.
 """
 
 from __future__ import annotations
@@ -278,8 +278,8 @@ class RobotPlant:
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _advance_core(m, h, decay, mean_factor, c_eff, consts, sin_a, cos_a, duty, wheel_w, current, i2_integral,
-                  x, y, th, ct, st, vx, vy, w):
+def _advance(m, h, decay, mean_factor, c_eff, consts, sin_a, cos_a, duty, wheel_w, current, i2_integral,
+             x, y, th, ct, st, vx, vy, w):
     """RobotPlant.advance's substeps: motors, wheels and body (semi-implicit Euler mechanics). Updates the
     wheel arrays in place and returns the body (x, y, theta, cos, sin, vx, vy, w)."""
     r, dist, gear, kt, ke_over_r, bv, tc, weps, fmax = consts[0], consts[1], consts[2], consts[3], consts[4], \
@@ -336,16 +336,6 @@ def _advance_core(m, h, decay, mean_factor, c_eff, consts, sin_a, cos_a, duty, w
     return x, y, th, ct, st, vx, vy, w
 
 
-@numba.njit("UniTuple(float64, 8)(int64, float64, float64, float64, float64, float64[::1], float64[::1], float64[::1], "
-            "float64[::1], float64[::1], float64[::1], float64[::1], float64, float64, float64, float64, float64, "
-            "float64, float64, float64)", cache=True, error_model="numpy")
-def _advance(m, h, decay, mean_factor, c_eff, consts, sin_a, cos_a, duty, wheel_w, current, i2_integral,
-             x, y, th, ct, st, vx, vy, w):
-    """One robot (RobotPlant.advance)."""
-    return _advance_core(m, h, decay, mean_factor, c_eff, consts, sin_a, cos_a, duty, wheel_w, current,
-                         i2_integral, x, y, th, ct, st, vx, vy, w)
-
-
 @numba.njit(cache=True, error_model="numpy")
 def advance_robots(robots, m, h, factors, consts, num_wheels, sin_a, cos_a, duty, wheel_w, current, i2_integral,
                    body):
@@ -355,7 +345,7 @@ def advance_robots(robots, m, h, factors, consts, num_wheels, sin_a, cos_a, duty
         k = robots[idx]
         n = num_wheels[k]
         b = body[k]
-        out = _advance_core(m, h, factors[k, 0], factors[k, 1], factors[k, 2], consts[k], sin_a[k, :n], cos_a[k, :n],
+        out = _advance(m, h, factors[k, 0], factors[k, 1], factors[k, 2], consts[k], sin_a[k, :n], cos_a[k, :n],
                             duty[k, :n], wheel_w[k, :n], current[k, :n], i2_integral[k, :n], b[0], b[1], b[2],
                             b[3], b[4], b[5], b[6], b[7])
         for j in range(8):
