@@ -142,3 +142,42 @@ def test_bad_sensors_raise_and_change_nothing():
     team.tick(0.0, bad, zeros, [0])  # a NaN in a row that did not tick is not read
     with pytest.raises(ValueError, match="twist"):
         team.command(0, [1.0, math.inf, 0.0])
+
+
+def test_new_parameters_take_over_as_the_per_robot_loops_do():
+    """A parameter change mid-run (team_firmware's on_change): TeamFirmware.take_over against
+    MainBoardLoop.take_over and MotorBoardLoop.take_over, robot by robot."""
+    motor = MotorBoardConfig(average_window_s=0.05)
+    ref = _ScalarTeam(2, VelocityControlConfig(), motor, 0.001, 0.001)
+    team = TeamFirmware(2, ROBOT, VelocityControlConfig(), motor, 0.001, 0.001, 0.05, 0.03)
+    rng = np.random.default_rng(3)
+    wheels = np.zeros((2, ROBOT.num_wheels))
+    currents = np.zeros((2, ROBOT.num_wheels))
+    worst = driven = 0.0
+    for step in range(1, 401):
+        if step % 20 == 1:  # the radio keeps commanding
+            for k in range(2):
+                ref.main[k].command(np.array([1.0, -0.5, 2.0]))
+                team.command(k, [1.0, -0.5, 2.0])
+        if step == 200:  # new gains; the old loops hand over
+            velocity = VelocityControlConfig(kp_translation=0.5, ki_translation=8.0)
+            new_ref = _ScalarTeam(2, velocity, motor, 0.001, 0.001)
+            new_ref.previous = ref.previous
+            for k in range(2):
+                new_ref.main[k].take_over(ref.main[k])
+                new_ref.motor[k].take_over(ref.motor[k])
+            ref = new_ref
+            new_team = TeamFirmware(2, ROBOT, velocity, motor, 0.001, 0.001, 0.05, 0.03)
+            new_team.take_over(team)
+            team = new_team
+        t = 0.001 * step
+        wheels += 0.2 * (team.setpoints - wheels) + rng.normal(0.0, 0.3, wheels.shape)
+        currents = 0.6 * currents + rng.normal(0.0, 0.3, currents.shape)  # below the thermal limit
+        duty = team.tick(t, wheels, currents)
+        driven = max(driven, float(np.abs(duty).max()))
+        for k in range(2):
+            setpoint, duty_ref = ref.tick(k, t, wheels[k].copy(), currents[k].copy())
+            worst = max(worst, float(np.max(np.abs(duty[k] - duty_ref))),
+                        float(np.max(np.abs(team.setpoints[k] - setpoint) / (1.0 + np.abs(setpoint)))))
+    assert worst < 1e-9
+    assert driven > 0.05  # the robots were driven
