@@ -162,7 +162,7 @@ def sim_robot_step(v0: float, v1: float, seconds: float, vc_cfg=None, settle_s: 
 
     def rec(rr):
         tw.append(_body_twist(rr))
-        shaped.append(rr.main_boards[0].controller.status.shaped_twist[0])
+        shaped.append(rr.firmware.shaped_twist[rr.firmware_row(0), 0])
         wheels.append(rr.world.wheel_speeds_radps(0))
 
     r.run(seconds, rec)
@@ -220,7 +220,7 @@ def sim_stall(seconds: float, setpoint_mps: float = 2.0):
         nonlocal k
         cur[k] = np.abs(rr.world.motor_currents_a(0))
         temp[k] = rr.world.winding_temperature_c(0)
-        limit[k] = rr.motor_boards[0].board.thermal.pwm_limit.min()
+        limit[k] = rr.firmware.pwm_limit[rr.firmware_row(0)].min()
         k += 1
 
     r.run(seconds, rec)

@@ -181,3 +181,43 @@ def test_implausible_placements_are_refused_with_the_limit_in_the_message():
     with pytest.raises(ValueError, match="place_robot: vx"):
         w.place_robot(0, 0.0, 0.0, 0.0, vx=25.0)
     assert w.all_finite()
+
+
+def test_robots_stepped_together_move_exactly_as_each_alone():
+    """World advances its contact-free robots in one compiled call; each robot's numbers are those of a world
+    with that robot alone (far from the others and the ball, nothing couples them)."""
+    poses = [(-3.0, -2.0, 0.3), (0.0, 2.0, -1.2), (3.0, -2.0, 2.5)]
+    duties = [[0.3, -0.2, 0.25, -0.1], [-0.4, 0.4, 0.1, 0.2], [0.05, 0.05, -0.05, -0.05]]
+    ball = BallState(0.0, 0.0)
+    together = World(FIELD, [RobotSpec(x=x, y=y, theta=t, robot_id=k) for k, (x, y, t) in enumerate(poses)], ball)
+    together.set_duties(np.arange(3), np.array(duties))
+    alone = [World(FIELD, [RobotSpec(x=x, y=y, theta=t)], ball) for x, y, t in poses]
+    for w, d in zip(alone, duties, strict=True):
+        w.set_duty(0, d)
+    for _ in range(300):
+        together.step(0.001)
+        for w in alone:
+            w.step(0.001)
+    for k, w in enumerate(alone):
+        assert together.robot_state(k) == w.robot_state(0)  # bit for bit
+    assert together.robot_state(0).vx != 0.0  # and they did move
+
+
+def test_the_batch_sensor_and_duty_calls_are_the_per_robot_calls():
+    physics = PhysicsParams(wheel_speed_noise_radps=0.5, current_noise_a=0.1)
+    specs = [RobotSpec(x=-2.0 + 2.0 * k, robot_id=k) for k in range(3)]
+    a, b = (World(FIELD, specs, physics=physics, seed=4) for _ in range(2))
+    duties = np.array([[0.2, 0.2, 0.2, 0.2], [1.5, -2.0, 0.1, 0.0], [0.0, 0.0, 0.0, -1.0]])
+    assert a.set_duties([0, 1, 2], duties) == 2  # 1.5 and -2.0 clamped
+    assert [b.set_duty(k, duties[k]) for k in range(3)] == [0, 2, 0]
+    assert a.clamped_duty_count(1) == b.clamped_duty_count(1) == 2
+    for w in (a, b):
+        w.step(0.01)
+    speeds, currents = a.wheel_sensors([2, 0])
+    for row, k in enumerate([2, 0]):  # the same noise draws, robot after robot
+        np.testing.assert_array_equal(speeds[row], b.wheel_speeds_radps(k))
+        np.testing.assert_array_equal(currents[row], b.motor_currents_a(k))
+    with pytest.raises(ValueError, match="finite"):
+        a.set_duties([0], np.array([[0.1, math.nan, 0.0, 0.0]]))
+    with pytest.raises(ValueError, match="shape"):
+        a.set_duties([0, 1], np.zeros((2, 3)))

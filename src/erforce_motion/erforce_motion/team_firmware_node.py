@@ -5,9 +5,10 @@ its namespace ``robot_<id>``): per robot in ``robot_ids`` it takes ``/robot_<id>
 ``/robot_<id>/wheel_states`` and answers each tick with ``/robot_<id>/motor_duty`` and, at its
 rate, ``motor_status``. Inside, the main board's setpoint reaches the motor boards without DDS,
 one tick later, exactly as erforce_sim.closed_loop.runner.InProcessRunner steps the same cores
-(erforce_motion.firmware), so the lockstep graph computes the same trajectory with either
-deployment. ``wheel_setpoints`` is published only with ``publish_setpoints`` (for tools):
-nobody in the graph needs it, and it would be a message per robot per tick.
+(erforce_motion.team_cores.TeamFirmware: one call per tick for all robots whose sensors arrived),
+so the lockstep graph computes the same trajectory with either deployment. ``wheel_setpoints``
+is published only with ``publish_setpoints`` (for tools): nobody in the graph needs it, and it
+would be a message per robot per tick.
 
 With ``lockstep_topics`` ``team`` it takes one ``/team/wheel_states`` per tick instead and answers
 with one ``/team/motor_duty`` for its robots (contract: joints ``robot_<id>/wheel_<k>``); robots of the
@@ -22,6 +23,7 @@ starting the node with another list.
 
 from __future__ import annotations
 
+import numpy as np
 from geometry_msgs.msg import Twist
 from rclpy.node import Node
 
@@ -48,7 +50,7 @@ from erforce_interfaces.node_support import (
 from erforce_interfaces.param_schema import HostSchema, load_schema
 from erforce_interfaces.stamps import StampFilter, StampVerdict
 from erforce_motion import motor_boards_node, velocity_controller_node
-from erforce_motion.firmware import MainBoardLoop, MotorBoardLoop
+from erforce_motion.team_cores import TeamFirmware
 
 MAIN_PREFIX, MOTOR_PREFIX = "main_board.", "motor_boards."
 # The motor boards' DDS-side parameters (waiting for the main board's setpoint) mean nothing here.
@@ -60,22 +62,24 @@ SCHEMA = HostSchema(load_schema("erforce_motion", "team_firmware"), {
 })
 
 
-def build_loops(config) -> dict[int, tuple[MainBoardLoop, MotorBoardLoop]]:
-    """One main-board and one motor-board loop per robot id (raises ValueError when invalid)."""
+def build_loops(config) -> tuple[list[int], TeamFirmware]:
+    """The robot ids and their firmware, row r for robot ids[r] (raises ValueError when invalid)."""
     own, hosted = config
-    ids = list(own.robot_ids)
+    ids = [int(i) for i in own.robot_ids]
     if not ids or len(set(ids)) != len(ids):
         raise ValueError(f"robot_ids: need distinct ids, at least one, got {ids}")
-    return {int(i): (velocity_controller_node.build_loop(hosted[MAIN_PREFIX]),
-                     motor_boards_node.build_loop(hosted[MOTOR_PREFIX])) for i in ids}
+    # the per-robot nodes' builders check the parameters and say what is wrong in their words
+    main = velocity_controller_node.build_loop(hosted[MAIN_PREFIX])
+    motor = motor_boards_node.build_loop(hosted[MOTOR_PREFIX])
+    return ids, TeamFirmware(len(ids), main.robot, main.controller.config, motor.board.config, main.loop_period_s,
+                             motor.loop_period_s, main.watchdog.timeout_s, motor.setpoint_timeout_s)
 
 
 class _Robot:
-    """One robot's loops, publishers and the setpoint its motor boards use at the next tick."""
+    """One robot's row in the team firmware, its publishers and time rule."""
 
-    def __init__(self, node: Node, robot_id: int, main: MainBoardLoop, motor: MotorBoardLoop) -> None:
-        self.robot_id, self.main, self.motor = robot_id, main, motor
-        self.previous_setpoint = None  # (t_s, setpoints) of the last tick
+    def __init__(self, node: Node, robot_id: int, row: int) -> None:
+        self.robot_id, self.row = robot_id, row
         self.last_status_ns: int | None = None
         self.stamps = StampFilter()  # the time rule for this robot's ticks
         self.duty_pub = None if node.team_topics else contract_publisher(node, contract.MOTOR_DUTY,
@@ -90,10 +94,13 @@ class TeamFirmwareNode(Node):
         super().__init__("team_firmware")
         self._warn = ThrottledWarner(self)
         self._robots: dict[int, _Robot] = {}
+        self._firmware: TeamFirmware | None = None
         self._params = NodeParams(self, SCHEMA, build_loops)
         self._values = self._params.values
         self.team_topics = self._values["lockstep_topics"] == "team"
         self._apply(self._params.built)
+        n, w = self._firmware.n_robots, self._firmware.num_wheels
+        self._speeds, self._currents = np.zeros((n, w)), np.zeros((n, w))  # the sensors, row per robot
         for i, robot in self._robots.items():
             contract_subscription(self, contract.CMD_VEL, lambda m, r=robot: self._on_cmd_vel(r, m),
                                   contract.CMD_VEL.for_robot(i))
@@ -108,15 +115,14 @@ class TeamFirmwareNode(Node):
                                f"{self._values['lockstep_topics']} lockstep topics")
         self._params.on_change(self._apply)
 
-    def _apply(self, loops: dict[int, tuple[MainBoardLoop, MotorBoardLoop]]) -> None:
-        for i, (main, motor) in loops.items():
-            robot = self._robots.get(i)
-            if robot is None:
-                self._robots[i] = _Robot(self, i, main, motor)
-                continue
-            main.take_over(robot.main)
-            motor.take_over(robot.motor)
-            robot.main, robot.motor = main, motor
+    def _apply(self, built: tuple[list[int], TeamFirmware]) -> None:
+        ids, firmware = built
+        if self._firmware is not None:
+            firmware.take_over(self._firmware)  # robot_ids is read-only: the same rows
+        self._firmware = firmware
+        for row, i in enumerate(ids):
+            if i not in self._robots:
+                self._robots[i] = _Robot(self, i, row)
 
     def _on_cmd_vel(self, robot: _Robot, msg: Twist) -> None:
         v = self._values
@@ -124,72 +130,81 @@ class TeamFirmwareNode(Node):
             twist = twist_from_msg(msg, v[MAIN_PREFIX + "reject_linear_above_mps"],
                                    v[MAIN_PREFIX + "reject_angular_above_radps"])
         except ConversionError as exc:
-            robot.main.stop()
+            self._firmware.stop(robot.row)
             self._warn.warn(f"cmd_vel{robot.robot_id}", f"robot_{robot.robot_id}: rejected cmd_vel ({exc}); stopping")
             return
-        robot.main.command(twist)
+        self._firmware.command(robot.row, twist)
 
     def _on_wheel_states(self, robot: _Robot, msg: bytes) -> None:
+        """A sensor tick of one robot (per-robot lockstep topics)."""
         run_sampled(self._clock_subs)
+        firmware = self._firmware
         try:
-            t_ns, speeds, currents = wheel_states_from_msg(msg, robot.main.robot.num_wheels)
+            t_ns, speeds, currents = wheel_states_from_msg(msg, firmware.num_wheels)
         except ConversionError as exc:
             self._warn.warn(f"wheel_states{robot.robot_id}", f"robot_{robot.robot_id}: rejected wheel_states: {exc}")
             return
-        duty = self._tick(robot, t_ns, speeds, currents)
-        if duty is not None:
-            robot.duty_pub.publish(joint_state_cdr(t_ns, robot.main.robot.wheel_names, effort=duty))
+        if self._take_sensors(robot, t_ns, speeds, currents):
+            duty = self._tick([robot], [t_ns])
+            robot.duty_pub.publish(joint_state_cdr(t_ns, firmware.robot.wheel_names, effort=duty[robot.row]))
 
     def _on_team_wheel_states(self, msg: bytes) -> None:
         """One tick of every robot of ours in the message; one answer for all of them."""
         run_sampled(self._clock_subs)
-        robot_config = next(iter(self._robots.values())).main.robot
+        firmware = self._firmware
         try:
-            t_ns, ids, (speeds, currents) = team_joint_state_from_msg(msg, len(robot_config.wheel_names),
-                                                                      ("velocity", "effort"))
+            t_ns, ids, (speeds, currents) = team_joint_state_from_msg(msg, firmware.num_wheels, ("velocity", "effort"))
         except ConversionError as exc:
             self._warn.warn("team_wheel_states", f"rejected /team/wheel_states: {exc}")
             return
-        answered, duties = [], []
+        ticked = []
         for k, i in enumerate(ids):
             robot = self._robots.get(i)
-            if robot is None:  # another process's robot
-                continue
-            duty = self._tick(robot, t_ns, speeds[k], currents[k])
-            if duty is not None:
-                answered.append(i)
-                duties.append(duty)
-        if answered:
-            self._team_duty_pub.publish(team_joint_state_cdr(t_ns, answered, robot_config.wheel_names, effort=duties))
+            if robot is not None and self._take_sensors(robot, t_ns, speeds[k], currents[k]):  # else: not ours
+                ticked.append(robot)
+        if ticked:
+            duty = self._tick(ticked, [t_ns] * len(ticked))
+            self._team_duty_pub.publish(team_joint_state_cdr(
+                t_ns, [r.robot_id for r in ticked], firmware.robot.wheel_names, effort=duty[[r.row for r in ticked]]))
 
-    def _tick(self, robot: _Robot, t_ns: int, speeds, currents):
-        """Tick k of one robot, in the runner's order: main board (setpoint used at k+1), then the motor
-        boards with the setpoint of tick k-1. Returns the duty, or None for a tick the time rule drops."""
-        main, motor = robot.main, robot.motor
+    def _take_sensors(self, robot: _Robot, t_ns: int, speeds, currents) -> bool:
+        """The time rule for this robot's tick; its sensors into its rows. False: the tick is dropped."""
         verdict = check_stamp(robot.stamps, t_ns, self._warn, f"robot_{robot.robot_id}/wheel_states", self)
         if verdict is StampVerdict.DROP:
-            return None
+            return False
         if verdict is StampVerdict.RESTART:
-            robot.previous_setpoint = robot.last_status_ns = None  # of the old time line
-        t_s = t_ns * 1e-9
-        setpoint = main.tick(t_s, speeds).copy()
-        if robot.previous_setpoint is not None and robot.previous_setpoint[0] < t_s:
-            motor.set_setpoint(*robot.previous_setpoint)
-        duty = motor.tick(t_s, speeds, currents)
-        robot.previous_setpoint = (t_s, setpoint)
-        for notice in (main.notice, motor.notice):
-            if notice:
-                self._warn.warn(f"notice{robot.robot_id}", f"robot_{robot.robot_id}: {notice}")
-        if self._values["publish_setpoints"]:
-            robot.setpoint_pub.publish(joint_state_cdr(t_ns, main.robot.wheel_names, velocity=setpoint))
+            self._firmware.forget_setpoint(robot.row)  # of the old time line
+            robot.last_status_ns = None
+        self._speeds[robot.row] = speeds
+        self._currents[robot.row] = currents
+        return True
+
+    def _tick(self, robots: list[_Robot], stamps_ns: list[int]) -> np.ndarray:
+        """Tick k of these robots (their sensors in the rows of _speeds/_currents), in the runner's order: main
+        board (setpoint used at k+1), then the motor boards with the setpoint of tick k-1; one firmware call.
+        Returns the duties, a row per robot of the firmware."""
+        firmware = self._firmware
+        rows = np.fromiter((r.row for r in robots), dtype=np.int64, count=len(robots))
+        duty = firmware.tick(np.asarray(stamps_ns, dtype=np.int64) * 1e-9, self._speeds, self._currents, rows)
+        names = firmware.robot.wheel_names
+        publish_setpoints = self._values["publish_setpoints"]
         period_ns = int(1e9 / self._values[MOTOR_PREFIX + "status_rate_hz"])
-        last = robot.last_status_ns
-        if last is None or t_ns - last >= period_ns or t_ns < last:
-            robot.last_status_ns = t_ns
-            st = motor.board.status
-            rows = [[st.average_current_a[k], st.pwm_limit[k], float(st.saturated[k]), float(st.limit_active[k])]
-                    for k in range(main.robot.num_wheels)]
-            robot.status_pub.publish(table_cdr(rows, contract.MOTOR_STATUS_COLUMNS, "wheels"))
+        for robot, t_ns in zip(robots, stamps_ns, strict=True):
+            row = robot.row
+            if firmware.main_notice[row] or firmware.motor_notice[row]:
+                for notice in firmware.notices(row):
+                    self._warn.warn(f"notice{robot.robot_id}", f"robot_{robot.robot_id}: {notice}")
+            if publish_setpoints:
+                robot.setpoint_pub.publish(joint_state_cdr(t_ns, names, velocity=firmware.setpoints[row]))
+            last = robot.last_status_ns
+            if last is None or t_ns - last >= period_ns or t_ns < last:
+                robot.last_status_ns = t_ns
+                limit = firmware.pwm_limit[row]
+                average = firmware.average_current_a[row]
+                saturated = firmware.saturated[row]
+                rows_out = [[average[k], limit[k], float(saturated[k]), float(limit[k] < 1.0)]
+                            for k in range(firmware.num_wheels)]
+                robot.status_pub.publish(table_cdr(rows_out, contract.MOTOR_STATUS_COLUMNS, "wheels"))
         return duty
 
 

@@ -20,11 +20,11 @@ Physics behind the paper's Sec. 4 (motion control, 1.3 A current limit) in simul
   tau = R_th C_th = 29 s (RobotConfig), advanced once per world step with the exact exponential
   using the mean R i^2 of that step, so the paper's current limit can be judged by temperature.
 
-The substep loop is scalar float math over a few wheels, compiled by numba (``_advance``: fixed
-float64 signature, compiled at import and cached on disk beside this module, no fastmath, so the
-IEEE results of the same operations in the same order). It was plain Python: at 10 kHz that cost
-about 0.3 ms of CPU per robot per millisecond simulated, which capped a 22-robot field far below
-real time. No rclpy import.
+The substep loop is scalar float math over a few wheels, compiled by numba (``_advance``, cached on
+disk beside this module, no fastmath, so the IEEE results of the same operations in the same order);
+``advance_robots`` runs it for many robots in one call (World keeps every robot's state in
+per-robot arrays, each RobotPlant works on its rows). As plain Python, at 10 kHz, it cost about
+0.3 ms of CPU per robot per millisecond simulated. No rclpy import.
 """
 
 from __future__ import annotations
@@ -131,55 +131,42 @@ class RobotPlant:
     winding temperature ``temp_c[i]``. ``duty[i]`` in [-1, 1] is held between world steps.
     """
 
-    __slots__ = (
-        "_consts",
-        "_consts_h",
-        "_cos_a",
-        "_sin_a",
-        "cos_th",
-        "current",
-        "duty",
-        "i2_integral",
-        "k",
-        "lifted",
-        "locked",
-        "sin_th",
-        "temp_c",
-        "theta",
-        "vx",
-        "vy",
-        "w",
-        "wheel_w",
-        "x",
-        "y",
-    )
+    __slots__ = ("_b", "_consts", "_consts_h", "_cos_a", "_sin_a", "current", "duty", "i2_integral", "k", "lifted",
+                 "locked", "temp_c", "wheel_w")
 
-    def __init__(self, coeffs: DriveTrainCoefficients, x: float, y: float, theta: float) -> None:
+    def __init__(self, coeffs: DriveTrainCoefficients, x: float, y: float, theta: float,
+                 rows: tuple[np.ndarray, ...] | None = None) -> None:
+        """rows: (body[8], wheel_w, current, duty, i2_integral, temp_c) views into a World's per-robot
+        arrays (the world steps every robot's rows in one compiled call); None: arrays of its own."""
         self.k = coeffs
         n = coeffs.num_wheels
-        self.x, self.y, self.theta = x, y, theta
-        self.cos_th, self.sin_th = math.cos(theta), math.sin(theta)
-        self.vx = self.vy = self.w = 0.0
-        # per wheel, as float64 arrays: the compiled substep loop works on them in place
-        self.wheel_w = np.zeros(n)
-        self.current = np.zeros(n)
-        self.duty = np.zeros(n)
-        self.i2_integral = np.zeros(n)  # integral of i^2 dt since the last thermal update
+        if rows is None:
+            rows = (np.zeros(8), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n))
+        # body: x, y, theta, cos theta, sin theta, vx, vy, w; per wheel float64 arrays worked on in place
+        self._b, self.wheel_w, self.current, self.duty, self.i2_integral, self.temp_c = rows
+        self.i2_integral[:] = 0.0  # integral of i^2 dt since the last thermal update
+        self.temp_c[:] = coeffs.ambient_c
         self._sin_a, self._cos_a = np.array(coeffs.sin_a), np.array(coeffs.cos_a)
-        self.temp_c = [coeffs.ambient_c] * n
+        self._b[:] = (x, y, theta, math.cos(theta), math.sin(theta), 0.0, 0.0, 0.0)
         self.lifted = False  # on a stand: no traction, body held still
         self.locked = False  # blocked-rotor rig: wheels held at zero speed
         self._consts_h = -1.0
         self._consts = np.zeros(0)
 
+    def _get(i: int):  # a property factory for the body row
+        return property(lambda self: float(self._b[i]), lambda self, v: self._b.__setitem__(i, v))
+
+    x, y, theta, cos_th, sin_th = _get(0), _get(1), _get(2), _get(3), _get(4)
+    vx, vy, w = _get(5), _get(6), _get(7)
+    del _get
+
     def set_pose_velocity(self, x: float, y: float, theta: float, vx: float, vy: float, w: float) -> None:
         """Place the body; wheels are set rolling without slip at that velocity, currents zero."""
-        self.x, self.y, self.theta = x, y, theta
-        self.cos_th, self.sin_th = math.cos(theta), math.sin(theta)
-        self.vx, self.vy, self.w = vx, vy, w
+        ct, st = math.cos(theta), math.sin(theta)
+        self._b[:] = (x, y, theta, ct, st, vx, vy, w)
         k = self.k
-        u = self.cos_th * vx + self.sin_th * vy
-        v = -self.sin_th * vx + self.cos_th * vy
+        u = ct * vx + st * vy
+        v = -st * vx + ct * vy
         for i in range(k.num_wheels):
             vc = -k.sin_a[i] * u + k.cos_a[i] * v + k.wheel_distance_m * w
             self.wheel_w[i] = 0.0 if self.locked else vc / k.wheel_radius_m
@@ -195,14 +182,13 @@ class RobotPlant:
             self._advance_rig(m, h, decay, mean_factor)
             return
         if self._consts_h != h:
-            self._consts = np.array(self._substep_constants(h))
+            self._consts = np.array(self.substep_constants(h))
             self._consts_h = h
-        (self.x, self.y, self.theta, self.cos_th, self.sin_th, self.vx, self.vy, self.w) = _advance(
-            m, h, decay, mean_factor, c_eff, self._consts, self._sin_a, self._cos_a, self.duty, self.wheel_w,
-            self.current, self.i2_integral, self.x, self.y, self.theta, self.cos_th, self.sin_th, self.vx, self.vy,
-            self.w)
+        b = self._b
+        b[:] = _advance(m, h, decay, mean_factor, c_eff, self._consts, self._sin_a, self._cos_a, self.duty,
+                        self.wheel_w, self.current, self.i2_integral, b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7])
 
-    def _substep_constants(self, h: float) -> tuple[float, ...]:
+    def substep_constants(self, h: float) -> tuple[float, ...]:
         k = self.k
         h_over_j = h / k.wheel_inertia_total_kgm2
         return (
@@ -271,7 +257,8 @@ class RobotPlant:
             self.cos_th, self.sin_th = math.cos(self.theta), math.sin(self.theta)
 
     def update_temperature(self, dt_s: float) -> None:
-        """Exact first-order thermal step with the mean Joule power of the last dt_s."""
+        """Exact first-order thermal step with the mean Joule power of the last dt_s (World does all robots at
+        once with the same operations: update_temperatures)."""
         k = self.k
         decay = math.exp(-dt_s / k.thermal_tau_s)
         for i in range(k.num_wheels):
@@ -290,9 +277,7 @@ class RobotPlant:
         return 0.5 * self.k.inductance_h * sum(i * i for i in self.current)
 
 
-@numba.njit("UniTuple(float64, 8)(int64, float64, float64, float64, float64, float64[::1], float64[::1], float64[::1], "
-            "float64[::1], float64[::1], float64[::1], float64[::1], float64, float64, float64, float64, float64, "
-            "float64, float64, float64)", cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy")
 def _advance(m, h, decay, mean_factor, c_eff, consts, sin_a, cos_a, duty, wheel_w, current, i2_integral,
              x, y, th, ct, st, vx, vy, w):
     """RobotPlant.advance's substeps: motors, wheels and body (semi-implicit Euler mechanics). Updates the
@@ -349,3 +334,19 @@ def _advance(m, h, decay, mean_factor, c_eff, consts, sin_a, cos_a, duty, wheel_
     for i in range(n):
         i2_integral[i] += i_sq[i] * h
     return x, y, th, ct, st, vx, vy, w
+
+
+@numba.njit(cache=True, error_model="numpy")
+def advance_robots(robots, m, h, factors, consts, num_wheels, sin_a, cos_a, duty, wheel_w, current, i2_integral,
+                   body):
+    """RobotPlant.advance for the robots ``robots`` (rows of the per-robot arrays; wheels padded to the
+    widest robot): the same operations per robot, one call for all. factors: (decay, mean factor, c_eff)."""
+    for idx in range(robots.shape[0]):
+        k = robots[idx]
+        n = num_wheels[k]
+        b = body[k]
+        out = _advance(m, h, factors[k, 0], factors[k, 1], factors[k, 2], consts[k], sin_a[k, :n], cos_a[k, :n],
+                            duty[k, :n], wheel_w[k, :n], current[k, :n], i2_integral[k, :n], b[0], b[1], b[2],
+                            b[3], b[4], b[5], b[6], b[7])
+        for j in range(8):
+            b[j] = out[j]

@@ -25,13 +25,14 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallBody, BallParams, BallState
 from erforce_sim.contacts import ContactParams, RobotShape, ball_robot, ball_walls, robot_robot, robot_walls
-from erforce_sim.drivetrain import DriveTrainCoefficients, RobotPlant
-from erforce_sim.kicker import DEFAULT_TILT_COMPLIANCE_RAD_PER_M, KickerPlate, beam_hit
+from erforce_sim.drivetrain import DriveTrainCoefficients, RobotPlant, advance_robots
+from erforce_sim.kicker import DEFAULT_TILT_COMPLIANCE_RAD_PER_M, KickerPlate
 from erforce_sim.sensors import LightBarrierParams, LightBarrierSignal, VisionFrame, VisionParams, VisionSystem
 
 MAX_BODY_SPEED_MPS = 20.0
@@ -211,6 +212,17 @@ class World:
         self._dribbler_on: list[bool] = []
         self._armed: list[_Armed | None] = []
         self._clamped_duties: list[int] = []
+        # Every robot's state in per-robot arrays (wheels padded to the widest robot): each RobotPlant works
+        # on its rows, and `step` advances all contact-free robots in one compiled call.
+        n_robots = len(self.specs)
+        width = max((s.config.num_wheels for s in self.specs), default=0)
+        self._body = np.zeros((n_robots, 8))
+        self._wheel_w, self._current, self._duty, self._i2, self._temp = (np.zeros((n_robots, width)) for _ in range(5))
+        self._num_wheels = np.array([s.config.num_wheels for s in self.specs], dtype=np.int64)
+        self._sin_a, self._cos_a = np.zeros((n_robots, width)), np.zeros((n_robots, width))
+        self._rig = np.zeros(n_robots, dtype=bool)  # lifted or locked: stepped one by one (RobotPlant._advance_rig)
+        self._batch_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._thermal_cache: dict[float, np.ndarray] = {}
         for s in self.specs:
             cfg = s.config
             co = DriveTrainCoefficients.from_config(
@@ -225,13 +237,26 @@ class World:
             self._coeffs.append(co)
             self._shapes.append(shape)
             self._plates.append(KickerPlate.make(s.kicker_plate, 0.5 * cfg.dribbler_width_m))
-            self._robots.append(RobotPlant(co, 0.0, 0.0, 0.0))
+            k, n = len(self._robots), co.num_wheels
+            self._sin_a[k, :n], self._cos_a[k, :n] = co.sin_a, co.cos_a
+            rows = (self._body[k], self._wheel_w[k, :n], self._current[k, :n], self._duty[k, :n], self._i2[k, :n],
+                    self._temp[k, :n])
+            self._robots.append(RobotPlant(co, 0.0, 0.0, 0.0, rows))
             self._barriers.append(LightBarrierSignal(lb_params, lb_rng))
             self._beam_x.append(shape.front_x_m + lb_params.beam_depth_m)
             self._dribbler_on.append(False)
             self._armed.append(None)
             self._clamped_duties.append(0)
         self._radii = [sh.radius_m for sh in self._shapes]
+        self._radii_arr = np.array(self._radii, dtype=float)
+        self._resistance = np.array([[c.resistance_ohm] for c in self._coeffs]).reshape(n_robots, 1)
+        self._ambient = np.array([[c.ambient_c] for c in self._coeffs]).reshape(n_robots, 1)
+        self._thermal_r = np.array([[c.thermal_resistance_k_per_w] for c in self._coeffs]).reshape(n_robots, 1)
+        self._beam_x_arr = np.array(self._beam_x, dtype=float)
+        self._beam_half_span = np.array([0.5 * s.config.dribbler_width_m for s in self.specs], dtype=float)
+        self._barrier_direct = lb_params.latency_s == 0.0 and lb_params.false_flip_prob == 0.0
+        self._barrier_values = np.zeros(n_robots, dtype=bool)
+        self._rigs_changed()
         for i, s in enumerate(self.specs):
             self.place_robot(i, s.x, s.y, s.theta)
         self._ball = BallBody(self.ball_params, BallState(0.0, 0.0))
@@ -240,6 +265,11 @@ class World:
         self._any_dribbler = False
         self._any_armed = False
         self._sample_light_barriers()
+        # load the compiled kernels now rather than in the first step (no robot is moved here)
+        advance_robots(np.zeros(0, dtype=np.int64), 1, 1e-4, np.zeros((0, 3)), np.zeros((0, 15)), self._num_wheels,
+                       self._sin_a, self._cos_a, self._duty, self._wheel_w, self._current, self._i2, self._body)
+        _thermal_step(self._temp[:0], self._i2[:0], self._resistance, self._ambient, self._thermal_r,
+                      np.ones((0, 1)), 1e-3)
 
     # ------------------------------------------------------------------ basics
     @property
@@ -255,6 +285,10 @@ class World:
         if not isinstance(i, int | np.integer) or isinstance(i, bool) or not 0 <= i < len(self._robots):
             raise ValueError(f"robot index must be an int in [0, {len(self._robots) - 1}], got {i!r}")
         return int(i)
+
+    def _rigs_changed(self) -> None:
+        self._free_all = np.flatnonzero(~self._rig)
+        self._rig_list = np.flatnonzero(self._rig).tolist()
 
     def index_of(self, team: str, robot_id: int) -> int:
         """List position of the robot with this team colour and id."""
@@ -305,15 +339,21 @@ class World:
 
     def set_lifted(self, i: int, lifted: bool) -> None:
         """Test rig: robot on a stand (wheels spin freely, no traction, body held at rest)."""
-        rb = self._robots[self._index(i)]
+        i = self._index(i)
+        rb = self._robots[i]
         rb.lifted = bool(lifted)
+        self._rig[i] = rb.lifted or rb.locked
+        self._rigs_changed()
         if rb.lifted:
             rb.vx = rb.vy = rb.w = 0.0
 
     def set_wheels_locked(self, i: int, locked: bool) -> None:
         """Test rig: blocked rotors (wheel speeds held at zero)."""
-        rb = self._robots[self._index(i)]
+        i = self._index(i)
+        rb = self._robots[i]
         rb.locked = bool(locked)
+        self._rig[i] = rb.lifted or rb.locked
+        self._rigs_changed()
         if rb.locked:
             rb.wheel_w[:] = [0.0] * len(rb.wheel_w)
 
@@ -482,13 +522,21 @@ class World:
         n = max(1, math.ceil(dt * self.physics.substep_hz - 1e-9))
         h = dt / n
         coeffs = self._substep_coeffs(h)
+        factors, consts = self._batch_coeffs(h, coeffs)
         t0 = self._t
         ball_wall, robot_wall, robot_pairs, ball_robots = self._contact_candidates(dt)
-        involved = set(robot_wall) | set(ball_robots)
-        for a, b in robot_pairs:
-            involved.update((a, b))
+        if robot_wall or robot_pairs or ball_robots:
+            involved = set(robot_wall) | set(ball_robots)
+            for a, b in robot_pairs:
+                involved.update((a, b))
+            free_mask = ~self._rig
+            free_mask[list(involved)] = False
+            free = np.flatnonzero(free_mask)
+        else:  # the common case: nobody near anything
+            involved = set()
+            free = self._free_all
         ball_involved = ball_wall or bool(ball_robots)
-        free = [(rb, coeffs[i]) for i, rb in enumerate(self._robots) if i not in involved]
+        free_rigs = [(self._robots[i], coeffs[i]) for i in self._rig_list if i not in involved]
         busy = [(i, self._robots[i], coeffs[i]) for i in sorted(involved)]
         ball = self._ball
         done = 0
@@ -497,7 +545,10 @@ class World:
             j_cap = math.ceil((self.vision.next_capture_s - t0) / h - 1e-9)
             end = n if j_cap > n else max(j_cap, done + 1)
             m = end - done
-            for rb, (decay, mean_factor, c_eff) in free:
+            if free.size:
+                advance_robots(free, m, h, factors, consts, self._num_wheels, self._sin_a, self._cos_a, self._duty,
+                               self._wheel_w, self._current, self._i2, self._body)
+            for rb, (decay, mean_factor, c_eff) in free_rigs:
                 rb.advance(m, h, decay, mean_factor, c_eff)
             if not ball_involved:
                 ball.advance(m, h)
@@ -512,9 +563,30 @@ class World:
         if self._any_armed:
             self._armed = [a if a is not None and a.deadline_s >= self._t else None for a in self._armed]
             self._any_armed = any(a is not None for a in self._armed)
-        for rb in self._robots:
-            rb.update_temperature(dt)
+        self._update_temperatures(dt)
         self._sample_light_barriers()
+
+    def _batch_coeffs(self, h: float, coeffs: list[tuple[float, float, float]]) -> tuple[np.ndarray, np.ndarray]:
+        """Per robot (decay, mean factor, c_eff) and RobotPlant.substep_constants for substep h, as arrays."""
+        cached = self._batch_cache.get(h)
+        if cached is None:
+            factors = np.array(coeffs, dtype=float).reshape(len(self._robots), 3)
+            consts = np.array([rb.substep_constants(h) for rb in self._robots], dtype=float).reshape(
+                len(self._robots), 15)
+            if len(self._batch_cache) > 64:
+                self._batch_cache.clear()
+            cached = self._batch_cache[h] = (factors, consts)
+        return cached
+
+    def _update_temperatures(self, dt: float) -> None:
+        """RobotPlant.update_temperature for every robot at once (the same operations per wheel)."""
+        decay = self._thermal_cache.get(dt)
+        if decay is None:
+            decay = np.array([[math.exp(-dt / c.thermal_tau_s)] for c in self._coeffs]).reshape(len(self._coeffs), 1)
+            if len(self._thermal_cache) > 64:
+                self._thermal_cache.clear()
+            self._thermal_cache[dt] = decay
+        _thermal_step(self._temp, self._i2, self._resistance, self._ambient, self._thermal_r, decay, dt)
 
     def _contact_candidates(self, dt: float) -> tuple[bool, list[int], list[tuple[int, int]], list[int]]:
         """Contacts possible within dt: (ball-wall, robots near a wall, robot pairs, robots near the ball)."""
@@ -523,23 +595,14 @@ class World:
         bspeed = math.hypot(ball.vx, ball.vy)
         reach_b = ball.radius + bspeed * dt + margin
         ball_wall = abs(ball.x) + reach_b >= self._half_x or abs(ball.y) + reach_b >= self._half_y
-        robots, radii = self._robots, self._radii
-        speeds = [math.hypot(rb.vx, rb.vy) for rb in robots]
-        robot_wall: list[int] = []
-        pairs: list[tuple[int, int]] = []
-        near_ball: list[int] = []
-        for a, rb in enumerate(robots):
-            ra = radii[a]
-            reach = ra + speeds[a] * dt + margin
-            if abs(rb.x) + reach >= self._half_x or abs(rb.y) + reach >= self._half_y:
-                robot_wall.append(a)
-            if math.hypot(ball.x - rb.x, ball.y - rb.y) <= reach + reach_b:
-                near_ball.append(a)
-            for b in range(a + 1, len(robots)):
-                other = robots[b]
-                if math.hypot(other.x - rb.x, other.y - rb.y) <= reach + radii[b] + speeds[b] * dt:
-                    pairs.append((a, b))
-        return ball_wall, robot_wall, pairs, near_ball
+        if not self._robots:
+            return ball_wall, [], [], []
+        wall, near, pairs, any_contact = _robot_contact_candidates(
+            self._body, self._radii_arr, self._half_x, self._half_y, margin, dt, ball.x, ball.y, reach_b)
+        if not any_contact:
+            return ball_wall, [], [], []
+        return (ball_wall, np.flatnonzero(wall).tolist(), [(int(a), int(b)) for a, b in pairs],
+                np.flatnonzero(near).tolist())
 
     def _substeps_with_contacts(
         self,
@@ -615,11 +678,16 @@ class World:
             break
 
     def _sample_light_barriers(self) -> None:
-        r = self._ball.radius
+        if not self._robots:
+            return
+        hits = _beam_hits(self._body, self._ball.x, self._ball.y, self._ball.radius, self._beam_x_arr,
+                          self._beam_half_span)
+        if self._barrier_direct:  # no latency, no false flips: the output is the beam itself
+            self._barrier_values[:] = hits
+            return
         for i, lb in enumerate(self._barriers):
-            px, py = self._ball_in_robot_frame(i)
-            hit = beam_hit(px, py, r, self._beam_x[i], 0.5 * self.specs[i].config.dribbler_width_m)
-            lb.sample(self._t, hit)
+            lb.sample(self._t, bool(hits[i]))
+            self._barrier_values[i] = lb.value
 
     # ------------------------------------------------------------------ sensors
     def wheel_speeds_radps(self, i: int) -> np.ndarray:
@@ -638,12 +706,48 @@ class World:
             out += self._sensor_rng.normal(0.0, self.physics.current_noise_a, out.shape)
         return out
 
+    def wheel_sensors(self, robots: Sequence[int] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(wheel speeds, currents) of ``robots`` as rows (len(robots), wheels): what `wheel_speeds_radps` and
+        `motor_currents_a` give, called robot after robot (the same noise draws in the same order)."""
+        robots = np.asarray(robots, dtype=np.int64)
+        speeds, currents = self._wheel_w[robots], self._current[robots]
+        noise_w, noise_i = self.physics.wheel_speed_noise_radps, self.physics.current_noise_a
+        if noise_w > 0.0 or noise_i > 0.0:
+            for row, i in enumerate(robots):
+                n = self._num_wheels[i]
+                if noise_w > 0.0:
+                    speeds[row, :n] += self._sensor_rng.normal(0.0, noise_w, n)
+                if noise_i > 0.0:
+                    currents[row, :n] += self._sensor_rng.normal(0.0, noise_i, n)
+        return speeds, currents
+
+    def set_duties(self, robots: Sequence[int] | np.ndarray, duties: np.ndarray) -> int:
+        """`set_duty` for many robots: duties (len(robots), wheels); returns the number of clamped entries."""
+        robots = np.asarray(robots, dtype=np.int64)
+        arr = np.asarray(duties, dtype=float)
+        if robots.ndim != 1 or arr.shape != (robots.shape[0], self._duty.shape[1]):
+            raise ValueError(f"set_duties: expected duties of shape {(robots.shape[0], self._duty.shape[1])}, "
+                             f"got {arr.shape}")
+        if not np.isfinite(arr).all():
+            raise ValueError("set_duties: duties must be finite")
+        if robots.size and not 0 <= robots.min() <= robots.max() < len(self._robots):
+            raise ValueError(f"set_duties: robot indices must be in [0, {len(self._robots) - 1}]")
+        clipped = np.minimum(np.maximum(arr, -1.0), 1.0)
+        total = 0
+        if np.any(clipped != arr):
+            for row, i in enumerate(robots):
+                count = int(np.count_nonzero(clipped[row] != arr[row]))
+                self._clamped_duties[i] += count
+                total += count
+        self._duty[robots] = clipped
+        return total
+
     def winding_temperature_c(self, i: int) -> np.ndarray:
         return np.array(self._robots[self._index(i)].temp_c)
 
     def light_barrier(self, i: int) -> bool:
         """Robot i's light barrier output (beam interrupted by the ball), with latency and false flips."""
-        return self._barriers[self._index(i)].value
+        return bool(self._barrier_values[self._index(i)])
 
     def poll_vision(self) -> list[VisionFrame]:
         """Vision frames released by now (t_s), oldest first; each frame is returned once."""
@@ -762,3 +866,57 @@ def build_world(setup: PlantSetup) -> World:
     x, y, vx, vy = setup.ball
     world.place_ball(x, y, vx, vy)
     return world
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _robot_contact_candidates(body, radii, half_x, half_y, margin, dt, bx, by, reach_b):
+    """World._contact_candidates over the body rows (x, y, ..., vx, vy): robots near a wall, robots near the
+    ball (flags) and the robot pairs that may touch within dt."""
+    n = body.shape[0]
+    wall = np.zeros(n, dtype=np.bool_)
+    near = np.zeros(n, dtype=np.bool_)
+    pairs = np.empty((n * (n - 1) // 2, 2), dtype=np.int64)
+    count = 0
+    speeds = np.empty(n)
+    for a in range(n):
+        speeds[a] = math.hypot(body[a, 5], body[a, 6])
+    for a in range(n):
+        xa, ya = body[a, 0], body[a, 1]
+        reach = radii[a] + speeds[a] * dt + margin
+        if abs(xa) + reach >= half_x or abs(ya) + reach >= half_y:
+            wall[a] = True
+        if math.hypot(bx - xa, by - ya) <= reach + reach_b:
+            near[a] = True
+        for b in range(a + 1, n):
+            if math.hypot(body[b, 0] - xa, body[b, 1] - ya) <= reach + radii[b] + speeds[b] * dt:
+                pairs[count, 0] = a
+                pairs[count, 1] = b
+                count += 1
+    return wall, near, pairs[:count], count > 0 or wall.any() or near.any()
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _thermal_step(temp, i2, resistance, ambient, thermal_r, decay, dt):
+    """RobotPlant.update_temperature for every robot and wheel (the same operations)."""
+    for k in range(temp.shape[0]):
+        for i in range(temp.shape[1]):
+            power_w = resistance[k, 0] * i2[k, i] / dt
+            t_ss = ambient[k, 0] + power_w * thermal_r[k, 0]
+            temp[k, i] = t_ss + (temp[k, i] - t_ss) * decay[k, 0]
+            i2[k, i] = 0.0
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _beam_hits(body, bx, by, r, beam_x, half_span):
+    """kicker.beam_hit of the ball in every robot's frame (World._ball_in_robot_frame), per robot."""
+    n = body.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        dx, dy = bx - body[i, 0], by - body[i, 1]
+        ct, st = body[i, 3], body[i, 4]
+        px = ct * dx + st * dy
+        py = -st * dx + ct * dy
+        ddx = px - beam_x[i]
+        if abs(ddx) < r:
+            out[i] = abs(py) - math.sqrt(r * r - ddx * ddx) <= half_span[i]
+    return out

@@ -7,12 +7,14 @@ builds its world the same way.
 ``InProcessRunner`` steps the same cores the DDS graph runs, in the same order and with
 the same one-tick setpoint delay as the lockstep protocol (erforce_interfaces.lockstep):
 
-    tick k:  sensors(t_k) -> MainBoardLoop.tick -> setpoint(t_k)  (used at tick k+1)
-                          -> MotorBoardLoop.tick with setpoint(t_{k-1}) -> duty(t_k)
+    tick k:  sensors(t_k) -> main board -> setpoint(t_k)  (used at tick k+1)
+                          -> motor boards with setpoint(t_{k-1}) -> duty(t_k)
              world.set_duty(duty(t_k)); world.step(T)
 
 so a lockstep DDS run and an in-process run with the same seed and commands give the
-same trajectory, without DDS: for sweeps, tuning and benchmarks. No rclpy import.
+same trajectory, without DDS: for sweeps, tuning and benchmarks. The firmware of all
+controlled robots is one erforce_motion.team_cores.TeamFirmware (the per-robot loops'
+numbers, one call per tick), and the world steps its robots together. No rclpy import.
 """
 
 from __future__ import annotations
@@ -21,8 +23,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from erforce_motion.firmware import MainBoardLoop, MotorBoardLoop
 from erforce_motion.motor_board import MotorBoardConfig
+from erforce_motion.team_cores import TeamFirmware
 from erforce_motion.velocity_control import VelocityControlConfig
 from erforce_sim.sensors import VisionFrame
 from erforce_sim.world import PlantSetup, build_world
@@ -45,15 +47,13 @@ class InProcessRunner:
         self.world = build_world(setup)
         period = setup.control_period_s
         motor_config = motor_config or MotorBoardConfig(loop_period_s=period)
-        self.main_boards: dict[int, MainBoardLoop] = {}
-        self.motor_boards: dict[int, MotorBoardLoop] = {}
-        for i in range(setup.num_robots + setup.num_opponents):
-            if i >= setup.num_robots or setup.is_controlled(i):
-                self.main_boards[i] = MainBoardLoop(
-                    setup.robot, velocity_config or VelocityControlConfig(), period, command_timeout_s
-                )
-                self.motor_boards[i] = MotorBoardLoop(setup.robot, motor_config, period, setpoint_timeout_s)
-        self._previous_setpoint: dict[int, tuple[float, np.ndarray]] = {}
+        # world indices of the robots with firmware; firmware row r is robot controlled[r]
+        self.controlled = np.array([i for i in range(setup.num_robots + setup.num_opponents)
+                                    if i >= setup.num_robots or setup.is_controlled(i)], dtype=np.int64)
+        self._row = {int(i): r for r, i in enumerate(self.controlled)}
+        self.firmware = TeamFirmware(
+            len(self.controlled), setup.robot, velocity_config or VelocityControlConfig(), motor_config, period,
+            period, command_timeout_s, setpoint_timeout_s) if len(self.controlled) else None
         self.tick_index = 0
         self.vision_listeners: list[Callable[[VisionFrame], None]] = []
 
@@ -67,22 +67,20 @@ class InProcessRunner:
 
     def command(self, robot: int, twist: Sequence[float]) -> None:
         """cmd_vel for a controlled robot: [vx, vy, wz] in its base_link."""
-        self.main_boards[robot].command(np.asarray(twist, dtype=float))
+        if robot not in self._row:
+            raise KeyError(f"robot {robot} has no motion control in this setup")
+        self.firmware.command(self._row[robot], np.asarray(twist, dtype=float))
+
+    def firmware_row(self, robot: int) -> int:
+        """The row of a controlled robot (world index) in ``firmware``'s arrays."""
+        return self._row[robot]
 
     def tick(self) -> None:
         """One control period, exactly as the lockstep DDS graph runs it."""
-        t_s = self.t_s
         world = self.world
-        for i, main in self.main_boards.items():
-            speeds = world.wheel_speeds_radps(i)
-            currents = world.motor_currents_a(i)
-            setpoint = main.tick(t_s, speeds).copy()
-            motor = self.motor_boards[i]
-            previous = self._previous_setpoint.get(i)
-            if previous is not None:
-                motor.set_setpoint(*previous)
-            world.set_duty(i, motor.tick(t_s, speeds, currents))
-            self._previous_setpoint[i] = (t_s, setpoint)
+        if self.firmware is not None:
+            speeds, currents = world.wheel_sensors(self.controlled)
+            world.set_duties(self.controlled, self.firmware.tick(self.t_s, speeds, currents))
         world.step(self.setup.control_period_s)
         self.tick_index += 1
         if self.vision_listeners:
