@@ -335,21 +335,6 @@ class BallPredictor:
             self._fit_future = self._fit_pool.submit(fit_shots, list(shots.shots), self.model)
         return finished
 
-    def wait_for_fit(self, timeout_s: float | None = None) -> FitResult | None:
-        """Block until the running fit finishes and collect it as ``identify`` would (offline runs)."""
-        future = self._fit_future
-        if future is None:
-            return None
-        concurrent.futures.wait([future], timeout=timeout_s)
-        if not future.done():
-            return None
-        self._fit_future = None
-        try:
-            return self._fit_done(future.result())
-        except Exception as exc:
-            self._warn("fit", f"online identification: fit failed: {exc}")
-            return None
-
     def _fit_done(self, fit: FitResult) -> FitResult:
         cfg = self.config
         stds = (fit.a_slide_std, fit.a_roll_std, fit.c_switch_std)
