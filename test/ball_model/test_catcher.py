@@ -12,7 +12,6 @@ from erforce_ball_model.catcher import (
     approach_velocity,
     catch_twist,
     choose_target,
-    facing_towards,
     field_to_robot,
     line_intercept,
     on_receive_line,
@@ -48,10 +47,8 @@ def test_catch_twist_turns_the_short_way_and_saturates():
     assert twist[2] == CFG.w_max_radps
 
 
-def test_wrap_and_facing():
+def test_wrap_angle():
     assert wrap_angle(3 * math.pi) == pytest.approx(-math.pi)
-    assert facing_towards(np.zeros(2), np.array([-1.0, 0.0])) == pytest.approx(math.pi)
-    assert facing_towards(np.zeros(2), np.zeros(2), fallback_rad=0.3) == 0.3
 
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf])

@@ -52,15 +52,17 @@ def test_only_robots_seen_within_the_timeout_are_answered():
     assert frame.catch_robots == [1]  # robot_0 never seen
 
 
-def test_a_clock_restart_restarts_the_ball_filter_and_a_small_step_back_is_rejected():
-    warnings, notes = [], []
-    predictor = BallPredictor(PredictorConfig(num_robots=1), warn=lambda k, t: warnings.append(k),
-                              info=notes.append)
+def test_a_new_time_line_restarts_the_trackers_and_a_repeated_stamp_is_rejected():
+    warnings = []
+    predictor = BallPredictor(PredictorConfig(num_robots=1), warn=lambda k, t: warnings.append(k))
     rolling_frames(predictor, 10.0, -2.0, 2.0, n=3)
     assert predictor.ball_frame(10.0, 0.0, 0.0) is None and warnings == ["ball_time"]  # repeated stamp
-    frame = predictor.ball_frame(1.0, 0.5, 0.5)  # far before the newest: the simulator restarted
+    assert predictor.ball_frame(1.0, 0.5, 0.5) is None  # before the newest, without the verdict: rejected
+    frame = predictor.ball_frame(1.0, 0.5, 0.5, restart=True)  # StampFilter's RESTART: the simulator restarted
     assert frame is not None and frame.phase == "unknown"  # a fresh filter
-    assert any("restarted" in n for n in notes)
+    assert predictor.robot_frame(0, 12.0, 1.0, 0.0, 0.0) is not None
+    assert predictor.robot_frame(0, 2.0, 1.0, 0.0, 0.0) is None
+    assert predictor.robot_frame(0, 2.0, 1.0, 0.0, 0.0, restart=True) is not None
 
 
 def test_vision_outside_the_field_margin_is_rejected():

@@ -10,7 +10,13 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Int32
 
 from erforce_interfaces import contract
-from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only, set_callback_fault_handler
+from erforce_interfaces.executor import (
+    EXECUTOR_KINDS,
+    make_executor,
+    run_sampled,
+    sample_only,
+    set_callback_fault_handler,
+)
 from erforce_interfaces.node_support import CALLBACK_FAULT, guard_callbacks, guard_clock
 from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
 from erforce_interfaces.tools.testing import isolated_node
@@ -88,10 +94,11 @@ def test_the_filter_refuses_a_useless_jump_limit_and_resets():
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 
 
-@pytest.fixture
-def env():
+@pytest.fixture(params=EXECUTOR_KINDS)
+def env(request):
+    """A node on each executor a node may spin on: the guard lives on the callbacks, not in the executor."""
     with isolated_node("guard_test") as node:
-        executor = DirectExecutor(context=node.context)
+        executor = make_executor(request.param, context=node.context)
         executor.add_node(node)
         yield node, executor
         set_callback_fault_handler(None)

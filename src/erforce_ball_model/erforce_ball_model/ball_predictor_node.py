@@ -186,7 +186,8 @@ class BallPredictorNode(Node):
                               f"robot_{robot}/vision_pose", self)
         if verdict is StampVerdict.DROP:
             return
-        tracker = self._predictor.robot_frame(robot, t_s, pose[0], pose[1], pose[2])
+        tracker = self._predictor.robot_frame(robot, t_s, pose[0], pose[1], pose[2],
+                                              restart=verdict is StampVerdict.RESTART)
         if tracker is None:
             return
         vel = tracker.velocity_mps
@@ -213,9 +214,10 @@ class BallPredictorNode(Node):
         except ConversionError as exc:
             self._warn.warn("ball_invalid", f"rejected vision/ball: {exc}")
             return
-        if check_stamp(self._ball_stamps, round(t_s * 1e9), self._warn, "vision/ball", self) is StampVerdict.DROP:
+        verdict = check_stamp(self._ball_stamps, round(t_s * 1e9), self._warn, "vision/ball", self)
+        if verdict is StampVerdict.DROP:
             return
-        frame = self._predictor.ball_frame(t_s, xy[0], xy[1])
+        frame = self._predictor.ball_frame(t_s, xy[0], xy[1], restart=verdict is StampVerdict.RESTART)
         if frame is None:
             return
         # Catch times go out first: they are what the robots act on, and each publish costs tens

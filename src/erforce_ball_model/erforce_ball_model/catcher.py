@@ -143,14 +143,6 @@ def catch_twist(pose: np.ndarray, target: np.ndarray, facing_rad: float, cfg: Ca
     return np.array([v_robot[0], v_robot[1], wz])
 
 
-def facing_towards(from_xy: np.ndarray, to_xy: np.ndarray, fallback_rad: float = 0.0) -> float:
-    """Heading that points from ``from_xy`` to ``to_xy`` (fallback when they coincide)."""
-    d = np.asarray(to_xy, dtype=float) - np.asarray(from_xy, dtype=float)
-    if float(np.hypot(d[0], d[1])) < 1e-9:
-        return fallback_rad
-    return math.atan2(d[1], d[0])
-
-
 def on_receive_line(pose: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.ndarray, dribbler_offset_m: float,
                     tolerance_m: float) -> bool:
     """True when the ball is coming at the robot's dribbler: the dribbler centre lies within

@@ -4,8 +4,9 @@
 the ball tracker (tracking.BallTracker: v_shoot, phase, ricochets) and, for every robot seen
 within ``robot_timeout_s``, one robotTimeToBall run for the team after the reaction time
 (catch_time.catch_after_reaction); each robot pose (``robot_frame``) feeds that robot's
-RobotTracker. It owns every per-frame decision: vision rejection outside the field, clock
-restarts (a stamp far behind the newest restarts the filter), robot freshness and their
+RobotTracker. It owns every per-frame decision: vision rejection outside the field, what a
+new time line resets (the caller judges each stamp by the stack's one time rule,
+erforce_interfaces.stamps.StampFilter, and passes ``restart``), robot freshness and their
 constant-velocity extrapolation to the frame's stamp, the reaction-time offset, the mapping of
 "no catch" to CATCH_TIME_NEVER, and the ball model in use: the configured one, or an online
 fit (identification.ShotAccumulator, fitted in a worker thread) once its standard errors are
@@ -134,7 +135,7 @@ class BallPredictor:
     """Ball and robot tracking plus robotTimeToBall for a team (module docstring).
 
     ``warn(key, text)`` receives what was rejected or went wrong (``key`` groups repeats, for a
-    throttled log); ``info(text)`` what changed (clock restarts, an accepted fit). Fits run in a
+    throttled log); ``info(text)`` what changed (an accepted fit). Fits run in a
     worker thread and are collected by ``identify``; ``close`` stops it.
     """
 
@@ -213,15 +214,15 @@ class BallPredictor:
         self._fit_future = None
 
     # ------------------------------------------------------------------ robots
-    def robot_frame(self, robot: int, t_s: float, x_m: float, y_m: float, heading_rad: float) -> RobotTracker | None:
-        """A vision pose of ``robot``: its tracker after the update, or None when the pose was rejected."""
+    def robot_frame(self, robot: int, t_s: float, x_m: float, y_m: float, heading_rad: float, *,
+                    restart: bool = False) -> RobotTracker | None:
+        """A vision pose of ``robot``: its tracker after the update, or None when the pose was rejected.
+        ``restart``: the stamp starts a new time line (StampVerdict.RESTART), the robot's tracker starts over."""
         cfg, key = self.config, f"pose{robot}"
         if not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m):
             self._warn(key, f"robot_{robot}: rejected vision_pose outside the field: ({x_m:.3f}, {y_m:.3f}) m")
             return None
-        tracker = self._robots[robot]
-        if tracker is not None and self._restarted_clock(tracker.t_s, t_s, f"robot_{robot} tracker"):
-            tracker = None
+        tracker = None if restart else self._robots[robot]
         tracker = tracker or RobotTracker()
         status = tracker.update(t_s, x_m, y_m, heading_rad)
         if status == UpdateStatus.REJECTED_TIME:
@@ -249,17 +250,6 @@ class BallPredictor:
             out.append((x + vx * age_s, y + vy * age_s, 0.0 if heading is None else heading, vx, vy))
         return out
 
-    def _restarted_clock(self, last_t_s: float | None, t_s: float, what: str) -> bool:
-        """A stamp more than max_gap_s before the newest one: the clock restarted (e.g. the simulator).
-
-        Smaller steps back are reordered or repeated frames and are rejected; after a restart
-        the old newest stamp would reject every frame until the new clock passed it.
-        """
-        if last_t_s is None or t_s >= last_t_s - self.config.tracker.max_gap_s:
-            return False
-        self._info(f"time went backwards ({last_t_s:.6f} -> {t_s:.6f} s): {what} restarted")
-        return True
-
     def _robots_now(self, t_s: float) -> tuple[list[int], np.ndarray]:
         """The robots fresh at ``t_s``, and all robots' positions then (constant-velocity extrapolation).
 
@@ -279,14 +269,15 @@ class BallPredictor:
         return fresh, np.array(rows)
 
     # -------------------------------------------------------------------- ball
-    def ball_frame(self, t_s: float, x_m: float, y_m: float) -> BallFrame | None:
+    def ball_frame(self, t_s: float, x_m: float, y_m: float, *, restart: bool = False) -> BallFrame | None:
         """A vision observation of the ball: the ball's state and every fresh robot's catch; None when
-        the observation was rejected or no prediction could be made (with a warning)."""
+        the observation was rejected or no prediction could be made (with a warning). ``restart``: the
+        stamp starts a new time line (StampVerdict.RESTART), the ball filter and the shot collection start over."""
         cfg = self.config
         if not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m):
             self._warn("ball_outside", f"rejected vision/ball outside the field: ({x_m:.3f}, {y_m:.3f}) m")
             return None
-        if self._restarted_clock(self._ball.t_s, t_s, "ball filter"):
+        if restart:
             self._ball = BallTracker(self.model, cfg.tracker)
             if self._shots is not None:
                 self._shots = ShotAccumulator(tracker_config=cfg.tracker)
@@ -378,21 +369,6 @@ class BallPredictor:
                 self._fit_pool = concurrent.futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ball_fit")
             self._fit_future = self._fit_pool.submit(fit_shots, list(shots.shots), self.model)
         return finished
-
-    def wait_for_fit(self, timeout_s: float | None = None) -> FitResult | None:
-        """Block until the running fit finishes and collect it as ``identify`` would (offline runs)."""
-        future = self._fit_future
-        if future is None:
-            return None
-        concurrent.futures.wait([future], timeout=timeout_s)
-        if not future.done():
-            return None
-        self._fit_future = None
-        try:
-            return self._fit_done(future.result())
-        except Exception as exc:
-            self._warn("fit", f"online identification: fit failed: {exc}")
-            return None
 
     def _fit_done(self, fit: FitResult) -> FitResult:
         cfg = self.config

@@ -1,46 +1,45 @@
-"""A single-threaded rclpy executor that runs plain callbacks directly, for the stack's nodes.
+"""How the stack's nodes spin, and what their subscriptions do under any executor.
 
-rclpy's SingleThreadedExecutor wraps every callback in a Task, hands them out one per
-``spin_once`` from a generator that rebuilds the wait set from all entities, and triggers its
-own guard condition after each callback, so every message also costs a second, empty wait.
-On this 2-core machine one message through it cost about 280 us of CPU in a ping-pong between
-two processes, half of it executor overhead; that is most of a 2 ms lockstep tick once three
-processes take part (bench/bench_lockstep.py).
+``make_executor`` picks the executor ``node_support.run_node`` spins on: rclpy's EventsExecutor by
+default, SingleThreadedExecutor, or ``DirectExecutor``, this module's own, for the bench that chose
+between them (bench/bench_executor.py, figures in bench/NOTES.md).
 
-``DirectExecutor`` has the same semantics for what the stack's nodes use: after one wait it
-runs every ready timer, subscription (everything queued on it, up to 64 messages), guard
-condition, service, client response and QoS event once, in that order, node by node, then
-waits again (everything it waits on is level-triggered, so what is left wakes the next wait
-at once). Callbacks run in this thread; a
-callback that returns a coroutine is driven to completion, and one that suspends on a future
-is an error (use rclpy's executors for such nodes). Callback groups have nothing to arbitrate
-in a single thread and are ignored. The entity lists are rebuilt when the executor is woken
-(a node creates or destroys an entity, a node is added, shutdown) and otherwise reused.
+Guarded subscriptions (``guard``): a subscription callback that raises would end ``spin`` and with
+it the node, so one malformed message from any participant could kill a node. ``guard`` replaces a
+subscription's callback, once, by an inbox that runs the node's callback inside the process's fault
+handler (``set_callback_fault_handler``; ``node_support.run_node`` installs it for every node):
+an exception goes to the handler instead of ending the spin, whichever executor called. Without a
+handler (tests, tools) exceptions propagate. A sample rmw cannot deserialize never reaches Python:
+rmw_fastrtps drops it and the take finds nothing (test/interfaces/test_executor.py shows it). Timers,
+services and the rest are not guarded: they run on the node's own state, where an exception is a bug
+that must stop the node.
 
-Sampled subscriptions: on this machine every message a process takes through an executor is a
-wake of its own, a few hundred microseconds of CPU. A node that acts at its own rate on the
-newest inputs (a controller's timer) or an observer that only needs every message eventually
-marks such subscriptions with ``sample_only``: DirectExecutor then never waits on them, and
-the node calls ``run_sampled`` when it wants them, which runs their callbacks for everything
-queued, in the order it was sent; their QoS-event handlers are not served either. A node that
-normally finds an input already queued when it runs, but must wait when it is late (the motor
-boards' setpoint), switches it back with ``sample_only(sub, False)`` for as long as it waits.
-Under another executor they stay ordinary subscriptions (a callback per message), so the node
-behaves the same there. ``take_queued`` is the raw form.
+Sampled subscriptions: every message a process takes through an executor costs CPU. A node that
+acts at its own rate on the newest inputs (a controller's timer) or an observer that only needs
+every message eventually marks such subscriptions with ``sample_only`` and calls ``run_sampled``
+when it wants them, which runs their callbacks for everything queued, oldest first (``run_sampled``)
+(``run_newest``: only the newest of each). Under EventsExecutor a sampled message is taken when it
+arrives and waits in the inbox, bounded by the subscription's history depth, so a flood costs one
+append per message and one callback per ``run_newest``; DirectExecutor does not even wait on a
+sampled subscription (nor serve its QoS events). A node that normally finds an input already
+queued when it runs, but must wait when it is late (the motor boards' setpoint), switches it back
+with ``sample_only(sub, False)`` for as long as it waits. ``take_queued`` is the raw form.
 
-Callback faults: a subscription callback that raises would end ``spin`` and with it the node, so
-one malformed message from any participant could kill a node. ``set_callback_fault_handler``
-installs the one guard (``node_support.run_node`` does, for every node of the stack): every
-subscription callback this module runs, executor or ``run_sampled``, runs inside it, and an
-exception is handed to the handler instead of ending the spin. Without a handler (tests, tools)
-exceptions propagate as before. Timers, services and the rest are not guarded: they run on
-the node's own state, where an exception is a bug that must stop the node.
+DirectExecutor: after one wait it runs every ready timer, subscription (everything queued on it,
+up to 64 messages), guard condition, service, client response and QoS event once, in that order,
+node by node, then waits again. Callbacks run in this thread; a callback that returns a coroutine
+is driven to completion, and one that suspends on a future is an error. Callback groups are
+ignored. It lost to EventsExecutor on CPU per message and lockstep speed; it stays for the bench
+and the in-process demo director (erforce_sim.closed_loop.demo), whose callbacks take the message
+info, which EventsExecutor in rclpy 7.1 cannot pass.
 """
 
 from __future__ import annotations
 
+import collections
 import inspect
 import os
+import time
 import weakref
 from collections.abc import Callable, Iterable
 
@@ -51,7 +50,7 @@ from rclpy.utilities import timeout_sec_to_nsec
 
 from erforce_interfaces import rclpy_internals as internal  # every private rclpy name used here
 
-__all__ = ["EXECUTOR_ENV", "EXECUTOR_KINDS", "DirectExecutor", "make_executor", "run_newest", "run_sampled",
+__all__ = ["EXECUTOR_ENV", "EXECUTOR_KINDS", "DirectExecutor", "guard", "make_executor", "run_newest", "run_sampled",
            "sample_only", "set_callback_fault_handler", "take_queued"]
 
 EXECUTOR_ENV = "ERFORCE_EXECUTOR"  # the executor run_node spins on: one of EXECUTOR_KINDS (bench/bench_executor.py)
@@ -66,24 +65,21 @@ _fault_handler: Callable[[Subscription, Exception], None] | None = None
 
 
 def set_callback_fault_handler(handler: Callable[[Subscription, Exception], None] | None) -> None:
-    """Guard every subscription callback of this process (module doc); None removes the guard.
-    The handler gets the subscription and the exception; it may re-raise."""
+    """The guard every guarded subscription callback of this process runs inside (module doc); None
+    removes it. The handler gets the subscription and the exception; it may re-raise."""
     global _fault_handler
     _fault_handler = handler
 
 
 def make_executor(kind: str | None = None, *, context=None):
-    """The executor a node spins on: ``direct`` (DirectExecutor, the default), ``events``
-    (rclpy.experimental.EventsExecutor) or ``single`` (rclpy's SingleThreadedExecutor); ``kind`` None
-    reads the environment variable ERFORCE_EXECUTOR, so a bench can run the same nodes on each.
+    """The executor a node spins on: ``events`` (rclpy.experimental.EventsExecutor, the default),
+    ``single`` (rclpy's SingleThreadedExecutor) or ``direct`` (DirectExecutor); ``kind`` None reads the
+    environment variable ERFORCE_EXECUTOR, so a bench can run the same nodes on each.
 
-    DirectExecutor stays the default although EventsExecutor kept pace with it in
-    bench/bench_executor.py: only DirectExecutor runs the process's callback guard
-    (``set_callback_fault_handler``, also for samples rmw cannot deserialize), bounds what one ready
-    subscription takes per wake, and leaves ``sample_only`` subscriptions to their nodes, which the
-    hardening against bad input and floods rests on. Under the other two a ``sample_only``
-    subscription is an ordinary one (a callback per message) and an exception ends the node."""
-    kind = kind or os.environ.get(EXECUTOR_ENV) or "direct"
+    EventsExecutor is the default: it cost the least CPU per message and ran the lockstep loop
+    fastest in bench/bench_executor.py (figures in bench/NOTES.md). The callback guard and the
+    sampled subscriptions live on the subscriptions themselves (``guard``), so they hold under each."""
+    kind = kind or os.environ.get(EXECUTOR_ENV) or "events"
     if kind == "direct":
         return DirectExecutor(context=context)
     if kind == "single":
@@ -95,8 +91,8 @@ def make_executor(kind: str | None = None, *, context=None):
 
 class _SpinOnceLoop:
     """rclpy.experimental.EventsExecutor (a C++ object: no subclass) whose ``spin`` is a loop of ``spin_once``:
-    in rclpy 7.1 its own ``spin()`` neither ran a timer nor returned after shutdown within 20 s
-    (bench/bench_executor.py)."""
+    in rclpy 7.1 its own ``spin()`` ran no timer and did not return after rclpy.shutdown
+    (bench/bench_executor.py measures both)."""
 
     def __init__(self, context) -> None:
         from rclpy.experimental import EventsExecutor
@@ -113,29 +109,113 @@ class _SpinOnceLoop:
             self.executor.spin_once(timeout_sec=0.5)
 
 
+class _Inbox:
+    """What an executor calls for a guarded subscription (``guard``): the callback runs inside the fault
+    handler, or, while the subscription is sampled, the message waits here for ``run_sampled``."""
+
+    __slots__ = ("__weakref__", "callback", "queue", "sampled", "subscription", "wants_info")
+
+    def __init__(self, subscription: Subscription, callback: Callable) -> None:
+        self.subscription = weakref.proxy(subscription)  # the subscription holds its inbox
+        self.set_callback(callback)
+        depth = subscription.qos_profile.depth
+        # Only what the subscription's own history would keep: a flood costs no memory here.
+        self.queue: collections.deque = collections.deque(maxlen=depth if depth > 0 else _KEEP_ALL_BOUND)
+        self.sampled = False
+
+    def set_callback(self, callback: Callable) -> None:
+        self.callback = callback
+        self.wants_info = _takes_info(callback)
+
+    def receive(self, msg, info=None) -> None:
+        if self.sampled:
+            if info is None:  # EventsExecutor passes no info: the time it arrived stands in for both
+                now_ns = time.time_ns()
+                info = {"source_timestamp": now_ns, "received_timestamp": now_ns}
+            self.queue.append((msg, info))
+        else:
+            self.run(msg, info)
+
+    def run(self, msg, info) -> None:
+        try:
+            _finish(self.callback(msg, info) if self.wants_info else self.callback(msg))
+        except Exception as exc:
+            if _fault_handler is None:
+                raise
+            _fault_handler(self.subscription, exc)
+
+
+class _InboxWithInfo(_Inbox):
+    __slots__ = ()
+
+    def __call__(self, msg, info) -> None:  # rclpy then passes the message info (not EventsExecutor)
+        self.receive(msg, info)
+
+
+class _InboxMessageOnly(_Inbox):
+    __slots__ = ()
+
+    def __call__(self, msg) -> None:
+        self.receive(msg)
+
+
+_INBOXES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_KEEP_ALL_BOUND = 1000  # messages an inbox keeps for a keep-all subscription
+
+
+def _takes_info(callback: Callable) -> bool:
+    """rclpy's rule (Subscription.callback): a callback that cannot take one argument gets the message info."""
+    try:
+        inspect.signature(callback).bind(object())
+        return False
+    except TypeError:
+        return True
+
+
+def guard(subscription: Subscription) -> _Inbox:
+    """Put the subscription's callback behind the process's fault handler, once (later calls return the
+    same inbox). From then on ``subscription.callback`` is the inbox and ``inbox.callback`` the node's
+    function; replace the latter with ``inbox.set_callback``."""
+    inbox = _INBOXES.get(subscription)
+    if inbox is None:
+        original = subscription.callback
+        inbox = (_InboxWithInfo if _takes_info(original) else _InboxMessageOnly)(subscription, original)
+        _INBOXES[subscription] = inbox
+        subscription.callback = inbox
+    return inbox
+
+
 def sample_only(subscription: Subscription, sampled: bool = True) -> Subscription:
-    """Leave ``subscription`` out of DirectExecutor's waits (its node runs it with ``run_sampled``),
-    or with ``sampled=False`` wait on it again; takes effect at the executor's next wait."""
+    """Leave ``subscription``'s messages to its node (``run_sampled``), or with ``sampled=False`` run its
+    callback per message again. DirectExecutor then does not even wait on it (from its next wait);
+    under the other executors its messages wait in its inbox (``guard``)."""
     global _sampled_changes
-    if sampled != (subscription in _SAMPLED):
+    inbox = guard(subscription)
+    if sampled != inbox.sampled:
+        inbox.sampled = sampled
         if sampled:
             _SAMPLED.add(subscription)
         else:
             _SAMPLED.discard(subscription)
+            # what arrived while it was sampled runs first, in order
+            while inbox.queue:
+                inbox.run(*inbox.queue.popleft())
         _sampled_changes += 1
     return subscription
 
 
 def take_queued(subscription: Subscription) -> list:
-    """Everything queued on a subscription, as (message, info) pairs, without an executor."""
+    """Everything queued on a subscription, as (message, info) pairs: what waits in its inbox, then what
+    rmw still holds."""
+    inbox = _INBOXES.get(subscription)
     taken = []
+    if inbox is not None and inbox.queue:
+        taken.extend(inbox.queue)
+        inbox.queue.clear()
     while True:
         try:
             item = internal.take_message(subscription)
-        except Exception as exc:  # a sample rmw cannot deserialize
-            if _fault_handler is None:
-                raise
-            _fault_handler(subscription, exc)
+        except InvalidHandle:  # destroyed meanwhile
             break
         if item is None:
             break
@@ -144,14 +224,18 @@ def take_queued(subscription: Subscription) -> list:
 
 
 def run_sampled(subscriptions: Iterable[Subscription]) -> int:
-    """Run the callbacks of everything queued on ``subscriptions``, oldest sent first (DDS source
-    timestamps; taken in the given order, which also breaks ties). Returns how many ran."""
+    """Run the callbacks of everything queued on ``subscriptions``, oldest first: by DDS source timestamp
+    for what rmw still held (DirectExecutor), by arrival in the inbox for what an executor took (in send
+    order per subscription; the executor's take order across them). Returns how many ran."""
     batch = []
     for sub in subscriptions:
-        batch.extend((info["source_timestamp"], sub, msg, info) for msg, info in take_queued(sub))
-    batch.sort(key=lambda item: item[0])
+        key = -1  # never decreasing per subscription: an inbox's arrival times are later than the source
+        for msg, info in take_queued(sub):  # timestamps of what rmw still held behind them
+            key = max(key, info["source_timestamp"])
+            batch.append((key, sub, msg, info))
+    batch.sort(key=lambda item: item[0])  # stable: ties keep the take order
     for _, sub, msg, info in batch:
-        _run_callback(sub, msg, info)
+        guard(sub).run(msg, info)
     return len(batch)
 
 
@@ -168,17 +252,8 @@ def run_newest(subscriptions: Iterable[Subscription]) -> int:
             batch.append((info["source_timestamp"], sub, msg, info))
     batch.sort(key=lambda item: item[0])
     for _, sub, msg, info in batch:
-        _run_callback(sub, msg, info)
+        guard(sub).run(msg, info)
     return dropped
-
-
-def _run_callback(sub: Subscription, msg, info) -> None:
-    try:
-        _finish(internal.run_subscription_callback(sub, msg, info))
-    except Exception as exc:
-        if _fault_handler is None:
-            raise
-        _fault_handler(sub, exc)
 
 
 def _ready(entities, ready_pointers):
@@ -326,14 +401,9 @@ class DirectExecutor(SingleThreadedExecutor):
                 taken = internal.take_message(sub)  # raises InvalidHandle once a callback destroyed it
             except InvalidHandle:
                 return
-            except Exception as exc:  # a sample rmw cannot deserialize
-                if _fault_handler is None:
-                    raise
-                _fault_handler(sub, exc)
-                return
             if taken is None:
                 return
-            _run_callback(sub, *taken)
+            _finish(internal.run_subscription_callback(sub, *taken))
 
     def _take_response(self, client) -> None:
         try:

@@ -35,7 +35,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 
 from erforce_interfaces.contract import CLOCK, Topic
-from erforce_interfaces.executor import make_executor, sample_only, set_callback_fault_handler
+from erforce_interfaces.executor import guard, make_executor, sample_only, set_callback_fault_handler
 from erforce_interfaces.param_schema import ParamSchema, ParamSpec
 from erforce_interfaces.rclpy_internals import RCLError, parameter_overrides
 from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
@@ -159,18 +159,21 @@ def contract_subscription(node: Node, topic: Topic, callback: Callable, resolved
     the contract on both sides, so they cannot be incompatible within the stack. ``raw``: the
     callback gets the serialized message (bytes), for the lockstep topics' codec in conversions.
     ``qos``: a reader that may ask for less than the contract (an observer's best effort, keep last 1).
+    The callback runs behind the process's callback guard (executor.guard, guard_callbacks).
     """
-    return node.create_subscription(topic.msg_type, resolved_name or topic.name, callback, qos or topic.qos,
-                                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
-                                    raw=raw)
+    sub = node.create_subscription(topic.msg_type, resolved_name or topic.name, callback, qos or topic.qos,
+                                   event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+                                   raw=raw)
+    guard(sub)
+    return sub
 
 
 def sample_clock(node: Node) -> list:
     """Take ``/clock`` only when the node runs (erforce_interfaces.executor.sample_only); returns
     the subscriptions for ``run_sampled``.
 
-    For nodes that act on message stamps and need ROS time only for their logs: they then do not
-    wake for each ``/clock`` message. Not for nodes with sim-time timers, which /clock drives.
+    For nodes that act on message stamps and need ROS time only for their logs: they then run no
+    callback per ``/clock`` message. Not for nodes with sim-time timers, which /clock drives.
     """
     subs = [s for s in node.subscriptions if s.topic_name == CLOCK.name]
     for sub in subs:
@@ -204,7 +207,9 @@ CALLBACK_FAULT = "callback fault"
 
 
 def guard_callbacks(node: Node) -> ThrottledWarner:
-    """The one guard around every subscription callback of ``node``'s process (executor.py).
+    """The one guard around every subscription callback of ``node``'s process (executor.guard): it
+    guards the node's subscriptions (contract_subscription guards its own at creation, also later ones)
+    and installs the handler, so it holds under any executor.
 
     The nodes reject bad input they know of with their own warnings ("rejected ..."); an exception
     that still escapes a callback is bad input nobody foresaw or a bug of ours. Either way the message
@@ -223,6 +228,8 @@ def guard_callbacks(node: Node) -> ThrottledWarner:
         where = f" at {last.filename.rsplit('/', 1)[-1]}:{last.lineno} in {last.name}" if last else ""
         warner.warn(topic, f"{CALLBACK_FAULT} on {topic}: {type(exc).__name__}: {exc}{where}; message dropped")
 
+    for sub in node.subscriptions:
+        guard(sub)
     set_callback_fault_handler(on_fault)
     return warner
 
@@ -242,7 +249,8 @@ def guard_clock(node: Node, max_jump_s: float = 2.0) -> StampFilter | None:
     stamps = StampFilter(max_jump_s)
     warner = ThrottledWarner(node)
     for sub in subs:
-        set_time = sub.callback
+        inbox = guard(sub)  # the rule goes behind the callback guard, in front of rclpy's callback
+        set_time = inbox.callback
 
         def on_clock(msg, set_time=set_time) -> None:
             verdict = stamps.offer(stamp_ns(msg.clock.sec, msg.clock.nanosec))
@@ -256,7 +264,7 @@ def guard_clock(node: Node, max_jump_s: float = 2.0) -> StampFilter | None:
                 if restart is not None:
                     restart()
 
-        sub.callback = on_clock
+        inbox.set_callback(on_clock)
     return stamps
 
 
@@ -307,7 +315,7 @@ class QuietInterrupt:
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
-    """Standard node main: init, spin on DirectExecutor (erforce_interfaces.executor.make_executor), clean shutdown.
+    """Standard node main: init, spin on EventsExecutor (erforce_interfaces.executor.make_executor), clean shutdown.
 
     Every node gets the callback guard (guard_callbacks) and the time rule on /clock (guard_clock).
 
@@ -328,7 +336,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
             return 1
         guard_callbacks(node)
         guard_clock(node)
-        executor = make_executor()  # DirectExecutor unless ERFORCE_EXECUTOR says otherwise
+        executor = make_executor()  # EventsExecutor unless ERFORCE_EXECUTOR says otherwise
         executor.add_node(node)
         # The imports (numpy, numba, rclpy) leave ~130k objects that the cyclic GC would scan in every
         # full collection: ~50 ms each back to back, while the node's loop waits. They live as long

@@ -181,10 +181,6 @@ class RobotConfig:
                                  "one robot description serves every node")
         return first
 
-    @classmethod
-    def field_docs(cls) -> dict[str, str]:
-        return {f.name: f.metadata.get("doc", "") for f in fields(cls)}
-
 
 @dataclass(frozen=True)
 class FieldConfig:

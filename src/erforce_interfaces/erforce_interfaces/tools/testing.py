@@ -322,7 +322,7 @@ class _Probe:
         import rclpy
         from rclpy.context import Context
 
-        from erforce_interfaces.executor import DirectExecutor  # the nodes' executor: the same receive cost
+        from erforce_interfaces.executor import DirectExecutor  # spun by hand; serves callbacks that take the info
 
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
