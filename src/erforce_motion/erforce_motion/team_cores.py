@@ -19,9 +19,9 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import numba
 import numpy as np
 
+from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import RobotConfig
 from erforce_motion.firmware import _TICK_TOLERANCE_S, _check_period
 from erforce_motion.kinematics import OmniKinematics

@@ -25,9 +25,9 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
+from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallBody, BallParams, BallState
 from erforce_sim.contacts import ContactParams, RobotShape, ball_robot, ball_walls, robot_robot, robot_walls
