@@ -386,7 +386,7 @@ NODES = {
     "demo.launch.yaml": ["plant-1", "ball_predictor-2", "velocity_controller-3", "motor_boards-4", "catcher-5"],
     "receiver.launch.yaml": ["velocity_controller-1", "motor_boards-2", "catcher-3"],
     "sim_one_robot.launch.yaml": ["plant-1", "velocity_controller-2", "motor_boards-3"],
-    "team_sim.launch.yaml": ["plant-1", "ball_predictor-2", "team_firmware-3"],
+    "team_sim.launch.yaml": ["plant-1", "ball_predictor-2", "team_catcher-3", "team_firmware-4"],
 }
 
 
