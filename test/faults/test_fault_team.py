@@ -213,10 +213,10 @@ def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_singl
     """team_sim.launch.yaml for a team of two: each node SIGKILLed once, erforce-launch restarts it after
     respawn_delay and the loop closes again with nobody restarting anything."""
     outputs = {"plant": (contract.CLOCK, contract.CLOCK.name),
-               "team_firmware": (contract.MOTOR_DUTY, contract.MOTOR_DUTY.for_robot(1)),
+               "team_firmware": (contract.TEAM_MOTOR_DUTY, contract.TEAM_MOTOR_DUTY.name),  # team topics
                "ball_predictor": (contract.CATCH_TIME, contract.CATCH_TIME.for_robot(1))}
     demo = LaunchedDemo(ros_graph, TEAM_SIM_LAUNCH, outputs, robot_ids="[0, 1]", num_robots="2",
-                        robot_poses="[-4.0, 0.0, 0.0, -3.0, 2.0, 0.0]")
+                        opponent_ids="[1]", robot_poses="[-4.0, 0.0, 0.0, -3.0, 2.0, 0.0]")
     demo.wait_running()
     for node in ("team_firmware", "ball_predictor", "plant"):
         assert demo.kill_and_heal(node, 0.5, timeout_s=90.0) > 0.5

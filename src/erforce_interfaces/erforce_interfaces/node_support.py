@@ -288,8 +288,8 @@ class QuietInterrupt:
     when Ctrl-C in a terminal reaches a whole process group, ``ros2 launch`` forwards a second SIGINT
     to each node, which then interrupted ``destroy_node()`` in the cleanup (a traceback, exit code -2).
     This handler raises only once, and only while ``raising``: run_node leaves it on while the node
-    starts and spins (the first SIGINT ends either; in the spin the exception also covers rclpy waking
-    the executor before it has shut the context down) and turns it off first thing in its cleanup.
+    starts (the first SIGINT ends the start) and turns it off when the spin begins, whose loop ends on
+    ``received`` or the shut-down context (at most one spin_once timeout later).
     Install it before ``rclpy.init`` (rclpy calls the handler it found).
     """
 
@@ -343,7 +343,11 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
         # as the process, so they leave the GC's generations once, here.
         gc.collect()
         gc.freeze()
-        executor.spin()
+        # From here a SIGINT only ends the loop: raised inside a callback, KeyboardInterrupt would be reported
+        # by the executor as that callback's fault. rclpy's handler shuts the context down; the loop sees it.
+        interrupt.raising = False
+        while node.context.ok() and not interrupt.received:
+            executor.spin_once(timeout_sec=0.5)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except SystemExit as exc:  # a node may end itself (e.g. the plant's stop_after_s)
