@@ -215,13 +215,13 @@ def guard_callbacks(node: Node) -> ThrottledWarner:
     that still escapes a callback is bad input nobody foresaw or a bug of ours. Either way the message
     is dropped and the node lives on: a throttled warning names the topic, the exception and where it
     was raised, and counts them per topic (``counts``). After shutdown (Ctrl-C under a publish) the
-    exception propagates, as run_node expects.
+    exception is the shutdown itself and is dropped without a word (an executor would report it as a fault).
     """
     warner = ThrottledWarner(node)
 
     def on_fault(sub, exc: Exception) -> None:
         if not node.context.ok():
-            raise exc
+            return  # the shutdown under a publish, not a fault; the spin loop ends on the context
         topic = sub.topic_name
         frames = traceback.extract_tb(exc.__traceback__)
         last = frames[-1] if frames else None

@@ -94,11 +94,10 @@ def observe_only() -> None:
                 os.sched_setscheduler(int(tid), os.SCHED_IDLE, os.sched_param(0))
 
 
-def _take_one(subscription) -> list[bytes]:
-    """The one queued message of a keep-last-1 subscription (raw), or none."""
-    with subscription.handle:
-        item = subscription.handle.take_message(subscription.msg_type, subscription.raw)
-    return [] if item is None else [item[0]]
+def _take_newest(subscription) -> list[bytes]:
+    """The newest queued message of a keep-last-1 subscription (raw), or none: from its inbox, where an
+    executor that takes messages itself (EventsExecutor) has put it, or from rmw."""
+    return [data for data, _ in take_queued(subscription)[-1:]]
 
 
 class FieldViewNode(Node):
@@ -193,8 +192,7 @@ class FieldViewNode(Node):
         for topic, sub in self._subs.items():
             if not self._state.takes(topic):
                 continue
-            # one take for a queue of one (a second, empty take would cost as much again)
-            queued = [data for data, _ in take_queued(sub)] if topic in self._deep else _take_one(sub)
+            queued = [data for data, _ in take_queued(sub)] if topic in self._deep else _take_newest(sub)
             for data in queued:
                 if topic in self._last_value:
                     if data == self._last_value[topic]:
