@@ -34,8 +34,8 @@ from table import bench_main  # bench/table.py: the shared table format
 from erforce_ball_model.ball_model import kick_distance
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import point_msg, pose2d_msg
 from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.tools.messages import point_msg, pose2d_msg
 from erforce_interfaces.tools.testing import RosGraph
 
 NUM_ROBOTS = 22

@@ -36,8 +36,14 @@ from std_msgs.msg import Float64
 from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import float64_cdr, odometry_cdr, point_cdr, point_msg, pose2d_cdr
+from erforce_interfaces.conversions import (
+    float64_cdr,
+    odometry_cdr,
+    point_cdr,
+    pose2d_cdr,
+)
 from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.tools.messages import point_msg
 from erforce_interfaces.tools.testing import RosGraph, stop_process
 from erforce_sim.closed_loop.field_view import WorldState
 from erforce_sim.closed_loop.field_view_node import web_dir

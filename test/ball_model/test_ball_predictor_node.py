@@ -19,11 +19,11 @@ from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     odometry_from_msg,
     point_from_msg,
-    pose2d_msg,
     stamp_to_seconds,
     table_from_msg,
 )
 from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.tools.messages import pose2d_msg
 
 pytestmark = pytest.mark.integration
 

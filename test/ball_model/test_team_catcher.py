@@ -9,7 +9,10 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_msg, point_msg
+from erforce_interfaces.conversions import (
+    odometry_msg,
+)
+from erforce_interfaces.tools.messages import point_msg
 
 pytestmark = pytest.mark.integration
 

@@ -22,7 +22,10 @@ import pytest
 from geometry_msgs.msg import Twist
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import float64_msg, odometry_msg, point_msg
+from erforce_interfaces.conversions import (
+    odometry_msg,
+)
+from erforce_interfaces.tools.messages import float64_msg, point_msg
 
 pytestmark = pytest.mark.integration
 

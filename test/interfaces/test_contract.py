@@ -20,6 +20,7 @@ from std_msgs.msg import Float64, Float64MultiArray, Header
 from erforce_interfaces import contract as c
 from erforce_interfaces import conversions as conv
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.tools import messages as msgs
 
 REFERENCE = Path(__file__).resolve().parents[2] / "docs" / "reference.md"
 
@@ -114,7 +115,7 @@ def test_point_and_pose_reject_nan():
 
 
 def test_joint_state_length_names_and_finiteness():
-    msg = conv.joint_state_msg(5_000_000, ["wheel_0", "wheel_1", "wheel_2"], velocity=[1.0, 2.0, 3.0],
+    msg = msgs.joint_state_msg(5_000_000, ["wheel_0", "wheel_1", "wheel_2"], velocity=[1.0, 2.0, 3.0],
                                effort=[0.1, 0.2, 0.3])
     t_ns, speeds, currents = conv.wheel_states_from_msg(msg, 3)
     assert t_ns == 5_000_000 and speeds.tolist() == [1.0, 2.0, 3.0] and currents.tolist() == [0.1, 0.2, 0.3]
@@ -125,7 +126,7 @@ def test_joint_state_length_names_and_finiteness():
     with pytest.raises(conv.ConversionError, match=r"velocity\[1\]"):
         conv.joint_state_from_msg(JointState(velocity=[1.0, math.nan, 3.0]), 3, "velocity")
     with pytest.raises(conv.ConversionError):
-        conv.joint_state_msg(0, ["wheel_0"], velocity=[math.inf])
+        msgs.joint_state_msg(0, ["wheel_0"], velocity=[math.inf])
 
 
 # A JointState as rmw_fastrtps serializes it (plain CDR, little endian), by hand: the 4-byte
@@ -148,7 +149,7 @@ def test_serialized_joint_state_matches_a_hand_made_layout():
     t_ns, speeds, currents = conv.wheel_states_from_msg(hand, 4)
     assert t_ns == 3_000_000_500 and speeds.tolist() == velocity and currents.tolist() == effort
     # rclpy's own serializer agrees on every byte but the padding, which it leaves uninitialized
-    reference = serialize_message(conv.joint_state_msg(3_000_000_500, names, velocity=velocity, effort=effort))
+    reference = serialize_message(msgs.joint_state_msg(3_000_000_500, names, velocity=velocity, effort=effort))
     padding = {17, 18, 19, 80, 81, 82, 83, 120, 121, 122, 123}  # file offsets (payload offset + 4)
     assert len(reference) >= len(hand)
     assert [b for i, b in enumerate(reference[: len(hand)]) if i not in padding] == [
@@ -189,18 +190,18 @@ def test_serialized_builder_round_trips_through_rclpy(t_ns, values, with_effort)
     names = [f"wheel_{k}" for k in range(len(values))]
     effort = [v / 2 for v in values] if with_effort else None
     data = conv.joint_state_cdr(t_ns, names, velocity=values, effort=effort)
-    assert deserialize_message(data, JointState) == conv.joint_state_msg(t_ns, names, velocity=values, effort=effort)
+    assert deserialize_message(data, JointState) == msgs.joint_state_msg(t_ns, names, velocity=values, effort=effort)
 
 
 def test_serialized_builder_refuses_what_the_message_builder_refuses():
     for bad in ([math.nan, 0.0], [math.inf, 0.0], [-math.inf, 0.0], [2e3, 0.0], [0.0, -2e3], [0.0]):
         with pytest.raises(conv.ConversionError):
-            conv.joint_state_msg(0, ["wheel_0", "wheel_1"], velocity=bad)
+            msgs.joint_state_msg(0, ["wheel_0", "wheel_1"], velocity=bad)
         with pytest.raises(conv.ConversionError):
             conv.joint_state_cdr(0, ["wheel_0", "wheel_1"], velocity=bad)
     before_1970 = conv.joint_state_cdr(-1, ["wheel_0"], effort=[0.0])  # a valid Time, as in the message form
-    assert deserialize_message(before_1970, JointState) == conv.joint_state_msg(-1, ["wheel_0"], effort=[0.0])
-    for build in (conv.joint_state_msg, conv.joint_state_cdr):  # beyond int32 seconds (year 2038)
+    assert deserialize_message(before_1970, JointState) == msgs.joint_state_msg(-1, ["wheel_0"], effort=[0.0])
+    for build in (msgs.joint_state_msg, conv.joint_state_cdr):  # beyond int32 seconds (year 2038)
         with pytest.raises(conv.ConversionError, match="int32"):
             build(2**31 * 10**9, ["wheel_0"], effort=[0.0])
 
@@ -344,7 +345,7 @@ def test_serialized_point_and_pose_match_a_hand_made_layout():
     assert t_s == 7.25 and xy_yaw.tolist() == pytest.approx([1.25, -2.5, 0.75], abs=1e-15)
     assert conv.float64_cdr(-0.5) == b"\x00\x01\x00\x00" + struct.pack("<d", -0.5)
     padding = set(range(22, 28))  # file offsets; rclpy leaves them uninitialized
-    references = (conv.point_msg(7.25, (1.25, -2.5)), conv.pose2d_msg(7.25, (1.25, -2.5, 0.75)))
+    references = (msgs.point_msg(7.25, (1.25, -2.5)), msgs.pose2d_msg(7.25, (1.25, -2.5, 0.75)))
     for built, reference in zip((point, pose), references, strict=True):
         ref = serialize_message(reference)
         assert len(ref) >= len(built)
@@ -390,24 +391,24 @@ def test_serialized_point_pose_and_float64_are_read_like_messages(x, y, z, qx, q
 @given(t_s=st.floats(0.0, 2.0**31 - 1.0), x=st.floats(-1e3, 1e3), y=st.floats(-1e3, 1e3), yaw=st.floats(-1e6, 1e6),
        frame=_ros_text)
 def test_serialized_point_pose_and_float64_builders_round_trip_through_rclpy(t_s, x, y, yaw, frame):
-    assert deserialize_message(conv.point_cdr(t_s, (x, y), frame), PointStamped) == conv.point_msg(t_s, (x, y), frame)
-    assert deserialize_message(conv.pose2d_cdr(t_s, (x, y, yaw), frame), PoseStamped) == conv.pose2d_msg(
+    assert deserialize_message(conv.point_cdr(t_s, (x, y), frame), PointStamped) == msgs.point_msg(t_s, (x, y), frame)
+    assert deserialize_message(conv.pose2d_cdr(t_s, (x, y, yaw), frame), PoseStamped) == msgs.pose2d_msg(
         t_s, (x, y, yaw), frame)
-    assert deserialize_message(conv.float64_cdr(x), Float64) == conv.float64_msg(x)
+    assert deserialize_message(conv.float64_cdr(x), Float64) == msgs.float64_msg(x)
 
 
 def test_serialized_point_pose_and_float64_builders_refuse_what_the_message_builders_refuse():
     for bad in (math.nan, math.inf, -math.inf, 2e3):
-        for build in (conv.point_msg, conv.point_cdr):
+        for build in (msgs.point_msg, conv.point_cdr):
             with pytest.raises(conv.ConversionError):
                 build(1.0, (bad, 0.0))
-        for build in (conv.pose2d_msg, conv.pose2d_cdr):
+        for build in (msgs.pose2d_msg, conv.pose2d_cdr):
             with pytest.raises(conv.ConversionError):
                 build(1.0, (0.0, bad, 0.0))
-        for build in (conv.float64_msg, conv.float64_cdr):
+        for build in (msgs.float64_msg, conv.float64_cdr):
             with pytest.raises(conv.ConversionError):
                 build(bad)
-    for build in (conv.point_msg, conv.point_cdr):
+    for build in (msgs.point_msg, conv.point_cdr):
         for bad_stamp in (-1.0, math.nan, 5e9):
             with pytest.raises(conv.ConversionError, match="stamp"):
                 build(bad_stamp, (0.0, 0.0))
@@ -547,8 +548,8 @@ def test_refilled_messages_equal_new_ones():
     refilled = conv.odometry_msg(2.5, [-1.0, 0.5, -1.0], [0.1, 0.2, 0.3], "robot_0", out=odom)
     assert refilled is odom
     assert odom == conv.odometry_msg(2.5, [-1.0, 0.5, -1.0], [0.1, 0.2, 0.3], "robot_0")
-    point = conv.point_msg(1.0, (1.0, 2.0), frame_id="other")
-    assert conv.point_msg(3.0, (4.0, 5.0), out=point) == conv.point_msg(3.0, (4.0, 5.0))
+    point = msgs.point_msg(1.0, (1.0, 2.0), frame_id="other")
+    assert msgs.point_msg(3.0, (4.0, 5.0), out=point) == msgs.point_msg(3.0, (4.0, 5.0))
     assert conv.point_from_msg(point) == (3.0, (4.0, 5.0))
     assert all(type(v) is float for v in conv.point_from_msg(point)[1])
 

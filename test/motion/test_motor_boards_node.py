@@ -8,8 +8,11 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import joint_state_msg, table_from_msg
+from erforce_interfaces.conversions import (
+    table_from_msg,
+)
 from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.tools.messages import joint_state_msg
 
 pytestmark = pytest.mark.integration
 

@@ -15,9 +15,12 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import nanoseconds_to_stamp, point_msg
+from erforce_interfaces.conversions import (
+    nanoseconds_to_stamp,
+)
 from erforce_interfaces.executor import DirectExecutor
 from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.tools.messages import point_msg
 from erforce_interfaces.tools.testing import isolated_node, stop_process
 from erforce_sim.closed_loop.demo import RECEIVER, Director, spawn_in_session
 

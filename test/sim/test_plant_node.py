@@ -14,7 +14,12 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, String
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import joint_state_msg, odometry_from_msg, odometry_msg, stamp_to_nanoseconds
+from erforce_interfaces.conversions import (
+    odometry_from_msg,
+    odometry_msg,
+    stamp_to_nanoseconds,
+)
+from erforce_interfaces.tools.messages import joint_state_msg
 from erforce_motion.velocity_control import VelocityControlConfig
 from erforce_sim.closed_loop.runner import InProcessRunner
 from erforce_sim.world import PlantSetup

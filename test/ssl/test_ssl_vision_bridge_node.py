@@ -17,7 +17,6 @@ from std_msgs.msg import Float64MultiArray
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     point_from_msg,
-    point_msg,
     pose2d_from_msg,
     table_from_msg,
     table_msg,
@@ -33,6 +32,7 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
+from erforce_interfaces.tools.messages import point_msg
 from erforce_sim.ssl_cameras import open_multicast_sender
 
 pytestmark = pytest.mark.integration

@@ -25,7 +25,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, PointStamped, Pose, PoseStamped, Quaternion, Twist
+from geometry_msgs.msg import PointStamped, PoseStamped, Quaternion, Twist
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
@@ -156,17 +156,6 @@ def point_from_msg(msg: PointStamped | bytes) -> tuple[float, tuple[float, float
     return t_s, (_finite("point.x", x), _finite("point.y", y))
 
 
-def point_msg(t_s: float, xy: Sequence[float], frame_id: str = FIELD_FRAME,
-              out: PointStamped | None = None) -> PointStamped:
-    """``out``: refill this message instead of building one (as in odometry_msg)."""
-    msg = PointStamped() if out is None else out
-    msg.header.stamp = seconds_to_stamp(t_s)
-    msg.header.frame_id = frame_id
-    point = msg.point
-    point.x = _finite("x", xy[0])
-    point.y = _finite("y", xy[1])
-    point.z = 0.0
-    return msg
 
 
 def pose2d_from_msg(msg: PoseStamped | bytes) -> tuple[float, np.ndarray]:
@@ -181,17 +170,10 @@ def pose2d_from_msg(msg: PoseStamped | bytes) -> tuple[float, np.ndarray]:
     return t_s, np.array([_finite("position.x", x), _finite("position.y", y), yaw])
 
 
-def pose2d_msg(t_s: float, pose: Sequence[float], frame_id: str = FIELD_FRAME) -> PoseStamped:
-    msg = PoseStamped()
-    msg.header.stamp = seconds_to_stamp(t_s)
-    msg.header.frame_id = frame_id
-    msg.pose = Pose(position=Point(x=_finite("x", pose[0]), y=_finite("y", pose[1]), z=0.0),
-                    orientation=quaternion_from_yaw(pose[2]))
-    return msg
 
 
 def point_cdr(t_s: float, xy: Sequence[float], frame_id: str = FIELD_FRAME) -> bytes:
-    """``point_msg`` serialized (for ``Publisher.publish``), with the same checks."""
+    """A PointStamped serialized (for ``Publisher.publish``), checked as ``tools.messages.point_msg`` checks it."""
     x, y = xy[0], xy[1]
     if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE):  # one test for the usual point (False for NaN)
         x, y = _finite("x", x), _finite("y", y)
@@ -199,7 +181,7 @@ def point_cdr(t_s: float, xy: Sequence[float], frame_id: str = FIELD_FRAME) -> b
 
 
 def pose2d_cdr(t_s: float, pose: Sequence[float], frame_id: str = FIELD_FRAME) -> bytes:
-    """``pose2d_msg`` serialized, with the same checks."""
+    """A PoseStamped serialized, checked as ``tools.messages.pose2d_msg`` checks it."""
     x, y, yaw = pose[0], pose[1], pose[2]
     if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(yaw) <= 1.0e6):  # as in point_cdr
         x, y, yaw = _finite("x", x), _finite("y", y), _finite("yaw", yaw, 1.0e6)
@@ -331,16 +313,6 @@ def _odometry_from_cdr(data: bytes) -> tuple[float, np.ndarray, np.ndarray, np.n
 
 
 # ------------------------------------------------------------ joint arrays
-def joint_state_msg(t_ns: int, names: Sequence[str], *, velocity: Sequence[float] | None = None,
-                    effort: Sequence[float] | None = None) -> JointState:
-    msg = JointState()
-    msg.header.stamp = nanoseconds_to_stamp(int(t_ns))
-    msg.name = list(names)
-    if velocity is not None:
-        msg.velocity = _finite_array("velocity", velocity, len(names), MAX_ABS_VALUE).tolist()
-    if effort is not None:
-        msg.effort = _finite_array("effort", effort, len(names), MAX_ABS_VALUE).tolist()
-    return msg
 
 
 def joint_state_from_msg(msg: JointState | bytes, num_joints: int, field: str,
@@ -417,7 +389,7 @@ def _stamp_cdr(t_ns: int) -> bytes:
 
 def joint_state_cdr(t_ns: int, names: Sequence[str], *, velocity: Sequence[float] | None = None,
                     effort: Sequence[float] | None = None, saturate: bool = False) -> bytes:
-    """``joint_state_msg`` serialized (for ``Publisher.publish``), with the same checks. ``saturate``:
+    """A JointState serialized (for ``Publisher.publish``), checked as ``tools.messages.joint_state_msg``. ``saturate``:
     finite values beyond the accepted magnitude are clipped to it instead of refused (a sensor's range)."""
     parts = [_CDR_LE, _stamp_cdr(t_ns), _cdr_names(tuple(names))]
     offset = 8 + len(parts[2])
@@ -685,12 +657,10 @@ def _decode_joint_state(data: bytes) -> tuple[int, list[str], list[tuple[float, 
 
 
 # ------------------------------------------------------------ scalar & tables
-def float64_msg(value: float, limit: float = MAX_ABS_VALUE) -> Float64:
-    return Float64(data=_finite("data", value, limit))
 
 
 def float64_cdr(value: float, limit: float = MAX_ABS_VALUE) -> bytes:
-    """``float64_msg`` serialized, with the same checks."""
+    """A Float64 serialized, checked as ``tools.messages.float64_msg`` checks it."""
     return _CDR_LE + _f64.pack(_finite("data", value, limit))
 
 
