@@ -1,7 +1,7 @@
 """Test harness for integration tests over real DDS: isolated domains, node processes, probes.
 
 Use it as a pytest plugin (``pytest_plugins = ["erforce_interfaces.tools.testing"]`` in a
-conftest.py) and take the ``ros_graph`` fixture::
+conftest.py) and take the ``ros_graph`` fixture (or ``module_ros_graph``, one graph for a module's tests)::
 
     def test_talker(ros_graph):
         ros_graph.start_node("erforce_interfaces", "talker", params={"rate_hz": 50.0})
@@ -430,9 +430,14 @@ def show_outputs_if_failed(graph: RosGraph, request) -> None:
     """After a failed test (``request`` of a pytest fixture), the tail of each process's output on stderr."""
     report = getattr(request.node, "rep_call", None)
     if report is not None and report.failed:
-        for proc in graph.processes:
-            sys.stderr.write(f"\n----- output of {proc.name} ({' '.join(proc.cmd)}) -----\n")
-            sys.stderr.write(proc.output()[-4000:])
+        show_outputs(graph)
+
+
+def show_outputs(graph: RosGraph) -> None:
+    """The tail of each process's output on stderr."""
+    for proc in graph.processes:
+        sys.stderr.write(f"\n----- output of {proc.name} ({' '.join(proc.cmd)}) -----\n")
+        sys.stderr.write(proc.output()[-4000:])
 
 
 try:
@@ -463,6 +468,26 @@ if pytest is not None:
         if faults and report is not None and report.passed:
             pytest.fail("a node dropped a message in its callback guard (a bug, or bad input the test does not "
                         "declare with ros_graph.expect_callback_faults):\n" + "\n".join(faults[:20]), pytrace=False)
+
+    @pytest.fixture(scope="module")
+    def module_ros_graph(tmp_path_factory, request) -> Iterator[RosGraph]:
+        """One ``ros_graph`` for every test of a module that takes it, for tests that share one started graph
+        (it costs seconds to tens of seconds to start) and leave it as the next test can use it. Logs are
+        shown when a test of the module failed; undeclared callback faults fail the module's last test."""
+        graph = RosGraph(workdir=tmp_path_factory.mktemp("graph"))
+        failed_before = request.session.testsfailed
+        try:
+            yield graph
+        finally:
+            graph.close()
+            failed = request.session.testsfailed > failed_before
+            if failed:
+                show_outputs(graph)
+        faults = graph.unexpected_callback_faults()
+        if faults and not failed:
+            pytest.fail("a node dropped a message in its callback guard (a bug, or bad input the tests do not "
+                        "declare with module_ros_graph.expect_callback_faults):\n" + "\n".join(faults[:20]),
+                        pytrace=False)
 
     @pytest.hookimpl(tryfirst=True, hookwrapper=True)
     def pytest_runtest_makereport(item, call):
