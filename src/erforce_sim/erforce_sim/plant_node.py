@@ -24,11 +24,10 @@ for its controlled robots and takes ``motor_duty`` answers there, each for the r
 team_firmware process (contract: joints ``robot_<id>/wheel_<k>``, ``opponent_<id>/wheel_<k>``);
 ``both`` serves both, and a robot's answer counts from either. The gate is per robot either way.
 
-Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state`` (an
-opponent on ``/opponent_<id>/sim/set_state``; nav_msgs/Odometry: pose and twist in ``field``), kick on
-``/robot_<id>/kick``. A body
-placed outside the field walls is refused with an error naming it. They act at the next tick;
-of several that arrived meanwhile on one topic, the newest.
+Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state``
+(nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``; an opponent likewise
+under ``/opponent_<id>/``. A body placed outside the field walls is refused with an error naming it.
+They act at the next tick; of several that arrived meanwhile on one topic, the newest.
 """
 
 from __future__ import annotations
