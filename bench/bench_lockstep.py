@@ -1,6 +1,7 @@
 """Real-time factor of the DDS graph in lockstep: the plant and every robot's firmware, per robot
 (velocity_controller + motor_boards in each namespace, per-robot topics) or as a team (one team_firmware
-process on the team-level topics /team/wheel_states and /team/motor_duty).
+process on the team-level topics /team/wheel_states and /team/motor_duty). Robots beyond 11 are the
+opponents, a team of their own (opponent_<id>, their own team_firmware on /opponent_team/...).
 
 Each run starts real node processes in a private DDS domain (erforce_interfaces.tools.testing),
 lets the plant run flat out (real_time_factor 0) for a stretch of simulated time, and
@@ -53,7 +54,7 @@ def _rss_mib(pid: int) -> float:
     return 0.0
 
 
-TEAM_SIZE = 11  # robots beyond it are the opponents (in the same team_firmware, as team_sim.launch.yaml has them)
+TEAM_SIZE = 11  # robots beyond it are the opponents: a team of their own, as team_sim.launch.yaml has them
 # deployment -> the lockstep topics of the plant and the team_firmware processes
 DEPLOYMENTS = {"per_robot": "per_robot", "team": "team", "team_firmware": "per_robot"}
 
@@ -62,31 +63,38 @@ def measure(num_robots: int, sim_s: float, period_s: float = 0.002, deployment: 
             plant_params: dict | None = None) -> dict:
     """Sim seconds per wall second, CPU per tick and RSS for ``num_robots`` controlled robots."""
     topics = DEPLOYMENTS[deployment]
-    teams = [list(range(num_robots))]
+    # our team, then the opponents (ids 0.. of their own), each team with its own firmware
+    teams = [(contract.OURS, list(range(min(num_robots, TEAM_SIZE))))]
+    if num_robots > TEAM_SIZE:
+        teams.append((contract.OPPONENTS, list(range(num_robots - TEAM_SIZE))))
     with RosGraph(Path(tempfile.mkdtemp(prefix="bench-lockstep-"))) as graph:
         if deployment != "per_robot":
-            for k, ids in enumerate(teams):
-                graph.start_node("erforce_motion", "team_firmware", name=f"team_firmware_{k}", params_file=ROBOT_YAML,
+            for team, ids in teams:
+                graph.start_node("erforce_motion", "team_firmware", name=f"{team.name}_firmware",
+                                 params_file=ROBOT_YAML,
                                  params={"use_sim_time": True, "robot_ids": ids, "lockstep_topics": topics,
-                                         "main_board.loop_rate_hz": 1.0 / period_s,
+                                         "team": team.name, "main_board.loop_rate_hz": 1.0 / period_s,
                                          "motor_boards.loop_rate_hz": 1.0 / period_s})
         else:
-            for i in range(num_robots):
-                for exe in ("velocity_controller", "motor_boards"):
-                    graph.start_node("erforce_motion", exe, namespace=f"robot_{i}", params_file=ROBOT_YAML,
-                                     params={"use_sim_time": True, "loop_rate_hz": 1.0 / period_s})
+            for team, ids in teams:
+                for i in ids:
+                    for exe in ("velocity_controller", "motor_boards"):
+                        graph.start_node("erforce_motion", exe, namespace=team.namespace(i), params_file=ROBOT_YAML,
+                                         params={"use_sim_time": True, "loop_rate_hz": 1.0 / period_s})
         clock_readers = len(teams) if deployment != "per_robot" else 2 * num_robots
         # a row of 11 per team on the Division A field (12 x 9 m)
-        poses = [v for i in range(num_robots) for v in (-5.0 + 1.0 * (i % 11), -1.0 + 2.0 * (i // 11), 0.0)]
+        rows = [[v for i in ids for v in (-5.0 + 1.0 * (i % 11), -1.0 + 2.0 * k, 0.0)]
+                for k, (_, ids) in enumerate(teams)]
         clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
         # warm-up ticks, then the measured stretch; the plant ends itself after stop_after_s. It starts
         # once this probe and both nodes of every robot subscribe to /clock, so the probe sees the warm-up.
         warmup_s = 0.5
         plant = graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params={
-            "robot_poses": poses, "field": "division_a", "controlled": [True], "real_time_factor": 0.0,
+            "robot_poses": rows[0], **({"opponent_poses": rows[1]} if len(rows) > 1 else {}),
+            "field": "division_a", "controlled": [True], "real_time_factor": 0.0,
             "control_period_s": period_s,
             "stop_after_s": warmup_s + sim_s, "startup_timeout_s": 300.0,
-            "wheel_states_readers": {"per_robot": 2, "team": len(teams)}.get(deployment, 1),
+            "wheel_states_readers": 2 if deployment == "per_robot" else 1,
             "lockstep_topics": topics,
             "start_clock_subscribers": clock_readers + 1, **(plant_params or {})})
         graph.probe.spin_until(lambda: clocks and stamp_to_nanoseconds(clocks[-1].clock) >= warmup_s * 1e9, 400.0,
@@ -158,6 +166,9 @@ _EXECUTABLES = ("plant", "team_firmware", "ball_predictor", "team_catcher", "erf
 
 def _process_name(pid: int) -> str:
     argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    for arg in argv:  # a node's name tells the two teams' team_firmware apart
+        if arg.startswith(b"__node:="):
+            return arg.removeprefix(b"__node:=").decode(errors="replace")
     for arg in argv[:3]:
         name = Path(arg.decode(errors="replace")).name
         if name in _EXECUTABLES:

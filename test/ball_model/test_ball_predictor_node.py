@@ -90,7 +90,10 @@ class Rig:
     def __init__(self, graph, **params):
         params.setdefault("num_robots", 2)
         self.graph = graph
-        self.n = params["num_robots"]
+        # robot i: ours, then the opponents (as the node's core has them)
+        robots = [(contract.OURS, i) for i in range(params["num_robots"])]
+        robots += [(contract.OPPONENTS, j) for j in range(params.get("num_opponents", 0))]
+        self.n = len(robots)
         self.node = graph.start_node("erforce_ball_model", "ball_predictor", params=params)
         probe = graph.probe
         q = contract
@@ -100,18 +103,18 @@ class Rig:
         self.v_shoot = probe.subscribe(q.BALL_V_SHOOT.name, Float64, q.BALL_V_SHOOT.qos)
         self.uncertain = probe.subscribe(q.BALL_UNCERTAIN.name, Bool, q.BALL_UNCERTAIN.qos)
         self.model_params = probe.subscribe(q.BALL_MODEL_PARAMS.name, Float64MultiArray, q.BALL_MODEL_PARAMS.qos)
-        self.catch_time = [probe.subscribe(q.CATCH_TIME.for_robot(i), Float64, q.CATCH_TIME.qos)
-                           for i in range(self.n)]
-        self.catch_point = [probe.subscribe(q.CATCH_POINT.for_robot(i), PointStamped, q.CATCH_POINT.qos)
-                            for i in range(self.n)]
-        self.odom = [probe.subscribe(q.ODOM.for_robot(i), Odometry, q.ODOM.qos) for i in range(self.n)]
+        self.catch_time = [probe.subscribe(team.topic(q.CATCH_TIME, i), Float64, q.CATCH_TIME.qos)
+                           for team, i in robots]
+        self.catch_point = [probe.subscribe(team.topic(q.CATCH_POINT, i), PointStamped, q.CATCH_POINT.qos)
+                            for team, i in robots]
+        self.odom = [probe.subscribe(team.topic(q.ODOM, i), Odometry, q.ODOM.qos) for team, i in robots]
         self.catches = probe.subscribe(q.BALL_CATCHES.name, Float64MultiArray, q.BALL_CATCHES.qos)
         self.ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=20.0,
                                                    qos=q.VISION_BALL.qos)
-        self.pose_pubs = [probe.wait_for_subscribers(q.VISION_POSE.for_robot(i), PoseStamped, timeout_s=20.0,
-                                                     qos=q.VISION_POSE.qos) for i in range(self.n)]
+        self.pose_pubs = [probe.wait_for_subscribers(team.topic(q.VISION_POSE, i), PoseStamped, timeout_s=20.0,
+                                                     qos=q.VISION_POSE.qos) for team, i in robots]
         # Our readers must have matched the node's writers, or the first answers are lost.
-        readers = [s for s in probe.node.subscriptions if s.topic_name.startswith(("/ball/", "/robot_"))]
+        readers = [s for s in probe.node.subscriptions if s.topic_name.startswith(("/ball/", "/robot_", "/opponent_"))]
         probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 20.0, "node publishers")
         # ... and the node's writers ours (not observable from here): a handshake frame, resent until answered.
         for attempt in range(20):
@@ -279,27 +282,33 @@ def test_ball_leaving_the_field_far_from_the_robot_is_never_caught(ros_graph):
 
 
 def test_no_robots_seen_gives_no_catch_outputs_until_one_is_seen(ros_graph):
-    rig = Rig(ros_graph, num_robots=2)
+    """Our robot_1 and the opponents' opponent_0 (rig index 2) answered alike, each under its namespace."""
+    rig = Rig(ros_graph, num_robots=2, num_opponents=1)
     for k in range(5):
         rig.ball(1.0 + k / FPS, 1.0, 1.0)
     rig.settle()
     assert all(len(c) == 0 for c in rig.catch_time) and all(len(c) == 0 for c in rig.catch_point)
     assert len(rig.catches) == 0
     rig.robot(1, 1.06, 0.0, 1.0, 0.0)  # robot_1 at rest 1 m left of a resting ball, facing it
+    rig.robot(2, 1.06, 1.0, 3.0, -math.pi / 2)  # opponent_0 at rest 2 m above it, facing it
     rig.ball(1.08, 1.0, 1.0)
     rig.settle()
-    assert len(rig.catch_time[0]) == 0 and len(rig.catch_time[1]) == 1
-    # resting ball: after the reaction time (0.1 s default), drive 1 - offset m from rest to rest with
-    # the catcher's limits (the node's defaults)
-    d = 1.0 - OFFSET_M
-    expected = 0.1 + float(robot_time_1d(d, CatcherConfig().a_max_mps2, CatcherConfig().v_max_mps))
-    assert rig.catch_time[1][0].data == pytest.approx(expected, abs=1e-3)
-    assert point_from_msg(rig.catch_point[1][0])[1] == pytest.approx([d, 1.0], abs=1e-3)
-    # the team table: the same in one message, with robot_1's pose (at rest, so no extrapolation)
+    assert len(rig.catch_time[0]) == 0 and len(rig.catch_time[1]) == 1 and len(rig.catch_time[2]) == 1
+    # resting ball: after the reaction time (0.1 s default), drive 1 - offset m (the opponent 2 - offset m)
+    # from rest to rest with the catcher's limits (the node's defaults)
+    for i, distance_m, point in ((1, 1.0 - OFFSET_M, (1.0 - OFFSET_M, 1.0)),
+                                 (2, 2.0 - OFFSET_M, (1.0, 1.0 + OFFSET_M))):
+        expected = 0.1 + float(robot_time_1d(distance_m, CatcherConfig().a_max_mps2, CatcherConfig().v_max_mps))
+        assert rig.catch_time[i][0].data == pytest.approx(expected, abs=1e-3)
+        assert point_from_msg(rig.catch_point[i][0])[1] == pytest.approx(point, abs=1e-3)
+    assert rig.odom[2][-1].child_frame_id == "opponent_0/base_link"
+    # the table: the same in one message, with each robot's team, id and pose (at rest: no extrapolation)
     ros_graph.probe.spin_until(lambda: len(rig.catches) == 1, 10.0, "/ball/catches")
-    (row,) = table_from_msg(rig.catches[0], contract.CATCH_TABLE_COLUMNS).tolist()
-    assert row == pytest.approx([1, 0.0, 1.0, 0.0, 0.0, 0.0, rig.catch_time[1][0].data, *point_from_msg(
-        rig.catch_point[1][0])[1]], abs=1e-9)
+    rows = table_from_msg(rig.catches[0], contract.CATCH_TABLE_COLUMNS).tolist()
+    assert rows == [pytest.approx([team.code, 1 if team is contract.OURS else 0, x, y, yaw, 0.0, 0.0,
+                                   rig.catch_time[i][0].data, *point_from_msg(rig.catch_point[i][0])[1]], abs=1e-9)
+                    for i, team, x, y, yaw in ((1, contract.OURS, 0.0, 1.0, 0.0),
+                                               (2, contract.OPPONENTS, 1.0, 3.0, -math.pi / 2))]
 
 
 def test_bad_observations_are_dropped_with_a_warning_and_nothing_non_finite_is_published(ros_graph):

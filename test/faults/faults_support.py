@@ -431,9 +431,19 @@ class LaunchedDemo:
         self.launch = graph.start_launch(launch_file, **args)
 
     def pid(self, node: str) -> int | None:
-        """The newest process of ``node`` the launcher started (None before the first)."""
-        found = re.findall(rf"\[{node}-\d+\]: process started with pid \[(\d+)\]", self.launch.output())
-        return int(found[-1]) if found else None
+        """The newest live process the launcher started as node ``node`` (its ``__node:=`` name: two
+        team_firmware processes share a label), else the newest labelled ``node`` (None before the first)."""
+        started = [(label, int(pid)) for label, pid in re.findall(r"\[(\S+)-\d+\]: process started with pid "
+                                                                 r"\[(\d+)\]", self.launch.output())]
+        for _, pid in reversed(started):
+            try:
+                argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+            except OSError:
+                continue
+            if f"__node:={node}".encode() in argv:
+                return pid
+        found = [pid for label, pid in started if label == node]
+        return found[-1] if found else None
 
     def all_flowing_since(self, t_s: float) -> bool:
         return all(times and times[-1] > t_s for times in self.arrivals.values())

@@ -32,7 +32,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_msg, stamp_to_seconds
+from erforce_interfaces.conversions import odometry_from_msg, odometry_msg, stamp_to_seconds
 
 pytestmark = pytest.mark.integration
 
@@ -210,18 +210,38 @@ def test_each_team_node_killed_and_restarted_the_loop_closes_again(ros_graph):
 
 
 def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_single_kill(ros_graph):
-    """team_sim.launch.yaml for a team of two: each node SIGKILLed once, erforce-launch restarts it after
-    respawn_delay and the loop closes again with nobody restarting anything."""
+    """team_sim.launch.yaml for a team of two and one opponent: the opponent is a team of its own on the graph
+    (its id 0 under /opponent_0/, its firmware on /opponent_team/); each node SIGKILLed once, erforce-launch
+    restarts it after respawn_delay and both teams' loops close again with nobody restarting anything; then
+    the opponents' interceptor drives opponent_0 to a ball rolling past it, from the predictor's catch times."""
+    opponent = contract.OPPONENTS
     outputs = {"plant": (contract.CLOCK, contract.CLOCK.name),
                "team_firmware": (contract.TEAM_MOTOR_DUTY, contract.TEAM_MOTOR_DUTY.name),  # team topics
-               "ball_predictor": (contract.CATCH_TIME, contract.CATCH_TIME.for_robot(1))}
+               "opponent_firmware": (contract.TEAM_MOTOR_DUTY, opponent.lockstep_topic(contract.TEAM_MOTOR_DUTY)),
+               "ball_predictor": (contract.CATCH_TIME, opponent.topic(contract.CATCH_TIME, 0)),
+               "opponent_interceptor": (contract.CMD_VEL, opponent.topic(contract.CMD_VEL, 0))}
+    truth = ros_graph.subscribe(opponent.topic(contract.GROUND_TRUTH_ODOM, 0), Odometry)
     demo = LaunchedDemo(ros_graph, TEAM_SIM_LAUNCH, outputs, robot_ids="[0, 1]", num_robots="2",
-                        opponent_ids="[1]", robot_poses="[-4.0, 0.0, 0.0, -3.0, 2.0, 0.0]")
+                        robot_poses="[-4.0, 0.0, 0.0, -3.0, 2.0, 0.0]", opponent_ids="[0]", num_opponents="1",
+                        opponent_poses="[0.0, 1.0, 3.14159265]")
     demo.wait_running()
+    topics = {name for name, _ in ros_graph.probe.node.get_topic_names_and_types()}
+    for name in (opponent.topic(contract.VISION_POSE, 0), opponent.topic(contract.ODOM, 0),
+                 opponent.lockstep_topic(contract.TEAM_WHEEL_STATES), opponent.topic(contract.MOTOR_STATUS, 0)):
+        assert name in topics, name
+    assert not any(name.startswith(("/robot_2/", "/opponent_1/")) for name in topics), sorted(topics)
     for node in ("team_firmware", "ball_predictor", "plant"):
         assert demo.kill_and_heal(node, 0.5, timeout_s=90.0) > 0.5
     out = demo.launch.output()
-    for node in outputs:
+    for node in ("plant", "team_firmware", "ball_predictor"):
         assert re.search(rf"\[{node}-\d+\]: respawning in 0.5 s", out), node
     assert demo.launch.alive()
     assert "Traceback" not in out, out[-3000:]
+
+    # a ball rolling up the line x = -1, 1 m from opponent_0 (it passes y = 1 at about 1.5 m/s)
+    start = odometry_from_msg(truth[-1])[1][:2]
+    ros_graph.probe.wait_for_subscribers(contract.SIM_SET_BALL.name, Odometry).publish(
+        odometry_msg(0.0, (-1.0, -2.0, 0.0), (0.0, 2.5, 0.0)))
+    ros_graph.spin_until(lambda: "opponent_0 light barrier: ball received" in demo.launch.output(), 30.0,
+                         "opponent_0 receiving the ball")
+    assert np.hypot(*(odometry_from_msg(truth[-1])[1][:2] - start)) > 0.5  # it went to the ball

@@ -283,6 +283,40 @@ def test_team_state_names_must_be_robots_in_order_with_all_their_wheels(names):
             conv.team_joint_state_from_msg(form, 2, ("effort",))
 
 
+def test_the_opponents_team_state_names_its_robots_opponent_id_and_is_no_state_of_ours():
+    """The same message for the opponents' lockstep topics: joints opponent_<id>/wheel_<k>, read back with the
+    opponents' Team; each team refuses the other's names, also once a names block is remembered."""
+    wheels = ("wheel_0", "wheel_1")
+    data = conv.team_joint_state_cdr(2_000_000, [0, 2], wheels, effort=np.array([[0.5, -0.5], [0.25, 0.0]]),
+                                     team=c.OPPONENTS)
+    msg = deserialize_message(data, JointState)
+    assert list(msg.name) == ["opponent_0/wheel_0", "opponent_0/wheel_1", "opponent_2/wheel_0", "opponent_2/wheel_1"]
+    assert list(msg.name) == list(c.OPPONENTS.joint_names([0, 2], wheels))
+    for form in (data, data, msg):
+        t_ns, ids, (duty,) = conv.team_joint_state_from_msg(form, 2, ("effort",), team=c.OPPONENTS)
+        assert (t_ns, ids, duty.tolist()) == (2_000_000, (0, 2), [[0.5, -0.5], [0.25, 0.0]])
+        with pytest.raises(conv.ConversionError, match="is not robot_<id>/wheel_<k>"):
+            conv.team_joint_state_from_msg(form, 2, ("effort",))
+    ours = conv.team_joint_state_cdr(2_000_000, [0, 2], wheels, effort=np.zeros((2, 2)))
+    conv.team_joint_state_from_msg(ours, 2, ("effort",))  # remembered as ours
+    with pytest.raises(conv.ConversionError, match="is not opponent_<id>/wheel_<k>"):
+        conv.team_joint_state_from_msg(ours, 2, ("effort",), team=c.OPPONENTS)
+
+
+def test_each_team_has_its_namespaces_frames_and_lockstep_topics():
+    assert (c.OURS.topic(c.ODOM, 3), c.OPPONENTS.topic(c.ODOM, 3)) == ("/robot_3/odom", "/opponent_3/odom")
+    assert (c.OURS.frame(0), c.OPPONENTS.frame(0)) == ("robot_0/base_link", "opponent_0/base_link")
+    assert c.OURS.lockstep_topic(c.TEAM_WHEEL_STATES) == c.TEAM_WHEEL_STATES.name == "/team/wheel_states"
+    assert c.OPPONENTS.lockstep_topic(c.TEAM_MOTOR_DUTY) == "/opponent_team/motor_duty"
+    assert c.topic_of_name("/opponent_team/motor_duty") is c.TEAM_MOTOR_DUTY
+    assert (c.OPPONENTS.id_of_namespace("/opponent_12"), c.OPPONENTS.id_of_namespace("robot_12")) == (12, None)
+    assert c.TEAMS == {"ours": c.OURS, "opponents": c.OPPONENTS} and c.OURS.code != c.OPPONENTS.code
+    for bad in (lambda: c.OPPONENTS.topic(c.CLOCK, 0), lambda: c.OPPONENTS.namespace(-1),
+                lambda: c.OPPONENTS.lockstep_topic(c.ODOM)):
+        with pytest.raises(ValueError):
+            bad()
+
+
 def test_team_state_values_are_checked_both_ways():
     ok = np.zeros((2, 2))
     for bad in (math.nan, math.inf, 2e3):

@@ -50,6 +50,11 @@ def resolve(path: Path, **args: str) -> dict:
     return {s.label: s for s in specs}
 
 
+def node_name(spec) -> str:
+    """The node name a spec's command gives (``-r __node:=NAME``)."""
+    return next(arg.removeprefix("__node:=") for arg in spec.cmd if arg.startswith("__node:="))
+
+
 def params_of(spec) -> dict:
     """The generated (inline) parameter files of a spec, merged in order."""
     merged: dict = {}
@@ -322,27 +327,39 @@ def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(l
 
 
 def test_team_sim_takes_its_robots_as_a_list_argument():
-    """14 robots by default (11 and 3 opponents) in one team_firmware on the team lockstep topics, the plant and
-    the predictor sized alike, the 3 opponents driven by an interceptor; a robot is removed or added by the
-    list, without editing a file."""
+    """11 robots of ours and 3 opponents by default, each team in its own team_firmware on its team lockstep
+    topics, the plant and the predictor sized alike, the 3 opponents (ids 0, 1, 2 of their own) driven by an
+    interceptor; a robot is removed or added by the list, without editing a file."""
     specs = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml")
     assert [label.rsplit("-", 1)[0] for label in specs] == [
-        "plant", "ball_predictor", "team_catcher", "team_firmware"]
-    params = {label.rsplit("-", 1)[0]: params_of(spec)["/**"] for label, spec in specs.items()}
-    assert params["team_firmware"]["robot_ids"] == list(range(14))
-    assert len(params["plant"]["robot_poses"]) == 3 * 14 and params["ball_predictor"]["num_robots"] == 14
-    assert params["plant"]["lockstep_topics"] == params["team_firmware"]["lockstep_topics"] == "team"
-    assert params["team_catcher"]["robot_ids"] == [11, 12, 13] and params["team_catcher"]["as_team"]
-    assert params["plant"]["ground_truth_rate_hz"] == 10.0
+        "plant", "ball_predictor", "team_catcher", "team_firmware", "team_firmware"]
+    params = {node_name(spec): params_of(spec)["/**"] for spec in specs.values()}
+    assert params["team_firmware"]["robot_ids"] == list(range(11)) and params["team_firmware"]["team"] == "ours"
+    assert params["opponent_firmware"]["robot_ids"] == [0, 1, 2] and params["opponent_firmware"]["team"] == "opponents"
+    plant, predictor, interceptor = params["plant"], params["ball_predictor"], params["opponent_interceptor"]
+    assert len(plant["robot_poses"]) == 3 * 11 and predictor["num_robots"] == 11
+    assert len(plant["opponent_poses"]) == 3 * 3 and predictor["num_opponents"] == 3
+    assert plant["team_color"] == "blue" and plant["vision_output"] == "ros"
+    assert {plant["lockstep_topics"], params["team_firmware"]["lockstep_topics"],
+            params["opponent_firmware"]["lockstep_topics"]} == {"team"}
+    assert interceptor["robot_ids"] == [0, 1, 2] and interceptor["as_team"] and interceptor["team"] == "opponents"
+    assert plant["ground_truth_rate_hz"] == 10.0
     assert params["team_firmware"]["motor_boards.status_rate_hz"] == 10.0
     per_robot = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", lockstep_topics="per_robot",
                         opponents_intercept="false")
-    assert [label.rsplit("-", 1)[0] for label in per_robot] == ["plant", "ball_predictor", "team_firmware"]
+    assert [label.rsplit("-", 1)[0] for label in per_robot] == ["plant", "ball_predictor", "team_firmware",
+                                                                "team_firmware"]
     assert {params_of(s)["/**"]["lockstep_topics"] for s in per_robot.values() if "lockstep_topics" in
             params_of(s)["/**"]} == {"per_robot"}
-    three = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", robot_ids="[0, 2, 5]")
-    assert params_of(next(s for label, s in three.items() if label.startswith("team_firmware")))["/**"][
-        "robot_ids"] == [0, 2, 5]
+    three = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", robot_ids="[0, 2, 5]", opponent_ids="[1]")
+    firmware = {node_name(s): params_of(s)["/**"]["robot_ids"] for s in three.values() if "robot_ids" in
+                params_of(s)["/**"] and node_name(s).endswith("firmware")}
+    assert firmware == {"team_firmware": [0, 2, 5], "opponent_firmware": [1]}
+    ssl = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", vision="ssl", team_color="yellow")
+    ssl_params = {node_name(spec): params_of(spec)["/**"] for spec in ssl.values()}
+    assert ssl_params["plant"]["vision_output"] == "ssl"
+    assert ssl_params["plant"]["team_color"] == ssl_params["ssl_vision_bridge"]["team_color"] == "yellow"
+    assert ssl_params["ssl_vision_bridge"]["num_robots"] == 11
 
 
 @pytest.mark.parametrize(("launch_file", "args"), [
@@ -386,7 +403,7 @@ NODES = {
     "demo.launch.yaml": ["plant-1", "ball_predictor-2", "velocity_controller-3", "motor_boards-4", "catcher-5"],
     "receiver.launch.yaml": ["velocity_controller-1", "motor_boards-2", "catcher-3"],
     "sim_one_robot.launch.yaml": ["plant-1", "velocity_controller-2", "motor_boards-3"],
-    "team_sim.launch.yaml": ["plant-1", "ball_predictor-2", "team_catcher-3", "team_firmware-4"],
+    "team_sim.launch.yaml": ["plant-1", "ball_predictor-2", "team_catcher-3", "team_firmware-4", "team_firmware-5"],
 }
 
 

@@ -50,10 +50,28 @@ def test_wheel_speeds_beyond_the_wire_are_refused():
 
 
 def test_per_robot_lists_and_the_plants_robots_must_agree():
-    with pytest.raises(ValueError, match="facing_fixed: need one value or one per robot"):
+    with pytest.raises(ValueError, match=r"facing_mode: need one value or one per robot \(2\), got 3"):
         ball_predictor_node.build_config(config(ball_predictor_node, num_robots=2,
                                                 facing_mode=["fixed", "fixed", "fixed"]))
     with pytest.raises(ValueError, match="robot_poses: need x, y, yaw per robot"):
         plant_node.setup_from_params(config(plant_node, robot_poses=[0.0, 0.0, 0.0, 1.0]))
+    with pytest.raises(ValueError, match="opponent_poses: need x, y, yaw per robot"):
+        plant_node.setup_from_params(config(plant_node, opponent_poses=[1.0, 1.0]))
+
+
+def test_the_opponents_come_after_our_robots_and_face_the_ball():
+    """The predictor's facing lists are per robot of ours; its core serves ours, then the opponents, who
+    face towards the ball. The plant's opponents take the colour that is not ours."""
+    predictor = ball_predictor_node.build_config(config(ball_predictor_node, num_robots=2, num_opponents=3,
+                                                        facing_mode=["fixed", "towards_ball"], facing_rad=[0.5]))
+    assert predictor.num_robots == 5
+    assert predictor.facing_fixed.tolist() == [True, False, False, False, False]
+    assert predictor.facing_rad.tolist() == [0.5, 0.5, math.pi, math.pi, math.pi]
+    setup = plant_node.setup_from_params(config(plant_node, robot_poses=[-1.0, 0.0, 0.0, -2.0, 0.0, 0.0],
+                                                opponent_poses=[1.0, 0.5, 3.0], team_color="yellow"))
+    assert (setup.num_robots, setup.num_opponents, setup.our_color, setup.opponent_color) == (2, 1, "yellow", "blue")
+    assert [setup.team_of(i) for i in range(3)] == [(False, 0), (False, 1), (True, 0)]
+    assert setup.is_controlled(2)
+    assert plant_node.setup_from_params(config(plant_node)).our_color == "blue"  # as the SSL bridge's default
     with pytest.raises(ValueError, match="realtime pacing needs real_time_factor > 0"):
         plant_node._check_pacing(config(plant_node, pacing="realtime", real_time_factor=0.0))

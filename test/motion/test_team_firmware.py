@@ -1,7 +1,8 @@
 """Many robots' firmware over DDS: per robot (velocity_controller + motor_boards in each namespace), in one
 team_firmware process on the per-robot topics and on the team-level ones (/team/wheel_states, motor_duty)
-give the in-process runner's trajectory; robots come and go by parameter;
-a killed firmware process stalls only its robot."""
+give the in-process runner's trajectory, with an opponent on the field under its own firmware (per robot
+under /opponent_0/, or the opponents' team_firmware, on /opponent_team/ with team topics); robots come and
+go by parameter; a killed firmware process stalls only its robot."""
 
 import signal
 from pathlib import Path
@@ -24,6 +25,10 @@ pytestmark = pytest.mark.integration
 ROBOT_YAML = Path(__file__).resolve().parents[2] / "src/erforce_interfaces/config/robot.yaml"
 POSES = ((-1.0, 0.0, 0.0), (0.0, 1.0, 0.5), (1.0, -1.0, 3.0))
 TWISTS = {0: (0.8, -0.3, 1.0), 2: (-0.5, 0.6, -2.0)}  # robot_1 has no firmware: it stays put
+OPPONENT_POSES = ((2.5, 1.0, 3.0),)
+OPPONENT_TWIST = (0.6, 0.3, -1.5)  # opponent_0's, world index 3
+# deployment -> the opponent's firmware (two_teams: our team's two processes only, no opponent)
+OPPONENT_FIRMWARE = {"per_robot": "per_robot", "team": "team", "team_topics": "team_topics", "mixed": "per_robot"}
 
 
 # deployment -> the plant's and team_firmware's lockstep_topics
@@ -31,7 +36,7 @@ LOCKSTEP_TOPICS = {"per_robot": "per_robot", "team": "per_robot", "team_topics":
                    "mixed": "both"}
 
 
-def _start_firmware(graph, deployment, ids, **params):
+def _start_firmware(graph, deployment, ids, team=contract.OURS, **params):
     common = {"use_sim_time": True}
     if deployment == "two_teams":  # a team_firmware per robot on the shared team topics, each answering for its own
         return [graph.start_node("erforce_motion", "team_firmware", name=f"team_firmware_{i}",
@@ -42,61 +47,77 @@ def _start_firmware(graph, deployment, ids, **params):
         first, *rest = ids
         return [*_start_firmware(graph, "per_robot", [first]), *_start_firmware(graph, "team_topics", rest)]
     if deployment != "per_robot":
-        return [graph.start_node("erforce_motion", "team_firmware", params_file=ROBOT_YAML,
+        return [graph.start_node("erforce_motion", "team_firmware", name=f"{team.name}_firmware",
+                                 params_file=ROBOT_YAML,
                                  params={**common, "robot_ids": list(ids), "main_board.command_timeout_s": 30.0,
-                                         "lockstep_topics": LOCKSTEP_TOPICS[deployment], **params})]
+                                         "lockstep_topics": LOCKSTEP_TOPICS[deployment], "team": team.name,
+                                         **params})]
     procs = []
     for i in ids:
-        procs.append(graph.start_node("erforce_motion", "velocity_controller", namespace=f"robot_{i}",
+        procs.append(graph.start_node("erforce_motion", "velocity_controller", namespace=team.namespace(i),
                                       params_file=ROBOT_YAML, params={**common, "command_timeout_s": 30.0}))
-        procs.append(graph.start_node("erforce_motion", "motor_boards", namespace=f"robot_{i}",
+        procs.append(graph.start_node("erforce_motion", "motor_boards", namespace=team.namespace(i),
                                       params_file=ROBOT_YAML, params=common))
     return procs
 
 
-def _command(graph, robot, twist):
-    pub = graph.probe.wait_for_subscribers(f"/robot_{robot}/cmd_vel", Twist, timeout_s=30.0)
+def _command(graph, robot, twist, team=contract.OURS):
+    pub = graph.probe.wait_for_subscribers(team.topic(contract.CMD_VEL, robot), Twist, timeout_s=30.0)
     msg = Twist()
     msg.linear.x, msg.linear.y, msg.angular.z = twist
     pub.publish(msg)
 
 
-def _start_plant(graph, deployment, readers, **params):
-    """The plant once this probe reads every robot's ground truth (and /clock, which holds the first tick)."""
+def _start_plant(graph, deployment, readers, opponent_poses=(), **params):
+    """The plant once this probe reads every robot's ground truth (and /clock, which holds the first tick);
+    the truths by world index (ours, then the opponents)."""
     truths = {i: graph.subscribe(f"/robot_{i}/ground_truth/odom", Odometry) for i in range(len(POSES))}
+    for j in range(len(opponent_poses)):
+        truths[len(POSES) + j] = graph.subscribe(contract.OPPONENTS.topic(contract.GROUND_TRUTH_ODOM, j), Odometry)
     clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
     plant = graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params={
         "robot_poses": [v for p in POSES for v in p], "controlled": [True, False, True], "ball": [3.0, 2.0, 0.0, 0.0],
         "real_time_factor": 0.0, "wheel_states_readers": 2 if deployment in ("per_robot", "two_teams") else 1,
-        "lockstep_topics": LOCKSTEP_TOPICS[deployment], "start_clock_subscribers": readers + 1, **params})
+        "lockstep_topics": LOCKSTEP_TOPICS[deployment], "start_clock_subscribers": readers + 1,
+        **({"opponent_poses": [v for p in opponent_poses for v in p]} if opponent_poses else {}), **params})
     return plant, truths, clocks
 
 
 @pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams", "mixed"])
 def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deployment):
-    """robot_0 and robot_2 have firmware (the team process by its robot_ids parameter [0, 2]), robot_1 none:
-    every deployment (two team_firmware processes sharing the team topics too, and a plant serving both kinds
-    of topics to a per-robot pair and a team_firmware) gives the in-process runner's
-    trajectories of all three to 1e-9 at every ground-truth stamp, so they agree with each other."""
+    """robot_0 and robot_2 have firmware (the team process by its robot_ids parameter [0, 2]), robot_1 none,
+    and opponent_0 its own: every deployment (two team_firmware processes sharing the team topics too, and a
+    plant serving both kinds of topics to a per-robot pair and a team_firmware) gives the in-process runner's
+    trajectories of all four to 1e-9 at every ground-truth stamp, so they agree with each other."""
     _start_firmware(ros_graph, deployment, TWISTS)
     for i, twist in TWISTS.items():
         _command(ros_graph, i, twist)
+    opponents = deployment in OPPONENT_FIRMWARE
+    if opponents:
+        _start_firmware(ros_graph, OPPONENT_FIRMWARE[deployment], [0], contract.OPPONENTS)
+        _command(ros_graph, 0, OPPONENT_TWIST, contract.OPPONENTS)
     ros_graph.probe.spin_for(0.3)
     # use_sim_time nodes subscribe to /clock
     readers = {"per_robot": 2 * len(TWISTS), "two_teams": len(TWISTS), "mixed": 3}.get(deployment, 1)
-    _, truths, _ = _start_plant(ros_graph, deployment, readers, seed=7, stop_after_s=0.5)
+    readers += opponents * (2 if OPPONENT_FIRMWARE.get(deployment) == "per_robot" else 1)
+    opponent_poses = OPPONENT_POSES if opponents else ()
+    # a stall would change the trajectory: on a loaded machine the first answers may take seconds
+    _, truths, _ = _start_plant(ros_graph, deployment, readers, opponent_poses, seed=7, stop_after_s=0.5,
+                                lockstep_timeout_s=30.0)
     ros_graph.probe.spin_until(lambda: all(t and odometry_from_msg(t[-1])[0] >= 0.4 for t in truths.values()),
                                120.0, "0.4 s of every robot")
     dds = {i: {stamp_to_nanoseconds(m.header.stamp): odometry_from_msg(m) for m in t} for i, t in truths.items()}
 
     runner = InProcessRunner(PlantSetup(robot_poses=POSES, controlled=(True, False, True), ball=(3.0, 2.0, 0.0, 0.0),
-                                        seed=7, control_period_s=0.002), VelocityControlConfig(),
-                             command_timeout_s=30.0)
+                                        opponent_poses=opponent_poses, seed=7, control_period_s=0.002),
+                             VelocityControlConfig(), command_timeout_s=30.0)
     for i, twist in TWISTS.items():
         runner.command(i, twist)
+    if opponents:
+        runner.command(len(POSES), OPPONENT_TWIST)
     compared = 0
     for _ in range(201):
-        for i in range(len(POSES)):
+        for i in truths:
             if runner.t_ns in dds[i]:
                 _, pose, vel, _ = dds[i][runner.t_ns]
                 s = runner.world.robot_state(i)
@@ -104,9 +125,11 @@ def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deploym
                 np.testing.assert_allclose(vel, [s.vx, s.vy, s.w], rtol=0, atol=1e-9)
                 compared += 1
         runner.tick()
-    assert compared >= 3 * 35  # ground truth at 100 Hz over 0.4 s, each robot
+    assert compared >= len(truths) * 35  # ground truth at 100 Hz over 0.4 s, each robot
     assert abs(runner.world.robot_state(0).vx) > 0.3 and abs(runner.world.robot_state(2).w) > 1.0  # they moved
     assert runner.world.robot_state(1).vx == 0.0
+    if opponents:
+        assert runner.world.robot_state(3).w < -1.0  # the opponent turns as its own firmware was told
 
 
 def test_a_killed_firmware_process_stalls_only_its_robot(ros_graph):

@@ -318,30 +318,37 @@ def catch_table(rows) -> Float64MultiArray:
     return table_msg(rows, c.CATCH_TABLE_COLUMNS)
 
 
+OURS, THEIRS = c.OURS.code, c.OPPONENTS.code
+
+
 def test_the_predictors_team_table_places_every_robot_and_its_catch():
     state = WorldState(FIELD)
     ball_state(state, 2.0, (0.0, 0.0), (1.0, 0.0))
-    # robot 0 at (1, 2) facing -y moving at 3-4-5 m/s, catch at 0.75 s at (1, 0); robot 4 never catches
-    assert state.apply(c.BALL_CATCHES.name, catch_table([[0, 1.0, 2.0, -math.pi / 2, 0.3, 0.4, 0.75, 1.0, 0.0],
-                                                         [4, -1.0, 0.5, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0]]))
+    # robot 0 at (1, 2) facing -y moving at 3-4-5 m/s, catch at 0.75 s at (1, 0); robot 4 never catches;
+    # opponent 0 would catch first (0.5 s), but is not our receiver
+    assert state.apply(c.BALL_CATCHES.name, catch_table([[OURS, 0, 1.0, 2.0, -math.pi / 2, 0.3, 0.4, 0.75, 1.0, 0.0],
+                                                         [OURS, 4, -1.0, 0.5, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0],
+                                                         [THEIRS, 0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.5, 0.6, 0.0]]))
     frame = state.frame()
-    r0, r4 = frame["robots"]
+    r0, r4, o0 = frame["robots"]
     assert (r0["id"], r0["pose"], r0["speed"], r0["truth"]) == (0, [1.0, 2.0, round(-math.pi / 2, 4)], 0.5, False)
     assert (r0["catch_time"], r0["catch_point"]) == (0.75, [1.0, 0.0])
     assert (r4["id"], r4["catch_time"], r4["catch_point"]) == (4, c.CATCH_TIME_NEVER, None)
+    assert (o0["id"], o0["team"], o0["pose"], o0["catch_time"]) == ("o0", "opponent", [0.5, 0.0, 0.0], 0.5)
     assert frame["receiver"] == {"id": 0, "target": [1.0, 0.0], "catch_time": 0.75}
     # a true pose wins over the table's tracked one; the catch still comes from the table
     robot(state, 0, 2.0, (3.0, -1.0, 0.0))
-    assert state.apply(c.BALL_CATCHES.name, catch_table([[0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.5, 2.0, -1.0]]))
+    assert state.apply(c.BALL_CATCHES.name, catch_table([[OURS, 0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.5, 2.0, -1.0]]))
     r0 = state.frame()["robots"][0]
     assert (r0["pose"], r0["truth"], r0["catch_time"], r0["catch_point"]) == ([3.0, -1.0, 0.0], True, 0.5, [2.0, -1.0])
     # robots the table no longer lists go stale like robots whose topics went quiet
     ball_state(state, 3.5, (0.0, 0.0), (1.0, 0.0))
     assert [r["id"] for r in state.frame()["robots"]] == []
-    for bad in ([[-1, 0, 0, 0, 0, 0, 0.5, 0, 0]], [[1.5, 0, 0, 0, 0, 0, 0.5, 0, 0]]):
+    for bad in ([[OURS, -1, 0, 0, 0, 0, 0, 0.5, 0, 0]], [[OURS, 1.5, 0, 0, 0, 0, 0, 0.5, 0, 0]],
+                [[3.0, 1, 0, 0, 0, 0, 0, 0.5, 0, 0]]):  # no such team
         assert not state.apply(c.BALL_CATCHES.name, catch_table(bad))
     assert not state.apply(c.BALL_CATCHES.name, table_msg([[0.0, 1.0]], ("robot_id", "x_m")))  # other columns
-    assert state.rejected == 3
+    assert state.rejected == 4
 
 
 def test_opponents_in_their_own_namespace_are_drawn_as_opponents():

@@ -4,8 +4,9 @@ import pytest
 
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import BallModelFromVision, decode_wrapper
-from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame
+from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame, VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, quadrant_cameras
+from erforce_sim.world import PlantSetup, build_world
 
 FIELD = FieldConfig.preset("division_b")  # 9 x 6 m, walls 0.3 m outside the lines
 
@@ -48,3 +49,20 @@ def test_the_geometry_packet_carries_the_field_cameras_and_ball_model():
     assert geometry.ball_model == BallModelFromVision(-2.5, -0.3, 0.6)
     assert [c.camera_id for c in geometry.cameras] == [0, 1, 2, 3]
     assert all(c.z_m == 4.0 for c in geometry.cameras)
+
+
+@pytest.mark.parametrize("ours", ["blue", "yellow"])
+def test_each_team_goes_out_in_its_colour_with_its_own_ids(ours):
+    """The plant's world with two of ours and one opponent (team_color ``ours``): every camera frame names our
+    robots 0 and 1 in our colour and the opponent 0 in the other, as the SSL bridge's team_color reads them."""
+    theirs = "yellow" if ours == "blue" else "blue"
+    setup = PlantSetup(robot_poses=((-2.0, 1.0, 0.0), (2.0, -1.0, 0.0)), opponent_poses=((-2.0, -1.0, 0.0),),
+                       our_color=ours, vision=VisionParams(robot_dropout_prob=0.0, ball_dropout_prob=0.0))
+    world = build_world(setup)
+    world.step(0.05)
+    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, camera_noise_m=0.0)
+    seen = set()
+    for frame in world.poll_vision():
+        for _, data in splitter.packets(frame):
+            seen |= {(r.team, r.robot_id, round(r.x_m), round(r.y_m)) for r in decode_wrapper(data).frame.robots}
+    assert seen == {(ours, 0, -2, 1), (ours, 1, 2, -1), (theirs, 0, -2, -1)}

@@ -7,7 +7,9 @@ frame is answered with each fresh robot's ``/robot_<i>/catch_time`` and ``catch_
 what the robots act on), then the ball state, phase, stop point, v_shoot and the uncertain flag,
 and, while anyone subscribes to it, ``/ball/catches``: the whole team in one message.
 All outputs carry the observation's stamp; catch times count from it. ``/robot_<i>/vision_pose``
-is answered with ``/robot_<i>/odom``.
+is answered with ``/robot_<i>/odom``. With ``num_opponents`` the opponents are served the same way
+under ``/opponent_<i>/`` (their robotTimeToBall is what the passing game weighs and their interceptor
+drives by); in the core they come after our robots.
 
 ``/ball/model_params`` is the model in use as state (transient local): published at start and
 whenever it changes (a parameter, an accepted fit), and after every online fit with its result.
@@ -18,6 +20,7 @@ warning and answered with nothing. This module converts messages and publishes; 
 
 from __future__ import annotations
 
+import math
 import os
 import time
 
@@ -59,10 +62,18 @@ from erforce_interfaces.stamps import StampFilter, StampVerdict
 SCHEMA = load_schema("erforce_ball_model", "ball_predictor")
 
 
+def _ours_then_opponents(name: str, values: list, n: int, m: int, opponents_value) -> list:
+    """A per-robot parameter of our ``n`` robots (one value or one each), then ``opponents_value`` for ``m``."""
+    if len(values) not in (1, n):
+        raise ValueError(f"{name}: need one value or one per robot ({n}), got {len(values)}")
+    return (list(values) * n if len(values) == 1 else list(values)) + [opponents_value] * m
+
+
 def build_config(c) -> PredictorConfig:
     """The predictor's configuration for a config object of the schema (raises ValueError when invalid)."""
+    n, m = c.num_robots, c.num_opponents
     return PredictorConfig(
-        num_robots=c.num_robots,
+        num_robots=n + m,
         model=BallModelParams(c.a_slide_mps2, c.a_roll_mps2, c.c_switch),
         tracker=TrackerConfig(
             position_noise_m=c.position_noise_m,
@@ -78,8 +89,9 @@ def build_config(c) -> PredictorConfig:
         vision_reject_margin_m=c.vision_reject_margin_m,
         limits=RobotLimits(c.robot_a_max_mps2, c.robot_v_max_mps),
         reaction_s=c.reaction_s,
-        facing_fixed=[m == "fixed" for m in c.facing_mode],
-        facing_rad=list(c.facing_rad),
+        # the opponents face towards the ball: they intercept
+        facing_fixed=_ours_then_opponents("facing_mode", [mode == "fixed" for mode in c.facing_mode], n, m, False),
+        facing_rad=_ours_then_opponents("facing_rad", list(c.facing_rad), n, m, math.pi),
         dribbler_offset_m=c.robot.dribbler_offset_m,
         rest_speed_mps=c.rest_speed_mps,
         grid_step_s=c.grid_step_s,
@@ -101,10 +113,14 @@ class BallPredictorNode(Node):
         predictor = self._predictor = BallPredictor(self._params.built, warn=self._warn.warn,
                                                     info=self.get_logger().info)
         self._times = FrameTimes(predictor.config.timing_log_every)
+        q = contract
         n = predictor.config.num_robots
+        n_ours = self._values["num_robots"]
+        # each core index as the graph knows it: ours first, then the opponents
+        self._robots = [(q.OURS, i) if i < n_ours else (q.OPPONENTS, i - n_ours) for i in range(n)]
+        self._names = [team.namespace(j) for team, j in self._robots]
         # The time rule (erforce_interfaces.stamps) per input stream, before the core sees a frame.
         self._ball_stamps, self._robot_stamps = StampFilter(), [StampFilter() for _ in range(n)]
-        q = contract
         self._params_pub = contract_publisher(self, q.BALL_MODEL_PARAMS)
         self._publish_model()
         self._state_pub = contract_publisher(self, q.BALL_STATE)
@@ -113,26 +129,26 @@ class BallPredictorNode(Node):
         self._v_shoot_pub = contract_publisher(self, q.BALL_V_SHOOT)
         self._uncertain_pub = contract_publisher(self, q.BALL_UNCERTAIN)
         self._catches_pub = contract_publisher(self, q.BALL_CATCHES)
-        self._odom_pubs = [contract_publisher(self, q.ODOM, q.ODOM.for_robot(i)) for i in range(n)]
-        self._catch_time_pubs = [contract_publisher(self, q.CATCH_TIME, q.CATCH_TIME.for_robot(i)) for i in range(n)]
-        self._catch_point_pubs = [
-            contract_publisher(self, q.CATCH_POINT, q.CATCH_POINT.for_robot(i)) for i in range(n)
-        ]
+        self._odom_pubs = [contract_publisher(self, q.ODOM, team.topic(q.ODOM, j)) for team, j in self._robots]
+        self._catch_time_pubs = [contract_publisher(self, q.CATCH_TIME, team.topic(q.CATCH_TIME, j))
+                                 for team, j in self._robots]
+        self._catch_point_pubs = [contract_publisher(self, q.CATCH_POINT, team.topic(q.CATCH_POINT, j))
+                                  for team, j in self._robots]
         self._phase_msg, self._uncertain_msg = String(), Bool()  # refilled every frame
         # Vision comes in and catch outputs go out serialized (conversions' codec): on the path
         # from a frame to its catch times rclpy's message objects cost more than the maths.
         contract_subscription(self, q.VISION_BALL, self._on_ball, raw=True)
-        for i in range(n):
-            contract_subscription(self, q.VISION_POSE, lambda m, i=i: self._on_robot(i, m), q.VISION_POSE.for_robot(i),
-                                  raw=True)
+        for i, (team, j) in enumerate(self._robots):
+            contract_subscription(self, q.VISION_POSE, lambda m, i=i: self._on_robot(i, m),
+                                  team.topic(q.VISION_POSE, j), raw=True)
         contract_subscription(self, q.VISION_FIELD, self._on_vision_field)
         contract_subscription(self, q.VISION_BALL_MODEL, self._on_vision_ball_model)
         # Everything runs on vision stamps; ROS time only stamps the logs: no wake per /clock.
         self._clock_subs = sample_clock(self)
         model = predictor.model
         self.get_logger().info(
-            f"ball_predictor: {n} robot(s), {self._values['field']}, a_slide {model.a_slide_mps2:g}, "
-            f"a_roll {model.a_roll_mps2:g}, c_switch {model.c_switch:g} "
+            f"ball_predictor: {n_ours} robot(s) and {n - n_ours} opponent(s), {self._values['field']}, "
+            f"a_slide {model.a_slide_mps2:g}, a_roll {model.a_roll_mps2:g}, c_switch {model.c_switch:g} "
             f"(online identification {'on' if predictor.config.online_identification else 'off'})"
         )
         self._params.on_change(self._apply)
@@ -180,10 +196,10 @@ class BallPredictorNode(Node):
         try:
             t_s, pose = pose2d_from_msg(msg)
         except ConversionError as exc:
-            self._warn.warn(f"pose{robot}", f"robot_{robot}: rejected vision_pose: {exc}")
+            self._warn.warn(f"pose{robot}", f"{self._names[robot]}: rejected vision_pose: {exc}")
             return
         verdict = check_stamp(self._robot_stamps[robot], round(t_s * 1e9), self._warn,
-                              f"robot_{robot}/vision_pose", self)
+                              f"{self._names[robot]}/vision_pose", self)
         if verdict is StampVerdict.DROP:
             return
         tracker = self._predictor.robot_frame(robot, t_s, pose[0], pose[1], pose[2],
@@ -194,10 +210,10 @@ class BallPredictorNode(Node):
         try:
             odom = odometry_cdr(
                 t_s, (*tracker.position_m, tracker.heading_rad), (vel[0], vel[1], tracker.angular_velocity_radps),
-                child_frame_id=contract.robot_frame(robot),
+                child_frame_id=self._robots[robot][0].frame(self._robots[robot][1]),
             )
         except ConversionError as exc:
-            self._warn.warn(f"odom{robot}", f"robot_{robot}: odom not published: {exc}")
+            self._warn.warn(f"odom{robot}", f"{self._names[robot]}: odom not published: {exc}")
             return
         self._odom_pubs[robot].publish(odom)
 
@@ -260,10 +276,11 @@ class BallPredictorNode(Node):
         self._uncertain_pub.publish(self._uncertain_msg)
 
     def _catch_table(self, frame: BallFrame) -> bytes:
-        """/ball/catches: every fresh robot's pose at the frame and its catch, one message for the team
+        """/ball/catches: every fresh robot's pose at the frame and its catch, one message for both teams
         (an observer such as the field view takes it instead of three topics per robot)."""
         states = self._predictor.robot_states_at(frame.t_s, frame.catch_robots)
-        rows = [(i, *state, t, *(point if point is not None else (0.0, 0.0)))
+        robots = self._robots
+        rows = [(robots[i][0].code, robots[i][1], *state, t, *(point if point is not None else (0.0, 0.0)))
                 for i, state, t, point in zip(frame.catch_robots, states, frame.catch_times_s, frame.catch_points_m,
                                               strict=True)]
         return table_cdr(rows, contract.CATCH_TABLE_COLUMNS)

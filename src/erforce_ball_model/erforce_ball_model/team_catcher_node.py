@@ -7,6 +7,9 @@ publishes each robot's ``cmd_vel`` at ``rate_hz``. Each robot runs its own catch
 ``as_team`` they form a team in which only the robot that can catch the ball first drives to it
 (catcher.team_receiver), as the per-robot catchers with ``team_robot_ids`` do.
 
+With ``team`` ``opponents`` it drives the opponents under ``/opponent_<id>/`` (contract.Team) from the
+predictor's catch times for them: the interceptor of the simulated second team.
+
 One timer and one sampled take of every input per tick, instead of a process, a timer and seven
 subscriptions' wakes per robot. The parameters are the catcher's (``team_robot_ids`` aside).
 """
@@ -61,11 +64,13 @@ class TeamCatcherNode(Node):
         self._params = NodeParams(self, SCHEMA, build)
         self._values = self._params.values
         ids = [int(i) for i in self._values["robot_ids"]]
+        team = contract.TEAMS[self._values["team"]]
+        self._names = {i: team.namespace(i) for i in ids}
         self._team = ids if self._values["as_team"] else ()
         self._receivers: dict[int, Receiver] = {}
         self.on_clock_restart()
         q = contract
-        self._cmd_pubs = {i: contract_publisher(self, q.CMD_VEL, q.CMD_VEL.for_robot(i)) for i in ids}
+        self._cmd_pubs = {i: contract_publisher(self, q.CMD_VEL, team.topic(q.CMD_VEL, i)) for i in ids}
         self._inputs = [sample_only(contract_subscription(self, topic, callback))
                         for topic, callback in ((q.BALL_STATE, self._on_ball), (q.BALL_V_SHOOT, self._on_v_shoot),
                                                 (q.BALL_MODEL_PARAMS, self._on_model_params))]
@@ -73,11 +78,11 @@ class TeamCatcherNode(Node):
             for topic, callback, raw in ((q.ODOM, self._on_odom, False), (q.CATCH_TIME, self._on_catch_time, True),
                                          (q.CATCH_POINT, self._on_catch_point, True),
                                          (q.BALL_DETECTED, self._on_barrier, False)):
-                sub = contract_subscription(self, topic, lambda m, i=i, cb=callback: cb(i, m), topic.for_robot(i),
+                sub = contract_subscription(self, topic, lambda m, i=i, cb=callback: cb(i, m), team.topic(topic, i),
                                             raw=raw)
                 self._inputs.append(sample_only(sub))
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
-        self.get_logger().info(f"team_catcher: robots {ids}{' as a team' if self._team else ''}")
+        self.get_logger().info(f"team_catcher: {team.name}, robots {ids}{' as a team' if self._team else ''}")
         self._params.on_change(self._set_config)
 
     def _set_config(self, built) -> None:
@@ -123,12 +128,12 @@ class TeamCatcherNode(Node):
             receiver.on_model(params)
 
     def _on_odom(self, robot: int, msg: Odometry) -> None:
-        odom = self._convert(msg, f"robot_{robot} odom", odometry_from_msg)
+        odom = self._convert(msg, f"{self._names[robot]} odom", odometry_from_msg)
         if odom is not None:
             self._receivers[robot].on_odom(self._now_s(), odom[1], odom[2])
 
     def _on_catch_time(self, robot: int, msg: bytes) -> None:
-        seconds = self._convert(msg, f"robot_{robot} catch_time", float64_from_msg)
+        seconds = self._convert(msg, f"{self._names[robot]} catch_time", float64_from_msg)
         if seconds is None:
             return
         now = self._now_s()
@@ -139,13 +144,13 @@ class TeamCatcherNode(Node):
                 receiver.on_teammate_catch_time(robot, now, seconds)
 
     def _on_catch_point(self, robot: int, msg: bytes) -> None:
-        point = self._convert(msg, f"robot_{robot} catch_point", point_from_msg)
+        point = self._convert(msg, f"{self._names[robot]} catch_point", point_from_msg)
         if point is not None:
             self._receivers[robot].on_catch_point(self._now_s(), point[1])
 
     def _on_barrier(self, robot: int, msg: Bool) -> None:
         if self._receivers[robot].on_barrier(msg.data):
-            self.get_logger().info(f"robot_{robot} light barrier: ball received")
+            self.get_logger().info(f"{self._names[robot]} light barrier: ball received")
 
     def _tick(self) -> None:
         run_sampled(self._inputs)
@@ -153,7 +158,7 @@ class TeamCatcherNode(Node):
         for i, receiver in self._receivers.items():
             twist = receiver.tick(now)
             if receiver.notice:
-                self._warn.warn(f"tick{i}", f"robot_{i}: {receiver.notice}")
+                self._warn.warn(f"tick{i}", f"{self._names[i]}: {receiver.notice}")
             self._cmd_pubs[i].publish(twist_msg(twist))
 
 

@@ -3,7 +3,8 @@
 No node spells a topic string itself: it takes a ``Topic`` from here. Per-robot topics
 are relative names that live under the robot namespace ``robot_<id>`` (a per-robot node
 launched with ``namespace: robot_0`` uses them as they are; a node serving all robots,
-like the plant or the ball predictor, resolves them with ``Topic.for_robot(id)``).
+like the plant or the ball predictor, resolves them with ``Topic.for_robot(id)``, or for
+either team with ``Team.topic``: the opponents live under ``opponent_<id>``).
 
 Conventions (REP 103 / REP 105):
 - SI units: metres, seconds, radians, m/s, rad/s, amperes, volts. Temperatures in degrees
@@ -16,12 +17,20 @@ Conventions (REP 103 / REP 105):
   they answer, so the plant can pair commands with ticks (see erforce_sim.plant_node).
 - Nothing non-finite is ever published. "Never" in a catch time is ``CATCH_TIME_NEVER``.
 
-Team-level lockstep topics (``/team/wheel_states``, ``/team/motor_duty``): the same JointState as the
-per-robot ones, for many robots in one message per tick, with joint names ``robot_<id>/wheel_<k>``
-(``team_joint_names``): each robot's wheels in wheel order, robots in increasing id. The plant's
-``lockstep_topics`` parameter chooses which of the two it serves (or both); a team_firmware process
-answers for its own robots only, so two of them (our team, the opponents) share the topics. Per robot,
-the values are exactly those of the per-robot topics, so both give the same trajectory.
+Two teams (``Team``): ours, ``OURS``, under ``/robot_<id>/``, and the opponents, ``OPPONENTS``, under
+``/opponent_<id>/``, each with the robot ids 0.. that SSL gives its team; both have the same per-robot
+topics (a per-robot node launched with ``namespace: opponent_0`` is an opponent's), and the plant
+serves both under the same physics.
+
+Team-level lockstep topics (``/team/wheel_states``, ``/team/motor_duty``; the opponents'
+``/opponent_team/wheel_states`` and ``motor_duty``): the same JointState as the per-robot ones, for many
+robots of one team in one message per tick, with joint names ``robot_<id>/wheel_<k>`` (the opponents'
+``opponent_<id>/wheel_<k>``; ``Team.joint_names``): each robot's wheels in wheel order, robots in
+increasing id. As on a real field, where each team drives its own robots over its own link, a team's
+firmware never sees the other team's messages. The plant's ``lockstep_topics`` parameter chooses which
+of the two kinds it serves (or both); a team_firmware process answers for its own robots only, so
+several of one team may share its topics. Per robot, the values are exactly those of the per-robot
+topics, so both give the same trajectory.
 
 SSL-Vision (the ``ssl_vision_bridge`` node; erforce_ball_model.ssl_vision_bridge): the bridge
 takes the league's multicast packets and publishes on the same topics the plant's vision uses,
@@ -166,46 +175,83 @@ class Topic:
         return f"{module}/msg/{self.msg_type.__name__}"
 
 
+@dataclass(frozen=True)
+class Team:
+    """One team's names on the graph: robot ``<id>`` (0.., as SSL numbers each team) has its per-robot topics
+    under ``/<prefix><id>/`` and its frame ``<prefix><id>/base_link``; the team's lockstep topics live under
+    ``lockstep_namespace`` with joints ``<prefix><id>/wheel_<k>``."""
+
+    name: str  # the value of a node's ``team`` parameter that selects it
+    prefix: str
+    lockstep_namespace: str
+    code: float  # the team in a table's ``team`` column (/ball/catches) and ``kind`` (/vision/detections)
+
+    def namespace(self, robot_id: int) -> str:
+        if int(robot_id) != robot_id or robot_id < 0:
+            raise ValueError(f"robot id must be a non-negative integer, got {robot_id!r}")
+        return f"{self.prefix}{int(robot_id)}"
+
+    def id_of_namespace(self, namespace: str) -> int | None:
+        """The robot id of one of this team's namespaces (``/robot_3`` or ``robot_3`` -> 3); None for another."""
+        name = namespace.strip("/")
+        digits = name[len(self.prefix):]
+        if not name.startswith(self.prefix) or not digits.isascii() or not digits.isdigit():
+            return None
+        return int(digits)
+
+    def topic(self, topic: Topic, robot_id: int) -> str:
+        """Absolute name of a per-robot topic for this team's robot ``robot_id`` (``/opponent_3/vision_pose``)."""
+        if not topic.per_robot:
+            raise ValueError(f"{topic.name} is a global topic")
+        return f"/{self.namespace(robot_id)}/{topic.name}"
+
+    def lockstep_topic(self, topic: Topic) -> str:
+        """This team's name of a team-level lockstep topic (``/opponent_team/motor_duty``)."""
+        if topic not in (TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY):
+            raise ValueError(f"{topic.name} is not a team-level lockstep topic")
+        return f"{self.lockstep_namespace}/{topic.name.rsplit('/', 1)[1]}"
+
+    def frame(self, robot_id: int) -> str:
+        return f"{self.namespace(robot_id)}/{BASE_LINK}"
+
+    def joint_names(self, robot_ids, wheel_names) -> tuple[str, ...]:
+        """Joint names of a team-level JointState: ``<prefix><id>/wheel_<k>`` for each robot, then each wheel."""
+        return tuple(f"{self.namespace(i)}/{w}" for i in robot_ids for w in wheel_names)
+
+
+OURS = Team("ours", ROBOT_NAMESPACE_PREFIX, "/team", 1.0)
+OPPONENTS = Team("opponents", OPPONENT_NAMESPACE_PREFIX, "/opponent_team", 2.0)
+TEAMS = {team.name: team for team in (OURS, OPPONENTS)}
+
+
 def robot_namespace(robot_id: int) -> str:
-    if int(robot_id) != robot_id or robot_id < 0:
-        raise ValueError(f"robot id must be a non-negative integer, got {robot_id!r}")
-    return f"{ROBOT_NAMESPACE_PREFIX}{int(robot_id)}"
+    return OURS.namespace(robot_id)
 
 
 def robot_id_of_namespace(namespace: str) -> int | None:
     """The robot id of a robot namespace (``/robot_3`` or ``robot_3`` -> 3); None for any other namespace."""
-    name = namespace.strip("/")
-    digits = name[len(ROBOT_NAMESPACE_PREFIX):]
-    if not name.startswith(ROBOT_NAMESPACE_PREFIX) or not digits.isascii() or not digits.isdigit():
-        return None
-    return int(digits)
+    return OURS.id_of_namespace(namespace)
 
 
 def opponent_id_of_namespace(namespace: str) -> int | None:
     """The opponent robot id of an opponent namespace (``/opponent_3`` -> 3); None for any other namespace."""
-    name = namespace.strip("/")
-    digits = name[len(OPPONENT_NAMESPACE_PREFIX):]
-    if not name.startswith(OPPONENT_NAMESPACE_PREFIX) or not digits.isascii() or not digits.isdigit():
-        return None
-    return int(digits)
+    return OPPONENTS.id_of_namespace(namespace)
 
 
 def opponent_topic(topic: Topic, robot_id: int) -> str:
     """Absolute name of a per-robot topic for the opponents' robot ``robot_id`` (``/opponent_3/vision_pose``)."""
-    if not topic.per_robot:
-        raise ValueError(f"{topic.name} is a global topic")
-    if int(robot_id) != robot_id or robot_id < 0:
-        raise ValueError(f"robot id must be a non-negative integer, got {robot_id!r}")
-    return f"/{OPPONENT_NAMESPACE_PREFIX}{int(robot_id)}/{topic.name}"
+    return OPPONENTS.topic(topic, robot_id)
 
 
 def topic_of_name(name: str) -> Topic | None:
     """The contract topic an absolute name stands for (``/robot_3/odom``, ``/opponent_1/vision_pose``: ODOM,
-    VISION_POSE; ``/clock``: CLOCK), or None for a topic outside the contract."""
+    VISION_POSE; ``/clock``: CLOCK; ``/opponent_team/motor_duty``: TEAM_MOTOR_DUTY), or None for a topic
+    outside the contract."""
     namespace, _, relative = name.strip("/").partition("/")
-    digits = namespace.removeprefix(OPPONENT_NAMESPACE_PREFIX)
-    per_robot = relative and (robot_id_of_namespace(namespace) is not None
-                              or (digits != namespace and digits.isascii() and digits.isdigit()))
+    per_robot = bool(relative) and any(team.id_of_namespace(namespace) is not None for team in TEAMS.values())
+    for team in TEAMS.values():
+        if "/" + namespace == team.lockstep_namespace and relative:
+            name = f"{OURS.lockstep_namespace}/{relative}"
     for topic in TOPICS:
         if (topic.name == relative if topic.per_robot else topic.name == name) and (per_robot or not topic.per_robot):
             return topic
@@ -213,12 +259,12 @@ def topic_of_name(name: str) -> Topic | None:
 
 
 def team_joint_names(robot_ids, wheel_names) -> tuple[str, ...]:
-    """Joint names of a team-level JointState: ``robot_<id>/wheel_<k>`` for each robot, then each wheel."""
-    return tuple(f"{robot_namespace(i)}/{w}" for i in robot_ids for w in wheel_names)
+    """Joint names of our team's team-level JointState (``Team.joint_names``)."""
+    return OURS.joint_names(robot_ids, wheel_names)
 
 
 def robot_frame(robot_id: int) -> str:
-    return f"{robot_namespace(robot_id)}/{BASE_LINK}"
+    return OURS.frame(robot_id)
 
 
 # ---------------------------------------------------------------- global topics
@@ -257,16 +303,19 @@ TEAM_WHEEL_STATES = Topic("/team/wheel_states", JointState, QOS_CONTROL, "plant 
                           "team or both)", "team_firmware",
                           "every controlled robot's wheel_states in one message per tick: joint "
                           "`robot_<id>/wheel_<k>`, velocity = wheel speed [rad/s], effort = motor current [A]; "
-                          "stamp = sensor tick")
+                          "stamp = sensor tick; the opponents' on `/opponent_team/wheel_states`, joints "
+                          "`opponent_<id>/wheel_<k>`")
 TEAM_MOTOR_DUTY = Topic("/team/motor_duty", JointState, QOS_CONTROL, "team_firmware (lockstep_topics team)", "plant",
                         "the motor_duty of the robots one firmware process runs, in one message per tick: joint "
-                        "`robot_<id>/wheel_<k>`, effort = PWM duty in [-1, 1]; stamp = answered tick")
+                        "`robot_<id>/wheel_<k>`, effort = PWM duty in [-1, 1]; stamp = answered tick; the "
+                        "opponents' on `/opponent_team/motor_duty`")
 SIM_EVENTS = Topic("/sim/events", String, QOS_STATE, "plant, ssl_sim_bridge", "tools, demo",
                    "human-readable simulator events: kicks, contacts, lockstep stalls and resumes")
 BALL_CATCHES = Topic("/ball/catches", Float64MultiArray, QOS_SENSOR, "ball_predictor (while subscribed)",
                      "field_view, tools",
-                     "the team at one ball frame, one message for all robots: a table with columns "
-                     "CATCH_TABLE_COLUMNS, a row per robot fresh at the frame (its tracked pose and velocity "
+                     "both teams at one ball frame, one message for all robots: a table with columns "
+                     "CATCH_TABLE_COLUMNS, a row per robot fresh at the frame, ours first, then the opponents "
+                     "(its team, its id in the team, its tracked pose and velocity "
                      "at the frame's stamp [m, rad, m/s], `field`; its catch_time and catch_point as published "
                      "per robot, the point 0, 0 with a catch time of never); after the per-robot outputs")
 PASS_CHOICE = Topic("/pass/choice", Float64MultiArray, QOS_STATE, "passing game (its bag)", "field_view, tools",
@@ -325,8 +374,9 @@ BALL_MODEL_PARAM_LABELS = ("a_slide_mps2", "a_roll_mps2", "c_switch")
 BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
 VISION_DETECTION_COLUMNS = ("camera_id", "age_s", "kind", "robot_id", "x_m", "y_m", "theta_rad", "confidence")
 #: ``kind`` values of /vision/detections (theta_rad is 0 for balls and robots without orientation)
-VISION_DETECTION_KINDS = {"ball": 0.0, "ours": 1.0, "opponent": 2.0}
-CATCH_TABLE_COLUMNS = ("robot_id", "x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "catch_time_s", "catch_x_m",
+VISION_DETECTION_KINDS = {"ball": 0.0, "ours": OURS.code, "opponent": OPPONENTS.code}
+#: ``team`` is Team.code (1 ours, 2 the opponents); ``robot_id`` counts within the team
+CATCH_TABLE_COLUMNS = ("team", "robot_id", "x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "catch_time_s", "catch_x_m",
                        "catch_y_m")
 #: first_opponent counts the opponents 0.. (``/opponent_<id>``), -1: none can catch the pass; then
 #: opponent_catch_s and margin_s are PASS_NO_OPPONENT_S (a table holds finite numbers only).

@@ -34,8 +34,8 @@ from erforce_interfaces.contract import (
     BALL_MODEL_PARAM_LABELS,
     BALL_MODEL_PARAM_ROWS,
     FIELD_FRAME,
-    ROBOT_NAMESPACE_PREFIX,
-    team_joint_names,
+    OURS,
+    Team,
 )
 from erforce_interfaces.stamps import stamp_ns
 
@@ -421,15 +421,16 @@ def _cdr_names(names: tuple[str, ...]) -> bytes:
 
 
 # ------------------------------------------- team-level joint arrays, serialized
-# One JointState per tick for many robots (contract: /team/wheel_states, /team/motor_duty), joints
-# ``robot_<id>/wheel_<k>``. Values travel as (robots, wheels) arrays; the names block is the same
-# from tick to tick, so it is built once per robot set and, on the way in, recognised by its bytes.
+# One JointState per tick for many robots of a team (contract: /team/wheel_states, /team/motor_duty), joints
+# ``robot_<id>/wheel_<k>`` (``team``: contract.Team; the opponents' ``opponent_<id>/wheel_<k>``). Values travel
+# as (robots, wheels) arrays; the names block is the same from tick to tick, so it is built once per robot set
+# and, on the way in, recognised by its bytes.
 def team_joint_state_cdr(t_ns: int, robot_ids: Sequence[int], wheel_names: Sequence[str], *,
                          velocity: np.ndarray | None = None, effort: np.ndarray | None = None,
-                         saturate: bool = False) -> bytes:
+                         saturate: bool = False, team: Team = OURS) -> bytes:
     """A team-level JointState serialized: ``velocity`` / ``effort`` are (robots, wheels) arrays, rows in
     ``robot_ids`` order, checked like ``joint_state_cdr`` (``saturate``: a sensor's range)."""
-    names_cdr, n = _team_names_cdr(tuple(int(i) for i in robot_ids), tuple(wheel_names))
+    names_cdr, n = _team_names_cdr(tuple(int(i) for i in robot_ids), tuple(wheel_names), team)
     parts = [_CDR_LE, _stamp_cdr(t_ns), names_cdr]
     offset = 8 + len(names_cdr)
     for name, values in (("position", None), ("velocity", velocity), ("effort", effort)):
@@ -450,10 +451,10 @@ def team_joint_state_cdr(t_ns: int, robot_ids: Sequence[int], wheel_names: Seque
 
 
 @functools.lru_cache(maxsize=16)
-def _team_names_cdr(robot_ids: tuple[int, ...], wheel_names: tuple[str, ...]) -> tuple[bytes, int]:
+def _team_names_cdr(robot_ids: tuple[int, ...], wheel_names: tuple[str, ...], team: Team) -> tuple[bytes, int]:
     if len(set(robot_ids)) != len(robot_ids) or list(robot_ids) != sorted(robot_ids):
         raise ConversionError(f"robot ids {list(robot_ids)} are not distinct and increasing")
-    names = team_joint_names(robot_ids, wheel_names)
+    names = team.joint_names(robot_ids, wheel_names)
     return _cdr_names(names), len(names)
 
 
@@ -466,18 +467,19 @@ def _check_array(name: str, arr: np.ndarray, limit: float) -> None:
         raise ConversionError(f"{name} has a value beyond the accepted magnitude {limit:g}")
 
 
-def team_robot_ids_of(names: Sequence[str], num_wheels: int) -> tuple[int, ...]:
+def team_robot_ids_of(names: Sequence[str], num_wheels: int, team: Team = OURS) -> tuple[int, ...]:
     """The robot ids of a team-level JointState's joint names; raises ConversionError unless the names are
-    ``robot_<id>/wheel_0 .. wheel_{n-1}`` per robot, ids increasing."""
+    ``<team prefix><id>/wheel_0 .. wheel_{n-1}`` per robot, ids increasing."""
     if len(names) % num_wheels:
         raise ConversionError(f"{len(names)} joint names are not {num_wheels} wheels per robot")
     ids: list[int] = []
     for r in range(len(names) // num_wheels):
         first = names[r * num_wheels]
         head, _, _ = first.partition("/")
-        digits = head[len(ROBOT_NAMESPACE_PREFIX):]
-        if not head.startswith(ROBOT_NAMESPACE_PREFIX) or not digits.isascii() or not digits.isdigit():
-            raise ConversionError(f"joint name {first[:40]!r} is not robot_<id>/wheel_<k>")
+        prefix = team.prefix
+        digits = head[len(prefix):]
+        if not head.startswith(prefix) or not digits.isascii() or not digits.isdigit():
+            raise ConversionError(f"joint name {first[:40]!r} is not {prefix}<id>/wheel_<k>")
         robot = int(digits)
         expected = [f"{head}/wheel_{k}" for k in range(num_wheels)]
         if list(names[r * num_wheels : (r + 1) * num_wheels]) != expected or (ids and robot <= ids[-1]):
@@ -487,23 +489,24 @@ def team_robot_ids_of(names: Sequence[str], num_wheels: int) -> tuple[int, ...]:
     return tuple(ids)
 
 
-# names block (from payload offset 8) -> (robot ids, its length); a few entries: one per sender
-_team_names_seen: dict[bytes, tuple[tuple[int, ...], int]] = {}
+# (team prefix, names block from payload offset 8) -> (robot ids, its length); a few entries: one per sender
+_team_names_seen: dict[tuple[str, bytes], tuple[tuple[int, ...], int]] = {}
 
 
 def team_joint_state_from_msg(msg: JointState | bytes, num_wheels: int, fields: Sequence[str],
-                              limit: float = MAX_ABS_VALUE) -> tuple[int, tuple[int, ...], list[np.ndarray]]:
+                              limit: float = MAX_ABS_VALUE, team: Team = OURS,
+                              ) -> tuple[int, tuple[int, ...], list[np.ndarray]]:
     """(stamp [ns], robot ids, one (robots, wheels) array per field) of a team-level JointState, checked
-    for names, lengths and finiteness like ``joint_state_from_msg``."""
+    for names (of ``team``'s robots), lengths and finiteness like ``joint_state_from_msg``."""
     for field in fields:
         if field not in _JOINT_FIELDS:
             raise ValueError(f"unknown JointState field {field!r}")
     if not isinstance(msg, bytes | bytearray | memoryview):
-        ids = team_robot_ids_of(list(msg.name), num_wheels)
+        ids = team_robot_ids_of(list(msg.name), num_wheels, team)
         arrays = {f: np.asarray(getattr(msg, f), dtype=float) for f in fields}
         t_ns = stamp_to_nanoseconds(msg.header.stamp)
     else:
-        t_ns, ids, arrays = _decode_team_joint_state(bytes(msg), num_wheels, fields)
+        t_ns, ids, arrays = _decode_team_joint_state(bytes(msg), num_wheels, fields, team)
     n = len(ids) * num_wheels
     out = []
     for field in fields:
@@ -515,19 +518,20 @@ def team_joint_state_from_msg(msg: JointState | bytes, num_wheels: int, fields: 
     return t_ns, ids, out
 
 
-def _decode_team_joint_state(data: bytes, num_wheels: int,
-                             fields: Sequence[str]) -> tuple[int, tuple[int, ...], dict[str, np.ndarray]]:
+def _decode_team_joint_state(data: bytes, num_wheels: int, fields: Sequence[str],
+                             team: Team) -> tuple[int, tuple[int, ...], dict[str, np.ndarray]]:
     if data[:2] != _CDR_LE[:2]:
         raise ConversionError("not a little-endian CDR JointState")
-    known = next(((block, seen) for block, seen in _team_names_seen.items() if data.startswith(block, 12)), None)
+    known = next(((block, seen) for (prefix, block), seen in _team_names_seen.items()
+                  if prefix == team.prefix and data.startswith(block, 12)), None)
     if known is None:  # a new sender: decode it all, and remember its names block if it is ours (empty frame_id)
         t_ns, names, values = _decode_joint_state(data)
-        ids = team_robot_ids_of(names, num_wheels)
+        ids = team_robot_ids_of(names, num_wheels, team)
         block = _cdr_names(tuple(names))
         if data.startswith(block, 12):
             if len(_team_names_seen) >= 8:
                 _team_names_seen.clear()
-            _team_names_seen[block] = (ids, len(block))
+            _team_names_seen[(team.prefix, block)] = (ids, len(block))
         found = dict(zip(_JOINT_FIELDS, values, strict=True))
         return t_ns, ids, {f: np.array(found[f], dtype=float) for f in fields}
     block, (ids, _) = known

@@ -21,6 +21,7 @@ tick k-1. Both sides live here, next to the contract, because the protocol is pa
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,6 +43,7 @@ class DutyGate:
     duties: dict[int, np.ndarray] = field(default_factory=dict)
     stalled: dict[int, int] = field(default_factory=dict)  # robot -> tick it stalled at
     expected: set[int] = field(default_factory=set)
+    names: Sequence[str] = ()  # each robot's name in the events (robot_<id> or opponent_<id>); else robot_<index>
 
     def open(self, tick_ns: int, now_s: float, peers_present: set[int]) -> None:
         """Start waiting for tick ``tick_ns`` from every present, non-stalled peer."""
@@ -60,7 +62,7 @@ class DutyGate:
         event = None
         if robot in self.stalled and stamp_ns >= self.stalled[robot]:
             del self.stalled[robot]
-            event = f"lockstep: robot_{robot} resumed at t={self.tick_ns * 1e-9:.3f} s"
+            event = f"lockstep: {self._name(robot)} resumed at t={self.tick_ns * 1e-9:.3f} s"
         if stamp_ns == self.tick_ns:
             self.duties[robot] = duty
             self.expected.add(robot)
@@ -68,6 +70,9 @@ class DutyGate:
 
     def ready(self) -> bool:
         return self.expected.issubset(self.duties)
+
+    def _name(self, robot: int) -> str:
+        return self.names[robot] if robot < len(self.names) else f"robot_{robot}"
 
     def missing(self) -> set[int]:
         return self.expected - set(self.duties)
@@ -81,7 +86,7 @@ class DutyGate:
             self.stalled[robot] = self.tick_ns
             self.expected.discard(robot)
             events.append(
-                f"lockstep: robot_{robot} motor_boards stalled: no answer to t={self.tick_ns * 1e-9:.3f} s "
+                f"lockstep: {self._name(robot)} motor_boards stalled: no answer to t={self.tick_ns * 1e-9:.3f} s "
                 f"within {self.timeout_s:g} s; continuing with zero duty"
             )
         return events

@@ -27,6 +27,8 @@ from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrapper_pb2
 
 MM = 1e-3
 TEAMS = ("blue", "yellow")
+#: Our team's colour unless told otherwise (the SSL bridge's team_color, the plant's SSL output)
+OUR_TEAM_COLOR = "blue"
 # The league's ports: SSL-Vision on 10006; ER-Force's simulator and grSim send vision on 10020.
 SSL_VISION_GROUP = "224.5.23.2"
 SSL_VISION_PORT = 10006

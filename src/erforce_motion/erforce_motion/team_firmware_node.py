@@ -12,7 +12,11 @@ would be a message per robot per tick.
 
 With ``lockstep_topics`` ``team`` it takes one ``/team/wheel_states`` per tick instead and answers
 with one ``/team/motor_duty`` for its robots (contract: joints ``robot_<id>/wheel_<k>``); robots of the
-message that are not in ``robot_ids`` belong to another process (the other team) and are left alone.
+message that are not in ``robot_ids`` belong to another process of the team and are left alone.
+
+With ``team`` ``opponents`` it is the opponents' firmware: the same, under ``/opponent_<id>/`` and
+``/opponent_team/`` (contract.Team). Each team runs its own process, as each team on a real field
+runs its own robots: neither sees the other's messages, and one crashing leaves the other playing.
 
 One executor wakes once for all robots whose ``wheel_states`` are queued, instead of two
 processes per robot each waking per tick. The parameters of the two per-robot nodes are here
@@ -79,14 +83,15 @@ class _Robot:
     """One robot's row in the team firmware, its publishers and time rule."""
 
     def __init__(self, node: Node, robot_id: int, row: int) -> None:
-        self.robot_id, self.row = robot_id, row
+        team = node.team
+        self.robot_id, self.row, self.name = robot_id, row, team.namespace(robot_id)
         self.last_status_ns: int | None = None
         self.stamps = StampFilter()  # the time rule for this robot's ticks
         self.duty_pub = None if node.team_topics else contract_publisher(node, contract.MOTOR_DUTY,
-                                                                          contract.MOTOR_DUTY.for_robot(robot_id))
-        self.status_pub = contract_publisher(node, contract.MOTOR_STATUS, contract.MOTOR_STATUS.for_robot(robot_id))
+                                                                          team.topic(contract.MOTOR_DUTY, robot_id))
+        self.status_pub = contract_publisher(node, contract.MOTOR_STATUS, team.topic(contract.MOTOR_STATUS, robot_id))
         self.setpoint_pub = contract_publisher(node, contract.WHEEL_SETPOINTS,
-                                               contract.WHEEL_SETPOINTS.for_robot(robot_id))
+                                               team.topic(contract.WHEEL_SETPOINTS, robot_id))
 
 
 class TeamFirmwareNode(Node):
@@ -98,20 +103,24 @@ class TeamFirmwareNode(Node):
         self._params = NodeParams(self, SCHEMA, build_loops)
         self._values = self._params.values
         self.team_topics = self._values["lockstep_topics"] == "team"
+        team = self.team = contract.TEAMS[self._values["team"]]
         self._apply(self._params.built)
         n, w = self._firmware.n_robots, self._firmware.num_wheels
         self._speeds, self._currents = np.zeros((n, w)), np.zeros((n, w))  # the sensors, row per robot
         for i, robot in self._robots.items():
             contract_subscription(self, contract.CMD_VEL, lambda m, r=robot: self._on_cmd_vel(r, m),
-                                  contract.CMD_VEL.for_robot(i))
+                                  team.topic(contract.CMD_VEL, i))
             if not self.team_topics:
                 contract_subscription(self, contract.WHEEL_STATES, lambda m, r=robot: self._on_wheel_states(r, m),
-                                      contract.WHEEL_STATES.for_robot(i), raw=True)
+                                      team.topic(contract.WHEEL_STATES, i), raw=True)
         if self.team_topics:
-            self._team_duty_pub = contract_publisher(self, contract.TEAM_MOTOR_DUTY)
-            contract_subscription(self, contract.TEAM_WHEEL_STATES, self._on_team_wheel_states, raw=True)
+            self._team_states_name = team.lockstep_topic(contract.TEAM_WHEEL_STATES)
+            self._team_duty_pub = contract_publisher(self, contract.TEAM_MOTOR_DUTY,
+                                                     team.lockstep_topic(contract.TEAM_MOTOR_DUTY))
+            contract_subscription(self, contract.TEAM_WHEEL_STATES, self._on_team_wheel_states,
+                                  self._team_states_name, raw=True)
         self._clock_subs = sample_clock(self)
-        self.get_logger().info(f"team_firmware: robots {sorted(self._robots)}, "
+        self.get_logger().info(f"team_firmware: {team.name}, robots {sorted(self._robots)}, "
                                f"{self._values['lockstep_topics']} lockstep topics")
         self._params.on_change(self._apply)
 
@@ -131,7 +140,7 @@ class TeamFirmwareNode(Node):
                                    v[MAIN_PREFIX + "reject_angular_above_radps"])
         except ConversionError as exc:
             self._firmware.stop(robot.row)
-            self._warn.warn(f"cmd_vel{robot.robot_id}", f"robot_{robot.robot_id}: rejected cmd_vel ({exc}); stopping")
+            self._warn.warn(f"cmd_vel{robot.robot_id}", f"{robot.name}: rejected cmd_vel ({exc}); stopping")
             return
         self._firmware.command(robot.row, twist)
 
@@ -142,7 +151,7 @@ class TeamFirmwareNode(Node):
         try:
             t_ns, speeds, currents = wheel_states_from_msg(msg, firmware.num_wheels)
         except ConversionError as exc:
-            self._warn.warn(f"wheel_states{robot.robot_id}", f"robot_{robot.robot_id}: rejected wheel_states: {exc}")
+            self._warn.warn(f"wheel_states{robot.robot_id}", f"{robot.name}: rejected wheel_states: {exc}")
             return
         if self._take_sensors(robot, t_ns, speeds, currents):
             duty = self._tick([robot], [t_ns])
@@ -153,9 +162,10 @@ class TeamFirmwareNode(Node):
         run_sampled(self._clock_subs)
         firmware = self._firmware
         try:
-            t_ns, ids, (speeds, currents) = team_joint_state_from_msg(msg, firmware.num_wheels, ("velocity", "effort"))
+            t_ns, ids, (speeds, currents) = team_joint_state_from_msg(msg, firmware.num_wheels, ("velocity", "effort"),
+                                                                      team=self.team)
         except ConversionError as exc:
-            self._warn.warn("team_wheel_states", f"rejected /team/wheel_states: {exc}")
+            self._warn.warn("team_wheel_states", f"rejected {self._team_states_name}: {exc}")
             return
         ticked = []
         for k, i in enumerate(ids):
@@ -165,11 +175,12 @@ class TeamFirmwareNode(Node):
         if ticked:
             duty = self._tick(ticked, [t_ns] * len(ticked))
             self._team_duty_pub.publish(team_joint_state_cdr(
-                t_ns, [r.robot_id for r in ticked], firmware.robot.wheel_names, effort=duty[[r.row for r in ticked]]))
+                t_ns, [r.robot_id for r in ticked], firmware.robot.wheel_names, effort=duty[[r.row for r in ticked]],
+                team=self.team))
 
     def _take_sensors(self, robot: _Robot, t_ns: int, speeds, currents) -> bool:
         """The time rule for this robot's tick; its sensors into its rows. False: the tick is dropped."""
-        verdict = check_stamp(robot.stamps, t_ns, self._warn, f"robot_{robot.robot_id}/wheel_states", self)
+        verdict = check_stamp(robot.stamps, t_ns, self._warn, f"{robot.name}/wheel_states", self)
         if verdict is StampVerdict.DROP:
             return False
         if verdict is StampVerdict.RESTART:
@@ -193,7 +204,7 @@ class TeamFirmwareNode(Node):
             row = robot.row
             if firmware.main_notice[row] or firmware.motor_notice[row]:
                 for notice in firmware.notices(row):
-                    self._warn.warn(f"notice{robot.robot_id}", f"robot_{robot.robot_id}: {notice}")
+                    self._warn.warn(f"notice{robot.robot_id}", f"{robot.name}: {notice}")
             if publish_setpoints:
                 robot.setpoint_pub.publish(joint_state_cdr(t_ns, names, velocity=firmware.setpoints[row]))
             last = robot.last_status_ns

@@ -13,16 +13,21 @@ Pacing (parameter ``pacing``):
 - ``realtime``: ticks follow the wall clock times ``real_time_factor``; the newest duty
   of each robot is applied, nobody is waited for.
 
+Two teams (``opponent_poses``): our robots under ``/robot_<id>/`` and the opponents, ids 0.., under
+``/opponent_<id>/`` (contract.Team), all under the same physics; every opponent has motor boards. In
+the world the opponents come after our robots (PlantSetup.team_of).
+
 Lockstep topics (parameter ``lockstep_topics``): ``per_robot`` serves ``/robot_<id>/wheel_states`` and
 ``motor_duty`` (one velocity_controller + motor_boards per robot, or a team_firmware on them); ``team``
-serves one ``/team/wheel_states`` per tick for all controlled robots and takes ``/team/motor_duty``
-answers, each for the robots of one team_firmware process (contract: joints ``robot_<id>/wheel_<k>``);
+serves, per team, one ``/team/wheel_states`` (the opponents' ``/opponent_team/wheel_states``) per tick
+for its controlled robots and takes ``motor_duty`` answers there, each for the robots of one
+team_firmware process (contract: joints ``robot_<id>/wheel_<k>``, ``opponent_<id>/wheel_<k>``);
 ``both`` serves both, and a robot's answer counts from either. The gate is per robot either way.
 
 Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state``
-(nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``. A body
-placed outside the field walls is refused with an error naming it. They act at the next tick;
-of several that arrived meanwhile on one topic, the newest.
+(nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``; an opponent likewise
+under ``/opponent_<id>/``. A body placed outside the field walls is refused with an error naming it.
+They act at the next tick; of several that arrived meanwhile on one topic, the newest.
 """
 
 from __future__ import annotations
@@ -79,12 +84,17 @@ _STARTUP_GRACE_S = 0.5
 
 def setup_from_params(config) -> PlantSetup:
     """The world's setup from a config object of the schema (all of it read-only: fixed at start)."""
-    poses = config.robot_poses
-    if len(poses) % 3:
-        raise ValueError(f"robot_poses: need x, y, yaw per robot, got {len(poses)} values")
+    def poses(name: str) -> tuple[tuple[float, ...], ...]:
+        values = getattr(config, name)
+        if len(values) % 3:
+            raise ValueError(f"{name}: need x, y, yaw per robot, got {len(values)} values")
+        return tuple(tuple(values[i : i + 3]) for i in range(0, len(values), 3))
+
     return PlantSetup(
         field_preset=config.field,
-        robot_poses=tuple(tuple(poses[i : i + 3]) for i in range(0, len(poses), 3)),
+        robot_poses=poses("robot_poses"),
+        opponent_poses=poses("opponent_poses"),
+        our_color=config.team_color,
         kicker_plates=config.kicker_plates,
         controlled=tuple(bool(c) for c in config.controlled),
         ball=config.ball,
@@ -118,10 +128,17 @@ class PlantNode(Node):
         self._values = self._params.values
         self.setup = setup_from_params(self._params.config)
         self.world = build_world(self.setup)  # refuses bodies off the field with a clear error
-        n = self.setup.num_robots
-        self._wheels = self.setup.robot.wheel_names
-        self._controlled = {i for i in range(n) if self.setup.is_controlled(i)}
-        self._gate = DutyGate(n, self._values["lockstep_timeout_s"])
+        setup = self.setup
+        n = self._n = setup.num_robots + setup.num_opponents  # world indices: ours, then the opponents
+        # each world index as the graph knows it: its team and its id in the team
+        self._robots = [(contract.OPPONENTS if opp else contract.OURS, j) for opp, j in map(setup.team_of, range(n))]
+        self._names = [team.namespace(j) for team, j in self._robots]
+        self._index = {(team.name, j): i for i, (team, j) in enumerate(self._robots)}
+        self._vision_index = {(setup.opponent_color if team is contract.OPPONENTS else setup.our_color, j): i
+                              for i, (team, j) in enumerate(self._robots)}
+        self._wheels = setup.robot.wheel_names
+        self._controlled = {i for i in range(n) if setup.is_controlled(i)}
+        self._gate = DutyGate(n, self._values["lockstep_timeout_s"], names=self._names)
         self._latest_duty = {i: None for i in range(n)}
         self._tick = 0
         self._period_ns = self.setup.period_ns
@@ -137,7 +154,11 @@ class PlantNode(Node):
         self._per_robot_lockstep = topics in ("per_robot", "both")
         self._team_lockstep = topics in ("team", "both")
         self._controlled_ids = sorted(self._controlled)
-        self._team_named: set[int] = set()  # robots some /team/motor_duty answer was for
+        # per team with robots on the field: its controlled world indices (ours come first in _controlled_ids)
+        self._team_ids = {team: [i for i in self._controlled_ids if self._robots[i][0] is team]
+                          for team in (contract.OURS, contract.OPPONENTS)
+                          if team is contract.OURS or setup.num_opponents}
+        self._team_named: set[int] = set()  # robots some team motor_duty answer was for
 
         q = contract
         pub, sub = contract_publisher, contract_subscription
@@ -158,26 +179,29 @@ class PlantNode(Node):
                 self._scenario_pending.pop(key, None)  # the newest goes last: commands act in arrival order
                 self._scenario_pending[key] = lambda: apply(msg)
             return keep
-        for i in range(n):
+        for i, (team, j) in enumerate(self._robots):
             self._pubs.append(
                 {
-                    "states": pub(self, q.WHEEL_STATES, q.WHEEL_STATES.for_robot(i)) if self._per_robot_lockstep
+                    "states": pub(self, q.WHEEL_STATES, team.topic(q.WHEEL_STATES, j)) if self._per_robot_lockstep
                     else None,
-                    "vision": pub(self, q.VISION_POSE, q.VISION_POSE.for_robot(i)),
-                    "barrier": pub(self, q.BALL_DETECTED, q.BALL_DETECTED.for_robot(i)),
-                    "truth": pub(self, q.GROUND_TRUTH_ODOM, q.GROUND_TRUTH_ODOM.for_robot(i)),
-                    "motors": pub(self, q.GROUND_TRUTH_MOTORS, q.GROUND_TRUTH_MOTORS.for_robot(i)),
+                    "vision": pub(self, q.VISION_POSE, team.topic(q.VISION_POSE, j)),
+                    "barrier": pub(self, q.BALL_DETECTED, team.topic(q.BALL_DETECTED, j)),
+                    "truth": pub(self, q.GROUND_TRUTH_ODOM, team.topic(q.GROUND_TRUTH_ODOM, j)),
+                    "motors": pub(self, q.GROUND_TRUTH_MOTORS, team.topic(q.GROUND_TRUTH_MOTORS, j)),
                 }
             )
             if self._per_robot_lockstep:
-                sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), q.MOTOR_DUTY.for_robot(i), raw=True)
-            sub(self, q.KICK, scenario(f"kick{i}", lambda m, i=i: self._on_kick(i, m)), q.KICK.for_robot(i))
+                sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), team.topic(q.MOTOR_DUTY, j), raw=True)
+            sub(self, q.KICK, scenario(f"kick{i}", lambda m, i=i: self._on_kick(i, m)), team.topic(q.KICK, j))
             sub(self, q.SIM_SET_STATE, scenario(f"set{i}", lambda m, i=i: self._on_set_robot(i, m)),
-                q.SIM_SET_STATE.for_robot(i))
+                team.topic(q.SIM_SET_STATE, j))
         sub(self, q.SIM_SET_BALL, scenario("ball", self._on_set_ball))
         if self._team_lockstep:
-            self._team_states_pub = pub(self, q.TEAM_WHEEL_STATES)
-            sub(self, q.TEAM_MOTOR_DUTY, self._on_team_duty, raw=True)
+            self._team_states_pubs = {}
+            for team in self._team_ids:
+                self._team_states_pubs[team] = pub(self, q.TEAM_WHEEL_STATES, team.lockstep_topic(q.TEAM_WHEEL_STATES))
+                sub(self, q.TEAM_MOTOR_DUTY, lambda m, team=team: self._on_team_duty(team, m),
+                    team.lockstep_topic(q.TEAM_MOTOR_DUTY), raw=True)
         self._peers: set[int] = set()
         self._setup_ssl_vision()
         self._apply_params(self._params.config)
@@ -185,7 +209,8 @@ class PlantNode(Node):
         # Who answers is a graph query (slow): refreshed 5 times a second, not every tick.
         self.create_timer(0.2, self._refresh_peers, clock=RclClock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
-            f"plant: {n} robot(s), {self.setup.field_preset}, tick {self.setup.control_period_s * 1e3:g} ms, "
+            f"plant: {setup.num_robots} robot(s) and {setup.num_opponents} opponent(s), {setup.field_preset}, "
+            f"tick {setup.control_period_s * 1e3:g} ms, "
             f"{self._values['pacing']} pacing, {topics} lockstep topics"
         )
 
@@ -214,23 +239,25 @@ class PlantNode(Node):
             t_ns, duty = joint_state_from_msg(msg, len(self._wheels), "effort")
         except ConversionError as exc:
             # A broken answer still answers the tick, with the motors off: lockstep goes on.
-            self._warn.warn(f"duty{robot}", f"robot_{robot}: rejected motor_duty ({exc}); motors off")
+            self._warn.warn(f"duty{robot}", f"{self._names[robot]}: rejected motor_duty ({exc}); motors off")
             t_ns = self._tick * self._period_ns
             duty = None
         self._take_duty(robot, t_ns, duty)
         if t_ns == self._gate.tick_ns:  # only an answer to the open tick can let it advance (a flood of others
             self._pump()                # costs no pump each; the pacing timer still runs)
 
-    def _on_team_duty(self, msg: bytes) -> None:
+    def _on_team_duty(self, team: contract.Team, msg: bytes) -> None:
+        topic = team.lockstep_topic(contract.TEAM_MOTOR_DUTY)
         try:
-            t_ns, ids, (duties,) = team_joint_state_from_msg(msg, len(self._wheels), ("effort",))
+            t_ns, ids, (duties,) = team_joint_state_from_msg(msg, len(self._wheels), ("effort",), team=team)
         except ConversionError as exc:  # no robot to answer for: the robots stall, and are reported, if it lasts
-            self._warn.warn("team_duty", f"rejected /team/motor_duty ({exc})")
+            self._warn.warn(f"team_duty_{team.name}", f"rejected {topic} ({exc})")
             return
-        for k, robot in enumerate(ids):
+        for k, robot_id in enumerate(ids):
+            robot = self._index.get((team.name, robot_id))
             if robot not in self._controlled:
-                self._warn.warn(f"team_duty{robot}", f"/team/motor_duty for robot_{robot}, which is not a controlled "
-                                f"robot of this plant; ignored")
+                self._warn.warn(f"team_duty_{team.name}{robot_id}", f"{topic} for {team.namespace(robot_id)}, which is "
+                                f"not a controlled robot of this plant; ignored")
                 continue
             self._team_named.add(robot)
             self._take_duty(robot, t_ns, duties[k])
@@ -249,11 +276,11 @@ class PlantNode(Node):
             speed = float64_from_msg(msg, limit=100.0)
             result = self.world.kick(robot, speed, armed_for_s=0.1)
         except (ConversionError, ValueError) as exc:
-            self._warn.warn(f"kick{robot}", f"robot_{robot}: rejected kick: {exc}")
+            self._warn.warn(f"kick{robot}", f"{self._names[robot]}: rejected kick: {exc}")
             return
         state = "fired" if result.fired else ("armed" if result.armed else "no ball at the kicker")
         clamped = " (clamped)" if result.clamped else ""
-        self._event(f"robot_{robot} kick {result.speed_mps:.2f} m/s{clamped}: {state}")
+        self._event(f"{self._names[robot]} kick {result.speed_mps:.2f} m/s{clamped}: {state}")
 
     def _on_set_ball(self, msg: Odometry) -> None:
         try:
@@ -269,38 +296,45 @@ class PlantNode(Node):
             _, pose, velocity, _ = odometry_from_msg(msg)
             self.world.place_robot(robot, pose[0], pose[1], pose[2], velocity[0], velocity[1], velocity[2])
         except (ConversionError, ValueError) as exc:
-            self._warn.warn(f"set_robot{robot}", f"rejected robot_{robot}/sim/set_state: {exc}")
+            self._warn.warn(f"set_robot{robot}", f"rejected {self._names[robot]}/sim/set_state: {exc}")
             return
-        self._event(f"robot_{robot} placed at ({pose[0]:.3f}, {pose[1]:.3f}, {pose[2]:.3f})")
+        self._event(f"{self._names[robot]} placed at ({pose[0]:.3f}, {pose[1]:.3f}, {pose[2]:.3f})")
 
     # ---------------------------------------------------------------- ticking
     def _refresh_peers(self) -> None:
         q = contract
         peers = set()
         if self._per_robot_lockstep:
-            peers = {i for i in self._controlled if self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0}
-        # A team answer names its robots; until the first one, every controlled robot is taken as served
-        # (one that is not stalls once, after lockstep_timeout_s, and is reported).
-        if self._team_lockstep and self.count_publishers(q.TEAM_MOTOR_DUTY.name) > 0:
-            peers |= self._team_named or self._controlled
+            peers = {i for i in self._controlled if self.count_publishers(self._topic(q.MOTOR_DUTY, i)) > 0}
+        # A team answer names its robots; until the first one, every controlled robot of the team is taken as
+        # served (one that is not stalls once, after lockstep_timeout_s, and is reported).
+        if self._team_lockstep:
+            for team, ids in self._team_ids.items():
+                if self.count_publishers(team.lockstep_topic(q.TEAM_MOTOR_DUTY)) > 0:
+                    peers |= (self._team_named & set(ids)) or set(ids)
         self._peers = peers
+
+    def _topic(self, topic: contract.Topic, i: int) -> str:
+        """The name of a per-robot topic for world index ``i``."""
+        team, j = self._robots[i]
+        return team.topic(topic, j)
 
     def _ready_to_start(self) -> bool:
         q = contract
         waited = time.monotonic() - self._start_wall
         readers = self._values["wheel_states_readers"]
-        per_robot_ok = self._per_robot_lockstep and all(
-            self.count_publishers(q.MOTOR_DUTY.for_robot(i)) > 0
-            and self.count_subscribers(q.WHEEL_STATES.for_robot(i)) >= readers
+        # every controlled robot served: on its own topics, or its team's (each team may use either)
+        team_served = {team for team in self._team_ids if self._team_lockstep
+                       and self.count_publishers(team.lockstep_topic(q.TEAM_MOTOR_DUTY)) > 0
+                       and self.count_subscribers(team.lockstep_topic(q.TEAM_WHEEL_STATES)) >= readers}
+        robots_ok = all(
+            self._robots[i][0] in team_served
+            or (self._per_robot_lockstep and self.count_publishers(self._topic(q.MOTOR_DUTY, i)) > 0
+                and self.count_subscribers(self._topic(q.WHEEL_STATES, i)) >= readers)
             for i in self._controlled
         )
-        team_ok = self._team_lockstep and (
-            not self._controlled
-            or (self.count_publishers(q.TEAM_MOTOR_DUTY.name) > 0
-                and self.count_subscribers(q.TEAM_WHEEL_STATES.name) >= readers)
-        )
         clock_ok = self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
-        ok = (per_robot_ok or team_ok) and clock_ok
+        ok = robots_ok and clock_ok
         if not ok and waited > self._values["startup_timeout_s"]:
             self._event(f"starting without all controlled robots or /clock subscribers after {waited:.1f} s", warn=True)
             return True
@@ -357,14 +391,14 @@ class PlantNode(Node):
                             "ones in one tick")
             self._scenario_overtaken = 0
         n_wheels = len(self._wheels)
-        for i in range(self.setup.num_robots):
+        for i in range(self._n):
             if lockstep:
                 duty = self._gate.duty_for(i, n_wheels)
             else:
                 duty = self._latest_duty[i] if self._latest_duty[i] is not None else np.zeros(n_wheels)
             clamped = self.world.set_duty(i, duty)
             if clamped:
-                self._warn.warn(f"clamp{i}", f"robot_{i}: {clamped} duty value(s) outside [-1, 1] clamped")
+                self._warn.warn(f"clamp{i}", f"{self._names[i]}: {clamped} duty value(s) outside [-1, 1] clamped")
         self.world.step(self.setup.control_period_s)
         self._tick += 1
         if not self.world.all_finite():  # never publish a broken state; stop loudly instead
@@ -395,10 +429,15 @@ class PlantNode(Node):
                     )
                 )
         if self._team_lockstep and sensed:
-            self._team_states_pub.publish(team_joint_state_cdr(
-                t_ns, self._controlled_ids, self._wheels, velocity=[s for s, _ in sensed],
-                effort=[c for _, c in sensed], saturate=True,
-            ))
+            start = 0
+            for team, ids in self._team_ids.items():  # each team's rows of sensed, in order
+                rows = sensed[start : start + len(ids)]
+                start += len(ids)
+                if rows:
+                    self._team_states_pubs[team].publish(team_joint_state_cdr(
+                        t_ns, [self._robots[i][1] for i in ids], self._wheels, velocity=[s for s, _ in rows],
+                        effort=[c for _, c in rows], saturate=True, team=team,
+                    ))
         if retry:
             return
         if t_ns - self._last_clock_ns >= 1e9 / self._values["clock_rate_hz"] - 1:
@@ -410,7 +449,7 @@ class PlantNode(Node):
             self._publish_vision(frame)
         if self._ssl is not None:
             self._publish_ssl_vision(frames)
-        for i in range(self.setup.num_robots):
+        for i in range(self._n):
             detected = world.light_barrier(i)
             if detected != self._barrier_state[i] or t_ns % 100_000_000 == 0:
                 self._barrier_state[i] = detected
@@ -467,7 +506,8 @@ class PlantNode(Node):
         for ball in frame.balls:
             self._vision_ball_pub.publish(point_cdr(t, (ball.x, ball.y)))
         for det in frame.robots:
-            self._pubs[det.robot_id]["vision"].publish(pose2d_cdr(t, (det.x, det.y, det.theta)))
+            self._pubs[self._vision_index[det.team, det.robot_id]]["vision"].publish(
+                pose2d_cdr(t, (det.x, det.y, det.theta)))
 
     def _publish_truth(self, t_s: float) -> None:
         b = self.world.ball_state()
@@ -475,10 +515,10 @@ class PlantNode(Node):
         self._truth_ball_pub.publish(
             odometry_cdr(t_s, (b.x, b.y, 0.0), (b.vx, b.vy, 0.0), "ball", spin=(b.wx, b.wy, b.wz))
         )
-        for i in range(self.setup.num_robots):
+        for i, (team, j) in enumerate(self._robots):
             r = self.world.robot_state(i)
             self._pubs[i]["truth"].publish(
-                odometry_cdr(t_s, (r.x, r.y, r.theta), (r.vx, r.vy, r.w), contract.robot_frame(i))
+                odometry_cdr(t_s, (r.x, r.y, r.theta), (r.vx, r.vy, r.w), team.frame(j))
             )
             rows = [
                 [r.currents_a[k], r.winding_temperatures_c[k], r.wheel_speeds_radps[k]]

@@ -54,16 +54,16 @@ def quadrant_cameras(field: FieldConfig, overlap_m: float = 0.5,
 
 
 class SslCameraSplitter:
-    """World vision frames -> per-camera SSL datagrams with release times (world clock)."""
+    """World vision frames -> per-camera SSL datagrams with release times (world clock); each robot in its
+    team's colour, as the world has it (PlantSetup.our_color)."""
 
     def __init__(self, cameras: tuple[SimCamera, ...], field: FieldConfig, ball_model: BallModelFromVision | None,
-                 our_team: str = "blue", latency_s: float = 0.015, camera_noise_m: float = 0.0005,
+                 latency_s: float = 0.015, camera_noise_m: float = 0.0005,
                  clock_offset_s: float = 0.0, seed: int = 0) -> None:
         self.cameras = cameras
         self.latency_s = latency_s
         self.camera_noise_m = camera_noise_m
         self.clock_offset_s = clock_offset_s
-        self.our_team = our_team
         self._rng = random.Random(seed)
         self._frame_numbers = [0] * len(cameras)
         self.geometry = FieldGeometry(
@@ -87,7 +87,7 @@ class SslCameraSplitter:
                 for b in frame.balls if cam.sees(b.x, b.y)
             )
             robots = tuple(
-                RobotSighting(self.our_team, r.robot_id, r.x + gauss(0.0, noise), r.y + gauss(0.0, noise), r.theta, 1.0)
+                RobotSighting(r.team, r.robot_id, r.x + gauss(0.0, noise), r.y + gauss(0.0, noise), r.theta, 1.0)
                 for r in frame.robots if cam.sees(r.x, r.y)
             )
             self._frame_numbers[k] += 1

@@ -29,6 +29,8 @@ import numpy as np
 
 from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.ssl_vision import OUR_TEAM_COLOR
+from erforce_interfaces.ssl_vision import TEAMS as SSL_TEAMS
 from erforce_sim.ball import BallBody, BallParams, BallState
 from erforce_sim.contacts import ContactParams, RobotShape, ball_robot, ball_walls, robot_robot, robot_walls
 from erforce_sim.drivetrain import DriveTrainCoefficients, RobotPlant, advance_robots
@@ -788,7 +790,6 @@ class World:
 
 # ---------------------------------------------------------------------- a scenario for the plant
 PLATES = ("flat", "curved")
-OPPONENT_TEAM = "blue"  # our robots are RobotSpec's default team, yellow
 
 
 @dataclass(frozen=True)
@@ -800,9 +801,10 @@ class PlantSetup:
     kicker_plates: tuple[str, ...] = ("curved",)  # one per robot, or one for all
     controlled: tuple[bool, ...] = (True,)  # robots with motor boards; one per robot, or one for all
     ball: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # x, y [m], vx, vy [m/s], rolling
-    # The second team (blue, ids 0 .. M-1), under the same physics and with motion control; in the
-    # world and the runner they come after our robots: index num_robots + j.
+    # The second team (ids 0 .. M-1, the other colour), under the same physics and with motion control; in
+    # the world and the runner they come after our robots: index num_robots + j.
     opponent_poses: tuple[tuple[float, float, float], ...] = ()
+    our_color: str = OUR_TEAM_COLOR  # SSL team colour of our robots (what vision reports them as)
     control_period_s: float = 0.001
     seed: int = 0
     robot: RobotConfig = field(default_factory=RobotConfig)
@@ -824,6 +826,8 @@ class PlantSetup:
         for plate in self.kicker_plates:
             if plate not in PLATES:
                 raise ValueError(f"kicker_plates: each must be one of {PLATES}, got {plate!r}")
+        if self.our_color not in SSL_TEAMS:
+            raise ValueError(f"our_color: must be one of {SSL_TEAMS}, got {self.our_color!r}")
         if len(self.ball) != 4 or not all(math.isfinite(v) for v in self.ball):
             raise ValueError(f"ball: 4 finite values (x, y, vx, vy), got {self.ball!r}")
         if not (math.isfinite(self.control_period_s) and 1e-4 <= self.control_period_s <= 0.05):
@@ -841,6 +845,16 @@ class PlantSetup:
         return len(self.opponent_poses)
 
     @property
+    def opponent_color(self) -> str:
+        return SSL_TEAMS[1 - SSL_TEAMS.index(self.our_color)]
+
+    def team_of(self, i: int) -> tuple[bool, int]:
+        """(an opponent?, its id in its team) of world index ``i``: ours first, then the opponents."""
+        if not 0 <= i < self.num_robots + self.num_opponents:
+            raise ValueError(f"robot index must be in [0, {self.num_robots + self.num_opponents - 1}], got {i!r}")
+        return (False, i) if i < self.num_robots else (True, i - self.num_robots)
+
+    @property
     def period_ns(self) -> int:
         return round(self.control_period_s * 1e9)
 
@@ -848,16 +862,21 @@ class PlantSetup:
         return self.kicker_plates[0 if len(self.kicker_plates) == 1 else i]
 
     def is_controlled(self, i: int) -> bool:
+        """Robot ``i`` (world index) has motor boards; the opponents always have."""
+        if i >= self.num_robots:
+            return True
         return bool(self.controlled[0 if len(self.controlled) == 1 else i])
 
 
 def build_world(setup: PlantSetup) -> World:
     """The World of a scenario; raises ValueError (naming the body) when something is off the field."""
     specs = [
-        RobotSpec(config=setup.robot, x=x, y=y, theta=yaw, robot_id=i, kicker_plate=setup.plate(i))
+        RobotSpec(config=setup.robot, x=x, y=y, theta=yaw, team=setup.our_color, robot_id=i,
+                  kicker_plate=setup.plate(i))
         for i, (x, y, yaw) in enumerate(setup.robot_poses)
     ] + [
-        RobotSpec(config=setup.robot, x=x, y=y, theta=yaw, team=OPPONENT_TEAM, robot_id=j, kicker_plate="curved")
+        RobotSpec(config=setup.robot, x=x, y=y, theta=yaw, team=setup.opponent_color, robot_id=j,
+                  kicker_plate="curved")
         for j, (x, y, yaw) in enumerate(setup.opponent_poses)
     ]
     world = World(

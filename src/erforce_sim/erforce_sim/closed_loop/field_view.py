@@ -245,13 +245,15 @@ class WorldState:
             self.pass_choice = _pass_choice(table_from_msg(msg, c.PASS_CHOICE_COLUMNS))
 
     def _apply_catch_table(self, table: np.ndarray) -> None:
-        """The team at one ball frame (contract.CATCH_TABLE_COLUMNS): its robots are fresh now."""
-        ids = table[:, 0]
+        """Both teams at one ball frame (contract.CATCH_TABLE_COLUMNS): their robots are fresh now."""
+        teams, ids = table[:, 0], table[:, 1]
         if np.any((ids < 0) | (ids > 1e6) | (ids != np.round(ids))):
             raise ValueError("robot ids of /ball/catches must be whole numbers >= 0")
+        if not np.isin(teams, (contract.OURS.code, contract.OPPONENTS.code)).all():
+            raise ValueError("the team column of /ball/catches must be a contract.Team code")
         rows = _wire(table)
-        for robot_id, x, y, yaw, vx, vy, catch_s, catch_x, catch_y in rows:
-            robot = self.robot(int(robot_id))
+        for team, robot_id, x, y, yaw, vx, vy, catch_s, catch_x, catch_y in rows:
+            robot = self.robot(int(robot_id) if team == contract.OURS.code else opponent_key(int(robot_id)))
             if not robot.truth:
                 robot.pose, robot.t_s = [x, y, yaw], self.t_s
                 robot.speed_mps = round(math.hypot(vx, vy), 4)

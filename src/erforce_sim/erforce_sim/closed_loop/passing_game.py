@@ -41,7 +41,7 @@ from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.closed_loop.runner import InProcessRunner
 from erforce_sim.sensors import VisionFrame
-from erforce_sim.world import OPPONENT_TEAM, PlantSetup
+from erforce_sim.world import PlantSetup
 
 # Division A (12 x 9 m). Our team: the first ``team_size`` of these; robot 0 starts with the ball.
 TEAM_POSITIONS = ((-4.5, 0.0), (-3.0, -2.5), (-3.0, 2.5), (-1.5, 0.0), (0.0, -3.0), (0.0, 3.0), (1.5, 0.0),
@@ -180,7 +180,7 @@ class PassingGame:
 
     # -------------------------------------------------------------------- vision -> predictor -> skills
     def _index(self, team: str, robot_id: int) -> int:
-        return self.n_team + robot_id if team == OPPONENT_TEAM else robot_id
+        return self.n_team + robot_id if team == self.setup.opponent_color else robot_id
 
     def _on_frame(self, frame: VisionFrame) -> None:
         now, t = frame.t_release_s, frame.t_capture_s

@@ -26,7 +26,6 @@ from erforce_interfaces import contract
 from erforce_interfaces.conversions import clock_cdr, odometry_cdr, table_cdr
 from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame, PassRecord, plot_passes, summary
 
-OPPONENT_NAMESPACE_PREFIX = "opponent_"
 TRUTH_PERIOD_NS = 10_000_000  # 100 Hz, as the plant's ground_truth_rate_hz
 _NOT_WRITTEN = object()  # no /pass/choice in the bag yet (None is "no choice")
 
@@ -60,8 +59,8 @@ class GameBag:
         self._last_choice: tuple | str | None = "none written"
         self._robots = []
         for i in range(game.n_team + game.n_opp):
-            ns = contract.robot_namespace(i) if i < game.n_team else f"{OPPONENT_NAMESPACE_PREFIX}{i - game.n_team}"
-            self._robots.append((add(f"/{ns}/{q.GROUND_TRUTH_ODOM.name}", q.GROUND_TRUTH_ODOM), f"{ns}/base_link"))
+            team, j = (q.OURS, i) if i < game.n_team else (q.OPPONENTS, i - game.n_team)
+            self._robots.append((add(team.topic(q.GROUND_TRUTH_ODOM, j), q.GROUND_TRUTH_ODOM), team.frame(j)))
         self._last_ns = -TRUTH_PERIOD_NS
 
     def _add(self, name: str, topic: contract.Topic):
