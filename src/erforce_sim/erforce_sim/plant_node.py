@@ -132,11 +132,13 @@ class PlantNode(Node):
         self._last_publish_wall = 0.0
         self._last_clock_ns = -(10**18)
         self._last_truth_ns = -(10**18)
-        self._barrier_state = [None] * n
+        self._barrier_state = np.full(n, -1, dtype=np.int8)  # as last published (-1: not yet)
+        self._all_robots = np.arange(n)
+        self._duties = np.zeros((n, len(self._wheels)))  # the duties a tick applies, row per robot
         topics = self._values["lockstep_topics"]
         self._per_robot_lockstep = topics in ("per_robot", "both")
         self._team_lockstep = topics in ("team", "both")
-        self._controlled_ids = sorted(self._controlled)
+        self._controlled_ids = tuple(sorted(self._controlled))
         self._team_named: set[int] = set()  # robots some /team/motor_duty answer was for
 
         q = contract
@@ -356,14 +358,15 @@ class PlantNode(Node):
             self._warn.warn("scenario_flood", f"{self._scenario_overtaken} scenario command(s) overtaken by newer "
                             "ones in one tick")
             self._scenario_overtaken = 0
-        n_wheels = len(self._wheels)
-        for i in range(self.setup.num_robots):
-            if lockstep:
-                duty = self._gate.duty_for(i, n_wheels)
-            else:
-                duty = self._latest_duty[i] if self._latest_duty[i] is not None else np.zeros(n_wheels)
-            clamped = self.world.set_duty(i, duty)
-            if clamped:
+        duties = self._duties
+        duties.fill(0.0)  # a silent or absent peer's motors get zero duty
+        answers = self._gate.duties if lockstep else self._latest_duty
+        for i, duty in answers.items():
+            if duty is not None:
+                duties[i] = duty
+        if self.world.set_duties(self._all_robots, duties):
+            for i in np.flatnonzero((np.abs(duties) > 1.0).any(axis=1)).tolist():
+                clamped = int(np.count_nonzero(np.abs(duties[i]) > 1.0))
                 self._warn.warn(f"clamp{i}", f"robot_{i}: {clamped} duty value(s) outside [-1, 1] clamped")
         self.world.step(self.setup.control_period_s)
         self._tick += 1
@@ -386,19 +389,18 @@ class PlantNode(Node):
         world = self.world
         # The tick's sensor values first: they start the motor boards' answer, which the next
         # tick waits for; everything else is published while the motor boards compute.
-        sensed = [(world.wheel_speeds_radps(i), world.motor_currents_a(i)) for i in self._controlled_ids]
+        ids = self._controlled_ids
+        speeds, currents = world.wheel_sensors(ids)  # rows in ids order
         if self._per_robot_lockstep:
-            for i, (speeds, currents) in zip(self._controlled_ids, sensed, strict=True):
+            for row, i in enumerate(ids):
                 self._pubs[i]["states"].publish(  # serialized, as motor_boards explains
                     joint_state_cdr(  # the sensors saturate (conversions explains the choice)
-                        t_ns, self._wheels, velocity=speeds, effort=currents, saturate=True,
+                        t_ns, self._wheels, velocity=speeds[row], effort=currents[row], saturate=True,
                     )
                 )
-        if self._team_lockstep and sensed:
+        if self._team_lockstep and ids:
             self._team_states_pub.publish(team_joint_state_cdr(
-                t_ns, self._controlled_ids, self._wheels, velocity=[s for s, _ in sensed],
-                effort=[c for _, c in sensed], saturate=True,
-            ))
+                t_ns, ids, self._wheels, velocity=speeds, effort=currents, saturate=True))
         if retry:
             return
         if t_ns - self._last_clock_ns >= 1e9 / self._values["clock_rate_hz"] - 1:
@@ -410,11 +412,11 @@ class PlantNode(Node):
             self._publish_vision(frame)
         if self._ssl is not None:
             self._publish_ssl_vision(frames)
-        for i in range(self.setup.num_robots):
-            detected = world.light_barrier(i)
-            if detected != self._barrier_state[i] or t_ns % 100_000_000 == 0:
-                self._barrier_state[i] = detected
-                self._pubs[i]["barrier"].publish(Bool(data=bool(detected)))
+        detected = world.light_barriers()
+        changed = self._all_robots if t_ns % 100_000_000 == 0 else np.flatnonzero(detected != self._barrier_state)
+        for i in changed.tolist():
+            self._barrier_state[i] = detected[i]
+            self._pubs[i]["barrier"].publish(Bool(data=bool(detected[i])))
         if t_ns - self._last_truth_ns >= 1e9 / self._values["ground_truth_rate_hz"] - 1:
             self._last_truth_ns = t_ns
             self._publish_truth(t_ns * 1e-9)

@@ -749,6 +749,10 @@ class World:
         """Robot i's light barrier output (beam interrupted by the ball), with latency and false flips."""
         return bool(self._barrier_values[self._index(i)])
 
+    def light_barriers(self) -> np.ndarray:
+        """Every robot's `light_barrier` output (a copy, bool per robot)."""
+        return self._barrier_values.copy()
+
     def poll_vision(self) -> list[VisionFrame]:
         """Vision frames released by now (t_s), oldest first; each frame is returned once."""
         return self.vision.poll(self._t)
@@ -778,12 +782,12 @@ class World:
         return EnergyBreakdown(bodies, wheels, magnetic, self._ball.kinetic_energy_j())
 
     def all_finite(self) -> bool:
-        """True when every state variable is finite (used by the property tests)."""
+        """True when every state variable is finite (used by the property tests and the plant's every tick)."""
         b = self._ball
-        vals = [b.x, b.y, b.vx, b.vy, b.wx, b.wy, b.wz, self._t]
-        for rb in self._robots:
-            vals += [rb.x, rb.y, rb.theta, rb.vx, rb.vy, rb.w, *rb.wheel_w, *rb.current, *rb.temp_c]
-        return all(math.isfinite(v) for v in vals)
+        if not all(math.isfinite(v) for v in (b.x, b.y, b.vx, b.vy, b.wx, b.wy, b.wz, self._t)):
+            return False
+        # every robot's state lives in these rows (RobotPlant works on them); padding wheels stay 0
+        return all(np.isfinite(a).all() for a in (self._body, self._wheel_w, self._current, self._temp))
 
 
 # ---------------------------------------------------------------------- a scenario for the plant
