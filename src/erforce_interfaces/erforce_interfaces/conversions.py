@@ -251,7 +251,8 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
                  frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
                  position_variance_m2: float | None = None) -> bytes:
     """``odometry_msg`` serialized (see the codec below), with the same checks."""
-    x, y, q = _finite("x", pose[0]), _finite("y", pose[1]), quaternion_from_yaw(pose[2])
+    x, y, half = _finite("x", pose[0]), _finite("y", pose[1]), 0.5 * _finite("yaw", pose[2], 1.0e6)
+    qz, qw = math.sin(half), math.cos(half)  # quaternion_from_yaw's, without a message object
     vx, vy = _finite("vx", velocity[0]), _finite("vy", velocity[1])
     if spin is not None:
         angular = tuple(_finite(f"spin.{axis}", value, 1.0e5) for axis, value in zip("xyz", spin[:3], strict=True))
@@ -261,7 +262,7 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     stamp = _stamp_cdr(_seconds_to_ns(t_s))
     # pose (position, orientation), its 6x6 covariance, twist (linear, angular), its covariance
     return _CDR_LE + stamp + _strings_cdr((frame_id, child_frame_id)) + _odometry_doubles.pack(
-        x, y, 0.0, q.x, q.y, q.z, q.w, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy, 0.0, *angular, *_ZEROS)
+        x, y, 0.0, 0.0, 0.0, qz, qw, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy, 0.0, *angular, *_ZEROS)
 
 
 def odometry_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:

@@ -148,8 +148,10 @@ class TeamFirmwareNode(Node):
             self._warn.warn(f"wheel_states{robot.robot_id}", f"robot_{robot.robot_id}: rejected wheel_states: {exc}")
             return
         if self._take_sensors(robot, t_ns, speeds, currents):
-            duty = self._tick([robot], np.array([robot.row]), t_ns)
+            rows = np.array([robot.row])
+            duty = self._tick(rows, t_ns)
             robot.duty_pub.publish(joint_state_cdr(t_ns, firmware.robot.wheel_names, effort=duty[robot.row]))
+            self._report([robot], rows, t_ns)
 
     def _on_team_wheel_states(self, msg: bytes) -> None:
         """One tick of every robot of ours in the message; one answer for all of them."""
@@ -171,8 +173,9 @@ class TeamFirmwareNode(Node):
                 self._restart(robot)
         self._speeds[rows] = speeds[picks]
         self._currents[rows] = currents[picks]
-        duty = self._tick(robots, rows, t_ns)
+        duty = self._tick(rows, t_ns)
         self._team_duty_pub.publish(team_joint_state_cdr(t_ns, ours, firmware.robot.wheel_names, effort=duty[rows]))
+        self._report(robots, rows, t_ns)
 
     def _picks(self, ids: tuple[int, ...]) -> tuple[np.ndarray, list[_Robot], np.ndarray, tuple[int, ...]]:
         """For a team message's robot ids: the positions of ours among them, our robots, their rows and ids."""
@@ -203,12 +206,16 @@ class TeamFirmwareNode(Node):
         self._firmware.forget_setpoint(robot.row)
         self._status_sent[robot.row] = False
 
-    def _tick(self, robots: list[_Robot], rows: np.ndarray, t_ns: int) -> np.ndarray:
-        """Tick k at ``t_ns`` of these robots (their sensors in ``rows`` of _speeds/_currents), in the runner's
-        order: main board (setpoint used at k+1), then the motor boards with the setpoint of tick k-1; one
-        firmware call. Returns the duties, a row per robot of the firmware."""
+    def _tick(self, rows: np.ndarray, t_ns: int) -> np.ndarray:
+        """Tick k at ``t_ns`` of the robots in ``rows`` (their sensors in those rows of _speeds/_currents), in the
+        runner's order: main board (setpoint used at k+1), then the motor boards with the setpoint of tick k-1;
+        one firmware call. Returns the duties, a row per robot of the firmware."""
+        return self._firmware.tick(t_ns * 1e-9, self._speeds, self._currents, rows)
+
+    def _report(self, robots: list[_Robot], rows: np.ndarray, t_ns: int) -> None:
+        """What a tick of these robots tells besides the duty (which the plant waits for, so it goes first):
+        notices, setpoints (publish_setpoints) and motor_status when due."""
         firmware = self._firmware
-        duty = firmware.tick(t_ns * 1e-9, self._speeds, self._currents, rows)
         for k in np.flatnonzero(firmware.main_notice[rows] | firmware.motor_notice[rows]).tolist():
             robot = robots[k]
             for notice in firmware.notices(robot.row):
@@ -230,7 +237,6 @@ class TeamFirmwareNode(Node):
             rows_out = [[average[j], limit[j], float(saturated[j]), float(limit[j] < 1.0)]
                         for j in range(firmware.num_wheels)]
             robots[k].status_pub.publish(table_cdr(rows_out, contract.MOTOR_STATUS_COLUMNS, "wheels"))
-        return duty
 
 
 def main(args: list[str] | None = None) -> int:

@@ -131,7 +131,12 @@ class PlantNode(Node):
         self._pace_origin: tuple[float, int] | None = None
         self._last_publish_wall = 0.0
         self._last_clock_ns = -(10**18)
-        self._last_truth_ns = -(10**18)
+        # Ground truth: the ball's and each robot's, each at ground_truth_rate_hz, the robots taking turns over
+        # the ticks of one period (a tick publishes a few of them, not all at once): index n is the ball.
+        truth_period_ns = 1e9 / self._values["ground_truth_rate_hz"]
+        slots = max(1, int(truth_period_ns // self._period_ns))
+        self._last_truth_ns = np.array([((i + 1) * slots // (n + 1)) * self._period_ns - truth_period_ns
+                                        for i in range(n)] + [-truth_period_ns], dtype=float)
         self._barrier_state = np.full(n, -1, dtype=np.int8)  # as last published (-1: not yet)
         self._all_robots = np.arange(n)
         self._duties = np.zeros((n, len(self._wheels)))  # the duties a tick applies, row per robot
@@ -417,9 +422,10 @@ class PlantNode(Node):
         for i in changed.tolist():
             self._barrier_state[i] = detected[i]
             self._pubs[i]["barrier"].publish(Bool(data=bool(detected[i])))
-        if t_ns - self._last_truth_ns >= 1e9 / self._values["ground_truth_rate_hz"] - 1:
-            self._last_truth_ns = t_ns
-            self._publish_truth(t_ns * 1e-9)
+        due = np.flatnonzero(t_ns - self._last_truth_ns >= 1e9 / self._values["ground_truth_rate_hz"] - 1)
+        if due.size:
+            self._last_truth_ns[due] = t_ns
+            self._publish_truth(t_ns * 1e-9, due.tolist())
 
     def _setup_ssl_vision(self) -> None:
         v = self._values
@@ -471,14 +477,18 @@ class PlantNode(Node):
         for det in frame.robots:
             self._pubs[det.robot_id]["vision"].publish(pose2d_cdr(t, (det.x, det.y, det.theta)))
 
-    def _publish_truth(self, t_s: float) -> None:
-        b = self.world.ball_state()
-        # serialized, as vision: building these messages was an eighth of the plant's time
-        self._truth_ball_pub.publish(
-            odometry_cdr(t_s, (b.x, b.y, 0.0), (b.vx, b.vy, 0.0), "ball", spin=(b.wx, b.wy, b.wz))
-        )
-        for i in range(self.setup.num_robots):
-            r = self.world.robot_state(i)
+    def _publish_truth(self, t_s: float, due: list[int]) -> None:
+        """The ground truth of the robots in ``due`` (the index num_robots: the ball)."""
+        world, n = self.world, self.setup.num_robots
+        if due[-1] == n:
+            b = world.ball_state()
+            # serialized, as vision: building these messages was an eighth of the plant's time
+            self._truth_ball_pub.publish(
+                odometry_cdr(t_s, (b.x, b.y, 0.0), (b.vx, b.vy, 0.0), "ball", spin=(b.wx, b.wy, b.wz))
+            )
+            due = due[:-1]
+        for i in due:
+            r = world.robot_state(i)
             self._pubs[i]["truth"].publish(
                 odometry_cdr(t_s, (r.x, r.y, r.theta), (r.vx, r.vy, r.w), contract.robot_frame(i))
             )
