@@ -13,6 +13,8 @@ would be a message per robot per tick.
 With ``lockstep_topics`` ``team`` it takes one ``/team/wheel_states`` per tick instead and answers
 with one ``/team/motor_duty`` for its robots (contract: joints ``robot_<id>/wheel_<k>``); robots of the
 message that are not in ``robot_ids`` belong to another process (the other team) and are left alone.
+One time rule judges the message's stamp for all its robots of ours (on the per-robot topics, one per robot).
+The answer goes out first; notices and ``motor_status`` follow it, so the plant does not wait for them.
 
 One executor wakes once for all robots whose ``wheel_states`` are queued, instead of two
 processes per robot each waking per tick. The parameters of the two per-robot nodes are here
