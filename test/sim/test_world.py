@@ -221,3 +221,26 @@ def test_the_batch_sensor_and_duty_calls_are_the_per_robot_calls():
         a.set_duties([0], np.array([[0.1, math.nan, 0.0, 0.0]]))
     with pytest.raises(ValueError, match="shape"):
         a.set_duties([0, 1], np.zeros((2, 3)))
+
+
+def test_a_ball_resting_before_the_flat_front_is_no_contact_candidate_one_within_kick_reach_is():
+    """A robot lies inside its circle and behind its flat front face. A ball at rest 18 mm before the face is
+    inside the circle's reach but cannot touch within a tick: no contact candidate (so the robot is not
+    stepped substep by substep with it). 3 mm before the face (within kick_touch_tolerance_m, where kicks and
+    the dribbler act) or at the same centre distance beside the round side, it is one."""
+    r_ball = 0.02135  # the default ball's radius [m] (BallParams)
+    front_x = CFG.dribbler_offset_m - r_ball  # the flat face, as World builds the outline
+    dt = 0.002
+    cases = [  # robot yaw, ball (x, y) relative to the robot at the origin, candidate?
+        (0.0, (front_x + r_ball + 0.018, 0.0), False),
+        (0.0, (front_x + r_ball + 0.003, 0.0), True),
+        (0.0, (0.0, front_x + r_ball + 0.018), True),  # beside: 9.5 mm outside the circle
+        (math.pi / 2, (0.0, front_x + r_ball + 0.018), False),  # turned to face it
+    ]
+    assert math.hypot(front_x + r_ball + 0.018, 0.0) < CFG.robot_radius_m + r_ball  # inside the circle's reach
+    for yaw, (bx, by), expected in cases:
+        w = World(FIELD, [RobotSpec(x=0.0, y=0.0, theta=yaw)], seed=0)
+        assert w.ball_params.radius_m == r_ball
+        w.place_ball(bx, by)
+        _, _, _, ball_robots = w._contact_candidates(dt)
+        assert (ball_robots == [0]) is expected, (yaw, bx, by)

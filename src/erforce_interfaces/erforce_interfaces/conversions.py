@@ -251,7 +251,8 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
                  frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
                  position_variance_m2: float | None = None) -> bytes:
     """``odometry_msg`` serialized (see the codec below), with the same checks."""
-    x, y, q = _finite("x", pose[0]), _finite("y", pose[1]), quaternion_from_yaw(pose[2])
+    x, y, half = _finite("x", pose[0]), _finite("y", pose[1]), 0.5 * _finite("yaw", pose[2], 1.0e6)
+    qz, qw = math.sin(half), math.cos(half)  # quaternion_from_yaw's, without a message object
     vx, vy = _finite("vx", velocity[0]), _finite("vy", velocity[1])
     if spin is not None:
         angular = tuple(_finite(f"spin.{axis}", value, 1.0e5) for axis, value in zip("xyz", spin[:3], strict=True))
@@ -261,7 +262,7 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     stamp = _stamp_cdr(_seconds_to_ns(t_s))
     # pose (position, orientation), its 6x6 covariance, twist (linear, angular), its covariance
     return _CDR_LE + stamp + _strings_cdr((frame_id, child_frame_id)) + _odometry_doubles.pack(
-        x, y, 0.0, q.x, q.y, q.z, q.w, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy, 0.0, *angular, *_ZEROS)
+        x, y, 0.0, 0.0, 0.0, qz, qw, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy, 0.0, *angular, *_ZEROS)
 
 
 def odometry_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
@@ -282,22 +283,14 @@ def odometry_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndar
 
 def _odometry_from_cdr(data: bytes) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
     """odometry_from_msg of the bytes: the stamp, both frame strings, then the 85 doubles (odometry_cdr)."""
-    if data[:2] != _CDR_LE[:2]:
-        raise ConversionError("not a little-endian CDR Odometry")
     try:
-        sec, nanosec = _stamp.unpack_from(data, 4)
-        frame_length = _u32.unpack_from(data, 12)[0]
-        frame = data[16 : 15 + frame_length]  # without its NUL
-        p = 12 + frame_length  # payload offset of child_frame_id
-        p += -p % 4
+        sec, nanosec, p = _header_cdr(data, "Odometry")
+        p += -p % 4  # child_frame_id
         p += 4 + _u32.unpack_from(data, 4 + p)[0]
         p += -p % 8
         v = _odometry_doubles.unpack_from(data, 4 + p)
     except struct.error as exc:
         raise ConversionError(f"truncated Odometry ({exc})") from None
-    if frame and frame != _FIELD_FRAME_BYTES:
-        _check_frame(frame.decode("utf-8", "replace"))
-    _checked_stamp_ns(sec, nanosec)
     x, y, qx, qy, qz, qw, vx, vy, wx, wy, wz = v[0], v[1], v[3], v[4], v[5], v[6], v[43], v[44], v[46], v[47], v[48]
     # One check for the usual message: a sum of magnitudes is NaN or inf when any term is, and within the
     # tightest limit each term is within its own; else the per-field checks below name the bad field.
@@ -430,32 +423,42 @@ def team_joint_state_cdr(t_ns: int, robot_ids: Sequence[int], wheel_names: Seque
                          saturate: bool = False, team: Team = OURS) -> bytes:
     """A team-level JointState serialized: ``velocity`` / ``effort`` are (robots, wheels) arrays, rows in
     ``robot_ids`` order, checked like ``joint_state_cdr`` (``saturate``: a sensor's range)."""
-    names_cdr, n = _team_names_cdr(tuple(int(i) for i in robot_ids), tuple(wheel_names), team)
-    parts = [_CDR_LE, _stamp_cdr(t_ns), names_cdr]
-    offset = 8 + len(names_cdr)
-    for name, values in (("position", None), ("velocity", velocity), ("effort", effort)):
+    ids = robot_ids if type(robot_ids) is tuple else tuple(int(i) for i in robot_ids)
+    heads, n = _team_layout(ids, tuple(wheel_names), velocity is not None, effort is not None, team)
+    parts = [_CDR_LE, _stamp_cdr(t_ns)]
+    for name, values, head in (("velocity", velocity, heads[0]), ("effort", effort, heads[1])):
+        parts.append(head)
         if values is None:
-            parts.append(_u32.pack(0))
-            offset += 4
             continue
         arr = np.asarray(values, dtype=float).reshape(-1)
         if arr.size != n:
             raise ConversionError(f"{name} has {arr.size} entries, expected {n}")
-        if saturate:
-            arr = np.where(np.isfinite(arr), np.clip(arr, -MAX_ABS_VALUE, MAX_ABS_VALUE), arr)
-        _check_array(name, arr, MAX_ABS_VALUE)
-        pad = -(offset + 4) % 8 if n else 0
-        parts.append(_u32.pack(n) + bytes(pad) + arr.astype("<f8").tobytes())
-        offset += 4 + pad + 8 * n
+        if n and not np.abs(arr).max() <= MAX_ABS_VALUE:  # one test for the usual values (False for NaN)
+            if saturate:
+                arr = np.where(np.isfinite(arr), np.clip(arr, -MAX_ABS_VALUE, MAX_ABS_VALUE), arr)
+            _check_array(name, arr, MAX_ABS_VALUE)
+        parts.append(arr.astype("<f8", copy=False).tobytes())
     return b"".join(parts)
 
 
 @functools.lru_cache(maxsize=16)
-def _team_names_cdr(robot_ids: tuple[int, ...], wheel_names: tuple[str, ...], team: Team) -> tuple[bytes, int]:
+def _team_layout(robot_ids: tuple[int, ...], wheel_names: tuple[str, ...], velocity: bool,
+                 effort: bool, team: Team) -> tuple[tuple[bytes, bytes], int]:
+    """The constant bytes of a team JointState before its velocity values (names, the empty position
+    sequence, the velocity count and padding) and before its effort values (their count and padding),
+    and the number of joints. An absent field is an empty sequence."""
     if len(set(robot_ids)) != len(robot_ids) or list(robot_ids) != sorted(robot_ids):
         raise ConversionError(f"robot ids {list(robot_ids)} are not distinct and increasing")
-    names = team.joint_names(robot_ids, wheel_names)
-    return _cdr_names(names), len(names)
+    names_cdr = _cdr_names(team.joint_names(robot_ids, wheel_names))
+    n = len(robot_ids) * len(wheel_names)
+    heads = [names_cdr + _u32.pack(0), b""]
+    offset = 8 + len(heads[0])  # payload offset of the velocity count
+    for k, present in enumerate((velocity, effort)):
+        count = n if present else 0
+        pad = bytes(-(offset + 4) % 8) if count else b""
+        heads[k] += _u32.pack(count) + pad
+        offset += 4 + len(pad) + 8 * count
+    return (heads[0], heads[1]), n
 
 
 def _check_array(name: str, arr: np.ndarray, limit: float) -> None:
@@ -533,28 +536,11 @@ def _decode_team_joint_state(data: bytes, num_wheels: int, fields: Sequence[str]
                 _team_names_seen.clear()
             _team_names_seen[(team.prefix, block)] = (ids, len(block))
         found = dict(zip(_JOINT_FIELDS, values, strict=True))
-        return t_ns, ids, {f: np.array(found[f], dtype=float) for f in fields}
+        return t_ns, ids, {f: found[f] for f in fields}
     block, (ids, _) = known
     try:
         t_ns = _checked_stamp_ns(*_stamp.unpack_from(data, 4))
-    except struct.error as exc:
-        raise ConversionError(f"truncated JointState ({exc})") from None
-    p = 8 + len(block)  # payload offset of the position sequence
-    arrays = {}
-    try:
-        for field in _JOINT_FIELDS:
-            count = _u32.unpack_from(data, 4 + p)[0]
-            if count > _MAX_JOINTS:
-                raise ConversionError(f"{count} joint values")
-            p += 4
-            if count:
-                p += -p % 8
-                if 4 + p + 8 * count > len(data):
-                    raise ConversionError("joint values run past the message")
-                arrays[field] = np.frombuffer(data, "<f8", count, 4 + p).astype(float)
-                p += 8 * count
-            else:
-                arrays[field] = np.empty(0)
+        arrays = dict(zip(_JOINT_FIELDS, _joint_value_arrays(data, 8 + len(block)), strict=True))
     except struct.error as exc:
         raise ConversionError(f"truncated JointState ({exc})") from None
     return t_ns, ids, {f: arrays[f] for f in fields}
@@ -603,24 +589,30 @@ def clock_cdr(t_ns: int) -> bytes:
 
 def _decode_stamped(data: bytes, num_doubles: int, what: str) -> tuple[float, tuple[float, ...]]:
     """(stamp [s], the doubles after the header) of a serialized Header + doubles message."""
-    if data[:2] != _CDR_LE[:2]:
-        raise ConversionError(f"not a little-endian CDR {what}")
     try:
-        sec, nanosec = _stamp.unpack_from(data, 4)
-        length = _u32.unpack_from(data, 12)[0]
-        frame = data[16 : 15 + length]  # without its NUL
-        p = 12 + length  # payload offset after frame_id
+        sec, nanosec, p = _header_cdr(data, what)
         p += -p % 8
         values = struct.unpack_from(f"<{num_doubles}d", data, 4 + p)
     except struct.error as exc:
         raise ConversionError(f"truncated {what} ({exc})") from None
-    if frame and frame != _FIELD_FRAME_BYTES:
-        _check_frame(frame.decode("utf-8", "replace"))
-    _checked_stamp_ns(sec, nanosec)
     return sec + nanosec * 1e-9, values
 
 
-def _decode_joint_state(data: bytes) -> tuple[int, list[str], list[tuple[float, ...]]]:
+def _header_cdr(data: bytes, what: str) -> tuple[int, int, int]:
+    """(sec, nanosec, payload offset after frame_id) of a serialized message that starts with a Header,
+    whose stamp and frame (``field`` or empty) are checked (struct.error when the message ends early)."""
+    if data[:2] != _CDR_LE[:2]:
+        raise ConversionError(f"not a little-endian CDR {what}")
+    sec, nanosec = _stamp.unpack_from(data, 4)
+    length = _u32.unpack_from(data, 12)[0]
+    frame = data[16 : 15 + length]  # without its NUL
+    if frame and frame != _FIELD_FRAME_BYTES:
+        _check_frame(frame.decode("utf-8", "replace"))
+    _checked_stamp_ns(sec, nanosec)
+    return sec, nanosec, 12 + length
+
+
+def _decode_joint_state(data: bytes) -> tuple[int, list[str], list[np.ndarray]]:
     """(stamp [ns], names, (position, velocity, effort)) of a serialized JointState."""
     data = bytes(data)
     if data[:2] != _CDR_LE[:2]:
@@ -642,22 +634,31 @@ def _decode_joint_state(data: bytes) -> tuple[int, list[str], list[tuple[float, 
                 raise ConversionError("a joint name runs past the message")
             names.append(data[8 + p : 7 + p + length].decode("utf-8", "replace"))
             p += 4 + length
-        arrays = []
-        for _ in _JOINT_FIELDS:
-            p += -p % 4
-            count = _u32.unpack_from(data, 4 + p)[0]
-            if count > _MAX_JOINTS:
-                raise ConversionError(f"{count} joint values")
-            p += 4
-            if count:
-                p += -p % 8
-                arrays.append(struct.unpack_from(f"<{count}d", data, 4 + p))
-                p += 8 * count
-            else:
-                arrays.append(())
+        arrays = _joint_value_arrays(data, p)
     except struct.error as exc:
         raise ConversionError(f"truncated JointState ({exc})") from None
     return _checked_stamp_ns(sec, nanosec), names, arrays
+
+
+def _joint_value_arrays(data: bytes, p: int) -> list[np.ndarray]:
+    """The position, velocity and effort sequences of a serialized JointState whose names end at payload
+    offset ``p`` (struct.error when the message ends early)."""
+    arrays = []
+    for _ in _JOINT_FIELDS:
+        p += -p % 4
+        count = _u32.unpack_from(data, 4 + p)[0]
+        if count > _MAX_JOINTS:
+            raise ConversionError(f"{count} joint values")
+        p += 4
+        if count:
+            p += -p % 8
+            if 4 + p + 8 * count > len(data):
+                raise ConversionError("joint values run past the message")
+            arrays.append(np.frombuffer(data, "<f8", count, 4 + p).astype(float))
+            p += 8 * count
+        else:
+            arrays.append(np.empty(0))
+    return arrays
 
 
 # ------------------------------------------------------------ scalar & tables

@@ -13,6 +13,8 @@ would be a message per robot per tick.
 With ``lockstep_topics`` ``team`` it takes one ``/team/wheel_states`` per tick instead and answers
 with one ``/team/motor_duty`` for its robots (contract: joints ``robot_<id>/wheel_<k>``); robots of the
 message that are not in ``robot_ids`` belong to another process of the team and are left alone.
+One time rule judges the message's stamp for all its robots (on the per-robot topics, one per robot).
+The answer goes out first; notices and ``motor_status`` follow it, so the plant does not wait for them.
 
 With ``team`` ``opponents`` it is the opponents' firmware: the same, under ``/opponent_<id>/`` and
 ``/opponent_team/`` (contract.Team). Each team runs its own process, as each team on a real field
@@ -85,8 +87,7 @@ class _Robot:
     def __init__(self, node: Node, robot_id: int, row: int) -> None:
         team = node.team
         self.robot_id, self.row, self.name = robot_id, row, team.namespace(robot_id)
-        self.last_status_ns: int | None = None
-        self.stamps = StampFilter()  # the time rule for this robot's ticks
+        self.stamps = StampFilter()  # the time rule for this robot's ticks on its own topics
         self.duty_pub = None if node.team_topics else contract_publisher(node, contract.MOTOR_DUTY,
                                                                           team.topic(contract.MOTOR_DUTY, robot_id))
         self.status_pub = contract_publisher(node, contract.MOTOR_STATUS, team.topic(contract.MOTOR_STATUS, robot_id))
@@ -107,6 +108,10 @@ class TeamFirmwareNode(Node):
         self._apply(self._params.built)
         n, w = self._firmware.n_robots, self._firmware.num_wheels
         self._speeds, self._currents = np.zeros((n, w)), np.zeros((n, w))  # the sensors, row per robot
+        # per row: the stamp of the last motor_status, and whether there is one on this time line
+        self._status_ns, self._status_sent = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=bool)
+        self._team_stamps = StampFilter()  # the time rule for the team topic's ticks (one stamp for all robots)
+        self._team_picks: dict[tuple[int, ...], tuple[np.ndarray, list[_Robot], np.ndarray, tuple[int, ...]]] = {}
         for i, robot in self._robots.items():
             contract_subscription(self, contract.CMD_VEL, lambda m, r=robot: self._on_cmd_vel(r, m),
                                   team.topic(contract.CMD_VEL, i))
@@ -154,8 +159,10 @@ class TeamFirmwareNode(Node):
             self._warn.warn(f"wheel_states{robot.robot_id}", f"{robot.name}: rejected wheel_states: {exc}")
             return
         if self._take_sensors(robot, t_ns, speeds, currents):
-            duty = self._tick([robot], [t_ns])
+            rows = np.array([robot.row])
+            duty = self._tick(rows, t_ns)
             robot.duty_pub.publish(joint_state_cdr(t_ns, firmware.robot.wheel_names, effort=duty[robot.row]))
+            self._report([robot], rows, t_ns)
 
     def _on_team_wheel_states(self, msg: bytes) -> None:
         """One tick of every robot of ours in the message; one answer for all of them."""
@@ -167,16 +174,34 @@ class TeamFirmwareNode(Node):
         except ConversionError as exc:
             self._warn.warn("team_wheel_states", f"rejected {self._team_states_name}: {exc}")
             return
-        ticked = []
-        for k, i in enumerate(ids):
-            robot = self._robots.get(i)
-            if robot is not None and self._take_sensors(robot, t_ns, speeds[k], currents[k]):  # else: not ours
-                ticked.append(robot)
-        if ticked:
-            duty = self._tick(ticked, [t_ns] * len(ticked))
-            self._team_duty_pub.publish(team_joint_state_cdr(
-                t_ns, [r.robot_id for r in ticked], firmware.robot.wheel_names, effort=duty[[r.row for r in ticked]],
-                team=self.team))
+        picks, robots, rows, ours = self._picks(ids)  # the message's rows of our robots; the others are not ours
+        if not robots:
+            return
+        verdict = check_stamp(self._team_stamps, t_ns, self._warn, self._team_states_name, self)
+        if verdict is StampVerdict.DROP:
+            return
+        if verdict is StampVerdict.RESTART:
+            for robot in robots:
+                self._restart(robot)
+        self._speeds[rows] = speeds[picks]
+        self._currents[rows] = currents[picks]
+        duty = self._tick(rows, t_ns)
+        self._team_duty_pub.publish(team_joint_state_cdr(t_ns, ours, firmware.robot.wheel_names, effort=duty[rows],
+                                                         team=self.team))
+        self._report(robots, rows, t_ns)
+
+    def _picks(self, ids: tuple[int, ...]) -> tuple[np.ndarray, list[_Robot], np.ndarray, tuple[int, ...]]:
+        """For a team message's robot ids: the positions of ours among them, our robots, their rows and ids."""
+        picks = self._team_picks.get(ids)
+        if picks is None:
+            if len(self._team_picks) >= 8:  # a few robot sets: one per plant configuration
+                self._team_picks.clear()
+            ks = [k for k, i in enumerate(ids) if i in self._robots]
+            robots = [self._robots[ids[k]] for k in ks]
+            picks = self._team_picks[ids] = (np.array(ks, dtype=np.int64), robots,
+                                             np.array([r.row for r in robots], dtype=np.int64),
+                                             tuple(r.robot_id for r in robots))
+        return picks
 
     def _take_sensors(self, robot: _Robot, t_ns: int, speeds, currents) -> bool:
         """The time rule for this robot's tick; its sensors into its rows. False: the tick is dropped."""
@@ -184,39 +209,47 @@ class TeamFirmwareNode(Node):
         if verdict is StampVerdict.DROP:
             return False
         if verdict is StampVerdict.RESTART:
-            self._firmware.forget_setpoint(robot.row)  # of the old time line
-            robot.last_status_ns = None
+            self._restart(robot)
         self._speeds[robot.row] = speeds
         self._currents[robot.row] = currents
         return True
 
-    def _tick(self, robots: list[_Robot], stamps_ns: list[int]) -> np.ndarray:
-        """Tick k of these robots (their sensors in the rows of _speeds/_currents), in the runner's order: main
-        board (setpoint used at k+1), then the motor boards with the setpoint of tick k-1; one firmware call.
-        Returns the duties, a row per robot of the firmware."""
+    def _restart(self, robot: _Robot) -> None:
+        """A new time line for this robot: nothing of the old one is kept."""
+        self._firmware.forget_setpoint(robot.row)
+        self._status_sent[robot.row] = False
+
+    def _tick(self, rows: np.ndarray, t_ns: int) -> np.ndarray:
+        """Tick k at ``t_ns`` of the robots in ``rows`` (their sensors in those rows of _speeds/_currents), in the
+        runner's order: main board (setpoint used at k+1), then the motor boards with the setpoint of tick k-1;
+        one firmware call. Returns the duties, a row per robot of the firmware."""
+        return self._firmware.tick(t_ns * 1e-9, self._speeds, self._currents, rows)
+
+    def _report(self, robots: list[_Robot], rows: np.ndarray, t_ns: int) -> None:
+        """What a tick of these robots tells besides the duty (which the plant waits for, so it goes first):
+        notices, setpoints (publish_setpoints) and motor_status when due."""
         firmware = self._firmware
-        rows = np.fromiter((r.row for r in robots), dtype=np.int64, count=len(robots))
-        duty = firmware.tick(np.asarray(stamps_ns, dtype=np.int64) * 1e-9, self._speeds, self._currents, rows)
-        names = firmware.robot.wheel_names
-        publish_setpoints = self._values["publish_setpoints"]
+        for k in np.flatnonzero(firmware.main_notice[rows] | firmware.motor_notice[rows]).tolist():
+            robot = robots[k]
+            for notice in firmware.notices(robot.row):
+                self._warn.warn(f"notice{robot.robot_id}", f"{robot.name}: {notice}")
+        if self._values["publish_setpoints"]:
+            names = firmware.robot.wheel_names
+            for robot in robots:
+                robot.setpoint_pub.publish(joint_state_cdr(t_ns, names, velocity=firmware.setpoints[robot.row]))
         period_ns = int(1e9 / self._values[MOTOR_PREFIX + "status_rate_hz"])
-        for robot, t_ns in zip(robots, stamps_ns, strict=True):
-            row = robot.row
-            if firmware.main_notice[row] or firmware.motor_notice[row]:
-                for notice in firmware.notices(row):
-                    self._warn.warn(f"notice{robot.robot_id}", f"{robot.name}: {notice}")
-            if publish_setpoints:
-                robot.setpoint_pub.publish(joint_state_cdr(t_ns, names, velocity=firmware.setpoints[row]))
-            last = robot.last_status_ns
-            if last is None or t_ns - last >= period_ns or t_ns < last:
-                robot.last_status_ns = t_ns
-                limit = firmware.pwm_limit[row]
-                average = firmware.average_current_a[row]
-                saturated = firmware.saturated[row]
-                rows_out = [[average[k], limit[k], float(saturated[k]), float(limit[k] < 1.0)]
-                            for k in range(firmware.num_wheels)]
-                robot.status_pub.publish(table_cdr(rows_out, contract.MOTOR_STATUS_COLUMNS, "wheels"))
-        return duty
+        last = self._status_ns[rows]
+        due = ~self._status_sent[rows] | (t_ns - last >= period_ns) | (t_ns < last)
+        due_rows = np.flatnonzero(due).tolist()
+        if due_rows:
+            averages, saturation = firmware.average_current_a, firmware.saturated
+        for k in due_rows:
+            row = int(rows[k])
+            self._status_ns[row], self._status_sent[row] = t_ns, True
+            limit, average, saturated = firmware.pwm_limit[row], averages[row], saturation[row]
+            rows_out = [[average[j], limit[j], float(saturated[j]), float(limit[j] < 1.0)]
+                        for j in range(firmware.num_wheels)]
+            robots[k].status_pub.publish(table_cdr(rows_out, contract.MOTOR_STATUS_COLUMNS, "wheels"))
 
 
 def main(args: list[str] | None = None) -> int:

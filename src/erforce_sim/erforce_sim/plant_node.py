@@ -148,16 +148,27 @@ class PlantNode(Node):
         self._pace_origin: tuple[float, int] | None = None
         self._last_publish_wall = 0.0
         self._last_clock_ns = -(10**18)
-        self._last_truth_ns = -(10**18)
-        self._barrier_state = [None] * n
+        # Ground truth: the ball's and each robot's, each at ground_truth_rate_hz, the robots taking turns over
+        # the ticks of one period (a tick publishes a few of them, not all at once): index n is the ball.
+        truth_period_ns = 1e9 / self._values["ground_truth_rate_hz"]
+        slots = max(1, int(truth_period_ns // self._period_ns))
+        self._last_truth_ns = np.array([((i + 1) * slots // (n + 1)) * self._period_ns - truth_period_ns
+                                        for i in range(n)] + [-truth_period_ns], dtype=float)
+        self._barrier_state = np.full(n, -1, dtype=np.int8)  # as last published (-1: not yet)
+        self._all_robots = np.arange(n)
+        self._duties = np.zeros((n, len(self._wheels)))  # the duties a tick applies, row per robot
         topics = self._values["lockstep_topics"]
         self._per_robot_lockstep = topics in ("per_robot", "both")
         self._team_lockstep = topics in ("team", "both")
-        self._controlled_ids = sorted(self._controlled)
-        # per team with robots on the field: its controlled world indices (ours come first in _controlled_ids)
+        self._controlled_ids = tuple(sorted(self._controlled))
+        # per team with robots on the field: its controlled world indices (ours come first in _controlled_ids),
+        # their rows among the sensed ones and their ids in the team
         self._team_ids = {team: [i for i in self._controlled_ids if self._robots[i][0] is team]
                           for team in (contract.OURS, contract.OPPONENTS)
                           if team is contract.OURS or setup.num_opponents}
+        self._team_rows = {team: np.array([self._controlled_ids.index(i) for i in ids], dtype=np.int64)
+                           for team, ids in self._team_ids.items()}
+        self._team_robot_ids = {team: tuple(self._robots[i][1] for i in ids) for team, ids in self._team_ids.items()}
         self._team_named: set[int] = set()  # robots some team motor_duty answer was for
 
         q = contract
@@ -390,14 +401,15 @@ class PlantNode(Node):
             self._warn.warn("scenario_flood", f"{self._scenario_overtaken} scenario command(s) overtaken by newer "
                             "ones in one tick")
             self._scenario_overtaken = 0
-        n_wheels = len(self._wheels)
-        for i in range(self._n):
-            if lockstep:
-                duty = self._gate.duty_for(i, n_wheels)
-            else:
-                duty = self._latest_duty[i] if self._latest_duty[i] is not None else np.zeros(n_wheels)
-            clamped = self.world.set_duty(i, duty)
-            if clamped:
+        duties = self._duties
+        duties.fill(0.0)  # a silent or absent peer's motors get zero duty
+        answers = self._gate.duties if lockstep else self._latest_duty
+        for i, duty in answers.items():
+            if duty is not None:
+                duties[i] = duty
+        if self.world.set_duties(self._all_robots, duties):
+            for i in np.flatnonzero((np.abs(duties) > 1.0).any(axis=1)).tolist():
+                clamped = int(np.count_nonzero(np.abs(duties[i]) > 1.0))
                 self._warn.warn(f"clamp{i}", f"{self._names[i]}: {clamped} duty value(s) outside [-1, 1] clamped")
         self.world.step(self.setup.control_period_s)
         self._tick += 1
@@ -420,23 +432,21 @@ class PlantNode(Node):
         world = self.world
         # The tick's sensor values first: they start the motor boards' answer, which the next
         # tick waits for; everything else is published while the motor boards compute.
-        sensed = [(world.wheel_speeds_radps(i), world.motor_currents_a(i)) for i in self._controlled_ids]
+        ids = self._controlled_ids
+        speeds, currents = world.wheel_sensors(ids)  # rows in ids order
         if self._per_robot_lockstep:
-            for i, (speeds, currents) in zip(self._controlled_ids, sensed, strict=True):
+            for row, i in enumerate(ids):
                 self._pubs[i]["states"].publish(  # serialized, as motor_boards explains
                     joint_state_cdr(  # the sensors saturate (conversions explains the choice)
-                        t_ns, self._wheels, velocity=speeds, effort=currents, saturate=True,
+                        t_ns, self._wheels, velocity=speeds[row], effort=currents[row], saturate=True,
                     )
                 )
-        if self._team_lockstep and sensed:
-            start = 0
-            for team, ids in self._team_ids.items():  # each team's rows of sensed, in order
-                rows = sensed[start : start + len(ids)]
-                start += len(ids)
-                if rows:
+        if self._team_lockstep and ids:
+            for team, rows in self._team_rows.items():  # each team's rows of the sensors
+                if rows.size:
                     self._team_states_pubs[team].publish(team_joint_state_cdr(
-                        t_ns, [self._robots[i][1] for i in ids], self._wheels, velocity=[s for s, _ in rows],
-                        effort=[c for _, c in rows], saturate=True, team=team,
+                        t_ns, self._team_robot_ids[team], self._wheels, velocity=speeds[rows],
+                        effort=currents[rows], saturate=True, team=team,
                     ))
         if retry:
             return
@@ -449,14 +459,15 @@ class PlantNode(Node):
             self._publish_vision(frame)
         if self._ssl is not None:
             self._publish_ssl_vision(frames)
-        for i in range(self._n):
-            detected = world.light_barrier(i)
-            if detected != self._barrier_state[i] or t_ns % 100_000_000 == 0:
-                self._barrier_state[i] = detected
-                self._pubs[i]["barrier"].publish(Bool(data=bool(detected)))
-        if t_ns - self._last_truth_ns >= 1e9 / self._values["ground_truth_rate_hz"] - 1:
-            self._last_truth_ns = t_ns
-            self._publish_truth(t_ns * 1e-9)
+        detected = world.light_barriers()
+        changed = self._all_robots if t_ns % 100_000_000 == 0 else np.flatnonzero(detected != self._barrier_state)
+        for i in changed.tolist():
+            self._barrier_state[i] = detected[i]
+            self._pubs[i]["barrier"].publish(Bool(data=bool(detected[i])))
+        due = np.flatnonzero(t_ns - self._last_truth_ns >= 1e9 / self._values["ground_truth_rate_hz"] - 1)
+        if due.size:
+            self._last_truth_ns[due] = t_ns
+            self._publish_truth(t_ns * 1e-9, due.tolist())
 
     def _setup_ssl_vision(self) -> None:
         v = self._values
@@ -509,14 +520,19 @@ class PlantNode(Node):
             self._pubs[self._vision_index[det.team, det.robot_id]]["vision"].publish(
                 pose2d_cdr(t, (det.x, det.y, det.theta)))
 
-    def _publish_truth(self, t_s: float) -> None:
-        b = self.world.ball_state()
-        # serialized, as vision: building these messages was an eighth of the plant's time
-        self._truth_ball_pub.publish(
-            odometry_cdr(t_s, (b.x, b.y, 0.0), (b.vx, b.vy, 0.0), "ball", spin=(b.wx, b.wy, b.wz))
-        )
-        for i, (team, j) in enumerate(self._robots):
-            r = self.world.robot_state(i)
+    def _publish_truth(self, t_s: float, due: list[int]) -> None:
+        """The ground truth of the robots in ``due`` (world indices; the index after the last robot: the ball)."""
+        world, n = self.world, self._n
+        if due[-1] == n:
+            b = world.ball_state()
+            # serialized, as vision: building these messages was an eighth of the plant's time
+            self._truth_ball_pub.publish(
+                odometry_cdr(t_s, (b.x, b.y, 0.0), (b.vx, b.vy, 0.0), "ball", spin=(b.wx, b.wy, b.wz))
+            )
+            due = due[:-1]
+        for i in due:
+            team, j = self._robots[i]
+            r = world.robot_state(i)
             self._pubs[i]["truth"].publish(
                 odometry_cdr(t_s, (r.x, r.y, r.theta), (r.vx, r.vy, r.w), team.frame(j))
             )

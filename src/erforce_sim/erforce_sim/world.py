@@ -251,6 +251,7 @@ class World:
             self._clamped_duties.append(0)
         self._radii = [sh.radius_m for sh in self._shapes]
         self._radii_arr = np.array(self._radii, dtype=float)
+        self._front_x_arr = np.array([sh.front_x_m for sh in self._shapes], dtype=float)
         self._resistance = np.array([[c.resistance_ohm] for c in self._coeffs]).reshape(n_robots, 1)
         self._ambient = np.array([[c.ambient_c] for c in self._coeffs]).reshape(n_robots, 1)
         self._thermal_r = np.array([[c.thermal_resistance_k_per_w] for c in self._coeffs]).reshape(n_robots, 1)
@@ -600,7 +601,8 @@ class World:
         if not self._robots:
             return ball_wall, [], [], []
         wall, near, pairs, any_contact = _robot_contact_candidates(
-            self._body, self._radii_arr, self._half_x, self._half_y, margin, dt, ball.x, ball.y, reach_b)
+            self._body, self._radii_arr, self._front_x_arr, self._half_x, self._half_y, margin, dt, ball.x, ball.y,
+            reach_b)
         if not any_contact:
             return ball_wall, [], [], []
         return (ball_wall, np.flatnonzero(wall).tolist(), [(int(a), int(b)) for a, b in pairs],
@@ -751,6 +753,10 @@ class World:
         """Robot i's light barrier output (beam interrupted by the ball), with latency and false flips."""
         return bool(self._barrier_values[self._index(i)])
 
+    def light_barriers(self) -> np.ndarray:
+        """Every robot's `light_barrier` output (a copy, bool per robot)."""
+        return self._barrier_values.copy()
+
     def poll_vision(self) -> list[VisionFrame]:
         """Vision frames released by now (t_s), oldest first; each frame is returned once."""
         return self.vision.poll(self._t)
@@ -780,12 +786,12 @@ class World:
         return EnergyBreakdown(bodies, wheels, magnetic, self._ball.kinetic_energy_j())
 
     def all_finite(self) -> bool:
-        """True when every state variable is finite (used by the property tests)."""
+        """True when every state variable is finite (used by the property tests and the plant's every tick)."""
         b = self._ball
-        vals = [b.x, b.y, b.vx, b.vy, b.wx, b.wy, b.wz, self._t]
-        for rb in self._robots:
-            vals += [rb.x, rb.y, rb.theta, rb.vx, rb.vy, rb.w, *rb.wheel_w, *rb.current, *rb.temp_c]
-        return all(math.isfinite(v) for v in vals)
+        if not all(math.isfinite(v) for v in (b.x, b.y, b.vx, b.vy, b.wx, b.wy, b.wz, self._t)):
+            return False
+        # every robot's state lives in these rows (RobotPlant works on them); padding wheels stay 0
+        return all(np.isfinite(a).all() for a in (self._body, self._wheel_w, self._current, self._temp))
 
 
 # ---------------------------------------------------------------------- a scenario for the plant
@@ -888,9 +894,11 @@ def build_world(setup: PlantSetup) -> World:
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _robot_contact_candidates(body, radii, half_x, half_y, margin, dt, bx, by, reach_b):
-    """World._contact_candidates over the body rows (x, y, ..., vx, vy): robots near a wall, robots near the
-    ball (flags) and the robot pairs that may touch within dt."""
+def _robot_contact_candidates(body, radii, front_x, half_x, half_y, margin, dt, bx, by, reach_b):
+    """World._contact_candidates over the body rows (x, y, theta, cos, sin, vx, vy, w): robots near a wall,
+    robots near the ball (flags) and the robot pairs that may touch within dt. A robot lies inside its circle
+    and behind its flat front face, so the larger of the ball's distances to the two bounds it from below: a
+    ball resting a little ahead of the front face (inside the circle) is no contact."""
     n = body.shape[0]
     wall = np.zeros(n, dtype=np.bool_)
     near = np.zeros(n, dtype=np.bool_)
@@ -904,7 +912,10 @@ def _robot_contact_candidates(body, radii, half_x, half_y, margin, dt, bx, by, r
         reach = radii[a] + speeds[a] * dt + margin
         if abs(xa) + reach >= half_x or abs(ya) + reach >= half_y:
             wall[a] = True
-        if math.hypot(bx - xa, by - ya) <= reach + reach_b:
+        dx, dy = bx - xa, by - ya
+        ahead = body[a, 3] * dx + body[a, 4] * dy - front_x[a]  # ball centre ahead of the front face [m]
+        turn = abs(body[a, 7]) * radii[a] * dt  # how far the face's points move by turning within dt
+        if max(math.hypot(dx, dy) - radii[a], ahead) <= reach - radii[a] + turn + reach_b:
             near[a] = True
         for b in range(a + 1, n):
             if math.hypot(body[b, 0] - xa, body[b, 1] - ya) <= reach + radii[b] + speeds[b] * dt:
