@@ -34,6 +34,8 @@ from sensor_msgs.msg import JointState
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import odometry_msg, stamp_to_seconds
 
+RESPAWN_DELAY_S = 0.1  # the launch files' default
+
 pytestmark = pytest.mark.integration
 
 ROBOTS = (0, 1)
@@ -219,9 +221,9 @@ def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_singl
                         opponent_ids="[1]", robot_poses="[-4.0, 0.0, 0.0, -3.0, 2.0, 0.0]")
     demo.wait_running()
     for node in ("team_firmware", "ball_predictor", "plant"):
-        assert demo.kill_and_heal(node, 0.5, timeout_s=90.0) > 0.5
+        assert demo.kill_and_heal(node, RESPAWN_DELAY_S, timeout_s=90.0) > RESPAWN_DELAY_S
     out = demo.launch.output()
     for node in outputs:
-        assert re.search(rf"\[{node}-\d+\]: respawning in 0.5 s", out), node
+        assert re.search(rf"\[{node}-\d+\]: respawning in {RESPAWN_DELAY_S:g} s", out), node
     assert demo.launch.alive()
     assert "Traceback" not in out, out[-3000:]
