@@ -11,7 +11,7 @@ time went, from a start-up trace of the respawned process (bench/respawn_trace/s
 kill to exec (respawn delay), exec to interpreter up, imports, rclpy.init and node construction, the
 first publish, and from there to the loop closed (DDS matching, the lockstep loop going round).
 
-    ./run exec python bench/bench_respawn.py [--quick] [--busy] [--breakdown]
+    ./run exec python bench/bench_respawn.py [--quick | --rounds N] [--busy] [--breakdown] [--respawn-delay S]
 """
 
 from __future__ import annotations
