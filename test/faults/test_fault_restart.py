@@ -167,7 +167,7 @@ def test_plant_killed_and_restarted_time_goes_backwards(ros_graph):
     loop.watch.assert_all_finite()
 
 
-RESPAWN_DELAY_S = 0.5  # the launch files' default
+RESPAWN_DELAY_S = 0.1  # the launch files' default
 
 
 def test_any_single_node_killed_the_launched_graph_closes_the_loop_again_by_itself(ros_graph):

@@ -34,6 +34,8 @@ from sensor_msgs.msg import JointState
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import odometry_from_msg, odometry_msg, stamp_to_seconds
 
+RESPAWN_DELAY_S = 0.1  # the launch files' default
+
 pytestmark = pytest.mark.integration
 
 ROBOTS = (0, 1)
@@ -231,10 +233,10 @@ def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_singl
         assert name in topics, name
     assert not any(name.startswith(("/robot_2/", "/opponent_1/")) for name in topics), sorted(topics)
     for node in ("team_firmware", "ball_predictor", "plant"):
-        assert demo.kill_and_heal(node, 0.5, timeout_s=90.0) > 0.5
+        assert demo.kill_and_heal(node, RESPAWN_DELAY_S, timeout_s=90.0) > RESPAWN_DELAY_S
     out = demo.launch.output()
     for node in ("plant", "team_firmware", "ball_predictor"):
-        assert re.search(rf"\[{node}-\d+\]: respawning in 0.5 s", out), node
+        assert re.search(rf"\[{node}-\d+\]: respawning in {RESPAWN_DELAY_S:g} s", out), node
     assert demo.launch.alive()
     assert "Traceback" not in out, out[-3000:]
 

@@ -372,7 +372,7 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
 def test_launch_files_restart_every_node_after_a_delay_unless_told_not_to(launch_file, args):
     path = REPO / "src" / launch_file
     specs = resolve(path, **args).values()
-    assert specs and all(s.respawn and s.respawn_delay_s == 0.5 and s.respawn_max_retries == -1 for s in specs)
+    assert specs and all(s.respawn and s.respawn_delay_s == 0.1 and s.respawn_max_retries == -1 for s in specs)
     assert not any(s.respawn for s in resolve(path, respawn="false", **args).values())
     assert {s.respawn_delay_s for s in resolve(path, respawn_delay="2.0", **args).values()} == {2.0}
 

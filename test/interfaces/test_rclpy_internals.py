@@ -100,3 +100,41 @@ def test_parameter_overrides_are_what_declare_parameter_takes():
         assert overrides["x"].value == 3
         overrides["x"] = Parameter("x", value=4.5)
         assert node.declare_parameter("x", 1.0).value == 4.5
+
+
+_LIGHT_START = """
+import sys
+from erforce_interfaces.rclpy_internals import light_node_start
+light_node_start()
+light_node_start()  # idempotent
+from rclpy.impl.rcutils_logger import CallerId
+from std_msgs.msg import Int32
+from erforce_interfaces.tools.testing import isolated_node
+
+def caller():
+    return CallerId()
+
+with isolated_node("light_start") as node:
+    node.create_publisher(Int32, "light_start", 10).publish(Int32(data=1))  # its type support is loaded
+    node.get_logger().info("logged", throttle_duration_sec=1.0)  # the throttle filter keys on the caller
+    here = caller()
+    print(here.function_name, here.file_path == __file__, here.line_number)
+    generator = ("lark", "rosidl_parser.parser", "rosidl_generator_py.generate_py_impl")
+    print(sorted(m for m in generator if m in sys.modules))
+    import rosidl_generator_py
+    print(callable(rosidl_generator_py.generate_py))
+"""
+
+
+def test_light_node_start_loads_type_support_without_the_generator_and_logs_the_caller(tmp_path):
+    """light_node_start in a fresh interpreter (it changes process-wide state): a publisher still works,
+    the IDL generator is not imported until asked for, and the logger's caller is the calling frame."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "light_start.py"
+    script.write_text(_LIGHT_START)
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    line = next(n for n, text in enumerate(_LIGHT_START.splitlines(), 1) if "return CallerId()" in text)
+    assert out.stdout.splitlines() == ["caller True " + str(line), "[]", "True"]

@@ -118,7 +118,7 @@ def test_start_clock_subscribers_holds_the_first_tick_until_time_zero_can_be_see
     truth = ros_graph.subscribe(contract.GROUND_TRUTH_BALL.name, Odometry, contract.GROUND_TRUTH_BALL.qos)
     plant = start_plant(ros_graph, controlled=[False], start_clock_subscribers=1, stop_after_s=0.5)
     plant.wait_for_output(r"lockstep pacing", timeout_s=30.0)
-    # Longer than the start-up grace (0.5 s): a plant free to start would have run its 0.5 s by now.
+    # Longer than the start-up grace (0.1 s): a plant free to start would have run its 0.5 s by now.
     ros_graph.probe.spin_for(2.0)
     assert plant.alive() and not truth
     clocks = ros_graph.subscribe("/clock", Clock, contract.QOS_CLOCK)

@@ -37,7 +37,7 @@ from rclpy.qos import QoSProfile
 from erforce_interfaces.contract import CLOCK, Topic
 from erforce_interfaces.executor import guard, make_executor, sample_only, set_callback_fault_handler
 from erforce_interfaces.param_schema import ParamSchema, ParamSpec
-from erforce_interfaces.rclpy_internals import RCLError, parameter_overrides
+from erforce_interfaces.rclpy_internals import RCLError, light_node_start, parameter_overrides
 from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
 
 _ARRAY_TYPES = {"int": Parameter.Type.INTEGER_ARRAY, "double": Parameter.Type.DOUBLE_ARRAY,
@@ -326,6 +326,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
     interrupt = QuietInterrupt()
     node = None
     code = 0
+    light_node_start()  # a respawned node is back sooner (rclpy_internals)
     try:
         rclpy.init(args=args)
         try:

@@ -5,11 +5,17 @@ builds its own rcl wait set, reads the executor base class's guard conditions an
 takes messages, requests, responses and timer calls from the entities' C handles, and hands a
 client's future its executor. The node helpers catch the C extension's RCLError and read the
 parameter overrides a node was started with (NodeParams takes an integer for a double). Only this module
-names those internals; test/interfaces/test_rclpy_internals.py checks each one against the installed
+names those internals (and light_node_start, which trims what rclpy does at a node's start);
+test/interfaces/test_rclpy_internals.py checks each one against the installed
 rclpy, so an rclpy update that moves one fails there, by name, instead of inside a running node.
 """
 
 from __future__ import annotations
+
+import importlib.util
+import inspect
+import sys
+import types
 
 from rclpy.impl.implementation_singleton import rclpy_implementation as _impl
 from rclpy.subscription import Subscription
@@ -22,6 +28,7 @@ __all__ = [
     "executor_guard_conditions",
     "executor_is_shutdown",
     "handle_pointer",
+    "light_node_start",
     "parameter_overrides",
     "run_subscription_callback",
     "set_future_executor",
@@ -92,3 +99,49 @@ def parameter_overrides(node) -> dict:
     """name -> Parameter: the values the command line and parameter files gave the node, which
     ``declare_parameter`` takes; the same dict, so a replaced entry is what the declaration sees."""
     return node._parameter_overrides
+
+
+# ------------------------------------------------------------------ a node process's start
+def _frame_filename(frame, context: int = 1):
+    """What rclpy's logger reads of ``inspect.getframeinfo(frame)``: the caller's file (and line)."""
+    code = frame.f_code
+    return inspect.Traceback(code.co_filename, frame.f_lineno, code.co_name, None, None)
+
+
+def light_node_start() -> None:
+    """Two costs of rclpy at a node's start that buy a running node nothing (idempotent):
+
+    - rclpy's logger finds each log call's file with ``inspect.getframeinfo``, which also reads the
+      source lines around it; the first call maps every loaded module to its file (``inspect.getmodule``:
+      a realpath of each of ~800 modules after numba), 0.15-0.5 s of CPU in the node's first log line.
+      The logger gets the caller's ``co_filename`` instead, which is what that call returns for a
+      module loaded from source.
+    - a message's first publisher or subscription imports its type support through the package
+      ``rosidl_generator_py``, whose ``__init__`` also imports the IDL code generator (rosidl_parser,
+      lark): ~0.15 s of CPU. ``rosidl_generator_py`` is registered with only ``import_type_support``;
+      ``generate_py`` is imported the first time someone asks for it.
+    """
+    from rclpy.impl import rcutils_logger
+
+    if not isinstance(rcutils_logger.inspect, types.SimpleNamespace):
+        rcutils_logger.inspect = types.SimpleNamespace(getframeinfo=_frame_filename, currentframe=inspect.currentframe)
+    if "rosidl_generator_py" in sys.modules:
+        return
+    spec = importlib.util.find_spec("rosidl_generator_py")
+    if spec is None or spec.submodule_search_locations is None:
+        return
+    package = importlib.util.module_from_spec(spec)  # not executed: no generator import
+
+    def __getattr__(name: str):  # the module's own attribute lookup (PEP 562)
+        if name == "generate_py":
+            from rosidl_generator_py.generate_py_impl import generate_py
+
+            return generate_py
+        raise AttributeError(f"module 'rosidl_generator_py' has no attribute {name!r}")
+
+    package.__getattr__ = __getattr__
+    sys.modules["rosidl_generator_py"] = package
+    from rosidl_generator_py.import_type_support_impl import import_type_support
+
+    package.import_type_support = import_type_support
+    package.__all__ = ["import_type_support", "generate_py"]

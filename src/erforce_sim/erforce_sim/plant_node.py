@@ -79,7 +79,7 @@ _GEOMETRY_PERIOD_S = 1.0  # SSL-Vision repeats its geometry; late joiners get it
 _MAX_TICKS_PER_PUMP = 50  # keep the executor responsive when nobody gates the ticks
 _RETRY_S = 0.05  # re-publish an unanswered tick (lost message, late joiner, a flood that pushed it out of a
 # reader's queue); duplicates are harmless
-_STARTUP_GRACE_S = 0.5
+_STARTUP_GRACE_S = 0.1  # after the readers are matched (_ready_to_start); a restarted plant waits it too
 
 
 def setup_from_params(config) -> PlantSetup:
@@ -334,23 +334,26 @@ class PlantNode(Node):
         q = contract
         waited = time.monotonic() - self._start_wall
         readers = self._values["wheel_states_readers"]
-        # every controlled robot served: on its own topics, or its team's (each team may use either)
+        # every controlled robot served: on its own topics, or its team's (each team may use either). The
+        # readers are counted as the tick's writers have matched them (get_subscription_count), not as the
+        # graph lists them: tick 0 is then sent to each of them.
         team_served = {team for team in self._team_ids if self._team_lockstep
                        and self.count_publishers(team.lockstep_topic(q.TEAM_MOTOR_DUTY)) > 0
-                       and self.count_subscribers(team.lockstep_topic(q.TEAM_WHEEL_STATES)) >= readers}
+                       and self._team_states_pubs[team].get_subscription_count() >= readers}
         robots_ok = all(
             self._robots[i][0] in team_served
             or (self._per_robot_lockstep and self.count_publishers(self._topic(q.MOTOR_DUTY, i)) > 0
-                and self.count_subscribers(self._topic(q.WHEEL_STATES, i)) >= readers)
+                and self._pubs[i]["states"].get_subscription_count() >= readers)
             for i in self._controlled
         )
-        clock_ok = self.count_subscribers(q.CLOCK.name) >= self._values["start_clock_subscribers"]
+        clock_ok = self._clock_pub.get_subscription_count() >= self._values["start_clock_subscribers"]
         ok = robots_ok and clock_ok
         if not ok and waited > self._values["startup_timeout_s"]:
             self._event(f"starting without all controlled robots or /clock subscribers after {waited:.1f} s", warn=True)
             return True
-        # Discovery is not symmetric: seeing a reader does not mean it has matched this writer yet.
-        # Start once the peers have been there for a moment, so tick 0 reaches everyone.
+        # Matching is not symmetric: a reader this writer has matched may not have matched the writer yet
+        # (the two learn of each other from each other's announcements, within milliseconds here).
+        # Start once the peers have been matched for a moment, so tick 0 reaches everyone.
         if not ok:
             self._peers_seen_at = None
             return False
