@@ -36,7 +36,7 @@ from rclpy.serialization import deserialize_message
 
 from erforce_interfaces import contract
 from erforce_interfaces.ament_index import find_package_share
-from erforce_interfaces.executor import sample_only, take_queued
+from erforce_interfaces.executor import sample_only, take_one, take_queued
 from erforce_interfaces.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
@@ -95,9 +95,9 @@ def observe_only() -> None:
 
 
 def _take_newest(subscription) -> list[bytes]:
-    """The newest queued message of a keep-last-1 subscription (raw), or none: from its inbox, where an
-    executor that takes messages itself (EventsExecutor) has put it, or from rmw."""
-    return [data for data, _ in take_queued(subscription)[-1:]]
+    """The newest queued message of a keep-last-1 subscription (raw), or none."""
+    taken = take_one(subscription)
+    return [] if taken is None else [taken[0]]
 
 
 class FieldViewNode(Node):
@@ -236,7 +236,10 @@ class FieldViewNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     observe_only()  # before rclpy starts its threads
-    return run_node(FieldViewNode, args)
+    # DirectExecutor never waits on a sampled subscription: a message stays in rmw until the frame's tick
+    # takes it, so the process wakes for its timers only, not for each of the ~500 messages a second it
+    # subscribes to (EventsExecutor takes every one as it arrives and calls into Python for it).
+    return run_node(FieldViewNode, args, executor_kind="direct")
 
 
 if __name__ == "__main__":
