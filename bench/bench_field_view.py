@@ -23,7 +23,6 @@ Runs in a private DDS domain (erforce_interfaces.tools.testing.RosGraph).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import sys
@@ -45,7 +44,7 @@ from erforce_interfaces.conversions import (
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.tools.messages import point_msg
 from erforce_interfaces.tools.testing import RosGraph, stop_process
-from erforce_sim.closed_loop.field_view import WorldState
+from erforce_sim.closed_loop.field_view import WorldState, decode_frame_bytes
 from erforce_sim.closed_loop.field_view_node import web_dir
 from erforce_sim.closed_loop.headless_browser import Browser, chromium_missing
 from erforce_sim.closed_loop.view_server import ViewServer, frame_text
@@ -136,7 +135,7 @@ def _page_reader(url: str, stop: threading.Event, num_robots: int, robots_seen: 
                 continue
             frames.append(len(message))
             if not robots_seen:
-                robots = json.loads(message)["frame"]["robots"]
+                robots = decode_frame_bytes(message)["robots"]
                 if len(robots) >= num_robots:
                     robots_seen.append(len(robots))
 
