@@ -489,3 +489,40 @@ def test_the_binary_frame_of_an_empty_world_and_a_damaged_one():
     for bad in (b"", b"EFV2" + data[4:], data[:-8], data + bytes(4)):
         with pytest.raises(ValueError):
             decode_frame_bytes(bad)
+
+
+def test_a_frame_of_robots_known_only_from_team_tables_is_the_same_built_from_the_table():
+    """Robots known only from /ball/catches (robot 7 an opponent): the binary frame, built straight from the
+    table, says what frame() says once the table is in every robot's view; a table that leaves a robot
+    out, and a message about one robot, take the general way, with the same result."""
+    state = WorldState(FIELD, opponent_ids=frozenset({7}))
+    ball_state(state, 2.0, (0.0, 0.0), (1.0, 0.0))
+    table = [[4, -1.0, 0.5, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0], [0, 1.0, 2.0, -math.pi / 2, 0.3, 0.4, 0.75, 1.0, 0.0],
+             [7, 2.5, -2.0, 3.0, 0.0, 0.0, 0.2, 1.0, -0.5], [2, 0.5, 0.5, 1.0, 0.0, 0.0, 0.6, 0.5, 0.1]]
+    assert state.apply(c.BALL_CATCHES.name, catch_table(table))
+    twin = WorldState(FIELD, opponent_ids=frozenset({7}))
+    ball_state(twin, 2.0, (0.0, 0.0), (1.0, 0.0))
+    assert twin.apply(c.BALL_CATCHES.name, catch_table(table))
+    decoded = decode_frame_bytes(state.frame_bytes())
+    frame = twin.frame()
+    frame["path"].pop("marks")
+    assert decoded == _approx_tree(frame)
+    # robot 2 is the earliest of ours (7 is an opponent); robot 0 has the speed 0.5 of (0.3, 0.4)
+    assert decoded["receiver"] == {"id": 2, "target": [0.5, pytest.approx(0.1)], "catch_time": pytest.approx(0.6)}
+    assert [(r["id"], r["team"], r["catch_time"]) for r in decoded["robots"]] == [
+        (0, "ours", 0.75), (2, "ours", pytest.approx(0.6)), (4, "ours", -1.0), (7, "opponent", pytest.approx(0.2))]
+    assert decoded["robots"][0]["speed"] == pytest.approx(0.5)
+    # a table without robot 4: robot 4 is still fresh and drawn from the table before
+    for s in (state, twin):
+        assert s.apply(c.BALL_CATCHES.name, catch_table(table[1:]))
+    frame = twin.frame()
+    frame["path"].pop("marks")
+    assert decode_frame_bytes(state.frame_bytes()) == _approx_tree(frame)
+    assert [r["id"] for r in frame["robots"]] == [0, 2, 4, 7]
+    for s in (state, twin):
+        robot(s, 2, 2.0, (-2.0, 1.5, 1.0))
+        assert s.apply(c.BALL_CATCHES.name, catch_table(table))
+    frame = twin.frame()
+    frame["path"].pop("marks")
+    assert decode_frame_bytes(state.frame_bytes()) == _approx_tree(frame)
+    assert frame["robots"][1]["pose"] == [-2.0, 1.5, 1.0] and frame["robots"][1]["truth"]

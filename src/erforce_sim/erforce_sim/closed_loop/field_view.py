@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ball_speed
 from erforce_ball_model.catcher import team_receiver
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
@@ -118,7 +118,7 @@ def view_topic(name: str) -> tuple[contract.Topic, RobotKey | None] | None:
     return None
 
 
-@dataclass
+@dataclass(slots=True)
 class RobotView:
     """One robot's newest numbers, rounded for the wire as they arrive (see ``_wire``)."""
 
@@ -165,6 +165,11 @@ class WorldState:
     _speed_model: tuple[float, BallTrajectory] | None = None  # (anchor time, trajectory) for the speed plot
     _meta_serial: int = 0  # moves with every message of META_TOPICS and every refusal
     _meta_cache: tuple[int, bytes] | None = None  # (serial, the binary frame's JSON part)
+    # The newest team table (rounded) and the time it came, not yet copied into the robots' views: that
+    # waits for a message about one robot or a new time line (``_settle_table``), so that a frame of
+    # robots known only from team tables is built from the table in one piece (``frame_bytes``).
+    _pending_table: tuple[np.ndarray, float, list[int]] | None = None  # (rows, time, ids)
+    _robots_only_from_tables: bool = True  # no message about one robot yet
 
     # -------------------------------------------------------------- input
     def apply(self, topic_name: str, msg: Any) -> bool:
@@ -180,6 +185,8 @@ class WorldState:
                     self._meta_serial += 1
                 self._apply_global(topic_name, topic, msg)
             else:
+                self._settle_table()
+                self._robots_only_from_tables = False
                 self._apply_robot(topic_name, topic, self.robot(robot), msg)
         except (ConversionError, ValueError, AttributeError, IndexError, TypeError):
             self.rejected += 1
@@ -195,6 +202,24 @@ class WorldState:
             return False
         topic, robot = found
         return not (topic is contract.ODOM and robot in self.robots and self.robots[robot].truth)
+
+    def _settle_table(self) -> None:
+        """Copy the pending team table into the robots' views (before anything else changes them)."""
+        if self._pending_table is None:
+            return
+        rows, t_s, _ = self._pending_table
+        self._pending_table = None
+        speeds = np.round(np.hypot(rows[:, 4], rows[:, 5]), 4).tolist()
+        robots, never = self.robots, contract.CATCH_TIME_NEVER
+        for (robot_id, x, y, yaw, _vx, _vy, catch_s, catch_x, catch_y), speed in zip(rows.tolist(), speeds,
+                                                                                     strict=True):
+            robot = robots[int(robot_id)]
+            if not robot.truth:
+                robot.pose, robot.t_s, robot.speed_mps = [x, y, yaw], t_s, speed
+            if catch_s >= 0.0:
+                robot.catch_time_s, robot.catch_point = catch_s, [catch_x, catch_y]
+            else:
+                robot.catch_time_s, robot.catch_point = never, None
 
     def robot(self, robot_id: RobotKey) -> RobotView:
         view = self.robots.get(robot_id)
@@ -212,6 +237,7 @@ class WorldState:
             if verdict is StampVerdict.DROP:
                 raise ValueError(f"{source}: {stamps.reason}")
             if verdict is StampVerdict.RESTART and t_s < self.t_s:
+                self._settle_table()
                 self._restart(t_s)
         self.t_s = max(self.t_s, t_s)
 
@@ -262,17 +288,14 @@ class WorldState:
         ids = table[:, 0]
         if np.any((ids < 0) | (ids > 1e6) | (ids != np.round(ids))):
             raise ValueError("robot ids of /ball/catches must be whole numbers >= 0")
-        rows = np.round(table, 4).tolist()
-        speeds = np.round(np.hypot(table[:, 4], table[:, 5]), 4).tolist()
-        robots, t_s, never = self.robots, self.t_s, contract.CATCH_TIME_NEVER
-        for (robot_id, x, y, yaw, _vx, _vy, catch_s, catch_x, catch_y), speed in zip(rows, speeds, strict=True):
-            robot = robots.get(int(robot_id)) or self.robot(int(robot_id))
-            if not robot.truth:
-                robot.pose, robot.t_s, robot.speed_mps = [x, y, yaw], t_s, speed
-            if catch_s >= 0.0:
-                robot.catch_time_s, robot.catch_point = catch_s, [catch_x, catch_y]
-            else:
-                robot.catch_time_s, robot.catch_point = never, None
+        id_list = ids.astype(int).tolist()
+        if self._pending_table is not None and not set(self._pending_table[2]).issubset(id_list):
+            self._settle_table()  # the one before, for its robots this one does not list
+        robots = self.robots
+        for robot_id in id_list:
+            if robot_id not in robots:
+                robots[robot_id] = RobotView(robot_id)
+        self._pending_table = (np.round(table, 4), self.t_s, id_list)
 
     def _apply_robot(self, name: str, topic: contract.Topic, robot: RobotView, msg: Any) -> None:
         c = contract
@@ -300,6 +323,7 @@ class WorldState:
             robot.ball_detected = bool(msg.data)
 
     def _choose_receiver(self) -> None:
+        self._settle_table()
         times = {i: r.catch_time_s for i, r in self.robots.items()
                  if r.catch_time_s is not None and isinstance(i, int) and i not in self.opponent_ids
                  and (not self.team_ids or i in self.team_ids)}
@@ -334,6 +358,7 @@ class WorldState:
 
     def _shown_robots(self) -> list[RobotView]:
         """The robots the page draws, in id order (ours, then opponents' keys): those with a fresh pose."""
+        self._settle_table()
         fresh_after = self.t_s - ROBOT_STALE_S
         shown = [r for r in self.robots.values() if r.pose is not None and r.t_s >= fresh_after]
         if any(isinstance(r.robot_id, str) for r in shown):
@@ -363,7 +388,7 @@ class WorldState:
             filtered = round(math.hypot(self.ball_state[2], self.ball_state[3]), 4)
         if self._speed_model is not None and self.ball_state_t_s >= self._speed_model[0]:
             t0, trajectory = self._speed_model
-            model = round(float(trajectory.speed_at(self.t_s - t0)), 4)
+            model = round(ball_speed(trajectory.floats, max(self.t_s - t0, 0.0)), 4)
         return truth, filtered, model
 
     def _meta(self) -> dict[str, Any]:
@@ -459,9 +484,20 @@ class WorldState:
             scalars += (f.x_m, f.y_m, f.x_m + f.ux * f.switch_distance_m, f.y_m + f.uy * f.switch_distance_m,
                         f.x_m + f.ux * f.stop_distance_m, f.y_m + f.uy * f.stop_distance_m, f.switch_time_s,
                         f.stop_time_s, f.speed_mps, f.v_switch_mps)
+        scalars += (nan if v is None else v for v in self._speeds())  # placed after the receiver's below
+        block = self._table_block()
+        if block is not None:
+            receiver, cells_array, num_robots, columns = block
+            speeds = scalars[-3:]
+            scalars[-3:] = _NAN4 if receiver is None else (receiver[0], *receiver[1], receiver[2])
+            scalars += speeds
+            meta = self._meta_json()
+            header = _FRAME_HEADER.pack(FRAME_MAGIC, len(meta), len(scalars), num_robots, columns)
+            return b"".join((header, meta, array("d", scalars).tobytes(), cells_array.tobytes()))
+        speeds = scalars[-3:]
         receiver = self._receiver_now()
-        scalars += _NAN4 if receiver is None else (receiver[0], *receiver[1], receiver[2])
-        scalars += (nan if v is None else v for v in self._speeds())
+        scalars[-3:] = _NAN4 if receiver is None else (receiver[0], *receiver[1], receiver[2])
+        scalars += speeds
         robots = self._shown_robots()
         wheels = max((max(len(r.avg_current_a), len(r.current_a)) for r in robots), default=0)
         columns = len(ROBOT_COLUMNS) + 3 * wheels
@@ -482,6 +518,40 @@ class WorldState:
         meta = self._meta_json()
         header = _FRAME_HEADER.pack(FRAME_MAGIC, len(meta), len(scalars), len(robots), columns)
         return b"".join((header, meta, array("d", scalars).tobytes(), array("f", cells).tobytes()))
+
+    def _table_block(self) -> tuple[tuple[int, list[float], float] | None, np.ndarray, int, int] | None:
+        """(receiver, robot rows as float32, robots, columns) of ``frame_bytes`` straight from the pending team
+        table, when every robot known came only from team tables and this one lists them all (the usual
+        live case without a simulator's ground truth); else None."""
+        if self._pending_table is None or not self._robots_only_from_tables:
+            return None
+        rows, t_s, ids = self._pending_table
+        if len(ids) != len(self.robots):
+            return None  # a robot of an earlier table is not in this one
+        if ids != sorted(ids):
+            order = np.argsort(rows[:, 0], kind="stable")
+            rows, ids = rows[order], [ids[i] for i in order.tolist()]
+        never = contract.CATCH_TIME_NEVER
+        times = [t if t >= 0.0 else never for t in rows[:, 6].tolist()]
+        opponents, team = self.opponent_ids, self.team_ids
+        self.receiver = team_receiver({i: t for i, t in zip(ids, times, strict=True)
+                                       if i not in opponents and (not team or i in team)},
+                                      self.receiver, RECEIVER_SWITCH_MARGIN_S)
+        receiver = None
+        if self.receiver is not None:
+            row = rows[ids.index(self.receiver)]
+            receiver = (self.receiver, [float(row[7]), float(row[8])], float(row[6]))
+        if t_s < self.t_s - ROBOT_STALE_S:
+            return receiver, np.empty(0, np.float32), 0, len(ROBOT_COLUMNS)
+        cells = np.zeros((len(rows), len(ROBOT_COLUMNS)), np.float32)
+        if opponents:
+            cells[:, 0] = [i in opponents for i in ids]
+        cells[:, 1:5] = rows[:, 0:4]
+        cells[:, 5] = np.round(np.hypot(rows[:, 4], rows[:, 5]), 4)
+        cells[:, 7] = times
+        cells[:, 8:10] = rows[:, 7:9]
+        cells[rows[:, 6] < 0.0, 8:10] = np.nan
+        return receiver, cells, len(rows), len(ROBOT_COLUMNS)
 
     def _meta_json(self) -> bytes:
         """``_meta()`` as UTF-8 JSON padded with spaces to a multiple of 8 bytes; encoded again only when
