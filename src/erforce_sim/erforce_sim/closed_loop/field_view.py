@@ -285,10 +285,10 @@ class WorldState:
 
     def _apply_catch_table(self, table: np.ndarray) -> None:
         """The team at one ball frame (contract.CATCH_TABLE_COLUMNS): its robots are fresh now."""
-        ids = table[:, 0]
-        if np.any((ids < 0) | (ids > 1e6) | (ids != np.round(ids))):
+        id_list = table[:, 0].tolist()  # finite (table_from_msg)
+        if not all(0.0 <= i <= 1e6 and i == int(i) for i in id_list):
             raise ValueError("robot ids of /ball/catches must be whole numbers >= 0")
-        id_list = ids.astype(int).tolist()
+        id_list = [int(i) for i in id_list]
         if self._pending_table is not None and not set(self._pending_table[2]).issubset(id_list):
             self._settle_table()  # the one before, for its robots this one does not list
         robots = self.robots
@@ -335,7 +335,7 @@ class WorldState:
         speed = math.hypot(vx, vy)
         if self._speed_model is not None:
             t0, trajectory = self._speed_model
-            if t >= t0 and speed <= float(trajectory.speed_at(t - t0)) + KICK_SPEED_JUMP_MPS:
+            if t >= t0 and speed <= ball_speed(trajectory.floats, t - t0) + KICK_SPEED_JUMP_MPS:
                 return
         if speed > KICK_SPEED_JUMP_MPS:
             self._speed_model = (t, BallTrajectory((x, y), (vx, vy), max(self.v_shoot_mps, speed), self.model))
