@@ -13,8 +13,8 @@ field_view node costs a graph (CPU, and the ball predictor's latency with and wi
    read from /proc. The predictor and the view run in the bench's session, as `./run demo --view` runs
    the graph and the view: the view's threads are SCHED_IDLE, which ranks them below the graph's only
    inside one session (Linux's autogroup). The figures: the view's CPU with 22 robots (as a share of
-   a core, and per frame sent), and the latency's p50 without and with the view, each the median (range) over the blocks. The load
-   average goes into the notes: on a shared VM the figures move with it.
+   a core, and per frame sent), and the latency's p50 without and with the view, each the median
+   (range) over the blocks. The load average goes into the notes: on a shared VM the figures move with it.
 
 Runs in a private DDS domain (erforce_interfaces.tools.testing.RosGraph).
 
