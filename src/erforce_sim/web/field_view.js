@@ -23,6 +23,7 @@
     "state_y", "state_vx", "state_vy", "stop_x", "stop_y", "v_shoot", "path_x", "path_y", "switch_x", "switch_y",
     "end_x", "end_y", "switch_time", "stop_time", "path_speed", "switch_speed", "receiver", "target_x", "target_y",
     "receiver_catch_time", "speed_truth", "speed_filtered", "speed_model"];
+  const SCALAR_INDEX = Object.fromEntries(SCALARS.map((name, i) => [name, i]));
   const ROBOT_COLUMNS = 13; // kind, id, x, y, yaw, speed, truth, catch_time, catch_x, catch_y, ball_detected, counts
   const textDecoder = new TextDecoder();
 
@@ -85,43 +86,48 @@
     if (numScalars !== SCALARS.length || buffer.byteLength !== robotsAt + 4 * numRobots * columns) {
       throw new Error("a field view frame of the wrong size");
     }
-    const frame = JSON.parse(textDecoder.decode(new Uint8Array(buffer, FRAME_HEADER_BYTES, metaBytes)));
-    const values = new Float64Array(buffer, scalarsAt, numScalars), s = {};
-    SCALARS.forEach((name, i) => { s[name] = values[i]; });
-    const has = (v) => !Number.isNaN(v);
-    const pair = (a, b) => (has(s[a]) ? [s[a], s[b]] : null);
-    frame.t = s.t;
-    const ball = { phase: frame.phase, uncertain: frame.uncertain, v_shoot: s.v_shoot };
-    delete frame.phase; delete frame.uncertain;
-    if (has(s.truth_x)) { ball.truth = [s.truth_x, s.truth_y, s.truth_vx, s.truth_vy]; ball.truth_t = s.truth_t; }
-    if (has(s.seen_x)) { ball.seen = [s.seen_x, s.seen_y]; }
-    if (has(s.state_x)) { ball.state = [s.state_x, s.state_y, s.state_vx, s.state_vy]; }
-    frame.ball = ball;
-    frame.stop_point = pair("stop_x", "stop_y");
-    frame.path = has(s.path_x) ? {
-      start: pair("path_x", "path_y"), switch: pair("switch_x", "switch_y"), stop: pair("end_x", "end_y"),
-      switch_time: s.switch_time, stop_time: s.stop_time, speed: s.path_speed, switch_speed: s.switch_speed,
-    } : null;
-    frame.receiver = has(s.receiver) ? { id: s.receiver, target: pair("target_x", "target_y"), catch_time: s.receiver_catch_time } : null;
-    frame.speed = { t: s.t };
-    for (const k of ["truth", "filtered", "model"]) { if (has(s[`speed_${k}`])) { frame.speed[k] = s[`speed_${k}`]; } }
+    const meta = JSON.parse(textDecoder.decode(new Uint8Array(buffer, FRAME_HEADER_BYTES, metaBytes)));
+    const v = new Float64Array(buffer, scalarsAt, numScalars);
+    const has = (x) => !Number.isNaN(x);
+    const pair = (i) => (has(v[i]) ? [v[i], v[i + 1]] : null);
+    const S = SCALAR_INDEX;
+    const ball = { phase: meta.phase, uncertain: meta.uncertain, v_shoot: v[S.v_shoot] };
+    if (has(v[S.truth_x])) { ball.truth = [v[S.truth_x], v[S.truth_y], v[S.truth_vx], v[S.truth_vy]]; ball.truth_t = v[S.truth_t]; }
+    if (has(v[S.seen_x])) { ball.seen = pair(S.seen_x); }
+    if (has(v[S.state_x])) { ball.state = [v[S.state_x], v[S.state_y], v[S.state_vx], v[S.state_vy]]; }
+    const speed = { t: v[S.t] };
+    if (has(v[S.speed_truth])) { speed.truth = v[S.speed_truth]; }
+    if (has(v[S.speed_filtered])) { speed.filtered = v[S.speed_filtered]; }
+    if (has(v[S.speed_model])) { speed.model = v[S.speed_model]; }
     const cells = new Float32Array(buffer, robotsAt, numRobots * columns);
     const wheels = (columns - ROBOT_COLUMNS) / 3;
-    frame.robots = [];
-    for (let i = 0; i < numRobots; i++) {
-      const r = cells.subarray(i * columns, (i + 1) * columns), extra = r.subarray(ROBOT_COLUMNS);
-      const kind = r[0], avgCount = r[11], currentCount = r[12];
-      frame.robots.push({
-        id: kind === 2 ? `o${r[1]}` : r[1], team: kind === 0 ? "ours" : "opponent",
-        pose: [r[2], r[3], r[4]], speed: r[5], truth: r[6] !== 0,
-        catch_time: has(r[7]) ? r[7] : null, catch_point: has(r[8]) ? [r[8], r[9]] : null,
-        ball_detected: r[10] !== 0,
-        avg_current: Array.from(extra.subarray(0, avgCount)),
-        limit_active: Array.from(extra.subarray(wheels, wheels + avgCount), (v) => v !== 0),
-        current: Array.from(extra.subarray(2 * wheels, 2 * wheels + currentCount)),
+    const robots = [];
+    for (let i = 0, at = 0; i < numRobots; i++, at += columns) {
+      const kind = cells[at], avgCount = cells[at + 11], currentCount = cells[at + 12];
+      const avg = [], limit = [], current = [];
+      for (let k = 0; k < avgCount; k++) {
+        avg.push(cells[at + ROBOT_COLUMNS + k]); limit.push(cells[at + ROBOT_COLUMNS + wheels + k] !== 0);
+      }
+      for (let k = 0; k < currentCount; k++) { current.push(cells[at + ROBOT_COLUMNS + 2 * wheels + k]); }
+      robots.push({
+        id: kind === 2 ? `o${cells[at + 1]}` : cells[at + 1], team: kind === 0 ? "ours" : "opponent",
+        pose: [cells[at + 2], cells[at + 3], cells[at + 4]], speed: cells[at + 5], truth: cells[at + 6] !== 0,
+        catch_time: has(cells[at + 7]) ? cells[at + 7] : null,
+        catch_point: has(cells[at + 8]) ? [cells[at + 8], cells[at + 9]] : null,
+        avg_current: avg, limit_active: limit, current, ball_detected: cells[at + 10] !== 0,
       });
     }
-    return frame;
+    return {
+      t: v[S.t], field: meta.field, robot_radius: meta.robot_radius, current_limit: meta.current_limit,
+      model: meta.model, ball,
+      path: has(v[S.path_x]) ? {
+        start: pair(S.path_x), switch: pair(S.switch_x), stop: pair(S.end_x), switch_time: v[S.switch_time],
+        stop_time: v[S.stop_time], speed: v[S.path_speed], switch_speed: v[S.switch_speed],
+      } : null,
+      stop_point: pair(S.stop_x), robots,
+      receiver: has(v[S.receiver]) ? { id: v[S.receiver], target: pair(S.target_x), catch_time: v[S.receiver_catch_time] } : null,
+      pass: meta.pass, speed, events: meta.events, rejected: meta.rejected,
+    };
   }
 
   // The marks on the predicted path every PATH_MARK_PERIOD_S: on each stretch the ball slows evenly
