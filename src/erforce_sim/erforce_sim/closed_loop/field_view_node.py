@@ -191,8 +191,16 @@ class FieldViewNode(Node):
             self._last_value.pop(topic, None)
 
     def _tick(self) -> None:
+        """One frame (in the server's thread). A Ctrl-C shuts rclpy's context down from the main thread,
+        maybe under this tick's takes: what that raises is the shutdown, not a fault."""
+        if not self.context.ok():
+            return
         with self._lock:
-            self._take_and_send()
+            try:
+                self._take_and_send()
+            except Exception:
+                if self.context.ok():
+                    raise
 
     def _take_and_send(self) -> None:
         if self._foxglove is not None:
