@@ -2,7 +2,7 @@
 
 ``ViewServer`` runs the ``websockets`` library's asyncio server in a thread of its own. ``GET /``
 and the page's files (share/erforce_sim/web) are plain HTTP; ``/ws`` is the websocket. Frames go
-out with ``publish(text)`` from any thread: the text is encoded once and queued for every
+out with ``publish(frame)`` from any thread: a text is encoded once, and the frame queued for every
 client, each in a bounded queue that drops its oldest frame when full, so a slow client loses
 frames and never slows the caller; a frame given as bytes goes out as a binary message. A client
 sends JSON requests (``{"replay": t}`` and the like);
