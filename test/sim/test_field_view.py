@@ -28,7 +28,14 @@ from erforce_interfaces.conversions import (
 )
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.stamps import StampFilter
-from erforce_sim.closed_loop.field_view import STAMP_MAX_JUMP_S, BagReplay, WorldState, view_topic
+from erforce_sim.closed_loop.field_view import (
+    PATH_MARK_PERIOD_S,
+    STAMP_MAX_JUMP_S,
+    BagReplay,
+    WorldState,
+    decode_frame_bytes,
+    view_topic,
+)
 from erforce_sim.closed_loop.field_view_node import decode
 from erforce_sim.closed_loop.passing_game import GameConfig
 from erforce_sim.closed_loop.passing_report import GameBag, pass_choice_cdr
@@ -422,3 +429,111 @@ def test_an_unsafe_or_malformed_choice():
     two_rows = table_msg([[0, 1, 2, 0, 1, 2, 0, 1, 0.3, 1]] * 2, c.PASS_CHOICE_COLUMNS)
     negative = table_msg([[-1, 1, 2, 0, 1, 2, 0, 1, 0.3, 1]], c.PASS_CHOICE_COLUMNS)
     assert not state.apply(c.PASS_CHOICE.name, two_rows) and not state.apply(c.PASS_CHOICE.name, negative)
+
+
+def _approx_tree(value):
+    """``value`` with every float compared at float32's precision for numbers of the field's size."""
+    if isinstance(value, dict):
+        return {k: _approx_tree(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_approx_tree(v) for v in value]
+    if isinstance(value, float):
+        return pytest.approx(value, abs=2e-6)
+    return value
+
+
+def test_the_binary_frame_says_what_the_frame_says():
+    """Both teams, an opponent of its own namespace, motor currents, the team table, a rolling ball, a
+    pass: decoded, the binary frame is frame() but for the path's marks (the page puts them on)."""
+    state = WorldState(FIELD, opponent_ids=frozenset({7}))
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0))
+    ball_state(state, 1.0, (1.0, -1.0), (0.0, 2.0))
+    assert state.apply(c.GROUND_TRUTH_BALL.name, odometry_cdr(1.0, (1.01, -1.0, 0.0), (0.0, 2.1, 0.0)))
+    assert state.apply(c.VISION_BALL.name, point_cdr(1.0, (1.02, -0.99)))
+    assert state.apply(c.BALL_STOP_POINT.name, point_cdr(1.0, (1.0, 1.912)))
+    assert state.apply(c.BALL_PHASE.name, String(data="sliding"))
+    assert state.apply(c.BALL_CATCHES.name, catch_table([[OURS, 0, 1.0, 2.0, -math.pi / 2, 0.3, 0.4, 0.75, 1.0, 0.0],
+                                                         [OURS, 4, -1.0, 0.5, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0],
+                                                         [OURS, 7, 2.5, -2.0, 3.0, 0.0, 0.0, 0.4, 1.0, -0.5]]))
+    robot(state, 2, 1.0, (-2.0, 1.5, 1.0))
+    status = [[1.0, 0.9, 0.0, 0.0], [1.4, 0.5, 1.0, 1.0], [0.2, 1.0, 0.0, 0.0]]
+    assert state.apply(c.MOTOR_STATUS.for_robot(2), table_msg(status, c.MOTOR_STATUS_COLUMNS, "wheels"))
+    assert state.apply(c.BALL_DETECTED.for_robot(2), Bool(data=True))
+    assert state.apply("/opponent_3/ground_truth/odom", odometry_cdr(1.0, (0.5, 0.5, 0.0), (0.0, 0.0, 0.0)))
+    assert state.apply(c.SIM_EVENTS.name, String(data="kick fired"))
+    choice = PassOption(receiver=2, kick_speed_mps=3.0, direction_rad=0.5, receiver_catch_s=0.9,
+                        opponent_catch_s=1.4, first_opponent=3)
+    assert state.apply(c.PASS_CHOICE.name, pass_choice_cdr((0, choice), PassConfig(safe_margin_s=0.3)))
+    frame = state.frame()
+    decoded = decode_frame_bytes(state.frame_bytes())
+    marks = frame["path"].pop("marks")
+    assert decoded == _approx_tree(frame)
+    assert [(r["id"], r["team"]) for r in decoded["robots"]] == [(0, "ours"), (2, "ours"), (4, "ours"),
+                                                                  (7, "opponent"), ("o3", "opponent")]
+    assert decoded["robots"][1]["avg_current"] == pytest.approx([1.0, 1.4, 0.2], abs=1e-6)
+    assert decoded["robots"][1]["limit_active"] == [False, True, False] and decoded["robots"][1]["ball_detected"]
+    # The page's marks: on each stretch the ball slows evenly from the speed at its start to the one at its
+    # end. From 2 m/s to 1.2 m/s in 0.32 s, then to rest in 4 s (the module docstring's ball).
+    path = decoded["path"]
+    assert (path["speed"], path["switch_speed"]) == (2.0, pytest.approx(1.2))
+    slide = math.dist(path["start"], path["switch"])
+    for k, mark in enumerate(marks, start=1):
+        t = k * PATH_MARK_PERIOD_S
+        if t <= path["switch_time"]:
+            d = path["speed"] * t - 0.5 * (path["speed"] - path["switch_speed"]) / path["switch_time"] * t**2
+        else:
+            roll = path["stop_time"] - path["switch_time"]
+            tr = t - path["switch_time"]
+            d = slide + path["switch_speed"] * tr - 0.5 * path["switch_speed"] / roll * tr**2
+        assert mark == pytest.approx([1.0, -1.0 + d], abs=1e-4)
+
+
+def test_the_binary_frame_of_an_empty_world_and_a_damaged_one():
+    state = WorldState(FIELD)
+    frame = decode_frame_bytes(state.frame_bytes())
+    assert frame == state.frame() and frame["robots"] == [] and frame["path"] is None
+    data = state.frame_bytes()
+    for bad in (b"", b"EFV2" + data[4:], data[:-8], data + bytes(4)):
+        with pytest.raises(ValueError):
+            decode_frame_bytes(bad)
+
+
+def test_a_frame_of_robots_known_only_from_team_tables_is_the_same_built_from_the_table():
+    """Robots known only from /ball/catches (robot 7 marked an opponent, and opponent 1 of the other team):
+    the binary frame, built straight from the table, says what frame() says once the table is in every
+    robot's view; a table that leaves a robot out, and a message about one robot, take the general way,
+    with the same result."""
+    state = WorldState(FIELD, opponent_ids=frozenset({7}))
+    ball_state(state, 2.0, (0.0, 0.0), (1.0, 0.0))
+    table = [[OURS, 4, -1.0, 0.5, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0],
+             [THEIRS, 1, 3.0, 1.0, 0.0, 0.0, 0.0, 0.1, 2.0, 1.0],  # the earliest, but not ours
+             [OURS, 0, 1.0, 2.0, -math.pi / 2, 0.3, 0.4, 0.75, 1.0, 0.0],
+             [OURS, 7, 2.5, -2.0, 3.0, 0.0, 0.0, 0.2, 1.0, -0.5], [OURS, 2, 0.5, 0.5, 1.0, 0.0, 0.0, 0.6, 0.5, 0.1]]
+    assert state.apply(c.BALL_CATCHES.name, catch_table(table))
+    twin = WorldState(FIELD, opponent_ids=frozenset({7}))
+    ball_state(twin, 2.0, (0.0, 0.0), (1.0, 0.0))
+    assert twin.apply(c.BALL_CATCHES.name, catch_table(table))
+    decoded = decode_frame_bytes(state.frame_bytes())
+    frame = twin.frame()
+    frame["path"].pop("marks")
+    assert decoded == _approx_tree(frame)
+    # robot 2 is the earliest of ours (7 is an opponent); robot 0 has the speed 0.5 of (0.3, 0.4)
+    assert decoded["receiver"] == {"id": 2, "target": [0.5, pytest.approx(0.1)], "catch_time": pytest.approx(0.6)}
+    assert [(r["id"], r["team"], r["catch_time"]) for r in decoded["robots"]] == [
+        (0, "ours", 0.75), (2, "ours", pytest.approx(0.6)), (4, "ours", -1.0), (7, "opponent", pytest.approx(0.2)),
+        ("o1", "opponent", pytest.approx(0.1))]
+    assert decoded["robots"][0]["speed"] == pytest.approx(0.5)
+    # a table without robot 4: robot 4 is still fresh and drawn from the table before
+    for s in (state, twin):
+        assert s.apply(c.BALL_CATCHES.name, catch_table(table[1:]))
+    frame = twin.frame()
+    frame["path"].pop("marks")
+    assert decode_frame_bytes(state.frame_bytes()) == _approx_tree(frame)
+    assert [r["id"] for r in frame["robots"]] == [0, 2, 4, 7, "o1"]
+    for s in (state, twin):
+        robot(s, 2, 2.0, (-2.0, 1.5, 1.0))
+        assert s.apply(c.BALL_CATCHES.name, catch_table(table))
+    frame = twin.frame()
+    frame["path"].pop("marks")
+    assert decode_frame_bytes(state.frame_bytes()) == _approx_tree(frame)
+    assert frame["robots"][1]["pose"] == [-2.0, 1.5, 1.0] and frame["robots"][1]["truth"]

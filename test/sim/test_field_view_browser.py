@@ -178,6 +178,14 @@ def test_the_page_draws_the_graphs_robots_ball_and_catch_point(graph_and_view):
     browser.screenshot().save(ARTIFACTS / "field_view_after_kick.png")
     assert RECEIVER not in before or math.dist(before[RECEIVER], scene.receiver_pose[:2]) > 1.0
     assert drawn["receiver"]["id"] == RECEIVER
+    # the marks every 0.25 s that the page puts on the path: on it, in order, up to its stop
+    path = drawn["path"]
+    assert len(path["marks"]) == min(40, int(path["stop_time"] / 0.25)) > 0
+    along = [math.dist(path["start"], m) for m in path["marks"]]
+    assert along == sorted(along) and along[-1] <= math.dist(path["start"], path["stop"]) + 1e-6
+    for mark in path["marks"]:
+        assert math.dist(mark, path["start"]) + math.dist(mark, path["stop"]) == pytest.approx(
+            math.dist(path["start"], path["stop"]), abs=1e-6)
     # the predictor's catch points of the last half second: the drawn one is among them
     recent = [(x, y) for t, x, y in director.series.catch_points if drawn["t"] - 0.5 <= t <= drawn["t"] + 0.05]
     drawn_point = next(c["world"] for c in drawn["catch_points"] if c["id"] == RECEIVER)

@@ -70,6 +70,40 @@ def test_a_page_that_connects_gets_the_newest_frame_at_once(server):
         assert json.loads(ws.recv(timeout=5)) == {"frame": {"t": 0.75}}
 
 
+def test_a_frame_given_as_bytes_goes_out_as_a_binary_message(server):
+    with connect(ws_url(server), open_timeout=5) as ws:
+        wait_until(lambda: server.client_count >= 1)
+        server.publish(b"EFV1\x00\xff")
+        assert ws.recv(timeout=5) == b"EFV1\x00\xff"
+        server.publish(frame_text({"t": 3.0}))
+        assert json.loads(ws.recv(timeout=5)) == {"frame": {"t": 3.0}}
+
+
+def test_on_tick_runs_every_period_in_the_servers_thread_and_a_failing_tick_does_not_stop_it():
+    ticks: list[float] = []
+    server: ViewServer | None = None
+
+    def on_tick() -> None:
+        ticks.append(time.monotonic())
+        if len(ticks) == 3:
+            raise RuntimeError("a fault of one tick")
+        server.publish(frame_text({"t": float(len(ticks))}))
+
+    server = ViewServer(WEB, port=0, on_tick=on_tick, tick_period_s=0.02)
+    server.start()
+    try:
+        with connect(ws_url(server), open_timeout=5) as ws:
+            first = json.loads(ws.recv(timeout=5))["frame"]["t"]
+            while (t := json.loads(ws.recv(timeout=5))["frame"]["t"]) < first + 5:
+                assert t != 3.0
+        assert server.tick_failures == 1
+        assert len(ticks) >= 6 and 0.01 < (ticks[-1] - ticks[0]) / (len(ticks) - 1) < 0.2
+    finally:
+        server.stop()
+    with pytest.raises(ValueError, match="tick_period_s"):
+        ViewServer(WEB, on_tick=on_tick, tick_period_s=0.0)
+
+
 def test_the_page_and_its_files_are_served_and_unknown_paths_are_404(server):
     with urllib.request.urlopen(server.url, timeout=5) as response:
         assert response.status == 200 and b"field_view.js" in response.read()

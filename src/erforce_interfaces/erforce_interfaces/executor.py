@@ -51,7 +51,7 @@ from rclpy.utilities import timeout_sec_to_nsec
 from erforce_interfaces import rclpy_internals as internal  # every private rclpy name used here
 
 __all__ = ["EXECUTOR_ENV", "EXECUTOR_KINDS", "DirectExecutor", "guard", "make_executor", "run_newest", "run_sampled",
-           "sample_only", "set_callback_fault_handler", "take_queued"]
+           "sample_only", "set_callback_fault_handler", "take_one", "take_queued"]
 
 EXECUTOR_ENV = "ERFORCE_EXECUTOR"  # the executor run_node spins on: one of EXECUTOR_KINDS (bench/bench_executor.py)
 EXECUTOR_KINDS = ("direct", "single", "events")
@@ -221,6 +221,19 @@ def take_queued(subscription: Subscription) -> list:
             break
         taken.append(item)
     return taken
+
+
+def take_one(subscription: Subscription):
+    """The oldest queued (message, info) of a subscription, or None: from its inbox, else from rmw. One take,
+    where ``take_queued`` needs a second one to find the queue empty: for a keep-last-1 subscription, its
+    newest message."""
+    inbox = _INBOXES.get(subscription)
+    if inbox is not None and inbox.queue:
+        return inbox.queue.popleft()
+    try:
+        return internal.take_message(subscription)
+    except InvalidHandle:  # destroyed meanwhile
+        return None
 
 
 def run_sampled(subscriptions: Iterable[Subscription]) -> int:

@@ -314,8 +314,9 @@ class QuietInterrupt:
             signal.signal(signal.SIGINT, signal.SIG_IGN if self.received else self._previous)
 
 
-def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) -> int:
-    """Standard node main: init, spin on EventsExecutor (erforce_interfaces.executor.make_executor), clean shutdown.
+def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, executor_kind: str | None = None) -> int:
+    """Standard node main: init, spin on EventsExecutor (erforce_interfaces.executor.make_executor; ``executor_kind``
+    picks another, as there), clean shutdown.
 
     Every node gets the callback guard (guard_callbacks) and the time rule on /clock (guard_clock).
 
@@ -337,7 +338,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None) ->
             return 1
         guard_callbacks(node)
         guard_clock(node)
-        executor = make_executor()  # EventsExecutor unless ERFORCE_EXECUTOR says otherwise
+        executor = make_executor(executor_kind)  # EventsExecutor unless told or ERFORCE_EXECUTOR says otherwise
         executor.add_node(node)
         # The imports (numpy, numba, rclpy) leave ~130k objects that the cyclic GC would scan in every
         # full collection: ~50 ms each back to back, while the node's loop waits. They live as long

@@ -1,6 +1,7 @@
 // The field view page: draws the newest frame of erforce_sim.field_view on a canvas, every
-// animation frame. Frames arrive over the websocket /ws (live), or answer {"replay": t} requests
-// (replay of a bag). Field coordinates: metres, x right, y up (REP 103), origin at the centre.
+// animation frame. Frames arrive over the websocket /ws: live ones binary (decodeFrame; the layout
+// is erforce_sim.closed_loop.field_view's FRAME_LAYOUT), replayed ones of a bag as JSON answers to
+// {"replay": t} requests. Field coordinates: metres, x right, y up (REP 103), origin at the centre.
 // window.fieldView.drawn says what the last animation frame drew (for tests and tools).
 "use strict";
 
@@ -14,6 +15,17 @@
   const BALL_RADIUS_M = 0.0215;
   const PLOT_WINDOW_S = 6.0;
   const WHEEL_COLORS = ["#ff6b6b", "#4dd4ff", "#c6ff4d", "#ffb84d", "#d18cff", "#ffffff"];
+  const PATH_MARK_PERIOD_S = 0.25, PATH_MAX_MARKS = 40; // as field_view.py's marks
+  // The binary frame (field_view.py FRAME_LAYOUT, SCALARS, ROBOT_COLUMNS)
+  const FRAME_MAGIC = 0x31564645; // "EFV1" read as a little-endian uint32
+  const FRAME_HEADER_BYTES = 24;
+  const SCALARS = ["t", "truth_x", "truth_y", "truth_vx", "truth_vy", "truth_t", "seen_x", "seen_y", "state_x",
+    "state_y", "state_vx", "state_vy", "stop_x", "stop_y", "v_shoot", "path_x", "path_y", "switch_x", "switch_y",
+    "end_x", "end_y", "switch_time", "stop_time", "path_speed", "switch_speed", "receiver", "target_x", "target_y",
+    "receiver_catch_time", "speed_truth", "speed_filtered", "speed_model"];
+  const SCALAR_INDEX = Object.fromEntries(SCALARS.map((name, i) => [name, i]));
+  const ROBOT_COLUMNS = 13; // kind, id, x, y, yaw, speed, truth, catch_time, catch_x, catch_y, ball_detected, counts
+  const textDecoder = new TextDecoder();
 
   const canvas = document.getElementById("field");
   const ctx = canvas.getContext("2d");
@@ -40,9 +52,17 @@
   let socket = null;
   function connect() {
     socket = new WebSocket(`ws://${location.host}/ws`);
+    socket.binaryType = "arraybuffer";
     socket.onopen = () => { statusLine.textContent = "connected"; socket.send(JSON.stringify({ info: 1 })); };
     socket.onclose = () => { statusLine.textContent = "disconnected; retrying ..."; setTimeout(connect, 1000); };
     socket.onmessage = (event) => {
+      if (event.data instanceof ArrayBuffer) { // a live frame
+        let frame;
+        try { frame = decodeFrame(event.data); } catch (e) { fieldView.errors.push(String(e)); return; }
+        fieldView.messages += 1;
+        if (!replay.active) { take(frame); }
+        return;
+      }
       let message;
       try { message = JSON.parse(event.data); } catch (e) { return; }
       fieldView.messages += 1;
@@ -54,6 +74,84 @@
         if (isReplay === replay.active) { take(message.frame); }
       }
     };
+  }
+
+  // A binary frame as the object a JSON frame is (field_view.py decode_frame_bytes does the same); NaN: none.
+  function decodeFrame(buffer) {
+    const head = new DataView(buffer, 0, FRAME_HEADER_BYTES);
+    if (buffer.byteLength < FRAME_HEADER_BYTES || head.getUint32(0, true) !== FRAME_MAGIC) { throw new Error("not a field view frame"); }
+    const metaBytes = head.getUint32(4, true), numScalars = head.getUint32(8, true);
+    const numRobots = head.getUint32(12, true), columns = head.getUint32(16, true);
+    const scalarsAt = FRAME_HEADER_BYTES + metaBytes, robotsAt = scalarsAt + 8 * numScalars;
+    if (numScalars !== SCALARS.length || buffer.byteLength !== robotsAt + 4 * numRobots * columns) {
+      throw new Error("a field view frame of the wrong size");
+    }
+    const meta = JSON.parse(textDecoder.decode(new Uint8Array(buffer, FRAME_HEADER_BYTES, metaBytes)));
+    const v = new Float64Array(buffer, scalarsAt, numScalars);
+    const has = (x) => !Number.isNaN(x);
+    const pair = (i) => (has(v[i]) ? [v[i], v[i + 1]] : null);
+    const S = SCALAR_INDEX;
+    const ball = { phase: meta.phase, uncertain: meta.uncertain, v_shoot: v[S.v_shoot] };
+    if (has(v[S.truth_x])) { ball.truth = [v[S.truth_x], v[S.truth_y], v[S.truth_vx], v[S.truth_vy]]; ball.truth_t = v[S.truth_t]; }
+    if (has(v[S.seen_x])) { ball.seen = pair(S.seen_x); }
+    if (has(v[S.state_x])) { ball.state = [v[S.state_x], v[S.state_y], v[S.state_vx], v[S.state_vy]]; }
+    const speed = { t: v[S.t] };
+    if (has(v[S.speed_truth])) { speed.truth = v[S.speed_truth]; }
+    if (has(v[S.speed_filtered])) { speed.filtered = v[S.speed_filtered]; }
+    if (has(v[S.speed_model])) { speed.model = v[S.speed_model]; }
+    const cells = new Float32Array(buffer, robotsAt, numRobots * columns);
+    const wheels = (columns - ROBOT_COLUMNS) / 3;
+    const robots = [];
+    for (let i = 0, at = 0; i < numRobots; i++, at += columns) {
+      const kind = cells[at], avgCount = cells[at + 11], currentCount = cells[at + 12];
+      const avg = [], limit = [], current = [];
+      for (let k = 0; k < avgCount; k++) {
+        avg.push(cells[at + ROBOT_COLUMNS + k]); limit.push(cells[at + ROBOT_COLUMNS + wheels + k] !== 0);
+      }
+      for (let k = 0; k < currentCount; k++) { current.push(cells[at + ROBOT_COLUMNS + 2 * wheels + k]); }
+      robots.push({
+        id: kind === 2 ? `o${cells[at + 1]}` : cells[at + 1], team: kind === 0 ? "ours" : "opponent",
+        pose: [cells[at + 2], cells[at + 3], cells[at + 4]], speed: cells[at + 5], truth: cells[at + 6] !== 0,
+        catch_time: has(cells[at + 7]) ? cells[at + 7] : null,
+        catch_point: has(cells[at + 8]) ? [cells[at + 8], cells[at + 9]] : null,
+        avg_current: avg, limit_active: limit, current, ball_detected: cells[at + 10] !== 0,
+      });
+    }
+    return {
+      t: v[S.t], field: meta.field, robot_radius: meta.robot_radius, current_limit: meta.current_limit,
+      model: meta.model, ball,
+      path: has(v[S.path_x]) ? {
+        start: pair(S.path_x), switch: pair(S.switch_x), stop: pair(S.end_x), switch_time: v[S.switch_time],
+        stop_time: v[S.stop_time], speed: v[S.path_speed], switch_speed: v[S.switch_speed],
+      } : null,
+      stop_point: pair(S.stop_x), robots,
+      receiver: has(v[S.receiver]) ? { id: v[S.receiver], target: pair(S.target_x), catch_time: v[S.receiver_catch_time] } : null,
+      pass: meta.pass, speed, events: meta.events, rejected: meta.rejected,
+    };
+  }
+
+  // The marks on the predicted path every PATH_MARK_PERIOD_S: on each stretch the ball slows evenly
+  // from the speed at its start to the speed at its end (path.speed, path.switch_speed, 0).
+  function pathMarks(path) {
+    const marks = [];
+    const length = Math.hypot(path.stop[0] - path.start[0], path.stop[1] - path.start[1]);
+    if (!(length > 0) || !(path.stop_time > 0)) { return marks; }
+    const ux = (path.stop[0] - path.start[0]) / length, uy = (path.stop[1] - path.start[1]) / length;
+    const slideDistance = Math.hypot(path.switch[0] - path.start[0], path.switch[1] - path.start[1]);
+    const rollTime = path.stop_time - path.switch_time;
+    const count = Math.min(PATH_MAX_MARKS, Math.floor(path.stop_time / PATH_MARK_PERIOD_S));
+    for (let k = 1; k <= count; k++) {
+      const t = k * PATH_MARK_PERIOD_S;
+      let d;
+      if (t <= path.switch_time) {
+        d = path.speed * t + 0.5 * (path.switch_speed - path.speed) / path.switch_time * t * t;
+      } else {
+        const tr = Math.min(t - path.switch_time, rollTime);
+        d = slideDistance + path.switch_speed * tr - (rollTime > 0 ? 0.5 * path.switch_speed / rollTime * tr * tr : 0);
+      }
+      marks.push([path.start[0] + ux * d, path.start[1] + uy * d]);
+    }
+    return marks;
   }
 
   function take(frame) {
@@ -259,8 +357,9 @@
     if (path) {
       line([path.start, path.switch], COLORS.slide, 3);
       line([path.switch, path.stop], COLORS.roll, 3);
-      for (const m of path.marks) { disc(m[0], m[1], 2, COLORS.lines); }
-      drawn.path = { switch: path.switch, stop: path.stop };
+      const marks = pathMarks(path);
+      for (const m of marks) { disc(m[0], m[1], 2, COLORS.lines); }
+      drawn.path = { start: path.start, switch: path.switch, stop: path.stop, stop_time: path.stop_time, marks };
     }
     if (frame.stop_point) {
       const [sx, sy] = fieldView.worldToPixel(frame.stop_point[0], frame.stop_point[1]);

@@ -8,7 +8,9 @@ pose, catch time and point of every robot in one message), the ball model in use
 events and the passing game's choice (``/pass/choice``). Opponents under ``/opponent_<id>`` are
 robots ``o<id>``.
 ``frame()`` turns it into one JSON-ready dict, the page's frame: what it draws, in field
-coordinates [m]. The predicted path is the ball model's own BallTrajectory (sliding stretch to
+coordinates [m]; ``frame_bytes()`` is the same frame as the live page gets it, a compact binary form
+(``FRAME_LAYOUT``; ``decode_frame_bytes`` reads it back) that costs a fraction of the dict and its
+JSON. The predicted path is the ball model's own BallTrajectory (sliding stretch to
 the switch point, rolling stretch to the stop point), with the parameters the predictor last
 published on /ball/model_params; the team's receiver is catcher.team_receiver of the catch times,
 as each catcher decides it. No rclpy here: the node (field_view_node) feeds it live, ``BagReplay``
@@ -20,7 +22,10 @@ from __future__ import annotations
 import bisect
 import copy
 import functools
+import json
 import math
+import struct
+from array import array
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -29,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ball_speed
 from erforce_ball_model.catcher import team_receiver
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
@@ -75,6 +80,9 @@ VALUE_TOPICS = (contract.BALL_PHASE, contract.BALL_UNCERTAIN, contract.BALL_V_SH
 #: Types whose CDR bytes the conversions read directly (the others are deserialized first).
 BYTES_TYPES = frozenset(t.type_name for t in (contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_V_SHOOT,
                                               contract.BALL_CATCHES))
+#: Topics whose messages change the frame's slowly changing part, sent as JSON in the binary frame.
+META_TOPICS = (contract.BALL_PHASE, contract.BALL_UNCERTAIN, contract.BALL_MODEL_PARAMS, contract.SIM_EVENTS,
+               contract.PASS_CHOICE)
 _AVG_CURRENT = contract.MOTOR_STATUS_COLUMNS.index("avg_current_a")
 _LIMIT_ACTIVE = contract.MOTOR_STATUS_COLUMNS.index("limit_active")
 _CURRENT = contract.GROUND_TRUTH_MOTOR_COLUMNS.index("current_a")
@@ -110,7 +118,7 @@ def view_topic(name: str) -> tuple[contract.Topic, RobotKey | None] | None:
     return None
 
 
-@dataclass
+@dataclass(slots=True)
 class RobotView:
     """One robot's newest numbers, rounded for the wire as they arrive (see ``_wire``)."""
 
@@ -155,6 +163,13 @@ class WorldState:
     # live: the stack's time rule (stamps.py) per stamped input; None in a replay, whose stamps are the bag's
     stamp_filters: dict[str, StampFilter] | None = None
     _speed_model: tuple[float, BallTrajectory] | None = None  # (anchor time, trajectory) for the speed plot
+    _meta_serial: int = 0  # moves with every message of META_TOPICS and every refusal
+    _meta_cache: tuple[int, bytes] | None = None  # (serial, the binary frame's JSON part)
+    # The newest team table (rounded) and the time it came, not yet copied into the robots' views: that
+    # waits for a message about one robot or a new time line (``_settle_table``), so that a frame of
+    # robots known only from team tables is built from the table in one piece (``frame_bytes``).
+    _pending_table: tuple[np.ndarray, float, list[int]] | None = None  # (rows, time, ids)
+    _robots_only_from_tables: bool = True  # no message about one robot yet
 
     # -------------------------------------------------------------- input
     def apply(self, topic_name: str, msg: Any) -> bool:
@@ -166,11 +181,16 @@ class WorldState:
         topic, robot = found
         try:
             if robot is None:
+                if topic in META_TOPICS:
+                    self._meta_serial += 1
                 self._apply_global(topic_name, topic, msg)
             else:
+                self._settle_table()
+                self._robots_only_from_tables = False
                 self._apply_robot(topic_name, topic, self.robot(robot), msg)
         except (ConversionError, ValueError, AttributeError, IndexError, TypeError):
             self.rejected += 1
+            self._meta_serial += 1
             return False
         return True
 
@@ -182,6 +202,24 @@ class WorldState:
             return False
         topic, robot = found
         return not (topic is contract.ODOM and robot in self.robots and self.robots[robot].truth)
+
+    def _settle_table(self) -> None:
+        """Copy the pending team table into the robots' views (before anything else changes them)."""
+        if self._pending_table is None:
+            return
+        rows, t_s, keys = self._pending_table
+        self._pending_table = None
+        speeds = np.round(np.hypot(rows[:, 4], rows[:, 5]), 4).tolist()
+        robots, never = self.robots, contract.CATCH_TIME_NEVER
+        for key, (_id, x, y, yaw, _vx, _vy, catch_s, catch_x, catch_y), speed in zip(keys, rows.tolist(), speeds,
+                                                                                    strict=True):
+            robot = robots[key]
+            if not robot.truth:
+                robot.pose, robot.t_s, robot.speed_mps = [x, y, yaw], t_s, speed
+            if catch_s >= 0.0:
+                robot.catch_time_s, robot.catch_point = catch_s, [catch_x, catch_y]
+            else:
+                robot.catch_time_s, robot.catch_point = never, None
 
     def robot(self, robot_id: RobotKey) -> RobotView:
         view = self.robots.get(robot_id)
@@ -199,6 +237,7 @@ class WorldState:
             if verdict is StampVerdict.DROP:
                 raise ValueError(f"{source}: {stamps.reason}")
             if verdict is StampVerdict.RESTART and t_s < self.t_s:
+                self._settle_table()
                 self._restart(t_s)
         self.t_s = max(self.t_s, t_s)
 
@@ -246,21 +285,21 @@ class WorldState:
 
     def _apply_catch_table(self, table: np.ndarray) -> None:
         """Both teams at one ball frame (contract.CATCH_TABLE_COLUMNS): their robots are fresh now."""
-        teams, ids = table[:, 0], table[:, 1]
-        if np.any((ids < 0) | (ids > 1e6) | (ids != np.round(ids))):
+        teams, id_list = table[:, 0].tolist(), table[:, 1].tolist()  # finite (table_from_msg)
+        if not all(0.0 <= i <= 1e6 and i == int(i) for i in id_list):
             raise ValueError("robot ids of /ball/catches must be whole numbers >= 0")
-        if not np.isin(teams, (contract.OURS.code, contract.OPPONENTS.code)).all():
+        ours, theirs = contract.OURS.code, contract.OPPONENTS.code
+        if not all(t in (ours, theirs) for t in teams):
             raise ValueError("the team column of /ball/catches must be a contract.Team code")
-        rows = _wire(table)
-        for team, robot_id, x, y, yaw, vx, vy, catch_s, catch_x, catch_y in rows:
-            robot = self.robot(int(robot_id) if team == contract.OURS.code else opponent_key(int(robot_id)))
-            if not robot.truth:
-                robot.pose, robot.t_s = [x, y, yaw], self.t_s
-                robot.speed_mps = round(math.hypot(vx, vy), 4)
-            if catch_s >= 0.0:
-                robot.catch_time_s, robot.catch_point = catch_s, [catch_x, catch_y]
-            else:
-                robot.catch_time_s, robot.catch_point = contract.CATCH_TIME_NEVER, None
+        keys: list[RobotKey] = [int(i) if t == ours else opponent_key(int(i))
+                                for t, i in zip(teams, id_list, strict=True)]
+        if self._pending_table is not None and not set(self._pending_table[2]).issubset(keys):
+            self._settle_table()  # the one before, for its robots this one does not list
+        robots = self.robots
+        for key in keys:
+            if key not in robots:
+                robots[key] = RobotView(key)
+        self._pending_table = (np.round(table[:, 1:], 4), self.t_s, keys)
 
     def _apply_robot(self, name: str, topic: contract.Topic, robot: RobotView, msg: Any) -> None:
         c = contract
@@ -288,6 +327,7 @@ class WorldState:
             robot.ball_detected = bool(msg.data)
 
     def _choose_receiver(self) -> None:
+        self._settle_table()
         times = {i: r.catch_time_s for i, r in self.robots.items()
                  if r.catch_time_s is not None and isinstance(i, int) and i not in self.opponent_ids
                  and (not self.team_ids or i in self.team_ids)}
@@ -299,7 +339,7 @@ class WorldState:
         speed = math.hypot(vx, vy)
         if self._speed_model is not None:
             t0, trajectory = self._speed_model
-            if t >= t0 and speed <= float(trajectory.speed_at(t - t0)) + KICK_SPEED_JUMP_MPS:
+            if t >= t0 and speed <= ball_speed(trajectory.floats, t - t0) + KICK_SPEED_JUMP_MPS:
                 return
         if speed > KICK_SPEED_JUMP_MPS:
             self._speed_model = (t, BallTrajectory((x, y), (vx, vy), max(self.v_shoot_mps, speed), self.model))
@@ -316,10 +356,66 @@ class WorldState:
         except ValueError:
             return None
 
+    def _moving_prediction(self) -> BallTrajectory | None:
+        trajectory = self.prediction()
+        return trajectory if trajectory is not None and trajectory.floats.stop_time_s > 0.0 else None
+
+    def _shown_robots(self) -> list[RobotView]:
+        """The robots the page draws, in id order (ours, then opponents' keys): those with a fresh pose."""
+        self._settle_table()
+        fresh_after = self.t_s - ROBOT_STALE_S
+        shown = [r for r in self.robots.values() if r.pose is not None and r.t_s >= fresh_after]
+        if any(isinstance(r.robot_id, str) for r in shown):
+            shown.sort(key=lambda r: _robot_order(r.robot_id))
+        else:
+            shown.sort(key=lambda r: r.robot_id)
+        return shown
+
+    def _is_opponent(self, robot_id: RobotKey) -> bool:
+        return isinstance(robot_id, str) or robot_id in self.opponent_ids
+
+    def _receiver_now(self) -> tuple[int, list[float], float] | None:
+        """(id, target, catch time) of the team's receiver (catcher.team_receiver), or None."""
+        self._choose_receiver()
+        if self.receiver is not None:
+            r = self.robots[self.receiver]
+            if r.catch_point is not None:
+                return self.receiver, r.catch_point, r.catch_time_s
+        return None
+
+    def _speeds(self) -> tuple[float | None, float | None, float | None]:
+        """The speed plot's values now: true, filtered and the model's since the kick [m/s] (None: none)."""
+        truth = filtered = model = None
+        if self.ball_truth is not None:
+            truth = round(math.hypot(self.ball_truth[2], self.ball_truth[3]), 4)
+        if self.ball_state is not None:
+            filtered = round(math.hypot(self.ball_state[2], self.ball_state[3]), 4)
+        if self._speed_model is not None and self.ball_state_t_s >= self._speed_model[0]:
+            t0, trajectory = self._speed_model
+            model = round(ball_speed(trajectory.floats, max(self.t_s - t0, 0.0)), 4)
+        return truth, filtered, model
+
+    def _meta(self) -> dict[str, Any]:
+        """What changes only with META_TOPICS' messages (and the counts of refusals)."""
+        p = self.model
+        return {
+            "field": {"length": self.field.length_m, "width": self.field.width_m, "boundary": self.field.boundary_m,
+                      "centre_circle": CENTRE_CIRCLE_RADIUS_M},
+            "robot_radius": self.robot_radius_m,
+            "current_limit": self.current_limit_a,
+            "model": {"a_slide": p.a_slide_mps2, "a_roll": p.a_roll_mps2, "c_switch": p.c_switch},
+            "phase": self.phase,
+            "uncertain": self.uncertain,
+            "pass": self.pass_choice,
+            "events": list(self.events),
+            "rejected": self.rejected,
+        }
+
     def frame(self) -> dict[str, Any]:
         """What the page draws now (field coordinates [m], times [s]; JSON-ready)."""
-        ball: dict[str, Any] = {"phase": self.phase, "v_shoot": round(self.v_shoot_mps, 4),
-                                "uncertain": self.uncertain}
+        meta = self._meta()
+        ball: dict[str, Any] = {"phase": meta["phase"], "v_shoot": round(self.v_shoot_mps, 4),
+                                "uncertain": meta["uncertain"]}
         if self.ball_truth is not None:
             ball["truth"] = self.ball_truth
             ball["truth_t"] = round(self.ball_truth_t_s, 4)
@@ -328,65 +424,222 @@ class WorldState:
         if self.ball_state is not None:
             ball["state"] = self.ball_state
         path = None
-        trajectory = self.prediction()
-        if trajectory is not None and trajectory.floats.stop_time_s > 0.0:
+        trajectory = self._moving_prediction()
+        if trajectory is not None:
             f = trajectory.floats
             count = min(40, int(f.stop_time_s / PATH_MARK_PERIOD_S))
             marks_t = PATH_MARK_PERIOD_S * np.arange(1, count + 1)
             points = _wire(np.vstack([[f.x_m, f.y_m], trajectory.switch_point, trajectory.stop_point,
                                       trajectory.position_at(marks_t).reshape(-1, 2)]))
             path = {"start": points[0], "switch": points[1], "stop": points[2], "marks": points[3:],
-                    "switch_time": round(f.switch_time_s, 4), "stop_time": round(f.stop_time_s, 4)}
-        robots = []
-        for robot_id in sorted(self.robots, key=_robot_order):
-            r = self.robots[robot_id]
-            if r.pose is None or r.t_s < self.t_s - ROBOT_STALE_S:
-                continue
-            robots.append({
-                "id": robot_id,
-                "team": "opponent" if isinstance(robot_id, str) or robot_id in self.opponent_ids else "ours",
-                "pose": r.pose,
-                "speed": r.speed_mps,
-                "truth": r.truth,
-                "catch_time": r.catch_time_s,
-                "catch_point": None if r.catch_time_s == contract.CATCH_TIME_NEVER else r.catch_point,
-                "avg_current": r.avg_current_a,
-                "limit_active": r.limit_active,
-                "current": r.current_a,
-                "ball_detected": r.ball_detected,
-            })
-        self._choose_receiver()
-        receiver = None
-        if self.receiver is not None:
-            r = self.robots[self.receiver]
-            if r.catch_point is not None:
-                receiver = {"id": self.receiver, "target": r.catch_point, "catch_time": r.catch_time_s}
+                    "switch_time": round(f.switch_time_s, 4), "stop_time": round(f.stop_time_s, 4),
+                    "speed": round(f.speed_mps, 4), "switch_speed": round(f.v_switch_mps, 4)}
+        robots = [{
+            "id": r.robot_id,
+            "team": "opponent" if self._is_opponent(r.robot_id) else "ours",
+            "pose": r.pose,
+            "speed": r.speed_mps,
+            "truth": r.truth,
+            "catch_time": r.catch_time_s,
+            "catch_point": None if r.catch_time_s == contract.CATCH_TIME_NEVER else r.catch_point,
+            "avg_current": r.avg_current_a,
+            "limit_active": r.limit_active,
+            "current": r.current_a,
+            "ball_detected": r.ball_detected,
+        } for r in self._shown_robots()]
+        receiver = self._receiver_now()
         speed = {"t": round(self.t_s, 4)}
-        if self.ball_truth is not None:
-            speed["truth"] = round(math.hypot(self.ball_truth[2], self.ball_truth[3]), 4)
-        if self.ball_state is not None:
-            speed["filtered"] = round(math.hypot(self.ball_state[2], self.ball_state[3]), 4)
-        if self._speed_model is not None and self.ball_state_t_s >= self._speed_model[0]:
-            t0, model = self._speed_model
-            speed["model"] = round(float(model.speed_at(self.t_s - t0)), 4)
-        p = self.model
+        for key, value in zip(("truth", "filtered", "model"), self._speeds(), strict=True):
+            if value is not None:
+                speed[key] = value
         return {
             "t": round(self.t_s, 4),
-            "field": {"length": self.field.length_m, "width": self.field.width_m, "boundary": self.field.boundary_m,
-                      "centre_circle": CENTRE_CIRCLE_RADIUS_M},
-            "robot_radius": self.robot_radius_m,
-            "current_limit": self.current_limit_a,
-            "model": {"a_slide": p.a_slide_mps2, "a_roll": p.a_roll_mps2, "c_switch": p.c_switch},
+            "field": meta["field"],
+            "robot_radius": meta["robot_radius"],
+            "current_limit": meta["current_limit"],
+            "model": meta["model"],
             "ball": ball,
             "path": path,
             "stop_point": self.stop_point,
             "robots": robots,
-            "receiver": receiver,
-            "pass": self.pass_choice,
+            "receiver": None if receiver is None else dict(zip(("id", "target", "catch_time"), receiver, strict=True)),
+            "pass": meta["pass"],
             "speed": speed,
-            "events": list(self.events),
-            "rejected": self.rejected,
+            "events": meta["events"],
+            "rejected": meta["rejected"],
         }
+
+    def frame_bytes(self) -> bytes:
+        """The frame as the live page gets it (``FRAME_LAYOUT``): what ``frame()`` holds, the path as its
+        ends and speeds (the page puts the marks on it) instead of a list of marks."""
+        nan = math.nan
+        scalars = [round(self.t_s, 4)]
+        scalars += self.ball_truth or _NAN4
+        scalars.append(round(self.ball_truth_t_s, 4) if self.ball_truth is not None else nan)
+        scalars += self.ball_seen or _NAN2
+        scalars += self.ball_state or _NAN4
+        scalars += self.stop_point or _NAN2
+        scalars.append(round(self.v_shoot_mps, 4))
+        trajectory = self._moving_prediction()
+        if trajectory is None:
+            scalars += _NAN10
+        else:
+            f = trajectory.floats
+            scalars += (f.x_m, f.y_m, f.x_m + f.ux * f.switch_distance_m, f.y_m + f.uy * f.switch_distance_m,
+                        f.x_m + f.ux * f.stop_distance_m, f.y_m + f.uy * f.stop_distance_m, f.switch_time_s,
+                        f.stop_time_s, f.speed_mps, f.v_switch_mps)
+        scalars += (nan if v is None else v for v in self._speeds())  # placed after the receiver's below
+        block = self._table_block()
+        if block is not None:
+            receiver, cells_array, num_robots, columns = block
+            speeds = scalars[-3:]
+            scalars[-3:] = _NAN4 if receiver is None else (receiver[0], *receiver[1], receiver[2])
+            scalars += speeds
+            meta = self._meta_json()
+            header = _FRAME_HEADER.pack(FRAME_MAGIC, len(meta), len(scalars), num_robots, columns)
+            return b"".join((header, meta, array("d", scalars).tobytes(), cells_array.tobytes()))
+        speeds = scalars[-3:]
+        receiver = self._receiver_now()
+        scalars[-3:] = _NAN4 if receiver is None else (receiver[0], *receiver[1], receiver[2])
+        scalars += speeds
+        robots = self._shown_robots()
+        wheels = max((max(len(r.avg_current_a), len(r.current_a)) for r in robots), default=0)
+        columns = len(ROBOT_COLUMNS) + 3 * wheels
+        cells: list[float] = []
+        never = contract.CATCH_TIME_NEVER
+        for r in robots:
+            key = r.robot_id
+            kind = 2 if isinstance(key, str) else 1 if key in self.opponent_ids else 0
+            number = int(key[len(OPPONENT_KEY_PREFIX):]) if kind == 2 else key
+            catch_time = nan if r.catch_time_s is None else r.catch_time_s
+            catch_point = r.catch_point if r.catch_point is not None and r.catch_time_s != never else _NAN2
+            avg, limit, current = r.avg_current_a, r.limit_active, r.current_a
+            cells += (kind, number, *r.pose, r.speed_mps, r.truth, catch_time, *catch_point, r.ball_detected,
+                      len(avg), len(current))
+            if wheels:
+                pad = [nan] * wheels
+                cells += (avg + pad)[:wheels] + (limit + pad)[:wheels] + (current + pad)[:wheels]
+        meta = self._meta_json()
+        header = _FRAME_HEADER.pack(FRAME_MAGIC, len(meta), len(scalars), len(robots), columns)
+        return b"".join((header, meta, array("d", scalars).tobytes(), array("f", cells).tobytes()))
+
+    def _table_block(self) -> tuple[tuple[int, list[float], float] | None, np.ndarray, int, int] | None:
+        """(receiver, robot rows as float32, robots, columns) of ``frame_bytes`` straight from the pending team
+        table, when every robot known came only from team tables and this one lists them all (the usual
+        live case without a simulator's ground truth); else None."""
+        if self._pending_table is None or not self._robots_only_from_tables:
+            return None
+        rows, t_s, ids = self._pending_table
+        if len(ids) != len(self.robots):
+            return None  # a robot of an earlier table is not in this one
+        order = sorted(range(len(ids)), key=lambda k: _robot_order(ids[k]))
+        if order != list(range(len(ids))):
+            rows, ids = rows[order], [ids[k] for k in order]
+        never = contract.CATCH_TIME_NEVER
+        times = [t if t >= 0.0 else never for t in rows[:, 6].tolist()]
+        opponents, team = self.opponent_ids, self.team_ids
+        self.receiver = team_receiver({i: t for i, t in zip(ids, times, strict=True)
+                                       if isinstance(i, int) and i not in opponents and (not team or i in team)},
+                                      self.receiver, RECEIVER_SWITCH_MARGIN_S)
+        receiver = None
+        if self.receiver is not None:
+            row = rows[ids.index(self.receiver)]
+            receiver = (self.receiver, [float(row[7]), float(row[8])], float(row[6]))
+        if t_s < self.t_s - ROBOT_STALE_S:
+            return receiver, np.empty(0, np.float32), 0, len(ROBOT_COLUMNS)
+        cells = np.zeros((len(rows), len(ROBOT_COLUMNS)), np.float32)
+        cells[:, 0] = [2 if isinstance(i, str) else 1 if i in opponents else 0 for i in ids]
+        cells[:, 1:5] = rows[:, 0:4]
+        cells[:, 5] = np.round(np.hypot(rows[:, 4], rows[:, 5]), 4)
+        cells[:, 7] = times
+        cells[:, 8:10] = rows[:, 7:9]
+        cells[rows[:, 6] < 0.0, 8:10] = np.nan
+        return receiver, cells, len(rows), len(ROBOT_COLUMNS)
+
+    def _meta_json(self) -> bytes:
+        """``_meta()`` as UTF-8 JSON padded with spaces to a multiple of 8 bytes; encoded again only when
+        a message of META_TOPICS (or a refusal) came since."""
+        if self._meta_cache is None or self._meta_cache[0] != self._meta_serial:
+            text = json.dumps(self._meta(), separators=(",", ":"), allow_nan=False).encode()
+            self._meta_cache = (self._meta_serial, text + b" " * (-len(text) % 8))
+        return self._meta_cache[1]
+
+
+#: The binary frame (little-endian): a header, the JSON of what changes slowly (``WorldState._meta``),
+#: then SCALARS as float64 and a row of float32 per robot (ROBOT_COLUMNS, then per wheel the average
+#: current [A], the limit flag and the current [A] as three blocks of ``wheels`` each). NaN: none.
+FRAME_LAYOUT = "header (magic, JSON bytes, scalars, robots, robot columns: 5 x uint32), JSON, scalars, robots"
+FRAME_MAGIC = b"EFV1"
+_FRAME_HEADER = struct.Struct("<4sIIII4x")  # 24 bytes: the float64 block starts 8-aligned after the padded JSON
+SCALARS = ("t", "truth_x", "truth_y", "truth_vx", "truth_vy", "truth_t", "seen_x", "seen_y", "state_x", "state_y",
+           "state_vx", "state_vy", "stop_x", "stop_y", "v_shoot", "path_x", "path_y", "switch_x", "switch_y",
+           "end_x", "end_y", "switch_time", "stop_time", "path_speed", "switch_speed", "receiver", "target_x",
+           "target_y", "receiver_catch_time", "speed_truth", "speed_filtered", "speed_model")
+#: kind: 0 ours, 1 an opponent among ``opponent_ids``, 2 an opponent ``/opponent_<id>`` (key ``o<id>``).
+ROBOT_COLUMNS = ("kind", "id", "x", "y", "yaw", "speed", "truth", "catch_time", "catch_x", "catch_y",
+                 "ball_detected", "avg_current_count", "current_count")
+_NAN2, _NAN4, _NAN10 = (math.nan,) * 2, (math.nan,) * 4, (math.nan,) * 10
+
+
+def decode_frame_bytes(data: bytes) -> dict[str, Any]:
+    """A binary frame (``WorldState.frame_bytes``) as the dict the page builds of it (web/field_view.js
+    decodeFrame does the same): ``frame()``'s keys, the path without its marks. Raises ValueError."""
+    if len(data) < _FRAME_HEADER.size or data[:4] != FRAME_MAGIC:
+        raise ValueError("not a field view frame")
+    _, meta_len, num_scalars, num_robots, columns = _FRAME_HEADER.unpack_from(data)
+    start = _FRAME_HEADER.size
+    scalars_at = start + meta_len
+    robots_at = scalars_at + 8 * num_scalars
+    if num_scalars != len(SCALARS) or len(data) != robots_at + 4 * num_robots * columns:
+        raise ValueError("a field view frame of the wrong size")
+    frame = json.loads(data[start:scalars_at])
+    s = dict(zip(SCALARS, np.frombuffer(data, "<f8", num_scalars, scalars_at).tolist(), strict=True))
+
+    def pair(a: str, b: str) -> list[float] | None:
+        return None if math.isnan(s[a]) else [s[a], s[b]]
+
+    frame["t"] = s["t"]
+    ball = {"phase": frame.pop("phase"), "uncertain": frame.pop("uncertain"), "v_shoot": s["v_shoot"]}
+    if not math.isnan(s["truth_x"]):
+        ball["truth"] = [s["truth_x"], s["truth_y"], s["truth_vx"], s["truth_vy"]]
+        ball["truth_t"] = s["truth_t"]
+    if not math.isnan(s["seen_x"]):
+        ball["seen"] = pair("seen_x", "seen_y")
+    if not math.isnan(s["state_x"]):
+        ball["state"] = [s["state_x"], s["state_y"], s["state_vx"], s["state_vy"]]
+    frame["ball"] = ball
+    frame["stop_point"] = pair("stop_x", "stop_y")
+    frame["path"] = None if math.isnan(s["path_x"]) else {
+        "start": pair("path_x", "path_y"), "switch": pair("switch_x", "switch_y"), "stop": pair("end_x", "end_y"),
+        "switch_time": s["switch_time"], "stop_time": s["stop_time"], "speed": s["path_speed"],
+        "switch_speed": s["switch_speed"]}
+    frame["receiver"] = None if math.isnan(s["receiver"]) else {
+        "id": int(s["receiver"]), "target": pair("target_x", "target_y"), "catch_time": s["receiver_catch_time"]}
+    frame["speed"] = {"t": s["t"], **{k: s[f"speed_{k}"] for k in ("truth", "filtered", "model")
+                                      if not math.isnan(s[f"speed_{k}"])}}
+    rows = np.frombuffer(data, "<f4", num_robots * columns, robots_at).reshape(num_robots, columns).tolist()
+    wheels = (columns - len(ROBOT_COLUMNS)) // 3
+    robots = []
+    for row in rows:
+        r = dict(zip(ROBOT_COLUMNS, row, strict=False))
+        kind, number = int(r["kind"]), int(r["id"])
+        extra = row[len(ROBOT_COLUMNS):]
+        avg_n, cur_n = int(r["avg_current_count"]), int(r["current_count"])
+        robots.append({
+            "id": opponent_key(number) if kind == 2 else number,
+            "team": "ours" if kind == 0 else "opponent",
+            "pose": [r["x"], r["y"], r["yaw"]],
+            "speed": r["speed"],
+            "truth": bool(r["truth"]),
+            "catch_time": None if math.isnan(r["catch_time"]) else r["catch_time"],
+            "catch_point": None if math.isnan(r["catch_x"]) else [r["catch_x"], r["catch_y"]],
+            "avg_current": extra[:avg_n],
+            "limit_active": [bool(v) for v in extra[wheels:wheels + avg_n]],
+            "current": extra[2 * wheels:2 * wheels + cur_n],
+            "ball_detected": bool(r["ball_detected"]),
+        })
+    frame["robots"] = robots
+    return frame
 
 
 def _pass_choice(table: np.ndarray) -> dict[str, Any] | None:

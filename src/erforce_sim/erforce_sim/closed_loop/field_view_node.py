@@ -2,9 +2,11 @@
 Foxglove WebSocket server, as a ROS 2 node.
 
 It serves http://127.0.0.1:<port>/ (erforce_sim.closed_loop.view_server; the page's files ship in
-share/erforce_sim/web). Every ``1 / rate_hz`` of wall time it takes the newest message of each
+share/erforce_sim/web). Every ``1 / rate_hz`` of wall time (a tick in the server's thread: the only
+wake-up per frame; no message wakes the process) it takes the newest message of each
 topic the view shows (erforce_sim.closed_loop.field_view lists them; robots are found as their topics appear),
-hands them to the core (erforce_sim.closed_loop.field_view.WorldState) and sends its frame to the pages. Its
+hands them to the core (erforce_sim.closed_loop.field_view.WorldState) and sends its frame to the pages
+(binary, ``WorldState.frame_bytes``). Its
 subscriptions are best effort and keep one message: the view never holds up a publisher, and it
 takes nothing while no page is open. Where the predictor's team table ``/ball/catches`` is on the
 graph the view takes it instead of every robot's odom, catch_time and catch_point: one message per
@@ -27,6 +29,7 @@ import functools
 import importlib
 import json
 import os
+import threading
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
@@ -36,7 +39,7 @@ from rclpy.serialization import deserialize_message
 
 from erforce_interfaces import contract
 from erforce_interfaces.ament_index import find_package_share
-from erforce_interfaces.executor import sample_only, take_queued
+from erforce_interfaces.executor import sample_only, take_one, take_queued
 from erforce_interfaces.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
@@ -48,7 +51,7 @@ from erforce_sim.closed_loop.field_view import (
     WorldState,
     view_topic,
 )
-from erforce_sim.closed_loop.view_server import ViewServer, frame_text
+from erforce_sim.closed_loop.view_server import ViewServer
 
 DISCOVERY_PERIOD_S = 1.0
 SCHEMA = load_schema("erforce_sim", "field_view")
@@ -95,9 +98,9 @@ def observe_only() -> None:
 
 
 def _take_newest(subscription) -> list[bytes]:
-    """The newest queued message of a keep-last-1 subscription (raw), or none: from its inbox, where an
-    executor that takes messages itself (EventsExecutor) has put it, or from rmw."""
-    return [data for data, _ in take_queued(subscription)[-1:]]
+    """The newest queued message of a keep-last-1 subscription (raw), or none."""
+    taken = take_one(subscription)
+    return [] if taken is None else [taken[0]]
 
 
 class FieldViewNode(Node):
@@ -120,13 +123,9 @@ class FieldViewNode(Node):
             skipped = f", {self._replay.skipped} undecodable skipped" if self._replay.skipped else ""
             self.get_logger().info(f"replay: {v['bag']} ({len(self._replay)} messages{skipped}, "
                                    f"{self._replay.start_s:.1f} to {self._replay.end_s:.1f} s)")
-        self._server = ViewServer(web_dir(), v["host"], v["port"], v["max_clients"], on_request=self._on_request,
-                                  logger=None)
-        try:
-            self._server.start()
-        except (OSError, RuntimeError) as exc:  # e.g. the port is taken: one clear line (run_node)
-            raise ValueError(str(exc)) from None
-        self.get_logger().info(f"field view at {self._server.url}")
+        # The frames are taken, built and sent in the server's thread, one wake-up per frame; the graph's
+        # discovery in the executor's: the lock keeps them apart.
+        self._lock = threading.Lock()
         self._subs: dict[str, Any] = {}  # topic -> raw subscription of the view
         self._types: dict[str, str] = {}
         self._deep: set[str] = set()  # topics whose queue holds more than the newest message
@@ -138,13 +137,22 @@ class FieldViewNode(Node):
             self._foxglove = FoxgloveBridge(v["host"], v["foxglove_port"])
             self.get_logger().info(f"Foxglove WebSocket server at ws://{v['host']}:{v['foxglove_port']}")
         self._discover()
-        steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(DISCOVERY_PERIOD_S, self._discover, clock=steady)
-        self.create_timer(1.0 / v["rate_hz"], self._tick, clock=steady)
+        self.create_timer(DISCOVERY_PERIOD_S, self._discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._params.on_change(lambda _config: None)  # every parameter is read-only
+        self._server = ViewServer(web_dir(), v["host"], v["port"], v["max_clients"], on_request=self._on_request,
+                                  logger=None, on_tick=self._tick, tick_period_s=1.0 / v["rate_hz"])
+        try:
+            self._server.start()
+        except (OSError, RuntimeError) as exc:  # e.g. the port is taken: one clear line (run_node)
+            raise ValueError(str(exc)) from None
+        self.get_logger().info(f"field view at {self._server.url}")
 
     def _discover(self) -> None:
         graph = self.get_topic_names_and_types()
+        with self._lock:
+            self._match(graph)
+
+    def _match(self, graph: list[tuple[str, list[str]]]) -> None:
         team_table = any(topic == contract.BALL_CATCHES.name for topic, _ in graph)
         for topic, types in graph:
             if not types:
@@ -183,10 +191,23 @@ class FieldViewNode(Node):
             self._last_value.pop(topic, None)
 
     def _tick(self) -> None:
+        """One frame (in the server's thread). A Ctrl-C shuts rclpy's context down from the main thread,
+        maybe under this tick's takes: what that raises is the shutdown, not a fault."""
+        if not self.context.ok():
+            return
+        with self._lock:
+            try:
+                self._take_and_send()
+            except Exception:
+                if self.context.ok():
+                    raise
+
+    def _take_and_send(self) -> None:
         if self._foxglove is not None:
             self._foxglove.forward()
-        wanted = self._server.client_count > 0 or (self._foxglove is not None and self._foxglove.has_clients())
-        if not wanted:
+        pages = self._server.client_count > 0
+        foxglove = self._foxglove is not None and self._foxglove.has_clients()
+        if not (pages or foxglove):
             return
         taken = 0
         for topic, sub in self._subs.items():
@@ -208,10 +229,10 @@ class FieldViewNode(Node):
                     self._warn.warn(f"bad:{topic}", f"{topic}: refused (bad numbers, shape or stamp)")
         if not taken:
             return  # nothing new: the pages keep the last frame
-        frame = self._state.frame()
-        self._server.publish(frame_text(frame))
-        if self._foxglove is not None:
-            self._foxglove.publish_frame(frame)
+        if pages:
+            self._server.publish(self._state.frame_bytes())
+        if foxglove:
+            self._foxglove.publish_frame(self._state.frame())
 
     def _on_request(self, request: dict) -> dict:
         """A page's requests (in the server's thread): ``{"info": 1}``, ``{"replay": t_s}``."""
@@ -236,7 +257,11 @@ class FieldViewNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     observe_only()  # before rclpy starts its threads
-    return run_node(FieldViewNode, args)
+    # DirectExecutor never waits on a sampled subscription: a message stays in rmw until the frame's tick
+    # takes it, so the executor wakes for the discovery timer and the parameter services only, not for
+    # each of the ~500 messages a second the view subscribes to (EventsExecutor takes every one as it
+    # arrives and calls into Python for it).
+    return run_node(FieldViewNode, args, executor_kind="direct")
 
 
 if __name__ == "__main__":

@@ -2,14 +2,19 @@
 
 ``ViewServer`` runs the ``websockets`` library's asyncio server in a thread of its own. ``GET /``
 and the page's files (share/erforce_sim/web) are plain HTTP; ``/ws`` is the websocket. Frames go
-out with ``publish(text)`` from any thread: the text is encoded once and queued for every
+out with ``publish(frame)`` from any thread: a text is encoded once, and the frame queued for every
 client, each in a bounded queue that drops its oldest frame when full, so a slow client loses
-frames and never slows the caller. A client sends JSON requests (``{"replay": t}`` and the like);
+frames and never slows the caller; a frame given as bytes goes out as a binary message. A client
+sends JSON requests (``{"replay": t}`` and the like);
 ``on_request(request) -> reply`` answers them in the server's thread, and a reply that is a dict
 goes back to that client only. Bad input gets an error and never ends the server: an unknown
 path a 404, a request that is not JSON an ``{"error": ...}`` message, a malformed or oversized
 websocket frame the close code the protocol prescribes (1002, 1009), a client beyond
 ``max_clients`` a 503.
+
+With ``on_tick`` the server also calls that function every ``tick_period_s`` in its own thread (a
+frame it publishes there goes to the clients in the same wake-up): one thread that wakes once per
+frame to take, build and send it.
 """
 
 from __future__ import annotations
@@ -37,7 +42,7 @@ MAX_REQUEST_BYTES = 4096  # a request is a few dozen bytes of JSON
 class _Client:
     def __init__(self, connection: ServerConnection, depth: int) -> None:
         self.connection = connection
-        self.queue: deque[bytes] = deque(maxlen=depth)  # frames as UTF-8 text
+        self.queue: deque[tuple[bytes, bool]] = deque(maxlen=depth)  # frames: (bytes, whether UTF-8 text)
         self.ready = asyncio.Event()
         self.dropped = 0
 
@@ -47,7 +52,8 @@ class ViewServer:
 
     def __init__(self, static_dir: Path, host: str = "127.0.0.1", port: int = 0, max_clients: int = 32,
                  client_queue_depth: int = 4, on_request: Callable[[dict], dict | None] | None = None,
-                 logger: logging.Logger | None = None) -> None:
+                 logger: logging.Logger | None = None, on_tick: Callable[[], None] | None = None,
+                 tick_period_s: float = 1.0 / 30.0) -> None:
         self.static_dir = Path(static_dir).resolve()
         if not (self.static_dir / "index.html").is_file():
             raise FileNotFoundError(f"{self.static_dir}: no index.html (the page's files)")
@@ -56,6 +62,11 @@ class ViewServer:
         self.max_clients = max_clients
         self.client_queue_depth = client_queue_depth
         self.on_request = on_request
+        if on_tick is not None and not tick_period_s > 0.0:
+            raise ValueError(f"tick_period_s must be > 0, got {tick_period_s!r}")
+        self.on_tick = on_tick
+        self.tick_period_s = tick_period_s
+        self.tick_failures = 0
         self.log = logger or logging.getLogger("field_view")
         self._files = {f"/{p.relative_to(self.static_dir).as_posix()}": p
                        for p in self.static_dir.rglob("*") if p.is_file()}
@@ -63,10 +74,11 @@ class ViewServer:
         self._clients: set[_Client] = set()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread: threading.Thread | None = None
+        self._thread_id: int | None = None
         self._stop: asyncio.Event | None = None
         self._started = threading.Event()
         self._error: BaseException | None = None
-        self._last_text: bytes | None = None  # the newest frame (UTF-8), for a page that connects now
+        self._last_frame: tuple[bytes, bool] | None = None  # the newest frame, for a page that connects now
         self.frames_dropped = 0
         self.requests_refused = 0
 
@@ -102,6 +114,7 @@ class ViewServer:
 
     async def _main(self) -> None:
         self._loop = asyncio.get_running_loop()
+        self._thread_id = threading.get_ident()
         self._stop = asyncio.Event()
         async with serve(self._handle, self.host, self.port, process_request=self._http,
                          max_size=MAX_REQUEST_BYTES, max_queue=4, logger=self.log,
@@ -110,26 +123,47 @@ class ViewServer:
                          compression=None) as server:
             self.port = server.sockets[0].getsockname()[1]
             self._started.set()
+            ticker = None if self.on_tick is None else asyncio.create_task(self._tick_loop())
             await self._stop.wait()
+            if ticker is not None:
+                ticker.cancel()
+
+    async def _tick_loop(self) -> None:
+        loop = asyncio.get_running_loop()
+        due = loop.time()
+        while True:
+            due += self.tick_period_s
+            if due < loop.time():  # late (a starved thread): the next tick one period from now
+                due = loop.time() + self.tick_period_s
+            await asyncio.sleep(due - loop.time())
+            try:
+                self.on_tick()
+            except Exception:  # a fault of one tick: logged, and the next one comes
+                self.tick_failures += 1
+                self.log.error("the tick failed", exc_info=True)
 
     # -------------------------------------------------------------------- output
-    def publish(self, text: str) -> None:
-        """Queue ``text`` for every client (thread-safe; never blocks), encoded once for them all."""
-        text = self._last_text = text.encode()
+    def publish(self, frame: str | bytes) -> None:
+        """Queue ``frame`` for every client (thread-safe; never blocks): text (encoded once for them all)
+        or bytes (a binary message)."""
+        item = self._last_frame = (frame.encode(), True) if isinstance(frame, str) else (bytes(frame), False)
         loop = self._loop
         if loop is None or not self._clients:
             return
+        if threading.get_ident() == self._thread_id:  # on_tick: no wake-up of this thread needed
+            self._fan_out(item)
+            return
         try:
-            loop.call_soon_threadsafe(self._fan_out, text)
+            loop.call_soon_threadsafe(self._fan_out, item)
         except RuntimeError:  # the loop closed meanwhile
             pass
 
-    def _fan_out(self, text: bytes) -> None:
+    def _fan_out(self, item: tuple[bytes, bool]) -> None:
         for client in self._clients:
             if len(client.queue) == client.queue.maxlen:
                 client.dropped += 1
                 self.frames_dropped += 1
-            client.queue.append(text)
+            client.queue.append(item)
             client.ready.set()
 
     # ------------------------------------------------------------------- requests
@@ -161,8 +195,8 @@ class ViewServer:
     async def _handle(self, connection: ServerConnection) -> None:
         client = _Client(connection, self.client_queue_depth)
         self._clients.add(client)
-        if self._last_text is not None:
-            client.queue.append(self._last_text)
+        if self._last_frame is not None:
+            client.queue.append(self._last_frame)
             client.ready.set()
         sender = asyncio.create_task(self._send(client))
         try:
@@ -198,7 +232,8 @@ class ViewServer:
                 await client.ready.wait()
                 client.ready.clear()
                 while client.queue:
-                    await client.connection.send(client.queue.popleft(), text=True)
+                    data, text = client.queue.popleft()
+                    await client.connection.send(data, text=text)
         except ConnectionClosed:
             pass
 
