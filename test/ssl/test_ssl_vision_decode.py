@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import re
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -335,3 +336,47 @@ def _robot_bytes(robot_id, x, y, theta, c) -> bytes:
     if theta is not None:
         robot.orientation = theta
     return robot.SerializePartialToString()
+
+
+@settings(max_examples=500, deadline=None)
+@given(edits=st.lists(st.tuples(st.integers(0, 10_000), st.integers(0, 255), st.sampled_from(["set", "insert", "cut"])),
+                      min_size=1, max_size=4),
+       tail=st.sampled_from([b""] + UNKNOWN_FIELDS + [bytes([0 << 3 | 0, 1]), bytes([13 << 3 | 3, 14 << 3 | 4]),
+                                                      bytes([2 << 3 | 2, 0])]))
+def test_what_the_compiled_pass_accepts_the_protobuf_runtime_accepts(edits, tail):
+    """Byte edits of a valid frame (and a tail: unknown fields, field number 0, a group ended by another
+    number, an empty geometry): a datagram the pass takes without the runtime is one the runtime
+    parses completely, with a detection and without geometry; the pass reads the same frame from it."""
+    from erforce_interfaces import ssl_vision
+
+    packet = detection_packet()
+    add_ball(packet, 100.0, 200.0)
+    add_robot(packet, "blue", 300.0, -400.0, robot_id=3, orientation=0.5)
+    add_robot(packet, "yellow", -300.0, 400.0, robot_id=5)
+    data = bytearray(packet.SerializeToString() + tail)
+    for at, value, how in edits:
+        at %= len(data) + 1
+        if how == "set" and at < len(data):
+            data[at] = value
+        elif how == "insert":
+            data.insert(at, value)
+        elif how == "cut":
+            del data[at:]
+        if not data:
+            return
+    data = bytes(data)
+    limits = ssl_vision.DecodeLimits()
+    out = np.empty(ssl_vision._rows_size(limits.max_balls, limits.max_robots_per_team))
+    status = ssl_vision._detection_rows(data, out, limits.max_balls, limits.max_robots_per_team,
+                                        limits.max_abs_coordinate_m / ssl_vision.MM, limits.max_robot_id,
+                                        limits.max_camera_id, limits.max_time_s)[0]
+    if status == ssl_vision._DECLINED:
+        return
+    runtime = wrap.SSL_WrapperPacket()
+    runtime.ParseFromString(data)  # raises DecodeError if the pass took what the runtime refuses
+    assert runtime.IsInitialized() and runtime.HasField("detection") and not runtime.HasField("geometry")
+    det = runtime.detection
+    if status != 0:  # a frame the checks refuse (a NaN stamp, a camera id): named by _frame_error
+        return
+    assert out[:4].tolist() == [det.frame_number, det.t_capture, det.t_sent, det.camera_id]
+    assert out[4:7].tolist() == [len(det.balls), len(det.robots_blue), len(det.robots_yellow)]

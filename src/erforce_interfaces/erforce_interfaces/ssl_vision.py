@@ -3,11 +3,12 @@
 ``decode_wrapper`` turns one UDP datagram (an ``SSL_WrapperPacket``) into plain values in the
 contract's units (metres, radians, seconds), or raises ``SslDecodeError`` naming what is wrong
 with it. Single bad detections (a NaN coordinate, a robot without an id) are dropped and named
-in ``DecodedPacket.problems``; the rest of the frame is kept. The protobuf runtime checks the
-datagram (wire format, required fields); the detections are then read from the bytes in one
-compiled pass into arrays (``DetectionArrays``), because the runtime's Python objects cost about
-3 us per robot and a full field's vision is 600 datagrams/s. ``DecodedPacket.frame`` gives them as
-named tuples. ``encode_frame`` and
+in ``DecodedPacket.problems``; the rest of the frame is kept. A detection-only datagram is read
+and checked (wire format, required fields, ranges) in one compiled pass over its bytes into arrays
+(``DetectionArrays``), because the protobuf runtime's Python objects cost about 3 us per robot and
+a full field's vision is 600 datagrams/s; anything else (geometry, a datagram the pass declines)
+goes through the runtime, which names what is wrong. ``DecodedPacket.frame`` gives the detections
+as named tuples. ``encode_frame`` and
 ``encode_geometry`` build datagrams (the plant's simulated cameras and the tests use them).
 
 ``VisionClock`` maps a camera's ``t_capture`` (the vision host's clock) onto the receiver's
@@ -152,12 +153,6 @@ class DecodedPacket:
         return None if self.detection is None else self.detection.frame()
 
 
-def _time(name: str, value: float, limits: DecodeLimits) -> float:
-    if not (math.isfinite(value) and 0.0 <= value <= limits.max_time_s):
-        raise SslDecodeError("time", f"{name} {value!r} is not a time in [0, {limits.max_time_s:g}] s")
-    return value
-
-
 def _coordinate_ok(value: float, limits: DecodeLimits) -> bool:
     return math.isfinite(value) and abs(value) * MM <= limits.max_abs_coordinate_m
 
@@ -168,6 +163,11 @@ def decode_wrapper(data: bytes, limits: DecodeLimits = DecodeLimits()) -> Decode
         raise SslDecodeError("empty", "empty datagram")
     if len(data) > limits.max_datagram_bytes:
         raise SslDecodeError("size", f"datagram of {len(data)} bytes exceeds {limits.max_datagram_bytes}")
+    out = DecodedPacket()
+    detection = _decode_frame(data, limits, out.problems, declined_ok=True)
+    if detection is not None:  # the usual datagram: one camera frame, nothing else
+        out.detection = detection
+        return out
     packet = wrapper_pb2.SSL_WrapperPacket()
     try:
         packet.ParseFromString(data)
@@ -179,7 +179,6 @@ def decode_wrapper(data: bytes, limits: DecodeLimits = DecodeLimits()) -> Decode
     has_detection, has_geometry = packet.HasField("detection"), packet.HasField("geometry")
     if not (has_detection or has_geometry):
         raise SslDecodeError("content", "SSL_WrapperPacket with neither detection nor geometry")
-    out = DecodedPacket()
     if has_detection:
         out.detection = _decode_frame(data, limits, out.problems)
     if has_geometry:
@@ -187,31 +186,45 @@ def decode_wrapper(data: bytes, limits: DecodeLimits = DecodeLimits()) -> Decode
     return out
 
 
-def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[str]) -> DetectionArrays:
+def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[str],
+                  declined_ok: bool = False) -> DetectionArrays | None:
+    """The detection frame of a datagram; None (with ``declined_ok``) when the compiled pass declines it:
+    a geometry part, no detection, anything the pass does not read as a valid detection-only datagram."""
     max_balls, max_robots = limits.max_balls, limits.max_robots_per_team
     out = np.empty(_rows_size(max_balls, max_robots))
-    failed, n_balls_kept, n_robots_kept, n_rejected = _detection_rows(
-        data, out, max_balls, max_robots, limits.max_abs_coordinate_m / MM, limits.max_robot_id)
-    if failed:  # the runtime parsed it, so the pass has a bug: say so rather than use a part
-        raise SslDecodeError("garbage", "detection frame not readable by the compiled pass")
-    frame_number, t_capture, t_sent, camera_id, n_balls, n_blue, n_yellow = out[:7].tolist()
-    camera_id, n_balls, n_blue, n_yellow = int(camera_id), int(n_balls), int(n_blue), int(n_yellow)
-    if camera_id > limits.max_camera_id:
-        raise SslDecodeError("camera", f"camera_id {camera_id} exceeds {limits.max_camera_id}")
-    t_capture = _time("t_capture", t_capture, limits)
-    t_sent = _time("t_sent", t_sent, limits)
-    if n_balls > limits.max_balls or max(n_yellow, n_blue) > limits.max_robots_per_team:
-        raise SslDecodeError(
-            "counts", f"camera {camera_id}: absurd counts ({n_balls} balls, {n_blue} blue, {n_yellow} yellow robots)"
-        )
+    status, n_balls_kept, n_robots_kept, n_rejected = _detection_rows(
+        data, out, max_balls, max_robots, limits.max_abs_coordinate_m / MM, limits.max_robot_id,
+        limits.max_camera_id, limits.max_time_s)
+    if status:
+        if status == _DECLINED:
+            if declined_ok:
+                return None
+            # the runtime parsed it, so the pass has a bug: say so rather than use a part
+            raise SslDecodeError("garbage", "detection frame not readable by the compiled pass")
+        _frame_error(status, out, limits)
     at = 8  # the parts of out: see _detection_rows
     balls = out[at:at + 4 * n_balls_kept].reshape(n_balls_kept, 4)
     at += 4 * max_balls
     robots = out[at:at + 6 * n_robots_kept].reshape(n_robots_kept, 6)
     if n_rejected:
         at += 12 * max_robots
-        _sort_out(camera_id, robots, out[at:at + 7 * n_rejected].reshape(n_rejected, 7), problems)
-    return DetectionArrays(camera_id, int(frame_number), t_capture, t_sent, balls, robots)
+        _sort_out(int(out[3]), robots, out[at:at + 7 * n_rejected].reshape(n_rejected, 7), problems)
+    return DetectionArrays(int(out[3]), int(out[0]), float(out[1]), float(out[2]), balls, robots)
+
+
+_DECLINED, _BAD_CAMERA, _BAD_T_CAPTURE, _BAD_T_SENT, _BAD_COUNTS = range(1, 6)  # _detection_rows' status
+
+
+def _frame_error(status: int, out: np.ndarray, limits: DecodeLimits) -> None:
+    _frame_number, t_capture, t_sent, camera_id, n_balls, n_blue, n_yellow = out[:7].tolist()
+    camera_id = int(camera_id)
+    if status == _BAD_CAMERA:
+        raise SslDecodeError("camera", f"camera_id {camera_id} exceeds {limits.max_camera_id}")
+    if status in (_BAD_T_CAPTURE, _BAD_T_SENT):
+        name, value = ("t_capture", t_capture) if status == _BAD_T_CAPTURE else ("t_sent", t_sent)
+        raise SslDecodeError("time", f"{name} {value!r} is not a time in [0, {limits.max_time_s:g}] s")
+    raise SslDecodeError("counts", f"camera {camera_id}: absurd counts ({int(n_balls)} balls, {int(n_blue)} blue, "
+                                   f"{int(n_yellow)} yellow robots)")
 
 
 def _rows_size(max_balls: int, max_robots: int) -> int:
@@ -262,10 +275,15 @@ def _varint(buf, i, end):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _skip(buf, i, end, wire):
-    """Index after a value of this wire type (a group: up to its end), or -1."""
+def _skip(buf, i, end, key):
+    """Index after the value of this key (a group: up to its matching end), or -1 (as the runtime: a
+    bad wire type, field number 0, a group ended by another number, bytes ending first)."""
+    groups = np.empty(16, np.uint64)  # the open groups' field numbers
     depth = 0
     while True:
+        wire, number = key & np.uint64(7), key >> np.uint64(3)
+        if number == 0:
+            return -1
         if wire == 0:
             _, i = _varint(buf, i, end)
         elif wire == 1:
@@ -275,18 +293,20 @@ def _skip(buf, i, end, wire):
         elif wire == 2:
             n, i = _varint(buf, i, end)
             i = i + int(n) if i >= 0 and n <= np.uint64(end - i) else -1
-        elif wire == 3:
+        elif wire == 3 and depth < len(groups):
+            groups[depth] = number
             depth += 1
-        elif wire == 4:
+        elif wire == 4 and depth > 0 and groups[depth - 1] == number:
             depth -= 1
         else:
             return -1
-        if i < 0 or depth <= 0:
-            return i if depth == 0 else -1
+        if i < 0 or depth == 0:
+            return i
+        if i >= end:
+            return -1
         key, i = _varint(buf, i, end)
         if i < 0:
             return -1
-        wire = int(key & np.uint64(7))
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -313,16 +333,18 @@ def _sub_fields(buf, i, end, scratch, values, present):
             values[2] = float(value & np.uint64(0xFFFFFFFF))
             present[2] = True
         else:
-            i = _skip(buf, i, end, wire)
+            i = _skip(buf, i, end, key)
         if i < 0:
             return -1
     return i
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id):
+def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, max_time):
     """One pass over an SSL_WrapperPacket's bytes into ``out`` (``_rows_size`` doubles); returns
-    (failed, balls kept, robots kept, rejected).
+    (status, balls kept, robots kept, rejected). Status 0: a valid detection frame; _DECLINED: bytes
+    the runtime should judge (not the wire format, required fields missing, a geometry part, no
+    detection); else the frame's first check that failed (_frame_error).
 
     out: frame_number, t_capture, t_sent, camera_id; the counts of balls, blue and yellow robots in
     the bytes; at 8 the valid balls (DetectionArrays' columns, metres), at 8 + 4 max_balls the valid
@@ -340,15 +362,20 @@ def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id):
     scratch = np.zeros(8, np.uint8)
     values = np.zeros(9)
     present = np.zeros(9, np.bool_)
+    frame_fields = np.zeros(5, np.bool_)  # frame_number, t_capture, t_sent, camera_id seen (1..4)
+    declined = False
     end = len(buf)
     i = 0
     while 0 <= i < end:  # the wrapper: only detection (1) is read here
         key, i = _varint(buf, i, end)
         if i < 0:
             break
+        if key == np.uint64(2 << 3 | 2):
+            declined = True  # geometry: the runtime's part
         if key != np.uint64(1 << 3 | 2):
-            i = _skip(buf, i, end, int(key & np.uint64(7)))
+            i = _skip(buf, i, end, key)
             continue
+        frame_fields[0] = True
         n, i = _varint(buf, i, end)
         if i < 0 or n > np.uint64(end - i):
             i = -1
@@ -362,8 +389,10 @@ def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id):
             if wire == 0 and (number == 1 or number == 4):
                 value, i = _varint(buf, i, det_end)
                 out[0 if number == 1 else 3] = float(value & np.uint64(0xFFFFFFFF))
+                frame_fields[number] = True
             elif wire == 1 and (number == 2 or number == 3) and i + 8 <= det_end:
                 out[number - 1] = _scalar(buf, i, scratch, 8)
+                frame_fields[number] = True
                 i += 8
             elif wire == 2 and 5 <= number <= 7:
                 n, i = _varint(buf, i, det_end)
@@ -377,6 +406,8 @@ def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id):
                     i = -1
                     break
                 i = sub_end
+                if not (present[1] and present[3] and present[4] and present[6] and present[7]):
+                    declined = True  # a required field missing: the runtime names it
                 c, x, y = values[1], values[3], values[4]
                 kind = -1
                 if number == 5:
@@ -412,7 +443,7 @@ def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id):
                     out[row + 6] = team * max_robots + kept[1 + team] - 1 if kind == 3 else -1.0
                     n_rejected += 1
             else:
-                i = _skip(buf, i, det_end, wire)
+                i = _skip(buf, i, det_end, key)
         if i < 0:
             break
         i = det_end
@@ -424,7 +455,19 @@ def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id):
         row = at_rejected + 7 * k
         if out[row] == 3.0 and out[row + 1] == 1.0:
             out[row + 6] += n_blue - max_robots
-    return i < 0, kept[0], n_blue + n_yellow, n_rejected
+    if i < 0 or declined or not frame_fields.all():
+        status = 1  # _DECLINED
+    elif out[3] > max_camera:
+        status = 2
+    elif not (np.isfinite(out[1]) and 0.0 <= out[1] <= max_time):
+        status = 3
+    elif not (np.isfinite(out[2]) and 0.0 <= out[2] <= max_time):
+        status = 4
+    elif out[4] > max_balls or out[5] > max_robots or out[6] > max_robots:
+        status = 5
+    else:
+        status = 0
+    return status, kept[0], n_blue + n_yellow, n_rejected
 
 
 def _decode_geometry(geo, limits: DecodeLimits, problems: list[str]) -> FieldGeometry | None:
