@@ -293,8 +293,7 @@ class SslVisionBridge(Node):
             balls[:, :2] *= -1.0
             robots[:, 2:4] *= -1.0
             robots[:, 4] = [math.remainder(theta + math.pi, 2 * math.pi) for theta in robots[:, 4].tolist()]
-        ball_rows = balls.tolist()
-        ball, used = self._tracker.frame_arrays(frame.camera_id, t_s, ball_rows, robots)
+        ball, used = self._tracker.frame_arrays(frame.camera_id, t_s, balls, robots)
         self.stats["frames"] += 1
         try:
             if ball is not None:
@@ -302,7 +301,7 @@ class SslVisionBridge(Node):
             if used:
                 self._publish_poses(t_s, used)
             if cfg.publish_detections:
-                self._publish_detections(cfg, frame.camera_id, t_receive_s - t_s, ball_rows, robots.tolist())
+                self._publish_detections(cfg, frame.camera_id, t_receive_s - t_s, balls.tolist(), robots.tolist())
         except ConversionError as exc:
             self._warn.warn("publish", f"ssl_vision_bridge: camera {frame.camera_id}: not published: {exc}")
 
