@@ -126,6 +126,15 @@ def test_geometry_round_trip_and_a_bad_ball_model_is_dropped():
     assert out.geometry is None and "field sizes" in out.problems[-1]
 
 
+def test_a_datagram_with_detection_and_geometry_gives_both():
+    packet = wrap.SSL_WrapperPacket.FromString(encode_geometry(GEOMETRY))
+    packet.MergeFrom(detection_packet())
+    add_robot(packet, "yellow", 500.0, -250.0, robot_id=2, orientation=1.5)
+    out = decode_wrapper(packet.SerializeToString())
+    assert out.geometry == GEOMETRY and out.problems == []
+    assert out.frame.robots == (RobotSighting("yellow", 2, 0.5, -0.25, 1.5, 1.0),)
+
+
 def test_frame_round_trip():
     frame = CameraFrame(3, 11, 5.0, 5.02, (BallCandidate(0.5, -0.25, 0.5),),
                         (RobotSighting("yellow", 2, 1.0, -1.0, 0.5, 1.0),
@@ -367,10 +376,10 @@ def test_what_the_compiled_pass_accepts_the_protobuf_runtime_accepts(edits, tail
     data = bytes(data)
     limits = ssl_vision.DecodeLimits()
     out = np.empty(ssl_vision._rows_size(limits.max_balls, limits.max_robots_per_team))
-    status = ssl_vision._detection_rows(data, out, limits.max_balls, limits.max_robots_per_team,
-                                        limits.max_abs_coordinate_m / ssl_vision.MM, limits.max_robot_id,
-                                        limits.max_camera_id, limits.max_time_s)[0]
-    if status == ssl_vision._DECLINED:
+    status, *_, geometry = ssl_vision._detection_rows(
+        data, out, limits.max_balls, limits.max_robots_per_team, limits.max_abs_coordinate_m / ssl_vision.MM,
+        limits.max_robot_id, limits.max_camera_id, limits.max_time_s)
+    if status == ssl_vision._DECLINED or geometry:
         return
     runtime = wrap.SSL_WrapperPacket()
     runtime.ParseFromString(data)  # raises DecodeError if the pass took what the runtime refuses

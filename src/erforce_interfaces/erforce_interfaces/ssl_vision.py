@@ -192,9 +192,11 @@ def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[str],
     a geometry part, no detection, anything the pass does not read as a valid detection-only datagram."""
     max_balls, max_robots = limits.max_balls, limits.max_robots_per_team
     out = np.empty(_rows_size(max_balls, max_robots))
-    status, n_balls_kept, n_robots_kept, n_rejected = _detection_rows(
+    status, n_balls_kept, n_robots_kept, n_rejected, geometry = _detection_rows(
         data, out, max_balls, max_robots, limits.max_abs_coordinate_m / MM, limits.max_robot_id,
         limits.max_camera_id, limits.max_time_s)
+    if geometry and declined_ok:
+        return None
     if status:
         if status == _DECLINED:
             if declined_ok:
@@ -342,8 +344,8 @@ def _sub_fields(buf, i, end, scratch, values, present):
 @numba.njit(cache=True, error_model="numpy")
 def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, max_time):
     """One pass over an SSL_WrapperPacket's bytes into ``out`` (``_rows_size`` doubles); returns
-    (status, balls kept, robots kept, rejected). Status 0: a valid detection frame; _DECLINED: bytes
-    the runtime should judge (not the wire format, required fields missing, a geometry part, no
+    (status, balls kept, robots kept, rejected, geometry part seen). Status 0: a valid detection frame;
+    _DECLINED: bytes the runtime should judge (not the wire format, required fields missing, no
     detection); else the frame's first check that failed (_frame_error).
 
     out: frame_number, t_capture, t_sent, camera_id; the counts of balls, blue and yellow robots in
@@ -363,7 +365,7 @@ def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera,
     values = np.zeros(9)
     present = np.zeros(9, np.bool_)
     frame_fields = np.zeros(5, np.bool_)  # frame_number, t_capture, t_sent, camera_id seen (1..4)
-    declined = False
+    declined = geometry = False
     end = len(buf)
     i = 0
     while 0 <= i < end:  # the wrapper: only detection (1) is read here
@@ -371,7 +373,7 @@ def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera,
         if i < 0:
             break
         if key == np.uint64(2 << 3 | 2):
-            declined = True  # geometry: the runtime's part
+            geometry = True  # the runtime's part
         if key != np.uint64(1 << 3 | 2):
             i = _skip(buf, i, end, key)
             continue
@@ -467,7 +469,7 @@ def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera,
         status = 5
     else:
         status = 0
-    return status, kept[0], n_blue + n_yellow, n_rejected
+    return status, kept[0], n_blue + n_yellow, n_rejected, geometry
 
 
 def _decode_geometry(geo, limits: DecodeLimits, problems: list[str]) -> FieldGeometry | None:
