@@ -29,7 +29,7 @@ from typing import Any
 from rclpy.node import Node
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.vision_tracking import MAX_ROBOT_ID, VisionTracker
+from erforce_ball_model.vision_tracking import MAX_ROBOT_ID, VisionTracker, load_kernels
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import ConversionError, point_cdr, pose2d_cdr, table_cdr
 from erforce_interfaces.node_support import (
@@ -126,6 +126,7 @@ class SslVisionBridge(Node):
         except OSError as exc:  # no such interface, no multicast route, ...: one clear line at start
             raise ValueError(f"cannot join {v['group']}:{v['port']} on {v['interface']}: {exc}") from None
         self._max_batch, self._flood_batch = v["max_batch"], v["flood_batch"]
+        load_kernels()  # before the first datagram
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._receive_loop, name="ssl_vision_rx", daemon=True)
         self._thread.start()

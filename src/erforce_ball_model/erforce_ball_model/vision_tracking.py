@@ -41,7 +41,8 @@ from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import TEAMS, DecodeLimits
 
-__all__ = ["MAX_ROBOT_ID", "BallObservation", "RobotObservation", "VisionTracker", "VisionTrackingConfig"]
+__all__ = ["MAX_ROBOT_ID", "BallObservation", "RobotObservation", "VisionTracker", "VisionTrackingConfig",
+           "load_kernels"]
 
 MAX_ROBOT_ID = DecodeLimits().max_robot_id  # what SSL-Vision can report
 _TEAM_INDEX = {team: k for k, team in enumerate(TEAMS)}
@@ -371,3 +372,16 @@ class VisionTracker:
         best = _best_confirmed(self._hyps, self._hits, self._n_hyps, t_s, inside_only, cfg.confirm_window_s,
                                cfg.fresh_s)
         return None if best < 0 else (float(self._hyps[best, _H_X]), float(self._hyps[best, _H_Y]))
+
+
+def load_kernels() -> None:
+    """Compile (or load from numba's cache) the kernels of SSL decoding and of this tracker: at a node's
+    start and before the tests, demo and benches (./run), not at the first camera frame."""
+    from erforce_interfaces.ssl_vision import BallCandidate, CameraFrame, RobotSighting, decode_wrapper, encode_frame
+
+    data = encode_frame(CameraFrame(0, 1, 1.0, 1.0, (BallCandidate(0.0, 0.0, 1.0),),
+                                    (RobotSighting("blue", 0, 0.0, 0.0, 0.0, 1.0),)))
+    frame = decode_wrapper(data).detection
+    tracker = VisionTracker(FieldConfig.preset("division_b"))
+    for k in range(4):  # the last frames find a confirmed hypothesis
+        tracker.frame_arrays(0, 1.0 + 0.01 * k, frame.balls, frame.robots)
