@@ -5,22 +5,28 @@ over loopback multicast (TTL 0), 22 robots moving through the views, 1-3 ball ca
 datagram (the ball where a camera sees it, reflections elsewhere). The bridge node (its own
 process, private DDS domain) logs its counts and its CPU time per datagram (decoding, vision
 clock, tracker, conversion and publishing: thread CPU time) every second; the bench reads them.
-``python bench/bench_ssl_vision.py [--quick]``
+A reader process subscribes to what the stack reads of the bridge (the ball predictor: /vision/ball
+and our 11 robots' vision_pose), or with ``--readers all`` also to the 11 opponents' topics, or
+with ``--readers none`` to nothing: the bridge publishes a pose only while its topic has a reader.
+``python bench/bench_ssl_vision.py [--quick] [--readers ours|all|none]``
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 import random
 import re
 import socket
 import sys
+import textwrap
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from table import bench_main
 
+from erforce_interfaces import contract
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import (
     BallCandidate,
@@ -39,6 +45,41 @@ RATE_HZ = 75.0
 FIELD = FieldConfig.preset("division_a")
 STATS = re.compile(r"ssl_vision_bridge: (\d+) datagrams, (\d+) camera frames; dropped: (\d+) bad, (\d+) clock, "
                    r"(\d+) superseded in floods; CPU per datagram median ([\d.]+) ms, p99 ([\d.]+) ms")
+
+
+# The reader: raw subscriptions (no deserialization) with the contract's QoS, counting what arrives.
+READER = textwrap.dedent("""
+    import sys, time, rclpy
+    from erforce_interfaces import contract
+    rclpy.init()
+    node = rclpy.create_node("vision_reader")
+    count = [0]
+    def on_message(_data):
+        count[0] += 1
+    subs = [node.create_subscription(contract.topic_of_name(name).msg_type, name, on_message,
+                                     contract.topic_of_name(name).qos, raw=True) for name in sys.argv[1:]]
+    reported, matched = time.monotonic(), False
+    try:
+        while rclpy.ok():
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if not matched and all(s.get_publisher_count() for s in subs[:12]):
+                matched = True
+                print("vision_reader: matched", flush=True)
+            if time.monotonic() - reported >= 1.0:
+                reported = time.monotonic()
+                print(f"vision_reader: {count[0]} messages", flush=True)
+    except KeyboardInterrupt:
+        pass
+""")
+
+
+def reader_topics(readers: str) -> list[str]:
+    if readers == "none":
+        return []
+    topics = [contract.VISION_BALL.name] + [contract.VISION_POSE.for_robot(i) for i in range(11)]
+    if readers == "all":
+        topics += [contract.opponent_topic(contract.VISION_POSE, i) for i in range(11)]
+    return topics
 
 
 def cameras() -> list[tuple[int, tuple[float, float], tuple[float, float]]]:
@@ -106,13 +147,18 @@ def send_load(port: int, duration_s: float) -> int:
     return sent + 1
 
 
-def run(quick: bool = False) -> list[dict]:
+def run(quick: bool = False, readers: str = "ours") -> list[dict]:
     duration_s = 5.0 if quick else 20.0
     port = find_port()
     with RosGraph() as graph:
         node = graph.start_node("erforce_ball_model", "ssl_vision_bridge", params={
-            "port": port, "interface": "127.0.0.1", "field": "division_a", "stats_period_s": 1.0})
+            "port": port, "interface": "127.0.0.1", "field": "division_a", "stats_period_s": 1.0,
+            "team_color": "blue", "num_robots": 11})
         node.wait_for_output(r"ssl_vision_bridge: 224\.5\.23\.2", timeout_s=60.0)
+        topics = reader_topics(readers)
+        reader = graph.start([sys.executable, "-c", READER, *topics], name="vision_reader") if topics else None
+        if reader is not None:  # the bridge's publishers know their reader (opponents': once created)
+            reader.wait_for_output(r"vision_reader: matched", timeout_s=60.0)
         time.sleep(0.5)  # the group joined (the log line comes after the socket)
         sent = send_load(port, duration_s)
         deadline = time.monotonic() + 10.0
@@ -121,6 +167,7 @@ def run(quick: bool = False) -> list[dict]:
             if (lines and int(lines[-1][0]) >= sent) or time.monotonic() > deadline:
                 break
             time.sleep(0.1)
+        delivered = re.findall(r"vision_reader: (\d+) messages", reader.output()) if reader else []
     if not lines:
         raise RuntimeError("the bridge logged no statistics:\n" + node.output()[-3000:])
     received, frames, bad, clock, superseded = (int(v) for v in lines[-1][:5])
@@ -132,7 +179,8 @@ def run(quick: bool = False) -> list[dict]:
     return [
         {"name": "bridge CPU per datagram (8 cameras x 75 Hz, 22 robots, 1-3 balls), median", "unit": "ms",
          "value": medians[len(medians) // 2], "target": "-",
-         "note": f"median of {len(windows)} one-second windows; decode + clock + tracker + publish"},
+         "note": f"median of {len(windows)} one-second windows; decode + clock + tracker + publish; readers: "
+                 f"{readers} ({delivered[-1] if delivered else 0} messages read)"},
         {"name": "bridge CPU per datagram, p99 (worst one-second window)", "unit": "ms", "value": p99s[-1],
          "target": "< 0.3", "note": f"median window p99 {p99s[len(p99s) // 2]:.3f} ms"},
         {"name": "datagrams sent / lost before the bridge read them", "unit": "count", "value": lost,
@@ -142,5 +190,13 @@ def run(quick: bool = False) -> list[dict]:
     ]
 
 
+def main() -> int:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--readers", choices=("ours", "all", "none"), default="ours")
+    args, rest = parser.parse_known_args()
+    sys.argv[1:] = rest
+    return bench_main(lambda quick=False: run(quick, args.readers), __doc__.splitlines()[0])
+
+
 if __name__ == "__main__":
-    raise SystemExit(bench_main(run, __doc__.splitlines()[0]))
+    raise SystemExit(main())

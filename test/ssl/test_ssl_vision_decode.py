@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import re
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -123,6 +124,15 @@ def test_geometry_round_trip_and_a_bad_ball_model_is_dropped():
     packet.geometry.field.field_length = 0
     out = decode_wrapper(packet.SerializeToString())
     assert out.geometry is None and "field sizes" in out.problems[-1]
+
+
+def test_a_datagram_with_detection_and_geometry_gives_both():
+    packet = wrap.SSL_WrapperPacket.FromString(encode_geometry(GEOMETRY))
+    packet.MergeFrom(detection_packet())
+    add_robot(packet, "yellow", 500.0, -250.0, robot_id=2, orientation=1.5)
+    out = decode_wrapper(packet.SerializeToString())
+    assert out.geometry == GEOMETRY and out.problems == []
+    assert out.frame.robots == (RobotSighting("yellow", 2, 0.5, -0.25, 1.5, 1.0),)
 
 
 def test_frame_round_trip():
@@ -264,3 +274,118 @@ def test_fuzz_geometry(sizes, model, flip):
         assert _finite_out(out)
         if out.geometry is not None:
             assert out.geometry.length_m > 0 and out.geometry.width_m > 0
+
+
+# Unknown fields of every wire type (field numbers the messages do not declare, and a declared number with
+# another wire type, which the protobuf runtime keeps as unknown too), as bytes: key varint, then the value.
+UNKNOWN_FIELDS = [
+    bytes([9 << 3 | 0, 0x96, 0x01]),  # varint 150
+    bytes([10 << 3 | 1]) + bytes(range(8)),  # eight bytes
+    bytes([11 << 3 | 2, 3]) + b"abc",  # length-delimited
+    bytes([12 << 3 | 5]) + bytes(4),  # four bytes
+    bytes([13 << 3 | 3, 1 << 3 | 0, 5, 13 << 3 | 4]),  # a group holding a varint
+    bytes([3 << 3 | 0, 7]),  # field 3 (x, a float) as a varint: unknown, x keeps its value
+]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    balls=st.lists(st.tuples(st.floats(-9000, 9000, width=32), st.floats(-6000, 6000, width=32),
+                             st.floats(0, 1, width=32), st.none() | st.floats(-500, 500, width=32)), max_size=4),
+    robots=st.lists(st.tuples(st.sampled_from(["blue", "yellow"]), st.integers(0, 31),
+                              st.floats(-9000, 9000, width=32), st.floats(-6000, 6000, width=32),
+                              st.none() | st.floats(-3.0, 3.0, width=32), st.floats(0, 1, width=32)), max_size=12),
+    unknown=st.lists(st.sampled_from(range(len(UNKNOWN_FIELDS))), max_size=3),
+    split=st.integers(0, 16),
+)
+def test_the_compiled_pass_reads_what_the_protobuf_runtime_reads(balls, robots, unknown, split):
+    """The detections as the runtime's message objects give them, against decode_wrapper's arrays; with
+    unknown fields inside every detection and the frame, and the frame sent as two parts (merged)."""
+    extra = b"".join(UNKNOWN_FIELDS[k] for k in unknown)
+    det = wrap.SSL_WrapperPacket().detection
+    for x, y, c, z in balls:
+        b = det.balls.add()
+        b.MergeFromString(_ball_bytes(x, y, c, z) + extra)
+    for team, robot_id, x, y, theta, c in robots:
+        r = (det.robots_blue if team == "blue" else det.robots_yellow).add()
+        r.MergeFromString(_robot_bytes(robot_id, x, y, theta, c) + extra)
+    first, second = detection_packet(), wrap.SSL_WrapperPacket()
+    items = [(field, item) for field in ("balls", "robots_blue", "robots_yellow") for item in getattr(det, field)]
+    for k, (field, item) in enumerate(items):  # the first `split` detections in the first part, the rest after
+        getattr((first if k < split else second).detection, field).add().CopyFrom(item)
+    data = first.SerializeToString() + extra + second.SerializePartialToString()  # the parts merge
+    reference = wrap.SSL_WrapperPacket.FromString(data).detection
+    out = decode_wrapper(data)
+    assert out.problems == []
+    arrays = out.detection
+    assert (arrays.camera_id, arrays.frame_number, arrays.t_capture_s) == (2, 7, 100.0)
+    assert arrays.balls.tolist() == [[b.x * 1e-3, b.y * 1e-3, b.confidence, b.z * 1e-3] for b in reference.balls]
+    expected = [
+        [team, r.robot_id, r.x * 1e-3, r.y * 1e-3, r.orientation if r.HasField("orientation") else math.nan,
+         r.confidence]
+        for team, sightings in ((0.0, reference.robots_blue), (1.0, reference.robots_yellow)) for r in sightings
+    ]
+    got = arrays.robots.tolist()
+    assert len(got) == len(expected)
+    for row, want in zip(got, expected, strict=True):
+        assert row[:4] + row[5:] == want[:4] + want[5:]
+        assert row[4] == want[4] or (math.isnan(row[4]) and math.isnan(want[4]))
+
+
+def _ball_bytes(x, y, c, z) -> bytes:
+    ball = wrap.SSL_WrapperPacket().detection.balls.add(confidence=c, x=x, y=y, pixel_x=0.0, pixel_y=0.0)
+    if z is not None:
+        ball.z = z
+    return ball.SerializePartialToString()
+
+
+def _robot_bytes(robot_id, x, y, theta, c) -> bytes:
+    robot = wrap.SSL_WrapperPacket().detection.robots_blue.add(confidence=c, robot_id=robot_id, x=x, y=y,
+                                                                 pixel_x=0.0, pixel_y=0.0)
+    if theta is not None:
+        robot.orientation = theta
+    return robot.SerializePartialToString()
+
+
+@settings(max_examples=500, deadline=None)
+@given(edits=st.lists(st.tuples(st.integers(0, 10_000), st.integers(0, 255), st.sampled_from(["set", "insert", "cut"])),
+                      min_size=1, max_size=4),
+       tail=st.sampled_from([b""] + UNKNOWN_FIELDS + [bytes([0 << 3 | 0, 1]), bytes([13 << 3 | 3, 14 << 3 | 4]),
+                                                      bytes([2 << 3 | 2, 0])]))
+def test_what_the_compiled_pass_accepts_the_protobuf_runtime_accepts(edits, tail):
+    """Byte edits of a valid frame (and a tail: unknown fields, field number 0, a group ended by another
+    number, an empty geometry): a datagram the pass takes without the runtime is one the runtime
+    parses completely, with a detection and without geometry; the pass reads the same frame from it."""
+    from erforce_interfaces import ssl_vision
+
+    packet = detection_packet()
+    add_ball(packet, 100.0, 200.0)
+    add_robot(packet, "blue", 300.0, -400.0, robot_id=3, orientation=0.5)
+    add_robot(packet, "yellow", -300.0, 400.0, robot_id=5)
+    data = bytearray(packet.SerializeToString() + tail)
+    for at, value, how in edits:
+        at %= len(data) + 1
+        if how == "set" and at < len(data):
+            data[at] = value
+        elif how == "insert":
+            data.insert(at, value)
+        elif how == "cut":
+            del data[at:]
+        if not data:
+            return
+    data = bytes(data)
+    limits = ssl_vision.DecodeLimits()
+    out = np.empty(ssl_vision._rows_size(limits.max_balls, limits.max_robots_per_team))
+    status, *_, geometry = ssl_vision._detection_rows(
+        data, out, limits.max_balls, limits.max_robots_per_team, limits.max_abs_coordinate_m / ssl_vision.MM,
+        limits.max_robot_id, limits.max_camera_id, limits.max_time_s)
+    if status == ssl_vision._DECLINED or geometry:
+        return
+    runtime = wrap.SSL_WrapperPacket()
+    runtime.ParseFromString(data)  # raises DecodeError if the pass took what the runtime refuses
+    assert runtime.IsInitialized() and runtime.HasField("detection") and not runtime.HasField("geometry")
+    det = runtime.detection
+    if status != 0:  # a frame the checks refuse (a NaN stamp, a camera id): named by _frame_error
+        return
+    assert out[:4].tolist() == [det.frame_number, det.t_capture, det.t_sent, det.camera_id]
+    assert out[4:7].tolist() == [len(det.balls), len(det.robots_blue), len(det.robots_yellow)]

@@ -7,6 +7,10 @@ absorbs bursts while a batch is processed, and a round that still finds more tha
 says so. Every datagram goes through erforce_interfaces.ssl_vision (decoding, checks, vision
 clock) and erforce_ball_model.vision_tracking (the true ball, robot streams); the node converts
 and publishes. Bad datagrams are dropped with a throttled warning naming the problem.
+
+A robot's vision_pose is serialized and published only while its topic has a reader (each
+publisher's matched event keeps the count): a full field is 22 robots, and the stack reads our
+own robots' poses only; a tool that subscribes to an opponent's topic gets it from then on.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from typing import Any
 from rclpy.node import Node
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.vision_tracking import VisionTracker
+from erforce_ball_model.vision_tracking import MAX_ROBOT_ID, VisionTracker, load_kernels
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import ConversionError, point_cdr, pose2d_cdr, table_cdr
 from erforce_interfaces.node_support import (
@@ -37,8 +41,10 @@ from erforce_interfaces.node_support import (
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import (
+    TEAMS,
     ClockJump,
     DecodedPacket,
+    DetectionArrays,
     SslDecodeError,
     VisionClock,
     decode_wrapper,
@@ -109,16 +115,18 @@ class SslVisionBridge(Node):
         self._detections_pub = contract_publisher(self, q.VISION_DETECTIONS)
         self._field_pub = contract_publisher(self, q.VISION_FIELD)
         self._model_pub = contract_publisher(self, q.VISION_BALL_MODEL)
-        self._our_pubs = [
-            contract_publisher(self, q.VISION_POSE, q.VISION_POSE.for_robot(i)) for i in range(self._n_ours)
-        ]
-        self._their_pubs: dict[int, Any] = {}
+        # ours (0) and the opponents (1) by robot id: the pose publisher (None: not created yet), its readers
+        self._pose_pubs: list[list[Any]] = [[None] * (MAX_ROBOT_ID + 1) for _ in range(2)]
+        self._pose_readers = [[0] * (MAX_ROBOT_ID + 1) for _ in range(2)]
+        for i in range(self._n_ours):
+            self._pose_publisher(0, i)
         self._last_geometry = None
         try:
             self._sock = open_multicast_socket(v["group"], v["port"], v["interface"], v["receive_buffer_bytes"])
         except OSError as exc:  # no such interface, no multicast route, ...: one clear line at start
             raise ValueError(f"cannot join {v['group']}:{v['port']} on {v['interface']}: {exc}") from None
         self._max_batch, self._flood_batch = v["max_batch"], v["flood_batch"]
+        load_kernels()  # before the first datagram
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._receive_loop, name="ssl_vision_rx", daemon=True)
         self._thread.start()
@@ -137,6 +145,7 @@ class SslVisionBridge(Node):
             self._config = config
             if old is None or (config.clock_window_s, config.clock_jump_s) != (old.clock_window_s, old.clock_jump_s):
                 self._vision_clock = VisionClock(config.clock_window_s, config.clock_jump_s)
+            self._ours = float(TEAMS.index(config.ours))  # as in the decoder's team column
             if old is None:
                 self._tracker = VisionTracker(config.field)
             elif config.field != old.field and self._last_geometry is None:
@@ -204,8 +213,8 @@ class SslVisionBridge(Node):
     def _use(self, packet: DecodedPacket, t_receive_s: float) -> None:
         if packet.geometry is not None:
             self._on_geometry(packet.geometry)
-        if packet.frame is not None:
-            self._on_frame(packet.frame, t_receive_s)
+        if packet.detection is not None:
+            self._on_frame(packet.detection, t_receive_s)
 
     def _log_stats(self) -> None:
         now = time.monotonic()
@@ -225,10 +234,10 @@ class SslVisionBridge(Node):
         newest: dict[int, tuple[DecodedPacket, int]] = {}
         kept = []
         for item in packets:
-            if item[0].frame is None:
+            if item[0].detection is None:
                 kept.append(item)
             else:
-                newest[item[0].frame.camera_id] = item
+                newest[item[0].detection.camera_id] = item
         kept += newest.values()
         superseded = len(packets) - len(kept)
         self.stats["superseded_in_flood"] += superseded
@@ -264,7 +273,7 @@ class SslVisionBridge(Node):
         )
 
     # ------------------------------------------------------------------- frames
-    def _on_frame(self, frame, t_receive_s: float) -> None:
+    def _on_frame(self, frame: DetectionArrays, t_receive_s: float) -> None:
         cfg = self._config
         if cfg.time_source == "vision":
             t_s = frame.t_capture_s
@@ -279,51 +288,57 @@ class SslVisionBridge(Node):
             self.stats["dropped_clock"] += 1
             self._warn.warn("stamp", f"ssl_vision_bridge: camera {frame.camera_id}: no valid stamp ({t_s!r})")
             return
+        balls, robots = frame.balls, frame.robots  # rows: ssl_vision's BALL_COLUMNS, ROBOT_COLUMNS
         if cfg.flip:  # half a turn
-            balls = [(-b.x_m, -b.y_m, b.confidence) for b in frame.balls]
-            robots = [
-                (r.team, r.robot_id, -r.x_m, -r.y_m,
-                 None if r.theta_rad is None else math.remainder(r.theta_rad + math.pi, 2 * math.pi))
-                for r in frame.robots
-            ]
-        else:  # the decoder's tuples as they are: (x, y, confidence, ...), (team, id, x, y, theta, ...)
-            balls, robots = frame.balls, frame.robots
-        ball, poses = self._tracker.frame(frame.camera_id, t_s, balls, robots)
+            balls, robots = balls.copy(), robots.copy()
+            balls[:, :2] *= -1.0
+            robots[:, 2:4] *= -1.0
+            robots[:, 4] = [math.remainder(theta + math.pi, 2 * math.pi) for theta in robots[:, 4].tolist()]
+        ball, used = self._tracker.frame_arrays(frame.camera_id, t_s, balls, robots)
         self.stats["frames"] += 1
         try:
             if ball is not None:
                 self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
-            for p in poses:
-                self._publish_pose(cfg, p)
+            if used:
+                self._publish_poses(t_s, used)
             if cfg.publish_detections:
-                self._publish_detections(cfg, frame.camera_id, t_receive_s - t_s, balls, robots)
+                self._publish_detections(cfg, frame.camera_id, t_receive_s - t_s, balls.tolist(), robots.tolist())
         except ConversionError as exc:
             self._warn.warn("publish", f"ssl_vision_bridge: camera {frame.camera_id}: not published: {exc}")
 
-    def _publish_pose(self, cfg: BridgeConfig, p) -> None:
-        if p.theta_rad is None:
-            self._warn.warn("theta", f"ssl_vision_bridge: {p.team} robot {p.robot_id} without orientation: "
-                                     "no vision_pose")
-            return
-        data = pose2d_cdr(p.t_s, (p.x_m, p.y_m, p.theta_rad))
-        if p.team == cfg.ours:
-            if p.robot_id >= self._n_ours:
-                self._warn.warn("our_id", f"ssl_vision_bridge: our robot {p.robot_id} beyond num_robots "
-                                          f"{self._n_ours}: dropped")
-                return
-            self._our_pubs[p.robot_id].publish(data)
-        else:
-            pub = self._their_pubs.get(p.robot_id)
-            if pub is None:
-                pub = self._their_pubs[p.robot_id] = contract_publisher(
-                    self, contract.VISION_POSE, contract.opponent_topic(contract.VISION_POSE, p.robot_id))
-            pub.publish(data)
+    def _publish_poses(self, t_s: float, rows: list[list[float]]) -> None:
+        readers, n_ours = self._pose_readers, self._n_ours
+        for team, robot_id, x, y, theta, _confidence in rows:
+            side, robot_id = int(team != self._ours), int(robot_id)  # side 0: ours, 1: opponents
+            if math.isnan(theta):
+                self._warn.warn("theta", f"ssl_vision_bridge: {TEAMS[int(team)]} robot {robot_id} without "
+                                         "orientation: no vision_pose")
+                continue
+            if side == 0 and robot_id >= n_ours:
+                self._warn.warn("our_id", f"ssl_vision_bridge: our robot {robot_id} beyond num_robots "
+                                          f"{n_ours}: dropped")
+                continue
+            pub = self._pose_pubs[side][robot_id] or self._pose_publisher(side, robot_id)
+            if readers[side][robot_id]:
+                pub.publish(pose2d_cdr(t_s, (x, y, theta)))
+
+    def _pose_publisher(self, side: int, robot_id: int):
+        """Our robots' (side 0) under robot_<id>, the opponents' (side 1) under opponent_<id> (see the contract)."""
+        topic = contract.VISION_POSE
+        name = contract.opponent_topic(topic, robot_id) if side else topic.for_robot(robot_id)
+
+        def on_matched(readers: int) -> None:
+            self._pose_readers[side][robot_id] = readers
+
+        pub = self._pose_pubs[side][robot_id] = contract_publisher(self, topic, name, on_matched=on_matched)
+        self._pose_readers[side][robot_id] = pub.get_subscription_count()
+        return pub
 
     def _publish_detections(self, cfg, camera_id: int, age_s: float, balls, robots) -> None:
         rows = [[camera_id, age_s, _KIND["ball"], -1.0, b[0], b[1], 0.0, b[2]] for b in balls]
         rows += [
-            [camera_id, age_s, _KIND["ours"] if r[0] == cfg.ours else _KIND["opponent"], r[1], r[2], r[3],
-             0.0 if r[4] is None else r[4], 1.0]
+            [camera_id, age_s, _KIND["ours"] if r[0] == self._ours else _KIND["opponent"], r[1], r[2], r[3],
+             0.0 if math.isnan(r[4]) else r[4], 1.0]
             for r in robots
         ]
         self._detections_pub.publish(table_cdr(rows, contract.VISION_DETECTION_COLUMNS, "detections"))
