@@ -7,9 +7,9 @@ frame is answered with each fresh robot's ``/robot_<i>/catch_time`` and ``catch_
 what the robots act on), then the ball state, phase, stop point, v_shoot and the uncertain flag,
 and, while anyone subscribes to it, ``/ball/catches``: the whole team in one message.
 All outputs carry the observation's stamp; catch times count from it. ``/robot_<i>/vision_pose``
-is answered with ``/robot_<i>/odom``. With ``num_opponents`` the opponents are served the same way
-under ``/opponent_<i>/`` (their robotTimeToBall is what the passing game weighs and their interceptor
-drives by); in the core they come after our robots.
+is answered with ``/robot_<i>/odom`` while anyone subscribes to it. With ``num_opponents`` the
+opponents are served the same way under ``/opponent_<i>/`` (their robotTimeToBall is what the passing
+game weighs and their interceptor drives by); in the core they come after our robots.
 
 ``/ball/model_params`` is the model in use as state (transient local): published at start and
 whenever it changes (a parameter, an accepted fit), and after every online fit with its result.
@@ -129,7 +129,10 @@ class BallPredictorNode(Node):
         self._v_shoot_pub = contract_publisher(self, q.BALL_V_SHOOT)
         self._uncertain_pub = contract_publisher(self, q.BALL_UNCERTAIN)
         self._catches_pub = contract_publisher(self, q.BALL_CATCHES)
-        self._odom_pubs = [contract_publisher(self, q.ODOM, team.topic(q.ODOM, j)) for team, j in self._robots]
+        # A robot's odom (the tracker's estimate, volatile) is built and sent only while something reads it:
+        # in a full team most are unread, and each publish costs tens of microseconds per vision frame.
+        self._odom_readers = [0] * n
+        self._odom_pubs = [self._odom_publisher(i, team.topic(q.ODOM, j)) for i, (team, j) in enumerate(self._robots)]
         self._catch_time_pubs = [contract_publisher(self, q.CATCH_TIME, team.topic(q.CATCH_TIME, j))
                                  for team, j in self._robots]
         self._catch_point_pubs = [contract_publisher(self, q.CATCH_POINT, team.topic(q.CATCH_POINT, j))
@@ -152,6 +155,14 @@ class BallPredictorNode(Node):
             f"(online identification {'on' if predictor.config.online_identification else 'off'})"
         )
         self._params.on_change(self._apply)
+
+    def _odom_publisher(self, robot: int, name: str):
+        def on_matched(readers: int) -> None:
+            self._odom_readers[robot] = readers
+
+        pub = contract_publisher(self, contract.ODOM, name, on_matched=on_matched)
+        self._odom_readers[robot] = pub.get_subscription_count()
+        return pub
 
     def _apply(self, config: PredictorConfig) -> None:
         if config.timing_log_every != self._times.every:
@@ -204,7 +215,7 @@ class BallPredictorNode(Node):
             return
         tracker = self._predictor.robot_frame(robot, t_s, pose[0], pose[1], pose[2],
                                               restart=verdict is StampVerdict.RESTART)
-        if tracker is None:
+        if tracker is None or not self._odom_readers[robot]:
             return
         vel = tracker.velocity_mps
         try:

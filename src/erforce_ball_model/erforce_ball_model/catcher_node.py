@@ -69,16 +69,17 @@ class CatcherNode(Node):
         self._receiver = Receiver(*self._params.built, robot_id=own_id, team_robot_ids=team)
         q = contract
         self._cmd_pub = contract_publisher(self, q.CMD_VEL)
-        # catch_time and catch_point come serialized, as the predictor publishes them (conversions'
-        # codec reads both forms)
+        # The frequent inputs come serialized, as the predictor publishes them (conversions' codec reads
+        # both forms): an executor that takes every message would otherwise build each Odometry in Python,
+        # of which a tick reads only the newest.
         self._inputs = [
             sample_only(contract_subscription(self, topic, callback, raw=raw))
             for topic, callback, raw in (
-                (q.ODOM, self._on_odom, False),
+                (q.ODOM, self._on_odom, True),
                 (q.CATCH_TIME, self._on_catch_time, True),
                 (q.CATCH_POINT, self._on_catch_point, True),
-                (q.BALL_STATE, self._on_ball, False),
-                (q.BALL_V_SHOOT, self._on_v_shoot, False),
+                (q.BALL_STATE, self._on_ball, True),
+                (q.BALL_V_SHOOT, self._on_v_shoot, True),
                 (q.BALL_MODEL_PARAMS, self._on_model_params, False),
                 (q.BALL_DETECTED, self._on_barrier, False),
             )
@@ -109,7 +110,7 @@ class CatcherNode(Node):
             self._warn.warn(what, f"rejected {what}: {exc}")
             return None
 
-    def _on_odom(self, msg: Odometry) -> None:
+    def _on_odom(self, msg: Odometry | bytes) -> None:
         odom = self._convert(msg, "odom", odometry_from_msg)
         if odom is not None:
             self._receiver.on_odom(self._now_s(), odom[1], odom[2])
@@ -129,12 +130,12 @@ class CatcherNode(Node):
         if point is not None:
             self._receiver.on_catch_point(self._now_s(), point[1])
 
-    def _on_ball(self, msg: Odometry) -> None:
+    def _on_ball(self, msg: Odometry | bytes) -> None:
         ball = self._convert(msg, "ball state", odometry_from_msg)
         if ball is not None:
             self._receiver.on_ball(self._now_s(), ball[1], ball[2])
 
-    def _on_v_shoot(self, msg: Float64) -> None:
+    def _on_v_shoot(self, msg: Float64 | bytes) -> None:
         v_shoot = self._convert(msg, "v_shoot", float64_from_msg)
         if v_shoot is not None:
             self._receiver.on_v_shoot(self._now_s(), v_shoot)

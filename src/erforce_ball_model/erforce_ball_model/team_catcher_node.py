@@ -71,11 +71,13 @@ class TeamCatcherNode(Node):
         self.on_clock_restart()
         q = contract
         self._cmd_pubs = {i: contract_publisher(self, q.CMD_VEL, team.topic(q.CMD_VEL, i)) for i in ids}
-        self._inputs = [sample_only(contract_subscription(self, topic, callback))
-                        for topic, callback in ((q.BALL_STATE, self._on_ball), (q.BALL_V_SHOOT, self._on_v_shoot),
-                                                (q.BALL_MODEL_PARAMS, self._on_model_params))]
+        # the frequent inputs serialized, as in the catcher: only the newest of each is decoded
+        self._inputs = [sample_only(contract_subscription(self, topic, callback, raw=raw))
+                        for topic, callback, raw in ((q.BALL_STATE, self._on_ball, True),
+                                                     (q.BALL_V_SHOOT, self._on_v_shoot, True),
+                                                     (q.BALL_MODEL_PARAMS, self._on_model_params, False))]
         for i in ids:
-            for topic, callback, raw in ((q.ODOM, self._on_odom, False), (q.CATCH_TIME, self._on_catch_time, True),
+            for topic, callback, raw in ((q.ODOM, self._on_odom, True), (q.CATCH_TIME, self._on_catch_time, True),
                                          (q.CATCH_POINT, self._on_catch_point, True),
                                          (q.BALL_DETECTED, self._on_barrier, False)):
                 sub = contract_subscription(self, topic, lambda m, i=i, cb=callback: cb(i, m), team.topic(topic, i),
@@ -104,14 +106,14 @@ class TeamCatcherNode(Node):
             self._warn.warn(what, f"rejected {what}: {exc}")
             return None
 
-    def _on_ball(self, msg: Odometry) -> None:
+    def _on_ball(self, msg: Odometry | bytes) -> None:
         ball = self._convert(msg, "ball state", odometry_from_msg)
         if ball is not None:
             now = self._now_s()
             for receiver in self._receivers.values():
                 receiver.on_ball(now, ball[1], ball[2])
 
-    def _on_v_shoot(self, msg: Float64) -> None:
+    def _on_v_shoot(self, msg: Float64 | bytes) -> None:
         v_shoot = self._convert(msg, "v_shoot", float64_from_msg)
         if v_shoot is not None:
             now = self._now_s()
@@ -127,7 +129,7 @@ class TeamCatcherNode(Node):
         for receiver in self._receivers.values():
             receiver.on_model(params)
 
-    def _on_odom(self, robot: int, msg: Odometry) -> None:
+    def _on_odom(self, robot: int, msg: Odometry | bytes) -> None:
         odom = self._convert(msg, f"{self._names[robot]} odom", odometry_from_msg)
         if odom is not None:
             self._receivers[robot].on_odom(self._now_s(), odom[1], odom[2])
