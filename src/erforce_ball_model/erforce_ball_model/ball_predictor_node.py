@@ -132,7 +132,8 @@ class BallPredictorNode(Node):
         # A robot's odom (the tracker's estimate, volatile) is built and sent only while something reads it:
         # in a full team most are unread, and each publish costs tens of microseconds per vision frame.
         self._odom_readers = [0] * n
-        self._odom_pubs = [self._odom_publisher(i, team.topic(q.ODOM, j)) for i, (team, j) in enumerate(self._robots)]
+        self._odom_pubs = [contract_publisher(self, q.ODOM, team.topic(q.ODOM, j), readers=(self._odom_readers, i))
+                           for i, (team, j) in enumerate(self._robots)]
         self._catch_time_pubs = [contract_publisher(self, q.CATCH_TIME, team.topic(q.CATCH_TIME, j))
                                  for team, j in self._robots]
         self._catch_point_pubs = [contract_publisher(self, q.CATCH_POINT, team.topic(q.CATCH_POINT, j))
@@ -155,14 +156,6 @@ class BallPredictorNode(Node):
             f"(online identification {'on' if predictor.config.online_identification else 'off'})"
         )
         self._params.on_change(self._apply)
-
-    def _odom_publisher(self, robot: int, name: str):
-        def on_matched(readers: int) -> None:
-            self._odom_readers[robot] = readers
-
-        pub = contract_publisher(self, contract.ODOM, name, on_matched=on_matched)
-        self._odom_readers[robot] = pub.get_subscription_count()
-        return pub
 
     def _apply(self, config: PredictorConfig) -> None:
         if config.timing_log_every != self._times.every:

@@ -326,12 +326,8 @@ class SslVisionBridge(Node):
         """Our robots' (side 0) under robot_<id>, the opponents' (side 1) under opponent_<id> (see the contract)."""
         topic = contract.VISION_POSE
         name = contract.opponent_topic(topic, robot_id) if side else topic.for_robot(robot_id)
-
-        def on_matched(readers: int) -> None:
-            self._pose_readers[side][robot_id] = readers
-
-        pub = self._pose_pubs[side][robot_id] = contract_publisher(self, topic, name, on_matched=on_matched)
-        self._pose_readers[side][robot_id] = pub.get_subscription_count()
+        pub = self._pose_pubs[side][robot_id] = contract_publisher(self, topic, name,
+                                                                    readers=(self._pose_readers[side], robot_id))
         return pub
 
     def _publish_detections(self, cfg, camera_id: int, age_s: float, balls, robots) -> None:

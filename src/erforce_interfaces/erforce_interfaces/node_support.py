@@ -141,19 +141,26 @@ class NodeParams:
 
 
 def contract_publisher(node: Node, topic: Topic, resolved_name: str | None = None,
-                       on_matched: Callable[[int], None] | None = None):
+                       readers: tuple[list[int], int] | None = None):
     """A publisher for a contract topic, with the contract's type and QoS.
 
     It has no default QoS-event handlers: rclpy adds each handler to every wait set, which
     made a spin of a node with 20 publishers cost 347 us instead of 92 us here. A foreign
     subscriber with an incompatible QoS still gets rclpy's warning on its own side.
-    ``on_matched(readers)``: called on the executor's thread with the number of matched readers
-    whenever a reader comes or goes (a publisher that skips work nobody reads).
+    ``readers`` (a list and an index): the number of matched readers is kept there, set now and on the
+    executor's thread whenever a reader comes or goes (for a publisher that skips work nobody reads).
     """
-    matched = None if on_matched is None else (lambda info: on_matched(info.current_count))
-    return node.create_publisher(topic.msg_type, resolved_name or topic.name, topic.qos,
-                                 event_callbacks=PublisherEventCallbacks(matched=matched,
-                                                                         use_default_callbacks=False))
+    matched = None
+    if readers is not None:
+        counts, index = readers
+
+        def matched(info) -> None:
+            counts[index] = info.current_count
+    pub = node.create_publisher(topic.msg_type, resolved_name or topic.name, topic.qos,
+                                event_callbacks=PublisherEventCallbacks(matched=matched, use_default_callbacks=False))
+    if readers is not None:
+        counts[index] = pub.get_subscription_count()
+    return pub
 
 
 def contract_subscription(node: Node, topic: Topic, callback: Callable, resolved_name: str | None = None,
