@@ -28,7 +28,7 @@ import numpy as np
 
 # The lockstep tick over DDS: the plant's control_period_s and the robot nodes' loop_rate_hz
 # default to it (their schemas; test_param_schema fails when they drift apart). The in-process
-# runner keeps 1 kHz (README, "Time, lockstep and the control loop").
+# runner keeps 1 kHz (README, "The graph").
 TICK_PERIOD_S = 0.002
 
 
