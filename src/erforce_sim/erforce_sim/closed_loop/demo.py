@@ -504,7 +504,7 @@ class Demo:
                 print(f"field view: http://127.0.0.1:{self.args.view_port}/", flush=True)
                 if self.args.foxglove_port:
                     print(f"Foxglove: ws://127.0.0.1:{self.args.foxglove_port} (layout: "
-                          f"{Path(__file__).resolve().parents[1] / 'config' / 'foxglove_layout.json'})", flush=True)
+                          f"{Path(__file__).resolve().parents[2] / 'config' / 'foxglove_layout.json'})", flush=True)
                 return
             time.sleep(0.2)
         print(f"the field view did not start; see {log}", flush=True)
