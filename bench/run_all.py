@@ -29,6 +29,7 @@ MODULES = (
     ("lockstep over DDS", "bench_lockstep"),
     ("field view", "bench_field_view"),
     ("self-healing graph", "bench_respawn"),
+    ("floods", "bench_flood"),
     ("executors", "bench_executor"),
     ("SSL-Vision in", "bench_ssl_vision"),
     ("SSL logs", "bench_ssl_logs"),
