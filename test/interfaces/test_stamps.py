@@ -17,7 +17,7 @@ from erforce_interfaces.executor import (
     sample_only,
     set_callback_fault_handler,
 )
-from erforce_interfaces.node_support import CALLBACK_FAULT, guard_callbacks, guard_clock
+from erforce_interfaces.node_support import CALLBACK_FAULT, quiet_after_shutdown, guard_callbacks, guard_clock
 from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
 from erforce_interfaces.tools.testing import isolated_node
 
@@ -160,6 +160,25 @@ def test_without_a_guard_a_raising_callback_ends_the_spin(env):
     pub.publish(Int32(data=1))
     with pytest.raises(ZeroDivisionError):
         spin_until(executor, lambda: False, timeout_s=5.0)
+
+
+def test_a_timer_fault_ends_the_node_unless_the_context_was_shut_down_under_it(env):
+    node, _executor = env
+
+    def publish_after_ctrl_c():
+        raise RuntimeError("Failed to publish: publisher's context is invalid")
+
+    timer = node.create_timer(10.0, publish_after_ctrl_c)
+    guard_callbacks(node)
+    # A timer is our own code: with the context up its exception still ends the node.
+    with pytest.raises(RuntimeError, match="context is invalid"):
+        timer.callback()
+
+    class ShutDown:
+        context = type("Context", (), {"ok": staticmethod(lambda: False)})()
+
+    # After Ctrl-C the same exception is the shutdown itself: silent.
+    assert quiet_after_shutdown(ShutDown(), publish_after_ctrl_c)() is None
 
 
 def test_the_clock_rule_drops_garbage_and_resets_on_a_restart(env):

@@ -242,8 +242,25 @@ def guard_callbacks(node: Node) -> ThrottledWarner:
 
     for sub in node.subscriptions:
         guard(sub)
+    for timer in node.timers:
+        timer.callback = quiet_after_shutdown(node, timer.callback)
     set_callback_fault_handler(on_fault)
     return warner
+
+
+def quiet_after_shutdown(node: Node, callback: Callable[[], None]) -> Callable[[], None]:
+    """A timer callback that ends silently when Ctrl-C shut the context down under it (a publish then
+    raises "context is invalid", which an executor would log as a fatal fault). Any other exception still
+    ends the node: a timer is our own code, not input."""
+
+    def run() -> None:
+        try:
+            callback()
+        except Exception:
+            if node.context.ok():
+                raise
+
+    return run
 
 
 def guard_clock(node: Node, max_jump_s: float = 2.0) -> StampFilter | None:
