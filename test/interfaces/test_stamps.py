@@ -17,7 +17,7 @@ from erforce_interfaces.executor import (
     sample_only,
     set_callback_fault_handler,
 )
-from erforce_interfaces.node_support import CALLBACK_FAULT, quiet_after_shutdown, guard_callbacks, guard_clock
+from erforce_interfaces.node_support import CALLBACK_FAULT, guard_callbacks, guard_clock, quiet_after_shutdown
 from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
 from erforce_interfaces.tools.testing import isolated_node
 
