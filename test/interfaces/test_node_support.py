@@ -8,7 +8,7 @@ import pytest
 import rclpy.node
 from rclpy.parameter import Parameter
 
-from erforce_interfaces.node_support import NodeParams, ThrottledWarner, run_node
+from erforce_interfaces.node_support import NodeParams, ThrottledWarner, run_node, stray_arguments
 from erforce_interfaces.param_schema import ParamSchema
 from erforce_interfaces.tools.testing import isolated_node
 
@@ -220,3 +220,11 @@ def test_run_node_ends_cleanly_when_ctrl_c_shut_the_context_under_a_publishing_c
     assert run_node(lambda: PublishesAfterShutdown(True), args=[]) == 0
     with pytest.raises(RCLError, match="context alive"):
         run_node(lambda: PublishesAfterShutdown(False), args=[])
+
+
+def test_a_node_names_the_arguments_it_ignores():
+    # `-p` before --ros-args is no parameter at all: the node says so instead of running on defaults.
+    assert stray_arguments(["ssl_vision_bridge", "-p", "port:=10020"]) == ["-p", "port:=10020"]
+    assert stray_arguments(["ssl_vision_bridge", "--ros-args", "-p", "port:=10020"]) == []
+    assert stray_arguments(["plant", "--ros-args", "-r", "__ns:=/a", "--", "extra"]) == ["extra"]
+    assert stray_arguments(["plant"]) == []

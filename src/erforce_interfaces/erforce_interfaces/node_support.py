@@ -16,6 +16,7 @@ import array
 import gc
 import math
 import signal
+import sys
 import threading
 import traceback
 from collections.abc import Callable
@@ -33,6 +34,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
+from rclpy.utilities import remove_ros_args
 
 from erforce_interfaces.contract import CLOCK, Topic
 from erforce_interfaces.executor import guard, make_executor, sample_only, set_callback_fault_handler
@@ -343,6 +345,12 @@ class QuietInterrupt:
             signal.signal(signal.SIGINT, signal.SIG_IGN if self.received else self._previous)
 
 
+def stray_arguments(argv: list[str]) -> list[str]:
+    """What a node's command line holds besides its program name and its ROS arguments: ``-p x:=1`` without
+    ``--ros-args`` before it is silently no parameter at all, so the node names what it ignores."""
+    return remove_ros_args(list(argv))[1:]
+
+
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, executor_kind: str | None = None) -> int:
     """Standard node main: init, spin on EventsExecutor (erforce_interfaces.executor.make_executor; ``executor_kind``
     picks another, as there), clean shutdown.
@@ -365,6 +373,11 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, ex
             # Invalid configuration at start-up: one clear line, no traceback.
             rclpy.logging.get_logger("erforce").fatal(f"cannot start: {exc}")
             return 1
+        stray = stray_arguments(sys.argv if args is None else args)
+        if stray:
+            node.get_logger().warning(
+                f"ignoring arguments {' '.join(stray)}: a node takes ROS arguments only, after --ros-args "
+                "(e.g. --ros-args -p port:=10020)")
         guard_callbacks(node)
         guard_clock(node)
         executor = make_executor(executor_kind)  # EventsExecutor unless told or ERFORCE_EXECUTOR says otherwise
