@@ -212,3 +212,18 @@ def test_a_client_that_never_reads_loses_frames_and_slows_nobody(server):
     assert publish_s < 0.5  # 300 publishes: left to the clients' senders, never waiting for a client
     slow.close()
     still_serves(server)
+
+
+def test_stop_ends_within_the_close_timeout_while_a_page_does_not_read():
+    server = ViewServer(WEB, port=0)
+    server.start()
+    stuck = _raw_websocket(server)  # never reads: a write to it blocks in its sender thread
+    stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    wait_until(lambda: server.client_count == 1)
+    big = frame_text({"t": 0.0, "padding": "x" * 100_000})
+    for _ in range(20):
+        server.publish(big)
+    start = time.monotonic()
+    server.stop()
+    assert time.monotonic() - start < 3.0  # close_timeout 1 s, not websockets' default 10 s
+    stuck.close()

@@ -177,7 +177,9 @@ class ViewServer:
                                  compression=None,
                                  # no keep-alive pings: frames go out 30 times a second, and a write to a
                                  # page that is gone fails; a ping could only hold the connection's lock
-                                 ping_interval=None)
+                                 ping_interval=None,
+                                 # stop() waits this long at most for a page to answer the close
+                                 close_timeout=1.0)
         except OSError as exc:
             raise OSError(f"cannot serve on {self.host}:{self.port}: {exc}") from exc
         self.port = self._server.socket.getsockname()[1]
