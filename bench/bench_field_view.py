@@ -122,6 +122,20 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def _thread_cpu_s(pid: int) -> dict[str, float]:
+    """utime + stime per thread name of a process [s] (threads of one name summed)."""
+    out: dict[str, float] = {}
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            text = open(f"/proc/{pid}/task/{tid}/stat").read()
+        except OSError:  # ended meanwhile
+            continue
+        name = text[text.index("(") + 1:text.rindex(")")]
+        fields = text.rsplit(")", 1)[1].split()
+        out[name] = out.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    return out
+
+
 def _page_reader(url: str, stop: threading.Event, num_robots: int, robots_seen: list, frames: list) -> None:
     """A page that reads every frame (a browser stands in here; it may run on another computer): it
     parses frames only until it has seen every robot, then counts them."""
@@ -148,7 +162,7 @@ def measure_graph(frames_per_block: int, pairs: int, num_robots: int = NUM_ROBOT
     frames = _shots(2 * pairs * (frames_per_block + 200) + 1000, rng)  # every phase; stamps increasing
     cursor = [0]
     out: dict = {"without_p50": [], "with_p50": [], "without_p99": [], "with_p99": [], "view_cpu": [],
-                 "page_fps": [], "view_cpu_per_frame": []}
+                 "page_fps": [], "view_cpu_per_frame": [], "view_threads_per_frame": []}
     with RosGraph() as graph:
         # The predictor and the view in this process's session, as `./run demo --view` runs the graph and the view
         graph.start_node("erforce_ball_model", "ball_predictor", own_session=False,
@@ -205,12 +219,17 @@ def measure_graph(frames_per_block: int, pairs: int, num_robots: int = NUM_ROBOT
                     run_phase(10)
                 run_phase(20)
                 cpu0, wall0, n0 = _cpu_s(view.pid), time.monotonic(), len(page_frames)
+                threads0 = _thread_cpu_s(view.pid)
                 lat = run_phase(frames_per_block)
                 wall = time.monotonic() - wall0
                 cpu = _cpu_s(view.pid) - cpu0
+                threads1 = _thread_cpu_s(view.pid)
                 out["view_cpu"].append(cpu / wall)
                 out["page_fps"].append((len(page_frames) - n0) / wall)
-                out["view_cpu_per_frame"].append(cpu / max(1, len(page_frames) - n0))
+                sent = max(1, len(page_frames) - n0)
+                out["view_cpu_per_frame"].append(cpu / sent)
+                out["view_threads_per_frame"].append({name: (threads1[name] - threads0.get(name, 0.0)) / sent
+                                                      for name in threads1})
                 out["with_p50"].append(np.median(lat))
                 out["with_p99"].append(np.percentile(lat, 99))
             finally:
@@ -231,6 +250,13 @@ def measure_graph(frames_per_block: int, pairs: int, num_robots: int = NUM_ROBOT
 def _median_range(values, scale: float = 1.0, digits: int = 2) -> str:
     v = scale * np.asarray(values)
     return f"{np.median(v):.{digits}f} ({v.min():.{digits}f}–{v.max():.{digits}f})"
+
+
+def _thread_split(g: dict) -> str:
+    blocks = g["view_threads_per_frame"]
+    names = sorted({n for b in blocks for n in b}, key=lambda n: -sum(b.get(n, 0.0) for b in blocks))
+    parts = [f"{n} {1000.0 * np.mean([b.get(n, 0.0) for b in blocks]):.2f}" for n in names]
+    return ", ".join(p for p in parts if not p.endswith(" 0.00"))
 
 
 def run(quick: bool = False) -> list[dict]:
@@ -257,6 +283,8 @@ def run(quick: bool = False) -> list[dict]:
              value=_median_range(g["view_cpu_per_frame"], 1000.0, 2), unit="ms", target="< 1.67 (5 % at 30 frames/s)",
              note="the same blocks; less sensitive to the load than the share of a core, since a starved view "
                   "(SCHED_IDLE) sends fewer frames"),
+        dict(name="field_view CPU per frame sent, by thread (mean of the blocks)", value=_thread_split(g), unit="ms",
+             target="-", note="/proc/<pid>/task/*/stat, threads of one name summed; 10 ms ticks"),
         dict(name=f"vision -> catch_time published, p50, {NUM_ROBOTS} robots, without / with the view, "
                   "median (range) of the blocks' p50",
              value=f"{_median_range(g['without_p50'])} / {_median_range(g['with_p50'])}", unit="ms",

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import struct
 from types import SimpleNamespace
 
 import pytest
@@ -312,9 +313,10 @@ def test_the_foxglove_scene_draws_what_the_page_draws():
     assert shapes["robots"]["arrows"][0]["yaw"] == 0.25
     assert [t["text"] for t in shapes["robots"]["texts"]] == ["0", "0: 0.80 s", "1"]
     assert shapes["ball"]["spheres"] == [{"x": -0.5, "y": 0.0, "diameter": 0.043, "color": "#ff8a00"}]
-    sliding, rolling, target = shapes["ball"]["lines"]  # no stop point published; robot_0's target
+    sliding, rolling, cross, _, target = shapes["ball"]["lines"]  # the stop point's cross; robot_0's target
     assert sliding["points"] == [(-0.5, 0.0), (pytest.approx(-0.5 + 0.512), 0.0)]
     assert rolling["points"][1] == (pytest.approx(-0.5 + 2.912), 0.0)
+    assert cross["points"] == [(pytest.approx(-0.5 + 2.912 - 0.06), -0.06), (pytest.approx(-0.5 + 2.912 + 0.06), 0.06)]
     assert target["loop"] and math.dist(target["points"][0], (0.5, 0.0)) == pytest.approx(0.1)
     assert len(scene_update(frame, 1_000_000_000).encode()) > 500  # the foxglove message builds and encodes
     assert plots_message(frame) == {"t": 1.0, "current_limit_a": 1.3, "robot": 0, "ball_speed_true": 2.0,
@@ -450,7 +452,6 @@ def test_the_binary_frame_says_what_the_frame_says():
     ball_state(state, 1.0, (1.0, -1.0), (0.0, 2.0))
     assert state.apply(c.GROUND_TRUTH_BALL.name, odometry_cdr(1.0, (1.01, -1.0, 0.0), (0.0, 2.1, 0.0)))
     assert state.apply(c.VISION_BALL.name, point_cdr(1.0, (1.02, -0.99)))
-    assert state.apply(c.BALL_STOP_POINT.name, point_cdr(1.0, (1.0, 1.912)))
     assert state.apply(c.BALL_PHASE.name, String(data="sliding"))
     assert state.apply(c.BALL_CATCHES.name, catch_table([[OURS, 0, 1.0, 2.0, -math.pi / 2, 0.3, 0.4, 0.75, 1.0, 0.0],
                                                          [OURS, 4, -1.0, 0.5, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0],
@@ -466,6 +467,7 @@ def test_the_binary_frame_says_what_the_frame_says():
     assert state.apply(c.PASS_CHOICE.name, pass_choice_cdr((0, choice), PassConfig(safe_margin_s=0.3)))
     frame = state.frame()
     decoded = decode_frame_bytes(state.frame_bytes())
+    assert frame["stop_point"] == frame["path"]["stop"]  # the view's own prediction, as the predictor's
     marks = frame["path"].pop("marks")
     assert decoded == _approx_tree(frame)
     assert [(r["id"], r["team"]) for r in decoded["robots"]] == [(0, "ours"), (2, "ours"), (4, "ours"),
@@ -537,3 +539,31 @@ def test_a_frame_of_robots_known_only_from_team_tables_is_the_same_built_from_th
     frame["path"].pop("marks")
     assert decode_frame_bytes(state.frame_bytes()) == _approx_tree(frame)
     assert frame["robots"][1]["pose"] == [-2.0, 1.5, 1.0] and frame["robots"][1]["truth"]
+
+
+def test_team_tables_read_from_their_bytes_say_what_the_messages_say():
+    """/ball/catches as the node takes it (CDR bytes): the tables after the first, of the same robots, are
+    read in place; their values, a new robot, a value that is not finite or too large count as in the
+    message."""
+    rows = [[OURS, 0, 1.0, 2.0, -math.pi / 2, 0.3, 0.4, 0.75, 1.0, 0.0],
+            [THEIRS, 0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.5, 0.6, 0.0]]
+    from_bytes, from_msg = WorldState(FIELD), WorldState(FIELD)
+    for state in (from_bytes, from_msg):
+        ball_state(state, 2.0, (0.0, 0.0), (1.0, 0.0))
+    moved = [[OURS, 0, 1.5, 2.0, 0.0, 0.0, 0.0, 0.25, 1.5, 0.0], rows[1]]
+    added = [*moved, [OURS, 3, -1.0, 0.5, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0]]
+    for table in (rows, moved, added):
+        assert from_bytes.apply(c.BALL_CATCHES.name, serialize_message(catch_table(table)))
+        assert from_msg.apply(c.BALL_CATCHES.name, catch_table(table))
+        assert from_bytes.frame() == from_msg.frame()
+        assert from_bytes.frame_bytes() == from_msg.frame_bytes()
+    r0 = from_bytes.frame()["robots"][0]
+    assert (r0["pose"], r0["catch_time"], r0["catch_point"]) == ([1.5, 2.0, 0.0], 0.25, [1.5, 0.0])
+    good = serialize_message(catch_table(added))
+    nan, huge = bytearray(good), bytearray(good)
+    nan[-8:] = struct.pack("<d", math.nan)  # the last row's catch_y
+    huge[-8:] = struct.pack("<d", 2.0e9)
+    assert not from_bytes.apply(c.BALL_CATCHES.name, bytes(nan))
+    assert not from_bytes.apply(c.BALL_CATCHES.name, bytes(huge))
+    assert from_bytes.rejected == 2
+    assert from_bytes.apply(c.BALL_CATCHES.name, good)

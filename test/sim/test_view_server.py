@@ -29,7 +29,7 @@ def server():
             return {"echo": request["echo"]}
         raise ValueError("unknown request")
 
-    s = ViewServer(WEB, port=0, max_clients=32, client_queue_depth=4, on_request=on_request)
+    s = ViewServer(WEB, port=0, max_clients=32, on_request=on_request)
     s.start()
     yield s
     s.stop()
@@ -194,7 +194,7 @@ def test_a_hundred_clients_get_served_up_to_the_limit_and_a_503_beyond(server):
 
 
 def test_a_client_that_never_reads_loses_frames_and_slows_nobody(server):
-    slow = _raw_websocket(server)  # never reads: its socket buffers fill, then its queue drops
+    slow = _raw_websocket(server)  # never reads: its socket buffers fill, then its pending frames are replaced
     slow.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     with connect(ws_url(server), open_timeout=5) as fast:
         wait_until(lambda: server.client_count == 2)
@@ -209,6 +209,21 @@ def test_a_client_that_never_reads_loses_frames_and_slows_nobody(server):
         while json.loads(fast.recv(timeout=10))["frame"]["t"] != 9.0:
             assert time.monotonic() < deadline
         wait_until(lambda: server.frames_dropped > 100)
-    assert publish_s < 0.5  # 300 publishes: queued, never waiting for a client
+    assert publish_s < 0.5  # 300 publishes: left to the clients' senders, never waiting for a client
     slow.close()
     still_serves(server)
+
+
+def test_stop_ends_within_the_close_timeout_while_a_page_does_not_read():
+    server = ViewServer(WEB, port=0)
+    server.start()
+    stuck = _raw_websocket(server)  # never reads: a write to it blocks in its sender thread
+    stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    wait_until(lambda: server.client_count == 1)
+    big = frame_text({"t": 0.0, "padding": "x" * 100_000})
+    for _ in range(20):
+        server.publish(big)
+    start = time.monotonic()
+    server.stop()
+    assert time.monotonic() - start < 3.0  # close_timeout 1 s, not websockets' default 10 s
+    stuck.close()

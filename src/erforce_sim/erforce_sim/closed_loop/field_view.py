@@ -63,9 +63,11 @@ STAMP_MAX_JUMP_S = 10.0
 RECEIVER_SWITCH_MARGIN_S = 0.1
 
 # Topics the view takes, global and per robot (relative names).
+# The stop point is not taken from /ball/stop_point: the view's prediction (the ball model of the
+# predictor's state, v_shoot and model) has it, one topic fewer to deliver 70 times a second.
 GLOBAL_TOPICS = (
     contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_STATE, contract.BALL_PHASE,
-    contract.BALL_STOP_POINT, contract.BALL_V_SHOOT, contract.BALL_UNCERTAIN, contract.BALL_MODEL_PARAMS,
+    contract.BALL_V_SHOOT, contract.BALL_UNCERTAIN, contract.BALL_MODEL_PARAMS,
     contract.SIM_EVENTS, contract.BALL_CATCHES, contract.PASS_CHOICE,
 )
 ROBOT_TOPICS = (
@@ -151,7 +153,6 @@ class WorldState:
     ball_state: tuple[float, float, float, float] | None = None
     ball_state_t_s: float = -math.inf
     phase: str = "unknown"
-    stop_point: tuple[float, float] | None = None
     v_shoot_mps: float = 0.0
     uncertain: bool = False
     model: BallModelParams = field(default_factory=BallModelParams)
@@ -169,6 +170,8 @@ class WorldState:
     # waits for a message about one robot or a new time line (``_settle_table``), so that a frame of
     # robots known only from team tables is built from the table in one piece (``frame_bytes``).
     _pending_table: tuple[np.ndarray, float, list[int]] | None = None  # (rows, time, ids)
+    _catch_layout: tuple[bytes, int] = (b"", 0)  # /ball/catches: its CDR bytes before the values, their count
+    _catch_ids: _CatchIds | None = None  # the robots of the newest team table
     _robots_only_from_tables: bool = True  # no message about one robot yet
 
     # -------------------------------------------------------------- input
@@ -268,8 +271,6 @@ class WorldState:
             self._update_speed_model(t)
         elif topic is c.BALL_PHASE:
             self.phase = msg.data if msg.data in c.BALL_PHASES else "unknown"
-        elif topic is c.BALL_STOP_POINT:
-            self.stop_point = _wire(point_from_msg(msg)[1])
         elif topic is c.BALL_V_SHOOT:
             self.v_shoot_mps = float64_from_msg(msg, limit=100.0)
         elif topic is c.BALL_UNCERTAIN:
@@ -279,21 +280,35 @@ class WorldState:
         elif topic is c.SIM_EVENTS:
             self.events.append(str(msg.data)[:200])
         elif topic is c.BALL_CATCHES:
-            self._apply_catch_table(table_from_msg(msg, c.CATCH_TABLE_COLUMNS))
+            self._apply_catch_table(self._catch_rows(msg))
         elif topic is c.PASS_CHOICE:
             self.pass_choice = _pass_choice(table_from_msg(msg, c.PASS_CHOICE_COLUMNS))
 
+    def _catch_rows(self, msg: Any) -> np.ndarray:
+        """The /ball/catches table (conversions.table_from_msg). Its CDR bytes up to the values repeat from
+        frame to frame while the robots do: once read, a message that starts with the same bytes is read
+        as values at the same place, with the same checks on them."""
+        header, count = self._catch_layout
+        if isinstance(msg, bytes) and count and msg.startswith(header) and 0 <= len(msg) - len(header) - 8 * count < 8:
+            values = np.frombuffer(msg, "<f8", count, len(header))
+            if np.isfinite(values).all() and np.abs(values).max() <= 1.0e9:
+                return values.reshape(-1, len(contract.CATCH_TABLE_COLUMNS))
+        table = table_from_msg(msg, contract.CATCH_TABLE_COLUMNS)  # raises with the reason
+        if isinstance(msg, bytes) and table.size:
+            # the values start 8-aligned after the 4-byte encapsulation header; up to 7 bytes may pad the end
+            start = next(k for k in range(len(msg) - 8 * table.size, len(msg) - 8 * table.size - 8, -1)
+                         if (k - 4) % 8 == 0)
+            self._catch_layout = (msg[:start], table.size)
+        return table
+
     def _apply_catch_table(self, table: np.ndarray) -> None:
         """Both teams at one ball frame (contract.CATCH_TABLE_COLUMNS): their robots are fresh now."""
-        teams, id_list = table[:, 0].tolist(), table[:, 1].tolist()  # finite (table_from_msg)
-        if not all(0.0 <= i <= 1e6 and i == int(i) for i in id_list):
-            raise ValueError("robot ids of /ball/catches must be whole numbers >= 0")
-        ours, theirs = contract.OURS.code, contract.OPPONENTS.code
-        if not all(t in (ours, theirs) for t in teams):
-            raise ValueError("the team column of /ball/catches must be a contract.Team code")
-        keys: list[RobotKey] = [int(i) if t == ours else opponent_key(int(i))
-                                for t, i in zip(teams, id_list, strict=True)]
-        if self._pending_table is not None and not set(self._pending_table[2]).issubset(keys):
+        layout = self._catch_ids
+        if layout is None or table[:, :2].tobytes() != layout.ids_bytes:
+            layout = self._catch_ids = _CatchIds(table[:, :2], self.opponent_ids, self.team_ids)
+        keys = layout.keys
+        if self._pending_table is not None and self._pending_table[2] is not keys \
+                and not set(self._pending_table[2]).issubset(keys):
             self._settle_table()  # the one before, for its robots this one does not list
         robots = self.robots
         for key in keys:
@@ -356,9 +371,17 @@ class WorldState:
         except ValueError:
             return None
 
-    def _moving_prediction(self) -> BallTrajectory | None:
-        trajectory = self.prediction()
+    @staticmethod
+    def _moving(trajectory: BallTrajectory | None) -> BallTrajectory | None:
         return trajectory if trajectory is not None and trajectory.floats.stop_time_s > 0.0 else None
+
+    @staticmethod
+    def _stop_point(trajectory: BallTrajectory | None) -> list[float] | None:
+        """Where the ball comes to rest (the ball model's stop point; where it lies when at rest)."""
+        if trajectory is None:
+            return None
+        f = trajectory.floats
+        return _wire((f.x_m + f.ux * f.stop_distance_m, f.y_m + f.uy * f.stop_distance_m))
 
     def _shown_robots(self) -> list[RobotView]:
         """The robots the page draws, in id order (ours, then opponents' keys): those with a fresh pose."""
@@ -424,7 +447,8 @@ class WorldState:
         if self.ball_state is not None:
             ball["state"] = self.ball_state
         path = None
-        trajectory = self._moving_prediction()
+        prediction = self.prediction()
+        trajectory = self._moving(prediction)
         if trajectory is not None:
             f = trajectory.floats
             count = min(40, int(f.stop_time_s / PATH_MARK_PERIOD_S))
@@ -460,7 +484,7 @@ class WorldState:
             "model": meta["model"],
             "ball": ball,
             "path": path,
-            "stop_point": self.stop_point,
+            "stop_point": self._stop_point(prediction),
             "robots": robots,
             "receiver": None if receiver is None else dict(zip(("id", "target", "catch_time"), receiver, strict=True)),
             "pass": meta["pass"],
@@ -478,9 +502,10 @@ class WorldState:
         scalars.append(round(self.ball_truth_t_s, 4) if self.ball_truth is not None else nan)
         scalars += self.ball_seen or _NAN2
         scalars += self.ball_state or _NAN4
-        scalars += self.stop_point or _NAN2
+        prediction = self.prediction()
+        scalars += self._stop_point(prediction) or _NAN2
         scalars.append(round(self.v_shoot_mps, 4))
-        trajectory = self._moving_prediction()
+        trajectory = self._moving(prediction)
         if trajectory is None:
             scalars += _NAN10
         else:
@@ -532,28 +557,26 @@ class WorldState:
         rows, t_s, ids = self._pending_table
         if len(ids) != len(self.robots):
             return None  # a robot of an earlier table is not in this one
-        order = sorted(range(len(ids)), key=lambda k: _robot_order(ids[k]))
-        if order != list(range(len(ids))):
-            rows, ids = rows[order], [ids[k] for k in order]
-        never = contract.CATCH_TIME_NEVER
-        times = [t if t >= 0.0 else never for t in rows[:, 6].tolist()]
-        opponents, team = self.opponent_ids, self.team_ids
-        self.receiver = team_receiver({i: t for i, t in zip(ids, times, strict=True)
-                                       if isinstance(i, int) and i not in opponents and (not team or i in team)},
-                                      self.receiver, RECEIVER_SWITCH_MARGIN_S)
+        layout = self._catch_ids
+        if layout.order is not None:
+            rows = rows[layout.order]
+        catch_s = rows[:, 6]
+        self.receiver = team_receiver(dict(zip(layout.receiver_ids, catch_s[layout.receiver_rows].tolist(),
+                                               strict=True)), self.receiver, RECEIVER_SWITCH_MARGIN_S)
         receiver = None
         if self.receiver is not None:
-            row = rows[ids.index(self.receiver)]
+            row = rows[layout.sorted_keys.index(self.receiver)]
             receiver = (self.receiver, [float(row[7]), float(row[8])], float(row[6]))
         if t_s < self.t_s - ROBOT_STALE_S:
             return receiver, np.empty(0, np.float32), 0, len(ROBOT_COLUMNS)
         cells = np.zeros((len(rows), len(ROBOT_COLUMNS)), np.float32)
-        cells[:, 0] = [2 if isinstance(i, str) else 1 if i in opponents else 0 for i in ids]
+        cells[:, 0] = layout.kinds
         cells[:, 1:5] = rows[:, 0:4]
         cells[:, 5] = np.round(np.hypot(rows[:, 4], rows[:, 5]), 4)
-        cells[:, 7] = times
+        never = catch_s < 0.0
+        cells[:, 7] = np.where(never, contract.CATCH_TIME_NEVER, catch_s)
         cells[:, 8:10] = rows[:, 7:9]
-        cells[rows[:, 6] < 0.0, 8:10] = np.nan
+        cells[never, 8:10] = np.nan
         return receiver, cells, len(rows), len(ROBOT_COLUMNS)
 
     def _meta_json(self) -> bytes:
@@ -563,6 +586,31 @@ class WorldState:
             text = json.dumps(self._meta(), separators=(",", ":"), allow_nan=False).encode()
             self._meta_cache = (self._meta_serial, text + b" " * (-len(text) % 8))
         return self._meta_cache[1]
+
+
+class _CatchIds:
+    """The robots of a /ball/catches table (its team and id columns), checked and laid out once for as
+    long as the tables list the same robots: their keys in the table's order, and for the binary frame
+    the order by key, each one's kind and the rows of the team that picks a receiver."""
+
+    def __init__(self, team_and_id: np.ndarray, opponent_ids: frozenset[int], team_ids: frozenset[int]) -> None:
+        self.ids_bytes = team_and_id.tobytes()
+        teams, id_list = team_and_id[:, 0].tolist(), team_and_id[:, 1].tolist()  # finite (table_from_msg)
+        if not all(0.0 <= i <= 1e6 and i == int(i) for i in id_list):
+            raise ValueError("robot ids of /ball/catches must be whole numbers >= 0")
+        ours, theirs = contract.OURS.code, contract.OPPONENTS.code
+        if not all(t in (ours, theirs) for t in teams):
+            raise ValueError("the team column of /ball/catches must be a contract.Team code")
+        self.keys: list[RobotKey] = [int(i) if t == ours else opponent_key(int(i))
+                                     for t, i in zip(teams, id_list, strict=True)]
+        order = sorted(range(len(self.keys)), key=lambda k: _robot_order(self.keys[k]))
+        self.order = None if order == list(range(len(order))) else order
+        self.sorted_keys = [self.keys[k] for k in order]
+        self.kinds = np.array([2 if isinstance(i, str) else 1 if i in opponent_ids else 0 for i in self.sorted_keys],
+                              np.float32)
+        self.receiver_rows = [k for k, i in enumerate(self.sorted_keys) if isinstance(i, int)
+                              and i not in opponent_ids and (not team_ids or i in team_ids)]
+        self.receiver_ids = [self.sorted_keys[k] for k in self.receiver_rows]
 
 
 #: The binary frame (little-endian): a header, the JSON of what changes slowly (``WorldState._meta``),

@@ -2,7 +2,7 @@
 Foxglove WebSocket server, as a ROS 2 node.
 
 It serves http://127.0.0.1:<port>/ (erforce_sim.closed_loop.view_server; the page's files ship in
-share/erforce_sim/web). Every ``1 / rate_hz`` of wall time (a tick in the server's thread: the only
+share/erforce_sim/web). Every ``1 / rate_hz`` of wall time (a tick in the server's tick thread: the only
 wake-up per frame; no message wakes the process) it takes the newest message of each
 topic the view shows (erforce_sim.closed_loop.field_view lists them; robots are found as their topics appear),
 hands them to the core (erforce_sim.closed_loop.field_view.WorldState) and sends its frame to the pages
@@ -123,9 +123,10 @@ class FieldViewNode(Node):
             skipped = f", {self._replay.skipped} undecodable skipped" if self._replay.skipped else ""
             self.get_logger().info(f"replay: {v['bag']} ({len(self._replay)} messages{skipped}, "
                                    f"{self._replay.start_s:.1f} to {self._replay.end_s:.1f} s)")
-        # The frames are taken, built and sent in the server's thread, one wake-up per frame; the graph's
+        # The frames are taken, built and sent in the server's tick thread, one wake-up per frame; the graph's
         # discovery in the executor's: the lock keeps them apart.
         self._lock = threading.Lock()
+        self._replay_lock = threading.Lock()
         self._subs: dict[str, Any] = {}  # topic -> raw subscription of the view
         self._types: dict[str, str] = {}
         self._deep: set[str] = set()  # topics whose queue holds more than the newest message
@@ -191,7 +192,7 @@ class FieldViewNode(Node):
             self._last_value.pop(topic, None)
 
     def _tick(self) -> None:
-        """One frame (in the server's thread). A Ctrl-C shuts rclpy's context down from the main thread,
+        """One frame (in the server's tick thread). A Ctrl-C shuts rclpy's context down from the main thread,
         maybe under this tick's takes: what that raises is the shutdown, not a fault."""
         if not self.context.ok():
             return
@@ -235,7 +236,7 @@ class FieldViewNode(Node):
             self._foxglove.publish_frame(self._state.frame())
 
     def _on_request(self, request: dict) -> dict:
-        """A page's requests (in the server's thread): ``{"info": 1}``, ``{"replay": t_s}``."""
+        """A page's requests (in that page's thread of the server): ``{"info": 1}``, ``{"replay": t_s}``."""
         if "info" in request:
             replay = self._replay
             return {"info": {"replay": None if replay is None else {"start": replay.start_s, "end": replay.end_s}}}
@@ -245,7 +246,8 @@ class FieldViewNode(Node):
             t = request["replay"]
             if not isinstance(t, int | float) or isinstance(t, bool):
                 raise ValueError(f"replay: a time in seconds, got {t!r}")
-            return {"frame": self._replay.frame_at(float(t))}
+            with self._replay_lock:  # pages ask from threads of their own
+                return {"frame": self._replay.frame_at(float(t))}
         raise ValueError(f"unknown request {json.dumps(request)[:80]}")
 
     def destroy_node(self) -> None:

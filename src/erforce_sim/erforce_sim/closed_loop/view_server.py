@@ -1,57 +1,145 @@
 """The field view's web server: the page's files over HTTP and its frames over a websocket, one port.
 
-``ViewServer`` runs the ``websockets`` library's asyncio server in a thread of its own. ``GET /``
-and the page's files (share/erforce_sim/web) are plain HTTP; ``/ws`` is the websocket. Frames go
-out with ``publish(frame)`` from any thread: a text is encoded once, and the frame queued for every
-client, each in a bounded queue that drops its oldest frame when full, so a slow client loses
-frames and never slows the caller; a frame given as bytes goes out as a binary message. A client
-sends JSON requests (``{"replay": t}`` and the like);
-``on_request(request) -> reply`` answers them in the server's thread, and a reply that is a dict
+``ViewServer`` runs the ``websockets`` library's threaded server (``websockets.sync``): a thread accepts,
+and each connection has a thread of its own that reads its requests. ``GET /`` and the page's files
+(share/erforce_sim/web) are plain HTTP; ``/ws`` is the websocket. Frames go out with ``publish(frame)``
+from any thread: a text is encoded once, and a frame given as bytes goes out as a binary message. A
+frame that fits in a client's empty socket buffer is written at once by the caller (the usual case:
+no thread wakes for it); otherwise it waits as that client's pending frame, which its own sender thread
+writes, and a newer frame replaces it (counted in ``frames_dropped``), so a slow client loses frames
+and never slows the caller. A client sends JSON requests (``{"replay": t}`` and the like);
+``on_request(request) -> reply`` answers them in that client's thread, and a reply that is a dict
 goes back to that client only. Bad input gets an error and never ends the server: an unknown
 path a 404, a request that is not JSON an ``{"error": ...}`` message, a malformed or oversized
 websocket frame the close code the protocol prescribes (1002, 1009), a client beyond
 ``max_clients`` a 503.
 
-With ``on_tick`` the server also calls that function every ``tick_period_s`` in its own thread (a
-frame it publishes there goes to the clients in the same wake-up): one thread that wakes once per
-frame to take, build and send it.
+With ``on_tick`` the server also calls that function every ``tick_period_s`` in a thread of its own
+(a frame it publishes there is written in the same wake-up): one thread that wakes once per frame to
+take, build and send it.
 """
 
 from __future__ import annotations
 
-import asyncio
+import contextlib
+import fcntl
 import http
 import json
 import logging
 import mimetypes
+import socket
+import termios
 import threading
-from collections import deque
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from websockets.asyncio.server import ServerConnection, serve
 from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
+from websockets.sync.server import ServerConnection, serve
 
 WEBSOCKET_PATH = "/ws"
 MAX_REQUEST_BYTES = 4096  # a request is a few dozen bytes of JSON
+#: A frame up to this size goes out from the caller's thread when the client's socket has nothing
+#: unsent: it fits in the socket's smallest send buffer (tcp_wmem's default 16 kB, with the kernel's
+#: per-buffer overhead), so the write cannot block.
+DIRECT_WRITE_MAX_BYTES = 8192
 
 
 class _Client:
-    def __init__(self, connection: ServerConnection, depth: int) -> None:
+    """One page: its connection, and the frame waiting for its sender thread (see the module docstring)."""
+
+    def __init__(self, connection: ServerConnection, server: ViewServer) -> None:
         self.connection = connection
-        self.queue: deque[tuple[bytes, bool]] = deque(maxlen=depth)  # frames: (bytes, whether UTF-8 text)
-        self.ready = asyncio.Event()
+        self.server = server
+        self.socket: socket.socket = connection.socket
+        self.lock = threading.Condition()
+        self.pending: tuple[bytes, bool] | None = None  # (bytes, whether UTF-8 text)
+        self.busy = False  # a thread is writing to the connection
+        self.closed = False
         self.dropped = 0
+
+    def offer(self, item: tuple[bytes, bool]) -> None:
+        """Write ``item`` now if that cannot block, else leave it to the sender thread."""
+        with self.lock:
+            if self.closed:
+                return
+            direct = not self.busy and self.pending is None and self._room_for(len(item[0]))
+            if direct:
+                self.busy = True
+            else:
+                if self.pending is not None:
+                    self.dropped += 1
+                    self.server.frames_dropped += 1
+                self.pending = item
+                self.lock.notify()
+                return
+        try:
+            self._write(item)
+        finally:
+            with self.lock:
+                self.busy = False
+                if self.pending is not None:
+                    self.lock.notify()
+
+    def _room_for(self, size: int) -> bool:
+        if size > DIRECT_WRITE_MAX_BYTES:
+            return False
+        try:
+            return int.from_bytes(fcntl.ioctl(self.socket, termios.TIOCOUTQ, b"\0\0\0\0"), "little") == 0
+        except OSError:  # closed meanwhile
+            return False
+
+    def _write(self, item: tuple[bytes, bool]) -> None:
+        try:
+            self.connection.send(item[0], text=item[1])
+        except (ConnectionClosed, OSError):
+            self.close()
+
+    def send_now(self, item: tuple[bytes, bool]) -> None:
+        """Write ``item`` (a reply) after what is being written, never dropped; blocks only this client's thread."""
+        with self.lock:
+            while self.busy and not self.closed:
+                self.lock.wait()
+            if self.closed:
+                return
+            self.busy = True
+        try:
+            self._write(item)
+        finally:
+            with self.lock:
+                self.busy = False
+                self.lock.notify_all()
+
+    def run_sender(self) -> None:
+        """The sender thread: writes pending frames, blocking as long as the client takes to read them."""
+        while True:
+            with self.lock:
+                while not self.closed and (self.pending is None or self.busy):
+                    self.lock.wait()
+                if self.closed:
+                    return
+                item, self.pending, self.busy = self.pending, None, True
+            try:
+                self._write(item)
+            finally:
+                with self.lock:
+                    self.busy = False
+                    self.lock.notify_all()
+
+    def close(self) -> None:
+        with self.lock:
+            self.closed = True
+            self.lock.notify_all()
 
 
 class ViewServer:
     """See the module docstring. ``port`` 0 picks a free port (``port`` tells which once started)."""
 
     def __init__(self, static_dir: Path, host: str = "127.0.0.1", port: int = 0, max_clients: int = 32,
-                 client_queue_depth: int = 4, on_request: Callable[[dict], dict | None] | None = None,
+                 on_request: Callable[[dict], dict | None] | None = None,
                  logger: logging.Logger | None = None, on_tick: Callable[[], None] | None = None,
                  tick_period_s: float = 1.0 / 30.0) -> None:
         self.static_dir = Path(static_dir).resolve()
@@ -60,7 +148,6 @@ class ViewServer:
         self.host = host
         self.port = port
         self.max_clients = max_clients
-        self.client_queue_depth = client_queue_depth
         self.on_request = on_request
         if on_tick is not None and not tick_period_s > 0.0:
             raise ValueError(f"tick_period_s must be > 0, got {tick_period_s!r}")
@@ -71,30 +158,49 @@ class ViewServer:
         self._files = {f"/{p.relative_to(self.static_dir).as_posix()}": p
                        for p in self.static_dir.rglob("*") if p.is_file()}
         self._files["/"] = self.static_dir / "index.html"
-        self._clients: set[_Client] = set()
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._thread: threading.Thread | None = None
-        self._thread_id: int | None = None
-        self._stop: asyncio.Event | None = None
-        self._started = threading.Event()
-        self._error: BaseException | None = None
+        self._clients_lock = threading.Lock()
+        self._clients: tuple[_Client, ...] = ()  # replaced, never changed in place: publish reads it unlocked
+        self._server = None
+        self._threads: list[threading.Thread] = []
+        self._stop = threading.Event()
         self._last_frame: tuple[bytes, bool] | None = None  # the newest frame, for a page that connects now
         self.frames_dropped = 0
         self.requests_refused = 0
 
     # ------------------------------------------------------------------ lifecycle
-    def start(self, timeout_s: float = 10.0) -> None:
-        self._thread = threading.Thread(target=self._run, name="field_view_server", daemon=True)
-        self._thread.start()
-        if not self._started.wait(timeout_s):
-            raise RuntimeError("the view server did not start")
-        if self._error is not None:
-            raise OSError(f"cannot serve on {self.host}:{self.port}: {self._error}") from self._error
+    def start(self) -> None:
+        try:
+            self._server = serve(self._handle, self.host, self.port, process_request=self._http,
+                                 max_size=MAX_REQUEST_BYTES, max_queue=4, logger=self.log,
+                                 # a frame is a few kB 30 times a second, mostly to a page on this machine:
+                                 # deflating it per page cost more CPU than the rest of sending it
+                                 compression=None,
+                                 # no keep-alive pings: frames go out 30 times a second, and a write to a
+                                 # page that is gone fails; a ping could only hold the connection's lock
+                                 ping_interval=None,
+                                 # stop() waits this long at most for a page to answer the close
+                                 close_timeout=1.0)
+        except OSError as exc:
+            raise OSError(f"cannot serve on {self.host}:{self.port}: {exc}") from exc
+        self.port = self._server.socket.getsockname()[1]
+        self._threads = [threading.Thread(target=self._server.serve_forever, name="field_view_server", daemon=True)]
+        if self.on_tick is not None:
+            self._threads.append(threading.Thread(target=self._tick_loop, name="field_view_tick", daemon=True))
+        for thread in self._threads:
+            thread.start()
 
     def stop(self) -> None:
-        if self._loop is not None and self._stop is not None and self._thread is not None:
-            self._loop.call_soon_threadsafe(self._stop.set)
-            self._thread.join(timeout=5.0)
+        self._stop.set()
+        if self._server is not None:
+            for client in self._clients:
+                client.close()
+                if client.busy:  # a write to a page that does not read: end it, or the close waits for it
+                    with contextlib.suppress(OSError):
+                        client.socket.shutdown(socket.SHUT_RDWR)
+            self._server.shutdown()
+            self._server = None
+        for thread in self._threads:
+            thread.join(timeout=5.0)
 
     @property
     def url(self) -> str:
@@ -105,37 +211,16 @@ class ViewServer:
     def client_count(self) -> int:
         return len(self._clients)
 
-    def _run(self) -> None:
-        try:
-            asyncio.run(self._main())
-        except BaseException as exc:  # reported to start()
-            self._error = exc
-            self._started.set()
-
-    async def _main(self) -> None:
-        self._loop = asyncio.get_running_loop()
-        self._thread_id = threading.get_ident()
-        self._stop = asyncio.Event()
-        async with serve(self._handle, self.host, self.port, process_request=self._http,
-                         max_size=MAX_REQUEST_BYTES, max_queue=4, logger=self.log,
-                         # a frame is a few kB 30 times a second, mostly to a page on this machine:
-                         # deflating it per page cost more CPU than the rest of sending it
-                         compression=None) as server:
-            self.port = server.sockets[0].getsockname()[1]
-            self._started.set()
-            ticker = None if self.on_tick is None else asyncio.create_task(self._tick_loop())
-            await self._stop.wait()
-            if ticker is not None:
-                ticker.cancel()
-
-    async def _tick_loop(self) -> None:
-        loop = asyncio.get_running_loop()
-        due = loop.time()
+    def _tick_loop(self) -> None:
+        due = time.monotonic()
         while True:
             due += self.tick_period_s
-            if due < loop.time():  # late (a starved thread): the next tick one period from now
-                due = loop.time() + self.tick_period_s
-            await asyncio.sleep(due - loop.time())
+            now = time.monotonic()
+            if due < now:  # late (a starved thread): the next tick one period from now
+                due = now + self.tick_period_s
+            time.sleep(due - now)  # (an Event's timed wait costs several times more CPU per wake-up)
+            if self._stop.is_set():
+                return
             try:
                 self.on_tick()
             except Exception:  # a fault of one tick: logged, and the next one comes
@@ -144,27 +229,11 @@ class ViewServer:
 
     # -------------------------------------------------------------------- output
     def publish(self, frame: str | bytes) -> None:
-        """Queue ``frame`` for every client (thread-safe; never blocks): text (encoded once for them all)
+        """Send ``frame`` to every client (thread-safe; never blocks): text (encoded once for them all)
         or bytes (a binary message)."""
         item = self._last_frame = (frame.encode(), True) if isinstance(frame, str) else (bytes(frame), False)
-        loop = self._loop
-        if loop is None or not self._clients:
-            return
-        if threading.get_ident() == self._thread_id:  # on_tick: no wake-up of this thread needed
-            self._fan_out(item)
-            return
-        try:
-            loop.call_soon_threadsafe(self._fan_out, item)
-        except RuntimeError:  # the loop closed meanwhile
-            pass
-
-    def _fan_out(self, item: tuple[bytes, bool]) -> None:
         for client in self._clients:
-            if len(client.queue) == client.queue.maxlen:
-                client.dropped += 1
-                self.frames_dropped += 1
-            client.queue.append(item)
-            client.ready.set()
+            client.offer(item)
 
     # ------------------------------------------------------------------- requests
     def _http(self, connection: ServerConnection, request: Request) -> Response | None:
@@ -192,23 +261,27 @@ class ViewServer:
         ])
         return Response(http.HTTPStatus.OK, "OK", headers, body)
 
-    async def _handle(self, connection: ServerConnection) -> None:
-        client = _Client(connection, self.client_queue_depth)
-        self._clients.add(client)
+    def _handle(self, connection: ServerConnection) -> None:
+        """One client's thread: its requests, while its sender thread writes what waits."""
+        client = _Client(connection, self)
+        sender = threading.Thread(target=client.run_sender, name="field_view_sender", daemon=True)
+        sender.start()
+        with self._clients_lock:
+            self._clients = (*self._clients, client)
         if self._last_frame is not None:
-            client.queue.append(self._last_frame)
-            client.ready.set()
-        sender = asyncio.create_task(self._send(client))
+            client.offer(self._last_frame)
         try:
-            async for message in connection:
+            for message in connection:
                 reply = self._answer(message)
                 if reply is not None:
-                    await connection.send(json.dumps(reply, allow_nan=False))
+                    client.send_now((json.dumps(reply, allow_nan=False).encode(), True))
         except ConnectionClosed:
             pass
         finally:
-            self._clients.discard(client)
-            sender.cancel()
+            with self._clients_lock:
+                self._clients = tuple(c for c in self._clients if c is not client)
+            client.close()
+            sender.join(timeout=5.0)
 
     def _answer(self, message: str | bytes) -> dict | None:
         if isinstance(message, bytes):
@@ -225,17 +298,6 @@ class ViewServer:
             return self.on_request(request)
         except (ValueError, TypeError, KeyError) as exc:
             return {"error": f"bad request: {exc}"}
-
-    async def _send(self, client: _Client) -> None:
-        try:
-            while True:
-                await client.ready.wait()
-                client.ready.clear()
-                while client.queue:
-                    data, text = client.queue.popleft()
-                    await client.connection.send(data, text=text)
-        except ConnectionClosed:
-            pass
 
 
 # (a frame is a tree of fresh dicts and lists: no cycle to look for)
