@@ -3,9 +3,10 @@
 Serves all robots from one process; the per-frame work is predictor.BallPredictor (tracking,
 robot freshness, the reaction time, robotTimeToBall for the team, the model in use and online
 identification), the same object the in-process scenes and the bench run. Every ``/vision/ball``
-frame is answered with each fresh robot's ``/robot_<i>/catch_time`` and ``catch_point`` (first:
-what the robots act on), then the ball state, phase, stop point, v_shoot and the uncertain flag,
-and, while anyone subscribes to it, ``/ball/catches``: the whole team in one message.
+frame is answered with each fresh robot's ``/robot_<i>/catch_time`` and, while anyone subscribes to
+it, its ``catch_point`` (first: what the robots act on), then the ball state, phase, stop point,
+v_shoot and the uncertain flag, and, while anyone subscribes to it, ``/ball/catches``: the whole team
+in one message.
 All outputs carry the observation's stamp; catch times count from it. ``/robot_<i>/vision_pose``
 is answered with ``/robot_<i>/odom`` while anyone subscribes to it. With ``num_opponents`` the
 opponents are served the same way under ``/opponent_<i>/`` (their robotTimeToBall is what the passing
@@ -136,8 +137,11 @@ class BallPredictorNode(Node):
                            for i, (team, j) in enumerate(self._robots)]
         self._catch_time_pubs = [contract_publisher(self, q.CATCH_TIME, team.topic(q.CATCH_TIME, j))
                                  for team, j in self._robots]
-        self._catch_point_pubs = [contract_publisher(self, q.CATCH_POINT, team.topic(q.CATCH_POINT, j))
-                                  for team, j in self._robots]
+        # likewise a robot's catch point (its catch time always goes out: the passing game reads every one)
+        self._point_readers = [0] * n
+        self._catch_point_pubs = [contract_publisher(self, q.CATCH_POINT, team.topic(q.CATCH_POINT, j),
+                                                     readers=(self._point_readers, i))
+                                  for i, (team, j) in enumerate(self._robots)]
         self._phase_msg, self._uncertain_msg = String(), Bool()  # refilled every frame
         # Vision comes in and catch outputs go out serialized (conversions' codec): on the path
         # from a frame to its catch times rclpy's message objects cost more than the maths.
@@ -290,7 +294,7 @@ class BallPredictorNode(Node):
         return table_cdr(rows, contract.CATCH_TABLE_COLUMNS)
 
     def _publish_catch_outputs(self, frame: BallFrame) -> float | None:
-        """catch_time, then catch_point, of every fresh robot.
+        """catch_time, then catch_point (while it has a reader), of every fresh robot.
 
         All values are checked before the first publish (a bad one raises ValueError and nothing
         goes out); the catch times go out before the points are even serialized. Returns when the
@@ -308,9 +312,9 @@ class BallPredictorNode(Node):
         for i, data in zip(ids, time_data, strict=True):
             time_pubs[i].publish(data)
         times_out = time.perf_counter()
-        point_pubs = self._catch_point_pubs
+        point_pubs, point_readers = self._catch_point_pubs, self._point_readers
         for i, point in zip(ids, points, strict=True):
-            if point is not None:
+            if point is not None and point_readers[i]:
                 point_pubs[i].publish(point_cdr(frame.t_s, point))
         # The catch outputs' readers are often woken onto this CPU (the scheduler places a wakee
         # beside its waker) and would wait behind the rest of this frame: let them run first.
