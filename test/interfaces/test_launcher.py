@@ -327,10 +327,17 @@ def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(l
 
 
 def test_team_sim_takes_its_robots_as_a_list_argument():
-    """11 robots of ours and 3 opponents by default, each team in its own team_firmware on its team lockstep
-    topics, the plant and the predictor sized alike, the 3 opponents (ids 0, 1, 2 of their own) driven by an
-    interceptor; a robot is removed or added by the list, without editing a file."""
-    specs = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml")
+    """11 robots of ours and 3 opponents by default, both teams' firmware in one team_firmware (or with
+    firmware_processes per_team each team in its own) on their team lockstep topics, /clock at 50 Hz, the plant
+    and the predictor sized alike, the 3 opponents (ids 0, 1, 2 of their own) driven by an interceptor; a robot
+    is removed or added by the list, without editing a file."""
+    one = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml")
+    assert [label.rsplit("-", 1)[0] for label in one] == ["plant", "ball_predictor", "team_catcher", "team_firmware"]
+    firmware = next(params_of(s)["/**"] for s in one.values() if node_name(s) == "team_firmware")
+    assert firmware["robot_ids"] == list(range(11)) and firmware["opponent_ids"] == [0, 1, 2]
+    assert firmware["team"] == "ours" and firmware["lockstep_topics"] == "team"
+    assert next(params_of(s)["/**"] for s in one.values() if node_name(s) == "plant")["clock_rate_hz"] == 50.0
+    specs = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", firmware_processes="per_team")
     assert [label.rsplit("-", 1)[0] for label in specs] == [
         "plant", "ball_predictor", "team_catcher", "team_firmware", "team_firmware"]
     params = {node_name(spec): params_of(spec)["/**"] for spec in specs.values()}
@@ -346,15 +353,19 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
     assert plant["ground_truth_rate_hz"] == 10.0
     assert params["team_firmware"]["motor_boards.status_rate_hz"] == 10.0
     per_robot = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", lockstep_topics="per_robot",
-                        opponents_intercept="false")
+                        opponents_intercept="false", firmware_processes="per_team")
     assert [label.rsplit("-", 1)[0] for label in per_robot] == ["plant", "ball_predictor", "team_firmware",
                                                                 "team_firmware"]
     assert {params_of(s)["/**"]["lockstep_topics"] for s in per_robot.values() if "lockstep_topics" in
             params_of(s)["/**"]} == {"per_robot"}
-    three = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", robot_ids="[0, 2, 5]", opponent_ids="[1]")
+    three = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", robot_ids="[0, 2, 5]", opponent_ids="[1]",
+                    firmware_processes="per_team")
     firmware = {node_name(s): params_of(s)["/**"]["robot_ids"] for s in three.values() if "robot_ids" in
                 params_of(s)["/**"] and node_name(s).endswith("firmware")}
     assert firmware == {"team_firmware": [0, 2, 5], "opponent_firmware": [1]}
+    three = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", robot_ids="[0, 2, 5]", opponent_ids="[1]")
+    assert [(params_of(s)["/**"]["robot_ids"], params_of(s)["/**"]["opponent_ids"]) for s in three.values()
+            if node_name(s).endswith("firmware")] == [([0, 2, 5], [1])]
     ssl = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", vision="ssl", team_color="yellow")
     ssl_params = {node_name(spec): params_of(spec)["/**"] for spec in ssl.values()}
     assert ssl_params["plant"]["vision_output"] == "ssl"
@@ -403,7 +414,7 @@ NODES = {
     "demo.launch.yaml": ["plant-1", "ball_predictor-2", "velocity_controller-3", "motor_boards-4", "catcher-5"],
     "receiver.launch.yaml": ["velocity_controller-1", "motor_boards-2", "catcher-3"],
     "sim_one_robot.launch.yaml": ["plant-1", "velocity_controller-2", "motor_boards-3"],
-    "team_sim.launch.yaml": ["plant-1", "ball_predictor-2", "team_catcher-3", "team_firmware-4", "team_firmware-5"],
+    "team_sim.launch.yaml": ["plant-1", "ball_predictor-2", "team_catcher-3", "team_firmware-4"],
 }
 
 

@@ -1,8 +1,8 @@
 """Many robots' firmware over DDS: per robot (velocity_controller + motor_boards in each namespace), in one
 team_firmware process on the per-robot topics and on the team-level ones (/team/wheel_states, motor_duty)
 give the in-process runner's trajectory, with an opponent on the field under its own firmware (per robot
-under /opponent_0/, or the opponents' team_firmware, on /opponent_team/ with team topics); robots come and
-go by parameter; a killed firmware process stalls only its robot."""
+under /opponent_0/, or the opponents' team_firmware, on /opponent_team/ with team topics, or both teams in one
+team_firmware); robots come and go by parameter; a killed firmware process stalls only its robot."""
 
 import signal
 from pathlib import Path
@@ -27,13 +27,15 @@ POSES = ((-1.0, 0.0, 0.0), (0.0, 1.0, 0.5), (1.0, -1.0, 3.0))
 TWISTS = {0: (0.8, -0.3, 1.0), 2: (-0.5, 0.6, -2.0)}  # robot_1 has no firmware: it stays put
 OPPONENT_POSES = ((2.5, 1.0, 3.0),)
 OPPONENT_TWIST = (0.6, 0.3, -1.5)  # opponent_0's, world index 3
-# deployment -> the opponent's firmware (two_teams: our team's two processes only, no opponent)
-OPPONENT_FIRMWARE = {"per_robot": "per_robot", "team": "team", "team_topics": "team_topics", "mixed": "per_robot"}
+# deployment -> the opponent's firmware (two_teams: our team's two processes only, no opponent; None: in our
+# team_firmware, by its opponent_ids)
+OPPONENT_FIRMWARE = {"per_robot": "per_robot", "team": "team", "team_topics": "team_topics", "mixed": "per_robot",
+                     "one_process": None}
 
 
 # deployment -> the plant's and team_firmware's lockstep_topics
 LOCKSTEP_TOPICS = {"per_robot": "per_robot", "team": "per_robot", "team_topics": "team", "two_teams": "team",
-                   "mixed": "both"}
+                   "mixed": "both", "one_process": "team"}
 
 
 def _start_firmware(graph, deployment, ids, team=contract.OURS, **params):
@@ -83,23 +85,24 @@ def _start_plant(graph, deployment, readers, opponent_poses=(), **params):
     return plant, truths, clocks
 
 
-@pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams", "mixed"])
+@pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams", "mixed", "one_process"])
 def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deployment):
     """robot_0 and robot_2 have firmware (the team process by its robot_ids parameter [0, 2]), robot_1 none,
     and opponent_0 its own: every deployment (two team_firmware processes sharing the team topics too, and a
     plant serving both kinds of topics to a per-robot pair and a team_firmware) gives the in-process runner's
     trajectories of all four to 1e-9 at every ground-truth stamp, so they agree with each other."""
-    _start_firmware(ros_graph, deployment, TWISTS)
+    _start_firmware(ros_graph, deployment, TWISTS, **({"opponent_ids": [0]} if deployment == "one_process" else {}))
     for i, twist in TWISTS.items():
         _command(ros_graph, i, twist)
     opponents = deployment in OPPONENT_FIRMWARE
     if opponents:
-        _start_firmware(ros_graph, OPPONENT_FIRMWARE[deployment], [0], contract.OPPONENTS)
+        if OPPONENT_FIRMWARE[deployment] is not None:
+            _start_firmware(ros_graph, OPPONENT_FIRMWARE[deployment], [0], contract.OPPONENTS)
         _command(ros_graph, 0, OPPONENT_TWIST, contract.OPPONENTS)
     ros_graph.probe.spin_for(0.3)
     # use_sim_time nodes subscribe to /clock
     readers = {"per_robot": 2 * len(TWISTS), "two_teams": len(TWISTS), "mixed": 3}.get(deployment, 1)
-    readers += opponents * (2 if OPPONENT_FIRMWARE.get(deployment) == "per_robot" else 1)
+    readers += opponents * {"per_robot": 2, None: 0}.get(OPPONENT_FIRMWARE.get(deployment), 1)
     opponent_poses = OPPONENT_POSES if opponents else ()
     # a stall would change the trajectory: on a loaded machine the first answers may take seconds
     _, truths, _ = _start_plant(ros_graph, deployment, readers, opponent_poses, seed=7, stop_after_s=0.5,

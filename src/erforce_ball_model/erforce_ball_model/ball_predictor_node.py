@@ -3,9 +3,10 @@
 Serves all robots from one process; the per-frame work is predictor.BallPredictor (tracking,
 robot freshness, the reaction time, robotTimeToBall for the team, the model in use and online
 identification), the same object the in-process scenes and the bench run. Every ``/vision/ball``
-frame is answered with each fresh robot's ``/robot_<i>/catch_time`` and ``catch_point`` (first:
-what the robots act on), then the ball state, phase, stop point, v_shoot and the uncertain flag,
-and, while anyone subscribes to it, ``/ball/catches``: the whole team in one message.
+frame is answered with each fresh robot's ``/robot_<i>/catch_time`` and, while anyone subscribes to
+it, its ``catch_point`` (first: what the robots act on), then the ball state, phase, stop point,
+v_shoot and the uncertain flag (the three for tools while anyone subscribes to them), and, while anyone
+subscribes to it, ``/ball/catches``: the whole team in one message.
 All outputs carry the observation's stamp; catch times count from it. ``/robot_<i>/vision_pose``
 is answered with ``/robot_<i>/odom`` while anyone subscribes to it. With ``num_opponents`` the
 opponents are served the same way under ``/opponent_<i>/`` (their robotTimeToBall is what the passing
@@ -124,10 +125,12 @@ class BallPredictorNode(Node):
         self._params_pub = contract_publisher(self, q.BALL_MODEL_PARAMS)
         self._publish_model()
         self._state_pub = contract_publisher(self, q.BALL_STATE)
-        self._phase_pub = contract_publisher(self, q.BALL_PHASE)
-        self._stop_pub = contract_publisher(self, q.BALL_STOP_POINT)
+        # phase, stop point and the uncertain flag are for tools: sent while they have a reader
+        self._tool_readers = [0, 0, 0]
+        self._phase_pub = contract_publisher(self, q.BALL_PHASE, readers=(self._tool_readers, 0))
+        self._stop_pub = contract_publisher(self, q.BALL_STOP_POINT, readers=(self._tool_readers, 1))
         self._v_shoot_pub = contract_publisher(self, q.BALL_V_SHOOT)
-        self._uncertain_pub = contract_publisher(self, q.BALL_UNCERTAIN)
+        self._uncertain_pub = contract_publisher(self, q.BALL_UNCERTAIN, readers=(self._tool_readers, 2))
         self._catches_pub = contract_publisher(self, q.BALL_CATCHES)
         # A robot's odom (the tracker's estimate, volatile) is built and sent only while something reads it:
         # in a full team most are unread, and each publish costs tens of microseconds per vision frame.
@@ -136,8 +139,11 @@ class BallPredictorNode(Node):
                            for i, (team, j) in enumerate(self._robots)]
         self._catch_time_pubs = [contract_publisher(self, q.CATCH_TIME, team.topic(q.CATCH_TIME, j))
                                  for team, j in self._robots]
-        self._catch_point_pubs = [contract_publisher(self, q.CATCH_POINT, team.topic(q.CATCH_POINT, j))
-                                  for team, j in self._robots]
+        # likewise a robot's catch point (its catch time always goes out: the passing game reads every one)
+        self._point_readers = [0] * n
+        self._catch_point_pubs = [contract_publisher(self, q.CATCH_POINT, team.topic(q.CATCH_POINT, j),
+                                                     readers=(self._point_readers, i))
+                                  for i, (team, j) in enumerate(self._robots)]
         self._phase_msg, self._uncertain_msg = String(), Bool()  # refilled every frame
         # Vision comes in and catch outputs go out serialized (conversions' codec): on the path
         # from a frame to its catch times rclpy's message objects cost more than the maths.
@@ -265,7 +271,8 @@ class BallPredictorNode(Node):
             self._publish_model()
 
     def _publish_ball_outputs(self, frame: BallFrame) -> None:
-        """The ball topics; all are built (and checked) before the first goes out."""
+        """The ball topics (phase, stop point, uncertain: while they have a reader); all are built (and
+        checked) before the first goes out."""
         t_s, f = frame.t_s, frame.trajectory.floats
         state = odometry_cdr(t_s, (f.x_m, f.y_m, 0.0), (f.vx_mps, f.vy_mps, 0.0), child_frame_id="ball",
                              position_variance_m2=frame.position_variance_m2)
@@ -273,11 +280,15 @@ class BallPredictorNode(Node):
         v_shoot = float64_cdr(f.v_shoot_mps)
         self._phase_msg.data = frame.phase
         self._uncertain_msg.data = frame.uncertain
+        phase_readers, stop_readers, uncertain_readers = self._tool_readers
         self._state_pub.publish(state)
-        self._phase_pub.publish(self._phase_msg)
-        self._stop_pub.publish(stop_point)
+        if phase_readers:
+            self._phase_pub.publish(self._phase_msg)
+        if stop_readers:
+            self._stop_pub.publish(stop_point)
         self._v_shoot_pub.publish(v_shoot)
-        self._uncertain_pub.publish(self._uncertain_msg)
+        if uncertain_readers:
+            self._uncertain_pub.publish(self._uncertain_msg)
 
     def _catch_table(self, frame: BallFrame) -> bytes:
         """/ball/catches: every fresh robot's pose at the frame and its catch, one message for both teams
@@ -290,7 +301,7 @@ class BallPredictorNode(Node):
         return table_cdr(rows, contract.CATCH_TABLE_COLUMNS)
 
     def _publish_catch_outputs(self, frame: BallFrame) -> float | None:
-        """catch_time, then catch_point, of every fresh robot.
+        """catch_time, then catch_point (while it has a reader), of every fresh robot.
 
         All values are checked before the first publish (a bad one raises ValueError and nothing
         goes out); the catch times go out before the points are even serialized. Returns when the
@@ -308,9 +319,9 @@ class BallPredictorNode(Node):
         for i, data in zip(ids, time_data, strict=True):
             time_pubs[i].publish(data)
         times_out = time.perf_counter()
-        point_pubs = self._catch_point_pubs
+        point_pubs, point_readers = self._catch_point_pubs, self._point_readers
         for i, point in zip(ids, points, strict=True):
-            if point is not None:
+            if point is not None and point_readers[i]:
                 point_pubs[i].publish(point_cdr(frame.t_s, point))
         # The catch outputs' readers are often woken onto this CPU (the scheduler places a wakee
         # beside its waker) and would wait behind the rest of this frame: let them run first.

@@ -269,7 +269,9 @@ def robot_frame(robot_id: int) -> str:
 
 # ---------------------------------------------------------------- global topics
 CLOCK = Topic("/clock", Clock, QOS_CLOCK, "plant", "every node (use_sim_time)",
-              "simulation time; the plant owns time")
+              "simulation time; the plant owns time. At the plant's clock_rate_hz (100 Hz; 50 Hz in "
+              "team_sim.launch.yaml): ROS time moves in steps of that period and sim-time timers tick at most "
+              "that often; the lockstep and per-frame work runs on message stamps")
 VISION_BALL = Topic("/vision/ball", PointStamped, QOS_SENSOR, "plant (vision)", "ball_predictor",
                     "ball centre in `field` [m], stamp = capture time; noisy, delayed, with dropouts")
 BALL_STATE = Topic("/ball/state", Odometry, QOS_STATE, "ball_predictor", "catcher, tools",

@@ -20,6 +20,12 @@ With ``team`` ``opponents`` it is the opponents' firmware: the same, under ``/op
 ``/opponent_team/`` (contract.Team). Each team runs its own process, as each team on a real field
 runs its own robots: neither sees the other's messages, and one crashing leaves the other playing.
 
+With ``team`` ``ours`` and ``opponent_ids``, the same process also runs the opponents' firmware, on their
+own topics (``/opponent_<id>/...``, ``/opponent_team/...``): both teams in one executor, their robots rows
+of one TeamFirmware (ours first), as a component container hosts several nodes. It answers each team's
+message on its own, with the same numbers as a process per team; a simulation saves a process's wakes per
+tick (bench/NOTES.md), while a process per team keeps a crash of one team's firmware from the other.
+
 One executor wakes once for all robots whose ``wheel_states`` are queued, instead of two
 processes per robot each waking per tick. The parameters of the two per-robot nodes are here
 with the prefixes ``main_board.`` and ``motor_boards.`` (the same names, ranges and defaults),
@@ -68,24 +74,30 @@ SCHEMA = HostSchema(load_schema("erforce_motion", "team_firmware"), {
 })
 
 
-def build_loops(config) -> tuple[list[int], TeamFirmware]:
-    """The robot ids and their firmware, row r for robot ids[r] (raises ValueError when invalid)."""
+def build_loops(config) -> tuple[list[tuple[contract.Team, int]], TeamFirmware]:
+    """The robots (team, id) and their firmware, row r for robot r of the list (raises ValueError when invalid)."""
     own, hosted = config
     ids = [int(i) for i in own.robot_ids]
     if not ids or len(set(ids)) != len(ids):
         raise ValueError(f"robot_ids: need distinct ids, at least one, got {ids}")
+    opponent_ids = [int(i) for i in own.opponent_ids]
+    if len(set(opponent_ids)) != len(opponent_ids):
+        raise ValueError(f"opponent_ids: need distinct ids, got {opponent_ids}")
+    if opponent_ids and own.team != contract.OURS.name:
+        raise ValueError("opponent_ids: only with team ours (robot_ids are then the opponents already)")
+    team = contract.TEAMS[own.team]
+    robots = [(team, i) for i in ids] + [(contract.OPPONENTS, i) for i in opponent_ids]
     # the per-robot nodes' builders check the parameters and say what is wrong in their words
     main = velocity_controller_node.build_loop(hosted[MAIN_PREFIX])
     motor = motor_boards_node.build_loop(hosted[MOTOR_PREFIX])
-    return ids, TeamFirmware(len(ids), main.robot, main.controller.config, motor.board.config, main.loop_period_s,
+    return robots, TeamFirmware(len(robots), main.robot, main.controller.config, motor.board.config, main.loop_period_s,
                              motor.loop_period_s, main.watchdog.timeout_s, motor.setpoint_timeout_s)
 
 
 class _Robot:
     """One robot's row in the team firmware, its publishers and time rule."""
 
-    def __init__(self, node: Node, robot_id: int, row: int) -> None:
-        team = node.team
+    def __init__(self, node: Node, team: contract.Team, robot_id: int, row: int) -> None:
         self.robot_id, self.row, self.name = robot_id, row, team.namespace(robot_id)
         self.stamps = StampFilter()  # the time rule for this robot's ticks on its own topics
         self.duty_pub = None if node.team_topics else contract_publisher(node, contract.MOTOR_DUTY,
@@ -95,48 +107,63 @@ class _Robot:
                                                team.topic(contract.WHEEL_SETPOINTS, robot_id))
 
 
+class _TeamLink:
+    """One hosted team's lockstep topics (lockstep_topics team): its time rule, its answer, the rows of its
+    robots per robot set of the plant's message."""
+
+    def __init__(self, node: Node, team: contract.Team) -> None:
+        self.team = team
+        self.robots: dict[int, _Robot] = {}
+        self.stamps = StampFilter()  # one stamp for all robots of the team's message
+        self.states_name = team.lockstep_topic(contract.TEAM_WHEEL_STATES)
+        self.duty_pub = None
+        self.picks: dict[tuple[int, ...], tuple[np.ndarray, list[_Robot], np.ndarray, tuple[int, ...]]] = {}
+
+
 class TeamFirmwareNode(Node):
     def __init__(self) -> None:
         super().__init__("team_firmware")
         self._warn = ThrottledWarner(self)
-        self._robots: dict[int, _Robot] = {}
+        self._links: dict[str, _TeamLink] = {}  # per hosted team (ours first)
         self._firmware: TeamFirmware | None = None
         self._params = NodeParams(self, SCHEMA, build_loops)
         self._values = self._params.values
         self.team_topics = self._values["lockstep_topics"] == "team"
-        team = self.team = contract.TEAMS[self._values["team"]]
         self._apply(self._params.built)
         n, w = self._firmware.n_robots, self._firmware.num_wheels
         self._speeds, self._currents = np.zeros((n, w)), np.zeros((n, w))  # the sensors, row per robot
         # per row: the stamp of the last motor_status, and whether there is one on this time line
         self._status_ns, self._status_sent = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=bool)
-        self._team_stamps = StampFilter()  # the time rule for the team topic's ticks (one stamp for all robots)
-        self._team_picks: dict[tuple[int, ...], tuple[np.ndarray, list[_Robot], np.ndarray, tuple[int, ...]]] = {}
-        for i, robot in self._robots.items():
-            contract_subscription(self, contract.CMD_VEL, lambda m, r=robot: self._on_cmd_vel(r, m),
-                                  team.topic(contract.CMD_VEL, i))
-            if not self.team_topics:
-                contract_subscription(self, contract.WHEEL_STATES, lambda m, r=robot: self._on_wheel_states(r, m),
-                                      team.topic(contract.WHEEL_STATES, i), raw=True)
-        if self.team_topics:
-            self._team_states_name = team.lockstep_topic(contract.TEAM_WHEEL_STATES)
-            self._team_duty_pub = contract_publisher(self, contract.TEAM_MOTOR_DUTY,
-                                                     team.lockstep_topic(contract.TEAM_MOTOR_DUTY))
-            contract_subscription(self, contract.TEAM_WHEEL_STATES, self._on_team_wheel_states,
-                                  self._team_states_name, raw=True)
+        for link in self._links.values():
+            team = link.team
+            for i, robot in link.robots.items():
+                contract_subscription(self, contract.CMD_VEL, lambda m, r=robot: self._on_cmd_vel(r, m),
+                                      team.topic(contract.CMD_VEL, i))
+                if not self.team_topics:
+                    contract_subscription(self, contract.WHEEL_STATES, lambda m, r=robot: self._on_wheel_states(r, m),
+                                          team.topic(contract.WHEEL_STATES, i), raw=True)
+            if self.team_topics:
+                link.duty_pub = contract_publisher(self, contract.TEAM_MOTOR_DUTY,
+                                                   team.lockstep_topic(contract.TEAM_MOTOR_DUTY))
+                contract_subscription(self, contract.TEAM_WHEEL_STATES,
+                                      lambda m, link=link: self._on_team_wheel_states(link, m),
+                                      link.states_name, raw=True)
         self._clock_subs = sample_clock(self)
-        self.get_logger().info(f"team_firmware: {team.name}, robots {sorted(self._robots)}, "
-                               f"{self._values['lockstep_topics']} lockstep topics")
+        hosted = "; ".join(f"{link.team.name}, robots {sorted(link.robots)}" for link in self._links.values())
+        self.get_logger().info(f"team_firmware: {hosted}, {self._values['lockstep_topics']} lockstep topics")
         self._params.on_change(self._apply)
 
-    def _apply(self, built: tuple[list[int], TeamFirmware]) -> None:
-        ids, firmware = built
+    def _apply(self, built: tuple[list[tuple[contract.Team, int]], TeamFirmware]) -> None:
+        robots, firmware = built
         if self._firmware is not None:
-            firmware.take_over(self._firmware)  # robot_ids is read-only: the same rows
+            firmware.take_over(self._firmware)  # robot_ids and opponent_ids are read-only: the same rows
         self._firmware = firmware
-        for row, i in enumerate(ids):
-            if i not in self._robots:
-                self._robots[i] = _Robot(self, i, row)
+        for row, (team, i) in enumerate(robots):
+            link = self._links.get(team.name)
+            if link is None:
+                link = self._links[team.name] = _TeamLink(self, team)
+            if i not in link.robots:
+                link.robots[i] = _Robot(self, team, i, row)
 
     def _on_cmd_vel(self, robot: _Robot, msg: Twist) -> None:
         v = self._values
@@ -145,7 +172,7 @@ class TeamFirmwareNode(Node):
                                    v[MAIN_PREFIX + "reject_angular_above_radps"])
         except ConversionError as exc:
             self._firmware.stop(robot.row)
-            self._warn.warn(f"cmd_vel{robot.robot_id}", f"{robot.name}: rejected cmd_vel ({exc}); stopping")
+            self._warn.warn(f"cmd_vel {robot.name}", f"{robot.name}: rejected cmd_vel ({exc}); stopping")
             return
         self._firmware.command(robot.row, twist)
 
@@ -156,7 +183,7 @@ class TeamFirmwareNode(Node):
         try:
             t_ns, speeds, currents = wheel_states_from_msg(msg, firmware.num_wheels)
         except ConversionError as exc:
-            self._warn.warn(f"wheel_states{robot.robot_id}", f"{robot.name}: rejected wheel_states: {exc}")
+            self._warn.warn(f"wheel_states {robot.name}", f"{robot.name}: rejected wheel_states: {exc}")
             return
         if self._take_sensors(robot, t_ns, speeds, currents):
             rows = np.array([robot.row])
@@ -164,20 +191,20 @@ class TeamFirmwareNode(Node):
             robot.duty_pub.publish(joint_state_cdr(t_ns, firmware.robot.wheel_names, effort=duty[robot.row]))
             self._report([robot], rows, t_ns)
 
-    def _on_team_wheel_states(self, msg: bytes) -> None:
-        """One tick of every robot of ours in the message; one answer for all of them."""
+    def _on_team_wheel_states(self, link: _TeamLink, msg: bytes) -> None:
+        """One tick of every robot of the team's message that this process runs; one answer for all of them."""
         run_sampled(self._clock_subs)
         firmware = self._firmware
         try:
             t_ns, ids, (speeds, currents) = team_joint_state_from_msg(msg, firmware.num_wheels, ("velocity", "effort"),
-                                                                      team=self.team)
+                                                                      team=link.team)
         except ConversionError as exc:
-            self._warn.warn("team_wheel_states", f"rejected {self._team_states_name}: {exc}")
+            self._warn.warn(f"team_wheel_states {link.team.name}", f"rejected {link.states_name}: {exc}")
             return
-        picks, robots, rows, ours = self._picks(ids)  # the message's rows of our robots; the others are not ours
+        picks, robots, rows, ours = self._picks(link, ids)  # the message's rows of our robots; the others are not ours
         if not robots:
             return
-        verdict = check_stamp(self._team_stamps, t_ns, self._warn, self._team_states_name, self)
+        verdict = check_stamp(link.stamps, t_ns, self._warn, link.states_name, self)
         if verdict is StampVerdict.DROP:
             return
         if verdict is StampVerdict.RESTART:
@@ -186,21 +213,22 @@ class TeamFirmwareNode(Node):
         self._speeds[rows] = speeds[picks]
         self._currents[rows] = currents[picks]
         duty = self._tick(rows, t_ns)
-        self._team_duty_pub.publish(team_joint_state_cdr(t_ns, ours, firmware.robot.wheel_names, effort=duty[rows],
-                                                         team=self.team))
+        link.duty_pub.publish(team_joint_state_cdr(t_ns, ours, firmware.robot.wheel_names, effort=duty[rows],
+                                                   team=link.team))
         self._report(robots, rows, t_ns)
 
-    def _picks(self, ids: tuple[int, ...]) -> tuple[np.ndarray, list[_Robot], np.ndarray, tuple[int, ...]]:
+    @staticmethod
+    def _picks(link: _TeamLink, ids: tuple[int, ...]) -> tuple[np.ndarray, list[_Robot], np.ndarray, tuple[int, ...]]:
         """For a team message's robot ids: the positions of ours among them, our robots, their rows and ids."""
-        picks = self._team_picks.get(ids)
+        picks = link.picks.get(ids)
         if picks is None:
-            if len(self._team_picks) >= 8:  # a few robot sets: one per plant configuration
-                self._team_picks.clear()
-            ks = [k for k, i in enumerate(ids) if i in self._robots]
-            robots = [self._robots[ids[k]] for k in ks]
-            picks = self._team_picks[ids] = (np.array(ks, dtype=np.int64), robots,
-                                             np.array([r.row for r in robots], dtype=np.int64),
-                                             tuple(r.robot_id for r in robots))
+            if len(link.picks) >= 8:  # a few robot sets: one per plant configuration
+                link.picks.clear()
+            ks = [k for k, i in enumerate(ids) if i in link.robots]
+            robots = [link.robots[ids[k]] for k in ks]
+            picks = link.picks[ids] = (np.array(ks, dtype=np.int64), robots,
+                                       np.array([r.row for r in robots], dtype=np.int64),
+                                       tuple(r.robot_id for r in robots))
         return picks
 
     def _take_sensors(self, robot: _Robot, t_ns: int, speeds, currents) -> bool:
@@ -232,7 +260,7 @@ class TeamFirmwareNode(Node):
         for k in np.flatnonzero(firmware.main_notice[rows] | firmware.motor_notice[rows]).tolist():
             robot = robots[k]
             for notice in firmware.notices(robot.row):
-                self._warn.warn(f"notice{robot.robot_id}", f"{robot.name}: {notice}")
+                self._warn.warn(f"notice {robot.name}", f"{robot.name}: {notice}")
         if self._values["publish_setpoints"]:
             names = firmware.robot.wheel_names
             for robot in robots:
