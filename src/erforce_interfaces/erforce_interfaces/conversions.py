@@ -812,19 +812,26 @@ def _point_fields_cdr(data: bytes, p: int) -> tuple[list[tuple[str, int, int, in
     return fields, p
 
 
+#: per field of a point: the largest magnitude accepted (the team and the id are checked further below)
+_ROBOT_POINT_LIMITS = np.array([MAX_ABS_VALUE, MAX_ABS_VALUE, MAX_ABS_VALUE, 1.0e6, OPPONENTS.code,
+                                _MAX_CLOUD_POINTS])
+
+
 def _robot_rows(values: np.ndarray) -> np.ndarray:
     """(team, robot_id, x, y, yaw) of the cloud's points (x, y, z, yaw, team, robot_id), checked."""
-    if not len(values):
-        return np.empty((0, 5))
-    x, y, z, yaw, team, robot_id = values.T
-    good = ((np.abs(x) <= MAX_ABS_VALUE) & (np.abs(y) <= MAX_ABS_VALUE) & (np.abs(z) <= MAX_ABS_VALUE)
-            & (np.abs(yaw) <= 1.0e6) & ((team == OURS.code) | (team == OPPONENTS.code))
-            & (robot_id >= 0) & (robot_id <= _MAX_CLOUD_POINTS) & (robot_id == np.floor(robot_id)))
-    if not good.all():
-        k = int(np.argmin(good))
-        _finite(f"robot {k}: z", z[k])
-        _robot_row_error(k, *(float(v) for v in (team[k], robot_id[k], x[k], y[k], yaw[k])))
-    return np.column_stack((team, robot_id, x, y, yaw - _TWO_PI * np.round(yaw / _TWO_PI)))
+    codes = values[:, 4:]
+    # a few whole-array tests (each false for NaN): ranges, then integer team and id, team >= 1 and id >= 0
+    if not ((np.abs(values) <= _ROBOT_POINT_LIMITS).all() and (codes == np.floor(codes)).all()
+            and (codes >= (OURS.code, 0.0)).all()):
+        for k, (x, y, z, yaw, team, robot_id) in enumerate(values.tolist()):
+            _finite(f"robot {k}: z", z)
+            if not (team in _TEAM_CODES and 0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)
+                    and abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(yaw) <= 1.0e6):
+                _robot_row_error(k, team, robot_id, x, y, yaw)
+    rows = values[:, (4, 5, 0, 1, 3)]
+    yaw = rows[:, 4]
+    yaw -= _TWO_PI * np.round(yaw / _TWO_PI)
+    return rows
 
 
 # ------------------------------------------------------------ scalar & tables
