@@ -111,7 +111,8 @@ def test_clock_is_published_and_monotonic_and_vision_sends_each_frames_robots_in
     robots = ros_graph.subscribe(q.VISION_ROBOTS.name, PointCloud2, q.VISION_ROBOTS.qos)
     poses = ros_graph.subscribe(q.OPPONENTS.topic(q.VISION_POSE, 0), PoseStamped, q.VISION_POSE.qos)
     start_plant(ros_graph, controlled=[False], pacing="realtime", real_time_factor=1.0, stop_after_s=5.0,
-                robot_poses=[0.5, -1.0, 0.25], opponent_poses=[1.0, 1.0, 3.0], vision_dropout=0.0)
+                robot_poses=[0.5, -1.0, 0.25], opponent_poses=[1.0, 1.0, 3.0], vision_dropout=0.0,
+                startup_timeout_s=0.0)  # the opponent has motor boards: none here, and none waited for
     ros_graph.probe.spin_until(lambda: clocks and stamp_to_nanoseconds(clocks[-1].clock) >= 500_000_000, 30.0,
                                "/clock to 0.5 s")
     stamps = [stamp_to_nanoseconds(c.clock) for c in clocks]
