@@ -185,7 +185,7 @@ class Team:
     name: str  # the value of a node's ``team`` parameter that selects it
     prefix: str
     lockstep_namespace: str
-    code: float  # the team in a table's ``team`` column (/ball/catches) and ``kind`` (/vision/detections)
+    code: float  # the team in a ``team`` column (/ball/catches, /vision/robots) and ``kind`` (/vision/detections)
 
     def namespace(self, robot_id: int) -> str:
         if int(robot_id) != robot_id or robot_id < 0:
@@ -380,7 +380,9 @@ MOTOR_STATUS_COLUMNS = ("avg_current_a", "pwm_limit", "saturated", "limit_active
 GROUND_TRUTH_MOTOR_COLUMNS = ("current_a", "winding_temperature_c", "wheel_speed_radps")
 BALL_MODEL_PARAM_LABELS = ("a_slide_mps2", "a_roll_mps2", "c_switch")
 BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
-#: the PointField names of /vision/robots, in this order, each one FLOAT64 (at offsets 0, 8, ..)
+#: the PointField names of /vision/robots, in this order, each one FLOAT64 (at offsets 0, 8, ..). A PointCloud2
+#: rather than a Float64MultiArray table: its header carries the capture stamp and the frame, and viewers
+#: (rviz, Foxglove) draw it as it is.
 VISION_ROBOT_FIELDS = ("x", "y", "z", "yaw", "team", "robot_id")
 VISION_DETECTION_COLUMNS = ("camera_id", "age_s", "kind", "robot_id", "x_m", "y_m", "theta_rad", "confidence")
 #: ``kind`` values of /vision/detections (theta_rad is 0 for balls and robots without orientation)
