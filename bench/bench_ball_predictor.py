@@ -34,8 +34,9 @@ from table import bench_main  # bench/table.py: the shared table format
 from erforce_ball_model.ball_model import kick_distance
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces import contract
+from erforce_interfaces.conversions import vision_robots_cdr
 from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.tools.messages import point_msg, pose2d_msg
+from erforce_interfaces.tools.messages import point_msg
 from erforce_interfaces.tools.testing import RosGraph
 
 NUM_ROBOTS = 22
@@ -119,18 +120,16 @@ def measure(num_frames: int) -> dict:
         probe.node.create_subscription(Odometry, q.ODOM.for_robot(NUM_ROBOTS - 1),
                                        lambda _m: odom_rx.append(time.perf_counter()), q.ODOM.qos)
         ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=30.0, qos=q.VISION_BALL.qos)
-        pose_pubs = [probe.wait_for_subscribers(q.VISION_POSE.for_robot(i), q.VISION_POSE.msg_type, timeout_s=30.0,
-                                                qos=q.VISION_POSE.qos) for i in range(NUM_ROBOTS)]
+        robots_pub = probe.wait_for_subscribers(q.VISION_ROBOTS.name, q.VISION_ROBOTS.msg_type, timeout_s=30.0,
+                                                qos=q.VISION_ROBOTS.qos)
         readers = [s for s in probe.node.subscriptions if s.topic_name.startswith(("/ball/", "/robot_"))]
         probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 30.0, "node publishers")
         probe.spin_for(0.3)
 
-        for i, (x, y) in enumerate(robots):
-            pose_pubs[i].publish(pose2d_msg(0.5, (x, y, 0.0)))
+        robots_pub.publish(vision_robots_cdr(0.5, [(q.OURS.code, i, x, y, 0.0) for i, (x, y) in enumerate(robots)]))
         probe.spin_until(lambda: len(odom_rx) > 0, 10.0, "robot odometry")
-        for pub in pose_pubs:  # keep the probe's wait set small: it is part of what is measured
-            probe.node.destroy_publisher(pub)
-        probe._publishers = {k: v for k, v in probe._publishers.items() if v not in pose_pubs}
+        probe.node.destroy_publisher(robots_pub)  # keep the probe's wait set small: it is part of what is measured
+        probe._publishers = {k: v for k, v in probe._publishers.items() if v is not robots_pub}
 
         latency_state, latency_catch, latency_published, lost = [], [], [], 0
         period = 1.0 / FPS

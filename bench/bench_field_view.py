@@ -39,7 +39,7 @@ from erforce_interfaces.conversions import (
     float64_cdr,
     odometry_cdr,
     point_cdr,
-    pose2d_cdr,
+    vision_robots_cdr,
 )
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.tools.messages import point_msg
@@ -174,8 +174,8 @@ def measure_graph(frames_per_block: int, pairs: int, num_robots: int = NUM_ROBOT
         probe.node.create_subscription(Float64, last, lambda _m, info: catch_rx.append(info["source_timestamp"]),
                                        q.CATCH_TIME.qos)
         ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=120.0, qos=q.VISION_BALL.qos)
-        pose_pubs = [probe.wait_for_subscribers(q.VISION_POSE.for_robot(i), q.VISION_POSE.msg_type, timeout_s=120.0,
-                                                qos=q.VISION_POSE.qos) for i in range(num_robots)]
+        robots_pub = probe.wait_for_subscribers(q.VISION_ROBOTS.name, q.VISION_ROBOTS.msg_type, timeout_s=120.0,
+                                                qos=q.VISION_ROBOTS.qos)
         readers = [s for s in probe.node.subscriptions if s.topic_name.startswith("/robot_")]
         probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 120.0, "node publishers")
 
@@ -188,8 +188,8 @@ def measure_graph(frames_per_block: int, pairs: int, num_robots: int = NUM_ROBOT
                 n = len(catch_rx)
                 while time.perf_counter() < next_send:
                     probe.executor.spin_once(timeout_sec=max(0.0, next_send - time.perf_counter()))
-                for i, (rx, ry) in enumerate(robots):
-                    pose_pubs[i].publish(pose2d_cdr(t, (rx, ry, 0.0)))
+                robots_pub.publish(vision_robots_cdr(t, [(q.OURS.code, i, rx, ry, 0.0)
+                                                         for i, (rx, ry) in enumerate(robots)]))
                 sent_ns = time.time_ns()
                 ball_pub.publish(point_msg(t, (x, y)))
                 next_send = time.perf_counter() + 1.0 / FPS

@@ -6,8 +6,9 @@ datagram (the ball where a camera sees it, reflections elsewhere). The bridge no
 process, private DDS domain) logs its counts and its CPU time per datagram (decoding, vision
 clock, tracker, conversion and publishing: thread CPU time) every second; the bench reads them.
 A reader process subscribes to what the stack reads of the bridge (the ball predictor: /vision/ball
-and our 11 robots' vision_pose), or with ``--readers all`` also to the 11 opponents' topics, or
-with ``--readers none`` to nothing: the bridge publishes a pose only while its topic has a reader.
+and /vision/robots, one message per camera frame for both teams), or with ``--readers all`` also to
+the 22 robots' own vision_pose topics, or with ``--readers none`` to nothing: the bridge publishes a
+robot's vision_pose only while its topic has a reader.
 ``python bench/bench_ssl_vision.py [--quick] [--readers ours|all|none]``
 """
 
@@ -62,7 +63,7 @@ READER = textwrap.dedent("""
     try:
         while rclpy.ok():
             rclpy.spin_once(node, timeout_sec=0.1)
-            if not matched and all(s.get_publisher_count() for s in subs[:12]):
+            if not matched and all(s.get_publisher_count() for s in subs[:13]):
                 matched = True
                 print("vision_reader: matched", flush=True)
             if time.monotonic() - reported >= 1.0:
@@ -76,8 +77,9 @@ READER = textwrap.dedent("""
 def reader_topics(readers: str) -> list[str]:
     if readers == "none":
         return []
-    topics = [contract.VISION_BALL.name] + [contract.VISION_POSE.for_robot(i) for i in range(11)]
+    topics = [contract.VISION_BALL.name, contract.VISION_ROBOTS.name]
     if readers == "all":
+        topics += [contract.VISION_POSE.for_robot(i) for i in range(11)]
         topics += [contract.opponent_topic(contract.VISION_POSE, i) for i in range(11)]
     return topics
 

@@ -7,11 +7,13 @@ ball's line, so the 2D problem is 1D).
 """
 
 import math
+import struct
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import PointStamped, PoseStamped
+from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
+from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model.catcher import CatcherConfig
@@ -23,7 +25,6 @@ from erforce_interfaces.conversions import (
     table_from_msg,
 )
 from erforce_interfaces.robot_config import RobotConfig
-from erforce_interfaces.tools.messages import pose2d_msg
 
 pytestmark = pytest.mark.integration
 
@@ -86,6 +87,21 @@ def ball_msg(t_s, x, y):
     return msg
 
 
+def robots_msg(t_s, rows):
+    """/vision/robots built by hand from the contract's description (the conversions would refuse NaN):
+    rows of (team code, robot id, x, y, yaw) become points of float64 x, y, z, yaw, team, robot_id."""
+    msg = PointCloud2()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(round(t_s * 1e9), 10**9)
+    msg.header.frame_id = contract.FIELD_FRAME
+    msg.height, msg.width = 1, len(rows)
+    msg.fields = [PointField(name=name, offset=8 * k, datatype=PointField.FLOAT64, count=1)
+                  for k, name in enumerate(("x", "y", "z", "yaw", "team", "robot_id"))]
+    msg.point_step, msg.row_step = 48, 48 * len(rows)
+    msg.data = b"".join(struct.pack("<6d", x, y, 0.0, yaw, team, robot_id) for team, robot_id, x, y, yaw in rows)
+    msg.is_dense = True
+    return msg
+
+
 class Rig:
     def __init__(self, graph, **params):
         params.setdefault("num_robots", 2)
@@ -93,7 +109,7 @@ class Rig:
         # robot i: ours, then the opponents (as the node's core has them)
         robots = [(contract.OURS, i) for i in range(params["num_robots"])]
         robots += [(contract.OPPONENTS, j) for j in range(params.get("num_opponents", 0))]
-        self.n = len(robots)
+        self.n, self.robots = len(robots), robots
         self.node = graph.start_node("erforce_ball_model", "ball_predictor", params=params)
         probe = graph.probe
         q = contract
@@ -111,8 +127,8 @@ class Rig:
         self.catches = probe.subscribe(q.BALL_CATCHES.name, Float64MultiArray, q.BALL_CATCHES.qos)
         self.ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=20.0,
                                                    qos=q.VISION_BALL.qos)
-        self.pose_pubs = [probe.wait_for_subscribers(team.topic(q.VISION_POSE, i), PoseStamped, timeout_s=20.0,
-                                                     qos=q.VISION_POSE.qos) for team, i in robots]
+        self.robots_pub = probe.wait_for_subscribers(q.VISION_ROBOTS.name, PointCloud2, timeout_s=20.0,
+                                                     qos=q.VISION_ROBOTS.qos)
         # Our readers must have matched the node's writers, or the first answers are lost.
         readers = [s for s in probe.node.subscriptions if s.topic_name.startswith(("/ball/", "/robot_", "/opponent_"))]
         probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 20.0, "node publishers")
@@ -143,16 +159,22 @@ class Rig:
             assert (len(self.uncertain), len(self.state)) == before, f"frame at {t_s} must not be answered"
 
     def robot(self, i, t_s, x, y, yaw, answered=True):
-        before = len(self.odom[i])
-        msg = pose2d_msg(t_s + T_SHIFT_S, (0.0, 0.0, yaw))  # position set by hand: the conversions refuse NaN
-        msg.pose.position.x, msg.pose.position.y = float(x), float(y)
-        self.pose_pubs[i].publish(msg)
+        """Rig robot ``i`` alone in a /vision/robots message."""
+        self.robots_frame(t_s, [(i, x, y, yaw)], answered={i} if answered else set())
+
+    def robots_frame(self, t_s, poses, answered, others=()):
+        """One /vision/robots message: rig robots (index, x, y, yaw) and ``others`` given as rows (team code,
+        id, x, y, yaw); wait for the odom of each rig robot in ``answered``, make sure the rest get none."""
+        before = [len(odom) for odom in self.odom]
+        rows = [(self.robots[i][0].code, self.robots[i][1], x, y, yaw) for i, x, y, yaw in poses]
+        self.robots_pub.publish(robots_msg(t_s + T_SHIFT_S, rows + list(others)))
         probe = self.graph.probe
         if answered:
-            probe.spin_until(lambda: len(self.odom[i]) > before, 10.0, f"odom of robot_{i}")
-        else:
-            probe.spin_for(0.3)
-            assert len(self.odom[i]) == before
+            probe.spin_until(lambda: all(len(self.odom[i]) > before[i] for i in answered), 10.0,
+                             f"odom of rig robots {sorted(answered)}")
+        probe.spin_for(0.3 if len(answered) < max(len(poses), 1) else 0.0)
+        assert [len(odom) - b for odom, b in zip(self.odom, before, strict=True)] == [
+            int(i in answered) for i in range(self.n)]
 
     def settle(self):
         self.graph.probe.spin_for(0.2)  # the catch messages of the last frame
@@ -289,8 +311,12 @@ def test_no_robots_seen_gives_no_catch_outputs_until_one_is_seen(ros_graph):
     rig.settle()
     assert all(len(c) == 0 for c in rig.catch_time) and all(len(c) == 0 for c in rig.catch_point)
     assert len(rig.catches) == 0
-    rig.robot(1, 1.06, 0.0, 1.0, 0.0)  # robot_1 at rest 1 m left of a resting ball, facing it
-    rig.robot(2, 1.06, 1.0, 3.0, -math.pi / 2)  # opponent_0 at rest 2 m above it, facing it
+    # One message: robot_1 at rest 1 m left of a resting ball, facing it, and robots the node does not serve
+    # (ours beyond num_robots, an opponent beyond num_opponents), skipped; then, stamped earlier (another
+    # camera's frame, late), opponent_0 at rest 2 m above the ball, facing it: each robot has its own time line.
+    rig.robots_frame(1.06, [(1, 0.0, 1.0, 0.0)], {1},
+                     others=[(contract.OURS.code, 2, 2.0, 2.0, 0.0), (contract.OPPONENTS.code, 1, -2.0, 0.0, 0.0)])
+    rig.robots_frame(1.05, [(2, 1.0, 3.0, -math.pi / 2)], {2})
     rig.ball(1.08, 1.0, 1.0)
     rig.settle()
     assert len(rig.catch_time[0]) == 0 and len(rig.catch_time[1]) == 1 and len(rig.catch_time[2]) == 1
@@ -333,10 +359,13 @@ def test_bad_observations_are_dropped_with_a_warning_and_nothing_non_finite_is_p
     assert np.allclose(pose[:2], 0.0, atol=1e-9) and np.allclose(velocity[:2], 0.0, atol=1e-9)
 
     rig.robot(0, 0.95, math.nan, 0.0, 0.0, answered=False)
-    rig.node.wait_for_output("robot_0: rejected vision_pose", timeout_s=5.0)
+    rig.node.wait_for_output("rejected vision/robots: robot 0: x is not finite", timeout_s=5.0)
     rig.robot(0, 0.96, 20.0, 0.0, 0.0, answered=False)
+    rig.node.wait_for_output("robot_0: rejected robot pose outside the field", timeout_s=5.0)
     rig.robot(0, 0.965, -1.0, 0.0, 0.0)  # the time line alive again, as for the ball
     rig.robot(0, 0.80, -1.0, 0.0, 0.0, answered=False)
+    rig.node.wait_for_output(r"rejected vision/robots \(robot_0\): stamp 5\.800000 s is before", timeout_s=5.0)
+    rig.robots_frame(0.966, [(0, -1.0, 0.0, 0.0)], set(), others=[(3.0, 0, -1.0, 0.0, 0.0)])  # no team 3: refused
     rig.robot(0, 0.97, -1.0, 0.0, 0.0)
     rig.settle()
     assert len(rig.catch_time[0]) == 4 and rig.all_finite()  # the ball frames at 1.00, 1.01, 1.05, 1.06

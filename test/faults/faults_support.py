@@ -18,7 +18,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseStamped, Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, PointCloud2, PointField
 from std_msgs.msg import Bool, Float64, Float64MultiArray, Header, MultiArrayDimension
 
 from erforce_interfaces import contract
@@ -48,6 +48,9 @@ def non_finite_fields(msg, prefix: str = "") -> list[str]:
             for k, item in enumerate(value):
                 if hasattr(item, "get_fields_and_field_types"):
                     bad += non_finite_fields(item, f"{path}[{k}].")
+    if isinstance(msg, PointCloud2) and all(f.datatype == PointField.FLOAT64 for f in msg.fields):
+        values = np.frombuffer(bytes(msg.data), "<f8")  # the points' doubles (all of /vision/robots' fields)
+        bad += [f"{prefix}data (double {k})" for k in np.flatnonzero(~np.isfinite(values))]
     return bad
 
 
@@ -154,6 +157,20 @@ def bad_message(msg_type, rng):
                           MultiArrayDimension(label=labels, size=cols, stride=cols)][: int(rng.integers(3))]
         msg.data = [_bad(rng) if rng.random() < 0.5 else -2.5 for _ in range(int(rng.choice([0, 3, 9, rows * cols])))]
         msg.layout.data_offset = int(rng.choice([0, 0, 1, 2**32 - 1]))
+        return msg
+    if msg_type is PointCloud2:  # /vision/robots: right or wrong fields and sizes, bad values, teams and ids
+        n = int(rng.choice([0, 1, 2, 22]))
+        names = [contract.VISION_ROBOT_FIELDS, contract.VISION_ROBOT_FIELDS[:5], ("x", "y", "z")][int(rng.integers(3))]
+        msg = PointCloud2(header=_Header(rng), height=int(rng.choice([1, 1, 0, 2])), width=n)
+        msg.fields = [PointField(name=name, offset=8 * k, datatype=int(rng.choice([PointField.FLOAT64] * 3 + [7])),
+                                 count=1) for k, name in enumerate(names)]
+        msg.point_step = int(rng.choice([8 * len(names), 48, 0]))
+        msg.row_step = msg.point_step * n
+        values = [[_bad(rng) if rng.random() < 0.3 else 0.5, _bad(rng) if rng.random() < 0.3 else -0.5, 0.0,
+                   _bad(rng) if rng.random() < 0.3 else 1.0, float(rng.choice([1.0, 2.0, 0.0, math.nan])),
+                   float(rng.choice([0.0, 1.0, 2.5, -1.0, 1e12]))] for _ in range(n)]
+        msg.data = np.array(values, dtype="<f8").reshape(-1, 6)[:, :len(names)].tobytes()[:int(rng.choice(
+            [10**9, 10**9, 7]))]
         return msg
     raise AssertionError(f"no fuzzer for {msg_type.__name__}")
 

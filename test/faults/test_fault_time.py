@@ -3,13 +3,15 @@
 rule of erforce_interfaces.stamps, applied by node_support), nothing dies, nothing non-finite comes out,
 and the graph closes the loop afterwards: the catcher still drives robot_0 to the ball."""
 
+import struct
+
 import numpy as np
 import pytest
 from faults_support import ClosedLoop, bad_times, closes_the_loop
-from geometry_msgs.msg import PointStamped, PoseStamped
+from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, PointCloud2, PointField
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from erforce_interfaces import contract
@@ -62,15 +64,18 @@ def test_bad_clocks_and_stamps_are_dropped_by_every_node_and_the_loop_still_clos
     for t in bad_times(loop.sim_s()):
         ball = PointStamped()
         ball.header.stamp, ball.header.frame_id = t, contract.FIELD_FRAME
-        pose = PoseStamped()
-        pose.header.stamp, pose.pose.orientation.w = t, 1.0
+        pose = PointCloud2(height=1, width=1, point_step=48, row_step=48, is_dense=True)  # robot_0 at the origin
+        pose.header.stamp, pose.header.frame_id = t, contract.FIELD_FRAME
+        pose.fields = [PointField(name=name, offset=8 * k, datatype=PointField.FLOAT64, count=1)
+                       for k, name in enumerate(contract.VISION_ROBOT_FIELDS)]
+        pose.data = struct.pack("<6d", 0.0, 0.0, 0.0, 0.0, contract.OURS.code, 0.0)
         odom = Odometry()
         odom.header.stamp, odom.pose.pose.orientation.w = t, 1.0
         balls.append(ball)
         poses.append(pose)
         odoms.append(odom)
     send("/vision/ball", PointStamped, balls, contract.QOS_SENSOR)
-    send("/robot_0/vision_pose", PoseStamped, poses, contract.QOS_SENSOR)
+    send("/vision/robots", PointCloud2, poses, contract.QOS_SENSOR)
     send("/robot_0/odom", Odometry, odoms, contract.QOS_STATE)
     # not time, but the other single message that killed the catcher: 4 columns under the right label
     table = Float64MultiArray(data=[-2.5, -0.3, 0.6, 1.0] * 3)
@@ -84,7 +89,7 @@ def test_bad_clocks_and_stamps_are_dropped_by_every_node_and_the_loop_still_clos
         "velocity_controller": ["dropped /clock", "rejected wheel_states: stamp -1 s 0 ns is not a valid time",
                                 "rejected wheel_states: stamp 0.000000 s is before"],
         "motor_boards": ["dropped /clock", "rejected wheel_states: stamp", "rejected wheel_setpoints: stamp"],
-        "ball_predictor": ["dropped /clock", "rejected vision/ball: stamp", "rejected robot_0/vision_pose: stamp"],
+        "ball_predictor": ["dropped /clock", "rejected vision/ball: stamp", "rejected vision/robots (robot_0): stamp"],
         "catcher": ["dropped /clock", "rejected odom: stamp -1 s 0 ns is not a valid time",
                     "rejected model_params: table has 4 columns, its labels name 3"],
     }

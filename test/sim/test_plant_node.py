@@ -7,17 +7,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import PoseStamped, Twist
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import Float64, String
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     odometry_from_msg,
     odometry_msg,
+    pose2d_from_msg,
     stamp_to_nanoseconds,
+    vision_robots_from_msg,
 )
 from erforce_interfaces.tools.messages import joint_state_msg
 from erforce_motion.velocity_control import VelocityControlConfig
@@ -103,13 +105,30 @@ def test_lockstep_dds_graph_reproduces_the_in_process_trajectory(ros_graph):
     assert abs(runner.world.robot_state(0).vx) > 0.3  # it did move
 
 
-def test_clock_is_published_and_monotonic(ros_graph):
+def test_clock_is_published_and_monotonic_and_vision_sends_each_frames_robots_in_one_message(ros_graph):
     clocks = ros_graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
-    start_plant(ros_graph, controlled=[False], pacing="realtime", real_time_factor=1.0, stop_after_s=5.0)
+    q = contract
+    robots = ros_graph.subscribe(q.VISION_ROBOTS.name, PointCloud2, q.VISION_ROBOTS.qos)
+    poses = ros_graph.subscribe(q.OPPONENTS.topic(q.VISION_POSE, 0), PoseStamped, q.VISION_POSE.qos)
+    start_plant(ros_graph, controlled=[False], pacing="realtime", real_time_factor=1.0, stop_after_s=5.0,
+                robot_poses=[0.5, -1.0, 0.25], opponent_poses=[1.0, 1.0, 3.0], vision_dropout=0.0,
+                startup_timeout_s=0.0)  # the opponent has motor boards: none here, and none waited for
     ros_graph.probe.spin_until(lambda: clocks and stamp_to_nanoseconds(clocks[-1].clock) >= 500_000_000, 30.0,
                                "/clock to 0.5 s")
     stamps = [stamp_to_nanoseconds(c.clock) for c in clocks]
     assert stamps == sorted(stamps)
+    # vision: both teams' robots of a frame in one message (robot_0 as team 1, opponent_0 as team 2, 2 mm noise);
+    # the opponent's own vision_pose, which has a reader here, carries the same pose at the same stamp
+    ros_graph.probe.spin_until(lambda: len(robots) >= 10 and len(poses) >= 10, 30.0, "10 vision frames")
+    frames = {t_s: rows for t_s, rows in map(vision_robots_from_msg, robots)}
+    for rows in frames.values():
+        assert rows[:, :2].tolist() == [[1.0, 0.0], [2.0, 0.0]]
+        assert rows[:, 2:].tolist() == [pytest.approx([0.5, -1.0, 0.25], abs=0.06),  # 6 sigma of the yaw noise
+                                        pytest.approx([1.0, 1.0, 3.0], abs=0.06)]
+    same = [(frames[t_s], pose) for t_s, pose in map(pose2d_from_msg, poses) if t_s in frames]
+    assert len(same) >= 5
+    for rows, pose in same:
+        assert rows[1, 2:].tolist() == pytest.approx(pose.tolist(), abs=1e-12)
 
 
 def test_start_clock_subscribers_holds_the_first_tick_until_time_zero_can_be_seen(ros_graph):

@@ -12,6 +12,7 @@ import time
 import pytest
 from geometry_msgs.msg import PointStamped, PoseStamped
 from nav_msgs.msg import Odometry
+from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
 
 from erforce_interfaces import contract
@@ -20,6 +21,7 @@ from erforce_interfaces.conversions import (
     pose2d_from_msg,
     table_from_msg,
     table_msg,
+    vision_robots_from_msg,
 )
 from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
 from erforce_interfaces.ssl_vision import (
@@ -84,6 +86,7 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
     balls = collect(graph, q.VISION_BALL.name, PointStamped, q.VISION_BALL.qos)
     ours = collect(graph, q.VISION_POSE.for_robot(3), PoseStamped, q.VISION_POSE.qos)
     theirs = collect(graph, q.opponent_topic(q.VISION_POSE, 5), PoseStamped, q.VISION_POSE.qos)
+    robots = collect(graph, q.VISION_ROBOTS.name, PointCloud2, q.VISION_ROBOTS.qos)
     detections = collect(graph, q.VISION_DETECTIONS.name, Float64MultiArray, q.VISION_DETECTIONS.qos)
     # the bridge's readers exist once its publishers are matched: send until the first ball arrives
     ball = BallCandidate(1.0, 0.5, 0.9)
@@ -116,7 +119,7 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
                  "absurd counts (101 balls", "ball at (nan, 0.0) mm, confidence 0.8999999761581421 dropped; camera 1: "
                  "ball at (999999986991104.0, 0.0) mm"):
         node.wait_for_output(re.escape(text), timeout_s=10.0)
-    graph.probe.spin_until(lambda: ours and theirs and detections, 10.0, "robots and detections")
+    graph.probe.spin_until(lambda: ours and theirs and robots and detections, 10.0, "robots and detections")
 
     # defend_side positive_x: the field turns by half a turn; metres; our team (yellow) under robot_<id>
     t, (x, y) = point_from_msg(balls[-1])
@@ -125,6 +128,11 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
     assert pose.tolist() == pytest.approx([2.0, -1.0, 0.5 - math.pi], abs=1e-6)
     _, pose = pose2d_from_msg(theirs[-1])
     assert pose.tolist() == pytest.approx([-3.0, 1.0, -2.0 + math.pi], abs=1e-6)
+    # both in one /vision/robots per camera frame: (team code, id in the team, x, y, yaw), at the frame's stamp
+    t_robots, rows = vision_robots_from_msg(robots[-1])
+    assert sorted(rows.tolist()) == [pytest.approx([1.0, 3.0, 2.0, -1.0, 0.5 - math.pi], abs=1e-6),
+                                     pytest.approx([2.0, 5.0, -3.0, 1.0, -2.0 + math.pi], abs=1e-6)]
+    assert abs(t_robots - time.time()) < 5.0 and robots[-1].header.frame_id == contract.FIELD_FRAME
     # stamps on the ROS clock (the test's wall clock), not on the vision clock
     assert abs(t - time.time()) < 5.0
     table = table_from_msg(detections[-1], contract.VISION_DETECTION_COLUMNS)

@@ -7,10 +7,13 @@ frame is answered with each fresh robot's ``/robot_<i>/catch_time`` and, while a
 it, its ``catch_point`` (first: what the robots act on), then the ball state, phase, stop point,
 v_shoot and the uncertain flag (the three for tools while anyone subscribes to them), and, while anyone
 subscribes to it, ``/ball/catches``: the whole team in one message.
-All outputs carry the observation's stamp; catch times count from it. ``/robot_<i>/vision_pose``
-is answered with ``/robot_<i>/odom`` while anyone subscribes to it. With ``num_opponents`` the
-opponents are served the same way under ``/opponent_<i>/`` (their robotTimeToBall is what the passing
-game weighs and their interceptor drives by); in the core they come after our robots.
+All outputs carry the observation's stamp; catch times count from it. Robots come in on
+``/vision/robots``, one message per vision frame for both teams; each robot it serves is judged by
+the time rule on its own (camera frames of one field arrive out of order across robots) and answered
+with ``/robot_<i>/odom`` while anyone subscribes to it; robots it does not serve are skipped. With
+``num_opponents`` the opponents are served the same way under ``/opponent_<i>/`` (their
+robotTimeToBall is what the passing game weighs and their interceptor drives by); in the core they
+come after our robots.
 
 ``/ball/model_params`` is the model in use as state (transient local): published at start and
 whenever it changes (a parameter, an accepted fit), and after every online fit with its result.
@@ -40,11 +43,11 @@ from erforce_interfaces.conversions import (
     odometry_cdr,
     point_cdr,
     point_from_msg,
-    pose2d_from_msg,
     seconds_to_stamp,
     table_cdr,
     table_from_msg,
     table_msg,
+    vision_robots_from_msg,
 )
 from erforce_interfaces.executor import run_sampled
 from erforce_interfaces.node_support import (
@@ -120,6 +123,8 @@ class BallPredictorNode(Node):
         # each core index as the graph knows it: ours first, then the opponents
         self._robots = [(q.OURS, i) if i < n_ours else (q.OPPONENTS, i - n_ours) for i in range(n)]
         self._names = [team.namespace(j) for team, j in self._robots]
+        self._core_index = {(team.code, float(j)): i for i, (team, j) in enumerate(self._robots)}  # a table row's
+        self._robot_topics = [f"vision/robots ({name})" for name in self._names]  # the time rule's name per robot
         # The time rule (erforce_interfaces.stamps) per input stream, before the core sees a frame.
         self._ball_stamps, self._robot_stamps = StampFilter(), [StampFilter() for _ in range(n)]
         self._params_pub = contract_publisher(self, q.BALL_MODEL_PARAMS)
@@ -148,9 +153,7 @@ class BallPredictorNode(Node):
         # Vision comes in and catch outputs go out serialized (conversions' codec): on the path
         # from a frame to its catch times rclpy's message objects cost more than the maths.
         contract_subscription(self, q.VISION_BALL, self._on_ball, raw=True)
-        for i, (team, j) in enumerate(self._robots):
-            contract_subscription(self, q.VISION_POSE, lambda m, i=i: self._on_robot(i, m),
-                                  team.topic(q.VISION_POSE, j), raw=True)
+        contract_subscription(self, q.VISION_ROBOTS, self._on_robots, raw=True)
         contract_subscription(self, q.VISION_FIELD, self._on_vision_field)
         contract_subscription(self, q.VISION_BALL_MODEL, self._on_vision_ball_model)
         # Everything runs on vision stamps; ROS time only stamps the logs: no wake per /clock.
@@ -202,18 +205,24 @@ class BallPredictorNode(Node):
             self.get_logger().info(f"ball model from SSL geometry: a_slide {model.a_slide_mps2:g}, a_roll "
                                    f"{model.a_roll_mps2:g}, c_switch {model.c_switch:g}")
 
-    def _on_robot(self, robot: int, msg: bytes) -> None:
+    def _on_robots(self, msg: bytes) -> None:
         try:
-            t_s, pose = pose2d_from_msg(msg)
+            t_s, rows = vision_robots_from_msg(msg)
         except ConversionError as exc:
-            self._warn.warn(f"pose{robot}", f"{self._names[robot]}: rejected vision_pose: {exc}")
+            self._warn.warn("robots", f"rejected vision/robots: {exc}")
             return
-        verdict = check_stamp(self._robot_stamps[robot], round(t_s * 1e9), self._warn,
-                              f"{self._names[robot]}/vision_pose", self)
+        t_ns = round(t_s * 1e9)
+        index = self._core_index
+        for team, robot_id, x, y, yaw in rows.tolist():
+            robot = index.get((team, robot_id))
+            if robot is not None:  # else a robot this node does not serve
+                self._robot(robot, t_s, t_ns, x, y, yaw)
+
+    def _robot(self, robot: int, t_s: float, t_ns: int, x: float, y: float, yaw: float) -> None:
+        verdict = check_stamp(self._robot_stamps[robot], t_ns, self._warn, self._robot_topics[robot], self)
         if verdict is StampVerdict.DROP:
             return
-        tracker = self._predictor.robot_frame(robot, t_s, pose[0], pose[1], pose[2],
-                                              restart=verdict is StampVerdict.RESTART)
+        tracker = self._predictor.robot_frame(robot, t_s, x, y, yaw, restart=verdict is StampVerdict.RESTART)
         if tracker is None or not self._odom_readers[robot]:
             return
         vel = tracker.velocity_mps

@@ -220,17 +220,17 @@ class BallPredictor:
         ``restart``: the stamp starts a new time line (StampVerdict.RESTART), the robot's tracker starts over."""
         cfg, key = self.config, f"pose{robot}"
         if not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m):
-            self._warn(key, f"robot_{robot}: rejected vision_pose outside the field: ({x_m:.3f}, {y_m:.3f}) m")
+            self._warn(key, f"robot_{robot}: rejected robot pose outside the field: ({x_m:.3f}, {y_m:.3f}) m")
             return None
         tracker = None if restart else self._robots[robot]
         tracker = tracker or RobotTracker()
         status = tracker.update(t_s, x_m, y_m, heading_rad)
         if status == UpdateStatus.REJECTED_TIME:
-            self._warn(key, f"robot_{robot}: rejected vision_pose: stamp {t_s:.6f} s is not after the previous one "
+            self._warn(key, f"robot_{robot}: rejected robot pose: stamp {t_s:.6f} s is not after the previous one "
                             f"{tracker.t_s:.6f} s")
             return None
         if status == UpdateStatus.REJECTED_INVALID:
-            self._warn(key, f"robot_{robot}: rejected vision_pose: invalid")
+            self._warn(key, f"robot_{robot}: rejected robot pose: invalid")
             return None
         self._robots[robot] = tracker
         vel = tracker.velocity_mps

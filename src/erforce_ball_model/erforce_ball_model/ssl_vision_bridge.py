@@ -8,9 +8,10 @@ says so. Every datagram goes through erforce_interfaces.ssl_vision (decoding, ch
 clock) and erforce_ball_model.vision_tracking (the true ball, robot streams); the node converts
 and publishes. Bad datagrams are dropped with a throttled warning naming the problem.
 
-A robot's vision_pose is serialized and published only while its topic has a reader (each
-publisher's matched event keeps the count): a full field is 22 robots, and the stack reads our
-own robots' poses only; a tool that subscribes to an opponent's topic gets it from then on.
+The robots of a camera frame, both teams, go out in one ``/vision/robots`` message (what the stack
+reads); a robot's vision_pose is serialized and published only while its topic has a reader (each
+publisher's matched event keeps the count): a full field is 22 robots, and each publish to a reader
+cost about 20 us; a tool that subscribes to one robot's topic gets it from then on.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from rclpy.node import Node
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.vision_tracking import MAX_ROBOT_ID, VisionTracker, load_kernels
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import ConversionError, point_cdr, pose2d_cdr, table_cdr
+from erforce_interfaces.conversions import ConversionError, point_cdr, pose2d_cdr, table_cdr, vision_robots_cdr
 from erforce_interfaces.node_support import (
     NodeParams,
     ThrottledWarner,
@@ -51,6 +52,7 @@ from erforce_interfaces.ssl_vision import (
 )
 
 _KIND = contract.VISION_DETECTION_KINDS
+_TEAM_CODES = (contract.OURS.code, contract.OPPONENTS.code)  # by side: 0 ours, 1 the opponents
 
 SCHEMA = load_schema("erforce_ball_model", "ssl_vision_bridge")
 
@@ -112,6 +114,7 @@ class SslVisionBridge(Node):
         self._n_ours = v["num_robots"]
         q = contract
         self._ball_pub = contract_publisher(self, q.VISION_BALL)
+        self._robots_pub = contract_publisher(self, q.VISION_ROBOTS)
         self._detections_pub = contract_publisher(self, q.VISION_DETECTIONS)
         self._field_pub = contract_publisher(self, q.VISION_FIELD)
         self._model_pub = contract_publisher(self, q.VISION_BALL_MODEL)
@@ -300,27 +303,34 @@ class SslVisionBridge(Node):
             if ball is not None:
                 self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
             if used:
-                self._publish_poses(t_s, used)
+                self._publish_robots(t_s, used)
             if cfg.publish_detections:
                 self._publish_detections(cfg, frame.camera_id, t_receive_s - t_s, balls.tolist(), robots.tolist())
         except ConversionError as exc:
             self._warn.warn("publish", f"ssl_vision_bridge: camera {frame.camera_id}: not published: {exc}")
 
-    def _publish_poses(self, t_s: float, rows: list[list[float]]) -> None:
+    def _publish_robots(self, t_s: float, rows: list[list[float]]) -> None:
+        """The frame's robots in one /vision/robots, then each robot's vision_pose that has a reader."""
         readers, n_ours = self._pose_readers, self._n_ours
+        table, read = [], []
         for team, robot_id, x, y, theta, _confidence in rows:
             side, robot_id = int(team != self._ours), int(robot_id)  # side 0: ours, 1: opponents
             if math.isnan(theta):
                 self._warn.warn("theta", f"ssl_vision_bridge: {TEAMS[int(team)]} robot {robot_id} without "
-                                         "orientation: no vision_pose")
+                                         "orientation: not published")
                 continue
+            table.append((_TEAM_CODES[side], robot_id, x, y, theta))
             if side == 0 and robot_id >= n_ours:
                 self._warn.warn("our_id", f"ssl_vision_bridge: our robot {robot_id} beyond num_robots "
-                                          f"{n_ours}: dropped")
+                                          f"{n_ours}: no vision_pose")
                 continue
             pub = self._pose_pubs[side][robot_id] or self._pose_publisher(side, robot_id)
             if readers[side][robot_id]:
-                pub.publish(pose2d_cdr(t_s, (x, y, theta)))
+                read.append((pub, x, y, theta))
+        if table:
+            self._robots_pub.publish(vision_robots_cdr(t_s, table))
+        for pub, x, y, theta in read:
+            pub.publish(pose2d_cdr(t_s, (x, y, theta)))
 
     def _pose_publisher(self, side: int, robot_id: int):
         """Our robots' (side 0) under robot_<id>, the opponents' (side 1) under opponent_<id> (see the contract)."""

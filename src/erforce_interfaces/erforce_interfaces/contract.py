@@ -39,8 +39,9 @@ so the rest of the graph cannot tell them apart:
   team defends the goal at positive x, so that in ``field`` we always defend negative x);
 - ``t_capture`` becomes the stamp, on the ROS clock (erforce_interfaces.ssl_vision.VisionClock);
 - the ball the multi-camera tracker picks goes to ``/vision/ball``, one frame at a time with
-  increasing stamps; our team's robots to ``/robot_<id>/vision_pose``, the opponents' to
-  ``/opponent_<id>/vision_pose`` (``OPPONENT_NAMESPACE_PREFIX``);
+  increasing stamps; the robots it uses from a camera frame, both teams, to ``/vision/robots`` (one
+  message per camera frame); our team's robots also to ``/robot_<id>/vision_pose``, the opponents' to
+  ``/opponent_<id>/vision_pose`` (``OPPONENT_NAMESPACE_PREFIX``), while those have readers;
 - with ``publish_detections``, every camera frame, all candidates included, to ``/vision/detections``
   (a table);
 - geometry to ``/vision/field`` and the two-phase ball model to ``/vision/ball_model``, both
@@ -63,7 +64,7 @@ from rclpy.qos import (
     ReliabilityPolicy,
 )
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_interfaces.ament_index import find_package_share
@@ -184,7 +185,7 @@ class Team:
     name: str  # the value of a node's ``team`` parameter that selects it
     prefix: str
     lockstep_namespace: str
-    code: float  # the team in a table's ``team`` column (/ball/catches) and ``kind`` (/vision/detections)
+    code: float  # the team in a ``team`` column (/ball/catches, /vision/robots) and ``kind`` (/vision/detections)
 
     def namespace(self, robot_id: int) -> str:
         if int(robot_id) != robot_id or robot_id < 0:
@@ -292,6 +293,12 @@ GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant", "t
                           "true ball: pose [m], twist.linear [m/s], twist.angular = spin [rad/s], `field`")
 SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts", "plant",
                      "place the ball: pose.position [m], twist.linear [m/s], twist.angular spin [rad/s]")
+VISION_ROBOTS = Topic("/vision/robots", PointCloud2, QOS_SENSOR, "plant (vision), ssl_vision_bridge",
+                      "ball_predictor, tools",
+                      "every robot of one vision frame (the bridge: of one camera frame), both teams, in one "
+                      "message: a point per robot, fields VISION_ROBOT_FIELDS (float64, little endian, height 1): "
+                      "x, y [m] and z = 0 in `field`, yaw [rad] in [-pi, pi], team (Team.code: 1 ours, 2 the "
+                      "opponents), robot_id (within the team); stamp = capture time; noisy, delayed, with dropouts")
 VISION_DETECTIONS = Topic("/vision/detections", Float64MultiArray, QOS_SENSOR, "ssl_vision_bridge", "tools",
                           "one message per SSL camera frame, a table with columns VISION_DETECTION_COLUMNS: every "
                           "ball candidate and robot the camera saw, in `field` [m, rad]; age_s = receipt - capture "
@@ -345,8 +352,9 @@ BALL_DETECTED = Topic("ball_detected", Bool, QOS_STATE, "plant (light barrier), 
                       "dribbler ball contact)")
 DRIBBLER = Topic("dribbler", Float64, QOS_COMMAND, "catcher / AI", "ssl_sim_bridge",
                  "dribbler speed [rad/s], 0 = off; our plant has no dribbler, external simulators do")
-VISION_POSE = Topic("vision_pose", PoseStamped, QOS_SENSOR, "plant (vision)", "ball_predictor",
-                    "robot pose in `field` [m, rad]; stamp = capture time; noisy, delayed, with dropouts")
+VISION_POSE = Topic("vision_pose", PoseStamped, QOS_SENSOR, "plant (vision), ssl_vision_bridge; each while subscribed",
+                    "per-robot tools", "robot pose in `field` [m, rad]; stamp = capture time; noisy, delayed, with "
+                    "dropouts; the same poses as /vision/robots")
 ODOM = Topic("odom", Odometry, QOS_STATE, "ball_predictor (tracker)", "catcher",
              "filtered robot pose and velocity in `field`, child frame `robot_<id>/base_link`")
 CATCH_TIME = Topic("catch_time", Float64, QOS_STATE, "ball_predictor", "catcher",
@@ -362,7 +370,7 @@ SIM_SET_STATE = Topic("sim/set_state", Odometry, QOS_COMMAND, "scenario scripts"
                       "place the robot: pose [m, rad] and twist [m/s, rad/s] in `field`")
 
 TOPICS: tuple[Topic, ...] = (
-    CLOCK, VISION_BALL, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
+    CLOCK, VISION_BALL, VISION_ROBOTS, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
     BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL, SIM_SET_BALL, SIM_EVENTS,
     TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY,
     BALL_CATCHES, PASS_CHOICE,
@@ -374,6 +382,10 @@ MOTOR_STATUS_COLUMNS = ("avg_current_a", "pwm_limit", "saturated", "limit_active
 GROUND_TRUTH_MOTOR_COLUMNS = ("current_a", "winding_temperature_c", "wheel_speed_radps")
 BALL_MODEL_PARAM_LABELS = ("a_slide_mps2", "a_roll_mps2", "c_switch")
 BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
+#: the PointField names of /vision/robots, in this order, each one FLOAT64 (at offsets 0, 8, ..). A PointCloud2
+#: rather than a Float64MultiArray table: its header carries the capture stamp and the frame, and viewers
+#: (rviz, Foxglove) draw it as it is.
+VISION_ROBOT_FIELDS = ("x", "y", "z", "yaw", "team", "robot_id")
 VISION_DETECTION_COLUMNS = ("camera_id", "age_s", "kind", "robot_id", "x_m", "y_m", "theta_rad", "confidence")
 #: ``kind`` values of /vision/detections (theta_rad is 0 for balls and robots without orientation)
 VISION_DETECTION_KINDS = {"ball": 0.0, "ours": OURS.code, "opponent": OPPONENTS.code}

@@ -27,14 +27,16 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseStamped, Quaternion, Twist
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import JointState, PointCloud2, PointField
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
 from erforce_interfaces.contract import (
     BALL_MODEL_PARAM_LABELS,
     BALL_MODEL_PARAM_ROWS,
     FIELD_FRAME,
+    OPPONENTS,
     OURS,
+    VISION_ROBOT_FIELDS,
     Team,
 )
 from erforce_interfaces.stamps import stamp_ns
@@ -659,6 +661,177 @@ def _joint_value_arrays(data: bytes, p: int) -> list[np.ndarray]:
         else:
             arrays.append(np.empty(0))
     return arrays
+
+
+# ------------------------------------------------------------ vision robots
+# /vision/robots: a sensor_msgs/PointCloud2 with one point per robot, the float64 fields VISION_ROBOT_FIELDS
+# (x, y, z, yaw, team, robot_id) at offsets 0, 8, .., little endian, height 1. Its layout is constant but for the
+# stamp, the width and the data: the bytes from the fields to point_step are built once and, on the way in,
+# recognised. Rows in and out are (team, robot_id, x, y, yaw): Team.code, the id within the team, the pose in
+# ``field`` [m, rad]; yaw goes out and comes in wrapped to [-pi, pi].
+_ROBOT_POINT = struct.Struct(f"<{len(VISION_ROBOT_FIELDS)}d")
+_MAX_CLOUD_POINTS = 1024  # a width beyond this is garbage, not a field of robots
+_TEAM_CODES = (OURS.code, OPPONENTS.code)
+_TWO_PI = 2.0 * math.pi
+
+
+def _robot_fields_cdr() -> bytes:
+    """From the fields sequence through point_step; it starts 4-aligned, and nothing in it needs more."""
+    out = bytearray(_u32.pack(len(VISION_ROBOT_FIELDS)))
+    for k, name in enumerate(VISION_ROBOT_FIELDS):
+        raw = name.encode() + b"\x00"
+        out += bytes(-len(out) % 4) + _u32.pack(len(raw)) + raw
+        out += bytes(-len(out) % 4) + _u32.pack(8 * k) + bytes((PointField.FLOAT64,))
+        out += bytes(-len(out) % 4) + _u32.pack(1)
+    out += b"\x00"  # is_bigendian
+    return bytes(out + bytes(-len(out) % 4) + _u32.pack(_ROBOT_POINT.size))
+
+
+_ROBOT_FIELDS_CDR = _robot_fields_cdr()
+
+
+def vision_robots_cdr(t_s: float, rows: Sequence[Sequence[float]], frame_id: str = FIELD_FRAME) -> bytes:
+    """A /vision/robots PointCloud2 serialized: ``rows`` of (team, robot_id, x, y, yaw), checked as the
+    reader checks them (finite, positions within MAX_ABS_VALUE, a team code, an integer id)."""
+    flat = []
+    for k, (team, robot_id, x, y, yaw) in enumerate(rows):
+        if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(yaw) <= 1.0e6 and team in _TEAM_CODES
+                and 0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)):  # False for NaN
+            _robot_row_error(k, team, robot_id, x, y, yaw)
+        flat += (x, y, 0.0, math.remainder(yaw, _TWO_PI), team, robot_id)
+    n = len(rows)
+    size = n * _ROBOT_POINT.size
+    return b"".join((_stamp_head(t_s), _frame_cdr(frame_id), struct.pack("<II", 1, n), _ROBOT_FIELDS_CDR,
+                     struct.pack(f"<II{len(flat)}d", size, size, *flat), b"\x01"))
+
+
+@functools.lru_cache(maxsize=8)
+def _frame_cdr(frame_id: str) -> bytes:
+    """frame_id from payload offset 8, padded to 4 (a uint32 follows)."""
+    raw = frame_id.encode() + b"\x00"
+    return _u32.pack(len(raw)) + raw + bytes(-len(raw) % 4)
+
+
+def _stamp_head(t_s: float) -> bytes:
+    """The encapsulation and the stamp."""
+    if 0.0 <= t_s < 2.0e9:  # the usual stamp, as in _stamped_cdr
+        ns = round(float(t_s) * 1e9)
+        return _CDR_LE + _stamp.pack(ns // 1_000_000_000, ns % 1_000_000_000)
+    return _CDR_LE + _stamp.pack(*_stamp_parts(_seconds_to_ns(t_s)))
+
+
+def _robot_row_error(k: int, team, robot_id, x, y, yaw) -> None:
+    for name, value, limit in (("x", x, MAX_ABS_VALUE), ("y", y, MAX_ABS_VALUE), ("yaw", yaw, 1.0e6)):
+        _finite(f"robot {k}: {name}", value, limit)
+    if team not in _TEAM_CODES:
+        raise ConversionError(f"robot {k}: team {team!r} is none of {_TEAM_CODES}")
+    raise ConversionError(f"robot {k}: robot_id {robot_id!r} is no id (an integer in 0..{_MAX_CLOUD_POINTS})")
+
+
+def vision_robots_from_msg(msg: PointCloud2 | bytes) -> tuple[float, np.ndarray]:
+    """(stamp [s], rows) of /vision/robots: an (n, 5) array of (team, robot_id, x, y, yaw), yaw in [-pi, pi].
+    ``msg`` may be serialized (as point_from_msg). A cloud with other fields, a row with a non-finite or huge
+    value, an unknown team or a fractional id is refused as a whole (ConversionError)."""
+    if isinstance(msg, bytes | bytearray | memoryview):
+        data = bytes(msg)
+        t_s, layout, at = _cloud_from_cdr(data)
+        _check_robot_cloud(*layout)
+        values = np.frombuffer(data, "<f8", layout[1] * len(VISION_ROBOT_FIELDS), at)
+    else:
+        _check_frame(msg.header.frame_id)
+        t_s = stamp_to_seconds(msg.header.stamp)
+        _check_robot_cloud(msg.height, msg.width, [(f.name, f.offset, f.datatype, f.count) for f in msg.fields],
+                           msg.is_bigendian, msg.point_step, msg.row_step, len(msg.data))
+        values = np.frombuffer(bytes(msg.data), "<f8")
+    return t_s, _robot_rows(values.reshape(-1, len(VISION_ROBOT_FIELDS)))
+
+
+_ROBOT_FIELDS = [(name, 8 * k, PointField.FLOAT64, 1) for k, name in enumerate(VISION_ROBOT_FIELDS)]
+
+
+def _check_robot_cloud(height: int, width: int, fields: list | None, is_bigendian: bool, point_step: int,
+                       row_step: int, size: int) -> None:
+    """A cloud's layout must be /vision/robots' (fields None: known to be)."""
+    if fields is not None and fields != _ROBOT_FIELDS:
+        raise ConversionError(f"point fields {','.join(f[0] for f in fields)[:80]} are not "
+                              f"{','.join(VISION_ROBOT_FIELDS)} (float64 each)")
+    step = _ROBOT_POINT.size
+    if is_bigendian or point_step != step or width > _MAX_CLOUD_POINTS or (width and height != 1) \
+            or row_step != width * step or size != width * step:
+        raise ConversionError(f"a robot cloud of {height} x {width} points, {point_step}-byte points, {size} bytes "
+                              f"of data{', big endian' if is_bigendian else ''}: expected one little-endian row of "
+                              f"{step}-byte points")
+
+
+def _cloud_from_cdr(data: bytes) -> tuple[float, tuple, int]:
+    """(stamp [s], (height, width, fields or None, is_bigendian, point_step, row_step, data size), file offset
+    of the data) of a serialized PointCloud2. Fields are None when they are /vision/robots' as
+    vision_robots_cdr writes them (recognised by their bytes); another writer's padding, or other
+    fields, are read one by one."""
+    try:
+        sec, nanosec, p = _header_cdr(data, "PointCloud2")
+        p += -p % 4
+        height, width = struct.unpack_from("<II", data, 4 + p)
+        p += 8
+        if data.startswith(_ROBOT_FIELDS_CDR, 4 + p):
+            fields, is_bigendian, p = None, False, p + len(_ROBOT_FIELDS_CDR) - 4
+        else:
+            fields, p = _point_fields_cdr(data, p)
+            is_bigendian = data[4 + p] != 0
+            p += 1
+            p += -p % 4
+        point_step, row_step, size = struct.unpack_from("<III", data, 4 + p)
+        p += 12
+    except (struct.error, IndexError) as exc:
+        raise ConversionError(f"truncated PointCloud2 ({exc})") from None
+    if 4 + p + size + 1 > len(data):  # the data, then is_dense
+        raise ConversionError(f"truncated PointCloud2 ({size} bytes of data in {len(data)})")
+    return sec + nanosec * 1e-9, (height, width, fields, is_bigendian, point_step, row_step, size), 4 + p
+
+
+def _point_fields_cdr(data: bytes, p: int) -> tuple[list[tuple[str, int, int, int]], int]:
+    """The PointField sequence at payload offset ``p`` and the offset after it (struct.error when cut short)."""
+    (count,) = _u32.unpack_from(data, 4 + p)
+    if count > 64:
+        raise ConversionError(f"{count} point fields")
+    p += 4
+    fields = []
+    for _ in range(count):
+        p += -p % 4
+        (length,) = _u32.unpack_from(data, 4 + p)
+        if length < 1 or 8 + p + length > len(data):
+            raise ConversionError("a point field name runs past the message")
+        name = data[8 + p : 7 + p + length].decode("utf-8", "replace")
+        p += 4 + length
+        p += -p % 4
+        offset, datatype = struct.unpack_from("<IB", data, 4 + p)
+        p += 5
+        p += -p % 4
+        fields.append((name, offset, datatype, _u32.unpack_from(data, 4 + p)[0]))
+        p += 4
+    return fields, p
+
+
+#: per field of a point: the largest magnitude accepted (the team and the id are checked further below)
+_ROBOT_POINT_LIMITS = np.array([MAX_ABS_VALUE, MAX_ABS_VALUE, MAX_ABS_VALUE, 1.0e6, OPPONENTS.code,
+                                _MAX_CLOUD_POINTS])
+
+
+def _robot_rows(values: np.ndarray) -> np.ndarray:
+    """(team, robot_id, x, y, yaw) of the cloud's points (x, y, z, yaw, team, robot_id), checked."""
+    codes = values[:, 4:]
+    # a few whole-array tests (each false for NaN): ranges, then integer team and id, team >= 1 and id >= 0
+    if not ((np.abs(values) <= _ROBOT_POINT_LIMITS).all() and (codes == np.floor(codes)).all()
+            and (codes >= (OURS.code, 0.0)).all()):
+        for k, (x, y, z, yaw, team, robot_id) in enumerate(values.tolist()):
+            _finite(f"robot {k}: z", z)
+            if not (team in _TEAM_CODES and 0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)
+                    and abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(yaw) <= 1.0e6):
+                _robot_row_error(k, team, robot_id, x, y, yaw)
+    rows = values[:, (4, 5, 0, 1, 3)]
+    yaw = rows[:, 4]
+    yaw -= _TWO_PI * np.round(yaw / _TWO_PI)
+    return rows
 
 
 # ------------------------------------------------------------ scalar & tables

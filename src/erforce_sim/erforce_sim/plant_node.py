@@ -57,6 +57,7 @@ from erforce_interfaces.conversions import (
     table_cdr,
     team_joint_state_cdr,
     team_joint_state_from_msg,
+    vision_robots_cdr,
 )
 from erforce_interfaces.lockstep import DutyGate
 from erforce_interfaces.node_support import (
@@ -176,6 +177,8 @@ class PlantNode(Node):
         self._clock_pub = pub(self, q.CLOCK)
         self._events_pub = pub(self, q.SIM_EVENTS)
         self._vision_ball_pub = pub(self, q.VISION_BALL)
+        self._vision_robots_pub = pub(self, q.VISION_ROBOTS)
+        self._vision_pose_readers = [0] * n  # a robot's vision_pose goes out only while it has readers
         self._truth_ball_pub = pub(self, q.GROUND_TRUTH_BALL)
         self._pubs: list[dict[str, Any]] = []
         # Scenario commands act at the next tick, the newest of each: a callback only keeps the message, so
@@ -195,7 +198,8 @@ class PlantNode(Node):
                 {
                     "states": pub(self, q.WHEEL_STATES, team.topic(q.WHEEL_STATES, j)) if self._per_robot_lockstep
                     else None,
-                    "vision": pub(self, q.VISION_POSE, team.topic(q.VISION_POSE, j)),
+                    "vision": pub(self, q.VISION_POSE, team.topic(q.VISION_POSE, j),
+                                  readers=(self._vision_pose_readers, i)),
                     "barrier": pub(self, q.BALL_DETECTED, team.topic(q.BALL_DETECTED, j)),
                     "truth": pub(self, q.GROUND_TRUTH_ODOM, team.topic(q.GROUND_TRUTH_ODOM, j)),
                     "motors": pub(self, q.GROUND_TRUTH_MOTORS, team.topic(q.GROUND_TRUTH_MOTORS, j)),
@@ -519,9 +523,18 @@ class PlantNode(Node):
         t = frame.t_capture_s
         for ball in frame.balls:
             self._vision_ball_pub.publish(point_cdr(t, (ball.x, ball.y)))
+        if not frame.robots:
+            return
+        rows, read = [], []
         for det in frame.robots:
-            self._pubs[self._vision_index[det.team, det.robot_id]]["vision"].publish(
-                pose2d_cdr(t, (det.x, det.y, det.theta)))
+            i = self._vision_index[det.team, det.robot_id]
+            team, j = self._robots[i]
+            rows.append((team.code, j, det.x, det.y, det.theta))
+            if self._vision_pose_readers[i]:
+                read.append((i, det))
+        self._vision_robots_pub.publish(vision_robots_cdr(t, rows))  # what the ball predictor reads
+        for i, det in read:
+            self._pubs[i]["vision"].publish(pose2d_cdr(t, (det.x, det.y, det.theta)))
 
     def _publish_truth(self, t_s: float, due: list[int]) -> None:
         """The ground truth of the robots in ``due`` (world indices; the index after the last robot: the ball)."""

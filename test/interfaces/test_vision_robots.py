@@ -1,0 +1,177 @@
+"""/vision/robots: a sensor_msgs/PointCloud2 with a point per robot, its bytes and its checks."""
+
+import math
+import struct
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Time
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import PointCloud2, PointField
+from std_msgs.msg import Header
+
+from erforce_interfaces import contract as c
+from erforce_interfaces import conversions as conv
+
+FIELD_NAMES = ("x", "y", "z", "yaw", "team", "robot_id")
+
+
+def _field(name: bytes, offset: int) -> bytes:
+    """One PointField from a 4-aligned offset: name (length, characters, NUL, padding to 4), offset,
+    datatype FLOAT64 (8) and 3 bytes of padding, count 1."""
+    raw = name + b"\x00"
+    return struct.pack("<I", len(raw)) + raw + bytes(-len(raw) % 4) + struct.pack("<IB3xI", offset, 8, 1)
+
+
+# Two robots at 7.25 s: ours 3 at (1.5, -2.0) facing 0.5 rad, the opponents' 0 at (-4.0, 3.0) facing 4 rad, which
+# goes on the wire as 4 - 2 pi. Payload offsets: stamp 0; frame_id "field" 8 (length 6, 2 bytes padding); height 20;
+# width 24; 6 fields from 28; is_bigendian 164 (3 bytes padding); point_step 168; row_step 172; data 176 (length)
+# and 180 (2 x 48 bytes); is_dense 276.
+HAND = (b"\x00\x01\x00\x00" + struct.pack("<iI", 7, 250_000_000) + struct.pack("<I", 6) + b"field\x00" + bytes(2)
+        + struct.pack("<III", 1, 2, 6)
+        + b"".join(_field(name.encode(), 8 * k) for k, name in enumerate(FIELD_NAMES))
+        + b"\x00" + bytes(3) + struct.pack("<III", 48, 96, 96)
+        + struct.pack("<6d", 1.5, -2.0, 0.0, 0.5, 1.0, 3.0)
+        + struct.pack("<6d", -4.0, 3.0, 0.0, 4.0 - 2.0 * math.pi, 2.0, 0.0) + b"\x01")
+ROWS = [(1.0, 3.0, 1.5, -2.0, 0.5), (2.0, 0.0, -4.0, 3.0, 4.0)]  # (team, robot_id, x, y, yaw)
+ROWS_READ = [[1.0, 3.0, 1.5, -2.0, 0.5], [2.0, 0.0, -4.0, 3.0, 4.0 - 2.0 * math.pi]]
+
+
+def cloud(t_s, points, fields=FIELD_NAMES, frame=c.FIELD_FRAME, **overrides):
+    """A PointCloud2 message built field by field (values as given: NaN and the like included)."""
+    msg = PointCloud2(header=Header(frame_id=frame))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(round(t_s * 1e9), 10**9)
+    msg.height, msg.width = 1, len(points)
+    msg.fields = [PointField(name=name, offset=8 * k, datatype=PointField.FLOAT64, count=1)
+                  for k, name in enumerate(fields)]
+    msg.point_step, msg.row_step = 8 * len(fields), 8 * len(fields) * len(points)
+    msg.data = b"".join(struct.pack(f"<{len(fields)}d", *p) for p in points)
+    msg.is_dense = True
+    for name, value in overrides.items():
+        setattr(msg, name, value)
+    return msg
+
+
+def test_the_topic_and_its_fields_are_in_the_contract():
+    assert c.VISION_ROBOTS.name == "/vision/robots" and c.VISION_ROBOTS.msg_type is PointCloud2
+    assert c.VISION_ROBOTS.qos is c.QOS_SENSOR and c.VISION_ROBOT_FIELDS == FIELD_NAMES
+    assert c.topic_of_name("/vision/robots") is c.VISION_ROBOTS
+    assert (c.OURS.code, c.OPPONENTS.code) == (1.0, 2.0)
+
+
+def test_bytes_match_a_hand_made_layout_and_read_back():
+    assert len(HAND) == 4 + 277
+    assert conv.vision_robots_cdr(7.25, ROWS) == HAND
+    t_s, rows = conv.vision_robots_from_msg(HAND)
+    assert t_s == 7.25 and rows.tolist() == ROWS_READ
+    msg = deserialize_message(HAND, PointCloud2)  # rclpy reads our bytes as the cloud we meant
+    assert msg == cloud(7.25, [(1.5, -2.0, 0.0, 0.5, 1.0, 3.0), (-4.0, 3.0, 0.0, 4.0 - 2.0 * math.pi, 2.0, 0.0)])
+    # rclpy's serializer agrees on every byte but the padding, which it leaves uninitialized
+    # payload offsets of the padding: after frame_id; per field after its name (none after "yaw\0") and after
+    # its datatype; after is_bigendian
+    padding = {4 + k for k in (18, 19, 38, 39, 45, 46, 47, 58, 59, 65, 66, 67, 78, 79, 85, 86, 87, 105, 106, 107,
+                               121, 122, 123, 129, 130, 131, 149, 150, 151, 157, 158, 159, 165, 166, 167)}
+    reference = serialize_message(msg)
+    assert len(reference) == len(HAND)
+    assert [b for i, b in enumerate(reference) if i not in padding] == [b for i, b in enumerate(HAND)
+                                                                         if i not in padding]
+    assert conv.vision_robots_from_msg(reference)[1].tolist() == ROWS_READ  # garbage padding read too
+    assert conv.vision_robots_from_msg(msg)[1].tolist() == ROWS_READ
+
+
+def test_an_empty_frame_and_an_unnamed_frame_are_read():
+    t_s, rows = conv.vision_robots_from_msg(conv.vision_robots_cdr(1.5, []))
+    assert t_s == 1.5 and rows.shape == (0, 5)
+    data = conv.vision_robots_cdr(2.0, ROWS[:1], frame_id="")
+    assert conv.vision_robots_from_msg(data)[1].tolist() == ROWS_READ[:1]
+    assert conv.vision_robots_from_msg(serialize_message(deserialize_message(data, PointCloud2)))[1].tolist() == \
+        ROWS_READ[:1]
+
+
+_rows = st.lists(st.tuples(st.sampled_from([1.0, 2.0]), st.integers(0, 15).map(float), st.floats(-1e3, 1e3),
+                           st.floats(-1e3, 1e3), st.floats(-1e6, 1e6)), max_size=22)
+
+
+@settings(max_examples=150, deadline=None)
+@given(t_s=st.floats(0.0, 2.0**31 - 1.0), rows=_rows)
+def test_built_bytes_round_trip_through_rclpy(t_s, rows):
+    data = conv.vision_robots_cdr(t_s, rows)
+    msg = deserialize_message(data, PointCloud2)
+    expected = [[team, rid, x, y, math.remainder(yaw, 2.0 * math.pi)] for team, rid, x, y, yaw in rows]
+    for form in (data, msg, serialize_message(msg)):
+        _, read = conv.vision_robots_from_msg(form)
+        assert read.shape == (len(rows), 5)
+        np.testing.assert_allclose(read, np.array(expected).reshape(-1, 5), rtol=0, atol=1e-9)
+        assert (np.abs(read[:, 4]) <= math.pi).all()
+
+
+_any = st.floats(width=64)
+
+
+@settings(max_examples=200, deadline=None)
+@given(points=st.lists(st.tuples(_any, _any, _any, _any, st.sampled_from([0.0, 1.0, 2.0, 1.5, math.nan]),
+                                 st.sampled_from([0.0, 3.0, -1.0, 2.5, 1e9, math.inf])), max_size=4),
+       sec=st.integers(-(2**31), 2**31 - 1), nanosec=st.integers(0, 2**32 - 1), frame=st.sampled_from(["field", "",
+                                                                                                    "map"]))
+def test_message_and_bytes_are_read_alike_or_refused_alike(points, sec, nanosec, frame):
+    msg = cloud(0.0, points, frame=frame)
+    msg.header.stamp = Time(sec=sec, nanosec=nanosec)
+    outcomes = []
+    for form in (msg, serialize_message(msg)):
+        try:
+            t_s, rows = conv.vision_robots_from_msg(form)
+            outcomes.append((t_s, rows.tolist()))
+            assert np.isfinite(rows).all()
+        except conv.ConversionError:
+            outcomes.append("rejected")
+    assert outcomes[0] == outcomes[1]
+
+
+def test_the_builder_refuses_what_the_reader_refuses():
+    good = (1.0, 3.0, 1.5, -2.0, 0.5)
+    for k, bad in ((2, math.nan), (2, math.inf), (3, 2e3), (4, math.nan), (0, 0.0), (0, 3.0), (1, -1.0), (1, 1.5),
+                   (1, math.nan)):
+        row = list(good)
+        row[k] = bad
+        with pytest.raises(conv.ConversionError, match="robot 1: "):
+            conv.vision_robots_cdr(1.0, [good, row])
+        point = [row[2], row[3], 0.0, row[4], row[0], row[1]]
+        with pytest.raises(conv.ConversionError, match="robot 0: "):
+            conv.vision_robots_from_msg(cloud(1.0, [point]))
+    with pytest.raises(conv.ConversionError, match="stamp"):
+        conv.vision_robots_cdr(-1.0, [good])
+
+
+def test_other_clouds_and_malformed_bytes_are_refused():
+    point = (1.5, -2.0, 0.0, 0.5, 1.0, 3.0)
+    for msg in (cloud(1.0, [point[:5]], fields=FIELD_NAMES[:5]),  # no robot_id
+                cloud(1.0, [point], fields=("x", "y", "z", "theta", "team", "robot_id")),
+                cloud(1.0, [point], is_bigendian=True), cloud(1.0, [point], height=2),
+                cloud(1.0, [point], row_step=96), cloud(1.0, [point], point_step=56),
+                cloud(1.0, [point], frame="map")):
+        for form in (msg, serialize_message(msg)):
+            with pytest.raises(conv.ConversionError):
+                conv.vision_robots_from_msg(form)
+    float32 = cloud(1.0, [point])
+    float32.fields[5].datatype = PointField.FLOAT32
+    with pytest.raises(conv.ConversionError, match="float64"):
+        conv.vision_robots_from_msg(float32)
+    for cut in range(len(HAND)):  # every truncation
+        with pytest.raises(conv.ConversionError):
+            conv.vision_robots_from_msg(HAND[:cut])
+    for bad in (b"\x00\x00" + HAND[2:], HAND[:28] + struct.pack("<I", 10**6) + HAND[32:],  # width
+                HAND[:-49] + struct.pack("<d", math.nan) + HAND[-41:]):  # x of the second robot
+        with pytest.raises(conv.ConversionError):
+            conv.vision_robots_from_msg(bad)
+
+
+@settings(max_examples=300, deadline=None)
+@given(garbage=st.binary(max_size=300))
+def test_random_bytes_never_raise_anything_but_a_conversion_error(garbage):
+    for data in (garbage, b"\x00\x01\x00\x00" + garbage, HAND[:180] + garbage):
+        try:
+            conv.vision_robots_from_msg(data)
+        except conv.ConversionError:
+            pass
