@@ -206,8 +206,17 @@ def load_kernels() -> None:
         _array_kernel(loop)
 
 
+# Up to this many values an array query runs the closed form in Python (~1 us each) instead of the
+# kernel: a process that asks only short ones (the field view's path marks) never loads numba (~0.7 s of CPU).
+_PYTHON_MAX_VALUES = 64
+_SCALAR_OF = {_distance_many: ball_distance, _speed_many: ball_speed, _time_to_distance_many: ball_time_to_distance}
+
+
 def _many(loop, ball: BallFloats, values: np.ndarray) -> np.ndarray:
     flat = np.ascontiguousarray(values, dtype=float).ravel()
+    if flat.size <= _PYTHON_MAX_VALUES:
+        scalar = _SCALAR_OF[loop]
+        return np.array([scalar(ball, v) for v in flat.tolist()], dtype=float).reshape(values.shape)
     out = np.empty(flat.shape)
     _array_kernel(loop)(ball, flat, out)
     return out.reshape(values.shape)
