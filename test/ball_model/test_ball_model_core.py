@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from erforce_ball_model import ball_model
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
 from erforce_interfaces.robot_config import FieldConfig
 
@@ -69,18 +70,25 @@ def test_ball_at_rest():
 
 
 def test_array_queries_match_scalar_queries_and_advanced():
-    """An array of times runs compiled, a number in Python: both the same closed forms, element by element."""
+    """A long array of times runs compiled, a number (and a short array) in Python: the same closed forms,
+    element by element."""
     rng = np.random.default_rng(0)
     pos, vel = rng.normal(size=(8, 2)), rng.normal(0, 3, size=(8, 2))
     shoot = rng.uniform(0, 6, 8)
     vel[5] = 0.0  # at rest
     shoot[6] = 0.5 * np.hypot(*vel[6])  # v_shoot below the speed: raised to it
     shoot[7] = 3.0 * np.hypot(*vel[7])  # already rolling
-    t = np.linspace(0, 6, 7)
+    t = np.linspace(0, 6, 97)  # more than ball_model._PYTHON_MAX_VALUES: the kernels
+    assert t.size > ball_model._PYTHON_MAX_VALUES
     for i in range(8):
         ball = BallTrajectory(pos[i], vel[i], shoot[i])
         positions, speeds, phases = ball.position_at(t), ball.speed_at(t), ball.phase_at(t)
-        assert positions.shape == (7, 2) and speeds.shape == phases.shape == (7,)
+        assert positions.shape == (97, 2) and speeds.shape == phases.shape == (97,)
+        short = t[::16]
+        np.testing.assert_allclose(ball.position_at(short), positions[::16], rtol=1e-15)
+        np.testing.assert_allclose(ball.speed_at(short), speeds[::16], rtol=1e-15)
+        d = ball.distance_at(t)
+        np.testing.assert_allclose(ball.time_to_distance(d[::16]), ball.time_to_distance(d)[::16], rtol=1e-15)
         for k, tk in enumerate(t):
             assert isinstance(ball.distance_at(tk), float) and isinstance(ball.speed_at(tk), float)
             np.testing.assert_allclose(positions[k], ball.position_at(float(tk)), rtol=1e-15)

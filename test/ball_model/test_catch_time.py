@@ -13,14 +13,22 @@ from erforce_ball_model.catch_time import (
     CatchSearch,
     RobotLimits,
     _axis_time,
+    _may_reach,
+    can_reach,
     can_reach_in_time,
+    load_kernels,
     robot_time_curve,
     robot_time_to_ball,
     robot_time_to_pos,
 )
+from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import FieldConfig
 
-axis_time = np.vectorize(_axis_time, otypes=[float])  # the compiled 1D bang-bang time, over arrays
+# The scalar functions as the kernels run them: compiled (the kernels compile them inline, these are
+# compiled alone with the same error model).
+load_kernels()
+axis_time = np.vectorize(numba.njit(error_model="numpy")(_axis_time), otypes=[float])  # over arrays
+may_reach = numba.njit(error_model="numpy")(_may_reach)
 
 OFFSET = 0.0815
 DIV_B = FieldConfig.preset("division_b")
@@ -119,6 +127,18 @@ def test_robot_time_to_pos_is_certified_by_the_sign_test(p0, v0, target, a_max, 
         assert not bool(can_reach_in_time(d, v0, t - 2e-7, a_max, v_max))
 
 
+@settings(max_examples=300, deadline=None)
+@given(vec, vec, st.floats(-1.0, 6.0), st.floats(0.5, 6.0), st.floats(0.5, 4.0))
+@example((0.0, 0.0), (0.0, 0.0), 0.0, 2.0, 3.0)  # at the target, at rest, no time
+@example((1.0, 0.0), (0.0, 0.0), 0.0, 2.0, 3.0)  # a zero budget (0 / 0 in the quadratic)
+@example((1.0, 0.5), (0.5, 0.0), 1.5, 2.0, 3.0)  # t == rho: the trapezoid's c is 0
+@example((1.0, 0.0), (-1.0, 0.0), 2.0, 2.0, 3.0)  # moving away: w < 0, no 1 / w
+def test_plain_python_can_reach_answers_as_the_compiled_sign_test(d, w, t, a_max, v_max):
+    """can_reach (the catcher's, plain Python) gives the kernel's answer, also where numba's x / 0 is inf."""
+    compiled = bool(can_reach_in_time(d, w, t, a_max, v_max)) if t >= 0.0 else False
+    assert can_reach(d, w, t, a_max, v_max) is compiled
+
+
 def test_robot_time_to_pos_never_worse_than_a_dense_alpha_scan():
     rng = np.random.default_rng(7)
     alpha = np.linspace(1e-6, 0.5 * math.pi - 1e-6, 20001)
@@ -166,12 +186,10 @@ def test_prepared_search_reused_over_frames_equals_one_off_calls():
 @example((0.0, 0.0), (0.0, 0.25), (0.0, 2.1245449335086068e-218), 1.0, 1.0, 1.0)  # |d|^2 underflows to 0
 def test_cheap_bound_never_rules_out_a_reachable_point(p0, v0, target, t, a_max, v_max):
     """robotTimeToBall skips the exact test where _may_reach is False: that must be sound."""
-    from erforce_ball_model.catch_time import _may_reach
-
     d = np.subtract(target, p0)
     s0 = math.hypot(*v0)
     if bool(can_reach_in_time(d, v0, t, a_max, v_max)):
-        assert bool(_may_reach(d[0], d[1], v0[0], v0[1], s0, t, a_max, v_max))
+        assert bool(may_reach(d[0], d[1], v0[0], v0[1], s0, t, a_max, v_max))
 
 
 # --- robotTimeToBall: hand cases ---------------------------------------------------------------

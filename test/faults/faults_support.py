@@ -476,16 +476,21 @@ class LaunchedDemo:
         old = self.pid(node)
         t_kill = time.monotonic()
         os.kill(old, signal.SIGKILL)
-        # nothing that arrives before the respawn delay can be the new process's
-        t_back = t_kill + respawn_delay_s
+        # Nothing that arrives before the respawn delay, or before the launcher has started the new process,
+        # can be the new process's (on a loaded machine the old one's last messages can arrive that late).
+        t_back = [t_kill + respawn_delay_s, None]
 
         def healed() -> bool:
-            mine = [t for t in self.arrivals[node] if t > t_back]
+            if t_back[1] is None:
+                if self.pid(node) in (None, old):
+                    return False
+                t_back[1] = max(t_back[0], time.monotonic())
+            mine = [t for t in self.arrivals[node] if t > t_back[1]]
             return bool(mine) and self.all_flowing_since(mine[0])
 
         self.probe.spin_until(healed, timeout_s, f"the loop closed again after {node} was killed")
         assert self.pid(node) != old, f"{node}: the loop closed, but not by a respawned process"
-        first_back = next(t for t in self.arrivals[node] if t > t_back)
+        first_back = next(t for t in self.arrivals[node] if t > t_back[1])
         return max(next(t for t in times if t > first_back) for times in self.arrivals.values()) - t_kill
 
 def closes_the_loop(loop, timeout_s: float = 60.0) -> None:

@@ -17,8 +17,10 @@ and writes the decelerations in m/s). With ``s0`` the current speed and
 This module is the one home of these closed forms. ``BallFloats`` holds one ball's numbers
 (position, direction, the switch and stop constants, the decelerations) and ``ball_distance``,
 ``ball_speed`` and ``ball_time_to_distance`` answer from them: plain Python on floats, and
-compiled into the numba kernels that call them (catch_time's robotTimeToBall search), which read
-the ball by name (``ball.stop_time_s``), never by position in an array.
+compiled into the numba kernels that call them (catch_time's robotTimeToBall search, the array
+queries here), which read the ball by name (``ball.stop_time_s``), never by position in an array.
+numba is imported on the first kernel a process needs (``numba_ball_type``), not with this module:
+a node that only asks scalar questions (the catcher) starts without it (~0.7 s of CPU less).
 
 ``BallTrajectory`` is an immutable value (one ball's future) with these queries
 (``position_at`` is the paper's ballAtTime, ``time_to_distance`` is ballRollTime). A number
@@ -35,18 +37,18 @@ trailing 2 for vectors).
 from __future__ import annotations
 
 import enum
+import functools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
-from erforce_interfaces.numba_support import numba, register_jitable
 from erforce_interfaces.robot_config import FieldConfig
 
 __all__ = [
     "MAX_POSITION_M", "MAX_SPEED_MPS", "BallFloats", "BallModelParams", "BallPhase", "BallTrajectory", "ball_distance",
-    "ball_floats", "ball_speed", "ball_time_to_distance", "kick_distance",
+    "ball_floats", "ball_speed", "ball_time_to_distance", "kick_distance", "load_kernels", "numba_ball_type",
 ]
 
 # Sanity bounds: far beyond any SSL ball (6.5 m/s kick limit, 12 m field), they only catch garbage
@@ -110,10 +112,6 @@ class BallFloats(NamedTuple):
     a_roll_mps2: float
 
 
-# The numba type of a BallFloats, for the kernels' signatures (here and in catch_time).
-BALL_FLOATS_TYPE = numba.types.NamedUniTuple(numba.types.float64, len(BallFloats._fields), BallFloats)
-
-
 def ball_floats(x_m: float, y_m: float, vx_mps: float, vy_mps: float, v_shoot_mps: float, a_slide_mps2: float,
                 a_roll_mps2: float, c_switch: float) -> BallFloats:
     """The switch and stop constants (module docstring) of a ball; no checks (the fit tries any decelerations)."""
@@ -130,7 +128,6 @@ def ball_floats(x_m: float, y_m: float, vx_mps: float, vy_mps: float, v_shoot_mp
     return BallFloats(*map(float, values))
 
 
-@register_jitable
 def ball_distance(ball: BallFloats, t_s: float) -> float:
     """Distance travelled along the line of motion after ``t_s`` >= 0 seconds (monotone)."""
     t = min(t_s, ball.stop_time_s)
@@ -139,7 +136,6 @@ def ball_distance(ball: BallFloats, t_s: float) -> float:
     return ts * (ball.speed_mps + 0.5 * ball.a_slide_mps2 * ts) + tr * (ball.v_switch_mps + 0.5 * ball.a_roll_mps2 * tr)
 
 
-@register_jitable
 def ball_speed(ball: BallFloats, t_s: float) -> float:
     """Speed after ``t_s`` >= 0 seconds."""
     t = min(t_s, ball.stop_time_s)
@@ -147,7 +143,6 @@ def ball_speed(ball: BallFloats, t_s: float) -> float:
     return max(ball.speed_mps + ball.a_slide_mps2 * ts + ball.a_roll_mps2 * (t - ts), 0.0)
 
 
-@register_jitable
 def ball_time_to_distance(ball: BallFloats, d_m: float) -> float:
     """Time until the ball has travelled ``d_m`` >= 0 (paper: ballRollTime); +inf if it stops short.
 
@@ -170,35 +165,60 @@ def ball_time_to_distance(ball: BallFloats, d_m: float) -> float:
     return min(t, ball.stop_time_s)
 
 
-def _jit(signature):
-    return numba.njit(signature, cache=True, error_model="numpy")
+@functools.cache
+def numba_ball_type():
+    """The numba type of a BallFloats, for kernels' signatures; imports numba and makes the closed forms
+    above callable from compiled code (``register_jitable``). Every kernel module calls it first."""
+    from erforce_interfaces.numba_support import numba, register_jitable
+
+    for closed_form in (ball_distance, ball_speed, ball_time_to_distance):
+        register_jitable(closed_form)
+    return numba.types.NamedUniTuple(numba.types.float64, len(BallFloats._fields), BallFloats)
 
 
-_MANY = numba.void(BALL_FLOATS_TYPE, numba.float64[::1], numba.float64[::1])
-
-
-@_jit(_MANY)
 def _distance_many(ball, t, out):
     for i in range(t.shape[0]):
         out[i] = ball_distance(ball, t[i])
 
 
-@_jit(_MANY)
 def _speed_many(ball, t, out):
     for i in range(t.shape[0]):
         out[i] = ball_speed(ball, t[i])
 
 
-@_jit(_MANY)
 def _time_to_distance_many(ball, d, out):
     for i in range(d.shape[0]):
         out[i] = ball_time_to_distance(ball, d[i])
 
 
-def _many(kernel, ball: BallFloats, values: np.ndarray) -> np.ndarray:
+@functools.cache
+def _array_kernel(loop):
+    """``loop`` (one of the three above) compiled for arrays, on its first use (cached on disk beside this module)."""
+    from erforce_interfaces.numba_support import numba
+
+    signature = numba.void(numba_ball_type(), numba.float64[::1], numba.float64[::1])
+    return numba.njit(signature, cache=True, error_model="numpy")(loop)
+
+
+def load_kernels() -> None:
+    """Compile or load the array queries' kernels now rather than on their first use."""
+    for loop in (_distance_many, _speed_many, _time_to_distance_many):
+        _array_kernel(loop)
+
+
+# Up to this many values an array query runs the closed form in Python (~1 us each) instead of the
+# kernel: a process that asks only short ones (the field view's path marks) never loads numba (~0.7 s of CPU).
+_PYTHON_MAX_VALUES = 64
+_SCALAR_OF = {_distance_many: ball_distance, _speed_many: ball_speed, _time_to_distance_many: ball_time_to_distance}
+
+
+def _many(loop, ball: BallFloats, values: np.ndarray) -> np.ndarray:
     flat = np.ascontiguousarray(values, dtype=float).ravel()
+    if flat.size <= _PYTHON_MAX_VALUES:
+        scalar = _SCALAR_OF[loop]
+        return np.array([scalar(ball, v) for v in flat.tolist()], dtype=float).reshape(values.shape)
     out = np.empty(flat.shape)
-    kernel(ball, flat, out)
+    _array_kernel(loop)(ball, flat, out)
     return out.reshape(values.shape)
 
 

@@ -50,8 +50,10 @@ Compiled scalar loops
     The per-robot search is a few hundred branchy scalar steps per robot. As numpy array passes
     over all robots it took 0.7-0.8 ms for 22 robots (median; about a thousand small array
     operations per frame, 2-3x slower again when the caches are cold between vision frames). So
-    the functions marked ``_jit`` are scalar loops compiled by numba (``@njit``, compiled at
-    import for fixed float64 signatures and cached on disk beside this module); the public
+    the scalar loops here are compiled by numba (``_kernels``: the three entry points for fixed
+    float64 signatures, the functions they call compiled into them; cached on disk beside this
+    module) on a process's first search, not at import: the catcher, which asks ``can_reach`` a few
+    dozen times per tick, runs it as plain Python and starts without numba. The public array
     functions keep numpy's broadcasting interface. The ball enters the kernel as its
     ``BallFloats`` (read by name) and moves by ball_model's own closed forms (``ball_distance``,
     ``ball_time_to_distance``), compiled into the kernel.
@@ -63,18 +65,14 @@ Compiled scalar loops
 from __future__ import annotations
 
 import enum
+import functools
 import math
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
-from erforce_ball_model.ball_model import (
-    BALL_FLOATS_TYPE,
-    BallTrajectory,
-    ball_distance,
-    ball_time_to_distance,
-)
-from erforce_interfaces.numba_support import numba
+from erforce_ball_model.ball_model import BallTrajectory, ball_distance, ball_time_to_distance, numba_ball_type
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 __all__ = [
@@ -84,9 +82,11 @@ __all__ = [
     "CatchResult",
     "CatchSearch",
     "RobotLimits",
+    "can_reach",
     "can_reach_in_time",
     "catch_after_reaction",
     "facing_angles",
+    "load_kernels",
     "robot_time_curve",
     "robot_time_to_ball",
     "robot_time_to_pos",
@@ -101,15 +101,6 @@ ROBOT_V_MAX_MPS = 2.5
 # A longer search (a ball that takes hours to stop, from an absurd deceleration) is refused, not run:
 # realistic horizons are seconds (about 2,200 points for a 6.5 m/s ball at the default 10 ms step).
 MAX_GRID_POINTS = 1_000_000
-
-
-def _jit(signature: str):
-    """Compile at import for ``signature`` (cached on disk beside this module after the first time).
-
-    ``error_model="numpy"``: x / 0 is inf as in numpy, not an exception; no fastmath, so the
-    results are the IEEE results numpy gives.
-    """
-    return numba.njit(signature, cache=True, error_model="numpy")
 
 
 def _kernel_array(x) -> np.ndarray:
@@ -150,7 +141,6 @@ def _vec2(name: str, value) -> np.ndarray:
 
 
 # --- 1D bang-bang ---------------------------------------------------------------------------------
-@_jit("float64(float64, float64, float64, float64)")
 def _axis_time(d, w, x, rho):
     """Minimal 1D time to travel ``d`` and stop, starting at speed ``w``: ``x`` is 1/A (may be +inf: no
     authority on this axis), the speed limit ``V = rho * A`` (rho = v_max / a_max, the same for both
@@ -167,7 +157,6 @@ def _axis_time(d, w, x, rho):
     return max(-w * x + 2.0 * root_q + max(root_q - rho, 0.0) ** 2 / rho, 0.0)  # (max: subnormal speeds)
 
 
-@_jit("float64(float64, float64, float64, float64, float64)")
 def _axis_min_accel(d, w, t, rho, two_rho2):
     """Smallest acceleration A >= 0 for which ``axis_time(d, w, 1/A, rho) <= t`` (its inverse).
 
@@ -183,7 +172,7 @@ def _axis_min_accel(d, w, t, rho, two_rho2):
     if d == 0.0 and w2 == 0.0:
         return 0.0  # at rest at the target
     wpos = w > 0.0
-    iw = 1.0 / w
+    iw = 1.0 / w if wpos else 0.0  # read only where w > 0 (plain Python raises on 1 / 0)
     ds = d + math.sqrt(d * d + w2 * two_rho2)
     t_over = 2.0 * d * iw if wpos else math.inf  # beyond: cannot stop before the target
     over = t > t_over
@@ -200,8 +189,11 @@ def _axis_min_accel(d, w, t, rho, two_rho2):
         if over:
             b = -b
         disc = math.sqrt(max(b * b - 4.0 * a2 * c, 0.0))
-        q = (b + disc) / (-2.0 * c) if b >= 0.0 else 2.0 * a2 / (disc - b)
-    return q if q >= 0.0 else math.inf  # no root >= 0 (also the 0/0 of a zero budget): impossible
+        if b < 0.0:
+            q = 2.0 * a2 / (disc - b)
+        else:  # c == 0 (a zero budget, or the trapezoid's at t = rho): x / 0 and 0 / 0, no root >= 0
+            q = (b + disc) / (-2.0 * c) if c != 0.0 else math.inf
+    return q if q >= 0.0 else math.inf  # no root >= 0: impossible
 
 
 def _limits_arrays(limits: RobotLimits, shape) -> tuple[np.ndarray, np.ndarray]:
@@ -215,7 +207,6 @@ def _limits_arrays(limits: RobotLimits, shape) -> tuple[np.ndarray, np.ndarray]:
     return a, v
 
 
-@_jit("float64(float64, float64, float64, float64, float64, float64, float64)")
 def _time_to_pos(dx, dy, wx, wy, a, vmax, tol_s):
     """robotTimeToPos for one robot: the alpha search, bisecting the split until certified.
 
@@ -256,8 +247,6 @@ def _time_to_pos(dx, dy, wx, wy, a, vmax, tol_s):
     return min(ty_lo, tx_hi)
 
 
-@_jit("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64, "
-      "float64[::1])")
 def _time_to_pos_many(dx, dy, wx, wy, a, vmax, tol_s, out):
     for i in range(out.shape[0]):
         out[i] = _time_to_pos(dx[i], dy[i], wx[i], wy[i], a[i], vmax[i], tol_s)
@@ -286,7 +275,7 @@ def robot_time_to_pos(robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits,
     v0 = np.broadcast_to(v0, (*shape, 2)).reshape(-1, 2)
     a, vmax = (_kernel_array(np.ravel(x)) for x in _limits_arrays(limits, shape))
     out = np.empty(a.shape)
-    _time_to_pos_many(_kernel_array(d[:, 0]), _kernel_array(d[:, 1]), _kernel_array(v0[:, 0]),
+    _kernels().time_to_pos_many(_kernel_array(d[:, 0]), _kernel_array(d[:, 1]), _kernel_array(v0[:, 0]),
                       _kernel_array(v0[:, 1]), a, vmax, tol_s, out)
     return float(out[0]) if shape == () else out.reshape(shape)
 
@@ -300,11 +289,26 @@ def can_reach_in_time(d_m, w_mps, t_budget_s, a_max_mps2, v_max_mps) -> np.ndarr
     w = np.asarray(w_mps, dtype=float)
     args = np.broadcast_arrays(d[..., 0], d[..., 1], w[..., 0], w[..., 1], t_budget_s, a_max_mps2, v_max_mps)
     out = np.empty(args[0].shape, dtype=bool)
-    _can_reach_many(*(_kernel_array(x).ravel() for x in args), out.ravel())
+    _kernels().can_reach_many(*(_kernel_array(x).ravel() for x in args), out.ravel())
     return out
 
 
-@_jit("boolean(float64, float64, float64, float64, float64, float64, float64)")
+def can_reach(d_m, w_mps, t_budget_s: float, a_max_mps2: float, v_max_mps: float) -> bool:
+    """``can_reach_in_time`` for one robot and one target, in plain Python (no numba, no arrays).
+
+    For a caller with a few targets per call (the catcher's receive points): numba stays unloaded
+    and a case costs a few microseconds. ``d_m`` and ``w_mps`` are (x, y) pairs; a negative budget
+    is never enough.
+
+    >>> can_reach((2.0, 0.0), (0.0, 0.0), 2.0, 2.0, 3.0), can_reach((2.0, 0.0), (0.0, 0.0), 1.99, 2.0, 3.0)
+    (True, False)
+    """
+    if not t_budget_s >= 0.0:
+        return False
+    return _can_reach(float(d_m[0]), float(d_m[1]), float(w_mps[0]), float(w_mps[1]), float(t_budget_s),
+                      float(a_max_mps2), float(v_max_mps))
+
+
 def _can_reach(dx, dy, wx, wy, t, a, vmax):
     """can_reach_in_time for one case.
 
@@ -320,14 +324,11 @@ def _can_reach(dx, dy, wx, wy, t, a, vmax):
     return ax * ax + ay * ay <= a * a  # an absurd need overflows to inf: unreachable, as it should
 
 
-@_jit("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], "
-      "boolean[::1])")
 def _can_reach_many(dx, dy, wx, wy, t, a, vmax, out):
     for i in range(out.shape[0]):
         out[i] = _can_reach(dx[i], dy[i], wx[i], wy[i], t[i], a[i], vmax[i])
 
 
-@_jit("boolean(float64, float64, float64, float64, float64, float64, float64, float64)")
 def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
     """Cheap necessary condition for ``_can_reach``: False only where the robot surely cannot.
 
@@ -351,7 +352,6 @@ def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
     return dist <= vp * t - (vp * vp + (vp - w) ** 2) * (0.5 / a) + 1e-9
 
 
-@_jit(numba.boolean(BALL_FLOATS_TYPE, *[numba.float64] * 7))
 def _feasible(ball, t, sx, sy, wx, wy, a, vmax):
     """f(t) <= 0: the robot (start ``sx, sy`` = its centre plus the dribbler offset) reaches the ball at ``t``."""
     d = ball_distance(ball, t)
@@ -381,11 +381,6 @@ class CatchResult:
 _MOVING, _AT_REST, _NEVER = int(CatchKind.MOVING), int(CatchKind.AT_REST), int(CatchKind.NEVER)
 
 
-_F, _VEC, _MAT = numba.float64, numba.float64[::1], numba.float64[:, ::1]
-
-
-@_jit(numba.boolean(BALL_FLOATS_TYPE, _F, _F, _F, numba.boolean, numba.int64, numba.int64, _F, _F, _MAT, _MAT, _VEC,
-                    _VEC, _VEC, _VEC, numba.int8[::1], _MAT, _MAT))
 def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, pos, vel, facing, a, vmax,
                   time_out, kind_out, ball_out, target_out):
     """robotTimeToBall per robot (the module docstring): time, kind, ball position and robot target.
@@ -458,6 +453,37 @@ def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offse
     return True
 
 
+@functools.cache
+def _kernels() -> SimpleNamespace:
+    """The three entry points compiled (or loaded from numba's cache beside this module), on first use.
+
+    The scalar functions they call are compiled into them (``register_jitable``); the cache is keyed
+    on this file, so an edit anywhere here recompiles. ``error_model="numpy"``: x / 0 is inf as in
+    numpy, not an exception; no fastmath, so the results are the IEEE results numpy gives.
+    """
+    ball = numba_ball_type()  # imports numba; ball_model's closed forms become callable from kernels
+    from erforce_interfaces.numba_support import numba, register_jitable
+
+    for scalar in (_axis_time, _axis_min_accel, _time_to_pos, _can_reach, _may_reach, _feasible):
+        register_jitable(error_model="numpy")(scalar)
+    f, vec, mat = numba.float64, numba.float64[::1], numba.float64[:, ::1]
+
+    def jit(signature, loop):
+        return numba.njit(signature, cache=True, error_model="numpy")(loop)
+
+    return SimpleNamespace(
+        time_to_pos_many=jit(numba.void(vec, vec, vec, vec, vec, vec, f, vec), _time_to_pos_many),
+        can_reach_many=jit(numba.void(vec, vec, vec, vec, vec, vec, vec, numba.boolean[::1]), _can_reach_many),
+        catch_search=jit(numba.boolean(ball, f, f, f, numba.boolean, numba.int64, numba.int64, f, f, mat, mat, vec,
+                                       vec, vec, vec, numba.int8[::1], mat, mat), _catch_search),
+    )
+
+
+def load_kernels() -> None:
+    """Compile or load the search's kernels now (CatchSearch does, at a node's start), not in its first frame."""
+    _kernels()
+
+
 def _check_field(field: FieldConfig | None, unbounded: bool) -> None:
     if field is None and not unbounded:
         raise ValueError("field: the search ends where the ball leaves the field: give the FieldConfig, or "
@@ -507,6 +533,7 @@ class CatchSearch:
         self._m1, self._m2 = (m1, math.ceil(refine_points / m1)) if m1 > 2 else (refine_points, 0)
         self._rest_tol_s = grid_step_s / refine_points
         self._facing = np.zeros(num_robots)
+        self._search = _kernels().catch_search
         self._result = CatchResult(np.empty(num_robots), np.empty((num_robots, 2)), np.empty((num_robots, 2)),
                                    np.empty(num_robots, dtype=np.int8))
 
@@ -533,7 +560,7 @@ class CatchSearch:
                              f"of {self._h} s")
         stops_inside = t_in < math.inf and t_out == math.inf
         res = self._result
-        if not _catch_search(ball.floats, t_in, t_max, self._h, stops_inside, self._m1, self._m2,
+        if not self._search(ball.floats, t_in, t_max, self._h, stops_inside, self._m1, self._m2,
                              self._rest_tol_s, self._offset_m, _kernel_array(robot_pos_m),
                              _kernel_array(robot_vel_mps), self._facing, self._a, self._vmax, res.time_s, res.kind,
                              res.ball_position_m, res.robot_target_m):

@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
-from erforce_ball_model.catch_time import ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS, RobotLimits, robot_time_to_pos
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ball_time_to_distance
+from erforce_ball_model.catch_time import ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS, can_reach
 from erforce_interfaces.robot_config import FieldConfig
 
 CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract)
@@ -199,25 +199,31 @@ def receive_point(
     ``slack_s`` (default ``cfg.receive_slack_s``) before the ball (ballRollTime of the two-phase model), that the
     ball reaches before it stops and that lies on the field. None when there is none or the
     ball is not coming (not moving, already past).
+
+    Plain Python per candidate (catch_time.can_reach, the exact sign of robotTimeToPos against the
+    budget), nearest first up to the first hit: a few dozen cases per tick need no numba, so the
+    catcher starts without it.
     """
     projection = line_intercept(robot_xy, ball.position_m, ball.velocity_mps, dribbler_offset_m)
     if projection is None:
         return None
     start, u = ball.position_m, ball.direction
     along = float((projection - start) @ u) + np.arange(0.0, RECEIVE_SEARCH_M + 1e-9, RECEIVE_STEP_M)
-    contact_m = along - dribbler_offset_m  # ball travel to the dribbler
+    contact_m = np.maximum(along - dribbler_offset_m, 0.0)  # ball travel to the dribbler
     targets = start + along[:, None] * u
-    t_ball = ball.time_to_distance(np.maximum(contact_m, 0.0))  # +inf where it stops short
-    ok = np.isfinite(t_ball)
+    ok = np.ones(len(along), dtype=bool)
     if field is not None:
         inside = field.half_length_m - robot_radius_m, field.half_width_m - robot_radius_m
         ok &= (np.abs(targets[:, 0]) <= inside[0]) & (np.abs(targets[:, 1]) <= inside[1])
-    if not ok.any():
-        return None
-    t_robot = robot_time_to_pos(np.asarray(robot_xy, dtype=float), np.asarray(robot_velocity, dtype=float),
-                                targets, RobotLimits(cfg.a_max_mps2, cfg.v_max_mps))
-    ok &= t_robot + (cfg.receive_slack_s if slack_s is None else slack_s) <= t_ball
-    return targets[int(np.argmax(ok))] if ok.any() else None
+    slack = cfg.receive_slack_s if slack_s is None else slack_s
+    robot_xy, robot_velocity = np.asarray(robot_xy, dtype=float), np.asarray(robot_velocity, dtype=float)
+    for i in np.flatnonzero(ok):
+        t_ball = ball_time_to_distance(ball.floats, float(contact_m[i]))  # +inf where it stops short
+        if t_ball == math.inf:
+            break  # and so do all farther points
+        if can_reach(targets[i] - robot_xy, robot_velocity, t_ball - slack, cfg.a_max_mps2, cfg.v_max_mps):
+            return targets[i]
+    return None
 
 
 def choose_target(

@@ -1,11 +1,13 @@
-"""numba for the stack's kernels, imported without scipy.linalg.
+"""numba for the stack's kernels, imported without scipy.
 
 When numba loads its numpy support it checks whether scipy's BLAS is there (``import
 scipy.linalg.cython_blas``), only to choose how np.convolve and np.correlate multiply inside a kernel.
 That import loads most of scipy: ~0.5 s of CPU in every process that loads kernels (the plant, the ball
-predictor, the catchers), at each start and each respawn. The stack's kernels use no BLAS, so numba
-is imported here with scipy.linalg hidden and takes its own loop for those two. A kernel that does need
-BLAS (np.dot, np.linalg) still works: numba imports scipy.linalg when it compiles one.
+predictor), at each start and each respawn. The stack's kernels use no BLAS, so numba
+is imported here with scipy hidden and takes its own loop for those two. A kernel that does need
+BLAS (np.dot, np.linalg) still works: numba imports scipy.linalg when it compiles one. (Hidden too:
+``import scipy`` itself, ~45 ms of CPU, which numba's import does only to check scipy's version; the
+requirements pin a scipy far above the 1.0 it asks for.)
 
     from erforce_interfaces.numba_support import numba, register_jitable
 """
@@ -16,9 +18,9 @@ import importlib.abc
 import sys
 
 
-class _HideScipyLinalg(importlib.abc.MetaPathFinder):
+class _HideScipy(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path=None, target=None):
-        if name == "scipy.linalg" or name.startswith("scipy.linalg."):
+        if name == "scipy" or name.startswith("scipy."):
             raise ModuleNotFoundError(f"{name} is not imported while numba starts", name=name)
         return None
 
@@ -28,7 +30,7 @@ def _import_numba():
         import numba
 
         return numba
-    hide = _HideScipyLinalg()
+    hide = _HideScipy()
     sys.meta_path.insert(0, hide)
     try:
         import numba
