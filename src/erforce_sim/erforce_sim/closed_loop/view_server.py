@@ -76,13 +76,7 @@ class _Client:
                 self.pending = item
                 self.lock.notify()
                 return
-        try:
-            self._write(item)
-        finally:
-            with self.lock:
-                self.busy = False
-                if self.pending is not None:
-                    self.lock.notify()
+        self._write(item)
 
     def _room_for(self, size: int) -> bool:
         if size > DIRECT_WRITE_MAX_BYTES:
@@ -93,10 +87,15 @@ class _Client:
             return False
 
     def _write(self, item: tuple[bytes, bool]) -> None:
+        """Write ``item`` while this thread holds ``busy``; release it after."""
         try:
             self.connection.send(item[0], text=item[1])
         except (ConnectionClosed, OSError):
             self.close()
+        finally:
+            with self.lock:
+                self.busy = False
+                self.lock.notify_all()
 
     def send_now(self, item: tuple[bytes, bool]) -> None:
         """Write ``item`` (a reply) after what is being written, never dropped; blocks only this client's thread."""
@@ -106,12 +105,7 @@ class _Client:
             if self.closed:
                 return
             self.busy = True
-        try:
-            self._write(item)
-        finally:
-            with self.lock:
-                self.busy = False
-                self.lock.notify_all()
+        self._write(item)
 
     def run_sender(self) -> None:
         """The sender thread: writes pending frames, blocking as long as the client takes to read them."""
@@ -122,12 +116,7 @@ class _Client:
                 if self.closed:
                     return
                 item, self.pending, self.busy = self.pending, None, True
-            try:
-                self._write(item)
-            finally:
-                with self.lock:
-                    self.busy = False
-                    self.lock.notify_all()
+            self._write(item)
 
     def close(self) -> None:
         with self.lock:
