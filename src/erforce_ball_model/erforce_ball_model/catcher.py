@@ -255,8 +255,8 @@ def choose_target(
     facing_rad: float | None = None,
 ) -> np.ndarray | None:
     """Where the robot centre goes (to face the ball, or ``facing_rad`` once it turned), in this order:
-    stay when the dribbler is already on the incoming ball's line; the nearest receive point with time to spare (for a ``committed`` robot: reached at
-    all before the ball); the predicted catch point (None when the predictor has none); when
+    stay when the dribbler is already on the incoming ball's line; the nearest receive point with time
+    to spare (for a ``committed`` robot: reached at all before the ball); the predicted catch point (None when the predictor has none); when
     ``committed``, the robot's projection on the ball's line if it is within ``cfg.commit_distance_m``;
     else hold (None).
 
