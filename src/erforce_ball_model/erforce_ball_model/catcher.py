@@ -256,9 +256,9 @@ def choose_target(
 ) -> np.ndarray | None:
     """Where the robot centre goes (to face the ball, or ``facing_rad`` once it turned), in this order:
     stay when the dribbler is already on the incoming ball's line; the nearest receive point with time
-    to spare (for a ``committed`` robot: reached at all before the ball); the predicted catch point (None when the predictor has none); when
-    ``committed``, the robot's projection on the ball's line if it is within ``cfg.commit_distance_m``;
-    else hold (None).
+    to spare (for a ``committed`` robot: reached at all before the ball); the predicted catch point
+    (None when the predictor has none); when ``committed``, the robot's projection on the ball's line
+    if it is within ``cfg.commit_distance_m``; else hold (None).
 
     ``ball`` is the moving ball's trajectory (None when it rests: the velocity of a resting ball is
     vision noise in a random direction, its "line" means nothing). ``committed``: the robot was
