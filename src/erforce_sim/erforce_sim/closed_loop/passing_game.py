@@ -99,6 +99,7 @@ class PassRecord:
     caught_by: str | None  # robot_<k> | opponent_<j>
     actual_catch_s: float | None  # light barrier edge, from the kick
     ball_path: tuple[tuple[float, float], ...] = ()  # true ball positions every 20 ms
+    facing_target: int | None = None  # the teammate the receiver received facing (None: it faced the ball)
 
     @property
     def margin_s(self) -> float:
@@ -326,6 +327,7 @@ class PassingGame:
             self.receivers[i].on_odom(now, self.poses[i], self.velocities[i])
         self.world.set_dribbler(choice.receiver, True)
         ball_rad = choice.direction_rad + math.pi
+        k = None
         if abs(math.remainder(choice.receive_facing_rad - ball_rad, 2.0 * math.pi)) > 1e-9:
             # it receives facing its next target: the predictor's search (its catch point) faces the same way
             k = self._next_targets[choice.receiver]
@@ -335,7 +337,8 @@ class PassingGame:
             fixed[choice.receiver], facing[choice.receiver] = True, wrap_angle(choice.receive_facing_rad)
             self.predictor.configure(dataclasses.replace(cfg, facing_fixed=fixed, facing_rad=facing))
         self._planned_next = self._next_targets.get(choice.receiver)
-        self._pass = {"t_kick": now, "passer": holder, "choice": choice, "path": [], "rest_since": None}
+        self._pass = {"t_kick": now, "passer": holder, "choice": choice, "path": [], "rest_since": None,
+                      "facing_target": k}
 
     # -------------------------------------------------------------------- the loop
     def _end_pass(self, outcome: str, caught_by: int | None, now: float) -> None:
@@ -345,7 +348,7 @@ class PassingGame:
         record = PassRecord(len(self.records) + 1, p["t_kick"], p["passer"], choice.receiver, choice.kick_speed_mps,
                             choice.receiver_catch_s, choice.opponent_catch_s, choice.first_opponent,
                             choice.safe(self.cfg.passing), outcome, name,
-                            None if caught_by is None else now - p["t_kick"], tuple(p["path"]))
+                            None if caught_by is None else now - p["t_kick"], tuple(p["path"]), p["facing_target"])
         self.records.append(record)
         if self.on_pass is not None:
             self.on_pass(record)
