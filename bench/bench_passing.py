@@ -45,15 +45,18 @@ def play(seed: int, passes: int, team: int, opponents: int, receive_angle_deg: f
     t0 = time.process_time()
     records = game.play()
     cpu = time.process_time() - t0
-    errors, holds = [], []
+    errors, holds, facing = [], [], []
     for r, nxt in itertools.pairwise(records):
         got = receptions.get(r.index)
         if got is None or nxt.passer != r.receiver or nxt.index not in kicks or nxt.t_kick_s < got[0]:
             continue
         errors.append(abs(math.remainder(got[1] - kicks[nxt.index], 2.0 * math.pi)))
         holds.append(nxt.t_kick_s - got[0])
+        if getattr(r, "facing_target", None) is not None:  # received facing its planned next target
+            facing.append((errors[-1], holds[-1]))
     s = summary(records, cfg.passing)
     return {"seed": seed, **s, "resets": game.resets, "drops": game.drops, "errors_rad": errors, "holds_s": holds,
+            "facing": facing,
             "cpu_s": cpu, "sim_s": game.runner.t_s}
 
 
@@ -71,8 +74,10 @@ def main(argv: list[str] | None = None) -> int:
                                                                                    args.opponents,
                                                                                    args.receive_angle_deg))))
     print("| seed | passes | completed | intercepted | lost | rated safe | safe completed | drops | "
-          "heading error at reception, median [deg] | reception to kick, mean [s] | CPU [s] |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "heading error at reception, median [deg] | reception to kick, mean [s] | "
+          "of them received facing the next target: n, heading error median [deg], reception to kick mean [s] | "
+          "CPU [s] |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
 
     def row(name, runs_):
         tot = {k: sum(r[k] for r in runs_) for k in ("passes", "completed", "intercepted", "lost", "rated_safe",
@@ -81,10 +86,13 @@ def main(argv: list[str] | None = None) -> int:
         holds = [h for r in runs_ for h in r["holds_s"]]
         med = f"{math.degrees(statistics.median(errors)):.1f}" if errors else "—"
         hold = f"{statistics.mean(holds):.3f} (n={len(holds)})" if holds else "—"
+        facing = [f for r in runs_ for f in r["facing"]]
+        faced = (f"{len(facing)}, {math.degrees(statistics.median(e for e, _ in facing)):.1f}, "
+                 f"{statistics.mean(h for _, h in facing):.3f}") if facing else "0"
         pct = 100.0 * tot["safe_completed"] / tot["rated_safe"] if tot["rated_safe"] else math.nan
         print(f"| {name} | {tot['passes']} | {tot['completed']} | {tot['intercepted']} | {tot['lost']} | "
               f"{tot['rated_safe']} | {tot['safe_completed']} ({pct:.0f} %) | {tot['drops']} | {med} | {hold} | "
-              f"{tot['cpu_s']:.0f} |")
+              f"{faced} | {tot['cpu_s']:.0f} |")
 
     for r in runs:
         row(str(r["seed"]), [r])
