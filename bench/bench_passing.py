@@ -20,13 +20,12 @@ from concurrent.futures import ProcessPoolExecutor
 
 
 def play(seed: int, passes: int, team: int, opponents: int, receive_angle_deg: float | None) -> dict:
-    from erforce_ball_model.catcher import CatcherConfig
     from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame, summary
 
     cfg = GameConfig(team_size=team, opponents=opponents, passes=passes)
     if receive_angle_deg is not None:
         cfg = GameConfig(team_size=team, opponents=opponents, passes=passes,
-                         catcher=CatcherConfig(max_receive_angle_rad=math.radians(receive_angle_deg)))
+                         max_receive_angle_rad=math.radians(receive_angle_deg))
     receptions = {}  # pass index -> (time, heading) of its receiver at the light-barrier edge
     kicks = {}  # pass index -> kick direction
 
@@ -67,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--team", type=int, default=11)
     parser.add_argument("--opponents", type=int, default=3)
     parser.add_argument("--jobs", type=int, default=1, help="games in parallel processes")
-    parser.add_argument("--receive-angle-deg", type=float, help="CatcherConfig.max_receive_angle_rad, in degrees")
+    parser.add_argument("--receive-angle-deg", type=float, help="GameConfig.max_receive_angle_rad, in degrees")
     args = parser.parse_args(argv)
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         runs = list(pool.map(play, args.seeds, *([x] * len(args.seeds) for x in (args.passes, args.team,

@@ -347,4 +347,4 @@ def test_receiver_with_a_next_target_receives_facing_it_within_the_receive_angle
     rx.on_next_target([-0.5, 3.0])
     np.testing.assert_allclose(rx.tick(0.02), [0.0, math.sqrt(2 * 4.5 * 0.5 * 0.3), 0.0], atol=1e-9)
     with pytest.raises(ValueError, match="max_receive_angle_rad"):
-        CatcherConfig(max_receive_angle_rad=math.radians(90.0))
+        rx.on_next_target([-0.5, 3.0], math.radians(90.0))

@@ -86,9 +86,6 @@ class CatcherConfig:
     disengage_after_rest_s: float = 2.0
     commit_s: float = 0.3
     team_switch_margin_s: float = 0.1
-    # A receiver that passes on receives facing its next target while that is at most this far from the
-    # ball's incoming direction reversed (catch_time.receive_facing; MAX_RECEIVE_ANGLE_RAD says why).
-    max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD
 
     def __post_init__(self) -> None:
         for name in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s", "arrive_tolerance_m"):
@@ -106,8 +103,6 @@ class CatcherConfig:
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
         if not (math.isfinite(self.stale_after_s) and self.stale_after_s > 0.0):
             raise ValueError(f"stale_after_s must be finite and > 0, got {self.stale_after_s!r}")
-        if not (math.isfinite(self.max_receive_angle_rad) and 0.0 <= self.max_receive_angle_rad < 0.5 * math.pi):
-            raise ValueError(f"max_receive_angle_rad must be in [0, pi/2), got {self.max_receive_angle_rad!r}")
         if not (0.0 < self.braking_margin <= 1.0):
             raise ValueError(f"braking_margin must be in (0, 1], got {self.braking_margin!r}")
 
@@ -349,6 +344,7 @@ class Receiver:
         self._ball_moving_at = -math.inf
         self._target_at = -math.inf
         self._next_target = None  # where it passes on after the catch ([x, y]), None: face the ball
+        self._max_receive_angle_rad = MAX_RECEIVE_ANGLE_RAD
         self.notice: str | None = None
 
     def set_config(self, cfg: CatcherConfig, dribbler_offset_m: float, robot_radius_m: float = 0.0,
@@ -388,9 +384,13 @@ class Receiver:
     def on_v_shoot(self, now: float, v_shoot_mps: float) -> None:
         self._v_shoot = (now, float(v_shoot_mps))
 
-    def on_next_target(self, point) -> None:
-        """Where this robot passes the ball on once it has it ([x, y] in ``field``); None: nowhere known."""
+    def on_next_target(self, point, max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD) -> None:
+        """Where this robot passes the ball on once it has it ([x, y] in ``field``; None: nowhere known), and
+        how far from the ball's way back it may face it to receive (catch_time.receive_facing)."""
+        if not (math.isfinite(max_receive_angle_rad) and 0.0 <= max_receive_angle_rad < 0.5 * math.pi):
+            raise ValueError(f"max_receive_angle_rad must be in [0, pi/2), got {max_receive_angle_rad!r}")
         self._next_target = None if point is None else np.asarray(point, dtype=float)[:2]
+        self._max_receive_angle_rad = max_receive_angle_rad
 
     def facing(self, pose, ball: BallTrajectory | None) -> float:
         """The dribbler direction it receives with: towards the next target within the receive angle
@@ -399,7 +399,7 @@ class Receiver:
             return float(pose[2])
         if self._next_target is None:
             return math.atan2(-ball.velocity_mps[1], -ball.velocity_mps[0])
-        return receive_facing(ball.direction, pose[:2], self._next_target, self.cfg.max_receive_angle_rad)
+        return receive_facing(ball.direction, pose[:2], self._next_target, self._max_receive_angle_rad)
 
     def on_model(self, params: BallModelParams) -> None:
         """The ball model the predictor uses (it may identify its own)."""

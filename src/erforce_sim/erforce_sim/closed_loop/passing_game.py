@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from erforce_ball_model.catch_time import CatchSearch, RobotLimits
+from erforce_ball_model.catch_time import MAX_RECEIVE_ANGLE_RAD, CatchSearch, RobotLimits
 from erforce_ball_model.catcher import CatcherConfig, Receiver, catch_twist, wrap_angle
 from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
@@ -66,6 +66,7 @@ class GameConfig:
     hold_min_s: float = 0.4  # a new holder settles the ball this long before it kicks
     aim_tolerance_rad: float = 0.03
     turn_rate_radps: float = 3.0  # a holder turns at most this fast (the dribbler keeps the ball)
+    max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD  # receive facing the next target within this
     switch_margin_s: float = 0.2  # a holder changes its chosen receiver for one this much earlier
     wait_for_safe_s: float = 1.5  # a holder without a safe pass keeps the ball this long, then plays the best
     pass_timeout_s: float = 6.0
@@ -82,6 +83,8 @@ class GameConfig:
             raise ValueError(f"opponents must be in [0, {len(self.opponent_positions)}], got {self.opponents!r}")
         if self.passes < 1:
             raise ValueError(f"passes must be >= 1, got {self.passes!r}")
+        if not (math.isfinite(self.max_receive_angle_rad) and 0.0 <= self.max_receive_angle_rad < 0.5 * math.pi):
+            raise ValueError(f"max_receive_angle_rad must be in [0, pi/2), got {self.max_receive_angle_rad!r}")
 
 
 @dataclass(frozen=True)
@@ -233,7 +236,7 @@ class PassingGame:
         return evaluate_passes(ball_xy, self.poses[:n, :2], self.velocities[:n], self.poses[n:, :2],
                                self.velocities[n:], self._candidates(holder), self.pass_search,
                                self.predictor.model, self.cfg.passing, self.robot.dribbler_offset_m,
-                               targets, self.cfg.catcher.max_receive_angle_rad)
+                               targets, self.cfg.max_receive_angle_rad)
 
     def _next_target(self, holder: int, j: int) -> int | None:
         """Where teammate ``j`` would pass on once it has the ball from ``holder`` (select_pass from where it
@@ -331,7 +334,7 @@ class PassingGame:
         if abs(math.remainder(choice.receive_facing_rad - ball_rad, 2.0 * math.pi)) > 1e-9:
             # it receives facing its next target: the predictor's search (its catch point) faces the same way
             k = self._next_targets[choice.receiver]
-            self.receivers[choice.receiver].on_next_target(self.poses[k, :2])
+            self.receivers[choice.receiver].on_next_target(self.poses[k, :2], self.cfg.max_receive_angle_rad)
             cfg = self.predictor.config
             fixed, facing = cfg.facing_fixed.copy(), cfg.facing_rad.copy()
             fixed[choice.receiver], facing[choice.receiver] = True, wrap_angle(choice.receive_facing_rad)
