@@ -647,7 +647,7 @@ def receive_facing(ball_direction, robot_xy, target_xy, max_angle_rad: float = M
     180.0
     """
     ux, uy = float(ball_direction[0]), float(ball_direction[1])
-    towards_ball = math.atan2(-uy, -ux)
+    towards_ball = math.atan2(0.0 - uy, 0.0 - ux)  # not -uy: atan2(-0.0, -1) is -pi
     if not (math.isfinite(max_angle_rad) and 0.0 <= max_angle_rad < 0.5 * math.pi):
         raise ValueError(f"max_angle_rad must be in [0, pi/2), got {max_angle_rad!r}")
     dx, dy = float(target_xy[0]) - float(robot_xy[0]), float(target_xy[1]) - float(robot_xy[1])
