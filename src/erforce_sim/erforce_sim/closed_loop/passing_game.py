@@ -277,9 +277,9 @@ class PassingGame:
     def _choose(self, holder: int) -> PassOption | None:
         options = self._options(holder)
         best = select_pass(options, self.cfg.passing)
-        keep = self._choice.receiver if self._choice is not None else self._prefer
-        if keep is not None and best is not None and best.receiver != keep:
-            same = next((o for o in options if o.receiver == keep), None)
+        kept = self._choice.receiver if self._choice is not None else self._prefer  # a new holder: its plan
+        if kept is not None and best is not None and best.receiver != kept:
+            same = next((o for o in options if o.receiver == kept), None)
             keep = (same is not None and same.safe(self.cfg.passing) == best.safe(self.cfg.passing)
                     and same.receiver_catch_s <= best.receiver_catch_s + self.cfg.switch_margin_s)
             if keep:
