@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from erforce_ball_model.ball_model import BallTrajectory
 from erforce_ball_model.catch_time import (
+    MAX_RECEIVE_ANGLE_RAD,
     CatchKind,
     CatchSearch,
     RobotLimits,
@@ -16,7 +17,9 @@ from erforce_ball_model.catch_time import (
     _may_reach,
     can_reach,
     can_reach_in_time,
+    contact_offset,
     load_kernels,
+    receive_facing,
     robot_time_curve,
     robot_time_to_ball,
     robot_time_to_pos,
@@ -446,3 +449,63 @@ def test_robot_time_curve_is_fig7s_t_robot_and_its_first_crossing_is_robot_time_
     catch = robot_time_to_ball(ball, robot, (0.0, 0.0), lim, math.pi, dribbler_offset_m=OFFSET, unbounded=True)
     assert isinstance(catch.time_s, float) and catch.kind == CatchKind.MOVING
     assert first - 1e-3 <= catch.time_s <= first + 1e-9
+
+
+def _angle_error(a_rad, b_rad):
+    return abs(math.remainder(a_rad - b_rad, 2.0 * math.pi))
+
+
+def test_receive_facing_is_the_next_target_within_the_receive_angle_else_the_ball():
+    """Ball rolling along +x: against it is 180 deg. A target straight up from the robot is 90 deg off that:
+    beyond the 45 deg limit (the ball would only graze the front face), so the robot faces the ball. Up-left
+    at 150 deg is 30 deg off: the robot faces the target. Either side of the limit, at 135 and 225 deg,
+    1e-4 deg in and out."""
+    assert MAX_RECEIVE_ANGLE_RAD == pytest.approx(math.radians(45.0))
+    assert _angle_error(receive_facing((1.0, 0.0), (1.0, 1.0), (1.0, 3.0)), math.pi) < 1e-9
+    up_left_150 = (1.0 - math.sqrt(3.0), 2.0)
+    assert _angle_error(receive_facing((2.0, 0.0), (1.0, 1.0), up_left_150), math.radians(150.0)) < 1e-9
+    eps = 1e-6
+    for side in (1.0, -1.0):
+        for off, expected in ((45.0 - 1e-4, "target"), (45.0 + 1e-4, "ball")):
+            angle = math.pi - side * math.radians(off)
+            got = receive_facing((1.0, 0.0), (0.0, 0.0), (math.cos(angle), math.sin(angle)))
+            want = angle if expected == "target" else math.pi
+            assert _angle_error(got, want) < eps, (side, off)
+    # With a wider limit (80 deg), straight up is still beyond, 70 deg off is not.
+    assert _angle_error(receive_facing((1.0, 0.0), (0.0, 0.0), (0.0, 1.0), math.radians(80.0)), math.pi) < 1e-9
+    up_left_70 = (-math.cos(math.radians(70.0)), math.sin(math.radians(70.0)))
+    assert _angle_error(receive_facing((1.0, 0.0), (0.0, 0.0), up_left_70, math.radians(80.0)),
+                        math.radians(110.0)) < 1e-9
+    assert _angle_error(receive_facing((1.0, 0.0), (2.0, 2.0), (2.0, 2.0)), math.pi) < 1e-9  # no direction: the ball
+    for bad in (math.radians(90.0), -0.1, math.nan):
+        with pytest.raises(ValueError, match="max_angle_rad"):
+            receive_facing((1.0, 0.0), (0.0, 0.0), (0.0, 1.0), bad)
+    with pytest.raises(ValueError, match="non-zero"):
+        receive_facing((0.0, 0.0), (0.0, 0.0), (0.0, 1.0))
+
+
+def test_the_catch_point_facing_the_target_is_offset_by_the_dribbler_distance_towards_it():
+    """The paper's robotTimeToBall with targetpos: the ball rolls along +x on y = 0 (2 m/s, rolling), the
+    robot receives facing up-left at 135 deg. The robot's centre at the catch is the ball's position minus
+    the offset 0.0815 m * (cos 135, sin 135) = (-0.05763, 0.05763): 0.05763 m right of and below the ball,
+    so on y = -0.05763. The time is the first at which robotTimeToPos to that point is within the ball's
+    time, found here by brute force on a 1 ms grid."""
+    ball = BallTrajectory((-2.0, 0.0), (2.0, 0.0), v_shoot_mps=2.0 / 0.6)
+    limits = RobotLimits(a_max_mps2=2.0, v_max_mps=2.0)
+    start = np.array([0.3, -0.6])
+    facing = math.radians(135.0)
+    np.testing.assert_allclose(contact_offset(facing, OFFSET), [-0.0815 / math.sqrt(2.0), 0.0815 / math.sqrt(2.0)])
+    catch = robot_time_to_ball(ball, start, (0.0, 0.0), limits, facing_rad=facing, unbounded=True)
+    side = 0.0815 / math.sqrt(2.0)
+    assert catch.kind == CatchKind.MOVING
+    assert catch.ball_position_m[1] == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(catch.robot_target_m, catch.ball_position_m + [side, -side], atol=1e-12)
+    t = np.arange(0.0, 3.0, 0.001)
+    behind = ball.position_at(t) + [side, -side]
+    feasible = robot_time_to_pos(start, np.zeros(2), behind, limits) <= t
+    t_first = t[np.argmax(feasible)]
+    assert t_first - 0.001 <= catch.time_s <= t_first + 0.001
+    # Facing the ball instead, the centre is on the ball's line: a different, nearer point for this robot.
+    facing_ball = robot_time_to_ball(ball, start, (0.0, 0.0), limits, facing_rad=math.pi, unbounded=True)
+    assert facing_ball.robot_target_m[1] == pytest.approx(0.0, abs=1e-12)
+    assert facing_ball.time_s != pytest.approx(catch.time_s, abs=1e-3)

@@ -304,3 +304,47 @@ def test_catch_time_never_is_the_contracts():
     from erforce_interfaces.contract import CATCH_TIME_NEVER as contract_never
 
     assert CATCH_TIME_NEVER == contract_never
+
+
+UP_LEFT = math.radians(135.0)  # the dribbler faces up-left, 45 deg off a ball rolling along +x
+SIDE = 0.08 / math.sqrt(2.0)  # the offset 0.08 m at 135 deg: (-SIDE, +SIDE) from the robot centre
+
+
+def test_facing_the_target_the_dribbler_goes_on_the_line_and_the_centre_one_offset_back():
+    """Ball rolling along +x on y = 0; the robot at (1, -0.3) receives facing 135 deg. Its dribbler (centre +
+    (-SIDE, SIDE)) must be on the line, so its centre stands at y = -SIDE, and at x = 1: the dribbler's
+    projection (1 - SIDE) plus SIDE. At rest it gets there (0.2434 m: 2 sqrt(0.2434 / 4.5) = 0.465 s,
+    + 0.15 s slack) before the ball rolls the 2.943 m to the dribbler at 4 m/s (0.757 s)."""
+    ball = _rolling_ball(4.0)
+    assert 2.0 * math.sqrt((0.3 - SIDE) / 4.5) + 0.15 < _roll_time(3.0 - SIDE, 4.0)
+    expected = [1.0, -SIDE]
+    np.testing.assert_allclose(line_intercept(np.array([1.0, -0.3]), ball.position_m, ball.velocity_mps, 0.08,
+                                              UP_LEFT), expected, atol=1e-12)
+    np.testing.assert_allclose(receive_point(np.array([1.0, -0.3]), np.zeros(2), ball, 0.08, RCFG, facing_rad=UP_LEFT),
+                               expected, atol=1e-12)
+    # Standing there facing the ball (yaw pi), it is on the line once it turns to 135 deg, not before.
+    pose = np.array([1.0, -SIDE, math.pi])
+    assert on_receive_line(pose, ball.position_m, ball.velocity_mps, 0.08, 0.02, facing_rad=UP_LEFT)
+    assert not on_receive_line(pose, ball.position_m, ball.velocity_mps, 0.08, 0.02)
+    target = choose_target(pose, np.zeros(2), ball, None, 0.08, RCFG, facing_rad=UP_LEFT)
+    np.testing.assert_array_equal(target, pose[:2])  # it stays and turns
+
+
+def test_receiver_with_a_next_target_receives_facing_it_within_the_receive_angle():
+    """The Fig. 6 feed (robot at (-0.5, 0.3) facing -x, ball from (-2, 0) along +x at 2 m/s) with a next
+    target up-left at 150 deg from the robot: the robot turns to 150 deg (8/s * -30 deg = -4.19 rad/s) and
+    drives its centre to (-0.5, -0.08 sin 150) = (-0.5, -0.04): 0.34 m along field -y, its +y, at
+    sqrt(2 * 4.5 * 0.5 * 0.34) m/s. A target straight up (90 deg off the ball's way back) is beyond the
+    receive angle: it faces the ball and drives to the line, as without a target."""
+    rx = _receiver()
+    _feed_fig6(rx, 0.0)
+    target_150 = np.array([-0.5 - 1.0, 0.3 + math.tan(math.radians(30.0))])
+    rx.on_next_target(target_150)
+    twist = rx.tick(0.01)
+    dy = 0.3 + 0.08 * math.sin(math.radians(150.0))
+    assert 2.0 * math.sqrt(dy / 4.5) + 0.15 < _roll_time(1.5 - 0.08 * math.cos(math.radians(30.0)), 2.0)
+    np.testing.assert_allclose(twist, [0.0, math.sqrt(2 * 4.5 * 0.5 * dy), 8.0 * math.radians(-30.0)], atol=1e-9)
+    rx.on_next_target([-0.5, 3.0])
+    np.testing.assert_allclose(rx.tick(0.02), [0.0, math.sqrt(2 * 4.5 * 0.5 * 0.3), 0.0], atol=1e-9)
+    with pytest.raises(ValueError, match="max_receive_angle_rad"):
+        rx.on_next_target([-0.5, 3.0], math.radians(90.0))

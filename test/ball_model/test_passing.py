@@ -108,3 +108,29 @@ def test_press_targets_cover_one_lane_each_then_double_up():
     opponents = np.array([[2.2, 0.1], [0.1, 1.5], [3.0, 0.0]])
     targets = press_targets((0.0, 0.0), team, opponents, 0, CFG)
     np.testing.assert_allclose(targets, [[1.0, 0.0], [0.0, 1.0], [1.0, 0.0]])
+
+
+def test_a_receiver_with_a_next_target_is_rated_facing_it_and_the_kick_aims_at_its_dribbler():
+    """Ball at the origin, teammate 1 at (3, 0), its next target at (2, 0.8): 38.7 deg off the ball's way
+    back (180 deg), inside the 45 deg receive angle, so it receives facing f = atan2(0.8, -1). Its dribbler
+    is then at (3, 0) + 0.0815 (cos f, sin f) = (2.93636, 0.05091): the kick aims there, 0.01734 rad left of
+    +x, and its catch is the ball's arrival after 2.93680 m at 1.5 m/s. A next target straight up from it is
+    90 deg off: it is rated facing the ball, the kick aims at its centre as without a target."""
+    team = np.array([[-0.1, 0.0], [3.0, 0.0], [2.0, 0.8]])
+    opponents = np.array([[0.0, -3.0]])
+    facing = math.atan2(0.8, -1.0)
+    aim = np.array([3.0 + OFFSET * math.cos(facing), OFFSET * math.sin(facing)])
+    np.testing.assert_allclose(aim, [2.93636, 0.05091], atol=1e-5)
+    (o,) = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1],
+                           _search(4), MODEL, CFG, OFFSET, {1: team[2]})
+    assert o.receive_facing_rad == pytest.approx(facing)
+    assert o.direction_rad == pytest.approx(math.atan2(aim[1], aim[0]), abs=1e-12)
+    assert o.direction_rad == pytest.approx(0.01734, abs=1e-5)
+    assert o.kick_speed_mps == pytest.approx(kick_speed_for(math.hypot(*aim), CFG.arrive_speed_mps, MODEL))
+    v0 = o.kick_speed_mps
+    assert o.receiver_catch_s == pytest.approx((v0 - 0.6 * v0) / 2.5 + (0.6 * v0 - 1.5) / 0.3, abs=1e-9)
+    (up,) = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1],
+                            _search(4), MODEL, CFG, OFFSET, {1: (3.0, 2.0)})
+    assert up.direction_rad == pytest.approx(0.0, abs=1e-12)
+    assert abs(math.remainder(up.receive_facing_rad - math.pi, 2.0 * math.pi)) < 1e-12
+    assert up.kick_speed_mps == pytest.approx(kick_speed_for(3.0 - OFFSET, CFG.arrive_speed_mps, MODEL))

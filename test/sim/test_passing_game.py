@@ -3,6 +3,7 @@ completed passes, and an interception counted and explained."""
 
 import dataclasses
 import itertools
+import math
 
 import pytest
 
@@ -62,3 +63,25 @@ def test_the_passing_scenario_writes_the_plot_the_summary_and_a_bag(tmp_path):
     for topic in ("/clock", "/ground_truth/ball", "/robot_0/ground_truth/odom", "/robot_1/ground_truth/odom",
                   "/opponent_0/ground_truth/odom"):
         assert counts[topic] > 100  # 100 Hz over more than a second
+
+
+def test_receivers_receive_facing_their_next_target():
+    """Three of ours, one opponent: at the light-barrier moment of every pass received facing a next target,
+    the receiver's heading (ground truth) points at that teammate within 0.1 rad (the game's aim tolerance is
+    0.03 rad, the catcher's heading deadband 0.03 rad), where facing the incoming ball would be more than
+    0.3 rad off (about 30 deg here)."""
+    headings = {}
+
+    def on_tick(game):
+        r = game.records[-1] if game.records else None
+        if r is not None and r.index not in headings and r.outcome == "completed" and r.facing_target is not None:
+            me, them = game.world.robot_state(r.receiver), game.world.robot_state(r.facing_target)
+            (x0, y0), (x1, y1) = r.ball_path[0], r.ball_path[-1]
+            headings[r.index] = (me.theta, math.atan2(them.y - me.y, them.x - me.x), math.atan2(y0 - y1, x0 - x1))
+
+    records = PassingGame(SMALL, seed=1, on_tick=on_tick).play()
+    assert [r.outcome for r in records] == ["completed"] * 3
+    assert len(headings) >= 2
+    for theta, towards_target, towards_ball in headings.values():
+        assert abs(math.remainder(theta - towards_target, 2.0 * math.pi)) < 0.1
+        assert abs(math.remainder(towards_ball - towards_target, 2.0 * math.pi)) > 0.3

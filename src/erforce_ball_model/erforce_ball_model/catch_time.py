@@ -76,6 +76,7 @@ from erforce_ball_model.ball_model import BallTrajectory, ball_distance, ball_ti
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 __all__ = [
+    "MAX_RECEIVE_ANGLE_RAD",
     "ROBOT_A_MAX_MPS2",
     "ROBOT_V_MAX_MPS",
     "CatchKind",
@@ -85,8 +86,10 @@ __all__ = [
     "can_reach",
     "can_reach_in_time",
     "catch_after_reaction",
+    "contact_offset",
     "facing_angles",
     "load_kernels",
+    "receive_facing",
     "robot_time_curve",
     "robot_time_to_ball",
     "robot_time_to_pos",
@@ -101,6 +104,14 @@ ROBOT_V_MAX_MPS = 2.5
 # A longer search (a ball that takes hours to stop, from an absurd deceleration) is refused, not run:
 # realistic horizons are seconds (about 2,200 points for a 6.5 m/s ball at the default 10 ms step).
 MAX_GRID_POINTS = 1_000_000
+# Receiving facing somewhere else than against the ball (receive_facing): the largest angle between the
+# dribbler's direction and the ball's incoming direction reversed. Aimed at the dribbler centre, the ball
+# meets the flat front face for any angle below 90 deg, but a ball whose path is e off the aim touches the
+# face e / cos(angle) off the dribbler centre, and the dribbler only holds it within half its width
+# (RobotConfig.dribbler_width_m, 35 mm). The receiver stands still once it is within 20 mm of the ball's
+# line (CatcherConfig.receive_line_tolerance_m): 20 / cos(angle) <= 35 mm needs angle <= 55 deg; 45 deg
+# (28 mm) keeps a margin for the ball's sideways slip along the face (its speed times sin(angle)).
+MAX_RECEIVE_ANGLE_RAD = math.radians(45.0)
 
 
 def _kernel_array(x) -> np.ndarray:
@@ -636,8 +647,44 @@ def robot_time_curve(ball: BallTrajectory, t_ball_s, robot_pos_m, robot_vel_mps,
     if not (math.isfinite(facing_rad) and math.isfinite(dribbler_offset_m) and dribbler_offset_m >= 0.0):
         raise ValueError(f"facing_rad and dribbler_offset_m: must be finite (offset >= 0), got {facing_rad!r}, "
                          f"{dribbler_offset_m!r}")
-    offset = dribbler_offset_m * np.array([math.cos(facing_rad), math.sin(facing_rad)])
-    return robot_time_to_pos(p0, v0, ball.position_at(t_ball_s) - offset, limits)
+    return robot_time_to_pos(p0, v0, ball.position_at(t_ball_s) - contact_offset(facing_rad, dribbler_offset_m),
+                             limits)
+
+
+def contact_offset(facing_rad: float, dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M) -> np.ndarray:
+    """The paper's offset: robot centre to ball centre when the ball touches the dribbler of a robot facing
+    ``facing_rad``; the robot stands at ``ball - offset``. (The compiled search computes the same inline.)
+
+    >>> contact_offset(math.pi / 2, 0.08).round(3).tolist()
+    [0.0, 0.08]
+    """
+    return dribbler_offset_m * np.array([math.cos(facing_rad), math.sin(facing_rad)])
+
+
+def receive_facing(ball_direction, robot_xy, target_xy, max_angle_rad: float = MAX_RECEIVE_ANGLE_RAD) -> float:
+    """The dribbler's direction for receiving a ball that moves along ``ball_direction`` (unit vector or any
+    non-zero vector) and passing it on to ``target_xy`` (the paper's robotTimeToBall with targetpos: the
+    offset points towards the robot's intended target): towards the target, seen from ``robot_xy``, when
+    that is at most ``max_angle_rad`` from the ball's incoming direction reversed (MAX_RECEIVE_ANGLE_RAD
+    says why there is a limit); else against the ball, as a receiver without a target does.
+
+    >>> round(math.degrees(receive_facing((1.0, 0.0), (0.0, 0.0), (-1.0, 1.0))), 6)  # 45 deg off: the target
+    135.0
+    >>> round(math.degrees(receive_facing((1.0, 0.0), (0.0, 0.0), (0.0, 1.0))), 6)  # 90 deg off: the ball
+    180.0
+    """
+    ux, uy = float(ball_direction[0]), float(ball_direction[1])
+    towards_ball = math.atan2(0.0 - uy, 0.0 - ux)  # not -uy: atan2(-0.0, -1) is -pi
+    if not (math.isfinite(max_angle_rad) and 0.0 <= max_angle_rad < 0.5 * math.pi):
+        raise ValueError(f"max_angle_rad must be in [0, pi/2), got {max_angle_rad!r}")
+    dx, dy = float(target_xy[0]) - float(robot_xy[0]), float(target_xy[1]) - float(robot_xy[1])
+    if not all(math.isfinite(v) for v in (ux, uy, dx, dy)) or (ux == 0.0 and uy == 0.0):
+        raise ValueError("ball_direction, robot_xy and target_xy: must be finite, the direction non-zero")
+    if dx == 0.0 and dy == 0.0:
+        return towards_ball
+    towards_target = math.atan2(dy, dx)
+    off = abs(math.remainder(towards_target - towards_ball, 2.0 * math.pi))
+    return towards_target if off <= max_angle_rad else towards_ball
 
 
 def facing_angles(

@@ -33,7 +33,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ball_time_to_distance
-from erforce_ball_model.catch_time import ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS, can_reach
+from erforce_ball_model.catch_time import (
+    MAX_RECEIVE_ANGLE_RAD,
+    ROBOT_A_MAX_MPS2,
+    ROBOT_V_MAX_MPS,
+    can_reach,
+    contact_offset,
+    receive_facing,
+)
 from erforce_interfaces.robot_config import FieldConfig
 
 CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract)
@@ -144,16 +151,17 @@ def catch_twist(pose: np.ndarray, target: np.ndarray, facing_rad: float, cfg: Ca
 
 
 def on_receive_line(pose: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.ndarray, dribbler_offset_m: float,
-                    tolerance_m: float) -> bool:
+                    tolerance_m: float, facing_rad: float | None = None) -> bool:
     """True when the ball is coming at the robot's dribbler: the dribbler centre lies within
-    ``tolerance_m`` of the ball's line of travel, ahead of the ball."""
+    ``tolerance_m`` of the ball's line of travel, ahead of the ball. The dribbler of the robot as it
+    stands, or once it faces ``facing_rad`` (it turns in place)."""
     pose = np.asarray(pose, dtype=float)
     v = np.asarray(ball_velocity, dtype=float)
     speed = float(np.hypot(v[0], v[1]))
     if speed < 1e-6:
         return False
     direction = v / speed
-    dribbler = pose[:2] + dribbler_offset_m * np.array([math.cos(pose[2]), math.sin(pose[2])])
+    dribbler = pose[:2] + contact_offset(pose[2] if facing_rad is None else facing_rad, dribbler_offset_m)
     rel = dribbler - np.asarray(ball_xy, dtype=float)
     along = float(rel @ direction)
     across = abs(float(rel[0] * direction[1] - rel[1] * direction[0]))
@@ -161,12 +169,13 @@ def on_receive_line(pose: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.nda
 
 
 def line_intercept(robot_xy: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.ndarray,
-                   dribbler_offset_m: float) -> np.ndarray | None:
+                   dribbler_offset_m: float, facing_rad: float | None = None) -> np.ndarray | None:
     """Where the robot centre must stand to block the incoming ball's line, nearest to it.
 
-    The robot's own projection onto the ball's line of travel, at least one dribbler offset
-    ahead of the ball (receive_point's candidate). None when the ball is not moving or has
-    already passed the robot.
+    Facing the ball (``facing_rad`` None): the robot's own projection onto the ball's line of travel,
+    at least one dribbler offset ahead of the ball (receive_point's candidate). Facing ``facing_rad``:
+    its dribbler's projection, at or ahead of the ball, and the centre one offset back from it
+    (catch_time.contact_offset). None when the ball is not moving or has already passed the robot.
     """
     v = np.asarray(ball_velocity, dtype=float)
     speed = float(np.hypot(v[0], v[1]))
@@ -174,10 +183,14 @@ def line_intercept(robot_xy: np.ndarray, ball_xy: np.ndarray, ball_velocity: np.
         return None
     direction = v / speed
     ball = np.asarray(ball_xy, dtype=float)
-    along = float((np.asarray(robot_xy, dtype=float) - ball) @ direction)
+    robot = np.asarray(robot_xy, dtype=float)
+    along = float((robot - ball) @ direction)
     if along <= 0.0:
         return None
-    return ball + direction * max(along, dribbler_offset_m)
+    if facing_rad is None:
+        return ball + direction * max(along, dribbler_offset_m)
+    offset = contact_offset(facing_rad, dribbler_offset_m)
+    return ball + direction * max(float((robot + offset - ball) @ direction), 0.0) - offset
 
 
 def receive_point(
@@ -189,10 +202,12 @@ def receive_point(
     field: FieldConfig | None = None,
     robot_radius_m: float = 0.0,
     slack_s: float | None = None,
+    facing_rad: float | None = None,
 ) -> np.ndarray | None:
     """The nearest place to receive the ball on its line that the robot reaches with time to spare.
 
-    Candidates are robot centre targets on the ball's line (the dribbler then faces the ball):
+    Candidates are robot centre targets with the dribbler on the ball's line, facing the ball (or
+    ``facing_rad``: the centre one contact_offset back from the line, line_intercept):
     the robot's projection onto the line and points further along it, every
     ``RECEIVE_STEP_M`` up to ``RECEIVE_SEARCH_M``. The first one is returned where the robot,
     by robotTimeToPos with the catcher's limits from its present velocity, arrives
@@ -204,14 +219,16 @@ def receive_point(
     budget), nearest first up to the first hit: a few dozen cases per tick need no numba, so the
     catcher starts without it.
     """
-    projection = line_intercept(robot_xy, ball.position_m, ball.velocity_mps, dribbler_offset_m)
+    projection = line_intercept(robot_xy, ball.position_m, ball.velocity_mps, dribbler_offset_m, facing_rad)
     if projection is None:
         return None
     start, u = ball.position_m, ball.direction
-    along = float((projection - start) @ u) + np.arange(0.0, RECEIVE_SEARCH_M + 1e-9, RECEIVE_STEP_M)
-    contact_m = np.maximum(along - dribbler_offset_m, 0.0)  # ball travel to the dribbler
-    targets = start + along[:, None] * u
-    ok = np.ones(len(along), dtype=bool)
+    offset = -dribbler_offset_m * u if facing_rad is None else contact_offset(facing_rad, dribbler_offset_m)
+    # ball travel to the dribbler, from the projection on
+    contact_m = float((projection + offset - start) @ u) + np.arange(0.0, RECEIVE_SEARCH_M + 1e-9, RECEIVE_STEP_M)
+    targets = start + contact_m[:, None] * u - offset
+    contact_m = np.maximum(contact_m, 0.0)
+    ok = np.ones(len(contact_m), dtype=bool)
     if field is not None:
         inside = field.half_length_m - robot_radius_m, field.half_width_m - robot_radius_m
         ok &= (np.abs(targets[:, 0]) <= inside[0]) & (np.abs(targets[:, 1]) <= inside[1])
@@ -236,12 +253,13 @@ def choose_target(
     field: FieldConfig | None = None,
     robot_radius_m: float = 0.0,
     committed: bool = False,
+    facing_rad: float | None = None,
 ) -> np.ndarray | None:
-    """Where the robot centre goes, in this order: stay when the dribbler is already on the incoming
-    ball's line; the nearest receive point with time to spare (for a ``committed`` robot: reached at
-    all before the ball); the predicted catch point (None when the predictor has none); when
-    ``committed``, the robot's projection on the ball's line if it is within ``cfg.commit_distance_m``;
-    else hold (None).
+    """Where the robot centre goes (to face the ball, or ``facing_rad`` once it turned), in this order:
+    stay when the dribbler is already on the incoming ball's line; the nearest receive point with time
+    to spare (for a ``committed`` robot: reached at all before the ball); the predicted catch point
+    (None when the predictor has none); when ``committed``, the robot's projection on the ball's line
+    if it is within ``cfg.commit_distance_m``; else hold (None).
 
     ``ball`` is the moving ball's trajectory (None when it rests: the velocity of a resting ball is
     vision noise in a random direction, its "line" means nothing). ``committed``: the robot was
@@ -256,16 +274,17 @@ def choose_target(
     ball only after that, against 0 of 20 with this hysteresis.
     """
     if ball is not None:
-        if on_receive_line(pose, ball.position_m, ball.velocity_mps, dribbler_offset_m, cfg.receive_line_tolerance_m):
+        if on_receive_line(pose, ball.position_m, ball.velocity_mps, dribbler_offset_m, cfg.receive_line_tolerance_m,
+                           facing_rad):
             return np.asarray(pose[:2], dtype=float)
         target = receive_point(pose[:2], robot_velocity, ball, dribbler_offset_m, cfg, field, robot_radius_m,
-                               slack_s=0.0 if committed else None)
+                               slack_s=0.0 if committed else None, facing_rad=facing_rad)
         if target is not None:
             return target
     if catch_point is not None:
         return catch_point
     if committed and ball is not None:
-        block = line_intercept(pose[:2], ball.position_m, ball.velocity_mps, dribbler_offset_m)
+        block = line_intercept(pose[:2], ball.position_m, ball.velocity_mps, dribbler_offset_m, facing_rad)
         if block is not None and math.dist(block, pose[:2]) <= cfg.commit_distance_m:
             return block
     return None
@@ -301,7 +320,9 @@ class Receiver:
     it once it moves and has travelled ``engage_distance_m`` from where it last rested, and after a
     catch only a ball that rested since (a pass is received once: a ball that bounces off the dribbler
     or is carried away is the next skill's). While
-    engaged it drives to ``choose_target``, facing the incoming ball as the predictor assumed. In a
+    engaged it drives to ``choose_target``, facing the incoming ball as the predictor assumed, or, given
+    where it passes on (``on_next_target``), facing that target when ``receive_facing`` allows (the
+    paper's robotTimeToBall with targetpos; the predictor's search must then face the same way). In a
     team (``team_robot_ids``, its own id among them) it drives only while ``team_receiver`` names it,
     or nobody can catch the ball by the predictions (then each robot judges alone). ``notice`` says
     what the last call could not use, for the node's throttled log (None: nothing).
@@ -328,6 +349,8 @@ class Receiver:
         self._engaged = False
         self._ball_moving_at = -math.inf
         self._target_at = -math.inf
+        self._next_target = None  # where it passes on after the catch ([x, y]), None: face the ball
+        self._max_receive_angle_rad = MAX_RECEIVE_ANGLE_RAD
         self.notice: str | None = None
 
     def set_config(self, cfg: CatcherConfig, dribbler_offset_m: float, robot_radius_m: float = 0.0,
@@ -367,6 +390,23 @@ class Receiver:
     def on_v_shoot(self, now: float, v_shoot_mps: float) -> None:
         self._v_shoot = (now, float(v_shoot_mps))
 
+    def on_next_target(self, point, max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD) -> None:
+        """Where this robot passes the ball on once it has it ([x, y] in ``field``; None: nowhere known), and
+        how far from the ball's way back it may face it to receive (catch_time.receive_facing)."""
+        if not (math.isfinite(max_receive_angle_rad) and 0.0 <= max_receive_angle_rad < 0.5 * math.pi):
+            raise ValueError(f"max_receive_angle_rad must be in [0, pi/2), got {max_receive_angle_rad!r}")
+        self._next_target = None if point is None else np.asarray(point, dtype=float)[:2]
+        self._max_receive_angle_rad = max_receive_angle_rad
+
+    def facing(self, pose, ball: BallTrajectory | None) -> float:
+        """The dribbler direction it receives with: towards the next target within the receive angle
+        (catch_time.receive_facing), else against the ball; its heading when the ball rests."""
+        if ball is None:
+            return float(pose[2])
+        if self._next_target is None:
+            return math.atan2(-ball.velocity_mps[1], -ball.velocity_mps[0])
+        return receive_facing(ball.direction, pose[:2], self._next_target, self._max_receive_angle_rad)
+
     def on_model(self, params: BallModelParams) -> None:
         """The ball model the predictor uses (it may identify its own)."""
         self._model = params
@@ -398,14 +438,14 @@ class Receiver:
         ball = self._moving_ball(now)
         predicted = (self._fresh(self._catch_point, now) and self._fresh(self._catch_time, now)
                      and self._catch_time[1] != CATCH_TIME_NEVER)
+        facing = self.facing(pose, ball)
         target = choose_target(pose, velocity, ball, self._catch_point[1] if predicted else None,
                                self.dribbler_offset_m, cfg, self.field, self.robot_radius_m,
-                               committed=now - self._target_at <= cfg.commit_s)
+                               committed=now - self._target_at <= cfg.commit_s,
+                               facing_rad=None if self._next_target is None else facing)
         if target is None:
             return np.zeros(3)
         self._target_at = now
-        # Face the incoming ball, as the predictor assumed; keep the heading otherwise.
-        facing = math.atan2(-ball.velocity_mps[1], -ball.velocity_mps[0]) if ball is not None else pose[2]
         try:
             return catch_twist(pose, target, facing, cfg)
         except ValueError as exc:

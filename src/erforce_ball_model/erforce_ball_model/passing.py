@@ -12,13 +12,16 @@ question) for every robot on the field, on the ball the kick would make:
 
   A ball that arrives slower is easy to receive but gives the opponents time; the speed at the
   receiver is the receivable one (``PassConfig.arrive_speed_mps``), the kick speed follows.
-- ``evaluate_passes`` builds, per candidate receiver, the ball the kick makes (from the ball's
-  position towards the receiver's centre) and runs one robotTimeToBall for the whole field: the
-  earliest opponent's catch time, and whether the receiver can catch it at all. The receiver
-  receives where it stands (catcher.Receiver takes the point on the ball's line it reaches with
-  time to spare), so its catch is the ball's arrival at its dribbler (ballRollTime), later than
-  its robotTimeToBall, which runs to meet the ball. ``margin_s`` = opponent - arrival; a pass is
-  safe when the margin is at least ``PassConfig.safe_margin_s``.
+- ``evaluate_passes`` builds, per candidate receiver, the ball the kick makes and runs one
+  robotTimeToBall for the whole field: the earliest opponent's catch time, and whether the receiver
+  can catch it at all. The receiver receives where it stands, turning in place to its receive facing
+  (catcher.Receiver: on the ball's line it stands still), so the kick aims at where its dribbler will
+  be and its catch is the ball's arrival there (ballRollTime), later than its robotTimeToBall, which
+  runs to meet the ball. The receive facing is the one the receiver will take: towards its next
+  target (``next_targets``) when catch_time.receive_facing allows, else against the ball; the
+  receiver's robotTimeToBall runs with the offset pointing that way (the paper's targetpos).
+  ``margin_s`` = opponent - arrival; a pass is safe when the margin is at least
+  ``PassConfig.safe_margin_s``.
 - ``select_pass``: of the safe passes the one whose catch comes earliest; when none is safe, the
   one with the largest margin (rated unsafe; the caller may still play it).
 - ``press_targets``: where opponents wait while a robot of ours holds the ball: each covers the
@@ -29,13 +32,20 @@ question) for every robot on the field, on the ball the kick would make:
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
-from erforce_ball_model.catch_time import CatchKind, CatchSearch, catch_after_reaction
+from erforce_ball_model.catch_time import (
+    MAX_RECEIVE_ANGLE_RAD,
+    CatchKind,
+    CatchSearch,
+    catch_after_reaction,
+    contact_offset,
+    receive_facing,
+)
 
 
 @dataclass(frozen=True)
@@ -85,6 +95,7 @@ class PassOption:
     receiver_catch_s: float  # the ball at the receiver's dribbler, from the kick; inf: it cannot catch it
     opponent_catch_s: float  # the earliest opponent's robotTimeToBall, the reaction time included; inf: none can
     first_opponent: int | None  # index into the opponents
+    receive_facing_rad: float = math.nan  # the receiver's dribbler direction at the catch (in `field`)
 
     @property
     def margin_s(self) -> float:
@@ -124,11 +135,15 @@ def evaluate_passes(
     params: BallModelParams,
     cfg: PassConfig,
     dribbler_offset_m: float,
+    next_targets: Mapping[int, Sequence[float]] | None = None,
+    max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD,
 ) -> list[PassOption]:
     """One PassOption per candidate teammate in reach (module docstring).
 
     ``search`` is a CatchSearch for ``len(team_xy) + len(opponents_xy)`` robots (teammates first);
-    every robot faces the incoming ball, as the predictor assumes, and reacts ``cfg.reaction_s`` late.
+    every robot faces the incoming ball, as the predictor assumes, but a candidate with a next target
+    (``next_targets``: candidate -> [x, y]) receives facing it within ``max_receive_angle_rad``
+    (catch_time.receive_facing); everybody reacts ``cfg.reaction_s`` late.
     """
     team_xy, opponents_xy = np.asarray(team_xy, dtype=float), np.asarray(opponents_xy, dtype=float)
     n_team = len(team_xy)
@@ -139,24 +154,36 @@ def evaluate_passes(
     ball = np.asarray(ball_xy, dtype=float)
     facing_fixed = np.zeros(len(pos), dtype=bool)
     facing = np.zeros(len(pos))
+    next_targets = {} if next_targets is None else next_targets
     options = []
     for j in candidates:
-        delta = team_xy[j] - ball
-        distance = float(np.hypot(*delta))
+        centre = team_xy[j]
+        distance = math.dist(centre, ball)
         if not cfg.min_distance_m <= distance <= cfg.max_distance_m:
             continue
-        u = delta / distance
-        v0 = min(max(kick_speed_for(max(distance - dribbler_offset_m, 0.0), cfg.arrive_speed_mps, params),
-                     cfg.min_kick_mps), cfg.max_kick_mps)
+        u = (centre - ball) / distance
+        receive_rad = math.atan2(-u[1], -u[0])
+        aim = centre - dribbler_offset_m * u  # the dribbler's centre, facing the ball
+        if j in next_targets:
+            for _ in range(3):  # the facing moves the aim by at most the offset: a fixed point, reached fast
+                receive_rad = receive_facing(u, centre, next_targets[j], max_receive_angle_rad)
+                aim = centre + contact_offset(receive_rad, dribbler_offset_m)
+                u = (aim - ball) / math.dist(aim, ball)
+        contact_m = float((aim - ball) @ u)  # ball travel to the receiver's dribbler
+        v0 = min(max(kick_speed_for(contact_m, cfg.arrive_speed_mps, params), cfg.min_kick_mps), cfg.max_kick_mps)
         traj = BallTrajectory((float(ball[0]), float(ball[1])), (float(u[0] * v0), float(u[1] * v0)), v0, params)
-        times = _times(catch_after_reaction(search, traj, pos, vel, cfg.reaction_s, facing_fixed, facing, 0.1),
-                       cfg.reaction_s)
+        facing_fixed[j], facing[j] = j in next_targets, receive_rad
+        try:
+            times = _times(catch_after_reaction(search, traj, pos, vel, cfg.reaction_s, facing_fixed, facing, 0.1),
+                           cfg.reaction_s)
+        finally:
+            facing_fixed[j] = False
         opp = times[n_team:]
         first = int(np.argmin(opp)) if len(opp) and math.isfinite(opp.min()) else None
-        arrival_s = float(traj.time_to_distance(max(distance - dribbler_offset_m, 0.0)))
+        arrival_s = float(traj.time_to_distance(contact_m))
         receiver_s = arrival_s if math.isfinite(times[j]) else math.inf
         options.append(PassOption(int(j), v0, math.atan2(u[1], u[0]), receiver_s,
-                                  math.inf if first is None else float(opp[first]), first))
+                                  math.inf if first is None else float(opp[first]), first, receive_rad))
     return options
 
 

@@ -9,8 +9,12 @@ on every vision frame for all robots of both teams, and the behaviours at a 50 H
   (passing.evaluate_passes: robotTimeToBall for the whole field on the ball each kick would make),
   turns to the pass it selects (passing.select_pass: the earliest safe catch), and kicks with
   the speed at which the ball arrives receivable (passing.kick_speed_for);
-- the receiver runs catcher.Receiver (the paper's Fig. 6 skill) and, once it holds the ball, turns
-  to its own next target and passes on (it receives facing the ball, then turns with the dribbler);
+- each teammate's next target (where it would pass on from where it stands: select_pass over the
+  others but the holder) is worked out when a robot takes the ball and refreshed one teammate per AI
+  tick; a pass is rated with its receiver facing that target (evaluate_passes' next_targets);
+- the receiver runs catcher.Receiver (the paper's Fig. 6 skill) and receives facing its next target
+  where the receive angle allows (catch_time.receive_facing; the predictor's search faces the same
+  way for it), else facing the ball; once it holds the ball it prefers that target and passes on;
 - the opponents wait on the passing lanes while we hold the ball (passing.press_targets) and,
   once the ball rolls, run catcher.Receiver as a team: the first of them to the ball goes.
 
@@ -27,6 +31,7 @@ No rclpy import.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import time
 from collections.abc import Callable
@@ -34,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from erforce_ball_model.catch_time import CatchSearch, RobotLimits
+from erforce_ball_model.catch_time import MAX_RECEIVE_ANGLE_RAD, CatchSearch, RobotLimits
 from erforce_ball_model.catcher import CatcherConfig, Receiver, catch_twist, wrap_angle
 from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
@@ -61,6 +66,7 @@ class GameConfig:
     hold_min_s: float = 0.4  # a new holder settles the ball this long before it kicks
     aim_tolerance_rad: float = 0.03
     turn_rate_radps: float = 3.0  # a holder turns at most this fast (the dribbler keeps the ball)
+    max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD  # receive facing the next target within this
     switch_margin_s: float = 0.2  # a holder changes its chosen receiver for one this much earlier
     wait_for_safe_s: float = 1.5  # a holder without a safe pass keeps the ball this long, then plays the best
     pass_timeout_s: float = 6.0
@@ -77,6 +83,8 @@ class GameConfig:
             raise ValueError(f"opponents must be in [0, {len(self.opponent_positions)}], got {self.opponents!r}")
         if self.passes < 1:
             raise ValueError(f"passes must be >= 1, got {self.passes!r}")
+        if not (math.isfinite(self.max_receive_angle_rad) and 0.0 <= self.max_receive_angle_rad < 0.5 * math.pi):
+            raise ValueError(f"max_receive_angle_rad must be in [0, pi/2), got {self.max_receive_angle_rad!r}")
 
 
 @dataclass(frozen=True)
@@ -94,6 +102,7 @@ class PassRecord:
     caught_by: str | None  # robot_<k> | opponent_<j>
     actual_catch_s: float | None  # light barrier edge, from the kick
     ball_path: tuple[tuple[float, float], ...] = ()  # true ball positions every 20 ms
+    facing_target: int | None = None  # the teammate the receiver received facing (None: it faced the ball)
 
     @property
     def margin_s(self) -> float:
@@ -151,6 +160,8 @@ class PassingGame:
         self.predictor = BallPredictor(PredictorConfig(num_robots=n, field=self.field, limits=limits,
                                                        dribbler_offset_m=self.robot.dribbler_offset_m,
                                                        reaction_s=cfg.passing.reaction_s))
+        self._predictor_config = self.predictor.config
+        self._planned_next: int | None = None
         self.pass_search = CatchSearch(n, limits, dribbler_offset_m=self.robot.dribbler_offset_m, field=self.field)
         self.runner.vision_listeners.append(self._on_frame)
         self.poses = np.zeros((n, 3))  # tracked, from vision
@@ -166,6 +177,9 @@ class PassingGame:
         self._choice: PassOption | None = None
         self._pass: dict | None = None
         self._last_passer: int | None = None
+        self._next_targets: dict[int, int] = {}  # teammate -> the teammate it would pass on to
+        self._refresh = 0  # the next teammate whose next target is refreshed
+        self._prefer: int | None = None  # the new holder's planned next target
         self._barriers = [False] * n
 
     @property
@@ -218,9 +232,35 @@ class PassingGame:
         ball = self.world.ball_state()
         n = self.n_team
         ball_xy = (ball.x, ball.y) if self._holder is None else self._ball_at_dribbler(holder)
+        targets = {j: self.poses[k, :2] for j, k in self._next_targets.items()}
         return evaluate_passes(ball_xy, self.poses[:n, :2], self.velocities[:n], self.poses[n:, :2],
                                self.velocities[n:], self._candidates(holder), self.pass_search,
-                               self.predictor.model, self.cfg.passing, self.robot.dribbler_offset_m)
+                               self.predictor.model, self.cfg.passing, self.robot.dribbler_offset_m,
+                               targets, self.cfg.max_receive_angle_rad)
+
+    def _next_target(self, holder: int, j: int) -> int | None:
+        """Where teammate ``j`` would pass on once it has the ball from ``holder`` (select_pass from where it
+        stands, every robot facing the ball; None: no teammate in reach)."""
+        n = self.n_team
+        others = [k for k in range(n) if k not in (holder, j)]
+        options = evaluate_passes(self.poses[j, :2], self.poses[:n, :2], self.velocities[:n], self.poses[n:, :2],
+                                  self.velocities[n:], others, self.pass_search, self.predictor.model,
+                                  self.cfg.passing, self.robot.dribbler_offset_m)
+        best = select_pass(options, self.cfg.passing)
+        return None if best is None else best.receiver
+
+    def _update_next_targets(self, holder: int, all_of_them: bool) -> None:
+        """Every teammate's next target (``all_of_them``), or the next one in turn."""
+        others = [k for k in range(self.n_team) if k != holder]
+        if not all_of_them:
+            self._refresh = (self._refresh + 1) % len(others)
+            others = [others[self._refresh]]
+        for j in others:
+            k = self._next_target(holder, j)
+            if k is None:
+                self._next_targets.pop(j, None)
+            else:
+                self._next_targets[j] = k
 
     def _candidates(self, holder: int) -> list[int]:
         """Every teammate but the holder and, so that the ball travels along a chain, the one who passed
@@ -237,9 +277,9 @@ class PassingGame:
     def _choose(self, holder: int) -> PassOption | None:
         options = self._options(holder)
         best = select_pass(options, self.cfg.passing)
-        old = self._choice
-        if old is not None and best is not None and best.receiver != old.receiver:
-            same = next((o for o in options if o.receiver == old.receiver), None)
+        kept = self._choice.receiver if self._choice is not None else self._prefer  # a new holder: its plan
+        if kept is not None and best is not None and best.receiver != kept:
+            same = next((o for o in options if o.receiver == kept), None)
             keep = (same is not None and same.safe(self.cfg.passing) == best.safe(self.cfg.passing)
                     and same.receiver_catch_s <= best.receiver_catch_s + self.cfg.switch_margin_s)
             if keep:
@@ -252,6 +292,7 @@ class PassingGame:
         commands = {i: np.zeros(3) for i in range(n + self.n_opp)}
         if self._holder is not None:
             h = self._holder
+            self._update_next_targets(h, all_of_them=False)
             choice = self._choose(h)
             pose = self.poses[h]
             if choice is not None:
@@ -288,7 +329,19 @@ class PassingGame:
             self.receivers[i].on_model(self.predictor.model)
             self.receivers[i].on_odom(now, self.poses[i], self.velocities[i])
         self.world.set_dribbler(choice.receiver, True)
-        self._pass = {"t_kick": now, "passer": holder, "choice": choice, "path": [], "rest_since": None}
+        ball_rad = choice.direction_rad + math.pi
+        k = None
+        if abs(math.remainder(choice.receive_facing_rad - ball_rad, 2.0 * math.pi)) > 1e-9:
+            # it receives facing its next target: the predictor's search (its catch point) faces the same way
+            k = self._next_targets[choice.receiver]
+            self.receivers[choice.receiver].on_next_target(self.poses[k, :2], self.cfg.max_receive_angle_rad)
+            cfg = self.predictor.config
+            fixed, facing = cfg.facing_fixed.copy(), cfg.facing_rad.copy()
+            fixed[choice.receiver], facing[choice.receiver] = True, wrap_angle(choice.receive_facing_rad)
+            self.predictor.configure(dataclasses.replace(cfg, facing_fixed=fixed, facing_rad=facing))
+        self._planned_next = self._next_targets.get(choice.receiver)
+        self._pass = {"t_kick": now, "passer": holder, "choice": choice, "path": [], "rest_since": None,
+                      "facing_target": k}
 
     # -------------------------------------------------------------------- the loop
     def _end_pass(self, outcome: str, caught_by: int | None, now: float) -> None:
@@ -298,22 +351,26 @@ class PassingGame:
         record = PassRecord(len(self.records) + 1, p["t_kick"], p["passer"], choice.receiver, choice.kick_speed_mps,
                             choice.receiver_catch_s, choice.opponent_catch_s, choice.first_opponent,
                             choice.safe(self.cfg.passing), outcome, name,
-                            None if caught_by is None else now - p["t_kick"], tuple(p["path"]))
+                            None if caught_by is None else now - p["t_kick"], tuple(p["path"]), p["facing_target"])
         self.records.append(record)
         if self.on_pass is not None:
             self.on_pass(record)
         self._pass = None
         self.receivers = {}
+        self.predictor.configure(self._predictor_config)
         for i in range(self.n_team):
             self.world.set_dribbler(i, False)
         if outcome == "completed":
-            self._take_ball(caught_by, now)
+            self._take_ball(caught_by, now, self._planned_next if caught_by == choice.receiver else None)
         else:
             self._restart(now)
 
-    def _take_ball(self, holder: int, now: float) -> None:
+    def _take_ball(self, holder: int, now: float, planned_next: int | None = None) -> None:
         self._holder, self._hold_since, self._choice, self._barrier_lost_at = holder, now, None, None
+        self._prefer = planned_next
         self.world.set_dribbler(holder, True)
+        self._next_targets = {}
+        self._update_next_targets(holder, all_of_them=True)
 
     def _restart(self, now: float) -> None:
         """The ball to the dribbler of our robot farthest from every opponent."""
