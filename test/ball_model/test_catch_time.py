@@ -7,6 +7,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from erforce_ball_model import catch_time
 from erforce_ball_model.ball_model import BallTrajectory
 from erforce_ball_model.catch_time import (
     MAX_RECEIVE_ANGLE_RAD,
@@ -140,6 +141,33 @@ def test_plain_python_can_reach_answers_as_the_compiled_sign_test(d, w, t, a_max
     """can_reach (the catcher's, plain Python) gives the kernel's answer, also where numba's x / 0 is inf."""
     compiled = bool(can_reach_in_time(d, w, t, a_max, v_max)) if t >= 0.0 else False
     assert can_reach(d, w, t, a_max, v_max) is compiled
+
+
+def test_the_search_run_as_python_while_the_kernels_load_gives_the_compiled_numbers(monkeypatch):
+    """kernels="background" (a restarted predictor) answers with the same loop as Python until numba is in:
+    every output equal to the bit, also for robots and balls at rest, and the compiled search once loaded."""
+    rng = np.random.default_rng(5)
+    lim = RobotLimits(3.0, 2.0)
+    compiled = CatchSearch(4, lim, field=DIV_B)
+    monkeypatch.setattr(catch_time, "kernels_loaded", lambda: False)  # as while the thread still loads
+    python = CatchSearch(4, lim, field=DIV_B, kernels="background")
+    for k in range(30):
+        ball = BallTrajectory(tuple(rng.uniform(-4.5, 4.5, 2)), tuple(rng.normal(0, 3, 2) * (k % 6 != 0)),
+                              float(rng.uniform(0, 6)))
+        robots, vels = rng.uniform(-4.5, 4.5, (4, 2)), rng.normal(0, 1, (4, 2)) * (k % 4 != 0)
+        facing = rng.uniform(-math.pi, math.pi, 4)
+        fields = ("time_s", "ball_position_m", "robot_target_m", "kind")
+        want = compiled.run(ball, robots, vels, facing)
+        want = [getattr(want, name).copy() for name in fields]
+        got = python.run(ball, robots, vels, facing)
+        assert python._search is None  # still the Python loop
+        for name, w in zip(fields, want, strict=True):
+            assert np.array_equal(w, getattr(got, name), equal_nan=True), (k, name, w, getattr(got, name))
+    monkeypatch.undo()
+    python.run(ball, robots, vels, facing)
+    assert python._search is compiled._search  # the kernels are in: the compiled search from then on
+    with pytest.raises(ValueError, match="kernels"):
+        CatchSearch(1, lim, field=DIV_B, kernels="later")
 
 
 def test_robot_time_to_pos_never_worse_than_a_dense_alpha_scan():

@@ -67,6 +67,7 @@ from __future__ import annotations
 import enum
 import functools
 import math
+import threading
 from dataclasses import dataclass
 from types import SimpleNamespace
 
@@ -495,6 +496,23 @@ def load_kernels() -> None:
     _kernels()
 
 
+_background_load: threading.Thread | None = None
+
+
+def kernels_loaded() -> bool:
+    return _kernels.cache_info().currsize > 0
+
+
+def load_kernels_in_background() -> None:
+    """Start loading the kernels in a daemon thread (once). Loading numba and the cached kernels costs a
+    process about a second of CPU; a node restarted after a crash answers meanwhile with the same loops run
+    as Python (CatchSearch with ``kernels="background"``)."""
+    global _background_load
+    if _background_load is None and not kernels_loaded():
+        _background_load = threading.Thread(target=_kernels, name="catch_time_kernels", daemon=True)
+        _background_load.start()
+
+
 def _check_field(field: FieldConfig | None, unbounded: bool) -> None:
     if field is None and not unbounded:
         raise ValueError("field: the search ends where the ball leaves the field: give the FieldConfig, or "
@@ -525,8 +543,11 @@ class CatchSearch:
         field_margin_m: float = 0.0,
         grid_step_s: float = 0.01,
         refine_points: int = 128,
+        kernels: str = "now",
     ) -> None:
         _check_field(field, unbounded)
+        if kernels not in ("now", "background"):
+            raise ValueError(f"kernels: 'now' or 'background', got {kernels!r}")
         if not (isinstance(num_robots, int) and num_robots >= 1):
             raise ValueError(f"num_robots: must be an int >= 1, got {num_robots!r}")
         if not (math.isfinite(dribbler_offset_m) and dribbler_offset_m >= 0.0):
@@ -544,7 +565,11 @@ class CatchSearch:
         self._m1, self._m2 = (m1, math.ceil(refine_points / m1)) if m1 > 2 else (refine_points, 0)
         self._rest_tol_s = grid_step_s / refine_points
         self._facing = np.zeros(num_robots)
-        self._search = _kernels().catch_search
+        self._search = None  # the compiled search, once loaded (kernels="background": the Python loop until then)
+        if kernels == "now":
+            self._search = _kernels().catch_search
+        else:
+            load_kernels_in_background()
         self._result = CatchResult(np.empty(num_robots), np.empty((num_robots, 2)), np.empty((num_robots, 2)),
                                    np.empty(num_robots, dtype=np.int8))
 
@@ -571,7 +596,12 @@ class CatchSearch:
                              f"of {self._h} s")
         stops_inside = t_in < math.inf and t_out == math.inf
         res = self._result
-        if not self._search(ball.floats, t_in, t_max, self._h, stops_inside, self._m1, self._m2,
+        search = self._search
+        if search is None:
+            search = _catch_search  # the same loop as Python: slower, the same numbers
+            if kernels_loaded():
+                search = self._search = _kernels().catch_search
+        if not search(ball.floats, t_in, t_max, self._h, stops_inside, self._m1, self._m2,
                              self._rest_tol_s, self._offset_m, _kernel_array(robot_pos_m),
                              _kernel_array(robot_vel_mps), self._facing, self._a, self._vmax, res.time_s, res.kind,
                              res.ball_position_m, res.robot_target_m):

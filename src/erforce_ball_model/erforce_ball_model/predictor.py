@@ -140,8 +140,9 @@ class BallPredictor:
     """
 
     def __init__(self, config: PredictorConfig, *, warn: Callable[[str, str], None] = _ignore,
-                 info: Callable[[str], None] = _ignore) -> None:
+                 info: Callable[[str], None] = _ignore, kernels: str = "now") -> None:
         self._warn, self._info = warn, info
+        self._kernels = kernels  # CatchSearch's: "background" lets a node answer before numba is loaded
         self.config: PredictorConfig | None = None  # in effect: SSL geometry's field and model applied
         self._configured: PredictorConfig | None = None  # as given to configure
         self._vision_field: FieldConfig | None = None  # the newest SSL geometry, kept also while not used
@@ -184,7 +185,7 @@ class BallPredictor:
             self.model = config.model
         self._search = CatchSearch(config.num_robots, config.limits, dribbler_offset_m=config.dribbler_offset_m,
                                    field=config.field, field_margin_m=config.field_margin_m,
-                                   grid_step_s=config.grid_step_s)
+                                   grid_step_s=config.grid_step_s, kernels=self._kernels)
         if self._ball is None or config.tracker != old.tracker:
             self._ball = BallTracker(self.model, config.tracker)  # the filter state is lost: it re-seeds
         self._ball.params = self.model
