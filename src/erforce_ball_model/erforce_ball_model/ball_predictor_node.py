@@ -114,9 +114,9 @@ class BallPredictorNode(Node):
         self._warn = ThrottledWarner(self)
         self._params = NodeParams(self, SCHEMA, build_config)
         self._values = self._params.values
-        # kernels="background": numba and the compiled search load in a thread while the first frames are
-        # answered by the same loop as Python (about 1 ms per robot): a restarted predictor closes the loop
-        # about a second sooner, which on a busy machine is what the 3 s to heal depends on.
+        # kernels="background": the first frames are answered by the search's loop as Python (about 1 ms per
+        # robot) and numba and the compiled search load in a thread after the first answer: a restarted
+        # predictor closes the loop about a second sooner, what the 3 s to heal on a busy machine depends on.
         predictor = self._predictor = BallPredictor(self._params.built, warn=self._warn.warn,
                                                     info=self.get_logger().info, kernels="background")
         self._times = FrameTimes(predictor.config.timing_log_every)

@@ -506,7 +506,7 @@ def kernels_loaded() -> bool:
 def load_kernels_in_background() -> None:
     """Start loading the kernels in a daemon thread (once). Loading numba and the cached kernels costs a
     process about a second of CPU; a node restarted after a crash answers meanwhile with the same loops run
-    as Python (CatchSearch with ``kernels="background"``)."""
+    as Python (CatchSearch with ``kernels="background"`` starts the load after its first answer)."""
     global _background_load
     if _background_load is None and not kernels_loaded():
         _background_load = threading.Thread(target=_kernels, name="catch_time_kernels", daemon=True)
@@ -565,11 +565,10 @@ class CatchSearch:
         self._m1, self._m2 = (m1, math.ceil(refine_points / m1)) if m1 > 2 else (refine_points, 0)
         self._rest_tol_s = grid_step_s / refine_points
         self._facing = np.zeros(num_robots)
+        self._load_after_run = False
         self._search = None  # the compiled search, once loaded (kernels="background": the Python loop until then)
         if kernels == "now":
             self._search = _kernels().catch_search
-        else:
-            load_kernels_in_background()
         self._result = CatchResult(np.empty(num_robots), np.empty((num_robots, 2)), np.empty((num_robots, 2)),
                                    np.empty(num_robots, dtype=np.int8))
 
@@ -601,11 +600,17 @@ class CatchSearch:
             search = _catch_search  # the same loop as Python: slower, the same numbers
             if kernels_loaded():
                 search = self._search = _kernels().catch_search
+            else:
+                # after this first answer: the thread's load must not delay it (both need the GIL and the CPU)
+                self._load_after_run = True
         if not search(ball.floats, t_in, t_max, self._h, stops_inside, self._m1, self._m2,
                              self._rest_tol_s, self._offset_m, _kernel_array(robot_pos_m),
                              _kernel_array(robot_vel_mps), self._facing, self._a, self._vmax, res.time_s, res.kind,
                              res.ball_position_m, res.robot_target_m):
             raise ValueError("robot_pos_m, robot_vel_mps and facing_rad: must be finite")
+        if self._load_after_run:
+            self._load_after_run = False
+            load_kernels_in_background()
         return res
 
 
