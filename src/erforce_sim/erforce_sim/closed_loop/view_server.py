@@ -38,6 +38,7 @@ from typing import Any
 from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
+from websockets.protocol import State
 from websockets.sync.server import ServerConnection, serve
 
 WEBSOCKET_PATH = "/ws"
@@ -149,6 +150,7 @@ class ViewServer:
         self._files["/"] = self.static_dir / "index.html"
         self._clients_lock = threading.Lock()
         self._clients: tuple[_Client, ...] = ()  # replaced, never changed in place: publish reads it unlocked
+        self._admitted: set[ServerConnection] = set()  # handshakes accepted, clients not yet registered
         self._server = None
         self._threads: list[threading.Thread] = []
         self._stop = threading.Event()
@@ -228,12 +230,17 @@ class ViewServer:
     def _http(self, connection: ServerConnection, request: Request) -> Response | None:
         path = request.path.split("?", 1)[0]
         if path == WEBSOCKET_PATH:
-            if len(self._clients) >= self.max_clients:
-                self.requests_refused += 1
-                return connection.respond(http.HTTPStatus.SERVICE_UNAVAILABLE,
-                                          f"at most {self.max_clients} clients\n")
             if "upgrade" not in request.headers.get("Connection", "").lower():
                 return connection.respond(http.HTTPStatus.UPGRADE_REQUIRED, "a websocket endpoint\n")
+            # Each connection's thread registers its client only after the handshake: the slot is taken
+            # here, under the lock, or clients connecting at once would all pass the count.
+            with self._clients_lock:
+                self._admitted = {c for c in self._admitted if c.state is not State.CLOSED}  # failed handshakes
+                if len(self._clients) + len(self._admitted) >= self.max_clients:
+                    self.requests_refused += 1
+                    return connection.respond(http.HTTPStatus.SERVICE_UNAVAILABLE,
+                                              f"at most {self.max_clients} clients\n")
+                self._admitted.add(connection)
             return None
         file = self._files.get(path)
         if file is None:
@@ -256,6 +263,7 @@ class ViewServer:
         sender = threading.Thread(target=client.run_sender, name="field_view_sender", daemon=True)
         sender.start()
         with self._clients_lock:
+            self._admitted.discard(connection)
             self._clients = (*self._clients, client)
         if self._last_frame is not None:
             client.offer(self._last_frame)
