@@ -317,8 +317,11 @@ class ClosedLoop:
             self.probe.executor.spin_once(timeout_sec=0.005)
 
     def drain(self, max_callbacks: int = 5000) -> None:
-        """Handle everything that has arrived, so ``latest`` is as fresh as it can be."""
+        """Handle everything that has arrived, so ``latest`` is as fresh as it can be (commanding on, as
+        while spinning: a long backlog must not let the controller's command timeout fire)."""
         for _ in range(max_callbacks):
+            if self._twist is not None and time.monotonic() - self._last_cmd_wall > self._command_period_s:
+                self._publish_command()
             before = sum(self.watch.counts.values())
             self.probe.executor.spin_once(timeout_sec=0.0)
             if sum(self.watch.counts.values()) == before:

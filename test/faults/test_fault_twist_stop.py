@@ -47,8 +47,10 @@ def test_robot_stops_within_command_timeout_plus_braking(ros_graph):
     loop.drain()  # no backlog in the probe: the newest tick seen is (nearly) the plant's
     loop.command(V0_MPS)  # the last command ...
     loop.stop_commanding()
-    # ... is read by the velocity controller at a tick no earlier than the newest one seen here
-    t_last_cmd = stamp_to_seconds(loop.watch.latest["/robot_0/wheel_states"].header.stamp)
+    # ... is read by the velocity controller at a tick no earlier than the newest one it has answered here
+    # (its setpoints carry its tick; the plant's newest wheel_states may be ticks ahead of what the
+    # controller has processed when the command arrives, and the watchdog counts from the controller's tick)
+    t_last_cmd = stamp_to_seconds(loop.watch.latest["/robot_0/wheel_setpoints"].header.stamp)
     v0 = loop.velocity()[0]
     loop.spin_until(lambda: loop.sim_s() > t_last_cmd + 3.0, 60.0, "3 s after the last command")
 
