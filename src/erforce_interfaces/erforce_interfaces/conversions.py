@@ -578,10 +578,15 @@ def _stamped_layout(frame_id: str, num_doubles: int) -> tuple[struct.Struct, byt
 
 def _stamped_cdr(t_s: float, frame_id: str, values: tuple[float, ...]) -> bytes:
     layout, strings = _stamped_layout(frame_id, len(values))
+    return layout.pack(_CDR_LE, *_sec_nanosec(t_s), strings, *values)
+
+
+def _sec_nanosec(t_s: float) -> tuple[int, int]:
+    """A stamp's (sec, nanosec), checked (ConversionError)."""
     if 0.0 <= t_s < 2.0e9:  # the usual stamp: the checks of _seconds_to_ns and _stamp_parts in one (False for NaN)
         ns = round(float(t_s) * 1e9)
-        return layout.pack(_CDR_LE, ns // 1_000_000_000, ns % 1_000_000_000, strings, *values)
-    return layout.pack(_CDR_LE, *_stamp_parts(_seconds_to_ns(t_s)), strings, *values)
+        return ns // 1_000_000_000, ns % 1_000_000_000
+    return _stamp_parts(_seconds_to_ns(t_s))
 
 
 def clock_cdr(t_ns: int) -> bytes:
@@ -714,10 +719,7 @@ def _frame_cdr(frame_id: str) -> bytes:
 
 def _stamp_head(t_s: float) -> bytes:
     """The encapsulation and the stamp."""
-    if 0.0 <= t_s < 2.0e9:  # the usual stamp, as in _stamped_cdr
-        ns = round(float(t_s) * 1e9)
-        return _CDR_LE + _stamp.pack(ns // 1_000_000_000, ns % 1_000_000_000)
-    return _CDR_LE + _stamp.pack(*_stamp_parts(_seconds_to_ns(t_s)))
+    return _CDR_LE + _stamp.pack(*_sec_nanosec(t_s))
 
 
 def _robot_row_error(k: int, team, robot_id, x, y, yaw) -> None:
