@@ -614,10 +614,14 @@ def test_field_presets():
 def test_dds_profile_env_points_at_the_stacks_profile_unless_one_is_named():
     path = c.dds_profile_path()
     assert path.name == "fastdds_profile.xml" and "<leaseAnnouncement>" in path.read_text()
-    assert c.dds_profile_env({}) == dict.fromkeys(c.DDS_PROFILE_VARIABLES, str(path))
-    assert c.dds_profile_env({"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"}) == {}
-    assert c.dds_profile_env({"FASTDDS_DEFAULT_PROFILES_FILE": "/mine.xml"}) == {}
-    assert c.dds_profile_env({"FASTRTPS_DEFAULT_PROFILES_FILE": ""}) != {}  # empty is unset
+    sync = {"RMW_FASTRTPS_PUBLICATION_MODE": "SYNCHRONOUS"}
+    assert c.dds_profile_env({}) == dict.fromkeys(c.DDS_PROFILE_VARIABLES, str(path)) | sync
+    assert c.dds_profile_env({"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"}) == sync
+    assert c.dds_profile_env({"FASTDDS_DEFAULT_PROFILES_FILE": "/mine.xml"}) == sync
+    assert c.dds_profile_env({"FASTRTPS_DEFAULT_PROFILES_FILE": ""}) != sync  # empty is unset
+    # The user's publication mode stays.
+    mine = {"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml", "RMW_FASTRTPS_PUBLICATION_MODE": "ASYNCHRONOUS"}
+    assert c.dds_profile_env(mine) == {}
 
 
 def test_a_table_whose_shape_disagrees_with_its_labels_is_refused():

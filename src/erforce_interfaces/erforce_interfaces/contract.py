@@ -84,6 +84,11 @@ BALL_PHASES = ("unknown", "sliding", "rolling", "stopped")
 # (re)starts is matched within about a second. Fast DDS 2 (Jazzy) reads the first variable, 3 the second.
 DDS_PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 
+# Writers send from the publishing thread (Fast DDS's synchronous publication) instead of queueing each
+# sample for rmw_fastrtps' default asynchronous sender thread: one thread hand-over less per message,
+# which is most of what this graph pays per message (bench/NOTES.md, "Synchronous publication").
+DDS_PUBLICATION_MODE = {"RMW_FASTRTPS_PUBLICATION_MODE": "SYNCHRONOUS"}
+
 
 def dds_profile_path() -> Path:
     """The stack's Fast DDS profile, in erforce_interfaces' share directory (as $(find-pkg-share))."""
@@ -96,12 +101,13 @@ def dds_profile_path() -> Path:
 
 
 def dds_profile_env(environ: Mapping[str, str] = os.environ) -> dict[str, str]:
-    """The variables to add to a process environment for the stack's profile; none when ``environ``
-    already names a profile (the user's own, or the two-host test's UDP-only one)."""
-    if any(environ.get(name) for name in DDS_PROFILE_VARIABLES):
-        return {}
-    path = str(dds_profile_path())
-    return dict.fromkeys(DDS_PROFILE_VARIABLES, path)
+    """The variables to add to a process environment for the stack's DDS settings: the profile, unless
+    ``environ`` already names one (the user's own, or the two-host test's UDP-only one), and the
+    publication mode, unless ``environ`` sets one."""
+    env = {name: value for name, value in DDS_PUBLICATION_MODE.items() if not environ.get(name)}
+    if not any(environ.get(name) for name in DDS_PROFILE_VARIABLES):
+        env.update(dict.fromkeys(DDS_PROFILE_VARIABLES, str(dds_profile_path())))
+    return env
 
 
 # QoS profiles. Vision behaves like a camera: best effort, newest wins. Commands and the

@@ -15,6 +15,7 @@ from __future__ import annotations
 import array
 import gc
 import math
+import os
 import signal
 import sys
 import threading
@@ -36,7 +37,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.utilities import remove_ros_args
 
-from erforce_interfaces.contract import CLOCK, Topic
+from erforce_interfaces.contract import CLOCK, Topic, dds_profile_env
 from erforce_interfaces.executor import guard, make_executor, sample_only, set_callback_fault_handler
 from erforce_interfaces.param_schema import ParamSchema, ParamSpec
 from erforce_interfaces.rclpy_internals import RCLError, light_node_start, parameter_overrides
@@ -366,6 +367,9 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, ex
     code = 0
     light_node_start()  # a respawned node is back sooner (rclpy_internals)
     try:
+        # The stack's DDS settings also under `ros2 run` or a launcher of the user's: Fast DDS reads them
+        # when rclpy.init creates the participant; a profile or mode the user set stays.
+        os.environ.update(dds_profile_env())
         rclpy.init(args=args)
         try:
             node = node_factory()
