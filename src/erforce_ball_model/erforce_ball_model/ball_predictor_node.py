@@ -171,7 +171,12 @@ class BallPredictorNode(Node):
 
     def _apply(self, config: PredictorConfig) -> None:
         if config.timing_log_every != self._times.every:
-            self._times = FrameTimes(config.timing_log_every)  # a new window starts with the change
+            # A change ends the window (its summary is logged) and starts a new one: a bench measures
+            # exactly the frames between two changes.
+            summary = self._times.flush()
+            if summary:
+                self.get_logger().info(summary)
+            self._times = FrameTimes(config.timing_log_every)
         if self._predictor.configure(config):
             self._publish_model()
 

@@ -400,8 +400,14 @@ class FrameTimes:
         self._times_s.append((catch_out_s, elapsed_s))
         if len(self._times_s) < self.every:
             return None
+        return self.flush()
+
+    def flush(self) -> str | None:
+        """The summary of the frames recorded so far (None if there are none); a new window starts."""
+        if not self._times_s:
+            return None
         catch_ms, ms = 1e3 * np.array(self._times_s).T
         self._times_s.clear()
         return (f"ball frame processing over {ms.size} frames: median {np.median(ms):.3f} ms, "
                 f"p99 {np.percentile(ms, 99):.3f} ms, max {ms.max():.3f} ms; catch times out after: median "
-                f"{np.median(catch_ms):.3f} ms, p99 {np.percentile(catch_ms, 99):.3f} ms")
+                f"{np.median(catch_ms):.3f} ms, p99 {np.percentile(catch_ms, 99):.3f} ms, max {catch_ms.max():.3f} ms")
