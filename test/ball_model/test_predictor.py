@@ -8,7 +8,7 @@ import pytest
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import CatchSearch, RobotLimits, catch_after_reaction
 from erforce_ball_model.identification import FitResult
-from erforce_ball_model.predictor import CATCH_TIME_NEVER, BallPredictor, PredictorConfig
+from erforce_ball_model.predictor import CATCH_TIME_NEVER, BallPredictor, FrameTimes, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig
 
 FIELD = FieldConfig.preset("division_b")
@@ -131,3 +131,16 @@ def test_ssl_geometry_outlives_parameter_changes_while_use_vision_geometry_is_on
     assert predictor.model == hand
     assert predictor.configure(PredictorConfig(num_robots=1, field=FIELD, model=hand)) is True
     assert (predictor.config.field, predictor.model) == (geometry_field, BallModelParams(-3.5, -0.3, 0.6))
+
+
+def test_frame_times_summarize_each_full_window_and_a_flush_the_open_one():
+    times = FrameTimes(4)
+    # (to the catch times out, to the end) in seconds: medians 2.5 / 3.5 ms, maxima 4 / 5 ms
+    assert [times.add(c * 1e-3, (c + 1) * 1e-3) for c in (1.0, 2.0, 3.0)] == [None, None, None]
+    line = times.add(4e-3, 5e-3)
+    assert line.startswith("ball frame processing over 4 frames: median 3.500 ms")
+    assert "max 5.000 ms; catch times out after: median 2.500 ms" in line and line.endswith("max 4.000 ms")
+    assert times.flush() is None  # the full window started a new one
+    times.add(1e-3, 2e-3)
+    assert times.flush().startswith("ball frame processing over 1 frames: median 2.000 ms, p99 2.000 ms")
+    assert FrameTimes(0).add(1e-3, 2e-3) is None  # off
