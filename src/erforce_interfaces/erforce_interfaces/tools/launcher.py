@@ -10,7 +10,8 @@ Pipeline, one stage per block below:
 2. **resolve**: walk the actions in order with a ``Scope`` (launch configurations, environment,
    pushed namespace, global remaps/params), evaluate ``$(...)`` substitutions, find packages and
    executables, write the parameter files: the result is a list of ``ProcessSpec``;
-3. **run**: one process per spec, output prefixed ``[label]``, respawn, and the shutdown ladder.
+3. **run**: one process per spec, output prefixed ``[label]``, respawn (from a warm standby where there is
+   one: Runner), and the shutdown ladder.
 
 Supported actions: ``arg`` (name, default, description, choice), ``let``, ``node`` (pkg, exec,
 exec_name, name, namespace/ros_namespace, param with value/nested param/from(+allow_substs),
@@ -63,6 +64,9 @@ Deviations from ``ros2 launch`` (each deliberate):
 - a missing ``param: {from: ...}`` file is an error (ros2 launch warns and skips it);
 - ``args``/``cmd`` are split with shlex after substitution;
 - ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST unless set (README, "DDS discovery"): safe by default;
+- a respawning node of ours (one with a parameter schema) keeps a warm standby: a spare process of the
+  same command, imports done and no DDS participant, that takes over when the node dies
+  (erforce_interfaces.standby; ``--no-standby`` turns it off); ros2 launch always starts afresh;
 - no ``$(eval)``, ``$(command)``, ``$(exec-in-pkg)``, ``$(param)``, Python/XML launch files, event
   handlers or composable nodes; ``$(any)``/``$(all)`` are an error as in ros2 launch on Jazzy, whose
   YAML/XML parser cannot build them.

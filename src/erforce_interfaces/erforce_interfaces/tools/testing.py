@@ -249,8 +249,9 @@ class RosGraph:
             cmd += ["-r", f"{src}:={dst}"]
         return self.start(cmd, name=name or executable, own_session=own_session)
 
-    def start_launch(self, launch_file: str | Path, **launch_args: Any) -> NodeProcess:
-        cmd = [_executable_path("erforce-launch"), str(launch_file)]
+    def start_launch(self, launch_file: str | Path, *options: str, **launch_args: Any) -> NodeProcess:
+        """``erforce-launch [options] FILE name:=value ...`` (e.g. ``--no-standby``)."""
+        cmd = [_executable_path("erforce-launch"), *options, str(launch_file)]
         cmd += [f"{k}:={v}" for k, v in launch_args.items()]
         return self.start(cmd, name=f"launch-{Path(launch_file).stem}")
 
