@@ -52,6 +52,8 @@ TRACE_DIR = Path(__file__).resolve().parent / "respawn_trace"
 # kill -> exec, exec -> interpreter up, -> node module imported, -> rclpy.init, -> node built, -> first publish,
 # -> loop closed
 PHASES = ("delay", "interpreter", "imports", "rclpy.init", "construction", "to first publish", "to loop closed")
+# a warm standby: kill -> rclpy.init done (the respawn delay, "go", the init), -> node built, -> first publish, -> loop
+STANDBY_PHASES = ("kill to rclpy.init done", "construction", "to first publish", "to loop closed")
 
 
 @contextlib.contextmanager
@@ -96,6 +98,9 @@ def _phases(demo: LaunchedDemo, node: str, t_kill_mono: float, heal_s: float) ->
     if not {"site", "main", "init", "built", "publish"} <= set(events):
         return None
     t = {k: wall + mono_minus_wall for k, (wall, _) in events.items()}
+    if t_exec < t_kill_mono:  # a warm standby, started before the kill
+        marks = [t_kill_mono, t["init"], t["built"], t["publish"], t_kill_mono + heal_s]
+        return {phase: b - a for phase, a, b in zip(STANDBY_PHASES, marks[:-1], marks[1:], strict=True)}
     marks = [t_kill_mono, t_exec, t["site"], t["main"], t["init"], t["built"], t["publish"], t_kill_mono + heal_s]
     found = {phase: b - a for phase, a, b in zip(PHASES, marks[:-1], marks[1:], strict=True)}
     cpu = {k: c for k, (_, c) in events.items()}
@@ -154,7 +159,7 @@ def standby_cost() -> list[dict]:
     rows = []
     for graph_name, launch_file in GRAPHS:
         with RosGraph(Path(tempfile.mkdtemp(prefix="bench-standby-"))) as graph:
-            launch = graph.start_launch(launch_file, output="screen")
+            launch = graph.start_launch(launch_file, standby=True, output="screen")
             graph.probe.spin_until(lambda launch=launch: standbys_ready(launch.output()), 600.0, "every standby ready")
             out = launch.output()
             pids = {kind: {label: int(pid) for label, pid in re.findall(
@@ -192,8 +197,8 @@ def breakdown_rows(phases: dict[str, list[dict]]) -> list[dict]:
     for node, runs in phases.items():
         if not runs:
             continue
-        for phase in (*PHASES, "CPU: imports", "CPU: start to node built"):
-            values = [r[phase] for r in runs]
+        for phase in runs[0]:
+            values = [r[phase] for r in runs if phase in r]
             rows.append({"name": f"{node}: {phase}", "value": round(statistics.median(values), 3), "unit": "s",
                          "note": f"{len(values)} runs: {', '.join(f'{v:.3f}' for v in values)}"})
     return rows
@@ -216,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--standby-cost", action="store_true",
                         help="print the standbys' RSS and CPU in the demo and team_sim graphs instead")
     parser.add_argument("--breakdown", action="store_true",
-                        help="also where each restart's time went (fresh starts: use it with --no-standby)")
+                        help="also where each restart's time went")
     parser.add_argument("--respawn-delay", type=float, default=RESPAWN_DELAY_S, help="respawn_delay [s] of the launch")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()

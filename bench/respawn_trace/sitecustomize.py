@@ -3,8 +3,8 @@ PYTHONPATH of the launched graph; nothing else imports it).
 
 Prints one stderr line per milestone, ``respawn-trace <event> <wall s> <cpu s>``: ``site`` (the
 interpreter is up), ``main`` (the node module and everything it imports are loaded: run_node is
-called), ``init`` (rclpy.init done), ``built`` (the node object is constructed) and ``publish`` (its
-first publish on any topic).
+called), ``init`` (rclpy.init done; a warm standby's after "go"), ``built`` (the node object is
+constructed) and ``publish`` (its first publish on any topic).
 """
 
 import importlib.abc
@@ -20,7 +20,7 @@ def _trace(event: str) -> None:
 def _patch_node_support(module) -> None:
     run_node = module.run_node
 
-    def traced_run_node(node_factory, args=None):
+    def traced_run_node(node_factory, args=None, executor_kind=None):
         _trace("main")
         import rclpy
         from rclpy.publisher import Publisher
@@ -46,7 +46,8 @@ def _patch_node_support(module) -> None:
             Publisher.publish = traced_publish
             return node
 
-        return run_node(factory, args)
+        factory.warm_up = getattr(node_factory, "warm_up", None)  # a warm standby's (run_node)
+        return run_node(factory, args, executor_kind)
 
     module.run_node = traced_run_node
 

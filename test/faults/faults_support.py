@@ -458,7 +458,7 @@ class LaunchedDemo:
                                                 lambda _m, n=node: self.arrivals[n].append(time.monotonic()),
                                                 topic.qos)
         args = {"output": "screen", "sim_launch_prefix": "", **launch_args}
-        self.launch = graph.start_launch(launch_file, *(() if standby else ("--no-standby",)), **args)
+        self.launch = graph.start_launch(launch_file, standby=standby, **args)
 
     def pid(self, node: str) -> int | None:
         """The newest live process the launcher started or activated from a warm standby as node ``node`` (its

@@ -227,6 +227,7 @@ def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_singl
                         robot_poses="[-4.0, 0.0, 0.0, -3.0, 2.0, 0.0]", opponent_ids="[0]", num_opponents="1",
                         opponent_poses="[0.0, 1.0, 3.14159265]")
     demo.wait_running()
+    demo.wait_standbys_ready()
     topics = {name for name, _ in ros_graph.probe.node.get_topic_names_and_types()}
     for name in (opponent.topic(contract.VISION_POSE, 0), opponent.topic(contract.ODOM, 0),
                  opponent.lockstep_topic(contract.TEAM_WHEEL_STATES), opponent.topic(contract.MOTOR_STATUS, 0)):
@@ -237,6 +238,7 @@ def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_singl
     out = demo.launch.output()
     for node in ("plant", "team_firmware", "ball_predictor"):
         assert re.search(rf"\[{node}-\d+\]: respawning in {RESPAWN_DELAY_S:g} s", out), node
+        assert re.search(rf"\[{node}-\d+\]: process activated from standby with pid", out), node  # as shipped
     assert demo.launch.alive()
     assert "Traceback" not in out, out[-3000:]
 
