@@ -440,7 +440,7 @@ def standbys_ready(launch_output: str) -> bool:
     newest = dict(re.findall(r"\[(\S+-\d+)\]: standby started with pid \[(\d+)\]", launch_output))
     ready = set(re.findall(r"\[(\S+-\d+)\]: standby ready \[pid (\d+)\]", launch_output))
     taken = set(re.findall(r"\[(\S+-\d+)\]: process activated from standby with pid \[(\d+)\]", launch_output))
-    return all((label, newest.get(label)) in ready - taken for label in labels)
+    return bool(labels) and all((label, newest.get(label)) in ready - taken for label in labels)
 
 
 class LaunchedDemo:
