@@ -79,7 +79,7 @@ def _boot_s_of_start(pid: int) -> float:
 def _trace_events(output: str, node: str, pid: int) -> dict[str, float]:
     """Wall-clock times of the respawn-trace lines of the process that started with ``pid``."""
     start = output.rfind(f"started with pid [{pid}]")  # "process started" or, for a standby, "standby started"
-    found = re.findall(rf"\[{node}-\d+\] respawn-trace (\w+) ([\d.]+) ([\d.]+)", output[start:])
+    found = re.findall(rf"\[{node}-\d+\] respawn-trace (\w+) ([\d.]+) ([\d.]+) {pid}$", output[start:], re.M)
     events: dict[str, tuple[float, float]] = {}
     for event, wall, cpu in found:
         events.setdefault(event, (float(wall), float(cpu)))
@@ -137,11 +137,16 @@ def measure(rounds: int, breakdown: bool = False, respawn_delay_s: float = RESPA
     return heal_s, phases
 
 
-def _rss_mib(pid: int) -> float:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
+def _rss_mib(pid: int, field: str = "VmRSS:", file: str = "status") -> float:
+    for line in Path(f"/proc/{pid}/{file}").read_text().splitlines():
+        if line.startswith(field):
             return int(line.split()[1]) / 1024
     return 0.0
+
+
+def _pss_mib(pid: int) -> float:
+    """Proportional set size: shared pages (libraries, the same files mapped) divided among their users."""
+    return _rss_mib(pid, "Pss:", "smaps_rollup")
 
 
 def _cpu_s(pid: int) -> float:
@@ -166,6 +171,7 @@ def standby_cost() -> list[dict]:
                         rf"\[(\S+-\d+)\]: {kind} started with pid \[(\d+)\]", out)}
                     for kind in ("process", "standby")}
             rss = {kind: {label: _rss_mib(pid) for label, pid in found.items()} for kind, found in pids.items()}
+            pss = {kind: sum(_pss_mib(pid) for pid in found.values()) for kind, found in pids.items()}
             cpu = {label: _cpu_s(pid) for label, pid in pids["standby"].items()}
         for label in sorted(rss["standby"]):
             rows.append({"name": f"{graph_name}: {label} standby, RSS", "value": round(rss["standby"][label]),
@@ -174,8 +180,9 @@ def standby_cost() -> list[dict]:
         total_active, total_standby = sum(rss["process"].values()), sum(rss["standby"].values())
         rows.append({"name": f"{graph_name}: RSS with standbys", "value": round(total_active + total_standby),
                      "unit": "MiB", "note": f"{len(rss['process'])} processes {total_active:.0f} MiB + "
-                                            f"{len(rss['standby'])} standbys {total_standby:.0f} MiB "
-                                            f"(CPU of all standbys {sum(cpu.values()):.1f} s)"})
+                                            f"{len(rss['standby'])} standbys {total_standby:.0f} MiB; PSS "
+                                            f"{pss['process']:.0f} + {pss['standby']:.0f} MiB; CPU of all standbys "
+                                            f"{sum(cpu.values()):.1f} s (at the moment the last one was ready)"})
     return rows
 
 

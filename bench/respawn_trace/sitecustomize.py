@@ -1,19 +1,20 @@
 """Start-up trace of a node process, for bench_respawn.py --breakdown only (it puts this folder on
 PYTHONPATH of the launched graph; nothing else imports it).
 
-Prints one stderr line per milestone, ``respawn-trace <event> <wall s> <cpu s>``: ``site`` (the
+Prints one stderr line per milestone, ``respawn-trace <event> <wall s> <cpu s> <pid>``: ``site`` (the
 interpreter is up), ``main`` (the node module and everything it imports are loaded: run_node is
 called), ``init`` (rclpy.init done; a warm standby's after "go"), ``built`` (the node object is
 constructed) and ``publish`` (its first publish on any topic).
 """
 
 import importlib.abc
+import os
 import sys
 import time
 
 
 def _trace(event: str) -> None:
-    sys.stderr.write(f"respawn-trace {event} {time.time():.4f} {time.process_time():.4f}\n")
+    sys.stderr.write(f"respawn-trace {event} {time.time():.4f} {time.process_time():.4f} {os.getpid()}\n")
     sys.stderr.flush()
 
 
