@@ -1317,14 +1317,13 @@ class Runner:
         self.info(p.spec.label, f"process activated from standby with pid [{sb.popen.pid}]")
         return True
 
-    def _retire(self, sb: _Proc, sig: int | None = None) -> None:
-        """Let a standby go: end of file on its socket (and ``sig``); it is reaped like any child."""
+    def _retire(self, sb: _Proc) -> None:
+        """Let a standby go: end of file on its socket ends it; it is reaped like any child (and at shutdown
+        gets the ladder's signals)."""
         if sb.sock is not None:
             self._sel.unregister(sb.sock.fileno())
             sb.sock.close()
             sb.sock = None
-        if sig is not None:
-            self._kill(sb, sig)
         self._retired.append(sb)
 
     def _standby_exited(self, sb: _Proc, on_its_own: bool) -> None:
