@@ -434,9 +434,11 @@ LOOP_OUTPUTS = {
 }
 
 
-def standbys_ready(launch_output: str) -> bool:
-    """Every process erforce-launch started (``launch_output``) has a warm standby that said it is ready."""
-    labels = set(re.findall(r"\[(\S+-\d+)\]: process started with pid", launch_output))
+def standbys_ready(launch_output: str, node: str | None = None) -> bool:
+    """Every process erforce-launch started (``launch_output``), or each one labelled ``node``, has a warm
+    standby that said it is ready."""
+    labels = set(re.findall(rf"\[({re.escape(node) if node else r'\S+'}-\d+)\]: process started with pid",
+                            launch_output))
     newest = dict(re.findall(r"\[(\S+-\d+)\]: standby started with pid \[(\d+)\]", launch_output))
     ready = set(re.findall(r"\[(\S+-\d+)\]: standby ready \[pid (\d+)\]", launch_output))
     taken = set(re.findall(r"\[(\S+-\d+)\]: process activated from standby with pid \[(\d+)\]", launch_output))
@@ -477,11 +479,10 @@ class LaunchedDemo:
         found = [pid for label, pid in started if label == node]
         return found[-1] if found else None
 
-    def standbys_ready(self) -> bool:
-        return standbys_ready(self.launch.output())
-
-    def wait_standbys_ready(self, timeout_s: float = 120.0) -> None:
-        self.probe.spin_until(self.standbys_ready, timeout_s, "a ready warm standby for every process")
+    def wait_standbys_ready(self, node: str | None = None, timeout_s: float = 120.0) -> None:
+        """Until every process (or each labelled ``node``) has a ready warm standby."""
+        self.probe.spin_until(lambda: standbys_ready(self.launch.output(), node), timeout_s,
+                              f"a ready warm standby for {node or 'every process'}")
 
     def all_flowing_since(self, t_s: float) -> bool:
         return all(times and times[-1] > t_s for times in self.arrivals.values())

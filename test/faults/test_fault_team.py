@@ -227,13 +227,13 @@ def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_singl
                         robot_poses="[-4.0, 0.0, 0.0, -3.0, 2.0, 0.0]", opponent_ids="[0]", num_opponents="1",
                         opponent_poses="[0.0, 1.0, 3.14159265]")
     demo.wait_running()
-    demo.wait_standbys_ready()
     topics = {name for name, _ in ros_graph.probe.node.get_topic_names_and_types()}
     for name in (opponent.topic(contract.VISION_POSE, 0), opponent.topic(contract.ODOM, 0),
                  opponent.lockstep_topic(contract.TEAM_WHEEL_STATES), opponent.topic(contract.MOTOR_STATUS, 0)):
         assert name in topics, name
     assert not any(name.startswith(("/robot_2/", "/opponent_1/")) for name in topics), sorted(topics)
-    for node in ("team_firmware", "ball_predictor", "plant"):
+    for node in ("plant", "ball_predictor", "team_firmware"):  # as the launcher starts their warm standbys
+        demo.wait_standbys_ready(node)
         assert demo.kill_and_heal(node, RESPAWN_DELAY_S, timeout_s=90.0) > RESPAWN_DELAY_S
     out = demo.launch.output()
     for node in ("plant", "team_firmware", "ball_predictor"):
