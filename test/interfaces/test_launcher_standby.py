@@ -189,3 +189,17 @@ def test_no_standby_respawns_by_fresh_starts_only(launched):
     assert int(m.group(1)) != active
     assert run.stop() == 0
     assert "standby started" not in run.text() and "activated" not in run.text()
+
+
+def test_only_nodes_of_ours_get_a_standby_and_the_switch_is_on_the_command_line(tmp_path):
+    from erforce_interfaces.tools.launcher import Resolver, _parse_cli
+
+    launch = tmp_path / "mixed.launch.yaml"
+    launch.write_text("launch:\n"
+                      "  - node: {pkg: erforce_motion, exec: velocity_controller, respawn: true}\n"
+                      "  - executable: {cmd: sleep 10, respawn: true}\n")
+    specs = Resolver({}, tmp_path).resolve(launch, launch.name)
+    # ours start through node_support.run_node (their schema says so); anything else would run as a second copy
+    assert [(s.label, s.standby) for s in specs] == [("velocity_controller-1", True), ("sleep-2", False)]
+    assert _parse_cli([str(launch)])[0].standby is True
+    assert _parse_cli(["--no-standby", str(launch)])[0].standby is False
