@@ -5,13 +5,22 @@ each node type is killed (SIGKILL) in turn, ``rounds`` times, and the time from 
 respawned node's output is back and every other node's output came after it (the lockstep loop went
 round: test/faults/faults_support.LaunchedDemo) is reported per node type: every figure, median, max.
 
+erforce-launch keeps a warm standby per node (imports done, waiting to be activated: README,
+"Self-healing"); before each kill the bench waits until every node's standby is ready, so each figure is a
+take-over by a standby. ``--no-standby`` measures fresh starts instead (erforce-launch --no-standby).
+
+``--standby-cost`` prints what the standbys cost instead: RSS and start CPU of each node type's standby,
+and the RSS of the demo and the 14-robot team_sim graphs with their standbys, as shipped.
+
 ``--busy`` keeps one core busy with an unrelated process (a Python busy loop) during the measurement:
 the target holds on a machine that does something else too. ``--breakdown`` adds where each restart's
 time went, from a start-up trace of the respawned process (bench/respawn_trace/sitecustomize.py):
 kill to exec (respawn delay), exec to interpreter up, imports, rclpy.init and node construction, the
 first publish, and from there to the loop closed (DDS matching, the lockstep loop going round).
 
-    ./run exec python bench/bench_respawn.py [--quick | --rounds N] [--busy] [--breakdown] [--respawn-delay S]
+    ./run exec python bench/bench_respawn.py [--quick | --rounds N] [--busy] [--no-standby] [--breakdown]
+    ./run exec python bench/bench_respawn.py --standby-cost
+                                             [--respawn-delay S]
 """
 
 from __future__ import annotations
@@ -31,7 +40,7 @@ from pathlib import Path
 from table import markdown_table  # bench/table.py: the shared table format
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "faults"))
-from faults_support import LaunchedDemo  # the fault tests' measurement, run as a bench
+from faults_support import DEMO_LAUNCH, TEAM_SIM_LAUNCH, LaunchedDemo, standbys_ready  # the fault tests' measurement
 
 from erforce_interfaces.contract import dds_profile_env
 from erforce_interfaces.tools.testing import RosGraph
@@ -43,6 +52,8 @@ TRACE_DIR = Path(__file__).resolve().parent / "respawn_trace"
 # kill -> exec, exec -> interpreter up, -> node module imported, -> rclpy.init, -> node built, -> first publish,
 # -> loop closed
 PHASES = ("delay", "interpreter", "imports", "rclpy.init", "construction", "to first publish", "to loop closed")
+# a warm standby: kill -> rclpy.init done (the respawn delay, "go", the init), -> node built, -> first publish, -> loop
+STANDBY_PHASES = ("kill to rclpy.init done", "construction", "to first publish", "to loop closed")
 
 
 @contextlib.contextmanager
@@ -67,8 +78,8 @@ def _boot_s_of_start(pid: int) -> float:
 
 def _trace_events(output: str, node: str, pid: int) -> dict[str, float]:
     """Wall-clock times of the respawn-trace lines of the process that started with ``pid``."""
-    start = output.rfind(f"process started with pid [{pid}]")
-    found = re.findall(rf"\[{node}-\d+\] respawn-trace (\w+) ([\d.]+) ([\d.]+)", output[start:])
+    start = output.rfind(f"started with pid [{pid}]")  # "process started" or, for a standby, "standby started"
+    found = re.findall(rf"\[{node}-\d+\] respawn-trace (\w+) ([\d.]+) ([\d.]+) {pid}$", output[start:], re.M)
     events: dict[str, tuple[float, float]] = {}
     for event, wall, cpu in found:
         events.setdefault(event, (float(wall), float(cpu)))
@@ -87,6 +98,9 @@ def _phases(demo: LaunchedDemo, node: str, t_kill_mono: float, heal_s: float) ->
     if not {"site", "main", "init", "built", "publish"} <= set(events):
         return None
     t = {k: wall + mono_minus_wall for k, (wall, _) in events.items()}
+    if t_exec < t_kill_mono:  # a warm standby, started before the kill
+        marks = [t_kill_mono, t["init"], t["built"], t["publish"], t_kill_mono + heal_s]
+        return {phase: b - a for phase, a, b in zip(STANDBY_PHASES, marks[:-1], marks[1:], strict=True)}
     marks = [t_kill_mono, t_exec, t["site"], t["main"], t["init"], t["built"], t["publish"], t_kill_mono + heal_s]
     found = {phase: b - a for phase, a, b in zip(PHASES, marks[:-1], marks[1:], strict=True)}
     cpu = {k: c for k, (_, c) in events.items()}
@@ -95,8 +109,8 @@ def _phases(demo: LaunchedDemo, node: str, t_kill_mono: float, heal_s: float) ->
     return found
 
 
-def measure(rounds: int, breakdown: bool = False,
-            respawn_delay_s: float = RESPAWN_DELAY_S) -> tuple[dict[str, list[float]], dict[str, list[dict]]]:
+def measure(rounds: int, breakdown: bool = False, respawn_delay_s: float = RESPAWN_DELAY_S,
+            standby: bool = True) -> tuple[dict[str, list[float]], dict[str, list[dict]]]:
     # The probe that times the loop announces itself as the nodes do (the test harness's pytest_configure):
     # with Fast DDS's default of 3 s it matched a restarted catcher up to 2 s after the robot's
     # velocity controller did, and the figure was the probe's discovery, not the graph's.
@@ -106,10 +120,13 @@ def measure(rounds: int, breakdown: bool = False,
     with RosGraph(Path(tempfile.mkdtemp(prefix="bench-respawn-"))) as graph:
         if breakdown:
             graph.env["PYTHONPATH"] = os.pathsep.join(p for p in (str(TRACE_DIR), graph.env.get("PYTHONPATH")) if p)
-        demo = LaunchedDemo(graph, respawn_delay=f"{respawn_delay_s:g}")
+        demo = LaunchedDemo(graph, standby=standby, respawn_delay=f"{respawn_delay_s:g}")
         demo.wait_running()
         for _ in range(rounds):
             for node in NODES:
+                if standby:
+                    demo.wait_standbys_ready()
+                    demo.wait_running()
                 t_kill = time.monotonic()
                 heal_s[node].append(demo.kill_and_heal(node, respawn_delay_s, timeout_s=120.0))
                 if breakdown:
@@ -120,12 +137,62 @@ def measure(rounds: int, breakdown: bool = False,
     return heal_s, phases
 
 
-def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool,
-            respawn_delay_s: float = RESPAWN_DELAY_S) -> list[dict]:
+def _rss_mib(pid: int, field: str = "VmRSS:", file: str = "status") -> float:
+    for line in Path(f"/proc/{pid}/{file}").read_text().splitlines():
+        if line.startswith(field):
+            return int(line.split()[1]) / 1024
+    return 0.0
+
+
+def _pss_mib(pid: int) -> float:
+    """Proportional set size: shared pages (libraries, the same files mapped) divided among their users."""
+    return _rss_mib(pid, "Pss:", "smaps_rollup")
+
+
+def _cpu_s(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
+
+
+GRAPHS = (("demo", DEMO_LAUNCH), ("team_sim (14 robots)", TEAM_SIM_LAUNCH))
+
+
+def standby_cost() -> list[dict]:
+    """Each graph as shipped until every process has a ready standby: RSS of the processes and their standbys,
+    and the standbys' CPU (imports and warm-up: what each costs a machine once per start and respawn)."""
+    os.environ.update(dds_profile_env())
     rows = []
+    for graph_name, launch_file in GRAPHS:
+        with RosGraph(Path(tempfile.mkdtemp(prefix="bench-standby-"))) as graph:
+            launch = graph.start_launch(launch_file, standby=True, output="screen")
+            graph.probe.spin_until(lambda launch=launch: standbys_ready(launch.output()), 600.0, "every standby ready")
+            out = launch.output()
+            pids = {kind: {label: int(pid) for label, pid in re.findall(
+                        rf"\[(\S+-\d+)\]: {kind} started with pid \[(\d+)\]", out)}
+                    for kind in ("process", "standby")}
+            rss = {kind: {label: _rss_mib(pid) for label, pid in found.items()} for kind, found in pids.items()}
+            pss = {kind: sum(_pss_mib(pid) for pid in found.values()) for kind, found in pids.items()}
+            cpu = {label: _cpu_s(pid) for label, pid in pids["standby"].items()}
+        for label in sorted(rss["standby"]):
+            rows.append({"name": f"{graph_name}: {label} standby, RSS", "value": round(rss["standby"][label]),
+                         "unit": "MiB", "note": f"its running process {rss['process'][label]:.0f} MiB; the standby's "
+                                                f"CPU to ready {cpu[label]:.2f} s"})
+        total_active, total_standby = sum(rss["process"].values()), sum(rss["standby"].values())
+        rows.append({"name": f"{graph_name}: RSS with standbys", "value": round(total_active + total_standby),
+                     "unit": "MiB", "note": f"{len(rss['process'])} processes {total_active:.0f} MiB + "
+                                            f"{len(rss['standby'])} standbys {total_standby:.0f} MiB; PSS "
+                                            f"{pss['process']:.0f} + {pss['standby']:.0f} MiB; CPU of all standbys "
+                                            f"{sum(cpu.values()):.1f} s (at the moment the last one was ready)"})
+    return rows
+
+
+def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool,
+            respawn_delay_s: float = RESPAWN_DELAY_S, standby: bool = True) -> list[dict]:
+    rows = []
+    how = "from a warm standby" if standby else "fresh start"
     for node, times in heal_s.items():
         every = ", ".join(f"{t:.2f}" for t in times)
-        rows.append({"name": f"{node} killed: loop closed again{' (one core busy)' if busy else ''}",
+        rows.append({"name": f"{node} killed: loop closed again, {how}{' (one core busy)' if busy else ''}",
                      "value": round(statistics.median(times), 2), "unit": "s", "target": f"≤ {TARGET_S:g}",
                      "note": f"{len(times)} runs: {every}; median {statistics.median(times):.2f}, max {max(times):.2f} "
                              f"(respawn_delay {respawn_delay_s:g} s; load average {load:.1f} at the start)"})
@@ -137,8 +204,8 @@ def breakdown_rows(phases: dict[str, list[dict]]) -> list[dict]:
     for node, runs in phases.items():
         if not runs:
             continue
-        for phase in (*PHASES, "CPU: imports", "CPU: start to node built"):
-            values = [r[phase] for r in runs]
+        for phase in runs[0]:
+            values = [r[phase] for r in runs if phase in r]
             rows.append({"name": f"{node}: {phase}", "value": round(statistics.median(values), 3), "unit": "s",
                          "note": f"{len(values)} runs: {', '.join(f'{v:.3f}' for v in values)}"})
     return rows
@@ -156,16 +223,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="one kill per node type (default: three)")
     parser.add_argument("--rounds", type=int, default=None, help="kills per node type")
     parser.add_argument("--busy", action="store_true", help="keep one core busy with an unrelated process meanwhile")
-    parser.add_argument("--breakdown", action="store_true", help="also where each restart's time went")
+    parser.add_argument("--no-standby", action="store_false", dest="standby",
+                        help="respawn by fresh starts (erforce-launch --no-standby), not from warm standbys")
+    parser.add_argument("--standby-cost", action="store_true",
+                        help="print the standbys' RSS and CPU in the demo and team_sim graphs instead")
+    parser.add_argument("--breakdown", action="store_true",
+                        help="also where each restart's time went")
     parser.add_argument("--respawn-delay", type=float, default=RESPAWN_DELAY_S, help="respawn_delay [s] of the launch")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     load = os.getloadavg()[0]
     rounds = args.rounds or (1 if args.quick else 3)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))  # reap the burner and the graph
+    if args.standby_cost:
+        print("\n".join(markdown_table(standby_cost())))
+        print(f"\n(total {time.perf_counter() - t0:.1f} s; load average {load:.1f} at the start)")
+        return 0
     with cpu_burner(args.busy):
-        heal_s, phases = measure(rounds, args.breakdown, args.respawn_delay)
-    rows = rows_of(heal_s, load, args.busy, args.respawn_delay) + (breakdown_rows(phases) if args.breakdown else [])
+        heal_s, phases = measure(rounds, args.breakdown, args.respawn_delay, args.standby)
+    rows = rows_of(heal_s, load, args.busy, args.respawn_delay, args.standby)
+    rows += breakdown_rows(phases) if args.breakdown else []
     print("\n".join(markdown_table(rows)))
     print(f"\n(total {time.perf_counter() - t0:.1f} s; load average {load:.1f} at the start, "
           f"{os.getloadavg()[0]:.1f} at the end)")

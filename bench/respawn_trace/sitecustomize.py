@@ -1,26 +1,27 @@
 """Start-up trace of a node process, for bench_respawn.py --breakdown only (it puts this folder on
 PYTHONPATH of the launched graph; nothing else imports it).
 
-Prints one stderr line per milestone, ``respawn-trace <event> <wall s> <cpu s>``: ``site`` (the
+Prints one stderr line per milestone, ``respawn-trace <event> <wall s> <cpu s> <pid>``: ``site`` (the
 interpreter is up), ``main`` (the node module and everything it imports are loaded: run_node is
-called), ``init`` (rclpy.init done), ``built`` (the node object is constructed) and ``publish`` (its
-first publish on any topic).
+called), ``init`` (rclpy.init done; a warm standby's after "go"), ``built`` (the node object is
+constructed) and ``publish`` (its first publish on any topic).
 """
 
 import importlib.abc
+import os
 import sys
 import time
 
 
 def _trace(event: str) -> None:
-    sys.stderr.write(f"respawn-trace {event} {time.time():.4f} {time.process_time():.4f}\n")
+    sys.stderr.write(f"respawn-trace {event} {time.time():.4f} {time.process_time():.4f} {os.getpid()}\n")
     sys.stderr.flush()
 
 
 def _patch_node_support(module) -> None:
     run_node = module.run_node
 
-    def traced_run_node(node_factory, args=None):
+    def traced_run_node(node_factory, args=None, executor_kind=None):
         _trace("main")
         import rclpy
         from rclpy.publisher import Publisher
@@ -46,7 +47,8 @@ def _patch_node_support(module) -> None:
             Publisher.publish = traced_publish
             return node
 
-        return run_node(factory, args)
+        factory.warm_up = getattr(node_factory, "warm_up", None)  # a warm standby's (run_node)
+        return run_node(factory, args, executor_kind)
 
     module.run_node = traced_run_node
 

@@ -434,11 +434,23 @@ LOOP_OUTPUTS = {
 }
 
 
+def standbys_ready(launch_output: str, node: str | None = None) -> bool:
+    """Every process erforce-launch started (``launch_output``), or each one labelled ``node``, has a warm
+    standby that said it is ready."""
+    labels = set(re.findall(rf"\[({re.escape(node) if node else r'\S+'}-\d+)\]: process started with pid",
+                            launch_output))
+    newest = dict(re.findall(r"\[(\S+-\d+)\]: standby started with pid \[(\d+)\]", launch_output))
+    ready = set(re.findall(r"\[(\S+-\d+)\]: standby ready \[pid (\d+)\]", launch_output))
+    taken = set(re.findall(r"\[(\S+-\d+)\]: process activated from standby with pid \[(\d+)\]", launch_output))
+    return bool(labels) and all((label, newest.get(label)) in ready - taken for label in labels)
+
+
 class LaunchedDemo:
     """demo.launch.yaml (or ``launch_file``) under erforce-launch (respawn on by default), with the arrival
     times (wall clock) of every node's loop output (``loop_outputs``: node name -> (topic, resolved name))."""
 
-    def __init__(self, graph, launch_file: Path = DEMO_LAUNCH, loop_outputs=None, **launch_args) -> None:
+    def __init__(self, graph, launch_file: Path = DEMO_LAUNCH, loop_outputs=None, standby: bool = True,
+                 **launch_args) -> None:
         self.graph = graph
         self.probe = graph.probe
         loop_outputs = LOOP_OUTPUTS if loop_outputs is None else loop_outputs
@@ -448,13 +460,15 @@ class LaunchedDemo:
                                                 lambda _m, n=node: self.arrivals[n].append(time.monotonic()),
                                                 topic.qos)
         args = {"output": "screen", "sim_launch_prefix": "", **launch_args}
-        self.launch = graph.start_launch(launch_file, **args)
+        self.launch = graph.start_launch(launch_file, standby=standby, **args)
 
     def pid(self, node: str) -> int | None:
-        """The newest live process the launcher started as node ``node`` (its ``__node:=`` name: two
-        team_firmware processes share a label), else the newest labelled ``node`` (None before the first)."""
-        started = [(label, int(pid)) for label, pid in re.findall(r"\[(\S+)-\d+\]: process started with pid "
-                                                                 r"\[(\d+)\]", self.launch.output())]
+        """The newest live process the launcher started or activated from a warm standby as node ``node`` (its
+        ``__node:=`` name: two team_firmware processes share a label), else the newest labelled ``node`` (None
+        before the first). A standby counts from its activation, when it became the node's process."""
+        started = [(label, int(pid)) for label, pid in re.findall(r"\[(\S+)-\d+\]: process (?:started|activated "
+                                                                 r"from standby) with pid \[(\d+)\]",
+                                                                 self.launch.output())]
         for _, pid in reversed(started):
             try:
                 argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
@@ -464,6 +478,11 @@ class LaunchedDemo:
                 return pid
         found = [pid for label, pid in started if label == node]
         return found[-1] if found else None
+
+    def wait_standbys_ready(self, node: str | None = None, timeout_s: float = 120.0) -> None:
+        """Until every process (or each labelled ``node``) has a ready warm standby."""
+        self.probe.spin_until(lambda: standbys_ready(self.launch.output(), node), timeout_s,
+                              f"a ready warm standby for {node or 'every process'}")
 
     def all_flowing_since(self, t_s: float) -> bool:
         return all(times and times[-1] > t_s for times in self.arrivals.values())
@@ -479,8 +498,9 @@ class LaunchedDemo:
         old = self.pid(node)
         t_kill = time.monotonic()
         os.kill(old, signal.SIGKILL)
-        # Nothing that arrives before the respawn delay, or before the launcher has started the new process,
-        # can be the new process's (on a loaded machine the old one's last messages can arrive that late).
+        # Nothing that arrives before the respawn delay, or before the launcher has started the new process or
+        # activated a standby, can be the new process's (on a loaded machine the old one's last messages can
+        # arrive that late).
         t_back = [t_kill + respawn_delay_s, None]
 
         def healed() -> bool:

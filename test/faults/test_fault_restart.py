@@ -187,13 +187,17 @@ def test_any_single_node_killed_the_launched_graph_closes_the_loop_again_by_itse
     """Each node type of demo.launch.yaml is SIGKILLed once; erforce-launch restarts it after respawn_delay
     and the loop closes again with nobody restarting anything: the restarted catcher, predictor or
     controller rejoins the running lockstep loop, the restarted plant starts a new time line that the
-    others follow. How fast, per node type, is a bench figure (bench/bench_respawn.py), not a timed test."""
+    others follow. Each restart is the warm standby erforce-launch keeps, as shipped.
+    How fast, per node type, is a bench figure (bench/bench_respawn.py), not a timed test."""
     demo = LaunchedDemo(ros_graph)
     demo.wait_running()
-    for node in ("catcher", "ball_predictor", "velocity_controller", "motor_boards", "plant"):
+    # in the order the launcher starts the standbys (the launch file's): each kill waits for its own only
+    for node in ("plant", "ball_predictor", "velocity_controller", "motor_boards", "catcher"):
+        demo.wait_standbys_ready(node)
         assert demo.kill_and_heal(node, RESPAWN_DELAY_S, timeout_s=90.0) > RESPAWN_DELAY_S
     out = demo.launch.output()
     for node in LOOP_OUTPUTS:
         assert re.search(rf"\[{node}-\d+\]: respawning in {RESPAWN_DELAY_S:g} s", out), node
+        assert re.search(rf"\[{node}-\d+\]: process activated from standby with pid", out), node
     assert demo.launch.alive()
     assert "Traceback" not in out, out[-3000:]

@@ -232,11 +232,13 @@ def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_singl
                  opponent.lockstep_topic(contract.TEAM_WHEEL_STATES), opponent.topic(contract.MOTOR_STATUS, 0)):
         assert name in topics, name
     assert not any(name.startswith(("/robot_2/", "/opponent_1/")) for name in topics), sorted(topics)
-    for node in ("team_firmware", "ball_predictor", "plant"):
+    for node in ("plant", "ball_predictor", "team_firmware"):  # as the launcher starts their warm standbys
+        demo.wait_standbys_ready(node)
         assert demo.kill_and_heal(node, RESPAWN_DELAY_S, timeout_s=90.0) > RESPAWN_DELAY_S
     out = demo.launch.output()
     for node in ("plant", "team_firmware", "ball_predictor"):
         assert re.search(rf"\[{node}-\d+\]: respawning in {RESPAWN_DELAY_S:g} s", out), node
+        assert re.search(rf"\[{node}-\d+\]: process activated from standby with pid", out), node  # as shipped
     assert demo.launch.alive()
     assert "Traceback" not in out, out[-3000:]
 

@@ -101,3 +101,50 @@ def test_every_node_exits_quietly_with_0_on_sigint(ros_graph, tmp_path, interrup
         if code != 0 or "Traceback" in out or "KeyboardInterrupt" in out:
             failures.append(f"{exe}: exit code {code}\n{out[-1500:]}")
     assert not failures, "\n".join(failures)
+
+
+@pytest.mark.integration
+def test_a_warm_standby_ends_quietly_with_0_on_sigint_sigterm_or_the_launchers_end(ros_graph):
+    """A node started as erforce-launch starts a warm standby (erforce_interfaces.standby) waits after its
+    imports and warm-up, prints nothing, and ends with 0 on SIGINT (alone or to its group), SIGTERM, or the end
+    of file of its socket (the launcher gone). The nodes with a warm-up (plant, ball_predictor) are among them."""
+    import subprocess
+
+    from erforce_interfaces.standby import READY, STANDBY_FD_ENV
+
+    def end_by_eof(proc, sock) -> None:
+        sock.close()
+
+    endings = {"velocity_controller": lambda proc, sock: proc.send_signal(signal.SIGINT),
+               "plant": lambda proc, sock: os.killpg(proc.pid, signal.SIGINT),
+               "ball_predictor": lambda proc, sock: proc.send_signal(signal.SIGTERM),
+               "catcher": end_by_eof}
+    started = {}
+    try:
+        for exe in endings:  # all at once: each standby's imports cost most of a second of CPU
+            ours, theirs = socket.socketpair()
+            env = {**ros_graph.env, STANDBY_FD_ENV: str(theirs.fileno())}
+            proc = subprocess.Popen([ros_graph.probe_executable(exe), "--ros-args", "-r", f"__node:=standby_{exe}"],
+                                    env=env, pass_fds=(theirs.fileno(),), stdout=subprocess.PIPE,
+                                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+            theirs.close()
+            ours.settimeout(120.0)
+            started[exe] = (proc, ours)
+        for exe, (_proc, sock) in started.items():
+            assert sock.recv(64) == READY, exe
+        names = {name for name, _ in ros_graph.probe.node.get_node_names_and_namespaces()}
+        assert not any(name.startswith("standby_") for name in names), names  # no participant, no node yet
+        failures = []
+        for exe, (proc, sock) in started.items():
+            endings[exe](proc, sock)
+            code = proc.wait(30.0)
+            out = proc.stdout.read().decode(errors="replace")
+            if code != 0 or out:
+                failures.append(f"{exe}: exit code {code}, output:\n{out[-1500:]}")
+        assert not failures, "\n".join(failures)
+    finally:
+        for proc, sock in started.values():
+            sock.close()
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()

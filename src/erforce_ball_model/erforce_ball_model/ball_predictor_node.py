@@ -32,7 +32,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.catch_time import RobotLimits
+from erforce_ball_model.catch_time import RobotLimits, load_kernels
 from erforce_ball_model.predictor import BallFrame, BallPredictor, FrameTimes, PredictorConfig
 from erforce_ball_model.tracking import TrackerConfig
 from erforce_interfaces import contract
@@ -109,6 +109,10 @@ def build_config(c) -> PredictorConfig:
 
 
 class BallPredictorNode(Node):
+    # A warm standby (node_support.run_node) loads numba and the compiled search before it is needed: the
+    # node it becomes answers with the compiled search from its first frame.
+    warm_up = staticmethod(load_kernels)
+
     def __init__(self) -> None:
         super().__init__("ball_predictor")
         self._warn = ThrottledWarner(self)

@@ -42,6 +42,7 @@ from erforce_interfaces.executor import guard, make_executor, sample_only, set_c
 from erforce_interfaces.param_schema import ParamSchema, ParamSpec
 from erforce_interfaces.rclpy_internals import RCLError, light_node_start, parameter_overrides
 from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
+from erforce_interfaces.standby import wait_for_go
 
 _ARRAY_TYPES = {"int": Parameter.Type.INTEGER_ARRAY, "double": Parameter.Type.DOUBLE_ARRAY,
                 "string": Parameter.Type.STRING_ARRAY, "bool": Parameter.Type.BOOL_ARRAY}
@@ -358,6 +359,10 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, ex
 
     Every node gets the callback guard (guard_callbacks) and the time rule on /clock (guard_clock).
 
+    A warm standby (erforce_interfaces.standby, started by erforce-launch) stops before ``rclpy.init``
+    until the launcher says go, after the node's optional ``warm_up`` (a static method of the node class:
+    an expensive first step that needs no node, e.g. loading numba kernels); it returns 0 if told to end.
+
     Returns the process exit code: 0 after Ctrl-C (one SIGINT or several, to the process alone or to
     its process group; see QuietInterrupt) or external shutdown, 1 when the node refused to start
     (for example an invalid parameter file).
@@ -367,6 +372,8 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, ex
     code = 0
     light_node_start()  # a respawned node is back sooner (rclpy_internals)
     try:
+        if not wait_for_go(getattr(node_factory, "warm_up", None)):
+            return 0
         # The stack's DDS settings also under `ros2 run` or a launcher of the user's: Fast DDS reads them
         # when rclpy.init creates the participant; a profile or mode the user set stays.
         os.environ.update(dds_profile_env())

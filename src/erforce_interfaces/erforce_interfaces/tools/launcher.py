@@ -10,7 +10,8 @@ Pipeline, one stage per block below:
 2. **resolve**: walk the actions in order with a ``Scope`` (launch configurations, environment,
    pushed namespace, global remaps/params), evaluate ``$(...)`` substitutions, find packages and
    executables, write the parameter files: the result is a list of ``ProcessSpec``;
-3. **run**: one process per spec, output prefixed ``[label]``, respawn, and the shutdown ladder.
+3. **run**: one process per spec, output prefixed ``[label]``, respawn (from a warm standby where there is
+   one: Runner), and the shutdown ladder.
 
 Supported actions: ``arg`` (name, default, description, choice), ``let``, ``node`` (pkg, exec,
 exec_name, name, namespace/ros_namespace, param with value/nested param/from(+allow_substs),
@@ -63,6 +64,9 @@ Deviations from ``ros2 launch`` (each deliberate):
 - a missing ``param: {from: ...}`` file is an error (ros2 launch warns and skips it);
 - ``args``/``cmd`` are split with shlex after substitution;
 - ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST unless set (README, "DDS discovery"): safe by default;
+- a respawning node of ours (one with a parameter schema) keeps a warm standby: a spare process of the
+  same command, imports done and no DDS participant, that takes over when the node dies
+  (erforce_interfaces.standby; ``--no-standby`` turns it off); ros2 launch always starts afresh;
 - no ``$(eval)``, ``$(command)``, ``$(exec-in-pkg)``, ``$(param)``, Python/XML launch files, event
   handlers or composable nodes; ``$(any)``/``$(all)`` are an error as in ros2 launch on Jazzy, whose
   YAML/XML parser cannot build them.
@@ -107,6 +111,7 @@ from erforce_interfaces.ament_index import (
     package_executables,
 )
 from erforce_interfaces.param_schema import ParamSchema
+from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
 
 PROG = "erforce-launch"
 
@@ -394,6 +399,7 @@ class ProcessSpec:
     sigkill_timeout_s: float | None = None
     param_files: list[tuple[str, str]] = field(default_factory=list)  # (path, content) written by us
     source: str = ""  # FILE:LINE of the action
+    standby: bool = False  # it can wait as a warm standby (erforce_interfaces.standby): our nodes
 
 
 @dataclass
@@ -754,7 +760,8 @@ class Resolver:
             cmd += ["-p", f"{pname}:={pvalue}"]
         # launch_ros keys inline parameters by the full node name when name and namespace are known
         param_key = prefix_namespace(namespace, name) if name is not None and namespace is not None else "/**"
-        files = self._params(f, d, scope, label, param_key, cmd, node_schema(pkg, exe) if pkg else None)
+        schema = node_schema(pkg, exe) if pkg else None
+        files = self._params(f, d, scope, label, param_key, cmd, schema)
         remaps = list(scope.remaps)
         for r in self._dicts(f, d, "remap", "node"):
             remaps.append((self._str(f, r, "from", scope, required=True), self._str(f, r, "to", scope, required=True)))
@@ -762,6 +769,7 @@ class Resolver:
             cmd += ["-r", f"{src}:={dst}"]
         spec = self._process(f, d, scope, label, cmd)
         spec.param_files = files
+        spec.standby = schema is not None  # a node of ours: it starts through node_support.run_node
         self.processes.append(spec)
 
     # ------------------------------------------------------------------------ parameters
@@ -1092,6 +1100,19 @@ def _child_setup() -> None:  # pragma: no cover - runs in the child between fork
         _PRCTL(1, signal.SIGTERM)  # PR_SET_PDEATHSIG: die with the launcher even if it is SIGKILLed
 
 
+def _standby_child_setup() -> None:  # pragma: no cover - runs in the child between fork and exec
+    _child_setup()
+    # Python installs no KeyboardInterrupt handler for an ignored SIGINT: a shutdown during the standby's
+    # imports prints no traceback; it ends at the socket's end of file once the standby waits.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+# Warm standbys (erforce_interfaces.standby): one per respawning node of ours, started one at a time.
+STANDBY_FIRST_S = 3.0  # after the graph's start, so that their imports do not slow the graph's own start
+STANDBY_AGAIN_S = 5.0  # after an activation or a fresh respawn, so that they do not slow the healing node
+STANDBY_WARMING_MAX_S = 30.0  # the next standby starts when this one is ready, has died, or after this
+
+
 @dataclass
 class _Proc:
     spec: ProcessSpec
@@ -1101,14 +1122,28 @@ class _Proc:
     respawn_at: float | None = None
     stage: int = 0  # shutdown ladder: 0 none, 1 SIGINT sent, 2 SIGTERM sent, 3 SIGKILL sent
     deadline: float | None = None
+    standby: _Proc | None = None  # its warm standby, waiting for "go" (a _Proc of the same spec)
+    standby_at: float | None = None  # when its next standby may start (None: none planned)
+    sock: socket.socket | None = None  # a standby's: the launcher's end of its socket
+    ready: bool = False  # a standby's: it said it is ready
+    started_at: float = 0.0
 
 
 class Runner:
-    """Starts the processes, relays their output, respawns, and tears everything down."""
+    """Starts the processes, relays their output, respawns, and tears everything down.
+
+    A respawn is carried out by a warm standby where there is one (``standby``; ProcessSpec.standby): the
+    launcher writes "go" to it once the respawn delay has passed, and the standby becomes the process (its
+    pid, output, respawn count and shutdown). The next standby starts ``STANDBY_AGAIN_S`` later; a standby
+    that died on its own is logged, the next respawn is a fresh start, and a new standby follows that.
+    """
 
     def __init__(self, specs: list[ProcessSpec], sigterm_timeout_s: float = 5.0, sigkill_timeout_s: float = 5.0,
-                 shutdown_on_exit: bool = False, out: TextIO | None = None, err: TextIO | None = None) -> None:
+                 shutdown_on_exit: bool = False, out: TextIO | None = None, err: TextIO | None = None,
+                 standby: bool = True) -> None:
         self.procs = [_Proc(s) for s in specs]
+        self.use_standby = standby
+        self._retired: list[_Proc] = []  # standbys on their way out (end of file, signals), reaped as children
         self.sigterm_timeout_s = sigterm_timeout_s
         self.sigkill_timeout_s = sigkill_timeout_s
         self.shutdown_on_exit = shutdown_on_exit
@@ -1145,14 +1180,20 @@ class Runner:
                 self.info("launch", f"All log files can be found below {self._logs()}")
             for p in self.procs:
                 self._start(p)
-            while any(p.popen is not None or p.respawn_at is not None for p in self.procs):
+            first = time.monotonic() + STANDBY_FIRST_S
+            for p in self.procs:
+                p.standby_at = first if self._wants_standby(p) else None
+            while self._retired or any(p.popen is not None or p.respawn_at is not None or p.standby is not None
+                                       for p in self.procs):
                 self._step()
         finally:
-            for p in self.procs:  # only after an internal error: nothing may outlive us
-                if p.popen is not None:
+            for p in [*self.procs, *self._standbys(), *self._retired]:  # after an internal error: nothing may
+                if p.popen is not None:                                    # outlive us
                     self._kill(p, signal.SIGKILL)
                     p.popen.wait()
                     self._drain(p)
+                if p.sock is not None:
+                    p.sock.close()
             signal.set_wakeup_fd(old_wakeup)
             for s, handler in old.items():
                 signal.signal(s, handler)
@@ -1186,22 +1227,137 @@ class Runner:
             self.failed = True
             return
         p.popen, p.starts = popen, p.starts + 1
+        self._relay(p, popen)
+        self.info(s.label, f"process started with pid [{popen.pid}]")
+
+    def _relay(self, p: _Proc, popen: subprocess.Popen) -> None:
+        s = p.spec
         for pipe, screen, name in ((popen.stdout, self.out, "stdout"), (popen.stderr, self.err, "stderr")):
             fd = pipe.fileno()
             os.set_blocking(fd, False)
             log = open(self._logs() / f"{s.label.replace('/', '_')}-{name}.log", "a") if s.output != "screen" else None
             p.streams[fd] = (pipe, screen if s.output != "log" else None, log, bytearray())
             self._sel.register(fd, selectors.EVENT_READ, p)
-        self.info(s.label, f"process started with pid [{popen.pid}]")
+
+    # ------------------------------------------------------------------ warm standbys
+    def _wants_standby(self, p: _Proc) -> bool:
+        """A standby is kept while the next respawn of ``p`` would happen (respawn_max_retries counts activations)."""
+        retries = p.spec.respawn_max_retries
+        return (self.use_standby and p.spec.standby and p.spec.respawn and not self.shutting_down
+                and (retries < 0 or p.starts <= retries))
+
+    def _standbys(self) -> list[_Proc]:
+        return [p.standby for p in self.procs if p.standby is not None]
+
+    def _warming(self, now: float) -> bool:
+        return any(not sb.ready and now - sb.started_at < STANDBY_WARMING_MAX_S for sb in self._standbys())
+
+    def _start_standby(self, p: _Proc, now: float) -> None:
+        s = p.spec
+        p.standby_at = None
+        ours, theirs = socket.socketpair()
+        env = dict(s.env)
+        env.setdefault("PYTHONUNBUFFERED", "1")
+        env[STANDBY_FD_ENV] = str(theirs.fileno())
+        try:
+            popen = subprocess.Popen(s.cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                     env=env, cwd=s.cwd, process_group=0, preexec_fn=_standby_child_setup,
+                                     pass_fds=(theirs.fileno(),))
+        except OSError as exc:
+            self.info(s.label, f"standby failed to start: {exc}; respawns are fresh starts", "ERROR")
+            ours.close()
+            return
+        finally:
+            theirs.close()
+        sb = _Proc(s, popen=popen, sock=ours, started_at=now)
+        self._relay(sb, popen)
+        ours.setblocking(False)
+        self._sel.register(ours.fileno(), selectors.EVENT_READ, ("standby", p))
+        p.standby = sb
+        self.info(s.label, f"standby started with pid [{popen.pid}]")
+
+    def _standby_says(self, p: _Proc) -> None:
+        sb = p.standby
+        if sb is None or sb.sock is None:
+            return
+        try:
+            data = sb.sock.recv(64)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if not data:  # it is gone or going: the exit is seen by poll()
+            self._sel.unregister(sb.sock.fileno())
+            sb.sock.close()
+            sb.sock = None
+        elif READY in data and not sb.ready:
+            sb.ready = True
+            self.info(p.spec.label, f"standby ready [pid {sb.popen.pid}]")
+
+    def _activate(self, p: _Proc) -> bool:
+        """Turn ``p``'s standby into the process; False if there is none that can take over."""
+        sb, p.standby = p.standby, None
+        if sb is None:
+            return False
+        sent = False
+        if sb.sock is not None:
+            with contextlib.suppress(OSError):
+                sent = sb.sock.send(GO) == len(GO)
+            self._sel.unregister(sb.sock.fileno())
+            sb.sock.close()
+            sb.sock = None
+        if not sent or sb.popen.poll() is not None:
+            self.info(p.spec.label, f"standby [pid {sb.popen.pid}] could not take over; starting afresh", "WARNING")
+            self._retire(sb)
+            return False
+        p.popen, p.starts, p.respawn_at, p.stage, p.deadline = sb.popen, p.starts + 1, None, 0, None
+        for fd, stream in sb.streams.items():
+            p.streams[fd] = stream
+            self._sel.modify(fd, selectors.EVENT_READ, p)
+        self.info(p.spec.label, f"process activated from standby with pid [{sb.popen.pid}]")
+        return True
+
+    def _retire(self, sb: _Proc) -> None:
+        """Let a standby go: end of file on its socket ends it; it is reaped like any child (and at shutdown
+        gets the ladder's signals)."""
+        if sb.sock is not None:
+            self._sel.unregister(sb.sock.fileno())
+            sb.sock.close()
+            sb.sock = None
+        self._retired.append(sb)
+
+    def _standby_exited(self, sb: _Proc, on_its_own: bool) -> None:
+        assert sb.popen is not None
+        popen, code = sb.popen, sb.popen.returncode
+        self._drain(sb)
+        sb.popen = None
+        if sb.sock is not None:
+            self._sel.unregister(sb.sock.fileno())
+            sb.sock.close()
+            sb.sock = None
+        if on_its_own:
+            self.info(sb.spec.label, f"standby died on its own [pid {popen.pid}, exit code {code}]; the next "
+                      "respawn is a fresh start", "ERROR")
+        elif code == 0:
+            self.info(sb.spec.label, f"standby has finished cleanly [pid {popen.pid}]")
+        else:
+            self.info(sb.spec.label, f"standby has died [pid {popen.pid}, exit code {code}]", "ERROR")
 
     def _step(self) -> None:
         now = time.monotonic()
-        deadlines = [t for p in self.procs for t in (p.respawn_at, p.deadline) if t is not None]
+        children = [*self.procs, *self._standbys(), *self._retired]
+        deadlines = [t for p in children for t in (p.respawn_at, p.deadline) if t is not None]
+        if self._warming(now):
+            deadlines += [sb.started_at + STANDBY_WARMING_MAX_S for sb in self._standbys() if not sb.ready]
+        else:
+            deadlines += [p.standby_at for p in self.procs if p.standby_at is not None and p.popen is not None]
         timeout = max(0.0, min([now + 0.5, *deadlines]) - now)
         for key, _ in self._sel.select(timeout):
             if key.data is None:
                 with contextlib.suppress(BlockingIOError):
                     os.read(key.fd, 512)
+            elif isinstance(key.data, tuple):
+                self._standby_says(key.data[1])
             else:
                 self._read(key.data, key.fd)
         while self._signals:
@@ -1209,12 +1365,27 @@ class Runner:
             self._shutdown(f"user interrupted with ctrl-c ({signal.Signals(signum).name})"
                            if signum == signal.SIGINT else f"received {signal.Signals(signum).name}")
         for p in self.procs:
+            if p.standby is not None and p.standby.popen.poll() is not None:
+                sb, p.standby = p.standby, None
+                self._standby_exited(sb, on_its_own=True)
+                p.standby_at = None  # the next respawn starts afresh and plans the next standby
             if p.popen is not None and p.popen.poll() is not None:
                 self._exited(p)
+        for sb in list(self._retired):
+            if sb.popen.poll() is not None:
+                self._retired.remove(sb)
+                self._standby_exited(sb, on_its_own=False)
         now = time.monotonic()
         for p in self.procs:
             if p.respawn_at is not None and now >= p.respawn_at and not self.shutting_down:
-                self._start(p)
+                if not self._activate(p):
+                    self._start(p)
+                p.standby_at = now + STANDBY_AGAIN_S if self._wants_standby(p) else None
+        if not self.shutting_down and not self._warming(now):
+            due = [p for p in self.procs if p.standby_at is not None and now >= p.standby_at and p.popen is not None]
+            if due:
+                self._start_standby(due[0], now)
+        for p in [*self.procs, *self._standbys(), *self._retired]:
             if p.popen is not None and p.deadline is not None and now >= p.deadline:
                 self._escalate(p, now)
 
@@ -1279,6 +1450,10 @@ class Runner:
             p.respawn_at = time.monotonic() + p.spec.respawn_delay_s
             self.info(p.spec.label, f"respawning in {p.spec.respawn_delay_s:g} s")
             return
+        p.standby_at = None
+        if p.standby is not None:  # no respawn to stand in for
+            sb, p.standby = p.standby, None
+            self._retire(sb)
         if code != 0:
             self.failed = True
         if self.shutdown_on_exit:
@@ -1288,14 +1463,18 @@ class Runner:
         now = time.monotonic()
         if self.shutting_down:  # again: stop waiting, go to the next rung at once
             self.info("launch", f"{reason} again, escalating", "WARNING")
-            for p in self.procs:
+            for p in [*self.procs, *self._retired]:
                 if p.popen is not None and p.stage < 3:
                     p.deadline = now
             return
         self.shutting_down = True
         self.info("launch", reason, "WARNING")
         for p in self.procs:
-            p.respawn_at = None
+            p.respawn_at = p.standby_at = None
+            if p.standby is not None:
+                sb, p.standby = p.standby, None
+                self._retire(sb)
+        for p in [*self.procs, *self._retired]:
             if p.popen is not None:
                 self._kill(p, signal.SIGINT)
                 p.stage, p.deadline = 1, now + self._timeout(p.spec.sigterm_timeout_s, self.sigterm_timeout_s)
@@ -1343,6 +1522,11 @@ def _parse_cli(argv: list[str] | None) -> tuple[argparse.Namespace, Path, str, d
                         help="seconds between SIGTERM and SIGKILL at shutdown (default 5)")
     parser.add_argument("--shutdown-on-exit", action="store_true",
                         help="shut everything down when any non-respawning process exits")
+    parser.add_argument("--no-standby", action="store_false", dest="standby",
+                        help="respawn by a fresh start only; by default each respawning node of the stack keeps "
+                             f"a warm standby (imports done, no DDS), started {STANDBY_FIRST_S:g} s after the "
+                             f"graph and {STANDBY_AGAIN_S:g} s after each respawn, one at a time, that takes "
+                             "over when the node dies (README, 'Self-healing')")
     ns = parser.parse_args(argv)
     for value in (ns.sigterm_timeout, ns.sigkill_timeout):
         if not 0.0 <= value < float("inf"):
@@ -1388,7 +1572,7 @@ def main(argv: list[str] | None = None) -> int:
         if ns.print_only:
             sys.stdout.write(format_plan(specs))
             return 0
-        return Runner(specs, ns.sigterm_timeout, ns.sigkill_timeout, ns.shutdown_on_exit).run()
+        return Runner(specs, ns.sigterm_timeout, ns.sigkill_timeout, ns.shutdown_on_exit, standby=ns.standby).run()
     except LaunchError as exc:
         sys.stderr.write(f"{PROG}: error: {exc}\n")
         return 2

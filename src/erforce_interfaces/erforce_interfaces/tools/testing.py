@@ -249,8 +249,13 @@ class RosGraph:
             cmd += ["-r", f"{src}:={dst}"]
         return self.start(cmd, name=name or executable, own_session=own_session)
 
-    def start_launch(self, launch_file: str | Path, **launch_args: Any) -> NodeProcess:
-        cmd = [_executable_path("erforce-launch"), str(launch_file)]
+    def start_launch(self, launch_file: str | Path, *options: str, standby: bool = False,
+                     **launch_args: Any) -> NodeProcess:
+        """``erforce-launch [options] FILE name:=value ...``. Without warm standbys unless ``standby``: each
+        costs its node's imports in CPU (bench_respawn.py --standby-cost), which a test that kills no node
+        would pay for nothing; the tests that kill nodes (test/faults, LaunchedDemo) run them as shipped."""
+        options = (*options, *(() if standby else ("--no-standby",)))
+        cmd = [_executable_path("erforce-launch"), *options, str(launch_file)]
         cmd += [f"{k}:={v}" for k, v in launch_args.items()]
         return self.start(cmd, name=f"launch-{Path(launch_file).stem}")
 
