@@ -45,7 +45,8 @@ GROUP = "224.5.23.2"
 RATE_HZ = 75.0
 FIELD = FieldConfig.preset("division_a")
 STATS = re.compile(r"ssl_vision_bridge: (\d+) datagrams, (\d+) camera frames; dropped: (\d+) bad, (\d+) clock, "
-                   r"(\d+) superseded in floods; CPU per datagram median ([\d.]+) ms, p99 ([\d.]+) ms")
+                   r"(\d+) superseded in floods; CPU per datagram median ([\d.]+) ms, p99 ([\d.]+) ms; "
+                   r"since the first period: (\d+) datagrams, p99 ([\d.]+) ms")
 
 
 # The reader: raw subscriptions (no deserialization) with the contract's QoS, counting what arrives.
@@ -183,8 +184,10 @@ def run(quick: bool = False, readers: str = "ours") -> list[dict]:
          "value": medians[len(medians) // 2], "target": "-",
          "note": f"median of {len(windows)} one-second windows; decode + clock + tracker + publish; readers: "
                  f"{readers} ({delivered[-1] if delivered else 0} messages read)"},
+        {"name": "bridge CPU per datagram, p99 over the run", "unit": "ms", "value": float(lines[-1][8]),
+         "target": "< 0.3", "note": f"{lines[-1][7]} datagrams after the first statistics line (start-up)"},
         {"name": "bridge CPU per datagram, p99 (worst one-second window)", "unit": "ms", "value": p99s[-1],
-         "target": "< 0.3", "note": f"median window p99 {p99s[len(p99s) // 2]:.3f} ms"},
+         "target": "< 0.3", "note": f"the stricter reading; median window p99 {p99s[len(p99s) // 2]:.3f} ms"},
         {"name": "datagrams sent / lost before the bridge read them", "unit": "count", "value": lost,
          "target": "0", "note": f"{sent} sent, {received} read, {frames} camera frames processed"},
         {"name": "datagrams dropped by the bridge", "unit": "count", "value": bad + clock + superseded,

@@ -81,6 +81,14 @@ def test_bytes_match_a_hand_made_layout_and_read_back():
     assert conv.vision_robots_from_msg(msg)[1].tolist() == ROWS_READ
 
 
+def test_points_written_by_a_producer_give_the_same_bytes():
+    points = np.array([[1.5, -2.0, 0.0, 0.5, 1.0, 3.0], [-4.0, 3.0, 0.0, 4.0 - 2.0 * math.pi, 2.0, 0.0]])
+    assert conv.vision_robots_points_cdr(7.25, points) == HAND
+    assert conv.vision_robots_points_cdr(7.25, np.empty((0, 6))) == conv.vision_robots_cdr(7.25, [])
+    assert conv.vision_robots_points_cdr(7.25, points[:1], frame_id="") == conv.vision_robots_cdr(7.25, ROWS[:1],
+                                                                                                  frame_id="")
+
+
 def test_an_empty_frame_and_an_unnamed_frame_are_read():
     t_s, rows = conv.vision_robots_from_msg(conv.vision_robots_cdr(1.5, []))
     assert t_s == 1.5 and rows.shape == (0, 5)

@@ -127,8 +127,11 @@ class TrackerConfig:
                 raise ValueError(f"{name}: must be finite and > 0, got {value!r}")
 
 
+_NUMBER_TYPES = (int, float, np.floating, np.integer)  # a tuple built once (a union in the loop is built per item)
+
+
 def _check_obs(t_s, values) -> bool:
-    return all(isinstance(v, int | float | np.floating | np.integer) and math.isfinite(v) for v in (t_s, *values))
+    return all(isinstance(v, _NUMBER_TYPES) and math.isfinite(v) for v in (t_s, *values))
 
 
 class BallTracker:

@@ -290,6 +290,14 @@ class VisionTracker:
         """``frame`` with arrays of rows: balls (x_m, y_m, confidence, ...), robots (team index in TEAMS, id,
         x_m, y_m, theta_rad or NaN, ...); returns the ball observation and the robot rows to use (as lists;
         their stamp is t_s)."""
+        ball, used = self.frame_indices(camera_id, t_s, balls, robots)
+        return ball, robots[used].tolist() if len(used) else []
+
+    def frame_indices(
+        self, camera_id: int, t_s: float, balls: np.ndarray, robots: np.ndarray
+    ) -> tuple[BallObservation | None, np.ndarray]:
+        """``frame_arrays`` returning the indices of the robot rows to use (int64; a view valid until the next
+        frame) instead of the rows."""
         if not math.isfinite(t_s):
             raise ValueError(f"frame stamp {t_s!r} is not finite")
         self.frames += 1
@@ -309,12 +317,12 @@ class VisionTracker:
         elif candidates:
             ball = self._pick_ball(camera_id, t_s, candidates)
         if not len(robots):
-            return ball, []
+            return ball, self._used[:0]
         if len(robots) > len(self._used):
             self._used = np.empty(len(robots), np.int64)
         n = _track_robots(robots, t_s, self._robot_tracks, cfg.robot_gate_m, cfg.max_robot_speed_mps,
                           MAX_ROBOT_ID, self._used)
-        return ball, robots[self._used[:n]].tolist()
+        return ball, self._used[:n]
 
     def _gate_m(self, t_s: float, t_ref_s: float) -> float:
         cfg = self.config

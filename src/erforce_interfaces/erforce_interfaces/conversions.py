@@ -704,10 +704,19 @@ def vision_robots_cdr(t_s: float, rows: Sequence[Sequence[float]], frame_id: str
                 and 0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)):  # False for NaN
             _robot_row_error(k, team, robot_id, x, y, yaw)
         flat += (x, y, 0.0, math.remainder(yaw, _TWO_PI), team, robot_id)
-    n = len(rows)
+    return _vision_robots_bytes(t_s, len(rows), struct.pack(f"<{len(flat)}d", *flat), frame_id)
+
+
+def vision_robots_points_cdr(t_s: float, points: np.ndarray, frame_id: str = FIELD_FRAME) -> bytes:
+    """``vision_robots_cdr`` for points the caller has already written and checked as it checks rows: a
+    float64 array (n, 6) in VISION_ROBOT_FIELDS order, yaw in [-pi, pi] (a producer's compiled path)."""
+    return _vision_robots_bytes(t_s, len(points), points.astype("<f8", copy=False).tobytes(), frame_id)
+
+
+def _vision_robots_bytes(t_s: float, n: int, data: bytes, frame_id: str) -> bytes:
     size = n * _ROBOT_POINT.size
     return b"".join((_stamp_head(t_s), _frame_cdr(frame_id), struct.pack("<II", 1, n), _ROBOT_FIELDS_CDR,
-                     struct.pack(f"<II{len(flat)}d", size, size, *flat), b"\x01"))
+                     struct.pack("<II", size, size), data, b"\x01"))
 
 
 @functools.lru_cache(maxsize=8)
