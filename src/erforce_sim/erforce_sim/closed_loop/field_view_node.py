@@ -11,10 +11,11 @@ subscriptions are best effort and keep one message: the view never holds up a pu
 takes nothing while no page is open. Where the predictor's team table ``/ball/catches`` is on the
 graph the view takes it instead of every robot's odom, catch_time and catch_point: one message per
 ball frame for the whole team instead of three per robot, and the predictor's per-robot outputs, which
-the robots act on, have no reader more. The view is an observer: all its threads run under
-SCHED_IDLE (``observe_only``), so it never takes a core from the nodes of its session when they have
-work, and it takes its topics once per page frame. With ``bag`` set, the page can also replay that bag
-(``{"replay": t}`` requests; erforce_sim.closed_loop.field_view.BagReplay).
+the robots act on, have no reader more; likewise ``/ball/track`` (the filtered ball, v_shoot, phase,
+uncertain flag and the ball seen) instead of five topics: two topics at the vision rate in all. The view
+is an observer: all its threads run under SCHED_IDLE (``observe_only``), so it never takes a core from
+the nodes of its session when they have work, and it takes its topics once per page frame. With ``bag``
+set, the page can also replay that bag (``{"replay": t}`` requests; erforce_sim.closed_loop.field_view.BagReplay).
 
 With ``foxglove_port`` > 0 it also starts a Foxglove WebSocket server (the ``foxglove`` SDK) that
 forwards every topic of the graph as it is, CDR with its ROS 2 message definition (schema encoding
@@ -46,6 +47,7 @@ from erforce_interfaces.robot_config import FieldConfig
 from erforce_sim.closed_loop.field_view import (
     BYTES_TYPES,
     CATCH_TABLE_REPLACES,
+    TRACK_REPLACES,
     VALUE_TOPICS,
     BagReplay,
     WorldState,
@@ -154,7 +156,8 @@ class FieldViewNode(Node):
             self._match(graph)
 
     def _match(self, graph: list[tuple[str, list[str]]]) -> None:
-        team_table = any(topic == contract.BALL_CATCHES.name for topic, _ in graph)
+        names = {topic for topic, _ in graph}
+        team_table, track = contract.BALL_CATCHES.name in names, contract.BALL_TRACK.name in names
         for topic, types in graph:
             if not types:
                 continue
@@ -163,7 +166,7 @@ class FieldViewNode(Node):
             if view_topic(topic) is None:
                 continue
             found = view_topic(topic)[0]
-            if team_table and found in CATCH_TABLE_REPLACES:
+            if (team_table and found in CATCH_TABLE_REPLACES) or (track and found in TRACK_REPLACES):
                 self._unsubscribe(topic)
                 continue
             if topic in self._subs:
