@@ -168,6 +168,9 @@ def test_the_page_draws_the_graphs_robots_ball_and_catch_point(graph_and_view):
     n_events = len(director.events)
     director.kick.publish(Float64(data=scene.kick_speed_mps))
     assert director.spin_until(lambda: any("fired" in e for e in director.events[n_events:]), 10.0, "the kick")
+    # the simulator's events, which the view takes by callback rather than once per frame, reach the page
+    assert director.spin_until(lambda: "fired" in browser.js("return document.getElementById('events').textContent"),
+                               10.0, "the kick on the page")
 
     def rolling_and_predicted(d):
         points = {c["id"]: c["world"] for c in d["catch_points"]}

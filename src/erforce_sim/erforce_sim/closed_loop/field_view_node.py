@@ -40,7 +40,7 @@ from rclpy.serialization import deserialize_message
 
 from erforce_interfaces import contract
 from erforce_interfaces.ament_index import find_package_share
-from erforce_interfaces.executor import sample_only, take_one, take_queued
+from erforce_interfaces.executor import sample_only, take_one
 from erforce_interfaces.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
@@ -56,6 +56,10 @@ from erforce_sim.closed_loop.field_view import (
 from erforce_sim.closed_loop.view_server import ViewServer
 
 DISCOVERY_PERIOD_S = 1.0
+#: Topics that change rarely: their messages come by callback (the executor wakes for them) instead of a take
+#: per tick, which costs the same found empty. The model in use with its contract QoS: latched, so the view
+#: has it from the start.
+CALLBACK_TOPICS = (contract.BALL_MODEL_PARAMS, contract.SIM_EVENTS)
 SCHEMA = load_schema("erforce_sim", "field_view")
 
 
@@ -131,7 +135,9 @@ class FieldViewNode(Node):
         self._replay_lock = threading.Lock()
         self._subs: dict[str, Any] = {}  # topic -> raw subscription of the view
         self._types: dict[str, str] = {}
-        self._deep: set[str] = set()  # topics whose queue holds more than the newest message
+        self._rare: set[str] = set()  # CALLBACK_TOPICS' subscriptions: not taken by the tick
+        self._rare_applied = False  # a message of one came since the last frame
+        self._graph: list | None = None  # the graph's topics as last matched
         self._last_value: dict[str, bytes] = {}  # VALUE_TOPICS: the bytes last applied
         self._foxglove = None
         if v["foxglove_port"]:
@@ -152,8 +158,11 @@ class FieldViewNode(Node):
 
     def _discover(self) -> None:
         graph = self.get_topic_names_and_types()
+        if graph == self._graph:
+            return  # nothing to match again
         with self._lock:
             self._match(graph)
+        self._graph = graph
 
     def _match(self, graph: list[tuple[str, list[str]]]) -> None:
         names = {topic for topic, _ in graph}
@@ -177,13 +186,33 @@ class FieldViewNode(Node):
             depth = 20 if found is contract.SIM_EVENTS else 1
             qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.BEST_EFFORT,
                              durability=DurabilityPolicy.VOLATILE)
+            if found in CALLBACK_TOPICS:
+                qos = found.qos if found.qos.durability == DurabilityPolicy.TRANSIENT_LOCAL else qos
+                callback = functools.partial(self._on_rare_message, topic, found.type_name)
+                self._subs[topic] = contract_subscription(self, found, callback, topic, raw=True, qos=qos)
+                self._types[topic] = found.type_name
+                self._rare.add(topic)
+                continue
             sub = contract_subscription(self, found, lambda _msg: None, topic, raw=True, qos=qos)
             self._subs[topic] = sample_only(sub)
-            if depth > 1:
-                self._deep.add(topic)
             if found in VALUE_TOPICS:
                 self._last_value[topic] = b""
             self._types[topic] = found.type_name
+
+    def _on_rare_message(self, topic: str, type_name: str, data: bytes) -> None:
+        """A message of CALLBACK_TOPICS (in the executor's thread): applied now, sent with the next frame."""
+        with self._lock:
+            self._apply(topic, type_name, data)
+            self._rare_applied = True
+
+    def _apply(self, topic: str, type_name: str, data: bytes) -> None:
+        try:
+            msg = decode(type_name, data)
+        except Exception as exc:
+            self._warn.warn(f"decode:{topic}", f"{topic}: undecodable message ({exc})")
+            return
+        if not self._state.apply(topic, msg):
+            self._warn.warn(f"bad:{topic}", f"{topic}: refused (bad numbers, shape or stamp)")
 
     def _unsubscribe(self, topic: str) -> None:
         sub = self._subs.pop(topic, None)
@@ -191,7 +220,7 @@ class FieldViewNode(Node):
             sample_only(sub, False)
             self.destroy_subscription(sub)
             self._types.pop(topic, None)
-            self._deep.discard(topic)
+            self._rare.discard(topic)
             self._last_value.pop(topic, None)
 
     def _tick(self) -> None:
@@ -213,24 +242,17 @@ class FieldViewNode(Node):
         foxglove = self._foxglove is not None and self._foxglove.has_clients()
         if not (pages or foxglove):
             return
-        taken = 0
+        taken, self._rare_applied = int(self._rare_applied), False
         for topic, sub in self._subs.items():
-            if not self._state.takes(topic):
+            if topic in self._rare or not self._state.takes(topic):
                 continue
-            queued = [data for data, _ in take_queued(sub)] if topic in self._deep else _take_newest(sub)
-            for data in queued:
+            for data in _take_newest(sub):
                 if topic in self._last_value:
                     if data == self._last_value[topic]:
                         continue  # the same value again (published with every ball frame)
                     self._last_value[topic] = data
                 taken += 1
-                try:
-                    msg = decode(self._types[topic], data)
-                except Exception as exc:
-                    self._warn.warn(f"decode:{topic}", f"{topic}: undecodable message ({exc})")
-                    continue
-                if not self._state.apply(topic, msg):
-                    self._warn.warn(f"bad:{topic}", f"{topic}: refused (bad numbers, shape or stamp)")
+                self._apply(topic, self._types[topic], data)
         if not taken:
             return  # nothing new: the pages keep the last frame
         if pages:
