@@ -8,8 +8,8 @@ topic the view shows (erforce_sim.closed_loop.field_view lists them; robots are 
 hands them to the core (erforce_sim.closed_loop.field_view.WorldState) and sends its frame to the pages
 (binary, ``WorldState.frame_bytes``). Its
 subscriptions are best effort and keep one message (the latched model in use: the contract's QoS): the view
-never holds up a publisher, and it takes nothing while no page is open. Where the predictor's team table ``/ball/catches`` is on the
-graph the view takes it instead of every robot's odom, catch_time and catch_point: one message per
+never holds up a publisher, and it takes nothing while no page is open. Where the predictor's team table
+``/ball/catches`` is on the graph the view takes it instead of every robot's odom, catch_time and catch_point: one message per
 ball frame for the whole team instead of three per robot, and the predictor's per-robot outputs, which
 the robots act on, have no reader more; likewise ``/ball/track`` (the filtered ball, v_shoot, phase,
 uncertain flag and the ball seen) instead of five topics: two topics at the vision rate in all. The view
