@@ -19,6 +19,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 from erforce_ball_model.catcher import CatcherConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
+    ball_track_from_msg,
     odometry_from_msg,
     point_from_msg,
     stamp_to_seconds,
@@ -125,6 +126,7 @@ class Rig:
                             for team, i in robots]
         self.odom = [probe.subscribe(team.topic(q.ODOM, i), Odometry, q.ODOM.qos) for team, i in robots]
         self.catches = probe.subscribe(q.BALL_CATCHES.name, Float64MultiArray, q.BALL_CATCHES.qos)
+        self.track = probe.subscribe(q.BALL_TRACK.name, PointCloud2, q.BALL_TRACK.qos)
         self.ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=20.0,
                                                    qos=q.VISION_BALL.qos)
         self.robots_pub = probe.wait_for_subscribers(q.VISION_ROBOTS.name, PointCloud2, timeout_s=20.0,
@@ -142,7 +144,7 @@ class Rig:
                 continue
         probe.spin_for(0.2)
         assert self.state, "ball_predictor never answered"
-        for received in (self.state, self.phase, self.stop, self.v_shoot, self.uncertain):
+        for received in (self.state, self.phase, self.stop, self.v_shoot, self.uncertain, self.track):
             received.clear()
 
     def ball(self, t_s, x, y, answered=True):
@@ -219,6 +221,16 @@ def test_rolling_ball_state_stop_point_and_phases_match_the_closed_form(ros_grap
     assert checked > 150
     assert not rig.uncertain[-1].data
     assert all(len(c) == 0 for c in rig.catch_time)  # no robot seen: no catch outputs
+    # /ball/track (best effort) says what the five topics say, and the observation answered
+    by_stamp = {odometry_from_msg(m)[0]: k for k, m in enumerate(rig.state)}
+    assert len(rig.track) >= 0.9 * len(t)
+    for track in map(ball_track_from_msg, rig.track):
+        k = by_stamp[track.t_s]
+        _, pose, velocity, _ = odometry_from_msg(rig.state[k])
+        assert (track.x_m, track.y_m, track.vx_mps, track.vy_mps) == (*pose[:2], *velocity[:2])
+        assert (track.v_shoot_mps, track.phase, track.uncertain) == (
+            rig.v_shoot[k].data, phases[k], rig.uncertain[k].data)
+        assert (track.seen_x_m, track.seen_y_m) == tuple(xy[k])
     assert rig.all_finite()
 
 

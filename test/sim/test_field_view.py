@@ -21,6 +21,8 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 from erforce_ball_model.passing import PassConfig, PassOption
 from erforce_interfaces import contract as c
 from erforce_interfaces.conversions import (
+    BallTrack,
+    ball_track_cdr,
     float64_cdr,
     odometry_cdr,
     odometry_msg,
@@ -77,6 +79,29 @@ def test_the_predicted_path_is_the_ball_models_sliding_and_rolling_stretches():
     assert len(path["marks"]) == 17  # every 0.25 s up to 4.32 s
     # at 0.25 s the ball still slides: 2 * 0.25 - 1.25 * 0.0625 = 0.421875 m
     assert path["marks"][0] == pytest.approx([1.0, -1.0 + 0.421875], abs=1e-4)
+
+
+def test_the_predictors_ball_track_gives_the_ball_path_phase_and_speeds_in_one_message():
+    """The case above from /ball/track alone (seen at (1.01, -0.98), rolling, uncertain); a second track 0.2 s
+    on, slower than the model (2 - 2.5 * 0.2 = 1.5 m/s), keeps the speed curve; one refused changes nothing."""
+    state = WorldState(FIELD, stamp_filters={})
+    track = BallTrack(1.0, 1.0, -1.0, 0.0, 2.0, 2.0, 1.01, -0.98, "rolling", True)
+    assert state.apply(c.BALL_TRACK.name, ball_track_cdr(track))
+    frame = state.frame()
+    assert frame["ball"] == {"phase": "rolling", "v_shoot": 2.0, "uncertain": True, "seen": [1.01, -0.98],
+                             "state": [1.0, -1.0, 0.0, 2.0]}
+    assert frame["path"]["switch"] == pytest.approx([1.0, -1.0 + 0.512], abs=1e-4)
+    assert frame["stop_point"] == pytest.approx([1.0, -1.0 + 2.912], abs=1e-4)
+    assert frame["speed"] == {"t": 1.0, "filtered": 2.0, "model": 2.0}
+    assert decode_frame_bytes(state.frame_bytes())["ball"] == frame["ball"]
+    later = track._replace(t_s=1.2, y_m=-0.65, vy_mps=1.4, phase="sliding", uncertain=False)
+    assert state.apply(c.BALL_TRACK.name, ball_track_cdr(later))
+    frame = state.frame()
+    assert (frame["ball"]["phase"], frame["ball"]["uncertain"]) == ("sliding", False)
+    assert frame["speed"] == {"t": 1.2, "filtered": 1.4, "model": pytest.approx(1.5, abs=1e-4)}
+    assert decode_frame_bytes(state.frame_bytes())["ball"]["phase"] == "sliding"  # the page's part sent anew
+    assert not state.apply(c.BALL_TRACK.name, ball_track_cdr(later)[:-40])
+    assert state.frame()["ball"] == frame["ball"] and state.rejected == 1
 
 
 def test_the_path_uses_the_model_the_predictor_publishes():

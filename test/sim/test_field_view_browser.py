@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 from std_msgs.msg import Float64
 
+from erforce_interfaces import contract as c
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.closed_loop.demo import LAUNCH_FILE, Director
 from erforce_sim.closed_loop.headless_browser import Browser, chromium_missing
@@ -167,6 +168,9 @@ def test_the_page_draws_the_graphs_robots_ball_and_catch_point(graph_and_view):
     n_events = len(director.events)
     director.kick.publish(Float64(data=scene.kick_speed_mps))
     assert director.spin_until(lambda: any("fired" in e for e in director.events[n_events:]), 10.0, "the kick")
+    # the simulator's events, which the view takes by callback rather than once per frame, reach the page
+    assert director.spin_until(lambda: "fired" in browser.js("return document.getElementById('events').textContent"),
+                               10.0, "the kick on the page")
 
     def rolling_and_predicted(d):
         points = {c["id"]: c["world"] for c in d["catch_points"]}
@@ -186,6 +190,15 @@ def test_the_page_draws_the_graphs_robots_ball_and_catch_point(graph_and_view):
     for mark in path["marks"]:
         assert math.dist(mark, path["start"]) + math.dist(mark, path["stop"]) == pytest.approx(
             math.dist(path["start"], path["stop"]), abs=1e-6)
+    # the path starts at the predictor's filtered ball of a recent frame, which the view takes from /ball/track
+    # (with v_shoot, phase, uncertain and the ball seen) instead of /ball/state and four more topics
+    states = [(x, y) for t, x, y, *_ in director.series.ball_state if drawn["t"] - 0.5 <= t <= drawn["t"] + 0.05]
+    assert states and min(math.dist(path["start"], p) for p in states) < 2e-4  # the page's 0.1 mm
+    node = director.node
+    readers = {t.name: {i.node_name for i in node.get_subscriptions_info_by_topic(t.name)}
+               for t in (c.BALL_TRACK, c.BALL_STATE, c.VISION_BALL, c.BALL_PHASE)}
+    assert "field_view" in readers[c.BALL_TRACK.name]
+    assert not any("field_view" in names for names in list(readers.values())[1:]), readers
     # the predictor's catch points of the last half second: the drawn one is among them
     recent = [(x, y) for t, x, y in director.series.catch_points if drawn["t"] - 0.5 <= t <= drawn["t"] + 0.05]
     drawn_point = next(c["world"] for c in drawn["catch_points"] if c["id"] == RECEIVER)

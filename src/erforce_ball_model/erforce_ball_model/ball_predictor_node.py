@@ -6,7 +6,8 @@ identification), the same object the in-process scenes and the bench run. Every 
 frame is answered with each fresh robot's ``/robot_<i>/catch_time`` and, while anyone subscribes to
 it, its ``catch_point`` (first: what the robots act on), then the ball state, phase, stop point,
 v_shoot and the uncertain flag (the three for tools while anyone subscribes to them), and, while anyone
-subscribes to it, ``/ball/catches``: the whole team in one message.
+subscribes to them, ``/ball/track`` (the ball's topics and the observation in one message) and
+``/ball/catches`` (the whole team in one message): an observer such as the field view takes those two.
 All outputs carry the observation's stamp; catch times count from it. Robots come in on
 ``/vision/robots``, one message per vision frame for both teams; each robot it serves is judged by
 the time rule on its own (camera frames of one field arrive out of order across robots) and answered
@@ -38,7 +39,9 @@ from erforce_ball_model.tracking import TrackerConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     MAX_ABS_VALUE,
+    BallTrack,
     ConversionError,
+    ball_track_cdr,
     float64_cdr,
     odometry_cdr,
     point_cdr,
@@ -144,6 +147,9 @@ class BallPredictorNode(Node):
         self._v_shoot_pub = contract_publisher(self, q.BALL_V_SHOOT)
         self._uncertain_pub = contract_publisher(self, q.BALL_UNCERTAIN, readers=(self._tool_readers, 2))
         self._catches_pub = contract_publisher(self, q.BALL_CATCHES)
+        # the ball for observers (the field view) in one message instead of five topics: while it has a reader
+        self._track_readers = [0]
+        self._track_pub = contract_publisher(self, q.BALL_TRACK, readers=(self._track_readers, 0))
         # A robot's odom (the tracker's estimate, volatile) is built and sent only while something reads it:
         # in a full team most are unread, and each publish costs tens of microseconds per vision frame.
         self._odom_readers = [0] * n
@@ -280,6 +286,11 @@ class BallPredictorNode(Node):
             self._publish_ball_outputs(frame)
         except ValueError as exc:
             self._warn.warn("predict", f"no ball state for the frame at {t_s:.6f} s: {exc}")
+        if self._track_readers[0]:
+            try:
+                self._track_pub.publish(self._ball_track(frame))
+            except ValueError as exc:
+                self._warn.warn("track", f"no /ball/track for the frame at {t_s:.6f} s: {exc}")
         if frame.catch_robots and self._catches_pub.get_subscription_count() > 0:
             try:
                 self._catches_pub.publish(self._catch_table(frame))
@@ -310,6 +321,13 @@ class BallPredictorNode(Node):
         self._v_shoot_pub.publish(v_shoot)
         if uncertain_readers:
             self._uncertain_pub.publish(self._uncertain_msg)
+
+    @staticmethod
+    def _ball_track(frame: BallFrame) -> bytes:
+        """/ball/track: what /ball/state, v_shoot, phase and uncertain carry and the observation, in one message."""
+        f = frame.trajectory.floats
+        return ball_track_cdr(BallTrack(frame.t_s, f.x_m, f.y_m, f.vx_mps, f.vy_mps, f.v_shoot_mps, *frame.xy_m,
+                                        frame.phase, frame.uncertain))
 
     def _catch_table(self, frame: BallFrame) -> bytes:
         """/ball/catches: every fresh robot's pose at the frame and its catch, one message for both teams

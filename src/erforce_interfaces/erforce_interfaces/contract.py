@@ -333,6 +333,13 @@ BALL_CATCHES = Topic("/ball/catches", Float64MultiArray, QOS_SENSOR, "ball_predi
                      "(its team, its id in the team, its tracked pose and velocity "
                      "at the frame's stamp [m, rad, m/s], `field`; its catch_time and catch_point as published "
                      "per robot, the point 0, 0 with a catch time of never); after the per-robot outputs")
+BALL_TRACK = Topic("/ball/track", PointCloud2, QOS_SENSOR, "ball_predictor (while subscribed)", "field_view, tools",
+                   "the ball at one accepted vision frame, for observers, in one message: one point of fields "
+                   "BALL_TRACK_FIELDS (float64, little endian, height 1, width 1): the filtered ball x, y [m] "
+                   "(z = 0) and vx_mps, vy_mps [m/s] in `field` (as /ball/state), v_shoot_mps (as /ball/v_shoot), "
+                   "the observation seen_x_m, seen_y_m [m] (the /vision/ball frame answered), phase (the index "
+                   "of /ball/phase's value in BALL_PHASES) and uncertain (1/0, as /ball/uncertain); stamp = "
+                   "that observation's; after the per-robot outputs")
 PASS_CHOICE = Topic("/pass/choice", Float64MultiArray, QOS_STATE, "passing game (its bag)", "field_view, tools",
                     "the pass the holder has chosen, one row of PASS_CHOICE_COLUMNS (robot ids of our team, "
                     "times [s] from the kick; safe 1/0 = margin_s >= safe_margin_s); no rows: no choice "
@@ -379,7 +386,7 @@ TOPICS: tuple[Topic, ...] = (
     CLOCK, VISION_BALL, VISION_ROBOTS, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
     BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL, SIM_SET_BALL, SIM_EVENTS,
     TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY,
-    BALL_CATCHES, PASS_CHOICE,
+    BALL_CATCHES, BALL_TRACK, PASS_CHOICE,
     CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED, DRIBBLER,
     VISION_POSE, ODOM, CATCH_TIME, CATCH_POINT, GROUND_TRUTH_ODOM, GROUND_TRUTH_MOTORS, SIM_SET_STATE,
 )
@@ -392,6 +399,9 @@ BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
 #: rather than a Float64MultiArray table: its header carries the capture stamp and the frame, and viewers
 #: (rviz, Foxglove) draw it as it is.
 VISION_ROBOT_FIELDS = ("x", "y", "z", "yaw", "team", "robot_id")
+#: the PointField names of /ball/track's one point, in this order, each one FLOAT64 (x, y, z first: viewers draw
+#: the point where the filtered ball is).
+BALL_TRACK_FIELDS = ("x", "y", "z", "vx_mps", "vy_mps", "v_shoot_mps", "seen_x_m", "seen_y_m", "phase", "uncertain")
 VISION_DETECTION_COLUMNS = ("camera_id", "age_s", "kind", "robot_id", "x_m", "y_m", "theta_rad", "confidence")
 #: ``kind`` values of /vision/detections (theta_rad is 0 for balls and robots without orientation)
 VISION_DETECTION_KINDS = {"ball": 0.0, "ours": OURS.code, "opponent": OPPONENTS.code}

@@ -22,6 +22,7 @@ import functools
 import math
 import struct
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -33,6 +34,8 @@ from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 from erforce_interfaces.contract import (
     BALL_MODEL_PARAM_LABELS,
     BALL_MODEL_PARAM_ROWS,
+    BALL_PHASES,
+    BALL_TRACK_FIELDS,
     FIELD_FRAME,
     OPPONENTS,
     OURS,
@@ -680,19 +683,20 @@ _TEAM_CODES = (OURS.code, OPPONENTS.code)
 _TWO_PI = 2.0 * math.pi
 
 
-def _robot_fields_cdr() -> bytes:
-    """From the fields sequence through point_step; it starts 4-aligned, and nothing in it needs more."""
-    out = bytearray(_u32.pack(len(VISION_ROBOT_FIELDS)))
-    for k, name in enumerate(VISION_ROBOT_FIELDS):
+def _float64_fields_cdr(names: Sequence[str]) -> bytes:
+    """A cloud of float64 ``names`` from its fields sequence through point_step; it starts 4-aligned, and
+    nothing in it needs more."""
+    out = bytearray(_u32.pack(len(names)))
+    for k, name in enumerate(names):
         raw = name.encode() + b"\x00"
         out += bytes(-len(out) % 4) + _u32.pack(len(raw)) + raw
         out += bytes(-len(out) % 4) + _u32.pack(8 * k) + bytes((PointField.FLOAT64,))
         out += bytes(-len(out) % 4) + _u32.pack(1)
     out += b"\x00"  # is_bigendian
-    return bytes(out + bytes(-len(out) % 4) + _u32.pack(_ROBOT_POINT.size))
+    return bytes(out + bytes(-len(out) % 4) + _u32.pack(8 * len(names)))
 
 
-_ROBOT_FIELDS_CDR = _robot_fields_cdr()
+_ROBOT_FIELDS_CDR = _float64_fields_cdr(VISION_ROBOT_FIELDS)
 
 
 def vision_robots_cdr(t_s: float, rows: Sequence[Sequence[float]], frame_id: str = FIELD_FRAME) -> bytes:
@@ -774,18 +778,18 @@ def _check_robot_cloud(height: int, width: int, fields: list | None, is_bigendia
                               f"{step}-byte points")
 
 
-def _cloud_from_cdr(data: bytes) -> tuple[float, tuple, int]:
+def _cloud_from_cdr(data: bytes, known_fields_cdr: bytes = _ROBOT_FIELDS_CDR) -> tuple[float, tuple, int]:
     """(stamp [s], (height, width, fields or None, is_bigendian, point_step, row_step, data size), file offset
-    of the data) of a serialized PointCloud2. Fields are None when they are /vision/robots' as
-    vision_robots_cdr writes them (recognised by their bytes); another writer's padding, or other
-    fields, are read one by one."""
+    of the data) of a serialized PointCloud2. Fields are None when they are the expected ones as
+    ``_float64_fields_cdr`` writes them (recognised by their bytes, ``known_fields_cdr``); another writer's
+    padding, or other fields, are read one by one."""
     try:
         sec, nanosec, p = _header_cdr(data, "PointCloud2")
         p += -p % 4
         height, width = struct.unpack_from("<II", data, 4 + p)
         p += 8
-        if data.startswith(_ROBOT_FIELDS_CDR, 4 + p):
-            fields, is_bigendian, p = None, False, p + len(_ROBOT_FIELDS_CDR) - 4
+        if data.startswith(known_fields_cdr, 4 + p):
+            fields, is_bigendian, p = None, False, p + len(known_fields_cdr) - 4
         else:
             fields, p = _point_fields_cdr(data, p)
             is_bigendian = data[4 + p] != 0
@@ -843,6 +847,75 @@ def _robot_rows(values: np.ndarray) -> np.ndarray:
     yaw = rows[:, 4]
     yaw -= _TWO_PI * np.round(yaw / _TWO_PI)
     return rows
+
+
+# ------------------------------------------------------------ ball track
+# /ball/track: a PointCloud2 of one point, the float64 fields BALL_TRACK_FIELDS at offsets 0, 8, .., little endian,
+# built and recognised as /vision/robots is.
+_TRACK_FIELDS_CDR = _float64_fields_cdr(BALL_TRACK_FIELDS)
+_TRACK_FIELDS = [(name, 8 * k, PointField.FLOAT64, 1) for k, name in enumerate(BALL_TRACK_FIELDS)]
+_TRACK_POINT_SIZE = 8 * len(BALL_TRACK_FIELDS)
+_PHASE_INDEX = {phase: float(k) for k, phase in enumerate(BALL_PHASES)}
+
+
+class BallTrack(NamedTuple):
+    """One /ball/track message: the filtered ball, v_shoot, the observation, phase and uncertain flag."""
+
+    t_s: float
+    x_m: float
+    y_m: float
+    vx_mps: float
+    vy_mps: float
+    v_shoot_mps: float
+    seen_x_m: float
+    seen_y_m: float
+    phase: str  # one of BALL_PHASES
+    uncertain: bool
+
+
+def ball_track_cdr(track: BallTrack, frame_id: str = FIELD_FRAME) -> bytes:
+    """A /ball/track PointCloud2 serialized, checked as the reader checks it (finite, within MAX_ABS_VALUE,
+    a phase of BALL_PHASES)."""
+    phase = _PHASE_INDEX.get(track.phase)
+    if phase is None:
+        raise ConversionError(f"phase {track.phase!r} is none of {', '.join(BALL_PHASES)}")
+    values = [_finite(name, value) for name, value in zip(BALL_TRACK_FIELDS[3:8], track[3:8], strict=True)]
+    return b"".join((_stamp_head(track.t_s), _frame_cdr(frame_id), struct.pack("<II", 1, 1), _TRACK_FIELDS_CDR,
+                     struct.pack("<II10d", _TRACK_POINT_SIZE, _TRACK_POINT_SIZE, _finite("x", track.x_m),
+                                 _finite("y", track.y_m), 0.0, *values, phase, 1.0 if track.uncertain else 0.0),
+                     b"\x01"))
+
+
+def ball_track_from_msg(msg: PointCloud2 | bytes) -> BallTrack:
+    """The BallTrack of a /ball/track message (or its bytes, as point_from_msg); a cloud of other fields or
+    another size, a non-finite or huge value, an unknown phase or an uncertain flag other than 0/1 is refused
+    (ConversionError)."""
+    if isinstance(msg, bytes | bytearray | memoryview):
+        data = bytes(msg)
+        t_s, (height, width, fields, is_bigendian, point_step, row_step, size), at = \
+            _cloud_from_cdr(data, _TRACK_FIELDS_CDR)
+    else:
+        _check_frame(msg.header.frame_id)
+        t_s = stamp_to_seconds(msg.header.stamp)
+        height, width, is_bigendian, point_step, row_step = (msg.height, msg.width, msg.is_bigendian, msg.point_step,
+                                                            msg.row_step)
+        fields = [(f.name, f.offset, f.datatype, f.count) for f in msg.fields]
+        data, at, size = bytes(msg.data), 0, len(msg.data)
+    if fields is not None and fields != _TRACK_FIELDS:
+        raise ConversionError(f"point fields {','.join(f[0] for f in fields)[:80]} are not "
+                              f"{','.join(BALL_TRACK_FIELDS)} (float64 each)")
+    if (height, width, is_bigendian, point_step, row_step, size) != (1, 1, False, _TRACK_POINT_SIZE,
+                                                                     _TRACK_POINT_SIZE, _TRACK_POINT_SIZE):
+        raise ConversionError(f"a ball track of {height} x {width} points, {point_step}-byte points, {size} bytes "
+                              f"of data: expected one little-endian {_TRACK_POINT_SIZE}-byte point")
+    x, y, z, vx, vy, v_shoot, seen_x, seen_y, phase, uncertain = struct.unpack_from("<10d", data, at)
+    if not all(abs(v) <= MAX_ABS_VALUE for v in (x, y, z, vx, vy, v_shoot, seen_x, seen_y)):  # False for NaN
+        for name, value in zip(BALL_TRACK_FIELDS, (x, y, z, vx, vy, v_shoot, seen_x, seen_y), strict=False):
+            _finite(name, value)
+    if phase not in _PHASE_INDEX.values() or uncertain not in (0.0, 1.0):
+        raise ConversionError(f"phase {phase!r} (an index of BALL_PHASES) or uncertain {uncertain!r} (1/0) "
+                              "out of range")
+    return BallTrack(t_s, x, y, vx, vy, v_shoot, seen_x, seen_y, BALL_PHASES[int(phase)], uncertain == 1.0)
 
 
 # ------------------------------------------------------------ scalar & tables

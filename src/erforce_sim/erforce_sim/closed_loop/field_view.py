@@ -4,7 +4,8 @@
 decoded or, for the stamped types the conversions read from bytes, its CDR bytes) and keeps the
 newest of each: the ball (true, seen, filtered), the robots (true or seen pose, catch time and
 point, motor currents, light barrier; the predictor's team table ``/ball/catches`` carries the seen
-pose, catch time and point of every robot in one message), the ball model in use, the simulator's
+pose, catch time and point of every robot in one message, its ``/ball/track`` the filtered ball, v_shoot, phase,
+uncertain flag and the ball seen), the ball model in use, the simulator's
 events and the passing game's choice (``/pass/choice``). Opponents under ``/opponent_<id>`` are
 robots ``o<id>``.
 ``frame()`` turns it into one JSON-ready dict, the page's frame: what it draws, in field
@@ -38,7 +39,9 @@ from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ball_
 from erforce_ball_model.catcher import team_receiver
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
+    BallTrack,
     ConversionError,
+    ball_track_from_msg,
     float64_from_msg,
     model_in_use_from_msg,
     odometry_from_msg,
@@ -68,7 +71,7 @@ RECEIVER_SWITCH_MARGIN_S = 0.1
 GLOBAL_TOPICS = (
     contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_STATE, contract.BALL_PHASE,
     contract.BALL_V_SHOOT, contract.BALL_UNCERTAIN, contract.BALL_MODEL_PARAMS,
-    contract.SIM_EVENTS, contract.BALL_CATCHES, contract.PASS_CHOICE,
+    contract.SIM_EVENTS, contract.BALL_CATCHES, contract.BALL_TRACK, contract.PASS_CHOICE,
 )
 ROBOT_TOPICS = (
     contract.GROUND_TRUTH_ODOM, contract.ODOM, contract.CATCH_TIME, contract.CATCH_POINT,
@@ -76,12 +79,15 @@ ROBOT_TOPICS = (
 )
 #: What /ball/catches carries for every robot at once: a live view takes it instead of these.
 CATCH_TABLE_REPLACES = (contract.ODOM, contract.CATCH_TIME, contract.CATCH_POINT)
+#: What /ball/track carries at once: a live view takes it instead of these.
+TRACK_REPLACES = (contract.VISION_BALL, contract.BALL_STATE, contract.BALL_PHASE, contract.BALL_V_SHOOT,
+                  contract.BALL_UNCERTAIN)
 #: Unstamped values: a message equal to the last one changes nothing (the node skips it undecoded).
 VALUE_TOPICS = (contract.BALL_PHASE, contract.BALL_UNCERTAIN, contract.BALL_V_SHOOT, contract.CATCH_TIME,
                 contract.BALL_DETECTED)
 #: Types whose CDR bytes the conversions read directly (the others are deserialized first).
 BYTES_TYPES = frozenset(t.type_name for t in (contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_V_SHOOT,
-                                              contract.BALL_CATCHES))
+                                              contract.BALL_CATCHES, contract.BALL_TRACK))
 #: Topics whose messages change the frame's slowly changing part, sent as JSON in the binary frame.
 META_TOPICS = (contract.BALL_PHASE, contract.BALL_UNCERTAIN, contract.BALL_MODEL_PARAMS, contract.SIM_EVENTS,
                contract.PASS_CHOICE)
@@ -281,8 +287,22 @@ class WorldState:
             self.events.append(str(msg.data)[:200])
         elif topic is c.BALL_CATCHES:
             self._apply_catch_table(self._catch_rows(msg))
+        elif topic is c.BALL_TRACK:
+            self._apply_track(name, ball_track_from_msg(msg))
         elif topic is c.PASS_CHOICE:
             self.pass_choice = _pass_choice(table_from_msg(msg, c.PASS_CHOICE_COLUMNS))
+
+    def _apply_track(self, name: str, track: BallTrack) -> None:
+        """/ball/track: the ball state, v_shoot, phase, uncertain flag and the observation of one frame."""
+        self._stamp(name, track.t_s)
+        if track.phase != self.phase or track.uncertain != self.uncertain:
+            self.phase, self.uncertain = track.phase, track.uncertain
+            self._meta_serial += 1
+        self.v_shoot_mps = track.v_shoot_mps  # before the speed model, which starts from it
+        self.ball_seen = _wire((track.seen_x_m, track.seen_y_m))
+        self.ball_state = _wire((track.x_m, track.y_m, track.vx_mps, track.vy_mps))
+        self.ball_state_t_s = track.t_s
+        self._update_speed_model(track.t_s)
 
     def _catch_rows(self, msg: Any) -> np.ndarray:
         """The /ball/catches table (conversions.table_from_msg). Its CDR bytes up to the values repeat from

@@ -2,19 +2,20 @@
 Foxglove WebSocket server, as a ROS 2 node.
 
 It serves http://127.0.0.1:<port>/ (erforce_sim.closed_loop.view_server; the page's files ship in
-share/erforce_sim/web). Every ``1 / rate_hz`` of wall time (a tick in the server's tick thread: the only
-wake-up per frame; no message wakes the process) it takes the newest message of each
-topic the view shows (erforce_sim.closed_loop.field_view lists them; robots are found as their topics appear),
-hands them to the core (erforce_sim.closed_loop.field_view.WorldState) and sends its frame to the pages
-(binary, ``WorldState.frame_bytes``). Its
-subscriptions are best effort and keep one message: the view never holds up a publisher, and it
-takes nothing while no page is open. Where the predictor's team table ``/ball/catches`` is on the
-graph the view takes it instead of every robot's odom, catch_time and catch_point: one message per
-ball frame for the whole team instead of three per robot, and the predictor's per-robot outputs, which
-the robots act on, have no reader more. The view is an observer: all its threads run under
-SCHED_IDLE (``observe_only``), so it never takes a core from the nodes of its session when they have
-work, and it takes its topics once per page frame. With ``bag`` set, the page can also replay that bag
-(``{"replay": t}`` requests; erforce_sim.closed_loop.field_view.BagReplay).
+share/erforce_sim/web). Every ``1 / rate_hz`` of wall time (a tick in the server's tick thread: the only wake-up
+per frame; no message at the vision rate wakes the process) it takes the newest message of each topic the view
+shows (erforce_sim.closed_loop.field_view lists them; robots are found as their topics appear), hands them to
+the core (erforce_sim.closed_loop.field_view.WorldState) and sends its frame to the pages (binary,
+``WorldState.frame_bytes``). Its subscriptions are best effort and keep one message (the latched model in use:
+the contract's QoS): the view never holds up a publisher, and it takes nothing while no page is open. Where the
+predictor's team table ``/ball/catches`` is on the graph the view takes it instead of every robot's odom,
+catch_time and catch_point: one message per ball frame for the whole team instead of three per robot, and the
+predictor's per-robot outputs, which the robots act on, have no reader more; likewise ``/ball/track`` (the
+filtered ball, v_shoot, phase, uncertain flag and the ball seen) instead of five topics: two topics at the
+vision rate in all. The view is an observer: all its threads run under SCHED_IDLE (``observe_only``), so it
+never takes a core from the nodes of its session when they have work, and it takes its topics once per page
+frame (but for CALLBACK_TOPICS, which change rarely and come by callback). With ``bag`` set, the page can also
+replay that bag (``{"replay": t}`` requests; erforce_sim.closed_loop.field_view.BagReplay).
 
 With ``foxglove_port`` > 0 it also starts a Foxglove WebSocket server (the ``foxglove`` SDK) that
 forwards every topic of the graph as it is, CDR with its ROS 2 message definition (schema encoding
@@ -39,13 +40,14 @@ from rclpy.serialization import deserialize_message
 
 from erforce_interfaces import contract
 from erforce_interfaces.ament_index import find_package_share
-from erforce_interfaces.executor import sample_only, take_one, take_queued
+from erforce_interfaces.executor import sample_only, take_one
 from erforce_interfaces.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_sim.closed_loop.field_view import (
     BYTES_TYPES,
     CATCH_TABLE_REPLACES,
+    TRACK_REPLACES,
     VALUE_TOPICS,
     BagReplay,
     WorldState,
@@ -54,6 +56,10 @@ from erforce_sim.closed_loop.field_view import (
 from erforce_sim.closed_loop.view_server import ViewServer
 
 DISCOVERY_PERIOD_S = 1.0
+#: Topics that change rarely: their messages come by callback (the executor wakes for them) instead of a take
+#: per tick, which costs the same found empty. The model in use with its contract QoS: latched, so the view
+#: has it from the start.
+CALLBACK_TOPICS = (contract.BALL_MODEL_PARAMS, contract.SIM_EVENTS)
 SCHEMA = load_schema("erforce_sim", "field_view")
 
 
@@ -129,7 +135,9 @@ class FieldViewNode(Node):
         self._replay_lock = threading.Lock()
         self._subs: dict[str, Any] = {}  # topic -> raw subscription of the view
         self._types: dict[str, str] = {}
-        self._deep: set[str] = set()  # topics whose queue holds more than the newest message
+        self._rare: set[str] = set()  # CALLBACK_TOPICS' subscriptions: not taken by the tick
+        self._rare_applied = False  # a message of one came since the last frame
+        self._graph: list | None = None  # the graph's topics as last matched
         self._last_value: dict[str, bytes] = {}  # VALUE_TOPICS: the bytes last applied
         self._foxglove = None
         if v["foxglove_port"]:
@@ -150,11 +158,15 @@ class FieldViewNode(Node):
 
     def _discover(self) -> None:
         graph = self.get_topic_names_and_types()
+        if graph == self._graph:
+            return  # nothing to match again
         with self._lock:
             self._match(graph)
+        self._graph = graph
 
     def _match(self, graph: list[tuple[str, list[str]]]) -> None:
-        team_table = any(topic == contract.BALL_CATCHES.name for topic, _ in graph)
+        names = {topic for topic, _ in graph}
+        team_table, track = contract.BALL_CATCHES.name in names, contract.BALL_TRACK.name in names
         for topic, types in graph:
             if not types:
                 continue
@@ -163,7 +175,7 @@ class FieldViewNode(Node):
             if view_topic(topic) is None:
                 continue
             found = view_topic(topic)[0]
-            if team_table and found in CATCH_TABLE_REPLACES:
+            if (team_table and found in CATCH_TABLE_REPLACES) or (track and found in TRACK_REPLACES):
                 self._unsubscribe(topic)
                 continue
             if topic in self._subs:
@@ -174,13 +186,33 @@ class FieldViewNode(Node):
             depth = 20 if found is contract.SIM_EVENTS else 1
             qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=ReliabilityPolicy.BEST_EFFORT,
                              durability=DurabilityPolicy.VOLATILE)
+            if found in CALLBACK_TOPICS:
+                qos = found.qos if found.qos.durability == DurabilityPolicy.TRANSIENT_LOCAL else qos
+                callback = functools.partial(self._on_rare_message, topic, found.type_name)
+                self._subs[topic] = contract_subscription(self, found, callback, topic, raw=True, qos=qos)
+                self._types[topic] = found.type_name
+                self._rare.add(topic)
+                continue
             sub = contract_subscription(self, found, lambda _msg: None, topic, raw=True, qos=qos)
             self._subs[topic] = sample_only(sub)
-            if depth > 1:
-                self._deep.add(topic)
             if found in VALUE_TOPICS:
                 self._last_value[topic] = b""
             self._types[topic] = found.type_name
+
+    def _on_rare_message(self, topic: str, type_name: str, data: bytes) -> None:
+        """A message of CALLBACK_TOPICS (in the executor's thread): applied now, sent with the next frame."""
+        with self._lock:
+            self._apply(topic, type_name, data)
+            self._rare_applied = True
+
+    def _apply(self, topic: str, type_name: str, data: bytes) -> None:
+        try:
+            msg = decode(type_name, data)
+        except Exception as exc:
+            self._warn.warn(f"decode:{topic}", f"{topic}: undecodable message ({exc})")
+            return
+        if not self._state.apply(topic, msg):
+            self._warn.warn(f"bad:{topic}", f"{topic}: refused (bad numbers, shape or stamp)")
 
     def _unsubscribe(self, topic: str) -> None:
         sub = self._subs.pop(topic, None)
@@ -188,7 +220,7 @@ class FieldViewNode(Node):
             sample_only(sub, False)
             self.destroy_subscription(sub)
             self._types.pop(topic, None)
-            self._deep.discard(topic)
+            self._rare.discard(topic)
             self._last_value.pop(topic, None)
 
     def _tick(self) -> None:
@@ -210,24 +242,17 @@ class FieldViewNode(Node):
         foxglove = self._foxglove is not None and self._foxglove.has_clients()
         if not (pages or foxglove):
             return
-        taken = 0
+        taken, self._rare_applied = int(self._rare_applied), False
         for topic, sub in self._subs.items():
-            if not self._state.takes(topic):
+            if topic in self._rare or not self._state.takes(topic):
                 continue
-            queued = [data for data, _ in take_queued(sub)] if topic in self._deep else _take_newest(sub)
-            for data in queued:
+            for data in _take_newest(sub):
                 if topic in self._last_value:
                     if data == self._last_value[topic]:
                         continue  # the same value again (published with every ball frame)
                     self._last_value[topic] = data
                 taken += 1
-                try:
-                    msg = decode(self._types[topic], data)
-                except Exception as exc:
-                    self._warn.warn(f"decode:{topic}", f"{topic}: undecodable message ({exc})")
-                    continue
-                if not self._state.apply(topic, msg):
-                    self._warn.warn(f"bad:{topic}", f"{topic}: refused (bad numbers, shape or stamp)")
+                self._apply(topic, self._types[topic], data)
         if not taken:
             return  # nothing new: the pages keep the last frame
         if pages:

@@ -61,6 +61,7 @@ class _Client:
         self.busy = False  # a thread is writing to the connection
         self.closed = False
         self.dropped = 0
+        self.replies_waiting = 0  # send_now callers waiting for the connection
 
     def offer(self, item: tuple[bytes, bool]) -> None:
         """Write ``item`` now if that cannot block, else leave it to the sender thread."""
@@ -84,7 +85,7 @@ class _Client:
             return False
         try:
             return int.from_bytes(fcntl.ioctl(self.socket, termios.TIOCOUTQ, b"\0\0\0\0"), "little") == 0
-        except OSError:  # closed meanwhile
+        except (OSError, ValueError):  # closed meanwhile (ValueError: its descriptor is -1 now)
             return False
 
     def _write(self, item: tuple[bytes, bool]) -> None:
@@ -96,13 +97,19 @@ class _Client:
         finally:
             with self.lock:
                 self.busy = False
-                self.lock.notify_all()
+                # wake the sender thread only for a frame it has to write (not after every direct write)
+                if self.pending is not None or self.replies_waiting:
+                    self.lock.notify_all()
 
     def send_now(self, item: tuple[bytes, bool]) -> None:
         """Write ``item`` (a reply) after what is being written, never dropped; blocks only this client's thread."""
         with self.lock:
-            while self.busy and not self.closed:
-                self.lock.wait()
+            self.replies_waiting += 1
+            try:
+                while self.busy and not self.closed:
+                    self.lock.wait()
+            finally:
+                self.replies_waiting -= 1
             if self.closed:
                 return
             self.busy = True
