@@ -5,6 +5,9 @@ each node type is killed (SIGKILL) in turn, ``rounds`` times, and the time from 
 respawned node's output is back and every other node's output came after it (the lockstep loop went
 round: test/faults/faults_support.LaunchedDemo) is reported per node type: every figure, median, max.
 
+``--team``: the 14-robot team_sim.launch.yaml instead (plant, both teams' firmware in one process, predictor,
+opponents' interceptor; the plant at normal priority, as the fault tests run it, not under ``chrt --idle``).
+
 erforce-launch keeps a warm standby per node (imports done, waiting to be activated: README,
 "Self-healing"); before each kill the bench waits until every node's standby is ready, so each figure is a
 take-over by a standby. ``--no-standby`` measures fresh starts instead (erforce-launch --no-standby).
@@ -40,7 +43,13 @@ from pathlib import Path
 from table import markdown_table  # bench/table.py: the shared table format
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test" / "faults"))
-from faults_support import DEMO_LAUNCH, TEAM_SIM_LAUNCH, LaunchedDemo, standbys_ready  # the fault tests' measurement
+from faults_support import (  # the fault tests' measurement
+    DEMO_LAUNCH,
+    TEAM_LOOP_OUTPUTS,
+    TEAM_SIM_LAUNCH,
+    LaunchedDemo,
+    standbys_ready,
+)
 
 from erforce_interfaces.contract import dds_profile_env
 from erforce_interfaces.tools.testing import RosGraph
@@ -110,20 +119,25 @@ def _phases(demo: LaunchedDemo, node: str, t_kill_mono: float, heal_s: float) ->
 
 
 def measure(rounds: int, breakdown: bool = False, respawn_delay_s: float = RESPAWN_DELAY_S,
-            standby: bool = True) -> tuple[dict[str, list[float]], dict[str, list[dict]]]:
+            standby: bool = True, team: bool = False) -> tuple[dict[str, list[float]], dict[str, list[dict]]]:
     # The probe that times the loop announces itself as the nodes do (the test harness's pytest_configure):
     # with Fast DDS's default of 3 s it matched a restarted catcher up to 2 s after the robot's
     # velocity controller did, and the figure was the probe's discovery, not the graph's.
     os.environ.update(dds_profile_env())
-    heal_s: dict[str, list[float]] = {node: [] for node in NODES}
-    phases: dict[str, list[dict]] = {node: [] for node in NODES}
+    nodes = tuple(TEAM_LOOP_OUTPUTS) if team else NODES
+    heal_s: dict[str, list[float]] = {node: [] for node in nodes}
+    phases: dict[str, list[dict]] = {node: [] for node in nodes}
     with RosGraph(Path(tempfile.mkdtemp(prefix="bench-respawn-"))) as graph:
         if breakdown:
             graph.env["PYTHONPATH"] = os.pathsep.join(p for p in (str(TRACE_DIR), graph.env.get("PYTHONPATH")) if p)
-        demo = LaunchedDemo(graph, standby=standby, respawn_delay=f"{respawn_delay_s:g}")
+        if team:  # the 14-robot graph as shipped
+            demo = LaunchedDemo(graph, TEAM_SIM_LAUNCH, TEAM_LOOP_OUTPUTS, standby=standby,
+                                respawn_delay=f"{respawn_delay_s:g}")
+        else:
+            demo = LaunchedDemo(graph, standby=standby, respawn_delay=f"{respawn_delay_s:g}")
         demo.wait_running()
         for _ in range(rounds):
-            for node in NODES:
+            for node in nodes:
                 if standby:
                     demo.wait_standbys_ready()
                     demo.wait_running()
@@ -230,6 +244,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--breakdown", action="store_true",
                         help="also where each restart's time went")
     parser.add_argument("--respawn-delay", type=float, default=RESPAWN_DELAY_S, help="respawn_delay [s] of the launch")
+    parser.add_argument("--team", action="store_true",
+                        help="the 14-robot team_sim.launch.yaml instead of demo.launch.yaml")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     load = os.getloadavg()[0]
@@ -240,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\n(total {time.perf_counter() - t0:.1f} s; load average {load:.1f} at the start)")
         return 0
     with cpu_burner(args.busy):
-        heal_s, phases = measure(rounds, args.breakdown, args.respawn_delay, args.standby)
+        heal_s, phases = measure(rounds, args.breakdown, args.respawn_delay, args.standby, args.team)
     rows = rows_of(heal_s, load, args.busy, args.respawn_delay, args.standby)
     rows += breakdown_rows(phases) if args.breakdown else []
     print("\n".join(markdown_table(rows)))

@@ -433,6 +433,14 @@ LOOP_OUTPUTS = {
     "catcher": (contract.CMD_VEL, contract.CMD_VEL.for_robot(0)),
 }
 
+# The same for team_sim.launch.yaml as shipped (both teams' firmware in one process).
+TEAM_LOOP_OUTPUTS = {
+    "plant": (contract.CLOCK, contract.CLOCK.name),
+    "team_firmware": (contract.TEAM_MOTOR_DUTY, contract.TEAM_MOTOR_DUTY.name),
+    "ball_predictor": (contract.CATCH_TIME, contract.CATCH_TIME.for_robot(0)),
+    "opponent_interceptor": (contract.CMD_VEL, contract.OPPONENTS.topic(contract.CMD_VEL, 0)),
+}
+
 
 def standbys_ready(launch_output: str, node: str | None = None) -> bool:
     """Every process erforce-launch started (``launch_output``), or each one labelled ``node``, has a warm
