@@ -17,7 +17,13 @@ import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
-from erforce_sim.closed_loop.view_server import MAX_REQUEST_BYTES, ViewServer, frame_text
+from erforce_sim.closed_loop.view_server import (
+    DIRECT_WRITE_MAX_BYTES,
+    MAX_REQUEST_BYTES,
+    ViewServer,
+    frame_text,
+    websocket_frame_header,
+)
 
 WEB = Path(__file__).resolve().parents[2] / "src" / "erforce_sim" / "web"
 
@@ -77,6 +83,26 @@ def test_a_frame_given_as_bytes_goes_out_as_a_binary_message(server):
         assert ws.recv(timeout=5) == b"EFV1\x00\xff"
         server.publish(frame_text({"t": 3.0}))
         assert json.loads(ws.recv(timeout=5)) == {"frame": {"t": 3.0}}
+
+
+def test_the_frame_header_written_by_hand_is_rfc_6455s():
+    # FIN + opcode (0x82 binary, 0x81 text), then a 7-bit length, or 126 and a 16-bit big-endian length
+    assert websocket_frame_header(5, text=False) == b"\x82\x05"
+    assert websocket_frame_header(125, text=True) == b"\x81\x7d"
+    assert websocket_frame_header(126, text=False) == b"\x82\x7e\x00\x7e"
+    assert websocket_frame_header(8192, text=False) == b"\x82\x7e\x20\x00"
+
+
+@pytest.mark.parametrize("size", [0, 125, 126, DIRECT_WRITE_MAX_BYTES, DIRECT_WRITE_MAX_BYTES + 1, 70000])
+def test_frames_of_every_header_length_arrive_whole(server, size):
+    # up to DIRECT_WRITE_MAX_BYTES the caller writes the frame itself, beyond it the sender thread
+    payload = bytes(k % 251 for k in range(size))
+    with connect(ws_url(server), open_timeout=5, max_size=None) as ws:
+        wait_until(lambda: server.client_count >= 1)
+        server.publish(payload)
+        assert ws.recv(timeout=5) == payload
+        server.publish(frame_text({"t": 2.0}))
+        assert json.loads(ws.recv(timeout=5)) == {"frame": {"t": 2.0}}
 
 
 def test_on_tick_runs_every_period_in_the_servers_thread_and_a_failing_tick_does_not_stop_it():

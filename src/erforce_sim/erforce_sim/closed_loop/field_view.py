@@ -299,8 +299,8 @@ class WorldState:
             self.phase, self.uncertain = track.phase, track.uncertain
             self._meta_serial += 1
         self.v_shoot_mps = track.v_shoot_mps  # before the speed model, which starts from it
-        self.ball_seen = _wire((track.seen_x_m, track.seen_y_m))
-        self.ball_state = _wire((track.x_m, track.y_m, track.vx_mps, track.vy_mps))
+        self.ball_seen = [round(track.seen_x_m, 4), round(track.seen_y_m, 4)]  # (as _wire: floats already)
+        self.ball_state = [round(track.x_m, 4), round(track.y_m, 4), round(track.vx_mps, 4), round(track.vy_mps, 4)]
         self.ball_state_t_s = track.t_s
         self._update_speed_model(track.t_s)
 
@@ -311,7 +311,7 @@ class WorldState:
         header, count = self._catch_layout
         if isinstance(msg, bytes) and count and msg.startswith(header) and 0 <= len(msg) - len(header) - 8 * count < 8:
             values = np.frombuffer(msg, "<f8", count, len(header))
-            if np.isfinite(values).all() and np.abs(values).max() <= 1.0e9:
+            if np.abs(values).max() <= 1.0e9:  # False for NaN
                 return values.reshape(-1, len(contract.CATCH_TABLE_COLUMNS))
         table = table_from_msg(msg, contract.CATCH_TABLE_COLUMNS)  # raises with the reason
         if isinstance(msg, bytes) and table.size:
@@ -324,16 +324,18 @@ class WorldState:
     def _apply_catch_table(self, table: np.ndarray) -> None:
         """Both teams at one ball frame (contract.CATCH_TABLE_COLUMNS): their robots are fresh now."""
         layout = self._catch_ids
-        if layout is None or table[:, :2].tobytes() != layout.ids_bytes:
+        new_layout = layout is None or table[:, :2].tobytes() != layout.ids_bytes
+        if new_layout:
             layout = self._catch_ids = _CatchIds(table[:, :2], self.opponent_ids, self.team_ids)
         keys = layout.keys
         if self._pending_table is not None and self._pending_table[2] is not keys \
                 and not set(self._pending_table[2]).issubset(keys):
             self._settle_table()  # the one before, for its robots this one does not list
-        robots = self.robots
-        for key in keys:
-            if key not in robots:
-                robots[key] = RobotView(key)
+        if new_layout:  # (a robot's view, once made, stays)
+            robots = self.robots
+            for key in keys:
+                if key not in robots:
+                    robots[key] = RobotView(key)
         self._pending_table = (np.round(table[:, 1:], 4), self.t_s, keys)
 
     def _apply_robot(self, name: str, topic: contract.Topic, robot: RobotView, msg: Any) -> None:
@@ -580,23 +582,24 @@ class WorldState:
         layout = self._catch_ids
         if layout.order is not None:
             rows = rows[layout.order]
-        catch_s = rows[:, 6]
-        self.receiver = team_receiver(dict(zip(layout.receiver_ids, catch_s[layout.receiver_rows].tolist(),
-                                               strict=True)), self.receiver, RECEIVER_SWITCH_MARGIN_S)
+        catch_s = rows[:, 6].tolist()
+        self.receiver = team_receiver({layout.sorted_keys[k]: catch_s[k] for k in layout.receiver_rows},
+                                      self.receiver, RECEIVER_SWITCH_MARGIN_S)
         receiver = None
         if self.receiver is not None:
-            row = rows[layout.sorted_keys.index(self.receiver)]
-            receiver = (self.receiver, [float(row[7]), float(row[8])], float(row[6]))
+            k = layout.sorted_keys.index(self.receiver)
+            receiver = (self.receiver, rows[k, 7:9].tolist(), catch_s[k])
         if t_s < self.t_s - ROBOT_STALE_S:
             return receiver, np.empty(0, np.float32), 0, len(ROBOT_COLUMNS)
-        cells = np.zeros((len(rows), len(ROBOT_COLUMNS)), np.float32)
-        cells[:, 0] = layout.kinds
-        cells[:, 1:5] = rows[:, 0:4]
+        # as few numpy calls as can be (each costs more than its work on 22 rows): the table's columns id ..
+        # catch_y land on the cells' id .. catch_y at once, then the speed and truth columns get theirs
+        cells = layout.cells.copy()  # kinds set, the rest 0
+        cells[:, 1:10] = rows
         cells[:, 5] = np.round(np.hypot(rows[:, 4], rows[:, 5]), 4)
-        never = catch_s < 0.0
-        cells[:, 7] = np.where(never, contract.CATCH_TIME_NEVER, catch_s)
-        cells[:, 8:10] = rows[:, 7:9]
-        cells[never, 8:10] = np.nan
+        cells[:, 6] = 0.0
+        if min(catch_s) < 0.0:
+            never = rows[:, 6] < 0.0
+            cells[never, 7:10] = (contract.CATCH_TIME_NEVER, np.nan, np.nan)
         return receiver, cells, len(rows), len(ROBOT_COLUMNS)
 
     def _meta_json(self) -> bytes:
@@ -628,6 +631,8 @@ class _CatchIds:
         self.sorted_keys = [self.keys[k] for k in order]
         self.kinds = np.array([2 if isinstance(i, str) else 1 if i in opponent_ids else 0 for i in self.sorted_keys],
                               np.float32)
+        self.cells = np.zeros((len(self.keys), len(ROBOT_COLUMNS)), np.float32)
+        self.cells[:, 0] = self.kinds
         self.receiver_rows = [k for k, i in enumerate(self.sorted_keys) if isinstance(i, int)
                               and i not in opponent_ids and (not team_ids or i in team_ids)]
         self.receiver_ids = [self.sorted_keys[k] for k in self.receiver_rows]
