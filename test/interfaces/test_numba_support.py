@@ -34,3 +34,24 @@ print("ok")
 def test_kernels_load_without_scipy_linalg_and_blas_kernels_still_compile():
     out = subprocess.run([sys.executable, "-c", FRESH], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr[-3000:]
+
+
+def test_compiled_for_calls_the_kernel_for_those_types_and_updates_arrays_in_place():
+    import numpy as np
+
+    from erforce_interfaces.numba_support import compiled_for, numba
+
+    @numba.njit(cache=False)
+    def scaled_sum(rows, values, factor, out):
+        total = 0.0
+        for r in rows:
+            out[r] = values[r] * factor
+            total += out[r]
+        return total
+
+    values, out = np.array([1.0, 2.0, 4.0]), np.zeros(3)
+    kernel = compiled_for(scaled_sum, np.zeros(0, dtype=np.int64), values, 1.0, out)
+    assert len(scaled_sum.signatures) == 1  # compiled once, for those types
+    assert kernel(np.array([0, 2]), values, 0.5, out) == 2.5  # 0.5 + 2.0
+    assert out.tolist() == [0.5, 0.0, 2.0]
+    assert compiled_for(scaled_sum, np.zeros(0, dtype=np.int64), values, 1.0, out) is kernel  # no second compile

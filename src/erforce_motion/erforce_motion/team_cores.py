@@ -21,7 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from erforce_interfaces.numba_support import numba
+from erforce_interfaces.numba_support import compiled_for, numba
 from erforce_interfaces.robot_config import RobotConfig
 from erforce_motion.firmware import _TICK_TOLERANCE_S, _check_period
 from erforce_motion.kinematics import OmniKinematics
@@ -466,8 +466,10 @@ class TeamFirmware:
             self._speed_prm, self._speed_flags, self._current_prm, self._current_flags, self._thermal_prm,
             self._actuator_prm, self.main_notice, self.motor_notice)
         # Load the compiled kernel now (numba's disk cache; a compile after a code change), not at the first
-        # sensor tick: a node answers its first lockstep tick in time. No robot ticks here.
-        self.tick(0.0, self.duty, self.duty, robots=np.zeros(0, dtype=np.int64))
+        # sensor tick: a node answers its first lockstep tick in time. tick passes exactly these types
+        # (C-contiguous int64 rows, float64 times and sensors) to the compiled function.
+        self._kernel = compiled_for(_team_tick, np.zeros(0, dtype=np.int64), np.zeros(0), self.duty, self.duty,
+                                    *self._kernel_args)
 
     # ------------------------------------------------------------------ radio side
     def command(self, robot: int, twist) -> None:
@@ -521,6 +523,7 @@ class TeamFirmware:
             active = np.asarray(robots, dtype=np.int64)
             if active.ndim != 1 or (active.size and not 0 <= active.min() <= active.max() < self.n_robots):
                 raise ValueError(f"robots: need row indices in [0, {self.n_robots - 1}], got {robots!r}")
+            active = np.ascontiguousarray(active)
             rows_w, rows_i = wheel_speeds_radps[active], currents_a[active]
         if isinstance(t_s, float | int):
             t = np.full(active.shape, float(t_s))
@@ -533,7 +536,7 @@ class TeamFirmware:
             raise ValueError(f"sensors: need {shape} arrays, got {w.shape} and {cur.shape}")
         if not (np.isfinite(t).all() and np.isfinite(rows_w).all() and np.isfinite(rows_i).all()):
             raise ValueError("tick: times, wheel speeds and currents must be finite")
-        _team_tick(active, t, w, cur, *self._kernel_args)
+        self._kernel(active, t, w, cur, *self._kernel_args)
         return self.duty
 
     # ------------------------------------------------------------------ status

@@ -155,6 +155,7 @@ class TeamFirmwareNode(Node):
                                       lambda m, link=link: self._on_team_wheel_states(link, m),
                                       link.states_name, raw=True)
         self._clock_subs = sample_clock(self)
+        self._first_link = next(iter(self._links.values()), None)
         hosted = "; ".join(f"{link.team.name}, robots {sorted(link.robots)}" for link in self._links.values())
         self.get_logger().info(f"team_firmware: {hosted}, {self._values['lockstep_topics']} lockstep topics")
         self._params.on_change(self._apply)
@@ -199,7 +200,8 @@ class TeamFirmwareNode(Node):
 
     def _on_team_wheel_states(self, link: _TeamLink, msg: bytes) -> None:
         """One tick of every robot of the team's message that this process runs; one answer for all of them."""
-        run_sampled(self._clock_subs)
+        if link is self._first_link:  # /clock (for the logs' time) once per tick, not once per team message
+            run_sampled(self._clock_subs)
         firmware = self._firmware
         try:
             t_ns, ids, (speeds, currents) = team_joint_state_from_msg(msg, firmware.num_wheels, ("velocity", "effort"),

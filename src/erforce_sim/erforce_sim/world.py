@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from erforce_interfaces.numba_support import numba
+from erforce_interfaces.numba_support import compiled_for, numba
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_interfaces.ssl_vision import OUR_TEAM_COLOR
 from erforce_interfaces.ssl_vision import TEAMS as SSL_TEAMS
@@ -268,11 +268,13 @@ class World:
         self._any_dribbler = False
         self._any_armed = False
         self._sample_light_barriers()
-        # load the compiled kernels now rather than in the first step (no robot is moved here)
-        advance_robots(np.zeros(0, dtype=np.int64), 1, 1e-4, np.zeros((0, 3)), np.zeros((0, 15)), self._num_wheels,
-                       self._sin_a, self._cos_a, self._duty, self._wheel_w, self._current, self._i2, self._body)
-        _thermal_step(self._temp[:0], self._i2[:0], self._resistance, self._ambient, self._thermal_r,
-                      np.ones((0, 1)), 1e-3)
+        # load the compiled kernels now rather than in the first step, for exactly the argument types step
+        # passes (C-contiguous int64 rows and float64 arrays, int substep count, float times)
+        self._advance_robots = compiled_for(
+            advance_robots, np.zeros(0, dtype=np.int64), 1, 1e-4, np.zeros((0, 3)), np.zeros((0, 15)),
+            self._num_wheels, self._sin_a, self._cos_a, self._duty, self._wheel_w, self._current, self._i2, self._body)
+        self._thermal_step = compiled_for(_thermal_step, self._temp, self._i2, self._resistance, self._ambient,
+                                          self._thermal_r, np.ones((0, 1)), 1e-3)
 
     # ------------------------------------------------------------------ basics
     @property
@@ -549,8 +551,8 @@ class World:
             end = n if j_cap > n else max(j_cap, done + 1)
             m = end - done
             if free.size:
-                advance_robots(free, m, h, factors, consts, self._num_wheels, self._sin_a, self._cos_a, self._duty,
-                               self._wheel_w, self._current, self._i2, self._body)
+                self._advance_robots(free, m, h, factors, consts, self._num_wheels, self._sin_a, self._cos_a,
+                                     self._duty, self._wheel_w, self._current, self._i2, self._body)
             for rb, (decay, mean_factor, c_eff) in free_rigs:
                 rb.advance(m, h, decay, mean_factor, c_eff)
             if not ball_involved:
@@ -589,7 +591,7 @@ class World:
             if len(self._thermal_cache) > 64:
                 self._thermal_cache.clear()
             self._thermal_cache[dt] = decay
-        _thermal_step(self._temp, self._i2, self._resistance, self._ambient, self._thermal_r, decay, dt)
+        self._thermal_step(self._temp, self._i2, self._resistance, self._ambient, self._thermal_r, decay, dt)
 
     def _contact_candidates(self, dt: float) -> tuple[bool, list[int], list[tuple[int, int]], list[int]]:
         """Contacts possible within dt: (ball-wall, robots near a wall, robot pairs, robots near the ball)."""
