@@ -110,11 +110,15 @@ class _Client:
         except (ConnectionClosed, OSError):
             self.close()
         finally:
-            with self.lock:
-                self.busy = False
-                # wake the sender thread only for a frame it has to write (not after every direct write)
-                if self.pending is not None or self.replies_waiting:
-                    self.lock.notify_all()
+            self._release()
+
+    def _release(self) -> None:
+        """Give up ``busy``; wake the sender thread only for a frame or reply it has to write (not after
+        every direct write)."""
+        with self.lock:
+            self.busy = False
+            if self.pending is not None or self.replies_waiting:
+                self.lock.notify_all()
 
     def _write_framed(self, item: tuple[bytes, bool]) -> None:
         """As ``_write``, for a frame that fits in the empty socket buffer: one write of the websocket frame
@@ -130,10 +134,7 @@ class _Client:
         except (ConnectionClosed, OSError):
             self.close()
         finally:
-            with self.lock:
-                self.busy = False
-                if self.pending is not None or self.replies_waiting:
-                    self.lock.notify_all()
+            self._release()
 
     def send_now(self, item: tuple[bytes, bool]) -> None:
         """Write ``item`` (a reply) after what is being written, never dropped; blocks only this client's thread."""
