@@ -80,6 +80,25 @@ def drive(graph, client, data, condition, timeout_s, what):
         graph.probe.spin_for(0.05)
 
 
+def at_rest_for(truth: list[Odometry], duration_s: float, near_x: float | None = None) -> bool:
+    """The newest ground-truth messages cover ``duration_s`` of simulated time with the robot still
+    (and, with ``near_x``, within 5 cm of that x) throughout."""
+    if not truth:
+        return False
+    t_end = stamp_s(truth[-1])
+    for m in reversed(truth):
+        still = math.hypot(m.twist.twist.linear.x, m.twist.twist.linear.y) < 0.02
+        if not still or (near_x is not None and abs(m.pose.pose.position.x - near_x) >= 0.05):
+            return False
+        if t_end - stamp_s(m) >= duration_s:
+            return True
+    return False
+
+
+def stamp_s(msg: Odometry) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
 def test_a_protocol_client_drives_and_places_our_plant(ros_graph):
     robot_port, control_port = free_udp_ports(2)
     ros_graph.start_launch(LAUNCH)
@@ -101,16 +120,14 @@ def test_a_protocol_client_drives_and_places_our_plant(ros_graph):
     assert [f.id for f in fb.feedback] == [0] and fb.feedback[0].HasField("dribbler_ball_contact")
     assert not fb.errors
 
+    # Stop first: a teleport zeroes the robot's speed but not its controller's setpoint ramp, which would
+    # drive it on along its new heading.
+    drive(ros_graph, client, client.local(0, 0.0), lambda: at_rest_for(truth, 0.3), 30.0, "robot_0 stopping")
+
     # teleport the robot to face +y, then a global velocity along +x moves it sideways in its own frame
     reply = client.ask(ssl_sim.encode_teleport(None, [("yellow", 0, -1.0, 0.0, math.pi / 2)]), client.control_addr)
     assert ssl_sim.decode_simulator_response(reply) == ()
-
-    def settled_at_teleport() -> bool:
-        m = truth[-1]
-        return abs(m.pose.pose.position.x + 1.0) < 0.05 and math.hypot(m.twist.twist.linear.x,
-                                                                       m.twist.twist.linear.y) < 0.02
-
-    probe.spin_until(settled_at_teleport, 20.0, "the robot teleported and at rest")
+    probe.spin_until(lambda: at_rest_for(truth, 0.3, near_x=-1.0), 20.0, "the robot teleported and at rest")
     x0, y0 = truth[-1].pose.pose.position.x, truth[-1].pose.pose.position.y
     glob = ssl_simulation_robot_control_pb2.RobotControl()
     g = glob.robot_commands.add(id=0).move_command.global_velocity
