@@ -26,7 +26,6 @@ import sys
 import time
 
 import numpy as np
-from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64
 from table import bench_main  # bench/table.py: the shared table format
@@ -36,7 +35,6 @@ from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import vision_robots_cdr
 from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.tools.messages import point_msg
 from erforce_interfaces.tools.testing import RosGraph
 
 NUM_ROBOTS = 22
@@ -119,7 +117,6 @@ def measure(num_frames: int) -> dict:
             q.CATCH_TIME.qos)
         probe.node.create_subscription(Odometry, q.ODOM.for_robot(NUM_ROBOTS - 1),
                                        lambda _m: odom_rx.append(time.perf_counter()), q.ODOM.qos)
-        ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=30.0, qos=q.VISION_BALL.qos)
         robots_pub = probe.wait_for_subscribers(q.VISION_ROBOTS.name, q.VISION_ROBOTS.msg_type, timeout_s=30.0,
                                                 qos=q.VISION_ROBOTS.qos)
         readers = [s for s in probe.node.subscriptions if s.topic_name.startswith(("/ball/", "/robot_"))]
@@ -128,8 +125,6 @@ def measure(num_frames: int) -> dict:
 
         robots_pub.publish(vision_robots_cdr(0.5, [(q.OURS.code, i, x, y, 0.0) for i, (x, y) in enumerate(robots)]))
         probe.spin_until(lambda: len(odom_rx) > 0, 10.0, "robot odometry")
-        probe.node.destroy_publisher(robots_pub)  # keep the probe's wait set small: it is part of what is measured
-        probe._publishers = {k: v for k, v in probe._publishers.items() if v is not robots_pub}
 
         latency_state, latency_catch, latency_published, lost = [], [], [], 0
         period = 1.0 / FPS
@@ -141,7 +136,7 @@ def measure(num_frames: int) -> dict:
             while time.perf_counter() < next_send:
                 probe.executor.spin_once(timeout_sec=max(0.0, next_send - time.perf_counter()))
             sent_ns, sent = time.time_ns(), time.perf_counter()
-            ball_pub.publish(point_msg(t, (x, y)))
+            robots_pub.publish(vision_robots_cdr(t, [], balls=[(x, y)]))  # a frame of the ball alone
             next_send = sent + period
             try:
                 probe.spin_until(lambda n=n_catch, m=n_state: len(catch_rx) > n and len(state_rx) > m, 2.0,

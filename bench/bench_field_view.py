@@ -30,7 +30,6 @@ import threading
 import time
 
 import numpy as np
-from geometry_msgs.msg import PointStamped
 from std_msgs.msg import Float64
 from table import bench_main  # bench/table.py: the shared table format
 
@@ -42,7 +41,6 @@ from erforce_interfaces.conversions import (
     vision_robots_cdr,
 )
 from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.tools.messages import point_msg
 from erforce_interfaces.tools.testing import RosGraph, stop_process
 from erforce_sim.closed_loop.field_view import WorldState, decode_frame_bytes
 from erforce_sim.closed_loop.field_view_node import web_dir
@@ -174,7 +172,6 @@ def measure_graph(frames_per_block: int, pairs: int, num_robots: int = NUM_ROBOT
         last = q.CATCH_TIME.for_robot(num_robots - 1)
         probe.node.create_subscription(Float64, last, lambda _m, info: catch_rx.append(info["source_timestamp"]),
                                        q.CATCH_TIME.qos)
-        ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=120.0, qos=q.VISION_BALL.qos)
         robots_pub = probe.wait_for_subscribers(q.VISION_ROBOTS.name, q.VISION_ROBOTS.msg_type, timeout_s=120.0,
                                                 qos=q.VISION_ROBOTS.qos)
         readers = [s for s in probe.node.subscriptions if s.topic_name.startswith("/robot_")]
@@ -189,10 +186,9 @@ def measure_graph(frames_per_block: int, pairs: int, num_robots: int = NUM_ROBOT
                 n = len(catch_rx)
                 while time.perf_counter() < next_send:
                     probe.executor.spin_once(timeout_sec=max(0.0, next_send - time.perf_counter()))
-                robots_pub.publish(vision_robots_cdr(t, [(q.OURS.code, i, rx, ry, 0.0)
-                                                         for i, (rx, ry) in enumerate(robots)]))
                 sent_ns = time.time_ns()
-                ball_pub.publish(point_msg(t, (x, y)))
+                robots_pub.publish(vision_robots_cdr(t, [(q.OURS.code, i, rx, ry, 0.0)
+                                                         for i, (rx, ry) in enumerate(robots)], balls=[(x, y)]))
                 next_send = time.perf_counter() + 1.0 / FPS
                 try:
                     probe.spin_until(lambda n=n: len(catch_rx) > n, 2.0, "catch time")

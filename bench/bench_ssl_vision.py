@@ -5,10 +5,10 @@ over loopback multicast (TTL 0), 22 robots moving through the views, 1-3 ball ca
 datagram (the ball where a camera sees it, reflections elsewhere). The bridge node (its own
 process, private DDS domain) logs its counts and its CPU time per datagram (decoding, vision
 clock, tracker, conversion and publishing: thread CPU time) every second; the bench reads them.
-A reader process subscribes to what the stack reads of the bridge (the ball predictor: /vision/ball
-and /vision/robots, one message per camera frame for both teams), or with ``--readers all`` also to
-the 22 robots' own vision_pose topics, or with ``--readers none`` to nothing: the bridge publishes a
-robot's vision_pose only while its topic has a reader.
+A reader process subscribes to what the stack reads of the bridge (the ball predictor: /vision/robots,
+one message per camera frame with its ball and both teams), or with ``--readers all`` also to /vision/ball and
+the 22 robots' own vision_pose topics, or with ``--readers none`` to nothing: the bridge publishes
+/vision/ball and a robot's vision_pose only while the topic has a reader.
 ``python bench/bench_ssl_vision.py [--quick] [--readers ours|all|none]``
 """
 
@@ -78,8 +78,9 @@ READER = textwrap.dedent("""
 def reader_topics(readers: str) -> list[str]:
     if readers == "none":
         return []
-    topics = [contract.VISION_BALL.name, contract.VISION_ROBOTS.name]
+    topics = [contract.VISION_ROBOTS.name]
     if readers == "all":
+        topics += [contract.VISION_BALL.name]
         topics += [contract.VISION_POSE.for_robot(i) for i in range(11)]
         topics += [contract.opponent_topic(contract.VISION_POSE, i) for i in range(11)]
     return topics

@@ -80,17 +80,13 @@ def stamp_s(msg):
 
 
 def ball_msg(t_s, x, y):
-    msg = PointStamped()  # built by hand: the conversions would refuse NaN
-    ns = round(t_s * 1e9)
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
-    msg.header.frame_id = contract.FIELD_FRAME
-    msg.point.x, msg.point.y = float(x), float(y)
-    return msg
+    return robots_msg(t_s, [(0.0, 0.0, float(x), float(y), 0.0)])
 
 
 def robots_msg(t_s, rows):
     """/vision/robots built by hand from the contract's description (the conversions would refuse NaN):
-    rows of (team code, robot id, x, y, yaw) become points of float64 x, y, z, yaw, team, robot_id."""
+    rows of (team code, robot id, x, y, yaw) become points of float64 x, y, z, yaw, team, robot_id (the ball:
+    team code 0, id and yaw 0)."""
     msg = PointCloud2()
     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(round(t_s * 1e9), 10**9)
     msg.header.frame_id = contract.FIELD_FRAME
@@ -127,10 +123,9 @@ class Rig:
         self.odom = [probe.subscribe(team.topic(q.ODOM, i), Odometry, q.ODOM.qos) for team, i in robots]
         self.catches = probe.subscribe(q.BALL_CATCHES.name, Float64MultiArray, q.BALL_CATCHES.qos)
         self.track = probe.subscribe(q.BALL_TRACK.name, PointCloud2, q.BALL_TRACK.qos)
-        self.ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, timeout_s=20.0,
-                                                   qos=q.VISION_BALL.qos)
         self.robots_pub = probe.wait_for_subscribers(q.VISION_ROBOTS.name, PointCloud2, timeout_s=20.0,
                                                      qos=q.VISION_ROBOTS.qos)
+        self.ball_pub = self.robots_pub  # a frame of the ball alone
         # Our readers must have matched the node's writers, or the first answers are lost.
         readers = [s for s in probe.node.subscriptions if s.topic_name.startswith(("/ball/", "/robot_", "/opponent_"))]
         probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 20.0, "node publishers")
@@ -355,7 +350,7 @@ def test_bad_observations_are_dropped_with_a_warning_and_nothing_non_finite_is_p
     rig.ball(1.00, 0.0, 0.0)
     rig.ball(1.01, 0.0, 0.0)
     rig.ball(1.02, math.nan, 0.0, answered=False)
-    rig.node.wait_for_output("rejected vision/ball: point.x is not finite", timeout_s=5.0)
+    rig.node.wait_for_output("rejected vision/robots: ball: x is not finite", timeout_s=5.0)
     rig.ball(1.03, 0.0, math.inf, answered=False)
     rig.ball(1.04, 1e9, 0.0, answered=False)
     rig.ball(1.05, 9.0, 0.0, answered=False)  # division_b: |x| <= 4.5 + 0.5

@@ -8,7 +8,6 @@ import struct
 import numpy as np
 import pytest
 from faults_support import ClosedLoop, bad_times, closes_the_loop
-from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
@@ -56,26 +55,23 @@ def test_bad_clocks_and_stamps_are_dropped_by_every_node_and_the_loop_still_clos
 
     wheels = [f"wheel_{i}" for i in range(4)]
     loop.watch.paused.update({"/robot_0/wheel_states", "/robot_0/wheel_setpoints", "/robot_0/motor_duty",
-                              "/robot_0/odom", "/vision/ball", "/ball/model_params"})
+                              "/robot_0/odom", "/vision/robots", "/ball/model_params"})
     send("/robot_0/wheel_states", JointState, joint_states(wheels, "velocity"), contract.QOS_CONTROL, 2)
     send("/robot_0/wheel_setpoints", JointState, joint_states(wheels, "velocity"), contract.QOS_CONTROL)
     send("/robot_0/motor_duty", JointState, joint_states(wheels, "effort"), contract.QOS_CONTROL)
-    balls, poses, odoms = [], [], []
+    frames, odoms = [], []
     for t in bad_times(loop.sim_s()):
-        ball = PointStamped()
-        ball.header.stamp, ball.header.frame_id = t, contract.FIELD_FRAME
-        pose = PointCloud2(height=1, width=1, point_step=48, row_step=48, is_dense=True)  # robot_0 at the origin
-        pose.header.stamp, pose.header.frame_id = t, contract.FIELD_FRAME
-        pose.fields = [PointField(name=name, offset=8 * k, datatype=PointField.FLOAT64, count=1)
-                       for k, name in enumerate(contract.VISION_ROBOT_FIELDS)]
-        pose.data = struct.pack("<6d", 0.0, 0.0, 0.0, 0.0, contract.OURS.code, 0.0)
+        frame = PointCloud2(height=1, width=2, point_step=48, row_step=96, is_dense=True)
+        frame.header.stamp, frame.header.frame_id = t, contract.FIELD_FRAME
+        frame.fields = [PointField(name=name, offset=8 * k, datatype=PointField.FLOAT64, count=1)
+                        for k, name in enumerate(contract.VISION_ROBOT_FIELDS)]
+        frame.data = (struct.pack("<6d", 0.0, 0.0, 0.0, 0.0, contract.VISION_BALL_CODE, 0.0)  # the ball and robot_0
+                      + struct.pack("<6d", 0.0, 0.0, 0.0, 0.0, contract.OURS.code, 0.0))  # at the origin
         odom = Odometry()
         odom.header.stamp, odom.pose.pose.orientation.w = t, 1.0
-        balls.append(ball)
-        poses.append(pose)
+        frames.append(frame)
         odoms.append(odom)
-    send("/vision/ball", PointStamped, balls, contract.QOS_SENSOR)
-    send("/vision/robots", PointCloud2, poses, contract.QOS_SENSOR)
+    send("/vision/robots", PointCloud2, frames, contract.QOS_SENSOR)
     send("/robot_0/odom", Odometry, odoms, contract.QOS_STATE)
     # not time, but the other single message that killed the catcher: 4 columns under the right label
     table = Float64MultiArray(data=[-2.5, -0.3, 0.6, 1.0] * 3)

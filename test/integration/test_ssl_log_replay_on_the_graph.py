@@ -39,7 +39,7 @@ def test_a_replayed_plant_log_drives_the_ball_predictor(ros_graph, tmp_path):
     states = probe.subscribe(contract.BALL_STATE.name, Odometry, contract.BALL_STATE.qos)
     model = probe.subscribe(contract.VISION_BALL_MODEL.name, Float64MultiArray, contract.VISION_BALL_MODEL.qos)
     bridge.wait_for_output("ssl_vision_bridge: 224.5.23.2:", timeout_s=30.0)
-    probe.spin_until(lambda: probe.node.count_subscribers(contract.VISION_BALL.name) > 0, 30.0,
+    probe.spin_until(lambda: probe.node.count_subscribers(contract.VISION_ROBOTS.name) > 0, 30.0,
                      "the ball predictor's vision subscription")
 
     replay = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.ssl_log_replay", str(log), "--quiet",

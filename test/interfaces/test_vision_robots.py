@@ -54,11 +54,37 @@ def cloud(t_s, points, fields=FIELD_NAMES, frame=c.FIELD_FRAME, **overrides):
     return msg
 
 
+# The same frame with its ball at (0.25, -1.0) as the first point (team 0, yaw and robot_id 0): width 3, row_step and
+# data length 144.
+HAND_BALL = (HAND[:28] + struct.pack("<I", 3) + HAND[32:176] + struct.pack("<II", 144, 144)
+             + struct.pack("<6d", 0.25, -1.0, 0.0, 0.0, 0.0, 0.0) + HAND[184:])
+
+
 def test_the_topic_and_its_fields_are_in_the_contract():
     assert c.VISION_ROBOTS.name == "/vision/robots" and c.VISION_ROBOTS.msg_type is PointCloud2
     assert c.VISION_ROBOTS.qos is c.QOS_SENSOR and c.VISION_ROBOT_FIELDS == FIELD_NAMES
     assert c.topic_of_name("/vision/robots") is c.VISION_ROBOTS
-    assert (c.OURS.code, c.OPPONENTS.code) == (1.0, 2.0)
+    assert (c.OURS.code, c.OPPONENTS.code, c.VISION_BALL_CODE) == (1.0, 2.0, 0.0)
+
+
+def test_a_frame_with_its_ball_matches_a_hand_made_layout_and_reads_back():
+    assert len(HAND_BALL) == len(HAND) + 48
+    assert conv.vision_robots_cdr(7.25, ROWS, balls=[(0.25, -1.0)]) == HAND_BALL
+    points = np.array([[0.25, -1.0, 0.0, 0.0, 0.0, 0.0], [1.5, -2.0, 0.0, 0.5, 1.0, 3.0],
+                       [-4.0, 3.0, 0.0, 4.0 - 2.0 * math.pi, 2.0, 0.0]])
+    assert conv.vision_robots_points_cdr(7.25, points) == HAND_BALL
+    for form in (HAND_BALL, deserialize_message(HAND_BALL, PointCloud2)):
+        t_s, balls, rows = conv.vision_frame_from_msg(form)
+        assert t_s == 7.25 and balls.tolist() == [[0.25, -1.0]] and rows.tolist() == ROWS_READ
+        assert conv.vision_robots_from_msg(form)[1].tolist() == ROWS_READ  # a reader of robots skips the ball
+    t_s, balls, rows = conv.vision_frame_from_msg(conv.vision_robots_cdr(1.0, [], balls=[(-3.0, 2.0)]))
+    assert balls.tolist() == [[-3.0, 2.0]] and rows.shape == (0, 5)
+    assert conv.vision_frame_from_msg(HAND)[1].shape == (0, 2)
+    for bad in ((math.nan, 0.0), (0.0, 2e3)):
+        with pytest.raises(conv.ConversionError, match="ball: "):
+            conv.vision_robots_cdr(1.0, ROWS, balls=[bad])
+        with pytest.raises(conv.ConversionError, match="ball: "):
+            conv.vision_frame_from_msg(cloud(1.0, [(*bad, 0.0, 0.0, 0.0, 0.0)]))
 
 
 def test_bytes_match_a_hand_made_layout_and_read_back():
@@ -139,7 +165,7 @@ def test_message_and_bytes_are_read_alike_or_refused_alike(points, sec, nanosec,
 
 def test_the_builder_refuses_what_the_reader_refuses():
     good = (1.0, 3.0, 1.5, -2.0, 0.5)
-    for k, bad in ((2, math.nan), (2, math.inf), (3, 2e3), (4, math.nan), (0, 0.0), (0, 3.0), (1, -1.0), (1, 1.5),
+    for k, bad in ((2, math.nan), (2, math.inf), (3, 2e3), (4, math.nan), (0, 3.0), (1, -1.0), (1, 1.5),
                    (1, math.nan)):
         row = list(good)
         row[k] = bad
@@ -148,6 +174,8 @@ def test_the_builder_refuses_what_the_reader_refuses():
         point = [row[2], row[3], 0.0, row[4], row[0], row[1]]
         with pytest.raises(conv.ConversionError, match="robot 0: "):
             conv.vision_robots_from_msg(cloud(1.0, [point]))
+    with pytest.raises(conv.ConversionError, match="robot 0: team"):  # a ball is no robot row: balls= takes it
+        conv.vision_robots_cdr(1.0, [(0.0, 0.0, 1.5, -2.0, 0.0)])
     with pytest.raises(conv.ConversionError, match="stamp"):
         conv.vision_robots_cdr(-1.0, [good])
 

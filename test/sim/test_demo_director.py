@@ -12,11 +12,13 @@ import time
 import pytest
 from geometry_msgs.msg import PointStamped
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Bool, Float64
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     nanoseconds_to_stamp,
+    vision_robots_cdr,
 )
 from erforce_interfaces.executor import DirectExecutor
 from erforce_interfaces.robot_config import RobotConfig
@@ -36,7 +38,7 @@ def test_a_late_pump_replays_in_send_order():
             q = contract
             clock = node.create_publisher(Clock, q.CLOCK.name, q.QOS_CLOCK)
             barrier = node.create_publisher(Bool, q.BALL_DETECTED.for_robot(RECEIVER), q.BALL_DETECTED.qos)
-            vision = node.create_publisher(PointStamped, q.VISION_BALL.name, q.VISION_BALL.qos)
+            vision = node.create_publisher(PointCloud2, q.VISION_ROBOTS.name, q.VISION_ROBOTS.qos)
             catch_time = node.create_publisher(Float64, q.CATCH_TIME.for_robot(RECEIVER), q.CATCH_TIME.qos)
             catch_point = node.create_publisher(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos)
             publishers = (clock, barrier, vision, catch_time, catch_point)
@@ -52,7 +54,7 @@ def test_a_late_pump_replays_in_send_order():
             barrier.publish(Bool(data=True))  # edge at 1.00 s
             tick(1_010_000_000)
             barrier.publish(Bool(data=False))
-            vision.publish(point_msg(1.015, (0.0, 0.0)))
+            vision.publish(vision_robots_cdr(1.015, [], balls=[(0.0, 0.0)]))
             catch_time.publish(Float64(data=0.5))
             catch_point.publish(point_msg(1.015, (1.0, 0.0)))
             tick(1_020_000_000)

@@ -21,7 +21,8 @@ from erforce_interfaces.conversions import (
     pose2d_from_msg,
     table_from_msg,
     table_msg,
-    vision_robots_from_msg,
+    vision_frame_from_msg,
+    vision_robots_cdr,
 )
 from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
 from erforce_interfaces.ssl_vision import (
@@ -34,7 +35,6 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
-from erforce_interfaces.tools.messages import point_msg
 from erforce_sim.ssl_cameras import open_multicast_sender
 
 pytestmark = pytest.mark.integration
@@ -128,10 +128,15 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
     assert pose.tolist() == pytest.approx([2.0, -1.0, 0.5 - math.pi], abs=1e-6)
     _, pose = pose2d_from_msg(theirs[-1])
     assert pose.tolist() == pytest.approx([-3.0, 1.0, -2.0 + math.pi], abs=1e-6)
-    # both in one /vision/robots per camera frame: (team code, id in the team, x, y, yaw), at the frame's stamp
-    t_robots, rows = vision_robots_from_msg(robots[-1])
-    assert sorted(rows.tolist()) == [pytest.approx([1.0, 3.0, 2.0, -1.0, 0.5 - math.pi], abs=1e-6),
-                                     pytest.approx([2.0, 5.0, -3.0, 1.0, -2.0 + math.pi], abs=1e-6)]
+    # the ball and both teams in one /vision/robots per camera frame: the ball's (x, y), the robots' (team code, id
+    # in the team, x, y, yaw), at the frame's stamp; /vision/ball (read here) has the same ball at the same stamp
+    frames = {t_s: (frame_balls.tolist(), rows.tolist()) for t_s, frame_balls, rows in map(vision_frame_from_msg,
+                                                                                              robots)}
+    assert frames[t][0] == [pytest.approx([-1.0, -0.5], abs=1e-6)]
+    t_robots, (frame_balls, rows) = max(frames.items())
+    assert frame_balls == [pytest.approx([-1.0, -0.5], abs=1e-6)]
+    assert sorted(rows) == [pytest.approx([1.0, 3.0, 2.0, -1.0, 0.5 - math.pi], abs=1e-6),
+                            pytest.approx([2.0, 5.0, -3.0, 1.0, -2.0 + math.pi], abs=1e-6)]
     assert abs(t_robots - time.time()) < 5.0 and robots[-1].header.frame_id == contract.FIELD_FRAME
     # stamps on the ROS clock (the test's wall clock), not on the vision clock
     assert abs(t - time.time()) < 5.0
@@ -152,42 +157,45 @@ def test_geometry_is_latched_and_a_clock_jump_and_a_flood_are_survived(bridge):
     field = graph.wait_for_message(q.VISION_FIELD.name, Float64MultiArray, 10.0, qos=q.VISION_FIELD.qos)
     assert table_from_msg(field, contract.VISION_FIELD_COLUMNS).tolist()[0][:3] == [12.0, 9.0, 0.3]
 
-    balls = collect(graph, q.VISION_BALL.name, PointStamped, q.VISION_BALL.qos)
+    # the ball from /vision/robots, the frame's message (nobody reads /vision/ball here: the bridge sends none)
+    frames = collect(graph, q.VISION_ROBOTS.name, PointCloud2, q.VISION_ROBOTS.qos)
+
+    def balls():  # (stamp, (x, y)) of each ball in the frames so far
+        return [(t_s, tuple(xy)) for t_s, xys, _ in map(vision_frame_from_msg, frames) for xy in xys.tolist()]
+
     ball = [BallCandidate(0.0, 0.0, 0.9)]
     t = 0.0
-    while len(balls) < 5:
+    while len(balls()) < 5:
         t += 1 / 60.0
         sender.send(sender.frame(2, t, ball))
         graph.probe.spin_for(1 / 60.0)
         assert t < 10.0
     # camera 2's clock jumps forward by 100 s: refused with a warning, then followed
-    stamp_before = point_from_msg(balls[-1])[0]
-    n = len(balls)
+    stamp_before = balls()[-1][0]
+    n = len(balls())
     for _ in range(30):
         t += 1 / 60.0
         sender.send(sender.frame(2, t, ball, clock_offset_s=100.0))
         graph.probe.spin_for(1 / 60.0)
     node.wait_for_output(r"camera 2: clock offset .* jumped forward", timeout_s=10.0)
-    graph.probe.spin_until(lambda: len(balls) >= n + 4, 5.0, "frames after the jump")
-    assert 0.0 < point_from_msg(balls[-1])[0] - stamp_before < 1.0  # still on the ROS clock
+    graph.probe.spin_until(lambda: len(balls()) >= n + 4, 5.0, "frames after the jump")
+    assert 0.0 < balls()[-1][0] - stamp_before < 1.0  # still on the ROS clock
 
     # a flood: 5000 datagrams at once; the node stays up and serves the next good frame
     flood = sender.frame(3, t, ball)
     for _ in range(5000):
         sender.send(flood)
-    n = len(balls)
+    n = len(balls())
     for _ in range(100):
         t += 1 / 60.0
         sender.send(sender.frame(2, t, ball, clock_offset_s=100.0))
         graph.probe.spin_for(1 / 60.0)
-        if len(balls) > n + 3:
+        if len(balls()) > n + 3:
             break
-    assert len(balls) > n + 3
+    assert len(balls()) > n + 3
     node.wait_for_output(r"ssl_vision_bridge: \d+ datagrams", timeout_s=10.0)
     assert node.alive()
-    for msg in balls:
-        _, xy = point_from_msg(msg)
-        assert all(math.isfinite(v) for v in xy)
+    assert all(math.isfinite(v) for _, xy in balls() for v in xy)
 
 
 def test_the_ball_predictor_takes_the_ball_model_from_ssl_geometry_unless_pinned(ros_graph):
@@ -211,10 +219,10 @@ def test_the_ball_predictor_takes_the_ball_model_from_ssl_geometry_unless_pinned
     assert probe.set_parameter("/follows", "reaction_s", 0.15).successful
     assert probe.set_parameter("/follows", "a_slide_mps2", -2.0).successful
     states = probe.subscribe(q.BALL_STATE.name, Odometry, q.BALL_STATE.qos)
-    ball_pub = probe.wait_for_subscribers(q.VISION_BALL.name, PointStamped, count=2, qos=q.VISION_BALL.qos)
+    ball_pub = probe.wait_for_subscribers(q.VISION_ROBOTS.name, PointCloud2, count=2, qos=q.VISION_ROBOTS.qos)
     deadline = time.monotonic() + 20.0
     for k in range(1000):  # resent until answered: the node's writer may not have matched our reader yet
-        ball_pub.publish(point_msg(100.0 + 0.01 * k, (5.5, 0.0)))
+        ball_pub.publish(vision_robots_cdr(100.0 + 0.01 * k, [], balls=[(5.5, 0.0)]))
         try:
             probe.spin_until(lambda: states, 0.2, "a ball state")
             break

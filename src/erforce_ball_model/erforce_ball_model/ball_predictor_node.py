@@ -2,14 +2,15 @@
 
 Serves all robots from one process; the per-frame work is predictor.BallPredictor (tracking,
 robot freshness, the reaction time, robotTimeToBall for the team, the model in use and online
-identification), the same object the in-process scenes and the bench run. Every ``/vision/ball``
+identification), the same object the in-process scenes and the bench run. Vision comes in on
+``/vision/robots``, one message per vision frame: its ball and its robots, both teams. Every ball
 frame is answered with each fresh robot's ``/robot_<i>/catch_time`` and, while anyone subscribes to
 it, its ``catch_point`` (first: what the robots act on), then the ball state, phase, stop point,
 v_shoot and the uncertain flag (the three for tools while anyone subscribes to them), and, while anyone
 subscribes to them, ``/ball/track`` (the ball's topics and the observation in one message) and
 ``/ball/catches`` (the whole team in one message): an observer such as the field view takes those two.
-All outputs carry the observation's stamp; catch times count from it. Robots come in on
-``/vision/robots``, one message per vision frame for both teams; each robot it serves is judged by
+All outputs carry the observation's stamp; catch times count from it. The frame's robots come after its
+ball (the catch times are those of the robots as last seen); each robot it serves is judged by
 the time rule on its own (camera frames of one field arrive out of order across robots) and answered
 with ``/robot_<i>/odom`` while anyone subscribes to it; robots it does not serve are skipped. With
 ``num_opponents`` the opponents are served the same way under ``/opponent_<i>/`` (their
@@ -45,12 +46,11 @@ from erforce_interfaces.conversions import (
     float64_cdr,
     odometry_cdr,
     point_cdr,
-    point_from_msg,
     seconds_to_stamp,
     table_cdr,
     table_from_msg,
     table_msg,
-    vision_robots_from_msg,
+    vision_frame_from_msg,
 )
 from erforce_interfaces.executor import run_sampled
 from erforce_interfaces.node_support import (
@@ -165,8 +165,7 @@ class BallPredictorNode(Node):
         self._phase_msg, self._uncertain_msg = String(), Bool()  # refilled every frame
         # Vision comes in and catch outputs go out serialized (conversions' codec): on the path
         # from a frame to its catch times rclpy's message objects cost more than the maths.
-        contract_subscription(self, q.VISION_BALL, self._on_ball, raw=True)
-        contract_subscription(self, q.VISION_ROBOTS, self._on_robots, raw=True)
+        contract_subscription(self, q.VISION_ROBOTS, self._on_vision, raw=True)
         contract_subscription(self, q.VISION_FIELD, self._on_vision_field)
         contract_subscription(self, q.VISION_BALL_MODEL, self._on_vision_ball_model)
         # Everything runs on vision stamps; ROS time only stamps the logs: no wake per /clock.
@@ -223,12 +222,25 @@ class BallPredictorNode(Node):
             self.get_logger().info(f"ball model from SSL geometry: a_slide {model.a_slide_mps2:g}, a_roll "
                                    f"{model.a_roll_mps2:g}, c_switch {model.c_switch:g}")
 
-    def _on_robots(self, msg: bytes) -> None:
+    def _on_vision(self, msg: bytes) -> None:
+        """One vision frame: its ball (answered first), then its robots."""
+        start = time.perf_counter()
         try:
-            t_s, rows = vision_robots_from_msg(msg)
+            t_s, balls, rows = vision_frame_from_msg(msg)
         except ConversionError as exc:
-            self._warn.warn("robots", f"rejected vision/robots: {exc}")
+            key = "ball_invalid" if str(exc).startswith("ball") else "robots"  # each throttled on its own
+            self._warn.warn(key, f"rejected vision/robots: {exc}")
             return
+        if len(balls):
+            try:
+                for x, y in balls.tolist():
+                    self._ball_frame(start, t_s, x, y)
+            finally:
+                run_sampled(self._clock_subs)  # after the outputs: not on the latency path
+        if len(rows):
+            self._robots_frame(t_s, rows)
+
+    def _robots_frame(self, t_s: float, rows) -> None:
         t_ns = round(t_s * 1e9)
         index = self._core_index
         for team, robot_id, x, y, yaw in rows.tolist():
@@ -254,23 +266,11 @@ class BallPredictorNode(Node):
             return
         self._odom_pubs[robot].publish(odom)
 
-    def _on_ball(self, msg: bytes) -> None:
-        try:
-            self._ball_frame(msg)
-        finally:
-            run_sampled(self._clock_subs)  # after the outputs: not on the latency path
-
-    def _ball_frame(self, msg: bytes) -> None:
-        start = time.perf_counter()
-        try:
-            t_s, xy = point_from_msg(msg)
-        except ConversionError as exc:
-            self._warn.warn("ball_invalid", f"rejected vision/ball: {exc}")
-            return
+    def _ball_frame(self, start: float, t_s: float, x: float, y: float) -> None:
         verdict = check_stamp(self._ball_stamps, round(t_s * 1e9), self._warn, "vision/ball", self)
         if verdict is StampVerdict.DROP:
             return
-        frame = self._predictor.ball_frame(t_s, xy[0], xy[1], restart=verdict is StampVerdict.RESTART)
+        frame = self._predictor.ball_frame(t_s, x, y, restart=verdict is StampVerdict.RESTART)
         if frame is None:
             return
         # Catch times go out first: they are what the robots act on, and each publish costs tens

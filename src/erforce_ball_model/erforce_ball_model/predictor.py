@@ -1,6 +1,6 @@
 """The ball predictor's per-frame work (paper Sec. 5 in the loop) as one object with no ROS.
 
-``BallPredictor`` serves a team of robots. Each ``/vision/ball`` frame (``ball_frame``) runs
+``BallPredictor`` serves a team of robots. Each vision ball frame (``ball_frame``) runs
 the ball tracker (tracking.BallTracker: v_shoot, phase, ricochets) and, for every robot seen
 within ``robot_timeout_s``, one robotTimeToBall run for the team after the reaction time
 (catch_time.catch_after_reaction); each robot pose (``robot_frame``) feeds that robot's

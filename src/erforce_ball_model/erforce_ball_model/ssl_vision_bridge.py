@@ -8,12 +8,13 @@ says so. Every datagram goes through erforce_interfaces.ssl_vision (decoding, ch
 clock) and erforce_ball_model.vision_tracking (the true ball, robot streams); the node converts
 and publishes. Bad datagrams are dropped with a throttled warning naming the problem.
 
-The robots of a camera frame, both teams, go out in one ``/vision/robots`` message (what the stack
-reads); a robot's vision_pose is serialized and published only while its topic has a reader (each
-publisher's matched event keeps the count): a full field is 22 robots, and each publish to a reader
-cost about 20 us; a tool that subscribes to one robot's topic gets it from then on. The usual frame
-(every robot with an orientation, no vision_pose reader) goes from the tracker's rows to the table's
-points in one compiled pass; anything else takes the general path, which also warns.
+A camera frame goes out in one ``/vision/robots`` message (what the stack reads): the tracker's ball, if
+it took one from this frame, and the robots, both teams. A DDS write is the largest single cost of a
+datagram, so ``/vision/ball`` and a robot's vision_pose are serialized and published only while their
+topic has a reader (each publisher's matched event keeps the count); a tool that subscribes to one gets
+it from then on. The usual frame (every robot with an orientation, no vision_pose reader) goes from the
+tracker's rows to the message's points in one compiled pass; anything else takes the general path,
+which also warns.
 """
 
 from __future__ import annotations
@@ -68,15 +69,24 @@ _TEAM_CODES = (contract.OURS.code, contract.OPPONENTS.code)  # by side: 0 ours, 
 
 SCHEMA = load_schema("erforce_ball_model", "ssl_vision_bridge")
 _OURS_CODE, _OPPONENTS_CODE = float(_TEAM_CODES[0]), float(_TEAM_CODES[1])
+_BALL_CODE = float(contract.VISION_BALL_CODE)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _robot_points(robots, used, ours, n_ours, pose_readers, points):
-    """The /vision/robots points (x, y, 0, yaw, team code, robot_id) of the rows ``used`` of ``robots``
-    (ssl_vision's ROBOT_COLUMNS; the tracker checked team and id) written into ``points``; their number,
-    or -1 when a row needs the node's general path: no orientation or values beyond the table's checks,
-    our id beyond ``n_ours``, a robot whose vision_pose publisher has a reader or does not exist yet
-    (``pose_readers`` by side and id: -1, else the reader count)."""
+def _robot_points(robots, used, ours, n_ours, pose_readers, points, has_ball, ball_x, ball_y):
+    """The /vision/robots points (x, y, 0, yaw, team code, robot_id) written into ``points``: with ``has_ball``
+    first the ball's (ball_x, ball_y, 0, 0, 0, 0), then those of the rows ``used`` of ``robots`` (ssl_vision's
+    ROBOT_COLUMNS; the tracker checked team and id); their number, or -1 when a point needs the node's
+    general path: no orientation or values beyond the message's checks, our id beyond ``n_ours``, a robot
+    whose vision_pose publisher has a reader or does not exist yet (``pose_readers`` by side and id: -1, else
+    the reader count)."""
+    first = 0
+    if has_ball:
+        if not (abs(ball_x) <= MAX_ABS_VALUE and abs(ball_y) <= MAX_ABS_VALUE):  # False for NaN
+            return -1
+        points[0, 0], points[0, 1] = ball_x, ball_y
+        points[0, 2], points[0, 3], points[0, 4], points[0, 5] = 0.0, 0.0, _BALL_CODE, 0.0
+        first = 1
     for j in range(len(used)):
         k = used[j]
         team, robot_id, x, y, theta = robots[k, 0], robots[k, 1], robots[k, 2], robots[k, 3], robots[k, 4]
@@ -85,10 +95,11 @@ def _robot_points(robots, used, ours, n_ours, pose_readers, points):
         side = 0 if team == ours else 1
         if (side == 0 and robot_id >= n_ours) or pose_readers[side, int(robot_id)] != 0:
             return -1
-        points[j, 0], points[j, 1], points[j, 2], points[j, 3] = x, y, 0.0, theta
-        points[j, 4] = _OURS_CODE if side == 0 else _OPPONENTS_CODE
-        points[j, 5] = robot_id
-    return len(used)
+        p = first + j
+        points[p, 0], points[p, 1], points[p, 2], points[p, 3] = x, y, 0.0, theta
+        points[p, 4] = _OURS_CODE if side == 0 else _OPPONENTS_CODE
+        points[p, 5] = robot_id
+    return first + len(used)
 
 
 
@@ -151,7 +162,8 @@ class SslVisionBridge(Node):
         self._stats_logged = time.monotonic()
         self._n_ours = v["num_robots"]
         q = contract
-        self._ball_pub = contract_publisher(self, q.VISION_BALL)
+        self._ball_readers = [0]
+        self._ball_pub = contract_publisher(self, q.VISION_BALL, readers=(self._ball_readers, 0))
         self._robots_pub = contract_publisher(self, q.VISION_ROBOTS)
         self._detections_pub = contract_publisher(self, q.VISION_DETECTIONS)
         self._field_pub = contract_publisher(self, q.VISION_FIELD)
@@ -160,7 +172,7 @@ class SslVisionBridge(Node):
         # (-1 until created)
         self._pose_pubs: list[list[Any]] = [[None] * (MAX_ROBOT_ID + 1) for _ in range(2)]
         self._pose_readers = np.full((2, MAX_ROBOT_ID + 1), -1, np.int64)
-        self._points = np.empty((2 * (MAX_ROBOT_ID + 1), len(contract.VISION_ROBOT_FIELDS)))
+        self._points = np.empty((2 * (MAX_ROBOT_ID + 1) + 1, len(contract.VISION_ROBOT_FIELDS)))
         for i in range(self._n_ours):
             self._pose_publisher(0, i)
         self._last_geometry = None
@@ -171,7 +183,7 @@ class SslVisionBridge(Node):
         self._max_batch, self._flood_batch = v["max_batch"], v["flood_batch"]
         load_kernels()  # before the first datagram
         _robot_points(np.zeros((1, 6)), np.zeros(1, np.int64), self._ours, self._n_ours, self._pose_readers,
-                      self._points)
+                      self._points, True, 0.0, 0.0)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._receive_loop, name="ssl_vision_rx", daemon=True)
         self._thread.start()
@@ -359,24 +371,26 @@ class SslVisionBridge(Node):
         ball, used = self._tracker.frame_indices(frame.camera_id, t_s, balls, robots)
         self.stats["frames"] += 1
         try:
-            if ball is not None:
+            if ball is not None and self._ball_readers[0]:
                 self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
-            if len(used):
-                if len(used) > len(self._points):
-                    self._points = np.empty((len(used), self._points.shape[1]))
-                n = _robot_points(robots, used, self._ours, self._n_ours, self._pose_readers, self._points)
+            if len(used) or ball is not None:  # the ball's stamp is the frame's
+                if len(used) >= len(self._points):
+                    self._points = np.empty((len(used) + 1, self._points.shape[1]))
+                has_ball = ball is not None
+                n = _robot_points(robots, used, self._ours, self._n_ours, self._pose_readers, self._points,
+                                  has_ball, ball.x_m if has_ball else 0.0, ball.y_m if has_ball else 0.0)
                 if n >= 0:
                     self._robots_pub.publish(vision_robots_points_cdr(t_s, self._points[:n]))
                 else:
-                    self._publish_robots(t_s, robots[used].tolist())
+                    self._publish_robots(t_s, robots[used].tolist(), [(ball.x_m, ball.y_m)] if has_ball else [])
             if cfg.publish_detections:
                 self._publish_detections(cfg, frame.camera_id, t_receive_s - t_s, balls.tolist(), robots.tolist())
         except ConversionError as exc:
             self._warn.warn("publish", f"ssl_vision_bridge: camera {frame.camera_id}: not published: {exc}")
 
-    def _publish_robots(self, t_s: float, rows: list[list[float]]) -> None:
-        """The frame's robots in one /vision/robots, then each robot's vision_pose that has a reader (the
-        general path: it creates publishers and warns)."""
+    def _publish_robots(self, t_s: float, rows: list[list[float]], balls: list[tuple[float, float]]) -> None:
+        """The frame's ``balls`` and robots in one /vision/robots, then each robot's vision_pose that has a reader
+        (the general path: it creates publishers and warns)."""
         readers, n_ours = self._pose_readers, self._n_ours
         table, read = [], []
         for team, robot_id, x, y, theta, _confidence in rows:
@@ -393,8 +407,8 @@ class SslVisionBridge(Node):
             pub = self._pose_pubs[side][robot_id] or self._pose_publisher(side, robot_id)
             if readers[side, robot_id] > 0:
                 read.append((pub, x, y, theta))
-        if table:
-            self._robots_pub.publish(vision_robots_cdr(t_s, table))
+        if table or balls:
+            self._robots_pub.publish(vision_robots_cdr(t_s, table, balls=balls))
         for pub, x, y, theta in read:
             pub.publish(pose2d_cdr(t_s, (x, y, theta)))
 

@@ -38,10 +38,10 @@ so the rest of the graph cannot tell them apart:
 - millimetres become metres; the vision frame becomes ``field`` (turned by half a turn when our
   team defends the goal at positive x, so that in ``field`` we always defend negative x);
 - ``t_capture`` becomes the stamp, on the ROS clock (erforce_interfaces.ssl_vision.VisionClock);
-- the ball the multi-camera tracker picks goes to ``/vision/ball``, one frame at a time with
-  increasing stamps; the robots it uses from a camera frame, both teams, to ``/vision/robots`` (one
-  message per camera frame); our team's robots also to ``/robot_<id>/vision_pose``, the opponents' to
-  ``/opponent_<id>/vision_pose`` (``OPPONENT_NAMESPACE_PREFIX``), while those have readers;
+- a camera frame goes out as one ``/vision/robots`` message: the ball the multi-camera tracker picks
+  from it (if any, with increasing stamps from frame to frame) and the robots it uses, both teams; the
+  ball also to ``/vision/ball``, our team's robots also to ``/robot_<id>/vision_pose``, the opponents'
+  to ``/opponent_<id>/vision_pose`` (``OPPONENT_NAMESPACE_PREFIX``), each while it has readers;
 - with ``publish_detections``, every camera frame, all candidates included, to ``/vision/detections``
   (a table);
 - geometry to ``/vision/field`` and the two-phase ball model to ``/vision/ball_model``, both
@@ -279,8 +279,9 @@ CLOCK = Topic("/clock", Clock, QOS_CLOCK, "plant", "every node (use_sim_time)",
               "simulation time; the plant owns time. At the plant's clock_rate_hz (100 Hz; 50 Hz in "
               "team_sim.launch.yaml): ROS time moves in steps of that period and sim-time timers tick at most "
               "that often; the lockstep and per-frame work runs on message stamps")
-VISION_BALL = Topic("/vision/ball", PointStamped, QOS_SENSOR, "plant (vision)", "ball_predictor",
-                    "ball centre in `field` [m], stamp = capture time; noisy, delayed, with dropouts")
+VISION_BALL = Topic("/vision/ball", PointStamped, QOS_SENSOR, "plant (vision), ssl_vision_bridge; while subscribed",
+                    "tools", "ball centre in `field` [m], stamp = capture time; noisy, delayed, with dropouts; the "
+                    "same balls as /vision/robots")
 BALL_STATE = Topic("/ball/state", Odometry, QOS_STATE, "ball_predictor", "catcher, tools",
                    "filtered ball: pose [m], twist.linear [m/s] in `field`; covariance from the filter")
 BALL_PHASE = Topic("/ball/phase", String, QOS_STATE, "ball_predictor", "tools",
@@ -301,10 +302,11 @@ SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts",
                      "place the ball: pose.position [m], twist.linear [m/s], twist.angular spin [rad/s]")
 VISION_ROBOTS = Topic("/vision/robots", PointCloud2, QOS_SENSOR, "plant (vision), ssl_vision_bridge",
                       "ball_predictor, tools",
-                      "every robot of one vision frame (the bridge: of one camera frame), both teams, in one "
-                      "message: a point per robot, fields VISION_ROBOT_FIELDS (float64, little endian, height 1): "
+                      "one vision frame (the bridge: one camera frame) in one message: its ball and every robot, "
+                      "both teams; a point each, fields VISION_ROBOT_FIELDS (float64, little endian, height 1): "
                       "x, y [m] and z = 0 in `field`, yaw [rad] in [-pi, pi], team (Team.code: 1 ours, 2 the "
-                      "opponents), robot_id (within the team); stamp = capture time; noisy, delayed, with dropouts")
+                      "opponents; VISION_BALL_CODE 0: the ball, with yaw and robot_id 0, first), robot_id (within "
+                      "the team); stamp = capture time; noisy, delayed, with dropouts")
 VISION_DETECTIONS = Topic("/vision/detections", Float64MultiArray, QOS_SENSOR, "ssl_vision_bridge", "tools",
                           "one message per SSL camera frame, a table with columns VISION_DETECTION_COLUMNS: every "
                           "ball candidate and robot the camera saw, in `field` [m, rad]; age_s = receipt - capture "
@@ -337,7 +339,7 @@ BALL_TRACK = Topic("/ball/track", PointCloud2, QOS_SENSOR, "ball_predictor (whil
                    "the ball at one accepted vision frame, for observers, in one message: one point of fields "
                    "BALL_TRACK_FIELDS (float64, little endian, height 1, width 1): the filtered ball x, y [m] "
                    "(z = 0) and vx_mps, vy_mps [m/s] in `field` (as /ball/state), v_shoot_mps (as /ball/v_shoot), "
-                   "the observation seen_x_m, seen_y_m [m] (the /vision/ball frame answered), phase (the index "
+                   "the observation seen_x_m, seen_y_m [m] (the vision ball answered), phase (the index "
                    "of /ball/phase's value in BALL_PHASES) and uncertain (1/0, as /ball/uncertain); stamp = "
                    "that observation's; after the per-robot outputs")
 PASS_CHOICE = Topic("/pass/choice", Float64MultiArray, QOS_STATE, "passing game (its bag)", "field_view, tools",
@@ -403,8 +405,10 @@ VISION_ROBOT_FIELDS = ("x", "y", "z", "yaw", "team", "robot_id")
 #: the point where the filtered ball is).
 BALL_TRACK_FIELDS = ("x", "y", "z", "vx_mps", "vy_mps", "v_shoot_mps", "seen_x_m", "seen_y_m", "phase", "uncertain")
 VISION_DETECTION_COLUMNS = ("camera_id", "age_s", "kind", "robot_id", "x_m", "y_m", "theta_rad", "confidence")
+#: ``team`` of the ball's point in /vision/robots (a frame carries its ball with its robots: one message per frame)
+VISION_BALL_CODE = 0.0
 #: ``kind`` values of /vision/detections (theta_rad is 0 for balls and robots without orientation)
-VISION_DETECTION_KINDS = {"ball": 0.0, "ours": OURS.code, "opponent": OPPONENTS.code}
+VISION_DETECTION_KINDS = {"ball": VISION_BALL_CODE, "ours": OURS.code, "opponent": OPPONENTS.code}
 #: ``team`` is Team.code (1 ours, 2 the opponents); ``robot_id`` counts within the team
 CATCH_TABLE_COLUMNS = ("team", "robot_id", "x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "catch_time_s", "catch_x_m",
                        "catch_y_m")

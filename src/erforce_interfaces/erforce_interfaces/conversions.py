@@ -39,6 +39,7 @@ from erforce_interfaces.contract import (
     FIELD_FRAME,
     OPPONENTS,
     OURS,
+    VISION_BALL_CODE,
     VISION_ROBOT_FIELDS,
     Team,
 )
@@ -672,14 +673,18 @@ def _joint_value_arrays(data: bytes, p: int) -> list[np.ndarray]:
 
 
 # ------------------------------------------------------------ vision robots
-# /vision/robots: a sensor_msgs/PointCloud2 with one point per robot, the float64 fields VISION_ROBOT_FIELDS
-# (x, y, z, yaw, team, robot_id) at offsets 0, 8, .., little endian, height 1. Its layout is constant but for the
-# stamp, the width and the data: the bytes from the fields to point_step are built once and, on the way in,
-# recognised. Rows in and out are (team, robot_id, x, y, yaw): Team.code, the id within the team, the pose in
-# ``field`` [m, rad]; yaw goes out and comes in wrapped to [-pi, pi].
+# /vision/robots: a sensor_msgs/PointCloud2 with one point per robot and one per ball (team VISION_BALL_CODE, yaw
+# and robot_id 0, written first), the float64 fields VISION_ROBOT_FIELDS (x, y, z, yaw, team, robot_id) at offsets
+# 0, 8, .., little endian, height 1. Its layout is constant but for the stamp, the width and the data: the bytes
+# from the fields to point_step are built once and, on the way in, recognised. Rows in and out are (team,
+# robot_id, x, y, yaw): Team.code, the id within the team, the pose in ``field`` [m, rad]; yaw goes out and comes
+# in wrapped to [-pi, pi]. Balls in and out are (x, y) in ``field`` [m].
 _ROBOT_POINT = struct.Struct(f"<{len(VISION_ROBOT_FIELDS)}d")
 _MAX_CLOUD_POINTS = 1024  # a width beyond this is garbage, not a field of robots
 _TEAM_CODES = (OURS.code, OPPONENTS.code)
+_POINT_CODES = (VISION_BALL_CODE, *_TEAM_CODES)
+_NO_BALLS = np.empty((0, 2))
+_NO_BALLS.flags.writeable = False
 _TWO_PI = 2.0 * math.pi
 
 
@@ -699,21 +704,27 @@ def _float64_fields_cdr(names: Sequence[str]) -> bytes:
 _ROBOT_FIELDS_CDR = _float64_fields_cdr(VISION_ROBOT_FIELDS)
 
 
-def vision_robots_cdr(t_s: float, rows: Sequence[Sequence[float]], frame_id: str = FIELD_FRAME) -> bytes:
-    """A /vision/robots PointCloud2 serialized: ``rows`` of (team, robot_id, x, y, yaw), checked as the
-    reader checks them (finite, positions within MAX_ABS_VALUE, a team code, an integer id)."""
+def vision_robots_cdr(t_s: float, rows: Sequence[Sequence[float]], frame_id: str = FIELD_FRAME,
+                      balls: Sequence[Sequence[float]] = ()) -> bytes:
+    """A /vision/robots PointCloud2 serialized: the ``balls`` (x, y) first, then ``rows`` of (team, robot_id, x, y,
+    yaw), checked as the reader checks them (finite, positions within MAX_ABS_VALUE, a team code, an integer id)."""
     flat = []
+    for x, y in balls:
+        if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE):  # False for NaN
+            _robot_row_error(0, VISION_BALL_CODE, 0.0, x, y, 0.0)
+        flat += (x, y, 0.0, 0.0, VISION_BALL_CODE, 0.0)
     for k, (team, robot_id, x, y, yaw) in enumerate(rows):
         if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(yaw) <= 1.0e6 and team in _TEAM_CODES
                 and 0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)):  # False for NaN
             _robot_row_error(k, team, robot_id, x, y, yaw)
         flat += (x, y, 0.0, math.remainder(yaw, _TWO_PI), team, robot_id)
-    return _vision_robots_bytes(t_s, len(rows), struct.pack(f"<{len(flat)}d", *flat), frame_id)
+    return _vision_robots_bytes(t_s, len(balls) + len(rows), struct.pack(f"<{len(flat)}d", *flat), frame_id)
 
 
 def vision_robots_points_cdr(t_s: float, points: np.ndarray, frame_id: str = FIELD_FRAME) -> bytes:
     """``vision_robots_cdr`` for points the caller has already written and checked as it checks rows: a
-    float64 array (n, 6) in VISION_ROBOT_FIELDS order, yaw in [-pi, pi] (a producer's compiled path)."""
+    float64 array (n, 6) in VISION_ROBOT_FIELDS order, yaw in [-pi, pi], the ball first (a producer's compiled
+    path)."""
     return _vision_robots_bytes(t_s, len(points), points.astype("<f8", copy=False).tobytes(), frame_id)
 
 
@@ -735,18 +746,26 @@ def _stamp_head(t_s: float) -> bytes:
     return _CDR_LE + _stamp.pack(*_sec_nanosec(t_s))
 
 
-def _robot_row_error(k: int, team, robot_id, x, y, yaw) -> None:
+def _robot_row_error(k: int, team, robot_id, x, y, yaw, codes: tuple[float, ...] = _TEAM_CODES) -> None:
+    point = "ball" if team == VISION_BALL_CODE else f"robot {k}"
     for name, value, limit in (("x", x, MAX_ABS_VALUE), ("y", y, MAX_ABS_VALUE), ("yaw", yaw, 1.0e6)):
-        _finite(f"robot {k}: {name}", value, limit)
-    if team not in _TEAM_CODES:
-        raise ConversionError(f"robot {k}: team {team!r} is none of {_TEAM_CODES}")
+        _finite(f"{point}: {name}", value, limit)
+    if team not in codes:
+        raise ConversionError(f"robot {k}: team {team!r} is none of {codes}")
     raise ConversionError(f"robot {k}: robot_id {robot_id!r} is no id (an integer in 0..{_MAX_CLOUD_POINTS})")
 
 
 def vision_robots_from_msg(msg: PointCloud2 | bytes) -> tuple[float, np.ndarray]:
-    """(stamp [s], rows) of /vision/robots: an (n, 5) array of (team, robot_id, x, y, yaw), yaw in [-pi, pi].
-    ``msg`` may be serialized (as point_from_msg). A cloud with other fields, a row with a non-finite or huge
-    value, an unknown team or a fractional id is refused as a whole (ConversionError)."""
+    """(stamp [s], rows) of /vision/robots' robots: ``vision_frame_from_msg`` without the balls."""
+    t_s, _balls, rows = vision_frame_from_msg(msg)
+    return t_s, rows
+
+
+def vision_frame_from_msg(msg: PointCloud2 | bytes) -> tuple[float, np.ndarray, np.ndarray]:
+    """(stamp [s], balls, robots) of /vision/robots: balls an (k, 2) array of (x, y), robots an (n, 5) array of
+    (team, robot_id, x, y, yaw), yaw in [-pi, pi]. ``msg`` may be serialized (as point_from_msg). A cloud with
+    other fields, a point with a non-finite or huge value, an unknown team or a fractional id is refused as a
+    whole (ConversionError)."""
     if isinstance(msg, bytes | bytearray | memoryview):
         data = bytes(msg)
         t_s, layout, at = _cloud_from_cdr(data)
@@ -758,7 +777,11 @@ def vision_robots_from_msg(msg: PointCloud2 | bytes) -> tuple[float, np.ndarray]
         _check_robot_cloud(msg.height, msg.width, [(f.name, f.offset, f.datatype, f.count) for f in msg.fields],
                            msg.is_bigendian, msg.point_step, msg.row_step, len(msg.data))
         values = np.frombuffer(bytes(msg.data), "<f8")
-    return t_s, _robot_rows(values.reshape(-1, len(VISION_ROBOT_FIELDS)))
+    rows = _robot_rows(values.reshape(-1, len(VISION_ROBOT_FIELDS)))
+    is_ball = rows[:, 0] == VISION_BALL_CODE
+    if not is_ball.any():
+        return t_s, _NO_BALLS, rows
+    return t_s, rows[is_ball][:, 2:4], rows[~is_ball]
 
 
 _ROBOT_FIELDS = [(name, 8 * k, PointField.FLOAT64, 1) for k, name in enumerate(VISION_ROBOT_FIELDS)]
@@ -835,14 +858,14 @@ _ROBOT_POINT_LIMITS = np.array([MAX_ABS_VALUE, MAX_ABS_VALUE, MAX_ABS_VALUE, 1.0
 def _robot_rows(values: np.ndarray) -> np.ndarray:
     """(team, robot_id, x, y, yaw) of the cloud's points (x, y, z, yaw, team, robot_id), checked."""
     codes = values[:, 4:]
-    # a few whole-array tests (each false for NaN): ranges, then integer team and id, team >= 1 and id >= 0
+    # a few whole-array tests (each false for NaN): ranges, then integer team and id, team and id >= 0
     if not ((np.abs(values) <= _ROBOT_POINT_LIMITS).all() and (codes == np.floor(codes)).all()
-            and (codes >= (OURS.code, 0.0)).all()):
+            and (codes >= (VISION_BALL_CODE, 0.0)).all()):
         for k, (x, y, z, yaw, team, robot_id) in enumerate(values.tolist()):
             _finite(f"robot {k}: z", z)
-            if not (team in _TEAM_CODES and 0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)
+            if not (team in _POINT_CODES and 0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)
                     and abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(yaw) <= 1.0e6):
-                _robot_row_error(k, team, robot_id, x, y, yaw)
+                _robot_row_error(k, team, robot_id, x, y, yaw, _POINT_CODES)
     rows = values[:, (4, 5, 0, 1, 3)]
     yaw = rows[:, 4]
     yaw -= _TWO_PI * np.round(yaw / _TWO_PI)

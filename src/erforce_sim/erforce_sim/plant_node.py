@@ -182,7 +182,8 @@ class PlantNode(Node):
         pub, sub = contract_publisher, contract_subscription
         self._clock_pub = pub(self, q.CLOCK)
         self._events_pub = pub(self, q.SIM_EVENTS)
-        self._vision_ball_pub = pub(self, q.VISION_BALL)
+        self._vision_ball_readers = [0]  # /vision/ball goes out only while it has readers (tools)
+        self._vision_ball_pub = pub(self, q.VISION_BALL, readers=(self._vision_ball_readers, 0))
         self._vision_robots_pub = pub(self, q.VISION_ROBOTS)
         self._vision_pose_readers = [0] * n  # a robot's vision_pose goes out only while it has readers
         self._truth_ball_pub = pub(self, q.GROUND_TRUTH_BALL)
@@ -525,11 +526,14 @@ class PlantNode(Node):
     def _publish_vision(self, frame) -> None:
         if not self._ros_vision:
             return
-        # serialized, as the ball predictor takes them (conversions' codec)
+        # serialized, as the ball predictor takes them (conversions' codec); the frame's balls and robots in one
+        # /vision/robots, what the ball predictor reads
         t = frame.t_capture_s
-        for ball in frame.balls:
-            self._vision_ball_pub.publish(point_cdr(t, (ball.x, ball.y)))
-        if not frame.robots:
+        balls = [(ball.x, ball.y) for ball in frame.balls]
+        if self._vision_ball_readers[0]:
+            for xy in balls:
+                self._vision_ball_pub.publish(point_cdr(t, xy))
+        if not (frame.robots or balls):
             return
         rows, read = [], []
         for det in frame.robots:
@@ -538,7 +542,7 @@ class PlantNode(Node):
             rows.append((team.code, j, det.x, det.y, det.theta))
             if self._vision_pose_readers[i]:
                 read.append((i, det))
-        self._vision_robots_pub.publish(vision_robots_cdr(t, rows))  # what the ball predictor reads
+        self._vision_robots_pub.publish(vision_robots_cdr(t, rows, balls=balls))
         for i, det in read:
             self._pubs[i]["vision"].publish(pose2d_cdr(t, (det.x, det.y, det.theta)))
 

@@ -178,7 +178,7 @@ class Director:
         # robot_0's velocity controller answers (500 Hz: dropped once seen, see pump)
         self._setpoints_feed = feed(q.WHEEL_SETPOINTS, self._on_setpoints, RECEIVER)
         feed(q.SIM_EVENTS, lambda m: self.events.append(m.data))
-        feed(q.VISION_BALL, self._on_vision)
+        feed(q.VISION_ROBOTS, self._on_vision)  # a vision frame: its ball and robots
         # /clock is taken last, so every clock sent before a message taken in the same pump is
         # there too: a message's simulated time is that of the newest clock sent before it.
         feed(q.CLOCK, self._on_clock)
