@@ -1,4 +1,4 @@
-"""ssl_vision_bridge's compiled path from the tracker's robot rows to /vision/robots points, and when it
+"""ssl_vision_bridge's compiled path from the tracker's ball and robot rows to /vision/robots points, and when it
 leaves a frame to the general path (which warns and serves vision_pose readers)."""
 
 import math
@@ -15,6 +15,7 @@ ROBOTS = np.array([
     [1.0, 0.0, 0.5, 0.5, math.pi, 0.9],
 ])
 USED = np.array([3, 0, 1], np.int64)
+NO_BALL = (False, 0.0, 0.0)  # has_ball, ball_x, ball_y
 
 
 def readers(value=0):
@@ -25,15 +26,15 @@ def readers(value=0):
 def test_the_used_rows_become_points_with_team_codes_in_the_trackers_order():
     points = np.full((4, 6), -9.0)
     ours_blue = 0.0
-    assert _robot_points(ROBOTS, USED, ours_blue, 11, readers(), points) == 3
+    assert _robot_points(ROBOTS, USED, ours_blue, 11, readers(), points, *NO_BALL) == 3
     # (x, y, z, yaw, team code: 1 ours, 2 the opponents, id)
     assert points[:3].tolist() == [[0.5, 0.5, 0.0, math.pi, 2.0, 0.0],
                                    [1.0, -0.5, 0.0, 0.25, 1.0, 2.0],
                                    [-3.0, 2.0, 0.0, -3.0, 2.0, 7.0]]
     ours_yellow = 1.0
-    assert _robot_points(ROBOTS, USED, ours_yellow, 11, readers(), points) == 3
+    assert _robot_points(ROBOTS, USED, ours_yellow, 11, readers(), points, *NO_BALL) == 3
     assert points[:3, 4].tolist() == [1.0, 2.0, 1.0]
-    assert _robot_points(ROBOTS, USED[:0], ours_blue, 11, readers(), points) == 0
+    assert _robot_points(ROBOTS, USED[:0], ours_blue, 11, readers(), points, *NO_BALL) == 0
 
 
 def test_anything_unusual_goes_to_the_general_path():
@@ -41,14 +42,27 @@ def test_anything_unusual_goes_to_the_general_path():
     for k, column, value in ((1, 4, math.nan), (1, 4, 3.5), (0, 2, math.inf), (2, 3, 1.5e3), (0, 4, -3.2)):
         robots = ROBOTS.copy()
         robots[USED[k], column] = value
-        assert _robot_points(robots, USED, 0.0, 11, readers(), points) == -1, (k, column, value)
-    assert _robot_points(ROBOTS, USED, 0.0, 2, readers(), points) == -1  # our id 2 beyond num_robots 2
-    assert _robot_points(ROBOTS, USED, 0.0, 3, readers(), points) == 3
+        assert _robot_points(robots, USED, 0.0, 11, readers(), points, *NO_BALL) == -1, (k, column, value)
+    assert _robot_points(ROBOTS, USED, 0.0, 2, readers(), points, *NO_BALL) == -1  # our id 2 beyond num_robots 2
+    assert _robot_points(ROBOTS, USED, 0.0, 3, readers(), points, *NO_BALL) == 3
     for side, robot_id in ((0, 2), (1, 7), (1, 0)):
         for state in (-1, 1):  # its vision_pose publisher not created yet; one reader
             pose_readers = readers()
             pose_readers[side, robot_id] = state
-            assert _robot_points(ROBOTS, USED, 0.0, 11, pose_readers, points) == -1, (side, robot_id, state)
+            assert _robot_points(ROBOTS, USED, 0.0, 11, pose_readers, points, *NO_BALL) == -1, (side, robot_id, state)
     pose_readers = readers()
     pose_readers[0, 9] = 1  # a reader of a robot that this frame does not use
-    assert _robot_points(ROBOTS, USED, 0.0, 11, pose_readers, points) == 3
+    assert _robot_points(ROBOTS, USED, 0.0, 11, pose_readers, points, *NO_BALL) == 3
+
+
+def test_the_frames_ball_comes_first_as_a_point_of_team_0():
+    points = np.full((5, 6), -9.0)
+    assert _robot_points(ROBOTS, USED, 0.0, 11, readers(), points, True, -2.5, 1.25) == 4
+    assert points[:4].tolist() == [[-2.5, 1.25, 0.0, 0.0, 0.0, 0.0],
+                                   [0.5, 0.5, 0.0, math.pi, 2.0, 0.0],
+                                   [1.0, -0.5, 0.0, 0.25, 1.0, 2.0],
+                                   [-3.0, 2.0, 0.0, -3.0, 2.0, 7.0]]
+    assert _robot_points(ROBOTS, USED[:0], 0.0, 11, readers(), points, True, 0.5, 0.0) == 1  # the ball alone
+    assert points[0].tolist() == [0.5, 0.0, 0.0, 0.0, 0.0, 0.0]
+    for x, y in ((math.nan, 0.0), (0.0, 1.5e3)):  # beyond the message's checks: the general path names it
+        assert _robot_points(ROBOTS, USED, 0.0, 11, readers(), points, True, x, y) == -1
