@@ -2,6 +2,7 @@
 stall reporting, scenarios and bad input."""
 
 import math
+import struct
 import time
 from pathlib import Path
 
@@ -19,6 +20,7 @@ from erforce_interfaces.conversions import (
     odometry_msg,
     pose2d_from_msg,
     stamp_to_nanoseconds,
+    vision_frame_from_msg,
     vision_robots_from_msg,
 )
 from erforce_interfaces.tools.messages import joint_state_msg
@@ -105,7 +107,7 @@ def test_lockstep_dds_graph_reproduces_the_in_process_trajectory(ros_graph):
     assert abs(runner.world.robot_state(0).vx) > 0.3  # it did move
 
 
-def test_clock_is_published_and_monotonic_and_vision_sends_each_frames_robots_in_one_message(ros_graph):
+def test_clock_is_published_and_monotonic_and_vision_sends_each_frames_ball_and_robots_in_one_message(ros_graph):
     clocks = ros_graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
     q = contract
     robots = ros_graph.subscribe(q.VISION_ROBOTS.name, PointCloud2, q.VISION_ROBOTS.qos)
@@ -121,6 +123,9 @@ def test_clock_is_published_and_monotonic_and_vision_sends_each_frames_robots_in
     # the opponent's own vision_pose, which has a reader here, carries the same pose at the same stamp
     ros_graph.probe.spin_until(lambda: len(robots) >= 10 and len(poses) >= 10, 30.0, "10 vision frames")
     frames = {t_s: rows for t_s, rows in map(vision_robots_from_msg, robots)}
+    for _, balls, _ in map(vision_frame_from_msg, robots):  # the ball at rest where the test put it, first
+        assert balls.tolist() == [pytest.approx([2.0, 2.0], abs=0.02)]  # 10 sigma of the 2 mm position noise
+    assert all(struct.unpack_from("<d", bytes(msg.data), 32)[0] == contract.VISION_BALL_CODE for msg in robots)
     for rows in frames.values():
         assert rows[:, :2].tolist() == [[1.0, 0.0], [2.0, 0.0]]
         assert rows[:, 2:].tolist() == [pytest.approx([0.5, -1.0, 0.25], abs=0.06),  # 6 sigma of the yaw noise
