@@ -80,7 +80,7 @@ def stamp_s(msg):
 
 
 def ball_msg(t_s, x, y):
-    return robots_msg(t_s, [(0.0, 0.0, float(x), float(y), 0.0)])
+    return robots_msg(t_s, [(contract.VISION_BALL_CODE, 0.0, float(x), float(y), 0.0)])
 
 
 def robots_msg(t_s, rows):
@@ -342,6 +342,19 @@ def test_no_robots_seen_gives_no_catch_outputs_until_one_is_seen(ros_graph):
                                    rig.catch_time[i][0].data, *point_from_msg(rig.catch_point[i][0])[1]], abs=1e-9)
                     for i, team, x, y, yaw in ((1, contract.OURS, 0.0, 1.0, 0.0),
                                                (2, contract.OPPONENTS, 1.0, 3.0, -math.pi / 2))]
+
+    # A frame's ball and robots in one message: the ball is answered first, so robot_0, first seen in it, has
+    # no catch time for that ball frame, and one for the next
+    before = len(rig.state), len(rig.odom[0])
+    ball_and_robot_0 = [(contract.VISION_BALL_CODE, 0.0, 1.0, 1.0, 0.0), (contract.OURS.code, 0, -1.0, 1.0, 0.0)]
+    rig.robots_pub.publish(robots_msg(1.10 + T_SHIFT_S, ball_and_robot_0))
+    ros_graph.probe.spin_until(lambda: len(rig.state) > before[0] and len(rig.odom[0]) > before[1], 10.0,
+                               "the ball and robot_0 of one message")
+    rig.settle()
+    assert len(rig.catch_time[0]) == 0 and len(rig.catch_time[1]) == 2 and len(rig.catch_time[2]) == 2
+    rig.ball(1.12, 1.0, 1.0)
+    rig.settle()
+    assert len(rig.catch_time[0]) == 1
 
 
 def test_bad_observations_are_dropped_with_a_warning_and_nothing_non_finite_is_published(ros_graph):
