@@ -2,7 +2,8 @@
 team_firmware process on the per-robot topics and on the team-level ones (/team/wheel_states, motor_duty)
 give the in-process runner's trajectory, with an opponent on the field under its own firmware (per robot
 under /opponent_0/, or the opponents' team_firmware, on /opponent_team/ with team topics, or both teams in one
-team_firmware); robots come and go by parameter; a killed firmware process stalls only its robot."""
+team_firmware on the team topics or on the field topics /field/wheel_states, motor_duty); robots come and go
+by parameter; a killed firmware process stalls only its robot."""
 
 import signal
 from pathlib import Path
@@ -30,12 +31,12 @@ OPPONENT_TWIST = (0.6, 0.3, -1.5)  # opponent_0's, world index 3
 # deployment -> the opponent's firmware (two_teams: our team's two processes only, no opponent; None: in our
 # team_firmware, by its opponent_ids)
 OPPONENT_FIRMWARE = {"per_robot": "per_robot", "team": "team", "team_topics": "team_topics", "mixed": "per_robot",
-                     "one_process": None}
+                     "one_process": None, "field": None}
 
 
 # deployment -> the plant's and team_firmware's lockstep_topics
 LOCKSTEP_TOPICS = {"per_robot": "per_robot", "team": "per_robot", "team_topics": "team", "two_teams": "team",
-                   "mixed": "both", "one_process": "team"}
+                   "mixed": "both", "one_process": "team", "field": "field"}
 
 
 def _start_firmware(graph, deployment, ids, team=contract.OURS, **params):
@@ -85,13 +86,15 @@ def _start_plant(graph, deployment, readers, opponent_poses=(), **params):
     return plant, truths, clocks
 
 
-@pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams", "mixed", "one_process"])
+@pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams", "mixed", "one_process",
+                                        "field"])
 def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deployment):
     """robot_0 and robot_2 have firmware (the team process by its robot_ids parameter [0, 2]), robot_1 none,
     and opponent_0 its own: every deployment (two team_firmware processes sharing the team topics too, and a
     plant serving both kinds of topics to a per-robot pair and a team_firmware) gives the in-process runner's
     trajectories of all four to 1e-9 at every ground-truth stamp, so they agree with each other."""
-    _start_firmware(ros_graph, deployment, TWISTS, **({"opponent_ids": [0]} if deployment == "one_process" else {}))
+    one_process = OPPONENT_FIRMWARE.get(deployment, "") is None
+    _start_firmware(ros_graph, deployment, TWISTS, **({"opponent_ids": [0]} if one_process else {}))
     for i, twist in TWISTS.items():
         _command(ros_graph, i, twist)
     opponents = deployment in OPPONENT_FIRMWARE
