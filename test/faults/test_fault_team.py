@@ -220,7 +220,6 @@ def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_singl
     opponent = contract.OPPONENTS
     outputs = {"plant": (contract.CLOCK, contract.CLOCK.name),
                "team_firmware": (contract.FIELD_MOTOR_DUTY, contract.FIELD_MOTOR_DUTY.name),  # both teams
-               "opponent_firmware": (contract.TEAM_MOTOR_DUTY, opponent.lockstep_topic(contract.TEAM_MOTOR_DUTY)),
                "ball_predictor": (contract.CATCH_TIME, opponent.topic(contract.CATCH_TIME, 0)),
                "opponent_interceptor": (contract.CMD_VEL, opponent.topic(contract.CMD_VEL, 0))}
     truth = ros_graph.subscribe(opponent.topic(contract.GROUND_TRUTH_ODOM, 0), Odometry)

@@ -241,8 +241,6 @@ class TeamFirmwareNode(Node):
 
     def _on_team_wheel_states(self, link: _TeamLink, msg: bytes) -> None:
         """One tick of every robot of the team's message that this process runs; one answer for all of them."""
-        if link is self._first_link:  # /clock (for the logs' time) once per tick, not once per team message
-            run_sampled(self._clock_subs)
         firmware = self._firmware
         try:
             t_ns, ids, (speeds, currents) = link.decode(msg, firmware.num_wheels)
@@ -262,6 +260,8 @@ class TeamFirmwareNode(Node):
         self._currents[rows] = currents[picks]
         duty = self._tick(rows, t_ns)
         link.duty_pub.publish(link.encode(t_ns, ours, firmware.robot.wheel_names, duty[rows]))
+        if link is self._first_link:  # /clock (for the logs' time) once per tick, after the answer the plant waits for
+            run_sampled(self._clock_subs)
         self._report(robots, rows, t_ns, link)
 
     @staticmethod
