@@ -18,7 +18,8 @@ the ball predictor's in-node time from a vision frame to the last of the 14 catc
 max over every frame of the measured stretch: the bench sets the predictor's ``timing_log_every`` when it
 starts measuring and again when it stops, which logs exactly those frames; ``--window-frames N``: the worst
 p99 of windows of N frames instead), CPU per tick per process and the graph's RSS; then the median and range
-over the runs.
+over the runs. The launch file's default runs both teams on the field-level lockstep topics; ``--launch-args
+lockstep_topics:=team`` measures a message per team instead.
 """
 
 from __future__ import annotations

@@ -436,7 +436,7 @@ LOOP_OUTPUTS = {
 # The same for team_sim.launch.yaml as shipped (both teams' firmware in one process).
 TEAM_LOOP_OUTPUTS = {
     "plant": (contract.CLOCK, contract.CLOCK.name),
-    "team_firmware": (contract.TEAM_MOTOR_DUTY, contract.TEAM_MOTOR_DUTY.name),
+    "team_firmware": (contract.FIELD_MOTOR_DUTY, contract.FIELD_MOTOR_DUTY.name),
     "ball_predictor": (contract.CATCH_TIME, contract.CATCH_TIME.for_robot(0)),
     "opponent_interceptor": (contract.CMD_VEL, contract.OPPONENTS.topic(contract.CMD_VEL, 0)),
 }

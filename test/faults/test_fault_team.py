@@ -213,13 +213,13 @@ def test_each_team_node_killed_and_restarted_the_loop_closes_again(ros_graph):
 
 def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_single_kill(ros_graph):
     """team_sim.launch.yaml for a team of two and one opponent: the opponent is a team of its own on the graph
-    (its id 0 under /opponent_0/, its firmware on /opponent_team/); each node SIGKILLed once, erforce-launch
+    (its id 0 under /opponent_0/), both teams' firmware in one process on the field lockstep topics; each node
+    SIGKILLed once, erforce-launch
     restarts it after respawn_delay and both teams' loops close again with nobody restarting anything; then
     the opponents' interceptor drives opponent_0 to a ball rolling past it, from the predictor's catch times."""
     opponent = contract.OPPONENTS
     outputs = {"plant": (contract.CLOCK, contract.CLOCK.name),
-               "team_firmware": (contract.TEAM_MOTOR_DUTY, contract.TEAM_MOTOR_DUTY.name),  # team topics
-               "opponent_firmware": (contract.TEAM_MOTOR_DUTY, opponent.lockstep_topic(contract.TEAM_MOTOR_DUTY)),
+               "team_firmware": (contract.FIELD_MOTOR_DUTY, contract.FIELD_MOTOR_DUTY.name),  # both teams
                "ball_predictor": (contract.CATCH_TIME, opponent.topic(contract.CATCH_TIME, 0)),
                "opponent_interceptor": (contract.CMD_VEL, opponent.topic(contract.CMD_VEL, 0))}
     truth = ros_graph.subscribe(opponent.topic(contract.GROUND_TRUTH_ODOM, 0), Odometry)
@@ -229,7 +229,7 @@ def test_the_launched_team_graph_closes_the_loop_again_by_itself_after_any_singl
     demo.wait_running()
     topics = {name for name, _ in ros_graph.probe.node.get_topic_names_and_types()}
     for name in (opponent.topic(contract.VISION_POSE, 0), opponent.topic(contract.ODOM, 0),
-                 opponent.lockstep_topic(contract.TEAM_WHEEL_STATES), opponent.topic(contract.MOTOR_STATUS, 0)):
+                 contract.FIELD_WHEEL_STATES.name, opponent.topic(contract.MOTOR_STATUS, 0)):
         assert name in topics, name
     assert not any(name.startswith(("/robot_2/", "/opponent_1/")) for name in topics), sorted(topics)
     for node in ("plant", "ball_predictor", "team_firmware"):  # as the launcher starts their warm standbys

@@ -303,6 +303,44 @@ def test_the_opponents_team_state_names_its_robots_opponent_id_and_is_no_state_o
         conv.team_joint_state_from_msg(ours, 2, ("effort",), team=c.OPPONENTS)
 
 
+def test_the_field_state_has_our_joints_then_the_opponents_in_a_hand_made_layout():
+    """/field/wheel_states: robot_3's two wheels, then opponent_0's (string lengths 16 and 19 with the NUL), built
+    by hand from the JointState fields; read back as (ours, theirs) ids with our rows first."""
+    names = [b"robot_3/wheel_0", b"robot_3/wheel_1", b"opponent_0/wheel_0", b"opponent_0/wheel_1"]
+    block = b""
+    for name in names:  # each string at a multiple of 4 of the payload: the names start at payload offset 12
+        block += bytes(-(12 + len(block)) % 4) + struct.pack("<I", len(name) + 1) + name + b"\x00"
+    head = struct.pack("<iI", 2, 7) + struct.pack("<I", 1) + bytes(4) + struct.pack("<I", 4) + block
+    head += bytes(-len(head) % 4) + struct.pack("<I", 0) + struct.pack("<I", 0)  # position, velocity: empty
+    effort = [0.5, -0.25, 1.0, -1.0]
+    head += struct.pack("<I", 4)
+    hand = b"\x00\x01\x00\x00" + head + bytes(-len(head) % 8) + struct.pack("<4d", *effort)
+    built = conv.field_joint_state_cdr(2_000_000_007, ([3], [0]), ("wheel_0", "wheel_1"),
+                                       effort=np.reshape(effort, (2, 2)))
+    assert built == hand
+    assert list(deserialize_message(hand, JointState).name) == [n.decode() for n in names]
+    assert c.field_joint_names(([3], [0]), ("wheel_0", "wheel_1")) == tuple(n.decode() for n in names)
+    for form in (hand, hand, deserialize_message(hand, JointState)):  # bytes twice: the names block remembered
+        t_ns, ids, (duty,) = conv.field_joint_state_from_msg(form, 2, ("effort",))
+        assert (t_ns, ids, duty.tolist()) == (2_000_000_007, ((3,), (0,)), [[0.5, -0.25], [1.0, -1.0]])
+    ours_only = conv.field_joint_state_cdr(0, ([0, 2], []), ("wheel_0",), effort=np.zeros((2, 1)))
+    assert conv.field_joint_state_from_msg(ours_only, 1, ("effort",))[1] == ((0, 2), ())
+    theirs_only = conv.field_joint_state_cdr(0, ([], [1]), ("wheel_0",), effort=np.zeros((1, 1)))
+    assert conv.field_joint_state_from_msg(theirs_only, 1, ("effort",))[1] == ((), (1,))
+
+
+@pytest.mark.parametrize("names", [
+    ["opponent_0/wheel_0", "robot_3/wheel_0"],  # the opponents before ours
+    ["robot_3/wheel_0", "opponent_1/wheel_0", "opponent_0/wheel_0"],  # opponents' order
+    ["robot_3/wheel_0", "robot_x/wheel_0"], ["robot_3/wheel_0", "wheel_0"],
+])
+def test_field_state_names_must_be_ours_then_the_opponents_each_in_order(names):
+    msg = JointState(name=names, effort=[0.0] * len(names))
+    for form in (msg, serialize_message(msg)):
+        with pytest.raises(conv.ConversionError, match="joint name"):
+            conv.field_joint_state_from_msg(form, 1, ("effort",))
+
+
 def test_each_team_has_its_namespaces_frames_and_lockstep_topics():
     assert (c.OURS.topic(c.ODOM, 3), c.OPPONENTS.topic(c.ODOM, 3)) == ("/robot_3/odom", "/opponent_3/odom")
     assert (c.OURS.frame(0), c.OPPONENTS.frame(0)) == ("robot_0/base_link", "opponent_0/base_link")

@@ -328,14 +328,14 @@ def test_launch_files_give_every_node_the_stacks_dds_profile_unless_one_is_set(l
 
 def test_team_sim_takes_its_robots_as_a_list_argument():
     """11 robots of ours and 3 opponents by default, both teams' firmware in one team_firmware (or with
-    firmware_processes per_team each team in its own) on their team lockstep topics, /clock at 50 Hz, the plant
+    firmware_processes per_team each team in its own) on the field lockstep topics, /clock at 50 Hz, the plant
     and the predictor sized alike, the 3 opponents (ids 0, 1, 2 of their own) driven by an interceptor; a robot
     is removed or added by the list, without editing a file."""
     one = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml")
     assert [label.rsplit("-", 1)[0] for label in one] == ["plant", "ball_predictor", "team_catcher", "team_firmware"]
     firmware = next(params_of(s)["/**"] for s in one.values() if node_name(s) == "team_firmware")
     assert firmware["robot_ids"] == list(range(11)) and firmware["opponent_ids"] == [0, 1, 2]
-    assert firmware["team"] == "ours" and firmware["lockstep_topics"] == "team"
+    assert firmware["team"] == "ours" and firmware["lockstep_topics"] == "field"
     assert next(params_of(s)["/**"] for s in one.values() if node_name(s) == "plant")["clock_rate_hz"] == 50.0
     specs = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", firmware_processes="per_team")
     assert [label.rsplit("-", 1)[0] for label in specs] == [
@@ -348,7 +348,7 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
     assert len(plant["opponent_poses"]) == 3 * 3 and predictor["num_opponents"] == 3
     assert plant["team_color"] == "blue" and plant["vision_output"] == "ros"
     assert {plant["lockstep_topics"], params["team_firmware"]["lockstep_topics"],
-            params["opponent_firmware"]["lockstep_topics"]} == {"team"}
+            params["opponent_firmware"]["lockstep_topics"]} == {"field"}
     assert interceptor["robot_ids"] == [0, 1, 2] and interceptor["as_team"] and interceptor["team"] == "opponents"
     assert plant["ground_truth_rate_hz"] == 10.0
     assert params["team_firmware"]["motor_boards.status_rate_hz"] == 10.0

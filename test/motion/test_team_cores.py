@@ -60,7 +60,7 @@ def test_team_firmware_computes_what_the_per_robot_loops_compute(name):
     wheels = np.zeros((n, w))
     currents = np.zeros((n, w))
     worst = 0.0
-    seen = {"backwards": 0, "timeout": 0, "limited": 0, "saturated": 0, "held": 0}
+    seen = {"backwards": 0, "timeout": 0, "limited": 0, "saturated": 0, "held": 0, "noticed": 0}
     for _ in range(1500):
         for k in np.flatnonzero(rng.random(n) < 0.02):  # radio commands, some of them large
             twist = rng.normal(0.0, [1.5, 1.5, 4.0])
@@ -82,6 +82,7 @@ def test_team_firmware_computes_what_the_per_robot_loops_compute(name):
         currents = 0.6 * currents + rng.normal(0.0, 3.0, (n, w))
         duty = team.tick(times[active], wheels, currents, active)
         average, saturated = team.average_current_a, team.saturated
+        any_notice = False
         for k in active:
             setpoint, duty_ref = ref.tick(int(k), float(times[k]), wheels[k].copy(), currents[k].copy())
             board = ref.motor[k].board
@@ -94,6 +95,7 @@ def test_team_firmware_computes_what_the_per_robot_loops_compute(name):
                 worst = max(worst, float(np.max(np.abs(mine - theirs) / (1.0 + np.abs(theirs)))))
             assert (saturated[k] == board.saturated).all()
             main_notice, motor_notice = ref.main[k].notice or "", ref.motor[k].notice or ""
+            any_notice = any_notice or bool(main_notice or motor_notice)
             assert bool(team.main_notice[k] & NOTICE_TIME_BACKWARDS) == ("backwards" in main_notice)
             assert bool(team.main_notice[k] & NOTICE_COMMAND_TIMEOUT) == ("no command" in main_notice)
             assert bool(team.motor_notice[k] & NOTICE_TIME_BACKWARDS) == ("backwards" in motor_notice)
@@ -102,9 +104,12 @@ def test_team_firmware_computes_what_the_per_robot_loops_compute(name):
             seen["limited"] += bool((board.thermal.pwm_limit < 1.0).any())
             seen["saturated"] += bool(board.saturated.any())
             seen["held"] += bool(status.integrator_held)
+        assert team.noticed == any_notice  # the tick's flag: some robot of it noticed something
+        seen["noticed"] += any_notice
     assert worst < 1e-9
     # the run went through the branches it is meant to compare
     assert seen["backwards"] >= 3 and seen["timeout"] >= 3 and seen["limited"] > 50 and seen["saturated"] > 50
+    assert 3 <= seen["noticed"] < 1500
     if velocity.slip_hold_threshold_radps is not None:
         assert seen["held"] > 50
 

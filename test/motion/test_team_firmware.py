@@ -2,7 +2,8 @@
 team_firmware process on the per-robot topics and on the team-level ones (/team/wheel_states, motor_duty)
 give the in-process runner's trajectory, with an opponent on the field under its own firmware (per robot
 under /opponent_0/, or the opponents' team_firmware, on /opponent_team/ with team topics, or both teams in one
-team_firmware); robots come and go by parameter; a killed firmware process stalls only its robot."""
+team_firmware on the team topics or on the field topics /field/wheel_states, motor_duty); robots come and go
+by parameter; a killed firmware process stalls only its robot."""
 
 import signal
 from pathlib import Path
@@ -11,8 +12,9 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import String
+from std_msgs.msg import Float64MultiArray, String
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import odometry_from_msg, stamp_to_nanoseconds
@@ -30,12 +32,12 @@ OPPONENT_TWIST = (0.6, 0.3, -1.5)  # opponent_0's, world index 3
 # deployment -> the opponent's firmware (two_teams: our team's two processes only, no opponent; None: in our
 # team_firmware, by its opponent_ids)
 OPPONENT_FIRMWARE = {"per_robot": "per_robot", "team": "team", "team_topics": "team_topics", "mixed": "per_robot",
-                     "one_process": None}
+                     "one_process": None, "field": None}
 
 
 # deployment -> the plant's and team_firmware's lockstep_topics
 LOCKSTEP_TOPICS = {"per_robot": "per_robot", "team": "per_robot", "team_topics": "team", "two_teams": "team",
-                   "mixed": "both", "one_process": "team"}
+                   "mixed": "both", "one_process": "team", "field": "field"}
 
 
 def _start_firmware(graph, deployment, ids, team=contract.OURS, **params):
@@ -73,9 +75,12 @@ def _command(graph, robot, twist, team=contract.OURS):
 def _start_plant(graph, deployment, readers, opponent_poses=(), **params):
     """The plant once this probe reads every robot's ground truth (and /clock, which holds the first tick);
     the truths by world index (ours, then the opponents)."""
-    truths = {i: graph.subscribe(f"/robot_{i}/ground_truth/odom", Odometry) for i in range(len(POSES))}
+    # a reader queue for the whole run: a graph that runs flat out must not push samples out of it
+    qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=500, reliability=ReliabilityPolicy.RELIABLE)
+    truths = {i: graph.subscribe(f"/robot_{i}/ground_truth/odom", Odometry, qos) for i in range(len(POSES))}
     for j in range(len(opponent_poses)):
-        truths[len(POSES) + j] = graph.subscribe(contract.OPPONENTS.topic(contract.GROUND_TRUTH_ODOM, j), Odometry)
+        truths[len(POSES) + j] = graph.subscribe(contract.OPPONENTS.topic(contract.GROUND_TRUTH_ODOM, j), Odometry,
+                                                 qos)
     clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
     plant = graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params={
         "robot_poses": [v for p in POSES for v in p], "controlled": [True, False, True], "ball": [3.0, 2.0, 0.0, 0.0],
@@ -85,16 +90,24 @@ def _start_plant(graph, deployment, readers, opponent_poses=(), **params):
     return plant, truths, clocks
 
 
-@pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams", "mixed", "one_process"])
+@pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams", "mixed", "one_process",
+                                        "field"])
 def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deployment):
     """robot_0 and robot_2 have firmware (the team process by its robot_ids parameter [0, 2]), robot_1 none,
     and opponent_0 its own: every deployment (two team_firmware processes sharing the team topics too, and a
     plant serving both kinds of topics to a per-robot pair and a team_firmware) gives the in-process runner's
     trajectories of all four to 1e-9 at every ground-truth stamp, so they agree with each other."""
-    _start_firmware(ros_graph, deployment, TWISTS, **({"opponent_ids": [0]} if deployment == "one_process" else {}))
+    one_process = OPPONENT_FIRMWARE.get(deployment, "") is None
+    opponents = deployment in OPPONENT_FIRMWARE
+    # a team_firmware on team or field topics skips its report in the usual tick: its statuses still go out
+    status_names = [contract.MOTOR_STATUS.for_robot(i) for i in TWISTS] + (
+        [contract.OPPONENTS.topic(contract.MOTOR_STATUS, 0)] if opponents else [])
+    qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    statuses = ({name: ros_graph.subscribe(name, Float64MultiArray, qos) for name in status_names}
+                if LOCKSTEP_TOPICS[deployment] in ("team", "field") else {})
+    _start_firmware(ros_graph, deployment, TWISTS, **({"opponent_ids": [0]} if one_process else {}))
     for i, twist in TWISTS.items():
         _command(ros_graph, i, twist)
-    opponents = deployment in OPPONENT_FIRMWARE
     if opponents:
         if OPPONENT_FIRMWARE[deployment] is not None:
             _start_firmware(ros_graph, OPPONENT_FIRMWARE[deployment], [0], contract.OPPONENTS)
@@ -133,6 +146,10 @@ def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deploym
     assert runner.world.robot_state(1).vx == 0.0
     if opponents:
         assert runner.world.robot_state(3).w < -1.0  # the opponent turns as its own firmware was told
+    # motor_status at 50 Hz of sim time: ticks 0, 0.02 .. 0.5 s (the plant stops after 0.5 s), one each
+    ros_graph.probe.spin_until(lambda: all(len(m) >= 25 for m in statuses.values()), 30.0, "the motor statuses")
+    ros_graph.probe.spin_for(0.3)
+    assert all(25 <= len(m) <= 26 for m in statuses.values()), {name: len(m) for name, m in statuses.items()}
 
 
 def test_a_killed_firmware_process_stalls_only_its_robot(ros_graph):

@@ -32,6 +32,11 @@ of the two kinds it serves (or both); a team_firmware process answers for its ow
 several of one team may share its topics. Per robot, the values are exactly those of the per-robot
 topics, so both give the same trajectory.
 
+Field-level lockstep topics (``/field/wheel_states``, ``/field/motor_duty``): the same JointState for the
+robots of both teams in one message per tick, our joints first, then the opponents' (``field_joint_names``),
+for a simulation that runs both teams' firmware in one process (team_firmware with ``opponent_ids``): one
+message and one wake per tick each way instead of one per team. The values are those of the team topics.
+
 SSL-Vision (the ``ssl_vision_bridge`` node; erforce_ball_model.ssl_vision_bridge): the bridge
 takes the league's multicast packets and publishes on the same topics the plant's vision uses,
 so the rest of the graph cannot tell them apart:
@@ -265,6 +270,13 @@ def topic_of_name(name: str) -> Topic | None:
     return None
 
 
+def field_joint_names(robot_ids, wheel_names) -> tuple[str, ...]:
+    """Joint names of a field-level JointState: ``robot_ids`` is (our ids, the opponents' ids); our joints, then
+    the opponents' (``Team.joint_names`` of each)."""
+    ours, theirs = robot_ids
+    return OURS.joint_names(ours, wheel_names) + OPPONENTS.joint_names(theirs, wheel_names)
+
+
 def team_joint_names(robot_ids, wheel_names) -> tuple[str, ...]:
     """Joint names of our team's team-level JointState (``Team.joint_names``)."""
     return OURS.joint_names(robot_ids, wheel_names)
@@ -326,6 +338,15 @@ TEAM_MOTOR_DUTY = Topic("/team/motor_duty", JointState, QOS_CONTROL, "team_firmw
                         "the motor_duty of the robots one firmware process runs, in one message per tick: joint "
                         "`robot_<id>/wheel_<k>`, effort = PWM duty in [-1, 1]; stamp = answered tick; the "
                         "opponents' on `/opponent_team/motor_duty`")
+FIELD_WHEEL_STATES = Topic("/field/wheel_states", JointState, QOS_CONTROL, "plant (motor sensors; lockstep_topics "
+                           "field)", "team_firmware (both teams)",
+                           "both teams' controlled robots' wheel_states in one message per tick: joints "
+                           "`robot_<id>/wheel_<k>`, then `opponent_<id>/wheel_<k>`, velocity = wheel speed [rad/s], "
+                           "effort = motor current [A]; stamp = sensor tick")
+FIELD_MOTOR_DUTY = Topic("/field/motor_duty", JointState, QOS_CONTROL, "team_firmware (lockstep_topics field)",
+                         "plant", "the motor_duty of the robots of both teams one firmware process runs, in one "
+                         "message per tick: joints `robot_<id>/wheel_<k>`, then `opponent_<id>/wheel_<k>`, effort = "
+                         "PWM duty in [-1, 1]; stamp = answered tick")
 SIM_EVENTS = Topic("/sim/events", String, QOS_STATE, "plant, ssl_sim_bridge", "tools, demo",
                    "human-readable simulator events: kicks, contacts, lockstep stalls and resumes")
 BALL_CATCHES = Topic("/ball/catches", Float64MultiArray, QOS_SENSOR, "ball_predictor (while subscribed)",
@@ -387,7 +408,7 @@ SIM_SET_STATE = Topic("sim/set_state", Odometry, QOS_COMMAND, "scenario scripts"
 TOPICS: tuple[Topic, ...] = (
     CLOCK, VISION_BALL, VISION_ROBOTS, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
     BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL, SIM_SET_BALL, SIM_EVENTS,
-    TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY,
+    TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY, FIELD_WHEEL_STATES, FIELD_MOTOR_DUTY,
     BALL_CATCHES, BALL_TRACK, PASS_CHOICE,
     CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED, DRIBBLER,
     VISION_POSE, ODOM, CATCH_TIME, CATCH_POINT, GROUND_TRUTH_ODOM, GROUND_TRUTH_MOTORS, SIM_SET_STATE,

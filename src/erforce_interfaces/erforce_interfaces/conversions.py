@@ -42,6 +42,7 @@ from erforce_interfaces.contract import (
     VISION_BALL_CODE,
     VISION_ROBOT_FIELDS,
     Team,
+    field_joint_names,
 )
 from erforce_interfaces.stamps import stamp_ns
 
@@ -431,6 +432,24 @@ def team_joint_state_cdr(t_ns: int, robot_ids: Sequence[int], wheel_names: Seque
     ``robot_ids`` order, checked like ``joint_state_cdr`` (``saturate``: a sensor's range)."""
     ids = robot_ids if type(robot_ids) is tuple else tuple(int(i) for i in robot_ids)
     heads, n = _team_layout(ids, tuple(wheel_names), velocity is not None, effort is not None, team)
+    return _joint_arrays_cdr(t_ns, heads, n, velocity, effort, saturate)
+
+
+def field_joint_state_cdr(t_ns: int, robot_ids: tuple[Sequence[int], Sequence[int]], wheel_names: Sequence[str], *,
+                          velocity: np.ndarray | None = None, effort: np.ndarray | None = None,
+                          saturate: bool = False) -> bytes:
+    """A field-level JointState serialized (contract: /field/wheel_states, /field/motor_duty): ``robot_ids`` is
+    (our ids, the opponents' ids); ``velocity`` / ``effort`` are (robots, wheels) arrays, our rows first, then
+    the opponents', each in its ids' order; checked like ``team_joint_state_cdr``."""
+    ours, theirs = robot_ids
+    ids = (ours if type(ours) is tuple else tuple(int(i) for i in ours),
+           theirs if type(theirs) is tuple else tuple(int(i) for i in theirs))
+    heads, n = _field_layout(ids, tuple(wheel_names), velocity is not None, effort is not None)
+    return _joint_arrays_cdr(t_ns, heads, n, velocity, effort, saturate)
+
+
+def _joint_arrays_cdr(t_ns: int, heads: tuple[bytes, bytes], n: int, velocity: np.ndarray | None,
+                      effort: np.ndarray | None, saturate: bool) -> bytes:
     parts = [_CDR_LE, _stamp_cdr(t_ns)]
     for name, values, head in (("velocity", velocity, heads[0]), ("effort", effort, heads[1])):
         parts.append(head)
@@ -453,10 +472,27 @@ def _team_layout(robot_ids: tuple[int, ...], wheel_names: tuple[str, ...], veloc
     """The constant bytes of a team JointState before its velocity values (names, the empty position
     sequence, the velocity count and padding) and before its effort values (their count and padding),
     and the number of joints. An absent field is an empty sequence."""
+    _check_increasing(robot_ids)
+    return _joint_layout(team.joint_names(robot_ids, wheel_names), velocity, effort)
+
+
+@functools.lru_cache(maxsize=16)
+def _field_layout(robot_ids: tuple[tuple[int, ...], tuple[int, ...]], wheel_names: tuple[str, ...], velocity: bool,
+                  effort: bool) -> tuple[tuple[bytes, bytes], int]:
+    """As ``_team_layout`` for a field-level JointState: our robots' joints, then the opponents'."""
+    for ids in robot_ids:
+        _check_increasing(ids)
+    return _joint_layout(field_joint_names(robot_ids, wheel_names), velocity, effort)
+
+
+def _check_increasing(robot_ids: tuple[int, ...]) -> None:
     if len(set(robot_ids)) != len(robot_ids) or list(robot_ids) != sorted(robot_ids):
         raise ConversionError(f"robot ids {list(robot_ids)} are not distinct and increasing")
-    names_cdr = _cdr_names(team.joint_names(robot_ids, wheel_names))
-    n = len(robot_ids) * len(wheel_names)
+
+
+def _joint_layout(names: tuple[str, ...], velocity: bool, effort: bool) -> tuple[tuple[bytes, bytes], int]:
+    names_cdr = _cdr_names(names)
+    n = len(names)
     heads = [names_cdr + _u32.pack(0), b""]
     offset = 8 + len(heads[0])  # payload offset of the velocity count
     for k, present in enumerate((velocity, effort)):
@@ -498,8 +534,21 @@ def team_robot_ids_of(names: Sequence[str], num_wheels: int, team: Team = OURS) 
     return tuple(ids)
 
 
-# (team prefix, names block from payload offset 8) -> (robot ids, its length); a few entries: one per sender
-_team_names_seen: dict[tuple[str, bytes], tuple[tuple[int, ...], int]] = {}
+def field_robot_ids_of(names: Sequence[str], num_wheels: int) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """(our robot ids, the opponents' robot ids) of a field-level JointState's joint names; raises
+    ConversionError unless the names are our robots' (``team_robot_ids_of``), then the opponents'."""
+    split = len(names)
+    for k in range(0, len(names), num_wheels):  # the first robot that is not ours starts the opponents
+        if not names[k].startswith(OURS.prefix):
+            split = k
+            break
+    return team_robot_ids_of(names[:split], num_wheels, OURS), team_robot_ids_of(names[split:], num_wheels, OPPONENTS)
+
+
+# (team prefix or "field", names block from payload offset 8) -> (robot ids, its length); a few entries: one per
+# sender
+_team_names_seen: dict[tuple[str, bytes], tuple[tuple, int]] = {}
+_FIELD_KEY = "field"
 
 
 def team_joint_state_from_msg(msg: JointState | bytes, num_wheels: int, fields: Sequence[str],
@@ -507,40 +556,57 @@ def team_joint_state_from_msg(msg: JointState | bytes, num_wheels: int, fields: 
                               ) -> tuple[int, tuple[int, ...], list[np.ndarray]]:
     """(stamp [ns], robot ids, one (robots, wheels) array per field) of a team-level JointState, checked
     for names (of ``team``'s robots), lengths and finiteness like ``joint_state_from_msg``."""
+    return _joint_arrays_from_msg(msg, num_wheels, fields, limit, team.prefix,
+                                  lambda names: team_robot_ids_of(names, num_wheels, team), len)
+
+
+def field_joint_state_from_msg(msg: JointState | bytes, num_wheels: int, fields: Sequence[str],
+                               limit: float = MAX_ABS_VALUE,
+                               ) -> tuple[int, tuple[tuple[int, ...], tuple[int, ...]], list[np.ndarray]]:
+    """(stamp [ns], (our robot ids, the opponents'), one (robots, wheels) array per field, our rows first) of a
+    field-level JointState, checked like ``team_joint_state_from_msg``."""
+    return _joint_arrays_from_msg(msg, num_wheels, fields, limit, _FIELD_KEY,
+                                  lambda names: field_robot_ids_of(names, num_wheels),
+                                  lambda ids: len(ids[0]) + len(ids[1]))
+
+
+def _joint_arrays_from_msg(msg, num_wheels: int, fields: Sequence[str], limit: float, key: str, ids_of,
+                           num_robots) -> tuple[int, tuple, list[np.ndarray]]:
     for field in fields:
         if field not in _JOINT_FIELDS:
             raise ValueError(f"unknown JointState field {field!r}")
     if not isinstance(msg, bytes | bytearray | memoryview):
-        ids = team_robot_ids_of(list(msg.name), num_wheels, team)
+        ids = ids_of(list(msg.name))
         arrays = {f: np.asarray(getattr(msg, f), dtype=float) for f in fields}
         t_ns = stamp_to_nanoseconds(msg.header.stamp)
     else:
-        t_ns, ids, arrays = _decode_team_joint_state(bytes(msg), num_wheels, fields, team)
-    n = len(ids) * num_wheels
+        t_ns, ids, arrays = _decode_team_joint_state(bytes(msg), fields, key, ids_of)
+    robots = num_robots(ids)
+    n = robots * num_wheels
     out = []
     for field in fields:
         arr = arrays[field]
         if arr.size != n:
             raise ConversionError(f"{field} has {arr.size} entries, expected {n}")
         _check_array(field, arr, limit)
-        out.append(arr.reshape(len(ids), num_wheels))
+        out.append(arr.reshape(robots, num_wheels))
     return t_ns, ids, out
 
 
-def _decode_team_joint_state(data: bytes, num_wheels: int, fields: Sequence[str],
-                             team: Team) -> tuple[int, tuple[int, ...], dict[str, np.ndarray]]:
+def _decode_team_joint_state(data: bytes, fields: Sequence[str], key: str,
+                             ids_of) -> tuple[int, tuple, dict[str, np.ndarray]]:
     if data[:2] != _CDR_LE[:2]:
         raise ConversionError("not a little-endian CDR JointState")
-    known = next(((block, seen) for (prefix, block), seen in _team_names_seen.items()
-                  if prefix == team.prefix and data.startswith(block, 12)), None)
+    known = next(((block, seen) for (k, block), seen in _team_names_seen.items()
+                  if k == key and data.startswith(block, 12)), None)
     if known is None:  # a new sender: decode it all, and remember its names block if it is ours (empty frame_id)
         t_ns, names, values = _decode_joint_state(data)
-        ids = team_robot_ids_of(names, num_wheels, team)
+        ids = ids_of(names)
         block = _cdr_names(tuple(names))
         if data.startswith(block, 12):
             if len(_team_names_seen) >= 8:
                 _team_names_seen.clear()
-            _team_names_seen[(team.prefix, block)] = (ids, len(block))
+            _team_names_seen[(key, block)] = (ids, len(block))
         found = dict(zip(_JOINT_FIELDS, values, strict=True))
         return t_ns, ids, {f: found[f] for f in fields}
     block, (ids, _) = known

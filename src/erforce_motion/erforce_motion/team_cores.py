@@ -145,7 +145,8 @@ def _main_reset(k, wheels, fwd, ff_on, shaper, vpid, measured, shaped, command, 
 def _team_tick(active, t, wheels, currents, period_main, period_motor, tol, cmd_timeout, sp_timeout,
                main_state, vel_prm, vel_flags, shaper_prm, force_rows, kin, motor_state, speed_prm, speed_flags,
                current_prm, current_flags, thermal_prm, actuator_prm, main_notice, motor_notice):
-    """One sensor tick for the robots ``active`` (times t, sensors in rows of wheels/currents); see TeamFirmware."""
+    """One sensor tick for the robots ``active`` (times t, sensors in rows of wheels/currents); see TeamFirmware.
+    Returns whether any of them noticed something (a main_notice or motor_notice flag set)."""
     (command_in, now_main, last_run_main, has_run_main, feed_first, has_fed, last_feed, setpoints, shaper,
      measured, shaped, twist_cmd, held, prev_sp, prev_t, has_prev) = main_state[0]
     vpid = main_state[1]
@@ -166,6 +167,7 @@ def _team_tick(active, t, wheels, currents, period_main, period_motor, tol, cmd_
     i_hi = np.empty(n)
     out_i = np.empty(n)
     emf = np.empty(n)
+    noticed = False
     for idx in range(active.shape[0]):
         k = active[idx]
         ts = t[idx]
@@ -348,6 +350,8 @@ def _team_tick(active, t, wheels, currents, period_main, period_motor, tol, cmd_
             prev_sp[k, i] = setpoints[k, i]
         prev_t[k] = ts
         has_prev[k] = True
+        noticed = noticed or main_notice[k] != 0 or motor_notice[k] != 0
+    return noticed
 
 
 class TeamFirmware:
@@ -449,6 +453,7 @@ class TeamFirmware:
         self._cpid = _PidState(n, w)
         self.main_notice = np.zeros(n, dtype=np.int64)
         self.motor_notice = np.zeros(n, dtype=np.int64)
+        self.noticed = False  # some robot of the last tick has a notice flag set
         self._all = np.arange(n, dtype=np.int64)
         self._main_state = (self.command_twist, self._now_main, self._last_run_main, self._has_run_main,
                             self._feed_first, self._has_fed, self._last_feed, self.setpoints, self._shaper,
@@ -513,7 +518,8 @@ class TeamFirmware:
 
         wheel_speeds_radps, currents_a: (n_robots, wheels); only the rows of ``robots`` are read.
         Returns ``duty`` (n_robots, wheels), updated in the rows of ``robots`` (the array is reused:
-        copy what you keep). ``setpoints``, ``main_notice`` and ``motor_notice`` are updated likewise.
+        copy what you keep). ``setpoints``, ``main_notice`` and ``motor_notice`` are updated likewise, and
+        ``noticed`` says whether any of these robots' notice flags is set.
         Raises ValueError (changing nothing) for non-finite sensors or times.
         """
         if robots is None:
@@ -536,7 +542,7 @@ class TeamFirmware:
             raise ValueError(f"sensors: need {shape} arrays, got {w.shape} and {cur.shape}")
         if not (np.isfinite(t).all() and np.isfinite(rows_w).all() and np.isfinite(rows_i).all()):
             raise ValueError("tick: times, wheel speeds and currents must be finite")
-        self._kernel(active, t, w, cur, *self._kernel_args)
+        self.noticed = self._kernel(active, t, w, cur, *self._kernel_args)
         return self.duty
 
     # ------------------------------------------------------------------ status

@@ -24,7 +24,10 @@ With ``team`` ``ours`` and ``opponent_ids``, the same process also runs the oppo
 own topics (``/opponent_<id>/...``, ``/opponent_team/...``): both teams in one executor, their robots rows
 of one TeamFirmware (ours first), as a component container hosts several nodes. It answers each team's
 message on its own, with the same numbers as a process per team; a simulation saves a process's wakes per
-tick (bench/NOTES.md), while a process per team keeps a crash of one team's firmware from the other.
+tick (bench/NOTES.md), while a process per team keeps a crash of one team's firmware from the other. With
+``lockstep_topics`` ``field`` both teams' robots come in one ``/field/wheel_states`` per tick and their duties
+go out in one ``/field/motor_duty`` (the plant's ``lockstep_topics`` field): one message and one wake per tick
+each way instead of one per team; robots of the message that this process does not run are left alone.
 
 One executor wakes once for all robots whose ``wheel_states`` are queued, instead of two
 processes per robot each waking per tick. The parameters of the two per-robot nodes are here
@@ -42,6 +45,8 @@ from rclpy.node import Node
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
+    field_joint_state_cdr,
+    field_joint_state_from_msg,
     joint_state_cdr,
     table_cdr,
     team_joint_state_cdr,
@@ -98,7 +103,7 @@ class _Robot:
     """One robot's row in the team firmware, its publishers and time rule."""
 
     def __init__(self, node: Node, team: contract.Team, robot_id: int, row: int) -> None:
-        self.robot_id, self.row, self.name = robot_id, row, team.namespace(robot_id)
+        self.team, self.robot_id, self.row, self.name = team, robot_id, row, team.namespace(robot_id)
         self.stamps = StampFilter()  # the time rule for this robot's ticks on its own topics
         self.duty_pub = None if node.team_topics else contract_publisher(node, contract.MOTOR_DUTY,
                                                                           team.topic(contract.MOTOR_DUTY, robot_id))
@@ -108,16 +113,42 @@ class _Robot:
 
 
 class _TeamLink:
-    """One hosted team's lockstep topics (lockstep_topics team): its time rule, its answer, the rows of its
-    robots per robot set of the plant's message."""
+    """One hosted team's lockstep topics (lockstep_topics team), or both teams' (``team`` None: lockstep_topics
+    field): its time rule, its answer, the rows of its robots per robot set of the plant's message."""
 
-    def __init__(self, node: Node, team: contract.Team) -> None:
+    def __init__(self, node: Node, team: contract.Team | None) -> None:
         self.team = team
-        self.robots: dict[int, _Robot] = {}
+        self.name = team.name if team is not None else "field"
+        self.robots: dict[int, _Robot] = {}  # by robot id (the field link: by (team name, robot id))
         self.stamps = StampFilter()  # one stamp for all robots of the team's message
-        self.states_name = team.lockstep_topic(contract.TEAM_WHEEL_STATES)
+        self.states_name = (team.lockstep_topic(contract.TEAM_WHEEL_STATES) if team is not None
+                            else contract.FIELD_WHEEL_STATES.name)
         self.duty_pub = None
-        self.picks: dict[tuple[int, ...], tuple[np.ndarray, list[_Robot], np.ndarray, tuple[int, ...]]] = {}
+        self.picks: dict[tuple, tuple[np.ndarray, list[_Robot], np.ndarray, tuple]] = {}
+        # the report has nothing to do for ticks in [quiet_from_ns, quiet_until_ns) without a notice (_report)
+        self.quiet_from_ns, self.quiet_until_ns = 0, 0
+
+    def decode(self, msg: bytes, num_wheels: int) -> tuple[int, tuple, list[np.ndarray]]:
+        if self.team is None:
+            return field_joint_state_from_msg(msg, num_wheels, ("velocity", "effort"))
+        return team_joint_state_from_msg(msg, num_wheels, ("velocity", "effort"), team=self.team)
+
+    def keys(self, ids: tuple) -> list:
+        """The keys of ``robots`` for a message's robot ids, in the message's row order."""
+        if self.team is None:
+            return [(contract.OURS.name, i) for i in ids[0]] + [(contract.OPPONENTS.name, i) for i in ids[1]]
+        return list(ids)
+
+    def answer_ids(self, robots: list[_Robot]) -> tuple:
+        if self.team is None:
+            return (tuple(r.robot_id for r in robots if r.team is contract.OURS),
+                    tuple(r.robot_id for r in robots if r.team is contract.OPPONENTS))
+        return tuple(r.robot_id for r in robots)
+
+    def encode(self, t_ns: int, ids: tuple, wheel_names: tuple[str, ...], duty: np.ndarray) -> bytes:
+        if self.team is None:
+            return field_joint_state_cdr(t_ns, ids, wheel_names, effort=duty)
+        return team_joint_state_cdr(t_ns, ids, wheel_names, effort=duty, team=self.team)
 
 
 class TeamFirmwareNode(Node):
@@ -131,10 +162,12 @@ class TeamFirmwareNode(Node):
         super().__init__("team_firmware")
         self._warn = ThrottledWarner(self)
         self._links: dict[str, _TeamLink] = {}  # per hosted team (ours first)
+        self._field_link: _TeamLink | None = None
         self._firmware: TeamFirmware | None = None
         self._params = NodeParams(self, SCHEMA, build_loops)
         self._values = self._params.values
-        self.team_topics = self._values["lockstep_topics"] == "team"
+        lockstep = self._values["lockstep_topics"]
+        self.team_topics = lockstep != "per_robot"  # no per-robot lockstep topics
         self._apply(self._params.built)
         n, w = self._firmware.n_robots, self._firmware.num_wheels
         self._speeds, self._currents = np.zeros((n, w)), np.zeros((n, w))  # the sensors, row per robot
@@ -148,16 +181,23 @@ class TeamFirmwareNode(Node):
                 if not self.team_topics:
                     contract_subscription(self, contract.WHEEL_STATES, lambda m, r=robot: self._on_wheel_states(r, m),
                                           team.topic(contract.WHEEL_STATES, i), raw=True)
-            if self.team_topics:
+            if lockstep == "team":
                 link.duty_pub = contract_publisher(self, contract.TEAM_MOTOR_DUTY,
                                                    team.lockstep_topic(contract.TEAM_MOTOR_DUTY))
                 contract_subscription(self, contract.TEAM_WHEEL_STATES,
                                       lambda m, link=link: self._on_team_wheel_states(link, m),
                                       link.states_name, raw=True)
+        if lockstep == "field":  # both teams' robots on one pair of topics
+            link = self._field_link = _TeamLink(self, None)
+            link.robots = {(team_link.team.name, i): robot for team_link in self._links.values()
+                           for i, robot in team_link.robots.items()}
+            link.duty_pub = contract_publisher(self, contract.FIELD_MOTOR_DUTY)
+            contract_subscription(self, contract.FIELD_WHEEL_STATES, lambda m: self._on_team_wheel_states(link, m),
+                                  link.states_name, raw=True)
         self._clock_subs = sample_clock(self)
-        self._first_link = next(iter(self._links.values()), None)
+        self._first_link = self._field_link or next(iter(self._links.values()), None)
         hosted = "; ".join(f"{link.team.name}, robots {sorted(link.robots)}" for link in self._links.values())
-        self.get_logger().info(f"team_firmware: {hosted}, {self._values['lockstep_topics']} lockstep topics")
+        self.get_logger().info(f"team_firmware: {hosted}, {lockstep} lockstep topics")
         self._params.on_change(self._apply)
 
     def _apply(self, built: tuple[list[tuple[contract.Team, int]], TeamFirmware]) -> None:
@@ -165,6 +205,7 @@ class TeamFirmwareNode(Node):
         if self._firmware is not None:
             firmware.take_over(self._firmware)  # robot_ids and opponent_ids are read-only: the same rows
         self._firmware = firmware
+        self._report_all_next()  # the status rate may have changed
         for row, (team, i) in enumerate(robots):
             link = self._links.get(team.name)
             if link is None:
@@ -200,14 +241,11 @@ class TeamFirmwareNode(Node):
 
     def _on_team_wheel_states(self, link: _TeamLink, msg: bytes) -> None:
         """One tick of every robot of the team's message that this process runs; one answer for all of them."""
-        if link is self._first_link:  # /clock (for the logs' time) once per tick, not once per team message
-            run_sampled(self._clock_subs)
         firmware = self._firmware
         try:
-            t_ns, ids, (speeds, currents) = team_joint_state_from_msg(msg, firmware.num_wheels, ("velocity", "effort"),
-                                                                      team=link.team)
+            t_ns, ids, (speeds, currents) = link.decode(msg, firmware.num_wheels)
         except ConversionError as exc:
-            self._warn.warn(f"team_wheel_states {link.team.name}", f"rejected {link.states_name}: {exc}")
+            self._warn.warn(f"team_wheel_states {link.name}", f"rejected {link.states_name}: {exc}")
             return
         picks, robots, rows, ours = self._picks(link, ids)  # the message's rows of our robots; the others are not ours
         if not robots:
@@ -221,22 +259,25 @@ class TeamFirmwareNode(Node):
         self._speeds[rows] = speeds[picks]
         self._currents[rows] = currents[picks]
         duty = self._tick(rows, t_ns)
-        link.duty_pub.publish(team_joint_state_cdr(t_ns, ours, firmware.robot.wheel_names, effort=duty[rows],
-                                                   team=link.team))
-        self._report(robots, rows, t_ns)
+        link.duty_pub.publish(link.encode(t_ns, ours, firmware.robot.wheel_names, duty[rows]))
+        if link is self._first_link:  # /clock (for the logs' time) once per tick, after the answer the plant waits for
+            run_sampled(self._clock_subs)
+        self._report(robots, rows, t_ns, link)
 
     @staticmethod
-    def _picks(link: _TeamLink, ids: tuple[int, ...]) -> tuple[np.ndarray, list[_Robot], np.ndarray, tuple[int, ...]]:
-        """For a team message's robot ids: the positions of ours among them, our robots, their rows and ids."""
+    def _picks(link: _TeamLink, ids: tuple) -> tuple[np.ndarray, list[_Robot], np.ndarray, tuple]:
+        """For a team (field) message's robot ids: the positions of ours among them, our robots, their rows and
+        the ids of the answer."""
         picks = link.picks.get(ids)
         if picks is None:
             if len(link.picks) >= 8:  # a few robot sets: one per plant configuration
                 link.picks.clear()
-            ks = [k for k, i in enumerate(ids) if i in link.robots]
-            robots = [link.robots[ids[k]] for k in ks]
+            link.quiet_from_ns, link.quiet_until_ns = 0, 0  # other robots: their statuses may be due
+            keys = link.keys(ids)
+            ks = [k for k, key in enumerate(keys) if key in link.robots]
+            robots = [link.robots[keys[k]] for k in ks]
             picks = link.picks[ids] = (np.array(ks, dtype=np.int64), robots,
-                                       np.array([r.row for r in robots], dtype=np.int64),
-                                       tuple(r.robot_id for r in robots))
+                                       np.array([r.row for r in robots], dtype=np.int64), link.answer_ids(robots))
         return picks
 
     def _take_sensors(self, robot: _Robot, t_ns: int, speeds, currents) -> bool:
@@ -254,6 +295,13 @@ class TeamFirmwareNode(Node):
         """A new time line for this robot: nothing of the old one is kept."""
         self._firmware.forget_setpoint(robot.row)
         self._status_sent[robot.row] = False
+        self._report_all_next()
+
+    def _report_all_next(self) -> None:
+        """The next tick of every team link runs the whole report (a status may fall due otherwise)."""
+        for link in (*self._links.values(), self._field_link):
+            if link is not None:
+                link.quiet_from_ns, link.quiet_until_ns = 0, 0
 
     def _tick(self, rows: np.ndarray, t_ns: int) -> np.ndarray:
         """Tick k at ``t_ns`` of the robots in ``rows`` (their sensors in those rows of _speeds/_currents), in the
@@ -261,15 +309,21 @@ class TeamFirmwareNode(Node):
         one firmware call. Returns the duties, a row per robot of the firmware."""
         return self._firmware.tick(t_ns * 1e-9, self._speeds, self._currents, rows)
 
-    def _report(self, robots: list[_Robot], rows: np.ndarray, t_ns: int) -> None:
+    def _report(self, robots: list[_Robot], rows: np.ndarray, t_ns: int, link: _TeamLink | None = None) -> None:
         """What a tick of these robots tells besides the duty (which the plant waits for, so it goes first):
-        notices, setpoints (publish_setpoints) and motor_status when due."""
+        notices, setpoints (publish_setpoints) and motor_status when due. A team link's usual tick has none of
+        them: no notice (the kernel's flag), no setpoints and no status due before ``link.quiet_until_ns``."""
         firmware = self._firmware
-        for k in np.flatnonzero(firmware.main_notice[rows] | firmware.motor_notice[rows]).tolist():
-            robot = robots[k]
-            for notice in firmware.notices(robot.row):
-                self._warn.warn(f"notice {robot.name}", f"{robot.name}: {notice}")
-        if self._values["publish_setpoints"]:
+        publish_setpoints = self._values["publish_setpoints"]
+        if (link is not None and not firmware.noticed and not publish_setpoints
+                and link.quiet_from_ns <= t_ns < link.quiet_until_ns):
+            return
+        if firmware.noticed:
+            for k in np.flatnonzero(firmware.main_notice[rows] | firmware.motor_notice[rows]).tolist():
+                robot = robots[k]
+                for notice in firmware.notices(robot.row):
+                    self._warn.warn(f"notice {robot.name}", f"{robot.name}: {notice}")
+        if publish_setpoints:
             names = firmware.robot.wheel_names
             for robot in robots:
                 robot.setpoint_pub.publish(joint_state_cdr(t_ns, names, velocity=firmware.setpoints[robot.row]))
@@ -277,6 +331,9 @@ class TeamFirmwareNode(Node):
         last = self._status_ns[rows]
         due = ~self._status_sent[rows] | (t_ns - last >= period_ns) | (t_ns < last)
         due_rows = np.flatnonzero(due).tolist()
+        if link is not None:  # after this tick's statuses: none falls due before the earliest last one + period
+            last = np.where(due, t_ns, last)
+            link.quiet_from_ns, link.quiet_until_ns = int(last.max()), int(last.min()) + period_ns
         if due_rows:
             averages, saturation = firmware.average_current_a, firmware.saturated
         for k in due_rows:

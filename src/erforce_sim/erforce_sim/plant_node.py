@@ -22,7 +22,10 @@ Lockstep topics (parameter ``lockstep_topics``): ``per_robot`` serves ``/robot_<
 serves, per team, one ``/team/wheel_states`` (the opponents' ``/opponent_team/wheel_states``) per tick
 for its controlled robots and takes ``motor_duty`` answers there, each for the robots of one
 team_firmware process (contract: joints ``robot_<id>/wheel_<k>``, ``opponent_<id>/wheel_<k>``);
-``both`` serves both, and a robot's answer counts from either. The gate is per robot either way.
+``both`` serves both, and a robot's answer counts from either; ``field`` serves one ``/field/wheel_states``
+per tick for the controlled robots of both teams (ours first) and takes ``/field/motor_duty`` answers, each
+for the robots of one team_firmware process (both teams' firmware in one process: one message and one wake
+per tick each way). The gate is per robot either way.
 
 Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state``
 (nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``; an opponent likewise
@@ -47,6 +50,8 @@ from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
     clock_cdr,
+    field_joint_state_cdr,
+    field_joint_state_from_msg,
     float64_from_msg,
     joint_state_cdr,
     joint_state_from_msg,
@@ -167,6 +172,7 @@ class PlantNode(Node):
         topics = self._values["lockstep_topics"]
         self._per_robot_lockstep = topics in ("per_robot", "both")
         self._team_lockstep = topics in ("team", "both")
+        self._field_lockstep = topics == "field"
         self._controlled_ids = tuple(sorted(self._controlled))
         # per team with robots on the field: its controlled world indices (ours come first in _controlled_ids),
         # their rows among the sensed ones and their ids in the team
@@ -176,7 +182,9 @@ class PlantNode(Node):
         self._team_rows = {team: np.array([self._controlled_ids.index(i) for i in ids], dtype=np.int64)
                            for team, ids in self._team_ids.items()}
         self._team_robot_ids = {team: tuple(self._robots[i][1] for i in ids) for team, ids in self._team_ids.items()}
-        self._team_named: set[int] = set()  # robots some team motor_duty answer was for
+        self._team_named: set[int] = set()  # robots some team or field motor_duty answer was for
+        # the field message's robot ids: (ours, the opponents')
+        self._field_robot_ids = (self._team_robot_ids[contract.OURS], self._team_robot_ids.get(contract.OPPONENTS, ()))
 
         q = contract
         pub, sub = contract_publisher, contract_subscription
@@ -224,6 +232,9 @@ class PlantNode(Node):
                 self._team_states_pubs[team] = pub(self, q.TEAM_WHEEL_STATES, team.lockstep_topic(q.TEAM_WHEEL_STATES))
                 sub(self, q.TEAM_MOTOR_DUTY, lambda m, team=team: self._on_team_duty(team, m),
                     team.lockstep_topic(q.TEAM_MOTOR_DUTY), raw=True)
+        if self._field_lockstep:
+            self._field_states_pub = pub(self, q.FIELD_WHEEL_STATES)
+            sub(self, q.FIELD_MOTOR_DUTY, self._on_field_duty, raw=True)
         self._peers: set[int] = set()
         self._setup_ssl_vision()
         self._apply_params(self._params.config)
@@ -275,6 +286,25 @@ class PlantNode(Node):
         except ConversionError as exc:  # no robot to answer for: the robots stall, and are reported, if it lasts
             self._warn.warn(f"team_duty_{team.name}", f"rejected {topic} ({exc})")
             return
+        self._take_team_duties(topic, t_ns, team, ids, duties)
+        if t_ns == self._gate.tick_ns:
+            self._pump()
+
+    def _on_field_duty(self, msg: bytes) -> None:
+        topic = contract.FIELD_MOTOR_DUTY.name
+        try:
+            t_ns, (ours, theirs), (duties,) = field_joint_state_from_msg(msg, len(self._wheels), ("effort",))
+        except ConversionError as exc:  # as a team answer: the robots stall, and are reported, if it lasts
+            self._warn.warn("field_duty", f"rejected {topic} ({exc})")
+            return
+        self._take_team_duties(topic, t_ns, contract.OURS, ours, duties)
+        self._take_team_duties(topic, t_ns, contract.OPPONENTS, theirs, duties[len(ours):])
+        if t_ns == self._gate.tick_ns:
+            self._pump()
+
+    def _take_team_duties(self, topic: str, t_ns: int, team: contract.Team, ids: tuple[int, ...],
+                          duties: np.ndarray) -> None:
+        """The answers of a team or field message for ``team``'s robots ``ids`` (duty row k for ids[k])."""
         for k, robot_id in enumerate(ids):
             robot = self._index.get((team.name, robot_id))
             if robot not in self._controlled:
@@ -283,8 +313,6 @@ class PlantNode(Node):
                 continue
             self._team_named.add(robot)
             self._take_duty(robot, t_ns, duties[k])
-        if t_ns == self._gate.tick_ns:
-            self._pump()
 
     def _take_duty(self, robot: int, t_ns: int, duty: np.ndarray | None) -> None:
         if duty is not None:
@@ -334,6 +362,8 @@ class PlantNode(Node):
             for team, ids in self._team_ids.items():
                 if self.count_publishers(team.lockstep_topic(q.TEAM_MOTOR_DUTY)) > 0:
                     peers |= (self._team_named & set(ids)) or set(ids)
+        if self._field_lockstep and self.count_publishers(q.FIELD_MOTOR_DUTY.name) > 0:
+            peers |= (self._team_named & self._controlled) or self._controlled
         self._peers = peers
 
     def _topic(self, topic: contract.Topic, i: int) -> str:
@@ -351,7 +381,9 @@ class PlantNode(Node):
         team_served = {team for team in self._team_ids if self._team_lockstep
                        and self.count_publishers(team.lockstep_topic(q.TEAM_MOTOR_DUTY)) > 0
                        and self._team_states_pubs[team].get_subscription_count() >= readers}
-        robots_ok = all(
+        field_served = (self._field_lockstep and self.count_publishers(q.FIELD_MOTOR_DUTY.name) > 0
+                        and self._field_states_pub.get_subscription_count() >= readers)
+        robots_ok = field_served or all(
             self._robots[i][0] in team_served
             or (self._per_robot_lockstep and self.count_publishers(self._topic(q.MOTOR_DUTY, i)) > 0
                 and self._pubs[i]["states"].get_subscription_count() >= readers)
@@ -462,6 +494,10 @@ class PlantNode(Node):
                         t_ns, self._team_robot_ids[team], self._wheels, velocity=speeds[rows],
                         effort=currents[rows], saturate=True, team=team,
                     ))
+        if self._field_lockstep and ids:  # both teams in one message: the sensors' rows are ours, then theirs
+            self._field_states_pub.publish(field_joint_state_cdr(
+                t_ns, self._field_robot_ids, self._wheels, velocity=speeds, effort=currents, saturate=True,
+            ))
         if retry:
             return
         if t_ns - self._last_clock_ns >= 1e9 / self._values["clock_rate_hz"] - 1:

@@ -259,6 +259,10 @@ class World:
         self._beam_half_span = np.array([0.5 * s.config.dribbler_width_m for s in self.specs], dtype=float)
         self._barrier_direct = lb_params.latency_s == 0.0 and lb_params.false_flip_prob == 0.0
         self._barrier_values = np.zeros(n_robots, dtype=bool)
+        # the compiled contact and beam kernels for the types they are passed (the body rows, float scalars)
+        self._contacts_kernel = compiled_for(_robot_contact_candidates, self._body, self._radii_arr,
+                                             self._front_x_arr, *(0.0,) * 7)
+        self._beam_kernel = compiled_for(_beam_hits, self._body, 0.0, 0.0, 0.0, self._beam_x_arr, self._beam_half_span)
         self._rigs_changed()
         for i, s in enumerate(self.specs):
             self.place_robot(i, s.x, s.y, s.theta)
@@ -602,9 +606,9 @@ class World:
         ball_wall = abs(ball.x) + reach_b >= self._half_x or abs(ball.y) + reach_b >= self._half_y
         if not self._robots:
             return ball_wall, [], [], []
-        wall, near, pairs, any_contact = _robot_contact_candidates(
-            self._body, self._radii_arr, self._front_x_arr, self._half_x, self._half_y, margin, dt, ball.x, ball.y,
-            reach_b)
+        wall, near, pairs, any_contact = self._contacts_kernel(
+            self._body, self._radii_arr, self._front_x_arr, float(self._half_x), float(self._half_y), margin, dt,
+            float(ball.x), float(ball.y), reach_b)
         if not any_contact:
             return ball_wall, [], [], []
         return (ball_wall, np.flatnonzero(wall).tolist(), [(int(a), int(b)) for a, b in pairs],
@@ -686,8 +690,9 @@ class World:
     def _sample_light_barriers(self) -> None:
         if not self._robots:
             return
-        hits = _beam_hits(self._body, self._ball.x, self._ball.y, self._ball.radius, self._beam_x_arr,
-                          self._beam_half_span)
+        ball = self._ball
+        hits = self._beam_kernel(self._body, float(ball.x), float(ball.y), float(ball.radius), self._beam_x_arr,
+                                 self._beam_half_span)
         if self._barrier_direct:  # no latency, no false flips: the output is the beam itself
             self._barrier_values[:] = hits
             return
