@@ -157,14 +157,11 @@ class PassingPlayer:
         if n_team < 2 or n_opponents < 0:
             raise ValueError(f"need at least 2 of ours and no negative number of opponents, got {n_team}, "
                              f"{n_opponents}")
-        self.cfg, self.field = cfg, field_config
         self.n_team, self.n_opp = n_team, n_opponents
-        self.dribbler_offset_m, self.robot_radius_m = dribbler_offset_m, robot_radius_m
         self.model = BallModelParams() if model is None else model
         n = n_team + n_opponents
-        cc = cfg.catcher
-        self.pass_search = CatchSearch(n, RobotLimits(cc.a_max_mps2, cc.v_max_mps), dribbler_offset_m=dribbler_offset_m,
-                                       field=field_config)
+        self.receiver: Receiver | None = None  # our receiver's skill while a pass rolls
+        self.configure(cfg, field_config, dribbler_offset_m, robot_radius_m)
         self.poses = np.zeros((n, 3))  # tracked, from vision
         self.velocities = np.zeros((n, 2))
         self.seen = np.zeros(n, dtype=bool)
@@ -175,7 +172,6 @@ class PassingPlayer:
         self.resets = 0  # balls asked back after a loss, an interception or a drop
         self.drops = 0  # of them: a holder lost the ball before it kicked
         self.ball_request: int | None = None  # put the ball at this robot's dribbler, then call ball_placed
-        self.receiver: Receiver | None = None  # our receiver's skill while a pass rolls
         self._edges: list[tuple[int, float]] = []  # rising barrier edges not yet judged
         self._holder: int | None = None
         self._hold_since = 0.0
@@ -187,6 +183,17 @@ class PassingPlayer:
         self._refresh = 0  # the next teammate whose next target is refreshed
         self._prefer: int | None = None  # the new holder's planned next target
         self._dribblers = dict.fromkeys(range(n_team), False)
+
+    def configure(self, cfg: PlayerConfig, field_config: FieldConfig, dribbler_offset_m: float,
+                  robot_radius_m: float) -> None:
+        """New settings, from the next decision on (a receiver on its way keeps its skill's new settings too)."""
+        self.cfg, self.field = cfg, field_config
+        self.dribbler_offset_m, self.robot_radius_m = dribbler_offset_m, robot_radius_m
+        cc = cfg.catcher
+        self.pass_search = CatchSearch(self.n_team + self.n_opp, RobotLimits(cc.a_max_mps2, cc.v_max_mps),
+                                       dribbler_offset_m=dribbler_offset_m, field=field_config)
+        if self.receiver is not None:
+            self.receiver.set_config(cc, dribbler_offset_m, robot_radius_m, field_config)
 
     # -------------------------------------------------------------------- state for observers
     @property
@@ -239,11 +246,16 @@ class PassingPlayer:
                 self.receiver.on_v_shoot(now, v_shoot_mps)
 
     def on_catch(self, i: int, now: float, catch_time_s: float, catch_point=None) -> None:
-        """The predictor's catch time (CATCH_TIME_NEVER: never) and point for our robot ``i``."""
+        """The predictor's catch time (CATCH_TIME_NEVER: never) and, when given, point for our robot ``i``."""
         if self.receiver is not None and self._pass is not None and i == self._pass.choice.receiver:
             self.receiver.on_catch_time(now, catch_time_s)
             if catch_point is not None:
                 self.receiver.on_catch_point(now, np.asarray(catch_point, dtype=float))
+
+    def on_catch_point(self, i: int, now: float, catch_point) -> None:
+        """The predictor's catch point for our robot ``i`` (where its catch time comes apart from it)."""
+        if self.receiver is not None and self._pass is not None and i == self._pass.choice.receiver:
+            self.receiver.on_catch_point(now, np.asarray(catch_point, dtype=float))
 
     def on_model(self, params: BallModelParams) -> None:
         self.model = params
