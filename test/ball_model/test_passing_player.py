@@ -137,7 +137,8 @@ def test_a_ball_that_rests_before_anybody_catches_it_is_lost():
 
 
 def test_a_holder_whose_barrier_stays_dark_dropped_the_ball():
-    """The barrier is trusted from hold_min_s (0.4 s) on; dark for more than drop_after_s (0.3 s) after that is a drop."""
+    """The barrier is trusted from hold_min_s (0.4 s) on; dark for more than drop_after_s (0.3 s) after that: a
+    drop."""
     p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi)])
     p.on_barrier(0, 0.05, False)
     for t in (0.1, 0.38, 0.42, 0.6, 0.7):
