@@ -6,7 +6,8 @@ for the opponents), our robots' ``catch_time`` and ``catch_point``; and every ro
 (``ball_detected``; the opponents' tell an interception, as a referee sees it). Each AI tick (``rate_hz``,
 simulated time) it feeds PassingPlayer and publishes our robots' ``cmd_vel`` (while a robot moves, and the
 stop once), a ``kick`` when the holder kicks, and each robot's ``dribbler`` when it changes (and every
-second). Each pass, as it ends, is logged as one line (PassRecord.line) and published on ``/pass/records``.
+second). Each pass, as it ends, is logged as one line (PassRecord.line) and published on ``/pass/records``;
+the chosen pass on ``/pass/choice`` whenever it changes (the field view draws it).
 With ``place_ball`` it also does the referee's part: the ball at the holder's dribbler on ``/sim/set_ball``
 at the start (once every robot has been tracked ``settle_s``) and after an interception, a loss or a drop.
 
@@ -29,7 +30,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray
 from erforce_ball_model import catcher_node
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import load_kernels
-from erforce_ball_model.passing import PassConfig
+from erforce_ball_model.passing import PassConfig, PassOption
 from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
@@ -69,6 +70,18 @@ def build(config):
     passing = PassConfig(**fields_for(PassConfig, own, press_fraction=PassConfig().press_fraction))
     player = PlayerConfig(**fields_for(PlayerConfig, own, passing=passing, catcher=catcher))
     return player, field, offset, radius
+
+
+def pass_choice_rows(choice: tuple[int, PassOption] | None, cfg: PassConfig) -> list[tuple]:
+    """The rows of /pass/choice (contract.PASS_CHOICE_COLUMNS) for a passer and its chosen pass; none for None."""
+    if choice is None:
+        return []
+    passer, o = choice
+    never = contract.PASS_NO_OPPONENT_S
+    nobody = o.first_opponent is None or not math.isfinite(o.opponent_catch_s)
+    return [(passer, o.receiver, o.kick_speed_mps, o.direction_rad, min(o.receiver_catch_s, never),
+             never if nobody else o.opponent_catch_s, -1 if nobody else o.first_opponent,
+             never if nobody else max(o.margin_s, -never), cfg.safe_margin_s, 1.0 if o.safe(cfg) else 0.0)]
 
 
 def record_row(record: PassRecord) -> list[float]:
@@ -129,6 +142,8 @@ class PassingGameNode(Node):
         self._dribbler_pubs = [contract_publisher(self, q.DRIBBLER, ours.topic(q.DRIBBLER, i)) for i in range(n)]
         self._set_ball_pub = contract_publisher(self, q.SIM_SET_BALL) if own.place_ball else None
         self._records_pub = contract_publisher(self, q.PASS_RECORDS)
+        self._choice_pub = contract_publisher(self, q.PASS_CHOICE)
+        self._choice_sent: object = ()  # the choice last published (() : none yet)
         self._moving = [True] * n  # the last cmd_vel was not a stop (so the first tick stops every robot)
         self._dribblers: list[bool | None] = [None] * n
         self._dribblers_sent_at = -math.inf
@@ -244,6 +259,12 @@ class PassingGameNode(Node):
         self._send_dribblers(now)
         self._report()
         self._serve_ball_request(now)
+        choice = player.choice
+        if choice != self._choice_sent:
+            self._choice_sent = choice
+            columns = contract.PASS_CHOICE_COLUMNS
+            rows = np.array(pass_choice_rows(choice, player.cfg.passing), dtype=float).reshape(-1, len(columns))
+            self._choice_pub.publish(table_msg(rows, columns))
 
     def _start(self, now: float) -> None:
         """The game starts once every robot has been tracked settle_s."""

@@ -341,7 +341,8 @@ BALL_TRACK = Topic("/ball/track", PointCloud2, QOS_SENSOR, "ball_predictor (whil
                    "the observation seen_x_m, seen_y_m [m] (the /vision/ball frame answered), phase (the index "
                    "of /ball/phase's value in BALL_PHASES) and uncertain (1/0, as /ball/uncertain); stamp = "
                    "that observation's; after the per-robot outputs")
-PASS_CHOICE = Topic("/pass/choice", Float64MultiArray, QOS_STATE, "passing game (its bag)", "field_view, tools",
+PASS_CHOICE = Topic("/pass/choice", Float64MultiArray, QOS_STATE, "passing_game (in one process: its bag)",
+                    "field_view, tools",
                     "the pass the holder has chosen, one row of PASS_CHOICE_COLUMNS (robot ids of our team, "
                     "times [s] from the kick; safe 1/0 = margin_s >= safe_margin_s); no rows: no choice "
                     "(nobody holds the ball)")

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import sys
 import time
 from pathlib import Path
@@ -30,6 +29,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from erforce_ball_model.passing import PassConfig, PassOption
+from erforce_ball_model.passing_game_node import pass_choice_rows
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import clock_cdr, odometry_cdr, table_cdr
 from erforce_interfaces.robot_config import FieldConfig
@@ -44,15 +44,7 @@ _NOT_WRITTEN = object()  # no /pass/choice in the bag yet (None is "no choice")
 
 def pass_choice_cdr(choice: tuple[int, PassOption] | None, cfg: PassConfig) -> bytes:
     """/pass/choice of a passer and its chosen pass (contract.PASS_CHOICE_COLUMNS); no row for None."""
-    if choice is None:
-        return table_cdr([], contract.PASS_CHOICE_COLUMNS)
-    passer, o = choice
-    never = contract.PASS_NO_OPPONENT_S
-    nobody = o.first_opponent is None or not math.isfinite(o.opponent_catch_s)
-    row = (passer, o.receiver, o.kick_speed_mps, o.direction_rad, min(o.receiver_catch_s, never),
-           never if nobody else o.opponent_catch_s, -1 if nobody else o.first_opponent,
-           never if nobody else max(o.margin_s, -never), cfg.safe_margin_s, 1.0 if o.safe(cfg) else 0.0)
-    return table_cdr([row], contract.PASS_CHOICE_COLUMNS)
+    return table_cdr(pass_choice_rows(choice, cfg), contract.PASS_CHOICE_COLUMNS)
 
 
 class GameBag:
