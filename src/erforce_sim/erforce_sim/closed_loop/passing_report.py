@@ -98,7 +98,7 @@ class GameBag:
 
 
 def summary_markdown(records: list[PassRecord], cfg: GameConfig, seed: int, sim_s: float, wall_s: float,
-                     frame_costs_ms: np.ndarray | None, resets: int | None = 0, drops: int = 0,
+                     frame_costs_ms: np.ndarray | None, resets: int | None = 0, drops: int | None = 0,
                      where: str = "one process") -> str:
     s = summary(records, cfg.passing)
     safe = s["rated_safe"]
@@ -110,8 +110,10 @@ def summary_markdown(records: list[PassRecord], cfg: GameConfig, seed: int, sim_
         + (f" ({100.0 * s['safe_completed'] / safe:.0f} %)" if safe else ""),
     ]
     if resets is not None:
-        lines.append(f"- the ball was put back at a teammate {resets} time(s) (after interceptions and losses; {drops} "
-                     "time(s) because the holder lost it before kicking)")
+        why = ("" if drops is None else
+               f"; {drops} time(s) because the holder lost it before kicking")
+        lines.append(f"- the ball was put back at a teammate {resets} time(s) (after interceptions, losses and "
+                     f"drops{why})")
     lines.append(f"- {sim_s:.1f} s simulated in {wall_s:.1f} s of wall time (real-time factor "
                  f"{sim_s / wall_s if wall_s > 0 else 0.0:.2f}; {where}; the machine's load counts)")
     if frame_costs_ms is not None and len(frame_costs_ms):
@@ -175,7 +177,7 @@ def run_on_graph(args: argparse.Namespace) -> int:
     import rclpy
     from nav_msgs.msg import Odometry
     from rosgraph_msgs.msg import Clock
-    from std_msgs.msg import Float64MultiArray
+    from std_msgs.msg import Float64MultiArray, String
 
     from erforce_ball_model.passing_game_node import records_from_msg
     from erforce_interfaces.conversions import odometry_from_msg, stamp_to_seconds
@@ -226,6 +228,9 @@ def run_on_graph(args: argparse.Namespace) -> int:
     node.create_subscription(Float64MultiArray, q.PASS_RECORDS.name, on_record, q.PASS_RECORDS.qos)
     node.create_subscription(Clock, q.CLOCK.name, on_clock, q.CLOCK.qos)
     node.create_subscription(Odometry, q.GROUND_TRUTH_BALL.name, on_ball, q.GROUND_TRUTH_BALL.qos)
+    placements = []  # the plant's events: the first placement starts the game, each further one is a reset
+    node.create_subscription(String, q.SIM_EVENTS.name, lambda m: placements.append(m.data)
+                             if "ball placed" in m.data else None, q.SIM_EVENTS.qos)
     deadline = time.monotonic() + GRAPH_START_S + cfg.passes * WALL_PER_PASS_S
     try:
         while len(records) < cfg.passes and launch.poll() is None and time.monotonic() < deadline:
@@ -244,7 +249,8 @@ def run_on_graph(args: argparse.Namespace) -> int:
     if records:
         plot_passes(records, FieldConfig.preset(cfg.field_preset), out / "passes.png",
                     f"{cfg.team_size} v {cfg.opponents} on the graph, seed {args.seed}: true ball path of every pass")
-    text = summary_markdown(records, cfg, args.seed, sim_s, wall_s, None, None, where="on the DDS graph")
+    text = summary_markdown(records, cfg, args.seed, sim_s, wall_s, None, max(len(placements) - 1, 0), None,
+                            where="on the DDS graph")
     (out / "summary.md").write_text(text)
     print("\n" + text, flush=True)
     print(f"report: {out}")
