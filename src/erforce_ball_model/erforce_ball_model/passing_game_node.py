@@ -59,6 +59,7 @@ SCHEMA = HostSchema(load_schema("erforce_ball_model", "passing_game"), {
 })
 BALL_PLACE_MARGIN_M = 0.002  # the ball is put this far in front of the dribbler's touch point
 DRIBBLER_REPEAT_S = 1.0  # every dribbler command again this often (a restarted plant learns them)
+START_PATIENCE_S = 5.0  # robots not tracked this long after the node's first tick are named in a warning
 
 
 def build(config):
@@ -148,6 +149,7 @@ class PassingGameNode(Node):
         self._dribblers: list[bool | None] = [None] * n
         self._dribblers_sent_at = -math.inf
         self._first_seen: float | None = None
+        self._waiting_since: float | None = None
         self._started = False
         self._reported = 0
         self._inputs = [sample_only(contract_subscription(self, topic, callback, raw=raw))
@@ -178,7 +180,7 @@ class PassingGameNode(Node):
         """A new /clock time line (node_support.guard_clock): a new game."""
         built = self._params.built
         self._player = PassingPlayer(built[0], self._n, self._m, *built[1:])
-        self._first_seen, self._started, self._reported = None, False, 0
+        self._first_seen, self._waiting_since, self._started, self._reported = None, None, False, 0
         self._dribblers_sent_at = -math.inf
 
     def _now_s(self) -> float:
@@ -270,6 +272,12 @@ class PassingGameNode(Node):
         """The game starts once every robot has been tracked settle_s."""
         if not self._player.seen.all():
             self._first_seen = None
+            if self._waiting_since is None:
+                self._waiting_since = now
+            elif now - self._waiting_since > START_PATIENCE_S:
+                missing = [self._name(k) for k in np.flatnonzero(~self._player.seen)]
+                self._warn.warn("start", f"the game waits for the tracked pose (odom) of {', '.join(missing)}: "
+                                f"are they on the field and num_robots / num_opponents right?")
             return
         if self._first_seen is None:
             self._first_seen = now
