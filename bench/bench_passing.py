@@ -20,23 +20,23 @@ from concurrent.futures import ProcessPoolExecutor
 
 
 def play(seed: int, passes: int, team: int, opponents: int, receive_angle_deg: float | None) -> dict:
+    from erforce_ball_model.passing_player import PlayerConfig
     from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame, summary
 
     cfg = GameConfig(team_size=team, opponents=opponents, passes=passes)
     if receive_angle_deg is not None:
         cfg = GameConfig(team_size=team, opponents=opponents, passes=passes,
-                         max_receive_angle_rad=math.radians(receive_angle_deg))
+                         player=PlayerConfig(max_receive_angle_rad=math.radians(receive_angle_deg)))
     receptions = {}  # pass index -> (time, heading) of its receiver at the light-barrier edge
     kicks = {}  # pass index -> kick direction
 
     def on_tick(game) -> None:
-        p = game._pass
-        if p is not None and len(game.records) + 1 not in kicks:
-            kicks[len(game.records) + 1] = p["choice"].direction_rad
+        if game.player.passing and len(game.records) + 1 not in kicks:
+            kicks[len(game.records) + 1] = game.player.choice[1].direction_rad
         if game.records and game.records[-1].index not in receptions:
             r = game.records[-1]
             if r.outcome == "completed":
-                receptions[r.index] = (game.runner.t_s, game.world.robot_state(game._holder).theta)
+                receptions[r.index] = (game.runner.t_s, game.world.robot_state(game.player.holder).theta)
             else:
                 receptions[r.index] = None
 

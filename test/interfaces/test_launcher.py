@@ -403,6 +403,20 @@ def test_show_args_lists_names_descriptions_and_defaults(capsys):
     assert [a[0] for a in declared_args(HERE / "outer.launch.yaml")] == ["robot", "robot_name", "share"]
 
 
+def test_team_sim_plays_the_passing_game_with_ai_passing():
+    """ai:=passing adds the passing_game node for the same robots, opponents and field as the plant and the
+    predictor; by default our robots have no AI."""
+    path = REPO / "src/erforce_sim/launch/team_sim.launch.yaml"
+    assert "passing_game" not in {node_name(s) for s in resolve(path).values()}
+    specs = resolve(path, ai="passing", robot_ids="[0, 1, 2]", num_robots="3", field="division_b",
+                    robot_poses="[-4.0, 0.0, 0.0, -3.0, 2.0, 0.0, -3.0, -2.0, 0.0]")
+    params = {node_name(spec): params_of(spec)["/**"] for spec in specs.values()}
+    game, predictor, plant = params["passing_game"], params["ball_predictor"], params["plant"]
+    assert (game["num_robots"], game["num_opponents"]) == (3, 3)
+    assert (predictor["num_robots"], predictor["num_opponents"]) == (3, 3)
+    assert game["field"] == plant["field"] == "division_b" and game["use_sim_time"] is True
+
+
 # ================================================= strict as ros2 launch on Jazzy (issue 24)
 LAUNCH_FILES = sorted((REPO / "src").glob("*/launch/*.launch.yaml"))
 # what ros2 launch needs on the command line for a file; every node each file starts

@@ -45,14 +45,14 @@ def test_an_opponent_on_the_only_lane_intercepts_and_the_record_says_why():
 
 
 def test_the_passing_scenario_writes_the_plot_the_summary_and_a_bag(tmp_path):
-    """``./run demo --scenario passing``: each pass on the terminal, and report/<time>/ with passes.png,
+    """``./run demo --scenario passing --in-process``: each pass on the terminal, and report/<time>/ with passes.png,
     summary.md (a row per pass) and a rosbag2/MCAP bag of the ground truth of every robot and the pass events."""
     from rosbags.rosbag2 import Reader
 
     from erforce_sim.closed_loop.demo import main
 
-    assert main(["--scenario", "passing", "--team", "2", "--opponents", "1", "--passes", "1", "--seed", "0",
-                 "--out", str(tmp_path)]) == 0
+    assert main(["--scenario", "passing", "--in-process", "--team", "2", "--opponents", "1", "--passes", "1",
+                 "--seed", "0", "--out", str(tmp_path)]) == 0
     (report,) = tmp_path.iterdir()
     assert (report / "passes.png").stat().st_size > 10_000
     summary_text = (report / "summary.md").read_text()

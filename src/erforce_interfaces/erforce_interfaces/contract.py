@@ -310,7 +310,8 @@ BALL_MODEL_PARAMS = Topic("/ball/model_params", Float64MultiArray, QOS_LATCHED, 
                           "at start and on every change")
 GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant", "tests, tools only",
                           "true ball: pose [m], twist.linear [m/s], twist.angular = spin [rad/s], `field`")
-SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts", "plant",
+SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts, passing_game (the referee's "
+                     "placement)", "plant",
                      "place the ball: pose.position [m], twist.linear [m/s], twist.angular spin [rad/s]")
 VISION_ROBOTS = Topic("/vision/robots", PointCloud2, QOS_SENSOR, "plant (vision), ssl_vision_bridge",
                       "ball_predictor, tools",
@@ -363,10 +364,16 @@ BALL_TRACK = Topic("/ball/track", PointCloud2, QOS_SENSOR, "ball_predictor (whil
                    "the observation seen_x_m, seen_y_m [m] (the vision ball answered), phase (the index "
                    "of /ball/phase's value in BALL_PHASES) and uncertain (1/0, as /ball/uncertain); stamp = "
                    "that observation's; after the per-robot outputs")
-PASS_CHOICE = Topic("/pass/choice", Float64MultiArray, QOS_STATE, "passing game (its bag)", "field_view, tools",
+PASS_CHOICE = Topic("/pass/choice", Float64MultiArray, QOS_STATE, "passing_game (in one process: its bag)",
+                    "field_view, tools",
                     "the pass the holder has chosen, one row of PASS_CHOICE_COLUMNS (robot ids of our team, "
                     "times [s] from the kick; safe 1/0 = margin_s >= safe_margin_s); no rows: no choice "
                     "(nobody holds the ball)")
+PASS_RECORDS = Topic("/pass/records", Float64MultiArray, QOS_STATE, "passing_game", "demo, tools",
+                     "one message per pass as it ends: one row of PASS_RECORD_COLUMNS (robot ids of each team, "
+                     "times [s] from the kick, kick_speed_mps [m/s]; outcome PASS_OUTCOMES' index; caught_team "
+                     "Team.code, 0 and caught_id -1 with actual_catch_s -1: nobody; first_opponent and "
+                     "facing_target -1: none; opponent_predicted_s PASS_NO_OPPONENT_S: no opponent can)")
 
 # ------------------------------------------------------------- per-robot topics
 CMD_VEL = Topic("cmd_vel", Twist, QOS_COMMAND, "catcher / AI", "velocity_controller",
@@ -386,8 +393,8 @@ KICK = Topic("kick", Float64, QOS_COMMAND, "catcher / AI / scenario", "plant",
 BALL_DETECTED = Topic("ball_detected", Bool, QOS_STATE, "plant (light barrier), ssl_sim_bridge", "catcher, tools",
                       "light barrier across the dribbler: ball present (from an external simulator: its "
                       "dribbler ball contact)")
-DRIBBLER = Topic("dribbler", Float64, QOS_COMMAND, "catcher / AI", "ssl_sim_bridge",
-                 "dribbler speed [rad/s], 0 = off; our plant has no dribbler, external simulators do")
+DRIBBLER = Topic("dribbler", Float64, QOS_COMMAND, "catcher / AI", "plant, ssl_sim_bridge",
+                 "dribbler speed [rad/s], 0 = off (our plant's dribbler holds a ball at any speed above 0)")
 VISION_POSE = Topic("vision_pose", PoseStamped, QOS_SENSOR, "plant (vision), ssl_vision_bridge; each while subscribed",
                     "per-robot tools", "robot pose in `field` [m, rad]; stamp = capture time; noisy, delayed, with "
                     "dropouts; the same poses as /vision/robots")
@@ -409,7 +416,7 @@ TOPICS: tuple[Topic, ...] = (
     CLOCK, VISION_BALL, VISION_ROBOTS, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
     BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL, SIM_SET_BALL, SIM_EVENTS,
     TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY, FIELD_WHEEL_STATES, FIELD_MOTOR_DUTY,
-    BALL_CATCHES, BALL_TRACK, PASS_CHOICE,
+    BALL_CATCHES, BALL_TRACK, PASS_CHOICE, PASS_RECORDS,
     CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED, DRIBBLER,
     VISION_POSE, ODOM, CATCH_TIME, CATCH_POINT, GROUND_TRUTH_ODOM, GROUND_TRUTH_MOTORS, SIM_SET_STATE,
 )
@@ -438,6 +445,10 @@ CATCH_TABLE_COLUMNS = ("team", "robot_id", "x_m", "y_m", "yaw_rad", "vx_mps", "v
 PASS_NO_OPPONENT_S = 1.0e6
 PASS_CHOICE_COLUMNS = ("passer_id", "receiver_id", "kick_speed_mps", "direction_rad", "receiver_catch_s",
                        "opponent_catch_s", "first_opponent", "margin_s", "safe_margin_s", "safe")
+PASS_RECORD_COLUMNS = ("index", "t_kick_s", "passer_id", "receiver_id", "kick_speed_mps", "predicted_catch_s",
+                       "opponent_predicted_s", "first_opponent", "rated_safe", "outcome", "caught_team", "caught_id",
+                       "actual_catch_s", "facing_target")
+PASS_OUTCOMES = ("completed", "intercepted", "lost")
 VISION_FIELD_COLUMNS = ("length_m", "width_m", "boundary_m", "goal_width_m", "goal_depth_m")
 
 

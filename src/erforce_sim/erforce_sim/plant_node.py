@@ -28,7 +28,8 @@ for the robots of one team_firmware process (both teams' firmware in one process
 per tick each way). The gate is per robot either way.
 
 Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state``
-(nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``; an opponent likewise
+(nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``, the dribbler on
+``/robot_<id>/dribbler`` (on at any speed above 0: it holds a ball that touches it); an opponent likewise
 under ``/opponent_<id>/``. A body placed outside the field walls is refused with an error naming it.
 They act at the next tick; of several that arrived meanwhile on one topic, the newest.
 """
@@ -223,6 +224,8 @@ class PlantNode(Node):
             if self._per_robot_lockstep:
                 sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), team.topic(q.MOTOR_DUTY, j), raw=True)
             sub(self, q.KICK, scenario(f"kick{i}", lambda m, i=i: self._on_kick(i, m)), team.topic(q.KICK, j))
+            sub(self, q.DRIBBLER, scenario(f"dribbler{i}", lambda m, i=i: self._on_dribbler(i, m)),
+                team.topic(q.DRIBBLER, j))
             sub(self, q.SIM_SET_STATE, scenario(f"set{i}", lambda m, i=i: self._on_set_robot(i, m)),
                 team.topic(q.SIM_SET_STATE, j))
         sub(self, q.SIM_SET_BALL, scenario("ball", self._on_set_ball))
@@ -331,6 +334,14 @@ class PlantNode(Node):
         state = "fired" if result.fired else ("armed" if result.armed else "no ball at the kicker")
         clamped = " (clamped)" if result.clamped else ""
         self._event(f"{self._names[robot]} kick {result.speed_mps:.2f} m/s{clamped}: {state}")
+
+    def _on_dribbler(self, robot: int, msg: Float64) -> None:
+        try:
+            on = float64_from_msg(msg, limit=1.0e5) > 0.0
+        except ConversionError as exc:
+            self._warn.warn(f"dribbler{robot}", f"{self._names[robot]}: rejected dribbler: {exc}")
+            return
+        self.world.set_dribbler(robot, on)
 
     def _on_set_ball(self, msg: Odometry) -> None:
         try:

@@ -31,6 +31,8 @@ NODE_SCHEMAS = (
     # the team hosts: their own parameters; the rest are the per-robot nodes' (README, "A team")
     ("erforce_motion", "team_firmware"),
     ("erforce_ball_model", "team_catcher"),
+    # our team's AI on the graph: its own parameters; the receiver's are the catcher's
+    ("erforce_ball_model", "passing_game"),
 )
 
 

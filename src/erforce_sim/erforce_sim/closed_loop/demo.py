@@ -657,7 +657,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="report", help="report folder (a timestamped subfolder is created)")
     parser.add_argument("--scenario", default="scenes", choices=("scenes", "passing"),
                         help="scenes: the paper's story on the DDS graph (below); passing: the passing game of a team "
-                             "against opponents, in one process (erforce_sim.closed_loop.passing_report)")
+                             "against opponents on the 14-robot graph (team_sim.launch.yaml ai:=passing; "
+                             "erforce_sim.closed_loop.passing_report)")
+    parser.add_argument("--in-process", action="store_true",
+                        help="passing: the game in one process instead, without DDS (deterministic per seed)")
     parser.add_argument("--team", type=int, default=11, help="passing: our robots (2..11)")
     parser.add_argument("--opponents", type=int, default=3, help="passing: opponents (0..6)")
     parser.add_argument("--passes", type=int, default=20, help="passing: the game ends after this many passes")
@@ -700,12 +703,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--foxglove-port", type=int, default=0,
                         help="with --view: also a Foxglove WebSocket server on this port (0: none)")
     args = parser.parse_args(argv)
-    if args.scenario == "passing":
+    if args.scenario == "passing" and args.in_process:
         from erforce_sim.closed_loop import passing_report  # no DDS graph: the game runs in this process
 
         return passing_report.run(args)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.update(contract.dds_profile_env())  # for the director and the recorder too
+    if args.scenario == "passing":
+        from erforce_sim.closed_loop import passing_report
+
+        return passing_report.run_on_graph(args)
     return Demo(args).run()
 
 

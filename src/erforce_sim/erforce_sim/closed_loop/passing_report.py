@@ -1,19 +1,26 @@
-"""``./run demo --scenario passing``: the passing game (erforce_sim.closed_loop.passing_game) with a report.
+"""``./run demo --scenario passing``: the passing game with a report.
 
-The game runs in one process (deterministic per seed); each pass is printed as it ends. It
-writes report/<time>/: ``passes.png`` (every pass on the field), ``summary.md`` (one row per pass,
-the totals, every interception with its predicted margin) and ``bag/``, a rosbag2/MCAP bag of
-the game on the contract's topics and types: ``/clock``, ``/ground_truth/ball``, each robot's
-``/robot_<id>/ground_truth/odom``, each opponent's ``/opponent_<id>/ground_truth/odom`` (100 Hz,
-simulated time), one ``/sim/events`` line per kick and per pass, and the holder's choice of pass
-``/pass/choice`` whenever it changes (the field view draws it when it replays the bag). The DDS graph of the 14
-robots is launch/team_sim.launch.yaml; this game's decisions run in this process.
+On the DDS graph (``run_on_graph``, the default): launch/team_sim.launch.yaml with ``ai:=passing``, our team
+and the opponents placed as the in-process game places them (passing_game.setup_for), the passing_game node
+playing our team and the opponents' team_catcher intercepting; a recorder (erforce-record) takes every topic
+into ``bag/``, and this process prints each pass as the node publishes it (``/pass/records``) until
+``--passes`` have ended. The ball path of each pass comes from ``/ground_truth/ball``.
+
+In one process (``run``, ``--in-process``): erforce_sim.closed_loop.passing_game, deterministic per seed; its
+bag holds the contract's topics and types: ``/clock``, ``/ground_truth/ball``, each robot's
+``/robot_<id>/ground_truth/odom``, each opponent's ``/opponent_<id>/ground_truth/odom`` (100 Hz, simulated
+time), one ``/sim/events`` line per kick and per pass, and the holder's choice of pass ``/pass/choice``
+whenever it changes (the field view draws it when it replays the bag).
+
+Both write report/<time>/: ``passes.png`` (every pass on the field), ``summary.md`` (one row per pass,
+the totals, every interception with its predicted margin) and ``bag/``.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
+import dataclasses
+import sys
 import time
 from pathlib import Path
 
@@ -22,25 +29,22 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from erforce_ball_model.passing import PassConfig, PassOption
+from erforce_ball_model.passing_game_node import pass_choice_rows
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import clock_cdr, odometry_cdr, table_cdr
+from erforce_interfaces.robot_config import FieldConfig
 from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame, PassRecord, plot_passes, summary
 
 TRUTH_PERIOD_NS = 10_000_000  # 100 Hz, as the plant's ground_truth_rate_hz
+TEAM_SIM_LAUNCH = Path(__file__).resolve().parents[2] / "launch" / "team_sim.launch.yaml"
+GRAPH_START_S = 180.0  # wall time the graph may take to start (a loaded machine)
+WALL_PER_PASS_S = 60.0  # and each pass to end (a pass is a few seconds of simulated time)
 _NOT_WRITTEN = object()  # no /pass/choice in the bag yet (None is "no choice")
 
 
 def pass_choice_cdr(choice: tuple[int, PassOption] | None, cfg: PassConfig) -> bytes:
     """/pass/choice of a passer and its chosen pass (contract.PASS_CHOICE_COLUMNS); no row for None."""
-    if choice is None:
-        return table_cdr([], contract.PASS_CHOICE_COLUMNS)
-    passer, o = choice
-    never = contract.PASS_NO_OPPONENT_S
-    nobody = o.first_opponent is None or not math.isfinite(o.opponent_catch_s)
-    row = (passer, o.receiver, o.kick_speed_mps, o.direction_rad, min(o.receiver_catch_s, never),
-           never if nobody else o.opponent_catch_s, -1 if nobody else o.first_opponent,
-           never if nobody else max(o.margin_s, -never), cfg.safe_margin_s, 1.0 if o.safe(cfg) else 0.0)
-    return table_cdr([row], contract.PASS_CHOICE_COLUMNS)
+    return table_cdr(pass_choice_rows(choice, cfg), contract.PASS_CHOICE_COLUMNS)
 
 
 class GameBag:
@@ -94,20 +98,28 @@ class GameBag:
 
 
 def summary_markdown(records: list[PassRecord], cfg: GameConfig, seed: int, sim_s: float, wall_s: float,
-                     frame_costs_ms: np.ndarray, resets: int = 0, drops: int = 0) -> str:
+                     frame_costs_ms: np.ndarray | None, resets: int | None = 0, drops: int | None = 0,
+                     where: str = "one process") -> str:
     s = summary(records, cfg.passing)
     safe = s["rated_safe"]
     lines = [
-        f"# The passing game: {cfg.team_size} robots against {cfg.opponents}, seed {seed}",
+        f"# The passing game: {cfg.team_size} robots against {cfg.opponents}, seed {seed} ({where})",
         "",
         f"- passes: {s['passes']}; completed {s['completed']}, intercepted {s['intercepted']}, lost {s['lost']}",
         f"- rated safe (margin >= {cfg.passing.safe_margin_s:.2f} s): {safe}, of them completed {s['safe_completed']}"
         + (f" ({100.0 * s['safe_completed'] / safe:.0f} %)" if safe else ""),
-        f"- the ball was put back at a teammate {resets} time(s) (after interceptions and losses; {drops} time(s) "
-        "because the holder lost it before kicking)",
-        f"- {sim_s:.1f} s simulated in {wall_s:.1f} s of wall time (one process; the machine's load counts)",
-        f"- ball predictor per vision frame, all {cfg.team_size + cfg.opponents} robots (CPU): median "
-        f"{np.median(frame_costs_ms):.3f} ms, p99 {np.percentile(frame_costs_ms, 99):.3f} ms",
+    ]
+    if resets is not None:
+        why = ("" if drops is None else
+               f"; {drops} time(s) because the holder lost it before kicking")
+        lines.append(f"- the ball was put back at a teammate {resets} time(s) (after interceptions, losses and "
+                     f"drops{why})")
+    lines.append(f"- {sim_s:.1f} s simulated in {wall_s:.1f} s of wall time (real-time factor "
+                 f"{sim_s / wall_s if wall_s > 0 else 0.0:.2f}; {where}; the machine's load counts)")
+    if frame_costs_ms is not None and len(frame_costs_ms):
+        lines.append(f"- ball predictor per vision frame, all {cfg.team_size + cfg.opponents} robots (CPU): median "
+                     f"{np.median(frame_costs_ms):.3f} ms, p99 {np.percentile(frame_costs_ms, 99):.3f} ms")
+    lines += [
         "",
         "| # | from | to | kick [m/s] | catch predicted [s] | actual [s] | margin [s] | rated | outcome |",
         "|---|---|---|---|---|---|---|---|---|",
@@ -153,4 +165,96 @@ def run(args: argparse.Namespace) -> int:
     (out / "summary.md").write_text(text)
     print("\n" + text, flush=True)
     print(f"report: {out}")
+    return 0
+
+
+def _flat(poses) -> str:
+    return "[" + ", ".join(f"{v:.6f}" for pose in poses for v in pose) + "]"
+
+
+def run_on_graph(args: argparse.Namespace) -> int:
+    """The game on the DDS graph (module docstring); 0 once ``args.passes`` passes ended, 1 otherwise."""
+    import rclpy
+    from nav_msgs.msg import Odometry
+    from rosgraph_msgs.msg import Clock
+    from std_msgs.msg import Float64MultiArray, String
+
+    from erforce_ball_model.passing_game_node import records_from_msg
+    from erforce_interfaces.conversions import odometry_from_msg, stamp_to_seconds
+    from erforce_interfaces.tools.testing import stop_process
+    from erforce_sim.closed_loop.demo import spawn_in_session
+    from erforce_sim.closed_loop.passing_game import setup_for
+
+    out = Path(args.out) / time.strftime("%Y%m%d-%H%M%S")
+    out.mkdir(parents=True, exist_ok=True)
+    cfg = GameConfig(team_size=args.team, opponents=args.opponents, passes=args.passes)
+    setup = setup_for(cfg, args.seed)
+    bin_dir = Path(sys.executable).parent
+    cmd = [str(bin_dir / "erforce-launch"), str(TEAM_SIM_LAUNCH), "ai:=passing", f"seed:={args.seed}",
+           f"field:={cfg.field_preset}", f"real_time_factor:={args.real_time_factor}", "output:=screen",
+           f"robot_ids:={list(range(cfg.team_size))}", f"num_robots:={cfg.team_size}",
+           f"robot_poses:={_flat(setup.robot_poses)}", f"opponent_ids:={list(range(cfg.opponents))}",
+           f"num_opponents:={cfg.opponents}", f"opponent_poses:={_flat(setup.opponent_poses)}",
+           f"opponents_intercept:={'true' if cfg.opponents else 'false'}"]
+    print(f"passing game on the graph: {cfg.team_size} robots against {cfg.opponents}, {cfg.passes} passes, seed "
+          f"{args.seed} (log: {out / 'graph.log'})", flush=True)
+    launch = spawn_in_session(cmd, out / "graph.log")
+    recorder = spawn_in_session([str(bin_dir / "erforce-record"), str(out / "bag"), "--use-sim-time"],
+                                out / "record.log", idle=True)
+    records: list[PassRecord] = []
+    ball_path: list[tuple[float, float, float]] = []  # t, x, y of the true ball
+    clock = {"first": None, "now": None}
+    rclpy.init()
+    node = rclpy.create_node("passing_director")
+    q = contract
+
+    def on_record(msg) -> None:
+        for r in records_from_msg(msg):
+            end = r.t_kick_s + (r.actual_catch_s if r.actual_catch_s is not None else cfg.player.pass_timeout_s)
+            path = tuple((x, y) for t, x, y in ball_path if r.t_kick_s <= t <= end)
+            records.append(dataclasses.replace(r, ball_path=path))
+            print(r.line(), flush=True)
+
+    def on_clock(msg) -> None:
+        t = stamp_to_seconds(msg.clock)
+        if clock["first"] is None:
+            clock["first"] = (t, time.monotonic())
+        clock["now"] = (t, time.monotonic())
+
+    def on_ball(msg) -> None:
+        t, pose, _, _ = odometry_from_msg(msg)
+        ball_path.append((t, pose[0], pose[1]))
+
+    node.create_subscription(Float64MultiArray, q.PASS_RECORDS.name, on_record, q.PASS_RECORDS.qos)
+    node.create_subscription(Clock, q.CLOCK.name, on_clock, q.CLOCK.qos)
+    node.create_subscription(Odometry, q.GROUND_TRUTH_BALL.name, on_ball, q.GROUND_TRUTH_BALL.qos)
+    placements = []  # the plant's events: the first placement starts the game, each further one is a reset
+    node.create_subscription(String, q.SIM_EVENTS.name, lambda m: placements.append(m.data)
+                             if "ball placed" in m.data else None, q.SIM_EVENTS.qos)
+    deadline = time.monotonic() + GRAPH_START_S + cfg.passes * WALL_PER_PASS_S
+    try:
+        while len(records) < cfg.passes and launch.poll() is None and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.2)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        stop_process(launch, sigint_timeout_s=10.0)
+        stop_process(recorder, sigint_timeout_s=20.0)
+        node.destroy_node()
+        rclpy.try_shutdown()
+    sim_s = wall_s = 0.0
+    if clock["first"] is not None:
+        sim_s, wall_s = clock["now"][0] - clock["first"][0], clock["now"][1] - clock["first"][1]
+    records = records[:cfg.passes]
+    if records:
+        plot_passes(records, FieldConfig.preset(cfg.field_preset), out / "passes.png",
+                    f"{cfg.team_size} v {cfg.opponents} on the graph, seed {args.seed}: true ball path of every pass")
+    text = summary_markdown(records, cfg, args.seed, sim_s, wall_s, None, max(len(placements) - 1, 0), None,
+                            where="on the DDS graph")
+    (out / "summary.md").write_text(text)
+    print("\n" + text, flush=True)
+    print(f"report: {out}")
+    if len(records) < cfg.passes:
+        print(f"only {len(records)} of {cfg.passes} passes ended; see {out / 'graph.log'}", flush=True)
+        return 1
     return 0

@@ -1,0 +1,446 @@
+"""Our team's AI in the passing game, one AI tick at a time: the functional core shared by the
+in-process game (erforce_sim.closed_loop.passing_game) and the ``passing_game`` node.
+
+No rclpy and no access to the physics: ``PassingPlayer`` sees what a real AI sees and is fed as it
+arrives (each input with the time it arrived): every robot's tracked pose and velocity (``on_robot``;
+our robots 0 .. n_team - 1, then the opponents), the tracked ball (``on_ball``), the predictor's catch
+time and point per robot of ours (``on_catch``) and ball model (``on_model``), and the light barriers
+(``on_barrier``; the opponents' too: how the game tells an interception, as a referee would). Each AI
+tick ``tick(now)`` returns every robot's command (``Commands``: twist in the robot frame, a kick,
+the dribbler).
+
+- The robot on the ball holds it with the dribbler, evaluates a pass to every teammate
+  (passing.evaluate_passes: robotTimeToBall for the whole field on the ball each kick would make),
+  turns to the pass it selects (passing.select_pass: the earliest safe catch) and kicks, once it has
+  held the ball ``hold_min_s`` and aims within ``aim_tolerance_rad``, with the speed at which the ball
+  arrives receivable (passing.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``.
+- Each teammate's next target (where it would pass on from where it stands) is worked out when a robot
+  takes the ball and refreshed one teammate per AI tick; a pass is rated with its receiver facing it.
+- The receiver runs catcher.Receiver (the paper's Fig. 6 skill) facing its next target where the receive
+  angle allows (``receive_facing`` says so, for a predictor that can search with that facing); once its
+  light barrier sees the ball it holds it and passes on, preferring that target.
+
+A pass ends at a light-barrier edge: our receiver's or another of ours (completed), an opponent's
+(intercepted); or when the ball rests ``rest_for_s`` or ``pass_timeout_s`` runs out (lost). Each ended
+pass is appended to ``records`` (``PassRecord``). What only the referee or the simulator does stays
+outside: after an interception, a loss, or a holder that lost the ball before it kicked (its barrier
+dark ``drop_after_s``), ``ball_request`` names our robot farthest from the opponents; whoever runs the
+game puts the ball at its dribbler and calls ``ball_placed``, and that robot holds it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.catch_time import MAX_RECEIVE_ANGLE_RAD, CatchSearch, RobotLimits
+from erforce_ball_model.catcher import CatcherConfig, Receiver, catch_twist, wrap_angle
+from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, select_pass
+from erforce_interfaces.robot_config import FieldConfig
+
+
+@dataclass(frozen=True)
+class PlayerConfig:
+    hold_min_s: float = 0.4  # a new holder settles the ball this long before it kicks
+    aim_tolerance_rad: float = 0.03
+    turn_rate_radps: float = 3.0  # a holder turns at most this fast (the dribbler keeps the ball)
+    max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD  # receive facing the next target within this
+    switch_margin_s: float = 0.2  # a holder changes its chosen receiver for one this much earlier
+    wait_for_safe_s: float = 1.5  # a holder without a safe pass keeps the ball this long, then plays the best
+    pass_timeout_s: float = 6.0
+    rest_speed_mps: float = 0.05  # a pass whose ball is slower than this for rest_for_s is lost
+    rest_for_s: float = 0.5
+    drop_after_s: float = 0.3  # the barrier flips falsely now and then: a drop is a ball away this long
+    passer_blind_s: float = 0.5  # the passer's own barrier ends no pass this soon after its kick
+    passing: PassConfig = field(default_factory=PassConfig)
+    catcher: CatcherConfig = field(default_factory=CatcherConfig)
+
+    def __post_init__(self) -> None:
+        for name in ("hold_min_s", "aim_tolerance_rad", "wait_for_safe_s", "switch_margin_s", "rest_speed_mps",
+                     "rest_for_s", "drop_after_s", "passer_blind_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
+        for name in ("turn_rate_radps", "pass_timeout_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        if not (math.isfinite(self.max_receive_angle_rad) and 0.0 <= self.max_receive_angle_rad < 0.5 * math.pi):
+            raise ValueError(f"max_receive_angle_rad must be in [0, pi/2), got {self.max_receive_angle_rad!r}")
+
+
+@dataclass(frozen=True)
+class PassRecord:
+    index: int
+    t_kick_s: float
+    passer: int
+    receiver: int
+    kick_speed_mps: float
+    predicted_catch_s: float  # the ball at the receiver's dribbler as planned at the kick (from the kick)
+    opponent_predicted_s: float  # the earliest opponent's (inf: none can)
+    first_opponent: int | None
+    rated_safe: bool
+    outcome: str  # completed | intercepted | lost
+    caught_by: str | None  # robot_<k> | opponent_<j>
+    actual_catch_s: float | None  # light barrier edge, from the kick
+    ball_path: tuple[tuple[float, float], ...] = ()  # ball positions every AI tick
+    facing_target: int | None = None  # the teammate the receiver received facing (None: it faced the ball)
+
+    @property
+    def margin_s(self) -> float:
+        return self.opponent_predicted_s - self.predicted_catch_s
+
+    def line(self) -> str:
+        """One line for the terminal."""
+        actual = "—" if self.actual_catch_s is None else f"{self.actual_catch_s:.2f} s"
+        margin = "∞" if math.isinf(self.margin_s) else f"{self.margin_s:+.2f} s"
+        rated = "safe" if self.rated_safe else "UNSAFE"
+        text = (f"pass {self.index:2d}  robot_{self.passer} -> robot_{self.receiver}  {self.kick_speed_mps:.2f} m/s  "
+                f"catch predicted {self.predicted_catch_s:.2f} s, actual {actual}  margin {margin} ({rated})  "
+                f"{self.outcome}")
+        if self.caught_by and self.caught_by != f"robot_{self.receiver}":
+            text += f" by {self.caught_by}"
+        return text + self.explanation()
+
+    def explanation(self) -> str:
+        if self.outcome == "intercepted":
+            opp = "no opponent" if self.first_opponent is None else f"opponent_{self.first_opponent}"
+            pred = "never" if math.isinf(self.opponent_predicted_s) else f"{self.opponent_predicted_s:.2f} s"
+            return (f"  [predicted first opponent {opp} at {pred}; {self.caught_by} caught at "
+                    f"{self.actual_catch_s:.2f} s, {self.predicted_catch_s - self.actual_catch_s:+.2f} s before our "
+                    f"predicted catch]")
+        if self.outcome == "lost":
+            return "  [nobody caught the ball]"
+        return ""
+
+
+def summary(records: list[PassRecord], cfg: PassConfig) -> dict:
+    safe = [r for r in records if r.rated_safe]
+    return {
+        "passes": len(records),
+        "completed": sum(r.outcome == "completed" for r in records),
+        "intercepted": sum(r.outcome == "intercepted" for r in records),
+        "lost": sum(r.outcome == "lost" for r in records),
+        "rated_safe": len(safe),
+        "safe_completed": sum(r.outcome == "completed" for r in safe),
+    }
+
+
+@dataclass
+class Commands:
+    """One AI tick's commands for our robots 0 .. n_team - 1."""
+
+    twists: dict[int, np.ndarray]  # [vx, vy, wz] in the robot frame (base_link) [m/s, rad/s]
+    kicks: dict[int, float]  # robot -> kick now with this ball speed [m/s]
+    dribblers: dict[int, bool]  # every robot's dribbler: on / off
+
+
+@dataclass
+class _Pass:
+    t_kick_s: float
+    passer: int
+    choice: PassOption
+    facing_target: int | None
+    planned_next: int | None
+    path: list = field(default_factory=list)
+    rest_since: float | None = None
+
+
+class PassingPlayer:
+    """Our team's decisions in the passing game (module docstring)."""
+
+    def __init__(self, cfg: PlayerConfig, n_team: int, n_opponents: int, field_config: FieldConfig,
+                 dribbler_offset_m: float, robot_radius_m: float, model: BallModelParams | None = None) -> None:
+        if n_team < 2 or n_opponents < 0:
+            raise ValueError(f"need at least 2 of ours and no negative number of opponents, got {n_team}, "
+                             f"{n_opponents}")
+        self.n_team, self.n_opp = n_team, n_opponents
+        self.model = BallModelParams() if model is None else model
+        n = n_team + n_opponents
+        self.receiver: Receiver | None = None  # our receiver's skill while a pass rolls
+        self.configure(cfg, field_config, dribbler_offset_m, robot_radius_m)
+        self.poses = np.zeros((n, 3))  # tracked, from vision
+        self.velocities = np.zeros((n, 2))
+        self.seen = np.zeros(n, dtype=bool)
+        self.ball_xy = np.zeros(2)
+        self.ball_velocity = np.zeros(2)
+        self.barriers = np.zeros(n, dtype=bool)
+        self.records: list[PassRecord] = []
+        self.resets = 0  # balls asked back after a loss, an interception or a drop
+        self.drops = 0  # of them: a holder lost the ball before it kicked
+        self.ball_request: int | None = None  # put the ball at this robot's dribbler, then call ball_placed
+        self._edges: list[tuple[int, float]] = []  # rising barrier edges not yet judged
+        self._holder: int | None = None
+        self._hold_since = 0.0
+        self._barrier_lost_at: float | None = None
+        self._choice: PassOption | None = None
+        self._pass: _Pass | None = None
+        self._last_passer: int | None = None
+        self._next_targets: dict[int, int] = {}  # teammate -> the teammate it would pass on to
+        self._refresh = 0  # the next teammate whose next target is refreshed
+        self._prefer: int | None = None  # the new holder's planned next target
+        self._dribblers = dict.fromkeys(range(n_team), False)
+
+    def configure(self, cfg: PlayerConfig, field_config: FieldConfig, dribbler_offset_m: float,
+                  robot_radius_m: float) -> None:
+        """New settings, from the next decision on (a receiver on its way keeps its skill's new settings too)."""
+        self.cfg, self.field = cfg, field_config
+        self.dribbler_offset_m, self.robot_radius_m = dribbler_offset_m, robot_radius_m
+        cc = cfg.catcher
+        self.pass_search = CatchSearch(self.n_team + self.n_opp, RobotLimits(cc.a_max_mps2, cc.v_max_mps),
+                                       dribbler_offset_m=dribbler_offset_m, field=field_config)
+        if self.receiver is not None:
+            self.receiver.set_config(cc, dribbler_offset_m, robot_radius_m, field_config)
+
+    # -------------------------------------------------------------------- state for observers
+    @property
+    def holder(self) -> int | None:
+        return self._holder
+
+    @property
+    def passing(self) -> bool:
+        return self._pass is not None
+
+    @property
+    def choice(self) -> tuple[int, PassOption] | None:
+        """The pass chosen now and its passer: the holder's choice while it holds the ball, the pass being
+        played while the ball rolls; None before a holder has chosen and after a pass ended."""
+        if self._pass is not None:
+            return self._pass.passer, self._pass.choice
+        if self._holder is not None and self._choice is not None:
+            return self._holder, self._choice
+        return None
+
+    @property
+    def receive_facing(self) -> tuple[int, float] | None:
+        """While a pass rolls to a receiver that receives facing its next target: (receiver, that facing
+        [rad] in ``field``), for a predictor that searches its catch with the same facing."""
+        p = self._pass
+        if p is None or p.facing_target is None:
+            return None
+        return p.choice.receiver, wrap_angle(p.choice.receive_facing_rad)
+
+    def ball_at_dribbler(self, i: int) -> tuple[float, float]:
+        x, y, yaw = self.poses[i]
+        d = self.dribbler_offset_m
+        return x + d * math.cos(yaw), y + d * math.sin(yaw)
+
+    # -------------------------------------------------------------------- inputs
+    def on_robot(self, i: int, now: float, pose, velocity) -> None:
+        """Robot ``i``'s tracked pose [x, y, yaw] and field velocity [vx, vy] (ours first, then the opponents)."""
+        self.poses[i] = np.asarray(pose, dtype=float)[:3]
+        self.velocities[i] = np.asarray(velocity, dtype=float)[:2]
+        self.seen[i] = True
+        if self.receiver is not None and self._pass is not None and i == self._pass.choice.receiver:
+            self.receiver.on_odom(now, self.poses[i], self.velocities[i])
+
+    def on_ball(self, now: float, position, velocity, v_shoot_mps: float | None = None) -> None:
+        self.ball_xy = np.asarray(position, dtype=float)[:2].copy()
+        self.ball_velocity = np.asarray(velocity, dtype=float)[:2].copy()
+        if self.receiver is not None:
+            self.receiver.on_ball(now, self.ball_xy, self.ball_velocity)
+            if v_shoot_mps is not None:
+                self.receiver.on_v_shoot(now, v_shoot_mps)
+
+    def on_catch(self, i: int, now: float, catch_time_s: float, catch_point=None) -> None:
+        """The predictor's catch time (CATCH_TIME_NEVER: never) and, when given, point for our robot ``i``."""
+        if self.receiver is not None and self._pass is not None and i == self._pass.choice.receiver:
+            self.receiver.on_catch_time(now, catch_time_s)
+            if catch_point is not None:
+                self.receiver.on_catch_point(now, np.asarray(catch_point, dtype=float))
+
+    def on_catch_point(self, i: int, now: float, catch_point) -> None:
+        """The predictor's catch point for our robot ``i`` (where its catch time comes apart from it)."""
+        if self.receiver is not None and self._pass is not None and i == self._pass.choice.receiver:
+            self.receiver.on_catch_point(now, np.asarray(catch_point, dtype=float))
+
+    def on_model(self, params: BallModelParams) -> None:
+        self.model = params
+        if self.receiver is not None:
+            self.receiver.on_model(params)
+
+    def on_barrier(self, i: int, now: float, detected: bool) -> None:
+        """Robot ``i``'s light barrier (ours first, then the opponents); a rising edge is judged at ``check``."""
+        detected = bool(detected)
+        if detected and not self.barriers[i]:
+            self._edges.append((i, now))
+        self.barriers[i] = detected
+
+    # -------------------------------------------------------------------- the game
+    def start(self, now: float, holder: int = 0) -> None:
+        """The game begins: ask for the ball at ``holder``."""
+        self.ball_request = holder
+
+    def ball_placed(self, now: float) -> None:
+        """The ball asked for (``ball_request``) is at that robot's dribbler: it holds it."""
+        if self.ball_request is None:
+            raise ValueError("ball_placed without a ball_request")
+        holder, self.ball_request = self.ball_request, None
+        self._edges = []
+        self._take_ball(holder, now)
+
+    def dribblers(self) -> dict[int, bool]:
+        return dict(self._dribblers)
+
+    def tick(self, now: float) -> Commands:
+        """The AI tick: judge what happened since the last one (``check``), then every robot's command."""
+        self.check(now)
+        cfg = self.cfg
+        twists = {i: np.zeros(3) for i in range(self.n_team)}
+        kicks: dict[int, float] = {}
+        if self._holder is not None and self.ball_request is None:
+            h = self._holder
+            self._update_next_targets(h, all_of_them=False)
+            choice = self._choose(h)
+            pose = self.poses[h]
+            if choice is not None:
+                twist = catch_twist(pose, pose[:2], choice.direction_rad, cfg.catcher)
+                twist[2] = float(np.clip(twist[2], -cfg.turn_rate_radps, cfg.turn_rate_radps))
+                twists[h] = twist
+                aimed = abs(wrap_angle(choice.direction_rad - pose[2])) <= cfg.aim_tolerance_rad
+                patient = not choice.safe(cfg.passing) and now - self._hold_since < cfg.wait_for_safe_s
+                if aimed and not patient and now - self._hold_since >= cfg.hold_min_s and self.barriers[h]:
+                    kicks[h] = choice.kick_speed_mps
+                    self._kick(h, choice, now)
+                    twists[h] = np.zeros(3)
+        if self._pass is not None:
+            self._pass.path.append((float(self.ball_xy[0]), float(self.ball_xy[1])))
+            if self.receiver is not None:
+                twists[self._pass.choice.receiver] = self.receiver.tick(now)
+        return Commands(twists, kicks, self.dribblers())
+
+    def check(self, now: float) -> None:
+        """Light-barrier edges end a pass; a ball that rests or a time that is up loses it; a holder whose
+        barrier stays dark lost the ball."""
+        edges, self._edges = self._edges, []
+        p = self._pass
+        if p is not None:
+            others = [i for i, _ in edges if i != p.passer or now - p.t_kick_s > self.cfg.passer_blind_s]
+            if others:
+                ours = [i for i in others if i < self.n_team]
+                catcher = ours[0] if ours else others[0]
+                at = next(t for i, t in edges if i == catcher)
+                self._end_pass("completed" if catcher < self.n_team else "intercepted", catcher, at)
+                return
+            if math.hypot(*self.ball_velocity) < self.cfg.rest_speed_mps:
+                p.rest_since = p.rest_since if p.rest_since is not None else now
+            else:
+                p.rest_since = None
+            if now - p.t_kick_s > self.cfg.pass_timeout_s or (
+                    p.rest_since is not None and now - p.rest_since > self.cfg.rest_for_s):
+                self._end_pass("lost", None, now)
+        elif self._holder is not None and self.ball_request is None:
+            if self.barriers[self._holder] or now - self._hold_since < self.cfg.hold_min_s:
+                self._barrier_lost_at = None
+            elif self._barrier_lost_at is None:
+                self._barrier_lost_at = now
+            elif now - self._barrier_lost_at > self.cfg.drop_after_s:
+                self.drops += 1
+                self._restart()
+
+    # -------------------------------------------------------------------- decisions
+    def _options(self, holder: int) -> list[PassOption]:
+        n = self.n_team
+        targets = {j: self.poses[k, :2] for j, k in self._next_targets.items()}
+        return evaluate_passes(self.ball_at_dribbler(holder), self.poses[:n, :2], self.velocities[:n],
+                               self.poses[n:, :2], self.velocities[n:], self._candidates(holder), self.pass_search,
+                               self.model, self.cfg.passing, self.dribbler_offset_m, targets,
+                               self.cfg.max_receive_angle_rad)
+
+    def _next_target(self, holder: int, j: int) -> int | None:
+        """Where teammate ``j`` would pass on once it has the ball from ``holder`` (select_pass from where it
+        stands, every robot facing the ball; None: no teammate in reach)."""
+        n = self.n_team
+        others = [k for k in range(n) if k not in (holder, j)]
+        options = evaluate_passes(self.poses[j, :2], self.poses[:n, :2], self.velocities[:n], self.poses[n:, :2],
+                                  self.velocities[n:], others, self.pass_search, self.model, self.cfg.passing,
+                                  self.dribbler_offset_m)
+        best = select_pass(options, self.cfg.passing)
+        return None if best is None else best.receiver
+
+    def _update_next_targets(self, holder: int, all_of_them: bool) -> None:
+        """Every teammate's next target (``all_of_them``), or the next one in turn."""
+        others = [k for k in range(self.n_team) if k != holder]
+        if not all_of_them:
+            self._refresh = (self._refresh + 1) % len(others)
+            others = [others[self._refresh]]
+        for j in others:
+            k = self._next_target(holder, j)
+            if k is None:
+                self._next_targets.pop(j, None)
+            else:
+                self._next_targets[j] = k
+
+    def _candidates(self, holder: int) -> list[int]:
+        """Every teammate but the holder and, so that the ball travels along a chain, the one who passed
+        to it (while there is another)."""
+        others = [k for k in range(self.n_team) if k != holder]
+        chain = [k for k in others if k != self._last_passer]
+        return chain or others
+
+    def _choose(self, holder: int) -> PassOption | None:
+        options = self._options(holder)
+        best = select_pass(options, self.cfg.passing)
+        kept = self._choice.receiver if self._choice is not None else self._prefer  # a new holder: its plan
+        if kept is not None and best is not None and best.receiver != kept:
+            same = next((o for o in options if o.receiver == kept), None)
+            keep = (same is not None and same.safe(self.cfg.passing) == best.safe(self.cfg.passing)
+                    and same.receiver_catch_s <= best.receiver_catch_s + self.cfg.switch_margin_s)
+            if keep:
+                best = same
+        self._choice = best
+        return best
+
+    def _kick(self, holder: int, choice: PassOption, now: float) -> None:
+        self._holder, self._last_passer = None, holder
+        self._dribblers = dict.fromkeys(range(self.n_team), False)
+        self._dribblers[choice.receiver] = True
+        receiver = Receiver(self.cfg.catcher, self.dribbler_offset_m, self.robot_radius_m, self.field)
+        receiver.on_model(self.model)
+        receiver.on_odom(now, self.poses[choice.receiver], self.velocities[choice.receiver])
+        k = None
+        ball_rad = choice.direction_rad + math.pi
+        if abs(math.remainder(choice.receive_facing_rad - ball_rad, 2.0 * math.pi)) > 1e-9:
+            k = self._next_targets[choice.receiver]  # it receives facing its next target
+            receiver.on_next_target(self.poses[k, :2], self.cfg.max_receive_angle_rad)
+        self.receiver = receiver
+        self._pass = _Pass(now, holder, choice, k, self._next_targets.get(choice.receiver))
+
+    def _end_pass(self, outcome: str, caught_by: int | None, now: float) -> None:
+        p, choice = self._pass, self._pass.choice
+        name = None if caught_by is None else (
+            f"robot_{caught_by}" if caught_by < self.n_team else f"opponent_{caught_by - self.n_team}")
+        self.records.append(PassRecord(
+            len(self.records) + 1, p.t_kick_s, p.passer, choice.receiver, choice.kick_speed_mps,
+            choice.receiver_catch_s, choice.opponent_catch_s, choice.first_opponent, choice.safe(self.cfg.passing),
+            outcome, name, None if caught_by is None else now - p.t_kick_s, tuple(p.path), p.facing_target))
+        self._pass, self.receiver = None, None
+        self._dribblers = dict.fromkeys(range(self.n_team), False)
+        if outcome == "completed":
+            self._take_ball(caught_by, now, p.planned_next if caught_by == choice.receiver else None)
+        else:
+            self._restart()
+
+    def _take_ball(self, holder: int, now: float, planned_next: int | None = None) -> None:
+        self._holder, self._hold_since, self._choice, self._barrier_lost_at = holder, now, None, None
+        self._prefer = planned_next
+        self._dribblers = dict.fromkeys(range(self.n_team), False)
+        self._dribblers[holder] = True
+        self._next_targets = {}
+        self._update_next_targets(holder, all_of_them=True)
+
+    def _restart(self) -> None:
+        """Ask for the ball at the dribbler of our robot farthest from every opponent."""
+        self.resets += 1
+        self._last_passer = None
+        self._holder, self._choice = None, None
+        self._dribblers = dict.fromkeys(range(self.n_team), False)
+        n = self.n_team
+        if self.n_opp:
+            opp = self.poses[n:, :2]
+            self.ball_request = max(range(n), key=lambda k: float(np.min(np.hypot(*(opp - self.poses[k, :2]).T))))
+        else:
+            self.ball_request = 0

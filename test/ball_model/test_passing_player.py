@@ -1,0 +1,184 @@
+"""Our team's AI in the passing game, one AI tick at a time (passing_player.PassingPlayer), fed by hand: when the
+holder kicks and how hard, how a pass ends (completed, intercepted, lost), and what it asks of the referee."""
+
+import math
+
+import numpy as np
+import pytest
+
+from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.passing import PassConfig
+from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerConfig
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+
+ROBOT = RobotConfig()
+FIELD = FieldConfig.preset("division_a")
+OFFSET = ROBOT.dribbler_offset_m  # 0.0815 m
+
+# Two of ours on the x axis, 3 m apart, facing each other: robot 0 at the origin holds the ball at its
+# dribbler (0.0815, 0); robot 1 at (3, 0) receives facing the ball, its dribbler at 3 - 0.0815. The ball
+# travels d = 3 - 2 * 0.0815 = 2.837 m and must arrive at 1.5 m/s (PassConfig.arrive_speed_mps). With the
+# default model (slides at 2.5 m/s^2 down to 0.6 v0, then rolls at 0.3 m/s^2) it slides 0.64 v0^2 / 5 and
+# rolls (0.36 v0^2 - 1.5^2) / 0.6: 0.728 v0^2 - 3.75 = 2.837, v0 = 3.0080 m/s; it arrives after
+# 0.4 v0 / 2.5 + (0.6 v0 - 1.5) / 0.3 = 1.4970 s.
+D_M = 3.0 - 2.0 * OFFSET
+V0 = math.sqrt((D_M + 3.75) / 0.728)
+ARRIVAL_S = 0.4 * V0 / 2.5 + (0.6 * V0 - 1.5) / 0.3
+
+
+def player_with(ours, theirs=()):
+    """A player that has seen every robot at rest at (x, y, yaw) and holds the ball at robot 0 from t = 0."""
+    p = PassingPlayer(PlayerConfig(), len(ours), len(theirs), FIELD, OFFSET, ROBOT.robot_radius_m, BallModelParams())
+    for i, pose in enumerate((*ours, *theirs)):
+        p.on_robot(i, 0.0, pose, (0.0, 0.0))
+    p.on_ball(0.0, (OFFSET, 0.0), (0.0, 0.0))
+    p.start(0.0, 0)
+    assert p.ball_request == 0
+    p.ball_placed(0.0)
+    p.on_barrier(0, 0.0, True)
+    return p
+
+
+def kicked(p, t_kick=0.5, turn=False):
+    """Tick until robot 0 kicks (it may not before hold_min_s); the kick's time. ``turn``: robot 0 faces its
+    chosen pass at once (as if it had turned)."""
+    for t in np.arange(0.0, t_kick + 1e-9, 0.02):
+        commands = p.tick(float(t))
+        if commands.kicks:
+            return float(t), commands
+        if turn and p.choice is not None:
+            p.on_robot(0, float(t), (0.0, 0.0, p.choice[1].direction_rad), (0.0, 0.0))
+    raise AssertionError("no kick")
+
+
+def test_the_holder_kicks_after_hold_min_s_with_the_speed_that_arrives_receivable():
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)])
+    assert p.holder == 0 and p.dribblers() == {0: True, 1: False}
+    t, commands = kicked(p)
+    assert t == pytest.approx(0.4)  # hold_min_s; it faces the pass already
+    assert commands.kicks == {0: pytest.approx(V0, abs=1e-3)}
+    # the ball leaves the holder's dribbler; the receiver's holds it when it comes
+    assert commands.dribblers == {0: False, 1: True}
+    passer, choice = p.choice
+    assert (passer, choice.receiver) == (0, 1) and choice.direction_rad == pytest.approx(0.0, abs=1e-9)
+    assert choice.receiver_catch_s == pytest.approx(ARRIVAL_S, abs=1e-3)
+    assert math.isinf(choice.opponent_catch_s) and choice.safe(PassConfig())
+
+
+def test_a_holder_turns_to_its_pass_no_faster_than_turn_rate_and_kicks_only_once_aimed():
+    """Robot 0 faces away (yaw pi/2) from its only teammate at (3, 0): it turns at turn_rate_radps (3 rad/s)
+    and cannot kick before it has turned pi/2 (0.52 s at that rate), however long it has held the ball."""
+    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi)])
+    commands = p.tick(0.5)
+    assert not commands.kicks
+    assert commands.twists[0][2] == pytest.approx(-3.0)
+    assert commands.twists[0][:2] == pytest.approx([0.0, 0.0], abs=1e-9)  # it turns in place
+    assert commands.twists[1] == pytest.approx([0.0, 0.0, 0.0])
+    p.on_robot(0, 0.52, (0.0, 0.0, 0.02), (0.0, 0.0))  # within aim_tolerance_rad (0.03)
+    assert p.tick(0.52).kicks
+
+
+def test_a_pass_completed_by_its_receiver_makes_it_the_holder():
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)])
+    t_kick, _ = kicked(p)
+    p.on_ball(t_kick + 0.1, (0.5, 0.0), (2.5, 0.0))
+    p.tick(t_kick + 0.1)
+    p.on_barrier(1, t_kick + 1.5, True)
+    p.check(t_kick + 1.52)
+    (record,) = p.records
+    assert (record.outcome, record.caught_by, record.passer, record.receiver) == ("completed", "robot_1", 0, 1)
+    assert record.actual_catch_s == pytest.approx(1.5)  # the barrier's time, not the check's
+    assert record.rated_safe and record.predicted_catch_s == pytest.approx(ARRIVAL_S, abs=1e-3)
+    assert p.holder == 1 and p.dribblers() == {0: False, 1: True} and p.ball_request is None
+
+
+def test_the_passers_own_barrier_ends_no_pass_right_after_its_kick():
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)])
+    t_kick, _ = kicked(p)
+    p.on_barrier(0, t_kick + 0.01, False)
+    p.on_barrier(0, t_kick + 0.02, True)  # the ball still at the kicker: passer_blind_s (0.5 s)
+    p.on_ball(t_kick + 0.02, (0.1, 0.0), (3.0, 0.0))
+    p.check(t_kick + 0.02)
+    assert p.passing and not p.records
+
+
+def test_an_interception_is_recorded_and_the_ball_asked_back_at_our_robot_farthest_from_the_opponents():
+    """Three of ours, one opponent at (1.5, 2): robot 2 at (0, -3) is farther from it (5.22 m) than robot 0
+    (2.5 m) and robot 1 at (3, 0) (2.5 m), so the ball goes back to robot 2."""
+    ours = [(0.0, 0.0, 0.0), (3.0, 0.0, math.pi), (0.0, -3.0, 0.5 * math.pi)]
+    p = player_with(ours, [(1.5, 2.0, -0.5 * math.pi)])
+    t_kick, _ = kicked(p, t_kick=2.0, turn=True)
+    receiver = p.choice[1].receiver
+    p.on_ball(t_kick + 0.2, (0.6, 0.0), (2.5, 0.0))
+    p.on_barrier(3, t_kick + 0.6, True)  # world index 3: opponent_0
+    p.check(t_kick + 0.62)
+    (record,) = p.records
+    assert (record.outcome, record.caught_by, record.receiver) == ("intercepted", "opponent_0", receiver)
+    assert record.actual_catch_s == pytest.approx(0.6)
+    assert f"opponent_0 caught at 0.60 s, {record.predicted_catch_s - 0.6:+.2f} s before our predicted catch" in (
+        record.line())
+    assert p.ball_request == 2 and p.holder is None and p.resets == 1
+    assert not any(p.dribblers().values())
+    p.ball_placed(t_kick + 0.7)
+    assert p.holder == 2 and p.dribblers()[2]
+
+
+def test_a_ball_that_rests_before_anybody_catches_it_is_lost():
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)])
+    t_kick, _ = kicked(p)
+    p.on_ball(t_kick + 1.0, (2.0, 0.0), (0.0, 0.0))  # at rest (below rest_speed_mps 0.05)
+    p.check(t_kick + 1.0)
+    p.check(t_kick + 1.4)
+    assert not p.records  # not yet rest_for_s (0.5 s)
+    p.check(t_kick + 1.52)
+    (record,) = p.records
+    assert (record.outcome, record.caught_by, record.actual_catch_s) == ("lost", None, None)
+    assert p.ball_request == 0  # no opponents: robot 0
+
+
+def test_a_holder_whose_barrier_stays_dark_dropped_the_ball():
+    """The barrier is trusted from hold_min_s (0.4 s) on; dark for more than drop_after_s (0.3 s) after that: a
+    drop."""
+    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi)])
+    p.on_barrier(0, 0.05, False)
+    for t in (0.1, 0.38, 0.42, 0.6, 0.7):
+        p.tick(t)
+        assert p.drops == 0 and p.holder == 0
+    p.tick(0.74)
+    assert p.drops == 1 and p.ball_request == 0 and p.holder is None
+
+
+def test_without_a_safe_pass_the_holder_waits_wait_for_safe_s_then_plays_the_best():
+    """An opponent half-way on the only lane catches long before robot 1: the pass is rated unsafe; the holder
+    keeps the ball 1.5 s (wait_for_safe_s), then plays it."""
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], [(1.5, 0.0, math.pi)])
+    t_kick, _ = kicked(p, t_kick=3.0)
+    assert t_kick == pytest.approx(1.5)
+    choice = p.choice[1]
+    assert not choice.safe(PassConfig()) and choice.first_opponent == 0 and choice.margin_s < 0.0
+
+
+def test_a_record_goes_over_the_wire_and_back():
+    from erforce_ball_model.passing_game_node import record_from_row, record_row
+
+    for record in (
+        PassRecord(3, 12.5, 1, 4, 3.01, 1.5, 0.82, 1, False, "intercepted", "opponent_1", 1.66, (), None),
+        PassRecord(4, 20.0, 4, 6, 2.9, 1.2, math.inf, None, True, "completed", "robot_6", 1.19, (), 9),
+        PassRecord(5, 30.0, 6, 2, 2.9, 1.2, 2.0, 0, True, "lost", None, None, (), None),
+    ):
+        assert record_from_row(record_row(record)) == record
+
+
+def test_the_nodes_parameter_defaults_are_the_cores():
+    """One default per quantity: passing_game's schema says what PlayerConfig() and PassConfig() do."""
+    import dataclasses
+
+    from erforce_ball_model import passing_game_node
+
+    defaults = {s.name: s.default for s in passing_game_node.SCHEMA.specs}
+    for cfg in (PlayerConfig(), PassConfig()):
+        for f in dataclasses.fields(cfg):
+            if f.name in defaults:
+                assert defaults[f.name] == getattr(cfg, f.name), f.name
+    built = passing_game_node.build(passing_game_node.SCHEMA.parse(defaults))
+    assert built[0].passing == PassConfig() and built[0].hold_min_s == PlayerConfig().hold_min_s
