@@ -294,8 +294,8 @@ def test_demo_catches_a_kick_with_the_robot_on_another_host(two_hosts: TwoHosts)
     watch = h.start_in(h.ai_ns, [sys.executable, str(PROBE), "watch", "--robot", "0"], name="probe-watch")
     watch.wait_for_output(r'"kind": "ready"', timeout_s=30.0)
     stats_before = h.robot_link_stats()
-    demo = h.start_in(h.ai_ns, [sys.executable, "-m", "erforce_sim.closed_loop.demo", "--no-robot-side",
-                                "--scenes", "2",
+    demo = h.start_in(h.ai_ns, [sys.executable, "-m", "erforce_sim.closed_loop.demo", "--scenario", "scenes",
+                                "--no-robot-side", "--scenes", "2",
                                 "--out", str(h.workdir / "report")], name="demo")
 
     dds_pids_checked: dict[int, str] = {}

@@ -1,6 +1,8 @@
-"""The main job: the paper's story end to end on the full node graph (``./run demo``).
+"""``./run demo``: the main job, the passing game on the 14-robot graph (``--scenario passing``, the
+default: erforce_sim.closed_loop.passing_report), or the paper's story end to end (``--scenario scenes``,
+this module).
 
-It launches launch/demo.launch.yaml (plant, ball_predictor, robot_0's velocity_controller,
+The scenes launch launch/demo.launch.yaml (plant, ball_predictor, robot_0's velocity_controller,
 motor_boards and catcher; robot_1 is the kicker), records every topic into a rosbag2/MCAP
 bag, and plays a scene sequence through the plant's scenario topics:
 
@@ -426,6 +428,29 @@ def spawn_in_session(cmd: list[str], log_path: Path, idle: bool = False) -> subp
         )
 
 
+def start_field_view(args: argparse.Namespace, out: Path, field: str, team_ids) -> subprocess.Popen:
+    """The field view beside a graph (``--view``), an observer at idle priority like the recorder; a thread
+    prints its address once it serves."""
+    cmd = [str(Path(sys.executable).with_name("field_view")), "--ros-args", "-p", f"port:={args.view_port}",
+           "-p", f"field:={field}", "-p", f"team_robot_ids:=[{','.join(str(r) for r in team_ids)}]",
+           "-p", f"foxglove_port:={args.foxglove_port}"]
+    view = spawn_in_session(cmd, out / "view.log", idle=True)
+    threading.Thread(target=_announce_view, args=(view, out / "view.log", args), daemon=True).start()
+    return view
+
+
+def _announce_view(view: subprocess.Popen, log: Path, args: argparse.Namespace) -> None:
+    while view.poll() is None:
+        if "field view at" in log.read_text(errors="replace"):
+            print(f"field view: http://127.0.0.1:{args.view_port}/", flush=True)
+            if args.foxglove_port:
+                print(f"Foxglove: ws://127.0.0.1:{args.foxglove_port} (layout: "
+                      f"{Path(__file__).resolve().parents[2] / 'config' / 'foxglove_layout.json'})", flush=True)
+            return
+        time.sleep(0.2)
+    print(f"the field view did not start; see {log}", flush=True)
+
+
 class Demo:
     def __init__(self, args: argparse.Namespace) -> None:
         self.args = args
@@ -489,25 +514,7 @@ class Demo:
 
     def start_view(self) -> None:
         """The field view (erforce_sim.closed_loop.field_view_node) beside the graph, an observer like the recorder."""
-        team = ",".join(str(r) for r in self.director.receivers)
-        cmd = [str(Path(sys.executable).with_name("field_view")), "--ros-args", "-p", f"port:={self.args.view_port}",
-               "-p", f"field:={self.args.field}", "-p", f"team_robot_ids:=[{team}]",
-               "-p", f"foxglove_port:={self.args.foxglove_port}"]
-        self.view = spawn_in_session(cmd, self.out / "view.log", idle=True)
-        threading.Thread(target=self._announce_view, daemon=True).start()
-
-    def _announce_view(self) -> None:
-        """Print the view's address once it serves (it starts beside the graph, at idle priority)."""
-        log = self.out / "view.log"
-        while self.view is not None and self.view.poll() is None:
-            if "field view at" in log.read_text(errors="replace"):
-                print(f"field view: http://127.0.0.1:{self.args.view_port}/", flush=True)
-                if self.args.foxglove_port:
-                    print(f"Foxglove: ws://127.0.0.1:{self.args.foxglove_port} (layout: "
-                          f"{Path(__file__).resolve().parents[2] / 'config' / 'foxglove_layout.json'})", flush=True)
-                return
-            time.sleep(0.2)
-        print(f"the field view did not start; see {log}", flush=True)
+        self.view = start_field_view(self.args, self.out, self.args.field, self.director.receivers)
 
     def _recording_everything(self) -> bool:
         """erforce-record has subscribed to every topic that has a publisher now (it logs each one).
@@ -655,10 +662,10 @@ def free_udp_port() -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="./run demo", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="report", help="report folder (a timestamped subfolder is created)")
-    parser.add_argument("--scenario", default="scenes", choices=("scenes", "passing"),
-                        help="scenes: the paper's story on the DDS graph (below); passing: the passing game of a team "
-                             "against opponents on the 14-robot graph (team_sim.launch.yaml ai:=passing; "
-                             "erforce_sim.closed_loop.passing_report)")
+    parser.add_argument("--scenario", default="passing", choices=("passing", "scenes"),
+                        help="passing: the passing game of a team against opponents on the 14-robot graph "
+                             "(team_sim.launch.yaml ai:=passing; erforce_sim.closed_loop.passing_report); scenes: "
+                             "the paper's story (Fig. 6, then kicks) on demo.launch.yaml")
     parser.add_argument("--in-process", action="store_true",
                         help="passing: the game in one process instead, without DDS (deterministic per seed)")
     parser.add_argument("--team", type=int, default=11, help="passing: our robots (2..11)")
@@ -672,14 +679,16 @@ def main(argv: list[str] | None = None) -> int:
         help="cap on simulated seconds per wall second; 0 = as fast as lockstep goes",
     )
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--field", default="division_b", choices=("division_a", "division_b"))
-    parser.add_argument("--scenes", type=int, default=0, help="play only the first N scenes")
+    parser.add_argument("--field", default="division_b", choices=("division_a", "division_b"),
+                        help="scenes: the field (the passing game plays on division_a)")
+    parser.add_argument("--scenes", type=int, default=0, help="scenes: play only the first N scenes")
     parser.add_argument(
         "--receivers",
         type=int,
         default=1,
         choices=(1, 2, 3),
-        help="receiving robots: robot_0, and robot_2 and robot_3 waiting downfield; the first to the ball receives",
+        help="scenes: receiving robots: robot_0, and robot_2 and robot_3 waiting downfield; the first to the ball "
+             "receives",
     )
     parser.add_argument("--robot-a-max", type=float, default=4.5, help="catching acceleration [m/s^2]")
     parser.add_argument("--robot-v-max", type=float, default=2.5, help="catching speed [m/s]")

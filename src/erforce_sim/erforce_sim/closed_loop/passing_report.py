@@ -182,7 +182,7 @@ def run_on_graph(args: argparse.Namespace) -> int:
     from erforce_ball_model.passing_game_node import records_from_msg
     from erforce_interfaces.conversions import odometry_from_msg, stamp_to_seconds
     from erforce_interfaces.tools.testing import stop_process
-    from erforce_sim.closed_loop.demo import spawn_in_session
+    from erforce_sim.closed_loop.demo import free_udp_port, spawn_in_session, start_field_view
     from erforce_sim.closed_loop.passing_game import setup_for
 
     out = Path(args.out) / time.strftime("%Y%m%d-%H%M%S")
@@ -195,12 +195,15 @@ def run_on_graph(args: argparse.Namespace) -> int:
            f"robot_ids:={list(range(cfg.team_size))}", f"num_robots:={cfg.team_size}",
            f"robot_poses:={_flat(setup.robot_poses)}", f"opponent_ids:={list(range(cfg.opponents))}",
            f"num_opponents:={cfg.opponents}", f"opponent_poses:={_flat(setup.opponent_poses)}",
-           f"opponents_intercept:={'true' if cfg.opponents else 'false'}"]
+           f"opponents_intercept:={'true' if cfg.opponents else 'false'}", f"pacing:={args.pacing}"]
+    if args.vision == "ssl":  # the plant's 4 cameras as SSL-Vision over loopback multicast, through the bridge
+        cmd += ["vision:=ssl", f"ssl_vision_port:={free_udp_port()}"]
     print(f"passing game on the graph: {cfg.team_size} robots against {cfg.opponents}, {cfg.passes} passes, seed "
           f"{args.seed} (log: {out / 'graph.log'})", flush=True)
     launch = spawn_in_session(cmd, out / "graph.log")
     recorder = spawn_in_session([str(bin_dir / "erforce-record"), str(out / "bag"), "--use-sim-time"],
                                 out / "record.log", idle=True)
+    view = start_field_view(args, out, cfg.field_preset, range(cfg.team_size)) if args.view else None
     records: list[PassRecord] = []
     ball_path: list[tuple[float, float, float]] = []  # t, x, y of the true ball
     clock = {"first": None, "now": None}
@@ -240,6 +243,8 @@ def run_on_graph(args: argparse.Namespace) -> int:
     finally:
         stop_process(launch, sigint_timeout_s=10.0)
         stop_process(recorder, sigint_timeout_s=20.0)
+        if view is not None:
+            stop_process(view, sigint_timeout_s=5.0)
         node.destroy_node()
         rclpy.try_shutdown()
     sim_s = wall_s = 0.0
