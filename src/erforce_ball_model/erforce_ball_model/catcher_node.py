@@ -102,41 +102,33 @@ class CatcherNode(Node):
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _convert(self, msg, what: str, convert):
-        """The converted message, or None with a throttled warning for a bad one."""
-        try:
-            return convert(msg)
-        except ConversionError as exc:
-            self._warn.warn(what, f"rejected {what}: {exc}")
-            return None
-
     def _on_odom(self, msg: Odometry | bytes) -> None:
-        odom = self._convert(msg, "odom", odometry_from_msg)
+        odom = self._warn.convert(msg, "odom", odometry_from_msg)
         if odom is not None:
             self._receiver.on_odom(self._now_s(), odom[1], odom[2])
 
     def _on_catch_time(self, msg: bytes) -> None:
-        seconds = self._convert(msg, "catch_time", float64_from_msg)
+        seconds = self._warn.convert(msg, "catch_time", float64_from_msg)
         if seconds is not None:
             self._receiver.on_catch_time(self._now_s(), seconds)
 
     def _on_teammate_catch_time(self, robot: int, msg: bytes) -> None:
-        seconds = self._convert(msg, f"robot_{robot} catch_time", float64_from_msg)
+        seconds = self._warn.convert(msg, f"robot_{robot} catch_time", float64_from_msg)
         if seconds is not None:
             self._receiver.on_teammate_catch_time(robot, self._now_s(), seconds)
 
     def _on_catch_point(self, msg: bytes) -> None:
-        point = self._convert(msg, "catch_point", point_from_msg)
+        point = self._warn.convert(msg, "catch_point", point_from_msg)
         if point is not None:
             self._receiver.on_catch_point(self._now_s(), point[1])
 
     def _on_ball(self, msg: Odometry | bytes) -> None:
-        ball = self._convert(msg, "ball state", odometry_from_msg)
+        ball = self._warn.convert(msg, "ball state", odometry_from_msg)
         if ball is not None:
             self._receiver.on_ball(self._now_s(), ball[1], ball[2])
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
-        v_shoot = self._convert(msg, "v_shoot", float64_from_msg)
+        v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)
         if v_shoot is not None:
             self._receiver.on_v_shoot(self._now_s(), v_shoot)
 

@@ -190,21 +190,14 @@ class PassingGameNode(Node):
         team, j = self._robots[k]
         return team.namespace(j)
 
-    def _convert(self, msg, what: str, convert):
-        try:
-            return convert(msg)
-        except ConversionError as exc:
-            self._warn.warn(what, f"rejected {what}: {exc}")
-            return None
-
     # ------------------------------------------------------------------ inputs (taken at the tick)
     def _on_ball(self, msg: Odometry | bytes) -> None:
-        ball = self._convert(msg, "ball state", odometry_from_msg)
+        ball = self._warn.convert(msg, "ball state", odometry_from_msg)
         if ball is not None:
             self._player.on_ball(self._now_s(), ball[1], ball[2], self._v_shoot)
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
-        self._v_shoot = self._convert(msg, "v_shoot", float64_from_msg)
+        self._v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)
 
     def _on_model_params(self, msg: Float64MultiArray) -> None:
         try:
@@ -213,17 +206,17 @@ class PassingGameNode(Node):
             self._warn.warn("model_params", f"rejected model_params: {exc}")
 
     def _on_odom(self, k: int, msg: Odometry | bytes) -> None:
-        odom = self._convert(msg, f"{self._name(k)} odom", odometry_from_msg)
+        odom = self._warn.convert(msg, f"{self._name(k)} odom", odometry_from_msg)
         if odom is not None:
             self._player.on_robot(k, self._now_s(), odom[1], odom[2])
 
     def _on_catch_time(self, k: int, msg: bytes) -> None:
-        seconds = self._convert(msg, f"{self._name(k)} catch_time", float64_from_msg)
+        seconds = self._warn.convert(msg, f"{self._name(k)} catch_time", float64_from_msg)
         if seconds is not None:
             self._player.on_catch(k, self._now_s(), seconds)
 
     def _on_catch_point(self, k: int, msg: bytes) -> None:
-        point = self._convert(msg, f"{self._name(k)} catch_point", point_from_msg)
+        point = self._warn.convert(msg, f"{self._name(k)} catch_point", point_from_msg)
         if point is not None:
             self._player.on_catch_point(k, self._now_s(), point[1])
 

@@ -102,22 +102,15 @@ class TeamCatcherNode(Node):
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _convert(self, msg, what: str, convert):
-        try:
-            return convert(msg)
-        except ConversionError as exc:
-            self._warn.warn(what, f"rejected {what}: {exc}")
-            return None
-
     def _on_ball(self, msg: Odometry | bytes) -> None:
-        ball = self._convert(msg, "ball state", odometry_from_msg)
+        ball = self._warn.convert(msg, "ball state", odometry_from_msg)
         if ball is not None:
             now = self._now_s()
             for receiver in self._receivers.values():
                 receiver.on_ball(now, ball[1], ball[2])
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
-        v_shoot = self._convert(msg, "v_shoot", float64_from_msg)
+        v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)
         if v_shoot is not None:
             now = self._now_s()
             for receiver in self._receivers.values():
@@ -133,12 +126,12 @@ class TeamCatcherNode(Node):
             receiver.on_model(params)
 
     def _on_odom(self, robot: int, msg: Odometry | bytes) -> None:
-        odom = self._convert(msg, f"{self._names[robot]} odom", odometry_from_msg)
+        odom = self._warn.convert(msg, f"{self._names[robot]} odom", odometry_from_msg)
         if odom is not None:
             self._receivers[robot].on_odom(self._now_s(), odom[1], odom[2])
 
     def _on_catch_time(self, robot: int, msg: bytes) -> None:
-        seconds = self._convert(msg, f"{self._names[robot]} catch_time", float64_from_msg)
+        seconds = self._warn.convert(msg, f"{self._names[robot]} catch_time", float64_from_msg)
         if seconds is None:
             return
         now = self._now_s()
@@ -149,7 +142,7 @@ class TeamCatcherNode(Node):
                 receiver.on_teammate_catch_time(robot, now, seconds)
 
     def _on_catch_point(self, robot: int, msg: bytes) -> None:
-        point = self._convert(msg, f"{self._names[robot]} catch_point", point_from_msg)
+        point = self._warn.convert(msg, f"{self._names[robot]} catch_point", point_from_msg)
         if point is not None:
             self._receivers[robot].on_catch_point(self._now_s(), point[1])
 

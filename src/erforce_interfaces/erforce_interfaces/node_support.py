@@ -38,6 +38,7 @@ from rclpy.qos import QoSProfile
 from rclpy.utilities import remove_ros_args
 
 from erforce_interfaces.contract import CLOCK, Topic, dds_profile_env
+from erforce_interfaces.conversions import ConversionError
 from erforce_interfaces.executor import guard, make_executor, sample_only, set_callback_fault_handler
 from erforce_interfaces.param_schema import ParamSchema, ParamSpec
 from erforce_interfaces.rclpy_internals import RCLError, light_node_start, parameter_overrides
@@ -215,6 +216,14 @@ class ThrottledWarner:
             self._last_ns[key] = now
             n = self.counts[key]
             self._logger.warning(f"{text} ({n} so far)" if n > 1 else text)
+
+    def convert(self, msg, what: str, convert):
+        """``convert(msg)``, or None with a throttled "rejected <what>" warning when it raises ConversionError."""
+        try:
+            return convert(msg)
+        except ConversionError as exc:
+            self.warn(what, f"rejected {what}: {exc}")
+            return None
 
 
 #: Starts the warning of the callback guard; the test harness (erforce_interfaces.tools.testing) fails a
