@@ -34,8 +34,11 @@ ROBOT_YAML = Path(__file__).resolve().parents[2] / "src/erforce_interfaces/confi
 def start_robot(graph, robot="robot_0", **vc_params):
     graph.start_node("erforce_motion", "velocity_controller", namespace=robot, params_file=ROBOT_YAML,
                      params={"use_sim_time": True, **vc_params})
+    # The boards' lockstep join waits setpoint_wait_s of wall time (0.05 s by default) for the velocity
+    # controller's setpoint, then answers with the previous one: on a loaded machine that changed the
+    # trajectory by up to 1e-5 m. Here the wait must outlast any scheduling delay.
     graph.start_node("erforce_motion", "motor_boards", namespace=robot, params_file=ROBOT_YAML,
-                     params={"use_sim_time": True})
+                     params={"use_sim_time": True, "setpoint_wait_s": 10.0})
 
 
 def start_plant(graph, **params):
@@ -48,12 +51,19 @@ def start_plant_watched(graph, **params):
     """Start the plant once this probe takes robot_0's ground truth, and return what it receives.
 
     The plant runs flat out: without holding its first tick until the probe reads (here: /clock,
-    subscribed after the truth), a slow discovery let the robot drive into the wall unseen.
+    subscribed after the truth by ``release_first_tick``), a slow discovery let the robot drive into the
+    wall unseen. It starts while the robot's nodes do.
     """
     truth = graph.subscribe("/robot_0/ground_truth/odom", Odometry)
-    graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
     start_plant(graph, start_clock_subscribers=3, **params)  # velocity_controller, motor_boards, probe
     return truth
+
+
+def release_first_tick(graph):
+    """The probe's /clock reader, the last one the plant waits for: after the command has had 0.3 s to
+    arrive (it was published once its reader had matched), so that the robot has it at tick 0."""
+    graph.probe.spin_for(0.3)
+    graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
 
 
 def send_cmd_vel(graph, vx, vy=0.0, wz=0.0, robot="robot_0"):
@@ -67,9 +77,9 @@ def send_cmd_vel(graph, vx, vy=0.0, wz=0.0, robot="robot_0"):
 def test_twist_drives_the_simulated_robot_in_lockstep(ros_graph):
     """Twist -> velocity_controller -> motor_boards -> plant -> measured body velocity."""
     start_robot(ros_graph, command_timeout_s=30.0)
-    send_cmd_vel(ros_graph, 1.0, 0.5)
-    ros_graph.probe.spin_for(0.3)
     truth = start_plant_watched(ros_graph)
+    send_cmd_vel(ros_graph, 1.0, 0.5)
+    release_first_tick(ros_graph)
     ros_graph.probe.spin_until(lambda: truth and odometry_from_msg(truth[-1])[0] > 1.0, 60.0, "1 s of sim time")
     _, pose, vel, _ = odometry_from_msg(truth[-1])
     c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -83,9 +93,10 @@ def test_twist_drives_the_simulated_robot_in_lockstep(ros_graph):
 def test_lockstep_dds_graph_reproduces_the_in_process_trajectory(ros_graph):
     twist = (0.8, -0.3, 1.0)
     start_robot(ros_graph, command_timeout_s=30.0)
+    # a stall would change the trajectory: on a loaded machine an answer may take seconds
+    truth = start_plant_watched(ros_graph, seed=7, stop_after_s=0.6, lockstep_timeout_s=30.0)
     send_cmd_vel(ros_graph, *twist)
-    ros_graph.probe.spin_for(0.3)
-    truth = start_plant_watched(ros_graph, seed=7, stop_after_s=0.6)
+    release_first_tick(ros_graph)
     ros_graph.probe.spin_until(lambda: truth and odometry_from_msg(truth[-1])[0] >= 0.5, 60.0, "0.5 s")
     dds = {stamp_to_nanoseconds(m.header.stamp): odometry_from_msg(m) for m in truth}
 
