@@ -58,17 +58,21 @@ def test_every_console_script_is_a_node_or_a_listed_tool():
     assert {"talker", "plant", "motor_boards", "ball_predictor", "erforce-record"} <= set(NODES)
 
 
-def interrupt_alone(proc) -> None:
-    os.kill(proc.pid, signal.SIGINT)
+def interrupt_alone(procs) -> None:
+    for proc in procs:
+        os.kill(proc.pid, signal.SIGINT)
 
 
-def interrupt_group_then_forwarded(proc, deadline_s: float = 20.0) -> None:
-    """The group's SIGINT, then one to the process every 5 ms until it has exited: some land in its cleanup."""
-    os.killpg(proc.pid, signal.SIGINT)
+def interrupt_group_then_forwarded(procs, deadline_s: float = 20.0) -> None:
+    """Each one's group's SIGINT, then one to each process every 5 ms until it has exited: some land in its
+    cleanup. Every process at once: one after the other, their shutdowns would add up."""
+    for proc in procs:
+        os.killpg(proc.pid, signal.SIGINT)
     deadline = time.monotonic() + deadline_s
-    while proc.alive() and time.monotonic() < deadline:
+    while any(proc.alive() for proc in procs) and time.monotonic() < deadline:
         time.sleep(0.005)
-        proc.signal(signal.SIGINT)
+        for proc in procs:
+            proc.signal(signal.SIGINT)
 
 
 @pytest.mark.integration
@@ -92,8 +96,7 @@ def test_every_node_exits_quietly_with_0_on_sigint(ros_graph, tmp_path, interrup
             proc.wait_for_output("Subscribed to topic '/sigint_probe'", timeout_s=120.0)
         else:
             assert probe.get_parameter(f"/sigint_{exe}", "use_sim_time", timeout_s=120.0) is False, exe
-    for proc in procs.values():
-        interrupt(proc)
+    interrupt(list(procs.values()))
     failures = []
     for exe, proc in procs.items():
         code = proc.wait_exit(30.0)

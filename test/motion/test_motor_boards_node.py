@@ -66,6 +66,7 @@ def test_lockstep_join_holds_the_tick_until_the_setpoint_arrives(ros_graph):
     rig.send_state(1 * MS)
     rig.answer(1 * MS)
     rig.send_state(2 * MS)  # the answer needs tick 1's setpoint, not sent yet
+    rig.send_state(2 * MS)  # the plant re-sends a tick unanswered after 50 ms: it must wait all the same
     ros_graph.probe.spin_for(0.3)
     assert not any(stamp_ns(m) == 2 * MS for m in rig.duties)
     rig.setpoints.publish(joint_state_msg(1 * MS, NAMES, velocity=[-30.0] * 4))

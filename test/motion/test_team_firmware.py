@@ -40,7 +40,8 @@ LOCKSTEP_TOPICS = {"per_robot": "per_robot", "team": "per_robot", "team_topics":
                    "mixed": "both", "one_process": "team", "field": "field"}
 
 
-def _start_firmware(graph, deployment, ids, team=contract.OURS, **params):
+def _start_firmware(graph, deployment, ids, team=contract.OURS, boards=None, **params):
+    """The firmware of robots ``ids``; ``boards``: more parameters of each per-robot motor_boards."""
     common = {"use_sim_time": True}
     if deployment == "two_teams":  # a team_firmware per robot on the shared team topics, each answering for its own
         return [graph.start_node("erforce_motion", "team_firmware", name=f"team_firmware_{i}",
@@ -49,7 +50,8 @@ def _start_firmware(graph, deployment, ids, team=contract.OURS, **params):
                 for i in ids]
     if deployment == "mixed":  # robot_0 per robot on its own topics, robot_2 in a team_firmware on the team topics
         first, *rest = ids
-        return [*_start_firmware(graph, "per_robot", [first]), *_start_firmware(graph, "team_topics", rest)]
+        return [*_start_firmware(graph, "per_robot", [first], boards=boards),
+                *_start_firmware(graph, "team_topics", rest)]
     if deployment != "per_robot":
         return [graph.start_node("erforce_motion", "team_firmware", name=f"{team.name}_firmware",
                                  params_file=ROBOT_YAML,
@@ -61,7 +63,7 @@ def _start_firmware(graph, deployment, ids, team=contract.OURS, **params):
         procs.append(graph.start_node("erforce_motion", "velocity_controller", namespace=team.namespace(i),
                                       params_file=ROBOT_YAML, params={**common, "command_timeout_s": 30.0}))
         procs.append(graph.start_node("erforce_motion", "motor_boards", namespace=team.namespace(i),
-                                      params_file=ROBOT_YAML, params=common))
+                                      params_file=ROBOT_YAML, params={**common, **(boards or {})}))
     return procs
 
 
@@ -73,21 +75,28 @@ def _command(graph, robot, twist, team=contract.OURS):
 
 
 def _start_plant(graph, deployment, readers, opponent_poses=(), **params):
-    """The plant once this probe reads every robot's ground truth (and /clock, which holds the first tick);
-    the truths by world index (ours, then the opponents)."""
+    """The plant once this probe reads every robot's ground truth; the truths by world index (ours, then the
+    opponents). It starts while the firmware does, but its first tick waits for ``readers`` /clock readers and
+    the probe's, which ``_release_first_tick`` subscribes once the commands are out."""
     # a reader queue for the whole run: a graph that runs flat out must not push samples out of it
     qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=500, reliability=ReliabilityPolicy.RELIABLE)
     truths = {i: graph.subscribe(f"/robot_{i}/ground_truth/odom", Odometry, qos) for i in range(len(POSES))}
     for j in range(len(opponent_poses)):
         truths[len(POSES) + j] = graph.subscribe(contract.OPPONENTS.topic(contract.GROUND_TRUTH_ODOM, j), Odometry,
                                                  qos)
-    clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
     plant = graph.start_node("erforce_sim", "plant", params_file=ROBOT_YAML, params={
         "robot_poses": [v for p in POSES for v in p], "controlled": [True, False, True], "ball": [3.0, 2.0, 0.0, 0.0],
         "real_time_factor": 0.0, "wheel_states_readers": 2 if deployment in ("per_robot", "two_teams") else 1,
         "lockstep_topics": LOCKSTEP_TOPICS[deployment], "start_clock_subscribers": readers + 1,
         **({"opponent_poses": [v for p in opponent_poses for v in p]} if opponent_poses else {}), **params})
-    return plant, truths, clocks
+    return plant, truths
+
+
+def _release_first_tick(graph):
+    """The probe's /clock reader, the last one the plant waits for: after the commands have had 0.3 s to
+    arrive (they were published once their readers had matched), so that every node has them at tick 0."""
+    graph.probe.spin_for(0.3)
+    return graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
 
 
 @pytest.mark.parametrize("deployment", ["per_robot", "team", "team_topics", "two_teams", "mixed", "one_process",
@@ -105,21 +114,25 @@ def test_both_deployments_reproduce_the_in_process_trajectory(ros_graph, deploym
     qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE)
     statuses = ({name: ros_graph.subscribe(name, Float64MultiArray, qos) for name in status_names}
                 if LOCKSTEP_TOPICS[deployment] in ("team", "field") else {})
-    _start_firmware(ros_graph, deployment, TWISTS, **({"opponent_ids": [0]} if one_process else {}))
-    for i, twist in TWISTS.items():
-        _command(ros_graph, i, twist)
-    if opponents:
-        if OPPONENT_FIRMWARE[deployment] is not None:
-            _start_firmware(ros_graph, OPPONENT_FIRMWARE[deployment], [0], contract.OPPONENTS)
-        _command(ros_graph, 0, OPPONENT_TWIST, contract.OPPONENTS)
-    ros_graph.probe.spin_for(0.3)
+    # The boards' lockstep join waits setpoint_wait_s of wall time (0.05 s by default) for the velocity
+    # controller's setpoint, then answers with the previous one: on a loaded machine that changed the
+    # trajectory by up to 1e-5 m. Here the wait must outlast any scheduling delay.
+    boards = {"setpoint_wait_s": 10.0}
+    _start_firmware(ros_graph, deployment, TWISTS, boards=boards, **({"opponent_ids": [0]} if one_process else {}))
+    if opponents and OPPONENT_FIRMWARE[deployment] is not None:
+        _start_firmware(ros_graph, OPPONENT_FIRMWARE[deployment], [0], contract.OPPONENTS, boards=boards)
     # use_sim_time nodes subscribe to /clock
     readers = {"per_robot": 2 * len(TWISTS), "two_teams": len(TWISTS), "mixed": 3}.get(deployment, 1)
     readers += opponents * {"per_robot": 2, None: 0}.get(OPPONENT_FIRMWARE.get(deployment), 1)
     opponent_poses = OPPONENT_POSES if opponents else ()
     # a stall would change the trajectory: on a loaded machine the first answers may take seconds
-    _, truths, _ = _start_plant(ros_graph, deployment, readers, opponent_poses, seed=7, stop_after_s=0.5,
-                                lockstep_timeout_s=30.0)
+    _, truths = _start_plant(ros_graph, deployment, readers, opponent_poses, seed=7, stop_after_s=0.5,
+                             lockstep_timeout_s=30.0)
+    for i, twist in TWISTS.items():
+        _command(ros_graph, i, twist)
+    if opponents:
+        _command(ros_graph, 0, OPPONENT_TWIST, contract.OPPONENTS)
+    _release_first_tick(ros_graph)
     ros_graph.probe.spin_until(lambda: all(t and odometry_from_msg(t[-1])[0] >= 0.4 for t in truths.values()),
                                120.0, "0.4 s of every robot")
     dds = {i: {stamp_to_nanoseconds(m.header.stamp): odometry_from_msg(m) for m in t} for i, t in truths.items()}
@@ -156,11 +169,11 @@ def test_a_killed_firmware_process_stalls_only_its_robot(ros_graph):
     """Per-robot deployment: robot_2's motor boards are killed; the plant reports the stall and goes on in
     lockstep with robot_0, which keeps driving its command."""
     procs = _start_firmware(ros_graph, "per_robot", TWISTS)
+    events = ros_graph.subscribe("/sim/events", String)
+    plant, truths = _start_plant(ros_graph, "per_robot", 2 * len(TWISTS), lockstep_timeout_s=0.5)
     for i, twist in TWISTS.items():
         _command(ros_graph, i, twist)
-    ros_graph.probe.spin_for(0.3)
-    events = ros_graph.subscribe("/sim/events", String)
-    plant, truths, clocks = _start_plant(ros_graph, "per_robot", 2 * len(TWISTS), lockstep_timeout_s=0.5)
+    clocks = _release_first_tick(ros_graph)
     ros_graph.probe.spin_until(lambda: clocks and stamp_to_nanoseconds(clocks[-1].clock) > 0.3e9, 60.0, "0.3 s")
     motor_boards_2 = procs[3]
     assert motor_boards_2.name == "motor_boards"

@@ -128,6 +128,12 @@ def test_command_timeout_stops_the_robot(ros_graph):
 NODE = "/robot_0/velocity_controller"
 
 
+@pytest.fixture(scope="module")
+def unchanged_rig(module_ros_graph):
+    """One node for the refused changes (a refusal leaves it as it was)."""
+    return Rig(module_ros_graph)
+
+
 @pytest.mark.parametrize(
     ("name", "value"),
     [
@@ -139,12 +145,12 @@ NODE = "/robot_0/velocity_controller"
         ("anti_windup", "none"),
     ],
 )
-def test_bad_parameters_rejected_old_value_kept(ros_graph, name, value):
-    rig = Rig(ros_graph)
-    before = ros_graph.probe.get_parameter(NODE, name)
-    result = ros_graph.probe.set_parameter(NODE, name, value)
+def test_bad_parameters_rejected_old_value_kept(unchanged_rig, name, value):
+    rig, probe = unchanged_rig, unchanged_rig.graph.probe
+    before = probe.get_parameter(NODE, name)
+    result = probe.set_parameter(NODE, name, value)
     assert not result.successful and result.reason
-    assert ros_graph.probe.get_parameter(NODE, name) == before
+    assert probe.get_parameter(NODE, name) == before
     assert np.all(np.isfinite(rig.tick()))
 
 

@@ -102,6 +102,10 @@ class MotorBoardsNode(Node):
         run_sampled(self._sampled)
         if verdict is StampVerdict.RESTART:
             self._pending.clear()  # ticks of the old time line need no answer any more
+        elif any(pending[0] == t_ns for pending in self._pending):
+            # The plant re-sent a tick that still waits for its setpoint: it is answered once, when that comes.
+            # Queued twice it would count as two ticks pending and force a stale setpoint on the tick.
+            return
         self._pending.append((t_ns, speeds, currents, time.monotonic()))
         self._drain()
 

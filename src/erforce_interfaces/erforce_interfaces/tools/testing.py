@@ -18,8 +18,8 @@ So that a bug of ours does not hide behind it, the ``ros_graph`` fixture fails a
 processes logged such a warning, unless the test declared it with ``expect_callback_faults``.
 
 Reaping: every child gets its own process group and an environment tag. ``close()``
-sends SIGINT, then SIGTERM, then SIGKILL with timeouts, and finally kills any process
-still carrying the tag (grandchildren of a launcher killed too early included).
+sends SIGINT, then SIGTERM, then SIGKILL with timeouts (each to every child at once), and finally kills
+any process still carrying the tag (grandchildren of a launcher killed too early included).
 """
 
 from __future__ import annotations
@@ -148,21 +148,32 @@ class NodeProcess:
 
 def stop_process(popen: subprocess.Popen, sigint_timeout_s: float = 5.0, sigterm_timeout_s: float = 3.0) -> None:
     """SIGINT, then SIGTERM, then SIGKILL (the process group), waiting after each."""
+    stop_processes([popen], sigint_timeout_s, sigterm_timeout_s)
+
+
+def stop_processes(popens: Sequence[subprocess.Popen], sigint_timeout_s: float = 5.0,
+                   sigterm_timeout_s: float = 3.0) -> None:
+    """``stop_process`` for several processes at once: each signal goes to every one still running before
+    any is waited for, so the graph stops in the time of its slowest process, not in the sum of them all."""
     for sig, wait_s in ((signal.SIGINT, sigint_timeout_s), (signal.SIGTERM, sigterm_timeout_s)):
+        running = [popen for popen in popens if popen.poll() is None]
+        if not running:
+            return
+        for popen in running:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(popen.pid, sig)
+        deadline = time.monotonic() + wait_s
+        for popen in running:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                popen.wait(timeout=max(0.0, deadline - time.monotonic()))
+    for popen in popens:
         if popen.poll() is not None:
-            return
+            continue
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(popen.pid, signal.SIGKILL)
         with contextlib.suppress(ProcessLookupError):
-            os.kill(popen.pid, sig)
-        try:
-            popen.wait(timeout=wait_s)
-            return
-        except subprocess.TimeoutExpired:
-            pass
-    with contextlib.suppress(ProcessLookupError, PermissionError):
-        os.killpg(popen.pid, signal.SIGKILL)
-    with contextlib.suppress(ProcessLookupError):
-        popen.kill()
-    popen.wait(timeout=5.0)
+            popen.kill()
+        popen.wait(timeout=5.0)
 
 
 def _pids_with_tag(tag: str) -> list[int]:
@@ -305,8 +316,7 @@ class RosGraph:
 
     # -------------------------------------------------------------- teardown
     def close(self) -> None:
-        for proc in reversed(self.processes):
-            stop_process(proc.popen)
+        stop_processes([proc.popen for proc in reversed(self.processes)])
         for pid in _pids_with_tag(self.tag):
             with contextlib.suppress(ProcessLookupError, PermissionError):
                 os.kill(pid, signal.SIGKILL)
