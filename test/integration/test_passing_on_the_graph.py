@@ -22,7 +22,7 @@ TEAM_SIM = LAUNCH_FILE.with_name("team_sim.launch.yaml")
 def test_the_passing_game_node_plays_a_pass_on_the_graph(ros_graph):
     records = ros_graph.subscribe(contract.PASS_RECORDS.name, Float64MultiArray)
     launch = ros_graph.start_launch(
-        TEAM_SIM, ai="passing", pacing="lockstep", real_time_factor="0.0", field="division_a",
+        TEAM_SIM, ai="passing", pacing="lockstep", real_time_factor="1.0", field="division_a",
         robot_ids="[0, 1, 2]", num_robots="3", robot_poses="[-4.5, 0.0, 0.0, -3.0, -2.5, 1.0, -3.0, 2.5, -1.0]",
         opponent_ids="[0]", num_opponents="1", opponent_poses="[1.5, 0.0, 3.14159265]", opponents_intercept="false",
         sim_launch_prefix="")  # no SCHED_IDLE for the simulated world: a loaded machine would starve its start
