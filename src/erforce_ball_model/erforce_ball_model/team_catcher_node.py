@@ -100,7 +100,7 @@ class TeamCatcherNode(Node):
         self._other_names = [other.namespace(k) for k in range(n_other)]
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
         as_team = " as a team" if self._values["as_team"] else ""
-        press = f", pressing the lanes of {other.name}' {n_other} robots" if n_other else ""
+        press = f", pressing the passing lanes of {other.name} (robots 0 .. {n_other - 1})" if n_other else ""
         self.get_logger().info(f"team_catcher: {team.name}, robots {ids}{as_team}{press}")
         self._params.on_change(self._set_config)
 
