@@ -230,6 +230,10 @@ def test_a_loose_ball_a_rolling_ball_or_no_pressing_sends_nobody_to_the_lanes():
     assert off.press_targets(0.02) == {} and all(not np.any(t) for t in off.tick(0.02).values())
     stale = pressing_team()
     assert stale.press_targets(CatcherConfig().stale_after_s + 0.01) == {}
+    nobody = PressingTeam(CatcherConfig(), OFFSET, ROBOT.robot_radius_m, FIELD, (), passing=PassConfig(), n_other=3)
+    assert nobody.tick(0.0) == {}  # a game without opponents
+    with pytest.raises(ValueError, match="distinct"):
+        PressingTeam(CatcherConfig(), OFFSET, ROBOT.robot_radius_m, FIELD, (1, 1))
     # A pass rolls from the holder towards (3, 0) at 3 m/s: the team's receivers take over, and only the one
     # with the earlier catch time (robot 0: 0.5 s against 1.2 s) drives.
     rolling = pressing_team(ball_xy=(0.3, 0.0), ball_v=(3.0, 0.0))

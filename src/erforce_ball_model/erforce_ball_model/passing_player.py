@@ -469,8 +469,8 @@ class PressingTeam:
                  field_config: FieldConfig | None, robot_ids, as_team: bool = True,
                  passing: PassConfig | None = None, n_other: int = 0) -> None:
         ids = [int(i) for i in robot_ids]
-        if not ids or len(set(ids)) != len(ids):
-            raise ValueError(f"robot_ids: need distinct ids, at least one, got {ids}")
+        if len(set(ids)) != len(ids):  # none: a game without opponents
+            raise ValueError(f"robot_ids: need distinct ids, got {ids}")
         if n_other < 0:
             raise ValueError(f"n_other must be >= 0, got {n_other!r}")
         team = ids if as_team else ()
