@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.catcher import CatcherConfig, catch_twist
 from erforce_ball_model.passing import PassConfig
-from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerConfig
+from erforce_ball_model.passing_player import HELD_DISTANCE_M, PassingPlayer, PassRecord, PlayerConfig, PressingTeam
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 ROBOT = RobotConfig()
@@ -182,3 +183,71 @@ def test_the_nodes_parameter_defaults_are_the_cores():
                 assert defaults[f.name] == getattr(cfg, f.name), f.name
     built = passing_game_node.build(passing_game_node.SCHEMA.parse(defaults))
     assert built[0].passing == PassConfig() and built[0].hold_min_s == PlayerConfig().hold_min_s
+
+
+# The opponents' side (PressingTeam): the other team's robot 0 at the origin facing +x holds the ball at its
+# dribbler (OFFSET, 0); its teammates stand at (3, 0) and (0, 2). With press_fraction 0.5 the lanes' waiting
+# points are the midpoints from the ball: (1.54075, 0) and (0.04075, 1). Of the pressing robots, 1 at
+# (0.3, 1.5) is closest to (0, 2) (0.583 m; robot 0 at (1, 0.3) is 1.972 m from it): 1 takes that lane, 0 the
+# one to (3, 0).
+OTHERS = ((0.0, 0.0, 0.0), (3.0, 0.0, math.pi), (0.0, 2.0, -0.5 * math.pi))
+PRESSERS = {0: (1.0, 0.3, 0.0), 1: (0.3, 1.5, 0.0)}
+LANES = {0: ((OFFSET + 3.0) / 2.0, 0.0), 1: (OFFSET / 2.0, 1.0)}
+
+
+def pressing_team(ball_xy=(OFFSET, 0.0), ball_v=(0.0, 0.0), press=True):
+    team = PressingTeam(CatcherConfig(), OFFSET, ROBOT.robot_radius_m, FIELD, PRESSERS,
+                        passing=PassConfig(press_fraction=0.5) if press else None, n_other=len(OTHERS))
+    for k, pose in enumerate(OTHERS):
+        team.on_other_robot(k, 0.0, pose)
+    for i, pose in PRESSERS.items():
+        team.on_odom(i, 0.0, pose, (0.0, 0.0))
+    team.on_ball(0.0, ball_xy, ball_v)
+    return team
+
+
+def test_the_pressing_team_waits_on_the_passing_lanes_while_the_other_team_holds_the_ball():
+    assert LANES[0] == pytest.approx((1.54075, 0.0))
+    team = pressing_team()
+    assert team.holder(0.02) == 0
+    targets = team.press_targets(0.02)
+    assert sorted(targets) == [0, 1]
+    for i in PRESSERS:
+        np.testing.assert_allclose(targets[i], LANES[i], atol=1e-12)
+    twists = team.tick(0.02)
+    for i, pose in PRESSERS.items():
+        facing = math.atan2(-pose[1], OFFSET - pose[0])  # towards the ball
+        np.testing.assert_allclose(twists[i], catch_twist(np.array(pose), np.array(LANES[i]), facing, CatcherConfig()))
+        way = np.subtract(LANES[i], pose[:2])  # yaw 0: the robot frame is the field's
+        assert twists[i][:2] @ way > 0.0 and abs(twists[i][0] * way[1] - twists[i][1] * way[0]) < 1e-9
+
+
+def test_a_loose_ball_a_rolling_ball_or_no_pressing_sends_nobody_to_the_lanes():
+    loose = pressing_team(ball_xy=(OFFSET + HELD_DISTANCE_M + 0.01, 0.0))
+    assert loose.holder(0.02) is None and loose.press_targets(0.02) == {}
+    assert all(not np.any(t) for t in loose.tick(0.02).values())  # a resting ball engages no receiver
+    off = pressing_team(press=False)
+    assert off.press_targets(0.02) == {} and all(not np.any(t) for t in off.tick(0.02).values())
+    stale = pressing_team()
+    assert stale.press_targets(CatcherConfig().stale_after_s + 0.01) == {}
+    nobody = PressingTeam(CatcherConfig(), OFFSET, ROBOT.robot_radius_m, FIELD, (), passing=PassConfig(), n_other=3)
+    assert nobody.tick(0.0) == {}  # a game without opponents
+    with pytest.raises(ValueError, match="distinct"):
+        PressingTeam(CatcherConfig(), OFFSET, ROBOT.robot_radius_m, FIELD, (1, 1))
+    # A pass rolls from the holder towards (3, 0) at 3 m/s: the team's receivers take over, and only the one
+    # with the earlier catch time (robot 0: 0.5 s against 1.2 s) drives.
+    rolling = pressing_team(ball_xy=(0.3, 0.0), ball_v=(3.0, 0.0))
+    assert rolling.holder(0.02) is None
+    rolling.on_catch_time(0, 0.02, 0.5)
+    rolling.on_catch_point(0, 0.02, (1.0, 0.0))
+    rolling.on_catch_time(1, 0.02, 1.2)
+    rolling.on_catch_point(1, 0.02, (2.0, 0.0))
+    twists = rolling.tick(0.02)
+    assert np.any(twists[0]) and not np.any(twists[1])
+
+
+def test_team_catchers_press_fraction_default_is_the_cores():
+    from erforce_ball_model import team_catcher_node
+
+    defaults = {s.name: s.default for s in team_catcher_node.SCHEMA.specs}
+    assert defaults["press_fraction"] == PassConfig().press_fraction and defaults["press_lanes"] is False

@@ -69,3 +69,40 @@ def test_the_robot_with_the_earlier_catch_receives_the_other_holds(ros_graph, de
         assert len(moving(receiver, since[receiver])) >= 10, f"robot_{receiver} should drive"
         assert moving(other, since[other]) == [], f"robot_{other} should hold"
     assert all(p.alive() for p in procs)
+
+
+def test_with_press_lanes_the_opponents_wait_on_our_passing_lanes_while_we_hold_the_ball(ros_graph):
+    """team_catcher for the opponents with press_lanes reads our robots' odom: robot_0 at the origin facing +x
+    holds the ball at its dribbler (d, 0), robot_1 and robot_2 stand at (3, 0) and (0, 2). The lanes' midpoints
+    are ((d + 3) / 2, 0) and (d / 2, 1); opponent_1 at (0.3, 1.5) is nearest robot_2 and takes that lane,
+    opponent_0 at (1, 0.3) the other (yaw 0: their base_link is the field's). Each drives towards its point."""
+    from erforce_interfaces.robot_config import RobotConfig
+
+    d = RobotConfig().dribbler_offset_m
+    ours = {0: (0.0, 0.0, 0.0), 1: (3.0, 0.0, math.pi), 2: (0.0, 2.0, -0.5 * math.pi)}
+    theirs = {0: (1.0, 0.3, 0.0), 1: (0.3, 1.5, 0.0)}
+    lanes = {0: ((d + 3.0) / 2.0, 0.0), 1: (d / 2.0, 1.0)}
+    proc = ros_graph.start_node("erforce_ball_model", "team_catcher", params={
+        "field": "division_a", "team": "opponents", "robot_ids": [0, 1], "press_lanes": True, "num_other_robots": 3})
+    probe = ros_graph.probe
+    commands = {j: ros_graph.subscribe(contract.OPPONENTS.topic(contract.CMD_VEL, j), Twist, contract.CMD_VEL.qos)
+                for j in theirs}
+    ball = probe.wait_for_subscribers(contract.BALL_STATE.name, Odometry, timeout_s=30.0, qos=contract.BALL_STATE.qos)
+    odoms = [(pose, probe.wait_for_subscribers(team.topic(contract.ODOM, k), Odometry, timeout_s=30.0,
+                                               qos=contract.ODOM.qos))
+             for team, poses in ((contract.OURS, ours), (contract.OPPONENTS, theirs)) for k, pose in poses.items()]
+    since = {j: len(commands[j]) for j in theirs}
+    for k in range(20):
+        t = 0.05 * k
+        ball.publish(odometry_msg(t, (d, 0.0, 0.0), (0.0, 0.0, 0.0)))
+        for pose, pub in odoms:
+            pub.publish(odometry_msg(t, pose, (0.0, 0.0, 0.0)))
+        probe.spin_for(0.05)
+    for j, pose in theirs.items():
+        way = (lanes[j][0] - pose[0], lanes[j][1] - pose[1])
+        late = [m for m in commands[j][since[j]:] if math.hypot(m.linear.x, m.linear.y) > 0.05]
+        assert len(late) >= 5, f"opponent_{j} should drive to its lane"
+        m = late[-1]
+        cos = (m.linear.x * way[0] + m.linear.y * way[1]) / (math.hypot(*way) * math.hypot(m.linear.x, m.linear.y))
+        assert cos == pytest.approx(1.0, abs=1e-9)
+    assert proc.alive()

@@ -350,6 +350,7 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
     assert {plant["lockstep_topics"], params["team_firmware"]["lockstep_topics"],
             params["opponent_firmware"]["lockstep_topics"]} == {"field"}
     assert interceptor["robot_ids"] == [0, 1, 2] and interceptor["as_team"] and interceptor["team"] == "opponents"
+    assert interceptor["field"] == plant["field"] == "division_a" and interceptor["press_lanes"] is False
     assert plant["ground_truth_rate_hz"] == 10.0
     assert params["team_firmware"]["motor_boards.status_rate_hz"] == 10.0
     per_robot = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", lockstep_topics="per_robot",
@@ -405,7 +406,7 @@ def test_show_args_lists_names_descriptions_and_defaults(capsys):
 
 def test_team_sim_plays_the_passing_game_with_ai_passing():
     """ai:=passing adds the passing_game node for the same robots, opponents and field as the plant and the
-    predictor; by default our robots have no AI."""
+    predictor, and the opponents' interceptor presses our passing lanes; by default our robots have no AI."""
     path = REPO / "src/erforce_sim/launch/team_sim.launch.yaml"
     assert "passing_game" not in {node_name(s) for s in resolve(path).values()}
     specs = resolve(path, ai="passing", robot_ids="[0, 1, 2]", num_robots="3", field="division_b",
@@ -415,6 +416,10 @@ def test_team_sim_plays_the_passing_game_with_ai_passing():
     assert (game["num_robots"], game["num_opponents"]) == (3, 3)
     assert (predictor["num_robots"], predictor["num_opponents"]) == (3, 3)
     assert game["field"] == plant["field"] == "division_b" and game["use_sim_time"] is True
+    # the opponents press our passing lanes, reading our 3 robots' odom, on the same field
+    interceptor = params["opponent_interceptor"]
+    assert interceptor["press_lanes"] is True and interceptor["num_other_robots"] == 3
+    assert interceptor["field"] == "division_b"
 
 
 # ================================================= strict as ros2 launch on Jazzy (issue 24)

@@ -38,7 +38,7 @@ import numpy as np
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import MAX_RECEIVE_ANGLE_RAD, CatchSearch, RobotLimits
 from erforce_ball_model.catcher import CatcherConfig, Receiver, catch_twist, wrap_angle
-from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, select_pass
+from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
 from erforce_interfaces.robot_config import FieldConfig
 
 
@@ -444,3 +444,138 @@ class PassingPlayer:
             self.ball_request = max(range(n), key=lambda k: float(np.min(np.hypot(*(opp - self.poses[k, :2]).T))))
         else:
             self.ball_request = 0
+
+
+HELD_DISTANCE_M = 0.05  # the ball this close to a robot's dribbler point (from tracked poses) ...
+HELD_SPEED_MPS = 0.5  # ... and slower than this: that robot holds it (a pass leaves at min_kick_mps or faster)
+
+
+class PressingTeam:
+    """The opponents' decisions in the passing game, one AI tick at a time: a team of catchers that presses
+    the passing lanes. The functional core shared by the in-process game (erforce_sim.closed_loop.passing_game)
+    and the ``team_catcher`` node (``press_lanes``).
+
+    Its robots (``robot_ids``) each run catcher.Receiver; with ``as_team`` they form a team in which only the
+    robot that can catch a rolling ball first drives to it (catcher.team_receiver). With ``passing`` (a
+    PassConfig: its ``press_fraction``) it also sees the other team's ``n_other`` robots (``on_other_robot``,
+    tracked poses) and, while one of them holds the ball (the tracked ball slower than ``HELD_SPEED_MPS``
+    and within ``HELD_DISTANCE_M`` of its dribbler point), sends each of its robots to its press target
+    (passing.press_targets: on the lane from the ball to a teammate of the holder), facing the ball. Its
+    inputs are fed as they arrive, each with the time it arrived; ``tick(now)`` returns every robot's
+    Twist [vx, vy, wz] (robot frame; zeros: hold) and ``notices`` what a robot's receiver could not use.
+    """
+
+    def __init__(self, cfg: CatcherConfig, dribbler_offset_m: float, robot_radius_m: float,
+                 field_config: FieldConfig | None, robot_ids, as_team: bool = True,
+                 passing: PassConfig | None = None, n_other: int = 0) -> None:
+        ids = [int(i) for i in robot_ids]
+        if len(set(ids)) != len(ids):  # none: a game without opponents
+            raise ValueError(f"robot_ids: need distinct ids, got {ids}")
+        if n_other < 0:
+            raise ValueError(f"n_other must be >= 0, got {n_other!r}")
+        team = ids if as_team else ()
+        self.robot_ids = ids
+        self.receivers = {i: Receiver(cfg, dribbler_offset_m, robot_radius_m, field_config, robot_id=i,
+                                      team_robot_ids=team) for i in ids}
+        self.poses: dict[int, tuple[float, np.ndarray]] = {}  # own robot -> (arrived, [x, y, yaw])
+        self.other_poses = np.zeros((n_other, 3))
+        self.other_seen = np.zeros(n_other, dtype=bool)
+        self._ball: tuple[float, np.ndarray, np.ndarray] | None = None  # (arrived, position, velocity)
+        self.notices: dict[int, str] = {}
+        self.set_config(cfg, dribbler_offset_m, robot_radius_m, field_config, passing)
+
+    def set_config(self, cfg: CatcherConfig, dribbler_offset_m: float, robot_radius_m: float,
+                   field_config: FieldConfig | None, passing: PassConfig | None = None) -> None:
+        self.cfg, self.dribbler_offset_m, self.passing = cfg, dribbler_offset_m, passing
+        for receiver in self.receivers.values():
+            receiver.set_config(cfg, dribbler_offset_m, robot_radius_m, field_config)
+
+    # -------------------------------------------------------------------- inputs
+    def on_ball(self, now: float, position, velocity) -> None:
+        self._ball = (now, np.asarray(position, dtype=float)[:2].copy(), np.asarray(velocity, dtype=float)[:2].copy())
+        for receiver in self.receivers.values():
+            receiver.on_ball(now, position, velocity)
+
+    def on_v_shoot(self, now: float, v_shoot_mps: float) -> None:
+        for receiver in self.receivers.values():
+            receiver.on_v_shoot(now, v_shoot_mps)
+
+    def on_model(self, params: BallModelParams) -> None:
+        for receiver in self.receivers.values():
+            receiver.on_model(params)
+
+    def on_odom(self, robot: int, now: float, pose, velocity) -> None:
+        """Own robot's tracked pose [x, y, yaw] and field velocity [vx, vy]."""
+        self.poses[robot] = (now, np.asarray(pose, dtype=float)[:3].copy())
+        self.receivers[robot].on_odom(now, pose, velocity)
+
+    def on_catch_time(self, robot: int, now: float, seconds: float) -> None:
+        for i, receiver in self.receivers.items():
+            if i == robot:
+                receiver.on_catch_time(now, seconds)
+            else:
+                receiver.on_teammate_catch_time(robot, now, seconds)
+
+    def on_catch_point(self, robot: int, now: float, point) -> None:
+        self.receivers[robot].on_catch_point(now, point)
+
+    def on_barrier(self, robot: int, detected: bool) -> bool:
+        """Own robot's light barrier; True on the rising edge (it received the ball)."""
+        return self.receivers[robot].on_barrier(detected)
+
+    def on_other_robot(self, k: int, now: float, pose) -> None:
+        """The other team's robot ``k`` (0 .. n_other - 1): its tracked pose [x, y, yaw]."""
+        self.other_poses[k] = np.asarray(pose, dtype=float)[:3]
+        self.other_seen[k] = True
+
+    # -------------------------------------------------------------------- decision
+    def holder(self, now: float) -> int | None:
+        """The other team's robot that holds the ball now (module constants), None: nobody of them."""
+        ball = self._ball
+        if ball is None or now - ball[0] > self.cfg.stale_after_s or not self.other_seen.any():
+            return None
+        if math.hypot(*ball[2]) >= HELD_SPEED_MPS:
+            return None
+        seen = np.flatnonzero(self.other_seen)
+        x, y, yaw = self.other_poses[seen].T
+        d = self.dribbler_offset_m
+        gaps = np.hypot(x + d * np.cos(yaw) - ball[1][0], y + d * np.sin(yaw) - ball[1][1])
+        k = int(np.argmin(gaps))
+        return int(seen[k]) if gaps[k] <= HELD_DISTANCE_M else None
+
+    def press_targets(self, now: float) -> dict[int, np.ndarray]:
+        """Own robot -> where it waits while the other team holds the ball (empty: nobody holds it, no
+        pressing, or no fresh own pose)."""
+        holder = None if self.passing is None else self.holder(now)
+        if holder is None:
+            return {}
+        own = [i for i in self.robot_ids if i in self.poses and now - self.poses[i][0] <= self.cfg.stale_after_s]
+        if not own:
+            return {}
+        seen = np.flatnonzero(self.other_seen)
+        x, y, yaw = self.other_poses[holder]
+        d = self.dribbler_offset_m
+        ball = (x + d * math.cos(yaw), y + d * math.sin(yaw))
+        targets = press_targets(ball, self.other_poses[seen, :2], np.array([self.poses[i][1][:2] for i in own]),
+                                int(np.flatnonzero(seen == holder)[0]), self.passing)
+        return dict(zip(own, targets, strict=True))
+
+    def tick(self, now: float) -> dict[int, np.ndarray]:
+        """Every own robot's Twist now: its press target while the other team holds the ball, else its receiver's."""
+        self.notices = {}
+        twists = {}
+        for i, receiver in self.receivers.items():
+            twists[i] = receiver.tick(now)
+            if receiver.notice:
+                self.notices[i] = receiver.notice
+        targets = self.press_targets(now)
+        if targets:
+            ball = self._ball[1]
+            for i, target in targets.items():
+                pose = self.poses[i][1]
+                try:
+                    twists[i] = catch_twist(pose, target, math.atan2(ball[1] - pose[1], ball[0] - pose[0]), self.cfg)
+                except ValueError as exc:
+                    self.notices[i] = f"no command: {exc}"
+                    twists[i] = np.zeros(3)
+        return twists

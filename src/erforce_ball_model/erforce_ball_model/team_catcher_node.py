@@ -8,7 +8,10 @@ publishes each robot's ``cmd_vel`` at ``rate_hz``. Each robot runs its own catch
 (catcher.team_receiver), as the per-robot catchers with ``team_robot_ids`` do.
 
 With ``team`` ``opponents`` it drives the opponents under ``/opponent_<id>/`` (contract.Team) from the
-predictor's catch times for them: the interceptor of the simulated second team.
+predictor's catch times for them: the interceptor of the simulated second team. With ``press_lanes`` it
+also reads the other team's ``num_other_robots`` tracked poses (``odom``, as the predictor publishes
+them) and, while one of them holds the ball, sends its robots onto the passing lanes (the passing game's
+opponents). The decisions are passing_player.PressingTeam's.
 
 One timer and one sampled take of every input per tick, instead of a process, a timer and seven
 subscriptions' wakes per robot; it spins on DirectExecutor (unless ERFORCE_EXECUTOR says otherwise), on
@@ -25,7 +28,8 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model import catcher_node
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.catcher import Receiver
+from erforce_ball_model.passing import PassConfig
+from erforce_ball_model.passing_player import PressingTeam
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
@@ -52,12 +56,14 @@ SCHEMA = HostSchema(load_schema("erforce_ball_model", "team_catcher"), {
 
 
 def build(config):
-    """The catcher's (config, dribbler offset, robot radius, field) for every robot (ValueError when invalid)."""
+    """The catcher's (config, dribbler offset, robot radius, field) for every robot and the pressing's PassConfig
+    (None: no pressing) (ValueError when invalid)."""
     own, hosted = config
     ids = list(own.robot_ids)
     if not ids or len(set(ids)) != len(ids):
         raise ValueError(f"robot_ids: need distinct ids, at least one, got {ids}")
-    return catcher_node.build_config(hosted[""])
+    passing = PassConfig(press_fraction=own.press_fraction) if own.press_lanes else None
+    return (*catcher_node.build_config(hosted[""]), passing)
 
 
 class TeamCatcherNode(Node):
@@ -69,8 +75,9 @@ class TeamCatcherNode(Node):
         ids = [int(i) for i in self._values["robot_ids"]]
         team = contract.TEAMS[self._values["team"]]
         self._names = {i: team.namespace(i) for i in ids}
-        self._team = ids if self._values["as_team"] else ()
-        self._receivers: dict[int, Receiver] = {}
+        other = contract.OURS if team is contract.OPPONENTS else contract.OPPONENTS
+        n_other = self._values["num_other_robots"] if self._values["press_lanes"] else 0
+        self._team: PressingTeam
         self.on_clock_restart()
         q = contract
         self._cmd_pubs = {i: contract_publisher(self, q.CMD_VEL, team.topic(q.CMD_VEL, i)) for i in ids}
@@ -86,18 +93,26 @@ class TeamCatcherNode(Node):
                 sub = contract_subscription(self, topic, lambda m, i=i, cb=callback: cb(i, m), team.topic(topic, i),
                                             raw=raw)
                 self._inputs.append(sample_only(sub))
+        for k in range(n_other):
+            sub = contract_subscription(self, q.ODOM, lambda m, k=k: self._on_other_odom(k, m), other.topic(q.ODOM, k),
+                                        raw=True)
+            self._inputs.append(sample_only(sub))
+        self._other_names = [other.namespace(k) for k in range(n_other)]
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
-        self.get_logger().info(f"team_catcher: {team.name}, robots {ids}{' as a team' if self._team else ''}")
+        as_team = " as a team" if self._values["as_team"] else ""
+        press = f", pressing the passing lanes of {other.name} (robots 0 .. {n_other - 1})" if n_other else ""
+        self.get_logger().info(f"team_catcher: {team.name}, robots {ids}{as_team}{press}")
         self._params.on_change(self._set_config)
 
     def _set_config(self, built) -> None:
-        for receiver in self._receivers.values():
-            receiver.set_config(*built)
+        self._team.set_config(*built)
 
     def on_clock_restart(self) -> None:
         """A new /clock time line (node_support.guard_clock): the inputs' arrival times are void."""
-        self._receivers = {i: Receiver(*self._params.built, robot_id=i, team_robot_ids=self._team)
-                           for i in (int(i) for i in self._values["robot_ids"])}
+        v = self._values
+        cfg, offset, radius, field, passing = self._params.built
+        self._team = PressingTeam(cfg, offset, radius, field, v["robot_ids"], v["as_team"], passing,
+                                  v["num_other_robots"] if passing is not None else 0)
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -105,16 +120,12 @@ class TeamCatcherNode(Node):
     def _on_ball(self, msg: Odometry | bytes) -> None:
         ball = self._warn.convert(msg, "ball state", odometry_from_msg)
         if ball is not None:
-            now = self._now_s()
-            for receiver in self._receivers.values():
-                receiver.on_ball(now, ball[1], ball[2])
+            self._team.on_ball(self._now_s(), ball[1], ball[2])
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
         v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)
         if v_shoot is not None:
-            now = self._now_s()
-            for receiver in self._receivers.values():
-                receiver.on_v_shoot(now, v_shoot)
+            self._team.on_v_shoot(self._now_s(), v_shoot)
 
     def _on_model_params(self, msg: Float64MultiArray) -> None:
         try:
@@ -122,41 +133,37 @@ class TeamCatcherNode(Node):
         except (ConversionError, IndexError, ValueError) as exc:
             self._warn.warn("model_params", f"rejected model_params: {exc}")
             return
-        for receiver in self._receivers.values():
-            receiver.on_model(params)
+        self._team.on_model(params)
 
     def _on_odom(self, robot: int, msg: Odometry | bytes) -> None:
         odom = self._warn.convert(msg, f"{self._names[robot]} odom", odometry_from_msg)
         if odom is not None:
-            self._receivers[robot].on_odom(self._now_s(), odom[1], odom[2])
+            self._team.on_odom(robot, self._now_s(), odom[1], odom[2])
+
+    def _on_other_odom(self, k: int, msg: Odometry | bytes) -> None:
+        odom = self._warn.convert(msg, f"{self._other_names[k]} odom", odometry_from_msg)
+        if odom is not None:
+            self._team.on_other_robot(k, self._now_s(), odom[1])
 
     def _on_catch_time(self, robot: int, msg: bytes) -> None:
         seconds = self._warn.convert(msg, f"{self._names[robot]} catch_time", float64_from_msg)
-        if seconds is None:
-            return
-        now = self._now_s()
-        for i, receiver in self._receivers.items():
-            if i == robot:
-                receiver.on_catch_time(now, seconds)
-            else:
-                receiver.on_teammate_catch_time(robot, now, seconds)
+        if seconds is not None:
+            self._team.on_catch_time(robot, self._now_s(), seconds)
 
     def _on_catch_point(self, robot: int, msg: bytes) -> None:
         point = self._warn.convert(msg, f"{self._names[robot]} catch_point", point_from_msg)
         if point is not None:
-            self._receivers[robot].on_catch_point(self._now_s(), point[1])
+            self._team.on_catch_point(robot, self._now_s(), point[1])
 
     def _on_barrier(self, robot: int, msg: Bool) -> None:
-        if self._receivers[robot].on_barrier(msg.data):
+        if self._team.on_barrier(robot, msg.data):
             self.get_logger().info(f"{self._names[robot]} light barrier: ball received")
 
     def _tick(self) -> None:
         run_sampled(self._inputs)
-        now = self._now_s()
-        for i, receiver in self._receivers.items():
-            twist = receiver.tick(now)
-            if receiver.notice:
-                self._warn.warn(f"tick{i}", f"{self._names[i]}: {receiver.notice}")
+        for i, twist in self._team.tick(self._now_s()).items():
+            if i in self._team.notices:
+                self._warn.warn(f"tick{i}", f"{self._names[i]}: {self._team.notices[i]}")
             self._cmd_pubs[i].publish(twist_msg(twist))
 
 

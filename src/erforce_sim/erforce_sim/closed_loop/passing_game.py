@@ -11,9 +11,10 @@ on every vision frame for all robots of both teams, and the AI at a 50 Hz tick:
   performs its commands (twists, kicks, dribblers) and its requests (the ball put back at a robot,
   the referee's job) on the world, and receives with the predictor's search facing the way the
   receiver faces (``PassingPlayer.receive_facing``);
-- the opponents wait on the passing lanes while we hold the ball (passing.press_targets) and,
-  once the ball rolls, run catcher.Receiver as a team: the first of them to the ball goes (on the
-  graph: the opponents' team_catcher).
+- the opponents: passing_player.PressingTeam, the same object the opponents' ``team_catcher`` runs
+  on the graph (``press_lanes``): they wait on the passing lanes while one of ours holds the ball
+  (passing.press_targets) and run catcher.Receiver as a team once it rolls (the first of them to
+  the ball goes), fed with the tracked robots and ball, their catch times and light barriers.
 
 Each pass is reported as it ends (``PassRecord``, with the true ball path).
 
@@ -34,9 +35,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from erforce_ball_model.catch_time import RobotLimits
-from erforce_ball_model.catcher import CatcherConfig, Receiver, catch_twist
-from erforce_ball_model.passing import PassConfig, press_targets
-from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerConfig, summary
+from erforce_ball_model.catcher import CatcherConfig
+from erforce_ball_model.passing import PassConfig
+from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerConfig, PressingTeam, summary
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.closed_loop.runner import InProcessRunner
@@ -115,7 +116,9 @@ class PassingGame:
         self.runner.vision_listeners.append(self._on_frame)
         self.poses = self.player.poses  # tracked, from vision (the opponents' AI reads them too)
         self.velocities = self.player.velocities
-        self.opponents: dict[int, Receiver] = {}  # world index -> the opponents' skill, while a pass rolls
+        self.opponents = PressingTeam(cfg.catcher, self.robot.dribbler_offset_m, self.robot.robot_radius_m, self.field,
+                                      range(self.n_opp), passing=cfg.passing, n_other=self.n_team)
+        self.opponents.on_model(self.predictor.model)
         self.frame_costs_s: list[float] = []  # CPU of BallPredictor.ball_frame for all robots, per vision frame
         self._facing: tuple[int, float] | None = None  # the receive facing the predictor searches with
         self._dribblers = dict.fromkeys(range(self.n_team), False)
@@ -151,8 +154,10 @@ class PassingGame:
             if tracker is None:
                 continue
             player.on_robot(i, now, (*tracker.position_m, tracker.heading_rad), tracker.velocity_mps)
-            if i in self.opponents:
-                self.opponents[i].on_odom(now, self.poses[i], self.velocities[i])
+            if i >= self.n_team:
+                self.opponents.on_odom(i - self.n_team, now, self.poses[i], self.velocities[i])
+            else:
+                self.opponents.on_other_robot(i, now, self.poses[i])
         for b in frame.balls[:1]:
             t0 = time.thread_time()
             answer = self.predictor.ball_frame(t, b.x, b.y)
@@ -164,18 +169,14 @@ class PassingGame:
                 if i < self.n_team:
                     player.on_catch(i, now, ct, point)
             player.on_ball(now, traj.position_m, traj.velocity_mps, traj.floats.v_shoot_mps)
-            times = dict(zip(answer.catch_robots, answer.catch_times_s, strict=True))
-            points = dict(zip(answer.catch_robots, answer.catch_points_m, strict=True))
-            for i, rx in self.opponents.items():
-                if i in times:
-                    rx.on_catch_time(now, times[i])
-                    if points[i] is not None:
-                        rx.on_catch_point(now, np.array(points[i]))
-                for j in times:
-                    if j >= self.n_team:
-                        rx.on_teammate_catch_time(j, now, times[j])
-                rx.on_ball(now, traj.position_m, traj.velocity_mps)
-                rx.on_v_shoot(now, traj.floats.v_shoot_mps)
+            opponents = self.opponents
+            for i, ct, point in zip(answer.catch_robots, answer.catch_times_s, answer.catch_points_m, strict=True):
+                if i >= self.n_team:
+                    opponents.on_catch_time(i - self.n_team, now, ct)
+                    if point is not None:
+                        opponents.on_catch_point(i - self.n_team, now, np.array(point))
+            opponents.on_ball(now, traj.position_m, traj.velocity_mps)
+            opponents.on_v_shoot(now, traj.floats.v_shoot_mps)
 
     # -------------------------------------------------------------------- the referee's and the world's part
     def _apply(self, now: float) -> None:
@@ -200,39 +201,12 @@ class PassingGame:
             self._path = []
             if self.on_pass is not None:
                 self.on_pass(record)
-        if not player.passing:
-            self.opponents = {}
         if player.ball_request is not None and len(self._records) < self.cfg.passes:
             r = world.robot_state(player.ball_request)
             reach = self.robot.dribbler_offset_m + 0.002
             world.place_ball(r.x + reach * math.cos(r.theta), r.y + reach * math.sin(r.theta))
             player.ball_placed(now)
             self._apply(now)
-
-    def _opponent_commands(self, now: float, kicked: bool) -> dict[int, np.ndarray]:
-        """The opponents: on the passing lanes while we hold the ball, as a team of receivers once it rolls."""
-        cfg, n, player = self.cfg, self.n_team, self.player
-        commands = {}
-        if kicked:
-            cc, offset, radius = cfg.catcher, self.robot.dribbler_offset_m, self.robot.robot_radius_m
-            team = list(range(n, n + self.n_opp))
-            self.opponents = {i: Receiver(cc, offset, radius, self.field, robot_id=i, team_robot_ids=team)
-                              for i in team}
-            for i, rx in self.opponents.items():
-                rx.on_model(self.predictor.model)
-                rx.on_odom(now, self.poses[i], self.velocities[i])
-        holder = player.holder
-        if holder is not None:
-            targets = press_targets(player.ball_at_dribbler(holder), self.poses[:n, :2], self.poses[n:, :2], holder,
-                                    cfg.passing)
-            ball = self.world.ball_state()
-            for j in range(self.n_opp):
-                i = n + j
-                facing = math.atan2(ball.y - self.poses[i, 1], ball.x - self.poses[i, 0])
-                commands[i] = catch_twist(self.poses[i], targets[j], facing, cfg.catcher)
-        for i, rx in self.opponents.items():
-            commands[i] = rx.tick(now)
-        return commands
 
     # -------------------------------------------------------------------- the loop
     def play(self) -> list[PassRecord]:
@@ -257,7 +231,7 @@ class PassingGame:
                 self._apply(now)
                 twists = {i: np.zeros(3) for i in range(n)}
                 twists.update(commands.twists)
-                twists.update(self._opponent_commands(now, bool(commands.kicks)))
+                twists.update({self.n_team + j: t for j, t in self.opponents.tick(now).items()})
                 for i, twist in twists.items():
                     runner.command(i, twist)
                 if player.passing:
@@ -267,6 +241,8 @@ class PassingGame:
             now = runner.t_s
             for i, seen in enumerate(world.light_barriers()):
                 player.on_barrier(i, now, seen)
+                if i >= self.n_team:
+                    self.opponents.on_barrier(i - self.n_team, seen)
             player.check(now)
             self._apply(now)
             if self.on_tick is not None:
