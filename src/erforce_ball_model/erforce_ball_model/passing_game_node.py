@@ -133,7 +133,7 @@ class PassingGameNode(Node):
         own = self._params.config[0]
         self._own = own
         n, m = self._n, self._m = own.num_robots, own.num_opponents
-        self._player = PassingPlayer(*self._params.built[:1], n, m, *self._params.built[1:])
+        self._player = self._new_player()
         self._dribbler_radps = own.dribbler_radps
         self._robots = [(contract.OURS, i) for i in range(n)] + [(contract.OPPONENTS, j) for j in range(m)]
         q = contract
@@ -170,6 +170,10 @@ class PassingGameNode(Node):
         self.get_logger().info(f"passing_game: robot_0 .. robot_{n - 1} pass, {m} opponent(s); the ball starts at "
                                f"robot_{own.start_holder}")
 
+    def _new_player(self) -> PassingPlayer:
+        player, field, offset, radius = self._params.built
+        return PassingPlayer(player, self._n, self._m, field, offset, radius)
+
     def _set_config(self, built) -> None:
         player, field, offset, radius = built
         self._player.configure(player, field, offset, radius)
@@ -178,8 +182,7 @@ class PassingGameNode(Node):
 
     def on_clock_restart(self) -> None:
         """A new /clock time line (node_support.guard_clock): a new game."""
-        built = self._params.built
-        self._player = PassingPlayer(built[0], self._n, self._m, *built[1:])
+        self._player = self._new_player()
         self._first_seen, self._waiting_since, self._started, self._reported = None, None, False, 0
         self._dribblers_sent_at = -math.inf
 
