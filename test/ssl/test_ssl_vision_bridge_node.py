@@ -119,7 +119,28 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
                  "absurd counts (101 balls", "ball at (nan, 0.0) mm, confidence 0.8999999761581421 dropped; camera 1: "
                  "ball at (999999986991104.0, 0.0) mm"):
         node.wait_for_output(re.escape(text), timeout_s=10.0)
-    graph.probe.spin_until(lambda: ours and theirs and robots and detections, 10.0, "robots and detections")
+
+    # The other readers may match the bridge's writers later than /vision/ball's did (the opponent's
+    # vision_pose writer only comes with its first sighting), and a frame's messages on different topics
+    # arrive in any order: good frames go on at the camera's pace until every topic has one.
+    def detection_rows(msg):
+        return table_from_msg(msg, contract.VISION_DETECTION_COLUMNS)
+
+    deadline = time.monotonic() + 10.0
+    k += len(bad)
+    while not (ours and theirs and robots and any(len(detection_rows(m)) for m in detections)):
+        assert time.monotonic() < deadline, f"robots and detections: {len(ours)}, {len(theirs)}, {len(robots)}, " \
+                                            f"{len(detections)}"
+        k += 1
+        sender.send(sender.frame(0, k / 60.0, [ball], [ours_robot, theirs_robot]))
+        graph.probe.spin_for(1 / 60.0)
+
+    def stamp_s(msg) -> float:
+        return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+    # the newest ball's frame on /vision/robots (same stamp) is a message of another writer: it may come later
+    graph.probe.spin_until(lambda: stamp_s(balls[-1]) in {stamp_s(m) for m in robots}, 10.0,
+                           "the newest ball's frame on /vision/robots")
 
     # defend_side positive_x: the field turns by half a turn; metres; our team (yellow) under robot_<id>
     t, (x, y) = point_from_msg(balls[-1])
@@ -140,7 +161,9 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
     assert abs(t_robots - time.time()) < 5.0 and robots[-1].header.frame_id == contract.FIELD_FRAME
     # stamps on the ROS clock (the test's wall clock), not on the vision clock
     assert abs(t - time.time()) < 5.0
-    table = table_from_msg(detections[-1], contract.VISION_DETECTION_COLUMNS)
+    # the newest table with rows is a good frame's (camera 0): the bad frame of camera 1 kept none
+    table = next(detection_rows(m) for m in reversed(detections) if len(detection_rows(m)))
+    assert table[:, 0].tolist() == [0.0] * 3
     assert sorted(table[:, 2].tolist()) == [0.0, 1.0, 2.0]  # ball, ours, opponent
     assert node.alive()
 
@@ -179,7 +202,8 @@ def test_geometry_is_latched_and_a_clock_jump_and_a_flood_are_survived(bridge):
         graph.probe.spin_for(1 / 60.0)
     node.wait_for_output(r"camera 2: clock offset .* jumped forward", timeout_s=10.0)
     graph.probe.spin_until(lambda: len(balls()) >= n + 4, 5.0, "frames after the jump")
-    assert 0.0 < balls()[-1][0] - stamp_before < 1.0  # still on the ROS clock
+    # still on the ROS clock (the test's wall clock): after the frames before the jump, never after arrival
+    assert stamp_before < balls()[-1][0] <= time.time()
 
     # a flood: 5000 datagrams at once; the node stays up and serves the next good frame
     flood = sender.frame(3, t, ball)
@@ -221,12 +245,17 @@ def test_the_ball_predictor_takes_the_ball_model_from_ssl_geometry_unless_pinned
     states = probe.subscribe(q.BALL_STATE.name, Odometry, q.BALL_STATE.qos)
     ball_pub = probe.wait_for_subscribers(q.VISION_ROBOTS.name, PointCloud2, count=2, qos=q.VISION_ROBOTS.qos)
     deadline = time.monotonic() + 20.0
-    for k in range(1000):  # resent until answered: the node's writer may not have matched our reader yet
+    rejected = "rejected vision/ball outside the field"
+    # Resent until both have answered: our writer has matched both readers, but a reader may not have matched
+    # our writer yet (matching is not symmetric) and drops what comes before; follows' answer says nothing
+    # about pinned.
+    for k in range(1000):
         ball_pub.publish(vision_robots_cdr(100.0 + 0.01 * k, [], balls=[(5.5, 0.0)]))
         try:
-            probe.spin_until(lambda: states, 0.2, "a ball state")
+            probe.spin_until(lambda: states and rejected in pinned.output(), 0.2, "a ball state and the rejection")
             break
         except TimeoutError:
-            assert time.monotonic() < deadline, "the ball predictor dropped the SSL field on a parameter change"
+            assert time.monotonic() < deadline, ("the ball predictor dropped the SSL field on a parameter change"
+                                                 if not states else f"pinned did not reject the ball at x = 5.5 m:\n"
+                                                 f"{pinned.output()[-2000:]}")
     assert states[-1].pose.pose.position.x == pytest.approx(5.5, abs=0.01)
-    pinned.wait_for_output(r"rejected vision/ball outside the field", 10.0)
