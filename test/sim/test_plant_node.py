@@ -198,6 +198,7 @@ def test_bad_duty_is_rejected_or_clamped_plant_survives(ros_graph):
     efforts = {"nan": [math.nan, 0.0, 0.0, 0.0], "short": [0.1, 0.1], "huge": [5.0, -5.0, 0.0, 0.0]}
     plant = start_plant(ros_graph, robot_poses=[0.0, 0.0, 0.0, -1.0, 0.0, 0.0, -2.0, 0.0, 0.0],
                         startup_timeout_s=0.0, pacing="realtime", real_time_factor=1.0)
+    plant.wait_for_output(r"plant: 3 robot\(s\)", timeout_s=60.0)
     for i, (bad, effort) in enumerate(efforts.items()):
         duty_pub = ros_graph.probe.wait_for_subscribers(f"/robot_{i}/motor_duty", JointState,
                                                         qos=contract.QOS_CONTROL)
