@@ -13,6 +13,7 @@ from erforce_ball_model.catcher import (
     catch_twist,
     choose_target,
     field_to_robot,
+    heading_loop,
     line_intercept,
     on_receive_line,
     receive_point,
@@ -348,3 +349,75 @@ def test_receiver_with_a_next_target_receives_facing_it_within_the_receive_angle
     np.testing.assert_allclose(rx.tick(0.02), [0.0, math.sqrt(2 * 4.5 * 0.5 * 0.3), 0.0], atol=1e-9)
     with pytest.raises(ValueError, match="max_receive_angle_rad"):
         rx.on_next_target([-0.5, 3.0], math.radians(90.0))
+
+
+# --- the heading loop behind a delay -----------------------------------------------------------
+def test_heading_loop_predicts_with_the_yaw_rate_and_lowers_the_gain_with_the_delay():
+    cfg = CatcherConfig()  # heading gain 8 /s, gain times delay at most 0.5
+    assert heading_loop(1.0, 2.0, 0.05, cfg) == pytest.approx((1.1, 8.0))  # 0.5 / 0.05 = 10 > 8: nominal
+    assert heading_loop(1.0, 2.0, 0.25, cfg) == pytest.approx((1.5, 2.0))  # 0.5 / 0.25
+    assert heading_loop(3.0, 2.0, 0.1, cfg) == pytest.approx((3.2 - 2.0 * math.pi, 5.0))  # wrapped
+    assert heading_loop(1.0, 2.0, -0.1, cfg) == pytest.approx((1.0, 8.0))  # no delay: as measured
+
+
+def _turn_behind_a_delay(compensated: bool, delay_s: float = 0.2, tick_s: float = 0.02, duration_s: float = 3.0):
+    """The heading error [rad] every AI tick of a receiver (the Fig. 6 feed with a next target at 150 deg: it
+    turns from 180 deg) on a first-order yaw plant (yaw' = the commanded wz, held for the tick) whose pose
+    reaches the receiver ``delay_s`` late, stamped with its capture time and with the yaw rate then
+    (``compensated``) or as it was before the heading loop knew of delays: stamped on arrival, no yaw rate."""
+    rx = _receiver()
+    rx.on_next_target(np.array([-1.5, 0.3 + math.tan(math.radians(30.0))]))
+    lag = round(delay_s / tick_s)
+    yaw, rate = [math.pi], [0.0]
+    for k in range(round(duration_s / tick_s)):
+        now, seen = k * tick_s, max(k - lag, 0)
+        rx.on_ball(now, [-2.0, 0.0], [2.0, 0.0])
+        rx.on_v_shoot(now, 2.0 / 0.6)
+        if compensated:
+            rx.on_odom(now, [-0.5, 0.3, yaw[seen]], [0.0, 0.0, rate[seen]], seen * tick_s)
+        else:
+            rx.on_odom(now, [-0.5, 0.3, yaw[seen]], [0.0, 0.0])
+        wz = float(rx.tick(now)[2])
+        rate.append(wz)
+        yaw.append(yaw[-1] + wz * tick_s)
+    return np.array([wrap_angle(y - math.radians(150.0)) for y in yaw])
+
+
+def test_the_old_heading_law_oscillates_behind_a_delay_of_0_2_s():
+    """Gain 8 /s on an integrating yaw behind the delay D = 0.2 s plus half a tick of hold (0.21 s): the loop
+    K e^{-sD} / s reaches -180 deg at omega = pi / (2 D), where its gain is K D / (pi / 2) = 1.07 > 1: unstable.
+    It swings (the turn rate saturates) with period 4 D = 0.84 s (the zero crossings 2 D = 0.42 s apart, to a
+    tick) and never settles: its late swings exceed the first error, 30 deg."""
+    error = _turn_behind_a_delay(compensated=False)
+    t = np.arange(error.size) * 0.02
+    crossings = t[1:][np.sign(error[1:]) != np.sign(error[:-1])]
+    assert crossings.size >= 6
+    np.testing.assert_allclose(np.diff(crossings), 0.42, atol=0.021)
+    assert np.abs(error[t > 2.0]).max() > math.radians(30.0)
+
+
+def test_the_heading_loop_compensated_for_the_delay_settles_without_overshoot():
+    """The same turn with the pose's age known (0.2 s) and the tracked yaw rate: the loop's delay is taken as
+    the age plus command_lead_s (0.24 s), the gain 0.5 / 0.24 = 2.08 /s, the heading predicted 0.24 s ahead.
+    The loop K e^{-sD} (1 + sD) / s has its phase margin of 87 deg (catcher module docstring): no overshoot, a
+    first-order response with time constant 1 / K after the dead time, so 30 deg (0.524 rad) comes within
+    0.04 rad after 0.21 + ln(0.524 / 0.04) / 2.08 = 1.44 s at the latest and stays there; it stops inside the
+    0.03 rad deadband."""
+    error = _turn_behind_a_delay(compensated=True)
+    t = np.arange(error.size) * 0.02
+    assert error.min() >= 0.0  # never past the facing
+    settle_s = 0.21 + math.log(math.radians(30.0) / 0.04) / (0.5 / 0.24)
+    assert np.abs(error[t >= settle_s]).max() <= 0.04
+    assert abs(error[-1]) <= RCFG.heading_deadband_rad
+
+
+def test_a_pose_from_the_future_or_older_than_stale_bounds_the_prediction():
+    """The pose's age counts from 0 (a stamp ahead of the clock) to stale_after_s (0.25 s): the yaw rate 1 rad/s
+    predicts the heading 0.04 s (command_lead_s) or 0.29 s ahead, with the gain 8 /s or 0.5 / 0.29 /s."""
+    for stamp_s, delay_s in ((5.0, 0.04), (-100.0, 0.29)):
+        rx = _receiver()
+        _feed_fig6(rx, 0.0)
+        rx.on_next_target(np.array([-1.5, 0.3 + math.tan(math.radians(30.0))]))
+        rx.on_odom(0.0, [-0.5, 0.3, math.pi], [0.0, 0.0, 1.0], stamp_s)
+        yaw, gain = heading_loop(math.pi, 1.0, delay_s, RCFG)
+        assert rx.tick(0.0)[2] == pytest.approx(gain * wrap_angle(math.radians(150.0) - yaw))

@@ -54,15 +54,32 @@ def non_finite_fields(msg, prefix: str = "") -> list[str]:
     return bad
 
 
-def topic_names(robots: Iterable[int], topics=contract.TOPICS) -> list[tuple[str, contract.Topic]]:
-    """(resolved name, topic) of every contract topic for the given robots."""
+def topic_names(robots: Iterable[int], topics=contract.TOPICS,
+                opponents: Iterable[int] = ()) -> list[tuple[str, contract.Topic]]:
+    """(resolved name, topic) of every contract topic for the given robots (and opponents)."""
     out = []
     for t in topics:
         if t.per_robot:
             out += [(t.for_robot(i), t) for i in robots]
+            out += [(contract.OPPONENTS.topic(t, j), t) for j in opponents]
         else:
             out.append((t.name, t))
     return out
+
+
+#: topics that every rclpy node may subscribe to or publish besides its contract topics
+RCL_TOPICS = ("/parameter_events", "/rosout")
+
+
+def node_topics(probe, node: str, namespace: str = "/", published: bool = False) -> dict[str, contract.Topic]:
+    """The contract topic of every topic that the running node ``node`` subscribes to (or publishes), from the
+    ROS graph, not from the contract: what it really reads. A topic outside the contract fails."""
+    graph = probe.node.get_publisher_names_and_types_by_node if published else \
+        probe.node.get_subscriber_names_and_types_by_node
+    found = {name: contract.topic_of_name(name) for name, _ in graph(node, namespace) if name not in RCL_TOPICS}
+    outside = [name for name, topic in found.items() if topic is None]
+    assert not outside, f"{node} uses topics outside the contract: {outside}"
+    return found
 
 
 def subscribed_topics(node: str, robots: Iterable[int] = (0,)) -> list[tuple[str, contract.Topic]]:
@@ -187,14 +204,14 @@ class TopicWatch:
     """
 
     def __init__(self, probe, robots: Iterable[int] = (0,), exclude: Iterable[str] = (),
-                 keep: Iterable[str] = ()) -> None:
+                 keep: Iterable[str] = (), opponents: Iterable[int] = ()) -> None:
         self.counts: dict[str, int] = {}
         self.non_finite: list[tuple[str, list[str]]] = []
         self.latest: dict[str, object] = {}
         self.kept: dict[str, list] = {name: [] for name in keep}
         self.paused: set[str] = set()  # topics a test is publishing bad messages on right now
         excluded = set(exclude)
-        self.topics = [(n, t) for n, t in topic_names(robots) if n not in excluded]
+        self.topics = [(n, t) for n, t in topic_names(robots, opponents=opponents) if n not in excluded]
         for name, t in self.topics:
             self.counts[name] = 0
             probe.node.create_subscription(t.msg_type, name, lambda m, n=name: self._on(n, m), t.qos)

@@ -3,19 +3,35 @@ non-finite, huge and empty messages, wrong array lengths and table shapes, negat
 and backwards stamps and foreign frame ids, while the full graph runs in lockstep. No node may crash
 or stop answering, no non-finite value may appear on any topic other than the one being fuzzed at
 that moment, no message may end in a node's callback guard (the harness fails the test on any), and
-afterwards the graph still closes the loop. Deterministic (seeded)."""
+afterwards the graph still closes the loop. Deterministic (seeded).
+
+The passing game's nodes (passing_game and the opponents' team_catcher with press_lanes) the same way,
+in the passing game's graph as launched, during a game: a holder on the ball, the opponents pressing;
+afterwards the game goes on (a pass is played and ends)."""
 
 import math
 
 import numpy as np
 import pytest
-from faults_support import BURST, ClosedLoop, bad_message, closes_the_loop, non_finite_fields, subscribed_topics
+from faults_support import (
+    BURST,
+    ClosedLoop,
+    TopicWatch,
+    bad_message,
+    closes_the_loop,
+    node_topics,
+    non_finite_fields,
+    subscribed_topics,
+    topic_names,
+)
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
+from erforce_ball_model.passing_game_node import records_from_msg
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import odometry_msg, stamp_to_seconds
+from erforce_sim.closed_loop.demo import LAUNCH_FILE
 
 pytestmark = pytest.mark.integration
 
@@ -91,3 +107,77 @@ def test_fuzzed_inputs_crash_nothing_and_publish_nothing_non_finite(ros_graph):
     loop.watch.assert_all_finite()
     closes_the_loop(loop)
     loop.watch.assert_all_finite()
+
+
+# The passing game's graph (test_passing_on_the_graph.py): three of ours, one opponent pressing; no respawn,
+# so that a node that dies stays dead.
+GAME = {"ai": "passing", "pacing": "lockstep", "real_time_factor": "1.0", "field": "division_a",
+        "robot_ids": "[0, 1, 2]", "num_robots": "3",
+        "robot_poses": "[-4.5, 0.0, 0.0, -3.0, -2.5, 1.0, -3.0, 2.5, -1.0]",
+        "opponent_ids": "[0]", "num_opponents": "1", "opponent_poses": "[1.5, 0.0, 3.14159265]",
+        "respawn": "false", "sim_launch_prefix": ""}
+GAME_NODES = ("passing_game", "opponent_interceptor")  # the team_catcher of the opponents, press_lanes on
+GAME_OUTPUTS = ("/robot_0/dribbler", "/opponent_0/cmd_vel")  # each node's: published every second or more often
+
+
+def node_log(output: str, node: str) -> list[str]:
+    """The lines of the launcher's ``output`` that node ``node`` logged."""
+    return [line for line in output.splitlines() if f"[{node}]: " in line]
+
+
+def test_fuzzed_inputs_crash_neither_the_passing_game_nor_the_pressing_opponents(ros_graph):
+    rng = np.random.default_rng(20170706)
+    probe = ros_graph.probe
+    choices = ros_graph.subscribe(contract.PASS_CHOICE.name, Float64MultiArray)
+    records = ros_graph.subscribe(contract.PASS_RECORDS.name, Float64MultiArray)
+    launch = ros_graph.start_launch(LAUNCH_FILE.with_name("team_sim.launch.yaml"), **GAME)
+
+    def spin_until(condition, timeout_s: float, what: str) -> None:
+        probe.spin_until(lambda: condition() or not launch.alive(), timeout_s, what)
+        assert launch.alive(), launch.output()[-3000:]
+
+    # The game context: robot_0 holds the ball and has chosen a pass; the opponent presses (press_lanes).
+    spin_until(lambda: any(m.layout.dim and m.layout.dim[0].size for m in choices), 120.0,
+               "robot_0 holding the ball with a chosen pass")
+    inputs = {node: node_topics(probe, node) for node in GAME_NODES}
+    # passing_game: the ball's three topics, every robot's odom and light barrier, our robots' catch time and
+    # point, /clock; the interceptor: the ball's, its robot's odom, catch time, point and barrier, our odoms, /clock
+    assert len(inputs["passing_game"]) == 3 + 4 * 2 + 3 * 2 + 1, sorted(inputs["passing_game"])
+    assert len(inputs["opponent_interceptor"]) == 3 + 4 + 3 + 1, sorted(inputs["opponent_interceptor"])
+    fuzzed = {name: topic for node in GAME_NODES for name, topic in inputs[node].items()}
+    # the watch reads what the two nodes publish (and the time): a watch of every topic of the graph falls behind
+    outputs = {name for node in GAME_NODES for name in node_topics(probe, node, published=True)}
+    assert {"/robot_0/cmd_vel", "/robot_0/dribbler", contract.PASS_RECORDS.name, "/opponent_0/cmd_vel"} <= outputs
+    watched = outputs | {contract.CLOCK.name}
+    watch = TopicWatch(probe, robots=(0, 1, 2), opponents=(0,),
+                       exclude=[n for n, _ in topic_names((0, 1, 2), opponents=(0,)) if n not in watched])
+    spin_until(lambda: all(watch.counts[t] for t in GAME_OUTPUTS), 30.0, "every game node publishing")
+    model = probe.wait_for_message(contract.BALL_MODEL_PARAMS.name, Float64MultiArray, 10.0,
+                                   contract.BALL_MODEL_PARAMS.qos)
+
+    for name, topic in fuzzed.items():
+        watch.paused.add(name)  # the bad messages echo back to the watch: not a node's output
+        pub = probe.publisher(name, topic.msg_type, topic.qos)
+        for _ in range(BURST):
+            pub.publish(bad_message(topic.msg_type, rng))
+            probe.spin_for(0.002)
+        probe.spin_for(0.3)  # let the burst arrive and be answered
+        watch.paused.discard(name)
+        assert launch.alive(), launch.output()[-3000:]
+    # The model is latched and published on change only: a fuzzed model that passed the checks (-2.5 m/s^2 of
+    # rolling friction, say) would stay and leave no pass in reach. The predictor's model, as after its restart.
+    probe.publisher(contract.BALL_MODEL_PARAMS.name, Float64MultiArray, contract.BALL_MODEL_PARAMS.qos).publish(model)
+    t_fuzzed = stamp_to_seconds(watch.latest[contract.CLOCK.name].clock)
+
+    # still serving the good messages: a pass kicked after the fuzzing ends (the referee puts the ball back
+    # first if the fuzzed light barriers ended the game's pass or hold)
+    counts = {t: watch.counts[t] for t in GAME_OUTPUTS}
+    spin_until(lambda: any(r.t_kick_s > t_fuzzed for m in records for r in records_from_msg(m)), 60.0,
+               "a pass after the fuzzing")
+    spin_until(lambda: all(watch.counts[t] > counts[t] + 1 for t in counts), 10.0, "every game node publishing")
+    out = launch.output()
+    assert "process has died" not in out and "Traceback" not in out, out[-3000:]
+    for node in GAME_NODES:
+        log = node_log(out, node)
+        assert any("rejected" in line for line in log), f"{node} logged no rejection: the fuzz did not reach it"
+    watch.assert_all_finite()

@@ -22,6 +22,16 @@ time-optimal approach with bounded acceleration and speed that arrives at rest,
 ``v = min(v_max, sqrt(2 a_max d))`` towards the target. Orientation is a saturated
 proportional law on the heading error. The velocity controller on the robot then
 shapes and tracks it.
+
+The heading loop runs through vision, the tracker, the AI tick and the velocity loop: a delay D of
+0.05-0.2 s. A P-law of gain K on an integrating yaw behind a pure delay has the phase margin
+pi/2 - K D (unstable from K D = pi/2: 8 /s at 0.2 s swung a receiver's yaw at 1.25 Hz = 1/(4 D)).
+``heading_loop`` takes D as the pose's age (its stamp against now) plus ``command_lead_s`` and
+predicts the heading to the time the command acts with the tracked yaw rate (yaw + w D), and
+lowers the gain to at most ``heading_gain_delay_max`` / D: with both, the loop gain
+K e^{-sD} (1 + sD) / s has K D = 0.5 at crossover omega D = 1/sqrt(3), a phase margin of
+90 deg - 1/sqrt(3) rad + atan(1/sqrt(3)) = 87 deg (no overshoot), and the nominal gain where the
+delay is small (8 /s up to D = 62 ms).
 """
 
 from __future__ import annotations
@@ -57,6 +67,9 @@ class CatcherConfig:
     heading_gain_per_s: float = 8.0
     arrive_tolerance_m: float = 0.015  # inside this the robot holds still (above the 2 mm vision noise)
     heading_deadband_rad: float = 0.03  # no turning for smaller errors: vision yaw noise is ~0.01 rad
+    # The heading loop's delay beyond the pose's age: the AI tick, the velocity loop (heading_loop).
+    command_lead_s: float = 0.04
+    heading_gain_delay_max: float = 0.5  # the heading gain times the loop's delay at most (heading_loop)
     # The approach aims for rest at the target with this fraction of a_max: the robot realized
     # about 2.2 m/s^2 sideways in the simulated Fig. 6 scene (traction, velocity-loop lag), and a
     # profile planned with more overshoots the catch point across the ball's line. 0.5 caught
@@ -91,6 +104,10 @@ class CatcherConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        if not (math.isfinite(self.command_lead_s) and 0.0 <= self.command_lead_s <= 1.0):
+            raise ValueError(f"command_lead_s must be in [0, 1], got {self.command_lead_s!r}")
+        if not (math.isfinite(self.heading_gain_delay_max) and 0.0 < self.heading_gain_delay_max < 0.5 * math.pi):
+            raise ValueError(f"heading_gain_delay_max must be in (0, pi/2), got {self.heading_gain_delay_max!r}")
         if not (math.isfinite(self.heading_deadband_rad) and 0.0 <= self.heading_deadband_rad < math.pi):
             raise ValueError(f"heading_deadband_rad must be in [0, pi), got {self.heading_deadband_rad!r}")
         if not (math.isfinite(self.receive_line_tolerance_m) and self.receive_line_tolerance_m >= 0.0):
@@ -132,9 +149,21 @@ def approach_velocity(position: np.ndarray, target: np.ndarray, cfg: CatcherConf
     return delta / distance * speed
 
 
-def catch_twist(pose: np.ndarray, target: np.ndarray, facing_rad: float, cfg: CatcherConfig) -> np.ndarray:
+def heading_loop(yaw_rad: float, yaw_rate_radps: float, delay_s: float, cfg: CatcherConfig) -> tuple[float, float]:
+    """(the heading predicted ``delay_s`` ahead [rad], the heading gain for that delay [1/s]) for a pose
+    whose heading and tracked yaw rate reach the robot's turning ``delay_s`` late (module docstring)."""
+    delay_s = max(float(delay_s), 0.0)
+    gain = cfg.heading_gain_per_s
+    if delay_s > 0.0:
+        gain = min(gain, cfg.heading_gain_delay_max / delay_s)
+    return wrap_angle(yaw_rad + yaw_rate_radps * delay_s), gain
+
+
+def catch_twist(pose: np.ndarray, target: np.ndarray, facing_rad: float, cfg: CatcherConfig,
+                heading_gain_per_s: float | None = None) -> np.ndarray:
     """Twist [vx, vy, wz] in the robot frame that drives the robot centre to ``target``
-    while turning to ``facing_rad`` (the direction the dribbler should point)."""
+    while turning to ``facing_rad`` (the direction the dribbler should point); the heading gain
+    ``heading_gain_per_s`` (None: the config's)."""
     pose = np.asarray(pose, dtype=float)
     if pose.shape != (3,) or not np.all(np.isfinite(pose)):
         raise ValueError(f"pose must be 3 finite values [x, y, yaw], got {pose!r}")
@@ -146,7 +175,8 @@ def catch_twist(pose: np.ndarray, target: np.ndarray, facing_rad: float, cfg: Ca
     heading_error = wrap_angle(facing_rad - pose[2])
     if abs(heading_error) <= cfg.heading_deadband_rad:
         heading_error = 0.0
-    wz = float(np.clip(cfg.heading_gain_per_s * heading_error, -cfg.w_max_radps, cfg.w_max_radps))
+    gain = cfg.heading_gain_per_s if heading_gain_per_s is None else heading_gain_per_s
+    wz = float(np.clip(gain * heading_error, -cfg.w_max_radps, cfg.w_max_radps))
     return np.array([v_robot[0], v_robot[1], wz])
 
 
@@ -338,6 +368,7 @@ class Receiver:
         self._teammates = {i: (-math.inf, CATCH_TIME_NEVER) for i in team - {robot_id}}
         self._receiver: int | None = None  # the team's receiver as this robot last decided
         self._pose = None  # (t, [x, y, yaw], field velocity [vx, vy])
+        self._pose_timing = (-math.inf, 0.0)  # (the pose's stamp, its tracked yaw rate [rad/s])
         self._catch_time = None  # (t, seconds or CATCH_TIME_NEVER)
         self._catch_point = None  # (t, [x, y])
         self._ball = None  # (t, position, velocity)
@@ -359,9 +390,14 @@ class Receiver:
         self.dribbler_offset_m, self.robot_radius_m = dribbler_offset_m, robot_radius_m
 
     # -- inputs -----------------------------------------------------------------------------------
-    def on_odom(self, now: float, pose, velocity) -> None:
-        """The filtered robot pose [x, y, yaw] and field velocity [vx, vy]."""
-        self._pose = (now, np.asarray(pose, dtype=float), np.asarray(velocity, dtype=float)[:2])
+    def on_odom(self, now: float, pose, velocity, stamp_s: float | None = None) -> None:
+        """The filtered robot pose [x, y, yaw] and field velocity [vx, vy] or [vx, vy, wz] (its yaw rate
+        [rad/s]), measured at ``stamp_s`` (None: ``now``) on the clock of ``now``."""
+        velocity = np.asarray(velocity, dtype=float)
+        self._pose = (now, np.asarray(pose, dtype=float), velocity[:2])
+        yaw_rate = float(velocity[2]) if velocity.shape[0] > 2 and math.isfinite(velocity[2]) else 0.0
+        stamp = now if stamp_s is None or not math.isfinite(stamp_s) else float(stamp_s)
+        self._pose_timing = (stamp, yaw_rate)
 
     def on_catch_time(self, now: float, seconds: float) -> None:
         self._catch_time = (now, float(seconds))
@@ -446,8 +482,12 @@ class Receiver:
         if target is None:
             return np.zeros(3)
         self._target_at = now
+        # the pose's age (a stamp from the future or older than stale counts as fresh or stale) and the lead
+        stamp, yaw_rate = self._pose_timing
+        delay = min(max(now - stamp, 0.0), cfg.stale_after_s) + cfg.command_lead_s
+        yaw, gain = heading_loop(float(pose[2]), yaw_rate, delay, cfg)
         try:
-            return catch_twist(pose, target, facing, cfg)
+            return catch_twist(np.array([pose[0], pose[1], yaw]), target, facing, cfg, gain)
         except ValueError as exc:
             self.notice = f"no command: {exc}"
             return np.zeros(3)

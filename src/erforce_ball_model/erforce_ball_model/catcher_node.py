@@ -105,7 +105,7 @@ class CatcherNode(Node):
     def _on_odom(self, msg: Odometry | bytes) -> None:
         odom = self._warn.convert(msg, "odom", odometry_from_msg)
         if odom is not None:
-            self._receiver.on_odom(self._now_s(), odom[1], odom[2])
+            self._receiver.on_odom(self._now_s(), odom[1], odom[2], odom[0])
 
     def _on_catch_time(self, msg: bytes) -> None:
         seconds = self._warn.convert(msg, "catch_time", float64_from_msg)

@@ -211,7 +211,7 @@ class PassingGameNode(Node):
     def _on_odom(self, k: int, msg: Odometry | bytes) -> None:
         odom = self._warn.convert(msg, f"{self._name(k)} odom", odometry_from_msg)
         if odom is not None:
-            self._player.on_robot(k, self._now_s(), odom[1], odom[2])
+            self._player.on_robot(k, self._now_s(), odom[1], odom[2], odom[0])
 
     def _on_catch_time(self, k: int, msg: bytes) -> None:
         seconds = self._warn.convert(msg, f"{self._name(k)} catch_time", float64_from_msg)

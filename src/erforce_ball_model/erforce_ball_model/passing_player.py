@@ -164,6 +164,8 @@ class PassingPlayer:
         self.configure(cfg, field_config, dribbler_offset_m, robot_radius_m)
         self.poses = np.zeros((n, 3))  # tracked, from vision
         self.velocities = np.zeros((n, 2))
+        self.yaw_rates = np.zeros(n)  # tracked [rad/s]
+        self.pose_stamps = np.zeros(n)  # when each pose was measured [s]
         self.seen = np.zeros(n, dtype=bool)
         self.ball_xy = np.zeros(2)
         self.ball_velocity = np.zeros(2)
@@ -229,13 +231,17 @@ class PassingPlayer:
         return x + d * math.cos(yaw), y + d * math.sin(yaw)
 
     # -------------------------------------------------------------------- inputs
-    def on_robot(self, i: int, now: float, pose, velocity) -> None:
-        """Robot ``i``'s tracked pose [x, y, yaw] and field velocity [vx, vy] (ours first, then the opponents)."""
+    def on_robot(self, i: int, now: float, pose, velocity, stamp_s: float | None = None) -> None:
+        """Robot ``i``'s tracked pose [x, y, yaw] and field velocity [vx, vy] (and yaw rate [rad/s]), measured
+        at ``stamp_s`` (None: now; ours first, then the opponents)."""
+        velocity = np.asarray(velocity, dtype=float)
         self.poses[i] = np.asarray(pose, dtype=float)[:3]
-        self.velocities[i] = np.asarray(velocity, dtype=float)[:2]
+        self.velocities[i] = velocity[:2]
+        self.yaw_rates[i] = velocity[2] if velocity.shape[0] > 2 else 0.0
+        self.pose_stamps[i] = now if stamp_s is None else stamp_s
         self.seen[i] = True
         if self.receiver is not None and self._pass is not None and i == self._pass.choice.receiver:
-            self.receiver.on_odom(now, self.poses[i], self.velocities[i])
+            self._feed_receiver(i, now)
 
     def on_ball(self, now: float, position, velocity, v_shoot_mps: float | None = None) -> None:
         self.ball_xy = np.asarray(position, dtype=float)[:2].copy()
@@ -400,14 +406,17 @@ class PassingPlayer:
         self._dribblers[choice.receiver] = True
         receiver = Receiver(self.cfg.catcher, self.dribbler_offset_m, self.robot_radius_m, self.field)
         receiver.on_model(self.model)
-        receiver.on_odom(now, self.poses[choice.receiver], self.velocities[choice.receiver])
+        self.receiver = receiver
+        self._feed_receiver(choice.receiver, now)
         k = None
         ball_rad = choice.direction_rad + math.pi
         if abs(math.remainder(choice.receive_facing_rad - ball_rad, 2.0 * math.pi)) > 1e-9:
             k = self._next_targets[choice.receiver]  # it receives facing its next target
             receiver.on_next_target(self.poses[k, :2], self.cfg.max_receive_angle_rad)
-        self.receiver = receiver
         self._pass = _Pass(now, holder, choice, k, self._next_targets.get(choice.receiver))
+
+    def _feed_receiver(self, i: int, now: float) -> None:
+        self.receiver.on_odom(now, self.poses[i], (*self.velocities[i], self.yaw_rates[i]), self.pose_stamps[i])
 
     def _end_pass(self, outcome: str, caught_by: int | None, now: float) -> None:
         p, choice = self._pass, self._pass.choice
@@ -504,10 +513,11 @@ class PressingTeam:
         for receiver in self.receivers.values():
             receiver.on_model(params)
 
-    def on_odom(self, robot: int, now: float, pose, velocity) -> None:
-        """Own robot's tracked pose [x, y, yaw] and field velocity [vx, vy]."""
+    def on_odom(self, robot: int, now: float, pose, velocity, stamp_s: float | None = None) -> None:
+        """Own robot's tracked pose [x, y, yaw] and field velocity [vx, vy] (and yaw rate [rad/s]), measured
+        at ``stamp_s`` (Receiver.on_odom)."""
         self.poses[robot] = (now, np.asarray(pose, dtype=float)[:3].copy())
-        self.receivers[robot].on_odom(now, pose, velocity)
+        self.receivers[robot].on_odom(now, pose, velocity, stamp_s)
 
     def on_catch_time(self, robot: int, now: float, seconds: float) -> None:
         for i, receiver in self.receivers.items():

@@ -138,7 +138,7 @@ class TeamCatcherNode(Node):
     def _on_odom(self, robot: int, msg: Odometry | bytes) -> None:
         odom = self._warn.convert(msg, f"{self._names[robot]} odom", odometry_from_msg)
         if odom is not None:
-            self._team.on_odom(robot, self._now_s(), odom[1], odom[2])
+            self._team.on_odom(robot, self._now_s(), odom[1], odom[2], odom[0])
 
     def _on_other_odom(self, k: int, msg: Odometry | bytes) -> None:
         odom = self._warn.convert(msg, f"{self._other_names[k]} odom", odometry_from_msg)
