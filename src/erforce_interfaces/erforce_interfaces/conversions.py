@@ -851,15 +851,13 @@ def vision_frame_from_msg(msg: PointCloud2 | bytes) -> tuple[float, np.ndarray, 
 
 
 def vision_leading_balls(data: bytes) -> tuple[float, list[tuple[float, float]]] | None:
-    """(stamp [s], balls) of a serialized /vision/robots from its leading ball points alone, read at their fixed
-    offsets without decoding the robots: a reader that answers the ball first decodes the rest afterwards. The
-    message must be in the layout ``vision_robots_cdr`` writes and each ball point must pass
+    """(stamp [s], balls) of a serialized /vision/robots from its leading ball points alone (the ball is written
+    first), read at their fixed offsets without decoding the robots: a reader that answers the ball first
+    decodes the rest afterwards. The cloud's layout must be /vision/robots' and each ball point must pass
     ``vision_frame_from_msg``'s checks; otherwise None (decode the whole frame: it names the fault). The robot
     points are not checked here."""
     try:
         t_s, layout, at = _cloud_from_cdr(data)
-        if layout[2] is not None:  # fields of another writer: the general decode
-            return None
         _check_robot_cloud(*layout)
     except ConversionError:
         return None
