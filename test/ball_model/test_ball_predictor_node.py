@@ -387,8 +387,18 @@ def test_bad_observations_are_dropped_with_a_warning_and_nothing_non_finite_is_p
     rig.node.wait_for_output(r"rejected vision/robots \(robot_0\): stamp 5\.800000 s is before", timeout_s=5.0)
     rig.robots_frame(0.966, [(0, -1.0, 0.0, 0.0)], set(), others=[(3.0, 0, -1.0, 0.0, 0.0)])  # no team 3: refused
     rig.robot(0, 0.97, -1.0, 0.0, 0.0)
+    # A frame whose ball is good and one of whose robots is not: the ball, read first, is answered; the robots are
+    # refused together (robot 0, good in itself, gets no odom).
+    probe, before_state, before_odom = rig.graph.probe, len(rig.state), len(rig.odom[0])
+    rig.robots_pub.publish(robots_msg(1.07 + T_SHIFT_S, [(contract.VISION_BALL_CODE, 0.0, 0.0, 0.0, 0.0),
+                                                          (contract.OURS.code, 0.0, -1.0, 0.0, 0.0),
+                                                          (3.0, 0.0, -1.0, 0.0, 0.0)]))
+    probe.spin_until(lambda: len(rig.state) > before_state, 10.0, "the ball of a frame with a refused robot")
+    assert stamp_s(rig.state[-1]) == 1.07
+    probe.spin_for(0.3)
+    assert len(rig.odom[0]) == before_odom
     rig.settle()
-    assert len(rig.catch_time[0]) == 4 and rig.all_finite()  # the ball frames at 1.00, 1.01, 1.05, 1.06
+    assert len(rig.catch_time[0]) == 5 and rig.all_finite()  # the ball frames at 1.00, 1.01, 1.05, 1.06, 1.07
     assert rig.node.alive()
 
 

@@ -211,3 +211,30 @@ def test_random_bytes_never_raise_anything_but_a_conversion_error(garbage):
             conv.vision_robots_from_msg(data)
         except conv.ConversionError:
             pass
+
+
+def test_the_leading_ball_is_read_alone_and_a_frame_it_cannot_vouch_for_is_left_to_the_whole_decode():
+    assert conv.vision_leading_balls(HAND_BALL) == (7.25, [(0.25, -1.0)])
+    assert conv.vision_leading_balls(HAND) == (7.25, [])  # robots only
+    two = conv.vision_robots_cdr(3.0, ROWS, balls=[(1.0, 2.0), (-0.5, 0.75)])
+    assert conv.vision_leading_balls(two) == (3.0, [(1.0, 2.0), (-0.5, 0.75)])
+    # the robots are not read: the ball of a frame with a broken robot (its x NaN, after the ball) is answered;
+    # the data starts at file offset 184 (payload offset 180)
+    broken_robot = HAND_BALL[:184 + 48] + struct.pack("<d", math.nan) + HAND_BALL[184 + 56:]
+    assert conv.vision_leading_balls(broken_robot) == (7.25, [(0.25, -1.0)])
+    with pytest.raises(conv.ConversionError, match="robot 1: x is not finite"):  # the point after the ball
+        conv.vision_frame_from_msg(broken_robot)
+    # a ball that fails the checks, a layout other than /vision/robots', a cut message: None
+    for x, z, robot_id in ((math.nan, 0.0, 0.0), (2e3, 0.0, 0.0), (0.0, math.inf, 0.0), (0.0, 0.0, 0.5),
+                           (0.0, 0.0, -1.0)):
+        bad_ball = HAND_BALL[:184] + struct.pack("<6d", x, -1.0, z, 0.0, 0.0, robot_id) + HAND_BALL[232:]
+        assert conv.vision_leading_balls(bad_ball) is None
+        with pytest.raises(conv.ConversionError):
+            conv.vision_frame_from_msg(bad_ball)
+    assert conv.vision_leading_balls(HAND_BALL[:-49]) is None
+    other_fields = serialize_message(cloud(1.0, [(0.25, -1.0, 0.0, 0.0, 0.0, 0.0)], fields=("x", "y", "z", "yaw",
+                                                                                             "team", "id")))
+    assert conv.vision_leading_balls(other_fields) is None
+    # another writer's bytes of the same cloud (rclpy's padding) are read as ours
+    ours = serialize_message(deserialize_message(HAND_BALL, PointCloud2))
+    assert conv.vision_leading_balls(ours) == (7.25, [(0.25, -1.0)])

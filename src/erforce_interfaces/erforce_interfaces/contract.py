@@ -400,10 +400,10 @@ VISION_POSE = Topic("vision_pose", PoseStamped, QOS_SENSOR, "plant (vision), ssl
                     "dropouts; the same poses as /vision/robots")
 ODOM = Topic("odom", Odometry, QOS_STATE, "ball_predictor (tracker)", "catcher",
              "filtered robot pose and velocity in `field`, child frame `robot_<id>/base_link`")
-CATCH_TIME = Topic("catch_time", Float64, QOS_STATE, "ball_predictor", "catcher",
+CATCH_TIME = Topic("catch_time", Float64, QOS_STATE, "ball_predictor (while subscribed)", "catcher",
                    f"seconds from the ball state's stamp until this robot can first catch the ball; "
                    f"{CATCH_TIME_NEVER:g} = never (ball leaves the field first)")
-CATCH_POINT = Topic("catch_point", PointStamped, QOS_STATE, "ball_predictor", "catcher",
+CATCH_POINT = Topic("catch_point", PointStamped, QOS_STATE, "ball_predictor (while subscribed)", "catcher",
                     "where the robot centre should be at the catch [m], `field`")
 GROUND_TRUTH_ODOM = Topic("ground_truth/odom", Odometry, QOS_STATE, "plant", "tests, tools only",
                           "true robot pose and velocity in `field`")

@@ -850,6 +850,29 @@ def vision_frame_from_msg(msg: PointCloud2 | bytes) -> tuple[float, np.ndarray, 
     return t_s, rows[is_ball][:, 2:4], rows[~is_ball]
 
 
+def vision_leading_balls(data: bytes) -> tuple[float, list[tuple[float, float]]] | None:
+    """(stamp [s], balls) of a serialized /vision/robots from its leading ball points alone (the ball is written
+    first), read at their fixed offsets without decoding the robots: a reader that answers the ball first
+    decodes the rest afterwards. The cloud's layout must be /vision/robots' and each ball point must pass
+    ``vision_frame_from_msg``'s checks; otherwise None (decode the whole frame: it names the fault). The robot
+    points are not checked here."""
+    try:
+        t_s, layout, at = _cloud_from_cdr(data)
+        _check_robot_cloud(*layout)
+    except ConversionError:
+        return None
+    balls = []
+    for k in range(layout[1]):
+        x, y, z, yaw, team, robot_id = _ROBOT_POINT.unpack_from(data, at + k * _ROBOT_POINT.size)
+        if team != VISION_BALL_CODE:
+            break
+        if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(z) <= MAX_ABS_VALUE
+                and abs(yaw) <= 1.0e6 and 0.0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)):
+            return None  # False for NaN
+        balls.append((x, y))
+    return t_s, balls
+
+
 _ROBOT_FIELDS = [(name, 8 * k, PointField.FLOAT64, 1) for k, name in enumerate(VISION_ROBOT_FIELDS)]
 
 
