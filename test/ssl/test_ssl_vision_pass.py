@@ -243,7 +243,7 @@ def test_fuzz_what_the_pass_takes_is_valid_and_the_rest_is_handed_back_untouched
             continue
         assert math.isfinite(t_s) and math.isfinite(ball_x) and math.isfinite(ball_y)
         if status == PASS_DONE and n_bytes > 0:
-            msg_t, msg_balls, msg_rows = vision_frame_from_msg(fresh_pass.message_view[:n_bytes].tobytes())
+            _t, msg_balls, msg_rows = vision_frame_from_msg(fresh_pass.message_view[:n_bytes].tobytes())
             assert np.isfinite(msg_balls).all() and np.isfinite(msg_rows).all()
         if action:
             fresh.tracker.use_ball(action, int(fresh_pass.info[0]), t_s, ball_x, ball_y)

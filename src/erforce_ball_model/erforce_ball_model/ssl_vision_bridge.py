@@ -12,9 +12,12 @@ A camera frame goes out in one ``/vision/robots`` message (what the stack reads)
 it took one from this frame, and the robots, both teams. A DDS write is the largest single cost of a
 datagram, so ``/vision/ball`` and a robot's vision_pose are serialized and published only while their
 topic has a reader (each publisher's matched event keeps the count); a tool that subscribes to one gets
-it from then on. The usual frame (every robot with an orientation, no vision_pose reader) goes from the
-tracker's rows to the message's points in one compiled pass; anything else takes the general path,
-which also warns.
+it from then on. The usual datagram (one camera frame, every detection valid, every robot with an
+orientation, no vision_pose reader) goes from its bytes to the message's bytes in one compiled pass
+(erforce_ball_model.vision_pass: decoding, vision clock, tracker, points, CDR); Python adds the ball
+filter's update when the frame has the ball, and the publish. Anything else takes the general path
+(the same kernels through their Python interfaces), which also warns; so do a flipped field and
+``publish_detections``.
 """
 
 from __future__ import annotations

@@ -24,6 +24,9 @@ were seen later. Robots: per team and id, a sighting that the last pose cannot r
 the robot (it was put down elsewhere). Duplicate ids in one frame: the nearest to the last pose.
 The robot streams run in one compiled pass per frame over an array of the frame's sightings
 (``frame_arrays``; the bridge gets that array from its decoder), ids 0 .. ``MAX_ROBOT_ID`` per team.
+The ball hypotheses and the choice of the ball (``choose_ball``) are compiled too; the ball filter's
+update is Python (``use_ball``). The tracker's state is arrays that erforce_ball_model.vision_pass
+runs through the same kernels in one pass per datagram.
 """
 
 from __future__ import annotations
@@ -402,21 +405,20 @@ class VisionTracker:
         if action == BALL_SWITCH:
             self.ball = BallTracker(self._params, self._tracker_config)
         status = self.ball.update(t_s, x, y)
-        if status in (UpdateStatus.REJECTED_TIME, UpdateStatus.REJECTED_INVALID):
+        if status >= UpdateStatus.REJECTED_TIME:  # or REJECTED_INVALID
             self._sync_ball()
             return None
-        self.kicks += int(self.ball.kicked)
-        b = self.ball_state
-        b[_B_USED], b[_B_T_USED], b[_B_LAST_X], b[_B_LAST_Y] = 1.0, t_s, x, y
-        self._sync_ball()
+        ball = self.ball
+        self.kicks += ball.kicked
+        # an accepted observation leaves the filter initialized: one write (the ball datagrams' Python)
+        self.ball_state[:] = (1.0, t_s, x, y, 1.0, ball.t_s, *ball.kf.state)
         return BallObservation(t_s, x, y, camera_id, status)
 
     def _sync_ball(self) -> None:
         b, ball = self.ball_state, self.ball
         b[_B_INITIALIZED] = float(ball.initialized)
         if ball.initialized:
-            b[_B_FILTER_T] = ball.t_s
-            b[_B_X], b[_B_Y], b[_B_VX], b[_B_VY] = ball.kf.state
+            b[_B_FILTER_T:] = (ball.t_s, *ball.kf.state)
 
 
 def load_kernels() -> None:
