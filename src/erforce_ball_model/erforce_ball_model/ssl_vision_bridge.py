@@ -12,9 +12,12 @@ A camera frame goes out in one ``/vision/robots`` message (what the stack reads)
 it took one from this frame, and the robots, both teams. A DDS write is the largest single cost of a
 datagram, so ``/vision/ball`` and a robot's vision_pose are serialized and published only while their
 topic has a reader (each publisher's matched event keeps the count); a tool that subscribes to one gets
-it from then on. The usual frame (every robot with an orientation, no vision_pose reader) goes from the
-tracker's rows to the message's points in one compiled pass; anything else takes the general path,
-which also warns.
+it from then on. The usual datagram (one camera frame, every detection valid, every robot with an
+orientation, no vision_pose reader) goes from its bytes to the message's bytes in one compiled pass
+(erforce_ball_model.vision_pass: decoding, vision clock, tracker, points, CDR); Python adds the ball
+filter's update when the frame has the ball, and the publish. Anything else takes the general path
+(the same kernels through their Python interfaces), which also warns; so do a flipped field and
+``publish_detections``.
 """
 
 from __future__ import annotations
@@ -34,10 +37,25 @@ import numpy as np
 from rclpy.node import Node
 
 from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.vision_pass import (
+    I_CAMERA,
+    I_DEVIATION,
+    I_OFFSET,
+    I_POINTS,
+    I_SAMPLE,
+    I_STAMP,
+    PASS_BAD_STAMP,
+    PASS_CLOCK_JUMP,
+    PASS_DONE,
+    PASS_FALLBACK,
+    PASS_GENERAL,
+    FramePass,
+)
+from erforce_ball_model.vision_pass import load_kernels as load_pass_kernels
+from erforce_ball_model.vision_pass import robot_points as _robot_points
 from erforce_ball_model.vision_tracking import MAX_ROBOT_ID, VisionTracker, load_kernels
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
-    MAX_ABS_VALUE,
     ConversionError,
     point_cdr,
     pose2d_cdr,
@@ -51,7 +69,6 @@ from erforce_interfaces.node_support import (
     contract_publisher,
     run_node,
 )
-from erforce_interfaces.numba_support import numba
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import (
@@ -61,6 +78,7 @@ from erforce_interfaces.ssl_vision import (
     DetectionArrays,
     SslDecodeError,
     VisionClock,
+    clock_jump_text,
     decode_wrapper,
 )
 
@@ -70,37 +88,6 @@ _TEAM_CODES = (contract.OURS.code, contract.OPPONENTS.code)  # by side: 0 ours, 
 SCHEMA = load_schema("erforce_ball_model", "ssl_vision_bridge")
 _OURS_CODE, _OPPONENTS_CODE = float(_TEAM_CODES[0]), float(_TEAM_CODES[1])
 _BALL_CODE = float(contract.VISION_BALL_CODE)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _robot_points(robots, used, ours, n_ours, pose_readers, points, has_ball, ball_x, ball_y):
-    """The /vision/robots points (x, y, 0, yaw, team code, robot_id) written into ``points``: with ``has_ball``
-    first the ball's (ball_x, ball_y, 0, 0, 0, 0), then those of the rows ``used`` of ``robots`` (ssl_vision's
-    ROBOT_COLUMNS; the tracker checked team and id); their number, or -1 when a point needs the node's
-    general path: no orientation or values beyond the message's checks, our id beyond ``n_ours``, a robot
-    whose vision_pose publisher has a reader or does not exist yet (``pose_readers`` by side and id: -1, else
-    the reader count)."""
-    first = 0
-    if has_ball:
-        if not (abs(ball_x) <= MAX_ABS_VALUE and abs(ball_y) <= MAX_ABS_VALUE):  # False for NaN
-            return -1
-        points[0, 0], points[0, 1] = ball_x, ball_y
-        points[0, 2], points[0, 3], points[0, 4], points[0, 5] = 0.0, 0.0, _BALL_CODE, 0.0
-        first = 1
-    for j in range(len(used)):
-        k = used[j]
-        team, robot_id, x, y, theta = robots[k, 0], robots[k, 1], robots[k, 2], robots[k, 3], robots[k, 4]
-        if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(theta) <= math.pi):  # False for NaN
-            return -1
-        side = 0 if team == ours else 1
-        if (side == 0 and robot_id >= n_ours) or pose_readers[side, int(robot_id)] != 0:
-            return -1
-        p = first + j
-        points[p, 0], points[p, 1], points[p, 2], points[p, 3] = x, y, 0.0, theta
-        points[p, 4] = _OURS_CODE if side == 0 else _OPPONENTS_CODE
-        points[p, 5] = robot_id
-    return first + len(used)
-
 
 
 @dataclass(frozen=True)
@@ -182,8 +169,8 @@ class SslVisionBridge(Node):
             raise ValueError(f"cannot join {v['group']}:{v['port']} on {v['interface']}: {exc}") from None
         self._max_batch, self._flood_batch = v["max_batch"], v["flood_batch"]
         load_kernels()  # before the first datagram
-        _robot_points(np.zeros((1, 6)), np.zeros(1, np.int64), self._ours, self._n_ours, self._pose_readers,
-                      self._points, True, 0.0, 0.0)
+        load_pass_kernels()
+        self._bind_pass()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._receive_loop, name="ssl_vision_rx", daemon=True)
         self._thread.start()
@@ -207,6 +194,16 @@ class SslVisionBridge(Node):
                 self._tracker = VisionTracker(config.field)
             elif config.field != old.field and self._last_geometry is None:
                 self._tracker.field = config.field
+            # the compiled pass takes the usual configuration; a flipped field and the detections topic take
+            # the general path
+            self._fast = not (config.flip or config.publish_detections)
+            self._stamp_from_vision = config.time_source == "vision"
+            if old is not None:
+                self._bind_pass()
+
+    def _bind_pass(self) -> None:
+        """The compiled pass on the current clock, tracker and team (at start and after parameter changes)."""
+        self._frame_pass = FramePass(self._vision_clock, self._tracker, self._pose_readers, self._ours, self._n_ours)
 
     # ------------------------------------------------------------------ receiving
     def _receive_loop(self) -> None:
@@ -247,6 +244,11 @@ class SslVisionBridge(Node):
                     t0 = thread_time_ns()
                     self._use(packet, t_receive_s)
                     self.cpu_ns.append(cpu_ns + thread_time_ns() - t0)
+            elif self._fast:
+                for data in batch:
+                    t0 = thread_time_ns()
+                    self._pass_datagram(data, t_receive_s)
+                    self.cpu_ns.append(thread_time_ns() - t0)
             else:
                 for data in batch:
                     t0 = thread_time_ns()
@@ -255,6 +257,55 @@ class SslVisionBridge(Node):
                         self._use(packet, t_receive_s)
                     self.cpu_ns.append(thread_time_ns() - t0)
         self._log_stats()
+
+    def _pass_datagram(self, data: bytes, t_receive_s: float) -> None:
+        """A datagram through the compiled pass: the usual frame without a ball is one call and one publish."""
+        status, n_bytes, action, t_s, ball_x, ball_y = self._frame_pass.run(data, t_receive_s,
+                                                                            self._stamp_from_vision)
+        if status == PASS_DONE and not action and n_bytes >= 0:
+            self.stats["frames"] += 1
+            if n_bytes:
+                self._robots_pub.publish(self._frame_pass.message_view[:n_bytes].tobytes())
+            return
+        if status == PASS_FALLBACK:  # nothing changed yet: the general path names the problem
+            packet = self._decode(data)
+            if packet is not None:
+                self._use(packet, t_receive_s)
+            return
+        self._pass_rest(status, n_bytes, action, t_s, ball_x, ball_y)
+
+    def _pass_rest(self, status: int, n_bytes: int, action: int, t_s: float, ball_x: float, ball_y: float) -> None:
+        """What the compiled pass leaves to Python: a refused frame's warning, the ball filter, the general path."""
+        fp = self._frame_pass
+        info = fp.info.tolist()
+        camera_id = int(info[I_CAMERA])
+        if status == PASS_CLOCK_JUMP:
+            self.stats["dropped_clock"] += 1
+            self._warn.warn(f"clock{camera_id}", "ssl_vision_bridge: " + clock_jump_text(
+                camera_id, info[I_SAMPLE], info[I_DEVIATION], info[I_OFFSET]))
+            return
+        if status == PASS_BAD_STAMP:
+            self.stats["dropped_clock"] += 1
+            self._warn.warn("stamp", f"ssl_vision_bridge: camera {camera_id}: no valid stamp ({info[I_STAMP]!r})")
+            return
+        ball = self._tracker.use_ball(action, camera_id, t_s, ball_x, ball_y) if action else None
+        self.stats["frames"] += 1
+        try:
+            if ball is not None and self._ball_readers[0]:
+                self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
+            if status == PASS_GENERAL:
+                self._publish_robots(t_s, fp.robots()[fp.used()].tolist(), [(ball_x, ball_y)] if ball else [])
+                return
+            n_points = int(info[I_POINTS])
+            if action and ball is None:  # the filter refused the ball written first: the robots alone
+                if n_points > 1:
+                    self._robots_pub.publish(vision_robots_points_cdr(t_s, fp.points[1:n_points]))
+            elif n_bytes > 0:
+                self._robots_pub.publish(fp.message_view[:n_bytes].tobytes())
+            elif n_points > 0:  # a stamp the pass leaves to the checks of conversions
+                self._robots_pub.publish(vision_robots_points_cdr(t_s, fp.points[:n_points]))
+        except ConversionError as exc:
+            self._warn.warn("publish", f"ssl_vision_bridge: camera {camera_id}: not published: {exc}")
 
     def _decode(self, data: bytes) -> DecodedPacket | None:
         try:

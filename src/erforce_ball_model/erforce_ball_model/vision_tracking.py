@@ -24,6 +24,9 @@ were seen later. Robots: per team and id, a sighting that the last pose cannot r
 the robot (it was put down elsewhere). Duplicate ids in one frame: the nearest to the last pose.
 The robot streams run in one compiled pass per frame over an array of the frame's sightings
 (``frame_arrays``; the bridge gets that array from its decoder), ids 0 .. ``MAX_ROBOT_ID`` per team.
+The ball hypotheses and the choice of the ball (``choose_ball``) are compiled too; the ball filter's
+update is Python (``use_ball``). The tracker's state is arrays that erforce_ball_model.vision_pass
+runs through the same kernels in one pass per datagram.
 """
 
 from __future__ import annotations
@@ -41,8 +44,8 @@ from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import TEAMS, DecodeLimits
 
-__all__ = ["MAX_ROBOT_ID", "BallObservation", "RobotObservation", "VisionTracker", "VisionTrackingConfig",
-           "load_kernels"]
+__all__ = ["BALL_NONE", "BALL_SWITCH", "BALL_UPDATE", "MAX_ROBOT_ID", "BallObservation", "RobotObservation",
+           "VisionTracker", "VisionTrackingConfig", "choose_ball", "load_kernels"]
 
 MAX_ROBOT_ID = DecodeLimits().max_robot_id  # what SSL-Vision can report
 _TEAM_INDEX = {team: k for k, team in enumerate(TEAMS)}
@@ -159,6 +162,79 @@ def _best_confirmed(hyps, hits, n_hyps, t_s, inside_only, window_s, fresh_s):
     return best
 
 
+# The tracker's numbers for the compiled passes: its settings (with the field's half sizes), the ball filter's
+# state as the choice needs it (kept in step with ``VisionTracker.ball``), and its counters.
+(_P_MIN_CONFIDENCE, _P_MAX_X, _P_MAX_Y, _P_HALF_LENGTH, _P_HALF_WIDTH, _P_HYPOTHESIS_TIMEOUT, _P_BALL_GATE,
+ _P_BALL_SPEED, _P_MAX_BALL_GATE, _P_LOST_AFTER, _P_MAX_GAP, _P_CONFIRM_WINDOW, _P_FRESH, _P_ROBOT_GATE,
+ _P_ROBOT_SPEED) = range(15)
+(_B_USED, _B_T_USED, _B_LAST_X, _B_LAST_Y, _B_INITIALIZED, _B_FILTER_T, _B_X, _B_Y, _B_VX, _B_VY) = range(10)
+_C_HYPOTHESES, _C_FRAMES, _C_LATE_BALLS, _C_FALSE_CANDIDATES, _C_SWITCHES = range(5)
+BALL_NONE, BALL_UPDATE, BALL_SWITCH = range(3)  # what choose_ball asks of the ball filter
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _gate_m(p, t_s, t_ref_s):
+    return min(p[_P_BALL_GATE] + p[_P_BALL_SPEED] * max(t_s - t_ref_s, 0.0), p[_P_MAX_BALL_GATE])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def choose_ball(hyps, hits, t_s, candidates, n_candidates, p, ball, counts):
+    """Which of the frame's ``candidates`` (rows x, y, confidence; after _update_hypotheses) is the ball (see the
+    module docstring): (BALL_NONE / BALL_UPDATE / BALL_SWITCH (a new filter first), x, y); ``counts`` updated."""
+    n_hyps = counts[_C_HYPOTHESES]
+    if ball[_B_USED] != 0.0 and t_s <= ball[_B_T_USED]:
+        if n_candidates:
+            counts[_C_LATE_BALLS] += 1
+        return BALL_NONE, 0.0, 0.0
+    if n_candidates == 0:
+        return BALL_NONE, 0.0, 0.0
+    if ball[_B_USED] != 0.0 and ball[_B_INITIALIZED] != 0.0:
+        # Two gates: around the filter's prediction (constant velocity is close enough: the deceleration
+        # moves the ball < 2 cm in 0.1 s), and around the last observation used, which the filter may hold
+        # back (a kick: the filter still has the ball at rest).
+        filter_t = ball[_B_FILTER_T]
+        dt = t_s - filter_t
+        px, py = ball[_B_X] + ball[_B_VX] * dt, ball[_B_Y] + ball[_B_VY] * dt
+        radius = _gate_m(p, t_s, filter_t)
+        second = ball[_B_T_USED] > filter_t
+        last_radius = _gate_m(p, t_s, ball[_B_T_USED])
+        chosen, best = -1, np.inf
+        for k in range(n_candidates):
+            cx, cy = candidates[k, 0], candidates[k, 1]
+            d = math.hypot(cx - px, cy - py)
+            if d <= radius and d < best:
+                chosen, best = k, d
+            if second:
+                d = math.hypot(cx - ball[_B_LAST_X], cy - ball[_B_LAST_Y])
+                if d <= last_radius and d < best:
+                    chosen, best = k, d
+        counts[_C_FALSE_CANDIDATES] += n_candidates - (1 if chosen >= 0 else 0)
+        other = -1
+        unseen_s = t_s - ball[_B_T_USED]
+        if chosen < 0 and unseen_s >= p[_P_LOST_AFTER]:
+            # long gone (a filter restart's gap): any confirmed ball, also one in the run-off area
+            other = _best_confirmed(hyps, hits, n_hyps, t_s, unseen_s < p[_P_MAX_GAP], p[_P_CONFIRM_WINDOW],
+                                    p[_P_FRESH])
+        elif chosen >= 0 and not (abs(candidates[chosen, 0]) <= p[_P_HALF_LENGTH]
+                                  and abs(candidates[chosen, 1]) <= p[_P_HALF_WIDTH]):
+            # tracking a ball in the run-off area: a confirmed one on the field is the game ball
+            other = _best_confirmed(hyps, hits, n_hyps, t_s, True, p[_P_CONFIRM_WINDOW], p[_P_FRESH])
+            if other >= 0 and math.hypot(hyps[other, _H_X] - candidates[chosen, 0],
+                                         hyps[other, _H_Y] - candidates[chosen, 1]) <= p[_P_BALL_GATE]:
+                other = -1
+        if other >= 0:
+            counts[_C_SWITCHES] += 1
+            return BALL_SWITCH, hyps[other, _H_X], hyps[other, _H_Y]
+        if chosen >= 0:
+            return BALL_UPDATE, candidates[chosen, 0], candidates[chosen, 1]
+        return BALL_NONE, 0.0, 0.0
+    other = _best_confirmed(hyps, hits, n_hyps, t_s, False, p[_P_CONFIRM_WINDOW], p[_P_FRESH])
+    if other < 0:
+        return BALL_NONE, 0.0, 0.0
+    counts[_C_FALSE_CANDIDATES] += n_candidates - 1
+    return BALL_UPDATE, hyps[other, _H_X], hyps[other, _H_Y]
+
+
 # Robot tracks: one row per team and id (team index * (MAX_ROBOT_ID + 1) + id), these columns.
 _SEEN, _T, _X, _Y, _HELD, _HELD_T, _HELD_X, _HELD_Y = range(8)
 
@@ -222,25 +298,30 @@ class VisionTracker:
 
     def __init__(self, field: FieldConfig, params: BallModelParams | None = None,
                  tracker_config: TrackerConfig | None = None, config: VisionTrackingConfig | None = None) -> None:
-        self.field = field
         self.config = config or VisionTrackingConfig()
         self._params = params or BallModelParams()
         self._tracker_config = tracker_config or TrackerConfig()
         self.ball = BallTracker(self._params, self._tracker_config)
-        self._t_ball_s: float | None = None  # stamp of the newest ball observation used
-        self._last_used: tuple[float, float, float] | None = None  # (t_s, x_m, y_m) of it
-        self._hyps = np.zeros((self.config.max_hypotheses, 6))
-        self._hits = np.zeros((self.config.max_hypotheses, self.config.confirm_frames))
-        self._n_hyps = 0
-        self._candidates = np.empty((DecodeLimits().max_balls, 3))
-        self._robot_tracks = np.zeros((len(TEAMS) * (MAX_ROBOT_ID + 1), 8))
-        self._used = np.empty(len(self._robot_tracks), np.int64)  # _track_robots' output
-        # counters for the node's statistics and the tests
-        self.frames = 0
-        self.late_balls = 0
-        self.false_candidates = 0
-        self.switches = 0
+        cfg = self.config
+        self.settings = np.array([cfg.min_confidence, 0.0, 0.0, 0.0, 0.0, cfg.hypothesis_timeout_s, cfg.ball_gate_m,
+                                  cfg.max_ball_speed_mps, cfg.max_ball_gate_m, cfg.lost_after_s,
+                                  self._tracker_config.max_gap_s, cfg.confirm_window_s, cfg.fresh_s, cfg.robot_gate_m,
+                                  cfg.max_robot_speed_mps])
+        self.field = field
+        self.ball_state = np.zeros(10)  # the ball filter's as choose_ball reads it (_sync_ball)
+        self.counts = np.zeros(5, np.int64)  # hypotheses alive, then the counters below
+        self.hyps = np.zeros((cfg.max_hypotheses, 6))
+        self.hits = np.zeros((cfg.max_hypotheses, cfg.confirm_frames))
+        self.candidates = np.empty((DecodeLimits().max_balls, 3))
+        self.robot_tracks = np.zeros((len(TEAMS) * (MAX_ROBOT_ID + 1), 8))
+        self.used = np.empty(len(self.robot_tracks), np.int64)  # _track_robots' output
         self.kicks = 0
+
+    # counters for the node's statistics and the tests
+    frames = property(lambda self: int(self.counts[_C_FRAMES]))
+    late_balls = property(lambda self: int(self.counts[_C_LATE_BALLS]))
+    false_candidates = property(lambda self: int(self.counts[_C_FALSE_CANDIDATES]))
+    switches = property(lambda self: int(self.counts[_C_SWITCHES]))
 
     @property
     def field(self) -> FieldConfig:
@@ -249,11 +330,10 @@ class VisionTracker:
     @field.setter
     def field(self, value: FieldConfig) -> None:
         self._field = value
-        self._half_length_m, self._half_width_m = value.half_length_m, value.half_width_m
-
-    def _inside(self, x: float, y: float, margin_m: float = 0.0) -> bool:
-        """FieldConfig.contains with the half sizes kept (it runs for every ball candidate)."""
-        return abs(x) <= self._half_length_m + margin_m and abs(y) <= self._half_width_m + margin_m
+        margin = self.config.outside_margin_m
+        s = self.settings
+        s[_P_HALF_LENGTH], s[_P_HALF_WIDTH] = value.half_length_m, value.half_width_m
+        s[_P_MAX_X], s[_P_MAX_Y] = value.half_length_m + margin, value.half_width_m + margin
 
     @property
     def params(self) -> BallModelParams:
@@ -300,86 +380,45 @@ class VisionTracker:
         frame) instead of the rows."""
         if not math.isfinite(t_s):
             raise ValueError(f"frame stamp {t_s!r} is not finite")
-        self.frames += 1
-        cfg = self.config
-        half_length, half_width, margin = self._half_length_m, self._half_width_m, cfg.outside_margin_m
-        if len(balls) > len(self._candidates):
-            self._candidates = np.empty((len(balls), 3))
-        self._n_hyps, n = _update_hypotheses(
-            self._hyps, self._hits, self._n_hyps, t_s, balls, cfg.min_confidence, half_length + margin,
-            half_width + margin, half_length, half_width, cfg.hypothesis_timeout_s, cfg.ball_gate_m,
-            cfg.max_ball_speed_mps, self._candidates)
-        candidates = self._candidates[:n].tolist() if n else []
-        ball = None
-        if self._t_ball_s is not None and t_s <= self._t_ball_s:
-            if candidates:
-                self.late_balls += 1
-        elif candidates:
-            ball = self._pick_ball(camera_id, t_s, candidates)
+        counts = self.counts
+        counts[_C_FRAMES] += 1
+        if len(balls) > len(self.candidates):
+            self.candidates = np.empty((len(balls), 3))
+        p = self.settings
+        counts[_C_HYPOTHESES], n = _update_hypotheses(
+            self.hyps, self.hits, counts[_C_HYPOTHESES], t_s, balls, p[_P_MIN_CONFIDENCE], p[_P_MAX_X], p[_P_MAX_Y],
+            p[_P_HALF_LENGTH], p[_P_HALF_WIDTH], p[_P_HYPOTHESIS_TIMEOUT], p[_P_BALL_GATE], p[_P_BALL_SPEED],
+            self.candidates)
+        action, x, y = choose_ball(self.hyps, self.hits, t_s, self.candidates, n, p, self.ball_state, counts)
+        ball = self.use_ball(action, camera_id, t_s, x, y) if action else None
         if not len(robots):
-            return ball, self._used[:0]
-        if len(robots) > len(self._used):
-            self._used = np.empty(len(robots), np.int64)
-        n = _track_robots(robots, t_s, self._robot_tracks, cfg.robot_gate_m, cfg.max_robot_speed_mps,
-                          MAX_ROBOT_ID, self._used)
-        return ball, self._used[:n]
+            return ball, self.used[:0]
+        if len(robots) > len(self.used):
+            self.used = np.empty(len(robots), np.int64)
+        n = _track_robots(robots, t_s, self.robot_tracks, p[_P_ROBOT_GATE], p[_P_ROBOT_SPEED], MAX_ROBOT_ID,
+                          self.used)
+        return ball, self.used[:n]
 
-    def _gate_m(self, t_s: float, t_ref_s: float) -> float:
-        cfg = self.config
-        return min(cfg.ball_gate_m + cfg.max_ball_speed_mps * max(t_s - t_ref_s, 0.0), cfg.max_ball_gate_m)
-
-    def _pick_ball(self, camera_id: int, t_s: float, candidates: list) -> BallObservation | None:
-        chosen = None
-        if self._t_ball_s is not None and self.ball.initialized:
-            # Two gates: around the filter's prediction (constant velocity is close enough: the
-            # deceleration moves the ball < 2 cm in 0.1 s), and around the last observation used,
-            # which the filter may hold back (a kick: the filter still has the ball at rest).
-            x, y, vx, vy = self.ball.kf.state
-            dt = t_s - self.ball.t_s
-            gates = [(x + vx * dt, y + vy * dt, self._gate_m(t_s, self.ball.t_s))]
-            last = self._last_used
-            if last is not None and last[0] > self.ball.t_s:
-                gates.append((last[1], last[2], self._gate_m(t_s, last[0])))
-            best = math.inf
-            for cx, cy, _c in candidates:
-                for px, py, radius in gates:
-                    d = math.hypot(cx - px, cy - py)
-                    if d <= radius and d < best:
-                        chosen, best = (cx, cy), d
-            self.false_candidates += len(candidates) - (chosen is not None)
-            other = None
-            unseen_s = t_s - self._t_ball_s
-            if chosen is None and unseen_s >= self.config.lost_after_s:
-                # long gone (a filter restart's gap): any confirmed ball, also one in the run-off area
-                other = self._best_confirmed(t_s, inside_only=unseen_s < self._tracker_config.max_gap_s)
-            elif chosen is not None and not self._inside(*chosen):
-                # tracking a ball in the run-off area: a confirmed one on the field is the game ball
-                other = self._best_confirmed(t_s, inside_only=True)
-                if other is not None and math.dist(other, chosen) <= self.config.ball_gate_m:
-                    other = None
-            if other is not None:
-                chosen = other
-                self.switches += 1
-                self.ball = BallTracker(self._params, self._tracker_config)  # a new ball: no history
-        else:
-            chosen = self._best_confirmed(t_s)
-            if chosen is not None:
-                self.false_candidates += len(candidates) - 1
-        if chosen is None:
+    def use_ball(self, action: int, camera_id: int, t_s: float, x: float, y: float) -> BallObservation | None:
+        """What choose_ball decided, done on the ball filter (a switch: a new ball, no history); the observation,
+        or None when the filter refuses it."""
+        if action == BALL_SWITCH:
+            self.ball = BallTracker(self._params, self._tracker_config)
+        status = self.ball.update(t_s, x, y)
+        if status >= UpdateStatus.REJECTED_TIME:  # or REJECTED_INVALID
+            self._sync_ball()
             return None
-        status = self.ball.update(t_s, chosen[0], chosen[1])
-        if status in (UpdateStatus.REJECTED_TIME, UpdateStatus.REJECTED_INVALID):
-            return None
-        self.kicks += int(self.ball.kicked)
-        self._t_ball_s = t_s
-        self._last_used = (t_s, chosen[0], chosen[1])
-        return BallObservation(t_s, chosen[0], chosen[1], camera_id, status)
+        ball = self.ball
+        self.kicks += ball.kicked
+        # an accepted observation leaves the filter initialized: one write (the ball datagrams' Python)
+        self.ball_state[:] = (1.0, t_s, x, y, 1.0, ball.t_s, *ball.kf.state)
+        return BallObservation(t_s, x, y, camera_id, status)
 
-    def _best_confirmed(self, t_s: float, inside_only: bool = False) -> tuple[float, float] | None:
-        cfg = self.config
-        best = _best_confirmed(self._hyps, self._hits, self._n_hyps, t_s, inside_only, cfg.confirm_window_s,
-                               cfg.fresh_s)
-        return None if best < 0 else (float(self._hyps[best, _H_X]), float(self._hyps[best, _H_Y]))
+    def _sync_ball(self) -> None:
+        b, ball = self.ball_state, self.ball
+        b[_B_INITIALIZED] = float(ball.initialized)
+        if ball.initialized:
+            b[_B_FILTER_T:] = (ball.t_s, *ball.kf.state)
 
 
 def load_kernels() -> None:

@@ -22,7 +22,6 @@ restarts from the new samples (details in the class).
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -574,6 +573,74 @@ class ClockJump(ValueError):
     """A frame refused because its camera's clock seems to have jumped (not yet confirmed)."""
 
 
+# The clock's state is arrays (one compiled step per frame, also inside the bridge's compiled pass): per camera
+# a ring of window samples (t_receive, offset) with increasing offsets, whose head is the window's minimum,
+# and a list of the samples of a suspected jump. A camera's ring and list hold CLOCK_CAPACITY samples (75 Hz
+# over a 2 s window is 150); a sample beyond that replaces the newest one held.
+CLOCK_CAMERAS = DecodeLimits().max_camera_id + 1
+CLOCK_CAPACITY = 512
+_CLOCK_HEAD, _CLOCK_SIZE, _CLOCK_PENDING = range(3)  # columns of the counts (per camera)
+_CLOCK_WINDOW_S, _CLOCK_JUMP_S, _CLOCK_CONFIRM_PACKETS, _CLOCK_CONFIRM_S, _CLOCK_JUMPS = range(5)  # params
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _clock_push(window, counts, camera, t_receive, offset):
+    """Append a sample to the camera's monotonic window (dropping the newer samples it undercuts)."""
+    cap = window.shape[1]
+    head, size = counts[camera, _CLOCK_HEAD], counts[camera, _CLOCK_SIZE]
+    while size > 0 and window[camera, (head + size - 1) % cap, 1] >= offset:
+        size -= 1
+    if size == cap:
+        size -= 1
+    at = (head + size) % cap
+    window[camera, at, 0], window[camera, at, 1] = t_receive, offset
+    counts[camera, _CLOCK_SIZE] = size + 1
+
+
+@numba.njit(cache=True, error_model="numpy")
+def clock_step(window, pending, counts, params, camera, t_capture, t_sent, t_receive):
+    """VisionClock.to_receiver on the arrays: (refused, stamp, sample, deviation, window offset); refused 1 is
+    a suspected forward jump (the ClockJump), the stamp then undefined."""
+    cap = window.shape[1]
+    sample = t_receive - t_sent
+    head, size = counts[camera, _CLOCK_HEAD], counts[camera, _CLOCK_SIZE]
+    while size > 0 and window[camera, head, 0] < t_receive - params[_CLOCK_WINDOW_S]:
+        head = (head + 1) % cap
+        size -= 1
+    counts[camera, _CLOCK_HEAD], counts[camera, _CLOCK_SIZE] = head, size
+    deviation = sample - window[camera, head, 1] if size > 0 else 0.0
+    jump_s = params[_CLOCK_JUMP_S]
+    if abs(deviation) > jump_s:
+        n = counts[camera, _CLOCK_PENDING]
+        if n > 0 and abs(sample - pending[camera, n - 1, 1]) > jump_s:
+            n = 0  # not one consistent jump: start counting again
+        if n == pending.shape[1]:
+            n -= 1
+        pending[camera, n, 0], pending[camera, n, 1] = t_receive, sample
+        n += 1
+        counts[camera, _CLOCK_PENDING] = n
+        if n >= params[_CLOCK_CONFIRM_PACKETS] and pending[camera, n - 1, 0] - pending[camera, 0, 0] >= \
+                params[_CLOCK_CONFIRM_S]:
+            counts[camera, _CLOCK_HEAD], counts[camera, _CLOCK_SIZE] = 0, 0
+            for k in range(n):
+                _clock_push(window, counts, camera, pending[camera, k, 0], pending[camera, k, 1])
+            counts[camera, _CLOCK_PENDING] = 0
+            params[_CLOCK_JUMPS] += 1.0
+        elif deviation < 0.0:
+            return 1, np.nan, sample, deviation, window[camera, head, 1]
+    else:
+        counts[camera, _CLOCK_PENDING] = 0
+        _clock_push(window, counts, camera, t_receive, sample)
+    offset = window[camera, counts[camera, _CLOCK_HEAD], 1]
+    stamp = t_capture + offset
+    return 0, (t_receive if t_receive < stamp else stamp), sample, deviation, offset  # never after it arrived
+
+
+def clock_jump_text(camera_id: int, sample: float, deviation: float, offset: float) -> str:
+    return (f"camera {camera_id}: clock offset {sample:+.3f} s is {-deviation:.3f} s below {offset:+.3f} s (the "
+            "camera's clock jumped forward, or a bogus t_sent); frame refused until confirmed")
+
+
 class VisionClock:
     """Per camera: vision-clock capture times -> receiver-clock stamps (see the module docstring).
 
@@ -583,6 +650,7 @@ class VisionClock:
     stepping forward or a bogus ``t_sent``: the frame is refused (``ClockJump``). Either becomes
     the new offset once ``confirm_packets`` consecutive samples agree over at least ``confirm_s``
     of receive time; a stall's backlog arrives within milliseconds and never confirms.
+    Cameras 0 .. CLOCK_CAMERAS - 1 (what the decoder lets through).
     """
 
     def __init__(self, window_s: float = 2.0, jump_s: float = 0.25, confirm_packets: int = 5,
@@ -593,50 +661,26 @@ class VisionClock:
         self.jump_s = jump_s
         self.confirm_packets = confirm_packets
         self.confirm_s = confirm_s
-        # per camera: samples (t_receive, offset) with increasing offsets (a monotonic queue: its
-        # head is the window's minimum), and the samples of a suspected jump
-        self._windows: dict[int, deque[tuple[float, float]]] = {}
-        self._jumps: dict[int, list[tuple[float, float]]] = {}
-        self.jumps_confirmed = 0
+        self.window = np.zeros((CLOCK_CAMERAS, CLOCK_CAPACITY, 2))
+        self.pending = np.zeros((CLOCK_CAMERAS, CLOCK_CAPACITY, 2))
+        self.counts = np.zeros((CLOCK_CAMERAS, 3), np.int64)
+        self.params = np.array([window_s, jump_s, confirm_packets, confirm_s, 0.0])
+
+    @property
+    def jumps_confirmed(self) -> int:
+        return int(self.params[_CLOCK_JUMPS])
 
     def offset_s(self, camera_id: int) -> float | None:
-        window = self._windows.get(camera_id)
-        return window[0][1] if window else None
+        head, size, _ = self.counts[camera_id].tolist()
+        return float(self.window[camera_id, head, 1]) if size else None
 
     def to_receiver(self, camera_id: int, t_capture_s: float, t_sent_s: float, t_receive_s: float) -> float:
         """The capture time on the receiver's clock; raises ClockJump for a frame of a suspected forward jump."""
-        sample = t_receive_s - t_sent_s
-        window = self._windows.get(camera_id)
-        if window is None:
-            window = self._windows[camera_id] = deque()
-        while window and window[0][0] < t_receive_s - self.window_s:
-            window.popleft()
-        deviation = sample - window[0][1] if window else 0.0
-        if abs(deviation) > self.jump_s:
-            pending = self._jumps.setdefault(camera_id, [])
-            if pending and abs(sample - pending[-1][1]) > self.jump_s:
-                pending.clear()  # not one consistent jump: start counting again
-            pending.append((t_receive_s, sample))
-            if len(pending) >= self.confirm_packets and pending[-1][0] - pending[0][0] >= self.confirm_s:
-                window.clear()
-                for item in pending:
-                    self._push(window, item)
-                pending.clear()
-                self.jumps_confirmed += 1
-            elif deviation < 0.0:
-                raise ClockJump(
-                    f"camera {camera_id}: clock offset {sample:+.3f} s is {-deviation:.3f} s below "
-                    f"{window[0][1]:+.3f} s (the camera's clock jumped forward, or a bogus t_sent); frame refused "
-                    "until confirmed"
-                )
-        else:
-            self._jumps.pop(camera_id, None)
-            self._push(window, (t_receive_s, sample))
-        stamp = t_capture_s + window[0][1]
-        return min(stamp, t_receive_s)  # never after it arrived
-
-    @staticmethod
-    def _push(window: deque, item: tuple[float, float]) -> None:
-        while window and window[-1][1] >= item[1]:
-            window.pop()
-        window.append(item)
+        if not 0 <= camera_id < CLOCK_CAMERAS:
+            raise ValueError(f"camera_id {camera_id} is not in 0..{CLOCK_CAMERAS - 1}")
+        refused, stamp, sample, deviation, offset = clock_step(
+            self.window, self.pending, self.counts, self.params, camera_id, float(t_capture_s), float(t_sent_s),
+            float(t_receive_s))
+        if refused:
+            raise ClockJump(clock_jump_text(camera_id, sample, deviation, offset))
+        return stamp
