@@ -308,7 +308,7 @@ BALL_MODEL_PARAMS = Topic("/ball/model_params", Float64MultiArray, QOS_LATCHED, 
                           "the two-phase model in use: row in_use of [a_slide_mps2, a_roll_mps2, c_switch], then "
                           "rows fit, std_error of the last online fit once there is one (labelled in layout.dim); "
                           "at start and on every change")
-GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant", "tests, tools only",
+GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant; while subscribed", "tests, tools only",
                           "true ball: pose [m], twist.linear [m/s], twist.angular = spin [rad/s], `field`")
 SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts, passing_game (the referee's "
                      "placement)", "plant",
@@ -405,9 +405,11 @@ CATCH_TIME = Topic("catch_time", Float64, QOS_STATE, "ball_predictor (while subs
                    f"{CATCH_TIME_NEVER:g} = never (ball leaves the field first)")
 CATCH_POINT = Topic("catch_point", PointStamped, QOS_STATE, "ball_predictor (while subscribed)", "catcher",
                     "where the robot centre should be at the catch [m], `field`")
-GROUND_TRUTH_ODOM = Topic("ground_truth/odom", Odometry, QOS_STATE, "plant", "tests, tools only",
+GROUND_TRUTH_ODOM = Topic("ground_truth/odom", Odometry, QOS_STATE, "plant; each while subscribed",
+                          "tests, tools only",
                           "true robot pose and velocity in `field`")
-GROUND_TRUTH_MOTORS = Topic("ground_truth/motors", Float64MultiArray, QOS_STATE, "plant", "tests, tools only",
+GROUND_TRUTH_MOTORS = Topic("ground_truth/motors", Float64MultiArray, QOS_STATE, "plant; each while subscribed",
+                            "tests, tools only",
                             "rows = wheels, columns = [current_a, winding_temperature_c, wheel_speed_radps]")
 SIM_SET_STATE = Topic("sim/set_state", Odometry, QOS_COMMAND, "scenario scripts", "plant",
                       "place the robot: pose [m, rad] and twist [m/s, rad/s] in `field`")

@@ -68,6 +68,17 @@ class DutyGate:
             self.expected.add(robot)
         return event
 
+    def offer_rows(self, robots: Sequence[int], stamp_ns: int, duties: np.ndarray) -> list[str]:
+        """``offer`` for several robots at once, row k of ``duties`` for ``robots[k]`` (one team or field
+        answer); returns the event texts."""
+        if self.stalled:
+            return [event for robot, duty in zip(robots, duties, strict=True)
+                    if (event := self.offer(robot, stamp_ns, duty))]
+        if stamp_ns == self.tick_ns:
+            self.duties.update(zip(robots, duties, strict=True))
+            self.expected.update(robots)
+        return []
+
     def ready(self) -> bool:
         return self.expected.issubset(self.duties)
 

@@ -70,6 +70,7 @@ from erforce_motion import motor_boards_node, velocity_controller_node
 from erforce_motion.team_cores import TeamFirmware
 
 MAIN_PREFIX, MOTOR_PREFIX = "main_board.", "motor_boards."
+_CLOCK_SAMPLE_TICKS = 10  # team_firmware takes /clock (only its logs' time) once per this many team ticks
 # The motor boards' DDS-side parameters (waiting for the main board's setpoint) mean nothing here.
 _MOTOR_DDS_ONLY = ("lockstep_sync", "setpoint_wait_s")
 
@@ -124,7 +125,7 @@ class _TeamLink:
         self.states_name = (team.lockstep_topic(contract.TEAM_WHEEL_STATES) if team is not None
                             else contract.FIELD_WHEEL_STATES.name)
         self.duty_pub = None
-        self.picks: dict[tuple, tuple[np.ndarray, list[_Robot], np.ndarray, tuple]] = {}
+        self.picks: dict[tuple, tuple[np.ndarray | None, list[_Robot], np.ndarray, tuple]] = {}
         # the report has nothing to do for ticks in [quiet_from_ns, quiet_until_ns) without a notice (_report)
         self.quiet_from_ns, self.quiet_until_ns = 0, 0
 
@@ -195,6 +196,7 @@ class TeamFirmwareNode(Node):
             contract_subscription(self, contract.FIELD_WHEEL_STATES, lambda m: self._on_team_wheel_states(link, m),
                                   link.states_name, raw=True)
         self._clock_subs = sample_clock(self)
+        self._ticks_to_clock_sample = 0
         self._first_link = self._field_link or next(iter(self._links.values()), None)
         hosted = "; ".join(f"{link.team.name}, robots {sorted(link.robots)}" for link in self._links.values())
         self.get_logger().info(f"team_firmware: {hosted}, {lockstep} lockstep topics")
@@ -256,18 +258,25 @@ class TeamFirmwareNode(Node):
         if verdict is StampVerdict.RESTART:
             for robot in robots:
                 self._restart(robot)
-        self._speeds[rows] = speeds[picks]
-        self._currents[rows] = currents[picks]
-        duty = self._tick(rows, t_ns)
-        link.duty_pub.publish(link.encode(t_ns, ours, firmware.robot.wheel_names, duty[rows]))
-        if link is self._first_link:  # /clock (for the logs' time) once per tick, after the answer the plant waits for
-            run_sampled(self._clock_subs)
+        if picks is None:  # the message's rows are all the firmware's rows, in order
+            self._speeds[...] = speeds
+            self._currents[...] = currents
+            answer = firmware.tick(t_ns * 1e-9, self._speeds, self._currents)
+        else:
+            self._speeds[rows] = speeds[picks]
+            self._currents[rows] = currents[picks]
+            answer = self._tick(rows, t_ns)[rows]
+        link.duty_pub.publish(link.encode(t_ns, ours, firmware.robot.wheel_names, answer))
+        if link is self._first_link:  # /clock (the logs' time) every few ticks, after the answer the plant waits for
+            self._ticks_to_clock_sample -= 1
+            if self._ticks_to_clock_sample <= 0:
+                self._ticks_to_clock_sample = _CLOCK_SAMPLE_TICKS
+                run_sampled(self._clock_subs)
         self._report(robots, rows, t_ns, link)
 
-    @staticmethod
-    def _picks(link: _TeamLink, ids: tuple) -> tuple[np.ndarray, list[_Robot], np.ndarray, tuple]:
+    def _picks(self, link: _TeamLink, ids: tuple) -> tuple[np.ndarray | None, list[_Robot], np.ndarray, tuple]:
         """For a team (field) message's robot ids: the positions of ours among them, our robots, their rows and
-        the ids of the answer."""
+        the ids of the answer; the positions are None when they are every row of the firmware, in row order."""
         picks = link.picks.get(ids)
         if picks is None:
             if len(link.picks) >= 8:  # a few robot sets: one per plant configuration
@@ -276,8 +285,10 @@ class TeamFirmwareNode(Node):
             keys = link.keys(ids)
             ks = [k for k, key in enumerate(keys) if key in link.robots]
             robots = [link.robots[keys[k]] for k in ks]
-            picks = link.picks[ids] = (np.array(ks, dtype=np.int64), robots,
-                                       np.array([r.row for r in robots], dtype=np.int64), link.answer_ids(robots))
+            rows = [r.row for r in robots]
+            every_row = ks == list(range(len(keys))) and rows == list(range(self._firmware.n_robots))
+            picks = link.picks[ids] = (None if every_row else np.array(ks, dtype=np.int64), robots,
+                                       np.array(rows, dtype=np.int64), link.answer_ids(robots))
         return picks
 
     def _take_sensors(self, robot: _Robot, t_ns: int, speeds, currents) -> bool:

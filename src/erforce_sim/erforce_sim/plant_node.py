@@ -3,7 +3,7 @@
 Every tick (``control_period_s``) it publishes each robot's ``wheel_states`` (what the
 motor boards' sensors see) and ``/clock`` (at ``clock_rate_hz``), stamped with the tick's time,
 applies the robots' ``motor_duty`` and steps the physics. Vision frames, light-barrier
-state and ground truth go out as they fall due.
+state and ground truth (while it has readers) go out as they fall due.
 
 Pacing (parameter ``pacing``):
 - ``lockstep``: a tick advances only after every live motor board answered it
@@ -168,7 +168,7 @@ class PlantNode(Node):
         self._last_truth_ns = np.array([((i + 1) * slots // (n + 1)) * self._period_ns - truth_period_ns
                                         for i in range(n)] + [-truth_period_ns], dtype=float)
         self._barrier_state = np.full(n, -1, dtype=np.int8)  # as last published (-1: not yet)
-        self._all_robots = np.arange(n)
+        self._all_robots = self.world.all_robots  # np.arange(n), the one World.set_duties recognises
         self._duties = np.zeros((n, len(self._wheels)))  # the duties a tick applies, row per robot
         topics = self._values["lockstep_topics"]
         self._per_robot_lockstep = topics in ("per_robot", "both")
@@ -184,6 +184,9 @@ class PlantNode(Node):
                            for team, ids in self._team_ids.items()}
         self._team_robot_ids = {team: tuple(self._robots[i][1] for i in ids) for team, ids in self._team_ids.items()}
         self._team_named: set[int] = set()  # robots some team or field motor_duty answer was for
+        # a field answer's robot ids (ours, theirs) -> their world indices, once all of them were taken robot by
+        # robot (all controlled: _team_named has them)
+        self._field_answer_robots: dict[tuple, tuple[int, ...]] = {}
         # the field message's robot ids: (ours, the opponents')
         self._field_robot_ids = (self._team_robot_ids[contract.OURS], self._team_robot_ids.get(contract.OPPONENTS, ()))
 
@@ -238,6 +241,11 @@ class PlantNode(Node):
         if self._field_lockstep:
             self._field_states_pub = pub(self, q.FIELD_WHEEL_STATES)
             sub(self, q.FIELD_MOTOR_DUTY, self._on_field_duty, raw=True)
+        # Ground truth goes out only while it has readers (tools, recorders, tests), counted with the peers (a
+        # reader event per publisher would cost every wait of DirectExecutor): per robot its odometry and motors,
+        # then the ball's.
+        self._truth_pubs = [p[key] for p in self._pubs for key in ("truth", "motors")] + [self._truth_ball_pub]
+        self._truth_readers = [0] * len(self._truth_pubs)
         self._peers: set[int] = set()
         self._setup_ssl_vision()
         self._apply_params(self._params.config)
@@ -300,8 +308,20 @@ class PlantNode(Node):
         except ConversionError as exc:  # as a team answer: the robots stall, and are reported, if it lasts
             self._warn.warn("field_duty", f"rejected {topic} ({exc})")
             return
-        self._take_team_duties(topic, t_ns, contract.OURS, ours, duties)
-        self._take_team_duties(topic, t_ns, contract.OPPONENTS, theirs, duties[len(ours):])
+        robots = self._field_answer_robots.get((ours, theirs))
+        if robots is None:  # a robot set not seen before: robot by robot, with a warning for any not ours
+            self._take_team_duties(topic, t_ns, contract.OURS, ours, duties)
+            self._take_team_duties(topic, t_ns, contract.OPPONENTS, theirs, duties[len(ours):])
+            robots = [self._index.get((team.name, j)) for team, ids in ((contract.OURS, ours),
+                                                                        (contract.OPPONENTS, theirs)) for j in ids]
+            if all(i in self._controlled for i in robots):  # the usual answer: next time all rows at once
+                if len(self._field_answer_robots) >= 8:
+                    self._field_answer_robots.clear()
+                self._field_answer_robots[(ours, theirs)] = tuple(robots)
+        else:
+            self._latest_duty.update(zip(robots, duties, strict=True))
+            for event in self._gate.offer_rows(robots, t_ns, duties):
+                self._event(event)
         if t_ns == self._gate.tick_ns:
             self._pump()
 
@@ -364,6 +384,7 @@ class PlantNode(Node):
     # ---------------------------------------------------------------- ticking
     def _refresh_peers(self) -> None:
         q = contract
+        self._truth_readers = [p.get_subscription_count() for p in self._truth_pubs]
         peers = set()
         if self._per_robot_lockstep:
             peers = {i for i in self._controlled if self.count_publishers(self._topic(q.MOTOR_DUTY, i)) > 0}
@@ -595,20 +616,25 @@ class PlantNode(Node):
 
     def _publish_truth(self, t_s: float, due: list[int]) -> None:
         """The ground truth of the robots in ``due`` (world indices; the index after the last robot: the ball)."""
-        world, n = self.world, self._n
+        world, n, readers = self.world, self._n, self._truth_readers
         if due[-1] == n:
-            b = world.ball_state()
-            # serialized, as vision: building these messages was an eighth of the plant's time
-            self._truth_ball_pub.publish(
-                odometry_cdr(t_s, (b.x, b.y, 0.0), (b.vx, b.vy, 0.0), "ball", spin=(b.wx, b.wy, b.wz))
-            )
             due = due[:-1]
+            if readers[2 * n]:  # serialized, as vision: building these messages was an eighth of the plant's time
+                b = world.ball_state()
+                self._truth_ball_pub.publish(
+                    odometry_cdr(t_s, (b.x, b.y, 0.0), (b.vx, b.vy, 0.0), "ball", spin=(b.wx, b.wy, b.wz))
+                )
         for i in due:
+            if not (readers[2 * i] or readers[2 * i + 1]):
+                continue
             team, j = self._robots[i]
             r = world.robot_state(i)
-            self._pubs[i]["truth"].publish(
-                odometry_cdr(t_s, (r.x, r.y, r.theta), (r.vx, r.vy, r.w), team.frame(j))
-            )
+            if readers[2 * i]:
+                self._pubs[i]["truth"].publish(
+                    odometry_cdr(t_s, (r.x, r.y, r.theta), (r.vx, r.vy, r.w), team.frame(j))
+                )
+            if not readers[2 * i + 1]:
+                continue
             rows = [
                 [r.currents_a[k], r.winding_temperatures_c[k], r.wheel_speeds_radps[k]]
                 for k in range(len(self._wheels))
