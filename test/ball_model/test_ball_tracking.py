@@ -7,7 +7,7 @@ import pytest
 from ballmodel_sim import observe, simulate
 
 from erforce_ball_model.ball_model import BallPhase
-from erforce_ball_model.tracking import BallTracker, KalmanCV2D, RobotTracker, TrackerConfig, UpdateStatus
+from erforce_ball_model.tracking import BallTracker, KalmanCV2D, RobotTracker, TrackerConfig, UpdateStatus, ball_step
 
 
 def run_tracker(tracker, t, xy):
@@ -242,3 +242,50 @@ def test_kalman_filter_matches_the_textbook_4x4_filter():
         kf.correct(xp, pp, tuple(z))
         np.testing.assert_allclose(kf.x, x, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(kf.p, p, rtol=1e-9, atol=1e-15)
+
+
+def _eventful_observations(seed: int) -> list[tuple[float, float, float]]:
+    """A kick, a ricochet and a second kick seen at 70 Hz with noise and dropouts, plus outliers, a ball put
+    down elsewhere, a repeated stamp and a gap beyond max_gap_s."""
+    rng = np.random.default_rng(seed)
+    events = [(0.2, (3.5, 1.0)), (0.9, (-1.5, 2.0)), (1.6, (0.5, -5.0))]
+    t, pos, _ = simulate(events, 2.6, p0=(0.3, -0.2))
+    ft, xy, _ = observe(t, pos, fps=70.0, noise_m=0.003, dropout=0.1, seed=seed)
+    rows = [(float(ti), float(x), float(y)) for ti, (x, y) in zip(ft, xy, strict=True)]
+    for k in rng.choice(len(rows), 8, replace=False):  # single false detections
+        ti, x, y = rows[k]
+        rows[k] = (ti, x + rng.uniform(-1.5, 1.5), y + rng.uniform(-1.5, 1.5))
+    rows.insert(40, rows[39])  # a stamp not after the previous one
+    t_end = rows[-1][0]
+    rows += [(t_end + 0.02 * k, 2.0 + 1e-3 * k, -1.0) for k in range(1, 6)]  # put down elsewhere
+    rows += [(t_end + 2.0 + 0.014 * k, -1.0, 1.0) for k in range(5)]  # after a gap
+    return rows
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_compiled_update_gives_the_bits_of_its_python_source(seed):
+    """BallTracker's usual update runs compiled (tracking.ball_step); the same source run as Python (numba's
+    py_func) gives the same statuses, flags and every bit of the state on an eventful stream."""
+    compiled, python = BallTracker(), BallTracker()
+    python._step = ball_step.py_func
+    seen = set()
+    for t_s, x, y in _eventful_observations(seed):
+        a, b = compiled.update(t_s, x, y), python.update(t_s, x, y)
+        seen.add(a)
+        assert a == b
+        assert np.array_equal(compiled.s, python.s, equal_nan=True)
+        assert np.array_equal(compiled.shoot, python.shoot)
+        assert (compiled.kick_count, compiled.ricochet_count) == (python.kick_count, python.ricochet_count)
+    assert seen == set(UpdateStatus) - {UpdateStatus.REJECTED_INVALID}
+    assert compiled.kick_count >= 2
+
+
+def test_reset_forgets_the_ball_in_place():
+    tr = BallTracker()
+    state = tr.s
+    for k in range(10):
+        tr.update(0.1 * k, 0.5 * k, 0.0)
+    tr.reset()
+    assert tr.s is state and not tr.initialized and tr.uncertain and tr.v_shoot_mps == 0.0
+    assert tr.update(5.0, 1.0, 2.0) == UpdateStatus.INITIALIZED
+    assert tr.position_m.tolist() == [1.0, 2.0] and tr.velocity_mps.tolist() == [0.0, 0.0]

@@ -14,10 +14,10 @@ datagram, so ``/vision/ball`` and a robot's vision_pose are serialized and publi
 topic has a reader (each publisher's matched event keeps the count); a tool that subscribes to one gets
 it from then on. The usual datagram (one camera frame, every detection valid, every robot with an
 orientation, no vision_pose reader) goes from its bytes to the message's bytes in one compiled pass
-(erforce_ball_model.vision_pass: decoding, vision clock, tracker, points, CDR); Python adds the ball
-filter's update when the frame has the ball, and the publish. Anything else takes the general path
-(the same kernels through their Python interfaces), which also warns; so do a flipped field and
-``publish_detections``.
+(erforce_ball_model.vision_pass: decoding, vision clock, tracker and the ball filter's usual update,
+points, CDR); Python adds the publish, and the ball filter's unusual frames (a new ball, one held back).
+Anything else takes the general path (the same kernels through their Python interfaces), which also warns;
+so do a flipped field and ``publish_detections``.
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ from erforce_ball_model.vision_pass import (
 )
 from erforce_ball_model.vision_pass import load_kernels as load_pass_kernels
 from erforce_ball_model.vision_pass import robot_points as _robot_points
-from erforce_ball_model.vision_tracking import MAX_ROBOT_ID, VisionTracker, load_kernels
+from erforce_ball_model.vision_tracking import BALL_FUSED, MAX_ROBOT_ID, VisionTracker, load_kernels
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
@@ -259,11 +259,13 @@ class SslVisionBridge(Node):
         self._log_stats()
 
     def _pass_datagram(self, data: bytes, t_receive_s: float) -> None:
-        """A datagram through the compiled pass: the usual frame without a ball is one call and one publish."""
+        """A datagram through the compiled pass: the usual frame is one call and one publish."""
         status, n_bytes, action, t_s, ball_x, ball_y = self._frame_pass.run(data, t_receive_s,
                                                                             self._stamp_from_vision)
-        if status == PASS_DONE and not action and n_bytes >= 0:
+        if status == PASS_DONE and n_bytes >= 0 and (not action or action >= BALL_FUSED):
             self.stats["frames"] += 1
+            if action and self._ball_readers[0]:
+                self._ball_pub.publish(point_cdr(t_s, (ball_x, ball_y)))
             if n_bytes:
                 self._robots_pub.publish(self._frame_pass.message_view[:n_bytes].tobytes())
             return

@@ -28,16 +28,18 @@ from __future__ import annotations
 
 import enum
 import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
+from erforce_interfaces.numba_support import compiled_for, numba, register_jitable
 
-__all__ = ["BallTracker", "KalmanCV2D", "RobotTracker", "TrackerConfig", "UpdateStatus"]
+__all__ = ["BallTracker", "KalmanCV2D", "RobotTracker", "TrackerConfig", "UpdateStatus", "ball_step"]
 
 RESTING_VELOCITY_STD_MPS = 0.05  # velocity uncertainty of a ball that reappeared at rest elsewhere
+# v_shoot samples kept after an event (0.15 s at 1.7 kHz); further samples in the window are not added
+SHOOT_SAMPLES = 256
 
 
 class UpdateStatus(enum.IntEnum):
@@ -47,6 +49,27 @@ class UpdateStatus(enum.IntEnum):
     MANEUVER = 3  # confirmed change of motion: filter re-seeded
     REJECTED_TIME = 4  # stamp not after the previous one
     REJECTED_INVALID = 5  # non-finite input
+
+
+@register_jitable
+def cv_predicted(px, py, vx, vy, a, b, c, q, dt, ax, ay):
+    """The CV filter's state and per-axis covariance after ``dt`` with a known acceleration (ax, ay): a tuple
+    of 7 (x, y, vx, vy, var_pos, cov_pos_vel, var_vel). Plain Python and compiled (the ball's kernel)."""
+    h = 0.5 * dt * dt
+    # white-acceleration noise: q dt^3/3, q dt^2/2, q dt (dt * dt * dt: the same bits compiled and in Python)
+    return (px + vx * dt + h * ax, py + vy * dt + h * ay, vx + dt * ax, vy + dt * ay,
+            a + dt * (2.0 * b + dt * c) + q * (dt * dt * dt) / 3.0, b + dt * c + q * h, c + q * dt)
+
+
+@register_jitable
+def cv_corrected(px, py, vx, vy, a, b, c, r, zx, zy):
+    """The correction with the position (zx, zy) measured with variance ``r`` (prediction px..c): the state
+    and covariance, a tuple of 7. Joseph form (I - K H) P (I - K H)^T + K r K^T: stays symmetric positive."""
+    nx, ny, s = zx - px, zy - py, a + r
+    kp, kv = a / s, b / s  # gain for position and velocity
+    m = 1.0 - kp
+    return (px + kp * nx, py + kp * ny, vx + kv * nx, vy + kv * ny,
+            m * m * a + kp * kp * r, m * (b - kv * a) + kp * kv * r, kv * kv * (a + r) - 2.0 * kv * b + c)
 
 
 class KalmanCV2D:
@@ -84,26 +107,16 @@ class KalmanCV2D:
 
     def predicted(self, dt: float, accel=(0.0, 0.0)) -> tuple[tuple, tuple]:
         """State and covariance after ``dt`` with a known acceleration (does not change the filter)."""
-        px, py, vx, vy = self.state
-        ax, ay = accel
-        h = 0.5 * dt * dt
-        x = (px + vx * dt + h * ax, py + vy * dt + h * ay, vx + dt * ax, vy + dt * ay)
-        a, b, c = self.cov
-        q = self.q  # white-acceleration noise: q dt^3/3, q dt^2/2, q dt
-        return x, (a + dt * (2.0 * b + dt * c) + q * dt**3 / 3.0, b + dt * c + q * h, c + q * dt)
+        out = cv_predicted(*self.state, *self.cov, self.q, dt, accel[0], accel[1])
+        return out[:4], out[4:]
 
     def innovation(self, x: tuple, p: tuple, z) -> tuple[tuple[float, float], float]:
         """Innovation (x, y) and its variance, the same on both axes."""
         return (z[0] - x[0], z[1] - x[1]), p[0] + self.r
 
     def correct(self, x: tuple, p: tuple, z) -> None:
-        (nx, ny), s = self.innovation(x, p, z)
-        a, b, c = p
-        kp, kv = a / s, b / s  # gain for position and velocity
-        self.state = (x[0] + kp * nx, x[1] + kp * ny, x[2] + kv * nx, x[3] + kv * ny)
-        # Joseph form (I - K H) P (I - K H)^T + K r K^T: stays symmetric positive.
-        r, m = self.r, 1.0 - kp
-        self.cov = (m * m * a + kp * kp * r, m * (b - kv * a) + kp * kv * r, kv * kv * (a + r) - 2.0 * kv * b + c)
+        out = cv_corrected(*x, *p, self.r, z[0], z[1])
+        self.state, self.cov = out[:4], out[4:]
 
 
 @dataclass(frozen=True)
@@ -134,60 +147,210 @@ def _check_obs(t_s, values) -> bool:
     return all(isinstance(v, _NUMBER_TYPES) and math.isfinite(v) for v in (t_s, *values))
 
 
+# The ball filter's state, one float64 array per BallTracker (NaN: None), read and written by ``ball_step``
+# (the usual update, compiled) and by BallTracker's Python (start, held frames, maneuvers, properties).
+(S_T, S_X, S_Y, S_VX, S_VY, S_VAR_POS, S_COV_POS_VEL, S_VAR_VEL, S_V_SHOOT, S_ROLLING, S_EVENT_T, S_UNCERTAIN,
+ S_FIT_RUN, S_N_SHOOT, S_KICKED, S_RICOCHET, S_HELD, S_HELD_T, S_HELD_X, S_HELD_Y, S_PREV_T, S_PREV_X,
+ S_PREV_Y) = range(23)
+STATE_SIZE = 23
+# the model and configuration as ball_step reads them
+(M_A_SLIDE, M_A_ROLL, M_C_SWITCH, M_R, M_Q, M_GATE_SIGMA, M_GATE_MIN, M_SHOOT_WINDOW, M_FIT_FRAMES,
+ M_MAX_GAP) = range(10)
+OUTSIDE_GATE = -1  # ball_step: not fused, nothing changed; Python holds the frame back or re-seeds
+
+
+@register_jitable
+def effective_v_shoot(v_shoot, rolling, speed, c_switch):
+    # Once rolling, stay rolling until the next kick or ricochet: speed noise around the switch
+    # speed must not flip the model back to sliding.
+    return max(v_shoot, speed / c_switch) if rolling else v_shoot
+
+
+@numba.njit(cache=True, error_model="numpy")
+def ball_step(s, shoot, m, t_s, x, y):
+    """BallTracker's update of the state ``s`` with the observation (t_s, x, y) where it fuses or starts:
+    the UpdateStatus, or OUTSIDE_GATE (the state unchanged but for the kicked and ricochet flags)."""
+    s[S_KICKED] = 0.0
+    s[S_RICOCHET] = 0.0
+    if not (math.isfinite(t_s) and math.isfinite(x) and math.isfinite(y)):
+        return 5  # UpdateStatus.REJECTED_INVALID
+    t_prev = s[S_T]
+    if not math.isnan(t_prev) and t_s <= t_prev:
+        return 4  # UpdateStatus.REJECTED_TIME
+    if math.isnan(t_prev) or t_s - t_prev > m[M_MAX_GAP]:
+        s[S_X], s[S_Y], s[S_VX], s[S_VY] = x, y, 0.0, 0.0
+        s[S_VAR_POS], s[S_COV_POS_VEL], s[S_VAR_VEL] = m[M_R], 0.0, 1.0
+        s[S_T], s[S_HELD], s[S_PREV_T], s[S_PREV_X], s[S_PREV_Y] = t_s, 0.0, t_s, x, y
+        s[S_UNCERTAIN], s[S_FIT_RUN] = 1.0, 0.0
+        return 0  # UpdateStatus.INITIALIZED
+    # the prediction with the two-phase model's deceleration along the motion
+    dt = t_s - t_prev
+    vx, vy = s[S_VX], s[S_VY]
+    speed = math.hypot(vx, vy)
+    ax = ay = 0.0
+    if speed >= 1e-6:
+        c_switch = m[M_C_SWITCH]
+        sliding = speed > c_switch * max(effective_v_shoot(s[S_V_SHOOT], s[S_ROLLING] != 0.0, speed, c_switch), speed)
+        decel = -(m[M_A_SLIDE] if sliding else m[M_A_ROLL])
+        decel = min(decel, speed / dt)  # the ball stops within dt: do not let it turn back
+        k = -decel / speed
+        ax, ay = k * vx, k * vy
+    px, py, pvx, pvy, a, b, c = cv_predicted(s[S_X], s[S_Y], vx, vy, s[S_VAR_POS], s[S_COV_POS_VEL], s[S_VAR_VEL],
+                                             m[M_Q], dt, ax, ay)
+    sigma = math.sqrt(a + m[M_R])
+    worst = max(abs(x - px), abs(y - py))
+    if not worst <= max(m[M_GATE_SIGMA] * sigma, m[M_GATE_MIN]):
+        return OUTSIDE_GATE
+    (s[S_X], s[S_Y], s[S_VX], s[S_VY], s[S_VAR_POS], s[S_COV_POS_VEL],
+     s[S_VAR_VEL]) = cv_corrected(px, py, pvx, pvy, a, b, c, m[M_R], x, y)
+    s[S_T], s[S_HELD], s[S_PREV_T], s[S_PREV_X], s[S_PREV_Y] = t_s, 0.0, t_s, x, y
+    s[S_FIT_RUN] = s[S_FIT_RUN] + 1.0 if worst <= 3.0 * sigma else 0.0
+    # v_shoot and the rolling latch after the accepted frame
+    speed = math.hypot(s[S_VX], s[S_VY])
+    velocity_std = math.sqrt(s[S_VAR_VEL])
+    t_event = s[S_EVENT_T]
+    if not math.isnan(t_event) and t_s - t_event <= m[M_SHOOT_WINDOW]:
+        # v_shoot from the speed extrapolated back to the kick, over the sliding phase only
+        if speed > m[M_C_SWITCH] * s[S_V_SHOOT]:
+            n = int(s[S_N_SHOOT])
+            if n < len(shoot):
+                shoot[n] = speed - m[M_A_SLIDE] * (t_s - t_event)
+                n += 1
+                s[S_N_SHOOT] = n
+            s[S_V_SHOOT] = np.median(shoot[:n])
+    elif speed > s[S_V_SHOOT] + 3.0 * velocity_std + 0.05:
+        s[S_V_SHOOT] = speed  # the paper's rule, above the noise
+        s[S_ROLLING] = 0.0
+    if speed < m[M_C_SWITCH] * s[S_V_SHOOT] - velocity_std:
+        s[S_ROLLING] = 1.0
+    if s[S_FIT_RUN] >= m[M_FIT_FRAMES]:  # the last fit_frames innovations all within 3 sigma
+        s[S_UNCERTAIN] = 0.0
+    return 1  # UpdateStatus.ACCEPTED
+
+
+class _StateKalman(KalmanCV2D):
+    """The ball's KalmanCV2D with its state and covariance in the tracker's state array."""
+
+    def __init__(self, s: np.ndarray, position_noise_m: float, accel_noise_psd: float) -> None:
+        self._s = s
+        super().__init__(position_noise_m, accel_noise_psd)
+
+    @property
+    def state(self) -> tuple[float, float, float, float]:
+        return tuple(self._s[S_X:S_VY + 1].tolist())
+
+    @state.setter
+    def state(self, value) -> None:
+        self._s[S_X:S_VY + 1] = value
+
+    @property
+    def cov(self) -> tuple[float, float, float]:
+        return tuple(self._s[S_VAR_POS:S_VAR_VEL + 1].tolist())
+
+    @cov.setter
+    def cov(self, value) -> None:
+        self._s[S_VAR_POS:S_VAR_VEL + 1] = value
+
+
+def _optional(index: int):
+    """A float of the state array that may be None (NaN)."""
+    def get(self):
+        v = float(self.s[index])
+        return None if math.isnan(v) else v
+
+    def put(self, value):
+        self.s[index] = math.nan if value is None else value
+
+    return property(get, put)
+
+
+def _flag(index: int):
+    return property(lambda self: bool(self.s[index]), lambda self, value: self.s.__setitem__(index, float(value)))
+
+
+_STATUSES = tuple(UpdateStatus)
+_step_entry = None  # ball_step compiled for BallTracker's argument types (bound at the first tracker)
+
+
 class BallTracker:
     """Tracks one ball: filtered state, v_shoot, kick/ricochet events and a trajectory for prediction.
 
     Call ``update(t_s, x_m, y_m)`` per vision frame (strictly increasing stamps); read
     ``trajectory()`` and the flags ``kicked`` / ``ricochet`` (true for the update that detected the
-    event), ``uncertain`` and ``phase``.
+    event), ``uncertain`` and ``phase``. The state lives in the array ``s`` (indices ``S_*``); the usual
+    update is the compiled ``ball_step`` (callable on ``s``, ``shoot`` and ``m`` from compiled code too).
     """
 
+    t_s = _optional(S_T)
+    last_event_time_s = _optional(S_EVENT_T)
+    v_shoot_mps = property(lambda self: float(self.s[S_V_SHOOT]),
+                           lambda self, value: self.s.__setitem__(S_V_SHOOT, value))
+    kicked = _flag(S_KICKED)
+    ricochet = _flag(S_RICOCHET)
+    uncertain = _flag(S_UNCERTAIN)
+    _rolling = _flag(S_ROLLING)  # latched once the speed fell below the switch speed (no flicker)
+
     def __init__(self, params: BallModelParams | None = None, config: TrackerConfig | None = None) -> None:
+        global _step_entry
         self.params = params or BallModelParams()
         self.config = config or TrackerConfig()
-        self.kf = KalmanCV2D(self.config.position_noise_m, self.config.accel_noise_psd)
-        self.t_s: float | None = None
-        self.v_shoot_mps = 0.0
-        self.kicked = False
-        self.ricochet = False
+        cfg, model = self.config, self.params
+        self.s = np.zeros(STATE_SIZE)
+        self.shoot = np.zeros(SHOOT_SAMPLES)
+        self.m = np.array([model.a_slide_mps2, model.a_roll_mps2, model.c_switch, cfg.position_noise_m**2,
+                           cfg.accel_noise_psd, cfg.gate_sigma, cfg.gate_min_m, cfg.shoot_window_s, cfg.fit_frames,
+                           cfg.max_gap_s])
+        self.kf = _StateKalman(self.s, cfg.position_noise_m, cfg.accel_noise_psd)
+        self.reset()
+        if _step_entry is None:  # no type matching per update
+            _step_entry = compiled_for(ball_step, self.s, self.shoot, self.m, 0.0, 0.0, 0.0)
+        self._step = _step_entry
+
+    def reset(self) -> None:
+        """No observation yet (a new ball), in place: compiled code that holds the arrays sees it."""
+        self.s[:] = 0.0
+        self.s[[S_T, S_EVENT_T]] = math.nan
+        self.kf.cov = (1.0, 0.0, 1.0)
         self.uncertain = True
         self.kick_count = 0
         self.ricochet_count = 0
-        self.last_event_time_s: float | None = None
-        self._held: tuple[float, float, float] | None = None
-        self._prev_obs: tuple[float, float, float] | None = None
-        self._shoot_samples: list[float] = []
-        self._fit_ok: deque[bool] = deque(maxlen=self.config.fit_frames)
-        self._rolling = False  # latched once the speed fell below the switch speed (no flicker)
 
     # -- state ----------------------------------------------------------------------------------
     @property
     def initialized(self) -> bool:
-        return self.t_s is not None
+        return not math.isnan(self.s[S_T])
 
     @property
     def position_m(self) -> np.ndarray:
-        return np.array(self.kf.state[:2])
+        return self.s[S_X:S_Y + 1].copy()
 
     @property
     def velocity_mps(self) -> np.ndarray:
-        return np.array(self.kf.state[2:])
+        return self.s[S_VX:S_VY + 1].copy()
 
     @property
     def velocity_std_mps(self) -> float:
-        return math.sqrt(self.kf.cov[2])
+        return math.sqrt(self.s[S_VAR_VEL])
 
     @property
     def position_variance_m2(self) -> float:
-        return self.kf.cov[0]
+        return float(self.s[S_VAR_POS])
+
+    @property
+    def _held(self) -> tuple[float, float, float] | None:
+        return tuple(self.s[S_HELD_T:S_HELD_Y + 1].tolist()) if self.s[S_HELD] else None
+
+    @_held.setter
+    def _held(self, value: tuple[float, float, float] | None) -> None:
+        self.s[S_HELD] = value is not None
+        if value is not None:
+            self.s[S_HELD_T:S_HELD_Y + 1] = value
 
     def _speed(self) -> float:
-        return math.hypot(self.kf.state[2], self.kf.state[3])
+        return math.hypot(self.s[S_VX], self.s[S_VY])
 
     def _effective_v_shoot(self, speed: float) -> float:
-        # Once rolling, stay rolling until the next kick or ricochet: speed noise around the switch
-        # speed must not flip the model back to sliding.
-        return max(self.v_shoot_mps, speed / self.params.c_switch) if self._rolling else self.v_shoot_mps
+        return effective_v_shoot(self.v_shoot_mps, self._rolling, speed, self.params.c_switch)
 
     def trajectory(self) -> BallTrajectory:
         """The ball's future from the latest filtered state (at time ``self.t_s``)."""
@@ -201,51 +364,19 @@ class BallTracker:
         return self.trajectory().phase
 
     # -- update ---------------------------------------------------------------------------------
-    def _predict(self, dt: float) -> tuple[tuple, tuple]:
-        """The filter prediction with the two-phase model's deceleration along the motion."""
-        speed = self._speed()
-        if speed < 1e-6:
-            return self.kf.predicted(dt)
-        sliding = speed > self.params.c_switch * max(self._effective_v_shoot(speed), speed)
-        decel = -(self.params.a_slide_mps2 if sliding else self.params.a_roll_mps2)
-        decel = min(decel, speed / dt)  # the ball stops within dt: do not let it turn back
-        k = -decel / speed
-        return self.kf.predicted(dt, (k * self.kf.state[2], k * self.kf.state[3]))
-
     def update(self, t_s: float, x_m: float, y_m: float) -> UpdateStatus:
-        self.kicked = False
-        self.ricochet = False
         if not _check_obs(t_s, (x_m, y_m)):
+            self.s[S_KICKED] = self.s[S_RICOCHET] = 0.0
             return UpdateStatus.REJECTED_INVALID
         t_s, z = float(t_s), (float(x_m), float(y_m))
-        cfg = self.config
-        if self.t_s is not None and t_s <= self.t_s:
-            return UpdateStatus.REJECTED_TIME
-        if self.t_s is None or t_s - self.t_s > cfg.max_gap_s:
-            self.kf.reset(z, (0.0, 0.0), cfg.position_noise_m**2, 1.0)
-            self.t_s, self._held, self._prev_obs = t_s, None, (t_s, *z)
-            self.uncertain = True
-            self._fit_ok.clear()
-            return UpdateStatus.INITIALIZED
-
-        x_pred, p_pred = self._predict(t_s - self.t_s)
-        (nu_x, nu_y), s = self.kf.innovation(x_pred, p_pred, z)
-        sigma = math.sqrt(s)
-        worst = max(abs(nu_x), abs(nu_y))
-        if worst <= max(cfg.gate_sigma * sigma, cfg.gate_min_m):
-            self._held = None
-            self.kf.correct(x_pred, p_pred, z)
-            self.t_s = t_s
-            self._prev_obs = (t_s, *z)
-            self._fit_ok.append(worst <= 3.0 * sigma)
-            self._after_accept()
-            return UpdateStatus.ACCEPTED
-
+        status = self._step(self.s, self.shoot, self.m, t_s, z[0], z[1])
+        if status != OUTSIDE_GATE:
+            return _STATUSES[status]
         if self._held is None or not self._one_motion(t_s, z):
             # Maybe an outlier: wait for the next frame. A held frame this one cannot have followed
             # (a ball put down elsewhere right after it was seen, a false detection) is dropped for it.
             self._held = (t_s, *z)
-            self._fit_ok.append(False)
+            self.s[S_FIT_RUN] = 0.0
             return UpdateStatus.HELD_BACK
         self._maneuver(t_s, z)
         return UpdateStatus.MANEUVER
@@ -271,11 +402,13 @@ class BallTracker:
             # up through the process noise.
             v_new, speed_new, var_v = np.zeros(2), 0.0, RESTING_VELOCITY_STD_MPS**2
             # A ball at rest has no shot: the kick speed of its past must not shape its next motion.
-            self.v_shoot_mps, self.last_event_time_s, self._shoot_samples, self._rolling = 0.0, None, [], False
-        t_prev = self._prev_obs[0] if self._prev_obs else t1
+            self.v_shoot_mps, self.last_event_time_s, self._rolling = 0.0, None, False
+            self.s[S_N_SHOOT] = 0.0
+        t_prev = self.s[S_PREV_T]
         self.kf.reset(z, v_new, cfg.position_noise_m**2, var_v)
-        self.t_s, self._held, self._prev_obs = t_s, None, (t_s, *z)
-        self._fit_ok.clear()
+        self.t_s, self._held = t_s, None
+        self.s[S_PREV_T:S_PREV_Y + 1] = (t_s, *z)
+        self.s[S_FIT_RUN] = 0.0
         self.uncertain = True
         # When did the new motion start? Extrapolate it back to where the old motion would be.
         gap = float(np.hypot(*(np.array([x1, y1]) - p_old)))
@@ -293,28 +426,11 @@ class BallTracker:
             self._rolling = False
             self.last_event_time_s = t_event
             self.v_shoot_mps = speed_new
-            self._shoot_samples = []
+            self.s[S_N_SHOOT] = 0.0
         else:
             self.v_shoot_mps = max(self.v_shoot_mps, speed_new)
         if not self.ricochet:
             self.uncertain = self.kicked  # kicks are modelled; cleared once the fit is confirmed
-
-    def _after_accept(self) -> None:
-        cfg = self.config
-        speed = self._speed()
-        t_ev = self.last_event_time_s
-        if t_ev is not None and self.t_s - t_ev <= cfg.shoot_window_s:
-            # v_shoot from the speed extrapolated back to the kick, over the sliding phase only.
-            if speed > self.params.c_switch * self.v_shoot_mps:
-                self._shoot_samples.append(speed - self.params.a_slide_mps2 * (self.t_s - t_ev))
-                self.v_shoot_mps = float(np.median(self._shoot_samples))
-        elif speed > self.v_shoot_mps + 3.0 * self.velocity_std_mps + 0.05:
-            self.v_shoot_mps = speed  # the paper's rule, above the noise
-            self._rolling = False
-        if speed < self.params.c_switch * self.v_shoot_mps - self.velocity_std_mps:
-            self._rolling = True
-        if len(self._fit_ok) == cfg.fit_frames and all(self._fit_ok):
-            self.uncertain = False
 
 
 class RobotTracker:

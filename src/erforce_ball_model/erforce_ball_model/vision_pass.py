@@ -2,9 +2,10 @@
 
 The bridge's usual datagram (one camera frame, every detection valid) goes through the same kernels as the
 general path, in one call: ssl_vision's pass over the protobuf bytes, the vision clock, the tracker's ball
-hypotheses, its choice of the ball and its robot streams, the message's points and their CDR. What needs
-Python stays outside: the ball filter's update (``VisionTracker.use_ball``, only when a candidate was chosen)
-and anything unusual, which the pass hands back before it has changed any state (``PASS_FALLBACK``: the
+hypotheses, its choice of the ball, the ball filter's usual update (``tracking.ball_step``: the pass returns
+``BALL_FUSED`` + its status) and its robot streams, the message's points and their CDR. What needs Python
+stays outside: a new ball and the ball filter's unusual frames (``VisionTracker.use_ball`` with the action
+returned) and anything unusual, which the pass hands back before it has changed any state (``PASS_FALLBACK``: the
 bridge runs the general path on the datagram, which names the problem) or after (``PASS_GENERAL``: a robot
 the points cannot carry; ``PASS_CLOCK_JUMP``, ``PASS_BAD_STAMP``: the frame is refused, ``info`` says why).
 The message written is byte for byte what ``conversions.vision_robots_points_cdr`` builds from the same
@@ -17,6 +18,7 @@ import math
 
 import numpy as np
 
+from erforce_ball_model.tracking import ball_step
 from erforce_ball_model.vision_tracking import (
     _C_FRAMES,
     _C_HYPOTHESES,
@@ -30,11 +32,14 @@ from erforce_ball_model.vision_tracking import (
     _P_MIN_CONFIDENCE,
     _P_ROBOT_GATE,
     _P_ROBOT_SPEED,
+    BALL_FUSED,
+    BALL_UPDATE,
     MAX_ROBOT_ID,
     VisionTracker,
     _track_robots,
     _update_hypotheses,
     choose_ball,
+    note_ball_taken,
 )
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import MAX_ABS_VALUE, vision_robots_template
@@ -125,8 +130,8 @@ def _message(t_s, points, n_points, head, width_at, sizes_at, message):
 
 @numba.njit(cache=True, error_model="numpy")
 def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, clock_window, clock_pending, clock_counts,
-                clock_params, hyps, hits, candidates, tracks, used, settings, ball_state, counts, pose_readers,
-                ours_n_ours, points, head, layout, message, info):
+                clock_params, hyps, hits, candidates, tracks, used, settings, ball_state, counts, ball_filter,
+                shoot_samples, ball_model, pose_readers, ours_n_ours, points, head, layout, message, info):
     """The datagram ``data`` received at ``t_receive`` through decoding, clock, tracker and message (see the
     module docstring): (status, message length or -1, ball action, stamp, ball x, ball y)."""
     max_balls, max_robots = int(limits[0]), int(limits[1])
@@ -157,6 +162,13 @@ def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, clock_window, 
         candidates)
     counts[_C_HYPOTHESES] = n_hyps
     action, ball_x, ball_y = choose_ball(hyps, hits, t_s, candidates, n_candidates, p, ball_state, counts)
+    if action == BALL_UPDATE:
+        # the ball filter's usual update; a frame it holds back, refuses or that starts a maneuver leaves its
+        # state as it was, and VisionTracker.use_ball does it again in Python
+        status = ball_step(ball_filter, shoot_samples, ball_model, t_s, ball_x, ball_y)
+        if status == 0 or status == 1:  # UpdateStatus.INITIALIZED, ACCEPTED
+            note_ball_taken(ball_state, t_s, ball_x, ball_y, ball_filter)
+            action = BALL_FUSED + status
     robots = rows[ROBOTS_AT:ROBOTS_AT + 6 * n_robots].reshape(n_robots, 6)
     n_used = 0
     if n_robots:
@@ -197,7 +209,8 @@ class FramePass:
         self.tracker = tracker
         self._state = (self.rows, self.limits, clock.window, clock.pending, clock.counts, clock.params, tracker.hyps,
                        tracker.hits, tracker.candidates, tracker.robot_tracks, tracker.used, tracker.settings,
-                       tracker.ball_state, tracker.counts, pose_readers, np.array([ours, n_ours], float),
+                       tracker.ball_state, tracker.counts, tracker.ball.s, tracker.ball.shoot, tracker.ball.m,
+                       pose_readers, np.array([ours, n_ours], float),
                        self.points, self.head, self.layout, self.message, self.info)
         # the compiled function for exactly these types: no type matching per call
         self._entry = compiled_for(_frame_pass, encode_frame(CameraFrame(0, 0, 0.0, 0.0, (), ())), 0.0, False,

@@ -39,7 +39,7 @@ from typing import NamedTuple
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.tracking import BallTracker, TrackerConfig, UpdateStatus
+from erforce_ball_model.tracking import S_T, BallTracker, TrackerConfig, UpdateStatus
 from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import TEAMS, DecodeLimits
@@ -170,6 +170,18 @@ def _best_confirmed(hyps, hits, n_hyps, t_s, inside_only, window_s, fresh_s):
 (_B_USED, _B_T_USED, _B_LAST_X, _B_LAST_Y, _B_INITIALIZED, _B_FILTER_T, _B_X, _B_Y, _B_VX, _B_VY) = range(10)
 _C_HYPOTHESES, _C_FRAMES, _C_LATE_BALLS, _C_FALSE_CANDIDATES, _C_SWITCHES = range(5)
 BALL_NONE, BALL_UPDATE, BALL_SWITCH = range(3)  # what choose_ball asks of the ball filter
+# the compiled pass fused the ball already (BALL_FUSED + its UpdateStatus: INITIALIZED or ACCEPTED)
+BALL_FUSED = 3
+
+
+@numba.njit(cache=True, error_model="numpy")
+def note_ball_taken(ball_state, t_s, x, y, ball_filter):
+    """The ball filter's state as choose_ball reads it, after it took the observation (t_s, x, y); its state
+    ``ball_filter`` is BallTracker.s (initialized)."""
+    ball_state[_B_USED], ball_state[_B_T_USED], ball_state[_B_LAST_X], ball_state[_B_LAST_Y] = 1.0, t_s, x, y
+    ball_state[_B_INITIALIZED] = 1.0
+    for k in range(5):  # filter time, x, y, vx, vy
+        ball_state[_B_FILTER_T + k] = ball_filter[S_T + k]
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -402,16 +414,17 @@ class VisionTracker:
     def use_ball(self, action: int, camera_id: int, t_s: float, x: float, y: float) -> BallObservation | None:
         """What choose_ball decided, done on the ball filter (a switch: a new ball, no history); the observation,
         or None when the filter refuses it."""
+        if action >= BALL_FUSED:
+            return BallObservation(t_s, x, y, camera_id, UpdateStatus(action - BALL_FUSED))
         if action == BALL_SWITCH:
-            self.ball = BallTracker(self._params, self._tracker_config)
+            self.ball.reset()
         status = self.ball.update(t_s, x, y)
         if status >= UpdateStatus.REJECTED_TIME:  # or REJECTED_INVALID
             self._sync_ball()
             return None
         ball = self.ball
         self.kicks += ball.kicked
-        # an accepted observation leaves the filter initialized: one write (the ball datagrams' Python)
-        self.ball_state[:] = (1.0, t_s, x, y, 1.0, ball.t_s, *ball.kf.state)
+        note_ball_taken(self.ball_state, t_s, x, y, ball.s)  # an accepted observation leaves it initialized
         return BallObservation(t_s, x, y, camera_id, status)
 
     def _sync_ball(self) -> None:
