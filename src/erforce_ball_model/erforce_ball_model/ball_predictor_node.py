@@ -39,6 +39,7 @@ from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import RobotLimits, load_kernels
 from erforce_ball_model.predictor import BallFrame, BallPredictor, FrameTimes, PredictorConfig
 from erforce_ball_model.tracking import TrackerConfig
+from erforce_ball_model.tracking import load_kernels as load_ball_filter_kernels
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     MAX_ABS_VALUE,
@@ -115,9 +116,12 @@ def build_config(c) -> PredictorConfig:
 
 
 class BallPredictorNode(Node):
-    # A warm standby (node_support.run_node) loads numba and the compiled search before it is needed: the
-    # node it becomes answers with the compiled search from its first frame.
-    warm_up = staticmethod(load_kernels)
+    # A warm standby (node_support.run_node) loads numba, the compiled search and the ball filter's kernel
+    # before they are needed: the node it becomes answers with them from its first frame.
+    @staticmethod
+    def warm_up() -> None:
+        load_kernels()
+        load_ball_filter_kernels()
 
     def __init__(self) -> None:
         super().__init__("ball_predictor")

@@ -27,15 +27,16 @@ provides both, made robust to vision noise (1-3 mm, 60-75 Hz, dropouts):
 from __future__ import annotations
 
 import enum
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
-from erforce_interfaces.numba_support import compiled_for, numba, register_jitable
 
-__all__ = ["BallTracker", "KalmanCV2D", "RobotTracker", "TrackerConfig", "UpdateStatus", "ball_step"]
+__all__ = ["BallTracker", "KalmanCV2D", "RobotTracker", "TrackerConfig", "UpdateStatus", "ball_step",
+           "compiled_ball_step", "load_kernels"]
 
 RESTING_VELOCITY_STD_MPS = 0.05  # velocity uncertainty of a ball that reappeared at rest elsewhere
 # v_shoot samples kept after an event (0.15 s at 1.7 kHz); further samples in the window are not added
@@ -51,17 +52,15 @@ class UpdateStatus(enum.IntEnum):
     REJECTED_INVALID = 5  # non-finite input
 
 
-@register_jitable
 def cv_predicted(px, py, vx, vy, a, b, c, q, dt, ax, ay):
     """The CV filter's state and per-axis covariance after ``dt`` with a known acceleration (ax, ay): a tuple
-    of 7 (x, y, vx, vy, var_pos, cov_pos_vel, var_vel). Plain Python and compiled (the ball's kernel)."""
+    of 7 (x, y, vx, vy, var_pos, cov_pos_vel, var_vel). Plain Python, and compiled in ``ball_step``."""
     h = 0.5 * dt * dt
     # white-acceleration noise: q dt^3/3, q dt^2/2, q dt (dt * dt * dt: the same bits compiled and in Python)
     return (px + vx * dt + h * ax, py + vy * dt + h * ay, vx + dt * ax, vy + dt * ay,
             a + dt * (2.0 * b + dt * c) + q * (dt * dt * dt) / 3.0, b + dt * c + q * h, c + q * dt)
 
 
-@register_jitable
 def cv_corrected(px, py, vx, vy, a, b, c, r, zx, zy):
     """The correction with the position (zx, zy) measured with variance ``r`` (prediction px..c): the state
     and covariance, a tuple of 7. Joseph form (I - K H) P (I - K H)^T + K r K^T: stays symmetric positive."""
@@ -159,17 +158,16 @@ STATE_SIZE = 23
 OUTSIDE_GATE = -1  # ball_step: not fused, nothing changed; Python holds the frame back or re-seeds
 
 
-@register_jitable
 def effective_v_shoot(v_shoot, rolling, speed, c_switch):
     # Once rolling, stay rolling until the next kick or ricochet: speed noise around the switch
     # speed must not flip the model back to sliding.
     return max(v_shoot, speed / c_switch) if rolling else v_shoot
 
 
-@numba.njit(cache=True, error_model="numpy")
 def ball_step(s, shoot, m, t_s, x, y):
     """BallTracker's update of the state ``s`` with the observation (t_s, x, y) where it fuses or starts:
-    the UpdateStatus, or OUTSIDE_GATE (the state unchanged but for the kicked and ricochet flags)."""
+    the UpdateStatus, or OUTSIDE_GATE (the state unchanged but for the kicked and ricochet flags). Runs as
+    Python until ``load_kernels``, then compiled (``compiled_ball_step``): the same bits either way."""
     s[S_KICKED] = 0.0
     s[S_RICOCHET] = 0.0
     if not (math.isfinite(t_s) and math.isfinite(x) and math.isfinite(y)):
@@ -268,8 +266,29 @@ def _flag(index: int):
     return property(lambda self: bool(self.s[index]), lambda self, value: self.s.__setitem__(index, float(value)))
 
 
+@functools.cache
+def compiled_ball_step():
+    """``ball_step`` as a numba kernel (compiled or loaded from numba's cache on first call), callable from
+    other kernels. numba is imported here, not with this module: a process that only tracks (the predictor
+    restarted without its warm-up) starts without it."""
+    from erforce_interfaces.numba_support import numba, register_jitable
+
+    for rule in (cv_predicted, cv_corrected, effective_v_shoot):
+        register_jitable(rule)
+    return numba.njit(cache=True, error_model="numpy")(ball_step)
+
+
+def load_kernels() -> None:
+    """Compile (or load) ``ball_step`` now; from then on every BallTracker's update runs it compiled."""
+    global _step
+    from erforce_interfaces.numba_support import compiled_for
+
+    s = np.zeros(STATE_SIZE)
+    _step = compiled_for(compiled_ball_step(), s, np.zeros(SHOOT_SAMPLES), np.zeros(10), 0.0, 0.0, 0.0)
+
+
 _STATUSES = tuple(UpdateStatus)
-_step_entry = None  # ball_step compiled for BallTracker's argument types (bound at the first tracker)
+_step = ball_step  # BallTracker's update: the Python source until load_kernels
 
 
 class BallTracker:
@@ -278,7 +297,8 @@ class BallTracker:
     Call ``update(t_s, x_m, y_m)`` per vision frame (strictly increasing stamps); read
     ``trajectory()`` and the flags ``kicked`` / ``ricochet`` (true for the update that detected the
     event), ``uncertain`` and ``phase``. The state lives in the array ``s`` (indices ``S_*``); the usual
-    update is the compiled ``ball_step`` (callable on ``s``, ``shoot`` and ``m`` from compiled code too).
+    update is ``ball_step`` (compiled after ``load_kernels``; a kernel can call ``compiled_ball_step()`` on
+    ``s``, ``shoot`` and ``m``).
     """
 
     t_s = _optional(S_T)
@@ -291,7 +311,6 @@ class BallTracker:
     _rolling = _flag(S_ROLLING)  # latched once the speed fell below the switch speed (no flicker)
 
     def __init__(self, params: BallModelParams | None = None, config: TrackerConfig | None = None) -> None:
-        global _step_entry
         self.params = params or BallModelParams()
         self.config = config or TrackerConfig()
         cfg, model = self.config, self.params
@@ -302,9 +321,6 @@ class BallTracker:
                            cfg.max_gap_s])
         self.kf = _StateKalman(self.s, cfg.position_noise_m, cfg.accel_noise_psd)
         self.reset()
-        if _step_entry is None:  # no type matching per update
-            _step_entry = compiled_for(ball_step, self.s, self.shoot, self.m, 0.0, 0.0, 0.0)
-        self._step = _step_entry
 
     def reset(self) -> None:
         """No observation yet (a new ball), in place: compiled code that holds the arrays sees it."""
@@ -369,7 +385,7 @@ class BallTracker:
             self.s[S_KICKED] = self.s[S_RICOCHET] = 0.0
             return UpdateStatus.REJECTED_INVALID
         t_s, z = float(t_s), (float(x_m), float(y_m))
-        status = self._step(self.s, self.shoot, self.m, t_s, z[0], z[1])
+        status = _step(self.s, self.shoot, self.m, t_s, z[0], z[1])
         if status != OUTSIDE_GATE:
             return _STATUSES[status]
         if self._held is None or not self._one_motion(t_s, z):

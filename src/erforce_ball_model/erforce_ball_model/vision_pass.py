@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from erforce_ball_model.tracking import ball_step
+from erforce_ball_model import tracking
 from erforce_ball_model.vision_tracking import (
     _C_FRAMES,
     _C_HYPOTHESES,
@@ -69,6 +69,7 @@ I_STAMP = I_SAMPLE
 _OURS_CODE, _OPPONENTS_CODE = float(contract.OURS.code), float(contract.OPPONENTS.code)
 _BALL_CODE = float(contract.VISION_BALL_CODE)
 _LIMITS = DecodeLimits()
+_ball_step = tracking.compiled_ball_step()
 ROBOTS_AT = 8 + 4 * _LIMITS.max_balls  # where _detection_rows puts the robots' rows
 
 
@@ -165,7 +166,7 @@ def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, clock_window, 
     if action == BALL_UPDATE:
         # the ball filter's usual update; a frame it holds back, refuses or that starts a maneuver leaves its
         # state as it was, and VisionTracker.use_ball does it again in Python
-        status = ball_step(ball_filter, shoot_samples, ball_model, t_s, ball_x, ball_y)
+        status = _ball_step(ball_filter, shoot_samples, ball_model, t_s, ball_x, ball_y)
         if status == 0 or status == 1:  # UpdateStatus.INITIALIZED, ACCEPTED
             note_ball_taken(ball_state, t_s, ball_x, ball_y, ball_filter)
             action = BALL_FUSED + status
@@ -230,6 +231,7 @@ class FramePass:
 
 def load_kernels() -> None:
     """Compile (or load from numba's cache) the pass at a node's start."""
+    tracking.load_kernels()
     frame_pass = FramePass(VisionClock(), VisionTracker(FieldConfig.preset("division_b")),
                            np.zeros((2, MAX_ROBOT_ID + 1), np.int64), 0.0, 11)
     data = encode_frame(CameraFrame(0, 1, 1.0, 1.0, (), (RobotSighting("blue", 0, 0.0, 0.0, 0.0, 1.0),)))

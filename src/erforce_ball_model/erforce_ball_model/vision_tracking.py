@@ -40,6 +40,7 @@ import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.tracking import S_T, BallTracker, TrackerConfig, UpdateStatus
+from erforce_ball_model.tracking import load_kernels as load_ball_filter_kernels
 from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import TEAMS, DecodeLimits
@@ -439,6 +440,7 @@ def load_kernels() -> None:
     start and before the tests, demo and benches (./run), not at the first camera frame."""
     from erforce_interfaces.ssl_vision import BallCandidate, CameraFrame, RobotSighting, decode_wrapper, encode_frame
 
+    load_ball_filter_kernels()
     data = encode_frame(CameraFrame(0, 1, 1.0, 1.0, (BallCandidate(0.0, 0.0, 1.0),),
                                     (RobotSighting("blue", 0, 0.0, 0.0, 0.0, 1.0),)))
     frame = decode_wrapper(data).detection
