@@ -6,16 +6,19 @@ come from a brute-force search with the 1D bang-bang robot time (the robot is at
 ball's line, so the 2D problem is 1D).
 """
 
+import gc
 import math
 import struct
 
 import numpy as np
 import pytest
+import rclpy
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
+from erforce_ball_model.ball_predictor_node import BallPredictorNode
 from erforce_ball_model.catcher import CatcherConfig
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
@@ -24,6 +27,7 @@ from erforce_interfaces.conversions import (
     point_from_msg,
     stamp_to_seconds,
     table_from_msg,
+    vision_robots_cdr,
 )
 from erforce_interfaces.robot_config import RobotConfig
 
@@ -494,3 +498,40 @@ def test_odom_follows_a_moving_robot(ros_graph):
     assert pose[:2] == pytest.approx([-1.0 + 39 / FPS, 0.5 - 0.5 * 39 / FPS], abs=1e-3)
     assert velocity == pytest.approx([1.0, -0.5, 2.0], abs=0.05)
     assert len(rig.odom[0]) == 0 and rig.all_finite()
+
+
+def test_no_cyclic_collection_runs_between_a_frame_and_its_catch_times():
+    """The cyclic GC is held off from a vision frame's start until its balls are answered, and is on again
+    afterwards, also when answering fails. In-process: the node's callback is called directly."""
+    rclpy.init()
+    node = None
+    try:
+        node = BallPredictorNode()
+        publish_catch_outputs = node._publish_catch_outputs
+        gc_on_at_catch_outputs = []
+
+        def recording(frame):
+            gc_on_at_catch_outputs.append((gc.isenabled(), frame.catch_robots))
+            return publish_catch_outputs(frame)
+
+        node._publish_catch_outputs = recording
+        # robot_0 seen first (a frame without a ball), then two frames whose ball it is answered for
+        node._on_vision(vision_robots_cdr(1.0, [(contract.OURS.code, 0, 0.0, 1.0, 0.0)]))
+        for k in (1, 2):
+            node._on_vision(vision_robots_cdr(1.0 + k / FPS, [(contract.OURS.code, 0, 0.0, 1.0, 0.0)],
+                                              balls=[(1.0, 1.0)]))
+        assert gc_on_at_catch_outputs == [(False, [0]), (False, [0])]
+        assert gc.isenabled()
+
+        def failing(frame):
+            raise RuntimeError("a publisher that fails")
+
+        node._publish_catch_outputs = failing
+        with pytest.raises(RuntimeError):
+            node._on_vision(vision_robots_cdr(1.0 + 3 / FPS, [], balls=[(1.0, 1.0)]))
+        assert gc.isenabled()
+    finally:
+        gc.enable()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
