@@ -5,6 +5,7 @@ ball predictor and the catcher) or as a team (plant, team_firmware, ball predict
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
@@ -17,6 +18,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseStamped, Twist
 from nav_msgs.msg import Odometry
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 from std_msgs.msg import Bool, Float64, Float64MultiArray, Header, MultiArrayDimension
@@ -210,6 +212,8 @@ class TopicWatch:
         self.latest: dict[str, object] = {}
         self.kept: dict[str, list] = {name: [] for name in keep}
         self.paused: set[str] = set()  # topics a test is publishing bad messages on right now
+        # per paused topic: the serialized messages the test sent that the watch has not received back yet
+        self.echoes_due: dict[str, list[bytes]] = {}
         excluded = set(exclude)
         self.topics = [(n, t) for n, t in topic_names(robots, opponents=opponents) if n not in excluded]
         for name, t in self.topics:
@@ -218,6 +222,10 @@ class TopicWatch:
 
     def _on(self, name: str, msg) -> None:
         if name in self.paused:
+            due = self.echoes_due.get(name)
+            if due:
+                with contextlib.suppress(ValueError):  # a node's message on the topic is no echo
+                    due.remove(serialize_message(msg))
             return
         self.counts[name] += 1
         bad = non_finite_fields(msg)
@@ -229,6 +237,28 @@ class TopicWatch:
 
     def assert_all_finite(self) -> None:
         assert not self.non_finite, f"non-finite values published: {self.non_finite[:10]}"
+
+
+ECHO_WAIT_S = 0.3  # the longest a burst's echoes are waited for
+
+
+def fuzz_topic(probe, watch: TopicWatch, spinner, name: str, topic: contract.Topic, rng) -> None:
+    """BURST bad messages on ``name``. The watch's own subscription receives them too (their echo), which
+    is no node's output: it stays paused on ``name`` until every echo is back, or ECHO_WAIT_S at most (a
+    best-effort topic may drop some). ``spinner.spin_until`` spins meanwhile (a ClosedLoop keeps commanding)."""
+    watch.paused.add(name)
+    due = watch.echoes_due[name] = []
+    pub = probe.publisher(name, topic.msg_type, topic.qos)
+    for _ in range(BURST):
+        msg = bad_message(topic.msg_type, rng)
+        if name in watch.counts:  # a topic the watch reads
+            due.append(serialize_message(msg))
+        pub.publish(msg)
+        probe.spin_for(0.002)
+    end = time.monotonic() + ECHO_WAIT_S
+    spinner.spin_until(lambda: not due or time.monotonic() >= end, ECHO_WAIT_S + 1.0, f"the echoes of {name}")
+    watch.paused.discard(name)
+    del watch.echoes_due[name]
 
 
 def body_twist(odom: Odometry) -> np.ndarray:

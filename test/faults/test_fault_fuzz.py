@@ -14,11 +14,10 @@ import math
 import numpy as np
 import pytest
 from faults_support import (
-    BURST,
     ClosedLoop,
     TopicWatch,
-    bad_message,
     closes_the_loop,
+    fuzz_topic,
     node_topics,
     non_finite_fields,
     subscribed_topics,
@@ -78,13 +77,7 @@ def test_fuzzed_inputs_crash_nothing_and_publish_nothing_non_finite(ros_graph):
         fuzzed.update(subscribed_topics(node))
     assert len(fuzzed) >= 15
     for name, topic in fuzzed.items():
-        loop.watch.paused.add(name)  # the bad messages echo back to the watch: not a node's output
-        pub = loop.probe.publisher(name, topic.msg_type, topic.qos)
-        for _ in range(BURST):
-            pub.publish(bad_message(topic.msg_type, rng))
-            loop.probe.spin_for(0.002)
-        loop.spin_wall(0.3)  # let the burst arrive and be answered
-        loop.watch.paused.discard(name)
+        fuzz_topic(loop.probe, loop.watch, loop, name, topic, rng)
 
     # Inside the plant's plausibility limits (20 m/s, 100 rad/s), but the wheels then spin past the wire's
     # range: the plant used to die publishing wheel_states; its wheel sensors saturate now (conversions).
@@ -156,13 +149,7 @@ def test_fuzzed_inputs_crash_neither_the_passing_game_nor_the_pressing_opponents
                                    contract.BALL_MODEL_PARAMS.qos)
 
     for name, topic in fuzzed.items():
-        watch.paused.add(name)  # the bad messages echo back to the watch: not a node's output
-        pub = probe.publisher(name, topic.msg_type, topic.qos)
-        for _ in range(BURST):
-            pub.publish(bad_message(topic.msg_type, rng))
-            probe.spin_for(0.002)
-        probe.spin_for(0.3)  # let the burst arrive and be answered
-        watch.paused.discard(name)
+        fuzz_topic(probe, watch, probe, name, topic, rng)
         assert launch.alive(), launch.output()[-3000:]
     # The model is latched and published on change only: a fuzzed model that passed the checks (-2.5 m/s^2 of
     # rolling friction, say) would stay and leave no pass in reach. The predictor's model, as after its restart.

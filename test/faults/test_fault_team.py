@@ -17,14 +17,13 @@ import signal
 import numpy as np
 import pytest
 from faults_support import (
-    BURST,
     TEAM_HOSTS,
     TEAM_SIM_LAUNCH,
     LaunchedDemo,
     TeamLoop,
-    bad_message,
     bad_times,
     closes_the_loop,
+    fuzz_topic,
     subscribed_topics,
 )
 from nav_msgs.msg import Odometry
@@ -105,13 +104,7 @@ def test_fuzzed_inputs_and_bad_time_crash_no_team_node_and_the_loop_still_closes
     loop = _loop(ros_graph, robot_poses=[-1.0, 0.0, 0.0, -2.5, 1.5, 0.0], ball=[1.0, 0.5, 0.0, 0.0])
 
     for name, topic in team_inputs().items():
-        loop.watch.paused.add(name)  # the bad messages echo back to the watch: not a node's output
-        pub = loop.probe.publisher(name, topic.msg_type, topic.qos)
-        for _ in range(BURST):
-            pub.publish(bad_message(topic.msg_type, rng))
-            loop.probe.spin_for(0.002)
-        loop.spin_wall(0.3)  # let the burst arrive and be answered
-        loop.watch.paused.discard(name)
+        fuzz_topic(loop.probe, loop.watch, loop, name, topic, rng)
 
     # bad time, one message at a time (a /clock reader keeps only the newest): negative, invalid, zero,
     # far future, backwards, too far ahead; on /clock and on the stamps the team nodes check

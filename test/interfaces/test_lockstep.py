@@ -1,8 +1,9 @@
 """The lockstep pairing rules, without DDS."""
 
 import numpy as np
+import pytest
 
-from erforce_interfaces.lockstep import DutyGate, SetpointJoin
+from erforce_interfaces.lockstep import DutyGate, FieldAnswerRobots, SetpointJoin
 
 MS = 1_000_000
 
@@ -92,3 +93,38 @@ def test_join_keeps_one_second_of_setpoints_and_forgets_them_when_time_goes_back
     assert min(join.setpoints) == 1998 * MS - 1000 * MS and len(join.setpoints) == 501
     join.add_setpoint(4 * MS, np.array([-1.0]))  # a restarted plant starts again near 0
     assert list(join.setpoints) == [4 * MS]
+
+
+def test_a_field_answers_robot_set_is_remembered_only_for_the_controlled_robots_it_was_checked_against():
+    # world indices: ours 0 -> 0, 3 -> 1; the opponents' 0 -> 2, 5 -> 3
+    answers = FieldAnswerRobots({0: 0, 3: 1}, {0: 2, 5: 3})
+    all_four = frozenset({0, 1, 2, 3})
+    assert answers.lookup((0, 3), (5,), all_four) is None  # not learnt yet
+    answers.learn((0, 3), (5,), all_four)
+    assert answers.lookup((0, 3), (5,), all_four) == (0, 1, 3)  # in the answer's row order
+    assert answers.lookup((3, 0), (5,), all_four) is None  # another order is another set
+    # a set with a robot that is not controlled, or not on the field (ours 7), is not remembered
+    answers.learn((0,), (0,), frozenset({0, 1, 3}))
+    answers.learn((0, 7), (), all_four)
+    assert answers.lookup((0,), (0,), frozenset({0, 1, 3})) is None and answers.lookup((0, 7), (), all_four) is None
+    # a change of control: what was learnt for all four is not found for the new controlled set, even where the
+    # set's robots are all still controlled, until it is checked again
+    without_ours_3 = frozenset({0, 2, 3})
+    assert answers.lookup((0, 3), (5,), without_ours_3) is None
+    answers.learn((0, 3), (5,), without_ours_3)  # ours 3 (index 1) is no longer controlled
+    assert answers.lookup((0, 3), (5,), without_ours_3) is None
+    answers.learn((0,), (5,), without_ours_3)
+    assert answers.lookup((0,), (5,), without_ours_3) == (0, 3)
+    assert answers.lookup((0, 3), (5,), frozenset({0, 1, 2, 3})) == (0, 1, 3)  # control given back: an equal set
+    with pytest.raises(TypeError):  # a set that could change in place is no key
+        answers.lookup((0,), (5,), {0, 2, 3})
+
+
+def test_field_answer_robot_sets_are_bounded():
+    answers = FieldAnswerRobots({k: k for k in range(10)}, {}, max_sets=3)
+    controlled = frozenset(range(10))
+    for k in range(3):
+        answers.learn((k,), (), controlled)
+    assert [answers.lookup((k,), (), controlled) for k in range(3)] == [(0,), (1,), (2,)]
+    answers.learn((3,), (), controlled)  # a fourth: the others are forgotten
+    assert [answers.lookup((k,), (), controlled) for k in range(4)] == [None, None, None, (3,)]

@@ -238,3 +238,53 @@ def test_the_leading_ball_is_read_alone_and_a_frame_it_cannot_vouch_for_is_left_
     # another writer's bytes of the same cloud (rclpy's padding) are read as ours
     ours = serialize_message(deserialize_message(HAND_BALL, PointCloud2))
     assert conv.vision_leading_balls(ours) == (7.25, [(0.25, -1.0)])
+
+
+
+# Values at and just past each limit of a point (positions 1e3 m, yaw 1e6 rad, ids 0..1024), and non-finite ones.
+EDGES = (0.0, -0.0, 0.5, -1.0, 3.0, 2.0, 1e3, -1e3, math.nextafter(1e3, math.inf), 1e6, -1e6,
+         math.nextafter(1e6, math.inf), 1024.0, 1025.0, math.nan, math.inf, -math.inf)
+
+
+def _one_field_off(good):
+    """``good`` with each of its fields in turn set to each edge value."""
+    for k in range(len(good)):
+        for value in EDGES:
+            yield (*good[:k], value, *good[k + 1:])
+
+
+def test_a_ball_point_is_refused_by_the_leading_reader_exactly_when_the_whole_decode_refuses_it():
+    # the whole decode tests the array at once and each point only after that failed; the leading reader tests the
+    # point alone: the two must draw the same line
+    ball = (0.25, -1.0, 0.0, 0.0, c.VISION_BALL_CODE, 0.0)
+    refused = 0
+    for point in _one_field_off(ball):
+        if point[4] != c.VISION_BALL_CODE:
+            continue  # no longer a ball: the leading reader stops before it
+        data = serialize_message(cloud(1.0, [point]))
+        leading = conv.vision_leading_balls(data)
+        try:
+            _t_s, balls, _rows = conv.vision_frame_from_msg(data)
+        except conv.ConversionError:
+            assert leading is None, point
+            refused += 1
+        else:
+            assert leading == (1.0, [point[:2]]) and balls.tolist() == [list(point[:2])], point
+    # by hand, the values past the limits: x, y, z each 9 (beyond 1e3 or not finite); yaw 4 (beyond 1e6 or not
+    # finite); the id 11 (all but 0, -0, 2, 3, 1e3 and 1024)
+    assert refused == 3 * 9 + 4 + 11
+
+
+def test_the_writer_refuses_a_robot_row_exactly_when_the_reader_refuses_its_point():
+    for team, robot_id, x, y, yaw in _one_field_off((1.0, 3.0, 1.5, -2.0, 0.5)):
+        try:
+            conv.vision_robots_cdr(1.0, [(team, robot_id, x, y, yaw)])
+            written = True
+        except conv.ConversionError:
+            written = False
+        try:
+            conv.vision_robots_from_msg(cloud(1.0, [(x, y, 0.0, yaw, team, robot_id)]))
+            read = team != c.VISION_BALL_CODE  # a ball point is read as a ball; the writer takes balls apart
+        except conv.ConversionError:
+            read = False
+        assert written == read, (team, robot_id, x, y, yaw)

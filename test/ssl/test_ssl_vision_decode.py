@@ -375,8 +375,8 @@ def test_what_the_compiled_pass_accepts_the_protobuf_runtime_accepts(edits, tail
             return
     data = bytes(data)
     limits = ssl_vision.DecodeLimits()
-    out = np.empty(ssl_vision._rows_size(limits.max_balls, limits.max_robots_per_team))
-    status, *_, geometry = ssl_vision._detection_rows(
+    out = np.empty(ssl_vision.detection_rows_size(limits.max_balls, limits.max_robots_per_team))
+    status, *_, geometry = ssl_vision.detection_rows(
         data, out, limits.max_balls, limits.max_robots_per_team, limits.max_abs_coordinate_m / ssl_vision.MM,
         limits.max_robot_id, limits.max_camera_id, limits.max_time_s)
     if status == ssl_vision._DECLINED or geometry:

@@ -20,26 +20,26 @@ import numpy as np
 
 from erforce_ball_model import tracking
 from erforce_ball_model.vision_tracking import (
-    _C_FRAMES,
-    _C_HYPOTHESES,
-    _P_BALL_GATE,
-    _P_BALL_SPEED,
-    _P_HALF_LENGTH,
-    _P_HALF_WIDTH,
-    _P_HYPOTHESIS_TIMEOUT,
-    _P_MAX_X,
-    _P_MAX_Y,
-    _P_MIN_CONFIDENCE,
-    _P_ROBOT_GATE,
-    _P_ROBOT_SPEED,
     BALL_FUSED,
     BALL_UPDATE,
+    COUNT_FRAMES,
+    COUNT_HYPOTHESES,
     MAX_ROBOT_ID,
+    SETTING_BALL_GATE,
+    SETTING_BALL_SPEED,
+    SETTING_HALF_LENGTH,
+    SETTING_HALF_WIDTH,
+    SETTING_HYPOTHESIS_TIMEOUT,
+    SETTING_MAX_X,
+    SETTING_MAX_Y,
+    SETTING_MIN_CONFIDENCE,
+    SETTING_ROBOT_GATE,
+    SETTING_ROBOT_SPEED,
     VisionTracker,
-    _track_robots,
-    _update_hypotheses,
     choose_ball,
     note_ball_taken,
+    track_robots,
+    update_hypotheses,
 )
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import MAX_ABS_VALUE, vision_robots_template
@@ -51,9 +51,9 @@ from erforce_interfaces.ssl_vision import (
     DecodeLimits,
     RobotSighting,
     VisionClock,
-    _detection_rows,
-    _rows_size,
     clock_step,
+    detection_rows,
+    detection_rows_size,
     encode_frame,
 )
 
@@ -70,7 +70,7 @@ _OURS_CODE, _OPPONENTS_CODE = float(contract.OURS.code), float(contract.OPPONENT
 _BALL_CODE = float(contract.VISION_BALL_CODE)
 _LIMITS = DecodeLimits()
 _ball_step = tracking.compiled_ball_step()
-ROBOTS_AT = 8 + 4 * _LIMITS.max_balls  # where _detection_rows puts the robots' rows
+ROBOTS_AT = 8 + 4 * _LIMITS.max_balls  # where detection_rows puts the robots' rows
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -136,7 +136,7 @@ def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, clock_window, 
     """The datagram ``data`` received at ``t_receive`` through decoding, clock, tracker and message (see the
     module docstring): (status, message length or -1, ball action, stamp, ball x, ball y)."""
     max_balls, max_robots = int(limits[0]), int(limits[1])
-    status, n_balls, n_robots, n_rejected, geometry = _detection_rows(
+    status, n_balls, n_robots, n_rejected, geometry = detection_rows(
         data, rows, max_balls, max_robots, limits[2], limits[3], limits[4], limits[5])
     if status != 0 or n_rejected != 0 or geometry:
         return PASS_FALLBACK, -1, 0, 0.0, 0.0, 0.0
@@ -154,14 +154,14 @@ def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, clock_window, 
         info[I_STAMP] = t_s
         return PASS_BAD_STAMP, -1, 0, 0.0, 0.0, 0.0
     # VisionTracker.frame_indices
-    counts[_C_FRAMES] += 1
+    counts[COUNT_FRAMES] += 1
     balls = rows[8:8 + 4 * n_balls].reshape(n_balls, 4)
     p = settings
-    n_hyps, n_candidates = _update_hypotheses(
-        hyps, hits, counts[_C_HYPOTHESES], t_s, balls, p[_P_MIN_CONFIDENCE], p[_P_MAX_X], p[_P_MAX_Y],
-        p[_P_HALF_LENGTH], p[_P_HALF_WIDTH], p[_P_HYPOTHESIS_TIMEOUT], p[_P_BALL_GATE], p[_P_BALL_SPEED],
-        candidates)
-    counts[_C_HYPOTHESES] = n_hyps
+    n_hyps, n_candidates = update_hypotheses(
+        hyps, hits, counts[COUNT_HYPOTHESES], t_s, balls, p[SETTING_MIN_CONFIDENCE], p[SETTING_MAX_X],
+        p[SETTING_MAX_Y], p[SETTING_HALF_LENGTH], p[SETTING_HALF_WIDTH], p[SETTING_HYPOTHESIS_TIMEOUT],
+        p[SETTING_BALL_GATE], p[SETTING_BALL_SPEED], candidates)
+    counts[COUNT_HYPOTHESES] = n_hyps
     action, ball_x, ball_y = choose_ball(hyps, hits, t_s, candidates, n_candidates, p, ball_state, counts)
     if action == BALL_UPDATE:
         # the ball filter's usual update; a frame it holds back, refuses or that starts a maneuver leaves its
@@ -173,7 +173,7 @@ def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, clock_window, 
     robots = rows[ROBOTS_AT:ROBOTS_AT + 6 * n_robots].reshape(n_robots, 6)
     n_used = 0
     if n_robots:
-        n_used = _track_robots(robots, t_s, tracks, p[_P_ROBOT_GATE], p[_P_ROBOT_SPEED], MAX_ROBOT_ID, used)
+        n_used = track_robots(robots, t_s, tracks, p[SETTING_ROBOT_GATE], p[SETTING_ROBOT_SPEED], MAX_ROBOT_ID, used)
     info[I_USED] = n_used
     if n_used == 0 and action == 0:
         return PASS_DONE, 0, action, t_s, ball_x, ball_y
@@ -195,7 +195,7 @@ class FramePass:
                  n_ours: int, limits: DecodeLimits = _LIMITS) -> None:
         if (limits.max_balls, limits.max_robots_per_team) != (_LIMITS.max_balls, _LIMITS.max_robots_per_team):
             raise ValueError("FramePass: the rows' layout is compiled for the default counts")
-        self.rows = np.empty(_rows_size(limits.max_balls, limits.max_robots_per_team))
+        self.rows = np.empty(detection_rows_size(limits.max_balls, limits.max_robots_per_team))
         self.limits = np.array([limits.max_balls, limits.max_robots_per_team, limits.max_abs_coordinate_m / MM,
                                 limits.max_robot_id, limits.max_camera_id, limits.max_time_s], float)
         self.points = np.empty((2 * limits.max_robots_per_team + 1, len(contract.VISION_ROBOT_FIELDS)))

@@ -45,8 +45,11 @@ from erforce_interfaces.numba_support import numba
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import TEAMS, DecodeLimits
 
-__all__ = ["BALL_NONE", "BALL_SWITCH", "BALL_UPDATE", "MAX_ROBOT_ID", "BallObservation", "RobotObservation",
-           "VisionTracker", "VisionTrackingConfig", "choose_ball", "load_kernels"]
+__all__ = ["BALL_NONE", "BALL_SWITCH", "BALL_UPDATE", "COUNT_FRAMES", "COUNT_HYPOTHESES", "MAX_ROBOT_ID",
+           "SETTING_BALL_GATE", "SETTING_BALL_SPEED", "SETTING_HALF_LENGTH", "SETTING_HALF_WIDTH",
+           "SETTING_HYPOTHESIS_TIMEOUT", "SETTING_MAX_X", "SETTING_MAX_Y", "SETTING_MIN_CONFIDENCE",
+           "SETTING_ROBOT_GATE", "SETTING_ROBOT_SPEED", "BallObservation", "RobotObservation", "VisionTracker",
+           "VisionTrackingConfig", "choose_ball", "load_kernels", "track_robots", "update_hypotheses"]
 
 MAX_ROBOT_ID = DecodeLimits().max_robot_id  # what SSL-Vision can report
 _TEAM_INDEX = {team: k for k, team in enumerate(TEAMS)}
@@ -101,7 +104,7 @@ _H_T, _H_X, _H_Y, _H_CONFIDENCE, _H_INSIDE, _H_HITS = range(6)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _update_hypotheses(hyps, hits, n_hyps, t_s, balls, min_confidence, max_x, max_y, half_length, half_width,
+def update_hypotheses(hyps, hits, n_hyps, t_s, balls, min_confidence, max_x, max_y, half_length, half_width,
                        timeout_s, gate_m, speed_mps, candidates):
     """The frame's ball candidates (rows x, y, confidence of ``balls`` within the confidence and the
     margin) into ``candidates``; each joins the nearest hypothesis it can have reached or starts one.
@@ -163,13 +166,14 @@ def _best_confirmed(hyps, hits, n_hyps, t_s, inside_only, window_s, fresh_s):
     return best
 
 
-# The tracker's numbers for the compiled passes: its settings (with the field's half sizes), the ball filter's
-# state as the choice needs it (kept in step with ``VisionTracker.ball``), and its counters.
-(_P_MIN_CONFIDENCE, _P_MAX_X, _P_MAX_Y, _P_HALF_LENGTH, _P_HALF_WIDTH, _P_HYPOTHESIS_TIMEOUT, _P_BALL_GATE,
- _P_BALL_SPEED, _P_MAX_BALL_GATE, _P_LOST_AFTER, _P_MAX_GAP, _P_CONFIRM_WINDOW, _P_FRESH, _P_ROBOT_GATE,
- _P_ROBOT_SPEED) = range(15)
+# The tracker's numbers for the compiled passes (these, update_hypotheses, choose_ball and track_robots are what
+# erforce_ball_model.vision_pass runs): its settings (with the field's half sizes), the ball filter's state as the
+# choice needs it (kept in step with ``VisionTracker.ball``), and its counters.
+(SETTING_MIN_CONFIDENCE, SETTING_MAX_X, SETTING_MAX_Y, SETTING_HALF_LENGTH, SETTING_HALF_WIDTH,
+ SETTING_HYPOTHESIS_TIMEOUT, SETTING_BALL_GATE, SETTING_BALL_SPEED, SETTING_MAX_BALL_GATE, SETTING_LOST_AFTER,
+ SETTING_MAX_GAP, SETTING_CONFIRM_WINDOW, SETTING_FRESH, SETTING_ROBOT_GATE, SETTING_ROBOT_SPEED) = range(15)
 (_B_USED, _B_T_USED, _B_LAST_X, _B_LAST_Y, _B_INITIALIZED, _B_FILTER_T, _B_X, _B_Y, _B_VX, _B_VY) = range(10)
-_C_HYPOTHESES, _C_FRAMES, _C_LATE_BALLS, _C_FALSE_CANDIDATES, _C_SWITCHES = range(5)
+COUNT_HYPOTHESES, COUNT_FRAMES, COUNT_LATE_BALLS, COUNT_FALSE_CANDIDATES, COUNT_SWITCHES = range(5)
 BALL_NONE, BALL_UPDATE, BALL_SWITCH = range(3)  # what choose_ball asks of the ball filter
 # the compiled pass fused the ball already (BALL_FUSED + its UpdateStatus: INITIALIZED or ACCEPTED)
 BALL_FUSED = 3
@@ -187,17 +191,17 @@ def note_ball_taken(ball_state, t_s, x, y, ball_filter):
 
 @numba.njit(cache=True, error_model="numpy")
 def _gate_m(p, t_s, t_ref_s):
-    return min(p[_P_BALL_GATE] + p[_P_BALL_SPEED] * max(t_s - t_ref_s, 0.0), p[_P_MAX_BALL_GATE])
+    return min(p[SETTING_BALL_GATE] + p[SETTING_BALL_SPEED] * max(t_s - t_ref_s, 0.0), p[SETTING_MAX_BALL_GATE])
 
 
 @numba.njit(cache=True, error_model="numpy")
 def choose_ball(hyps, hits, t_s, candidates, n_candidates, p, ball, counts):
-    """Which of the frame's ``candidates`` (rows x, y, confidence; after _update_hypotheses) is the ball (see the
+    """Which of the frame's ``candidates`` (rows x, y, confidence; after update_hypotheses) is the ball (see the
     module docstring): (BALL_NONE / BALL_UPDATE / BALL_SWITCH (a new filter first), x, y); ``counts`` updated."""
-    n_hyps = counts[_C_HYPOTHESES]
+    n_hyps = counts[COUNT_HYPOTHESES]
     if ball[_B_USED] != 0.0 and t_s <= ball[_B_T_USED]:
         if n_candidates:
-            counts[_C_LATE_BALLS] += 1
+            counts[COUNT_LATE_BALLS] += 1
         return BALL_NONE, 0.0, 0.0
     if n_candidates == 0:
         return BALL_NONE, 0.0, 0.0
@@ -221,30 +225,30 @@ def choose_ball(hyps, hits, t_s, candidates, n_candidates, p, ball, counts):
                 d = math.hypot(cx - ball[_B_LAST_X], cy - ball[_B_LAST_Y])
                 if d <= last_radius and d < best:
                     chosen, best = k, d
-        counts[_C_FALSE_CANDIDATES] += n_candidates - (1 if chosen >= 0 else 0)
+        counts[COUNT_FALSE_CANDIDATES] += n_candidates - (1 if chosen >= 0 else 0)
         other = -1
         unseen_s = t_s - ball[_B_T_USED]
-        if chosen < 0 and unseen_s >= p[_P_LOST_AFTER]:
+        if chosen < 0 and unseen_s >= p[SETTING_LOST_AFTER]:
             # long gone (a filter restart's gap): any confirmed ball, also one in the run-off area
-            other = _best_confirmed(hyps, hits, n_hyps, t_s, unseen_s < p[_P_MAX_GAP], p[_P_CONFIRM_WINDOW],
-                                    p[_P_FRESH])
-        elif chosen >= 0 and not (abs(candidates[chosen, 0]) <= p[_P_HALF_LENGTH]
-                                  and abs(candidates[chosen, 1]) <= p[_P_HALF_WIDTH]):
+            other = _best_confirmed(hyps, hits, n_hyps, t_s, unseen_s < p[SETTING_MAX_GAP], p[SETTING_CONFIRM_WINDOW],
+                                    p[SETTING_FRESH])
+        elif chosen >= 0 and not (abs(candidates[chosen, 0]) <= p[SETTING_HALF_LENGTH]
+                                  and abs(candidates[chosen, 1]) <= p[SETTING_HALF_WIDTH]):
             # tracking a ball in the run-off area: a confirmed one on the field is the game ball
-            other = _best_confirmed(hyps, hits, n_hyps, t_s, True, p[_P_CONFIRM_WINDOW], p[_P_FRESH])
+            other = _best_confirmed(hyps, hits, n_hyps, t_s, True, p[SETTING_CONFIRM_WINDOW], p[SETTING_FRESH])
             if other >= 0 and math.hypot(hyps[other, _H_X] - candidates[chosen, 0],
-                                         hyps[other, _H_Y] - candidates[chosen, 1]) <= p[_P_BALL_GATE]:
+                                         hyps[other, _H_Y] - candidates[chosen, 1]) <= p[SETTING_BALL_GATE]:
                 other = -1
         if other >= 0:
-            counts[_C_SWITCHES] += 1
+            counts[COUNT_SWITCHES] += 1
             return BALL_SWITCH, hyps[other, _H_X], hyps[other, _H_Y]
         if chosen >= 0:
             return BALL_UPDATE, candidates[chosen, 0], candidates[chosen, 1]
         return BALL_NONE, 0.0, 0.0
-    other = _best_confirmed(hyps, hits, n_hyps, t_s, False, p[_P_CONFIRM_WINDOW], p[_P_FRESH])
+    other = _best_confirmed(hyps, hits, n_hyps, t_s, False, p[SETTING_CONFIRM_WINDOW], p[SETTING_FRESH])
     if other < 0:
         return BALL_NONE, 0.0, 0.0
-    counts[_C_FALSE_CANDIDATES] += n_candidates - 1
+    counts[COUNT_FALSE_CANDIDATES] += n_candidates - 1
     return BALL_UPDATE, hyps[other, _H_X], hyps[other, _H_Y]
 
 
@@ -253,7 +257,7 @@ _SEEN, _T, _X, _Y, _HELD, _HELD_T, _HELD_X, _HELD_Y = range(8)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _track_robots(robots, t_s, tracks, gate_m, speed_mps, max_id, used):
+def track_robots(robots, t_s, tracks, gate_m, speed_mps, max_id, used):
     """The rows of ``robots`` (team, id, x, y, ...) to use at ``t_s``, in order of first sighting:
     their indices into ``used``, their number returned; ``tracks`` updated in place (see the module
     docstring). (Arrays in, a number out: numba boxes each returned array for about 1.5 us.)"""
@@ -327,14 +331,14 @@ class VisionTracker:
         self.hits = np.zeros((cfg.max_hypotheses, cfg.confirm_frames))
         self.candidates = np.empty((DecodeLimits().max_balls, 3))
         self.robot_tracks = np.zeros((len(TEAMS) * (MAX_ROBOT_ID + 1), 8))
-        self.used = np.empty(len(self.robot_tracks), np.int64)  # _track_robots' output
+        self.used = np.empty(len(self.robot_tracks), np.int64)  # track_robots' output
         self.kicks = 0
 
     # counters for the node's statistics and the tests
-    frames = property(lambda self: int(self.counts[_C_FRAMES]))
-    late_balls = property(lambda self: int(self.counts[_C_LATE_BALLS]))
-    false_candidates = property(lambda self: int(self.counts[_C_FALSE_CANDIDATES]))
-    switches = property(lambda self: int(self.counts[_C_SWITCHES]))
+    frames = property(lambda self: int(self.counts[COUNT_FRAMES]))
+    late_balls = property(lambda self: int(self.counts[COUNT_LATE_BALLS]))
+    false_candidates = property(lambda self: int(self.counts[COUNT_FALSE_CANDIDATES]))
+    switches = property(lambda self: int(self.counts[COUNT_SWITCHES]))
 
     @property
     def field(self) -> FieldConfig:
@@ -345,8 +349,8 @@ class VisionTracker:
         self._field = value
         margin = self.config.outside_margin_m
         s = self.settings
-        s[_P_HALF_LENGTH], s[_P_HALF_WIDTH] = value.half_length_m, value.half_width_m
-        s[_P_MAX_X], s[_P_MAX_Y] = value.half_length_m + margin, value.half_width_m + margin
+        s[SETTING_HALF_LENGTH], s[SETTING_HALF_WIDTH] = value.half_length_m, value.half_width_m
+        s[SETTING_MAX_X], s[SETTING_MAX_Y] = value.half_length_m + margin, value.half_width_m + margin
 
     @property
     def params(self) -> BallModelParams:
@@ -394,21 +398,21 @@ class VisionTracker:
         if not math.isfinite(t_s):
             raise ValueError(f"frame stamp {t_s!r} is not finite")
         counts = self.counts
-        counts[_C_FRAMES] += 1
+        counts[COUNT_FRAMES] += 1
         if len(balls) > len(self.candidates):
             self.candidates = np.empty((len(balls), 3))
         p = self.settings
-        counts[_C_HYPOTHESES], n = _update_hypotheses(
-            self.hyps, self.hits, counts[_C_HYPOTHESES], t_s, balls, p[_P_MIN_CONFIDENCE], p[_P_MAX_X], p[_P_MAX_Y],
-            p[_P_HALF_LENGTH], p[_P_HALF_WIDTH], p[_P_HYPOTHESIS_TIMEOUT], p[_P_BALL_GATE], p[_P_BALL_SPEED],
-            self.candidates)
+        counts[COUNT_HYPOTHESES], n = update_hypotheses(
+            self.hyps, self.hits, counts[COUNT_HYPOTHESES], t_s, balls, p[SETTING_MIN_CONFIDENCE], p[SETTING_MAX_X],
+            p[SETTING_MAX_Y], p[SETTING_HALF_LENGTH], p[SETTING_HALF_WIDTH], p[SETTING_HYPOTHESIS_TIMEOUT],
+            p[SETTING_BALL_GATE], p[SETTING_BALL_SPEED], self.candidates)
         action, x, y = choose_ball(self.hyps, self.hits, t_s, self.candidates, n, p, self.ball_state, counts)
         ball = self.use_ball(action, camera_id, t_s, x, y) if action else None
         if not len(robots):
             return ball, self.used[:0]
         if len(robots) > len(self.used):
             self.used = np.empty(len(robots), np.int64)
-        n = _track_robots(robots, t_s, self.robot_tracks, p[_P_ROBOT_GATE], p[_P_ROBOT_SPEED], MAX_ROBOT_ID,
+        n = track_robots(robots, t_s, self.robot_tracks, p[SETTING_ROBOT_GATE], p[SETTING_ROBOT_SPEED], MAX_ROBOT_ID,
                           self.used)
         return ball, self.used[:n]
 

@@ -752,6 +752,19 @@ _POINT_CODES = (VISION_BALL_CODE, *_TEAM_CODES)
 _NO_BALLS = np.empty((0, 2))
 _NO_BALLS.flags.writeable = False
 _TWO_PI = 2.0 * math.pi
+_MAX_ABS_YAW = 1.0e6  # [rad] yaw is wrapped on the way out and in; beyond this a float keeps no fraction of a turn
+
+
+def _point_is_valid(x: float, y: float, z: float, yaw: float, team: float, robot_id: float,
+                    codes: tuple[float, ...] = _POINT_CODES) -> bool:
+    """Whether a /vision/robots point (x, y, z, yaw, team, robot_id) passes the reader's checks (False for NaN):
+    x, y, z within MAX_ABS_VALUE, yaw within _MAX_ABS_YAW, a team of ``codes``, an integer id in
+    0.._MAX_CLOUD_POINTS. The one statement of the point check: the writer, the leading-ball reader and
+    ``_robot_rows`` ask it per point (``_robot_rows`` first tests the whole array against ``_ROBOT_POINT_LIMITS``,
+    the same limits in array form), and ``_point_error`` names what failed."""
+    return (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(z) <= MAX_ABS_VALUE
+            and abs(yaw) <= _MAX_ABS_YAW and team in codes and 0.0 <= robot_id <= _MAX_CLOUD_POINTS
+            and robot_id == int(robot_id))
 
 
 def _float64_fields_cdr(names: Sequence[str]) -> bytes:
@@ -776,13 +789,13 @@ def vision_robots_cdr(t_s: float, rows: Sequence[Sequence[float]], frame_id: str
     yaw), checked as the reader checks them (finite, positions within MAX_ABS_VALUE, a team code, an integer id)."""
     flat = []
     for x, y in balls:
-        if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE):  # False for NaN
-            _robot_row_error(0, VISION_BALL_CODE, 0.0, x, y, 0.0)
-        flat += (x, y, 0.0, 0.0, VISION_BALL_CODE, 0.0)
+        ball = (x, y, 0.0, 0.0, VISION_BALL_CODE, 0.0)
+        if not _point_is_valid(*ball):
+            _point_error(0, *ball)
+        flat += ball
     for k, (team, robot_id, x, y, yaw) in enumerate(rows):
-        if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(yaw) <= 1.0e6 and team in _TEAM_CODES
-                and 0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)):  # False for NaN
-            _robot_row_error(k, team, robot_id, x, y, yaw)
+        if not _point_is_valid(x, y, 0.0, yaw, team, robot_id, _TEAM_CODES):
+            _point_error(k, x, y, 0.0, yaw, team, robot_id, _TEAM_CODES)
         flat += (x, y, 0.0, math.remainder(yaw, _TWO_PI), team, robot_id)
     return _vision_robots_bytes(t_s, len(balls) + len(rows), struct.pack(f"<{len(flat)}d", *flat), frame_id)
 
@@ -829,9 +842,11 @@ def _stamp_head(t_s: float) -> bytes:
     return _CDR_LE + _stamp.pack(*_sec_nanosec(t_s))
 
 
-def _robot_row_error(k: int, team, robot_id, x, y, yaw, codes: tuple[float, ...] = _TEAM_CODES) -> None:
+def _point_error(k: int, x, y, z, yaw, team, robot_id, codes: tuple[float, ...] = _POINT_CODES) -> None:
+    """Raise the ConversionError that names why point ``k`` fails ``_point_is_valid``."""
     point = "ball" if team == VISION_BALL_CODE else f"robot {k}"
-    for name, value, limit in (("x", x, MAX_ABS_VALUE), ("y", y, MAX_ABS_VALUE), ("yaw", yaw, 1.0e6)):
+    for name, value, limit in (("z", z, MAX_ABS_VALUE), ("x", x, MAX_ABS_VALUE), ("y", y, MAX_ABS_VALUE),
+                               ("yaw", yaw, _MAX_ABS_YAW)):
         _finite(f"{point}: {name}", value, limit)
     if team not in codes:
         raise ConversionError(f"robot {k}: team {team!r} is none of {codes}")
@@ -883,9 +898,8 @@ def vision_leading_balls(data: bytes) -> tuple[float, list[tuple[float, float]]]
         x, y, z, yaw, team, robot_id = _ROBOT_POINT.unpack_from(data, at + k * _ROBOT_POINT.size)
         if team != VISION_BALL_CODE:
             break
-        if not (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(z) <= MAX_ABS_VALUE
-                and abs(yaw) <= 1.0e6 and 0.0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)):
-            return None  # False for NaN
+        if not _point_is_valid(x, y, z, yaw, team, robot_id):
+            return None
         balls.append((x, y))
     return t_s, balls
 
@@ -956,8 +970,9 @@ def _point_fields_cdr(data: bytes, p: int) -> tuple[list[tuple[str, int, int, in
     return fields, p
 
 
-#: per field of a point: the largest magnitude accepted (the team and the id are checked further below)
-_ROBOT_POINT_LIMITS = np.array([MAX_ABS_VALUE, MAX_ABS_VALUE, MAX_ABS_VALUE, 1.0e6, OPPONENTS.code,
+#: per field of a point: the largest magnitude ``_point_is_valid`` accepts (the team and the id are checked further
+#: below: integers, not negative, so the team is one of _POINT_CODES)
+_ROBOT_POINT_LIMITS = np.array([MAX_ABS_VALUE, MAX_ABS_VALUE, MAX_ABS_VALUE, _MAX_ABS_YAW, max(_POINT_CODES),
                                 _MAX_CLOUD_POINTS])
 
 
@@ -967,11 +982,9 @@ def _robot_rows(values: np.ndarray) -> np.ndarray:
     # a few whole-array tests (each false for NaN): ranges, then integer team and id, team and id >= 0
     if not ((np.abs(values) <= _ROBOT_POINT_LIMITS).all() and (codes == np.floor(codes)).all()
             and (codes >= (VISION_BALL_CODE, 0.0)).all()):
-        for k, (x, y, z, yaw, team, robot_id) in enumerate(values.tolist()):
-            _finite(f"robot {k}: z", z)
-            if not (team in _POINT_CODES and 0 <= robot_id <= _MAX_CLOUD_POINTS and robot_id == int(robot_id)
-                    and abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(yaw) <= 1.0e6):
-                _robot_row_error(k, team, robot_id, x, y, yaw, _POINT_CODES)
+        for k, point in enumerate(values.tolist()):
+            if not _point_is_valid(*point):
+                _point_error(k, *point)
     rows = values[:, (4, 5, 0, 1, 3)]
     yaw = rows[:, 4]
     yaw -= _TWO_PI * np.round(yaw / _TWO_PI)

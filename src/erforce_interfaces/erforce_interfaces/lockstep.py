@@ -17,11 +17,12 @@ wall-clock timeout as stalled and stops waiting for it (its motors get zero duty
 dead motor board leaves them), and reports it resumed when it answers again.
 ``SetpointJoin`` is the motor board's side: it pairs sensor tick k with the setpoint of
 tick k-1. Both sides live here, next to the contract, because the protocol is part of it.
+``FieldAnswerRobots`` is the plant's lookup from a field answer's robot ids to its world indices.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -155,3 +156,32 @@ class SetpointJoin:
 
     def done(self, sensor_ns: int) -> None:
         self.prev_sensor_ns = sensor_ns
+
+
+class FieldAnswerRobots:
+    """World indices of a field answer's robots (/field/motor_duty: our ids, then the opponents'), remembered per
+    robot set so that the plant takes the next answer for the same set in one step.
+
+    A set is remembered only when every robot in it is controlled, and only for the controlled set it was checked
+    against: that set is part of the key, a frozenset, so a change of control is a new key and nothing learnt
+    before it is found again (a mutable set cannot be a key: TypeError). At most ``max_sets`` sets are kept.
+    """
+
+    def __init__(self, ours: Mapping[int, int], theirs: Mapping[int, int], max_sets: int = 8) -> None:
+        self._index = (dict(ours), dict(theirs))  # per team: robot id -> world index
+        self._max_sets = max_sets
+        self._robots: dict[tuple, tuple[int, ...]] = {}
+
+    def lookup(self, ours: tuple[int, ...], theirs: tuple[int, ...],
+               controlled: frozenset[int]) -> tuple[int, ...] | None:
+        """The world indices of the answer's robots in its row order, or None: take it robot by robot."""
+        return self._robots.get((ours, theirs, controlled))
+
+    def learn(self, ours: tuple[int, ...], theirs: tuple[int, ...], controlled: frozenset[int]) -> None:
+        """Remember the set if every robot in it is controlled (call after taking it robot by robot)."""
+        key = (ours, theirs, controlled)
+        robots = tuple(index.get(j) for index, ids in zip(self._index, (ours, theirs), strict=True) for j in ids)
+        if all(i in controlled for i in robots):
+            if len(self._robots) >= self._max_sets:
+                self._robots.clear()
+            self._robots[key] = robots

@@ -192,8 +192,8 @@ def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[str],
     """The detection frame of a datagram; None (with ``declined_ok``) when the compiled pass declines it:
     a geometry part, no detection, anything the pass does not read as a valid detection-only datagram."""
     max_balls, max_robots = limits.max_balls, limits.max_robots_per_team
-    out = np.empty(_rows_size(max_balls, max_robots))
-    status, n_balls_kept, n_robots_kept, n_rejected, geometry = _detection_rows(
+    out = np.empty(detection_rows_size(max_balls, max_robots))
+    status, n_balls_kept, n_robots_kept, n_rejected, geometry = detection_rows(
         data, out, max_balls, max_robots, limits.max_abs_coordinate_m / MM, limits.max_robot_id,
         limits.max_camera_id, limits.max_time_s)
     if geometry and declined_ok:
@@ -205,7 +205,7 @@ def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[str],
             # the runtime parsed it, so the pass has a bug: say so rather than use a part
             raise SslDecodeError("garbage", "detection frame not readable by the compiled pass")
         _frame_error(status, out, limits)
-    at = 8  # the parts of out: see _detection_rows
+    at = 8  # the parts of out: see detection_rows
     balls = out[at:at + 4 * n_balls_kept].reshape(n_balls_kept, 4)
     at += 4 * max_balls
     robots = out[at:at + 6 * n_robots_kept].reshape(n_robots_kept, 6)
@@ -215,7 +215,7 @@ def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[str],
     return DetectionArrays(int(out[3]), int(out[0]), float(out[1]), float(out[2]), balls, robots)
 
 
-_DECLINED, _BAD_CAMERA, _BAD_T_CAPTURE, _BAD_T_SENT, _BAD_COUNTS = range(1, 6)  # _detection_rows' status
+_DECLINED, _BAD_CAMERA, _BAD_T_CAPTURE, _BAD_T_SENT, _BAD_COUNTS = range(1, 6)  # detection_rows' status
 
 
 def _frame_error(status: int, out: np.ndarray, limits: DecodeLimits) -> None:
@@ -230,7 +230,7 @@ def _frame_error(status: int, out: np.ndarray, limits: DecodeLimits) -> None:
                                    f"{int(n_yellow)} yellow robots)")
 
 
-def _rows_size(max_balls: int, max_robots: int) -> int:
+def detection_rows_size(max_balls: int, max_robots: int) -> int:
     return 8 + 4 * max_balls + 12 * max_robots + 7 * (max_balls + 2 * max_robots)
 
 
@@ -343,8 +343,8 @@ def _sub_fields(buf, i, end, scratch, values, present):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, max_time):
-    """One pass over an SSL_WrapperPacket's bytes into ``out`` (``_rows_size`` doubles); returns
+def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, max_time):
+    """One pass over an SSL_WrapperPacket's bytes into ``out`` (``detection_rows_size`` doubles); returns
     (status, balls kept, robots kept, rejected, geometry part seen). Status 0: a valid detection frame;
     _DECLINED: bytes the runtime should judge (not the wire format, required fields missing, no
     detection); else the frame's first check that failed (_frame_error).

@@ -65,7 +65,7 @@ from erforce_interfaces.conversions import (
     team_joint_state_from_msg,
     vision_robots_cdr,
 )
-from erforce_interfaces.lockstep import DutyGate
+from erforce_interfaces.lockstep import DutyGate, FieldAnswerRobots
 from erforce_interfaces.node_support import (
     NodeParams,
     ThrottledWarner,
@@ -150,7 +150,8 @@ class PlantNode(Node):
         self._vision_index = {(setup.opponent_color if team is contract.OPPONENTS else setup.our_color, j): i
                               for i, (team, j) in enumerate(self._robots)}
         self._wheels = setup.robot.wheel_names
-        self._controlled = {i for i in range(n) if setup.is_controlled(i)}
+        # immutable: a change of control is a new set, and so a new key of the field answers' robot sets
+        self._controlled = frozenset(i for i in range(n) if setup.is_controlled(i))
         self._gate = DutyGate(n, self._values["lockstep_timeout_s"], names=self._names)
         self._latest_duty = {i: None for i in range(n)}
         self._tick = 0
@@ -186,7 +187,9 @@ class PlantNode(Node):
         self._team_named: set[int] = set()  # robots some team or field motor_duty answer was for
         # a field answer's robot ids (ours, theirs) -> their world indices, once all of them were taken robot by
         # robot (all controlled: _team_named has them)
-        self._field_answer_robots: dict[tuple, tuple[int, ...]] = {}
+        self._field_answer_robots = FieldAnswerRobots(
+            *({j: i for i, (team, j) in enumerate(self._robots) if team is side}
+              for side in (contract.OURS, contract.OPPONENTS)))
         # the field message's robot ids: (ours, the opponents')
         self._field_robot_ids = (self._team_robot_ids[contract.OURS], self._team_robot_ids.get(contract.OPPONENTS, ()))
 
@@ -308,16 +311,11 @@ class PlantNode(Node):
         except ConversionError as exc:  # as a team answer: the robots stall, and are reported, if it lasts
             self._warn.warn("field_duty", f"rejected {topic} ({exc})")
             return
-        robots = self._field_answer_robots.get((ours, theirs))
+        robots = self._field_answer_robots.lookup(ours, theirs, self._controlled)
         if robots is None:  # a robot set not seen before: robot by robot, with a warning for any not ours
             self._take_team_duties(topic, t_ns, contract.OURS, ours, duties)
             self._take_team_duties(topic, t_ns, contract.OPPONENTS, theirs, duties[len(ours):])
-            robots = [self._index.get((team.name, j)) for team, ids in ((contract.OURS, ours),
-                                                                        (contract.OPPONENTS, theirs)) for j in ids]
-            if all(i in self._controlled for i in robots):  # the usual answer: next time all rows at once
-                if len(self._field_answer_robots) >= 8:
-                    self._field_answer_robots.clear()
-                self._field_answer_robots[(ours, theirs)] = tuple(robots)
+            self._field_answer_robots.learn(ours, theirs, self._controlled)  # the usual answer: next time at once
         else:
             self._latest_duty.update(zip(robots, duties, strict=True))
             for event in self._gate.offer_rows(robots, t_ns, duties):
