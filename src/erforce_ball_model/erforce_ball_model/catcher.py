@@ -162,7 +162,8 @@ def heading_loop(yaw_rad: float, yaw_rate_radps: float, delay_s: float, cfg: Cat
     gain = cfg.heading_gain_per_s
     if delay_s > 0.0:
         gain = min(gain, cfg.heading_gain_delay_max / delay_s)
-    return wrap_angle(yaw_rad + yaw_rate_radps * delay_s), gain
+    turned = yaw_rate_radps * delay_s
+    return (wrap_angle(yaw_rad + turned) if turned else yaw_rad), gain  # as measured, to the last bit, when at rest
 
 
 def catch_twist(pose: np.ndarray, target: np.ndarray, facing_rad: float, cfg: CatcherConfig,
