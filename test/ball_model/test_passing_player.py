@@ -80,32 +80,6 @@ def test_a_holder_turns_to_its_pass_no_faster_than_turn_rate_and_kicks_only_once
     assert p.tick(0.52).kicks
 
 
-def test_the_holders_turn_is_the_heading_loop_over_its_poses_age():
-    """As the receiver's (catcher.heading_loop): robot 0's pose at yaw 0.5 rad, turning at -1 rad/s towards its
-    pass, measured 0.16 s before the tick: the loop's delay is 0.16 + command_lead_s 0.04 = 0.2 s, the heading
-    then 0.5 - 0.2 = 0.3 rad, the gain 0.5 / 0.2 = 2.5 /s (the old law: 8 /s on 0.5 rad, clipped to 3 rad/s).
-    The pass leaves from the dribbler point at the measured yaw towards robot 1's centre (3, 0) (its dribbler on
-    that line, facing the ball): at yaw 0.5 it points -0.0133 rad. Measured at yaw 0.2 (the pass at -0.0055 rad)
-    and fresh, at rest: gain 8,
-    0.2 rad off; turning at -1 rad/s and 0.16 s old, the heading the kick meets is 0.0: aimed, it kicks."""
-
-    def direction(yaw):
-        return math.atan2(-OFFSET * math.sin(yaw), 3.0 - OFFSET * math.cos(yaw))
-
-    assert (direction(0.5), direction(0.2)) == pytest.approx((-0.0133, -0.0055), abs=1e-4)
-    p = player_with([(0.0, 0.0, 0.5), (3.0, 0.0, math.pi)])
-    p.on_robot(0, 0.5, (0.0, 0.0, 0.5), (0.0, 0.0, -1.0), stamp_s=0.34)
-    commands = p.tick(0.5)
-    assert not commands.kicks
-    assert commands.twists[0] == pytest.approx([0.0, 0.0, 2.5 * (direction(0.5) - 0.3)])
-    p.on_robot(0, 0.52, (0.0, 0.0, 0.2), (0.0, 0.0, 0.0))
-    commands = p.tick(0.52)
-    assert not commands.kicks
-    assert commands.twists[0] == pytest.approx([0.0, 0.0, 8.0 * (direction(0.2) - 0.2)])
-    p.on_robot(0, 0.54, (0.0, 0.0, 0.2), (0.0, 0.0, -1.0), stamp_s=0.38)
-    assert p.tick(0.54).kicks == {0: pytest.approx(V0, abs=2e-3)}
-
-
 def test_a_pass_completed_by_its_receiver_makes_it_the_holder():
     p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)])
     t_kick, _ = kicked(p)

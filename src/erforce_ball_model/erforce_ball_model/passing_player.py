@@ -13,10 +13,7 @@ the dribbler).
   (passing.evaluate_passes: robotTimeToBall for the whole field on the ball each kick would make),
   turns to the pass it selects (passing.select_pass: the earliest safe catch) and kicks, once it has
   held the ball ``hold_min_s`` and aims within ``aim_tolerance_rad``, with the speed at which the ball
-  arrives receivable (passing.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``. Its turn
-  is the receiver's heading loop (catcher.heading_loop: the tracked heading predicted over the pose's age
-  with its yaw rate, the gain lowered for that delay), clipped to ``turn_rate_radps``; it kicks once that
-  predicted heading, the one the kick meets, is on the pass.
+  arrives receivable (passing.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``.
 - A holder with no pass in reach at all (every receiver's catch at infinity or no teammate in passing
   distance: above all a ball model that stops every kick short, e.g. a bad one on the latched model topic)
   waits ``no_option_wait_s``, then falls back (``fallback_choice``): the passes re-planned with
@@ -51,8 +48,6 @@ from erforce_ball_model.catcher import (
     CatcherConfig,
     Receiver,
     catch_twist,
-    heading_loop,
-    pose_delay_s,
     wrap_angle,
 )
 from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
@@ -333,13 +328,10 @@ class PassingPlayer:
                 self._no_option_since = None
             pose = self.poses[h]
             if choice is not None:
-                cc = cfg.catcher
-                yaw, gain = heading_loop(float(pose[2]), float(self.yaw_rates[h]),
-                                         pose_delay_s(now, float(self.pose_stamps[h]), cc), cc)
-                twist = catch_twist(np.array([pose[0], pose[1], yaw]), pose[:2], choice.direction_rad, cc, gain)
+                twist = catch_twist(pose, pose[:2], choice.direction_rad, cfg.catcher)
                 twist[2] = float(np.clip(twist[2], -cfg.turn_rate_radps, cfg.turn_rate_radps))
                 twists[h] = twist
-                aimed = abs(wrap_angle(choice.direction_rad - yaw)) <= cfg.aim_tolerance_rad
+                aimed = abs(wrap_angle(choice.direction_rad - pose[2])) <= cfg.aim_tolerance_rad
                 patient = not choice.safe(cfg.passing) and now - self._hold_since < cfg.wait_for_safe_s
                 if aimed and not patient and now - self._hold_since >= cfg.hold_min_s and self.barriers[h]:
                     kicks[h] = choice.kick_speed_mps
