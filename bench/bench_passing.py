@@ -5,12 +5,15 @@ direction of the pass the receiver then kicks, and the time from that moment to 
     ./run exec python bench/bench_passing.py --seeds 1 2 3 4 5 --passes 20
 
 One row per seed and the totals; "reception to kick" counts only passes whose receiver kicks the next
-pass (no ball put back in between). The game's own floor is GameConfig.hold_min_s.
+pass (no ball put back in between). The game's own floor is GameConfig.hold_min_s. Below the table, every
+pass that was intercepted, lost, or rated safe and not completed, as the game explains it (PassRecord.line),
+and a digest of every game's records (equal digests: the same passes, ball paths included).
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import itertools
 import math
 import statistics
@@ -41,9 +44,12 @@ def play(seed: int, passes: int, team: int, opponents: int, receive_angle_deg: f
                 receptions[r.index] = None
 
     game = PassingGame(cfg, seed, on_tick=on_tick)
-    t0 = time.process_time()
+    t0, wall0 = time.process_time(), time.perf_counter()
     records = game.play()
-    cpu = time.process_time() - t0
+    cpu, wall = time.process_time() - t0, time.perf_counter() - wall0
+    notable = [r.line() for r in records
+               if r.outcome != "completed" or (r.rated_safe and r.caught_by != f"robot_{r.receiver}")]
+    digest = hashlib.sha256(repr(records).encode()).hexdigest()[:12]
     errors, holds, facing = [], [], []
     for r, nxt in itertools.pairwise(records):
         got = receptions.get(r.index)
@@ -56,7 +62,7 @@ def play(seed: int, passes: int, team: int, opponents: int, receive_angle_deg: f
     s = summary(records, cfg.passing)
     return {"seed": seed, **s, "resets": game.resets, "drops": game.drops, "errors_rad": errors, "holds_s": holds,
             "facing": facing,
-            "cpu_s": cpu, "sim_s": game.runner.t_s}
+            "cpu_s": cpu, "sim_s": game.runner.t_s, "wall_s": wall, "notable": notable, "digest": digest}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -75,12 +81,12 @@ def main(argv: list[str] | None = None) -> int:
     print("| seed | passes | completed | intercepted | lost | rated safe | safe completed | drops | "
           "heading error at reception, median [deg] | reception to kick, mean [s] | "
           "of them received facing the next target: n, heading error median [deg], reception to kick mean [s] | "
-          "CPU [s] |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "CPU [s] | simulated [s] | real-time factor (simulated / wall) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 
     def row(name, runs_):
         tot = {k: sum(r[k] for r in runs_) for k in ("passes", "completed", "intercepted", "lost", "rated_safe",
-                                                       "safe_completed", "drops", "cpu_s")}
+                                                       "safe_completed", "drops", "cpu_s", "sim_s", "wall_s")}
         errors = [e for r in runs_ for e in r["errors_rad"]]
         holds = [h for r in runs_ for h in r["holds_s"]]
         med = f"{math.degrees(statistics.median(errors)):.1f}" if errors else "—"
@@ -91,11 +97,15 @@ def main(argv: list[str] | None = None) -> int:
         pct = 100.0 * tot["safe_completed"] / tot["rated_safe"] if tot["rated_safe"] else math.nan
         print(f"| {name} | {tot['passes']} | {tot['completed']} | {tot['intercepted']} | {tot['lost']} | "
               f"{tot['rated_safe']} | {tot['safe_completed']} ({pct:.0f} %) | {tot['drops']} | {med} | {hold} | "
-              f"{faced} | {tot['cpu_s']:.0f} |")
+              f"{faced} | {tot['cpu_s']:.0f} | {tot['sim_s']:.1f} | {tot['sim_s'] / tot['wall_s']:.2f} |")
 
     for r in runs:
         row(str(r["seed"]), [r])
     row("all", runs)
+    for r in runs:
+        print(f"\nseed {r['seed']}: records digest {r['digest']}")
+        for line in r["notable"]:
+            print(f"  {line}")
     return 0
 
 

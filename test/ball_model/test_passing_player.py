@@ -70,6 +70,7 @@ def test_a_holder_turns_to_its_pass_no_faster_than_turn_rate_and_kicks_only_once
     """Robot 0 faces away (yaw pi/2) from its only teammate at (3, 0): it turns at turn_rate_radps (3 rad/s)
     and cannot kick before it has turned pi/2 (0.52 s at that rate), however long it has held the ball."""
     p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi)])
+    p.on_robot(0, 0.5, (0.0, 0.0, 0.5 * math.pi), (0.0, 0.0))  # a fresh pose: the nominal gain, 8 /s
     commands = p.tick(0.5)
     assert not commands.kicks
     assert commands.twists[0][2] == pytest.approx(-3.0)
@@ -251,3 +252,62 @@ def test_team_catchers_press_fraction_default_is_the_cores():
 
     defaults = {s.name: s.default for s in team_catcher_node.SCHEMA.specs}
     assert defaults["press_fraction"] == PassConfig().press_fraction and defaults["press_lanes"] is False
+
+
+# A ball model under which no pass is in reach: the fastest kick (6.5 m/s) slides down to 3.9 m/s in
+# (6.5^2 - 3.9^2) / (2 * 100) = 0.1352 m and rolls 3.9^2 / (2 * 50) = 0.1521 m: it rests 0.287 m from the
+# holder, short of every teammate (at least min_distance_m = 0.8 m away). It passes BallModelParams' checks.
+SHORT = BallModelParams(a_slide_mps2=-100.0, a_roll_mps2=-50.0, c_switch=0.6)
+
+
+def test_a_holder_with_no_pass_in_reach_replans_with_the_model_of_its_last_completed_pass_after_the_wait():
+    """Under SHORT the holder has no option: no choice, no kick, no notice for no_option_wait_s (1 s), although
+    hold_min_s (0.4 s) is long past; then it plays the pass planned with the model it was built with (the
+    default: V0, ARRIVAL_S as derived at the top), says why, and its receiver rolls the ball with that model."""
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)])
+    p.on_model(SHORT)
+    for t in np.arange(0.0, 0.99, 0.02):
+        commands = p.tick(float(t))
+        assert not commands.kicks and p.choice is None and p.notice is None, t
+        assert commands.twists[0] == pytest.approx([0.0, 0.0, 0.0])  # it holds the ball, dribbler on
+        assert commands.dribblers[0]
+    commands = p.tick(1.0)
+    assert commands.kicks == {0: pytest.approx(V0, abs=1e-3)}
+    passer, choice = p.choice
+    assert (passer, choice.receiver) == (0, 1) and choice.receiver_catch_s == pytest.approx(ARRIVAL_S, abs=1e-3)
+    assert "robot_0: no pass in reach for 1.0 s under the ball model in use (a_slide -100, a_roll -50" in p.notice
+    assert "model of the last completed pass (a_slide -2.5, a_roll -0.3 m/s^2, c_switch 0.6) to robot_1" in p.notice
+    assert p.receiver._model == BallModelParams()
+    # the pass completes: planned with the default model, that model stays the trusted one
+    p.on_barrier(1, 1.0 + ARRIVAL_S, True)
+    p.check(1.0 + ARRIVAL_S)
+    assert p.records[-1].outcome == "completed" and p.trusted_model == BallModelParams()
+
+
+def test_a_pass_completed_under_the_model_in_use_makes_it_the_trusted_one():
+    """A model that stops a kick later than the default (half its decelerations) is in use from the start: the
+    first pass is planned with it, and once completed a fallback would re-plan with it."""
+    slower = BallModelParams(a_slide_mps2=-1.25, a_roll_mps2=-0.15, c_switch=0.6)
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)])
+    p.on_model(slower)
+    t_kick, commands = kicked(p)
+    # it slides 0.64 v0^2 / 2.5 and rolls (0.36 v0^2 - 1.5^2) / 0.3: 1.456 v0^2 - 7.5 = d (v0 = 2.664 m/s, so
+    # it rolls on arrival: 0.6 v0 > 1.5)
+    assert commands.kicks[0] == pytest.approx(math.sqrt((D_M + 7.5) / 1.456), abs=1e-3)
+    assert p.trusted_model == BallModelParams()
+    p.on_barrier(1, t_kick + 2.0, True)
+    p.check(t_kick + 2.0)
+    assert p.records[-1].outcome == "completed" and p.trusted_model == slower
+
+
+def test_a_holder_whose_teammates_are_all_too_close_passes_outside_the_passing_distances_after_the_wait():
+    """Robot 1 stands 0.5 m away, closer than min_distance_m (0.8 m): no option under any model. After
+    no_option_wait_s the holder passes to it anyway: the ball travels d = 0.5 - 2 * 0.0815 = 0.337 m; it still
+    slides on arrival at 1.5 m/s (1.5 >= 0.6 v0), so v0 = sqrt(1.5^2 + 2 * 2.5 * d) = 1.9837 m/s."""
+    p = player_with([(0.0, 0.0, 0.0), (0.5, 0.0, math.pi)])
+    assert not p.tick(0.98).kicks and p.choice is None
+    commands = p.tick(1.0)
+    assert not commands.kicks and p.choice is None  # the wait begins at the first tick without a pass
+    commands = p.tick(1.98)
+    assert commands.kicks == {0: pytest.approx(math.sqrt(1.5**2 + 5.0 * (0.5 - 2.0 * OFFSET)), abs=1e-3)}
+    assert "no pass in reach for 1.0 s" in p.notice and "a pass outside the passing distances to robot_1" in p.notice

@@ -7,9 +7,11 @@ afterwards the graph still closes the loop. Deterministic (seeded).
 
 The passing game's nodes (passing_game and the opponents' team_catcher with press_lanes) the same way,
 in the passing game's graph as launched, during a game: a holder on the ball, the opponents pressing;
-afterwards the game goes on (a pass is played and ends)."""
+afterwards the game goes on (a pass is played and ends), under a ball model left on the latched
+/ball/model_params that passes every check but leaves no pass in reach."""
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -29,7 +31,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model.passing_game_node import records_from_msg
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_msg, stamp_to_seconds
+from erforce_interfaces.conversions import odometry_msg, stamp_to_seconds, table_msg
 from erforce_sim.closed_loop.demo import LAUNCH_FILE
 
 pytestmark = pytest.mark.integration
@@ -145,18 +147,28 @@ def test_fuzzed_inputs_crash_neither_the_passing_game_nor_the_pressing_opponents
     watch = TopicWatch(probe, robots=(0, 1, 2), opponents=(0,),
                        exclude=[n for n, _ in topic_names((0, 1, 2), opponents=(0,)) if n not in watched])
     spin_until(lambda: all(watch.counts[t] for t in GAME_OUTPUTS), 30.0, "every game node publishing")
-    model = probe.wait_for_message(contract.BALL_MODEL_PARAMS.name, Float64MultiArray, 10.0,
-                                   contract.BALL_MODEL_PARAMS.qos)
 
     for name, topic in fuzzed.items():
         fuzz_topic(probe, watch, probe, name, topic, rng)
         assert launch.alive(), launch.output()[-3000:]
-    # The model is latched and published on change only: a fuzzed model that passed the checks (-2.5 m/s^2 of
-    # rolling friction, say) would stay and leave no pass in reach. The predictor's model, as after its restart.
-    probe.publisher(contract.BALL_MODEL_PARAMS.name, Float64MultiArray, contract.BALL_MODEL_PARAMS.qos).publish(model)
+    # The model is latched and published on change only: a fuzzed model that passes the checks stays in use. The
+    # last one leaves no pass in reach (every kick rests within 0.29 m: a_slide -100, a_roll -50 m/s^2), which
+    # stalled the game for good until the holder fell back (PassingPlayer.fallback_choice).
+    probe.publisher(contract.BALL_MODEL_PARAMS.name, Float64MultiArray, contract.BALL_MODEL_PARAMS.qos).publish(
+        table_msg(np.array([[-100.0, -50.0, 0.6]]), contract.BALL_MODEL_PARAM_LABELS, "in_use"))
+
+    last_read = [-math.inf]
+
+    def warned() -> bool:  # the launcher's log, read at most every 0.5 s
+        if time.monotonic() - last_read[0] < 0.5:
+            return False
+        last_read[0] = time.monotonic()
+        return any("no pass in reach" in line for line in node_log(launch.output(), "passing_game"))
+
+    spin_until(warned, 60.0, "passing_game's warning: no pass in reach")
     t_fuzzed = stamp_to_seconds(watch.latest[contract.CLOCK.name].clock)
 
-    # still serving the good messages: a pass kicked after the fuzzing ends (the referee puts the ball back
+    # still serving the good messages: a pass kicked after the warning ends (the referee puts the ball back
     # first if the fuzzed light barriers ended the game's pass or hold)
     counts = {t: watch.counts[t] for t in GAME_OUTPUTS}
     spin_until(lambda: any(r.t_kick_s > t_fuzzed for m in records for r in records_from_msg(m)), 60.0,

@@ -85,3 +85,25 @@ def test_receivers_receive_facing_their_next_target():
     for theta, towards_target, towards_ball in headings.values():
         assert abs(math.remainder(theta - towards_target, 2.0 * math.pi)) < 0.1
         assert abs(math.remainder(towards_ball - towards_target, 2.0 * math.pi)) > 0.3
+
+
+def test_under_a_ball_model_with_no_pass_in_reach_the_ball_still_moves_after_no_option_wait_s():
+    """Our AI told a model under which every kick rests 0.29 m from the holder (a_slide -100, a_roll -50 m/s^2:
+    6.5^2 - 3.9^2 over 200 plus 3.9^2 over 100; a bad model on the latched topic, say) has no pass in reach. Its
+    holder falls back after no_option_wait_s (1 s) on the model it was built with (the predictor's): the same
+    pass as without the bad model, kicked 1 - hold_min_s = 0.6 s later (the plain kick comes at hold_min_s,
+    facing its receiver from the start), and completed."""
+    from erforce_ball_model.ball_model import BallModelParams
+
+    cfg = GameConfig(team_size=2, opponents=0, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)))
+    (plain,) = PassingGame(cfg, seed=0).play()
+    notices = set()
+    game = PassingGame(cfg, seed=0, on_tick=lambda g: notices.add(g.player.notice))
+    game.player.on_model(BallModelParams(a_slide_mps2=-100.0, a_roll_mps2=-50.0, c_switch=0.6))
+    (record,) = game.play()
+    wait = cfg.player.no_option_wait_s - cfg.player.hold_min_s
+    assert record.t_kick_s == pytest.approx(plain.t_kick_s + wait, abs=0.021)  # one AI tick
+    assert (record.passer, record.receiver, record.outcome) == (0, 1, "completed")
+    assert record.kick_speed_mps == pytest.approx(plain.kick_speed_mps, abs=1e-3)
+    assert record.actual_catch_s == pytest.approx(record.predicted_catch_s, abs=0.15)
+    assert any(n and "robot_0: no pass in reach for 1.0 s" in n for n in notices), notices

@@ -149,6 +149,12 @@ def approach_velocity(position: np.ndarray, target: np.ndarray, cfg: CatcherConf
     return delta / distance * speed
 
 
+def pose_delay_s(now: float, stamp_s: float, cfg: CatcherConfig) -> float:
+    """The heading loop's delay for a pose measured at ``stamp_s``: its age (a stamp from the future counts as
+    fresh, one older than stale as stale) plus ``cfg.command_lead_s``."""
+    return min(max(now - stamp_s, 0.0), cfg.stale_after_s) + cfg.command_lead_s
+
+
 def heading_loop(yaw_rad: float, yaw_rate_radps: float, delay_s: float, cfg: CatcherConfig) -> tuple[float, float]:
     """(the heading predicted ``delay_s`` ahead [rad], the heading gain for that delay [1/s]) for a pose
     whose heading and tracked yaw rate reach the robot's turning ``delay_s`` late (module docstring)."""
@@ -156,7 +162,8 @@ def heading_loop(yaw_rad: float, yaw_rate_radps: float, delay_s: float, cfg: Cat
     gain = cfg.heading_gain_per_s
     if delay_s > 0.0:
         gain = min(gain, cfg.heading_gain_delay_max / delay_s)
-    return wrap_angle(yaw_rad + yaw_rate_radps * delay_s), gain
+    turned = yaw_rate_radps * delay_s
+    return (wrap_angle(yaw_rad + turned) if turned else yaw_rad), gain  # as measured, to the last bit, when at rest
 
 
 def catch_twist(pose: np.ndarray, target: np.ndarray, facing_rad: float, cfg: CatcherConfig,
@@ -482,10 +489,8 @@ class Receiver:
         if target is None:
             return np.zeros(3)
         self._target_at = now
-        # the pose's age (a stamp from the future or older than stale counts as fresh or stale) and the lead
         stamp, yaw_rate = self._pose_timing
-        delay = min(max(now - stamp, 0.0), cfg.stale_after_s) + cfg.command_lead_s
-        yaw, gain = heading_loop(float(pose[2]), yaw_rate, delay, cfg)
+        yaw, gain = heading_loop(float(pose[2]), yaw_rate, pose_delay_s(now, stamp, cfg), cfg)
         try:
             return catch_twist(np.array([pose[0], pose[1], yaw]), target, facing, cfg, gain)
         except ValueError as exc:

@@ -252,6 +252,8 @@ class PassingGameNode(Node):
         else:
             for i in range(self._n):
                 self._cmd_pubs[i].publish(twist_msg((0.0, 0.0, 0.0)))
+        if player.notice:
+            self._warn.warn("no pass", player.notice)
         if player.receiver is not None and player.receiver.notice:
             self._warn.warn("receiver", f"receiver: {player.receiver.notice}")
         self._send_dribblers(now)

@@ -14,6 +14,12 @@ the dribbler).
   turns to the pass it selects (passing.select_pass: the earliest safe catch) and kicks, once it has
   held the ball ``hold_min_s`` and aims within ``aim_tolerance_rad``, with the speed at which the ball
   arrives receivable (passing.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``.
+- A holder with no pass in reach at all (every receiver's catch at infinity or no teammate in passing
+  distance: above all a ball model that stops every kick short, e.g. a bad one on the latched model topic)
+  waits ``no_option_wait_s``, then falls back (``fallback_choice``): the passes re-planned with
+  ``trusted_model`` (the model its last completed pass was planned with; at first the one it was built
+  with), then without the passing distances; ``notice`` names why, for the caller's throttled warning.
+  The receiver of such a pass rolls it with the model it was planned with.
 - Each teammate's next target (where it would pass on from where it stands) is worked out when a robot
   takes the ball and refreshed one teammate per AI tick; a pass is rated with its receiver facing it.
 - The receiver runs catcher.Receiver (the paper's Fig. 6 skill) facing its next target where the receive
@@ -30,6 +36,7 @@ game puts the ball at its dribbler and calls ``ball_placed``, and that robot hol
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -37,9 +44,16 @@ import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import MAX_RECEIVE_ANGLE_RAD, CatchSearch, RobotLimits
-from erforce_ball_model.catcher import CatcherConfig, Receiver, catch_twist, wrap_angle
+from erforce_ball_model.catcher import (
+    CatcherConfig,
+    Receiver,
+    catch_twist,
+    wrap_angle,
+)
 from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
 from erforce_interfaces.robot_config import FieldConfig
+
+ANY_DISTANCE_M = (1e-3, 1e3)  # the passing distances of the last fallback: any teammate
 
 
 @dataclass(frozen=True)
@@ -55,12 +69,13 @@ class PlayerConfig:
     rest_for_s: float = 0.5
     drop_after_s: float = 0.3  # the barrier flips falsely now and then: a drop is a ball away this long
     passer_blind_s: float = 0.5  # the passer's own barrier ends no pass this soon after its kick
+    no_option_wait_s: float = 1.0  # a holder with no pass in reach this long plays the fallback (fallback_choice)
     passing: PassConfig = field(default_factory=PassConfig)
     catcher: CatcherConfig = field(default_factory=CatcherConfig)
 
     def __post_init__(self) -> None:
         for name in ("hold_min_s", "aim_tolerance_rad", "wait_for_safe_s", "switch_margin_s", "rest_speed_mps",
-                     "rest_for_s", "drop_after_s", "passer_blind_s"):
+                     "rest_for_s", "drop_after_s", "passer_blind_s", "no_option_wait_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
@@ -145,6 +160,7 @@ class _Pass:
     choice: PassOption
     facing_target: int | None
     planned_next: int | None
+    model: BallModelParams  # the model it was planned with
     path: list = field(default_factory=list)
     rest_since: float | None = None
 
@@ -159,6 +175,7 @@ class PassingPlayer:
                              f"{n_opponents}")
         self.n_team, self.n_opp = n_team, n_opponents
         self.model = BallModelParams() if model is None else model
+        self.trusted_model = self.model  # the model the last completed pass was planned with (fallback_choice)
         n = n_team + n_opponents
         self.receiver: Receiver | None = None  # our receiver's skill while a pass rolls
         self.configure(cfg, field_config, dribbler_offset_m, robot_radius_m)
@@ -179,6 +196,9 @@ class PassingPlayer:
         self._hold_since = 0.0
         self._barrier_lost_at: float | None = None
         self._choice: PassOption | None = None
+        self._choice_model = self.model  # the model self._choice was planned with
+        self._no_option_since: float | None = None  # the holder has had no pass in reach since
+        self.notice: str | None = None  # what the last tick fell back on and why (None: nothing)
         self._pass: _Pass | None = None
         self._last_passer: int | None = None
         self._next_targets: dict[int, int] = {}  # teammate -> the teammate it would pass on to
@@ -294,6 +314,7 @@ class PassingPlayer:
     def tick(self, now: float) -> Commands:
         """The AI tick: judge what happened since the last one (``check``), then every robot's command."""
         self.check(now)
+        self.notice = None
         cfg = self.cfg
         twists = {i: np.zeros(3) for i in range(self.n_team)}
         kicks: dict[int, float] = {}
@@ -301,6 +322,10 @@ class PassingPlayer:
             h = self._holder
             self._update_next_targets(h, all_of_them=False)
             choice = self._choose(h)
+            if choice is None:
+                choice = self.fallback_choice(h, now)
+            else:
+                self._no_option_since = None
             pose = self.poses[h]
             if choice is not None:
                 twist = catch_twist(pose, pose[:2], choice.direction_rad, cfg.catcher)
@@ -348,13 +373,45 @@ class PassingPlayer:
                 self._restart()
 
     # -------------------------------------------------------------------- decisions
-    def _options(self, holder: int) -> list[PassOption]:
+    def _options(self, holder: int, model: BallModelParams | None = None,
+                 passing: PassConfig | None = None) -> list[PassOption]:
+        """Every pass from ``holder`` under ``model`` and ``passing`` (None: the model in use, the config's)."""
         n = self.n_team
         targets = {j: self.poses[k, :2] for j, k in self._next_targets.items()}
         return evaluate_passes(self.ball_at_dribbler(holder), self.poses[:n, :2], self.velocities[:n],
                                self.poses[n:, :2], self.velocities[n:], self._candidates(holder), self.pass_search,
-                               self.model, self.cfg.passing, self.dribbler_offset_m, targets,
-                               self.cfg.max_receive_angle_rad)
+                               self.model if model is None else model, self.cfg.passing if passing is None else passing,
+                               self.dribbler_offset_m, targets, self.cfg.max_receive_angle_rad)
+
+    def fallback_choice(self, holder: int, now: float) -> PassOption | None:
+        """The pass of a holder that has no pass in reach under the model in use (module docstring): None
+        for ``no_option_wait_s``; then the best pass under ``trusted_model``, else the best to any teammate
+        whatever its distance (under the model in use when no other is trusted), else None (it holds the ball).
+        Sets ``notice``."""
+        if self._no_option_since is None:
+            self._no_option_since = now
+        waited = now - self._no_option_since
+        if waited < self.cfg.no_option_wait_s:
+            return None
+        m, trusted = self.model, self.trusted_model
+        why = (f"robot_{holder}: no pass in reach for {waited:.1f} s under the ball model in use (a_slide "
+               f"{m.a_slide_mps2:g}, a_roll {m.a_roll_mps2:g} m/s^2, c_switch {m.c_switch:g})")
+        best = None
+        if trusted != m:
+            best = select_pass(self._options(holder, trusted), self.cfg.passing)
+            what = (f"planned with the model of the last completed pass (a_slide {trusted.a_slide_mps2:g}, "
+                    f"a_roll {trusted.a_roll_mps2:g} m/s^2, c_switch {trusted.c_switch:g})")
+        if best is None:
+            anywhere = dataclasses.replace(self.cfg.passing, min_distance_m=ANY_DISTANCE_M[0],
+                                           max_distance_m=ANY_DISTANCE_M[1])
+            best = select_pass(self._options(holder, trusted, anywhere), self.cfg.passing)
+            what = "a pass outside the passing distances" + ("" if trusted == m else " (the trusted model)")
+        if best is None:
+            self.notice = f"{why}, not even outside the passing distances: it holds the ball"
+            return None
+        self.notice = f"{why}: {what} to robot_{best.receiver}"
+        self._choice, self._choice_model = best, trusted
+        return best
 
     def _next_target(self, holder: int, j: int) -> int | None:
         """Where teammate ``j`` would pass on once it has the ball from ``holder`` (select_pass from where it
@@ -397,7 +454,7 @@ class PassingPlayer:
                     and same.receiver_catch_s <= best.receiver_catch_s + self.cfg.switch_margin_s)
             if keep:
                 best = same
-        self._choice = best
+        self._choice, self._choice_model = best, self.model
         return best
 
     def _kick(self, holder: int, choice: PassOption, now: float) -> None:
@@ -405,7 +462,7 @@ class PassingPlayer:
         self._dribblers = dict.fromkeys(range(self.n_team), False)
         self._dribblers[choice.receiver] = True
         receiver = Receiver(self.cfg.catcher, self.dribbler_offset_m, self.robot_radius_m, self.field)
-        receiver.on_model(self.model)
+        receiver.on_model(self._choice_model)
         self.receiver = receiver
         self._feed_receiver(choice.receiver, now)
         k = None
@@ -413,7 +470,7 @@ class PassingPlayer:
         if abs(math.remainder(choice.receive_facing_rad - ball_rad, 2.0 * math.pi)) > 1e-9:
             k = self._next_targets[choice.receiver]  # it receives facing its next target
             receiver.on_next_target(self.poses[k, :2], self.cfg.max_receive_angle_rad)
-        self._pass = _Pass(now, holder, choice, k, self._next_targets.get(choice.receiver))
+        self._pass = _Pass(now, holder, choice, k, self._next_targets.get(choice.receiver), self._choice_model)
 
     def _feed_receiver(self, i: int, now: float) -> None:
         self.receiver.on_odom(now, self.poses[i], (*self.velocities[i], self.yaw_rates[i]), self.pose_stamps[i])
@@ -429,12 +486,14 @@ class PassingPlayer:
         self._pass, self.receiver = None, None
         self._dribblers = dict.fromkeys(range(self.n_team), False)
         if outcome == "completed":
+            self.trusted_model = p.model
             self._take_ball(caught_by, now, p.planned_next if caught_by == choice.receiver else None)
         else:
             self._restart()
 
     def _take_ball(self, holder: int, now: float, planned_next: int | None = None) -> None:
         self._holder, self._hold_since, self._choice, self._barrier_lost_at = holder, now, None, None
+        self._no_option_since = None
         self._prefer = planned_next
         self._dribblers = dict.fromkeys(range(self.n_team), False)
         self._dribblers[holder] = True
@@ -445,7 +504,7 @@ class PassingPlayer:
         """Ask for the ball at the dribbler of our robot farthest from every opponent."""
         self.resets += 1
         self._last_passer = None
-        self._holder, self._choice = None, None
+        self._holder, self._choice, self._no_option_since = None, None, None
         self._dribblers = dict.fromkeys(range(self.n_team), False)
         n = self.n_team
         if self.n_opp:
