@@ -160,12 +160,13 @@ def test_the_search_run_as_python_while_the_kernels_load_gives_the_compiled_numb
         want = compiled.run(ball, robots, vels, facing)
         want = [getattr(want, name).copy() for name in fields]
         got = python.run(ball, robots, vels, facing)
-        assert python._search is None  # still the Python loop
+        assert python._search is None and not python.compiled  # still the Python loop
         for name, w in zip(fields, want, strict=True):
             assert np.array_equal(w, getattr(got, name), equal_nan=True), (k, name, w, getattr(got, name))
     monkeypatch.undo()
     python.run(ball, robots, vels, facing)
     assert python._search is compiled._search  # the kernels are in: the compiled search from then on
+    assert python.compiled and compiled.compiled
     with pytest.raises(ValueError, match="kernels"):
         CatchSearch(1, lim, field=DIV_B, kernels="later")
 

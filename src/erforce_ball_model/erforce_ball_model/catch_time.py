@@ -572,6 +572,11 @@ class CatchSearch:
         self._result = CatchResult(np.empty(num_robots), np.empty((num_robots, 2)), np.empty((num_robots, 2)),
                                    np.empty(num_robots, dtype=np.int8))
 
+    @property
+    def compiled(self) -> bool:
+        """Whether its answers come from the compiled kernels (kernels="background": once they are loaded)."""
+        return self._search is not None
+
     def run(self, ball: BallTrajectory, robot_pos_m: np.ndarray, robot_vel_mps: np.ndarray,
             facing_rad=0.0) -> CatchResult:
         """Catch times of all robots: positions and field-frame velocities (R, 2), facing scalar or (R,)."""

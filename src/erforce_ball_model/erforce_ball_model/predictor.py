@@ -336,6 +336,11 @@ class BallPredictor:
                 out_points.append(tuple(points[i]))
         return ids, out_times, out_points
 
+    @property
+    def search_compiled(self) -> bool:
+        """Whether the catch times come from the compiled search (kernels="background": once it is loaded)."""
+        return self._search is not None and self._search.compiled
+
     def model_rows(self) -> list[list[float]]:
         """[a_slide, a_roll, c_switch] of the model in use, then of the last fit and its standard errors
         once there is one (MODEL_ROWS): what /ball/model_params carries."""
