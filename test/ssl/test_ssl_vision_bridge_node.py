@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import math
 import re
+import signal
 import socket
+import threading
 import time
 
 import pytest
@@ -259,3 +261,30 @@ def test_the_ball_predictor_takes_the_ball_model_from_ssl_geometry_unless_pinned
                                                  if not states else f"pinned did not reject the ball at x = 5.5 m:\n"
                                                  f"{pinned.output()[-2000:]}")
     assert states[-1].pose.pose.position.x == pytest.approx(5.5, abs=0.01)
+
+
+def test_a_sigint_while_datagrams_stream_in_ends_quietly(bridge):
+    """The plant keeps sending while the launcher interrupts the graph: the receive thread must not warn about
+    publishing into the context SIGINT has already shut down."""
+    _graph, node, sender = bridge
+    stop = threading.Event()
+
+    def stream() -> None:
+        t = 0.0
+        while not stop.is_set():
+            t += 0.01
+            sender.send(sender.frame(0, t, balls=[BallCandidate(100.0 * t, 0.0, 0.9)]))
+            time.sleep(0.001)  # pacing of the sender, not a wait for the node
+
+    streamer = threading.Thread(target=stream, daemon=True)
+    streamer.start()
+    try:
+        node.wait_for_output(r"ssl_vision_bridge: \d+ datagrams", timeout_s=30.0)  # it is handling them
+        node.signal(signal.SIGINT)
+        code = node.wait_exit(20.0)
+    finally:
+        stop.set()
+        streamer.join(timeout=2.0)
+    out = node.output()
+    assert code == 0, out[-1500:]
+    assert "batch failed" not in out and "Traceback" not in out, out[-1500:]

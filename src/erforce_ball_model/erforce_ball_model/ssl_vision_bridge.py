@@ -226,6 +226,8 @@ class SslVisionBridge(Node):
             try:
                 self.handle_batch(batch, self.get_clock().now().nanoseconds * 1e-9)
             except Exception as exc:  # never let the thread die: log, go on with the next batch
+                if not self.context.ok():
+                    return  # shutting down: the context went (SIGINT) before destroy_node stopped this thread
                 self._warn.warn("batch", f"ssl_vision_bridge: batch failed: {exc!r}")
 
     def handle_batch(self, batch: list[bytes], t_receive_s: float) -> None:
