@@ -535,3 +535,34 @@ def test_no_cyclic_collection_runs_between_a_frame_and_its_catch_times():
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def test_the_catch_table_goes_out_before_every_per_robot_catch_output(ros_graph):
+    """The AI reads /ball/catches: per frame it leaves the node (DDS source timestamp) before any robot's
+    catch_time and catch_point of that frame; the table's catch times are those of the per-robot topics."""
+    rig = Rig(ros_graph, num_robots=2, num_opponents=1)
+    node, q = ros_graph.probe.node, contract
+    sent: dict[str, list[int]] = {}
+
+    def stamps(name, msg_type, qos):
+        sent[name] = []
+        node.create_subscription(msg_type, name, lambda _m, info: sent[name].append(info["source_timestamp"]), qos)
+
+    stamps(q.BALL_CATCHES.name, Float64MultiArray, q.BALL_CATCHES.qos)
+    for team, i in rig.robots:
+        stamps(team.topic(q.CATCH_TIME, i), Float64, q.CATCH_TIME.qos)
+        stamps(team.topic(q.CATCH_POINT, i), PointStamped, q.CATCH_POINT.qos)
+    readers = [s for s in node.subscriptions if s.topic_name in sent]
+    ros_graph.probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 20.0, "node publishers")
+    # all three robots at rest 1-2 m from a resting ball: every one can catch it (a point each)
+    rig.robots_frame(1.0, [(0, -1.0, 1.0, 0.0), (1, 1.0, -1.0, math.pi / 2), (2, 2.0, 1.0, math.pi)], {0, 1, 2})
+    frames = 5
+    for k in range(frames):
+        rig.ball(1.02 + k / FPS, 0.0, 1.0)
+    ros_graph.probe.spin_until(lambda: all(len(v) >= frames for v in sent.values()), 10.0, "every catch output")
+    tables = sent.pop(q.BALL_CATCHES.name)
+    assert len(tables) == frames and all(len(v) == frames for v in sent.values())
+    for k in range(frames):
+        assert all(tables[k] < v[k] for v in sent.values()), f"frame {k}: a per-robot output before the table"
+    rows = table_from_msg(rig.catches[-1], contract.CATCH_TABLE_COLUMNS)
+    assert rows[:, 7].tolist() == [rig.catch_time[i][-1].data for i in range(3)]

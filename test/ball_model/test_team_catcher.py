@@ -6,12 +6,10 @@ import math
 import pytest
 from geometry_msgs.msg import PointStamped, Twist
 from nav_msgs.msg import Odometry
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, Float64MultiArray
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
-    odometry_msg,
-)
+from erforce_interfaces.conversions import odometry_msg, table_msg
 from erforce_interfaces.tools.messages import point_msg
 
 pytestmark = pytest.mark.integration
@@ -42,10 +40,14 @@ def test_the_robot_with_the_earlier_catch_receives_the_other_holds(ros_graph, de
     for i in IDS:
         pubs[("odom", i)] = probe.wait_for_subscribers(contract.ODOM.for_robot(i), Odometry, timeout_s=30.0,
                                                        qos=contract.ODOM.qos)
-        pubs[("time", i)] = probe.wait_for_subscribers(contract.CATCH_TIME.for_robot(i), Float64, timeout_s=30.0,
-                                                       qos=contract.CATCH_TIME.qos)
-        pubs[("point", i)] = probe.wait_for_subscribers(contract.CATCH_POINT.for_robot(i), PointStamped,
-                                                        timeout_s=30.0, qos=contract.CATCH_POINT.qos)
+        if deployment == "per_robot":
+            pubs[("time", i)] = probe.wait_for_subscribers(contract.CATCH_TIME.for_robot(i), Float64,
+                                                           timeout_s=30.0, qos=contract.CATCH_TIME.qos)
+            pubs[("point", i)] = probe.wait_for_subscribers(contract.CATCH_POINT.for_robot(i), PointStamped,
+                                                            timeout_s=30.0, qos=contract.CATCH_POINT.qos)
+    if deployment == "team":  # the same catches as the predictor's table (with an opponent, not the team's)
+        pubs["catches"] = probe.wait_for_subscribers(contract.BALL_CATCHES.name, Float64MultiArray, timeout_s=30.0,
+                                                     qos=contract.BALL_CATCHES.qos)
 
     def feed(times, seconds):
         for k in range(round(seconds / 0.05)):
@@ -53,8 +55,14 @@ def test_the_robot_with_the_earlier_catch_receives_the_other_holds(ros_graph, de
             pubs["ball"].publish(odometry_msg(t, (-3.0 + 2.0 * t, 0.0, 0.0), (2.0, 0.0, 0.0)))
             for i in IDS:
                 pubs[("odom", i)].publish(odometry_msg(t, POSES[i], (0.0, 0.0, 0.0)))
-                pubs[("time", i)].publish(Float64(data=times[i]))
-                pubs[("point", i)].publish(point_msg(t, POINTS[i]))
+            if deployment == "team":
+                rows = [[contract.OURS.code, i, *POSES[i], 0.0, 0.0, times[i], *POINTS[i]] for i in IDS]
+                rows.append([contract.OPPONENTS.code, 0, -2.0, 0.0, 0.0, 0.0, 0.0, 0.1, -2.0, 0.0])
+                pubs["catches"].publish(table_msg(rows, contract.CATCH_TABLE_COLUMNS))
+            else:
+                for i in IDS:
+                    pubs[("time", i)].publish(Float64(data=times[i]))
+                    pubs[("point", i)].publish(point_msg(t, POINTS[i]))
             probe.spin_for(0.05)
 
     def moving(i, since):

@@ -126,8 +126,8 @@ def _quaternion(q, rng) -> None:
                           3: (_bad(rng), _bad(rng), _bad(rng), _bad(rng))}[int(kind)]
 
 
-def bad_message(msg_type, rng):
-    """One malformed message of ``msg_type`` with randomized bad fields."""
+def bad_message(msg_type, rng, columns: tuple[str, ...] = contract.BALL_MODEL_PARAM_LABELS):
+    """One malformed message of ``msg_type`` with randomized bad fields (a table's: often labelled ``columns``)."""
     if msg_type is JointState:
         n = int(rng.choice([0, 1, 3, 4, 5, 8]))
         names = [f"wheel_{i}" for i in range(4)]
@@ -169,12 +169,17 @@ def bad_message(msg_type, rng):
         return Clock(clock=_stamp(rng))
     if msg_type is Float64MultiArray:  # a labelled table: right or wrong labels and sizes, bad values
         rows, cols = int(rng.integers(0, 4)), int(rng.integers(0, 6))  # 4 columns killed the catcher
-        labels = [",".join(contract.BALL_MODEL_PARAM_LABELS), "a,b", ""][int(rng.integers(3))]
+        if columns != contract.BALL_MODEL_PARAM_LABELS and rng.random() < 0.5:
+            cols = len(columns)  # the right shape, so that the values' checks are reached
+        labels = [",".join(columns), "a,b", ""][int(rng.integers(3))]
         msg = Float64MultiArray()
         msg.layout.dim = [MultiArrayDimension(label=",".join(contract.BALL_MODEL_PARAM_ROWS[:max(rows, 1)]), size=rows,
                                               stride=rows * cols),
                           MultiArrayDimension(label=labels, size=cols, stride=cols)][: int(rng.integers(3))]
-        msg.data = [_bad(rng) if rng.random() < 0.5 else -2.5 for _ in range(int(rng.choice([0, 3, 9, rows * cols])))]
+        # plausible values (team codes, ids) among the bad ones, so that a row can pass some checks
+        fill = (lambda: -2.5) if columns == contract.BALL_MODEL_PARAM_LABELS else \
+            (lambda: float(rng.choice([-2.5, 0.0, 1.0, 2.0])))
+        msg.data = [_bad(rng) if rng.random() < 0.5 else fill() for _ in range(int(rng.choice([0, 3, 9, rows * cols])))]
         msg.layout.data_offset = int(rng.choice([0, 0, 1, 2**32 - 1]))
         return msg
     if msg_type is PointCloud2:  # /vision/robots: right or wrong fields and sizes, bad values, teams and ids
@@ -240,6 +245,8 @@ class TopicWatch:
 
 
 ECHO_WAIT_S = 0.3  # the longest a burst's echoes are waited for
+#: the columns of the tables a node reads, by topic (else the model's): the fuzz gets past the label check
+TABLE_COLUMNS = {contract.BALL_CATCHES.name: contract.CATCH_TABLE_COLUMNS}
 
 
 def fuzz_topic(probe, watch: TopicWatch, spinner, name: str, topic: contract.Topic, rng) -> None:
@@ -249,8 +256,9 @@ def fuzz_topic(probe, watch: TopicWatch, spinner, name: str, topic: contract.Top
     watch.paused.add(name)
     due = watch.echoes_due[name] = []
     pub = probe.publisher(name, topic.msg_type, topic.qos)
+    columns = TABLE_COLUMNS.get(topic.name, contract.BALL_MODEL_PARAM_LABELS)
     for _ in range(BURST):
-        msg = bad_message(topic.msg_type, rng)
+        msg = bad_message(topic.msg_type, rng, columns)
         if name in watch.counts:  # a topic the watch reads
             due.append(serialize_message(msg))
         pub.publish(msg)

@@ -51,9 +51,11 @@ OUTPUTS = {
 
 
 def team_inputs() -> dict[str, contract.Topic]:
-    """Every topic a team node subscribes to: its hosted nodes' inputs, for every robot of the team."""
-    return {name: topic for hosted in TEAM_HOSTS.values() for node in hosted
-            for name, topic in subscribed_topics(node, ROBOTS)}
+    """Every topic a team node subscribes to: its hosted nodes' inputs, for every robot of the team, and the
+    team_catcher's catch table (it reads the catchers' catch times and points there)."""
+    inputs = {name: topic for hosted in TEAM_HOSTS.values() for node in hosted
+              for name, topic in subscribed_topics(node, ROBOTS)}
+    return {**inputs, contract.BALL_CATCHES.name: contract.BALL_CATCHES}
 
 
 def _loop(ros_graph, **plant) -> TeamLoop:
@@ -94,7 +96,8 @@ def test_team_inputs_cover_both_robots_and_every_hosted_contract():
         for topic in (contract.CMD_VEL, contract.WHEEL_STATES, contract.ODOM, contract.CATCH_TIME,
                       contract.CATCH_POINT, contract.BALL_DETECTED):
             assert topic.for_robot(i) in inputs
-    for topic in (contract.CLOCK, contract.BALL_STATE, contract.BALL_V_SHOOT, contract.BALL_MODEL_PARAMS):
+    for topic in (contract.CLOCK, contract.BALL_STATE, contract.BALL_V_SHOOT, contract.BALL_MODEL_PARAMS,
+                  contract.BALL_CATCHES):
         assert topic.name in inputs
     assert contract.VISION_BALL.name not in inputs  # the predictor's, not a team node's
 

@@ -6,11 +6,11 @@ identification), the same object the in-process scenes and the bench run. Vision
 ``/vision/robots``, one message per vision frame: its ball and its robots, both teams; the ball, at the
 front of the message, is read and answered before the robots are decoded (so a frame whose ball is good
 but a robot point is not is answered, and its robots are refused). Every ball frame is answered with each
-fresh robot's ``/robot_<i>/catch_time`` and ``catch_point``, each while anyone subscribes to it (first:
-what the robots act on), then the ball state, phase, stop point,
+fresh robot's catch first (what the robots act on): ``/ball/catches`` (both teams in one message: the
+AI's input, and the field view's) while anyone subscribes to it, then each robot's ``/robot_<i>/catch_time``
+and ``catch_point``, each while anyone subscribes to it; then the ball state, phase, stop point,
 v_shoot and the uncertain flag (the three for tools while anyone subscribes to them), and, while anyone
-subscribes to them, ``/ball/track`` (the ball's topics and the observation in one message) and
-``/ball/catches`` (the whole team in one message): an observer such as the field view takes those two.
+subscribes to it, ``/ball/track`` (the ball's topics and the observation in one message, for observers).
 All outputs carry the observation's stamp; catch times count from it. The frame's robots come after its
 ball (the catch times are those of the robots as last seen); each robot it serves is judged by
 the time rule on its own (camera frames of one field arrive out of order across robots) and answered
@@ -155,7 +155,9 @@ class BallPredictorNode(Node):
         self._stop_pub = contract_publisher(self, q.BALL_STOP_POINT, readers=(self._tool_readers, 1))
         self._v_shoot_pub = contract_publisher(self, q.BALL_V_SHOOT)
         self._uncertain_pub = contract_publisher(self, q.BALL_UNCERTAIN, readers=(self._tool_readers, 2))
-        self._catches_pub = contract_publisher(self, q.BALL_CATCHES)
+        # the AI's (and the field view's) catch times in one message for both teams: while it has a reader
+        self._catches_readers = [0]
+        self._catches_pub = contract_publisher(self, q.BALL_CATCHES, readers=(self._catches_readers, 0))
         # the ball for observers (the field view) in one message instead of five topics: while it has a reader
         self._track_readers = [0]
         self._track_pub = contract_publisher(self, q.BALL_TRACK, readers=(self._track_readers, 0))
@@ -306,10 +308,17 @@ class BallPredictorNode(Node):
         if frame is None:
             return
         # Catch times go out first: they are what the robots act on, and each publish costs tens
-        # of microseconds. The ball topics follow.
+        # of microseconds. The AI's table first (all robots in one message), then the per-robot outputs
+        # (each while it has a reader); the ball topics follow.
         catch_out = None
+        if frame.catch_robots and self._catches_readers[0]:
+            try:
+                self._catches_pub.publish(self._catch_table(frame))
+                catch_out = time.perf_counter()
+            except ValueError as exc:
+                self._warn.warn("catches", f"no /ball/catches for the frame at {t_s:.6f} s: {exc}")
         try:
-            catch_out = self._publish_catch_outputs(frame)
+            catch_out = self._publish_catch_outputs(frame) or catch_out
         except ValueError as exc:
             self._warn.warn("catch", f"no catch times for the frame at {t_s:.6f} s: {exc}")
         if catch_out is None:  # none went out
@@ -323,11 +332,6 @@ class BallPredictorNode(Node):
                 self._track_pub.publish(self._ball_track(frame))
             except ValueError as exc:
                 self._warn.warn("track", f"no /ball/track for the frame at {t_s:.6f} s: {exc}")
-        if frame.catch_robots and self._catches_pub.get_subscription_count() > 0:
-            try:
-                self._catches_pub.publish(self._catch_table(frame))
-            except ValueError as exc:
-                self._warn.warn("catches", f"no /ball/catches for the frame at {t_s:.6f} s: {exc}")
         summary = self._times.add(catch_out - start, time.perf_counter() - start)
         if summary:
             self.get_logger().info(summary)
@@ -380,7 +384,7 @@ class BallPredictorNode(Node):
         All values are checked before the first publish (a bad one raises ValueError and nothing
         goes out); the catch times go out before the points are even serialized. Returns when the
         last catch time went out (perf_counter; the last read one: unread ones do not go out), None
-        when no robot is fresh.
+        when none went out.
         """
         ids, points = frame.catch_robots, frame.catch_points_m
         if not ids:
@@ -391,10 +395,12 @@ class BallPredictorNode(Node):
                 point_cdr(frame.t_s, point)  # raises, naming the value
         time_data = [float64_cdr(t) for t in frame.catch_times_s]
         time_pubs, time_readers = self._catch_time_pubs, self._time_readers
+        published = False
         for i, data in zip(ids, time_data, strict=True):
             if time_readers[i]:
                 time_pubs[i].publish(data)
-        times_out = time.perf_counter()
+                published = True
+        times_out = time.perf_counter() if published else None
         point_pubs, point_readers = self._catch_point_pubs, self._point_readers
         for i, point in zip(ids, points, strict=True):
             if point is not None and point_readers[i]:

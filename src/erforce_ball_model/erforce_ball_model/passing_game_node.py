@@ -2,7 +2,9 @@
 
 Reads what the ball predictor publishes: the tracked ball (``/ball/state``, ``/ball/v_shoot``, the model in
 use), every robot's tracked pose and velocity (``odom`` under ``/robot_<id>/`` for ours and ``/opponent_<id>/``
-for the opponents), our robots' ``catch_time`` and ``catch_point``; and every robot's light barrier
+for the opponents), our robots' catch times and catch points (their rows of ``/ball/catches``: one message
+for all, where a topic per robot cost the predictor a publish and this node a callback each); and every
+robot's light barrier
 (``ball_detected``; the opponents' tell an interception, as a referee sees it). Each AI tick (``rate_hz``,
 simulated time) it feeds PassingPlayer and publishes our robots' ``cmd_vel`` (while a robot moves, and the
 stop once), a ``kick`` when the holder kicks, and each robot's ``dribbler`` when it changes (and every
@@ -35,11 +37,11 @@ from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerC
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
+    catches_from_msg,
     float64_from_msg,
     model_in_use_from_msg,
     odometry_from_msg,
     odometry_msg,
-    point_from_msg,
     table_from_msg,
     table_msg,
     twist_msg,
@@ -157,13 +159,11 @@ class PassingGameNode(Node):
                                                      (q.BALL_V_SHOOT, self._on_v_shoot, True),
                                                      (q.BALL_MODEL_PARAMS, self._on_model_params, False))]
         for k, (team, j) in enumerate(self._robots):
-            subs = [(q.ODOM, self._on_odom, True), (q.BALL_DETECTED, self._on_barrier, False)]
-            if team is ours:
-                subs += [(q.CATCH_TIME, self._on_catch_time, True), (q.CATCH_POINT, self._on_catch_point, True)]
-            for topic, callback, raw in subs:
+            for topic, callback, raw in ((q.ODOM, self._on_odom, True), (q.BALL_DETECTED, self._on_barrier, False)):
                 sub = contract_subscription(self, topic, lambda msg, k=k, cb=callback: cb(k, msg), team.topic(topic, j),
                                             raw=raw)
                 self._inputs.append(sample_only(sub))
+        self._inputs.append(sample_only(contract_subscription(self, q.BALL_CATCHES, self._on_catches, raw=True)))
         self._v_shoot: float | None = None
         self._timer = self.create_timer(1.0 / self._params.config[1][""].rate_hz, self._tick)
         self._params.on_change(self._set_config)
@@ -213,15 +213,10 @@ class PassingGameNode(Node):
         if odom is not None:
             self._player.on_robot(k, self._now_s(), odom[1], odom[2], odom[0])
 
-    def _on_catch_time(self, k: int, msg: bytes) -> None:
-        seconds = self._warn.convert(msg, f"{self._name(k)} catch_time", float64_from_msg)
-        if seconds is not None:
-            self._player.on_catch(k, self._now_s(), seconds)
-
-    def _on_catch_point(self, k: int, msg: bytes) -> None:
-        point = self._warn.convert(msg, f"{self._name(k)} catch_point", point_from_msg)
-        if point is not None:
-            self._player.on_catch_point(k, self._now_s(), point[1])
+    def _on_catches(self, msg: bytes) -> None:
+        catches = self._warn.convert(msg, "/ball/catches", lambda m: catches_from_msg(m, contract.OURS))
+        if catches:
+            self._player.on_catches(self._now_s(), catches)
 
     def _on_barrier(self, k: int, msg: Bool) -> None:
         self._player.on_barrier(k, self._now_s(), msg.data)

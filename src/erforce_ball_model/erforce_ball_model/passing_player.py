@@ -283,6 +283,17 @@ class PassingPlayer:
         if self.receiver is not None and self._pass is not None and i == self._pass.choice.receiver:
             self.receiver.on_catch_point(now, np.asarray(catch_point, dtype=float))
 
+    def on_catches(self, now: float, catches) -> None:
+        """The predictor's catches of one frame for our robots, as (robot, catch time, point or None: never) in
+        its order (conversions.catches_from_msg): each time (on_catch), then each point (on_catch_point), as
+        the per-robot topics bring them; robots beyond the team are not ours."""
+        ours = [c for c in catches if 0 <= c[0] < self.n_team]
+        for i, seconds, _ in ours:
+            self.on_catch(i, now, seconds)
+        for i, _, point in ours:
+            if point is not None:
+                self.on_catch_point(i, now, point)
+
     def on_model(self, params: BallModelParams) -> None:
         self.model = params
         if self.receiver is not None:
@@ -587,6 +598,17 @@ class PressingTeam:
 
     def on_catch_point(self, robot: int, now: float, point) -> None:
         self.receivers[robot].on_catch_point(now, point)
+
+    def on_catches(self, now: float, catches) -> None:
+        """The predictor's catches of one frame for this team, as (robot, catch time, point or None: never) in
+        its order (conversions.catches_from_msg): each time, then each point, as the per-robot topics bring
+        them; robots this team does not drive are skipped."""
+        own = [c for c in catches if c[0] in self.receivers]
+        for robot, seconds, _ in own:
+            self.on_catch_time(robot, now, seconds)
+        for robot, _, point in own:
+            if point is not None:
+                self.on_catch_point(robot, now, point)
 
     def on_barrier(self, robot: int, detected: bool) -> bool:
         """Own robot's light barrier; True on the rising edge (it received the ball)."""

@@ -1,11 +1,12 @@
 """team_catcher: the catchers of many robots in one process.
 
 The same contract as one ``catcher`` per robot (each in its namespace ``robot_<id>``, with
-``team_robot_ids`` the list): per robot in ``robot_ids`` it reads ``odom``, ``catch_time``,
-``catch_point`` and ``ball_detected`` under ``/robot_<id>/``, the ball's topics once for all, and
-publishes each robot's ``cmd_vel`` at ``rate_hz``. Each robot runs its own catcher.Receiver; with
-``as_team`` they form a team in which only the robot that can catch the ball first drives to it
-(catcher.team_receiver), as the per-robot catchers with ``team_robot_ids`` do.
+``team_robot_ids`` the list): per robot in ``robot_ids`` it reads ``odom`` and ``ball_detected`` under
+``/robot_<id>/``, its catch time and catch point from its row of ``/ball/catches`` (what the catcher reads
+on ``catch_time`` and ``catch_point``: one message for the team instead of two topics per robot), the
+ball's topics once for all, and publishes each robot's ``cmd_vel`` at ``rate_hz``. Each robot runs its own
+catcher.Receiver; with ``as_team`` they form a team in which only the robot that can catch the ball first
+drives to it (catcher.team_receiver), as the per-robot catchers with ``team_robot_ids`` do.
 
 With ``team`` ``opponents`` it drives the opponents under ``/opponent_<id>/`` (contract.Team) from the
 predictor's catch times for them: the interceptor of the simulated second team. With ``press_lanes`` it
@@ -33,10 +34,10 @@ from erforce_ball_model.passing_player import PressingTeam
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
+    catches_from_msg,
     float64_from_msg,
     model_in_use_from_msg,
     odometry_from_msg,
-    point_from_msg,
     twist_msg,
 )
 from erforce_interfaces.executor import EXECUTOR_ENV, run_sampled, sample_only
@@ -73,7 +74,7 @@ class TeamCatcherNode(Node):
         self._params = NodeParams(self, SCHEMA, build)
         self._values = self._params.values
         ids = [int(i) for i in self._values["robot_ids"]]
-        team = contract.TEAMS[self._values["team"]]
+        team = self._side = contract.TEAMS[self._values["team"]]
         self._names = {i: team.namespace(i) for i in ids}
         other = contract.OURS if team is contract.OPPONENTS else contract.OPPONENTS
         n_other = self._values["num_other_robots"] if self._values["press_lanes"] else 0
@@ -87,12 +88,11 @@ class TeamCatcherNode(Node):
                                                      (q.BALL_V_SHOOT, self._on_v_shoot, True),
                                                      (q.BALL_MODEL_PARAMS, self._on_model_params, False))]
         for i in ids:
-            for topic, callback, raw in ((q.ODOM, self._on_odom, True), (q.CATCH_TIME, self._on_catch_time, True),
-                                         (q.CATCH_POINT, self._on_catch_point, True),
-                                         (q.BALL_DETECTED, self._on_barrier, False)):
+            for topic, callback, raw in ((q.ODOM, self._on_odom, True), (q.BALL_DETECTED, self._on_barrier, False)):
                 sub = contract_subscription(self, topic, lambda m, i=i, cb=callback: cb(i, m), team.topic(topic, i),
                                             raw=raw)
                 self._inputs.append(sample_only(sub))
+        self._inputs.append(sample_only(contract_subscription(self, q.BALL_CATCHES, self._on_catches, raw=True)))
         for k in range(n_other):
             sub = contract_subscription(self, q.ODOM, lambda m, k=k: self._on_other_odom(k, m), other.topic(q.ODOM, k),
                                         raw=True)
@@ -145,15 +145,10 @@ class TeamCatcherNode(Node):
         if odom is not None:
             self._team.on_other_robot(k, self._now_s(), odom[1])
 
-    def _on_catch_time(self, robot: int, msg: bytes) -> None:
-        seconds = self._warn.convert(msg, f"{self._names[robot]} catch_time", float64_from_msg)
-        if seconds is not None:
-            self._team.on_catch_time(robot, self._now_s(), seconds)
-
-    def _on_catch_point(self, robot: int, msg: bytes) -> None:
-        point = self._warn.convert(msg, f"{self._names[robot]} catch_point", point_from_msg)
-        if point is not None:
-            self._team.on_catch_point(robot, self._now_s(), point[1])
+    def _on_catches(self, msg: bytes) -> None:
+        catches = self._warn.convert(msg, "/ball/catches", lambda m: catches_from_msg(m, self._side))
+        if catches:
+            self._team.on_catches(self._now_s(), catches)
 
     def _on_barrier(self, robot: int, msg: Bool) -> None:
         if self._team.on_barrier(robot, msg.data):

@@ -351,12 +351,13 @@ FIELD_MOTOR_DUTY = Topic("/field/motor_duty", JointState, QOS_CONTROL, "team_fir
 SIM_EVENTS = Topic("/sim/events", String, QOS_STATE, "plant, ssl_sim_bridge", "tools, demo",
                    "human-readable simulator events: kicks, contacts, lockstep stalls and resumes")
 BALL_CATCHES = Topic("/ball/catches", Float64MultiArray, QOS_SENSOR, "ball_predictor (while subscribed)",
-                     "field_view, tools",
+                     "passing_game, team_catcher, field_view, tools",
                      "both teams at one ball frame, one message for all robots: a table with columns "
                      "CATCH_TABLE_COLUMNS, a row per robot fresh at the frame, ours first, then the opponents "
                      "(its team, its id in the team, its tracked pose and velocity "
                      "at the frame's stamp [m, rad, m/s], `field`; its catch_time and catch_point as published "
-                     "per robot, the point 0, 0 with a catch time of never); after the per-robot outputs")
+                     "per robot, the point 0, 0 with a catch time of never); the AI's catch times: before the "
+                     "per-robot catch_time and catch_point")
 BALL_TRACK = Topic("/ball/track", PointCloud2, QOS_SENSOR, "ball_predictor (while subscribed)", "field_view, tools",
                    "the ball at one accepted vision frame, for observers, in one message: one point of fields "
                    "BALL_TRACK_FIELDS (float64, little endian, height 1, width 1): the filtered ball x, y [m] "

@@ -36,6 +36,8 @@ from erforce_interfaces.contract import (
     BALL_MODEL_PARAM_ROWS,
     BALL_PHASES,
     BALL_TRACK_FIELDS,
+    CATCH_TABLE_COLUMNS,
+    CATCH_TIME_NEVER,
     FIELD_FRAME,
     OPPONENTS,
     OURS,
@@ -1179,3 +1181,45 @@ def model_in_use_from_msg(msg: Float64MultiArray | bytes) -> tuple[float, float,
         raise ConversionError(f"rows labelled {rows}, expected the first of {','.join(BALL_MODEL_PARAM_ROWS)}")
     a_slide, a_roll, c_switch = table[0].tolist()
     return a_slide, a_roll, c_switch
+
+
+# ------------------------------------------------------------ /ball/catches
+_CATCH_TIME_COLUMN = CATCH_TABLE_COLUMNS.index("catch_time_s")
+_CATCH_X_COLUMN = CATCH_TABLE_COLUMNS.index("catch_x_m")
+_MAX_ROBOT_ID = 1.0e6
+
+
+class Catch(NamedTuple):
+    """One robot's row of /ball/catches as its per-robot ``catch_time`` and ``catch_point`` carry it."""
+
+    robot_id: int
+    catch_time_s: float  # CATCH_TIME_NEVER: never
+    point_m: tuple[float, float] | None  # None with a catch time of never: no catch_point goes out then
+
+
+def check_catch_ids(team_and_id: np.ndarray) -> None:
+    """The team and robot_id columns of a /ball/catches table (finite): a Team's code and a whole id >= 0 in each
+    row (ConversionError otherwise)."""
+    teams, ids = team_and_id[:, 0], team_and_id[:, 1]
+    if not ((ids >= 0.0) & (ids <= _MAX_ROBOT_ID) & (ids == np.floor(ids))).all():
+        raise ConversionError("robot ids of /ball/catches must be whole numbers >= 0")
+    if not ((teams == OURS.code) | (teams == OPPONENTS.code)).all():
+        raise ConversionError("the team column of /ball/catches must be a contract.Team code")
+
+
+def catches_from_msg(msg: Float64MultiArray | bytes, team: Team) -> list[Catch]:
+    """The catches of ``team``'s robots in a /ball/catches table (or its CDR bytes), in the table's order, with
+    the checks of ``float64_from_msg`` and ``point_from_msg`` on each value. A table that is not one
+    (columns, shape, a non-finite value, a team or robot id that is none) raises ConversionError."""
+    table = table_from_msg(msg, CATCH_TABLE_COLUMNS)
+    if not len(table):
+        return []
+    check_catch_ids(table[:, :2])
+    out = []
+    t_col, x_col = _CATCH_TIME_COLUMN, _CATCH_X_COLUMN
+    for row in table[table[:, 0] == team.code].tolist():
+        t = _finite("catch_time_s", row[t_col])
+        point = None if t == CATCH_TIME_NEVER else (_finite("catch_x_m", row[x_col]),
+                                                    _finite("catch_y_m", row[x_col + 1]))
+        out.append(Catch(int(row[1]), t, point))
+    return out

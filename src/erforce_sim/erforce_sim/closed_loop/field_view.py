@@ -42,6 +42,7 @@ from erforce_interfaces.conversions import (
     BallTrack,
     ConversionError,
     ball_track_from_msg,
+    check_catch_ids,
     float64_from_msg,
     model_in_use_from_msg,
     odometry_from_msg,
@@ -618,12 +619,9 @@ class _CatchIds:
 
     def __init__(self, team_and_id: np.ndarray, opponent_ids: frozenset[int], team_ids: frozenset[int]) -> None:
         self.ids_bytes = team_and_id.tobytes()
-        teams, id_list = team_and_id[:, 0].tolist(), team_and_id[:, 1].tolist()  # finite (table_from_msg)
-        if not all(0.0 <= i <= 1e6 and i == int(i) for i in id_list):
-            raise ValueError("robot ids of /ball/catches must be whole numbers >= 0")
-        ours, theirs = contract.OURS.code, contract.OPPONENTS.code
-        if not all(t in (ours, theirs) for t in teams):
-            raise ValueError("the team column of /ball/catches must be a contract.Team code")
+        check_catch_ids(team_and_id)  # finite (table_from_msg)
+        teams, id_list = team_and_id[:, 0].tolist(), team_and_id[:, 1].tolist()
+        ours = contract.OURS.code
         self.keys: list[RobotKey] = [int(i) if t == ours else opponent_key(int(i))
                                      for t, i in zip(teams, id_list, strict=True)]
         order = sorted(range(len(self.keys)), key=lambda k: _robot_order(self.keys[k]))
