@@ -240,25 +240,32 @@ class BallPredictorNode(Node):
     def _on_vision(self, msg: bytes) -> None:
         """A vision frame and every frame queued behind it: their balls (answered first), then their robots."""
         start = time.perf_counter()
-        # Cameras deliver in bursts: a ball frame may queue behind other cameras' robot frames, each of which
-        # costs a robot decode, tracking and odom publishes. Taking what is queued and answering every leading
-        # ball first (in stamp order) puts that work after the catch times; each stream keeps its order.
-        frames = [msg]
-        frames.extend(data for data, _info in take_queued(self._vision_sub))
         # The balls are read from their fixed place at the front and answered before the robots are decoded (the
         # decode of 14-22 robots costs about as much as a tenth of the frame's work); a frame not in that form,
-        # or whose ball fails the checks, is decoded whole first and refused whole, as before. Balls go first
-        # up to a frame not in that form or with a ball after its robots (another writer's order): from there
-        # each frame is answered in turn, so the ball stream's order is the frames' order.
-        leading_balls = []
-        for data in frames:
-            leading = vision_leading_balls(data)
-            if leading is None or vision_ball_after_robot(data):
-                break
-            leading_balls.append(leading)
-        self._leading_balls(start, leading_balls)
-        for k, data in enumerate(frames):
-            self._frame_rest(start, data, len(leading_balls[k][1]) if k < len(leading_balls) else None)
+        # or whose ball fails the checks, is decoded whole first and refused whole, as before. This frame's
+        # balls go first: nothing queued behind it is older.
+        leading = vision_leading_balls(msg)
+        if leading is not None:
+            self._leading_balls(start, [leading])
+        # Cameras deliver in bursts: a ball frame may wait behind other cameras' robot frames, each of which
+        # costs a robot decode, tracking and odom publishes. The frames queued behind this one are taken with it
+        # and their leading balls answered, in order, before any robots. That stops at a frame not in the
+        # ball-first form or with a ball after its robots (another writer's order): from there each frame is
+        # answered in turn, so the ball stream keeps the frames' order.
+        frames = [(msg, None if leading is None else len(leading[1]))]
+        queued = take_queued(self._vision_sub)
+        balls_first = bool(queued) and leading is not None and not vision_ball_after_robot(msg)
+        for data, _info in queued:
+            answered = None
+            if balls_first:
+                leading = vision_leading_balls(data)
+                balls_first = leading is not None and not vision_ball_after_robot(data)
+                if balls_first:
+                    self._leading_balls(start, [leading])
+                    answered = len(leading[1])
+            frames.append((data, answered))
+        for data, answered in frames:
+            self._frame_rest(start, data, answered)
 
     def _frame_rest(self, start: float, msg: bytes, answered: int | None) -> None:
         """A frame whose first ``answered`` balls were answered (None: none read yet): the rest of its balls, then
