@@ -15,9 +15,11 @@ import pytest
 import rclpy
 from geometry_msgs.msg import PointStamped
 from nav_msgs.msg import Odometry
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
+from erforce_ball_model import ball_predictor_node
 from erforce_ball_model.ball_predictor_node import BallPredictorNode
 from erforce_ball_model.catcher import CatcherConfig
 from erforce_interfaces import contract
@@ -566,3 +568,62 @@ def test_the_catch_table_goes_out_before_every_per_robot_catch_output(ros_graph)
         assert all(tables[k] < v[k] for v in sent.values()), f"frame {k}: a per-robot output before the table"
     rows = table_from_msg(rig.catches[-1], contract.CATCH_TABLE_COLUMNS)
     assert rows[:, 7].tolist() == [rig.catch_time[i][-1].data for i in range(3)]
+def test_queued_frames_have_every_leading_ball_answered_before_their_robots(monkeypatch):
+    """A burst: the frame that wakes the node and those queued behind it (taken with it). Every leading ball is
+    answered (catch times out) before any of their robots is tracked; each stream stays in stamp order; from a
+    frame with a ball after its robots (another writer's order) on, each frame is answered in turn.
+    In-process: the node's callback is called directly with hand-built messages."""
+    rclpy.init()
+    node = None
+    try:
+        node = BallPredictorNode()
+        events = []
+        ball_frame, robot_frame = node._predictor.ball_frame, node._predictor.robot_frame
+        publish_catch_outputs = node._publish_catch_outputs
+
+        def on_ball(t_s, x, y, **kw):
+            events.append(("ball", round(t_s, 6)))
+            return ball_frame(t_s, x, y, **kw)
+
+        def on_robot(robot, t_s, *args, **kw):
+            events.append(("robot", round(t_s, 6)))
+            return robot_frame(robot, t_s, *args, **kw)
+
+        def on_catch(frame):
+            events.append(("catch", round(frame.t_s, 6)))
+            return publish_catch_outputs(frame)
+
+        node._predictor.ball_frame, node._predictor.robot_frame = on_ball, on_robot
+        node._publish_catch_outputs = on_catch
+        ours = contract.OURS.code
+        robot = [(ours, 0, 0.0, 1.0, 0.0)]
+        queued = []
+        monkeypatch.setattr(ball_predictor_node, "take_queued", lambda _sub: [(m, {}) for m in queued])
+        node._on_vision(vision_robots_cdr(1.0, robot))  # robot_0 seen: ball frames get its catch time
+        assert events == [("robot", 1.0)]
+
+        def ball_last(t_s):  # robot point first, then the ball (another writer's order)
+            return serialize_message(robots_msg(t_s, [*robot, (contract.VISION_BALL_CODE, 0.0, 1.0, 1.0, 0.0)]))
+
+        for case, frames, expected in (
+            ("a robot frame wakes the node, two ball frames queued behind it",
+             [vision_robots_cdr(1.01, robot), vision_robots_cdr(1.02, robot, balls=[(1.0, 1.0)]),
+              vision_robots_cdr(1.03, robot, balls=[(1.01, 1.0)])],
+             ["ball 1.02", "catch 1.02", "ball 1.03", "catch 1.03", "robot 1.01", "robot 1.02", "robot 1.03"]),
+            ("a frame with its ball after its robots ends the balls going first",
+             [vision_robots_cdr(1.04, robot), vision_robots_cdr(1.05, robot, balls=[(1.02, 1.0)]), ball_last(1.06),
+              vision_robots_cdr(1.07, robot, balls=[(1.03, 1.0)])],
+             ["ball 1.05", "catch 1.05", "robot 1.04", "robot 1.05", "ball 1.06", "catch 1.06", "robot 1.06",
+              "ball 1.07", "catch 1.07", "robot 1.07"]),
+            ("nothing queued: the frame's ball, then its robots, as before",
+             [vision_robots_cdr(1.08, robot, balls=[(1.04, 1.0)])], ["ball 1.08", "catch 1.08", "robot 1.08"]),
+        ):
+            events.clear()
+            queued[:] = frames[1:]
+            node._on_vision(frames[0])
+            assert [f"{kind} {t:g}" for kind, t in events] == expected, case
+        assert gc.isenabled()
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

@@ -241,6 +241,16 @@ def test_the_leading_ball_is_read_alone_and_a_frame_it_cannot_vouch_for_is_left_
 
 
 
+def test_a_ball_after_a_robot_is_told_from_the_team_fields_alone():
+    ball = (0.25, -1.0, 0.0, 0.0, c.VISION_BALL_CODE, 0.0)
+    robot = (1.5, -2.0, 0.0, 0.5, 1.0, 3.0)  # x, y, z, yaw, team, robot_id
+    for points, after in (([ball, robot], False), ([robot], False), ([ball], False), ([], False),
+                          ([robot, ball], True), ([ball, robot, ball], True), ([ball, ball, robot, robot], False)):
+        assert conv.vision_ball_after_robot(serialize_message(cloud(1.0, points))) is after, points
+    assert conv.vision_ball_after_robot(HAND_BALL) is False and conv.vision_ball_after_robot(HAND) is False
+    assert conv.vision_ball_after_robot(HAND_BALL[:-49]) is False  # not the layout: left to the whole decode
+
+
 # Values at and just past each limit of a point (positions 1e3 m, yaw 1e6 rad, ids 0..1024), and non-finite ones.
 EDGES = (0.0, -0.0, 0.5, -1.0, 3.0, 2.0, 1e3, -1e3, math.nextafter(1e3, math.inf), 1e6, -1e6,
          math.nextafter(1e6, math.inf), 1024.0, 1025.0, math.nan, math.inf, -math.inf)

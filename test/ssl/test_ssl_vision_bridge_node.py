@@ -288,3 +288,44 @@ def test_a_sigint_while_datagrams_stream_in_ends_quietly(bridge):
     out = node.output()
     assert code == 0, out[-1500:]
     assert "batch failed" not in out and "Traceback" not in out, out[-1500:]
+@pytest.mark.parametrize("general_path", [False, True])
+def test_a_frames_vision_robots_goes_out_before_its_vision_ball(general_path):
+    """What the predictor reads goes out first: /vision/robots, then the tool topic /vision/ball (with a
+    reader), on the compiled pass and on the general path (publish_detections). In-process: datagrams
+    handed to the node's batch handler, its two publishers recording."""
+    import rclpy
+
+    from erforce_ball_model.ssl_vision_bridge import SslVisionBridge
+
+    rclpy.init(args=["--ros-args", "-p", f"port:={free_udp_port()}", "-p", "interface:=127.0.0.1",
+                     "-p", f"publish_detections:={str(general_path).lower()}"])
+    node = None
+    try:
+        node = SslVisionBridge()
+        sent = []
+
+        class Recording:
+            def __init__(self, topic):
+                self.topic = topic
+
+            def publish(self, data):
+                sent.append(self.topic)
+
+        node._robots_pub, node._ball_pub = Recording("robots"), Recording("ball")
+        node._ball_readers[0] = 1
+        sender = Sender(0)
+        per_datagram = []
+        for k in range(12):  # a ball rolling along x, seen by camera 0 with one robot of ours (yellow)
+            sent.clear()
+            data = sender.frame(0, 0.016 * k, balls=[BallCandidate(-1.0 + 0.02 * k, 0.5, 0.9)],
+                                robots=[RobotSighting("yellow", 0, 1.0, 1.0, 0.0, 1.0)])
+            node.handle_batch([data], 1.0 + 0.016 * k)
+            per_datagram.append(list(sent))
+        sender.sock.close()
+        with_ball = [order for order in per_datagram if "ball" in order]
+        assert len(with_ball) >= 8, per_datagram  # the ball is taken once its hypothesis is confirmed
+        assert all(order == ["robots", "ball"] for order in with_ball), per_datagram
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()

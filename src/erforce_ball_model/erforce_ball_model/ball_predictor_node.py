@@ -5,7 +5,9 @@ robot freshness, the reaction time, robotTimeToBall for the team, the model in u
 identification), the same object the in-process scenes and the bench run. Vision comes in on
 ``/vision/robots``, one message per vision frame: its ball and its robots, both teams; the ball, at the
 front of the message, is read and answered before the robots are decoded (so a frame whose ball is good
-but a robot point is not is answered, and its robots are refused). Every ball frame is answered with each
+but a robot point is not is answered, and its robots are refused). Frames queued behind the one that woke
+the node (cameras deliver in bursts) are taken with it: every queued ball is answered, in order, before
+any of their robots. Every ball frame is answered with each
 fresh robot's catch first (what the robots act on): ``/ball/catches`` (both teams in one message: the
 AI's input, and the field view's) while anyone subscribes to it, then each robot's ``/robot_<i>/catch_time``
 and ``catch_point``, each while anyone subscribes to it; then the ball state, phase, stop point,
@@ -54,10 +56,11 @@ from erforce_interfaces.conversions import (
     table_cdr,
     table_from_msg,
     table_msg,
+    vision_ball_after_robot,
     vision_frame_from_msg,
     vision_leading_balls,
 )
-from erforce_interfaces.executor import run_sampled
+from erforce_interfaces.executor import run_sampled, take_queued
 from erforce_interfaces.node_support import (
     NodeParams,
     ThrottledWarner,
@@ -179,7 +182,7 @@ class BallPredictorNode(Node):
         self._phase_msg, self._uncertain_msg = String(), Bool()  # refilled every frame
         # Vision comes in and catch outputs go out serialized (conversions' codec): on the path
         # from a frame to its catch times rclpy's message objects cost more than the maths.
-        contract_subscription(self, q.VISION_ROBOTS, self._on_vision, raw=True)
+        self._vision_sub = contract_subscription(self, q.VISION_ROBOTS, self._on_vision, raw=True)
         contract_subscription(self, q.VISION_FIELD, self._on_vision_field)
         contract_subscription(self, q.VISION_BALL_MODEL, self._on_vision_ball_model)
         # Everything runs on vision stamps; ROS time only stamps the logs: no wake per /clock.
@@ -237,25 +240,43 @@ class BallPredictorNode(Node):
                                    f"{model.a_roll_mps2:g}, c_switch {model.c_switch:g}")
 
     def _on_vision(self, msg: bytes) -> None:
-        """One vision frame: its ball (answered first), then its robots."""
+        """A vision frame and every frame queued behind it: their balls (answered first), then their robots."""
         start = time.perf_counter()
-        # The ball is read from its fixed place at the front and answered before the robots are decoded (the
+        # The balls are read from their fixed place at the front and answered before the robots are decoded (the
         # decode of 14-22 robots costs about as much as a tenth of the frame's work); a frame not in that form,
-        # or whose ball fails the checks, is decoded whole first and refused whole, as before.
+        # or whose ball fails the checks, is decoded whole first and refused whole, as before. This frame's
+        # balls go first: nothing queued behind it is older.
         leading = vision_leading_balls(msg)
-        answered = 0
-        if leading is not None and leading[1]:
-            # A frame allocates a few hundred objects: a cyclic collection (every few frames; 0.03-1.5 ms) would
-            # fall between the vision frame and its catch times in about 1 frame of 25. It is held off until
-            # the balls are answered and then runs, if due, at the next allocation.
-            collecting = gc.isenabled()
-            gc.disable()
-            try:
-                self._balls(start, *leading)
-            finally:
-                if collecting:
-                    gc.enable()
-            answered = len(leading[1])
+        if leading is not None:
+            self._leading_balls(start, [leading])
+        # Cameras deliver in bursts: a ball frame may wait behind other cameras' robot frames, each of which
+        # costs a robot decode, tracking and odom publishes. The frames queued behind this one are taken with it
+        # and their leading balls answered, in order, before any robots. That stops at a frame not in the
+        # ball-first form or with a ball after its robots (another writer's order): from there each frame is
+        # answered in turn, so the ball stream keeps the frames' order.
+        frames = [(msg, None if leading is None else len(leading[1]))]
+        queued = take_queued(self._vision_sub)
+        balls_first = bool(queued) and leading is not None and not vision_ball_after_robot(msg)
+        for data, _info in queued:
+            answered = None
+            if balls_first:
+                leading = vision_leading_balls(data)
+                balls_first = leading is not None and not vision_ball_after_robot(data)
+                if balls_first:
+                    self._leading_balls(start, [leading])
+                    answered = len(leading[1])
+            frames.append((data, answered))
+        for data, answered in frames:
+            self._frame_rest(start, data, answered)
+
+    def _frame_rest(self, start: float, msg: bytes, answered: int | None) -> None:
+        """A frame whose first ``answered`` balls were answered (None: none read yet): the rest of its balls, then
+        its robots."""
+        if answered is None:
+            leading = vision_leading_balls(msg)  # a frame from where the balls stopped going first
+            if leading is not None:
+                self._leading_balls(start, [leading])
+            answered = 0 if leading is None else len(leading[1])
         try:
             t_s, balls, rows = vision_frame_from_msg(msg)
         except ConversionError as exc:
@@ -266,6 +287,23 @@ class BallPredictorNode(Node):
             self._balls(start, t_s, balls[answered:].tolist())
         if len(rows):
             self._robots_frame(t_s, rows)
+
+    def _leading_balls(self, start: float, frames: list) -> None:
+        """The leading balls of ``frames`` ((stamp, balls) each), in order."""
+        if not any(balls for _t_s, balls in frames):
+            return
+        # A frame allocates a few hundred objects: a cyclic collection (every few frames; 0.03-1.5 ms) would
+        # fall between the vision frame and its catch times in about 1 frame of 25. It is held off until
+        # the balls are answered and then runs, if due, at the next allocation.
+        collecting = gc.isenabled()
+        gc.disable()
+        try:
+            for t_s, balls in frames:
+                if balls:
+                    self._balls(start, t_s, balls)
+        finally:
+            if collecting:
+                gc.enable()
 
     def _balls(self, start: float, t_s: float, balls: list) -> None:
         try:

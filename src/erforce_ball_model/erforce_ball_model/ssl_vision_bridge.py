@@ -8,17 +8,17 @@ says so. Every datagram goes through erforce_interfaces.ssl_vision (decoding, ch
 clock) and erforce_ball_model.vision_tracking (the true ball, robot streams); the node converts
 and publishes. Bad datagrams are dropped with a throttled warning naming the problem.
 
-A camera frame goes out in one ``/vision/robots`` message (what the stack reads): the tracker's ball, if
-it took one from this frame, and the robots, both teams. A DDS write is the largest single cost of a
-datagram, so ``/vision/ball`` and a robot's vision_pose are serialized and published only while their
-topic has a reader (each publisher's matched event keeps the count); a tool that subscribes to one gets
-it from then on. The usual datagram (one camera frame, every detection valid, every robot with an
-orientation, no vision_pose reader) goes from its bytes to the message's bytes in one compiled pass
-(erforce_ball_model.vision_pass: decoding, vision clock, tracker and the ball filter's usual update,
-points, CDR); Python adds the publish, and the ball filter's unusual frames (a new ball, one held back).
-Anything else takes the general path (the same kernels through their Python interfaces), which also warns;
-so do a flipped field and ``publish_detections``.
-"""
+A camera frame goes out in one ``/vision/robots`` message (what the stack reads): the tracker's ball, if it
+took one from this frame, and the robots, both teams. It goes out first, ``/vision/ball`` after it (a
+recorder reading every topic made a ball's datagram pay for that write before the predictor's message). A
+DDS write is the largest single cost of a datagram, so ``/vision/ball`` and a robot's vision_pose are
+serialized and published only while their topic has a reader (each publisher's matched event keeps the
+count); a tool that subscribes to one gets it from then on. The usual datagram (one camera frame, every
+detection valid, every robot with an orientation, no vision_pose reader) goes from its bytes to the
+message's bytes in one compiled pass (erforce_ball_model.vision_pass: decoding, vision clock, tracker and
+the ball filter's usual update, points, CDR); Python adds the publish, and the ball filter's unusual frames
+(a new ball, one held back). Anything else takes the general path (the same kernels through their Python
+interfaces), which also warns; so do a flipped field and ``publish_detections``."""
 
 from __future__ import annotations
 
@@ -266,10 +266,10 @@ class SslVisionBridge(Node):
                                                                             self._stamp_from_vision)
         if status == PASS_DONE and n_bytes >= 0 and (not action or action >= BALL_FUSED):
             self.stats["frames"] += 1
-            if action and self._ball_readers[0]:
-                self._ball_pub.publish(point_cdr(t_s, (ball_x, ball_y)))
             if n_bytes:
                 self._robots_pub.publish(self._frame_pass.message_view[:n_bytes].tobytes())
+            if action and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
+                self._ball_pub.publish(point_cdr(t_s, (ball_x, ball_y)))
             return
         if status == PASS_FALLBACK:  # nothing changed yet: the general path names the problem
             packet = self._decode(data)
@@ -295,19 +295,18 @@ class SslVisionBridge(Node):
         ball = self._tracker.use_ball(action, camera_id, t_s, ball_x, ball_y) if action else None
         self.stats["frames"] += 1
         try:
-            if ball is not None and self._ball_readers[0]:
-                self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
+            n_points = int(info[I_POINTS])
             if status == PASS_GENERAL:
                 self._publish_robots(t_s, fp.robots()[fp.used()].tolist(), [(ball_x, ball_y)] if ball else [])
-                return
-            n_points = int(info[I_POINTS])
-            if action and ball is None:  # the filter refused the ball written first: the robots alone
+            elif action and ball is None:  # the filter refused the ball written first: the robots alone
                 if n_points > 1:
                     self._robots_pub.publish(vision_robots_points_cdr(t_s, fp.points[1:n_points]))
             elif n_bytes > 0:
                 self._robots_pub.publish(fp.message_view[:n_bytes].tobytes())
             elif n_points > 0:  # a stamp the pass leaves to the checks of conversions
                 self._robots_pub.publish(vision_robots_points_cdr(t_s, fp.points[:n_points]))
+            if ball is not None and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
+                self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
         except ConversionError as exc:
             self._warn.warn("publish", f"ssl_vision_bridge: camera {camera_id}: not published: {exc}")
 
@@ -426,8 +425,6 @@ class SslVisionBridge(Node):
         ball, used = self._tracker.frame_indices(frame.camera_id, t_s, balls, robots)
         self.stats["frames"] += 1
         try:
-            if ball is not None and self._ball_readers[0]:
-                self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
             if len(used) or ball is not None:  # the ball's stamp is the frame's
                 if len(used) >= len(self._points):
                     self._points = np.empty((len(used) + 1, self._points.shape[1]))
@@ -438,6 +435,8 @@ class SslVisionBridge(Node):
                     self._robots_pub.publish(vision_robots_points_cdr(t_s, self._points[:n]))
                 else:
                     self._publish_robots(t_s, robots[used].tolist(), [(ball.x_m, ball.y_m)] if has_ball else [])
+            if ball is not None and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
+                self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
             if cfg.publish_detections:
                 self._publish_detections(cfg, frame.camera_id, t_receive_s - t_s, balls.tolist(), robots.tolist())
         except ConversionError as exc:

@@ -906,6 +906,25 @@ def vision_leading_balls(data: bytes) -> tuple[float, list[tuple[float, float]]]
     return t_s, balls
 
 
+def vision_ball_after_robot(data: bytes) -> bool:
+    """Whether a serialized /vision/robots has a ball point after a robot point (another writer's order), read
+    from the points' team fields alone; False when the cloud is not /vision/robots' layout (decoding it names
+    the fault)."""
+    try:
+        _t_s, layout, at = _cloud_from_cdr(data)
+        _check_robot_cloud(*layout)
+    except ConversionError:
+        return False
+    step, team_at = _ROBOT_POINT.size, 8 * VISION_ROBOT_FIELDS.index("team")
+    robot_seen = False
+    for k in range(layout[1]):
+        is_ball = _f64.unpack_from(data, at + k * step + team_at)[0] == VISION_BALL_CODE
+        if is_ball and robot_seen:
+            return True
+        robot_seen = robot_seen or not is_ball
+    return False
+
+
 _ROBOT_FIELDS = [(name, 8 * k, PointField.FLOAT64, 1) for k, name in enumerate(VISION_ROBOT_FIELDS)]
 
 
