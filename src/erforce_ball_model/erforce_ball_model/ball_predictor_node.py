@@ -248,7 +248,7 @@ class BallPredictorNode(Node):
         # balls go first: nothing queued behind it is older.
         leading = vision_leading_balls(msg)
         if leading is not None:
-            self._leading_balls(start, [leading])
+            self._leading_balls(start, *leading)
         # Cameras deliver in bursts: a ball frame may wait behind other cameras' robot frames, each of which
         # costs a robot decode, tracking and odom publishes. The frames queued behind this one are taken with it
         # and their leading balls answered, in order, before any robots. That stops at a frame not in the
@@ -263,7 +263,7 @@ class BallPredictorNode(Node):
                 leading = vision_leading_balls(data)
                 balls_first = leading is not None and not vision_ball_after_robot(data)
                 if balls_first:
-                    self._leading_balls(start, [leading])
+                    self._leading_balls(start, *leading)
                     answered = len(leading[1])
             frames.append((data, answered))
         for data, answered in frames:
@@ -275,7 +275,7 @@ class BallPredictorNode(Node):
         if answered is None:
             leading = vision_leading_balls(msg)  # a frame from where the balls stopped going first
             if leading is not None:
-                self._leading_balls(start, [leading])
+                self._leading_balls(start, *leading)
             answered = 0 if leading is None else len(leading[1])
         try:
             t_s, balls, rows = vision_frame_from_msg(msg)
@@ -288,9 +288,9 @@ class BallPredictorNode(Node):
         if len(rows):
             self._robots_frame(t_s, rows)
 
-    def _leading_balls(self, start: float, frames: list) -> None:
-        """The leading balls of ``frames`` ((stamp, balls) each), in order."""
-        if not any(balls for _t_s, balls in frames):
+    def _leading_balls(self, start: float, t_s: float, balls: list) -> None:
+        """A frame's leading balls (vision_leading_balls), in order."""
+        if not balls:
             return
         # A frame allocates a few hundred objects: a cyclic collection (every few frames; 0.03-1.5 ms) would
         # fall between the vision frame and its catch times in about 1 frame of 25. It is held off until
@@ -298,9 +298,7 @@ class BallPredictorNode(Node):
         collecting = gc.isenabled()
         gc.disable()
         try:
-            for t_s, balls in frames:
-                if balls:
-                    self._balls(start, t_s, balls)
+            self._balls(start, t_s, balls)
         finally:
             if collecting:
                 gc.enable()

@@ -56,6 +56,16 @@ from erforce_interfaces.robot_config import FieldConfig
 ANY_DISTANCE_M = (1e-3, 1e3)  # the passing distances of the last fallback: any teammate
 
 
+
+def feed_catches(now: float, catches, on_time, on_point) -> None:
+    """Catches of one frame ((robot, catch time, point or None: never) each) as the per-robot topics bring
+    them: every time (``on_time(robot, now, seconds)``), then every point (``on_point(robot, now, point)``)."""
+    for robot, seconds, _ in catches:
+        on_time(robot, now, seconds)
+    for robot, _, point in catches:
+        if point is not None:
+            on_point(robot, now, point)
+
 @dataclass(frozen=True)
 class PlayerConfig:
     hold_min_s: float = 0.4  # a new holder settles the ball this long before it kicks
@@ -287,12 +297,7 @@ class PassingPlayer:
         """The predictor's catches of one frame for our robots, as (robot, catch time, point or None: never) in
         its order (conversions.catches_from_msg): each time (on_catch), then each point (on_catch_point), as
         the per-robot topics bring them; robots beyond the team are not ours."""
-        ours = [c for c in catches if 0 <= c[0] < self.n_team]
-        for i, seconds, _ in ours:
-            self.on_catch(i, now, seconds)
-        for i, _, point in ours:
-            if point is not None:
-                self.on_catch_point(i, now, point)
+        feed_catches(now, [c for c in catches if 0 <= c[0] < self.n_team], self.on_catch, self.on_catch_point)
 
     def on_model(self, params: BallModelParams) -> None:
         self.model = params
@@ -603,12 +608,7 @@ class PressingTeam:
         """The predictor's catches of one frame for this team, as (robot, catch time, point or None: never) in
         its order (conversions.catches_from_msg): each time, then each point, as the per-robot topics bring
         them; robots this team does not drive are skipped."""
-        own = [c for c in catches if c[0] in self.receivers]
-        for robot, seconds, _ in own:
-            self.on_catch_time(robot, now, seconds)
-        for robot, _, point in own:
-            if point is not None:
-                self.on_catch_point(robot, now, point)
+        feed_catches(now, [c for c in catches if c[0] in self.receivers], self.on_catch_time, self.on_catch_point)
 
     def on_barrier(self, robot: int, detected: bool) -> bool:
         """Own robot's light barrier; True on the rising edge (it received the ball)."""
