@@ -421,3 +421,17 @@ def test_a_pose_from_the_future_or_older_than_stale_bounds_the_prediction():
         rx.on_odom(0.0, [-0.5, 0.3, math.pi], [0.0, 0.0, 1.0], stamp_s)
         yaw, gain = heading_loop(math.pi, 1.0, delay_s, RCFG)
         assert rx.tick(0.0)[2] == pytest.approx(gain * wrap_angle(math.radians(150.0) - yaw))
+
+
+def test_the_approach_steers_from_the_pose_predicted_over_the_loops_delay():
+    """The Fig. 6 receiver moving onto the ball's line at 0.8 m/s, its pose 0.01 s old: the delay is 0.01 +
+    command_lead_s (0.04) = 0.05 s, over which it moves 0.04 m. From 0.2 m off the line it is commanded
+    the arrive-at-rest speed for the 0.16 m left then, sqrt(2 * 4.5 * 0.5 * 0.16) = 0.849 m/s (0.949 from the
+    measured pose); from 0.04 m off it will be on the line (dribbler within 0.02 m): it stops commanding."""
+    for y_m, speed_mps in ((0.2, math.sqrt(2.0 * 4.5 * 0.5 * 0.16)), (0.04, 0.0)):
+        rx = _receiver()
+        _feed_fig6(rx, 0.0)
+        rx.on_odom(0.0, [-0.5, y_m, math.pi], [0.0, -0.8], -0.01)
+        twist = rx.tick(0.0)
+        # facing -x, the field's -y is the robot's +y
+        assert twist[:2] == pytest.approx([0.0, speed_mps], abs=1e-9), f"{y_m} m off the line"

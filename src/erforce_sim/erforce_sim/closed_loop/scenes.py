@@ -31,7 +31,7 @@ from erforce_ball_model.catcher import CATCH_TIME_NEVER, CatcherConfig, Receiver
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.closed_loop.runner import InProcessRunner
-from erforce_sim.sensors import VisionFrame
+from erforce_sim.sensors import VisionFrame, VisionParams
 from erforce_sim.world import PlantSetup
 
 RECEIVER, KICKER = 0, 1
@@ -145,18 +145,22 @@ class InProcessResult:
 
 def play_in_process(scene: Scene, seed: int = 0, catcher: CatcherConfig | None = None,
                     field_preset: str = "division_b", control_period_s: float = 0.002,
-                    catcher_rate_hz: float = 50.0, settle_s: float = 0.5) -> InProcessResult:
+                    catcher_rate_hz: float = 50.0, settle_s: float = 0.5,
+                    vision: VisionParams | None = None) -> InProcessResult:
     """Play one scene with the stack in one process (module docstring); deterministic for a seed.
 
     The catcher's limits are also the predictor's planning limits, as in demo.launch.yaml. The
-    bodies rest ``settle_s`` before the kick, so that the trackers know them.
+    bodies rest ``settle_s`` before the kick, so that the trackers know them. ``vision``: the
+    cameras' rate, latency and noise (None: the plant's defaults); a longer latency stands in for
+    the graph's (vision over UDP, the bridge, DDS hops).
     """
     field = FieldConfig.preset(field_preset)
     robot = RobotConfig()
     cfg = catcher or CatcherConfig()
     runner = InProcessRunner(PlantSetup(field_preset=field_preset, robot_poses=(scene.receiver_pose, scene.kicker_pose),
                                         controlled=(True, False), ball=(0.0, 0.0, 0.0, 0.0),
-                                        control_period_s=control_period_s, seed=seed, robot=robot))
+                                        control_period_s=control_period_s, seed=seed, robot=robot,
+                                        vision=vision or VisionParams()))
     world = runner.world
     kx, ky, kyaw = scene.kicker_pose
     reach = robot.dribbler_offset_m + 0.002
@@ -219,7 +223,8 @@ class _Predictor:
         rx, predictor = self.receiver, self.predictor
         for r in frame.robots:
             if r.robot_id == RECEIVER and (tracker := predictor.robot_frame(RECEIVER, t, r.x, r.y, r.theta)):
-                rx.on_odom(now, (*tracker.position_m, tracker.heading_rad), tracker.velocity_mps)
+                # stamped with the capture time, as the node's odometry: the catcher predicts over its age
+                rx.on_odom(now, (*tracker.position_m, tracker.heading_rad), tracker.velocity_mps, t)
         for b in frame.balls[:1]:
             answer = predictor.ball_frame(t, b.x, b.y)
             if answer is None:
