@@ -18,6 +18,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseStamped, Twist
 from nav_msgs.msg import Odometry
+from rclpy.qos import HistoryPolicy, QoSProfile
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
@@ -210,6 +211,8 @@ class TopicWatch:
     ``counts`` the messages per topic; ``keep`` names the topics whose messages are stored.
     """
 
+    KEPT_DEPTH = 2000  # a kept topic's reader queue, messages
+
     def __init__(self, probe, robots: Iterable[int] = (0,), exclude: Iterable[str] = (),
                  keep: Iterable[str] = (), opponents: Iterable[int] = ()) -> None:
         self.counts: dict[str, int] = {}
@@ -223,7 +226,11 @@ class TopicWatch:
         self.topics = [(n, t) for n, t in topic_names(robots, opponents=opponents) if n not in excluded]
         for name, t in self.topics:
             self.counts[name] = 0
-            probe.node.create_subscription(t.msg_type, name, lambda m, n=name: self._on(n, m), t.qos)
+            qos = t.qos
+            if name in self.kept:  # all of it: a flat-out graph sends more between two spins than the contract's depth
+                qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=max(t.qos.depth, self.KEPT_DEPTH),
+                                 reliability=t.qos.reliability, durability=t.qos.durability)
+            probe.node.create_subscription(t.msg_type, name, lambda m, n=name: self._on(n, m), qos)
 
     def _on(self, name: str, msg) -> None:
         if name in self.paused:
