@@ -275,6 +275,8 @@ class SslVisionBridge(Node):
             try:
                 sink(data)
             except Exception as exc:  # the topic still gets the frame
+                if not self.context.ok():
+                    raise  # shutting down: the receive loop ends quietly
                 self._warn.warn("sink", f"ssl_vision_bridge: the frame's consumer failed: {exc!r}")
             self._sink_ns += time.thread_time_ns() - t0
         self._robots_pub.publish(data)
