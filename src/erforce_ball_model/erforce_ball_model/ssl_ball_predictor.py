@@ -7,7 +7,8 @@ publishes it: the predictor answers the frame on that thread, so a datagram's ca
 after it arrived, with no DDS write, reader wake or executor round in between. ``/vision/robots``,
 ``/vision/ball`` and the rest are still published afterwards, for tools and bags. The predictor takes no
 ``/vision/robots`` from DDS here (it would see its own frames twice); its other subscriptions, parameters and
-geometry callbacks run on the executor, one at a time with the frames (the predictor's lock).
+geometry callbacks run on the executor, one at a time with the frames (the predictor's lock). Frames are answered
+in datagram order, each whole (its ball, then its robots) before the next datagram is handled.
 
 Parameters: a launch file's inline parameters reach both nodes (their key is ``/**``) and each declares its own;
 ``field`` and ``num_robots``, in both schemas, mean the same in both. A parameter file may address one node by
