@@ -30,6 +30,7 @@ setup(
             "ball_fit = erforce_ball_model.ball_fit:main",
             "catcher = erforce_ball_model.catcher_node:main",
             "passing_game = erforce_ball_model.passing_game_node:main",
+            "ssl_ball_predictor = erforce_ball_model.ssl_ball_predictor:main",
             "ssl_vision_bridge = erforce_ball_model.ssl_vision_bridge:main",
             "team_catcher = erforce_ball_model.team_catcher_node:main",
         ],

@@ -71,6 +71,42 @@ def test_a_late_pump_replays_in_send_order():
             director.close()
 
 
+def test_with_ssl_arrivals_a_frame_published_after_its_catch_outputs_still_counts():
+    """ssl_ball_predictor publishes a frame's /vision/robots after the frame's catch outputs: the latency starts at
+    the frame's SSL arrival (by stamp) whichever of the two the director replays first."""
+    with isolated_node("director_probe") as node:
+        executor = DirectExecutor(context=node.context)
+        executor.add_node(node)
+        director = Director(node, RobotConfig(), executor)
+        try:
+            q = contract
+            clock = node.create_publisher(Clock, q.CLOCK.name, q.QOS_CLOCK)
+            vision = node.create_publisher(PointCloud2, q.VISION_ROBOTS.name, q.VISION_ROBOTS.qos)
+            catch_time = node.create_publisher(Float64, q.CATCH_TIME.for_robot(RECEIVER), q.CATCH_TIME.qos)
+            catch_point = node.create_publisher(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos)
+            publishers = (clock, vision, catch_time, catch_point)
+            deadline = time.monotonic() + 10.0
+            while any(p.get_subscription_count() < 1 for p in publishers):
+                assert time.monotonic() < deadline, "the director's subscriptions did not match"
+                executor.spin_once(timeout_sec=0.05)
+            stamp_ns = 1_015_000_000
+            arrived_ns = time.time_ns()  # the system clock, as the DDS source timestamps
+            director.vision_sent_ns_of = {stamp_ns: arrived_ns}.get
+            catch_time.publish(Float64(data=0.5))
+            catch_point.publish(point_msg(1.015, (1.0, 0.0)))
+            vision.publish(vision_robots_cdr(1.015, [], balls=[(0.0, 0.0)]))
+            published_ns = time.time_ns()
+            clock.publish(Clock(clock=nanoseconds_to_stamp(1_030_000_000)))
+
+            assert director.spin_until(lambda: director.sim_ns == 1_030_000_000, 10.0, "the messages")
+            assert len(director.series.catch_time_latency_s) == 1
+            latency = director.series.catch_time_latency_s[0]
+            assert 0.0 < latency <= (published_ns - arrived_ns) * 1e-9
+            assert latency <= director.series.catch_point_latency_s[0]
+        finally:
+            director.close()
+
+
 def test_graph_processes_share_the_demos_session(tmp_path):
     """SCHED_IDLE ranks threads only within one autogroup (one per session): the demo's graph and
     recorder must stay in its session, each in a process group of its own for stop_process."""

@@ -33,6 +33,7 @@ from __future__ import annotations
 import gc
 import math
 import os
+import threading
 import time
 
 from rclpy.node import Node
@@ -127,9 +128,14 @@ class BallPredictorNode(Node):
         load_kernels()
         load_ball_filter_kernels()
 
-    def __init__(self) -> None:
+    def __init__(self, vision_topic: bool = True) -> None:
+        """``vision_topic`` False: no ``/vision/robots`` subscription; the process's SSL-Vision receiver hands each
+        frame to ``answer_vision`` instead (erforce_ball_model.ssl_ball_predictor)."""
         super().__init__("ball_predictor")
         self._warn = ThrottledWarner(self)
+        # Frames may come on another thread than the executor's (answer_vision): one frame, parameter change or
+        # geometry message at a time.
+        self._lock = threading.Lock()
         self._params = NodeParams(self, SCHEMA, build_config)
         self._values = self._params.values
         # kernels="background": the first frames are answered by the search's loop as Python (about 1 ms per
@@ -182,7 +188,8 @@ class BallPredictorNode(Node):
         self._phase_msg, self._uncertain_msg = String(), Bool()  # refilled every frame
         # Vision comes in and catch outputs go out serialized (conversions' codec): on the path
         # from a frame to its catch times rclpy's message objects cost more than the maths.
-        self._vision_sub = contract_subscription(self, q.VISION_ROBOTS, self._on_vision, raw=True)
+        self._vision_sub = (contract_subscription(self, q.VISION_ROBOTS, self._on_vision, raw=True) if vision_topic
+                            else None)
         contract_subscription(self, q.VISION_FIELD, self._on_vision_field)
         contract_subscription(self, q.VISION_BALL_MODEL, self._on_vision_ball_model)
         # Everything runs on vision stamps; ROS time only stamps the logs: no wake per /clock.
@@ -196,6 +203,10 @@ class BallPredictorNode(Node):
         self._params.on_change(self._apply)
 
     def _apply(self, config: PredictorConfig) -> None:
+        with self._lock:
+            self._configure(config)
+
+    def _configure(self, config: PredictorConfig) -> None:
         if config.timing_log_every != self._times.every:
             # A change ends the window (its summary is logged) and starts a new one: a bench measures
             # exactly the frames between two changes.
@@ -217,6 +228,10 @@ class BallPredictorNode(Node):
     # ------------------------------------------------------------- SSL geometry
     # The predictor keeps them (also across parameter changes) and uses them while use_vision_geometry.
     def _on_vision_field(self, msg: Float64MultiArray) -> None:
+        with self._lock:
+            self._vision_field(msg)
+
+    def _vision_field(self, msg: Float64MultiArray) -> None:
         try:
             length, width, boundary, *_ = table_from_msg(msg, contract.VISION_FIELD_COLUMNS)[0].tolist()
             field = FieldConfig(length, width, boundary)
@@ -229,6 +244,10 @@ class BallPredictorNode(Node):
             self.get_logger().info(f"field from SSL geometry: {length:g} x {width:g} m")
 
     def _on_vision_ball_model(self, msg: Float64MultiArray) -> None:
+        with self._lock:
+            self._vision_ball_model(msg)
+
+    def _vision_ball_model(self, msg: Float64MultiArray) -> None:
         try:
             model = BallModelParams(*table_from_msg(msg, contract.BALL_MODEL_PARAM_LABELS)[0].tolist())
         except (ConversionError, ValueError, IndexError, TypeError) as exc:
@@ -241,6 +260,16 @@ class BallPredictorNode(Node):
 
     def _on_vision(self, msg: bytes) -> None:
         """A vision frame and every frame queued behind it: their balls (answered first), then their robots."""
+        with self._lock:
+            self._vision(msg, self._vision_sub)
+
+    def answer_vision(self, msg: bytes) -> None:
+        """One serialized ``/vision/robots`` frame from a receiver in this process (any thread): answered as one
+        from the topic, its catch outputs published before this returns."""
+        with self._lock:
+            self._vision(msg, None)
+
+    def _vision(self, msg: bytes, sub) -> None:
         start = time.perf_counter()
         # The balls are read from their fixed place at the front and answered before the robots are decoded (the
         # decode of 14-22 robots costs about as much as a tenth of the frame's work); a frame not in that form,
@@ -255,7 +284,7 @@ class BallPredictorNode(Node):
         # ball-first form or with a ball after its robots (another writer's order): from there each frame is
         # answered in turn, so the ball stream keeps the frames' order.
         frames = [(msg, None if leading is None else len(leading[1]))]
-        queued = take_queued(self._vision_sub)
+        queued = take_queued(sub) if sub is not None else ()
         balls_first = bool(queued) and leading is not None and not vision_ball_after_robot(msg)
         for data, _info in queued:
             answered = None
@@ -447,8 +476,9 @@ class BallPredictorNode(Node):
         return times_out
 
     def destroy_node(self) -> None:
-        if self._predictor is not None:
-            self._predictor.close()
+        with self._lock:
+            if self._predictor is not None:
+                self._predictor.close()
         super().destroy_node()
 
 

@@ -30,6 +30,7 @@ import struct
 import threading
 import time
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -132,9 +133,14 @@ def open_multicast_socket(group: str, port: int, interface: str, receive_buffer_
 
 
 class SslVisionBridge(Node):
-    def __init__(self) -> None:
+    def __init__(self, frame_sink: Callable[[bytes], None] | None = None) -> None:
+        """``frame_sink``: called on the receive thread with each serialized ``/vision/robots`` frame before it is
+        published (a consumer in this process, erforce_ball_model.ssl_ball_predictor); its CPU time is not
+        counted in the bridge's statistics."""
         super().__init__("ssl_vision_bridge")
         self._warn = ThrottledWarner(self)
+        self._frame_sink = frame_sink
+        self._sink_ns = 0  # the sink's thread CPU time in the current datagram
         self._config: BridgeConfig | None = None
         self._lock = threading.Lock()  # parameter changes vs the receive thread
         self._params = NodeParams(self, SCHEMA, build_config)
@@ -245,20 +251,39 @@ class SslVisionBridge(Node):
                 for packet, cpu_ns in self._newest_per_camera(decoded):
                     t0 = thread_time_ns()
                     self._use(packet, t_receive_s)
-                    self.cpu_ns.append(cpu_ns + thread_time_ns() - t0)
+                    self.cpu_ns.append(cpu_ns + thread_time_ns() - t0 - self._take_sink_ns())
             elif self._fast:
                 for data in batch:
                     t0 = thread_time_ns()
                     self._pass_datagram(data, t_receive_s)
-                    self.cpu_ns.append(thread_time_ns() - t0)
+                    self.cpu_ns.append(thread_time_ns() - t0 - self._take_sink_ns())
             else:
                 for data in batch:
                     t0 = thread_time_ns()
                     packet = self._decode(data)
                     if packet is not None:
                         self._use(packet, t_receive_s)
-                    self.cpu_ns.append(thread_time_ns() - t0)
+                    self.cpu_ns.append(thread_time_ns() - t0 - self._take_sink_ns())
         self._log_stats()
+
+    def _publish_frame(self, data: bytes) -> None:
+        """A camera frame's ``/vision/robots``: to the sink first (its answer is on the latency path), then the
+        topic (tools, bags, a predictor in another process)."""
+        sink = self._frame_sink
+        if sink is not None:
+            t0 = time.thread_time_ns()
+            try:
+                sink(data)
+            except Exception as exc:  # the topic still gets the frame
+                if not self.context.ok():
+                    raise  # shutting down: the receive loop ends quietly
+                self._warn.warn("sink", f"ssl_vision_bridge: the frame's consumer failed: {exc!r}")
+            self._sink_ns += time.thread_time_ns() - t0
+        self._robots_pub.publish(data)
+
+    def _take_sink_ns(self) -> int:
+        ns, self._sink_ns = self._sink_ns, 0
+        return ns
 
     def _pass_datagram(self, data: bytes, t_receive_s: float) -> None:
         """A datagram through the compiled pass: the usual frame is one call and one publish."""
@@ -267,7 +292,7 @@ class SslVisionBridge(Node):
         if status == PASS_DONE and n_bytes >= 0 and (not action or action >= BALL_FUSED):
             self.stats["frames"] += 1
             if n_bytes:
-                self._robots_pub.publish(self._frame_pass.message_view[:n_bytes].tobytes())
+                self._publish_frame(self._frame_pass.message_view[:n_bytes].tobytes())
             if action and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
                 self._ball_pub.publish(point_cdr(t_s, (ball_x, ball_y)))
             return
@@ -300,11 +325,11 @@ class SslVisionBridge(Node):
                 self._publish_robots(t_s, fp.robots()[fp.used()].tolist(), [(ball_x, ball_y)] if ball else [])
             elif action and ball is None:  # the filter refused the ball written first: the robots alone
                 if n_points > 1:
-                    self._robots_pub.publish(vision_robots_points_cdr(t_s, fp.points[1:n_points]))
+                    self._publish_frame(vision_robots_points_cdr(t_s, fp.points[1:n_points]))
             elif n_bytes > 0:
-                self._robots_pub.publish(fp.message_view[:n_bytes].tobytes())
+                self._publish_frame(fp.message_view[:n_bytes].tobytes())
             elif n_points > 0:  # a stamp the pass leaves to the checks of conversions
-                self._robots_pub.publish(vision_robots_points_cdr(t_s, fp.points[:n_points]))
+                self._publish_frame(vision_robots_points_cdr(t_s, fp.points[:n_points]))
             if ball is not None and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
                 self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
         except ConversionError as exc:
@@ -432,7 +457,7 @@ class SslVisionBridge(Node):
                 n = _robot_points(robots, used, self._ours, self._n_ours, self._pose_readers, self._points,
                                   has_ball, ball.x_m if has_ball else 0.0, ball.y_m if has_ball else 0.0)
                 if n >= 0:
-                    self._robots_pub.publish(vision_robots_points_cdr(t_s, self._points[:n]))
+                    self._publish_frame(vision_robots_points_cdr(t_s, self._points[:n]))
                 else:
                     self._publish_robots(t_s, robots[used].tolist(), [(ball.x_m, ball.y_m)] if has_ball else [])
             if ball is not None and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
@@ -462,7 +487,7 @@ class SslVisionBridge(Node):
             if readers[side, robot_id] > 0:
                 read.append((pub, x, y, theta))
         if table or balls:
-            self._robots_pub.publish(vision_robots_cdr(t_s, table, balls=balls))
+            self._publish_frame(vision_robots_cdr(t_s, table, balls=balls))
         for pub, x, y, theta in read:
             pub.publish(pose2d_cdr(t_s, (x, y, theta)))
 

@@ -51,6 +51,9 @@ so the rest of the graph cannot tell them apart:
   (a table);
 - geometry to ``/vision/field`` and the two-phase ball model to ``/vision/ball_model``, both
   transient local: a node that starts later still gets the last one.
+Hosted in the ball predictor's process (``ssl_ball_predictor``), the bridge hands each frame's
+``/vision/robots`` to that predictor directly, before publishing it; that predictor takes no
+``/vision/robots`` from DDS.
 """
 
 from __future__ import annotations

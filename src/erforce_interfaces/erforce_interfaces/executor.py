@@ -209,9 +209,10 @@ def take_queued(subscription: Subscription) -> list:
     rmw still holds."""
     inbox = _INBOXES.get(subscription)
     taken = []
-    if inbox is not None and inbox.queue:
-        taken.extend(inbox.queue)
-        inbox.queue.clear()
+    if inbox is not None:
+        queue = inbox.queue
+        while queue:  # one popleft at a time: an executor thread may append meanwhile (nothing is lost)
+            taken.append(queue.popleft())
     while True:
         try:
             item = internal.take_message(subscription)

@@ -362,9 +362,11 @@ def stray_arguments(argv: list[str]) -> list[str]:
     return remove_ros_args(list(argv))[1:]
 
 
-def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, executor_kind: str | None = None) -> int:
+def run_node(node_factory: Callable[[], Node | tuple[Node, ...]], args: list[str] | None = None,
+             executor_kind: str | None = None) -> int:
     """Standard node main: init, spin on EventsExecutor (erforce_interfaces.executor.make_executor; ``executor_kind``
-    picks another, as there), clean shutdown.
+    picks another, as there), clean shutdown. A factory may return several nodes: one process and one executor
+    for all (as a component container), destroyed in the order given.
 
     Every node gets the callback guard (guard_callbacks) and the time rule on /clock (guard_clock).
 
@@ -378,6 +380,7 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, ex
     """
     interrupt = QuietInterrupt()
     node = None
+    nodes: tuple[Node, ...] = ()
     code = 0
     light_node_start()  # a respawned node is back sooner (rclpy_internals)
     try:
@@ -388,20 +391,23 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, ex
         os.environ.update(dds_profile_env())
         rclpy.init(args=args)
         try:
-            node = node_factory()
+            made = node_factory()
         except ValueError as exc:
             # Invalid configuration at start-up: one clear line, no traceback.
             rclpy.logging.get_logger("erforce").fatal(f"cannot start: {exc}")
             return 1
+        nodes = made if isinstance(made, tuple) else (made,)
+        node = nodes[0]
         stray = stray_arguments(sys.argv if args is None else args)
         if stray:
             node.get_logger().warning(
                 f"ignoring arguments {' '.join(stray)}: a node takes ROS arguments only, after --ros-args "
                 "(e.g. --ros-args -p port:=10020)")
-        guard_callbacks(node)
-        guard_clock(node)
         executor = make_executor(executor_kind)  # EventsExecutor unless told or ERFORCE_EXECUTOR says otherwise
-        executor.add_node(node)
+        for each in nodes:
+            guard_callbacks(each)
+            guard_clock(each)
+            executor.add_node(each)
         # The imports (numpy, numba, rclpy) leave ~130k objects that the cyclic GC would scan in every
         # full collection: ~50 ms each back to back, while the node's loop waits. They live as long
         # as the process, so they leave the GC's generations once, here.
@@ -424,8 +430,8 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, ex
     finally:
         interrupt.raising = False  # a further SIGINT must not break the cleanup
         set_callback_fault_handler(None)
-        if node is not None:
-            node.destroy_node()
+        for each in nodes:
+            each.destroy_node()
         rclpy.try_shutdown()
         interrupt.restore()
     return code

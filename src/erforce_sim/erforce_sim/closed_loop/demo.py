@@ -280,7 +280,12 @@ class Director:
         # Latency inside the graph from the DDS source timestamps (the senders' clocks): not
         # skewed by how late this observer gets to its queue. The predictor sends a frame's catch
         # time just before its catch point, which carries the frame's stamp.
-        sent = self.series.vision_sent_ns.pop(stamp_to_nanoseconds(msg.header.stamp), None)
+        stamp_ns = stamp_to_nanoseconds(msg.header.stamp)
+        sent = self.series.vision_sent_ns.pop(stamp_ns, None)
+        if self.vision_sent_ns_of is not None:
+            # by the frame's arrival alone: a frame's /vision/robots may go out after its catch outputs
+            # (ssl_ball_predictor), so it need not have come in first
+            sent = self.vision_sent_ns_of(stamp_ns)
         point_sent = info["source_timestamp"]
         if sent is not None:
             self.series.catch_point_latency_s.append((point_sent - sent) * 1e-9)

@@ -1,0 +1,124 @@
+"""ssl_ball_predictor: the SSL-Vision bridge and the ball predictor in one process. Hand-built SSL-Vision datagrams
+over loopback multicast reach the bridge's receive thread, which has the predictor answer each camera frame before
+the frame's /vision/robots is published. In-process: the nodes' publishers are replaced by recorders."""
+
+from __future__ import annotations
+
+import socket
+import threading
+
+import numpy as np
+import pytest
+import rclpy
+
+from erforce_ball_model.ssl_ball_predictor import make_nodes
+from erforce_interfaces.conversions import float64_from_msg, vision_frame_from_msg
+from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.ssl_vision import SSL_VISION_GROUP, BallCandidate, CameraFrame, RobotSighting, encode_frame
+from erforce_sim.ssl_cameras import open_multicast_sender
+
+# the predictor's defaults (params/ball_predictor.yaml): reaction time, robot limits
+REACTION_S, A_MAX_MPS2, V_MAX_MPS = 0.1, 4.5, 2.5
+FPS = 60.0
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def rest_to_rest_s(d_m: float) -> float:
+    """Bang-bang time from rest to rest over ``d_m`` with the limits above (triangle or trapezoid profile)."""
+    if d_m <= V_MAX_MPS**2 / A_MAX_MPS2:
+        return 2.0 * np.sqrt(d_m / A_MAX_MPS2)
+    return d_m / V_MAX_MPS + V_MAX_MPS / A_MAX_MPS2
+
+
+class Recorder:
+    """A publisher that notes what went out, in order, in a list shared by all recorders."""
+
+    def __init__(self, name: str, log: list, sent: threading.Condition) -> None:
+        self.name, self.log, self.sent = name, log, sent
+
+    def publish(self, data) -> None:
+        with self.sent:
+            self.log.append((self.name, data))
+            self.sent.notify_all()
+
+
+def test_a_datagram_is_answered_with_a_catch_time_before_its_frame_is_published():
+    """Our robot 0 rests at (0, 1) facing +x; a ball rests at (1, 1); camera 0 sees both, 60 frames a second (SSL
+    units: mm, the encoder's). Once the bridge's tracker takes the ball, every datagram is answered on the receive
+    thread with robot_0's catch time, before the bridge publishes the frame: the reaction time plus a rest-to-rest
+    drive over 1 m less the dribbler offset (the robot already faces the ball)."""
+    port = free_udp_port()
+    rclpy.init(args=["--ros-args", "-p", f"port:={port}", "-p", "interface:=127.0.0.1", "-p", "time_source:=vision",
+                     "-p", "num_robots:=1", "-p", "team_color:=yellow"])
+    bridge = predictor = None
+    sender = open_multicast_sender("127.0.0.1")
+    try:
+        bridge, predictor = make_nodes()
+        log: list = []
+        sent = threading.Condition()
+        receive_thread = []
+        robots_recorder = Recorder("robots", log, sent)
+        catch_recorder = Recorder("catch_time", log, sent)
+        original = catch_recorder.publish
+
+        def catch_publish(data):
+            receive_thread.append(threading.current_thread().name)
+            original(data)
+
+        catch_recorder.publish = catch_publish
+        bridge._robots_pub = robots_recorder
+        predictor._catch_time_pubs[0] = catch_recorder
+        predictor._time_readers[0] = 1
+        frames = 30
+        for k in range(frames):
+            t_capture = 1.0 + k / FPS
+            data = encode_frame(CameraFrame(0, k + 1, t_capture, t_capture + 0.002, (BallCandidate(1.0, 1.0, 0.9),),
+                                            (RobotSighting("yellow", 0, 0.0, 1.0, 0.0, 1.0),)))
+            with sent:
+                before = sum(1 for name, _ in log if name == "robots")
+                sender.sendto(data, (SSL_VISION_GROUP, port))
+                # each datagram's frame is published before the next is sent: one frame per batch, in order
+                assert sent.wait_for(lambda b=before: sum(1 for name, _ in log if name == "robots") > b, 10.0), \
+                    f"datagram {k} not published"
+        names = [name for name, _ in log]
+        assert names.count("robots") == frames
+        catches = [i for i, name in enumerate(names) if name == "catch_time"]
+        assert len(catches) >= frames - 8, names  # the ball is taken once the tracker confirmed it
+        # each catch time goes out before the frame that carried its ball is published
+        for i in catches:
+            assert names[i + 1] == "robots", names
+            _t_s, balls, _robots = vision_frame_from_msg(log[i + 1][1])
+            assert balls.tolist() == [pytest.approx([1.0, 1.0], abs=1e-9)]
+        assert set(receive_thread) == {"ssl_vision_rx"}
+        expected = REACTION_S + rest_to_rest_s(1.0 - RobotConfig().dribbler_offset_m)
+        times = [float64_from_msg(log[i][1]) for i in catches]
+        assert times == [pytest.approx(expected, abs=1e-3)] * len(times)
+    finally:
+        sender.close()
+        for node in (bridge, predictor):
+            if node is not None:
+                node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_the_predictor_takes_no_vision_topic_and_each_node_keeps_its_name():
+    rclpy.init(args=["--ros-args", "-p", f"port:={free_udp_port()}", "-p", "interface:=127.0.0.1"])
+    nodes = ()
+    try:
+        nodes = make_nodes()
+        bridge, predictor = nodes
+        assert (bridge.get_name(), predictor.get_name()) == ("ssl_vision_bridge", "ball_predictor")
+        assert "/vision/robots" not in {s.topic_name for s in predictor.subscriptions}
+        assert {"/vision/field", "/vision/ball_model"} <= {s.topic_name for s in predictor.subscriptions}
+        # inline parameters reach both (launch keys them /**): each declares those of its own schema
+        assert bridge.has_parameter("port") and not predictor.has_parameter("port")
+        assert predictor.has_parameter("reaction_s") and not bridge.has_parameter("reaction_s")
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown()
