@@ -9,7 +9,7 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64, Float64MultiArray
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_msg, table_msg
+from erforce_interfaces.conversions import odometry_msg, table_msg, tracked_robot_row, tracked_robots_cdr
 from erforce_interfaces.tools.messages import point_msg
 
 pytestmark = pytest.mark.integration
@@ -80,7 +80,8 @@ def test_the_robot_with_the_earlier_catch_receives_the_other_holds(ros_graph, de
 
 
 def test_with_press_lanes_the_opponents_wait_on_our_passing_lanes_while_we_hold_the_ball(ros_graph):
-    """team_catcher for the opponents with press_lanes reads our robots' odom: robot_0 at the origin facing +x
+    """team_catcher for the opponents with press_lanes reads our robots' poses from /robots/tracked (its own from
+    their odom): robot_0 at the origin facing +x
     holds the ball at its dribbler (d, 0), robot_1 and robot_2 stand at (3, 0) and (0, 2). The lanes' midpoints
     are ((d + 3) / 2, 0) and (d / 2, 1); opponent_1 at (0.3, 1.5) is nearest robot_2 and takes that lane,
     opponent_0 at (1, 0.3) the other (yaw 0: their base_link is the field's). Each drives towards its point."""
@@ -96,15 +97,18 @@ def test_with_press_lanes_the_opponents_wait_on_our_passing_lanes_while_we_hold_
     commands = {j: ros_graph.subscribe(contract.OPPONENTS.topic(contract.CMD_VEL, j), Twist, contract.CMD_VEL.qos)
                 for j in theirs}
     ball = probe.wait_for_subscribers(contract.BALL_STATE.name, Odometry, timeout_s=30.0, qos=contract.BALL_STATE.qos)
-    odoms = [(pose, probe.wait_for_subscribers(team.topic(contract.ODOM, k), Odometry, timeout_s=30.0,
-                                               qos=contract.ODOM.qos))
-             for team, poses in ((contract.OURS, ours), (contract.OPPONENTS, theirs)) for k, pose in poses.items()]
+    odoms = [(pose, probe.wait_for_subscribers(contract.OPPONENTS.topic(contract.ODOM, k), Odometry, timeout_s=30.0,
+                                               qos=contract.ODOM.qos)) for k, pose in theirs.items()]
+    tracked = probe.wait_for_subscribers(contract.ROBOTS_TRACKED.name, Float64MultiArray, timeout_s=30.0,
+                                         qos=contract.ROBOTS_TRACKED.qos)
     since = {j: len(commands[j]) for j in theirs}
     for k in range(20):
         t = 0.05 * k
         ball.publish(odometry_msg(t, (d, 0.0, 0.0), (0.0, 0.0, 0.0)))
         for pose, pub in odoms:
             pub.publish(odometry_msg(t, pose, (0.0, 0.0, 0.0)))
+        tracked.publish(tracked_robots_cdr(
+            [tracked_robot_row(contract.OURS, i, t, pose, (0.0, 0.0, 0.0)) for i, pose in ours.items()]))
         probe.spin_for(0.05)
     for j, pose in theirs.items():
         way = (lanes[j][0] - pose[0], lanes[j][1] - pose[1])
