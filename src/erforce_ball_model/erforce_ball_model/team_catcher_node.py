@@ -6,7 +6,9 @@ The same contract as one ``catcher`` per robot (each in its namespace ``robot_<i
 on ``catch_time`` and ``catch_point``: one message for the team instead of two topics per robot), the
 ball's topics once for all, and publishes each robot's ``cmd_vel`` at ``rate_hz``. Each robot runs its own
 catcher.Receiver; with ``as_team`` they form a team in which only the robot that can catch the ball first
-drives to it (catcher.team_receiver), as the per-robot catchers with ``team_robot_ids`` do.
+drives to it (catcher.team_receiver), as the per-robot catchers with ``team_robot_ids`` do. With
+``tracked_poses`` its robots' poses come from their rows of ``/robots/tracked`` instead of their odom (the
+same values: one message per vision frame instead of one per robot).
 
 With ``team`` ``opponents`` it drives the opponents under ``/opponent_<id>/`` (contract.Team) from the
 predictor's catch times for them: the interceptor of the simulated second team. With ``press_lanes`` it
@@ -89,14 +91,20 @@ class TeamCatcherNode(Node):
                         for topic, callback, raw in ((q.BALL_STATE, self._on_ball, True),
                                                      (q.BALL_V_SHOOT, self._on_v_shoot, True),
                                                      (q.BALL_MODEL_PARAMS, self._on_model_params, False))]
+        tracked_poses = self._values["tracked_poses"]
         for i in ids:
-            for topic, callback, raw in ((q.ODOM, self._on_odom, True), (q.BALL_DETECTED, self._on_barrier, False)):
+            inputs = ((q.BALL_DETECTED, self._on_barrier, False),)
+            if not tracked_poses:
+                inputs = ((q.ODOM, self._on_odom, True), *inputs)
+            for topic, callback, raw in inputs:
                 sub = contract_subscription(self, topic, lambda m, i=i, cb=callback: cb(i, m), team.topic(topic, i),
                                             raw=raw)
                 self._inputs.append(sample_only(sub))
+        # a /robots/tracked row -> (own robot or None, the other team's index or None)
+        self._own_index = {(team.code, i): i for i in ids} if tracked_poses else {}
         self._inputs.append(sample_only(contract_subscription(self, q.BALL_CATCHES, self._on_catches, raw=True)))
         self._other_index = {(other.code, k): k for k in range(n_other)}
-        if n_other:
+        if n_other or tracked_poses:
             self._inputs.append(sample_only(contract_subscription(self, q.ROBOTS_TRACKED, self._on_tracked, raw=True)))
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
         as_team = " as a team" if self._values["as_team"] else ""
@@ -114,6 +122,7 @@ class TeamCatcherNode(Node):
         n_other = v["num_other_robots"] if passing is not None else 0
         self._team = PressingTeam(cfg, offset, radius, field, v["robot_ids"], v["as_team"], passing, n_other)
         self._other_stamps: list[float | None] = [None] * n_other  # the stamp of each row last fed
+        self._own_stamps = dict.fromkeys(int(i) for i in v["robot_ids"])  # likewise, with tracked_poses
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -146,6 +155,8 @@ class TeamCatcherNode(Node):
         if not rows:
             return
         now = self._now_s()
+        for i, row in new_poses(rows, self._own_index, self._own_stamps):
+            self._team.on_odom(i, now, row.pose, row.velocity, row.stamp_s)
         for k, row in new_poses(rows, self._other_index, self._other_stamps):
             self._team.on_other_robot(k, now, row.pose)
 
