@@ -359,7 +359,7 @@ BALL_CATCHES = Topic("/ball/catches", Float64MultiArray, QOS_SENSOR, "ball_predi
                      "per robot, the point 0, 0 with a catch time of never); the AI's catch times: before the "
                      "per-robot catch_time and catch_point")
 ROBOTS_TRACKED = Topic("/robots/tracked", Float64MultiArray, QOS_STATE, "ball_predictor (while subscribed)",
-                       "passing_game, team_catcher (press_lanes)",
+                       "passing_game, team_catcher (press_lanes, tracked_poses)",
                        "every robot of both teams the tracker holds (seen within robot_timeout_s), after each vision "
                        "frame that moved one: a table with columns TRACKED_ROBOT_COLUMNS, a row per robot, ours "
                        "first, then the opponents (its team, its id in the team, the stamp of its last accepted "
