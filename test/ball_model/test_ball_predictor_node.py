@@ -29,6 +29,7 @@ from erforce_interfaces.conversions import (
     point_from_msg,
     stamp_to_seconds,
     table_from_msg,
+    tracked_robots_from_msg,
     vision_robots_cdr,
 )
 from erforce_interfaces.robot_config import RobotConfig
@@ -129,11 +130,13 @@ class Rig:
         self.odom = [probe.subscribe(team.topic(q.ODOM, i), Odometry, q.ODOM.qos) for team, i in robots]
         self.catches = probe.subscribe(q.BALL_CATCHES.name, Float64MultiArray, q.BALL_CATCHES.qos)
         self.track = probe.subscribe(q.BALL_TRACK.name, PointCloud2, q.BALL_TRACK.qos)
+        self.tracked = probe.subscribe(q.ROBOTS_TRACKED.name, Float64MultiArray, q.ROBOTS_TRACKED.qos)
         self.robots_pub = probe.wait_for_subscribers(q.VISION_ROBOTS.name, PointCloud2, timeout_s=20.0,
                                                      qos=q.VISION_ROBOTS.qos)
         self.ball_pub = self.robots_pub  # a frame of the ball alone
         # Our readers must have matched the node's writers, or the first answers are lost.
-        readers = [s for s in probe.node.subscriptions if s.topic_name.startswith(("/ball/", "/robot_", "/opponent_"))]
+        readers = [s for s in probe.node.subscriptions
+                   if s.topic_name.startswith(("/ball/", "/robot_", "/opponent_", "/robots/"))]
         probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in readers), 20.0, "node publishers")
         # ... and the node's writers ours (not observable from here): a handshake frame, resent until answered.
         for attempt in range(20):
@@ -500,6 +503,31 @@ def test_odom_follows_a_moving_robot(ros_graph):
     assert pose[:2] == pytest.approx([-1.0 + 39 / FPS, 0.5 - 0.5 * 39 / FPS], abs=1e-3)
     assert velocity == pytest.approx([1.0, -0.5, 2.0], abs=0.05)
     assert len(rig.odom[0]) == 0 and rig.all_finite()
+
+
+def test_the_tracked_table_carries_every_robot_seen_within_the_timeout_as_its_odom(ros_graph):
+    """Our robots 0 and 1 in one frame, opponent_0 alone in the next: after each frame one table, every robot
+    seen within robot_timeout_s (1 s, the node's default) in it, ours first, each row what that robot's newest
+    odom carries. At 1.5 s past those frames robot_1 alone is seen: the others drop out of the table."""
+    rig = Rig(ros_graph, num_robots=2, num_opponents=1)
+    probe = ros_graph.probe
+    rig.robots_frame(1.0, [(0, -1.0, 0.5, 0.25), (1, 2.0, -1.0, -2.0)], {0, 1})
+    probe.spin_until(lambda: len(rig.tracked) == 1, 10.0, "the first /robots/tracked")
+    assert [(r.team, r.robot_id) for r in tracked_robots_from_msg(rig.tracked[-1])] == [
+        (contract.OURS.code, 0), (contract.OURS.code, 1)]
+    rig.robots_frame(1.02, [(2, 3.0, 1.0, math.pi / 2)], {2})
+    probe.spin_until(lambda: len(rig.tracked) == 2, 10.0, "the second /robots/tracked")
+    rows = tracked_robots_from_msg(rig.tracked[-1])
+    assert [(r.team, r.robot_id) for r in rows] == [(contract.OURS.code, 0), (contract.OURS.code, 1),
+                                                    (contract.OPPONENTS.code, 0)]
+    for i, row in enumerate(rows):
+        stamp, pose, velocity, _ = odometry_from_msg(rig.odom[i][-1])
+        assert row.stamp_s == stamp and row.pose[:2] == tuple(pose[:2]) and row.velocity == tuple(velocity)
+        assert row.pose[2] == pytest.approx(pose[2], abs=1e-12)
+    assert [r.stamp_s - T_SHIFT_S for r in rows] == pytest.approx([1.0, 1.0, 1.02], abs=1e-9)
+    rig.robots_frame(2.52, [(1, 2.0, -1.0, -2.0)], {1})
+    probe.spin_until(lambda: len(rig.tracked) == 3, 10.0, "the third /robots/tracked")
+    assert [(r.team, r.robot_id) for r in tracked_robots_from_msg(rig.tracked[-1])] == [(contract.OURS.code, 1)]
 
 
 def test_no_cyclic_collection_runs_between_a_frame_and_its_catch_times():

@@ -9,7 +9,7 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64, Float64MultiArray
 
 from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_msg, table_msg
+from erforce_interfaces.conversions import odometry_msg, table_msg, tracked_robot_row, tracked_robots_cdr
 from erforce_interfaces.tools.messages import point_msg
 
 pytestmark = pytest.mark.integration
@@ -21,31 +21,39 @@ POINTS = {0: (-0.4, 0.0), 2: (1.0, 0.0)}
 
 def _start(graph, deployment):
     params = {"field": "division_b"}
-    if deployment == "team":
-        return [graph.start_node("erforce_ball_model", "team_catcher", params={**params, "robot_ids": list(IDS)})]
+    if deployment in ("team", "team_tracked"):
+        return [graph.start_node("erforce_ball_model", "team_catcher", params={
+            **params, "robot_ids": list(IDS), "tracked_poses": deployment == "team_tracked"})]
     return [graph.start_node("erforce_ball_model", "catcher", namespace=f"robot_{i}",
                              params={**params, "team_robot_ids": list(IDS)}) for i in IDS]
 
 
-@pytest.mark.parametrize("deployment", ["per_robot", "team"])
+@pytest.mark.parametrize("deployment", ["per_robot", "team", "team_tracked"])
 def test_the_robot_with_the_earlier_catch_receives_the_other_holds(ros_graph, deployment):
     """A ball rolls along y = 0 at 2 m/s. With robot_0's catch 0.6 s and robot_2's 1.5 s away, robot_0 drives
     (to the ball's line: -y in the field, +y in its base_link as it faces -x) and robot_2 holds; with the
-    times swapped, robot_2 drives and robot_0 holds."""
+    times swapped, robot_2 drives and robot_0 holds. team_tracked: the team_catcher with tracked_poses, the
+    robots' poses in /robots/tracked (with an opponent's row, not the team's) instead of their odom."""
+    team = deployment != "per_robot"
+    tracked = deployment == "team_tracked"
     procs = _start(ros_graph, deployment)
     probe = ros_graph.probe
     commands = {i: ros_graph.subscribe(f"/robot_{i}/cmd_vel", Twist, contract.CMD_VEL.qos) for i in IDS}
     pubs = {"ball": probe.wait_for_subscribers(contract.BALL_STATE.name, Odometry, timeout_s=30.0,
                                                qos=contract.BALL_STATE.qos)}
     for i in IDS:
-        pubs[("odom", i)] = probe.wait_for_subscribers(contract.ODOM.for_robot(i), Odometry, timeout_s=30.0,
-                                                       qos=contract.ODOM.qos)
-        if deployment == "per_robot":
+        if not tracked:
+            pubs[("odom", i)] = probe.wait_for_subscribers(contract.ODOM.for_robot(i), Odometry, timeout_s=30.0,
+                                                           qos=contract.ODOM.qos)
+        if not team:
             pubs[("time", i)] = probe.wait_for_subscribers(contract.CATCH_TIME.for_robot(i), Float64,
                                                            timeout_s=30.0, qos=contract.CATCH_TIME.qos)
             pubs[("point", i)] = probe.wait_for_subscribers(contract.CATCH_POINT.for_robot(i), PointStamped,
                                                             timeout_s=30.0, qos=contract.CATCH_POINT.qos)
-    if deployment == "team":  # the same catches as the predictor's table (with an opponent, not the team's)
+    if tracked:
+        pubs["tracked"] = probe.wait_for_subscribers(contract.ROBOTS_TRACKED.name, Float64MultiArray, timeout_s=30.0,
+                                                     qos=contract.ROBOTS_TRACKED.qos)
+    if team:  # the same catches as the predictor's table (with an opponent, not the team's)
         pubs["catches"] = probe.wait_for_subscribers(contract.BALL_CATCHES.name, Float64MultiArray, timeout_s=30.0,
                                                      qos=contract.BALL_CATCHES.qos)
 
@@ -53,9 +61,14 @@ def test_the_robot_with_the_earlier_catch_receives_the_other_holds(ros_graph, de
         for k in range(round(seconds / 0.05)):
             t = 0.05 * k
             pubs["ball"].publish(odometry_msg(t, (-3.0 + 2.0 * t, 0.0, 0.0), (2.0, 0.0, 0.0)))
-            for i in IDS:
-                pubs[("odom", i)].publish(odometry_msg(t, POSES[i], (0.0, 0.0, 0.0)))
-            if deployment == "team":
+            if tracked:
+                rows = [tracked_robot_row(contract.OURS, i, t, POSES[i], (0.0, 0.0, 0.0)) for i in IDS]
+                rows.append(tracked_robot_row(contract.OPPONENTS, 0, t, (-2.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+                pubs["tracked"].publish(tracked_robots_cdr(rows))
+            else:
+                for i in IDS:
+                    pubs[("odom", i)].publish(odometry_msg(t, POSES[i], (0.0, 0.0, 0.0)))
+            if team:
                 rows = [[contract.OURS.code, i, *POSES[i], 0.0, 0.0, times[i], *POINTS[i]] for i in IDS]
                 rows.append([contract.OPPONENTS.code, 0, -2.0, 0.0, 0.0, 0.0, 0.0, 0.1, -2.0, 0.0])
                 pubs["catches"].publish(table_msg(rows, contract.CATCH_TABLE_COLUMNS))
@@ -80,7 +93,8 @@ def test_the_robot_with_the_earlier_catch_receives_the_other_holds(ros_graph, de
 
 
 def test_with_press_lanes_the_opponents_wait_on_our_passing_lanes_while_we_hold_the_ball(ros_graph):
-    """team_catcher for the opponents with press_lanes reads our robots' odom: robot_0 at the origin facing +x
+    """team_catcher for the opponents with press_lanes reads our robots' poses from /robots/tracked (its own from
+    their odom): robot_0 at the origin facing +x
     holds the ball at its dribbler (d, 0), robot_1 and robot_2 stand at (3, 0) and (0, 2). The lanes' midpoints
     are ((d + 3) / 2, 0) and (d / 2, 1); opponent_1 at (0.3, 1.5) is nearest robot_2 and takes that lane,
     opponent_0 at (1, 0.3) the other (yaw 0: their base_link is the field's). Each drives towards its point."""
@@ -96,15 +110,18 @@ def test_with_press_lanes_the_opponents_wait_on_our_passing_lanes_while_we_hold_
     commands = {j: ros_graph.subscribe(contract.OPPONENTS.topic(contract.CMD_VEL, j), Twist, contract.CMD_VEL.qos)
                 for j in theirs}
     ball = probe.wait_for_subscribers(contract.BALL_STATE.name, Odometry, timeout_s=30.0, qos=contract.BALL_STATE.qos)
-    odoms = [(pose, probe.wait_for_subscribers(team.topic(contract.ODOM, k), Odometry, timeout_s=30.0,
-                                               qos=contract.ODOM.qos))
-             for team, poses in ((contract.OURS, ours), (contract.OPPONENTS, theirs)) for k, pose in poses.items()]
+    odoms = [(pose, probe.wait_for_subscribers(contract.OPPONENTS.topic(contract.ODOM, k), Odometry, timeout_s=30.0,
+                                               qos=contract.ODOM.qos)) for k, pose in theirs.items()]
+    tracked = probe.wait_for_subscribers(contract.ROBOTS_TRACKED.name, Float64MultiArray, timeout_s=30.0,
+                                         qos=contract.ROBOTS_TRACKED.qos)
     since = {j: len(commands[j]) for j in theirs}
     for k in range(20):
         t = 0.05 * k
         ball.publish(odometry_msg(t, (d, 0.0, 0.0), (0.0, 0.0, 0.0)))
         for pose, pub in odoms:
             pub.publish(odometry_msg(t, pose, (0.0, 0.0, 0.0)))
+        tracked.publish(tracked_robots_cdr(
+            [tracked_robot_row(contract.OURS, i, t, pose, (0.0, 0.0, 0.0)) for i, pose in ours.items()]))
         probe.spin_for(0.05)
     for j, pose in theirs.items():
         way = (lanes[j][0] - pose[0], lanes[j][1] - pose[1])

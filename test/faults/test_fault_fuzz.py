@@ -135,11 +135,11 @@ def test_fuzzed_inputs_crash_neither_the_passing_game_nor_the_pressing_opponents
     spin_until(lambda: any(m.layout.dim and m.layout.dim[0].size for m in choices), 120.0,
                "robot_0 holding the ball with a chosen pass")
     inputs = {node: node_topics(probe, node) for node in GAME_NODES}
-    # passing_game: the ball's three topics, every robot's odom and light barrier, the catch table, /clock; the
-    # interceptor: the ball's, its robot's odom and barrier, the catch table, our odoms, /clock
-    assert len(inputs["passing_game"]) == 3 + 4 * 2 + 1 + 1, sorted(inputs["passing_game"])
-    assert len(inputs["opponent_interceptor"]) == 3 + 2 + 1 + 3 + 1, sorted(inputs["opponent_interceptor"])
-    assert all(contract.BALL_CATCHES.name in inputs[node] for node in GAME_NODES)
+    # passing_game: the ball's three topics, every robot's light barrier, the tracked robots' and the catch table,
+    # /clock; the interceptor: the ball's, its robot's barrier, both tables (every pose from the tracked one), /clock
+    assert len(inputs["passing_game"]) == 3 + 4 + 2 + 1, sorted(inputs["passing_game"])
+    assert len(inputs["opponent_interceptor"]) == 3 + 1 + 2 + 1, sorted(inputs["opponent_interceptor"])
+    assert all({contract.BALL_CATCHES.name, contract.ROBOTS_TRACKED.name} <= set(inputs[node]) for node in GAME_NODES)
     fuzzed = {name: topic for node in GAME_NODES for name, topic in inputs[node].items()}
     # the watch reads what the two nodes publish (and the time): a watch of every topic of the graph falls behind
     outputs = {name for node in GAME_NODES for name in node_topics(probe, node, published=True)}

@@ -16,7 +16,10 @@ subscribes to it, ``/ball/track`` (the ball's topics and the observation in one 
 All outputs carry the observation's stamp; catch times count from it. The frame's robots come after its
 ball (the catch times are those of the robots as last seen); each robot it serves is judged by
 the time rule on its own (camera frames of one field arrive out of order across robots) and answered
-with ``/robot_<i>/odom`` while anyone subscribes to it; robots it does not serve are skipped. With
+with ``/robot_<i>/odom`` while anyone subscribes to it; robots it does not serve are skipped. After a
+frame's robots, while anyone subscribes to it, ``/robots/tracked``: every robot seen within
+``robot_timeout_s``, both teams, as its odom carries it (the AI's poses: one message per frame instead of an
+odom per robot). With
 ``num_opponents`` the opponents are served the same way under ``/opponent_<i>/`` (their
 robotTimeToBall is what the passing game weighs and their interceptor drives by); in the core they
 come after our robots.
@@ -57,6 +60,8 @@ from erforce_interfaces.conversions import (
     table_cdr,
     table_from_msg,
     table_msg,
+    tracked_robot_row,
+    tracked_robots_cdr,
     vision_ball_after_robot,
     vision_frame_from_msg,
     vision_leading_balls,
@@ -175,6 +180,11 @@ class BallPredictorNode(Node):
         self._odom_readers = [0] * n
         self._odom_pubs = [contract_publisher(self, q.ODOM, team.topic(q.ODOM, j), readers=(self._odom_readers, i))
                            for i, (team, j) in enumerate(self._robots)]
+        # What the odoms carry, for every tracked robot in one message per frame (the AI's input): while it
+        # has a reader. Each robot's row as of its last accepted pose (None: none yet).
+        self._tracked_readers = [0]
+        self._tracked_pub = contract_publisher(self, q.ROBOTS_TRACKED, readers=(self._tracked_readers, 0))
+        self._tracked_rows: list[tuple | None] = [None] * n
         # Likewise a robot's catch time and catch point: the graph's readers (the passing game for ours, the
         # interceptor for the opponents) take them per robot, and an unread one costs the frame's latency.
         self._time_readers = [0] * n
@@ -342,18 +352,37 @@ class BallPredictorNode(Node):
     def _robots_frame(self, t_s: float, rows) -> None:
         t_ns = round(t_s * 1e9)
         index = self._core_index
+        moved = False
         for team, robot_id, x, y, yaw in rows.tolist():
             robot = index.get((team, robot_id))
             if robot is not None:  # else a robot this node does not serve
-                self._robot(robot, t_s, t_ns, x, y, yaw)
+                moved = self._robot(robot, t_s, t_ns, x, y, yaw) or moved
+        if moved and self._tracked_readers[0]:
+            tracked = self._tracked_rows
+            try:
+                self._tracked_pub.publish(tracked_robots_cdr(
+                    [tracked[i] for i in self._predictor.fresh_robots(t_s) if tracked[i] is not None]))
+            except ConversionError as exc:
+                self._warn.warn("tracked", f"no /robots/tracked for the frame at {t_s:.6f} s: {exc}")
 
-    def _robot(self, robot: int, t_s: float, t_ns: int, x: float, y: float, yaw: float) -> None:
+    def _robot(self, robot: int, t_s: float, t_ns: int, x: float, y: float, yaw: float) -> bool:
+        """One robot's pose of a frame; True when the tracker took it."""
         verdict = check_stamp(self._robot_stamps[robot], t_ns, self._warn, self._robot_topics[robot], self)
         if verdict is StampVerdict.DROP:
-            return
+            return False
         tracker = self._predictor.robot_frame(robot, t_s, x, y, yaw, restart=verdict is StampVerdict.RESTART)
-        if tracker is None or not self._odom_readers[robot]:
-            return
+        if tracker is None:
+            return False
+        if self._tracked_readers[0]:
+            team, j = self._robots[robot]
+            try:
+                self._tracked_rows[robot] = tracked_robot_row(team, j, t_s, (*tracker.position_m, tracker.heading_rad),
+                                                              (*tracker.velocity_mps, tracker.angular_velocity_radps))
+            except ConversionError as exc:
+                self._tracked_rows[robot] = None
+                self._warn.warn(f"tracked{robot}", f"{self._names[robot]}: not in /robots/tracked: {exc}")
+        if not self._odom_readers[robot]:
+            return True
         vel = tracker.velocity_mps
         try:
             odom = odometry_cdr(
@@ -362,8 +391,9 @@ class BallPredictorNode(Node):
             )
         except ConversionError as exc:
             self._warn.warn(f"odom{robot}", f"{self._names[robot]}: odom not published: {exc}")
-            return
+            return True
         self._odom_pubs[robot].publish(odom)
+        return True
 
     def _ball_frame(self, start: float, t_s: float, x: float, y: float) -> None:
         verdict = check_stamp(self._ball_stamps, round(t_s * 1e9), self._warn, "vision/ball", self)

@@ -1,11 +1,12 @@
 """passing_game: our team's AI for the paper's passing game on the graph (passing_player.PassingPlayer).
 
 Reads what the ball predictor publishes: the tracked ball (``/ball/state``, ``/ball/v_shoot``, the model in
-use), every robot's tracked pose and velocity (``odom`` under ``/robot_<id>/`` for ours and ``/opponent_<id>/``
-for the opponents), our robots' catch times and catch points (their rows of ``/ball/catches``: one message
-for all, where a topic per robot cost the predictor a publish and this node a callback each); and every
-robot's light barrier
-(``ball_detected``; the opponents' tell an interception, as a referee sees it). Each AI tick (``rate_hz``,
+use), every robot's tracked pose and velocity (its row of ``/robots/tracked``, ours and the opponents': what
+its odom carries, one message per vision frame where an odom per robot cost the predictor a publish and this
+node a take each; a row counts as new when its stamp changed), our robots' catch times and catch points
+(their rows of ``/ball/catches``: one message for all, where a topic per robot cost the predictor a publish
+and this node a callback each); and every robot's light barrier (``ball_detected``; the opponents' tell an
+interception, as a referee sees it). Each AI tick (``rate_hz``,
 simulated time) it feeds PassingPlayer and publishes our robots' ``cmd_vel`` (while a robot moves, and the
 stop once), a ``kick`` when the holder kicks, and each robot's ``dribbler`` when it changes (and every
 second). Each pass, as it ends, is logged as one line (PassRecord.line) and published on ``/pass/records``;
@@ -33,7 +34,7 @@ from erforce_ball_model import catcher_node
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import load_kernels
 from erforce_ball_model.passing import PassConfig, PassOption
-from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerConfig
+from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerConfig, new_poses
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
@@ -44,6 +45,7 @@ from erforce_interfaces.conversions import (
     odometry_msg,
     table_from_msg,
     table_msg,
+    tracked_robots_from_msg,
     twist_msg,
 )
 from erforce_interfaces.executor import EXECUTOR_ENV, run_sampled, sample_only
@@ -159,10 +161,13 @@ class PassingGameNode(Node):
                                                      (q.BALL_V_SHOOT, self._on_v_shoot, True),
                                                      (q.BALL_MODEL_PARAMS, self._on_model_params, False))]
         for k, (team, j) in enumerate(self._robots):
-            for topic, callback, raw in ((q.ODOM, self._on_odom, True), (q.BALL_DETECTED, self._on_barrier, False)):
-                sub = contract_subscription(self, topic, lambda msg, k=k, cb=callback: cb(k, msg), team.topic(topic, j),
-                                            raw=raw)
-                self._inputs.append(sample_only(sub))
+            sub = contract_subscription(self, q.BALL_DETECTED, lambda msg, k=k: self._on_barrier(k, msg),
+                                        team.topic(q.BALL_DETECTED, j))
+            self._inputs.append(sample_only(sub))
+        # a table row -> the player's robot index (ours first, then the opponents), and its stamp last fed
+        self._row_index = {(team.code, j): k for k, (team, j) in enumerate(self._robots)}
+        self._fed_stamps = [None] * (n + m)
+        self._inputs.append(sample_only(contract_subscription(self, q.ROBOTS_TRACKED, self._on_tracked, raw=True)))
         self._inputs.append(sample_only(contract_subscription(self, q.BALL_CATCHES, self._on_catches, raw=True)))
         self._v_shoot: float | None = None
         self._timer = self.create_timer(1.0 / self._params.config[1][""].rate_hz, self._tick)
@@ -184,6 +189,7 @@ class PassingGameNode(Node):
         """A new /clock time line (node_support.guard_clock): a new game."""
         self._player = self._new_player()
         self._first_seen, self._waiting_since, self._started, self._reported = None, None, False, 0
+        self._fed_stamps = [None] * (self._n + self._m)
         self._dribblers_sent_at = -math.inf
 
     def _now_s(self) -> float:
@@ -208,10 +214,13 @@ class PassingGameNode(Node):
         except (ConversionError, IndexError, ValueError) as exc:
             self._warn.warn("model_params", f"rejected model_params: {exc}")
 
-    def _on_odom(self, k: int, msg: Odometry | bytes) -> None:
-        odom = self._warn.convert(msg, f"{self._name(k)} odom", odometry_from_msg)
-        if odom is not None:
-            self._player.on_robot(k, self._now_s(), odom[1], odom[2], odom[0])
+    def _on_tracked(self, msg: bytes) -> None:
+        rows = self._warn.convert(msg, "/robots/tracked", tracked_robots_from_msg)
+        if not rows:
+            return
+        now = self._now_s()
+        for k, row in new_poses(rows, self._row_index, self._fed_stamps):
+            self._player.on_robot(k, now, row.pose, row.velocity, row.stamp_s)
 
     def _on_catches(self, msg: bytes) -> None:
         catches = self._warn.convert(msg, "/ball/catches", lambda m: catches_from_msg(m, contract.OURS))
@@ -269,8 +278,8 @@ class PassingGameNode(Node):
                 self._waiting_since = now
             elif now - self._waiting_since > START_PATIENCE_S:
                 missing = [self._name(k) for k in np.flatnonzero(~self._player.seen)]
-                self._warn.warn("start", f"the game waits for the tracked pose (odom) of {', '.join(missing)}: "
-                                f"are they on the field and num_robots / num_opponents right?")
+                self._warn.warn("start", f"the game waits for the tracked pose (/robots/tracked) of "
+                                f"{', '.join(missing)}: are they on the field and num_robots / num_opponents right?")
             return
         if self._first_seen is None:
             self._first_seen = now

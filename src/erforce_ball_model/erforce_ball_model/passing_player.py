@@ -66,6 +66,21 @@ def feed_catches(now: float, catches, on_time, on_point) -> None:
         if point is not None:
             on_point(robot, now, point)
 
+def new_poses(rows, index: dict, fed) -> list[tuple[int, object]]:
+    """The rows of a /robots/tracked table (conversions.TrackedRobot, in its order) that bring a robot a new pose,
+    as (the robot's index, row): ``index`` maps (team code, robot id) to the index (a row of a robot not in it is
+    skipped), ``fed`` (a list or dict by index) holds each index's stamp last fed and is updated. A row whose
+    stamp did not change since is the pose already fed (the table repeats every tracked robot at every frame),
+    so each pose is fed once, as its odom brought it."""
+    out = []
+    for row in rows:
+        k = index.get((row.team, row.robot_id))
+        if k is not None and row.stamp_s != fed[k]:
+            fed[k] = row.stamp_s
+            out.append((k, row))
+    return out
+
+
 @dataclass(frozen=True)
 class PlayerConfig:
     hold_min_s: float = 0.4  # a new holder settles the ball this long before it kicks

@@ -251,6 +251,11 @@ class BallPredictor:
             out.append((x + vx * age_s, y + vy * age_s, 0.0 if heading is None else heading, vx, vy))
         return out
 
+    def fresh_robots(self, t_s: float) -> list[int]:
+        """The robots seen within robot_timeout_s of ``t_s`` (those a catch answer at ``t_s`` would serve)."""
+        timeout_s = self.config.robot_timeout_s
+        return [i for i, state in enumerate(self._robot_states) if abs(t_s - state[0]) <= timeout_s]
+
     def _robots_now(self, t_s: float) -> tuple[list[int], np.ndarray]:
         """The robots fresh at ``t_s``, and all robots' positions then (constant-velocity extrapolation).
 

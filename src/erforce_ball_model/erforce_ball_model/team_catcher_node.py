@@ -6,12 +6,15 @@ The same contract as one ``catcher`` per robot (each in its namespace ``robot_<i
 on ``catch_time`` and ``catch_point``: one message for the team instead of two topics per robot), the
 ball's topics once for all, and publishes each robot's ``cmd_vel`` at ``rate_hz``. Each robot runs its own
 catcher.Receiver; with ``as_team`` they form a team in which only the robot that can catch the ball first
-drives to it (catcher.team_receiver), as the per-robot catchers with ``team_robot_ids`` do.
+drives to it (catcher.team_receiver), as the per-robot catchers with ``team_robot_ids`` do. With
+``tracked_poses`` its robots' poses come from their rows of ``/robots/tracked`` instead of their odom (the
+same values: one message per vision frame instead of one per robot).
 
 With ``team`` ``opponents`` it drives the opponents under ``/opponent_<id>/`` (contract.Team) from the
 predictor's catch times for them: the interceptor of the simulated second team. With ``press_lanes`` it
-also reads the other team's ``num_other_robots`` tracked poses (``odom``, as the predictor publishes
-them) and, while one of them holds the ball, sends its robots onto the passing lanes (the passing game's
+also reads the other team's ``num_other_robots`` tracked poses (their rows of ``/robots/tracked``: one
+message per vision frame instead of an odom per robot; a row counts as new when its stamp changed) and,
+while one of them holds the ball, sends its robots onto the passing lanes (the passing game's
 opponents). The decisions are passing_player.PressingTeam's.
 
 One timer and one sampled take of every input per tick, instead of a process, a timer and seven
@@ -30,7 +33,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray
 from erforce_ball_model import catcher_node
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.passing import PassConfig
-from erforce_ball_model.passing_player import PressingTeam
+from erforce_ball_model.passing_player import PressingTeam, new_poses
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
@@ -38,6 +41,7 @@ from erforce_interfaces.conversions import (
     float64_from_msg,
     model_in_use_from_msg,
     odometry_from_msg,
+    tracked_robots_from_msg,
     twist_msg,
 )
 from erforce_interfaces.executor import EXECUTOR_ENV, run_sampled, sample_only
@@ -87,17 +91,21 @@ class TeamCatcherNode(Node):
                         for topic, callback, raw in ((q.BALL_STATE, self._on_ball, True),
                                                      (q.BALL_V_SHOOT, self._on_v_shoot, True),
                                                      (q.BALL_MODEL_PARAMS, self._on_model_params, False))]
+        tracked_poses = self._values["tracked_poses"]
         for i in ids:
-            for topic, callback, raw in ((q.ODOM, self._on_odom, True), (q.BALL_DETECTED, self._on_barrier, False)):
+            inputs = ((q.BALL_DETECTED, self._on_barrier, False),)
+            if not tracked_poses:
+                inputs = ((q.ODOM, self._on_odom, True), *inputs)
+            for topic, callback, raw in inputs:
                 sub = contract_subscription(self, topic, lambda m, i=i, cb=callback: cb(i, m), team.topic(topic, i),
                                             raw=raw)
                 self._inputs.append(sample_only(sub))
+        # a /robots/tracked row -> (own robot or None, the other team's index or None)
+        self._own_index = {(team.code, i): i for i in ids} if tracked_poses else {}
         self._inputs.append(sample_only(contract_subscription(self, q.BALL_CATCHES, self._on_catches, raw=True)))
-        for k in range(n_other):
-            sub = contract_subscription(self, q.ODOM, lambda m, k=k: self._on_other_odom(k, m), other.topic(q.ODOM, k),
-                                        raw=True)
-            self._inputs.append(sample_only(sub))
-        self._other_names = [other.namespace(k) for k in range(n_other)]
+        self._other_index = {(other.code, k): k for k in range(n_other)}
+        if n_other or tracked_poses:
+            self._inputs.append(sample_only(contract_subscription(self, q.ROBOTS_TRACKED, self._on_tracked, raw=True)))
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
         as_team = " as a team" if self._values["as_team"] else ""
         press = f", pressing the passing lanes of {other.name} (robots 0 .. {n_other - 1})" if n_other else ""
@@ -111,8 +119,10 @@ class TeamCatcherNode(Node):
         """A new /clock time line (node_support.guard_clock): the inputs' arrival times are void."""
         v = self._values
         cfg, offset, radius, field, passing = self._params.built
-        self._team = PressingTeam(cfg, offset, radius, field, v["robot_ids"], v["as_team"], passing,
-                                  v["num_other_robots"] if passing is not None else 0)
+        n_other = v["num_other_robots"] if passing is not None else 0
+        self._team = PressingTeam(cfg, offset, radius, field, v["robot_ids"], v["as_team"], passing, n_other)
+        self._other_stamps: list[float | None] = [None] * n_other  # the stamp of each row last fed
+        self._own_stamps = dict.fromkeys(int(i) for i in v["robot_ids"])  # likewise, with tracked_poses
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -140,10 +150,15 @@ class TeamCatcherNode(Node):
         if odom is not None:
             self._team.on_odom(robot, self._now_s(), odom[1], odom[2], odom[0])
 
-    def _on_other_odom(self, k: int, msg: Odometry | bytes) -> None:
-        odom = self._warn.convert(msg, f"{self._other_names[k]} odom", odometry_from_msg)
-        if odom is not None:
-            self._team.on_other_robot(k, self._now_s(), odom[1])
+    def _on_tracked(self, msg: bytes) -> None:
+        rows = self._warn.convert(msg, "/robots/tracked", tracked_robots_from_msg)
+        if not rows:
+            return
+        now = self._now_s()
+        for i, row in new_poses(rows, self._own_index, self._own_stamps):
+            self._team.on_odom(i, now, row.pose, row.velocity, row.stamp_s)
+        for k, row in new_poses(rows, self._other_index, self._other_stamps):
+            self._team.on_other_robot(k, now, row.pose)
 
     def _on_catches(self, msg: bytes) -> None:
         catches = self._warn.convert(msg, "/ball/catches", lambda m: catches_from_msg(m, self._side))

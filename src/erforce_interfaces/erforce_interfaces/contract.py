@@ -361,6 +361,14 @@ BALL_CATCHES = Topic("/ball/catches", Float64MultiArray, QOS_SENSOR, "ball_predi
                      "at the frame's stamp [m, rad, m/s], `field`; its catch_time and catch_point as published "
                      "per robot, the point 0, 0 with a catch time of never); the AI's catch times: before the "
                      "per-robot catch_time and catch_point")
+ROBOTS_TRACKED = Topic("/robots/tracked", Float64MultiArray, QOS_STATE, "ball_predictor (while subscribed)",
+                       "passing_game, team_catcher (press_lanes, tracked_poses)",
+                       "every robot of both teams the tracker holds (seen within robot_timeout_s), after each vision "
+                       "frame that moved one: a table with columns TRACKED_ROBOT_COLUMNS, a row per robot, ours "
+                       "first, then the opponents (its team, its id in the team, the stamp of its last accepted "
+                       "pose as a header stamp carries it [s, ns], the tracker's pose, velocity and yaw rate then "
+                       "[m, rad, m/s, rad/s], `field`: what its odom carries); a reader takes a row whose stamp "
+                       "changed as a new odom, so that one message per frame replaces one odom per robot")
 BALL_TRACK = Topic("/ball/track", PointCloud2, QOS_SENSOR, "ball_predictor (while subscribed)", "field_view, tools",
                    "the ball at one accepted vision frame, for observers, in one message: one point of fields "
                    "BALL_TRACK_FIELDS (float64, little endian, height 1, width 1): the filtered ball x, y [m] "
@@ -422,7 +430,7 @@ TOPICS: tuple[Topic, ...] = (
     CLOCK, VISION_BALL, VISION_ROBOTS, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
     BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL, SIM_SET_BALL, SIM_EVENTS,
     TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY, FIELD_WHEEL_STATES, FIELD_MOTOR_DUTY,
-    BALL_CATCHES, BALL_TRACK, PASS_CHOICE, PASS_RECORDS,
+    BALL_CATCHES, ROBOTS_TRACKED, BALL_TRACK, PASS_CHOICE, PASS_RECORDS,
     CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, BALL_DETECTED, DRIBBLER,
     VISION_POSE, ODOM, CATCH_TIME, CATCH_POINT, GROUND_TRUTH_ODOM, GROUND_TRUTH_MOTORS, SIM_SET_STATE,
 )
@@ -446,6 +454,10 @@ VISION_DETECTION_KINDS = {"ball": VISION_BALL_CODE, "ours": OURS.code, "opponent
 #: ``team`` is Team.code (1 ours, 2 the opponents); ``robot_id`` counts within the team
 CATCH_TABLE_COLUMNS = ("team", "robot_id", "x_m", "y_m", "yaw_rad", "vx_mps", "vy_mps", "catch_time_s", "catch_x_m",
                        "catch_y_m")
+#: ``team`` and ``robot_id`` as in CATCH_TABLE_COLUMNS; the stamp in two whole-number columns, as
+#: builtin_interfaces/Time has it (so the table's values may reach 2**31 - 1, where other tables' stop at 1e9)
+TRACKED_ROBOT_COLUMNS = ("team", "robot_id", "stamp_sec", "stamp_nanosec", "x_m", "y_m", "yaw_rad", "vx_mps",
+                         "vy_mps", "yaw_rate_radps")
 #: first_opponent counts the opponents 0.. (``/opponent_<id>``), -1: none can catch the pass; then
 #: opponent_catch_s and margin_s are PASS_NO_OPPONENT_S (a table holds finite numbers only).
 PASS_NO_OPPONENT_S = 1.0e6

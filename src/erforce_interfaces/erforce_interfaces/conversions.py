@@ -41,6 +41,7 @@ from erforce_interfaces.contract import (
     FIELD_FRAME,
     OPPONENTS,
     OURS,
+    TRACKED_ROBOT_COLUMNS,
     VISION_BALL_CODE,
     VISION_ROBOT_FIELDS,
     Team,
@@ -1098,7 +1099,12 @@ def float64_from_msg(msg: Float64 | bytes, limit: float = MAX_ABS_VALUE) -> floa
     return _finite("data", msg.data, limit)
 
 
-def table_msg(rows: np.ndarray, column_labels: Sequence[str], row_label: str = "rows") -> Float64MultiArray:
+TABLE_LIMIT = 1.0e9  # the magnitude a table's values may have (one with stamps: TRACKED_TABLE_LIMIT)
+TRACKED_TABLE_LIMIT = float(2**31 - 1)  # /robots/tracked: a stamp's seconds, as builtin_interfaces/Time's int32
+
+
+def table_msg(rows: np.ndarray, column_labels: Sequence[str], row_label: str = "rows",
+              limit: float = TABLE_LIMIT) -> Float64MultiArray:
     """A 2-D table (rows x labelled columns) as a Float64MultiArray with a self-describing layout.
 
     The column dimension's label lists the column names separated by commas, so
@@ -1107,7 +1113,7 @@ def table_msg(rows: np.ndarray, column_labels: Sequence[str], row_label: str = "
     table = np.atleast_2d(np.asarray(rows, dtype=float))
     if table.shape[1] != len(column_labels):
         raise ConversionError(f"table has {table.shape[1]} columns, expected {len(column_labels)}")
-    _finite_array("table", table.ravel(), None, 1.0e9)
+    _finite_array("table", table.ravel(), None, limit)
     msg = Float64MultiArray()
     n_rows, n_cols = table.shape
     msg.layout.dim = [
@@ -1118,12 +1124,13 @@ def table_msg(rows: np.ndarray, column_labels: Sequence[str], row_label: str = "
     return msg
 
 
-def table_cdr(rows: Sequence[Sequence[float]], column_labels: Sequence[str], row_label: str = "rows") -> bytes:
+def table_cdr(rows: Sequence[Sequence[float]], column_labels: Sequence[str], row_label: str = "rows",
+              limit: float = TABLE_LIMIT) -> bytes:
     """``table_msg`` serialized, with the same checks (rows: a list of equal-length rows)."""
     columns = tuple(column_labels)
     if any(len(row) != len(columns) for row in rows):
         raise ConversionError(f"table rows must have {len(columns)} columns")
-    flat = _checked_floats("table", [v for row in rows for v in row], len(rows) * len(columns), 1.0e9)
+    flat = _checked_floats("table", [v for row in rows for v in row], len(rows) * len(columns), limit)
     return _CDR_LE + _table_layout_cdr(row_label, len(rows), columns) + struct.pack(f"<{len(flat)}d", *flat)
 
 
@@ -1174,7 +1181,7 @@ def _multi_array_parts(msg: Float64MultiArray | bytes) -> tuple[list[tuple[str, 
 
 
 def table_from_msg(msg: Float64MultiArray | bytes, column_labels: Sequence[str],
-                   num_rows: int | None = None) -> np.ndarray:
+                   num_rows: int | None = None, limit: float = TABLE_LIMIT) -> np.ndarray:
     """The rows x columns table of a ``table_msg`` (or its CDR bytes); its shape is checked against the
     labels (and ``num_rows`` when given), not taken from the message."""
     dims, data_offset, values = _multi_array_parts(msg)
@@ -1187,7 +1194,7 @@ def table_from_msg(msg: Float64MultiArray | bytes, column_labels: Sequence[str],
         raise ConversionError(f"table has {n_rows} rows, expected {num_rows}")
     if data_offset != 0:
         raise ConversionError(f"table data_offset is {data_offset}, expected 0")
-    data = _finite_array("data", values, n_rows * n_cols, 1.0e9)
+    data = _finite_array("data", values, n_rows * n_cols, limit)
     return data.reshape(n_rows, n_cols)
 
 
@@ -1216,14 +1223,14 @@ class Catch(NamedTuple):
     point_m: tuple[float, float] | None  # None with a catch time of never: no catch_point goes out then
 
 
-def check_catch_ids(team_and_id: np.ndarray) -> None:
-    """The team and robot_id columns of a /ball/catches table (finite): a Team's code and a whole id >= 0 in each
-    row (ConversionError otherwise)."""
+def check_catch_ids(team_and_id: np.ndarray, table: str = "/ball/catches") -> None:
+    """The team and robot_id columns of a /ball/catches table (or another ``table`` with those columns; finite): a
+    Team's code and a whole id >= 0 in each row (ConversionError otherwise)."""
     teams, ids = team_and_id[:, 0], team_and_id[:, 1]
     if not ((ids >= 0.0) & (ids <= _MAX_ROBOT_ID) & (ids == np.floor(ids))).all():
-        raise ConversionError("robot ids of /ball/catches must be whole numbers >= 0")
+        raise ConversionError(f"robot ids of {table} must be whole numbers >= 0")
     if not ((teams == OURS.code) | (teams == OPPONENTS.code)).all():
-        raise ConversionError("the team column of /ball/catches must be a contract.Team code")
+        raise ConversionError(f"the team column of {table} must be a contract.Team code")
 
 
 def catches_from_msg(msg: Float64MultiArray | bytes, team: Team) -> list[Catch]:
@@ -1242,3 +1249,48 @@ def catches_from_msg(msg: Float64MultiArray | bytes, team: Team) -> list[Catch]:
                                                     _finite("catch_y_m", row[x_col + 1]))
         out.append(Catch(int(row[1]), t, point))
     return out
+
+
+# ------------------------------------------------------------ /robots/tracked
+class TrackedRobot(NamedTuple):
+    """One row of /robots/tracked: what the robot's odom carries (odometry_from_msg's stamp, pose, velocity)."""
+
+    team: float  # Team.code
+    robot_id: int
+    stamp_s: float
+    pose: tuple[float, float, float]  # x [m], y [m], yaw [rad] in ``field``
+    velocity: tuple[float, float, float]  # vx, vy [m/s] in ``field``, yaw rate [rad/s]
+
+
+def tracked_robot_row(team: Team, robot_id: int, t_s: float, pose, velocity) -> tuple[float, ...]:
+    """The row of TRACKED_ROBOT_COLUMNS for one robot, with odometry_cdr's checks (ConversionError)."""
+    sec, nanosec = _stamp_parts(_seconds_to_ns(t_s))
+    x, y, yaw = (_finite("pose.position.x", pose[0]), _finite("pose.position.y", pose[1]),
+                 _finite("yaw", pose[2], 1.0e5))
+    vx, vy, wz = (_finite("twist.linear.x", velocity[0]), _finite("twist.linear.y", velocity[1]),
+                  _finite("twist.angular.z", velocity[2]))
+    return (team.code, float(robot_id), float(sec), float(nanosec), x, y, yaw, vx, vy, wz)
+
+
+def tracked_robots_cdr(rows: Sequence[Sequence[float]]) -> bytes:
+    """/robots/tracked serialized from rows of ``tracked_robot_row``."""
+    return table_cdr(rows, TRACKED_ROBOT_COLUMNS, limit=TRACKED_TABLE_LIMIT)
+
+
+def tracked_robots_from_msg(msg: Float64MultiArray | bytes) -> list[TrackedRobot]:
+    """The rows of a /robots/tracked table (or its CDR bytes), in the table's order, the stamp as
+    stamp_to_seconds gives it. A table that is not one (columns, shape, a non-finite value, a team or robot id
+    that is none, a stamp that is no time, a value past odometry_from_msg's limits) raises ConversionError."""
+    table = table_from_msg(msg, TRACKED_ROBOT_COLUMNS, limit=TRACKED_TABLE_LIMIT)
+    if not len(table):
+        return []
+    check_catch_ids(table[:, :2], "/robots/tracked")
+    sec, nanosec = table[:, 2], table[:, 3]
+    if not ((sec >= 0.0) & (sec == np.floor(sec)) & (nanosec >= 0.0) & (nanosec < 1.0e9)
+            & (nanosec == np.floor(nanosec))).all():
+        raise ConversionError("a stamp of /robots/tracked is not a valid time")
+    if (np.abs(table[:, [4, 5, 7, 8]]) > MAX_ABS_VALUE).any() or (np.abs(table[:, [6, 9]]) > 1.0e5).any():
+        raise ConversionError(f"a pose or velocity of /robots/tracked exceeds the accepted magnitude "
+                              f"({MAX_ABS_VALUE:g}; 1e5 for yaw and yaw rate)")
+    return [TrackedRobot(team, int(robot_id), int(sec) + int(nanosec) * 1e-9, (x, y, yaw), (vx, vy, wz))
+            for team, robot_id, sec, nanosec, x, y, yaw, vx, vy, wz in table.tolist()]
