@@ -28,6 +28,7 @@ setup(
             "erforce-launch = erforce_interfaces.tools.launcher:main",
             "erforce-topic = erforce_interfaces.tools.topic_tool:main",
             "erforce-record = erforce_interfaces.tools.recording:main",
+            "erforce-realtime = erforce_interfaces.tools.realtime:main",
             "ssl_sim_bridge = erforce_interfaces.ssl_sim_bridge_node:main",
             "ssl_log_replay = erforce_interfaces.ssl_log_replay:main",
             "talker = erforce_interfaces.demo_nodes:talker_main",

@@ -21,9 +21,10 @@ from std_msgs.msg import String
 PACKAGES = ("erforce_interfaces", "erforce_ball_model", "erforce_motion", "erforce_sim")
 
 # Console scripts that are command line tools, not nodes: they end by themselves or have their own
-# SIGINT rules (the launcher's are in test_launcher.py, the topic tool's in test_topic_tool.py).
+# SIGINT rules (the launcher's are in test_launcher.py, the topic tool's in test_topic_tool.py; erforce-realtime
+# becomes the command it prefixes, test_realtime.py).
 TOOLS = {"erforce-launch", "erforce-topic", "ssl_log_replay", "ball_figures", "ball_fit", "tune_motor",
-         "ssl_game_log"}
+         "ssl_game_log", "erforce-realtime"}
 
 
 def free_udp_port() -> int:

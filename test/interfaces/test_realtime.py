@@ -1,0 +1,41 @@
+"""erforce-realtime: a command under SCHED_FIFO where allowed, else at its own priority with one line saying so."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from erforce_interfaces.tools import realtime
+
+SHOW_POLICY = [sys.executable, "-c", "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)"]
+
+
+def test_the_command_runs_under_sched_fifo_at_the_priority_or_says_why_not():
+    done = subprocess.run([sys.executable, "-m", "erforce_interfaces.tools.realtime", "7", *SHOW_POLICY],
+                          capture_output=True, text=True, timeout=60, check=True)
+    policy, priority = (int(v) for v in done.stdout.split())
+    if "not allowed" in done.stderr:  # no CAP_SYS_NICE: the command still ran, at the normal policy
+        assert (policy, priority) == (os.SCHED_OTHER, 0)
+    else:
+        assert (policy, priority) == (os.SCHED_FIFO, 7)
+        assert done.stderr == ""
+
+
+def test_refused_it_warns_once_and_still_runs_the_command(monkeypatch, capsys):
+    def refuse(pid, policy, param):
+        raise PermissionError(1, "Operation not permitted")
+
+    ran = []
+    monkeypatch.setattr(os, "sched_setscheduler", refuse)
+    monkeypatch.setattr(os, "execvp", lambda file, args: ran.append((file, args)))
+    assert realtime.main(["10", "ball_predictor", "--ros-args"]) == 0
+    assert ran == [("ball_predictor", ["ball_predictor", "--ros-args"])]
+    assert capsys.readouterr().err == ("erforce-realtime: SCHED_FIFO priority 10 not allowed (Operation not "
+                                       "permitted); ball_predictor runs at its normal priority\n")
+
+
+@pytest.mark.parametrize("argv", [[], ["10"], ["0", "x"], ["100", "x"], ["high", "x"]])
+def test_a_bad_command_line_prints_the_usage(argv, capsys):
+    assert realtime.main(argv) == 2
+    assert capsys.readouterr().err.startswith("usage: erforce-realtime PRIORITY COMMAND")
