@@ -1,11 +1,13 @@
 """erforce-realtime: a command under SCHED_FIFO where allowed, else at its own priority with one line saying so."""
 
 import os
+import socket
 import subprocess
 import sys
 
 import pytest
 
+from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
 from erforce_interfaces.tools import realtime
 
 SHOW_POLICY = [sys.executable, "-c", "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)"]
@@ -39,3 +41,29 @@ def test_refused_it_warns_once_and_still_runs_the_command(monkeypatch, capsys):
 def test_a_bad_command_line_prints_the_usage(argv, capsys):
     assert realtime.main(argv) == 2
     assert capsys.readouterr().err.startswith("usage: erforce-realtime PRIORITY COMMAND")
+
+
+def test_a_warm_standby_imports_at_its_normal_priority_and_takes_sched_fifo_on_go():
+    child = ("import os; from erforce_interfaces.standby import wait_for_go\n"
+             "show = lambda: print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, flush=True)\n"
+             "show(); assert wait_for_go(); show()")
+    ours, theirs = socket.socketpair()
+    with ours:
+        proc = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.tools.realtime", "7", sys.executable, "-c",
+                                 child], env={**os.environ, STANDBY_FD_ENV: str(theirs.fileno())},
+                                pass_fds=(theirs.fileno(),), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        theirs.close()
+        try:
+            ours.settimeout(60.0)
+            assert ours.recv(64) == READY
+            waiting = proc.stdout.readline().split()
+            ours.sendall(GO)
+            out, err = proc.communicate(timeout=60.0)
+        finally:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert [int(v) for v in waiting] == [os.SCHED_OTHER, 0]  # warming: the normal priority
+    if "not allowed" in err:
+        assert [int(v) for v in out.split()] == [os.SCHED_OTHER, 0]
+    else:
+        assert [int(v) for v in out.split()] == [os.SCHED_FIFO, 7]

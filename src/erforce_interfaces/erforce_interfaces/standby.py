@@ -18,9 +18,11 @@ import contextlib
 import gc
 import os
 import signal
+import sys
 from collections.abc import Callable
 
 STANDBY_FD_ENV = "ERFORCE_STANDBY_FD"
+REALTIME_PRIORITY_ENV = "ERFORCE_REALTIME_PRIORITY"  # what erforce-realtime leaves a standby to take on "go"
 READY = b"ready\n"
 GO = b"go\n"
 
@@ -65,6 +67,8 @@ def wait_for_go(warm_up: Callable[[], None] | None = None) -> bool:
                 return False
             received += chunk
         waiting[0] = False
+        if received == GO:
+            _take_realtime_priority()
         return received == GO
     except _End:
         return False
@@ -73,3 +77,14 @@ def wait_for_go(warm_up: Callable[[], None] | None = None) -> bool:
         for s, handler in previous.items():
             signal.signal(s, handler)
         os.close(fd)
+
+
+def _take_realtime_priority() -> None:
+    """The priority erforce-realtime left for the node (tools/realtime.py), now that the standby becomes it."""
+    value = os.environ.pop(REALTIME_PRIORITY_ENV, None)
+    if value is not None:
+        from erforce_interfaces.tools.realtime import set_fifo_priority  # a standby without the prefix needs none
+
+        refused = set_fifo_priority(int(value), os.path.basename(sys.argv[0]))
+        if refused is not None:
+            print(refused, file=sys.stderr, flush=True)

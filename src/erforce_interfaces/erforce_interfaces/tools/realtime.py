@@ -8,6 +8,9 @@ own priority and one line on stderr says so, so a launch file can name this pref
 for every user. Linux's real-time throttling (``/proc/sys/kernel/sched_rt_runtime_us``, 95 % by default) keeps
 a runaway from taking a whole machine.
 
+A warm standby (erforce_interfaces.standby) does its imports at the normal priority: this prefix leaves the
+priority to it (``standby.REALTIME_PRIORITY_ENV``), and the standby takes it on "go", when it becomes the node.
+
     launch-prefix: $(find-pkg-prefix erforce_interfaces)/lib/erforce_interfaces/erforce-realtime 10
 """
 
@@ -15,6 +18,19 @@ from __future__ import annotations
 
 import os
 import sys
+
+from erforce_interfaces.standby import REALTIME_PRIORITY_ENV, STANDBY_FD_ENV
+
+
+def set_fifo_priority(priority: int, command: str) -> str | None:
+    """This thread (and the threads it starts from now on) under SCHED_FIFO at ``priority``; the line to print
+    when that is not allowed (None: done)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError as exc:  # EPERM without CAP_SYS_NICE; EINVAL where the kernel has no real-time class
+        return (f"erforce-realtime: SCHED_FIFO priority {priority} not allowed ({exc.strerror}); {command} runs at "
+                "its normal priority")
+    return None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -24,11 +40,10 @@ def main(argv: list[str] | None = None) -> int:
         print(usage, file=sys.stderr)
         return 2
     priority, command = int(args[0]), args[1:]
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except OSError as exc:  # EPERM without CAP_SYS_NICE; EINVAL where the kernel has no real-time class
-        print(f"erforce-realtime: SCHED_FIFO priority {priority} not allowed ({exc.strerror}); {command[0]} runs at "
-              "its normal priority", file=sys.stderr, flush=True)
+    if STANDBY_FD_ENV in os.environ:  # a warm standby: it raises the priority when it becomes the node
+        os.environ[REALTIME_PRIORITY_ENV] = str(priority)
+    elif (refused := set_fifo_priority(priority, command[0])) is not None:
+        print(refused, file=sys.stderr, flush=True)
     try:
         os.execvp(command[0], command)
     except OSError as exc:
