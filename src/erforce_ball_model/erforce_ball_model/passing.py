@@ -183,7 +183,7 @@ def evaluate_passes(
                 u = (aim - ball) / math.dist(aim, ball)
         contact_m = float((aim - ball) @ u)  # ball travel to the receiver's dribbler
         v0 = min(max(kick_speed_for(contact_m, cfg.arrive_speed_mps, params), cfg.min_kick_mps), cfg.max_kick_mps)
-        traj = BallTrajectory((float(ball[0]), float(ball[1])), (float(u[0] * v0), float(u[1] * v0)), v0, params)
+        traj = BallTrajectory.of_floats(float(ball[0]), float(ball[1]), float(u[0] * v0), float(u[1] * v0), v0, params)
         if narrow:
             sub_pos[0], sub_vel[0] = pos[j], vel[j]
             sub_fixed[0], sub_facing[0] = j in next_targets, receive_rad
