@@ -288,3 +288,24 @@ def test_immutable_and_advanced():
     later = SHOT.advanced(1.0)
     np.testing.assert_allclose(later.position_at(0.5), SHOT.position_at(1.5))
     assert later.stop_time_s == pytest.approx(SHOT.stop_time_s - 1.0)
+
+
+def test_of_floats_is_the_constructor_for_plain_floats():
+    """BallTrajectory.of_floats (the path of advanced() and of every pass evaluated) against the constructor:
+    the same floats for balls sliding, rolling and at rest, at the position and speed limits; the same
+    ValueError for what the constructor refuses."""
+    from erforce_ball_model.ball_model import MAX_POSITION_M, MAX_SPEED_MPS
+
+    params = BallModelParams(a_slide_mps2=-2.5, a_roll_mps2=-0.3, c_switch=0.6)
+    for x, y, vx, vy, v_shoot in ((0.5, -1.0, 3.0, 4.0, 5.0), (1.0, 2.0, -0.6, 0.8, 3.0), (-3.0, 0.25, 0.0, 0.0, 0.0),
+                                  (MAX_POSITION_M, -MAX_POSITION_M, 0.0, -MAX_SPEED_MPS, MAX_SPEED_MPS)):
+        fast = BallTrajectory.of_floats(x, y, vx, vy, v_shoot, params)
+        assert fast.floats == BallTrajectory((x, y), (vx, vy), v_shoot, params).floats and fast.params is params
+    refused = ((math.nan, 0.0, 1.0, 0.0, 1.0, "finite"), (0.0, 0.0, math.inf, 0.0, 1.0, "finite"),
+               (MAX_POSITION_M * 1.5, 0.0, 1.0, 0.0, 1.0, "beyond"), (0.0, 0.0, 80.0, 80.0, 1.0, "speed above"),
+               (0.0, 0.0, 1.0, 0.0, -1.0, ">= 0"))
+    for x, y, vx, vy, v_shoot, match in refused:
+        with pytest.raises(ValueError, match=match):
+            BallTrajectory((x, y), (vx, vy), v_shoot, params)
+        with pytest.raises(ValueError, match=match):
+            BallTrajectory.of_floats(x, y, vx, vy, v_shoot, params)

@@ -134,3 +134,36 @@ def test_the_table_feeds_the_opponents_team_catcher_what_its_robots_topics_did()
     both = SpyTeam((0, 2))
     both.on_catches(4.0, catches_from_msg(table_msg(TABLE, contract.CATCH_TABLE_COLUMNS), contract.OPPONENTS))
     assert both.calls == [("time", 0, 4.0, 0.25), ("time", 2, 4.0, NEVER), ("point", 0, 4.0, (1.0, 0.125))]
+
+
+@pytest.mark.parametrize(("row", "column", "value"), [
+    (0, "catch_time_s", 1.0e3), (0, "catch_time_s", -1.0e3 - 1e-6), (2, "catch_x_m", -1.0e3), (2, "catch_y_m", 1001.0),
+    (1, "catch_x_m", 5.0e3),  # a point of a never catch is no point: not checked
+    (3, "catch_time_s", 2.0e3),  # the other team's row: not this team's catch
+    (1, "robot_id", 1.0e6), (1, "robot_id", 1.0e6 + 1.0), (1, "robot_id", 0.25), (4, "team", 7.0),
+])
+def test_the_one_pass_reading_accepts_exactly_what_the_checks_accept(row, column, value):
+    """conversions._catches_plain (one pass over the rows, the path every good table takes) against the checks
+    one by one on values at and just past each limit, for our team: None exactly where the checks refuse the
+    table, else the same catches."""
+    from erforce_interfaces.conversions import _catches_plain, check_catch_ids
+
+    table = _with(row, column, value)
+    try:
+        check_catch_ids(np.array(table)[:, :2])
+        expected = []
+        for r in table:
+            if r[0] == OURS:
+                t = r[7]
+                if abs(t) > 1.0e3 or (t != NEVER and max(abs(r[8]), abs(r[9])) > 1.0e3):
+                    raise ConversionError("beyond a catch topic's magnitude")
+                expected.append(Catch(int(r[1]), t, None if t == NEVER else (r[8], r[9])))
+    except ConversionError:
+        expected = None
+    assert _catches_plain(table, OURS) == expected
+    msg = table_cdr(table, contract.CATCH_TABLE_COLUMNS)
+    if expected is None:
+        with pytest.raises(ConversionError):
+            catches_from_msg(msg, contract.OURS)
+    else:
+        assert catches_from_msg(msg, contract.OURS) == expected

@@ -134,3 +134,36 @@ def test_a_receiver_with_a_next_target_is_rated_facing_it_and_the_kick_aims_at_i
     assert up.direction_rad == pytest.approx(0.0, abs=1e-12)
     assert abs(math.remainder(up.receive_facing_rad - math.pi, 2.0 * math.pi)) < 1e-12
     assert up.kick_speed_mps == pytest.approx(kick_speed_for(3.0 - OFFSET, CFG.arrive_speed_mps, MODEL))
+
+
+def test_the_receiver_and_opponents_search_gives_the_whole_fields_options():
+    """evaluate_passes with ``receiver_search`` (the receiver and the 3 opponents searched) against the plain
+    whole-field search, on a hand-built field of 6 teammates: one receiver with a next target, one out of
+    reach, an opponent on a lane, robots moving. robotTimeToBall is per robot: every option equal, bit for bit."""
+    team = np.array([[-0.1, 0.0], [2.0, 0.0], [0.0, 2.5], [-2.0, 1.0], [7.5, 0.0], [1.5, -2.0]])
+    team_vel = np.array([[0.0, 0.0], [0.3, -0.2], [0.0, 0.5], [-0.4, 0.0], [0.0, 0.0], [0.2, 0.2]])
+    opponents = np.array([[1.0, 0.05], [-1.0, 2.0], [2.5, -1.5]])
+    opp_vel = np.array([[0.0, 0.0], [0.5, 0.0], [-0.3, 0.4]])
+    for targets in ({}, {2: team[1], 5: team[3]}):
+        plain = evaluate_passes((0.0, 0.0), team, team_vel, opponents, opp_vel, [1, 2, 3, 4, 5], _search(9), MODEL,
+                                CFG, OFFSET, targets)
+        narrow = evaluate_passes((0.0, 0.0), team, team_vel, opponents, opp_vel, [1, 2, 3, 4, 5], _search(9), MODEL,
+                                 CFG, OFFSET, targets, receiver_search=_search(4))
+        assert [o.receiver for o in plain] == [1, 2, 3, 5]  # 4 is 7.5 m away
+        assert narrow == plain
+        assert any(o.first_opponent == 0 and o.margin_s < 0.0 for o in plain)  # the lane to 1 is covered
+    with pytest.raises(ValueError, match="receiver_search is for 3 robots"):
+        evaluate_passes((0.0, 0.0), team, team_vel, opponents, opp_vel, [1], _search(9), MODEL, CFG, OFFSET,
+                        receiver_search=_search(3))
+
+
+def test_a_robot_not_finite_is_refused_with_or_without_the_receiver_search():
+    """A teammate that is not a candidate but has a NaN velocity: the whole field's search refuses it, and so
+    does evaluate_passes with the receiver search (it leaves such a field to the whole search)."""
+    team = np.array([[-0.1, 0.0], [2.0, 0.0], [0.0, 2.5]])
+    team_vel = np.array([[0.0, 0.0], [0.0, 0.0], [math.nan, 0.0]])
+    opponents = np.array([[1.0, 3.0]])
+    for extra in ({}, {"receiver_search": _search(2)}):
+        with pytest.raises(ValueError, match="must be finite"):
+            evaluate_passes((0.0, 0.0), team, team_vel, opponents, np.zeros_like(opponents), [1], _search(4), MODEL,
+                            CFG, OFFSET, **extra)

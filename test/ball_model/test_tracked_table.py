@@ -101,3 +101,29 @@ def test_each_pose_is_fed_once_and_a_new_stamp_is_a_new_pose():
     frame3 = tracked_robots_from_msg(table_cdr(table2, COLUMNS))
     assert [(k, row.stamp_s) for k, row in new_poses(frame3, index, fed)] == [(0, 2.0)]
     assert fed == [2.0, 13.5]
+
+
+@pytest.mark.parametrize(("column", "value"), [
+    ("robot_id", 1.0e6), ("robot_id", 1.0e6 + 1.0), ("robot_id", -0.0), ("robot_id", 2.5),
+    ("stamp_sec", 0.0), ("stamp_sec", 2.0**31 - 1.0), ("stamp_nanosec", 999_999_999.0), ("stamp_nanosec", 1.0e9),
+    ("stamp_nanosec", -1.0), ("x_m", 1.0e3), ("x_m", -1.0e3 - 1e-9), ("vy_mps", -1.0e3), ("vx_mps", 1000.5),
+    ("yaw_rad", 1.0e5), ("yaw_rad", -1.0e5 - 1.0), ("yaw_rate_radps", -1.0e5), ("team", THEIRS), ("team", 0.5),
+])
+def test_the_one_pass_reading_accepts_exactly_what_the_checks_accept(column, value):
+    """conversions._tracked_plain (one pass over the rows, the path every good table takes) against the checks one
+    by one (_check_tracked) on values at and just past each limit: it answers None exactly where the checks
+    refuse, and otherwise the rows as written (the stamp as seconds plus nanoseconds)."""
+    from erforce_interfaces.conversions import _check_tracked, _tracked_plain
+
+    table = np.array(_with(1, column, value))
+    try:
+        _check_tracked(table)
+        refused = False
+    except ConversionError:
+        refused = True
+    fast = _tracked_plain(table.tolist())
+    assert (fast is None) == refused
+    if not refused:
+        team, robot_id, sec, nanosec, x, y, yaw, vx, vy, wz = table[1].tolist()
+        assert fast[1] == TrackedRobot(team, int(robot_id), int(sec) + int(nanosec) * 1e-9, (x, y, yaw), (vx, vy, wz))
+        assert fast[0] == TrackedRobot(OURS, 2, 12.5, (-1.0, 2.0, 0.5), (0.25, -0.5, 1.5))

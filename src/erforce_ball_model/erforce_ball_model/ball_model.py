@@ -281,6 +281,21 @@ class BallTrajectory:
         init(self, "floats", ball_floats(x, y, vx, vy, v_shoot, params.a_slide_mps2, params.a_roll_mps2,
                                          params.c_switch))
 
+    @classmethod
+    def of_floats(cls, x: float, y: float, vx: float, vy: float, v_shoot_mps: float,
+                  params: BallModelParams) -> BallTrajectory:
+        """``BallTrajectory((x, y), (vx, vy), v_shoot_mps, params)`` for plain floats: the same ball, the same
+        checks (values that fail one go through the constructor, which names it), in a few comparisons."""
+        if (type(params) is BallModelParams and abs(x) <= MAX_POSITION_M and abs(y) <= MAX_POSITION_M
+                and math.hypot(vx, vy) <= MAX_SPEED_MPS and 0.0 <= v_shoot_mps <= MAX_SPEED_MPS):
+            ball = object.__new__(cls)  # NaN and inf fail the comparisons above
+            init = object.__setattr__
+            init(ball, "params", params)
+            init(ball, "floats", ball_floats(float(x), float(y), float(vx), float(vy), float(v_shoot_mps),
+                                             params.a_slide_mps2, params.a_roll_mps2, params.c_switch))
+            return ball
+        return cls((x, y), (vx, vy), v_shoot_mps, params)
+
     def __setattr__(self, name, value):
         raise AttributeError(f"BallTrajectory is immutable (cannot set {name})")
 
@@ -412,4 +427,5 @@ class BallTrajectory:
             raise ValueError(f"dt_s: one number, got {dt_s!r}")
         f = self.floats
         d, s = ball_distance(f, dt), ball_speed(f, dt)
-        return BallTrajectory((f.x_m + f.ux * d, f.y_m + f.uy * d), (f.ux * s, f.uy * s), f.v_shoot_mps, self.params)
+        return BallTrajectory.of_floats(f.x_m + f.ux * d, f.y_m + f.uy * d, f.ux * s, f.uy * s, f.v_shoot_mps,
+                                        self.params)

@@ -137,13 +137,16 @@ def evaluate_passes(
     dribbler_offset_m: float,
     next_targets: Mapping[int, Sequence[float]] | None = None,
     max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD,
+    receiver_search: CatchSearch | None = None,
 ) -> list[PassOption]:
     """One PassOption per candidate teammate in reach (module docstring).
 
     ``search`` is a CatchSearch for ``len(team_xy) + len(opponents_xy)`` robots (teammates first);
     every robot faces the incoming ball, as the predictor assumes, but a candidate with a next target
     (``next_targets``: candidate -> [x, y]) receives facing it within ``max_receive_angle_rad``
-    (catch_time.receive_facing); everybody reacts ``cfg.reaction_s`` late.
+    (catch_time.receive_facing); everybody reacts ``cfg.reaction_s`` late. With ``receiver_search`` (a
+    CatchSearch like ``search`` for ``1 + len(opponents_xy)`` robots) each pass searches only the receiver
+    and the opponents, the robots it is judged by: the same numbers, as robotTimeToBall is per robot.
     """
     team_xy, opponents_xy = np.asarray(team_xy, dtype=float), np.asarray(opponents_xy, dtype=float)
     n_team = len(team_xy)
@@ -155,6 +158,15 @@ def evaluate_passes(
     facing_fixed = np.zeros(len(pos), dtype=bool)
     facing = np.zeros(len(pos))
     next_targets = {} if next_targets is None else next_targets
+    # a robot that is not finite makes the whole field's search refuse the pass (ValueError): left to it
+    narrow = receiver_search is not None and bool(np.isfinite(pos).all() and np.isfinite(vel).all())
+    if narrow:
+        if receiver_search.num_robots != 1 + len(opponents_xy):
+            raise ValueError(f"receiver_search is for {receiver_search.num_robots} robots, the receiver and the "
+                             f"opponents are {1 + len(opponents_xy)}")
+        # row 0: the receiver's, set per pass; then the opponents
+        sub_pos, sub_vel = np.concatenate([pos[:1], pos[n_team:]]), np.concatenate([vel[:1], vel[n_team:]])
+        sub_fixed, sub_facing = np.zeros(len(sub_pos), dtype=bool), np.zeros(len(sub_pos))
     options = []
     for j in candidates:
         centre = team_xy[j]
@@ -171,17 +183,24 @@ def evaluate_passes(
                 u = (aim - ball) / math.dist(aim, ball)
         contact_m = float((aim - ball) @ u)  # ball travel to the receiver's dribbler
         v0 = min(max(kick_speed_for(contact_m, cfg.arrive_speed_mps, params), cfg.min_kick_mps), cfg.max_kick_mps)
-        traj = BallTrajectory((float(ball[0]), float(ball[1])), (float(u[0] * v0), float(u[1] * v0)), v0, params)
-        facing_fixed[j], facing[j] = j in next_targets, receive_rad
-        try:
-            times = _times(catch_after_reaction(search, traj, pos, vel, cfg.reaction_s, facing_fixed, facing, 0.1),
-                           cfg.reaction_s)
-        finally:
-            facing_fixed[j] = False
-        opp = times[n_team:]
+        traj = BallTrajectory.of_floats(float(ball[0]), float(ball[1]), float(u[0] * v0), float(u[1] * v0), v0, params)
+        if narrow:
+            sub_pos[0], sub_vel[0] = pos[j], vel[j]
+            sub_fixed[0], sub_facing[0] = j in next_targets, receive_rad
+            times = _times(catch_after_reaction(receiver_search, traj, sub_pos, sub_vel, cfg.reaction_s, sub_fixed,
+                                                sub_facing, 0.1), cfg.reaction_s)
+            receiver_time, opp = times[0], times[1:]
+        else:
+            facing_fixed[j], facing[j] = j in next_targets, receive_rad
+            try:
+                times = _times(catch_after_reaction(search, traj, pos, vel, cfg.reaction_s, facing_fixed, facing,
+                                                    0.1), cfg.reaction_s)
+            finally:
+                facing_fixed[j] = False
+            receiver_time, opp = times[j], times[n_team:]
         first = int(np.argmin(opp)) if len(opp) and math.isfinite(opp.min()) else None
         arrival_s = float(traj.time_to_distance(contact_m))
-        receiver_s = arrival_s if math.isfinite(times[j]) else math.inf
+        receiver_s = arrival_s if math.isfinite(receiver_time) else math.inf
         options.append(PassOption(int(j), v0, math.atan2(u[1], u[0]), receiver_s,
                                   math.inf if first is None else float(opp[first]), first, receive_rad))
     return options

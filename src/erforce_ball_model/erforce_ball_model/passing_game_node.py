@@ -170,6 +170,7 @@ class PassingGameNode(Node):
         self._inputs.append(sample_only(contract_subscription(self, q.ROBOTS_TRACKED, self._on_tracked, raw=True)))
         self._inputs.append(sample_only(contract_subscription(self, q.BALL_CATCHES, self._on_catches, raw=True)))
         self._v_shoot: float | None = None
+        self._batch_now = self._now_s()  # the time of the inputs' batch (_tick)
         self._timer = self.create_timer(1.0 / self._params.config[1][""].rate_hz, self._tick)
         self._params.on_change(self._set_config)
         self.get_logger().info(f"passing_game: robot_0 .. robot_{n - 1} pass, {m} opponent(s); the ball starts at "
@@ -203,7 +204,7 @@ class PassingGameNode(Node):
     def _on_ball(self, msg: Odometry | bytes) -> None:
         ball = self._warn.convert(msg, "ball state", odometry_from_msg)
         if ball is not None:
-            self._player.on_ball(self._now_s(), ball[1], ball[2], self._v_shoot)
+            self._player.on_ball(self._batch_now, ball[1], ball[2], self._v_shoot)
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
         self._v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)
@@ -218,22 +219,24 @@ class PassingGameNode(Node):
         rows = self._warn.convert(msg, "/robots/tracked", tracked_robots_from_msg)
         if not rows:
             return
-        now = self._now_s()
+        now = self._batch_now
         for k, row in new_poses(rows, self._row_index, self._fed_stamps):
             self._player.on_robot(k, now, row.pose, row.velocity, row.stamp_s)
 
     def _on_catches(self, msg: bytes) -> None:
         catches = self._warn.convert(msg, "/ball/catches", lambda m: catches_from_msg(m, contract.OURS))
         if catches:
-            self._player.on_catches(self._now_s(), catches)
+            self._player.on_catches(self._batch_now, catches)
 
     def _on_barrier(self, k: int, msg: Bool) -> None:
-        self._player.on_barrier(k, self._now_s(), msg.data)
+        self._player.on_barrier(k, self._batch_now, msg.data)
 
     # ------------------------------------------------------------------ the AI tick
     def _tick(self) -> None:
+        # one clock read for the batch: the sampled inputs all run at this tick (the clock stands meanwhile)
+        self._batch_now = self._now_s()
         run_sampled(self._inputs)
-        now = self._now_s()
+        now = self._batch_now
         player = self._player
         if not self._started:
             self._start(now)

@@ -237,8 +237,12 @@ class PassingPlayer:
         self.cfg, self.field = cfg, field_config
         self.dribbler_offset_m, self.robot_radius_m = dribbler_offset_m, robot_radius_m
         cc = cfg.catcher
-        self.pass_search = CatchSearch(self.n_team + self.n_opp, RobotLimits(cc.a_max_mps2, cc.v_max_mps),
-                                       dribbler_offset_m=dribbler_offset_m, field=field_config)
+        limits = RobotLimits(cc.a_max_mps2, cc.v_max_mps)
+        self.pass_search = CatchSearch(self.n_team + self.n_opp, limits, dribbler_offset_m=dribbler_offset_m,
+                                       field=field_config)
+        # a pass is judged by its receiver and the opponents: the search runs for them only (evaluate_passes)
+        self.receiver_search = CatchSearch(1 + self.n_opp, limits, dribbler_offset_m=dribbler_offset_m,
+                                           field=field_config)
         if self.receiver is not None:
             self.receiver.set_config(cc, dribbler_offset_m, robot_radius_m, field_config)
 
@@ -412,7 +416,7 @@ class PassingPlayer:
         return evaluate_passes(self.ball_at_dribbler(holder), self.poses[:n, :2], self.velocities[:n],
                                self.poses[n:, :2], self.velocities[n:], self._candidates(holder), self.pass_search,
                                self.model if model is None else model, self.cfg.passing if passing is None else passing,
-                               self.dribbler_offset_m, targets, self.cfg.max_receive_angle_rad)
+                               self.dribbler_offset_m, targets, self.cfg.max_receive_angle_rad, self.receiver_search)
 
     def fallback_choice(self, holder: int, now: float) -> PassOption | None:
         """The pass of a holder that has no pass in reach under the model in use (module docstring): None
@@ -451,7 +455,7 @@ class PassingPlayer:
         others = [k for k in range(n) if k not in (holder, j)]
         options = evaluate_passes(self.poses[j, :2], self.poses[:n, :2], self.velocities[:n], self.poses[n:, :2],
                                   self.velocities[n:], others, self.pass_search, self.model, self.cfg.passing,
-                                  self.dribbler_offset_m)
+                                  self.dribbler_offset_m, receiver_search=self.receiver_search)
         best = select_pass(options, self.cfg.passing)
         return None if best is None else best.receiver
 

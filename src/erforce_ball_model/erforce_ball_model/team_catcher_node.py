@@ -106,6 +106,7 @@ class TeamCatcherNode(Node):
         self._other_index = {(other.code, k): k for k in range(n_other)}
         if n_other or tracked_poses:
             self._inputs.append(sample_only(contract_subscription(self, q.ROBOTS_TRACKED, self._on_tracked, raw=True)))
+        self._batch_now = self._now_s()  # the time of the inputs' batch (_tick)
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
         as_team = " as a team" if self._values["as_team"] else ""
         press = f", pressing the passing lanes of {other.name} (robots 0 .. {n_other - 1})" if n_other else ""
@@ -130,12 +131,12 @@ class TeamCatcherNode(Node):
     def _on_ball(self, msg: Odometry | bytes) -> None:
         ball = self._warn.convert(msg, "ball state", odometry_from_msg)
         if ball is not None:
-            self._team.on_ball(self._now_s(), ball[1], ball[2])
+            self._team.on_ball(self._batch_now, ball[1], ball[2])
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
         v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)
         if v_shoot is not None:
-            self._team.on_v_shoot(self._now_s(), v_shoot)
+            self._team.on_v_shoot(self._batch_now, v_shoot)
 
     def _on_model_params(self, msg: Float64MultiArray) -> None:
         try:
@@ -148,13 +149,13 @@ class TeamCatcherNode(Node):
     def _on_odom(self, robot: int, msg: Odometry | bytes) -> None:
         odom = self._warn.convert(msg, f"{self._names[robot]} odom", odometry_from_msg)
         if odom is not None:
-            self._team.on_odom(robot, self._now_s(), odom[1], odom[2], odom[0])
+            self._team.on_odom(robot, self._batch_now, odom[1], odom[2], odom[0])
 
     def _on_tracked(self, msg: bytes) -> None:
         rows = self._warn.convert(msg, "/robots/tracked", tracked_robots_from_msg)
         if not rows:
             return
-        now = self._now_s()
+        now = self._batch_now
         for i, row in new_poses(rows, self._own_index, self._own_stamps):
             self._team.on_odom(i, now, row.pose, row.velocity, row.stamp_s)
         for k, row in new_poses(rows, self._other_index, self._other_stamps):
@@ -163,15 +164,17 @@ class TeamCatcherNode(Node):
     def _on_catches(self, msg: bytes) -> None:
         catches = self._warn.convert(msg, "/ball/catches", lambda m: catches_from_msg(m, self._side))
         if catches:
-            self._team.on_catches(self._now_s(), catches)
+            self._team.on_catches(self._batch_now, catches)
 
     def _on_barrier(self, robot: int, msg: Bool) -> None:
         if self._team.on_barrier(robot, msg.data):
             self.get_logger().info(f"{self._names[robot]} light barrier: ball received")
 
     def _tick(self) -> None:
+        # one clock read for the batch: the sampled inputs all run at this tick (the clock stands meanwhile)
+        self._batch_now = self._now_s()
         run_sampled(self._inputs)
-        for i, twist in self._team.tick(self._now_s()).items():
+        for i, twist in self._team.tick(self._batch_now).items():
             if i in self._team.notices:
                 self._warn.warn(f"tick{i}", f"{self._names[i]}: {self._team.notices[i]}")
             self._cmd_pubs[i].publish(twist_msg(twist))

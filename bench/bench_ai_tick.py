@@ -1,0 +1,134 @@
+"""In-process split of the passing game's and the interceptor's per-tick Python (issue #22): what the
+``passing_game`` and ``team_catcher`` (press_lanes) nodes spend besides rmw, measured without the graph.
+
+    ./run exec python bench/bench_ai_tick.py --passes 10 --seeds 1 2 3
+
+Part 1 plays erforce_sim.closed_loop.passing_game (11 + 3 robots, the same cores as the graph's nodes) and
+times every call of PassingPlayer.tick / on_robot / on_ball / on_catch and PressingTeam.tick / on_odom /
+on_other_robot / on_ball (perf_counter_ns, summed per seed and divided by the 2 ms control ticks). The
+records' digest per seed must not change with an optimisation (same decisions for the same inputs).
+Part 2 times the table parsers the two nodes run per vision frame on a 14-row /ball/catches and
+/robots/tracked table (CDR bytes, as the nodes take them), and one rclpy Clock.now.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import statistics
+import time
+import timeit
+from collections import defaultdict
+
+
+def timed(cls, name: str, sums: dict) -> None:
+    fn = getattr(cls, name)
+    key = f"{cls.__name__}.{name}"
+
+    def wrapper(*args, **kwargs):
+        t0 = time.perf_counter_ns()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            sums[key][0] += time.perf_counter_ns() - t0
+            sums[key][1] += 1
+
+    setattr(cls, name, wrapper)
+    return fn
+
+
+def play(seed: int, passes: int) -> tuple[dict, int, str]:
+    from erforce_ball_model.passing_player import PassingPlayer, PressingTeam
+    from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame
+
+    sums: dict = defaultdict(lambda: [0, 0])
+    originals = []
+    for cls, names in ((PassingPlayer, ("tick", "on_robot", "on_ball", "on_catch", "check")),
+                       (PressingTeam, ("tick", "on_odom", "on_other_robot", "on_ball", "on_catch_time"))):
+        for name in names:
+            originals.append((cls, name, timed(cls, name, sums)))
+    try:
+        game = PassingGame(GameConfig(passes=passes), seed)
+        records = game.play()
+        ticks = game.runner.tick_index
+    finally:
+        for cls, name, fn in originals:
+            setattr(cls, name, fn)
+    digest = hashlib.sha256(repr(records).encode()).hexdigest()[:12]
+    return dict(sums), ticks, digest
+
+
+def parsers(repeat: int) -> dict[str, float]:
+    import numpy as np
+
+    from erforce_ball_model.passing_player import new_poses
+    from erforce_interfaces import contract
+    from erforce_interfaces.conversions import (
+        catches_from_msg,
+        table_cdr,
+        tracked_robot_row,
+        tracked_robots_cdr,
+        tracked_robots_from_msg,
+    )
+
+    rng = np.random.default_rng(0)
+    robots = [(contract.OURS, i) for i in range(11)] + [(contract.OPPONENTS, j) for j in range(3)]
+    catches = table_cdr([(team.code, j, *rng.uniform(-3, 3, 5), float(rng.uniform(0.1, 2)), *rng.uniform(-3, 3, 2))
+                         for team, j in robots], contract.CATCH_TABLE_COLUMNS)
+    tracked = tracked_robots_cdr([tracked_robot_row(team, j, 100.0 + 0.001 * k, rng.uniform(-3, 3, 3),
+                                                    rng.uniform(-1, 1, 3)) for k, (team, j) in enumerate(robots)])
+    index = {(team.code, j): k for k, (team, j) in enumerate(robots)}
+    rows = tracked_robots_from_msg(tracked)
+
+    def all_new():
+        return new_poses(rows, index, [None] * len(robots))
+
+    cases = {
+        "catches_from_msg (ours, 14 rows)": lambda: catches_from_msg(catches, contract.OURS),
+        "catches_from_msg (opponents, 14 rows)": lambda: catches_from_msg(catches, contract.OPPONENTS),
+        "tracked_robots_from_msg (14 rows)": lambda: tracked_robots_from_msg(tracked),
+        "new_poses (14 rows, all new)": all_new,
+    }
+    try:
+        import rclpy
+        from rclpy.clock import Clock, ClockType
+
+        clock = Clock(clock_type=ClockType.ROS_TIME)
+        cases["rclpy Clock.now (ROS time)"] = lambda: clock.now().nanoseconds * 1e-9
+        del rclpy
+    except ImportError:
+        pass
+    out = {}
+    for name, fn in cases.items():
+        runs = [min(timeit.repeat(fn, number=200, repeat=5)) / 200 for _ in range(repeat)]
+        out[name] = statistics.median(runs) * 1e6
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    ap.add_argument("--passes", type=int, default=10)
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    per_tick: dict[str, list[float]] = defaultdict(list)
+    per_call: dict[str, list[float]] = defaultdict(list)
+    for seed in args.seeds:
+        sums, ticks, digest = play(seed, args.passes)
+        print(f"seed {seed}: {ticks} control ticks, records digest {digest}")
+        for key, (ns, calls) in sums.items():
+            per_tick[key].append(ns / ticks / 1e3)
+            per_call[key].append(ns / max(calls, 1) / 1e3)
+    print("\nper 2 ms control tick (median over seeds, range) and per call:")
+    for key in sorted(per_tick, key=lambda k: -statistics.median(per_tick[k])):
+        t, c = per_tick[key], per_call[key]
+        print(f"  {key:34s} {statistics.median(t):7.1f} us/tick ({min(t):.1f}-{max(t):.1f})   "
+              f"{statistics.median(c):7.1f} us/call")
+    print("\nparsers, one call (median of repeats of min-of-5 x 200 calls):")
+    for name, us in parsers(args.repeat).items():
+        print(f"  {name:40s} {us:7.1f} us")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
