@@ -83,8 +83,17 @@ def _take_realtime_priority() -> None:
     """The priority erforce-realtime left for the node (tools/realtime.py), now that the standby becomes it."""
     value = os.environ.pop(REALTIME_PRIORITY_ENV, None)
     if value is not None:
-        from erforce_interfaces.tools.realtime import set_fifo_priority  # a standby without the prefix needs none
-
         refused = set_fifo_priority(int(value), os.path.basename(sys.argv[0]))
         if refused is not None:
             print(refused, file=sys.stderr, flush=True)
+
+
+def set_fifo_priority(priority: int, command: str) -> str | None:
+    """This thread (and the threads it starts from now on) under SCHED_FIFO at ``priority``; the line to print
+    when that is not allowed (None: done). For erforce-realtime (tools/realtime.py) and a standby on "go"."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except OSError as exc:  # EPERM without CAP_SYS_NICE; EINVAL where the kernel has no real-time class
+        return (f"erforce-realtime: SCHED_FIFO priority {priority} not allowed ({exc.strerror}); {command} runs at "
+                "its normal priority")
+    return None

@@ -19,18 +19,7 @@ from __future__ import annotations
 import os
 import sys
 
-from erforce_interfaces.standby import REALTIME_PRIORITY_ENV, STANDBY_FD_ENV
-
-
-def set_fifo_priority(priority: int, command: str) -> str | None:
-    """This thread (and the threads it starts from now on) under SCHED_FIFO at ``priority``; the line to print
-    when that is not allowed (None: done)."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except OSError as exc:  # EPERM without CAP_SYS_NICE; EINVAL where the kernel has no real-time class
-        return (f"erforce-realtime: SCHED_FIFO priority {priority} not allowed ({exc.strerror}); {command} runs at "
-                "its normal priority")
-    return None
+from erforce_interfaces.standby import REALTIME_PRIORITY_ENV, STANDBY_FD_ENV, set_fifo_priority
 
 
 def main(argv: list[str] | None = None) -> int:
