@@ -52,6 +52,7 @@ from erforce_interfaces.stamps import stamp_ns
 #: Largest magnitude accepted for any position [m], speed [m/s] or rate [rad/s] on the wire.
 #: Far beyond anything physical on an SSL field; it keeps "huge" values out of the cores.
 MAX_ABS_VALUE = 1.0e3
+MAX_ABS_ANGULAR = 1.0e5  # [rad, rad/s] yaw of a pose, angular velocities: a magnitude beyond this is garbage
 
 
 class ConversionError(ValueError):
@@ -246,9 +247,9 @@ def odometry_msg(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     twist.linear.z = 0.0
     angular = twist.angular
     if spin is not None:
-        angular.x = _finite("spin.x", spin[0], 1.0e5)
-        angular.y = _finite("spin.y", spin[1], 1.0e5)
-        angular.z = _finite("spin.z", spin[2], 1.0e5)
+        angular.x = _finite("spin.x", spin[0], MAX_ABS_ANGULAR)
+        angular.y = _finite("spin.y", spin[1], MAX_ABS_ANGULAR)
+        angular.z = _finite("spin.z", spin[2], MAX_ABS_ANGULAR)
     else:
         angular.x = angular.y = 0.0
         angular.z = _finite("wz", velocity[2])
@@ -267,7 +268,8 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     qz, qw = math.sin(half), math.cos(half)  # quaternion_from_yaw's, without a message object
     vx, vy = _finite("vx", velocity[0]), _finite("vy", velocity[1])
     if spin is not None:
-        angular = tuple(_finite(f"spin.{axis}", value, 1.0e5) for axis, value in zip("xyz", spin[:3], strict=True))
+        angular = tuple(_finite(f"spin.{axis}", value, MAX_ABS_ANGULAR)
+                        for axis, value in zip("xyz", spin[:3], strict=True))
     else:
         angular = (0.0, 0.0, _finite("wz", velocity[2]))
     variance = 0.0 if position_variance_m2 is None else _finite("position variance", position_variance_m2)
@@ -287,8 +289,9 @@ def odometry_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndar
     pose = np.array([_finite("pose.position.x", p.x), _finite("pose.position.y", p.y),
                      yaw_from_quaternion(msg.pose.pose.orientation)])
     lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
-    angular = np.array([_finite("twist.angular.x", ang.x, 1.0e5), _finite("twist.angular.y", ang.y, 1.0e5),
-                        _finite("twist.angular.z", ang.z, 1.0e5)])
+    angular = np.array([_finite("twist.angular.x", ang.x, MAX_ABS_ANGULAR),
+                        _finite("twist.angular.y", ang.y, MAX_ABS_ANGULAR),
+                        _finite("twist.angular.z", ang.z, MAX_ABS_ANGULAR)])
     velocity = np.array([_finite("twist.linear.x", lin.x), _finite("twist.linear.y", lin.y), angular[2]])
     return stamp_to_seconds(msg.header.stamp), pose, velocity, angular
 
@@ -306,12 +309,12 @@ def _odometry_from_cdr(data: bytes) -> tuple[float, np.ndarray, np.ndarray, np.n
     x, y, qx, qy, qz, qw, vx, vy, wx, wy, wz = v[0], v[1], v[3], v[4], v[5], v[6], v[43], v[44], v[46], v[47], v[48]
     # One check for the usual message: a sum of magnitudes is NaN or inf when any term is, and within the
     # tightest limit each term is within its own; else the per-field checks below name the bad field.
-    if (abs(x) + abs(y) + abs(vx) + abs(vy) <= MAX_ABS_VALUE and abs(wx) + abs(wy) + abs(wz) <= 1.0e5
+    if (abs(x) + abs(y) + abs(vx) + abs(vy) <= MAX_ABS_VALUE and abs(wx) + abs(wy) + abs(wz) <= MAX_ABS_ANGULAR
             and abs(qx) + abs(qy) + abs(qz) + abs(qw) <= 2.0):
         return (sec + nanosec * 1e-9, np.array([x, y, _unit_quaternion_yaw(qw, qx, qy, qz)]),
                 np.array([vx, vy, wz]), np.array([wx, wy, wz]))
     pose = np.array([_finite("pose.position.x", v[0]), _finite("pose.position.y", v[1]), _yaw(v[6], v[3], v[4], v[5])])
-    angular = np.array([_finite(f"twist.angular.{axis}", value, 1.0e5)
+    angular = np.array([_finite(f"twist.angular.{axis}", value, MAX_ABS_ANGULAR)
                         for axis, value in zip("xyz", v[46:49], strict=True)])
     velocity = np.array([_finite("twist.linear.x", v[43]), _finite("twist.linear.y", v[44]), angular[2]])
     return sec + nanosec * 1e-9, pose, velocity, angular
@@ -1295,7 +1298,7 @@ def tracked_robot_row(team: Team, robot_id: int, t_s: float, pose, velocity) -> 
     """The row of TRACKED_ROBOT_COLUMNS for one robot, with odometry_cdr's checks (ConversionError)."""
     sec, nanosec = _stamp_parts(_seconds_to_ns(t_s))
     x, y, yaw = (_finite("pose.position.x", pose[0]), _finite("pose.position.y", pose[1]),
-                 _finite("yaw", pose[2], 1.0e5))
+                 _finite("yaw", pose[2], MAX_ABS_ANGULAR))
     vx, vy, wz = (_finite("twist.linear.x", velocity[0]), _finite("twist.linear.y", velocity[1]),
                   _finite("twist.angular.z", velocity[2]))
     return (team.code, float(robot_id), float(sec), float(nanosec), x, y, yaw, vx, vy, wz)
@@ -1325,7 +1328,7 @@ def _tracked_plain(rows: list) -> list[TrackedRobot] | None:
     """tracked_robots_from_msg's answer for a table's rows (lists of floats, finite) when they pass every check
     of ``_check_tracked``, in one pass of plain Python (numpy's calls cost more than the work on 14 rows); None
     when a check fails, for those checks, which name what failed."""
-    teams, m, big = (OURS.code, OPPONENTS.code), MAX_ABS_VALUE, 1.0e5
+    teams, m, big = (OURS.code, OPPONENTS.code), MAX_ABS_VALUE, MAX_ABS_ANGULAR
     out = []
     for team, robot_id, sec, nanosec, x, y, yaw, vx, vy, wz in rows:
         if not (team in teams and 0.0 <= robot_id <= _MAX_ROBOT_ID and robot_id == int(robot_id)
@@ -1344,6 +1347,6 @@ def _check_tracked(table: np.ndarray) -> None:
     if not ((sec >= 0.0) & (sec == np.floor(sec)) & (nanosec >= 0.0) & (nanosec < 1.0e9)
             & (nanosec == np.floor(nanosec))).all():
         raise ConversionError("a stamp of /robots/tracked is not a valid time")
-    if (np.abs(table[:, [4, 5, 7, 8]]) > MAX_ABS_VALUE).any() or (np.abs(table[:, [6, 9]]) > 1.0e5).any():
+    if (np.abs(table[:, [4, 5, 7, 8]]) > MAX_ABS_VALUE).any() or (np.abs(table[:, [6, 9]]) > MAX_ABS_ANGULAR).any():
         raise ConversionError(f"a pose or velocity of /robots/tracked exceeds the accepted magnitude "
-                              f"({MAX_ABS_VALUE:g}; 1e5 for yaw and yaw rate)")
+                              f"({MAX_ABS_VALUE:g}; {MAX_ABS_ANGULAR:.0e} for yaw and yaw rate)")
