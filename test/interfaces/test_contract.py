@@ -650,16 +650,44 @@ def test_field_presets():
 
 
 def test_dds_profile_env_points_at_the_stacks_profile_unless_one_is_named():
-    path = c.dds_profile_path()
-    assert path.name == "fastdds_profile.xml" and "<leaseAnnouncement>" in path.read_text()
+    general, localhost = c.dds_profile_path(), c.dds_profile_path(localhost=True)
+    assert general.name == "fastdds_profile.xml" and "<leaseAnnouncement>" in general.read_text()
     sync = {"RMW_FASTRTPS_PUBLICATION_MODE": "SYNCHRONOUS"}
-    assert c.dds_profile_env({}) == dict.fromkeys(c.DDS_PROFILE_VARIABLES, str(path)) | sync
+    both = dict.fromkeys(c.DDS_PROFILE_VARIABLES, str(general))
+    udp_local = dict.fromkeys(c.DDS_PROFILE_VARIABLES, str(localhost))
+    udp_local["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SYSTEM_DEFAULT"
+    # Localhost-only discovery: the UDP-only localhost profile under SYSTEM_DEFAULT, so that rmw_fastrtps
+    # does not put its own shared-memory transport in.
+    assert c.dds_profile_env({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}) == udp_local | sync
+    assert c.dds_profile_env({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", **both}) == udp_local | sync
+    # Applied twice, nothing changes.
+    local = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    once = local | c.dds_profile_env(local)
+    assert c.dds_profile_env(once) == {}
+    # ROS 2's default range (the subnet), a range beyond this computer, or static peers (rmw ignores those
+    # under SYSTEM_DEFAULT): the general profile.
+    for environ in ({}, {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}, {"ROS_AUTOMATIC_DISCOVERY_RANGE": "OFF"},
+                    {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SYSTEM_DEFAULT"},
+                    {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_STATIC_PEERS": "10.0.0.2"}):
+        assert c.dds_profile_env(environ) == both | sync, environ
+    # The localhost profile is taken back when the range widens.
+    assert c.dds_profile_env({**udp_local, "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}) == both | sync
+    # The user's own profile: untouched, whatever the range.
     assert c.dds_profile_env({"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"}) == sync
     assert c.dds_profile_env({"FASTDDS_DEFAULT_PROFILES_FILE": "/mine.xml"}) == sync
     assert c.dds_profile_env({"FASTRTPS_DEFAULT_PROFILES_FILE": ""}) != sync  # empty is unset
     # The user's publication mode stays.
     mine = {"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml", "RMW_FASTRTPS_PUBLICATION_MODE": "ASYNCHRONOUS"}
     assert c.dds_profile_env(mine) == {}
+
+
+def test_the_localhost_profile_uses_udp_alone_and_asks_only_this_computer():
+    xml = c.dds_profile_path(localhost=True).read_text()
+    assert "<useBuiltinTransports>false</useBuiltinTransports>" in xml and "<type>UDPv4</type>" in xml
+    assert "SHM" not in xml.split("-->", 1)[1]
+    peers = xml.split("<initialPeersList>")[1].split("</initialPeersList>")[0]
+    assert peers.count("<address>") == 1 and "<address>127.0.0.1</address>" in peers
+    assert "<metatrafficMulticastLocatorList>" not in xml and "<leaseAnnouncement>" in xml
 
 
 def test_a_table_whose_shape_disagrees_with_its_labels_is_refused():

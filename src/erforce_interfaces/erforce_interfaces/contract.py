@@ -91,6 +91,10 @@ BALL_PHASES = ("unknown", "sliding", "rolling", "stopped")
 # DDS participant settings (config/fastdds_profile.xml): announce every 0.5 s, so that a node that
 # (re)starts is matched within about a second. Fast DDS 2 (Jazzy) reads the first variable, 3 the second.
 DDS_PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+# ROS 2's discovery settings (Jazzy): how far automatic discovery reaches, and the hosts always asked.
+# The stack's default range is LOCALHOST (launch files, erforce-launch, the test harness).
+DISCOVERY_RANGE = "ROS_AUTOMATIC_DISCOVERY_RANGE"
+STATIC_PEERS = "ROS_STATIC_PEERS"
 
 # Writers send from the publishing thread (Fast DDS's synchronous publication) instead of queueing each
 # sample for rmw_fastrtps' default asynchronous sender thread: one thread hand-over less per message,
@@ -98,23 +102,42 @@ DDS_PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROF
 DDS_PUBLICATION_MODE = {"RMW_FASTRTPS_PUBLICATION_MODE": "SYNCHRONOUS"}
 
 
-def dds_profile_path() -> Path:
-    """The stack's Fast DDS profile, in erforce_interfaces' share directory (as $(find-pkg-share))."""
-
+def dds_profile_path(localhost: bool = False) -> Path:
+    """The stack's Fast DDS profile in erforce_interfaces' share directory (as $(find-pkg-share)):
+    config/fastdds_profile.xml, or with ``localhost`` config/fastdds_localhost.xml (``dds_profile_env``)."""
+    name = "fastdds_localhost.xml" if localhost else "fastdds_profile.xml"
     share = find_package_share("erforce_interfaces")
-    path = None if share is None else share / "config" / "fastdds_profile.xml"
+    path = None if share is None else share / "config" / name
     if path is None or not path.is_file():
-        raise FileNotFoundError("config/fastdds_profile.xml of erforce_interfaces not found")
+        raise FileNotFoundError(f"config/{name} of erforce_interfaces not found")
     return path
 
 
 def dds_profile_env(environ: Mapping[str, str] = os.environ) -> dict[str, str]:
-    """The variables to add to a process environment for the stack's DDS settings: the profile, unless
-    ``environ`` already names one (the user's own, or the two-host test's UDP-only one), and the
-    publication mode, unless ``environ`` sets one."""
+    """The variables to add to a process environment for the stack's DDS settings.
+
+    - the publication mode, unless ``environ`` sets one;
+    - unless ``environ`` names a profile of its own (the user's, or the two-host test's): for localhost-only
+      discovery (DISCOVERY_RANGE LOCALHOST, the stack's default) without static peers, the range
+      SYSTEM_DEFAULT and config/fastdds_localhost.xml, which keep discovery on this computer over UDP alone
+      (the file says why: a restarted node is lost over Fast DDS's shared memory); for any other range, or
+      none (ROS 2's default, the subnet), config/fastdds_profile.xml. Applying it twice changes nothing.
+    """
     env = {name: value for name, value in DDS_PUBLICATION_MODE.items() if not environ.get(name)}
-    if not any(environ.get(name) for name in DDS_PROFILE_VARIABLES):
-        env.update(dict.fromkeys(DDS_PROFILE_VARIABLES, str(dds_profile_path())))
+    named = next((environ[name] for name in DDS_PROFILE_VARIABLES if environ.get(name)), None)
+    general, localhost = str(dds_profile_path()), str(dds_profile_path(localhost=True))
+    if named not in (None, general, localhost):
+        return env  # the user's own profile
+    discovery_range = environ.get(DISCOVERY_RANGE, "")
+    if named == localhost and discovery_range == "SYSTEM_DEFAULT":
+        discovery_range = "LOCALHOST"  # set here before
+    if discovery_range == "LOCALHOST" and not environ.get(STATIC_PEERS):
+        if environ.get(DISCOVERY_RANGE) != "SYSTEM_DEFAULT":
+            env[DISCOVERY_RANGE] = "SYSTEM_DEFAULT"
+        profile = localhost
+    else:
+        profile = general
+    env.update({name: profile for name in DDS_PROFILE_VARIABLES if environ.get(name) != profile})
     return env
 
 
