@@ -37,10 +37,62 @@ def test_refused_it_warns_once_and_still_runs_the_command(monkeypatch, capsys):
                                        "permitted); ball_predictor runs at its normal priority\n")
 
 
-@pytest.mark.parametrize("argv", [[], ["10"], ["0", "x"], ["100", "x"], ["high", "x"]])
+def test_refused_with_else_idle_the_command_runs_under_sched_idle(monkeypatch, capsys):
+    calls = []
+
+    def refuse_fifo(pid, policy, param):
+        calls.append((policy, param.sched_priority))
+        if policy == os.SCHED_FIFO:
+            raise PermissionError(1, "Operation not permitted")
+
+    ran = []
+    monkeypatch.setattr(os, "sched_setscheduler", refuse_fifo)
+    monkeypatch.setattr(os, "execvp", lambda file, args: ran.append((file, args)))
+    assert realtime.main(["--else-idle", "5", "plant", "--ros-args"]) == 0
+    assert ran == [("plant", ["plant", "--ros-args"])]
+    assert calls == [(os.SCHED_FIFO, 5), (os.SCHED_IDLE, 0)]
+    assert capsys.readouterr().err == ("erforce-realtime: SCHED_FIFO priority 5 not allowed (Operation not "
+                                       "permitted); plant runs at SCHED_IDLE\n")
+
+
+def test_without_cap_sys_nice_the_kernel_refuses_and_else_idle_runs_the_command_under_sched_idle():
+    """The real refusal: the command runs without CAP_SYS_NICE (util-linux setpriv drops it from the bounding
+    set, so not even root has it) and with no real-time limit (``ulimit -r`` 0); SCHED_IDLE needs no privilege."""
+    no_rt = [sys.executable, "-c", "import os, resource, sys; resource.setrlimit(resource.RLIMIT_RTPRIO, (0, 0)); "
+             "os.execvp(sys.argv[1], sys.argv[1:])"]
+    cmd = ["setpriv", "--bounding-set", "-sys_nice", *no_rt,
+           sys.executable, "-m", "erforce_interfaces.tools.realtime", "--else-idle", "5", *SHOW_POLICY]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=60, check=True)
+    assert [int(v) for v in done.stdout.split()] == [os.SCHED_IDLE, 0]
+    assert done.stderr.startswith("erforce-realtime: SCHED_FIFO priority 5 not allowed")
+    assert done.stderr.endswith("runs at SCHED_IDLE\n")
+
+
+def test_a_standby_left_else_idle_takes_sched_idle_on_go_where_fifo_is_refused(monkeypatch, capsys):
+    from erforce_interfaces import standby
+
+    calls = []
+
+    def refuse_fifo(pid, policy, param):
+        calls.append((policy, param.sched_priority))
+        if policy == os.SCHED_FIFO:
+            raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(os, "sched_setscheduler", refuse_fifo)
+    monkeypatch.setenv(STANDBY_FD_ENV, "99")
+    monkeypatch.setattr(os, "execvp", lambda file, args: None)
+    realtime.main(["--else-idle", "5", "plant"])  # a standby: nothing is set before "go"
+    assert calls == [] and os.environ[standby.REALTIME_PRIORITY_ENV] == "5,idle"
+    standby._take_realtime_priority()
+    assert calls == [(os.SCHED_FIFO, 5), (os.SCHED_IDLE, 0)]
+    assert "runs at SCHED_IDLE" in capsys.readouterr().err
+    assert standby.REALTIME_PRIORITY_ENV not in os.environ
+
+
+@pytest.mark.parametrize("argv", [[], ["10"], ["0", "x"], ["100", "x"], ["high", "x"], ["--else-idle", "x"]])
 def test_a_bad_command_line_prints_the_usage(argv, capsys):
     assert realtime.main(argv) == 2
-    assert capsys.readouterr().err.startswith("usage: erforce-realtime PRIORITY COMMAND")
+    assert capsys.readouterr().err.startswith("usage: erforce-realtime [--else-idle] PRIORITY COMMAND")
 
 
 def test_a_warm_standby_imports_at_its_normal_priority_and_takes_sched_fifo_on_go():

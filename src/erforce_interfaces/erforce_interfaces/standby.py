@@ -22,7 +22,8 @@ import sys
 from collections.abc import Callable
 
 STANDBY_FD_ENV = "ERFORCE_STANDBY_FD"
-REALTIME_PRIORITY_ENV = "ERFORCE_REALTIME_PRIORITY"  # what erforce-realtime leaves a standby to take on "go"
+# What erforce-realtime leaves a standby to take on "go": the priority, with ",idle" for SCHED_IDLE where refused.
+REALTIME_PRIORITY_ENV = "ERFORCE_REALTIME_PRIORITY"
 READY = b"ready\n"
 GO = b"go\n"
 
@@ -83,17 +84,27 @@ def _take_realtime_priority() -> None:
     """The priority erforce-realtime left for the node (tools/realtime.py), now that the standby becomes it."""
     value = os.environ.pop(REALTIME_PRIORITY_ENV, None)
     if value is not None:
-        refused = set_fifo_priority(int(value), os.path.basename(sys.argv[0]))
+        priority, _, fallback = value.partition(",")
+        refused = set_fifo_priority(int(priority), os.path.basename(sys.argv[0]), else_idle=fallback == "idle")
         if refused is not None:
             print(refused, file=sys.stderr, flush=True)
 
 
-def set_fifo_priority(priority: int, command: str) -> str | None:
+def set_fifo_priority(priority: int, command: str, else_idle: bool = False) -> str | None:
     """This thread (and the threads it starts from now on) under SCHED_FIFO at ``priority``; the line to print
-    when that is not allowed (None: done). For erforce-realtime (tools/realtime.py) and a standby on "go"."""
+    when that is not allowed (None: done). Refused, ``else_idle`` puts it under SCHED_IDLE instead (allowed to
+    everyone): the CPU goes to every other process first. For erforce-realtime (tools/realtime.py) and a standby
+    on "go"."""
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except OSError as exc:  # EPERM without CAP_SYS_NICE; EINVAL where the kernel has no real-time class
+        runs_at = "its normal priority"
+        if else_idle:
+            try:
+                os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+                runs_at = "SCHED_IDLE"
+            except OSError:
+                pass
         return (f"erforce-realtime: SCHED_FIFO priority {priority} not allowed ({exc.strerror}); {command} runs at "
-                "its normal priority")
+                f"{runs_at}")
     return None
