@@ -13,6 +13,15 @@ from erforce_interfaces.tools import realtime
 SHOW_POLICY = [sys.executable, "-c", "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)"]
 
 
+def refusing_fifo(calls: list):
+    """os.sched_setscheduler as without CAP_SYS_NICE: SCHED_FIFO refused, the rest allowed (and not done)."""
+    def sched_setscheduler(pid, policy, param):
+        calls.append((policy, param.sched_priority))
+        if policy == os.SCHED_FIFO:
+            raise PermissionError(1, "Operation not permitted")
+    return sched_setscheduler
+
+
 def test_the_command_runs_under_sched_fifo_at_the_priority_or_says_why_not():
     done = subprocess.run([sys.executable, "-m", "erforce_interfaces.tools.realtime", "7", *SHOW_POLICY],
                           capture_output=True, text=True, timeout=60, check=True)
@@ -25,11 +34,8 @@ def test_the_command_runs_under_sched_fifo_at_the_priority_or_says_why_not():
 
 
 def test_refused_it_warns_once_and_still_runs_the_command(monkeypatch, capsys):
-    def refuse(pid, policy, param):
-        raise PermissionError(1, "Operation not permitted")
-
     ran = []
-    monkeypatch.setattr(os, "sched_setscheduler", refuse)
+    monkeypatch.setattr(os, "sched_setscheduler", refusing_fifo([]))
     monkeypatch.setattr(os, "execvp", lambda file, args: ran.append((file, args)))
     assert realtime.main(["10", "ball_predictor", "--ros-args"]) == 0
     assert ran == [("ball_predictor", ["ball_predictor", "--ros-args"])]
@@ -38,15 +44,8 @@ def test_refused_it_warns_once_and_still_runs_the_command(monkeypatch, capsys):
 
 
 def test_refused_with_else_idle_the_command_runs_under_sched_idle(monkeypatch, capsys):
-    calls = []
-
-    def refuse_fifo(pid, policy, param):
-        calls.append((policy, param.sched_priority))
-        if policy == os.SCHED_FIFO:
-            raise PermissionError(1, "Operation not permitted")
-
-    ran = []
-    monkeypatch.setattr(os, "sched_setscheduler", refuse_fifo)
+    calls, ran = [], []
+    monkeypatch.setattr(os, "sched_setscheduler", refusing_fifo(calls))
     monkeypatch.setattr(os, "execvp", lambda file, args: ran.append((file, args)))
     assert realtime.main(["--else-idle", "5", "plant", "--ros-args"]) == 0
     assert ran == [("plant", ["plant", "--ros-args"])]
@@ -72,13 +71,7 @@ def test_a_standby_left_else_idle_takes_sched_idle_on_go_where_fifo_is_refused(m
     from erforce_interfaces import standby
 
     calls = []
-
-    def refuse_fifo(pid, policy, param):
-        calls.append((policy, param.sched_priority))
-        if policy == os.SCHED_FIFO:
-            raise PermissionError(1, "Operation not permitted")
-
-    monkeypatch.setattr(os, "sched_setscheduler", refuse_fifo)
+    monkeypatch.setattr(os, "sched_setscheduler", refusing_fifo(calls))
     monkeypatch.setenv(STANDBY_FD_ENV, "99")
     monkeypatch.setattr(os, "execvp", lambda file, args: None)
     realtime.main(["--else-idle", "5", "plant"])  # a standby: nothing is set before "go"
