@@ -198,10 +198,6 @@ def run_on_graph(args: argparse.Namespace) -> int:
            f"opponents_intercept:={'true' if cfg.opponents else 'false'}", f"pacing:={args.pacing}"]
     if args.vision == "ssl":  # the plant's 4 cameras as SSL-Vision over loopback multicast, through the bridge
         cmd += ["vision:=ssl", f"ssl_vision_port:={free_udp_port()}"]
-    if args.real_time_factor <= 0.0:
-        # Flat out, the world must not outrun the AI, which is not in lockstep: under SCHED_IDLE it takes only the
-        # CPU the AI leaves (team_sim's SCHED_FIFO world is for a real-time cap: it holds real time beside other load).
-        cmd += ["sim_launch_prefix:=chrt --idle 0"]
     print(f"passing game on the graph: {cfg.team_size} robots against {cfg.opponents}, {cfg.passes} passes, seed "
           f"{args.seed} (log: {out / 'graph.log'})", flush=True)
     launch = spawn_in_session(cmd, out / "graph.log")
