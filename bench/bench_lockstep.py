@@ -42,6 +42,7 @@ from pathlib import Path
 from rosgraph_msgs.msg import Clock
 from table import bench_main, markdown_table  # bench/table.py: the shared table format
 
+from erforce_ball_model.ball_predictor_node import COMPILED_SEARCH_LOADED
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import stamp_to_nanoseconds
 from erforce_interfaces.tools.testing import RosGraph
@@ -170,7 +171,6 @@ def run(quick: bool = False, robots=ROBOT_COUNTS, deployments=("per_robot", "tea
     return rows
 
 
-_COMPILED = "catch times from the compiled search from now on"
 _CATCH_TIMES = re.compile(r"processing over (\d+) frames: .*; catch times out after: median ([0-9.]+) ms, "
                           r"p99 ([0-9.]+) ms, max ([0-9.]+) ms")
 _MEASURING = 1_000_000  # timing_log_every while measuring over every frame: more than a run has
@@ -201,7 +201,7 @@ def launch_run(sim_s: float, warmup_s: float, launch_args: dict[str, str], windo
 
         graph.probe.spin_until(lambda: sim_now() >= warmup_s, 600.0, "the warm-up")
         # the predictor answers as Python until its kernels have loaded in the background (no warm standby here)
-        graph.probe.spin_until(lambda: _COMPILED in launch.output(), 120.0, "the predictor's compiled search")
+        graph.probe.spin_until(lambda: COMPILED_SEARCH_LOADED in launch.output(), 120.0, "the compiled search")
         pids = {pid: f"{_process_name(pid)}/{pid}" for pid in graph.pids()}  # the launcher too
         assert graph.probe.set_parameter(PREDICTOR, "timing_log_every", window_frames or _MEASURING).successful
         log0 = len(launch.output())

@@ -5,9 +5,11 @@ time of the /clock sent just before it, not the newest clock, and a catch point 
 the catch time sent before it.
 """
 
+import contextlib
 import os
 import sys
 import time
+from types import SimpleNamespace
 
 import pytest
 from geometry_msgs.msg import PointStamped
@@ -29,82 +31,74 @@ from erforce_sim.closed_loop.demo import RECEIVER, Director, spawn_in_session
 pytestmark = pytest.mark.integration
 
 
-def test_a_late_pump_replays_in_send_order():
+@contextlib.contextmanager
+def director_and_publishers():
+    """A Director on its own node, and a publisher matched to each of its subscriptions these tests feed."""
     with isolated_node("director_probe") as node:
         executor = DirectExecutor(context=node.context)
         executor.add_node(node)
         director = Director(node, RobotConfig(), executor)
         try:
             q = contract
-            clock = node.create_publisher(Clock, q.CLOCK.name, q.QOS_CLOCK)
-            barrier = node.create_publisher(Bool, q.BALL_DETECTED.for_robot(RECEIVER), q.BALL_DETECTED.qos)
-            vision = node.create_publisher(PointCloud2, q.VISION_ROBOTS.name, q.VISION_ROBOTS.qos)
-            catch_time = node.create_publisher(Float64, q.CATCH_TIME.for_robot(RECEIVER), q.CATCH_TIME.qos)
-            catch_point = node.create_publisher(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos)
-            publishers = (clock, barrier, vision, catch_time, catch_point)
+            pubs = SimpleNamespace(
+                clock=node.create_publisher(Clock, q.CLOCK.name, q.QOS_CLOCK),
+                barrier=node.create_publisher(Bool, q.BALL_DETECTED.for_robot(RECEIVER), q.BALL_DETECTED.qos),
+                vision=node.create_publisher(PointCloud2, q.VISION_ROBOTS.name, q.VISION_ROBOTS.qos),
+                catch_time=node.create_publisher(Float64, q.CATCH_TIME.for_robot(RECEIVER), q.CATCH_TIME.qos),
+                catch_point=node.create_publisher(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos),
+            )
             deadline = time.monotonic() + 10.0
-            while any(p.get_subscription_count() < 1 for p in publishers):
+            while any(p.get_subscription_count() < 1 for p in vars(pubs).values()):
                 assert time.monotonic() < deadline, "the director's subscriptions did not match"
                 executor.spin_once(timeout_sec=0.05)
-
-            def tick(t_ns: int) -> None:
-                clock.publish(Clock(clock=nanoseconds_to_stamp(t_ns)))
-
-            tick(1_000_000_000)
-            barrier.publish(Bool(data=True))  # edge at 1.00 s
-            tick(1_010_000_000)
-            barrier.publish(Bool(data=False))
-            vision.publish(vision_robots_cdr(1.015, [], balls=[(0.0, 0.0)]))
-            catch_time.publish(Float64(data=0.5))
-            catch_point.publish(point_msg(1.015, (1.0, 0.0)))
-            tick(1_020_000_000)
-            barrier.publish(Bool(data=True))  # edge at 1.02 s
-            catch_time.publish(Float64(data=0.25))  # a later frame's catch time, after the point above
-            tick(1_030_000_000)
-
-            assert director.spin_until(lambda: director.sim_ns == 1_030_000_000, 10.0, "the messages")
-            assert director.barrier_edges == pytest.approx([1.00, 1.02])
-            assert director.series.predictions == [(pytest.approx(1.015), 0.5)]
-            assert len(director.series.catch_time_latency_s) == 1
-            assert 0.0 < director.series.catch_time_latency_s[0] <= director.series.catch_point_latency_s[0]
+            yield director, pubs
         finally:
             director.close()
+
+
+def test_a_late_pump_replays_in_send_order():
+    with director_and_publishers() as (director, pubs):
+
+        def tick(t_ns: int) -> None:
+            pubs.clock.publish(Clock(clock=nanoseconds_to_stamp(t_ns)))
+
+        tick(1_000_000_000)
+        pubs.barrier.publish(Bool(data=True))  # edge at 1.00 s
+        tick(1_010_000_000)
+        pubs.barrier.publish(Bool(data=False))
+        pubs.vision.publish(vision_robots_cdr(1.015, [], balls=[(0.0, 0.0)]))
+        pubs.catch_time.publish(Float64(data=0.5))
+        pubs.catch_point.publish(point_msg(1.015, (1.0, 0.0)))
+        tick(1_020_000_000)
+        pubs.barrier.publish(Bool(data=True))  # edge at 1.02 s
+        pubs.catch_time.publish(Float64(data=0.25))  # a later frame's catch time, after the point above
+        tick(1_030_000_000)
+
+        assert director.spin_until(lambda: director.sim_ns == 1_030_000_000, 10.0, "the messages")
+        assert director.barrier_edges == pytest.approx([1.00, 1.02])
+        assert director.series.predictions == [(pytest.approx(1.015), 0.5)]
+        assert len(director.series.catch_time_latency_s) == 1
+        assert 0.0 < director.series.catch_time_latency_s[0] <= director.series.catch_point_latency_s[0]
 
 
 def test_with_ssl_arrivals_a_frame_published_after_its_catch_outputs_still_counts():
     """ssl_ball_predictor publishes a frame's /vision/robots after the frame's catch outputs: the latency starts at
     the frame's SSL arrival (by stamp) whichever of the two the director replays first."""
-    with isolated_node("director_probe") as node:
-        executor = DirectExecutor(context=node.context)
-        executor.add_node(node)
-        director = Director(node, RobotConfig(), executor)
-        try:
-            q = contract
-            clock = node.create_publisher(Clock, q.CLOCK.name, q.QOS_CLOCK)
-            vision = node.create_publisher(PointCloud2, q.VISION_ROBOTS.name, q.VISION_ROBOTS.qos)
-            catch_time = node.create_publisher(Float64, q.CATCH_TIME.for_robot(RECEIVER), q.CATCH_TIME.qos)
-            catch_point = node.create_publisher(PointStamped, q.CATCH_POINT.for_robot(RECEIVER), q.CATCH_POINT.qos)
-            publishers = (clock, vision, catch_time, catch_point)
-            deadline = time.monotonic() + 10.0
-            while any(p.get_subscription_count() < 1 for p in publishers):
-                assert time.monotonic() < deadline, "the director's subscriptions did not match"
-                executor.spin_once(timeout_sec=0.05)
-            stamp_ns = 1_015_000_000
-            arrived_ns = time.time_ns()  # the system clock, as the DDS source timestamps
-            director.vision_sent_ns_of = {stamp_ns: arrived_ns}.get
-            catch_time.publish(Float64(data=0.5))
-            catch_point.publish(point_msg(1.015, (1.0, 0.0)))
-            vision.publish(vision_robots_cdr(1.015, [], balls=[(0.0, 0.0)]))
-            published_ns = time.time_ns()
-            clock.publish(Clock(clock=nanoseconds_to_stamp(1_030_000_000)))
+    with director_and_publishers() as (director, pubs):
+        stamp_ns = 1_015_000_000
+        arrived_ns = time.time_ns()  # the system clock, as the DDS source timestamps
+        director.vision_sent_ns_of = {stamp_ns: arrived_ns}.get
+        pubs.catch_time.publish(Float64(data=0.5))
+        pubs.catch_point.publish(point_msg(1.015, (1.0, 0.0)))
+        pubs.vision.publish(vision_robots_cdr(1.015, [], balls=[(0.0, 0.0)]))
+        published_ns = time.time_ns()
+        pubs.clock.publish(Clock(clock=nanoseconds_to_stamp(1_030_000_000)))
 
-            assert director.spin_until(lambda: director.sim_ns == 1_030_000_000, 10.0, "the messages")
-            assert len(director.series.catch_time_latency_s) == 1
-            latency = director.series.catch_time_latency_s[0]
-            assert 0.0 < latency <= (published_ns - arrived_ns) * 1e-9
-            assert latency <= director.series.catch_point_latency_s[0]
-        finally:
-            director.close()
+        assert director.spin_until(lambda: director.sim_ns == 1_030_000_000, 10.0, "the messages")
+        assert len(director.series.catch_time_latency_s) == 1
+        latency = director.series.catch_time_latency_s[0]
+        assert 0.0 < latency <= (published_ns - arrived_ns) * 1e-9
+        assert latency <= director.series.catch_point_latency_s[0]
 
 
 def test_graph_processes_share_the_demos_session(tmp_path):

@@ -125,6 +125,11 @@ def build_config(c) -> PredictorConfig:
     )
 
 
+# The line the node logs once its compiled search answers (kernels="background": until then a frame costs ~1 ms
+# per robot); benches and tools wait for it before they measure.
+COMPILED_SEARCH_LOADED = "catch times from the compiled search from now on"
+
+
 class BallPredictorNode(Node):
     # A warm standby (node_support.run_node) loads numba, the compiled search and the ball filter's kernel
     # before they are needed: the node it becomes answers with them from its first frame.
@@ -432,7 +437,7 @@ class BallPredictorNode(Node):
             self.get_logger().info(summary)
         if not self._said_compiled and self._predictor.search_compiled:
             self._said_compiled = True  # tools wait for this line: until then a frame costs ~1 ms per robot
-            self.get_logger().info("catch times from the compiled search from now on")
+            self.get_logger().info(COMPILED_SEARCH_LOADED)
         if self._predictor.identify(frame) is not None:  # a fit finished
             self._publish_model()
 
