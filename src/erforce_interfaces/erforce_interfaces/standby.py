@@ -80,6 +80,11 @@ def wait_for_go(warm_up: Callable[[], None] | None = None) -> bool:
         os.close(fd)
 
 
+def leave_realtime_priority(priority: int, else_idle: bool) -> None:
+    """erforce-realtime's request, for the standby to take on "go" (``_take_realtime_priority``)."""
+    os.environ[REALTIME_PRIORITY_ENV] = f"{priority},idle" if else_idle else str(priority)
+
+
 def _take_realtime_priority() -> None:
     """The priority erforce-realtime left for the node (tools/realtime.py), now that the standby becomes it."""
     value = os.environ.pop(REALTIME_PRIORITY_ENV, None)

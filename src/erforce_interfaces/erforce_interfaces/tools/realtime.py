@@ -11,7 +11,7 @@ name this prefix by default and still start for every user. Linux's real-time th
 (``/proc/sys/kernel/sched_rt_runtime_us``, 95 % by default) keeps a runaway from taking a whole machine.
 
 A warm standby (erforce_interfaces.standby) does its imports at the normal priority: this prefix leaves the
-priority to it (``standby.REALTIME_PRIORITY_ENV``), and the standby takes it on "go", when it becomes the node.
+priority to it (``standby.leave_realtime_priority``), and the standby takes it on "go", when it becomes the node.
 
     launch-prefix: $(find-pkg-prefix erforce_interfaces)/lib/erforce_interfaces/erforce-realtime 10
 """
@@ -21,7 +21,7 @@ from __future__ import annotations
 import os
 import sys
 
-from erforce_interfaces.standby import REALTIME_PRIORITY_ENV, STANDBY_FD_ENV, set_fifo_priority
+from erforce_interfaces.standby import STANDBY_FD_ENV, leave_realtime_priority, set_fifo_priority
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     priority, command = int(args[0]), args[1:]
     if STANDBY_FD_ENV in os.environ:  # a warm standby: it raises the priority when it becomes the node
-        os.environ[REALTIME_PRIORITY_ENV] = f"{priority},idle" if else_idle else str(priority)
+        leave_realtime_priority(priority, else_idle)
     elif (refused := set_fifo_priority(priority, command[0], else_idle)) is not None:
         print(refused, file=sys.stderr, flush=True)
     try:
