@@ -147,7 +147,6 @@ class BallPredictor:
         self._configured: PredictorConfig | None = None  # as given to configure
         self._vision_field: FieldConfig | None = None  # the newest SSL geometry, kept also while not used
         self._vision_model: BallModelParams | None = None
-        self.model: BallModelParams = config.model  # in use: configured or identified
         self.last_fit: FitResult | None = None
         self._ball: BallTracker | None = None
         self._search: CatchSearch | None = None
@@ -180,22 +179,28 @@ class BallPredictor:
             config = dataclasses.replace(config, field=self._vision_field or config.field,
                                          model=self._vision_model or config.model)
         self.config = config
-        model_before = self.model
-        if old is None or config.model != old.model:
-            self.model = config.model
+        model_before = None if self._ball is None else self._ball.params
+        model = config.model if old is None or config.model != old.model else model_before
         self._search = CatchSearch(config.num_robots, config.limits, dribbler_offset_m=config.dribbler_offset_m,
                                    field=config.field, field_margin_m=config.field_margin_m,
                                    grid_step_s=config.grid_step_s, kernels=self._kernels)
         if self._ball is None or config.tracker != old.tracker:
-            self._ball = BallTracker(self.model, config.tracker)  # the filter state is lost: it re-seeds
-        self._ball.params = self.model
+            self._ball = BallTracker(model, config.tracker)  # the filter state is lost: it re-seeds
+        else:
+            self._ball.params = model
         if config.online_identification and (self._shots is None or config.tracker != old.tracker):
             self._shots = ShotAccumulator(tracker_config=config.tracker)
             self._fitted_shot = None
         elif not config.online_identification:
             self._shots = None
             self._fit_future = None  # a fit still running is not used
-        return old is None or self.model != model_before
+        return old is None or model != model_before
+
+    @property
+    def model(self) -> BallModelParams:
+        """The ball model in use (configured, from SSL geometry or identified). Its one state is the ball filter's
+        (``BallTracker.params``): the filter's kernel, the trajectories and so the catch search all read it."""
+        return self._ball.params
 
     def set_vision_geometry(self, field: FieldConfig | None = None, model: BallModelParams | None = None) -> bool:
         """The field and/or ball model of SSL geometry (None: that part unchanged). In effect while
@@ -389,7 +394,6 @@ class BallPredictor:
         )
         self.last_fit = fit
         if good:
-            self.model = fit.params
             self._ball.params = fit.params
             self._info(f"online identification: now using a_slide {fit.params.a_slide_mps2:.4f}, a_roll "
                        f"{fit.params.a_roll_mps2:.4f}, c_switch {fit.params.c_switch:.4f} ({fit.num_shots} shots)")

@@ -311,16 +311,28 @@ class BallTracker:
     _rolling = _flag(S_ROLLING)  # latched once the speed fell below the switch speed (no flicker)
 
     def __init__(self, params: BallModelParams | None = None, config: TrackerConfig | None = None) -> None:
-        self.params = params or BallModelParams()
-        self.config = config or TrackerConfig()
-        cfg, model = self.config, self.params
+        self.config = cfg = config or TrackerConfig()
         self.s = np.zeros(STATE_SIZE)
         self.shoot = np.zeros(SHOOT_SAMPLES)
-        self.m = np.array([model.a_slide_mps2, model.a_roll_mps2, model.c_switch, cfg.position_noise_m**2,
-                           cfg.accel_noise_psd, cfg.gate_sigma, cfg.gate_min_m, cfg.shoot_window_s, cfg.fit_frames,
-                           cfg.max_gap_s])
+        self.m = np.array([math.nan, math.nan, math.nan, cfg.position_noise_m**2, cfg.accel_noise_psd, cfg.gate_sigma,
+                           cfg.gate_min_m, cfg.shoot_window_s, cfg.fit_frames, cfg.max_gap_s])
+        self.params = BallModelParams() if params is None else params
         self.kf = _StateKalman(self.s, cfg.position_noise_m, cfg.accel_noise_psd)
         self.reset()
+
+    @property
+    def params(self) -> BallModelParams:
+        """The ball model the filter predicts with and ``trajectory`` hands on."""
+        return self._params
+
+    @params.setter
+    def params(self, value: BallModelParams) -> None:
+        # The kernel reads the model from ``m``: rewritten here, in place (compiled code that holds the array,
+        # vision_pass.FramePass, sees it), so that the filter and the trajectory never use two models.
+        if not isinstance(value, BallModelParams):
+            raise ValueError(f"params: expected BallModelParams, got {type(value).__name__}")
+        self._params = value
+        self.m[M_A_SLIDE], self.m[M_A_ROLL], self.m[M_C_SWITCH] = value.a_slide_mps2, value.a_roll_mps2, value.c_switch
 
     def reset(self) -> None:
         """No observation yet (a new ball), in place: compiled code that holds the arrays sees it."""
