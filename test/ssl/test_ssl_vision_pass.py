@@ -13,6 +13,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.vision_pass import (
     PASS_BAD_STAMP,
     PASS_CLOCK_JUMP,
@@ -46,9 +47,9 @@ OURS, N_OURS = 0.0, 11  # blue
 class Pipeline:
     """A clock and a tracker as the bridge holds them, with pose reader counts by side and id."""
 
-    def __init__(self) -> None:
+    def __init__(self, model: BallModelParams | None = None) -> None:
         self.clock = VisionClock()
-        self.tracker = VisionTracker(FIELD)
+        self.tracker = VisionTracker(FIELD, model)
         self.readers = np.zeros((2, MAX_ROBOT_ID + 1), np.int64)
         self.points = np.empty((65, 6))
 
@@ -182,6 +183,47 @@ def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(
     # the jump and the way back, each confirmed
     assert general.tracker.switches >= 1 and general.tracker.late_balls >= 1 and general.clock.jumps_confirmed == 2
     assert compiled.clock.jumps_confirmed == 2
+
+
+def kick_stream(v0_mps: float, a_slide: float, a_roll: float, c_switch: float, seed: int = 4):
+    """(datagram, receive time) of one camera at 70 Hz: a ball at rest at (-5, 0.3) for 0.5 s, then kicked along +x
+    at ``v0_mps`` (the two-phase model's kinematics written out here: slide down to c_switch v0, then roll), 2 mm
+    noise; and the index of the first datagram after the kick."""
+    rng = random.Random(seed)
+    t_kick, v_switch = 100.5, c_switch * v0_mps
+    t_switch = (v0_mps - v_switch) / a_slide
+    out = []
+    for k in range(110):
+        t = 100.0 + (k + 0.3) / 70.0
+        tau = max(t - t_kick, 0.0)
+        slide = min(tau, t_switch)
+        roll = min(tau - slide, v_switch / a_roll)
+        x = -5.0 + v0_mps * slide - 0.5 * a_slide * slide**2 + v_switch * roll - 0.5 * a_roll * roll**2
+        ball = BallCandidate(x + rng.gauss(0.0, 0.002), 0.3 + rng.gauss(0.0, 0.002), 0.9)
+        out.append((encode_frame(CameraFrame(0, k, t, t + 0.004, (ball,), ())), 1.7e9 + t + 0.005))
+    return out, math.ceil((t_kick - 100.0) * 70.0 - 0.3)
+
+
+def test_the_pass_filters_with_a_model_set_on_its_tracker_as_with_one_it_started_with():
+    # The bridge sets the tracker's model from SSL geometry (grSim's here) while the compiled pass holds the filter's
+    # arrays: from the change on, the pass filters as one built with that model (test_predictor derives the
+    # tolerances: the two only differ by their estimates of the ball at rest before the kick).
+    model = BallModelParams(-14.0, -0.7, 0.7)
+    stream, first_kicked = kick_stream(3.0, 14.0, 0.7, 0.7)
+    pinned, changed = Pipeline(model), Pipeline()
+    passes = [FramePass(p.clock, p.tracker, p.readers, OURS, N_OURS) for p in (pinned, changed)]
+    compared = 0
+    for k, (data, t_receive) in enumerate(stream):
+        if k == 17:  # half-way through the rest: the geometry packet arrives
+            changed.tracker.params = model
+        balls = [compiled_path(p, fp, data, t_receive)[1] for p, fp in zip((pinned, changed), passes, strict=True)]
+        assert (balls[0] is None) == (balls[1] is None), k
+        if balls[0] is not None and k >= first_kicked:
+            want, got = (p.tracker.ball.trajectory() for p in (pinned, changed))
+            assert abs(got.v_shoot_mps - want.v_shoot_mps) < 1e-5, k
+            assert np.hypot(*(got.stop_point - want.stop_point)) < 1e-4, k
+            compared += 1
+    assert changed.tracker.params == model and compared > 60
 
 
 def _detection(balls, robots, t_capture=100.0, camera_id=2) -> bytes:

@@ -316,9 +316,8 @@ class VisionTracker:
     def __init__(self, field: FieldConfig, params: BallModelParams | None = None,
                  tracker_config: TrackerConfig | None = None, config: VisionTrackingConfig | None = None) -> None:
         self.config = config or VisionTrackingConfig()
-        self._params = params or BallModelParams()
         self._tracker_config = tracker_config or TrackerConfig()
-        self.ball = BallTracker(self._params, self._tracker_config)
+        self.ball = BallTracker(params, self._tracker_config)
         cfg = self.config
         self.settings = np.array([cfg.min_confidence, 0.0, 0.0, 0.0, 0.0, cfg.hypothesis_timeout_s, cfg.ball_gate_m,
                                   cfg.max_ball_speed_mps, cfg.max_ball_gate_m, cfg.lost_after_s,
@@ -354,11 +353,11 @@ class VisionTracker:
 
     @property
     def params(self) -> BallModelParams:
-        return self._params
+        """The ball filter's model (``BallTracker.params``: its kernels, also vision_pass's, read the change)."""
+        return self.ball.params
 
     @params.setter
     def params(self, value: BallModelParams) -> None:
-        self._params = value
         self.ball.params = value
 
     # ------------------------------------------------------------------------------ ball
