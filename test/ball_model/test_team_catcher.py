@@ -131,3 +131,36 @@ def test_with_press_lanes_the_opponents_wait_on_our_passing_lanes_while_we_hold_
         cos = (m.linear.x * way[0] + m.linear.y * way[1]) / (math.hypot(*way) * math.hypot(m.linear.x, m.linear.y))
         assert cos == pytest.approx(1.0, abs=1e-9)
     assert proc.alive()
+
+
+def test_the_model_in_use_outlives_a_new_clock_time_line_in_every_node_that_predicts_the_ball():
+    """/ball/model_params is transient local: a node gets it once. A new /clock time line (the simulator
+    restarted, the predictor not) starts the node's core afresh; the model in use must go on, not the defaults.
+    In-process: the nodes' callbacks are called directly."""
+    import rclpy
+
+    from erforce_ball_model.ball_model import BallModelParams
+    from erforce_ball_model.catcher_node import CatcherNode
+    from erforce_ball_model.passing_game_node import PassingGameNode
+    from erforce_ball_model.team_catcher_node import TeamCatcherNode
+
+    model = BallModelParams(-14.0, -0.7, 0.7)
+    msg = table_msg([[model.a_slide_mps2, model.a_roll_mps2, model.c_switch]], contract.BALL_MODEL_PARAM_LABELS,
+                    contract.BALL_MODEL_PARAM_ROWS[0])
+    cores = ((CatcherNode, lambda node: node._receiver), (TeamCatcherNode, lambda node: node._team),
+             (PassingGameNode, lambda node: node._player))
+    rclpy.init(args=["--ros-args", "-r", "__ns:=/robot_0"])  # the catcher runs in a robot's namespace
+    try:
+        for node_type, core in cores:
+            node = node_type()
+            try:
+                assert core(node).model == BallModelParams()
+                node._on_model_params(msg)
+                assert core(node).model == model
+                before = core(node)
+                node.on_clock_restart()
+                assert core(node) is not before and core(node).model == model, node_type.__name__
+            finally:
+                node.destroy_node()
+    finally:
+        rclpy.try_shutdown()

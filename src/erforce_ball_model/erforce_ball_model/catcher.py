@@ -460,6 +460,11 @@ class Receiver:
         """The ball model the predictor uses (it may identify its own)."""
         self._model = params
 
+    @property
+    def model(self) -> BallModelParams:
+        """The ball model it predicts the ball with (the defaults until ``on_model``)."""
+        return self._model
+
     def on_barrier(self, detected: bool) -> bool:
         """The light barrier; True on the rising edge (the ball is received)."""
         edge = bool(detected) and not self._holding_ball

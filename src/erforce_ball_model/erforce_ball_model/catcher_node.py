@@ -97,7 +97,9 @@ class CatcherNode(Node):
     def on_clock_restart(self) -> None:
         """A new /clock time line (node_support.guard_clock): the inputs' arrival times are void."""
         own_id, team = self._team
+        model = self._receiver.model  # the predictor's (transient local: not sent again for a new time line)
         self._receiver = Receiver(*self._params.built, robot_id=own_id, team_robot_ids=team)
+        self._receiver.on_model(model)
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9

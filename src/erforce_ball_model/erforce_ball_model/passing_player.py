@@ -570,7 +570,7 @@ class PressingTeam:
 
     def __init__(self, cfg: CatcherConfig, dribbler_offset_m: float, robot_radius_m: float,
                  field_config: FieldConfig | None, robot_ids, as_team: bool = True,
-                 passing: PassConfig | None = None, n_other: int = 0) -> None:
+                 passing: PassConfig | None = None, n_other: int = 0, model: BallModelParams | None = None) -> None:
         ids = [int(i) for i in robot_ids]
         if len(set(ids)) != len(ids):  # none: a game without opponents
             raise ValueError(f"robot_ids: need distinct ids, got {ids}")
@@ -580,6 +580,7 @@ class PressingTeam:
         self.robot_ids = ids
         self.receivers = {i: Receiver(cfg, dribbler_offset_m, robot_radius_m, field_config, robot_id=i,
                                       team_robot_ids=team) for i in ids}
+        self.on_model(BallModelParams() if model is None else model)
         self.poses: dict[int, tuple[float, np.ndarray]] = {}  # own robot -> (arrived, [x, y, yaw])
         self.other_poses = np.zeros((n_other, 3))
         self.other_seen = np.zeros(n_other, dtype=bool)
@@ -604,6 +605,8 @@ class PressingTeam:
             receiver.on_v_shoot(now, v_shoot_mps)
 
     def on_model(self, params: BallModelParams) -> None:
+        """The ball model in use (the predictor's): every robot's receiver predicts with it."""
+        self.model = params
         for receiver in self.receivers.values():
             receiver.on_model(params)
 

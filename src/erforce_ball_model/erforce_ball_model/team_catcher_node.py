@@ -82,7 +82,7 @@ class TeamCatcherNode(Node):
         self._names = {i: team.namespace(i) for i in ids}
         other = contract.OURS if team is contract.OPPONENTS else contract.OPPONENTS
         n_other = self._values["num_other_robots"] if self._values["press_lanes"] else 0
-        self._team: PressingTeam
+        self._team: PressingTeam | None = None
         self.on_clock_restart()
         q = contract
         self._cmd_pubs = {i: contract_publisher(self, q.CMD_VEL, team.topic(q.CMD_VEL, i)) for i in ids}
@@ -121,7 +121,9 @@ class TeamCatcherNode(Node):
         v = self._values
         cfg, offset, radius, field, passing = self._params.built
         n_other = v["num_other_robots"] if passing is not None else 0
-        self._team = PressingTeam(cfg, offset, radius, field, v["robot_ids"], v["as_team"], passing, n_other)
+        # the predictor's model (transient local: not sent again for a new time line) goes on
+        model = None if self._team is None else self._team.model
+        self._team = PressingTeam(cfg, offset, radius, field, v["robot_ids"], v["as_team"], passing, n_other, model)
         self._other_stamps: list[float | None] = [None] * n_other  # the stamp of each row last fed
         self._own_stamps = dict.fromkeys(int(i) for i in v["robot_ids"])  # likewise, with tracked_poses
 

@@ -165,6 +165,9 @@ class PassingGame:
             if answer is None:
                 continue
             traj = answer.trajectory
+            if traj.params is not player.model:  # the model in use changed (as /ball/model_params says on the graph)
+                player.on_model(traj.params)
+                self.opponents.on_model(traj.params)
             for i, ct, point in zip(answer.catch_robots, answer.catch_times_s, answer.catch_points_m, strict=True):
                 if i < self.n_team:
                     player.on_catch(i, now, ct, point)

@@ -235,6 +235,8 @@ class _Predictor:
                     rx.on_catch_point(now, np.array(answer.catch_points_m[0]))
                 self.predictions.append((t, answer.catch_times_s[0]))
             traj = answer.trajectory
+            if traj.params is not rx.model:  # the model in use changed (as /ball/model_params says on the graph)
+                rx.on_model(traj.params)
             rx.on_ball(now, traj.position_m, traj.velocity_mps)
             rx.on_v_shoot(now, traj.floats.v_shoot_mps)
 
