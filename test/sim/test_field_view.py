@@ -242,6 +242,19 @@ def test_the_speed_plot_follows_the_model_from_the_kick():
     assert state.frame()["speed"]["model"] == pytest.approx(4.0)
 
 
+def test_the_speed_plot_goes_on_with_a_model_that_arrives_after_the_kick():
+    """Kicked at 3 m/s at t 2.0; at 2.1 the predictor's model in use becomes a_slide -5 (SSL geometry, a fit):
+    at 2.2 the curve says 3 - 5 * 0.2 = 2.0 m/s (still sliding: the switch is at 0.6 * 3 = 1.8 m/s), not the
+    default's 2.5."""
+    state = WorldState(FIELD)
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(3.0))
+    ball_state(state, 2.0, (0.0, 0.0), (3.0, 0.0))
+    ball_state(state, 2.1, (0.29, 0.0), (2.5, 0.0))
+    assert state.apply(c.BALL_MODEL_PARAMS.name, table_msg([[-5.0, -0.3, 0.6]], c.BALL_MODEL_PARAM_LABELS, "in_use"))
+    ball_state(state, 2.2, (0.5, 0.0), (2.0, 0.0))
+    assert state.frame()["speed"]["model"] == pytest.approx(2.0, abs=1e-4)
+
+
 def test_bad_messages_are_refused_counted_and_never_reach_the_frame():
     state = WorldState(FIELD)
     ball_state(state, 1.0, (0.5, 0.5), (1.0, 0.0))

@@ -284,6 +284,11 @@ class WorldState:
             self.uncertain = bool(msg.data)
         elif topic is c.BALL_MODEL_PARAMS:
             self.model = BallModelParams(*model_in_use_from_msg(msg))
+            if self._speed_model is not None:  # the curve since the kick goes on with the model in use
+                t0, before = self._speed_model
+                f = before.floats
+                self._speed_model = (t0, BallTrajectory.of_floats(f.x_m, f.y_m, f.vx_mps, f.vy_mps, f.v_shoot_mps,
+                                                                  self.model))
         elif topic is c.SIM_EVENTS:
             self.events.append(str(msg.data)[:200])
         elif topic is c.BALL_CATCHES:
