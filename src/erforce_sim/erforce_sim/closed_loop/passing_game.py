@@ -119,6 +119,7 @@ class PassingGame:
         self.opponents = PressingTeam(cfg.catcher, self.robot.dribbler_offset_m, self.robot.robot_radius_m, self.field,
                                       range(self.n_opp), passing=cfg.passing, n_other=self.n_team)
         self.opponents.on_model(self.predictor.model)
+        self._model_sent = self.predictor.model  # what the AI was last told the model in use is
         self.frame_costs_s: list[float] = []  # CPU of BallPredictor.ball_frame for all robots, per vision frame
         self._facing: tuple[int, float] | None = None  # the receive facing the predictor searches with
         self._dribblers = dict.fromkeys(range(self.n_team), False)
@@ -165,7 +166,8 @@ class PassingGame:
             if answer is None:
                 continue
             traj = answer.trajectory
-            if traj.params is not player.model:  # the model in use changed (as /ball/model_params says on the graph)
+            if traj.params is not self._model_sent:  # the model in use changed: as /ball/model_params on the graph
+                self._model_sent = traj.params
                 player.on_model(traj.params)
                 self.opponents.on_model(traj.params)
             for i, ct, point in zip(answer.catch_robots, answer.catch_times_s, answer.catch_points_m, strict=True):

@@ -211,6 +211,7 @@ class _Predictor:
             num_robots=1, field=field, limits=RobotLimits(a_max_mps2=cfg.a_max_mps2, v_max_mps=cfg.v_max_mps),
             dribbler_offset_m=robot.dribbler_offset_m))
         receiver.on_model(self.predictor.model)
+        self._model_sent = self.predictor.model  # what the receiver was last told the model in use is
         self.predictions: list[tuple[float, float]] = []  # (frame capture time, catch time after it)
         self.barrier_edges: list[float] = []
 
@@ -235,7 +236,8 @@ class _Predictor:
                     rx.on_catch_point(now, np.array(answer.catch_points_m[0]))
                 self.predictions.append((t, answer.catch_times_s[0]))
             traj = answer.trajectory
-            if traj.params is not rx.model:  # the model in use changed (as /ball/model_params says on the graph)
+            if traj.params is not self._model_sent:  # the model in use changed: as /ball/model_params on the graph
+                self._model_sent = traj.params
                 rx.on_model(traj.params)
             rx.on_ball(now, traj.position_m, traj.velocity_mps)
             rx.on_v_shoot(now, traj.floats.v_shoot_mps)
