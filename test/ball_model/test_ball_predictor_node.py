@@ -29,6 +29,7 @@ from erforce_interfaces.conversions import (
     point_from_msg,
     stamp_to_seconds,
     table_from_msg,
+    table_msg,
     tracked_robots_from_msg,
     vision_robots_cdr,
 )
@@ -487,6 +488,46 @@ def test_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ros_gra
     probe.spin_until(lambda: late, 10.0, "the latched model")
     assert len(late) == 1
     assert table_from_msg(late[0], contract.BALL_MODEL_PARAM_LABELS)[0] == pytest.approx([-A_SLIDE, -0.5, C_SWITCH])
+
+
+@pytest.mark.parametrize("source", ["ssl_geometry", "parameters"])
+def test_a_new_model_filters_a_kick_as_a_predictor_started_with_it(ros_graph, source):
+    """grSim's model (far from the defaults) comes while the ball lies still, from /vision/ball_model (SSL
+    geometry) or set on the node's parameters at run time (ros2 param set); the node's
+    answers to the kick that follows (3 m/s, that model, 2 mm noise) are those of the predictor's core started
+    with the model: v_shoot and the stop point at every frame up to 1 s after the kick, within the tolerances
+    test_predictor derives (the two differ only by their estimates of the ball at rest)."""
+    from erforce_ball_model.ball_model import BallModelParams
+    from erforce_ball_model.predictor import BallPredictor, PredictorConfig
+
+    far = {"a_slide": 14.0, "a_roll": 0.7, "c_switch": 0.7}
+    model = BallModelParams(-far["a_slide"], -far["a_roll"], far["c_switch"])
+    rig = Rig(ros_graph, num_robots=1)
+    probe = ros_graph.probe
+    q = contract
+    geometry = probe.wait_for_subscribers(q.VISION_BALL_MODEL.name, Float64MultiArray, timeout_s=20.0,
+                                          qos=q.VISION_BALL_MODEL.qos)
+    t, xy, _, t_kick = shot_frames(1.0, (-3.0, 0.3), (1.0, 0.0), 3.0, rest_frames=20, **far)
+    keep = t <= t_kick + 1.0
+    t, xy = t[keep], xy[keep] + np.random.default_rng(7).normal(0.0, 0.002, (int(keep.sum()), 2))
+    pinned = BallPredictor(PredictorConfig(num_robots=1, model=model))
+    compared = 0
+    for k, (ti, (x, y)) in enumerate(zip(t, xy, strict=True)):
+        if k == 10 and source == "ssl_geometry":
+            geometry.publish(table_msg([[-14.0, -0.7, 0.7]], q.BALL_MODEL_PARAM_LABELS, "model"))
+        if k == 10 and source == "parameters":  # in this order, each step is a valid model
+            for name, value in (("a_slide_mps2", -14.0), ("a_roll_mps2", -0.7), ("c_switch", 0.7)):
+                assert probe.set_parameter(NODE, name, value).successful
+        if k == 10:
+            probe.spin_until(lambda: table_from_msg(rig.model_params[-1], q.BALL_MODEL_PARAM_LABELS)[0].tolist()
+                             == [-14.0, -0.7, 0.7], 10.0, "the new model in use")
+        rig.ball(ti, x, y)
+        want = pinned.ball_frame(stamp_to_seconds(ball_msg(ti + T_SHIFT_S, x, y).header.stamp), x, y)
+        if ti > t_kick:
+            assert abs(rig.v_shoot[-1].data - want.trajectory.v_shoot_mps) < 1e-5, (ti, rig.v_shoot[-1].data)
+            assert math.dist(point_from_msg(rig.stop[-1])[1], want.stop_point_m) < 1e-4, ti
+            compared += 1
+    assert compared == 70  # 1 s at 70 Hz
 
 
 def test_odom_follows_a_moving_robot(ros_graph):
