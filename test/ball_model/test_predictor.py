@@ -9,7 +9,7 @@ from ballmodel_sim import observe, simulate
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import CatchSearch, RobotLimits, catch_after_reaction
-from erforce_ball_model.identification import FitResult
+from erforce_ball_model.identification import FitResult, ShotAccumulator
 from erforce_ball_model.predictor import CATCH_TIME_NEVER, BallPredictor, FrameTimes, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig
 
@@ -165,6 +165,27 @@ def test_a_new_model_is_filtered_with_as_by_a_predictor_started_with_it(how, v0_
         (v_shoot, stop), (want_v_shoot, want_stop) = answers[after], pinned[after]
         assert abs(v_shoot - want_v_shoot) < 1e-5, (after, v_shoot, want_v_shoot)
         assert np.hypot(*(stop - want_stop)) < 1e-4, (after, stop, want_stop)
+
+
+def test_the_online_identification_cuts_shots_with_the_model_in_use():
+    """Its own filter finds the kicks and the stops: with the model from geometry, as one started with it would
+    (on these frames one kept on the defaults ends the shot 3 frames later)."""
+    config = PredictorConfig(num_robots=1, field=FieldConfig.preset("division_a"), online_identification=True)
+    t, pos, _ = simulate([(0.5, (3.0, 0.0))], 6.0, 14.0, 0.7, 0.7, p0=(-4.0, 0.3))  # rests after 3.6 s
+    stamps, xy, _ = observe(t, pos, fps=70.0, noise_m=0.002, dropout=0.0, seed=2)
+    predictor = BallPredictor(config)
+    predictor.set_vision_geometry(model=FAR_MODEL)
+    pinned = ShotAccumulator()
+    pinned.tracker.params = FAR_MODEL
+    try:
+        for ti, (x, y) in zip(stamps, xy, strict=True):
+            predictor.identify(predictor.ball_frame(ti, x, y))
+            pinned.add(ti, x, y)
+        shots = predictor._shots.shots
+        assert len(shots) == len(pinned.shots) == 1
+        assert np.array_equal(shots[0].t_s, pinned.shots[0].t_s)
+    finally:
+        predictor.close()
 
 
 def test_the_number_of_robots_is_fixed():

@@ -370,6 +370,8 @@ class BallPredictor:
         shots = self._shots
         if shots is None:
             return None
+        if shots.tracker.params is not self.model:  # it cuts the shots with the model in use too
+            shots.tracker.params = self.model
         shots.add(frame.t_s, *frame.xy_m)
         finished = None
         future = self._fit_future
