@@ -107,3 +107,18 @@ def test_under_a_ball_model_with_no_pass_in_reach_the_ball_still_moves_after_no_
     assert record.kick_speed_mps == pytest.approx(plain.kick_speed_mps, abs=1e-3)
     assert record.actual_catch_s == pytest.approx(record.predicted_catch_s, abs=0.15)
     assert any(n and "robot_0: no pass in reach for 1.0 s" in n for n in notices), notices
+
+
+def test_a_model_the_predictor_takes_mid_game_reaches_the_ai_at_its_next_answer():
+    """In the game the predictor's model reaches the passing AI and the interceptors as /ball/model_params does on
+    the graph: once, when it changes (SSL geometry here), from the next answered ball frame on."""
+    from erforce_ball_model.ball_model import BallModelParams
+    from erforce_sim.sensors import BallDetection, VisionFrame
+
+    game = PassingGame(dataclasses.replace(SMALL, passes=1), seed=0)
+    receivers = game.opponents.receivers.values()
+    assert game.player.model == BallModelParams() and all(r.model == BallModelParams() for r in receivers)
+    model = BallModelParams(-14.0, -0.7, 0.7)
+    game.predictor.set_vision_geometry(model=model)
+    game._on_frame(VisionFrame(0, 1.0, 1.02, (BallDetection(0.5, 0.2),), ()))
+    assert game.player.model is model and all(r.model is model for r in receivers)
