@@ -298,7 +298,8 @@ class BallTracker:
     ``trajectory()`` and the flags ``kicked`` / ``ricochet`` (true for the update that detected the
     event), ``uncertain`` and ``phase``. The state lives in the array ``s`` (indices ``S_*``); the usual
     update is ``ball_step`` (compiled after ``load_kernels``; a kernel can call ``compiled_ball_step()`` on
-    ``s``, ``shoot`` and ``m``).
+    ``s``, ``shoot`` and ``m``). ``params`` is the ball model it filters and predicts with; setting it
+    rewrites the model in ``m`` in place, so a kernel holding ``m`` filters with the new one at once.
     """
 
     t_s = _optional(S_T)
