@@ -54,7 +54,7 @@ def test_a_datagram_is_answered_with_a_catch_time_before_its_frame_is_published(
     drive over 1 m less the dribbler offset (the robot already faces the ball)."""
     port = free_udp_port()
     rclpy.init(args=["--ros-args", "-p", f"port:={port}", "-p", "interface:=127.0.0.1", "-p", "time_source:=vision",
-                     "-p", "num_robots:=1", "-p", "team_color:=yellow"])
+                     "-p", "num_robots:=1", "-p", "team_color:=yellow", "-p", "field:=division_b"])
     bridge = predictor = None
     sender = open_multicast_sender("127.0.0.1")
     try:
