@@ -240,7 +240,7 @@ def test_global_actions_conditions_and_env(tmp_path, monkeypatch):
     path.write_text(textwrap.dedent("""\
         launch:
           - arg: {name: sim, default: "True"}
-          - set-remap: {from: "/tf", to: "tf"}
+          - set_remap: {from: "/tf", to: "tf"}
           - set_parameter: {name: use_sim_time, value: "$(var sim)"}
           - unset_env: {name: ERFORCE_DROP_ME}
           - node: {pkg: erforce_interfaces, exec: talker, unless: "$(var sim)"}
@@ -382,11 +382,13 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
     ("erforce_sim/launch/team_sim.launch.yaml", {}),
 ])
 def test_launch_files_restart_every_node_after_a_delay_unless_told_not_to(launch_file, args):
+    """respawn is a launch argument (launch substitutes it); respawn_delay is a number in the file, as launch
+    reads it: an argument of that name changes nothing."""
     path = REPO / "src" / launch_file
     specs = resolve(path, **args).values()
     assert specs and all(s.respawn and s.respawn_delay_s == 0.1 and s.respawn_max_retries == -1 for s in specs)
     assert not any(s.respawn for s in resolve(path, respawn="false", **args).values())
-    assert {s.respawn_delay_s for s in resolve(path, respawn_delay="2.0", **args).values()} == {2.0}
+    assert {s.respawn_delay_s for s in resolve(path, respawn_delay="2.0", **args).values()} == {0.1}
 
 
 def test_a_plant_that_stops_itself_is_not_restarted():
@@ -638,7 +640,7 @@ ERRORS = [
      "'respawn' must be true or false"),
     ("bad output", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, output: tty}\n", 2,
      "'output' must be screen, log or both"),
-    ("negative delay", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, respawn_delay: -1}\n", 2,
+    ("negative delay", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, respawn_delay: -1.0}\n", 2,
      "'respawn_delay' must be a finite number >= 0"),
     ("bad name", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, name: a-b}\n", 2,
      "invalid node name 'a-b'"),
