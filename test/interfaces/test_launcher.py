@@ -915,3 +915,40 @@ def test_show_args_names_each_argument_once_with_its_first_declaration():
     assert len(names) == len(set(names))
     assert {"receivers", "robot", "team_robot_ids", "lockstep_sync"} <= set(names)  # the includes' too
     assert dict((n, d) for n, d, _ in args)["launch_prefix"] == ""  # receiver.launch.yaml's, the first
+
+
+# ====================================== docs/launch_attributes.md: one fixture per attribute row
+ATTRIBUTES_DOC = REPO / "docs" / "launch_attributes.md"
+ATTRIBUTE_FIXTURES = HERE / "attributes"
+
+
+def attribute_rows() -> list[tuple[str, str, str]]:
+    """(row, what ros2 launch did, what erforce-launch must do) of each table row of the document."""
+    rows = []
+    for line in ATTRIBUTES_DOC.read_text().splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")] if line.startswith("| ") else []
+        if len(cells) == 6 and re.fullmatch(r"[a-z_]+", cells[0]) and cells[0] != "row":
+            rows.append((cells[0], cells[4], cells[5]))
+    return rows
+
+
+def test_every_attribute_fixture_has_a_row():
+    fixtures = {p.name.removesuffix(".launch.yaml") for p in ATTRIBUTE_FIXTURES.glob("*.launch.yaml")}
+    assert fixtures - {"included"} == {row for row, _, _ in attribute_rows()}
+
+
+@pytest.mark.parametrize(("row", "real", "ours"), attribute_rows(), ids=[r[0] for r in attribute_rows()])
+def test_attribute_table_row(row, real, ours, capsys):
+    """erforce-launch accepts the row's fixture exactly where ros2 launch did, and refuses it where ros2 launch
+    refused it or misreads it, with the error the table quotes, naming the fixture's line."""
+    verdict, real_verdict = ours.split(":")[0], real.split(":")[0]
+    assert verdict in ("accepts", "refuses") and real_verdict in ("accepts", "refuses", "misreads")
+    assert verdict == {"misreads": "refuses"}.get(real_verdict, real_verdict)
+    code = main([str(ATTRIBUTE_FIXTURES / f"{row}.launch.yaml"), "--print"])
+    err = capsys.readouterr().err
+    if verdict == "accepts":
+        assert (code, err) == (0, "")
+    else:
+        quoted = re.search(r"`([^`]+)`", ours).group(1)
+        assert code == 2 and err.count("\n") == 1 and quoted in err, err
+        assert re.search(rf"{row}\.launch\.yaml:\d+: ", err), err
