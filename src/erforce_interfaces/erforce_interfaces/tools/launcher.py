@@ -471,6 +471,11 @@ _NODE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _NAMESPACE = re.compile(r"/|(/[A-Za-z_][A-Za-z0-9_]*)+")
 _TRUE, _FALSE = {"true", "1"}, {"false", "0"}
 _LITERAL_EXAMPLES = {float: "0.1", int: "3", bool: "true"}
+# what ros2 launch on Jazzy does with a string where it reads a plain value (docs/launch_attributes.md)
+_LITERAL_FAILS = {float: "fails with \"'<' not supported between instances of 'str' and 'float'\"",
+                  int: "keeps the text and fails when it compares it with the retry count",
+                  bool: "takes the text as true",
+                  "allow_substs": "fails: \"'ParameterFile()' expected 'allow_subst' to be one of [<class 'bool'>]\""}
 
 
 def prefix_namespace(base: str | None, ns: str | None) -> str | None:
@@ -799,8 +804,7 @@ class Resolver:
                 path = os.path.abspath(text)
                 if not os.path.isfile(path):
                     raise LaunchError(f.at(_line(entry, "from")), f"parameter file not found: {text}")
-                allow = entry.get("allow_substs", False)  # launch_ros: a YAML boolean or a substitution
-                if allow if isinstance(allow, bool) else self._typed_bool(f, entry, "allow_substs", scope):
+                if self._literal(f, entry, "allow_substs", bool, False):
                     write(self._sub(Path(path).read_text(), scope, f, _line(entry, "from")))
                 else:
                     cmd.extend(["--params-file", path])
@@ -922,9 +926,7 @@ class Resolver:
             return default
         value = d[key]
         if isinstance(value, str):
-            what = ("takes the text as true" if kind is bool else
-                    "fails with \"'<' not supported between instances of 'str' and 'float'\"" if kind is float else
-                    "keeps the text and fails when it compares it with the retry count")
+            what = _LITERAL_FAILS.get(key) or _LITERAL_FAILS[kind]
             raise LaunchError(f.at(_line(d, key)), f"'{key}' is a plain YAML {kind.__name__} in ros2 launch on Jazzy, "
                               f"not a substitution or a string (it {what}): write e.g. "
                               f"'{key}: {_LITERAL_EXAMPLES[kind]}'; got {value!r}")
