@@ -14,12 +14,12 @@ Pipeline, one stage per block below:
    one: Runner), and the shutdown ladder.
 
 Supported actions: ``arg`` (name, default, description, choice), ``let``, ``node`` (pkg, exec,
-exec_name, name, namespace/ros_namespace, param with value/nested param/from(+allow_substs),
+exec_name, name, namespace, param with value/nested param/from(+allow_substs),
 remap, args, ros_args, output, respawn, respawn_delay, respawn_max_retries, env, cwd,
-launch-prefix, sigterm_timeout, sigkill_timeout), ``executable`` (cmd and the process keys),
-``include`` (file, arg/let), ``group`` (list form, or scoped/forwarding/keep/children),
-``push_ros_namespace``, ``set_env``, ``unset_env``, ``set_remap``, ``set_parameter`` (dashed
-spellings too), ``log``; ``if``/``unless`` on every action. Substitutions: ``var``, ``env`` (with
+launch-prefix, sigterm_timeout, sigkill_timeout, emulate_tty), ``executable`` (cmd and the process keys),
+``include`` (file, arg), ``group`` (list form, or scoped/forwarding/keep/children),
+``push_ros_namespace`` (or ``push-ros-namespace``), ``set_env``, ``unset_env``, ``set_remap``,
+``set_parameter``, ``log``; ``if``/``unless`` on every action. Substitutions: ``var``, ``env`` (with
 an optional default), ``find-pkg-share``, ``find-pkg-prefix``, ``find-exec``, ``dirname``,
 ``filename``, ``anon``, nested and quoted arguments, and launch's boolean ones, each giving 'true'
 or 'false': ``equals A B``/``not-equals A B`` (two of true/false/1/0 in any case compare as
@@ -27,6 +27,12 @@ booleans, two numbers with math.isclose, anything else as text), ``not X``, ``an
 (arguments: '1', '0' or what YAML reads as a boolean: true, off, Yes, ...; anything else is an error).
 
 As strict as ``ros2 launch`` on Jazzy (launch 3.4, launch_ros 0.26), whose rules these are:
+- launch_yaml converts no value: text attributes must be YAML strings (``respawn: "true"``, ``if: "$(var x)"``),
+  and where launch reads a plain value no substitution is evaluated, so one is an error here:
+  ``respawn_delay``, ``sigterm_timeout``, ``sigkill_timeout`` (YAML floats), ``respawn_max_retries`` (a YAML
+  int), ``emulate_tty``, ``allow_substs``, a group's ``scoped``/``forwarding`` (YAML booleans), an arg's
+  ``name`` and ``choice`` values (plain text). docs/launch_attributes.md has every attribute, a fixture each;
+- unknown keys and actions are errors, as launch's ``assert_entity_completely_parsed`` makes them;
 - a file's substitutions are all parsed when it loads, also in actions that will not run: an
   unknown one (ROS 1's ``$(optenv)``, ``$(arg)``, ``$(find)``) is "Unknown substitution: NAME";
 - an include is not scoped: its args are set in the including scope one after the other and stay
