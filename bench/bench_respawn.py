@@ -23,7 +23,6 @@ first publish, and from there to the loop closed (DDS matching, the lockstep loo
 
     ./run exec python bench/bench_respawn.py [--quick | --rounds N] [--busy] [--no-standby] [--breakdown]
     ./run exec python bench/bench_respawn.py --standby-cost
-                                             [--respawn-delay S]
 """
 
 from __future__ import annotations
@@ -55,7 +54,7 @@ from erforce_interfaces.contract import dds_profile_env
 from erforce_interfaces.tools.testing import RosGraph
 
 NODES = ("catcher", "ball_predictor", "velocity_controller", "motor_boards", "plant")
-RESPAWN_DELAY_S = 0.1  # the launch files' default
+RESPAWN_DELAY_S = 0.1  # the launch files' respawn_delay (a number in each file: ros2 launch substitutes none)
 TARGET_S = 3.0
 TRACE_DIR = Path(__file__).resolve().parent / "respawn_trace"
 # kill -> exec, exec -> interpreter up, -> node module imported, -> rclpy.init, -> node built, -> first publish,
@@ -118,8 +117,8 @@ def _phases(demo: LaunchedDemo, node: str, t_kill_mono: float, heal_s: float) ->
     return found
 
 
-def measure(rounds: int, breakdown: bool = False, respawn_delay_s: float = RESPAWN_DELAY_S,
-            standby: bool = True, team: bool = False) -> tuple[dict[str, list[float]], dict[str, list[dict]]]:
+def measure(rounds: int, breakdown: bool = False, standby: bool = True,
+            team: bool = False) -> tuple[dict[str, list[float]], dict[str, list[dict]]]:
     # The probe that times the loop announces itself as the nodes do (the test harness's pytest_configure):
     # with Fast DDS's default of 3 s it matched a restarted catcher up to 2 s after the robot's
     # velocity controller did, and the figure was the probe's discovery, not the graph's.
@@ -131,10 +130,9 @@ def measure(rounds: int, breakdown: bool = False, respawn_delay_s: float = RESPA
         if breakdown:
             graph.env["PYTHONPATH"] = os.pathsep.join(p for p in (str(TRACE_DIR), graph.env.get("PYTHONPATH")) if p)
         if team:  # the 14-robot graph as shipped
-            demo = LaunchedDemo(graph, TEAM_SIM_LAUNCH, TEAM_LOOP_OUTPUTS, standby=standby,
-                                respawn_delay=f"{respawn_delay_s:g}")
+            demo = LaunchedDemo(graph, TEAM_SIM_LAUNCH, TEAM_LOOP_OUTPUTS, standby=standby)
         else:
-            demo = LaunchedDemo(graph, standby=standby, respawn_delay=f"{respawn_delay_s:g}")
+            demo = LaunchedDemo(graph, standby=standby)
         demo.wait_running()
         for _ in range(rounds):
             for node in nodes:
@@ -142,7 +140,7 @@ def measure(rounds: int, breakdown: bool = False, respawn_delay_s: float = RESPA
                     demo.wait_standbys_ready()
                     demo.wait_running()
                 t_kill = time.monotonic()
-                heal_s[node].append(demo.kill_and_heal(node, respawn_delay_s, timeout_s=120.0))
+                heal_s[node].append(demo.kill_and_heal(node, RESPAWN_DELAY_S, timeout_s=120.0))
                 if breakdown:
                     found = _phases(demo, node, t_kill, heal_s[node][-1])
                     if found is not None:
@@ -200,8 +198,7 @@ def standby_cost() -> list[dict]:
     return rows
 
 
-def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool,
-            respawn_delay_s: float = RESPAWN_DELAY_S, standby: bool = True) -> list[dict]:
+def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool, standby: bool = True) -> list[dict]:
     rows = []
     how = "from a warm standby" if standby else "fresh start"
     for node, times in heal_s.items():
@@ -209,7 +206,7 @@ def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool,
         rows.append({"name": f"{node} killed: loop closed again, {how}{' (one core busy)' if busy else ''}",
                      "value": round(statistics.median(times), 2), "unit": "s", "target": f"≤ {TARGET_S:g}",
                      "note": f"{len(times)} runs: {every}; median {statistics.median(times):.2f}, max {max(times):.2f} "
-                             f"(respawn_delay {respawn_delay_s:g} s; load average {load:.1f} at the start)"})
+                             f"(respawn_delay {RESPAWN_DELAY_S:g} s; load average {load:.1f} at the start)"})
     return rows
 
 
@@ -243,7 +240,6 @@ def main(argv: list[str] | None = None) -> int:
                         help="print the standbys' RSS and CPU in the demo and team_sim graphs instead")
     parser.add_argument("--breakdown", action="store_true",
                         help="also where each restart's time went")
-    parser.add_argument("--respawn-delay", type=float, default=RESPAWN_DELAY_S, help="respawn_delay [s] of the launch")
     parser.add_argument("--team", action="store_true",
                         help="the 14-robot team_sim.launch.yaml instead of demo.launch.yaml")
     args = parser.parse_args(argv)
@@ -256,8 +252,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\n(total {time.perf_counter() - t0:.1f} s; load average {load:.1f} at the start)")
         return 0
     with cpu_burner(args.busy):
-        heal_s, phases = measure(rounds, args.breakdown, args.respawn_delay, args.standby, args.team)
-    rows = rows_of(heal_s, load, args.busy, args.respawn_delay, args.standby)
+        heal_s, phases = measure(rounds, args.breakdown, args.standby, args.team)
+    rows = rows_of(heal_s, load, args.busy, args.standby)
     rows += breakdown_rows(phases) if args.breakdown else []
     print("\n".join(markdown_table(rows)))
     print(f"\n(total {time.perf_counter() - t0:.1f} s; load average {load:.1f} at the start, "

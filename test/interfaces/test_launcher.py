@@ -240,7 +240,7 @@ def test_global_actions_conditions_and_env(tmp_path, monkeypatch):
     path.write_text(textwrap.dedent("""\
         launch:
           - arg: {name: sim, default: "True"}
-          - set-remap: {from: "/tf", to: "tf"}
+          - set_remap: {from: "/tf", to: "tf"}
           - set_parameter: {name: use_sim_time, value: "$(var sim)"}
           - unset_env: {name: ERFORCE_DROP_ME}
           - node: {pkg: erforce_interfaces, exec: talker, unless: "$(var sim)"}
@@ -382,11 +382,13 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
     ("erforce_sim/launch/team_sim.launch.yaml", {}),
 ])
 def test_launch_files_restart_every_node_after_a_delay_unless_told_not_to(launch_file, args):
+    """respawn is a launch argument (launch substitutes it); respawn_delay is a number in the file, as launch
+    reads it: an argument of that name changes nothing."""
     path = REPO / "src" / launch_file
     specs = resolve(path, **args).values()
     assert specs and all(s.respawn and s.respawn_delay_s == 0.1 and s.respawn_max_retries == -1 for s in specs)
     assert not any(s.respawn for s in resolve(path, respawn="false", **args).values())
-    assert {s.respawn_delay_s for s in resolve(path, respawn_delay="2.0", **args).values()} == {2.0}
+    assert {s.respawn_delay_s for s in resolve(path, respawn_delay="2.0", **args).values()} == {0.1}
 
 
 def test_a_plant_that_stops_itself_is_not_restarted():
@@ -638,7 +640,7 @@ ERRORS = [
      "'respawn' must be true or false"),
     ("bad output", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, output: tty}\n", 2,
      "'output' must be screen, log or both"),
-    ("negative delay", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, respawn_delay: -1}\n", 2,
+    ("negative delay", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, respawn_delay: -1.0}\n", 2,
      "'respawn_delay' must be a finite number >= 0"),
     ("bad name", "launch:\n  - node: {pkg: erforce_interfaces, exec: talker, name: a-b}\n", 2,
      "invalid node name 'a-b'"),
@@ -913,3 +915,40 @@ def test_show_args_names_each_argument_once_with_its_first_declaration():
     assert len(names) == len(set(names))
     assert {"receivers", "robot", "team_robot_ids", "lockstep_sync"} <= set(names)  # the includes' too
     assert dict((n, d) for n, d, _ in args)["launch_prefix"] == ""  # receiver.launch.yaml's, the first
+
+
+# ====================================== docs/launch_attributes.md: one fixture per attribute row
+ATTRIBUTES_DOC = REPO / "docs" / "launch_attributes.md"
+ATTRIBUTE_FIXTURES = HERE / "attributes"
+
+
+def attribute_rows() -> list[tuple[str, str, str]]:
+    """(row, what ros2 launch did, what erforce-launch must do) of each table row of the document."""
+    rows = []
+    for line in ATTRIBUTES_DOC.read_text().splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")] if line.startswith("| ") else []
+        if len(cells) == 6 and re.fullmatch(r"[a-z_]+", cells[0]) and cells[0] != "row":
+            rows.append((cells[0], cells[4], cells[5]))
+    return rows
+
+
+def test_every_attribute_fixture_has_a_row():
+    fixtures = {p.name.removesuffix(".launch.yaml") for p in ATTRIBUTE_FIXTURES.glob("*.launch.yaml")}
+    assert fixtures - {"included"} == {row for row, _, _ in attribute_rows()}
+
+
+@pytest.mark.parametrize(("row", "real", "ours"), attribute_rows(), ids=[r[0] for r in attribute_rows()])
+def test_attribute_table_row(row, real, ours, capsys):
+    """erforce-launch accepts the row's fixture exactly where ros2 launch did, and refuses it where ros2 launch
+    refused it or misreads it, with the error the table quotes, naming the fixture's line."""
+    verdict, real_verdict = (re.match(r"\w+", cell).group() for cell in (ours, real))
+    assert verdict in ("accepts", "refuses") and real_verdict in ("accepts", "refuses", "misreads")
+    assert verdict == {"misreads": "refuses"}.get(real_verdict, real_verdict)
+    code = main([str(ATTRIBUTE_FIXTURES / f"{row}.launch.yaml"), "--print"])
+    err = capsys.readouterr().err
+    if verdict == "accepts":
+        assert (code, err) == (0, "")
+    else:
+        quoted = re.search(r"`([^`]+)`", ours).group(1)
+        assert code == 2 and err.count("\n") == 1 and quoted in err, err
+        assert re.search(rf"{row}\.launch\.yaml:\d+: ", err), err

@@ -196,8 +196,8 @@ def test_only_nodes_of_ours_get_a_standby_and_the_switch_is_on_the_command_line(
 
     launch = tmp_path / "mixed.launch.yaml"
     launch.write_text("launch:\n"
-                      "  - node: {pkg: erforce_motion, exec: velocity_controller, respawn: true}\n"
-                      "  - executable: {cmd: sleep 10, respawn: true}\n")
+                      "  - node: {pkg: erforce_motion, exec: velocity_controller, respawn: 'true'}\n"
+                      "  - executable: {cmd: sleep 10, respawn: 'true'}\n")
     specs = Resolver({}, tmp_path).resolve(launch, launch.name)
     # ours start through node_support.run_node (their schema says so); anything else would run as a second copy
     assert [(s.label, s.standby) for s in specs] == [("velocity_controller-1", True), ("sleep-2", False)]

@@ -16,6 +16,7 @@ from std_msgs.msg import Float64MultiArray
 
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import nanoseconds_to_stamp
+from erforce_interfaces.tools.recording import records_topic
 
 pytestmark = pytest.mark.integration
 
@@ -110,7 +111,10 @@ def test_bag_offers_each_topic_as_it_was_offered(ros_graph, tmp_path):
 
 @pytest.mark.parametrize("sim_time", [False, True])
 def test_recording_of_a_running_graph(ros_graph, tmp_path, sim_time):
+    """As ``ros2 bag record -a``: the talker's topic, and /rosout (the listener logs what it hears) and
+    /parameter_events, which every node offers."""
     ros_graph.start_node("erforce_interfaces", "talker", params={"rate_hz": 50.0, "text": "rec"})
+    ros_graph.start_node("erforce_interfaces", "listener")
     clock = ros_graph.probe.publisher("/clock", Clock, contract.QOS_CLOCK)
     bag = tmp_path / "bag"
     cmd = [str(ros_graph.probe_executable("erforce-record")), str(bag), "--duration", "3.0"]
@@ -131,7 +135,36 @@ def test_recording_of_a_running_graph(ros_graph, tmp_path, sim_time):
             stamps.append(stamp)
             texts.append(typestore.deserialize_cdr(raw, connection.msgtype).data)
     assert len(texts) >= 50 and all(t.startswith("rec ") for t in texts)  # 50 Hz for most of 3 s
+    with Reader(bag) as reader:
+        assert {"/rosout", "/parameter_events"} <= set(reader.topics)
+        assert reader.topics["/parameter_events"].msgtype == "rcl_interfaces/msg/ParameterEvent"
+        logs = [typestore.deserialize_cdr(raw, c.msgtype) for c, _, raw in
+                reader.messages(connections=reader.topics["/rosout"].connections)]
+    assert any(log.name == "listener" and log.msg.startswith("I heard: rec ") for log in logs)
     if sim_time:  # log times are the simulated clock (or 0 before the first)
         assert all(s == 0 or 100e9 <= s <= 100e9 + k * 50e6 for s in stamps) and max(stamps) >= 101e9
     else:
         assert min(stamps) > 1.6e18  # wall-clock nanoseconds since the epoch (after 2020)
+
+
+# ros2 bag record -a on Jazzy (rosbag2_transport TopicFilter): which topics it takes, case by case
+RECORDED = [
+    ("/chatter", ["std_msgs/msg/String"], True, True),
+    ("/rosout", ["rcl_interfaces/msg/Log"], True, True),
+    ("/parameter_events", ["rcl_interfaces/msg/ParameterEvent"], True, True),
+    ("/robot_0/parameter_events", ["rcl_interfaces/msg/ParameterEvent"], True, True),
+    ("/chatter", ["std_msgs/msg/String"], False, False),  # only subscribed: unpublished
+    ("/mixed", ["std_msgs/msg/String", "std_msgs/msg/Int32"], True, False),  # two types
+    ("/mixed", ["std_msgs/msg/String", "std_msgs/msg/String"], True, True),  # one type, twice
+    ("/_hidden", ["std_msgs/msg/String"], True, False),
+    ("/ns/_hidden/x", ["std_msgs/msg/String"], True, False),
+    ("/ns/not_hidden_", ["std_msgs/msg/String"], True, True),
+    ("/talker/get_parameters/_service_event", ["rcl_interfaces/srv/GetParameters_Event"], True, True),
+    ("/talker/x/_service_event", ["std_msgs/msg/String"], True, False),  # not an event type: hidden
+    ("/talker/_service_event_x", ["rcl_interfaces/srv/GetParameters_Event"], True, False),
+]
+
+
+@pytest.mark.parametrize(("topic", "types", "published", "recorded"), RECORDED)
+def test_the_topics_ros2_bag_record_a_takes(topic, types, published, recorded):
+    assert records_topic(topic, types, published) is recorded

@@ -14,12 +14,12 @@ Pipeline, one stage per block below:
    one: Runner), and the shutdown ladder.
 
 Supported actions: ``arg`` (name, default, description, choice), ``let``, ``node`` (pkg, exec,
-exec_name, name, namespace/ros_namespace, param with value/nested param/from(+allow_substs),
+exec_name, name, namespace, param with value/nested param/from(+allow_substs),
 remap, args, ros_args, output, respawn, respawn_delay, respawn_max_retries, env, cwd,
-launch-prefix, sigterm_timeout, sigkill_timeout), ``executable`` (cmd and the process keys),
-``include`` (file, arg/let), ``group`` (list form, or scoped/forwarding/keep/children),
-``push_ros_namespace``, ``set_env``, ``unset_env``, ``set_remap``, ``set_parameter`` (dashed
-spellings too), ``log``; ``if``/``unless`` on every action. Substitutions: ``var``, ``env`` (with
+launch-prefix, sigterm_timeout, sigkill_timeout, emulate_tty), ``executable`` (cmd and the process keys),
+``include`` (file, arg), ``group`` (list form, or scoped/forwarding/keep/children),
+``push_ros_namespace`` (or ``push-ros-namespace``), ``set_env``, ``unset_env``, ``set_remap``,
+``set_parameter``, ``log``; ``if``/``unless`` on every action. Substitutions: ``var``, ``env`` (with
 an optional default), ``find-pkg-share``, ``find-pkg-prefix``, ``find-exec``, ``dirname``,
 ``filename``, ``anon``, nested and quoted arguments, and launch's boolean ones, each giving 'true'
 or 'false': ``equals A B``/``not-equals A B`` (two of true/false/1/0 in any case compare as
@@ -27,6 +27,12 @@ booleans, two numbers with math.isclose, anything else as text), ``not X``, ``an
 (arguments: '1', '0' or what YAML reads as a boolean: true, off, Yes, ...; anything else is an error).
 
 As strict as ``ros2 launch`` on Jazzy (launch 3.4, launch_ros 0.26), whose rules these are:
+- launch_yaml converts no value: text attributes must be YAML strings (``respawn: "true"``, ``if: "$(var x)"``),
+  and where launch reads a plain value no substitution is evaluated, so one is an error here:
+  ``respawn_delay``, ``sigterm_timeout``, ``sigkill_timeout`` (YAML floats), ``respawn_max_retries`` (a YAML
+  int), ``emulate_tty``, ``allow_substs``, a group's ``scoped``/``forwarding`` (YAML booleans), an arg's
+  ``name`` and ``choice`` values (plain text). docs/launch_attributes.md has every attribute, a fixture each;
+- unknown keys and actions are errors, as launch's ``assert_entity_completely_parsed`` makes them;
 - a file's substitutions are all parsed when it loads, also in actions that will not run: an
   unknown one (ROS 1's ``$(optenv)``, ``$(arg)``, ``$(find)``) is "Unknown substitution: NAME";
 - an include is not scoped: its args are set in the including scope one after the other and stay
@@ -283,7 +289,7 @@ SUBSTITUTIONS = {"var": (1, 1), "env": (1, 2), "find-pkg-share": (1, 1), "find-p
                  "find-exec": (1, 1), "dirname": (0, 0), "filename": (0, 0), "anon": (1, 1), "equals": (2, 2),
                  "not-equals": (2, 2), "not": (1, 1), "and": (2, 2), "or": (2, 2)}
 # launch and launch_ros have these too; erforce-launch does not evaluate them
-_NOT_EVALUATED = ("eval", "command", "exec-in-pkg", "param")
+_NOT_EVALUATED = ("eval", "command", "exec-in-pkg", "param", "if", "file-content", "launch_log_dir", "log_dir")
 _UNKNOWN_HINTS = {"optenv": "a ROS 1 substitution; ROS 2 writes $(env NAME default)",
                   "arg": "a ROS 1 substitution; ROS 2 writes $(var NAME)",
                   "find": "a ROS 1 substitution; ROS 2 writes $(find-pkg-share PKG)"}
@@ -455,10 +461,9 @@ _PROCESS_KEYS = {"output", "respawn", "respawn_delay", "respawn_max_retries", "e
 _ACTION_KEYS: dict[str, set[str]] = {
     "arg": {"name", "default", "description", "choice"},
     "let": {"name", "value"},
-    "node": {"pkg", "exec", "exec_name", "name", "namespace", "ros_namespace", "param", "remap", "args",
-             "ros_args"} | _PROCESS_KEYS,
+    "node": {"pkg", "exec", "exec_name", "name", "namespace", "param", "remap", "args", "ros_args"} | _PROCESS_KEYS,
     "executable": {"cmd", "name"} | _PROCESS_KEYS,
-    "include": {"file", "arg", "let"},
+    "include": {"file", "arg"},
     "group": {"scoped", "forwarding", "keep", "children"},
     "push_ros_namespace": {"namespace"},
     "set_env": {"name", "value"},
@@ -467,11 +472,16 @@ _ACTION_KEYS: dict[str, set[str]] = {
     "set_parameter": {"name", "value"},
     "log": {"message"},
 }
-_ALIASES = {"push-ros-namespace": "push_ros_namespace", "set-env": "set_env", "unset-env": "unset_env",
-            "set-remap": "set_remap", "set-parameter": "set_parameter"}
+_ALIASES = {"push-ros-namespace": "push_ros_namespace"}  # the only dashed spelling launch_ros exposes
 _NODE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _NAMESPACE = re.compile(r"/|(/[A-Za-z_][A-Za-z0-9_]*)+")
 _TRUE, _FALSE = {"true", "1"}, {"false", "0"}
+_LITERAL_EXAMPLES = {float: "0.1", int: "3", bool: "true"}
+# what ros2 launch on Jazzy does with a string where it reads a plain value (docs/launch_attributes.md)
+_LITERAL_FAILS = {float: "fails with \"'<' not supported between instances of 'str' and 'float'\"",
+                  int: "keeps the text and fails when it compares it with the retry count",
+                  bool: "takes the text as true",
+                  "allow_substs": "fails: \"'ParameterFile()' expected 'allow_subst' to be one of [<class 'bool'>]\""}
 
 
 def prefix_namespace(base: str | None, ns: str | None) -> str | None:
@@ -584,8 +594,7 @@ class Resolver:
     def _static_names(self, body: MarkedDict, scope: Scope) -> list[str] | None:
         try:
             return [self._str(_NO_FILE, e, "name", scope, required=True)
-                    for e in self._dicts(_NO_FILE, body, "arg", "include") + self._dicts(_NO_FILE, body, "let",
-                                                                                           "include")]
+                    for e in self._dicts(_NO_FILE, body, "arg", "include")]
         except LaunchError:
             return None
 
@@ -630,14 +639,14 @@ class Resolver:
         return not ("unless" in d and self._bool(f, d, "unless", scope, False))
 
     def _do_arg(self, f: _File, d: MarkedDict, scope: Scope) -> None:
-        name = self._raw(f, d, "name", required=True)
+        name = self._plain(f, d, "name", required=True)
         self._raw(f, d, "description")
         if name not in scope.configs:
             if "default" not in d:
                 raise LaunchError(f.at(d.line), f"required argument '{name}' not given; arguments of "
                                   f"{f.shown}: {_describe_args(declared_args(f.path))}; pass {name}:=VALUE")
             scope.configs[name] = self._str(f, d, "default", scope)
-        choices = [self._str(f, c, "value", scope, required=True) for c in self._dicts(f, d, "choice", "arg")]
+        choices = [self._plain(f, c, "value", required=True) for c in self._dicts(f, d, "choice", "arg")]
         if choices and scope.configs[name] not in choices:
             raise LaunchError(f.at(d.line), f"argument '{name}' is '{scope.configs[name]}', "
                               f"not one of: {', '.join(choices)}")
@@ -657,7 +666,7 @@ class Resolver:
         self._depth += 1
         if self._depth > self.MAX_INCLUDE_DEPTH:
             raise LaunchError(where, f"includes nested deeper than {self.MAX_INCLUDE_DEPTH} (an include cycle?)")
-        args = self._dicts(f, d, "arg", "include") + self._dicts(f, d, "let", "include")
+        args = self._dicts(f, d, "arg", "include")
         names = [self._str(f, a, "name", scope, required=True) for a in args]
         child = _File(path.resolve(), _shown(path))
         entries = load_launch_entries(path, child.shown)  # launch parses the whole file first
@@ -675,8 +684,8 @@ class Resolver:
         children = d.get("children")
         if not isinstance(children, MarkedList):
             raise LaunchError(f.at(_line(d, "children")), "'group' needs 'children': a list of actions")
-        scoped = self._bool(f, d, "scoped", scope, True)
-        forwarding = self._bool(f, d, "forwarding", scope, True)
+        scoped = self._literal(f, d, "scoped", bool, True)
+        forwarding = self._literal(f, d, "forwarding", bool, True)
         keeps = self._dicts(f, d, "keep", "group")
         if scoped and not forwarding:
             # launch evaluates them all, then clears the configurations (namespace, remaps, global
@@ -706,6 +715,7 @@ class Resolver:
         scope.remaps.append(rule)
 
     def _do_set_parameter(self, f: _File, d: MarkedDict, scope: Scope) -> None:
+        self._raw(f, d, "value", required=True)  # launch_ros reads it as text (a substitution), typed by YAML
         text = yaml.safe_dump(self._param_value(f, d, scope), default_flow_style=True, width=1 << 30)
         scope.global_params.append((self._str(f, d, "name", scope, required=True),
                                     text.removesuffix("\n").removesuffix("\n...")))
@@ -748,13 +758,11 @@ class Resolver:
             if not _NODE_NAME.fullmatch(name):
                 raise LaunchError(f.at(_line(d, "name")), f"invalid node name '{name}'")
             cmd += ["-r", f"__node:={name}"]
-        if "namespace" in d and "ros_namespace" in d:
-            raise LaunchError(f.at(_line(d, "ros_namespace")), "give 'namespace' or 'ros_namespace', not both")
-        ns_key = "ros_namespace" if "ros_namespace" in d else "namespace"
-        namespace = make_absolute(prefix_namespace(scope.configs.get("ros_namespace"), self._str(f, d, ns_key, scope)))
+        namespace = make_absolute(prefix_namespace(scope.configs.get("ros_namespace"),
+                                                   self._str(f, d, "namespace", scope)))
         if namespace is not None:
             if not _NAMESPACE.fullmatch(namespace):
-                raise LaunchError(f.at(_line(d, ns_key)), f"invalid namespace '{namespace}'")
+                raise LaunchError(f.at(_line(d, "namespace")), f"invalid namespace '{namespace}'")
             cmd += ["-r", f"__ns:={namespace}"]
         for pname, pvalue in scope.global_params:
             cmd += ["-p", f"{pname}:={pvalue}"]
@@ -802,7 +810,7 @@ class Resolver:
                 path = os.path.abspath(text)
                 if not os.path.isfile(path):
                     raise LaunchError(f.at(_line(entry, "from")), f"parameter file not found: {text}")
-                if self._bool(f, entry, "allow_substs", scope, False):
+                if self._literal(f, entry, "allow_substs", bool, False):
                     write(self._sub(Path(path).read_text(), scope, f, _line(entry, "from")))
                 else:
                     cmd.extend(["--params-file", path])
@@ -849,14 +857,14 @@ class Resolver:
         if cwd is not None and not os.path.isdir(cwd):
             raise LaunchError(f.at(_line(d, "cwd")), f"'cwd' is not a directory: {cwd}")
         prefix = self._split(f, d, "launch-prefix", scope)
-        self._bool(f, d, "emulate_tty", scope, False)  # accepted; our children never get a tty
+        self._literal(f, d, "emulate_tty", bool, False)  # accepted; our children never get a tty
         return ProcessSpec(
             label=label, cmd=prefix + cmd, env=env, cwd=cwd, output=output,
-            respawn=self._bool(f, d, "respawn", scope, False),
-            respawn_delay_s=self._number(f, d, "respawn_delay", scope, 0.0),
-            respawn_max_retries=int(self._number(f, d, "respawn_max_retries", scope, -1, minimum=-1)),
-            sigterm_timeout_s=self._number(f, d, "sigterm_timeout", scope, None),
-            sigkill_timeout_s=self._number(f, d, "sigkill_timeout", scope, None),
+            respawn=self._typed_bool(f, d, "respawn", scope),
+            respawn_delay_s=self._literal(f, d, "respawn_delay", float, 0.0),
+            respawn_max_retries=self._literal(f, d, "respawn_max_retries", int, -1, minimum=-math.inf),
+            sigterm_timeout_s=self._literal(f, d, "sigterm_timeout", float, None),
+            sigkill_timeout_s=self._literal(f, d, "sigkill_timeout", float, None),
             source=f.at(d.line),
         )
 
@@ -880,6 +888,14 @@ class Resolver:
                               f"{value!r} (quote it)")
         return value
 
+    def _plain(self, f: _File, d: MarkedDict, key: str, required: bool = False) -> str | None:
+        """Text launch takes as it is (an arg's name, a choice): a substitution there would never be evaluated."""
+        raw = self._raw(f, d, key, required)
+        if raw is not None and "$(" in raw:
+            raise LaunchError(f.at(_line(d, key)), f"'{key}' is plain text in ros2 launch, which takes a "
+                              f"substitution there literally: write the text itself, not '{raw}'")
+        return raw
+
     def _str(self, f: _File, d: MarkedDict, key: str, scope: Scope, required: bool = False,
              here: _File | None = None) -> str | None:
         raw = self._raw(f, d, key, required)
@@ -892,30 +908,40 @@ class Resolver:
             raise LaunchError(f.at(_line(d, key)), f"cannot split '{key}' into arguments: {exc}") from None
 
     def _bool(self, f: _File, d: MarkedDict, key: str, scope: Scope, default: bool) -> bool:
-        value = d.get(key, default)
-        if isinstance(value, str):
-            text = self._sub(value, scope, f, _line(d, key)).strip().lower()
-            if text not in _TRUE | _FALSE:
-                raise LaunchError(f.at(_line(d, key)), f"'{key}' must be true or false, got '{text}'")
-            return text in _TRUE
-        if not isinstance(value, bool):
-            raise LaunchError(f.at(_line(d, key)), f"'{key}' must be true or false, got {value!r}")
-        return value
+        """A condition (``if``/``unless``; launch's IfCondition): text, substituted, then true/false/1/0."""
+        if key not in d:
+            return default
+        text = self._str(f, d, key, scope).strip().lower()
+        if text not in _TRUE | _FALSE:
+            raise LaunchError(f.at(_line(d, key)), f"'{key}' must be true or false, got '{text}'")
+        return text in _TRUE
 
-    def _number(self, f: _File, d: MarkedDict, key: str, scope: Scope, default: float | None,
-                minimum: float = 0.0) -> float | None:
+    def _typed_bool(self, f: _File, d: MarkedDict, key: str, scope: Scope) -> bool:
+        """``respawn``: text, substituted, then launch's coercion to bool (1/0 or a YAML boolean)."""
+        if key not in d:
+            return False
+        try:
+            return _launch_bool(key, self._str(f, d, key, scope))
+        except SubstitutionError:
+            raise LaunchError(f.at(_line(d, key)), f"'{key}' must be true or false, got '{d[key]}'") from None
+
+    def _literal(self, f: _File, d: MarkedDict, key: str, kind: type, default: Any, minimum: float = 0.0) -> Any:
+        """An attribute launch reads as a plain YAML value of ``kind`` (float, int or bool), never substituted:
+        a string, even '0.1', is refused (launch compares it with a number, or takes the text as true)."""
         if key not in d:
             return default
         value = d[key]
         if isinstance(value, str):
-            text = self._sub(value, scope, f, _line(d, key))
-            try:
-                value = float(text)
-            except ValueError:
-                value = text
-        if isinstance(value, bool) or not isinstance(value, int | float) or not minimum <= value < float("inf"):
+            what = _LITERAL_FAILS.get(key) or _LITERAL_FAILS[kind]
+            raise LaunchError(f.at(_line(d, key)), f"'{key}' is a plain YAML {kind.__name__} in ros2 launch on Jazzy, "
+                              f"not a substitution or a string (it {what}): write e.g. "
+                              f"'{key}: {_LITERAL_EXAMPLES[kind]}'; got {value!r}")
+        if type(value) is not kind:  # exact: launch_yaml does not coerce (1 is no float, true no int)
+            raise LaunchError(f.at(_line(d, key)), f"'{key}' must be a YAML {kind.__name__} (e.g. "
+                              f"{_LITERAL_EXAMPLES[kind]}), got {_type_name(value)} {value!r}")
+        if kind is not bool and not minimum <= value < float("inf"):
             raise LaunchError(f.at(_line(d, key)), f"'{key}' must be a finite number >= {minimum:g}, got {value!r}")
-        return float(value)
+        return value
 
     def _dicts(self, f: _File, d: MarkedDict, key: str, kind: str) -> list[MarkedDict]:
         value = d.get(key)

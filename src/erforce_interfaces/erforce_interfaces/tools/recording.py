@@ -1,5 +1,11 @@
 """Record every topic of a graph into a rosbag2 bag with MCAP storage, like ``ros2 bag record -a``.
 
+Which topics: those ``ros2 bag record -a`` takes on Jazzy (rosbag2_transport's TopicFilter with all topics
+and all services): every topic with a publisher and a single type, ``/rosout`` and ``/parameter_events``
+included, except hidden ones (a name part starting with ``_``); a service's introspection topic
+(``.../_service_event``) is hidden but taken, as ``-a`` also records services. Like rosbag2 without the
+type's package, a type the bag cannot describe (not in rosbags' Jazzy type store) is left out.
+
 The bag is a rosbag2 directory (metadata.yaml + .mcap), so ``ros2 bag info/play`` and
 Foxglove open it. Messages are taken raw (CDR bytes, no deserialization) and in batches:
 the recorder does not spin an executor, it drains every subscription's DDS queue every
@@ -65,8 +71,22 @@ _FILE_KEYS = ("path", "starting_time", "duration", "message_count")
 
 
 def _message_class(type_name: str):
-    pkg, _, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{pkg}.msg"), name)
+    pkg, kind, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
+
+
+def is_service_event_topic(topic: str, type_name: str) -> bool:
+    """A service's introspection topic, as rosbag2 tells it: ``<service>/_service_event`` of a ``/srv/..._Event``."""
+    return topic.endswith("/_service_event") and "/srv/" in type_name and type_name.endswith("_Event")
+
+
+def records_topic(topic: str, types: list[str], published: bool) -> bool:
+    """Whether ``ros2 bag record -a`` on Jazzy records ``topic`` (rosbag2_transport TopicFilter::take_topic
+    with all topics and services, no include or exclude options)."""
+    if len(set(types)) != 1 or not published:  # several types, or unpublished: never recorded
+        return False
+    hidden = any(part.startswith("_") for part in topic.split("/") if part)
+    return is_service_event_topic(topic, types[0]) or not hidden
 
 
 def _qos_time(duration: Duration) -> QosTime:
@@ -171,14 +191,12 @@ class BagRecorder:
     def discover(self) -> None:
         """Subscribe to the topics that appeared since the last call."""
         for topic, types in self.node.get_topic_names_and_types():
-            if topic in self._connections or not types or topic.startswith("/rosout") or "parameter_events" in topic:
+            if topic in self._connections:
+                continue
+            publishers = self.node.get_publishers_info_by_topic(topic)
+            if not records_topic(topic, types, bool(publishers)) or types[0] not in self._typestore.types:
                 continue
             type_name = types[0]
-            if type_name not in self._typestore.types:
-                continue  # not a standard type: nothing of ours
-            publishers = self.node.get_publishers_info_by_topic(topic)
-            if not publishers:
-                continue
             best_effort = any(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in publishers)
             # Deep queues: they hold what arrives between two polls (and more when the recorder lags).
             qos = QoSProfile(depth=10000, reliability=ReliabilityPolicy.BEST_EFFORT if best_effort
