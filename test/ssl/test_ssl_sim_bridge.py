@@ -4,6 +4,7 @@ ball_detected, scenario topics become teleports, simulator errors reach /sim/eve
 do not stop the bridge; and the stack's predictor and catcher receive a ball in the stand-in, which they
 see only through its SSL-Vision and drive only through the bridge."""
 
+import math
 import socket
 import time
 
@@ -50,7 +51,7 @@ def standin():
 
 def test_bridge_drives_the_simulator_and_maps_its_answers_back(ros_graph, standin):
     node = ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={
-        "team": "blue", "robot_ids": [0, 1], "command_port": standin.port, "control_port": standin.control_port,
+        "team_color": "blue", "robot_ids": [0, 1], "command_port": standin.port, "control_port": standin.control_port,
         "rate_hz": 100.0})
     probe = ros_graph.probe
     contact = probe.subscribe(contract.BALL_DETECTED.for_robot(0), Bool)
@@ -105,12 +106,32 @@ def test_bridge_drives_the_simulator_and_maps_its_answers_back(ros_graph, standi
     assert node.output().count("dropped a simulator answer") < 20  # throttled, not one line per datagram
 
 
+def test_bridge_turns_teleports_into_the_simulators_frame_when_we_defend_positive_x(ros_graph, standin):
+    """The scenario topics are in the field frame (as vision after ssl_vision_bridge): defending the simulator's
+    positive x, the ball at (1, 2) m rolling at (3, 0) m/s is placed at (-1, -2) m rolling at (-3, 0) m/s, and
+    our robot 1 at (1, 2) m facing +y at (-1, -2) m facing -y."""
+    ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={
+        "team_color": "yellow", "defend_side": "positive_x", "robot_ids": [1], "command_port": standin.port,
+        "control_port": standin.control_port})
+    probe = ros_graph.probe
+    set_ball = probe.wait_for_subscribers(contract.SIM_SET_BALL.name, Odometry, timeout_s=20.0)
+    set_ball.publish(odometry_msg(0.0, (1.0, 2.0, 0.0), (3.0, 0.0, 0.0)))
+    probe.spin_until(lambda: len(standin.teleports) >= 1, 10.0, "the ball's teleport at the simulator")
+    set_robot = probe.wait_for_subscribers(contract.SIM_SET_STATE.for_robot(1), Odometry, timeout_s=20.0)
+    set_robot.publish(odometry_msg(0.0, (1.0, 2.0, math.pi / 2), (0.0, 0.0, 0.0)))
+    probe.spin_until(lambda: len(standin.teleports) >= 2, 10.0, "the robot's teleport at the simulator")
+    ball, robot = standin.teleports[0].control.teleport_ball, standin.teleports[1].control.teleport_robot[0]
+    assert (ball.x, ball.y, ball.vx, ball.vy) == (-1.0, -2.0, -3.0, 0.0)
+    assert (robot.id.id, robot.id.team, robot.x, robot.y) == (1, 1, -1.0, -2.0)  # team 1 = YELLOW
+    assert robot.orientation == pytest.approx(-math.pi / 2, abs=1e-6)
+
+
 def test_bridge_speaks_grsim(ros_graph):
     status_port = free_udp_port()
     sim = SimStandIn(protocol="grsim", status_port=status_port)
     try:
         ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={
-            "team": "yellow", "robot_ids": [3], "protocol": "grsim", "command_port": sim.port,
+            "team_color": "yellow", "robot_ids": [3], "protocol": "grsim", "command_port": sim.port,
             "grsim_status_port": status_port})
         probe = ros_graph.probe
         contact = probe.subscribe(contract.BALL_DETECTED.for_robot(3), Bool)
@@ -123,9 +144,9 @@ def test_bridge_speaks_grsim(ros_graph):
 
 
 def test_bridge_refuses_a_bad_configuration(ros_graph):
-    node = ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={"team": "green"})
+    node = ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={"team_color": "green"})
     assert node.wait_exit(timeout_s=20.0) == 1
-    assert "invalid parameter team: must be one of blue, yellow" in node.output()
+    assert "invalid parameter team_color: must be one of blue, yellow" in node.output()
 
 
 def test_bridge_commands_zero_a_stale_velocity_and_hold_a_kick():
@@ -152,7 +173,7 @@ def test_the_stacks_catcher_receives_a_ball_in_an_external_simulator(ros_graph):
         ros_graph.start_node("erforce_ball_model", "ball_predictor", params={"num_robots": 1})
         ros_graph.start_node("erforce_ball_model", "catcher", namespace="robot_0")
         ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={
-            "team": "blue", "robot_ids": [0], "command_port": sim.port, "control_port": 0})
+            "team_color": "blue", "robot_ids": [0], "command_port": sim.port, "control_port": 0})
         probe = ros_graph.probe
         odom = probe.subscribe(contract.ODOM.for_robot(0), Odometry, contract.ODOM.qos)
         contact = probe.subscribe(contract.BALL_DETECTED.for_robot(0), Bool)

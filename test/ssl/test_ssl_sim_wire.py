@@ -248,3 +248,38 @@ def test_fuzz_feedback_ids_are_bounded_or_refused(rows):
     except WireError:
         return
     assert all(0 <= k <= ssl_sim.MAX_ROBOT_ID for k in out.ball_contact)
+
+
+# A teleport given in the field frame (x towards the opponents' goal): the ball at (1, 2) m rolling at (3, 0) m/s,
+# our robot 5 at (1, 2) m facing +y (pi/2 rad). Defending the simulator's positive x, the simulator's frame is the
+# field frame turned by half a turn: (-1, -2) m, (-3, 0) m/s, facing -y (-pi/2 rad, grSim: -90 degrees).
+TELEPORT_CASES = [
+    (team, side, (1.0, 2.0, 3.0, 0.0) if side == "negative_x" else (-1.0, -2.0, -3.0, 0.0),
+     (1.0, 2.0, math.pi / 2) if side == "negative_x" else (-1.0, -2.0, -math.pi / 2))
+    for team in ("blue", "yellow") for side in ("negative_x", "positive_x")
+]
+
+
+@pytest.mark.parametrize(("team", "side", "ball", "robot"), TELEPORT_CASES)
+def test_teleports_in_the_field_frame_reach_the_simulator_in_its_frame(team, side, ball, robot):
+    data = ssl_sim.teleport_packet("ssl", side, (1.0, 2.0, 3.0, 0.0), [(team, 5, 1.0, 2.0, math.pi / 2)])
+    control = ssl_simulation_control_pb2.SimulatorCommand.FromString(data).control
+    b, (r,) = control.teleport_ball, control.teleport_robot
+    assert (b.x, b.y, b.vx, b.vy) == ball  # metres, m/s (floats: these are exact)
+    assert (r.id.id, r.id.team) == (5, 2 if team == "blue" else 1)  # gc Team: YELLOW 1, BLUE 2
+    assert (r.x, r.y) == robot[:2] and r.orientation == pytest.approx(robot[2], abs=1e-6)  # radians
+
+    data = ssl_sim.teleport_packet("grsim", side, (1.0, 2.0, 3.0, 0.0), [(team, 5, 1.0, 2.0, math.pi / 2)])
+    replacement = grsim_pb2.grSim_Packet.FromString(data).replacement
+    b, (r,) = replacement.ball, replacement.robots
+    assert (b.x, b.y, b.vx, b.vy) == ball  # grSim: metres, m/s
+    assert (r.id, r.yellowteam, r.x, r.y) == (5, team == "yellow", *robot[:2])
+    assert r.dir == pytest.approx(math.degrees(robot[2]), abs=1e-9)  # grSim: degrees
+
+
+def test_a_half_turn_is_its_own_inverse_and_keeps_a_missing_heading():
+    from erforce_interfaces.robot_config import half_turn
+    x, y, theta = half_turn(0.5, -4.0, 3.0)
+    assert (x, y) == (-0.5, 4.0) and theta == pytest.approx(3.0 - math.pi)
+    assert half_turn(x, y, theta)[2] == pytest.approx(3.0)
+    assert math.isnan(half_turn(1.0, 1.0, math.nan)[2])

@@ -71,7 +71,7 @@ from erforce_interfaces.node_support import (
     run_node,
 )
 from erforce_interfaces.param_schema import load_schema
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.robot_config import FieldConfig, half_turn, turned_half
 from erforce_interfaces.ssl_vision import (
     TEAMS,
     ClockJump,
@@ -111,7 +111,7 @@ def build_config(c) -> BridgeConfig:
             raise ValueError(f"{name} must be an IPv4 address, got {getattr(c, name)!r}") from None
     return BridgeConfig(
         ours=c.team_color,
-        flip=c.defend_side == "positive_x",
+        flip=turned_half(c.defend_side),
         field=FieldConfig.preset(c.field),
         time_source=c.time_source,
         clock_window_s=c.clock_window_s,
@@ -442,11 +442,10 @@ class SslVisionBridge(Node):
             self._warn.warn("stamp", f"ssl_vision_bridge: camera {frame.camera_id}: no valid stamp ({t_s!r})")
             return
         balls, robots = frame.balls, frame.robots  # rows: ssl_vision's BALL_COLUMNS, ROBOT_COLUMNS
-        if cfg.flip:  # half a turn
+        if cfg.flip:  # into the field frame (ssl_sim_bridge turns teleports back the same way)
             balls, robots = balls.copy(), robots.copy()
-            balls[:, :2] *= -1.0
-            robots[:, 2:4] *= -1.0
-            robots[:, 4] = [math.remainder(theta + math.pi, 2 * math.pi) for theta in robots[:, 4].tolist()]
+            balls[:, 0], balls[:, 1] = half_turn(balls[:, 0], balls[:, 1])
+            robots[:, 2], robots[:, 3], robots[:, 4] = half_turn(robots[:, 2], robots[:, 3], robots[:, 4])
         ball, used = self._tracker.frame_indices(frame.camera_id, t_s, balls, robots)
         self.stats["frames"] += 1
         try:

@@ -228,3 +228,35 @@ FIELD_PRESETS: dict[str, FieldConfig] = {
     "division_a": FieldConfig(length_m=12.0, width_m=9.0, boundary_m=0.3),
     "division_b": FieldConfig(length_m=9.0, width_m=6.0, boundary_m=0.3),
 }
+
+# A node's ``field`` parameter may name a preset or this: the field is what the world's SSL geometry says, and
+# nothing is judged against a field before it arrives.
+FROM_GEOMETRY = "from_geometry"
+
+
+def field_from_setting(name: str) -> FieldConfig | None:
+    """The field a ``field`` parameter names: a preset, or None for ``from_geometry`` (wait for the world's)."""
+    return None if name == FROM_GEOMETRY else FieldConfig.preset(name)
+
+
+# The ``field`` frame: origin at the field's centre, x towards the opponents' goal. A world that has us
+# defending its positive x (``defend_side``) is turned by half a turn against it.
+DEFEND_SIDES = ("negative_x", "positive_x")
+OUR_DEFEND_SIDE = "negative_x"  # unless told otherwise (both SSL bridges' defend_side)
+
+
+def turned_half(defend_side: str) -> bool:
+    """Whether the world's frame is our ``field`` frame turned by half a turn (we defend its positive x)."""
+    if defend_side not in DEFEND_SIDES:
+        raise ValueError(f"defend_side: must be one of {', '.join(DEFEND_SIDES)}, got {defend_side!r}")
+    return defend_side == "positive_x"
+
+
+def half_turn(x, y, theta=None):
+    """A position (and heading) turned by half a turn about the field's centre: from the world's frame to
+    ``field`` when ``turned_half``, and back (it is its own inverse). Velocities turn the same way
+    (``half_turn(vx, vy)``). Floats or numpy arrays; a NaN heading (none seen) stays NaN; headings come
+    back in [-pi, pi)."""
+    if theta is None:
+        return -x, -y
+    return -x, -y, np.mod(theta, 2.0 * math.pi) - math.pi

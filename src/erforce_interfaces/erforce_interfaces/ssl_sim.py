@@ -8,8 +8,10 @@ Ports (the protocol's defaults): simulator control 10300, robot control 10301 (b
 address. grSim takes ``grSim_Packet`` on 20011 and reports ``grSim_Robots_Status`` on 30011 (blue)
 and 30012 (yellow).
 
-Frames and units: the protocol's field coordinates are metres with the origin at the centre, the
-same as the contract's ``field`` frame, so positions map 1:1. Local velocities are the contract's
+Frames and units: the protocol's field coordinates are metres with the origin at the centre (grSim's
+replacement too, its robot direction in degrees). The contract's ``field`` frame has x towards the
+opponents' goal: when we defend the simulator's positive x it is the simulator's frame turned by half a
+turn (``teleport_packet``, as ssl_vision_bridge turns vision), else they map 1:1. Local velocities are the contract's
 ``base_link`` (forward = x towards the dribbler, left = y). Kick speed in m/s; dribbler speed on the
 wire in rpm, in rad/s on the contract.
 
@@ -26,6 +28,7 @@ from dataclasses import dataclass, field
 from google.protobuf import unknown_fields
 from google.protobuf.message import DecodeError
 
+from erforce_interfaces.robot_config import half_turn, turned_half
 from erforce_interfaces.ssl_proto import (
     grsim_pb2,
     ssl_gc_common_pb2,
@@ -239,6 +242,20 @@ def encode_grsim_replacement(ball: Sequence[float] | None = None,
         packet.replacement.robots.add(x=float(x), y=float(y), dir=math.degrees(float(yaw)), id=int(robot_id),
                                       yellowteam=check_team(team) == "yellow", turnon=True)
     return packet.SerializeToString()
+
+
+def teleport_packet(protocol: str, defend_side: str, ball: Sequence[float] | None = None,
+                    robots: Iterable[tuple[str, int, float, float, float]] = ()) -> bytes:
+    """A teleport of the ball (x, y, vx, vy) and robots (team, id, x, y, yaw) given in the ``field`` frame, in the
+    simulator's frame (``defend_side`` of the side we defend there) and wire format (protocol ``ssl``: a
+    ``SimulatorCommand``, ``grsim``: a ``grSim_Packet``)."""
+    if turned_half(defend_side):
+        if ball is not None:
+            x, y, vx, vy = ball
+            ball = (*half_turn(x, y), *half_turn(vx, vy))
+        robots = [(team, robot_id, *half_turn(x, y, yaw)) for team, robot_id, x, y, yaw in robots]
+    encode = encode_grsim_replacement if protocol == "grsim" else encode_teleport
+    return encode(ball, robots)
 
 
 def decode_simulator_response(data: bytes) -> tuple[str, ...]:

@@ -11,7 +11,11 @@ or grSim's robot status on 30011 / 30012) on ``robot_<id>/ball_detected``, its e
 on ``/sim/events``. A cmd_vel older than ``command_timeout_s`` is sent as zero. Garbage answers are
 dropped with a throttled warning. The scenario topics ``/sim/set_ball`` and ``robot_<id>/sim/set_state``
 become teleports (``SimulatorCommand`` to ``control_port``, or grSim's replacement packet), so scenario
-scripts place the ball and robots in the external simulator as in our plant.
+scripts place the ball and robots in the external simulator as in our plant. Like ssl_vision_bridge,
+``team_color`` names our robots and ``defend_side`` the goal we defend in the simulator: poses and
+teleports live in the ``field`` frame (x towards the opponents' goal), turned by half a turn into the
+simulator's when we defend its positive x (erforce_interfaces.ssl_sim.teleport_packet); cmd_vel is in
+base_link and needs no turn.
 
 Vision comes back from the simulator as SSL-Vision packets (its vision port), for ssl_vision_bridge.
 Sockets are polled in the send timer: feedback is at most one period old.
@@ -62,7 +66,7 @@ class SslSimBridgeNode(Node):
         self._warn = ThrottledWarner(self)
         self._params = NodeParams(self, SCHEMA, _check)
         v = self._values = self._params.values
-        self._team = v["team"]
+        self._team = v["team_color"]
         self._grsim = v["protocol"] == "grsim"
         self._state = ssl_sim.BridgeCommands(v["robot_ids"], v["command_timeout_s"], v["kick_hold_s"])
         default_port = ssl_sim.GRSIM_COMMAND_PORT if self._grsim else ssl_sim.ROBOT_CONTROL_PORTS[self._team]
@@ -95,8 +99,9 @@ class SslSimBridgeNode(Node):
         self.sent = 0
         self.create_timer(1.0 / v["rate_hz"], self._tick, clock=RclClock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
-            f"ssl_sim_bridge: {self._team} robots {list(self._state.robot_ids)} -> "
+            f"ssl_sim_bridge: {self._team} robots {list(self._state.robot_ids)} defending {v['defend_side']} -> "
             f"{v['protocol']} simulator at {self._target[0]}:{self._target[1]}")
+        self._params.on_change(lambda _config: None)  # defend_side: read at each teleport
 
     # ---------------------------------------------------------------- commands in
     def _on_cmd_vel(self, robot: int, msg: Twist) -> None:
@@ -121,10 +126,8 @@ class SslSimBridgeNode(Node):
 
     # ---------------------------------------------------------------- scenario commands -> teleports
     def _teleport(self, ball=None, robots=()) -> None:
-        if self._grsim:
-            data = ssl_sim.encode_grsim_replacement(ball, robots)
-        else:
-            data = ssl_sim.encode_teleport(ball, robots)
+        """Ball and robots placed where the ``field`` frame says (the side we defend is read now)."""
+        data = ssl_sim.teleport_packet(self._values["protocol"], self._values["defend_side"], ball, robots)
         try:
             self._sock.sendto(data, self._control_target)
         except OSError as exc:
