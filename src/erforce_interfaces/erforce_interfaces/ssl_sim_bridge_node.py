@@ -102,8 +102,8 @@ class SslSimBridgeNode(Node):
         self.sent = 0
         self.create_timer(1.0 / v["rate_hz"], self._tick, clock=RclClock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
-            f"ssl_sim_bridge: {self._team} robots {list(self._state.robot_ids)} ({whose.prefix}<id>) defending {v['defend_side']} -> "
-            f"{v['protocol']} simulator at {self._target[0]}:{self._target[1]}")
+            f"ssl_sim_bridge: {self._team} robots {list(self._state.robot_ids)} ({whose.prefix}<id>) defending "
+            f"{v['defend_side']} -> {v['protocol']} simulator at {self._target[0]}:{self._target[1]}")
         self._params.on_change(lambda _config: None)  # defend_side: read at each teleport
 
     # ---------------------------------------------------------------- commands in
