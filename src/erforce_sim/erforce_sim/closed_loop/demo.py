@@ -419,7 +419,8 @@ def _idle_priority(thread_id: int) -> None:
         pass
 
 
-def spawn_in_session(cmd: list[str], log_path: Path, idle: bool = False) -> subprocess.Popen:
+def spawn_in_session(cmd: list[str], log_path: Path, idle: bool = False,
+                     env: dict[str, str] | None = None) -> subprocess.Popen:
     """Start a graph process in a process group of its own (stop_process signals the group) but in
     this session. Scheduling priorities rank threads only inside one autogroup, and Linux makes one
     per session (CONFIG_SCHED_AUTOGROUP, on in most distributions): in a session of its own the
@@ -428,7 +429,7 @@ def spawn_in_session(cmd: list[str], log_path: Path, idle: bool = False) -> subp
     """
     with open(log_path, "wb") as log:  # the child keeps its own copy
         return subprocess.Popen(
-            cmd, stdout=log, stderr=subprocess.STDOUT, process_group=0,
+            cmd, stdout=log, stderr=subprocess.STDOUT, process_group=0, env=env,
             preexec_fn=(lambda: _idle_priority(0)) if idle else None,
         )
 
@@ -711,6 +712,17 @@ def main(argv: list[str] | None = None) -> int:
         help="ssl: vision goes as SSL-Vision packets from 4 simulated cameras through ssl_vision_bridge "
         "(loopback multicast) instead of the plant's vision topics",
     )
+    parser.add_argument(
+        "--world",
+        default="plant",
+        choices=("plant", "ssl"),
+        help="passing: plant (our simulated world in the graph) or ssl (an outside world: the stand-in, "
+        "ssl_world.launch.yaml, started as a program of its own, and only the AI side, team_sim.launch.yaml "
+        "world:=ssl, talking to it over SSL-Vision and the simulation protocol)",
+    )
+    parser.add_argument("--world-ball", type=float, nargs=3, metavar=("A_SLIDE", "A_ROLL", "C_SWITCH"),
+                        help="--world ssl: the stand-in's carpet as the two-phase model, e.g. -14 -0.7 0.7 (its "
+                             "geometry carries it; default: the plant's own)")
     parser.add_argument("--view", action="store_true",
                         help="serve the field view in a browser while the demo runs (prints its address)")
     parser.add_argument("--view-port", type=int, default=8090, help="HTTP port of the field view")
