@@ -177,6 +177,10 @@ class SslSimServerNode(Node):
                 error = [ssl_sim.SimError(ssl_sim.ERROR_INVALID, str(exc))]
                 reply = (ssl_sim.encode_robot_control_response({}, error) if robot_control
                          else ssl_sim.encode_simulator_response(error))
+            except Exception:
+                if not self.context.ok():
+                    return  # shutting down: a command that arrived meanwhile has nowhere to go
+                raise
             try:
                 sock.sendto(reply, addr)
             except OSError as exc:
