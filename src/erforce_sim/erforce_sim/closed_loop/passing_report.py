@@ -333,7 +333,7 @@ def run_on_graph(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("interrupted: stopping the graph", flush=True)
     finally:
-        _stop_quietly(stop_processes, graphs, recorder, view)
+        _stop_quietly(stop_processes, graphs, recorder, view, out / "record.log")
         for observer in {id(o): o for o in (ai, truth)}.values():
             observer.close()
         if lease is not None:
@@ -361,14 +361,17 @@ def _path_of(record: PassRecord, ball_path: list, cfg: GameConfig) -> tuple:
     return tuple((x, y) for t, x, y in ball_path if record.t_kick_s <= t <= end)
 
 
-def _stop_quietly(stop_processes, graphs, recorder, view) -> None:
-    """The graph first (each launch with its nodes, at once), then the observers; a second Ctrl-C meanwhile
-    only hurries it (the next signal), so nothing is left running and no traceback is printed."""
+def _stop_quietly(stop_processes, graphs, recorder, view, recorder_log: Path) -> None:
+    """The graph first (each launch with its nodes, at once), then the observers, with Ctrl-C ignored meanwhile
+    so that nothing is left running. A recorder still importing (it starts at idle priority, and a flat-out
+    world can hold it off) gets SIGTERM: SIGINT would end its imports with a KeyboardInterrupt traceback."""
     import signal
 
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         stop_processes(graphs, sigint_timeout_s=10.0)
+        if recorder.poll() is None and not recorder_log.read_text(errors="replace").strip():
+            recorder.terminate()
         stop_processes([p for p in (recorder, view) if p is not None], sigint_timeout_s=20.0)
     finally:
         signal.signal(signal.SIGINT, previous)
