@@ -144,3 +144,24 @@ def test_frame_times_summarize_each_full_window_and_a_flush_the_open_one():
     times.add(1e-3, 2e-3)
     assert times.flush().startswith("ball frame processing over 1 frames: median 2.000 ms, p99 2.000 ms")
     assert FrameTimes(0).add(1e-3, 2e-3) is None  # off
+
+
+def test_with_the_field_from_the_world_nothing_is_judged_until_its_geometry_arrives():
+    """Division B's lines are at |x| = 4.5 m (rejected beyond 4.5 + 0.5 m), Division A's at 6 m: a robot at
+    x = 5.2 m and a ball at x = 5.3 m are outside the one and inside the other."""
+    warnings = []
+    predictor = BallPredictor(PredictorConfig(num_robots=1, field=None),
+                              warn=lambda key, text: warnings.append(text))
+    assert predictor.robot_frame(0, 1.0, 5.2, 0.0, 0.0) is None
+    assert predictor.ball_frame(1.0, 5.3, 0.0) is None
+    assert (warnings, predictor.waiting_frames) == ([], 2)  # waited, judged nothing
+    predictor.set_vision_geometry(field=FieldConfig.preset("division_a"))
+    assert predictor.robot_frame(0, 1.01, 5.2, 0.0, 0.0) is not None
+    assert predictor.ball_frame(1.01, 5.3, 0.0) is not None
+    assert warnings == []
+
+    pinned = BallPredictor(PredictorConfig(num_robots=1, field=FIELD), warn=lambda key, text: warnings.append(text))
+    assert pinned.robot_frame(0, 1.0, 5.2, 0.0, 0.0) is None
+    assert warnings == ["robot_0: rejected robot pose outside the field: (5.200, 0.000) m"]
+    with pytest.raises(ValueError, match="needs use_vision_geometry"):
+        PredictorConfig(field=None, use_vision_geometry=False)

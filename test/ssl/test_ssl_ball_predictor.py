@@ -13,8 +13,16 @@ import rclpy
 
 from erforce_ball_model.ssl_ball_predictor import make_nodes
 from erforce_interfaces.conversions import float64_from_msg, vision_frame_from_msg
-from erforce_interfaces.robot_config import RobotConfig
-from erforce_interfaces.ssl_vision import SSL_VISION_GROUP, BallCandidate, CameraFrame, RobotSighting, encode_frame
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.ssl_vision import (
+    SSL_VISION_GROUP,
+    BallCandidate,
+    CameraFrame,
+    FieldGeometry,
+    RobotSighting,
+    encode_frame,
+    encode_geometry,
+)
 from erforce_sim.ssl_cameras import open_multicast_sender
 
 # the predictor's defaults (params/ball_predictor.yaml): reaction time, robot limits
@@ -54,7 +62,7 @@ def test_a_datagram_is_answered_with_a_catch_time_before_its_frame_is_published(
     drive over 1 m less the dribbler offset (the robot already faces the ball)."""
     port = free_udp_port()
     rclpy.init(args=["--ros-args", "-p", f"port:={port}", "-p", "interface:=127.0.0.1", "-p", "time_source:=vision",
-                     "-p", "num_robots:=1", "-p", "team_color:=yellow"])
+                     "-p", "num_robots:=1", "-p", "team_color:=yellow", "-p", "field:=division_b"])
     bridge = predictor = None
     sender = open_multicast_sender("127.0.0.1")
     try:
@@ -119,6 +127,49 @@ def test_the_predictor_takes_no_vision_topic_and_each_node_keeps_its_name():
         assert bridge.has_parameter("port") and not predictor.has_parameter("port")
         assert predictor.has_parameter("reaction_s") and not bridge.has_parameter("reaction_s")
     finally:
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def test_the_predictor_has_the_worlds_field_before_the_first_frame_it_answers():
+    """Default parameters: the bridge waits for SSL geometry (field: from_geometry) and hands it to the predictor
+    on its receive thread before the frames after it. Division A's geometry (lines at |x| = 6 m): our robot at
+    x = 5.2 m, beyond Division B's 4.5 m plus the predictor's 0.5 m margin, is tracked, never judged outside."""
+    port = free_udp_port()
+    rclpy.init(args=["--ros-args", "-p", f"port:={port}", "-p", "interface:=127.0.0.1", "-p", "num_robots:=1"])
+    nodes = ()
+    sender = open_multicast_sender("127.0.0.1")
+    try:
+        nodes = bridge, predictor = make_nodes()
+        fields, warnings, answered = [], [], threading.Condition()
+        predictor._predictor._warn = lambda key, text: warnings.append(text)
+        answer = predictor.answer_vision
+
+        def sink(data: bytes) -> None:
+            field = predictor._predictor.config.field
+            answer(data)
+            with answered:
+                fields.append(field)
+                answered.notify_all()
+
+        bridge._frame_sink = sink
+        frames = [encode_frame(CameraFrame(0, k + 1, 1.0 + k / FPS, 1.0 + k / FPS + 0.002,
+                                           (BallCandidate(1.0, 1.0, 0.9),),
+                                           (RobotSighting("blue", 0, 5.2, 1.0, 0.0, 1.0),))) for k in range(40)]
+        for data in frames[:10]:  # before geometry: not used (no frame goes out to wait for)
+            sender.sendto(data, (SSL_VISION_GROUP, port))
+        sender.sendto(encode_geometry(FieldGeometry(12.0, 9.0, 0.3, 1.8, 0.18)), (SSL_VISION_GROUP, port))
+        for data in frames[10:]:
+            with answered:
+                before = len(fields)
+                sender.sendto(data, (SSL_VISION_GROUP, port))
+                assert answered.wait_for(lambda b=before: len(fields) > b, 10.0), "a frame after the geometry"
+        assert fields and set(fields) == {FieldConfig.preset("division_a")}
+        assert predictor._predictor.robot_states_at(2.0, [0])[0][0] == pytest.approx(5.2, abs=0.01)
+        assert warnings == []
+    finally:
+        sender.close()
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()

@@ -169,7 +169,7 @@ def test_the_stacks_catcher_receives_a_ball_in_an_external_simulator(ros_graph):
     sim = VisionSimStandIn(vision_port)
     try:
         ros_graph.start_node("erforce_ball_model", "ssl_vision_bridge", params={
-            "interface": "127.0.0.1", "port": vision_port, "num_robots": 1})
+            "interface": "127.0.0.1", "port": vision_port, "num_robots": 1, "field": "division_b"})
         ros_graph.start_node("erforce_ball_model", "ball_predictor", params={"num_robots": 1})
         ros_graph.start_node("erforce_ball_model", "catcher", namespace="robot_0")
         ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={

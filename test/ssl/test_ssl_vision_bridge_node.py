@@ -71,7 +71,7 @@ def bridge(ros_graph):
     port = free_udp_port()
     node = ros_graph.start_node("erforce_ball_model", "ssl_vision_bridge", params={
         "port": port, "interface": "127.0.0.1", "team_color": "yellow", "defend_side": "positive_x",
-        "num_robots": 4, "stats_period_s": 0.5, "publish_detections": True})
+        "num_robots": 4, "stats_period_s": 0.5, "publish_detections": True, "field": "division_b"})
     node.wait_for_output(r"ssl_vision_bridge: 224\.5\.23\.2", timeout_s=60.0)
     sender = Sender(port)
     yield ros_graph, node, sender
@@ -298,7 +298,7 @@ def test_a_frames_vision_robots_goes_out_before_its_vision_ball(general_path):
     from erforce_ball_model.ssl_vision_bridge import SslVisionBridge
 
     rclpy.init(args=["--ros-args", "-p", f"port:={free_udp_port()}", "-p", "interface:=127.0.0.1",
-                     "-p", f"publish_detections:={str(general_path).lower()}"])
+                     "-p", f"publish_detections:={str(general_path).lower()}", "-p", "field:=division_b"])
     node = None
     try:
         node = SslVisionBridge()
@@ -329,3 +329,46 @@ def test_a_frames_vision_robots_goes_out_before_its_vision_ball(general_path):
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def test_the_field_comes_from_the_world_nothing_is_judged_before_its_geometry(ros_graph):
+    """field: from_geometry (the default). Before geometry the bridge says once that it waits and publishes nothing;
+    after Division A's geometry (lines at |x| = 6 m) a ball at x = 5.3 m, beyond Division B's 4.5 m plus the
+    tracker's 0.5 m margin, is the ball; so is a robot of ours at x = 5.2 m, and the predictor judges it inside."""
+    port = free_udp_port()
+    bridge = ros_graph.start_node("erforce_ball_model", "ssl_vision_bridge", params={
+        "port": port, "interface": "127.0.0.1", "num_robots": 1, "stats_period_s": 0.5})
+    predictor = ros_graph.start_node("erforce_ball_model", "ball_predictor", params={
+        "num_robots": 1, "field": "from_geometry"})
+    bridge.wait_for_output(r"ssl_vision_bridge: 224\.5\.23\.2", timeout_s=60.0)
+    predictor.wait_for_output(r"ball_predictor: 1 robot", timeout_s=60.0)
+    probe = ros_graph.probe
+    robots = probe.subscribe(contract.VISION_ROBOTS.name, PointCloud2, contract.VISION_ROBOTS.qos)
+    states = probe.subscribe(contract.BALL_STATE.name, Odometry, contract.BALL_STATE.qos)
+    sender = Sender(port)
+    ball, robot = BallCandidate(5.3, 0.0, 0.9), RobotSighting("blue", 0, 5.2, 1.0, 0.0, 1.0)
+    try:
+        for k in range(60):
+            sender.send(sender.frame(0, k / 60.0, [ball], [robot]))
+            probe.spin_for(1 / 60.0)
+        bridge.wait_for_output(r"ssl_vision_bridge: \d+ datagrams", timeout_s=10.0)  # it has handled them
+        assert not robots
+        sender.send(encode_geometry(FieldGeometry(12.0, 9.0, 0.3, 1.8, 0.18)))
+        bridge.wait_for_output(r"SSL geometry: field 12 x 9 m", timeout_s=10.0)
+        predictor.wait_for_output(r"field from SSL geometry: 12 x 9 m", timeout_s=10.0)
+        k = 60
+        while not (states and any(vision_frame_from_msg(m)[1].size for m in robots)):
+            k += 1
+            sender.send(sender.frame(0, k / 60.0, [ball], [robot]))
+            probe.spin_for(1 / 60.0)
+            assert k < 600, bridge.output()[-2000:]
+    finally:
+        sender.sock.close()
+    _t_s, balls, rows = vision_frame_from_msg(robots[-1])
+    assert balls.tolist() == [pytest.approx([5.3, 0.0], abs=1e-6)]
+    assert [row[2:4] for row in rows.tolist()] == [pytest.approx([5.2, 1.0], abs=1e-6)]  # team, id, x, y, yaw
+    assert states[-1].pose.pose.position.x == pytest.approx(5.3, abs=0.01)
+    for node in (bridge, predictor):
+        out = node.output()
+        assert out.count("waiting for SSL geometry") == 1, out[-2000:]
+        assert "outside the field" not in out, out[-2000:]

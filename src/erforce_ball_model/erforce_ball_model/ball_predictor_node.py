@@ -77,7 +77,7 @@ from erforce_interfaces.node_support import (
     sample_clock,
 )
 from erforce_interfaces.param_schema import load_schema
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
 from erforce_interfaces.stamps import StampFilter, StampVerdict
 
 SCHEMA = load_schema("erforce_ball_model", "ball_predictor")
@@ -105,7 +105,7 @@ def build_config(c) -> PredictorConfig:
             max_gap_s=c.max_gap_s,
             max_ball_speed_mps=c.max_ball_speed_mps,
         ),
-        field=FieldConfig.preset(c.field),
+        field=field_from_setting(c.field),
         field_margin_m=c.field_margin_m,
         vision_reject_margin_m=c.vision_reject_margin_m,
         limits=RobotLimits(c.robot_a_max_mps2, c.robot_v_max_mps),
@@ -215,6 +215,8 @@ class BallPredictorNode(Node):
             f"a_slide {model.a_slide_mps2:g}, a_roll {model.a_roll_mps2:g}, c_switch {model.c_switch:g} "
             f"(online identification {'on' if predictor.config.online_identification else 'off'})"
         )
+        if predictor.config.field is None:
+            self.get_logger().info(WAITING_FOR_GEOMETRY)
         self._params.on_change(self._apply)
 
     def _apply(self, config: PredictorConfig) -> None:
@@ -253,10 +255,20 @@ class BallPredictorNode(Node):
         except (ConversionError, ValueError, IndexError) as exc:
             self._warn.warn("vision_field", f"rejected /vision/field: {exc}")
             return
+        self._geometry(field, None)
+
+    def take_geometry(self, field: FieldConfig, model: BallModelParams | None) -> None:
+        """SSL geometry from a receiver in this process (any thread), handed over before its next frame."""
+        with self._lock:
+            self._geometry(field, model)
+
+    def _geometry(self, field: FieldConfig, model: BallModelParams | None) -> None:
         before = self._predictor.config.field
-        self._predictor.set_vision_geometry(field=field)
-        if self._predictor.config.field != before:
-            self.get_logger().info(f"field from SSL geometry: {length:g} x {width:g} m")
+        if self._predictor.set_vision_geometry(field=field, model=model):
+            self._publish_model()
+        after = self._predictor.config.field
+        if after != before:
+            self.get_logger().info(f"field from SSL geometry: {after.length_m:g} x {after.width_m:g} m")
 
     def _on_vision_ball_model(self, msg: Float64MultiArray) -> None:
         with self._lock:

@@ -12,7 +12,8 @@ constant-velocity extrapolation to the frame's stamp, the reaction-time offset, 
 fit (identification.ShotAccumulator, fitted in a worker thread) once its standard errors are
 small enough. A model set by configuration wins over a fit until the next accepted fit. SSL
 geometry (``set_vision_geometry``) replaces the configured field and model while
-``use_vision_geometry`` is on, across later configuration changes.
+``use_vision_geometry`` is on, across later configuration changes; a configured field of None is the
+world's, and no vision is judged or answered until its geometry arrives.
 
 The ball_predictor node converts messages and publishes what this object answers; the
 in-process scenes (erforce_sim.closed_loop.scenes) and the bench (bench/bench_ball_predictor.py) run the
@@ -66,7 +67,8 @@ class PredictorConfig:
     num_robots: int = 1
     model: BallModelParams = _default(default_factory=BallModelParams)
     tracker: TrackerConfig = _default(default_factory=TrackerConfig)
-    field: FieldConfig = _default(default_factory=lambda: FieldConfig.preset("division_b"))
+    # None: the world's SSL geometry (set_vision_geometry); until it arrives no frame is judged or answered
+    field: FieldConfig | None = _default(default_factory=lambda: FieldConfig.preset("division_b"))
     field_margin_m: float = 0.0  # the catch search ends where the ball crosses the field lines extended by this
     vision_reject_margin_m: float = 0.5  # observations farther outside the field lines are rejected
     limits: RobotLimits = _default(default_factory=RobotLimits)
@@ -102,6 +104,8 @@ class PredictorConfig:
                 raise ValueError(f"{name}: must be finite, got {getattr(self, name)!r}")
         if self.reaction_s < 0.0:
             raise ValueError(f"reaction_s: must be >= 0, got {self.reaction_s!r}")
+        if self.field is None and not self.use_vision_geometry:
+            raise ValueError("field: from SSL geometry needs use_vision_geometry")
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -149,6 +153,7 @@ class BallPredictor:
         self._vision_model: BallModelParams | None = None
         self.model: BallModelParams = config.model  # in use: configured or identified
         self.last_fit: FitResult | None = None
+        self.waiting_frames = 0  # vision dropped while the field was not known (config.field None)
         self._ball: BallTracker | None = None
         self._search: CatchSearch | None = None
         self._shots: ShotAccumulator | None = None
@@ -183,9 +188,9 @@ class BallPredictor:
         model_before = self.model
         if old is None or config.model != old.model:
             self.model = config.model
-        self._search = CatchSearch(config.num_robots, config.limits, dribbler_offset_m=config.dribbler_offset_m,
-                                   field=config.field, field_margin_m=config.field_margin_m,
-                                   grid_step_s=config.grid_step_s, kernels=self._kernels)
+        self._search = None if config.field is None else CatchSearch(
+            config.num_robots, config.limits, dribbler_offset_m=config.dribbler_offset_m, field=config.field,
+            field_margin_m=config.field_margin_m, grid_step_s=config.grid_step_s, kernels=self._kernels)
         if self._ball is None or config.tracker != old.tracker:
             self._ball = BallTracker(self.model, config.tracker)  # the filter state is lost: it re-seeds
         self._ball.params = self.model
@@ -220,6 +225,9 @@ class BallPredictor:
         """A vision pose of ``robot``: its tracker after the update, or None when the pose was rejected.
         ``restart``: the stamp starts a new time line (StampVerdict.RESTART), the robot's tracker starts over."""
         cfg, key = self.config, f"pose{robot}"
+        if cfg.field is None:  # waiting for the world's field: nothing is judged against another
+            self.waiting_frames += 1
+            return None
         if not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m):
             self._warn(key, f"robot_{robot}: rejected robot pose outside the field: ({x_m:.3f}, {y_m:.3f}) m")
             return None
@@ -280,6 +288,9 @@ class BallPredictor:
         the observation was rejected or no prediction could be made (with a warning). ``restart``: the
         stamp starts a new time line (StampVerdict.RESTART), the ball filter and the shot collection start over."""
         cfg = self.config
+        if cfg.field is None:  # waiting for the world's field: nothing is judged against another
+            self.waiting_frames += 1
+            return None
         if not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m):
             self._warn("ball_outside", f"rejected vision/ball outside the field: ({x_m:.3f}, {y_m:.3f}) m")
             return None

@@ -8,7 +8,9 @@ after it arrived, with no DDS write, reader wake or executor round in between. `
 ``/vision/ball`` and the rest are still published afterwards, for tools and bags. The predictor takes no
 ``/vision/robots`` from DDS here (it would see its own frames twice); its other subscriptions, parameters and
 geometry callbacks run on the executor, one at a time with the frames (the predictor's lock). Frames are answered
-in datagram order, each whole (its ball, then its robots) before the next datagram is handled.
+in datagram order, each whole (its ball, then its robots) before the next datagram is handled. SSL geometry reaches
+the predictor the same way (``take_geometry``), before the frames after it: with ``field: from_geometry`` neither
+node judges a frame before the world's field is known.
 
 Parameters: a launch file's inline parameters reach both nodes (their key is ``/**``) and each declares its own;
 ``field`` and ``num_robots``, in both schemas, mean the same in both. A parameter file may address one node by
@@ -27,7 +29,7 @@ def make_nodes() -> tuple[SslVisionBridge, BallPredictorNode]:
     """The bridge (destroyed first: its receive thread stops before the predictor goes) and the predictor."""
     predictor = BallPredictorNode(vision_topic=False)
     try:
-        bridge = SslVisionBridge(frame_sink=predictor.answer_vision)
+        bridge = SslVisionBridge(frame_sink=predictor.answer_vision, geometry_sink=predictor.take_geometry)
     except BaseException:
         predictor.destroy_node()
         raise

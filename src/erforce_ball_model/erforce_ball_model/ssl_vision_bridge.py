@@ -71,7 +71,13 @@ from erforce_interfaces.node_support import (
     run_node,
 )
 from erforce_interfaces.param_schema import load_schema
-from erforce_interfaces.robot_config import FieldConfig, half_turn, turned_half
+from erforce_interfaces.robot_config import (
+    WAITING_FOR_GEOMETRY,
+    FieldConfig,
+    field_from_setting,
+    half_turn,
+    turned_half,
+)
 from erforce_interfaces.ssl_vision import (
     TEAMS,
     ClockJump,
@@ -95,7 +101,7 @@ _BALL_CODE = float(contract.VISION_BALL_CODE)
 class BridgeConfig:
     ours: str
     flip: bool
-    field: FieldConfig
+    field: FieldConfig | None  # None: from the world's SSL geometry (nothing is used until it arrives)
     time_source: str
     clock_window_s: float
     clock_jump_s: float
@@ -112,7 +118,7 @@ def build_config(c) -> BridgeConfig:
     return BridgeConfig(
         ours=c.team_color,
         flip=turned_half(c.defend_side),
-        field=FieldConfig.preset(c.field),
+        field=field_from_setting(c.field),
         time_source=c.time_source,
         clock_window_s=c.clock_window_s,
         clock_jump_s=c.clock_jump_s,
@@ -133,16 +139,20 @@ def open_multicast_socket(group: str, port: int, interface: str, receive_buffer_
 
 
 class SslVisionBridge(Node):
-    def __init__(self, frame_sink: Callable[[bytes], None] | None = None) -> None:
+    def __init__(self, frame_sink: Callable[[bytes], None] | None = None,
+                 geometry_sink: Callable[[FieldConfig, BallModelParams | None], None] | None = None) -> None:
         """``frame_sink``: called on the receive thread with each serialized ``/vision/robots`` frame before it is
         published (a consumer in this process, erforce_ball_model.ssl_ball_predictor); its CPU time is not
-        counted in the bridge's statistics."""
+        counted in the bridge's statistics. ``geometry_sink``: called there with each new SSL geometry's field and
+        ball model, before the next frame goes to ``frame_sink`` (a topic's message could come after it)."""
         super().__init__("ssl_vision_bridge")
         self._warn = ThrottledWarner(self)
         self._frame_sink = frame_sink
+        self._geometry_sink = geometry_sink
         self._sink_ns = 0  # the sink's thread CPU time in the current datagram
         self._config: BridgeConfig | None = None
         self._lock = threading.Lock()  # parameter changes vs the receive thread
+        self._last_geometry = None
         self._params = NodeParams(self, SCHEMA, build_config)
         v = self._values = self._params.values
         self._apply(self._params.built)
@@ -168,7 +178,6 @@ class SslVisionBridge(Node):
         self._points = np.empty((2 * (MAX_ROBOT_ID + 1) + 1, len(contract.VISION_ROBOT_FIELDS)))
         for i in range(self._n_ours):
             self._pose_publisher(0, i)
-        self._last_geometry = None
         try:
             self._sock = open_multicast_socket(v["group"], v["port"], v["interface"], v["receive_buffer_bytes"])
         except OSError as exc:  # no such interface, no multicast route, ...: one clear line at start
@@ -182,8 +191,10 @@ class SslVisionBridge(Node):
         self._thread.start()
         self.get_logger().info(
             f"ssl_vision_bridge: {v['group']}:{v['port']} on {v['interface']}, we are {v['team_color']} defending "
-            f"{v['defend_side']}, stamps: {v['time_source']}"
+            f"{v['defend_side']}, stamps: {v['time_source']}, field: {v['field']}"
         )
+        if self._tracker.field is None:
+            self.get_logger().info(WAITING_FOR_GEOMETRY)
         self._params.on_change(self._apply)
         # What start-up built lives as long as the node: out of the collector's way, so that a full
         # collection (triggered on any thread) does not walk it while datagrams wait.
@@ -200,12 +211,16 @@ class SslVisionBridge(Node):
                 self._tracker = VisionTracker(config.field)
             elif config.field != old.field and self._last_geometry is None:
                 self._tracker.field = config.field
-            # the compiled pass takes the usual configuration; a flipped field and the detections topic take
-            # the general path
-            self._fast = not (config.flip or config.publish_detections)
+            self._set_path()
             self._stamp_from_vision = config.time_source == "vision"
             if old is not None:
                 self._bind_pass()
+
+    def _set_path(self) -> None:
+        """The compiled pass takes the usual configuration; a flipped field, the detections topic and the wait for
+        geometry take the general path."""
+        cfg = self._config
+        self._fast = not (cfg.flip or cfg.publish_detections or self._tracker.field is None)
 
     def _bind_pass(self) -> None:
         """The compiled pass on the current clock, tracker and team (at start and after parameter changes)."""
@@ -410,12 +425,15 @@ class SslVisionBridge(Node):
                 [[geometry.length_m, geometry.width_m, geometry.boundary_m, geometry.goal_width_m,
                   geometry.goal_depth_m]], contract.VISION_FIELD_COLUMNS, "field"))
             self._tracker.field = field
+            self._set_path()
             model = geometry.ball_model
             if model is not None:
                 params = BallModelParams(model.a_slide_mps2, model.a_roll_mps2, model.c_switch)
                 self._model_pub.publish(table_cdr([[params.a_slide_mps2, params.a_roll_mps2, params.c_switch]],
                                                   contract.BALL_MODEL_PARAM_LABELS, "model"))
                 self._tracker.params = params
+            if self._geometry_sink is not None:
+                self._geometry_sink(field, None if model is None else params)
         except (ValueError, ConversionError) as exc:
             self._warn.warn("geometry", f"ssl_vision_bridge: geometry not used: {exc}")
             return
@@ -428,6 +446,9 @@ class SslVisionBridge(Node):
     # ------------------------------------------------------------------- frames
     def _on_frame(self, frame: DetectionArrays, t_receive_s: float) -> None:
         cfg = self._config
+        if self._tracker.field is None:  # nothing is judged against a field the world has not given
+            self.stats["waiting_geometry"] += 1
+            return
         if cfg.time_source == "vision":
             t_s = frame.t_capture_s
         else:

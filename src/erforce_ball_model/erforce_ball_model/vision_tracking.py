@@ -313,7 +313,7 @@ class VisionTracker:
     poses to use.
     """
 
-    def __init__(self, field: FieldConfig, params: BallModelParams | None = None,
+    def __init__(self, field: FieldConfig | None, params: BallModelParams | None = None,
                  tracker_config: TrackerConfig | None = None, config: VisionTrackingConfig | None = None) -> None:
         self.config = config or VisionTrackingConfig()
         self._params = params or BallModelParams()
@@ -341,16 +341,18 @@ class VisionTracker:
     switches = property(lambda self: int(self.counts[COUNT_SWITCHES]))
 
     @property
-    def field(self) -> FieldConfig:
+    def field(self) -> FieldConfig | None:
+        """The field candidates are judged against; None (not known yet): every candidate counts as inside."""
         return self._field
 
     @field.setter
-    def field(self, value: FieldConfig) -> None:
+    def field(self, value: FieldConfig | None) -> None:
         self._field = value
+        half_length, half_width = (math.inf, math.inf) if value is None else (value.half_length_m, value.half_width_m)
         margin = self.config.outside_margin_m
         s = self.settings
-        s[SETTING_HALF_LENGTH], s[SETTING_HALF_WIDTH] = value.half_length_m, value.half_width_m
-        s[SETTING_MAX_X], s[SETTING_MAX_Y] = value.half_length_m + margin, value.half_width_m + margin
+        s[SETTING_HALF_LENGTH], s[SETTING_HALF_WIDTH] = half_length, half_width
+        s[SETTING_MAX_X], s[SETTING_MAX_Y] = half_length + margin, half_width + margin
 
     @property
     def params(self) -> BallModelParams:

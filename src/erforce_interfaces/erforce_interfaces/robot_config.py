@@ -232,6 +232,8 @@ FIELD_PRESETS: dict[str, FieldConfig] = {
 # A node's ``field`` parameter may name a preset or this: the field is what the world's SSL geometry says, and
 # nothing is judged against a field before it arrives.
 FROM_GEOMETRY = "from_geometry"
+# what such a node logs once at start
+WAITING_FOR_GEOMETRY = "waiting for SSL geometry: no vision is judged or used until the world's field is known"
 
 
 def field_from_setting(name: str) -> FieldConfig | None:
