@@ -9,12 +9,13 @@ first camera to arrive founds the timeline, so every camera's frames belong at `
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 
 import pytest
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
-from erforce_interfaces.ssl_vision import ClockJump, CaptureTimeline
+from erforce_interfaces.ssl_vision import CaptureTimeline, ClockJump
 
 PERIOD_S = 1.0 / 60.0
 LATENCY_S = 0.004  # capture to send, world time
@@ -59,7 +60,7 @@ def check_cameras(accepted, founder_clock: float, settled_after: float, toleranc
     for camera, world, t_capture, stamp in accepted:
         by_camera.setdefault(camera, []).append((world, t_capture, stamp))
     for camera, rows in by_camera.items():
-        for (w0, t0, s0), (w1, t1, s1) in zip(rows, rows[1:], strict=False):
+        for (w0, t0, s0), (w1, t1, s1) in pairwise(rows):
             assert s1 > s0, camera
             if w1 > settled_after and t1 - t0 == pytest.approx(w1 - w0, abs=1e-9):
                 assert s1 - s0 == pytest.approx(t1 - t0, abs=tolerance_s), camera
