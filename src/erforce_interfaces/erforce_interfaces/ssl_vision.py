@@ -569,6 +569,10 @@ def encode_geometry(geometry: FieldGeometry, focal_length_px: float = 500.0) -> 
 
 
 # --------------------------------------------------------------------------------- vision clock
+#: The stamps' time sources (the bridge's ``time_source``), by mode number: the vision clock's estimate of the
+#: receiver's clock, ``t_capture`` as it is (already ROS time), the cameras' capture times on one timeline.
+TIME_SOURCES = ("estimate", "vision", "capture")
+TIME_ESTIMATE, TIME_VISION, TIME_CAPTURE = range(3)
 class ClockJump(ValueError):
     """A frame refused because its camera's clock seems to have jumped (not yet confirmed)."""
 
@@ -691,11 +695,12 @@ class VisionClock:
 # each camera's offset, and a few numbers for the whole timeline (_TG_*).
 (_TL_OFFSET, _TL_CALIBRATED, _TL_LAST_T, _TL_LAST_W, _TL_LAST_SENT, _TL_LAST_STAMP, _TL_RATE_W, _TL_RATE_SENT,
  _TL_NEXT_RATE_W, _TL_NEXT_RATE_SENT, _TL_SAMPLES, _TL_PENDING, _TL_PENDING_FIRST_T, _TL_PENDING_FIRST_W,
- _TL_PENDING_LAST_T, _TL_PENDING_LAST_W) = range(16)
-_TL_COLUMNS = 16
+ _TL_PENDING_LAST_T, _TL_PENDING_LAST_W, _TL_RECEIVED_W) = range(17)
+_TL_COLUMNS = 17
 (_TG_NEWEST, _TG_JUMPS, _TG_JUMP_S, _TG_MAX_RATE, _TG_CONFIRM_PACKETS, _TG_CONFIRM_S, _TG_SHARE_S, _TG_REF_AGE_S,
  _TG_CALIBRATION) = range(9)
 TIMELINE_OK, TIMELINE_BACK, TIMELINE_JUMP = range(3)  # timeline_step's status
+TIMELINE_LAST_T_CAPTURE = _TL_LAST_T  # the column of a camera's newest accepted t_capture (for a refusal's text)
 _RATE_BASE_S = 0.5  # a camera's rate (its seconds per receiver second) is measured over 0.5 .. 1 s of receive time
 
 
@@ -771,18 +776,26 @@ def timeline_step(cams, samples, glob, camera, t_capture, t_sent, w):
     """CaptureTimeline.stamp on the arrays: (status, stamp); the stamp NaN unless status is TIMELINE_OK."""
     row = cams[camera]
     jump_s, max_rate = glob[_TG_JUMP_S], glob[_TG_MAX_RATE]
+    # the capture time a frame may move on by: jump_s, and at max_rate over the receive time the camera was
+    # silent (since any frame of it: refused frames do not make a jump plausible)
+    silent_s = max(w - row[_TL_RECEIVED_W], 0.0)
+    row[_TL_RECEIVED_W] = w
     if np.isnan(row[_TL_OFFSET]):
         _anchor(cams, samples, glob, camera, t_capture, t_sent, w, t_capture, 1)
     else:
         dt = t_capture - row[_TL_LAST_T]
-        if 0.0 < dt <= jump_s + max_rate * max(w - row[_TL_LAST_W], 0.0):
+        if 0.0 < dt <= jump_s + max_rate * silent_s:
             row[_TL_PENDING] = 0.0
             if row[_TL_CALIBRATED] == 0.0:
                 _calibrate(cams, samples, glob, camera, t_sent, w)
+        elif -jump_s < dt <= 0.0:  # a late or repeated frame, or a small step back: refused until the clock passes
+            return TIMELINE_BACK, np.nan
         else:  # the camera's clock stepped back or too far forward: a new line once confirmed
             n = int(row[_TL_PENDING])
             if n > 0:
                 step = t_capture - row[_TL_PENDING_LAST_T]
+                if -jump_s < step <= 0.0:  # a late frame of the new line
+                    return (TIMELINE_BACK if dt <= 0.0 else TIMELINE_JUMP), np.nan
                 if not 0.0 < step <= jump_s + max_rate * max(w - row[_TL_PENDING_LAST_W], 0.0):
                     n = 0  # not one line: count again
             if n == 0:
@@ -825,13 +838,14 @@ class CaptureTimeline:
       carried forward at its measured rate to the receive time, minus the new camera's ``t_sent`` (equal
       network delays). The median of ``calibration_frames`` such samples becomes its offset, or the offset
       of a calibrated camera within ``share_s`` of it (one clock: SSL-Vision's host, a simulator).
-    - A camera's ``t_capture`` that is not after its previous one, or later by more than ``jump_s`` plus
-      ``max_rate`` times the receive time between them (a world at most that much faster than the
-      receiver), refuses the frame (status TIMELINE_BACK or TIMELINE_JUMP). Once ``confirm_packets`` such
-      frames on one line span ``confirm_s`` of receive time, the camera's clock has jumped (a restarted
-      simulator): it is measured again as a new camera; without another camera to measure it against, its
-      new line continues the timeline one frame period after its newest stamp. A stalled receiver's backlog
-      is consecutive frames and passes; a lone out-of-order frame is refused.
+    - A camera's ``t_capture`` that is not after its previous one refuses the frame (TIMELINE_BACK): a late
+      or repeated frame, or a step back by less than ``jump_s``, which passes once the clock passes its
+      previous time. One more than ``jump_s`` back, or later by more than ``jump_s`` plus ``max_rate``
+      times the receive time the camera was silent (a world at most that much faster than the receiver;
+      TIMELINE_JUMP), starts a suspected new line: once ``confirm_packets`` frames on it span ``confirm_s``
+      of receive time, the camera's clock has jumped (a restarted simulator) and it is measured again as a
+      new camera; without another camera to measure it against, its new line continues the timeline one
+      frame period after its newest stamp. A stalled receiver's backlog is consecutive frames and passes.
     - A camera's stamps strictly increase; ``newest_s`` (what /clock says) never goes back. Vision that
       stops holds it; when vision resumes, it moves on by the capture time that passed.
 
