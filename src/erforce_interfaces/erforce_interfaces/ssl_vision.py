@@ -866,6 +866,12 @@ class CaptureTimeline:
         self.glob = np.array([np.nan, 0.0, jump_s, max_rate, confirm_packets, confirm_s, share_s, reference_age_s,
                               calibration_frames])
 
+    def set_jump_s(self, jump_s: float) -> None:
+        """A new jump_s from now on (the timeline's time and offsets stay)."""
+        if not jump_s > 0.0:
+            raise ValueError(f"CaptureTimeline: jump_s must be > 0, got {jump_s!r}")
+        self.glob[_TG_JUMP_S] = jump_s
+
     @property
     def newest_s(self) -> float | None:
         """The newest stamp given (the timeline's now), None before the first frame."""
