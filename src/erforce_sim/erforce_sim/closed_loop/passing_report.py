@@ -274,7 +274,7 @@ def run_on_graph(args: argparse.Namespace) -> int:
     what the AI side sees; the report's ball paths, placements and the world's real-time factor come from the
     world's own topics, which this director reads beside it."""
     from nav_msgs.msg import Odometry
-    from std_msgs.msg import Float64MultiArray, String
+    from std_msgs.msg import Float64MultiArray
 
     from erforce_ball_model.passing_game_node import records_from_msg
     from erforce_interfaces.conversions import odometry_from_msg
@@ -297,8 +297,10 @@ def run_on_graph(args: argparse.Namespace) -> int:
         world = spawn_in_session(world_cmd, out / "world.log", env=env)
     launch = spawn_in_session(ai_cmd, out / "graph.log")
     bin_dir = Path(sys.executable).parent
+    # The recorder at idle priority only where the graph cannot run above it: beside a world and an AI under
+    # SCHED_FIFO it cannot preempt them, and at idle a flat-out world on a shared machine starved it for a whole game.
     recorder = spawn_in_session([str(bin_dir / "erforce-record"), str(out / "bag"), "--use-sim-time"],
-                                out / "record.log", idle=True)
+                                out / "record.log", idle=not _fifo_allowed())
     view = start_field_view(args, out, cfg.field_preset, range(cfg.team_size)) if args.view else None
     records: list[PassRecord] = []
     ball_path: list[tuple[float, float, float]] = []  # t, x, y of the true ball
@@ -320,9 +322,6 @@ def run_on_graph(args: argparse.Namespace) -> int:
 
     ai.node.create_subscription(Float64MultiArray, q.PASS_RECORDS.name, on_record, q.PASS_RECORDS.qos)
     truth.node.create_subscription(Odometry, q.GROUND_TRUTH_BALL.name, on_ball, q.GROUND_TRUTH_BALL.qos)
-    placements = []  # the plant's events: the first placement starts the game, each further one is a reset
-    truth.node.create_subscription(String, q.SIM_EVENTS.name, lambda m: placements.append(m.data)
-                                   if "ball placed" in m.data else None, q.SIM_EVENTS.qos)
     graphs = [p for p in (launch, world) if p is not None]
     deadline = time.monotonic() + GRAPH_START_S + cfg.passes * WALL_PER_PASS_S
     try:
@@ -343,7 +342,9 @@ def run_on_graph(args: argparse.Namespace) -> int:
     if records:
         plot_passes(records, FieldConfig.preset(cfg.field_preset), out / "passes.png",
                     f"{cfg.team_size} v {cfg.opponents} {where}, seed {args.seed}: true ball path of every pass")
-    text = summary_markdown(records, cfg, args.seed, sim_s, wall_s, None, max(len(placements) - 1, 0), None,
+    # the passing game's placements (its log): the first starts the game, each further one is a reset
+    placements = (out / "graph.log").read_text(errors="replace").count("] [passing_game]: ball placed at robot_")
+    text = summary_markdown(records, cfg, args.seed, sim_s, wall_s, None, max(placements - 1, 0), None,
                             where=where)
     text += _graph_notes(out, truth.real_time() if outside else None)
     (out / "summary.md").write_text(text)
@@ -353,6 +354,25 @@ def run_on_graph(args: argparse.Namespace) -> int:
         print(f"only {len(records)} of {cfg.passes} passes ended; see {out / 'graph.log'}", flush=True)
         return 1
     return 0
+
+
+def _fifo_allowed() -> bool:
+    """Whether this user may run threads under SCHED_FIFO (as erforce-realtime does for the graph)."""
+    import threading
+
+    allowed = []
+
+    def probe() -> None:  # a thread of its own: the policy is per thread and ends with it
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+            allowed.append(True)
+        except (AttributeError, OSError):
+            pass
+
+    thread = threading.Thread(target=probe)
+    thread.start()
+    thread.join()
+    return bool(allowed)
 
 
 def _path_of(record: PassRecord, ball_path: list, cfg: GameConfig) -> tuple:
