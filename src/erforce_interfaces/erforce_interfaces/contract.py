@@ -176,6 +176,13 @@ QOS_LATCHED = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
+# A log of events a late joiner needs whole (each pass as it ends): a tool started after the game did, or one
+# whose discovery a loaded machine held up, still gets every entry.
+QOS_LOG = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
 QOS_NAMES = {
     id(QOS_SENSOR): "sensor (best effort, keep last 5)",
     id(QOS_COMMAND): "command (reliable, keep last 10)",
@@ -183,6 +190,7 @@ QOS_NAMES = {
     id(QOS_STATE): "state (reliable, keep last 10)",
     id(QOS_CLOCK): "clock (reliable, keep last 1)",
     id(QOS_LATCHED): "latched (reliable, transient local, keep last 1)",
+    id(QOS_LOG): "log (reliable, transient local, keep last 1000)",
 }
 
 
@@ -404,7 +412,7 @@ PASS_CHOICE = Topic("/pass/choice", Float64MultiArray, QOS_STATE, "passing_game 
                     "the pass the holder has chosen, one row of PASS_CHOICE_COLUMNS (robot ids of our team, "
                     "times [s] from the kick; safe 1/0 = margin_s >= safe_margin_s); no rows: no choice "
                     "(nobody holds the ball)")
-PASS_RECORDS = Topic("/pass/records", Float64MultiArray, QOS_STATE, "passing_game", "demo, tools",
+PASS_RECORDS = Topic("/pass/records", Float64MultiArray, QOS_LOG, "passing_game", "demo, tools",
                      "one message per pass as it ends: one row of PASS_RECORD_COLUMNS (robot ids of each team, "
                      "times [s] from the kick, kick_speed_mps [m/s]; outcome PASS_OUTCOMES' index; caught_team "
                      "Team.code, 0 and caught_id -1 with actual_catch_s -1: nobody; first_opponent and "
