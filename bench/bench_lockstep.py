@@ -34,7 +34,6 @@ import argparse
 import contextlib
 import os
 import re
-import socket
 import statistics
 import sys
 import tempfile
@@ -48,6 +47,7 @@ from erforce_ball_model.ball_predictor_node import COMPILED_SEARCH_LOADED
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import stamp_to_nanoseconds
 from erforce_interfaces.tools.testing import RosGraph
+from erforce_sim.closed_loop.demo import free_udp_port
 
 REPO = Path(__file__).resolve().parents[1]
 ROBOT_YAML = REPO / "src/erforce_interfaces/config/robot.yaml"
@@ -205,7 +205,7 @@ def launch_run(sim_s: float, warmup_s: float, launch_args: dict[str, str], windo
         args = {"real_time_factor": "0.0", "output": "screen", **launch_args}
         if world:
             timed = stack.enter_context(RosGraph(Path(tempfile.mkdtemp(prefix="bench-ssl-world-"))))
-            ports = {name: str(_free_udp_port()) for name in ("vision", "ours", "theirs", "control")}
+            ports = {name: str(free_udp_port()) for name in ("vision", "ours", "theirs", "control")}
             timed.start_launch(SSL_WORLD, real_time_factor="0.0", output="screen", ssl_vision_port=ports["vision"],
                                robot_control_port=ports["ours"], opponent_robot_control_port=ports["theirs"],
                                simulator_control_port=ports["control"])
@@ -248,12 +248,6 @@ def launch_run(sim_s: float, warmup_s: float, launch_args: dict[str, str], windo
             "catch_median_ms": statistics.median(w[3] for w in windows), "frames": sum(w[0] for w in windows),
             "windows": len(windows), "cpu_us_per_tick": cpu, "rss_total_mib": sum(rss.values()),
             "rss_mib": {pids[pid]: v for pid, v in rss.items()}}
-
-
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 def launch_runs(runs: int, sim_s: float, warmup_s: float, launch_args: dict[str, str],

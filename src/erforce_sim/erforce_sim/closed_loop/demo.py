@@ -660,9 +660,22 @@ class SslArrivals:
 
 
 def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
+    """A UDP port free on this machine now, below the kernel's ephemeral range: a port the kernel handed out
+    (bind to port 0) may go to the next socket that binds port 0 (a simulation bridge's answer socket, a DDS
+    reader) before the process meant to listen on it starts."""
+    try:
+        low = int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        low = 32768
+    rng = np.random.default_rng()
+    for port in rng.permutation(np.arange(20000, max(low, 20001))).tolist():
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind(("0.0.0.0", port))
+            except OSError:
+                continue
+            return port
+    raise RuntimeError("no free UDP port below the ephemeral range")
 
 
 def main(argv: list[str] | None = None) -> int:
