@@ -240,7 +240,7 @@ class _Observer:
         self.executor.add_node(self.node)
         self.clock: dict[str, tuple[float, float] | None] = {"first": None, "now": None}
 
-    def watch_clock(self) -> None:
+    def watch_clock(self, on_time=None) -> None:
         from rosgraph_msgs.msg import Clock
 
         from erforce_interfaces.conversions import stamp_to_seconds
@@ -250,6 +250,8 @@ class _Observer:
             if self.clock["first"] is None:
                 self.clock["first"] = (t, time.monotonic())
             self.clock["now"] = (t, time.monotonic())
+            if on_time is not None:
+                on_time(t)
 
         self.node.create_subscription(Clock, contract.CLOCK.name, on_clock, contract.CLOCK.qos)
 
@@ -306,7 +308,15 @@ def run_on_graph(args: argparse.Namespace) -> int:
     ball_path: list[tuple[float, float, float]] = []  # t, x, y of the true ball
     ai = _Observer("passing_director", None)
     truth = _Observer("passing_director_world", lease.domain_id) if outside else ai
-    ai.watch_clock()
+    # The AI's time is the world's cameras' capture time, whose clock need not be the world's simulated time:
+    # the report maps the world's truth onto it by the offset seen between the two /clocks.
+    offsets: list[float] = []
+
+    def on_ai_time(t_s: float) -> None:
+        if truth.clock["now"] is not None and len(offsets) < 100_000:
+            offsets.append(t_s - truth.clock["now"][0])
+
+    ai.watch_clock(on_ai_time if outside else None)
     if outside:
         truth.watch_clock()
     q = contract
@@ -338,6 +348,9 @@ def run_on_graph(args: argparse.Namespace) -> int:
         if lease is not None:
             lease.release()
     sim_s, wall_s = ai.real_time()
+    if offsets:
+        shift = statistics.median(offsets)
+        ball_path = [(t + shift, x, y) for t, x, y in ball_path]
     records = [dataclasses.replace(r, ball_path=_path_of(r, ball_path, cfg)) for r in records[:cfg.passes]]
     if records:
         plot_passes(records, FieldConfig.preset(cfg.field_preset), out / "passes.png",
