@@ -25,7 +25,10 @@ max over every frame of the measured stretch: the bench sets the predictor's ``t
 starts measuring and again when it stops, which logs exactly those frames; ``--window-frames N``: the worst
 p99 of windows of N frames instead), CPU per tick per process and the graph's RSS; then the median and range
 over the runs. The launch file's default runs both teams on the field-level lockstep topics; ``--launch-args
-lockstep_topics:=team`` measures a message per team instead.
+lockstep_topics:=team`` measures a message per team instead. ``--world`` (and one run in the table of
+``./run bench``): the AI side alone, ``team_sim.launch.yaml world:=ssl``, against the stand-in world
+``ssl_world.launch.yaml`` flat out, each in a DDS domain of its own and talking over loopback UDP only; the
+real-time factor is the world's.
 """
 
 from __future__ import annotations
@@ -171,6 +174,8 @@ def run(quick: bool = False, robots=ROBOT_COUNTS, deployments=("per_robot", "tea
                          "target": "< 2048 MiB (11 + 3 robots)" if full else "—",
                          "note": f"firmware {r['rss_firmware_per_robot_mib']:.0f} MiB per robot"})
             print(rows[-2], rows[-1], file=sys.stderr, flush=True)
+    # the main job on an outside world: the stand-in SSL world flat out, the AI side apart (one run)
+    rows += launch_runs(1, 3.0 if quick else 10.0, 1.0, {"ai": "passing"}, world=True)
     return rows
 
 
