@@ -465,6 +465,7 @@ NODES = {
     "receiver.launch.yaml": ["velocity_controller-1", "motor_boards-2", "catcher-3"],
     "sim_one_robot.launch.yaml": ["plant-1", "velocity_controller-2", "motor_boards-3"],
     "team_sim.launch.yaml": ["plant-1", "ball_predictor-2", "team_catcher-3", "team_firmware-4"],
+    "ssl_world.launch.yaml": ["plant-1", "team_firmware-2", "ssl_sim_server-3"],
 }
 
 
