@@ -398,7 +398,9 @@ def test_team_sim_on_an_outside_world_starts_only_the_ai_side():
             theirs["control_port"]) == ("opponents", "blue", [0, 1, 2], 20302, 0)
     assert ours["protocol"] == theirs["protocol"] == "ssl" and ours["defend_side"] == theirs["defend_side"]
     game = next(params_of(s)["/**"] for s in specs.values() if "passing_game" in s.label)
-    assert game["use_sim_time"] and game["place_ball"]
+    assert game["use_sim_time"] and game["place_ball"] and game["field"] == "from_geometry"
+    interceptor = next(params_of(s)["/**"] for s in specs.values() if "team_catcher" in s.label)
+    assert interceptor["field"] == "from_geometry"
     field = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", world="ssl", ai="passing",
                     sim_protocol="none")
     assert [label.rsplit("-", 1)[0] for label in field] == ["ssl_ball_predictor", "team_catcher", "passing_game"]

@@ -53,6 +53,7 @@ from erforce_interfaces.conversions import (
     BallTrack,
     ConversionError,
     ball_track_cdr,
+    field_from_msg,
     float64_cdr,
     odometry_cdr,
     point_cdr,
@@ -250,9 +251,8 @@ class BallPredictorNode(Node):
 
     def _vision_field(self, msg: Float64MultiArray) -> None:
         try:
-            length, width, boundary, *_ = table_from_msg(msg, contract.VISION_FIELD_COLUMNS)[0].tolist()
-            field = FieldConfig(length, width, boundary)
-        except (ConversionError, ValueError, IndexError) as exc:
+            field = field_from_msg(msg)
+        except (ConversionError, ValueError) as exc:
             self._warn.warn("vision_field", f"rejected /vision/field: {exc}")
             return
         self._geometry(field, None)

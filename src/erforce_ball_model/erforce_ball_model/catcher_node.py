@@ -37,21 +37,23 @@ from erforce_interfaces.executor import run_sampled, sample_only
 from erforce_interfaces.node_support import (
     NodeParams,
     ThrottledWarner,
+    WorldField,
     contract_publisher,
     contract_subscription,
     run_node,
 )
 from erforce_interfaces.param_schema import fields_for, load_schema
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.robot_config import FieldConfig, field_from_setting
 
 SCHEMA = load_schema("erforce_ball_model", "catcher")
 
 
-def build_config(config) -> tuple[CatcherConfig, float, float, FieldConfig]:
-    """(catcher config, dribbler offset [m], robot radius [m], field) for a config object of the schema."""
+def build_config(config) -> tuple[CatcherConfig, float, float, FieldConfig | None]:
+    """(catcher config, dribbler offset [m], robot radius [m], the field the parameter names (None: the world's,
+    node_support.WorldField)) for a config object of the schema."""
     robot = config.robot
     return (CatcherConfig(**fields_for(CatcherConfig, config)), robot.dribbler_offset_m, robot.robot_radius_m,
-            FieldConfig.preset(config.field))
+            field_from_setting(config.field))
 
 
 class CatcherNode(Node):
@@ -66,7 +68,9 @@ class CatcherNode(Node):
             raise ValueError(f"team_robot_ids {sorted(team)}: a team catcher runs in the namespace of one of its "
                              f"robots (robot_<id>), this one runs in '{self.get_namespace()}'")
         self._team = (own_id, team)
-        self._receiver = Receiver(*self._params.built, robot_id=own_id, team_robot_ids=team)
+        self._field = WorldField(self, self._values["field"], lambda _field: self._set_config(self._params.built),
+                                 self._warn)
+        self._receiver = self._new_receiver()
         q = contract
         self._cmd_pub = contract_publisher(self, q.CMD_VEL)
         # The frequent inputs come serialized, as the predictor publishes them (conversions' codec reads
@@ -91,13 +95,17 @@ class CatcherNode(Node):
         self._timer = self.create_timer(1.0 / self._values["rate_hz"], self._tick)
         self._params.on_change(self._set_config)
 
-    def _set_config(self, built: tuple[CatcherConfig, float, float, FieldConfig]) -> None:
-        self._receiver.set_config(*built)
+    def _set_config(self, built: tuple[CatcherConfig, float, float, FieldConfig | None]) -> None:
+        self._field.set_setting(self._values["field"])
+        self._receiver.set_config(*built[:3], self._field.field)
+
+    def _new_receiver(self) -> Receiver:
+        own_id, team = self._team
+        return Receiver(*self._params.built[:3], self._field.field, robot_id=own_id, team_robot_ids=team)
 
     def on_clock_restart(self) -> None:
         """A new /clock time line (node_support.guard_clock): the inputs' arrival times are void."""
-        own_id, team = self._team
-        self._receiver = Receiver(*self._params.built, robot_id=own_id, team_robot_ids=team)
+        self._receiver = self._new_receiver()
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -144,6 +152,9 @@ class CatcherNode(Node):
 
     def _tick(self) -> None:
         run_sampled(self._inputs)
+        if self._field.field is None:  # the world's field is not known yet: judge nothing, stand
+            self._cmd_pub.publish(twist_msg((0.0, 0.0, 0.0)))
+            return
         twist = self._receiver.tick(self._now_s())
         if self._receiver.notice:
             self._warn.warn("tick", self._receiver.notice)

@@ -52,6 +52,7 @@ from erforce_interfaces.executor import EXECUTOR_ENV, run_sampled, sample_only
 from erforce_interfaces.node_support import (
     NodeParams,
     ThrottledWarner,
+    WorldField,
     contract_publisher,
     contract_subscription,
     run_node,
@@ -137,6 +138,8 @@ class PassingGameNode(Node):
         own = self._params.config[0]
         self._own = own
         n, m = self._n, self._m = own.num_robots, own.num_opponents
+        self._field = WorldField(self, self._params.config[1][""].field,
+                                 lambda _field: self._set_config(self._params.built), self._warn)
         self._player = self._new_player()
         self._dribbler_radps = own.dribbler_radps
         self._robots = [(contract.OURS, i) for i in range(n)] + [(contract.OPPONENTS, j) for j in range(m)]
@@ -177,12 +180,13 @@ class PassingGameNode(Node):
                                f"robot_{own.start_holder}")
 
     def _new_player(self) -> PassingPlayer:
-        player, field, offset, radius = self._params.built
-        return PassingPlayer(player, self._n, self._m, field, offset, radius)
+        player, _field, offset, radius = self._params.built
+        return PassingPlayer(player, self._n, self._m, self._field.field, offset, radius)
 
     def _set_config(self, built) -> None:
-        player, field, offset, radius = built
-        self._player.configure(player, field, offset, radius)
+        player, _field, offset, radius = built
+        self._field.set_setting(self._params.config[1][""].field)
+        self._player.configure(player, self._field.field, offset, radius)
         self._dribbler_radps = self._params.config[0].dribbler_radps
         self._dribblers_sent_at = -math.inf  # the new speed at the next tick
 
@@ -274,8 +278,11 @@ class PassingGameNode(Node):
             self._choice_pub.publish(table_msg(rows, columns))
 
     def _start(self, now: float) -> None:
-        """The game starts once every robot has been tracked settle_s and, with place_ball, someone takes the
-        placements (the plant, or a simulator's bridge that may start after vision already flows)."""
+        """The game starts once the world's field is known, every robot has been tracked settle_s and, with
+        place_ball, someone takes the placements (the plant, or a simulator's bridge that may start after vision
+        already flows)."""
+        if self._field.field is None:  # the world's field is not known yet (said once at start)
+            return
         placer_missing = self._set_ball_pub is not None and self._set_ball_pub.get_subscription_count() == 0
         if not self._player.seen.all() or placer_missing:
             self._first_seen = None

@@ -231,18 +231,21 @@ class PassingPlayer:
         self._prefer: int | None = None  # the new holder's planned next target
         self._dribblers = dict.fromkeys(range(n_team), False)
 
-    def configure(self, cfg: PlayerConfig, field_config: FieldConfig, dribbler_offset_m: float,
+    def configure(self, cfg: PlayerConfig, field_config: FieldConfig | None, dribbler_offset_m: float,
                   robot_radius_m: float) -> None:
-        """New settings, from the next decision on (a receiver on its way keeps its skill's new settings too)."""
+        """New settings, from the next decision on (a receiver on its way keeps its skill's new settings too).
+        ``field_config`` None: the world's field is not known yet; no pass is searched (start waits for it)."""
         self.cfg, self.field = cfg, field_config
         self.dribbler_offset_m, self.robot_radius_m = dribbler_offset_m, robot_radius_m
         cc = cfg.catcher
         limits = RobotLimits(cc.a_max_mps2, cc.v_max_mps)
-        self.pass_search = CatchSearch(self.n_team + self.n_opp, limits, dribbler_offset_m=dribbler_offset_m,
-                                       field=field_config)
-        # a pass is judged by its receiver and the opponents: the search runs for them only (evaluate_passes)
-        self.receiver_search = CatchSearch(1 + self.n_opp, limits, dribbler_offset_m=dribbler_offset_m,
+        self.pass_search = self.receiver_search = None
+        if field_config is not None:
+            self.pass_search = CatchSearch(self.n_team + self.n_opp, limits, dribbler_offset_m=dribbler_offset_m,
                                            field=field_config)
+            # a pass is judged by its receiver and the opponents: the search runs for them only (evaluate_passes)
+            self.receiver_search = CatchSearch(1 + self.n_opp, limits, dribbler_offset_m=dribbler_offset_m,
+                                               field=field_config)
         if self.receiver is not None:
             self.receiver.set_config(cc, dribbler_offset_m, robot_radius_m, field_config)
 

@@ -48,6 +48,7 @@ from erforce_interfaces.executor import EXECUTOR_ENV, run_sampled, sample_only
 from erforce_interfaces.node_support import (
     NodeParams,
     ThrottledWarner,
+    WorldField,
     contract_publisher,
     contract_subscription,
     run_node,
@@ -83,6 +84,8 @@ class TeamCatcherNode(Node):
         other = contract.OURS if team is contract.OPPONENTS else contract.OPPONENTS
         n_other = self._values["num_other_robots"] if self._values["press_lanes"] else 0
         self._team: PressingTeam
+        self._field = WorldField(self, self._values["field"], lambda _field: self._set_config(self._params.built),
+                                 self._warn)
         self.on_clock_restart()
         q = contract
         self._cmd_pubs = {i: contract_publisher(self, q.CMD_VEL, team.topic(q.CMD_VEL, i)) for i in ids}
@@ -114,14 +117,17 @@ class TeamCatcherNode(Node):
         self._params.on_change(self._set_config)
 
     def _set_config(self, built) -> None:
-        self._team.set_config(*built)
+        cfg, offset, radius, _field, passing = built
+        self._field.set_setting(self._values["field"])
+        self._team.set_config(cfg, offset, radius, self._field.field, passing)
 
     def on_clock_restart(self) -> None:
         """A new /clock time line (node_support.guard_clock): the inputs' arrival times are void."""
         v = self._values
-        cfg, offset, radius, field, passing = self._params.built
+        cfg, offset, radius, _field, passing = self._params.built
         n_other = v["num_other_robots"] if passing is not None else 0
-        self._team = PressingTeam(cfg, offset, radius, field, v["robot_ids"], v["as_team"], passing, n_other)
+        self._team = PressingTeam(cfg, offset, radius, self._field.field, v["robot_ids"], v["as_team"], passing,
+                                  n_other)
         self._other_stamps: list[float | None] = [None] * n_other  # the stamp of each row last fed
         self._own_stamps = dict.fromkeys(int(i) for i in v["robot_ids"])  # likewise, with tracked_poses
 
@@ -174,6 +180,10 @@ class TeamCatcherNode(Node):
         # one clock read for the batch: the sampled inputs all run at this tick (the clock stands meanwhile)
         self._batch_now = self._now_s()
         run_sampled(self._inputs)
+        if self._field.field is None:  # the world's field is not known yet: judge nothing, stand
+            for pub in self._cmd_pubs.values():
+                pub.publish(twist_msg((0.0, 0.0, 0.0)))
+            return
         for i, twist in self._team.tick(self._batch_now).items():
             if i in self._team.notices:
                 self._warn.warn(f"tick{i}", f"{self._names[i]}: {self._team.notices[i]}")

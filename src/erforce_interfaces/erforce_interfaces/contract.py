@@ -358,8 +358,10 @@ VISION_DETECTIONS = Topic("/vision/detections", Float64MultiArray, QOS_SENSOR, "
                           "one message per SSL camera frame, a table with columns VISION_DETECTION_COLUMNS: every "
                           "ball candidate and robot the camera saw, in `field` [m, rad]; age_s = receipt - capture "
                           "on the ROS clock [s]")
-VISION_FIELD = Topic("/vision/field", Float64MultiArray, QOS_LATCHED, "ssl_vision_bridge", "ball_predictor, tools",
-                     "field size from SSL geometry, one row of VISION_FIELD_COLUMNS [m]")
+VISION_FIELD = Topic("/vision/field", Float64MultiArray, QOS_LATCHED, "ssl_vision_bridge",
+                     "ball_predictor, catcher, team_catcher, passing_game, field_view",
+                     "the world's field from SSL geometry, one row of VISION_FIELD_COLUMNS [m]: replaces the nodes' "
+                     "field preset; with field from_geometry they judge nothing before it")
 VISION_BALL_MODEL = Topic("/vision/ball_model", Float64MultiArray, QOS_LATCHED, "ssl_vision_bridge",
                           "ball_predictor", "SSL geometry's two-phase ball model, one row [a_slide_mps2, "
                           "a_roll_mps2, c_switch]")

@@ -43,10 +43,12 @@ from erforce_interfaces.contract import (
     OURS,
     TRACKED_ROBOT_COLUMNS,
     VISION_BALL_CODE,
+    VISION_FIELD_COLUMNS,
     VISION_ROBOT_FIELDS,
     Team,
     field_joint_names,
 )
+from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.stamps import stamp_ns
 
 #: Largest magnitude accepted for any position [m], speed [m/s] or rate [rad/s] on the wire.
@@ -1201,6 +1203,13 @@ def table_from_msg(msg: Float64MultiArray | bytes, column_labels: Sequence[str],
         raise ConversionError(f"table data_offset is {data_offset}, expected 0")
     data = _finite_array("data", values, n_rows * n_cols, limit)
     return data.reshape(n_rows, n_cols)
+
+
+def field_from_msg(msg: Float64MultiArray | bytes) -> FieldConfig:
+    """The field of ``/vision/field`` (one row of VISION_FIELD_COLUMNS); ValueError (or ConversionError) when it
+    is no field."""
+    length_m, width_m, boundary_m, *_ = table_from_msg(msg, VISION_FIELD_COLUMNS, num_rows=1)[0].tolist()
+    return FieldConfig(length_m, width_m, boundary_m)
 
 
 def model_in_use_from_msg(msg: Float64MultiArray | bytes) -> tuple[float, float, float]:

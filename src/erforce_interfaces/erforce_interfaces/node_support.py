@@ -37,11 +37,12 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.utilities import remove_ros_args
 
-from erforce_interfaces.contract import CLOCK, Topic, dds_profile_env
-from erforce_interfaces.conversions import ConversionError
+from erforce_interfaces.contract import CLOCK, VISION_FIELD, Topic, dds_profile_env
+from erforce_interfaces.conversions import ConversionError, field_from_msg
 from erforce_interfaces.executor import guard, make_executor, sample_only, set_callback_fault_handler
 from erforce_interfaces.param_schema import ParamSchema, ParamSpec
 from erforce_interfaces.rclpy_internals import RCLError, light_node_start, parameter_overrides
+from erforce_interfaces.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
 from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
 from erforce_interfaces.standby import wait_for_go
 
@@ -196,6 +197,43 @@ def sample_clock(node: Node) -> list:
     for sub in subs:
         sample_only(sub)
     return subs
+
+
+class WorldField:
+    """The field a node computes with, one state from the world: the newest SSL geometry (``/vision/field``,
+    latched), else what the node's ``field`` parameter names (a preset: our own plant's world), else None
+    (``from_geometry``: the node waits, and says so once). ``on_change(field)`` is called whenever it changes
+    (the node hands it to its core); a parameter change goes through ``set_setting``."""
+
+    def __init__(self, node: Node, setting: str, on_change: Callable[[FieldConfig | None], None],
+                 warn: ThrottledWarner) -> None:
+        self._node, self._on_change, self._warn = node, on_change, warn
+        self._preset = field_from_setting(setting)
+        self._geometry: FieldConfig | None = None
+        contract_subscription(node, VISION_FIELD, self._on_msg)
+        if self._preset is None:
+            node.get_logger().info(WAITING_FOR_GEOMETRY)
+
+    @property
+    def field(self) -> FieldConfig | None:
+        return self._geometry or self._preset
+
+    def set_setting(self, setting: str) -> None:
+        before = self.field
+        self._preset = field_from_setting(setting)
+        if self.field != before:
+            self._on_change(self.field)
+
+    def _on_msg(self, msg) -> None:
+        try:
+            field = field_from_msg(msg)
+        except (ConversionError, ValueError) as exc:
+            self._warn.warn("vision_field", f"rejected {VISION_FIELD.name}: {exc}")
+            return
+        before, self._geometry = self.field, field
+        if field != before:
+            self._node.get_logger().info(f"field from SSL geometry: {field.length_m:g} x {field.width_m:g} m")
+            self._on_change(field)
 
 
 class ThrottledWarner:

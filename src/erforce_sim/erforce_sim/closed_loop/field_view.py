@@ -43,6 +43,7 @@ from erforce_interfaces.conversions import (
     ConversionError,
     ball_track_from_msg,
     check_catch_ids,
+    field_from_msg,
     float64_from_msg,
     model_in_use_from_msg,
     odometry_from_msg,
@@ -72,7 +73,7 @@ RECEIVER_SWITCH_MARGIN_S = 0.1
 GLOBAL_TOPICS = (
     contract.GROUND_TRUTH_BALL, contract.VISION_BALL, contract.BALL_STATE, contract.BALL_PHASE,
     contract.BALL_V_SHOOT, contract.BALL_UNCERTAIN, contract.BALL_MODEL_PARAMS,
-    contract.SIM_EVENTS, contract.BALL_CATCHES, contract.BALL_TRACK, contract.PASS_CHOICE,
+    contract.SIM_EVENTS, contract.BALL_CATCHES, contract.BALL_TRACK, contract.PASS_CHOICE, contract.VISION_FIELD,
 )
 ROBOT_TOPICS = (
     contract.GROUND_TRUTH_ODOM, contract.ODOM, contract.CATCH_TIME, contract.CATCH_POINT,
@@ -91,7 +92,7 @@ BYTES_TYPES = frozenset(t.type_name for t in (contract.GROUND_TRUTH_BALL, contra
                                               contract.BALL_CATCHES, contract.BALL_TRACK))
 #: Topics whose messages change the frame's slowly changing part, sent as JSON in the binary frame.
 META_TOPICS = (contract.BALL_PHASE, contract.BALL_UNCERTAIN, contract.BALL_MODEL_PARAMS, contract.SIM_EVENTS,
-               contract.PASS_CHOICE)
+               contract.PASS_CHOICE, contract.VISION_FIELD)
 _AVG_CURRENT = contract.MOTOR_STATUS_COLUMNS.index("avg_current_a")
 _LIMIT_ACTIVE = contract.MOTOR_STATUS_COLUMNS.index("limit_active")
 _CURRENT = contract.GROUND_TRUTH_MOTOR_COLUMNS.index("current_a")
@@ -292,6 +293,8 @@ class WorldState:
             self._apply_track(name, ball_track_from_msg(msg))
         elif topic is c.PASS_CHOICE:
             self.pass_choice = _pass_choice(table_from_msg(msg, c.PASS_CHOICE_COLUMNS))
+        elif topic is c.VISION_FIELD:  # the world's field (SSL geometry) replaces the preset drawn until then
+            self.field = field_from_msg(msg)
 
     def _apply_track(self, name: str, track: BallTrack) -> None:
         """/ball/track: the ball state, v_shoot, phase, uncertain flag and the observation of one frame."""

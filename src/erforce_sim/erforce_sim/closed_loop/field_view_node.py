@@ -59,7 +59,7 @@ DISCOVERY_PERIOD_S = 1.0
 #: Topics that change rarely: their messages come by callback (the executor wakes for them) instead of a take
 #: per tick, which costs the same found empty. The model in use with its contract QoS: latched, so the view
 #: has it from the start.
-CALLBACK_TOPICS = (contract.BALL_MODEL_PARAMS, contract.SIM_EVENTS)
+CALLBACK_TOPICS = (contract.BALL_MODEL_PARAMS, contract.SIM_EVENTS, contract.VISION_FIELD)
 SCHEMA = load_schema("erforce_sim", "field_view")
 
 
