@@ -238,3 +238,26 @@ def test_a_vision_host_paced_like_us_is_not_named():
         if k % 600 == 599:
             texts.append(pace.check(0, clock.offset_s(0), wall))
     assert texts == [None] * 6
+
+
+def test_the_ball_stopped_during_a_short_gap_is_not_extrapolated_past_it():
+    """A ball rolling at 2 m/s along +x, seen at 60 Hz; vision stops for 0.5 s (less than max_gap_s), during
+    which a robot stops the ball 0.3 m further on, about 0.7 m short of where the old motion would have taken
+    it. The first frame after the gap, outside the filter's gate, gets no estimate (not the old motion carried
+    over the gap); from the second on, the state starts where the ball is, at rest."""
+    timeline = CaptureTimeline()
+    predictor = BallPredictor(PredictorConfig(num_robots=1))
+    x = -3.0
+    for k in range(30):  # 0.5 s at 2 m/s (the rolling deceleration left out of the truth: a hand-pushed ball)
+        stamp = timeline.stamp(0, 10.0 + k * PERIOD_S, 10.0 + k * PERIOD_S, 100.0 + k * PERIOD_S)
+        x = -3.0 + 2.0 * k * PERIOD_S
+        predictor.ball_frame(stamp, x, 0.0)
+    stopped_at = x + 0.3
+    answers = []
+    for k in range(60, 64):  # 0.5 s later
+        stamp = timeline.stamp(0, 10.0 + k * PERIOD_S, 10.0 + k * PERIOD_S, 100.0 + k * PERIOD_S)
+        answers.append(predictor.ball_frame(stamp, stopped_at, 0.0))
+    assert answers[0] is None
+    for frame in answers[1:]:
+        state = frame.trajectory.floats
+        assert abs(state.x_m - stopped_at) <= 0.01 and state.speed_mps <= 0.1
