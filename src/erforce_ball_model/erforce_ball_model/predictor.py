@@ -278,8 +278,9 @@ class BallPredictor:
     def ball_frame(self, t_s: float, x_m: float, y_m: float, *, restart: bool = False) -> BallFrame | None:
         """A vision observation of the ball: the ball's state and every fresh robot's catch; None when
         the observation was rejected or no prediction could be made (with a warning), or when the filter
-        holds it back after a gap (``TrackerConfig.max_hold_gap_s``: the next frame says what happened). ``restart``: the
-        stamp starts a new time line (StampVerdict.RESTART), the ball filter and the shot collection start over."""
+        holds it back after a gap (``TrackerConfig.max_hold_gap_s``: the next frame says what happened).
+        ``restart``: the stamp starts a new time line (StampVerdict.RESTART), the ball filter and the shot
+        collection start over."""
         cfg = self.config
         if not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m):
             self._warn("ball_outside", f"rejected vision/ball outside the field: ({x_m:.3f}, {y_m:.3f}) m")
