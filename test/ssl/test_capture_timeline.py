@@ -11,11 +11,12 @@ from __future__ import annotations
 import math
 from itertools import pairwise
 
+import numpy as np
 import pytest
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
-from erforce_interfaces.ssl_vision import CaptureTimeline, ClockJump
+from erforce_interfaces.ssl_vision import CaptureTimeline, ClockJump, PaceCheck, VisionClock
 
 PERIOD_S = 1.0 / 60.0
 LATENCY_S = 0.004  # capture to send, world time
@@ -197,3 +198,66 @@ def test_the_ball_after_a_gap_starts_from_where_it_is(rate):
     state = frame.trajectory.floats
     assert abs(state.x_m - x_true) <= 0.01 and abs(state.y_m) <= 0.01
     assert abs(state.speed_mps - v_true) <= 0.05
+
+
+@pytest.mark.parametrize("rate", [0.62, 0.98])
+def test_a_world_not_paced_to_the_wall_clock_steps_the_estimate_and_not_the_timeline(rate):
+    """grSim's t_capture is its simulated time. The estimate (VisionClock) maps it onto the wall clock: over 60 s
+    of wall time its stamps span 60 s while the world moved 60 rate s (speeds come out scaled by the rate), and
+    at 0.62x its offset, drifting by 0.38 s a second, catches up in steps of more than jump_s (0.25 s) between
+    consecutive frames; PaceCheck names the pace. The timeline's stamps span the world's time, consecutive ones
+    1/60 s apart."""
+    clock, timeline, pace = VisionClock(), CaptureTimeline(), PaceCheck(0.3)
+    stream = [f for f in frames(rate, (0.0,) * 4, 0.0, 60.0 * rate, 1000.0) if f[1] == 0]
+    estimate, captured, texts = [], [], []
+    for wall, camera, t_capture, t_sent, _world in stream:
+        try:
+            estimate.append(clock.to_receiver(camera, t_capture, t_sent, wall))
+        except ClockJump:
+            pass
+        captured.append(timeline.stamp(camera, t_capture, t_sent, wall))
+        if len(captured) % 600 == 0:  # every 10 s of wall time, as the bridge's statistics
+            texts.append(pace.check(camera, clock.offset_s(camera), wall))
+    wall_span, world_span = stream[-1][0] - stream[0][0], stream[-1][4] - stream[0][4]
+    assert estimate[-1] - estimate[0] == pytest.approx(wall_span, abs=0.35)
+    assert (np.diff(estimate).max() > 0.25) == (rate == 0.62)
+    assert captured[-1] - captured[0] == pytest.approx(world_span, abs=1e-9)
+    assert np.diff(captured) == pytest.approx(PERIOD_S, abs=1e-9)
+    assert texts[-1] is not None and f"runs at {rate:.2f}x" in texts[-1]
+
+
+def test_a_vision_host_paced_like_us_is_not_named():
+    """A real vision host: its clock 1.7e9 s away, 20 ppm fast, the network's delay jittering by up to 3 ms."""
+    clock, pace = VisionClock(), PaceCheck(0.3)
+    rng = np.random.default_rng(1)
+    texts = []
+    for k in range(60 * 60):
+        t_capture = 1.7e9 + k * PERIOD_S * (1 + 20e-6)
+        wall = 5.0 + k * PERIOD_S + LATENCY_S + DELAY_S + rng.uniform(0.0, 0.003)
+        clock.to_receiver(0, t_capture, t_capture + LATENCY_S, wall)
+        if k % 600 == 599:
+            texts.append(pace.check(0, clock.offset_s(0), wall))
+    assert texts == [None] * 6
+
+
+def test_the_ball_stopped_during_a_short_gap_is_not_extrapolated_past_it():
+    """A ball rolling at 2 m/s along +x, seen at 60 Hz; vision stops for 0.5 s (less than max_gap_s), during
+    which a robot stops the ball 0.3 m further on, about 0.7 m short of where the old motion would have taken
+    it. The first frame after the gap, outside the filter's gate, gets no estimate (not the old motion carried
+    over the gap); from the second on, the state starts where the ball is, at rest."""
+    timeline = CaptureTimeline()
+    predictor = BallPredictor(PredictorConfig(num_robots=1))
+    x = -3.0
+    for k in range(30):  # 0.5 s at 2 m/s (the rolling deceleration left out of the truth: a hand-pushed ball)
+        stamp = timeline.stamp(0, 10.0 + k * PERIOD_S, 10.0 + k * PERIOD_S, 100.0 + k * PERIOD_S)
+        x = -3.0 + 2.0 * k * PERIOD_S
+        predictor.ball_frame(stamp, x, 0.0)
+    stopped_at = x + 0.3
+    answers = []
+    for k in range(60, 64):  # 0.5 s later
+        stamp = timeline.stamp(0, 10.0 + k * PERIOD_S, 10.0 + k * PERIOD_S, 100.0 + k * PERIOD_S)
+        answers.append(predictor.ball_frame(stamp, stopped_at, 0.0))
+    assert answers[0] is None
+    for frame in answers[1:]:
+        state = frame.trajectory.floats
+        assert abs(state.x_m - stopped_at) <= 0.01 and state.speed_mps <= 0.1

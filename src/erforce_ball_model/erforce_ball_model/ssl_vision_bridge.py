@@ -90,14 +90,17 @@ from erforce_interfaces.robot_config import (
     turned_half,
 )
 from erforce_interfaces.ssl_vision import (
+    CLOCK_CAMERAS,
     TEAMS,
     TIME_CAPTURE,
+    TIME_ESTIMATE,
     TIME_SOURCES,
     TIME_VISION,
     CaptureTimeline,
     ClockJump,
     DecodedPacket,
     DetectionArrays,
+    PaceCheck,
     SslDecodeError,
     VisionClock,
     clock_jump_text,
@@ -226,6 +229,7 @@ class SslVisionBridge(Node):
             self._config = config
             if old is None or (config.clock_window_s, config.clock_jump_s) != (old.clock_window_s, old.clock_jump_s):
                 self._vision_clock = VisionClock(config.clock_window_s, config.clock_jump_s)
+                self._pace_check = PaceCheck(config.clock_jump_s + 0.05)
             if old is None:
                 self._timeline = CaptureTimeline(config.clock_jump_s)
             else:  # in place: the timeline's time (and /clock) go on
@@ -425,6 +429,8 @@ class SslVisionBridge(Node):
         if self._periods_logged:
             self._cpu_us_counts.update(ns // 1000 for ns in ms)
         self._periods_logged += 1
+        if self._time_mode == TIME_ESTIMATE:
+            self._check_pace()
         s = self.stats
         self.get_logger().info(
             f"ssl_vision_bridge: {s['datagrams']} datagrams, {s['frames']} camera frames; dropped: {s['dropped_bad']} "
@@ -432,6 +438,15 @@ class SslVisionBridge(Node):
             f"median {ms[len(ms) // 2] * 1e-6:.3f} ms, p99 {ms[int(0.99 * (len(ms) - 1))] * 1e-6:.3f} ms; "
             f"since the first period: {self._cpu_p99_text()}"
         )
+
+    def _check_pace(self) -> None:
+        """Say when a camera's clock is not paced to ours (time_source estimate: see PaceCheck)."""
+        t_receive_s = self.get_clock().now().nanoseconds * 1e-9
+        for camera_id in range(CLOCK_CAMERAS):
+            offset = self._vision_clock.offset_s(camera_id)
+            text = None if offset is None else self._pace_check.check(camera_id, offset, t_receive_s)
+            if text is not None:
+                self._warn.warn(f"pace{camera_id}", "ssl_vision_bridge: " + text)
 
     def _cpu_p99_text(self) -> str:
         """The p99 of the CPU per datagram over every datagram after the first statistics period."""

@@ -42,7 +42,9 @@ takes the league's multicast packets and publishes on the same topics the plant'
 so the rest of the graph cannot tell them apart:
 - millimetres become metres; the vision frame becomes ``field`` (turned by half a turn when our
   team defends the goal at positive x, so that in ``field`` we always defend negative x);
-- ``t_capture`` becomes the stamp, on the ROS clock (erforce_interfaces.ssl_vision.VisionClock);
+- ``t_capture`` becomes the stamp, on the ROS clock (erforce_interfaces.ssl_vision.VisionClock), or, with
+  ``time_source: capture``, on the cameras' one capture timeline, which the bridge publishes on ``/clock``
+  (erforce_interfaces.ssl_vision.CaptureTimeline);
 - a camera frame goes out as one ``/vision/robots`` message: the ball the multi-camera tracker picks
   from it (if any, with increasing stamps from frame to frame) and the robots it uses, both teams; the
   ball also to ``/vision/ball``, our team's robots also to ``/robot_<id>/vision_pose``, the opponents'
@@ -321,10 +323,11 @@ def robot_frame(robot_id: int) -> str:
 
 
 # ---------------------------------------------------------------- global topics
-CLOCK = Topic("/clock", Clock, QOS_CLOCK, "plant", "every node (use_sim_time)",
+CLOCK = Topic("/clock", Clock, QOS_CLOCK, "plant; ssl_vision_bridge (time_source capture)", "every node (use_sim_time)",
               "simulation time; the plant owns time. At the plant's clock_rate_hz (100 Hz; 50 Hz in "
               "team_sim.launch.yaml): ROS time moves in steps of that period and sim-time timers tick at most "
-              "that often; the lockstep and per-frame work runs on message stamps")
+              "that often; the lockstep and per-frame work runs on message stamps. On an outside world, the "
+              "cameras' capture time (the bridge's clock_period_s)")
 VISION_BALL = Topic("/vision/ball", PointStamped, QOS_SENSOR, "plant (vision), ssl_vision_bridge; while subscribed",
                     "tools", "ball centre in `field` [m], stamp = capture time; noisy, delayed, with dropouts; the "
                     "same balls as /vision/robots")

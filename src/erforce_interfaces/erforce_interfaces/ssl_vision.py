@@ -690,6 +690,34 @@ class VisionClock:
         return stamp
 
 
+class PaceCheck:
+    """Whether a camera's clock runs at the pace of the receiver's, seen through VisionClock's offsets.
+
+    The estimate maps ``t_capture`` onto the receiver's clock with a fixed offset: right for a vision host
+    (clocks that differ by parts per million), wrong for a world not paced to the wall clock (grSim at
+    0.62-0.98x, a simulator flat out). There the offset drifts by (1 - pace) per second, the window's
+    minimum lags it and the jump rule catches up in steps of about ``jump_s``, and speeds come out scaled
+    by the pace: ``time_source: capture`` is the answer. ``check`` compares a camera's offset with its
+    first one; a pace off by more than 1 % plus what the estimate's lag (``lag_s``) explains gets a text.
+    """
+
+    def __init__(self, lag_s: float) -> None:
+        self.lag_s = lag_s
+        self._first: dict[int, tuple[float, float]] = {}
+
+    def check(self, camera_id: int, offset_s: float, t_receive_s: float) -> str | None:
+        first = self._first.setdefault(camera_id, (offset_s, t_receive_s))
+        elapsed_s = t_receive_s - first[1]
+        if elapsed_s <= 0.0:
+            return None
+        pace = 1.0 - (offset_s - first[0]) / elapsed_s
+        if abs(pace - 1.0) <= 0.01 + self.lag_s / elapsed_s:
+            return None
+        return (f"camera {camera_id}: its clock runs at {pace:.2f}x this host's (over {elapsed_s:.0f} s): a world not "
+                "paced to the wall clock; time_source estimate steps and scales its stamps, use time_source capture "
+                "(and use_sim_time on the AI side)")
+
+
 # ------------------------------------------------------------------------------- capture timeline
 # The timeline's state is arrays, like the clock's: a row per camera (columns _TL_*), the calibration samples of
 # each camera's offset, and a few numbers for the whole timeline (_TG_*).
