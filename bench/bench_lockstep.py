@@ -25,12 +25,16 @@ max over every frame of the measured stretch: the bench sets the predictor's ``t
 starts measuring and again when it stops, which logs exactly those frames; ``--window-frames N``: the worst
 p99 of windows of N frames instead), CPU per tick per process and the graph's RSS; then the median and range
 over the runs. The launch file's default runs both teams on the field-level lockstep topics; ``--launch-args
-lockstep_topics:=team`` measures a message per team instead.
+lockstep_topics:=team`` measures a message per team instead. ``--world`` (and one run in the table of
+``./run bench``): the AI side alone, ``team_sim.launch.yaml world:=ssl``, against the stand-in world
+``ssl_world.launch.yaml`` flat out, each in a DDS domain of its own and talking over loopback UDP only; the
+real-time factor is the world's.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import re
 import statistics
@@ -46,10 +50,12 @@ from erforce_ball_model.ball_predictor_node import COMPILED_SEARCH_LOADED
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import stamp_to_nanoseconds
 from erforce_interfaces.tools.testing import RosGraph
+from erforce_sim.closed_loop.demo import free_udp_port
 
 REPO = Path(__file__).resolve().parents[1]
 ROBOT_YAML = REPO / "src/erforce_interfaces/config/robot.yaml"
 TEAM_SIM = REPO / "src/erforce_sim/launch/team_sim.launch.yaml"
+SSL_WORLD = REPO / "src/erforce_sim/launch/ssl_world.launch.yaml"
 PREDICTOR = "/ball_predictor"  # its node in team_sim
 
 
@@ -168,13 +174,16 @@ def run(quick: bool = False, robots=ROBOT_COUNTS, deployments=("per_robot", "tea
                          "target": "< 2048 MiB (11 + 3 robots)" if full else "—",
                          "note": f"firmware {r['rss_firmware_per_robot_mib']:.0f} MiB per robot"})
             print(rows[-2], rows[-1], file=sys.stderr, flush=True)
+    # the main job on an outside world: the stand-in SSL world flat out, the AI side apart (one run)
+    rows += launch_runs(1, 3.0 if quick else 10.0, 1.0, {"ai": "passing"}, world=True)
     return rows
 
 
 _CATCH_TIMES = re.compile(r"processing over (\d+) frames: .*; catch times out after: median ([0-9.]+) ms, "
                           r"p99 ([0-9.]+) ms, max ([0-9.]+) ms")
 _MEASURING = 1_000_000  # timing_log_every while measuring over every frame: more than a run has
-_EXECUTABLES = ("plant", "team_firmware", "ball_predictor", "team_catcher", "erforce-launch")
+_EXECUTABLES = ("plant", "team_firmware", "ball_predictor", "team_catcher", "erforce-launch", "ssl_sim_server",
+                "ssl_ball_predictor", "ssl_sim_bridge", "passing_game")
 
 
 def _process_name(pid: int) -> str:
@@ -189,20 +198,35 @@ def _process_name(pid: int) -> str:
     return Path(argv[0].decode(errors="replace")).name
 
 
-def launch_run(sim_s: float, warmup_s: float, launch_args: dict[str, str], window_frames: int = 0) -> dict:
+def launch_run(sim_s: float, warmup_s: float, launch_args: dict[str, str], window_frames: int = 0,
+               world: bool = False) -> dict:
     """One start of team_sim.launch.yaml: real-time factor, the predictor's p99 to the catch times, CPU per
-    tick per process, RSS."""
-    with RosGraph(Path(tempfile.mkdtemp(prefix="bench-team-sim-"))) as graph:
-        clocks = graph.subscribe("/clock", Clock, contract.QOS_CLOCK)
-        launch = graph.start_launch(TEAM_SIM, **{"real_time_factor": "0.0", "output": "screen", **launch_args})
+    tick per process, RSS. With ``world``: team_sim world:=ssl (the AI side alone) against the stand-in world
+    ssl_world.launch.yaml, each in a DDS domain of its own, talking over loopback UDP; the real-time factor is
+    the world's (its /clock), the AI's time the cameras' capture time."""
+    with contextlib.ExitStack() as stack:
+        graph = stack.enter_context(RosGraph(Path(tempfile.mkdtemp(prefix="bench-team-sim-"))))
+        timed = graph
+        args = {"real_time_factor": "0.0", "output": "screen", **launch_args}
+        if world:
+            timed = stack.enter_context(RosGraph(Path(tempfile.mkdtemp(prefix="bench-ssl-world-"))))
+            ports = {name: str(free_udp_port()) for name in ("vision", "ours", "theirs", "control")}
+            timed.start_launch(SSL_WORLD, real_time_factor="0.0", output="screen", ssl_vision_port=ports["vision"],
+                               robot_control_port=ports["ours"], opponent_robot_control_port=ports["theirs"],
+                               simulator_control_port=ports["control"])
+            args.update(world="ssl", ssl_vision_port=ports["vision"], command_port=ports["ours"],
+                        opponent_command_port=ports["theirs"], simulator_control_port=ports["control"])
+            args.pop("real_time_factor")
+        clocks = timed.subscribe("/clock", Clock, contract.QOS_CLOCK)
+        launch = graph.start_launch(TEAM_SIM, **args)
 
         def sim_now() -> float:
             return stamp_to_nanoseconds(clocks[-1].clock) * 1e-9 if clocks else -1.0
 
-        graph.probe.spin_until(lambda: sim_now() >= warmup_s, 600.0, "the warm-up")
+        timed.probe.spin_until(lambda: sim_now() >= warmup_s, 600.0, "the warm-up")
         # the predictor answers as Python until its kernels have loaded in the background (no warm standby here)
         graph.probe.spin_until(lambda: COMPILED_SEARCH_LOADED in launch.output(), 120.0, "the compiled search")
-        pids = {pid: f"{_process_name(pid)}/{pid}" for pid in graph.pids()}  # the launcher too
+        pids = {pid: f"{_process_name(pid)}/{pid}" for pid in graph.pids() + (timed.pids() if world else [])}
         assert graph.probe.set_parameter(PREDICTOR, "timing_log_every", window_frames or _MEASURING).successful
         log0 = len(launch.output())
         cpu0 = {pid: _cpu_s(pid) for pid in pids}
@@ -211,7 +235,7 @@ def launch_run(sim_s: float, warmup_s: float, launch_args: dict[str, str], windo
         while sim_now() < t0_sim + sim_s:
             for pid in pids:
                 rss[pid] = max(rss.get(pid, 0.0), _rss_mib(pid))
-            graph.probe.spin_for(0.2)
+            timed.probe.spin_for(0.2)
             if not launch.alive():
                 raise RuntimeError("the launch ended:\n" + launch.output()[-3000:])
         sim, wall = sim_now() - t0_sim, time.monotonic() - t0_wall
@@ -232,10 +256,10 @@ def launch_run(sim_s: float, warmup_s: float, launch_args: dict[str, str], windo
 
 
 def launch_runs(runs: int, sim_s: float, warmup_s: float, launch_args: dict[str, str],
-                window_frames: int = 0) -> list[dict]:
+                window_frames: int = 0, world: bool = False) -> list[dict]:
     results = []
     for k in range(runs):
-        r = launch_run(sim_s, warmup_s, launch_args, window_frames)
+        r = launch_run(sim_s, warmup_s, launch_args, window_frames, world)
         results.append(r)
         cpu = ", ".join(f"{name.split('/')[0]} {v:.0f}" for name, v in sorted(r["cpu_us_per_tick"].items()))
         windows = f", worst of {r['windows']} windows" if window_frames else ""
@@ -255,6 +279,10 @@ def launch_runs(runs: int, sim_s: float, warmup_s: float, launch_args: dict[str,
         f"{k}:={v}" for k, v in {"real_time_factor": "0.0", **launch_args}.items())
     ai = launch_args.get("ai", "none")
     read = f"ai:={ai}: " + ("all 14 catch times read" if ai == "passing" else "the opponents' 3 catch times read")
+    if world:
+        command = ("erforce-launch src/erforce_sim/launch/ssl_world.launch.yaml real_time_factor:=0.0 and, in "
+                   "another DDS domain, " + command.replace("real_time_factor:=0.0", "world:=ssl"))
+        read = "the stand-in SSL world, flat out, and the AI side apart (world:=ssl); " + read
     frames = (f"the worst window of {window_frames} frames per run" if window_frames else
               "per run over every frame of the measured stretch")
     per_process: dict[str, list[float]] = {}
@@ -264,7 +292,7 @@ def launch_runs(runs: int, sim_s: float, warmup_s: float, launch_args: dict[str,
     cpu_note = ", ".join(f"{name} {statistics.median(v):.0f} µs" for name, v in sorted(per_process.items()))
     return [
         {"name": f"14-robot graph (11 + 3 opponents + ball, lockstep over DDS, {read}), one command, real-time "
-                 "factor",
+                 "factor" + (" of the world" if world else ""),
          "value": round(statistics.median(r["rtf"] for r in results), 2), "unit": "× real time",
          "target": "≥ 1.0×" if ai == "passing" else "—",
          "note": f"{spread([r['rtf'] for r in results], '×', 2)}; `{command}`; CPU per tick (median): {cpu_note}"},
@@ -293,6 +321,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--launch-warmup-s", type=float, default=1.0, help="simulated seconds before measuring")
     parser.add_argument("--window-frames", type=int, default=0,
                         help="the predictor's p99 as the worst of windows of N frames (default: over every frame)")
+    parser.add_argument("--world", action="store_true",
+                        help="with --launch-runs: the AI side alone (team_sim world:=ssl) against the stand-in world "
+                             "(ssl_world.launch.yaml, flat out), each in a DDS domain of its own")
     parser.add_argument("--launch-args", nargs="*", default=[], metavar="NAME:=VALUE",
                         help="more launch arguments, e.g. lockstep_topics:=per_robot")
     parser.add_argument("--launch-ai", nargs="+", default=["passing"], choices=("passing", "none"),
@@ -303,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
         extra = dict(a.split(":=", 1) for a in args.launch_args)
         rows = [row for ai in (args.launch_ai if "ai" not in extra else [extra["ai"]])
                 for row in launch_runs(args.launch_runs, args.launch_sim_s, args.launch_warmup_s,
-                                       {"ai": ai, **extra}, args.window_frames)]
+                                       {"ai": ai, **extra}, args.window_frames, args.world)]
         print("\n".join(markdown_table(rows)))
         return 0
     rows = run(args.quick, args.robots, tuple(args.deployment or ("per_robot", "team")))

@@ -367,11 +367,44 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
     three = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", robot_ids="[0, 2, 5]", opponent_ids="[1]")
     assert [(params_of(s)["/**"]["robot_ids"], params_of(s)["/**"]["opponent_ids"]) for s in three.values()
             if node_name(s).endswith("firmware")] == [([0, 2, 5], [1])]
-    ssl = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", vision="ssl", team_color="yellow")
+    ssl = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", vision="ssl", team_color="yellow",
+                  ssl_vision_process="own")
     ssl_params = {node_name(spec): params_of(spec)["/**"] for spec in ssl.values()}
     assert ssl_params["plant"]["vision_output"] == "ssl"
     assert ssl_params["plant"]["team_color"] == ssl_params["ssl_vision_bridge"]["team_color"] == "yellow"
     assert ssl_params["ssl_vision_bridge"]["num_robots"] == 11
+    # the bridge is where the AI's vision enters: under the predictor's priority, never below the world's
+    bridge = next(spec for spec in ssl.values() if node_name(spec) == "ssl_vision_bridge")
+    assert "erforce-realtime" in bridge.cmd[0] and bridge.cmd[1] == "10"
+
+
+def test_team_sim_on_an_outside_world_starts_only_the_ai_side():
+    """world:=ssl: no plant and no firmware; the bridge (in the predictor's process by default) on the cameras'
+    capture time and the world's geometry; one ssl_sim_bridge per colour, ours taking the placements."""
+    specs = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", world="ssl", ai="passing",
+                    team_color="yellow", defend_side="positive_x", command_port="20301",
+                    opponent_command_port="20302", simulator_control_port="20300")
+    assert [label.rsplit("-", 1)[0] for label in specs] == ["ssl_ball_predictor", "team_catcher", "passing_game",
+                                                            "ssl_sim_bridge", "ssl_sim_bridge"]
+    predictor = next(params_of(s)["/**"] for s in specs.values() if "ssl_ball_predictor" in s.label)
+    assert (predictor["time_source"], predictor["field"], predictor["use_sim_time"]) == ("capture", "from_geometry",
+                                                                                        True)
+    assert (predictor["team_color"], predictor["defend_side"]) == ("yellow", "positive_x")
+    bridges = {node_name(s): params_of(s)["/**"] for s in specs.values() if "ssl_sim_bridge" in s.label}
+    ours, theirs = bridges["ssl_sim_bridge"], bridges["opponent_sim_bridge"]
+    assert (ours["team"], ours["team_color"], ours["robot_ids"], ours["command_port"], ours["control_port"]) == (
+        "ours", "yellow", list(range(11)), 20301, 20300)
+    assert (theirs["team"], theirs["team_color"], theirs["robot_ids"], theirs["command_port"],
+            theirs["control_port"]) == ("opponents", "blue", [0, 1, 2], 20302, 0)
+    assert ours["protocol"] == theirs["protocol"] == "ssl" and ours["defend_side"] == theirs["defend_side"]
+    game = next(params_of(s)["/**"] for s in specs.values() if "passing_game" in s.label)
+    assert game["use_sim_time"] and game["place_ball"] and game["field"] == "from_geometry"
+    interceptor = next(params_of(s)["/**"] for s in specs.values() if "team_catcher" in s.label)
+    assert interceptor["field"] == "from_geometry"
+    field = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml", world="ssl", ai="passing",
+                    sim_protocol="none")
+    assert [label.rsplit("-", 1)[0] for label in field] == ["ssl_ball_predictor", "team_catcher", "passing_game"]
+    assert next(params_of(s)["/**"] for s in field.values() if "passing_game" in s.label)["place_ball"] is False
 
 
 @pytest.mark.parametrize(("launch_file", "args"), [
@@ -436,6 +469,7 @@ NODES = {
     "receiver.launch.yaml": ["velocity_controller-1", "motor_boards-2", "catcher-3"],
     "sim_one_robot.launch.yaml": ["plant-1", "velocity_controller-2", "motor_boards-3"],
     "team_sim.launch.yaml": ["plant-1", "ball_predictor-2", "team_catcher-3", "team_firmware-4"],
+    "ssl_world.launch.yaml": ["plant-1", "team_firmware-2", "ssl_sim_server-3"],
 }
 
 

@@ -184,6 +184,18 @@ def test_plan_robot_control_rotates_global_velocities_and_reports_each_unsupport
     assert messages == ["chip", "robot", "this", "wheel"]  # one each: chip, unknown robot 9, dribbler, wheel
 
 
+def test_plan_robot_control_passes_the_dribbler_speed_on_where_the_simulator_has_one():
+    # 600 rpm = 600 * 2 pi / 60 = 20 pi rad/s; without a dribbler motor the speed is refused and nothing spins
+    reqs = [ssl_sim.MoveRequest(0, "local", (0.5, 0.0, 0.0), 0.0, 0.0, 600.0),
+            ssl_sim.MoveRequest(1, "local", (0.0, 0.0, 0.0), 0.0, 0.0, 0.0)]
+    actions, errors = ssl_sim.plan_robot_control(reqs, [0, 1], {}.get, dribbler=True)
+    assert [a.dribbler_radps for a in actions] == pytest.approx([20.0 * math.pi, 0.0])
+    assert errors == []
+    actions, errors = ssl_sim.plan_robot_control(reqs, [0, 1], {}.get)
+    assert [a.dribbler_radps for a in actions] == [0.0, 0.0]
+    assert [e.message for e in errors] == ["this simulator has no dribbler motor"]
+
+
 def test_a_stale_pose_does_not_turn_global_velocities(ros_graph):
     """The time rule on ground_truth/odom: a pose stamped before the newest one is dropped, so a global
     velocity is still turned by the newest yaw (facing +x: field +x is the robot's forward)."""

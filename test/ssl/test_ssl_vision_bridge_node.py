@@ -10,6 +10,7 @@ import signal
 import socket
 import threading
 import time
+from itertools import pairwise
 
 import pytest
 from geometry_msgs.msg import PointStamped, PoseStamped
@@ -372,3 +373,67 @@ def test_the_field_comes_from_the_world_nothing_is_judged_before_its_geometry(ro
         out = node.output()
         assert out.count("waiting for SSL geometry") == 1, out[-2000:]
         assert "outside the field" not in out, out[-2000:]
+
+
+def test_capture_time_becomes_the_stamps_and_clock_whatever_the_worlds_pace(ros_graph):
+    """time_source capture: a world at half the wall clock's pace, two cameras whose clocks differ by 0.3 s.
+    The stamps are camera 0's capture times (it founds the timeline), camera 1's land on them once measured,
+    /clock follows the capture time (never back, at most clock_period_s behind), and holds while vision stops."""
+    from rosgraph_msgs.msg import Clock
+
+    port = free_udp_port()
+    node = ros_graph.start_node("erforce_ball_model", "ssl_vision_bridge", params={
+        "port": port, "interface": "127.0.0.1", "time_source": "capture", "clock_period_s": 0.01,
+        "field": "division_b"})  # this sender sends no geometry
+    node.wait_for_output(r"stamps: capture", timeout_s=60.0)
+    sender = Sender(port)
+    q = contract
+    clocks = ros_graph.subscribe(q.CLOCK.name, Clock, q.CLOCK.qos)
+    frames = ros_graph.subscribe(q.VISION_ROBOTS.name, PointCloud2, q.VISION_ROBOTS.qos)
+    period_s = 1.0 / 120.0  # 60 frames a wall second, half a world second
+    sent = []  # camera 0's capture times
+
+    def send(k: int) -> None:
+        t = k * period_s
+        sender.send(sender.frame(0, t, robots=[RobotSighting("blue", 3, -2.0, 1.0, 0.5, 1.0)]))
+        sender.send(sender.frame(1, t, robots=[RobotSighting("blue", 7, 2.0, 1.0, 0.5, 1.0)], clock_offset_s=0.3))
+        sent.append(VISION_EPOCH_S + t)
+        ros_graph.probe.spin_for(1 / 60.0)
+
+    k = 0
+    while len(clocks) < 3 or k < 90:  # 1.5 s: camera 1 is measured over 30 frames
+        k += 1
+        send(k)
+        assert k < 600, node.output()[-3000:]
+    # vision stops (0.5 s of wall time), then goes on where the world is 2 s later
+    n_before, held = len(clocks), sent[-1]
+    ros_graph.probe.spin_for(0.5)
+    assert len(clocks) == n_before
+    k += 240  # 2 s of world time
+    for _ in range(60):
+        k += 1
+        send(k)
+    ros_graph.probe.spin_until(lambda: clocks and clock_s(clocks[-1]) == pytest.approx(sent[-1], abs=0.0105),
+                               10.0, "/clock at the last capture time")
+
+    values = [clock_s(m) for m in clocks]
+    assert all(b > a for a, b in pairwise(values))  # never back, never repeated
+    assert all(math.isfinite(v) for v in values)
+    assert not any(held < v < held + 2.0 for v in values)  # held during the gap, then on by the capture time
+    captured = set(sent)
+    assert all(min(abs(v - c) for c in captured) < 1e-6 for v in values)  # /clock says a frame's capture time
+    stamps_by_robot: dict[int, list[float]] = {3: [], 7: []}
+    for t_s, _balls, rows in map(vision_frame_from_msg, frames):
+        for row in rows.tolist():
+            stamps_by_robot[int(row[1])].append(t_s)
+    # camera 0's frames: its capture times (to the resolution of a double at 1.7e9 s)
+    assert stamps_by_robot[3] and all(min(abs(t - c) for c in captured) < 1e-6 for t in stamps_by_robot[3])
+    # camera 1's, measured (its clock 0.3 s ahead): at camera 0's time of the same capture after 30 frames
+    late = stamps_by_robot[7][-60:]
+    assert late and all(min(abs(t - c) for c in captured) < 2e-3 for t in late)
+    assert node.alive()
+    sender.sock.close()
+
+
+def clock_s(msg) -> float:
+    return msg.clock.sec + msg.clock.nanosec * 1e-9

@@ -10,12 +10,14 @@ import math
 import random
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.vision_pass import (
     PASS_BAD_STAMP,
+    PASS_CAPTURE_REFUSED,
     PASS_CLOCK_JUMP,
     PASS_DONE,
     PASS_FALLBACK,
@@ -28,8 +30,11 @@ from erforce_interfaces.conversions import vision_frame_from_msg, vision_robots_
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
 from erforce_interfaces.ssl_vision import (
+    TIME_CAPTURE,
+    TIME_ESTIMATE,
     BallCandidate,
     CameraFrame,
+    CaptureTimeline,
     ClockJump,
     FieldGeometry,
     RobotSighting,
@@ -45,10 +50,13 @@ OURS, N_OURS = 0.0, 11  # blue
 
 
 class Pipeline:
-    """A clock and a tracker as the bridge holds them, with pose reader counts by side and id."""
+    """A clock, a capture timeline and a tracker as the bridge holds them, with pose reader counts by side and id;
+    stamps from the time source ``mode``."""
 
-    def __init__(self, model: BallModelParams | None = None) -> None:
+    def __init__(self, mode: int = TIME_ESTIMATE, model: BallModelParams | None = None) -> None:
+        self.mode = mode
         self.clock = VisionClock()
+        self.timeline = CaptureTimeline()
         self.tracker = VisionTracker(FIELD, model)
         self.readers = np.zeros((2, MAX_ROBOT_ID + 1), np.int64)
         self.points = np.empty((65, 6))
@@ -67,7 +75,10 @@ def general_path(p: Pipeline, data: bytes, t_receive: float):
     if frame is None:
         return "nothing", None
     try:
-        t_s = p.clock.to_receiver(frame.camera_id, frame.t_capture_s, frame.t_sent_s, t_receive)
+        if p.mode == TIME_CAPTURE:
+            t_s = p.timeline.stamp(frame.camera_id, frame.t_capture_s, frame.t_sent_s, t_receive)
+        else:
+            t_s = p.clock.to_receiver(frame.camera_id, frame.t_capture_s, frame.t_sent_s, t_receive)
     except ClockJump:
         return "jump", None
     if not (math.isfinite(t_s) and t_s >= 0.0):
@@ -85,10 +96,10 @@ def general_path(p: Pipeline, data: bytes, t_receive: float):
 
 def compiled_path(p: Pipeline, fp: FramePass, data: bytes, t_receive: float):
     """The same through the pass, finished as the bridge finishes it (ball filter, general path)."""
-    status, n_bytes, action, t_s, ball_x, ball_y = fp.run(data, t_receive, False)
+    status, n_bytes, action, t_s, ball_x, ball_y = fp.run(data, t_receive, p.mode)
     if status == PASS_FALLBACK:
         return general_path(p, data, t_receive)
-    if status == PASS_CLOCK_JUMP:
+    if status in (PASS_CLOCK_JUMP, PASS_CAPTURE_REFUSED):
         return "jump", None
     if status == PASS_BAD_STAMP:
         return "stamp", None
@@ -106,10 +117,11 @@ def compiled_path(p: Pipeline, fp: FramePass, data: bytes, t_receive: float):
     return fp.message_view[:n_bytes].tobytes(), ball
 
 
-def eventful_stream(seed: int = 3, duration_s: float = 4.0) -> list[tuple[bytes, float]]:
+def eventful_stream(seed: int = 3, duration_s: float = 4.0, step_back_s: float = 0.0) -> list[tuple[bytes, float]]:
     """(datagram, receive time) of 8 cameras at 75 Hz: 22 robots, the ball kicked, out into the run-off area and
     put down elsewhere, reflections, robots without orientation or beyond our ids, duplicate ids, a camera's
-    clock jumping forward, frames out of order, garbage and a geometry packet."""
+    clock jumping forward, frames out of order, garbage and a geometry packet; with ``step_back_s`` camera 5's
+    clock goes back by that much for 0.5 s (t_capture and t_sent)."""
     rng = random.Random(seed)
     centres = [(rng.uniform(-5.0, 5.0), rng.uniform(-3.8, 3.8)) for _ in range(22)]
     out = []
@@ -147,8 +159,12 @@ def eventful_stream(seed: int = 3, duration_s: float = 4.0) -> list[tuple[bytes,
         t_sent = 100.0 + t + 0.004
         if cam == 2 and 1.5 <= t < 2.5:
             t_sent -= 1.0  # the camera's clock jumps (refused until confirmed)
+        t_capture = 100.0 + t
+        if cam == 5 and 3.0 <= t < 3.5:
+            t_capture -= step_back_s
+            t_sent -= step_back_s
         t_receive = 1.7e9 + t + 0.004 + rng.uniform(0.0, 0.003)
-        data = encode_frame(CameraFrame(cam, n, 100.0 + t, t_sent, tuple(balls), tuple(robots)))
+        data = encode_frame(CameraFrame(cam, n, t_capture, t_sent, tuple(balls), tuple(robots)))
         out.append((data, t_receive))
         if n % 97 == 0:
             out.append((data[: len(data) // 2], t_receive))
@@ -161,11 +177,12 @@ def eventful_stream(seed: int = 3, duration_s: float = 4.0) -> list[tuple[bytes,
     return out
 
 
-def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream():
-    general, compiled = Pipeline(), Pipeline()
-    fp = FramePass(compiled.clock, compiled.tracker, compiled.readers, OURS, N_OURS)
+@pytest.mark.parametrize("mode", [TIME_ESTIMATE, TIME_CAPTURE])
+def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(mode):
+    general, compiled = Pipeline(mode), Pipeline(mode)
+    fp = FramePass(compiled.clock, compiled.tracker, compiled.readers, OURS, N_OURS, timeline=compiled.timeline)
     outcomes = set()
-    for k, (data, t_receive) in enumerate(eventful_stream()):
+    for k, (data, t_receive) in enumerate(eventful_stream(step_back_s=2.0 if mode == TIME_CAPTURE else 0.0)):
         if k == 1500:  # a tool subscribes to one of our robots' vision_pose: its frames take the general path
             general.readers[0, 4] = compiled.readers[0, 4] = 1
         want, want_ball = general_path(general, data, t_receive)
@@ -180,9 +197,12 @@ def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(
     assert outcomes == {"bad", "jump", "nothing", "general", "ball", "robots"}
     for name in ("frames", "late_balls", "false_candidates", "switches", "kicks"):
         assert getattr(compiled.tracker, name) == getattr(general.tracker, name), name
-    # the jump and the way back, each confirmed
-    assert general.tracker.switches >= 1 and general.tracker.late_balls >= 1 and general.clock.jumps_confirmed == 2
-    assert compiled.clock.jumps_confirmed == 2
+    assert general.tracker.switches >= 1 and general.tracker.late_balls >= 1
+    if mode == TIME_ESTIMATE:  # camera 2's t_sent: the jump and the way back, each confirmed
+        assert general.clock.jumps_confirmed == compiled.clock.jumps_confirmed == 2
+    else:  # camera 5's clock: back and forward again, each confirmed
+        assert general.timeline.jumps_confirmed == compiled.timeline.jumps_confirmed == 2
+        assert np.array_equal(general.timeline.cams, compiled.timeline.cams, equal_nan=True)
 
 
 def kick_stream(v0_mps: float, a_slide: float, a_roll: float, c_switch: float, seed: int = 4):
@@ -210,7 +230,7 @@ def test_the_pass_filters_with_a_model_set_on_its_tracker_as_with_one_it_started
     # tolerances: the two only differ by their estimates of the ball at rest before the kick).
     model = BallModelParams(-14.0, -0.7, 0.7)
     stream, first_kicked = kick_stream(3.0, 14.0, 0.7, 0.7)
-    pinned, changed = Pipeline(model), Pipeline()
+    pinned, changed = Pipeline(model=model), Pipeline()
     passes = [FramePass(p.clock, p.tracker, p.readers, OURS, N_OURS) for p in (pinned, changed)]
     compared = 0
     for k, (data, t_receive) in enumerate(stream):
@@ -265,7 +285,7 @@ def test_fuzz_what_the_pass_takes_is_valid_and_the_rest_is_handed_back_untouched
     for chunk in (data, data[: cut % (len(data) + 1)], bytes(edited)):
         before = [a.copy() for a in (fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps,
                                      fresh.tracker.counts, fresh.tracker.robot_tracks)]
-        status, n_bytes, action, t_s, ball_x, ball_y = fresh_pass.run(chunk, 1.7e9, False)
+        status, n_bytes, action, t_s, ball_x, ball_y = fresh_pass.run(chunk, 1.7e9, TIME_ESTIMATE)
         if status == PASS_FALLBACK:  # nothing changed; the general path names the problem or drops a detection
             after = (fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps, fresh.tracker.counts,
                      fresh.tracker.robot_tracks)

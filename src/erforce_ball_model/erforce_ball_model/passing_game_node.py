@@ -279,17 +279,25 @@ class PassingGameNode(Node):
             self._choice_pub.publish(table_msg(rows, columns))
 
     def _start(self, now: float) -> None:
-        """The game starts once the world's field is known and every robot has been tracked settle_s."""
+        """The game starts once the world's field is known, every robot has been tracked settle_s and, with
+        place_ball, someone takes the placements (the plant, or a simulator's bridge that may start after vision
+        already flows)."""
         if self._field.field is None:  # the world's field is not known yet (said once at start)
             return
-        if not self._player.seen.all():
+        placer_missing = self._set_ball_pub is not None and self._set_ball_pub.get_subscription_count() == 0
+        if not self._player.seen.all() or placer_missing:
             self._first_seen = None
             if self._waiting_since is None:
                 self._waiting_since = now
             elif now - self._waiting_since > START_PATIENCE_S:
                 missing = [self._name(k) for k in np.flatnonzero(~self._player.seen)]
-                self._warn.warn("start", f"the game waits for the tracked pose (/robots/tracked) of "
-                                f"{', '.join(missing)}: are they on the field and num_robots / num_opponents right?")
+                if missing:
+                    self._warn.warn("start", f"the game waits for the tracked pose (/robots/tracked) of "
+                                    f"{', '.join(missing)}: are they on the field and num_robots / num_opponents "
+                                    "right?")
+                else:
+                    self._warn.warn("start", f"the game waits for a reader of {contract.SIM_SET_BALL.name} to place "
+                                    "the ball (the plant or ssl_sim_bridge; place_ball false: a person places it)")
             return
         if self._first_seen is None:
             self._first_seen = now

@@ -290,8 +290,10 @@ class BallPredictor:
     # -------------------------------------------------------------------- ball
     def ball_frame(self, t_s: float, x_m: float, y_m: float, *, restart: bool = False) -> BallFrame | None:
         """A vision observation of the ball: the ball's state and every fresh robot's catch; None when
-        the observation was rejected or no prediction could be made (with a warning). ``restart``: the
-        stamp starts a new time line (StampVerdict.RESTART), the ball filter and the shot collection start over."""
+        the observation was rejected or no prediction could be made (with a warning), or when the filter
+        holds it back after a gap (``TrackerConfig.max_hold_gap_s``: the next frame says what happened).
+        ``restart``: the stamp starts a new time line (StampVerdict.RESTART), the ball filter and the shot
+        collection start over."""
         cfg = self.config
         if cfg.field is None:  # waiting for the world's field: nothing is judged against another
             self.waiting_frames += 1
@@ -314,6 +316,8 @@ class BallPredictor:
         if status == UpdateStatus.REJECTED_INVALID:
             self._warn("ball_invalid", "rejected vision/ball: invalid")
             return None
+        if status == UpdateStatus.HELD_BACK and t_s - ball.t_s > cfg.tracker.max_hold_gap_s:
+            return None  # after a gap: the old motion extrapolated is no estimate; the next frame re-seeds it
         try:
             traj = ball.trajectory()
             if status == UpdateStatus.HELD_BACK:  # the filter waits for the next frame: predict to this stamp

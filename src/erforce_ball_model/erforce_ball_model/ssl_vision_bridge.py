@@ -18,7 +18,13 @@ detection valid, every robot with an orientation, no vision_pose reader) goes fr
 message's bytes in one compiled pass (erforce_ball_model.vision_pass: decoding, vision clock, tracker and
 the ball filter's usual update, points, CDR); Python adds the publish, and the ball filter's unusual frames
 (a new ball, one held back). Anything else takes the general path (the same kernels through their Python
-interfaces), which also warns; so do a flipped field and ``publish_detections``."""
+interfaces), which also warns; so do a flipped field and ``publish_detections``.
+
+Stamps (``time_source``): ``estimate`` maps t_capture onto this host's clock (ssl_vision.VisionClock: a real
+field, whose vision host's clock runs at the pace of ours); ``capture`` puts the cameras' capture times on one
+timeline (ssl_vision.CaptureTimeline) and publishes it on ``/clock``: the time of an outside world that is not
+paced to our clock (a simulator at 0.6x or flat out), which the AI side's nodes follow with use_sim_time;
+``vision`` takes t_capture as ROS time (our plant, which owns /clock)."""
 
 from __future__ import annotations
 
@@ -41,11 +47,15 @@ from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.vision_pass import (
     I_CAMERA,
     I_DEVIATION,
+    I_LAST_T_CAPTURE,
     I_OFFSET,
     I_POINTS,
     I_SAMPLE,
     I_STAMP,
+    I_T_CAPTURE,
+    I_TIMELINE_STATUS,
     PASS_BAD_STAMP,
+    PASS_CAPTURE_REFUSED,
     PASS_CLOCK_JUMP,
     PASS_DONE,
     PASS_FALLBACK,
@@ -58,6 +68,7 @@ from erforce_ball_model.vision_tracking import BALL_FUSED, MAX_ROBOT_ID, VisionT
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
+    clock_cdr,
     point_cdr,
     pose2d_cdr,
     table_cdr,
@@ -79,14 +90,22 @@ from erforce_interfaces.robot_config import (
     turned_half,
 )
 from erforce_interfaces.ssl_vision import (
+    CLOCK_CAMERAS,
     TEAMS,
+    TIME_CAPTURE,
+    TIME_ESTIMATE,
+    TIME_SOURCES,
+    TIME_VISION,
+    CaptureTimeline,
     ClockJump,
     DecodedPacket,
     DetectionArrays,
+    PaceCheck,
     SslDecodeError,
     VisionClock,
     clock_jump_text,
     decode_wrapper,
+    timeline_refusal_text,
 )
 
 _KIND = contract.VISION_DETECTION_KINDS
@@ -105,6 +124,7 @@ class BridgeConfig:
     time_source: str
     clock_window_s: float
     clock_jump_s: float
+    clock_period_s: float
     publish_detections: bool
 
 
@@ -122,6 +142,7 @@ def build_config(c) -> BridgeConfig:
         time_source=c.time_source,
         clock_window_s=c.clock_window_s,
         clock_jump_s=c.clock_jump_s,
+        clock_period_s=c.clock_period_s,
         publish_detections=c.publish_detections,
     )
 
@@ -151,6 +172,8 @@ class SslVisionBridge(Node):
         self._geometry_sink = geometry_sink
         self._sink_ns = 0  # the sink's thread CPU time in the current datagram
         self._config: BridgeConfig | None = None
+        self._clock_pub = None  # /clock, created with time_source capture
+        self._clock_sent_s = -math.inf  # the timeline's time last published on /clock
         self._lock = threading.Lock()  # parameter changes vs the receive thread
         self._last_geometry = None
         self._params = NodeParams(self, SCHEMA, build_config)
@@ -206,13 +229,20 @@ class SslVisionBridge(Node):
             self._config = config
             if old is None or (config.clock_window_s, config.clock_jump_s) != (old.clock_window_s, old.clock_jump_s):
                 self._vision_clock = VisionClock(config.clock_window_s, config.clock_jump_s)
+                self._pace_check = PaceCheck(config.clock_jump_s + 0.05)
+            if old is None:
+                self._timeline = CaptureTimeline(config.clock_jump_s)
+            else:  # in place: the timeline's time (and /clock) go on
+                self._timeline.set_jump_s(config.clock_jump_s)
             self._ours = float(TEAMS.index(config.ours))  # as in the decoder's team column
             if old is None:
                 self._tracker = VisionTracker(config.field)
             elif config.field != old.field and self._last_geometry is None:
                 self._tracker.field = config.field
             self._set_path()
-            self._stamp_from_vision = config.time_source == "vision"
+            self._time_mode = TIME_SOURCES.index(config.time_source)
+            if self._time_mode == TIME_CAPTURE and self._clock_pub is None:
+                self._clock_pub = contract_publisher(self, contract.CLOCK)
             if old is not None:
                 self._bind_pass()
 
@@ -224,7 +254,8 @@ class SslVisionBridge(Node):
 
     def _bind_pass(self) -> None:
         """The compiled pass on the current clock, tracker and team (at start and after parameter changes)."""
-        self._frame_pass = FramePass(self._vision_clock, self._tracker, self._pose_readers, self._ours, self._n_ours)
+        self._frame_pass = FramePass(self._vision_clock, self._tracker, self._pose_readers, self._ours, self._n_ours,
+                                     timeline=self._timeline)
 
     # ------------------------------------------------------------------ receiving
     def _receive_loop(self) -> None:
@@ -251,11 +282,14 @@ class SslVisionBridge(Node):
                     return  # shutting down: the context went (SIGINT) before destroy_node stopped this thread
                 self._warn.warn("batch", f"ssl_vision_bridge: batch failed: {exc!r}")
 
-    def handle_batch(self, batch: list[bytes], t_receive_s: float) -> None:
-        """Decode, track and publish a batch of datagrams received at ``t_receive_s`` (ROS clock)."""
+    def handle_batch(self, batch: list[bytes], t_receive_s: float, t_wall_s: float | None = None) -> None:
+        """Decode, track and publish a batch of datagrams received at ``t_receive_s`` (ROS clock) and ``t_wall_s``
+        (time.monotonic(), the capture timeline's reference; default: now)."""
         self.stats["datagrams"] += len(batch)
         thread_time_ns = time.thread_time_ns  # a system call: two per datagram
         with self._lock:
+            if self._time_mode == TIME_CAPTURE:  # the timeline's receive times: a wall clock, not its own /clock
+                t_receive_s = time.monotonic() if t_wall_s is None else t_wall_s
             if len(batch) > self._flood_batch:  # decode all first: only each camera's newest frame is used
                 decoded = []
                 for data in batch:
@@ -279,7 +313,21 @@ class SslVisionBridge(Node):
                     if packet is not None:
                         self._use(packet, t_receive_s)
                     self.cpu_ns.append(thread_time_ns() - t0 - self._take_sink_ns())
+            if self._time_mode == TIME_CAPTURE:
+                self._publish_clock()
         self._log_stats()
+
+    def _publish_clock(self) -> None:
+        """The timeline's time on /clock once it moved on by clock_period_s (never back: the timeline's time
+        never goes back)."""
+        newest = self._timeline.newest_s
+        if newest is not None and newest - self._clock_sent_s >= max(self._config.clock_period_s, 1e-9):
+            try:
+                self._clock_pub.publish(clock_cdr(round(newest * 1e9)))
+            except (ConversionError, OverflowError) as exc:
+                self._warn.warn("clock", f"ssl_vision_bridge: /clock not published at {newest!r} s: {exc}")
+                return
+            self._clock_sent_s = newest
 
     def _publish_frame(self, data: bytes) -> None:
         """A camera frame's ``/vision/robots``: to the sink first (its answer is on the latency path), then the
@@ -302,8 +350,7 @@ class SslVisionBridge(Node):
 
     def _pass_datagram(self, data: bytes, t_receive_s: float) -> None:
         """A datagram through the compiled pass: the usual frame is one call and one publish."""
-        status, n_bytes, action, t_s, ball_x, ball_y = self._frame_pass.run(data, t_receive_s,
-                                                                            self._stamp_from_vision)
+        status, n_bytes, action, t_s, ball_x, ball_y = self._frame_pass.run(data, t_receive_s, self._time_mode)
         if status == PASS_DONE and n_bytes >= 0 and (not action or action >= BALL_FUSED):
             self.stats["frames"] += 1
             if n_bytes:
@@ -327,6 +374,11 @@ class SslVisionBridge(Node):
             self.stats["dropped_clock"] += 1
             self._warn.warn(f"clock{camera_id}", "ssl_vision_bridge: " + clock_jump_text(
                 camera_id, info[I_SAMPLE], info[I_DEVIATION], info[I_OFFSET]))
+            return
+        if status == PASS_CAPTURE_REFUSED:
+            self.stats["dropped_clock"] += 1
+            self._warn.warn(f"clock{camera_id}", "ssl_vision_bridge: " + timeline_refusal_text(
+                camera_id, int(info[I_TIMELINE_STATUS]), info[I_T_CAPTURE], info[I_LAST_T_CAPTURE]))
             return
         if status == PASS_BAD_STAMP:
             self.stats["dropped_clock"] += 1
@@ -377,6 +429,8 @@ class SslVisionBridge(Node):
         if self._periods_logged:
             self._cpu_us_counts.update(ns // 1000 for ns in ms)
         self._periods_logged += 1
+        if self._time_mode == TIME_ESTIMATE:
+            self._check_pace()
         s = self.stats
         self.get_logger().info(
             f"ssl_vision_bridge: {s['datagrams']} datagrams, {s['frames']} camera frames; dropped: {s['dropped_bad']} "
@@ -384,6 +438,15 @@ class SslVisionBridge(Node):
             f"median {ms[len(ms) // 2] * 1e-6:.3f} ms, p99 {ms[int(0.99 * (len(ms) - 1))] * 1e-6:.3f} ms; "
             f"since the first period: {self._cpu_p99_text()}"
         )
+
+    def _check_pace(self) -> None:
+        """Say when a camera's clock is not paced to ours (time_source estimate: see PaceCheck)."""
+        t_receive_s = self.get_clock().now().nanoseconds * 1e-9
+        for camera_id in range(CLOCK_CAMERAS):
+            offset = self._vision_clock.offset_s(camera_id)
+            text = None if offset is None else self._pace_check.check(camera_id, offset, t_receive_s)
+            if text is not None:
+                self._warn.warn(f"pace{camera_id}", "ssl_vision_bridge: " + text)
 
     def _cpu_p99_text(self) -> str:
         """The p99 of the CPU per datagram over every datagram after the first statistics period."""
@@ -445,15 +508,21 @@ class SslVisionBridge(Node):
 
     # ------------------------------------------------------------------- frames
     def _on_frame(self, frame: DetectionArrays, t_receive_s: float) -> None:
+        """One camera frame on the general path; ``t_receive_s``: the ROS clock, with time_source capture the
+        monotonic wall clock."""
         cfg = self._config
         if self._tracker.field is None:  # nothing is judged against a field the world has not given
             self.stats["waiting_geometry"] += 1
             return
-        if cfg.time_source == "vision":
+        if self._time_mode == TIME_VISION:
             t_s = frame.t_capture_s
         else:
             try:
-                t_s = self._vision_clock.to_receiver(frame.camera_id, frame.t_capture_s, frame.t_sent_s, t_receive_s)
+                if self._time_mode == TIME_CAPTURE:
+                    t_s = self._timeline.stamp(frame.camera_id, frame.t_capture_s, frame.t_sent_s, t_receive_s)
+                else:
+                    t_s = self._vision_clock.to_receiver(frame.camera_id, frame.t_capture_s, frame.t_sent_s,
+                                                         t_receive_s)
             except ClockJump as exc:
                 self.stats["dropped_clock"] += 1
                 self._warn.warn(f"clock{frame.camera_id}", f"ssl_vision_bridge: {exc}")
@@ -483,7 +552,8 @@ class SslVisionBridge(Node):
             if ball is not None and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
                 self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
             if cfg.publish_detections:
-                self._publish_detections(cfg, frame.camera_id, t_receive_s - t_s, balls.tolist(), robots.tolist())
+                now_s = self._timeline.newest_s if self._time_mode == TIME_CAPTURE else t_receive_s
+                self._publish_detections(cfg, frame.camera_id, now_s - t_s, balls.tolist(), robots.tolist())
         except ConversionError as exc:
             self._warn.warn("publish", f"ssl_vision_bridge: camera {frame.camera_id}: not published: {exc}")
 

@@ -130,6 +130,9 @@ class TrackerConfig:
     shoot_window_s: float = 0.15
     fit_frames: int = 6
     max_gap_s: float = 1.0  # longer gaps re-initialize the filter
+    # a frame held back this long after the last fused one gets no estimate: the old motion extrapolated over
+    # a gap (an occlusion, vision that stopped) says where the ball is not; the next frame re-seeds the filter
+    max_hold_gap_s: float = 0.2
     # Two frames further apart than this speed allows are not one motion (the SSL limit is 6.5 m/s).
     max_ball_speed_mps: float = 10.0
 

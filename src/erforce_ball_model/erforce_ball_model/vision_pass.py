@@ -7,7 +7,9 @@ hypotheses, its choice of the ball, the ball filter's usual update (``tracking.b
 stays outside: a new ball and the ball filter's unusual frames (``VisionTracker.use_ball`` with the action
 returned) and anything unusual, which the pass hands back before it has changed any state (``PASS_FALLBACK``: the
 bridge runs the general path on the datagram, which names the problem) or after (``PASS_GENERAL``: a robot
-the points cannot carry; ``PASS_CLOCK_JUMP``, ``PASS_BAD_STAMP``: the frame is refused, ``info`` says why).
+the points cannot carry; ``PASS_CLOCK_JUMP``, ``PASS_CAPTURE_REFUSED``, ``PASS_BAD_STAMP``: the frame is refused,
+``info`` says why). The stamp comes from the time source's mode (ssl_vision.TIME_SOURCES: the vision clock's
+estimate, ``t_capture`` as it is, or the capture timeline).
 The message written is byte for byte what ``conversions.vision_robots_points_cdr`` builds from the same
 points.
 """
@@ -47,7 +49,12 @@ from erforce_interfaces.numba_support import compiled_for, numba
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import (
     MM,
+    TIME_CAPTURE,
+    TIME_ESTIMATE,
+    TIME_VISION,
+    TIMELINE_LAST_T_CAPTURE,
     CameraFrame,
+    CaptureTimeline,
     DecodeLimits,
     RobotSighting,
     VisionClock,
@@ -55,16 +62,19 @@ from erforce_interfaces.ssl_vision import (
     detection_rows,
     detection_rows_size,
     encode_frame,
+    timeline_step,
 )
 
-__all__ = ["PASS_BAD_STAMP", "PASS_CLOCK_JUMP", "PASS_DONE", "PASS_FALLBACK", "PASS_GENERAL", "FramePass",
-           "robot_points"]
+__all__ = ["PASS_BAD_STAMP", "PASS_CAPTURE_REFUSED", "PASS_CLOCK_JUMP", "PASS_DONE", "PASS_FALLBACK", "PASS_GENERAL",
+           "FramePass", "robot_points"]
 
-PASS_DONE, PASS_GENERAL, PASS_FALLBACK, PASS_CLOCK_JUMP, PASS_BAD_STAMP = range(5)
+PASS_DONE, PASS_GENERAL, PASS_FALLBACK, PASS_CLOCK_JUMP, PASS_BAD_STAMP, PASS_CAPTURE_REFUSED = range(6)
 # info: the frame's camera, its robots (rows from ROBOTS_AT), those used, the points written (-1: general
-# path), then the clock's sample, deviation and offset (PASS_CLOCK_JUMP) or the stamp (PASS_BAD_STAMP)
+# path), then the clock's sample, deviation and offset (PASS_CLOCK_JUMP), the stamp (PASS_BAD_STAMP), or the
+# timeline's status, the frame's t_capture and the camera's previous one (PASS_CAPTURE_REFUSED)
 I_CAMERA, I_ROBOTS, I_USED, I_POINTS, I_SAMPLE, I_DEVIATION, I_OFFSET = range(7)
 I_STAMP = I_SAMPLE
+I_TIMELINE_STATUS, I_T_CAPTURE, I_LAST_T_CAPTURE = I_SAMPLE, I_DEVIATION, I_OFFSET
 
 _OURS_CODE, _OPPONENTS_CODE = float(contract.OURS.code), float(contract.OPPONENTS.code)
 _BALL_CODE = float(contract.VISION_BALL_CODE)
@@ -130,11 +140,13 @@ def _message(t_s, points, n_points, head, width_at, sizes_at, message):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, clock_window, clock_pending, clock_counts,
-                clock_params, hyps, hits, candidates, tracks, used, settings, ball_state, counts, ball_filter,
-                shoot_samples, ball_model, pose_readers, ours_n_ours, points, head, layout, message, info):
-    """The datagram ``data`` received at ``t_receive`` through decoding, clock, tracker and message (see the
-    module docstring): (status, message length or -1, ball action, stamp, ball x, ball y)."""
+def _frame_pass(data, t_receive, time_mode, rows, limits, clock_window, clock_pending, clock_counts,
+                clock_params, timeline_cams, timeline_samples, timeline_glob, hyps, hits, candidates, tracks, used,
+                settings, ball_state, counts, ball_filter, shoot_samples, ball_model, pose_readers, ours_n_ours,
+                points, head, layout, message, info):
+    """The datagram ``data`` received at ``t_receive`` (the ROS clock; with TIME_CAPTURE a monotonic wall clock)
+    through decoding, clock, tracker and message (see the module docstring): (status, message length or -1,
+    ball action, stamp, ball x, ball y)."""
     max_balls, max_robots = int(limits[0]), int(limits[1])
     status, n_balls, n_robots, n_rejected, geometry = detection_rows(
         data, rows, max_balls, max_robots, limits[2], limits[3], limits[4], limits[5])
@@ -142,8 +154,15 @@ def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, clock_window, 
         return PASS_FALLBACK, -1, 0, 0.0, 0.0, 0.0
     camera = int(rows[3])
     info[I_CAMERA], info[I_ROBOTS], info[I_USED], info[I_POINTS] = camera, n_robots, 0, -1
-    if stamp_from_vision:
+    if time_mode == TIME_VISION:
         t_s = rows[1]
+    elif time_mode == TIME_CAPTURE:
+        refused, t_s = timeline_step(timeline_cams, timeline_samples, timeline_glob, camera, rows[1], rows[2],
+                                     t_receive)
+        if refused:
+            info[I_TIMELINE_STATUS], info[I_T_CAPTURE] = refused, rows[1]
+            info[I_LAST_T_CAPTURE] = timeline_cams[camera, TIMELINE_LAST_T_CAPTURE]
+            return PASS_CAPTURE_REFUSED, -1, 0, 0.0, 0.0, 0.0
     else:
         refused, t_s, sample, deviation, offset = clock_step(clock_window, clock_pending, clock_counts,
                                                              clock_params, camera, rows[1], rows[2], t_receive)
@@ -187,12 +206,12 @@ def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, clock_window, 
 
 
 class FramePass:
-    """``_frame_pass`` bound to a clock, a tracker and the node's point and message buffers: ``run(data,
-    t_receive_s, stamp_from_vision)`` returns its tuple; the decoded rows, ``info``, ``points`` and the message
+    """``_frame_pass`` bound to a clock, a capture timeline, a tracker and the node's point and message buffers:
+    ``run(data, t_receive_s, time_mode)`` returns its tuple; the decoded rows, ``info``, ``points`` and the message
     stay in the object until the next call."""
 
     def __init__(self, clock: VisionClock, tracker: VisionTracker, pose_readers: np.ndarray, ours: float,
-                 n_ours: int, limits: DecodeLimits = _LIMITS) -> None:
+                 n_ours: int, limits: DecodeLimits = _LIMITS, timeline: CaptureTimeline | None = None) -> None:
         if (limits.max_balls, limits.max_robots_per_team) != (_LIMITS.max_balls, _LIMITS.max_robots_per_team):
             raise ValueError("FramePass: the rows' layout is compiled for the default counts")
         self.rows = np.empty(detection_rows_size(limits.max_balls, limits.max_robots_per_team))
@@ -208,17 +227,20 @@ class FramePass:
         if len(tracker.candidates) < limits.max_balls or len(tracker.used) < 2 * limits.max_robots_per_team:
             raise ValueError("FramePass: the tracker's buffers are smaller than a frame's detections")
         self.tracker = tracker
-        self._state = (self.rows, self.limits, clock.window, clock.pending, clock.counts, clock.params, tracker.hyps,
+        timeline = timeline or CaptureTimeline()
+        self._state = (self.rows, self.limits, clock.window, clock.pending, clock.counts, clock.params,
+                       timeline.cams, timeline.samples, timeline.glob, tracker.hyps,
                        tracker.hits, tracker.candidates, tracker.robot_tracks, tracker.used, tracker.settings,
                        tracker.ball_state, tracker.counts, tracker.ball.s, tracker.ball.shoot, tracker.ball.m,
                        pose_readers, np.array([ours, n_ours], float),
                        self.points, self.head, self.layout, self.message, self.info)
         # the compiled function for exactly these types: no type matching per call
-        self._entry = compiled_for(_frame_pass, encode_frame(CameraFrame(0, 0, 0.0, 0.0, (), ())), 0.0, False,
-                                   *self._state)
+        self._entry = compiled_for(_frame_pass, encode_frame(CameraFrame(0, 0, 0.0, 0.0, (), ())), 0.0,
+                                   TIME_ESTIMATE, *self._state)
 
-    def run(self, data: bytes, t_receive_s: float, stamp_from_vision: bool) -> tuple:
-        return self._entry(data, t_receive_s, stamp_from_vision, *self._state)
+    def run(self, data: bytes, t_receive_s: float, time_mode: int) -> tuple:
+        """``time_mode``: TIME_ESTIMATE, TIME_VISION or TIME_CAPTURE (an int: the entry is compiled for one type)."""
+        return self._entry(data, t_receive_s, time_mode, *self._state)
 
     def robots(self) -> np.ndarray:
         """The last frame's decoded robot rows (ssl_vision's ROBOT_COLUMNS)."""
@@ -235,4 +257,5 @@ def load_kernels() -> None:
     frame_pass = FramePass(VisionClock(), VisionTracker(FieldConfig.preset("division_b")),
                            np.zeros((2, MAX_ROBOT_ID + 1), np.int64), 0.0, 11)
     data = encode_frame(CameraFrame(0, 1, 1.0, 1.0, (), (RobotSighting("blue", 0, 0.0, 0.0, 0.0, 1.0),)))
-    frame_pass.run(data, 1.0, False)
+    for mode in (TIME_ESTIMATE, TIME_CAPTURE):
+        frame_pass.run(data, 1.0 + mode, mode)

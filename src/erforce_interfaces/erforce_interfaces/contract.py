@@ -42,7 +42,9 @@ takes the league's multicast packets and publishes on the same topics the plant'
 so the rest of the graph cannot tell them apart:
 - millimetres become metres; the vision frame becomes ``field`` (turned by half a turn when our
   team defends the goal at positive x, so that in ``field`` we always defend negative x);
-- ``t_capture`` becomes the stamp, on the ROS clock (erforce_interfaces.ssl_vision.VisionClock);
+- ``t_capture`` becomes the stamp, on the ROS clock (erforce_interfaces.ssl_vision.VisionClock), or, with
+  ``time_source: capture``, on the cameras' one capture timeline, which the bridge publishes on ``/clock``
+  (erforce_interfaces.ssl_vision.CaptureTimeline);
 - a camera frame goes out as one ``/vision/robots`` message: the ball the multi-camera tracker picks
   from it (if any, with increasing stamps from frame to frame) and the robots it uses, both teams; the
   ball also to ``/vision/ball``, our team's robots also to ``/robot_<id>/vision_pose``, the opponents'
@@ -176,6 +178,13 @@ QOS_LATCHED = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
+# A log of events a late joiner needs whole (each pass as it ends): a tool started after the game did, or one
+# whose discovery a loaded machine held up, still gets every entry.
+QOS_LOG = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
 QOS_NAMES = {
     id(QOS_SENSOR): "sensor (best effort, keep last 5)",
     id(QOS_COMMAND): "command (reliable, keep last 10)",
@@ -183,6 +192,7 @@ QOS_NAMES = {
     id(QOS_STATE): "state (reliable, keep last 10)",
     id(QOS_CLOCK): "clock (reliable, keep last 1)",
     id(QOS_LATCHED): "latched (reliable, transient local, keep last 1)",
+    id(QOS_LOG): "log (reliable, transient local, keep last 1000)",
 }
 
 
@@ -313,10 +323,11 @@ def robot_frame(robot_id: int) -> str:
 
 
 # ---------------------------------------------------------------- global topics
-CLOCK = Topic("/clock", Clock, QOS_CLOCK, "plant", "every node (use_sim_time)",
+CLOCK = Topic("/clock", Clock, QOS_CLOCK, "plant; ssl_vision_bridge (time_source capture)", "every node (use_sim_time)",
               "simulation time; the plant owns time. At the plant's clock_rate_hz (100 Hz; 50 Hz in "
               "team_sim.launch.yaml): ROS time moves in steps of that period and sim-time timers tick at most "
-              "that often; the lockstep and per-frame work runs on message stamps")
+              "that often; the lockstep and per-frame work runs on message stamps. On an outside world, the "
+              "cameras' capture time (the bridge's clock_period_s)")
 VISION_BALL = Topic("/vision/ball", PointStamped, QOS_SENSOR, "plant (vision), ssl_vision_bridge; while subscribed",
                     "tools", "ball centre in `field` [m], stamp = capture time; noisy, delayed, with dropouts; the "
                     "same balls as /vision/robots")
@@ -406,7 +417,7 @@ PASS_CHOICE = Topic("/pass/choice", Float64MultiArray, QOS_STATE, "passing_game 
                     "the pass the holder has chosen, one row of PASS_CHOICE_COLUMNS (robot ids of our team, "
                     "times [s] from the kick; safe 1/0 = margin_s >= safe_margin_s); no rows: no choice "
                     "(nobody holds the ball)")
-PASS_RECORDS = Topic("/pass/records", Float64MultiArray, QOS_STATE, "passing_game", "demo, tools",
+PASS_RECORDS = Topic("/pass/records", Float64MultiArray, QOS_LOG, "passing_game", "demo, tools",
                      "one message per pass as it ends: one row of PASS_RECORD_COLUMNS (robot ids of each team, "
                      "times [s] from the kick, kick_speed_mps [m/s]; outcome PASS_OUTCOMES' index; caught_team "
                      "Team.code, 0 and caught_id -1 with actual_catch_s -1: nobody; first_opponent and "

@@ -471,6 +471,7 @@ class RobotAction:
     robot_id: int
     twist: tuple[float, float, float] | None  # forward, left [m/s], angular [rad/s]; None: no move command
     kick_speed_mps: float  # 0: no kick
+    dribbler_radps: float = 0.0  # with ``dribbler``: the requested dribbler speed (0: off)
 
 
 def plan_robot_control(requests: Iterable[MoveRequest], robot_ids: Iterable[int],
@@ -508,5 +509,5 @@ def plan_robot_control(requests: Iterable[MoveRequest], robot_ids: Iterable[int]
             kick = 0.0
         if r.dribbler_rpm != 0.0 and not dribbler:
             errors.setdefault("dribbler", SimError(ERROR_UNSUPPORTED, "this simulator has no dribbler motor"))
-        actions.append(RobotAction(r.robot_id, twist, kick))
+        actions.append(RobotAction(r.robot_id, twist, kick, r.dribbler_rpm / RPM_PER_RADPS if dribbler else 0.0))
     return actions, list(errors.values())

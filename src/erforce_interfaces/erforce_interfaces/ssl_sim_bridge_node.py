@@ -2,7 +2,9 @@
 
 Every ``1 / rate_hz`` seconds of wall time it sends the newest command of each robot in ``robot_ids``
 to the simulator: ``robot_<id>/cmd_vel`` (Twist in base_link) as a local velocity,
-``robot_<id>/kick`` (a flat kick at this speed, armed for ``kick_hold_s``) and ``robot_<id>/dribbler``.
+``robot_<id>/kick`` (a flat kick at this speed, armed for ``kick_hold_s``) and ``robot_<id>/dribbler``
+(with ``team: opponents`` the ``opponent_<id>/`` topics: a second team's AI on the same graph, one bridge
+per colour as each team drives its own robots).
 With ``protocol: ssl`` that is a ``RobotControl`` of the ssl-simulation-protocol to the team's robot
 control port (10301 blue, 10302 yellow); with ``protocol: grsim`` a ``grSim_Packet`` to 20011.
 
@@ -67,6 +69,7 @@ class SslSimBridgeNode(Node):
         self._params = NodeParams(self, SCHEMA, _check)
         v = self._values = self._params.values
         self._team = v["team_color"]
+        whose = contract.TEAMS[v["team"]]  # whose topics: ours (robot_<id>) or the opponents' (opponent_<id>)
         self._grsim = v["protocol"] == "grsim"
         self._state = ssl_sim.BridgeCommands(v["robot_ids"], v["command_timeout_s"], v["kick_hold_s"])
         default_port = ssl_sim.GRSIM_COMMAND_PORT if self._grsim else ssl_sim.ROBOT_CONTROL_PORTS[self._team]
@@ -84,23 +87,23 @@ class SslSimBridgeNode(Node):
         self._barrier_sent: dict[int, tuple[bool, float]] = {}
         q = contract
         for i in self._state.robot_ids:
-            self._barrier_pubs[i] = contract_publisher(self, q.BALL_DETECTED, q.BALL_DETECTED.for_robot(i))
-            contract_subscription(self, q.CMD_VEL, lambda m, i=i: self._on_cmd_vel(i, m), q.CMD_VEL.for_robot(i))
-            contract_subscription(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.KICK.for_robot(i))
-            contract_subscription(self, q.DRIBBLER, lambda m, i=i: self._on_dribbler(i, m), q.DRIBBLER.for_robot(i))
+            self._barrier_pubs[i] = contract_publisher(self, q.BALL_DETECTED, whose.topic(q.BALL_DETECTED, i))
+            contract_subscription(self, q.CMD_VEL, lambda m, i=i: self._on_cmd_vel(i, m), whose.topic(q.CMD_VEL, i))
+            contract_subscription(self, q.KICK, lambda m, i=i: self._on_kick(i, m), whose.topic(q.KICK, i))
+            contract_subscription(self, q.DRIBBLER, lambda m, i=i: self._on_dribbler(i, m), whose.topic(q.DRIBBLER, i))
         self._control_target = None
         if v["control_port"]:
             self._control_target = self._target if self._grsim else (v["simulator_host"], v["control_port"])
             contract_subscription(self, q.SIM_SET_BALL, self._on_set_ball)
             for i in self._state.robot_ids:
                 contract_subscription(self, q.SIM_SET_STATE, lambda m, i=i: self._on_set_robot(i, m),
-                                      q.SIM_SET_STATE.for_robot(i))
+                                      whose.topic(q.SIM_SET_STATE, i))
         self._last_errors: tuple[str, ...] = ()
         self.sent = 0
         self.create_timer(1.0 / v["rate_hz"], self._tick, clock=RclClock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
-            f"ssl_sim_bridge: {self._team} robots {list(self._state.robot_ids)} defending {v['defend_side']} -> "
-            f"{v['protocol']} simulator at {self._target[0]}:{self._target[1]}")
+            f"ssl_sim_bridge: {self._team} robots {list(self._state.robot_ids)} ({whose.prefix}<id>) defending "
+            f"{v['defend_side']} -> {v['protocol']} simulator at {self._target[0]}:{self._target[1]}")
         self._params.on_change(lambda _config: None)  # defend_side: read at each teleport
 
     # ---------------------------------------------------------------- commands in

@@ -569,6 +569,10 @@ def encode_geometry(geometry: FieldGeometry, focal_length_px: float = 500.0) -> 
 
 
 # --------------------------------------------------------------------------------- vision clock
+#: The stamps' time sources (the bridge's ``time_source``), by mode number: the vision clock's estimate of the
+#: receiver's clock, ``t_capture`` as it is (already ROS time), the cameras' capture times on one timeline.
+TIME_SOURCES = ("estimate", "vision", "capture")
+TIME_ESTIMATE, TIME_VISION, TIME_CAPTURE = range(3)
 class ClockJump(ValueError):
     """A frame refused because its camera's clock seems to have jumped (not yet confirmed)."""
 
@@ -683,4 +687,246 @@ class VisionClock:
             float(t_receive_s))
         if refused:
             raise ClockJump(clock_jump_text(camera_id, sample, deviation, offset))
+        return stamp
+
+
+class PaceCheck:
+    """Whether a camera's clock runs at the pace of the receiver's, seen through VisionClock's offsets.
+
+    The estimate maps ``t_capture`` onto the receiver's clock with a fixed offset: right for a vision host
+    (clocks that differ by parts per million), wrong for a world not paced to the wall clock (grSim at
+    0.62-0.98x, a simulator flat out). There the offset drifts by (1 - pace) per second, the window's
+    minimum lags it and the jump rule catches up in steps of about ``jump_s``, and speeds come out scaled
+    by the pace: ``time_source: capture`` is the answer. ``check`` compares a camera's offset with its
+    first one; a pace off by more than 1 % plus what the estimate's lag (``lag_s``) explains gets a text.
+    """
+
+    def __init__(self, lag_s: float) -> None:
+        self.lag_s = lag_s
+        self._first: dict[int, tuple[float, float]] = {}
+
+    def check(self, camera_id: int, offset_s: float, t_receive_s: float) -> str | None:
+        first = self._first.setdefault(camera_id, (offset_s, t_receive_s))
+        elapsed_s = t_receive_s - first[1]
+        if elapsed_s <= 0.0:
+            return None
+        pace = 1.0 - (offset_s - first[0]) / elapsed_s
+        if abs(pace - 1.0) <= 0.01 + self.lag_s / elapsed_s:
+            return None
+        return (f"camera {camera_id}: its clock runs at {pace:.2f}x this host's (over {elapsed_s:.0f} s): a world not "
+                "paced to the wall clock; time_source estimate steps and scales its stamps, use time_source capture "
+                "(and use_sim_time on the AI side)")
+
+
+# ------------------------------------------------------------------------------- capture timeline
+# The timeline's state is arrays, like the clock's: a row per camera (columns _TL_*), the calibration samples of
+# each camera's offset, and a few numbers for the whole timeline (_TG_*).
+(_TL_OFFSET, _TL_CALIBRATED, _TL_LAST_T, _TL_LAST_W, _TL_LAST_SENT, _TL_LAST_STAMP, _TL_RATE_W, _TL_RATE_SENT,
+ _TL_NEXT_RATE_W, _TL_NEXT_RATE_SENT, _TL_SAMPLES, _TL_PENDING, _TL_PENDING_FIRST_T, _TL_PENDING_FIRST_W,
+ _TL_PENDING_LAST_T, _TL_PENDING_LAST_W, _TL_RECEIVED_W) = range(17)
+_TL_COLUMNS = 17
+(_TG_NEWEST, _TG_JUMPS, _TG_JUMP_S, _TG_MAX_RATE, _TG_CONFIRM_PACKETS, _TG_CONFIRM_S, _TG_SHARE_S, _TG_REF_AGE_S,
+ _TG_CALIBRATION) = range(9)
+TIMELINE_OK, TIMELINE_BACK, TIMELINE_JUMP = range(3)  # timeline_step's status
+TIMELINE_LAST_T_CAPTURE = _TL_LAST_T  # the column of a camera's newest accepted t_capture (for a refusal's text)
+_RATE_BASE_S = 0.5  # a camera's rate (its seconds per receiver second) is measured over 0.5 .. 1 s of receive time
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _camera_rate(row):
+    """The camera's clock seconds per receiver second over its last 0.5 .. 1 s (1 until 50 ms are seen)."""
+    span = row[_TL_LAST_W] - row[_TL_RATE_W]
+    return (row[_TL_LAST_SENT] - row[_TL_RATE_SENT]) / span if span >= 0.05 else 1.0
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _offset_sample(cams, glob, camera, t_sent, w):
+    """What the newest frame of the most recently seen calibrated camera (not ``camera``, none of whose frames
+    wait as a suspected jump, seen within the reference age) says ``camera``'s offset is: its sent time on the
+    timeline, carried forward at its rate to ``w``, minus ``t_sent``. NaN without such a camera."""
+    best, best_w = -1, -np.inf
+    for k in range(cams.shape[0]):
+        row = cams[k]
+        if k != camera and row[_TL_CALIBRATED] != 0.0 and row[_TL_PENDING] == 0.0 and row[_TL_LAST_W] > best_w:
+            best, best_w = k, row[_TL_LAST_W]
+    if best < 0 or w - best_w > glob[_TG_REF_AGE_S]:
+        return np.nan
+    ref = cams[best]
+    return ref[_TL_LAST_SENT] + ref[_TL_OFFSET] + _camera_rate(ref) * (w - best_w) - t_sent
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _anchor(cams, samples, glob, camera, t_capture, t_sent, w, line_first_t, line_frames):
+    """A camera without an offset (new, or its clock's jump confirmed): measured against another camera's
+    clock (calibrated over the next frames), or, without one, its line (from ``line_first_t``, ``line_frames``
+    frames) continues the timeline one frame after its newest stamp; the very first camera founds it."""
+    row = cams[camera]
+    d = _offset_sample(cams, glob, camera, t_sent, w)
+    newest = glob[_TG_NEWEST]
+    row[_TL_SAMPLES] = 0.0
+    if not np.isnan(d):  # provisional until the samples of the next frames calibrate it
+        row[_TL_OFFSET], row[_TL_CALIBRATED] = d, 0.0
+    elif np.isnan(newest):
+        row[_TL_OFFSET], row[_TL_CALIBRATED] = 0.0, 1.0
+    else:
+        period = (t_capture - line_first_t) / (line_frames - 1) if line_frames > 1 else 0.0
+        row[_TL_OFFSET], row[_TL_CALIBRATED] = newest + max(period, 1e-6) - line_first_t, 1.0
+    row[_TL_RATE_W], row[_TL_RATE_SENT] = w, t_sent
+    row[_TL_NEXT_RATE_W], row[_TL_NEXT_RATE_SENT] = w, t_sent
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _calibrate(cams, samples, glob, camera, t_sent, w):
+    """One more sample of an uncalibrated camera's offset; with enough of them, their median becomes the
+    offset, or the offset of a calibrated camera within share_s of it (the same clock: one host, a simulator)."""
+    row = cams[camera]
+    d = _offset_sample(cams, glob, camera, t_sent, w)
+    if np.isnan(d):
+        return
+    n = int(row[_TL_SAMPLES])
+    samples[camera, n] = d
+    n += 1
+    row[_TL_SAMPLES] = n
+    if n < glob[_TG_CALIBRATION]:
+        return
+    offset = np.median(samples[camera, :n])
+    best = glob[_TG_SHARE_S]
+    for k in range(cams.shape[0]):
+        other = cams[k]
+        if k != camera and other[_TL_CALIBRATED] != 0.0 and abs(other[_TL_OFFSET] - offset) <= best:
+            best = abs(other[_TL_OFFSET] - offset)
+            offset = other[_TL_OFFSET]
+    row[_TL_OFFSET], row[_TL_CALIBRATED] = offset, 1.0
+
+
+@numba.njit(cache=True, error_model="numpy")
+def timeline_step(cams, samples, glob, camera, t_capture, t_sent, w):
+    """CaptureTimeline.stamp on the arrays: (status, stamp); the stamp NaN unless status is TIMELINE_OK."""
+    row = cams[camera]
+    jump_s, max_rate = glob[_TG_JUMP_S], glob[_TG_MAX_RATE]
+    # the capture time a frame may move on by: jump_s, and at max_rate over the receive time the camera was
+    # silent (since any frame of it: refused frames do not make a jump plausible)
+    silent_s = max(w - row[_TL_RECEIVED_W], 0.0)
+    row[_TL_RECEIVED_W] = w
+    if np.isnan(row[_TL_OFFSET]):
+        _anchor(cams, samples, glob, camera, t_capture, t_sent, w, t_capture, 1)
+    else:
+        dt = t_capture - row[_TL_LAST_T]
+        if 0.0 < dt <= jump_s + max_rate * silent_s:
+            row[_TL_PENDING] = 0.0
+            if row[_TL_CALIBRATED] == 0.0:
+                _calibrate(cams, samples, glob, camera, t_sent, w)
+        elif -jump_s < dt <= 0.0:  # a late or repeated frame, or a small step back: refused until the clock passes
+            return TIMELINE_BACK, np.nan
+        else:  # the camera's clock stepped back or too far forward: a new line once confirmed
+            n = int(row[_TL_PENDING])
+            if n > 0:
+                step = t_capture - row[_TL_PENDING_LAST_T]
+                if -jump_s < step <= 0.0:  # a late frame of the new line
+                    return (TIMELINE_BACK if dt <= 0.0 else TIMELINE_JUMP), np.nan
+                if not 0.0 < step <= jump_s + max_rate * max(w - row[_TL_PENDING_LAST_W], 0.0):
+                    n = 0  # not one line: count again
+            if n == 0:
+                row[_TL_PENDING_FIRST_T], row[_TL_PENDING_FIRST_W] = t_capture, w
+            n += 1
+            row[_TL_PENDING], row[_TL_PENDING_LAST_T], row[_TL_PENDING_LAST_W] = n, t_capture, w
+            if n < glob[_TG_CONFIRM_PACKETS] or w - row[_TL_PENDING_FIRST_W] < glob[_TG_CONFIRM_S]:
+                return (TIMELINE_BACK if dt <= 0.0 else TIMELINE_JUMP), np.nan
+            glob[_TG_JUMPS] += 1.0
+            row[_TL_PENDING] = 0.0
+            _anchor(cams, samples, glob, camera, t_capture, t_sent, w, row[_TL_PENDING_FIRST_T], n)
+    stamp = t_capture + row[_TL_OFFSET]
+    if not stamp > row[_TL_LAST_STAMP]:  # after a correction of the offset: the camera's stamps still increase
+        stamp = row[_TL_LAST_STAMP] + 1e-6
+    row[_TL_LAST_T], row[_TL_LAST_W], row[_TL_LAST_SENT], row[_TL_LAST_STAMP] = t_capture, w, t_sent, stamp
+    if w - row[_TL_NEXT_RATE_W] >= _RATE_BASE_S:
+        row[_TL_RATE_W], row[_TL_RATE_SENT] = row[_TL_NEXT_RATE_W], row[_TL_NEXT_RATE_SENT]
+        row[_TL_NEXT_RATE_W], row[_TL_NEXT_RATE_SENT] = w, t_sent
+    if np.isnan(glob[_TG_NEWEST]) or stamp > glob[_TG_NEWEST]:
+        glob[_TG_NEWEST] = stamp
+    return TIMELINE_OK, stamp
+
+
+def timeline_refusal_text(camera_id: int, status: int, t_capture_s: float, last_t_capture_s: float) -> str:
+    what = "is not after" if status == TIMELINE_BACK else "jumps too far past"
+    return (f"camera {camera_id}: t_capture {t_capture_s:.6f} s {what} its previous {last_t_capture_s:.6f} s (the "
+            "camera's clock stepped, or a frame out of order); frame refused until a new time line is confirmed")
+
+
+class CaptureTimeline:
+    """The cameras' capture times on one timeline: the stamps and /clock of ``time_source: capture``.
+
+    The time of an outside world is its cameras' ``t_capture``: a simulator's simulated time, a vision
+    host's clock. The timeline follows it, whatever its pace against the receiver's clock (a simulator at
+    0.6x or 3x): a camera's stamp is ``t_capture + offset``, with the camera's offset fixed, so consecutive
+    frames of a camera are as far apart on the timeline as they were captured, gaps included.
+
+    - The first camera founds the timeline (offset 0: the stamps are its capture times). A later camera
+      is measured against the most recently seen calibrated camera: that camera's newest sent time,
+      carried forward at its measured rate to the receive time, minus the new camera's ``t_sent`` (equal
+      network delays). The median of ``calibration_frames`` such samples becomes its offset, or the offset
+      of a calibrated camera within ``share_s`` of it (one clock: SSL-Vision's host, a simulator).
+    - A camera's ``t_capture`` that is not after its previous one refuses the frame (TIMELINE_BACK): a late
+      or repeated frame, or a step back by less than ``jump_s``, which passes once the clock passes its
+      previous time. One more than ``jump_s`` back, or later by more than ``jump_s`` plus ``max_rate``
+      times the receive time the camera was silent (a world at most that much faster than the receiver;
+      TIMELINE_JUMP), starts a suspected new line: once ``confirm_packets`` frames on it span ``confirm_s``
+      of receive time, the camera's clock has jumped (a restarted simulator) and it is measured again as a
+      new camera; without another camera to measure it against, its new line continues the timeline one
+      frame period after its newest stamp. A stalled receiver's backlog is consecutive frames and passes.
+    - A camera's stamps strictly increase; ``newest_s`` (what /clock says) never goes back. Vision that
+      stops holds it; when vision resumes, it moves on by the capture time that passed.
+
+    Receive times ``t_wall_s`` are a monotonic wall clock (the timeline's own /clock must not be its
+    reference). Cameras 0 .. CLOCK_CAMERAS - 1.
+    """
+
+    def __init__(self, jump_s: float = 0.25, max_rate: float = 10.0, confirm_packets: int = 5,
+                 confirm_s: float = 0.2, share_s: float = 0.02, reference_age_s: float = 0.5,
+                 calibration_frames: int = 30) -> None:
+        if not (jump_s > 0.0 and max_rate > 0.0 and confirm_packets >= 1 and confirm_s >= 0.0 and share_s >= 0.0
+                and reference_age_s > 0.0 and 1 <= calibration_frames <= CLOCK_CAPACITY):
+            raise ValueError("CaptureTimeline: jump_s, max_rate and reference_age_s must be > 0, confirm_packets "
+                             f">= 1, confirm_s and share_s >= 0, calibration_frames in 1..{CLOCK_CAPACITY}")
+        self.cams = np.full((CLOCK_CAMERAS, _TL_COLUMNS), 0.0)
+        self.cams[:, [_TL_OFFSET, _TL_LAST_STAMP]] = np.nan, -np.inf
+        self.samples = np.zeros((CLOCK_CAMERAS, calibration_frames))
+        self.glob = np.array([np.nan, 0.0, jump_s, max_rate, confirm_packets, confirm_s, share_s, reference_age_s,
+                              calibration_frames])
+
+    def set_jump_s(self, jump_s: float) -> None:
+        """A new jump_s from now on (the timeline's time and offsets stay)."""
+        if not jump_s > 0.0:
+            raise ValueError(f"CaptureTimeline: jump_s must be > 0, got {jump_s!r}")
+        self.glob[_TG_JUMP_S] = jump_s
+
+    @property
+    def newest_s(self) -> float | None:
+        """The newest stamp given (the timeline's now), None before the first frame."""
+        newest = float(self.glob[_TG_NEWEST])
+        return None if math.isnan(newest) else newest
+
+    @property
+    def jumps_confirmed(self) -> int:
+        return int(self.glob[_TG_JUMPS])
+
+    def offset_s(self, camera_id: int) -> float | None:
+        offset = float(self.cams[camera_id, _TL_OFFSET])
+        return None if math.isnan(offset) else offset
+
+    def calibrated(self, camera_id: int) -> bool:
+        return bool(self.cams[camera_id, _TL_CALIBRATED])
+
+    def last_capture_s(self, camera_id: int) -> float:
+        return float(self.cams[camera_id, _TL_LAST_T])
+
+    def stamp(self, camera_id: int, t_capture_s: float, t_sent_s: float, t_wall_s: float) -> float:
+        """The frame's stamp on the timeline; raises ClockJump (naming it) for a refused frame."""
+        if not 0 <= camera_id < CLOCK_CAMERAS:
+            raise ValueError(f"camera_id {camera_id} is not in 0..{CLOCK_CAMERAS - 1}")
+        last = self.last_capture_s(camera_id)
+        status, stamp = timeline_step(self.cams, self.samples, self.glob, camera_id, float(t_capture_s),
+                                      float(t_sent_s), float(t_wall_s))
+        if status != TIMELINE_OK:
+            raise ClockJump(timeline_refusal_text(camera_id, status, t_capture_s, last))
         return stamp

@@ -26,6 +26,10 @@ from dataclasses import dataclass
 
 from erforce_sim.drivetrain import GRAVITY_MPS2
 
+# The paper's measured decelerations, in its sign (the two-phase model's a_slide, a_roll): the carpet's defaults.
+A_SLIDE_MPS2 = -2.5
+A_ROLL_MPS2 = -0.3
+
 
 def _check_positive(name: str, value: float) -> None:
     if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
@@ -37,8 +41,8 @@ class BallParams:
     radius_m: float = 0.02135
     mass_kg: float = 0.046
     inertia_factor: float = 0.4  # I = inertia_factor * m r^2 (0.4 solid sphere, 2/3 hollow sphere)
-    mu_slide: float = 2.5 / GRAVITY_MPS2  # sliding deceleration = mu_slide g = 2.5 m/s^2
-    mu_roll: float = 0.3 / GRAVITY_MPS2  # rolling deceleration = mu_roll g = 0.3 m/s^2
+    mu_slide: float = -A_SLIDE_MPS2 / GRAVITY_MPS2  # sliding deceleration = mu_slide g = 2.5 m/s^2
+    mu_roll: float = -A_ROLL_MPS2 / GRAVITY_MPS2  # rolling deceleration = mu_roll g = 0.3 m/s^2
 
     def __post_init__(self) -> None:
         for name in ("radius_m", "mass_kg", "inertia_factor", "mu_slide", "mu_roll"):
@@ -55,6 +59,11 @@ class BallParams:
     @property
     def a_roll_mps2(self) -> float:
         return self.mu_roll * GRAVITY_MPS2
+
+    @classmethod
+    def from_model(cls, a_slide_mps2: float, a_roll_mps2: float) -> BallParams:
+        """The carpet that gives the two-phase model's decelerations (the paper's sign: negative)."""
+        return cls(mu_slide=-a_slide_mps2 / GRAVITY_MPS2, mu_roll=-a_roll_mps2 / GRAVITY_MPS2)
 
     def switch_ratio(self, spin_ratio: float = 0.0) -> float:
         """v_switch / v_shoot from momentum balance (closed form, for documentation and tests)."""

@@ -76,6 +76,7 @@ from erforce_interfaces.node_support import (
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import BallModelFromVision
+from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras
 from erforce_sim.world import PhysicsParams, PlantSetup, build_world
@@ -109,6 +110,7 @@ def setup_from_params(config) -> PlantSetup:
         seed=config.seed,
         robot=config.robot,
         physics=PhysicsParams(substep_hz=config.substep_hz, kick_spin_ratio=config.kick_spin_ratio),
+        ball_params=BallParams.from_model(config.ball_a_slide_mps2, config.ball_a_roll_mps2),
         vision=VisionParams(
             rate_hz=config.vision_rate_hz,
             latency_s=config.vision_latency_s,

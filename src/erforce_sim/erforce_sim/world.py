@@ -829,6 +829,7 @@ class PlantSetup:
     robot: RobotConfig = field(default_factory=RobotConfig)
     physics: PhysicsParams = field(default_factory=PhysicsParams)
     vision: VisionParams = field(default_factory=VisionParams)
+    ball_params: BallParams = field(default_factory=BallParams)
 
     def __post_init__(self) -> None:
         FieldConfig.preset(self.field_preset)
@@ -899,7 +900,8 @@ def build_world(setup: PlantSetup) -> World:
         for j, (x, y, yaw) in enumerate(setup.opponent_poses)
     ]
     world = World(
-        FieldConfig.preset(setup.field_preset), specs, None, physics=setup.physics, vision=setup.vision, seed=setup.seed
+        FieldConfig.preset(setup.field_preset), specs, None, physics=setup.physics, ball_params=setup.ball_params,
+        vision=setup.vision, seed=setup.seed,
     )
     x, y, vx, vy = setup.ball
     world.place_ball(x, y, vx, vy)

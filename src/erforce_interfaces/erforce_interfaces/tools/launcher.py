@@ -1602,6 +1602,8 @@ def main(argv: list[str] | None = None) -> int:
     except LaunchError as exc:
         sys.stderr.write(f"{PROG}: error: {exc}\n")
         return 2
+    except KeyboardInterrupt:  # Ctrl-C before any node started (the Runner handles it from then on)
+        return 130
     finally:
         if param_dir is not None:
             shutil.rmtree(param_dir, ignore_errors=True)

@@ -419,7 +419,8 @@ def _idle_priority(thread_id: int) -> None:
         pass
 
 
-def spawn_in_session(cmd: list[str], log_path: Path, idle: bool = False) -> subprocess.Popen:
+def spawn_in_session(cmd: list[str], log_path: Path, idle: bool = False,
+                     env: dict[str, str] | None = None) -> subprocess.Popen:
     """Start a graph process in a process group of its own (stop_process signals the group) but in
     this session. Scheduling priorities rank threads only inside one autogroup, and Linux makes one
     per session (CONFIG_SCHED_AUTOGROUP, on in most distributions): in a session of its own the
@@ -428,7 +429,7 @@ def spawn_in_session(cmd: list[str], log_path: Path, idle: bool = False) -> subp
     """
     with open(log_path, "wb") as log:  # the child keeps its own copy
         return subprocess.Popen(
-            cmd, stdout=log, stderr=subprocess.STDOUT, process_group=0,
+            cmd, stdout=log, stderr=subprocess.STDOUT, process_group=0, env=env,
             preexec_fn=(lambda: _idle_priority(0)) if idle else None,
         )
 
@@ -659,9 +660,22 @@ class SslArrivals:
 
 
 def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
+    """A UDP port free on this machine now, below the kernel's ephemeral range: a port the kernel handed out
+    (bind to port 0) may go to the next socket that binds port 0 (a simulation bridge's answer socket, a DDS
+    reader) before the process meant to listen on it starts."""
+    try:
+        low = int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        low = 32768
+    rng = np.random.default_rng()
+    for port in rng.permutation(np.arange(20000, max(low, 20001))).tolist():
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            try:
+                probe.bind(("0.0.0.0", port))
+            except OSError:
+                continue
+            return port
+    raise RuntimeError("no free UDP port below the ephemeral range")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -711,6 +725,17 @@ def main(argv: list[str] | None = None) -> int:
         help="ssl: vision goes as SSL-Vision packets from 4 simulated cameras through ssl_vision_bridge "
         "(loopback multicast) instead of the plant's vision topics",
     )
+    parser.add_argument(
+        "--world",
+        default="plant",
+        choices=("plant", "ssl"),
+        help="passing: plant (our simulated world in the graph) or ssl (an outside world: the stand-in, "
+        "ssl_world.launch.yaml, started as a program of its own, and only the AI side, team_sim.launch.yaml "
+        "world:=ssl, talking to it over SSL-Vision and the simulation protocol)",
+    )
+    parser.add_argument("--world-ball", type=float, nargs=3, metavar=("A_SLIDE", "A_ROLL", "C_SWITCH"),
+                        help="--world ssl: the stand-in's carpet as the two-phase model, e.g. -14 -0.7 0.7 (its "
+                             "geometry carries it; default: the plant's own)")
     parser.add_argument("--view", action="store_true",
                         help="serve the field view in a browser while the demo runs (prints its address)")
     parser.add_argument("--view-port", type=int, default=8090, help="HTTP port of the field view")

@@ -40,8 +40,7 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
-from erforce_sim.ball import BallParams
-from erforce_sim.drivetrain import GRAVITY_MPS2
+from erforce_sim.ball import A_ROLL_MPS2, A_SLIDE_MPS2, BallParams
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import CAMERA_HEIGHT_M, quadrant_cameras
 from erforce_sim.world import World
@@ -223,13 +222,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration-s", type=float, default=600.0, help="game length [s] (default 600)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--field", default="division_b", help="division_a | division_b")
-    parser.add_argument("--a-slide", type=float, default=-2.5, help="true sliding deceleration [m/s^2]")
-    parser.add_argument("--a-roll", type=float, default=-0.3, help="true rolling deceleration [m/s^2]")
+    parser.add_argument("--a-slide", type=float, default=A_SLIDE_MPS2, help="true sliding deceleration [m/s^2]")
+    parser.add_argument("--a-roll", type=float, default=A_ROLL_MPS2, help="true rolling deceleration [m/s^2]")
     parser.add_argument("--kick-spin-ratio", type=float, default=-0.4,
                         help="w r / v of a kick; c_switch = (2.5 + s) / 3.5 for the solid ball")
     args = parser.parse_args(argv)
     try:
-        ball = BallParams(mu_slide=-args.a_slide / GRAVITY_MPS2, mu_roll=-args.a_roll / GRAVITY_MPS2)
+        ball = BallParams.from_model(args.a_slide, args.a_roll)
         config = GameConfig(duration_s=args.duration_s, field_preset=args.field, seed=args.seed, ball=ball,
                             kick_spin_ratio=args.kick_spin_ratio)
         t0 = time.perf_counter()
