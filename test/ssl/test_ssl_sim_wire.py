@@ -122,6 +122,13 @@ def test_teleport_encoding_equals_the_hand_bytes():
     assert ssl_sim.encode_teleport((1.0, -0.5, 2.0, 0.0), [("yellow", 1, 1.0, 2.0, 0.0)]) == hand
 
 
+def test_a_ball_placed_at_rest_is_not_asked_to_roll():
+    # TeleportBall {x = 1 (0x0d), y = 2 (0x15), vx = 4 (0x25), vy = 5 (0x2d)} and no roll = 8 (0x40): grSim answers
+    # every roll with GRSIM_UNSUPPORTED_ROLL_BALL, and a ball at rest has nothing to roll
+    ball = b"\x0d" + F1_0 + b"\x15" + FM0_5 + b"\x25" + F0 + b"\x2d" + F0
+    assert ssl_sim.encode_teleport((1.0, -0.5, 0.0, 0.0)) == b"\x0a" + length(b"\x0a" + length(ball))
+
+
 def test_grsim_replacement_encoding_equals_the_hand_bytes():
     d0, dm1, d2, d90 = bytes(8), bytes.fromhex("000000000000f0bf"), bytes.fromhex("0000000000000040"), \
         bytes.fromhex("0000000000805640")  # 0.0, -1.0, 2.0, 90.0 (doubles)

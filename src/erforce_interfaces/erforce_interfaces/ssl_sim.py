@@ -215,12 +215,16 @@ def decode_grsim_robots_status(data: bytes) -> Feedback:
 
 def encode_teleport(ball: Sequence[float] | None = None,
                     robots: Iterable[tuple[str, int, float, float, float]] = ()) -> bytes:
-    """A ``SimulatorCommand`` that places the ball (x, y, vx, vy) and robots (team, id, x, y, yaw)."""
+    """A ``SimulatorCommand`` that places the ball (x, y, vx, vy) and robots (team, id, x, y, yaw).
+
+    A moving ball is asked to roll (``roll``), as our plant starts a set ball; a ball placed at rest leaves the
+    flag unset, since grSim answers every ``roll`` with GRSIM_UNSUPPORTED_ROLL_BALL."""
     msg = ssl_simulation_control_pb2.SimulatorCommand()
     if ball is not None:
         b = msg.control.teleport_ball
         b.x, b.y, b.vx, b.vy = (float(v) for v in ball)
-        b.roll = True
+        if b.vx or b.vy:
+            b.roll = True
     for team, robot_id, x, y, yaw in robots:
         r = msg.control.teleport_robot.add()
         r.id.id = int(robot_id)
