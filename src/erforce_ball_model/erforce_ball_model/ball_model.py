@@ -343,16 +343,16 @@ PIECE_COLUMNS = ("t_start_s", *BallFloats._fields)
 
 
 def path_piece(table, i: int) -> BallFloats:
-    """Row ``i`` of a trajectory's table (PIECE_COLUMNS) as its BallFloats."""
-    return BallFloats(table[i, 1], table[i, 2], table[i, 3], table[i, 4], table[i, 5], table[i, 6], table[i, 7],
-                      table[i, 8], table[i, 9], table[i, 10], table[i, 11], table[i, 12], table[i, 13],
-                      table[i, 14], table[i, 15])
+    """Row ``i`` of a trajectory's table (PIECE_COLUMNS; an array, or tuples for plain Python) as its BallFloats."""
+    row = table[i]
+    return BallFloats(row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9], row[10], row[11],
+                      row[12], row[13], row[14], row[15])
 
 
 def path_index(table, t_s: float) -> int:
     """The row of the piece the ball is on at ``t_s`` >= 0 (the last one from its end on)."""
-    i = table.shape[0] - 1
-    while i > 0 and table[i, 0] > t_s:
+    i = len(table) - 1
+    while i > 0 and table[i][0] > t_s:
         i -= 1
     return i
 
@@ -361,7 +361,7 @@ def path_point(table, t_s: float) -> tuple[float, float]:
     """Where the ball of a trajectory's table is at ``t_s`` >= 0 (+inf: where it stops)."""
     i = path_index(table, t_s)
     f = path_piece(table, i)
-    d = ball_distance(f, t_s - table[i, 0])
+    d = ball_distance(f, t_s - table[i][0])
     return f.x_m + f.ux * d, f.y_m + f.uy * d
 
 
@@ -465,7 +465,7 @@ class BallTrajectory:
     (the ball now up to the first wall). Without walls there is one piece, the paper's straight line.
     """
 
-    __slots__ = ("_offsets", "_starts", "_table", "floats", "params", "pieces", "walls")
+    __slots__ = ("_offsets", "_rows", "_starts", "_table", "floats", "params", "pieces", "walls")
 
     def __init__(self, position_m, velocity_mps, v_shoot_mps: float, params: BallModelParams | None = None,
                  walls: Walls | None = None) -> None:
@@ -510,6 +510,7 @@ class BallTrajectory:
             offsets.append(total)
             total += f.stop_distance_m
         init(self, "_offsets", tuple(offsets))
+        init(self, "_rows", tuple((t, *f) for t, f in pieces))
         init(self, "_table", None)
 
     @classmethod
@@ -569,8 +570,10 @@ class BallTrajectory:
     def table(self) -> np.ndarray:
         """The pieces as the compiled kernels read them (PIECE_COLUMNS; ``path_point``): not to be written."""
         if self._table is None:
-            object.__setattr__(self, "_table", np.array([(t, *f) for t, f in self.pieces], dtype=float))
+            object.__setattr__(self, "_table", np.array(self._rows, dtype=float))
         return self._table
+
+    rows = property(lambda self: self._rows, doc="the table as tuples, for the same functions run as Python")
 
     @property
     def bounce_points(self) -> np.ndarray:
