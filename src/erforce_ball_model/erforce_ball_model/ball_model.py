@@ -715,8 +715,8 @@ class BallTrajectory:
         inside, the moment it crosses into the field for a ball outside heading in (off a wall, in
         the run-off area), +inf when it stops before. ``t_leave`` is when it crosses out again,
         +inf when it stops inside (or never enters). On a line counts as inside. A path off walls
-        may leave and enter again: then the first entry and the last exit (the ball may be outside
-        in between; the catch search checks every point).
+        counts the same way: its first stretch inside, which may go on across bounces (a field margin
+        reaching the wall) and may start after one (a ball in the run-off area comes back off the wall).
         """
         if not isinstance(field_config, FieldConfig):
             raise ValueError(f"field_config: expected FieldConfig, got {type(field_config).__name__}")
@@ -725,15 +725,23 @@ class BallTrajectory:
         half = (field_config.half_length_m + margin_m, field_config.half_width_m + margin_m)
         if min(half) <= 0.0:
             raise ValueError(f"margin_m: {margin_m} leaves no field")
-        t_enter, t_leave = math.inf, math.inf
+        t_enter = math.inf
         last = len(self.pieces) - 1
         for i, (start, f) in enumerate(self.pieces):
             t_in, t_out = _piece_in_field(f, half, ends_at_rest=i == last)
             if t_in == math.inf:
+                if t_enter < math.inf:  # was inside up to the end of the previous piece: left at the bounce
+                    return t_enter, start
                 continue
-            t_enter = min(t_enter, start + t_in)
-            t_leave = start + t_out  # the last piece inside decides
-        return t_enter, t_leave
+            if t_enter == math.inf:
+                t_enter = start + t_in
+            elif t_in > 0.0:  # entered again after a gap
+                return t_enter, start
+            if t_out == math.inf:
+                return t_enter, math.inf
+            if t_out < f.stop_time_s or i == last:
+                return t_enter, start + t_out
+        return t_enter, math.inf
 
     def advanced(self, dt_s: float) -> BallTrajectory:
         """The same ball ``dt_s`` seconds later (same kick speed, so the phases stay consistent)."""
