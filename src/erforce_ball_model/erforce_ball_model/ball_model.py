@@ -25,13 +25,18 @@ a node that only asks scalar questions (the catcher) starts without it (~0.7 s o
 ``BallTrajectory`` is an immutable value (one ball's future) with these queries
 (``position_at`` is the paper's ballAtTime, ``time_to_distance`` is ballRollTime). A number
 in gives a float out; an array of times or distances gives an array of that shape (plus a
-trailing 2 for vectors).
+trailing 2 for vectors). Given the field's ``Walls`` it reflects off them (beyond the paper, which
+lets the ball roll on through the wall): its path is then straight pieces, each with these numbers,
+and every query answers piecewise (``BallTrajectory`` says how the ball comes off a wall).
 
 >>> ball = BallTrajectory((0.0, 0.0), (3.3, 0.0), v_shoot_mps=3.3)  # kicked at 3.3 m/s along +x
 >>> round(ball.switch_time_s, 3), round(ball.stop_distance_m, 3)  # slides 0.528 s, rests after 7.93 m
 (0.528, 7.928)
 >>> round(ball.time_to_distance(1.0), 3)
 0.349
+>>> walls = Walls.of_field(FieldConfig.preset("division_b"))  # the wall 4.8 m from the centre along x
+>>> BallTrajectory((2.0, 0.0), (3.3, 0.0), 3.3, walls=walls).stop_point.round(3).tolist()  # off it: inside
+[4.464, 0.0]
 """
 
 from __future__ import annotations

@@ -27,6 +27,9 @@ robotTimeToBall (beyond the paper)
     point), the stretch of the path inside the field (``BallTrajectory.time_in_field``). The paper's
     interval starts at 0; ``t_in`` > 0 is a ball in the run-off area rolling back in (off a wall),
     whose catch points inside the field the paper's bound (``t_out`` = 0) would never search.
+    A trajectory with walls (ball_model.Walls) is a path of straight pieces reflected off the
+    field's wall; the search follows it piecewise (the ball's place at a time, the witness below on
+    every piece) and counts a catch point only where the ball is inside the field.
     Guarantee: every interval of length >= h contains a grid point, so the robot's first catch
     window (an interval where f <= 0) is never missed when it is at least h wide; in that case the
     returned time is feasible (f <= 0 there), never earlier than the true first crossing and at most
@@ -57,6 +60,8 @@ Compiled scalar loops
     functions keep numpy's broadcasting interface. The ball enters the kernel as its
     ``BallFloats`` (read by name) and moves by ball_model's own closed forms (``ball_distance``,
     ``ball_time_to_distance``), compiled into the kernel.
+    The ball enters the kernel as its trajectory's table of pieces (``BallTrajectory.table``, one row
+    per piece: its start time and its ``BallFloats``), read back by ``ball_model.path_point``.
     ``CatchSearch`` checks the team's limits and settings and allocates the outputs once, so a
     caller that asks every vision frame (the predictor) pays one compiled call and a few checks;
     ``robot_time_to_ball`` is the one-off form of the same search.
