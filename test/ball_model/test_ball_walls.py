@@ -206,7 +206,8 @@ def test_the_predictors_stop_point_lies_inside_the_wall():
 
 def test_walls_refuse_bad_numbers():
     for bad in (dict(half_x_m=0.0, half_y_m=1.0), dict(half_x_m=1.0, half_y_m=1.0, restitution=1.5),
-                dict(half_x_m=1.0, half_y_m=1.0, restitution=math.nan), dict(half_x_m=1.0, half_y_m=1.0, friction=-1.0)):
+                dict(half_x_m=1.0, half_y_m=1.0, restitution=math.nan),
+                dict(half_x_m=1.0, half_y_m=1.0, friction=-1.0)):
         with pytest.raises(ValueError):
             Walls(**bad)
     with pytest.raises(ValueError):
