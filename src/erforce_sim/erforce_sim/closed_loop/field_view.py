@@ -15,7 +15,8 @@ JSON. The predicted path is the ball model's own BallTrajectory (sliding stretch
 the switch point, rolling stretch to the stop point, reflected off the field's wall: ``wall``,
 where the first stretch meets it, then the ``corners`` to the stop point), with the parameters the
 predictor last published on /ball/model_params and the wall's one default restitution; the
-team's receiver is catcher.team_receiver of the catch times, as each catcher decides it. No rclpy here: the node (field_view_node) feeds it live, ``BagReplay``
+team's receiver is catcher.team_receiver of the catch times, as each catcher decides it. No
+rclpy here: the node (field_view_node) feeds it live, ``BagReplay``
 from a recorded bag.
 """
 
