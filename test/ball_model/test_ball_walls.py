@@ -141,6 +141,9 @@ def test_the_pieces_are_one_continuous_path_answered_alike_by_every_query():
     assert later.position_at(some).ravel().tolist() == pytest.approx(ball.position_at(some + 0.9).ravel().tolist(),
                                                                      abs=1e-9)
     assert later.stop_point.tolist() == pytest.approx(ball.stop_point.tolist(), abs=1e-12)
+    at_rest = ball.advanced(ball.stop_time_s + 1.0)
+    assert at_rest.stop_time_s == 0.0 and at_rest.phase == BallPhase.STOPPED
+    assert at_rest.position_m.tolist() == pytest.approx(ball.stop_point.tolist(), abs=1e-12)
     assert pickle.loads(pickle.dumps(later)).stop_point.tolist() == later.stop_point.tolist()
     assert ball.within(None).stop_point.tolist() == pytest.approx(BallTrajectory((2.0, 1.0), (4.0, 2.0), 5.0,
                                                                                   MODEL).stop_point.tolist())

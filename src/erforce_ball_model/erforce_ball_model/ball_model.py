@@ -785,7 +785,8 @@ def _piece_in_field(f: BallFloats, half: tuple[float, float], ends_at_rest: bool
 
 
 def _piece_after(f: BallFloats, t: float) -> BallFloats:
-    """Piece ``f`` from its time ``t`` on (``0 <= t <= f.stop_time_s``): its numbers then."""
+    """Piece ``f`` from its time ``t`` >= 0 on (at its end from ``f.stop_time_s`` on): its numbers then."""
+    t = min(t, f.stop_time_s)
     d, s = ball_distance(f, t), ball_speed(f, t)
     sliding = t < f.switch_time_s
     return f._replace(x_m=f.x_m + f.ux * d, y_m=f.y_m + f.uy * d, vx_mps=f.ux * s, vy_mps=f.uy * s, speed_mps=s,
