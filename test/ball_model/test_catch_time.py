@@ -18,6 +18,7 @@ from erforce_ball_model.catch_time import (
     _may_reach,
     can_reach,
     can_reach_in_time,
+    catch_after_reaction,
     contact_offset,
     load_kernels,
     receive_facing,
@@ -448,6 +449,22 @@ def test_a_ball_off_the_wall_back_into_the_field_is_caught_inside():
     assert res.time_s[0] >= ball.time_in_field(DIV_B)[0]
     assert abs(res.ball_position_m[0, 1]) <= DIV_B.half_width_m + 1e-9
 
+
+def test_a_ball_that_leaves_the_field_during_the_reaction_is_out_even_when_it_comes_back_off_the_wall():
+    """catch_after_reaction searches the ball's first stretch inside the field from now: 0.2 m before the goal
+    line at 3 m/s it is out before the robots react, and back in off the wall later; from the run-off area
+    heading for the wall its first stretch inside is the one after the bounce."""
+    walls = Walls.of_field(DIV_B)
+    search = CatchSearch(1, RobotLimits(3.0, 2.5), field=DIV_B)
+    robot, still, free = np.array([[3.0, 0.0]]), np.zeros((1, 2)), np.zeros(1, dtype=bool)
+    leaving = BallTrajectory([4.3, 0.0], [3.0, 0.0], 3.0, walls=walls)
+    assert leaving.time_in_field(DIV_B)[1] < 0.1 < leaving.stop_time_s
+    assert leaving.advanced(0.1).time_in_field(DIV_B)[0] < math.inf  # on its own, the ball then comes back in
+    res = catch_after_reaction(search, leaving, robot, still, 0.1, free, np.zeros(1), 0.1)
+    assert res.kind[0] == CatchKind.NEVER
+    coming_back = BallTrajectory([4.6, 0.0], [3.0, 0.0], 3.0, walls=walls)
+    res = catch_after_reaction(search, coming_back, robot, still, 0.1, free, np.zeros(1), 0.1)
+    assert res.kind[0] != CatchKind.NEVER and res.ball_position_m[0, 0] <= DIV_B.half_length_m
 
 # --- bad input ---------------------------------------------------------------------------------
 @pytest.mark.parametrize("a, v", [(0.0, 1.0), (1.0, -1.0), (np.nan, 1.0), (1.0, np.inf), ([1.0, 2.0], [1.0, 2.0, 3.0])])

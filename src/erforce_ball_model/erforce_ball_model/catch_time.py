@@ -601,8 +601,12 @@ class CatchSearch:
         return self._search is not None
 
     def run(self, ball: BallTrajectory, robot_pos_m: np.ndarray, robot_vel_mps: np.ndarray,
-            facing_rad=0.0) -> CatchResult:
-        """Catch times of all robots: positions and field-frame velocities (R, 2), facing scalar or (R,)."""
+            facing_rad=0.0, *, window_s: tuple[float, float] | None = None) -> CatchResult:
+        """Catch times of all robots: positions and field-frame velocities (R, 2), facing scalar or (R,).
+
+        ``window_s``: the stretch of the ball's path inside the field, when it is not this ball's own first
+        one (``catch_after_reaction``: the first stretch of the ball before the reaction time, on this
+        one's clock; a ball that left the field meanwhile is out, even if it comes back off the wall)."""
         if not isinstance(ball, BallTrajectory) or ball.floats is None:
             raise ValueError("ball: expected a single-ball BallTrajectory")
         shape = (self.num_robots, 2)
@@ -616,7 +620,7 @@ class CatchSearch:
         t_stop = ball.stop_time_s
         t_in, t_out, hx, hy = 0.0, math.inf, math.inf, math.inf
         if self._field is not None:
-            t_in, t_out = ball.time_in_field(self._field, self._margin_m)
+            t_in, t_out = ball.time_in_field(self._field, self._margin_m) if window_s is None else window_s
             hx, hy = self._field.half_length_m + self._margin_m, self._field.half_width_m + self._margin_m
         t_max = min(t_stop, t_out)
         if t_in <= t_max and (t_max - t_in) / self._h > MAX_GRID_POINTS:  # e.g. a_roll of micrometres per s^2
@@ -779,8 +783,17 @@ def catch_after_reaction(search: CatchSearch, ball: BallTrajectory, robot_pos_m:
     The robots are planned from their present state: meanwhile they execute their previous command,
     which continues their plan (coasting them would push a braking robot past its target and turn a
     catch in progress into "never"). The times count from the end of the reaction: add ``reaction_s``
-    for times from now. The result's arrays are the search's, reused by its next run.
+    for times from now. The field's stretch searched is the ball's first one from now: a ball that leaves
+    the field during the reaction is out, also when it comes back off the wall. The result's arrays are
+    the search's, reused by its next run.
     """
-    ahead = ball.advanced(reaction_s) if reaction_s > 0.0 else ball
+    if reaction_s <= 0.0:
+        return search.run(ball, robot_pos_m, robot_vel_mps, facing_angles(facing_fixed, facing_rad, ball, robot_pos_m,
+                                                                         rest_speed_mps))
+    ahead = ball.advanced(reaction_s)
     facing = facing_angles(facing_fixed, facing_rad, ahead, robot_pos_m, rest_speed_mps)
-    return search.run(ahead, robot_pos_m, robot_vel_mps, facing)
+    window = None
+    if search._field is not None and len(ball.pieces) > 1:  # off a wall: the stretch is the ball's of now
+        t_in, t_out = ball.time_in_field(search._field, search._margin_m)
+        window = (max(t_in - reaction_s, 0.0), t_out - reaction_s) if t_in < math.inf else (math.inf, math.inf)
+    return search.run(ahead, robot_pos_m, robot_vel_mps, facing, window_s=window)
