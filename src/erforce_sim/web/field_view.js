@@ -364,7 +364,8 @@
       line([path.switch, path.wall, ...path.corners, path.stop], COLORS.roll, 3);  // off the walls to the stop
       const marks = pathMarks(path);
       for (const m of marks) { disc(m[0], m[1], 2, COLORS.lines); }
-      drawn.path = { start: path.start, switch: path.switch, stop: path.stop, stop_time: path.stop_time, marks };
+      drawn.path = { start: path.start, switch: path.switch, wall: path.wall, stop: path.stop,
+                     wall_time: path.wall_time, stop_time: path.stop_time, marks };
     }
     if (frame.stop_point) {
       const [sx, sy] = fieldView.worldToPixel(frame.stop_point[0], frame.stop_point[1]);
