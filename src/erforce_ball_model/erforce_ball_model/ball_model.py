@@ -222,7 +222,7 @@ class Walls:
         """The walls of ``field`` (at its run-off area's outer edge) for a ball of the league's size."""
         if not isinstance(field, FieldConfig):
             raise ValueError(f"field: expected FieldConfig, got {type(field).__name__}")
-        return cls(field.wall_half_length_m - BALL_RADIUS_M, field.wall_half_width_m - BALL_RADIUS_M, restitution)
+        return _walls_of_field(cls, field, restitution)
 
     def impulse(self, vx: float, vy: float, nx: float, ny: float) -> tuple[float, float]:
         """The ball's velocity just after it meets the wall of inward normal ``(nx, ny)`` at ``(vx, vy)``."""
@@ -236,6 +236,12 @@ class Walls:
         limit = self.friction * jn
         jt = max(-limit, min(limit, jt))
         return vx + jn * nx + jt * tx, vy + jn * ny + jt * ty
+
+
+@functools.lru_cache(maxsize=16)
+def _walls_of_field(cls, field: FieldConfig, restitution: float) -> Walls:
+    """Walls.of_field, built once per field (a predictor asks every frame)."""
+    return cls(field.wall_half_length_m - BALL_RADIUS_M, field.wall_half_width_m - BALL_RADIUS_M, restitution)
 
 
 def _wall_hit(f: BallFloats, walls: Walls) -> tuple[float, float, float] | None:
@@ -323,7 +329,7 @@ def _pieces_within(first: BallFloats, walls: Walls, params: BallModelParams) -> 
             continue
         d, nx, ny = hit
         t = ball_time_to_distance(f, d)
-        pieces.append((t0, f._replace(stop_time_s=t, stop_distance_m=d)))
+        pieces.append((t0, BallFloats(*f[:11], t, d, f.a_slide_mps2, f.a_roll_mps2)))  # ends at the wall
         bounces += 1
         if bounces > MAX_WALL_BOUNCES:
             return tuple(pieces)
@@ -534,10 +540,16 @@ class BallTrajectory:
 
     def within(self, walls: Walls | None) -> BallTrajectory:
         """The same ball now, its path bounded by ``walls`` (None: the unbounded straight line)."""
-        f = self.floats
         if walls is self.walls:
             return self
-        return BallTrajectory.of_floats(f.x_m, f.y_m, f.vx_mps, f.vy_mps, f.v_shoot_mps, self.params, walls)
+        if walls is not None and not isinstance(walls, Walls):
+            raise ValueError(f"walls: expected Walls or None, got {type(walls).__name__}")
+        f = self.floats
+        if len(self.pieces) > 1:  # the first piece ends at a wall: its numbers from the ball's state
+            return BallTrajectory.of_floats(f.x_m, f.y_m, f.vx_mps, f.vy_mps, f.v_shoot_mps, self.params, walls)
+        ball = object.__new__(BallTrajectory)
+        ball._init(f, self.params, walls)
+        return ball
 
     def __setattr__(self, name, value):
         raise AttributeError(f"BallTrajectory is immutable (cannot set {name})")
@@ -753,11 +765,11 @@ class BallTrajectory:
         dt = self._time(dt_s)
         if not isinstance(dt, float):
             raise ValueError(f"dt_s: one number, got {dt_s!r}")
-        if len(self.pieces) == 1:
+        if self.walls is None:
             f = self.floats
             d, s = ball_distance(f, dt), ball_speed(f, dt)
             return BallTrajectory.of_floats(f.x_m + f.ux * d, f.y_m + f.uy * d, f.ux * s, f.uy * s, f.v_shoot_mps,
-                                            self.params, self.walls)
+                                            self.params)
         i = self._piece_at(dt)
         rest = [(start - dt, f) for start, f in self.pieces[i + 1:]]
         return _of_pieces(((0.0, _piece_after(self.pieces[i][1], dt - self._starts[i])), *rest), self.params,
