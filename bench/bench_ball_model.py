@@ -7,7 +7,8 @@ Catch-time speed: every frame (22 robots) is timed once, wall (perf_counter) and
 (process_time, less sensitive to a loaded machine), and the median, p90 and p99 over the frames
 are reported for two frame sets: "random" (division B, half of the robots near the ball's path,
 all robots moving; the accuracy frames) and "game" (division A or B, 22 robots anywhere, 60 %
-moving; balls stopped, slow, rolling, kicked, or heading out over a line).
+moving; balls stopped, slow, rolling, kicked, or heading out over a line; their paths reflected off the
+field's wall, as the predictor's). Building a ball's trajectory is timed without and with the walls.
 
 Model from SSL geometry: a ball kicked at 3 and 5 m/s under grSim's model (a_slide -14, a_roll -0.7,
 c_switch 0.7, far from our defaults), seen at 70 Hz with 2 mm noise (the frames from ``kick_distance``),
@@ -30,7 +31,7 @@ import time
 import numpy as np
 from table import bench_main  # bench/table.py: the shared table format
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, kick_distance
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, Walls, kick_distance
 from erforce_ball_model.catch_time import CatchKind, RobotLimits, can_reach_in_time, robot_time_to_ball
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig
@@ -81,7 +82,22 @@ def bench_queries(quick: bool) -> list[dict]:
             one.position_at(i * 1e-3)
         reps.append(time.perf_counter() - t0)
     scalar_rate = n_scalar / float(np.median(reps))
+    build = []
+    for walls in (None, Walls.of_field(FIELD)):  # balls towards the +x wall, most of them meeting it
+        starts = rng.uniform([0.0, -2.5], [4.0, 2.5], (n_scalar, 2))
+        kicks = rng.uniform([2.0, -2.0], [6.0, 2.0], (n_scalar, 2))
+        reps = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            for (x, y), (vx, vy) in zip(starts.tolist(), kicks.tolist(), strict=True):
+                BallTrajectory.of_floats(x, y, vx, vy, 6.5, one.params, walls)
+            reps.append(time.perf_counter() - t0)
+        build.append(1e6 * float(np.median(reps)) / n_scalar)
     return [
+        dict(name="ball trajectory construction (of_floats)", value=build[0], unit="us", target="-",
+             note="one straight piece"),
+        dict(name="ball trajectory construction with walls", value=build[1], unit="us", target="-",
+             note="kicks of 2-6 m/s towards the +x wall of division B, pieces off the walls"),
         dict(name="ball position queries, vectorized", value=vec_rate, unit="queries/s", target=">= 1e7",
              note=f"{n_balls} balls, one call of {n_times} times each"),
         dict(name="ball position queries, scalar loop", value=scalar_rate, unit="queries/s", target="-",
@@ -120,7 +136,7 @@ def _game_frame(rng: np.random.Generator, num_robots: int):
         speed = rng.uniform(0.5, 6.5)
         v_shoot = speed * rng.uniform(1.0, 1.6)
     vel = speed * np.array([math.cos(ang), math.sin(ang)])
-    ball = BallTrajectory(pos, vel, v_shoot)
+    ball = BallTrajectory(pos, vel, v_shoot, walls=Walls.of_field(field))
     robots = rng.uniform([-hl, -hw], [hl, hw], (num_robots, 2))
     robot_vel = np.where(rng.random((num_robots, 1)) < 0.6, rng.normal(0.0, 1.0, (num_robots, 2)), 0.0)
     if ball.speed_mps > 0.1:  # the ball_predictor's towards_ball facing

@@ -239,6 +239,24 @@ def test_rolling_ball_state_stop_point_and_phases_match_the_closed_form(ros_grap
     assert rig.all_finite()
 
 
+def test_the_published_stop_point_lies_inside_the_field_wall(ros_graph):
+    """Kicked at 3 m/s straight at the +x wall of Division B (4.5 + 0.3 m less the ball's radius 21.35 mm), which
+    the straight model passes by 2.8 m: with wall_restitution 0 the ball stays where it meets the wall."""
+    rig = Rig(ros_graph, wall_restitution=0.0)
+    v0, p0 = 3.0, np.array([1.0, 0.5])
+    wall_x = 4.5 + 0.3 - 0.02135
+    assert p0[0] + stop_distance(v0) > wall_x + 2.7
+    t, xy, _, t_kick = shot_frames(1.0, p0, (1.0, 0.0), v0)
+    sent = [ti for ti, (x, _) in zip(t, xy, strict=True) if x < wall_x - 0.5]  # frames before the wall
+    for ti in sent:
+        rig.ball(ti, *xy[list(t).index(ti)])
+    rig.settle()
+    stops = [point_from_msg(m)[1] for m in rig.stop]
+    assert len(stops) == len(sent) and all(s[0] <= wall_x + 1e-9 for s in stops)
+    moving = [s for ti, s in zip(sent, stops, strict=True) if ti > t_kick + 0.2]
+    assert len(moving) > 20
+    assert all(s[0] == pytest.approx(wall_x, abs=1e-6) and s[1] == pytest.approx(0.5, abs=0.01) for s in moving)
+
 @pytest.mark.parametrize("a_max", [3.0, 0.005])
 def test_robot_on_the_path_facing_the_ball_catches_it_when_brute_force_says(ros_graph, a_max):
     """Ball kicked along +x at 2 m/s from x = -2; robot at rest at x = 0.5 on its line (default facing:
@@ -299,21 +317,25 @@ def test_robot_on_the_path_facing_the_ball_catches_it_when_brute_force_says(ros_
 
 def test_ball_leaving_the_field_far_from_the_robot_is_never_caught(ros_graph):
     """division_b: goal line at x = 4.5. Ball kicked from (3.0, 2.0) along +x at 4 m/s leaves after
-    ~0.4 s; the robot at (-4, -2.5) is 7 m away, which takes it more than 3.5 s at 2 m/s."""
+    ~0.4 s; the robot at (-4, -2.5) is 7 m away, which takes it more than 3.5 s at 2 m/s. Seen in the run-off
+    area, heading for the wall (4.8 m less the ball's radius), the ball comes back off it into the field and
+    rests there: then the robot can fetch it."""
     rig = Rig(ros_graph, num_robots=1, robot_timeout_s=100.0, robot_a_max_mps2=3.0, robot_v_max_mps=2.0)
     rig.robot(0, 0.9, -4.0, -2.5, 0.0)
     t, xy, _, t_kick = shot_frames(1.0, (3.0, 2.0), (1.0, 0.0), 4.0)
     sent = 0
     for ti, (x, y) in zip(t, xy, strict=True):
-        if x > 4.5 + 0.5:  # beyond vision_reject_margin_m the node would ignore it
+        if x > 4.5 + 0.2:  # the frames a real ball gives before the wall
             break
         rig.ball(ti, x, y)
         sent += 1
     rig.settle()
     times = [m.data for m in rig.catch_time[0]]
     assert len(times) == sent
-    after_kick = [c for c, ti in zip(times, t, strict=False) if ti > t_kick + 0.1]
-    assert len(after_kick) >= 10 and all(c == contract.CATCH_TIME_NEVER for c in after_kick)
+    inside = [c for c, ti, (x, _) in zip(times, t, xy, strict=False) if ti > t_kick + 0.1 and x <= 4.5 - 0.05]
+    assert len(inside) >= 10 and all(c == contract.CATCH_TIME_NEVER for c in inside)
+    run_off = [c for c, (x, _) in zip(times, xy, strict=False) if x > 4.5 + 0.05]
+    assert len(run_off) >= 3 and all(c > 3.5 for c in run_off)
     assert times[0] > 0.0  # the resting ball before the kick can be fetched
     n_never = sum(c == contract.CATCH_TIME_NEVER for c in times)
     assert len(rig.catch_point[0]) == len(times) - n_never  # "never" has no catch point

@@ -8,7 +8,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from erforce_ball_model import catch_time
-from erforce_ball_model.ball_model import BallTrajectory
+from erforce_ball_model.ball_model import BallTrajectory, Walls
 from erforce_ball_model.catch_time import (
     MAX_RECEIVE_ANGLE_RAD,
     CatchKind,
@@ -18,6 +18,7 @@ from erforce_ball_model.catch_time import (
     _may_reach,
     can_reach,
     can_reach_in_time,
+    catch_after_reaction,
     contact_offset,
     load_kernels,
     receive_facing,
@@ -148,12 +149,13 @@ def test_the_search_run_as_python_while_the_kernels_load_gives_the_compiled_numb
     every output equal to the bit, also for robots and balls at rest, and the compiled search once loaded."""
     rng = np.random.default_rng(5)
     lim = RobotLimits(3.0, 2.0)
-    compiled = CatchSearch(4, lim, field=DIV_B)
+    compiled = CatchSearch(4, lim, field=DIV_B, field_margin_m=0.3)  # up to the wall
     monkeypatch.setattr(catch_time, "kernels_loaded", lambda: False)  # as while the thread still loads
-    python = CatchSearch(4, lim, field=DIV_B, kernels="background")
+    python = CatchSearch(4, lim, field=DIV_B, field_margin_m=0.3, kernels="background")
+    walls = Walls.of_field(DIV_B)
     for k in range(30):
         ball = BallTrajectory(tuple(rng.uniform(-4.5, 4.5, 2)), tuple(rng.normal(0, 3, 2) * (k % 6 != 0)),
-                              float(rng.uniform(0, 6)))
+                              float(rng.uniform(0, 6)), walls=walls if k % 2 else None)  # half off the walls
         robots, vels = rng.uniform(-4.5, 4.5, (4, 2)), rng.normal(0, 1, (4, 2)) * (k % 4 != 0)
         facing = rng.uniform(-math.pi, math.pi, 4)
         fields = ("time_s", "ball_position_m", "robot_target_m", "kind")
@@ -395,6 +397,74 @@ def test_matches_dense_search_on_random_scenarios():
                 assert float(robot_time_to_pos(robots[r], vels[r], tgt, lim)) <= res.time_s[r] + 1e-5
     assert checked == 320 and wide > 40
 
+
+def test_matches_dense_search_on_balls_bouncing_off_the_wall():
+    """Balls heading for the wall, the search's field reaching the wall (margin = the run-off area): the catch
+    windows after the bounce are found as the dense reference finds them on the same reflected path."""
+    rng = np.random.default_rng(7)
+    walls = Walls.of_field(DIV_B)
+    checked = after_bounce = 0
+    for _ in range(6):
+        pos = rng.uniform([1.0, -2.0], [3.5, 2.0])
+        speed = rng.uniform(2.5, 5.0)
+        ang = rng.uniform(-0.8, 0.8)  # towards the +x wall
+        ball = BallTrajectory(pos, speed * np.array([math.cos(ang), math.sin(ang)]), speed * rng.uniform(1, 1.5),
+                              walls=walls)
+        t_bounce = ball.pieces[1][0]
+        n = 12
+        robots = rng.uniform([0.0, -2.8], [4.7, 2.8], (n, 2))
+        vels = rng.normal(0, 0.5, (n, 2))
+        facing = rng.uniform(0, 2 * math.pi, n)
+        lim = RobotLimits(3.0, 2.5)
+        res = robot_time_to_ball(ball, robots, vels, lim, facing, field=DIV_B, field_margin_m=DIV_B.boundary_m)
+        for r in range(n):
+            t_ref, width = _dense_first_crossing(ball, robots[r], vels[r], lim, facing[r], ball.stop_time_s)
+            checked += 1
+            if math.isinf(t_ref):
+                assert res.kind[r] == CatchKind.AT_REST
+                continue
+            if width >= 0.02:
+                assert res.kind[r] == CatchKind.MOVING
+                assert t_ref - 1e-5 <= res.time_s[r] <= t_ref + 1e-3
+                after_bounce += t_ref > t_bounce
+    assert checked == 72 and after_bounce >= 5
+    # The stop point of a ball nobody meets in time lies inside the wall: the search's at-rest target.
+    ball = BallTrajectory([3.0, 0.0], [3.0, 0.0], 3.0, walls=walls)
+    res = robot_time_to_ball(ball, [[-4.0, 0.0]], [[0.0, 0.0]], RobotLimits(1.0, 0.5), 0.0, field=DIV_B,
+                             field_margin_m=DIV_B.boundary_m)
+    assert res.kind[0] == CatchKind.AT_REST
+    assert res.ball_position_m[0].tolist() == pytest.approx(ball.stop_point.tolist(), abs=1e-12)
+    assert res.ball_position_m[0, 0] < walls.half_x_m
+
+
+def test_a_ball_off_the_wall_back_into_the_field_is_caught_inside():
+    """From the run-off area towards the wall: straight it never enters the field; off the wall it rolls back
+    in, and a robot waiting inside gets it there."""
+    walls = Walls.of_field(DIV_B)
+    ball = BallTrajectory([0.0, 3.15], [0.5, 3.0], 5.0, walls=walls)
+    assert robot_time_to_ball(ball.within(None), [[0.3, 2.6]], [[0.0, 0.0]], RobotLimits(3.0, 2.5), -math.pi / 2,
+                              field=DIV_B).kind[0] == CatchKind.NEVER
+    res = robot_time_to_ball(ball, [[0.3, 2.6]], [[0.0, 0.0]], RobotLimits(3.0, 2.5), math.pi / 2, field=DIV_B)
+    assert res.kind[0] != CatchKind.NEVER
+    assert res.time_s[0] >= ball.time_in_field(DIV_B)[0]
+    assert abs(res.ball_position_m[0, 1]) <= DIV_B.half_width_m + 1e-9
+
+
+def test_a_ball_that_leaves_the_field_during_the_reaction_is_out_even_when_it_comes_back_off_the_wall():
+    """catch_after_reaction searches the ball's first stretch inside the field from now: 0.2 m before the goal
+    line at 3 m/s it is out before the robots react, and back in off the wall later; from the run-off area
+    heading for the wall its first stretch inside is the one after the bounce."""
+    walls = Walls.of_field(DIV_B)
+    search = CatchSearch(1, RobotLimits(3.0, 2.5), field=DIV_B)
+    robot, still, free = np.array([[3.0, 0.0]]), np.zeros((1, 2)), np.zeros(1, dtype=bool)
+    leaving = BallTrajectory([4.3, 0.0], [3.0, 0.0], 3.0, walls=walls)
+    assert leaving.time_in_field(DIV_B)[1] < 0.1 < leaving.stop_time_s
+    assert leaving.advanced(0.1).time_in_field(DIV_B)[0] < math.inf  # on its own, the ball then comes back in
+    res = catch_after_reaction(search, leaving, robot, still, 0.1, free, np.zeros(1), 0.1)
+    assert res.kind[0] == CatchKind.NEVER
+    coming_back = BallTrajectory([4.6, 0.0], [3.0, 0.0], 3.0, walls=walls)
+    res = catch_after_reaction(search, coming_back, robot, still, 0.1, free, np.zeros(1), 0.1)
+    assert res.kind[0] != CatchKind.NEVER and res.ball_position_m[0, 0] <= DIV_B.half_length_m
 
 # --- bad input ---------------------------------------------------------------------------------
 @pytest.mark.parametrize("a, v", [(0.0, 1.0), (1.0, -1.0), (np.nan, 1.0), (1.0, np.inf), ([1.0, 2.0], [1.0, 2.0, 3.0])])

@@ -77,3 +77,20 @@ def test_the_predictor_core_speaks_the_contract():
     assert predictor.CATCH_TIME_NEVER == contract.CATCH_TIME_NEVER
     assert predictor.MODEL_ROWS == contract.BALL_MODEL_PARAM_ROWS
     assert set(predictor.PHASE_NAMES.values()) | {"unknown"} == set(contract.BALL_PHASES)
+
+
+def test_the_ball_and_wall_have_one_default_for_prediction_and_plant():
+    """The predicted bounce (ball_model.Walls, the predictor's wall_restitution) and the plant's wall contact
+    (erforce_sim.contacts, erforce_sim.ball) take the same restitution, friction, inertia and radius."""
+    from erforce_ball_model.ball_model import Walls
+    from erforce_interfaces import robot_config as rc
+    from erforce_sim.ball import BallParams
+    from erforce_sim.contacts import ContactParams
+
+    walls, contact, ball = Walls(1.0, 1.0), ContactParams(), BallParams()
+    assert _defaults(ball_predictor_node)["wall_restitution"] == PredictorConfig().wall_restitution
+    assert PredictorConfig().wall_restitution == walls.restitution == contact.ball_wall_restitution
+    assert walls.restitution == rc.BALL_WALL_RESTITUTION
+    assert walls.friction == contact.ball_wall_friction == rc.BALL_WALL_FRICTION
+    assert walls.inertia_factor == ball.inertia_factor == rc.BALL_INERTIA_FACTOR
+    assert ball.radius_m == rc.BALL_RADIUS_M

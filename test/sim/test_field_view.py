@@ -13,6 +13,7 @@ import math
 import struct
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from geometry_msgs.msg import Twist
 from rclpy.serialization import serialize_message
@@ -80,6 +81,30 @@ def test_the_predicted_path_is_the_ball_models_sliding_and_rolling_stretches():
     # at 0.25 s the ball still slides: 2 * 0.25 - 1.25 * 0.0625 = 0.421875 m
     assert path["marks"][0] == pytest.approx([1.0, -1.0 + 0.421875], abs=1e-4)
 
+
+def test_the_predicted_path_reflects_off_the_fields_wall():
+    """Rolling at 2 m/s along +x from x = 3 on Division B: it meets the wall (4.5 + 0.3 m less the ball's radius)
+    at v1 = sqrt(4 - 0.6 * d), comes off it and stops inside (test_ball_walls derives the numbers); the page gets
+    the first stretch to the wall, its speeds and the turns, the binary frame the same."""
+    state = WorldState(FIELD)
+    assert state.apply(c.BALL_V_SHOOT.name, float64_cdr(2.0 / 0.6))
+    ball_state(state, 1.0, (3.0, 0.5), (2.0, 0.0))
+    frame = state.frame()
+    path = frame["path"]
+    wall_x = 4.8 - 0.02135
+    v1 = math.sqrt(4.0 - 0.6 * (wall_x - 3.0))
+    assert path["wall"] == pytest.approx([wall_x, 0.5], abs=1e-4)
+    assert path["wall_time"] == pytest.approx((2.0 - v1) / 0.3, abs=1e-4)
+    assert path["wall_speed"] == pytest.approx(v1, abs=1e-4)
+    assert path["stop"][0] < wall_x - 0.1 and path["stop"] == frame["stop_point"]
+    assert len(path["corners"]) == 1  # where the slide off the wall ends
+    assert all(abs(x) <= wall_x + 1e-9 for x, _ in path["marks"])
+    assert path["stop_time"] > path["wall_time"] and len(path["marks"]) == int(path["stop_time"] / 0.25)
+    decoded = decode_frame_bytes(state.frame_bytes())["path"]  # not rounded to 0.1 mm as the dict frame
+    path.pop("marks")
+    assert decoded.keys() == path.keys()
+    for key, value in path.items():
+        assert np.ravel(decoded[key]).tolist() == pytest.approx(np.ravel(value).tolist(), abs=1e-4), key
 
 def test_the_predictors_ball_track_gives_the_ball_path_phase_and_speeds_in_one_message():
     """The case above from /ball/track alone (seen at (1.01, -0.98), rolling, uncertain); a second track 0.2 s
@@ -522,9 +547,9 @@ def test_the_binary_frame_says_what_the_frame_says():
         if t <= path["switch_time"]:
             d = path["speed"] * t - 0.5 * (path["speed"] - path["switch_speed"]) / path["switch_time"] * t**2
         else:
-            roll = path["stop_time"] - path["switch_time"]
+            roll = path["wall_time"] - path["switch_time"]  # the stop here: the ball meets no wall
             tr = t - path["switch_time"]
-            d = slide + path["switch_speed"] * tr - 0.5 * path["switch_speed"] / roll * tr**2
+            d = slide + path["switch_speed"] * tr - 0.5 * (path["switch_speed"] - path["wall_speed"]) / roll * tr**2
         assert mark == pytest.approx([1.0, -1.0 + d], abs=1e-4)
 
 

@@ -182,14 +182,15 @@ def test_the_page_draws_the_graphs_robots_ball_and_catch_point(graph_and_view):
     browser.screenshot().save(ARTIFACTS / "field_view_after_kick.png")
     assert RECEIVER not in before or math.dist(before[RECEIVER], scene.receiver_pose[:2]) > 1.0
     assert drawn["receiver"]["id"] == RECEIVER
-    # the marks every 0.25 s that the page puts on the path: on it, in order, up to its stop
+    # the marks every 0.25 s that the page puts on the path: on it, in order, up to its stop (or the wall it
+    # meets first, path["wall"]: the stop when it meets none)
     path = drawn["path"]
-    assert len(path["marks"]) == min(40, int(path["stop_time"] / 0.25)) > 0
+    assert len(path["marks"]) == min(40, int(path["wall_time"] / 0.25)) > 0
     along = [math.dist(path["start"], m) for m in path["marks"]]
-    assert along == sorted(along) and along[-1] <= math.dist(path["start"], path["stop"]) + 1e-6
+    assert along == sorted(along) and along[-1] <= math.dist(path["start"], path["wall"]) + 1e-6
     for mark in path["marks"]:
-        assert math.dist(mark, path["start"]) + math.dist(mark, path["stop"]) == pytest.approx(
-            math.dist(path["start"], path["stop"]), abs=1e-6)
+        assert math.dist(mark, path["start"]) + math.dist(mark, path["wall"]) == pytest.approx(
+            math.dist(path["start"], path["wall"]), abs=1e-6)
     # the path starts at the predictor's filtered ball of a recent frame, which the view takes from /ball/track
     # (with v_shoot, phase, uncertain and the ball seen) instead of /ball/state and four more topics
     states = [(x, y) for t, x, y, *_ in director.series.ball_state if drawn["t"] - 0.5 <= t <= drawn["t"] + 0.05]

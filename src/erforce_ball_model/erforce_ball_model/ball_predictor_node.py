@@ -109,6 +109,7 @@ def build_config(c) -> PredictorConfig:
         field=field_from_setting(c.field),
         field_margin_m=c.field_margin_m,
         vision_reject_margin_m=c.vision_reject_margin_m,
+        wall_restitution=c.wall_restitution,
         limits=RobotLimits(c.robot_a_max_mps2, c.robot_v_max_mps),
         reaction_s=c.reaction_s,
         # the opponents face towards the ball: they intercept

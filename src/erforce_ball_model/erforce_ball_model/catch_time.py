@@ -27,6 +27,9 @@ robotTimeToBall (beyond the paper)
     point), the stretch of the path inside the field (``BallTrajectory.time_in_field``). The paper's
     interval starts at 0; ``t_in`` > 0 is a ball in the run-off area rolling back in (off a wall),
     whose catch points inside the field the paper's bound (``t_out`` = 0) would never search.
+    A trajectory with walls (ball_model.Walls) is a path of straight pieces reflected off the
+    field's wall; the search follows it piecewise (the ball's place at a time, the witness below on
+    every piece) and counts a catch point only where the ball is inside the field.
     Guarantee: every interval of length >= h contains a grid point, so the robot's first catch
     window (an interval where f <= 0) is never missed when it is at least h wide; in that case the
     returned time is feasible (f <= 0 there), never earlier than the true first crossing and at most
@@ -57,6 +60,8 @@ Compiled scalar loops
     functions keep numpy's broadcasting interface. The ball enters the kernel as its
     ``BallFloats`` (read by name) and moves by ball_model's own closed forms (``ball_distance``,
     ``ball_time_to_distance``), compiled into the kernel.
+    The ball enters the kernel as its trajectory's table of pieces (``BallTrajectory.table``, one row
+    per piece: its start time and its ``BallFloats``), read back by ``ball_model.path_point``.
     ``CatchSearch`` checks the team's limits and settings and allocates the outputs once, so a
     caller that asks every vision frame (the predictor) pays one compiled call and a few checks;
     ``robot_time_to_ball`` is the one-off form of the same search.
@@ -73,7 +78,13 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallTrajectory, ball_distance, ball_time_to_distance, numba_ball_type
+from erforce_ball_model.ball_model import (
+    BallTrajectory,
+    ball_time_to_distance,
+    numba_ball_type,
+    path_piece,
+    path_point,
+)
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 __all__ = [
@@ -364,10 +375,11 @@ def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
     return dist <= vp * t - (vp * vp + (vp - w) ** 2) * (0.5 / a) + 1e-9
 
 
-def _feasible(ball, t, sx, sy, wx, wy, a, vmax):
-    """f(t) <= 0: the robot (start ``sx, sy`` = its centre plus the dribbler offset) reaches the ball at ``t``."""
-    d = ball_distance(ball, t)
-    return _can_reach(ball.x_m + ball.ux * d - sx, ball.y_m + ball.uy * d - sy, wx, wy, t, a, vmax)
+def _feasible(path, hx, hy, t, sx, sy, wx, wy, a, vmax):
+    """f(t) <= 0 and the ball inside the field (``|x| <= hx``, ``|y| <= hy``): the robot (start ``sx, sy`` = its
+    centre plus the dribbler offset) reaches the ball of ``path`` (a trajectory's table) at ``t``."""
+    bx, by = path_point(path, t)
+    return abs(bx) <= hx and abs(by) <= hy and _can_reach(bx - sx, by - sy, wx, wy, t, a, vmax)
 
 
 class CatchKind(enum.IntEnum):
@@ -393,16 +405,18 @@ class CatchResult:
 _MOVING, _AT_REST, _NEVER = int(CatchKind.MOVING), int(CatchKind.AT_REST), int(CatchKind.NEVER)
 
 
-def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, pos, vel, facing, a, vmax,
-                  time_out, kind_out, ball_out, target_out):
+def _catch_search(path, hx, hy, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, pos, vel, facing, a,
+                  vmax, time_out, kind_out, ball_out, target_out):
     """robotTimeToBall per robot (the module docstring): time, kind, ball position and robot target.
 
-    Grid pass: points ``min(t_min + k h, t_max)`` (none when ``t_min > t_max``: the ball is never
-    in the field), the exact test only where ``_may_reach`` leaves a chance. Witness: the moment
-    the ball passes the robot's spot, if in ``[t_min, t_max]``. Refinement: leftmost feasible
-    sub-point on ``m1`` then ``m2`` sub-grids (``m2`` 0: one level). No window: robotTimeToPos to
-    the stop point when ``stops_inside``, else never. False (and nothing computed) when an input
-    of a robot is not finite.
+    ``path`` is the ball's trajectory as its table of pieces (ball_model.PIECE_COLUMNS: one piece, or
+    several off the walls), read by ``path_point``; a catch point counts only inside the field
+    (``|x| <= hx``, ``|y| <= hy``; inf: no field). Grid pass: points ``min(t_min + k h, t_max)`` (none
+    when ``t_min > t_max``: the ball is never in the field), the exact test only where ``_may_reach``
+    leaves a chance. Witness: the first moment the ball passes the robot's spot on any piece, if in
+    ``[t_min, t_max]``. Refinement: leftmost feasible sub-point on ``m1`` then ``m2`` sub-grids (``m2``
+    0: one level). No window: robotTimeToPos to the stop point when ``stops_inside``, else never. False
+    (and nothing computed) when an input of a robot is not finite.
     """
     for r in range(pos.shape[0]):
         for v in (pos[r, 0], pos[r, 1], vel[r, 0], vel[r, 1], facing[r]):
@@ -420,25 +434,33 @@ def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offse
         left_idx = -1  # the grid point before it, known infeasible (-1: none)
         for k in range(num):
             t = min(t_min + k * h, t_max)
-            d = ball_distance(ball, t)
-            dx, dy = ball.x_m + ball.ux * d - rx, ball.y_m + ball.uy * d - ry
+            bx, by = path_point(path, t)
+            if abs(bx) > hx or abs(by) > hy:
+                continue
+            dx, dy = bx - rx, by - ry
             if _may_reach(dx, dy, rwx, rwy, s0, t, ra, rv) and _can_reach(dx, dy, rwx, rwy, t, ra, rv):
                 right, left_idx = t, k - 1
                 break
         # Witness: the ball passes the robot's spot (where it comes to rest when it brakes now,
         # projected on the path). A robot on or near the path has a window there however narrow.
         brake = 0.5 / ra
-        along = (rx + rwx * abs(rwx) * brake - ball.x_m) * ball.ux + (ry + rwy * abs(rwy) * brake - ball.y_m) * ball.uy
-        if along > 0.0:
-            t_pass = ball_time_to_distance(ball, along)
-            if (t_min <= t_pass <= t_max and t_pass < right
-                    and _feasible(ball, t_pass, rx, ry, rwx, rwy, ra, rv)):
-                right = t_pass
-                left_idx = min(int((t_pass - t_min) / h), num - 1)  # the last grid point before t_pass
-                while left_idx >= 0 and min(t_min + left_idx * h, t_max) >= t_pass:
-                    left_idx -= 1
-                while left_idx + 1 < num and min(t_min + (left_idx + 1) * h, t_max) < t_pass:
-                    left_idx += 1
+        spot_x, spot_y = rx + rwx * abs(rwx) * brake, ry + rwy * abs(rwy) * brake
+        t_witness = math.inf
+        for i in range(len(path)):
+            piece = path_piece(path, i)
+            along = (spot_x - piece.x_m) * piece.ux + (spot_y - piece.y_m) * piece.uy
+            if along > 0.0:
+                t_pass = path[i][0] + ball_time_to_distance(piece, along)
+                if (t_min <= t_pass <= t_max and t_pass < right and t_pass < t_witness
+                        and _feasible(path, hx, hy, t_pass, rx, ry, rwx, rwy, ra, rv)):
+                    t_witness = t_pass
+        if t_witness < right:
+            right = t_witness
+            left_idx = min(int((t_witness - t_min) / h), num - 1)  # the last grid point before t_witness
+            while left_idx >= 0 and min(t_min + left_idx * h, t_max) >= t_witness:
+                left_idx -= 1
+            while left_idx + 1 < num and min(t_min + (left_idx + 1) * h, t_max) < t_witness:
+                left_idx += 1
         if right < math.inf and left_idx >= 0:
             left = min(t_min + left_idx * h, t_max)
             for m in (m1, m2):
@@ -447,21 +469,22 @@ def _catch_search(ball, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offse
                 lo = left
                 for j in range(1, m + 1):  # j == m is ``right`` itself
                     s = left + (right - left) * (j / m) if j < m else right
-                    if j == m or _feasible(ball, s, rx, ry, rwx, rwy, ra, rv):
+                    if j == m or _feasible(path, hx, hy, s, rx, ry, rwx, rwy, ra, rv):
                         left, right = lo, s
                         break
                     lo = s
         if right < math.inf:
-            kind, d = _MOVING, ball_distance(ball, right)
+            kind = _MOVING
+            bx, by = path_point(path, right)
         elif stops_inside:
-            kind, d = _AT_REST, ball.stop_distance_m
-            right = _time_to_pos(ball.x_m + ball.ux * d - rx, ball.y_m + ball.uy * d - ry, rwx, rwy, ra, rv,
-                                 rest_tol_s)
+            kind = _AT_REST
+            bx, by = path_point(path, math.inf)
+            right = _time_to_pos(bx - rx, by - ry, rwx, rwy, ra, rv, rest_tol_s)
         else:
-            kind, d = _NEVER, math.nan
+            kind, bx, by = _NEVER, math.nan, math.nan
         time_out[r], kind_out[r] = right, kind
-        ball_out[r, 0], ball_out[r, 1] = ball.x_m + ball.ux * d, ball.y_m + ball.uy * d
-        target_out[r, 0], target_out[r, 1] = ball_out[r, 0] - ox, ball_out[r, 1] - oy
+        ball_out[r, 0], ball_out[r, 1] = bx, by
+        target_out[r, 0], target_out[r, 1] = bx - ox, by - oy
     return True
 
 
@@ -473,7 +496,7 @@ def _kernels() -> SimpleNamespace:
     on this file, so an edit anywhere here recompiles. ``error_model="numpy"``: x / 0 is inf as in
     numpy, not an exception; no fastmath, so the results are the IEEE results numpy gives.
     """
-    ball = numba_ball_type()  # imports numba; ball_model's closed forms become callable from kernels
+    numba_ball_type()  # imports numba; ball_model's closed forms become callable from kernels
     from erforce_interfaces.numba_support import numba, register_jitable
 
     for scalar in (_axis_time, _axis_min_accel, _time_to_pos, _can_reach, _may_reach, _feasible):
@@ -486,8 +509,8 @@ def _kernels() -> SimpleNamespace:
     return SimpleNamespace(
         time_to_pos_many=jit(numba.void(vec, vec, vec, vec, vec, vec, f, vec), _time_to_pos_many),
         can_reach_many=jit(numba.void(vec, vec, vec, vec, vec, vec, vec, numba.boolean[::1]), _can_reach_many),
-        catch_search=jit(numba.boolean(ball, f, f, f, numba.boolean, numba.int64, numba.int64, f, f, mat, mat, vec,
-                                       vec, vec, vec, numba.int8[::1], mat, mat), _catch_search),
+        catch_search=jit(numba.boolean(mat, f, f, f, f, f, numba.boolean, numba.int64, numba.int64, f, f, mat, mat,
+                                       vec, vec, vec, vec, numba.int8[::1], mat, mat), _catch_search),
     )
 
 
@@ -578,8 +601,12 @@ class CatchSearch:
         return self._search is not None
 
     def run(self, ball: BallTrajectory, robot_pos_m: np.ndarray, robot_vel_mps: np.ndarray,
-            facing_rad=0.0) -> CatchResult:
-        """Catch times of all robots: positions and field-frame velocities (R, 2), facing scalar or (R,)."""
+            facing_rad=0.0, *, window_s: tuple[float, float] | None = None) -> CatchResult:
+        """Catch times of all robots: positions and field-frame velocities (R, 2), facing scalar or (R,).
+
+        ``window_s``: the stretch of the ball's path inside the field, when it is not this ball's own first
+        one (``catch_after_reaction``: the first stretch of the ball before the reaction time, on this
+        one's clock; a ball that left the field meanwhile is out, even if it comes back off the wall)."""
         if not isinstance(ball, BallTrajectory) or ball.floats is None:
             raise ValueError("ball: expected a single-ball BallTrajectory")
         shape = (self.num_robots, 2)
@@ -590,10 +617,11 @@ class CatchSearch:
             self._facing[:] = facing_rad
         except (ValueError, TypeError):
             raise ValueError(f"facing_rad: must be a number or one per robot ({self.num_robots})") from None
-        t_stop = ball.floats.stop_time_s
-        t_in, t_out = 0.0, math.inf
+        t_stop = ball.stop_time_s
+        t_in, t_out, hx, hy = 0.0, math.inf, math.inf, math.inf
         if self._field is not None:
-            t_in, t_out = ball.time_in_field(self._field, self._margin_m)
+            t_in, t_out = ball.time_in_field(self._field, self._margin_m) if window_s is None else window_s
+            hx, hy = self._field.half_length_m + self._margin_m, self._field.half_width_m + self._margin_m
         t_max = min(t_stop, t_out)
         if t_in <= t_max and (t_max - t_in) / self._h > MAX_GRID_POINTS:  # e.g. a_roll of micrometres per s^2
             raise ValueError(f"search horizon {t_max - t_in:.6g} s needs more than {MAX_GRID_POINTS} grid points "
@@ -608,7 +636,8 @@ class CatchSearch:
             else:
                 # after this first answer: the thread's load must not delay it (both need the GIL and the CPU)
                 self._load_after_run = True
-        if not search(ball.floats, t_in, t_max, self._h, stops_inside, self._m1, self._m2,
+        path = ball.rows if search is _catch_search else ball.table
+        if not search(path, hx, hy, t_in, t_max, self._h, stops_inside, self._m1, self._m2,
                              self._rest_tol_s, self._offset_m, _kernel_array(robot_pos_m),
                              _kernel_array(robot_vel_mps), self._facing, self._a, self._vmax, res.time_s, res.kind,
                              res.ball_position_m, res.robot_target_m):
@@ -754,8 +783,17 @@ def catch_after_reaction(search: CatchSearch, ball: BallTrajectory, robot_pos_m:
     The robots are planned from their present state: meanwhile they execute their previous command,
     which continues their plan (coasting them would push a braking robot past its target and turn a
     catch in progress into "never"). The times count from the end of the reaction: add ``reaction_s``
-    for times from now. The result's arrays are the search's, reused by its next run.
+    for times from now. The field's stretch searched is the ball's first one from now: a ball that leaves
+    the field during the reaction is out, also when it comes back off the wall. The result's arrays are
+    the search's, reused by its next run.
     """
-    ahead = ball.advanced(reaction_s) if reaction_s > 0.0 else ball
+    if reaction_s <= 0.0:
+        return search.run(ball, robot_pos_m, robot_vel_mps, facing_angles(facing_fixed, facing_rad, ball, robot_pos_m,
+                                                                         rest_speed_mps))
+    ahead = ball.advanced(reaction_s)
     facing = facing_angles(facing_fixed, facing_rad, ahead, robot_pos_m, rest_speed_mps)
-    return search.run(ahead, robot_pos_m, robot_vel_mps, facing)
+    window = None
+    if search._field is not None and len(ball.pieces) > 1:  # off a wall: the stretch is the ball's of now
+        t_in, t_out = ball.time_in_field(search._field, search._margin_m)
+        window = (max(t_in - reaction_s, 0.0), t_out - reaction_s) if t_in < math.inf else (math.inf, math.inf)
+    return search.run(ahead, robot_pos_m, robot_vel_mps, facing, window_s=window)

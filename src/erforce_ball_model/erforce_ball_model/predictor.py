@@ -44,11 +44,11 @@ from dataclasses import field as _default
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
+from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory, Walls
 from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, catch_after_reaction
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.robot_config import BALL_WALL_RESTITUTION, FieldConfig, RobotConfig
 
 __all__ = ["CATCH_TIME_NEVER", "MODEL_ROWS", "PHASE_NAMES", "BallFrame", "BallPredictor", "FrameTimes",
            "PredictorConfig"]
@@ -71,6 +71,7 @@ class PredictorConfig:
     field: FieldConfig | None = _default(default_factory=lambda: FieldConfig.preset("division_b"))
     field_margin_m: float = 0.0  # the catch search ends where the ball crosses the field lines extended by this
     vision_reject_margin_m: float = 0.5  # observations farther outside the field lines are rejected
+    wall_restitution: float = BALL_WALL_RESTITUTION  # the predicted path reflects off the field's wall by this
     limits: RobotLimits = _default(default_factory=RobotLimits)
     reaction_s: float = 0.1  # a robot acts on a prediction this much later
     facing_fixed: np.ndarray = _default(default_factory=lambda: np.zeros(1, dtype=bool))
@@ -106,6 +107,8 @@ class PredictorConfig:
             raise ValueError(f"reaction_s: must be >= 0, got {self.reaction_s!r}")
         if self.field is None and not self.use_vision_geometry:
             raise ValueError("field: from SSL geometry needs use_vision_geometry")
+        if not 0.0 <= self.wall_restitution <= 1.0:
+            raise ValueError(f"wall_restitution: must be in [0, 1], got {self.wall_restitution!r}")
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -127,8 +130,9 @@ class BallFrame:
 
     @property
     def stop_point_m(self) -> tuple[float, float]:
-        f = self.trajectory.floats
-        return f.x_m + f.ux * f.stop_distance_m, f.y_m + f.uy * f.stop_distance_m
+        """Where the ball comes to rest, inside the field's wall (the trajectory reflects off it)."""
+        x, y = self.trajectory.stop_point.tolist()
+        return x, y
 
 
 def _ignore(*_args) -> None:
@@ -319,7 +323,8 @@ class BallPredictor:
         if status == UpdateStatus.HELD_BACK and t_s - ball.t_s > cfg.tracker.max_hold_gap_s:
             return None  # after a gap: the old motion extrapolated is no estimate; the next frame re-seeds it
         try:
-            traj = ball.trajectory()
+            # the path off the wall of the field in effect now (SSL geometry's once it came)
+            traj = ball.trajectory().within(Walls.of_field(cfg.field, cfg.wall_restitution))
             if status == UpdateStatus.HELD_BACK:  # the filter waits for the next frame: predict to this stamp
                 traj = traj.advanced(t_s - ball.t_s)
         except ValueError as exc:  # e.g. 100 m/s from two frames 1 us apart

@@ -182,9 +182,18 @@ class RobotConfig:
         return first
 
 
+# The ball and the field wall: the one default of each, for the simulator's physics (erforce_sim.ball,
+# erforce_sim.contacts) and the ball model's wall bounce (erforce_ball_model.ball_model.Walls).
+BALL_RADIUS_M = 0.02135  # SSL rules: a standard golf ball, about 43 mm across
+BALL_INERTIA_FACTOR = 0.4  # I = k m r^2: a golf ball is close to a solid sphere (2/5)
+BALL_WALL_RESTITUTION = 0.6  # the ball's speed normal to the wall, off it / onto it
+BALL_WALL_FRICTION = 0.3  # Coulomb friction between ball and wall (cuts the ball's speed along the wall)
+
+
 @dataclass(frozen=True)
 class FieldConfig:
-    """Playing surface; the field frame has its origin at the centre, x along the long side."""
+    """Playing surface; the field frame has its origin at the centre, x along the long side. The walls
+    stand ``boundary_m`` (SSL geometry's boundary_width, the run-off area) beyond the field lines."""
 
     length_m: float
     width_m: float

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from erforce_interfaces.robot_config import BALL_WALL_FRICTION, BALL_WALL_RESTITUTION
 from erforce_sim.ball import BallBody
 from erforce_sim.drivetrain import RobotPlant
 
@@ -25,8 +26,8 @@ RESTING_SPEED_MPS = 0.02  # below this approach speed a contact is treated as re
 
 @dataclass(frozen=True)
 class ContactParams:
-    ball_wall_restitution: float = 0.6
-    ball_wall_friction: float = 0.3
+    ball_wall_restitution: float = BALL_WALL_RESTITUTION
+    ball_wall_friction: float = BALL_WALL_FRICTION
     ball_robot_restitution: float = 0.4
     ball_robot_friction: float = 0.3
     robot_wall_restitution: float = 0.2

@@ -31,6 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from erforce_interfaces.robot_config import BALL_RADIUS_M
+
 FLAT_DEVIATION_DEG_AT_3CM = 12.0  # paper Sec. 2.2
 DEFAULT_TILT_COMPLIANCE_RAD_PER_M = math.radians(FLAT_DEVIATION_DEG_AT_3CM) / 0.03
 
@@ -132,7 +134,7 @@ def _design_curved(y_max: float, compliance: float, n: int = 1201) -> tuple[np.n
 
 
 def deviation_table(
-    offsets_m: list[float] | np.ndarray, half_width_m: float = 0.035, ball_radius_m: float = 0.02135
+    offsets_m: list[float] | np.ndarray, half_width_m: float = 0.035, ball_radius_m: float = BALL_RADIUS_M
 ) -> list[tuple[float, float, float]]:
     """Rows (offset_m, flat_deviation_deg, curved_deviation_deg) for the bench and the docs."""
     flat = KickerPlate.make("flat", half_width_m)

@@ -16,13 +16,15 @@
   const PLOT_WINDOW_S = 6.0;
   const WHEEL_COLORS = ["#ff6b6b", "#4dd4ff", "#c6ff4d", "#ffb84d", "#d18cff", "#ffffff"];
   const PATH_MARK_PERIOD_S = 0.25, PATH_MAX_MARKS = 40; // as field_view.py's marks
+  const PATH_CORNERS = 6; // as field_view.py's: the turns of the path off the walls in a frame
   // The binary frame (field_view.py FRAME_LAYOUT, SCALARS, ROBOT_COLUMNS)
   const FRAME_MAGIC = 0x31564645; // "EFV1" read as a little-endian uint32
   const FRAME_HEADER_BYTES = 24;
   const SCALARS = ["t", "truth_x", "truth_y", "truth_vx", "truth_vy", "truth_t", "seen_x", "seen_y", "state_x",
     "state_y", "state_vx", "state_vy", "stop_x", "stop_y", "v_shoot", "path_x", "path_y", "switch_x", "switch_y",
-    "end_x", "end_y", "switch_time", "stop_time", "path_speed", "switch_speed", "receiver", "target_x", "target_y",
-    "receiver_catch_time", "speed_truth", "speed_filtered", "speed_model"];
+    "wall_x", "wall_y", "end_x", "end_y", "switch_time", "wall_time", "path_speed", "switch_speed", "wall_speed",
+    "stop_time", ...Array.from({ length: PATH_CORNERS }, (_, k) => [`corner${k}_x`, `corner${k}_y`]).flat(),
+    "receiver", "target_x", "target_y", "receiver_catch_time", "speed_truth", "speed_filtered", "speed_model"];
   const SCALAR_INDEX = Object.fromEntries(SCALARS.map((name, i) => [name, i]));
   const ROBOT_COLUMNS = 13; // kind, id, x, y, yaw, speed, truth, catch_time, catch_x, catch_y, ball_detected, counts
   const textDecoder = new TextDecoder();
@@ -121,8 +123,10 @@
       t: v[S.t], field: meta.field, robot_radius: meta.robot_radius, current_limit: meta.current_limit,
       model: meta.model, ball,
       path: has(v[S.path_x]) ? {
-        start: pair(S.path_x), switch: pair(S.switch_x), stop: pair(S.end_x), switch_time: v[S.switch_time],
-        stop_time: v[S.stop_time], speed: v[S.path_speed], switch_speed: v[S.switch_speed],
+        start: pair(S.path_x), switch: pair(S.switch_x), wall: pair(S.wall_x), stop: pair(S.end_x),
+        corners: Array.from({ length: PATH_CORNERS }, (_, k) => pair(S[`corner${k}_x`])).filter((c) => c !== null),
+        switch_time: v[S.switch_time], wall_time: v[S.wall_time], stop_time: v[S.stop_time], speed: v[S.path_speed],
+        switch_speed: v[S.switch_speed], wall_speed: v[S.wall_speed],
       } : null,
       stop_point: pair(S.stop_x), robots,
       receiver: has(v[S.receiver]) ? { id: v[S.receiver], target: pair(S.target_x), catch_time: v[S.receiver_catch_time] } : null,
@@ -130,16 +134,17 @@
     };
   }
 
-  // The marks on the predicted path every PATH_MARK_PERIOD_S: on each stretch the ball slows evenly
-  // from the speed at its start to the speed at its end (path.speed, path.switch_speed, 0).
+  // The marks on the predicted path every PATH_MARK_PERIOD_S, up to the first wall (path.wall, the stop
+  // point when it meets none): on each stretch the ball slows evenly from the speed at its start to the
+  // speed at its end (path.speed, path.switch_speed, path.wall_speed).
   function pathMarks(path) {
     const marks = [];
-    const length = Math.hypot(path.stop[0] - path.start[0], path.stop[1] - path.start[1]);
-    if (!(length > 0) || !(path.stop_time > 0)) { return marks; }
-    const ux = (path.stop[0] - path.start[0]) / length, uy = (path.stop[1] - path.start[1]) / length;
+    const length = Math.hypot(path.wall[0] - path.start[0], path.wall[1] - path.start[1]);
+    if (!(length > 0) || !(path.wall_time > 0)) { return marks; }
+    const ux = (path.wall[0] - path.start[0]) / length, uy = (path.wall[1] - path.start[1]) / length;
     const slideDistance = Math.hypot(path.switch[0] - path.start[0], path.switch[1] - path.start[1]);
-    const rollTime = path.stop_time - path.switch_time;
-    const count = Math.min(PATH_MAX_MARKS, Math.floor(path.stop_time / PATH_MARK_PERIOD_S));
+    const rollTime = path.wall_time - path.switch_time, rollLoss = path.switch_speed - path.wall_speed;
+    const count = Math.min(PATH_MAX_MARKS, Math.floor(path.wall_time / PATH_MARK_PERIOD_S));
     for (let k = 1; k <= count; k++) {
       const t = k * PATH_MARK_PERIOD_S;
       let d;
@@ -147,7 +152,7 @@
         d = path.speed * t + 0.5 * (path.switch_speed - path.speed) / path.switch_time * t * t;
       } else {
         const tr = Math.min(t - path.switch_time, rollTime);
-        d = slideDistance + path.switch_speed * tr - (rollTime > 0 ? 0.5 * path.switch_speed / rollTime * tr * tr : 0);
+        d = slideDistance + path.switch_speed * tr - (rollTime > 0 ? 0.5 * rollLoss / rollTime * tr * tr : 0);
       }
       marks.push([path.start[0] + ux * d, path.start[1] + uy * d]);
     }
@@ -356,10 +361,11 @@
     const path = frame.path;
     if (path) {
       line([path.start, path.switch], COLORS.slide, 3);
-      line([path.switch, path.stop], COLORS.roll, 3);
+      line([path.switch, path.wall, ...path.corners, path.stop], COLORS.roll, 3);  // off the walls to the stop
       const marks = pathMarks(path);
       for (const m of marks) { disc(m[0], m[1], 2, COLORS.lines); }
-      drawn.path = { start: path.start, switch: path.switch, stop: path.stop, stop_time: path.stop_time, marks };
+      drawn.path = { start: path.start, switch: path.switch, wall: path.wall, stop: path.stop,
+                     wall_time: path.wall_time, stop_time: path.stop_time, marks };
     }
     if (frame.stop_point) {
       const [sx, sy] = fieldView.worldToPixel(frame.stop_point[0], frame.stop_point[1]);

@@ -12,9 +12,11 @@ robots ``o<id>``.
 coordinates [m]; ``frame_bytes()`` is the same frame as the live page gets it, a compact binary form
 (``FRAME_LAYOUT``; ``decode_frame_bytes`` reads it back) that costs a fraction of the dict and its
 JSON. The predicted path is the ball model's own BallTrajectory (sliding stretch to
-the switch point, rolling stretch to the stop point), with the parameters the predictor last
-published on /ball/model_params; the team's receiver is catcher.team_receiver of the catch times,
-as each catcher decides it. No rclpy here: the node (field_view_node) feeds it live, ``BagReplay``
+the switch point, rolling stretch to the stop point, reflected off the field's wall: ``wall``,
+where the first stretch meets it, then the ``corners`` to the stop point), with the parameters the
+predictor last published on /ball/model_params and the wall's one default restitution; the
+team's receiver is catcher.team_receiver of the catch times, as each catcher decides it. No
+rclpy here: the node (field_view_node) feeds it live, ``BagReplay``
 from a recorded bag.
 """
 
@@ -35,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ball_speed
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, Walls, ball_speed
 from erforce_ball_model.catcher import team_receiver
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
@@ -59,6 +61,8 @@ CENTRE_CIRCLE_RADIUS_M = 0.5
 KICK_SPEED_JUMP_MPS = 0.3
 #: Marks along the predicted path, this far apart in time [s].
 PATH_MARK_PERIOD_S = 0.25
+#: The binary frame carries this many turns of the path off the walls (the dict frame all of them).
+PATH_CORNERS = 6
 #: A robot whose newest pose is this much older than the newest in the world is left out [s].
 ROBOT_STALE_S = 1.0
 #: Live, a stamp this much after the last one is still on the time line [s]: the view samples only the
@@ -398,7 +402,7 @@ class WorldState:
             return None
         x, y, vx, vy = self.ball_state
         try:
-            return BallTrajectory((x, y), (vx, vy), self.v_shoot_mps, self.model)
+            return BallTrajectory((x, y), (vx, vy), self.v_shoot_mps, self.model, Walls.of_field(self.field))
         except ValueError:
             return None
 
@@ -411,8 +415,21 @@ class WorldState:
         """Where the ball comes to rest (the ball model's stop point; where it lies when at rest)."""
         if trajectory is None:
             return None
+        return _wire(trajectory.stop_point)
+
+    @staticmethod
+    def _path_numbers(trajectory: BallTrajectory) -> tuple[list[float], list[float]]:
+        """The path as the page draws it: (start, switch, wall: the first stretch's end, stop) as 8 numbers, the
+        first stretch's switch time, end time, speeds at its start, switch and end, and the stop time; then the
+        turns off the walls after the first stretch, as x, y pairs."""
         f = trajectory.floats
-        return _wire((f.x_m + f.ux * f.stop_distance_m, f.y_m + f.uy * f.stop_distance_m))
+        switch, end = trajectory.switch_distance_m, f.stop_distance_m
+        ends = [f.x_m, f.y_m, f.x_m + f.ux * switch, f.y_m + f.uy * switch, f.x_m + f.ux * end, f.y_m + f.uy * end,
+                *trajectory.stop_point.tolist()]
+        times = [trajectory.switch_time_s, f.stop_time_s, f.speed_mps, f.v_switch_mps,
+                 ball_speed(f, f.stop_time_s) if len(trajectory.pieces) > 1 else 0.0,
+                 trajectory.stop_time_s]
+        return ends + times, trajectory.bounce_points[1:].ravel().tolist()
 
     def _shown_robots(self) -> list[RobotView]:
         """The robots the page draws, in id order (ours, then opponents' keys): those with a fresh pose."""
@@ -481,14 +498,17 @@ class WorldState:
         prediction = self.prediction()
         trajectory = self._moving(prediction)
         if trajectory is not None:
-            f = trajectory.floats
-            count = min(40, int(f.stop_time_s / PATH_MARK_PERIOD_S))
+            numbers, corners = self._path_numbers(trajectory)
+            count = min(40, int(trajectory.stop_time_s / PATH_MARK_PERIOD_S))
             marks_t = PATH_MARK_PERIOD_S * np.arange(1, count + 1)
-            points = _wire(np.vstack([[f.x_m, f.y_m], trajectory.switch_point, trajectory.stop_point,
+            points = _wire(np.vstack([np.reshape(numbers[:8], (4, 2)), np.reshape(corners, (-1, 2)),
                                       trajectory.position_at(marks_t).reshape(-1, 2)]))
-            path = {"start": points[0], "switch": points[1], "stop": points[2], "marks": points[3:],
-                    "switch_time": round(f.switch_time_s, 4), "stop_time": round(f.stop_time_s, 4),
-                    "speed": round(f.speed_mps, 4), "switch_speed": round(f.v_switch_mps, 4)}
+            turns = len(corners) // 2
+            switch_time, wall_time, speed, switch_speed, wall_speed, stop_time = (round(v, 4) for v in numbers[8:])
+            path = {"start": points[0], "switch": points[1], "wall": points[2], "stop": points[3],
+                    "corners": points[4:4 + turns], "marks": points[4 + turns:], "switch_time": switch_time,
+                    "wall_time": wall_time, "stop_time": stop_time, "speed": speed, "switch_speed": switch_speed,
+                    "wall_speed": wall_speed}
         robots = [{
             "id": r.robot_id,
             "team": "opponent" if self._is_opponent(r.robot_id) else "ours",
@@ -538,12 +558,11 @@ class WorldState:
         scalars.append(round(self.v_shoot_mps, 4))
         trajectory = self._moving(prediction)
         if trajectory is None:
-            scalars += _NAN10
+            scalars += _NAN_PATH
         else:
-            f = trajectory.floats
-            scalars += (f.x_m, f.y_m, f.x_m + f.ux * f.switch_distance_m, f.y_m + f.uy * f.switch_distance_m,
-                        f.x_m + f.ux * f.stop_distance_m, f.y_m + f.uy * f.stop_distance_m, f.switch_time_s,
-                        f.stop_time_s, f.speed_mps, f.v_switch_mps)
+            numbers, corners = self._path_numbers(trajectory)
+            corners = corners[:2 * PATH_CORNERS]
+            scalars += numbers + corners + [math.nan] * (2 * PATH_CORNERS - len(corners))
         scalars += (nan if v is None else v for v in self._speeds())  # placed after the receiver's below
         block = self._table_block()
         if block is not None:
@@ -652,12 +671,14 @@ FRAME_MAGIC = b"EFV1"
 _FRAME_HEADER = struct.Struct("<4sIIII4x")  # 24 bytes: the float64 block starts 8-aligned after the padded JSON
 SCALARS = ("t", "truth_x", "truth_y", "truth_vx", "truth_vy", "truth_t", "seen_x", "seen_y", "state_x", "state_y",
            "state_vx", "state_vy", "stop_x", "stop_y", "v_shoot", "path_x", "path_y", "switch_x", "switch_y",
-           "end_x", "end_y", "switch_time", "stop_time", "path_speed", "switch_speed", "receiver", "target_x",
-           "target_y", "receiver_catch_time", "speed_truth", "speed_filtered", "speed_model")
+           "wall_x", "wall_y", "end_x", "end_y", "switch_time", "wall_time", "path_speed", "switch_speed",
+           "wall_speed", "stop_time", *(f"corner{k}_{a}" for k in range(PATH_CORNERS) for a in "xy"), "receiver",
+           "target_x", "target_y", "receiver_catch_time", "speed_truth", "speed_filtered", "speed_model")
 #: kind: 0 ours, 1 an opponent among ``opponent_ids``, 2 an opponent ``/opponent_<id>`` (key ``o<id>``).
 ROBOT_COLUMNS = ("kind", "id", "x", "y", "yaw", "speed", "truth", "catch_time", "catch_x", "catch_y",
                  "ball_detected", "avg_current_count", "current_count")
-_NAN2, _NAN4, _NAN10 = (math.nan,) * 2, (math.nan,) * 4, (math.nan,) * 10
+_NAN2, _NAN4 = (math.nan,) * 2, (math.nan,) * 4
+_NAN_PATH = (math.nan,) * (SCALARS.index("receiver") - SCALARS.index("path_x"))
 
 
 def decode_frame_bytes(data: bytes) -> dict[str, Any]:
@@ -688,10 +709,12 @@ def decode_frame_bytes(data: bytes) -> dict[str, Any]:
         ball["state"] = [s["state_x"], s["state_y"], s["state_vx"], s["state_vy"]]
     frame["ball"] = ball
     frame["stop_point"] = pair("stop_x", "stop_y")
+    corners = [pair(f"corner{k}_x", f"corner{k}_y") for k in range(PATH_CORNERS)]
     frame["path"] = None if math.isnan(s["path_x"]) else {
-        "start": pair("path_x", "path_y"), "switch": pair("switch_x", "switch_y"), "stop": pair("end_x", "end_y"),
-        "switch_time": s["switch_time"], "stop_time": s["stop_time"], "speed": s["path_speed"],
-        "switch_speed": s["switch_speed"]}
+        "start": pair("path_x", "path_y"), "switch": pair("switch_x", "switch_y"), "wall": pair("wall_x", "wall_y"),
+        "stop": pair("end_x", "end_y"), "corners": [c for c in corners if c is not None],
+        **{k: s[k] for k in ("switch_time", "wall_time", "stop_time", "switch_speed", "wall_speed")},
+        "speed": s["path_speed"]}
     frame["receiver"] = None if math.isnan(s["receiver"]) else {
         "id": int(s["receiver"]), "target": pair("target_x", "target_y"), "catch_time": s["receiver_catch_time"]}
     frame["speed"] = {"t": s["t"], **{k: s[f"speed_{k}"] for k in ("truth", "filtered", "model")
