@@ -419,9 +419,13 @@ def test_capture_time_becomes_the_stamps_and_clock_whatever_the_worlds_pace(ros_
     values = [clock_s(m) for m in clocks]
     assert all(b > a for a, b in pairwise(values))  # never back, never repeated
     assert all(math.isfinite(v) for v in values)
-    assert not any(held < v < held + 2.0 for v in values)  # held during the gap, then on by the capture time
+    # /clock says a frame's capture time: camera 0's, or camera 1's as measured (within 2 ms); held during the
+    # gap, then on by the capture time
     captured = set(sent)
-    assert all(min(abs(v - c) for c in captured) < 1e-6 for v in values)  # /clock says a frame's capture time
+    off = [(v - VISION_EPOCH_S, min(captured, key=lambda c: abs(v - c)) - VISION_EPOCH_S) for v in values
+           if min(abs(v - c) for c in captured) >= 2e-3]
+    assert not off, off
+    assert not any(held + 2e-3 < v < held + 2.0 - 2e-3 for v in values)
     stamps_by_robot: dict[int, list[float]] = {3: [], 7: []}
     for t_s, _balls, rows in map(vision_frame_from_msg, frames):
         for row in rows.tolist():

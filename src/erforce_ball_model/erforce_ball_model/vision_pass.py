@@ -11,7 +11,9 @@ the points cannot carry; ``PASS_CLOCK_JUMP``, ``PASS_CAPTURE_REFUSED``, ``PASS_B
 ``info`` says why). The stamp comes from the time source's mode (ssl_vision.TIME_SOURCES: the vision clock's
 estimate, ``t_capture`` as it is, or the capture timeline).
 The message written is byte for byte what ``conversions.vision_robots_points_cdr`` builds from the same
-points.
+points. The kernels it calls from other modules (ssl_vision's clock and timeline, the tracker's) are compiled
+into it, and numba's cache of this module goes by this file alone: a change there needs this file touched
+(or its ``__pycache__`` entries removed) to take effect here.
 """
 
 from __future__ import annotations

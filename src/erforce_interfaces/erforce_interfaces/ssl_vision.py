@@ -842,7 +842,9 @@ def timeline_step(cams, samples, glob, camera, t_capture, t_sent, w):
     if w - row[_TL_NEXT_RATE_W] >= _RATE_BASE_S:
         row[_TL_RATE_W], row[_TL_RATE_SENT] = row[_TL_NEXT_RATE_W], row[_TL_NEXT_RATE_SENT]
         row[_TL_NEXT_RATE_W], row[_TL_NEXT_RATE_SENT] = w, t_sent
-    if np.isnan(glob[_TG_NEWEST]) or stamp > glob[_TG_NEWEST]:
+    # the timeline's now moves with calibrated cameras only: a camera still being measured is a few
+    # milliseconds off (its reference's rate unknown at first) and must not carry /clock ahead
+    if row[_TL_CALIBRATED] != 0.0 and (np.isnan(glob[_TG_NEWEST]) or stamp > glob[_TG_NEWEST]):
         glob[_TG_NEWEST] = stamp
     return TIMELINE_OK, stamp
 
@@ -874,8 +876,9 @@ class CaptureTimeline:
       of receive time, the camera's clock has jumped (a restarted simulator) and it is measured again as a
       new camera; without another camera to measure it against, its new line continues the timeline one
       frame period after its newest stamp. A stalled receiver's backlog is consecutive frames and passes.
-    - A camera's stamps strictly increase; ``newest_s`` (what /clock says) never goes back. Vision that
-      stops holds it; when vision resumes, it moves on by the capture time that passed.
+    - A camera's stamps strictly increase; ``newest_s`` (what /clock says), the newest stamp of a
+      calibrated camera, never goes back. Vision that stops holds it; when vision resumes, it moves on by
+      the capture time that passed.
 
     Receive times ``t_wall_s`` are a monotonic wall clock (the timeline's own /clock must not be its
     reference). Cameras 0 .. CLOCK_CAMERAS - 1.
