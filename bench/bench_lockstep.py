@@ -199,9 +199,10 @@ def launch_run(sim_s: float, warmup_s: float, launch_args: dict[str, str], windo
         def sim_now() -> float:
             return stamp_to_nanoseconds(clocks[-1].clock) * 1e-9 if clocks else -1.0
 
-        graph.probe.spin_until(lambda: sim_now() >= warmup_s, 600.0, "the warm-up")
+        # graph.spin_until: a launch whose nodes failed to start is reported at once, not after the deadline
+        graph.spin_until(lambda: sim_now() >= warmup_s, 600.0, "the warm-up")
         # the predictor answers as Python until its kernels have loaded in the background (no warm standby here)
-        graph.probe.spin_until(lambda: COMPILED_SEARCH_LOADED in launch.output(), 120.0, "the compiled search")
+        graph.spin_until(lambda: COMPILED_SEARCH_LOADED in launch.output(), 120.0, "the compiled search")
         pids = {pid: f"{_process_name(pid)}/{pid}" for pid in graph.pids()}  # the launcher too
         assert graph.probe.set_parameter(PREDICTOR, "timing_log_every", window_frames or _MEASURING).successful
         log0 = len(launch.output())
@@ -301,9 +302,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.launch_runs:
         extra = dict(a.split(":=", 1) for a in args.launch_args)
-        rows = [row for ai in (args.launch_ai if "ai" not in extra else [extra["ai"]])
-                for row in launch_runs(args.launch_runs, args.launch_sim_s, args.launch_warmup_s,
-                                       {"ai": ai, **extra}, args.window_frames)]
+        try:
+            rows = [row for ai in (args.launch_ai if "ai" not in extra else [extra["ai"]])
+                    for row in launch_runs(args.launch_runs, args.launch_sim_s, args.launch_warmup_s,
+                                           {"ai": ai, **extra}, args.window_frames)]
+        except RuntimeError as exc:  # the graph did not start (RosGraph.spin_until says why), or it ended
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
         print("\n".join(markdown_table(rows)))
         return 0
     rows = run(args.quick, args.robots, tuple(args.deployment or ("per_robot", "team")))

@@ -179,7 +179,7 @@ def standby_cost() -> list[dict]:
     for graph_name, launch_file in GRAPHS:
         with RosGraph(Path(tempfile.mkdtemp(prefix="bench-standby-"))) as graph:
             launch = graph.start_launch(launch_file, standby=True, output="screen")
-            graph.probe.spin_until(lambda launch=launch: standbys_ready(launch.output()), 600.0, "every standby ready")
+            graph.spin_until(lambda launch=launch: standbys_ready(launch.output()), 600.0, "every standby ready")
             out = launch.output()
             pids = {kind: {label: int(pid) for label, pid in re.findall(
                         rf"\[(\S+-\d+)\]: {kind} started with pid \[(\d+)\]", out)}

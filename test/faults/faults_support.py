@@ -552,7 +552,7 @@ class LaunchedDemo:
 
     def wait_standbys_ready(self, node: str | None = None, timeout_s: float = 120.0) -> None:
         """Until every process (or each labelled ``node``) has a ready warm standby."""
-        self.probe.spin_until(lambda: standbys_ready(self.launch.output(), node), timeout_s,
+        self.graph.spin_until(lambda: standbys_ready(self.launch.output(), node), timeout_s,
                               f"a ready warm standby for {node or 'every process'}")
 
     def all_flowing_since(self, t_s: float) -> bool:
@@ -560,7 +560,7 @@ class LaunchedDemo:
 
     def wait_running(self, timeout_s: float = 120.0) -> None:
         start = time.monotonic()
-        self.probe.spin_until(lambda: self.all_flowing_since(max(start, time.monotonic() - 0.5)), timeout_s,
+        self.graph.spin_until(lambda: self.all_flowing_since(max(start, time.monotonic() - 0.5)), timeout_s,
                               "every node's loop output flowing")
 
     def kill_and_heal(self, node: str, respawn_delay_s: float, timeout_s: float = 60.0) -> float:
@@ -582,7 +582,7 @@ class LaunchedDemo:
             mine = [t for t in self.arrivals[node] if t > t_back[1]]
             return bool(mine) and self.all_flowing_since(mine[0])
 
-        self.probe.spin_until(healed, timeout_s, f"the loop closed again after {node} was killed")
+        self.graph.spin_until(healed, timeout_s, f"the loop closed again after {node} was killed")
         assert self.pid(node) != old, f"{node}: the loop closed, but not by a respawned process"
         first_back = next(t for t in self.arrivals[node] if t > t_back[1])
         return max(next(t for t in times if t > first_back) for times in self.arrivals.values()) - t_kill

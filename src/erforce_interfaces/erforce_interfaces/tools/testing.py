@@ -212,6 +212,9 @@ class RosGraph:
 
         self.env.update(dds_profile_env(self.env))  # a restarted node is matched within ~1 s
         self.processes: list[NodeProcess] = []
+        self._launches: list[NodeProcess] = []
+        self._launch_checked: dict[int, int] = {}  # launch pid -> bytes of its output checked by launch_failure
+        self._launch_failed: list[str] = []  # the FAILED_TO_START lines found there
         self._probe = None
         self._counter = 0
         self._expected_faults: set[str] | None = set()  # process names; None: any
@@ -268,7 +271,31 @@ class RosGraph:
         options = (*options, *(() if standby else ("--no-standby",)))
         cmd = [_executable_path("erforce-launch"), *options, str(launch_file)]
         cmd += [f"{k}:={v}" for k, v in launch_args.items()]
-        return self.start(cmd, name=f"launch-{Path(launch_file).stem}")
+        proc = self.start(cmd, name=f"launch-{Path(launch_file).stem}")
+        self._launches.append(proc)
+        return proc
+
+    def launch_failure(self) -> str | None:
+        """Why a launch this graph started cannot bring its graph up, or None: it could not run a node's
+        command (erforce-launch's ``FAILED_TO_START`` lines, each naming what is missing) or it ended with an
+        error. ``spin_until`` raises it at once instead of waiting for its deadline."""
+        from erforce_interfaces.tools.launcher import FAILED_TO_START
+
+        for proc in self._launches:
+            checked = self._launch_checked.get(proc.pid, 0)
+            with contextlib.suppress(FileNotFoundError), open(proc.log_path, "rb") as log:
+                log.seek(checked)
+                new = log.read()
+                new = new[:new.rfind(b"\n") + 1]  # whole lines only: the rest is read next time
+                self._launch_checked[proc.pid] = checked + len(new)
+                self._launch_failed.extend(f"{proc.name}: {line.strip()}" for line in
+                                           new.decode(errors="replace").splitlines() if FAILED_TO_START in line)
+        if self._launch_failed:
+            return f"{len(self._launch_failed)} process(es) failed to start:\n" + "\n".join(self._launch_failed[:10])
+        for proc in self._launches:
+            if not proc.alive() and proc.popen.returncode != 0:
+                return f"{proc.name} ended with exit code {proc.popen.returncode}:\n{proc.output()[-3000:]}"
+        return None
 
     @staticmethod
     def probe_executable(name: str) -> str:
@@ -312,7 +339,19 @@ class RosGraph:
         return self.probe.subscribe(topic, msg_type, qos)
 
     def spin_until(self, condition: Callable[[], bool], timeout_s: float, what: str = "condition") -> None:
-        self.probe.spin_until(condition, timeout_s, what)
+        """The probe's ``spin_until``; raises RuntimeError as soon as a launch of this graph failed
+        (``launch_failure``)."""
+        next_check = [0.0]
+
+        def done() -> bool:
+            if time.monotonic() >= next_check[0]:  # a few times a second: it reads the launches' new output
+                next_check[0] = time.monotonic() + 0.2
+                failure = self.launch_failure()
+                if failure is not None:
+                    raise RuntimeError(f"waiting for {what}: {failure}")
+            return condition()
+
+        self.probe.spin_until(done, timeout_s, what)
 
     # -------------------------------------------------------------- teardown
     def close(self) -> None:
