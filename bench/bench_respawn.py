@@ -119,7 +119,10 @@ def _phases(demo: LaunchedDemo, node: str, t_kill_mono: float, heal_s: float) ->
 
 
 def measure(rounds: int, breakdown: bool = False, respawn_delay_s: float = RESPAWN_DELAY_S,
-            standby: bool = True, team: bool = False) -> tuple[dict[str, list[float]], dict[str, list[dict]]]:
+            standby: bool = True, team: bool = False,
+            pause_s: float = 0.0) -> tuple[dict[str, list[float]], dict[str, list[dict]]]:
+    """Heal times per node type: from the kill, or with ``pause_s`` from the SIGCONT after a pause that long
+    (no standby is used then: nobody dies)."""
     # The probe that times the loop announces itself as the nodes do (the test harness's pytest_configure):
     # with Fast DDS's default of 3 s it matched a restarted catcher up to 2 s after the robot's
     # velocity controller did, and the figure was the probe's discovery, not the graph's.
@@ -138,6 +141,10 @@ def measure(rounds: int, breakdown: bool = False, respawn_delay_s: float = RESPA
         demo.wait_running()
         for _ in range(rounds):
             for node in nodes:
+                if pause_s:
+                    heal_s[node].append(demo.pause_and_heal(node, pause_s, timeout_s=120.0))
+                    demo.wait_running()
+                    continue
                 if standby:
                     demo.wait_standbys_ready()
                     demo.wait_running()
@@ -201,12 +208,13 @@ def standby_cost() -> list[dict]:
 
 
 def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool,
-            respawn_delay_s: float = RESPAWN_DELAY_S, standby: bool = True) -> list[dict]:
+            respawn_delay_s: float = RESPAWN_DELAY_S, standby: bool = True, pause_s: float = 0.0) -> list[dict]:
     rows = []
     how = "from a warm standby" if standby else "fresh start"
+    what = f"paused {pause_s:g} s: loop closed again after SIGCONT" if pause_s else f"killed: loop closed again, {how}"
     for node, times in heal_s.items():
         every = ", ".join(f"{t:.2f}" for t in times)
-        rows.append({"name": f"{node} killed: loop closed again, {how}{' (one core busy)' if busy else ''}",
+        rows.append({"name": f"{node} {what}{' (one core busy)' if busy else ''}",
                      "value": round(statistics.median(times), 2), "unit": "s", "target": f"≤ {TARGET_S:g}",
                      "note": f"{len(times)} runs: {every}; median {statistics.median(times):.2f}, max {max(times):.2f} "
                              f"(respawn_delay {respawn_delay_s:g} s; load average {load:.1f} at the start)"})
@@ -244,6 +252,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--breakdown", action="store_true",
                         help="also where each restart's time went")
     parser.add_argument("--respawn-delay", type=float, default=RESPAWN_DELAY_S, help="respawn_delay [s] of the launch")
+    parser.add_argument("--pause", type=float, default=0.0, metavar="S",
+                        help="instead of killing: SIGSTOP each node for S seconds, then SIGCONT; the time is counted "
+                             "from the SIGCONT (no standbys: nobody dies)")
     parser.add_argument("--team", action="store_true",
                         help="the 14-robot team_sim.launch.yaml instead of demo.launch.yaml")
     args = parser.parse_args(argv)
@@ -256,8 +267,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\n(total {time.perf_counter() - t0:.1f} s; load average {load:.1f} at the start)")
         return 0
     with cpu_burner(args.busy):
-        heal_s, phases = measure(rounds, args.breakdown, args.respawn_delay, args.standby, args.team)
-    rows = rows_of(heal_s, load, args.busy, args.respawn_delay, args.standby)
+        heal_s, phases = measure(rounds, args.breakdown, args.respawn_delay, args.standby and not args.pause,
+                                 args.team, args.pause)
+    rows = rows_of(heal_s, load, args.busy, args.respawn_delay, args.standby and not args.pause, args.pause)
     rows += breakdown_rows(phases) if args.breakdown else []
     print("\n".join(markdown_table(rows)))
     print(f"\n(total {time.perf_counter() - t0:.1f} s; load average {load:.1f} at the start, "

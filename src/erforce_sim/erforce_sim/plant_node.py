@@ -84,6 +84,7 @@ SCHEMA = load_schema("erforce_sim", "plant")
 
 _GEOMETRY_PERIOD_S = 1.0  # SSL-Vision repeats its geometry; late joiners get it within this
 _MAX_TICKS_PER_PUMP = 50  # keep the executor responsive when nobody gates the ticks
+_MAX_LAG_S = 0.1  # wall seconds behind real-time pacing that the plant makes up by ticking faster; beyond, it re-paces
 _RETRY_S = 0.05  # re-publish an unanswered tick (lost message, late joiner, a flood that pushed it out of a
 # reader's queue); duplicates are harmless
 _STARTUP_GRACE_S = 0.1  # after the readers are matched (_ready_to_start); a restarted plant waits it too
@@ -466,6 +467,12 @@ class PlantNode(Node):
             return True
         wall0, tick0 = self._pace_origin
         sim_elapsed = (self._tick + 1 - tick0) * self._period_ns * 1e-9
+        if now - wall0 - sim_elapsed / rtf > _MAX_LAG_S:
+            # Behind by more than a moment (the plant was stopped or starved, or waited out a stalled peer): pace
+            # from now on. Making it up would run the world flat out, every tick gated by the peers' answers,
+            # and make their clocks jump.
+            self._pace_origin = (now, self._tick)
+            return False
         return sim_elapsed <= rtf * (now - wall0)
 
     def _advance(self, lockstep: bool) -> None:
