@@ -11,56 +11,21 @@ node's ``interface`` parameter names, which must be loopback (the default includ
 from __future__ import annotations
 
 import ipaddress
-import os
 import socket
 from pathlib import Path
 
 import pytest
 from faults_support import DEMO_LAUNCH, LaunchedDemo
 
+from erforce_interfaces.tools.testing import listening_sockets, on_loopback, proc_net_address
+
 pytestmark = pytest.mark.integration
-
-TCP_LISTEN = "0A"  # the state column of /proc/net/tcp
-
-
-def _address(hex_address: str) -> str:
-    """/proc/net/{udp,tcp}[6]'s local address (32-bit words in host byte order) as text."""
-    raw = bytes.fromhex(hex_address)
-    words = b"".join(raw[k:k + 4][::-1] for k in range(0, len(raw), 4)) if socket.htonl(1) != 1 else raw
-    return socket.inet_ntop(socket.AF_INET if len(raw) == 4 else socket.AF_INET6, words)
-
-
-def listening_sockets(pid: int) -> list[tuple[str, str, int]]:
-    """(protocol, local address, port) of every UDP socket and every listening TCP socket of process ``pid``."""
-    inodes = set()
-    for fd in os.listdir(f"/proc/{pid}/fd"):
-        try:
-            link = os.readlink(f"/proc/{pid}/fd/{fd}")
-        except OSError:
-            continue  # closed meanwhile
-        if link.startswith("socket:["):
-            inodes.add(int(link[8:-1]))
-    found = []
-    for table in ("udp", "udp6", "tcp", "tcp6"):
-        for line in Path(f"/proc/{pid}/net/{table}").read_text().splitlines()[1:]:
-            fields = line.split()
-            if int(fields[9]) not in inodes or (table.startswith("tcp") and fields[3] != TCP_LISTEN):
-                continue
-            address, port = fields[1].rsplit(":", 1)
-            found.append((table, _address(address), int(port, 16)))
-    return found
-
-
-def on_loopback(address: str) -> bool:
-    ip = ipaddress.ip_address(address)
-    ip = getattr(ip, "ipv4_mapped", None) or ip
-    return ip.is_loopback
 
 
 def test_address_decoding_of_proc_net():
     # /proc/net/udp on a little-endian host: 127.0.0.1 is 0100007F; udp6's ::1 the last word 01000000
-    assert _address("0100007F" if socket.htonl(1) != 1 else "7F000001") == "127.0.0.1"
-    assert _address("00000000000000000000000001000000" if socket.htonl(1) != 1 else "0" * 31 + "1") == "::1"
+    assert proc_net_address("0100007F" if socket.htonl(1) != 1 else "7F000001") == "127.0.0.1"
+    assert proc_net_address("00000000000000000000000001000000" if socket.htonl(1) != 1 else "0" * 31 + "1") == "::1"
     assert on_loopback("127.0.0.1") and on_loopback("127.3.2.1") and on_loopback("::1")
     assert on_loopback("::ffff:127.0.0.1")
     assert not on_loopback("0.0.0.0") and not on_loopback("192.0.2.2") and not on_loopback("::")

@@ -26,10 +26,12 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import ipaddress
 import os
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -188,6 +190,45 @@ def _pids_with_tag(tag: str) -> list[int]:
         except OSError:
             continue
     return pids
+
+
+_TCP_LISTEN = "0A"  # the state column of /proc/net/tcp
+
+
+def proc_net_address(hex_address: str) -> str:
+    """/proc/net/{udp,tcp}[6]'s local address (32-bit words in host byte order) as text."""
+    raw = bytes.fromhex(hex_address)
+    words = b"".join(raw[k:k + 4][::-1] for k in range(0, len(raw), 4)) if socket.htonl(1) != 1 else raw
+    return socket.inet_ntop(socket.AF_INET if len(raw) == 4 else socket.AF_INET6, words)
+
+
+def listening_sockets(pid: int) -> list[tuple[str, str, int]]:
+    """(table, local address, port) of every UDP socket and every listening TCP socket of process ``pid``
+    (its socket inodes in /proc/<pid>/fd, looked up in /proc/<pid>/net/{udp,udp6,tcp,tcp6})."""
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue  # closed meanwhile
+        if link.startswith("socket:["):
+            inodes.add(int(link[8:-1]))
+    found = []
+    for table in ("udp", "udp6", "tcp", "tcp6"):
+        for line in Path(f"/proc/{pid}/net/{table}").read_text().splitlines()[1:]:
+            fields = line.split()
+            if int(fields[9]) not in inodes or (table.startswith("tcp") and fields[3] != _TCP_LISTEN):
+                continue
+            address, port = fields[1].rsplit(":", 1)
+            found.append((table, proc_net_address(address), int(port, 16)))
+    return found
+
+
+def on_loopback(address: str) -> bool:
+    """127.0.0.0/8 or ::1 (also as an IPv4-mapped IPv6 address)."""
+    ip = ipaddress.ip_address(address)
+    ip = getattr(ip, "ipv4_mapped", None) or ip
+    return ip.is_loopback
 
 
 class RosGraph:
