@@ -168,7 +168,29 @@ def run(quick: bool = False, robots=ROBOT_COUNTS, deployments=("per_robot", "tea
                          "target": "< 2048 MiB (11 + 3 robots)" if full else "—",
                          "note": f"firmware {r['rss_firmware_per_robot_mib']:.0f} MiB per robot"})
             print(rows[-2], rows[-1], file=sys.stderr, flush=True)
-    return rows
+    return rows + [fail_fast_row()]
+
+
+MISSING_PREFIX = "/nonexistent/erforce-realtime"
+
+
+def fail_fast_row() -> dict:
+    """How soon a tool that starts team_sim.launch.yaml gives up when its nodes cannot start (every launch prefix
+    names a missing file, as $(find-pkg-prefix) outside the venv did): RosGraph.spin_until's error."""
+    with RosGraph(Path(tempfile.mkdtemp(prefix="bench-fail-fast-"))) as graph:
+        t0 = time.monotonic()
+        prefixes = ("sim_launch_prefix", "ai_launch_prefix", "predictor_launch_prefix")
+        graph.start_launch(TEAM_SIM, **{"real_time_factor": "0.0", **dict.fromkeys(prefixes, MISSING_PREFIX)})
+        try:  # no condition: it ends by the launch's failure (RuntimeError) or at the deadline (TimeoutError)
+            graph.spin_until(lambda: False, 600.0, "the warm-up")
+        except RuntimeError as exc:
+            waited_s, said = time.monotonic() - t0, str(exc)
+    failed = said.count(MISSING_PREFIX)
+    return {"name": "team_sim.launch.yaml whose nodes cannot start: the tool's error after",
+            "value": round(waited_s, 1),
+            "unit": "s", "target": "< 10 s (was 600 s)",
+            "note": f"RosGraph.spin_until's error, naming {MISSING_PREFIX} in {failed} process(es) that failed to "
+                    f"start; load average {os.getloadavg()[0]:.1f}"}
 
 
 _CATCH_TIMES = re.compile(r"processing over (\d+) frames: .*; catch times out after: median ([0-9.]+) ms, "
