@@ -13,6 +13,9 @@ Pacing (parameter ``pacing``):
 - ``realtime``: ticks follow the wall clock times ``real_time_factor``; the newest duty
   of each robot is applied, nobody is waited for.
 
+With ``real_time_factor`` > 0 a plant that fell behind the wall clock by more than a moment (it was
+stopped, starved or waited out a silent peer) paces on from there; it does not race to catch up.
+
 Two teams (``opponent_poses``): our robots under ``/robot_<id>/`` and the opponents, ids 0.., under
 ``/opponent_<id>/`` (contract.Team), all under the same physics; every opponent has motor boards. In
 the world the opponents come after our robots (PlantSetup.team_of).
