@@ -2,8 +2,9 @@
 
 demo.launch.yaml runs under erforce-launch in a private DDS domain (erforce_interfaces.tools.testing);
 each node type is killed (SIGKILL) in turn, ``rounds`` times, and the time from the kill until the
-respawned node's output is back and every other node's output came after it (the lockstep loop went
-round: test/faults/faults_support.LaunchedDemo) is reported per node type: every figure, median, max.
+respawned node's output is back, every other node's output came after it (the lockstep loop went
+round) and the plant's lockstep gate waits for every robot again (test/faults/faults_support.LaunchedDemo) is
+reported per node type: every figure, median, max.
 
 ``--team``: the 14-robot team_sim.launch.yaml instead (plant, both teams' firmware in one process, predictor,
 opponents' interceptor; the plant at normal priority, as the fault tests run it, not under ``chrt --idle``).
@@ -11,6 +12,11 @@ opponents' interceptor; the plant at normal priority, as the fault tests run it,
 erforce-launch keeps a warm standby per node (imports done, waiting to be activated: README,
 "Self-healing"); before each kill the bench waits until every node's standby is ready, so each figure is a
 take-over by a standby. ``--no-standby`` measures fresh starts instead (erforce-launch --no-standby).
+
+``--pause S``: instead of killing, each node is stopped (SIGSTOP) for S seconds and resumed (SIGCONT), as a
+debugger or a suspended laptop does; the figure counts from the SIGCONT (no standbys: nobody dies). ``run()`` (what
+``./run bench`` calls) adds those rows for a 3 s pause and the count of the demo graph's sockets outside
+127.0.0.0/8 with the default discovery range.
 
 ``--standby-cost`` prints what the standbys cost instead: RSS and start CPU of each node type's standby,
 and the RSS of the demo and the 14-robot team_sim graphs with their standbys, as shipped.
@@ -21,7 +27,7 @@ time went, from a start-up trace of the respawned process (bench/respawn_trace/s
 kill to exec (respawn delay), exec to interpreter up, imports, rclpy.init and node construction, the
 first publish, and from there to the loop closed (DDS matching, the lockstep loop going round).
 
-    ./run exec python bench/bench_respawn.py [--quick | --rounds N] [--busy] [--no-standby] [--breakdown]
+    ./run exec python bench/bench_respawn.py [--quick | --rounds N] [--busy] [--no-standby | --pause S] [--breakdown]
     ./run exec python bench/bench_respawn.py --standby-cost
                                              [--respawn-delay S]
 """
