@@ -176,7 +176,29 @@ def run(quick: bool = False, robots=ROBOT_COUNTS, deployments=("per_robot", "tea
             print(rows[-2], rows[-1], file=sys.stderr, flush=True)
     # the main job on an outside world: the stand-in SSL world flat out, the AI side apart (one run)
     rows += launch_runs(1, 3.0 if quick else 10.0, 1.0, {"ai": "passing"}, world=True)
-    return rows
+    return rows + [fail_fast_row()]
+
+
+MISSING_PREFIX = "/nonexistent/erforce-realtime"
+
+
+def fail_fast_row() -> dict:
+    """How soon a tool that starts team_sim.launch.yaml gives up when its nodes cannot start (every launch prefix
+    names a missing file, as $(find-pkg-prefix) outside the venv did): RosGraph.spin_until's error."""
+    with RosGraph(Path(tempfile.mkdtemp(prefix="bench-fail-fast-"))) as graph:
+        t0 = time.monotonic()
+        prefixes = ("sim_launch_prefix", "ai_launch_prefix", "predictor_launch_prefix")
+        graph.start_launch(TEAM_SIM, **{"real_time_factor": "0.0", **dict.fromkeys(prefixes, MISSING_PREFIX)})
+        try:  # no condition: it ends by the launch's failure (RuntimeError) or at the deadline (TimeoutError)
+            graph.spin_until(lambda: False, 600.0, "the warm-up")
+        except RuntimeError as exc:
+            waited_s, said = time.monotonic() - t0, str(exc)
+    failed = said.count(MISSING_PREFIX)
+    return {"name": "team_sim.launch.yaml whose nodes cannot start: the tool's error after",
+            "value": round(waited_s, 1),
+            "unit": "s", "target": "< 10 s (was 600 s)",
+            "note": f"RosGraph.spin_until's error, naming {MISSING_PREFIX} in {failed} process(es) that failed to "
+                    f"start; load average {os.getloadavg()[0]:.1f}"}
 
 
 _CATCH_TIMES = re.compile(r"processing over (\d+) frames: .*; catch times out after: median ([0-9.]+) ms, "
@@ -223,9 +245,10 @@ def launch_run(sim_s: float, warmup_s: float, launch_args: dict[str, str], windo
         def sim_now() -> float:
             return stamp_to_nanoseconds(clocks[-1].clock) * 1e-9 if clocks else -1.0
 
-        timed.probe.spin_until(lambda: sim_now() >= warmup_s, 600.0, "the warm-up")
+        # spin_until of a graph: a launch whose nodes failed to start is reported at once, not after the deadline
+        timed.spin_until(lambda: sim_now() >= warmup_s, 600.0, "the warm-up")
         # the predictor answers as Python until its kernels have loaded in the background (no warm standby here)
-        graph.probe.spin_until(lambda: COMPILED_SEARCH_LOADED in launch.output(), 120.0, "the compiled search")
+        graph.spin_until(lambda: COMPILED_SEARCH_LOADED in launch.output(), 120.0, "the compiled search")
         pids = {pid: f"{_process_name(pid)}/{pid}" for pid in graph.pids() + (timed.pids() if world else [])}
         assert graph.probe.set_parameter(PREDICTOR, "timing_log_every", window_frames or _MEASURING).successful
         log0 = len(launch.output())
@@ -332,9 +355,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.launch_runs:
         extra = dict(a.split(":=", 1) for a in args.launch_args)
-        rows = [row for ai in (args.launch_ai if "ai" not in extra else [extra["ai"]])
-                for row in launch_runs(args.launch_runs, args.launch_sim_s, args.launch_warmup_s,
-                                       {"ai": ai, **extra}, args.window_frames, args.world)]
+        try:
+            rows = [row for ai in (args.launch_ai if "ai" not in extra else [extra["ai"]])
+                    for row in launch_runs(args.launch_runs, args.launch_sim_s, args.launch_warmup_s,
+                                           {"ai": ai, **extra}, args.window_frames, args.world)]
+        except RuntimeError as exc:  # the graph did not start (RosGraph.spin_until says why), or it ended
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
         print("\n".join(markdown_table(rows)))
         return 0
     rows = run(args.quick, args.robots, tuple(args.deployment or ("per_robot", "team")))

@@ -2,8 +2,9 @@
 
 demo.launch.yaml runs under erforce-launch in a private DDS domain (erforce_interfaces.tools.testing);
 each node type is killed (SIGKILL) in turn, ``rounds`` times, and the time from the kill until the
-respawned node's output is back and every other node's output came after it (the lockstep loop went
-round: test/faults/faults_support.LaunchedDemo) is reported per node type: every figure, median, max.
+respawned node's output is back, every other node's output came after it (the lockstep loop went
+round) and the plant's lockstep gate waits for every robot again (test/faults/faults_support.LaunchedDemo) is
+reported per node type: every figure, median, max.
 
 ``--team``: the 14-robot team_sim.launch.yaml instead (plant, both teams' firmware in one process, predictor,
 opponents' interceptor; the plant at normal priority, as the fault tests run it, not under ``chrt --idle``).
@@ -11,6 +12,11 @@ opponents' interceptor; the plant at normal priority, as the fault tests run it,
 erforce-launch keeps a warm standby per node (imports done, waiting to be activated: README,
 "Self-healing"); before each kill the bench waits until every node's standby is ready, so each figure is a
 take-over by a standby. ``--no-standby`` measures fresh starts instead (erforce-launch --no-standby).
+
+``--pause S``: instead of killing, each node is stopped (SIGSTOP) for S seconds and resumed (SIGCONT), as a
+debugger or a suspended laptop does; the figure counts from the SIGCONT (no standbys: nobody dies). ``run()`` (what
+``./run bench`` calls) adds those rows for a 3 s pause and the count of the demo graph's sockets outside
+127.0.0.0/8 with the default discovery range.
 
 ``--standby-cost`` prints what the standbys cost instead: RSS and start CPU of each node type's standby,
 and the RSS of the demo and the 14-robot team_sim graphs with their standbys, as shipped.
@@ -21,7 +27,7 @@ time went, from a start-up trace of the respawned process (bench/respawn_trace/s
 kill to exec (respawn delay), exec to interpreter up, imports, rclpy.init and node construction, the
 first publish, and from there to the loop closed (DDS matching, the lockstep loop going round).
 
-    ./run exec python bench/bench_respawn.py [--quick | --rounds N] [--busy] [--no-standby] [--breakdown]
+    ./run exec python bench/bench_respawn.py [--quick | --rounds N] [--busy] [--no-standby | --pause S] [--breakdown]
     ./run exec python bench/bench_respawn.py --standby-cost
 """
 
@@ -29,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import ipaddress
 import os
 import re
 import signal
@@ -51,11 +58,12 @@ from faults_support import (  # the fault tests' measurement
 )
 
 from erforce_interfaces.contract import dds_profile_env
-from erforce_interfaces.tools.testing import RosGraph
+from erforce_interfaces.tools.testing import RosGraph, listening_sockets, on_loopback
 
 NODES = ("catcher", "ball_predictor", "velocity_controller", "motor_boards", "plant")
 RESPAWN_DELAY_S = 0.1  # the launch files' respawn_delay (a number in each file: ros2 launch substitutes none)
 TARGET_S = 3.0
+PAUSE_S = 3.0  # SIGSTOP .. SIGCONT in the pause rows (issue 36)
 TRACE_DIR = Path(__file__).resolve().parent / "respawn_trace"
 # kill -> exec, exec -> interpreter up, -> node module imported, -> rclpy.init, -> node built, -> first publish,
 # -> loop closed
@@ -117,8 +125,10 @@ def _phases(demo: LaunchedDemo, node: str, t_kill_mono: float, heal_s: float) ->
     return found
 
 
-def measure(rounds: int, breakdown: bool = False, standby: bool = True,
-            team: bool = False) -> tuple[dict[str, list[float]], dict[str, list[dict]]]:
+def measure(rounds: int, breakdown: bool = False, standby: bool = True, team: bool = False,
+            pause_s: float = 0.0) -> tuple[dict[str, list[float]], dict[str, list[dict]]]:
+    """Heal times per node type: from the kill, or with ``pause_s`` from the SIGCONT after a pause that long
+    (no standby is used then: nobody dies)."""
     # The probe that times the loop announces itself as the nodes do (the test harness's pytest_configure):
     # with Fast DDS's default of 3 s it matched a restarted catcher up to 2 s after the robot's
     # velocity controller did, and the figure was the probe's discovery, not the graph's.
@@ -136,6 +146,10 @@ def measure(rounds: int, breakdown: bool = False, standby: bool = True,
         demo.wait_running()
         for _ in range(rounds):
             for node in nodes:
+                if pause_s:
+                    heal_s[node].append(demo.pause_and_heal(node, pause_s, timeout_s=120.0))
+                    demo.wait_running()
+                    continue
                 if standby:
                     demo.wait_standbys_ready()
                     demo.wait_running()
@@ -177,7 +191,7 @@ def standby_cost() -> list[dict]:
     for graph_name, launch_file in GRAPHS:
         with RosGraph(Path(tempfile.mkdtemp(prefix="bench-standby-"))) as graph:
             launch = graph.start_launch(launch_file, standby=True, output="screen")
-            graph.probe.spin_until(lambda launch=launch: standbys_ready(launch.output()), 600.0, "every standby ready")
+            graph.spin_until(lambda launch=launch: standbys_ready(launch.output()), 600.0, "every standby ready")
             out = launch.output()
             pids = {kind: {label: int(pid) for label, pid in re.findall(
                         rf"\[(\S+-\d+)\]: {kind} started with pid \[(\d+)\]", out)}
@@ -198,15 +212,18 @@ def standby_cost() -> list[dict]:
     return rows
 
 
-def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool, standby: bool = True) -> list[dict]:
+def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool, standby: bool = True,
+            pause_s: float = 0.0) -> list[dict]:
     rows = []
     how = "from a warm standby" if standby else "fresh start"
+    what = f"paused {pause_s:g} s: loop closed again after SIGCONT" if pause_s else f"killed: loop closed again, {how}"
     for node, times in heal_s.items():
         every = ", ".join(f"{t:.2f}" for t in times)
-        rows.append({"name": f"{node} killed: loop closed again, {how}{' (one core busy)' if busy else ''}",
+        rows.append({"name": f"{node} {what}{' (one core busy)' if busy else ''}",
                      "value": round(statistics.median(times), 2), "unit": "s", "target": f"≤ {TARGET_S:g}",
                      "note": f"{len(times)} runs: {every}; median {statistics.median(times):.2f}, max {max(times):.2f} "
-                             f"(respawn_delay {RESPAWN_DELAY_S:g} s; load average {load:.1f} at the start)"})
+                             f"({'' if pause_s else f'respawn_delay {RESPAWN_DELAY_S:g} s; '}load average {load:.1f} "
+                             "at the start)"})
     return rows
 
 
@@ -226,7 +243,33 @@ def run(quick: bool = False, busy: bool = False, breakdown: bool = False) -> lis
     load = os.getloadavg()[0]
     with cpu_burner(busy):
         heal_s, phases = measure(1 if quick else 3, breakdown)
-    return rows_of(heal_s, load, busy) + (breakdown_rows(phases) if breakdown else [])
+        paused_s, _ = measure(1 if quick else 3, standby=False, pause_s=PAUSE_S)
+    return (rows_of(heal_s, load, busy) + rows_of(paused_s, load, busy, standby=False, pause_s=PAUSE_S)
+            + [sockets_row()] + (breakdown_rows(phases) if breakdown else []))
+
+
+def sockets_row() -> dict:
+    """Where the demo graph as shipped listens (discovery LOCALHOST, the default): its UDP sockets and listening TCP
+    sockets outside 127.0.0.0/8, over every process; a socket bound to a multicast group (SSL's) counts by its own
+    node's interface parameter, so not here (test/faults/test_fault_sockets.py checks both)."""
+    os.environ.update(dds_profile_env())
+    with RosGraph(Path(tempfile.mkdtemp(prefix="bench-sockets-"))) as graph:
+        demo = LaunchedDemo(graph, standby=False)
+        demo.wait_running()
+        found = [(pid, s) for pid in graph.pids() for s in _sockets_of(pid)]
+    outside = [f"{pid}: {table} {address}:{port}" for pid, (table, address, port) in found
+               if not on_loopback(address) and not ipaddress.ip_address(address).is_multicast]
+    return {"name": "demo graph: sockets outside 127.0.0.0/8 (default discovery range)", "value": len(outside),
+            "unit": "count", "target": "0",
+            "note": f"{len(found)} UDP and listening TCP sockets in {len({pid for pid, _ in found})} processes"
+                    + (f"; {', '.join(outside[:3])}" if outside else "")}
+
+
+def _sockets_of(pid: int) -> list[tuple[str, str, int]]:
+    try:
+        return listening_sockets(pid)
+    except OSError:  # ended meanwhile
+        return []
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -240,6 +283,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="print the standbys' RSS and CPU in the demo and team_sim graphs instead")
     parser.add_argument("--breakdown", action="store_true",
                         help="also where each restart's time went")
+    parser.add_argument("--pause", type=float, default=0.0, metavar="S",
+                        help="instead of killing: SIGSTOP each node for S seconds, then SIGCONT; the time is counted "
+                             "from the SIGCONT (no standbys: nobody dies)")
     parser.add_argument("--team", action="store_true",
                         help="the 14-robot team_sim.launch.yaml instead of demo.launch.yaml")
     args = parser.parse_args(argv)
@@ -252,8 +298,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\n(total {time.perf_counter() - t0:.1f} s; load average {load:.1f} at the start)")
         return 0
     with cpu_burner(args.busy):
-        heal_s, phases = measure(rounds, args.breakdown, args.standby, args.team)
-    rows = rows_of(heal_s, load, args.busy, args.standby)
+        heal_s, phases = measure(rounds, args.breakdown, args.standby and not args.pause, args.team, args.pause)
+    rows = rows_of(heal_s, load, args.busy, args.standby and not args.pause, args.pause)
     rows += breakdown_rows(phases) if args.breakdown else []
     print("\n".join(markdown_table(rows)))
     print(f"\n(total {time.perf_counter() - t0:.1f} s; load average {load:.1f} at the start, "

@@ -516,6 +516,20 @@ def standbys_ready(launch_output: str, node: str | None = None) -> bool:
     return bool(labels) and all((label, newest.get(label)) in ready - taken for label in labels)
 
 
+_LOCKSTEP_EVENT = re.compile(r"lockstep: (\S+) (?:motor_boards )?(stalled|resumed)")
+_STALLED = re.compile(r"lockstep: \S+ motor_boards stalled")
+_RESUMED_AT = re.compile(r"\[(\d+\.\d+)\] \[plant\]: lockstep: \S+ resumed")  # the log line's wall clock
+
+
+def lockstep_stalled(plant_output: str) -> set[str]:
+    """The robots the plant's lockstep gate goes on without, from its events in ``plant_output`` (in order:
+    "lockstep: robot_0 motor_boards stalled: ..." until "lockstep: robot_0 resumed at ...")."""
+    stalled: set[str] = set()
+    for name, what in _LOCKSTEP_EVENT.findall(plant_output):
+        (stalled.add if what == "stalled" else stalled.discard)(name)
+    return stalled
+
+
 class LaunchedDemo:
     """demo.launch.yaml (or ``launch_file``) under erforce-launch (respawn on by default), with the arrival
     times (wall clock) of every node's loop output (``loop_outputs``: node name -> (topic, resolved name))."""
@@ -530,6 +544,12 @@ class LaunchedDemo:
             self.probe.node.create_subscription(topic.msg_type, name,
                                                 lambda _m, n=node: self.arrivals[n].append(time.monotonic()),
                                                 topic.qos)
+        # the plant's events (lockstep stalls and resumes), as they arrive: all of them
+        self.events: list[tuple[float, str]] = []
+        events_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
+                                reliability=contract.SIM_EVENTS.qos.reliability)
+        self.probe.node.create_subscription(contract.SIM_EVENTS.msg_type, contract.SIM_EVENTS.name,
+                                            lambda m: self.events.append((time.monotonic(), m.data)), events_qos)
         args = {"output": "screen", "sim_launch_prefix": "", **launch_args}
         self.launch = graph.start_launch(launch_file, standby=standby, **args)
 
@@ -552,22 +572,41 @@ class LaunchedDemo:
 
     def wait_standbys_ready(self, node: str | None = None, timeout_s: float = 120.0) -> None:
         """Until every process (or each labelled ``node``) has a ready warm standby."""
-        self.probe.spin_until(lambda: standbys_ready(self.launch.output(), node), timeout_s,
+        self.graph.spin_until(lambda: standbys_ready(self.launch.output(), node), timeout_s,
                               f"a ready warm standby for {node or 'every process'}")
+
+    def log_size(self) -> int:
+        return self.launch.log_path.stat().st_size
+
+    def gate_closed_at(self, t_s: float, log_offset: int) -> float | None:
+        """None while the plant's lockstep gate goes on without a robot it reported stalled since ``t_s``
+        (monotonic; byte ``log_offset`` of the launch's output); else when it waited for every robot again (its
+        last "resumed", by the log line's wall-clock stamp), or -inf when it stalled on none. The log has every
+        event but writes them late; /sim/events has them as the outputs came, but may drop some of a burst:
+        the gate counts as closed only once the log has at least as many stalls as /sim/events brought."""
+        on_topic = sum(1 for t, text in self.events if t > t_s and _STALLED.search(text))
+        with open(self.launch.log_path, "rb") as log:
+            log.seek(log_offset)
+            since = log.read().decode(errors="replace")
+        if len(_STALLED.findall(since)) < on_topic or lockstep_stalled(since):
+            return None
+        resumed = [float(t) for t in _RESUMED_AT.findall(since)]
+        return max(resumed) + time.monotonic() - time.time() if resumed else -math.inf
 
     def all_flowing_since(self, t_s: float) -> bool:
         return all(times and times[-1] > t_s for times in self.arrivals.values())
 
     def wait_running(self, timeout_s: float = 120.0) -> None:
         start = time.monotonic()
-        self.probe.spin_until(lambda: self.all_flowing_since(max(start, time.monotonic() - 0.5)), timeout_s,
+        self.graph.spin_until(lambda: self.all_flowing_since(max(start, time.monotonic() - 0.5)), timeout_s,
                               "every node's loop output flowing")
 
     def kill_and_heal(self, node: str, respawn_delay_s: float, timeout_s: float = 60.0) -> float:
         """SIGKILL ``node``; wall seconds until the loop is closed again without help: the respawned node's
-        output is back and after it every other node's output came again (the lockstep loop went round)."""
+        output is back, after it every other node's output came again (the lockstep loop went round), and the
+        plant's lockstep gate waits for every robot again (it resumed each one it reported stalled, /sim/events)."""
         old = self.pid(node)
-        t_kill = time.monotonic()
+        t_kill, log0 = time.monotonic(), self.log_size()
         os.kill(old, signal.SIGKILL)
         # Nothing that arrives before the respawn delay, or before the launcher has started the new process or
         # activated a standby, can be the new process's (on a loaded machine the old one's last messages can
@@ -580,12 +619,38 @@ class LaunchedDemo:
                     return False
                 t_back[1] = max(t_back[0], time.monotonic())
             mine = [t for t in self.arrivals[node] if t > t_back[1]]
-            return bool(mine) and self.all_flowing_since(mine[0])
+            return bool(mine) and self.all_flowing_since(mine[0]) and self.gate_closed_at(t_kill, log0) is not None
 
-        self.probe.spin_until(healed, timeout_s, f"the loop closed again after {node} was killed")
+        self.graph.spin_until(healed, timeout_s, f"the loop closed again after {node} was killed")
         assert self.pid(node) != old, f"{node}: the loop closed, but not by a respawned process"
         first_back = next(t for t in self.arrivals[node] if t > t_back[1])
-        return max(next(t for t in times if t > first_back) for times in self.arrivals.values()) - t_kill
+        flowing = max(next(t for t in times if t > first_back) for times in self.arrivals.values())
+        return max(flowing, self.gate_closed_at(t_kill, log0)) - t_kill
+
+    def pause_and_heal(self, node: str, pause_s: float, timeout_s: float = 60.0) -> float:
+        """SIGSTOP ``node`` for ``pause_s`` of wall time (a debugger, a suspended laptop, a frozen container), then
+        SIGCONT; wall seconds from SIGCONT until the loop is closed again by the same process: its output is back
+        and after it every other node's output came again (as ``kill_and_heal``)."""
+        pid = self.pid(node)
+        t_stop, log0 = time.monotonic(), self.log_size()
+        os.kill(pid, signal.SIGSTOP)
+        try:
+            resume_at = time.monotonic() + pause_s
+            self.graph.spin_until(lambda: time.monotonic() >= resume_at, pause_s + 5.0, f"{node} paused")
+        finally:
+            os.kill(pid, signal.SIGCONT)
+        t_cont = time.monotonic()
+
+        def healed() -> bool:
+            mine = [t for t in self.arrivals[node] if t > t_cont]
+            return bool(mine) and self.all_flowing_since(mine[0]) and self.gate_closed_at(t_stop, log0) is not None
+
+        self.graph.spin_until(healed, timeout_s, f"the loop closed again after {node} was paused")
+        assert self.pid(node) == pid, f"{node}: the loop closed, but by a new process"
+        first_back = next(t for t in self.arrivals[node] if t > t_cont)
+        flowing = max(next(t for t in times if t > first_back) for times in self.arrivals.values())
+        return max(flowing, self.gate_closed_at(t_stop, log0)) - t_cont
+
 
 def closes_the_loop(loop, timeout_s: float = 60.0) -> None:
     """Ball at rest 1.5 m from robot_0: the catcher (fetch_resting_ball) drives the robot to it, through

@@ -3,6 +3,7 @@ would: what each setup.py says (data_files, console_scripts) is there, the data 
 sources, and ROS 2's own index library and CLI (ament_index_python) find the packages."""
 
 import os
+import re
 import runpy
 import subprocess
 import sys
@@ -66,9 +67,32 @@ def test_ros2s_own_index_library_and_cli_find_the_packages(monkeypatch):
     assert {line.split()[0] for line in listing.splitlines() if line.startswith("erforce_")} == set(PACKAGES)
 
 
-def test_without_the_index_a_package_is_found_in_its_sources(monkeypatch):
+def test_without_the_index_a_package_is_found_in_its_sources(monkeypatch, tmp_path):
     monkeypatch.setenv("AMENT_PREFIX_PATH", "")
+    monkeypatch.setattr(sys, "prefix", str(tmp_path))  # an interpreter whose prefix holds no index
     assert ament_index.find_package_share("erforce_sim") == REPO / "src" / "erforce_sim"
+
+
+def test_the_venvs_own_index_is_found_when_the_environment_names_none(monkeypatch, tmp_path):
+    # as .venv/bin/python or .venv/bin/erforce-launch run without ./run exec
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    assert ament_index.ament_prefixes() == [PREFIX]
+    assert ament_index.find_package_prefix("erforce_interfaces") == PREFIX
+    assert ament_index.find_package_share("erforce_sim") == PREFIX / "share" / "erforce_sim"
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path))  # a prefix the user names comes first
+    assert ament_index.ament_prefixes() == [tmp_path, PREFIX]
+
+
+def test_a_launch_run_from_the_venv_without_its_environment_resolves_the_packages_prefix():
+    # bench_lockstep --launch-runs as `.venv/bin/python bench/bench_lockstep.py`: the launch files' predictor
+    # prefix $(find-pkg-prefix erforce_interfaces)/lib/erforce_interfaces/erforce-realtime must exist
+    env = {"HOME": os.environ.get("HOME", "/tmp"), "PATH": "/usr/bin:/bin"}
+    printed = subprocess.run([str(PREFIX / "bin" / "erforce-launch"), "--print",
+                              str(REPO / "src/erforce_sim/launch/team_sim.launch.yaml")],
+                             capture_output=True, text=True, timeout=120, env=env, check=True).stdout
+    prefixes = set(re.findall(r"(\S*/erforce-realtime)\b", printed))
+    assert prefixes == {str(PREFIX / "lib" / "erforce_interfaces" / "erforce-realtime")}, printed[-2000:]
+    assert os.access(next(iter(prefixes)), os.X_OK)
 
 
 def test_a_registered_executable_runs_as_ros2_run_would_start_it():

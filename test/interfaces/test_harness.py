@@ -157,3 +157,27 @@ def test_a_callback_fault_keeps_the_node_alive_and_fails_the_test_unless_declare
         assert graph.unexpected_callback_faults() == []
     finally:
         graph.close()
+
+
+def test_a_wait_on_a_launch_whose_nodes_cannot_start_fails_at_once_naming_what_is_missing(ros_graph, tmp_path):
+    """A tool that starts a graph (bench_lockstep --launch-runs) must not wait out its deadline for a graph
+    that never comes: every command of this launch names a launch prefix that does not exist."""
+    launch_file = tmp_path / "missing.launch.yaml"
+    launch_file.write_text(textwrap.dedent("""\
+        launch:
+          - node: {pkg: erforce_interfaces, exec: talker, name: a, launch-prefix: /nonexistent/erforce-realtime}
+          - node: {pkg: erforce_interfaces, exec: listener, name: b, launch-prefix: /nonexistent/erforce-realtime}
+        """))
+    launch = ros_graph.start_launch(launch_file)
+    # at the first failure line (the second may not be written yet)
+    with pytest.raises(RuntimeError, match=r"process\(es\) failed to start(.|\n)*/nonexistent/erforce-realtime"):
+        ros_graph.spin_until(lambda: False, 600.0, "the graph")
+    assert launch.wait_exit(30.0) != 0  # the launcher says so too
+
+
+def test_a_launch_that_ends_with_an_error_fails_the_wait(ros_graph, tmp_path):
+    launch_file = tmp_path / "broken.launch.yaml"
+    launch_file.write_text("launch:\n  - node: {pkg: erforce_interfaces, exec: no_such_executable}\n")
+    ros_graph.start_launch(launch_file)
+    with pytest.raises(RuntimeError, match="ended with exit code .*\n(.|\n)*no_such_executable"):
+        ros_graph.spin_until(lambda: False, 600.0, "the graph")

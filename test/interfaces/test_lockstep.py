@@ -46,6 +46,20 @@ def test_gate_reports_a_stall_after_the_timeout_then_resumes():
     assert gate.ready() and gate.duty_for(1, 4)[0] == 0.25
 
 
+def test_gate_does_not_blame_its_peers_for_the_plants_own_pause():
+    """The plant stopped (SIGSTOP, a debugger) or starved: its checks stopped for longer than the timeout, and
+    the answers may be waiting unread. The wait starts again; a peer silent for a whole timeout after that
+    still stalls."""
+    gate = DutyGate(num_robots=2, timeout_s=0.5)
+    gate.open(1 * MS, now_s=10.0, peers_present={0, 1})
+    assert gate.check_stall(now_s=10.01) == []
+    assert gate.check_stall(now_s=13.01) == []  # 3 s without a check: the plant's own pause
+    gate.offer(0, 1 * MS, np.ones(4))  # robot 0's answer, read after the pause
+    assert gate.check_stall(now_s=13.3) == [] and gate.missing() == {1}
+    events = gate.check_stall(now_s=13.6)  # 0.59 s of waiting, checked all along: robot 1 is silent
+    assert len(events) == 1 and "robot_1" in events[0] and "stalled" in events[0]
+
+
 def test_join_uses_the_previous_ticks_setpoint_and_waits_for_it():
     join = SetpointJoin(wait=True)
     assert join.setpoint_for(1 * MS) == (True, None)  # first tick: nothing known, command zero

@@ -52,7 +52,10 @@ def test_a_single_zero_far_future_or_backwards_stamp_is_dropped_and_the_line_goe
 
 def test_a_restarted_clock_is_a_restart_at_its_second_stamp():
     assert verdicts([10.0, 0.0, 0.002, 0.004]) == [A, D, R, A]
-    assert verdicts([10.0, 0.0, 0.0, 0.0, 0.0]) == [A, D, D, D, R]  # re-sent: a restart once the old line is dead
+    # re-sent (a restarted plant's first tick, until it is answered): the repeat confirms it once the old line was
+    # silent for silence_s (0.2 s), not only once it is dead (dead_s, 1 s)
+    assert verdicts([10.0, 0.0, 0.0, 0.0]) == [A, D, R, A]
+    assert verdicts([10.0, 0.0, 0.0, 0.0], wall_step_s=0.05)[:3] == [A, D, D]  # 0.1 s of silence: not yet
     assert verdicts([10.0, 0.0], wall_step_s=1.5) == [A, R]  # a source that died and came back: at once
     assert verdicts([0.5, 0.0, 0.01]) == [A, D, R]  # also a restart shortly after the start
     assert verdicts([10.0, 100.0, 100.5]) == [A, D, R]  # a confirmed jump ahead
@@ -69,7 +72,7 @@ def test_a_flood_off_the_time_line_cannot_take_over_while_the_real_source_goes_o
     # the real source stops (a dead simulator) and a new one starts: restart once the old line was silent
     f = StampFilter(silence_s=0.2)
     assert [f.offer(t, w) for t, w in ((10 * S, 0.0), (0, 0.05), (0, 0.1), (0, 0.25), (S // 100, 0.3),
-                                       (S // 50, 0.31))] == [A, D, D, D, R, A]
+                                       (S // 50, 0.31))] == [A, D, D, R, A, A]
 
 
 def test_two_unrelated_bad_stamps_confirm_nothing():

@@ -147,11 +147,19 @@ def build_config(c) -> BridgeConfig:
     )
 
 
+#: Linux's IP_MULTICAST_ALL (in.h), which Python's socket module does not name
+IP_MULTICAST_ALL = getattr(socket, "IP_MULTICAST_ALL", 49)
+
+
 def open_multicast_socket(group: str, port: int, interface: str, receive_buffer_bytes: int) -> socket.socket:
-    """A non-blocking UDP socket that has joined ``group`` on ``interface`` (several listeners may share it)."""
+    """A non-blocking UDP socket that has joined ``group`` on ``interface`` (several listeners may share it)
+    and receives the group's datagrams from that interface only."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer_bytes)
+    # Linux otherwise delivers the group's datagrams from every interface on which any socket of this host
+    # joined it (another program's membership on the field network would let them in).
+    sock.setsockopt(socket.IPPROTO_IP, IP_MULTICAST_ALL, 0)
     sock.bind((group, port))  # only this group's datagrams, not every packet to the port
     membership = struct.pack("4s4s", socket.inet_aton(group), socket.inet_aton(interface))
     sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, membership)

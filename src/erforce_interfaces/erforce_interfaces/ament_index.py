@@ -2,7 +2,8 @@
 
 Lookup, a work-alike of ament_index_python: a package is found in the ament resource index under
 ``AMENT_PREFIX_PATH`` first (what ``./run setup`` installs into .venv, or a colcon install), as
-``ros2 launch`` and ``ros2 run`` find it; else as an importable Python package whose parent folder holds
+``ros2 launch`` and ``ros2 run`` find it, then in the running interpreter's prefix (the .venv, also when
+the environment does not name it); else as an importable Python package whose parent folder holds
 package.xml (an editable install without the index). Used by the contract (the DDS profile in the share
 folder) and by the launcher (``$(find-pkg-share)``, executables).
 
@@ -36,7 +37,15 @@ INDEX_MARKERS = Path("share/ament_index/resource_index/packages")
 
 
 def ament_prefixes() -> list[Path]:
-    return [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    """AMENT_PREFIX_PATH's prefixes, then this interpreter's own prefix where it holds an ament index (the
+    .venv that ./run setup registers the packages in): a tool run as ``.venv/bin/python`` or
+    ``.venv/bin/erforce-launch`` without ``./run exec`` finds the packages, their executables and
+    ``$(find-pkg-prefix)`` where ``./run exec`` finds them, as a colcon install's Python finds its own."""
+    prefixes = [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    own = Path(sys.prefix)
+    if own not in prefixes and (own / INDEX_MARKERS).is_dir():
+        prefixes.append(own)
+    return prefixes
 
 
 @cache

@@ -122,7 +122,8 @@ def dds_profile_env(environ: Mapping[str, str] = os.environ) -> dict[str, str]:
     - unless ``environ`` names a profile of its own (the user's, or the two-host test's): for localhost-only
       discovery (DISCOVERY_RANGE LOCALHOST, the stack's default) without static peers, the range
       SYSTEM_DEFAULT and config/fastdds_localhost.xml, which keep discovery on this computer over UDP alone
-      (the file says why: a restarted node is lost over Fast DDS's shared memory); for any other range, or
+      (the file says why: a restarted node is lost over Fast DDS's shared memory) with every socket on
+      127.0.0.1 (its interface allowlist); for any other range, or
       none (ROS 2's default, the subnet), config/fastdds_profile.xml. Applying it twice changes nothing.
     """
     env = {name: value for name, value in DDS_PUBLICATION_MODE.items() if not environ.get(name)}

@@ -22,6 +22,7 @@ tick k-1. Both sides live here, next to the contract, because the protocol is pa
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -45,6 +46,7 @@ class DutyGate:
     stalled: dict[int, int] = field(default_factory=dict)  # robot -> tick it stalled at
     expected: set[int] = field(default_factory=set)
     names: Sequence[str] = ()  # each robot's name in the events (robot_<id> or opponent_<id>); else robot_<index>
+    checked_at_s: float = math.inf  # the previous check_stall (inf: none yet)
 
     def open(self, tick_ns: int, now_s: float, peers_present: set[int]) -> None:
         """Start waiting for tick ``tick_ns`` from every present, non-stalled peer."""
@@ -90,7 +92,16 @@ class DutyGate:
         return self.expected - set(self.duties)
 
     def check_stall(self, now_s: float) -> list[str]:
-        """Stop waiting for peers silent longer than the timeout; returns event texts."""
+        """Stop waiting for peers silent longer than the timeout; returns event texts.
+
+        Called at every pump of the plant. A gap longer than the timeout since the previous call means the plant
+        itself did not run (stopped by SIGSTOP or a debugger, or starved of CPU): its peers' answers may be
+        waiting unread, so the wait starts again from now instead of stalling every peer at once.
+        """
+        checked_at_s, self.checked_at_s = self.checked_at_s, now_s
+        if now_s - checked_at_s > self.timeout_s:
+            self.opened_at_s = max(self.opened_at_s, now_s)
+            return []
         if now_s - self.opened_at_s < self.timeout_s:
             return []
         events = []

@@ -62,6 +62,16 @@ def _check(c):
     return c
 
 
+def local_address_towards(target: tuple[str, int]) -> str:
+    """The IPv4 address this host sends from to ``target`` (the kernel's route; nothing is sent)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.connect(target)
+        except OSError as exc:
+            raise ValueError(f"simulator_host {target[0]!r}: no route ({exc})") from None
+        return probe.getsockname()[0]
+
+
 class SslSimBridgeNode(Node):
     def __init__(self) -> None:
         super().__init__("ssl_sim_bridge")
@@ -74,14 +84,17 @@ class SslSimBridgeNode(Node):
         self._state = ssl_sim.BridgeCommands(v["robot_ids"], v["command_timeout_s"], v["kick_hold_s"])
         default_port = ssl_sim.GRSIM_COMMAND_PORT if self._grsim else ssl_sim.ROBOT_CONTROL_PORTS[self._team]
         self._target = (v["simulator_host"], v["command_port"] or default_port)
+        # Both sockets listen only on the address our datagrams to the simulator leave from (127.0.0.1 for a
+        # simulator on this machine): the simulator answers to it, grSim sends its robot status to it.
+        local = local_address_towards(self._target)
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.setblocking(False)
-        self._sock.bind(("0.0.0.0", 0))  # the simulator answers to this port
+        self._sock.bind((local, 0))  # the simulator answers to this port
         self._status_sock = None
         if self._grsim:
             self._status_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             self._status_sock.setblocking(False)
-            self._status_sock.bind(("0.0.0.0", v["grsim_status_port"] or ssl_sim.GRSIM_STATUS_PORTS[self._team]))
+            self._status_sock.bind((local, v["grsim_status_port"] or ssl_sim.GRSIM_STATUS_PORTS[self._team]))
         self._events_pub = contract_publisher(self, contract.SIM_EVENTS)
         self._barrier_pubs = {}
         self._barrier_sent: dict[int, tuple[bool, float]] = {}

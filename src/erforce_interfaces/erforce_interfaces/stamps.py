@@ -9,9 +9,10 @@ moves forward in small steps. ``StampFilter`` judges each stamp against the newe
   stamp, or more than ``max_jump_s`` after it. A jump is dropped but remembered.
 - ``RESTART``: a new time line, such as a restarted simulator that starts again at 0. A jump is taken
   as one when the old time line has been silent for ``dead_s`` of wall time (its source is gone), or
-  for ``silence_s`` and the jump is confirmed by a later stamp (after it, at most ``max_jump_s`` after
-  it, itself a jump from the old line). It is accepted, and the node resets what it keeps from the
-  old time line.
+  for ``silence_s`` and the jump is confirmed by a second stamp (the same again, or after it by at most
+  ``max_jump_s``, itself a jump from the old line). The same stamp again counts: a restarted plant in
+  lockstep re-sends its first tick until it is answered, and nothing later comes before the answer. It
+  is accepted, and the node resets what it keeps from the old time line.
 
 So a single zero, far-future or backwards stamp from a careless or hostile participant is dropped
 with a warning while the real source goes on, and so is a flood of them stamped alike (say, every
@@ -73,7 +74,7 @@ class StampFilter:
             self.newest_ns, self._jump_ns, self._accepted_at_s = t_ns, None, now_s
             return StampVerdict.ACCEPT
         jump, silent_s = self._jump_ns, now_s - self._accepted_at_s
-        confirmed = jump is not None and t_ns > jump and self._on_line(jump, t_ns) and silent_s >= self.silence_s
+        confirmed = jump is not None and self._on_line(jump, t_ns) and silent_s >= self.silence_s
         if confirmed or silent_s >= self.dead_s:
             self.reason = f"time line restarted: {newest / _NS:.6f} s -> {t_ns / _NS:.6f} s"
             self.newest_ns, self._jump_ns, self._accepted_at_s = t_ns, None, now_s

@@ -26,6 +26,7 @@ circle intersects the beam segment. No rclpy import.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -103,8 +104,11 @@ class KickerPlate:
         return phi + k * arm
 
 
+@functools.cache
 def _design_curved(y_max: float, compliance: float, n: int = 1201) -> tuple[np.ndarray, ...]:
-    """Integrate the concave plate shape outward from the centre (see module docstring)."""
+    """Integrate the concave plate shape outward from the centre (see module docstring). Once per design: every
+    robot of a team has the same plate, and 14 designs were most of a restarted plant's construction (~1 s of
+    CPU); the tables are shared, so they are read-only."""
     ys = np.linspace(0.0, y_max, n)
     f = np.zeros(n)
     phi = np.zeros(n)
@@ -130,6 +134,8 @@ def _design_curved(y_max: float, compliance: float, n: int = 1201) -> tuple[np.n
     y_full = np.concatenate((-ys[:0:-1], ys))
     f_full = np.concatenate((f[:0:-1], f))
     phi_full = np.concatenate((-phi[:0:-1], phi))
+    for table in (y_full, f_full, phi_full):
+        table.flags.writeable = False
     return y_full, f_full, phi_full
 
 

@@ -13,6 +13,9 @@ Pacing (parameter ``pacing``):
 - ``realtime``: ticks follow the wall clock times ``real_time_factor``; the newest duty
   of each robot is applied, nobody is waited for.
 
+With ``real_time_factor`` > 0 a plant that fell behind the wall clock by more than a moment (it was
+stopped, starved or waited out a silent peer) paces on from there; it does not race to catch up.
+
 Two teams (``opponent_poses``): our robots under ``/robot_<id>/`` and the opponents, ids 0.., under
 ``/opponent_<id>/`` (contract.Team), all under the same physics; every opponent has motor boards. In
 the world the opponents come after our robots (PlantSetup.team_of).
@@ -85,6 +88,7 @@ SCHEMA = load_schema("erforce_sim", "plant")
 
 _GEOMETRY_PERIOD_S = 1.0  # SSL-Vision repeats its geometry; late joiners get it within this
 _MAX_TICKS_PER_PUMP = 50  # keep the executor responsive when nobody gates the ticks
+_MAX_LAG_S = 0.1  # wall seconds behind real-time pacing that the plant makes up by ticking faster; beyond, it re-paces
 _RETRY_S = 0.05  # re-publish an unanswered tick (lost message, late joiner, a flood that pushed it out of a
 # reader's queue); duplicates are harmless
 _STARTUP_GRACE_S = 0.1  # after the readers are matched (_ready_to_start); a restarted plant waits it too
@@ -468,6 +472,12 @@ class PlantNode(Node):
             return True
         wall0, tick0 = self._pace_origin
         sim_elapsed = (self._tick + 1 - tick0) * self._period_ns * 1e-9
+        if now - wall0 - sim_elapsed / rtf > _MAX_LAG_S:
+            # Behind by more than a moment (the plant was stopped or starved, or waited out a stalled peer): pace
+            # from now on. Making it up would run the world flat out, every tick gated by the peers' answers,
+            # and make their clocks jump.
+            self._pace_origin = (now, self._tick)
+            return False
         return sim_elapsed <= rtf * (now - wall0)
 
     def _advance(self, lockstep: bool) -> None:

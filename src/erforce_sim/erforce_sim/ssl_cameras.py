@@ -99,8 +99,10 @@ class SslCameraSplitter:
 
 
 def open_multicast_sender(interface: str = "127.0.0.1", ttl: int = 0) -> socket.socket:
-    """A UDP socket sending multicast out of ``interface`` only; TTL 0 keeps it on this host."""
+    """A UDP socket sending multicast out of ``interface`` only; TTL 0 keeps it on this host. It is bound to
+    ``interface``: unbound, the first send would bind it to every address (0.0.0.0) of the host."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
+    sock.bind((interface, 0))
     sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF, socket.inet_aton(interface))
     sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, ttl)
     sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)

@@ -120,6 +120,8 @@ from erforce_interfaces.param_schema import ParamSchema
 from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
 
 PROG = "erforce-launch"
+#: the start of the line logged when a process's command cannot be run (tools that start a graph watch for it)
+FAILED_TO_START = "process failed to start"
 
 
 class LaunchError(Exception):
@@ -1249,7 +1251,7 @@ class Runner:
             popen = subprocess.Popen(s.cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      env=env, cwd=s.cwd, process_group=0, preexec_fn=_child_setup)
         except OSError as exc:
-            self.info(s.label, f"process failed to start: {exc}", "ERROR")
+            self.info(s.label, f"{FAILED_TO_START}: {exc}", "ERROR")
             self.failed = True
             return
         p.popen, p.starts = popen, p.starts + 1

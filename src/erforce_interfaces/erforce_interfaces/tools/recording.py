@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import bisect
 import importlib
+import os
 import sys
 import time
 from io import BytesIO
@@ -47,7 +48,7 @@ from rosbags.rosbag2.storage_mcap import Channel, McapWriter, write_channel, wri
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 
-from erforce_interfaces.contract import CLOCK, topic_of_name
+from erforce_interfaces.contract import CLOCK, dds_profile_env, topic_of_name
 from erforce_interfaces.conversions import stamp_to_nanoseconds
 from erforce_interfaces.executor import take_queued
 from erforce_interfaces.node_support import QuietInterrupt
@@ -250,6 +251,7 @@ def main(argv: list[str] | None = None) -> int:
     interrupt = QuietInterrupt()  # a forwarded second Ctrl-C must not break the bag's closing
     node = recorder = None
     try:
+        os.environ.update(dds_profile_env())  # the nodes' DDS settings: on LOCALHOST, sockets on loopback only
         rclpy.init()
         # No executor spins this node (see the module docstring), so it offers no parameter services.
         node = rclpy.create_node("erforce_record", start_parameter_services=False)

@@ -26,10 +26,12 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import ipaddress
 import os
 import re
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -190,6 +192,45 @@ def _pids_with_tag(tag: str) -> list[int]:
     return pids
 
 
+_TCP_LISTEN = "0A"  # the state column of /proc/net/tcp
+
+
+def proc_net_address(hex_address: str) -> str:
+    """/proc/net/{udp,tcp}[6]'s local address (32-bit words in host byte order) as text."""
+    raw = bytes.fromhex(hex_address)
+    words = b"".join(raw[k:k + 4][::-1] for k in range(0, len(raw), 4)) if socket.htonl(1) != 1 else raw
+    return socket.inet_ntop(socket.AF_INET if len(raw) == 4 else socket.AF_INET6, words)
+
+
+def listening_sockets(pid: int) -> list[tuple[str, str, int]]:
+    """(table, local address, port) of every UDP socket and every listening TCP socket of process ``pid``
+    (its socket inodes in /proc/<pid>/fd, looked up in /proc/<pid>/net/{udp,udp6,tcp,tcp6})."""
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue  # closed meanwhile
+        if link.startswith("socket:["):
+            inodes.add(int(link[8:-1]))
+    found = []
+    for table in ("udp", "udp6", "tcp", "tcp6"):
+        for line in Path(f"/proc/{pid}/net/{table}").read_text().splitlines()[1:]:
+            fields = line.split()
+            if int(fields[9]) not in inodes or (table.startswith("tcp") and fields[3] != _TCP_LISTEN):
+                continue
+            address, port = fields[1].rsplit(":", 1)
+            found.append((table, proc_net_address(address), int(port, 16)))
+    return found
+
+
+def on_loopback(address: str) -> bool:
+    """127.0.0.0/8 or ::1 (also as an IPv4-mapped IPv6 address)."""
+    ip = ipaddress.ip_address(address)
+    ip = getattr(ip, "ipv4_mapped", None) or ip
+    return ip.is_loopback
+
+
 class RosGraph:
     """Node processes plus an in-process probe node, all in one private DDS domain."""
 
@@ -212,6 +253,9 @@ class RosGraph:
 
         self.env.update(dds_profile_env(self.env))  # a restarted node is matched within ~1 s
         self.processes: list[NodeProcess] = []
+        self._launches: list[NodeProcess] = []
+        self._launch_checked: dict[int, int] = {}  # launch pid -> bytes of its output checked by launch_failure
+        self._launch_failed: list[str] = []  # the FAILED_TO_START lines found there
         self._probe = None
         self._counter = 0
         self._expected_faults: set[str] | None = set()  # process names; None: any
@@ -268,7 +312,31 @@ class RosGraph:
         options = (*options, *(() if standby else ("--no-standby",)))
         cmd = [_executable_path("erforce-launch"), *options, str(launch_file)]
         cmd += [f"{k}:={v}" for k, v in launch_args.items()]
-        return self.start(cmd, name=f"launch-{Path(launch_file).stem}")
+        proc = self.start(cmd, name=f"launch-{Path(launch_file).stem}")
+        self._launches.append(proc)
+        return proc
+
+    def launch_failure(self) -> str | None:
+        """Why a launch this graph started cannot bring its graph up, or None: it could not run a node's
+        command (erforce-launch's ``FAILED_TO_START`` lines, each naming what is missing) or it ended with an
+        error. ``spin_until`` raises it at once instead of waiting for its deadline."""
+        from erforce_interfaces.tools.launcher import FAILED_TO_START
+
+        for proc in self._launches:
+            checked = self._launch_checked.get(proc.pid, 0)
+            with contextlib.suppress(FileNotFoundError), open(proc.log_path, "rb") as log:
+                log.seek(checked)
+                new = log.read()
+                new = new[:new.rfind(b"\n") + 1]  # whole lines only: the rest is read next time
+                self._launch_checked[proc.pid] = checked + len(new)
+                self._launch_failed.extend(f"{proc.name}: {line.strip()}" for line in
+                                           new.decode(errors="replace").splitlines() if FAILED_TO_START in line)
+        if self._launch_failed:
+            return f"{len(self._launch_failed)} process(es) failed to start:\n" + "\n".join(self._launch_failed[:10])
+        for proc in self._launches:
+            if not proc.alive() and proc.popen.returncode != 0:
+                return f"{proc.name} ended with exit code {proc.popen.returncode}:\n{proc.output()[-3000:]}"
+        return None
 
     @staticmethod
     def probe_executable(name: str) -> str:
@@ -312,7 +380,19 @@ class RosGraph:
         return self.probe.subscribe(topic, msg_type, qos)
 
     def spin_until(self, condition: Callable[[], bool], timeout_s: float, what: str = "condition") -> None:
-        self.probe.spin_until(condition, timeout_s, what)
+        """The probe's ``spin_until``; raises RuntimeError as soon as a launch of this graph failed
+        (``launch_failure``)."""
+        next_check = [0.0]
+
+        def done() -> bool:
+            if time.monotonic() >= next_check[0]:  # a few times a second: it reads the launches' new output
+                next_check[0] = time.monotonic() + 0.2
+                failure = self.launch_failure()
+                if failure is not None:
+                    raise RuntimeError(f"waiting for {what}: {failure}")
+            return condition()
+
+        self.probe.spin_until(done, timeout_s, what)
 
     # -------------------------------------------------------------- teardown
     def close(self) -> None:

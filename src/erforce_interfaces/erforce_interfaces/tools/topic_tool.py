@@ -49,6 +49,8 @@ from rclpy.qos import (
 )
 from rclpy.validate_full_topic_name import validate_full_topic_name
 
+from erforce_interfaces.contract import dds_profile_env
+
 DEFAULT_TRUNCATE_LENGTH = 128  # as ros2 topic echo
 DEFAULT_HZ_WINDOW = 10000  # as ros2 topic hz
 DEFAULT_SPIN_TIME_S = 0.5  # discovery wait of list / info / type, as ros2cli's direct node
@@ -485,6 +487,7 @@ class Session:
     """One hidden node on a SingleThreadedExecutor, with deadline-based spinning."""
 
     def __init__(self, ros_args: list[str], *, use_sim_time: bool = False) -> None:
+        os.environ.update(dds_profile_env())  # the nodes' DDS settings: on LOCALHOST, sockets on loopback only
         rclpy.init(args=ros_args)
         overrides = [Parameter("use_sim_time", value=True)] if use_sim_time else []
         self.node = rclpy.create_node(
