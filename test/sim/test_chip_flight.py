@@ -118,3 +118,11 @@ def test_energy_in_flight_is_kept_and_bounces_only_lose_it():
         energies.append(w.energy().ball_j)
     assert all(b <= a + 1e-9 for a, b in zip(energies, energies[1:], strict=False))
     assert energies[-1] < 0.5 * energies[0]
+
+
+def test_the_world_s_vision_frames_carry_the_ball_s_height():
+    w, _ = chipped(4.0, 45.0)
+    run_for(w, 0.2)
+    frames = w.poll_vision()
+    heights = [f.balls[0].z for f in frames if f.balls]
+    assert max(heights) > 0.2 and min(heights) >= 0.0

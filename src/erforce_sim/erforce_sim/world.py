@@ -670,6 +670,7 @@ class World:
             t,
             (self._ball.x, self._ball.y),
             [(s.team, s.robot_id, rb.x, rb.y, rb.theta) for s, rb in zip(self.specs, self._robots, strict=True)],
+            self._ball.z,
         )
 
     def _fire_armed(self, t: float) -> None:
