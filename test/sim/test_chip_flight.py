@@ -1,6 +1,7 @@
 """Chip kicks in the simulator: the ball flies as the projectile, bounces by restitution and friction,
 rolls out, passes over robots below it and hits them when low."""
 
+import itertools
 import math
 
 import pytest
@@ -116,7 +117,7 @@ def test_energy_in_flight_is_kept_and_bounces_only_lose_it():
     for _ in range(150):
         w.step(0.01)
         energies.append(w.energy().ball_j)
-    assert all(b <= a + 1e-9 for a, b in zip(energies, energies[1:], strict=False))
+    assert all(b <= a + 1e-9 for a, b in itertools.pairwise(energies))
     assert energies[-1] < 0.5 * energies[0]
 
 
