@@ -6,6 +6,8 @@ import math
 
 import pytest
 
+from erforce_ball_model.ball_model import ChipParams
+from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import LANDED_VZ_MPS, BallParams, BallState
 from erforce_sim.world import RobotSpec, World
@@ -127,3 +129,18 @@ def test_the_world_s_vision_frames_carry_the_ball_s_height():
     frames = w.poll_vision()
     heights = [f.balls[0].z for f in frames if f.balls]
     assert max(heights) > 0.2 and min(heights) >= 0.0
+
+
+def test_the_plant_s_hops_are_the_chip_model_s_with_the_plant_s_dampings():
+    # the plant's bounce: vz kept by floor_restitution; the first bounce stops the slip of a ball without
+    # spin (1 - 1/3.5 of its speed kept), later ones find it rolling (all kept): ChipParams of those numbers
+    w, b = chipped(5.0, 55.0)
+    model = ChipTrajectory((b.x, b.y, 0.0), (b.vx, b.vy, b.vz),
+                           ChipParams(damping_z=BallParams().floor_restitution, damping_xy_first_hop=1.0 - 1.0 / 3.5,
+                                      damping_xy_other_hops=1.0))
+    t_prev = w.t_s
+    for t_touch, point in zip(model.touchdown_times_s[:3], model.touchdown_points_m[:3], strict=True):
+        run_for(w, t_touch - 1e-4 - (w.t_s - t_prev))
+        s = w.ball_state()
+        assert s.vz < 0.0
+        assert math.dist((s.x + s.vx * 1e-4, s.y + s.vy * 1e-4), point) < 1e-3
