@@ -144,3 +144,12 @@ def test_the_plant_s_hops_are_the_chip_model_s_with_the_plant_s_dampings():
         s = w.ball_state()
         assert s.vz < 0.0
         assert math.dist((s.x + s.vx * 1e-4, s.y + s.vy * 1e-4), point) < 1e-3
+
+
+def test_a_ball_above_the_dribbler_does_not_break_the_light_barrier():
+    seen = []
+    for z in (0.0, 0.3):
+        w = World(FIELD, [RobotSpec(x=-1.0)], BallState(TOUCH_X, 0.0, z=z), seed=0)
+        run_for(w, 0.05)  # 0.3 m up falls 0.012 m in that time
+        seen.append(w.light_barrier(0))
+    assert seen == [True, False]

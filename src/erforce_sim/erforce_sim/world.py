@@ -710,6 +710,8 @@ class World:
         ball = self._ball
         hits = self._beam_kernel(self._body, float(ball.x), float(ball.y), float(ball.radius), self._beam_x_arr,
                                  self._beam_half_span)
+        if ball.z >= ball.radius:  # the beam runs at a resting ball's centre: a ball this high passes above it
+            hits = np.zeros_like(hits)
         if self._barrier_direct:  # no latency, no false flips: the output is the beam itself
             self._barrier_values[:] = hits
             return
