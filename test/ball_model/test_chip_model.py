@@ -159,3 +159,15 @@ def test_bad_input_and_immutability():
         chip.roll_start_s = 0.0
     copy = pickle.loads(pickle.dumps(chip))
     np.testing.assert_array_equal(copy.touchdown_points_m, chip.touchdown_points_m)
+
+
+def test_advanced_is_the_same_ball_later():
+    chip = ChipTrajectory((0.5, -0.5, 0.0), (3.0, 2.0, 4.0))
+    t = np.linspace(0.0, 5.0, 501)
+    for dt in (0.0, 0.3, chip.touchdown_times_s[0], 1.0, chip.roll_start_s, chip.roll_start_s + 0.7, 20.0):
+        later = chip.advanced(dt)
+        np.testing.assert_allclose(later.position_at(t), chip.position_at(t + dt), atol=1e-9)
+        np.testing.assert_allclose(later.velocity_at(t + 1e-7), chip.velocity_at(t + dt + 1e-7), atol=1e-9)
+        assert later.time_below_height_s(0.1) == pytest.approx(max(chip.time_below_height_s(0.1) - dt, 0.0))
+        copy = pickle.loads(pickle.dumps(later))  # its hops so far stay counted
+        np.testing.assert_array_equal(copy.position_at(t), later.position_at(t))

@@ -100,13 +100,7 @@ class ChipTrajectory:
         hops, (t_roll, rx, ry, rvx, rvy) = _hops(x, y, z, vx, vy, vz, params)
         # rolling from the start: kicked at speed / c_switch, the fastest kick that rolls at this speed
         v_shoot = min(math.hypot(rvx, rvy) / ball_params.c_switch, MAX_SPEED_MPS)
-        init = object.__setattr__
-        init(self, "params", params)
-        init(self, "hops", hops)
-        init(self, "roll_start_s", t_roll)
-        init(self, "roll", BallTrajectory.of_floats(rx, ry, rvx, rvy, v_shoot, ball_params))
-        init(self, "_starts", np.array([h.t_start_s for h in hops]))
-        init(self, "_ends", np.array([h.t_start_s + h.duration_s for h in hops]))
+        _init(self, params, hops, BallTrajectory.of_floats(rx, ry, rvx, rvy, v_shoot, ball_params), t_roll)
 
     def __setattr__(self, name, value):
         raise AttributeError(f"ChipTrajectory is immutable (cannot set {name})")
@@ -115,7 +109,7 @@ class ChipTrajectory:
         raise AttributeError(f"ChipTrajectory is immutable (cannot delete {name})")
 
     def __reduce__(self):
-        return ChipTrajectory, (self.position_m, self.velocity_mps, self.params, self.roll.params)
+        return _of_parts, (self.params, self.hops, self.roll, self.roll_start_s)
 
     def __repr__(self) -> str:
         return (f"ChipTrajectory(position_m={self.position_m.tolist()!r}, velocity_mps={self.velocity_mps.tolist()!r}, "
@@ -169,6 +163,24 @@ class ChipTrajectory:
         """``(vx, vy, vz)``; at a touchdown instant the velocity after the bounce."""
         return self._state_at(t_s, velocity=True)
 
+    def advanced(self, dt_s: float) -> ChipTrajectory:
+        """The same ball ``dt_s`` seconds later (its hops so far counted: a later bounce damps as a later one)."""
+        dt = BallTrajectory._time(dt_s)
+        if not isinstance(dt, float):
+            raise ValueError(f"dt_s: one number, got {dt_s!r}")
+        if dt >= self.roll_start_s:
+            hops, roll, t_roll = (), self.roll.advanced(dt - self.roll_start_s), 0.0
+        else:
+            i = int(np.searchsorted(self._starts, dt, side="right")) - 1
+            h = self.hops[i]
+            tau, g = dt - h.t_start_s, self.params.g_mps2
+            now = ChipHop(0.0, h.x_m + h.vx_mps * tau, h.y_m + h.vy_mps * tau,
+                          max(h.z_m + tau * (h.vz_mps - 0.5 * g * tau), 0.0), h.vx_mps, h.vy_mps, h.vz_mps - g * tau,
+                          h.duration_s - tau)
+            hops = (now, *(k._replace(t_start_s=k.t_start_s - dt) for k in self.hops[i + 1:]))
+            roll, t_roll = self.roll, self.roll_start_s - dt
+        return _of_parts(self.params, hops, roll, t_roll)
+
     def _state_at(self, t_s, velocity: bool) -> np.ndarray:
         t = np.asarray(BallTrajectory._time(t_s), dtype=float)
         flat = t.reshape(-1)
@@ -188,6 +200,24 @@ class ChipTrajectory:
             tr = flat[~in_air] - self.roll_start_s
             out[~in_air, :2] = self.roll.velocity_at(tr) if velocity else self.roll.position_at(tr)
         return out.reshape(t.shape + (3,))
+
+
+def _init(ball: ChipTrajectory, params: ChipParams, hops: tuple[ChipHop, ...], roll: BallTrajectory,
+          roll_start_s: float) -> None:
+    init = object.__setattr__
+    init(ball, "params", params)
+    init(ball, "hops", tuple(ChipHop(*h) for h in hops))
+    init(ball, "roll_start_s", roll_start_s)
+    init(ball, "roll", roll)
+    init(ball, "_starts", np.array([h.t_start_s for h in hops]))
+    init(ball, "_ends", np.array([h.t_start_s + h.duration_s for h in hops]))
+
+
+def _of_parts(params: ChipParams, hops, roll: BallTrajectory, roll_start_s: float) -> ChipTrajectory:
+    """A chip of given hops and roll (``advanced``, unpickling)."""
+    ball = object.__new__(ChipTrajectory)
+    _init(ball, params, hops, roll, roll_start_s)
+    return ball
 
 
 def _apex(hop: ChipHop, g: float) -> float:
