@@ -47,8 +47,6 @@ class BallParams:
     inertia_factor: float = 0.4  # I = inertia_factor * m r^2 (0.4 solid sphere, 2/3 hollow sphere)
     mu_slide: float = 2.5 / GRAVITY_MPS2  # sliding deceleration = mu_slide g = 2.5 m/s^2
     mu_roll: float = 0.3 / GRAVITY_MPS2  # rolling deceleration = mu_roll g = 0.3 m/s^2
-    floor_restitution: float = 0.566  # vertical speed kept at a bounce on the carpet
-    floor_friction: float = 0.5  # Coulomb friction of a bounce (enough to stop a 60 deg chip's slip)
 
     def __post_init__(self) -> None:
         for name in ("radius_m", "mass_kg", "inertia_factor", "mu_slide", "mu_roll"):
@@ -76,6 +74,10 @@ class BallParams:
         """v_switch / v_shoot from momentum balance (closed form, for documentation and tests)."""
         q = 1.0 / self.inertia_factor  # m r^2 / I
         return (q + spin_ratio) / (q + 1.0)
+
+    # Bounces of a ball in the air (chip kicks): fields like those above, declared here.
+    floor_restitution: float = 0.566  # vertical speed kept at a bounce on the carpet
+    floor_friction: float = 0.5  # Coulomb friction of a bounce (enough to stop a 60 deg chip's slip)
 
 
 @dataclass(frozen=True)
