@@ -10,7 +10,7 @@ from erforce_ball_model.ball_model import BallModelParams, BallPhase, ChipParams
 from erforce_ball_model.chip_model import ChipTrajectory
 
 G = 9.81
-P = ChipParams()
+P = ChipParams(damping_xy_first_hop=0.75, damping_xy_other_hops=0.95, min_hop_vz_mps=0.45)  # a field's
 
 
 def test_first_flight_is_the_projectile_by_hand():
@@ -30,7 +30,7 @@ def test_first_flight_is_the_projectile_by_hand():
 
 
 def test_bounces_by_hand():
-    chip = ChipTrajectory((0.0, 0.0, 0.0), (4.0, 0.0, 4.0))
+    chip = ChipTrajectory((0.0, 0.0, 0.0), (4.0, 0.0, 4.0), P)
     t1 = 8.0 / G
     vz2, vx2 = 0.566 * 4.0, 0.75 * 4.0  # first bounce: damping_z and damping_xy_first_hop
     t2 = t1 + 2.0 * vz2 / G
@@ -45,7 +45,7 @@ def test_bounces_by_hand():
 
 def test_start_in_the_air_falling():
     # dropped from 0.5 m with 1 m/s down: lands when 0.5 - t - g t^2 / 2 = 0
-    chip = ChipTrajectory((0.0, 0.0, 0.5), (2.0, 0.0, -1.0))
+    chip = ChipTrajectory((0.0, 0.0, 0.5), (2.0, 0.0, -1.0), P)
     t_land = (-1.0 + math.sqrt(1.0 + 2.0 * G * 0.5)) / G
     assert chip.touchdown_times_s[0] == pytest.approx(t_land, abs=1e-12)
     assert chip.apex_height_m == 0.5
@@ -93,13 +93,13 @@ def brute_force(state, t_end, params=P, ball=ROLL, dt=1e-5):
 def test_brute_force_integration_agrees():
     state = (0.3, 0.2, 0.0, 2.5, -1.0, 3.5)
     ref = brute_force(state, 4.0)
-    chip = ChipTrajectory(state[:3], state[3:])
+    chip = ChipTrajectory(state[:3], state[3:], P)
     got = chip.position_at(ref[:, 0])
     np.testing.assert_allclose(got, ref[:, 1:], atol=1e-5)  # the roll's steps add ~2 um over 4 s
 
 
 def test_hand_over_to_rolling_is_continuous():
-    chip = ChipTrajectory((0.0, 0.0, 0.0), (3.0, 1.0, 3.5))
+    chip = ChipTrajectory((0.0, 0.0, 0.0), (3.0, 1.0, 3.5), P)
     t = chip.roll_start_s
     assert t == chip.touchdown_times_s[-1]
     before, after = chip.position_at(t - 1e-9), chip.position_at(t + 1e-9)
@@ -115,7 +115,7 @@ def test_hand_over_to_rolling_is_continuous():
 
 
 def test_time_below_catch_height():
-    chip = ChipTrajectory((0.0, 0.0, 0.0), (2.0, 0.0, 5.0))
+    chip = ChipTrajectory((0.0, 0.0, 0.0), (2.0, 0.0, 5.0), P)
     t_low = chip.time_below_height_s()
     assert chip.position_at(t_low)[2] == pytest.approx(0.15, abs=1e-9)
     assert chip.velocity_at(t_low)[2] < 0.0
@@ -123,34 +123,34 @@ def test_time_below_catch_height():
     assert z.max() <= 0.15 + 1e-12
     assert chip.position_at(t_low - 1e-6)[2] > 0.15
     # a hop that never reaches h: 0; a high h: 0; h = 0: the hand-over
-    assert ChipTrajectory((0.0, 0.0, 0.0), (1.0, 0.0, 1.0)).time_below_height_s() == 0.0
+    assert ChipTrajectory((0.0, 0.0, 0.0), (1.0, 0.0, 1.0), P).time_below_height_s() == 0.0
     assert chip.time_below_height_s(10.0) == 0.0
     assert chip.time_below_height_s(0.0) == pytest.approx(chip.roll_start_s)
 
 
 def test_arrays_and_a_ball_on_the_ground():
-    chip = ChipTrajectory((0.0, 0.0, 0.0), (3.0, 0.0, 3.0))
+    chip = ChipTrajectory((0.0, 0.0, 0.0), (3.0, 0.0, 3.0), P)
     t = np.linspace(0.0, 3.0, 12).reshape(3, 4)
     got = chip.position_at(t)
     assert got.shape == (3, 4, 3)
     np.testing.assert_allclose(got[1, 2], chip.position_at(float(t[1, 2])))
-    rolling = ChipTrajectory((1.0, 1.0, 0.0), (2.0, 0.0, 0.0))
+    rolling = ChipTrajectory((1.0, 1.0, 0.0), (2.0, 0.0, 0.0), P)
     assert rolling.hops == () and rolling.roll_start_s == 0.0
     np.testing.assert_allclose(rolling.position_at(1.0), [1.0 + 2.0 - 0.15, 1.0, 0.0])
 
 
 def test_bad_input_and_immutability():
     with pytest.raises(ValueError, match="position_m"):
-        ChipTrajectory((0.0, 0.0), (1.0, 0.0, 1.0))
+        ChipTrajectory((0.0, 0.0), (1.0, 0.0, 1.0), P)
     with pytest.raises(ValueError, match="velocity_mps"):
-        ChipTrajectory((0.0, 0.0, 0.0), (math.nan, 0.0, 1.0))
+        ChipTrajectory((0.0, 0.0, 0.0), (math.nan, 0.0, 1.0), P)
     with pytest.raises(ValueError, match="height z"):
-        ChipTrajectory((0.0, 0.0, -0.1), (1.0, 0.0, 1.0))
+        ChipTrajectory((0.0, 0.0, -0.1), (1.0, 0.0, 1.0), P)
     with pytest.raises(ValueError, match="damping_z"):
         ChipParams(damping_z=1.0)
     with pytest.raises(ValueError, match="g_mps2"):
         ChipParams(g_mps2=0.0)
-    chip = ChipTrajectory((0.0, 0.0, 0.0), (3.0, 0.0, 3.0))
+    chip = ChipTrajectory((0.0, 0.0, 0.0), (3.0, 0.0, 3.0), P)
     with pytest.raises(ValueError, match="t_s"):
         chip.position_at(-1.0)
     with pytest.raises(ValueError, match="height_m"):
@@ -162,7 +162,7 @@ def test_bad_input_and_immutability():
 
 
 def test_advanced_is_the_same_ball_later():
-    chip = ChipTrajectory((0.5, -0.5, 0.0), (3.0, 2.0, 4.0))
+    chip = ChipTrajectory((0.5, -0.5, 0.0), (3.0, 2.0, 4.0), P)
     t = np.linspace(0.0, 5.0, 501)
     for dt in (0.0, 0.3, chip.touchdown_times_s[0], 1.0, chip.roll_start_s, chip.roll_start_s + 0.7, 20.0):
         later = chip.advanced(dt)

@@ -131,19 +131,25 @@ def test_the_world_s_vision_frames_carry_the_ball_s_height():
     assert max(heights) > 0.2 and min(heights) >= 0.0
 
 
-def test_the_plant_s_hops_are_the_chip_model_s_with_the_plant_s_dampings():
-    # the plant's bounce: vz kept by floor_restitution; the first bounce stops the slip of a ball without
-    # spin (1 - 1/3.5 of its speed kept), later ones find it rolling (all kept): ChipParams of those numbers
-    w, b = chipped(5.0, 55.0)
-    model = ChipTrajectory((b.x, b.y, 0.0), (b.vx, b.vy, b.vz),
-                           ChipParams(damping_z=BallParams().floor_restitution, damping_xy_first_hop=1.0 - 1.0 / 3.5,
-                                      damping_xy_other_hops=1.0))
-    t_prev = w.t_s
-    for t_touch, point in zip(model.touchdown_times_s[:3], model.touchdown_points_m[:3], strict=True):
-        run_for(w, t_touch - 1e-4 - (w.t_s - t_prev))
+def test_the_plant_s_chip_is_the_chip_model_s_with_its_defaults():
+    # ChipParams' defaults are this plant's ball: restitution 0.566; the first bounce stops the slip of a
+    # ball without spin (1 - 1/3.5 of its speed kept), later ones find it rolling (all kept); hops end
+    # below the same vertical speed; then it rolls at the carpet's a_roll
+    assert ChipParams().damping_z == BallParams().floor_restitution
+    assert ChipParams().min_hop_vz_mps == LANDED_VZ_MPS
+    w, b = chipped(3.0, 60.0)  # rests ~2.5 m on, before the wall (the model has none)
+    model = ChipTrajectory((b.x, b.y, 0.0), (b.vx, b.vy, b.vz))
+    assert len(model.hops) > 5
+    t0 = w.t_s
+    for t_touch, point in zip(model.touchdown_times_s[:4], model.touchdown_points_m[:4], strict=True):
+        run_for(w, t_touch - 1e-4 - (w.t_s - t0))
         s = w.ball_state()
         assert s.vz < 0.0
         assert math.dist((s.x + s.vx * 1e-4, s.y + s.vy * 1e-4), point) < 1e-3
+    for t in (model.roll_start_s + 0.5, model.stop_time_s + 0.5):
+        run_for(w, t - (w.t_s - t0))
+        s = w.ball_state()
+        assert math.dist((s.x, s.y, s.z), model.position_at(t)) < 2e-3
 
 
 def test_a_ball_above_the_dribbler_does_not_break_the_light_barrier():

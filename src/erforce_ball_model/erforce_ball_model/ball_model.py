@@ -96,18 +96,19 @@ class ChipParams:
     At each touchdown the vertical speed is reversed and scaled by ``damping_z`` (normal restitution),
     the horizontal velocity scaled by ``damping_xy_first_hop`` at the first bounce (the ball has no spin
     yet: the carpet's friction spins it up, which costs speed; a solid sphere that stops slipping keeps
-    1 / (1 + 2/5) = 0.71 of it) and by ``damping_xy_other_hops`` after (it spins already). A bounce that
-    leaves less than ``min_hop_vz_mps`` upwards (about a 1 cm hop) ends the hops: the ball rolls on
-    (two-phase model, in its rolling phase). ``max_catch_height_m``: a robot can take a ball whose centre
-    is at most this high (about the robot's height). The SSL geometry's fixed-loss chip model names the
-    same three dampings.
+    1 / (1 + 2/5) of it) and by ``damping_xy_other_hops`` after (it spins already). A bounce that
+    leaves less than ``min_hop_vz_mps`` upwards ends the hops: the ball rolls on (two-phase model, in its
+    rolling phase). ``max_catch_height_m``: a robot can take a ball whose centre is at most this high
+    (about the robot's height). The SSL geometry's fixed-loss chip model names the same three dampings.
+    The defaults are the simulator's ball (erforce_sim.ball: a solid ball chipped without spin, no drag),
+    as BallModelParams' are its carpet; a real field's come from its logs or its geometry packet.
     """
 
     g_mps2: float = 9.81
     damping_z: float = 0.566
-    damping_xy_first_hop: float = 0.75
-    damping_xy_other_hops: float = 0.95
-    min_hop_vz_mps: float = 0.45
+    damping_xy_first_hop: float = 1.0 / 1.4
+    damping_xy_other_hops: float = 1.0
+    min_hop_vz_mps: float = 0.05
     max_catch_height_m: float = 0.15
 
     def __post_init__(self) -> None:

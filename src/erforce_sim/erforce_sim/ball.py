@@ -177,13 +177,13 @@ class BallBody:
         mr_over_i = self.mass * r / self.inertia
         for j in range(m):
             if self.airborne:
-                landed_after = self._fly(m - j, h)
-                if landed_after is None:
+                landed = self._fly(m - j, h)
+                if landed is None:
                     return
-                self.advance(1, landed_after)  # the rest of the landing substep on the carpet
-                j_next = j + 1
-                if j_next < m:
-                    self.advance(m - j_next, h)
+                used, rest_s = landed
+                self.advance(1, rest_s)  # the rest of the landing substep on the carpet
+                if j + used < m:
+                    self.advance(m - j - used, h)
                 return
             if self.at_rest:
                 return
@@ -211,13 +211,13 @@ class BallBody:
                 self.x = x0 + 0.5 * (vx0 + vx) * h
                 self.y = y0 + 0.5 * (vy0 + vy) * h
 
-    def _fly(self, m: int, h: float) -> float | None:
-        """Up to m substeps of h in the air; after a landing, the rest of that substep (s) to go on the carpet.
+    def _fly(self, m: int, h: float) -> tuple[int, float] | None:
+        """m substeps of h in the air, or until it lands: then (substeps begun, the rest of the last one in s).
 
         Flight is exact (constant gravity); a substep that reaches the carpet is split at the touchdown.
         """
         g = self.g
-        for _ in range(m):
+        for k in range(m):
             vz, z = self.vz, self.z
             z_end = z + h * (vz - 0.5 * g * h)
             if z_end > 0.0:
@@ -232,7 +232,7 @@ class BallBody:
             self.z = 0.0
             self._bounce(v_land)
             if not self.airborne:
-                return h - tau
+                return k + 1, h - tau
             rest = h - tau  # the new hop for the rest of this substep
             self.x += self.vx * rest
             self.y += self.vy * rest
@@ -240,7 +240,7 @@ class BallBody:
             if self.z <= 0.0:  # a hop shorter than the rest of a substep: it has landed
                 self.z = self.vz = 0.0
                 self.airborne = False
-                return 0.0
+                return k + 1, 0.0
         return None
 
     def _bounce(self, v_land: float) -> None:
