@@ -1,10 +1,11 @@
-"""Simulator core benchmark: physics step cost, real-time factor, kick deviation table (paper Sec. 2.2).
+"""Simulator core benchmark: physics step cost, real-time factor, kick deviation table (paper Sec. 2.2), chip flight.
 
 Run: .venv/bin/python bench/bench_sim.py [--quick]. Prints a markdown table; `run(quick)` returns the rows.
 """
 
 from __future__ import annotations
 
+import math
 import statistics
 import sys
 import time
@@ -16,6 +17,7 @@ from table import bench_main  # bench/table.py: the shared table format
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallState
 from erforce_sim.closed_loop.runner import InProcessRunner
+from erforce_sim.drivetrain import GRAVITY_MPS2
 from erforce_sim.kicker import deviation_table
 from erforce_sim.world import PhysicsParams, PlantSetup, RobotSpec, World
 
@@ -104,6 +106,28 @@ def _real_time_factor(n_robots: int, substep_hz: float, sim_s: float) -> float:
     return sim_s / (time.perf_counter() - t)
 
 
+def _run_for(w: World, duration_s: float) -> None:
+    n = math.ceil(duration_s / 0.05)
+    for _ in range(n):
+        w.step(duration_s / n)
+
+
+def _chip_errors_m(speed_mps: float, angle_deg: float) -> tuple[float, float]:
+    """(apex, first touchdown) of a chip in the world against the projectile of its launch (no drag):
+    the height at half the flight time, and the ground point 0.1 ms before the touchdown, carried on."""
+    cfg = RobotConfig()
+    w = World(FIELD, [RobotSpec(x=-1.0)], BallState(-1.0 + cfg.dribbler_offset_m, 0.0), seed=0)
+    w.kick(0, speed_mps, angle_deg=angle_deg)
+    b = w.ball_state()
+    t_flight = 2.0 * b.vz / GRAVITY_MPS2
+    _run_for(w, 0.5 * t_flight)
+    apex_error = abs(w.ball_state().z - b.vz**2 / (2.0 * GRAVITY_MPS2))
+    _run_for(w, 0.5 * t_flight - 1e-4)
+    s = w.ball_state()
+    touchdown = (s.x + s.vx * 1e-4, s.y + s.vy * 1e-4)
+    return apex_error, math.dist(touchdown, (b.x + b.vx * t_flight, b.y + b.vy * t_flight))
+
+
 def run(quick: bool = False) -> list[dict]:
     steps = 300 if quick else 2000
     sim_s = 1.0 if quick else 5.0
@@ -175,6 +199,18 @@ def run(quick: bool = False) -> list[dict]:
             unit="x",
             target="",
             note="PhysicsParams(substep_hz=20000)",
+        )
+    )
+    launches = [(v, a) for v in ((1.0, 3.5, 6.0) if quick else (1.0, 2.0, 3.0, 4.0, 5.0, 6.0))
+                for a in ((30.0, 45.0, 60.0) if quick else (30.0, 40.0, 50.0, 60.0))]
+    errors = np.array([_chip_errors_m(v, a) for v, a in launches]) * 1000.0
+    rows.append(
+        dict(
+            name="chip flight against the projectile: apex / first touchdown, worst",
+            value=f"{errors[:, 0].max():.2g} / {errors[:, 1].max():.2g}",
+            unit="mm",
+            target="<= 1 / <= 1",
+            note=f"{len(launches)} chips, 1-6 m/s, 30-60 deg, from a robot's chip plate, 10 kHz substeps",
         )
     )
     for offset, flat, curved in deviation_table(np.round(np.arange(0.0, 0.0351, 0.005), 4)):

@@ -11,6 +11,7 @@ import pytest
 MODULES = (
     "erforce_ball_model.ball_model",
     "erforce_ball_model.catch_time",
+    "erforce_ball_model.chip_model",
     "erforce_ball_model.predictor",
     "erforce_motion.kinematics",
     "erforce_motion.motor_board",

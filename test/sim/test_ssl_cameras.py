@@ -5,7 +5,7 @@ import pytest
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import BallModelFromVision, decode_wrapper
 from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame, VisionParams
-from erforce_sim.ssl_cameras import SslCameraSplitter, quadrant_cameras
+from erforce_sim.ssl_cameras import SslCameraSplitter, ground_point, quadrant_cameras
 from erforce_sim.world import PlantSetup, build_world
 
 FIELD = FieldConfig.preset("division_b")  # 9 x 6 m, walls 0.3 m outside the lines
@@ -39,6 +39,27 @@ def test_each_camera_sends_what_it_sees_with_its_own_latency():
     assert decoded[0].balls[0].x_m == pytest.approx(0.1) and decoded[0].balls[0].y_m == pytest.approx(1.0)
     assert [[r.robot_id for r in f.robots] for f in decoded] == [[0], [], [], [1]]
     assert decoded[0].robots[0].theta_rad == pytest.approx(0.5)
+
+
+def test_a_ball_in_the_air_is_seen_on_the_ground_along_the_camera_ray():
+    # halfway up to a camera 4 m high: twice as far from the point below it; on the ground: where it is
+    assert ground_point(1.0, 0.5, 2.0, (0.0, 0.0, 4.0)) == pytest.approx((2.0, 1.0))
+    assert ground_point(1.0, 0.5, 0.0, (0.0, 0.0, 4.0)) == (1.0, 0.5)
+    with pytest.raises(ValueError, match="camera height"):
+        ground_point(1.0, 0.5, 4.0, (0.0, 0.0, 4.0))
+    # division B quadrants: camera 0 above (-2.275, 1.525), camera 1 above (2.275, 1.525), both 4 m up
+    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, camera_noise_m=0.0)
+    low = [decode_wrapper(d).frame.balls for _, d in splitter.packets(
+        VisionFrame(1, 2.0, 2.015, (BallDetection(0.0, 1.0, 0.1),), ()))]
+    # 0.1 m up: scaled by 4 / 3.9 from each camera: x = -+2.275 / 39, y = 1.525 - 0.525 * 40 / 39
+    assert [len(b) for b in low] == [1, 1, 0, 0]
+    assert (low[0][0].x_m, low[0][0].y_m) == pytest.approx((2.275 / 39.0, 1.525 - 0.525 * 40.0 / 39.0), abs=1e-6)
+    assert (low[1][0].x_m, low[1][0].y_m) == pytest.approx((-2.275 / 39.0, 1.525 - 0.525 * 40.0 / 39.0), abs=1e-6)
+    high = [decode_wrapper(d).frame.balls for _, d in splitter.packets(
+        VisionFrame(2, 2.1, 2.115, (BallDetection(1.0, 1.0, 0.5),), ()))]
+    # 0.5 m up: camera 1 sees it at 2.275 - 1.275 * 8 / 7, 1.525 - 0.525 * 8 / 7; camera 0's ray lands outside
+    assert [len(b) for b in high] == [0, 1, 0, 0]
+    assert (high[1][0].x_m, high[1][0].y_m) == pytest.approx((2.275 - 1.275 * 8 / 7, 1.525 - 0.6), abs=1e-6)
 
 
 def test_the_geometry_packet_carries_the_field_cameras_and_ball_model():

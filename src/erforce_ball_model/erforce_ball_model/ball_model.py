@@ -102,6 +102,45 @@ class BallModelParams:
             raise ValueError(f"c_switch: must be in (0, 1], got {self.c_switch}")
 
 
+@dataclass(frozen=True)
+class ChipParams:
+    """A chipped ball's hops (chip_model.ChipTrajectory): gravity and the damping at each bounce.
+
+    At each touchdown the vertical speed is reversed and scaled by ``damping_z`` (normal restitution),
+    the horizontal velocity scaled by ``damping_xy_first_hop`` at the first bounce (the ball has no spin
+    yet: the carpet's friction spins it up, which costs speed; a solid sphere that stops slipping keeps
+    1 / (1 + 2/5) of it) and by ``damping_xy_other_hops`` after (it spins already). A bounce that
+    leaves less than ``min_hop_vz_mps`` upwards ends the hops: the ball rolls on (two-phase model, in its
+    rolling phase). ``max_catch_height_m``: a robot can take a ball whose centre is at most this high
+    (about the robot's height). The SSL geometry's fixed-loss chip model names the same three dampings.
+    The defaults are the simulator's ball (erforce_sim.ball: a solid ball chipped without spin, no drag),
+    as BallModelParams' are its carpet; a real field's come from its logs or its geometry packet.
+    """
+
+    g_mps2: float = 9.81
+    damping_z: float = 0.566
+    damping_xy_first_hop: float = 1.0 / 1.4
+    damping_xy_other_hops: float = 1.0
+    min_hop_vz_mps: float = 0.05
+    max_catch_height_m: float = 0.15
+
+    def __post_init__(self) -> None:
+        for name in ("g_mps2", "damping_z", "damping_xy_first_hop", "damping_xy_other_hops", "min_hop_vz_mps",
+                     "max_catch_height_m"):
+            value = getattr(self, name)
+            if not isinstance(value, int | float | np.floating | np.integer) or not math.isfinite(value):
+                raise ValueError(f"ChipParams.{name}: must be a finite number, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        if self.g_mps2 <= 0.0 or self.min_hop_vz_mps <= 0.0 or self.max_catch_height_m < 0.0:
+            raise ValueError(f"ChipParams: g_mps2 > 0, min_hop_vz_mps > 0 and max_catch_height_m >= 0, got "
+                             f"{self.g_mps2}, {self.min_hop_vz_mps}, {self.max_catch_height_m}")
+        if not 0.0 <= self.damping_z < 1.0:  # below 1: the hops end
+            raise ValueError(f"ChipParams.damping_z: must be in [0, 1), got {self.damping_z}")
+        for name in ("damping_xy_first_hop", "damping_xy_other_hops"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"ChipParams.{name}: must be in [0, 1], got {getattr(self, name)}")
+
+
 _NUMBER = int | float | np.floating | np.integer
 
 

@@ -34,6 +34,7 @@ class ContactParams:
     robot_wall_friction: float = 0.3
     robot_robot_restitution: float = 0.2
     robot_robot_friction: float = 0.3
+    robot_height_m: float = 0.15  # a ball whose lowest point is higher flies over a robot (SSL: at most 0.15 m)
 
     def __post_init__(self) -> None:
         for name in self.__dataclass_fields__:
@@ -209,7 +210,9 @@ def robot_robot(a: RobotPlant, ra: float, b: RobotPlant, rb_: float, p: ContactP
 
 
 def ball_robot(ball: BallBody, rb: RobotPlant, shape: RobotShape, p: ContactParams) -> bool:
-    """Ball against one robot outline. Returns True when they touch."""
+    """Ball against one robot outline (a ball above the robot's height passes). Returns True when they touch."""
+    if ball.z >= p.robot_height_m:
+        return False
     dx, dy = ball.x - rb.x, ball.y - rb.y
     reach = shape.radius_m + ball.radius
     if dx * dx + dy * dy >= reach * reach:

@@ -47,6 +47,7 @@ class VisionParams:
 class BallDetection:
     x: float
     y: float
+    z: float = 0.0  # true height of the centre above its resting height (a camera sees it projected: ssl_cameras)
 
 
 @dataclass(frozen=True)
@@ -84,13 +85,14 @@ class VisionSystem:
         t_s: float,
         ball_xy: tuple[float, float],
         robots: list[tuple[str, int, float, float, float]],
+        ball_z_m: float = 0.0,
     ) -> None:
         """Take one frame now (called by World at the substep crossing ``next_capture_s``)."""
         p, rng = self.params, self._rng
         balls: tuple[BallDetection, ...] = ()
         if rng.random() >= p.ball_dropout_prob:
             nx, ny = rng.normal(0.0, p.position_noise_m, 2) if p.position_noise_m > 0 else (0.0, 0.0)
-            balls = (BallDetection(ball_xy[0] + float(nx), ball_xy[1] + float(ny)),)
+            balls = (BallDetection(ball_xy[0] + float(nx), ball_xy[1] + float(ny), ball_z_m),)
         dets = []
         for team, rid, x, y, th in robots:
             if rng.random() < p.robot_dropout_prob:

@@ -6,6 +6,10 @@ extra latency and its own noise; the ball in an overlap is in two cameras' frame
 is the world time of the image (shifted by ``clock_offset_s``, the vision host's clock) and
 ``t_sent`` the time the packet leaves. Geometry (field size, camera positions, the ball model)
 goes out as its own packet every ``geometry_period_s``, as SSL-Vision does.
+
+A ball in the air (a chip) is where its camera's ray through it meets the ground, as SSL-Vision, which
+takes every ball to lie on the field, reports it (``ground_point``): further from the camera than it is,
+each camera by its own position, so the cameras of an overlap disagree about a flying ball.
 """
 
 from __future__ import annotations
@@ -39,6 +43,18 @@ class SimCamera:
 
     def sees(self, x: float, y: float) -> bool:
         return self.x_range_m[0] <= x <= self.x_range_m[1] and self.y_range_m[0] <= y <= self.y_range_m[1]
+
+
+def ground_point(x_m: float, y_m: float, z_m: float, camera_m: tuple[float, float, float]) -> tuple[float, float]:
+    """Where the camera at ``camera_m`` = (cx, cy, cz) sees a ball at height ``z_m`` on the ground:
+    ``c + (p - c) cz / (cz - z)`` (heights above the resting ball's centre; the ball below the camera)."""
+    if z_m == 0.0:  # on the ground: exactly where it is
+        return x_m, y_m
+    cx, cy, cz = camera_m
+    if not 0.0 <= z_m < cz:
+        raise ValueError(f"ground_point: ball height {z_m!r} m must be in [0, camera height {cz!r} m)")
+    s = cz / (cz - z_m)
+    return cx + (x_m - cx) * s, cy + (y_m - cy) * s
 
 
 def quadrant_cameras(field: FieldConfig, overlap_m: float = 0.5,
@@ -81,10 +97,10 @@ class SslCameraSplitter:
         out = []
         gauss, noise = self._rng.gauss, self.camera_noise_m
         t_capture = frame.t_capture_s + self.clock_offset_s
-        for k, cam in enumerate(self.cameras):
+        for k, (cam, pose) in enumerate(zip(self.cameras, self.geometry.cameras, strict=True)):
+            seen = (ground_point(b.x, b.y, b.z, (pose.x_m, pose.y_m, pose.z_m)) for b in frame.balls)
             balls = tuple(
-                BallCandidate(b.x + gauss(0.0, noise), b.y + gauss(0.0, noise), 0.9)
-                for b in frame.balls if cam.sees(b.x, b.y)
+                BallCandidate(x + gauss(0.0, noise), y + gauss(0.0, noise), 0.9) for x, y in seen if cam.sees(x, y)
             )
             robots = tuple(
                 RobotSighting(r.team, r.robot_id, r.x + gauss(0.0, noise), r.y + gauss(0.0, noise), r.theta, 1.0)

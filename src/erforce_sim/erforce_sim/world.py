@@ -165,6 +165,7 @@ class _Armed:
     speed_mps: float
     spin_ratio: float
     deadline_s: float
+    angle_deg: float = 0.0
 
 
 class World:
@@ -368,14 +369,19 @@ class World:
         if rb.locked:
             rb.wheel_w[:] = [0.0] * len(rb.wheel_w)
 
-    def kick(self, i: int, speed_mps: float, spin_ratio: float | None = None, armed_for_s: float = 0.0) -> KickResult:
-        """Flat kick with robot i at ``speed_mps`` (ball speed relative to the robot).
+    def kick(self, i: int, speed_mps: float, spin_ratio: float | None = None, armed_for_s: float = 0.0,
+             angle_deg: float = 0.0) -> KickResult:
+        """Flat kick (``angle_deg`` 0) or chip with robot i at ``speed_mps`` (ball speed relative to the robot).
 
         Fires only when the ball touches the dribbler region (in front of the flat face, within the
         dribbler width, gap <= kick_touch_tolerance_m). Otherwise, with ``armed_for_s`` > 0, the kicker
         stays armed and fires at the first substep the ball is there, until t_s + armed_for_s.
         ``spin_ratio`` = w r / v given to the ball (None: PhysicsParams.kick_spin_ratio; <0 backspin).
         Speeds above kick_max_speed_mps are clamped (reported in the result); speed 0 disarms.
+        A chip (``angle_deg`` in (0, 90): the launch's elevation, as the SSL simulation protocol's
+        kick_angle) leaves the chip plate along the robot's heading, ``speed_mps`` split into
+        ``cos`` along the carpet and ``sin`` upwards, without spin (the plate lifts the ball through its
+        centre; the carpet spins it up at the first bounce, erforce_sim.ball).
         """
         i = self._index(i)
         speed = _finite("kick: speed_mps", speed_mps)
@@ -387,19 +393,22 @@ class World:
         armed_for = _finite("kick: armed_for_s", armed_for_s)
         if armed_for < 0.0:
             raise ValueError(f"kick: armed_for_s must be >= 0, got {armed_for}")
+        angle = _finite("kick: angle_deg", angle_deg)
+        if not 0.0 <= angle < 90.0:
+            raise ValueError(f"kick: angle_deg must be in [0, 90), got {angle}")
         clamped = speed > self.physics.kick_max_speed_mps
         speed = min(speed, self.physics.kick_max_speed_mps)
         if speed == 0.0:
             self._armed[i] = None
             self._any_armed = any(a is not None for a in self._armed)
             return KickResult(False, False, 0.0, clamped)
-        fired = self._try_kick(i, speed, spin)
+        fired = self._try_kick(i, speed, spin, angle)
         if fired is not None:
             self._armed[i] = None
             self._any_armed = any(a is not None for a in self._armed)
             return KickResult(True, False, speed, clamped, fired[0], fired[1])
         if armed_for > 0.0:
-            self._armed[i] = _Armed(speed, spin, self._t + armed_for)
+            self._armed[i] = _Armed(speed, spin, self._t + armed_for, angle)
             self._any_armed = True
             return KickResult(False, True, speed, clamped)
         return KickResult(False, False, speed, clamped)
@@ -422,14 +431,20 @@ class World:
             px > fx
             and gap <= self.physics.kick_touch_tolerance_m
             and abs(py) <= 0.5 * self.specs[i].config.dribbler_width_m
+            and self._ball.z < self._ball.radius  # a ball in the air passes above the dribbler bar
         )
 
-    def _try_kick(self, i: int, speed: float, spin: float) -> tuple[float, float] | None:
+    def _try_kick(self, i: int, speed: float, spin: float, angle_deg: float = 0.0) -> tuple[float, float] | None:
         px, py = self._ball_in_robot_frame(i)
         if not self._in_dribbler(i, px, py):
             return None
         rb, ball = self._robots[i], self._ball
-        dev = self._plates[i].deviation_rad(py, ball.radius, self.physics.kick_tilt_compliance_rad_per_m)
+        if angle_deg > 0.0:  # the chip plate: along the heading, no plunger tilt, no spin
+            dev, spin = 0.0, 0.0
+            vz, speed = speed * math.sin(math.radians(angle_deg)), speed * math.cos(math.radians(angle_deg))
+        else:
+            dev = self._plates[i].deviation_rad(py, ball.radius, self.physics.kick_tilt_compliance_rad_per_m)
+            vz = 0.0
         ang = rb.theta + dev
         kx, ky = speed * math.cos(ang), speed * math.sin(ang)
         # contact point on the plate, field frame, relative to the robot centre
@@ -439,10 +454,9 @@ class World:
         nvx = rb.vx - rb.w * qy + kx
         nvy = rb.vy + rb.w * qx + ky
         jx, jy = ball.mass * (nvx - ball.vx), ball.mass * (nvy - ball.vy)  # impulse on the ball
-        ball.vx, ball.vy = nvx, nvy
+        ball.launch(nvx, nvy, vz)
         ball.wx = -spin * ky / ball.radius
         ball.wy = spin * kx / ball.radius
-        ball.at_rest = False
         if not rb.lifted:  # recoil
             k = rb.k
             rb.vx -= jx / k.mass_kg
@@ -656,6 +670,7 @@ class World:
             t,
             (self._ball.x, self._ball.y),
             [(s.team, s.robot_id, rb.x, rb.y, rb.theta) for s, rb in zip(self.specs, self._robots, strict=True)],
+            self._ball.z,
         )
 
     def _fire_armed(self, t: float) -> None:
@@ -664,7 +679,7 @@ class World:
                 continue
             if t > a.deadline_s:
                 self._armed[i] = None
-            elif self._try_kick(i, a.speed_mps, a.spin_ratio) is not None:
+            elif self._try_kick(i, a.speed_mps, a.spin_ratio, a.angle_deg) is not None:
                 self._armed[i] = None
         self._any_armed = any(a is not None for a in self._armed)
 
@@ -695,6 +710,8 @@ class World:
         ball = self._ball
         hits = self._beam_kernel(self._body, float(ball.x), float(ball.y), float(ball.radius), self._beam_x_arr,
                                  self._beam_half_span)
+        if ball.z >= ball.radius:  # the beam runs at a resting ball's centre: a ball this high passes above it
+            hits = np.zeros_like(hits)
         if self._barrier_direct:  # no latency, no false flips: the output is the beam itself
             self._barrier_values[:] = hits
             return

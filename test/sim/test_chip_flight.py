@@ -1,0 +1,161 @@
+"""Chip kicks in the simulator: the ball flies as the projectile, bounces by restitution and friction,
+rolls out, passes over robots below it and hits them when low."""
+
+import itertools
+import math
+
+import pytest
+
+from erforce_ball_model.ball_model import ChipParams
+from erforce_ball_model.chip_model import ChipTrajectory
+from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_sim.ball import LANDED_VZ_MPS, BallParams, BallState
+from erforce_sim.world import RobotSpec, World
+
+G = 9.81
+FIELD = FieldConfig.preset("division_b")
+TOUCH_X = -1.0 + RobotConfig().dribbler_offset_m  # ball centre touching the dribbler of a robot at x = -1
+
+
+def chipped(speed=4.0, angle_deg=45.0, others=()):
+    """A robot at (-1, 0) facing +x chips the ball lying at its dribbler; (world, launch state)."""
+    robots = [RobotSpec(x=-1.0), *(RobotSpec(x=x, robot_id=k + 1) for k, x in enumerate(others))]
+    w = World(FIELD, robots, BallState(TOUCH_X, 0.0), seed=0)
+    result = w.kick(0, speed, angle_deg=angle_deg)
+    assert result.fired
+    return w, w.ball_state()
+
+
+def run_for(w, duration_s):
+    """Step ``w`` by ``duration_s`` in equal steps of at most 0.05 s."""
+    n = math.ceil(duration_s / 0.05)
+    for _ in range(n):
+        w.step(duration_s / n)
+
+
+def test_the_chip_plate_launches_at_the_angle():
+    _, b = chipped(4.0, 40.0)
+    assert b.vz == pytest.approx(4.0 * math.sin(math.radians(40.0)), abs=1e-12)
+    assert math.hypot(b.vx, b.vy) == pytest.approx(4.0 * math.cos(math.radians(40.0)), abs=1e-12)
+    assert b.wx == b.wy == 0.0
+
+
+@pytest.mark.parametrize(("speed", "angle_deg"), [(2.0, 30.0), (4.0, 45.0), (6.0, 60.0)])
+def test_flight_is_the_projectile_apex_and_touchdown_within_1_mm(speed, angle_deg):
+    w, b = chipped(speed, angle_deg)
+    t_flight, apex = 2.0 * b.vz / G, b.vz**2 / (2.0 * G)
+    t0 = w.t_s
+    run_for(w, 0.5 * t_flight)
+    top = w.ball_state()
+    assert top.z == pytest.approx(apex, abs=1e-3)
+    assert top.x == pytest.approx(b.x + b.vx * 0.5 * t_flight, abs=1e-3)
+    run_for(w, 0.5 * t_flight - 1e-4)  # just before the touchdown: still falling, nearly down
+    before = w.ball_state()
+    assert before.vz < 0.0 and before.z < b.vz * 1e-4 + 1e-9
+    assert before.x + before.vx * 1e-4 == pytest.approx(b.x + b.vx * t_flight, abs=1e-3)
+    w.step(2e-4)  # just after: bounced
+    after = w.ball_state()
+    assert after.vz > 0.0 and w.t_s - t0 == pytest.approx(t_flight + 1e-4)
+
+
+def test_the_first_bounce_by_hand():
+    # no spin at the touchdown: friction (up to 0.5 * 1.566 * vz, above the sticking value) stops the slip:
+    # v' = v - v / (1 + m r^2 / I) = v (1 - 1/3.5) for a solid ball; then it rolls (no slip)
+    w, b = chipped(4.0, 45.0)
+    run_for(w, 2.0 * b.vz / G + 1e-4)
+    s = w.ball_state()
+    assert math.hypot(s.vx, s.vy) == pytest.approx(math.hypot(b.vx, b.vy) * (1.0 - 1.0 / 3.5), rel=1e-9)
+    assert s.vz + G * 1e-4 == pytest.approx(0.566 * b.vz, abs=1e-9)
+    assert w.ball_slip_mps() == pytest.approx(0.0, abs=1e-9)
+
+
+def test_hops_end_and_the_ball_rolls_out_at_the_rolling_deceleration():
+    w, b = chipped(4.0, 45.0)
+    # vz after n bounces: 0.566^n vz0; the hops end below LANDED_VZ_MPS: after the hops' total time
+    n = math.ceil(math.log(LANDED_VZ_MPS / b.vz) / math.log(0.566))
+    t_hops = sum(2.0 * b.vz * 0.566**k / G for k in range(n))
+    w.step(0.1)
+    while w.t_s < t_hops + 0.01:
+        w.step(min(0.05, t_hops + 0.01 - w.t_s))
+    s1 = w.ball_state()
+    assert s1.z == 0.0 and s1.vz == 0.0
+    w.step(0.1)
+    s2 = w.ball_state()
+    assert math.hypot(s2.vx, s2.vy) == pytest.approx(math.hypot(s1.vx, s1.vy) - 0.3 * 0.1, abs=1e-9)
+
+
+def test_a_chip_flies_over_a_robot_and_a_low_ball_hits_it():
+    # a robot 1 m ahead: the 45 deg chip at 4 m/s is ~0.39 m up there and passes
+    w, b = chipped(4.0, 45.0, others=(0.0,))
+    run_for(w, 2.0 * b.vz / G - 0.01)
+    assert w.ball_state().x > 0.3 and w.ball_state().vx > 0.0
+    # a flat 2 m/s shot hits it and comes back
+    w = World(FIELD, [RobotSpec(x=-1.0), RobotSpec(x=0.0, robot_id=1)], BallState(TOUCH_X, 0.0), seed=0)
+    assert w.kick(0, 2.0).fired
+    for _ in range(60):
+        w.step(0.01)
+    assert w.ball_state().vx < 0.0
+
+
+def test_a_ball_in_the_air_is_not_kicked_and_bad_angles_are_refused():
+    w, _ = chipped(4.0, 45.0)
+    w.place_robot(0, w.ball_state().x - RobotConfig().dribbler_offset_m, 0.0, 0.0)
+    w.step(0.05)  # ~0.13 m up
+    w.place_robot(0, w.ball_state().x - RobotConfig().dribbler_offset_m, 0.0, 0.0)
+    assert not w.ball_in_dribbler(0)
+    assert not w.kick(0, 3.0).fired
+    for angle in (-1.0, 90.0, math.nan):
+        with pytest.raises(ValueError, match="angle_deg"):
+            w.kick(0, 3.0, angle_deg=angle)
+    with pytest.raises(ValueError, match="floor_restitution"):
+        BallParams(floor_restitution=1.0)
+    with pytest.raises(ValueError, match="BallState.z"):
+        BallState(0.0, 0.0, z=-0.1)
+
+
+def test_energy_in_flight_is_kept_and_bounces_only_lose_it():
+    w, _ = chipped(5.0, 50.0)
+    energies = [w.energy().ball_j]
+    for _ in range(150):
+        w.step(0.01)
+        energies.append(w.energy().ball_j)
+    assert all(b <= a + 1e-9 for a, b in itertools.pairwise(energies))
+    assert energies[-1] < 0.5 * energies[0]
+
+
+def test_the_world_s_vision_frames_carry_the_ball_s_height():
+    w, _ = chipped(4.0, 45.0)
+    run_for(w, 0.2)
+    frames = w.poll_vision()
+    heights = [f.balls[0].z for f in frames if f.balls]
+    assert max(heights) > 0.2 and min(heights) >= 0.0
+
+
+def test_the_plant_s_chip_is_the_chip_model_s_with_its_defaults():
+    # ChipParams' defaults are this plant's ball: restitution 0.566; the first bounce stops the slip of a
+    # ball without spin (1 - 1/3.5 of its speed kept), later ones find it rolling (all kept); hops end
+    # below the same vertical speed; then it rolls at the carpet's a_roll
+    assert ChipParams().damping_z == BallParams().floor_restitution
+    assert ChipParams().min_hop_vz_mps == LANDED_VZ_MPS
+    w, b = chipped(3.0, 60.0)  # rests ~2.5 m on, before the wall (the model has none)
+    model = ChipTrajectory((b.x, b.y, 0.0), (b.vx, b.vy, b.vz))
+    assert len(model.hops) > 5
+    t0 = w.t_s
+    for t_touch, point in zip(model.touchdown_times_s[:4], model.touchdown_points_m[:4], strict=True):
+        run_for(w, t_touch - 1e-4 - (w.t_s - t0))
+        s = w.ball_state()
+        assert s.vz < 0.0
+        assert math.dist((s.x + s.vx * 1e-4, s.y + s.vy * 1e-4), point) < 1e-3
+    for t in (model.roll_start_s + 0.5, model.stop_time_s + 0.5):
+        run_for(w, t - (w.t_s - t0))
+        s = w.ball_state()
+        assert math.dist((s.x, s.y, s.z), model.position_at(t)) < 2e-3
+
+
+def test_a_ball_above_the_dribbler_does_not_break_the_light_barrier():
+    seen = []
+    for z in (0.0, 0.3):
+        w = World(FIELD, [RobotSpec(x=-1.0)], BallState(TOUCH_X, 0.0, z=z), seed=0)
+        run_for(w, 0.05)  # 0.3 m up falls 0.012 m in that time
+        seen.append(w.light_barrier(0))
+    assert seen == [True, False]
