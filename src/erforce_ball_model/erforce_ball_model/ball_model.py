@@ -60,8 +60,8 @@ from erforce_interfaces.robot_config import (
 
 __all__ = [
     "MAX_POSITION_M", "MAX_SPEED_MPS", "MAX_WALL_BOUNCES", "PIECE_COLUMNS", "BallFloats", "BallModelParams",
-    "BallPhase", "BallTrajectory", "ChipParams", "Walls", "ball_distance", "ball_floats", "ball_speed", "ball_time_to_distance",
-    "kick_distance", "load_kernels", "numba_ball_type", "path_piece", "path_point",
+    "BallPhase", "BallTrajectory", "ChipParams", "Walls", "ball_distance", "ball_floats", "ball_speed",
+    "ball_time_to_distance", "kick_distance", "load_kernels", "numba_ball_type", "path_piece", "path_point",
 ]
 
 # Sanity bounds: far beyond any SSL ball (6.5 m/s kick limit, 12 m field), they only catch garbage
