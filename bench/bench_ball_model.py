@@ -12,8 +12,8 @@ field's wall, as the predictor's). Building a ball's trajectory is timed without
 
 Model from SSL geometry: a ball kicked at 3 and 5 m/s under grSim's model (a_slide -14, a_roll -0.7,
 c_switch 0.7, far from our defaults), seen at 70 Hz with the stand-in world's camera noise and with 2 mm
-(the frames from ``kick_distance``), filtered by a BallPredictor started with the defaults that gets the model from geometry while the ball
-lies still before the kick, and by one started with that model. The stop point each predicts 0.1, 0.25,
+(the frames from ``kick_distance``), filtered by a BallPredictor started with the defaults that gets the model
+from geometry while the ball lies still before the kick, and by one started with that model. The stop point each predicts 0.1, 0.25,
 0.5 and 1 s after the kick (the newest frame then) is compared with the true one, as % of the kick's
 travel; medians and ranges over noise seeds.
 
@@ -303,7 +303,8 @@ def bench_model_from_geometry(quick: bool) -> list[dict]:
             geo, pin = errors["geometry"][:, k], errors["pinned"][:, k]
             rows.append(dict(
                 name=f"stop-point error {after:g} s after a {v0:g} m/s kick ({1e3 * noise_m:g} mm noise): model from "
-                     "geometry / pinned at start, median", value=f"{np.median(geo):.2f} / {np.median(pin):.2f}", unit="% of travel",
+                     "geometry / pinned at start, median", value=f"{np.median(geo):.2f} / {np.median(pin):.2f}",
+                unit="% of travel",
                 target=f"{STOP_TARGET_PCT[after]}, same as pinned" if after in STOP_TARGET_PCT else "same as pinned",
                 note=f"ranges {geo.min():.2f}-{geo.max():.2f} / {pin.min():.2f}-{pin.max():.2f} over {len(seeds)} "
                      f"seeds; a_slide -14, a_roll -0.7, c_switch 0.7; 70 Hz, {1e3 * noise_m:g} mm noise"))
