@@ -11,11 +11,11 @@ moving; balls stopped, slow, rolling, kicked, or heading out over a line; their 
 field's wall, as the predictor's). Building a ball's trajectory is timed without and with the walls.
 
 Model from SSL geometry: a ball kicked at 3 and 5 m/s under grSim's model (a_slide -14, a_roll -0.7,
-c_switch 0.7, far from our defaults), seen at 70 Hz with the stand-in world's camera noise and with 2 mm
-(the frames from ``kick_distance``), filtered by a BallPredictor started with the defaults that gets the model
-from geometry while the ball lies still before the kick, and by one started with that model. The stop point each predicts 0.1, 0.25,
-0.5 and 1 s after the kick (the newest frame then) is compared with the true one, as % of the kick's
-travel; medians and ranges over noise seeds.
+c_switch 0.7, far from our defaults), seen at 70 Hz with the stand-in world's camera noise and with 2 mm (the
+frames from ``kick_distance``), filtered by a BallPredictor started with the defaults that gets the model from
+geometry while the ball lies still before the kick, and by one started with that model. The stop point each
+predicts 0.1, 0.25, 0.5 and 1 s after the kick (the newest frame then) is compared with the true one, as % of
+the kick's travel; medians and ranges over noise seeds.
 
 Accuracy reference: for every (ball, robot) pair a dense search samples the exact reachability
 test on a 0.5 ms grid over [0, min(t_stop, t_out)] and bisects the first crossing to < 1 us.
