@@ -85,7 +85,8 @@ def test_simulator_error_hand_bytes_are_code_1_and_message_2():
     assert (error.code, error.message) == ("X", "Y")
     assert ssl_simulation_error_pb2.SimulatorError(code="X", message="Y").SerializeToString() == SIMULATOR_ERROR_X_Y
     # a message without a code, as a simulator may send one
-    assert ssl_sim.decode_simulator_response(b"\x0a" + length(b"\x12" + length(b"only text"))) == ("no code: only text",)
+    only_message = b"\x0a" + length(b"\x12" + length(b"only text"))
+    assert ssl_sim.decode_simulator_response(only_message) == ("no code: only text",)
 
 
 def test_robot_control_response_hand_bytes_decode():
