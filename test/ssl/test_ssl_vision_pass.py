@@ -19,6 +19,7 @@ from erforce_ball_model.vision_pass import (
     PASS_DONE,
     PASS_FALLBACK,
     PASS_GENERAL,
+    PASS_T_CAPTURE_BACK,
     FramePass,
     robot_points,
 )
@@ -27,8 +28,11 @@ from erforce_interfaces.conversions import vision_frame_from_msg, vision_robots_
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
 from erforce_interfaces.ssl_vision import (
+    CAPTURE_OLD,
+    CAPTURE_RESTART,
     BallCandidate,
     CameraFrame,
+    CaptureOrder,
     ClockJump,
     FieldGeometry,
     RobotSighting,
@@ -44,18 +48,21 @@ OURS, N_OURS = 0.0, 11  # blue
 
 
 class Pipeline:
-    """A clock and a tracker as the bridge holds them, with pose reader counts by side and id."""
+    """A clock, a capture order and a tracker as the bridge holds them, with pose reader counts by side and id."""
 
     def __init__(self) -> None:
         self.clock = VisionClock()
+        self.order = CaptureOrder(self.clock.jump_s)
+        self.restarts = 0
         self.tracker = VisionTracker(FIELD)
         self.readers = np.zeros((2, MAX_ROBOT_ID + 1), np.int64)
         self.points = np.empty((65, 6))
 
 
 def general_path(p: Pipeline, data: bytes, t_receive: float):
-    """What the bridge's general path publishes for a datagram: ("bad" | "jump" | "stamp" | "nothing"), the
-    message bytes, or ("general", robot rows, balls) for the node's per-robot path; and the ball observation."""
+    """What the bridge's general path publishes for a datagram: ("bad" | "t_capture_back" | "jump" | "stamp" |
+    "nothing"), the message bytes, or ("general", robot rows, balls) for the node's per-robot path; and the ball
+    observation."""
     try:
         packet = decode_wrapper(data)
     except SslDecodeError:
@@ -65,6 +72,10 @@ def general_path(p: Pipeline, data: bytes, t_receive: float):
     frame = packet.detection
     if frame is None:
         return "nothing", None
+    verdict, _back_s = p.order.take(frame.camera_id, frame.t_capture_s)
+    if verdict == CAPTURE_OLD:
+        return "t_capture_back", None
+    p.restarts += verdict == CAPTURE_RESTART
     try:
         t_s = p.clock.to_receiver(frame.camera_id, frame.t_capture_s, frame.t_sent_s, t_receive)
     except ClockJump:
@@ -87,6 +98,8 @@ def compiled_path(p: Pipeline, fp: FramePass, data: bytes, t_receive: float):
     status, n_bytes, action, t_s, ball_x, ball_y = fp.run(data, t_receive, False)
     if status == PASS_FALLBACK:
         return general_path(p, data, t_receive)
+    if status == PASS_T_CAPTURE_BACK:
+        return "t_capture_back", None
     if status == PASS_CLOCK_JUMP:
         return "jump", None
     if status == PASS_BAD_STAMP:
@@ -108,7 +121,8 @@ def compiled_path(p: Pipeline, fp: FramePass, data: bytes, t_receive: float):
 def eventful_stream(seed: int = 3, duration_s: float = 4.0) -> list[tuple[bytes, float]]:
     """(datagram, receive time) of 8 cameras at 75 Hz: 22 robots, the ball kicked, out into the run-off area and
     put down elsewhere, reflections, robots without orientation or beyond our ids, duplicate ids, a camera's
-    clock jumping forward, frames out of order, garbage and a geometry packet."""
+    clock jumping forward, another's starting again, frames out of order, the same frame twice, a frame with more
+    ball candidates than a frame keeps, garbage and a geometry packet."""
     rng = random.Random(seed)
     centres = [(rng.uniform(-5.0, 5.0), rng.uniform(-3.8, 3.8)) for _ in range(22)]
     out = []
@@ -143,12 +157,19 @@ def eventful_stream(seed: int = 3, duration_s: float = 4.0) -> list[tuple[bytes,
         if n % 31 == 0 and robots:
             r = robots[0]
             robots.append(r._replace(x_m=r.x_m + 0.05))  # a duplicate id
-        t_sent = 100.0 + t + 0.004
+        if n % 211 == 0:  # more candidates than a frame keeps: the first 32 count, the robots too
+            balls += [BallCandidate(rng.uniform(x0, x1), rng.uniform(y0, y1), 0.3) for _ in range(40)]
+        t_capture = 100.0 + t
+        t_sent = t_capture + 0.004
         if cam == 2 and 1.5 <= t < 2.5:
             t_sent -= 1.0  # the camera's clock jumps (refused until confirmed)
+        if cam == 5 and t >= 3.0:  # the camera's clock starts again from 90 s
+            t_capture, t_sent = t_capture - 10.0, t_sent - 10.0
         t_receive = 1.7e9 + t + 0.004 + rng.uniform(0.0, 0.003)
-        data = encode_frame(CameraFrame(cam, n, 100.0 + t, t_sent, tuple(balls), tuple(robots)))
+        data = encode_frame(CameraFrame(cam, n, t_capture, t_sent, tuple(balls), tuple(robots)))
         out.append((data, t_receive))
+        if n % 43 == 0:  # the same frame again
+            out.append((data, t_receive + 0.001))
         if n % 97 == 0:
             out.append((data[: len(data) // 2], t_receive))
         if n % 101 == 0:
@@ -162,7 +183,7 @@ def eventful_stream(seed: int = 3, duration_s: float = 4.0) -> list[tuple[bytes,
 
 def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream():
     general, compiled = Pipeline(), Pipeline()
-    fp = FramePass(compiled.clock, compiled.tracker, compiled.readers, OURS, N_OURS)
+    fp = FramePass(compiled.clock, compiled.tracker, compiled.readers, OURS, N_OURS, compiled.order)
     outcomes = set()
     for k, (data, t_receive) in enumerate(eventful_stream()):
         if k == 1500:  # a tool subscribes to one of our robots' vision_pose: its frames take the general path
@@ -176,12 +197,13 @@ def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(
         if isinstance(got, bytes):
             _t, balls, rows = vision_frame_from_msg(got)
             assert np.isfinite(balls).all() and np.isfinite(rows).all()
-    assert outcomes == {"bad", "jump", "nothing", "general", "ball", "robots"}
+    assert outcomes == {"bad", "t_capture_back", "jump", "nothing", "general", "ball", "robots"}
+    assert general.restarts == compiled.restarts == 1
     for name in ("frames", "late_balls", "false_candidates", "switches", "kicks"):
         assert getattr(compiled.tracker, name) == getattr(general.tracker, name), name
-    # the jump and the way back, each confirmed
-    assert general.tracker.switches >= 1 and general.tracker.late_balls >= 1 and general.clock.jumps_confirmed == 2
-    assert compiled.clock.jumps_confirmed == 2
+    # camera 2's jump and its way back, camera 5's restart: each confirmed by the clock
+    assert general.tracker.switches >= 1 and general.tracker.late_balls >= 1 and general.clock.jumps_confirmed == 3
+    assert compiled.clock.jumps_confirmed == 3
 
 
 def _detection(balls, robots, t_capture=100.0, camera_id=2) -> bytes:
@@ -202,7 +224,7 @@ def _detection(balls, robots, t_capture=100.0, camera_id=2) -> bytes:
 
 floats = st.floats(allow_nan=True, allow_infinity=True, width=32)
 fresh = Pipeline()
-fresh_pass = FramePass(fresh.clock, fresh.tracker, fresh.readers, OURS, N_OURS)
+fresh_pass = FramePass(fresh.clock, fresh.tracker, fresh.readers, OURS, N_OURS, fresh.order)
 
 
 @settings(max_examples=300, deadline=None)
@@ -221,25 +243,28 @@ def test_fuzz_what_the_pass_takes_is_valid_and_the_rest_is_handed_back_untouched
     edited = bytearray(data)
     edited[edit[0] % len(edited)] = edit[1]
     for chunk in (data, data[: cut % (len(data) + 1)], bytes(edited)):
-        before = [a.copy() for a in (fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps,
+        before = [a.copy() for a in (fresh.order.last_s, fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps,
                                      fresh.tracker.counts, fresh.tracker.robot_tracks)]
         status, n_bytes, action, t_s, ball_x, ball_y = fresh_pass.run(chunk, 1.7e9, False)
         if status == PASS_FALLBACK:  # nothing changed; the general path names the problem or drops a detection
-            after = (fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps, fresh.tracker.counts,
-                     fresh.tracker.robot_tracks)
+            after = (fresh.order.last_s, fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps,
+                     fresh.tracker.counts, fresh.tracker.robot_tracks)
             assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(before, after, strict=True))
             try:
                 packet = decode_wrapper(chunk)
             except SslDecodeError:
                 continue
-            assert packet.problems or packet.geometry is not None or packet.detection is None or len(
-                packet.detection.robots) < len(robots)
+            det = packet.detection
+            restart = det is not None and det.camera_id < len(fresh.order.last_s) and (
+                fresh.order.last_s[det.camera_id] - det.t_capture_s >= fresh.order.restart_s)
+            assert packet.problems or packet.geometry is not None or det is None or len(det.robots) < len(
+                robots) or restart
             continue
         # what the pass took, the runtime parses as a detection frame whose every detection is valid
         packet = decode_wrapper(chunk)
         assert packet.problems == [] and packet.detection is not None
         assert np.isfinite(fresh_pass.robots()[:, 2:4]).all()
-        if status in (PASS_CLOCK_JUMP, PASS_BAD_STAMP):
+        if status in (PASS_T_CAPTURE_BACK, PASS_CLOCK_JUMP, PASS_BAD_STAMP):
             continue
         assert math.isfinite(t_s) and math.isfinite(ball_x) and math.isfinite(ball_y)
         if status == PASS_DONE and n_bytes > 0:

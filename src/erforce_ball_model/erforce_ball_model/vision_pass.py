@@ -7,7 +7,8 @@ hypotheses, its choice of the ball, the ball filter's usual update (``tracking.b
 stays outside: a new ball and the ball filter's unusual frames (``VisionTracker.use_ball`` with the action
 returned) and anything unusual, which the pass hands back before it has changed any state (``PASS_FALLBACK``: the
 bridge runs the general path on the datagram, which names the problem) or after (``PASS_GENERAL``: a robot
-the points cannot carry; ``PASS_CLOCK_JUMP``, ``PASS_BAD_STAMP``: the frame is refused, ``info`` says why).
+the points cannot carry; ``PASS_T_CAPTURE_BACK``, ``PASS_CLOCK_JUMP``, ``PASS_BAD_STAMP``: the frame is refused,
+``info`` says why).
 The message written is byte for byte what ``conversions.vision_robots_points_cdr`` builds from the same
 points.
 """
@@ -46,25 +47,30 @@ from erforce_interfaces.conversions import MAX_ABS_VALUE, vision_robots_template
 from erforce_interfaces.numba_support import compiled_for, numba
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import (
+    CAPTURE_OLD,
+    CAPTURE_RESTART,
     MM,
     CameraFrame,
+    CaptureOrder,
     DecodeLimits,
     RobotSighting,
     VisionClock,
+    capture_step,
     clock_step,
     detection_rows,
     detection_rows_size,
     encode_frame,
 )
 
-__all__ = ["PASS_BAD_STAMP", "PASS_CLOCK_JUMP", "PASS_DONE", "PASS_FALLBACK", "PASS_GENERAL", "FramePass",
-           "robot_points"]
+__all__ = ["PASS_BAD_STAMP", "PASS_CLOCK_JUMP", "PASS_DONE", "PASS_FALLBACK", "PASS_GENERAL", "PASS_T_CAPTURE_BACK",
+           "FramePass", "robot_points"]
 
-PASS_DONE, PASS_GENERAL, PASS_FALLBACK, PASS_CLOCK_JUMP, PASS_BAD_STAMP = range(5)
+PASS_DONE, PASS_GENERAL, PASS_FALLBACK, PASS_CLOCK_JUMP, PASS_BAD_STAMP, PASS_T_CAPTURE_BACK = range(6)
 # info: the frame's camera, its robots (rows from ROBOTS_AT), those used, the points written (-1: general
-# path), then the clock's sample, deviation and offset (PASS_CLOCK_JUMP) or the stamp (PASS_BAD_STAMP)
-I_CAMERA, I_ROBOTS, I_USED, I_POINTS, I_SAMPLE, I_DEVIATION, I_OFFSET = range(7)
-I_STAMP = I_SAMPLE
+# path), then the clock's sample, deviation and offset (PASS_CLOCK_JUMP) or the stamp (PASS_BAD_STAMP) or the
+# frame's t_capture and how far it lies before the camera's newest frame (PASS_T_CAPTURE_BACK)
+I_CAMERA, I_ROBOTS, I_USED, I_POINTS, I_SAMPLE, I_DEVIATION, I_OFFSET, I_CAPTURE_BACK = range(8)
+I_STAMP = I_T_CAPTURE = I_SAMPLE
 
 _OURS_CODE, _OPPONENTS_CODE = float(contract.OURS.code), float(contract.OPPONENTS.code)
 _BALL_CODE = float(contract.VISION_BALL_CODE)
@@ -130,18 +136,25 @@ def _message(t_s, points, n_points, head, width_at, sizes_at, message):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, clock_window, clock_pending, clock_counts,
-                clock_params, hyps, hits, candidates, tracks, used, settings, ball_state, counts, ball_filter,
-                shoot_samples, ball_model, pose_readers, ours_n_ours, points, head, layout, message, info):
+def _frame_pass(data, t_receive, stamp_from_vision, rows, limits, last_capture, clock_window, clock_pending,
+                clock_counts, clock_params, hyps, hits, candidates, tracks, used, settings, ball_state, counts,
+                ball_filter, shoot_samples, ball_model, pose_readers, ours_n_ours, points, head, layout, message,
+                info):
     """The datagram ``data`` received at ``t_receive`` through decoding, clock, tracker and message (see the
     module docstring): (status, message length or -1, ball action, stamp, ball x, ball y)."""
     max_balls, max_robots = int(limits[0]), int(limits[1])
     status, n_balls, n_robots, n_rejected, geometry = detection_rows(
         data, rows, max_balls, max_robots, limits[2], limits[3], limits[4], limits[5])
-    if status != 0 or n_rejected != 0 or geometry:
+    if status != 0 or n_rejected != 0 or geometry or rows[4] != n_balls:  # rows[4]: the balls in the bytes
         return PASS_FALLBACK, -1, 0, 0.0, 0.0, 0.0
     camera = int(rows[3])
     info[I_CAMERA], info[I_ROBOTS], info[I_USED], info[I_POINTS] = camera, n_robots, 0, -1
+    verdict, back_s = capture_step(last_capture, camera, rows[1], limits[6], False)
+    if verdict == CAPTURE_OLD:
+        info[I_T_CAPTURE], info[I_CAPTURE_BACK] = rows[1], back_s
+        return PASS_T_CAPTURE_BACK, -1, 0, 0.0, 0.0, 0.0
+    if verdict == CAPTURE_RESTART:  # nothing changed: the general path takes it and says so
+        return PASS_FALLBACK, -1, 0, 0.0, 0.0, 0.0
     if stamp_from_vision:
         t_s = rows[1]
     else:
@@ -192,12 +205,16 @@ class FramePass:
     stay in the object until the next call."""
 
     def __init__(self, clock: VisionClock, tracker: VisionTracker, pose_readers: np.ndarray, ours: float,
-                 n_ours: int, limits: DecodeLimits = _LIMITS) -> None:
+                 n_ours: int, order: CaptureOrder | None = None, limits: DecodeLimits = _LIMITS) -> None:
+        """``order``: the cameras' capture order the node's general path shares (a new one when None); its
+        restart_s is read here, at binding."""
         if (limits.max_balls, limits.max_robots_per_team) != (_LIMITS.max_balls, _LIMITS.max_robots_per_team):
             raise ValueError("FramePass: the rows' layout is compiled for the default counts")
         self.rows = np.empty(detection_rows_size(limits.max_balls, limits.max_robots_per_team))
+        self.order = order or CaptureOrder()
         self.limits = np.array([limits.max_balls, limits.max_robots_per_team, limits.max_abs_coordinate_m / MM,
-                                limits.max_robot_id, limits.max_camera_id, limits.max_time_s], float)
+                                limits.max_robot_id, limits.max_camera_id, limits.max_time_s,
+                                self.order.restart_s], float)
         self.points = np.empty((2 * limits.max_robots_per_team + 1, len(contract.VISION_ROBOT_FIELDS)))
         template = vision_robots_template()
         self.head = np.frombuffer(template.head, np.uint8)
@@ -208,7 +225,8 @@ class FramePass:
         if len(tracker.candidates) < limits.max_balls or len(tracker.used) < 2 * limits.max_robots_per_team:
             raise ValueError("FramePass: the tracker's buffers are smaller than a frame's detections")
         self.tracker = tracker
-        self._state = (self.rows, self.limits, clock.window, clock.pending, clock.counts, clock.params, tracker.hyps,
+        self._state = (self.rows, self.limits, self.order.last_s, clock.window, clock.pending, clock.counts,
+                       clock.params, tracker.hyps,
                        tracker.hits, tracker.candidates, tracker.robot_tracks, tracker.used, tracker.settings,
                        tracker.ball_state, tracker.counts, tracker.ball.s, tracker.ball.shoot, tracker.ball.m,
                        pose_readers, np.array([ours, n_ours], float),

@@ -2,8 +2,9 @@
 
 ``decode_wrapper`` turns one UDP datagram (an ``SSL_WrapperPacket``) into plain values in the
 contract's units (metres, radians, seconds), or raises ``SslDecodeError`` naming what is wrong
-with it. Single bad detections (a NaN coordinate, a robot without an id) are dropped and named
-in ``DecodedPacket.problems``; the rest of the frame is kept. A detection-only datagram is read
+with it. Single bad detections (a NaN coordinate, a robot without an id), ball candidates beyond
+``max_balls`` and a bad geometry or ball model are dropped and named in ``DecodedPacket.problems``,
+each with its class (``DROP_CLASSES``); the rest of the frame is kept. A detection-only datagram is read
 and checked (wire format, required fields, ranges) in one compiled pass over its bytes into arrays
 (``DetectionArrays``), because the protobuf runtime's Python objects cost about 3 us per robot and
 a full field's vision is 600 datagrams/s; anything else (geometry, a datagram the pass declines)
@@ -16,7 +17,8 @@ clock: per camera, the offset is the smallest ``t_receive - t_sent`` seen over a
 (network and scheduling delays only ever add to it), so ``t_capture + offset`` is the capture
 time on the receiver's clock. A camera whose clock jumps is noticed when its samples leave the
 window's offset by more than ``jump_s`` for several packets over ``confirm_s``; then the window
-restarts from the new samples (details in the class).
+restarts from the new samples (details in the class). ``CaptureOrder`` drops a camera's frame whose
+``t_capture`` is not after the newest one taken (a duplicate or a stale frame).
 """
 
 from __future__ import annotations
@@ -41,9 +43,38 @@ SSL_VISION_PORT = 10006
 SSL_SIMULATOR_VISION_PORT = 10020
 
 
+#: The classes of vision input a receiver drops, each named in its warnings and counted on its own: whole
+#: datagrams (SslDecodeError.kind), parts of a datagram (Problem.kind), whole frames (CaptureOrder, the
+#: vision clock, floods) and what the bridge cannot publish.
+DROP_CLASSES = {
+    "empty": "an empty datagram",
+    "size": "a datagram larger than a UDP datagram can be",
+    "garbage": "not an SSL_WrapperPacket (truncated or garbage)",
+    "missing": "a packet without its required fields",
+    "content": "a packet with neither detection nor geometry",
+    "counts": "a frame with more robots per team than there are ids",
+    "camera": "a frame with a camera id beyond the limit",
+    "time": "a frame whose t_capture or t_sent is not a time",
+    "bad_ball": "a ball candidate with a non-finite or absurd position or confidence",
+    "bad_robot_id": "a robot without a valid id",
+    "bad_robot_place": "a robot with a non-finite or absurd position or confidence",
+    "bad_orientation": "a robot's non-finite or absurd orientation (the robot is kept without it)",
+    "too_many_balls": "ball candidates beyond max_balls in one frame (the frame's robots are kept)",
+    "geometry": "a geometry packet with absurd field sizes",
+    "ball_model": "a geometry packet's ball model that is not one",
+    "t_capture_back": "a camera's frame whose t_capture is not after that camera's newest frame",
+    "clock_jump": "a camera's frame while its clock seems to have jumped forward (VisionClock)",
+    "bad_stamp": "a frame whose stamp on the receiver's clock is not a time",
+    "superseded": "a camera's frame left for a newer one of the same camera in a flood",
+    "no_orientation": "a robot without orientation (not published)",
+    "unpublishable": "a frame whose message cannot be built",
+}
+
+
 class SslDecodeError(ValueError):
-    """A datagram that is not a usable SSL_WrapperPacket; the message says why, ``kind`` what class of problem
-    (for throttling warnings per kind): empty, size, garbage, missing, content, counts, camera, time."""
+    """A datagram that is not a usable SSL_WrapperPacket; the message says why, ``kind`` its class in
+    DROP_CLASSES (for a warning and a counter per class): empty, size, garbage, missing, content, counts,
+    camera, time."""
 
     def __init__(self, kind: str, message: str) -> None:
         super().__init__(message)
@@ -142,11 +173,19 @@ class FieldGeometry:
     cameras: tuple[CameraPose, ...] = ()
 
 
+class Problem(NamedTuple):
+    """A dropped part of an otherwise good packet: its class (a DROP_CLASSES key), what and how many."""
+
+    kind: str
+    text: str
+    count: int = 1
+
+
 @dataclass
 class DecodedPacket:
     detection: DetectionArrays | None = None
     geometry: FieldGeometry | None = None
-    problems: list[str] = field(default_factory=list)  # dropped parts of an otherwise good packet
+    problems: list[Problem] = field(default_factory=list)  # dropped parts of an otherwise good packet
 
     @property
     def frame(self) -> CameraFrame | None:
@@ -187,7 +226,7 @@ def decode_wrapper(data: bytes, limits: DecodeLimits = DecodeLimits()) -> Decode
     return out
 
 
-def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[str],
+def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[Problem],
                   declined_ok: bool = False) -> DetectionArrays | None:
     """The detection frame of a datagram; None (with ``declined_ok``) when the compiled pass declines it:
     a geometry part, no detection, anything the pass does not read as a valid detection-only datagram."""
@@ -209,25 +248,30 @@ def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[str],
     balls = out[at:at + 4 * n_balls_kept].reshape(n_balls_kept, 4)
     at += 4 * max_balls
     robots = out[at:at + 6 * n_robots_kept].reshape(n_robots_kept, 6)
+    camera_id = int(out[3])
+    rejected = out[at + 12 * max_robots:][:7 * n_rejected].reshape(n_rejected, 7)
+    excess = int(out[4]) - n_balls_kept - int(np.count_nonzero(rejected[:, 0] == _REJECT_BALL))
+    if excess > 0:
+        problems.append(Problem("too_many_balls", f"camera {camera_id}: {int(out[4])} ball candidates, {excess} "
+                                                  f"beyond the first {max_balls} dropped", excess))
     if n_rejected:
-        at += 12 * max_robots
-        _sort_out(int(out[3]), robots, out[at:at + 7 * n_rejected].reshape(n_rejected, 7), problems)
-    return DetectionArrays(int(out[3]), int(out[0]), float(out[1]), float(out[2]), balls, robots)
+        _sort_out(camera_id, robots, rejected, problems)
+    return DetectionArrays(camera_id, int(out[0]), float(out[1]), float(out[2]), balls, robots)
 
 
 _DECLINED, _BAD_CAMERA, _BAD_T_CAPTURE, _BAD_T_SENT, _BAD_COUNTS = range(1, 6)  # detection_rows' status
 
 
 def _frame_error(status: int, out: np.ndarray, limits: DecodeLimits) -> None:
-    _frame_number, t_capture, t_sent, camera_id, n_balls, n_blue, n_yellow = out[:7].tolist()
+    _frame_number, t_capture, t_sent, camera_id, _n_balls, n_blue, n_yellow = out[:7].tolist()
     camera_id = int(camera_id)
     if status == _BAD_CAMERA:
         raise SslDecodeError("camera", f"camera_id {camera_id} exceeds {limits.max_camera_id}")
     if status in (_BAD_T_CAPTURE, _BAD_T_SENT):
         name, value = ("t_capture", t_capture) if status == _BAD_T_CAPTURE else ("t_sent", t_sent)
         raise SslDecodeError("time", f"{name} {value!r} is not a time in [0, {limits.max_time_s:g}] s")
-    raise SslDecodeError("counts", f"camera {camera_id}: absurd counts ({int(n_balls)} balls, {int(n_blue)} blue, "
-                                   f"{int(n_yellow)} yellow robots)")
+    raise SslDecodeError("counts", f"camera {camera_id}: absurd robot counts ({int(n_blue)} blue, {int(n_yellow)} "
+                                   f"yellow; at most {limits.max_robots_per_team} per team)")
 
 
 def detection_rows_size(max_balls: int, max_robots: int) -> int:
@@ -237,20 +281,23 @@ def detection_rows_size(max_balls: int, max_robots: int) -> int:
 _REJECT_BALL, _REJECT_ID, _REJECT_PLACE, _REJECT_THETA = range(4)
 
 
-def _sort_out(camera_id: int, robots: np.ndarray, rejected: np.ndarray, problems: list[str]) -> None:
+def _sort_out(camera_id: int, robots: np.ndarray, rejected: np.ndarray, problems: list[Problem]) -> None:
     """Name the detections the pass dropped; fix or drop the orientations it left (rare: plain Python)."""
     for kind, team_index, robot_id, x, y, value, row in rejected.tolist():
         team = TEAMS[int(team_index)]
         if kind == _REJECT_BALL:
-            problems.append(f"camera {camera_id}: ball at ({x!r}, {y!r}) mm, confidence {value!r} dropped")
+            problems.append(Problem("bad_ball", f"camera {camera_id}: ball at ({x!r}, {y!r}) mm, confidence "
+                                                f"{value!r} dropped"))
         elif kind == _REJECT_ID:
-            problems.append(f"camera {camera_id}: {team} robot without a valid id dropped")
+            problems.append(Problem("bad_robot_id", f"camera {camera_id}: {team} robot without a valid id dropped"))
         elif kind == _REJECT_PLACE:
-            problems.append(f"camera {camera_id}: {team} robot {int(robot_id)} at ({x!r}, {y!r}) mm dropped")
+            problems.append(Problem("bad_robot_place", f"camera {camera_id}: {team} robot {int(robot_id)} at "
+                                                       f"({x!r}, {y!r}) mm dropped"))
         elif math.isfinite(value) and abs(value) <= 100.0:  # an orientation beyond [-pi, pi]: turned back
             robots[int(row), 4] = math.remainder(value, 2.0 * math.pi)
         else:
-            problems.append(f"camera {camera_id}: {team} robot {int(robot_id)} orientation {value!r} dropped")
+            problems.append(Problem("bad_orientation", f"camera {camera_id}: {team} robot {int(robot_id)} "
+                                                       f"orientation {value!r} dropped"))
             robots[int(row), 4] = math.nan
 
 
@@ -345,14 +392,16 @@ def _sub_fields(buf, i, end, scratch, values, present):
 @numba.njit(cache=True, error_model="numpy")
 def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, max_time):
     """One pass over an SSL_WrapperPacket's bytes into ``out`` (``detection_rows_size`` doubles); returns
-    (status, balls kept, robots kept, rejected, geometry part seen). Status 0: a valid detection frame;
-    _DECLINED: bytes the runtime should judge (not the wire format, required fields missing, no
-    detection); else the frame's first check that failed (_frame_error).
+    (status, balls kept, robots kept, rejected, geometry part seen). Status 0: a valid detection frame
+    (ball candidates beyond max_balls left out: the count in the bytes says how many); _DECLINED: bytes
+    the runtime should judge (not the wire format, required fields missing, no detection); else the frame's
+    first check that failed (_frame_error).
 
     out: frame_number, t_capture, t_sent, camera_id; the counts of balls, blue and yellow robots in
     the bytes; at 8 the valid balls (DetectionArrays' columns, metres), at 8 + 4 max_balls the valid
     robots (blue, then yellow; at most max_robots per team), after 2 max_robots of them the rejected
-    detections as rows [kind, team, robot_id, x, y, value, robot row] for _sort_out.
+    detections as rows [kind, team, robot_id, x, y, value, robot row] for _sort_out (at most max_balls of
+    them balls: a robot's always has room).
     (Arrays in, numbers out: numba boxes each returned array for about 1.5 us.)
     """
     out[:8] = 0.0
@@ -361,7 +410,7 @@ def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, 
     at_rejected = at_robots + 12 * max_robots
     max_rejected = max_balls + 2 * max_robots
     kept = np.zeros(3, np.int64)  # balls, blue, yellow
-    n_rejected = 0
+    n_rejected = rejected_balls = 0
     scratch = np.zeros(8, np.uint8)
     values = np.zeros(9)
     present = np.zeros(9, np.bool_)
@@ -439,7 +488,9 @@ def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, 
                         kept[1 + team] += 1
                         if present[5] and not -np.pi <= theta <= np.pi:
                             kind = 3
-                if kind >= 0 and n_rejected < max_rejected:
+                if kind >= 0 and n_rejected < max_rejected and (number != 5 or rejected_balls < max_balls):
+                    if number == 5:
+                        rejected_balls += 1
                     row = at_rejected + 7 * n_rejected
                     out[row], out[row + 1], out[row + 2], out[row + 3], out[row + 4] = kind, team, values[2], x, y
                     out[row + 5] = values[5] if kind == 3 else c
@@ -466,19 +517,19 @@ def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, 
         status = 3
     elif not (np.isfinite(out[2]) and 0.0 <= out[2] <= max_time):
         status = 4
-    elif out[4] > max_balls or out[5] > max_robots or out[6] > max_robots:
+    elif out[5] > max_robots or out[6] > max_robots:
         status = 5
     else:
         status = 0
     return status, kept[0], n_blue + n_yellow, n_rejected, geometry
 
 
-def _decode_geometry(geo, limits: DecodeLimits, problems: list[str]) -> FieldGeometry | None:
+def _decode_geometry(geo, limits: DecodeLimits, problems: list[Problem]) -> FieldGeometry | None:
     f = geo.field
     sizes = (f.field_length, f.field_width, f.goal_width, f.goal_depth, f.boundary_width)
     limit_mm = limits.max_abs_coordinate_m / MM
     if not (f.field_length > 0 and f.field_width > 0 and all(0 <= s <= limit_mm for s in sizes)):
-        problems.append(f"geometry dropped: field sizes {sizes} mm out of range")
+        problems.append(Problem("geometry", f"geometry dropped: field sizes {sizes} mm out of range"))
         return None
     model = None
     if geo.HasField("models") and geo.models.HasField("straight_two_phase"):
@@ -488,10 +539,10 @@ def _decode_geometry(geo, limits: DecodeLimits, problems: list[str]) -> FieldGeo
         ):
             model = BallModelFromVision(m.acc_slide, m.acc_roll, m.k_switch)
         else:
-            problems.append(
-                f"ball model dropped: acc_slide {m.acc_slide!r}, acc_roll {m.acc_roll!r}, k_switch {m.k_switch!r} "
-                "(need acc_slide < acc_roll < 0 m/s^2, 0 < k_switch <= 1)"
-            )
+            problems.append(Problem(
+                "ball_model", f"ball model dropped: acc_slide {m.acc_slide!r}, acc_roll {m.acc_roll!r}, k_switch "
+                              f"{m.k_switch!r} (need acc_slide < acc_roll < 0 m/s^2, 0 < k_switch <= 1)"
+            ))
     cameras = []
     for calib in geo.calib:
         pos = (calib.derived_camera_world_tx, calib.derived_camera_world_ty, calib.derived_camera_world_tz)
@@ -684,3 +735,60 @@ class VisionClock:
         if refused:
             raise ClockJump(clock_jump_text(camera_id, sample, deviation, offset))
         return stamp
+
+
+# --------------------------------------------------------------------------------- capture order
+CAPTURE_NEW, CAPTURE_OLD, CAPTURE_RESTART = range(3)  # capture_step's verdicts
+
+
+@numba.njit(cache=True, error_model="numpy")
+def capture_step(last_capture, camera, t_capture, restart_s, take_restart):
+    """CaptureOrder.take on its array: (verdict, how far [s] t_capture lies before the camera's newest). A new
+    frame is recorded, an old one not; a restart only with ``take_restart`` (a compiled pass leaves it to the
+    general path, which says so)."""
+    back_s = last_capture[camera] - t_capture
+    if back_s < 0.0:
+        last_capture[camera] = t_capture
+        return CAPTURE_NEW, back_s
+    if back_s < restart_s:
+        return CAPTURE_OLD, back_s
+    if take_restart:
+        last_capture[camera] = t_capture
+    return CAPTURE_RESTART, back_s
+
+
+class CaptureOrder:
+    """Per camera, the newest ``t_capture`` taken. A frame that is not after it is old news (the same frame
+    again, a frame the network reordered, a second sender with the same camera id) and is dropped; one at least
+    ``restart_s`` before it means the camera's clock started again (a simulator or a log restarted) and is
+    taken. Cameras 0 .. CLOCK_CAMERAS - 1; a compiled pass runs ``capture_step`` on ``last_s``."""
+
+    def __init__(self, restart_s: float = 0.25) -> None:
+        self.last_s = np.full(CLOCK_CAMERAS, -np.inf)
+        self.restart_s = restart_s
+
+    @property
+    def restart_s(self) -> float:
+        return self._restart_s
+
+    @restart_s.setter
+    def restart_s(self, value: float) -> None:
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f"CaptureOrder: restart_s must be finite and > 0, got {value!r}")
+        self._restart_s = float(value)
+
+    def take(self, camera_id: int, t_capture_s: float) -> tuple[int, float]:
+        """(CAPTURE_NEW / CAPTURE_OLD (drop the frame) / CAPTURE_RESTART, how far [s] it lies before the camera's
+        newest frame)."""
+        verdict, back_s = capture_step(self.last_s, camera_id, float(t_capture_s), self._restart_s, True)
+        return int(verdict), float(back_s)
+
+
+def capture_back_text(camera_id: int, t_capture_s: float, back_s: float) -> str:
+    return (f"camera {camera_id}: frame with t_capture {t_capture_s:.6f} s dropped: {back_s * 1e3:.3f} ms before "
+            "the camera's newest frame (the same frame again, a reordered or a stale one)")
+
+
+def capture_restart_text(camera_id: int, back_s: float) -> str:
+    return (f"camera {camera_id}: t_capture went back by {back_s:.3f} s: taken as the camera's clock starting "
+            "again")
