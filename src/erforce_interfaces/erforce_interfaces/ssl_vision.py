@@ -249,12 +249,13 @@ def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[Problem],
     at += 4 * max_balls
     robots = out[at:at + 6 * n_robots_kept].reshape(n_robots_kept, 6)
     camera_id = int(out[3])
-    rejected = out[at + 12 * max_robots:][:7 * n_rejected].reshape(n_rejected, 7)
-    excess = int(out[4]) - n_balls_kept - int(np.count_nonzero(rejected[:, 0] == _REJECT_BALL))
-    if excess > 0:
-        problems.append(Problem("too_many_balls", f"camera {camera_id}: {int(out[4])} ball candidates, {excess} "
-                                                  f"beyond the first {max_balls} dropped", excess))
-    if n_rejected:
+    if n_rejected or out[4] != n_balls_kept:  # out[4]: the ball candidates in the bytes
+        rejected = out[at + 12 * max_robots:][:7 * n_rejected].reshape(n_rejected, 7)
+        named = int(np.count_nonzero(rejected[:, 0] == _REJECT_BALL))
+        excess = int(out[4]) - n_balls_kept - named
+        if excess > 0:
+            problems.append(Problem("too_many_balls", f"camera {camera_id}: {int(out[4])} ball candidates, "
+                                                      f"{excess} beyond the first {max_balls} dropped", excess))
         _sort_out(camera_id, robots, rejected, problems)
     return DetectionArrays(camera_id, int(out[0]), float(out[1]), float(out[2]), balls, robots)
 
