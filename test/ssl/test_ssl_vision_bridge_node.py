@@ -105,8 +105,10 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
         sender.frame(1, k / 60.0)[:-3],  # truncated
         b"\x0a\x02\x08\x01",  # a frame without its required fields
     ]
-    absurd = wrap.SSL_WrapperPacket.FromString(sender.frame(1, k / 60.0, [ball]))
-    for _ in range(100):
+    # 101 ball candidates away from the tracked ball: camera 1's stamps (its offset from one sample) never make
+    # camera 0's next ball a late one
+    absurd = wrap.SSL_WrapperPacket.FromString(sender.frame(1, k / 60.0))
+    for _ in range(101):
         absurd.detection.balls.add(confidence=1.0, x=0.0, y=0.0, pixel_x=0.0, pixel_y=0.0)
     bad.append(absurd.SerializeToString())
     nan_ball = sender.frame(1, (k + 1) / 60.0, [BallCandidate(math.nan, 0.0, 0.9), BallCandidate(1e12, 0.0, 0.9)])
@@ -164,10 +166,14 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
     assert abs(t_robots - time.time()) < 5.0 and robots[-1].header.frame_id == contract.FIELD_FRAME
     # stamps on the ROS clock (the test's wall clock), not on the vision clock
     assert abs(t - time.time()) < 5.0
-    # the newest table with rows is a good frame's (camera 0): the bad frame of camera 1 kept none
-    table = next(detection_rows(m) for m in reversed(detections) if len(detection_rows(m)))
+    # the newest table of camera 0 is a good frame's; camera 1's tables: the crowded frame's first 32 balls (at the
+    # origin), nothing of the frames with bad balls
+    tables = [t for t in map(detection_rows, detections) if len(t)]
+    table = next(t for t in reversed(tables) if t[0, 0] == 0.0)
     assert table[:, 0].tolist() == [0.0] * 3
     assert sorted(table[:, 2].tolist()) == [0.0, 1.0, 2.0]  # ball, ours, opponent
+    for t in (t for t in tables if t[0, 0] == 1.0):
+        assert t.shape[0] == 32 and (t[:, 4:6] == 0.0).all() and (t[:, 2] == 0.0).all()
     assert node.alive()
 
 
