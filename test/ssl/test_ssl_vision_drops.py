@@ -148,7 +148,8 @@ def test_drops_over_udp_are_named_and_counted_in_the_statistics(ros_graph):
                        for _t, _b, rows in map(vision_frame_from_msg, frames))
 
         ros_graph.probe.spin_until(crowded_robot_published, 10.0, "the crowded frame's robot on /vision/robots")
-        stats = re.escape("dropped by class: garbage 1, geometry 1, t_capture_back (camera 0) 1, too_many_balls 8")
+        stats = re.escape("dropped by class: garbage 1, geometry 1, t_capture_back (camera 0) 1, too_many_balls 8") + (
+            r"; tracker: \d+ late balls, \d+ false candidates, \d+ ball switches")
         for _ in range(200):  # good frames until a statistics line comes
             k += 1
             sock.sendto(frame(0, k / 60.0, [], [ours]), (SSL_VISION_GROUP, port))

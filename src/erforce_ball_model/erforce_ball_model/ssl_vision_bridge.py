@@ -8,7 +8,9 @@ says so. Every datagram goes through erforce_interfaces.ssl_vision (decoding, ch
 clock) and erforce_ball_model.vision_tracking (the true ball, robot streams); the node converts
 and publishes. What it drops is named by its class (ssl_vision.DROP_CLASSES; per camera for t_capture going
 back and clock jumps): a throttled warning per class starts with it in brackets, a counter per class goes into
-the periodic statistics line ("dropped by class: ...").
+the periodic statistics line ("dropped by class: ..."). The tracker's choices (a ball candidate older than the
+ball already taken from another camera, reflections, a switch to another ball) are normal with overlapping
+cameras: counted in the same line, not warned about.
 
 A camera frame goes out in one ``/vision/robots`` message (what the stack reads): the tracker's ball, if it
 took one from this frame, and the robots, both teams. It goes out first, ``/vision/ball`` after it (a
@@ -396,13 +398,15 @@ class SslVisionBridge(Node):
         if self._periods_logged:
             self._cpu_us_counts.update(ns // 1000 for ns in ms)
         self._periods_logged += 1
-        s = self.stats
+        s, tracker = self.stats, self._tracker
         by_class = ", ".join(f"{key} {n}" for key, n in sorted(self.drops.items())) or "none"
         self.get_logger().info(
             f"ssl_vision_bridge: {s['datagrams']} datagrams, {s['frames']} camera frames; dropped: {s['dropped_bad']} "
             f"bad, {s['dropped_clock']} clock, {s['superseded_in_flood']} superseded in floods; CPU per datagram "
             f"median {ms[len(ms) // 2] * 1e-6:.3f} ms, p99 {ms[int(0.99 * (len(ms) - 1))] * 1e-6:.3f} ms; "
-            f"since the first period: {self._cpu_p99_text()}; dropped by class: {by_class}"
+            f"since the first period: {self._cpu_p99_text()}; dropped by class: {by_class}; tracker: "
+            f"{tracker.late_balls} late balls, {tracker.false_candidates} false candidates, {tracker.switches} ball "
+            "switches"
         )
 
     def _cpu_p99_text(self) -> str:
