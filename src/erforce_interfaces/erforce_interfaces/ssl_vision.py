@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 from google.protobuf.message import DecodeError
 
-from erforce_interfaces.numba_support import numba
+from erforce_interfaces.numba_support import compiled_for, numba
 from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrapper_pb2
 
 MM = 1e-3
@@ -767,6 +767,7 @@ class CaptureOrder:
     def __init__(self, restart_s: float = 0.25) -> None:
         self.last_s = np.full(CLOCK_CAMERAS, -np.inf)
         self.restart_s = restart_s
+        self._step = compiled_for(capture_step, self.last_s, 0, 0.0, 0.25, True)  # no type matching per frame
 
     @property
     def restart_s(self) -> float:
@@ -781,8 +782,9 @@ class CaptureOrder:
     def take(self, camera_id: int, t_capture_s: float) -> tuple[int, float]:
         """(CAPTURE_NEW / CAPTURE_OLD (drop the frame) / CAPTURE_RESTART, how far [s] it lies before the camera's
         newest frame)."""
-        verdict, back_s = capture_step(self.last_s, camera_id, float(t_capture_s), self._restart_s, True)
-        return int(verdict), float(back_s)
+        if not 0 <= camera_id < CLOCK_CAMERAS:
+            raise ValueError(f"camera_id {camera_id} is not in 0..{CLOCK_CAMERAS - 1}")
+        return self._step(self.last_s, int(camera_id), float(t_capture_s), self._restart_s, True)
 
 
 def capture_back_text(camera_id: int, t_capture_s: float, back_s: float) -> str:
