@@ -16,6 +16,7 @@ from erforce_interfaces.ssl_proto import (
     ssl_simulation_error_pb2,
     ssl_simulation_robot_control_pb2,
     ssl_simulation_robot_feedback_pb2,
+    ssl_simulation_synchronous_pb2,
 )
 from erforce_interfaces.ssl_sim import RobotCommand, SimError, WireError
 
@@ -131,6 +132,18 @@ def test_simulator_command_hand_bytes_decode_to_teleports():
     (r,) = req.robots
     assert (r.team, r.robot_id, r.x_m, r.y_m, r.yaw_rad, r.present) == ("blue", 2, 1.0, 2.0, None, True)
     assert req.simulation_speed == 2.0 and not req.has_config
+
+
+def test_synchronous_request_and_response_have_their_numbers():
+    # SimulationSyncRequest: sim_step = 1 (fixed32, tag 0x0d) 1.0, robot_control = 3 (tag 0x1a): ROBOT_CONTROL
+    request = ssl_simulation_synchronous_pb2.SimulationSyncRequest.FromString(
+        b"\x0d" + F1_0 + b"\x1a" + length(ROBOT_CONTROL))
+    assert request.sim_step == 1.0 and request.robot_control.robot_commands[0].id == 3
+    # SimulationSyncResponse: robot_control_response = 2 (tag 0x12) {errors = 1 {SIMULATOR_ERROR_X_Y}}
+    response = ssl_simulation_synchronous_pb2.SimulationSyncResponse.FromString(
+        b"\x12" + length(b"\x0a" + length(SIMULATOR_ERROR_X_Y)))
+    (error,) = response.robot_control_response.errors
+    assert (error.code, error.message) == ("X", "Y") and len(response.detection) == 0
 
 
 def test_simulator_command_reads_a_config_as_field_2():
