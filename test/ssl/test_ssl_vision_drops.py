@@ -109,6 +109,62 @@ def test_each_drop_class_has_its_own_warning_and_counter(general_path):
         rclpy.try_shutdown()
 
 
+@pytest.mark.parametrize("general_path", [False, True])
+def test_the_capture_timelines_refusals_go_under_the_same_classes(general_path):
+    """time_source capture: the capture order drops an old frame before the timeline sees it; a camera's clock
+    starting again is passed on, and the timeline refuses its new line as clock_jump until 5 frames span 0.2 s
+    of receive time (at 30 ms apart the 8th frame: 7 x 30 ms = 0.21 s); a frame of the old line that comes in
+    between is after the order's newest (the new line) but not after the timeline's: t_capture_back too."""
+    import rclpy
+
+    from erforce_ball_model.ssl_vision_bridge import SslVisionBridge
+
+    rclpy.init(args=["--ros-args", "-p", f"port:={free_udp_port()}", "-p", "interface:=127.0.0.1",
+                     "-p", "time_source:=capture", "-p", "field:=division_b",
+                     "-p", f"publish_detections:={str(general_path).lower()}"])
+    node = None
+    try:
+        node = SslVisionBridge()
+        published, warnings = [], []
+
+        class Recording:
+            def publish(self, data):
+                published.append(bytes(data))
+
+        node._robots_pub = Recording()
+        node._warn.warn = lambda key, text: warnings.append((key, text))
+        ball, ours = BallCandidate(0.0, 0.0, 0.9), RobotSighting("blue", 0, 1.0, 1.0, 0.0, 1.0)
+
+        def send(t_s: float, t_wall_s: float) -> None:
+            node.handle_batch([frame(0, t_s, [ball], [ours])], 0.0, t_wall_s)
+
+        for k in range(6):
+            send(0.03 * k, 100.0 + 0.03 * k)
+        assert len(published) == 6 and not node.drops
+        send(0.15 - 0.005, 100.16)  # 5 ms before the newest: the order's
+        for j in range(8):
+            send(0.15 - 10.0 + 0.03 * j, 100.2 + 0.03 * j)  # the camera's clock started again 10 s back
+            assert len(published) == (6 if j < 7 else 7), j
+            if j == 2:
+                send(0.15 - 0.002, 100.2 + 0.03 * j)  # the old line once more: the timeline's
+        assert dict(node.drops) == {"t_capture_back (camera 0)": 2, "clock_jump (camera 0)": 7}
+        by_key = {}
+        for key, text in warnings:
+            by_key.setdefault(key, []).append(text)
+        assert len(by_key.pop("t_capture_restart (camera 0)")) == 2  # the new line, and again after the old frame
+        assert set(by_key) == set(node.drops)
+        back = by_key["t_capture_back (camera 0)"]
+        assert back[0].endswith("5.000 ms before the camera's newest frame (the same frame again, a reordered or a "
+                                "stale one)")
+        assert "2.000 ms before the camera's newest frame" in back[1]
+        assert by_key["clock_jump (camera 0)"][0].startswith("ssl_vision_bridge: [clock_jump] camera 0: t_capture ")
+        assert "goes back 10.000 s from its newest on the capture timeline" in by_key["clock_jump (camera 0)"][0]
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
 @pytest.mark.integration
 def test_drops_over_udp_are_named_and_counted_in_the_statistics(ros_graph):
     """The compiled pass (the bridge's default configuration) over loopback multicast."""
