@@ -20,6 +20,15 @@ from erforce_interfaces.ssl_proto import (
 )
 
 
+def _length_delimited(field_number: int, body: bytes) -> bytes:
+    """One length-delimited field (wire type 2): tag, length varint, body."""
+    n, length = len(body), bytearray()
+    while n >= 0x80:
+        length.append(n & 0x7F | 0x80)
+        n >>= 7
+    return bytes([field_number << 3 | 2]) + bytes(length) + bytes([n]) + body
+
+
 class SimStandIn:
     def __init__(self, protocol: str = "ssl", contact_x_m: float = 0.5, status_port: int | None = None) -> None:
         self.protocol = protocol
@@ -121,7 +130,7 @@ class SimStandIn:
             self.garbage_next = False
             reply = b"\xff\x00garbage"
         elif self.protocol == "grsim":
-            status = grsim_pb2.grSim_Robots_Status()
+            status = grsim_pb2.Robots_Status()
             for robot_id, c in contact.items():
                 status.robots_status.add(robot_id=robot_id, infrared=c, flat_kick=False, chip_kick=False)
             reply = status.SerializeToString()
@@ -130,9 +139,10 @@ class SimStandIn:
             response = ssl_simulation_robot_feedback_pb2.RobotControlResponse()
             for robot_id, c in contact.items():
                 response.feedback.add(id=robot_id, dribbler_ball_contact=c)
-            if self.error_text:
-                response.errors.add(code="STANDIN", message=self.error_text)
             reply = response.SerializeToString()
+            if self.error_text:  # written from the field numbers: errors = 1 {code = 1, message = 2}
+                error = _length_delimited(1, b"STANDIN") + _length_delimited(2, self.error_text.encode())
+                reply += _length_delimited(1, error)
         self.sock.sendto(reply, addr)
 
     def close(self) -> None:

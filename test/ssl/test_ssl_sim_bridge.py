@@ -90,9 +90,10 @@ def test_bridge_drives_the_simulator_and_maps_its_answers_back(ros_graph, standi
     assert (robot.id.id, robot.id.team, robot.x, robot.y) == (1, 2, -2.0, 0.5)  # team 2 = BLUE
     assert robot.orientation == pytest.approx(1.0)
 
-    # a simulator error reaches /sim/events; a garbage answer is dropped and the bridge goes on
+    # a simulator error reaches /sim/events with its code and message; a garbage answer is dropped and the
+    # bridge goes on
     standin.error_text = "no such robot"
-    probe.spin_until(lambda: any("no such robot" in m.data for m in events), 10.0, "the simulator error")
+    probe.spin_until(lambda: any("STANDIN: no such robot" in m.data for m in events), 10.0, "the simulator error")
     standin.garbage_next = True
     node.wait_for_output("dropped a simulator answer", timeout_s=10.0)
     sent = standin.packets

@@ -131,7 +131,7 @@ def test_a_protocol_client_drives_and_places_our_plant(ros_graph):
     x0, y0 = truth[-1].pose.pose.position.x, truth[-1].pose.pose.position.y
     glob = ssl_simulation_robot_control_pb2.RobotControl()
     g = glob.robot_commands.add(id=0).move_command.global_velocity
-    g.vel_x, g.vel_y, g.vel_angular = 1.0, 0.0, 0.0
+    g.x, g.y, g.angular = 1.0, 0.0, 0.0
     drive(ros_graph, client, glob.SerializeToString(), lambda: truth[-1].pose.pose.position.x > x0 + 0.3, 30.0,
           "robot_0 driving along field x")
     assert abs(truth[-1].pose.pose.position.y - y0) < 0.05
@@ -147,11 +147,14 @@ def test_a_protocol_client_drives_and_places_our_plant(ros_graph):
     w = bad.robot_commands.add(id=0).move_command.wheel_velocity
     w.front_right = w.back_right = w.back_left = w.front_left = 1.0
     bad.robot_commands.add(id=7)
-    fb = ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString(client.ask(bad.SerializeToString(),
-                                                                                     client.robot_addr))
+    reply = client.ask(bad.SerializeToString(), client.robot_addr)
+    # on the wire as the league defines SimulatorError: code = 1 (tag 0x0a), then message = 2 (tag 0x12)
+    code = ssl_sim.ERROR_UNSUPPORTED.encode()
+    assert b"\x0a" + bytes([len(code)]) + code + b"\x12" in reply
+    fb = ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString(reply)
     codes = sorted(e.code for e in fb.errors)
     assert codes == [ssl_sim.ERROR_UNKNOWN_ROBOT, ssl_sim.ERROR_UNSUPPORTED]
-    assert any(e.unsupported_capability == 2 for e in fb.errors)  # MOVE_WHEEL_VELOCITY
+    assert any("wheel velocities" in e.message for e in fb.errors)
     fb = ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString(client.ask(b"\xff\xfe", client.robot_addr))
     assert [e.code for e in fb.errors] == [ssl_sim.ERROR_INVALID]
     # a flood of garbage: every datagram is answered with an error, and a good command is served after it
@@ -212,7 +215,7 @@ def test_a_stale_pose_does_not_turn_global_velocities(ros_graph):
     server.wait_for_output("stamp 9.000000 s is before the newest accepted 10.000000 s", timeout_s=10.0)
     msg = ssl_simulation_robot_control_pb2.RobotControl()
     v = msg.robot_commands.add(id=0).move_command.global_velocity
-    v.vel_x, v.vel_y, v.vel_angular = 1.0, 0.0, 0.0
+    v.x, v.y, v.angular = 1.0, 0.0, 0.0
     client = Client(robot_port, control_port)
     drive(ros_graph, client, msg.SerializeToString(), lambda: cmd, 20.0, "cmd_vel from a global velocity")
     assert (cmd[-1].linear.x, cmd[-1].linear.y) == pytest.approx((1.0, 0.0))

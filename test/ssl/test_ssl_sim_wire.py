@@ -13,8 +13,10 @@ from erforce_interfaces.ssl_proto import (
     grsim_pb2,
     ssl_gc_referee_message_pb2,
     ssl_simulation_control_pb2,
+    ssl_simulation_error_pb2,
     ssl_simulation_robot_control_pb2,
     ssl_simulation_robot_feedback_pb2,
+    ssl_simulation_synchronous_pb2,
 )
 from erforce_interfaces.ssl_sim import RobotCommand, SimError, WireError
 
@@ -75,19 +77,41 @@ def test_grsim_packet_encoding_equals_the_hand_bytes():
     assert grsim_pb2.grSim_Packet.FromString(hand).commands.robot_commands[0].veltangent == 1.0
 
 
+# SimulatorError {code: "X", message: "Y"}: code = 1 (tag 1 << 3 | 2 = 0x0a), message = 2 (2 << 3 | 2 = 0x12)
+SIMULATOR_ERROR_X_Y = bytes.fromhex("0a0158" "120159")
+
+
+def test_simulator_error_hand_bytes_are_code_1_and_message_2():
+    error = ssl_simulation_error_pb2.SimulatorError.FromString(SIMULATOR_ERROR_X_Y)
+    assert (error.code, error.message) == ("X", "Y")
+    assert ssl_simulation_error_pb2.SimulatorError(code="X", message="Y").SerializeToString() == SIMULATOR_ERROR_X_Y
+    # a message without a code, as a simulator may send one
+    only_message = b"\x0a" + length(b"\x12" + length(b"only text"))
+    assert ssl_sim.decode_simulator_response(only_message) == ("no code: only text",)
+
+
 def test_robot_control_response_hand_bytes_decode():
-    error = b"\x0a" + length(b"E1") + b"\x10\x02" + b"\x1a" + length(b"no wheels")  # capability 2 = wheel
+    error = b"\x0a" + length(b"E1") + b"\x12" + length(b"no wheels")
     feedback = [b"\x08\x04\x10\x01", b"\x08\x07\x10\x00", b"\x08\x09"]  # id 9 says nothing about contact
-    data = b"\x0a" + length(error) + b"".join(b"\x12" + length(f) for f in feedback)
+    data = b"\x0a" + length(error) + b"\x0a" + length(SIMULATOR_ERROR_X_Y) + b"".join(b"\x12" + length(f)
+                                                                                  for f in feedback)
     fb = ssl_sim.decode_robot_control_response(data)
     assert fb.ball_contact == {4: True, 7: False}
-    assert fb.errors == ("E1: SIMULATOR_CAPABILITY_MOVE_WHEEL_VELOCITY: no wheels",)
+    assert fb.errors == ("E1: no wheels", "X: Y")
+
+
+def test_a_long_error_text_is_cut_for_the_log():
+    message = b"m" * 1000
+    error = bytes([0x12, 0xe8, 0x07]) + message  # message (2), length 1000 = varint e8 07
+    (text,) = ssl_sim.decode_simulator_response(b"\x0a" + bytes([0xeb, 0x07]) + error)  # 3 + 1000 = 1003
+    assert text.startswith("no code: mmm") and text.endswith("(1009 characters)")
+    assert len(text) < ssl_sim.MAX_ERROR_TEXT_CHARS + 30
 
 
 def test_robot_control_response_encoding_equals_the_hand_bytes():
-    error = b"\x0a" + length(b"ERFORCE_UNSUPPORTED") + b"\x10\x02" + b"\x1a" + length(b"x")
+    error = b"\x0a" + length(b"ERFORCE_UNSUPPORTED") + b"\x12" + length(b"x")
     hand = b"\x0a" + length(error) + b"\x12" + length(b"\x08\x01\x10\x01") + b"\x12" + length(b"\x08\x02\x10\x00")
-    errors = [SimError(ssl_sim.ERROR_UNSUPPORTED, "x", "wheel")]
+    errors = [SimError(ssl_sim.ERROR_UNSUPPORTED, "x")]
     out = ssl_sim.encode_robot_control_response({2: False, 1: True}, errors)
     assert out == hand
 
@@ -110,9 +134,23 @@ def test_simulator_command_hand_bytes_decode_to_teleports():
     assert req.simulation_speed == 2.0 and not req.has_config
 
 
-def test_simulator_command_keeps_an_unknown_config_as_a_flag():
-    config = b"\x12" + length(b"\x08\x01")  # field 2 (SimulatorConfig), not defined by us
+def test_synchronous_request_and_response_have_their_numbers():
+    # SimulationSyncRequest: sim_step = 1 (fixed32, tag 0x0d) 1.0, robot_control = 3 (tag 0x1a): ROBOT_CONTROL
+    request = ssl_simulation_synchronous_pb2.SimulationSyncRequest.FromString(
+        b"\x0d" + F1_0 + b"\x1a" + length(ROBOT_CONTROL))
+    assert request.sim_step == 1.0 and request.robot_control.robot_commands[0].id == 3
+    # SimulationSyncResponse: robot_control_response = 2 (tag 0x12) {errors = 1 {SIMULATOR_ERROR_X_Y}}
+    response = ssl_simulation_synchronous_pb2.SimulationSyncResponse.FromString(
+        b"\x12" + length(b"\x0a" + length(SIMULATOR_ERROR_X_Y)))
+    (error,) = response.robot_control_response.errors
+    assert (error.code, error.message) == ("X", "Y") and len(response.detection) == 0
+
+
+def test_simulator_command_reads_a_config_as_field_2():
+    # SimulatorCommand.config = 2 (0x12): SimulatorConfig {vision_port = 4 (varint, tag 0x20): 10020 = a4 4e}
+    config = b"\x12" + length(b"\x20\xa4\x4e")
     assert ssl_sim.decode_simulator_command(config).has_config
+    assert ssl_simulation_control_pb2.SimulatorCommand.FromString(config).config.vision_port == 10020
 
 
 def test_teleport_encoding_equals_the_hand_bytes():
@@ -140,7 +178,7 @@ def test_grsim_replacement_encoding_equals_the_hand_bytes():
 
 
 def test_simulator_response_round_trip_through_hand_bytes():
-    hand = b"\x0a" + length(b"\x0a" + length(b"C") + b"\x1a" + length(b"m"))
+    hand = b"\x0a" + length(b"\x0a" + length(b"C") + b"\x12" + length(b"m"))
     assert ssl_sim.encode_simulator_response([SimError("C", "m")]) == hand
     assert ssl_sim.decode_simulator_response(hand) == ("C: m",)
 
@@ -155,8 +193,23 @@ def test_referee_hand_bytes_decode_and_encode_back():
             + b"\x3a" + length(team(b"Y", 1)) + b"\x42" + length(team(b"B", 0)))
     ref = ssl_gc_referee_message_pb2.Referee.FromString(hand)
     assert ref.stage == ref.NORMAL_FIRST_HALF and ref.command == ref.NORMAL_START
-    assert ref.stage_time_left == -2  # sint32: zigzag 3 -> -2
+    assert ref.stage_time_left == -2  # sint64: zigzag 3 -> -2
     assert ref.yellow.timeout_time == 300_000_000 and ref.blue.name == "B" and ref.yellow.goalkeeper == 1
+    assert ref.SerializeToString() == hand
+
+
+def test_referee_stage_time_is_sint64_and_the_newer_fields_have_their_numbers():
+    # stage_time_left (3) = -2**32 us: zigzag 2**33 - 1 = 33 one bits: ff ff ff ff 1f; beyond a sint32
+    # TeamInfo foul_counter = 9 (tag 0x48), hull_color = 19 (tag 19 << 3 = 152: varint 98 01) LIGHT = 2;
+    # Referee match_type = 19 (98 01) FRIENDLY = 3
+    team = (b"\x0a" + length(b"T") + b"\x10\x00\x18\x00\x28\x00\x30\x00\x38\x00\x40\x00"
+            + b"\x48\x05" + b"\x98\x01\x02")
+    hand = (b"\x08\x01\x10\x01" + b"\x18\xff\xff\xff\xff\x1f" + b"\x20\x00\x28\x00\x30\x00"
+            + b"\x3a" + length(team) + b"\x42" + length(team) + b"\x98\x01\x03")
+    ref = ssl_gc_referee_message_pb2.Referee.FromString(hand)
+    assert ref.stage_time_left == -2**32
+    assert ref.yellow.foul_counter == 5 and ref.blue.hull_color == ssl_gc_referee_message_pb2.HULL_COLOR_LIGHT
+    assert ref.match_type == ssl_gc_referee_message_pb2.FRIENDLY
     assert ref.SerializeToString() == hand
 
 
@@ -222,7 +275,7 @@ def test_fuzz_robot_control_with_any_numbers_is_finite_or_refused(rows):
     for robot_id, a, b, c, kick in rows:
         cmd = msg.robot_commands.add(id=robot_id, kick_speed=kick)
         v = cmd.move_command.global_velocity
-        v.vel_x, v.vel_y, v.vel_angular = a, b, c
+        v.x, v.y, v.angular = a, b, c
     try:
         out = ssl_sim.decode_robot_control(msg.SerializeToString())
     except WireError:

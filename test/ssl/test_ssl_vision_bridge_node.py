@@ -106,11 +106,13 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
         sender.frame(1, k / 60.0)[:-3],  # truncated
         b"\x0a\x02\x08\x01",  # a frame without its required fields
     ]
-    absurd = wrap.SSL_WrapperPacket.FromString(sender.frame(1, k / 60.0, [ball]))
-    for _ in range(100):
+    # 101 ball candidates away from the tracked ball: camera 1's stamps (its offset from one sample) never make
+    # camera 0's next ball a late one
+    absurd = wrap.SSL_WrapperPacket.FromString(sender.frame(1, k / 60.0))
+    for _ in range(101):
         absurd.detection.balls.add(confidence=1.0, x=0.0, y=0.0, pixel_x=0.0, pixel_y=0.0)
     bad.append(absurd.SerializeToString())
-    nan_ball = sender.frame(1, k / 60.0, [BallCandidate(math.nan, 0.0, 0.9), BallCandidate(1e12, 0.0, 0.9)])
+    nan_ball = sender.frame(1, (k + 1) / 60.0, [BallCandidate(math.nan, 0.0, 0.9), BallCandidate(1e12, 0.0, 0.9)])
     bad.append(nan_ball)
     n_before = len(balls)
     for j, data in enumerate(bad):  # at the camera's pace: the vision clock runs with the ROS clock
@@ -119,7 +121,8 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
         graph.probe.spin_for(1 / 60.0)
     graph.probe.spin_until(lambda: len(balls) >= n_before + len(bad), 10.0, "good frames between the bad ones")
     for text in ("not an SSL_WrapperPacket", "without required fields (detection.t_capture",
-                 "absurd counts (101 balls", "ball at (nan, 0.0) mm, confidence 0.8999999761581421 dropped; camera 1: "
+                 "[too_many_balls] camera 1: 101 ball candidates, 69 beyond the first 32 dropped",
+                 "[bad_ball] camera 1: ball at (nan, 0.0) mm, confidence 0.8999999761581421 dropped; camera 1: "
                  "ball at (999999986991104.0, 0.0) mm"):
         node.wait_for_output(re.escape(text), timeout_s=10.0)
 
@@ -164,10 +167,14 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
     assert abs(t_robots - time.time()) < 5.0 and robots[-1].header.frame_id == contract.FIELD_FRAME
     # stamps on the ROS clock (the test's wall clock), not on the vision clock
     assert abs(t - time.time()) < 5.0
-    # the newest table with rows is a good frame's (camera 0): the bad frame of camera 1 kept none
-    table = next(detection_rows(m) for m in reversed(detections) if len(detection_rows(m)))
+    # the newest table of camera 0 is a good frame's; camera 1's tables: the crowded frame's first 32 balls (at the
+    # origin), nothing of the frames with bad balls
+    tables = [t for t in map(detection_rows, detections) if len(t)]
+    table = next(t for t in reversed(tables) if t[0, 0] == 0.0)
     assert table[:, 0].tolist() == [0.0] * 3
     assert sorted(table[:, 2].tolist()) == [0.0, 1.0, 2.0]  # ball, ours, opponent
+    for t in (t for t in tables if t[0, 0] == 1.0):
+        assert t.shape[0] == 32 and (t[:, 4:6] == 0.0).all() and (t[:, 2] == 0.0).all()
     assert node.alive()
 
 

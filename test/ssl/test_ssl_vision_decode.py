@@ -78,12 +78,13 @@ def test_unusable_datagrams_are_named(data, message):
         decode_wrapper(data)
 
 
-def test_absurd_counts_bad_times_and_camera_ids_reject_the_frame():
+def test_absurd_robot_counts_bad_times_and_camera_ids_reject_the_frame():
     packet = detection_packet()
-    for _ in range(40):
-        add_ball(packet, 0.0, 0.0)
-    with pytest.raises(SslDecodeError, match="absurd counts"):
+    for k in range(33):  # 32 ids per team at most
+        add_robot(packet, "yellow", 0.0, 0.0, robot_id=k % 32, orientation=0.0)
+    with pytest.raises(SslDecodeError, match=re.escape("absurd robot counts (0 blue, 33 yellow")) as error:
         decode_wrapper(packet.SerializeToString())
+    assert error.value.kind == "counts"
     with pytest.raises(SslDecodeError, match="t_capture nan"):
         decode_wrapper(detection_packet(t_capture=math.nan).SerializeToString())
     with pytest.raises(SslDecodeError, match="camera_id 99"):
@@ -103,10 +104,40 @@ def test_bad_detections_are_dropped_by_name_and_the_good_ones_kept():
     assert out.frame.balls == (BallCandidate(0.1, 0.2, pytest.approx(0.8)),)
     (robot,) = out.frame.robots
     assert (robot.robot_id, robot.theta_rad) == (2, None)
-    text = "\n".join(out.problems)
-    assert len(out.problems) == 6
+    assert sorted(p.kind for p in out.problems) == ["bad_ball"] * 3 + ["bad_orientation", "bad_robot_id",
+                                                                       "bad_robot_place"]
+    assert all(p.count == 1 for p in out.problems)
+    text = "\n".join(p.text for p in out.problems)
     assert "ball at (nan, 0.0) mm" in text and "blue robot without a valid id" in text
     assert "yellow robot 1 at (inf, 0.0) mm" in text and "orientation nan" in text
+
+
+def test_a_frame_with_too_many_ball_candidates_keeps_the_first_32_and_its_robots():
+    packet = detection_packet()
+    for k in range(40):  # ball k at x = k mm: the first 32 (x 0 .. 31 mm) are kept, 8 dropped and counted
+        add_ball(packet, float(k), 0.0)
+    add_robot(packet, "blue", 1000.0, 0.0, robot_id=1, orientation=0.5)
+    add_robot(packet, "yellow", -1000.0, 0.0, robot_id=2, orientation=-0.5)
+    out = decode_wrapper(packet.SerializeToString())
+    assert [b.x_m for b in out.frame.balls] == pytest.approx([k * 1e-3 for k in range(32)])
+    assert out.frame.robots == (RobotSighting("blue", 1, 1.0, 0.0, 0.5, 1.0),
+                                RobotSighting("yellow", 2, -1.0, 0.0, -0.5, 1.0))
+    (problem,) = out.problems
+    assert (problem.kind, problem.count) == ("too_many_balls", 8)
+    assert problem.text == "camera 2: 40 ball candidates, 8 beyond the first 32 dropped"
+
+
+def test_a_flood_of_bad_balls_leaves_room_to_name_a_bad_robot():
+    packet = detection_packet()
+    for _ in range(100):
+        add_ball(packet, math.nan, 0.0)
+    add_robot(packet, "blue", 0.0, 0.0)  # no robot_id
+    add_robot(packet, "yellow", 0.0, 0.0, robot_id=3, orientation=0.0)
+    out = decode_wrapper(packet.SerializeToString())
+    assert out.frame.balls == () and [r.robot_id for r in out.frame.robots] == [3]
+    kinds = [(p.kind, p.count) for p in out.problems]
+    assert kinds.count(("bad_ball", 1)) == 32  # named one by one up to max_balls, the rest counted
+    assert ("too_many_balls", 68) in kinds and ("bad_robot_id", 1) in kinds
 
 
 GEOMETRY = FieldGeometry(9.0, 6.0, 0.3, 1.0, 0.18, ball_model=BallModelFromVision(-3.0, -0.26, 0.64),
@@ -120,10 +151,11 @@ def test_geometry_round_trip_and_a_bad_ball_model_is_dropped():
     packet = wrap.SSL_WrapperPacket.FromString(encode_geometry(GEOMETRY))
     packet.geometry.models.straight_two_phase.acc_roll = 0.5  # accelerates: not a ball model
     out = decode_wrapper(packet.SerializeToString())
-    assert out.geometry.ball_model is None and "ball model dropped" in out.problems[0]
+    assert out.geometry.ball_model is None and out.problems[0].kind == "ball_model"
+    assert "ball model dropped" in out.problems[0].text
     packet.geometry.field.field_length = 0
     out = decode_wrapper(packet.SerializeToString())
-    assert out.geometry is None and "field sizes" in out.problems[-1]
+    assert out.geometry is None and out.problems[-1].kind == "geometry" and "field sizes" in out.problems[-1].text
 
 
 def test_a_datagram_with_detection_and_geometry_gives_both():

@@ -17,11 +17,12 @@ from hypothesis import strategies as st
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.vision_pass import (
     PASS_BAD_STAMP,
-    PASS_CAPTURE_REFUSED,
     PASS_CLOCK_JUMP,
     PASS_DONE,
     PASS_FALLBACK,
     PASS_GENERAL,
+    PASS_T_CAPTURE_BACK,
+    PASS_TIMELINE_JUMP,
     FramePass,
     robot_points,
 )
@@ -30,10 +31,13 @@ from erforce_interfaces.conversions import vision_frame_from_msg, vision_robots_
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
 from erforce_interfaces.ssl_vision import (
+    CAPTURE_OLD,
+    CAPTURE_RESTART,
     TIME_CAPTURE,
     TIME_ESTIMATE,
     BallCandidate,
     CameraFrame,
+    CaptureOrder,
     CaptureTimeline,
     ClockJump,
     FieldGeometry,
@@ -50,21 +54,24 @@ OURS, N_OURS = 0.0, 11  # blue
 
 
 class Pipeline:
-    """A clock, a capture timeline and a tracker as the bridge holds them, with pose reader counts by side and id;
-    stamps from the time source ``mode``."""
+    """A clock, a capture order, a capture timeline and a tracker as the bridge holds them, with pose reader counts
+    by side and id; stamps from the time source ``mode``."""
 
     def __init__(self, mode: int = TIME_ESTIMATE, model: BallModelParams | None = None) -> None:
         self.mode = mode
         self.clock = VisionClock()
-        self.timeline = CaptureTimeline()
+        self.timeline = CaptureTimeline(self.clock.jump_s)
+        self.order = CaptureOrder(self.clock.jump_s)
+        self.restarts = 0
         self.tracker = VisionTracker(FIELD, model)
         self.readers = np.zeros((2, MAX_ROBOT_ID + 1), np.int64)
         self.points = np.empty((65, 6))
 
 
 def general_path(p: Pipeline, data: bytes, t_receive: float):
-    """What the bridge's general path publishes for a datagram: ("bad" | "jump" | "stamp" | "nothing"), the
-    message bytes, or ("general", robot rows, balls) for the node's per-robot path; and the ball observation."""
+    """What the bridge's general path publishes for a datagram: ("bad" | "t_capture_back" | "jump" | "stamp" |
+    "nothing"), the message bytes, or ("general", robot rows, balls) for the node's per-robot path; and the ball
+    observation."""
     try:
         packet = decode_wrapper(data)
     except SslDecodeError:
@@ -74,13 +81,17 @@ def general_path(p: Pipeline, data: bytes, t_receive: float):
     frame = packet.detection
     if frame is None:
         return "nothing", None
+    verdict, _back_s = p.order.take(frame.camera_id, frame.t_capture_s)
+    if verdict == CAPTURE_OLD:
+        return "t_capture_back", None
+    p.restarts += verdict == CAPTURE_RESTART
     try:
         if p.mode == TIME_CAPTURE:
             t_s = p.timeline.stamp(frame.camera_id, frame.t_capture_s, frame.t_sent_s, t_receive)
         else:
             t_s = p.clock.to_receiver(frame.camera_id, frame.t_capture_s, frame.t_sent_s, t_receive)
-    except ClockJump:
-        return "jump", None
+    except ClockJump as exc:  # the timeline's old frame is a t_capture_back as the order's
+        return ("t_capture_back" if exc.kind == "t_capture_back" else "jump"), None
     if not (math.isfinite(t_s) and t_s >= 0.0):
         return "stamp", None
     ball, used = p.tracker.frame_indices(frame.camera_id, t_s, frame.balls, frame.robots)
@@ -99,7 +110,9 @@ def compiled_path(p: Pipeline, fp: FramePass, data: bytes, t_receive: float):
     status, n_bytes, action, t_s, ball_x, ball_y = fp.run(data, t_receive, p.mode)
     if status == PASS_FALLBACK:
         return general_path(p, data, t_receive)
-    if status in (PASS_CLOCK_JUMP, PASS_CAPTURE_REFUSED):
+    if status == PASS_T_CAPTURE_BACK:
+        return "t_capture_back", None
+    if status in (PASS_CLOCK_JUMP, PASS_TIMELINE_JUMP):
         return "jump", None
     if status == PASS_BAD_STAMP:
         return "stamp", None
@@ -120,8 +133,9 @@ def compiled_path(p: Pipeline, fp: FramePass, data: bytes, t_receive: float):
 def eventful_stream(seed: int = 3, duration_s: float = 4.0, step_back_s: float = 0.0) -> list[tuple[bytes, float]]:
     """(datagram, receive time) of 8 cameras at 75 Hz: 22 robots, the ball kicked, out into the run-off area and
     put down elsewhere, reflections, robots without orientation or beyond our ids, duplicate ids, a camera's
-    clock jumping forward, frames out of order, garbage and a geometry packet; with ``step_back_s`` camera 5's
-    clock goes back by that much for 0.5 s (t_capture and t_sent)."""
+    clock jumping forward, another's starting again, frames out of order, the same frame twice, a frame with more
+    ball candidates than a frame keeps, garbage and a geometry packet; with ``step_back_s`` camera 6's clock goes
+    back by that much for 0.5 s (t_capture and t_sent)."""
     rng = random.Random(seed)
     centres = [(rng.uniform(-5.0, 5.0), rng.uniform(-3.8, 3.8)) for _ in range(22)]
     out = []
@@ -156,16 +170,21 @@ def eventful_stream(seed: int = 3, duration_s: float = 4.0, step_back_s: float =
         if n % 31 == 0 and robots:
             r = robots[0]
             robots.append(r._replace(x_m=r.x_m + 0.05))  # a duplicate id
-        t_sent = 100.0 + t + 0.004
+        if n % 211 == 0:  # more candidates than a frame keeps: the first 32 count, the robots too
+            balls += [BallCandidate(rng.uniform(x0, x1), rng.uniform(y0, y1), 0.3) for _ in range(40)]
+        t_capture = 100.0 + t
+        t_sent = t_capture + 0.004
         if cam == 2 and 1.5 <= t < 2.5:
             t_sent -= 1.0  # the camera's clock jumps (refused until confirmed)
-        t_capture = 100.0 + t
-        if cam == 5 and 3.0 <= t < 3.5:
-            t_capture -= step_back_s
-            t_sent -= step_back_s
+        if cam == 5 and t >= 3.0:  # the camera's clock starts again from 90 s
+            t_capture, t_sent = t_capture - 10.0, t_sent - 10.0
+        if cam == 6 and 3.0 <= t < 3.5:
+            t_capture, t_sent = t_capture - step_back_s, t_sent - step_back_s
         t_receive = 1.7e9 + t + 0.004 + rng.uniform(0.0, 0.003)
         data = encode_frame(CameraFrame(cam, n, t_capture, t_sent, tuple(balls), tuple(robots)))
         out.append((data, t_receive))
+        if n % 43 == 0:  # the same frame again
+            out.append((data, t_receive + 0.001))
         if n % 97 == 0:
             out.append((data[: len(data) // 2], t_receive))
         if n % 101 == 0:
@@ -180,7 +199,8 @@ def eventful_stream(seed: int = 3, duration_s: float = 4.0, step_back_s: float =
 @pytest.mark.parametrize("mode", [TIME_ESTIMATE, TIME_CAPTURE])
 def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(mode):
     general, compiled = Pipeline(mode), Pipeline(mode)
-    fp = FramePass(compiled.clock, compiled.tracker, compiled.readers, OURS, N_OURS, timeline=compiled.timeline)
+    fp = FramePass(compiled.clock, compiled.tracker, compiled.readers, OURS, N_OURS, compiled.order,
+                   timeline=compiled.timeline)
     outcomes = set()
     for k, (data, t_receive) in enumerate(eventful_stream(step_back_s=2.0 if mode == TIME_CAPTURE else 0.0)):
         if k == 1500:  # a tool subscribes to one of our robots' vision_pose: its frames take the general path
@@ -194,14 +214,16 @@ def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(
         if isinstance(got, bytes):
             _t, balls, rows = vision_frame_from_msg(got)
             assert np.isfinite(balls).all() and np.isfinite(rows).all()
-    assert outcomes == {"bad", "jump", "nothing", "general", "ball", "robots"}
+    assert outcomes == {"bad", "t_capture_back", "jump", "nothing", "general", "ball", "robots"}
+    # camera 5's restart (and camera 6's step back with the timeline): passed on by the order, once each
+    assert general.restarts == compiled.restarts == (1 if mode == TIME_ESTIMATE else 2)
     for name in ("frames", "late_balls", "false_candidates", "switches", "kicks"):
         assert getattr(compiled.tracker, name) == getattr(general.tracker, name), name
     assert general.tracker.switches >= 1 and general.tracker.late_balls >= 1
-    if mode == TIME_ESTIMATE:  # camera 2's t_sent: the jump and the way back, each confirmed
-        assert general.clock.jumps_confirmed == compiled.clock.jumps_confirmed == 2
-    else:  # camera 5's clock: back and forward again, each confirmed
-        assert general.timeline.jumps_confirmed == compiled.timeline.jumps_confirmed == 2
+    if mode == TIME_ESTIMATE:  # camera 2's t_sent: the jump and the way back; camera 5's restart: each confirmed
+        assert general.clock.jumps_confirmed == compiled.clock.jumps_confirmed == 3
+    else:  # camera 5's restart; camera 6's clock back and forward again: each confirmed
+        assert general.timeline.jumps_confirmed == compiled.timeline.jumps_confirmed == 3
         assert np.array_equal(general.timeline.cams, compiled.timeline.cams, equal_nan=True)
 
 
@@ -231,7 +253,7 @@ def test_the_pass_filters_with_a_model_set_on_its_tracker_as_with_one_it_started
     model = BallModelParams(-14.0, -0.7, 0.7)
     stream, first_kicked = kick_stream(3.0, 14.0, 0.7, 0.7)
     pinned, changed = Pipeline(model=model), Pipeline()
-    passes = [FramePass(p.clock, p.tracker, p.readers, OURS, N_OURS) for p in (pinned, changed)]
+    passes = [FramePass(p.clock, p.tracker, p.readers, OURS, N_OURS, p.order) for p in (pinned, changed)]
     compared = 0
     for k, (data, t_receive) in enumerate(stream):
         if k == 17:  # half-way through the rest: the geometry packet arrives
@@ -264,7 +286,7 @@ def _detection(balls, robots, t_capture=100.0, camera_id=2) -> bytes:
 
 floats = st.floats(allow_nan=True, allow_infinity=True, width=32)
 fresh = Pipeline()
-fresh_pass = FramePass(fresh.clock, fresh.tracker, fresh.readers, OURS, N_OURS)
+fresh_pass = FramePass(fresh.clock, fresh.tracker, fresh.readers, OURS, N_OURS, fresh.order)
 
 
 @settings(max_examples=300, deadline=None)
@@ -283,25 +305,28 @@ def test_fuzz_what_the_pass_takes_is_valid_and_the_rest_is_handed_back_untouched
     edited = bytearray(data)
     edited[edit[0] % len(edited)] = edit[1]
     for chunk in (data, data[: cut % (len(data) + 1)], bytes(edited)):
-        before = [a.copy() for a in (fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps,
+        before = [a.copy() for a in (fresh.order.last_s, fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps,
                                      fresh.tracker.counts, fresh.tracker.robot_tracks)]
         status, n_bytes, action, t_s, ball_x, ball_y = fresh_pass.run(chunk, 1.7e9, TIME_ESTIMATE)
         if status == PASS_FALLBACK:  # nothing changed; the general path names the problem or drops a detection
-            after = (fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps, fresh.tracker.counts,
-                     fresh.tracker.robot_tracks)
+            after = (fresh.order.last_s, fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps,
+                     fresh.tracker.counts, fresh.tracker.robot_tracks)
             assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(before, after, strict=True))
             try:
                 packet = decode_wrapper(chunk)
             except SslDecodeError:
                 continue
-            assert packet.problems or packet.geometry is not None or packet.detection is None or len(
-                packet.detection.robots) < len(robots)
+            det = packet.detection
+            restart = det is not None and det.camera_id < len(fresh.order.last_s) and (
+                fresh.order.last_s[det.camera_id] - det.t_capture_s >= fresh.order.restart_s)
+            assert packet.problems or packet.geometry is not None or det is None or len(det.robots) < len(
+                robots) or restart
             continue
         # what the pass took, the runtime parses as a detection frame whose every detection is valid
         packet = decode_wrapper(chunk)
         assert packet.problems == [] and packet.detection is not None
         assert np.isfinite(fresh_pass.robots()[:, 2:4]).all()
-        if status in (PASS_CLOCK_JUMP, PASS_BAD_STAMP):
+        if status in (PASS_T_CAPTURE_BACK, PASS_CLOCK_JUMP, PASS_BAD_STAMP):
             continue
         assert math.isfinite(t_s) and math.isfinite(ball_x) and math.isfinite(ball_y)
         if status == PASS_DONE and n_bytes > 0:

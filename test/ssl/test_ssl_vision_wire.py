@@ -12,6 +12,7 @@ import subprocess
 import sys
 
 import pytest
+from google.protobuf import unknown_fields
 from google.protobuf.message import DecodeError
 
 from erforce_interfaces.ssl_proto import ssl_vision_detection_pb2 as det
@@ -183,6 +184,22 @@ def test_our_encoding_equals_the_hand_bytes():
     models.chip_fixed_loss.damping_xy_other_hops = 0.95
     models.chip_fixed_loss.damping_z = 0.5
     assert models.SerializeToString() == MODELS
+
+
+def test_the_newer_geometry_and_wrapper_fields_have_their_numbers():
+    # SSL_GeometryFieldSize boundary_width_goal_line = 16 (varint, tag 16 << 3 = 128: 80 01) 250 (fa 01),
+    # goal_substitution_area_width = 17 (tag 136: 88 01) 1200 (b0 09); SSL_WrapperPacket source = 3 (varint,
+    # tag 0x18) SSL_SOURCE_GRSIM = 4
+    field = FIELD + b"\x80\x01\xfa\x01" + b"\x88\x01\xb0\x09"
+    assert 128 <= len(field) < 256 and len(field) + 3 < 256  # two-byte length varints: low 7 bits | 0x80, 1
+    geometry = bytes([0x0A, len(field) - 128 | 0x80, 1]) + field
+    data = bytes([0x12, len(geometry) - 128 | 0x80, 1]) + geometry + b"\x18\x04"
+    packet = wrap.SSL_WrapperPacket.FromString(data)
+    assert packet.geometry.field.boundary_width_goal_line == 250
+    assert packet.geometry.field.goal_substitution_area_width == 1200
+    assert packet.source == wrap.SSL_SOURCE_GRSIM
+    assert len(unknown_fields.UnknownFieldSet(packet)) == 0
+    assert len(unknown_fields.UnknownFieldSet(packet.geometry.field)) == 0
 
 
 def test_the_same_frame_from_yellow_uses_field_six():

@@ -4,9 +4,13 @@ A receive thread waits on the socket and drains it in batches (non-blocking read
 kernel queue is empty, at most ``max_batch`` per round): the kernel buffer (``receive_buffer_bytes``)
 absorbs bursts while a batch is processed, and a round that still finds more than
 ``flood_batch`` datagrams keeps only each camera's newest frame (older ones are superseded) and
-says so. Every datagram goes through erforce_interfaces.ssl_vision (decoding, checks, vision
+says so. Every datagram goes through erforce_interfaces.ssl_vision (decoding, checks, capture order, vision
 clock) and erforce_ball_model.vision_tracking (the true ball, robot streams); the node converts
-and publishes. Bad datagrams are dropped with a throttled warning naming the problem.
+and publishes. What it drops is named by its class (ssl_vision.DROP_CLASSES; per camera for t_capture going
+back and clock jumps): a throttled warning per class starts with it in brackets, a counter per class goes into
+the periodic statistics line ("dropped by class: ..."). The tracker's choices (a ball candidate older than the
+ball already taken from another camera, reflections, a switch to another ball) are normal with overlapping
+cameras: counted in the same line, not warned about.
 
 A camera frame goes out in one ``/vision/robots`` message (what the stack reads): the tracker's ball, if it
 took one from this frame, and the robots, both teams. It goes out first, ``/vision/ball`` after it (a
@@ -24,7 +28,10 @@ Stamps (``time_source``): ``estimate`` maps t_capture onto this host's clock (ss
 field, whose vision host's clock runs at the pace of ours); ``capture`` puts the cameras' capture times on one
 timeline (ssl_vision.CaptureTimeline) and publishes it on ``/clock``: the time of an outside world that is not
 paced to our clock (a simulator at 0.6x or flat out), which the AI side's nodes follow with use_sim_time;
-``vision`` takes t_capture as ROS time (our plant, which owns /clock)."""
+``vision`` takes t_capture as ROS time (our plant, which owns /clock). In front of all three, the capture order
+(ssl_vision.CaptureOrder) drops a camera's frame that is not after its newest (``t_capture_back``) and passes a
+step back of at least ``clock_jump_s`` on as a restart; the estimate and the timeline refuse a new line until
+confirmed (``clock_jump``)."""
 
 from __future__ import annotations
 
@@ -46,20 +53,21 @@ from rclpy.node import Node
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.vision_pass import (
     I_CAMERA,
+    I_CAPTURE_BACK,
+    I_CAPTURE_STEP,
     I_DEVIATION,
-    I_LAST_T_CAPTURE,
     I_OFFSET,
     I_POINTS,
     I_SAMPLE,
     I_STAMP,
     I_T_CAPTURE,
-    I_TIMELINE_STATUS,
     PASS_BAD_STAMP,
-    PASS_CAPTURE_REFUSED,
     PASS_CLOCK_JUMP,
     PASS_DONE,
     PASS_FALLBACK,
     PASS_GENERAL,
+    PASS_T_CAPTURE_BACK,
+    PASS_TIMELINE_JUMP,
     FramePass,
 )
 from erforce_ball_model.vision_pass import load_kernels as load_pass_kernels
@@ -90,12 +98,16 @@ from erforce_interfaces.robot_config import (
     turned_half,
 )
 from erforce_interfaces.ssl_vision import (
+    CAPTURE_OLD,
+    CAPTURE_RESTART,
     CLOCK_CAMERAS,
+    DROP_CLASSES,
     TEAMS,
     TIME_CAPTURE,
     TIME_ESTIMATE,
     TIME_SOURCES,
     TIME_VISION,
+    CaptureOrder,
     CaptureTimeline,
     ClockJump,
     DecodedPacket,
@@ -103,9 +115,11 @@ from erforce_interfaces.ssl_vision import (
     PaceCheck,
     SslDecodeError,
     VisionClock,
+    capture_back_text,
+    capture_restart_text,
     clock_jump_text,
     decode_wrapper,
-    timeline_refusal_text,
+    timeline_jump_text,
 )
 
 _KIND = contract.VISION_DETECTION_KINDS
@@ -186,8 +200,11 @@ class SslVisionBridge(Node):
         self._last_geometry = None
         self._params = NodeParams(self, SCHEMA, build_config)
         v = self._values = self._params.values
-        self._apply(self._params.built)
         self.stats: Counter[str] = Counter()
+        # per drop class (per camera where the class says so): what was dropped, counted by the inputs of the class
+        self.drops: Counter[str] = Counter()
+        self._capture_order = CaptureOrder()
+        self._apply(self._params.built)
         self.cpu_ns: deque[int] = deque(maxlen=100_000)  # per datagram, since the last statistics line
         # per datagram after the first statistics period (start-up), in whole microseconds: for the p99 of a run
         self._cpu_us_counts: Counter[int] = Counter()
@@ -242,6 +259,8 @@ class SslVisionBridge(Node):
                 self._timeline = CaptureTimeline(config.clock_jump_s)
             else:  # in place: the timeline's time (and /clock) go on
                 self._timeline.set_jump_s(config.clock_jump_s)
+            # a camera's t_capture back by more than a clock jump is its clock starting again, not an old frame
+            self._capture_order.restart_s = config.clock_jump_s
             self._ours = float(TEAMS.index(config.ours))  # as in the decoder's team column
             if old is None:
                 self._tracker = VisionTracker(config.field)
@@ -263,7 +282,7 @@ class SslVisionBridge(Node):
     def _bind_pass(self) -> None:
         """The compiled pass on the current clock, tracker and team (at start and after parameter changes)."""
         self._frame_pass = FramePass(self._vision_clock, self._tracker, self._pose_readers, self._ours, self._n_ours,
-                                     timeline=self._timeline)
+                                     self._capture_order, timeline=self._timeline)
 
     # ------------------------------------------------------------------ receiving
     def _receive_loop(self) -> None:
@@ -289,6 +308,14 @@ class SslVisionBridge(Node):
                 if not self.context.ok():
                     return  # shutting down: the context went (SIGINT) before destroy_node stopped this thread
                 self._warn.warn("batch", f"ssl_vision_bridge: batch failed: {exc!r}")
+
+    def _drop(self, kind: str, text: str, camera_id: int | None = None, n: int = 1) -> None:
+        """Count ``n`` inputs of the drop class ``kind`` (a DROP_CLASSES key; per camera when ``camera_id`` is
+        given) and warn, throttled per class, naming it."""
+        assert kind in DROP_CLASSES, kind
+        key = kind if camera_id is None else f"{kind} (camera {camera_id})"
+        self.drops[key] += n
+        self._warn.warn(key, f"ssl_vision_bridge: [{kind}] {text}")
 
     def handle_batch(self, batch: list[bytes], t_receive_s: float, t_wall_s: float | None = None) -> None:
         """Decode, track and publish a batch of datagrams received at ``t_receive_s`` (ROS clock) and ``t_wall_s``
@@ -378,19 +405,23 @@ class SslVisionBridge(Node):
         fp = self._frame_pass
         info = fp.info.tolist()
         camera_id = int(info[I_CAMERA])
+        if status == PASS_T_CAPTURE_BACK:
+            self.stats["dropped_clock"] += 1
+            self._drop("t_capture_back", capture_back_text(camera_id, info[I_T_CAPTURE], info[I_CAPTURE_BACK]),
+                       camera_id)
+            return
         if status == PASS_CLOCK_JUMP:
             self.stats["dropped_clock"] += 1
-            self._warn.warn(f"clock{camera_id}", "ssl_vision_bridge: " + clock_jump_text(
-                camera_id, info[I_SAMPLE], info[I_DEVIATION], info[I_OFFSET]))
+            self._drop("clock_jump", clock_jump_text(camera_id, info[I_SAMPLE], info[I_DEVIATION], info[I_OFFSET]),
+                       camera_id)
             return
-        if status == PASS_CAPTURE_REFUSED:
+        if status == PASS_TIMELINE_JUMP:
             self.stats["dropped_clock"] += 1
-            self._warn.warn(f"clock{camera_id}", "ssl_vision_bridge: " + timeline_refusal_text(
-                camera_id, int(info[I_TIMELINE_STATUS]), info[I_T_CAPTURE], info[I_LAST_T_CAPTURE]))
+            self._drop("clock_jump", timeline_jump_text(camera_id, info[I_T_CAPTURE], info[I_CAPTURE_STEP]), camera_id)
             return
         if status == PASS_BAD_STAMP:
             self.stats["dropped_clock"] += 1
-            self._warn.warn("stamp", f"ssl_vision_bridge: camera {camera_id}: no valid stamp ({info[I_STAMP]!r})")
+            self._drop("bad_stamp", f"camera {camera_id}: no valid stamp ({info[I_STAMP]!r})")
             return
         ball = self._tracker.use_ball(action, camera_id, t_s, ball_x, ball_y) if action else None
         self.stats["frames"] += 1
@@ -408,17 +439,21 @@ class SslVisionBridge(Node):
             if ball is not None and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
                 self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
         except ConversionError as exc:
-            self._warn.warn("publish", f"ssl_vision_bridge: camera {camera_id}: not published: {exc}")
+            self._drop("unpublishable", f"camera {camera_id}: not published: {exc}")
 
     def _decode(self, data: bytes) -> DecodedPacket | None:
         try:
             packet = decode_wrapper(data)
         except SslDecodeError as exc:
             self.stats["dropped_bad"] += 1
-            self._warn.warn(f"decode_{exc.kind}", f"ssl_vision_bridge: dropped a datagram: {exc}")
+            self._drop(exc.kind, f"dropped a datagram: {exc}")
             return None
         if packet.problems:
-            self._warn.warn("detection", "ssl_vision_bridge: " + "; ".join(packet.problems))
+            by_kind: dict[str, list] = {}
+            for problem in packet.problems:
+                by_kind.setdefault(problem.kind, []).append(problem)
+            for kind, problems in by_kind.items():
+                self._drop(kind, "; ".join(p.text for p in problems), n=sum(p.count for p in problems))
         return packet
 
     def _use(self, packet: DecodedPacket, t_receive_s: float) -> None:
@@ -439,12 +474,15 @@ class SslVisionBridge(Node):
         self._periods_logged += 1
         if self._time_mode == TIME_ESTIMATE:
             self._check_pace()
-        s = self.stats
+        s, tracker = self.stats, self._tracker
+        by_class = ", ".join(f"{key} {n}" for key, n in sorted(self.drops.items())) or "none"
         self.get_logger().info(
             f"ssl_vision_bridge: {s['datagrams']} datagrams, {s['frames']} camera frames; dropped: {s['dropped_bad']} "
             f"bad, {s['dropped_clock']} clock, {s['superseded_in_flood']} superseded in floods; CPU per datagram "
             f"median {ms[len(ms) // 2] * 1e-6:.3f} ms, p99 {ms[int(0.99 * (len(ms) - 1))] * 1e-6:.3f} ms; "
-            f"since the first period: {self._cpu_p99_text()}"
+            f"since the first period: {self._cpu_p99_text()}; dropped by class: {by_class}; tracker: "
+            f"{tracker.late_balls} late balls, {tracker.false_candidates} false candidates, {tracker.switches} ball "
+            "switches"
         )
 
     def _check_pace(self) -> None:
@@ -480,8 +518,8 @@ class SslVisionBridge(Node):
         kept += newest.values()
         superseded = len(packets) - len(kept)
         self.stats["superseded_in_flood"] += superseded
-        self._warn.warn("flood", f"ssl_vision_bridge: packet flood ({len(packets)} datagrams in one read): "
-                                 f"{superseded} older camera frames skipped")
+        self._drop("superseded", f"packet flood ({len(packets)} datagrams in one read): {superseded} older camera "
+                                 "frames skipped", n=superseded)
         return kept
 
     # ----------------------------------------------------------------- geometry
@@ -506,7 +544,7 @@ class SslVisionBridge(Node):
             if self._geometry_sink is not None:
                 self._geometry_sink(field, None if model is None else params)
         except (ValueError, ConversionError) as exc:
-            self._warn.warn("geometry", f"ssl_vision_bridge: geometry not used: {exc}")
+            self._drop("geometry", f"geometry not used: {exc}")
             return
         self.get_logger().info(
             f"SSL geometry: field {geometry.length_m:g} x {geometry.width_m:g} m"
@@ -520,8 +558,17 @@ class SslVisionBridge(Node):
         monotonic wall clock."""
         cfg = self._config
         if self._tracker.field is None:  # nothing is judged against a field the world has not given
-            self.stats["waiting_geometry"] += 1
+            self.drops["no_geometry"] += 1  # counted, not warned: the node said once that it waits
             return
+        verdict, back_s = self._capture_order.take(frame.camera_id, frame.t_capture_s)
+        if verdict == CAPTURE_OLD:
+            self.stats["dropped_clock"] += 1
+            self._drop("t_capture_back", capture_back_text(frame.camera_id, frame.t_capture_s, back_s),
+                       frame.camera_id)
+            return
+        if verdict == CAPTURE_RESTART:
+            self._warn.warn(f"t_capture_restart (camera {frame.camera_id})",
+                            "ssl_vision_bridge: " + capture_restart_text(frame.camera_id, back_s))
         if self._time_mode == TIME_VISION:
             t_s = frame.t_capture_s
         else:
@@ -531,13 +578,13 @@ class SslVisionBridge(Node):
                 else:
                     t_s = self._vision_clock.to_receiver(frame.camera_id, frame.t_capture_s, frame.t_sent_s,
                                                          t_receive_s)
-            except ClockJump as exc:
+            except ClockJump as exc:  # its kind: clock_jump, or t_capture_back from the timeline
                 self.stats["dropped_clock"] += 1
-                self._warn.warn(f"clock{frame.camera_id}", f"ssl_vision_bridge: {exc}")
+                self._drop(exc.kind, str(exc), frame.camera_id)
                 return
         if not (math.isfinite(t_s) and t_s >= 0.0):
             self.stats["dropped_clock"] += 1
-            self._warn.warn("stamp", f"ssl_vision_bridge: camera {frame.camera_id}: no valid stamp ({t_s!r})")
+            self._drop("bad_stamp", f"camera {frame.camera_id}: no valid stamp ({t_s!r})")
             return
         balls, robots = frame.balls, frame.robots  # rows: ssl_vision's BALL_COLUMNS, ROBOT_COLUMNS
         if cfg.flip:  # into the field frame (ssl_sim_bridge turns teleports back the same way)
@@ -563,7 +610,7 @@ class SslVisionBridge(Node):
                 now_s = self._timeline.newest_s if self._time_mode == TIME_CAPTURE else t_receive_s
                 self._publish_detections(cfg, frame.camera_id, now_s - t_s, balls.tolist(), robots.tolist())
         except ConversionError as exc:
-            self._warn.warn("publish", f"ssl_vision_bridge: camera {frame.camera_id}: not published: {exc}")
+            self._drop("unpublishable", f"camera {frame.camera_id}: not published: {exc}")
 
     def _publish_robots(self, t_s: float, rows: list[list[float]], balls: list[tuple[float, float]]) -> None:
         """The frame's ``balls`` and robots in one /vision/robots, then each robot's vision_pose that has a reader
@@ -573,8 +620,8 @@ class SslVisionBridge(Node):
         for team, robot_id, x, y, theta, _confidence in rows:
             side, robot_id = int(team != self._ours), int(robot_id)  # side 0: ours, 1: opponents
             if math.isnan(theta):
-                self._warn.warn("theta", f"ssl_vision_bridge: {TEAMS[int(team)]} robot {robot_id} without "
-                                         "orientation: not published")
+                self._drop("no_orientation", f"{TEAMS[int(team)]} robot {robot_id} without orientation: not "
+                                             "published")
                 continue
             table.append((_TEAM_CODES[side], robot_id, x, y, theta))
             if side == 0 and robot_id >= n_ours:

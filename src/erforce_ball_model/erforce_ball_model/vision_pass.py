@@ -7,9 +7,11 @@ hypotheses, its choice of the ball, the ball filter's usual update (``tracking.b
 stays outside: a new ball and the ball filter's unusual frames (``VisionTracker.use_ball`` with the action
 returned) and anything unusual, which the pass hands back before it has changed any state (``PASS_FALLBACK``: the
 bridge runs the general path on the datagram, which names the problem) or after (``PASS_GENERAL``: a robot
-the points cannot carry; ``PASS_CLOCK_JUMP``, ``PASS_CAPTURE_REFUSED``, ``PASS_BAD_STAMP``: the frame is refused,
-``info`` says why). The stamp comes from the time source's mode (ssl_vision.TIME_SOURCES: the vision clock's
-estimate, ``t_capture`` as it is, or the capture timeline).
+the points cannot carry; ``PASS_T_CAPTURE_BACK``, ``PASS_CLOCK_JUMP``, ``PASS_TIMELINE_JUMP``,
+``PASS_BAD_STAMP``: the frame is refused, ``info`` says why). Every frame passes the cameras' capture order first
+(ssl_vision.CaptureOrder, the one check that a camera's frame is after its newest, in every time source); the
+stamp comes from the time source's mode (ssl_vision.TIME_SOURCES: the vision clock's estimate, ``t_capture`` as
+it is, or the capture timeline).
 The message written is byte for byte what ``conversions.vision_robots_points_cdr`` builds from the same
 points. The kernels it calls from other modules (ssl_vision's clock and timeline, the tracker's) are compiled
 into it, and numba's cache of this module goes by this file alone: a change there needs this file touched
@@ -50,16 +52,20 @@ from erforce_interfaces.conversions import MAX_ABS_VALUE, vision_robots_template
 from erforce_interfaces.numba_support import compiled_for, numba
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import (
+    CAPTURE_OLD,
+    CAPTURE_RESTART,
     MM,
     TIME_CAPTURE,
     TIME_ESTIMATE,
     TIME_VISION,
-    TIMELINE_LAST_T_CAPTURE,
+    TIMELINE_BACK,
     CameraFrame,
+    CaptureOrder,
     CaptureTimeline,
     DecodeLimits,
     RobotSighting,
     VisionClock,
+    capture_step,
     clock_step,
     detection_rows,
     detection_rows_size,
@@ -67,16 +73,18 @@ from erforce_interfaces.ssl_vision import (
     timeline_step,
 )
 
-__all__ = ["PASS_BAD_STAMP", "PASS_CAPTURE_REFUSED", "PASS_CLOCK_JUMP", "PASS_DONE", "PASS_FALLBACK", "PASS_GENERAL",
-           "FramePass", "robot_points"]
+__all__ = ["PASS_BAD_STAMP", "PASS_CLOCK_JUMP", "PASS_DONE", "PASS_FALLBACK", "PASS_GENERAL", "PASS_TIMELINE_JUMP",
+           "PASS_T_CAPTURE_BACK", "FramePass", "robot_points"]
 
-PASS_DONE, PASS_GENERAL, PASS_FALLBACK, PASS_CLOCK_JUMP, PASS_BAD_STAMP, PASS_CAPTURE_REFUSED = range(6)
+(PASS_DONE, PASS_GENERAL, PASS_FALLBACK, PASS_CLOCK_JUMP, PASS_BAD_STAMP, PASS_T_CAPTURE_BACK,
+ PASS_TIMELINE_JUMP) = range(7)
 # info: the frame's camera, its robots (rows from ROBOTS_AT), those used, the points written (-1: general
 # path), then the clock's sample, deviation and offset (PASS_CLOCK_JUMP), the stamp (PASS_BAD_STAMP), or the
-# timeline's status, the frame's t_capture and the camera's previous one (PASS_CAPTURE_REFUSED)
+# frame's t_capture and its step [s] from the camera's newest (PASS_T_CAPTURE_BACK: how far before it, from the
+# capture order or the timeline; PASS_TIMELINE_JUMP: t_capture minus the timeline's newest, a line not confirmed)
 I_CAMERA, I_ROBOTS, I_USED, I_POINTS, I_SAMPLE, I_DEVIATION, I_OFFSET = range(7)
-I_STAMP = I_SAMPLE
-I_TIMELINE_STATUS, I_T_CAPTURE, I_LAST_T_CAPTURE = I_SAMPLE, I_DEVIATION, I_OFFSET
+I_STAMP = I_T_CAPTURE = I_SAMPLE
+I_CAPTURE_BACK = I_CAPTURE_STEP = I_DEVIATION
 
 _OURS_CODE, _OPPONENTS_CODE = float(contract.OURS.code), float(contract.OPPONENTS.code)
 _BALL_CODE = float(contract.VISION_BALL_CODE)
@@ -142,29 +150,34 @@ def _message(t_s, points, n_points, head, width_at, sizes_at, message):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _frame_pass(data, t_receive, time_mode, rows, limits, clock_window, clock_pending, clock_counts,
+def _frame_pass(data, t_receive, time_mode, rows, limits, last_capture, clock_window, clock_pending, clock_counts,
                 clock_params, timeline_cams, timeline_samples, timeline_glob, hyps, hits, candidates, tracks, used,
                 settings, ball_state, counts, ball_filter, shoot_samples, ball_model, pose_readers, ours_n_ours,
                 points, head, layout, message, info):
     """The datagram ``data`` received at ``t_receive`` (the ROS clock; with TIME_CAPTURE a monotonic wall clock)
-    through decoding, clock, tracker and message (see the module docstring): (status, message length or -1,
-    ball action, stamp, ball x, ball y)."""
+    through decoding, capture order, clock, tracker and message (see the module docstring): (status, message
+    length or -1, ball action, stamp, ball x, ball y)."""
     max_balls, max_robots = int(limits[0]), int(limits[1])
     status, n_balls, n_robots, n_rejected, geometry = detection_rows(
         data, rows, max_balls, max_robots, limits[2], limits[3], limits[4], limits[5])
-    if status != 0 or n_rejected != 0 or geometry:
+    if status != 0 or n_rejected != 0 or geometry or rows[4] != n_balls:  # rows[4]: the balls in the bytes
         return PASS_FALLBACK, -1, 0, 0.0, 0.0, 0.0
     camera = int(rows[3])
     info[I_CAMERA], info[I_ROBOTS], info[I_USED], info[I_POINTS] = camera, n_robots, 0, -1
+    verdict, back_s = capture_step(last_capture, camera, rows[1], limits[6], False)
+    if verdict == CAPTURE_OLD:
+        info[I_T_CAPTURE], info[I_CAPTURE_BACK] = rows[1], back_s
+        return PASS_T_CAPTURE_BACK, -1, 0, 0.0, 0.0, 0.0
+    if verdict == CAPTURE_RESTART:  # nothing changed: the general path takes it and says so
+        return PASS_FALLBACK, -1, 0, 0.0, 0.0, 0.0
     if time_mode == TIME_VISION:
         t_s = rows[1]
     elif time_mode == TIME_CAPTURE:
         refused, t_s = timeline_step(timeline_cams, timeline_samples, timeline_glob, camera, rows[1], rows[2],
                                      t_receive)
-        if refused:
-            info[I_TIMELINE_STATUS], info[I_T_CAPTURE] = refused, rows[1]
-            info[I_LAST_T_CAPTURE] = timeline_cams[camera, TIMELINE_LAST_T_CAPTURE]
-            return PASS_CAPTURE_REFUSED, -1, 0, 0.0, 0.0, 0.0
+        if refused:  # t_s: how far back (an old frame) or the step (a line not confirmed)
+            info[I_T_CAPTURE], info[I_CAPTURE_STEP] = rows[1], t_s
+            return (PASS_T_CAPTURE_BACK if refused == TIMELINE_BACK else PASS_TIMELINE_JUMP), -1, 0, 0.0, 0.0, 0.0
     else:
         refused, t_s, sample, deviation, offset = clock_step(clock_window, clock_pending, clock_counts,
                                                              clock_params, camera, rows[1], rows[2], t_receive)
@@ -213,25 +226,30 @@ class FramePass:
     stay in the object until the next call."""
 
     def __init__(self, clock: VisionClock, tracker: VisionTracker, pose_readers: np.ndarray, ours: float,
-                 n_ours: int, limits: DecodeLimits = _LIMITS, timeline: CaptureTimeline | None = None) -> None:
+                 n_ours: int, order: CaptureOrder | None = None, limits: DecodeLimits = _LIMITS,
+                 timeline: CaptureTimeline | None = None) -> None:
+        """``order``, ``timeline``: the cameras' capture order and capture timeline the node's general path shares
+        (new ones when None); the order's restart_s is read here, at binding."""
         if (limits.max_balls, limits.max_robots_per_team) != (_LIMITS.max_balls, _LIMITS.max_robots_per_team):
             raise ValueError("FramePass: the rows' layout is compiled for the default counts")
         self.rows = np.empty(detection_rows_size(limits.max_balls, limits.max_robots_per_team))
+        self.order = order or CaptureOrder()
         self.limits = np.array([limits.max_balls, limits.max_robots_per_team, limits.max_abs_coordinate_m / MM,
-                                limits.max_robot_id, limits.max_camera_id, limits.max_time_s], float)
+                                limits.max_robot_id, limits.max_camera_id, limits.max_time_s,
+                                self.order.restart_s], float)
         self.points = np.empty((2 * limits.max_robots_per_team + 1, len(contract.VISION_ROBOT_FIELDS)))
         template = vision_robots_template()
         self.head = np.frombuffer(template.head, np.uint8)
         self.layout = np.array([template.width_at, template.sizes_at], np.int64)
         self.message = np.zeros(len(template.head) + self.points.nbytes + 1, np.uint8)
         self.message_view = memoryview(self.message)
-        self.info = np.zeros(8)
+        self.info = np.zeros(7)
         if len(tracker.candidates) < limits.max_balls or len(tracker.used) < 2 * limits.max_robots_per_team:
             raise ValueError("FramePass: the tracker's buffers are smaller than a frame's detections")
         self.tracker = tracker
         timeline = timeline or CaptureTimeline()
-        self._state = (self.rows, self.limits, clock.window, clock.pending, clock.counts, clock.params,
-                       timeline.cams, timeline.samples, timeline.glob, tracker.hyps,
+        self._state = (self.rows, self.limits, self.order.last_s, clock.window, clock.pending, clock.counts,
+                       clock.params, timeline.cams, timeline.samples, timeline.glob, tracker.hyps,
                        tracker.hits, tracker.candidates, tracker.robot_tracks, tracker.used, tracker.settings,
                        tracker.ball_state, tracker.counts, tracker.ball.s, tracker.ball.shoot, tracker.ball.m,
                        pose_readers, np.array([ours, n_ours], float),

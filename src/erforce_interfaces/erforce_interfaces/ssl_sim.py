@@ -5,7 +5,7 @@ No rclpy here: the bridge and server nodes convert messages, call these, and han
 
 Ports (the protocol's defaults): simulator control 10300, robot control 10301 (blue) and 10302
 (yellow); a simulator answers each ``RobotControl`` with a ``RobotControlResponse`` to the sender's
-address. grSim takes ``grSim_Packet`` on 20011 and reports ``grSim_Robots_Status`` on 30011 (blue)
+address. grSim takes ``grSim_Packet`` on 20011 and reports ``Robots_Status`` on 30011 (blue)
 and 30012 (yellow).
 
 Frames and units: the protocol's field coordinates are metres with the origin at the centre (grSim's
@@ -25,7 +25,6 @@ import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
-from google.protobuf import unknown_fields
 from google.protobuf.message import DecodeError
 
 from erforce_interfaces.robot_config import half_turn, turned_half
@@ -33,7 +32,6 @@ from erforce_interfaces.ssl_proto import (
     grsim_pb2,
     ssl_gc_common_pb2,
     ssl_simulation_control_pb2,
-    ssl_simulation_error_pb2,
     ssl_simulation_robot_control_pb2,
     ssl_simulation_robot_feedback_pb2,
 )
@@ -60,13 +58,9 @@ RPM_PER_RADPS = 60.0 / (2.0 * math.pi)
 ERROR_UNSUPPORTED = "ERFORCE_UNSUPPORTED"
 ERROR_UNKNOWN_ROBOT = "ERFORCE_UNKNOWN_ROBOT"
 ERROR_INVALID = "ERFORCE_INVALID"
+MAX_ERROR_TEXT_CHARS = 500  # of one SimulatorError as the bridge reports it: a log line, not a dump
 
 _TEAM_ENUM = {"yellow": ssl_gc_common_pb2.YELLOW, "blue": ssl_gc_common_pb2.BLUE}
-CAPABILITY = {
-    "wheel": ssl_simulation_error_pb2.SIMULATOR_CAPABILITY_MOVE_WHEEL_VELOCITY,
-    "local": ssl_simulation_error_pb2.SIMULATOR_CAPABILITY_MOVE_LOCAL_VELOCITY,
-    "global": ssl_simulation_error_pb2.SIMULATOR_CAPABILITY_MOVE_GLOBAL_VELOCITY,
-}
 
 
 class WireError(ValueError):
@@ -178,19 +172,18 @@ def encode_grsim_commands(commands: Iterable[RobotCommand], team: str, timestamp
 
 @dataclass(frozen=True)
 class Feedback:
-    """What a simulator answered: ball contact per robot id, and its errors as text."""
+    """What a simulator answered: ball contact per robot id, and its errors as text ("code: message")."""
 
     ball_contact: dict[int, bool] = field(default_factory=dict)
     errors: tuple[str, ...] = ()
 
 
 def _error_text(error) -> str:
-    parts = [error.code or "no code"]
-    if error.HasField("unsupported_capability"):
-        parts.append(ssl_simulation_error_pb2.SimulatorCapability.Name(error.unsupported_capability))
-    if error.message:
-        parts.append(error.message)
-    return ": ".join(parts)
+    """A SimulatorError as "code: message" (either may be missing), cut to MAX_ERROR_TEXT_CHARS."""
+    text = ": ".join(part for part in (error.code or "no code", error.message) if part)
+    if len(text) > MAX_ERROR_TEXT_CHARS:
+        text = text[:MAX_ERROR_TEXT_CHARS] + f"... ({len(text)} characters)"
+    return text
 
 
 def decode_robot_control_response(data: bytes) -> Feedback:
@@ -203,13 +196,13 @@ def decode_robot_control_response(data: bytes) -> Feedback:
 
 
 def decode_grsim_robots_status(data: bytes) -> Feedback:
-    msg = _parse(grsim_pb2.grSim_Robots_Status(), data, "grSim_Robots_Status")
-    _count("grSim_Robots_Status", msg.robots_status)
+    msg = _parse(grsim_pb2.Robots_Status(), data, "Robots_Status")
+    _count("Robots_Status", msg.robots_status)
     contact = {}
     for status in msg.robots_status:
         if status.robot_id < 0:
-            raise WireError(f"grSim_Robots_Status: negative robot id {status.robot_id}")
-        contact[_robot_id("grSim_Robots_Status", status.robot_id)] = bool(status.infrared)
+            raise WireError(f"Robots_Status: negative robot id {status.robot_id}")
+        contact[_robot_id("Robots_Status", status.robot_id)] = bool(status.infrared)
     return Feedback(contact)
 
 
@@ -296,7 +289,7 @@ def decode_robot_control(data: bytes) -> list[MoveRequest]:
             values, kind, limits = (m.forward, m.left, m.angular), "local", (MAX_LINEAR_MPS,) * 2
         elif kind == "global_velocity":
             m = cmd.move_command.global_velocity
-            values, kind, limits = (m.vel_x, m.vel_y, m.vel_angular), "global", (MAX_LINEAR_MPS,) * 2
+            values, kind, limits = (m.x, m.y, m.angular), "global", (MAX_LINEAR_MPS,) * 2
         elif kind == "wheel_velocity":
             m = cmd.move_command.wheel_velocity
             values = (m.front_right, m.back_right, m.back_left, m.front_left)
@@ -324,18 +317,15 @@ def local_from_global(vx_mps: float, vy_mps: float, yaw_rad: float) -> tuple[flo
 
 @dataclass(frozen=True)
 class SimError:
+    """A SimulatorError as this stack's simulator sends it: one of the ERROR_* codes and a sentence."""
+
     code: str
     message: str
-    capability: str | None = None  # a CAPABILITY key
 
 
 def _add_errors(container, errors: Iterable[SimError]) -> None:
     for e in errors:
-        out = container.add()
-        out.code = e.code
-        out.message = e.message
-        if e.capability is not None:
-            out.unsupported_capability = CAPABILITY[e.capability]
+        container.add(code=e.code, message=e.message)
 
 
 def encode_robot_control_response(ball_contact: dict[int, bool], errors: Iterable[SimError] = ()) -> bytes:
@@ -405,8 +395,7 @@ def decode_simulator_command(data: bytes) -> SimulatorRequest:
     speed = None
     if control.HasField("simulation_speed"):
         speed = finite_value("simulation_speed", control.simulation_speed, 1e3)
-    has_config = len(unknown_fields.UnknownFieldSet(msg)) > 0  # SimulatorConfig, not defined here
-    return SimulatorRequest(ball, tuple(unsupported), tuple(robots), speed, has_config)
+    return SimulatorRequest(ball, tuple(unsupported), tuple(robots), speed, msg.HasField("config"))
 
 
 def encode_simulator_response(errors: Iterable[SimError] = ()) -> bytes:
@@ -506,7 +495,7 @@ def plan_robot_control(requests: Iterable[MoveRequest], robot_ids: Iterable[int]
                 twist = (*local_from_global(r.velocity[0], r.velocity[1], yaw), r.velocity[2])
         elif r.kind == "wheel":
             errors.setdefault("wheel", SimError(
-                ERROR_UNSUPPORTED, "wheel velocities are not supported: send local or global velocities", "wheel"))
+                ERROR_UNSUPPORTED, "wheel velocities are not supported: send local or global velocities"))
         kick = r.kick_speed_mps
         if kick > 0.0 and r.kick_angle_deg != 0.0:
             errors.setdefault("chip", SimError(ERROR_UNSUPPORTED, "chip kicks are not simulated (kick_angle != 0)"))

@@ -2,8 +2,9 @@
 
 ``decode_wrapper`` turns one UDP datagram (an ``SSL_WrapperPacket``) into plain values in the
 contract's units (metres, radians, seconds), or raises ``SslDecodeError`` naming what is wrong
-with it. Single bad detections (a NaN coordinate, a robot without an id) are dropped and named
-in ``DecodedPacket.problems``; the rest of the frame is kept. A detection-only datagram is read
+with it. Single bad detections (a NaN coordinate, a robot without an id), ball candidates beyond
+``max_balls`` and a bad geometry or ball model are dropped and named in ``DecodedPacket.problems``,
+each with its class (``DROP_CLASSES``); the rest of the frame is kept. A detection-only datagram is read
 and checked (wire format, required fields, ranges) in one compiled pass over its bytes into arrays
 (``DetectionArrays``), because the protobuf runtime's Python objects cost about 3 us per robot and
 a full field's vision is 600 datagrams/s; anything else (geometry, a datagram the pass declines)
@@ -16,7 +17,9 @@ clock: per camera, the offset is the smallest ``t_receive - t_sent`` seen over a
 (network and scheduling delays only ever add to it), so ``t_capture + offset`` is the capture
 time on the receiver's clock. A camera whose clock jumps is noticed when its samples leave the
 window's offset by more than ``jump_s`` for several packets over ``confirm_s``; then the window
-restarts from the new samples (details in the class).
+restarts from the new samples (details in the class). ``CaptureOrder``, in front of every time source,
+drops a camera's frame whose ``t_capture`` is not after the newest one taken (a duplicate or a stale frame);
+``CaptureTimeline`` puts the cameras' capture times on one timeline (``time_source: capture``).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 from google.protobuf.message import DecodeError
 
-from erforce_interfaces.numba_support import numba
+from erforce_interfaces.numba_support import compiled_for, numba
 from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrapper_pb2
 
 MM = 1e-3
@@ -41,9 +44,40 @@ SSL_VISION_PORT = 10006
 SSL_SIMULATOR_VISION_PORT = 10020
 
 
+#: The classes of vision input a receiver drops, each named in its warnings and counted on its own: whole
+#: datagrams (SslDecodeError.kind), parts of a datagram (Problem.kind), whole frames (CaptureOrder, the
+#: vision clock, floods) and what the bridge cannot publish.
+DROP_CLASSES = {
+    "empty": "an empty datagram",
+    "size": "a datagram larger than a UDP datagram can be",
+    "garbage": "not an SSL_WrapperPacket (truncated or garbage)",
+    "missing": "a packet without its required fields",
+    "content": "a packet with neither detection nor geometry",
+    "counts": "a frame with more robots per team than there are ids",
+    "camera": "a frame with a camera id beyond the limit",
+    "time": "a frame whose t_capture or t_sent is not a time",
+    "bad_ball": "a ball candidate with a non-finite or absurd position or confidence",
+    "bad_robot_id": "a robot without a valid id",
+    "bad_robot_place": "a robot with a non-finite or absurd position or confidence",
+    "bad_orientation": "a robot's non-finite or absurd orientation (the robot is kept without it)",
+    "too_many_balls": "ball candidates beyond max_balls in one frame (the frame's robots are kept)",
+    "geometry": "a geometry packet with absurd field sizes",
+    "ball_model": "a geometry packet's ball model that is not one",
+    "t_capture_back": "a camera's frame whose t_capture is not after that camera's newest frame (CaptureOrder)",
+    "clock_jump": "a camera's frame while its clock seems to have jumped, not yet confirmed (the vision clock's "
+                  "offset; a new line of t_capture on the capture timeline: a restart, a step ahead)",
+    "no_geometry": "a camera frame before the world's SSL geometry (field: from_geometry; said once at start)",
+    "bad_stamp": "a frame whose stamp on the receiver's clock is not a time",
+    "superseded": "a camera's frame left for a newer one of the same camera in a flood",
+    "no_orientation": "a robot without orientation (not published)",
+    "unpublishable": "a frame whose message cannot be built",
+}
+
+
 class SslDecodeError(ValueError):
-    """A datagram that is not a usable SSL_WrapperPacket; the message says why, ``kind`` what class of problem
-    (for throttling warnings per kind): empty, size, garbage, missing, content, counts, camera, time."""
+    """A datagram that is not a usable SSL_WrapperPacket; the message says why, ``kind`` its class in
+    DROP_CLASSES (for a warning and a counter per class): empty, size, garbage, missing, content, counts,
+    camera, time."""
 
     def __init__(self, kind: str, message: str) -> None:
         super().__init__(message)
@@ -142,11 +176,19 @@ class FieldGeometry:
     cameras: tuple[CameraPose, ...] = ()
 
 
+class Problem(NamedTuple):
+    """A dropped part of an otherwise good packet: its class (a DROP_CLASSES key), what and how many."""
+
+    kind: str
+    text: str
+    count: int = 1
+
+
 @dataclass
 class DecodedPacket:
     detection: DetectionArrays | None = None
     geometry: FieldGeometry | None = None
-    problems: list[str] = field(default_factory=list)  # dropped parts of an otherwise good packet
+    problems: list[Problem] = field(default_factory=list)  # dropped parts of an otherwise good packet
 
     @property
     def frame(self) -> CameraFrame | None:
@@ -187,7 +229,7 @@ def decode_wrapper(data: bytes, limits: DecodeLimits = DecodeLimits()) -> Decode
     return out
 
 
-def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[str],
+def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[Problem],
                   declined_ok: bool = False) -> DetectionArrays | None:
     """The detection frame of a datagram; None (with ``declined_ok``) when the compiled pass declines it:
     a geometry part, no detection, anything the pass does not read as a valid detection-only datagram."""
@@ -209,25 +251,31 @@ def _decode_frame(data: bytes, limits: DecodeLimits, problems: list[str],
     balls = out[at:at + 4 * n_balls_kept].reshape(n_balls_kept, 4)
     at += 4 * max_balls
     robots = out[at:at + 6 * n_robots_kept].reshape(n_robots_kept, 6)
-    if n_rejected:
-        at += 12 * max_robots
-        _sort_out(int(out[3]), robots, out[at:at + 7 * n_rejected].reshape(n_rejected, 7), problems)
-    return DetectionArrays(int(out[3]), int(out[0]), float(out[1]), float(out[2]), balls, robots)
+    camera_id = int(out[3])
+    if n_rejected or out[4] != n_balls_kept:  # out[4]: the ball candidates in the bytes
+        rejected = out[at + 12 * max_robots:][:7 * n_rejected].reshape(n_rejected, 7)
+        named = int(np.count_nonzero(rejected[:, 0] == _REJECT_BALL))
+        excess = int(out[4]) - n_balls_kept - named
+        if excess > 0:
+            problems.append(Problem("too_many_balls", f"camera {camera_id}: {int(out[4])} ball candidates, "
+                                                      f"{excess} beyond the first {max_balls} dropped", excess))
+        _sort_out(camera_id, robots, rejected, problems)
+    return DetectionArrays(camera_id, int(out[0]), float(out[1]), float(out[2]), balls, robots)
 
 
 _DECLINED, _BAD_CAMERA, _BAD_T_CAPTURE, _BAD_T_SENT, _BAD_COUNTS = range(1, 6)  # detection_rows' status
 
 
 def _frame_error(status: int, out: np.ndarray, limits: DecodeLimits) -> None:
-    _frame_number, t_capture, t_sent, camera_id, n_balls, n_blue, n_yellow = out[:7].tolist()
+    _frame_number, t_capture, t_sent, camera_id, _n_balls, n_blue, n_yellow = out[:7].tolist()
     camera_id = int(camera_id)
     if status == _BAD_CAMERA:
         raise SslDecodeError("camera", f"camera_id {camera_id} exceeds {limits.max_camera_id}")
     if status in (_BAD_T_CAPTURE, _BAD_T_SENT):
         name, value = ("t_capture", t_capture) if status == _BAD_T_CAPTURE else ("t_sent", t_sent)
         raise SslDecodeError("time", f"{name} {value!r} is not a time in [0, {limits.max_time_s:g}] s")
-    raise SslDecodeError("counts", f"camera {camera_id}: absurd counts ({int(n_balls)} balls, {int(n_blue)} blue, "
-                                   f"{int(n_yellow)} yellow robots)")
+    raise SslDecodeError("counts", f"camera {camera_id}: absurd robot counts ({int(n_blue)} blue, {int(n_yellow)} "
+                                   f"yellow; at most {limits.max_robots_per_team} per team)")
 
 
 def detection_rows_size(max_balls: int, max_robots: int) -> int:
@@ -237,20 +285,23 @@ def detection_rows_size(max_balls: int, max_robots: int) -> int:
 _REJECT_BALL, _REJECT_ID, _REJECT_PLACE, _REJECT_THETA = range(4)
 
 
-def _sort_out(camera_id: int, robots: np.ndarray, rejected: np.ndarray, problems: list[str]) -> None:
+def _sort_out(camera_id: int, robots: np.ndarray, rejected: np.ndarray, problems: list[Problem]) -> None:
     """Name the detections the pass dropped; fix or drop the orientations it left (rare: plain Python)."""
     for kind, team_index, robot_id, x, y, value, row in rejected.tolist():
         team = TEAMS[int(team_index)]
         if kind == _REJECT_BALL:
-            problems.append(f"camera {camera_id}: ball at ({x!r}, {y!r}) mm, confidence {value!r} dropped")
+            problems.append(Problem("bad_ball", f"camera {camera_id}: ball at ({x!r}, {y!r}) mm, confidence "
+                                                f"{value!r} dropped"))
         elif kind == _REJECT_ID:
-            problems.append(f"camera {camera_id}: {team} robot without a valid id dropped")
+            problems.append(Problem("bad_robot_id", f"camera {camera_id}: {team} robot without a valid id dropped"))
         elif kind == _REJECT_PLACE:
-            problems.append(f"camera {camera_id}: {team} robot {int(robot_id)} at ({x!r}, {y!r}) mm dropped")
+            problems.append(Problem("bad_robot_place", f"camera {camera_id}: {team} robot {int(robot_id)} at "
+                                                       f"({x!r}, {y!r}) mm dropped"))
         elif math.isfinite(value) and abs(value) <= 100.0:  # an orientation beyond [-pi, pi]: turned back
             robots[int(row), 4] = math.remainder(value, 2.0 * math.pi)
         else:
-            problems.append(f"camera {camera_id}: {team} robot {int(robot_id)} orientation {value!r} dropped")
+            problems.append(Problem("bad_orientation", f"camera {camera_id}: {team} robot {int(robot_id)} "
+                                                       f"orientation {value!r} dropped"))
             robots[int(row), 4] = math.nan
 
 
@@ -345,14 +396,16 @@ def _sub_fields(buf, i, end, scratch, values, present):
 @numba.njit(cache=True, error_model="numpy")
 def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, max_time):
     """One pass over an SSL_WrapperPacket's bytes into ``out`` (``detection_rows_size`` doubles); returns
-    (status, balls kept, robots kept, rejected, geometry part seen). Status 0: a valid detection frame;
-    _DECLINED: bytes the runtime should judge (not the wire format, required fields missing, no
-    detection); else the frame's first check that failed (_frame_error).
+    (status, balls kept, robots kept, rejected, geometry part seen). Status 0: a valid detection frame
+    (ball candidates beyond max_balls left out: the count in the bytes says how many); _DECLINED: bytes
+    the runtime should judge (not the wire format, required fields missing, no detection); else the frame's
+    first check that failed (_frame_error).
 
     out: frame_number, t_capture, t_sent, camera_id; the counts of balls, blue and yellow robots in
     the bytes; at 8 the valid balls (DetectionArrays' columns, metres), at 8 + 4 max_balls the valid
     robots (blue, then yellow; at most max_robots per team), after 2 max_robots of them the rejected
-    detections as rows [kind, team, robot_id, x, y, value, robot row] for _sort_out.
+    detections as rows [kind, team, robot_id, x, y, value, robot row] for _sort_out (at most max_balls of
+    them balls: a robot's always has room).
     (Arrays in, numbers out: numba boxes each returned array for about 1.5 us.)
     """
     out[:8] = 0.0
@@ -361,7 +414,7 @@ def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, 
     at_rejected = at_robots + 12 * max_robots
     max_rejected = max_balls + 2 * max_robots
     kept = np.zeros(3, np.int64)  # balls, blue, yellow
-    n_rejected = 0
+    n_rejected = rejected_balls = 0
     scratch = np.zeros(8, np.uint8)
     values = np.zeros(9)
     present = np.zeros(9, np.bool_)
@@ -439,7 +492,9 @@ def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, 
                         kept[1 + team] += 1
                         if present[5] and not -np.pi <= theta <= np.pi:
                             kind = 3
-                if kind >= 0 and n_rejected < max_rejected:
+                if kind >= 0 and n_rejected < max_rejected and (number != 5 or rejected_balls < max_balls):
+                    if number == 5:
+                        rejected_balls += 1
                     row = at_rejected + 7 * n_rejected
                     out[row], out[row + 1], out[row + 2], out[row + 3], out[row + 4] = kind, team, values[2], x, y
                     out[row + 5] = values[5] if kind == 3 else c
@@ -466,19 +521,19 @@ def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, 
         status = 3
     elif not (np.isfinite(out[2]) and 0.0 <= out[2] <= max_time):
         status = 4
-    elif out[4] > max_balls or out[5] > max_robots or out[6] > max_robots:
+    elif out[5] > max_robots or out[6] > max_robots:
         status = 5
     else:
         status = 0
     return status, kept[0], n_blue + n_yellow, n_rejected, geometry
 
 
-def _decode_geometry(geo, limits: DecodeLimits, problems: list[str]) -> FieldGeometry | None:
+def _decode_geometry(geo, limits: DecodeLimits, problems: list[Problem]) -> FieldGeometry | None:
     f = geo.field
     sizes = (f.field_length, f.field_width, f.goal_width, f.goal_depth, f.boundary_width)
     limit_mm = limits.max_abs_coordinate_m / MM
     if not (f.field_length > 0 and f.field_width > 0 and all(0 <= s <= limit_mm for s in sizes)):
-        problems.append(f"geometry dropped: field sizes {sizes} mm out of range")
+        problems.append(Problem("geometry", f"geometry dropped: field sizes {sizes} mm out of range"))
         return None
     model = None
     if geo.HasField("models") and geo.models.HasField("straight_two_phase"):
@@ -488,10 +543,10 @@ def _decode_geometry(geo, limits: DecodeLimits, problems: list[str]) -> FieldGeo
         ):
             model = BallModelFromVision(m.acc_slide, m.acc_roll, m.k_switch)
         else:
-            problems.append(
-                f"ball model dropped: acc_slide {m.acc_slide!r}, acc_roll {m.acc_roll!r}, k_switch {m.k_switch!r} "
-                "(need acc_slide < acc_roll < 0 m/s^2, 0 < k_switch <= 1)"
-            )
+            problems.append(Problem(
+                "ball_model", f"ball model dropped: acc_slide {m.acc_slide!r}, acc_roll {m.acc_roll!r}, k_switch "
+                              f"{m.k_switch!r} (need acc_slide < acc_roll < 0 m/s^2, 0 < k_switch <= 1)"
+            ))
     cameras = []
     for calib in geo.calib:
         pos = (calib.derived_camera_world_tx, calib.derived_camera_world_ty, calib.derived_camera_world_tz)
@@ -573,8 +628,15 @@ def encode_geometry(geometry: FieldGeometry, focal_length_px: float = 500.0) -> 
 #: receiver's clock, ``t_capture`` as it is (already ROS time), the cameras' capture times on one timeline.
 TIME_SOURCES = ("estimate", "vision", "capture")
 TIME_ESTIMATE, TIME_VISION, TIME_CAPTURE = range(3)
+
+
 class ClockJump(ValueError):
-    """A frame refused because its camera's clock seems to have jumped (not yet confirmed)."""
+    """A frame refused by a time source: ``kind`` is its DROP_CLASSES class, ``clock_jump`` (the camera's clock
+    seems to have jumped, not yet confirmed) or ``t_capture_back`` (an old frame the capture timeline refuses)."""
+
+    def __init__(self, message: str, kind: str = "clock_jump") -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 # The clock's state is arrays (one compiled step per frame, also inside the bridge's compiled pass): per camera
@@ -690,6 +752,67 @@ class VisionClock:
         return stamp
 
 
+# --------------------------------------------------------------------------------- capture order
+CAPTURE_NEW, CAPTURE_OLD, CAPTURE_RESTART = range(3)  # capture_step's verdicts
+
+
+@numba.njit(cache=True, error_model="numpy")
+def capture_step(last_capture, camera, t_capture, restart_s, take_restart):
+    """CaptureOrder.take on its array: (verdict, how far [s] t_capture lies before the camera's newest). A new
+    frame is recorded, an old one not; a restart only with ``take_restart`` (a compiled pass leaves it to the
+    general path, which says so)."""
+    back_s = last_capture[camera] - t_capture
+    if back_s < 0.0:
+        last_capture[camera] = t_capture
+        return CAPTURE_NEW, back_s
+    if back_s < restart_s:
+        return CAPTURE_OLD, back_s
+    if take_restart:
+        last_capture[camera] = t_capture
+    return CAPTURE_RESTART, back_s
+
+
+class CaptureOrder:
+    """Per camera, the newest ``t_capture`` taken: the one order check in front of every time source. A frame
+    that is not after it is old news (the same frame again, a frame the network reordered, a second sender with
+    the same camera id) and is dropped (``t_capture_back``); one at least ``restart_s`` before it means the
+    camera's clock started again (a simulator or a log restarted) and is passed on: ``vision`` stamps it as it
+    is, the vision clock (``estimate``) and the capture timeline (``capture``) refuse its line as a clock jump
+    until confirmed. Cameras 0 .. CLOCK_CAMERAS - 1; a compiled pass runs ``capture_step`` on ``last_s``."""
+
+    def __init__(self, restart_s: float = 0.25) -> None:
+        self.last_s = np.full(CLOCK_CAMERAS, -np.inf)
+        self.restart_s = restart_s
+        self._step = compiled_for(capture_step, self.last_s, 0, 0.0, 0.25, True)  # no type matching per frame
+
+    @property
+    def restart_s(self) -> float:
+        return self._restart_s
+
+    @restart_s.setter
+    def restart_s(self, value: float) -> None:
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f"CaptureOrder: restart_s must be finite and > 0, got {value!r}")
+        self._restart_s = float(value)
+
+    def take(self, camera_id: int, t_capture_s: float) -> tuple[int, float]:
+        """(CAPTURE_NEW / CAPTURE_OLD (drop the frame) / CAPTURE_RESTART, how far [s] it lies before the camera's
+        newest frame)."""
+        if not 0 <= camera_id < CLOCK_CAMERAS:
+            raise ValueError(f"camera_id {camera_id} is not in 0..{CLOCK_CAMERAS - 1}")
+        return self._step(self.last_s, int(camera_id), float(t_capture_s), self._restart_s, True)
+
+
+def capture_back_text(camera_id: int, t_capture_s: float, back_s: float) -> str:
+    return (f"camera {camera_id}: frame with t_capture {t_capture_s:.6f} s dropped: {back_s * 1e3:.3f} ms before "
+            "the camera's newest frame (the same frame again, a reordered or a stale one)")
+
+
+def capture_restart_text(camera_id: int, back_s: float) -> str:
+    return (f"camera {camera_id}: t_capture went back by {back_s:.3f} s: not an old frame but the camera's clock "
+            "starting again (passed on to the time source)")
+
+
 class PaceCheck:
     """Whether a camera's clock runs at the pace of the receiver's, seen through VisionClock's offsets.
 
@@ -728,7 +851,6 @@ _TL_COLUMNS = 17
 (_TG_NEWEST, _TG_JUMPS, _TG_JUMP_S, _TG_MAX_RATE, _TG_CONFIRM_PACKETS, _TG_CONFIRM_S, _TG_SHARE_S, _TG_REF_AGE_S,
  _TG_CALIBRATION) = range(9)
 TIMELINE_OK, TIMELINE_BACK, TIMELINE_JUMP = range(3)  # timeline_step's status
-TIMELINE_LAST_T_CAPTURE = _TL_LAST_T  # the column of a camera's newest accepted t_capture (for a refusal's text)
 _RATE_BASE_S = 0.5  # a camera's rate (its seconds per receiver second) is measured over 0.5 .. 1 s of receive time
 
 
@@ -801,7 +923,9 @@ def _calibrate(cams, samples, glob, camera, t_sent, w):
 
 @numba.njit(cache=True, error_model="numpy")
 def timeline_step(cams, samples, glob, camera, t_capture, t_sent, w):
-    """CaptureTimeline.stamp on the arrays: (status, stamp); the stamp NaN unless status is TIMELINE_OK."""
+    """CaptureTimeline.stamp on the arrays: (status, value). TIMELINE_OK: the stamp; TIMELINE_BACK (an old
+    frame: drop class t_capture_back): how far [s] t_capture lies before the camera's newest on its line;
+    TIMELINE_JUMP (a line not yet confirmed: clock_jump): t_capture minus the newest accepted one [s]."""
     row = cams[camera]
     jump_s, max_rate = glob[_TG_JUMP_S], glob[_TG_MAX_RATE]
     # the capture time a frame may move on by: jump_s, and at max_rate over the receive time the camera was
@@ -816,14 +940,14 @@ def timeline_step(cams, samples, glob, camera, t_capture, t_sent, w):
             row[_TL_PENDING] = 0.0
             if row[_TL_CALIBRATED] == 0.0:
                 _calibrate(cams, samples, glob, camera, t_sent, w)
-        elif -jump_s < dt <= 0.0:  # a late or repeated frame, or a small step back: refused until the clock passes
-            return TIMELINE_BACK, np.nan
+        elif -jump_s < dt <= 0.0:  # an old frame (CaptureOrder in front drops most): until the clock passes
+            return TIMELINE_BACK, -dt
         else:  # the camera's clock stepped back or too far forward: a new line once confirmed
             n = int(row[_TL_PENDING])
             if n > 0:
                 step = t_capture - row[_TL_PENDING_LAST_T]
                 if -jump_s < step <= 0.0:  # a late frame of the new line
-                    return (TIMELINE_BACK if dt <= 0.0 else TIMELINE_JUMP), np.nan
+                    return TIMELINE_BACK, -step
                 if not 0.0 < step <= jump_s + max_rate * max(w - row[_TL_PENDING_LAST_W], 0.0):
                     n = 0  # not one line: count again
             if n == 0:
@@ -831,7 +955,7 @@ def timeline_step(cams, samples, glob, camera, t_capture, t_sent, w):
             n += 1
             row[_TL_PENDING], row[_TL_PENDING_LAST_T], row[_TL_PENDING_LAST_W] = n, t_capture, w
             if n < glob[_TG_CONFIRM_PACKETS] or w - row[_TL_PENDING_FIRST_W] < glob[_TG_CONFIRM_S]:
-                return (TIMELINE_BACK if dt <= 0.0 else TIMELINE_JUMP), np.nan
+                return TIMELINE_JUMP, dt
             glob[_TG_JUMPS] += 1.0
             row[_TL_PENDING] = 0.0
             _anchor(cams, samples, glob, camera, t_capture, t_sent, w, row[_TL_PENDING_FIRST_T], n)
@@ -849,10 +973,17 @@ def timeline_step(cams, samples, glob, camera, t_capture, t_sent, w):
     return TIMELINE_OK, stamp
 
 
-def timeline_refusal_text(camera_id: int, status: int, t_capture_s: float, last_t_capture_s: float) -> str:
-    what = "is not after" if status == TIMELINE_BACK else "jumps too far past"
-    return (f"camera {camera_id}: t_capture {t_capture_s:.6f} s {what} its previous {last_t_capture_s:.6f} s (the "
-            "camera's clock stepped, or a frame out of order); frame refused until a new time line is confirmed")
+def timeline_jump_text(camera_id: int, t_capture_s: float, step_s: float) -> str:
+    what = f"goes back {-step_s:.3f} s" if step_s <= 0.0 else f"jumps {step_s:.3f} s ahead"
+    return (f"camera {camera_id}: t_capture {t_capture_s:.6f} s {what} from its newest on the capture timeline (the "
+            "camera's clock stepped); frame refused until its new time line is confirmed")
+
+
+def timeline_refusal(camera_id: int, status: int, t_capture_s: float, value: float) -> ClockJump:
+    """A refused frame's ClockJump, its class and text from timeline_step's (status, value)."""
+    if status == TIMELINE_BACK:
+        return ClockJump(capture_back_text(camera_id, t_capture_s, value), "t_capture_back")
+    return ClockJump(timeline_jump_text(camera_id, t_capture_s, value))
 
 
 class CaptureTimeline:
@@ -868,14 +999,17 @@ class CaptureTimeline:
       carried forward at its measured rate to the receive time, minus the new camera's ``t_sent`` (equal
       network delays). The median of ``calibration_frames`` such samples becomes its offset, or the offset
       of a calibrated camera within ``share_s`` of it (one clock: SSL-Vision's host, a simulator).
-    - A camera's ``t_capture`` that is not after its previous one refuses the frame (TIMELINE_BACK): a late
-      or repeated frame, or a step back by less than ``jump_s``, which passes once the clock passes its
-      previous time. One more than ``jump_s`` back, or later by more than ``jump_s`` plus ``max_rate``
-      times the receive time the camera was silent (a world at most that much faster than the receiver;
-      TIMELINE_JUMP), starts a suspected new line: once ``confirm_packets`` frames on it span ``confirm_s``
-      of receive time, the camera's clock has jumped (a restarted simulator) and it is measured again as a
-      new camera; without another camera to measure it against, its new line continues the timeline one
-      frame period after its newest stamp. A stalled receiver's backlog is consecutive frames and passes.
+    - A camera's ``t_capture`` that is not after its previous one refuses the frame (TIMELINE_BACK, drop
+      class t_capture_back): a late or repeated frame, or a step back by less than ``jump_s``, which passes
+      once the clock passes its previous time (CaptureOrder in front drops these first; the timeline sees one
+      only while its newest and the order's differ, around a line not yet confirmed). One more than ``jump_s``
+      back (which CaptureOrder passes on as a restart), or later by more than ``jump_s`` plus ``max_rate``
+      times the receive time the camera was silent (a world at most that much faster than the receiver),
+      starts a suspected new line (TIMELINE_JUMP, drop class clock_jump): once ``confirm_packets`` frames on
+      it span ``confirm_s`` of receive time, the camera's clock has jumped (a restarted simulator) and it is
+      measured again as a new camera; without another camera to measure it against, its new line continues
+      the timeline one frame period after its newest stamp. A stalled receiver's backlog is consecutive
+      frames and passes.
     - A camera's stamps strictly increase; ``newest_s`` (what /clock says), the newest stamp of a
       calibrated camera, never goes back. Vision that stops holds it; when vision resumes, it moves on by
       the capture time that passed.
@@ -924,12 +1058,11 @@ class CaptureTimeline:
         return float(self.cams[camera_id, _TL_LAST_T])
 
     def stamp(self, camera_id: int, t_capture_s: float, t_sent_s: float, t_wall_s: float) -> float:
-        """The frame's stamp on the timeline; raises ClockJump (naming it) for a refused frame."""
+        """The frame's stamp on the timeline; raises ClockJump (its kind the drop class) for a refused frame."""
         if not 0 <= camera_id < CLOCK_CAMERAS:
             raise ValueError(f"camera_id {camera_id} is not in 0..{CLOCK_CAMERAS - 1}")
-        last = self.last_capture_s(camera_id)
-        status, stamp = timeline_step(self.cams, self.samples, self.glob, camera_id, float(t_capture_s),
+        status, value = timeline_step(self.cams, self.samples, self.glob, camera_id, float(t_capture_s),
                                       float(t_sent_s), float(t_wall_s))
         if status != TIMELINE_OK:
-            raise ClockJump(timeline_refusal_text(camera_id, status, t_capture_s, last))
-        return stamp
+            raise timeline_refusal(camera_id, status, t_capture_s, value)
+        return value

@@ -24,7 +24,7 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n9erforce_interfaces/ssl_proto/ssl_gc_referee_message.proto\x12\x0b\x65rforce.ssl\"\xbb\x0b\n\x07Referee\x12\x18\n\x10packet_timestamp\x18\x01 \x02(\x04\x12)\n\x05stage\x18\x02 \x02(\x0e\x32\x1a.erforce.ssl.Referee.Stage\x12\x17\n\x0fstage_time_left\x18\x03 \x01(\x11\x12-\n\x07\x63ommand\x18\x04 \x02(\x0e\x32\x1c.erforce.ssl.Referee.Command\x12\x17\n\x0f\x63ommand_counter\x18\x05 \x02(\r\x12\x19\n\x11\x63ommand_timestamp\x18\x06 \x02(\x04\x12-\n\x06yellow\x18\x07 \x02(\x0b\x32\x1d.erforce.ssl.Referee.TeamInfo\x12+\n\x04\x62lue\x18\x08 \x02(\x0b\x32\x1d.erforce.ssl.Referee.TeamInfo\x12\x37\n\x13\x64\x65signated_position\x18\t \x01(\x0b\x32\x1a.erforce.ssl.Referee.Point\x12\"\n\x1a\x62lue_team_on_positive_half\x18\n \x01(\x08\x12\x32\n\x0cnext_command\x18\x0c \x01(\x0e\x32\x1c.erforce.ssl.Referee.Command\x12%\n\x1d\x63urrent_action_time_remaining\x18\x0f \x01(\x03\x12\x19\n\x11source_identifier\x18\x12 \x01(\t\x12\x16\n\x0estatus_message\x18\x14 \x01(\t\x1a\xab\x01\n\x08TeamInfo\x12\x0c\n\x04name\x18\x01 \x02(\t\x12\r\n\x05score\x18\x02 \x02(\r\x12\x11\n\tred_cards\x18\x03 \x02(\r\x12\x1d\n\x11yellow_card_times\x18\x04 \x03(\rB\x02\x10\x01\x12\x14\n\x0cyellow_cards\x18\x05 \x02(\r\x12\x10\n\x08timeouts\x18\x06 \x02(\r\x12\x14\n\x0ctimeout_time\x18\x07 \x02(\r\x12\x12\n\ngoalkeeper\x18\x08 \x02(\r\x1a\x1d\n\x05Point\x12\t\n\x01x\x18\x01 \x02(\x02\x12\t\n\x01y\x18\x02 \x02(\x02\"\xd1\x02\n\x05Stage\x12\x19\n\x15NORMAL_FIRST_HALF_PRE\x10\x00\x12\x15\n\x11NORMAL_FIRST_HALF\x10\x01\x12\x14\n\x10NORMAL_HALF_TIME\x10\x02\x12\x1a\n\x16NORMAL_SECOND_HALF_PRE\x10\x03\x12\x16\n\x12NORMAL_SECOND_HALF\x10\x04\x12\x14\n\x10\x45XTRA_TIME_BREAK\x10\x05\x12\x18\n\x14\x45XTRA_FIRST_HALF_PRE\x10\x06\x12\x14\n\x10\x45XTRA_FIRST_HALF\x10\x07\x12\x13\n\x0f\x45XTRA_HALF_TIME\x10\x08\x12\x19\n\x15\x45XTRA_SECOND_HALF_PRE\x10\t\x12\x15\n\x11\x45XTRA_SECOND_HALF\x10\n\x12\x1a\n\x16PENALTY_SHOOTOUT_BREAK\x10\x0b\x12\x14\n\x10PENALTY_SHOOTOUT\x10\x0c\x12\r\n\tPOST_GAME\x10\r\"\x86\x03\n\x07\x43ommand\x12\x08\n\x04HALT\x10\x00\x12\x08\n\x04STOP\x10\x01\x12\x10\n\x0cNORMAL_START\x10\x02\x12\x0f\n\x0b\x46ORCE_START\x10\x03\x12\x1a\n\x16PREPARE_KICKOFF_YELLOW\x10\x04\x12\x18\n\x14PREPARE_KICKOFF_BLUE\x10\x05\x12\x1a\n\x16PREPARE_PENALTY_YELLOW\x10\x06\x12\x18\n\x14PREPARE_PENALTY_BLUE\x10\x07\x12\x16\n\x12\x44IRECT_FREE_YELLOW\x10\x08\x12\x14\n\x10\x44IRECT_FREE_BLUE\x10\t\x12\x18\n\x14INDIRECT_FREE_YELLOW\x10\n\x12\x16\n\x12INDIRECT_FREE_BLUE\x10\x0b\x12\x12\n\x0eTIMEOUT_YELLOW\x10\x0c\x12\x10\n\x0cTIMEOUT_BLUE\x10\r\x12\x0f\n\x0bGOAL_YELLOW\x10\x0e\x12\r\n\tGOAL_BLUE\x10\x0f\x12\x19\n\x15\x42\x41LL_PLACEMENT_YELLOW\x10\x10\x12\x17\n\x13\x42\x41LL_PLACEMENT_BLUE\x10\x11')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n9erforce_interfaces/ssl_proto/ssl_gc_referee_message.proto\x12\x0b\x65rforce.ssl\"\xdd\x0e\n\x07Referee\x12\x18\n\x10packet_timestamp\x18\x01 \x02(\x04\x12)\n\x05stage\x18\x02 \x02(\x0e\x32\x1a.erforce.ssl.Referee.Stage\x12\x17\n\x0fstage_time_left\x18\x03 \x01(\x12\x12-\n\x07\x63ommand\x18\x04 \x02(\x0e\x32\x1c.erforce.ssl.Referee.Command\x12\x17\n\x0f\x63ommand_counter\x18\x05 \x02(\r\x12\x19\n\x11\x63ommand_timestamp\x18\x06 \x02(\x04\x12-\n\x06yellow\x18\x07 \x02(\x0b\x32\x1d.erforce.ssl.Referee.TeamInfo\x12+\n\x04\x62lue\x18\x08 \x02(\x0b\x32\x1d.erforce.ssl.Referee.TeamInfo\x12\x37\n\x13\x64\x65signated_position\x18\t \x01(\x0b\x32\x1a.erforce.ssl.Referee.Point\x12\"\n\x1a\x62lue_team_on_positive_half\x18\n \x01(\x08\x12\x32\n\x0cnext_command\x18\x0c \x01(\x0e\x32\x1c.erforce.ssl.Referee.Command\x12%\n\x1d\x63urrent_action_time_remaining\x18\x0f \x01(\x03\x12\x19\n\x11source_identifier\x18\x12 \x01(\t\x12\x39\n\nmatch_type\x18\x13 \x01(\x0e\x32\x16.erforce.ssl.MatchType:\rUNKNOWN_MATCH\x12\x16\n\x0estatus_message\x18\x14 \x01(\t\x1a\xf0\x03\n\x08TeamInfo\x12\x0c\n\x04name\x18\x01 \x02(\t\x12\r\n\x05score\x18\x02 \x02(\r\x12\x11\n\tred_cards\x18\x03 \x02(\r\x12\x1d\n\x11yellow_card_times\x18\x04 \x03(\rB\x02\x10\x01\x12\x14\n\x0cyellow_cards\x18\x05 \x02(\r\x12\x10\n\x08timeouts\x18\x06 \x02(\r\x12\x14\n\x0ctimeout_time\x18\x07 \x02(\r\x12\x12\n\ngoalkeeper\x18\x08 \x02(\r\x12\x14\n\x0c\x66oul_counter\x18\t \x01(\r\x12\x1f\n\x17\x62\x61ll_placement_failures\x18\n \x01(\r\x12\x16\n\x0e\x63\x61n_place_ball\x18\x0c \x01(\x08\x12\x18\n\x10max_allowed_bots\x18\r \x01(\r\x12\x1f\n\x17\x62ot_substitution_intent\x18\x0e \x01(\x08\x12\'\n\x1f\x62\x61ll_placement_failures_reached\x18\x0f \x01(\x08\x12 \n\x18\x62ot_substitution_allowed\x18\x10 \x01(\x08\x12\x1e\n\x16\x62ot_substitutions_left\x18\x11 \x01(\r\x12\"\n\x1a\x62ot_substitution_time_left\x18\x12 \x01(\r\x12*\n\nhull_color\x18\x13 \x01(\x0e\x32\x16.erforce.ssl.HullColor\x1a\x1d\n\x05Point\x12\t\n\x01x\x18\x01 \x02(\x02\x12\t\n\x01y\x18\x02 \x02(\x02\"\xd1\x02\n\x05Stage\x12\x19\n\x15NORMAL_FIRST_HALF_PRE\x10\x00\x12\x15\n\x11NORMAL_FIRST_HALF\x10\x01\x12\x14\n\x10NORMAL_HALF_TIME\x10\x02\x12\x1a\n\x16NORMAL_SECOND_HALF_PRE\x10\x03\x12\x16\n\x12NORMAL_SECOND_HALF\x10\x04\x12\x14\n\x10\x45XTRA_TIME_BREAK\x10\x05\x12\x18\n\x14\x45XTRA_FIRST_HALF_PRE\x10\x06\x12\x14\n\x10\x45XTRA_FIRST_HALF\x10\x07\x12\x13\n\x0f\x45XTRA_HALF_TIME\x10\x08\x12\x19\n\x15\x45XTRA_SECOND_HALF_PRE\x10\t\x12\x15\n\x11\x45XTRA_SECOND_HALF\x10\n\x12\x1a\n\x16PENALTY_SHOOTOUT_BREAK\x10\x0b\x12\x14\n\x10PENALTY_SHOOTOUT\x10\x0c\x12\r\n\tPOST_GAME\x10\r\"\x96\x03\n\x07\x43ommand\x12\x08\n\x04HALT\x10\x00\x12\x08\n\x04STOP\x10\x01\x12\x10\n\x0cNORMAL_START\x10\x02\x12\x0f\n\x0b\x46ORCE_START\x10\x03\x12\x1a\n\x16PREPARE_KICKOFF_YELLOW\x10\x04\x12\x18\n\x14PREPARE_KICKOFF_BLUE\x10\x05\x12\x1a\n\x16PREPARE_PENALTY_YELLOW\x10\x06\x12\x18\n\x14PREPARE_PENALTY_BLUE\x10\x07\x12\x16\n\x12\x44IRECT_FREE_YELLOW\x10\x08\x12\x14\n\x10\x44IRECT_FREE_BLUE\x10\t\x12\x1c\n\x14INDIRECT_FREE_YELLOW\x10\n\x1a\x02\x08\x01\x12\x1a\n\x12INDIRECT_FREE_BLUE\x10\x0b\x1a\x02\x08\x01\x12\x12\n\x0eTIMEOUT_YELLOW\x10\x0c\x12\x10\n\x0cTIMEOUT_BLUE\x10\r\x12\x13\n\x0bGOAL_YELLOW\x10\x0e\x1a\x02\x08\x01\x12\x11\n\tGOAL_BLUE\x10\x0f\x1a\x02\x08\x01\x12\x19\n\x15\x42\x41LL_PLACEMENT_YELLOW\x10\x10\x12\x17\n\x13\x42\x41LL_PLACEMENT_BLUE\x10\x11J\x04\x08\x0b\x10\x0cJ\x04\x08\r\x10\x0eJ\x04\x08\x0e\x10\x0f*T\n\tMatchType\x12\x11\n\rUNKNOWN_MATCH\x10\x00\x12\x0f\n\x0bGROUP_PHASE\x10\x01\x12\x15\n\x11\x45LIMINATION_PHASE\x10\x02\x12\x0c\n\x08\x46RIENDLY\x10\x03*N\n\tHullColor\x12\x16\n\x12HULL_COLOR_UNKNOWN\x10\x00\x12\x13\n\x0fHULL_COLOR_DARK\x10\x01\x12\x14\n\x10HULL_COLOR_LIGHT\x10\x02')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -33,14 +33,26 @@ if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
   _globals['_REFEREE_TEAMINFO'].fields_by_name['yellow_card_times']._loaded_options = None
   _globals['_REFEREE_TEAMINFO'].fields_by_name['yellow_card_times']._serialized_options = b'\020\001'
+  _globals['_REFEREE_COMMAND'].values_by_name["INDIRECT_FREE_YELLOW"]._loaded_options = None
+  _globals['_REFEREE_COMMAND'].values_by_name["INDIRECT_FREE_YELLOW"]._serialized_options = b'\010\001'
+  _globals['_REFEREE_COMMAND'].values_by_name["INDIRECT_FREE_BLUE"]._loaded_options = None
+  _globals['_REFEREE_COMMAND'].values_by_name["INDIRECT_FREE_BLUE"]._serialized_options = b'\010\001'
+  _globals['_REFEREE_COMMAND'].values_by_name["GOAL_YELLOW"]._loaded_options = None
+  _globals['_REFEREE_COMMAND'].values_by_name["GOAL_YELLOW"]._serialized_options = b'\010\001'
+  _globals['_REFEREE_COMMAND'].values_by_name["GOAL_BLUE"]._loaded_options = None
+  _globals['_REFEREE_COMMAND'].values_by_name["GOAL_BLUE"]._serialized_options = b'\010\001'
+  _globals['_MATCHTYPE']._serialized_start=1962
+  _globals['_MATCHTYPE']._serialized_end=2046
+  _globals['_HULLCOLOR']._serialized_start=2048
+  _globals['_HULLCOLOR']._serialized_end=2126
   _globals['_REFEREE']._serialized_start=75
-  _globals['_REFEREE']._serialized_end=1542
-  _globals['_REFEREE_TEAMINFO']._serialized_start=607
-  _globals['_REFEREE_TEAMINFO']._serialized_end=778
-  _globals['_REFEREE_POINT']._serialized_start=780
-  _globals['_REFEREE_POINT']._serialized_end=809
-  _globals['_REFEREE_STAGE']._serialized_start=812
-  _globals['_REFEREE_STAGE']._serialized_end=1149
-  _globals['_REFEREE_COMMAND']._serialized_start=1152
-  _globals['_REFEREE_COMMAND']._serialized_end=1542
+  _globals['_REFEREE']._serialized_end=1960
+  _globals['_REFEREE_TEAMINFO']._serialized_start=666
+  _globals['_REFEREE_TEAMINFO']._serialized_end=1162
+  _globals['_REFEREE_POINT']._serialized_start=1164
+  _globals['_REFEREE_POINT']._serialized_end=1193
+  _globals['_REFEREE_STAGE']._serialized_start=1196
+  _globals['_REFEREE_STAGE']._serialized_end=1533
+  _globals['_REFEREE_COMMAND']._serialized_start=1536
+  _globals['_REFEREE_COMMAND']._serialized_end=1942
 # @@protoc_insertion_point(module_scope)

@@ -23,24 +23,25 @@ _sym_db = _symbol_database.Default()
 
 
 from erforce_interfaces.ssl_proto import ssl_gc_common_pb2 as erforce__interfaces_dot_ssl__proto_dot_ssl__gc__common__pb2
+from erforce_interfaces.ssl_proto import ssl_simulation_config_pb2 as erforce__interfaces_dot_ssl__proto_dot_ssl__simulation__config__pb2
 from erforce_interfaces.ssl_proto import ssl_simulation_error_pb2 as erforce__interfaces_dot_ssl__proto_dot_ssl__simulation__error__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n9erforce_interfaces/ssl_proto/ssl_simulation_control.proto\x12\x0b\x65rforce.ssl\x1a\x30\x65rforce_interfaces/ssl_proto/ssl_gc_common.proto\x1a\x37\x65rforce_interfaces/ssl_proto/ssl_simulation_error.proto\"\xa1\x01\n\x0cTeleportBall\x12\t\n\x01x\x18\x01 \x01(\x02\x12\t\n\x01y\x18\x02 \x01(\x02\x12\t\n\x01z\x18\x03 \x01(\x02\x12\n\n\x02vx\x18\x04 \x01(\x02\x12\n\n\x02vy\x18\x05 \x01(\x02\x12\n\n\x02vz\x18\x06 \x01(\x02\x12\x1e\n\x0fteleport_safely\x18\x07 \x01(\x08:\x05\x66\x61lse\x12\x13\n\x04roll\x18\x08 \x01(\x08:\x05\x66\x61lse\x12\x17\n\x08\x62y_force\x18\t \x01(\x08:\x05\x66\x61lse\"\xbc\x01\n\rTeleportRobot\x12 \n\x02id\x18\x01 \x02(\x0b\x32\x14.erforce.ssl.RobotId\x12\t\n\x01x\x18\x02 \x01(\x02\x12\t\n\x01y\x18\x03 \x01(\x02\x12\x13\n\x0borientation\x18\x04 \x01(\x02\x12\x0e\n\x03v_x\x18\x05 \x01(\x02:\x01\x30\x12\x0e\n\x03v_y\x18\x06 \x01(\x02:\x01\x30\x12\x14\n\tv_angular\x18\x07 \x01(\x02:\x01\x30\x12\x0f\n\x07present\x18\x08 \x01(\x08\x12\x17\n\x08\x62y_force\x18\t \x01(\x08:\x05\x66\x61lse\"\x92\x01\n\x10SimulatorControl\x12\x30\n\rteleport_ball\x18\x01 \x01(\x0b\x32\x19.erforce.ssl.TeleportBall\x12\x32\n\x0eteleport_robot\x18\x02 \x03(\x0b\x32\x1a.erforce.ssl.TeleportRobot\x12\x18\n\x10simulation_speed\x18\x03 \x01(\x02\"B\n\x10SimulatorCommand\x12.\n\x07\x63ontrol\x18\x01 \x01(\x0b\x32\x1d.erforce.ssl.SimulatorControl\"@\n\x11SimulatorResponse\x12+\n\x06\x65rrors\x18\x01 \x03(\x0b\x32\x1b.erforce.ssl.SimulatorError')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n9erforce_interfaces/ssl_proto/ssl_simulation_control.proto\x12\x0b\x65rforce.ssl\x1a\x30\x65rforce_interfaces/ssl_proto/ssl_gc_common.proto\x1a\x38\x65rforce_interfaces/ssl_proto/ssl_simulation_config.proto\x1a\x37\x65rforce_interfaces/ssl_proto/ssl_simulation_error.proto\"\xa1\x01\n\x0cTeleportBall\x12\t\n\x01x\x18\x01 \x01(\x02\x12\t\n\x01y\x18\x02 \x01(\x02\x12\t\n\x01z\x18\x03 \x01(\x02\x12\n\n\x02vx\x18\x04 \x01(\x02\x12\n\n\x02vy\x18\x05 \x01(\x02\x12\n\n\x02vz\x18\x06 \x01(\x02\x12\x1e\n\x0fteleport_safely\x18\x07 \x01(\x08:\x05\x66\x61lse\x12\x13\n\x04roll\x18\x08 \x01(\x08:\x05\x66\x61lse\x12\x17\n\x08\x62y_force\x18\t \x01(\x08:\x05\x66\x61lse\"\xbc\x01\n\rTeleportRobot\x12 \n\x02id\x18\x01 \x02(\x0b\x32\x14.erforce.ssl.RobotId\x12\t\n\x01x\x18\x02 \x01(\x02\x12\t\n\x01y\x18\x03 \x01(\x02\x12\x13\n\x0borientation\x18\x04 \x01(\x02\x12\x0e\n\x03v_x\x18\x05 \x01(\x02:\x01\x30\x12\x0e\n\x03v_y\x18\x06 \x01(\x02:\x01\x30\x12\x14\n\tv_angular\x18\x07 \x01(\x02:\x01\x30\x12\x0f\n\x07present\x18\x08 \x01(\x08\x12\x17\n\x08\x62y_force\x18\t \x01(\x08:\x05\x66\x61lse\"\x92\x01\n\x10SimulatorControl\x12\x30\n\rteleport_ball\x18\x01 \x01(\x0b\x32\x19.erforce.ssl.TeleportBall\x12\x32\n\x0eteleport_robot\x18\x02 \x03(\x0b\x32\x1a.erforce.ssl.TeleportRobot\x12\x18\n\x10simulation_speed\x18\x03 \x01(\x02\"p\n\x10SimulatorCommand\x12.\n\x07\x63ontrol\x18\x01 \x01(\x0b\x32\x1d.erforce.ssl.SimulatorControl\x12,\n\x06\x63onfig\x18\x02 \x01(\x0b\x32\x1c.erforce.ssl.SimulatorConfig\"@\n\x11SimulatorResponse\x12+\n\x06\x65rrors\x18\x01 \x03(\x0b\x32\x1b.erforce.ssl.SimulatorError')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'erforce_interfaces.ssl_proto.ssl_simulation_control_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_TELEPORTBALL']._serialized_start=182
-  _globals['_TELEPORTBALL']._serialized_end=343
-  _globals['_TELEPORTROBOT']._serialized_start=346
-  _globals['_TELEPORTROBOT']._serialized_end=534
-  _globals['_SIMULATORCONTROL']._serialized_start=537
-  _globals['_SIMULATORCONTROL']._serialized_end=683
-  _globals['_SIMULATORCOMMAND']._serialized_start=685
-  _globals['_SIMULATORCOMMAND']._serialized_end=751
-  _globals['_SIMULATORRESPONSE']._serialized_start=753
-  _globals['_SIMULATORRESPONSE']._serialized_end=817
+  _globals['_TELEPORTBALL']._serialized_start=240
+  _globals['_TELEPORTBALL']._serialized_end=401
+  _globals['_TELEPORTROBOT']._serialized_start=404
+  _globals['_TELEPORTROBOT']._serialized_end=592
+  _globals['_SIMULATORCONTROL']._serialized_start=595
+  _globals['_SIMULATORCONTROL']._serialized_end=741
+  _globals['_SIMULATORCOMMAND']._serialized_start=743
+  _globals['_SIMULATORCOMMAND']._serialized_end=855
+  _globals['_SIMULATORRESPONSE']._serialized_start=857
+  _globals['_SIMULATORRESPONSE']._serialized_end=921
 # @@protoc_insertion_point(module_scope)

@@ -24,15 +24,13 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n7erforce_interfaces/ssl_proto/ssl_simulation_error.proto\x12\x0b\x65rforce.ssl\"q\n\x0eSimulatorError\x12\x0c\n\x04\x63ode\x18\x01 \x01(\t\x12@\n\x16unsupported_capability\x18\x02 \x01(\x0e\x32 .erforce.ssl.SimulatorCapability\x12\x0f\n\x07message\x18\x03 \x01(\t*\xc2\x01\n\x13SimulatorCapability\x12 \n\x1cSIMULATOR_CAPABILITY_UNKNOWN\x10\x01\x12,\n(SIMULATOR_CAPABILITY_MOVE_WHEEL_VELOCITY\x10\x02\x12,\n(SIMULATOR_CAPABILITY_MOVE_LOCAL_VELOCITY\x10\x03\x12-\n)SIMULATOR_CAPABILITY_MOVE_GLOBAL_VELOCITY\x10\x04')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n7erforce_interfaces/ssl_proto/ssl_simulation_error.proto\x12\x0b\x65rforce.ssl\"/\n\x0eSimulatorError\x12\x0c\n\x04\x63ode\x18\x01 \x01(\t\x12\x0f\n\x07message\x18\x02 \x01(\t')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'erforce_interfaces.ssl_proto.ssl_simulation_error_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_SIMULATORCAPABILITY']._serialized_start=188
-  _globals['_SIMULATORCAPABILITY']._serialized_end=382
   _globals['_SIMULATORERROR']._serialized_start=72
-  _globals['_SIMULATORERROR']._serialized_end=185
+  _globals['_SIMULATORERROR']._serialized_end=119
 # @@protoc_insertion_point(module_scope)

@@ -24,7 +24,7 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n?erforce_interfaces/ssl_proto/ssl_simulation_robot_control.proto\x12\x0b\x65rforce.ssl\"c\n\x11MoveWheelVelocity\x12\x13\n\x0b\x66ront_right\x18\x01 \x02(\x02\x12\x12\n\nback_right\x18\x02 \x02(\x02\x12\x11\n\tback_left\x18\x03 \x02(\x02\x12\x12\n\nfront_left\x18\x04 \x02(\x02\"C\n\x11MoveLocalVelocity\x12\x0f\n\x07\x66orward\x18\x01 \x02(\x02\x12\x0c\n\x04left\x18\x02 \x02(\x02\x12\x0f\n\x07\x61ngular\x18\x03 \x02(\x02\"G\n\x12MoveGlobalVelocity\x12\r\n\x05vel_x\x18\x01 \x02(\x02\x12\r\n\x05vel_y\x18\x02 \x02(\x02\x12\x13\n\x0bvel_angular\x18\x03 \x02(\x02\"\xcd\x01\n\x10RobotMoveCommand\x12\x38\n\x0ewheel_velocity\x18\x01 \x01(\x0b\x32\x1e.erforce.ssl.MoveWheelVelocityH\x00\x12\x38\n\x0elocal_velocity\x18\x02 \x01(\x0b\x32\x1e.erforce.ssl.MoveLocalVelocityH\x00\x12:\n\x0fglobal_velocity\x18\x03 \x01(\x0b\x32\x1f.erforce.ssl.MoveGlobalVelocityH\x00\x42\t\n\x07\x63ommand\"\x92\x01\n\x0cRobotCommand\x12\n\n\x02id\x18\x01 \x02(\r\x12\x33\n\x0cmove_command\x18\x02 \x01(\x0b\x32\x1d.erforce.ssl.RobotMoveCommand\x12\x12\n\nkick_speed\x18\x03 \x01(\x02\x12\x15\n\nkick_angle\x18\x04 \x01(\x02:\x01\x30\x12\x16\n\x0e\x64ribbler_speed\x18\x05 \x01(\x02\"A\n\x0cRobotControl\x12\x31\n\x0erobot_commands\x18\x01 \x03(\x0b\x32\x19.erforce.ssl.RobotCommand')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n?erforce_interfaces/ssl_proto/ssl_simulation_robot_control.proto\x12\x0b\x65rforce.ssl\"c\n\x11MoveWheelVelocity\x12\x13\n\x0b\x66ront_right\x18\x01 \x02(\x02\x12\x12\n\nback_right\x18\x02 \x02(\x02\x12\x11\n\tback_left\x18\x03 \x02(\x02\x12\x12\n\nfront_left\x18\x04 \x02(\x02\"C\n\x11MoveLocalVelocity\x12\x0f\n\x07\x66orward\x18\x01 \x02(\x02\x12\x0c\n\x04left\x18\x02 \x02(\x02\x12\x0f\n\x07\x61ngular\x18\x03 \x02(\x02\";\n\x12MoveGlobalVelocity\x12\t\n\x01x\x18\x01 \x02(\x02\x12\t\n\x01y\x18\x02 \x02(\x02\x12\x0f\n\x07\x61ngular\x18\x03 \x02(\x02\"\xcd\x01\n\x10RobotMoveCommand\x12\x38\n\x0ewheel_velocity\x18\x01 \x01(\x0b\x32\x1e.erforce.ssl.MoveWheelVelocityH\x00\x12\x38\n\x0elocal_velocity\x18\x02 \x01(\x0b\x32\x1e.erforce.ssl.MoveLocalVelocityH\x00\x12:\n\x0fglobal_velocity\x18\x03 \x01(\x0b\x32\x1f.erforce.ssl.MoveGlobalVelocityH\x00\x42\t\n\x07\x63ommand\"\x92\x01\n\x0cRobotCommand\x12\n\n\x02id\x18\x01 \x02(\r\x12\x33\n\x0cmove_command\x18\x02 \x01(\x0b\x32\x1d.erforce.ssl.RobotMoveCommand\x12\x12\n\nkick_speed\x18\x03 \x01(\x02\x12\x15\n\nkick_angle\x18\x04 \x01(\x02:\x01\x30\x12\x16\n\x0e\x64ribbler_speed\x18\x05 \x01(\x02\"A\n\x0cRobotControl\x12\x31\n\x0erobot_commands\x18\x01 \x03(\x0b\x32\x19.erforce.ssl.RobotCommand')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -36,11 +36,11 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_MOVELOCALVELOCITY']._serialized_start=181
   _globals['_MOVELOCALVELOCITY']._serialized_end=248
   _globals['_MOVEGLOBALVELOCITY']._serialized_start=250
-  _globals['_MOVEGLOBALVELOCITY']._serialized_end=321
-  _globals['_ROBOTMOVECOMMAND']._serialized_start=324
-  _globals['_ROBOTMOVECOMMAND']._serialized_end=529
-  _globals['_ROBOTCOMMAND']._serialized_start=532
-  _globals['_ROBOTCOMMAND']._serialized_end=678
-  _globals['_ROBOTCONTROL']._serialized_start=680
-  _globals['_ROBOTCONTROL']._serialized_end=745
+  _globals['_MOVEGLOBALVELOCITY']._serialized_end=309
+  _globals['_ROBOTMOVECOMMAND']._serialized_start=312
+  _globals['_ROBOTMOVECOMMAND']._serialized_end=517
+  _globals['_ROBOTCOMMAND']._serialized_start=520
+  _globals['_ROBOTCOMMAND']._serialized_end=666
+  _globals['_ROBOTCONTROL']._serialized_start=668
+  _globals['_ROBOTCONTROL']._serialized_end=733
 # @@protoc_insertion_point(module_scope)

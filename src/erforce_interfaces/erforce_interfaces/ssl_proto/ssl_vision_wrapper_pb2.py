@@ -26,13 +26,15 @@ from erforce_interfaces.ssl_proto import ssl_vision_detection_pb2 as erforce__in
 from erforce_interfaces.ssl_proto import ssl_vision_geometry_pb2 as erforce__interfaces_dot_ssl__proto_dot_ssl__vision__geometry__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n5erforce_interfaces/ssl_proto/ssl_vision_wrapper.proto\x12\x0b\x65rforce.ssl\x1a\x37\x65rforce_interfaces/ssl_proto/ssl_vision_detection.proto\x1a\x36\x65rforce_interfaces/ssl_proto/ssl_vision_geometry.proto\"x\n\x11SSL_WrapperPacket\x12\x32\n\tdetection\x18\x01 \x01(\x0b\x32\x1f.erforce.ssl.SSL_DetectionFrame\x12/\n\x08geometry\x18\x02 \x01(\x0b\x32\x1d.erforce.ssl.SSL_GeometryData')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n5erforce_interfaces/ssl_proto/ssl_vision_wrapper.proto\x12\x0b\x65rforce.ssl\x1a\x37\x65rforce_interfaces/ssl_proto/ssl_vision_detection.proto\x1a\x36\x65rforce_interfaces/ssl_proto/ssl_vision_geometry.proto\"\xa1\x01\n\x11SSL_WrapperPacket\x12\x32\n\tdetection\x18\x01 \x01(\x0b\x32\x1f.erforce.ssl.SSL_DetectionFrame\x12/\n\x08geometry\x18\x02 \x01(\x0b\x32\x1d.erforce.ssl.SSL_GeometryData\x12\'\n\x06source\x18\x03 \x01(\x0e\x32\x17.erforce.ssl.SSL_Source*\xa8\x01\n\nSSL_Source\x12\x16\n\x12SSL_SOURCE_UNKNOWN\x10\x00\x12\x14\n\x10SSL_SOURCE_OTHER\x10\x01\x12\x19\n\x15SSL_SOURCE_SSL_VISION\x10\x02\x12\x1f\n\x1bSSL_SOURCE_VISION_PROCESSOR\x10\x03\x12\x14\n\x10SSL_SOURCE_GRSIM\x10\x04\x12\x1a\n\x16SSL_SOURCE_ERFORCE_SIM\x10\x05')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'erforce_interfaces.ssl_proto.ssl_vision_wrapper_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_SSL_WRAPPERPACKET']._serialized_start=183
-  _globals['_SSL_WRAPPERPACKET']._serialized_end=303
+  _globals['_SSL_SOURCE']._serialized_start=348
+  _globals['_SSL_SOURCE']._serialized_end=516
+  _globals['_SSL_WRAPPERPACKET']._serialized_start=184
+  _globals['_SSL_WRAPPERPACKET']._serialized_end=345
 # @@protoc_insertion_point(module_scope)
