@@ -416,7 +416,7 @@ class PassingPlayer:
     def _options(self, holder: int, model: BallModelParams | None = None,
                  passing: PassConfig | None = None) -> list[PassOption]:
         """Every pass from ``holder`` under ``model`` and ``passing`` (None: the model in use, the config's), each
-        judged from the pose it is kicked from (the ball at the dribbler turned to it), whatever the holder's yaw now."""
+        judged from the pose it is kicked from (the ball at the dribbler turned to it), whatever the yaw now."""
         n = self.n_team
         targets = {j: self.poses[k, :2] for j, k in self._next_targets.items()}
         return evaluate_passes(self.poses[holder, :2], self.poses[:n, :2], self.velocities[:n],
