@@ -13,7 +13,10 @@ the dribbler).
   (passing.evaluate_passes: robotTimeToBall for the whole field on the ball each kick would make),
   turns to the pass it selects (passing.select_pass: the earliest safe catch) and kicks, once it has
   held the ball ``hold_min_s`` and aims within ``aim_tolerance_rad``, with the speed at which the ball
-  arrives receivable (passing.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``.
+  arrives receivable (passing.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``. Each pass is
+  judged from the pose it is kicked from (the ball at the dribbler turned to it), and the holder keeps its
+  receiver while it turns (``switch_margin_s``, ``keep_choice_s``); one that has not kicked after
+  ``stall_warn_s`` says why (``stalled``, for the caller's throttled warning).
 - A holder with no pass in reach at all (every receiver's catch at infinity or no teammate in passing
   distance: above all a ball model that stops every kick short, e.g. a bad one on the latched model topic)
   waits ``no_option_wait_s``, then falls back (``fallback_choice``): the passes re-planned with
