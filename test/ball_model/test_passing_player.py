@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.catcher import CatcherConfig, catch_twist
+from erforce_ball_model.catcher import CatcherConfig, catch_twist, wrap_angle
 from erforce_ball_model.passing import PassConfig
 from erforce_ball_model.passing_player import HELD_DISTANCE_M, PassingPlayer, PassRecord, PlayerConfig, PressingTeam
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
@@ -311,3 +311,79 @@ def test_a_holder_whose_teammates_are_all_too_close_passes_outside_the_passing_d
     commands = p.tick(1.98)
     assert commands.kicks == {0: pytest.approx(math.sqrt(1.5**2 + 5.0 * (0.5 - 2.0 * OFFSET)), abs=1e-3)}
     assert "no pass in reach for 1.0 s" in p.notice and "a pass outside the passing distances to robot_1" in p.notice
+
+
+def turning_kick(p, deadline_s, dt_s=0.02):
+    """Tick until robot 0 kicks, turning it by each tick's commanded yaw rate with the ball at its dribbler (a
+    plant that follows the command exactly); the kick's time, or None by ``deadline_s``."""
+    for t in np.arange(0.0, deadline_s + 1e-9, dt_s):
+        commands = p.tick(float(t))
+        if commands.kicks:
+            return float(t)
+        x, y, yaw = p.poses[0]
+        yaw = float(wrap_angle(yaw + commands.twists[0][2] * dt_s))
+        p.on_robot(0, float(t) + dt_s, (x, y, yaw), (0.0, 0.0, commands.twists[0][2]))
+        p.on_ball(float(t) + dt_s, (x + OFFSET * math.cos(yaw), y + OFFSET * math.sin(yaw)), (0.0, 0.0))
+    return None
+
+
+def test_a_holder_between_two_equal_receivers_in_opposite_directions_turns_to_one_and_kicks():
+    # Robot 0 faces +y, its receivers 3 m away at +x and -x: the same pass mirrored, the same catch time. It
+    # turns pi/2 (0.52 s at turn_rate_radps 3) and kicks: by hold_min_s + 0.52 s + settling, well before 1.5 s.
+    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi), (-3.0, 0.0, 0.0)])
+    t = turning_kick(p, 1.5)
+    assert t is not None and t >= 0.5 * math.pi / 3.0
+    assert p.records == [] and p.passing and p.choice[1].receiver in (1, 2)
+
+
+def test_a_kept_pass_whose_rating_flickers_unsafe_for_less_than_keep_choice_s_is_still_kicked():
+    # Robot 0 faces +y between receivers 3 m away at +x (robot 1, its choice: the earlier) and 3.5 m away at -x
+    # (robot 2). Opponent 3 stands off both lanes at (1.5, 3) but its track jumps onto robot 1's lane at (1.5, 0)
+    # for 0.06 s of every 0.3 s (3 of 15 ticks): robot 1's pass is unsafe then, robot 2's is safe. Shorter than
+    # keep_choice_s (0.3 s), the flicker does not turn robot 0 away: it turns pi/2 to robot 1 (0.52 s at 3 rad/s)
+    # and kicks by 1.2 s. (Switching at each flicker and back, as robot 1 is earlier by more than switch_margin_s,
+    # it would turn back and forth and never aim.)
+    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi), (-3.5, 0.0, 0.0)], [(1.5, 3.0, 0.0)])
+    dt_s, kick_t = 0.02, None
+    for k in range(int(1.2 / dt_s) + 1):
+        t = k * dt_s
+        on_lane = k % 15 >= 12
+        p.on_robot(3, t, (1.5, 0.0 if on_lane else 3.0, 0.0), (0.0, 0.0))
+        if on_lane:
+            assert not next(o for o in p._options(0) if o.receiver == 1).safe(p.cfg.passing)
+        commands = p.tick(t)
+        if commands.kicks:
+            kick_t = t
+            break
+        x, y, yaw = p.poses[0]
+        yaw = float(wrap_angle(yaw + commands.twists[0][2] * dt_s))
+        p.on_robot(0, t + dt_s, (x, y, yaw), (0.0, 0.0, commands.twists[0][2]))
+    assert kick_t is not None and kick_t >= 0.5 * math.pi / 3.0
+    assert p.choice[1].receiver == 1
+
+
+def test_a_holders_pass_is_rated_from_where_it_kicks_whatever_its_yaw_now():
+    # The ball of each pass starts at the dribbler turned to it: (0.0815, 0) for robot 1 at +x, (-0.0815, 0) for
+    # robot 2 at -x, whether robot 0 faces +x, +y or -x; each pass travels 3 - 2 * 0.0815 m, as D_M.
+    ratings = []
+    for yaw in (0.0, 0.5 * math.pi, math.pi):
+        p = player_with([(0.0, 0.0, yaw), (3.0, 0.0, math.pi), (-3.0, 0.0, 0.0)], [(0.7, 0.4, 0.0)])
+        ratings.append(sorted((o.receiver, o.receiver_catch_s, o.opponent_catch_s, o.kick_speed_mps)
+                              for o in p._options(0)))
+    assert ratings[0] == ratings[1] == ratings[2]
+    (_, catch1_s, _, v1), (_, catch2_s, _, v2) = ratings[0]
+    assert v1 == pytest.approx(V0, abs=1e-3) and v2 == pytest.approx(V0, abs=1e-3)
+    assert catch1_s == pytest.approx(ARRIVAL_S, abs=1e-3) and catch2_s == pytest.approx(ARRIVAL_S, abs=1e-3)
+
+
+def test_a_holder_that_has_not_kicked_after_stall_warn_s_says_why():
+    # Robot 0 faces +y and never turns (its pose is never updated): its pass to robot 1 at +x stays pi/2 off.
+    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi)])
+    stall_s = p.cfg.stall_warn_s
+    assert stall_s == pytest.approx(4.0)
+    for t in np.arange(0.0, stall_s + 0.1, 0.02):
+        assert not p.tick(float(t)).kicks
+        if t < stall_s - 1e-9:
+            assert p.stalled is None
+    assert p.stalled == ("robot_0 has held the ball 4.1 s without kicking: its pass to robot_1 (safe) is 1.571 rad "
+                         "off its yaw (aim_tolerance_rad 0.03)")

@@ -138,8 +138,13 @@ def evaluate_passes(
     next_targets: Mapping[int, Sequence[float]] | None = None,
     max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD,
     receiver_search: CatchSearch | None = None,
+    from_passer_centre: bool = False,
 ) -> list[PassOption]:
     """One PassOption per candidate teammate in reach (module docstring).
+
+    ``from_passer_centre``: ``ball_xy`` is the passer's centre and each pass starts where it is kicked from,
+    at the passer's dribbler turned to that pass (``dribbler_offset_m`` ahead of the centre along it): the
+    rating does not change while the passer turns.
 
     ``search`` is a CatchSearch for ``len(team_xy) + len(opponents_xy)`` robots (teammates first);
     every robot faces the incoming ball, as the predictor assumes, but a candidate with a next target
@@ -154,7 +159,7 @@ def evaluate_passes(
     vel = np.concatenate([np.asarray(team_vel, dtype=float), np.asarray(opponents_vel, dtype=float)]).reshape(-1, 2)
     if search.num_robots != len(pos):
         raise ValueError(f"search is for {search.num_robots} robots, the field has {len(pos)}")
-    ball = np.asarray(ball_xy, dtype=float)
+    ball = origin = np.asarray(ball_xy, dtype=float)
     facing_fixed = np.zeros(len(pos), dtype=bool)
     facing = np.zeros(len(pos))
     next_targets = {} if next_targets is None else next_targets
@@ -170,6 +175,11 @@ def evaluate_passes(
     options = []
     for j in candidates:
         centre = team_xy[j]
+        if from_passer_centre:
+            reach_m = math.dist(centre, origin)
+            if reach_m <= dribbler_offset_m:
+                continue  # within the passer's own dribbler: no pass
+            ball = origin + dribbler_offset_m * (centre - origin) / reach_m
         distance = math.dist(centre, ball)
         if not cfg.min_distance_m <= distance <= cfg.max_distance_m:
             continue
@@ -180,6 +190,8 @@ def evaluate_passes(
             for _ in range(3):  # the facing moves the aim by at most the offset: a fixed point, reached fast
                 receive_rad = receive_facing(u, centre, next_targets[j], max_receive_angle_rad)
                 aim = centre + contact_offset(receive_rad, dribbler_offset_m)
+                if from_passer_centre:  # the kick point turns with the pass: on the line from the centre to aim
+                    ball = origin + dribbler_offset_m * (aim - origin) / math.dist(aim, origin)
                 u = (aim - ball) / math.dist(aim, ball)
         contact_m = float((aim - ball) @ u)  # ball travel to the receiver's dribbler
         v0 = min(max(kick_speed_for(contact_m, cfg.arrive_speed_mps, params), cfg.min_kick_mps), cfg.max_kick_mps)

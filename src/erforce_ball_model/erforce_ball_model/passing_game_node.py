@@ -266,6 +266,8 @@ class PassingGameNode(Node):
                 self._cmd_pubs[i].publish(twist_msg((0.0, 0.0, 0.0)))
         if player.notice:
             self._warn.warn("no pass", player.notice)
+        if player.stalled:
+            self._warn.warn("stalled", player.stalled)
         if player.receiver is not None and player.receiver.notice:
             self._warn.warn("receiver", f"receiver: {player.receiver.notice}")
         self._send_dribblers(now)

@@ -13,7 +13,10 @@ the dribbler).
   (passing.evaluate_passes: robotTimeToBall for the whole field on the ball each kick would make),
   turns to the pass it selects (passing.select_pass: the earliest safe catch) and kicks, once it has
   held the ball ``hold_min_s`` and aims within ``aim_tolerance_rad``, with the speed at which the ball
-  arrives receivable (passing.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``.
+  arrives receivable (passing.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``. Each pass is
+  judged from the pose it is kicked from (the ball at the dribbler turned to it), and the holder keeps its
+  receiver while it turns (``switch_margin_s``, ``keep_choice_s``); one that has not kicked after
+  ``stall_warn_s`` says why (``stalled``, for the caller's throttled warning).
 - A holder with no pass in reach at all (every receiver's catch at infinity or no teammate in passing
   distance: above all a ball model that stops every kick short, e.g. a bad one on the latched model topic)
   waits ``no_option_wait_s``, then falls back (``fallback_choice``): the passes re-planned with
@@ -88,6 +91,8 @@ class PlayerConfig:
     turn_rate_radps: float = 3.0  # a holder turns at most this fast (the dribbler keeps the ball)
     max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD  # receive facing the next target within this
     switch_margin_s: float = 0.2  # a holder changes its chosen receiver for one this much earlier
+    keep_choice_s: float = 0.3  # ... or once its pass is rated unsafe or uncatchable this long (and another is not)
+    stall_warn_s: float = 4.0  # a holder that has not kicked this long is warned about (``stalled``)
     wait_for_safe_s: float = 1.5  # a holder without a safe pass keeps the ball this long, then plays the best
     pass_timeout_s: float = 6.0
     rest_speed_mps: float = 0.05  # a pass whose ball is slower than this for rest_for_s is lost
@@ -99,8 +104,9 @@ class PlayerConfig:
     catcher: CatcherConfig = field(default_factory=CatcherConfig)
 
     def __post_init__(self) -> None:
-        for name in ("hold_min_s", "aim_tolerance_rad", "wait_for_safe_s", "switch_margin_s", "rest_speed_mps",
-                     "rest_for_s", "drop_after_s", "passer_blind_s", "no_option_wait_s"):
+        for name in ("hold_min_s", "aim_tolerance_rad", "wait_for_safe_s", "switch_margin_s", "keep_choice_s",
+                     "stall_warn_s", "rest_speed_mps", "rest_for_s", "drop_after_s", "passer_blind_s",
+                     "no_option_wait_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
@@ -224,6 +230,8 @@ class PassingPlayer:
         self._choice_model = self.model  # the model self._choice was planned with
         self._no_option_since: float | None = None  # the holder has had no pass in reach since
         self.notice: str | None = None  # what the last tick fell back on and why (None: nothing)
+        self.stalled: str | None = None  # why the holder has not kicked after stall_warn_s (None: not that long)
+        self._kept_worse_since: float | None = None  # the kept receiver's pass is rated worse than the best since
         self._pass: _Pass | None = None
         self._last_passer: int | None = None
         self._next_targets: dict[int, int] = {}  # teammate -> the teammate it would pass on to
@@ -276,11 +284,6 @@ class PassingPlayer:
         if p is None or p.facing_target is None:
             return None
         return p.choice.receiver, wrap_angle(p.choice.receive_facing_rad)
-
-    def ball_at_dribbler(self, i: int) -> tuple[float, float]:
-        x, y, yaw = self.poses[i]
-        d = self.dribbler_offset_m
-        return x + d * math.cos(yaw), y + d * math.sin(yaw)
 
     # -------------------------------------------------------------------- inputs
     def on_robot(self, i: int, now: float, pose, velocity, stamp_s: float | None = None) -> None:
@@ -352,14 +355,14 @@ class PassingPlayer:
     def tick(self, now: float) -> Commands:
         """The AI tick: judge what happened since the last one (``check``), then every robot's command."""
         self.check(now)
-        self.notice = None
+        self.notice = self.stalled = None
         cfg = self.cfg
         twists = {i: np.zeros(3) for i in range(self.n_team)}
         kicks: dict[int, float] = {}
         if self._holder is not None and self.ball_request is None:
             h = self._holder
             self._update_next_targets(h, all_of_them=False)
-            choice = self._choose(h)
+            choice = self._choose(h, now)
             if choice is None:
                 choice = self.fallback_choice(h, now)
             else:
@@ -375,6 +378,8 @@ class PassingPlayer:
                     kicks[h] = choice.kick_speed_mps
                     self._kick(h, choice, now)
                     twists[h] = np.zeros(3)
+            if not kicks:
+                self.stalled = self._stall_notice(h, choice, now)
         if self._pass is not None:
             self._pass.path.append((float(self.ball_xy[0]), float(self.ball_xy[1])))
             if self.receiver is not None:
@@ -413,13 +418,15 @@ class PassingPlayer:
     # -------------------------------------------------------------------- decisions
     def _options(self, holder: int, model: BallModelParams | None = None,
                  passing: PassConfig | None = None) -> list[PassOption]:
-        """Every pass from ``holder`` under ``model`` and ``passing`` (None: the model in use, the config's)."""
+        """Every pass from ``holder`` under ``model`` and ``passing`` (None: the model in use, the config's), each
+        judged from the pose it is kicked from (the ball at the dribbler turned to it), whatever the yaw now."""
         n = self.n_team
         targets = {j: self.poses[k, :2] for j, k in self._next_targets.items()}
-        return evaluate_passes(self.ball_at_dribbler(holder), self.poses[:n, :2], self.velocities[:n],
+        return evaluate_passes(self.poses[holder, :2], self.poses[:n, :2], self.velocities[:n],
                                self.poses[n:, :2], self.velocities[n:], self._candidates(holder), self.pass_search,
                                self.model if model is None else model, self.cfg.passing if passing is None else passing,
-                               self.dribbler_offset_m, targets, self.cfg.max_receive_angle_rad, self.receiver_search)
+                               self.dribbler_offset_m, targets, self.cfg.max_receive_angle_rad, self.receiver_search,
+                               from_passer_centre=True)
 
     def fallback_choice(self, holder: int, now: float) -> PassOption | None:
         """The pass of a holder that has no pass in reach under the model in use (module docstring): None
@@ -482,18 +489,47 @@ class PassingPlayer:
         chain = [k for k in others if k != self._last_passer]
         return chain or others
 
-    def _choose(self, holder: int) -> PassOption | None:
+    def _choose(self, holder: int, now: float) -> PassOption | None:
+        """The holder's pass: the best (select_pass), but a holder turning to a receiver stays with it unless
+        another is earlier by ``switch_margin_s`` at the same rating, or the kept pass has been rated unsafe or
+        uncatchable where the best is not for ``keep_choice_s`` (ratings flicker as robots move: a holder that
+        turned back and forth would never aim)."""
+        cfg = self.cfg
         options = self._options(holder)
-        best = select_pass(options, self.cfg.passing)
+        best = select_pass(options, cfg.passing)
         kept = self._choice.receiver if self._choice is not None else self._prefer  # a new holder: its plan
-        if kept is not None and best is not None and best.receiver != kept:
-            same = next((o for o in options if o.receiver == kept), None)
-            keep = (same is not None and same.safe(self.cfg.passing) == best.safe(self.cfg.passing)
-                    and same.receiver_catch_s <= best.receiver_catch_s + self.cfg.switch_margin_s)
-            if keep:
+        same = None if kept is None else next((o for o in options if o.receiver == kept), None)
+        if same is None or best is None or best.receiver == kept:
+            self._kept_worse_since = None
+        else:
+            worse = (math.isinf(same.receiver_catch_s)
+                     or (best.safe(cfg.passing) and not same.safe(cfg.passing)))
+            if not worse:
+                self._kept_worse_since = None
+            elif self._kept_worse_since is None:
+                self._kept_worse_since = now
+            earlier = (same.safe(cfg.passing) == best.safe(cfg.passing)
+                       and best.receiver_catch_s + cfg.switch_margin_s < same.receiver_catch_s)
+            if not earlier and (not worse or now - self._kept_worse_since < cfg.keep_choice_s):
                 best = same
         self._choice, self._choice_model = best, self.model
         return best
+
+    def _stall_notice(self, holder: int, choice: PassOption | None, now: float) -> str | None:
+        """Why a holder that has kept the ball ``stall_warn_s`` has not kicked yet (None: not that long)."""
+        held_s = now - self._hold_since
+        if held_s < self.cfg.stall_warn_s:
+            return None
+        if choice is None:
+            why = "no pass chosen"
+        elif not self.barriers[holder]:
+            why = "its light barrier does not see the ball"
+        else:
+            off = abs(wrap_angle(choice.direction_rad - self.poses[holder, 2]))
+            rated = "safe" if choice.safe(self.cfg.passing) else "unsafe"
+            why = (f"its pass to robot_{choice.receiver} ({rated}) is {off:.3f} rad off its yaw (aim_tolerance_rad "
+                   f"{self.cfg.aim_tolerance_rad:g})")
+        return f"robot_{holder} has held the ball {held_s:.1f} s without kicking: {why}"
 
     def _kick(self, holder: int, choice: PassOption, now: float) -> None:
         self._holder, self._last_passer = None, holder
@@ -531,7 +567,7 @@ class PassingPlayer:
 
     def _take_ball(self, holder: int, now: float, planned_next: int | None = None) -> None:
         self._holder, self._hold_since, self._choice, self._barrier_lost_at = holder, now, None, None
-        self._no_option_since = None
+        self._no_option_since = self._kept_worse_since = None
         self._prefer = planned_next
         self._dribblers = dict.fromkeys(range(self.n_team), False)
         self._dribblers[holder] = True
