@@ -5,6 +5,7 @@ In-process on the compiled pass and on the general path, and over UDP loopback w
 
 from __future__ import annotations
 
+import contextlib
 import re
 
 import pytest
@@ -40,15 +41,17 @@ def crowded_frame(camera: int, t_s: float, robots) -> bytes:
     return frame(camera, t_s, balls, robots)
 
 
-@pytest.mark.parametrize("general_path", [False, True])
-def test_each_drop_class_has_its_own_warning_and_counter(general_path):
+@contextlib.contextmanager
+def recording_bridge(general_path: bool, *params: str):
+    """An in-process ssl_vision_bridge whose /vision/robots bytes and warnings (key, text) are kept in lists; the
+    field a preset, as for a vision source that sends no geometry (from_geometry would wait for one)."""
     import rclpy
 
     from erforce_ball_model.ssl_vision_bridge import SslVisionBridge
 
-    # field: a preset, as for a vision source that sends no geometry (from_geometry would wait for one)
-    rclpy.init(args=["--ros-args", "-p", f"port:={free_udp_port()}", "-p", "interface:=127.0.0.1",
-                     "-p", "field:=division_b", "-p", f"publish_detections:={str(general_path).lower()}"])
+    args = [f"port:={free_udp_port()}", "interface:=127.0.0.1", "field:=division_b",
+            f"publish_detections:={str(general_path).lower()}", *params]
+    rclpy.init(args=["--ros-args", *[a for arg in args for a in ("-p", arg)]])
     node = None
     try:
         node = SslVisionBridge()
@@ -60,6 +63,16 @@ def test_each_drop_class_has_its_own_warning_and_counter(general_path):
 
         node._robots_pub = Recording()
         node._warn.warn = lambda key, text: warnings.append((key, text))
+        yield node, published, warnings
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+@pytest.mark.parametrize("general_path", [False, True])
+def test_each_drop_class_has_its_own_warning_and_counter(general_path):
+    with recording_bridge(general_path) as (node, published, warnings):
         ball, ours = BallCandidate(0.0, 0.0, 0.9), RobotSighting("blue", 0, 1.0, 1.0, 0.0, 1.0)
 
         def send(data: bytes, t_s: float) -> None:
@@ -103,10 +116,6 @@ def test_each_drop_class_has_its_own_warning_and_counter(general_path):
             "ssl_vision_bridge: [too_many_balls] camera 0: 40 ball candidates, 8 beyond the first 32 dropped"]
         assert restart == ["ssl_vision_bridge: camera 0: t_capture went back by 9.984 s: not an old frame but the "
                            "camera's clock starting again (passed on to the time source)"]
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
 
 
 @pytest.mark.parametrize("general_path", [False, True])
@@ -115,24 +124,7 @@ def test_the_capture_timelines_refusals_go_under_the_same_classes(general_path):
     starting again is passed on, and the timeline refuses its new line as clock_jump until 5 frames span 0.2 s
     of receive time (at 30 ms apart the 8th frame: 7 x 30 ms = 0.21 s); a frame of the old line that comes in
     between is after the order's newest (the new line) but not after the timeline's: t_capture_back too."""
-    import rclpy
-
-    from erforce_ball_model.ssl_vision_bridge import SslVisionBridge
-
-    rclpy.init(args=["--ros-args", "-p", f"port:={free_udp_port()}", "-p", "interface:=127.0.0.1",
-                     "-p", "time_source:=capture", "-p", "field:=division_b",
-                     "-p", f"publish_detections:={str(general_path).lower()}"])
-    node = None
-    try:
-        node = SslVisionBridge()
-        published, warnings = [], []
-
-        class Recording:
-            def publish(self, data):
-                published.append(bytes(data))
-
-        node._robots_pub = Recording()
-        node._warn.warn = lambda key, text: warnings.append((key, text))
+    with recording_bridge(general_path, "time_source:=capture") as (node, published, warnings):
         ball, ours = BallCandidate(0.0, 0.0, 0.9), RobotSighting("blue", 0, 1.0, 1.0, 0.0, 1.0)
 
         def send(t_s: float, t_wall_s: float) -> None:
@@ -159,10 +151,6 @@ def test_the_capture_timelines_refusals_go_under_the_same_classes(general_path):
         assert "2.000 ms before the camera's newest frame" in back[1]
         assert by_key["clock_jump (camera 0)"][0].startswith("ssl_vision_bridge: [clock_jump] camera 0: t_capture ")
         assert "goes back 10.000 s from its newest on the capture timeline" in by_key["clock_jump (camera 0)"][0]
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
 
 
 @pytest.mark.integration
