@@ -362,6 +362,33 @@ def test_a_kept_pass_whose_rating_flickers_unsafe_for_less_than_keep_choice_s_is
     assert p.choice[1].receiver == 1
 
 
+def test_a_kept_pass_is_not_left_for_an_earlier_one_whose_rating_flickers_safe_for_less_than_keep_choice_s():
+    # The same robots, the flicker the other way round: opponent 3 stands on robot 1's lane at (1.5, 0) and steps
+    # off it to (1.5, 3) for 0.06 s of every 0.3 s (3 of 15 ticks). Robot 0 starts on robot 2's pass (the only safe
+    # one); robot 1's, earlier by more than switch_margin_s, is rated safe only in those short windows, never
+    # keep_choice_s (0.3 s) on end, so robot 0 stays with robot 2: it turns pi/2 to -x (0.52 s at 3 rad/s) and kicks
+    # by 1.2 s. (Following each safe flicker to robot 1 and back, as the opponents pressing the lanes made a holder
+    # on grSim do, it would never aim.)
+    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi), (-3.5, 0.0, 0.0)], [(1.5, 0.0, 0.0)])
+    dt_s, kick_t = 0.02, None
+    for k in range(int(1.2 / dt_s) + 1):
+        t = k * dt_s
+        off_lane = k % 15 >= 12
+        p.on_robot(3, t, (1.5, 3.0 if off_lane else 0.0, 0.0), (0.0, 0.0))
+        if off_lane:
+            one, two = (next(o for o in p._options(0) if o.receiver == i) for i in (1, 2))
+            assert one.safe(p.cfg.passing) and one.receiver_catch_s + p.cfg.switch_margin_s < two.receiver_catch_s
+        commands = p.tick(t)
+        if commands.kicks:
+            kick_t = t
+            break
+        x, y, yaw = p.poses[0]
+        yaw = float(wrap_angle(yaw + commands.twists[0][2] * dt_s))
+        p.on_robot(0, t + dt_s, (x, y, yaw), (0.0, 0.0, commands.twists[0][2]))
+    assert kick_t is not None and kick_t >= 0.5 * math.pi / 3.0
+    assert p.choice[1].receiver == 2
+
+
 def test_a_holders_pass_is_rated_from_where_it_kicks_whatever_its_yaw_now():
     # The ball of each pass starts at the dribbler turned to it: (0.0815, 0) for robot 1 at +x, (-0.0815, 0) for
     # robot 2 at -x, whether robot 0 faces +x, +y or -x; each pass travels 3 - 2 * 0.0815 m, as D_M.

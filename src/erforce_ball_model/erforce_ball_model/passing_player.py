@@ -90,8 +90,8 @@ class PlayerConfig:
     aim_tolerance_rad: float = 0.03
     turn_rate_radps: float = 3.0  # a holder turns at most this fast (the dribbler keeps the ball)
     max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD  # receive facing the next target within this
-    switch_margin_s: float = 0.2  # a holder changes its chosen receiver for one this much earlier
-    keep_choice_s: float = 0.3  # ... or once its pass is rated unsafe or uncatchable this long (and another is not)
+    switch_margin_s: float = 0.2  # a holder changes its chosen receiver for one this much earlier ...
+    keep_choice_s: float = 0.3  # ... or safe where it is not, once that has held this long
     stall_warn_s: float = 4.0  # a holder that has not kicked this long is warned about (``stalled``)
     wait_for_safe_s: float = 1.5  # a holder without a safe pass keeps the ball this long, then plays the best
     pass_timeout_s: float = 6.0
@@ -231,7 +231,7 @@ class PassingPlayer:
         self._no_option_since: float | None = None  # the holder has had no pass in reach since
         self.notice: str | None = None  # what the last tick fell back on and why (None: nothing)
         self.stalled: str | None = None  # why the holder has not kicked after stall_warn_s (None: not that long)
-        self._kept_worse_since: float | None = None  # the kept receiver's pass is rated worse than the best since
+        self._better_since: float | None = None  # another pass than the kept receiver's is better since
         self._pass: _Pass | None = None
         self._last_passer: int | None = None
         self._next_targets: dict[int, int] = {}  # teammate -> the teammate it would pass on to
@@ -490,27 +490,28 @@ class PassingPlayer:
         return chain or others
 
     def _choose(self, holder: int, now: float) -> PassOption | None:
-        """The holder's pass: the best (select_pass), but a holder turning to a receiver stays with it unless
-        another is earlier by ``switch_margin_s`` at the same rating, or the kept pass has been rated unsafe or
-        uncatchable where the best is not for ``keep_choice_s`` (ratings flicker as robots move: a holder that
-        turned back and forth would never aim)."""
+        """The holder's pass: the best (select_pass), but a holder turning to a receiver stays with it until another
+        has been better for ``keep_choice_s`` on end: earlier by ``switch_margin_s`` at the same rating, or rated
+        safe and catchable where the kept pass is not (ratings flicker as robots move and opponents press the
+        lanes: a holder that followed each flicker would turn back and forth and never aim). A kept receiver that
+        drops out of the options is left at once."""
         cfg = self.cfg
         options = self._options(holder)
         best = select_pass(options, cfg.passing)
         kept = self._choice.receiver if self._choice is not None else self._prefer  # a new holder: its plan
         same = None if kept is None else next((o for o in options if o.receiver == kept), None)
         if same is None or best is None or best.receiver == kept:
-            self._kept_worse_since = None
+            self._better_since = None
         else:
             worse = (math.isinf(same.receiver_catch_s)
                      or (best.safe(cfg.passing) and not same.safe(cfg.passing)))
-            if not worse:
-                self._kept_worse_since = None
-            elif self._kept_worse_since is None:
-                self._kept_worse_since = now
             earlier = (same.safe(cfg.passing) == best.safe(cfg.passing)
                        and best.receiver_catch_s + cfg.switch_margin_s < same.receiver_catch_s)
-            if not earlier and (not worse or now - self._kept_worse_since < cfg.keep_choice_s):
+            if not (worse or earlier):
+                self._better_since = None
+            elif self._better_since is None:
+                self._better_since = now
+            if self._better_since is None or now - self._better_since < cfg.keep_choice_s:
                 best = same
         self._choice, self._choice_model = best, self.model
         return best
@@ -567,7 +568,7 @@ class PassingPlayer:
 
     def _take_ball(self, holder: int, now: float, planned_next: int | None = None) -> None:
         self._holder, self._hold_since, self._choice, self._barrier_lost_at = holder, now, None, None
-        self._no_option_since = self._kept_worse_since = None
+        self._no_option_since = self._better_since = None
         self._prefer = planned_next
         self._dribblers = dict.fromkeys(range(self.n_team), False)
         self._dribblers[holder] = True
