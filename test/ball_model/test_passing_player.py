@@ -313,10 +313,13 @@ def test_a_holder_whose_teammates_are_all_too_close_passes_outside_the_passing_d
     assert "no pass in reach for 1.0 s" in p.notice and "a pass outside the passing distances to robot_1" in p.notice
 
 
-def turning_kick(p, deadline_s, dt_s=0.02):
+def turning_kick(p, deadline_s, dt_s=0.02, before_tick=None):
     """Tick until robot 0 kicks, turning it by each tick's commanded yaw rate with the ball at its dribbler (a
-    plant that follows the command exactly); the kick's time, or None by ``deadline_s``."""
-    for t in np.arange(0.0, deadline_s + 1e-9, dt_s):
+    plant that follows the command exactly), ``before_tick(k, t)`` first at each tick k; the kick's time, or None by
+    ``deadline_s``."""
+    for k, t in enumerate(np.arange(0.0, deadline_s + 1e-9, dt_s)):
+        if before_tick is not None:
+            before_tick(k, float(t))
         commands = p.tick(float(t))
         if commands.kicks:
             return float(t)
@@ -344,20 +347,14 @@ def test_a_kept_pass_whose_rating_flickers_unsafe_for_less_than_keep_choice_s_is
     # and kicks by 1.2 s. (Switching at each flicker and back, as robot 1 is earlier by more than switch_margin_s,
     # it would turn back and forth and never aim.)
     p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi), (-3.5, 0.0, 0.0)], [(1.5, 3.0, 0.0)])
-    dt_s, kick_t = 0.02, None
-    for k in range(int(1.2 / dt_s) + 1):
-        t = k * dt_s
+
+    def flicker(k: int, t: float) -> None:
         on_lane = k % 15 >= 12
         p.on_robot(3, t, (1.5, 0.0 if on_lane else 3.0, 0.0), (0.0, 0.0))
         if on_lane:
             assert not next(o for o in p._options(0) if o.receiver == 1).safe(p.cfg.passing)
-        commands = p.tick(t)
-        if commands.kicks:
-            kick_t = t
-            break
-        x, y, yaw = p.poses[0]
-        yaw = float(wrap_angle(yaw + commands.twists[0][2] * dt_s))
-        p.on_robot(0, t + dt_s, (x, y, yaw), (0.0, 0.0, commands.twists[0][2]))
+
+    kick_t = turning_kick(p, 1.2, before_tick=flicker)
     assert kick_t is not None and kick_t >= 0.5 * math.pi / 3.0
     assert p.choice[1].receiver == 1
 
@@ -370,21 +367,15 @@ def test_a_kept_pass_is_not_left_for_an_earlier_one_whose_rating_flickers_safe_f
     # by 1.2 s. (Following each safe flicker to robot 1 and back, as the opponents pressing the lanes made a holder
     # on grSim do, it would never aim.)
     p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi), (-3.5, 0.0, 0.0)], [(1.5, 0.0, 0.0)])
-    dt_s, kick_t = 0.02, None
-    for k in range(int(1.2 / dt_s) + 1):
-        t = k * dt_s
+
+    def flicker(k: int, t: float) -> None:
         off_lane = k % 15 >= 12
         p.on_robot(3, t, (1.5, 3.0 if off_lane else 0.0, 0.0), (0.0, 0.0))
         if off_lane:
             one, two = (next(o for o in p._options(0) if o.receiver == i) for i in (1, 2))
             assert one.safe(p.cfg.passing) and one.receiver_catch_s + p.cfg.switch_margin_s < two.receiver_catch_s
-        commands = p.tick(t)
-        if commands.kicks:
-            kick_t = t
-            break
-        x, y, yaw = p.poses[0]
-        yaw = float(wrap_angle(yaw + commands.twists[0][2] * dt_s))
-        p.on_robot(0, t + dt_s, (x, y, yaw), (0.0, 0.0, commands.twists[0][2]))
+
+    kick_t = turning_kick(p, 1.2, before_tick=flicker)
     assert kick_t is not None and kick_t >= 0.5 * math.pi / 3.0
     assert p.choice[1].receiver == 2
 
