@@ -84,7 +84,7 @@ def test_make_executor_names_the_three_executors():
     with isolated_node("internals_kinds") as node:
         assert type(make_executor("direct", context=node.context)) is DirectExecutor
         assert type(make_executor("single", context=node.context)) is SingleThreadedExecutor
-        events = make_executor(context=node.context)  # the default: bench/NOTES.md has the measurements
+        events = make_executor(context=node.context)  # the default (docs/decisions/0001)
         assert type(events.executor).__name__ == "EventsExecutor"
         events.add_node(node)
         assert node in events.get_nodes()

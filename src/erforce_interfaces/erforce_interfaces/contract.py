@@ -100,7 +100,7 @@ STATIC_PEERS = "ROS_STATIC_PEERS"
 
 # Writers send from the publishing thread (Fast DDS's synchronous publication) instead of queueing each
 # sample for rmw_fastrtps' default asynchronous sender thread: one thread hand-over less per message,
-# which is most of what this graph pays per message (bench/NOTES.md, "Synchronous publication").
+# which is most of what this graph pays per message (docs/decisions/0005).
 DDS_PUBLICATION_MODE = {"RMW_FASTRTPS_PUBLICATION_MODE": "SYNCHRONOUS"}
 
 

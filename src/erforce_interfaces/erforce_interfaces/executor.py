@@ -2,7 +2,7 @@
 
 ``make_executor`` picks the executor ``node_support.run_node`` spins on: rclpy's EventsExecutor by
 default, SingleThreadedExecutor, or ``DirectExecutor``, this module's own, for the bench that chose
-between them (bench/bench_executor.py, figures in bench/NOTES.md).
+between them (bench/bench_executor.py; docs/decisions/0001).
 
 Guarded subscriptions (``guard``): a subscription callback that raises would end ``spin`` and with
 it the node, so one malformed message from any participant could kill a node. ``guard`` replaces a
@@ -77,7 +77,7 @@ def make_executor(kind: str | None = None, *, context=None):
     environment variable ERFORCE_EXECUTOR, so a bench can run the same nodes on each.
 
     EventsExecutor is the default: it cost the least CPU per message and ran the lockstep loop
-    fastest in bench/bench_executor.py (figures in bench/NOTES.md). The callback guard and the
+    fastest in bench/bench_executor.py (docs/decisions/0001). The callback guard and the
     sampled subscriptions live on the subscriptions themselves (``guard``), so they hold under each."""
     kind = kind or os.environ.get(EXECUTOR_ENV) or "events"
     if kind == "direct":

@@ -9,9 +9,9 @@ maths is the same operations in the same order, in one numba-compiled loop over 
 ticked (no fastmath); only the sums of the 3x4 kinematics products may round differently from
 numpy's BLAS calls, so both agree to ~1e-12 (test/motion/test_team_cores.py).
 
-Why: as Python objects the cores cost about 0.5 ms per robot per tick (bench/NOTES.md "A team on
-the graph"); here one call serves the whole team. All robots share one RobotConfig and one
-configuration of each board, as a team deployment does. No rclpy import.
+Why: as Python objects the cores cost about 0.5 ms per robot per tick (docs/decisions/0010); here one
+call serves the whole team. All robots share one RobotConfig and one configuration of each board, as a
+team deployment does. No rclpy import.
 """
 
 from __future__ import annotations

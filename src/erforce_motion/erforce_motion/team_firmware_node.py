@@ -24,7 +24,7 @@ With ``team`` ``ours`` and ``opponent_ids``, the same process also runs the oppo
 own topics (``/opponent_<id>/...``, ``/opponent_team/...``): both teams in one executor, their robots rows
 of one TeamFirmware (ours first), as a component container hosts several nodes. It answers each team's
 message on its own, with the same numbers as a process per team; a simulation saves a process's wakes per
-tick (bench/NOTES.md), while a process per team keeps a crash of one team's firmware from the other. With
+tick (docs/decisions/0011), while a process per team keeps a crash of one team's firmware from the other. With
 ``lockstep_topics`` ``field`` both teams' robots come in one ``/field/wheel_states`` per tick and their duties
 go out in one ``/field/motor_duty`` (the plant's ``lockstep_topics`` field): one message and one wake per tick
 each way instead of one per team; robots of the message that this process does not run are left alone.
