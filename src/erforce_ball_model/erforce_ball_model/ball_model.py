@@ -20,7 +20,7 @@ This module is the one home of these closed forms. ``BallFloats`` holds one ball
 compiled into the numba kernels that call them (catch_time's robotTimeToBall search, the array
 queries here), which read the ball by name (``ball.stop_time_s``), never by position in an array.
 numba is imported on the first kernel a process needs (``numba_ball_type``), not with this module:
-a node that only asks scalar questions (the catcher) starts without it (~0.7 s of CPU less).
+a node that only asks scalar questions (the catcher) starts without it.
 
 ``BallTrajectory`` is an immutable value (one ball's future) with these queries
 (``position_at`` is the paper's ballAtTime, ``time_to_distance`` is ballRollTime). A number

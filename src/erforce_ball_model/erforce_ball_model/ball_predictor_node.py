@@ -1,34 +1,21 @@
 """ball_predictor: ball and robot tracking plus catch-time prediction (paper Sec. 5) as a ROS 2 node.
 
-Serves all robots from one process; the per-frame work is predictor.BallPredictor (tracking,
-robot freshness, the reaction time, robotTimeToBall for the team, the model in use and online
-identification), the same object the in-process scenes and the bench run. Vision comes in on
-``/vision/robots``, one message per vision frame: its ball and its robots, both teams; the ball, at the
-front of the message, is read and answered before the robots are decoded (so a frame whose ball is good
-but a robot point is not is answered, and its robots are refused). Frames queued behind the one that woke
-the node (cameras deliver in bursts) are taken with it: every queued ball is answered, in order, before
-any of their robots. Every ball frame is answered with each
-fresh robot's catch first (what the robots act on): ``/ball/catches`` (both teams in one message: the
-AI's input, and the field view's) while anyone subscribes to it, then each robot's ``/robot_<i>/catch_time``
-and ``catch_point``, each while anyone subscribes to it; then the ball state, phase, stop point,
-v_shoot and the uncertain flag (the three for tools while anyone subscribes to them), and, while anyone
-subscribes to it, ``/ball/track`` (the ball's topics and the observation in one message, for observers).
-All outputs carry the observation's stamp; catch times count from it. The frame's robots come after its
-ball (the catch times are those of the robots as last seen); each robot it serves is judged by
-the time rule on its own (camera frames of one field arrive out of order across robots) and answered
-with ``/robot_<i>/odom`` while anyone subscribes to it; robots it does not serve are skipped. After a
-frame's robots, while anyone subscribes to it, ``/robots/tracked``: every robot seen within
-``robot_timeout_s``, both teams, as its odom carries it (the AI's poses: one message per frame instead of an
-odom per robot). With
-``num_opponents`` the opponents are served the same way under ``/opponent_<i>/`` (their
-robotTimeToBall is what the passing game weighs and their interceptor drives by); in the core they
-come after our robots.
+One process serves all robots (and with ``num_opponents`` the opponents, under ``/opponent_<i>/``); the
+per-frame work is predictor.BallPredictor, the same object the in-process scenes and the bench run.
 
-``/ball/model_params`` is the model in use as state (transient local): published at start and
-whenever it changes (a parameter, an accepted fit), and after every online fit with its result.
+Vision comes in on ``/vision/robots``, one message per frame, the ball first. The ball is read and
+answered before the robots are decoded, and the frames queued behind the one that woke the node have
+their balls answered before any of their robots (docs/decisions/0015). Each ball frame is answered with
+the catches first, what the robots act on: ``/ball/catches`` (both teams, one table), then each robot's
+``catch_time`` and ``catch_point``; then the ball's state, phase, stop point, v_shoot and uncertain flag,
+and ``/ball/track`` for observers. Then the frame's robots, each judged by the time rule on its own,
+answered with its ``odom``, and ``/robots/tracked`` (every robot seen within ``robot_timeout_s``). The
+ball state and v_shoot always go out, every other output only while read. All carry the observation's
+stamp; catch times count from it.
 
-Bad input (non-finite, outside the field, stamps not increasing) is dropped with a throttled
-warning and answered with nothing. This module converts messages and publishes; no maths here.
+``/ball/model_params`` is the model in use as state (transient local): published at start, on every
+change and after every online fit. Bad input (non-finite, outside the field, stamps not increasing) is
+dropped with a throttled warning and answered with nothing. No maths here.
 """
 
 from __future__ import annotations

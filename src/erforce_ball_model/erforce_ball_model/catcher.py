@@ -1,43 +1,23 @@
 """The receive skill of the paper's Fig. 6: drive to the predicted catch point, face the
 requested direction, arrive in time.
 
-No rclpy: ``Receiver`` is one robot's behaviour over time (the catcher node feeds it the filtered
-robot state, the ball state and the ball predictor's catch point and time as they arrive, and
-publishes the Twist its ``tick`` returns, robot frame); the functions below are its steps.
+No rclpy: ``Receiver`` is one robot's behaviour over time (the catcher node feeds it the robot's and
+the ball's state and the predictor's catch point and time, and publishes the Twist its ``tick``
+returns, robot frame); the functions below are its steps.
 
-Where to receive (``choose_target``): a robot already on the ball's line stands still.
-Otherwise, when there is a point on the ball's line, at or beyond the robot's projection on
-it, that the ball reaches (before it stops, inside the field; ballRollTime of the two-phase
-model) and the robot reaches ``receive_slack_s`` earlier (``receive_point``), it goes to the
-nearest such point: the receiver's choice in a pass. Else it drives to the ball predictor's
-catch point, the first moment it can catch the ball (the paper's Fig. 6). That
-point has no slack by definition, so a robot that lags behind its plan loses it; the
-receive point is the robust choice whenever it exists.
+Where to receive (``choose_target``): a robot on the ball's line stands still; else it goes to the
+nearest point on the line, at or beyond its projection, that it reaches ``receive_slack_s`` before the
+ball (``receive_point``: robust to a robot that lags its plan); else to the predictor's catch point,
+which has no slack. In a team (``team_receiver``) only the robot that can catch first receives.
 
-In a team (``team_receiver``) only the robot that can catch the ball first receives; the others
-hold, so that several catchers on one field do not all run for the same ball.
+The approach follows robotTimeToPos's model (``v = min(v_max, sqrt(2 a_max d))``, arriving at rest),
+from the pose the robot will have when the command acts: the measured pose carried the loop's delay
+ahead with the tracked velocity, so that a robot does not brake late and take the ball on its side.
 
-The translational command follows the same motion model as robotTimeToPos: a
-time-optimal approach with bounded acceleration and speed that arrives at rest,
-``v = min(v_max, sqrt(2 a_max d))`` towards the target. Orientation is a saturated
-proportional law on the heading error. The velocity controller on the robot then
-shapes and tracks it.
-
-Both act on the pose the robot will have when the command takes effect: the measured pose carried
-the loop's delay D ahead (below) with the tracked velocity and yaw rate. Steered from the measured
-pose, a robot arriving at 0.8 m/s brakes D late, 5 cm at D = 0.06 s: the Fig. 6 receiver crossed
-the ball's line, which then hit its side instead of the dribbler (in play_in_process with 50 ms of
-vision latency, 14 of 20 seeds caught only a later window; from the predicted pose, 0 of 20 up to 90 ms).
-
-The heading loop runs through vision, the tracker, the AI tick and the velocity loop: a delay D of
-0.05-0.2 s. A P-law of gain K on an integrating yaw behind a pure delay has the phase margin
-pi/2 - K D (unstable from K D = pi/2: 8 /s at 0.2 s swung a receiver's yaw at 1.25 Hz = 1/(4 D)).
-``heading_loop`` takes D as the pose's age (its stamp against now) plus ``command_lead_s`` and
-predicts the heading to the time the command acts with the tracked yaw rate (yaw + w D), and
-lowers the gain to at most ``heading_gain_delay_max`` / D: with both, the loop gain
-K e^{-sD} (1 + sD) / s has K D = 0.5 at crossover omega D = 1/sqrt(3), a phase margin of
-90 deg - 1/sqrt(3) rad + atan(1/sqrt(3)) = 87 deg (no overshoot), and the nominal gain where the
-delay is small (8 /s up to D = 62 ms).
+``heading_loop``: a P-law on an integrating yaw behind a delay D has the phase margin pi/2 - K D. The
+loop takes D as the pose's age plus ``command_lead_s``, predicts the heading over it with the tracked
+yaw rate and caps the gain at ``heading_gain_delay_max`` / D (phase margin 87 deg at K D = 0.5; the
+nominal 8 /s where the delay is small). docs/decisions/0023 has the reasoning.
 """
 
 from __future__ import annotations

@@ -1,40 +1,25 @@
 """Our team's AI in the passing game, one AI tick at a time: the functional core shared by the
 in-process game (erforce_sim.closed_loop.passing_game) and the ``passing_game`` node.
 
-No rclpy and no access to the physics: ``PassingPlayer`` sees what a real AI sees and is fed as it
-arrives (each input with the time it arrived): every robot's tracked pose and velocity (``on_robot``;
-our robots 0 .. n_team - 1, then the opponents), the tracked ball (``on_ball``), the predictor's catch
-time and point per robot of ours (``on_catch``) and ball model (``on_model``), and the light barriers
-(``on_barrier``; the opponents' too: how the game tells an interception, as a referee would). Each AI
-tick ``tick(now)`` returns every robot's command (``Commands``: twist in the robot frame, a kick,
-the dribbler).
+No rclpy and no access to the physics: ``PassingPlayer`` is fed what a real AI sees, as it arrives
+(tracked robots ``on_robot``, the tracked ball ``on_ball``, catch times and points ``on_catch``, the ball
+model ``on_model``, light barriers ``on_barrier``, the opponents' too: how an interception is told, as a
+referee would), and ``tick(now)`` returns every robot's ``Commands`` (twist, kick, dribbler).
 
-- The robot on the ball holds it with the dribbler, evaluates a pass to every teammate
-  (passing.evaluate_passes: robotTimeToBall for the whole field on the ball each kick would make),
-  turns to the pass it selects (passing.select_pass: the earliest safe catch) and kicks, once it has
-  held the ball ``hold_min_s`` and aims within ``aim_tolerance_rad``, with the speed at which the ball
-  arrives receivable (passing.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``. Each pass is
-  judged from the pose it is kicked from (the ball at the dribbler turned to it), and the holder keeps its
-  receiver while it turns (``switch_margin_s``, ``keep_choice_s``); one that has not kicked after
-  ``stall_warn_s`` says why (``stalled``, for the caller's throttled warning).
-- A holder with no pass in reach at all (every receiver's catch at infinity or no teammate in passing
-  distance: above all a ball model that stops every kick short, e.g. a bad one on the latched model topic)
-  waits ``no_option_wait_s``, then falls back (``fallback_choice``): the passes re-planned with
-  ``trusted_model`` (the model its last completed pass was planned with; at first the one it was built
-  with), then without the passing distances; ``notice`` names why, for the caller's throttled warning.
-  The receiver of such a pass rolls it with the model it was planned with.
-- Each teammate's next target (where it would pass on from where it stands) is worked out when a robot
-  takes the ball and refreshed one teammate per AI tick; a pass is rated with its receiver facing it.
-- The receiver runs catcher.Receiver (the paper's Fig. 6 skill) facing its next target where the receive
-  angle allows (``receive_facing`` says so, for a predictor that can search with that facing); once its
-  light barrier sees the ball it holds it and passes on, preferring that target.
+- The holder evaluates a pass to every teammate (passing.evaluate_passes), turns to the earliest safe
+  catch (passing.select_pass) and kicks once it held the ball ``hold_min_s`` and aims within
+  ``aim_tolerance_rad``, at the speed that arrives receivable; without a safe pass it waits
+  ``wait_for_safe_s``. It keeps its receiver while it turns (``switch_margin_s``, ``keep_choice_s``).
+- With no pass in reach at all (e.g. a latched ball model that stops every kick short) it waits
+  ``no_option_wait_s`` and falls back (``fallback_choice``) to ``trusted_model``, then to any teammate;
+  ``notice`` and ``stalled`` say why, for the caller's throttled warning (docs/decisions/0024).
+- Each teammate's next target is refreshed one teammate per AI tick; the receiver runs catcher.Receiver
+  facing it where the angle allows (``receive_facing``) and, once its barrier sees the ball, holds it.
 
-A pass ends at a light-barrier edge: our receiver's or another of ours (completed), an opponent's
-(intercepted); or when the ball rests ``rest_for_s`` or ``pass_timeout_s`` runs out (lost). Each ended
-pass is appended to ``records`` (``PassRecord``). What only the referee or the simulator does stays
-outside: after an interception, a loss, or a holder that lost the ball before it kicked (its barrier
-dark ``drop_after_s``), ``ball_request`` names our robot farthest from the opponents; whoever runs the
-game puts the ball at its dribbler and calls ``ball_placed``, and that robot holds it.
+A pass ends at a light-barrier edge (ours: completed; an opponent's: intercepted) or when the ball rests
+``rest_for_s`` or ``pass_timeout_s`` runs out (lost), and is appended to ``records``. What only a referee
+or the simulator does stays outside: ``ball_request`` names the robot to put the ball at, and the caller
+reports it with ``ball_placed``.
 """
 
 from __future__ import annotations

@@ -1,37 +1,24 @@
 """ssl_vision_bridge: SSL-Vision multicast in, the contract's vision topics out (see contract's docstring).
 
-A receive thread waits on the socket and drains it in batches (non-blocking reads until the
-kernel queue is empty, at most ``max_batch`` per round): the kernel buffer (``receive_buffer_bytes``)
-absorbs bursts while a batch is processed, and a round that still finds more than
-``flood_batch`` datagrams keeps only each camera's newest frame (older ones are superseded) and
-says so. Every datagram goes through erforce_interfaces.ssl_vision (decoding, checks, capture order, vision
-clock) and erforce_ball_model.vision_tracking (the true ball, robot streams); the node converts
-and publishes. What it drops is named by its class (ssl_vision.DROP_CLASSES; per camera for t_capture going
-back and clock jumps): a throttled warning per class starts with it in brackets, a counter per class goes into
-the periodic statistics line ("dropped by class: ..."). The tracker's choices (a ball candidate older than the
-ball already taken from another camera, reflections, a switch to another ball) are normal with overlapping
-cameras: counted in the same line, not warned about.
+A receive thread drains the socket in batches (at most ``max_batch`` per round; the kernel buffer
+``receive_buffer_bytes`` absorbs bursts meanwhile); a round that finds more than ``flood_batch``
+datagrams keeps each camera's newest frame and says so. Each datagram goes through
+erforce_interfaces.ssl_vision (decoding, checks, capture order, vision clock) and vision_tracking (the
+true ball, robot streams). What it drops is named by its class (ssl_vision.DROP_CLASSES): a throttled
+warning per class and a counter in the periodic statistics line; the tracker's normal choices with
+overlapping cameras (reflections, an older candidate) are only counted.
 
-A camera frame goes out in one ``/vision/robots`` message (what the stack reads): the tracker's ball, if it
-took one from this frame, and the robots, both teams. It goes out first, ``/vision/ball`` after it (a
-recorder reading every topic made a ball's datagram pay for that write before the predictor's message). A
-DDS write is the largest single cost of a datagram, so ``/vision/ball`` and a robot's vision_pose are
-serialized and published only while their topic has a reader (each publisher's matched event keeps the
-count); a tool that subscribes to one gets it from then on. The usual datagram (one camera frame, every
-detection valid, every robot with an orientation, no vision_pose reader) goes from its bytes to the
-message's bytes in one compiled pass (erforce_ball_model.vision_pass: decoding, vision clock, tracker and
-the ball filter's usual update, points, CDR); Python adds the publish, and the ball filter's unusual frames
-(a new ball, one held back). Anything else takes the general path (the same kernels through their Python
-interfaces), which also warns; so do a flipped field and ``publish_detections``.
+A camera frame goes out as one ``/vision/robots`` (what the stack reads), before ``/vision/ball``; that
+and each robot's ``vision_pose`` are published only while read (a DDS write is a datagram's largest
+cost). The usual datagram goes from its bytes to the message's bytes in one compiled pass (vision_pass;
+docs/decisions/0013); anything else takes the general path through the same kernels, which also warns.
 
-Stamps (``time_source``): ``estimate`` maps t_capture onto this host's clock (ssl_vision.VisionClock: a real
-field, whose vision host's clock runs at the pace of ours); ``capture`` puts the cameras' capture times on one
-timeline (ssl_vision.CaptureTimeline) and publishes it on ``/clock``: the time of an outside world that is not
-paced to our clock (a simulator at 0.6x or flat out), which the AI side's nodes follow with use_sim_time;
-``vision`` takes t_capture as ROS time (our plant, which owns /clock). In front of all three, the capture order
-(ssl_vision.CaptureOrder) drops a camera's frame that is not after its newest (``t_capture_back``) and passes a
-step back of at least ``clock_jump_s`` on as a restart; the estimate and the timeline refuse a new line until
-confirmed (``clock_jump``)."""
+Stamps (``time_source``): ``estimate`` maps t_capture onto this host's clock (a real field);
+``capture`` puts the cameras' capture times on one timeline and publishes it on ``/clock`` (an outside
+simulator not paced to our clock); ``vision`` takes t_capture as ROS time (our plant owns ``/clock``).
+Before all three, a camera's frame not after its newest is dropped and a step back of at least
+``clock_jump_s`` is passed on as a restart, taken once confirmed.
+"""
 
 from __future__ import annotations
 

@@ -1,61 +1,25 @@
 """The wire contract of the stack: every topic, its message type, QoS, frame and units.
 
-No node spells a topic string itself: it takes a ``Topic`` from here. Per-robot topics
-are relative names that live under the robot namespace ``robot_<id>`` (a per-robot node
-launched with ``namespace: robot_0`` uses them as they are; a node serving all robots,
-like the plant or the ball predictor, resolves them with ``Topic.for_robot(id)``, or for
-either team with ``Team.topic``: the opponents live under ``opponent_<id>``).
+No node spells a topic string itself: it takes a ``Topic`` from here. Per-robot topics are relative
+names under ``robot_<id>`` (ours) or ``opponent_<id>`` (the other team, ``Team``; each team numbers its
+robots from 0 as SSL does); a node serving all robots resolves them with ``Topic.for_robot`` or
+``Team.topic``.
 
-Conventions (REP 103 / REP 105):
-- SI units: metres, seconds, radians, m/s, rad/s, amperes, volts. Temperatures in degrees
-  Celsius, as sensor_msgs/Temperature does.
-- ``field``: the world frame, origin at the field centre, x towards the positive goal,
-  y left, z up (right-handed). ``robot_<id>/base_link``: x forward (dribbler and kicker),
-  y left, z up.
-- Wheels are ``wheel_0 .. wheel_{n-1}`` in the order of RobotConfig.wheel_angles_rad.
-- Lockstep control messages are stamped with the simulation time of the sensor tick
-  they answer, so the plant can pair commands with ticks (see erforce_sim.plant_node).
-- Nothing non-finite is ever published. "Never" in a catch time is ``CATCH_TIME_NEVER``.
+Conventions (REP 103 / REP 105): SI units (temperatures in degrees Celsius, as sensor_msgs/Temperature);
+``field`` has its origin at the centre, x towards the positive goal, z up; ``robot_<id>/base_link`` has
+x towards the dribbler; wheels are ``wheel_0 ..`` in the order of RobotConfig.wheel_angles_rad. Lockstep
+answers carry the stamp of the sensor tick they answer. Nothing non-finite is ever published; "never"
+as a catch time is ``CATCH_TIME_NEVER``.
 
-Two teams (``Team``): ours, ``OURS``, under ``/robot_<id>/``, and the opponents, ``OPPONENTS``, under
-``/opponent_<id>/``, each with the robot ids 0.. that SSL gives its team; both have the same per-robot
-topics (a per-robot node launched with ``namespace: opponent_0`` is an opponent's), and the plant
-serves both under the same physics.
+The lockstep JointStates exist per robot, per team (``/team/...``, ``/opponent_team/...``; joints
+``robot_<id>/wheel_<k>``, each team's firmware sees only its own) and per field (``/field/...``, both
+teams in one message, ours first): the values per robot are the same in all three, so they give the
+same trajectory; the team and field forms save messages and wakes.
 
-Team-level lockstep topics (``/team/wheel_states``, ``/team/motor_duty``; the opponents'
-``/opponent_team/wheel_states`` and ``motor_duty``): the same JointState as the per-robot ones, for many
-robots of one team in one message per tick, with joint names ``robot_<id>/wheel_<k>`` (the opponents'
-``opponent_<id>/wheel_<k>``; ``Team.joint_names``): each robot's wheels in wheel order, robots in
-increasing id. As on a real field, where each team drives its own robots over its own link, a team's
-firmware never sees the other team's messages. The plant's ``lockstep_topics`` parameter chooses which
-of the two kinds it serves (or both); a team_firmware process answers for its own robots only, so
-several of one team may share its topics. Per robot, the values are exactly those of the per-robot
-topics, so both give the same trajectory.
-
-Field-level lockstep topics (``/field/wheel_states``, ``/field/motor_duty``): the same JointState for the
-robots of both teams in one message per tick, our joints first, then the opponents' (``field_joint_names``),
-for a simulation that runs both teams' firmware in one process (team_firmware with ``opponent_ids``): one
-message and one wake per tick each way instead of one per team. The values are those of the team topics.
-
-SSL-Vision (the ``ssl_vision_bridge`` node; erforce_ball_model.ssl_vision_bridge): the bridge
-takes the league's multicast packets and publishes on the same topics the plant's vision uses,
-so the rest of the graph cannot tell them apart:
-- millimetres become metres; the vision frame becomes ``field`` (turned by half a turn when our
-  team defends the goal at positive x, so that in ``field`` we always defend negative x);
-- ``t_capture`` becomes the stamp, on the ROS clock (erforce_interfaces.ssl_vision.VisionClock), or, with
-  ``time_source: capture``, on the cameras' one capture timeline, which the bridge publishes on ``/clock``
-  (erforce_interfaces.ssl_vision.CaptureTimeline);
-- a camera frame goes out as one ``/vision/robots`` message: the ball the multi-camera tracker picks
-  from it (if any, with increasing stamps from frame to frame) and the robots it uses, both teams; the
-  ball also to ``/vision/ball``, our team's robots also to ``/robot_<id>/vision_pose``, the opponents'
-  to ``/opponent_<id>/vision_pose`` (``OPPONENT_NAMESPACE_PREFIX``), each while it has readers;
-- with ``publish_detections``, every camera frame, all candidates included, to ``/vision/detections``
-  (a table);
-- geometry to ``/vision/field`` and the two-phase ball model to ``/vision/ball_model``, both
-  transient local: a node that starts later still gets the last one.
-Hosted in the ball predictor's process (``ssl_ball_predictor``), the bridge hands each frame's
-``/vision/robots`` to that predictor directly, before publishing it; that predictor takes no
-``/vision/robots`` from DDS.
+Vision reaches the graph the same way from the plant's cameras and from SSL-Vision (the bridge turns
+millimetres into metres and the vision frame into ``field``, so that we always defend negative x):
+one ``/vision/robots`` per camera frame, its ball first; ``/vision/ball`` and each ``vision_pose`` only
+while read; geometry and the ball model transient local on ``/vision/field`` and ``/vision/ball_model``.
 """
 
 from __future__ import annotations

@@ -1,39 +1,22 @@
 """team_firmware: the main board and motor boards of many robots in one process.
 
-The same contract as one ``velocity_controller`` plus one ``motor_boards`` per robot (each in
-its namespace ``robot_<id>``): per robot in ``robot_ids`` it takes ``/robot_<id>/cmd_vel`` and
-``/robot_<id>/wheel_states`` and answers each tick with ``/robot_<id>/motor_duty`` and, at its
-rate, ``motor_status``. Inside, the main board's setpoint reaches the motor boards without DDS,
-one tick later, exactly as erforce_sim.closed_loop.runner.InProcessRunner steps the same cores
-(erforce_motion.team_cores.TeamFirmware: one call per tick for all robots whose sensors arrived),
-so the lockstep graph computes the same trajectory with either deployment. ``wheel_setpoints``
-is published only with ``publish_setpoints`` (for tools): nobody in the graph needs it, and it
-would be a message per robot per tick.
+The same contract as a ``velocity_controller`` plus a ``motor_boards`` per robot: per robot in
+``robot_ids`` it takes ``cmd_vel`` and ``wheel_states`` and answers each tick with ``motor_duty`` (and
+``motor_status`` at its rate). Inside, the main board's setpoint reaches the motor boards one tick later
+without DDS, as the in-process runner steps the same cores (team_cores.TeamFirmware, one call per tick),
+so the lockstep graph computes the same trajectory in either deployment. ``wheel_setpoints`` only with
+``publish_setpoints`` (tools).
 
-With ``lockstep_topics`` ``team`` it takes one ``/team/wheel_states`` per tick instead and answers
-with one ``/team/motor_duty`` for its robots (contract: joints ``robot_<id>/wheel_<k>``); robots of the
-message that are not in ``robot_ids`` belong to another process of the team and are left alone.
-One time rule judges the message's stamp for all its robots (on the per-robot topics, one per robot).
-The answer goes out first; notices and ``motor_status`` follow it, so the plant does not wait for them.
+``lockstep_topics`` ``team`` or ``field`` takes one message per tick for the team (or both teams) and
+answers for this process's robots only; one time rule judges the message's stamp for all of them, and the
+answer goes out before notices and status. ``team`` ``opponents`` makes it the opponents' firmware;
+``team`` ``ours`` with ``opponent_ids`` runs both teams as rows of one TeamFirmware, each team answered on
+its own (docs/decisions/0011): a simulation saves a process's wakes per tick, where a process per team
+keeps one team's crash from the other, as on a real field.
 
-With ``team`` ``opponents`` it is the opponents' firmware: the same, under ``/opponent_<id>/`` and
-``/opponent_team/`` (contract.Team). Each team runs its own process, as each team on a real field
-runs its own robots: neither sees the other's messages, and one crashing leaves the other playing.
-
-With ``team`` ``ours`` and ``opponent_ids``, the same process also runs the opponents' firmware, on their
-own topics (``/opponent_<id>/...``, ``/opponent_team/...``): both teams in one executor, their robots rows
-of one TeamFirmware (ours first), as a component container hosts several nodes. It answers each team's
-message on its own, with the same numbers as a process per team; a simulation saves a process's wakes per
-tick (docs/decisions/0011), while a process per team keeps a crash of one team's firmware from the other. With
-``lockstep_topics`` ``field`` both teams' robots come in one ``/field/wheel_states`` per tick and their duties
-go out in one ``/field/motor_duty`` (the plant's ``lockstep_topics`` field): one message and one wake per tick
-each way instead of one per team; robots of the message that this process does not run are left alone.
-
-One executor wakes once for all robots whose ``wheel_states`` are queued, instead of two
-processes per robot each waking per tick. The parameters of the two per-robot nodes are here
-with the prefixes ``main_board.`` and ``motor_boards.`` (the same names, ranges and defaults),
-``robot.*`` once for the team. ``robot_ids`` is read-only: a robot is added or removed by
-starting the node with another list.
+The parameters of the two per-robot nodes are here with the prefixes ``main_board.`` and
+``motor_boards.``, ``robot.*`` once for the team. ``robot_ids`` is read-only: a robot is added or removed
+by starting the node with another list.
 """
 
 from __future__ import annotations

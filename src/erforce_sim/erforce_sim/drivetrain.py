@@ -23,8 +23,8 @@ Physics behind the paper's Sec. 4 (motion control, 1.3 A current limit) in simul
 The substep loop is scalar float math over a few wheels, compiled by numba (``_advance``, cached on
 disk beside this module, no fastmath, so the IEEE results of the same operations in the same order);
 ``advance_robots`` runs it for many robots in one call (World keeps every robot's state in
-per-robot arrays, each RobotPlant works on its rows). As plain Python, at 10 kHz, it cost about
-0.3 ms of CPU per robot per millisecond simulated. No rclpy import.
+per-robot arrays, each RobotPlant works on its rows): as plain Python at 10 kHz it would cost more
+than the rest of a simulation (docs/decisions/0010). No rclpy import.
 """
 
 from __future__ import annotations

@@ -1,40 +1,21 @@
 """plant: the simulated world as a ROS 2 node. It owns time.
 
-Every tick (``control_period_s``) it publishes each robot's ``wheel_states`` (what the
-motor boards' sensors see) and ``/clock`` (at ``clock_rate_hz``), stamped with the tick's time,
-applies the robots' ``motor_duty`` and steps the physics. Vision frames, light-barrier
-state and ground truth (while it has readers) go out as they fall due.
+Every tick (``control_period_s``) it publishes each robot's ``wheel_states`` and ``/clock`` (at
+``clock_rate_hz``) stamped with the tick's time, applies the robots' ``motor_duty`` and steps the physics;
+vision frames, light barriers and ground truth (while read) go out as they fall due.
 
-Pacing (parameter ``pacing``):
-- ``lockstep``: a tick advances only after every live motor board answered it
-  (erforce_interfaces.lockstep), so runs are deterministic. A silent peer is reported on
-  ``/sim/events`` after ``lockstep_timeout_s`` and the plant goes on with zero duty for
-  it until it answers again. ``real_time_factor`` > 0 caps the speed for watching.
-- ``realtime``: ticks follow the wall clock times ``real_time_factor``; the newest duty
-  of each robot is applied, nobody is waited for.
+Pacing: ``lockstep`` advances a tick only once every live motor board answered it
+(erforce_interfaces.lockstep), so runs are deterministic; a silent peer is reported on ``/sim/events``
+after ``lockstep_timeout_s`` and driven with zero duty until it answers. ``realtime`` follows the wall
+clock and applies the newest duties. ``real_time_factor`` > 0 caps the speed; a plant that fell behind
+(stopped, starved, waiting out a peer) paces on from now instead of racing to catch up.
 
-With ``real_time_factor`` > 0 a plant that fell behind the wall clock by more than a moment (it was
-stopped, starved or waited out a silent peer) paces on from there; it does not race to catch up.
+Both teams (``opponent_poses``; contract.Team) live under the same physics. ``lockstep_topics`` chooses
+the lockstep messages: ``per_robot``, ``team`` (one per team and tick), ``both`` or ``field`` (one for
+both teams); the gate is per robot either way.
 
-Two teams (``opponent_poses``): our robots under ``/robot_<id>/`` and the opponents, ids 0.., under
-``/opponent_<id>/`` (contract.Team), all under the same physics; every opponent has motor boards. In
-the world the opponents come after our robots (PlantSetup.team_of).
-
-Lockstep topics (parameter ``lockstep_topics``): ``per_robot`` serves ``/robot_<id>/wheel_states`` and
-``motor_duty`` (one velocity_controller + motor_boards per robot, or a team_firmware on them); ``team``
-serves, per team, one ``/team/wheel_states`` (the opponents' ``/opponent_team/wheel_states``) per tick
-for its controlled robots and takes ``motor_duty`` answers there, each for the robots of one
-team_firmware process (contract: joints ``robot_<id>/wheel_<k>``, ``opponent_<id>/wheel_<k>``);
-``both`` serves both, and a robot's answer counts from either; ``field`` serves one ``/field/wheel_states``
-per tick for the controlled robots of both teams (ours first) and takes ``/field/motor_duty`` answers, each
-for the robots of one team_firmware process (both teams' firmware in one process: one message and one wake
-per tick each way). The gate is per robot either way.
-
-Scenarios: place the ball on ``/sim/set_ball`` and a robot on ``/robot_<id>/sim/set_state``
-(nav_msgs/Odometry: pose and twist in ``field``), kick on ``/robot_<id>/kick``, the dribbler on
-``/robot_<id>/dribbler`` (on at any speed above 0: it holds a ball that touches it); an opponent likewise
-under ``/opponent_<id>/``. A body placed outside the field walls is refused with an error naming it.
-They act at the next tick; of several that arrived meanwhile on one topic, the newest.
+Scenarios (``/sim/set_ball``, ``sim/set_state``, ``kick``, ``dribbler`` per robot) act at the next tick,
+the newest of each; a body placed outside the field walls is refused with an error naming it.
 """
 
 from __future__ import annotations

@@ -1,83 +1,18 @@
 """``erforce-launch``: run ROS 2 YAML launch files without the ``launch``/``launch_ros`` packages.
 
-Tooling, not a paper section: it starts the node graph (issue "Launcher"). The files it reads are
-ordinary ROS 2 YAML launch files; the same file works with ``ros2 launch``.
+The files are ordinary ROS 2 YAML launch files; the same file works with ``ros2 launch``. Three stages,
+one block each below: **parse** (PyYAML keeping every key's line, so each error is one line
+``erforce-launch: error: FILE:LINE: <what>``), **resolve** (actions in order with a ``Scope``, ``$(...)``
+substitutions, packages and parameter files, into a list of ``ProcessSpec``) and **run** (one process
+per spec, output prefixed ``[label]``, respawn, the shutdown ladder).
 
-Pipeline, one stage per block below:
-
-1. **parse**: PyYAML (a SafeLoader subclass) that keeps the line of every key and list item, so
-   every error is ONE line ``erforce-launch: error: FILE:LINE: <what>``;
-2. **resolve**: walk the actions in order with a ``Scope`` (launch configurations, environment,
-   pushed namespace, global remaps/params), evaluate ``$(...)`` substitutions, find packages and
-   executables, write the parameter files: the result is a list of ``ProcessSpec``;
-3. **run**: one process per spec, output prefixed ``[label]``, respawn (from a warm standby where there is
-   one: Runner), and the shutdown ladder.
-
-Supported actions: ``arg`` (name, default, description, choice), ``let``, ``node`` (pkg, exec,
-exec_name, name, namespace, param with value/nested param/from(+allow_substs),
-remap, args, ros_args, output, respawn, respawn_delay, respawn_max_retries, env, cwd,
-launch-prefix, sigterm_timeout, sigkill_timeout, emulate_tty), ``executable`` (cmd and the process keys),
-``include`` (file, arg), ``group`` (list form, or scoped/forwarding/keep/children),
-``push_ros_namespace`` (or ``push-ros-namespace``), ``set_env``, ``unset_env``, ``set_remap``,
-``set_parameter``, ``log``; ``if``/``unless`` on every action. Substitutions: ``var``, ``env`` (with
-an optional default), ``find-pkg-share``, ``find-pkg-prefix``, ``find-exec``, ``dirname``,
-``filename``, ``anon``, nested and quoted arguments, and launch's boolean ones, each giving 'true'
-or 'false': ``equals A B``/``not-equals A B`` (two of true/false/1/0 in any case compare as
-booleans, two numbers with math.isclose, anything else as text), ``not X``, ``and A B``, ``or A B``
-(arguments: '1', '0' or what YAML reads as a boolean: true, off, Yes, ...; anything else is an error).
-
-As strict as ``ros2 launch`` on Jazzy (launch 3.4, launch_ros 0.26), whose rules these are:
-- launch_yaml converts no value: text attributes must be YAML strings (``respawn: "true"``, ``if: "$(var x)"``),
-  and where launch reads a plain value no substitution is evaluated, so one is an error here:
-  ``respawn_delay``, ``sigterm_timeout``, ``sigkill_timeout`` (YAML floats), ``respawn_max_retries`` (a YAML
-  int), ``emulate_tty``, ``allow_substs``, a group's ``scoped``/``forwarding`` (YAML booleans), an arg's
-  ``name`` and ``choice`` values (plain text). docs/launch_attributes.md has every attribute, a fixture each;
-- unknown keys and actions are errors, as launch's ``assert_entity_completely_parsed`` makes them;
-- a file's substitutions are all parsed when it loads, also in actions that will not run: an
-  unknown one (ROS 1's ``$(optenv)``, ``$(arg)``, ``$(find)``) is "Unknown substitution: NAME";
-- an include is not scoped: its args are set in the including scope one after the other and stay
-  set, as do the included file's own configurations (wrap it in a group to scope it); an included
-  file sees the including file's configurations, so an ``arg`` with a default takes a value set there;
-- a required ``arg`` (no default, not under a condition) must be among the include's arg names, a
-  value in the including scope does not count: "Included launch description missing required
-  argument 'X'". launch checks this when it includes a file, the command line's file too, and looks
-  ahead into every include whose path needs no context (no ``$(var)``/``$(dirname)``), whatever its
-  condition, counting the arg names of the includes there;
-- ``$(dirname)``/``$(filename)`` name the file being read, and inside an include's arg values already
-  the included file.
-
-Signals (a decision): every child runs in its own process group, so a terminal Ctrl-C reaches the
-launcher only, and the launcher alone decides: SIGINT to each child's group, after
-``sigterm_timeout`` (5 s) SIGTERM, after ``sigkill_timeout`` (5 s) SIGKILL, always reaped. A second
-Ctrl-C skips the current wait. Children also get PR_SET_PDEATHSIG=SIGTERM, so even a SIGKILLed
-launcher takes its direct children with it.
-
-Output, as ros2 launch: ``output: screen`` relays each line as ``[talker-1] ...`` (child stdout to our
-stdout, stderr to stderr), ``log`` (the default) writes ``<label>-stdout.log``/``-stderr.log`` below
-``$ROS_LOG_DIR`` (or ``~/.ros/log``)/<stamp>-<host>-<pid>/, ``both`` does both.
-
-Deviations from ``ros2 launch`` (each deliberate):
-- everything is resolved before the first process starts, so an error never leaves half a graph
-  running (ros2 launch starts each node as it reaches it and fails at a later include);
-- ``$(dirname)``/``$(filename)`` after an include in the same file are refused: Jazzy resolves them
-  to the last included file (a known bug, ros2/launch#618, fixed upstream by #862 but present in
-  Jazzy's launch 3.4.3), so the same file would mean something else under ros2 launch;
-- an inline parameter value takes the type the node's schema declares (``params/<exec>.yaml``,
-  erforce_interfaces.param_schema): ``real_time_factor:=0`` gives 0.0 where launch_ros writes the
-  integer 0; the nodes take that integer as well (node_support.NodeParams), so both launchers work;
-- consecutive inline params share one temporary file (ros2 launch writes one per entry;
-  the override order is the same), and the files are deleted when the launcher exits;
-- a missing ``param: {from: ...}`` file is an error (ros2 launch warns and skips it);
-- ``args``/``cmd`` are split with shlex after substitution;
-- ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST unless set (README, "DDS discovery"): safe by default;
-- a respawning node of ours (one with a parameter schema) keeps a warm standby: a spare process of the
-  same command, imports done and no DDS participant, that takes over when the node dies
-  (erforce_interfaces.standby; ``--no-standby`` turns it off); ros2 launch always starts afresh;
-- no ``$(eval)``, ``$(command)``, ``$(exec-in-pkg)``, ``$(param)``, Python/XML launch files, event
-  handlers or composable nodes; ``$(any)``/``$(all)`` are an error as in ros2 launch on Jazzy, whose
-  YAML/XML parser cannot build them.
-Exit status: 0, or 1 when a non-respawning process failed before shutdown began, 2 for a bad
-command line or launch file (then nothing was started).
+It is as strict as ``ros2 launch`` on Jazzy, whose rules it follows, and resolves everything before the
+first process starts, so an error never leaves half a graph running. Every child runs in its own process
+group: Ctrl-C reaches the launcher alone, which sends SIGINT, then SIGTERM and SIGKILL after
+``sigterm_timeout``/``sigkill_timeout``, and always reaps. A respawning node of ours is taken over by a
+warm standby (erforce_interfaces.standby). The supported actions and substitutions, and every deliberate
+deviation from ``ros2 launch``, are listed in docs/reference.md ("erforce-launch"). Exit status: 0; 1 when
+a non-respawning process failed before shutdown; 2 for a bad command line or launch file (nothing started).
 """
 
 from __future__ import annotations
