@@ -1,70 +1,34 @@
 """Robot-to-ball time (ER-Force ETDP 2016, Sec. 5.5: robotTimeToPos and Algorithm 2 robotTimeToBall).
 
-robotTimeToPos
-    ``robot_time_to_pos`` is a 2D bang-bang (trapezoidal) time estimate: the robot starts at its
-    current position and field-frame velocity and must *arrive at rest* at the target (the classic
-    choice: a robot that arrives with speed overshoots the catch point). The acceleration budget
-    ``a_max`` and speed budget ``v_max`` are split between the axes by an angle alpha
-    (``a_x = a_max cos(alpha)``, ``a_y = a_max sin(alpha)``, likewise ``v_max``) and alpha is
-    bisected until both axes arrive together (the "alpha search" of Purwin & D'Andrea / TIGERs,
-    implemented from scratch). Per axis the optimal 1D time is closed-form: brake first if moving
-    away or too fast to stop in time, then accelerate, cruise at the speed limit, brake. An axis
-    that already moves faster than its share of ``v_max`` (towards the target) keeps its speed
-    instead of being forced to brake; this keeps the time monotone in the acceleration share.
-    The bisection stops on a certificate: a bracket [lo, hi] of the split bounds the
-    synchronized time from both sides (``_time_to_pos``). A robot at rest needs no search
-    (closed form).
+robotTimeToPos (``robot_time_to_pos``): a 2D bang-bang time estimate from the robot's position and
+field-frame velocity to *arriving at rest* at the target (a robot that arrives with speed overshoots the
+catch point). ``a_max`` and ``v_max`` are split between the axes by an angle alpha, bisected until both
+axes arrive together (the "alpha search" of Purwin & D'Andrea / TIGERs, implemented from scratch); per
+axis the 1D time is closed-form, and an axis already faster than its share keeps its speed, which keeps
+the time monotone in the split. The bisection stops on a certificate bracketing the synchronized time.
 
-Reachability test without the alpha search
-    For robotTimeToBall only the sign of ``t_robot(t) - t`` matters. For a time budget T each axis
-    needs a minimal acceleration A_i (closed form: the 1D time is piecewise a quadratic in 1/A);
-    the robot makes it iff ``A_x^2 + A_y^2 <= a_max^2`` (cos^2 + sin^2 = 1). This gives the exact
-    sign of the alpha-search time in closed form, with no iteration (``_can_reach``).
+Reachability without the search (``_can_reach``): for robotTimeToBall only the sign of
+``t_robot(t) - t`` matters. For a budget T each axis needs a minimal acceleration A_i (closed form), and
+the robot makes it iff ``A_x^2 + A_y^2 <= a_max^2``: the exact sign, with no iteration.
 
-robotTimeToBall (beyond the paper)
-    ``f(t) = t_robot(ball_position_at(t) - offset) - t`` is sampled per robot on a
-    grid of step h over ``[t_in, min(t_stop, t_out)]`` (grid points t_in, t_in + h, ... and the end
-    point), the stretch of the path inside the field (``BallTrajectory.time_in_field``). The paper's
-    interval starts at 0; ``t_in`` > 0 is a ball in the run-off area rolling back in (off a wall),
-    whose catch points inside the field the paper's bound (``t_out`` = 0) would never search.
-    A trajectory with walls (ball_model.Walls) is a path of straight pieces reflected off the
-    field's wall; the search follows it piecewise (the ball's place at a time, the witness below on
-    every piece) and counts a catch point only where the ball is inside the field.
-    Guarantee: every interval of length >= h contains a grid point, so the robot's first catch
-    window (an interval where f <= 0) is never missed when it is at least h wide; in that case the
-    returned time is feasible (f <= 0 there), never earlier than the true first crossing and at most
-    ``h / refine_points`` later (78 us with the defaults h = 10 ms, 128 points). Narrower windows
-    can be missed; then the next window (or the paper's fallback) is returned, with one exception
-    that is never missed however narrow: the moment the ball passes the robot's own spot (its
-    braking point projected on the path), tested exactly. That is the window of a robot standing
-    on the path of a fast ball, which is only ``a t^2 / (2 v_ball)`` wide. The crossing is
-    refined by sub-grid passes (12 x 11 points) instead of a bisection, which also copes with the
-    discontinuity of f the paper mentions (the leftmost feasible sub-point is taken). The paper's
-    fallback (no window, the ball stops inside) is robotTimeToPos to the stop point, an upper
-    bound at most ``h / refine_points`` above the exact time.
+robotTimeToBall (beyond the paper): ``f(t) = t_robot(ball_position_at(t) - offset) - t`` is sampled per
+robot on a grid of step h over ``[t_in, min(t_stop, t_out)]``, the stretch of the path inside the field
+(``BallTrajectory.time_in_field``; ``t_in`` > 0 is a ball rolling back in off a wall, which the paper's
+``t_out`` = 0 would never search). A path with ``Walls`` is followed piece by piece. Guarantee: a catch
+window at least h wide is never missed, and the returned time is feasible and at most
+``h / refine_points`` late (78 us with the defaults); one narrow window is never missed however narrow:
+the moment the ball passes the robot's own braking point, tested exactly (a robot standing on a fast
+ball's path). The crossing is refined by sub-grid passes, which also copes with the discontinuity of f
+the paper mentions. Without a window the paper's fallback holds: robotTimeToPos to the stop point.
+A cheap sound bound (``_may_reach``) skips the exact test where the robot surely cannot make it.
 
-Cost
-    Each robot scans its grid in order of time and stops at its first feasible point; a sound
-    and cheap bound (``_may_reach``: the motion projected on the line to the target,
-    |acceleration| <= a_max, speed <= sqrt(v_max^2 + |v0|^2), ending at rest) skips the exact
-    test where the robot surely cannot make it.
-
-Compiled scalar loops
-    The per-robot search is a few hundred branchy scalar steps per robot. As numpy array passes
-    over all robots it took 0.7-0.8 ms for 22 robots (median; about a thousand small array
-    operations per frame, 2-3x slower again when the caches are cold between vision frames). So
-    the scalar loops here are compiled by numba (``_kernels``: the three entry points for fixed
-    float64 signatures, the functions they call compiled into them; cached on disk beside this
-    module) on a process's first search, not at import: the catcher, which asks ``can_reach`` a few
-    dozen times per tick, runs it as plain Python and starts without numba. The public array
-    functions keep numpy's broadcasting interface. The ball enters the kernel as its
-    ``BallFloats`` (read by name) and moves by ball_model's own closed forms (``ball_distance``,
-    ``ball_time_to_distance``), compiled into the kernel.
-    The ball enters the kernel as its trajectory's table of pieces (``BallTrajectory.table``, one row
-    per piece: its start time and its ``BallFloats``), read back by ``ball_model.path_point``.
-    ``CatchSearch`` checks the team's limits and settings and allocates the outputs once, so a
-    caller that asks every vision frame (the predictor) pays one compiled call and a few checks;
-    ``robot_time_to_ball`` is the one-off form of the same search.
+Compiled scalar loops: the search is a few hundred branchy scalar steps per robot, too many small
+array operations as numpy (docs/decisions/0028), so it is compiled by numba (``_kernels``: three entry
+points for fixed float64 signatures, cached on disk) on a process's first search, not at import: the
+catcher, which asks ``can_reach`` a few dozen times per tick, runs it as Python without numba. The ball
+enters a kernel as its table of pieces (``BallTrajectory.table``) and moves by ball_model's own closed
+forms compiled into it. ``CatchSearch`` checks a team's limits and allocates once, so the predictor pays
+one compiled call per frame; ``robot_time_to_ball`` is the one-off form.
 """
 
 from __future__ import annotations

@@ -2,17 +2,16 @@
 
 When numba loads its numpy support it checks whether scipy's BLAS is there (``import
 scipy.linalg.cython_blas``), only to choose how np.convolve and np.correlate multiply inside a kernel.
-That import loads most of scipy: ~0.5 s of CPU in every process that loads kernels (the plant, the ball
-predictor), at each start and each respawn. The stack's kernels use no BLAS, so numba
-is imported here with scipy hidden and takes its own loop for those two. A kernel that does need
-BLAS (np.dot, np.linalg) still works: numba imports scipy.linalg when it compiles one. (Hidden too:
-``import scipy`` itself, ~45 ms of CPU, which numba's import does only to check scipy's version; the
-requirements pin a scipy far above the 1.0 it asks for.)
+That import loads most of scipy in every process that loads kernels, at each start and each respawn
+(docs/decisions/0009). The stack's kernels use no BLAS, so numba is imported here with scipy hidden and
+takes its own loop for those two. A kernel that does need BLAS (np.dot, np.linalg) still works: numba
+imports scipy.linalg when it compiles one. (Hidden too: ``import scipy`` itself, which numba's import
+does only to check scipy's version; the requirements pin a scipy far above the 1.0 it asks for.)
 
     from erforce_interfaces.numba_support import numba, register_jitable
 
 ``compiled_for``: a kernel called every tick with the same argument types can skip the dispatcher's
-type matching, which costs about 1 us per argument (a 20-argument kernel: ~13 of its ~24 us per call).
+type matching, which for a kernel of many arguments costs more than the kernel's work.
 """
 
 from __future__ import annotations

@@ -9,8 +9,8 @@ type's package, a type the bag cannot describe (not in rosbags' Jazzy type store
 The bag is a rosbag2 directory (metadata.yaml + .mcap), so ``ros2 bag info/play`` and
 Foxglove open it. Messages are taken raw (CDR bytes, no deserialization) and in batches:
 the recorder does not spin an executor, it drains every subscription's DDS queue every
-``POLL_PERIOD_S`` (50 ms). An executor callback per message cost ~0.2 ms of CPU here, which made
-the recorder the busiest process of the demo graph; a batched take is a few microseconds.
+``POLL_PERIOD_S`` (50 ms): an executor callback per message made the recorder the busiest process
+of the demo graph.
 Each message is logged at its DDS reception time (``received_timestamp``), or with
 ``use_sim_time`` at the newest ``/clock`` received before it (0 before the first), which
 is what a recorder with a callback per message would log. Command line:
