@@ -1,23 +1,17 @@
 """passing_game: our team's AI for the paper's passing game on the graph (passing_player.PassingPlayer).
 
-Reads what the ball predictor publishes: the tracked ball (``/ball/state``, ``/ball/v_shoot``, the model in
-use), every robot's tracked pose and velocity (its row of ``/robots/tracked``, ours and the opponents': what
-its odom carries, one message per vision frame where an odom per robot cost the predictor a publish and this
-node a take each; a row counts as new when its stamp changed), our robots' catch times and catch points
-(their rows of ``/ball/catches``: one message for all, where a topic per robot cost the predictor a publish
-and this node a callback each); and every robot's light barrier (``ball_detected``; the opponents' tell an
-interception, as a referee sees it). Each AI tick (``rate_hz``,
-simulated time) it feeds PassingPlayer and publishes our robots' ``cmd_vel`` (while a robot moves, and the
-stop once), a ``kick`` when the holder kicks, and each robot's ``dribbler`` when it changes (and every
-second). Each pass, as it ends, is logged as one line (PassRecord.line) and published on ``/pass/records``;
-the chosen pass on ``/pass/choice`` whenever it changes (the field view draws it).
-With ``place_ball`` it also does the referee's part: the ball at the holder's dribbler on ``/sim/set_ball``
-at the start (once every robot has been tracked ``settle_s``) and after an interception, a loss or a drop.
+It reads what the ball predictor publishes: the tracked ball (``/ball/state``, ``/ball/v_shoot``, the model
+in use), every robot's pose and velocity (its row of ``/robots/tracked``, taken when its stamp changed), our
+robots' catch times and points (their rows of ``/ball/catches``), and every robot's light barrier (the
+opponents' tell an interception, as a referee sees it). Each AI tick (``rate_hz``, simulated time) it feeds
+PassingPlayer and publishes our robots' ``cmd_vel``, a ``kick`` when the holder kicks and each ``dribbler``
+when it changes. Each ended pass is logged as one line and published on ``/pass/records``; the chosen pass
+on ``/pass/choice`` whenever it changes. With ``place_ball`` it also does the referee's part: the ball at the
+holder's dribbler on ``/sim/set_ball`` at the start and after an interception, a loss or a drop.
 
-The opponents are not driven here (on the graph: their team_catcher). The predictor searches our receiver's
-catch facing the ball; the receiver itself receives facing its next target where it can (its own receive
-point, catcher.Receiver), so its predicted catch point is a fallback a few centimetres off. This module
-converts messages and publishes; the decisions are passing_player's.
+The opponents are not driven here (on the graph: their team_catcher). The receiver receives facing its
+next target where it can, so the predictor's catch point (facing the ball) is a fallback a few centimetres
+off. This module converts messages and publishes; the decisions are passing_player's.
 """
 
 from __future__ import annotations

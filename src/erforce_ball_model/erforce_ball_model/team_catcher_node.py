@@ -1,25 +1,18 @@
 """team_catcher: the catchers of many robots in one process.
 
-The same contract as one ``catcher`` per robot (each in its namespace ``robot_<id>``, with
-``team_robot_ids`` the list): per robot in ``robot_ids`` it reads ``odom`` and ``ball_detected`` under
-``/robot_<id>/``, its catch time and catch point from its row of ``/ball/catches`` (what the catcher reads
-on ``catch_time`` and ``catch_point``: one message for the team instead of two topics per robot), the
-ball's topics once for all, and publishes each robot's ``cmd_vel`` at ``rate_hz``. Each robot runs its own
-catcher.Receiver; with ``as_team`` they form a team in which only the robot that can catch the ball first
-drives to it (catcher.team_receiver), as the per-robot catchers with ``team_robot_ids`` do. With
-``tracked_poses`` its robots' poses come from their rows of ``/robots/tracked`` instead of their odom (the
-same values: one message per vision frame instead of one per robot).
+The same contract as one ``catcher`` per robot: per robot in ``robot_ids`` it reads ``odom`` (or, with
+``tracked_poses``, its row of ``/robots/tracked``) and ``ball_detected``, its catch time and point from its
+row of ``/ball/catches``, the ball's topics once for all, and publishes each robot's ``cmd_vel`` at
+``rate_hz``. Each robot runs its own catcher.Receiver; with ``as_team`` only the robot that can catch
+first drives to the ball (catcher.team_receiver).
 
-With ``team`` ``opponents`` it drives the opponents under ``/opponent_<id>/`` (contract.Team) from the
-predictor's catch times for them: the interceptor of the simulated second team. With ``press_lanes`` it
-also reads the other team's ``num_other_robots`` tracked poses (their rows of ``/robots/tracked``: one
-message per vision frame instead of an odom per robot; a row counts as new when its stamp changed) and,
-while one of them holds the ball, sends its robots onto the passing lanes (the passing game's
-opponents). The decisions are passing_player.PressingTeam's.
+With ``team`` ``opponents`` it drives the opponents under ``/opponent_<id>/``: the interceptor of the
+simulated second team. With ``press_lanes`` it also reads the other team's tracked poses and, while one of
+them holds the ball, sends its robots onto the passing lanes; the decisions are
+passing_player.PressingTeam's.
 
-One timer and one sampled take of every input per tick, instead of a process, a timer and seven
-subscriptions' wakes per robot; it spins on DirectExecutor (unless ERFORCE_EXECUTOR says otherwise), on
-which the sampled inputs wake nothing. The parameters are the catcher's (``team_robot_ids`` aside).
+One timer takes every input, sampled, per tick (one process instead of one per robot). The parameters are
+the catcher's (``team_robot_ids`` aside).
 """
 
 from __future__ import annotations

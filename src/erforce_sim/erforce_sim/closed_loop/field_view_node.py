@@ -1,26 +1,18 @@
 """field_view: the field drawn live in a browser, a recorded bag replayed on the same page, and a
 Foxglove WebSocket server, as a ROS 2 node.
 
-It serves http://127.0.0.1:<port>/ (erforce_sim.closed_loop.view_server; the page's files ship in
-share/erforce_sim/web). Every ``1 / rate_hz`` of wall time (a tick in the server's tick thread: the only wake-up
-per frame; no message at the vision rate wakes the process) it takes the newest message of each topic the view
-shows (erforce_sim.closed_loop.field_view lists them; robots are found as their topics appear), hands them to
-the core (erforce_sim.closed_loop.field_view.WorldState) and sends its frame to the pages (binary,
-``WorldState.frame_bytes``). Its subscriptions are best effort and keep one message (the latched model in use:
-the contract's QoS): the view never holds up a publisher, and it takes nothing while no page is open. Where the
-predictor's team table ``/ball/catches`` is on the graph the view takes it instead of every robot's odom,
-catch_time and catch_point: one message per ball frame for the whole team instead of three per robot, and the
-predictor's per-robot outputs, which the robots act on, have no reader more; likewise ``/ball/track`` (the
-filtered ball, v_shoot, phase, uncertain flag and the ball seen) instead of five topics: two topics at the
-vision rate in all. The view is an observer: all its threads run under SCHED_IDLE (``observe_only``), so it
-never takes a core from the nodes of its session when they have work, and it takes its topics once per page
-frame (but for CALLBACK_TOPICS, which change rarely and come by callback). With ``bag`` set, the page can also
-replay that bag (``{"replay": t}`` requests; erforce_sim.closed_loop.field_view.BagReplay).
+It serves http://127.0.0.1:<port>/ (view_server; the page's files ship in share/erforce_sim/web). Every
+``1 / rate_hz`` of wall time, a tick in the server's thread takes the newest message of each topic the
+view shows (field_view lists them), hands them to the core (field_view.WorldState) and sends the binary
+frame to the pages; no message wakes the process (docs/decisions/0025). It reads the predictor's
+``/ball/catches`` and ``/ball/track`` where they are on the graph (two topics at the vision rate instead of
+several per robot), best effort, keep-last 1, so it never holds up a publisher, and takes nothing while no
+page is open. It is an observer: its threads run under SCHED_IDLE (``observe_only``). With ``bag`` the page
+can also replay that bag (field_view.BagReplay).
 
-With ``foxglove_port`` > 0 it also starts a Foxglove WebSocket server (the ``foxglove`` SDK) that
-forwards every topic of the graph as it is, CDR with its ROS 2 message definition (schema encoding
-``ros2msg``), plus ``/field_view/scene`` (a foxglove SceneUpdate of what the page draws) and
-``/field_view/plots`` (the page's plot values); config/foxglove_layout.json lays them out.
+With ``foxglove_port`` > 0 it also starts a Foxglove WebSocket server (the ``foxglove`` SDK) that forwards
+every topic as it is (CDR, schema encoding ``ros2msg``), plus ``/field_view/scene`` (a SceneUpdate of what
+the page draws) and ``/field_view/plots``; config/foxglove_layout.json lays them out.
 """
 
 from __future__ import annotations
