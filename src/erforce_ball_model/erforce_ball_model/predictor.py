@@ -1,23 +1,18 @@
 """The ball predictor's per-frame work (paper Sec. 5 in the loop) as one object with no ROS.
 
-``BallPredictor`` serves a team of robots. Each vision ball frame (``ball_frame``) runs
-the ball tracker (tracking.BallTracker: v_shoot, phase, ricochets) and, for every robot seen
-within ``robot_timeout_s``, one robotTimeToBall run for the team after the reaction time
-(catch_time.catch_after_reaction); each robot pose (``robot_frame``) feeds that robot's
-RobotTracker. It owns every per-frame decision: vision rejection outside the field, what a
-new time line resets (the caller judges each stamp by the stack's one time rule,
-erforce_interfaces.stamps.StampFilter, and passes ``restart``), robot freshness and their
-constant-velocity extrapolation to the frame's stamp, the reaction-time offset, the mapping of
-"no catch" to CATCH_TIME_NEVER, and the ball model in use: the configured one, or an online
-fit (identification.ShotAccumulator, fitted in a worker thread) once its standard errors are
-small enough. A model set by configuration wins over a fit until the next accepted fit. SSL
-geometry (``set_vision_geometry``) replaces the configured field and model while
-``use_vision_geometry`` is on, across later configuration changes; a configured field of None is the
-world's, and no vision is judged or answered until its geometry arrives.
+``BallPredictor`` serves a team of robots. Each vision ball frame (``ball_frame``) runs the ball
+tracker (tracking.BallTracker: v_shoot, phase, ricochets) and one robotTimeToBall run for every robot
+seen within ``robot_timeout_s``, after the reaction time (catch_time.catch_after_reaction); each robot
+pose (``robot_frame``) feeds that robot's RobotTracker. It owns every per-frame decision: vision outside
+the field refused, what a new time line resets (the caller judges stamps by
+erforce_interfaces.stamps.StampFilter and passes ``restart``), robot freshness and extrapolation to the
+frame's stamp, "no catch" as CATCH_TIME_NEVER, and the ball model in use: the configured one, an online
+fit (identification.ShotAccumulator, in a worker thread) once its errors are small, or the SSL geometry's
+(``set_vision_geometry``, while ``use_vision_geometry``; no vision is answered before it arrives when the
+configured field is None).
 
-The ball_predictor node converts messages and publishes what this object answers; the
-in-process scenes (erforce_sim.closed_loop.scenes) and the bench (bench/bench_ball_predictor.py) run the
-same object, so the catcher is tuned on the code that runs.
+The ball_predictor node converts messages and publishes what this object answers; the in-process scenes
+and the bench run the same object, so the catcher is tuned on the code that runs.
 
 >>> from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 >>> predictor = BallPredictor(PredictorConfig(num_robots=1))

@@ -1,32 +1,23 @@
 """Tracking from real vision: several overlapping cameras, false ball candidates, frames out of order.
 
-SSL-Vision sends one frame per camera, each camera at its own rate and latency. A frame may list
-several ball candidates (the ball, a reflection at the field edge, a second ball lying in the
-run-off area) or none, and the ball may be in two cameras' views at once. ``VisionTracker`` turns
-those frames into what the single-stream trackers of ``tracking`` take: one ball observation and
-one pose per robot at strictly increasing stamps.
+SSL-Vision sends one frame per camera, each at its own rate and latency; a frame may list several ball
+candidates (the ball, a reflection, a second ball in the run-off area) or none. ``VisionTracker`` turns
+those frames into what the single-stream trackers of ``tracking`` take: one ball observation and one
+pose per robot at strictly increasing stamps.
 
-Ball: the candidate nearest to the tracked ball's prediction within a gate that grows with the
-time since it was last seen (``max_ball_speed_mps``) is the ball; it is fed to a
-``tracking.BallTracker``, which keeps v_shoot, kick and ricochet detection. Every candidate is
-also a hypothesis; one seen in ``confirm_frames`` frames within ``confirm_window_s``, each time
-where the previous sighting could have moved, and last seen within ``fresh_s`` is confirmed.
-Without a track the best confirmed one (inside the field lines first, then the highest summed
-confidence) starts it. A track moves to a confirmed hypothesis inside the field lines when its
-ball has not been seen for ``lost_after_s`` (a ball put down elsewhere) or while it follows a
-ball in the run-off area (the game ball is the one on the field); a ball in the run-off area
-takes over a track only after the track has been gone for the ball filter's ``max_gap_s``.
+Ball: the candidate nearest to the tracked ball's prediction, within a gate that grows with the time
+since it was seen (``max_ball_speed_mps``), is fed to a ``tracking.BallTracker``. Every candidate is also
+a hypothesis, confirmed when seen in ``confirm_frames`` frames within ``confirm_window_s`` where the
+previous sighting could have moved. The track moves to a confirmed hypothesis inside the field lines
+when its ball is lost for ``lost_after_s`` (put down elsewhere) or while it follows a ball in the run-off
+area (the game ball is the one on the field).
 
-Order: a camera frame whose capture time is not after the newest one used is older news; its
-ball is not used (another camera saw the ball later already) and neither are its robots that
-were seen later. Robots: per team and id, a sighting that the last pose cannot reach at
-``max_robot_speed_mps`` is held back; two consecutive held-back sightings that agree re-seed
-the robot (it was put down elsewhere). Duplicate ids in one frame: the nearest to the last pose.
-The robot streams run in one compiled pass per frame over an array of the frame's sightings
-(``frame_arrays``; the bridge gets that array from its decoder), ids 0 .. ``MAX_ROBOT_ID`` per team.
-The ball hypotheses and the choice of the ball (``choose_ball``) are compiled too; the ball filter's
-update is Python (``use_ball``). The tracker's state is arrays that erforce_ball_model.vision_pass
-runs through the same kernels in one pass per datagram.
+Order and robots: a camera frame not after the newest one used is older news; its ball and its robots
+seen later are not used. A robot sighting that the last pose cannot reach at ``max_robot_speed_mps`` is
+held back; two agreeing held-back sightings re-seed the robot; duplicate ids take the nearest. The robot
+streams, the ball hypotheses and the choice of the ball are compiled passes over arrays
+(``frame_arrays``), the same kernels vision_pass runs per datagram; outside that pass the ball filter
+is updated through ``use_ball``.
 """
 
 from __future__ import annotations

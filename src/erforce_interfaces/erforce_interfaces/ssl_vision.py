@@ -6,8 +6,8 @@ with it. Single bad detections (a NaN coordinate, a robot without an id), ball c
 ``max_balls`` and a bad geometry or ball model are dropped and named in ``DecodedPacket.problems``,
 each with its class (``DROP_CLASSES``); the rest of the frame is kept. A detection-only datagram is read
 and checked (wire format, required fields, ranges) in one compiled pass over its bytes into arrays
-(``DetectionArrays``), because the protobuf runtime's Python objects cost about 3 us per robot and
-a full field's vision is 600 datagrams/s; anything else (geometry, a datagram the pass declines)
+(``DetectionArrays``), because building the protobuf runtime's Python objects per robot cost more than
+the rest of a datagram's path (docs/decisions/0013); anything else (geometry, a datagram the pass declines)
 goes through the runtime, which names what is wrong. ``DecodedPacket.frame`` gives the detections
 as named tuples. ``encode_frame`` and
 ``encode_geometry`` build datagrams (the plant's simulated cameras and the tests use them).
