@@ -1,26 +1,18 @@
 """ssl_sim_bridge: drives an external SSL simulator (ER-Force's, grSim) with this stack's robot commands.
 
-Every ``1 / rate_hz`` seconds of wall time it sends the newest command of each robot in ``robot_ids``
-to the simulator: ``robot_<id>/cmd_vel`` (Twist in base_link) as a local velocity,
-``robot_<id>/kick`` (a flat kick at this speed, armed for ``kick_hold_s``) and ``robot_<id>/dribbler``
-(with ``team: opponents`` the ``opponent_<id>/`` topics: a second team's AI on the same graph, one bridge
-per colour as each team drives its own robots).
-With ``protocol: ssl`` that is a ``RobotControl`` of the ssl-simulation-protocol to the team's robot
-control port (10301 blue, 10302 yellow); with ``protocol: grsim`` a ``grSim_Packet`` to 20011.
+Every ``1 / rate_hz`` of wall time it sends the newest ``cmd_vel`` (a local velocity), ``kick`` (a flat
+kick, armed for ``kick_hold_s``) and ``dribbler`` of each robot in ``robot_ids``: with ``protocol: ssl`` a
+``RobotControl`` of the ssl-simulation-protocol to the team's port (10301 blue, 10302 yellow), with
+``protocol: grsim`` a ``grSim_Packet`` to 20011. With ``team: opponents`` it drives the ``opponent_<id>/``
+topics: one bridge per colour, as each team drives its own robots. A cmd_vel older than
+``command_timeout_s`` is sent as zero.
 
-The simulator's answers go back onto the contract: dribbler ball contact (``RobotControlResponse``,
-or grSim's robot status on 30011 / 30012) on ``robot_<id>/ball_detected``, its errors as warnings and
-on ``/sim/events``. A cmd_vel older than ``command_timeout_s`` is sent as zero. Garbage answers are
-dropped with a throttled warning. The scenario topics ``/sim/set_ball`` and ``robot_<id>/sim/set_state``
-become teleports (``SimulatorCommand`` to ``control_port``, or grSim's replacement packet), so scenario
-scripts place the ball and robots in the external simulator as in our plant. Like ssl_vision_bridge,
-``team_color`` names our robots and ``defend_side`` the goal we defend in the simulator: poses and
-teleports live in the ``field`` frame (x towards the opponents' goal), turned by half a turn into the
-simulator's when we defend its positive x (erforce_interfaces.ssl_sim.teleport_packet); cmd_vel is in
-base_link and needs no turn.
-
-Vision comes back from the simulator as SSL-Vision packets (its vision port), for ssl_vision_bridge.
-Sockets are polled in the send timer: feedback is at most one period old.
+The answers go back onto the contract: dribbler ball contact on ``ball_detected``, the simulator's
+errors as warnings and on ``/sim/events``; garbage is dropped with a throttled warning. ``/sim/set_ball``
+and ``sim/set_state`` become teleports, so scenario scripts place ball and robots as in our plant; like
+ssl_vision_bridge, ``team_color`` and ``defend_side`` say how ``field`` maps onto the simulator's frame.
+Vision comes back as SSL-Vision packets, for ssl_vision_bridge. Sockets are polled in the send timer, so
+feedback is at most one period old.
 """
 
 from __future__ import annotations

@@ -1,27 +1,18 @@
 """Record every topic of a graph into a rosbag2 bag with MCAP storage, like ``ros2 bag record -a``.
 
-Which topics: those ``ros2 bag record -a`` takes on Jazzy (rosbag2_transport's TopicFilter with all topics
-and all services): every topic with a publisher and a single type, ``/rosout`` and ``/parameter_events``
-included, except hidden ones (a name part starting with ``_``); a service's introspection topic
-(``.../_service_event``) is hidden but taken, as ``-a`` also records services. Like rosbag2 without the
-type's package, a type the bag cannot describe (not in rosbags' Jazzy type store) is left out.
+Which topics: those ``ros2 bag record -a`` takes on Jazzy: every topic with a publisher and a single type,
+``/rosout`` and ``/parameter_events`` included, hidden ones left out but a service's introspection topic
+taken; a type rosbags' Jazzy type store cannot describe is left out, as rosbag2 leaves out a type without
+its package. Command line: ``erforce-record OUTPUT_DIR [--use-sim-time] [--duration S]``.
 
-The bag is a rosbag2 directory (metadata.yaml + .mcap), so ``ros2 bag info/play`` and
-Foxglove open it. Messages are taken raw (CDR bytes, no deserialization) and in batches:
-the recorder does not spin an executor, it drains every subscription's DDS queue every
-``POLL_PERIOD_S`` (50 ms): an executor callback per message made the recorder the busiest process
-of the demo graph.
-Each message is logged at its DDS reception time (``received_timestamp``), or with
-``use_sim_time`` at the newest ``/clock`` received before it (0 before the first), which
-is what a recorder with a callback per message would log. Command line:
-``erforce-record OUTPUT_DIR [--use-sim-time] [--duration S]``.
+Messages are taken raw (CDR bytes) and in batches: the recorder spins no executor but drains every
+subscription every ``POLL_PERIOD_S`` (50 ms), since an executor callback per message made it the busiest
+process of the demo graph. Each message is logged at its DDS reception time, or with ``use_sim_time`` at
+the newest ``/clock`` received before it.
 
-What ``ros2 bag play`` needs to offer each topic as it was offered is written as rosbag2 (Jazzy, bag
-version 9) writes it: per topic the offered QoS profiles, one per publisher (``offered_qos_profiles``), and
-the type hash of the publisher's type support (``type_description_hash``), in metadata.yaml and in the MCAP
-channel's metadata (``offered_qos_profiles``, ``topic_type_hash``), and ``ros_distro: jazzy``. A contract
-topic's profile is the contract's (discovery does not carry history and depth); a publisher that offers
-other reliability or durability, and every topic outside the contract, get the profile discovery reports.
+The bag is what rosbag2 (Jazzy, bag version 9) writes, so ``ros2 bag info/play`` and Foxglove open it:
+per topic the offered QoS profiles (the contract's for a contract topic, since discovery does not carry
+history and depth) and the publisher's type hash, in metadata.yaml and in the MCAP channels.
 """
 
 from __future__ import annotations

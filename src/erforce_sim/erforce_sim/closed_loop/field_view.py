@@ -1,23 +1,16 @@
 """The field view's core: the newest world state of the graph, and what the page draws of it.
 
-``WorldState`` takes the graph's messages one at a time (``apply(topic, message)``, a message
-decoded or, for the stamped types the conversions read from bytes, its CDR bytes) and keeps the
-newest of each: the ball (true, seen, filtered), the robots (true or seen pose, catch time and
-point, motor currents, light barrier; the predictor's team table ``/ball/catches`` carries the seen
-pose, catch time and point of every robot in one message, its ``/ball/track`` the filtered ball, v_shoot, phase,
-uncertain flag and the ball seen), the ball model in use, the simulator's
-events and the passing game's choice (``/pass/choice``). Opponents under ``/opponent_<id>`` are
-robots ``o<id>``.
-``frame()`` turns it into one JSON-ready dict, the page's frame: what it draws, in field
-coordinates [m]; ``frame_bytes()`` is the same frame as the live page gets it, a compact binary form
-(``FRAME_LAYOUT``; ``decode_frame_bytes`` reads it back) that costs a fraction of the dict and its
-JSON. The predicted path is the ball model's own BallTrajectory (sliding stretch to
-the switch point, rolling stretch to the stop point, reflected off the field's wall: ``wall``,
-where the first stretch meets it, then the ``corners`` to the stop point), with the parameters the
-predictor last published on /ball/model_params and the wall's one default restitution; the
-team's receiver is catcher.team_receiver of the catch times, as each catcher decides it. No
-rclpy here: the node (field_view_node) feeds it live, ``BagReplay``
-from a recorded bag.
+``WorldState`` takes the graph's messages one at a time (``apply(topic, message)``, a message or, for the
+types the conversions read from bytes, its CDR bytes) and keeps the newest of each: the ball (true, seen,
+filtered), the robots (pose, catch time and point, motor currents, light barrier; ``/ball/catches`` and
+``/ball/track`` carry most of it in two messages), the ball model in use, the simulator's events and the
+passing game's choice. Opponents under ``/opponent_<id>`` are robots ``o<id>``.
+
+``frame()`` is the page's frame as a JSON-ready dict in field coordinates [m]; ``frame_bytes()`` the same
+frame in the compact binary form the live page gets (``FRAME_LAYOUT``, ``decode_frame_bytes``). The
+predicted path is the ball model's own BallTrajectory with the predictor's last published parameters, off
+the field's wall; the team's receiver is catcher.team_receiver of the catch times. No rclpy here: the node
+(field_view_node) feeds it live, ``BagReplay`` from a recorded bag.
 """
 
 from __future__ import annotations

@@ -1,22 +1,12 @@
 """The passing game played in one process: a team passes along a chain, opponents try to intercept.
 
-Everything runs in one process with no DDS, deterministic per seed, like the demo's scenes
-(erforce_sim.closed_loop.scenes): the plant with every robot under motion control (runner.InProcessRunner,
-our team and the opponents, erforce_sim world), the ball predictor's object (predictor.BallPredictor)
-on every vision frame for all robots of both teams, and the AI at a 50 Hz tick:
-
-- our team: passing_player.PassingPlayer, the same object the ``passing_game`` node runs on the graph
-  (its docstring says how the holder picks and kicks a pass and how the receiver receives), fed with
-  the predictor's tracked robots, ball and catch times and with every light barrier; this runner
-  performs its commands (twists, kicks, dribblers) and its requests (the ball put back at a robot,
-  the referee's job) on the world, and receives with the predictor's search facing the way the
-  receiver faces (``PassingPlayer.receive_facing``);
-- the opponents: passing_player.PressingTeam, the same object the opponents' ``team_catcher`` runs
-  on the graph (``press_lanes``): they wait on the passing lanes while one of ours holds the ball
-  (passing.press_targets) and run catcher.Receiver as a team once it rolls (the first of them to
-  the ball goes), fed with the tracked robots and ball, their catch times and light barriers.
-
-Each pass is reported as it ends (``PassRecord``, with the true ball path).
+No DDS, deterministic per seed, like the demo's scenes: the world with every robot under motion control
+(runner.InProcessRunner, both teams), the ball predictor's object (predictor.BallPredictor) on every vision
+frame for all robots, and the AI at a 50 Hz tick. Our team is passing_player.PassingPlayer, the object the
+``passing_game`` node runs on the graph; the opponents are passing_player.PressingTeam, the object the
+opponents' ``team_catcher`` runs (``press_lanes``). Both are fed what vision tracks; this runner performs
+their commands and the referee's part (the ball put back at a robot) on the world. Each pass is reported
+as it ends (``PassRecord``, with the true ball path).
 
     python -m erforce_sim.closed_loop.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
 
