@@ -40,7 +40,7 @@ from rclpy.serialization import deserialize_message
 
 from erforce_interfaces import contract
 from erforce_interfaces.ament_index import find_package_share
-from erforce_interfaces.executor import EXECUTOR_ENV, sample_only, take_one
+from erforce_interfaces.executor import sample_only, take_one
 from erforce_interfaces.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
@@ -284,11 +284,7 @@ class FieldViewNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     observe_only()  # before rclpy starts its threads
-    # DirectExecutor never waits on a sampled subscription: a message stays in rmw until the frame's tick
-    # takes it, so the executor wakes for the discovery timer and the parameter services only, not for
-    # each of the ~500 messages a second the view subscribes to (EventsExecutor takes every one as it
-    # arrives and calls into Python for it).
-    return run_node(FieldViewNode, args, os.environ.get(EXECUTOR_ENV) or "direct")
+    return run_node(FieldViewNode, args)
 
 
 if __name__ == "__main__":
