@@ -141,17 +141,17 @@ def _frame_filename(frame, context: int = 1):
 
 
 def light_node_start() -> None:
-    """Two costs of rclpy at a node's start that buy a running node nothing (idempotent):
+    """Two costs of rclpy at a node's start that buy a running node nothing (idempotent; run_node calls it
+    before a warm standby waits, so a take-over saves them too; figures in bench/NOTES.md, "Executor"):
 
     - rclpy's logger finds each log call's file with ``inspect.getframeinfo``, which also reads the
-      source lines around it; the first call maps every loaded module to its file (``inspect.getmodule``:
-      a realpath of each of ~800 modules after numba), 0.15-0.5 s of CPU in the node's first log line.
+      source lines around it; its first call maps every loaded module to its file (``inspect.getmodule``).
       The logger gets the caller's ``co_filename`` instead, which is what that call returns for a
       module loaded from source.
     - a message's first publisher or subscription imports its type support through the package
       ``rosidl_generator_py``, whose ``__init__`` also imports the IDL code generator (rosidl_parser,
-      lark): ~0.15 s of CPU. ``rosidl_generator_py`` is registered with only ``import_type_support``;
-      ``generate_py`` is imported the first time someone asks for it.
+      lark). ``rosidl_generator_py`` is registered with only ``import_type_support``; ``generate_py`` is
+      imported the first time someone asks for it.
     """
     from rclpy.impl import rcutils_logger
 
