@@ -454,7 +454,7 @@ def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, 
     return status, counts[0], counts[1] + counts[2], counts[3], geometry
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")  # as fast as one body
+@numba.njit(cache=True, error_model="numpy", inline="always")  # into detection_rows
 def _detection_frame(buf, i, det_end, out, counts, max_balls, max_robots, max_mm, max_id, scratch, values, present,
                      frame_fields):
     """The fields of an SSL_DetectionFrame (detection_rows); (index after them or -1, a detection lacked a
@@ -497,7 +497,7 @@ def _detection_frame(buf, i, det_end, out, counts, max_balls, max_robots, max_mm
     return i, declined
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")  # as fast as one body
+@numba.njit(cache=True, error_model="numpy", inline="always")  # into detection_rows
 def _keep_ball(out, counts, max_balls, max_mm, values):
     """Count a ball detection and keep it in the next ball row while there is room; its reject kind if
     invalid (else -1)."""
@@ -512,7 +512,7 @@ def _keep_ball(out, counts, max_balls, max_mm, values):
     return -1
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")  # as fast as one body
+@numba.njit(cache=True, error_model="numpy", inline="always")  # into detection_rows
 def _keep_robot(out, counts, max_balls, max_robots, max_mm, max_id, team, values, present):
     """Count a robot detection of ``team`` (0 blue, 1 yellow) and keep it in its team's next row while there
     is room (yellow's after blue's room: _pack_yellow_rows moves them); its reject kind if invalid or its
@@ -535,7 +535,7 @@ def _keep_robot(out, counts, max_balls, max_robots, max_mm, max_id, team, values
     return -1
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")  # as fast as one body
+@numba.njit(cache=True, error_model="numpy", inline="always")  # into detection_rows
 def _note_rejected(out, counts, max_balls, max_robots, kind, is_ball, team, values):
     """A rejected detection's row [kind, team, robot_id, x, y, value, robot row] for _sort_out, while there is
     room (at most max_balls of them balls: a robot's always has room)."""
@@ -550,7 +550,7 @@ def _note_rejected(out, counts, max_balls, max_robots, kind, is_ball, team, valu
     counts[3] += 1
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")  # as fast as one body
+@numba.njit(cache=True, error_model="numpy", inline="always")  # into detection_rows
 def _pack_yellow_rows(out, counts, max_balls, max_robots):
     """Move the yellow robots' rows right behind the blue ones (and their orientations' rejected rows with them)."""
     at_robots = 8 + 4 * max_balls
