@@ -1,8 +1,12 @@
-"""The rclpy internals DirectExecutor relies on (erforce_interfaces.rclpy_internals) exist and behave as it
-assumes, on the installed rclpy. An rclpy update that moves one fails here, by name.
+"""The private rclpy names the stack uses (erforce_interfaces.rclpy_internals) are used nowhere else in src/,
+were checked against the installed rclpy, and behave as DirectExecutor and the node helpers assume. An rclpy
+update fails here, by name.
 """
 
+import importlib.metadata
+import re
 import time
+from pathlib import Path
 
 import pytest
 from rcl_interfaces.srv import SetParameters
@@ -23,6 +27,42 @@ def _until(condition, timeout_s=10.0):
     while not condition():
         assert time.monotonic() < deadline, "condition not reached before the deadline"
         time.sleep(0.005)
+
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+# what reaching into rclpy looks like: its C extension, its logger module, the private attributes listed in
+# rclpy_internals.PRIVATE_NAMES, the C handles' methods
+_PRIVATE = re.compile(r"rclpy\.impl|_rclpy|rcutils_logger|\._(guard|sigint_gc|is_shutdown|callback_type|"
+                      r"set_executor|parameter_overrides)\b|\.handle\.(pointer|take_|call_timer|is_timer_ready|"
+                      r"service_take_request)")
+
+
+def test_the_installed_rclpy_is_the_one_the_private_names_were_checked_against():
+    try:
+        installed = importlib.metadata.version("ros-rclpy")
+    except importlib.metadata.PackageNotFoundError:
+        installed = "not found (no PyPI distribution ros-rclpy)"
+    assert installed == internal.RCLPY_VERSION, (
+        f"rclpy {installed} is installed; erforce_interfaces.rclpy_internals was checked against rclpy "
+        f"{internal.RCLPY_VERSION}. Check these private names in the new rclpy (the tests of this file), then set "
+        f"RCLPY_VERSION: " + "; ".join(internal.PRIVATE_NAMES))
+
+
+def test_no_module_but_rclpy_internals_reaches_into_rclpy():
+    fence = SRC / "erforce_interfaces" / "erforce_interfaces" / "rclpy_internals.py"
+    found = [f"{path.relative_to(SRC)}:{n}: {line.strip()}"
+             for path in sorted(SRC.rglob("*.py")) if path != fence
+             for n, line in enumerate(path.read_text().splitlines(), 1)
+             if _PRIVATE.search(line.split("#")[0])]
+    assert not found, "private rclpy names outside rclpy_internals:\n" + "\n".join(found)
+
+
+def test_the_fence_pattern_sees_what_it_looks_for():
+    assert all(_PRIVATE.search(text) for text in (
+        "from rclpy.impl.implementation_singleton import rclpy_implementation",
+        "executor._guard, executor._sigint_gc", "node._parameter_overrides",
+        "subscription.handle.take_message(t, raw)", "future._set_executor(self)"))
+    assert not _PRIVATE.search("self._guard_clock = guard_clock(node)")
 
 
 def test_the_c_extension_names():

@@ -17,7 +17,6 @@ off. This module converts messages and publishes; the decisions are passing_play
 from __future__ import annotations
 
 import math
-import os
 
 import numpy as np
 from nav_msgs.msg import Odometry
@@ -42,7 +41,7 @@ from erforce_interfaces.conversions import (
     tracked_robots_from_msg,
     twist_msg,
 )
-from erforce_interfaces.executor import EXECUTOR_ENV, run_sampled, sample_only
+from erforce_interfaces.executor import run_sampled, sample_only
 from erforce_interfaces.node_support import (
     NodeParams,
     ThrottledWarner,
@@ -343,8 +342,7 @@ class PassingGameNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    # Every input is sampled by the timer (as in team_catcher): on DirectExecutor they wake nothing.
-    return run_node(PassingGameNode, args, os.environ.get(EXECUTOR_ENV) or "direct")
+    return run_node(PassingGameNode, args)
 
 
 if __name__ == "__main__":

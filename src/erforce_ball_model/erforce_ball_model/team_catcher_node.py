@@ -11,13 +11,11 @@ simulated second team. With ``press_lanes`` it also reads the other team's track
 them holds the ball, sends its robots onto the passing lanes; the decisions are
 passing_player.PressingTeam's.
 
-One timer takes every input, sampled, per tick (one process instead of one per robot). The parameters are
-the catcher's (``team_robot_ids`` aside).
+One timer and one sampled batch of every input per tick (executor.run_sampled), instead of a process, a
+timer and seven subscriptions' callbacks per robot. The parameters are the catcher's (``team_robot_ids`` aside).
 """
 
 from __future__ import annotations
-
-import os
 
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
@@ -37,7 +35,7 @@ from erforce_interfaces.conversions import (
     tracked_robots_from_msg,
     twist_msg,
 )
-from erforce_interfaces.executor import EXECUTOR_ENV, run_sampled, sample_only
+from erforce_interfaces.executor import run_sampled, sample_only
 from erforce_interfaces.node_support import (
     NodeParams,
     ThrottledWarner,
@@ -186,9 +184,7 @@ class TeamCatcherNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    # Every input is sampled by the timer: on DirectExecutor they wait in rmw and wake nothing, where
-    # EventsExecutor wakes and takes each message as it comes (about 12 per vision frame for 3 robots).
-    return run_node(TeamCatcherNode, args, os.environ.get(EXECUTOR_ENV) or "direct")
+    return run_node(TeamCatcherNode, args)
 
 
 if __name__ == "__main__":

@@ -1,8 +1,10 @@
 """How the stack's nodes spin, and what their subscriptions do under any executor.
 
-``make_executor`` picks the executor ``node_support.run_node`` spins on: rclpy's EventsExecutor by
-default, SingleThreadedExecutor, or ``DirectExecutor``, this module's own, for the bench that chose
-between them (bench/bench_executor.py; docs/decisions/0001).
+Every node spins on rclpy's EventsExecutor: ``make_executor`` makes the executor ``node_support.run_node``
+spins on, EventsExecutor unless ERFORCE_EXECUTOR names another (``single``: SingleThreadedExecutor;
+``direct``: rclpy_internals.DirectExecutor, for bench/bench_executor.py). DirectExecutor, the one executor of
+our own, serves only the in-process observers that read a message's info (the test probe, the demo's
+director); it and every other private rclpy name live in rclpy_internals.
 
 Guarded subscriptions (``guard``): a subscription callback that raises would end ``spin`` and with
 it the node, so one malformed message from any participant could kill a node. ``guard`` replaces a
@@ -14,24 +16,15 @@ rmw_fastrtps drops it and the take finds nothing (test/interfaces/test_executor.
 services and the rest are not guarded: they run on the node's own state, where an exception is a bug
 that must stop the node.
 
-Sampled subscriptions: every message a process takes through an executor costs CPU. A node that
-acts at its own rate on the newest inputs (a controller's timer) or an observer that only needs
-every message eventually marks such subscriptions with ``sample_only`` and calls ``run_sampled``
-when it wants them, which runs their callbacks for everything queued, oldest first (``run_sampled``)
-(``run_newest``: only the newest of each). Under EventsExecutor a sampled message is taken when it
-arrives and waits in the inbox, bounded by the subscription's history depth, so a flood costs one
-append per message and one callback per ``run_newest``; DirectExecutor does not even wait on a
-sampled subscription (nor serve its QoS events). A node that normally finds an input already
-queued when it runs, but must wait when it is late (the motor boards' setpoint), switches it back
-with ``sample_only(sub, False)`` for as long as it waits. ``take_queued`` is the raw form.
-
-DirectExecutor: after one wait it runs every ready timer, subscription (everything queued on it,
-up to 64 messages), guard condition, service, client response and QoS event once, in that order,
-node by node, then waits again. Callbacks run in this thread; a callback that returns a coroutine
-is driven to completion, and one that suspends on a future is an error. Callback groups are
-ignored. It lost to EventsExecutor on CPU per message and lockstep speed; it stays for the bench
-and the in-process demo director (erforce_sim.closed_loop.demo), whose callbacks take the message
-info, which EventsExecutor in rclpy 7.1 cannot pass.
+Sampled subscriptions: a node that acts at its own rate on the newest inputs (a controller's or the
+passing game's timer) or an observer that only needs every message eventually marks such subscriptions
+with ``sample_only`` and calls ``run_sampled`` when it wants them, which runs their callbacks for
+everything queued, oldest first (``run_newest``: only the newest of each). Under EventsExecutor a sampled
+message is taken when it arrives and waits in the inbox, bounded by the subscription's history depth, so a
+flood costs one append per message and one callback per ``run_newest``; DirectExecutor does not even wait
+on a sampled subscription (nor serve its QoS events). A node that normally finds an input already queued
+when it runs, but must wait when it is late (the motor boards' setpoint), switches it back with
+``sample_only(sub, False)`` for as long as it waits. ``take_queued`` is the raw form.
 """
 
 from __future__ import annotations
@@ -44,11 +37,11 @@ import weakref
 from collections.abc import Callable, Iterable
 
 from rclpy.exceptions import InvalidHandle
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor, TimeoutObject
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.subscription import Subscription
-from rclpy.utilities import timeout_sec_to_nsec
 
 from erforce_interfaces import rclpy_internals as internal  # every private rclpy name used here
+from erforce_interfaces.rclpy_internals import DirectExecutor, finish_coroutine
 
 __all__ = ["EXECUTOR_ENV", "EXECUTOR_KINDS", "DirectExecutor", "guard", "make_executor", "run_newest", "run_sampled",
            "sample_only", "set_callback_fault_handler", "take_one", "take_queued"]
@@ -56,11 +49,6 @@ __all__ = ["EXECUTOR_ENV", "EXECUTOR_KINDS", "DirectExecutor", "guard", "make_ex
 EXECUTOR_ENV = "ERFORCE_EXECUTOR"  # the executor run_node spins on: one of EXECUTOR_KINDS (bench/bench_executor.py)
 EXECUTOR_KINDS = ("direct", "single", "events")
 
-
-_KINDS = ("subscription", "timer", "guard_condition", "service", "client")
-_MAX_TAKES_PER_WAKE = 64  # messages taken from one ready subscription per wait
-_SAMPLED: weakref.WeakSet = weakref.WeakSet()  # subscriptions DirectExecutor leaves to their nodes
-_sampled_changes = 0  # DirectExecutor gathers its entities again when this moves
 _fault_handler: Callable[[Subscription, Exception], None] | None = None
 
 
@@ -76,9 +64,10 @@ def make_executor(kind: str | None = None, *, context=None):
     ``single`` (rclpy's SingleThreadedExecutor) or ``direct`` (DirectExecutor); ``kind`` None reads the
     environment variable ERFORCE_EXECUTOR, so a bench can run the same nodes on each.
 
-    EventsExecutor is the default: it cost the least CPU per message and ran the lockstep loop
-    fastest in bench/bench_executor.py (docs/decisions/0001). The callback guard and the
-    sampled subscriptions live on the subscriptions themselves (``guard``), so they hold under each."""
+    EventsExecutor is the default for every node: public rclpy, the least CPU per message in
+    bench/bench_executor.py; DirectExecutor saves the nodes that sample all their inputs a little CPU, which
+    no target needs (docs/decisions/0001). The callback guard and the sampled subscriptions live on
+    the subscriptions themselves (``guard``), so they hold under each."""
     kind = kind or os.environ.get(EXECUTOR_ENV) or "events"
     if kind == "direct":
         return DirectExecutor(context=context)
@@ -138,7 +127,7 @@ class _Inbox:
 
     def run(self, msg, info) -> None:
         try:
-            _finish(self.callback(msg, info) if self.wants_info else self.callback(msg))
+            finish_coroutine(self.callback(msg, info) if self.wants_info else self.callback(msg))
         except Exception as exc:
             if _fault_handler is None:
                 raise
@@ -189,18 +178,13 @@ def sample_only(subscription: Subscription, sampled: bool = True) -> Subscriptio
     """Leave ``subscription``'s messages to its node (``run_sampled``), or with ``sampled=False`` run its
     callback per message again. DirectExecutor then does not even wait on it (from its next wait);
     under the other executors its messages wait in its inbox (``guard``)."""
-    global _sampled_changes
     inbox = guard(subscription)
     if sampled != inbox.sampled:
         inbox.sampled = sampled
-        if sampled:
-            _SAMPLED.add(subscription)
-        else:
-            _SAMPLED.discard(subscription)
-            # what arrived while it was sampled runs first, in order
+        internal.set_sampled(subscription, sampled)
+        if not sampled:  # what arrived while it was sampled runs first, in order
             while inbox.queue:
                 inbox.run(*inbox.queue.popleft())
-        _sampled_changes += 1
     return subscription
 
 
@@ -268,167 +252,3 @@ def run_newest(subscriptions: Iterable[Subscription]) -> int:
     for _, sub, msg, info in batch:
         guard(sub).run(msg, info)
     return dropped
-
-
-def _ready(entities, ready_pointers):
-    """The entities whose handles rcl reported ready, skipping any destroyed meanwhile."""
-    if not ready_pointers:
-        return
-    for e in entities:
-        try:
-            is_ready = internal.handle_pointer(e) in ready_pointers
-        except InvalidHandle:
-            continue
-        if is_ready:
-            yield e
-
-
-def _finish(result) -> None:
-    """Drive a coroutine a callback returned (e.g. a QoS event's execute) to its end."""
-    if not inspect.iscoroutine(result):
-        return
-    try:
-        result.send(None)
-    except StopIteration:
-        return
-    result.close()
-    raise RuntimeError("DirectExecutor: a callback awaited a future; use an rclpy executor for async callbacks")
-
-
-class DirectExecutor(SingleThreadedExecutor):
-    """SingleThreadedExecutor whose ``spin``/``spin_once`` run ready callbacks directly (see module doc)."""
-
-    def __init__(self, *, context=None) -> None:
-        super().__init__(context=context)
-        self._entities = None  # (subscriptions, timers, guards, services, clients, waitables)
-        self._gathered_at = -1  # _sampled_changes when the entities were gathered
-        self._handles = []
-        self._wait_set = None
-
-    def wake(self) -> None:
-        self._entities = None  # something changed: gather the entities again
-        super().wake()
-
-    def spin_once_until_future_complete(self, future, timeout_sec=None) -> None:
-        # spin_until_future_complete comes here; the future's done callback wakes the wait.
-        self.spin_once(timeout_sec.timeout if isinstance(timeout_sec, TimeoutObject) else timeout_sec)
-
-    def spin_once(self, timeout_sec: float | None = None) -> None:
-        """Wait up to ``timeout_sec`` (None: forever) and run every callback that is ready."""
-        guard, sigint = internal.executor_guard_conditions(self)
-        if internal.executor_is_shutdown(self) or guard is None or sigint is None:
-            return
-        context = internal.executor_context(self)
-        if self._entities is None or self._gathered_at != _sampled_changes:
-            self._gather()
-        subs, timers, guards, services, clients, waitables = self._entities
-        # Mark every handle in use while rcl waits on it, as rclpy's executors do: an entity
-        # destroyed meanwhile (another thread, shutdown) is then freed only after the wait.
-        in_use = []
-        try:
-            try:
-                for h in (*self._handles, guard.handle, sigint.handle, context.handle):
-                    h.__enter__()
-                    in_use.append(h)
-            except InvalidHandle:  # destroyed since the entities were gathered
-                self._entities = None
-                return
-            ws = self._wait_set
-            if ws is None:
-                num_events = sum(w.get_num_entities().num_events for w in waitables)
-                ws = self._wait_set = internal.WaitSet(
-                    len(subs), len(guards) + 2, len(timers), len(clients), len(services), num_events,
-                    context.handle)
-            ws.clear_entities()
-            for e in subs:
-                ws.add_subscription(e.handle)
-            for e in timers:
-                ws.add_timer(e.handle)
-            for e in guards:
-                ws.add_guard_condition(e.handle)
-            ws.add_guard_condition(guard.handle)
-            ws.add_guard_condition(sigint.handle)
-            for e in services:
-                ws.add_service(e.handle)
-            for e in clients:
-                ws.add_client(e.handle)
-            for e in waitables:
-                e.add_to_wait_set(ws)
-            ws.wait(timeout_sec_to_nsec(timeout_sec))
-            if internal.executor_is_shutdown(self):
-                return
-            if not context.ok():
-                raise ExternalShutdownException()
-            ready = {kind: ws.get_ready_entities(kind) for kind in _KINDS}
-            ready_waitables = [w for w in waitables if w.is_ready(ws)]  # needs this wait set
-            if internal.handle_pointer(guard) in ready["guard_condition"]:
-                self._entities = None  # woken: entities may have changed
-        finally:
-            for h in reversed(in_use):
-                h.__exit__(None, None, None)
-        self._dispatch(ready, subs, timers, guards, services, clients, ready_waitables)
-
-    def _gather(self) -> None:
-        self._gathered_at = _sampled_changes
-        subs, timers, guards, services, clients, waitables = [], [], [], [], [], []
-        for node in self.get_nodes():
-            sampled = [s for s in node.subscriptions if s in _SAMPLED]
-            subs.extend(s for s in node.subscriptions if s not in _SAMPLED)
-            timers.extend(node.timers)
-            guards.extend(node.guards)
-            services.extend(node.services)
-            clients.extend(node.clients)
-            # A sampled subscription's QoS-event handlers stay out too: with Fast DDS they share
-            # the reader's status condition, so a queued message would end every wait.
-            skip = {id(h) for s in sampled for h in s.event_handlers}
-            waitables.extend(w for w in node.waitables if id(w) not in skip)
-        self._entities = subs, timers, guards, services, clients, waitables
-        self._handles = [e.handle for e in (*subs, *timers, *guards, *services, *clients)] + waitables
-        self._wait_set = None  # sized for these entities
-
-    def _dispatch(self, ready, subs, timers, guards, services, clients, ready_waitables) -> None:
-        # A callback may destroy entities: each is checked when its turn comes.
-        for t in _ready(timers, ready["timer"]):
-            if internal.call_timer(t):
-                _finish(t.callback())
-        for s in _ready(subs, ready["subscription"]):
-            self._take_and_run(s)
-        for g in _ready(guards, ready["guard_condition"]):
-            if g.callback is not None:
-                _finish(g.callback())
-        for srv in _ready(services, ready["service"]):
-            request, header = internal.take_request(srv)
-            if header is not None:
-                srv.send_response(srv.callback(request, srv.srv_type.Response()), header)
-        for c in _ready(clients, ready["client"]):
-            self._take_response(c)
-        for w in ready_waitables:
-            _finish(w.execute(w.take_data()))
-
-    @staticmethod
-    def _take_and_run(sub: Subscription) -> None:
-        # Everything queued (up to a bound, so that the other entities are served too): under a flood
-        # a wake per message cannot keep up, and a keep-last reader then drops the oldest samples,
-        # the real ones among them.
-        for _ in range(_MAX_TAKES_PER_WAKE):
-            try:
-                taken = internal.take_message(sub)  # raises InvalidHandle once a callback destroyed it
-            except InvalidHandle:
-                return
-            if taken is None:
-                return
-            _finish(internal.run_subscription_callback(sub, *taken))
-
-    def _take_response(self, client) -> None:
-        try:
-            header, response = internal.take_response(client)
-        except InvalidHandle:
-            return
-        if header is None:
-            return
-        try:
-            future = client.get_pending_request(header.request_id.sequence_number)
-        except KeyError:
-            return  # the request was cancelled
-        internal.set_future_executor(future, self)
-        future.set_result(response)

@@ -409,12 +409,7 @@ def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, 
     (Arrays in, numbers out: numba boxes each returned array for about 1.5 us.)
     """
     out[:8] = 0.0
-    at_balls = 8
-    at_robots = at_balls + 4 * max_balls
-    at_rejected = at_robots + 12 * max_robots
-    max_rejected = max_balls + 2 * max_robots
-    kept = np.zeros(3, np.int64)  # balls, blue, yellow
-    n_rejected = rejected_balls = 0
+    counts = np.zeros(5, np.int64)  # kept balls, blue, yellow; rejected detections, of them balls
     scratch = np.zeros(8, np.uint8)
     values = np.zeros(9)
     present = np.zeros(9, np.bool_)
@@ -437,82 +432,13 @@ def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, 
             i = -1
             break
         det_end = i + int(n)
-        while 0 <= i < det_end:  # SSL_DetectionFrame
-            key, i = _varint(buf, i, det_end)
-            if i < 0:
-                break
-            number, wire = int(key >> np.uint64(3)), int(key & np.uint64(7))
-            if wire == 0 and (number == 1 or number == 4):
-                value, i = _varint(buf, i, det_end)
-                out[0 if number == 1 else 3] = float(value & np.uint64(0xFFFFFFFF))
-                frame_fields[number] = True
-            elif wire == 1 and (number == 2 or number == 3) and i + 8 <= det_end:
-                out[number - 1] = _scalar(buf, i, scratch, 8)
-                frame_fields[number] = True
-                i += 8
-            elif wire == 2 and 5 <= number <= 7:
-                n, i = _varint(buf, i, det_end)
-                if i < 0 or n > np.uint64(det_end - i):
-                    i = -1
-                    break
-                sub_end = i + int(n)
-                values[:] = 0.0
-                present[:] = False
-                if _sub_fields(buf, i, sub_end, scratch, values, present) < 0:
-                    i = -1
-                    break
-                i = sub_end
-                if not (present[1] and present[3] and present[4] and present[6] and present[7]):
-                    declined = True  # a required field missing: the runtime names it
-                c, x, y = values[1], values[3], values[4]
-                kind = -1
-                if number == 5:
-                    out[4] += 1.0
-                    z = values[5]
-                    if not (abs(x) <= max_mm and abs(y) <= max_mm and 0.0 <= c <= 1.0 and abs(z) <= max_mm):
-                        kind = 0
-                    elif kept[0] < max_balls:
-                        row = at_balls + 4 * kept[0]
-                        out[row], out[row + 1], out[row + 2], out[row + 3] = x * 1e-3, y * 1e-3, c, z * 1e-3
-                        kept[0] += 1
-                    team = 0
-                else:
-                    team = 0 if number == 7 else 1  # TEAMS: blue, yellow
-                    out[5 + team] += 1.0
-                    if values[2] > max_id or not present[2]:
-                        kind = 1
-                    elif not (abs(x) <= max_mm and abs(y) <= max_mm and 0.0 <= c <= 1.0):
-                        kind = 2
-                    elif kept[1 + team] < max_robots:  # yellow rows after blue's room; moved below
-                        index = team * max_robots + kept[1 + team]
-                        row = at_robots + 6 * index
-                        theta = values[5] if present[5] else np.nan
-                        out[row], out[row + 1], out[row + 2] = team, values[2], x * 1e-3
-                        out[row + 3], out[row + 4], out[row + 5] = y * 1e-3, theta, c
-                        kept[1 + team] += 1
-                        if present[5] and not -np.pi <= theta <= np.pi:
-                            kind = 3
-                if kind >= 0 and n_rejected < max_rejected and (number != 5 or rejected_balls < max_balls):
-                    if number == 5:
-                        rejected_balls += 1
-                    row = at_rejected + 7 * n_rejected
-                    out[row], out[row + 1], out[row + 2], out[row + 3], out[row + 4] = kind, team, values[2], x, y
-                    out[row + 5] = values[5] if kind == 3 else c
-                    out[row + 6] = team * max_robots + kept[1 + team] - 1 if kind == 3 else -1.0
-                    n_rejected += 1
-            else:
-                i = _skip(buf, i, det_end, key)
+        i, frame_declined = _detection_frame(buf, i, det_end, out, counts, max_balls, max_robots, max_mm, max_id,
+                                             scratch, values, present, frame_fields)
+        declined = declined or frame_declined
         if i < 0:
             break
         i = det_end
-    n_blue, n_yellow = kept[1], kept[2]
-    yellow = at_robots + 6 * max_robots
-    for k in range(6 * n_yellow):  # forwards: the target lies before the source
-        out[at_robots + 6 * n_blue + k] = out[yellow + k]
-    for k in range(n_rejected):  # an orientation's row: where its robot is now
-        row = at_rejected + 7 * k
-        if out[row] == 3.0 and out[row + 1] == 1.0:
-            out[row + 6] += n_blue - max_robots
+    _pack_yellow_rows(out, counts, max_balls, max_robots)
     if i < 0 or declined or not frame_fields.all():
         status = 1  # _DECLINED
     elif out[3] > max_camera:
@@ -525,7 +451,118 @@ def detection_rows(buf, out, max_balls, max_robots, max_mm, max_id, max_camera, 
         status = 5
     else:
         status = 0
-    return status, kept[0], n_blue + n_yellow, n_rejected, geometry
+    return status, counts[0], counts[1] + counts[2], counts[3], geometry
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")  # into detection_rows
+def _detection_frame(buf, i, det_end, out, counts, max_balls, max_robots, max_mm, max_id, scratch, values, present,
+                     frame_fields):
+    """The fields of an SSL_DetectionFrame (detection_rows); (index after them or -1, a detection lacked a
+    required field)."""
+    declined = False
+    while 0 <= i < det_end:
+        key, i = _varint(buf, i, det_end)
+        if i < 0:
+            break
+        number, wire = int(key >> np.uint64(3)), int(key & np.uint64(7))
+        if wire == 0 and (number == 1 or number == 4):
+            value, i = _varint(buf, i, det_end)
+            out[0 if number == 1 else 3] = float(value & np.uint64(0xFFFFFFFF))
+            frame_fields[number] = True
+        elif wire == 1 and (number == 2 or number == 3) and i + 8 <= det_end:
+            out[number - 1] = _scalar(buf, i, scratch, 8)
+            frame_fields[number] = True
+            i += 8
+        elif wire == 2 and 5 <= number <= 7:
+            n, i = _varint(buf, i, det_end)
+            if i < 0 or n > np.uint64(det_end - i):
+                return -1, declined
+            sub_end = i + int(n)
+            values[:] = 0.0
+            present[:] = False
+            if _sub_fields(buf, i, sub_end, scratch, values, present) < 0:
+                return -1, declined
+            i = sub_end
+            if not (present[1] and present[3] and present[4] and present[6] and present[7]):
+                declined = True  # a required field missing: the runtime names it
+            team = 0 if number != 6 else 1  # TEAMS: blue, yellow (a ball: 0)
+            if number == 5:
+                kind = _keep_ball(out, counts, max_balls, max_mm, values)
+            else:
+                kind = _keep_robot(out, counts, max_balls, max_robots, max_mm, max_id, team, values, present)
+            if kind >= 0:
+                _note_rejected(out, counts, max_balls, max_robots, kind, number == 5, team, values)
+        else:
+            i = _skip(buf, i, det_end, key)
+    return i, declined
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")  # into detection_rows
+def _keep_ball(out, counts, max_balls, max_mm, values):
+    """Count a ball detection and keep it in the next ball row while there is room; its reject kind if
+    invalid (else -1)."""
+    out[4] += 1.0
+    c, x, y, z = values[1], values[3], values[4], values[5]
+    if not (abs(x) <= max_mm and abs(y) <= max_mm and 0.0 <= c <= 1.0 and abs(z) <= max_mm):
+        return 0  # _REJECT_BALL
+    if counts[0] < max_balls:
+        row = 8 + 4 * counts[0]
+        out[row], out[row + 1], out[row + 2], out[row + 3] = x * 1e-3, y * 1e-3, c, z * 1e-3
+        counts[0] += 1
+    return -1
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")  # into detection_rows
+def _keep_robot(out, counts, max_balls, max_robots, max_mm, max_id, team, values, present):
+    """Count a robot detection of ``team`` (0 blue, 1 yellow) and keep it in its team's next row while there
+    is room (yellow's after blue's room: _pack_yellow_rows moves them); its reject kind if invalid or its
+    orientation beyond [-pi, pi] (else -1)."""
+    out[5 + team] += 1.0
+    c, x, y = values[1], values[3], values[4]
+    if values[2] > max_id or not present[2]:
+        return 1  # _REJECT_ID
+    if not (abs(x) <= max_mm and abs(y) <= max_mm and 0.0 <= c <= 1.0):
+        return 2  # _REJECT_PLACE
+    if counts[1 + team] >= max_robots:
+        return -1
+    row = 8 + 4 * max_balls + 6 * (team * max_robots + counts[1 + team])
+    theta = values[5] if present[5] else np.nan
+    out[row], out[row + 1], out[row + 2] = team, values[2], x * 1e-3
+    out[row + 3], out[row + 4], out[row + 5] = y * 1e-3, theta, c
+    counts[1 + team] += 1
+    if present[5] and not -np.pi <= theta <= np.pi:
+        return 3  # _REJECT_THETA: _sort_out turns it back or drops it
+    return -1
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")  # into detection_rows
+def _note_rejected(out, counts, max_balls, max_robots, kind, is_ball, team, values):
+    """A rejected detection's row [kind, team, robot_id, x, y, value, robot row] for _sort_out, while there is
+    room (at most max_balls of them balls: a robot's always has room)."""
+    if counts[3] >= max_balls + 2 * max_robots or (is_ball and counts[4] >= max_balls):
+        return
+    if is_ball:
+        counts[4] += 1
+    row = 8 + 4 * max_balls + 12 * max_robots + 7 * counts[3]
+    out[row], out[row + 1], out[row + 2], out[row + 3], out[row + 4] = kind, team, values[2], values[3], values[4]
+    out[row + 5] = values[5] if kind == 3 else values[1]
+    out[row + 6] = team * max_robots + counts[1 + team] - 1 if kind == 3 else -1.0
+    counts[3] += 1
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")  # into detection_rows
+def _pack_yellow_rows(out, counts, max_balls, max_robots):
+    """Move the yellow robots' rows right behind the blue ones (and their orientations' rejected rows with them)."""
+    at_robots = 8 + 4 * max_balls
+    n_blue, n_yellow = counts[1], counts[2]
+    yellow = at_robots + 6 * max_robots
+    for k in range(6 * n_yellow):  # forwards: the target lies before the source
+        out[at_robots + 6 * n_blue + k] = out[yellow + k]
+    at_rejected = at_robots + 12 * max_robots
+    for k in range(counts[3]):  # an orientation's row: where its robot is now
+        row = at_rejected + 7 * k
+        if out[row] == 3.0 and out[row + 1] == 1.0:
+            out[row + 6] += n_blue - max_robots
 
 
 def _decode_geometry(geo, limits: DecodeLimits, problems: list[Problem]) -> FieldGeometry | None:

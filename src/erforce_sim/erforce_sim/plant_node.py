@@ -129,18 +129,10 @@ class PlantNode(Node):
         self.setup = setup_from_params(self._params.config)
         self.world = build_world(self.setup)  # refuses bodies off the field with a clear error
         setup = self.setup
-        n = self._n = setup.num_robots + setup.num_opponents  # world indices: ours, then the opponents
-        # each world index as the graph knows it: its team and its id in the team
-        self._robots = [(contract.OPPONENTS if opp else contract.OURS, j) for opp, j in map(setup.team_of, range(n))]
-        self._names = [team.namespace(j) for team, j in self._robots]
-        self._index = {(team.name, j): i for i, (team, j) in enumerate(self._robots)}
-        self._vision_index = {(setup.opponent_color if team is contract.OPPONENTS else setup.our_color, j): i
-                              for i, (team, j) in enumerate(self._robots)}
-        self._wheels = setup.robot.wheel_names
-        # immutable: a change of control is a new set, and so a new key of the field answers' robot sets
-        self._controlled = frozenset(i for i in range(n) if setup.is_controlled(i))
-        self._gate = DutyGate(n, self._values["lockstep_timeout_s"], names=self._names)
-        self._latest_duty = {i: None for i in range(n)}
+        self._n = setup.num_robots + setup.num_opponents  # world indices: ours, then the opponents
+        self._index_robots()
+        self._gate = DutyGate(self._n, self._values["lockstep_timeout_s"], names=self._names)
+        self._latest_duty = {i: None for i in range(self._n)}
         self._tick = 0
         self._period_ns = self.setup.period_ns
         self._started = False
@@ -149,25 +141,58 @@ class PlantNode(Node):
         self._pace_origin: tuple[float, int] | None = None
         self._last_publish_wall = 0.0
         self._last_clock_ns = -(10**18)
-        # Ground truth: the ball's and each robot's, each at ground_truth_rate_hz, the robots taking turns over
-        # the ticks of one period (a tick publishes a few of them, not all at once): index n is the ball.
-        truth_period_ns = 1e9 / self._values["ground_truth_rate_hz"]
-        slots = max(1, int(truth_period_ns // self._period_ns))
-        self._last_truth_ns = np.array([((i + 1) * slots // (n + 1)) * self._period_ns - truth_period_ns
-                                        for i in range(n)] + [-truth_period_ns], dtype=float)
-        self._barrier_state = np.full(n, -1, dtype=np.int8)  # as last published (-1: not yet)
+        self._schedule_ground_truth()
+        self._barrier_state = np.full(self._n, -1, dtype=np.int8)  # as last published (-1: not yet)
         self._all_robots = self.world.all_robots  # np.arange(n), the one World.set_duties recognises
-        self._duties = np.zeros((n, len(self._wheels)))  # the duties a tick applies, row per robot
+        self._duties = np.zeros((self._n, len(self._wheels)))  # the duties a tick applies, row per robot
         topics = self._values["lockstep_topics"]
         self._per_robot_lockstep = topics in ("per_robot", "both")
         self._team_lockstep = topics in ("team", "both")
         self._field_lockstep = topics == "field"
+        self._index_lockstep_teams()
+        self._create_world_topics()
+        self._create_robot_topics()
+        self._create_lockstep_topics()
+        self._setup_ssl_vision()
+        self._apply_params(self._params.config)
+        self._params.on_change(self._apply_params)
+        # Who answers is a graph query (slow): refreshed 5 times a second, not every tick.
+        self.create_timer(0.2, self._refresh_peers, clock=RclClock(clock_type=ClockType.STEADY_TIME))
+        self.get_logger().info(
+            f"plant: {setup.num_robots} robot(s) and {setup.num_opponents} opponent(s), {setup.field_preset}, "
+            f"tick {setup.control_period_s * 1e3:g} ms, "
+            f"{self._values['pacing']} pacing, {topics} lockstep topics"
+        )
+
+    def _index_robots(self) -> None:
+        """Each world index as the graph knows it: its team and its id in the team, its namespace, its
+        colour in vision, whether it is controlled."""
+        setup, n = self.setup, self._n
+        self._robots = [(contract.OPPONENTS if opp else contract.OURS, j) for opp, j in map(setup.team_of, range(n))]
+        self._names = [team.namespace(j) for team, j in self._robots]
+        self._index = {(team.name, j): i for i, (team, j) in enumerate(self._robots)}
+        self._vision_index = {(setup.opponent_color if team is contract.OPPONENTS else setup.our_color, j): i
+                              for i, (team, j) in enumerate(self._robots)}
+        self._wheels = setup.robot.wheel_names
+        # immutable: a change of control is a new set, and so a new key of the field answers' robot sets
+        self._controlled = frozenset(i for i in range(n) if setup.is_controlled(i))
+
+    def _schedule_ground_truth(self) -> None:
+        """Ground truth: the ball's and each robot's, each at ground_truth_rate_hz, the robots taking turns over
+        the ticks of one period (a tick publishes a few of them, not all at once): index n is the ball."""
+        n = self._n
+        truth_period_ns = 1e9 / self._values["ground_truth_rate_hz"]
+        slots = max(1, int(truth_period_ns // self._period_ns))
+        self._last_truth_ns = np.array([((i + 1) * slots // (n + 1)) * self._period_ns - truth_period_ns
+                                        for i in range(n)] + [-truth_period_ns], dtype=float)
+
+    def _index_lockstep_teams(self) -> None:
+        """Per team with robots on the field: its controlled world indices (ours come first in
+        _controlled_ids), their rows among the sensed ones and their ids in the team."""
         self._controlled_ids = tuple(sorted(self._controlled))
-        # per team with robots on the field: its controlled world indices (ours come first in _controlled_ids),
-        # their rows among the sensed ones and their ids in the team
         self._team_ids = {team: [i for i in self._controlled_ids if self._robots[i][0] is team]
                           for team in (contract.OURS, contract.OPPONENTS)
-                          if team is contract.OURS or setup.num_opponents}
+                          if team is contract.OURS or self.setup.num_opponents}
         self._team_rows = {team: np.array([self._controlled_ids.index(i) for i in ids], dtype=np.int64)
                            for team, ids in self._team_ids.items()}
         self._team_robot_ids = {team: tuple(self._robots[i][1] for i in ids) for team, ids in self._team_ids.items()}
@@ -180,28 +205,36 @@ class PlantNode(Node):
         # the field message's robot ids: (ours, the opponents')
         self._field_robot_ids = (self._team_robot_ids[contract.OURS], self._team_robot_ids.get(contract.OPPONENTS, ()))
 
-        q = contract
-        pub, sub = contract_publisher, contract_subscription
+    def _create_world_topics(self) -> None:
+        """The publishers of the world as a whole (clock, events, vision, the ball's truth) and the scenario
+        commands' inbox."""
+        q, pub = contract, contract_publisher
         self._clock_pub = pub(self, q.CLOCK)
         self._events_pub = pub(self, q.SIM_EVENTS)
         self._vision_ball_readers = [0]  # /vision/ball goes out only while it has readers (tools)
         self._vision_ball_pub = pub(self, q.VISION_BALL, readers=(self._vision_ball_readers, 0))
         self._vision_robots_pub = pub(self, q.VISION_ROBOTS)
-        self._vision_pose_readers = [0] * n  # a robot's vision_pose goes out only while it has readers
+        self._vision_pose_readers = [0] * self._n  # a robot's vision_pose goes out only while it has readers
         self._truth_ball_pub = pub(self, q.GROUND_TRUTH_BALL)
-        self._pubs: list[dict[str, Any]] = []
         # Scenario commands act at the next tick, the newest of each: a callback only keeps the message, so
         # a flood costs a take per message, not a placement or kick (with its event) each, and a tick costs
         # nothing for the many scenario topics nobody publishes on.
         self._scenario_pending: dict[str, Any] = {}
         self._scenario_overtaken = 0
 
-        def scenario(key, apply):
-            def keep(msg):
-                self._scenario_overtaken += key in self._scenario_pending
-                self._scenario_pending.pop(key, None)  # the newest goes last: commands act in arrival order
-                self._scenario_pending[key] = lambda: apply(msg)
-            return keep
+    def _scenario(self, key: str, apply):
+        """A scenario command's callback: it keeps the newest message under ``key`` for the next tick."""
+        def keep(msg):
+            self._scenario_overtaken += key in self._scenario_pending
+            self._scenario_pending.pop(key, None)  # the newest goes last: commands act in arrival order
+            self._scenario_pending[key] = lambda: apply(msg)
+        return keep
+
+    def _create_robot_topics(self) -> None:
+        """Per robot its sensors' publishers, its motor_duty (per-robot lockstep) and its scenario commands;
+        then the ball's placement and the list of ground-truth publishers."""
+        q, pub, sub, scenario = contract, contract_publisher, contract_subscription, self._scenario
+        self._pubs: list[dict[str, Any]] = []
         for i, (team, j) in enumerate(self._robots):
             self._pubs.append(
                 {
@@ -222,6 +255,16 @@ class PlantNode(Node):
             sub(self, q.SIM_SET_STATE, scenario(f"set{i}", lambda m, i=i: self._on_set_robot(i, m)),
                 team.topic(q.SIM_SET_STATE, j))
         sub(self, q.SIM_SET_BALL, scenario("ball", self._on_set_ball))
+        # Ground truth goes out only while it has readers (tools, recorders, tests), counted with the peers (a
+        # reader event per publisher would cost every wait of the executor): per robot its odometry and motors,
+        # then the ball's.
+        self._truth_pubs = [p[key] for p in self._pubs for key in ("truth", "motors")] + [self._truth_ball_pub]
+        self._truth_readers = [0] * len(self._truth_pubs)
+        self._peers: set[int] = set()
+
+    def _create_lockstep_topics(self) -> None:
+        """The team-level and field-level lockstep topics, as lockstep_topics asks."""
+        q, pub, sub = contract, contract_publisher, contract_subscription
         if self._team_lockstep:
             self._team_states_pubs = {}
             for team in self._team_ids:
@@ -231,22 +274,6 @@ class PlantNode(Node):
         if self._field_lockstep:
             self._field_states_pub = pub(self, q.FIELD_WHEEL_STATES)
             sub(self, q.FIELD_MOTOR_DUTY, self._on_field_duty, raw=True)
-        # Ground truth goes out only while it has readers (tools, recorders, tests), counted with the peers (a
-        # reader event per publisher would cost every wait of DirectExecutor): per robot its odometry and motors,
-        # then the ball's.
-        self._truth_pubs = [p[key] for p in self._pubs for key in ("truth", "motors")] + [self._truth_ball_pub]
-        self._truth_readers = [0] * len(self._truth_pubs)
-        self._peers: set[int] = set()
-        self._setup_ssl_vision()
-        self._apply_params(self._params.config)
-        self._params.on_change(self._apply_params)
-        # Who answers is a graph query (slow): refreshed 5 times a second, not every tick.
-        self.create_timer(0.2, self._refresh_peers, clock=RclClock(clock_type=ClockType.STEADY_TIME))
-        self.get_logger().info(
-            f"plant: {setup.num_robots} robot(s) and {setup.num_opponents} opponent(s), {setup.field_preset}, "
-            f"tick {setup.control_period_s * 1e3:g} ms, "
-            f"{self._values['pacing']} pacing, {topics} lockstep topics"
-        )
 
     def _apply_params(self, config) -> None:
         """Pacing, real-time factor and stall timeout take effect at once (the rest is read-only)."""

@@ -168,6 +168,20 @@ class _Armed:
     angle_deg: float = 0.0
 
 
+def _check_world_inputs(field_config, specs: tuple, seed) -> None:
+    """World's arguments that would otherwise fail deep inside it: a clear error naming the argument."""
+    if not isinstance(field_config, FieldConfig):
+        raise ValueError("field_config: must be a FieldConfig")
+    if not isinstance(seed, int | np.integer) or seed < 0:
+        raise ValueError(f"seed: must be an int >= 0, got {seed!r}")
+    for s in specs:
+        if not isinstance(s, RobotSpec):
+            raise ValueError(f"robots: every entry must be a RobotSpec, got {type(s).__name__}")
+    ids = [(s.team, s.robot_id) for s in specs]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"robots: duplicate (team, robot_id) in {ids}")
+
+
 class World:
     """Physics world. See the module docstring; all indices are robot list positions (0-based)."""
 
@@ -182,20 +196,11 @@ class World:
         light_barrier: LightBarrierParams | None = None,
         seed: int = 0,
     ) -> None:
-        if not isinstance(field_config, FieldConfig):
-            raise ValueError("field_config: must be a FieldConfig")
-        if not isinstance(seed, int | np.integer) or seed < 0:
-            raise ValueError(f"seed: must be an int >= 0, got {seed!r}")
+        self.specs: tuple[RobotSpec, ...] = tuple(robots)
+        _check_world_inputs(field_config, self.specs, seed)
         self.field = field_config
         self.physics = physics or PhysicsParams()
         self.ball_params = ball_params or BallParams()
-        self.specs: tuple[RobotSpec, ...] = tuple(robots)
-        for s in self.specs:
-            if not isinstance(s, RobotSpec):
-                raise ValueError(f"robots: every entry must be a RobotSpec, got {type(s).__name__}")
-        ids = [(s.team, s.robot_id) for s in self.specs]
-        if len(set(ids)) != len(ids):
-            raise ValueError(f"robots: duplicate (team, robot_id) in {ids}")
         streams = np.random.SeedSequence(int(seed)).spawn(3)
         self._sensor_rng = np.random.default_rng(streams[2])
         self.vision = VisionSystem(vision or VisionParams(), np.random.default_rng(streams[0]))
@@ -203,9 +208,26 @@ class World:
         lb_rng = np.random.default_rng(streams[1])
         self._half_x = field_config.wall_half_length_m
         self._half_y = field_config.wall_half_width_m
-        r_ball = self.ball_params.radius_m
         self._t = 0.0
         self._coeff_cache: dict[float, list[tuple[float, float, float]]] = {}
+        self._allocate_robot_rows()
+        for s in self.specs:
+            self._add_robot(s, lb_params, lb_rng)
+        self._gather_robot_arrays(lb_params)
+        self._rigs_changed()
+        for i, s in enumerate(self.specs):
+            self.place_robot(i, s.x, s.y, s.theta)
+        self._ball = BallBody(self.ball_params, BallState(0.0, 0.0))
+        if ball is not None:
+            self.set_ball_state(ball)
+        self._any_dribbler = False
+        self._any_armed = False
+        self._sample_light_barriers()
+        self._load_kernels()
+
+    def _allocate_robot_rows(self) -> None:
+        """Every robot's state in per-robot arrays (wheels padded to the widest robot): each RobotPlant works
+        on its rows, and `step` advances all contact-free robots in one compiled call."""
         self._robots: list[RobotPlant] = []
         self._shapes: list[RobotShape] = []
         self._plates: list[KickerPlate] = []
@@ -215,8 +237,6 @@ class World:
         self._dribbler_on: list[bool] = []
         self._armed: list[_Armed | None] = []
         self._clamped_duties: list[int] = []
-        # Every robot's state in per-robot arrays (wheels padded to the widest robot): each RobotPlant works
-        # on its rows, and `step` advances all contact-free robots in one compiled call.
         n_robots = len(self.specs)
         width = max((s.config.num_wheels for s in self.specs), default=0)
         self._body = np.zeros((n_robots, 8))
@@ -228,30 +248,36 @@ class World:
         self._rig = np.zeros(n_robots, dtype=bool)  # lifted or locked: stepped one by one (RobotPlant._advance_rig)
         self._batch_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self._thermal_cache: dict[float, np.ndarray] = {}
-        for s in self.specs:
-            cfg = s.config
-            co = DriveTrainCoefficients.from_config(
-                cfg, self.physics.traction_damping_nspm, self.physics.coulomb_smoothing_radps
+
+    def _add_robot(self, s: RobotSpec, lb_params: LightBarrierParams, lb_rng: np.random.Generator) -> None:
+        """The next robot's drive train, shape, kicker plate, light barrier and rows."""
+        cfg = s.config
+        co = DriveTrainCoefficients.from_config(
+            cfg, self.physics.traction_damping_nspm, self.physics.coulomb_smoothing_radps
+        )
+        shape = RobotShape(cfg.robot_radius_m, cfg.dribbler_offset_m - self.ball_params.radius_m)
+        if 0.5 * cfg.dribbler_width_m > shape.front_half_width_m:
+            raise ValueError(
+                f"robot {s.team}/{s.robot_id}: dribbler width {cfg.dribbler_width_m} m exceeds the flat front"
+                f" ({2 * shape.front_half_width_m:.4f} m)"
             )
-            shape = RobotShape(cfg.robot_radius_m, cfg.dribbler_offset_m - r_ball)
-            if 0.5 * cfg.dribbler_width_m > shape.front_half_width_m:
-                raise ValueError(
-                    f"robot {s.team}/{s.robot_id}: dribbler width {cfg.dribbler_width_m} m exceeds the flat front"
-                    f" ({2 * shape.front_half_width_m:.4f} m)"
-                )
-            self._coeffs.append(co)
-            self._shapes.append(shape)
-            self._plates.append(KickerPlate.make(s.kicker_plate, 0.5 * cfg.dribbler_width_m))
-            k, n = len(self._robots), co.num_wheels
-            self._sin_a[k, :n], self._cos_a[k, :n] = co.sin_a, co.cos_a
-            rows = (self._body[k], self._wheel_w[k, :n], self._current[k, :n], self._duty[k, :n], self._i2[k, :n],
-                    self._temp[k, :n])
-            self._robots.append(RobotPlant(co, 0.0, 0.0, 0.0, rows))
-            self._barriers.append(LightBarrierSignal(lb_params, lb_rng))
-            self._beam_x.append(shape.front_x_m + lb_params.beam_depth_m)
-            self._dribbler_on.append(False)
-            self._armed.append(None)
-            self._clamped_duties.append(0)
+        self._coeffs.append(co)
+        self._shapes.append(shape)
+        self._plates.append(KickerPlate.make(s.kicker_plate, 0.5 * cfg.dribbler_width_m))
+        k, n = len(self._robots), co.num_wheels
+        self._sin_a[k, :n], self._cos_a[k, :n] = co.sin_a, co.cos_a
+        rows = (self._body[k], self._wheel_w[k, :n], self._current[k, :n], self._duty[k, :n], self._i2[k, :n],
+                self._temp[k, :n])
+        self._robots.append(RobotPlant(co, 0.0, 0.0, 0.0, rows))
+        self._barriers.append(LightBarrierSignal(lb_params, lb_rng))
+        self._beam_x.append(shape.front_x_m + lb_params.beam_depth_m)
+        self._dribbler_on.append(False)
+        self._armed.append(None)
+        self._clamped_duties.append(0)
+
+    def _gather_robot_arrays(self, lb_params: LightBarrierParams) -> None:
+        """The robots' shapes, thermal constants and beams as arrays, for the compiled kernels."""
+        n_robots = len(self.specs)
         self._radii = [sh.radius_m for sh in self._shapes]
         self._radii_arr = np.array(self._radii, dtype=float)
         self._front_x_arr = np.array([sh.front_x_m for sh in self._shapes], dtype=float)
@@ -266,17 +292,10 @@ class World:
         self._contacts_kernel = compiled_for(_robot_contact_candidates, self._body, self._radii_arr,
                                              self._front_x_arr, *(0.0,) * 7)
         self._beam_kernel = compiled_for(_beam_hits, self._body, 0.0, 0.0, 0.0, self._beam_x_arr, self._beam_half_span)
-        self._rigs_changed()
-        for i, s in enumerate(self.specs):
-            self.place_robot(i, s.x, s.y, s.theta)
-        self._ball = BallBody(self.ball_params, BallState(0.0, 0.0))
-        if ball is not None:
-            self.set_ball_state(ball)
-        self._any_dribbler = False
-        self._any_armed = False
-        self._sample_light_barriers()
-        # load the compiled kernels now rather than in the first step, for exactly the argument types step
-        # passes (C-contiguous int64 rows and float64 arrays, int substep count, float times)
+
+    def _load_kernels(self) -> None:
+        """Load the compiled kernels now rather than in the first step, for exactly the argument types step
+        passes (C-contiguous int64 rows and float64 arrays, int substep count, float times)."""
         self._advance_robots = compiled_for(
             advance_robots, np.zeros(0, dtype=np.int64), 1, 1e-4, np.zeros((0, 3)), np.zeros((0, 15)),
             self._num_wheels, self._sin_a, self._cos_a, self._duty, self._wheel_w, self._current, self._i2, self._body)

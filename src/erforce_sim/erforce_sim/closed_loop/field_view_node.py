@@ -276,11 +276,7 @@ class FieldViewNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     observe_only()  # before rclpy starts its threads
-    # DirectExecutor never waits on a sampled subscription: a message stays in rmw until the frame's tick
-    # takes it, so the executor wakes for the discovery timer and the parameter services only, not for
-    # each of the ~500 messages a second the view subscribes to (EventsExecutor takes every one as it
-    # arrives and calls into Python for it).
-    return run_node(FieldViewNode, args, executor_kind="direct")
+    return run_node(FieldViewNode, args)
 
 
 if __name__ == "__main__":

@@ -26,6 +26,7 @@ import statistics
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
@@ -280,30 +281,13 @@ def run_on_graph(args: argparse.Namespace) -> int:
 
     from erforce_ball_model.passing_game_node import records_from_msg
     from erforce_interfaces.conversions import odometry_from_msg
-    from erforce_interfaces.tools.testing import DomainLease, stop_processes
-    from erforce_sim.closed_loop.demo import spawn_in_session, start_field_view
-    from erforce_sim.closed_loop.passing_game import setup_for
+    from erforce_interfaces.tools.testing import stop_processes
 
     out = Path(args.out) / time.strftime("%Y%m%d-%H%M%S")
     out.mkdir(parents=True, exist_ok=True)
     cfg = GameConfig(team_size=args.team, opponents=args.opponents, passes=args.passes)
-    ai_cmd, world_cmd = graph_commands(args, cfg, setup_for(cfg, args.seed))
-    outside = world_cmd is not None
-    lease = DomainLease() if outside else None
-    where = "the stand-in SSL world, apart" if outside else "on the DDS graph"
-    print(f"passing game {where}: {cfg.team_size} robots against {cfg.opponents}, {cfg.passes} passes, seed "
-          f"{args.seed} (log: {out / 'graph.log'})", flush=True)
-    world = None
-    if outside:
-        env = {**os.environ, "ROS_DOMAIN_ID": str(lease.domain_id)}
-        world = spawn_in_session(world_cmd, out / "world.log", env=env)
-    launch = spawn_in_session(ai_cmd, out / "graph.log")
-    bin_dir = Path(sys.executable).parent
-    # The recorder at idle priority only where the graph cannot run above it: beside a world and an AI under
-    # SCHED_FIFO it cannot preempt them, and at idle a flat-out world on a shared machine starved it for a whole game.
-    recorder = spawn_in_session([str(bin_dir / "erforce-record"), str(out / "bag"), "--use-sim-time"],
-                                out / "record.log", idle=not _fifo_allowed())
-    view = start_field_view(args, out, cfg.field_preset, range(cfg.team_size)) if args.view else None
+    started = _start_graph(args, cfg, out)
+    outside, lease = started.world is not None, started.lease
     records: list[PassRecord] = []
     ball_path: list[tuple[float, float, float]] = []  # t, x, y of the true ball
     ai = _Observer("passing_director", None)
@@ -332,25 +316,72 @@ def run_on_graph(args: argparse.Namespace) -> int:
 
     ai.node.create_subscription(Float64MultiArray, q.PASS_RECORDS.name, on_record, q.PASS_RECORDS.qos)
     truth.node.create_subscription(Odometry, q.GROUND_TRUTH_BALL.name, on_ball, q.GROUND_TRUTH_BALL.qos)
-    graphs = [p for p in (launch, world) if p is not None]
+    graphs = [p for p in (started.launch, started.world) if p is not None]
+    observers = list({id(o): o for o in (ai, truth)}.values())
     deadline = time.monotonic() + GRAPH_START_S + cfg.passes * WALL_PER_PASS_S
     try:
         while (len(records) < cfg.passes and all(p.poll() is None for p in graphs)
                and time.monotonic() < deadline):
-            for observer in {id(o): o for o in (ai, truth)}.values():
+            for observer in observers:
                 observer.executor.spin_once(timeout_sec=0.1)
     except KeyboardInterrupt:
         print("interrupted: stopping the graph", flush=True)
     finally:
-        _stop_quietly(stop_processes, graphs, recorder, view, out / "record.log")
-        for observer in {id(o): o for o in (ai, truth)}.values():
+        _stop_quietly(stop_processes, graphs, started.recorder, started.view, out / "record.log")
+        for observer in observers:
             observer.close()
         if lease is not None:
             lease.release()
-    sim_s, wall_s = ai.real_time()
     if offsets:
         shift = statistics.median(offsets)
         ball_path = [(t + shift, x, y) for t, x, y in ball_path]
+    return _report_graph_game(args, cfg, out, started.where, records, ball_path, ai.real_time(),
+                              truth.real_time() if outside else None)
+
+
+@dataclasses.dataclass
+class _GraphProcesses:
+    """What run_on_graph started: the AI side's launch, the stand-in world (``--world ssl``, else None) with the
+    lease of its own DDS domain, the recorder, the field view (``--view``, else None)."""
+
+    launch: Any
+    world: Any
+    lease: Any
+    recorder: Any
+    view: Any
+    where: str  # the report's words for where the game ran
+
+
+def _start_graph(args: argparse.Namespace, cfg: GameConfig, out: Path) -> _GraphProcesses:
+    """Start the processes of a game on the graph (run_on_graph)."""
+    from erforce_interfaces.tools.testing import DomainLease
+    from erforce_sim.closed_loop.demo import spawn_in_session, start_field_view
+    from erforce_sim.closed_loop.passing_game import setup_for
+
+    ai_cmd, world_cmd = graph_commands(args, cfg, setup_for(cfg, args.seed))
+    outside = world_cmd is not None
+    where = "the stand-in SSL world, apart" if outside else "on the DDS graph"
+    print(f"passing game {where}: {cfg.team_size} robots against {cfg.opponents}, {cfg.passes} passes, seed "
+          f"{args.seed} (log: {out / 'graph.log'})", flush=True)
+    world = lease = None
+    if outside:
+        lease = DomainLease()
+        env = {**os.environ, "ROS_DOMAIN_ID": str(lease.domain_id)}
+        world = spawn_in_session(world_cmd, out / "world.log", env=env)
+    launch = spawn_in_session(ai_cmd, out / "graph.log")
+    bin_dir = Path(sys.executable).parent
+    # The recorder at idle priority only where the graph cannot run above it: beside a world and an AI under
+    # SCHED_FIFO it cannot preempt them, and at idle a flat-out world on a shared machine starved it for a whole game.
+    recorder = spawn_in_session([str(bin_dir / "erforce-record"), str(out / "bag"), "--use-sim-time"],
+                                out / "record.log", idle=not _fifo_allowed())
+    view = start_field_view(args, out, cfg.field_preset, range(cfg.team_size)) if args.view else None
+    return _GraphProcesses(launch, world, lease, recorder, view, where)
+
+
+def _report_graph_game(args, cfg: GameConfig, out: Path, where: str, records: list[PassRecord],
+                       ball_path: list, real_time: tuple[float, float], world_real_time) -> int:
+    """The plot, the summary and the exit code of a game on the graph (run_on_graph)."""
+    sim_s, wall_s = real_time
     records = [dataclasses.replace(r, ball_path=_path_of(r, ball_path, cfg)) for r in records[:cfg.passes]]
     if records:
         plot_passes(records, FieldConfig.preset(cfg.field_preset), out / "passes.png",
@@ -359,7 +390,7 @@ def run_on_graph(args: argparse.Namespace) -> int:
     placements = (out / "graph.log").read_text(errors="replace").count("] [passing_game]: ball placed at robot_")
     text = summary_markdown(records, cfg, args.seed, sim_s, wall_s, None, max(placements - 1, 0), None,
                             where=where)
-    text += _graph_notes(out, truth.real_time() if outside else None)
+    text += _graph_notes(out, world_real_time)
     (out / "summary.md").write_text(text)
     print("\n" + text, flush=True)
     print(f"report: {out}")
