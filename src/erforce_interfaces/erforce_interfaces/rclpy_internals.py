@@ -142,7 +142,7 @@ def _frame_filename(frame, context: int = 1):
 
 def light_node_start() -> None:
     """Two costs of rclpy at a node's start that buy a running node nothing (idempotent; run_node calls it
-    before a warm standby waits, so a take-over saves them too; figures in bench/NOTES.md, "Executor"):
+    before a warm standby waits, so a take-over saves them too; figures in docs/decisions/0001):
 
     - rclpy's logger finds each log call's file with ``inspect.getframeinfo``, which also reads the
       source lines around it; its first call maps every loaded module to its file (``inspect.getmodule``).
