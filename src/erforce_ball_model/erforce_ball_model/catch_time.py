@@ -85,6 +85,7 @@ from erforce_ball_model.ball_model import (
     path_piece,
     path_point,
 )
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 __all__ = [
@@ -108,9 +109,9 @@ __all__ = [
 ]
 
 DEFAULT_DRIBBLER_OFFSET_M = RobotConfig().dribbler_offset_m
+_PREDICTOR = schema_defaults("erforce_ball_model", "ball_predictor")  # the search's defaults are the node's
 # The robot's limits for catching: what robotTimeToPos plans with and the catcher drives with. The one
-# default of each; CatcherConfig, the nodes' parameters, the launch files and the README take it from here
-# (test/ball_model/test_defaults.py fails on drift).
+# default of each: CatcherConfig and both nodes' schemas (default_from) take it from here.
 ROBOT_A_MAX_MPS2 = 4.5
 ROBOT_V_MAX_MPS = 2.5
 # A longer search (a ball that takes hours to stop, from an absurd deceleration) is refused, not run:
@@ -563,8 +564,8 @@ class CatchSearch:
         dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
         field: FieldConfig | None = None,
         unbounded: bool = False,
-        field_margin_m: float = 0.0,
-        grid_step_s: float = 0.01,
+        field_margin_m: float = _PREDICTOR["field_margin_m"],
+        grid_step_s: float = _PREDICTOR["grid_step_s"],
         refine_points: int = 128,
         kernels: str = "now",
     ) -> None:
@@ -658,8 +659,8 @@ def robot_time_to_ball(
     field: FieldConfig | None = None,
     unbounded: bool = False,
     dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
-    field_margin_m: float = 0.0,
-    grid_step_s: float = 0.01,
+    field_margin_m: float = _PREDICTOR["field_margin_m"],
+    grid_step_s: float = _PREDICTOR["grid_step_s"],
     refine_points: int = 128,
 ) -> CatchResult:
     """Earliest time each robot can touch the ball with its dribbler while facing ``facing_rad``.

@@ -62,7 +62,8 @@ class PassConfig:
     max_distance_m: float = _DEFAULTS["max_distance_m"]
     # everybody reacts to the kick this late (the predictor's reaction time)
     reaction_s: float = _DEFAULTS["reaction_s"]
-    press_fraction: float = 0.5  # an opponent waits this far along the lane from the ball to its teammate
+    # an opponent waits this far along the lane from the ball to its teammate
+    press_fraction: float = schema_defaults("erforce_ball_model", "team_catcher")["press_fraction"]
 
     def __post_init__(self) -> None:
         for name in ("arrive_speed_mps", "min_kick_mps", "max_kick_mps", "min_distance_m", "max_distance_m"):

@@ -35,6 +35,7 @@ import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
 from erforce_interfaces.param_schema import schema_defaults
+from erforce_interfaces.robot_config import VISION_NOISE_M
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
 
@@ -123,7 +124,7 @@ class KalmanCV2D:
 
 @dataclass(frozen=True)
 class TrackerConfig:
-    position_noise_m: float = _DEFAULTS["position_noise_m"]
+    position_noise_m: float = VISION_NOISE_M
     accel_noise_psd: float = _DEFAULTS["accel_noise_psd"]  # (m/s^2)^2/Hz of the residual acceleration beyond the model
     gate_sigma: float = _DEFAULTS["gate_sigma"]
     gate_min_m: float = 0.01
@@ -473,7 +474,7 @@ class RobotTracker:
 
     def __init__(
         self,
-        position_noise_m: float = 0.002,
+        position_noise_m: float = VISION_NOISE_M,
         accel_noise_psd: float = 1.0,
         heading_noise_rad: float = 0.01,
         angular_accel_noise_psd: float = 200.0,

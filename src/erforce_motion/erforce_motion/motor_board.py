@@ -33,7 +33,7 @@ import numpy as np
 
 from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import RobotConfig
-from erforce_motion.pid import AntiWindup, Pid, PidConfig
+from erforce_motion.pid import DEFAULT_ANTI_WINDUP, AntiWindup, Pid, PidConfig
 
 _DEFAULTS = schema_defaults("erforce_motion", "motor_boards")
 
@@ -61,7 +61,7 @@ class MotorBoardConfig:
     peak_current_a: float = _DEFAULTS["peak_current_a"]
     current_kp: float = _DEFAULTS["current_kp"]
     current_ki_per_s: float = _DEFAULTS["current_ki_per_s"]
-    anti_windup: AntiWindup = _DEFAULTS["anti_windup"]
+    anti_windup: AntiWindup = DEFAULT_ANTI_WINDUP
     actuator_mode: ActuatorMode = _DEFAULTS["actuator_mode"]
     linear_duty_per_a: float | None = None  # default R / V_supply
     thermal_mode: ThermalMode = _DEFAULTS["thermal_mode"]
@@ -115,8 +115,8 @@ class ThermalCurrentLimiter:
         current_limit_a: float,
         window_s: float = 10.0,
         loop_period_s: float = 0.001,
-        pwm_decrement: float = 0.01,
-        recovery_rate_per_s: float = 0.2,
+        pwm_decrement: float = _DEFAULTS["pwm_decrement"],
+        recovery_rate_per_s: float = _DEFAULTS["pwm_recovery_rate_per_s"],
         mode: ThermalMode = "average",
         i2t_time_constant_s: float = 29.0,
     ) -> None:

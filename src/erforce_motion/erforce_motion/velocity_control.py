@@ -34,7 +34,7 @@ import numpy as np
 from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import RobotConfig
 from erforce_motion.kinematics import OmniKinematics
-from erforce_motion.pid import AntiWindup, Pid, PidConfig
+from erforce_motion.pid import DEFAULT_ANTI_WINDUP, AntiWindup, Pid, PidConfig
 
 _DEFAULTS = schema_defaults("erforce_motion", "velocity_controller")
 
@@ -74,7 +74,7 @@ class VelocityControlConfig:
     derivative_filter_tau_s: float = _DEFAULTS["derivative_filter_tau_s"]
     command_limit_mps: float = _DEFAULTS["command_limit_mps"]  # PID output (incl. feedforward) per axis
     command_limit_radps: float = _DEFAULTS["command_limit_radps"]
-    anti_windup: AntiWindup = _DEFAULTS["anti_windup"]
+    anti_windup: AntiWindup = DEFAULT_ANTI_WINDUP
     # integrator bound per linear axis while feedforward is on
     ff_integrator_limit_mps: float = _DEFAULTS["ff_integrator_limit_mps"]
     ff_integrator_limit_radps: float = _DEFAULTS["ff_integrator_limit_radps"]
