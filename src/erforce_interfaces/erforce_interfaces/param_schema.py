@@ -31,6 +31,15 @@ Format::
         description: "UDP port"               # constant whose home is code (a protocol's well-known port)
 
 Bounds on an array apply to every element; ``size_gt<>`` / ``fixed_size<>`` bound its length.
+
+Each default is written once. A physical or protocol quantity (the robot's catching limits, the
+carpet's ball model, the field, vision noise, the lockstep tick, a well-known port) is a constant
+in code, in the module that owns the concept (``robot_config``, ``catch_time``, ``lockstep``,
+``ssl_vision``, ``pid``), and every schema that has it names it with ``default_from``. Every other
+parameter has its default only in its node's schema: a core dataclass field of the same name reads
+it with ``schema_defaults`` (``gain: float = DEFAULTS["gain"]``), never a literal of its own. Launch
+files pass a value only where it differs from the default; a launch argument that hands a knob on
+must have a default, and it mirrors the schema's (test_each_default_once lists and checks those).
 Checks that relate several parameters (a per-robot list that must match the robot count) are
 the node's: its build function raises ValueError. No rclpy import: the cores and docs use it.
 """
