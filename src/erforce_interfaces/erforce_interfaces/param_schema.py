@@ -28,7 +28,7 @@ Format::
       port:
         type: int
         default_from: erforce_interfaces.ssl_vision:SSL_VISION_PORT   # instead of default_value: a
-        description: "UDP port"               # constant whose home is code (a protocol's well-known port)
+        description: "UDP port"               # quantity whose home is code (see "Each default" below)
 
 Bounds on an array apply to every element; ``size_gt<>`` / ``fixed_size<>`` bound its length.
 
