@@ -114,6 +114,9 @@ _PREDICTOR = schema_defaults("erforce_ball_model", "ball_predictor")  # the sear
 # default of each: CatcherConfig and both nodes' schemas (default_from) take it from here.
 ROBOT_A_MAX_MPS2 = 4.5
 ROBOT_V_MAX_MPS = 2.5
+# Vision latency, tracking and control lag: a robot acts on a prediction (a kick) this much later. The
+# predictor's and the passing game's reaction_s (default_from).
+ROBOT_REACTION_S = 0.1
 # A longer search (a ball that takes hours to stop, from an absurd deceleration) is refused, not run:
 # realistic horizons are seconds (about 2,200 points for a 6.5 m/s ball at the default 10 ms step).
 MAX_GRID_POINTS = 1_000_000

@@ -40,6 +40,7 @@ import numpy as np
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
 from erforce_ball_model.catch_time import (
     MAX_RECEIVE_ANGLE_RAD,
+    ROBOT_REACTION_S,
     CatchKind,
     CatchSearch,
     catch_after_reaction,
@@ -61,7 +62,7 @@ class PassConfig:
     min_distance_m: float = _DEFAULTS["min_distance_m"]  # no pass to a teammate closer than this to the ball
     max_distance_m: float = _DEFAULTS["max_distance_m"]
     # everybody reacts to the kick this late (the predictor's reaction time)
-    reaction_s: float = _DEFAULTS["reaction_s"]
+    reaction_s: float = ROBOT_REACTION_S
     # an opponent waits this far along the lane from the ball to its teammate
     press_fraction: float = schema_defaults("erforce_ball_model", "team_catcher")["press_fraction"]
 

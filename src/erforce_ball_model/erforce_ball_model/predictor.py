@@ -45,7 +45,7 @@ from dataclasses import field as _default
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory, Walls
-from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, catch_after_reaction
+from erforce_ball_model.catch_time import ROBOT_REACTION_S, CatchKind, CatchSearch, RobotLimits, catch_after_reaction
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
 from erforce_interfaces.param_schema import schema_defaults
@@ -78,7 +78,7 @@ class PredictorConfig:
     vision_reject_margin_m: float = _DEFAULTS["vision_reject_margin_m"]
     wall_restitution: float = BALL_WALL_RESTITUTION  # the predicted path reflects off the field's wall by this
     limits: RobotLimits = _default(default_factory=RobotLimits)
-    reaction_s: float = _DEFAULTS["reaction_s"]  # a robot acts on a prediction this much later
+    reaction_s: float = ROBOT_REACTION_S  # a robot acts on a prediction this much later
     facing_fixed: np.ndarray = _default(default_factory=lambda: np.zeros(1, dtype=bool))
     facing_rad: np.ndarray = _default(default_factory=lambda: np.full(1, math.pi))
     dribbler_offset_m: float = RobotConfig().dribbler_offset_m

@@ -250,6 +250,8 @@ FIELD_PRESETS: dict[str, FieldConfig] = {
 FROM_GEOMETRY = "from_geometry"
 # The field of our own world (the plant's), and the preset the AI nodes assume unless told otherwise.
 FIELD_PRESET = "division_b"
+# Robots per team on the field: division A's rule, the nodes' num_robots unless told otherwise.
+TEAM_SIZE = 11
 # what such a node logs once at start
 WAITING_FOR_GEOMETRY = "waiting for SSL geometry: no vision is judged or used until the world's field is known"
 

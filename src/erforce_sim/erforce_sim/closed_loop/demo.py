@@ -55,7 +55,7 @@ from erforce_interfaces.conversions import (
 )
 from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
 from erforce_interfaces.param_schema import schema_defaults
-from erforce_interfaces.robot_config import FIELD_PRESET, FieldConfig, RobotConfig
+from erforce_interfaces.robot_config import FIELD_PRESET, TEAM_SIZE, FieldConfig, RobotConfig
 from erforce_interfaces.ssl_vision import SSL_VISION_GROUP, SslDecodeError, decode_wrapper
 from erforce_interfaces.tools.testing import stop_process
 from erforce_sim.closed_loop.scenes import (
@@ -690,7 +690,7 @@ def main(argv: list[str] | None = None) -> int:
                              "the paper's story (Fig. 6, then kicks) on demo.launch.yaml")
     parser.add_argument("--in-process", action="store_true",
                         help="passing: the game in one process instead, without DDS (deterministic per seed)")
-    parser.add_argument("--team", type=int, default=11, help="passing: our robots (2..11)")
+    parser.add_argument("--team", type=int, default=TEAM_SIZE, help="passing: our robots (2..11)")
     parser.add_argument("--opponents", type=int, default=3, help="passing: opponents (0..6)")
     parser.add_argument("--passes", type=int, default=20, help="passing: the game ends after this many passes")
     parser.add_argument("--pacing", default=_PLANT["pacing"], choices=("lockstep", "realtime"))

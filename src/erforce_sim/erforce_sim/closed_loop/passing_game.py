@@ -41,7 +41,7 @@ from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerC
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.lockstep import TICK_PERIOD_S
 from erforce_interfaces.param_schema import schema_defaults
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.robot_config import TEAM_SIZE, FieldConfig, RobotConfig
 from erforce_sim.closed_loop.runner import InProcessRunner
 from erforce_sim.sensors import VisionFrame
 from erforce_sim.world import PlantSetup
@@ -58,7 +58,7 @@ OPPONENT_POSITIONS = ((-1.8, 1.5), (1.0, -1.5), (2.5, 1.2), (-1.0, -1.6), (3.8, 
 
 @dataclass(frozen=True)
 class GameConfig:
-    team_size: int = 11
+    team_size: int = TEAM_SIZE
     opponents: int = 3
     passes: int = 10  # the game ends after this many passes
     field_preset: str = "division_a"
@@ -291,7 +291,7 @@ def plot_passes(records: list[PassRecord], field_config: FieldConfig, path, titl
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m erforce_sim.closed_loop.passing_game",
                                      description=__doc__.split("\n\n")[0])
-    parser.add_argument("--team", type=int, default=11, help="our robots (2..11)")
+    parser.add_argument("--team", type=int, default=TEAM_SIZE, help="our robots (2..11)")
     parser.add_argument("--opponents", type=int, default=3)
     parser.add_argument("--passes", type=int, default=10)
     parser.add_argument("--seed", type=int, default=_PLANT["seed"])
