@@ -4,9 +4,12 @@ home is code, in the constant its ``default_from`` names) and nowhere else.
 The scan reads every node schema (``src/*/*/params/*.yaml``), then looks through ``src/**/*.py`` and the
 launch files for the same value bound to the same name: a keyword argument or a parameter's default, a
 dataclass field or assignment, a dict key or ``.get(key, default)``, an argparse option, a YAML key or
-launch argument. Names match when equal after dropping a unit suffix, or when one ends in the other
-(at least two words: ``a_max_mps2`` is ``robot_a_max_mps2``). Each hit is a second default that can
-drift: derive it from the schema (``param_schema.schema_default``) or from the home constant instead.
+launch argument (a node's parameter in a launch file against that node's schemas). Names match when equal
+after dropping a unit suffix, or when one ends in the other (at least two words: ``a_max_mps2`` is
+``robot_a_max_mps2``). Each hit is a second default that can drift: derive it from the schema
+(``param_schema.schema_defaults``) or from the home constant instead. The one exception is a launch
+knob (``MIRRORED_KNOBS``), checked equal to the default it mirrors. True/False are left out: too common
+to tell one default from another.
 """
 
 from __future__ import annotations
