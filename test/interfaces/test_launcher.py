@@ -21,6 +21,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from erforce_interfaces.contract import DDS_PROFILE_VARIABLES
+from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.tools.launcher import (
     LaunchError,
     Resolver,
@@ -53,6 +54,12 @@ def resolve(path: Path, **args: str) -> dict:
 def node_name(spec) -> str:
     """The node name a spec's command gives (``-r __node:=NAME``)."""
     return next(arg.removeprefix("__node:=") for arg in spec.cmd if arg.startswith("__node:="))
+
+
+def applied(params: dict, package: str, node: str) -> dict:
+    """What the node runs with: its schema's defaults, then the launch file's values (which give only
+    what differs)."""
+    return {**load_schema(package, node).defaults(), **params}
 
 
 def params_of(spec) -> dict:
@@ -333,7 +340,8 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
     is removed or added by the list, without editing a file."""
     one = resolve(REPO / "src/erforce_sim/launch/team_sim.launch.yaml")
     assert [label.rsplit("-", 1)[0] for label in one] == ["plant", "ball_predictor", "team_catcher", "team_firmware"]
-    firmware = next(params_of(s)["/**"] for s in one.values() if node_name(s) == "team_firmware")
+    firmware = applied(next(params_of(s)["/**"] for s in one.values() if node_name(s) == "team_firmware"),
+                       "erforce_motion", "team_firmware")
     assert firmware["robot_ids"] == list(range(11)) and firmware["opponent_ids"] == [0, 1, 2]
     assert firmware["team"] == "ours" and firmware["lockstep_topics"] == "field"
     assert next(params_of(s)["/**"] for s in one.values() if node_name(s) == "plant")["clock_rate_hz"] == 50.0
@@ -341,6 +349,7 @@ def test_team_sim_takes_its_robots_as_a_list_argument():
     assert [label.rsplit("-", 1)[0] for label in specs] == [
         "plant", "ball_predictor", "team_catcher", "team_firmware", "team_firmware"]
     params = {node_name(spec): params_of(spec)["/**"] for spec in specs.values()}
+    params["team_firmware"] = applied(params["team_firmware"], "erforce_motion", "team_firmware")
     assert params["team_firmware"]["robot_ids"] == list(range(11)) and params["team_firmware"]["team"] == "ours"
     assert params["opponent_firmware"]["robot_ids"] == [0, 1, 2] and params["opponent_firmware"]["team"] == "opponents"
     plant, predictor, interceptor = params["plant"], params["ball_predictor"], params["opponent_interceptor"]
@@ -391,7 +400,8 @@ def test_team_sim_on_an_outside_world_starts_only_the_ai_side():
                                                                                         True)
     assert (predictor["team_color"], predictor["defend_side"]) == ("yellow", "positive_x")
     bridges = {node_name(s): params_of(s)["/**"] for s in specs.values() if "ssl_sim_bridge" in s.label}
-    ours, theirs = bridges["ssl_sim_bridge"], bridges["opponent_sim_bridge"]
+    ours = applied(bridges["ssl_sim_bridge"], "erforce_interfaces", "ssl_sim_bridge")
+    theirs = bridges["opponent_sim_bridge"]
     assert (ours["team"], ours["team_color"], ours["robot_ids"], ours["command_port"], ours["control_port"]) == (
         "ours", "yellow", list(range(11)), 20301, 20300)
     assert (theirs["team"], theirs["team_color"], theirs["robot_ids"], theirs["command_port"],

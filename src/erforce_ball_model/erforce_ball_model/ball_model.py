@@ -51,6 +51,9 @@ from typing import NamedTuple
 import numpy as np
 
 from erforce_interfaces.robot_config import (
+    BALL_A_ROLL_MPS2,
+    BALL_A_SLIDE_MPS2,
+    BALL_C_SWITCH,
     BALL_INERTIA_FACTOR,
     BALL_RADIUS_M,
     BALL_WALL_FRICTION,
@@ -80,9 +83,9 @@ class BallPhase(enum.IntEnum):
 class BallModelParams:
     """Decelerations (m/s^2, negative) and the slide-to-roll speed ratio (paper Sec. 5.2)."""
 
-    a_slide_mps2: float = -2.5
-    a_roll_mps2: float = -0.3
-    c_switch: float = 0.6
+    a_slide_mps2: float = BALL_A_SLIDE_MPS2
+    a_roll_mps2: float = BALL_A_ROLL_MPS2
+    c_switch: float = BALL_C_SWITCH
 
     def __post_init__(self) -> None:
         for name in ("a_slide_mps2", "a_roll_mps2", "c_switch"):

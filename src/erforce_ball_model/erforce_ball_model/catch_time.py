@@ -49,6 +49,7 @@ from erforce_ball_model.ball_model import (
     path_piece,
     path_point,
 )
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 
 __all__ = [
@@ -72,11 +73,14 @@ __all__ = [
 ]
 
 DEFAULT_DRIBBLER_OFFSET_M = RobotConfig().dribbler_offset_m
+_PREDICTOR = schema_defaults("erforce_ball_model", "ball_predictor")  # the search's defaults are the node's
 # The robot's limits for catching: what robotTimeToPos plans with and the catcher drives with. The one
-# default of each; CatcherConfig, the nodes' parameters, the launch files and the README take it from here
-# (test/ball_model/test_defaults.py fails on drift).
+# default of each: CatcherConfig and both nodes' schemas (default_from) take it from here.
 ROBOT_A_MAX_MPS2 = 4.5
 ROBOT_V_MAX_MPS = 2.5
+# Vision latency, tracking and control lag: a robot acts on a prediction (a kick) this much later. The
+# predictor's and the passing game's reaction_s (default_from).
+ROBOT_REACTION_S = 0.1
 # A longer search (a ball that takes hours to stop, from an absurd deceleration) is refused, not run:
 # realistic horizons are seconds (about 2,200 points for a 6.5 m/s ball at the default 10 ms step).
 MAX_GRID_POINTS = 1_000_000
@@ -527,8 +531,8 @@ class CatchSearch:
         dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
         field: FieldConfig | None = None,
         unbounded: bool = False,
-        field_margin_m: float = 0.0,
-        grid_step_s: float = 0.01,
+        field_margin_m: float = _PREDICTOR["field_margin_m"],
+        grid_step_s: float = _PREDICTOR["grid_step_s"],
         refine_points: int = 128,
         kernels: str = "now",
     ) -> None:
@@ -622,8 +626,8 @@ def robot_time_to_ball(
     field: FieldConfig | None = None,
     unbounded: bool = False,
     dribbler_offset_m: float = DEFAULT_DRIBBLER_OFFSET_M,
-    field_margin_m: float = 0.0,
-    grid_step_s: float = 0.01,
+    field_margin_m: float = _PREDICTOR["field_margin_m"],
+    grid_step_s: float = _PREDICTOR["grid_step_s"],
     refine_points: int = 128,
 ) -> CatchResult:
     """Earliest time each robot can touch the ball with its dribbler while facing ``facing_rad``.

@@ -37,7 +37,10 @@ from erforce_ball_model.catch_time import (
     contact_offset,
     receive_facing,
 )
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import FieldConfig
+
+_DEFAULTS = schema_defaults("erforce_ball_model", "catcher")
 
 CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract)
 
@@ -49,41 +52,44 @@ class CatcherConfig:
     # 6 m/s^2 and the traction limit of this wheel layout is 4-6 m/s^2 depending on direction.
     a_max_mps2: float = ROBOT_A_MAX_MPS2  # the planner's limits (catch_time): the predictor plans with them
     v_max_mps: float = ROBOT_V_MAX_MPS
-    w_max_radps: float = 6.0
-    heading_gain_per_s: float = 8.0
-    arrive_tolerance_m: float = 0.015  # inside this the robot holds still (above the 2 mm vision noise)
-    heading_deadband_rad: float = 0.03  # no turning for smaller errors: vision yaw noise is ~0.01 rad
+    w_max_radps: float = _DEFAULTS["w_max_radps"]
+    heading_gain_per_s: float = _DEFAULTS["heading_gain_per_s"]
+    # inside this the robot holds still (above the 2 mm vision noise)
+    arrive_tolerance_m: float = _DEFAULTS["arrive_tolerance_m"]
+    # no turning for smaller errors: vision yaw noise is ~0.01 rad
+    heading_deadband_rad: float = _DEFAULTS["heading_deadband_rad"]
     # The heading loop's delay beyond the pose's age: the AI tick, the velocity loop (heading_loop).
-    command_lead_s: float = 0.04
-    heading_gain_delay_max: float = 0.5  # the heading gain times the loop's delay at most (heading_loop)
+    command_lead_s: float = _DEFAULTS["command_lead_s"]
+    # the heading gain times the loop's delay at most (heading_loop)
+    heading_gain_delay_max: float = _DEFAULTS["heading_gain_delay_max"]
     # The approach aims for rest at the target with this fraction of a_max: the robot realized
     # about 2.2 m/s^2 sideways in the simulated Fig. 6 scene (traction, velocity-loop lag), and a
     # profile planned with more overshoots the catch point across the ball's line. 0.5 caught
     # earlier and more often than 0.6-0.85 in the in-process closed loop of the demo scenes.
-    braking_margin: float = 0.5
+    braking_margin: float = _DEFAULTS["braking_margin"]
     # Receive: once the dribbler is on the incoming ball's line, stand still and let the
     # ball come. The first-catch point ahead has no slack by definition; chasing it moves
     # the robot towards the ball and makes every arrive-at-rest catch infeasible.
-    receive_line_tolerance_m: float = 0.02
+    receive_line_tolerance_m: float = _DEFAULTS["receive_line_tolerance_m"]
     # Take the receive point on the ball's line only when the robot gets there this much before
     # the ball (ballRollTime of the two-phase model): control lag and vision latency.
-    receive_slack_s: float = 0.15
+    receive_slack_s: float = _DEFAULTS["receive_slack_s"]
     # A committed robot (see choose_target) keeps blocking the ball's line only when its projection
     # on it is this close: it nearly made it. Farther off, chasing the line deflects bank shots.
-    commit_distance_m: float = 0.3
+    commit_distance_m: float = _DEFAULTS["commit_distance_m"]
     # Receiver (over time): inputs older than stale_after_s count as missing; a ball faster than
     # min_ball_speed_mps that has also travelled engage_distance_m from where it rested engages (vision
     # noise fakes speed, above all right after a ball appears, but not travel); an engaged robot gives up
     # once the ball rested disengage_after_rest_s; a robot that had a target within commit_s is committed
     # (choose_target); in a team the receiver keeps the ball until another robot's catch time is
     # team_switch_margin_s earlier.
-    stale_after_s: float = 0.25
-    min_ball_speed_mps: float = 0.1
-    engage_distance_m: float = 0.05
-    fetch_resting_ball: bool = False
-    disengage_after_rest_s: float = 2.0
-    commit_s: float = 0.3
-    team_switch_margin_s: float = 0.1
+    stale_after_s: float = _DEFAULTS["stale_after_s"]
+    min_ball_speed_mps: float = _DEFAULTS["min_ball_speed_mps"]
+    engage_distance_m: float = _DEFAULTS["engage_distance_m"]
+    fetch_resting_ball: bool = _DEFAULTS["fetch_resting_ball"]
+    disengage_after_rest_s: float = _DEFAULTS["disengage_after_rest_s"]
+    commit_s: float = _DEFAULTS["commit_s"]
+    team_switch_margin_s: float = _DEFAULTS["team_switch_margin_s"]
 
     def __post_init__(self) -> None:
         for name in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s", "arrive_tolerance_m"):

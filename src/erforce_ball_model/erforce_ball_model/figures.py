@@ -44,7 +44,7 @@ def simulate_sphere_shot(
     noise_m: float = 0.002,
     dropout: float = 0.05,
     pre_kick_s: float = 0.1,
-    seed: int = 0,
+    noise_seed: int = 0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vision frames (t, x, y) and true speeds of a ball kicked along +x at t = 0.
 
@@ -52,7 +52,7 @@ def simulate_sphere_shot(
     contact point slips, friction mu*g slows the ball and spins it up; once v = omega*r it rolls
     with rolling resistance. Independent of the closed-form model in ``ball_model``.
     """
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(noise_seed)
     mu_g, roll_decel, k_inertia, radius = 2.5, 0.3, 2.0 / 3.0, 0.0215
     dt = 1e-4
     frames = np.arange(-pre_kick_s + rng.uniform(0.0, 1.0 / fps), duration_s, 1.0 / fps)

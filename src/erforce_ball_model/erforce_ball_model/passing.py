@@ -40,24 +40,31 @@ import numpy as np
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
 from erforce_ball_model.catch_time import (
     MAX_RECEIVE_ANGLE_RAD,
+    ROBOT_REACTION_S,
     CatchKind,
     CatchSearch,
     catch_after_reaction,
     contact_offset,
     receive_facing,
 )
+from erforce_interfaces.param_schema import schema_defaults
+
+_DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
 
 
 @dataclass(frozen=True)
 class PassConfig:
-    arrive_speed_mps: float = 1.5  # ball speed at the receiver's dribbler
-    min_kick_mps: float = 1.0
-    max_kick_mps: float = 6.5  # the SSL rule's limit
-    safe_margin_s: float = 0.3  # a safe pass: every opponent's catch comes this much after the receiver's
-    min_distance_m: float = 0.8  # no pass to a teammate closer than this to the ball
-    max_distance_m: float = 6.0
-    reaction_s: float = 0.1  # everybody reacts to the kick this late (the predictor's reaction time)
-    press_fraction: float = 0.5  # an opponent waits this far along the lane from the ball to its teammate
+    arrive_speed_mps: float = _DEFAULTS["arrive_speed_mps"]  # ball speed at the receiver's dribbler
+    min_kick_mps: float = _DEFAULTS["min_kick_mps"]
+    max_kick_mps: float = _DEFAULTS["max_kick_mps"]  # the SSL rule's limit
+    # a safe pass: every opponent's catch comes this much after the receiver's
+    safe_margin_s: float = _DEFAULTS["safe_margin_s"]
+    min_distance_m: float = _DEFAULTS["min_distance_m"]  # no pass to a teammate closer than this to the ball
+    max_distance_m: float = _DEFAULTS["max_distance_m"]
+    # everybody reacts to the kick this late (the predictor's reaction time)
+    reaction_s: float = ROBOT_REACTION_S
+    # an opponent waits this far along the lane from the ball to its teammate
+    press_fraction: float = schema_defaults("erforce_ball_model", "team_catcher")["press_fraction"]
 
     def __post_init__(self) -> None:
         for name in ("arrive_speed_mps", "min_kick_mps", "max_kick_mps", "min_distance_m", "max_distance_m"):

@@ -39,7 +39,10 @@ from erforce_ball_model.catcher import (
     wrap_angle,
 )
 from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import FieldConfig
+
+_DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
 
 ANY_DISTANCE_M = (1e-3, 1e3)  # the passing distances of the last fallback: any teammate
 
@@ -71,20 +74,27 @@ def new_poses(rows, index: dict, fed) -> list[tuple[int, object]]:
 
 @dataclass(frozen=True)
 class PlayerConfig:
-    hold_min_s: float = 0.4  # a new holder settles the ball this long before it kicks
-    aim_tolerance_rad: float = 0.03
-    turn_rate_radps: float = 3.0  # a holder turns at most this fast (the dribbler keeps the ball)
+    hold_min_s: float = _DEFAULTS["hold_min_s"]  # a new holder settles the ball this long before it kicks
+    aim_tolerance_rad: float = _DEFAULTS["aim_tolerance_rad"]
+    # a holder turns at most this fast (the dribbler keeps the ball)
+    turn_rate_radps: float = _DEFAULTS["turn_rate_radps"]
     max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD  # receive facing the next target within this
-    switch_margin_s: float = 0.2  # a holder changes its chosen receiver for one this much earlier ...
-    keep_choice_s: float = 0.3  # ... or safe where it is not, once that has held this long
-    stall_warn_s: float = 4.0  # a holder that has not kicked this long is warned about (``stalled``)
-    wait_for_safe_s: float = 1.5  # a holder without a safe pass keeps the ball this long, then plays the best
-    pass_timeout_s: float = 6.0
-    rest_speed_mps: float = 0.05  # a pass whose ball is slower than this for rest_for_s is lost
-    rest_for_s: float = 0.5
-    drop_after_s: float = 0.3  # the barrier flips falsely now and then: a drop is a ball away this long
-    passer_blind_s: float = 0.5  # the passer's own barrier ends no pass this soon after its kick
-    no_option_wait_s: float = 1.0  # a holder with no pass in reach this long plays the fallback (fallback_choice)
+    # a holder changes its chosen receiver for one this much earlier ...
+    switch_margin_s: float = _DEFAULTS["switch_margin_s"]
+    keep_choice_s: float = _DEFAULTS["keep_choice_s"]  # ... or safe where it is not, once that has held this long
+    # a holder that has not kicked this long is warned about (``stalled``)
+    stall_warn_s: float = _DEFAULTS["stall_warn_s"]
+    # a holder without a safe pass keeps the ball this long, then plays the best
+    wait_for_safe_s: float = _DEFAULTS["wait_for_safe_s"]
+    pass_timeout_s: float = _DEFAULTS["pass_timeout_s"]
+    rest_speed_mps: float = _DEFAULTS["rest_speed_mps"]  # a pass whose ball is slower than this for rest_for_s is lost
+    rest_for_s: float = _DEFAULTS["rest_for_s"]
+    # the barrier flips falsely now and then: a drop is a ball away this long
+    drop_after_s: float = _DEFAULTS["drop_after_s"]
+    # the passer's own barrier ends no pass this soon after its kick
+    passer_blind_s: float = _DEFAULTS["passer_blind_s"]
+    # a holder with no pass in reach this long plays the fallback (fallback_choice)
+    no_option_wait_s: float = _DEFAULTS["no_option_wait_s"]
     passing: PassConfig = field(default_factory=PassConfig)
     catcher: CatcherConfig = field(default_factory=CatcherConfig)
 

@@ -40,10 +40,13 @@ from dataclasses import field as _default
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory, Walls
-from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, catch_after_reaction
+from erforce_ball_model.catch_time import ROBOT_REACTION_S, CatchKind, CatchSearch, RobotLimits, catch_after_reaction
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import BALL_WALL_RESTITUTION, FieldConfig, RobotConfig
+
+_DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
 
 __all__ = ["CATCH_TIME_NEVER", "MODEL_ROWS", "PHASE_NAMES", "BallFrame", "BallPredictor", "FrameTimes",
            "PredictorConfig"]
@@ -64,22 +67,27 @@ class PredictorConfig:
     tracker: TrackerConfig = _default(default_factory=TrackerConfig)
     # None: the world's SSL geometry (set_vision_geometry); until it arrives no frame is judged or answered
     field: FieldConfig | None = _default(default_factory=lambda: FieldConfig.preset("division_b"))
-    field_margin_m: float = 0.0  # the catch search ends where the ball crosses the field lines extended by this
-    vision_reject_margin_m: float = 0.5  # observations farther outside the field lines are rejected
+    # the catch search ends where the ball crosses the field lines extended by this
+    field_margin_m: float = _DEFAULTS["field_margin_m"]
+    # observations farther outside the field lines are rejected
+    vision_reject_margin_m: float = _DEFAULTS["vision_reject_margin_m"]
     wall_restitution: float = BALL_WALL_RESTITUTION  # the predicted path reflects off the field's wall by this
     limits: RobotLimits = _default(default_factory=RobotLimits)
-    reaction_s: float = 0.1  # a robot acts on a prediction this much later
+    reaction_s: float = ROBOT_REACTION_S  # a robot acts on a prediction this much later
     facing_fixed: np.ndarray = _default(default_factory=lambda: np.zeros(1, dtype=bool))
     facing_rad: np.ndarray = _default(default_factory=lambda: np.full(1, math.pi))
     dribbler_offset_m: float = RobotConfig().dribbler_offset_m
-    rest_speed_mps: float = 0.1  # a slower filtered ball is reported stopped and faced from the robot
-    grid_step_s: float = 0.01
-    robot_timeout_s: float = 1.0  # a robot not seen for this long (vision stamps) gets no catch answer
-    online_identification: bool = False
-    ident_min_shots: int = 3
+    # a slower filtered ball is reported stopped and faced from the robot
+    rest_speed_mps: float = _DEFAULTS["rest_speed_mps"]
+    grid_step_s: float = _DEFAULTS["grid_step_s"]
+    # a robot not seen for this long (vision stamps) gets no catch answer
+    robot_timeout_s: float = _DEFAULTS["robot_timeout_s"]
+    online_identification: bool = _DEFAULTS["online_identification"]
+    ident_min_shots: int = _DEFAULTS["ident_min_shots"]
     ident_max_std: tuple[float, float, float] = (0.1, 0.02, 0.03)  # a_slide, a_roll, c_switch
-    timing_log_every: int = 0  # the node's timing log (not used here)
-    use_vision_geometry: bool = True  # SSL geometry's field and ball model replace field and model
+    timing_log_every: int = _DEFAULTS["timing_log_every"]  # the node's timing log (not used here)
+    # SSL geometry's field and ball model replace field and model
+    use_vision_geometry: bool = _DEFAULTS["use_vision_geometry"]
 
     def __post_init__(self) -> None:
         n = self.num_robots

@@ -34,6 +34,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
+from erforce_interfaces.param_schema import schema_defaults
+from erforce_interfaces.robot_config import VISION_NOISE_M
+
+_DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
 
 __all__ = ["BallTracker", "KalmanCV2D", "RobotTracker", "TrackerConfig", "UpdateStatus", "ball_step",
            "compiled_ball_step", "load_kernels"]
@@ -120,21 +124,21 @@ class KalmanCV2D:
 
 @dataclass(frozen=True)
 class TrackerConfig:
-    position_noise_m: float = 0.002
-    accel_noise_psd: float = 0.05  # (m/s^2)^2/Hz of the residual acceleration beyond the model
-    gate_sigma: float = 5.0
+    position_noise_m: float = VISION_NOISE_M
+    accel_noise_psd: float = _DEFAULTS["accel_noise_psd"]  # (m/s^2)^2/Hz of the residual acceleration beyond the model
+    gate_sigma: float = _DEFAULTS["gate_sigma"]
     gate_min_m: float = 0.01
-    kick_threshold_mps: float = 0.5
+    kick_threshold_mps: float = _DEFAULTS["kick_threshold_mps"]
     ricochet_angle_rad: float = math.radians(30.0)
     ricochet_min_speed_mps: float = 0.3
     shoot_window_s: float = 0.15
     fit_frames: int = 6
-    max_gap_s: float = 1.0  # longer gaps re-initialize the filter
+    max_gap_s: float = _DEFAULTS["max_gap_s"]  # longer gaps re-initialize the filter
     # a frame held back this long after the last fused one gets no estimate: the old motion extrapolated over
     # a gap (an occlusion, vision that stopped) says where the ball is not; the next frame re-seeds the filter
     max_hold_gap_s: float = 0.2
     # Two frames further apart than this speed allows are not one motion (the SSL limit is 6.5 m/s).
-    max_ball_speed_mps: float = 10.0
+    max_ball_speed_mps: float = _DEFAULTS["max_ball_speed_mps"]
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
@@ -470,7 +474,7 @@ class RobotTracker:
 
     def __init__(
         self,
-        position_noise_m: float = 0.002,
+        position_noise_m: float = VISION_NOISE_M,
         accel_noise_psd: float = 1.0,
         heading_noise_rad: float = 0.01,
         angular_accel_noise_psd: float = 200.0,

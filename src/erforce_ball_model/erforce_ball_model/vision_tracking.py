@@ -33,8 +33,11 @@ from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.tracking import S_T, BallTracker, TrackerConfig, UpdateStatus
 from erforce_ball_model.tracking import load_kernels as load_ball_filter_kernels
 from erforce_interfaces.numba_support import numba
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import TEAMS, DecodeLimits
+
+_PREDICTOR = schema_defaults("erforce_ball_model", "ball_predictor")
 
 __all__ = ["BALL_NONE", "BALL_SWITCH", "BALL_UPDATE", "COUNT_FRAMES", "COUNT_HYPOTHESES", "MAX_ROBOT_ID",
            "SETTING_BALL_GATE", "SETTING_BALL_SPEED", "SETTING_HALF_LENGTH", "SETTING_HALF_WIDTH",
@@ -49,7 +52,8 @@ _TEAM_INDEX = {team: k for k, team in enumerate(TEAMS)}
 @dataclass(frozen=True)
 class VisionTrackingConfig:
     ball_gate_m: float = 0.15  # gate radius around the prediction, plus the growth below
-    max_ball_speed_mps: float = 10.0  # the gate grows at this speed while the ball is unseen ...
+    # the gate grows at this speed while the ball is unseen ...
+    max_ball_speed_mps: float = _PREDICTOR["max_ball_speed_mps"]
     max_ball_gate_m: float = 1.5  # ... up to this radius
     # unseen this long while another confirmed candidate is: switch (3-4 frames; a scenario or a referee
     # puts the ball down elsewhere, and every frame waited for is one the predictor lacks)

@@ -126,7 +126,8 @@ QOS_STATE = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
 )
-# Models and geometry: the last value reaches late joiners.
+# Models and geometry, state a late joiner needs at once (the ball model in use): the newest value is kept
+# for it.
 QOS_LATCHED = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
@@ -135,12 +136,6 @@ QOS_LATCHED = QoSProfile(
 QOS_CLOCK = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1,
     reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
-)
-
-# State that a late joiner needs at once (the ball model in use): the newest value is kept for it.
-QOS_LATCHED = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
 # A log of events a late joiner needs whole (each pass as it ends): a tool started after the game did, or one

@@ -28,9 +28,18 @@ Format::
       port:
         type: int
         default_from: erforce_interfaces.ssl_vision:SSL_VISION_PORT   # instead of default_value: a
-        description: "UDP port"               # constant whose home is code (a protocol's well-known port)
+        description: "UDP port"               # quantity whose home is code (see "Each default" below)
 
 Bounds on an array apply to every element; ``size_gt<>`` / ``fixed_size<>`` bound its length.
+
+Each default is written once. A physical or protocol quantity (the robot's catching limits, the
+carpet's ball model, the field, vision noise, the lockstep tick, a well-known port) is a constant
+in code, in the module that owns the concept (``robot_config``, ``catch_time``, ``lockstep``,
+``ssl_vision``, ``pid``), and every schema that has it names it with ``default_from``. Every other
+parameter has its default only in its node's schema: a core dataclass field of the same name reads
+it with ``schema_defaults`` (``gain: float = DEFAULTS["gain"]``), never a literal of its own. Launch
+files pass a value only where it differs from the default; a launch argument that hands a knob on
+must have a default, and it mirrors the schema's (test_each_default_once lists and checks those).
 Checks that relate several parameters (a per-robot list that must match the robot count) are
 the node's: its build function raises ValueError. No rclpy import: the cores and docs use it.
 """
@@ -45,6 +54,7 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields
 from functools import cache
+from types import MappingProxyType
 from typing import Any
 
 import yaml
@@ -52,6 +62,7 @@ import yaml
 from erforce_interfaces.robot_config import RobotConfig
 
 ROBOT_PREFIX = "robot."
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 ROBOT_GROUP = "robot_description"
 
 _SCALAR_TYPES: dict[str, tuple[type, ...]] = {
@@ -237,7 +248,7 @@ class ParamSchema:
 
     @classmethod
     def from_yaml_text(cls, text: str, where: str = "<schema>") -> ParamSchema:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_LOADER)
         if not isinstance(data, dict) or len(data) != 1:
             raise ValueError(f"{where}: expected one top-level key, the node name")
         (node, entries), = data.items()
@@ -345,11 +356,29 @@ def fields_for(cls: type, config: Any, **given: Any) -> dict[str, Any]:
     return out
 
 
+def _schema_text(package: str, node: str) -> str:
+    return (importlib.resources.files(package) / "params" / f"{node}.yaml").read_text()
+
+
+@cache
+def schema_defaults(package: str, node: str) -> Mapping[str, Any]:
+    """The ``default_value`` of each parameter of ``<package>/params/<node>.yaml``, checked and typed as
+    the node declares it (a double array as a tuple): a core's dataclass field that is also a node
+    parameter takes its default from here (``gain: float = DEFAULTS["gain"]``), so the number is
+    written once. Only this file is read, and no ``default_from`` is imported, so a module that a
+    schema names may call it at import time; a ``default_from`` parameter is not in it (import its
+    constant instead).
+    """
+    where = f"{package}/params/{node}.yaml"
+    (_, entries), = yaml.load(_schema_text(package, node), Loader=_LOADER).items()
+    return MappingProxyType({name: _spec_from_yaml(name, entry, where).default for name, entry in entries.items()
+                             if isinstance(entry, dict) and "default_value" in entry})
+
+
 @cache
 def load_schema(package: str, node: str) -> ParamSchema:
     """The schema ``<package>/params/<node>.yaml`` (package data of the Python package)."""
-    path = importlib.resources.files(package) / "params" / f"{node}.yaml"
-    schema = ParamSchema.from_yaml_text(path.read_text(), f"{package}/params/{node}.yaml")
+    schema = ParamSchema.from_yaml_text(_schema_text(package, node), f"{package}/params/{node}.yaml")
     if schema.node != node:
         raise ValueError(f"{package}/params/{node}.yaml describes node {schema.node!r}")
     return schema

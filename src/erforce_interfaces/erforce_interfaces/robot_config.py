@@ -188,6 +188,13 @@ BALL_RADIUS_M = 0.02135  # SSL rules: a standard golf ball, about 43 mm across
 BALL_INERTIA_FACTOR = 0.4  # I = k m r^2: a golf ball is close to a solid sphere (2/5)
 BALL_WALL_RESTITUTION = 0.6  # the ball's speed normal to the wall, off it / onto it
 BALL_WALL_FRICTION = 0.3  # Coulomb friction between ball and wall (cuts the ball's speed along the wall)
+# The carpet's two-phase ball model (paper Sec. 5.2, its measured values): the plant's carpet and the ball
+# predictor's model until SSL geometry or identification says otherwise.
+BALL_A_SLIDE_MPS2 = -2.5
+BALL_A_ROLL_MPS2 = -0.3
+BALL_C_SWITCH = 0.6
+# SSL-Vision's position noise (standard deviation): what the plant adds and what the ball filter expects.
+VISION_NOISE_M = 0.002
 
 
 @dataclass(frozen=True)
@@ -241,6 +248,10 @@ FIELD_PRESETS: dict[str, FieldConfig] = {
 # A node's ``field`` parameter may name a preset or this: the field is what the world's SSL geometry says, and
 # nothing is judged against a field before it arrives.
 FROM_GEOMETRY = "from_geometry"
+# The field of our own world (the plant's), and the preset the AI nodes assume unless told otherwise.
+FIELD_PRESET = "division_b"
+# Robots per team on the field: division A's rule, the nodes' num_robots unless told otherwise.
+TEAM_SIZE = 11
 # what such a node logs once at start
 WAITING_FOR_GEOMETRY = "waiting for SSL geometry: no vision is judged or used until the world's field is known"
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from erforce_interfaces.ssl_log import LogFormatError, LogReader, LogRecord, MessageType
-from erforce_interfaces.ssl_vision import SSL_VISION_GROUP, SSL_VISION_PORT
+from erforce_interfaces.ssl_vision import SSL_VISION_GROUP, SSL_VISION_INTERFACE, SSL_VISION_PORT
 
 VISION_GROUP = (SSL_VISION_GROUP, SSL_VISION_PORT)
 REFEREE_GROUP = ("224.5.23.1", 10003)
@@ -109,7 +109,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--referee", type=_address, default=REFEREE_GROUP, metavar="ADDRESS:PORT",
                         help=f"where referee packets go (default {REFEREE_GROUP[0]}:{REFEREE_GROUP[1]})")
     parser.add_argument("--no-referee", action="store_true", help="send vision only")
-    parser.add_argument("--interface", default="127.0.0.1", help="address of the interface multicast leaves on")
+    parser.add_argument("--interface", default=SSL_VISION_INTERFACE,
+                        help="address of the interface multicast leaves on")
     parser.add_argument("--ttl", type=int, default=0, choices=range(256), metavar="0..255",
                         help="multicast TTL: 0 stays on this host, 1 reaches the local network")
     parser.add_argument("--max-gap-s", type=float, default=5.0, help="shorten longer pauses in the log to this [s]")

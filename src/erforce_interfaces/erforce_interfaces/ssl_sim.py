@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 from google.protobuf.message import DecodeError
 
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import half_turn, turned_half
 from erforce_interfaces.ssl_proto import (
     grsim_pb2,
@@ -35,6 +36,8 @@ from erforce_interfaces.ssl_proto import (
     ssl_simulation_robot_control_pb2,
     ssl_simulation_robot_feedback_pb2,
 )
+
+_BRIDGE = schema_defaults("erforce_interfaces", "ssl_sim_bridge")  # the bridge node's defaults
 
 SIM_CONTROL_PORT = 10300
 ROBOT_CONTROL_PORTS = {"blue": 10301, "yellow": 10302}
@@ -414,7 +417,8 @@ class BridgeCommands:
     is one message. Times are any monotonic seconds.
     """
 
-    def __init__(self, robot_ids: Iterable[int], command_timeout_s: float = 0.2, kick_hold_s: float = 0.1) -> None:
+    def __init__(self, robot_ids: Iterable[int], command_timeout_s: float = _BRIDGE["command_timeout_s"],
+                 kick_hold_s: float = _BRIDGE["kick_hold_s"]) -> None:
         self.robot_ids = tuple(sorted({int(i) for i in robot_ids}))
         if not self.robot_ids:
             raise ValueError("robot_ids: need at least one robot")

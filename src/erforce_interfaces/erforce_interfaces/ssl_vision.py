@@ -42,6 +42,8 @@ OUR_TEAM_COLOR = "blue"
 SSL_VISION_GROUP = "224.5.23.2"
 SSL_VISION_PORT = 10006
 SSL_SIMULATOR_VISION_PORT = 10020
+#: The interface multicast vision leaves and is joined by unless told otherwise: this host only.
+SSL_VISION_INTERFACE = "127.0.0.1"
 
 
 #: The classes of vision input a receiver drops, each named in its warnings and counted on its own: whole

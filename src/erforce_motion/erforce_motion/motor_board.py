@@ -31,8 +31,11 @@ from typing import Literal
 
 import numpy as np
 
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import RobotConfig
-from erforce_motion.pid import AntiWindup, Pid, PidConfig
+from erforce_motion.pid import DEFAULT_ANTI_WINDUP, AntiWindup, Pid, PidConfig
+
+_DEFAULTS = schema_defaults("erforce_motion", "motor_boards")
 
 ActuatorMode = Literal["linear", "inverse_model"]
 ThermalMode = Literal["average", "i2t"]
@@ -51,22 +54,22 @@ class MotorBoardConfig:
     delay, and the electrical time constant L/R ~ 0.4 ms is below the loop period.
     """
 
-    speed_kp_a_per_radps: float = 1.5
-    speed_ki_a_per_rad: float = 15.0
-    speed_kd_as_per_rad: float = 0.0
-    speed_derivative_tau_s: float = 0.002
-    peak_current_a: float = 8.0
-    current_kp: float = 0.2
-    current_ki_per_s: float = 200.0
-    anti_windup: AntiWindup = "clamp"
-    actuator_mode: ActuatorMode = "inverse_model"
+    speed_kp_a_per_radps: float = _DEFAULTS["speed_kp_a_per_radps"]
+    speed_ki_a_per_rad: float = _DEFAULTS["speed_ki_a_per_rad"]
+    speed_kd_as_per_rad: float = _DEFAULTS["speed_kd_as_per_rad"]
+    speed_derivative_tau_s: float = _DEFAULTS["speed_derivative_tau_s"]
+    peak_current_a: float = _DEFAULTS["peak_current_a"]
+    current_kp: float = _DEFAULTS["current_kp"]
+    current_ki_per_s: float = _DEFAULTS["current_ki_per_s"]
+    anti_windup: AntiWindup = DEFAULT_ANTI_WINDUP
+    actuator_mode: ActuatorMode = _DEFAULTS["actuator_mode"]
     linear_duty_per_a: float | None = None  # default R / V_supply
-    thermal_mode: ThermalMode = "average"
-    average_window_s: float = 10.0
+    thermal_mode: ThermalMode = _DEFAULTS["thermal_mode"]
+    average_window_s: float = _DEFAULTS["average_window_s"]
     loop_period_s: float = 0.001  # sets the boxcar length N
     average_current_limit_a: float | None = None  # default RobotConfig.continuous_current_limit_a
-    pwm_decrement: float = 0.01  # 1 % of full scale per loop run while over the limit
-    pwm_recovery_rate_per_s: float = 0.2
+    pwm_decrement: float = _DEFAULTS["pwm_decrement"]  # 1 % of full scale per loop run while over the limit
+    pwm_recovery_rate_per_s: float = _DEFAULTS["pwm_recovery_rate_per_s"]
     i2t_time_constant_s: float | None = None  # default RobotConfig.winding_thermal_time_constant_s
 
     def __post_init__(self) -> None:
@@ -112,8 +115,8 @@ class ThermalCurrentLimiter:
         current_limit_a: float,
         window_s: float = 10.0,
         loop_period_s: float = 0.001,
-        pwm_decrement: float = 0.01,
-        recovery_rate_per_s: float = 0.2,
+        pwm_decrement: float = _DEFAULTS["pwm_decrement"],
+        recovery_rate_per_s: float = _DEFAULTS["pwm_recovery_rate_per_s"],
         mode: ThermalMode = "average",
         i2t_time_constant_s: float = 29.0,
     ) -> None:

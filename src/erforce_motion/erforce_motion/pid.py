@@ -33,6 +33,7 @@ import numpy as np
 
 AntiWindup = Literal["clamp", "back_calculation"]
 ANTI_WINDUP_MODES = ("clamp", "back_calculation")
+DEFAULT_ANTI_WINDUP: AntiWindup = "clamp"  # every PID's, and both motion nodes' anti_windup
 
 
 def _channel_values(value, n: int, name: str) -> np.ndarray:
@@ -60,7 +61,7 @@ class PidConfig:
     output_max: float | tuple[float, ...] = math.inf
     integrator_min: float | tuple[float, ...] = -math.inf
     integrator_max: float | tuple[float, ...] = math.inf
-    anti_windup: AntiWindup = "clamp"
+    anti_windup: AntiWindup = DEFAULT_ANTI_WINDUP
     tracking_gain_kt: float | tuple[float, ...] | None = None
     derivative_filter_tau_s: float | tuple[float, ...] = 0.0
     deadband: float | tuple[float, ...] = 0.0

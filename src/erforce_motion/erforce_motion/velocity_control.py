@@ -31,9 +31,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import RobotConfig
 from erforce_motion.kinematics import OmniKinematics
-from erforce_motion.pid import AntiWindup, Pid, PidConfig
+from erforce_motion.pid import DEFAULT_ANTI_WINDUP, AntiWindup, Pid, PidConfig
+
+_DEFAULTS = schema_defaults("erforce_motion", "velocity_controller")
 
 GRAVITY_MPS2 = 9.81
 
@@ -57,25 +60,26 @@ class VelocityControlConfig:
     norm [rad/s of wheel speed] above which the integrator is held (None: never).
     """
 
-    max_speed_mps: float = 4.0
-    max_accel_mps2: float = 6.0  # below the traction limit mu*g ~ 7.8 m/s^2
-    max_angular_speed_radps: float = 10.0
-    max_angular_accel_radps2: float = 60.0
-    feedforward_enabled: bool = True
-    kp_translation: float = 0.3  # (m/s) per (m/s)
-    ki_translation: float = 5.0  # 1/s
-    kd_translation: float = 0.0
-    kp_rotation: float = 0.3
-    ki_rotation: float = 5.0
-    kd_rotation: float = 0.0
-    derivative_filter_tau_s: float = 0.005
-    command_limit_mps: float = 5.0  # PID output (incl. feedforward) per axis
-    command_limit_radps: float = 15.0
-    anti_windup: AntiWindup = "clamp"
-    ff_integrator_limit_mps: float = 0.3  # integrator bound per linear axis while feedforward is on
-    ff_integrator_limit_radps: float = 0.3
-    traction_limit_fraction: float | None = 0.9
-    slip_hold_threshold_radps: float | None = 1.0
+    max_speed_mps: float = _DEFAULTS["max_speed_mps"]
+    max_accel_mps2: float = _DEFAULTS["max_accel_mps2"]  # below the traction limit mu*g ~ 7.8 m/s^2
+    max_angular_speed_radps: float = _DEFAULTS["max_angular_speed_radps"]
+    max_angular_accel_radps2: float = _DEFAULTS["max_angular_accel_radps2"]
+    feedforward_enabled: bool = _DEFAULTS["feedforward_enabled"]
+    kp_translation: float = _DEFAULTS["kp_translation"]  # (m/s) per (m/s)
+    ki_translation: float = _DEFAULTS["ki_translation"]  # 1/s
+    kd_translation: float = _DEFAULTS["kd_translation"]
+    kp_rotation: float = _DEFAULTS["kp_rotation"]
+    ki_rotation: float = _DEFAULTS["ki_rotation"]
+    kd_rotation: float = _DEFAULTS["kd_rotation"]
+    derivative_filter_tau_s: float = _DEFAULTS["derivative_filter_tau_s"]
+    command_limit_mps: float = _DEFAULTS["command_limit_mps"]  # PID output (incl. feedforward) per axis
+    command_limit_radps: float = _DEFAULTS["command_limit_radps"]
+    anti_windup: AntiWindup = DEFAULT_ANTI_WINDUP
+    # integrator bound per linear axis while feedforward is on
+    ff_integrator_limit_mps: float = _DEFAULTS["ff_integrator_limit_mps"]
+    ff_integrator_limit_radps: float = _DEFAULTS["ff_integrator_limit_radps"]
+    traction_limit_fraction: float | None = _DEFAULTS["traction_limit_fraction"]
+    slip_hold_threshold_radps: float | None = _DEFAULTS["slip_hold_threshold_radps"]
 
     def __post_init__(self) -> None:
         for name in (

@@ -32,12 +32,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from erforce_interfaces.robot_config import BALL_INERTIA_FACTOR, BALL_RADIUS_M
+from erforce_interfaces.robot_config import (
+    BALL_A_ROLL_MPS2,
+    BALL_A_SLIDE_MPS2,
+    BALL_INERTIA_FACTOR,
+    BALL_RADIUS_M,
+)
 from erforce_sim.drivetrain import GRAVITY_MPS2
-
-# The paper's measured decelerations, in its sign (the two-phase model's a_slide, a_roll): the carpet's defaults.
-A_SLIDE_MPS2 = -2.5
-A_ROLL_MPS2 = -0.3
 
 
 def _check_positive(name: str, value: float) -> None:
@@ -50,8 +51,8 @@ class BallParams:
     radius_m: float = BALL_RADIUS_M
     mass_kg: float = 0.046
     inertia_factor: float = BALL_INERTIA_FACTOR  # I = inertia_factor * m r^2 (0.4 solid sphere, 2/3 hollow sphere)
-    mu_slide: float = -A_SLIDE_MPS2 / GRAVITY_MPS2  # sliding deceleration = mu_slide g = 2.5 m/s^2
-    mu_roll: float = -A_ROLL_MPS2 / GRAVITY_MPS2  # rolling deceleration = mu_roll g = 0.3 m/s^2
+    mu_slide: float = -BALL_A_SLIDE_MPS2 / GRAVITY_MPS2  # sliding deceleration = mu_slide g = 2.5 m/s^2
+    mu_roll: float = -BALL_A_ROLL_MPS2 / GRAVITY_MPS2  # rolling deceleration = mu_roll g = 0.3 m/s^2
 
     def __post_init__(self) -> None:
         for name in ("radius_m", "mass_kg", "inertia_factor", "mu_slide", "mu_roll"):

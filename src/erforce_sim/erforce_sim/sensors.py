@@ -18,6 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from erforce_interfaces.param_schema import schema_defaults
+from erforce_interfaces.robot_config import VISION_NOISE_M
+
+_PLANT = schema_defaults("erforce_sim", "plant")  # the plant node's defaults
+
 
 def _check(name: str, value: float, lo: float, hi: float = math.inf, lo_open: bool = False) -> None:
     ok = isinstance(value, int | float) and math.isfinite(value) and (value > lo if lo_open else value >= lo)
@@ -27,11 +32,11 @@ def _check(name: str, value: float, lo: float, hi: float = math.inf, lo_open: bo
 
 @dataclass(frozen=True)
 class VisionParams:
-    rate_hz: float = 70.0
-    latency_s: float = 0.015
-    position_noise_m: float = 0.002
+    rate_hz: float = _PLANT["vision_rate_hz"]
+    latency_s: float = _PLANT["vision_latency_s"]
+    position_noise_m: float = VISION_NOISE_M
     orientation_noise_rad: float = 0.01
-    ball_dropout_prob: float = 0.02
+    ball_dropout_prob: float = _PLANT["vision_dropout"]
     robot_dropout_prob: float = 0.01
 
     def __post_init__(self) -> None:

@@ -18,8 +18,10 @@ import random
 import socket
 from dataclasses import dataclass
 
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import (
+    SSL_VISION_INTERFACE,
     BallCandidate,
     BallModelFromVision,
     CameraFrame,
@@ -30,6 +32,8 @@ from erforce_interfaces.ssl_vision import (
     encode_geometry,
 )
 from erforce_sim.sensors import VisionFrame
+
+_PLANT = schema_defaults("erforce_sim", "plant")
 
 CAMERA_HEIGHT_M = 4.0
 
@@ -75,7 +79,7 @@ class SslCameraSplitter:
 
     def __init__(self, cameras: tuple[SimCamera, ...], field: FieldConfig, ball_model: BallModelFromVision | None,
                  latency_s: float = 0.015, camera_noise_m: float = 0.0005,
-                 clock_offset_s: float = 0.0, seed: int = 0) -> None:
+                 clock_offset_s: float = 0.0, seed: int = _PLANT["seed"]) -> None:
         self.cameras = cameras
         self.latency_s = latency_s
         self.camera_noise_m = camera_noise_m
@@ -114,7 +118,7 @@ class SslCameraSplitter:
         return out
 
 
-def open_multicast_sender(interface: str = "127.0.0.1", ttl: int = 0) -> socket.socket:
+def open_multicast_sender(interface: str = SSL_VISION_INTERFACE, ttl: int = 0) -> socket.socket:
     """A UDP socket sending multicast out of ``interface`` only; TTL 0 keeps it on this host. It is bound to
     ``interface``: unbound, the first send would bind it to every address (0.0.0.0) of the host."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)

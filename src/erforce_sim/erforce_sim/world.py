@@ -28,7 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from erforce_interfaces.numba_support import compiled_for, numba
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.param_schema import schema_defaults
+from erforce_interfaces.robot_config import FIELD_PRESET, FieldConfig, RobotConfig
 from erforce_interfaces.ssl_vision import OUR_TEAM_COLOR
 from erforce_interfaces.ssl_vision import TEAMS as SSL_TEAMS
 from erforce_sim.ball import BallBody, BallParams, BallState
@@ -36,6 +37,8 @@ from erforce_sim.contacts import ContactParams, RobotShape, ball_robot, ball_wal
 from erforce_sim.drivetrain import DriveTrainCoefficients, RobotPlant, advance_robots
 from erforce_sim.kicker import DEFAULT_TILT_COMPLIANCE_RAD_PER_M, KickerPlate
 from erforce_sim.sensors import LightBarrierParams, LightBarrierSignal, VisionFrame, VisionParams, VisionSystem
+
+_PLANT = schema_defaults("erforce_sim", "plant")  # the plant node's defaults
 
 MAX_BODY_SPEED_MPS = 20.0
 MAX_ROBOT_YAW_RATE_RADPS = 100.0
@@ -86,12 +89,13 @@ class RobotSpec:
 
 @dataclass(frozen=True)
 class PhysicsParams:
-    substep_hz: float = 10000.0  # motor/body/ball substep rate (>= 10 kHz; exact-exponential electrics)
+    substep_hz: float = _PLANT["substep_hz"]  # motor/body/ball substep rate (>= 10 kHz; exact-exponential electrics)
     traction_damping_nspm: float = 300.0  # slip-velocity force law, clipped at mu N
     coulomb_smoothing_radps: float = 1.0  # motor-shaft speed over which Coulomb friction ramps in
     contacts: ContactParams = field(default_factory=ContactParams)
     kick_max_speed_mps: float = 8.0  # kicks above this are clamped (and reported)
-    kick_spin_ratio: float = -0.4  # default w r / v after a kick; < 0 backspin: -0.4 gives the paper's c_switch 0.6
+    # default w r / v after a kick; < 0 backspin: -0.4 gives the paper's c_switch 0.6
+    kick_spin_ratio: float = _PLANT["kick_spin_ratio"]
     kick_tilt_compliance_rad_per_m: float = DEFAULT_TILT_COMPLIANCE_RAD_PER_M  # plunger bending
     kick_touch_tolerance_m: float = 0.005  # ball surface to front face gap that still counts as touching
     dribbler_time_constant_s: float = 0.005  # ball velocity relaxes to the bar's velocity when dribbling
@@ -194,7 +198,7 @@ class World:
         ball_params: BallParams | None = None,
         vision: VisionParams | None = None,
         light_barrier: LightBarrierParams | None = None,
-        seed: int = 0,
+        seed: int = _PLANT["seed"],
     ) -> None:
         self.specs: tuple[RobotSpec, ...] = tuple(robots)
         _check_world_inputs(field_config, self.specs, seed)
@@ -845,13 +849,17 @@ class World:
 
 # ---------------------------------------------------------------------- a scenario for the plant
 PLATES = ("flat", "curved")
+# The in-process runner's tick, when a PlantSetup names none: 1 kHz. Not the lockstep tick over DDS
+# (lockstep.TICK_PERIOD_S, the plant node's control_period_s), which the node graph pays per message; the plant
+# node always sets its own.
+IN_PROCESS_TICK_PERIOD_S = 0.001
 
 
 @dataclass(frozen=True)
 class PlantSetup:
     """A scenario for the plant: what is on the field at t = 0 and how the plant ticks."""
 
-    field_preset: str = "division_b"
+    field_preset: str = FIELD_PRESET
     robot_poses: tuple[tuple[float, float, float], ...] = ((-1.0, 0.0, 0.0),)  # x [m], y [m], yaw [rad]
     kicker_plates: tuple[str, ...] = ("curved",)  # one per robot, or one for all
     controlled: tuple[bool, ...] = (True,)  # robots with motor boards; one per robot, or one for all
@@ -860,8 +868,8 @@ class PlantSetup:
     # the world and the runner they come after our robots: index num_robots + j.
     opponent_poses: tuple[tuple[float, float, float], ...] = ()
     our_color: str = OUR_TEAM_COLOR  # SSL team colour of our robots (what vision reports them as)
-    control_period_s: float = 0.001
-    seed: int = 0
+    control_period_s: float = IN_PROCESS_TICK_PERIOD_S
+    seed: int = _PLANT["seed"]
     robot: RobotConfig = field(default_factory=RobotConfig)
     physics: PhysicsParams = field(default_factory=PhysicsParams)
     vision: VisionParams = field(default_factory=VisionParams)

@@ -43,7 +43,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
-from erforce_ball_model.catch_time import RobotLimits
+from erforce_ball_model.catch_time import ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS, RobotLimits
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     odometry_from_msg,
@@ -54,7 +54,8 @@ from erforce_interfaces.conversions import (
     table_from_msg,
 )
 from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.param_schema import schema_defaults
+from erforce_interfaces.robot_config import FIELD_PRESET, TEAM_SIZE, FieldConfig, RobotConfig
 from erforce_interfaces.ssl_vision import SSL_VISION_GROUP, SslDecodeError, decode_wrapper
 from erforce_interfaces.tools.testing import stop_process
 from erforce_sim.closed_loop.scenes import (
@@ -67,6 +68,8 @@ from erforce_sim.closed_loop.scenes import (
     default_scenes,
     reachable,
 )
+
+_PLANT, _VIEW = schema_defaults("erforce_sim", "plant"), schema_defaults("erforce_sim", "field_view")
 
 LAUNCH_FILE = Path(__file__).resolve().parents[2] / "launch" / "demo.launch.yaml"
 
@@ -687,10 +690,10 @@ def main(argv: list[str] | None = None) -> int:
                              "the paper's story (Fig. 6, then kicks) on demo.launch.yaml")
     parser.add_argument("--in-process", action="store_true",
                         help="passing: the game in one process instead, without DDS (deterministic per seed)")
-    parser.add_argument("--team", type=int, default=11, help="passing: our robots (2..11)")
+    parser.add_argument("--team", type=int, default=TEAM_SIZE, help="passing: our robots (2..11)")
     parser.add_argument("--opponents", type=int, default=3, help="passing: opponents (0..6)")
     parser.add_argument("--passes", type=int, default=20, help="passing: the game ends after this many passes")
-    parser.add_argument("--pacing", default="lockstep", choices=("lockstep", "realtime"))
+    parser.add_argument("--pacing", default=_PLANT["pacing"], choices=("lockstep", "realtime"))
     parser.add_argument(
         "--real-time-factor",
         type=float,
@@ -698,7 +701,7 @@ def main(argv: list[str] | None = None) -> int:
         help="cap on simulated seconds per wall second; 0 = as fast as lockstep goes",
     )
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--field", default="division_b", choices=("division_a", "division_b"),
+    parser.add_argument("--field", default=FIELD_PRESET, choices=("division_a", "division_b"),
                         help="scenes: the field (the passing game plays on division_a)")
     parser.add_argument("--scenes", type=int, default=0, help="scenes: play only the first N scenes")
     parser.add_argument(
@@ -709,8 +712,8 @@ def main(argv: list[str] | None = None) -> int:
         help="scenes: receiving robots: robot_0, and robot_2 and robot_3 waiting downfield; the first to the ball "
              "receives",
     )
-    parser.add_argument("--robot-a-max", type=float, default=4.5, help="catching acceleration [m/s^2]")
-    parser.add_argument("--robot-v-max", type=float, default=2.5, help="catching speed [m/s]")
+    parser.add_argument("--robot-a-max", type=float, default=ROBOT_A_MAX_MPS2, help="catching acceleration [m/s^2]")
+    parser.add_argument("--robot-v-max", type=float, default=ROBOT_V_MAX_MPS, help="catching speed [m/s]")
     parser.add_argument(
         "--robot-side",
         action=argparse.BooleanOptionalAction,
@@ -738,8 +741,8 @@ def main(argv: list[str] | None = None) -> int:
                              "geometry carries it; default: the plant's own)")
     parser.add_argument("--view", action="store_true",
                         help="serve the field view in a browser while the demo runs (prints its address)")
-    parser.add_argument("--view-port", type=int, default=8090, help="HTTP port of the field view")
-    parser.add_argument("--foxglove-port", type=int, default=0,
+    parser.add_argument("--view-port", type=int, default=_VIEW["port"], help="HTTP port of the field view")
+    parser.add_argument("--foxglove-port", type=int, default=_VIEW["foxglove_port"],
                         help="with --view: also a Foxglove WebSocket server on this port (0: none)")
     args = parser.parse_args(argv)
     if args.scenario == "passing" and args.in_process:

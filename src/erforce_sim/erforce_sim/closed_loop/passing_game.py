@@ -29,10 +29,14 @@ from erforce_ball_model.catcher import CatcherConfig
 from erforce_ball_model.passing import PassConfig
 from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerConfig, PressingTeam, summary
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.lockstep import TICK_PERIOD_S
+from erforce_interfaces.param_schema import schema_defaults
+from erforce_interfaces.robot_config import TEAM_SIZE, FieldConfig, RobotConfig
 from erforce_sim.closed_loop.runner import InProcessRunner
 from erforce_sim.sensors import VisionFrame
 from erforce_sim.world import PlantSetup
+
+_PLANT = schema_defaults("erforce_sim", "plant")
 
 __all__ = ["GameConfig", "PassRecord", "PassingGame", "plot_passes", "setup_for", "summary"]
 
@@ -44,11 +48,11 @@ OPPONENT_POSITIONS = ((-1.8, 1.5), (1.0, -1.5), (2.5, 1.2), (-1.0, -1.6), (3.8, 
 
 @dataclass(frozen=True)
 class GameConfig:
-    team_size: int = 11
+    team_size: int = TEAM_SIZE
     opponents: int = 3
     passes: int = 10  # the game ends after this many passes
     field_preset: str = "division_a"
-    control_period_s: float = 0.002
+    control_period_s: float = TICK_PERIOD_S  # the graph's lockstep tick
     ai_rate_hz: float = 50.0
     settle_s: float = 0.3  # the trackers learn every robot before the first decision
     player: PlayerConfig = field(default_factory=PlayerConfig)  # our team's AI
@@ -85,7 +89,7 @@ class PassingGame:
     """One game (module docstring); ``play`` returns the passes, ``on_pass`` sees each as it ends and
     ``on_tick`` the game after every control tick (a recorder)."""
 
-    def __init__(self, cfg: GameConfig, seed: int = 0, on_pass: Callable[[PassRecord], None] | None = None,
+    def __init__(self, cfg: GameConfig, seed: int = _PLANT["seed"], on_pass: Callable[[PassRecord], None] | None = None,
                  on_tick: Callable[[PassingGame], None] | None = None) -> None:
         self.cfg, self.seed, self.on_pass, self.on_tick = cfg, seed, on_pass, on_tick
         self.setup = setup_for(cfg, seed)
@@ -277,10 +281,10 @@ def plot_passes(records: list[PassRecord], field_config: FieldConfig, path, titl
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m erforce_sim.closed_loop.passing_game",
                                      description=__doc__.split("\n\n")[0])
-    parser.add_argument("--team", type=int, default=11, help="our robots (2..11)")
+    parser.add_argument("--team", type=int, default=TEAM_SIZE, help="our robots (2..11)")
     parser.add_argument("--opponents", type=int, default=3)
     parser.add_argument("--passes", type=int, default=10)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=_PLANT["seed"])
     parser.add_argument("--plot", help="write a field plot of every pass here (PNG)")
     args = parser.parse_args(argv)
     cfg = GameConfig(team_size=args.team, opponents=args.opponents, passes=args.passes)

@@ -23,6 +23,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from erforce_interfaces.param_schema import schema_defaults
 from erforce_motion.motor_board import MotorBoardConfig
 from erforce_motion.team_cores import TeamFirmware
 from erforce_motion.velocity_control import VelocityControlConfig
@@ -40,8 +41,8 @@ class InProcessRunner:
         setup: PlantSetup,
         velocity_config: VelocityControlConfig | None = None,
         motor_config: MotorBoardConfig | None = None,
-        command_timeout_s: float = 0.2,
-        setpoint_timeout_s: float = 0.1,
+        command_timeout_s: float = schema_defaults("erforce_motion", "velocity_controller")["command_timeout_s"],
+        setpoint_timeout_s: float = schema_defaults("erforce_motion", "motor_boards")["setpoint_timeout_s"],
     ) -> None:
         self.setup = setup
         self.world = build_world(setup)

@@ -29,10 +29,16 @@ import numpy as np
 from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
 from erforce_ball_model.catcher import CATCH_TIME_NEVER, CatcherConfig, Receiver
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.lockstep import TICK_PERIOD_S
+from erforce_interfaces.param_schema import schema_defaults
+from erforce_interfaces.robot_config import FIELD_PRESET, FieldConfig, RobotConfig
 from erforce_sim.closed_loop.runner import InProcessRunner
 from erforce_sim.sensors import VisionFrame, VisionParams
 from erforce_sim.world import PlantSetup
+
+_PLANT = schema_defaults("erforce_sim", "plant")
+_CATCHER = schema_defaults("erforce_ball_model", "catcher")
+_GAME = schema_defaults("erforce_ball_model", "passing_game")
 
 RECEIVER, KICKER = 0, 1
 # --receivers 2 and 3 add these receivers, in this order; their catchers form a team with robot_0's (the
@@ -143,9 +149,9 @@ class InProcessResult:
     reachable: bool
 
 
-def play_in_process(scene: Scene, seed: int = 0, catcher: CatcherConfig | None = None,
-                    field_preset: str = "division_b", control_period_s: float = 0.002,
-                    catcher_rate_hz: float = 50.0, settle_s: float = 0.5,
+def play_in_process(scene: Scene, seed: int = _PLANT["seed"], catcher: CatcherConfig | None = None,
+                    field_preset: str = FIELD_PRESET, control_period_s: float = TICK_PERIOD_S,
+                    catcher_rate_hz: float = _CATCHER["rate_hz"], settle_s: float = _GAME["settle_s"],
                     vision: VisionParams | None = None) -> InProcessResult:
     """Play one scene with the stack in one process (module docstring); deterministic for a seed.
 

@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.param_schema import schema_defaults
+from erforce_interfaces.robot_config import BALL_A_ROLL_MPS2, BALL_A_SLIDE_MPS2, FIELD_PRESET, FieldConfig
 from erforce_interfaces.ssl_log import LogWriter, MessageType
 from erforce_interfaces.ssl_proto import ssl_gc_referee_message_pb2
 from erforce_interfaces.ssl_vision import (
@@ -40,10 +41,12 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
-from erforce_sim.ball import A_ROLL_MPS2, A_SLIDE_MPS2, BallParams
+from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import CAMERA_HEIGHT_M, quadrant_cameras
 from erforce_sim.world import World
+
+_PLANT = schema_defaults("erforce_sim", "plant")
 
 EPOCH_S = 1_700_000_000.0  # the vision host's clock at game time 0 (t_capture is wall time)
 ROBOTS_PER_TEAM = 6
@@ -54,10 +57,10 @@ GEOMETRY_PERIOD_S = 1.0
 @dataclass(frozen=True)
 class GameConfig:
     duration_s: float = 600.0
-    field_preset: str = "division_b"
-    seed: int = 0
+    field_preset: str = FIELD_PRESET
+    seed: int = _PLANT["seed"]
     ball: BallParams = field(default_factory=BallParams)
-    kick_spin_ratio: float = -0.4
+    kick_spin_ratio: float = _PLANT["kick_spin_ratio"]
     kick_speed_mps: tuple[float, float] = (1.0, 4.5)
     rest_s: float = 0.5
     max_shot_s: float = 15.0
@@ -220,11 +223,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="ssl_game_log", description=__doc__.splitlines()[0])
     parser.add_argument("out", help="log file to write (.gz: compressed)")
     parser.add_argument("--duration-s", type=float, default=600.0, help="game length [s] (default 600)")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--field", default="division_b", help="division_a | division_b")
-    parser.add_argument("--a-slide", type=float, default=A_SLIDE_MPS2, help="true sliding deceleration [m/s^2]")
-    parser.add_argument("--a-roll", type=float, default=A_ROLL_MPS2, help="true rolling deceleration [m/s^2]")
-    parser.add_argument("--kick-spin-ratio", type=float, default=-0.4,
+    parser.add_argument("--seed", type=int, default=_PLANT["seed"])
+    parser.add_argument("--field", default=FIELD_PRESET, help="division_a | division_b")
+    parser.add_argument("--a-slide", type=float, default=BALL_A_SLIDE_MPS2, help="true sliding deceleration [m/s^2]")
+    parser.add_argument("--a-roll", type=float, default=BALL_A_ROLL_MPS2, help="true rolling deceleration [m/s^2]")
+    parser.add_argument("--kick-spin-ratio", type=float, default=_PLANT["kick_spin_ratio"],
                         help="w r / v of a kick; c_switch = (2.5 + s) / 3.5 for the solid ball")
     args = parser.parse_args(argv)
     try:

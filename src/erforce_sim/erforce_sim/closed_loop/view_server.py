@@ -42,6 +42,10 @@ from websockets.http11 import Request, Response
 from websockets.protocol import State
 from websockets.sync.server import ServerConnection, serve
 
+from erforce_interfaces.param_schema import schema_defaults
+
+_VIEW = schema_defaults("erforce_sim", "field_view")  # the field view node's defaults
+
 WEBSOCKET_PATH = "/ws"
 MAX_REQUEST_BYTES = 4096  # a request is a few dozen bytes of JSON
 #: A frame up to this size goes out from the caller's thread when the client's socket has nothing
@@ -170,7 +174,8 @@ class _Client:
 class ViewServer:
     """See the module docstring. ``port`` 0 picks a free port (``port`` tells which once started)."""
 
-    def __init__(self, static_dir: Path, host: str = "127.0.0.1", port: int = 0, max_clients: int = 32,
+    def __init__(self, static_dir: Path, host: str = _VIEW["host"], port: int = 0,
+                 max_clients: int = _VIEW["max_clients"],
                  on_request: Callable[[dict], dict | None] | None = None,
                  logger: logging.Logger | None = None, on_tick: Callable[[], None] | None = None,
                  tick_period_s: float = 1.0 / 30.0) -> None:
