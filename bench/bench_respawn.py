@@ -92,10 +92,11 @@ def _boot_s_of_start(pid: int) -> float:
     return int(fields[19]) / os.sysconf("SC_CLK_TCK")
 
 
-def _trace_events(output: str, node: str, pid: int) -> dict[str, float]:
+def _trace_events(output: str, pid: int) -> dict[str, float]:
     """Wall-clock times of the respawn-trace lines of the process that started with ``pid``."""
-    start = output.rfind(f"started with pid [{pid}]")  # "process started" or, for a standby, "standby started"
-    found = re.findall(rf"\[{node}-\d+\] respawn-trace (\w+) ([\d.]+) ([\d.]+) {pid}$", output[start:], re.M)
+    # from its start, or for the warm standby from the moment it became the node (its warm-up traces as well)
+    start = max(output.rfind(f"process started with pid [{pid}]"), output.rfind(f"from standby with pid [{pid}]"))
+    found = re.findall(rf"\] respawn-trace (\w+) ([\d.]+) ([\d.]+) {pid}$", output[start:], re.M)
     events: dict[str, tuple[float, float]] = {}
     for event, wall, cpu in found:
         events.setdefault(event, (float(wall), float(cpu)))
@@ -106,17 +107,19 @@ def _phases(demo: LaunchedDemo, node: str, t_kill_mono: float, heal_s: float) ->
     pid = demo.pid(node)
     mono_minus_wall = time.monotonic() - time.time()
     mono_minus_boot = time.monotonic() - time.clock_gettime(time.CLOCK_BOOTTIME)
-    events = _trace_events(demo.launch.output(), node, pid)
+    events = _trace_events(demo.launch.output(), pid)
     try:
         t_exec = _boot_s_of_start(pid) + mono_minus_boot
     except OSError:
         return None
-    if not {"site", "main", "init", "built", "publish"} <= set(events):
-        return None
     t = {k: wall + mono_minus_wall for k, (wall, _) in events.items()}
-    if t_exec < t_kill_mono:  # a warm standby, started before the kill
+    if t_exec < t_kill_mono:  # the warm standby, started before the kill
+        if not {"init", "built", "publish"} <= set(events):
+            return None
         marks = [t_kill_mono, t["init"], t["built"], t["publish"], t_kill_mono + heal_s]
         return {phase: b - a for phase, a, b in zip(STANDBY_PHASES, marks[:-1], marks[1:], strict=True)}
+    if not {"site", "main", "init", "built", "publish"} <= set(events):
+        return None
     marks = [t_kill_mono, t_exec, t["site"], t["main"], t["init"], t["built"], t["publish"], t_kill_mono + heal_s]
     found = {phase: b - a for phase, a, b in zip(PHASES, marks[:-1], marks[1:], strict=True)}
     cpu = {k: c for k, (_, c) in events.items()}
@@ -163,16 +166,14 @@ def measure(rounds: int, breakdown: bool = False, standby: bool = True, team: bo
     return heal_s, phases
 
 
-def _rss_mib(pid: int, field: str = "VmRSS:", file: str = "status") -> float:
-    for line in Path(f"/proc/{pid}/{file}").read_text().splitlines():
-        if line.startswith(field):
-            return int(line.split()[1]) / 1024
-    return 0.0
-
-
-def _pss_mib(pid: int) -> float:
-    """Proportional set size: shared pages (libraries, the same files mapped) divided among their users."""
-    return _rss_mib(pid, "Pss:", "smaps_rollup")
+def _memory_mib(pid: int) -> dict[str, float]:
+    """RSS, PSS (shared pages divided among their users) and USS (pages of this process alone: what its end
+    frees) from /proc/<pid>/smaps_rollup."""
+    found = {}
+    for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines()[1:]:
+        key, value = line.split(":", 1)
+        found[key] = int(value.split()[0]) / 1024
+    return {"RSS": found["Rss"], "PSS": found["Pss"], "USS": found["Private_Clean"] + found["Private_Dirty"]}
 
 
 def _cpu_s(pid: int) -> float:
@@ -180,35 +181,32 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
 
 
-GRAPHS = (("demo", DEMO_LAUNCH), ("team_sim (14 robots)", TEAM_SIM_LAUNCH))
+GRAPHS = (("demo", DEMO_LAUNCH, {}), ("team_sim ai:=passing (14 robots)", TEAM_SIM_LAUNCH, {"ai": "passing"}))
 
 
 def standby_cost() -> list[dict]:
-    """Each graph as shipped until every process has a ready standby: RSS of the processes and their standbys,
-    and the standbys' CPU (imports and warm-up: what each costs a machine once per start and respawn)."""
+    """Each graph as shipped until its warm standby is ready: memory of the node processes and of the standby
+    (the one spare that stands in for all of them), and the spare's CPU to ready (imports and warm-ups: what
+    it costs a machine once per start and respawn)."""
     os.environ.update(dds_profile_env())
     rows = []
-    for graph_name, launch_file in GRAPHS:
+    for graph_name, launch_file, launch_args in GRAPHS:
         with RosGraph(Path(tempfile.mkdtemp(prefix="bench-standby-"))) as graph:
-            launch = graph.start_launch(launch_file, standby=True, output="screen")
-            graph.spin_until(lambda launch=launch: standbys_ready(launch.output()), 600.0, "every standby ready")
+            launch = graph.start_launch(launch_file, standby=True, output="screen", **launch_args)
+            graph.spin_until(lambda launch=launch: standbys_ready(launch.output()), 600.0, "the standby ready")
             out = launch.output()
-            pids = {kind: {label: int(pid) for label, pid in re.findall(
-                        rf"\[(\S+-\d+)\]: {kind} started with pid \[(\d+)\]", out)}
-                    for kind in ("process", "standby")}
-            rss = {kind: {label: _rss_mib(pid) for label, pid in found.items()} for kind, found in pids.items()}
-            pss = {kind: sum(_pss_mib(pid) for pid in found.values()) for kind, found in pids.items()}
-            cpu = {label: _cpu_s(pid) for label, pid in pids["standby"].items()}
-        for label in sorted(rss["standby"]):
-            rows.append({"name": f"{graph_name}: {label} standby, RSS", "value": round(rss["standby"][label]),
-                         "unit": "MiB", "note": f"its running process {rss['process'][label]:.0f} MiB; the standby's "
-                                                f"CPU to ready {cpu[label]:.2f} s"})
-        total_active, total_standby = sum(rss["process"].values()), sum(rss["standby"].values())
-        rows.append({"name": f"{graph_name}: RSS with standbys", "value": round(total_active + total_standby),
-                     "unit": "MiB", "note": f"{len(rss['process'])} processes {total_active:.0f} MiB + "
-                                            f"{len(rss['standby'])} standbys {total_standby:.0f} MiB; PSS "
-                                            f"{pss['process']:.0f} + {pss['standby']:.0f} MiB; CPU of all standbys "
-                                            f"{sum(cpu.values()):.1f} s (at the moment the last one was ready)"})
+            nodes = [int(pid) for pid in re.findall(r"\]: process started with pid \[(\d+)\]", out)]
+            spares = [int(pid) for pid in re.findall(r"\]: standby started with pid \[(\d+)\]", out)][-1:]
+            memory = {kind: [_memory_mib(pid) for pid in pids] for kind, pids in (("nodes", nodes), ("spare", spares))}
+            cpu_s = sum(_cpu_s(pid) for pid in spares)
+        total = {kind: {k: sum(m[k] for m in found) for k in ("RSS", "PSS", "USS")} for kind, found in memory.items()}
+        spare, active = total["spare"], total["nodes"]
+        rows.append({"name": f"{graph_name}: warm standby memory, PSS", "value": round(spare["PSS"]), "unit": "MiB",
+                     "target": "< 300 (team graph)",
+                     "note": f"{len(spares)} spare for {len(nodes)} node processes: RSS {spare['RSS']:.0f}, PSS "
+                             f"{spare['PSS']:.0f}, USS {spare['USS']:.0f} MiB; the nodes RSS {active['RSS']:.0f}, "
+                             f"PSS {active['PSS']:.0f}, USS {active['USS']:.0f} MiB; the spare's CPU to ready "
+                             f"{cpu_s:.2f} s"})
     return rows
 
 
