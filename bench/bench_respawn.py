@@ -21,7 +21,7 @@ debugger or a suspended laptop does; the figure counts from the SIGCONT (no stan
 ``--standby-cost`` prints what the standbys cost instead: RSS and start CPU of each node type's standby,
 and the RSS of the demo and the 14-robot team_sim graphs with their standbys, as shipped.
 
-``--busy`` keeps one core busy with an unrelated process (a Python busy loop) during the measurement:
+``--busy`` keeps every core busy with an unrelated process each (a Python busy loop) during the measurement:
 the target holds on a machine that does something else too. ``--breakdown`` adds where each restart's
 time went, from a start-up trace of the respawned process (bench/respawn_trace/sitecustomize.py):
 kill to exec (respawn delay), exec to interpreter up, imports, rclpy.init and node construction, the
@@ -74,16 +74,14 @@ STANDBY_PHASES = ("kill to rclpy.init done", "construction", "to first publish",
 
 @contextlib.contextmanager
 def cpu_burner(on: bool):
-    """A process that keeps one core busy (reaped at the end), or nothing."""
-    if not on:
-        yield
-        return
-    burner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    """One process per core that keeps it busy (a Python busy loop, reaped at the end), or nothing."""
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() if on else 0)]
     try:
         yield
     finally:
-        burner.kill()
-        burner.wait()
+        for burner in burners:
+            burner.kill()
+            burner.wait()
 
 
 def _boot_s_of_start(pid: int) -> float:
@@ -217,7 +215,7 @@ def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool, standby: bo
     what = f"paused {pause_s:g} s: loop closed again after SIGCONT" if pause_s else f"killed: loop closed again, {how}"
     for node, times in heal_s.items():
         every = ", ".join(f"{t:.2f}" for t in times)
-        rows.append({"name": f"{node} {what}{' (one core busy)' if busy else ''}",
+        rows.append({"name": f"{node} {what}{' (every core busy)' if busy else ''}",
                      "value": round(statistics.median(times), 2), "unit": "s", "target": f"≤ {TARGET_S:g}",
                      "note": f"{len(times)} runs: {every}; median {statistics.median(times):.2f}, max {max(times):.2f} "
                              f"({'' if pause_s else f'respawn_delay {RESPAWN_DELAY_S:g} s; '}load average {load:.1f} "
@@ -274,7 +272,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one kill per node type (default: three)")
     parser.add_argument("--rounds", type=int, default=None, help="kills per node type")
-    parser.add_argument("--busy", action="store_true", help="keep one core busy with an unrelated process meanwhile")
+    parser.add_argument("--busy", action="store_true",
+                        help="keep every core busy with an unrelated process (one each) meanwhile")
     parser.add_argument("--no-standby", action="store_false", dest="standby",
                         help="respawn by fresh starts (erforce-launch --no-standby), not from warm standbys")
     parser.add_argument("--standby-cost", action="store_true",
