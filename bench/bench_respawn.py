@@ -62,7 +62,8 @@ from erforce_interfaces.tools.testing import RosGraph, listening_sockets, on_loo
 
 NODES = ("catcher", "ball_predictor", "velocity_controller", "motor_boards", "plant")
 RESPAWN_DELAY_S = 0.1  # the launch files' respawn_delay (a number in each file: ros2 launch substitutes none)
-TARGET_S = 3.0
+# issue 36: the loop closed again within 1 s at median and 2 s at worst on a quiet machine, 3 s with every core busy
+TARGET_QUIET_MEDIAN_S, TARGET_QUIET_MAX_S, TARGET_BUSY_S = 1.0, 2.0, 3.0
 PAUSE_S = 3.0  # SIGSTOP .. SIGCONT in the pause rows (issue 36)
 TRACE_DIR = Path(__file__).resolve().parent / "respawn_trace"
 # kill -> exec, exec -> interpreter up, -> node module imported, -> rclpy.init, -> node built, -> first publish,
@@ -213,10 +214,12 @@ def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool, standby: bo
     rows = []
     how = "from a warm standby" if standby else "fresh start"
     what = f"paused {pause_s:g} s: loop closed again after SIGCONT" if pause_s else f"killed: loop closed again, {how}"
+    target = (f"≤ {TARGET_BUSY_S:g}" if busy else
+              f"median ≤ {TARGET_QUIET_MEDIAN_S:g}, max ≤ {TARGET_QUIET_MAX_S:g} (quiet machine)")
     for node, times in heal_s.items():
         every = ", ".join(f"{t:.2f}" for t in times)
         rows.append({"name": f"{node} {what}{' (every core busy)' if busy else ''}",
-                     "value": round(statistics.median(times), 2), "unit": "s", "target": f"≤ {TARGET_S:g}",
+                     "value": round(statistics.median(times), 2), "unit": "s", "target": target,
                      "note": f"{len(times)} runs: {every}; median {statistics.median(times):.2f}, max {max(times):.2f} "
                              f"({'' if pause_s else f'respawn_delay {RESPAWN_DELAY_S:g} s; '}load average {load:.1f} "
                              "at the start)"})
@@ -236,12 +239,24 @@ def breakdown_rows(phases: dict[str, list[dict]]) -> list[dict]:
 
 
 def run(quick: bool = False, busy: bool = False, breakdown: bool = False) -> list[dict]:
-    load = os.getloadavg()[0]
-    with cpu_burner(busy):
-        heal_s, phases = measure(1 if quick else 3, breakdown)
-        paused_s, _ = measure(1 if quick else 3, standby=False, pause_s=PAUSE_S)
-    return (rows_of(heal_s, load, busy) + rows_of(paused_s, load, busy, standby=False, pause_s=PAUSE_S)
-            + [sockets_row()] + (breakdown_rows(phases) if breakdown else []))
+    """The rows of RESULTS.md: the team graph (team_sim.launch.yaml), each node killed (from the warm standby and
+    by a fresh start) and paused for 3 s, on the machine as it is and with every core busy as well; the standby's
+    memory; the demo graph's sockets."""
+    rounds = 1 if quick else 5
+    rows = []
+    for every_core_busy in (True,) if busy else (False, True):
+        with cpu_burner(every_core_busy):
+            load = os.getloadavg()[0]
+            for standby, pause_s in ((True, 0.0), (False, 0.0), (False, PAUSE_S)):
+                try:
+                    heal_s, _ = measure(rounds, team=True, standby=standby, pause_s=pause_s)
+                except TimeoutError as exc:  # a loaded machine: the graph did not run in time; the others still go
+                    rows.append({"name": f"team graph, {'pause' if pause_s else 'kill'}, standby {standby}, "
+                                         f"busy {every_core_busy}: not measured", "value": "—", "unit": "s",
+                                 "note": f"{exc} (load average {load:.1f} at the start)"})
+                    continue
+                rows += rows_of(heal_s, load, every_core_busy, standby, pause_s)
+    return rows + standby_cost() + [sockets_row()]
 
 
 def sockets_row() -> dict:
