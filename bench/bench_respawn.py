@@ -9,17 +9,18 @@ reported per node type: every figure, median, max.
 ``--team``: the 14-robot team_sim.launch.yaml instead (plant, both teams' firmware in one process, predictor,
 opponents' interceptor; the plant at normal priority, as the fault tests run it, not under ``chrt --idle``).
 
-erforce-launch keeps a warm standby per node (imports done, waiting to be activated: README,
-"Self-healing"); before each kill the bench waits until every node's standby is ready, so each figure is a
-take-over by a standby. ``--no-standby`` measures fresh starts instead (erforce-launch --no-standby).
+erforce-launch keeps one warm standby for all nodes (imports and warm-ups of every node done, waiting to
+become whichever dies: README, "Self-healing"); before each kill the bench waits until it is ready, so each
+figure is a take-over by the standby. ``--no-standby`` measures fresh starts instead (erforce-launch --no-standby).
 
 ``--pause S``: instead of killing, each node is stopped (SIGSTOP) for S seconds and resumed (SIGCONT), as a
 debugger or a suspended laptop does; the figure counts from the SIGCONT (no standbys: nobody dies). ``run()`` (what
-``./run bench`` calls) adds those rows for a 3 s pause and the count of the demo graph's sockets outside
-127.0.0.0/8 with the default discovery range.
+``./run bench`` calls) measures the team graph killed (from the standby and by fresh starts) and paused for
+3 s, on the machine as it is and with every core busy, then the standby's memory and the count of the demo
+graph's sockets outside 127.0.0.0/8 with the default discovery range.
 
-``--standby-cost`` prints what the standbys cost instead: RSS and start CPU of each node type's standby,
-and the RSS of the demo and the 14-robot team_sim graphs with their standbys, as shipped.
+``--standby-cost`` prints what the standby costs instead: its RSS, PSS and USS (/proc/<pid>/smaps_rollup) and
+CPU to ready, beside the node processes', in the demo and the 14-robot team_sim ai:=passing graphs as shipped.
 
 ``--busy`` keeps every core busy with an unrelated process each (a Python busy loop) during the measurement:
 the target holds on a machine that does something else too. ``--breakdown`` adds where each restart's
