@@ -230,3 +230,34 @@ def test_only_nodes_of_ours_get_a_standby_and_the_switch_is_on_the_command_line(
     assert [(s.label, s.standby) for s in specs] == [("velocity_controller-1", True), ("sleep-2", False)]
     assert _parse_cli([str(launch)])[0].standby is True
     assert _parse_cli(["--no-standby", str(launch)])[0].standby is False
+
+
+def test_the_spare_becomes_the_named_node_at_the_priority_it_had_before_the_warm_ups(tmp_path):
+    """Each main runs while the spare warms up; one that lowers the process's scheduling (field_view: SCHED_IDLE)
+    before run_node must not leave it to the node the spare becomes."""
+    import socket
+
+    from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
+
+    scripts = {}
+    for name, before in (("idle", "os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))"), ("plain", "")):
+        scripts[name] = tmp_path / name
+        scripts[name].write_text(
+            f"#!{sys.executable}\nimport os, sys\nfrom erforce_interfaces.standby import wait_for_go\n"
+            f"def main():\n    {before or 'pass'}\n    if not wait_for_go():\n        return 0\n"
+            "    print(sys.argv[1:], os.sched_getscheduler(0), flush=True)\n    return 5\n")
+    ours, theirs = socket.socketpair()
+    with ours:
+        proc = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.standby", *map(str, scripts.values())],
+                                env={**os.environ, STANDBY_FD_ENV: str(theirs.fileno())}, pass_fds=(theirs.fileno(),),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        theirs.close()
+        try:
+            ours.settimeout(60.0)
+            assert ours.recv(64) == READY
+            ours.sendall(GO + b" " + json.dumps({"argv": [str(scripts["plain"]), "--ros-args"]}).encode() + b"\n")
+            out, err = proc.communicate(timeout=60.0)
+        finally:
+            proc.kill()
+    assert proc.returncode == 5, err  # the named node's main ran, with its arguments, and its exit code is the spare's
+    assert out.split() == ["['--ros-args']", str(os.sched_getscheduler(0))]

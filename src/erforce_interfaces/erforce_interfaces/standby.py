@@ -104,6 +104,7 @@ def spare_main(scripts: list[str]) -> int:
     global _warming
     fd = int(os.environ.pop(STANDBY_FD_ENV))
     mains: dict[str, Callable[[], int]] = {}
+    policy = os.sched_getscheduler(0), os.sched_getparam(0)
     _warming = True
     try:
         for script in scripts:
@@ -113,6 +114,10 @@ def spare_main(scripts: list[str]) -> int:
             mains[script]()  # run_node up to rclpy.init: light_node_start, warm_up
     finally:
         _warming = False
+    # A main may set its own scheduling before run_node (field_view: SCHED_IDLE); the node it becomes sets it again
+    for tid in os.listdir("/proc/self/task"):
+        with contextlib.suppress(OSError):
+            os.sched_setscheduler(int(tid), *policy)
     # What the imports and warm-ups left lives as long as the process: out of the cyclic GC's generations now,
     # so the collection run_node does once the node is built scans only what is new.
     gc.collect()
