@@ -94,19 +94,24 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def merged(old: str, header: str, groups: dict[str, list[str]]) -> str:
-    """``old`` (a RESULTS.md) with the rows of each group in ``groups`` replaced by the new ones, in the
-    modules' order; the first line says when those groups were measured."""
+    """``old`` (a RESULTS.md) with the rows of each group in ``groups`` put where that group's old rows were (at
+    the end if it had none); the first line says when those groups were measured."""
     old_lines = old.splitlines()
-    rows = [line for line in old_lines if line.startswith("| ") and not line.startswith("| group |")]
-    by_group: dict[str, list[str]] = {}
-    for line in rows:
-        by_group.setdefault(line.split(" | ", 1)[0].removeprefix("| "), []).append(line)
-    by_group.update(groups)
-    order = [group for group, _ in MODULES] + [g for g in by_group if g not in dict(MODULES)]
+    rows, placed = [], set()
+    for line in old_lines:
+        if not line.startswith("| ") or line.startswith("| group |"):
+            continue
+        group = line.split(" | ", 1)[0].removeprefix("| ")
+        if group not in groups:
+            rows.append(line)
+        elif group not in placed:
+            rows += groups[group]
+            placed.add(group)
+    rows += [line for group, lines in groups.items() if group not in placed for line in lines]
     first = (old_lines[0] if old_lines else "").split("; the other rows: ")[-1]  # the full run's line
     note = f"{header.rstrip('.')}: {', '.join(groups)} (--only); the other rows: {first}"
     return "\n".join([note, "", "| group | benchmark | value | unit | target | note |", "|---|---|---|---|---|---|",
-                      *(line for group in order for line in by_group.get(group, []))]) + "\n"
+                      *rows]) + "\n"
 
 
 if __name__ == "__main__":
