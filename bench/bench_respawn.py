@@ -9,19 +9,20 @@ reported per node type: every figure, median, max.
 ``--team``: the 14-robot team_sim.launch.yaml instead (plant, both teams' firmware in one process, predictor,
 opponents' interceptor; the plant at normal priority, as the fault tests run it, not under ``chrt --idle``).
 
-erforce-launch keeps a warm standby per node (imports done, waiting to be activated: README,
-"Self-healing"); before each kill the bench waits until every node's standby is ready, so each figure is a
-take-over by a standby. ``--no-standby`` measures fresh starts instead (erforce-launch --no-standby).
+erforce-launch keeps one warm standby for all nodes (imports and warm-ups of every node done, waiting to
+become whichever dies: README, "Self-healing"); before each kill the bench waits until it is ready, so each
+figure is a take-over by the standby. ``--no-standby`` measures fresh starts instead (erforce-launch --no-standby).
 
 ``--pause S``: instead of killing, each node is stopped (SIGSTOP) for S seconds and resumed (SIGCONT), as a
 debugger or a suspended laptop does; the figure counts from the SIGCONT (no standbys: nobody dies). ``run()`` (what
-``./run bench`` calls) adds those rows for a 3 s pause and the count of the demo graph's sockets outside
-127.0.0.0/8 with the default discovery range.
+``./run bench`` calls) measures the team graph killed (from the standby and by fresh starts) and paused for
+3 s, on the machine as it is and with every core busy, then the standby's memory and the count of the demo
+graph's sockets outside 127.0.0.0/8 with the default discovery range.
 
-``--standby-cost`` prints what the standbys cost instead: RSS and start CPU of each node type's standby,
-and the RSS of the demo and the 14-robot team_sim graphs with their standbys, as shipped.
+``--standby-cost`` prints what the standby costs instead: its RSS, PSS and USS (/proc/<pid>/smaps_rollup) and
+CPU to ready, beside the node processes', in the demo and the 14-robot team_sim ai:=passing graphs as shipped.
 
-``--busy`` keeps one core busy with an unrelated process (a Python busy loop) during the measurement:
+``--busy`` keeps every core busy with an unrelated process each (a Python busy loop) during the measurement:
 the target holds on a machine that does something else too. ``--breakdown`` adds where each restart's
 time went, from a start-up trace of the respawned process (bench/respawn_trace/sitecustomize.py):
 kill to exec (respawn delay), exec to interpreter up, imports, rclpy.init and node construction, the
@@ -62,7 +63,8 @@ from erforce_interfaces.tools.testing import RosGraph, listening_sockets, on_loo
 
 NODES = ("catcher", "ball_predictor", "velocity_controller", "motor_boards", "plant")
 RESPAWN_DELAY_S = 0.1  # the launch files' respawn_delay (a number in each file: ros2 launch substitutes none)
-TARGET_S = 3.0
+# issue 36: the loop closed again within 1 s at median and 2 s at worst on a quiet machine, 3 s with every core busy
+TARGET_QUIET_MEDIAN_S, TARGET_QUIET_MAX_S, TARGET_BUSY_S = 1.0, 2.0, 3.0
 PAUSE_S = 3.0  # SIGSTOP .. SIGCONT in the pause rows (issue 36)
 TRACE_DIR = Path(__file__).resolve().parent / "respawn_trace"
 # kill -> exec, exec -> interpreter up, -> node module imported, -> rclpy.init, -> node built, -> first publish,
@@ -74,16 +76,14 @@ STANDBY_PHASES = ("kill to rclpy.init done", "construction", "to first publish",
 
 @contextlib.contextmanager
 def cpu_burner(on: bool):
-    """A process that keeps one core busy (reaped at the end), or nothing."""
-    if not on:
-        yield
-        return
-    burner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    """One process per core that keeps it busy (a Python busy loop, reaped at the end), or nothing."""
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() if on else 0)]
     try:
         yield
     finally:
-        burner.kill()
-        burner.wait()
+        for burner in burners:
+            burner.kill()
+            burner.wait()
 
 
 def _boot_s_of_start(pid: int) -> float:
@@ -92,10 +92,11 @@ def _boot_s_of_start(pid: int) -> float:
     return int(fields[19]) / os.sysconf("SC_CLK_TCK")
 
 
-def _trace_events(output: str, node: str, pid: int) -> dict[str, float]:
+def _trace_events(output: str, pid: int) -> dict[str, float]:
     """Wall-clock times of the respawn-trace lines of the process that started with ``pid``."""
-    start = output.rfind(f"started with pid [{pid}]")  # "process started" or, for a standby, "standby started"
-    found = re.findall(rf"\[{node}-\d+\] respawn-trace (\w+) ([\d.]+) ([\d.]+) {pid}$", output[start:], re.M)
+    # from its start, or for the warm standby from the moment it became the node (its warm-up traces as well)
+    start = max(output.rfind(f"process started with pid [{pid}]"), output.rfind(f"from standby with pid [{pid}]"))
+    found = re.findall(rf"\] respawn-trace (\w+) ([\d.]+) ([\d.]+) {pid}$", output[start:], re.M)
     events: dict[str, tuple[float, float]] = {}
     for event, wall, cpu in found:
         events.setdefault(event, (float(wall), float(cpu)))
@@ -106,17 +107,19 @@ def _phases(demo: LaunchedDemo, node: str, t_kill_mono: float, heal_s: float) ->
     pid = demo.pid(node)
     mono_minus_wall = time.monotonic() - time.time()
     mono_minus_boot = time.monotonic() - time.clock_gettime(time.CLOCK_BOOTTIME)
-    events = _trace_events(demo.launch.output(), node, pid)
+    events = _trace_events(demo.launch.output(), pid)
     try:
         t_exec = _boot_s_of_start(pid) + mono_minus_boot
     except OSError:
         return None
-    if not {"site", "main", "init", "built", "publish"} <= set(events):
-        return None
     t = {k: wall + mono_minus_wall for k, (wall, _) in events.items()}
-    if t_exec < t_kill_mono:  # a warm standby, started before the kill
+    if t_exec < t_kill_mono:  # the warm standby, started before the kill
+        if not {"init", "built", "publish"} <= set(events):
+            return None
         marks = [t_kill_mono, t["init"], t["built"], t["publish"], t_kill_mono + heal_s]
         return {phase: b - a for phase, a, b in zip(STANDBY_PHASES, marks[:-1], marks[1:], strict=True)}
+    if not {"site", "main", "init", "built", "publish"} <= set(events):
+        return None
     marks = [t_kill_mono, t_exec, t["site"], t["main"], t["init"], t["built"], t["publish"], t_kill_mono + heal_s]
     found = {phase: b - a for phase, a, b in zip(PHASES, marks[:-1], marks[1:], strict=True)}
     cpu = {k: c for k, (_, c) in events.items()}
@@ -163,16 +166,14 @@ def measure(rounds: int, breakdown: bool = False, standby: bool = True, team: bo
     return heal_s, phases
 
 
-def _rss_mib(pid: int, field: str = "VmRSS:", file: str = "status") -> float:
-    for line in Path(f"/proc/{pid}/{file}").read_text().splitlines():
-        if line.startswith(field):
-            return int(line.split()[1]) / 1024
-    return 0.0
-
-
-def _pss_mib(pid: int) -> float:
-    """Proportional set size: shared pages (libraries, the same files mapped) divided among their users."""
-    return _rss_mib(pid, "Pss:", "smaps_rollup")
+def _memory_mib(pid: int) -> dict[str, float]:
+    """RSS, PSS (shared pages divided among their users) and USS (pages of this process alone: what its end
+    frees) from /proc/<pid>/smaps_rollup."""
+    found = {}
+    for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines()[1:]:
+        key, value = line.split(":", 1)
+        found[key] = int(value.split()[0]) / 1024
+    return {"RSS": found["Rss"], "PSS": found["Pss"], "USS": found["Private_Clean"] + found["Private_Dirty"]}
 
 
 def _cpu_s(pid: int) -> float:
@@ -180,35 +181,32 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
 
 
-GRAPHS = (("demo", DEMO_LAUNCH), ("team_sim (14 robots)", TEAM_SIM_LAUNCH))
+GRAPHS = (("demo", DEMO_LAUNCH, {}), ("team_sim ai:=passing (14 robots)", TEAM_SIM_LAUNCH, {"ai": "passing"}))
 
 
 def standby_cost() -> list[dict]:
-    """Each graph as shipped until every process has a ready standby: RSS of the processes and their standbys,
-    and the standbys' CPU (imports and warm-up: what each costs a machine once per start and respawn)."""
+    """Each graph as shipped until its warm standby is ready: memory of the node processes and of the standby
+    (the one spare that stands in for all of them), and the spare's CPU to ready (imports and warm-ups: what
+    it costs a machine once per start and respawn)."""
     os.environ.update(dds_profile_env())
     rows = []
-    for graph_name, launch_file in GRAPHS:
+    for graph_name, launch_file, launch_args in GRAPHS:
         with RosGraph(Path(tempfile.mkdtemp(prefix="bench-standby-"))) as graph:
-            launch = graph.start_launch(launch_file, standby=True, output="screen")
-            graph.spin_until(lambda launch=launch: standbys_ready(launch.output()), 600.0, "every standby ready")
+            launch = graph.start_launch(launch_file, standby=True, output="screen", **launch_args)
+            graph.spin_until(lambda launch=launch: standbys_ready(launch.output()), 600.0, "the standby ready")
             out = launch.output()
-            pids = {kind: {label: int(pid) for label, pid in re.findall(
-                        rf"\[(\S+-\d+)\]: {kind} started with pid \[(\d+)\]", out)}
-                    for kind in ("process", "standby")}
-            rss = {kind: {label: _rss_mib(pid) for label, pid in found.items()} for kind, found in pids.items()}
-            pss = {kind: sum(_pss_mib(pid) for pid in found.values()) for kind, found in pids.items()}
-            cpu = {label: _cpu_s(pid) for label, pid in pids["standby"].items()}
-        for label in sorted(rss["standby"]):
-            rows.append({"name": f"{graph_name}: {label} standby, RSS", "value": round(rss["standby"][label]),
-                         "unit": "MiB", "note": f"its running process {rss['process'][label]:.0f} MiB; the standby's "
-                                                f"CPU to ready {cpu[label]:.2f} s"})
-        total_active, total_standby = sum(rss["process"].values()), sum(rss["standby"].values())
-        rows.append({"name": f"{graph_name}: RSS with standbys", "value": round(total_active + total_standby),
-                     "unit": "MiB", "note": f"{len(rss['process'])} processes {total_active:.0f} MiB + "
-                                            f"{len(rss['standby'])} standbys {total_standby:.0f} MiB; PSS "
-                                            f"{pss['process']:.0f} + {pss['standby']:.0f} MiB; CPU of all standbys "
-                                            f"{sum(cpu.values()):.1f} s (at the moment the last one was ready)"})
+            nodes = [int(pid) for pid in re.findall(r"\]: process started with pid \[(\d+)\]", out)]
+            spares = [int(pid) for pid in re.findall(r"\]: standby started with pid \[(\d+)\]", out)][-1:]
+            memory = {kind: [_memory_mib(pid) for pid in pids] for kind, pids in (("nodes", nodes), ("spare", spares))}
+            cpu_s = sum(_cpu_s(pid) for pid in spares)
+        total = {kind: {k: sum(m[k] for m in found) for k in ("RSS", "PSS", "USS")} for kind, found in memory.items()}
+        spare, active = total["spare"], total["nodes"]
+        rows.append({"name": f"{graph_name}: warm standby memory, PSS", "value": round(spare["PSS"]), "unit": "MiB",
+                     "target": "< 300 (team graph)",
+                     "note": f"{len(spares)} spare for {len(nodes)} node processes: RSS {spare['RSS']:.0f}, PSS "
+                             f"{spare['PSS']:.0f}, USS {spare['USS']:.0f} MiB; the nodes RSS {active['RSS']:.0f}, "
+                             f"PSS {active['PSS']:.0f}, USS {active['USS']:.0f} MiB; the spare's CPU to ready "
+                             f"{cpu_s:.2f} s"})
     return rows
 
 
@@ -217,10 +215,12 @@ def rows_of(heal_s: dict[str, list[float]], load: float, busy: bool, standby: bo
     rows = []
     how = "from a warm standby" if standby else "fresh start"
     what = f"paused {pause_s:g} s: loop closed again after SIGCONT" if pause_s else f"killed: loop closed again, {how}"
+    target = (f"≤ {TARGET_BUSY_S:g}" if busy else
+              f"median ≤ {TARGET_QUIET_MEDIAN_S:g}, max ≤ {TARGET_QUIET_MAX_S:g} (quiet machine)")
     for node, times in heal_s.items():
         every = ", ".join(f"{t:.2f}" for t in times)
-        rows.append({"name": f"{node} {what}{' (one core busy)' if busy else ''}",
-                     "value": round(statistics.median(times), 2), "unit": "s", "target": f"≤ {TARGET_S:g}",
+        rows.append({"name": f"{node} {what}{' (every core busy)' if busy else ''}",
+                     "value": round(statistics.median(times), 2), "unit": "s", "target": target,
                      "note": f"{len(times)} runs: {every}; median {statistics.median(times):.2f}, max {max(times):.2f} "
                              f"({'' if pause_s else f'respawn_delay {RESPAWN_DELAY_S:g} s; '}load average {load:.1f} "
                              "at the start)"})
@@ -240,12 +240,24 @@ def breakdown_rows(phases: dict[str, list[dict]]) -> list[dict]:
 
 
 def run(quick: bool = False, busy: bool = False, breakdown: bool = False) -> list[dict]:
-    load = os.getloadavg()[0]
-    with cpu_burner(busy):
-        heal_s, phases = measure(1 if quick else 3, breakdown)
-        paused_s, _ = measure(1 if quick else 3, standby=False, pause_s=PAUSE_S)
-    return (rows_of(heal_s, load, busy) + rows_of(paused_s, load, busy, standby=False, pause_s=PAUSE_S)
-            + [sockets_row()] + (breakdown_rows(phases) if breakdown else []))
+    """The rows of RESULTS.md: the team graph (team_sim.launch.yaml), each node killed (from the warm standby and
+    by a fresh start) and paused for 3 s, on the machine as it is and with every core busy as well; the standby's
+    memory; the demo graph's sockets."""
+    rounds = 1 if quick else 5
+    rows = []
+    for every_core_busy in (True,) if busy else (False, True):
+        with cpu_burner(every_core_busy):
+            load = os.getloadavg()[0]
+            for standby, pause_s in ((True, 0.0), (False, 0.0), (False, PAUSE_S)):
+                try:
+                    heal_s, _ = measure(rounds, team=True, standby=standby, pause_s=pause_s)
+                except TimeoutError as exc:  # a loaded machine: the graph did not run in time; the others still go
+                    rows.append({"name": f"team graph, {'pause' if pause_s else 'kill'}, standby {standby}, "
+                                         f"busy {every_core_busy}: not measured", "value": "—", "unit": "s",
+                                 "note": f"{exc} (load average {load:.1f} at the start)"})
+                    continue
+                rows += rows_of(heal_s, load, every_core_busy, standby, pause_s)
+    return rows + standby_cost() + [sockets_row()]
 
 
 def sockets_row() -> dict:
@@ -276,7 +288,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one kill per node type (default: three)")
     parser.add_argument("--rounds", type=int, default=None, help="kills per node type")
-    parser.add_argument("--busy", action="store_true", help="keep one core busy with an unrelated process meanwhile")
+    parser.add_argument("--busy", action="store_true",
+                        help="keep every core busy with an unrelated process (one each) meanwhile")
     parser.add_argument("--no-standby", action="store_false", dest="standby",
                         help="respawn by fresh starts (erforce-launch --no-standby), not from warm standbys")
     parser.add_argument("--standby-cost", action="store_true",

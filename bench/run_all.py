@@ -3,7 +3,8 @@
 Each bench module has ``run(quick) -> rows`` (name, value, unit, target, note). The results
 file starts with the date and the machine, and the README shows it (a generated section,
 kept current by a test). Speed figures are medians measured in one run; the machine is
-shared, so compare ratios within a run rather than absolute numbers across runs.
+shared, so compare ratios within a run rather than absolute numbers across runs. With ``--only``
+the other groups' rows of the existing file stay, and the header names the groups measured anew.
 """
 
 from __future__ import annotations
@@ -64,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
         "|---|---|---|---|---|---|",
     ]
     failed = []
+    groups = {}
     for group, module_name in MODULES:
         if args.only and module_name not in args.only:
             continue
@@ -75,10 +77,13 @@ def main(argv: list[str] | None = None) -> int:
             failed.append(module_name)
             lines.append(f"| {group} | {module_name} failed | — | — | — | {type(exc).__name__}: {exc} |")
             continue
-        lines += markdown_table(rows, group)[2:]
+        groups[group] = markdown_table(rows, group)[2:]
+        lines += groups[group]
         print(f"[bench] {module_name}: {time.monotonic() - t0:.0f} s", file=sys.stderr, flush=True)
     text = "\n".join(lines) + "\n"
     print(text)
+    if args.only and RESULTS.exists():
+        text = merged(RESULTS.read_text(), lines[0], groups)
     if not args.no_write:
         from erforce_interfaces.tools import docs
 
@@ -86,6 +91,27 @@ def main(argv: list[str] | None = None) -> int:
         docs.main([str(BENCH_DIR.parent / "README.md")])  # the README shows RESULTS.md
         print(f"[bench] wrote {RESULTS}", file=sys.stderr)
     return 1 if failed else 0
+
+
+def merged(old: str, header: str, groups: dict[str, list[str]]) -> str:
+    """``old`` (a RESULTS.md) with the rows of each group in ``groups`` put where that group's old rows were (at
+    the end if it had none); the first line says when those groups were measured."""
+    old_lines = old.splitlines()
+    rows, placed = [], set()
+    for line in old_lines:
+        if not line.startswith("| ") or line.startswith("| group |"):
+            continue
+        group = line.split(" | ", 1)[0].removeprefix("| ")
+        if group not in groups:
+            rows.append(line)
+        elif group not in placed:
+            rows += groups[group]
+            placed.add(group)
+    rows += [line for group, lines in groups.items() if group not in placed for line in lines]
+    first = (old_lines[0] if old_lines else "").split("; the other rows: ")[-1]  # the full run's line
+    note = f"{header.rstrip('.')}: {', '.join(groups)} (--only); the other rows: {first}"
+    return "\n".join([note, "", "| group | benchmark | value | unit | target | note |", "|---|---|---|---|---|---|",
+                      *rows]) + "\n"
 
 
 if __name__ == "__main__":

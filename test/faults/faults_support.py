@@ -506,14 +506,12 @@ TEAM_LOOP_OUTPUTS = {
 
 
 def standbys_ready(launch_output: str, node: str | None = None) -> bool:
-    """Every process erforce-launch started (``launch_output``), or each one labelled ``node``, has a warm
-    standby that said it is ready."""
-    labels = set(re.findall(rf"\[({re.escape(node) if node else r'\S+'}-\d+)\]: process started with pid",
-                            launch_output))
-    newest = dict(re.findall(r"\[(\S+-\d+)\]: standby started with pid \[(\d+)\]", launch_output))
-    ready = set(re.findall(r"\[(\S+-\d+)\]: standby ready \[pid (\d+)\]", launch_output))
-    taken = set(re.findall(r"\[(\S+-\d+)\]: process activated from standby with pid \[(\d+)\]", launch_output))
-    return bool(labels) and all((label, newest.get(label)) in ready - taken for label in labels)
+    """erforce-launch (``launch_output``) has a warm standby that said it is ready and has not become a node yet:
+    the one spare stands in for every node of ours (``node`` is accepted for the callers' reading)."""
+    started = re.findall(r"\]: standby started with pid \[(\d+)\]", launch_output)
+    ready = set(re.findall(r"\]: standby ready \[pid (\d+)\]", launch_output))
+    taken = set(re.findall(r"\]: process activated from standby with pid \[(\d+)\]", launch_output))
+    return bool(started) and started[-1] in ready - taken
 
 
 _LOCKSTEP_EVENT = re.compile(r"lockstep: (\S+) (?:motor_boards )?(stalled|resumed)")
@@ -538,6 +536,7 @@ class LaunchedDemo:
                  **launch_args) -> None:
         self.graph = graph
         self.probe = graph.probe
+        self._label_nodes: dict[str, set[str]] = {}  # label -> the __node:= names its processes were started with
         loop_outputs = LOOP_OUTPUTS if loop_outputs is None else loop_outputs
         self.arrivals: dict[str, list[float]] = {node: [] for node in loop_outputs}
         for node, (topic, name) in loop_outputs.items():
@@ -556,22 +555,28 @@ class LaunchedDemo:
     def pid(self, node: str) -> int | None:
         """The newest live process the launcher started or activated from a warm standby as node ``node`` (its
         ``__node:=`` name: two team_firmware processes share a label), else the newest labelled ``node`` (None
-        before the first). A standby counts from its activation, when it became the node's process."""
+        before the first). A standby counts from its activation, when it became the node's process: it has a
+        command line of its own, so it is known by its label (one seen with that node's name only)."""
         started = [(label, int(pid)) for label, pid in re.findall(r"\[(\S+)-\d+\]: process (?:started|activated "
                                                                  r"from standby) with pid \[(\d+)\]",
                                                                  self.launch.output())]
-        for _, pid in reversed(started):
+        for label, pid in reversed(started):
             try:
                 argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
             except OSError:
                 continue
-            if f"__node:={node}".encode() in argv:
+            names = [a.removeprefix(b"__node:=").decode() for a in argv if a.startswith(b"__node:=")]
+            if names:
+                self._label_nodes.setdefault(label, set()).update(names)
+            elif self._label_nodes.get(label) == {node}:  # the spare keeps its own command line
+                return pid
+            if node in names:
                 return pid
         found = [pid for label, pid in started if label == node]
         return found[-1] if found else None
 
     def wait_standbys_ready(self, node: str | None = None, timeout_s: float = 120.0) -> None:
-        """Until every process (or each labelled ``node``) has a ready warm standby."""
+        """Until the launcher's warm standby (one for every node of ours) is ready."""
         self.graph.spin_until(lambda: standbys_ready(self.launch.output(), node), timeout_s,
                               f"a ready warm standby for {node or 'every process'}")
 

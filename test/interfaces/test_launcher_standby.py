@@ -1,8 +1,9 @@
 """erforce-launch's warm standbys (launcher.Runner, erforce_interfaces.standby) with tiny Python children, no ROS.
 
-Each test runs a Runner in a process of its own (it installs signal handlers) on one ProcessSpec whose
-command is CHILD: it waits as a standby when it is one, then says "running <pid>" and runs until a
-signal. The launcher's delays are shortened for the test (STANDBY_FIRST_S, STANDBY_AGAIN_S).
+Each test runs a Runner in a process of its own (it installs signal handlers) on ProcessSpecs whose command
+is CHILD, a console script of this interpreter as a node's: its ``main`` returns at once in the spare while
+it warms up, else says "running <name> <pid>" and runs until a signal. The launcher's delays are shortened
+for the test (STANDBY_FIRST_S, STANDBY_AGAIN_S).
 """
 
 from __future__ import annotations
@@ -15,21 +16,29 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
 CHILD = r"""
 import os, signal, sys, time
-signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
 from erforce_interfaces.standby import is_standby, wait_for_go
 if is_standby():
-    time.sleep(float(sys.argv[1]))  # a real node's imports
-if not wait_for_go():
-    sys.exit(0)
-signal.signal(signal.SIGINT, lambda *_: sys.exit(0))
-print(f"running {os.getpid()}", flush=True)
-while True:
-    time.sleep(0.05)
+    time.sleep(float(os.environ["CHILD_IMPORT_S"]))  # a real node's imports
+
+
+def main():
+    if not wait_for_go():
+        return 0
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
+    signal.signal(signal.SIGINT, lambda *_: sys.exit(0))
+    print(f"running {sys.argv[1]} {os.getpid()}", flush=True)
+    while True:
+        time.sleep(0.05)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
 """
 
 RUNNER = r"""
@@ -37,10 +46,11 @@ import json, os, sys
 from erforce_interfaces.tools import launcher
 cfg = json.loads(sys.argv[1])
 launcher.STANDBY_FIRST_S, launcher.STANDBY_AGAIN_S = cfg["first_s"], cfg["again_s"]
-spec = launcher.ProcessSpec(label="child-1", cmd=[sys.executable, "-c", cfg["child"], str(cfg["import_s"])],
-                            env=dict(os.environ), output="screen", respawn=True, respawn_delay_s=cfg["delay_s"],
-                            respawn_max_retries=cfg["retries"], standby=True)
-sys.exit(launcher.Runner([spec], 2.0, 2.0, standby=cfg["standby"]).run())
+env = {**os.environ, "CHILD_IMPORT_S": str(cfg["import_s"])}
+specs = [launcher.ProcessSpec(label=f"{name}-{k + 1}", cmd=[cfg["script"], name], env=env, output="screen",
+                              respawn=True, respawn_delay_s=cfg["delay_s"], respawn_max_retries=cfg["retries"],
+                              standby=True) for k, name in enumerate(cfg["names"])]
+sys.exit(launcher.Runner(specs, 2.0, 2.0, standby=cfg["standby"]).run())
 """
 
 FIRST_S, AGAIN_S, DELAY_S = 0.3, 1.0, 0.4
@@ -49,9 +59,10 @@ FIRST_S, AGAIN_S, DELAY_S = 0.3, 1.0, 0.4
 class Launched:
     """The Runner's process and everything it printed (stdout and stderr, one reader thread each)."""
 
-    def __init__(self, *, retries: int = -1, import_s: float = 0.0, standby: bool = True) -> None:
+    def __init__(self, script: Path, *, retries: int = -1, import_s: float = 0.0, standby: bool = True,
+                 names: tuple[str, ...] = ("child",)) -> None:
         cfg = {"first_s": FIRST_S, "again_s": AGAIN_S, "delay_s": DELAY_S, "retries": retries, "import_s": import_s,
-               "standby": standby, "child": CHILD}
+               "standby": standby, "script": str(script), "names": list(names)}
         self.popen = subprocess.Popen([sys.executable, "-c", RUNNER, json.dumps(cfg)], stdout=subprocess.PIPE,
                                       stderr=subprocess.STDOUT, text=True)
         self.lines: list[tuple[float, str]] = []
@@ -90,11 +101,14 @@ class Launched:
 
 
 @pytest.fixture
-def launched(request):
+def launched(tmp_path):
     made: list[Launched] = []
+    script = tmp_path / "child"
+    script.write_text(f"#!{sys.executable}\n{CHILD}")
+    script.chmod(0o755)
 
     def make(**kw) -> Launched:
-        made.append(Launched(**kw))
+        made.append(Launched(script, **kw))
         return made[-1]
 
     yield make
@@ -115,18 +129,31 @@ def gone(pid: int) -> bool:
 def test_a_standby_takes_over_after_the_respawn_delay_and_a_new_one_follows_later(launched):
     run = launched()
     active = run.pid_of(r"\[child-1\]: process started with pid \[(\d+)\]")
-    standby = run.pid_of(r"\[child-1\]: standby ready \[pid (\d+)\]")
-    assert standby != active and f"running {standby}" not in run.text()  # it waits: no "running" yet
+    standby = run.pid_of(r"\[standby\]: standby ready \[pid (\d+)\]")
+    assert standby != active and f"running child {standby}" not in run.text()  # it waits: no "running" yet
     t_kill = time.monotonic()
     os.kill(active, signal.SIGKILL)
     t_on, m = run.wait_for(r"\[child-1\]: process activated from standby with pid \[(\d+)\]")
     assert int(m.group(1)) == standby
     assert t_on - t_kill >= DELAY_S  # the line is read after it was written, the kill was before the death
-    run.wait_for(rf"\[child-1\] running {standby}$")  # its output is relayed as the process's
-    t_next, m = run.wait_for(r"\[child-1\]: standby started with pid \[(\d+)\]", after=t_on)
+    run.wait_for(rf"\[child-1\] running child {standby}$")  # its output is relayed as the process's
+    t_next, m = run.wait_for(r"\[standby\]: standby started with pid \[(\d+)\]", after=t_on)
     assert int(m.group(1)) not in (active, standby)
     assert t_next - t_kill >= DELAY_S + AGAIN_S
     assert "process started with pid" not in run.text().split("process activated", 1)[1]  # no fresh start
+    assert run.stop() == 0
+
+
+def test_one_spare_stands_in_for_every_node_and_becomes_the_one_that_died(launched):
+    run = launched(names=("first", "second"))
+    run.pid_of(r"\[first-1\]: process started with pid \[(\d+)\]")
+    second = run.pid_of(r"\[second-2\]: process started with pid \[(\d+)\]")
+    spare = run.pid_of(r"\[standby\]: standby ready \[pid (\d+)\]")
+    assert run.text().count("standby started") == 1  # one for both
+    os.kill(second, signal.SIGKILL)
+    assert run.pid_of(r"\[second-2\]: process activated from standby with pid \[(\d+)\]") == spare
+    run.wait_for(rf"\[second-2\] running second {spare}$")  # the dead node's arguments, its output label
+    assert "running first" not in run.text().split("process activated", 1)[1]
     assert run.stop() == 0
 
 
@@ -203,3 +230,34 @@ def test_only_nodes_of_ours_get_a_standby_and_the_switch_is_on_the_command_line(
     assert [(s.label, s.standby) for s in specs] == [("velocity_controller-1", True), ("sleep-2", False)]
     assert _parse_cli([str(launch)])[0].standby is True
     assert _parse_cli(["--no-standby", str(launch)])[0].standby is False
+
+
+def test_the_spare_becomes_the_named_node_at_the_priority_it_had_before_the_warm_ups(tmp_path):
+    """Each main runs while the spare warms up; one that lowers the process's scheduling (field_view: SCHED_IDLE)
+    before run_node must not leave it to the node the spare becomes."""
+    import socket
+
+    from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
+
+    scripts = {}
+    for name, before in (("idle", "os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))"), ("plain", "")):
+        scripts[name] = tmp_path / name
+        scripts[name].write_text(
+            f"#!{sys.executable}\nimport os, sys\nfrom erforce_interfaces.standby import wait_for_go\n"
+            f"def main():\n    {before or 'pass'}\n    if not wait_for_go():\n        return 0\n"
+            "    print(sys.argv[1:], os.sched_getscheduler(0), flush=True)\n    return 5\n")
+    ours, theirs = socket.socketpair()
+    with ours:
+        proc = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.standby", *map(str, scripts.values())],
+                                env={**os.environ, STANDBY_FD_ENV: str(theirs.fileno())}, pass_fds=(theirs.fileno(),),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        theirs.close()
+        try:
+            ours.settimeout(60.0)
+            assert ours.recv(64) == READY
+            ours.sendall(GO + b" " + json.dumps({"argv": [str(scripts["plain"]), "--ros-args"]}).encode() + b"\n")
+            out, err = proc.communicate(timeout=60.0)
+        finally:
+            proc.kill()
+    assert proc.returncode == 5, err  # the named node's main ran, with its arguments, and its exit code is the spare's
+    assert out.split() == ["['--ros-args']", str(os.sched_getscheduler(0))]

@@ -1,5 +1,6 @@
 """erforce-realtime: a command under SCHED_FIFO where allowed, else at its own priority with one line saying so."""
 
+import json
 import os
 import socket
 import subprocess
@@ -7,6 +8,7 @@ import sys
 
 import pytest
 
+from erforce_interfaces import standby
 from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
 from erforce_interfaces.tools import realtime
 
@@ -72,9 +74,8 @@ def test_a_standby_left_else_idle_takes_sched_idle_on_go_where_fifo_is_refused(m
 
     calls = []
     monkeypatch.setattr(os, "sched_setscheduler", refusing_fifo(calls))
-    monkeypatch.setenv(STANDBY_FD_ENV, "99")
-    monkeypatch.setattr(os, "execvp", lambda file, args: None)
-    realtime.main(["--else-idle", "5", "plant"])  # a standby: nothing is set before "go"
+    assert standby.node_entry(["erforce-realtime", "--else-idle", "5", "plant"]) is None  # not a script of ours
+    standby.leave_realtime_priority(5, else_idle=True)  # what the spare does with the prefix on "go"
     assert calls == [] and os.environ[standby.REALTIME_PRIORITY_ENV] == "5,idle"
     standby._take_realtime_priority()
     assert calls == [(os.SCHED_FIFO, 5), (os.SCHED_IDLE, 0)]
@@ -88,21 +89,27 @@ def test_a_bad_command_line_prints_the_usage(argv, capsys):
     assert capsys.readouterr().err.startswith("usage: erforce-realtime [--else-idle] PRIORITY COMMAND")
 
 
-def test_a_warm_standby_imports_at_its_normal_priority_and_takes_sched_fifo_on_go():
-    child = ("import os; from erforce_interfaces.standby import wait_for_go\n"
-             "show = lambda: print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, flush=True)\n"
-             "show(); assert wait_for_go(); show()")
+def test_a_warm_standby_imports_at_its_normal_priority_and_takes_sched_fifo_on_go(tmp_path):
+    script = tmp_path / "node"
+    script.write_text(f"#!{sys.executable}\nimport os\nfrom erforce_interfaces.standby import wait_for_go\n"
+                      "def main():\n"
+                      "    print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, flush=True)\n"
+                      "    return 0 if wait_for_go() else 3\n")
+    script.chmod(0o755)
+    cmd = ["/opt/erforce-realtime", "7", str(script), "--ros-args"]
+    k, priority, else_idle = standby.node_entry(cmd)
+    assert (k, priority, else_idle) == (2, 7, False)
     ours, theirs = socket.socketpair()
     with ours:
-        proc = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.tools.realtime", "7", sys.executable, "-c",
-                                 child], env={**os.environ, STANDBY_FD_ENV: str(theirs.fileno())},
-                                pass_fds=(theirs.fileno(),), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        proc = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.standby", str(script)],
+                                env={**os.environ, STANDBY_FD_ENV: str(theirs.fileno())}, pass_fds=(theirs.fileno(),),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         theirs.close()
         try:
             ours.settimeout(60.0)
             assert ours.recv(64) == READY
-            waiting = proc.stdout.readline().split()
-            ours.sendall(GO)
+            waiting = proc.stdout.readline().split()  # its main, run as far as rclpy.init while warming
+            ours.sendall(GO + b" " + json.dumps({"argv": cmd[k:], "priority": [priority, else_idle]}).encode() + b"\n")
             out, err = proc.communicate(timeout=60.0)
         finally:
             proc.kill()

@@ -408,9 +408,10 @@ def run_node(node_factory: Callable[[], Node | tuple[Node, ...]], args: list[str
 
     Every node gets the callback guard (guard_callbacks) and the time rule on /clock (guard_clock).
 
-    A warm standby (erforce_interfaces.standby, started by erforce-launch) stops before ``rclpy.init``
-    until the launcher says go, after the node's optional ``warm_up`` (a static method of the node class:
-    an expensive first step that needs no node, e.g. loading numba kernels); it returns 0 if told to end.
+    In erforce-launch's warm standby (erforce_interfaces.standby) warming up, it returns 0 before ``rclpy.init``,
+    after the node's optional ``warm_up`` (a static method of the node class: an expensive first step that
+    needs no node, e.g. loading numba kernels); the spare calls the node's main again when it becomes the node.
+    A main does nothing else before run_node that it would not want done in the spare.
 
     Returns the process exit code: 0 after Ctrl-C (one SIGINT or several, to the process alone or to
     its process group; see QuietInterrupt) or external shutdown, 1 when the node refused to start

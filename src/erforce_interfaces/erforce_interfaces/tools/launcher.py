@@ -9,7 +9,7 @@ per spec, output prefixed ``[label]``, respawn, the shutdown ladder).
 It is as strict as ``ros2 launch`` on Jazzy, whose rules it follows, and resolves everything before the
 first process starts, so an error never leaves half a graph running. Every child runs in its own process
 group: Ctrl-C reaches the launcher alone, which sends SIGINT, then SIGTERM and SIGKILL after
-``sigterm_timeout``/``sigkill_timeout``, and always reaps. A respawning node of ours is taken over by a
+``sigterm_timeout``/``sigkill_timeout``, and always reaps. A respawning node of ours is taken over by the
 warm standby (erforce_interfaces.standby). The supported actions and substitutions, and every deliberate
 deviation from ``ros2 launch``, are listed in docs/reference.md ("erforce-launch"). Exit status: 0; 1 when
 a non-respawning process failed before shutdown; 2 for a bad command line or launch file (nothing started).
@@ -24,6 +24,7 @@ import datetime
 import functools
 import importlib.util
 import itertools
+import json
 import math
 import os
 import re
@@ -52,7 +53,7 @@ from erforce_interfaces.ament_index import (
     package_executables,
 )
 from erforce_interfaces.param_schema import ParamSchema
-from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
+from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV, node_entry
 
 PROG = "erforce-launch"
 #: the start of the line logged when a process's command cannot be run (tools that start a graph watch for it)
@@ -1070,10 +1071,10 @@ def _standby_child_setup() -> None:  # pragma: no cover - runs in the child betw
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-# Warm standbys (erforce_interfaces.standby): one per respawning node of ours, started one at a time.
-STANDBY_FIRST_S = 3.0  # after the graph's start, so that their imports do not slow the graph's own start
-STANDBY_AGAIN_S = 5.0  # after an activation or a fresh respawn, so that they do not slow the healing node
-STANDBY_WARMING_MAX_S = 30.0  # the next standby starts when this one is ready, has died, or after this
+# The warm standby (erforce_interfaces.standby): one spare for every respawning node of ours.
+STANDBY_FIRST_S = 3.0  # after the graph's start, so that its imports do not slow the graph's own start
+STANDBY_AGAIN_S = 5.0  # after an activation or a fresh respawn, so that it does not slow the healing node
+STANDBY_LABEL = "standby"  # the spare's output prefix until it becomes a node
 
 
 @dataclass
@@ -1085,8 +1086,6 @@ class _Proc:
     respawn_at: float | None = None
     stage: int = 0  # shutdown ladder: 0 none, 1 SIGINT sent, 2 SIGTERM sent, 3 SIGKILL sent
     deadline: float | None = None
-    standby: _Proc | None = None  # its warm standby, waiting for "go" (a _Proc of the same spec)
-    standby_at: float | None = None  # when its next standby may start (None: none planned)
     sock: socket.socket | None = None  # a standby's: the launcher's end of its socket
     ready: bool = False  # a standby's: it said it is ready
     started_at: float = 0.0
@@ -1095,10 +1094,11 @@ class _Proc:
 class Runner:
     """Starts the processes, relays their output, respawns, and tears everything down.
 
-    A respawn is carried out by a warm standby where there is one (``standby``; ProcessSpec.standby): the
-    launcher writes "go" to it once the respawn delay has passed, and the standby becomes the process (its
-    pid, output, respawn count and shutdown). The next standby starts ``STANDBY_AGAIN_S`` later; a standby
-    that died on its own is logged, the next respawn is a fresh start, and a new standby follows that.
+    A respawn of a node of ours (ProcessSpec.standby) is carried out by the warm standby where it is ready: one
+    spare for all of them (``spare``), to which the launcher writes "go" and the node's command line once the
+    respawn delay has passed; the spare becomes the process (its pid, output, respawn count and shutdown). The
+    next spare starts ``STANDBY_AGAIN_S`` later; a spare that died on its own is logged, the next respawn is a
+    fresh start, and a new spare follows that.
     """
 
     def __init__(self, specs: list[ProcessSpec], sigterm_timeout_s: float = 5.0, sigkill_timeout_s: float = 5.0,
@@ -1106,6 +1106,8 @@ class Runner:
                  standby: bool = True) -> None:
         self.procs = [_Proc(s) for s in specs]
         self.use_standby = standby
+        self.spare: _Proc | None = None  # the warm standby, waiting for "go"
+        self.spare_at: float | None = None  # when the next spare may start (None: none planned)
         self._retired: list[_Proc] = []  # standbys on their way out (end of file, signals), reaped as children
         self.sigterm_timeout_s = sigterm_timeout_s
         self.sigkill_timeout_s = sigkill_timeout_s
@@ -1143,11 +1145,9 @@ class Runner:
                 self.info("launch", f"All log files can be found below {self._logs()}")
             for p in self.procs:
                 self._start(p)
-            first = time.monotonic() + STANDBY_FIRST_S
-            for p in self.procs:
-                p.standby_at = first if self._wants_standby(p) else None
-            while self._retired or any(p.popen is not None or p.respawn_at is not None or p.standby is not None
-                                       for p in self.procs):
+            self.spare_at = time.monotonic() + STANDBY_FIRST_S
+            while self._retired or self.spare is not None or any(p.popen is not None or p.respawn_at is not None
+                                                                 for p in self.procs):
                 self._step()
         finally:
             for p in [*self.procs, *self._standbys(), *self._retired]:  # after an internal error: nothing may
@@ -1194,30 +1194,40 @@ class Runner:
         self.info(s.label, f"process started with pid [{popen.pid}]")
 
     def _relay(self, p: _Proc, popen: subprocess.Popen) -> None:
-        s = p.spec
-        for pipe, screen, name in ((popen.stdout, self.out, "stdout"), (popen.stderr, self.err, "stderr")):
+        for pipe, name in ((popen.stdout, "stdout"), (popen.stderr, "stderr")):
             fd = pipe.fileno()
             os.set_blocking(fd, False)
-            log = open(self._logs() / f"{s.label.replace('/', '_')}-{name}.log", "a") if s.output != "screen" else None
-            p.streams[fd] = (pipe, screen if s.output != "log" else None, log, bytearray())
+            p.streams[fd] = (pipe, *self._targets(p.spec, name), bytearray())
             self._sel.register(fd, selectors.EVENT_READ, p)
 
-    # ------------------------------------------------------------------ warm standbys
-    def _wants_standby(self, p: _Proc) -> bool:
-        """A standby is kept while the next respawn of ``p`` would happen (respawn_max_retries counts activations)."""
+    def _targets(self, s: ProcessSpec, name: str) -> tuple[TextIO | None, TextIO | None]:
+        """Where ``s``'s stream ``name`` goes: the screen's stream (or None) and its log file (or None)."""
+        log = open(self._logs() / f"{s.label.replace('/', '_')}-{name}.log", "a") if s.output != "screen" else None
+        return (self.out if name == "stdout" else self.err) if s.output != "log" else None, log
+
+    # ------------------------------------------------------------------ the warm standby
+    def _served(self, p: _Proc) -> bool:
+        """The spare can become ``p`` at its next respawn (respawn_max_retries counts activations): a node of ours
+        whose command it can run (standby.node_entry) in the environment of the first such node."""
         retries = p.spec.respawn_max_retries
         return (self.use_standby and p.spec.standby and p.spec.respawn and not self.shutting_down
-                and (retries < 0 or p.starts <= retries))
+                and (retries < 0 or p.starts <= retries) and p in self._spare_group)
+
+    @functools.cached_property
+    def _spare_group(self) -> list[_Proc]:
+        group = [p for p in self.procs if p.spec.standby and p.spec.respawn and node_entry(p.spec.cmd) is not None]
+        return [p for p in group if (p.spec.env, p.spec.cwd) == (group[0].spec.env, group[0].spec.cwd)]
 
     def _standbys(self) -> list[_Proc]:
-        return [p.standby for p in self.procs if p.standby is not None]
+        return [self.spare] if self.spare is not None else []
 
-    def _warming(self, now: float) -> bool:
-        return any(not sb.ready and now - sb.started_at < STANDBY_WARMING_MAX_S for sb in self._standbys())
-
-    def _start_standby(self, p: _Proc, now: float) -> None:
-        s = p.spec
-        p.standby_at = None
+    def _start_standby(self, now: float) -> None:
+        group = self._spare_group
+        first = group[0].spec
+        scripts = list(dict.fromkeys(p.spec.cmd[node_entry(p.spec.cmd)[0]] for p in group))
+        s = ProcessSpec(label=STANDBY_LABEL, cmd=[sys.executable, "-m", "erforce_interfaces.standby", *scripts],
+                        env=first.env, cwd=first.cwd, output=first.output)
+        self.spare_at = None
         ours, theirs = socket.socketpair()
         env = dict(s.env)
         env.setdefault("PYTHONUNBUFFERED", "1")
@@ -1235,13 +1245,12 @@ class Runner:
         sb = _Proc(s, popen=popen, sock=ours, started_at=now)
         self._relay(sb, popen)
         ours.setblocking(False)
-        self._sel.register(ours.fileno(), selectors.EVENT_READ, ("standby", p))
-        p.standby = sb
+        self._sel.register(ours.fileno(), selectors.EVENT_READ, ("standby", sb))
+        self.spare = sb
         self.info(s.label, f"standby started with pid [{popen.pid}]")
 
-    def _standby_says(self, p: _Proc) -> None:
-        sb = p.standby
-        if sb is None or sb.sock is None:
+    def _standby_says(self, sb: _Proc) -> None:
+        if sb is not self.spare or sb.sock is None:
             return
         try:
             data = sb.sock.recv(64)
@@ -1255,17 +1264,21 @@ class Runner:
             sb.sock = None
         elif READY in data and not sb.ready:
             sb.ready = True
-            self.info(p.spec.label, f"standby ready [pid {sb.popen.pid}]")
+            self.info(sb.spec.label, f"standby ready [pid {sb.popen.pid}]")
 
     def _activate(self, p: _Proc) -> bool:
-        """Turn ``p``'s standby into the process; False if there is none that can take over."""
-        sb, p.standby = p.standby, None
-        if sb is None:
+        """Turn the spare into ``p``'s process; False if there is none that can take over."""
+        sb = self.spare
+        if sb is None or not sb.ready or not self._served(p):
             return False
+        self.spare = None
+        k, priority, else_idle = node_entry(p.spec.cmd)
+        order = GO + b" " + json.dumps({"argv": p.spec.cmd[k:], "priority": None if priority is None else
+                                        [priority, else_idle]}).encode() + b"\n"
         sent = False
         if sb.sock is not None:
             with contextlib.suppress(OSError):
-                sent = sb.sock.send(GO) == len(GO)
+                sent = sb.sock.send(order) == len(order)
             self._sel.unregister(sb.sock.fileno())
             sb.sock.close()
             sb.sock = None
@@ -1274,8 +1287,11 @@ class Runner:
             self._retire(sb)
             return False
         p.popen, p.starts, p.respawn_at, p.stage, p.deadline = sb.popen, p.starts + 1, None, 0, None
-        for fd, stream in sb.streams.items():
-            p.streams[fd] = stream
+        for fd, (pipe, _, log, buf) in sb.streams.items():  # its output is the node's from here on
+            if log is not None:
+                log.close()
+            p.streams[fd] = (pipe, *self._targets(p.spec, "stdout" if fd == sb.popen.stdout.fileno() else "stderr"),
+                             buf)
             self._sel.modify(fd, selectors.EVENT_READ, p)
         self.info(p.spec.label, f"process activated from standby with pid [{sb.popen.pid}]")
         return True
@@ -1310,10 +1326,8 @@ class Runner:
         now = time.monotonic()
         children = [*self.procs, *self._standbys(), *self._retired]
         deadlines = [t for p in children for t in (p.respawn_at, p.deadline) if t is not None]
-        if self._warming(now):
-            deadlines += [sb.started_at + STANDBY_WARMING_MAX_S for sb in self._standbys() if not sb.ready]
-        else:
-            deadlines += [p.standby_at for p in self.procs if p.standby_at is not None and p.popen is not None]
+        if self.spare_at is not None:
+            deadlines.append(self.spare_at)
         timeout = max(0.0, min([now + 0.5, *deadlines]) - now)
         for key, _ in self._sel.select(timeout):
             if key.data is None:
@@ -1327,11 +1341,11 @@ class Runner:
             signum = self._signals.pop(0)
             self._shutdown(f"user interrupted with ctrl-c ({signal.Signals(signum).name})"
                            if signum == signal.SIGINT else f"received {signal.Signals(signum).name}")
+        if self.spare is not None and self.spare.popen.poll() is not None:
+            sb, self.spare = self.spare, None
+            self._standby_exited(sb, on_its_own=True)
+            self.spare_at = None  # the next respawn starts afresh and plans the next spare
         for p in self.procs:
-            if p.standby is not None and p.standby.popen.poll() is not None:
-                sb, p.standby = p.standby, None
-                self._standby_exited(sb, on_its_own=True)
-                p.standby_at = None  # the next respawn starts afresh and plans the next standby
             if p.popen is not None and p.popen.poll() is not None:
                 self._exited(p)
         for sb in list(self._retired):
@@ -1343,11 +1357,14 @@ class Runner:
             if p.respawn_at is not None and now >= p.respawn_at and not self.shutting_down:
                 if not self._activate(p):
                     self._start(p)
-                p.standby_at = now + STANDBY_AGAIN_S if self._wants_standby(p) else None
-        if not self.shutting_down and not self._warming(now):
-            due = [p for p in self.procs if p.standby_at is not None and now >= p.standby_at and p.popen is not None]
-            if due:
-                self._start_standby(due[0], now)
+                if self.spare is None:
+                    self.spare_at = now + STANDBY_AGAIN_S
+        wanted = [p for p in self.procs if self._served(p) and (p.popen is not None or p.respawn_at is not None)]
+        if self.spare is not None and not wanted:  # no respawn left to stand in for
+            sb, self.spare = self.spare, None
+            self._retire(sb)
+        if self.spare is None and self.spare_at is not None and now >= self.spare_at and wanted:
+            self._start_standby(now)
         for p in [*self.procs, *self._standbys(), *self._retired]:
             if p.popen is not None and p.deadline is not None and now >= p.deadline:
                 self._escalate(p, now)
@@ -1413,10 +1430,6 @@ class Runner:
             p.respawn_at = time.monotonic() + p.spec.respawn_delay_s
             self.info(p.spec.label, f"respawning in {p.spec.respawn_delay_s:g} s")
             return
-        p.standby_at = None
-        if p.standby is not None:  # no respawn to stand in for
-            sb, p.standby = p.standby, None
-            self._retire(sb)
         if code != 0:
             self.failed = True
         if self.shutdown_on_exit:
@@ -1433,10 +1446,11 @@ class Runner:
         self.shutting_down = True
         self.info("launch", reason, "WARNING")
         for p in self.procs:
-            p.respawn_at = p.standby_at = None
-            if p.standby is not None:
-                sb, p.standby = p.standby, None
-                self._retire(sb)
+            p.respawn_at = None
+        self.spare_at = None
+        if self.spare is not None:
+            sb, self.spare = self.spare, None
+            self._retire(sb)
         for p in [*self.procs, *self._retired]:
             if p.popen is not None:
                 self._kill(p, signal.SIGINT)
@@ -1486,10 +1500,10 @@ def _parse_cli(argv: list[str] | None) -> tuple[argparse.Namespace, Path, str, d
     parser.add_argument("--shutdown-on-exit", action="store_true",
                         help="shut everything down when any non-respawning process exits")
     parser.add_argument("--no-standby", action="store_false", dest="standby",
-                        help="respawn by a fresh start only; by default each respawning node of the stack keeps "
-                             f"a warm standby (imports done, no DDS), started {STANDBY_FIRST_S:g} s after the "
-                             f"graph and {STANDBY_AGAIN_S:g} s after each respawn, one at a time, that takes "
-                             "over when the node dies (README, 'Self-healing')")
+                        help="respawn by a fresh start only; by default the respawning nodes of the stack share "
+                             f"a warm standby (their imports done, no DDS), started {STANDBY_FIRST_S:g} s after the "
+                             f"graph and {STANDBY_AGAIN_S:g} s after each respawn, that becomes whichever of them "
+                             "dies (README, 'Self-healing')")
     ns = parser.parse_args(argv)
     for value in (ns.sigterm_timeout, ns.sigkill_timeout):
         if not 0.0 <= value < float("inf"):

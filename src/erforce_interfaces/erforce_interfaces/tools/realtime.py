@@ -10,8 +10,8 @@ latency path it could not outrank, the simulated world) and one line on stderr s
 name this prefix by default and still start for every user. Linux's real-time throttling
 (``/proc/sys/kernel/sched_rt_runtime_us``, 95 % by default) keeps a runaway from taking a whole machine.
 
-A warm standby (erforce_interfaces.standby) does its imports at the normal priority: this prefix leaves the
-priority to it (``standby.leave_realtime_priority``), and the standby takes it on "go", when it becomes the node.
+erforce-launch's warm standby (erforce_interfaces.standby) does its imports at the normal priority and takes the
+priority of this prefix on "go", when it becomes the node (standby.node_entry reads the prefix off the command).
 
     launch-prefix: $(find-pkg-prefix erforce_interfaces)/lib/erforce_interfaces/erforce-realtime 10
 """
@@ -21,7 +21,7 @@ from __future__ import annotations
 import os
 import sys
 
-from erforce_interfaces.standby import STANDBY_FD_ENV, leave_realtime_priority, set_fifo_priority
+from erforce_interfaces.standby import set_fifo_priority
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,9 +34,7 @@ def main(argv: list[str] | None = None) -> int:
         print(usage, file=sys.stderr)
         return 2
     priority, command = int(args[0]), args[1:]
-    if STANDBY_FD_ENV in os.environ:  # a warm standby: it raises the priority when it becomes the node
-        leave_realtime_priority(priority, else_idle)
-    elif (refused := set_fifo_priority(priority, command[0], else_idle)) is not None:
+    if (refused := set_fifo_priority(priority, command[0], else_idle)) is not None:
         print(refused, file=sys.stderr, flush=True)
     try:
         os.execvp(command[0], command)
