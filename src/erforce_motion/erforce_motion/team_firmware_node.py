@@ -5,7 +5,7 @@ its namespace ``robot_<id>``): per robot in ``robot_ids`` it takes ``/robot_<id>
 ``/robot_<id>/wheel_states`` and answers each tick with ``/robot_<id>/motor_duty`` and, at its
 rate, ``motor_status``. Inside, the main board's setpoint reaches the motor boards without DDS,
 one tick later, exactly as erforce_sim.closed_loop.runner.InProcessRunner steps the same cores
-(erforce_motion.team_cores.TeamFirmware: one call per tick for all robots whose sensors arrived),
+(erforce_motion.firmware.TeamFirmware: one call per tick for all robots whose sensors arrived),
 so the lockstep graph computes the same trajectory with either deployment. ``wheel_setpoints``
 is published only with ``publish_setpoints`` (for tools): nobody in the graph needs it, and it
 would be a message per robot per tick.
@@ -67,7 +67,7 @@ from erforce_interfaces.node_support import (
 from erforce_interfaces.param_schema import HostSchema, load_schema
 from erforce_interfaces.stamps import StampFilter, StampVerdict
 from erforce_motion import motor_boards_node, velocity_controller_node
-from erforce_motion.team_cores import TeamFirmware
+from erforce_motion.firmware import TeamFirmware
 
 MAIN_PREFIX, MOTOR_PREFIX = "main_board.", "motor_boards."
 _CLOCK_SAMPLE_TICKS = 10  # team_firmware takes /clock (only its logs' time) once per this many team ticks
@@ -97,7 +97,7 @@ def build_loops(config) -> tuple[list[tuple[contract.Team, int]], TeamFirmware]:
     main = velocity_controller_node.build_loop(hosted[MAIN_PREFIX])
     motor = motor_boards_node.build_loop(hosted[MOTOR_PREFIX])
     return robots, TeamFirmware(len(robots), main.robot, main.controller.config, motor.board.config, main.loop_period_s,
-                             motor.loop_period_s, main.watchdog.timeout_s, motor.setpoint_timeout_s)
+                             motor.loop_period_s, main.command_timeout_s, motor.setpoint_timeout_s)
 
 
 class _Robot:
