@@ -165,37 +165,32 @@ class PidState:
         return self.integrator, self.d_filtered, self.y_prev, self.have_y_prev, self.u, self.v, self.p, self.i, self.d
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _pid_terms(k, c, prm, use_db, use_d, st, sp, y, dt, ff):
-    """(e, p, filtered derivative, d, v) of channel c of row k: the step before saturation."""
-    e = sp[c] - y[c]
-    if use_db:
-        e = np.sign(e) * max(abs(e) - prm[9, c], 0.0)
-    p = prm[0, c] * e
-    df = st[1][k, c]
-    d = 0.0
-    if use_d:
-        if st[3][k]:
-            df = df + (dt / (prm[8, c] + dt)) * ((st[2][k, c] - y[c]) / dt - df)
-        d = prm[2, c] * df
-    return e, p, df, d, p + st[0][k, c] + d + ff[c]
-
-
 @numba.njit(cache=True, error_model="numpy")
 def pid_step(k, prm, flags, st, sp, y, dt, ff, lo, hi, hold, out):
     """One step of row k (the module docstring's equations), channel by channel; writes u into out.
 
     prm, flags: ``pid_tables``; st: ``PidState.arrays()``; sp, y, ff, lo, hi: per-channel inputs;
-    hold: per-channel flags that freeze the integrator. Returns False, changing no state, when an
-    unsaturated output is not finite."""
+    hold: per-channel flags that freeze the integrator. Returns False, at the first channel whose
+    unsaturated output is not finite (that channel's state unchanged)."""
     integ, dfilt, yprev, have_y, last_u, last_v, last_p, last_i, last_d = st
     use_db, use_d, use_i, back, ilim = flags[0], flags[1], flags[2], flags[3], flags[4]
     for c in range(out.shape[0]):
-        if not math.isfinite(_pid_terms(k, c, prm, use_db, use_d, st, sp, y, dt, ff)[4]):
-            return False
-    for c in range(out.shape[0]):
-        e, p, df, d, v = _pid_terms(k, c, prm, use_db, use_d, st, sp, y, dt, ff)
+        e = sp[c] - y[c]
+        if use_db:
+            e = np.sign(e) * max(abs(e) - prm[9, c], 0.0)
+        p = prm[0, c] * e
         i_now = integ[k, c]
+        if use_d:
+            df = dfilt[k, c]
+            if have_y[k]:
+                df = df + (dt / (prm[8, c] + dt)) * ((yprev[k, c] - y[c]) / dt - df)
+            d = prm[2, c] * df
+            v = p + i_now + d + ff[c]
+        else:
+            df = d = 0.0
+            v = p + i_now + ff[c]
+        if not math.isfinite(v):
+            return False
         u = min(max(v, lo[c]), hi[c])
         if use_i and not hold[c]:
             inc = (prm[1, c] * dt) * e
@@ -211,7 +206,11 @@ def pid_step(k, prm, flags, st, sp, y, dt, ff, lo, hi, hold, out):
         if use_d:
             dfilt[k, c] = df
             yprev[k, c] = y[c]
-        last_u[k, c], last_v[k, c], last_p[k, c], last_i[k, c], last_d[k, c] = u, v, p, i_now, d
+        last_u[k, c] = u
+        last_v[k, c] = v
+        last_p[k, c] = p
+        last_i[k, c] = i_now
+        last_d[k, c] = d
         out[c] = u
     if use_d:
         have_y[k] = True
@@ -288,7 +287,10 @@ class Pid:
         hold = self._hold
         hold[:] = hold_integrator
         out = np.empty(self._n)
+        before = [a.copy() for a in self._st]  # a failing channel leaves the others stepped: undo them
         if not self._step(0, self._prm, self._flags, self._st, sp, y, float(dt_s), ff, lo, hi, hold, out):
+            for a, b in zip(self._st, before, strict=True):
+                a[:] = b
             raise ValueError("PID: non-finite setpoint, measurement, feedforward or output")
         return out
 
