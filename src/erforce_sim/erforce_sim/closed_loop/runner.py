@@ -23,8 +23,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from erforce_motion.motor_board import MotorBoardConfig
 from erforce_motion.firmware import TeamFirmware
+from erforce_motion.motor_board import MotorBoardConfig
 from erforce_motion.velocity_control import VelocityControlConfig
 from erforce_sim.sensors import VisionFrame
 from erforce_sim.world import PlantSetup, build_world
