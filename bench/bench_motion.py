@@ -26,6 +26,7 @@ import numpy as np
 from table import markdown_table  # bench/table.py: the shared table format
 
 from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_motion.firmware import MainBoardLoop, MotorBoardLoop, TeamFirmware
 from erforce_motion.motor_board import MotorBoard, MotorBoardConfig
 from erforce_motion.plant_model import OmniRobotPlant, WheelPlant
 from erforce_motion.tuning import plot_tuning, run_tuning_experiment
@@ -130,6 +131,30 @@ def tick_cost_us(n: int) -> float:
         mb.step(sp, w, i, DT_S)
         samples[k] = clock() - t0
     return float(np.median(samples[n // 10:]) / 1e3)
+
+
+def firmware_tick_cost_us(n: int, team_size: int = 14) -> tuple[float, float]:
+    """Median CPU of one sensor tick: one robot's loops as the per-robot nodes run them (MainBoardLoop.tick
+    + MotorBoardLoop.tick), and TeamFirmware.tick for ``team_size`` robots (the team_firmware node, the runner)."""
+    main = MainBoardLoop(ROBOT, VelocityControlConfig(), DT_S, 1e3)
+    motor = MotorBoardLoop(ROBOT, MotorBoardConfig(), DT_S, 1e3)
+    team = TeamFirmware(team_size, ROBOT, VelocityControlConfig(), MotorBoardConfig(), DT_S, DT_S, 1e3, 1e3)
+    w = np.array([10.0, -12.0, 11.0, -9.0])
+    i = np.array([0.5, 0.6, 0.4, 0.5])
+    ws, iss = np.tile(w, (team_size, 1)), np.tile(i, (team_size, 1))
+    main.command(np.array([1.0, 0.5, 0.2]))
+    team.commands(np.arange(team_size), np.tile([1.0, 0.5, 0.2], (team_size, 1)))
+    one, many = np.empty(n), np.empty(n)
+    clock = time.perf_counter_ns
+    for k in range(n):
+        t = k * DT_S
+        t0 = clock()
+        motor.set_setpoint(t, main.tick(t, w))
+        motor.tick(t, w, i)
+        t1 = clock()
+        team.tick(t, ws, iss)
+        one[k], many[k] = t1 - t0, clock() - t1
+    return float(np.median(one[n // 10:]) / 1e3), float(np.median(many[n // 10:]) / 1e3)
 
 
 # ---------------------------------------------------------------- on the simulated plant
@@ -413,6 +438,13 @@ def plant_model_rows(quick: bool = False, figures: str | Path | None = None) -> 
     rows.append({"name": "controller tick (velocity + motor board, 4 wheels)",
                  "value": tick_cost_us(5000 if quick else 30000), "unit": "us (median)", "target": "< 50",
                  "note": "incl. saturation flags to the velocity loop"})
+    one_us, team_us = firmware_tick_cost_us(2000 if quick else 10000)
+    rows += [
+        {"name": "firmware tick, one robot (MainBoardLoop + MotorBoardLoop)", "value": one_us, "unit": "us (median)",
+         "target": "< 50", "note": "what the velocity_controller and motor_boards nodes compute per sensor tick"},
+        {"name": "team firmware tick, 14 robots (TeamFirmware.tick)", "value": team_us, "unit": "us (median)",
+         "target": "< 200", "note": "the team_firmware node and the in-process runner: one call for the team"},
+    ]
     tune = run_tuning_experiment()
     chr0 = tune.gains["chr_0"]["PI"]
     zn = tune.gains["zn"]["PI"]

@@ -169,7 +169,7 @@ def run(quick: bool = False) -> list[dict]:
             value=round(wall, 2),
             unit="x real time",
             target=">= 5",
-            note=f"runner.InProcessRunner, main board and motor boards of every robot at 1 kHz (team_cores); "
+            note=f"runner.InProcessRunner, main board and motor boards of every robot at 1 kHz (TeamFirmware); "
                  f"{sim_s:.0f} s simulated, wall clock",
         )
     )

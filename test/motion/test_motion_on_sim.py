@@ -153,6 +153,6 @@ def test_slip_hold_freezes_the_integrator_only_while_slipping():
     for _ in range(20):
         vc.step((0.5, 0.0, 0.0), null, 0.001)
     assert vc.status.integrator_held and vc.status.slip_residual_radps == pytest.approx(3.0)
-    np.testing.assert_allclose(vc._pid.integrator, 0.0)
+    np.testing.assert_allclose(vc.pid_state.integrator[0], 0.0)
     vc.step((0.5, 0.0, 0.0), np.zeros(4), 0.001)  # rigid (here: rest) again: integrates
-    assert not vc.status.integrator_held and vc._pid.integrator[0] > 0.0
+    assert not vc.status.integrator_held and vc.pid_state.integrator[0, 0] > 0.0

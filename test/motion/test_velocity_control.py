@@ -1,4 +1,4 @@
-"""Main-board velocity controller (Fig. 2): shaper, feedforward switch, closed loop, watchdog, bad input."""
+"""Main-board velocity controller (Fig. 2): shaper, feedforward switch, closed loop, bad input."""
 
 import math
 
@@ -10,7 +10,6 @@ from erforce_motion.kinematics import OmniKinematics
 from erforce_motion.motor_board import MotorBoard
 from erforce_motion.plant_model import OmniRobotPlant
 from erforce_motion.velocity_control import (
-    CommandWatchdog,
     SetpointShaper,
     VelocityControlConfig,
     VelocityController,
@@ -115,18 +114,3 @@ def test_bad_config_raises(kw):
         VelocityControlConfig(**kw)
 
 
-def test_watchdog():
-    wd = CommandWatchdog(0.1)
-    assert wd.expired(0.0)  # nothing received yet
-    wd.feed(1.0)
-    assert not wd.expired(1.09)
-    assert wd.expired(1.1001)
-    wd.feed(2.0)
-    assert not wd.expired(2.05)
-    with pytest.raises(ValueError):
-        wd.expired(1.9)  # time went backwards
-    with pytest.raises(ValueError):
-        wd.feed(math.nan)
-    for bad in (0.0, -1.0, math.inf, math.nan):
-        with pytest.raises(ValueError):
-            CommandWatchdog(bad)

@@ -3,153 +3,424 @@
 The controllers (velocity_control, motor_board) are pure maths on one control period.
 The loops here add what firmware adds: the loop rate (a loop slower than the sensor
 ticks holds its last output), the command watchdog, stale-setpoint handling, and a
-reset when time goes backwards (a restarted simulator). The ROS nodes and the
-in-process runner both drive these loops, so the DDS graph and the in-process
-simulation compute the same numbers.
+reset when time goes backwards (a restarted simulator).
+
+Written once, for many robots: ``MainBoards`` and ``MotorBoards`` hold the loops of
+``n_robots`` robots in rows of arrays, and the compiled ``main_board_tick`` /
+``motor_board_tick`` run one robot's tick on them. ``MainBoardLoop`` and ``MotorBoardLoop``
+are one robot (the per-robot nodes), ``TeamFirmware`` is both boards of a team with the
+main board's setpoint reaching the motor boards one tick later, as in the lockstep
+protocol (the team_firmware node and the in-process runner). So the DDS graph, per robot
+or per team, and the in-process simulation compute the same numbers. No rclpy import.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
+from erforce_interfaces.numba_support import compiled_for, numba
 from erforce_interfaces.robot_config import RobotConfig
-from erforce_motion.motor_board import MotorBoard, MotorBoardConfig
-from erforce_motion.velocity_control import CommandWatchdog, VelocityControlConfig, VelocityController
+from erforce_motion.motor_board import MotorBoard, MotorBoardConfig, motor_board_reset, motor_board_step
+from erforce_motion.velocity_control import VelocityControlConfig, VelocityController, velocity_reset, velocity_step
 
 _TICK_TOLERANCE_S = 1e-6
 
+# What a tick noticed, per robot (bit flags of main_notice / motor_notice).
+NOTICE_TIME_BACKWARDS = 1
+NOTICE_COMMAND_TIMEOUT = 2  # main board: no command for command_timeout_s, stopping
+NOTICE_SETPOINT_TIMEOUT = 2  # motor boards: no setpoint for setpoint_timeout_s, stopping the wheels
 
-def _check_period(loop_period_s: float) -> float:
-    if not (math.isfinite(loop_period_s) and loop_period_s > 0.0):
-        raise ValueError(f"loop_period_s must be finite and > 0, got {loop_period_s!r}")
-    return float(loop_period_s)
+
+def _positive(name: str, value: float) -> float:
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    return float(value)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _due(k, ts, period, now, last_run, has_run):
+    """The loop-rate gate of robot k at time ts: the dt of a run now, or 0.0 while the last output holds."""
+    now[k] = ts
+    if has_run[k] and ts - last_run[k] < period - _TICK_TOLERANCE_S:
+        return 0.0
+    dt = ts - last_run[k] if has_run[k] else period
+    last_run[k] = ts
+    has_run[k] = True
+    return dt
+
+
+@numba.njit(cache=True, error_model="numpy")
+def main_board_tick(k, ts, w, args):
+    """MainBoardLoop's tick of robot k at time ts with wheel speeds w; writes setpoints[k], returns notice flags."""
+    period, timeout, (command, now, last_run, has_run, feed_first, has_fed, last_feed, setpoints), vc = args
+    notice = 0
+    if ts < now[k]:
+        notice |= NOTICE_TIME_BACKWARDS
+        has_fed[k] = False
+        velocity_reset(k, vc, w)
+        command[k, :] = 0.0
+        has_run[k] = False
+    if feed_first[k]:  # a command sent before the robot's first tick counts from it
+        feed_first[k] = False
+        has_fed[k] = True
+        last_feed[k] = ts
+    dt = _due(k, ts, period, now, last_run, has_run)
+    if dt == 0.0:
+        return notice
+    if not has_fed[k] or ts - last_feed[k] > timeout:
+        if command[k, 0] != 0.0 or command[k, 1] != 0.0 or command[k, 2] != 0.0:
+            notice |= NOTICE_COMMAND_TIMEOUT
+        command[k, :] = 0.0
+    velocity_step(k, vc, command[k, 0], command[k, 1], command[k, 2], w, dt, False, setpoints[k])
+    return notice
+
+
+@numba.njit(cache=True, error_model="numpy")
+def motor_board_tick(k, ts, w, current, args):
+    """MotorBoardLoop's tick of robot k at time ts with sensors w, current; writes the board's duty[k],
+    returns notice flags."""
+    period, timeout, (setpoint, setpoint_time, now, last_run, has_run), mb = args
+    notice = 0
+    if ts < now[k]:
+        notice |= NOTICE_TIME_BACKWARDS
+        motor_board_reset(k, mb)
+        has_run[k] = False
+        setpoint[k, :] = 0.0  # the old time line's setpoint is void
+        setpoint_time[k] = -np.inf
+    dt = _due(k, ts, period, now, last_run, has_run)
+    if dt == 0.0:
+        return notice
+    if ts - setpoint_time[k] > timeout:
+        for i in range(setpoint.shape[1]):
+            if setpoint[k, i] != 0.0:
+                notice |= NOTICE_SETPOINT_TIMEOUT
+        setpoint[k, :] = 0.0
+    motor_board_step(k, mb, setpoint[k], w, current, dt)
+    return notice
+
+
+class MainBoards:
+    """Fig. 2 on the main boards of ``n_robots`` robots: radio commands in, wheel-speed setpoints out."""
+
+    def __init__(self, n_robots: int, robot: RobotConfig, config: VelocityControlConfig, loop_period_s: float,
+                 command_timeout_s: float) -> None:
+        if not isinstance(n_robots, int) or n_robots < 1:
+            raise ValueError(f"n_robots: must be an int >= 1, got {n_robots!r}")
+        self.n_robots, self.robot = n_robots, robot
+        self.loop_period_s = _positive("loop_period_s", loop_period_s)
+        self.command_timeout_s = _positive("command_timeout_s", command_timeout_s)
+        self.controller = VelocityController(robot, config, n_robots)
+        n = n_robots
+        self.command_twist = np.zeros((n, 3))  # the radio command each robot follows
+        self.now_s = np.full(n, -math.inf)
+        self._last_run, self._has_run = np.zeros(n), np.zeros(n, dtype=np.bool_)
+        self._feed_first, self._has_fed, self._last_feed = (np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_),
+                                                            np.zeros(n))
+        self.setpoints = np.zeros((n, robot.num_wheels))  # the last wheel speed setpoints [rad/s]
+        self.args = (self.loop_period_s, self.command_timeout_s,
+                     (self.command_twist, self.now_s, self._last_run, self._has_run, self._feed_first, self._has_fed,
+                      self._last_feed, self.setpoints), self.controller.args)
+
+    def command(self, robot: int, twist) -> None:
+        """A new desired twist [vx, vy, wz] (robot frame) for one robot, received at its current time."""
+        self.commands(np.array([robot]), np.asarray(twist, dtype=float).reshape(1, -1))
+
+    def commands(self, robots: np.ndarray, twists: np.ndarray) -> None:
+        """``command`` for many robots at once: twists (len(robots), 3), all finite."""
+        robots = np.asarray(robots, dtype=np.int64)
+        twists = np.asarray(twists, dtype=float)
+        if twists.shape != (robots.shape[0], 3) or not np.isfinite(twists).all():
+            raise ValueError(f"twists: need ({robots.shape[0]}, 3) finite values, got {twists!r}")
+        self.command_twist[robots] = twists
+        now = self.now_s[robots]
+        started = np.isfinite(now)
+        self._has_fed[robots[started]] = True
+        self._last_feed[robots[started]] = now[started]
+        self._feed_first[robots[~started]] = True  # a command sent before the robot's first tick counts
+
+    def stop(self, robot: int) -> None:
+        """Drop a robot's current command (e.g. after a rejected message): decelerate to rest."""
+        self.command_twist[robot] = 0.0
+
+    def take_over(self, old: MainBoards) -> None:
+        """Continue where ``old`` (same robots, new parameters) left off: same commands, timing and setpoints,
+        the controllers restarted bumplessly from the measured motion."""
+        if old.n_robots != self.n_robots or old.setpoints.shape != self.setpoints.shape:
+            raise ValueError("take_over: the old main boards have other robots or wheels")
+        self.command_twist[:] = old.command_twist
+        if old.command_timeout_s == self.command_timeout_s:  # else the new watchdog waits for a command
+            self._has_fed[:], self._last_feed[:] = old._has_fed, old._last_feed
+        for mine, theirs in ((self.now_s, old.now_s), (self._last_run, old._last_run),
+                             (self._has_run, old._has_run), (self.setpoints, old.setpoints)):
+            mine[:] = theirs
+        wheels = old.controller.measured_twist @ self.controller.kinematics.wheel_matrix.T
+        for k in range(self.n_robots):
+            velocity_reset(k, self.controller.args, np.ascontiguousarray(wheels[k]))
+
+
+class MotorBoards:
+    """Fig. 3 on the motor boards of ``n_robots`` robots: setpoints and sensors in, PWM duty out."""
+
+    def __init__(self, n_robots: int, robot: RobotConfig, config: MotorBoardConfig, loop_period_s: float,
+                 setpoint_timeout_s: float) -> None:
+        if not isinstance(n_robots, int) or n_robots < 1:
+            raise ValueError(f"n_robots: must be an int >= 1, got {n_robots!r}")
+        self.n_robots, self.robot = n_robots, robot
+        self.loop_period_s = _positive("loop_period_s", loop_period_s)
+        self.setpoint_timeout_s = _positive("setpoint_timeout_s", setpoint_timeout_s)
+        self.board = MotorBoard(config, robot, n_robots=n_robots)
+        self.duty = self.board.duty  # the last PWM duties
+        self.setpoint = np.zeros((n_robots, robot.num_wheels))  # the setpoint each robot's boards follow
+        self.setpoint_time_s = np.full(n_robots, -math.inf)
+        self.now_s = np.full(n_robots, -math.inf)
+        self._last_run, self._has_run = np.zeros(n_robots), np.zeros(n_robots, dtype=np.bool_)
+        self.args = (self.loop_period_s, self.setpoint_timeout_s,
+                     (self.setpoint, self.setpoint_time_s, self.now_s, self._last_run, self._has_run),
+                     self.board.args)
+
+    def take_over(self, old: MotorBoards) -> None:
+        """Continue where ``old`` left off (new parameters): same setpoints, timing and duties; the controllers
+        and the thermal history start afresh."""
+        if old.n_robots != self.n_robots or old.duty.shape != self.duty.shape:
+            raise ValueError("take_over: the old motor boards have other robots or wheels")
+        for mine, theirs in ((self.duty, old.duty), (self.now_s, old.now_s), (self._last_run, old._last_run),
+                             (self._has_run, old._has_run), (self.setpoint, old.setpoint),
+                             (self.setpoint_time_s, old.setpoint_time_s)):
+            mine[:] = theirs
 
 
 class MainBoardLoop:
-    """Fig. 2 on the main board: radio commands in, wheel-speed setpoints out on every tick."""
+    """Fig. 2 on one robot's main board (the velocity_controller node): ``MainBoards`` of one robot."""
 
     def __init__(self, robot: RobotConfig, config: VelocityControlConfig, loop_period_s: float,
                  command_timeout_s: float) -> None:
-        self.robot = robot
-        self.loop_period_s = _check_period(loop_period_s)
-        self.controller = VelocityController(robot, config)
-        self.watchdog = CommandWatchdog(command_timeout_s)
-        self._command = np.zeros(3)
-        self._setpoints = np.zeros(robot.num_wheels)
-        self._last_run_s: float | None = None
-        self._now_s = -math.inf
-        self._feed_at_first_tick = False
+        self.boards = MainBoards(1, robot, config, loop_period_s, command_timeout_s)
+        self.robot, self.controller = robot, self.boards.controller
+        self.loop_period_s, self.command_timeout_s = self.boards.loop_period_s, self.boards.command_timeout_s
+        self._tick = compiled_for(main_board_tick, 0, 0.0, np.zeros(robot.num_wheels), self.boards.args)
         self.notice: str | None = None  # what the last call noticed (for the node's log)
 
     @property
     def setpoints(self) -> np.ndarray:
-        return self._setpoints
+        return self.boards.setpoints[0]
 
     def take_over(self, old: MainBoardLoop) -> None:
         """Continue where ``old`` left off (new parameters): same command, timing and motion, bumpless."""
-        self._command = old._command
-        self.watchdog = old.watchdog if old.watchdog.timeout_s == self.watchdog.timeout_s else self.watchdog
-        self._now_s, self._last_run_s, self._setpoints = old._now_s, old._last_run_s, old._setpoints
-        measured = old.controller.status.measured_twist
-        self.controller.reset(self.controller.kinematics.inverse(measured))
+        self.boards.take_over(old.boards)
 
     def command(self, twist: np.ndarray) -> None:
         """A new desired twist [vx, vy, wz] (robot frame), received at the current robot time."""
-        twist = np.asarray(twist, dtype=float)
-        if twist.shape != (3,) or not np.all(np.isfinite(twist)):
-            raise ValueError(f"twist must be 3 finite values, got {twist!r}")
-        self._command = twist
-        if math.isfinite(self._now_s):
-            self.watchdog.feed(self._now_s)
-        else:
-            self._feed_at_first_tick = True  # a command sent before the robot's first tick counts
+        self.boards.command(0, twist)
 
     def stop(self) -> None:
         """Drop the current command (e.g. after a rejected message): decelerate to rest."""
-        self._command = np.zeros(3)
+        self.boards.stop(0)
 
     def tick(self, t_s: float, wheel_speeds_radps: np.ndarray) -> np.ndarray:
-        """Setpoints to send to the motor boards at sensor tick ``t_s``."""
+        """Setpoints to send to the motor boards at sensor tick ``t_s`` (a new array)."""
+        w = np.ascontiguousarray(wheel_speeds_radps, dtype=float)
+        if w.shape != (self.robot.num_wheels,) or not (math.isfinite(t_s) and np.isfinite(w).all()):
+            raise ValueError(f"tick: need a finite time and {self.robot.num_wheels} finite wheel speeds")
+        before_s = float(self.boards.now_s[0])
+        notice = self._tick(0, float(t_s), w, self.boards.args)
         self.notice = None
-        if t_s < self._now_s:
-            self.notice = f"time went backwards ({self._now_s:.6f} -> {t_s:.6f} s): controller reset"
-            self.watchdog = CommandWatchdog(self.watchdog.timeout_s)
-            self.controller.reset(wheel_speeds_radps)
-            self._command = np.zeros(3)
-            self._last_run_s = None
-        self._now_s = t_s
-        if self._feed_at_first_tick:
-            self._feed_at_first_tick = False
-            self.watchdog.feed(t_s)
-        if self._last_run_s is not None and t_s - self._last_run_s < self.loop_period_s - _TICK_TOLERANCE_S:
-            return self._setpoints
-        dt = self.loop_period_s if self._last_run_s is None else t_s - self._last_run_s
-        self._last_run_s = t_s
-        desired = self._command
-        if self.watchdog.expired(t_s):
-            if np.any(desired != 0.0):
-                self.notice = f"no command for {self.watchdog.timeout_s:g} s: stopping"
-            desired = np.zeros(3)
-            self._command = desired
-        self._setpoints = self.controller.step(desired, wheel_speeds_radps, dt)
-        return self._setpoints
+        if notice & NOTICE_TIME_BACKWARDS:
+            self.notice = f"time went backwards ({before_s:.6f} -> {t_s:.6f} s): controller reset"
+        if notice & NOTICE_COMMAND_TIMEOUT:
+            self.notice = f"no command for {self.command_timeout_s:g} s: stopping"
+        return self.boards.setpoints[0].copy()
 
 
 class MotorBoardLoop:
-    """Fig. 3 on the motor boards of one robot: setpoints and sensors in, PWM duty out."""
+    """Fig. 3 on one robot's motor boards (the motor_boards node): ``MotorBoards`` of one robot."""
 
     def __init__(self, robot: RobotConfig, config: MotorBoardConfig, loop_period_s: float,
                  setpoint_timeout_s: float) -> None:
-        self.robot = robot
-        self.loop_period_s = _check_period(loop_period_s)
-        if not (math.isfinite(setpoint_timeout_s) and setpoint_timeout_s > 0.0):
-            raise ValueError(f"setpoint_timeout_s must be finite and > 0, got {setpoint_timeout_s!r}")
-        self.setpoint_timeout_s = float(setpoint_timeout_s)
-        self.board = MotorBoard(config, robot)
-        self._duty = np.zeros(robot.num_wheels)
-        self._last_run_s: float | None = None
-        self._now_s = -math.inf
-        self._setpoint = np.zeros(robot.num_wheels)
-        self._setpoint_time_s = -math.inf
+        self.boards = MotorBoards(1, robot, config, loop_period_s, setpoint_timeout_s)
+        self.robot, self.board = robot, self.boards.board
+        self.loop_period_s, self.setpoint_timeout_s = self.boards.loop_period_s, self.boards.setpoint_timeout_s
+        zeros = np.zeros(robot.num_wheels)
+        self._tick = compiled_for(motor_board_tick, 0, 0.0, zeros, zeros, self.boards.args)
         self.notice: str | None = None
 
     @property
     def duty(self) -> np.ndarray:
-        return self._duty
+        return self.boards.duty[0]
 
     def take_over(self, old: MotorBoardLoop) -> None:
         """Continue where ``old`` left off (new parameters): same setpoint, timing and output."""
-        self._duty, self._now_s, self._last_run_s = old._duty, old._now_s, old._last_run_s
-        self._setpoint, self._setpoint_time_s = old._setpoint, old._setpoint_time_s
+        self.boards.take_over(old.boards)
 
     def set_setpoint(self, t_s: float, setpoint_radps: np.ndarray) -> None:
         setpoint_radps = np.asarray(setpoint_radps, dtype=float)
         if setpoint_radps.shape != (self.robot.num_wheels,) or not np.all(np.isfinite(setpoint_radps)):
             raise ValueError(f"setpoint must be {self.robot.num_wheels} finite values")
-        self._setpoint = setpoint_radps
-        self._setpoint_time_s = t_s
+        self.boards.setpoint[0] = setpoint_radps
+        self.boards.setpoint_time_s[0] = t_s
 
     def tick(self, t_s: float, wheel_speeds_radps: np.ndarray, currents_a: np.ndarray) -> np.ndarray:
+        """PWM duties at sensor tick ``t_s`` (a new array)."""
+        w = np.ascontiguousarray(wheel_speeds_radps, dtype=float)
+        i = np.ascontiguousarray(currents_a, dtype=float)
+        n = self.robot.num_wheels
+        if w.shape != (n,) or i.shape != (n,) or not (math.isfinite(t_s) and np.isfinite(w).all()
+                                                     and np.isfinite(i).all()):
+            raise ValueError(f"tick: need a finite time and {n} finite wheel speeds and currents")
+        before_s = float(self.boards.now_s[0])
+        notice = self._tick(0, float(t_s), w, i, self.boards.args)
         self.notice = None
-        if t_s < self._now_s:
-            self.notice = f"time went backwards ({self._now_s:.6f} -> {t_s:.6f} s): motor boards reset"
-            self.board.reset()
-            self._last_run_s = None
-            # the old time line's setpoint is void (and would overwrite this notice with a timeout)
-            self._setpoint = np.zeros(self.robot.num_wheels)
-            self._setpoint_time_s = -math.inf
-        self._now_s = t_s
-        if self._last_run_s is not None and t_s - self._last_run_s < self.loop_period_s - _TICK_TOLERANCE_S:
-            return self._duty
-        dt = self.loop_period_s if self._last_run_s is None else t_s - self._last_run_s
-        self._last_run_s = t_s
-        setpoint = self._setpoint
-        if t_s - self._setpoint_time_s > self.setpoint_timeout_s:
-            if np.any(setpoint != 0.0):
-                self.notice = f"no setpoint for {self.setpoint_timeout_s:g} s: stopping the wheels"
-            setpoint = np.zeros(self.robot.num_wheels)
-            self._setpoint = setpoint
-        self._duty = self.board.step(setpoint, wheel_speeds_radps, currents_a, dt)
-        return self._duty
+        if notice & NOTICE_TIME_BACKWARDS:
+            self.notice = f"time went backwards ({before_s:.6f} -> {t_s:.6f} s): motor boards reset"
+        if notice & NOTICE_SETPOINT_TIMEOUT:
+            self.notice = f"no setpoint for {self.setpoint_timeout_s:g} s: stopping the wheels"
+        return self.boards.duty[0].copy()
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _team_tick(active, t, wheels, currents, main, motor, handoff, main_notice, motor_notice):
+    """One sensor tick of the robots ``active`` (times t, sensors in their rows): main board, then the motor
+    boards with the main board's setpoint of the robot's previous tick. Returns whether any of them noticed
+    something."""
+    prev_sp, prev_t, has_prev = handoff
+    setpoints = main[2][7]
+    sp_motor, sp_time = motor[2][0], motor[2][1]
+    noticed = False
+    for idx in range(active.shape[0]):
+        k = active[idx]
+        ts = t[idx]
+        main_notice[k] = main_board_tick(k, ts, wheels[k], main)
+        if has_prev[k] and prev_t[k] < ts:
+            sp_motor[k, :] = prev_sp[k]
+            sp_time[k] = prev_t[k]
+        motor_notice[k] = motor_board_tick(k, ts, wheels[k], currents[k], motor)
+        prev_sp[k, :] = setpoints[k]
+        prev_t[k] = ts
+        has_prev[k] = True
+        noticed = noticed or main_notice[k] != 0 or motor_notice[k] != 0
+    return noticed
+
+
+class TeamFirmware:
+    """Main board + motor boards of ``n_robots`` robots (rows 0 .. n_robots - 1), ticked together.
+
+    Per robot, ``tick`` does what the lockstep graph does with one MainBoardLoop and one MotorBoardLoop:
+    the main board's setpoint of this tick is used by the motor boards at the robot's next tick.
+    ``command`` / ``commands`` / ``stop`` are the radio side; ``tick`` takes the robots whose sensors arrived.
+    All robots share one RobotConfig and one configuration of each board, as a team deployment does.
+    """
+
+    def __init__(self, n_robots: int, robot: RobotConfig, velocity_config: VelocityControlConfig,
+                 motor_config: MotorBoardConfig, main_period_s: float, motor_period_s: float,
+                 command_timeout_s: float, setpoint_timeout_s: float) -> None:
+        self.main = MainBoards(n_robots, robot, velocity_config, main_period_s, command_timeout_s)
+        self.motor = MotorBoards(n_robots, robot, motor_config, motor_period_s, setpoint_timeout_s)
+        self.n_robots, self.robot, self.num_wheels = n_robots, robot, robot.num_wheels
+        self.velocity_config, self.motor_config = velocity_config, motor_config
+        self.command_timeout_s, self.setpoint_timeout_s = self.main.command_timeout_s, self.motor.setpoint_timeout_s
+        vc, board = self.main.controller, self.motor.board
+        self.kinematics, self.max_setpoint_radps = vc.kinematics, vc.max_setpoint_radps
+        # the state the team node and the runner read, per robot (rows) and wheel
+        self.command_twist, self.setpoints, self.duty = self.main.command_twist, self.main.setpoints, board.duty
+        self.measured_twist, self.shaped_twist = vc.measured_twist, vc.shaped_twist
+        self.twist_command, self.integrator_held = vc.command_twist, vc.integrator_held
+        self.desired_current_a, self.current_command_a = board.desired_current_a, board.current_command_a
+        self.pwm_limit, self.over_limit = board.thermal.pwm_limits, board.thermal.over_limits
+        self.window_samples = board.thermal.window_samples
+        self._handoff = (np.zeros((n_robots, self.num_wheels)), np.zeros(n_robots), np.zeros(n_robots, dtype=np.bool_))
+        self.main_notice = np.zeros(n_robots, dtype=np.int64)
+        self.motor_notice = np.zeros(n_robots, dtype=np.int64)
+        self.noticed = False  # some robot of the last tick has a notice flag set
+        self._all = np.arange(n_robots, dtype=np.int64)
+        # Load the compiled kernel now (numba's disk cache; a compile after a code change), not at the first
+        # sensor tick: a node answers its first lockstep tick in time. tick passes exactly these types
+        # (C-contiguous int64 rows, float64 times and sensors) to the compiled function.
+        self._args = (self.main.args, self.motor.args, self._handoff, self.main_notice, self.motor_notice)
+        self._kernel = compiled_for(_team_tick, np.zeros(0, dtype=np.int64), np.zeros(0), self.duty, self.duty,
+                                    *self._args)
+
+    # ------------------------------------------------------------------ radio side
+    def command(self, robot: int, twist) -> None:
+        """A new desired twist [vx, vy, wz] (robot frame) for one robot, received at its current time."""
+        self.main.command(robot, twist)
+
+    def commands(self, robots: np.ndarray, twists: np.ndarray) -> None:
+        """``command`` for many robots at once: twists (len(robots), 3), all finite."""
+        self.main.commands(robots, twists)
+
+    def stop(self, robot: int) -> None:
+        """Drop a robot's current command (e.g. after a rejected message): decelerate to rest."""
+        self.main.stop(robot)
+
+    def forget_setpoint(self, robot: int) -> None:
+        """A new time line for this robot: the setpoint of the old one does not reach its motor boards."""
+        self._handoff[2][robot] = False
+
+    # ------------------------------------------------------------------ sensor ticks
+    def tick(self, t_s: float | np.ndarray, wheel_speeds_radps: np.ndarray, currents_a: np.ndarray,
+             robots: Sequence[int] | np.ndarray | None = None) -> np.ndarray:
+        """A sensor tick of ``robots`` (None: all) at times ``t_s`` (one for all, or one per robot).
+
+        wheel_speeds_radps, currents_a: (n_robots, wheels); only the rows of ``robots`` are read.
+        Returns ``duty`` (n_robots, wheels), updated in the rows of ``robots`` (the array is reused:
+        copy what you keep). ``setpoints``, ``main_notice`` and ``motor_notice`` are updated likewise, and
+        ``noticed`` says whether any of these robots' notice flags is set.
+        Raises ValueError (changing nothing) for non-finite sensors or times.
+        """
+        if robots is None:
+            active = self._all
+            rows_w, rows_i = wheel_speeds_radps, currents_a
+        else:
+            active = np.asarray(robots, dtype=np.int64)
+            if active.ndim != 1 or (active.size and not 0 <= active.min() <= active.max() < self.n_robots):
+                raise ValueError(f"robots: need row indices in [0, {self.n_robots - 1}], got {robots!r}")
+            active = np.ascontiguousarray(active)
+            rows_w, rows_i = wheel_speeds_radps[active], currents_a[active]
+        if isinstance(t_s, float | int):
+            t = np.full(active.shape, float(t_s))
+        else:
+            t = np.ascontiguousarray(np.broadcast_to(np.asarray(t_s, dtype=float), active.shape))
+        w = np.ascontiguousarray(wheel_speeds_radps, dtype=float)
+        cur = np.ascontiguousarray(currents_a, dtype=float)
+        shape = (self.n_robots, self.num_wheels)
+        if w.shape != shape or cur.shape != shape:
+            raise ValueError(f"sensors: need {shape} arrays, got {w.shape} and {cur.shape}")
+        if not (np.isfinite(t).all() and np.isfinite(rows_w).all() and np.isfinite(rows_i).all()):
+            raise ValueError("tick: times, wheel speeds and currents must be finite")
+        self.noticed = self._kernel(active, t, w, cur, *self._args)
+        return self.duty
+
+    # ------------------------------------------------------------------ status
+    @property
+    def average_current_a(self) -> np.ndarray:
+        """Per robot and wheel: the thermal limiter's average current (boxcar mean, or sqrt of i^2 in 'i2t')."""
+        return self.motor.board.thermal.average_currents_a()
+
+    @property
+    def saturated(self) -> np.ndarray:
+        """Per robot and wheel: speed loop at +-peak current, or duty at the PWM limit (MotorBoard.saturated)."""
+        return self.motor.board.saturated_rows()
+
+    def notices(self, robot: int) -> list[str]:
+        """What the last tick of this robot noticed, in the words of the per-robot loops."""
+        out = []
+        m, b = int(self.main_notice[robot]), int(self.motor_notice[robot])
+        if m & NOTICE_TIME_BACKWARDS:
+            out.append("time went backwards: controller reset")
+        if m & NOTICE_COMMAND_TIMEOUT:
+            out.append(f"no command for {self.command_timeout_s:g} s: stopping")
+        if b & NOTICE_TIME_BACKWARDS:
+            out.append("time went backwards: motor boards reset")
+        if b & NOTICE_SETPOINT_TIMEOUT:
+            out.append(f"no setpoint for {self.setpoint_timeout_s:g} s: stopping the wheels")
+        return out
+
+    def take_over(self, old: TeamFirmware) -> None:
+        """Continue where ``old`` (same robots, other parameters) left off, as MainBoardLoop.take_over and
+        MotorBoardLoop.take_over do, with the setpoints on their way to the motor boards."""
+        self.main.take_over(old.main)
+        self.motor.take_over(old.motor)
+        for mine, theirs in zip(self._handoff, old._handoff, strict=True):
+            mine[:] = theirs

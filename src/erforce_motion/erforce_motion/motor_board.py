@@ -21,6 +21,10 @@ kept in a ring buffer with a running sum; the history before start counts as zer
 (motor at rest), so with a constant 2 A the average is 2 A * k / N after k samples.
 The optional 'i2t' mode replaces the boxcar by a first-order filter of i^2 (time constant
 = winding thermal time constant) compared with I_cont^2; the PWM rule is the same.
+
+Written once, as compiled kernels on row k of (robots, wheels) arrays (``thermal_update``,
+``motor_board_step``): ``ThermalCurrentLimiter`` and ``MotorBoard`` hold the state of ``n_robots``
+robots, and firmware.py's loops call the same kernels for one robot or a team.
 """
 
 from __future__ import annotations
@@ -31,9 +35,10 @@ from typing import Literal
 
 import numpy as np
 
+from erforce_interfaces.numba_support import compiled_for, numba
 from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import RobotConfig
-from erforce_motion.pid import DEFAULT_ANTI_WINDUP, AntiWindup, Pid, PidConfig
+from erforce_motion.pid import DEFAULT_ANTI_WINDUP, AntiWindup, PidConfig, PidState, pid_reset, pid_step, pid_tables
 
 _DEFAULTS = schema_defaults("erforce_motion", "motor_boards")
 
@@ -107,6 +112,9 @@ class ThermalCurrentLimiter:
     ...     limit = limiter.update(np.array([2.0]), last_duty=np.array([0.5]))
     >>> limit.round(2).tolist()  # lowered below the last duty by pwm_decrement
     [0.49]
+
+    ``pwm_limits`` and ``over_limits`` hold ``n_robots`` rows; ``update``, ``pwm_limit``, ``over_limit``
+    and ``average_current_a`` are robot 0.
     """
 
     def __init__(
@@ -119,6 +127,7 @@ class ThermalCurrentLimiter:
         recovery_rate_per_s: float = _DEFAULTS["pwm_recovery_rate_per_s"],
         mode: ThermalMode = "average",
         i2t_time_constant_s: float = 29.0,
+        n_robots: int = 1,
     ) -> None:
         for name, v in (("current_limit_a", current_limit_a), ("window_s", window_s),
                         ("loop_period_s", loop_period_s), ("pwm_decrement", pwm_decrement),
@@ -130,56 +139,90 @@ class ThermalCurrentLimiter:
             raise ValueError(f"mode: 'average' or 'i2t', got {mode!r}")
         if n_wheels < 1:
             raise ValueError(f"n_wheels: must be >= 1, got {n_wheels}")
-        self.n_wheels = n_wheels
-        self.current_limit_a = float(current_limit_a)
-        self.loop_period_s = float(loop_period_s)
+        self.n_wheels, self.mode = n_wheels, mode
         self.window_samples = max(1, round(window_s / loop_period_s))
-        self.pwm_decrement = float(pwm_decrement)
-        self.recovery_rate_per_s = float(recovery_rate_per_s)
-        self.mode = mode
-        self.i2t_time_constant_s = float(i2t_time_constant_s)
-        self._ring = np.zeros((self.window_samples, n_wheels))
-        self._index = 0
-        self._sum = np.zeros(n_wheels)
-        self._i2 = np.zeros(n_wheels)  # filtered i^2 in 'i2t' mode
-        self.pwm_limit = np.ones(n_wheels)
-        self._at_full = True
-        self.over_limit = np.zeros(n_wheels, dtype=bool)
+        shape = (n_robots, n_wheels)
+        # the boxcar: window_samples x wheels per robot (the one big array; none in 'i2t' mode)
+        self._ring = np.zeros((n_robots, 0 if mode == "i2t" else self.window_samples, n_wheels))
+        self._ring_index = np.zeros(n_robots, dtype=np.int64)
+        self._sum = np.zeros(shape)
+        self._i2 = np.zeros(shape)  # filtered i^2 in 'i2t' mode
+        self.pwm_limits = np.ones(shape)
+        self._at_full = np.ones(n_robots, dtype=np.bool_)
+        self.over_limits = np.zeros(shape, dtype=np.bool_)
+        self.params = (float(current_limit_a), self.window_samples, float(pwm_decrement), float(recovery_rate_per_s),
+                       mode == "i2t", 1.0 - math.exp(-loop_period_s / i2t_time_constant_s), float(loop_period_s))
+        self.state = (self._ring, self._ring_index, self._sum, self._i2, self.pwm_limits, self._at_full,
+                      self.over_limits)
+        self._update = compiled_for(thermal_update, 0, self.params, self.state, np.zeros(n_wheels),
+                                    np.zeros(n_wheels))
+
+    @property
+    def pwm_limit(self) -> np.ndarray:
+        return self.pwm_limits[0]
+
+    @property
+    def over_limit(self) -> np.ndarray:
+        return self.over_limits[0]
+
+    def average_currents_a(self) -> np.ndarray:
+        """Per robot and wheel: the boxcar mean of |i| over the window ('average'), or sqrt of the filtered i^2."""
+        return np.sqrt(self._i2) if self.mode == "i2t" else self._sum / self.window_samples
 
     @property
     def average_current_a(self) -> np.ndarray:
-        """Boxcar mean of |i| over the window ('average'), or sqrt of the filtered i^2 ('i2t')."""
-        if self.mode == "i2t":
-            return np.sqrt(self._i2)
-        return self._sum / self.window_samples
+        return self.average_currents_a()[0]
 
     def update(self, measured_current_a, last_duty) -> np.ndarray:
         """Feed one loop sample; returns the PWM limit in [0, 1] for this loop run (a view, do not keep)."""
-        dt_s = self.loop_period_s
-        a = np.abs(measured_current_a)
-        if self.mode == "average":
-            k = self._index
-            self._sum += a - self._ring[k]
-            self._ring[k] = a
-            k += 1
-            if k == self.window_samples:
-                k = 0
-                self._sum = self._ring.sum(axis=0)  # drop accumulated rounding once per window
-            self._index = k
-            over = self._sum / self.window_samples > self.current_limit_a
-        else:
-            self._i2 += (1.0 - math.exp(-dt_s / self.i2t_time_constant_s)) * (a * a - self._i2)
-            over = self._i2 > self.current_limit_a * self.current_limit_a
-        self.over_limit = over
-        if over.any():
-            lowered = np.maximum(np.abs(last_duty) - self.pwm_decrement, 0.0)
-            raised = np.minimum(self.pwm_limit + self.recovery_rate_per_s * dt_s, 1.0)
-            self.pwm_limit = np.where(over, lowered, raised)
-            self._at_full = False
-        elif not self._at_full:  # skipped in the common case: nothing to raise
-            self.pwm_limit = np.minimum(self.pwm_limit + self.recovery_rate_per_s * dt_s, 1.0)
-            self._at_full = bool((self.pwm_limit >= 1.0).all())
-        return self.pwm_limit
+        self._update(0, self.params, self.state, np.ascontiguousarray(np.abs(measured_current_a), dtype=float),
+                     np.ascontiguousarray(last_duty, dtype=float))
+        return self.pwm_limits[0]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def thermal_update(k, prm, st, current, last_duty):
+    """ThermalCurrentLimiter's update for robot k: one loop sample of the wheels' currents [A]."""
+    limit_a, window_n, pwm_dec, recovery, i2t_mode, i2t_alpha, dt = prm
+    ring, ring_index, ring_sum, i2, pwm_limit, at_full, over = st
+    n = current.shape[0]
+    any_over = False
+    if i2t_mode:
+        for i in range(n):
+            i2[k, i] += i2t_alpha * (current[i] * current[i] - i2[k, i])
+            over[k, i] = i2[k, i] > limit_a * limit_a
+            any_over = any_over or over[k, i]
+    else:
+        j = ring_index[k]
+        for i in range(n):
+            a = abs(current[i])
+            ring_sum[k, i] += a - ring[k, j, i]
+            ring[k, j, i] = a
+        j += 1
+        if j == window_n:  # drop accumulated rounding once per window
+            j = 0
+            for i in range(n):
+                s = 0.0
+                for q in range(window_n):
+                    s += ring[k, q, i]
+                ring_sum[k, i] = s
+        ring_index[k] = j
+        for i in range(n):
+            over[k, i] = ring_sum[k, i] / window_n > limit_a
+            any_over = any_over or over[k, i]
+    if any_over:
+        for i in range(n):
+            if over[k, i]:
+                pwm_limit[k, i] = max(abs(last_duty[i]) - pwm_dec, 0.0)
+            else:
+                pwm_limit[k, i] = min(pwm_limit[k, i] + recovery * dt, 1.0)
+        at_full[k] = False
+    elif not at_full[k]:  # skipped in the common case: nothing to raise
+        full = True
+        for i in range(n):
+            pwm_limit[k, i] = min(pwm_limit[k, i] + recovery * dt, 1.0)
+            full = full and pwm_limit[k, i] >= 1.0
+        at_full[k] = full
 
 
 @dataclass(frozen=True)
@@ -196,22 +239,25 @@ class MotorBoardStatus:
 
 
 class MotorBoard:
-    """Fig. 3 for all wheels of one robot: step(speed setpoints, speeds, currents, dt) -> PWM duties."""
+    """Fig. 3 for all wheels of a robot: step(speed setpoints, speeds, currents, dt) -> PWM duties.
+
+    Holds the state of ``n_robots`` robots (rows of ``duty``, ``desired_current_a``, ``current_command_a``,
+    ``thermal``) for ``motor_board_step``; ``step``, ``reset``, ``saturated`` and ``status`` act on robot 0.
+    """
 
     def __init__(self, config: MotorBoardConfig | None = None, robot: RobotConfig | None = None,
-                 n_wheels: int | None = None) -> None:
+                 n_wheels: int | None = None, n_robots: int = 1) -> None:
         self.config = c = config if config is not None else MotorBoardConfig()
         self.robot = r = robot if robot is not None else RobotConfig()
         n = self.n_wheels = n_wheels if n_wheels is not None else r.num_wheels
-        self._speed_pid = Pid(PidConfig(
+        speed = pid_tables(PidConfig(
             kp=c.speed_kp_a_per_radps, ki=c.speed_ki_a_per_rad, kd=c.speed_kd_as_per_rad,
             derivative_filter_tau_s=c.speed_derivative_tau_s,
             output_min=-c.peak_current_a, output_max=c.peak_current_a,
             anti_windup=c.anti_windup, n_channels=n,
         ))
-        self._current_pid = Pid(PidConfig(
-            kp=c.current_kp, ki=c.current_ki_per_s, anti_windup=c.anti_windup, n_channels=n,
-        ))
+        current = pid_tables(PidConfig(kp=c.current_kp, ki=c.current_ki_per_s, anti_windup=c.anti_windup,
+                                       n_channels=n))
         self.thermal = ThermalCurrentLimiter(
             n,
             c.average_current_limit_a if c.average_current_limit_a is not None else r.continuous_current_limit_a,
@@ -222,20 +268,28 @@ class MotorBoard:
             mode=c.thermal_mode,
             i2t_time_constant_s=(c.i2t_time_constant_s if c.i2t_time_constant_s is not None
                                  else r.winding_thermal_time_constant_s),
+            n_robots=n_robots,
         )
         self._inverse = c.actuator_mode == "inverse_model"
         self._k_lin = c.linear_duty_per_a if c.linear_duty_per_a is not None else (
             r.motor_resistance_ohm / r.supply_voltage_v)
         self._r_over_v = r.motor_resistance_ohm / r.supply_voltage_v
-        self._v_over_r = r.supply_voltage_v / r.motor_resistance_ohm
         # back-EMF voltage per wheel rad/s, as a duty fraction
         self._emf_duty_per_radps = r.motor_torque_constant_nm_per_a * r.gear_ratio / r.supply_voltage_v
-        self._duty = np.zeros(n)
-        self._i_des = np.zeros(n)
-        self._i_cmd = np.zeros(n)
+        actuator = (self._inverse, float(self._k_lin), self._r_over_v,
+                    r.supply_voltage_v / r.motor_resistance_ohm, self._emf_duty_per_radps)
+        shape = (n_robots, n)
+        self.duty, self.desired_current_a, self.current_command_a = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+        self.speed_pid, self.current_pid = PidState(n_robots, n), PidState(n_robots, n)
+        state = (self.duty, self.desired_current_a, self.current_command_a, self.speed_pid.arrays(),
+                 self.current_pid.arrays())
+        work = (np.zeros((5, n)), np.zeros(n, dtype=np.bool_))  # scratch rows; an integrator hold that is never set
+        self.args = (speed, current, self.thermal.params, self.thermal.state, actuator, state, work)
+        self._step = compiled_for(motor_board_step, 0, self.args, np.zeros(n), np.zeros(n), np.zeros(n), 1.0)
+        self._reset = compiled_for(motor_board_reset, 0, self.args)
 
     def actuator(self, current_command_a, wheel_speed_radps) -> np.ndarray:
-        """Desired current -> unclipped PWM duty, in the configured mode."""
+        """Desired current -> unclipped PWM duty, in the configured mode (as ``motor_board_step`` maps it)."""
         if self._inverse:
             return self._r_over_v * np.asarray(current_command_a) + self._emf_duty_per_radps * np.asarray(
                 wheel_speed_radps)
@@ -246,58 +300,85 @@ class MotorBoard:
         if not (0.0 < dt_s < math.inf):
             raise ValueError(f"dt_s: must be finite and > 0, got {dt_s!r}")
         n = self.n_wheels
-        sp = np.asarray(speed_setpoint_radps, dtype=float)
-        w = np.asarray(measured_speed_radps, dtype=float)
-        i_meas = np.asarray(measured_current_a, dtype=float)
+        sp = np.ascontiguousarray(speed_setpoint_radps, dtype=float)
+        w = np.ascontiguousarray(measured_speed_radps, dtype=float)
+        i_meas = np.ascontiguousarray(measured_current_a, dtype=float)
         if sp.shape != (n,) or w.shape != (n,) or i_meas.shape != (n,):
             raise ValueError(
                 f"need {n} values each, got shapes {sp.shape}, {w.shape}, {i_meas.shape}")
-        # Finite checks before any state changes: the current here, setpoint and speed inside
-        # the speed PID (which raises before it changes its state).
         if not np.isfinite(i_meas).all():
             raise ValueError(f"measured_current_a: must be finite, got {i_meas!r}")
-        i_des = self._speed_pid.step(sp, w, dt_s)
-        limit = self.thermal.update(i_meas, self._duty)
-        if self._inverse:
-            emf = self._emf_duty_per_radps * w
-            i_hi = (limit - emf) * self._v_over_r
-            i_lo = (-limit - emf) * self._v_over_r
-        else:
-            i_hi = limit / self._k_lin
-            i_lo = -i_hi
-        i_cmd = self._current_pid.step(i_des, i_meas, dt_s, i_des, i_lo, i_hi)
-        if self._inverse:
-            duty = self._r_over_v * i_cmd + emf
-        else:
-            duty = self._k_lin * i_cmd
-        np.clip(duty, -limit, limit, out=duty)  # only rounding can leave the range here
-        self._duty = duty
-        self._i_des = i_des
-        self._i_cmd = i_cmd
-        return duty.copy()
+        if not self._step(0, self.args, sp, w, i_meas, float(dt_s)):
+            raise ValueError(f"speed setpoint and measured speed must be finite, got {sp!r} and {w!r}")
+        return self.duty[0].copy()
 
     def reset(self) -> None:
         """Controllers back to rest (the thermal history is kept: the motor is still warm)."""
-        self._speed_pid.reset()
-        self._current_pid.reset()
-        self._duty = np.zeros(self.n_wheels)
-        self._i_des = np.zeros(self.n_wheels)
-        self._i_cmd = np.zeros(self.n_wheels)
+        self._reset(0, self.args)
+
+    def saturated_rows(self) -> np.ndarray:
+        """Per robot and wheel: speed loop at +-peak current, or duty at the PWM limit (feed to the velocity loop)."""
+        return (self.speed_pid.v != self.speed_pid.u) | (np.abs(self.duty) >= self.thermal.pwm_limits - 1e-12)
 
     @property
     def saturated(self) -> np.ndarray:
-        """Per wheel: speed loop at +-peak current, or duty at the PWM limit (feed to the velocity loop)."""
-        return self._speed_pid.saturated | (np.abs(self._duty) >= self.thermal.pwm_limit - 1e-12)
+        """``saturated_rows`` of robot 0."""
+        return self.saturated_rows()[0]
 
     @property
     def status(self) -> MotorBoardStatus:
         limit = self.thermal.pwm_limit.copy()
         return MotorBoardStatus(
-            duty=self._duty.copy(),
-            desired_current_a=self._i_des.copy(),
-            current_command_a=self._i_cmd.copy(),
+            duty=self.duty[0].copy(),
+            desired_current_a=self.desired_current_a[0].copy(),
+            current_command_a=self.current_command_a[0].copy(),
             pwm_limit=limit,
             average_current_a=self.thermal.average_current_a,
             saturated=self.saturated,
             limit_active=limit < 1.0,
         )
+
+
+@numba.njit(cache=True, error_model="numpy")
+def motor_board_step(k, args, sp, w, current, dt):
+    """MotorBoard's step for robot k: wheel speed setpoints, speeds w and currents -> duty[k].
+
+    Returns False, changing nothing, when the speed loop's inputs are not finite."""
+    speed, cur_pid, thermal_prm, thermal, (inverse, k_lin, r_over_v, v_over_r, emf_k), state, work = args
+    duty, i_des, i_cmd, spid, cpid = state
+    zero, i_lo, i_hi, emf, out = work[0][0], work[0][1], work[0][2], work[0][3], work[0][4]
+    if not pid_step(k, speed[0], speed[1], spid, sp, w, dt, zero, speed[0][3], speed[0][4], work[1], out):
+        return False
+    n = w.shape[0]
+    for i in range(n):
+        i_des[k, i] = out[i]
+    thermal_update(k, thermal_prm, thermal, current, duty[k])
+    pwm_limit = thermal[4]
+    for i in range(n):  # the current loop's output limits are the currents the actuator maps onto +-limit
+        lim = pwm_limit[k, i]
+        if inverse:
+            emf[i] = emf_k * w[i]
+            i_hi[i] = (lim - emf[i]) * v_over_r
+            i_lo[i] = (-lim - emf[i]) * v_over_r
+        else:
+            i_hi[i] = lim / k_lin
+            i_lo[i] = -i_hi[i]
+    pid_step(k, cur_pid[0], cur_pid[1], cpid, i_des[k], current, dt, i_des[k], i_lo, i_hi, work[1], out)
+    for i in range(n):
+        i_cmd[k, i] = out[i]
+        d = r_over_v * out[i] + emf[i] if inverse else k_lin * out[i]
+        lim = pwm_limit[k, i]
+        duty[k, i] = min(max(d, -lim), lim)  # only rounding can leave the range here
+    return True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def motor_board_reset(k, args):
+    """MotorBoard's reset of robot k: controllers and outputs to rest, the thermal history kept."""
+    speed, cur_pid, state, zero = args[0], args[1], args[5], args[6][0][0]
+    duty, i_des, i_cmd, spid, cpid = state
+    pid_reset(k, speed[0], speed[1], spid, zero, zero, zero, zero, False, False)
+    pid_reset(k, cur_pid[0], cur_pid[1], cpid, zero, zero, zero, zero, False, False)
+    duty[k, :] = 0.0
+    i_des[k, :] = 0.0
+    i_cmd[k, :] = 0.0

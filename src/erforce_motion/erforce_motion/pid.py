@@ -21,6 +21,10 @@ then the integrator is advanced for the next step (forward Euler, as in Astrom &
 so with kp=2, ki=1, dt=0.1 and a constant error 1 the outputs are 2.0, 2.1, 2.2, ...
 The integrator state I is kept in output units, which makes `reset` bumpless.
 The deadband is the continuous (shifted) kind: e = sign(e_raw) * max(|e_raw| - deadband, 0).
+
+The update is written once, in the compiled ``pid_step``, for row k of a (robots, channels) state:
+the velocity loop, the motor boards and the team firmware call it for their robots, and ``Pid``
+is that same kernel for one row.
 """
 
 from __future__ import annotations
@@ -30,6 +34,8 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+
+from erforce_interfaces.numba_support import compiled_for, numba
 
 AntiWindup = Literal["clamp", "back_calculation"]
 ANTI_WINDUP_MODES = ("clamp", "back_calculation")
@@ -125,32 +131,124 @@ class PidStatus:
         return self.saturated_high | self.saturated_low
 
 
+# flags of a PID table (``pid_tables``): deadband, derivative, integral, back-calculation, integrator limits
+_F_DB, _F_D, _F_I, _F_BACK, _F_ILIM = range(5)
+
+
+def pid_tables(config: PidConfig) -> tuple[np.ndarray, np.ndarray]:
+    """A PidConfig as (10, channels) parameters (kp, ki, kd, output min/max, integrator min/max, kt, tau_d,
+    deadband) and the feature flags: the hot loops skip the arithmetic of features that are off."""
+    a = config.arrays()
+    params = np.vstack([a["kp"], a["ki"], a["kd"], a["output_min"], a["output_max"], a["integrator_min"],
+                        a["integrator_max"], a["tracking_gain_kt"], a["derivative_filter_tau_s"], a["deadband"]])
+    flags = np.array([
+        (a["deadband"] > 0.0).any(), (a["kd"] > 0.0).any(), (a["ki"] > 0.0).any(),
+        config.anti_windup == "back_calculation",
+        np.isfinite(a["integrator_min"]).any() or np.isfinite(a["integrator_max"]).any(),
+    ], dtype=np.bool_)
+    return np.ascontiguousarray(params), flags
+
+
+class PidState:
+    """The state of one PID for ``n_rows`` robots: integrator, derivative filter, previous measurement, and the
+    last step's output u, unsaturated output v and terms p, i, d (for status and saturation flags)."""
+
+    def __init__(self, n_rows: int, n_channels: int) -> None:
+        shape = (n_rows, n_channels)
+        self.integrator = np.zeros(shape)
+        self.d_filtered = np.zeros(shape)
+        self.y_prev = np.zeros(shape)
+        self.have_y_prev = np.zeros(n_rows, dtype=np.bool_)
+        self.u, self.v = np.zeros(shape), np.zeros(shape)
+        self.p, self.i, self.d = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        return self.integrator, self.d_filtered, self.y_prev, self.have_y_prev, self.u, self.v, self.p, self.i, self.d
+
+
+@numba.njit(cache=True, error_model="numpy")
+def pid_step(k, prm, flags, st, sp, y, dt, ff, lo, hi, hold, out):
+    """One step of row k (the module docstring's equations), channel by channel; writes u into out.
+
+    prm, flags: ``pid_tables``; st: ``PidState.arrays()``; sp, y, ff, lo, hi: per-channel inputs;
+    hold: per-channel flags that freeze the integrator. Returns False, at the first channel whose
+    unsaturated output is not finite (that channel's state unchanged)."""
+    integ, dfilt, yprev, have_y, last_u, last_v, last_p, last_i, last_d = st
+    use_db, use_d, use_i, back, ilim = flags[0], flags[1], flags[2], flags[3], flags[4]
+    for c in range(out.shape[0]):
+        e = sp[c] - y[c]
+        if use_db:
+            e = np.sign(e) * max(abs(e) - prm[9, c], 0.0)
+        p = prm[0, c] * e
+        i_now = integ[k, c]
+        if use_d:
+            df = dfilt[k, c]
+            if have_y[k]:
+                df = df + (dt / (prm[8, c] + dt)) * ((yprev[k, c] - y[c]) / dt - df)
+            d = prm[2, c] * df
+            v = p + i_now + d + ff[c]
+        else:
+            df = d = 0.0
+            v = p + i_now + ff[c]
+        if not math.isfinite(v):
+            return False
+        u = min(max(v, lo[c]), hi[c])
+        if use_i and not hold[c]:
+            inc = (prm[1, c] * dt) * e
+            if back:
+                new_i = i_now + inc + (prm[7, c] * dt) * (u - v)
+            else:
+                if v != u and (v - u) * inc > 0.0:  # conditional integration: not further into saturation
+                    inc = 0.0
+                new_i = i_now + inc
+            if ilim:
+                new_i = min(max(new_i, prm[5, c]), prm[6, c])
+            integ[k, c] = new_i
+        if use_d:
+            dfilt[k, c] = df
+            yprev[k, c] = y[c]
+        last_u[k, c] = u
+        last_v[k, c] = v
+        last_p[k, c] = p
+        last_i[k, c] = i_now
+        last_d[k, c] = d
+        out[c] = u
+    if use_d:
+        have_y[k] = True
+    return True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def pid_reset(k, prm, flags, st, hold, ff, y, sp, with_measurement, with_setpoint):
+    """Bumpless reset of row k: the next step with the same inputs outputs ``hold`` (see ``Pid.reset``)."""
+    integ, dfilt, yprev, have_y = st[0], st[1], st[2], st[3]
+    for c in range(hold.shape[0]):
+        p = 0.0
+        if with_measurement and with_setpoint:
+            e = sp[c] - y[c]
+            if flags[_F_DB]:
+                e = np.sign(e) * max(abs(e) - prm[9, c], 0.0)
+            p = prm[0, c] * e
+        if with_measurement:
+            yprev[k, c] = y[c]
+        integ[k, c] = min(max(hold[c] - p - ff[c], prm[5, c]), prm[6, c])
+        dfilt[k, c] = 0.0
+    have_y[k] = with_measurement
+
+
 class Pid:
-    """Vectorized discrete PID; see the module docstring for the exact update equations."""
+    """Discrete PID on n channels (one row of ``pid_step``); see the module docstring for the equations."""
 
     def __init__(self, config: PidConfig) -> None:
         self.config = config
-        a = config.arrays()
-        self._n = config.n_channels
-        self._kp, self._ki, self._kd = a["kp"], a["ki"], a["kd"]
-        self._out_lo, self._out_hi = a["output_min"], a["output_max"]
-        self._int_lo, self._int_hi = a["integrator_min"], a["integrator_max"]
-        self._kt = a["tracking_gain_kt"]
-        self._tau_d = a["derivative_filter_tau_s"]
-        self._deadband = a["deadband"]
-        # Skip the arithmetic of features that are switched off: the hot loops run at 1 kHz.
-        self._use_deadband = bool((self._deadband > 0.0).any())
-        self._use_d = bool((self._kd > 0.0).any())
-        self._use_i = bool((self._ki > 0.0).any())
-        self._back_calc = config.anti_windup == "back_calculation"
-        self._limit_integrator = bool(np.isfinite(self._int_lo).any() or np.isfinite(self._int_hi).any())
-        self._integrator = np.zeros(self._n)
-        self._d_filtered = np.zeros(self._n)
-        self._y_prev = np.zeros(self._n)
-        self._have_y_prev = False
-        zeros = np.zeros(self._n)
-        self._last = (zeros, zeros, zeros, zeros, zeros)  # u, v, p, i, d
-        self._e = np.zeros(self._n)
+        self._n = n = config.n_channels
+        self._prm, self._flags = pid_tables(config)
+        self._state = PidState(1, n)
+        self._st = self._state.arrays()
+        self._hold = np.zeros(n, dtype=np.bool_)
+        self._out = np.zeros(n)
+        self._step = compiled_for(pid_step, 0, self._prm, self._flags, self._st, self._out, self._out, 1.0,
+                                  self._out, self._out, self._out, self._hold, self._out)
 
     @property
     def n_channels(self) -> int:
@@ -158,20 +256,13 @@ class Pid:
 
     @property
     def integrator(self) -> np.ndarray:
-        return self._integrator.copy()
+        return self._state.integrator[0].copy()
 
-    def _error(self, setpoint, measurement) -> np.ndarray:
-        e = self._e
+    def _channels(self, value, name: str) -> np.ndarray:
         try:
-            np.subtract(setpoint, measurement, out=e)
-        except (ValueError, TypeError) as exc:
-            raise ValueError(
-                f"setpoint/measurement: need scalars or {self._n} values, got shapes "
-                f"{np.shape(setpoint)} and {np.shape(measurement)}"
-            ) from exc
-        if self._use_deadband:
-            e = np.sign(e) * np.maximum(np.abs(e) - self._deadband, 0.0)
-        return e
+            return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=float), (self._n,)))
+        except ValueError as exc:
+            raise ValueError(f"{name}: need scalars or {self._n} values, got shape {np.shape(value)}") from exc
 
     def step(self, setpoint, measurement, dt_s: float, feedforward=0.0, output_min=None, output_max=None,
              hold_integrator=False):
@@ -186,50 +277,23 @@ class Pid:
         """
         if not (0.0 < dt_s < math.inf):
             raise ValueError(f"dt_s: must be finite and > 0, got {dt_s!r}")
-        e = self._error(setpoint, measurement)
-        p = self._kp * e
-        y = measurement
-        if self._use_d:
-            if self._have_y_prev:
-                raw = (self._y_prev - y) / dt_s
-                d_filt = self._d_filtered + (dt_s / (self._tau_d + dt_s)) * (raw - self._d_filtered)
-            else:
-                d_filt = self._d_filtered
-            d = self._kd * d_filt
-            v = p + self._integrator + d + feedforward
-        else:
-            d_filt = d = None
-            v = p + self._integrator + feedforward
-        if not np.isfinite(v).all():
+        if np.shape(setpoint) != np.shape(measurement) and np.ndim(setpoint) and np.ndim(measurement):
+            raise ValueError(f"setpoint/measurement: need scalars or {self._n} values, got shapes "
+                             f"{np.shape(setpoint)} and {np.shape(measurement)}")
+        sp = self._channels(setpoint, "setpoint/measurement")
+        y = self._channels(measurement, "setpoint/measurement")
+        ff = self._channels(feedforward, "feedforward")
+        lo = self._prm[3] if output_min is None else self._channels(output_min, "output_min")
+        hi = self._prm[4] if output_max is None else self._channels(output_max, "output_max")
+        hold = self._hold
+        hold[:] = hold_integrator
+        out = np.empty(self._n)
+        before = [a.copy() for a in self._st]  # a failing channel leaves the others stepped: undo them
+        if not self._step(0, self._prm, self._flags, self._st, sp, y, float(dt_s), ff, lo, hi, hold, out):
+            for a, b in zip(self._st, before, strict=True):
+                a[:] = b
             raise ValueError("PID: non-finite setpoint, measurement, feedforward or output")
-        lo = self._out_lo if output_min is None else output_min
-        hi = self._out_hi if output_max is None else output_max
-        u = np.minimum(np.maximum(v, lo), hi)
-
-        i_used = self._integrator
-        if self._use_i and hold_integrator is not True:
-            inc = (self._ki * dt_s) * e
-            if hold_integrator is not False:
-                inc = np.where(hold_integrator, 0.0, inc)
-            if self._back_calc:
-                track = (self._kt * dt_s) * (u - v)
-                if hold_integrator is not False:
-                    track = np.where(hold_integrator, 0.0, track)
-                new_i = self._integrator + inc + track
-            else:
-                sat = v != u
-                if sat.any():  # conditional integration: no step that pushes further into saturation
-                    inc = np.where(sat & ((v - u) * inc > 0.0), 0.0, inc)
-                new_i = self._integrator + inc
-            if self._limit_integrator:
-                np.clip(new_i, self._int_lo, self._int_hi, out=new_i)
-            self._integrator = new_i
-        if self._use_d:
-            self._d_filtered = d_filt
-            self._y_prev[:] = y
-            self._have_y_prev = True
-        self._last = (u, v, p, i_used, d)
-        return u
+        return out
 
     def reset(self, output_hold=0.0, measurement=None, setpoint=None, feedforward=0.0) -> None:
         """Bumpless reset: the next step with the same setpoint, measurement and feedforward
@@ -237,43 +301,26 @@ class Pid:
 
         setpoint None means "no error", measurement None forgets the derivative history.
         """
-        hold = _channel_values(output_hold, self._n, "output_hold")
-        ff = _channel_values(feedforward, self._n, "feedforward")
-        if not (np.isfinite(hold).all() and np.isfinite(ff).all()):
+        values = [_channel_values(output_hold, self._n, "output_hold"),
+                  _channel_values(feedforward, self._n, "feedforward")]
+        if not (np.isfinite(values[0]).all() and np.isfinite(values[1]).all()):
             raise ValueError("reset: output_hold and feedforward must be finite")
-        p = np.zeros(self._n)
-        if measurement is not None:
-            y = _channel_values(measurement, self._n, "measurement")
-            if not np.isfinite(y).all():
-                raise ValueError("reset: measurement must be finite")
-            if setpoint is not None:
-                sp = _channel_values(setpoint, self._n, "setpoint")
-                if not np.isfinite(sp).all():
-                    raise ValueError("reset: setpoint must be finite")
-                p = self._kp * self._error(sp, y)
-            self._y_prev[:] = y
-            self._have_y_prev = True
-        else:
-            self._have_y_prev = False
-        self._integrator = np.clip(hold - p - ff, self._int_lo, self._int_hi)
-        self._d_filtered = np.zeros(self._n)
+        for name, given in (("measurement", measurement), ("setpoint", setpoint)):
+            arr = _channel_values(given if given is not None else 0.0, self._n, name)
+            if not np.isfinite(arr).all():
+                raise ValueError(f"reset: {name} must be finite")
+            values.append(arr)
+        pid_reset(0, self._prm, self._flags, self._st, *values, measurement is not None,
+                  measurement is not None and setpoint is not None)
 
     @property
     def saturated(self) -> np.ndarray:
         """Per channel: was the last output clipped by the output limits (cheaper than `status`)."""
-        u, v = self._last[0], self._last[1]
-        return (v != u) | np.zeros(self._n, dtype=bool)  # a fresh (n,) array; broadcast_to costs more here
+        return self._state.v[0] != self._state.u[0]
 
     @property
     def status(self) -> PidStatus:
-        u, v, p, i, d = self._last
-        n = self._n
-        return PidStatus(
-            output=np.broadcast_to(u, (n,)).copy(),
-            unsaturated_output=np.broadcast_to(v, (n,)).copy(),
-            saturated_high=np.broadcast_to(v > u, (n,)).copy(),
-            saturated_low=np.broadcast_to(v < u, (n,)).copy(),
-            p_term=np.broadcast_to(p, (n,)).copy(),
-            i_term=np.broadcast_to(i, (n,)).copy(),
-            d_term=np.zeros(n) if d is None else np.broadcast_to(d, (n,)).copy(),
-        )
+        s = self._state
+        u, v = s.u[0].copy(), s.v[0].copy()
+        return PidStatus(output=u, unsaturated_output=v, saturated_high=v > u, saturated_low=v < u,
+                         p_term=s.p[0].copy(), i_term=s.i[0].copy(), d_term=s.d[0].copy())

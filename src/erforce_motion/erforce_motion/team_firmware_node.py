@@ -3,7 +3,7 @@
 The same contract as a ``velocity_controller`` plus a ``motor_boards`` per robot: per robot in
 ``robot_ids`` it takes ``cmd_vel`` and ``wheel_states`` and answers each tick with ``motor_duty`` (and
 ``motor_status`` at its rate). Inside, the main board's setpoint reaches the motor boards one tick later
-without DDS, as the in-process runner steps the same cores (team_cores.TeamFirmware, one call per tick),
+without DDS, as the in-process runner steps the same cores (firmware.TeamFirmware, one call per tick),
 so the lockstep graph computes the same trajectory in either deployment. ``wheel_setpoints`` only with
 ``publish_setpoints`` (tools).
 
@@ -50,7 +50,7 @@ from erforce_interfaces.node_support import (
 from erforce_interfaces.param_schema import HostSchema, load_schema
 from erforce_interfaces.stamps import StampFilter, StampVerdict
 from erforce_motion import motor_boards_node, velocity_controller_node
-from erforce_motion.team_cores import TeamFirmware
+from erforce_motion.firmware import TeamFirmware
 
 MAIN_PREFIX, MOTOR_PREFIX = "main_board.", "motor_boards."
 _CLOCK_SAMPLE_TICKS = 10  # team_firmware takes /clock (only its logs' time) once per this many team ticks
@@ -80,7 +80,7 @@ def build_loops(config) -> tuple[list[tuple[contract.Team, int]], TeamFirmware]:
     main = velocity_controller_node.build_loop(hosted[MAIN_PREFIX])
     motor = motor_boards_node.build_loop(hosted[MOTOR_PREFIX])
     return robots, TeamFirmware(len(robots), main.robot, main.controller.config, motor.board.config, main.loop_period_s,
-                             motor.loop_period_s, main.watchdog.timeout_s, motor.setpoint_timeout_s)
+                             motor.loop_period_s, main.command_timeout_s, motor.setpoint_timeout_s)
 
 
 class _Robot:

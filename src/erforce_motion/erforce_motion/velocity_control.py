@@ -9,7 +9,9 @@
 `feedforward_enabled=False` is the paper's current design (the PID alone produces the
 commanded velocity, so it needs its integral); `True` is the paper's "next step": the
 shaped setpoint is passed through and the PID only corrects.
-`CommandWatchdog` is the pure logic that stops the robot when commands stop arriving.
+The shaper and the loop are written once, as compiled kernels on row k of (robots, ...) arrays
+(``shape_step``, ``velocity_step``): ``SetpointShaper`` and ``VelocityController`` hold the state of
+``n_robots`` robots, and firmware.py's loops call the same kernels for one robot or a team.
 
 Two guards keep the loop honest on a plant with bounded traction (measured on the
 erforce_sim plant, test/sim/test_motion_on_sim*.py):
@@ -31,10 +33,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from erforce_interfaces.numba_support import compiled_for, numba
 from erforce_interfaces.param_schema import schema_defaults
 from erforce_interfaces.robot_config import RobotConfig
 from erforce_motion.kinematics import OmniKinematics
-from erforce_motion.pid import DEFAULT_ANTI_WINDUP, AntiWindup, Pid, PidConfig
+from erforce_motion.pid import DEFAULT_ANTI_WINDUP, AntiWindup, PidConfig, PidState, pid_reset, pid_step, pid_tables
 
 _DEFAULTS = schema_defaults("erforce_motion", "velocity_controller")
 
@@ -143,59 +146,64 @@ class SetpointShaper:
     kept) is then scaled down until no wheel's minimum-norm traction force exceeds the
     fraction of mu m g / n (see the module docstring). Centripetal forces of a robot that
     turns while translating are not included: they need no change of the body-frame setpoint.
+    ``twist`` holds the shaped twist of ``n_robots`` robots; ``step``, ``state`` and ``reset`` act on robot 0.
     """
 
-    def __init__(self, config: VelocityControlConfig, robot: RobotConfig | None = None) -> None:
-        self._v_max = config.max_speed_mps
-        self._a_max = config.max_accel_mps2
-        self._w_max = config.max_angular_speed_radps
-        self._aw_max = config.max_angular_accel_radps2
-        self._vx = self._vy = self._wz = 0.0
-        self._force_rows: tuple[tuple[float, float, float], ...] | None = None
-        self.wheel_force_limit_n = math.inf
-        if robot is not None and config.traction_limit_fraction is not None:
-            self._force_rows = tuple(tuple(float(x) for x in row) for row in wheel_force_per_accel(robot))
-            self.wheel_force_limit_n = (config.traction_limit_fraction * robot.traction_mu * robot.mass_kg
-                                        * GRAVITY_MPS2 / robot.num_wheels)
+    def __init__(self, config: VelocityControlConfig, robot: RobotConfig | None = None, n_robots: int = 1) -> None:
+        self.twist = np.zeros((n_robots, 3))
+        use_force = robot is not None and config.traction_limit_fraction is not None
+        self.force_rows = np.ascontiguousarray(wheel_force_per_accel(robot)) if use_force else np.zeros((0, 3))
+        self.wheel_force_limit_n = (config.traction_limit_fraction * robot.traction_mu * robot.mass_kg
+                                    * GRAVITY_MPS2 / robot.num_wheels) if use_force else math.inf
+        self.params = (float(config.max_speed_mps), float(config.max_accel_mps2),
+                       float(config.max_angular_speed_radps), float(config.max_angular_accel_radps2),
+                       float(self.wheel_force_limit_n))
+        self._step = compiled_for(shape_step, 0, self.params, self.force_rows, self.twist, 0.0, 0.0, 0.0, 1.0)
 
     @property
     def state(self) -> tuple[float, float, float]:
-        return (self._vx, self._vy, self._wz)
+        return tuple(self.twist[0].tolist())
 
     def reset(self, twist=(0.0, 0.0, 0.0)) -> None:
         vx, vy, wz = (float(v) for v in twist)
         if not all(math.isfinite(v) for v in (vx, vy, wz)):
             raise ValueError("reset twist must be finite")
-        self._vx, self._vy, self._wz = vx, vy, wz
+        self.twist[0] = (vx, vy, wz)
 
     def step(self, vx: float, vy: float, wz: float, dt_s: float) -> tuple[float, float, float]:
-        speed = math.hypot(vx, vy)
-        if speed > self._v_max:
-            k = self._v_max / speed
-            vx *= k
-            vy *= k
-        dx = vx - self._vx
-        dy = vy - self._vy
-        dv = math.hypot(dx, dy)
-        dv_max = self._a_max * dt_s
-        if dv > dv_max:
-            k = dv_max / dv
-            dx *= k
-            dy *= k
-        wz = min(max(wz, -self._w_max), self._w_max)
-        dw_max = self._aw_max * dt_s
-        dw = min(max(wz - self._wz, -dw_max), dw_max)
-        if self._force_rows is not None:
-            peak = max(abs(a * dx + b * dy + c * dw) for a, b, c in self._force_rows) / dt_s
-            if peak > self.wheel_force_limit_n:
-                k = self.wheel_force_limit_n / peak
-                dx *= k
-                dy *= k
-                dw *= k
-        self._vx += dx
-        self._vy += dy
-        self._wz += dw
-        return self._vx, self._vy, self._wz
+        self._step(0, self.params, self.force_rows, self.twist, float(vx), float(vy), float(wz), float(dt_s))
+        return self.state
+
+
+@numba.njit(cache=True, error_model="numpy")
+def shape_step(k, prm, force_rows, twist, vx, vy, wz, dt):
+    """SetpointShaper's step for robot k: moves twist[k] toward (vx, vy, wz) within the limits prm."""
+    v_max, a_max, w_max, aw_max, f_lim = prm
+    speed = math.hypot(vx, vy)
+    if speed > v_max:
+        vx *= v_max / speed
+        vy *= v_max / speed
+    dx, dy = vx - twist[k, 0], vy - twist[k, 1]
+    dv = math.hypot(dx, dy)
+    if dv > a_max * dt:
+        f = a_max * dt / dv
+        dx *= f
+        dy *= f
+    wz = min(max(wz, -w_max), w_max)
+    dw = min(max(wz - twist[k, 2], -aw_max * dt), aw_max * dt)
+    if force_rows.shape[0]:
+        peak = 0.0
+        for i in range(force_rows.shape[0]):
+            peak = max(peak, abs(force_rows[i, 0] * dx + force_rows[i, 1] * dy + force_rows[i, 2] * dw))
+        peak = peak / dt
+        if peak > f_lim:
+            f = f_lim / peak
+            dx *= f
+            dy *= f
+            dw *= f
+    twist[k, 0] += dx
+    twist[k, 1] += dy
+    twist[k, 2] += dw
 
 
 def wheel_force_per_accel(robot: RobotConfig) -> np.ndarray:
@@ -221,39 +229,48 @@ class VelocityControlStatus:
 
 
 class VelocityController:
-    """Fig. 2: desired robot twist + measured wheel speeds -> wheel speed setpoints [rad/s]."""
+    """Fig. 2: desired robot twist + measured wheel speeds -> wheel speed setpoints [rad/s].
 
-    def __init__(self, robot: RobotConfig | None = None, config: VelocityControlConfig | None = None) -> None:
-        self.robot = robot if robot is not None else RobotConfig()
-        self.config = config if config is not None else VelocityControlConfig()
-        top_mps = self.robot.top_wheel_speed_mps
-        if self.config.max_speed_mps > top_mps:
+    Holds the state of ``n_robots`` robots (rows of ``measured_twist``, ``shaped_twist``,
+    ``command_twist`` ...) for ``velocity_step``; ``step``, ``reset`` and ``status`` act on robot 0.
+    """
+
+    def __init__(self, robot: RobotConfig | None = None, config: VelocityControlConfig | None = None,
+                 n_robots: int = 1) -> None:
+        self.robot = robot = robot if robot is not None else RobotConfig()
+        self.config = c = config if config is not None else VelocityControlConfig()
+        top_mps = robot.top_wheel_speed_mps
+        if c.max_speed_mps > top_mps:
             raise ValueError(
-                f"max_speed_mps {self.config.max_speed_mps:g} m/s is out of the motors' reach with this robot: "
-                f"they turn a wheel at most {self.robot.wheel_no_load_speed_radps:.4g} rad/s, its rim "
-                f"(robot.wheel_radius_m {self.robot.wheel_radius_m:g} m) at {top_mps:.3g} m/s")
-        self.kinematics = OmniKinematics.from_robot_config(self.robot)
-        self._n = self.kinematics.num_wheels
-        self._j = np.array(self.kinematics.wheel_matrix)
-        self._f = np.array(self.kinematics.forward_matrix)
-        self._shaper = SetpointShaper(self.config, self.robot)
-        self._p_slip = np.array(self.kinematics.slip_projector)
-        self._slip_threshold = self.config.slip_hold_threshold_radps
-        self._slip = 0.0
-        self._held = False
-        self._pid = Pid(self.config.pid_config())
-        self._ff = self.config.feedforward_enabled
-        self._measured = np.zeros(3)
-        self._shaped = np.zeros(3)
-        self._command = np.zeros(3)
-        self._wheels = np.zeros(self._n)
+                f"max_speed_mps {c.max_speed_mps:g} m/s is out of the motors' reach with this robot: "
+                f"they turn a wheel at most {robot.wheel_no_load_speed_radps:.4g} rad/s, its rim "
+                f"(robot.wheel_radius_m {robot.wheel_radius_m:g} m) at {top_mps:.3g} m/s")
+        self.kinematics = kin = OmniKinematics.from_robot_config(robot)
+        self._n = kin.num_wheels
+        self.shaper = SetpointShaper(c, robot, n_robots)
+        self.pid_state = PidState(n_robots, 3)
+        self.measured_twist, self.shaped_twist = np.zeros((n_robots, 3)), np.zeros((n_robots, 3))
+        self.command_twist = np.zeros((n_robots, 3))  # PID output incl. feedforward
+        self.integrator_held = np.zeros(n_robots, dtype=np.bool_)
+        self.slip_residual_radps = np.zeros(n_robots)
+        prm, flags = pid_tables(c.pid_config())
+        use_slip = c.slip_hold_threshold_radps is not None
+        loop = (c.feedforward_enabled, float(c.slip_hold_threshold_radps or 0.0), use_slip)
+        matrices = tuple(np.ascontiguousarray(m) for m in (kin.wheel_matrix, kin.forward_matrix, kin.slip_projector))
+        state = (self.shaper.twist, self.pid_state.arrays(), self.measured_twist, self.shaped_twist,
+                 self.command_twist, self.integrator_held, self.slip_residual_radps)
+        work = (np.zeros((2, 3)), np.zeros(3, dtype=np.bool_))  # feedforward and output; integrator hold
+        self.args = (matrices, self.shaper.params, self.shaper.force_rows, loop, prm, flags, state, work)
+        self._step = compiled_for(velocity_step, 0, self.args, 0.0, 0.0, 0.0, np.zeros(self._n), 1.0, False,
+                                  np.zeros(self._n))
+        self._reset = compiled_for(velocity_reset, 0, self.args, np.zeros(self._n))
 
     @property
     def max_setpoint_radps(self) -> float:
         """The largest wheel speed setpoint ``step`` can return: the PID output limits through the wheel matrix."""
         limits = np.array([self.config.command_limit_mps, self.config.command_limit_mps,
                            self.config.command_limit_radps])
-        return float((np.abs(self._j) @ limits).max())
+        return float((np.abs(self.kinematics.wheel_matrix) @ limits).max())
 
     def step(self, desired_twist, measured_wheel_speeds_radps, dt_s: float, wheels_saturated=False) -> np.ndarray:
         """One control period; returns the wheel speed setpoints [rad/s] (new array, length n).
@@ -268,71 +285,87 @@ class VelocityController:
         vx, vy, wz = float(desired_twist[0]), float(desired_twist[1]), float(desired_twist[2])
         if not math.isfinite(vx + vy + wz):
             raise ValueError(f"desired_twist: must be finite, got {tuple(desired_twist)!r}")
-        w = np.asarray(measured_wheel_speeds_radps, dtype=float)
+        w = np.ascontiguousarray(measured_wheel_speeds_radps, dtype=float)
         if w.shape != (self._n,):
             raise ValueError(f"measured_wheel_speeds_radps: need {self._n} values, got shape {w.shape}")
-        np.dot(self._f, w, out=self._measured)  # NaN in w surfaces in the PID's finite check
-        shaped = self._shaper.step(vx, vy, wz, dt_s)
-        self._shaped[0], self._shaped[1], self._shaped[2] = shaped
-        hold = bool(np.any(wheels_saturated))
-        if self._slip_threshold is not None:
-            # slipping wheels: forward kinematics is not the body's motion, do not integrate it
-            self._slip = math.sqrt(float(np.sum(np.square(self._p_slip @ w))))
-            if self._slip > self._slip_threshold:
-                hold = True
-        self._held = hold
-        cmd = self._pid.step(self._shaped, self._measured, dt_s, self._shaped if self._ff else 0.0,
-                             hold_integrator=hold)
-        self._command = cmd
-        return self._j @ cmd
+        if not np.isfinite(w).all():
+            raise ValueError(f"measured_wheel_speeds_radps: must be finite, got {w!r}")
+        out = np.empty(self._n)
+        self._step(0, self.args, vx, vy, wz, w, float(dt_s), bool(np.any(wheels_saturated)), out)
+        return out
 
     def reset(self, measured_wheel_speeds_radps=None) -> None:
         """Bumpless (re)start from the measured motion (or from rest when None)."""
-        if measured_wheel_speeds_radps is None:
-            twist = np.zeros(3)
-        else:
-            twist = self.kinematics.forward(measured_wheel_speeds_radps)
-        self._shaper.reset(twist)
-        self._pid.reset(output_hold=twist, measurement=twist, setpoint=twist,
-                        feedforward=twist if self._ff else 0.0)
-        self._measured[:] = twist
-        self._shaped[:] = twist
-        self._command = twist.copy()
+        w = np.zeros(self._n) if measured_wheel_speeds_radps is None else np.ascontiguousarray(
+            measured_wheel_speeds_radps, dtype=float)
+        if w.shape != (self._n,) or not np.isfinite(w).all():
+            raise ValueError(f"measured_wheel_speeds_radps: need {self._n} finite values, got {w!r}")
+        self._reset(0, self.args, w)
 
     @property
     def status(self) -> VelocityControlStatus:
+        s = self.pid_state
         return VelocityControlStatus(
-            shaped_twist=self._shaped.copy(),
-            measured_twist=self._measured.copy(),
-            command_twist=np.array(self._command, dtype=float),
-            saturated=self._pid.status.saturated,
-            slip_residual_radps=self._slip,
-            integrator_held=self._held,
+            shaped_twist=self.shaped_twist[0].copy(),
+            measured_twist=self.measured_twist[0].copy(),
+            command_twist=self.command_twist[0].copy(),
+            saturated=s.v[0] != s.u[0],
+            slip_residual_radps=float(self.slip_residual_radps[0]),
+            integrator_held=bool(self.integrator_held[0]),
         )
 
 
-class CommandWatchdog:
-    """Stop when commands stop: `expired(now)` is True before the first command and once
-    more than `timeout_s` has passed since the last `feed(now)`. Time must not go backwards."""
+@numba.njit(cache=True, error_model="numpy")
+def velocity_step(k, args, vx, vy, wz, w, dt, hold, setpoints):
+    """VelocityController's step for robot k: desired twist and wheel speeds w -> setpoints [rad/s].
 
-    def __init__(self, timeout_s: float) -> None:
-        if not (math.isfinite(timeout_s) and timeout_s > 0.0):
-            raise ValueError(f"timeout_s: must be finite and > 0, got {timeout_s!r}")
-        self.timeout_s = float(timeout_s)
-        self._last_feed_s: float | None = None
-        self._latest_s = -math.inf
+    hold freezes the twist integrator (the motor boards are saturated); the slip hold adds to it."""
+    (jac, fwd, slip_proj), shaper_prm, force_rows, (ff_on, slip_thr, use_slip), prm, flags, state, work = args
+    shaper, pid, measured, shaped, command, held, slip = state
+    n = w.shape[0]
+    for a in range(3):
+        s = 0.0
+        for i in range(n):
+            s += fwd[a, i] * w[i]
+        measured[k, a] = s
+    shape_step(k, shaper_prm, force_rows, shaper, vx, vy, wz, dt)
+    if use_slip:  # slipping wheels: forward kinematics is not the body's motion, do not integrate it
+        sq = 0.0
+        for i in range(n):
+            r = 0.0
+            for j in range(n):
+                r += slip_proj[i, j] * w[j]
+            sq += r * r
+        slip[k] = math.sqrt(sq)
+        hold = hold or slip[k] > slip_thr
+    held[k] = hold
+    ff, cmd = work[0][0], work[0][1]
+    for a in range(3):
+        shaped[k, a] = shaper[k, a]
+        ff[a] = shaper[k, a] if ff_on else 0.0
+        work[1][a] = hold
+    pid_step(k, prm, flags, pid, shaped[k], measured[k], dt, ff, prm[3], prm[4], work[1], cmd)
+    for a in range(3):
+        command[k, a] = cmd[a]
+    for i in range(n):
+        s = 0.0
+        for a in range(3):
+            s += jac[i, a] * cmd[a]
+        setpoints[i] = s
 
-    def _check_time(self, now_s: float) -> None:
-        if not math.isfinite(now_s):
-            raise ValueError(f"now_s: must be finite, got {now_s!r}")
-        if now_s < self._latest_s:
-            raise ValueError(f"time went backwards: {now_s} < {self._latest_s}")
-        self._latest_s = now_s
 
-    def feed(self, now_s: float) -> None:
-        self._check_time(now_s)
-        self._last_feed_s = now_s
-
-    def expired(self, now_s: float) -> bool:
-        self._check_time(now_s)
-        return self._last_feed_s is None or now_s - self._last_feed_s > self.timeout_s
+@numba.njit(cache=True, error_model="numpy")
+def velocity_reset(k, args, w):
+    """VelocityController's bumpless restart of robot k from the motion of the wheel speeds w."""
+    _, fwd, _ = args[0]
+    ff_on, prm, flags = args[3][0], args[4], args[5]
+    shaper, pid, measured, shaped, command = args[6][:5]
+    twist, ff = args[7][0][0], args[7][0][1]
+    for a in range(3):
+        s = 0.0
+        for i in range(w.shape[0]):
+            s += fwd[a, i] * w[i]
+        twist[a] = s
+        ff[a] = s if ff_on else 0.0
+        shaper[k, a] = measured[k, a] = shaped[k, a] = command[k, a] = s
+    pid_reset(k, prm, flags, pid, twist, ff, twist, twist, True, True)

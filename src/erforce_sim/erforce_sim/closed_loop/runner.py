@@ -13,7 +13,7 @@ the same one-tick setpoint delay as the lockstep protocol (erforce_interfaces.lo
 
 so a lockstep DDS run and an in-process run with the same seed and commands give the
 same trajectory, without DDS: for sweeps, tuning and benchmarks. The firmware of all
-controlled robots is one erforce_motion.team_cores.TeamFirmware (the per-robot loops'
+controlled robots is one erforce_motion.firmware.TeamFirmware (the per-robot loops'
 numbers, one call per tick), and the world steps its robots together. No rclpy import.
 """
 
@@ -24,8 +24,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from erforce_interfaces.param_schema import schema_defaults
+from erforce_motion.firmware import TeamFirmware
 from erforce_motion.motor_board import MotorBoardConfig
-from erforce_motion.team_cores import TeamFirmware
 from erforce_motion.velocity_control import VelocityControlConfig
 from erforce_sim.sensors import VisionFrame
 from erforce_sim.world import PlantSetup, build_world
