@@ -182,9 +182,16 @@ class ChipDetector:
 
     @property
     def active(self) -> bool:
-        """Collecting the sightings of a kick that is not over yet (a chip still in the air, or being judged)."""
+        """Busy with a kick: judging its sightings, or its chip is still hopping (a new motion the flat filter sees
+        then is a bounce, not a kick)."""
         if self.t_start_s is None or not self._rows:
             return False
+        if self._chip is not None:
+            return self._rows[-1].t_s < self.fit.t_launch_s + self._chip.roll_start_s
+        return self._rows[-1].t_s - self.t_start_s <= self.config.window_s
+
+    def _judging(self) -> bool:
+        """Sightings still refine the kick: not judged a chip within ``window_s``, or in the chip's first flight."""
         if self._chip is not None:
             return self._rows[-1].t_s < self.fit.t_launch_s + self._chip.touchdown_times_s[0]
         return self._rows[-1].t_s - self.t_start_s <= self.config.window_s
@@ -197,7 +204,7 @@ class ChipDetector:
         self._rows.append(Sighting(float(t_s), float(x_m), float(y_m), *map(float, camera_m)))
         if self.t_start_s is None:  # no kick yet: keep a short history only
             self._rows = [r for r in self._rows if t_s - r.t_s <= self.config.window_s]
-        elif self.active:
+        elif self._judging():
             self._judge(t_s)
         return self.fit
 

@@ -264,8 +264,9 @@ def odometry_msg(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
 
 def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], child_frame_id: str = "",
                  frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
-                 position_variance_m2: float | None = None) -> bytes:
-    """``odometry_msg`` serialized (see the codec below), with the same checks."""
+                 position_variance_m2: float | None = None, z_m: float = 0.0, vz_mps: float = 0.0) -> bytes:
+    """``odometry_msg`` serialized (see the codec below), with the same checks; ``z_m`` and ``vz_mps`` go to
+    pose.position.z and twist.linear.z (/ball/state: a chipped ball's height and vertical speed)."""
     x, y, half = _finite("x", pose[0]), _finite("y", pose[1]), 0.5 * _finite("yaw", pose[2], 1.0e6)
     qz, qw = math.sin(half), math.cos(half)  # quaternion_from_yaw's, without a message object
     vx, vy = _finite("vx", velocity[0]), _finite("vy", velocity[1])
@@ -278,7 +279,27 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     stamp = _stamp_cdr(_seconds_to_ns(t_s))
     # pose (position, orientation), its 6x6 covariance, twist (linear, angular), its covariance
     return _CDR_LE + stamp + _strings_cdr((frame_id, child_frame_id)) + _odometry_doubles.pack(
-        x, y, 0.0, 0.0, 0.0, qz, qw, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy, 0.0, *angular, *_ZEROS)
+        x, y, _finite("z", z_m), 0.0, 0.0, qz, qw, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy,
+        _finite("vz", vz_mps), *angular, *_ZEROS)
+
+
+def odometry_height(msg: Odometry | bytes) -> tuple[float, float]:
+    """(pose.position.z [m], twist.linear.z [m/s]) of an Odometry or its bytes: on /ball/state a chipped ball's
+    height above its resting height and vertical speed (0, 0 on the ground)."""
+    if isinstance(msg, bytes | bytearray | memoryview):
+        data = bytes(msg)
+        try:
+            _, _, p = _header_cdr(data, "Odometry")
+            p += -p % 4  # child_frame_id
+            p += 4 + _u32.unpack_from(data, 4 + p)[0]
+            p += -p % 8
+            v = _odometry_doubles.unpack_from(data, 4 + p)
+        except struct.error as exc:
+            raise ConversionError(f"truncated Odometry ({exc})") from None
+        z, vz = v[2], v[45]
+    else:
+        z, vz = msg.pose.pose.position.z, msg.twist.twist.linear.z
+    return _finite("pose.position.z", z), _finite("twist.linear.z", vz)
 
 
 def odometry_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
@@ -1042,6 +1063,7 @@ class BallTrack(NamedTuple):
     seen_y_m: float
     phase: str  # one of BALL_PHASES
     uncertain: bool
+    z_m: float = 0.0  # height of a chipped ball in the air (as /ball/state)
 
 
 def ball_track_cdr(track: BallTrack, frame_id: str = FIELD_FRAME) -> bytes:
@@ -1053,7 +1075,7 @@ def ball_track_cdr(track: BallTrack, frame_id: str = FIELD_FRAME) -> bytes:
     values = [_finite(name, value) for name, value in zip(BALL_TRACK_FIELDS[3:8], track[3:8], strict=True)]
     return b"".join((_stamp_head(track.t_s), _frame_cdr(frame_id), struct.pack("<II", 1, 1), _TRACK_FIELDS_CDR,
                      struct.pack("<II10d", _TRACK_POINT_SIZE, _TRACK_POINT_SIZE, _finite("x", track.x_m),
-                                 _finite("y", track.y_m), 0.0, *values, phase, 1.0 if track.uncertain else 0.0),
+                                 _finite("y", track.y_m), _finite("z", track.z_m), *values, phase, 1.0 if track.uncertain else 0.0),
                      b"\x01"))
 
 
@@ -1086,7 +1108,7 @@ def ball_track_from_msg(msg: PointCloud2 | bytes) -> BallTrack:
     if phase not in _PHASE_INDEX.values() or uncertain not in (0.0, 1.0):
         raise ConversionError(f"phase {phase!r} (an index of BALL_PHASES) or uncertain {uncertain!r} (1/0) "
                               "out of range")
-    return BallTrack(t_s, x, y, vx, vy, v_shoot, seen_x, seen_y, BALL_PHASES[int(phase)], uncertain == 1.0)
+    return BallTrack(t_s, x, y, vx, vy, v_shoot, seen_x, seen_y, BALL_PHASES[int(phase)], uncertain == 1.0, z)
 
 
 # ------------------------------------------------------------ scalar & tables
