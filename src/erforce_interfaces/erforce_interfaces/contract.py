@@ -413,7 +413,8 @@ ROBOTS_TRACKED = Topic("/robots/tracked", Float64MultiArray, QOS_STATE, "ball_pr
 BALL_TRACK = Topic("/ball/track", PointCloud2, QOS_SENSOR, "ball_predictor (while subscribed)", "field_view, tools",
                    "the ball at one accepted vision frame, for observers, in one message: one point of fields "
                    "BALL_TRACK_FIELDS (float64, little endian, height 1, width 1): the filtered ball x, y, z [m] "
-                   "(z as /ball/state's) and vx_mps, vy_mps [m/s] in `field` (as /ball/state), v_shoot_mps (as /ball/v_shoot), "
+                   "(z as /ball/state's) and vx_mps, vy_mps [m/s] in `field` (as /ball/state), v_shoot_mps (as "
+                   "/ball/v_shoot), "
                    "the observation seen_x_m, seen_y_m [m] (the vision ball answered), phase (the index "
                    "of /ball/phase's value in BALL_PHASES) and uncertain (1/0, as /ball/uncertain); stamp = "
                    "that observation's; after the per-robot outputs")

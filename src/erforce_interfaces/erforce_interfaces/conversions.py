@@ -1075,7 +1075,8 @@ def ball_track_cdr(track: BallTrack, frame_id: str = FIELD_FRAME) -> bytes:
     values = [_finite(name, value) for name, value in zip(BALL_TRACK_FIELDS[3:8], track[3:8], strict=True)]
     return b"".join((_stamp_head(track.t_s), _frame_cdr(frame_id), struct.pack("<II", 1, 1), _TRACK_FIELDS_CDR,
                      struct.pack("<II10d", _TRACK_POINT_SIZE, _TRACK_POINT_SIZE, _finite("x", track.x_m),
-                                 _finite("y", track.y_m), _finite("z", track.z_m), *values, phase, 1.0 if track.uncertain else 0.0),
+                                 _finite("y", track.y_m), _finite("z", track.z_m), *values, phase,
+                                 1.0 if track.uncertain else 0.0),
                      b"\x01"))
 
 
