@@ -49,6 +49,11 @@ from erforce_ball_model.chip_model import ChipTrajectory
 __all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_ground"]
 
 
+# The launch point (the flat filter's ball before the kick, averaged over the frames it lay there) weighs as
+# this many sightings' standard errors in one: twice as sure as one sighting.
+ORIGIN_WEIGHT = 2.0
+
+
 @dataclass(frozen=True)
 class ChipDetectorConfig:
     """When a kick's sightings are a chip, and how long they are collected."""
@@ -110,8 +115,8 @@ def _system(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, fligh
     b = np.concatenate([bx, by])
     if origin_xy is not None:
         extra = np.zeros((2, a.shape[1]))
-        extra[0, 0] = extra[1, 1] = 1.0
-        a, b = np.vstack([a, extra]), np.concatenate([b, origin_xy])
+        extra[0, 0] = extra[1, 1] = ORIGIN_WEIGHT
+        a, b = np.vstack([a, extra]), np.concatenate([b, ORIGIN_WEIGHT * np.asarray(origin_xy, dtype=float)])
     return a, b
 
 

@@ -335,8 +335,9 @@ class BallPredictor:
                 self._fitted_shot = None
         ball = self._ball
         last_t = ball.t_s
-        held = ball._held
-        before = (ball.t_s, *ball.kf.state) if ball.initialized else None
+        held = before = None
+        if camera_m is not None:  # the chip detector's: the frame held back, the motion before this frame
+            held, before = ball._held, (ball.t_s, *ball.kf.state) if ball.initialized else None
         status = ball.update(t_s, x_m, y_m)
         if status == UpdateStatus.REJECTED_TIME:
             self._warn("ball_time", f"rejected vision/ball: stamp {t_s:.6f} s is not after the previous one "
