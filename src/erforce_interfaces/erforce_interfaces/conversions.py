@@ -287,15 +287,7 @@ def odometry_height(msg: Odometry | bytes) -> tuple[float, float]:
     """(pose.position.z [m], twist.linear.z [m/s]) of an Odometry or its bytes: on /ball/state a chipped ball's
     height above its resting height and vertical speed (0, 0 on the ground)."""
     if isinstance(msg, bytes | bytearray | memoryview):
-        data = bytes(msg)
-        try:
-            _, _, p = _header_cdr(data, "Odometry")
-            p += -p % 4  # child_frame_id
-            p += 4 + _u32.unpack_from(data, 4 + p)[0]
-            p += -p % 8
-            v = _odometry_doubles.unpack_from(data, 4 + p)
-        except struct.error as exc:
-            raise ConversionError(f"truncated Odometry ({exc})") from None
+        _, v = _odometry_values(bytes(msg))
         z, vz = v[2], v[45]
     else:
         z, vz = msg.pose.pose.position.z, msg.twist.twist.linear.z
@@ -319,28 +311,33 @@ def odometry_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndar
     return stamp_to_seconds(msg.header.stamp), pose, velocity, angular
 
 
-def _odometry_from_cdr(data: bytes) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
-    """odometry_from_msg of the bytes: the stamp, both frame strings, then the 85 doubles (odometry_cdr)."""
+def _odometry_values(data: bytes) -> tuple[float, tuple[float, ...]]:
+    """An Odometry's bytes: the stamp [s] and the 85 doubles after both frame strings (odometry_cdr's order)."""
     try:
         sec, nanosec, p = _header_cdr(data, "Odometry")
         p += -p % 4  # child_frame_id
         p += 4 + _u32.unpack_from(data, 4 + p)[0]
         p += -p % 8
-        v = _odometry_doubles.unpack_from(data, 4 + p)
+        return sec + nanosec * 1e-9, _odometry_doubles.unpack_from(data, 4 + p)
     except struct.error as exc:
         raise ConversionError(f"truncated Odometry ({exc})") from None
+
+
+def _odometry_from_cdr(data: bytes) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """odometry_from_msg of the bytes: the stamp, both frame strings, then the 85 doubles (odometry_cdr)."""
+    t_s, v = _odometry_values(data)
     x, y, qx, qy, qz, qw, vx, vy, wx, wy, wz = v[0], v[1], v[3], v[4], v[5], v[6], v[43], v[44], v[46], v[47], v[48]
     # One check for the usual message: a sum of magnitudes is NaN or inf when any term is, and within the
     # tightest limit each term is within its own; else the per-field checks below name the bad field.
     if (abs(x) + abs(y) + abs(vx) + abs(vy) <= MAX_ABS_VALUE and abs(wx) + abs(wy) + abs(wz) <= MAX_ABS_ANGULAR
             and abs(qx) + abs(qy) + abs(qz) + abs(qw) <= 2.0):
-        return (sec + nanosec * 1e-9, np.array([x, y, _unit_quaternion_yaw(qw, qx, qy, qz)]),
+        return (t_s, np.array([x, y, _unit_quaternion_yaw(qw, qx, qy, qz)]),
                 np.array([vx, vy, wz]), np.array([wx, wy, wz]))
     pose = np.array([_finite("pose.position.x", v[0]), _finite("pose.position.y", v[1]), _yaw(v[6], v[3], v[4], v[5])])
     angular = np.array([_finite(f"twist.angular.{axis}", value, MAX_ABS_ANGULAR)
                         for axis, value in zip("xyz", v[46:49], strict=True)])
     velocity = np.array([_finite("twist.linear.x", v[43]), _finite("twist.linear.y", v[44]), angular[2]])
-    return sec + nanosec * 1e-9, pose, velocity, angular
+    return t_s, pose, velocity, angular
 
 
 # ------------------------------------------------------------ joint arrays
