@@ -15,6 +15,12 @@ geometry (``set_vision_geometry``) replaces the configured field and model while
 ``use_vision_geometry`` is on, across later configuration changes; a configured field of None is the
 world's, and no vision is judged or answered until its geometry arrives.
 
+Chipped balls: given the camera of each sighting (``ball_frame``'s ``camera_m``, other cameras' sightings of
+the same instant through ``ball_sighting``), a chip detector beside the ball filter (chip_tracking.ChipDetector)
+judges each kick the filter sees; a chip it finds is the frame's ``chip`` (chip_model.ChipTrajectory at the
+frame's stamp, with ``z_m`` and ``vz_mps``; phase "chip") until it rolls, when the filter takes the ball over
+from the chip's roll.
+
 The ball_predictor node converts messages and publishes what this object answers; the
 in-process scenes (erforce_sim.closed_loop.scenes) and the bench (bench/bench_ball_predictor.py) run the
 same object, so the catcher is tuned on the code that runs.
@@ -126,7 +132,7 @@ class BallFrame:
     xy_m: tuple[float, float]  # the observation
     status: UpdateStatus
     trajectory: BallTrajectory  # the ball at t_s
-    phase: str  # unknown (first frame) | sliding | rolling | stopped
+    phase: str  # unknown (first frame) | sliding | rolling | stopped | chip
     uncertain: bool
     position_variance_m2: float
     catch_robots: list[int]
