@@ -17,20 +17,20 @@ stands ``vz_sigma`` standard errors above zero and above ``min_vz_mps``, and it 
 (``z0`` near 0). Until the first touchdown every new sighting refines the fit; then the chip model
 (chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
 
->>> cam = (0.0, 0.0, 4.0)
->>> truth = ChipTrajectory((1.0, 0.5, 0.0), (2.0, 0.0, 2.0))
+>>> cameras = ((-3.0, 0.0, 4.0), (3.0, 1.0, 4.0))
+>>> truth = ChipTrajectory((1.0, 0.5, 0.0), (2.0, 0.0, 2.0))  # kicked at t = 0 from (1, 0.5)
 >>> detector = ChipDetector()
->>> detector.start(0.0, (0.0, 1.0, 0.5, 0.0, 0.0))
->>> for k in range(8):  # 100 Hz, no noise
-...     t = 0.01 * k
-...     x, y, z = truth.position_at(t)
-...     s = 4.0 / (4.0 - z)
-...     detector.add(t, x * s, y * s, cam)
+>>> detector.start(0.01, before=(0.0, 1.0, 0.5, 0.0, 0.0))  # first seen moving at 0.01 s; at rest before
+>>> for k in range(1, 8):  # 100 Hz, both cameras, no noise
+...     x, y, z = truth.position_at(0.01 * k)
+...     for cx, cy, cz in cameras:
+...         s = cz / (cz - z)  # where the camera sees it on the ground
+...         _ = detector.add(0.01 * k, cx + (x - cx) * s, cy + (y - cy) * s, (cx, cy, cz))
 >>> chip = detector.chip_at(0.07)
 >>> [round(float(v), 3) for v in chip.velocity_mps]  # at t = 0.07 s: vz = 2 - 9.81 * 0.07
 [2.0, 0.0, 1.313]
->>> [round(float(v), 3) for v in chip.touchdown_points_m[0]]
-[1.816, 0.5]
+>>> [round(float(v), 3) for v in chip.touchdown_points_m[0]]  # 1 + 2 * (2 * 2 / 9.81)
+[1.815, 0.5]
 
 No rclpy import.
 """
