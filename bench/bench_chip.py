@@ -12,7 +12,7 @@ every other camera's to ``ball_sighting``, each with the camera's position from 
 Rows: the share of chips detected within 0.15 s of the kick; the share of flat kicks ever reported as a chip
 (within 1 s); the error of the first touchdown point the predictor's chip has 0.1 s after the detection
 (median and p90 over the detected chips); the detection delay (median, p90).
-``python bench/bench_chip.py [--quick] [--seed N]``
+``python bench/bench_chip.py [--quick] [--seed N] [--min-gain G]``
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from table import markdown_table
 
 from erforce_ball_model.ball_model import BallTrajectory
 from erforce_ball_model.chip_model import ChipTrajectory
+from erforce_ball_model.chip_tracking import ChipDetectorConfig
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.ssl_vision import decode_wrapper
@@ -60,14 +61,15 @@ def _truth_at(ball, t_s: float) -> tuple[float, float, float]:
     return (p[0], p[1], p[2] if len(p) == 3 else 0.0)
 
 
-def run_kick(ball, seed: int) -> dict:
+def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None) -> dict:
     """One kick through cameras and predictor: when a chip was first reported (from the kick) and the first
     touchdown point the predictor had ``TOUCHDOWN_AFTER_S`` after that."""
     rng = np.random.default_rng(seed)
     vision = VisionSystem(VISION, rng)
     splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, seed=seed)
     cameras = {c.camera_id: (c.x_m, c.y_m, c.z_m) for c in splitter.geometry.cameras}
-    predictor = BallPredictor(PredictorConfig(num_robots=1, field=FIELD))
+    config = PredictorConfig(num_robots=1, field=FIELD, chip_detector=detector or ChipDetectorConfig())
+    predictor = BallPredictor(config)
     t_kick = REST_S + rng.uniform(0.0, 1.0 / VISION.rate_hz)
     detected_s, touchdown = None, None
     period = 1.0 / VISION.rate_hz
@@ -98,16 +100,17 @@ def run_kick(ball, seed: int) -> dict:
     return out
 
 
-def run(quick: bool = False, seed: int = 1) -> list[dict]:
+def run(quick: bool = False, seed: int = 1, min_gain: float | None = None) -> list[dict]:
     n = 100 if quick else 500
+    detector = ChipDetectorConfig() if min_gain is None else ChipDetectorConfig(min_gain=min_gain)
     rng = np.random.default_rng(seed)
-    chips = [run_kick(_random_kick(rng, True), seed * 100_000 + k) for k in range(n)]
-    flats = [run_kick(_random_kick(rng, False), seed * 100_000 + n + k) for k in range(n)]
+    chips = [run_kick(_random_kick(rng, True), seed * 100_000 + k, detector) for k in range(n)]
+    flats = [run_kick(_random_kick(rng, False), seed * 100_000 + n + k, detector) for k in range(n)]
     delays = np.array([c["delay_s"] for c in chips if c["delay_s"] is not None])
     within = np.sum(delays <= DETECT_WITHIN_S) if len(delays) else 0
     errors = np.array([c["touchdown_error_m"] for c in chips if c["touchdown_error_m"] is not None])
     false_chips = sum(f["delay_s"] is not None for f in flats)
-    note = f"{n} random kicks, seed {seed}"
+    note = f"{n} random kicks, seed {seed}, min_gain {detector.min_gain:g}"
     return [
         {"name": "chips detected within 0.15 s of the kick", "value": 100.0 * within / n, "unit": "%",
          "target": ">= 95", "note": note},
@@ -128,9 +131,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="100 kicks of each kind instead of 500")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--min-gain", type=float, default=None, help="ChipDetectorConfig.min_gain (a trade-off: "
+                        "earlier detection against more flat kicks taken for chips)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
-    print("\n".join(markdown_table(run(args.quick, args.seed))))
+    print("\n".join(markdown_table(run(args.quick, args.seed, args.min_gain))))
     print(f"\n(total {time.perf_counter() - t0:.1f} s)")
     return 0
 
