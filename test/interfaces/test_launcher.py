@@ -20,7 +20,6 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
-from erforce_interfaces.contract import DDS_PROFILE_VARIABLES
 from erforce_interfaces.tools.launcher import (
     LaunchError,
     Resolver,
@@ -31,6 +30,7 @@ from erforce_interfaces.tools.launcher import (
     parse_substitutions,
     prefix_namespace,
 )
+from erforce_interfaces.wire.contract import DDS_PROFILE_VARIABLES
 
 HERE = Path(__file__).parent / "launch_files"
 REPO = Path(__file__).resolve().parents[2]

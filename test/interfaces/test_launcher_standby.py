@@ -1,4 +1,5 @@
-"""erforce-launch's warm standbys (launcher.Runner, erforce_interfaces.standby) with tiny Python children, no ROS.
+"""erforce-launch's warm standbys (launcher.Runner, erforce_interfaces.runtime.standby) with tiny Python children,
+no ROS.
 
 Each test runs a Runner in a process of its own (it installs signal handlers) on one ProcessSpec whose
 command is CHILD: it waits as a standby when it is one, then says "running <pid>" and runs until a
@@ -21,7 +22,7 @@ import pytest
 CHILD = r"""
 import os, signal, sys, time
 signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
-from erforce_interfaces.standby import is_standby, wait_for_go
+from erforce_interfaces.runtime.standby import is_standby, wait_for_go
 if is_standby():
     time.sleep(float(sys.argv[1]))  # a real node's imports
 if not wait_for_go():

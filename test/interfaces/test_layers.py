@@ -71,7 +71,7 @@ def test_layer_imports(rule):
 
 def test_the_checker_sees_a_forbidden_import(tmp_path):
     bad = tmp_path / "bad.py"
-    bad.write_text("from erforce_interfaces.tools.launcher import main\nimport erforce_sim.closed_loop.demo\n")
+    bad.write_text("from erforce_interfaces.tools.launcher import main\nimport erforce_sim.demo.demo\n")
     names = _imports(bad)
     assert any(_is_under(n, "erforce_interfaces.tools") for n in names)
     assert any(_is_under(n, "erforce_sim.closed_loop") for n in names)

@@ -1,4 +1,4 @@
-"""The rclpy internals DirectExecutor relies on (erforce_interfaces.rclpy_internals) exist and behave as it
+"""The rclpy internals DirectExecutor relies on (erforce_interfaces.runtime.rclpy_internals) exist and behave as it
 assumes, on the installed rclpy. An rclpy update that moves one fails here, by name.
 """
 
@@ -11,8 +11,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import Int32
 
-from erforce_interfaces import rclpy_internals as internal
-from erforce_interfaces.executor import DirectExecutor, make_executor
+from erforce_interfaces.runtime import rclpy_internals as internal
+from erforce_interfaces.runtime.executor import DirectExecutor, make_executor
 from erforce_interfaces.tools.testing import isolated_node
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -104,7 +104,7 @@ def test_parameter_overrides_are_what_declare_parameter_takes():
 
 _LIGHT_START = """
 import sys
-from erforce_interfaces.rclpy_internals import light_node_start
+from erforce_interfaces.runtime.rclpy_internals import light_node_start
 light_node_start()
 light_node_start()  # idempotent
 from rclpy.impl.rcutils_logger import CallerId

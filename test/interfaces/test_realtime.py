@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
+from erforce_interfaces.runtime.standby import GO, READY, STANDBY_FD_ENV
 from erforce_interfaces.tools import realtime
 
 SHOW_POLICY = [sys.executable, "-c", "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)"]
@@ -68,7 +68,7 @@ def test_without_cap_sys_nice_the_kernel_refuses_and_else_idle_runs_the_command_
 
 
 def test_a_standby_left_else_idle_takes_sched_idle_on_go_where_fifo_is_refused(monkeypatch, capsys):
-    from erforce_interfaces import standby
+    from erforce_interfaces.runtime import standby
 
     calls = []
     monkeypatch.setattr(os, "sched_setscheduler", refusing_fifo(calls))
@@ -89,7 +89,7 @@ def test_a_bad_command_line_prints_the_usage(argv, capsys):
 
 
 def test_a_warm_standby_imports_at_its_normal_priority_and_takes_sched_fifo_on_go():
-    child = ("import os; from erforce_interfaces.standby import wait_for_go\n"
+    child = ("import os; from erforce_interfaces.runtime.standby import wait_for_go\n"
              "show = lambda: print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, flush=True)\n"
              "show(); assert wait_for_go(); show()")
     ours, theirs = socket.socketpair()

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.firmware import MainBoardLoop, MotorBoardLoop
 from erforce_motion.motor_board import MotorBoardConfig
 from erforce_motion.team_cores import NOTICE_COMMAND_TIMEOUT, NOTICE_TIME_BACKWARDS, TeamFirmware

@@ -1,12 +1,12 @@
-"""The demo's scenes played in one process (erforce_sim.closed_loop.scenes.play_in_process): the whole stack
+"""The demo's scenes played in one process (erforce_sim.in_process.scenes.play_in_process): the whole stack
 without DDS, deterministic per seed."""
 
 import math
 
 import pytest
 
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_sim.closed_loop.scenes import default_scenes, play_in_process
+from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_sim.in_process.scenes import default_scenes, play_in_process
 from erforce_sim.sensors import VisionParams
 
 SCENES = default_scenes(FieldConfig.preset("division_b"))

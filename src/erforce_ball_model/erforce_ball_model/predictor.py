@@ -6,7 +6,7 @@ within ``robot_timeout_s``, one robotTimeToBall run for the team after the react
 (catch_time.catch_after_reaction); each robot pose (``robot_frame``) feeds that robot's
 RobotTracker. It owns every per-frame decision: vision rejection outside the field, what a
 new time line resets (the caller judges each stamp by the stack's one time rule,
-erforce_interfaces.stamps.StampFilter, and passes ``restart``), robot freshness and their
+erforce_interfaces.wire.stamps.StampFilter, and passes ``restart``), robot freshness and their
 constant-velocity extrapolation to the frame's stamp, the reaction-time offset, the mapping of
 "no catch" to CATCH_TIME_NEVER, and the ball model in use: the configured one, or an online
 fit (identification.ShotAccumulator, fitted in a worker thread) once its standard errors are
@@ -16,7 +16,7 @@ geometry (``set_vision_geometry``) replaces the configured field and model while
 world's, and no vision is judged or answered until its geometry arrives.
 
 The ball_predictor node converts messages and publishes what this object answers; the
-in-process scenes (erforce_sim.closed_loop.scenes) and the bench (bench/bench_ball_predictor.py) run the
+in-process scenes (erforce_sim.in_process.scenes) and the bench (bench/bench_ball_predictor.py) run the
 same object, so the catcher is tuned on the code that runs.
 
 >>> from erforce_ball_model.predictor import BallPredictor, PredictorConfig
@@ -48,13 +48,13 @@ from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajec
 from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, catch_after_reaction
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
-from erforce_interfaces.robot_config import BALL_WALL_RESTITUTION, FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import BALL_WALL_RESTITUTION, FieldConfig, RobotConfig
 
 __all__ = ["CATCH_TIME_NEVER", "MODEL_ROWS", "PHASE_NAMES", "BallFrame", "BallPredictor", "FrameTimes",
            "PredictorConfig"]
 
-CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract says the same)
-MODEL_ROWS = ("in_use", "fit", "std_error")  # the rows of model_rows (erforce_interfaces.contract says the same)
+CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.wire.contract says the same)
+MODEL_ROWS = ("in_use", "fit", "std_error")  # the rows of model_rows (erforce_interfaces.wire.contract says the same)
 PHASE_NAMES = {BallPhase.SLIDING: "sliding", BallPhase.ROLLING: "rolling", BallPhase.STOPPED: "stopped"}
 _NEVER = int(CatchKind.NEVER)
 

@@ -57,9 +57,9 @@ from erforce_ball_model.catch_time import (
     contact_offset,
     receive_facing,
 )
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.wire.robot_config import FieldConfig
 
-CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract)
+CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.wire.contract)
 
 
 @dataclass(frozen=True)
@@ -313,7 +313,7 @@ def choose_target(
     robot on its way keeps it while it still gets there first. With the slack, the Fig. 6 robot a few
     centimetres before the line (moving, so with 0.1 s to spare, not 0.15 s) was sent to the
     predicted catch of a later window, turned and ran from the ball, which then hit its side: in
-    the demo's Fig. 6 scene played in one process (erforce_sim.closed_loop.scenes), 5 of 20 seeds caught the
+    the demo's Fig. 6 scene played in one process (erforce_sim.in_process.scenes), 5 of 20 seeds caught the
     ball only after that, against 0 of 20 with this hysteresis.
     """
     if ball is not None:

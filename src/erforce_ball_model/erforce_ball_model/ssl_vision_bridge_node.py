@@ -4,7 +4,7 @@ A receive thread waits on the socket and drains it in batches (non-blocking read
 kernel queue is empty, at most ``max_batch`` per round): the kernel buffer (``receive_buffer_bytes``)
 absorbs bursts while a batch is processed, and a round that still finds more than
 ``flood_batch`` datagrams keeps only each camera's newest frame (older ones are superseded) and
-says so. Every datagram goes through erforce_interfaces.ssl_vision (decoding, checks, capture order, vision
+says so. Every datagram goes through erforce_interfaces.ssl.ssl_vision (decoding, checks, capture order, vision
 clock) and erforce_ball_model.vision_tracking (the true ball, robot streams); the node converts
 and publishes. What it drops is named by its class (ssl_vision.DROP_CLASSES; per camera for t_capture going
 back and clock jumps): a throttled warning per class starts with it in brackets, a counter per class goes into
@@ -19,7 +19,7 @@ DDS write is the largest single cost of a datagram, so ``/vision/ball`` and a ro
 serialized and published only while their topic has a reader (each publisher's matched event keeps the
 count); a tool that subscribes to one gets it from then on. The usual datagram (one camera frame, every
 detection valid, every robot with an orientation, no vision_pose reader) goes from its bytes to the
-message's bytes in one compiled pass (erforce_ball_model.vision_pass: decoding, vision clock, tracker and
+message's bytes in one compiled pass (erforce_ball_model.vision_fast_path: decoding, vision clock, tracker and
 the ball filter's usual update, points, CDR); Python adds the publish, and the ball filter's unusual frames
 (a new ball, one held back). Anything else takes the general path (the same kernels through their Python
 interfaces), which also warns; so do a flipped field and ``publish_detections``.
@@ -51,7 +51,7 @@ import numpy as np
 from rclpy.node import Node
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.vision_pass import (
+from erforce_ball_model.vision_fast_path import (
     I_CAMERA,
     I_CAPTURE_BACK,
     I_CAPTURE_STEP,
@@ -70,34 +70,17 @@ from erforce_ball_model.vision_pass import (
     PASS_TIMELINE_JUMP,
     FramePass,
 )
-from erforce_ball_model.vision_pass import load_kernels as load_pass_kernels
-from erforce_ball_model.vision_pass import robot_points as _robot_points
+from erforce_ball_model.vision_fast_path import load_kernels as load_pass_kernels
+from erforce_ball_model.vision_fast_path import robot_points as _robot_points
 from erforce_ball_model.vision_tracking import BALL_FUSED, MAX_ROBOT_ID, VisionTracker, load_kernels
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
-    ConversionError,
-    clock_cdr,
-    point_cdr,
-    pose2d_cdr,
-    table_cdr,
-    vision_robots_cdr,
-    vision_robots_points_cdr,
-)
-from erforce_interfaces.node_support import (
+from erforce_interfaces.runtime.node_support import (
     NodeParams,
     ThrottledWarner,
     contract_publisher,
     run_node,
 )
-from erforce_interfaces.param_schema import load_schema
-from erforce_interfaces.robot_config import (
-    WAITING_FOR_GEOMETRY,
-    FieldConfig,
-    field_from_setting,
-    half_turn,
-    turned_half,
-)
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.ssl.ssl_vision import (
     CAPTURE_OLD,
     CAPTURE_RESTART,
     CLOCK_CAMERAS,
@@ -120,6 +103,23 @@ from erforce_interfaces.ssl_vision import (
     clock_jump_text,
     decode_wrapper,
     timeline_jump_text,
+)
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
+    ConversionError,
+    clock_cdr,
+    point_cdr,
+    pose2d_cdr,
+    table_cdr,
+    vision_robots_cdr,
+    vision_robots_points_cdr,
+)
+from erforce_interfaces.wire.robot_config import (
+    WAITING_FOR_GEOMETRY,
+    FieldConfig,
+    field_from_setting,
+    half_turn,
+    turned_half,
 )
 
 _KIND = contract.VISION_DETECTION_KINDS

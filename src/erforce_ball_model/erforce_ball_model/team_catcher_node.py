@@ -32,10 +32,20 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model import catcher_node
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.passing import PassConfig
-from erforce_ball_model.passing_player import PressingTeam, new_poses
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_ball_model.passing.decisions import PassConfig
+from erforce_ball_model.passing.player import PressingTeam, new_poses
+from erforce_interfaces.runtime.executor import EXECUTOR_ENV, run_sampled, sample_only
+from erforce_interfaces.runtime.node_support import (
+    NodeParams,
+    ThrottledWarner,
+    WorldField,
+    contract_publisher,
+    contract_subscription,
+    run_node,
+)
+from erforce_interfaces.runtime.param_schema import HostSchema, load_schema
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     ConversionError,
     catches_from_msg,
     float64_from_msg,
@@ -44,16 +54,6 @@ from erforce_interfaces.conversions import (
     tracked_robots_from_msg,
     twist_msg,
 )
-from erforce_interfaces.executor import EXECUTOR_ENV, run_sampled, sample_only
-from erforce_interfaces.node_support import (
-    NodeParams,
-    ThrottledWarner,
-    WorldField,
-    contract_publisher,
-    contract_subscription,
-    run_node,
-)
-from erforce_interfaces.param_schema import HostSchema, load_schema
 
 # the catcher's parameters under their own names; team_robot_ids is robot_ids and as_team here
 SCHEMA = HostSchema(load_schema("erforce_ball_model", "team_catcher"), {

@@ -274,7 +274,7 @@ def compiled_ball_step():
     """``ball_step`` as a numba kernel (compiled or loaded from numba's cache on first call), callable from
     other kernels. numba is imported here, not with this module: a process that only tracks (the predictor
     restarted without its warm-up) starts without it."""
-    from erforce_interfaces.numba_support import numba, register_jitable
+    from erforce_interfaces.runtime.numba_support import numba, register_jitable
 
     for rule in (cv_predicted, cv_corrected, effective_v_shoot):
         register_jitable(rule)
@@ -284,7 +284,7 @@ def compiled_ball_step():
 def load_kernels() -> None:
     """Compile (or load) ``ball_step`` now; from then on every BallTracker's update runs it compiled."""
     global _step
-    from erforce_interfaces.numba_support import compiled_for
+    from erforce_interfaces.runtime.numba_support import compiled_for
 
     s = np.zeros(STATE_SIZE)
     _step = compiled_for(compiled_ball_step(), s, np.zeros(SHOOT_SAMPLES), np.zeros(10), 0.0, 0.0, 0.0)

@@ -47,11 +47,8 @@ from erforce_ball_model.vision_tracking import (
     track_robots,
     update_hypotheses,
 )
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import MAX_ABS_VALUE, vision_robots_template
-from erforce_interfaces.numba_support import compiled_for, numba
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.runtime.numba_support import compiled_for, numba
+from erforce_interfaces.ssl.ssl_vision import (
     CAPTURE_OLD,
     CAPTURE_RESTART,
     MM,
@@ -72,6 +69,9 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     timeline_step,
 )
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import MAX_ABS_VALUE, vision_robots_template
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 __all__ = ["PASS_BAD_STAMP", "PASS_CLOCK_JUMP", "PASS_DONE", "PASS_FALLBACK", "PASS_GENERAL", "PASS_TIMELINE_JUMP",
            "PASS_T_CAPTURE_BACK", "FramePass", "robot_points"]

@@ -25,7 +25,7 @@ the robot (it was put down elsewhere). Duplicate ids in one frame: the nearest t
 The robot streams run in one compiled pass per frame over an array of the frame's sightings
 (``frame_arrays``; the bridge gets that array from its decoder), ids 0 .. ``MAX_ROBOT_ID`` per team.
 The ball hypotheses and the choice of the ball (``choose_ball``) are compiled too; the ball filter's
-update is Python (``use_ball``). The tracker's state is arrays that erforce_ball_model.vision_pass
+update is Python (``use_ball``). The tracker's state is arrays that erforce_ball_model.vision_fast_path
 runs through the same kernels in one pass per datagram.
 """
 
@@ -41,9 +41,9 @@ import numpy as np
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.tracking import S_T, BallTracker, TrackerConfig, UpdateStatus
 from erforce_ball_model.tracking import load_kernels as load_ball_filter_kernels
-from erforce_interfaces.numba_support import numba
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_vision import TEAMS, DecodeLimits
+from erforce_interfaces.runtime.numba_support import numba
+from erforce_interfaces.ssl.ssl_vision import TEAMS, DecodeLimits
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 __all__ = ["BALL_NONE", "BALL_SWITCH", "BALL_UPDATE", "COUNT_FRAMES", "COUNT_HYPOTHESES", "MAX_ROBOT_ID",
            "SETTING_BALL_GATE", "SETTING_BALL_SPEED", "SETTING_HALF_LENGTH", "SETTING_HALF_WIDTH",
@@ -167,7 +167,7 @@ def _best_confirmed(hyps, hits, n_hyps, t_s, inside_only, window_s, fresh_s):
 
 
 # The tracker's numbers for the compiled passes (these, update_hypotheses, choose_ball and track_robots are what
-# erforce_ball_model.vision_pass runs): its settings (with the field's half sizes), the ball filter's state as the
+# erforce_ball_model.vision_fast_path runs): its settings (with the field's half sizes), the ball filter's state as the
 # choice needs it (kept in step with ``VisionTracker.ball``), and its counters.
 (SETTING_MIN_CONFIDENCE, SETTING_MAX_X, SETTING_MAX_Y, SETTING_HALF_LENGTH, SETTING_HALF_WIDTH,
  SETTING_HYPOTHESIS_TIMEOUT, SETTING_BALL_GATE, SETTING_BALL_SPEED, SETTING_MAX_BALL_GATE, SETTING_LOST_AFTER,
@@ -443,7 +443,13 @@ class VisionTracker:
 def load_kernels() -> None:
     """Compile (or load from numba's cache) the kernels of SSL decoding and of this tracker: at a node's
     start and before the tests, demo and benches (./run), not at the first camera frame."""
-    from erforce_interfaces.ssl_vision import BallCandidate, CameraFrame, RobotSighting, decode_wrapper, encode_frame
+    from erforce_interfaces.ssl.ssl_vision import (
+        BallCandidate,
+        CameraFrame,
+        RobotSighting,
+        decode_wrapper,
+        encode_frame,
+    )
 
     load_ball_filter_kernels()
     data = encode_frame(CameraFrame(0, 1, 1.0, 1.0, (BallCandidate(0.0, 0.0, 1.0),),

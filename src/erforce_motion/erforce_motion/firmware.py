@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.motor_board import MotorBoard, MotorBoardConfig
 from erforce_motion.velocity_control import CommandWatchdog, VelocityControlConfig, VelocityController
 

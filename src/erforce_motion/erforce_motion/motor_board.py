@@ -31,7 +31,7 @@ from typing import Literal
 
 import numpy as np
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.pid import AntiWindup, Pid, PidConfig
 
 ActuatorMode = Literal["linear", "inverse_model"]

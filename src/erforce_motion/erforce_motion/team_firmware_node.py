@@ -4,7 +4,7 @@ The same contract as one ``velocity_controller`` plus one ``motor_boards`` per r
 its namespace ``robot_<id>``): per robot in ``robot_ids`` it takes ``/robot_<id>/cmd_vel`` and
 ``/robot_<id>/wheel_states`` and answers each tick with ``/robot_<id>/motor_duty`` and, at its
 rate, ``motor_status``. Inside, the main board's setpoint reaches the motor boards without DDS,
-one tick later, exactly as erforce_sim.closed_loop.runner.InProcessRunner steps the same cores
+one tick later, exactly as erforce_sim.in_process.runner.InProcessRunner steps the same cores
 (erforce_motion.team_cores.TeamFirmware: one call per tick for all robots whose sensors arrived),
 so the lockstep graph computes the same trajectory with either deployment. ``wheel_setpoints``
 is published only with ``publish_setpoints`` (for tools): nobody in the graph needs it, and it
@@ -42,8 +42,19 @@ import numpy as np
 from geometry_msgs.msg import Twist
 from rclpy.node import Node
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.runtime.executor import run_sampled
+from erforce_interfaces.runtime.node_support import (
+    NodeParams,
+    ThrottledWarner,
+    check_stamp,
+    contract_publisher,
+    contract_subscription,
+    run_node,
+    sample_clock,
+)
+from erforce_interfaces.runtime.param_schema import HostSchema, load_schema
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     ConversionError,
     field_joint_state_cdr,
     field_joint_state_from_msg,
@@ -54,18 +65,7 @@ from erforce_interfaces.conversions import (
     twist_from_msg,
     wheel_states_from_msg,
 )
-from erforce_interfaces.executor import run_sampled
-from erforce_interfaces.node_support import (
-    NodeParams,
-    ThrottledWarner,
-    check_stamp,
-    contract_publisher,
-    contract_subscription,
-    run_node,
-    sample_clock,
-)
-from erforce_interfaces.param_schema import HostSchema, load_schema
-from erforce_interfaces.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
 from erforce_motion import motor_boards_node, velocity_controller_node
 from erforce_motion.team_cores import TeamFirmware
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.kinematics import OmniKinematics
 from erforce_motion.pid import AntiWindup, Pid, PidConfig
 

@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from erforce_interfaces.robot_config import BALL_INERTIA_FACTOR, BALL_RADIUS_M
+from erforce_interfaces.wire.robot_config import BALL_INERTIA_FACTOR, BALL_RADIUS_M
 from erforce_sim.drivetrain import GRAVITY_MPS2
 
 # The paper's measured decelerations, in its sign (the two-phase model's a_slide, a_roll): the carpet's defaults.

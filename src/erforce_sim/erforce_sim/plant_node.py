@@ -7,7 +7,7 @@ state and ground truth (while it has readers) go out as they fall due.
 
 Pacing (parameter ``pacing``):
 - ``lockstep``: a tick advances only after every live motor board answered it
-  (erforce_interfaces.lockstep), so runs are deterministic. A silent peer is reported on
+  (erforce_interfaces.runtime.lockstep), so runs are deterministic. A silent peer is reported on
   ``/sim/events`` after ``lockstep_timeout_s`` and the plant goes on with zero duty for
   it until it answers again. ``real_time_factor`` > 0 caps the speed for watching.
 - ``realtime``: ticks follow the wall clock times ``real_time_factor``; the newest duty
@@ -50,8 +50,18 @@ from rclpy.clock import ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, String
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.runtime.lockstep import DutyGate, FieldAnswerRobots
+from erforce_interfaces.runtime.node_support import (
+    NodeParams,
+    ThrottledWarner,
+    contract_publisher,
+    contract_subscription,
+    run_node,
+)
+from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.ssl.ssl_vision import BallModelFromVision
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     ConversionError,
     clock_cdr,
     field_joint_state_cdr,
@@ -68,17 +78,7 @@ from erforce_interfaces.conversions import (
     team_joint_state_from_msg,
     vision_robots_cdr,
 )
-from erforce_interfaces.lockstep import DutyGate, FieldAnswerRobots
-from erforce_interfaces.node_support import (
-    NodeParams,
-    ThrottledWarner,
-    contract_publisher,
-    contract_subscription,
-    run_node,
-)
-from erforce_interfaces.param_schema import load_schema
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_vision import BallModelFromVision
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras

@@ -18,8 +18,7 @@ import random
 import socket
 from dataclasses import dataclass
 
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.ssl.ssl_vision import (
     BallCandidate,
     BallModelFromVision,
     CameraFrame,
@@ -29,6 +28,7 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.sensors import VisionFrame
 
 CAMERA_HEIGHT_M = 4.0

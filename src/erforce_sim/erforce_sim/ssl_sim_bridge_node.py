@@ -16,7 +16,7 @@ become teleports (``SimulatorCommand`` to ``control_port``, or grSim's replaceme
 scripts place the ball and robots in the external simulator as in our plant. Like ssl_vision_bridge,
 ``team_color`` names our robots and ``defend_side`` the goal we defend in the simulator: poses and
 teleports live in the ``field`` frame (x towards the opponents' goal), turned by half a turn into the
-simulator's when we defend its positive x (erforce_interfaces.ssl_sim.teleport_packet); cmd_vel is in
+simulator's when we defend its positive x (erforce_interfaces.ssl.ssl_sim.teleport_packet); cmd_vel is in
 base_link and needs no turn.
 
 Vision comes back from the simulator as SSL-Vision packets (its vision port), for ssl_vision_bridge.
@@ -35,18 +35,19 @@ from rclpy.clock import ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, String
 
-from erforce_interfaces import contract, ssl_sim
-from erforce_interfaces.conversions import ConversionError, float64_from_msg, odometry_from_msg, twist_from_msg
-from erforce_interfaces.node_support import (
+from erforce_interfaces.runtime.node_support import (
     NodeParams,
     ThrottledWarner,
     contract_publisher,
     contract_subscription,
     run_node,
 )
-from erforce_interfaces.param_schema import load_schema
+from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.ssl import ssl_sim
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import ConversionError, float64_from_msg, odometry_from_msg, twist_from_msg
 
-SCHEMA = load_schema("erforce_interfaces", "ssl_sim_bridge")
+SCHEMA = load_schema("erforce_sim", "ssl_sim_bridge")
 
 _MAX_DATAGRAMS_PER_PERIOD = 256  # a flood cannot starve the send timer
 _BARRIER_REPEAT_S = 0.1  # ball_detected goes out on change and at least this often

@@ -33,10 +33,20 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray
 from erforce_ball_model import catcher_node
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import load_kernels
-from erforce_ball_model.passing import PassConfig, PassOption
-from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerConfig, new_poses
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_ball_model.passing.decisions import PassConfig, PassOption
+from erforce_ball_model.passing.player import PassingPlayer, PassRecord, PlayerConfig, new_poses
+from erforce_interfaces.runtime.executor import EXECUTOR_ENV, run_sampled, sample_only
+from erforce_interfaces.runtime.node_support import (
+    NodeParams,
+    ThrottledWarner,
+    WorldField,
+    contract_publisher,
+    contract_subscription,
+    run_node,
+)
+from erforce_interfaces.runtime.param_schema import HostSchema, fields_for, load_schema
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     ConversionError,
     catches_from_msg,
     float64_from_msg,
@@ -48,16 +58,6 @@ from erforce_interfaces.conversions import (
     tracked_robots_from_msg,
     twist_msg,
 )
-from erforce_interfaces.executor import EXECUTOR_ENV, run_sampled, sample_only
-from erforce_interfaces.node_support import (
-    NodeParams,
-    ThrottledWarner,
-    WorldField,
-    contract_publisher,
-    contract_subscription,
-    run_node,
-)
-from erforce_interfaces.param_schema import HostSchema, fields_for, load_schema
 
 SCHEMA = HostSchema(load_schema("erforce_ball_model", "passing_game"), {
     "": (catcher_node.SCHEMA, ("team_robot_ids",)),

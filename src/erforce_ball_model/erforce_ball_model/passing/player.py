@@ -1,5 +1,5 @@
 """Our team's AI in the passing game, one AI tick at a time: the functional core shared by the
-in-process game (erforce_sim.closed_loop.passing_game) and the ``passing_game`` node.
+in-process game (erforce_sim.in_process.passing_game) and the ``passing_game`` node.
 
 No rclpy and no access to the physics: ``PassingPlayer`` sees what a real AI sees and is fed as it
 arrives (each input with the time it arrived): every robot's tracked pose and velocity (``on_robot``;
@@ -47,14 +47,14 @@ import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import MAX_RECEIVE_ANGLE_RAD, CatchSearch, RobotLimits
-from erforce_ball_model.catcher import (
+from erforce_ball_model.passing.decisions import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
+from erforce_ball_model.receiver import (
     CatcherConfig,
     Receiver,
     catch_twist,
     wrap_angle,
 )
-from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 ANY_DISTANCE_M = (1e-3, 1e3)  # the passing distances of the last fallback: any teammate
 
@@ -595,7 +595,7 @@ HELD_SPEED_MPS = 0.5  # ... and slower than this: that robot holds it (a pass le
 
 class PressingTeam:
     """The opponents' decisions in the passing game, one AI tick at a time: a team of catchers that presses
-    the passing lanes. The functional core shared by the in-process game (erforce_sim.closed_loop.passing_game)
+    the passing lanes. The functional core shared by the in-process game (erforce_sim.in_process.passing_game)
     and the ``team_catcher`` node (``press_lanes``).
 
     Its robots (``robot_ids``) each run catcher.Receiver; with ``as_team`` they form a team in which only the

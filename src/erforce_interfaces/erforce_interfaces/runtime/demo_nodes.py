@@ -9,9 +9,9 @@ from __future__ import annotations
 from rclpy.node import Node
 from std_msgs.msg import String
 
-from erforce_interfaces.contract import QOS_COMMAND
-from erforce_interfaces.node_support import NodeParams, run_node
-from erforce_interfaces.param_schema import load_schema
+from erforce_interfaces.runtime.node_support import NodeParams, run_node
+from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.wire.contract import QOS_COMMAND
 
 CHATTER = "chatter"
 

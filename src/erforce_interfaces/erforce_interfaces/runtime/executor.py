@@ -30,7 +30,7 @@ up to 64 messages), guard condition, service, client response and QoS event once
 node by node, then waits again. Callbacks run in this thread; a callback that returns a coroutine
 is driven to completion, and one that suspends on a future is an error. Callback groups are
 ignored. It lost to EventsExecutor on CPU per message and lockstep speed; it stays for the bench
-and the in-process demo director (erforce_sim.closed_loop.demo), whose callbacks take the message
+and the in-process demo director (erforce_sim.demo.demo), whose callbacks take the message
 info, which EventsExecutor in rclpy 7.1 cannot pass.
 """
 
@@ -48,7 +48,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor, T
 from rclpy.subscription import Subscription
 from rclpy.utilities import timeout_sec_to_nsec
 
-from erforce_interfaces import rclpy_internals as internal  # every private rclpy name used here
+from erforce_interfaces.runtime import rclpy_internals as internal  # every private rclpy name used here
 
 __all__ = ["EXECUTOR_ENV", "EXECUTOR_KINDS", "DirectExecutor", "guard", "make_executor", "run_newest", "run_sampled",
            "sample_only", "set_callback_fault_handler", "take_one", "take_queued"]

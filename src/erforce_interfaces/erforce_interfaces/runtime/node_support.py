@@ -1,7 +1,7 @@
 """What every node shell of the stack shares: declared parameters, validation on change,
 throttled warnings, and the standard ``main()``.
 
-A node's parameters are described once, in its schema file (erforce_interfaces.param_schema).
+A node's parameters are described once, in its schema file (erforce_interfaces.runtime.param_schema).
 ``NodeParams`` declares them with descriptors and ranges and reads and checks them; the node
 builds its core from the config object once it is set up itself, then ``NodeParams.on_change``
 installs one on-set callback that checks every change against the schema and asks the node's
@@ -37,14 +37,14 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.utilities import remove_ros_args
 
-from erforce_interfaces.contract import CLOCK, VISION_FIELD, Topic, dds_profile_env
-from erforce_interfaces.conversions import ConversionError, field_from_msg
-from erforce_interfaces.executor import guard, make_executor, sample_only, set_callback_fault_handler
-from erforce_interfaces.param_schema import ParamSchema, ParamSpec
-from erforce_interfaces.rclpy_internals import RCLError, light_node_start, parameter_overrides
-from erforce_interfaces.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
-from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
-from erforce_interfaces.standby import wait_for_go
+from erforce_interfaces.runtime.executor import guard, make_executor, sample_only, set_callback_fault_handler
+from erforce_interfaces.runtime.param_schema import ParamSchema, ParamSpec
+from erforce_interfaces.runtime.rclpy_internals import RCLError, light_node_start, parameter_overrides
+from erforce_interfaces.runtime.standby import wait_for_go
+from erforce_interfaces.wire.contract import CLOCK, VISION_FIELD, Topic, dds_profile_env
+from erforce_interfaces.wire.conversions import ConversionError, field_from_msg
+from erforce_interfaces.wire.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict, stamp_ns
 
 _ARRAY_TYPES = {"int": Parameter.Type.INTEGER_ARRAY, "double": Parameter.Type.DOUBLE_ARRAY,
                 "string": Parameter.Type.STRING_ARRAY, "bool": Parameter.Type.BOOL_ARRAY}
@@ -187,7 +187,7 @@ def contract_subscription(node: Node, topic: Topic, callback: Callable, resolved
 
 
 def sample_clock(node: Node) -> list:
-    """Take ``/clock`` only when the node runs (erforce_interfaces.executor.sample_only); returns
+    """Take ``/clock`` only when the node runs (erforce_interfaces.runtime.executor.sample_only); returns
     the subscriptions for ``run_sampled``.
 
     For nodes that act on message stamps and need ROS time only for their logs: they then run no
@@ -402,13 +402,13 @@ def stray_arguments(argv: list[str]) -> list[str]:
 
 def run_node(node_factory: Callable[[], Node | tuple[Node, ...]], args: list[str] | None = None,
              executor_kind: str | None = None) -> int:
-    """Standard node main: init, spin on EventsExecutor (erforce_interfaces.executor.make_executor; ``executor_kind``
-    picks another, as there), clean shutdown. A factory may return several nodes: one process and one executor
-    for all (as a component container), destroyed in the order given.
+    """Standard node main: init, spin on EventsExecutor (erforce_interfaces.runtime.executor.make_executor;
+    ``executor_kind`` picks another, as there), clean shutdown. A factory may return several nodes: one process
+    and one executor for all (as a component container), destroyed in the order given.
 
     Every node gets the callback guard (guard_callbacks) and the time rule on /clock (guard_clock).
 
-    A warm standby (erforce_interfaces.standby, started by erforce-launch) stops before ``rclpy.init``
+    A warm standby (erforce_interfaces.runtime.standby, started by erforce-launch) stops before ``rclpy.init``
     until the launcher says go, after the node's optional ``warm_up`` (a static method of the node class:
     an expensive first step that needs no node, e.g. loading numba kernels); it returns 0 if told to end.
 

@@ -9,7 +9,7 @@ BLAS (np.dot, np.linalg) still works: numba imports scipy.linalg when it compile
 ``import scipy`` itself, ~45 ms of CPU, which numba's import does only to check scipy's version; the
 requirements pin a scipy far above the 1.0 it asks for.)
 
-    from erforce_interfaces.numba_support import numba, register_jitable
+    from erforce_interfaces.runtime.numba_support import numba, register_jitable
 
 ``compiled_for``: a kernel called every tick with the same argument types can skip the dispatcher's
 type matching, which costs about 1 us per argument (a 20-argument kernel: ~13 of its ~24 us per call).

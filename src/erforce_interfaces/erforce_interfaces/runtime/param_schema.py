@@ -27,7 +27,7 @@ Format::
       robot: {shared: robot_description, read_only: false}   # the robot.* group (robot_config.py)
       port:
         type: int
-        default_from: erforce_interfaces.ssl_vision:SSL_VISION_PORT   # instead of default_value: a
+        default_from: erforce_interfaces.ssl.ssl_vision:SSL_VISION_PORT   # instead of default_value: a
         description: "UDP port"               # constant whose home is code (a protocol's well-known port)
 
 Bounds on an array apply to every element; ``size_gt<>`` / ``fixed_size<>`` bound its length.
@@ -49,7 +49,7 @@ from typing import Any
 
 import yaml
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 
 ROBOT_PREFIX = "robot."
 ROBOT_GROUP = "robot_description"

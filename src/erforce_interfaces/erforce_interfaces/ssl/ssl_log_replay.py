@@ -22,8 +22,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from erforce_interfaces.ssl_log import LogFormatError, LogReader, LogRecord, MessageType
-from erforce_interfaces.ssl_vision import SSL_VISION_GROUP, SSL_VISION_PORT
+from erforce_interfaces.ssl.ssl_log import LogFormatError, LogReader, LogRecord, MessageType
+from erforce_interfaces.ssl.ssl_vision import SSL_VISION_GROUP, SSL_VISION_PORT
 
 VISION_GROUP = (SSL_VISION_GROUP, SSL_VISION_PORT)
 REFEREE_GROUP = ("224.5.23.1", 10003)

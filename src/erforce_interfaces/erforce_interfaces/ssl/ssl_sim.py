@@ -27,14 +27,14 @@ from dataclasses import dataclass, field
 
 from google.protobuf.message import DecodeError
 
-from erforce_interfaces.robot_config import half_turn, turned_half
-from erforce_interfaces.ssl_proto import (
+from erforce_interfaces.ssl.ssl_proto import (
     grsim_pb2,
     ssl_gc_common_pb2,
     ssl_simulation_control_pb2,
     ssl_simulation_robot_control_pb2,
     ssl_simulation_robot_feedback_pb2,
 )
+from erforce_interfaces.wire.robot_config import half_turn, turned_half
 
 SIM_CONTROL_PORT = 10300
 ROBOT_CONTROL_PORTS = {"blue": 10301, "yellow": 10302}

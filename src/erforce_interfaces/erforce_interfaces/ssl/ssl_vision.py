@@ -31,8 +31,8 @@ from typing import NamedTuple
 import numpy as np
 from google.protobuf.message import DecodeError
 
-from erforce_interfaces.numba_support import compiled_for, numba
-from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrapper_pb2
+from erforce_interfaces.runtime.numba_support import compiled_for, numba
+from erforce_interfaces.ssl.ssl_proto import ssl_vision_wrapper_pb2 as wrapper_pb2
 
 MM = 1e-3
 TEAMS = ("blue", "yellow")

@@ -63,7 +63,7 @@ Deviations from ``ros2 launch`` (each deliberate):
   to the last included file (a known bug, ros2/launch#618, fixed upstream by #862 but present in
   Jazzy's launch 3.4.3), so the same file would mean something else under ros2 launch;
 - an inline parameter value takes the type the node's schema declares (``params/<exec>.yaml``,
-  erforce_interfaces.param_schema): ``real_time_factor:=0`` gives 0.0 where launch_ros writes the
+  erforce_interfaces.runtime.param_schema): ``real_time_factor:=0`` gives 0.0 where launch_ros writes the
   integer 0; the nodes take that integer as well (node_support.NodeParams), so both launchers work;
 - consecutive inline params share one temporary file (ros2 launch writes one per entry;
   the override order is the same), and the files are deleted when the launcher exits;
@@ -72,7 +72,7 @@ Deviations from ``ros2 launch`` (each deliberate):
 - ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is LOCALHOST unless set (README, "DDS discovery"): safe by default;
 - a respawning node of ours (one with a parameter schema) keeps a warm standby: a spare process of the
   same command, imports done and no DDS participant, that takes over when the node dies
-  (erforce_interfaces.standby; ``--no-standby`` turns it off); ros2 launch always starts afresh;
+  (erforce_interfaces.runtime.standby; ``--no-standby`` turns it off); ros2 launch always starts afresh;
 - no ``$(eval)``, ``$(command)``, ``$(exec-in-pkg)``, ``$(param)``, Python/XML launch files, event
   handlers or composable nodes; ``$(any)``/``$(all)`` are an error as in ros2 launch on Jazzy, whose
   YAML/XML parser cannot build them.
@@ -108,7 +108,9 @@ from typing import Any, TextIO
 
 import yaml
 
-from erforce_interfaces.ament_index import (
+from erforce_interfaces.runtime.param_schema import ParamSchema
+from erforce_interfaces.runtime.standby import GO, READY, STANDBY_FD_ENV
+from erforce_interfaces.wire.ament_index import (
     ament_prefixes,
     console_scripts,
     distribution,
@@ -116,8 +118,6 @@ from erforce_interfaces.ament_index import (
     find_package_share,
     package_executables,
 )
-from erforce_interfaces.param_schema import ParamSchema
-from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
 
 PROG = "erforce-launch"
 #: the start of the line logged when a process's command cannot be run (tools that start a graph watch for it)
@@ -362,7 +362,7 @@ def find_executable(pkg: str, exe: str) -> list[str]:
 @functools.cache
 def node_schema(pkg: str, exe: str) -> ParamSchema | None:
     """The parameter schema of executable ``exe`` of ``pkg`` (``params/<exe>.yaml`` in the Python package or
-    the share folder, erforce_interfaces.param_schema), or None; the package is not imported."""
+    the share folder, erforce_interfaces.runtime.param_schema), or None; the package is not imported."""
     folders = []
     try:
         spec = importlib.util.find_spec(pkg) if pkg.isidentifier() else None
@@ -407,7 +407,7 @@ class ProcessSpec:
     sigkill_timeout_s: float | None = None
     param_files: list[tuple[str, str]] = field(default_factory=list)  # (path, content) written by us
     source: str = ""  # FILE:LINE of the action
-    standby: bool = False  # it can wait as a warm standby (erforce_interfaces.standby): our nodes
+    standby: bool = False  # it can wait as a warm standby (erforce_interfaces.runtime.standby): our nodes
 
 
 @dataclass
@@ -1135,7 +1135,7 @@ def _standby_child_setup() -> None:  # pragma: no cover - runs in the child betw
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-# Warm standbys (erforce_interfaces.standby): one per respawning node of ours, started one at a time.
+# Warm standbys (erforce_interfaces.runtime.standby): one per respawning node of ours, started one at a time.
 STANDBY_FIRST_S = 3.0  # after the graph's start, so that their imports do not slow the graph's own start
 STANDBY_AGAIN_S = 5.0  # after an activation or a fresh respawn, so that they do not slow the healing node
 STANDBY_WARMING_MAX_S = 30.0  # the next standby starts when this one is ready, has died, or after this

@@ -249,7 +249,7 @@ class RosGraph:
             _TAG_VAR: self.tag,
         })
         self.env.pop("ROS_STATIC_PEERS", None)
-        from erforce_interfaces.contract import dds_profile_env
+        from erforce_interfaces.wire.contract import dds_profile_env
 
         self.env.update(dds_profile_env(self.env))  # a restarted node is matched within ~1 s
         self.processes: list[NodeProcess] = []
@@ -357,7 +357,7 @@ class RosGraph:
 
     def unexpected_callback_faults(self) -> list[str]:
         """The callback-fault warnings logged by processes the test did not declare (see above)."""
-        from erforce_interfaces.node_support import CALLBACK_FAULT
+        from erforce_interfaces.runtime.node_support import CALLBACK_FAULT
 
         if self._expected_faults is None:
             return []
@@ -417,7 +417,9 @@ class _Probe:
         import rclpy
         from rclpy.context import Context
 
-        from erforce_interfaces.executor import DirectExecutor  # spun by hand; serves callbacks that take the info
+        from erforce_interfaces.runtime.executor import (
+            DirectExecutor,  # spun by hand; serves callbacks that take the info
+        )
 
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
@@ -439,7 +441,7 @@ class _Probe:
             self.executor.spin_once(timeout_sec=min(0.02, max(0.0, deadline - time.monotonic())))
 
     def subscribe(self, topic: str, msg_type: type, qos=None) -> list:
-        from erforce_interfaces.contract import QOS_STATE
+        from erforce_interfaces.wire.contract import QOS_STATE
 
         received: list = []
         self.node.create_subscription(msg_type, topic, received.append, qos or QOS_STATE)
@@ -462,7 +464,7 @@ class _Probe:
         return match[0]
 
     def publisher(self, topic: str, msg_type: type, qos=None):
-        from erforce_interfaces.contract import QOS_COMMAND
+        from erforce_interfaces.wire.contract import QOS_COMMAND
 
         key = (topic, msg_type)
         if key not in self._publishers:
@@ -545,7 +547,7 @@ if pytest is not None:
     def pytest_configure(config) -> None:
         """The probes in this process use the stack's DDS profile too (Fast DDS reads it once, at the
         process's first participant): a new node is matched quickly only if both sides announce often."""
-        from erforce_interfaces.contract import dds_profile_env
+        from erforce_interfaces.wire.contract import dds_profile_env
 
         os.environ.update(dds_profile_env())
 

@@ -7,7 +7,7 @@ the environment does not name it); else as an importable Python package whose pa
 package.xml (an editable install without the index). Used by the contract (the DDS profile in the share
 folder) and by the launcher (``$(find-pkg-share)``, executables).
 
-Registration (``python -m erforce_interfaces.ament_index PREFIX PACKAGE_DIR...``, run by ``./run setup``):
+Registration (``python -m erforce_interfaces.wire.ament_index PREFIX PACKAGE_DIR...``, run by ``./run setup``):
 what ``colcon build --symlink-install`` puts into an install prefix for an ament_python package, read
 from its setup.py: the ``data_files`` (the index marker, package.xml, launch, config, params) as
 symlinks to the sources, so edits take effect without reinstalling, and ``lib/<pkg>/<exe>`` for every
@@ -172,7 +172,7 @@ def register_package(prefix: Path, package_dir: Path) -> SetupInfo:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m erforce_interfaces.ament_index",
+    parser = argparse.ArgumentParser(prog="python -m erforce_interfaces.wire.ament_index",
                                      description="Register ament_python packages in the ament index of a prefix.")
     parser.add_argument("prefix", type=Path, help="install prefix (the venv)")
     parser.add_argument("packages", type=Path, nargs="+", help="package folders (with setup.py)")

@@ -37,14 +37,14 @@ robots of both teams in one message per tick, our joints first, then the opponen
 for a simulation that runs both teams' firmware in one process (team_firmware with ``opponent_ids``): one
 message and one wake per tick each way instead of one per team. The values are those of the team topics.
 
-SSL-Vision (the ``ssl_vision_bridge`` node; erforce_ball_model.ssl_vision_bridge): the bridge
+SSL-Vision (the ``ssl_vision_bridge`` node; erforce_ball_model.ssl_vision_bridge_node): the bridge
 takes the league's multicast packets and publishes on the same topics the plant's vision uses,
 so the rest of the graph cannot tell them apart:
 - millimetres become metres; the vision frame becomes ``field`` (turned by half a turn when our
   team defends the goal at positive x, so that in ``field`` we always defend negative x);
-- ``t_capture`` becomes the stamp, on the ROS clock (erforce_interfaces.ssl_vision.VisionClock), or, with
+- ``t_capture`` becomes the stamp, on the ROS clock (erforce_interfaces.ssl.ssl_vision.VisionClock), or, with
   ``time_source: capture``, on the cameras' one capture timeline, which the bridge publishes on ``/clock``
-  (erforce_interfaces.ssl_vision.CaptureTimeline);
+  (erforce_interfaces.ssl.ssl_vision.CaptureTimeline);
 - a camera frame goes out as one ``/vision/robots`` message: the ball the multi-camera tracker picks
   from it (if any, with increasing stamps from frame to frame) and the robots it uses, both teams; the
   ball also to ``/vision/ball``, our team's robots also to ``/robot_<id>/vision_pose``, the opponents'
@@ -77,7 +77,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
-from erforce_interfaces.ament_index import find_package_share
+from erforce_interfaces.wire.ament_index import find_package_share
 
 FIELD_FRAME = "field"
 ROBOT_NAMESPACE_PREFIX = "robot_"

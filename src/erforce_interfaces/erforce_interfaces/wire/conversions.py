@@ -31,7 +31,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 from std_msgs.msg import Float64, Float64MultiArray, MultiArrayDimension
 
-from erforce_interfaces.contract import (
+from erforce_interfaces.wire.contract import (
     BALL_MODEL_PARAM_LABELS,
     BALL_MODEL_PARAM_ROWS,
     BALL_PHASES,
@@ -48,8 +48,8 @@ from erforce_interfaces.contract import (
     Team,
     field_joint_names,
 )
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.stamps import stamp_ns
+from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_interfaces.wire.stamps import stamp_ns
 
 #: Largest magnitude accepted for any position [m], speed [m/s] or rate [rad/s] on the wire.
 #: Far beyond anything physical on an SSL field; it keeps "huge" values out of the cores.

@@ -1,5 +1,5 @@
 """``./run demo``: the main job, the passing game on the 14-robot graph (``--scenario passing``, the
-default: erforce_sim.closed_loop.passing_report), or the paper's story end to end (``--scenario scenes``,
+default: erforce_sim.demo.passing_report), or the paper's story end to end (``--scenario scenes``,
 this module).
 
 The scenes launch launch/demo.launch.yaml (plant, ball_predictor, robot_0's velocity_controller,
@@ -17,7 +17,7 @@ a receiver); for a ball that was not caught, the one made 0.3 s after the kick. 
 when the ball's true path (ground truth) passes a point robot_0 could have reached in
 time under the planning limits (robotTimeToPos from its start, after a reaction delay),
 independent of the predictor. At the end it writes report/<time>/: the bag, PNG plots and
-summary.md (see erforce_sim.closed_loop.report).
+summary.md (see erforce_sim.demo.report).
 """
 
 from __future__ import annotations
@@ -44,8 +44,11 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model.catch_time import RobotLimits
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.runtime.executor import DirectExecutor, run_sampled, sample_only
+from erforce_interfaces.ssl.ssl_vision import SSL_VISION_GROUP, SslDecodeError, decode_wrapper
+from erforce_interfaces.tools.testing import stop_process
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     odometry_from_msg,
     odometry_msg,
     seconds_to_stamp,
@@ -53,11 +56,8 @@ from erforce_interfaces.conversions import (
     stamp_to_seconds,
     table_from_msg,
 )
-from erforce_interfaces.executor import DirectExecutor, run_sampled, sample_only
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_interfaces.ssl_vision import SSL_VISION_GROUP, SslDecodeError, decode_wrapper
-from erforce_interfaces.tools.testing import stop_process
-from erforce_sim.closed_loop.scenes import (
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_sim.in_process.scenes import (
     KICKER,
     PREDICTION_LEAD_S,
     RECEIVER,
@@ -125,7 +125,7 @@ class Director:
     """The scenario player: places bodies, kicks, watches; its node spins on ``executor``.
 
     It watches without an executor wake per message: its subscriptions are sampled
-    (erforce_interfaces.executor.sample_only), and ``pump()`` (called while it waits) runs their
+    (erforce_interfaces.runtime.executor.sample_only), and ``pump()`` (called while it waits) runs their
     listeners for everything queued, in the order it was sent (DDS source timestamps). One wake
     per message made this observer the third busiest process of the demo (~20 % of a core at
     ~900 messages/s), and being a normal-priority process it preempted the simulated world and
@@ -519,7 +519,7 @@ class Demo:
                                f"and {self.out / 'record.log'}")
 
     def start_view(self) -> None:
-        """The field view (erforce_sim.closed_loop.field_view_node) beside the graph, an observer like the recorder."""
+        """The field view (erforce_sim.view.field_view_node) beside the graph, an observer like the recorder."""
         self.view = start_field_view(self.args, self.out, self.args.field, self.director.receivers)
 
     def _recording_everything(self) -> bool:
@@ -550,7 +550,7 @@ class Demo:
         )
 
     def run(self) -> int:
-        from erforce_sim.closed_loop.report import write_report
+        from erforce_sim.demo.report import write_report
 
         results: list[SceneResult] = []
         wall0 = sim0 = None
@@ -683,7 +683,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="report", help="report folder (a timestamped subfolder is created)")
     parser.add_argument("--scenario", default="passing", choices=("passing", "scenes"),
                         help="passing: the passing game of a team against opponents on the 14-robot graph "
-                             "(team_sim.launch.yaml ai:=passing; erforce_sim.closed_loop.passing_report); scenes: "
+                             "(team_sim.launch.yaml ai:=passing; erforce_sim.demo.passing_report); scenes: "
                              "the paper's story (Fig. 6, then kicks) on demo.launch.yaml")
     parser.add_argument("--in-process", action="store_true",
                         help="passing: the game in one process instead, without DDS (deterministic per seed)")
@@ -743,13 +743,13 @@ def main(argv: list[str] | None = None) -> int:
                         help="with --view: also a Foxglove WebSocket server on this port (0: none)")
     args = parser.parse_args(argv)
     if args.scenario == "passing" and args.in_process:
-        from erforce_sim.closed_loop import passing_report  # no DDS graph: the game runs in this process
+        from erforce_sim.demo import passing_report  # no DDS graph: the game runs in this process
 
         return passing_report.run(args)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.update(contract.dds_profile_env())  # for the director and the recorder too
     if args.scenario == "passing":
-        from erforce_sim.closed_loop import passing_report
+        from erforce_sim.demo import passing_report
 
         return passing_report.run_on_graph(args)
     return Demo(args).run()

@@ -6,7 +6,7 @@ playing our team and the opponents' team_catcher intercepting; a recorder (erfor
 into ``bag/``, and this process prints each pass as the node publishes it (``/pass/records``) until
 ``--passes`` have ended. The ball path of each pass comes from ``/ground_truth/ball``.
 
-In one process (``run``, ``--in-process``): erforce_sim.closed_loop.passing_game, deterministic per seed; its
+In one process (``run``, ``--in-process``): erforce_sim.in_process.passing_game, deterministic per seed; its
 bag holds the contract's topics and types: ``/clock``, ``/ground_truth/ball``, each robot's
 ``/robot_<id>/ground_truth/odom``, each opponent's ``/opponent_<id>/ground_truth/odom`` (100 Hz, simulated
 time), one ``/sim/events`` line per kick and per pass, and the holder's choice of pass ``/pass/choice``
@@ -31,13 +31,13 @@ import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from erforce_ball_model.passing import PassConfig, PassOption
-from erforce_ball_model.passing_game_node import pass_choice_rows
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import clock_cdr, odometry_cdr, table_cdr
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_ball_model.passing.decisions import PassConfig, PassOption
+from erforce_ball_model.passing.passing_game_node import pass_choice_rows
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import clock_cdr, odometry_cdr, table_cdr
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ball import BallParams
-from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame, PassRecord, plot_passes, summary
+from erforce_sim.in_process.passing_game import GameConfig, PassingGame, PassRecord, plot_passes, summary
 
 TRUTH_PERIOD_NS = 10_000_000  # 100 Hz, as the plant's ground_truth_rate_hz
 TEAM_SIM_LAUNCH = Path(__file__).resolve().parents[2] / "launch" / "team_sim.launch.yaml"
@@ -184,7 +184,7 @@ def graph_commands(args: argparse.Namespace, cfg: GameConfig, setup) -> tuple[li
     """The launch commands of the game: (the AI side, or the whole graph with our plant; the stand-in world with
     ``--world ssl``, else None). With ``--world ssl`` the two talk only over the league's protocols, on ports free
     on this machine: SSL-Vision from the world, each colour's RobotControl and the teleports to it."""
-    from erforce_sim.closed_loop.demo import free_udp_port
+    from erforce_sim.demo.demo import free_udp_port
 
     bin_dir = Path(sys.executable).parent
     teams = [f"robot_ids:={list(range(cfg.team_size))}", f"num_robots:={cfg.team_size}",
@@ -243,7 +243,7 @@ class _Observer:
     def watch_clock(self, on_time=None) -> None:
         from rosgraph_msgs.msg import Clock
 
-        from erforce_interfaces.conversions import stamp_to_seconds
+        from erforce_interfaces.wire.conversions import stamp_to_seconds
 
         def on_clock(msg) -> None:
             t = stamp_to_seconds(msg.clock)
@@ -278,11 +278,11 @@ def run_on_graph(args: argparse.Namespace) -> int:
     from nav_msgs.msg import Odometry
     from std_msgs.msg import Float64MultiArray
 
-    from erforce_ball_model.passing_game_node import records_from_msg
-    from erforce_interfaces.conversions import odometry_from_msg
+    from erforce_ball_model.passing.passing_game_node import records_from_msg
     from erforce_interfaces.tools.testing import DomainLease, stop_processes
-    from erforce_sim.closed_loop.demo import spawn_in_session, start_field_view
-    from erforce_sim.closed_loop.passing_game import setup_for
+    from erforce_interfaces.wire.conversions import odometry_from_msg
+    from erforce_sim.demo.demo import spawn_in_session, start_field_view
+    from erforce_sim.in_process.passing_game import setup_for
 
     out = Path(args.out) / time.strftime("%Y%m%d-%H%M%S")
     out.mkdir(parents=True, exist_ok=True)

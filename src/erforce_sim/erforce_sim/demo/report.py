@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 
 
 def _plt():

@@ -8,7 +8,7 @@ The plant's vision (noise, dropouts, latency) observes it. Twelve scripted robot
 smooth loops, no contacts: simulating their drive trains would cost 20x the ball) fill the frames,
 so packets have a game's size. The plant's four quadrant cameras (``ssl_cameras``) each send their
 part of every frame as an ``SSL_WrapperPacket`` (``VISION_2014`` records, the shared encoder of
-``erforce_interfaces.ssl_vision``); a geometry packet (field size, cameras and the true ball model as
+``erforce_interfaces.ssl.ssl_vision``); a geometry packet (field size, cameras and the true ball model as
 ``SSL_BallModelStraightTwoPhase``) goes out once a second, a referee message (``REFBOX_2013``) at 10 Hz.
 
 The true ball parameters are known: a_slide = -mu_slide g, a_roll = -mu_roll g, and
@@ -27,10 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_log import LogWriter, MessageType
-from erforce_interfaces.ssl_proto import ssl_gc_referee_message_pb2
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.ssl.ssl_log import LogWriter, MessageType
+from erforce_interfaces.ssl.ssl_proto import ssl_gc_referee_message_pb2
+from erforce_interfaces.ssl.ssl_vision import (
     BallCandidate,
     BallModelFromVision,
     CameraFrame,
@@ -40,6 +39,7 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ball import A_ROLL_MPS2, A_SLIDE_MPS2, BallParams
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import CAMERA_HEIGHT_M, quadrant_cameras
@@ -138,7 +138,7 @@ def referee_packet(t_s: float, duration_s: float, counter: int) -> bytes:
         team.name = name
         team.score = team.red_cards = team.yellow_cards = team.goalkeeper = 0
         team.timeouts, team.timeout_time = 4, 300_000_000
-    ref.source_identifier = "erforce_sim.closed_loop.ssl_game_log"
+    ref.source_identifier = "erforce_sim.demo.ssl_game_log"
     return ref.SerializeToString()
 
 

@@ -1,7 +1,7 @@
 """The passing game played in one process: a team passes along a chain, opponents try to intercept.
 
 Everything runs in one process with no DDS, deterministic per seed, like the demo's scenes
-(erforce_sim.closed_loop.scenes): the plant with every robot under motion control (runner.InProcessRunner,
+(erforce_sim.in_process.scenes): the plant with every robot under motion control (runner.InProcessRunner,
 our team and the opponents, erforce_sim world), the ball predictor's object (predictor.BallPredictor)
 on every vision frame for all robots of both teams, and the AI at a 50 Hz tick:
 
@@ -18,7 +18,7 @@ on every vision frame for all robots of both teams, and the AI at a 50 Hz tick:
 
 Each pass is reported as it ends (``PassRecord``, with the true ball path).
 
-    python -m erforce_sim.closed_loop.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
+    python -m erforce_sim.in_process.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
 
 No rclpy import.
 """
@@ -35,12 +35,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from erforce_ball_model.catch_time import RobotLimits
-from erforce_ball_model.catcher import CatcherConfig
-from erforce_ball_model.passing import PassConfig
-from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerConfig, PressingTeam, summary
+from erforce_ball_model.passing.decisions import PassConfig
+from erforce_ball_model.passing.player import PassingPlayer, PassRecord, PlayerConfig, PressingTeam, summary
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_sim.closed_loop.runner import InProcessRunner
+from erforce_ball_model.receiver import CatcherConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.sensors import VisionFrame
 from erforce_sim.world import PlantSetup
 
@@ -285,7 +285,7 @@ def plot_passes(records: list[PassRecord], field_config: FieldConfig, path, titl
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m erforce_sim.closed_loop.passing_game",
+    parser = argparse.ArgumentParser(prog="python -m erforce_sim.in_process.passing_game",
                                      description=__doc__.split("\n\n")[0])
     parser.add_argument("--team", type=int, default=11, help="our robots (2..11)")
     parser.add_argument("--opponents", type=int, default=3)

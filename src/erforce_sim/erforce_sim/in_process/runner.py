@@ -5,7 +5,7 @@ boards, ball, seed, tick period); ``build_world`` turns it into a World. The pla
 builds its world the same way.
 
 ``InProcessRunner`` steps the same cores the DDS graph runs, in the same order and with
-the same one-tick setpoint delay as the lockstep protocol (erforce_interfaces.lockstep):
+the same one-tick setpoint delay as the lockstep protocol (erforce_interfaces.runtime.lockstep):
 
     tick k:  sensors(t_k) -> main board -> setpoint(t_k)  (used at tick k+1)
                           -> motor boards with setpoint(t_{k-1}) -> duty(t_k)

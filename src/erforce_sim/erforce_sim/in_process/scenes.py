@@ -1,6 +1,6 @@
 """The demo's scenes, how a scene is scored, and the scenes played in one process.
 
-``default_scenes`` is the sequence ``./run demo`` plays over DDS (erforce_sim.closed_loop.demo): the paper's
+``default_scenes`` is the sequence ``./run demo`` plays over DDS (erforce_sim.demo.demo): the paper's
 Fig. 6, then kicks from 1 to 6.5 m/s by robot_1's curved plate at robot_0, passing it, and one off
 the side wall. ``reachable`` decides from the ball's true path whether a robot could have caught it.
 
@@ -13,7 +13,7 @@ where the catcher is tuned and its behaviour tested, seconds for what takes the 
 What it leaves out: DDS delivery and scheduling (the predictor's output reaches the catcher at once),
 the predictor's online identification, and the teammates of ``--receivers``.
 
-    python -m erforce_sim.closed_loop.scenes --seeds 20        # every scene, 20 seeds: caught, contact times
+    python -m erforce_sim.in_process.scenes --seeds 20        # every scene, 20 seeds: caught, contact times
 
 No rclpy import.
 """
@@ -27,10 +27,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from erforce_ball_model.catch_time import RobotLimits, robot_time_to_pos
-from erforce_ball_model.catcher import CATCH_TIME_NEVER, CatcherConfig, Receiver
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_sim.closed_loop.runner import InProcessRunner
+from erforce_ball_model.receiver import CATCH_TIME_NEVER, CatcherConfig, Receiver
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.sensors import VisionFrame, VisionParams
 from erforce_sim.world import PlantSetup
 
@@ -244,7 +244,7 @@ class _Predictor:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m erforce_sim.closed_loop.scenes",
+    parser = argparse.ArgumentParser(prog="python -m erforce_sim.in_process.scenes",
                                      description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=10, help="seeds 0 .. N-1 per scene")
     parser.add_argument("--scene", type=int, action="append", help="only this scene (index; repeatable)")

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_motion.tuning import (
     RULES,
     TuningResult,

@@ -38,9 +38,9 @@ from typing import Any
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, Walls, ball_speed
-from erforce_ball_model.catcher import team_receiver
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_ball_model.receiver import team_receiver
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     BallTrack,
     ConversionError,
     ball_track_from_msg,
@@ -52,8 +52,8 @@ from erforce_interfaces.conversions import (
     point_from_msg,
     table_from_msg,
 )
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_interfaces.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
 
 #: SSL rules: centre circle radius [m] (drawn only).
 CENTRE_CIRCLE_RADIUS_M = 0.5

@@ -1,11 +1,11 @@
 """field_view: the field drawn live in a browser, a recorded bag replayed on the same page, and a
 Foxglove WebSocket server, as a ROS 2 node.
 
-It serves http://127.0.0.1:<port>/ (erforce_sim.closed_loop.view_server; the page's files ship in
+It serves http://127.0.0.1:<port>/ (erforce_sim.view.view_server; the page's files ship in
 share/erforce_sim/web). Every ``1 / rate_hz`` of wall time (a tick in the server's tick thread: the only wake-up
 per frame; no message at the vision rate wakes the process) it takes the newest message of each topic the view
-shows (erforce_sim.closed_loop.field_view lists them; robots are found as their topics appear), hands them to
-the core (erforce_sim.closed_loop.field_view.WorldState) and sends its frame to the pages (binary,
+shows (erforce_sim.view.field_view lists them; robots are found as their topics appear), hands them to
+the core (erforce_sim.view.field_view.WorldState) and sends its frame to the pages (binary,
 ``WorldState.frame_bytes``). Its subscriptions are best effort and keep one message (the latched model in use:
 the contract's QoS): the view never holds up a publisher, and it takes nothing while no page is open. Where the
 predictor's team table ``/ball/catches`` is on the graph the view takes it instead of every robot's odom,
@@ -15,7 +15,7 @@ filtered ball, v_shoot, phase, uncertain flag and the ball seen) instead of five
 vision rate in all. The view is an observer: all its threads run under SCHED_IDLE (``observe_only``), so it
 never takes a core from the nodes of its session when they have work, and it takes its topics once per page
 frame (but for CALLBACK_TOPICS, which change rarely and come by callback). With ``bag`` set, the page can also
-replay that bag (``{"replay": t}`` requests; erforce_sim.closed_loop.field_view.BagReplay).
+replay that bag (``{"replay": t}`` requests; erforce_sim.view.field_view.BagReplay).
 
 With ``foxglove_port`` > 0 it also starts a Foxglove WebSocket server (the ``foxglove`` SDK) that
 forwards every topic of the graph as it is, CDR with its ROS 2 message definition (schema encoding
@@ -38,13 +38,13 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
-from erforce_interfaces import contract
-from erforce_interfaces.ament_index import find_package_share
-from erforce_interfaces.executor import sample_only, take_one
-from erforce_interfaces.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
-from erforce_interfaces.param_schema import load_schema
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_sim.closed_loop.field_view import (
+from erforce_interfaces.runtime.executor import sample_only, take_one
+from erforce_interfaces.runtime.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
+from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.ament_index import find_package_share
+from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_sim.view.field_view import (
     BYTES_TYPES,
     CATCH_TABLE_REPLACES,
     TRACK_REPLACES,
@@ -53,7 +53,7 @@ from erforce_sim.closed_loop.field_view import (
     WorldState,
     view_topic,
 )
-from erforce_sim.closed_loop.view_server import ViewServer
+from erforce_sim.view.view_server import ViewServer
 
 DISCOVERY_PERIOD_S = 1.0
 #: Topics that change rarely: their messages come by callback (the executor wakes for them) instead of a take
@@ -141,7 +141,7 @@ class FieldViewNode(Node):
         self._last_value: dict[str, bytes] = {}  # VALUE_TOPICS: the bytes last applied
         self._foxglove = None
         if v["foxglove_port"]:
-            from erforce_sim.closed_loop.foxglove_bridge import FoxgloveBridge
+            from erforce_sim.view.foxglove_bridge import FoxgloveBridge
 
             self._foxglove = FoxgloveBridge(v["host"], v["foxglove_port"])
             self.get_logger().info(f"Foxglove WebSocket server at ws://{v['host']}:{v['foxglove_port']}")

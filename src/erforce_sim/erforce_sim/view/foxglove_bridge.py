@@ -5,7 +5,7 @@ Every topic of a standard ROS 2 type goes out as it was sent: its CDR bytes (``c
 type's message definition (``ros2msg``, the text ``ros2 bag`` writes into MCAP; rosbags generates
 it), so Foxglove decodes them itself. Its subscriptions are best effort (a publisher never waits
 for the bridge) and are taken only while a Foxglove client listens. Two channels of its own come
-from the field view's frames (erforce_sim.closed_loop.field_view): ``/field_view/scene`` (a foxglove
+from the field view's frames (erforce_sim.view.field_view): ``/field_view/scene`` (a foxglove
 SceneUpdate in frame ``field``: field lines, robots with ids and headings, the ball, the predicted
 path, stop point, catch points and the receiver's target, in the page's colours) and
 ``/field_view/plots`` (JSON: the ball speed against the model, the followed robot's currents
@@ -198,8 +198,8 @@ class FoxgloveBridge:
             return topic in self._forwarded
         from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-        from erforce_interfaces.executor import sample_only
-        from erforce_sim.closed_loop.field_view_node import message_class
+        from erforce_interfaces.runtime.executor import sample_only
+        from erforce_sim.view.field_view_node import message_class
 
         try:
             schema = ros2msg_schema(type_name)
@@ -216,7 +216,7 @@ class FoxgloveBridge:
 
     def forward(self) -> int:
         """Send what arrived on the forwarded topics to the clients that subscribed to them."""
-        from erforce_interfaces.executor import take_queued
+        from erforce_interfaces.runtime.executor import take_queued
 
         sent = 0
         for sub, channel in self._forwarded.values():
@@ -280,5 +280,5 @@ def layout_json() -> str:
     return json.dumps(json.loads(layout.to_json()), indent=2) + "\n"
 
 
-if __name__ == "__main__":  # regenerate the layout file: python -m erforce_sim.closed_loop.foxglove_bridge > config/...
+if __name__ == "__main__":  # regenerate the layout file: python -m erforce_sim.view.foxglove_bridge > config/...
     print(layout_json(), end="")

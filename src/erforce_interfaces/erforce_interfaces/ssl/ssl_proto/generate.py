@@ -1,10 +1,10 @@
 """Regenerate (or, with ``--check``, verify) the ``*_pb2.py`` modules of this folder's ``.proto`` files.
 
-Run from anywhere: ``python -m erforce_interfaces.ssl_proto.generate [--check]``. The generated modules
+Run from anywhere: ``python -m erforce_interfaces.ssl.ssl_proto.generate [--check]``. The generated modules
 are committed, so a robot or a colcon workspace needs only the ``protobuf`` runtime, not protoc; protoc
 comes from ``grpcio-tools`` (pinned with the runtime in requirements.txt). Imports between the files
-use the path from the package root (``erforce_interfaces/ssl_proto/x.proto``), so the generated
-modules import each other as ``erforce_interfaces.ssl_proto.x_pb2``.
+use the path from the package root (``erforce_interfaces/ssl/ssl_proto/x.proto``), so the generated
+modules import each other as ``erforce_interfaces.ssl.ssl_proto.x_pb2``.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-PACKAGE_ROOT = HERE.parent.parent  # the folder holding the erforce_interfaces package
+PACKAGE_ROOT = HERE.parents[2]  # the folder holding the erforce_interfaces package
 
 
 def proto_files() -> list[Path]:
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.check:
         stale = stale_modules()
         for name in stale:
-            print(f"out of date: {name} (run python -m erforce_interfaces.ssl_proto.generate)", file=sys.stderr)
+            print(f"out of date: {name} (run python -m erforce_interfaces.ssl.ssl_proto.generate)", file=sys.stderr)
         return 1 if stale else 0
     for path in generate(PACKAGE_ROOT):
         print(path.relative_to(PACKAGE_ROOT))

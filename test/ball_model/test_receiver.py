@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
-from erforce_ball_model.catcher import (
+from erforce_ball_model.receiver import (
     CatcherConfig,
     Receiver,
     approach_velocity,
@@ -20,7 +20,7 @@ from erforce_ball_model.catcher import (
     team_receiver,
     wrap_angle,
 )
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 CFG = CatcherConfig(a_max_mps2=3.0, v_max_mps=2.0, braking_margin=1.0)
 
@@ -301,8 +301,8 @@ def test_receiver_in_a_team_drives_only_while_it_is_first_to_the_ball():
 
 
 def test_catch_time_never_is_the_contracts():
-    from erforce_ball_model.catcher import CATCH_TIME_NEVER
-    from erforce_interfaces.contract import CATCH_TIME_NEVER as contract_never
+    from erforce_ball_model.receiver import CATCH_TIME_NEVER
+    from erforce_interfaces.wire.contract import CATCH_TIME_NEVER as contract_never
 
     assert CATCH_TIME_NEVER == contract_never
 
@@ -399,7 +399,7 @@ def test_the_old_heading_law_oscillates_behind_a_delay_of_0_2_s():
 def test_the_heading_loop_compensated_for_the_delay_settles_without_overshoot():
     """The same turn with the pose's age known (0.2 s) and the tracked yaw rate: the loop's delay is taken as
     the age plus command_lead_s (0.24 s), the gain 0.5 / 0.24 = 2.08 /s, the heading predicted 0.24 s ahead.
-    The loop K e^{-sD} (1 + sD) / s has its phase margin of 87 deg (catcher module docstring): no overshoot, a
+    The loop K e^{-sD} (1 + sD) / s has its phase margin of 87 deg (receiver module docstring): no overshoot, a
     first-order response with time constant 1 / K after the dead time, so 30 deg (0.524 rad) comes within
     0.04 rad after 0.21 + ln(0.524 / 0.04) / 2.08 = 1.44 s at the latest and stays there; it stops inside the
     0.03 rad deadband."""

@@ -1,8 +1,8 @@
-"""erforce_ball_model.vision_pass: the compiled pass from a datagram's bytes to /vision/robots' bytes agrees with the
-general path (decode_wrapper, VisionClock, VisionTracker.frame_indices, the points, vision_robots_points_cdr) on
-every datagram of a long, eventful stream, byte for byte; and it hands back, untouched, whatever it does not
-take (garbage, truncations, absurd counts, NaN and huge coordinates), never crashing or writing non-finite
-values."""
+"""erforce_ball_model.vision_fast_path: the compiled pass from a datagram's bytes to /vision/robots' bytes agrees
+with the general path (decode_wrapper, VisionClock, VisionTracker.frame_indices, the points,
+vision_robots_points_cdr) on every datagram of a long, eventful stream, byte for byte; and it hands back,
+untouched, whatever it does not take (garbage, truncations, absurd counts, NaN and huge coordinates), never
+crashing or writing non-finite values."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.vision_pass import (
+from erforce_ball_model.vision_fast_path import (
     PASS_BAD_STAMP,
     PASS_CLOCK_JUMP,
     PASS_DONE,
@@ -27,10 +27,8 @@ from erforce_ball_model.vision_pass import (
     robot_points,
 )
 from erforce_ball_model.vision_tracking import MAX_ROBOT_ID, VisionTracker
-from erforce_interfaces.conversions import vision_frame_from_msg, vision_robots_points_cdr
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.ssl.ssl_proto import ssl_vision_wrapper_pb2 as wrap
+from erforce_interfaces.ssl.ssl_vision import (
     CAPTURE_OLD,
     CAPTURE_RESTART,
     TIME_CAPTURE,
@@ -48,6 +46,8 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
+from erforce_interfaces.wire.conversions import vision_frame_from_msg, vision_robots_points_cdr
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 FIELD = FieldConfig.preset("division_a")
 OURS, N_OURS = 0.0, 11  # blue
