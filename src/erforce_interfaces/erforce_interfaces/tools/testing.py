@@ -25,7 +25,6 @@ any process still carrying the tag (grandchildren of a launcher killed too early
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import ipaddress
 import os
 import re
@@ -44,35 +43,9 @@ from typing import Any
 
 import yaml
 
-DOMAIN_ID_RANGE = range(100, 230)  # fastrtps port formula allows up to 232
+from erforce_interfaces.tools.processes import DomainLease, stop_process, stop_processes  # noqa: F401 (for tests)
+
 _TAG_VAR = "ERFORCE_TEST_TAG"
-
-
-class DomainLease:
-    """An exclusively held DDS domain id (a flock, so a crashed holder frees it)."""
-
-    def __init__(self, lock_dir: Path | None = None) -> None:
-        lock_dir = lock_dir or Path(tempfile.gettempdir()) / "erforce-ros-domains"
-        lock_dir.mkdir(parents=True, exist_ok=True)
-        start = (os.getpid() * 7) % len(DOMAIN_ID_RANGE)  # spread concurrent claimants
-        for k in range(len(DOMAIN_ID_RANGE)):
-            domain_id = DOMAIN_ID_RANGE[(start + k) % len(DOMAIN_ID_RANGE)]
-            fd = os.open(lock_dir / f"{domain_id}.lock", os.O_CREAT | os.O_RDWR, 0o666)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                os.close(fd)
-                continue
-            self.domain_id = domain_id
-            self._fd: int | None = fd
-            return
-        raise RuntimeError(f"no free ROS domain id in {DOMAIN_ID_RANGE}")
-
-    def release(self) -> None:
-        if self._fd is not None:
-            fcntl.flock(self._fd, fcntl.LOCK_UN)
-            os.close(self._fd)
-            self._fd = None
 
 
 @contextlib.contextmanager
@@ -146,36 +119,6 @@ class NodeProcess:
         if self.alive():
             with contextlib.suppress(ProcessLookupError):
                 os.kill(self.popen.pid, sig)
-
-
-def stop_process(popen: subprocess.Popen, sigint_timeout_s: float = 5.0, sigterm_timeout_s: float = 3.0) -> None:
-    """SIGINT, then SIGTERM, then SIGKILL (the process group), waiting after each."""
-    stop_processes([popen], sigint_timeout_s, sigterm_timeout_s)
-
-
-def stop_processes(popens: Sequence[subprocess.Popen], sigint_timeout_s: float = 5.0,
-                   sigterm_timeout_s: float = 3.0) -> None:
-    """``stop_process`` for several processes at once: each signal goes to every one still running before
-    any is waited for, so the graph stops in the time of its slowest process, not in the sum of them all."""
-    for sig, wait_s in ((signal.SIGINT, sigint_timeout_s), (signal.SIGTERM, sigterm_timeout_s)):
-        running = [popen for popen in popens if popen.poll() is None]
-        if not running:
-            return
-        for popen in running:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(popen.pid, sig)
-        deadline = time.monotonic() + wait_s
-        for popen in running:
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                popen.wait(timeout=max(0.0, deadline - time.monotonic()))
-    for popen in popens:
-        if popen.poll() is not None:
-            continue
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(popen.pid, signal.SIGKILL)
-        with contextlib.suppress(ProcessLookupError):
-            popen.kill()
-        popen.wait(timeout=5.0)
 
 
 def _pids_with_tag(tag: str) -> list[int]:

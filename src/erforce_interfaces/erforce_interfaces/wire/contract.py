@@ -60,6 +60,7 @@ Hosted in the ball predictor's process (``ssl_ball_predictor``), the bridge hand
 
 from __future__ import annotations
 
+import importlib
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -290,6 +291,12 @@ def opponent_id_of_namespace(namespace: str) -> int | None:
 def opponent_topic(topic: Topic, robot_id: int) -> str:
     """Absolute name of a per-robot topic for the opponents' robot ``robot_id`` (``/opponent_3/vision_pose``)."""
     return OPPONENTS.topic(topic, robot_id)
+
+
+def message_class(type_name: str) -> type:
+    """The message class of a type name (``pkg/msg/Name``, as ``Topic.type_name`` writes it)."""
+    pkg, _, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.msg"), name)
 
 
 def topic_of_name(name: str) -> Topic | None:

@@ -46,7 +46,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray
 from erforce_ball_model.catch_time import RobotLimits
 from erforce_interfaces.runtime.executor import DirectExecutor, run_sampled, sample_only
 from erforce_interfaces.ssl.ssl_vision import SSL_VISION_GROUP, SslDecodeError, decode_wrapper
-from erforce_interfaces.tools.testing import stop_process
+from erforce_interfaces.tools.processes import free_udp_port, idle_priority, spawn_in_session, stop_process
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
     odometry_from_msg,
@@ -67,6 +67,7 @@ from erforce_sim.in_process.scenes import (
     default_scenes,
     reachable,
 )
+from erforce_sim.view.process import start_field_view
 
 LAUNCH_FILE = Path(__file__).resolve().parents[2] / "launch" / "demo.launch.yaml"
 
@@ -411,52 +412,6 @@ class Director:
         return compared_prediction(preds, t_start, actual)
 
 
-def _idle_priority(thread_id: int) -> None:
-    """Run a thread (0: the caller) under SCHED_IDLE, where Linux has it; the demo runs anyway."""
-    try:
-        os.sched_setscheduler(thread_id, os.SCHED_IDLE, os.sched_param(0))
-    except (AttributeError, OSError):
-        pass
-
-
-def spawn_in_session(cmd: list[str], log_path: Path, idle: bool = False,
-                     env: dict[str, str] | None = None) -> subprocess.Popen:
-    """Start a graph process in a process group of its own (stop_process signals the group) but in
-    this session. Scheduling priorities rank threads only inside one autogroup, and Linux makes one
-    per session (CONFIG_SCHED_AUTOGROUP, on in most distributions): in a session of its own the
-    recorder's SCHED_IDLE meant nothing, and its group took an equal share of the CPUs beside the
-    graph's, delaying the ball predictor by up to 13 ms in a scheduler trace.
-    """
-    with open(log_path, "wb") as log:  # the child keeps its own copy
-        return subprocess.Popen(
-            cmd, stdout=log, stderr=subprocess.STDOUT, process_group=0, env=env,
-            preexec_fn=(lambda: _idle_priority(0)) if idle else None,
-        )
-
-
-def start_field_view(args: argparse.Namespace, out: Path, field: str, team_ids) -> subprocess.Popen:
-    """The field view beside a graph (``--view``), an observer at idle priority like the recorder; a thread
-    prints its address once it serves."""
-    cmd = [str(Path(sys.executable).with_name("field_view")), "--ros-args", "-p", f"port:={args.view_port}",
-           "-p", f"field:={field}", "-p", f"team_robot_ids:=[{','.join(str(r) for r in team_ids)}]",
-           "-p", f"foxglove_port:={args.foxglove_port}"]
-    view = spawn_in_session(cmd, out / "view.log", idle=True)
-    threading.Thread(target=_announce_view, args=(view, out / "view.log", args), daemon=True).start()
-    return view
-
-
-def _announce_view(view: subprocess.Popen, log: Path, args: argparse.Namespace) -> None:
-    while view.poll() is None:
-        if "field view at" in log.read_text(errors="replace"):
-            print(f"field view: http://127.0.0.1:{args.view_port}/", flush=True)
-            if args.foxglove_port:
-                print(f"Foxglove: ws://127.0.0.1:{args.foxglove_port} (layout: "
-                      f"{Path(__file__).resolve().parents[2] / 'config' / 'foxglove_layout.json'})", flush=True)
-            return
-        time.sleep(0.2)
-    print(f"the field view did not start; see {log}", flush=True)
-
-
 class Demo:
     def __init__(self, args: argparse.Namespace) -> None:
         self.args = args
@@ -511,7 +466,7 @@ class Demo:
         # Both observers take their topics in batches and may lag and catch up; the AI nodes and
         # the control loop may not. Under SCHED_IDLE neither preempts them when its DDS threads wake.
         for tid in os.listdir("/proc/self/task"):
-            _idle_priority(int(tid))
+            idle_priority(int(tid))
         print(f"graph starting (log: {self.out / 'graph.log'}) ...", flush=True)
         if not self.director.spin_until(lambda: self.director.graph_ready() and self._recording_everything(),
                                         90.0, "the graph"):
@@ -657,25 +612,6 @@ class SslArrivals:
         self._stop.set()
         self._thread.join(timeout=1.0)
         self._sock.close()
-
-
-def free_udp_port() -> int:
-    """A UDP port free on this machine now, below the kernel's ephemeral range: a port the kernel handed out
-    (bind to port 0) may go to the next socket that binds port 0 (a simulation bridge's answer socket, a DDS
-    reader) before the process meant to listen on it starts."""
-    try:
-        low = int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
-    except (OSError, ValueError, IndexError):
-        low = 32768
-    rng = np.random.default_rng()
-    for port in rng.permutation(np.arange(20000, max(low, 20001))).tolist():
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-            try:
-                probe.bind(("0.0.0.0", port))
-            except OSError:
-                continue
-            return port
-    raise RuntimeError("no free UDP port below the ephemeral range")
 
 
 def main(argv: list[str] | None = None) -> int:

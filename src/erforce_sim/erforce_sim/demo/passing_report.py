@@ -184,7 +184,7 @@ def graph_commands(args: argparse.Namespace, cfg: GameConfig, setup) -> tuple[li
     """The launch commands of the game: (the AI side, or the whole graph with our plant; the stand-in world with
     ``--world ssl``, else None). With ``--world ssl`` the two talk only over the league's protocols, on ports free
     on this machine: SSL-Vision from the world, each colour's RobotControl and the teleports to it."""
-    from erforce_sim.demo.demo import free_udp_port
+    from erforce_interfaces.tools.processes import free_udp_port
 
     bin_dir = Path(sys.executable).parent
     teams = [f"robot_ids:={list(range(cfg.team_size))}", f"num_robots:={cfg.team_size}",
@@ -279,10 +279,10 @@ def run_on_graph(args: argparse.Namespace) -> int:
     from std_msgs.msg import Float64MultiArray
 
     from erforce_ball_model.passing.passing_game_node import records_from_msg
-    from erforce_interfaces.tools.testing import DomainLease, stop_processes
+    from erforce_interfaces.tools.processes import DomainLease, spawn_in_session, stop_processes
     from erforce_interfaces.wire.conversions import odometry_from_msg
-    from erforce_sim.demo.demo import spawn_in_session, start_field_view
     from erforce_sim.in_process.passing_game import setup_for
+    from erforce_sim.view.process import start_field_view
 
     out = Path(args.out) / time.strftime("%Y%m%d-%H%M%S")
     out.mkdir(parents=True, exist_ok=True)

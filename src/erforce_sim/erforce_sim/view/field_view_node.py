@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import importlib
 import json
 import os
 import threading
@@ -70,17 +69,12 @@ def check_config(config):
 
 
 @functools.cache
-def message_class(type_name: str) -> type:
-    pkg, _, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{pkg}.msg"), name)
-
-
 def decode(type_name: str, data: bytes) -> Any:
     """What WorldState.apply takes of a message's CDR bytes: the bytes themselves for the types the
     conversions read directly, else the deserialized message."""
     if type_name in BYTES_TYPES:
         return data
-    return deserialize_message(data, message_class(type_name))
+    return deserialize_message(data, contract.message_class(type_name))
 
 
 def web_dir():

@@ -199,7 +199,7 @@ class FoxgloveBridge:
         from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
         from erforce_interfaces.runtime.executor import sample_only
-        from erforce_sim.view.field_view_node import message_class
+        from erforce_interfaces.wire.contract import message_class
 
         try:
             schema = ros2msg_schema(type_name)
