@@ -57,6 +57,7 @@ from erforce_interfaces.wire.conversions import (
     table_from_msg,
 )
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_sim.demo.view_process import start_field_view
 from erforce_sim.in_process.scenes import (
     KICKER,
     PREDICTION_LEAD_S,
@@ -67,7 +68,6 @@ from erforce_sim.in_process.scenes import (
     default_scenes,
     reachable,
 )
-from erforce_sim.view.process import start_field_view
 
 LAUNCH_FILE = Path(__file__).resolve().parents[2] / "launch" / "demo.launch.yaml"
 

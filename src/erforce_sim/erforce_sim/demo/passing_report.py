@@ -281,8 +281,8 @@ def run_on_graph(args: argparse.Namespace) -> int:
     from erforce_ball_model.passing.passing_game_node import records_from_msg
     from erforce_interfaces.tools.processes import DomainLease, spawn_in_session, stop_processes
     from erforce_interfaces.wire.conversions import odometry_from_msg
+    from erforce_sim.demo.view_process import start_field_view
     from erforce_sim.in_process.passing_game import setup_for
-    from erforce_sim.view.process import start_field_view
 
     out = Path(args.out) / time.strftime("%Y%m%d-%H%M%S")
     out.mkdir(parents=True, exist_ok=True)
