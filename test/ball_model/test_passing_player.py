@@ -1,4 +1,4 @@
-"""Our team's AI in the passing game, one AI tick at a time (passing_player.PassingPlayer), fed by hand: when the
+"""Our team's AI in the passing game, one AI tick at a time (passing.player.PassingPlayer), fed by hand: when the
 holder kicks and how hard, how a pass ends (completed, intercepted, lost), and what it asks of the referee."""
 
 import math

@@ -1,5 +1,5 @@
 """/robots/tracked as the AI's poses: the table (conversions.tracked_robots_from_msg) carries what each robot's
-odom carried, and passing_player.new_poses feeds each pose once, as the odoms did."""
+odom carried, and passing.player.new_poses feeds each pose once, as the odoms did."""
 
 import math
 

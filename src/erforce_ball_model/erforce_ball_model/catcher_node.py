@@ -3,12 +3,12 @@
 Runs in the robot's namespace. It reads its robot's catch time and catch point from the
 ball predictor and drives there with ``cmd_vel``, facing the incoming ball (the
 predictor computed the catch for that facing), unless a nearer place to receive on the
-ball's line has time to spare (catcher.receive_point). It holds still when no catch is possible
+ball's line has time to spare (receiver.receive_point). It holds still when no catch is possible
 or its inputs are stale, and once the light barrier sees the ball. The behaviour is
 erforce_ball_model.receiver.Receiver; this node only feeds it and publishes its Twist.
 
 In a team (``team_robot_ids``) it also reads the teammates' catch times, and only the robot that
-can catch the ball first drives to it (catcher.team_receiver); the others hold.
+can catch the ball first drives to it (receiver.team_receiver); the others hold.
 
 It acts only in its ``rate_hz`` tick, on the newest inputs, so it does not wake for each of
 the ~6 messages per vision frame: its subscriptions are sampled at the tick

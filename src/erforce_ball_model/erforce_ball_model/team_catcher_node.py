@@ -5,8 +5,8 @@ The same contract as one ``catcher`` per robot (each in its namespace ``robot_<i
 ``/robot_<id>/``, its catch time and catch point from its row of ``/ball/catches`` (what the catcher reads
 on ``catch_time`` and ``catch_point``: one message for the team instead of two topics per robot), the
 ball's topics once for all, and publishes each robot's ``cmd_vel`` at ``rate_hz``. Each robot runs its own
-catcher.Receiver; with ``as_team`` they form a team in which only the robot that can catch the ball first
-drives to it (catcher.team_receiver), as the per-robot catchers with ``team_robot_ids`` do. With
+receiver.Receiver; with ``as_team`` they form a team in which only the robot that can catch the ball first
+drives to it (receiver.team_receiver), as the per-robot catchers with ``team_robot_ids`` do. With
 ``tracked_poses`` its robots' poses come from their rows of ``/robots/tracked`` instead of their odom (the
 same values: one message per vision frame instead of one per robot).
 
@@ -15,7 +15,7 @@ predictor's catch times for them: the interceptor of the simulated second team. 
 also reads the other team's ``num_other_robots`` tracked poses (their rows of ``/robots/tracked``: one
 message per vision frame instead of an odom per robot; a row counts as new when its stamp changed) and,
 while one of them holds the ball, sends its robots onto the passing lanes (the passing game's
-opponents). The decisions are passing_player.PressingTeam's.
+opponents). The decisions are passing.player.PressingTeam's.
 
 One timer and one sampled take of every input per tick, instead of a process, a timer and seven
 subscriptions' wakes per robot; it spins on DirectExecutor (unless ERFORCE_EXECUTOR says otherwise), on

@@ -332,7 +332,7 @@ class BallTracker:
     @params.setter
     def params(self, value: BallModelParams) -> None:
         # The kernel reads the model from ``m``: rewritten here, in place (compiled code that holds the array,
-        # vision_pass.FramePass, sees it), so that the filter and the trajectory never use two models.
+        # vision_fast_path.FramePass, sees it), so that the filter and the trajectory never use two models.
         if not isinstance(value, BallModelParams):
             raise ValueError(f"params: expected BallModelParams, got {type(value).__name__}")
         self._params = value

@@ -355,7 +355,7 @@ class VisionTracker:
 
     @property
     def params(self) -> BallModelParams:
-        """The ball filter's model (``BallTracker.params``: its kernels, also vision_pass's, read the change)."""
+        """The ball filter's model (``BallTracker.params``: its kernels, also vision_fast_path's, read the change)."""
         return self.ball.params
 
     @params.setter

@@ -15,7 +15,7 @@ question) for every robot on the field, on the ball the kick would make:
 - ``evaluate_passes`` builds, per candidate receiver, the ball the kick makes and runs one
   robotTimeToBall for the whole field: the earliest opponent's catch time, and whether the receiver
   can catch it at all. The receiver receives where it stands, turning in place to its receive facing
-  (catcher.Receiver: on the ball's line it stands still), so the kick aims at where its dribbler will
+  (receiver.Receiver: on the ball's line it stands still), so the kick aims at where its dribbler will
   be and its catch is the ball's arrival there (ballRollTime), later than its robotTimeToBall, which
   runs to meet the ball. The receive facing is the one the receiver will take: towards its next
   target (``next_targets``) when catch_time.receive_facing allows, else against the ball; the
@@ -26,7 +26,7 @@ question) for every robot on the field, on the ball the kick would make:
   one with the largest margin (rated unsafe; the caller may still play it).
 - ``press_targets``: where opponents wait while a robot of ours holds the ball: each covers the
   passing lane to the teammate nearest to it, ``PassConfig.press_fraction`` of the way from the
-  ball. While the ball rolls they run catcher.Receiver (the first of them to the ball goes).
+  ball. While the ball rolls they run receiver.Receiver (the first of them to the ball goes).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""passing_game: our team's AI for the paper's passing game on the graph (passing_player.PassingPlayer).
+"""passing_game: our team's AI for the paper's passing game on the graph (passing.player.PassingPlayer).
 
 Reads what the ball predictor publishes: the tracked ball (``/ball/state``, ``/ball/v_shoot``, the model in
 use), every robot's tracked pose and velocity (its row of ``/robots/tracked``, ours and the opponents': what
@@ -16,7 +16,7 @@ at the start (once every robot has been tracked ``settle_s``) and after an inter
 
 The opponents are not driven here (on the graph: their team_catcher). The predictor searches our receiver's
 catch facing the ball; the receiver itself receives facing its next target where it can (its own receive
-point, catcher.Receiver), so its predicted catch point is a fallback a few centimetres off. This module
+point, receiver.Receiver), so its predicted catch point is a fallback a few centimetres off. This module
 converts messages and publishes; the decisions are passing_player's.
 """
 

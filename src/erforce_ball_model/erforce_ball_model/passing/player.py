@@ -10,10 +10,10 @@ tick ``tick(now)`` returns every robot's command (``Commands``: twist in the rob
 the dribbler).
 
 - The robot on the ball holds it with the dribbler, evaluates a pass to every teammate
-  (passing.evaluate_passes: robotTimeToBall for the whole field on the ball each kick would make),
-  turns to the pass it selects (passing.select_pass: the earliest safe catch) and kicks, once it has
+  (passing.decisions.evaluate_passes: robotTimeToBall for the whole field on the ball each kick would make),
+  turns to the pass it selects (passing.decisions.select_pass: the earliest safe catch) and kicks, once it has
   held the ball ``hold_min_s`` and aims within ``aim_tolerance_rad``, with the speed at which the ball
-  arrives receivable (passing.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``. Each pass is
+  arrives receivable (passing.decisions.kick_speed_for). Without a safe pass it waits ``wait_for_safe_s``. Each pass is
   judged from the pose it is kicked from (the ball at the dribbler turned to it), and the holder keeps its
   receiver while it turns (``switch_margin_s``, ``keep_choice_s``); one that has not kicked after
   ``stall_warn_s`` says why (``stalled``, for the caller's throttled warning).
@@ -25,7 +25,7 @@ the dribbler).
   The receiver of such a pass rolls it with the model it was planned with.
 - Each teammate's next target (where it would pass on from where it stands) is worked out when a robot
   takes the ball and refreshed one teammate per AI tick; a pass is rated with its receiver facing it.
-- The receiver runs catcher.Receiver (the paper's Fig. 6 skill) facing its next target where the receive
+- The receiver runs receiver.Receiver (the paper's Fig. 6 skill) facing its next target where the receive
   angle allows (``receive_facing`` says so, for a predictor that can search with that facing); once its
   light barrier sees the ball it holds it and passes on, preferring that target.
 
@@ -598,12 +598,12 @@ class PressingTeam:
     the passing lanes. The functional core shared by the in-process game (erforce_sim.in_process.passing_game)
     and the ``team_catcher`` node (``press_lanes``).
 
-    Its robots (``robot_ids``) each run catcher.Receiver; with ``as_team`` they form a team in which only the
-    robot that can catch a rolling ball first drives to it (catcher.team_receiver). With ``passing`` (a
+    Its robots (``robot_ids``) each run receiver.Receiver; with ``as_team`` they form a team in which only the
+    robot that can catch a rolling ball first drives to it (receiver.team_receiver). With ``passing`` (a
     PassConfig: its ``press_fraction``) it also sees the other team's ``n_other`` robots (``on_other_robot``,
     tracked poses) and, while one of them holds the ball (the tracked ball slower than ``HELD_SPEED_MPS``
     and within ``HELD_DISTANCE_M`` of its dribbler point), sends each of its robots to its press target
-    (passing.press_targets: on the lane from the ball to a teammate of the holder), facing the ball. Its
+    (passing.decisions.press_targets: on the lane from the ball to a teammate of the holder), facing the ball. Its
     inputs are fed as they arrive, each with the time it arrived; ``tick(now)`` returns every robot's
     Twist [vx, vy, wz] (robot frame; zeros: hold) and ``notices`` what a robot's receiver could not use.
     """

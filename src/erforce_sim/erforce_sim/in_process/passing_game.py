@@ -5,15 +5,15 @@ Everything runs in one process with no DDS, deterministic per seed, like the dem
 our team and the opponents, erforce_sim world), the ball predictor's object (predictor.BallPredictor)
 on every vision frame for all robots of both teams, and the AI at a 50 Hz tick:
 
-- our team: passing_player.PassingPlayer, the same object the ``passing_game`` node runs on the graph
+- our team: passing.player.PassingPlayer, the same object the ``passing_game`` node runs on the graph
   (its docstring says how the holder picks and kicks a pass and how the receiver receives), fed with
   the predictor's tracked robots, ball and catch times and with every light barrier; this runner
   performs its commands (twists, kicks, dribblers) and its requests (the ball put back at a robot,
   the referee's job) on the world, and receives with the predictor's search facing the way the
   receiver faces (``PassingPlayer.receive_facing``);
-- the opponents: passing_player.PressingTeam, the same object the opponents' ``team_catcher`` runs
+- the opponents: passing.player.PressingTeam, the same object the opponents' ``team_catcher`` runs
   on the graph (``press_lanes``): they wait on the passing lanes while one of ours holds the ball
-  (passing.press_targets) and run catcher.Receiver as a team once it rolls (the first of them to
+  (passing.decisions.press_targets) and run receiver.Receiver as a team once it rolls (the first of them to
   the ball goes), fed with the tracked robots and ball, their catch times and light barriers.
 
 Each pass is reported as it ends (``PassRecord``, with the true ball path).

@@ -8,7 +8,7 @@ the side wall. ``reachable`` decides from the ball's true path whether a robot c
 robot_0's motion control (runner.InProcessRunner: the same cores, order and one-tick setpoint
 delay as the lockstep graph), the ball predictor on every vision frame as it is released (the
 node's own predictor.BallPredictor object: tracking, robotTimeToBall after the reaction time), and robot_0's catcher
-(catcher.Receiver) at its 50 Hz tick. A seed fixes everything, so a run repeats exactly: this is
+(receiver.Receiver) at its 50 Hz tick. A seed fixes everything, so a run repeats exactly: this is
 where the catcher is tuned and its behaviour tested, seconds for what takes the DDS graph minutes.
 What it leaves out: DDS delivery and scheduling (the predictor's output reaches the catcher at once),
 the predictor's online identification, and the teammates of ``--receivers``.

@@ -15,7 +15,7 @@ JSON. The predicted path is the ball model's own BallTrajectory (sliding stretch
 the switch point, rolling stretch to the stop point, reflected off the field's wall: ``wall``,
 where the first stretch meets it, then the ``corners`` to the stop point), with the parameters the
 predictor last published on /ball/model_params and the wall's one default restitution; the
-team's receiver is catcher.team_receiver of the catch times, as each catcher decides it. No
+team's receiver is receiver.team_receiver of the catch times, as each catcher decides it. No
 rclpy here: the node (field_view_node) feeds it live, ``BagReplay``
 from a recorded bag.
 """
@@ -446,7 +446,7 @@ class WorldState:
         return isinstance(robot_id, str) or robot_id in self.opponent_ids
 
     def _receiver_now(self) -> tuple[int, list[float], float] | None:
-        """(id, target, catch time) of the team's receiver (catcher.team_receiver), or None."""
+        """(id, target, catch time) of the team's receiver (receiver.team_receiver), or None."""
         self._choose_receiver()
         if self.receiver is not None:
             r = self.robots[self.receiver]
