@@ -175,7 +175,7 @@ def test_the_nodes_parameter_defaults_are_the_cores():
     """One default per quantity: passing_game's schema says what PlayerConfig() and PassConfig() do."""
     import dataclasses
 
-    from erforce_ball_model.passing.decisions import passing_game_node
+    from erforce_ball_model.passing import passing_game_node
 
     defaults = {s.name: s.default for s in passing_game_node.SCHEMA.specs}
     for cfg in (PlayerConfig(), PassConfig()):

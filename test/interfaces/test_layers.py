@@ -192,11 +192,12 @@ def test_the_cycle_finder_finds_cycles_and_only_them():
 # --- every import of ours names something that exists ------------------------------------------------------------
 
 EVERY_MODULE = {_module_name(p) for p in SRC.glob("*/*/**/*.py")}  # with protoc's *_pb2
-PACKAGE_INITS = {name: path for name, path in FILES.items() if path.name == "__init__.py"}
 
 
-def _defined_in(init: Path) -> set[str]:
-    tree = ast.parse(init.read_text())
+def _defined_in(path: Path) -> set[str]:
+    """Every name ``path`` binds anywhere (definitions, assignments, imports): enough to catch a name that a
+    module moved away from."""
+    tree = ast.parse(path.read_text())
     names = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.FunctionDef | ast.ClassDef):
@@ -211,9 +212,9 @@ def _defined_in(init: Path) -> set[str]:
 def _missing(module: str, names: tuple[str, ...]) -> list[str]:
     if module not in EVERY_MODULE:
         return [module]
-    if module not in PACKAGE_INITS:
-        return []  # a name in a plain module: the import itself says whether it is there
-    defined = _defined_in(PACKAGE_INITS[module])
+    if module not in FILES:
+        return []  # protoc's modules define their names at run time
+    defined = _defined_in(FILES[module])
     return [f"{module}.{n}" for n in names if f"{module}.{n}" not in EVERY_MODULE and n not in defined]
 
 
