@@ -35,13 +35,13 @@ while True:
 
 RUNNER = r"""
 import json, os, sys
-from erforce_interfaces.tools import launcher
+from erforce_interfaces.tools.launcher import runner
 cfg = json.loads(sys.argv[1])
-launcher.STANDBY_FIRST_S, launcher.STANDBY_AGAIN_S = cfg["first_s"], cfg["again_s"]
-spec = launcher.ProcessSpec(label="child-1", cmd=[sys.executable, "-c", cfg["child"], str(cfg["import_s"])],
+runner.STANDBY_FIRST_S, runner.STANDBY_AGAIN_S = cfg["first_s"], cfg["again_s"]  # the Runner reads them there
+spec = runner.ProcessSpec(label="child-1", cmd=[sys.executable, "-c", cfg["child"], str(cfg["import_s"])],
                             env=dict(os.environ), output="screen", respawn=True, respawn_delay_s=cfg["delay_s"],
                             respawn_max_retries=cfg["retries"], standby=True)
-sys.exit(launcher.Runner([spec], 2.0, 2.0, standby=cfg["standby"]).run())
+sys.exit(runner.Runner([spec], 2.0, 2.0, standby=cfg["standby"]).run())
 """
 
 FIRST_S, AGAIN_S, DELAY_S = 0.3, 1.0, 0.4
@@ -193,7 +193,8 @@ def test_no_standby_respawns_by_fresh_starts_only(launched):
 
 
 def test_only_nodes_of_ours_get_a_standby_and_the_switch_is_on_the_command_line(tmp_path):
-    from erforce_interfaces.tools.launcher import Resolver, _parse_cli
+    from erforce_interfaces.tools.launcher import Resolver
+    from erforce_interfaces.tools.launcher.cli import _parse_cli
 
     launch = tmp_path / "mixed.launch.yaml"
     launch.write_text("launch:\n"

@@ -1,6 +1,6 @@
 """A warm standby: a node process that has done everything of its start that needs no DDS, and waits.
 
-``erforce-launch`` keeps one standby per respawning node of ours (tools/launcher.py, Runner): the same
+``erforce-launch`` keeps one standby per respawning node of ours (tools/launcher/runner.py, Runner): the same
 command line, with ``ERFORCE_STANDBY_FD`` naming a socket. The process imports its node module, runs
 ``node_support.run_node`` up to ``rclpy.init`` (and the node's ``warm_up`` hook, if it has one), says
 ``ready`` on the socket and blocks. When the active process dies, the launcher writes ``go``: the
