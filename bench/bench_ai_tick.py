@@ -3,7 +3,7 @@
 
     ./run exec python bench/bench_ai_tick.py --passes 10 --seeds 1 2 3
 
-Part 1 plays erforce_sim.closed_loop.passing_game (11 + 3 robots, the same cores as the graph's nodes) and
+Part 1 plays erforce_sim.in_process.passing_game (11 + 3 robots, the same cores as the graph's nodes) and
 times every call of PassingPlayer.tick / on_robot / on_ball / on_catch and PressingTeam.tick / on_odom /
 on_other_robot / on_ball (perf_counter_ns, summed per seed and divided by the 2 ms control ticks). The
 records' digest per seed must not change with an optimisation (same decisions for the same inputs).
@@ -38,8 +38,8 @@ def timed(cls, name: str, sums: dict) -> None:
 
 
 def play(seed: int, passes: int) -> tuple[dict, int, str]:
-    from erforce_ball_model.passing_player import PassingPlayer, PressingTeam
-    from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame
+    from erforce_ball_model.passing.player import PassingPlayer, PressingTeam
+    from erforce_sim.in_process.passing_game import GameConfig, PassingGame
 
     sums: dict = defaultdict(lambda: [0, 0])
     originals = []
@@ -61,9 +61,9 @@ def play(seed: int, passes: int) -> tuple[dict, int, str]:
 def parsers(repeat: int) -> dict[str, float]:
     import numpy as np
 
-    from erforce_ball_model.passing_player import new_poses
-    from erforce_interfaces import contract
-    from erforce_interfaces.conversions import (
+    from erforce_ball_model.passing.player import new_poses
+    from erforce_interfaces.wire import contract
+    from erforce_interfaces.wire.conversions import (
         catches_from_msg,
         table_cdr,
         tracked_robot_row,

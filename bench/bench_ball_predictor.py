@@ -35,10 +35,10 @@ from table import bench_main  # bench/table.py: the shared table format
 from erforce_ball_model.ball_model import kick_distance
 from erforce_ball_model.ball_predictor_node import COMPILED_SEARCH_LOADED
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import vision_robots_cdr
-from erforce_interfaces.robot_config import FieldConfig
 from erforce_interfaces.tools.testing import RosGraph
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import vision_robots_cdr
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 NUM_ROBOTS = 22
 FPS = 70.0

@@ -29,8 +29,8 @@ from erforce_ball_model.ball_model import BallTrajectory
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.chip_tracking import ChipDetectorConfig
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_vision import decode_wrapper
+from erforce_interfaces.ssl.ssl_vision import decode_wrapper
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.sensors import VisionParams, VisionSystem
 from erforce_sim.ssl_cameras import SslCameraSplitter, quadrant_cameras
 

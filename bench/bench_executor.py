@@ -2,7 +2,7 @@
 
 Three measurements per executor, each in a private DDS domain (erforce_interfaces.tools.testing.RosGraph),
 with every process spinning through ``node_support.run_node`` on the executor named by
-ERFORCE_EXECUTOR (erforce_interfaces.executor.make_executor):
+ERFORCE_EXECUTOR (erforce_interfaces.runtime.executor.make_executor):
 
 - spin: the executor's own ``spin()``, shut down (rclpy.shutdown) from another thread after 0.5 s,
   must return; a 20 s timeout decides (an old note said EventsExecutor's spin hung). run_node spins
@@ -46,8 +46,8 @@ def _child(role: str, count: int) -> int:
     from rclpy.node import Node
     from std_msgs.msg import Float64
 
-    from erforce_interfaces.contract import QOS_COMMAND
-    from erforce_interfaces.node_support import run_node
+    from erforce_interfaces.runtime.node_support import run_node
+    from erforce_interfaces.wire.contract import QOS_COMMAND
 
     class Echo(Node):
         def __init__(self) -> None:
@@ -90,7 +90,7 @@ def _child(role: str, count: int) -> int:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
 
-        from erforce_interfaces.executor import DirectExecutor
+        from erforce_interfaces.runtime.executor import DirectExecutor
 
         rclpy.init()
         node = Node("bench_spin")

@@ -1,7 +1,7 @@
 """The field view's cost: the page's redraw rate with 22 robots in headless Chromium, and what the
 field_view node costs a graph (CPU, and the ball predictor's latency with and without it).
 
-1. Page: the view's server (erforce_sim.closed_loop.view_server) sends binary frames (as the node does) of
+1. Page: the view's server (erforce_sim.view.view_server) sends binary frames (as the node does) of
    a world with 22 robots (both teams), a rolling ball with its predicted path and 11 catch points at
    70 Hz; Debian's headless Chromium draws them; the page counts its redraws (requestAnimationFrame) and times each.
 2. Graph: as bench_ball_predictor, a probe sends 70 Hz vision frames of shots across a division A
@@ -33,19 +33,19 @@ import numpy as np
 from std_msgs.msg import Float64
 from table import bench_main  # bench/table.py: the shared table format
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.tools.testing import RosGraph, stop_process
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     float64_cdr,
     odometry_cdr,
     point_cdr,
     vision_robots_cdr,
 )
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.tools.testing import RosGraph, stop_process
-from erforce_sim.closed_loop.field_view import WorldState, decode_frame_bytes
-from erforce_sim.closed_loop.field_view_node import web_dir
-from erforce_sim.closed_loop.headless_browser import Browser, chromium_missing
-from erforce_sim.closed_loop.view_server import ViewServer
+from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_sim.view.field_view import WorldState, decode_frame_bytes
+from erforce_sim.view.field_view_node import web_dir
+from erforce_sim.view.headless_browser import Browser, chromium_missing
+from erforce_sim.view.view_server import ViewServer
 
 NUM_ROBOTS = 22
 FPS = 70.0

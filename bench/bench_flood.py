@@ -24,9 +24,9 @@ from pathlib import Path
 from nav_msgs.msg import Odometry
 from table import bench_main  # bench/table.py: the shared table format
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import stamp_to_seconds
 from erforce_interfaces.tools.testing import RosGraph
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import stamp_to_seconds
 
 ROBOT_YAML = Path(__file__).resolve().parents[1] / "src/erforce_interfaces/config/robot.yaml"
 RATE_HZ = 5000

@@ -47,10 +47,10 @@ from rosgraph_msgs.msg import Clock
 from table import bench_main, markdown_table  # bench/table.py: the shared table format
 
 from erforce_ball_model.ball_predictor_node import COMPILED_SEARCH_LOADED
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import stamp_to_nanoseconds
+from erforce_interfaces.tools.processes import free_udp_port
 from erforce_interfaces.tools.testing import RosGraph
-from erforce_sim.closed_loop.demo import free_udp_port
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import stamp_to_nanoseconds
 
 REPO = Path(__file__).resolve().parents[1]
 ROBOT_YAML = REPO / "src/erforce_interfaces/config/robot.yaml"

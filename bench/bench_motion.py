@@ -25,13 +25,13 @@ from pathlib import Path
 import numpy as np
 from table import markdown_table  # bench/table.py: the shared table format
 
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_motion.firmware import MainBoardLoop, MotorBoardLoop, TeamFirmware
 from erforce_motion.motor_board import MotorBoard, MotorBoardConfig
 from erforce_motion.plant_model import OmniRobotPlant, WheelPlant
 from erforce_motion.tuning import plot_tuning, run_tuning_experiment
 from erforce_motion.velocity_control import VelocityControlConfig, VelocityController, wheel_force_per_accel
-from erforce_sim.closed_loop.runner import InProcessRunner
+from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.world import PlantSetup, RobotSpec, World
 
 DT_S = 0.001

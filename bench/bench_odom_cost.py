@@ -21,9 +21,9 @@ from pathlib import Path
 
 from nav_msgs.msg import Odometry
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_cdr
 from erforce_interfaces.tools.testing import RosGraph
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import odometry_cdr
 
 ROBOTS = 14
 

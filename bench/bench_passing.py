@@ -1,4 +1,4 @@
-"""The passing game (erforce_sim.closed_loop.passing_game) over seeds: how many passes rated safe complete,
+"""The passing game (erforce_sim.in_process.passing_game) over seeds: how many passes rated safe complete,
 interceptions, and how the receivers receive: the heading error at the light-barrier moment against the
 direction of the pass the receiver then kicks, and the time from that moment to its kick.
 
@@ -23,8 +23,8 @@ from concurrent.futures import ProcessPoolExecutor
 
 
 def play(seed: int, passes: int, team: int, opponents: int, receive_angle_deg: float | None) -> dict:
-    from erforce_ball_model.passing_player import PlayerConfig
-    from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame, summary
+    from erforce_ball_model.passing.player import PlayerConfig
+    from erforce_sim.in_process.passing_game import GameConfig, PassingGame, summary
 
     cfg = GameConfig(team_size=team, opponents=opponents, passes=passes)
     if receive_angle_deg is not None:

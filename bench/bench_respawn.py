@@ -58,8 +58,8 @@ from faults_support import (  # the fault tests' measurement
     standbys_ready,
 )
 
-from erforce_interfaces.contract import dds_profile_env
 from erforce_interfaces.tools.testing import RosGraph, listening_sockets, on_loopback
+from erforce_interfaces.wire.contract import dds_profile_env
 
 NODES = ("catcher", "ball_predictor", "velocity_controller", "motor_boards", "plant")
 RESPAWN_DELAY_S = 0.1  # the launch files' respawn_delay (a number in each file: ros2 launch substitutes none)

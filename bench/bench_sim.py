@@ -14,10 +14,10 @@ import tracemalloc
 import numpy as np
 from table import bench_main  # bench/table.py: the shared table format
 
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallState
-from erforce_sim.closed_loop.runner import InProcessRunner
 from erforce_sim.drivetrain import GRAVITY_MPS2
+from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.kicker import deviation_table
 from erforce_sim.world import PhysicsParams, PlantSetup, RobotSpec, World
 

@@ -18,10 +18,10 @@ import numpy as np
 from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_ball_model import ball_fit
-from erforce_interfaces.ssl_log import LogReader, MessageType
-from erforce_interfaces.ssl_log_replay import replay
+from erforce_interfaces.ssl.ssl_log import LogReader, MessageType
+from erforce_interfaces.ssl.ssl_log_replay import replay
 from erforce_sim.ball import BallParams
-from erforce_sim.closed_loop.ssl_game_log import GameConfig, write_game_log
+from erforce_sim.demo.ssl_game_log import GameConfig, write_game_log
 from erforce_sim.drivetrain import GRAVITY_MPS2
 
 _RECEIVER = """

@@ -27,9 +27,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from table import bench_main
 
-from erforce_interfaces import contract
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.ssl.ssl_vision import (
     BallCandidate,
     BallModelFromVision,
     CameraFrame,
@@ -39,6 +37,8 @@ from erforce_interfaces.ssl_vision import (
     encode_geometry,
 )
 from erforce_interfaces.tools.testing import RosGraph
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ssl_cameras import open_multicast_sender
 
 GROUP = "224.5.23.2"
@@ -52,7 +52,7 @@ STATS = re.compile(r"ssl_vision_bridge: (\d+) datagrams, (\d+) camera frames; dr
 # The reader: raw subscriptions (no deserialization) with the contract's QoS, counting what arrives.
 READER = textwrap.dedent("""
     import sys, time, rclpy
-    from erforce_interfaces import contract
+    from erforce_interfaces.wire import contract
     rclpy.init()
     node = rclpy.create_node("vision_reader")
     count = [0]

@@ -54,10 +54,10 @@ def _patch_node_support(module) -> None:
 
 
 class _AfterImport(importlib.abc.MetaPathFinder):
-    """Patches erforce_interfaces.node_support right after it is loaded, before a node module binds run_node."""
+    """Patches erforce_interfaces.runtime.node_support right after it is loaded, before a node module binds run_node."""
 
     def find_spec(self, name, path=None, target=None):
-        if name != "erforce_interfaces.node_support":
+        if name != "erforce_interfaces.runtime.node_support":
             return None
         sys.meta_path.remove(self)
         try:

@@ -8,7 +8,7 @@ setup(
     name=package_name,
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
-    package_data={package_name: ["params/*.yaml"], "erforce_interfaces.ssl_proto": ["*.proto"]},
+    package_data={package_name: ["params/*.yaml"], "erforce_interfaces.ssl.ssl_proto": ["*.proto"]},
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
@@ -21,7 +21,7 @@ setup(
     zip_safe=True,
     maintainer="ER-Force stack maintainers",
     maintainer_email="info@robotics-erlangen.de",
-    description="Wire contract, shared robot config, node helpers, launch and topic tools",
+    description="Wire contract, node runtime, SSL wire formats and developer tools",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
@@ -29,10 +29,9 @@ setup(
             "erforce-topic = erforce_interfaces.tools.topic_tool:main",
             "erforce-record = erforce_interfaces.tools.recording:main",
             "erforce-realtime = erforce_interfaces.tools.realtime:main",
-            "ssl_sim_bridge = erforce_interfaces.ssl_sim_bridge_node:main",
-            "ssl_log_replay = erforce_interfaces.ssl_log_replay:main",
-            "talker = erforce_interfaces.demo_nodes:talker_main",
-            "listener = erforce_interfaces.demo_nodes:listener_main",
+            "ssl_log_replay = erforce_interfaces.ssl.ssl_log_replay:main",
+            "talker = erforce_interfaces.runtime.demo_nodes:talker_main",
+            "listener = erforce_interfaces.runtime.demo_nodes:listener_main",
         ],
     },
 )

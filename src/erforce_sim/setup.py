@@ -27,10 +27,11 @@ setup(
     entry_points={
         "console_scripts": [
             "plant = erforce_sim.plant_node:main",
-            "tune_motor = erforce_sim.closed_loop.tuning_experiment:main",
+            "tune_motor = erforce_sim.in_process.tuning_experiment:main",
             "ssl_sim_server = erforce_sim.ssl_sim_server_node:main",
-            "ssl_game_log = erforce_sim.closed_loop.ssl_game_log:main",
-            "field_view = erforce_sim.closed_loop.field_view_node:main",
+            "ssl_sim_bridge = erforce_sim.ssl_sim_bridge_node:main",
+            "ssl_game_log = erforce_sim.demo.ssl_game_log:main",
+            "field_view = erforce_sim.view.field_view_node:main",
         ],
     },
 )

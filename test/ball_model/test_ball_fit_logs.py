@@ -9,10 +9,10 @@ import pytest
 
 from erforce_ball_model import ball_fit
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
-from erforce_interfaces.ssl_log import LogWriter, MessageType
-from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2
+from erforce_interfaces.ssl.ssl_log import LogWriter, MessageType
+from erforce_interfaces.ssl.ssl_proto import ssl_vision_wrapper_pb2
 from erforce_sim.ball import BallParams
-from erforce_sim.closed_loop.ssl_game_log import GameConfig, write_game_log
+from erforce_sim.demo.ssl_game_log import GameConfig, write_game_log
 from erforce_sim.drivetrain import GRAVITY_MPS2
 
 FRAME_S = 1.0 / 60.0

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from erforce_ball_model import ball_model
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 SHOT = BallTrajectory([0.0, 0.0], [3.3, 0.0], 3.3)
 

@@ -21,9 +21,9 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model import ball_predictor_node
 from erforce_ball_model.ball_predictor_node import BallPredictorNode
-from erforce_ball_model.catcher import CatcherConfig
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_ball_model.receiver import CatcherConfig
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     ball_track_from_msg,
     odometry_from_msg,
     point_from_msg,
@@ -33,7 +33,7 @@ from erforce_interfaces.conversions import (
     tracked_robots_from_msg,
     vision_robots_cdr,
 )
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 
 pytestmark = pytest.mark.integration
 
@@ -79,7 +79,7 @@ def robot_time_1d(d_m, a_max, v_max):
 
 # Test times are relative and start at 1.0 s; the node sees them shifted, so the handshake frame (below)
 # comes first and 1.5 s earlier: more than max_gap_s (every test starts with a freshly initialized ball
-# filter) and less than the time rule's largest step (erforce_interfaces.stamps: the first frame counts).
+# filter) and less than the time rule's largest step (erforce_interfaces.wire.stamps: the first frame counts).
 T_SHIFT_S = 5.0
 
 
@@ -401,7 +401,7 @@ def test_bad_observations_are_dropped_with_a_warning_and_nothing_non_finite_is_p
     rig.ball(1.05, 9.0, 0.0, answered=False)  # division_b: |x| <= 4.5 + 0.5
     rig.node.wait_for_output("rejected vision/ball outside the field", timeout_s=5.0)
     # Rejected frames do not keep the time line alive: after dead_s (1 s) of them the next stamp, even one
-    # from the past, would start a new line (erforce_interfaces.stamps). A good frame first.
+    # from the past, would start a new line (erforce_interfaces.wire.stamps). A good frame first.
     rig.ball(1.05, 0.0, 0.0)
     rig.ball(0.50, 0.0, 0.0, answered=False)  # a lone stamp from the past
     rig.node.wait_for_output(r"rejected vision/ball: stamp 5\.500000 s is before the newest accepted", timeout_s=5.0)

@@ -9,7 +9,7 @@ import pytest
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory, Walls
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 DIV_B = FieldConfig.preset("division_b")
 WALLS = Walls.of_field(DIV_B)

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from erforce_ball_model.catcher import CatcherConfig
-from erforce_ball_model.passing_player import PassingPlayer, PlayerConfig, PressingTeam
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_ball_model.passing.player import PassingPlayer, PlayerConfig, PressingTeam
+from erforce_ball_model.receiver import CatcherConfig
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     Catch,
     ConversionError,
     catches_from_msg,
@@ -20,7 +20,7 @@ from erforce_interfaces.conversions import (
     table_cdr,
     table_msg,
 )
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 
 OURS, THEIRS = contract.OURS.code, contract.OPPONENTS.code
 NEVER = contract.CATCH_TIME_NEVER
@@ -146,7 +146,7 @@ def test_the_one_pass_reading_accepts_exactly_what_the_checks_accept(row, column
     """conversions._catches_plain (one pass over the rows, the path every good table takes) against the checks
     one by one on values at and just past each limit, for our team: None exactly where the checks refuse the
     table, else the same catches."""
-    from erforce_interfaces.conversions import _catches_plain, check_catch_ids
+    from erforce_interfaces.wire.conversions import _catches_plain, check_catch_ids
 
     table = _with(row, column, value)
     try:

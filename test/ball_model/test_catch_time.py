@@ -26,8 +26,8 @@ from erforce_ball_model.catch_time import (
     robot_time_to_ball,
     robot_time_to_pos,
 )
-from erforce_interfaces.numba_support import numba
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.runtime.numba_support import numba
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 # The scalar functions as the kernels run them: compiled (the kernels compile them inline, these are
 # compiled alone with the same error model).

@@ -16,8 +16,8 @@ import yaml
 
 from erforce_ball_model import ball_predictor_node, catcher_node
 from erforce_ball_model.catch_time import ROBOT_A_MAX_MPS2, ROBOT_V_MAX_MPS, RobotLimits
-from erforce_ball_model.catcher import CatcherConfig
 from erforce_ball_model.predictor import PredictorConfig
+from erforce_ball_model.receiver import CatcherConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 LAUNCH_FILES = ("src/erforce_sim/launch/demo.launch.yaml", "src/erforce_sim/launch/receiver.launch.yaml")
@@ -72,7 +72,7 @@ def test_the_predictor_core_defaults_are_the_nodes_parameter_defaults():
 
 def test_the_predictor_core_speaks_the_contract():
     from erforce_ball_model import predictor
-    from erforce_interfaces import contract
+    from erforce_interfaces.wire import contract
 
     assert predictor.CATCH_TIME_NEVER == contract.CATCH_TIME_NEVER
     assert predictor.MODEL_ROWS == contract.BALL_MODEL_PARAM_ROWS
@@ -83,7 +83,7 @@ def test_the_ball_and_wall_have_one_default_for_prediction_and_plant():
     """The predicted bounce (ball_model.Walls, the predictor's wall_restitution) and the plant's wall contact
     (erforce_sim.contacts, erforce_sim.ball) take the same restitution, friction, inertia and radius."""
     from erforce_ball_model.ball_model import Walls
-    from erforce_interfaces import robot_config as rc
+    from erforce_interfaces.wire import robot_config as rc
     from erforce_sim.ball import BallParams
     from erforce_sim.contacts import ContactParams
 

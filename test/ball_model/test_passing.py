@@ -1,4 +1,4 @@
-"""The passing game's decisions (erforce_ball_model.passing), from hand-computed cases."""
+"""The passing game's decisions (erforce_ball_model.passing.decisions), from hand-computed cases."""
 
 import math
 
@@ -7,7 +7,7 @@ import pytest
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
 from erforce_ball_model.catch_time import CatchSearch, RobotLimits
-from erforce_ball_model.passing import (
+from erforce_ball_model.passing.decisions import (
     PassConfig,
     PassOption,
     evaluate_passes,

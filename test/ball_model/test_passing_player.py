@@ -1,4 +1,4 @@
-"""Our team's AI in the passing game, one AI tick at a time (passing_player.PassingPlayer), fed by hand: when the
+"""Our team's AI in the passing game, one AI tick at a time (passing.player.PassingPlayer), fed by hand: when the
 holder kicks and how hard, how a pass ends (completed, intercepted, lost), and what it asks of the referee."""
 
 import math
@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.catcher import CatcherConfig, catch_twist, wrap_angle
-from erforce_ball_model.passing import PassConfig
-from erforce_ball_model.passing_player import HELD_DISTANCE_M, PassingPlayer, PassRecord, PlayerConfig, PressingTeam
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_ball_model.passing.decisions import PassConfig
+from erforce_ball_model.passing.player import HELD_DISTANCE_M, PassingPlayer, PassRecord, PlayerConfig, PressingTeam
+from erforce_ball_model.receiver import CatcherConfig, catch_twist, wrap_angle
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 
 ROBOT = RobotConfig()
 FIELD = FieldConfig.preset("division_a")
@@ -161,7 +161,7 @@ def test_without_a_safe_pass_the_holder_waits_wait_for_safe_s_then_plays_the_bes
 
 
 def test_a_record_goes_over_the_wire_and_back():
-    from erforce_ball_model.passing_game_node import record_from_row, record_row
+    from erforce_ball_model.passing.passing_game_node import record_from_row, record_row
 
     for record in (
         PassRecord(3, 12.5, 1, 4, 3.01, 1.5, 0.82, 1, False, "intercepted", "opponent_1", 1.66, (), None),
@@ -175,7 +175,7 @@ def test_the_nodes_parameter_defaults_are_the_cores():
     """One default per quantity: passing_game's schema says what PlayerConfig() and PassConfig() do."""
     import dataclasses
 
-    from erforce_ball_model import passing_game_node
+    from erforce_ball_model.passing import passing_game_node
 
     defaults = {s.name: s.default for s in passing_game_node.SCHEMA.specs}
     for cfg in (PlayerConfig(), PassConfig()):

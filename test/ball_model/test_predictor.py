@@ -11,7 +11,7 @@ from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import CatchSearch, RobotLimits, catch_after_reaction
 from erforce_ball_model.identification import FitResult, ShotAccumulator
 from erforce_ball_model.predictor import CATCH_TIME_NEVER, BallPredictor, FrameTimes, PredictorConfig
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 FIELD = FieldConfig.preset("division_b")
 

@@ -8,9 +8,9 @@ from geometry_msgs.msg import PointStamped, Twist
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64, Float64MultiArray
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_msg, table_msg, tracked_robot_row, tracked_robots_cdr
 from erforce_interfaces.tools.messages import point_msg
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import odometry_msg, table_msg, tracked_robot_row, tracked_robots_cdr
 
 pytestmark = pytest.mark.integration
 
@@ -98,7 +98,7 @@ def test_with_press_lanes_the_opponents_wait_on_our_passing_lanes_while_we_hold_
     holds the ball at its dribbler (d, 0), robot_1 and robot_2 stand at (3, 0) and (0, 2). The lanes' midpoints
     are ((d + 3) / 2, 0) and (d / 2, 1); opponent_1 at (0.3, 1.5) is nearest robot_2 and takes that lane,
     opponent_0 at (1, 0.3) the other (yaw 0: their base_link is the field's). Each drives towards its point."""
-    from erforce_interfaces.robot_config import RobotConfig
+    from erforce_interfaces.wire.robot_config import RobotConfig
 
     d = RobotConfig().dribbler_offset_m
     ours = {0: (0.0, 0.0, 0.0), 1: (3.0, 0.0, math.pi), 2: (0.0, 2.0, -0.5 * math.pi)}
@@ -141,7 +141,7 @@ def test_the_model_in_use_outlives_a_new_clock_time_line_in_every_node_that_pred
 
     from erforce_ball_model.ball_model import BallModelParams
     from erforce_ball_model.catcher_node import CatcherNode
-    from erforce_ball_model.passing_game_node import PassingGameNode
+    from erforce_ball_model.passing.passing_game_node import PassingGameNode
     from erforce_ball_model.team_catcher_node import TeamCatcherNode
 
     model = BallModelParams(-14.0, -0.7, 0.7)

@@ -1,14 +1,14 @@
 """/robots/tracked as the AI's poses: the table (conversions.tracked_robots_from_msg) carries what each robot's
-odom carried, and passing_player.new_poses feeds each pose once, as the odoms did."""
+odom carried, and passing.player.new_poses feeds each pose once, as the odoms did."""
 
 import math
 
 import numpy as np
 import pytest
 
-from erforce_ball_model.passing_player import new_poses
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_ball_model.passing.player import new_poses
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     ConversionError,
     TrackedRobot,
     odometry_cdr,
@@ -113,7 +113,7 @@ def test_the_one_pass_reading_accepts_exactly_what_the_checks_accept(column, val
     """conversions._tracked_plain (one pass over the rows, the path every good table takes) against the checks one
     by one (_check_tracked) on values at and just past each limit: it answers None exactly where the checks
     refuse, and otherwise the rows as written (the stamp as seconds plus nanoseconds)."""
-    from erforce_interfaces.conversions import _check_tracked, _tracked_plain
+    from erforce_interfaces.wire.conversions import _check_tracked, _tracked_plain
 
     table = np.array(_with(1, column, value))
     try:

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.tracking import UpdateStatus
 from erforce_ball_model.vision_tracking import VisionTracker, VisionTrackingConfig
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 FIELD = FieldConfig(9.0, 6.0, 0.3)
 PARAMS = BallModelParams(-2.5, -0.3, 0.6)

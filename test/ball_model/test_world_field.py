@@ -8,10 +8,10 @@ from __future__ import annotations
 import rclpy
 from std_msgs.msg import Float64MultiArray
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import table_msg
-from erforce_interfaces.robot_config import FIELD_PRESETS, FieldConfig
-from erforce_sim.closed_loop.field_view import WorldState
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import table_msg
+from erforce_interfaces.wire.robot_config import FIELD_PRESETS, FieldConfig
+from erforce_sim.view.field_view import WorldState
 
 DIVISION_A, DIVISION_B = FIELD_PRESETS["division_a"], FIELD_PRESETS["division_b"]
 
@@ -81,7 +81,7 @@ def test_geometry_replaces_a_catchers_preset_and_survives_a_parameter_change():
 
 
 def test_a_team_catcher_and_the_passing_game_take_the_worlds_field():
-    from erforce_ball_model.passing_game_node import PassingGameNode
+    from erforce_ball_model.passing.passing_game_node import PassingGameNode
     from erforce_ball_model.team_catcher_node import TeamCatcherNode
 
     for node in with_node(TeamCatcherNode, ["-p", "field:=from_geometry", "-p", "robot_ids:=[0, 1]"]):

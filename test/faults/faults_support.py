@@ -24,8 +24,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 from std_msgs.msg import Bool, Float64, Float64MultiArray, Header, MultiArrayDimension
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_from_msg, odometry_msg, stamp_to_seconds
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import odometry_from_msg, odometry_msg, stamp_to_seconds
 
 ROBOT_YAML = Path(__file__).resolve().parents[2] / "src/erforce_interfaces/config/robot.yaml"
 

@@ -29,10 +29,10 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
-from erforce_ball_model.passing_game_node import records_from_msg
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_msg, stamp_to_seconds, table_msg
-from erforce_sim.closed_loop.demo import LAUNCH_FILE
+from erforce_ball_model.passing.passing_game_node import records_from_msg
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import odometry_msg, stamp_to_seconds, table_msg
+from erforce_sim.demo.demo import LAUNCH_FILE
 
 pytestmark = pytest.mark.integration
 

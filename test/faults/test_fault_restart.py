@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from faults_support import LOOP_OUTPUTS, ClosedLoop, LaunchedDemo
 
-from erforce_interfaces.conversions import stamp_to_seconds
+from erforce_interfaces.wire.conversions import stamp_to_seconds
 
 pytestmark = pytest.mark.integration
 
@@ -168,7 +168,7 @@ def kill_and_restart_plant_time_goes_backwards(loop):
     # drives again
     _follows_catcher(loop, settle_s=3.0)
     assert loop.sim_s() < t_before  # recovered in the new time line, not by outliving the old one
-    # the time rule (erforce_interfaces.stamps): a new time line once the old one fell silent
+    # the time rule (erforce_interfaces.wire.stamps): a new time line once the old one fell silent
     loop.procs["ball_predictor"].wait_for_output("vision/ball: time line restarted", timeout_s=5.0)
     loop.procs["catcher"].wait_for_output("/clock: time line restarted", timeout_s=5.0)
     assert_nodes_alive(loop, "plant", "velocity_controller", "motor_boards", "ball_predictor", "catcher")

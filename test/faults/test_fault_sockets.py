@@ -53,7 +53,7 @@ def test_every_socket_of_the_graph_is_on_loopback(ros_graph):
     ros_graph.start_node("erforce_ball_model", "ssl_vision_bridge", name="ssl_vision_bridge_default",
                          params={"port": _free_port(socket.SOCK_DGRAM)})
     for protocol in ("ssl", "grsim"):
-        ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", name=f"ssl_sim_bridge_{protocol}",
+        ros_graph.start_node("erforce_sim", "ssl_sim_bridge", name=f"ssl_sim_bridge_{protocol}",
                              params={"protocol": protocol, "command_port": _free_port(socket.SOCK_DGRAM),
                                      "control_port": 0, "grsim_status_port": _free_port(socket.SOCK_DGRAM)})
     demo.wait_running()

@@ -30,8 +30,8 @@ from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_from_msg, odometry_msg, stamp_to_seconds
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import odometry_from_msg, odometry_msg, stamp_to_seconds
 
 RESPAWN_DELAY_S = 0.1  # the launch files' default
 

@@ -1,6 +1,6 @@
 """Issue 19, fault tests: bad time in a running graph, per node. Negative, zero, far-future and backwards
 ``/clock`` messages and input stamps are dropped with a warning by every node that reads them (the one
-rule of erforce_interfaces.stamps, applied by node_support), nothing dies, nothing non-finite comes out,
+rule of erforce_interfaces.wire.stamps, applied by node_support), nothing dies, nothing non-finite comes out,
 and the graph closes the loop afterwards: the catcher still drives robot_0 to the ball."""
 
 import struct
@@ -13,7 +13,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-from erforce_interfaces import contract
+from erforce_interfaces.wire import contract
 
 pytestmark = pytest.mark.integration
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from faults_support import ClosedLoop
 
-from erforce_interfaces.conversions import stamp_to_seconds
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.conversions import stamp_to_seconds
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.kinematics import OmniKinematics
 from erforce_motion.velocity_control import SetpointShaper, VelocityControlConfig, wheel_force_per_accel
 

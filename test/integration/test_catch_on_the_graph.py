@@ -11,9 +11,9 @@ planned point while the robot settles (the receiver is already on the ball's lin
 
 import pytest
 
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_sim.closed_loop.demo import LAUNCH_FILE, Director
-from erforce_sim.closed_loop.scenes import default_scenes
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_sim.demo.demo import LAUNCH_FILE, Director
+from erforce_sim.in_process.scenes import default_scenes
 
 pytestmark = pytest.mark.integration
 

@@ -21,11 +21,11 @@ import math
 import pytest
 from geometry_msgs.msg import Twist
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.tools.messages import float64_msg, point_msg
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     odometry_msg,
 )
-from erforce_interfaces.tools.messages import float64_msg, point_msg
 
 pytestmark = pytest.mark.integration
 

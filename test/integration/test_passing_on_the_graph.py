@@ -10,9 +10,9 @@ receiver's dribbler when the two-phase model said or a little sooner.
 import pytest
 from std_msgs.msg import Float64MultiArray
 
-from erforce_ball_model.passing_game_node import records_from_msg
-from erforce_interfaces import contract
-from erforce_sim.closed_loop.demo import LAUNCH_FILE
+from erforce_ball_model.passing.passing_game_node import records_from_msg
+from erforce_interfaces.wire import contract
+from erforce_sim.demo.demo import LAUNCH_FILE
 
 pytestmark = pytest.mark.integration
 

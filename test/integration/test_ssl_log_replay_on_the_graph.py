@@ -11,9 +11,9 @@ import pytest
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64MultiArray
 
-from erforce_interfaces import contract
+from erforce_interfaces.wire import contract
 from erforce_sim.ball import BallParams
-from erforce_sim.closed_loop.ssl_game_log import GameConfig, write_game_log
+from erforce_sim.demo.ssl_game_log import GameConfig, write_game_log
 from erforce_sim.drivetrain import GRAVITY_MPS2
 
 pytestmark = pytest.mark.integration
@@ -42,7 +42,7 @@ def test_a_replayed_plant_log_drives_the_ball_predictor(ros_graph, tmp_path):
     probe.spin_until(lambda: probe.node.count_subscribers(contract.VISION_ROBOTS.name) > 0, 30.0,
                      "the ball predictor's vision subscription")
 
-    replay = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.ssl_log_replay", str(log), "--quiet",
+    replay = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.ssl.ssl_log_replay", str(log), "--quiet",
                                "--no-referee", "--vision", f"224.5.23.2:{port}"],
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:

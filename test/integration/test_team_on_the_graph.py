@@ -14,10 +14,10 @@ import pytest
 from geometry_msgs.msg import Twist
 from std_msgs.msg import Float64
 
-from erforce_interfaces import contract
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_sim.closed_loop.demo import LAUNCH_FILE, Director
-from erforce_sim.closed_loop.scenes import RECEIVER, TEAMMATE_POSES, Scene, default_scenes
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_sim.demo.demo import LAUNCH_FILE, Director
+from erforce_sim.in_process.scenes import RECEIVER, TEAMMATE_POSES, Scene, default_scenes
 
 pytestmark = pytest.mark.integration
 

@@ -17,12 +17,13 @@ import socket
 import pytest
 from std_msgs.msg import Float64MultiArray
 
-from erforce_ball_model.passing_game_node import records_from_msg
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import model_in_use_from_msg
-from erforce_interfaces.ssl_proto import ssl_simulation_robot_control_pb2, ssl_simulation_robot_feedback_pb2
+from erforce_ball_model.passing.passing_game_node import records_from_msg
+from erforce_interfaces.ssl.ssl_proto import ssl_simulation_robot_control_pb2, ssl_simulation_robot_feedback_pb2
+from erforce_interfaces.tools.processes import free_udp_port
 from erforce_interfaces.tools.testing import RosGraph
-from erforce_sim.closed_loop.demo import LAUNCH_FILE, free_udp_port
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import model_in_use_from_msg
+from erforce_sim.demo.demo import LAUNCH_FILE
 
 pytestmark = pytest.mark.integration
 

@@ -13,7 +13,7 @@ import pytest
 import setuptools
 from ament_index_python.packages import get_package_prefix, get_package_share_directory, get_packages_with_prefixes
 
-from erforce_interfaces import ament_index
+from erforce_interfaces.wire import ament_index
 
 REPO = Path(__file__).resolve().parents[2]
 PACKAGES = ("erforce_interfaces", "erforce_ball_model", "erforce_motion", "erforce_sim")

@@ -7,8 +7,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2
 from test_vision_robots import _field, cloud
 
-from erforce_interfaces import contract as c
-from erforce_interfaces import conversions as conv
+from erforce_interfaces.wire import contract as c
+from erforce_interfaces.wire import conversions as conv
 
 FIELD_NAMES = ("x", "y", "z", "vx_mps", "vy_mps", "v_shoot_mps", "seen_x_m", "seen_y_m", "phase", "uncertain")
 TRACK = conv.BallTrack(12.5, 1.5, -2.0, 3.0, -0.25, 4.5, 1.51, -2.02, "rolling", True)

@@ -17,10 +17,10 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray, Header
 
-from erforce_interfaces import contract as c
-from erforce_interfaces import conversions as conv
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
 from erforce_interfaces.tools import messages as msgs
+from erforce_interfaces.wire import contract as c
+from erforce_interfaces.wire import conversions as conv
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 
 REFERENCE = Path(__file__).resolve().parents[2] / "docs" / "reference.md"
 

@@ -1,4 +1,4 @@
-"""erforce_interfaces.executor: DirectExecutor serves every entity kind a node has, in one wait; sampled
+"""erforce_interfaces.runtime.executor: DirectExecutor serves every entity kind a node has, in one wait; sampled
 subscriptions and undecodable samples behave alike under each executor make_executor offers.
 
 Each test runs one node in its own context and DDS domain; publisher and subscription meet in the
@@ -19,8 +19,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Int32
 
-from erforce_interfaces import contract
-from erforce_interfaces.executor import (
+from erforce_interfaces.runtime.executor import (
     EXECUTOR_KINDS,
     DirectExecutor,
     make_executor,
@@ -28,9 +27,10 @@ from erforce_interfaces.executor import (
     run_sampled,
     sample_only,
 )
-from erforce_interfaces.node_support import NodeParams, sample_clock
-from erforce_interfaces.param_schema import ParamSchema, ParamSpec
+from erforce_interfaces.runtime.node_support import NodeParams, sample_clock
+from erforce_interfaces.runtime.param_schema import ParamSchema, ParamSpec
 from erforce_interfaces.tools.testing import isolated_node
+from erforce_interfaces.wire import contract
 
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 

@@ -10,8 +10,8 @@ import time
 import pytest
 from std_msgs.msg import String
 
-from erforce_interfaces.contract import QOS_COMMAND
 from erforce_interfaces.tools.testing import DomainLease, RosGraph
+from erforce_interfaces.wire.contract import QOS_COMMAND
 
 pytestmark = pytest.mark.integration
 
@@ -117,7 +117,7 @@ BUGGY_NODE = textwrap.dedent("""\
     import sys
     from rclpy.node import Node
     from std_msgs.msg import String
-    from erforce_interfaces.node_support import run_node
+    from erforce_interfaces.runtime.node_support import run_node
 
     class Buggy(Node):
         def __init__(self):

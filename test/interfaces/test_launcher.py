@@ -20,8 +20,7 @@ import yaml
 from hypothesis import given
 from hypothesis import strategies as st
 
-from erforce_interfaces.contract import DDS_PROFILE_VARIABLES
-from erforce_interfaces.param_schema import load_schema
+from erforce_interfaces.runtime.param_schema import load_schema
 from erforce_interfaces.tools.launcher import (
     LaunchError,
     Resolver,
@@ -32,6 +31,7 @@ from erforce_interfaces.tools.launcher import (
     parse_substitutions,
     prefix_namespace,
 )
+from erforce_interfaces.wire.contract import DDS_PROFILE_VARIABLES
 
 HERE = Path(__file__).parent / "launch_files"
 REPO = Path(__file__).resolve().parents[2]
@@ -400,7 +400,7 @@ def test_team_sim_on_an_outside_world_starts_only_the_ai_side():
                                                                                         True)
     assert (predictor["team_color"], predictor["defend_side"]) == ("yellow", "positive_x")
     bridges = {node_name(s): params_of(s)["/**"] for s in specs.values() if "ssl_sim_bridge" in s.label}
-    ours = applied(bridges["ssl_sim_bridge"], "erforce_interfaces", "ssl_sim_bridge")
+    ours = applied(bridges["ssl_sim_bridge"], "erforce_sim", "ssl_sim_bridge")
     theirs = bridges["opponent_sim_bridge"]
     assert (ours["team"], ours["team_color"], ours["robot_ids"], ours["command_port"], ours["control_port"]) == (
         "ours", "yellow", list(range(11)), 20301, 20300)

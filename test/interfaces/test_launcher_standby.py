@@ -1,4 +1,5 @@
-"""erforce-launch's warm standbys (launcher.Runner, erforce_interfaces.standby) with tiny Python children, no ROS.
+"""erforce-launch's warm standby (launcher.Runner, erforce_interfaces.runtime.standby) with tiny Python children,
+no ROS.
 
 Each test runs a Runner in a process of its own (it installs signal handlers) on ProcessSpecs whose command
 is CHILD, a console script of this interpreter as a node's: its ``main`` returns at once in the spare while
@@ -22,7 +23,7 @@ import pytest
 
 CHILD = r"""
 import os, signal, sys, time
-from erforce_interfaces.standby import is_standby, wait_for_go
+from erforce_interfaces.runtime.standby import is_standby, wait_for_go
 if is_standby():
     time.sleep(float(os.environ["CHILD_IMPORT_S"]))  # a real node's imports
 
@@ -43,14 +44,14 @@ if __name__ == "__main__":
 
 RUNNER = r"""
 import json, os, sys
-from erforce_interfaces.tools import launcher
+from erforce_interfaces.tools.launcher import runner
 cfg = json.loads(sys.argv[1])
-launcher.STANDBY_FIRST_S, launcher.STANDBY_AGAIN_S = cfg["first_s"], cfg["again_s"]
+runner.STANDBY_FIRST_S, runner.STANDBY_AGAIN_S = cfg["first_s"], cfg["again_s"]  # the Runner reads them there
 env = {**os.environ, "CHILD_IMPORT_S": str(cfg["import_s"])}
-specs = [launcher.ProcessSpec(label=f"{name}-{k + 1}", cmd=[cfg["script"], name], env=env, output="screen",
-                              respawn=True, respawn_delay_s=cfg["delay_s"], respawn_max_retries=cfg["retries"],
-                              standby=True) for k, name in enumerate(cfg["names"])]
-sys.exit(launcher.Runner(specs, 2.0, 2.0, standby=cfg["standby"]).run())
+specs = [runner.ProcessSpec(label=f"{name}-{k + 1}", cmd=[cfg["script"], name], env=env, output="screen",
+                            respawn=True, respawn_delay_s=cfg["delay_s"], respawn_max_retries=cfg["retries"],
+                            standby=True) for k, name in enumerate(cfg["names"])]
+sys.exit(runner.Runner(specs, 2.0, 2.0, standby=cfg["standby"]).run())
 """
 
 FIRST_S, AGAIN_S, DELAY_S = 0.3, 1.0, 0.4
@@ -219,7 +220,8 @@ def test_no_standby_respawns_by_fresh_starts_only(launched):
 
 
 def test_only_nodes_of_ours_get_a_standby_and_the_switch_is_on_the_command_line(tmp_path):
-    from erforce_interfaces.tools.launcher import Resolver, _parse_cli
+    from erforce_interfaces.tools.launcher import Resolver
+    from erforce_interfaces.tools.launcher.cli import _parse_cli
 
     launch = tmp_path / "mixed.launch.yaml"
     launch.write_text("launch:\n"
@@ -237,18 +239,19 @@ def test_the_spare_becomes_the_named_node_at_the_priority_it_had_before_the_warm
     before run_node must not leave it to the node the spare becomes."""
     import socket
 
-    from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
+    from erforce_interfaces.runtime.standby import GO, READY, STANDBY_FD_ENV
 
     scripts = {}
     for name, before in (("idle", "os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))"), ("plain", "")):
         scripts[name] = tmp_path / name
         scripts[name].write_text(
-            f"#!{sys.executable}\nimport os, sys\nfrom erforce_interfaces.standby import wait_for_go\n"
+            f"#!{sys.executable}\nimport os, sys\nfrom erforce_interfaces.runtime.standby import wait_for_go\n"
             f"def main():\n    {before or 'pass'}\n    if not wait_for_go():\n        return 0\n"
             "    print(sys.argv[1:], os.sched_getscheduler(0), flush=True)\n    return 5\n")
     ours, theirs = socket.socketpair()
     with ours:
-        proc = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.standby", *map(str, scripts.values())],
+        cmd = [sys.executable, "-m", "erforce_interfaces.runtime.standby", *map(str, scripts.values())]
+        proc = subprocess.Popen(cmd,
                                 env={**os.environ, STANDBY_FD_ENV: str(theirs.fileno())}, pass_fds=(theirs.fileno(),),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         theirs.close()

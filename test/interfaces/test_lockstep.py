@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from erforce_interfaces.lockstep import DutyGate, FieldAnswerRobots, SetpointJoin
+from erforce_interfaces.runtime.lockstep import DutyGate, FieldAnswerRobots, SetpointJoin
 
 MS = 1_000_000
 

@@ -6,10 +6,10 @@ import math
 import pytest
 
 from erforce_ball_model import ball_predictor_node, catcher_node
-from erforce_ball_model.catcher import CatcherConfig
+from erforce_ball_model.receiver import CatcherConfig
 from erforce_motion import motor_boards_node, velocity_controller_node
 from erforce_sim import plant_node
-from erforce_sim.closed_loop import field_view_node
+from erforce_sim.view import field_view_node
 
 
 def config(module, **changes):

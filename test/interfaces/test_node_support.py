@@ -8,8 +8,8 @@ import pytest
 import rclpy.node
 from rclpy.parameter import Parameter
 
-from erforce_interfaces.node_support import NodeParams, ThrottledWarner, run_node, stray_arguments
-from erforce_interfaces.param_schema import ParamSchema
+from erforce_interfaces.runtime.node_support import NodeParams, ThrottledWarner, run_node, stray_arguments
+from erforce_interfaces.runtime.param_schema import ParamSchema
 from erforce_interfaces.tools.testing import isolated_node
 
 SCHEMA = ParamSchema.from_yaml_text("""

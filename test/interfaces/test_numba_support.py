@@ -1,4 +1,4 @@
-"""erforce_interfaces.numba_support: numba loads its numpy support without scipy (a process start
+"""erforce_interfaces.runtime.numba_support: numba loads its numpy support without scipy (a process start
 is ~0.5 s of CPU shorter), and kernels that do use BLAS or the two functions that BLAS check decides
 still compute numpy's results. Each case runs in a fresh interpreter: the point is what it imports."""
 
@@ -7,7 +7,7 @@ import sys
 
 FRESH = """
 import sys
-from erforce_interfaces.numba_support import numba
+from erforce_interfaces.runtime.numba_support import numba
 import numpy as np
 assert "scipy" not in sys.modules, "numba loaded scipy"
 import erforce_ball_model.catch_time as ct, erforce_sim.drivetrain  # the stack's kernels load without it
@@ -39,7 +39,7 @@ def test_kernels_load_without_scipy_linalg_and_blas_kernels_still_compile():
 def test_compiled_for_calls_the_kernel_for_those_types_and_updates_arrays_in_place():
     import numpy as np
 
-    from erforce_interfaces.numba_support import compiled_for, numba
+    from erforce_interfaces.runtime.numba_support import compiled_for, numba
 
     @numba.njit(cache=False)
     def scaled_sum(rows, values, factor, out):

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
 
-from erforce_interfaces import conversions as conv
+from erforce_interfaces.wire import conversions as conv
 
 _text = st.text(st.characters(codec="utf-8", exclude_characters="\x00"), max_size=12)
 

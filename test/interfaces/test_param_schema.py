@@ -1,4 +1,4 @@
-"""Node parameter schemas (erforce_interfaces.param_schema): the rules, the shipped files, and one
+"""Node parameter schemas (erforce_interfaces.runtime.param_schema): the rules, the shipped files, and one
 default per quantity across the schemas, the cores and the docs."""
 
 import dataclasses
@@ -13,10 +13,10 @@ import setuptools
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import CatchSearch
-from erforce_ball_model.catcher import CatcherConfig
+from erforce_ball_model.receiver import CatcherConfig
 from erforce_ball_model.tracking import TrackerConfig
-from erforce_interfaces import lockstep
-from erforce_interfaces.param_schema import (
+from erforce_interfaces.runtime import lockstep
+from erforce_interfaces.runtime.param_schema import (
     HostSchema,
     ParamSchema,
     ParamSpec,
@@ -86,7 +86,8 @@ def test_schema_files_with_mistakes_are_refused_naming_them(body, match):
 
 
 def test_a_default_from_code_is_the_constant_itself():
-    schema = _schema("  p: {type: int, default_from: 'erforce_interfaces.ssl_sim:SIM_CONTROL_PORT', description: x}\n"
+    schema = _schema("  p: {type: int, default_from: 'erforce_interfaces.ssl.ssl_sim:SIM_CONTROL_PORT',"
+                     " description: x}\n"
                      "  e: {type: double, default_from: 'math:e', description: x}\n")
     assert schema.defaults() == {"p": 10300, "e": math.e}
 

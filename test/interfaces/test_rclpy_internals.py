@@ -1,4 +1,4 @@
-"""The private rclpy names the stack uses (erforce_interfaces.rclpy_internals) are used nowhere else in src/,
+"""The private rclpy names the stack uses (erforce_interfaces.runtime.rclpy_internals) are used nowhere else in src/,
 were checked against the installed rclpy, and behave as DirectExecutor and the node helpers assume. An rclpy
 update fails here, by name.
 """
@@ -15,8 +15,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import Int32
 
-from erforce_interfaces import rclpy_internals as internal
-from erforce_interfaces.executor import DirectExecutor, make_executor
+from erforce_interfaces.runtime import rclpy_internals as internal
+from erforce_interfaces.runtime.executor import DirectExecutor, make_executor
 from erforce_interfaces.tools.testing import isolated_node
 
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -43,7 +43,7 @@ def test_the_installed_rclpy_is_the_one_the_private_names_were_checked_against()
     except importlib.metadata.PackageNotFoundError:
         installed = "not found (no PyPI distribution ros-rclpy)"
     assert installed == internal.RCLPY_VERSION, (
-        f"rclpy {installed} is installed; erforce_interfaces.rclpy_internals was checked against rclpy "
+        f"rclpy {installed} is installed; erforce_interfaces.runtime.rclpy_internals was checked against rclpy "
         f"{internal.RCLPY_VERSION}. Check these private names in the new rclpy (the tests of this file), then set "
         f"RCLPY_VERSION: " + "; ".join(internal.PRIVATE_NAMES))
 
@@ -144,7 +144,7 @@ def test_parameter_overrides_are_what_declare_parameter_takes():
 
 _LIGHT_START = """
 import sys
-from erforce_interfaces.rclpy_internals import light_node_start
+from erforce_interfaces.runtime.rclpy_internals import light_node_start
 light_node_start()
 light_node_start()  # idempotent
 from rclpy.impl.rcutils_logger import CallerId

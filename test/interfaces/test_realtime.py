@@ -8,8 +8,8 @@ import sys
 
 import pytest
 
-from erforce_interfaces import standby
-from erforce_interfaces.standby import GO, READY, STANDBY_FD_ENV
+from erforce_interfaces.runtime import standby
+from erforce_interfaces.runtime.standby import GO, READY, STANDBY_FD_ENV
 from erforce_interfaces.tools import realtime
 
 SHOW_POLICY = [sys.executable, "-c", "import os; print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)"]
@@ -70,7 +70,7 @@ def test_without_cap_sys_nice_the_kernel_refuses_and_else_idle_runs_the_command_
 
 
 def test_a_standby_left_else_idle_takes_sched_idle_on_go_where_fifo_is_refused(monkeypatch, capsys):
-    from erforce_interfaces import standby
+    from erforce_interfaces.runtime import standby
 
     calls = []
     monkeypatch.setattr(os, "sched_setscheduler", refusing_fifo(calls))
@@ -91,7 +91,7 @@ def test_a_bad_command_line_prints_the_usage(argv, capsys):
 
 def test_a_warm_standby_imports_at_its_normal_priority_and_takes_sched_fifo_on_go(tmp_path):
     script = tmp_path / "node"
-    script.write_text(f"#!{sys.executable}\nimport os\nfrom erforce_interfaces.standby import wait_for_go\n"
+    script.write_text(f"#!{sys.executable}\nimport os\nfrom erforce_interfaces.runtime.standby import wait_for_go\n"
                       "def main():\n"
                       "    print(os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, flush=True)\n"
                       "    return 0 if wait_for_go() else 3\n")
@@ -101,7 +101,7 @@ def test_a_warm_standby_imports_at_its_normal_priority_and_takes_sched_fifo_on_g
     assert (k, priority, else_idle) == (2, 7, False)
     ours, theirs = socket.socketpair()
     with ours:
-        proc = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.standby", str(script)],
+        proc = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.runtime.standby", str(script)],
                                 env={**os.environ, STANDBY_FD_ENV: str(theirs.fileno())}, pass_fds=(theirs.fileno(),),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         theirs.close()

@@ -14,9 +14,9 @@ from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import nanoseconds_to_stamp
 from erforce_interfaces.tools.recording import records_topic
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import nanoseconds_to_stamp
 
 pytestmark = pytest.mark.integration
 

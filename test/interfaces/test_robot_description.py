@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
-from erforce_interfaces.robot_config import MAX_WHEEL_LAYOUT_CONDITION, RobotConfig
+from erforce_interfaces.wire.robot_config import MAX_WHEEL_LAYOUT_CONDITION, RobotConfig
 
 
 def _deg(*angles):

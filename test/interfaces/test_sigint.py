@@ -109,12 +109,12 @@ def test_every_node_exits_quietly_with_0_on_sigint(ros_graph, tmp_path, interrup
 
 @pytest.mark.integration
 def test_a_warm_standby_ends_quietly_with_0_on_sigint_sigterm_or_the_launchers_end(ros_graph):
-    """A node started as erforce-launch starts a warm standby (erforce_interfaces.standby) waits after its
+    """A node started as erforce-launch starts a warm standby (erforce_interfaces.runtime.standby) waits after its
     imports and warm-up, prints nothing, and ends with 0 on SIGINT (alone or to its group), SIGTERM, or the end
     of file of its socket (the launcher gone). The nodes with a warm-up (plant, ball_predictor) are among them."""
     import subprocess
 
-    from erforce_interfaces.standby import READY, STANDBY_FD_ENV
+    from erforce_interfaces.runtime.standby import READY, STANDBY_FD_ENV
 
     def end_by_eof(proc, sock) -> None:
         sock.close()

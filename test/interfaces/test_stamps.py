@@ -1,4 +1,4 @@
-"""The one time rule (erforce_interfaces.stamps) and the callback guard and /clock rule of every node
+"""The one time rule (erforce_interfaces.wire.stamps) and the callback guard and /clock rule of every node
 (node_support.guard_callbacks, guard_clock), in process."""
 
 import time
@@ -9,17 +9,17 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Int32
 
-from erforce_interfaces import contract
-from erforce_interfaces.executor import (
+from erforce_interfaces.runtime.executor import (
     EXECUTOR_KINDS,
     make_executor,
     run_sampled,
     sample_only,
     set_callback_fault_handler,
 )
-from erforce_interfaces.node_support import CALLBACK_FAULT, guard_callbacks, guard_clock, quiet_after_shutdown
-from erforce_interfaces.stamps import StampFilter, StampVerdict, stamp_ns
+from erforce_interfaces.runtime.node_support import CALLBACK_FAULT, guard_callbacks, guard_clock, quiet_after_shutdown
 from erforce_interfaces.tools.testing import isolated_node
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict, stamp_ns
 
 A, D, R = StampVerdict.ACCEPT, StampVerdict.DROP, StampVerdict.RESTART
 S = 1_000_000_000

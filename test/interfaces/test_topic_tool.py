@@ -24,9 +24,9 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header, String, UInt8MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from erforce_interfaces.contract import QOS_COMMAND
 from erforce_interfaces.tools import topic_tool as tt
 from erforce_interfaces.tools.testing import RosGraph, stop_process
+from erforce_interfaces.wire.contract import QOS_COMMAND
 
 TOOL = str(Path(sys.executable).with_name("erforce-topic"))
 

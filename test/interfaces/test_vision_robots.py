@@ -12,8 +12,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 
-from erforce_interfaces import contract as c
-from erforce_interfaces import conversions as conv
+from erforce_interfaces.wire import contract as c
+from erforce_interfaces.wire import conversions as conv
 
 FIELD_NAMES = ("x", "y", "z", "yaw", "team", "robot_id")
 

@@ -4,7 +4,7 @@ backwards, and the integrator bound that prevents wind-up while the wheels canno
 import numpy as np
 import pytest
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.firmware import MainBoardLoop, MotorBoardLoop
 from erforce_motion.kinematics import OmniKinematics
 from erforce_motion.motor_board import MotorBoardConfig

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.firmware import (
     NOTICE_COMMAND_TIMEOUT,
     NOTICE_TIME_BACKWARDS,

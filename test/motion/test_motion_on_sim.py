@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.kinematics import OmniKinematics
 from erforce_motion.velocity_control import (
     GRAVITY_MPS2,
@@ -21,7 +21,7 @@ from erforce_motion.velocity_control import (
     VelocityController,
     wheel_force_per_accel,
 )
-from erforce_sim.closed_loop.runner import InProcessRunner
+from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.world import PlantSetup
 
 ROBOT = RobotConfig()

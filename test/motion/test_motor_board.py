@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.motor_board import MotorBoard, MotorBoardConfig, ThermalCurrentLimiter
 from erforce_motion.plant_model import OmniRobotPlant, WheelPlant
 

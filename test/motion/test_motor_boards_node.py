@@ -8,12 +8,12 @@ import pytest
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.tools.messages import joint_state_msg
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     table_from_msg,
 )
-from erforce_interfaces.robot_config import RobotConfig
-from erforce_interfaces.tools.messages import joint_state_msg
+from erforce_interfaces.wire.robot_config import RobotConfig
 
 pytestmark = pytest.mark.integration
 
@@ -119,7 +119,7 @@ def test_bad_wheel_states_rejected_node_keeps_answering(ros_graph, bad):
 
 
 def test_a_lone_backwards_tick_is_dropped_and_a_confirmed_one_resets(ros_graph):
-    """The time rule (erforce_interfaces.stamps): one stamp from the past is dropped, a second that
+    """The time rule (erforce_interfaces.wire.stamps): one stamp from the past is dropped, a second that
     continues from it is a restarted plant, and the boards reset and answer it."""
     rig = Rig(ros_graph)
     for k in (5, 6, 7):

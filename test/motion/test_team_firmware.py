@@ -16,10 +16,10 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import odometry_from_msg, stamp_to_nanoseconds
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import odometry_from_msg, stamp_to_nanoseconds
 from erforce_motion.velocity_control import VelocityControlConfig
-from erforce_sim.closed_loop.runner import InProcessRunner
+from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.world import PlantSetup
 
 pytestmark = pytest.mark.integration

@@ -7,9 +7,9 @@ import pytest
 from geometry_msgs.msg import Twist
 from sensor_msgs.msg import JointState
 
-from erforce_interfaces import contract
-from erforce_interfaces.robot_config import RobotConfig
 from erforce_interfaces.tools.messages import joint_state_msg
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.kinematics import OmniKinematics
 
 pytestmark = pytest.mark.integration

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ball import BallParams, BallState
 from erforce_sim.world import World
 

@@ -8,7 +8,7 @@ import pytest
 
 from erforce_ball_model.ball_model import ChipParams
 from erforce_ball_model.chip_model import ChipTrajectory
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import LANDED_VZ_MPS, BallParams, BallState
 from erforce_sim.world import RobotSpec, World
 

@@ -17,16 +17,17 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Bool, Float64
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.runtime.executor import DirectExecutor
+from erforce_interfaces.tools.messages import point_msg
+from erforce_interfaces.tools.processes import spawn_in_session
+from erforce_interfaces.tools.testing import isolated_node, stop_process
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     nanoseconds_to_stamp,
     vision_robots_cdr,
 )
-from erforce_interfaces.executor import DirectExecutor
-from erforce_interfaces.robot_config import RobotConfig
-from erforce_interfaces.tools.messages import point_msg
-from erforce_interfaces.tools.testing import isolated_node, stop_process
-from erforce_sim.closed_loop.demo import RECEIVER, Director, spawn_in_session
+from erforce_interfaces.wire.robot_config import RobotConfig
+from erforce_sim.demo.demo import RECEIVER, Director
 
 pytestmark = pytest.mark.integration
 

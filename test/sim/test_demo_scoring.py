@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from erforce_ball_model.catch_time import RobotLimits
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_sim.closed_loop.scenes import default_scenes, reachable
+from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_sim.in_process.scenes import default_scenes, reachable
 
 FIELD = FieldConfig.preset("division_b")
 LIMITS = RobotLimits(3.0, 2.0)
@@ -54,7 +54,7 @@ def test_scene_sequence_covers_the_issue():
 
 
 def test_the_prediction_compared_is_the_newest_made_a_lead_before_the_contact():
-    from erforce_sim.closed_loop.scenes import compared_prediction
+    from erforce_sim.in_process.scenes import compared_prediction
 
     preds = [(10.1, 1.0), (10.3, 0.75), (10.5, -1.0), (10.7, 0.2)]  # (made at, catch time after it)
     assert compared_prediction(preds, 10.0, 11.0) == pytest.approx(10.7 + 0.2)  # newest made by 10.7 s

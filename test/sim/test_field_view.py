@@ -1,4 +1,4 @@
-"""The field view's core (erforce_sim.closed_loop.field_view): what a frame says, from hand-built messages.
+"""The field view's core (erforce_sim.view.field_view): what a frame says, from hand-built messages.
 
 Path numbers are worked by hand from the two-phase kinematics (module docstring of ball_model):
 a ball at 2 m/s with v_shoot 2 m/s and the default model (a_slide -2.5, a_roll -0.3 m/s^2,
@@ -19,9 +19,9 @@ from geometry_msgs.msg import Twist
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
-from erforce_ball_model.passing import PassConfig, PassOption
-from erforce_interfaces import contract as c
-from erforce_interfaces.conversions import (
+from erforce_ball_model.passing.decisions import PassConfig, PassOption
+from erforce_interfaces.wire import contract as c
+from erforce_interfaces.wire.conversions import (
     BallTrack,
     ball_track_cdr,
     float64_cdr,
@@ -30,9 +30,11 @@ from erforce_interfaces.conversions import (
     point_cdr,
     table_msg,
 )
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.stamps import StampFilter
-from erforce_sim.closed_loop.field_view import (
+from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_interfaces.wire.stamps import StampFilter
+from erforce_sim.demo.passing_report import GameBag, pass_choice_cdr
+from erforce_sim.in_process.passing_game import GameConfig
+from erforce_sim.view.field_view import (
     PATH_MARK_PERIOD_S,
     STAMP_MAX_JUMP_S,
     BagReplay,
@@ -40,9 +42,7 @@ from erforce_sim.closed_loop.field_view import (
     decode_frame_bytes,
     view_topic,
 )
-from erforce_sim.closed_loop.field_view_node import decode
-from erforce_sim.closed_loop.passing_game import GameConfig
-from erforce_sim.closed_loop.passing_report import GameBag, pass_choice_cdr
+from erforce_sim.view.field_view_node import decode
 
 FIELD = FieldConfig.preset("division_b")
 
@@ -358,7 +358,7 @@ def test_an_empty_bag_is_a_clear_error(tmp_path):
 
 
 def test_the_foxglove_scene_draws_what_the_page_draws():
-    from erforce_sim.closed_loop.foxglove_bridge import plots_message, scene_shapes, scene_update
+    from erforce_sim.view.foxglove_bridge import plots_message, scene_shapes, scene_update
 
     state = WorldState(FIELD, opponent_ids=frozenset({1}))
     robot(state, 0, 1.0, (1.0, 0.5, 0.25), 0.8, (0.5, 0.0))

@@ -19,11 +19,11 @@ from pathlib import Path
 import pytest
 from std_msgs.msg import Float64
 
-from erforce_interfaces import contract as c
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_sim.closed_loop.demo import LAUNCH_FILE, Director
-from erforce_sim.closed_loop.headless_browser import Browser, chromium_missing
-from erforce_sim.closed_loop.scenes import KICKER, RECEIVER, default_scenes
+from erforce_interfaces.wire import contract as c
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_sim.demo.demo import LAUNCH_FILE, Director
+from erforce_sim.in_process.scenes import KICKER, RECEIVER, default_scenes
+from erforce_sim.view.headless_browser import Browser, chromium_missing
 
 pytestmark = pytest.mark.integration
 

@@ -19,13 +19,13 @@ from rosbags.typesys import Stores, get_typestore
 from test_field_view_browser import ARTIFACTS, require_chromium
 from websockets.sync.client import connect
 
-from erforce_ball_model.passing import PassConfig, PassOption
-from erforce_interfaces import contract as c
-from erforce_interfaces.conversions import odometry_msg
-from erforce_sim.closed_loop.demo import LAUNCH_FILE
-from erforce_sim.closed_loop.foxglove_bridge import PLOTS_TOPIC, SCENE_TOPIC, layout_json
-from erforce_sim.closed_loop.headless_browser import Browser
-from erforce_sim.closed_loop.passing_report import pass_choice_cdr
+from erforce_ball_model.passing.decisions import PassConfig, PassOption
+from erforce_interfaces.wire import contract as c
+from erforce_interfaces.wire.conversions import odometry_msg
+from erforce_sim.demo.demo import LAUNCH_FILE
+from erforce_sim.demo.passing_report import pass_choice_cdr
+from erforce_sim.view.foxglove_bridge import PLOTS_TOPIC, SCENE_TOPIC, layout_json
+from erforce_sim.view.headless_browser import Browser
 
 pytestmark = pytest.mark.integration
 
@@ -39,7 +39,7 @@ def free_port() -> int:
 def test_the_foxglove_layout_in_the_repository_is_the_generated_one():
     path = Path(__file__).resolve().parents[2] / "src" / "erforce_sim" / "config" / "foxglove_layout.json"
     assert path.read_text() == layout_json(), (
-        "regenerate: python -m erforce_sim.closed_loop.foxglove_bridge > " + str(path))
+        "regenerate: python -m erforce_sim.view.foxglove_bridge > " + str(path))
     layout = json.loads(path.read_text())
     scene = layout["content"]["items"][0]["content"]
     assert scene["panelType"] == "ThreeDee" and SCENE_TOPIC in scene["config"]["topics"]

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.kicker import KickerPlate, deviation_table
 from erforce_sim.world import PhysicsParams, RobotSpec, World
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.world import PhysicsParams, RobotSpec, World
 
 CFG = RobotConfig()

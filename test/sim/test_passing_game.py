@@ -1,4 +1,4 @@
-"""The passing game in one process (erforce_sim.closed_loop.passing_game): deterministic per seed, a chain of
+"""The passing game in one process (erforce_sim.in_process.passing_game): deterministic per seed, a chain of
 completed passes, and an interception counted and explained."""
 
 import dataclasses
@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from erforce_sim.closed_loop.passing_game import GameConfig, PassingGame, summary
+from erforce_sim.in_process.passing_game import GameConfig, PassingGame, summary
 
 SMALL = GameConfig(team_size=3, opponents=1, passes=3)
 
@@ -49,7 +49,7 @@ def test_the_passing_scenario_writes_the_plot_the_summary_and_a_bag(tmp_path):
     summary.md (a row per pass) and a rosbag2/MCAP bag of the ground truth of every robot and the pass events."""
     from rosbags.rosbag2 import Reader
 
-    from erforce_sim.closed_loop.demo import main
+    from erforce_sim.demo.demo import main
 
     assert main(["--scenario", "passing", "--in-process", "--team", "2", "--opponents", "1", "--passes", "1",
                  "--seed", "0", "--out", str(tmp_path)]) == 0

@@ -14,8 +14,9 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import Float64, String
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.tools.messages import joint_state_msg
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     odometry_from_msg,
     odometry_msg,
     pose2d_from_msg,
@@ -23,9 +24,8 @@ from erforce_interfaces.conversions import (
     vision_frame_from_msg,
     vision_robots_from_msg,
 )
-from erforce_interfaces.tools.messages import joint_state_msg
 from erforce_motion.velocity_control import VelocityControlConfig
-from erforce_sim.closed_loop.runner import InProcessRunner
+from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.world import PlantSetup
 
 pytestmark = pytest.mark.integration

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from erforce_motion.motor_board import MotorBoardConfig
-from erforce_sim.closed_loop.runner import InProcessRunner
+from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.world import PlantSetup
 
 

@@ -1,12 +1,12 @@
-"""The demo's scenes played in one process (erforce_sim.closed_loop.scenes.play_in_process): the whole stack
+"""The demo's scenes played in one process (erforce_sim.in_process.scenes.play_in_process): the whole stack
 without DDS, deterministic per seed."""
 
 import math
 
 import pytest
 
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_sim.closed_loop.scenes import default_scenes, play_in_process
+from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_sim.in_process.scenes import default_scenes, play_in_process
 from erforce_sim.sensors import VisionParams
 
 SCENES = default_scenes(FieldConfig.preset("division_b"))
@@ -47,7 +47,7 @@ def test_straight_kicks_are_predicted_within_the_integration_tolerance(speed):
 
 def test_fig6_is_caught_in_the_first_window_behind_the_graphs_vision_latency():
     """The same with vision 70 ms late (the plant's default is 15 ms), as over SSL-Vision and DDS: the catcher
-    steers from the pose predicted over its age (catcher module docstring). Steered from the measured pose,
+    steers from the pose predicted over its age (receiver module docstring). Steered from the measured pose,
     the robot crossed the line and caught the ball only after 1.9 s or more in every seed."""
     t_first = (2.0 - math.sqrt(4.0 - 0.6 * 1.4185)) / 0.3
     for seed in range(4):

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.kicker import beam_hit
 from erforce_sim.sensors import LightBarrierParams, VisionParams
 from erforce_sim.world import RobotSpec, World

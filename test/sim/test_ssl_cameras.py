@@ -2,8 +2,8 @@
 
 import pytest
 
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_vision import BallModelFromVision, decode_wrapper
+from erforce_interfaces.ssl.ssl_vision import BallModelFromVision, decode_wrapper
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame, VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, ground_point, quadrant_cameras
 from erforce_sim.world import PlantSetup, build_world

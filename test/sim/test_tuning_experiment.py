@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import yaml
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.motor_boards_node import SCHEMA
 from erforce_motion.tuning import pt2_tangent_times
-from erforce_sim.closed_loop.tuning_experiment import (
+from erforce_sim.in_process.tuning_experiment import (
     MOTOR_BOARDS_NODE_KEY,
     lifted_wheel_response,
     main,

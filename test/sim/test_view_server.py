@@ -1,5 +1,5 @@
 """The field view's web server under good and bad input (loopback only): it answers, refuses with an
-error, and keeps serving. No ROS here: erforce_sim.closed_loop.view_server alone."""
+error, and keeps serving. No ROS here: erforce_sim.view.view_server alone."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
-from erforce_sim.closed_loop.view_server import (
+from erforce_sim.view.view_server import (
     DIRECT_WRITE_MAX_BYTES,
     MAX_REQUEST_BYTES,
     ViewServer,

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallState
 from erforce_sim.world import PhysicsParams, RobotSpec, World
 

@@ -12,7 +12,7 @@ import time
 import numpy as np
 from google.protobuf.message import DecodeError
 
-from erforce_interfaces.ssl_proto import (
+from erforce_interfaces.ssl.ssl_proto import (
     grsim_pb2,
     ssl_simulation_control_pb2,
     ssl_simulation_robot_control_pb2,
@@ -187,7 +187,7 @@ class VisionSimStandIn(SimStandIn):
         return float(p[0]), float(p[1])
 
     def _run_vision(self) -> None:
-        from erforce_interfaces.ssl_vision import BallCandidate, CameraFrame, RobotSighting, encode_frame
+        from erforce_interfaces.ssl.ssl_vision import BallCandidate, CameraFrame, RobotSighting, encode_frame
 
         frame_number = 0
         while not self._stop.is_set():

@@ -12,9 +12,7 @@ import pytest
 import rclpy
 
 from erforce_ball_model.ssl_ball_predictor import make_nodes
-from erforce_interfaces.conversions import float64_from_msg, vision_frame_from_msg
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.ssl.ssl_vision import (
     SSL_VISION_GROUP,
     BallCandidate,
     CameraFrame,
@@ -23,6 +21,8 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
+from erforce_interfaces.wire.conversions import float64_from_msg, vision_frame_from_msg
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ssl_cameras import open_multicast_sender
 
 # the predictor's defaults (params/ball_predictor.yaml): reaction time, robot limits

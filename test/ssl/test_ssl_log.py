@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from erforce_interfaces.ssl_log import LogFormatError, LogReader, LogWriter, MessageType, read_log
+from erforce_interfaces.ssl.ssl_log import LogFormatError, LogReader, LogWriter, MessageType, read_log
 
 # header, version 1; record: t = 1_000_000_007 ns, type 4 (vision 2014), size 3, payload;
 # record: t = 2**40 ns, type 3 (referee), size 0

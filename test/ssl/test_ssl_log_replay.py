@@ -7,8 +7,8 @@ import sys
 
 import pytest
 
-from erforce_interfaces.ssl_log import LogRecord, LogWriter, MessageType
-from erforce_interfaces.ssl_log_replay import replay
+from erforce_interfaces.ssl.ssl_log import LogRecord, LogWriter, MessageType
+from erforce_interfaces.ssl.ssl_log_replay import replay
 
 S = 1_000_000_000
 
@@ -70,7 +70,7 @@ def test_cli_replays_a_gzip_log_over_loopback_multicast(tmp_path):
         log.write(S, MessageType.REFBOX_2013, b"referee")
         log.write(S, MessageType.VISION_TRACKER_2020, b"tracked")
     out = subprocess.run(
-        [sys.executable, "-m", "erforce_interfaces.ssl_log_replay", str(path), "--speed", "5", "--quiet",
+        [sys.executable, "-m", "erforce_interfaces.ssl.ssl_log_replay", str(path), "--speed", "5", "--quiet",
          "--vision", f"224.5.23.2:{vision.getsockname()[1]}", "--referee", f"224.5.23.1:{referee.getsockname()[1]}"],
         capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
@@ -84,6 +84,6 @@ def test_cli_replays_a_gzip_log_over_loopback_multicast(tmp_path):
 def test_cli_refuses_a_file_that_is_no_log(tmp_path):
     bad = tmp_path / "x.log"
     bad.write_bytes(b"not a log at all")
-    out = subprocess.run([sys.executable, "-m", "erforce_interfaces.ssl_log_replay", str(bad), "--quiet"],
+    out = subprocess.run([sys.executable, "-m", "erforce_interfaces.ssl.ssl_log_replay", str(bad), "--quiet"],
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 1 and "not an SSL log file" in out.stderr

@@ -4,8 +4,8 @@ league documents, and the SSL nodes' schema files take them from there (``defaul
 import re
 from pathlib import Path
 
-from erforce_interfaces import ssl_log_replay, ssl_sim, ssl_vision
-from erforce_interfaces.param_schema import load_schema
+from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.ssl import ssl_log_replay, ssl_sim, ssl_vision
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 
@@ -23,7 +23,7 @@ def test_the_schema_defaults_are_the_protocols_addresses():
     plant = load_schema("erforce_sim", "plant").defaults()
     assert (plant["ssl_vision_group"], plant["ssl_vision_port"]) == ("224.5.23.2", 10020)
     assert plant["vision_output"] == "ros"
-    sim_bridge = load_schema("erforce_interfaces", "ssl_sim_bridge").defaults()
+    sim_bridge = load_schema("erforce_sim", "ssl_sim_bridge").defaults()
     server = load_schema("erforce_sim", "ssl_sim_server").defaults()
     assert sim_bridge["control_port"] == server["control_port"] == 10300
     # 0 stands for the team's default port of the protocol (ROBOT_CONTROL_PORTS, GRSIM_STATUS_PORTS)

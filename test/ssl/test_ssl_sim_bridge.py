@@ -14,8 +14,9 @@ from nav_msgs.msg import Odometry
 from sim_standin import SimStandIn, VisionSimStandIn
 from std_msgs.msg import Bool, Float64, String
 
-from erforce_interfaces import contract, ssl_sim
-from erforce_interfaces.conversions import odometry_msg
+from erforce_interfaces.ssl import ssl_sim
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import odometry_msg
 
 pytestmark = pytest.mark.integration
 
@@ -50,7 +51,7 @@ def standin():
 
 
 def test_bridge_drives_the_simulator_and_maps_its_answers_back(ros_graph, standin):
-    node = ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={
+    node = ros_graph.start_node("erforce_sim", "ssl_sim_bridge", params={
         "team_color": "blue", "robot_ids": [0, 1], "command_port": standin.port, "control_port": standin.control_port,
         "rate_hz": 100.0})
     probe = ros_graph.probe
@@ -111,7 +112,7 @@ def test_bridge_turns_teleports_into_the_simulators_frame_when_we_defend_positiv
     """The scenario topics are in the field frame (as vision after ssl_vision_bridge): defending the simulator's
     positive x, the ball at (1, 2) m rolling at (3, 0) m/s is placed at (-1, -2) m rolling at (-3, 0) m/s, and
     our robot 1 at (1, 2) m facing +y at (-1, -2) m facing -y."""
-    ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={
+    ros_graph.start_node("erforce_sim", "ssl_sim_bridge", params={
         "team_color": "yellow", "defend_side": "positive_x", "robot_ids": [1], "command_port": standin.port,
         "control_port": standin.control_port})
     probe = ros_graph.probe
@@ -131,7 +132,7 @@ def test_bridge_speaks_grsim(ros_graph):
     status_port = free_udp_port()
     sim = SimStandIn(protocol="grsim", status_port=status_port)
     try:
-        ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={
+        ros_graph.start_node("erforce_sim", "ssl_sim_bridge", params={
             "team_color": "yellow", "robot_ids": [3], "protocol": "grsim", "command_port": sim.port,
             "grsim_status_port": status_port})
         probe = ros_graph.probe
@@ -145,7 +146,7 @@ def test_bridge_speaks_grsim(ros_graph):
 
 
 def test_bridge_refuses_a_bad_configuration(ros_graph):
-    node = ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={"team_color": "green"})
+    node = ros_graph.start_node("erforce_sim", "ssl_sim_bridge", params={"team_color": "green"})
     assert node.wait_exit(timeout_s=20.0) == 1
     assert "invalid parameter team_color: must be one of blue, yellow" in node.output()
 
@@ -173,7 +174,7 @@ def test_the_stacks_catcher_receives_a_ball_in_an_external_simulator(ros_graph):
             "interface": "127.0.0.1", "port": vision_port, "num_robots": 1, "field": "division_b"})
         ros_graph.start_node("erforce_ball_model", "ball_predictor", params={"num_robots": 1})
         ros_graph.start_node("erforce_ball_model", "catcher", namespace="robot_0")
-        ros_graph.start_node("erforce_interfaces", "ssl_sim_bridge", params={
+        ros_graph.start_node("erforce_sim", "ssl_sim_bridge", params={
             "team_color": "blue", "robot_ids": [0], "command_port": sim.port, "control_port": 0})
         probe = ros_graph.probe
         odom = probe.subscribe(contract.ODOM.for_robot(0), Odometry, contract.ODOM.qos)

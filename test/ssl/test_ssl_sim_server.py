@@ -12,13 +12,14 @@ import pytest
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 
-from erforce_interfaces import contract, ssl_sim
-from erforce_interfaces.conversions import odometry_msg
-from erforce_interfaces.ssl_proto import (
+from erforce_interfaces.ssl import ssl_sim
+from erforce_interfaces.ssl.ssl_proto import (
     ssl_simulation_control_pb2,
     ssl_simulation_robot_control_pb2,
     ssl_simulation_robot_feedback_pb2,
 )
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import odometry_msg
 
 pytestmark = pytest.mark.integration
 

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from erforce_interfaces import ssl_sim
-from erforce_interfaces.ssl_proto import (
+from erforce_interfaces.ssl import ssl_sim
+from erforce_interfaces.ssl.ssl_proto import (
     grsim_pb2,
     ssl_gc_referee_message_pb2,
     ssl_simulation_control_pb2,
@@ -18,7 +18,7 @@ from erforce_interfaces.ssl_proto import (
     ssl_simulation_robot_feedback_pb2,
     ssl_simulation_synchronous_pb2,
 )
-from erforce_interfaces.ssl_sim import RobotCommand, SimError, WireError
+from erforce_interfaces.ssl.ssl_sim import RobotCommand, SimError, WireError
 
 F1_0 = bytes.fromhex("0000803f")  # 1.0f
 FM0_5 = bytes.fromhex("000000bf")  # -0.5f
@@ -338,7 +338,7 @@ def test_teleports_in_the_field_frame_reach_the_simulator_in_its_frame(team, sid
 
 
 def test_a_half_turn_is_its_own_inverse_and_keeps_a_missing_heading():
-    from erforce_interfaces.robot_config import half_turn
+    from erforce_interfaces.wire.robot_config import half_turn
     x, y, theta = half_turn(0.5, -4.0, 3.0)
     assert (x, y) == (-0.5, 4.0) and theta == pytest.approx(3.0 - math.pi)
     assert half_turn(x, y, theta)[2] == pytest.approx(3.0)

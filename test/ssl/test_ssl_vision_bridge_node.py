@@ -18,17 +18,8 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64MultiArray
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
-    point_from_msg,
-    pose2d_from_msg,
-    table_from_msg,
-    table_msg,
-    vision_frame_from_msg,
-    vision_robots_cdr,
-)
-from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.ssl.ssl_proto import ssl_vision_wrapper_pb2 as wrap
+from erforce_interfaces.ssl.ssl_vision import (
     SSL_VISION_GROUP,
     BallCandidate,
     BallModelFromVision,
@@ -37,6 +28,15 @@ from erforce_interfaces.ssl_vision import (
     RobotSighting,
     encode_frame,
     encode_geometry,
+)
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
+    point_from_msg,
+    pose2d_from_msg,
+    table_from_msg,
+    table_msg,
+    vision_frame_from_msg,
+    vision_robots_cdr,
 )
 from erforce_sim.ssl_cameras import open_multicast_sender
 
@@ -303,7 +303,7 @@ def test_a_frames_vision_robots_goes_out_before_its_vision_ball(general_path):
     handed to the node's batch handler, its two publishers recording."""
     import rclpy
 
-    from erforce_ball_model.ssl_vision_bridge import SslVisionBridge
+    from erforce_ball_model.ssl_vision_bridge_node import SslVisionBridge
 
     rclpy.init(args=["--ros-args", "-p", f"port:={free_udp_port()}", "-p", "interface:=127.0.0.1",
                      "-p", f"publish_detections:={str(general_path).lower()}", "-p", "field:=division_b"])

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from erforce_ball_model.ssl_vision_bridge import _robot_points
+from erforce_ball_model.ssl_vision_bridge_node import _robot_points
 
 # ssl_vision's ROBOT_COLUMNS: team (index in TEAMS: 0 blue, 1 yellow), id, x, y, theta (NaN: none), confidence
 ROBOTS = np.array([

@@ -1,4 +1,4 @@
-"""erforce_interfaces.ssl_vision: decoding with checks (bad input named, never non-finite output),
+"""erforce_interfaces.ssl.ssl_vision: decoding with checks (bad input named, never non-finite output),
 the vision clock (offset estimate, clock jumps), and a hypothesis fuzz test of every decoder."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.ssl.ssl_proto import ssl_vision_wrapper_pb2 as wrap
+from erforce_interfaces.ssl.ssl_vision import (
     BallCandidate,
     BallModelFromVision,
     CameraFrame,
@@ -388,7 +388,7 @@ def test_what_the_compiled_pass_accepts_the_protobuf_runtime_accepts(edits, tail
     """Byte edits of a valid frame (and a tail: unknown fields, field number 0, a group ended by another
     number, an empty geometry): a datagram the pass takes without the runtime is one the runtime
     parses completely, with a detection and without geometry; the pass reads the same frame from it."""
-    from erforce_interfaces import ssl_vision
+    from erforce_interfaces.ssl import ssl_vision
 
     packet = detection_packet()
     add_ball(packet, 100.0, 200.0)

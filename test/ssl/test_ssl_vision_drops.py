@@ -11,9 +11,7 @@ import re
 import pytest
 from sensor_msgs.msg import PointCloud2
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import vision_frame_from_msg
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.ssl.ssl_vision import (
     SSL_VISION_GROUP,
     BallCandidate,
     CameraFrame,
@@ -22,7 +20,9 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
-from erforce_sim.closed_loop.demo import free_udp_port
+from erforce_interfaces.tools.processes import free_udp_port
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import vision_frame_from_msg
 
 VISION_EPOCH_S = 1.7e9  # the vision host's clock
 BAD_GEOMETRY = encode_geometry(FieldGeometry(0.0, 6.0, 0.3, 1.0, 0.18))  # a field 0 mm long
@@ -47,7 +47,7 @@ def recording_bridge(general_path: bool, *params: str):
     field a preset, as for a vision source that sends no geometry (from_geometry would wait for one)."""
     import rclpy
 
-    from erforce_ball_model.ssl_vision_bridge import SslVisionBridge
+    from erforce_ball_model.ssl_vision_bridge_node import SslVisionBridge
 
     args = [f"port:={free_udp_port()}", "interface:=127.0.0.1", "field:=division_b",
             f"publish_detections:={str(general_path).lower()}", *params]

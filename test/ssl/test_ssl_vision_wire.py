@@ -15,9 +15,9 @@ import pytest
 from google.protobuf import unknown_fields
 from google.protobuf.message import DecodeError
 
-from erforce_interfaces.ssl_proto import ssl_vision_detection_pb2 as det
-from erforce_interfaces.ssl_proto import ssl_vision_geometry_pb2 as geo
-from erforce_interfaces.ssl_proto import ssl_vision_wrapper_pb2 as wrap
+from erforce_interfaces.ssl.ssl_proto import ssl_vision_detection_pb2 as det
+from erforce_interfaces.ssl.ssl_proto import ssl_vision_geometry_pb2 as geo
+from erforce_interfaces.ssl.ssl_proto import ssl_vision_wrapper_pb2 as wrap
 
 
 def f32(tag: int, value: float) -> bytes:
@@ -220,7 +220,7 @@ def test_a_frame_without_its_required_fields_is_reported_and_a_truncated_one_rej
 
 def test_generated_modules_are_current():
     result = subprocess.run(
-        [sys.executable, "-m", "erforce_interfaces.ssl_proto.generate", "--check"],
+        [sys.executable, "-m", "erforce_interfaces.ssl.ssl_proto.generate", "--check"],
         capture_output=True,
         text=True,
         timeout=120,

@@ -28,8 +28,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import stamp_to_nanoseconds, stamp_to_seconds
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import stamp_to_nanoseconds, stamp_to_seconds
 
 
 def _emit(record: dict) -> None:

@@ -2,7 +2,7 @@
 
 The robot-side nodes (robot_0's velocity_controller and motor_boards, launch/robot.launch.yaml)
 run in the namespace "robot"; the rest of the demo graph (plant, ball_predictor, catcher, the
-demo director and its recorder, launched by ``erforce_sim.closed_loop.demo --no-robot-side``, which passes
+demo director and its recorder, launched by ``erforce_sim.demo.demo --no-robot-side``, which passes
 ``robot_side:=false`` to demo.launch.yaml) and this test's probe run in the namespace "ai". The two
 are joined by a veth pair, 10.213.0.1/30 (robot) <-> 10.213.0.2/30 (ai); those addresses exist
 only inside the two namespaces, and the pytest process itself sends nothing (it stays in the
@@ -55,7 +55,7 @@ The same setup step by step in a root shell (DOMAIN: any free domain id):
     export FASTRTPS_DEFAULT_PROFILES_FILE=/tmp/udp_only.xml ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET ROS_DOMAIN_ID=DOMAIN
     ROS_STATIC_PEERS=10.213.0.2 ip netns exec robot .venv/bin/erforce-launch \\
         src/erforce_motion/launch/robot.launch.yaml robot:=robot_0 &
-    ROS_STATIC_PEERS=10.213.0.1 ip netns exec ai .venv/bin/python -m erforce_sim.closed_loop.demo \
+    ROS_STATIC_PEERS=10.213.0.1 ip netns exec ai .venv/bin/python -m erforce_sim.demo.demo \
         --no-robot-side --scenes 2
     kill %1; ip netns del robot; ip netns del ai
 """
@@ -294,7 +294,7 @@ def test_demo_catches_a_kick_with_the_robot_on_another_host(two_hosts: TwoHosts)
     watch = h.start_in(h.ai_ns, [sys.executable, str(PROBE), "watch", "--robot", "0"], name="probe-watch")
     watch.wait_for_output(r'"kind": "ready"', timeout_s=30.0)
     stats_before = h.robot_link_stats()
-    demo = h.start_in(h.ai_ns, [sys.executable, "-m", "erforce_sim.closed_loop.demo", "--scenario", "scenes",
+    demo = h.start_in(h.ai_ns, [sys.executable, "-m", "erforce_sim.demo.demo", "--scenario", "scenes",
                                 "--no-robot-side", "--scenes", "2",
                                 "--out", str(h.workdir / "report")], name="demo")
 
@@ -333,7 +333,7 @@ def test_demo_catches_a_kick_with_the_robot_on_another_host(two_hosts: TwoHosts)
 
     # 4. the lockstep loop crossed the veth: both directions carried at least one duty payload per tick
     for name in ("velocity_controller", "motor_boards", "plant", "ball_predictor", "catcher",
-                 "erforce_sim.closed_loop.demo"):
+                 "erforce_sim.demo.demo"):
         assert any(name in cmd for cmd in dds_pids_checked.values()), f"{name} not checked: {dds_pids_checked}"
     end = [r for r in records if r["kind"] == "end"]
     assert end, f"the probe did not report its duty count: {records[-3:]}"

@@ -50,9 +50,9 @@ class BallTrack:
 
 def track_from_log(path: str | Path) -> BallTrack:
     """The ball track of an SSL log's vision records (SSL_WrapperPacket, message type VISION_2014),
-    decoded and checked by the bridge's decoder (``erforce_interfaces.ssl_vision.decode_wrapper``)."""
-    from erforce_interfaces.ssl_log import LogReader, MessageType
-    from erforce_interfaces.ssl_vision import SslDecodeError, decode_wrapper
+    decoded and checked by the bridge's decoder (``erforce_interfaces.ssl.ssl_vision.decode_wrapper``)."""
+    from erforce_interfaces.ssl.ssl_log import LogReader, MessageType
+    from erforce_interfaces.ssl.ssl_vision import SslDecodeError, decode_wrapper
 
     frames: dict[float, list[tuple[float, float, float, float]]] = {}
     geometry_model = None

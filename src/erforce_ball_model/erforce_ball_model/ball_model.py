@@ -50,7 +50,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from erforce_interfaces.robot_config import (
+from erforce_interfaces.wire.robot_config import (
     BALL_A_ROLL_MPS2,
     BALL_A_SLIDE_MPS2,
     BALL_C_SWITCH,
@@ -422,7 +422,7 @@ def path_point(table, t_s: float) -> tuple[float, float]:
 def numba_ball_type():
     """The numba type of a BallFloats, for kernels' signatures; imports numba and makes the closed forms
     above callable from compiled code (``register_jitable``). Every kernel module calls it first."""
-    from erforce_interfaces.numba_support import numba, register_jitable
+    from erforce_interfaces.runtime.numba_support import numba, register_jitable
 
     for closed_form in (ball_distance, ball_speed, ball_time_to_distance, path_piece, path_index, path_point):
         register_jitable(closed_form)
@@ -447,7 +447,7 @@ def _time_to_distance_many(ball, d, out):
 @functools.cache
 def _array_kernel(loop):
     """``loop`` (one of the three above) compiled for arrays, on its first use (cached on disk beside this module)."""
-    from erforce_interfaces.numba_support import numba
+    from erforce_interfaces.runtime.numba_support import numba
 
     signature = numba.void(numba_ball_type(), numba.float64[::1], numba.float64[::1])
     return numba.njit(signature, cache=True, error_model="numpy")(loop)

@@ -34,8 +34,19 @@ from erforce_ball_model.catch_time import RobotLimits, load_kernels
 from erforce_ball_model.predictor import BallFrame, BallPredictor, FrameTimes, PredictorConfig
 from erforce_ball_model.tracking import TrackerConfig
 from erforce_ball_model.tracking import load_kernels as load_ball_filter_kernels
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.runtime.executor import run_sampled, take_queued
+from erforce_interfaces.runtime.node_support import (
+    NodeParams,
+    ThrottledWarner,
+    check_stamp,
+    contract_publisher,
+    contract_subscription,
+    run_node,
+    sample_clock,
+)
+from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     MAX_ABS_VALUE,
     BallTrack,
     ConversionError,
@@ -54,19 +65,8 @@ from erforce_interfaces.conversions import (
     vision_frame_from_msg,
     vision_leading_balls,
 )
-from erforce_interfaces.executor import run_sampled, take_queued
-from erforce_interfaces.node_support import (
-    NodeParams,
-    ThrottledWarner,
-    check_stamp,
-    contract_publisher,
-    contract_subscription,
-    run_node,
-    sample_clock,
-)
-from erforce_interfaces.param_schema import load_schema
-from erforce_interfaces.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
-from erforce_interfaces.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
 
 SCHEMA = load_schema("erforce_ball_model", "ball_predictor")
 
@@ -152,7 +152,7 @@ class BallPredictorNode(Node):
         self._names = [team.namespace(j) for team, j in self._robots]
         self._core_index = {(team.code, float(j)): i for i, (team, j) in enumerate(self._robots)}  # a table row's
         self._robot_topics = [f"vision/robots ({name})" for name in self._names]  # the time rule's name per robot
-        # The time rule (erforce_interfaces.stamps) per input stream, before the core sees a frame.
+        # The time rule (erforce_interfaces.wire.stamps) per input stream, before the core sees a frame.
         self._ball_stamps, self._robot_stamps = StampFilter(), [StampFilter() for _ in range(n)]
         self._params_pub = contract_publisher(self, q.BALL_MODEL_PARAMS)
         self._publish_model()

@@ -49,8 +49,8 @@ from erforce_ball_model.ball_model import (
     path_piece,
     path_point,
 )
-from erforce_interfaces.param_schema import schema_defaults
-from erforce_interfaces.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 
 __all__ = [
     "MAX_RECEIVE_ANGLE_RAD",
@@ -465,7 +465,7 @@ def _kernels() -> SimpleNamespace:
     numpy, not an exception; no fastmath, so the results are the IEEE results numpy gives.
     """
     numba_ball_type()  # imports numba; ball_model's closed forms become callable from kernels
-    from erforce_interfaces.numba_support import numba, register_jitable
+    from erforce_interfaces.runtime.numba_support import numba, register_jitable
 
     for scalar in (_axis_time, _axis_min_accel, _time_to_pos, _can_reach, _may_reach, _feasible):
         register_jitable(error_model="numpy")(scalar)

@@ -3,16 +3,16 @@
 Runs in the robot's namespace. It reads its robot's catch time and catch point from the
 ball predictor and drives there with ``cmd_vel``, facing the incoming ball (the
 predictor computed the catch for that facing), unless a nearer place to receive on the
-ball's line has time to spare (catcher.receive_point). It holds still when no catch is possible
+ball's line has time to spare (receiver.receive_point). It holds still when no catch is possible
 or its inputs are stale, and once the light barrier sees the ball. The behaviour is
-erforce_ball_model.catcher.Receiver; this node only feeds it and publishes its Twist.
+erforce_ball_model.receiver.Receiver; this node only feeds it and publishes its Twist.
 
 In a team (``team_robot_ids``) it also reads the teammates' catch times, and only the robot that
-can catch the ball first drives to it (catcher.team_receiver); the others hold.
+can catch the ball first drives to it (receiver.team_receiver); the others hold.
 
 It acts only in its ``rate_hz`` tick, on the newest inputs, so it does not wake for each of
 the ~6 messages per vision frame: its subscriptions are sampled at the tick
-(erforce_interfaces.executor.sample_only / run_sampled), in the order they were sent, and an
+(erforce_interfaces.runtime.executor.sample_only / run_sampled), in the order they were sent, and an
 input's arrival time, by which its staleness is judged, is the tick that took it.
 """
 
@@ -23,18 +23,9 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.catcher import CatcherConfig, Receiver
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
-    ConversionError,
-    float64_from_msg,
-    model_in_use_from_msg,
-    odometry_from_msg,
-    point_from_msg,
-    twist_msg,
-)
-from erforce_interfaces.executor import run_sampled, sample_only
-from erforce_interfaces.node_support import (
+from erforce_ball_model.receiver import CatcherConfig, Receiver
+from erforce_interfaces.runtime.executor import run_sampled, sample_only
+from erforce_interfaces.runtime.node_support import (
     NodeParams,
     ThrottledWarner,
     WorldField,
@@ -42,8 +33,17 @@ from erforce_interfaces.node_support import (
     contract_subscription,
     run_node,
 )
-from erforce_interfaces.param_schema import fields_for, load_schema
-from erforce_interfaces.robot_config import FieldConfig, field_from_setting
+from erforce_interfaces.runtime.param_schema import fields_for, load_schema
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
+    ConversionError,
+    float64_from_msg,
+    model_in_use_from_msg,
+    odometry_from_msg,
+    point_from_msg,
+    twist_msg,
+)
+from erforce_interfaces.wire.robot_config import FieldConfig, field_from_setting
 
 SCHEMA = load_schema("erforce_ball_model", "catcher")
 

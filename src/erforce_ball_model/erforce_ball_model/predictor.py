@@ -5,7 +5,7 @@ tracker (tracking.BallTracker: v_shoot, phase, ricochets) and one robotTimeToBal
 seen within ``robot_timeout_s``, after the reaction time (catch_time.catch_after_reaction); each robot
 pose (``robot_frame``) feeds that robot's RobotTracker. It owns every per-frame decision: vision outside
 the field refused, what a new time line resets (the caller judges stamps by
-erforce_interfaces.stamps.StampFilter and passes ``restart``), robot freshness and extrapolation to the
+erforce_interfaces.wire.stamps.StampFilter and passes ``restart``), robot freshness and extrapolation to the
 frame's stamp, "no catch" as CATCH_TIME_NEVER, and the ball model in use: the configured one, an online
 fit (identification.ShotAccumulator, in a worker thread) once its errors are small, or the SSL geometry's
 (``set_vision_geometry``, while ``use_vision_geometry``; no vision is answered before it arrives when the
@@ -51,18 +51,18 @@ from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.chip_tracking import ChipDetector, ChipDetectorConfig
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
-from erforce_interfaces.param_schema import schema_defaults
-from erforce_interfaces.robot_config import BALL_WALL_RESTITUTION, FieldConfig, RobotConfig
+from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.wire.robot_config import BALL_WALL_RESTITUTION, FieldConfig, RobotConfig
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
 
 __all__ = ["CATCH_TIME_NEVER", "MODEL_ROWS", "PHASE_NAMES", "BallFrame", "BallPredictor", "FrameTimes",
            "PredictorConfig"]
 
-CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract says the same)
-MODEL_ROWS = ("in_use", "fit", "std_error")  # the rows of model_rows (erforce_interfaces.contract says the same)
+CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.wire.contract says the same)
+MODEL_ROWS = ("in_use", "fit", "std_error")  # the rows of model_rows (erforce_interfaces.wire.contract says the same)
 PHASE_NAMES = {BallPhase.SLIDING: "sliding", BallPhase.ROLLING: "rolling", BallPhase.STOPPED: "stopped"}
-PHASE_CHIP = "chip"  # a chipped ball from its detection until it rolls (erforce_interfaces.contract.BALL_PHASES)
+PHASE_CHIP = "chip"  # a chipped ball from its detection until it rolls (erforce_interfaces.wire.contract.BALL_PHASES)
 _NEVER = int(CatchKind.NEVER)
 
 

@@ -21,8 +21,8 @@ would give both nodes one name.
 from __future__ import annotations
 
 from erforce_ball_model.ball_predictor_node import BallPredictorNode
-from erforce_ball_model.ssl_vision_bridge import SslVisionBridge
-from erforce_interfaces.node_support import run_node
+from erforce_ball_model.ssl_vision_bridge_node import SslVisionBridge
+from erforce_interfaces.runtime.node_support import run_node
 
 
 def make_nodes() -> tuple[SslVisionBridge, BallPredictorNode]:

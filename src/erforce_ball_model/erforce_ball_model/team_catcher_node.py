@@ -3,13 +3,13 @@
 The same contract as one ``catcher`` per robot: per robot in ``robot_ids`` it reads ``odom`` (or, with
 ``tracked_poses``, its row of ``/robots/tracked``) and ``ball_detected``, its catch time and point from its
 row of ``/ball/catches``, the ball's topics once for all, and publishes each robot's ``cmd_vel`` at
-``rate_hz``. Each robot runs its own catcher.Receiver; with ``as_team`` only the robot that can catch
-first drives to the ball (catcher.team_receiver).
+``rate_hz``. Each robot runs its own receiver.Receiver; with ``as_team`` only the robot that can catch
+first drives to the ball (receiver.team_receiver).
 
 With ``team`` ``opponents`` it drives the opponents under ``/opponent_<id>/``: the interceptor of the
 simulated second team. With ``press_lanes`` it also reads the other team's tracked poses and, while one of
 them holds the ball, sends its robots onto the passing lanes; the decisions are
-passing_player.PressingTeam's.
+passing.player.PressingTeam's.
 
 One timer and one sampled batch of every input per tick (executor.run_sampled), instead of a process, a
 timer and seven subscriptions' callbacks per robot. The parameters are the catcher's (``team_robot_ids`` aside).
@@ -23,10 +23,20 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model import catcher_node
 from erforce_ball_model.ball_model import BallModelParams
-from erforce_ball_model.passing import PassConfig
-from erforce_ball_model.passing_player import PressingTeam, new_poses
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_ball_model.passing.decisions import PassConfig
+from erforce_ball_model.passing.player import PressingTeam, new_poses
+from erforce_interfaces.runtime.executor import run_sampled, sample_only
+from erforce_interfaces.runtime.node_support import (
+    NodeParams,
+    ThrottledWarner,
+    WorldField,
+    contract_publisher,
+    contract_subscription,
+    run_node,
+)
+from erforce_interfaces.runtime.param_schema import HostSchema, load_schema
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     ConversionError,
     catches_from_msg,
     float64_from_msg,
@@ -35,16 +45,6 @@ from erforce_interfaces.conversions import (
     tracked_robots_from_msg,
     twist_msg,
 )
-from erforce_interfaces.executor import run_sampled, sample_only
-from erforce_interfaces.node_support import (
-    NodeParams,
-    ThrottledWarner,
-    WorldField,
-    contract_publisher,
-    contract_subscription,
-    run_node,
-)
-from erforce_interfaces.param_schema import HostSchema, load_schema
 
 # the catcher's parameters under their own names; team_robot_ids is robot_ids and as_team here
 SCHEMA = HostSchema(load_schema("erforce_ball_model", "team_catcher"), {

@@ -34,8 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
-from erforce_interfaces.param_schema import schema_defaults
-from erforce_interfaces.robot_config import VISION_NOISE_M
+from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.wire.robot_config import VISION_NOISE_M
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
 
@@ -278,7 +278,7 @@ def compiled_ball_step():
     """``ball_step`` as a numba kernel (compiled or loaded from numba's cache on first call), callable from
     other kernels. numba is imported here, not with this module: a process that only tracks (the predictor
     restarted without its warm-up) starts without it."""
-    from erforce_interfaces.numba_support import numba, register_jitable
+    from erforce_interfaces.runtime.numba_support import numba, register_jitable
 
     for rule in (cv_predicted, cv_corrected, effective_v_shoot):
         register_jitable(rule)
@@ -288,7 +288,7 @@ def compiled_ball_step():
 def load_kernels() -> None:
     """Compile (or load) ``ball_step`` now; from then on every BallTracker's update runs it compiled."""
     global _step
-    from erforce_interfaces.numba_support import compiled_for
+    from erforce_interfaces.runtime.numba_support import compiled_for
 
     s = np.zeros(STATE_SIZE)
     _step = compiled_for(compiled_ball_step(), s, np.zeros(SHOOT_SAMPLES), np.zeros(10), 0.0, 0.0, 0.0)
@@ -336,7 +336,7 @@ class BallTracker:
     @params.setter
     def params(self, value: BallModelParams) -> None:
         # The kernel reads the model from ``m``: rewritten here, in place (compiled code that holds the array,
-        # vision_pass.FramePass, sees it), so that the filter and the trajectory never use two models.
+        # vision_fast_path.FramePass, sees it), so that the filter and the trajectory never use two models.
         if not isinstance(value, BallModelParams):
             raise ValueError(f"params: expected BallModelParams, got {type(value).__name__}")
         self._params = value

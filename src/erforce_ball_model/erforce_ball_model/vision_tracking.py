@@ -16,7 +16,7 @@ Order and robots: a camera frame not after the newest one used is older news; it
 seen later are not used. A robot sighting that the last pose cannot reach at ``max_robot_speed_mps`` is
 held back; two agreeing held-back sightings re-seed the robot; duplicate ids take the nearest. The robot
 streams, the ball hypotheses and the choice of the ball are compiled passes over arrays
-(``frame_arrays``), the same kernels vision_pass runs per datagram; outside that pass the ball filter
+(``frame_arrays``), the same kernels vision_fast_path runs per datagram; outside that pass the ball filter
 is updated through ``use_ball``.
 """
 
@@ -32,10 +32,10 @@ import numpy as np
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.tracking import S_T, BallTracker, TrackerConfig, UpdateStatus
 from erforce_ball_model.tracking import load_kernels as load_ball_filter_kernels
-from erforce_interfaces.numba_support import numba
-from erforce_interfaces.param_schema import schema_defaults
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_vision import TEAMS, DecodeLimits
+from erforce_interfaces.runtime.numba_support import numba
+from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.ssl.ssl_vision import TEAMS, DecodeLimits
+from erforce_interfaces.wire.robot_config import FieldConfig
 
 _PREDICTOR = schema_defaults("erforce_ball_model", "ball_predictor")
 
@@ -162,7 +162,7 @@ def _best_confirmed(hyps, hits, n_hyps, t_s, inside_only, window_s, fresh_s):
 
 
 # The tracker's numbers for the compiled passes (these, update_hypotheses, choose_ball and track_robots are what
-# erforce_ball_model.vision_pass runs): its settings (with the field's half sizes), the ball filter's state as the
+# erforce_ball_model.vision_fast_path runs): its settings (with the field's half sizes), the ball filter's state as the
 # choice needs it (kept in step with ``VisionTracker.ball``), and its counters.
 (SETTING_MIN_CONFIDENCE, SETTING_MAX_X, SETTING_MAX_Y, SETTING_HALF_LENGTH, SETTING_HALF_WIDTH,
  SETTING_HYPOTHESIS_TIMEOUT, SETTING_BALL_GATE, SETTING_BALL_SPEED, SETTING_MAX_BALL_GATE, SETTING_LOST_AFTER,
@@ -350,7 +350,7 @@ class VisionTracker:
 
     @property
     def params(self) -> BallModelParams:
-        """The ball filter's model (``BallTracker.params``: its kernels, also vision_pass's, read the change)."""
+        """The ball filter's model (``BallTracker.params``: its kernels, also vision_fast_path's, read the change)."""
         return self.ball.params
 
     @params.setter
@@ -438,7 +438,13 @@ class VisionTracker:
 def load_kernels() -> None:
     """Compile (or load from numba's cache) the kernels of SSL decoding and of this tracker: at a node's
     start and before the tests, demo and benches (./run), not at the first camera frame."""
-    from erforce_interfaces.ssl_vision import BallCandidate, CameraFrame, RobotSighting, decode_wrapper, encode_frame
+    from erforce_interfaces.ssl.ssl_vision import (
+        BallCandidate,
+        CameraFrame,
+        RobotSighting,
+        decode_wrapper,
+        encode_frame,
+    )
 
     load_ball_filter_kernels()
     data = encode_frame(CameraFrame(0, 1, 1.0, 1.0, (BallCandidate(0.0, 0.0, 1.0),),

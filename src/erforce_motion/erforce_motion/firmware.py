@@ -21,8 +21,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from erforce_interfaces.numba_support import compiled_for, numba
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.runtime.numba_support import compiled_for, numba
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.motor_board import MotorBoard, MotorBoardConfig, motor_board_reset, motor_board_step
 from erforce_motion.velocity_control import VelocityControlConfig, VelocityController, velocity_reset, velocity_step
 

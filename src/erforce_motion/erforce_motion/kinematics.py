@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 
 
 def _as_finite_array(values, last_dim: int, name: str) -> np.ndarray:

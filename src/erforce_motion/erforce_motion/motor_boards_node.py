@@ -2,7 +2,7 @@
 
 Runs in the robot's namespace. Each ``wheel_states`` tick (measured wheel speeds and
 motor currents) is answered with ``motor_duty`` stamped with that tick, computed with
-the velocity controller's setpoint of the previous tick (erforce_interfaces.lockstep).
+the velocity controller's setpoint of the previous tick (erforce_interfaces.runtime.lockstep).
 ``motor_status`` reports the average current, PWM limit and flags per wheel. All maths
 is in erforce_motion.firmware / motor_board.
 """
@@ -15,17 +15,9 @@ import time
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
-    ConversionError,
-    joint_state_cdr,
-    joint_state_from_msg,
-    table_cdr,
-    wheel_states_from_msg,
-)
-from erforce_interfaces.executor import run_sampled, sample_only
-from erforce_interfaces.lockstep import SetpointJoin
-from erforce_interfaces.node_support import (
+from erforce_interfaces.runtime.executor import run_sampled, sample_only
+from erforce_interfaces.runtime.lockstep import SetpointJoin
+from erforce_interfaces.runtime.node_support import (
     NodeParams,
     ThrottledWarner,
     check_stamp,
@@ -34,8 +26,16 @@ from erforce_interfaces.node_support import (
     run_node,
     sample_clock,
 )
-from erforce_interfaces.param_schema import fields_for, load_schema
-from erforce_interfaces.stamps import StampFilter, StampVerdict
+from erforce_interfaces.runtime.param_schema import fields_for, load_schema
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
+    ConversionError,
+    joint_state_cdr,
+    joint_state_from_msg,
+    table_cdr,
+    wheel_states_from_msg,
+)
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
 from erforce_motion.firmware import MotorBoardLoop
 from erforce_motion.motor_board import MotorBoardConfig
 

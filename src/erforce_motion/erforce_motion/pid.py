@@ -35,7 +35,7 @@ from typing import Literal
 
 import numpy as np
 
-from erforce_interfaces.numba_support import compiled_for, numba
+from erforce_interfaces.runtime.numba_support import compiled_for, numba
 
 AntiWindup = Literal["clamp", "back_calculation"]
 ANTI_WINDUP_MODES = ("clamp", "back_calculation")

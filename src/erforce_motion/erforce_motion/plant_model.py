@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.kinematics import OmniKinematics
 
 _COULOMB_SMOOTHING_RADPS = 1.0  # motor-shaft speed below which Coulomb friction fades (tanh)

@@ -25,8 +25,19 @@ import numpy as np
 from geometry_msgs.msg import Twist
 from rclpy.node import Node
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.runtime.executor import run_sampled
+from erforce_interfaces.runtime.node_support import (
+    NodeParams,
+    ThrottledWarner,
+    check_stamp,
+    contract_publisher,
+    contract_subscription,
+    run_node,
+    sample_clock,
+)
+from erforce_interfaces.runtime.param_schema import HostSchema, load_schema
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     ConversionError,
     field_joint_state_cdr,
     field_joint_state_from_msg,
@@ -37,18 +48,7 @@ from erforce_interfaces.conversions import (
     twist_from_msg,
     wheel_states_from_msg,
 )
-from erforce_interfaces.executor import run_sampled
-from erforce_interfaces.node_support import (
-    NodeParams,
-    ThrottledWarner,
-    check_stamp,
-    contract_publisher,
-    contract_subscription,
-    run_node,
-    sample_clock,
-)
-from erforce_interfaces.param_schema import HostSchema, load_schema
-from erforce_interfaces.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
 from erforce_motion import motor_boards_node, velocity_controller_node
 from erforce_motion.firmware import TeamFirmware
 

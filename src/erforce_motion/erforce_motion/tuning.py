@@ -37,7 +37,7 @@ import numpy as np
 import yaml
 from scipy.optimize import least_squares
 
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.plant_model import WheelPlant
 
 RULES = ("zn", "chr_0", "chr_20")

@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from erforce_interfaces.numba_support import compiled_for, numba
-from erforce_interfaces.param_schema import schema_defaults
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.runtime.numba_support import compiled_for, numba
+from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_motion.kinematics import OmniKinematics
 from erforce_motion.pid import DEFAULT_ANTI_WINDUP, AntiWindup, PidConfig, PidState, pid_reset, pid_step, pid_tables
 

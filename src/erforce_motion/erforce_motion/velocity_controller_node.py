@@ -2,7 +2,7 @@
 
 Runs in the robot's namespace. ``cmd_vel`` (Twist, robot frame) sets the desired
 velocity; every ``wheel_states`` tick is answered with ``wheel_setpoints`` stamped with
-that tick (see erforce_interfaces.lockstep). All maths is in erforce_motion.firmware.
+that tick (see erforce_interfaces.runtime.lockstep). All maths is in erforce_motion.firmware.
 """
 
 from __future__ import annotations
@@ -10,16 +10,8 @@ from __future__ import annotations
 from geometry_msgs.msg import Twist
 from rclpy.node import Node
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
-    MAX_ABS_VALUE,
-    ConversionError,
-    joint_state_cdr,
-    twist_from_msg,
-    wheel_states_from_msg,
-)
-from erforce_interfaces.executor import run_sampled, sample_only
-from erforce_interfaces.node_support import (
+from erforce_interfaces.runtime.executor import run_sampled, sample_only
+from erforce_interfaces.runtime.node_support import (
     NodeParams,
     ThrottledWarner,
     check_stamp,
@@ -28,8 +20,16 @@ from erforce_interfaces.node_support import (
     run_node,
     sample_clock,
 )
-from erforce_interfaces.param_schema import fields_for, load_schema
-from erforce_interfaces.stamps import StampFilter, StampVerdict
+from erforce_interfaces.runtime.param_schema import fields_for, load_schema
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
+    MAX_ABS_VALUE,
+    ConversionError,
+    joint_state_cdr,
+    twist_from_msg,
+    wheel_states_from_msg,
+)
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
 from erforce_motion.firmware import MainBoardLoop
 from erforce_motion.velocity_control import VelocityControlConfig
 

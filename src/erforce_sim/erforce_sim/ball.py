@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from erforce_interfaces.robot_config import (
+from erforce_interfaces.wire.robot_config import (
     BALL_A_ROLL_MPS2,
     BALL_A_SLIDE_MPS2,
     BALL_INERTIA_FACTOR,

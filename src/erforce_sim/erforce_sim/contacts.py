@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from erforce_interfaces.robot_config import BALL_WALL_FRICTION, BALL_WALL_RESTITUTION
+from erforce_interfaces.wire.robot_config import BALL_WALL_FRICTION, BALL_WALL_RESTITUTION
 from erforce_sim.ball import BallBody
 from erforce_sim.drivetrain import RobotPlant
 

@@ -34,8 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from erforce_interfaces.numba_support import numba
-from erforce_interfaces.robot_config import RobotConfig
+from erforce_interfaces.runtime.numba_support import numba
+from erforce_interfaces.wire.robot_config import RobotConfig
 
 GRAVITY_MPS2 = 9.81
 

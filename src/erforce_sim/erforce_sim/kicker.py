@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from erforce_interfaces.robot_config import BALL_RADIUS_M
+from erforce_interfaces.wire.robot_config import BALL_RADIUS_M
 
 FLAT_DEVIATION_DEG_AT_3CM = 12.0  # paper Sec. 2.2
 DEFAULT_TILT_COMPLIANCE_RAD_PER_M = math.radians(FLAT_DEVIATION_DEG_AT_3CM) / 0.03

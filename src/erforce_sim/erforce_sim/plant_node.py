@@ -5,7 +5,7 @@ Every tick (``control_period_s``) it publishes each robot's ``wheel_states`` and
 vision frames, light barriers and ground truth (while read) go out as they fall due.
 
 Pacing: ``lockstep`` advances a tick only once every live motor board answered it
-(erforce_interfaces.lockstep), so runs are deterministic; a silent peer is reported on ``/sim/events``
+(erforce_interfaces.runtime.lockstep), so runs are deterministic; a silent peer is reported on ``/sim/events``
 after ``lockstep_timeout_s`` and driven with zero duty until it answers. ``realtime`` follows the wall
 clock and applies the newest duties. ``real_time_factor`` > 0 caps the speed; a plant that fell behind
 (stopped, starved, waiting out a peer) paces on from now instead of racing to catch up.
@@ -31,8 +31,18 @@ from rclpy.clock import ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, String
 
-from erforce_interfaces import contract
-from erforce_interfaces.conversions import (
+from erforce_interfaces.runtime.lockstep import DutyGate, FieldAnswerRobots
+from erforce_interfaces.runtime.node_support import (
+    NodeParams,
+    ThrottledWarner,
+    contract_publisher,
+    contract_subscription,
+    run_node,
+)
+from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.ssl.ssl_vision import BallModelFromVision
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
     ConversionError,
     clock_cdr,
     field_joint_state_cdr,
@@ -49,17 +59,7 @@ from erforce_interfaces.conversions import (
     team_joint_state_from_msg,
     vision_robots_cdr,
 )
-from erforce_interfaces.lockstep import DutyGate, FieldAnswerRobots
-from erforce_interfaces.node_support import (
-    NodeParams,
-    ThrottledWarner,
-    contract_publisher,
-    contract_subscription,
-    run_node,
-)
-from erforce_interfaces.param_schema import load_schema
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_vision import BallModelFromVision
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from erforce_interfaces.param_schema import schema_defaults
-from erforce_interfaces.robot_config import VISION_NOISE_M
+from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.wire.robot_config import VISION_NOISE_M
 
 _PLANT = schema_defaults("erforce_sim", "plant")  # the plant node's defaults
 

@@ -18,9 +18,8 @@ import random
 import socket
 from dataclasses import dataclass
 
-from erforce_interfaces.param_schema import schema_defaults
-from erforce_interfaces.robot_config import FieldConfig
-from erforce_interfaces.ssl_vision import (
+from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.ssl.ssl_vision import (
     SSL_VISION_INTERFACE,
     BallCandidate,
     BallModelFromVision,
@@ -31,6 +30,7 @@ from erforce_interfaces.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.sensors import VisionFrame
 
 _PLANT = schema_defaults("erforce_sim", "plant")

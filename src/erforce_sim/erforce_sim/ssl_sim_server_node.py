@@ -37,15 +37,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Float64
 
-from erforce_interfaces import contract, ssl_sim
-from erforce_interfaces.conversions import (
-    ConversionError,
-    odometry_from_msg,
-    odometry_msg,
-    stamp_to_nanoseconds,
-    twist_msg,
-)
-from erforce_interfaces.node_support import (
+from erforce_interfaces.runtime.node_support import (
     NodeParams,
     ThrottledWarner,
     check_stamp,
@@ -53,8 +45,17 @@ from erforce_interfaces.node_support import (
     contract_subscription,
     run_node,
 )
-from erforce_interfaces.param_schema import load_schema
-from erforce_interfaces.stamps import StampFilter, StampVerdict
+from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.ssl import ssl_sim
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import (
+    ConversionError,
+    odometry_from_msg,
+    odometry_msg,
+    stamp_to_nanoseconds,
+    twist_msg,
+)
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
 
 SCHEMA = load_schema("erforce_sim", "ssl_sim_server")
 DRIBBLER_REPEAT_S = 1.0  # each robot's dribbler speed goes out on change and this often (a restarted plant learns it)

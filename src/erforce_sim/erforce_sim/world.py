@@ -27,11 +27,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from erforce_interfaces.numba_support import compiled_for, numba
-from erforce_interfaces.param_schema import schema_defaults
-from erforce_interfaces.robot_config import FIELD_PRESET, FieldConfig, RobotConfig
-from erforce_interfaces.ssl_vision import OUR_TEAM_COLOR
-from erforce_interfaces.ssl_vision import TEAMS as SSL_TEAMS
+from erforce_interfaces.runtime.numba_support import compiled_for, numba
+from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.ssl.ssl_vision import OUR_TEAM_COLOR
+from erforce_interfaces.ssl.ssl_vision import TEAMS as SSL_TEAMS
+from erforce_interfaces.wire.robot_config import FIELD_PRESET, FieldConfig, RobotConfig
 from erforce_sim.ball import BallBody, BallParams, BallState
 from erforce_sim.contacts import ContactParams, RobotShape, ball_robot, ball_walls, robot_robot, robot_walls
 from erforce_sim.drivetrain import DriveTrainCoefficients, RobotPlant, advance_robots

@@ -1,6 +1,6 @@
 // The field view page: draws the newest frame of erforce_sim.field_view on a canvas, every
 // animation frame. Frames arrive over the websocket /ws: live ones binary (decodeFrame; the layout
-// is erforce_sim.closed_loop.field_view's FRAME_LAYOUT), replayed ones of a bag as JSON answers to
+// is erforce_sim.view.field_view's FRAME_LAYOUT), replayed ones of a bag as JSON answers to
 // {"replay": t} requests. Field coordinates: metres, x right, y up (REP 103), origin at the centre.
 // window.fieldView.drawn says what the last animation frame drew (for tests and tools).
 "use strict";

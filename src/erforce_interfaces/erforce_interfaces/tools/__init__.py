@@ -1,6 +1,7 @@
 """Developer tools: the launcher (``erforce-launch``), the topic tool (``erforce-topic``), the recorder
-(``erforce-record``), the DDS test harness (a pytest plugin) and the README generator.
+(``erforce-record``), child processes (``processes``), the DDS test harness (``testing``, a pytest plugin)
+and the README generator.
 
-Nothing outside this folder imports it: a robot-side node needs only the contract, the conversions and
-the node helpers.
+For people at a terminal, tests and the bench: the demo (erforce_sim.demo) may import them, no node or core
+does, and only test/ and bench/ take the test harness (test/interfaces/test_layers.py).
 """

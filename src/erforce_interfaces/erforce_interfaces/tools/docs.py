@@ -12,8 +12,8 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from erforce_interfaces.contract import topic_table_markdown
-from erforce_interfaces.param_schema import ParamSchema, load_schema, robot_param_specs
+from erforce_interfaces.runtime.param_schema import ParamSchema, load_schema, robot_param_specs
+from erforce_interfaces.wire.contract import topic_table_markdown
 
 REFERENCE = Path(__file__).resolve().parents[4] / "docs" / "reference.md"
 
@@ -25,7 +25,7 @@ NODE_SCHEMAS = (
     ("erforce_sim", "plant"),
     ("erforce_ball_model", "catcher"),
     ("erforce_ball_model", "ssl_vision_bridge"),
-    ("erforce_interfaces", "ssl_sim_bridge"),
+    ("erforce_sim", "ssl_sim_bridge"),
     ("erforce_sim", "ssl_sim_server"),
     ("erforce_sim", "field_view"),
     # the team hosts: their own parameters; the rest are the per-robot nodes' (README, "A team")

@@ -1,6 +1,6 @@
 """rclpy message builders for tests, benches and tools.
 
-The nodes build the contract's hot messages as CDR bytes (erforce_interfaces.conversions); these
+The nodes build the contract's hot messages as CDR bytes (erforce_interfaces.wire.conversions); these
 build the same messages as rclpy objects, checked the same way, for a test that publishes through
 rclpy or compares the bytes with rclpy's own serialization.
 """
@@ -13,8 +13,8 @@ from geometry_msgs.msg import Point, PointStamped, Pose, PoseStamped
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from erforce_interfaces.contract import FIELD_FRAME
-from erforce_interfaces.conversions import (
+from erforce_interfaces.wire.contract import FIELD_FRAME
+from erforce_interfaces.wire.conversions import (
     MAX_ABS_VALUE,
     _finite,
     _finite_array,

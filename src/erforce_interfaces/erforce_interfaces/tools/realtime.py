@@ -10,7 +10,7 @@ latency path it could not outrank, the simulated world) and one line on stderr s
 name this prefix by default and still start for every user. Linux's real-time throttling
 (``/proc/sys/kernel/sched_rt_runtime_us``, 95 % by default) keeps a runaway from taking a whole machine.
 
-erforce-launch's warm standby (erforce_interfaces.standby) does its imports at the normal priority and takes the
+erforce-launch's warm standby (erforce_interfaces.runtime.standby) does its imports at the normal priority and takes the
 priority of this prefix on "go", when it becomes the node (standby.node_entry reads the prefix off the command).
 
     launch-prefix: $(find-pkg-prefix erforce_interfaces)/lib/erforce_interfaces/erforce-realtime 10
@@ -21,7 +21,7 @@ from __future__ import annotations
 import os
 import sys
 
-from erforce_interfaces.standby import set_fifo_priority
+from erforce_interfaces.runtime.standby import set_fifo_priority
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -39,11 +39,11 @@ from rosbags.rosbag2.storage_mcap import Channel, McapWriter, write_channel, wri
 from rosbags.typesys import Stores, get_typestore
 from rosgraph_msgs.msg import Clock
 
-from erforce_interfaces.contract import CLOCK, dds_profile_env, topic_of_name
-from erforce_interfaces.conversions import stamp_to_nanoseconds
-from erforce_interfaces.executor import take_queued
-from erforce_interfaces.node_support import QuietInterrupt
-from erforce_interfaces.rclpy_internals import RCLError
+from erforce_interfaces.runtime.executor import take_queued
+from erforce_interfaces.runtime.node_support import QuietInterrupt
+from erforce_interfaces.runtime.rclpy_internals import RCLError
+from erforce_interfaces.wire.contract import CLOCK, dds_profile_env, topic_of_name
+from erforce_interfaces.wire.conversions import stamp_to_nanoseconds
 
 POLL_PERIOD_S = 0.05
 DISCOVERY_PERIOD_S = 0.5

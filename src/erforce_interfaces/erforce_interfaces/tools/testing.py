@@ -25,7 +25,6 @@ any process still carrying the tag (grandchildren of a launcher killed too early
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import ipaddress
 import os
 import re
@@ -44,35 +43,9 @@ from typing import Any
 
 import yaml
 
-DOMAIN_ID_RANGE = range(100, 230)  # fastrtps port formula allows up to 232
+from erforce_interfaces.tools.processes import DomainLease, stop_process, stop_processes  # noqa: F401 (for tests)
+
 _TAG_VAR = "ERFORCE_TEST_TAG"
-
-
-class DomainLease:
-    """An exclusively held DDS domain id (a flock, so a crashed holder frees it)."""
-
-    def __init__(self, lock_dir: Path | None = None) -> None:
-        lock_dir = lock_dir or Path(tempfile.gettempdir()) / "erforce-ros-domains"
-        lock_dir.mkdir(parents=True, exist_ok=True)
-        start = (os.getpid() * 7) % len(DOMAIN_ID_RANGE)  # spread concurrent claimants
-        for k in range(len(DOMAIN_ID_RANGE)):
-            domain_id = DOMAIN_ID_RANGE[(start + k) % len(DOMAIN_ID_RANGE)]
-            fd = os.open(lock_dir / f"{domain_id}.lock", os.O_CREAT | os.O_RDWR, 0o666)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                os.close(fd)
-                continue
-            self.domain_id = domain_id
-            self._fd: int | None = fd
-            return
-        raise RuntimeError(f"no free ROS domain id in {DOMAIN_ID_RANGE}")
-
-    def release(self) -> None:
-        if self._fd is not None:
-            fcntl.flock(self._fd, fcntl.LOCK_UN)
-            os.close(self._fd)
-            self._fd = None
 
 
 @contextlib.contextmanager
@@ -148,36 +121,6 @@ class NodeProcess:
                 os.kill(self.popen.pid, sig)
 
 
-def stop_process(popen: subprocess.Popen, sigint_timeout_s: float = 5.0, sigterm_timeout_s: float = 3.0) -> None:
-    """SIGINT, then SIGTERM, then SIGKILL (the process group), waiting after each."""
-    stop_processes([popen], sigint_timeout_s, sigterm_timeout_s)
-
-
-def stop_processes(popens: Sequence[subprocess.Popen], sigint_timeout_s: float = 5.0,
-                   sigterm_timeout_s: float = 3.0) -> None:
-    """``stop_process`` for several processes at once: each signal goes to every one still running before
-    any is waited for, so the graph stops in the time of its slowest process, not in the sum of them all."""
-    for sig, wait_s in ((signal.SIGINT, sigint_timeout_s), (signal.SIGTERM, sigterm_timeout_s)):
-        running = [popen for popen in popens if popen.poll() is None]
-        if not running:
-            return
-        for popen in running:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(popen.pid, sig)
-        deadline = time.monotonic() + wait_s
-        for popen in running:
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                popen.wait(timeout=max(0.0, deadline - time.monotonic()))
-    for popen in popens:
-        if popen.poll() is not None:
-            continue
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(popen.pid, signal.SIGKILL)
-        with contextlib.suppress(ProcessLookupError):
-            popen.kill()
-        popen.wait(timeout=5.0)
-
-
 def _pids_with_tag(tag: str) -> list[int]:
     needle = f"{_TAG_VAR}={tag}".encode()
     pids = []
@@ -249,7 +192,7 @@ class RosGraph:
             _TAG_VAR: self.tag,
         })
         self.env.pop("ROS_STATIC_PEERS", None)
-        from erforce_interfaces.contract import dds_profile_env
+        from erforce_interfaces.wire.contract import dds_profile_env
 
         self.env.update(dds_profile_env(self.env))  # a restarted node is matched within ~1 s
         self.processes: list[NodeProcess] = []
@@ -357,7 +300,7 @@ class RosGraph:
 
     def unexpected_callback_faults(self) -> list[str]:
         """The callback-fault warnings logged by processes the test did not declare (see above)."""
-        from erforce_interfaces.node_support import CALLBACK_FAULT
+        from erforce_interfaces.runtime.node_support import CALLBACK_FAULT
 
         if self._expected_faults is None:
             return []
@@ -417,7 +360,9 @@ class _Probe:
         import rclpy
         from rclpy.context import Context
 
-        from erforce_interfaces.executor import DirectExecutor  # spun by hand; serves callbacks that take the info
+        from erforce_interfaces.runtime.executor import (
+            DirectExecutor,  # spun by hand; serves callbacks that take the info
+        )
 
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
@@ -439,7 +384,7 @@ class _Probe:
             self.executor.spin_once(timeout_sec=min(0.02, max(0.0, deadline - time.monotonic())))
 
     def subscribe(self, topic: str, msg_type: type, qos=None) -> list:
-        from erforce_interfaces.contract import QOS_STATE
+        from erforce_interfaces.wire.contract import QOS_STATE
 
         received: list = []
         self.node.create_subscription(msg_type, topic, received.append, qos or QOS_STATE)
@@ -462,7 +407,7 @@ class _Probe:
         return match[0]
 
     def publisher(self, topic: str, msg_type: type, qos=None):
-        from erforce_interfaces.contract import QOS_COMMAND
+        from erforce_interfaces.wire.contract import QOS_COMMAND
 
         key = (topic, msg_type)
         if key not in self._publishers:
@@ -545,7 +490,7 @@ if pytest is not None:
     def pytest_configure(config) -> None:
         """The probes in this process use the stack's DDS profile too (Fast DDS reads it once, at the
         process's first participant): a new node is matched quickly only if both sides announce often."""
-        from erforce_interfaces.contract import dds_profile_env
+        from erforce_interfaces.wire.contract import dds_profile_env
 
         os.environ.update(dds_profile_env())
 

@@ -49,7 +49,7 @@ from rclpy.qos import (
 )
 from rclpy.validate_full_topic_name import validate_full_topic_name
 
-from erforce_interfaces.contract import dds_profile_env
+from erforce_interfaces.wire.contract import dds_profile_env
 
 DEFAULT_TRUNCATE_LENGTH = 128  # as ros2 topic echo
 DEFAULT_HZ_WINDOW = 10000  # as ros2 topic hz

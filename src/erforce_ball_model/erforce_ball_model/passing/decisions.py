@@ -1,0 +1,248 @@
+"""The passing game's decisions (the paper's motivation in Sec. 5: who of all robots, ours and theirs,
+reaches a rolling ball first): which teammate to pass to, how hard to kick, and where the opponents go.
+
+No rclpy. A pass is judged by robotTimeToBall (catch_time.catch_after_reaction, the predictor's own
+question) for every robot on the field, on the ball the kick would make:
+
+- ``kick_speed_for`` inverts the two-phase model (ball_model.py): the kick speed at which the ball
+  still has ``arrive_speed_mps`` after ``distance_m``. Sliding until ``c v0``, then rolling::
+
+      arrive while sliding:  v0^2 = v_a^2 + 2 |a_slide| d                        (v_a >= c v0)
+      arrive while rolling:  v0^2 = (v_a^2 + 2 |a_roll| d) / (c^2 + (1 - c^2) |a_roll| / |a_slide|)
+
+  A ball that arrives slower is easy to receive but gives the opponents time; the speed at the
+  receiver is the receivable one (``PassConfig.arrive_speed_mps``), the kick speed follows.
+- ``evaluate_passes`` builds, per candidate receiver, the ball the kick makes and runs one
+  robotTimeToBall for the whole field: the earliest opponent's catch time, and whether the receiver
+  can catch it at all. The receiver receives where it stands, turning in place to its receive facing
+  (receiver.Receiver: on the ball's line it stands still), so the kick aims at where its dribbler will
+  be and its catch is the ball's arrival there (ballRollTime), later than its robotTimeToBall, which
+  runs to meet the ball. The receive facing is the one the receiver will take: towards its next
+  target (``next_targets``) when catch_time.receive_facing allows, else against the ball; the
+  receiver's robotTimeToBall runs with the offset pointing that way (the paper's targetpos).
+  ``margin_s`` = opponent - arrival; a pass is safe when the margin is at least
+  ``PassConfig.safe_margin_s``.
+- ``select_pass``: of the safe passes the one whose catch comes earliest; when none is safe, the
+  one with the largest margin (rated unsafe; the caller may still play it).
+- ``press_targets``: where opponents wait while a robot of ours holds the ball: each covers the
+  passing lane to the teammate nearest to it, ``PassConfig.press_fraction`` of the way from the
+  ball. While the ball rolls they run receiver.Receiver (the first of them to the ball goes).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.catch_time import (
+    MAX_RECEIVE_ANGLE_RAD,
+    ROBOT_REACTION_S,
+    CatchKind,
+    CatchSearch,
+    catch_after_reaction,
+    contact_offset,
+    receive_facing,
+)
+from erforce_interfaces.runtime.param_schema import schema_defaults
+
+_DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
+
+
+@dataclass(frozen=True)
+class PassConfig:
+    arrive_speed_mps: float = _DEFAULTS["arrive_speed_mps"]  # ball speed at the receiver's dribbler
+    min_kick_mps: float = _DEFAULTS["min_kick_mps"]
+    max_kick_mps: float = _DEFAULTS["max_kick_mps"]  # the SSL rule's limit
+    # a safe pass: every opponent's catch comes this much after the receiver's
+    safe_margin_s: float = _DEFAULTS["safe_margin_s"]
+    min_distance_m: float = _DEFAULTS["min_distance_m"]  # no pass to a teammate closer than this to the ball
+    max_distance_m: float = _DEFAULTS["max_distance_m"]
+    # everybody reacts to the kick this late (the predictor's reaction time)
+    reaction_s: float = ROBOT_REACTION_S
+    # an opponent waits this far along the lane from the ball to its teammate
+    press_fraction: float = schema_defaults("erforce_ball_model", "team_catcher")["press_fraction"]
+
+    def __post_init__(self) -> None:
+        for name in ("arrive_speed_mps", "min_kick_mps", "max_kick_mps", "min_distance_m", "max_distance_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        if self.min_kick_mps > self.max_kick_mps or self.min_distance_m > self.max_distance_m:
+            raise ValueError("min_kick_mps <= max_kick_mps and min_distance_m <= max_distance_m, please")
+        for name in ("safe_margin_s", "reaction_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
+        if not 0.0 <= self.press_fraction <= 1.0:
+            raise ValueError(f"press_fraction must be in [0, 1], got {self.press_fraction!r}")
+
+
+def kick_speed_for(distance_m: float, arrive_speed_mps: float, params: BallModelParams) -> float:
+    """Kick speed v0 after which the ball has ``arrive_speed_mps`` left at ``distance_m`` (module docstring)."""
+    d, va = float(distance_m), float(arrive_speed_mps)
+    if not (math.isfinite(d) and d >= 0.0 and math.isfinite(va) and va >= 0.0):
+        raise ValueError(f"distance_m and arrive_speed_mps must be finite and >= 0, got {distance_m!r}, "
+                         f"{arrive_speed_mps!r}")
+    a_s, a_r, c = abs(params.a_slide_mps2), abs(params.a_roll_mps2), params.c_switch
+    v0 = math.sqrt(va * va + 2.0 * a_s * d)
+    if va >= c * v0:  # still sliding on arrival
+        return v0
+    return math.sqrt((va * va + 2.0 * a_r * d) / (c * c + (1.0 - c * c) * a_r / a_s))
+
+
+@dataclass(frozen=True)
+class PassOption:
+    receiver: int  # index into the team
+    kick_speed_mps: float
+    direction_rad: float  # kick direction in `field`
+    receiver_catch_s: float  # the ball at the receiver's dribbler, from the kick; inf: it cannot catch it
+    opponent_catch_s: float  # the earliest opponent's robotTimeToBall, the reaction time included; inf: none can
+    first_opponent: int | None  # index into the opponents
+    receive_facing_rad: float = math.nan  # the receiver's dribbler direction at the catch (in `field`)
+
+    @property
+    def margin_s(self) -> float:
+        if math.isinf(self.receiver_catch_s):
+            return -math.inf
+        return self.opponent_catch_s - self.receiver_catch_s
+
+    def safe(self, cfg: PassConfig) -> bool:
+        return self.margin_s >= cfg.safe_margin_s
+
+
+def select_pass(options: Sequence[PassOption], cfg: PassConfig) -> PassOption | None:
+    """Of the safe options the earliest catch (ties: the larger margin, then the lower receiver); when
+    none is safe, the largest margin; None when there is no option a receiver can catch."""
+    able = [o for o in options if math.isfinite(o.receiver_catch_s)]
+    if not able:
+        return None
+    safe = [o for o in able if o.safe(cfg)]
+    if safe:
+        return min(safe, key=lambda o: (o.receiver_catch_s, -o.margin_s, o.receiver))
+    return max(able, key=lambda o: (o.margin_s, -o.receiver_catch_s, -o.receiver))
+
+
+def _times(result, reaction_s: float) -> np.ndarray:
+    kind, t = result.kind, result.time_s
+    return np.where(kind == int(CatchKind.NEVER), math.inf, t + reaction_s)
+
+
+def evaluate_passes(
+    ball_xy,
+    team_xy: np.ndarray,
+    team_vel: np.ndarray,
+    opponents_xy: np.ndarray,
+    opponents_vel: np.ndarray,
+    candidates: Sequence[int],
+    search: CatchSearch,
+    params: BallModelParams,
+    cfg: PassConfig,
+    dribbler_offset_m: float,
+    next_targets: Mapping[int, Sequence[float]] | None = None,
+    max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD,
+    receiver_search: CatchSearch | None = None,
+    from_passer_centre: bool = False,
+) -> list[PassOption]:
+    """One PassOption per candidate teammate in reach (module docstring).
+
+    ``from_passer_centre``: ``ball_xy`` is the passer's centre and each pass starts where it is kicked from,
+    at the passer's dribbler turned to that pass (``dribbler_offset_m`` ahead of the centre along it): the
+    rating does not change while the passer turns.
+
+    ``search`` is a CatchSearch for ``len(team_xy) + len(opponents_xy)`` robots (teammates first);
+    every robot faces the incoming ball, as the predictor assumes, but a candidate with a next target
+    (``next_targets``: candidate -> [x, y]) receives facing it within ``max_receive_angle_rad``
+    (catch_time.receive_facing); everybody reacts ``cfg.reaction_s`` late. With ``receiver_search`` (a
+    CatchSearch like ``search`` for ``1 + len(opponents_xy)`` robots) each pass searches only the receiver
+    and the opponents, the robots it is judged by: the same numbers, as robotTimeToBall is per robot.
+    """
+    team_xy, opponents_xy = np.asarray(team_xy, dtype=float), np.asarray(opponents_xy, dtype=float)
+    n_team = len(team_xy)
+    pos = np.concatenate([team_xy, opponents_xy]).reshape(-1, 2)
+    vel = np.concatenate([np.asarray(team_vel, dtype=float), np.asarray(opponents_vel, dtype=float)]).reshape(-1, 2)
+    if search.num_robots != len(pos):
+        raise ValueError(f"search is for {search.num_robots} robots, the field has {len(pos)}")
+    ball = origin = np.asarray(ball_xy, dtype=float)
+    facing_fixed = np.zeros(len(pos), dtype=bool)
+    facing = np.zeros(len(pos))
+    next_targets = {} if next_targets is None else next_targets
+    # a robot that is not finite makes the whole field's search refuse the pass (ValueError): left to it
+    narrow = receiver_search is not None and bool(np.isfinite(pos).all() and np.isfinite(vel).all())
+    if narrow:
+        if receiver_search.num_robots != 1 + len(opponents_xy):
+            raise ValueError(f"receiver_search is for {receiver_search.num_robots} robots, the receiver and the "
+                             f"opponents are {1 + len(opponents_xy)}")
+        # row 0: the receiver's, set per pass; then the opponents
+        sub_pos, sub_vel = np.concatenate([pos[:1], pos[n_team:]]), np.concatenate([vel[:1], vel[n_team:]])
+        sub_fixed, sub_facing = np.zeros(len(sub_pos), dtype=bool), np.zeros(len(sub_pos))
+    options = []
+    for j in candidates:
+        centre = team_xy[j]
+        if from_passer_centre:
+            reach_m = math.dist(centre, origin)
+            if reach_m <= dribbler_offset_m:
+                continue  # within the passer's own dribbler: no pass
+            ball = origin + dribbler_offset_m * (centre - origin) / reach_m
+        distance = math.dist(centre, ball)
+        if not cfg.min_distance_m <= distance <= cfg.max_distance_m:
+            continue
+        u = (centre - ball) / distance
+        receive_rad = math.atan2(-u[1], -u[0])
+        aim = centre - dribbler_offset_m * u  # the dribbler's centre, facing the ball
+        if j in next_targets:
+            for _ in range(3):  # the facing moves the aim by at most the offset: a fixed point, reached fast
+                receive_rad = receive_facing(u, centre, next_targets[j], max_receive_angle_rad)
+                aim = centre + contact_offset(receive_rad, dribbler_offset_m)
+                if from_passer_centre:  # the kick point turns with the pass: on the line from the centre to aim
+                    ball = origin + dribbler_offset_m * (aim - origin) / math.dist(aim, origin)
+                u = (aim - ball) / math.dist(aim, ball)
+        contact_m = float((aim - ball) @ u)  # ball travel to the receiver's dribbler
+        v0 = min(max(kick_speed_for(contact_m, cfg.arrive_speed_mps, params), cfg.min_kick_mps), cfg.max_kick_mps)
+        traj = BallTrajectory.of_floats(float(ball[0]), float(ball[1]), float(u[0] * v0), float(u[1] * v0), v0, params)
+        if narrow:
+            sub_pos[0], sub_vel[0] = pos[j], vel[j]
+            sub_fixed[0], sub_facing[0] = j in next_targets, receive_rad
+            times = _times(catch_after_reaction(receiver_search, traj, sub_pos, sub_vel, cfg.reaction_s, sub_fixed,
+                                                sub_facing, 0.1), cfg.reaction_s)
+            receiver_time, opp = times[0], times[1:]
+        else:
+            facing_fixed[j], facing[j] = j in next_targets, receive_rad
+            try:
+                times = _times(catch_after_reaction(search, traj, pos, vel, cfg.reaction_s, facing_fixed, facing,
+                                                    0.1), cfg.reaction_s)
+            finally:
+                facing_fixed[j] = False
+            receiver_time, opp = times[j], times[n_team:]
+        first = int(np.argmin(opp)) if len(opp) and math.isfinite(opp.min()) else None
+        arrival_s = float(traj.time_to_distance(contact_m))
+        receiver_s = arrival_s if math.isfinite(receiver_time) else math.inf
+        options.append(PassOption(int(j), v0, math.atan2(u[1], u[0]), receiver_s,
+                                  math.inf if first is None else float(opp[first]), first, receive_rad))
+    return options
+
+
+def press_targets(ball_xy, team_xy: np.ndarray, opponents_xy: np.ndarray, holder: int | None,
+                  cfg: PassConfig) -> np.ndarray:
+    """Where each opponent waits while our ``holder`` has the ball: on the lane from the ball to a
+    teammate (not the holder), ``cfg.press_fraction`` of the way. Opponent and teammate are paired
+    greedily, the closest pair first, each teammate covered once while there are enough of them."""
+    ball = np.asarray(ball_xy, dtype=float)
+    team_xy, opponents_xy = np.asarray(team_xy, dtype=float), np.asarray(opponents_xy, dtype=float)
+    others = [k for k in range(len(team_xy)) if k != holder]
+    targets = opponents_xy.copy()
+    if not others:
+        return targets
+    free_opps = set(range(len(opponents_xy)))
+    while free_opps:  # one round per len(others) opponents: more opponents than lanes double up
+        free_mates = set(others)
+        pairs = sorted((math.dist(opponents_xy[o], team_xy[m]), o, m) for o in free_opps for m in others)
+        for _, o, m in pairs:
+            if o in free_opps and m in free_mates:
+                targets[o] = ball + cfg.press_fraction * (team_xy[m] - ball)
+                free_opps.discard(o)
+                free_mates.discard(m)
+    return targets
