@@ -341,6 +341,11 @@ class BallPredictor:
         return BallFrame(t_s, (x_m, y_m), status, traj, phase, bool(ball.uncertain), ball.position_variance_m2,
                          robots, times, points)
 
+    def catches(self, t_s: float, traj) -> tuple[list[int], list[float], list]:
+        """The catch table of a given ball at ``t_s`` (a BallTrajectory or, in the air, a chip_model.ChipTrajectory):
+        the fresh robots, their catch times (reaction included; CATCH_TIME_NEVER: never) and robot targets."""
+        return self._catches(t_s, traj)
+
     def _catches(self, t_s: float, traj: BallTrajectory) -> tuple[list[int], list[float], list]:
         """Catch time and robot target of every fresh robot: one robotTimeToBall run for the team."""
         cfg = self.config
