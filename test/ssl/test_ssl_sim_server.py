@@ -182,9 +182,21 @@ def test_plan_robot_control_rotates_global_velocities_and_reports_each_unsupport
     actions, errors = ssl_sim.plan_robot_control(reqs, [0, 1, 2], {0: math.pi / 2, 1: 0.0, 2: 0.0}.get)
     a0 = actions[0]
     assert a0.twist == pytest.approx((0.0, -1.0, 0.5))  # +x in the field is the robot's right when it faces +y
-    assert actions[1] == ssl_sim.RobotAction(1, None, 0.0)  # the chip kick is refused, no move
+    assert actions[1] == ssl_sim.RobotAction(1, None, 3.0, 0.0, 30.0)  # the chip kicks (its wheels do not move)
     messages = sorted(e.message.split()[0] for e in errors)
-    assert messages == ["chip", "robot", "this", "wheel"]  # one each: chip, unknown robot 9, dribbler, wheel
+    assert messages == ["robot", "this", "wheel"]  # one each: unknown robot 9, dribbler, wheel
+
+
+def test_plan_robot_control_flies_chips_and_refuses_an_angle_outside_0_to_90_deg():
+    reqs = [ssl_sim.MoveRequest(0, "local", (0.0, 0.0, 0.0), 4.0, 45.0, 0.0),
+            ssl_sim.MoveRequest(1, "local", (0.0, 0.0, 0.0), 4.0, -10.0, 0.0),
+            ssl_sim.MoveRequest(2, "local", (0.0, 0.0, 0.0), 4.0, 90.0, 0.0),
+            ssl_sim.MoveRequest(3, "local", (0.0, 0.0, 0.0), 0.0, 60.0, 0.0)]  # no kick: no angle either
+    actions, errors = ssl_sim.plan_robot_control(reqs, [0, 1, 2, 3], {}.get, dribbler=True)
+    assert [(a.kick_speed_mps, a.kick_angle_deg) for a in actions] == [(4.0, 45.0), (0.0, 0.0), (0.0, 0.0),
+                                                                        (0.0, 0.0)]
+    assert sorted(e.code for e in errors) == [ssl_sim.ERROR_INVALID] * 2
+    assert all("kick_angle" in e.message for e in errors)
 
 
 def test_plan_robot_control_passes_the_dribbler_speed_on_where_the_simulator_has_one():

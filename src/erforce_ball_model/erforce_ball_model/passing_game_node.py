@@ -38,10 +38,10 @@ from erforce_ball_model.passing_player import PassingPlayer, PassRecord, PlayerC
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
+    ball_state_from_msg,
     catches_from_msg,
     float64_from_msg,
     model_in_use_from_msg,
-    odometry_from_msg,
     odometry_msg,
     table_from_msg,
     table_msg,
@@ -147,6 +147,8 @@ class PassingGameNode(Node):
         ours = contract.OURS
         self._cmd_pubs = [contract_publisher(self, q.CMD_VEL, ours.topic(q.CMD_VEL, i)) for i in range(n)]
         self._kick_pubs = [contract_publisher(self, q.KICK, ours.topic(q.KICK, i)) for i in range(n)]
+        self._kick_angle_pubs = [contract_publisher(self, q.KICK_ANGLE, ours.topic(q.KICK_ANGLE, i)) for i in range(n)]
+        self._kick_angles = [None] * n  # the kick_angle last sent per robot [deg]
         self._dribbler_pubs = [contract_publisher(self, q.DRIBBLER, ours.topic(q.DRIBBLER, i)) for i in range(n)]
         self._set_ball_pub = contract_publisher(self, q.SIM_SET_BALL) if own.place_ball else None
         self._records_pub = contract_publisher(self, q.PASS_RECORDS)
@@ -198,6 +200,17 @@ class PassingGameNode(Node):
         self._fed_stamps = [None] * (self._n + self._m)
         self._dribblers_sent_at = -math.inf
 
+    def _send_kick_angle(self, player, robot: int | None = None, angle_deg: float | None = None) -> None:
+        """The kicker's angle, sent before the kick it is for: the holder's chosen pass's while it turns to it (so
+        that it is in force long before the kick), or ``angle_deg`` for ``robot``'s kick now; only on a change."""
+        if robot is None:
+            if player.holder is None or player.choice is None:
+                return
+            robot, angle_deg = player.holder, player.choice[1].kick_angle_deg
+        if self._kick_angles[robot] != angle_deg:
+            self._kick_angles[robot] = angle_deg
+            self._kick_angle_pubs[robot].publish(Float64(data=float(angle_deg)))
+
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
@@ -207,7 +220,7 @@ class PassingGameNode(Node):
 
     # ------------------------------------------------------------------ inputs (taken at the tick)
     def _on_ball(self, msg: Odometry | bytes) -> None:
-        ball = self._warn.convert(msg, "ball state", odometry_from_msg)
+        ball = self._warn.convert(msg, "ball state", ball_state_from_msg)
         if ball is not None:
             self._player.on_ball(self._batch_now, ball[1], ball[2], self._v_shoot)
 
@@ -253,9 +266,13 @@ class PassingGameNode(Node):
             self._warn.warn("tick", f"no decision: {exc}")
             commands = None
         if commands is not None:
+            self._send_kick_angle(player)
             for i, speed in commands.kicks.items():
+                angle = commands.kick_angles.get(i, 0.0)
+                self._send_kick_angle(player, i, angle)
                 self._kick_pubs[i].publish(Float64(data=float(speed)))
-                self.get_logger().info(f"robot_{i} kicks {speed:.2f} m/s to robot_{player.choice[1].receiver}")
+                chip = f" (chip {angle:g} deg)" if angle > 0.0 else ""
+                self.get_logger().info(f"robot_{i} kicks {speed:.2f} m/s{chip} to robot_{player.choice[1].receiver}")
             for i, twist in commands.twists.items():
                 moving = bool(np.any(twist))
                 if moving or self._moving[i]:

@@ -37,6 +37,7 @@ from erforce_ball_model.passing_player import PressingTeam, new_poses
 from erforce_interfaces import contract
 from erforce_interfaces.conversions import (
     ConversionError,
+    ball_state_from_msg,
     catches_from_msg,
     float64_from_msg,
     model_in_use_from_msg,
@@ -137,7 +138,7 @@ class TeamCatcherNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _on_ball(self, msg: Odometry | bytes) -> None:
-        ball = self._warn.convert(msg, "ball state", odometry_from_msg)
+        ball = self._warn.convert(msg, "ball state", ball_state_from_msg)
         if ball is not None:
             self._team.on_ball(self._batch_now, ball[1], ball[2])
 

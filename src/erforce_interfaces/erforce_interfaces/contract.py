@@ -438,7 +438,10 @@ MOTOR_DUTY = Topic("motor_duty", JointState, QOS_CONTROL, "motor_boards", "plant
 MOTOR_STATUS = Topic("motor_status", Float64MultiArray, QOS_STATE, "motor_boards", "tools, demo",
                      "rows = wheels, columns = [avg_current_a, pwm_limit, saturated, limit_active]")
 KICK = Topic("kick", Float64, QOS_COMMAND, "catcher / AI / scenario", "plant",
-             "kick now with this ball speed [m/s] if the ball is at the kicker")
+             "kick now with this ball speed [m/s] if the ball is at the kicker (in 3D: a chip at kick_angle)")
+KICK_ANGLE = Topic("kick_angle", Float64, QOS_COMMAND, "AI / scenario", "plant, ssl_sim_bridge",
+                   "the elevation of the kicks that follow [deg], the SSL RobotCommand's kick_angle: 0 flat, in "
+                   "(0, 90) a chip; sent before the kick it is for")
 BALL_DETECTED = Topic("ball_detected", Bool, QOS_STATE, "plant (light barrier), ssl_sim_bridge", "catcher, tools",
                       "light barrier across the dribbler: ball present (from an external simulator: its "
                       "dribbler ball contact)")

@@ -298,16 +298,44 @@ def odometry_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndar
     return stamp_to_seconds(msg.header.stamp), pose, velocity, angular
 
 
-def _odometry_from_cdr(data: bytes) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
-    """odometry_from_msg of the bytes: the stamp, both frame strings, then the 85 doubles (odometry_cdr)."""
+def ball_height_from_msg(msg: Odometry | bytes) -> tuple[float, float]:
+    """(z [m], vz [m/s]) of a /ball/state: the height of the ball's centre above its rest (pose.position.z) and
+    its vertical speed (twist.linear.z), both 0 on the ground. A ball in the air when either is above 0
+    (chip_model.flying_ball); a negative height (noise) counts as on the ground."""
+    if isinstance(msg, bytes):
+        _, _, v = _odometry_doubles_cdr(msg)
+        z, vz = v[2], v[45]
+    else:
+        z, vz = msg.pose.pose.position.z, msg.twist.twist.linear.z
+    return max(_finite("pose.position.z", z), 0.0), _finite("twist.linear.z", vz)
+
+
+def ball_state_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndarray]:
+    """A /ball/state as the ball's consumers take it: (stamp [s], [x, y], [vx, vy]) for a ball on the ground,
+    (stamp, [x, y, z], [vx, vy, vz]) for one in the air (ball_height_from_msg; chip_model.flying_ball makes
+    the chip of it)."""
+    stamp, pose, velocity, _ = odometry_from_msg(msg)
+    z, vz = ball_height_from_msg(msg)
+    if z > 0.0 or vz > 0.0:
+        return stamp, np.array([pose[0], pose[1], z]), np.array([velocity[0], velocity[1], vz])
+    return stamp, pose[:2].copy(), velocity[:2].copy()
+
+
+def _odometry_doubles_cdr(data: bytes) -> tuple[int, int, tuple[float, ...]]:
+    """The stamp (sec, nanosec) and the 85 doubles of a serialized Odometry (odometry_cdr)."""
     try:
         sec, nanosec, p = _header_cdr(data, "Odometry")
         p += -p % 4  # child_frame_id
         p += 4 + _u32.unpack_from(data, 4 + p)[0]
         p += -p % 8
-        v = _odometry_doubles.unpack_from(data, 4 + p)
+        return sec, nanosec, _odometry_doubles.unpack_from(data, 4 + p)
     except struct.error as exc:
         raise ConversionError(f"truncated Odometry ({exc})") from None
+
+
+def _odometry_from_cdr(data: bytes) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """odometry_from_msg of the bytes: the stamp, both frame strings, then the 85 doubles (odometry_cdr)."""
+    sec, nanosec, v = _odometry_doubles_cdr(data)
     x, y, qx, qy, qz, qw, vx, vy, wx, wy, wz = v[0], v[1], v[3], v[4], v[5], v[6], v[43], v[44], v[46], v[47], v[48]
     # One check for the usual message: a sum of magnitudes is NaN or inf when any term is, and within the
     # tightest limit each term is within its own; else the per-field checks below name the bad field.

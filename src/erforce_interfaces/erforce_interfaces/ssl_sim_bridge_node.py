@@ -2,7 +2,9 @@
 
 Every ``1 / rate_hz`` seconds of wall time it sends the newest command of each robot in ``robot_ids``
 to the simulator: ``robot_<id>/cmd_vel`` (Twist in base_link) as a local velocity,
-``robot_<id>/kick`` (a flat kick at this speed, armed for ``kick_hold_s``) and ``robot_<id>/dribbler``
+``robot_<id>/kick`` (a kick at this speed, armed for ``kick_hold_s``; a chip at ``robot_<id>/kick_angle``
+[deg] when that is above 0: the protocol's kick_speed and kick_angle, grSim's kickspeedx and kickspeedz as the
+ball's velocity along the carpet and upwards) and ``robot_<id>/dribbler``
 (with ``team: opponents`` the ``opponent_<id>/`` topics: a second team's AI on the same graph, one bridge
 per colour as each team drives its own robots).
 With ``protocol: ssl`` that is a ``RobotControl`` of the ssl-simulation-protocol to the team's robot
@@ -103,6 +105,8 @@ class SslSimBridgeNode(Node):
             self._barrier_pubs[i] = contract_publisher(self, q.BALL_DETECTED, whose.topic(q.BALL_DETECTED, i))
             contract_subscription(self, q.CMD_VEL, lambda m, i=i: self._on_cmd_vel(i, m), whose.topic(q.CMD_VEL, i))
             contract_subscription(self, q.KICK, lambda m, i=i: self._on_kick(i, m), whose.topic(q.KICK, i))
+            contract_subscription(self, q.KICK_ANGLE, lambda m, i=i: self._on_kick_angle(i, m),
+                                  whose.topic(q.KICK_ANGLE, i))
             contract_subscription(self, q.DRIBBLER, lambda m, i=i: self._on_dribbler(i, m), whose.topic(q.DRIBBLER, i))
         self._control_target = None
         if v["control_port"]:
@@ -133,6 +137,12 @@ class SslSimBridgeNode(Node):
             self._state.kick(robot, time.monotonic(), float64_from_msg(msg, ssl_sim.MAX_KICK_MPS))
         except (ConversionError, ValueError) as exc:
             self._warn.warn(f"kick{robot}", f"robot_{robot}: rejected kick: {exc}")
+
+    def _on_kick_angle(self, robot: int, msg: Float64) -> None:
+        try:
+            self._state.set_kick_angle(robot, float64_from_msg(msg, ssl_sim.MAX_KICK_ANGLE_DEG))
+        except (ConversionError, ValueError) as exc:
+            self._warn.warn(f"kick_angle{robot}", f"robot_{robot}: rejected kick_angle: {exc}")
 
     def _on_dribbler(self, robot: int, msg: Float64) -> None:
         try:

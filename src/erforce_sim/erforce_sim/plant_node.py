@@ -78,6 +78,7 @@ from erforce_interfaces.node_support import (
 )
 from erforce_interfaces.param_schema import load_schema
 from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.ssl_sim import check_kick_angle
 from erforce_interfaces.ssl_vision import BallModelFromVision
 from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionParams
@@ -152,6 +153,7 @@ class PlantNode(Node):
         # each world index as the graph knows it: its team and its id in the team
         self._robots = [(contract.OPPONENTS if opp else contract.OURS, j) for opp, j in map(setup.team_of, range(n))]
         self._names = [team.namespace(j) for team, j in self._robots]
+        self._kick_angles: dict[int, float] = {}  # robot -> the elevation of its next kicks [deg] (kick_angle)
         self._index = {(team.name, j): i for i, (team, j) in enumerate(self._robots)}
         self._vision_index = {(setup.opponent_color if team is contract.OPPONENTS else setup.our_color, j): i
                               for i, (team, j) in enumerate(self._robots)}
@@ -236,6 +238,8 @@ class PlantNode(Node):
             if self._per_robot_lockstep:
                 sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), team.topic(q.MOTOR_DUTY, j), raw=True)
             sub(self, q.KICK, scenario(f"kick{i}", lambda m, i=i: self._on_kick(i, m)), team.topic(q.KICK, j))
+            sub(self, q.KICK_ANGLE, scenario(f"kick_angle{i}", lambda m, i=i: self._on_kick_angle(i, m)),
+                team.topic(q.KICK_ANGLE, j))
             sub(self, q.DRIBBLER, scenario(f"dribbler{i}", lambda m, i=i: self._on_dribbler(i, m)),
                 team.topic(q.DRIBBLER, j))
             sub(self, q.SIM_SET_STATE, scenario(f"set{i}", lambda m, i=i: self._on_set_robot(i, m)),
@@ -349,15 +353,24 @@ class PlantNode(Node):
             self._event(event)
 
     def _on_kick(self, robot: int, msg: Float64) -> None:
+        angle = self._kick_angles.get(robot, 0.0)
         try:
             speed = float64_from_msg(msg, limit=100.0)
-            result = self.world.kick(robot, speed, armed_for_s=0.1)
+            result = self.world.kick(robot, speed, armed_for_s=0.1, angle_deg=angle)
         except (ConversionError, ValueError) as exc:
             self._warn.warn(f"kick{robot}", f"{self._names[robot]}: rejected kick: {exc}")
             return
         state = "fired" if result.fired else ("armed" if result.armed else "no ball at the kicker")
         clamped = " (clamped)" if result.clamped else ""
-        self._event(f"{self._names[robot]} kick {result.speed_mps:.2f} m/s{clamped}: {state}")
+        chip = f" chip {angle:g} deg" if angle > 0.0 else ""
+        self._event(f"{self._names[robot]} kick {result.speed_mps:.2f} m/s{chip}{clamped}: {state}")
+
+    def _on_kick_angle(self, robot: int, msg: Float64) -> None:
+        """The elevation of this robot's next kicks (0 flat, else a chip); a bad one leaves the last in force."""
+        try:
+            self._kick_angles[robot] = check_kick_angle("kick_angle", float64_from_msg(msg, limit=90.0))
+        except (ConversionError, ValueError) as exc:
+            self._warn.warn(f"kick_angle{robot}", f"{self._names[robot]}: rejected kick_angle: {exc}")
 
     def _on_dribbler(self, robot: int, msg: Float64) -> None:
         try:
