@@ -11,9 +11,11 @@ from pathlib import Path
 import pytest
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from std_msgs.msg import String
 
 from erforce_interfaces import contract, ssl_sim
 from erforce_interfaces.conversions import odometry_msg
+from erforce_interfaces.robot_config import RobotConfig
 from erforce_interfaces.ssl_proto import (
     ssl_simulation_control_pb2,
     ssl_simulation_robot_control_pb2,
@@ -141,6 +143,24 @@ def test_a_protocol_client_drives_and_places_our_plant(ros_graph):
         client.ask(ssl_sim.encode_teleport((2.0, -1.0, 0.0, 0.0)), client.control_addr)) == ()
     probe.spin_until(lambda: ball and abs(ball[-1].pose.pose.position.x - 2.0) < 1e-3
                      and abs(ball[-1].pose.pose.position.y + 1.0) < 1e-3, 10.0, "the ball teleport")
+
+    # a chip: kick_speed 3 m/s at kick_angle 45 deg from robot_0 at rest at the origin facing +x, the ball at its
+    # dribbler; the plant flies it: along the carpet at 3 cos 45 = 2.12 m/s (a flat kick would roll at 3 m/s)
+    events = probe.subscribe(contract.SIM_EVENTS.name, String)
+    drive(ros_graph, client, client.local(0, 0.0), lambda: at_rest_for(truth, 0.3), 30.0, "robot_0 stopping")
+    reach = RobotConfig().dribbler_offset_m + 0.002
+    assert ssl_sim.decode_simulator_response(client.ask(ssl_sim.encode_teleport(
+        (reach, 0.0, 0.0, 0.0), [("yellow", 0, 0.0, 0.0, 0.0)]), client.control_addr)) == ()
+    probe.spin_until(lambda: at_rest_for(truth, 0.3, near_x=0.0) and abs(ball[-1].pose.pose.position.x - reach) < 1e-3,
+                     20.0, "robot and ball placed")
+    chip = ssl_sim.encode_robot_control([ssl_sim.RobotCommand(0, kick_speed_mps=3.0, kick_angle_deg=45.0)])
+    fb = ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString(client.ask(chip, client.robot_addr))
+    assert not fb.errors
+    probe.spin_until(lambda: any("chip 45 deg" in e.data and "fired" in e.data for e in events), 10.0,
+                     "the plant's chip event")
+    probe.spin_until(lambda: ball[-1].pose.pose.position.x > 0.5, 10.0, "the chipped ball on its way")
+    speed = math.hypot(ball[-1].twist.twist.linear.x, ball[-1].twist.twist.linear.y)
+    assert speed == pytest.approx(3.0 * math.cos(math.radians(45.0)), abs=0.05)
 
     # unsupported features and unknown robots get errors; garbage gets ERFORCE_INVALID; the server goes on
     bad = ssl_simulation_robot_control_pb2.RobotControl()
