@@ -95,7 +95,7 @@ class ChipTrajectory:
     for vectors); a time at or after the hand-over asks the roll.
     """
 
-    __slots__ = ("_ends", "_starts", "hops", "params", "roll", "roll_start_s")
+    __slots__ = ("_ends", "_hop_rows", "_starts", "_track", "hops", "params", "roll", "roll_start_s")
 
     def __init__(self, position_m, velocity_mps, params: ChipParams | None = None,
                  ball_params: BallModelParams | None = None) -> None:
@@ -191,11 +191,17 @@ class ChipTrajectory:
         """Where the ball is on the field (its centre's x, y) as a path of straight pieces: each hop at its
         constant horizontal velocity up to its touchdown, then the roll's pieces (off ``walls``, if given:
         the roll only; a ball in the air flies over the wall's line). For queries (``position_at``,
-        ``time_in_field``, ``time_to_distance``, ``table``) and the catch search; to move it on, advance the chip."""
+        ``time_in_field``, ``time_to_distance``, ``table``) and the catch search; to move it on, advance the chip.
+        Without walls it is made once per chip (the catch search asks for it several times)."""
+        if walls is None and self._track is not None:
+            return self._track
         pieces = [(h.t_start_s, _flight_floats(h)) for h in self.hops]
         roll = self.roll.within(walls)
         pieces += [(self.roll_start_s + t, f) for t, f in roll.pieces]
-        return BallTrajectory.of_pieces(pieces, roll.params, walls)
+        track = BallTrajectory.of_pieces(pieces, roll.params, walls)
+        if walls is None:
+            object.__setattr__(self, "_track", track)
+        return track
 
     def position_at(self, t_s) -> np.ndarray:
         """Where the ball's centre is: ``(x, y, z)``, shape ``shape(t_s) + (3,)``."""
@@ -231,7 +237,7 @@ class ChipTrajectory:
         if in_air.any():
             ta = flat[in_air]
             i = np.searchsorted(self._starts, ta, side="right") - 1
-            hop = np.array(self.hops)[i]  # columns: ChipHop's fields
+            hop = self._hop_rows[i]  # columns: ChipHop's fields
             tau, g = ta - hop[:, 0], self.params.g_mps2
             if velocity:
                 out[in_air] = np.stack([hop[:, 4], hop[:, 5], hop[:, 6] - g * tau], axis=-1)
@@ -253,6 +259,8 @@ def _init(ball: ChipTrajectory, params: ChipParams, hops: tuple[ChipHop, ...], r
     init(ball, "roll", roll)
     init(ball, "_starts", np.array([h.t_start_s for h in hops]))
     init(ball, "_ends", np.array([h.t_start_s + h.duration_s for h in hops]))
+    init(ball, "_hop_rows", np.array(ball.hops, dtype=float).reshape(-1, len(ChipHop._fields)))
+    init(ball, "_track", None)
 
 
 def _of_parts(params: ChipParams, hops, roll: BallTrajectory, roll_start_s: float) -> ChipTrajectory:

@@ -255,14 +255,13 @@ def evaluate_passes(
         arrival_s = float(traj.time_to_distance(contact_m)) if math.isfinite(receiver_time) else math.inf
         option = _option(j, v0, u, arrival_s, opp, receive_rad, 0.0)
         if cfg.chip_angle_deg > 0.0 and not option.safe(cfg):
-            chip = _chip_pass(ball, u, contact_m, cfg, params, chip_params)
+            chip, chip_v0 = _chip_pass(ball, u, contact_m, cfg, params, chip_params)
             receiver_time, opp = rate(chip)
             track = chip.ground_track()
             arrival_s = float(track.time_to_distance(contact_m)) if math.isfinite(receiver_time) else math.inf
             if math.isfinite(arrival_s) and chip.position_at(arrival_s)[2] > chip.params.max_catch_height_m:
                 arrival_s = math.inf  # it would fly over the receiver
-            lob = _option(j, float(np.linalg.norm(chip.velocity_mps)), u, arrival_s, opp, receive_rad,
-                          cfg.chip_angle_deg)
+            lob = _option(j, chip_v0, u, arrival_s, opp, receive_rad, cfg.chip_angle_deg)
             if lob.safe(cfg) or lob.margin_s > option.margin_s:
                 option = lob
         options.append(option)
@@ -277,7 +276,7 @@ def _option(j: int, v0: float, u: np.ndarray, arrival_s: float, opp: np.ndarray,
 
 
 def _chip_pass(ball: np.ndarray, u: np.ndarray, contact_m: float, cfg: PassConfig, params: BallModelParams,
-               chip_params: ChipParams | None) -> ChipTrajectory:
+               chip_params: ChipParams | None) -> tuple[ChipTrajectory, float]:
     """The chip along ``u`` that comes down to the catchable height ``chip_land_fraction`` of ``contact_m`` on."""
     chip_params = ChipParams() if chip_params is None else chip_params
     v0 = chip_speed_for(cfg.chip_land_fraction * contact_m, cfg.chip_angle_deg, chip_params, cfg.min_kick_mps,
@@ -285,7 +284,7 @@ def _chip_pass(ball: np.ndarray, u: np.ndarray, contact_m: float, cfg: PassConfi
     a = math.radians(cfg.chip_angle_deg)
     vxy = v0 * math.cos(a)
     return ChipTrajectory((float(ball[0]), float(ball[1]), 0.0), (float(u[0] * vxy), float(u[1] * vxy),
-                                                                  v0 * math.sin(a)), chip_params, params)
+                                                                  v0 * math.sin(a)), chip_params, params), v0
 
 
 def press_targets(ball_xy, team_xy: np.ndarray, opponents_xy: np.ndarray, holder: int | None,
