@@ -177,8 +177,8 @@ def test_a_robot_not_finite_is_refused_with_or_without_the_receiver_search():
 
 def test_a_chip_goes_over_the_opponent_on_the_lane_and_lands_before_the_receiver():
     """The scene above with chips: the flat pass to teammate 1 is unsafe, a 45 deg chip over the opponent at
-    (1, 0) is safe. The chip comes down to max_catch_height_m 0.7 of the way to the receiver's dribbler (the
-    projectile's descent), and the receiver's catch is the ball's arrival there, low."""
+    (1, 0) is safe. The chip comes down to max_catch_height_m chip_land_fraction of the way to the receiver's
+    dribbler (the projectile's descent), and the receiver's catch is the ball's arrival there, low."""
     from erforce_ball_model.ball_model import ChipParams
     from erforce_ball_model.chip_model import ChipTrajectory
 
@@ -194,7 +194,7 @@ def test_a_chip_goes_over_the_opponent_on_the_lane_and_lands_before_the_receiver
     g, h = ChipParams().g_mps2, ChipParams().max_catch_height_m
     x_low = v * (v + math.sqrt(v * v - 2.0 * g * h)) / g  # where the first hop comes down through h
     contact = 2.0 - OFFSET
-    assert x_low == pytest.approx(0.7 * contact, abs=1e-6)
+    assert x_low == pytest.approx(CFG.chip_land_fraction * contact, abs=1e-6)
     chip = ChipTrajectory((0.0, 0.0, 0.0), (v, 0.0, v), ChipParams(), MODEL)
     p = chip.position_at(o.receiver_catch_s)
     assert p[0] == pytest.approx(contact, abs=1e-6) and p[2] <= h

@@ -66,7 +66,7 @@ class PassConfig:
     reaction_s: float = 0.1  # everybody reacts to the kick this late (the predictor's reaction time)
     press_fraction: float = 0.5  # an opponent waits this far along the lane from the ball to its teammate
     chip_angle_deg: float = 45.0  # a chip's elevation (the kicker's kick_angle); 0: flat passes only
-    chip_land_fraction: float = 0.7  # a chip comes down to the catchable height this far along the pass
+    chip_land_fraction: float = 0.55  # a chip comes down to the catchable height this far along the pass
 
     def __post_init__(self) -> None:
         for name in ("arrive_speed_mps", "min_kick_mps", "max_kick_mps", "min_distance_m", "max_distance_m"):
