@@ -203,6 +203,7 @@ def test_a_record_goes_over_the_wire_and_back():
         PassRecord(3, 12.5, 1, 4, 3.01, 1.5, 0.82, 1, False, "intercepted", "opponent_1", 1.66, (), None),
         PassRecord(4, 20.0, 4, 6, 2.9, 1.2, math.inf, None, True, "completed", "robot_6", 1.19, (), 9),
         PassRecord(5, 30.0, 6, 2, 2.9, 1.2, 2.0, 0, True, "lost", None, None, (), None),
+        PassRecord(6, 31.0, 2, 3, 4.5, 0.9, math.inf, None, True, "completed", "robot_3", 1.2, (), None, 45.0),
     ):
         assert record_from_row(record_row(record)) == record
 

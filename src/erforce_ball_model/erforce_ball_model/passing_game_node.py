@@ -103,7 +103,7 @@ def record_row(record: PassRecord) -> list[float]:
             -1 if record.first_opponent is None else record.first_opponent, 1.0 if record.rated_safe else 0.0,
             contract.PASS_OUTCOMES.index(record.outcome), team, caught,
             -1.0 if record.actual_catch_s is None else record.actual_catch_s,
-            -1 if record.facing_target is None else record.facing_target]
+            -1 if record.facing_target is None else record.facing_target, record.kick_angle_deg]
 
 
 def record_from_row(row) -> PassRecord:
@@ -121,7 +121,7 @@ def record_from_row(row) -> PassRecord:
         None if v["first_opponent"] < 0 else int(v["first_opponent"]), v["rated_safe"] > 0.5,
         contract.PASS_OUTCOMES[int(v["outcome"])], caught_by,
         None if caught_by is None else v["actual_catch_s"], (),
-        None if v["facing_target"] < 0 else int(v["facing_target"]))
+        None if v["facing_target"] < 0 else int(v["facing_target"]), v["kick_angle_deg"])
 
 
 def records_from_msg(msg: Float64MultiArray) -> list[PassRecord]:

@@ -422,7 +422,8 @@ PASS_RECORDS = Topic("/pass/records", Float64MultiArray, QOS_LOG, "passing_game"
                      "one message per pass as it ends: one row of PASS_RECORD_COLUMNS (robot ids of each team, "
                      "times [s] from the kick, kick_speed_mps [m/s]; outcome PASS_OUTCOMES' index; caught_team "
                      "Team.code, 0 and caught_id -1 with actual_catch_s -1: nobody; first_opponent and "
-                     "facing_target -1: none; opponent_predicted_s PASS_NO_OPPONENT_S: no opponent can)")
+                     "facing_target -1: none; opponent_predicted_s PASS_NO_OPPONENT_S: no opponent can; "
+                     "kick_angle_deg 0: flat, else a chip)")
 
 # ------------------------------------------------------------- per-robot topics
 CMD_VEL = Topic("cmd_vel", Twist, QOS_COMMAND, "catcher / AI", "velocity_controller",
@@ -505,7 +506,7 @@ PASS_CHOICE_COLUMNS = ("passer_id", "receiver_id", "kick_speed_mps", "direction_
                        "opponent_catch_s", "first_opponent", "margin_s", "safe_margin_s", "safe")
 PASS_RECORD_COLUMNS = ("index", "t_kick_s", "passer_id", "receiver_id", "kick_speed_mps", "predicted_catch_s",
                        "opponent_predicted_s", "first_opponent", "rated_safe", "outcome", "caught_team", "caught_id",
-                       "actual_catch_s", "facing_target")
+                       "actual_catch_s", "facing_target", "kick_angle_deg")
 PASS_OUTCOMES = ("completed", "intercepted", "lost")
 VISION_FIELD_COLUMNS = ("length_m", "width_m", "boundary_m", "goal_width_m", "goal_depth_m")
 
