@@ -23,6 +23,7 @@ from table import markdown_table  # noqa: E402 - bench/ is not a package
 RESULTS = BENCH_DIR / "RESULTS.md"
 MODULES = (
     ("ball model (Sec. 5)", "bench_ball_model"),
+    ("chip tracking", "bench_chip"),
     ("ball_predictor node", "bench_ball_predictor"),
     ("motion control (Sec. 4)", "bench_motion"),
     ("simulator (Sec. 2-3)", "bench_sim"),

@@ -12,6 +12,7 @@ MODULES = (
     "erforce_ball_model.ball_model",
     "erforce_ball_model.catch_time",
     "erforce_ball_model.chip_model",
+    "erforce_ball_model.chip_tracking",
     "erforce_ball_model.predictor",
     "erforce_motion.kinematics",
     "erforce_motion.motor_board",

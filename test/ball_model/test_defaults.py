@@ -76,7 +76,7 @@ def test_the_predictor_core_speaks_the_contract():
 
     assert predictor.CATCH_TIME_NEVER == contract.CATCH_TIME_NEVER
     assert predictor.MODEL_ROWS == contract.BALL_MODEL_PARAM_ROWS
-    assert set(predictor.PHASE_NAMES.values()) | {"unknown"} == set(contract.BALL_PHASES)
+    assert set(predictor.PHASE_NAMES.values()) | {"unknown", predictor.PHASE_CHIP} == set(contract.BALL_PHASES)
 
 
 def test_the_ball_and_wall_have_one_default_for_prediction_and_plant():

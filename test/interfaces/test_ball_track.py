@@ -41,7 +41,7 @@ def test_bytes_match_a_hand_made_layout_and_read_back():
 
 @pytest.mark.parametrize("change", [
     dict(fields=FIELD_NAMES[:-1] + ("certain",)),  # another layout
-    dict(point=(1.5, -2.0, 0.0, 3.0, -0.25, 4.5, 1.51, -2.02, 4.0, 1.0)),  # no such phase
+    dict(point=(1.5, -2.0, 0.0, 3.0, -0.25, 4.5, 1.51, -2.02, 5.0, 1.0)),  # no such phase
     dict(point=(1.5, -2.0, 0.0, 3.0, -0.25, 4.5, 1.51, -2.02, 2.5, 1.0)),
     dict(point=(1.5, -2.0, 0.0, 3.0, -0.25, 4.5, 1.51, -2.02, 2.0, 0.5)),  # uncertain is 1 or 0
     dict(point=(float("nan"), -2.0, 0.0, 3.0, -0.25, 4.5, 1.51, -2.02, 2.0, 1.0)),
@@ -61,3 +61,12 @@ def test_a_bad_value_is_not_published():
         conv.ball_track_cdr(TRACK._replace(phase="flying"))
     with pytest.raises(conv.ConversionError, match="vx_mps"):
         conv.ball_track_cdr(TRACK._replace(vx_mps=float("inf")))
+
+
+def test_a_chip_in_the_air_carries_its_height_in_z():
+    chip = TRACK._replace(phase="chip", z_m=0.42)
+    data = conv.ball_track_cdr(chip)
+    assert data == HAND.replace(struct.pack("<3d", 1.5, -2.0, 0.0), struct.pack("<3d", 1.5, -2.0, 0.42)).replace(
+        struct.pack("<2d", 2.0, 1.0), struct.pack("<2d", float(c.BALL_PHASES.index("chip")), 1.0))
+    assert c.BALL_PHASES.index("chip") == 4  # after the flat phases: their indices stay
+    assert conv.ball_track_from_msg(data) == chip

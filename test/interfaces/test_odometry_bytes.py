@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from nav_msgs.msg import Odometry
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 
 from erforce_interfaces import conversions as conv
 
@@ -61,3 +61,14 @@ def test_truncated_or_foreign_bytes_are_a_conversion_error():
     with pytest.raises(conv.ConversionError, match="position.x"):
         conv.odometry_from_msg(bytes(nan_x))
     assert np.isfinite(conv.odometry_from_msg(good)[1]).all()
+
+
+def test_a_chipped_balls_height_and_vertical_speed_ride_in_position_z_and_linear_z():
+    data = conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), child_frame_id="ball", z_m=0.4038,
+                             vz_mps=1.038)
+    msg = deserialize_message(data[:], Odometry)
+    assert (msg.pose.pose.position.z, msg.twist.twist.linear.z) == (0.4038, 1.038)  # rclpy reads our bytes
+    assert conv.odometry_height(data) == conv.odometry_height(msg) == (0.4038, 1.038)
+    assert conv.odometry_height(conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0))) == (0.0, 0.0)
+    with pytest.raises(conv.ConversionError, match="vz"):
+        conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), vz_mps=math.nan)

@@ -458,7 +458,10 @@ class BallPredictorNode(Node):
         """The ball topics (phase, stop point, uncertain: while they have a reader); all are built (and
         checked) before the first goes out."""
         t_s, f = frame.t_s, frame.trajectory.floats
-        state = odometry_cdr(t_s, (f.x_m, f.y_m, 0.0), (f.vx_mps, f.vy_mps, 0.0), child_frame_id="ball",
+        x, y, z, vx, vy, vz = f.x_m, f.y_m, 0.0, f.vx_mps, f.vy_mps, 0.0
+        if frame.chip is not None:  # the chip's state (the flat filter follows where the cameras see it)
+            (x, y, z), (vx, vy, vz) = frame.chip.position_m.tolist(), frame.chip.velocity_mps.tolist()
+        state = odometry_cdr(t_s, (x, y, 0.0), (vx, vy, 0.0), child_frame_id="ball", z_m=z, vz_mps=vz,
                              position_variance_m2=frame.position_variance_m2)
         stop_point = point_cdr(t_s, frame.stop_point_m)
         v_shoot = float64_cdr(f.v_shoot_mps)
@@ -478,8 +481,13 @@ class BallPredictorNode(Node):
     def _ball_track(frame: BallFrame) -> bytes:
         """/ball/track: what /ball/state, v_shoot, phase and uncertain carry and the observation, in one message."""
         f = frame.trajectory.floats
-        return ball_track_cdr(BallTrack(frame.t_s, f.x_m, f.y_m, f.vx_mps, f.vy_mps, f.v_shoot_mps, *frame.xy_m,
-                                        frame.phase, frame.uncertain))
+        if frame.chip is None:
+            return ball_track_cdr(BallTrack(frame.t_s, f.x_m, f.y_m, f.vx_mps, f.vy_mps, f.v_shoot_mps, *frame.xy_m,
+                                            frame.phase, frame.uncertain))
+        x, y, z = frame.chip.position_m.tolist()
+        vx, vy, _ = frame.chip.velocity_mps.tolist()
+        return ball_track_cdr(BallTrack(frame.t_s, x, y, vx, vy, f.v_shoot_mps, *frame.xy_m, frame.phase,
+                                        frame.uncertain, z))
 
     def _catch_table(self, frame: BallFrame) -> bytes:
         """/ball/catches: every fresh robot's pose at the frame and its catch, one message for both teams

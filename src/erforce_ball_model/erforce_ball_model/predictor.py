@@ -15,6 +15,12 @@ geometry (``set_vision_geometry``) replaces the configured field and model while
 ``use_vision_geometry`` is on, across later configuration changes; a configured field of None is the
 world's, and no vision is judged or answered until its geometry arrives.
 
+Chipped balls: given the camera of each sighting (``ball_frame``'s ``camera_m``, other cameras' sightings of
+the same instant through ``ball_sighting``), a chip detector beside the ball filter (chip_tracking.ChipDetector)
+judges each kick the filter sees; a chip it finds is the frame's ``chip`` (chip_model.ChipTrajectory at the
+frame's stamp, with ``z_m`` and ``vz_mps``; phase "chip") until it rolls, when the filter takes the ball over
+from the chip's roll.
+
 The ball_predictor node converts messages and publishes what this object answers; the
 in-process scenes (erforce_sim.closed_loop.scenes) and the bench (bench/bench_ball_predictor.py) run the
 same object, so the catcher is tuned on the code that runs.
@@ -44,8 +50,10 @@ from dataclasses import field as _default
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory, Walls
+from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory, ChipParams, Walls
 from erforce_ball_model.catch_time import CatchKind, CatchSearch, RobotLimits, catch_after_reaction
+from erforce_ball_model.chip_model import ChipTrajectory
+from erforce_ball_model.chip_tracking import ChipDetector, ChipDetectorConfig
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
 from erforce_interfaces.robot_config import BALL_WALL_RESTITUTION, FieldConfig, RobotConfig
@@ -56,6 +64,7 @@ __all__ = ["CATCH_TIME_NEVER", "MODEL_ROWS", "PHASE_NAMES", "BallFrame", "BallPr
 CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.contract says the same)
 MODEL_ROWS = ("in_use", "fit", "std_error")  # the rows of model_rows (erforce_interfaces.contract says the same)
 PHASE_NAMES = {BallPhase.SLIDING: "sliding", BallPhase.ROLLING: "rolling", BallPhase.STOPPED: "stopped"}
+PHASE_CHIP = "chip"  # a chipped ball from its detection until it rolls (erforce_interfaces.contract.BALL_PHASES)
 _NEVER = int(CatchKind.NEVER)
 
 
@@ -85,6 +94,8 @@ class PredictorConfig:
     ident_max_std: tuple[float, float, float] = (0.1, 0.02, 0.03)  # a_slide, a_roll, c_switch
     timing_log_every: int = 0  # the node's timing log (not used here)
     use_vision_geometry: bool = True  # SSL geometry's field and ball model replace field and model
+    chip: ChipParams = _default(default_factory=ChipParams)  # a chipped ball's hops
+    chip_detector: ChipDetectorConfig = _default(default_factory=ChipDetectorConfig)
 
     def __post_init__(self) -> None:
         n = self.num_robots
@@ -121,17 +132,30 @@ class BallFrame:
     xy_m: tuple[float, float]  # the observation
     status: UpdateStatus
     trajectory: BallTrajectory  # the ball at t_s
-    phase: str  # unknown (first frame) | sliding | rolling | stopped
+    phase: str  # unknown (first frame) | sliding | rolling | stopped | chip
     uncertain: bool
     position_variance_m2: float
     catch_robots: list[int]
     catch_times_s: list[float]
     catch_points_m: list[tuple[float, float] | None]
+    # a chipped ball at t_s, from its detection until it rolls (then the flat filter's trajectory is the ball)
+    chip: ChipTrajectory | None = None
+
+    @property
+    def z_m(self) -> float:
+        """Height of the ball's centre above its resting height [m] (0 on the ground)."""
+        return 0.0 if self.chip is None else float(self.chip.position_m[2])
+
+    @property
+    def vz_mps(self) -> float:
+        """Vertical speed [m/s] (0 on the ground)."""
+        return 0.0 if self.chip is None else float(self.chip.velocity_mps[2])
 
     @property
     def stop_point_m(self) -> tuple[float, float]:
-        """Where the ball comes to rest, inside the field's wall (the trajectory reflects off it)."""
-        x, y = self.trajectory.stop_point.tolist()
+        """Where the ball comes to rest, inside the field's wall (the trajectory reflects off it; a chip's: where
+        its roll ends)."""
+        x, y = (self.trajectory if self.chip is None else self.chip).stop_point.tolist()
         return x, y
 
 
@@ -197,6 +221,8 @@ class BallPredictor:
             self._ball = BallTracker(model, config.tracker)  # the filter state is lost: it re-seeds
         else:
             self._ball.params = model
+        if old is None or (config.chip, config.chip_detector) != (old.chip, old.chip_detector):
+            self._chip = ChipDetector(config.chip_detector, config.chip, model)
         if config.online_identification and (self._shots is None or config.tracker != old.tracker):
             self._shots = ShotAccumulator(tracker_config=config.tracker)
             self._fitted_shot = None
@@ -292,12 +318,14 @@ class BallPredictor:
         return fresh, np.array(rows)
 
     # -------------------------------------------------------------------- ball
-    def ball_frame(self, t_s: float, x_m: float, y_m: float, *, restart: bool = False) -> BallFrame | None:
+    def ball_frame(self, t_s: float, x_m: float, y_m: float, *, restart: bool = False,
+                   camera_m: tuple[float, float, float] | None = None) -> BallFrame | None:
         """A vision observation of the ball: the ball's state and every fresh robot's catch; None when
         the observation was rejected or no prediction could be made (with a warning), or when the filter
         holds it back after a gap (``TrackerConfig.max_hold_gap_s``: the next frame says what happened).
         ``restart``: the stamp starts a new time line (StampVerdict.RESTART), the ball filter and the shot
-        collection start over."""
+        collection start over. ``camera_m``: the position (x, y, height) [m] of the camera that saw it; with
+        it the chip detector (chip_tracking) takes the sighting, and a chip it finds is the frame's ``chip``."""
         cfg = self.config
         if cfg.field is None:  # waiting for the world's field: nothing is judged against another
             self.waiting_frames += 1
@@ -307,11 +335,15 @@ class BallPredictor:
             return None
         if restart:
             self._ball = BallTracker(self.model, cfg.tracker)
+            self._chip = ChipDetector(cfg.chip_detector, cfg.chip, self.model)
             if self._shots is not None:
                 self._shots = ShotAccumulator(tracker_config=cfg.tracker)
                 self._fitted_shot = None
         ball = self._ball
         last_t = ball.t_s
+        held = before = None
+        if camera_m is not None:  # the chip detector's: the frame held back, the motion before this frame
+            held, before = ball._held, (ball.t_s, *ball.kf.state) if ball.initialized else None
         status = ball.update(t_s, x_m, y_m)
         if status == UpdateStatus.REJECTED_TIME:
             self._warn("ball_time", f"rejected vision/ball: stamp {t_s:.6f} s is not after the previous one "
@@ -320,7 +352,9 @@ class BallPredictor:
         if status == UpdateStatus.REJECTED_INVALID:
             self._warn("ball_invalid", "rejected vision/ball: invalid")
             return None
-        if status == UpdateStatus.HELD_BACK and t_s - ball.t_s > cfg.tracker.max_hold_gap_s:
+        chip = None if camera_m is None else self._chip_sighting(t_s, x_m, y_m, camera_m, status, held,
+                                                                            before)
+        if chip is None and status == UpdateStatus.HELD_BACK and t_s - ball.t_s > cfg.tracker.max_hold_gap_s:
             return None  # after a gap: the old motion extrapolated is no estimate; the next frame re-seeds it
         try:
             # the path off the wall of the field in effect now (SSL geometry's once it came)
@@ -330,16 +364,45 @@ class BallPredictor:
         except ValueError as exc:  # e.g. 100 m/s from two frames 1 us apart
             self._warn("predict", f"no prediction for the frame at {t_s:.6f} s: {exc}")
             return None
-        robots, times, points = self._catches(t_s, traj)
+        # a chip in the air is taken only where it is low enough (catch_time): the catch table follows it
+        robots, times, points = self._catches(t_s, traj if chip is None else chip)
         f = traj.floats
-        if status == UpdateStatus.INITIALIZED:
+        if chip is not None:
+            phase = PHASE_CHIP
+        elif status == UpdateStatus.INITIALIZED:
             phase = "unknown"
         elif f.speed_mps <= cfg.rest_speed_mps:
             phase = "stopped"
         else:
             phase = PHASE_NAMES[traj.phase]
         return BallFrame(t_s, (x_m, y_m), status, traj, phase, bool(ball.uncertain), ball.position_variance_m2,
-                         robots, times, points)
+                         robots, times, points, chip)
+
+    @property
+    def chip_detector(self) -> ChipDetector:
+        """The chip detector beside the ball filter (its kick's fit, the chip as launched: ``launch``)."""
+        return self._chip
+
+    def ball_sighting(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float]) -> None:
+        """Another camera's sighting of the ball (not the one ``ball_frame`` took, e.g. of the same instant
+        from an overlapping camera): for the chip detector only, which sees a ball in the air by the
+        cameras' disagreement. Raises ValueError for non-finite values."""
+        self._chip.add(t_s, x_m, y_m, camera_m)
+
+    def _chip_sighting(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float],
+                       status: UpdateStatus, held: tuple[float, float, float] | None,
+                       before: tuple[float, ...] | None) -> ChipTrajectory | None:
+        """The chip detector's part of a ball frame: a new motion of the flat filter (a kick) starts a
+        kick's collection unless one is under way; the chip at ``t_s``, or None. When a chip rolls, the flat
+        filter takes the ball over from the chip's roll (its hand-over)."""
+        detector, ball = self._chip, self._ball
+        if status == UpdateStatus.MANEUVER and not detector.active:
+            detector.start(held[0] if held is not None else t_s, before)
+        detector.add(t_s, x_m, y_m, camera_m)
+        roll = detector.hand_over(t_s)
+        if roll is not None:
+            ball.hand_over(t_s, roll)
+        return detector.chip_at(t_s)
 
     def catches(self, t_s: float, traj) -> tuple[list[int], list[float], list]:
         """The catch table of a given ball at ``t_s`` (a BallTrajectory or, in the air, a chip_model.ChipTrajectory):

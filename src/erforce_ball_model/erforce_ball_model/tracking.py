@@ -465,6 +465,18 @@ class BallTracker:
             self.uncertain = self.kicked  # kicks are modelled; cleared once the fit is confirmed
 
 
+    def hand_over(self, t_s: float, trajectory: BallTrajectory) -> None:
+        """Take the ball over from another model at ``t_s`` (not before the newest frame): its position, velocity
+        and kick speed as if fused then (a chipped ball that rolls now, chip_tracking). No kick is counted."""
+        f = trajectory.floats
+        cfg, s = self.config, self.s
+        self.kf.reset((f.x_m, f.y_m), (f.vx_mps, f.vy_mps), cfg.position_noise_m**2, RESTING_VELOCITY_STD_MPS**2)
+        s[S_T], s[S_HELD], s[S_FIT_RUN], s[S_N_SHOOT] = t_s, 0.0, 0.0, 0.0
+        s[S_PREV_T:S_PREV_Y + 1] = (t_s, f.x_m, f.y_m)
+        self.v_shoot_mps, self.last_event_time_s = f.v_shoot_mps, None
+        self._rolling = f.speed_mps <= f.v_switch_mps
+
+
 class RobotTracker:
     """Robot pose tracking: KalmanCV2D on the position plus a CV filter on the unwrapped heading."""
 

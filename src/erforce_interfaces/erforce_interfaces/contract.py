@@ -87,8 +87,9 @@ BASE_LINK = "base_link"
 #: Published on ``catch_time`` when no catch is possible before the ball leaves the field.
 CATCH_TIME_NEVER = -1.0
 
-#: Values of ``/ball/phase``.
-BALL_PHASES = ("unknown", "sliding", "rolling", "stopped")
+#: Values of ``/ball/phase`` ("chip": a chipped ball from its detection until it rolls; last, so that the
+#: indices /ball/track carries stay those of the flat phases).
+BALL_PHASES = ("unknown", "sliding", "rolling", "stopped", "chip")
 
 # DDS participant settings (config/fastdds_profile.xml): announce every 0.5 s, so that a node that
 # (re)starts is matched within about a second. Fast DDS 2 (Jazzy) reads the first variable, 3 the second.
@@ -333,11 +334,14 @@ VISION_BALL = Topic("/vision/ball", PointStamped, QOS_SENSOR, "plant (vision), s
                     "tools", "ball centre in `field` [m], stamp = capture time; noisy, delayed, with dropouts; the "
                     "same balls as /vision/robots")
 BALL_STATE = Topic("/ball/state", Odometry, QOS_STATE, "ball_predictor", "catcher, tools",
-                   "filtered ball: pose [m], twist.linear [m/s] in `field`; covariance from the filter")
+                   "filtered ball: pose [m], twist.linear [m/s] in `field`; covariance from the filter; a chipped "
+                   "ball in the air: pose.position.z its centre's height above its resting height [m] and "
+                   "twist.linear.z its vertical speed [m/s] (both 0 on the ground)")
 BALL_PHASE = Topic("/ball/phase", String, QOS_STATE, "ball_predictor", "tools",
                    "one of " + ", ".join(BALL_PHASES))
 BALL_STOP_POINT = Topic("/ball/stop_point", PointStamped, QOS_STATE, "ball_predictor", "tools",
-                        "where the two-phase model says the ball comes to rest [m], `field`")
+                        "where the two-phase model says the ball comes to rest [m], `field` (a chip: where it "
+                        "rolls out after its hops)")
 BALL_V_SHOOT = Topic("/ball/v_shoot", Float64, QOS_STATE, "ball_predictor", "catcher, tools",
                      "tracked initial shot speed v_shoot [m/s]")
 BALL_UNCERTAIN = Topic("/ball/uncertain", Bool, QOS_STATE, "ball_predictor", "tools",
@@ -408,8 +412,9 @@ ROBOTS_TRACKED = Topic("/robots/tracked", Float64MultiArray, QOS_STATE, "ball_pr
                        "changed as a new odom, so that one message per frame replaces one odom per robot")
 BALL_TRACK = Topic("/ball/track", PointCloud2, QOS_SENSOR, "ball_predictor (while subscribed)", "field_view, tools",
                    "the ball at one accepted vision frame, for observers, in one message: one point of fields "
-                   "BALL_TRACK_FIELDS (float64, little endian, height 1, width 1): the filtered ball x, y [m] "
-                   "(z = 0) and vx_mps, vy_mps [m/s] in `field` (as /ball/state), v_shoot_mps (as /ball/v_shoot), "
+                   "BALL_TRACK_FIELDS (float64, little endian, height 1, width 1): the filtered ball x, y, z [m] "
+                   "(z as /ball/state's) and vx_mps, vy_mps [m/s] in `field` (as /ball/state), v_shoot_mps (as "
+                   "/ball/v_shoot), "
                    "the observation seen_x_m, seen_y_m [m] (the vision ball answered), phase (the index "
                    "of /ball/phase's value in BALL_PHASES) and uncertain (1/0, as /ball/uncertain); stamp = "
                    "that observation's; after the per-robot outputs")

@@ -264,8 +264,9 @@ def odometry_msg(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
 
 def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], child_frame_id: str = "",
                  frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
-                 position_variance_m2: float | None = None) -> bytes:
-    """``odometry_msg`` serialized (see the codec below), with the same checks."""
+                 position_variance_m2: float | None = None, z_m: float = 0.0, vz_mps: float = 0.0) -> bytes:
+    """``odometry_msg`` serialized (see the codec below), with the same checks; ``z_m`` and ``vz_mps`` go to
+    pose.position.z and twist.linear.z (/ball/state: a chipped ball's height and vertical speed)."""
     x, y, half = _finite("x", pose[0]), _finite("y", pose[1]), 0.5 * _finite("yaw", pose[2], 1.0e6)
     qz, qw = math.sin(half), math.cos(half)  # quaternion_from_yaw's, without a message object
     vx, vy = _finite("vx", velocity[0]), _finite("vy", velocity[1])
@@ -278,7 +279,19 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     stamp = _stamp_cdr(_seconds_to_ns(t_s))
     # pose (position, orientation), its 6x6 covariance, twist (linear, angular), its covariance
     return _CDR_LE + stamp + _strings_cdr((frame_id, child_frame_id)) + _odometry_doubles.pack(
-        x, y, 0.0, 0.0, 0.0, qz, qw, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy, 0.0, *angular, *_ZEROS)
+        x, y, _finite("z", z_m), 0.0, 0.0, qz, qw, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy,
+        _finite("vz", vz_mps), *angular, *_ZEROS)
+
+
+def odometry_height(msg: Odometry | bytes) -> tuple[float, float]:
+    """(pose.position.z [m], twist.linear.z [m/s]) of an Odometry or its bytes: on /ball/state a chipped ball's
+    height above its resting height and vertical speed (0, 0 on the ground)."""
+    if isinstance(msg, bytes | bytearray | memoryview):
+        _, v = _odometry_values(bytes(msg))
+        z, vz = v[2], v[45]
+    else:
+        z, vz = msg.pose.pose.position.z, msg.twist.twist.linear.z
+    return _finite("pose.position.z", z), _finite("twist.linear.z", vz)
 
 
 def odometry_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
@@ -298,56 +311,45 @@ def odometry_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndar
     return stamp_to_seconds(msg.header.stamp), pose, velocity, angular
 
 
-def ball_height_from_msg(msg: Odometry | bytes) -> tuple[float, float]:
-    """(z [m], vz [m/s]) of a /ball/state: the height of the ball's centre above its rest (pose.position.z) and
-    its vertical speed (twist.linear.z), both 0 on the ground. A ball in the air when either is above 0
-    (chip_model.flying_ball); a negative height (noise) counts as on the ground."""
-    if isinstance(msg, bytes):
-        _, _, v = _odometry_doubles_cdr(msg)
-        z, vz = v[2], v[45]
-    else:
-        z, vz = msg.pose.pose.position.z, msg.twist.twist.linear.z
-    return max(_finite("pose.position.z", z), 0.0), _finite("twist.linear.z", vz)
-
-
 def ball_state_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndarray]:
     """A /ball/state as the ball's consumers take it: (stamp [s], [x, y], [vx, vy]) for a ball on the ground,
-    (stamp, [x, y, z], [vx, vy, vz]) for one in the air (ball_height_from_msg; chip_model.flying_ball makes
-    the chip of it)."""
+    (stamp, [x, y, z], [vx, vy, vz]) for one in the air: its height above its rest or its vertical speed above 0
+    (odometry_height; a height below 0 is noise on the ground). chip_model.flying_ball makes the chip of it."""
     stamp, pose, velocity, _ = odometry_from_msg(msg)
-    z, vz = ball_height_from_msg(msg)
+    z, vz = odometry_height(msg)
+    z = max(z, 0.0)
     if z > 0.0 or vz > 0.0:
         return stamp, np.array([pose[0], pose[1], z]), np.array([velocity[0], velocity[1], vz])
     return stamp, pose[:2].copy(), velocity[:2].copy()
 
 
-def _odometry_doubles_cdr(data: bytes) -> tuple[int, int, tuple[float, ...]]:
-    """The stamp (sec, nanosec) and the 85 doubles of a serialized Odometry (odometry_cdr)."""
+def _odometry_values(data: bytes) -> tuple[float, tuple[float, ...]]:
+    """An Odometry's bytes: the stamp [s] and the 85 doubles after both frame strings (odometry_cdr's order)."""
     try:
         sec, nanosec, p = _header_cdr(data, "Odometry")
         p += -p % 4  # child_frame_id
         p += 4 + _u32.unpack_from(data, 4 + p)[0]
         p += -p % 8
-        return sec, nanosec, _odometry_doubles.unpack_from(data, 4 + p)
+        return sec + nanosec * 1e-9, _odometry_doubles.unpack_from(data, 4 + p)
     except struct.error as exc:
         raise ConversionError(f"truncated Odometry ({exc})") from None
 
 
 def _odometry_from_cdr(data: bytes) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
     """odometry_from_msg of the bytes: the stamp, both frame strings, then the 85 doubles (odometry_cdr)."""
-    sec, nanosec, v = _odometry_doubles_cdr(data)
+    t_s, v = _odometry_values(data)
     x, y, qx, qy, qz, qw, vx, vy, wx, wy, wz = v[0], v[1], v[3], v[4], v[5], v[6], v[43], v[44], v[46], v[47], v[48]
     # One check for the usual message: a sum of magnitudes is NaN or inf when any term is, and within the
     # tightest limit each term is within its own; else the per-field checks below name the bad field.
     if (abs(x) + abs(y) + abs(vx) + abs(vy) <= MAX_ABS_VALUE and abs(wx) + abs(wy) + abs(wz) <= MAX_ABS_ANGULAR
             and abs(qx) + abs(qy) + abs(qz) + abs(qw) <= 2.0):
-        return (sec + nanosec * 1e-9, np.array([x, y, _unit_quaternion_yaw(qw, qx, qy, qz)]),
+        return (t_s, np.array([x, y, _unit_quaternion_yaw(qw, qx, qy, qz)]),
                 np.array([vx, vy, wz]), np.array([wx, wy, wz]))
     pose = np.array([_finite("pose.position.x", v[0]), _finite("pose.position.y", v[1]), _yaw(v[6], v[3], v[4], v[5])])
     angular = np.array([_finite(f"twist.angular.{axis}", value, MAX_ABS_ANGULAR)
                         for axis, value in zip("xyz", v[46:49], strict=True)])
     velocity = np.array([_finite("twist.linear.x", v[43]), _finite("twist.linear.y", v[44]), angular[2]])
-    return sec + nanosec * 1e-9, pose, velocity, angular
+    return t_s, pose, velocity, angular
 
 
 # ------------------------------------------------------------ joint arrays
@@ -1070,6 +1072,7 @@ class BallTrack(NamedTuple):
     seen_y_m: float
     phase: str  # one of BALL_PHASES
     uncertain: bool
+    z_m: float = 0.0  # height of a chipped ball in the air (as /ball/state)
 
 
 def ball_track_cdr(track: BallTrack, frame_id: str = FIELD_FRAME) -> bytes:
@@ -1081,7 +1084,8 @@ def ball_track_cdr(track: BallTrack, frame_id: str = FIELD_FRAME) -> bytes:
     values = [_finite(name, value) for name, value in zip(BALL_TRACK_FIELDS[3:8], track[3:8], strict=True)]
     return b"".join((_stamp_head(track.t_s), _frame_cdr(frame_id), struct.pack("<II", 1, 1), _TRACK_FIELDS_CDR,
                      struct.pack("<II10d", _TRACK_POINT_SIZE, _TRACK_POINT_SIZE, _finite("x", track.x_m),
-                                 _finite("y", track.y_m), 0.0, *values, phase, 1.0 if track.uncertain else 0.0),
+                                 _finite("y", track.y_m), _finite("z", track.z_m), *values, phase,
+                                 1.0 if track.uncertain else 0.0),
                      b"\x01"))
 
 
@@ -1114,7 +1118,7 @@ def ball_track_from_msg(msg: PointCloud2 | bytes) -> BallTrack:
     if phase not in _PHASE_INDEX.values() or uncertain not in (0.0, 1.0):
         raise ConversionError(f"phase {phase!r} (an index of BALL_PHASES) or uncertain {uncertain!r} (1/0) "
                               "out of range")
-    return BallTrack(t_s, x, y, vx, vy, v_shoot, seen_x, seen_y, BALL_PHASES[int(phase)], uncertain == 1.0)
+    return BallTrack(t_s, x, y, vx, vy, v_shoot, seen_x, seen_y, BALL_PHASES[int(phase)], uncertain == 1.0, z)
 
 
 # ------------------------------------------------------------ scalar & tables

@@ -21,7 +21,8 @@ Each pass is reported as it ends (``PassRecord``, with the true ball path).
 A chipped pass flies over the opponents (passing.evaluate_passes). The predictor's tracker does not fly a
 chip (it tracks the ball's shadow as a rolling ball); with ``GameConfig.true_chip`` the game hands the AI the
 simulator's true ball while it is in the air, as a chip (its catch table from the predictor's search on it):
-what a chip-tracking predictor would say. A predictor whose answer is a chip already is passed on as it is.
+what a chip-tracking predictor would say. The predictor's own chip (``BallFrame.chip``, from cameras it knows the
+position of) is passed on as it is.
 
     python -m erforce_sim.closed_loop.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
 
@@ -196,8 +197,11 @@ class PassingGame:
                 opponents.on_v_shoot(now, v_shoot)
 
     def _chip_answer(self, answer, now: float):
-        """With ``true_chip``: the answer for the simulator's true ball while it is in the air (module docstring)."""
-        if not self.cfg.true_chip or isinstance(answer.trajectory, ChipTrajectory):
+        """The predictor's chip, when it tracks one, as the ball; with ``true_chip`` the simulator's true ball while it
+        is in the air (module docstring)."""
+        if answer.chip is not None:
+            return dataclasses.replace(answer, trajectory=answer.chip)  # its catch table is the chip's already
+        if not self.cfg.true_chip:
             return answer
         b = self.world.ball_state()
         chip = flying_ball((b.x, b.y, b.z), (b.vx, b.vy, b.vz), ball_params=self.predictor.model)

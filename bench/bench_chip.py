@@ -1,0 +1,144 @@
+"""Chip tracking: chipped and flat kicks through the simulator's cameras into the ball predictor.
+
+Each kick starts from rest at a random point of division B (at least 1 m inside the field lines, in a random
+direction): a chip at 1-6 m/s and 30-60 deg, or a flat kick at 1-6.5 m/s. The ball's true path is the model's
+closed form (chip_model.ChipTrajectory, ball_model.BallTrajectory; the simulator flies a chip to within 1 mm
+of it). The world's vision (erforce_sim.sensors.VisionSystem: 70 Hz, 2 mm noise, 2 % dropouts) takes each
+frame and the four quadrant cameras (erforce_sim.ssl_cameras: 4 m high, 0.5 mm noise each) project the ball
+onto the ground as SSL-Vision does and encode the SSL datagrams, which are decoded again. Per capture, in the
+order the cameras send, the first camera's ball goes to ``BallPredictor.ball_frame`` (the bridge's ball) and
+every other camera's to ``ball_sighting``, each with the camera's position from the geometry.
+
+Rows: the share of chips detected within 0.15 s of the kick; the share of flat kicks ever reported as a chip
+(within 1 s); the error of the first touchdown point the predictor's chip has 0.1 s after the detection
+(median and p90 over the detected chips); the detection delay (median, p90).
+``python bench/bench_chip.py [--quick] [--seed N] [--min-gain G]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+import numpy as np
+from table import markdown_table
+
+from erforce_ball_model.ball_model import BallTrajectory
+from erforce_ball_model.chip_model import ChipTrajectory
+from erforce_ball_model.chip_tracking import ChipDetectorConfig
+from erforce_ball_model.predictor import BallPredictor, PredictorConfig
+from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.ssl_vision import decode_wrapper
+from erforce_sim.sensors import VisionParams, VisionSystem
+from erforce_sim.ssl_cameras import SslCameraSplitter, quadrant_cameras
+
+FIELD = FieldConfig.preset("division_b")
+VISION = VisionParams()
+DETECT_WITHIN_S = 0.15
+TOUCHDOWN_AFTER_S = 0.1
+RUN_S = 1.0  # after the kick
+REST_S = 0.3  # the ball lies still this long before the kick
+
+
+def _random_kick(rng: np.random.Generator, chip: bool):
+    """The true ball after the kick: a ChipTrajectory or a BallTrajectory from a random point and direction."""
+    x = rng.uniform(-FIELD.half_length_m + 1.0, FIELD.half_length_m - 1.0)
+    y = rng.uniform(-FIELD.half_width_m + 1.0, FIELD.half_width_m - 1.0)
+    heading = rng.uniform(-math.pi, math.pi)
+    if chip:
+        speed, angle = rng.uniform(1.0, 6.0), math.radians(rng.uniform(30.0, 60.0))
+        v_ground = speed * math.cos(angle)
+        return ChipTrajectory((x, y, 0.0), (v_ground * math.cos(heading), v_ground * math.sin(heading),
+                                            speed * math.sin(angle)))
+    speed = rng.uniform(1.0, 6.5)
+    return BallTrajectory((x, y), (speed * math.cos(heading), speed * math.sin(heading)), speed)
+
+
+def _truth_at(ball, t_s: float) -> tuple[float, float, float]:
+    p = ball.position_at(max(t_s, 0.0)).tolist()
+    return (p[0], p[1], p[2] if len(p) == 3 else 0.0)
+
+
+def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None) -> dict:
+    """One kick through cameras and predictor: when a chip was first reported (from the kick) and the first
+    touchdown point the predictor had ``TOUCHDOWN_AFTER_S`` after that."""
+    rng = np.random.default_rng(seed)
+    vision = VisionSystem(VISION, rng)
+    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, seed=seed)
+    cameras = {c.camera_id: (c.x_m, c.y_m, c.z_m) for c in splitter.geometry.cameras}
+    config = PredictorConfig(num_robots=1, field=FIELD, chip_detector=detector or ChipDetectorConfig())
+    predictor = BallPredictor(config)
+    t_kick = REST_S + rng.uniform(0.0, 1.0 / VISION.rate_hz)
+    detected_s, touchdown = None, None
+    period = 1.0 / VISION.rate_hz
+    for k in range(int((REST_S + RUN_S) * VISION.rate_hz)):
+        t = k * period
+        x, y, z = _truth_at(ball, t - t_kick)
+        vision.capture(t, (x, y), [], z)
+        frame = vision.poll(t + VISION.latency_s)[0]
+        packets = sorted(splitter.packets(frame), key=lambda p: p[0])
+        first = True
+        for _, data in packets:
+            det = decode_wrapper(data).detection
+            for bx, by, *_ in det.balls.tolist():
+                camera = cameras[det.camera_id]
+                if first:
+                    answer = predictor.ball_frame(t, bx, by, camera_m=camera)
+                    first = False
+                    if answer is not None and answer.chip is not None and detected_s is None:
+                        detected_s = t
+                    if detected_s is not None and touchdown is None and t >= detected_s + TOUCHDOWN_AFTER_S - 1e-9:
+                        launch = predictor.chip_detector.launch
+                        touchdown = None if launch is None else launch.touchdown_points_m[0]
+                else:
+                    predictor.ball_sighting(t, bx, by, camera)
+    out = {"delay_s": None if detected_s is None else detected_s - t_kick, "touchdown_error_m": None}
+    if touchdown is not None and isinstance(ball, ChipTrajectory):
+        out["touchdown_error_m"] = float(np.hypot(*(touchdown - ball.touchdown_points_m[0])))
+    return out
+
+
+def run(quick: bool = False, seed: int = 1, min_gain: float | None = None) -> list[dict]:
+    n = 100 if quick else 500
+    detector = ChipDetectorConfig() if min_gain is None else ChipDetectorConfig(min_gain=min_gain)
+    rng = np.random.default_rng(seed)
+    chips = [run_kick(_random_kick(rng, True), seed * 100_000 + k, detector) for k in range(n)]
+    flats = [run_kick(_random_kick(rng, False), seed * 100_000 + n + k, detector) for k in range(n)]
+    delays = np.array([c["delay_s"] for c in chips if c["delay_s"] is not None])
+    within = np.sum(delays <= DETECT_WITHIN_S) if len(delays) else 0
+    errors = np.array([c["touchdown_error_m"] for c in chips if c["touchdown_error_m"] is not None])
+    false_chips = sum(f["delay_s"] is not None for f in flats)
+    note = f"{n} random kicks, seed {seed}, min_gain {detector.min_gain:g}"
+    return [
+        {"name": "chips detected within 0.15 s of the kick", "value": 100.0 * within / n, "unit": "%",
+         "target": ">= 95", "note": note},
+        {"name": "flat kicks reported as a chip", "value": 100.0 * false_chips / n, "unit": "%", "target": "<= 1",
+         "note": note},
+        {"name": "first touchdown point error 0.1 s after detection, median", "value": float(np.median(errors)),
+         "unit": "m", "target": "<= 0.15", "note": f"{len(errors)} chips"},
+        {"name": "first touchdown point error 0.1 s after detection, p90",
+         "value": float(np.percentile(errors, 90)), "unit": "m", "target": "", "note": ""},
+        {"name": "detection delay after the kick, median", "value": float(np.median(delays)), "unit": "s",
+         "target": "", "note": f"{len(delays)} detected"},
+        {"name": "detection delay after the kick, p90", "value": float(np.percentile(delays, 90)), "unit": "s",
+         "target": "", "note": ""},
+    ]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="100 kicks of each kind instead of 500")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--min-gain", type=float, default=None, help="ChipDetectorConfig.min_gain (a trade-off: "
+                        "earlier detection against more flat kicks taken for chips)")
+    args = parser.parse_args(argv)
+    t0 = time.perf_counter()
+    print("\n".join(markdown_table(run(args.quick, args.seed, args.min_gain))))
+    print(f"\n(total {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,288 @@
+"""Chip detection and flight reconstruction from the cameras' projected ball (beside the flat filter).
+
+SSL-Vision reports every ball on the ground: a ball at height ``z`` shows where the ray from its
+camera ``c = (cx, cy, cz)`` meets the field, ``G = c + (P - c) cz / (cz - z)``. Turned round, the
+ball's ground track is ``P = G - (G - c) z / cz``. With a flight ``P = p0 + v t`` and
+``z = z0 + vz t - g t^2 / 2`` (times from the kick's first sighting) each sighting gives two
+equations linear in the six unknowns ``(x0, y0, vx, vy, z0, vz)``:
+
+    p0 + v t + (G - c) (z0 + vz t) / cz = G + (G - c) g t^2 / (2 cz)
+
+so the flight is a linear least-squares fit over the sightings since the kick (every camera's: two
+cameras see a flying ball at two ground points, which only a height explains; one camera sees a curve
+that no rolling ball makes). The same sightings are fitted as a ball on the ground too (constant
+deceleration along its motion, the flat model's slide). A chip is declared when the flight explains the
+sightings better than the ground by ``min_gain`` (in units of the noise variance), its vertical speed
+stands ``vz_sigma`` standard errors above zero and above ``min_vz_mps``, and it rose from the ground
+(``z0`` near 0). Until the first touchdown every new sighting refines the fit; then the chip model
+(chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
+
+>>> cameras = ((-3.0, 0.0, 4.0), (3.0, 1.0, 4.0))
+>>> truth = ChipTrajectory((1.0, 0.5, 0.0), (2.0, 0.0, 2.0))  # kicked at t = 0 from (1, 0.5)
+>>> detector = ChipDetector()
+>>> detector.start(0.01, before=(0.0, 1.0, 0.5, 0.0, 0.0))  # first seen moving at 0.01 s; at rest before
+>>> for k in range(1, 8):  # 100 Hz, both cameras, no noise
+...     x, y, z = truth.position_at(0.01 * k)
+...     for cx, cy, cz in cameras:
+...         s = cz / (cz - z)  # where the camera sees it on the ground
+...         _ = detector.add(0.01 * k, cx + (x - cx) * s, cy + (y - cy) * s, (cx, cy, cz))
+>>> chip = detector.chip_at(0.07)
+>>> [round(float(v), 3) for v in chip.velocity_mps]  # at t = 0.07 s: vz = 2 - 9.81 * 0.07
+[2.0, 0.0, 1.313]
+>>> [round(float(v), 3) for v in chip.touchdown_points_m[0]]  # 1 + 2 * (2 * 2 / 9.81)
+[1.815, 0.5]
+
+No rclpy import.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from erforce_ball_model.ball_model import MAX_SPEED_MPS, BallModelParams, BallTrajectory, ChipParams
+from erforce_ball_model.chip_model import ChipTrajectory
+
+__all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_ground"]
+
+
+# The launch point (the flat filter's ball before the kick, averaged over the frames it lay there) weighs as
+# this many sightings' standard errors in one: twice as sure as one sighting.
+ORIGIN_WEIGHT = 2.0
+
+
+@dataclass(frozen=True)
+class ChipDetectorConfig:
+    """When a kick's sightings are a chip, and how long they are collected."""
+
+    noise_m: float = 0.002  # standard deviation of one sighting per axis (vision noise)
+    min_sightings: int = 4
+    min_gain: float = 16.0  # the flight's squared residuals this much below the ground's (noise variances)
+    vz_sigma: float = 3.0
+    min_vz_mps: float = 0.3
+    launch_steps: int = 12  # launch times tried between the old motion's last sighting and the new one's first
+    window_s: float = 0.3  # sightings of one kick kept this long
+
+    def __post_init__(self) -> None:
+        for name, value in self.__dict__.items():
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"ChipDetectorConfig.{name}: must be finite and > 0, got {value!r}")
+
+
+class Sighting(NamedTuple):
+    """One camera's ball: its capture time, the ground point it reports and the camera's position [m]."""
+
+    t_s: float
+    x_m: float
+    y_m: float
+    camera_x_m: float
+    camera_y_m: float
+    camera_z_m: float
+
+
+class ChipFit(NamedTuple):
+    """A flight fitted to sightings: launched from the ground at ``t_launch_s`` from ``(x_m, y_m)`` with
+    ``(vx, vy, vz)``; the standard error of vz and the squared residual of the sightings."""
+
+    t_launch_s: float
+    x_m: float
+    y_m: float
+    vx_mps: float
+    vy_mps: float
+    vz_mps: float
+    vz_std_mps: float
+    rss_m2: float
+
+
+def _system(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, flight: bool):
+    """Least-squares rows for (x0, y0, vx, vy[, vz]): each sighting's two ray equations, then the origin (where
+    the ball was at the launch, if known) as one more sighting on the ground."""
+    t = rows[:, 0] - t_launch_s
+    gx, gy = rows[:, 1], rows[:, 2]
+    n, zero, one = len(t), np.zeros(len(t)), np.ones(len(t))
+    cols_x, cols_y = [one, zero, t, zero], [zero, one, zero, t]
+    bx, by = gx, gy
+    if flight:
+        kx, ky = (gx - rows[:, 3]) / rows[:, 5], (gy - rows[:, 4]) / rows[:, 5]
+        cols_x.append(kx * t)
+        cols_y.append(ky * t)
+        bx, by = gx + kx * (0.5 * g_mps2) * t * t, gy + ky * (0.5 * g_mps2) * t * t
+    a = np.empty((2 * n, len(cols_x)))
+    a[:n], a[n:] = np.stack(cols_x, axis=1), np.stack(cols_y, axis=1)
+    b = np.concatenate([bx, by])
+    if origin_xy is not None:
+        extra = np.zeros((2, a.shape[1]))
+        extra[0, 0] = extra[1, 1] = ORIGIN_WEIGHT
+        a, b = np.vstack([a, extra]), np.concatenate([b, ORIGIN_WEIGHT * np.asarray(origin_xy, dtype=float)])
+    return a, b
+
+
+def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float) -> ChipFit | None:
+    """The flight launched from the ground at ``t_launch_s`` (from ``origin_xy`` if not None) that best explains
+    the sightings ``rows`` (Sighting columns, all after the launch), by least squares on the rays; None when they
+    do not determine it."""
+    a, b = _system(rows, t_launch_s, origin_xy, g_mps2, flight=True)
+    theta, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
+    if rank < 5:
+        return None
+    rss = float(np.sum((a @ theta - b) ** 2))
+    vz_var = float(np.linalg.pinv(a.T @ a)[4, 4]) * noise_m**2
+    x0, y0, vx, vy, vz = theta.tolist()
+    return ChipFit(t_launch_s, x0, y0, vx, vy, vz, math.sqrt(max(vz_var, 0.0)), rss)
+
+
+def fit_ground(rows: np.ndarray, t_start_s: float, origin_xy, ball_params: BallModelParams,
+               iterations: int = 3) -> float:
+    """The squared residual [m^2] of the best ball kicked on the ground at ``t_start_s`` (from ``origin_xy`` if
+    not None) under the two-phase model ``ball_params``. The model's deceleration along the motion is taken as
+    known from the previous iteration's velocity (the first: constant velocity), which keeps the fit linear."""
+    a, b = _system(rows, t_start_s, origin_xy, 0.0, flight=False)
+    n, t = len(rows), rows[:, 0] - t_start_s
+    known = np.zeros(len(b))
+    theta = np.linalg.lstsq(a, b, rcond=None)[0]
+    for _ in range(iterations):
+        speed = math.hypot(theta[2], theta[3])
+        if not 1e-6 < speed <= MAX_SPEED_MPS:
+            break
+        along = BallTrajectory.of_floats(0.0, 0.0, speed, 0.0, speed, ball_params).position_at(t)[:, 0] - speed * t
+        known[:n], known[n:2 * n] = theta[2] / speed * along, theta[3] / speed * along
+        theta = np.linalg.lstsq(a, b - known, rcond=None)[0]
+    return float(np.sum((a @ theta + known - b) ** 2))
+
+
+class ChipDetector:
+    """One kick's sightings (``start``, then ``add`` per camera sighting), judged chip or not; the chip's
+    trajectory at a time (``chip_at``) from its detection until it rolls (then ``hand_over`` gives its roll to
+    the flat model once).
+
+    The launch time is searched between the last sighting of the old motion and the first of the new one
+    (``launch_steps`` candidates), the launch point is where the old motion had the ball then. The flight is
+    refitted with every sighting until its first touchdown; ``fit`` is the newest fit judged a chip (None while
+    the kick is not one), ``detected_at_s`` the time of that judgement.
+    """
+
+    def __init__(self, config: ChipDetectorConfig | None = None, params: ChipParams | None = None,
+                 ball_params: BallModelParams | None = None) -> None:
+        self.config = config or ChipDetectorConfig()
+        self.params = params or ChipParams()
+        self.ball_params = ball_params or BallModelParams()
+        self._rows: list[Sighting] = []
+        self.t_start_s: float | None = None
+        self._before: tuple[float, float, float, float, float] | None = None
+        self.fit: ChipFit | None = None
+        self.detected_at_s: float | None = None
+        self._chip: ChipTrajectory | None = None
+        self._handed_over = False
+
+    def start(self, t_first_s: float, before: tuple[float, float, float, float, float] | None = None) -> None:
+        """A new motion (the flat filter's kick) first seen at ``t_first_s``; ``before``: the old motion's
+        last state (t_s, x_m, y_m, vx_mps, vy_mps), where the ball left from. Sightings from ``t_first_s`` on
+        count, those already added included; a chip detected before is forgotten."""
+        self._rows = [r for r in self._rows if r.t_s >= t_first_s]
+        self.t_start_s, self._before = float(t_first_s), before
+        self.fit, self.detected_at_s, self._chip, self._handed_over = None, None, None, False
+
+    @property
+    def active(self) -> bool:
+        """Busy with a kick: judging its sightings, or its chip is still hopping (a new motion the flat filter sees
+        then is a bounce, not a kick)."""
+        if self.t_start_s is None or not self._rows:
+            return False
+        if self._chip is not None:
+            return self._rows[-1].t_s < self.fit.t_launch_s + self._chip.roll_start_s
+        return self._rows[-1].t_s - self.t_start_s <= self.config.window_s
+
+    def _judging(self) -> bool:
+        """Sightings still refine the kick: not judged a chip within ``window_s``, or in the chip's first flight."""
+        if self._chip is not None:
+            return self._rows[-1].t_s < self.fit.t_launch_s + self._chip.touchdown_times_s[0]
+        return self._rows[-1].t_s - self.t_start_s <= self.config.window_s
+
+    def add(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float]) -> ChipFit | None:
+        """One camera's ball sighting; the chip fit after it (None: no chip so far)."""
+        if not all(math.isfinite(v) for v in (t_s, x_m, y_m, *camera_m)) or camera_m[2] <= 0.0:
+            raise ValueError(f"sighting ({t_s!r}, {x_m!r}, {y_m!r}) from camera {camera_m!r}: must be finite, "
+                             f"the camera above the field")
+        self._rows.append(Sighting(float(t_s), float(x_m), float(y_m), *map(float, camera_m)))
+        if self.t_start_s is None:  # no kick yet: keep a short history only
+            self._rows = [r for r in self._rows if t_s - r.t_s <= self.config.window_s]
+        elif self._judging():
+            self._judge(t_s)
+        return self.fit
+
+    def _launch_times(self) -> np.ndarray:
+        t_first = self.t_start_s
+        t_from = t_first - 0.02 if self._before is None else min(self._before[0], t_first)
+        return np.linspace(t_from, t_first, self.config.launch_steps)
+
+    def _origin(self, t_launch_s: float):
+        if self._before is None:
+            return None
+        t, x, y, vx, vy = self._before
+        return (x + vx * (t_launch_s - t), y + vy * (t_launch_s - t))
+
+    def _best_flight(self, rows: np.ndarray) -> ChipFit | None:
+        cfg, g = self.config, self.params.g_mps2
+        fits = [fit_flight(rows, t, self._origin(t), g, cfg.noise_m) for t in self._launch_times()]
+        fits = [f for f in fits if f is not None]
+        return min(fits, key=lambda f: f.rss_m2, default=None)
+
+    def _judge(self, t_s: float) -> None:
+        cfg, g = self.config, self.params.g_mps2
+        rows = np.array(self._rows, dtype=float).reshape(-1, 6)
+        if len(rows) < cfg.min_sightings:
+            return
+        fit = self._best_flight(rows)
+        if fit is not None and fit.vz_mps > 0.0:
+            # sightings after the first touchdown belong to the next hop: fit the first flight only
+            first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]
+            if len(first_hop) < len(rows):
+                rows = first_hop
+                fit = self._best_flight(rows) if len(rows) >= cfg.min_sightings else None
+        if fit is None or not self._is_chip(fit, rows):
+            return
+        try:
+            chip = ChipTrajectory((fit.x_m, fit.y_m, 0.0), (fit.vx_mps, fit.vy_mps, fit.vz_mps), self.params,
+                                  self.ball_params)
+        except ValueError:
+            return
+        self.fit, self._chip = fit, chip
+        if self.detected_at_s is None:
+            self.detected_at_s = t_s
+
+    def _is_chip(self, fit: ChipFit, rows: np.ndarray) -> bool:
+        cfg = self.config
+        if self.fit is not None:  # judged a chip: refits only need to stay a flight
+            return fit.vz_mps > cfg.min_vz_mps
+        if not fit.vz_mps >= max(cfg.min_vz_mps, cfg.vz_sigma * fit.vz_std_mps):
+            return False
+        ground = min(fit_ground(rows, t, self._origin(t), self.ball_params) for t in self._launch_times())
+        return (ground - fit.rss_m2) / cfg.noise_m**2 >= cfg.min_gain
+
+    @property
+    def launch(self) -> ChipTrajectory | None:
+        """The chip as it left the ground (at ``fit.t_launch_s``), None while no chip is detected."""
+        return self._chip
+
+    def chip_at(self, t_s: float) -> ChipTrajectory | None:
+        """The chip at ``t_s``: None when none is detected or it rolls by then (the flat model's ball)."""
+        chip = self._chip
+        if chip is None:
+            return None
+        dt = t_s - self.fit.t_launch_s
+        if dt >= chip.roll_start_s:
+            return None
+        return chip.advanced(max(dt, 0.0))
+
+    def hand_over(self, t_s: float) -> BallTrajectory | None:
+        """Once, when the detected chip rolls at ``t_s``: its roll then, for the flat model to take over."""
+        chip = self._chip
+        if chip is None or self._handed_over or t_s - self.fit.t_launch_s < chip.roll_start_s:
+            return None
+        self._handed_over = True
+        return chip.roll.advanced(t_s - self.fit.t_launch_s - chip.roll_start_s)
+
+

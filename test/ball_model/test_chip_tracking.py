@@ -1,0 +1,118 @@
+"""Chip detection and reconstruction (chip_tracking) and the predictor's chip (BallFrame.chip, the hand-over)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from erforce_ball_model.ball_model import BallTrajectory
+from erforce_ball_model.chip_model import ChipTrajectory
+from erforce_ball_model.chip_tracking import ChipDetector, fit_flight
+from erforce_ball_model.predictor import BallPredictor, PredictorConfig
+
+G = 9.81
+CAMERAS = ((-3.0, 0.0, 4.0), (3.0, 1.0, 4.0))
+
+
+def seen(x, y, z, camera):
+    """Where a camera sees a ball at height z on the ground (the ray through it), written out here."""
+    cx, cy, cz = camera
+    return cx + (x - cx) * cz / (cz - z), cy + (y - cy) * cz / (cz - z)
+
+
+def chip_sightings(times, cameras=CAMERAS, vx=2.0, vz=3.0):
+    """A chip launched at t = 0 from the origin along +x, seen by every camera at each time."""
+    return [(t, *seen(vx * t, 0.0, vz * t - 0.5 * G * t * t, c), c) for t in times for c in cameras]
+
+
+def test_two_cameras_triangulate_the_height():
+    # At t = 0.2 s the ball is at x = 0.4 m, z = 3 * 0.2 - 9.81 / 2 * 0.04 = 0.4038 m: the cameras at x = -3 and
+    # x = 3 see it at 0.4 + 3.4 * 0.4038 / 3.5962 = 0.78177 m and 3 - 2.6 * 4 / 3.5962 = 0.10801 m.
+    assert seen(0.4, 0.0, 0.4038, CAMERAS[0])[0] == pytest.approx(0.78177, abs=1e-5)
+    detector = ChipDetector()
+    detector.start(0.05, before=(0.0, 0.0, 0.0, 0.0, 0.0))
+    for t, x, y, camera in chip_sightings([0.05, 0.1, 0.15, 0.2]):
+        detector.add(t, x, y, camera)
+    chip = detector.chip_at(0.2)
+    assert chip is not None and detector.detected_at_s <= 0.2
+    assert chip.position_m.tolist() == pytest.approx([0.4, 0.0, 0.4038], abs=1e-6)
+    assert chip.velocity_mps.tolist() == pytest.approx([2.0, 0.0, 3.0 - G * 0.2], abs=1e-6)
+    # launched at 0 from the origin; first touchdown after 2 vz / g = 0.6116 s, at x = 1.2232 m
+    assert detector.fit.t_launch_s == pytest.approx(0.0, abs=1e-9)
+    assert detector.launch.touchdown_points_m[0].tolist() == pytest.approx([2.0 * 6.0 / G, 0.0], abs=1e-6)
+
+
+def test_the_flight_fit_is_the_projectile_behind_the_rays():
+    rows = np.array([(t, x, y, *c) for t, x, y, c in chip_sightings([0.02, 0.06, 0.1], cameras=CAMERAS[:1])])
+    fit = fit_flight(rows, 0.0, (0.0, 0.0), G, 0.002)
+    assert (fit.x_m, fit.y_m, fit.vx_mps, fit.vy_mps, fit.vz_mps) == pytest.approx((0.0, 0.0, 2.0, 0.0, 3.0),
+                                                                                    abs=1e-9)
+    assert fit.rss_m2 == pytest.approx(0.0, abs=1e-20)
+
+
+@settings(max_examples=60, deadline=None)
+@given(x=st.floats(-4.0, 4.0), y=st.floats(-2.5, 2.5), heading=st.floats(-math.pi, math.pi),
+       speed=st.floats(0.3, 6.5), t_kick=st.floats(0.0, 1.0 / 70.0),
+       cameras=st.lists(st.tuples(st.floats(-4.5, 4.5), st.floats(-3.0, 3.0), st.floats(3.0, 6.0)),
+                        min_size=1, max_size=2))
+def test_a_flat_kick_is_never_a_chip(x, y, heading, speed, t_kick, cameras):
+    ball = BallTrajectory((x, y), (speed * math.cos(heading), speed * math.sin(heading)), speed)
+    detector = ChipDetector()
+    for k in range(1, 30):  # 70 Hz, from the first frame after the kick
+        t = k / 70.0
+        if t < t_kick:
+            continue
+        if detector.t_start_s is None:
+            detector.start(t, before=(0.0, x, y, 0.0, 0.0))
+        px, py = ball.position_at(t - t_kick).tolist()
+        for camera in cameras:
+            detector.add(t, px, py, camera)
+        assert detector.fit is None and detector.chip_at(t) is None
+
+
+def test_the_predictor_carries_the_chip_and_hands_it_over_to_the_flat_filter():
+    predictor = BallPredictor(PredictorConfig(num_robots=1))
+    camera, other = (-1.5, 1.0, 4.0), (3.0, -1.5, 4.0)
+    dt = 1.0 / 70.0
+    for k in range(10):  # at rest at the origin
+        assert predictor.ball_frame(k * dt, 0.0, 0.0, camera_m=camera) is not None
+    t_kick = 10 * dt - 0.004
+    vx, vz = 2.5, 2.5  # 3.54 m/s at 45 deg along +x
+    truth = ChipTrajectory((0.0, 0.0, 0.0), (vx, 0.0, vz))
+    frames = []
+    for k in range(10, 140):
+        t = k * dt
+        x, y, z = truth.position_at(max(t - t_kick, 0.0)).tolist()
+        frames.append(predictor.ball_frame(t, *seen(x, y, z, camera), camera_m=camera))
+        predictor.ball_sighting(t, *seen(x, y, z, other), other)  # an overlapping camera of the same instant
+    chips = [f for f in frames if f is not None and f.chip is not None]
+    assert chips and chips[0].t_s - t_kick <= 0.05  # two cameras: at the 4th sighting
+    first = chips[0]
+    assert first.phase == "chip"
+    tau = first.t_s - t_kick
+    assert first.z_m == pytest.approx(vz * tau - 0.5 * G * tau * tau, abs=0.01)
+    assert first.vz_mps == pytest.approx(vz - G * tau, abs=0.1)
+    assert first.stop_point_m == pytest.approx(tuple(first.chip.stop_point.tolist()))
+    # the first touchdown: 2 vz / g = 0.51 s after the kick, at x = vx * 0.51 = 1.274 m
+    assert predictor.chip_detector.launch.touchdown_points_m[0].tolist() == pytest.approx([1.274, 0.0], abs=0.02)
+    # after the hops the chip rolls: no chip any more, the flat filter rolls on from the chip's roll
+    launch, t_launch = predictor.chip_detector.launch, predictor.chip_detector.fit.t_launch_s
+    after = [f for f in frames if f is not None and f.t_s > t_launch + launch.roll_start_s]
+    assert after and all(f.chip is None and f.phase != "chip" and f.z_m == 0.0 for f in after)
+    handed = after[0]
+    roll = launch.roll.advanced(handed.t_s - t_launch - launch.roll_start_s)
+    assert handed.trajectory.position_m.tolist() == pytest.approx(roll.position_m.tolist(), abs=1e-9)
+    assert handed.trajectory.velocity_mps.tolist() == pytest.approx(roll.velocity_mps.tolist(), abs=1e-9)
+    assert handed.phase == "rolling"
+
+
+def test_a_bad_sighting_is_refused_by_name():
+    detector = ChipDetector()
+    with pytest.raises(ValueError, match="camera"):
+        detector.add(0.0, math.nan, 0.0, (0.0, 0.0, 4.0))
+    with pytest.raises(ValueError, match="camera"):
+        detector.add(0.0, 0.0, 0.0, (0.0, 0.0, 0.0))
