@@ -608,3 +608,132 @@ def test_the_catch_point_facing_the_target_is_offset_by_the_dribbler_distance_to
     facing_ball = robot_time_to_ball(ball, start, (0.0, 0.0), limits, facing_rad=math.pi, unbounded=True)
     assert facing_ball.robot_target_m[1] == pytest.approx(0.0, abs=1e-12)
     assert facing_ball.time_s != pytest.approx(catch.time_s, abs=1e-3)
+
+
+# --- robotTimeToBall on chipped balls: brute force ----------------------------------------------
+def _dense_first_chip_catch(chip, p0, v0, lim, facing, field, step=1e-3):
+    """Reference for a chip: the first time on a dense grid at which the ball is low enough (its centre at most
+    max_catch_height_m), inside the field and reached by the alpha-search time alone; refined by bisection
+    against the previous grid point (not feasible). Returns (time, width of that window on the grid)."""
+    track = chip.ground_track()
+    t_end = min(track.stop_time_s, track.time_in_field(field)[1])
+    grid = np.append(np.arange(0.0, t_end, step), t_end)
+    off = OFFSET * np.array([math.cos(facing), math.sin(facing)])
+
+    def feasible(t):
+        p = chip.position_at(t)
+        inside = (np.abs(p[..., 0]) <= field.half_length_m) & (np.abs(p[..., 1]) <= field.half_width_m)
+        low = p[..., 2] <= chip.params.max_catch_height_m
+        return low & inside & (robot_time_to_pos(p0, v0, p[..., :2] - off, lim) <= t)
+
+    ok = feasible(grid)
+    idx = np.flatnonzero(ok)
+    if idx.size == 0:
+        return math.inf, 0.0
+    k = idx[0]
+    gaps = np.flatnonzero(~ok[k:])
+    width = (gaps[0] if gaps.size else grid.size - k) * step
+    if k == 0:
+        return 0.0, width
+    lo, hi = grid[k - 1], grid[k]
+    for _ in range(25):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if bool(feasible(mid)) else (mid, hi)
+    return hi, width
+
+
+def _random_chip(rng):
+    from erforce_ball_model.chip_model import ChipTrajectory
+
+    pos = rng.uniform([-3.0, -2.0], [1.0, 2.0])
+    speed, elevation = rng.uniform(2.0, 6.5), math.radians(rng.uniform(25.0, 60.0))
+    heading = rng.uniform(-0.6, 0.6)
+    vxy = speed * math.cos(elevation)
+    return ChipTrajectory((*pos, 0.0), (vxy * math.cos(heading), vxy * math.sin(heading),
+                                        speed * math.sin(elevation)))
+
+
+def test_chip_catches_match_the_dense_search_and_are_never_above_the_catch_height():
+    """The flat case's guarantees on chips: a window of the reference at least 2 h wide is found, no earlier than
+    its start and at most 1 ms later; every catch found is reachable, inside the field and with the ball low."""
+    rng = np.random.default_rng(37)
+    checked = wide = under = 0
+    for _ in range(10):
+        chip = _random_chip(rng)
+        track = chip.ground_track()
+        n = 16
+        along = rng.uniform(0.0, 4.0, (n, 1))
+        robots = track.position_at(0.0) + np.array([track.floats.ux, track.floats.uy]) * along
+        robots += rng.normal(0.0, 0.4, (n, 2))
+        vels = rng.normal(0, 0.5, (n, 2))
+        facing = rng.uniform(0, 2 * math.pi, n)
+        lim = RobotLimits(3.5, 2.5)
+        res = robot_time_to_ball(chip, robots, vels, lim, facing, field=DIV_B)
+        t_low = chip.time_below_height_s()
+        for r in range(n):
+            t_ref, width = _dense_first_chip_catch(chip, robots[r], vels[r], lim, facing[r], DIV_B)
+            checked += 1
+            if res.kind[r] == CatchKind.MOVING:
+                t = float(res.time_s[r])
+                assert chip.position_at(t)[2] <= chip.params.max_catch_height_m + 1e-9
+                off = OFFSET * np.array([math.cos(facing[r]), math.sin(facing[r])])
+                tgt = chip.position_at(t)[:2] - off
+                assert float(robot_time_to_pos(robots[r], vels[r], tgt, lim)) <= t + 1e-5
+                assert t >= t_ref - 1e-5
+            if math.isinf(t_ref):
+                assert res.kind[r] != CatchKind.MOVING
+                continue
+            if width >= 0.02:
+                wide += 1
+                assert res.kind[r] == CatchKind.MOVING
+                assert t_ref - 1e-5 <= res.time_s[r] <= t_ref + 1e-3
+                under += t_ref >= t_low and math.dist(robots[r], track.position_at(0.5 * t_low)) < 1.0
+    assert checked == 160 and wide > 40 and under > 3
+
+
+def test_a_robot_under_the_flight_takes_the_chip_only_once_it_is_low():
+    """Standing under the apex, facing the ball: a flat ball of that speed would be caught at once; the chip
+    only where it has come down to max_catch_height_m, which the robot reaches by moving along the track."""
+    from erforce_ball_model.chip_model import ChipTrajectory
+
+    chip = ChipTrajectory((-2.0, 0.0, 0.0), (3.0, 0.0, 3.0))  # apex 0.46 m at x = -2 + 0.92
+    t_apex = 3.0 / chip.params.g_mps2
+    robot = np.array([-2.0 + 3.0 * t_apex + OFFSET, 0.0])
+    flat = robot_time_to_ball(BallTrajectory((-2.0, 0.0), (3.0, 0.0), 3.0), robot, (0.0, 0.0), RobotLimits(),
+                              math.pi, field=DIV_B)
+    res = robot_time_to_ball(chip, robot, (0.0, 0.0), RobotLimits(), math.pi, field=DIV_B)
+    assert flat.kind == CatchKind.MOVING and flat.time_s < t_apex + 0.01
+    assert res.kind == CatchKind.MOVING
+    assert res.time_s >= chip.time_below_height_s() - 1e-9
+    assert chip.position_at(res.time_s)[2] <= chip.params.max_catch_height_m + 1e-9
+
+
+def test_a_chip_over_the_field_line_is_never_caught_and_a_ground_ball_state_is_no_chip():
+    from erforce_ball_model.chip_model import ChipTrajectory, flying_ball
+
+    chip = ChipTrajectory((4.0, 0.0, 0.0), (3.0, 0.0, 3.0))  # lands at x = 5.8, beyond the field line 4.5
+    res = robot_time_to_ball(chip, [[4.3, 0.0]], [[0.0, 0.0]], RobotLimits(), math.pi, field=DIV_B)
+    assert res.kind[0] == CatchKind.NEVER or res.time_s[0] < 0.06  # only just after the kick, before it rises
+    assert flying_ball((1.0, 2.0, 0.0), (1.0, 0.0, 0.0)) is None
+    assert isinstance(flying_ball((1.0, 2.0, 0.1), (1.0, 0.0, -0.5)), ChipTrajectory)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(1.0, 6.5), st.floats(20.0, 65.0), st.floats(-3.0, 3.0), st.floats(-2.5, 2.5),
+       st.floats(0.0, 2 * math.pi))
+def test_random_chips_are_caught_only_where_they_are_low_reachable_and_inside(speed, elevation_deg, rx, ry, facing):
+    from erforce_ball_model.chip_model import ChipTrajectory
+
+    e = math.radians(elevation_deg)
+    chip = ChipTrajectory((-1.0, 0.0, 0.0), (speed * math.cos(e), 0.0, speed * math.sin(e)))
+    lim = RobotLimits()
+    res = robot_time_to_ball(chip, (rx, ry), (0.0, 0.0), lim, facing, field=DIV_B)
+    if res.kind == CatchKind.MOVING:
+        p = chip.position_at(res.time_s)
+        assert p[2] <= chip.params.max_catch_height_m + 1e-9
+        assert abs(p[0]) <= DIV_B.half_length_m and abs(p[1]) <= DIV_B.half_width_m
+        assert float(robot_time_to_pos((rx, ry), (0.0, 0.0), p[:2] - contact_offset(facing, OFFSET), lim)) \
+            <= res.time_s + 1e-5
+        assert res.ball_position_m.tolist() == pytest.approx(p[:2].tolist(), abs=1e-9)
+    elif res.kind == CatchKind.AT_REST:
+        assert res.ball_position_m.tolist() == pytest.approx(chip.stop_point.tolist(), abs=1e-9)

@@ -1,5 +1,6 @@
 """The passing game's decisions (erforce_ball_model.passing.decisions), from hand-computed cases."""
 
+import itertools
 import math
 
 import numpy as np
@@ -76,8 +77,9 @@ def test_an_opponent_on_the_lane_makes_a_pass_unsafe_and_the_free_teammate_is_ch
     is free (the opponent is 2.2 m from its lane's end and behind its line), and is chosen."""
     team = np.array([[-0.1, 0.0], [2.0, 0.0], [0.0, 2.0]])
     opponents = np.array([[1.0, 0.0]])
+    flat_only = PassConfig(chip_angle_deg=0.0)
     options = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1, 2],
-                              _search(4), MODEL, CFG, OFFSET)
+                              _search(4), MODEL, flat_only, OFFSET)
     by = {o.receiver: o for o in options}
     assert by[1].margin_s < 0.0 and by[1].first_opponent == 0
     assert by[2].safe(CFG)
@@ -144,14 +146,18 @@ def test_the_receiver_and_opponents_search_gives_the_whole_fields_options():
     team_vel = np.array([[0.0, 0.0], [0.3, -0.2], [0.0, 0.5], [-0.4, 0.0], [0.0, 0.0], [0.2, 0.2]])
     opponents = np.array([[1.0, 0.05], [-1.0, 2.0], [2.5, -1.5]])
     opp_vel = np.array([[0.0, 0.0], [0.5, 0.0], [-0.3, 0.4]])
-    for targets in ({}, {2: team[1], 5: team[3]}):
+    for cfg, targets in itertools.product((CFG, PassConfig(chip_angle_deg=0.0)), ({}, {2: team[1], 5: team[3]})):
         plain = evaluate_passes((0.0, 0.0), team, team_vel, opponents, opp_vel, [1, 2, 3, 4, 5], _search(9), MODEL,
-                                CFG, OFFSET, targets)
+                                cfg, OFFSET, targets)
         narrow = evaluate_passes((0.0, 0.0), team, team_vel, opponents, opp_vel, [1, 2, 3, 4, 5], _search(9), MODEL,
-                                 CFG, OFFSET, targets, receiver_search=_search(4))
+                                 cfg, OFFSET, targets, receiver_search=_search(4))
         assert [o.receiver for o in plain] == [1, 2, 3, 5]  # 4 is 7.5 m away
         assert narrow == plain
-        assert any(o.first_opponent == 0 and o.margin_s < 0.0 for o in plain)  # the lane to 1 is covered
+        by = {o.receiver: o for o in plain}
+        if cfg.chip_angle_deg == 0.0:  # the lane to 1 is covered
+            assert by[1].first_opponent == 0 and by[1].margin_s < 0.0
+        else:  # a chip over it
+            assert by[1].kick_angle_deg == cfg.chip_angle_deg and by[1].margin_s > 0.0
     with pytest.raises(ValueError, match="receiver_search is for 3 robots"):
         evaluate_passes((0.0, 0.0), team, team_vel, opponents, opp_vel, [1], _search(9), MODEL, CFG, OFFSET,
                         receiver_search=_search(3))
@@ -167,3 +173,32 @@ def test_a_robot_not_finite_is_refused_with_or_without_the_receiver_search():
         with pytest.raises(ValueError, match="must be finite"):
             evaluate_passes((0.0, 0.0), team, team_vel, opponents, np.zeros_like(opponents), [1], _search(4), MODEL,
                             CFG, OFFSET, **extra)
+
+
+def test_a_chip_goes_over_the_opponent_on_the_lane_and_lands_before_the_receiver():
+    """The scene above with chips: the flat pass to teammate 1 is unsafe, a 45 deg chip over the opponent at
+    (1, 0) is safe. The chip comes down to max_catch_height_m chip_land_fraction of the way to the receiver's
+    dribbler (the projectile's descent), and the receiver's catch is the ball's arrival there, low."""
+    from erforce_ball_model.ball_model import ChipParams
+    from erforce_ball_model.chip_model import ChipTrajectory
+
+    team = np.array([[-0.1, 0.0], [2.0, 0.0], [0.0, 2.0]])
+    opponents = np.array([[1.0, 0.0]])
+    options = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1, 2],
+                              _search(4), MODEL, CFG, OFFSET)
+    by = {o.receiver: o for o in options}
+    o = by[1]
+    assert o.kick_angle_deg == 45.0 and o.safe(CFG) and o.direction_rad == pytest.approx(0.0)
+    assert by[2].kick_angle_deg == 0.0  # safe flat: no chip
+    v = o.kick_speed_mps / math.sqrt(2.0)
+    g, h = ChipParams().g_mps2, ChipParams().max_catch_height_m
+    x_low = v * (v + math.sqrt(v * v - 2.0 * g * h)) / g  # where the first hop comes down through h
+    contact = 2.0 - OFFSET
+    assert x_low == pytest.approx(CFG.chip_land_fraction * contact, abs=1e-6)
+    chip = ChipTrajectory((0.0, 0.0, 0.0), (v, 0.0, v), ChipParams(), MODEL)
+    p = chip.position_at(o.receiver_catch_s)
+    assert p[0] == pytest.approx(contact, abs=1e-6) and p[2] <= h
+    # over the opponent the ball is too high to take: above h where the opponent's dribbler is (x = 0.9185)
+    t_over = (1.0 - OFFSET) / v
+    assert chip.position_at(t_over)[2] > h
+    assert select_pass(options, CFG).receiver in (1, 2)

@@ -27,9 +27,14 @@ V0 = math.sqrt((D_M + 3.75) / 0.728)
 ARRIVAL_S = 0.4 * V0 / 2.5 + (0.6 * V0 - 1.5) / 0.3
 
 
-def player_with(ours, theirs=()):
+# The scenes written for flat passes (a chip would go over the opponents on the lanes).
+FLAT_ONLY = PlayerConfig(passing=PassConfig(chip_angle_deg=0.0))
+
+
+def player_with(ours, theirs=(), cfg=None):
     """A player that has seen every robot at rest at (x, y, yaw) and holds the ball at robot 0 from t = 0."""
-    p = PassingPlayer(PlayerConfig(), len(ours), len(theirs), FIELD, OFFSET, ROBOT.robot_radius_m, BallModelParams())
+    cfg = PlayerConfig() if cfg is None else cfg
+    p = PassingPlayer(cfg, len(ours), len(theirs), FIELD, OFFSET, ROBOT.robot_radius_m, BallModelParams())
     for i, pose in enumerate((*ours, *theirs)):
         p.on_robot(i, 0.0, pose, (0.0, 0.0))
     p.on_ball(0.0, (OFFSET, 0.0), (0.0, 0.0))
@@ -152,12 +157,43 @@ def test_a_holder_whose_barrier_stays_dark_dropped_the_ball():
 
 def test_without_a_safe_pass_the_holder_waits_wait_for_safe_s_then_plays_the_best():
     """An opponent half-way on the only lane catches long before robot 1: the pass is rated unsafe; the holder
-    keeps the ball 1.5 s (wait_for_safe_s), then plays it."""
-    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], [(1.5, 0.0, math.pi)])
+    keeps the ball 1.5 s (wait_for_safe_s), then plays it (flat passes only: a chip would go over)."""
+    flat_only = PlayerConfig(passing=PassConfig(chip_angle_deg=0.0))
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], [(1.5, 0.0, math.pi)], flat_only)
     t_kick, _ = kicked(p, t_kick=3.0)
     assert t_kick == pytest.approx(1.5)
     choice = p.choice[1]
     assert not choice.safe(PassConfig()) and choice.first_opponent == 0 and choice.margin_s < 0.0
+
+
+def test_with_an_opponent_on_the_only_lane_the_holder_chips_over_it_and_the_receiver_takes_it_low():
+    """The scene above with chips: the chip is safe, so the holder kicks after hold_min_s with the kick angle;
+    the receiver, fed the chip in the air (x, y, z), does not run under the flight to a point it flies over."""
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], [(1.5, 0.0, math.pi)])
+    t_kick, commands = kicked(p, t_kick=3.0)
+    choice = p.choice[1]
+    assert t_kick == pytest.approx(0.4) and choice.safe(PassConfig())
+    assert commands.kick_angles == {0: PassConfig().chip_angle_deg}
+    assert commands.kicks == {0: pytest.approx(choice.kick_speed_mps)}
+    # the ball just kicked, 0.3 m on and rising: the receiver on its line stands still
+    v = choice.kick_speed_mps / math.sqrt(2.0)
+    p.on_ball(t_kick + 0.1, (OFFSET + 0.3, 0.0, 0.25), (v, 0.0, v - 9.81 * 0.1))
+    twist = p.tick(t_kick + 0.1).twists[1]
+    assert np.allclose(twist, 0.0)
+    # the receiver stands beside the line instead: it goes to a point beyond where the chip comes down
+    p.receiver.on_odom(t_kick + 0.12, (3.0, 0.4, math.pi), (0.0, 0.0))
+    p.on_ball(t_kick + 0.12, (OFFSET + 0.35, 0.0, 0.27), (v, 0.0, v - 9.81 * 0.12))
+    from erforce_ball_model.ball_model import ChipParams
+    from erforce_ball_model.chip_model import ChipTrajectory
+    from erforce_ball_model.receiver import choose_target
+
+    chip = ChipTrajectory((OFFSET + 0.35, 0.0, 0.27), (v, 0.0, v - 9.81 * 0.12), ChipParams(), BallModelParams())
+    target = choose_target(np.array([3.0, 0.4, math.pi]), np.zeros(2), chip.ground_track(), None, OFFSET,
+                           PlayerConfig().catcher, FIELD, chip=chip)
+    assert target is not None
+    t_there = chip.ground_track().time_to_distance(float(target[0] - OFFSET - (OFFSET + 0.35)))
+    assert chip.position_at(t_there)[2] <= ChipParams().max_catch_height_m
+    assert target[0] - OFFSET >= chip.position_at(chip.time_below_height_s())[0] - 1e-9
 
 
 def test_a_record_goes_over_the_wire_and_back():
@@ -167,6 +203,7 @@ def test_a_record_goes_over_the_wire_and_back():
         PassRecord(3, 12.5, 1, 4, 3.01, 1.5, 0.82, 1, False, "intercepted", "opponent_1", 1.66, (), None),
         PassRecord(4, 20.0, 4, 6, 2.9, 1.2, math.inf, None, True, "completed", "robot_6", 1.19, (), 9),
         PassRecord(5, 30.0, 6, 2, 2.9, 1.2, 2.0, 0, True, "lost", None, None, (), None),
+        PassRecord(6, 31.0, 2, 3, 4.5, 0.9, math.inf, None, True, "completed", "robot_3", 1.2, (), None, 45.0),
     ):
         assert record_from_row(record_row(record)) == record
 
@@ -264,7 +301,7 @@ def test_a_holder_with_no_pass_in_reach_replans_with_the_model_of_its_last_compl
     """Under SHORT the holder has no option: no choice, no kick, no notice for no_option_wait_s (1 s), although
     hold_min_s (0.4 s) is long past; then it plays the pass planned with the model it was built with (the
     default: V0, ARRIVAL_S as derived at the top), says why, and its receiver rolls the ball with that model."""
-    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)])
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], cfg=FLAT_ONLY)
     p.on_model(SHORT)
     for t in np.arange(0.0, 0.99, 0.02):
         commands = p.tick(float(t))
@@ -288,7 +325,7 @@ def test_a_pass_completed_under_the_model_in_use_makes_it_the_trusted_one():
     """A model that stops a kick later than the default (half its decelerations) is in use from the start: the
     first pass is planned with it, and once completed a fallback would re-plan with it."""
     slower = BallModelParams(a_slide_mps2=-1.25, a_roll_mps2=-0.15, c_switch=0.6)
-    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)])
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], cfg=FLAT_ONLY)
     p.on_model(slower)
     t_kick, commands = kicked(p)
     # it slides 0.64 v0^2 / 2.5 and rolls (0.36 v0^2 - 1.5^2) / 0.3: 1.456 v0^2 - 7.5 = d (v0 = 2.664 m/s, so
@@ -346,7 +383,7 @@ def test_a_kept_pass_whose_rating_flickers_unsafe_for_less_than_keep_choice_s_is
     # keep_choice_s (0.3 s), the flicker does not turn robot 0 away: it turns pi/2 to robot 1 (0.52 s at 3 rad/s)
     # and kicks by 1.2 s. (Switching at each flicker and back, as robot 1 is earlier by more than switch_margin_s,
     # it would turn back and forth and never aim.)
-    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi), (-3.5, 0.0, 0.0)], [(1.5, 3.0, 0.0)])
+    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi), (-3.5, 0.0, 0.0)], [(1.5, 3.0, 0.0)], FLAT_ONLY)
 
     def flicker(k: int, t: float) -> None:
         on_lane = k % 15 >= 12
@@ -366,7 +403,7 @@ def test_a_kept_pass_is_not_left_for_an_earlier_one_whose_rating_flickers_safe_f
     # keep_choice_s (0.3 s) on end, so robot 0 stays with robot 2: it turns pi/2 to -x (0.52 s at 3 rad/s) and kicks
     # by 1.2 s. (Following each safe flicker to robot 1 and back, as the opponents pressing the lanes made a holder
     # on grSim do, it would never aim.)
-    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi), (-3.5, 0.0, 0.0)], [(1.5, 0.0, 0.0)])
+    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi), (-3.5, 0.0, 0.0)], [(1.5, 0.0, 0.0)], FLAT_ONLY)
 
     def flicker(k: int, t: float) -> None:
         off_lane = k % 15 >= 12
@@ -385,7 +422,7 @@ def test_a_holders_pass_is_rated_from_where_it_kicks_whatever_its_yaw_now():
     # robot 2 at -x, whether robot 0 faces +x, +y or -x; each pass travels 3 - 2 * 0.0815 m, as D_M.
     ratings = []
     for yaw in (0.0, 0.5 * math.pi, math.pi):
-        p = player_with([(0.0, 0.0, yaw), (3.0, 0.0, math.pi), (-3.0, 0.0, 0.0)], [(0.7, 0.4, 0.0)])
+        p = player_with([(0.0, 0.0, yaw), (3.0, 0.0, math.pi), (-3.0, 0.0, 0.0)], [(0.7, 0.4, 0.0)], FLAT_ONLY)
         ratings.append(sorted((o.receiver, o.receiver_catch_s, o.opponent_catch_s, o.kick_speed_mps)
                               for o in p._options(0)))
     assert ratings[0] == ratings[1] == ratings[2]
@@ -396,7 +433,7 @@ def test_a_holders_pass_is_rated_from_where_it_kicks_whatever_its_yaw_now():
 
 def test_a_holder_that_has_not_kicked_after_stall_warn_s_says_why():
     # Robot 0 faces +y and never turns (its pose is never updated): its pass to robot 1 at +x stays pi/2 off.
-    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi)])
+    p = player_with([(0.0, 0.0, 0.5 * math.pi), (3.0, 0.0, math.pi)], cfg=FLAT_ONLY)
     stall_s = p.cfg.stall_warn_s
     assert stall_s == pytest.approx(4.0)
     for t in np.arange(0.0, stall_s + 0.1, 0.02):

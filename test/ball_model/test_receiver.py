@@ -435,3 +435,31 @@ def test_the_approach_steers_from_the_pose_predicted_over_the_loops_delay():
         twist = rx.tick(0.0)
         # facing -x, the field's -y is the robot's +y
         assert twist[:2] == pytest.approx([0.0, speed_mps], abs=1e-9), f"{y_m} m off the line"
+
+
+def test_a_ball_in_the_air_on_ball_state_reaches_the_receiver_as_a_chip_and_the_ground_as_the_flat_ball():
+    """/ball/state carries a chip's height and vertical speed in pose.position.z and twist.linear.z: the message
+    and its bytes give [x, y, z], [vx, vy, vz] in the air, [x, y], [vx, vy] on the ground (and for a noisy
+    height below 0)."""
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import serialize_message
+
+    from erforce_interfaces.wire.conversions import ball_state_from_msg
+
+    def state(z, vz):
+        msg = Odometry()
+        msg.header.frame_id = "field"
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 12, 500_000_000
+        msg.pose.pose.position.x, msg.pose.pose.position.y, msg.pose.pose.position.z = 1.0, -2.0, z
+        msg.pose.pose.orientation.w = 1.0
+        msg.twist.twist.linear.x, msg.twist.twist.linear.y, msg.twist.twist.linear.z = 3.0, 0.5, vz
+        return msg
+
+    for msg in (state(0.3, -1.2), serialize_message(state(0.3, -1.2))):
+        t, p, v = ball_state_from_msg(msg)
+        assert (t, p.tolist(), v.tolist()) == (12.5, [1.0, -2.0, 0.3], [3.0, 0.5, -1.2])
+    for z, vz in ((0.0, 0.0), (-0.002, 0.0)):
+        t, p, v = ball_state_from_msg(serialize_message(state(z, vz)))
+        assert (p.tolist(), v.tolist()) == ([1.0, -2.0], [3.0, 0.5])
+    _, p, v = ball_state_from_msg(state(0.0, 2.0))  # just kicked upwards
+    assert p.tolist() == [1.0, -2.0, 0.0] and v.tolist() == [3.0, 0.5, 2.0]

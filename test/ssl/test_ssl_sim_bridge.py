@@ -151,6 +151,21 @@ def test_bridge_refuses_a_bad_configuration(ros_graph):
     assert "invalid parameter team_color: must be one of blue, yellow" in node.output()
 
 
+def test_bridge_commands_send_a_kick_at_the_kick_angle_in_force_and_no_angle_without_a_kick():
+    state = ssl_sim.BridgeCommands([1], kick_hold_s=0.1)
+    state.set_kick_angle(1, 45.0)
+    state.kick(1, 10.0, 4.0)
+    (now,) = state.commands(10.05)
+    assert (now.kick_speed_mps, now.kick_angle_deg) == (4.0, 45.0)
+    (later,) = state.commands(10.2)
+    assert (later.kick_speed_mps, later.kick_angle_deg) == (0.0, 0.0)
+    state.set_kick_angle(1, 0.0)
+    state.kick(1, 11.0, 3.0)
+    assert state.commands(11.0)[0].kick_angle_deg == 0.0
+    with pytest.raises(ValueError, match="kick_angle"):
+        state.set_kick_angle(1, 95.0)
+
+
 def test_bridge_commands_zero_a_stale_velocity_and_hold_a_kick():
     state = ssl_sim.BridgeCommands([2, 0], command_timeout_s=0.2, kick_hold_s=0.1)
     state.set_velocity(0, 10.0, 1.0, -0.5, 0.25)

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+from std_msgs.msg import String
 
 from erforce_interfaces.ssl import ssl_sim
 from erforce_interfaces.ssl.ssl_proto import (
@@ -20,6 +21,7 @@ from erforce_interfaces.ssl.ssl_proto import (
 )
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import odometry_msg
+from erforce_interfaces.wire.robot_config import RobotConfig
 
 pytestmark = pytest.mark.integration
 
@@ -143,6 +145,24 @@ def test_a_protocol_client_drives_and_places_our_plant(ros_graph):
     probe.spin_until(lambda: ball and abs(ball[-1].pose.pose.position.x - 2.0) < 1e-3
                      and abs(ball[-1].pose.pose.position.y + 1.0) < 1e-3, 10.0, "the ball teleport")
 
+    # a chip: kick_speed 3 m/s at kick_angle 45 deg from robot_0 at rest at the origin facing +x, the ball at its
+    # dribbler; the plant flies it: along the carpet at 3 cos 45 = 2.12 m/s (a flat kick would roll at 3 m/s)
+    events = probe.subscribe(contract.SIM_EVENTS.name, String)
+    drive(ros_graph, client, client.local(0, 0.0), lambda: at_rest_for(truth, 0.3), 30.0, "robot_0 stopping")
+    reach = RobotConfig().dribbler_offset_m + 0.002
+    assert ssl_sim.decode_simulator_response(client.ask(ssl_sim.encode_teleport(
+        (reach, 0.0, 0.0, 0.0), [("yellow", 0, 0.0, 0.0, 0.0)]), client.control_addr)) == ()
+    probe.spin_until(lambda: at_rest_for(truth, 0.3, near_x=0.0) and abs(ball[-1].pose.pose.position.x - reach) < 1e-3,
+                     20.0, "robot and ball placed")
+    chip = ssl_sim.encode_robot_control([ssl_sim.RobotCommand(0, kick_speed_mps=3.0, kick_angle_deg=45.0)])
+    fb = ssl_simulation_robot_feedback_pb2.RobotControlResponse.FromString(client.ask(chip, client.robot_addr))
+    assert not fb.errors
+    probe.spin_until(lambda: any("chip 45 deg" in e.data and "fired" in e.data for e in events), 10.0,
+                     "the plant's chip event")
+    probe.spin_until(lambda: ball[-1].pose.pose.position.x > 0.5, 10.0, "the chipped ball on its way")
+    speed = math.hypot(ball[-1].twist.twist.linear.x, ball[-1].twist.twist.linear.y)
+    assert speed == pytest.approx(3.0 * math.cos(math.radians(45.0)), abs=0.05)
+
     # unsupported features and unknown robots get errors; garbage gets ERFORCE_INVALID; the server goes on
     bad = ssl_simulation_robot_control_pb2.RobotControl()
     w = bad.robot_commands.add(id=0).move_command.wheel_velocity
@@ -183,9 +203,21 @@ def test_plan_robot_control_rotates_global_velocities_and_reports_each_unsupport
     actions, errors = ssl_sim.plan_robot_control(reqs, [0, 1, 2], {0: math.pi / 2, 1: 0.0, 2: 0.0}.get)
     a0 = actions[0]
     assert a0.twist == pytest.approx((0.0, -1.0, 0.5))  # +x in the field is the robot's right when it faces +y
-    assert actions[1] == ssl_sim.RobotAction(1, None, 0.0)  # the chip kick is refused, no move
+    assert actions[1] == ssl_sim.RobotAction(1, None, 3.0, 0.0, 30.0)  # the chip kicks (its wheels do not move)
     messages = sorted(e.message.split()[0] for e in errors)
-    assert messages == ["chip", "robot", "this", "wheel"]  # one each: chip, unknown robot 9, dribbler, wheel
+    assert messages == ["robot", "this", "wheel"]  # one each: unknown robot 9, dribbler, wheel
+
+
+def test_plan_robot_control_flies_chips_and_refuses_an_angle_outside_0_to_90_deg():
+    reqs = [ssl_sim.MoveRequest(0, "local", (0.0, 0.0, 0.0), 4.0, 45.0, 0.0),
+            ssl_sim.MoveRequest(1, "local", (0.0, 0.0, 0.0), 4.0, -10.0, 0.0),
+            ssl_sim.MoveRequest(2, "local", (0.0, 0.0, 0.0), 4.0, 90.0, 0.0),
+            ssl_sim.MoveRequest(3, "local", (0.0, 0.0, 0.0), 0.0, 60.0, 0.0)]  # no kick: no angle either
+    actions, errors = ssl_sim.plan_robot_control(reqs, [0, 1, 2, 3], {}.get, dribbler=True)
+    assert [(a.kick_speed_mps, a.kick_angle_deg) for a in actions] == [(4.0, 45.0), (0.0, 0.0), (0.0, 0.0),
+                                                                        (0.0, 0.0)]
+    assert sorted(e.code for e in errors) == [ssl_sim.ERROR_INVALID] * 2
+    assert all("kick_angle" in e.message for e in errors)
 
 
 def test_plan_robot_control_passes_the_dribbler_speed_on_where_the_simulator_has_one():

@@ -46,6 +46,34 @@ def test_robot_control_encoding_equals_the_hand_bytes():
     assert ssl_sim.encode_robot_control([cmd]) == ROBOT_CONTROL
 
 
+# A chip: kick_speed 4.0 (the ball's speed in 3D) at kick_angle 45.0 deg (field 4, fixed32: tag 0x25; 45.0f is
+# 0x42340000), no move command; as the ssl-simulation-protocol's RobotCommand numbers them.
+F45_0 = bytes.fromhex("00003442")
+CHIP_CONTROL = b"\x0a" + length(b"\x08\x02" + b"\x12" + length(b"\x12" + length(b"\x0d" + F0 + b"\x15" + F0
+                                                                                  + b"\x1d" + F0))
+                                + b"\x1d" + F4_0 + b"\x25" + F45_0 + b"\x2d" + F0)
+
+
+def test_a_chip_goes_out_as_kick_speed_and_kick_angle_and_decodes_back():
+    cmd = RobotCommand(2, kick_speed_mps=4.0, kick_angle_deg=45.0)
+    assert ssl_sim.encode_robot_control([cmd]) == CHIP_CONTROL
+    (req,) = ssl_sim.decode_robot_control(CHIP_CONTROL)
+    assert (req.robot_id, req.kick_speed_mps, req.kick_angle_deg) == (2, 4.0, 45.0)
+    for bad in (-1.0, 90.0, math.nan):
+        with pytest.raises(ValueError, match="kick_angle_deg"):
+            RobotCommand(2, kick_speed_mps=4.0, kick_angle_deg=bad)
+
+
+def test_a_chip_goes_to_grsim_as_the_balls_velocity_along_the_carpet_and_upwards():
+    """grSim_Robot_Command: kickspeedx (field 2) and kickspeedz (field 3), the ball's horizontal and vertical speed.
+    4 m/s at 30 deg: 4 cos 30 = 3.4641016 (0x405db3d7) along the carpet, 4 sin 30 = 2.0 upwards."""
+    robot = (b"\x08\x05" + b"\x15" + bytes.fromhex("d7b35d40") + b"\x1d" + F2_0 + b"\x25" + F0 + b"\x2d" + F0
+             + b"\x35" + F0 + b"\x38\x00" + b"\x40\x00")
+    hand = b"\x0a" + length(b"\x09" + D1_5 + b"\x10\x00" + b"\x1a" + length(robot))
+    cmd = RobotCommand(5, kick_speed_mps=4.0, kick_angle_deg=30.0)
+    assert ssl_sim.encode_grsim_commands([cmd], "blue", timestamp_s=1.5) == hand
+
+
 def test_robot_control_hand_bytes_decode_to_a_local_move():
     (req,) = ssl_sim.decode_robot_control(ROBOT_CONTROL)
     assert (req.robot_id, req.kind, req.velocity) == (3, "local", (1.0, -0.5, 2.0))

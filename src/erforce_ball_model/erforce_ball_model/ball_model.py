@@ -44,6 +44,7 @@ from __future__ import annotations
 import bisect
 import enum
 import functools
+import itertools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -579,6 +580,14 @@ class BallTrajectory:
                                    params.a_roll_mps2, params.c_switch), params, walls)
             return ball
         return cls((x, y), (vx, vy), v_shoot_mps, params, walls)
+
+    @classmethod
+    def of_pieces(cls, pieces, params: BallModelParams, walls: Walls | None = None) -> BallTrajectory:
+        """A path of given straight pieces, ``(start time, BallFloats)`` each in order, the first from 0: e.g. a
+        chipped ball's track on the ground (chip_model). Its queries answer piecewise; ``advanced`` needs walls."""
+        if not pieces or pieces[0][0] != 0.0 or any(b[0] < a[0] for a, b in itertools.pairwise(pieces)):
+            raise ValueError("pieces: (start time, BallFloats) in order of time, the first from 0")
+        return _of_pieces(tuple((float(t), BallFloats(*f)) for t, f in pieces), params, walls)
 
     def within(self, walls: Walls | None) -> BallTrajectory:
         """The same ball now, its path bounded by ``walls`` (None: the unbounded straight line)."""

@@ -22,6 +22,13 @@ ball's path). The crossing is refined by sub-grid passes, which also copes with 
 the paper mentions. Without a window the paper's fallback holds: robotTimeToPos to the stop point.
 A cheap sound bound (``_may_reach``) skips the exact test where the robot surely cannot make it.
 
+Chipped balls (beyond the paper): a ``ChipTrajectory`` (chip_model) can be taken only while its centre is
+at most ``ChipParams.max_catch_height_m`` high. The search runs on its ``ground_track`` (the hops' shadows
+as straight pieces, then the roll) within each of its ``low_windows_s`` in turn (just after the kick, near
+the touchdowns of hops that rise above the height, and from when it stays below it); a robot's catch is
+its first window there, so a robot under the flight cannot take the ball while it is above the height.
+Each window is searched as the flat ball's interval, with the same guarantee inside it.
+
 Compiled scalar loops: the search is a few hundred branchy scalar steps per robot, too many small
 array operations as numpy (docs/decisions/0028), so it is compiled by numba (``_kernels``: three entry
 points for fixed float64 signatures, cached on disk) on a process's first search, not at import: the
@@ -49,6 +56,7 @@ from erforce_ball_model.ball_model import (
     path_piece,
     path_point,
 )
+from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_interfaces.runtime.param_schema import schema_defaults
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 
@@ -575,8 +583,40 @@ class CatchSearch:
         ``window_s``: the stretch of the ball's path inside the field, when it is not this ball's own first
         one (``catch_after_reaction``: the first stretch of the ball before the reaction time, on this
         one's clock; a ball that left the field meanwhile is out, even if it comes back off the wall)."""
+        if isinstance(ball, ChipTrajectory):
+            return self._run_chip(ball, robot_pos_m, robot_vel_mps, facing_rad, window_s)
         if not isinstance(ball, BallTrajectory) or ball.floats is None:
-            raise ValueError("ball: expected a single-ball BallTrajectory")
+            raise ValueError("ball: expected a single-ball BallTrajectory or a ChipTrajectory")
+        return self._run(ball, robot_pos_m, robot_vel_mps, facing_rad, window_s, None)
+
+    def _run_chip(self, chip: ChipTrajectory, robot_pos_m, robot_vel_mps, facing_rad,
+                  window_s: tuple[float, float] | None) -> CatchResult:
+        """The search on the chip's ground track, window by window of its low stretches (module docstring): per
+        robot the first window with a catch on the way, else the last window's answer (at rest, or never)."""
+        track = chip.ground_track()
+        t_in, t_out = (0.0, math.inf) if self._field is None else (
+            track.time_in_field(self._field, self._margin_m) if window_s is None else window_s)
+        res = self._result
+        best = CatchResult(np.full(self.num_robots, math.inf), np.full((self.num_robots, 2), math.nan),
+                           np.full((self.num_robots, 2), math.nan), np.full(self.num_robots, _NEVER, dtype=np.int8))
+        for a, b in chip.low_windows_s():
+            lo, hi = max(a, t_in), min(b, t_out)
+            if lo > min(hi, track.stop_time_s):
+                continue
+            self._run(track, robot_pos_m, robot_vel_mps, facing_rad, (lo, hi), b == math.inf)
+            now = (best.kind != _MOVING) & ((res.kind == _MOVING) | (b == math.inf))
+            best.time_s[now], best.kind[now] = res.time_s[now], res.kind[now]
+            best.ball_position_m[now], best.robot_target_m[now] = res.ball_position_m[now], res.robot_target_m[now]
+            if (best.kind == _MOVING).all():
+                break
+        res.time_s[:], res.kind[:] = best.time_s, best.kind
+        res.ball_position_m[:], res.robot_target_m[:] = best.ball_position_m, best.robot_target_m
+        return res
+
+    def _run(self, ball: BallTrajectory, robot_pos_m, robot_vel_mps, facing_rad, window_s,
+             last_window: bool | None) -> CatchResult:
+        """The compiled search on ``ball`` in its field stretch or ``window_s``; ``last_window`` (a chip's
+        window, None: a flat ball) False: the ball does not stop in this window."""
         shape = (self.num_robots, 2)
         if np.shape(robot_pos_m) != shape or np.shape(robot_vel_mps) != shape:
             raise ValueError(f"robot_pos_m {np.shape(robot_pos_m)} and robot_vel_mps {np.shape(robot_vel_mps)} "
@@ -595,6 +635,10 @@ class CatchSearch:
             raise ValueError(f"search horizon {t_max - t_in:.6g} s needs more than {MAX_GRID_POINTS} grid points "
                              f"of {self._h} s")
         stops_inside = t_in < math.inf and t_out == math.inf
+        if last_window is not None:  # a chip's window: its own end, the ball's field stretch already in it
+            t_in, t_out = window_s
+            t_max = min(t_stop, t_out)
+            stops_inside = last_window and t_out == math.inf
         res = self._result
         search = self._search
         if search is None:
@@ -755,13 +799,16 @@ def catch_after_reaction(search: CatchSearch, ball: BallTrajectory, robot_pos_m:
     the field during the reaction is out, also when it comes back off the wall. The result's arrays are
     the search's, reused by its next run.
     """
+    chip = isinstance(ball, ChipTrajectory)
     if reaction_s <= 0.0:
-        return search.run(ball, robot_pos_m, robot_vel_mps, facing_angles(facing_fixed, facing_rad, ball, robot_pos_m,
-                                                                         rest_speed_mps))
+        return search.run(ball, robot_pos_m, robot_vel_mps, facing_angles(
+            facing_fixed, facing_rad, ball.ground_track() if chip else ball, robot_pos_m, rest_speed_mps))
     ahead = ball.advanced(reaction_s)
-    facing = facing_angles(facing_fixed, facing_rad, ahead, robot_pos_m, rest_speed_mps)
+    facing = facing_angles(facing_fixed, facing_rad, ahead.ground_track() if chip else ahead, robot_pos_m,
+                           rest_speed_mps)
     window = None
-    if search._field is not None and len(ball.pieces) > 1:  # off a wall: the stretch is the ball's of now
-        t_in, t_out = ball.time_in_field(search._field, search._margin_m)
+    path = ball.ground_track() if chip else ball
+    if search._field is not None and len(path.pieces) > 1:  # off a wall: the stretch is the ball's of now
+        t_in, t_out = path.time_in_field(search._field, search._margin_m)
         window = (max(t_in - reaction_s, 0.0), t_out - reaction_s) if t_in < math.inf else (math.inf, math.inf)
     return search.run(ahead, robot_pos_m, robot_vel_mps, facing, window_s=window)

@@ -37,6 +37,7 @@ from erforce_interfaces.runtime.param_schema import fields_for, load_schema
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
     ConversionError,
+    ball_state_from_msg,
     float64_from_msg,
     model_in_use_from_msg,
     odometry_from_msg,
@@ -133,7 +134,7 @@ class CatcherNode(Node):
             self._receiver.on_catch_point(self._now_s(), point[1])
 
     def _on_ball(self, msg: Odometry | bytes) -> None:
-        ball = self._warn.convert(msg, "ball state", odometry_from_msg)
+        ball = self._warn.convert(msg, "ball state", ball_state_from_msg)
         if ball is not None:
             self._receiver.on_ball(self._now_s(), ball[1], ball[2])
 

@@ -18,6 +18,11 @@ Heights ``z`` are of the ball's centre above where it rests on the carpet (0 on 
 [1.835, 0.0]
 >>> round(chip.time_below_height_s(), 3)  # from then on a robot can take it (ChipParams.max_catch_height_m)
 0.557
+>>> [(round(a, 3), round(b, 3)) for a, b in chip.low_windows_s()]  # when it is low enough: just kicked, then landed
+[(0.0, 0.055), (0.557, inf)]
+
+Catch times (catch_time.CatchSearch) search the ball's ``ground_track`` (where its shadow is: the hops as
+straight pieces at constant speed, then the roll) only within its ``low_windows_s``.
 """
 
 from __future__ import annotations
@@ -27,9 +32,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from erforce_ball_model.ball_model import MAX_POSITION_M, MAX_SPEED_MPS, BallModelParams, BallTrajectory, ChipParams
+from erforce_ball_model.ball_model import (
+    MAX_POSITION_M,
+    MAX_SPEED_MPS,
+    BallFloats,
+    BallModelParams,
+    BallTrajectory,
+    ChipParams,
+    Walls,
+)
 
-__all__ = ["MAX_HOPS", "ChipHop", "ChipTrajectory"]
+__all__ = ["MAX_HOPS", "ChipHop", "ChipTrajectory", "flying_ball"]
 
 # A ball still hopping after this many bounces (dampings near 1) rolls on from there.
 MAX_HOPS = 100
@@ -82,7 +95,7 @@ class ChipTrajectory:
     for vectors); a time at or after the hand-over asks the roll.
     """
 
-    __slots__ = ("_ends", "_starts", "hops", "params", "roll", "roll_start_s")
+    __slots__ = ("_ends", "_hop_rows", "_starts", "_track", "hops", "params", "roll", "roll_start_s")
 
     def __init__(self, position_m, velocity_mps, params: ChipParams | None = None,
                  ball_params: BallModelParams | None = None) -> None:
@@ -155,6 +168,41 @@ class ChipTrajectory:
                 return hop.t_start_s + (hop.vz_mps + math.sqrt(hop.vz_mps**2 + 2.0 * g * (hop.z_m - h))) / g
         return 0.0
 
+    def low_windows_s(self, height_m: float | None = None) -> tuple[tuple[float, float], ...]:
+        """The stretches of time ``(start, end)``, in order, in which the ball's centre is at most ``height_m``
+        high (None: ``max_catch_height_m``): where a robot can take it. The last one ends at +inf."""
+        h = self.params.max_catch_height_m if height_m is None else height_m
+        if not isinstance(h, _NUMBER) or not math.isfinite(h) or h < 0.0:
+            raise ValueError(f"height_m: must be a finite number >= 0, got {height_m!r}")
+        g, windows, start = self.params.g_mps2, [], 0.0
+        for hop in self.hops:
+            if _apex(hop, g) <= h:
+                continue
+            root = math.sqrt(max(hop.vz_mps**2 + 2.0 * g * (hop.z_m - h), 0.0))
+            up = hop.t_start_s + max((hop.vz_mps - root) / g, 0.0)  # rises through h (or starts above it)
+            down = hop.t_start_s + (hop.vz_mps + root) / g  # comes down through h
+            if up > start:
+                windows.append((start, up))
+            start = down
+        windows.append((start, math.inf))
+        return tuple(windows)
+
+    def ground_track(self, walls: Walls | None = None) -> BallTrajectory:
+        """Where the ball is on the field (its centre's x, y) as a path of straight pieces: each hop at its
+        constant horizontal velocity up to its touchdown, then the roll's pieces (off ``walls``, if given:
+        the roll only; a ball in the air flies over the wall's line). For queries (``position_at``,
+        ``time_in_field``, ``time_to_distance``, ``table``) and the catch search; to move it on, advance the chip.
+        Without walls it is made once per chip (the catch search asks for it several times)."""
+        if walls is None and self._track is not None:
+            return self._track
+        pieces = [(h.t_start_s, _flight_floats(h)) for h in self.hops]
+        roll = self.roll.within(walls)
+        pieces += [(self.roll_start_s + t, f) for t, f in roll.pieces]
+        track = BallTrajectory.of_pieces(pieces, roll.params, walls)
+        if walls is None:
+            object.__setattr__(self, "_track", track)
+        return track
+
     def position_at(self, t_s) -> np.ndarray:
         """Where the ball's centre is: ``(x, y, z)``, shape ``shape(t_s) + (3,)``."""
         return self._state_at(t_s, velocity=False)
@@ -189,7 +237,7 @@ class ChipTrajectory:
         if in_air.any():
             ta = flat[in_air]
             i = np.searchsorted(self._starts, ta, side="right") - 1
-            hop = np.array(self.hops)[i]  # columns: ChipHop's fields
+            hop = self._hop_rows[i]  # columns: ChipHop's fields
             tau, g = ta - hop[:, 0], self.params.g_mps2
             if velocity:
                 out[in_air] = np.stack([hop[:, 4], hop[:, 5], hop[:, 6] - g * tau], axis=-1)
@@ -211,6 +259,8 @@ def _init(ball: ChipTrajectory, params: ChipParams, hops: tuple[ChipHop, ...], r
     init(ball, "roll", roll)
     init(ball, "_starts", np.array([h.t_start_s for h in hops]))
     init(ball, "_ends", np.array([h.t_start_s + h.duration_s for h in hops]))
+    init(ball, "_hop_rows", np.array(ball.hops, dtype=float).reshape(-1, len(ChipHop._fields)))
+    init(ball, "_track", None)
 
 
 def _of_parts(params: ChipParams, hops, roll: BallTrajectory, roll_start_s: float) -> ChipTrajectory:
@@ -218,6 +268,25 @@ def _of_parts(params: ChipParams, hops, roll: BallTrajectory, roll_start_s: floa
     ball = object.__new__(ChipTrajectory)
     _init(ball, params, hops, roll, roll_start_s)
     return ball
+
+
+def flying_ball(position_m, velocity_mps, params: ChipParams | None = None,
+                ball_params: BallModelParams | None = None) -> ChipTrajectory | None:
+    """The ball of a state ``(x, y, z)``, ``(vx, vy, vz)`` (as /ball/state carries it: z of the centre above
+    its rest, 0 on the ground) as a ChipTrajectory while it is in the air (z > 0 or vz > 0), else None
+    (a ball on the ground: the flat model's). The one conversion of a ball state to a chip."""
+    z, vz = float(position_m[2]), float(velocity_mps[2])
+    if not (z > 0.0 or vz > 0.0):
+        return None
+    return ChipTrajectory(position_m, velocity_mps, params, ball_params)
+
+
+def _flight_floats(hop: ChipHop) -> BallFloats:
+    """One hop's shadow on the carpet as a straight piece of constant speed (no deceleration) up to its end."""
+    speed = math.hypot(hop.vx_mps, hop.vy_mps)
+    ux, uy = (hop.vx_mps / speed, hop.vy_mps / speed) if speed > 0.0 else (0.0, 0.0)
+    return BallFloats(hop.x_m, hop.y_m, hop.vx_mps, hop.vy_mps, ux, uy, speed, speed, speed, 0.0, 0.0,
+                      hop.duration_s, speed * hop.duration_s, 0.0, 0.0)
 
 
 def _apex(hop: ChipHop, g: float) -> float:

@@ -367,7 +367,8 @@ class BallPredictor:
         except ValueError as exc:  # e.g. 100 m/s from two frames 1 us apart
             self._warn("predict", f"no prediction for the frame at {t_s:.6f} s: {exc}")
             return None
-        robots, times, points = self._catches(t_s, traj)
+        # a chip in the air is taken only where it is low enough (catch_time): the catch table follows it
+        robots, times, points = self._catches(t_s, traj if chip is None else chip)
         f = traj.floats
         if chip is not None:
             phase = PHASE_CHIP
@@ -405,6 +406,11 @@ class BallPredictor:
         if roll is not None:
             ball.hand_over(t_s, roll)
         return detector.chip_at(t_s)
+
+    def catches(self, t_s: float, traj) -> tuple[list[int], list[float], list]:
+        """The catch table of a given ball at ``t_s`` (a BallTrajectory or, in the air, a chip_model.ChipTrajectory):
+        the fresh robots, their catch times (reaction included; CATCH_TIME_NEVER: never) and robot targets."""
+        return self._catches(t_s, traj)
 
     def _catches(self, t_s: float, traj: BallTrajectory) -> tuple[list[int], list[float], list]:
         """Catch time and robot target of every fresh robot: one robotTimeToBall run for the team."""

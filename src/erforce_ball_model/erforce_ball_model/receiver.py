@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ball_time_to_distance
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ChipParams, ball_time_to_distance
 from erforce_ball_model.catch_time import (
     MAX_RECEIVE_ANGLE_RAD,
     ROBOT_A_MAX_MPS2,
@@ -37,6 +37,7 @@ from erforce_ball_model.catch_time import (
     contact_offset,
     receive_facing,
 )
+from erforce_ball_model.chip_model import ChipTrajectory, flying_ball
 from erforce_interfaces.runtime.param_schema import schema_defaults
 from erforce_interfaces.wire.robot_config import FieldConfig
 
@@ -232,8 +233,12 @@ def receive_point(
     robot_radius_m: float = 0.0,
     slack_s: float | None = None,
     facing_rad: float | None = None,
+    chip: ChipTrajectory | None = None,
 ) -> np.ndarray | None:
     """The nearest place to receive the ball on its line that the robot reaches with time to spare.
+
+    ``chip``: the ball is in the air (``ball`` is its ground track): only points where it arrives low enough
+    to take (at most ``max_catch_height_m``) are candidates.
 
     Candidates are robot centre targets with the dribbler on the ball's line, facing the ball (or
     ``facing_rad``: the centre one contact_offset back from the line, line_intercept):
@@ -264,9 +269,14 @@ def receive_point(
     slack = cfg.receive_slack_s if slack_s is None else slack_s
     robot_xy, robot_velocity = np.asarray(robot_xy, dtype=float), np.asarray(robot_velocity, dtype=float)
     for i in np.flatnonzero(ok):
-        t_ball = ball_time_to_distance(ball.floats, float(contact_m[i]))  # +inf where it stops short
+        if chip is None:
+            t_ball = ball_time_to_distance(ball.floats, float(contact_m[i]))  # +inf where it stops short
+        else:  # the track's pieces lie on one line (no walls)
+            t_ball = float(ball.time_to_distance(float(contact_m[i])))
         if t_ball == math.inf:
             break  # and so do all farther points
+        if chip is not None and chip.position_at(t_ball)[2] > chip.params.max_catch_height_m:
+            continue  # it flies over this point
         if can_reach(targets[i] - robot_xy, robot_velocity, t_ball - slack, cfg.a_max_mps2, cfg.v_max_mps):
             return targets[i]
     return None
@@ -283,6 +293,7 @@ def choose_target(
     robot_radius_m: float = 0.0,
     committed: bool = False,
     facing_rad: float | None = None,
+    chip: ChipTrajectory | None = None,
 ) -> np.ndarray | None:
     """Where the robot centre goes (to face the ball, or ``facing_rad`` once it turned), in this order:
     stay when the dribbler is already on the incoming ball's line; the nearest receive point with time
@@ -290,6 +301,7 @@ def choose_target(
     (None when the predictor has none); when ``committed``, the robot's projection on the ball's line
     if it is within ``cfg.commit_distance_m``; else hold (None).
 
+    ``chip``: the ball is in the air, ``ball`` its ground track (receive_point takes it only where it is low).
     ``ball`` is the moving ball's trajectory (None when it rests: the velocity of a resting ball is
     vision noise in a random direction, its "line" means nothing). ``committed``: the robot was
     driving to a target for this ball moments ago. Its plan can turn infeasible on the way (it
@@ -307,7 +319,7 @@ def choose_target(
                            facing_rad):
             return np.asarray(pose[:2], dtype=float)
         target = receive_point(pose[:2], robot_velocity, ball, dribbler_offset_m, cfg, field, robot_radius_m,
-                               slack_s=0.0 if committed else None, facing_rad=facing_rad)
+                               slack_s=0.0 if committed else None, facing_rad=facing_rad, chip=chip)
         if target is not None:
             return target
     if catch_point is not None:
@@ -371,6 +383,8 @@ class Receiver:
         self._catch_time = None  # (t, seconds or CATCH_TIME_NEVER)
         self._catch_point = None  # (t, [x, y])
         self._ball = None  # (t, position, velocity)
+        self._height = (0.0, 0.0)  # the ball's (z, vz) with the newest state: in the air when either is > 0
+        self._chip_params = ChipParams()
         self._rest_position = None  # where the ball was last seen at rest
         self._received = False  # caught, and the ball not seen at rest since
         self._v_shoot = None  # (t, m/s)
@@ -409,7 +423,12 @@ class Receiver:
             self._teammates[robot] = (now, float(seconds))
 
     def on_ball(self, now: float, position, velocity) -> None:
-        position, velocity = np.asarray(position, dtype=float)[:2], np.asarray(velocity, dtype=float)[:2]
+        """The tracked ball: [x, y] and [vx, vy], or with its height: [x, y, z] and [vx, vy, vz] (a chip in the
+        air is received where it is low again, chip_model.flying_ball)."""
+        position, velocity = np.asarray(position, dtype=float), np.asarray(velocity, dtype=float)
+        airborne = len(position) > 2 and len(velocity) > 2
+        self._height = (float(position[2]), float(velocity[2])) if airborne else (0.0, 0.0)
+        position, velocity = position[:2], velocity[:2]
         self._ball = (now, position, velocity)
         if math.hypot(velocity[0], velocity[1]) < self.cfg.min_ball_speed_mps:
             self._rest_position = position
@@ -482,13 +501,16 @@ class Receiver:
         yaw, gain = heading_loop(float(measured[2]), yaw_rate, delay_s, cfg)
         pose = np.array([measured[0] + velocity[0] * delay_s, measured[1] + velocity[1] * delay_s, yaw])
         ball = self._moving_ball(now)
+        chip = self._chip(now) if ball is not None else None
+        if chip is not None:
+            ball = chip.ground_track()
         predicted = (self._fresh(self._catch_point, now) and self._fresh(self._catch_time, now)
                      and self._catch_time[1] != CATCH_TIME_NEVER)
         facing = self.facing(pose, ball)
         target = choose_target(pose, velocity, ball, self._catch_point[1] if predicted else None,
                                self.dribbler_offset_m, cfg, self.field, self.robot_radius_m,
                                committed=now - self._target_at <= cfg.commit_s,
-                               facing_rad=None if self._next_target is None else facing)
+                               facing_rad=None if self._next_target is None else facing, chip=chip)
         if target is None:
             return np.zeros(3)
         self._target_at = now
@@ -506,6 +528,15 @@ class Receiver:
             times[self.robot_id] = self._catch_time[1]
         self._receiver = team_receiver(times, self._receiver, self.cfg.team_switch_margin_s)
         return self._receiver is None or self._receiver == self.robot_id
+
+    def _chip(self, now: float) -> ChipTrajectory | None:
+        """The ball in the air (its newest state has a height or rises), else None."""
+        (_, position, velocity), (z, vz) = self._ball, self._height
+        try:
+            return flying_ball((*position, max(z, 0.0)), (*velocity, vz), self._chip_params, self._model)
+        except ValueError as exc:
+            self.notice = f"ball state in the air not usable: {exc}"
+            return None
 
     def _moving_ball(self, now: float) -> BallTrajectory | None:
         """The ball's future from the newest state; None when it rests, is stale or is not usable."""

@@ -38,6 +38,7 @@ from erforce_interfaces.runtime.param_schema import HostSchema, load_schema
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
     ConversionError,
+    ball_state_from_msg,
     catches_from_msg,
     float64_from_msg,
     model_in_use_from_msg,
@@ -128,7 +129,7 @@ class TeamCatcherNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def _on_ball(self, msg: Odometry | bytes) -> None:
-        ball = self._warn.convert(msg, "ball state", odometry_from_msg)
+        ball = self._warn.convert(msg, "ball state", ball_state_from_msg)
         if ball is not None:
             self._team.on_ball(self._batch_now, ball[1], ball[2])
 

@@ -40,6 +40,7 @@ from erforce_interfaces.runtime.node_support import (
     run_node,
 )
 from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.ssl.ssl_sim import check_kick_angle
 from erforce_interfaces.ssl.ssl_vision import BallModelFromVision
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
@@ -130,6 +131,7 @@ class PlantNode(Node):
         self.world = build_world(self.setup)  # refuses bodies off the field with a clear error
         setup = self.setup
         self._n = setup.num_robots + setup.num_opponents  # world indices: ours, then the opponents
+        self._kick_angles: dict[int, float] = {}  # robot -> the elevation of its next kicks [deg] (kick_angle)
         self._index_robots()
         self._gate = DutyGate(self._n, self._values["lockstep_timeout_s"], names=self._names)
         self._latest_duty = {i: None for i in range(self._n)}
@@ -250,6 +252,8 @@ class PlantNode(Node):
             if self._per_robot_lockstep:
                 sub(self, q.MOTOR_DUTY, lambda m, i=i: self._on_duty(i, m), team.topic(q.MOTOR_DUTY, j), raw=True)
             sub(self, q.KICK, scenario(f"kick{i}", lambda m, i=i: self._on_kick(i, m)), team.topic(q.KICK, j))
+            sub(self, q.KICK_ANGLE, scenario(f"kick_angle{i}", lambda m, i=i: self._on_kick_angle(i, m)),
+                team.topic(q.KICK_ANGLE, j))
             sub(self, q.DRIBBLER, scenario(f"dribbler{i}", lambda m, i=i: self._on_dribbler(i, m)),
                 team.topic(q.DRIBBLER, j))
             sub(self, q.SIM_SET_STATE, scenario(f"set{i}", lambda m, i=i: self._on_set_robot(i, m)),
@@ -357,15 +361,24 @@ class PlantNode(Node):
             self._event(event)
 
     def _on_kick(self, robot: int, msg: Float64) -> None:
+        angle = self._kick_angles.get(robot, 0.0)
         try:
             speed = float64_from_msg(msg, limit=100.0)
-            result = self.world.kick(robot, speed, armed_for_s=0.1)
+            result = self.world.kick(robot, speed, armed_for_s=0.1, angle_deg=angle)
         except (ConversionError, ValueError) as exc:
             self._warn.warn(f"kick{robot}", f"{self._names[robot]}: rejected kick: {exc}")
             return
         state = "fired" if result.fired else ("armed" if result.armed else "no ball at the kicker")
         clamped = " (clamped)" if result.clamped else ""
-        self._event(f"{self._names[robot]} kick {result.speed_mps:.2f} m/s{clamped}: {state}")
+        chip = f" chip {angle:g} deg" if angle > 0.0 else ""
+        self._event(f"{self._names[robot]} kick {result.speed_mps:.2f} m/s{chip}{clamped}: {state}")
+
+    def _on_kick_angle(self, robot: int, msg: Float64) -> None:
+        """The elevation of this robot's next kicks (0 flat, else a chip); a bad one leaves the last in force."""
+        try:
+            self._kick_angles[robot] = check_kick_angle("kick_angle", float64_from_msg(msg, limit=90.0))
+        except (ConversionError, ValueError) as exc:
+            self._warn.warn(f"kick_angle{robot}", f"{self._names[robot]}: rejected kick_angle: {exc}")
 
     def _on_dribbler(self, robot: int, msg: Float64) -> None:
         try:

@@ -1,8 +1,9 @@
 """ssl_sim_bridge: drives an external SSL simulator (ER-Force's, grSim) with this stack's robot commands.
 
-Every ``1 / rate_hz`` of wall time it sends the newest ``cmd_vel`` (a local velocity), ``kick`` (a flat
-kick, armed for ``kick_hold_s``) and ``dribbler`` of each robot in ``robot_ids``: with ``protocol: ssl`` a
-``RobotControl`` of the ssl-simulation-protocol to the team's port (10301 blue, 10302 yellow), with
+Every ``1 / rate_hz`` of wall time it sends the newest ``cmd_vel`` (a local velocity), ``kick`` (a kick,
+armed for ``kick_hold_s``; a chip at ``kick_angle`` [deg] when that is above 0: the protocol's kick_speed
+and kick_angle, grSim's kickspeedx and kickspeedz) and ``dribbler`` of each robot in ``robot_ids``: with
+``protocol: ssl`` a ``RobotControl`` of the ssl-simulation-protocol to the team's port (10301 blue, 10302 yellow), with
 ``protocol: grsim`` a ``grSim_Packet`` to 20011. With ``team: opponents`` it drives the ``opponent_<id>/``
 topics: one bridge per colour, as each team drives its own robots. A cmd_vel older than
 ``command_timeout_s`` is sent as zero.
@@ -96,6 +97,8 @@ class SslSimBridgeNode(Node):
             self._barrier_pubs[i] = contract_publisher(self, q.BALL_DETECTED, whose.topic(q.BALL_DETECTED, i))
             contract_subscription(self, q.CMD_VEL, lambda m, i=i: self._on_cmd_vel(i, m), whose.topic(q.CMD_VEL, i))
             contract_subscription(self, q.KICK, lambda m, i=i: self._on_kick(i, m), whose.topic(q.KICK, i))
+            contract_subscription(self, q.KICK_ANGLE, lambda m, i=i: self._on_kick_angle(i, m),
+                                  whose.topic(q.KICK_ANGLE, i))
             contract_subscription(self, q.DRIBBLER, lambda m, i=i: self._on_dribbler(i, m), whose.topic(q.DRIBBLER, i))
         self._control_target = None
         if v["control_port"]:
@@ -126,6 +129,12 @@ class SslSimBridgeNode(Node):
             self._state.kick(robot, time.monotonic(), float64_from_msg(msg, ssl_sim.MAX_KICK_MPS))
         except (ConversionError, ValueError) as exc:
             self._warn.warn(f"kick{robot}", f"robot_{robot}: rejected kick: {exc}")
+
+    def _on_kick_angle(self, robot: int, msg: Float64) -> None:
+        try:
+            self._state.set_kick_angle(robot, float64_from_msg(msg, ssl_sim.MAX_KICK_ANGLE_DEG))
+        except (ConversionError, ValueError) as exc:
+            self._warn.warn(f"kick_angle{robot}", f"robot_{robot}: rejected kick_angle: {exc}")
 
     def _on_dribbler(self, robot: int, msg: Float64) -> None:
         try:

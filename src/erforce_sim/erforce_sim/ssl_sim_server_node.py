@@ -10,8 +10,11 @@ teams' commands as ER-Force's simulator and grSim do. How commands enter the sta
   turns it into wheel setpoints, the motor boards into duty, the plant into motion, exactly as for
   this stack's own AI. A global velocity is first rotated into the robot frame with the robot's true
   heading (``ground_truth/odom``), as a simulator knows it. Wheel velocities are refused with an error.
-- A kick speed (kick_angle 0) becomes ``robot_<id>/kick`` while it is set (the plant keeps each kick
-  armed for 0.1 s; it is repeated every ``kick_repeat_s``). Chip kicks are refused with an error.
+- A kick speed becomes ``robot_<id>/kick`` while it is set (the plant keeps each kick armed for 0.1 s; it
+  is repeated every ``kick_repeat_s``), its ``kick_angle`` ``robot_<id>/kick_angle`` first whenever it
+  changes: 0 a flat kick, in (0, 90) deg a chip, which the plant flies (``World.kick``'s ``angle_deg``:
+  the speed is the ball's, in 3D, as the protocol's ``kick_speed``). An angle outside [0, 90) is refused
+  with an error and does not kick.
 - The dribbler speed becomes ``robot_<id>/dribbler`` (rad/s) when it changes and every second.
 - Each RobotControl is answered with a RobotControlResponse: every served robot's dribbler ball
   contact (the plant's light barrier, ``ball_detected``) and the errors of that packet.
@@ -81,6 +84,7 @@ class _Side:
     stamps: dict[int, StampFilter] = field(default_factory=dict)  # the time rule: a stale pose is not the newest
     contact: dict[int, bool] = field(default_factory=dict)
     last_kick: dict[int, float] = field(default_factory=dict)
+    kick_angle: dict[int, float] = field(default_factory=dict)  # the kick_angle last published per robot [deg]
     dribbler: dict[int, tuple[float, float]] = field(default_factory=dict)  # robot -> (rad/s sent, when)
 
     def yaw(self, robot: int) -> float | None:
@@ -138,6 +142,7 @@ class SslSimServerNode(Node):
             side.pubs[i] = {
                 "cmd_vel": contract_publisher(self, q.CMD_VEL, team.topic(q.CMD_VEL, i)),
                 "kick": contract_publisher(self, q.KICK, team.topic(q.KICK, i)),
+                "kick_angle": contract_publisher(self, q.KICK_ANGLE, team.topic(q.KICK_ANGLE, i)),
                 "dribbler": contract_publisher(self, q.DRIBBLER, team.topic(q.DRIBBLER, i)),
                 "set_state": contract_publisher(self, q.SIM_SET_STATE, team.topic(q.SIM_SET_STATE, i)),
             }
@@ -197,6 +202,9 @@ class SslSimServerNode(Node):
                 pubs["cmd_vel"].publish(twist_msg(a.twist))
             if a.kick_speed_mps > 0.0 and now - side.last_kick[a.robot_id] >= self._values["kick_repeat_s"]:
                 side.last_kick[a.robot_id] = now
+                if side.kick_angle.get(a.robot_id, 0.0) != a.kick_angle_deg:  # before the kick it is for
+                    side.kick_angle[a.robot_id] = a.kick_angle_deg
+                    pubs["kick_angle"].publish(Float64(data=a.kick_angle_deg))
                 pubs["kick"].publish(Float64(data=a.kick_speed_mps))
             sent = side.dribbler.get(a.robot_id)
             if sent is None or sent[0] != a.dribbler_radps or now - sent[1] >= DRIBBLER_REPEAT_S:

@@ -22,6 +22,12 @@ question) for every robot on the field, on the ball the kick would make:
   receiver's robotTimeToBall runs with the offset pointing that way (the paper's targetpos).
   ``margin_s`` = opponent - arrival; a pass is safe when the margin is at least
   ``PassConfig.safe_margin_s``.
+- A chip (``PassConfig.chip_angle_deg`` > 0; chip_model.ChipTrajectory) is rated the same way, on the chip
+  the kick would make: robotTimeToBall takes a chip only where it is at most ``max_catch_height_m`` high,
+  so an opponent under its flight cannot take it. It is kicked so that it comes down to that height
+  ``chip_land_fraction`` of the way to the receiver (``chip_speed_for``: the first hop's descent, closed
+  form), and the receiver takes it where it arrives, low, after it landed. Per receiver the flat pass is
+  played when it is safe, else the chip when that is safe, else the one with the larger margin.
 - ``select_pass``: of the safe passes the one whose catch comes earliest; when none is safe, the
   one with the largest margin (rated unsafe; the caller may still play it).
 - ``press_targets``: where opponents wait while a robot of ours holds the ball: each covers the
@@ -37,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ChipParams
 from erforce_ball_model.catch_time import (
     MAX_RECEIVE_ANGLE_RAD,
     ROBOT_REACTION_S,
@@ -47,6 +53,7 @@ from erforce_ball_model.catch_time import (
     contact_offset,
     receive_facing,
 )
+from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_interfaces.runtime.param_schema import schema_defaults
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
@@ -65,6 +72,8 @@ class PassConfig:
     reaction_s: float = ROBOT_REACTION_S
     # an opponent waits this far along the lane from the ball to its teammate
     press_fraction: float = schema_defaults("erforce_ball_model", "team_catcher")["press_fraction"]
+    chip_angle_deg: float = _DEFAULTS["chip_angle_deg"]  # a chip's elevation (the kicker's kick_angle); 0: flat only
+    chip_land_fraction: float = _DEFAULTS["chip_land_fraction"]  # a chip comes down low this far along the pass
 
     def __post_init__(self) -> None:
         for name in ("arrive_speed_mps", "min_kick_mps", "max_kick_mps", "min_distance_m", "max_distance_m"):
@@ -79,6 +88,10 @@ class PassConfig:
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
         if not 0.0 <= self.press_fraction <= 1.0:
             raise ValueError(f"press_fraction must be in [0, 1], got {self.press_fraction!r}")
+        if not (math.isfinite(self.chip_angle_deg) and 0.0 <= self.chip_angle_deg < 90.0):
+            raise ValueError(f"chip_angle_deg must be in [0, 90), got {self.chip_angle_deg!r}")
+        if not (math.isfinite(self.chip_land_fraction) and 0.0 < self.chip_land_fraction <= 1.0):
+            raise ValueError(f"chip_land_fraction must be in (0, 1], got {self.chip_land_fraction!r}")
 
 
 def kick_speed_for(distance_m: float, arrive_speed_mps: float, params: BallModelParams) -> float:
@@ -94,6 +107,27 @@ def kick_speed_for(distance_m: float, arrive_speed_mps: float, params: BallModel
     return math.sqrt((va * va + 2.0 * a_r * d) / (c * c + (1.0 - c * c) * a_r / a_s))
 
 
+def chip_speed_for(distance_m: float, angle_deg: float, params: ChipParams, min_mps: float, max_mps: float) -> float:
+    """Kick speed of a chip at ``angle_deg`` whose first hop comes down to ``params.max_catch_height_m`` after
+    ``distance_m`` along the carpet: ``v cos(a) (v sin(a) + sqrt(v^2 sin^2(a) - 2 g h)) / g = d``, increasing
+    in v, solved by bisection within [min_mps, max_mps] (the bound that is nearest when it cannot be met)."""
+    a, g, h = math.radians(angle_deg), params.g_mps2, params.max_catch_height_m
+
+    def reach(v: float) -> float:
+        vz = v * math.sin(a)
+        return v * math.cos(a) * (vz + math.sqrt(max(vz * vz - 2.0 * g * h, 0.0))) / g
+
+    lo, hi = min_mps, max_mps
+    if reach(lo) >= distance_m:
+        return lo
+    if reach(hi) <= distance_m:
+        return hi
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if reach(mid) < distance_m else (lo, mid)
+    return hi
+
+
 @dataclass(frozen=True)
 class PassOption:
     receiver: int  # index into the team
@@ -103,6 +137,7 @@ class PassOption:
     opponent_catch_s: float  # the earliest opponent's robotTimeToBall, the reaction time included; inf: none can
     first_opponent: int | None  # index into the opponents
     receive_facing_rad: float = math.nan  # the receiver's dribbler direction at the catch (in `field`)
+    kick_angle_deg: float = 0.0  # 0: a flat pass; else a chip at this elevation
 
     @property
     def margin_s(self) -> float:
@@ -146,6 +181,7 @@ def evaluate_passes(
     max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD,
     receiver_search: CatchSearch | None = None,
     from_passer_centre: bool = False,
+    chip_params: ChipParams | None = None,
 ) -> list[PassOption]:
     """One PassOption per candidate teammate in reach (module docstring).
 
@@ -159,6 +195,8 @@ def evaluate_passes(
     (catch_time.receive_facing); everybody reacts ``cfg.reaction_s`` late. With ``receiver_search`` (a
     CatchSearch like ``search`` for ``1 + len(opponents_xy)`` robots) each pass searches only the receiver
     and the opponents, the robots it is judged by: the same numbers, as robotTimeToBall is per robot.
+    A pass that is not safe flat is rated as a chip too (``cfg.chip_angle_deg``; ``chip_params`` None: the
+    defaults); the option is the chip when that is safe or has the larger margin (``kick_angle_deg``).
     """
     team_xy, opponents_xy = np.asarray(team_xy, dtype=float), np.asarray(opponents_xy, dtype=float)
     n_team = len(team_xy)
@@ -201,28 +239,59 @@ def evaluate_passes(
                     ball = origin + dribbler_offset_m * (aim - origin) / math.dist(aim, origin)
                 u = (aim - ball) / math.dist(aim, ball)
         contact_m = float((aim - ball) @ u)  # ball travel to the receiver's dribbler
-        v0 = min(max(kick_speed_for(contact_m, cfg.arrive_speed_mps, params), cfg.min_kick_mps), cfg.max_kick_mps)
-        traj = BallTrajectory.of_floats(float(ball[0]), float(ball[1]), float(u[0] * v0), float(u[1] * v0), v0, params)
-        if narrow:
-            sub_pos[0], sub_vel[0] = pos[j], vel[j]
-            sub_fixed[0], sub_facing[0] = j in next_targets, receive_rad
-            times = _times(catch_after_reaction(receiver_search, traj, sub_pos, sub_vel, cfg.reaction_s, sub_fixed,
-                                                sub_facing, 0.1), cfg.reaction_s)
-            receiver_time, opp = times[0], times[1:]
-        else:
+
+        def rate(traj, j=j, receive_rad=receive_rad):
+            """(the receiver's robotTimeToBall, every opponent's), reaction included, on the ball ``traj``."""
+            if narrow:
+                sub_pos[0], sub_vel[0] = pos[j], vel[j]
+                sub_fixed[0], sub_facing[0] = j in next_targets, receive_rad
+                times = _times(catch_after_reaction(receiver_search, traj, sub_pos, sub_vel, cfg.reaction_s,
+                                                    sub_fixed, sub_facing, 0.1), cfg.reaction_s)
+                return times[0], times[1:]
             facing_fixed[j], facing[j] = j in next_targets, receive_rad
             try:
                 times = _times(catch_after_reaction(search, traj, pos, vel, cfg.reaction_s, facing_fixed, facing,
                                                     0.1), cfg.reaction_s)
             finally:
                 facing_fixed[j] = False
-            receiver_time, opp = times[j], times[n_team:]
-        first = int(np.argmin(opp)) if len(opp) and math.isfinite(opp.min()) else None
-        arrival_s = float(traj.time_to_distance(contact_m))
-        receiver_s = arrival_s if math.isfinite(receiver_time) else math.inf
-        options.append(PassOption(int(j), v0, math.atan2(u[1], u[0]), receiver_s,
-                                  math.inf if first is None else float(opp[first]), first, receive_rad))
+            return times[j], times[n_team:]
+
+        v0 = min(max(kick_speed_for(contact_m, cfg.arrive_speed_mps, params), cfg.min_kick_mps), cfg.max_kick_mps)
+        traj = BallTrajectory.of_floats(float(ball[0]), float(ball[1]), float(u[0] * v0), float(u[1] * v0), v0, params)
+        receiver_time, opp = rate(traj)
+        arrival_s = float(traj.time_to_distance(contact_m)) if math.isfinite(receiver_time) else math.inf
+        option = _option(j, v0, u, arrival_s, opp, receive_rad, 0.0)
+        if cfg.chip_angle_deg > 0.0 and not option.safe(cfg):
+            chip, chip_v0 = _chip_pass(ball, u, contact_m, cfg, params, chip_params)
+            receiver_time, opp = rate(chip)
+            track = chip.ground_track()
+            arrival_s = float(track.time_to_distance(contact_m)) if math.isfinite(receiver_time) else math.inf
+            if math.isfinite(arrival_s) and chip.position_at(arrival_s)[2] > chip.params.max_catch_height_m:
+                arrival_s = math.inf  # it would fly over the receiver
+            lob = _option(j, chip_v0, u, arrival_s, opp, receive_rad, cfg.chip_angle_deg)
+            if lob.safe(cfg) or lob.margin_s > option.margin_s:
+                option = lob
+        options.append(option)
     return options
+
+
+def _option(j: int, v0: float, u: np.ndarray, arrival_s: float, opp: np.ndarray, receive_rad: float,
+            angle_deg: float) -> PassOption:
+    first = int(np.argmin(opp)) if len(opp) and math.isfinite(opp.min()) else None
+    return PassOption(int(j), v0, math.atan2(u[1], u[0]), arrival_s, math.inf if first is None else float(opp[first]),
+                      first, receive_rad, angle_deg)
+
+
+def _chip_pass(ball: np.ndarray, u: np.ndarray, contact_m: float, cfg: PassConfig, params: BallModelParams,
+               chip_params: ChipParams | None) -> tuple[ChipTrajectory, float]:
+    """The chip along ``u`` that comes down to the catchable height ``chip_land_fraction`` of ``contact_m`` on."""
+    chip_params = ChipParams() if chip_params is None else chip_params
+    v0 = chip_speed_for(cfg.chip_land_fraction * contact_m, cfg.chip_angle_deg, chip_params, cfg.min_kick_mps,
+                        cfg.max_kick_mps)
+    a = math.radians(cfg.chip_angle_deg)
+    vxy = v0 * math.cos(a)
+    return ChipTrajectory((float(ball[0]), float(ball[1]), 0.0), (float(u[0] * vxy), float(u[1] * vxy),
+                                                                  v0 * math.sin(a)), chip_params, params), v0
 
 
 def press_targets(ball_xy, team_xy: np.ndarray, opponents_xy: np.ndarray, holder: int | None,

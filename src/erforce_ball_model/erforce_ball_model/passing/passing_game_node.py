@@ -41,10 +41,10 @@ from erforce_interfaces.runtime.param_schema import HostSchema, fields_for, load
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
     ConversionError,
+    ball_state_from_msg,
     catches_from_msg,
     float64_from_msg,
     model_in_use_from_msg,
-    odometry_from_msg,
     odometry_msg,
     table_from_msg,
     table_msg,
@@ -96,7 +96,7 @@ def record_row(record: PassRecord) -> list[float]:
             -1 if record.first_opponent is None else record.first_opponent, 1.0 if record.rated_safe else 0.0,
             contract.PASS_OUTCOMES.index(record.outcome), team, caught,
             -1.0 if record.actual_catch_s is None else record.actual_catch_s,
-            -1 if record.facing_target is None else record.facing_target]
+            -1 if record.facing_target is None else record.facing_target, record.kick_angle_deg]
 
 
 def record_from_row(row) -> PassRecord:
@@ -114,7 +114,7 @@ def record_from_row(row) -> PassRecord:
         None if v["first_opponent"] < 0 else int(v["first_opponent"]), v["rated_safe"] > 0.5,
         contract.PASS_OUTCOMES[int(v["outcome"])], caught_by,
         None if caught_by is None else v["actual_catch_s"], (),
-        None if v["facing_target"] < 0 else int(v["facing_target"]))
+        None if v["facing_target"] < 0 else int(v["facing_target"]), v["kick_angle_deg"])
 
 
 def records_from_msg(msg: Float64MultiArray) -> list[PassRecord]:
@@ -140,6 +140,8 @@ class PassingGameNode(Node):
         ours = contract.OURS
         self._cmd_pubs = [contract_publisher(self, q.CMD_VEL, ours.topic(q.CMD_VEL, i)) for i in range(n)]
         self._kick_pubs = [contract_publisher(self, q.KICK, ours.topic(q.KICK, i)) for i in range(n)]
+        self._kick_angle_pubs = [contract_publisher(self, q.KICK_ANGLE, ours.topic(q.KICK_ANGLE, i)) for i in range(n)]
+        self._kick_angles = [None] * n  # the kick_angle last sent per robot [deg]
         self._dribbler_pubs = [contract_publisher(self, q.DRIBBLER, ours.topic(q.DRIBBLER, i)) for i in range(n)]
         self._set_ball_pub = contract_publisher(self, q.SIM_SET_BALL) if own.place_ball else None
         self._records_pub = contract_publisher(self, q.PASS_RECORDS)
@@ -191,6 +193,17 @@ class PassingGameNode(Node):
         self._fed_stamps = [None] * (self._n + self._m)
         self._dribblers_sent_at = -math.inf
 
+    def _send_kick_angle(self, player, robot: int | None = None, angle_deg: float | None = None) -> None:
+        """The kicker's angle, sent before the kick it is for: the holder's chosen pass's while it turns to it (so
+        that it is in force long before the kick), or ``angle_deg`` for ``robot``'s kick now; only on a change."""
+        if robot is None:
+            if player.holder is None or player.choice is None:
+                return
+            robot, angle_deg = player.holder, player.choice[1].kick_angle_deg
+        if self._kick_angles[robot] != angle_deg:
+            self._kick_angles[robot] = angle_deg
+            self._kick_angle_pubs[robot].publish(Float64(data=float(angle_deg)))
+
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
@@ -200,7 +213,7 @@ class PassingGameNode(Node):
 
     # ------------------------------------------------------------------ inputs (taken at the tick)
     def _on_ball(self, msg: Odometry | bytes) -> None:
-        ball = self._warn.convert(msg, "ball state", odometry_from_msg)
+        ball = self._warn.convert(msg, "ball state", ball_state_from_msg)
         if ball is not None:
             self._player.on_ball(self._batch_now, ball[1], ball[2], self._v_shoot)
 
@@ -246,9 +259,13 @@ class PassingGameNode(Node):
             self._warn.warn("tick", f"no decision: {exc}")
             commands = None
         if commands is not None:
+            self._send_kick_angle(player)
             for i, speed in commands.kicks.items():
+                angle = commands.kick_angles.get(i, 0.0)
+                self._send_kick_angle(player, i, angle)
                 self._kick_pubs[i].publish(Float64(data=float(speed)))
-                self.get_logger().info(f"robot_{i} kicks {speed:.2f} m/s to robot_{player.choice[1].receiver}")
+                chip = f" (chip {angle:g} deg)" if angle > 0.0 else ""
+                self.get_logger().info(f"robot_{i} kicks {speed:.2f} m/s{chip} to robot_{player.choice[1].receiver}")
             for i, twist in commands.twists.items():
                 moving = bool(np.any(twist))
                 if moving or self._moving[i]:

@@ -129,6 +129,7 @@ class PassRecord:
     actual_catch_s: float | None  # light barrier edge, from the kick
     ball_path: tuple[tuple[float, float], ...] = ()  # ball positions every AI tick
     facing_target: int | None = None  # the teammate the receiver received facing (None: it faced the ball)
+    kick_angle_deg: float = 0.0  # 0: a flat pass; else a chip at this elevation
 
     @property
     def margin_s(self) -> float:
@@ -139,7 +140,9 @@ class PassRecord:
         actual = "—" if self.actual_catch_s is None else f"{self.actual_catch_s:.2f} s"
         margin = "∞" if math.isinf(self.margin_s) else f"{self.margin_s:+.2f} s"
         rated = "safe" if self.rated_safe else "UNSAFE"
-        text = (f"pass {self.index:2d}  robot_{self.passer} -> robot_{self.receiver}  {self.kick_speed_mps:.2f} m/s  "
+        chip = f" chip {self.kick_angle_deg:.0f} deg" if self.kick_angle_deg > 0.0 else ""
+        text = (f"pass {self.index:2d}  robot_{self.passer} -> robot_{self.receiver}  "
+                f"{self.kick_speed_mps:.2f} m/s{chip}  "
                 f"catch predicted {self.predicted_catch_s:.2f} s, actual {actual}  margin {margin} ({rated})  "
                 f"{self.outcome}")
         if self.caught_by and self.caught_by != f"robot_{self.receiver}":
@@ -177,6 +180,7 @@ class Commands:
     twists: dict[int, np.ndarray]  # [vx, vy, wz] in the robot frame (base_link) [m/s, rad/s]
     kicks: dict[int, float]  # robot -> kick now with this ball speed [m/s]
     dribblers: dict[int, bool]  # every robot's dribbler: on / off
+    kick_angles: dict[int, float] = field(default_factory=dict)  # robot -> its kick's chip angle [deg] (absent: 0)
 
 
 @dataclass
@@ -294,10 +298,12 @@ class PassingPlayer:
             self._feed_receiver(i, now)
 
     def on_ball(self, now: float, position, velocity, v_shoot_mps: float | None = None) -> None:
+        """The tracked ball: [x, y] and [vx, vy], or [x, y, z] and [vx, vy, vz] (a ball in the air, z of its
+        centre above its rest: the receiver takes a chip where it is low, receiver.Receiver)."""
         self.ball_xy = np.asarray(position, dtype=float)[:2].copy()
         self.ball_velocity = np.asarray(velocity, dtype=float)[:2].copy()
         if self.receiver is not None:
-            self.receiver.on_ball(now, self.ball_xy, self.ball_velocity)
+            self.receiver.on_ball(now, position, velocity)
             if v_shoot_mps is not None:
                 self.receiver.on_v_shoot(now, v_shoot_mps)
 
@@ -354,6 +360,7 @@ class PassingPlayer:
         cfg = self.cfg
         twists = {i: np.zeros(3) for i in range(self.n_team)}
         kicks: dict[int, float] = {}
+        kick_angles: dict[int, float] = {}
         if self._holder is not None and self.ball_request is None:
             h = self._holder
             self._update_next_targets(h, all_of_them=False)
@@ -371,6 +378,8 @@ class PassingPlayer:
                 patient = not choice.safe(cfg.passing) and now - self._hold_since < cfg.wait_for_safe_s
                 if aimed and not patient and now - self._hold_since >= cfg.hold_min_s and self.barriers[h]:
                     kicks[h] = choice.kick_speed_mps
+                    if choice.kick_angle_deg > 0.0:
+                        kick_angles[h] = choice.kick_angle_deg
                     self._kick(h, choice, now)
                     twists[h] = np.zeros(3)
             if not kicks:
@@ -379,7 +388,7 @@ class PassingPlayer:
             self._pass.path.append((float(self.ball_xy[0]), float(self.ball_xy[1])))
             if self.receiver is not None:
                 twists[self._pass.choice.receiver] = self.receiver.tick(now)
-        return Commands(twists, kicks, self.dribblers())
+        return Commands(twists, kicks, self.dribblers(), kick_angles)
 
     def check(self, now: float) -> None:
         """Light-barrier edges end a pass; a ball that rests or a time that is up loses it; a holder whose
@@ -552,7 +561,8 @@ class PassingPlayer:
         self.records.append(PassRecord(
             len(self.records) + 1, p.t_kick_s, p.passer, choice.receiver, choice.kick_speed_mps,
             choice.receiver_catch_s, choice.opponent_catch_s, choice.first_opponent, choice.safe(self.cfg.passing),
-            outcome, name, None if caught_by is None else now - p.t_kick_s, tuple(p.path), p.facing_target))
+            outcome, name, None if caught_by is None else now - p.t_kick_s, tuple(p.path), p.facing_target,
+            choice.kick_angle_deg))
         self._pass, self.receiver = None, None
         self._dribblers = dict.fromkeys(range(self.n_team), False)
         if outcome == "completed":

@@ -13,7 +13,9 @@ replacement too, its robot direction in degrees). The contract's ``field`` frame
 opponents' goal: when we defend the simulator's positive x it is the simulator's frame turned by half a
 turn (``teleport_packet``, as ssl_vision_bridge turns vision), else they map 1:1. Local velocities are the contract's
 ``base_link`` (forward = x towards the dribbler, left = y). Kick speed in m/s; dribbler speed on the
-wire in rpm, in rad/s on the contract.
+wire in rpm, in rad/s on the contract. A chip is the protocol's ``kick_speed`` (the ball's speed, in 3D)
+with ``kick_angle`` (its elevation in degrees, 0 flat); grSim takes the same kick as the ball's
+velocity components, ``kickspeedx`` along the carpet and ``kickspeedz`` upwards.
 
 Decoders raise ``WireError`` (a ValueError) naming the problem: garbage, a missing required field,
 non-finite or absurd values, absurd counts. Nothing non-finite leaves a decoder.
@@ -52,6 +54,7 @@ MAX_ROBOT_ID = 255
 MAX_LINEAR_MPS = 20.0
 MAX_ANGULAR_RADPS = 100.0
 MAX_KICK_MPS = 20.0
+MAX_KICK_ANGLE_DEG = 90.0  # exclusive: an elevation of 90 deg has no direction on the carpet
 MAX_DRIBBLER_RPM = 1.0e5
 MAX_POSITION_M = 100.0
 
@@ -121,8 +124,9 @@ class RobotCommand:
     forward_mps: float = 0.0
     left_mps: float = 0.0
     angular_radps: float = 0.0
-    kick_speed_mps: float = 0.0  # > 0: kick (flat) when the ball is at the kicker
+    kick_speed_mps: float = 0.0  # > 0: kick when the ball is at the kicker (the ball's speed, in 3D for a chip)
     dribbler_radps: float = 0.0
+    kick_angle_deg: float = 0.0  # the kick's elevation: 0 flat, in (0, 90) a chip
 
     def __post_init__(self) -> None:
         if int(self.robot_id) != self.robot_id or not 0 <= self.robot_id <= MAX_ROBOT_ID:
@@ -137,6 +141,14 @@ class RobotCommand:
                 raise ValueError(str(exc)) from None
         if self.kick_speed_mps < 0.0:
             raise ValueError(f"kick_speed_mps must be >= 0, got {self.kick_speed_mps!r}")
+        check_kick_angle("kick_angle_deg", self.kick_angle_deg)
+
+
+def check_kick_angle(what: str, angle_deg: float) -> float:
+    """A kick's elevation [deg] in [0, 90) (0: flat, else a chip), else a ValueError naming ``what``."""
+    if not (isinstance(angle_deg, int | float) and math.isfinite(angle_deg) and 0.0 <= angle_deg < MAX_KICK_ANGLE_DEG):
+        raise ValueError(f"{what} must be in [0, {MAX_KICK_ANGLE_DEG:g}) degrees, got {angle_deg!r}")
+    return float(angle_deg)
 
 
 def encode_robot_control(commands: Iterable[RobotCommand]) -> bytes:
@@ -150,7 +162,7 @@ def encode_robot_control(commands: Iterable[RobotCommand]) -> bytes:
         local.left = c.left_mps
         local.angular = c.angular_radps
         cmd.kick_speed = c.kick_speed_mps
-        cmd.kick_angle = 0.0
+        cmd.kick_angle = c.kick_angle_deg
         cmd.dribbler_speed = c.dribbler_radps * RPM_PER_RADPS
     return msg.SerializeToString()
 
@@ -163,8 +175,9 @@ def encode_grsim_commands(commands: Iterable[RobotCommand], team: str, timestamp
     for c in commands:
         cmd = packet.commands.robot_commands.add()
         cmd.id = c.robot_id
-        cmd.kickspeedx = c.kick_speed_mps
-        cmd.kickspeedz = 0.0
+        elevation = math.radians(c.kick_angle_deg)  # grSim: the ball's velocity along the carpet and upwards
+        cmd.kickspeedx = c.kick_speed_mps * math.cos(elevation)
+        cmd.kickspeedz = c.kick_speed_mps * math.sin(elevation)
         cmd.veltangent = c.forward_mps
         cmd.velnormal = c.left_mps
         cmd.velangular = c.angular_radps
@@ -429,6 +442,7 @@ class BridgeCommands:
         never = -math.inf
         self._velocity = {i: ((0.0, 0.0, 0.0), never) for i in self.robot_ids}
         self._kick = {i: (0.0, never) for i in self.robot_ids}
+        self._kick_angle = dict.fromkeys(self.robot_ids, 0.0)
         self._dribbler = dict.fromkeys(self.robot_ids, 0.0)
 
     def set_velocity(self, robot_id: int, now_s: float, forward_mps: float, left_mps: float,
@@ -443,6 +457,11 @@ class BridgeCommands:
         RobotCommand(robot_id, kick_speed_mps=speed_mps)
         self._kick[robot_id] = (float(speed_mps), now_s)
 
+    def set_kick_angle(self, robot_id: int, angle_deg: float) -> None:
+        """The elevation of this robot's kicks from now on (0: flat, else a chip; the contract's ``kick_angle``)."""
+        RobotCommand(robot_id, kick_angle_deg=angle_deg)
+        self._kick_angle[robot_id] = float(angle_deg)
+
     def set_dribbler(self, robot_id: int, radps: float) -> None:
         RobotCommand(robot_id, dribbler_radps=radps)
         self._dribbler[robot_id] = float(radps)
@@ -456,19 +475,21 @@ class BridgeCommands:
             kick, t_kick = self._kick[i]
             if now_s - t_kick > self.kick_hold_s:
                 kick = 0.0
-            out.append(RobotCommand(i, *velocity, kick_speed_mps=kick, dribbler_radps=self._dribbler[i]))
+            out.append(RobotCommand(i, *velocity, kick_speed_mps=kick, dribbler_radps=self._dribbler[i],
+                                    kick_angle_deg=self._kick_angle[i] if kick > 0.0 else 0.0))
         return out
 
 
 # ------------------------------------------------------------------ a simulator's decisions
 @dataclass(frozen=True)
 class RobotAction:
-    """What a simulator with velocity-commanded robots and flat kickers does for one RobotCommand."""
+    """What a simulator with velocity-commanded robots, a flat and a chip kicker does for one RobotCommand."""
 
     robot_id: int
     twist: tuple[float, float, float] | None  # forward, left [m/s], angular [rad/s]; None: no move command
     kick_speed_mps: float  # 0: no kick
     dribbler_radps: float = 0.0  # with ``dribbler``: the requested dribbler speed (0: off)
+    kick_angle_deg: float = 0.0  # the kick's elevation: 0 flat, in (0, 90) a chip
 
 
 def plan_robot_control(requests: Iterable[MoveRequest], robot_ids: Iterable[int],
@@ -476,7 +497,7 @@ def plan_robot_control(requests: Iterable[MoveRequest], robot_ids: Iterable[int]
     """Turn decoded robot commands into actions for the robots in ``robot_ids``.
 
     ``yaw_of(robot_id)`` gives a robot's heading [rad] (or None when unknown) for global velocities.
-    Unsupported features (wheel velocities, chip kicks, a dribbler when ``dribbler`` is False) give
+    Unsupported features (wheel velocities, a dribbler when ``dribbler`` is False) give
     one SimError each per packet, as the protocol recommends, and the rest of the command still acts.
     """
     served = set(robot_ids)
@@ -500,11 +521,13 @@ def plan_robot_control(requests: Iterable[MoveRequest], robot_ids: Iterable[int]
         elif r.kind == "wheel":
             errors.setdefault("wheel", SimError(
                 ERROR_UNSUPPORTED, "wheel velocities are not supported: send local or global velocities"))
-        kick = r.kick_speed_mps
-        if kick > 0.0 and r.kick_angle_deg != 0.0:
-            errors.setdefault("chip", SimError(ERROR_UNSUPPORTED, "chip kicks are not simulated (kick_angle != 0)"))
-            kick = 0.0
+        kick, angle = r.kick_speed_mps, r.kick_angle_deg if r.kick_speed_mps > 0.0 else 0.0
+        if not 0.0 <= angle < MAX_KICK_ANGLE_DEG:
+            errors.setdefault(f"angle{r.robot_id}", SimError(
+                ERROR_INVALID, f"robot {r.robot_id}: kick_angle {angle:g} deg is not in [0, 90): no kick"))
+            kick, angle = 0.0, 0.0
         if r.dribbler_rpm != 0.0 and not dribbler:
             errors.setdefault("dribbler", SimError(ERROR_UNSUPPORTED, "this simulator has no dribbler motor"))
-        actions.append(RobotAction(r.robot_id, twist, kick, r.dribbler_rpm / RPM_PER_RADPS if dribbler else 0.0))
+        actions.append(RobotAction(r.robot_id, twist, kick, r.dribbler_rpm / RPM_PER_RADPS if dribbler else 0.0,
+                                   angle))
     return actions, list(errors.values())

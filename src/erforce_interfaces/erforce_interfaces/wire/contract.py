@@ -393,7 +393,8 @@ PASS_RECORDS = Topic("/pass/records", Float64MultiArray, QOS_LOG, "passing_game"
                      "one message per pass as it ends: one row of PASS_RECORD_COLUMNS (robot ids of each team, "
                      "times [s] from the kick, kick_speed_mps [m/s]; outcome PASS_OUTCOMES' index; caught_team "
                      "Team.code, 0 and caught_id -1 with actual_catch_s -1: nobody; first_opponent and "
-                     "facing_target -1: none; opponent_predicted_s PASS_NO_OPPONENT_S: no opponent can)")
+                     "facing_target -1: none; opponent_predicted_s PASS_NO_OPPONENT_S: no opponent can; "
+                     "kick_angle_deg 0: flat, else a chip)")
 
 # ------------------------------------------------------------- per-robot topics
 CMD_VEL = Topic("cmd_vel", Twist, QOS_COMMAND, "catcher / AI", "velocity_controller",
@@ -409,7 +410,10 @@ MOTOR_DUTY = Topic("motor_duty", JointState, QOS_CONTROL, "motor_boards", "plant
 MOTOR_STATUS = Topic("motor_status", Float64MultiArray, QOS_STATE, "motor_boards", "tools, demo",
                      "rows = wheels, columns = [avg_current_a, pwm_limit, saturated, limit_active]")
 KICK = Topic("kick", Float64, QOS_COMMAND, "catcher / AI / scenario", "plant",
-             "kick now with this ball speed [m/s] if the ball is at the kicker")
+             "kick now with this ball speed [m/s] if the ball is at the kicker (in 3D: a chip at kick_angle)")
+KICK_ANGLE = Topic("kick_angle", Float64, QOS_COMMAND, "AI / scenario", "plant, ssl_sim_bridge",
+                   "the elevation of the kicks that follow [deg], the SSL RobotCommand's kick_angle: 0 flat, in "
+                   "(0, 90) a chip; sent before the kick it is for")
 BALL_DETECTED = Topic("ball_detected", Bool, QOS_STATE, "plant (light barrier), ssl_sim_bridge", "catcher, tools",
                       "light barrier across the dribbler: ball present (from an external simulator: its "
                       "dribbler ball contact)")
@@ -473,7 +477,7 @@ PASS_CHOICE_COLUMNS = ("passer_id", "receiver_id", "kick_speed_mps", "direction_
                        "opponent_catch_s", "first_opponent", "margin_s", "safe_margin_s", "safe")
 PASS_RECORD_COLUMNS = ("index", "t_kick_s", "passer_id", "receiver_id", "kick_speed_mps", "predicted_catch_s",
                        "opponent_predicted_s", "first_opponent", "rated_safe", "outcome", "caught_team", "caught_id",
-                       "actual_catch_s", "facing_target")
+                       "actual_catch_s", "facing_target", "kick_angle_deg")
 PASS_OUTCOMES = ("completed", "intercepted", "lost")
 VISION_FIELD_COLUMNS = ("length_m", "width_m", "boundary_m", "goal_width_m", "goal_depth_m")
 

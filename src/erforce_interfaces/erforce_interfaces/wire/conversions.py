@@ -311,6 +311,18 @@ def odometry_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndar
     return stamp_to_seconds(msg.header.stamp), pose, velocity, angular
 
 
+def ball_state_from_msg(msg: Odometry | bytes) -> tuple[float, np.ndarray, np.ndarray]:
+    """A /ball/state as the ball's consumers take it: (stamp [s], [x, y], [vx, vy]) for a ball on the ground,
+    (stamp, [x, y, z], [vx, vy, vz]) for one in the air: its height above its rest or its vertical speed above 0
+    (odometry_height; a height below 0 is noise on the ground). chip_model.flying_ball makes the chip of it."""
+    stamp, pose, velocity, _ = odometry_from_msg(msg)
+    z, vz = odometry_height(msg)
+    z = max(z, 0.0)
+    if z > 0.0 or vz > 0.0:
+        return stamp, np.array([pose[0], pose[1], z]), np.array([velocity[0], velocity[1], vz])
+    return stamp, pose[:2].copy(), velocity[:2].copy()
+
+
 def _odometry_values(data: bytes) -> tuple[float, tuple[float, ...]]:
     """An Odometry's bytes: the stamp [s] and the 85 doubles after both frame strings (odometry_cdr's order)."""
     try:

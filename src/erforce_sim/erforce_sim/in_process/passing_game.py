@@ -8,6 +8,25 @@ opponents' ``team_catcher`` runs (``press_lanes``). Both are fed what vision tra
 their commands and the referee's part (the ball put back at a robot) on the world. Each pass is reported
 as it ends (``PassRecord``, with the true ball path).
 
+- our team: passing.player.PassingPlayer, the same object the ``passing_game`` node runs on the graph
+  (its docstring says how the holder picks and kicks a pass and how the receiver receives), fed with
+  the predictor's tracked robots, ball and catch times and with every light barrier; this runner
+  performs its commands (twists, kicks, dribblers) and its requests (the ball put back at a robot,
+  the referee's job) on the world, and receives with the predictor's search facing the way the
+  receiver faces (``PassingPlayer.receive_facing``);
+- the opponents: passing.player.PressingTeam, the same object the opponents' ``team_catcher`` runs
+  on the graph (``press_lanes``): they wait on the passing lanes while one of ours holds the ball
+  (passing.decisions.press_targets) and run receiver.Receiver as a team once it rolls (the first of them to
+  the ball goes), fed with the tracked robots and ball, their catch times and light barriers.
+
+Each pass is reported as it ends (``PassRecord``, with the true ball path).
+
+A chipped pass flies over the opponents (passing.decisions.evaluate_passes). The predictor's tracker does not fly a
+chip (it tracks the ball's shadow as a rolling ball); with ``GameConfig.true_chip`` the game hands the AI the
+simulator's true ball while it is in the air, as a chip (its catch table from the predictor's search on it):
+what a chip-tracking predictor would say. The predictor's own chip (``BallFrame.chip``, from cameras it knows the
+position of) is passed on as it is.
+
     python -m erforce_sim.in_process.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
 
 No rclpy import.
@@ -25,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from erforce_ball_model.catch_time import RobotLimits
+from erforce_ball_model.chip_model import ChipTrajectory, flying_ball
 from erforce_ball_model.passing.decisions import PassConfig
 from erforce_ball_model.passing.player import PassingPlayer, PassRecord, PlayerConfig, PressingTeam, summary
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
@@ -58,6 +78,7 @@ class GameConfig:
     player: PlayerConfig = field(default_factory=PlayerConfig)  # our team's AI
     team_positions: tuple[tuple[float, float], ...] = TEAM_POSITIONS  # the first team_size play
     opponent_positions: tuple[tuple[float, float], ...] = OPPONENT_POSITIONS
+    true_chip: bool = False  # a ball in the air reaches the AI as the simulator's true chip (module docstring)
 
     def __post_init__(self) -> None:
         if not 2 <= self.team_size <= len(self.team_positions):
@@ -159,15 +180,19 @@ class PassingGame:
             self.frame_costs_s.append(time.thread_time() - t0)
             if answer is None:
                 continue
+            answer = self._chip_answer(answer, now)
             traj = answer.trajectory
-            if traj.params is not self._model_sent:  # the model in use changed: as /ball/model_params on the graph
-                self._model_sent = traj.params
-                player.on_model(traj.params)
-                self.opponents.on_model(traj.params)
+            chip = isinstance(traj, ChipTrajectory)
+            model = traj.roll.params if chip else traj.params
+            if model is not self._model_sent:  # the model in use changed: as /ball/model_params on the graph
+                self._model_sent = model
+                player.on_model(model)
+                self.opponents.on_model(model)
             for i, ct, point in zip(answer.catch_robots, answer.catch_times_s, answer.catch_points_m, strict=True):
                 if i < self.n_team:
                     player.on_catch(i, now, ct, point)
-            player.on_ball(now, traj.position_m, traj.velocity_mps, traj.floats.v_shoot_mps)
+            v_shoot = None if chip else traj.floats.v_shoot_mps
+            player.on_ball(now, traj.position_m, traj.velocity_mps, v_shoot)
             opponents = self.opponents
             for i, ct, point in zip(answer.catch_robots, answer.catch_times_s, answer.catch_points_m, strict=True):
                 if i >= self.n_team:
@@ -175,7 +200,23 @@ class PassingGame:
                     if point is not None:
                         opponents.on_catch_point(i - self.n_team, now, np.array(point))
             opponents.on_ball(now, traj.position_m, traj.velocity_mps)
-            opponents.on_v_shoot(now, traj.floats.v_shoot_mps)
+            if v_shoot is not None:
+                opponents.on_v_shoot(now, v_shoot)
+
+    def _chip_answer(self, answer, now: float):
+        """The predictor's chip, when it tracks one, as the ball; with ``true_chip`` the simulator's true ball while it
+        is in the air (module docstring)."""
+        if answer.chip is not None:
+            return dataclasses.replace(answer, trajectory=answer.chip)  # its catch table is the chip's already
+        if not self.cfg.true_chip:
+            return answer
+        b = self.world.ball_state()
+        chip = flying_ball((b.x, b.y, b.z), (b.vx, b.vy, b.vz), ball_params=self.predictor.model)
+        if chip is None:
+            return answer
+        robots, times, points = self.predictor.catches(now, chip)
+        return dataclasses.replace(answer, trajectory=chip, catch_robots=robots, catch_times_s=times,
+                                   catch_points_m=points)
 
     # -------------------------------------------------------------------- the referee's and the world's part
     def _apply(self, now: float) -> None:
@@ -226,7 +267,7 @@ class PassingGame:
                 for i, speed in commands.kicks.items():
                     world.set_dribbler(i, False)
                     self._dribblers[i] = False
-                    world.kick(i, speed, armed_for_s=0.1)
+                    world.kick(i, speed, armed_for_s=0.1, angle_deg=commands.kick_angles.get(i, 0.0))
                 self._apply(now)
                 twists = {i: np.zeros(3) for i in range(n)}
                 twists.update(commands.twists)
@@ -286,8 +327,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--passes", type=int, default=10)
     parser.add_argument("--seed", type=int, default=_PLANT["seed"])
     parser.add_argument("--plot", help="write a field plot of every pass here (PNG)")
+    parser.add_argument("--chip-angle", type=float, default=PassConfig().chip_angle_deg,
+                        help="chip passes at this elevation [deg] (0: flat passes only)")
+    parser.add_argument("--true-chip", action="store_true",
+                        help="a ball in the air reaches the AI as the simulator's true chip (no chip tracker yet)")
     args = parser.parse_args(argv)
-    cfg = GameConfig(team_size=args.team, opponents=args.opponents, passes=args.passes)
+    player = PlayerConfig(passing=dataclasses.replace(PassConfig(), chip_angle_deg=args.chip_angle))
+    cfg = GameConfig(team_size=args.team, opponents=args.opponents, passes=args.passes, player=player,
+                     true_chip=args.true_chip)
     game = PassingGame(cfg, args.seed, on_pass=lambda r: print(r.line(), flush=True))
     wall0 = time.perf_counter()
     records = game.play()
