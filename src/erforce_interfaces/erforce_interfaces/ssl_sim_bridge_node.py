@@ -2,7 +2,8 @@
 
 Every ``1 / rate_hz`` seconds of wall time it sends the newest command of each robot in ``robot_ids``
 to the simulator: ``robot_<id>/cmd_vel`` (Twist in base_link) as a local velocity,
-``robot_<id>/kick`` (a flat kick at this speed, armed for ``kick_hold_s``) and ``robot_<id>/dribbler``
+``robot_<id>/kick`` (a flat kick at this speed, armed for ``kick_hold_s``, sent in one command once the
+simulator reports the ball at the kicker: ssl_sim.BridgeCommands) and ``robot_<id>/dribbler``
 (with ``team: opponents`` the ``opponent_<id>/`` topics: a second team's AI on the same graph, one bridge
 per colour as each team drives its own robots).
 With ``protocol: ssl`` that is a ``RobotControl`` of the ssl-simulation-protocol to the team's robot
@@ -208,6 +209,7 @@ class SslSimBridgeNode(Node):
             pub = self._barrier_pubs.get(robot)
             if pub is None:
                 continue  # a robot of the simulator this bridge does not drive
+            self._state.ball_contact(robot, contact)
             last = self._barrier_sent.get(robot)
             if last is None or last[0] != contact or now - last[1] >= _BARRIER_REPEAT_S:
                 self._barrier_sent[robot] = (contact, now)
