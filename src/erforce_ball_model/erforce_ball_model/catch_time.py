@@ -597,6 +597,11 @@ class CatchSearch:
                                    np.empty(num_robots, dtype=np.int8))
 
     @property
+    def limits(self) -> RobotLimits:
+        """The robots' limits the search plans with (one per robot)."""
+        return RobotLimits(self._a.copy(), self._vmax.copy())
+
+    @property
     def compiled(self) -> bool:
         """Whether its answers come from the compiled kernels (kernels="background": once they are loaded)."""
         return self._search is not None

@@ -20,8 +20,12 @@ question) for every robot on the field, on the ball the kick would make:
   runs to meet the ball. The receive facing is the one the receiver will take: towards its next
   target (``next_targets``) when catch_time.receive_facing allows, else against the ball; the
   receiver's robotTimeToBall runs with the offset pointing that way (the paper's targetpos).
-  ``margin_s`` = opponent - arrival; a pass is safe when the margin is at least
-  ``PassConfig.safe_margin_s``.
+  An opponent also stops the ball with its body: with ``block_radius_m`` (robot radius plus ball
+  radius) its time is the earlier of its robotTimeToBall and its block time
+  (catch_time.robot_time_to_block: its body on the ball's path before the ball is there, before the
+  ball reaches the receiver), so a pass past an opponent standing near the lane is not rated safe.
+  The receiver still needs the real catch. ``margin_s`` = opponent - arrival; a pass is safe when the
+  margin is at least ``PassConfig.safe_margin_s``.
 - ``select_pass``: of the safe passes the one whose catch comes earliest; when none is safe, the
   one with the largest margin (rated unsafe; the caller may still play it).
 - ``press_targets``: where opponents wait while a robot of ours holds the ball: each covers the
@@ -42,9 +46,11 @@ from erforce_ball_model.catch_time import (
     MAX_RECEIVE_ANGLE_RAD,
     CatchKind,
     CatchSearch,
+    RobotLimits,
     catch_after_reaction,
     contact_offset,
     receive_facing,
+    robot_time_to_block,
 )
 
 
@@ -93,7 +99,7 @@ class PassOption:
     kick_speed_mps: float
     direction_rad: float  # kick direction in `field`
     receiver_catch_s: float  # the ball at the receiver's dribbler, from the kick; inf: it cannot catch it
-    opponent_catch_s: float  # the earliest opponent's robotTimeToBall, the reaction time included; inf: none can
+    opponent_catch_s: float  # the earliest opponent's robotTimeToBall or block, the reaction time included; inf: none
     first_opponent: int | None  # index into the opponents
     receive_facing_rad: float = math.nan  # the receiver's dribbler direction at the catch (in `field`)
 
@@ -139,6 +145,7 @@ def evaluate_passes(
     max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD,
     receiver_search: CatchSearch | None = None,
     from_passer_centre: bool = False,
+    block_radius_m: float = 0.0,
 ) -> list[PassOption]:
     """One PassOption per candidate teammate in reach (module docstring).
 
@@ -152,6 +159,8 @@ def evaluate_passes(
     (catch_time.receive_facing); everybody reacts ``cfg.reaction_s`` late. With ``receiver_search`` (a
     CatchSearch like ``search`` for ``1 + len(opponents_xy)`` robots) each pass searches only the receiver
     and the opponents, the robots it is judged by: the same numbers, as robotTimeToBall is per robot.
+    ``block_radius_m`` > 0: an opponent's body within this distance of the ball's centre stops it
+    (``_block_times``); 0: the opponents' catches only (the paper's rating).
     """
     team_xy, opponents_xy = np.asarray(team_xy, dtype=float), np.asarray(opponents_xy, dtype=float)
     n_team = len(team_xy)
@@ -210,12 +219,24 @@ def evaluate_passes(
             finally:
                 facing_fixed[j] = False
             receiver_time, opp = times[j], times[n_team:]
-        first = int(np.argmin(opp)) if len(opp) and math.isfinite(opp.min()) else None
         arrival_s = float(traj.time_to_distance(contact_m))
+        if block_radius_m > 0.0 and len(opp):
+            opp = np.minimum(opp, _block_times(traj, arrival_s, opponents_xy, opponents_vel, search, n_team,
+                                               block_radius_m, cfg.reaction_s))
+        first = int(np.argmin(opp)) if len(opp) and math.isfinite(opp.min()) else None
         receiver_s = arrival_s if math.isfinite(receiver_time) else math.inf
         options.append(PassOption(int(j), v0, math.atan2(u[1], u[0]), receiver_s,
                                   math.inf if first is None else float(opp[first]), first, receive_rad))
     return options
+
+
+def _block_times(traj: BallTrajectory, arrival_s: float, opponents_xy, opponents_vel, search: CatchSearch,
+                 n_team: int, radius_m: float, reaction_s: float) -> np.ndarray:
+    """Each opponent's block time of the pass (catch_time.robot_time_to_block, with the opponents' limits of
+    ``search``) before the ball reaches the receiver (``arrival_s``); inf: it cannot."""
+    limits = search.limits
+    mine = RobotLimits(limits.a_max_mps2[n_team:], limits.v_max_mps[n_team:])
+    return robot_time_to_block(traj, opponents_xy, opponents_vel, mine, radius_m, arrival_s, reaction_s=reaction_s)
 
 
 def press_targets(ball_xy, team_xy: np.ndarray, opponents_xy: np.ndarray, holder: int | None,

@@ -54,7 +54,7 @@ from erforce_ball_model.catcher import (
     wrap_angle,
 )
 from erforce_ball_model.passing import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
-from erforce_interfaces.robot_config import FieldConfig
+from erforce_interfaces.robot_config import BALL_RADIUS_M, FieldConfig
 
 ANY_DISTANCE_M = (1e-3, 1e3)  # the passing distances of the last fallback: any teammate
 
@@ -426,7 +426,7 @@ class PassingPlayer:
                                self.poses[n:, :2], self.velocities[n:], self._candidates(holder), self.pass_search,
                                self.model if model is None else model, self.cfg.passing if passing is None else passing,
                                self.dribbler_offset_m, targets, self.cfg.max_receive_angle_rad, self.receiver_search,
-                               from_passer_centre=True)
+                               from_passer_centre=True, block_radius_m=self.robot_radius_m + BALL_RADIUS_M)
 
     def fallback_choice(self, holder: int, now: float) -> PassOption | None:
         """The pass of a holder that has no pass in reach under the model in use (module docstring): None
@@ -465,7 +465,8 @@ class PassingPlayer:
         others = [k for k in range(n) if k not in (holder, j)]
         options = evaluate_passes(self.poses[j, :2], self.poses[:n, :2], self.velocities[:n], self.poses[n:, :2],
                                   self.velocities[n:], others, self.pass_search, self.model, self.cfg.passing,
-                                  self.dribbler_offset_m, receiver_search=self.receiver_search)
+                                  self.dribbler_offset_m, receiver_search=self.receiver_search,
+                                  block_radius_m=self.robot_radius_m + BALL_RADIUS_M)
         best = select_pass(options, self.cfg.passing)
         return None if best is None else best.receiver
 
