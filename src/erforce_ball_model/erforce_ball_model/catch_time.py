@@ -865,8 +865,7 @@ def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits
             if lo is not None:
                 for _ in range(refine_steps):  # bisect the first feasible grid step's left edge
                     mid = 0.5 * (lo + hi)
-                    if _blocks(ball, np.array([[mid]]), p0[r:r + 1], v0[r:r + 1], spot[r:r + 1], a[r:r + 1],
-                               vmax[r:r + 1], body_radius_m, reaction_s)[0, 0]:
+                    if _block_at(ball, mid, p0[r], v0[r], spot[r], a[r], vmax[r], body_radius_m, reaction_s):
                         hi = mid
                     else:
                         lo = mid
@@ -888,6 +887,19 @@ def _body_entry(ball: BallTrajectory, spot: np.ndarray, radius_m: float) -> np.n
     for r in np.nonzero(near)[0]:
         out[r] = 0.0 if enter[r] <= 0.0 else float(ball.time_to_distance(float(enter[r])))
     return out
+
+
+def _block_at(ball: BallTrajectory, t: float, p0, v0, spot, a: float, vmax: float, radius_m: float,
+              reaction_s: float) -> bool:
+    """``_blocks`` for one robot and one time, in scalar Python (the refinement's few calls)."""
+    bx, by = path_point(ball.rows, t)
+    if t < reaction_s:
+        return math.hypot(bx - p0[0], by - p0[1]) <= radius_m + 1e-9
+    gx, gy = spot[0] - bx, spot[1] - by
+    gap = math.hypot(gx, gy)
+    scale = radius_m / gap if gap > radius_m else 1.0
+    return _can_reach(bx + gx * scale - p0[0], by + gy * scale - p0[1], float(v0[0]), float(v0[1]), t - reaction_s,
+                      float(a), float(vmax))
 
 
 def _blocks(ball: BallTrajectory, times: np.ndarray, p0, v0, spot, a, vmax, radius_m: float,

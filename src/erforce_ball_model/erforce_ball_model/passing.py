@@ -235,8 +235,8 @@ def _block_times(traj: BallTrajectory, arrival_s: float, opponents_xy, opponents
     """Each opponent's block time of the pass (catch_time.robot_time_to_block, with the opponents' limits of
     ``search``) before the ball reaches the receiver (``arrival_s``); inf: it cannot."""
     limits = search.limits
-    mine = RobotLimits(limits.a_max_mps2[n_team:], limits.v_max_mps[n_team:])
-    return robot_time_to_block(traj, opponents_xy, opponents_vel, mine, radius_m, arrival_s, reaction_s=reaction_s)
+    theirs = RobotLimits(limits.a_max_mps2[n_team:], limits.v_max_mps[n_team:])
+    return robot_time_to_block(traj, opponents_xy, opponents_vel, theirs, radius_m, arrival_s, reaction_s=reaction_s)
 
 
 def press_targets(ball_xy, team_xy: np.ndarray, opponents_xy: np.ndarray, holder: int | None,
