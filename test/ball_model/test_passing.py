@@ -1,5 +1,6 @@
 """The passing game's decisions (erforce_ball_model.passing.decisions), from hand-computed cases."""
 
+import dataclasses
 import itertools
 import math
 
@@ -92,6 +93,38 @@ def test_an_opponent_on_the_lane_makes_a_pass_unsafe_and_the_free_teammate_is_ch
     assert o.receiver_catch_s == pytest.approx(t_arrive, abs=1e-9)
     assert o.direction_rad == pytest.approx(math.pi / 2)
     assert o.kick_speed_mps == pytest.approx(kick_speed_for(2.0 - OFFSET, CFG.arrive_speed_mps, MODEL))
+
+
+def test_an_opponent_beside_the_lane_blocks_the_pass_with_its_body():
+    """Opponent standing at (1, 0.1) beside the lane from the origin to teammate 1 at (3, 0). Its dribbler cannot
+    meet the ball (robotTimeToBall: it only gets the ball at rest, far later), but its body is on the path: the
+    ball's centre comes within robot + ball radius (0.11135 m) of its centre after 1 - sqrt(0.11135^2 - 0.1^2)
+    = 0.95101 m. With a reaction time longer than that (0.5 s) it does not move: the ball, still sliding there,
+    takes t = (v0 - sqrt(v0^2 - 2 * 2.5 * 0.95101)) / 2.5 to it, and the pass is no longer safe."""
+    cfg = dataclasses.replace(CFG, reaction_s=0.5)
+    team = np.array([[-0.1, 0.0], [3.0, 0.0]])
+    opponents = np.array([[1.0, 0.1]])
+    radius = 0.09 + 0.02135
+
+    def option(block_radius_m):
+        (o,) = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1],
+                               _search(3), MODEL, cfg, OFFSET, block_radius_m=block_radius_m)
+        return o
+
+    catch_only, blocked = option(0.0), option(radius)
+    assert catch_only.safe(cfg) and catch_only.opponent_catch_s > 2.0
+    v0 = blocked.kick_speed_mps
+    along = 1.0 - math.sqrt(radius ** 2 - 0.1 ** 2)
+    assert 0.6 * v0 < math.sqrt(v0 ** 2 - 2.0 * 2.5 * along)  # still sliding there
+    assert blocked.opponent_catch_s == pytest.approx((v0 - math.sqrt(v0 ** 2 - 2.0 * 2.5 * along)) / 2.5, abs=1e-6)
+    assert blocked.first_opponent == 0 and not blocked.safe(cfg)
+    assert blocked.receiver_catch_s == catch_only.receiver_catch_s  # the receiver still needs the real catch
+    # a blocker further off than its reach before the ball comes changes nothing
+    far = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), np.array([[1.0, 1.5]]), np.zeros((1, 2)), [1],
+                          _search(3), MODEL, cfg, OFFSET, block_radius_m=radius)[0]
+    plain = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), np.array([[1.0, 1.5]]), np.zeros((1, 2)), [1],
+                            _search(3), MODEL, cfg, OFFSET)[0]
+    assert far.opponent_catch_s == plain.opponent_catch_s
 
 
 def test_teammates_out_of_range_are_no_option():

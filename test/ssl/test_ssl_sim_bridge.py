@@ -1,5 +1,5 @@
 """ssl_sim_bridge over DDS and real UDP, against a stand-in simulator that only speaks the protocols:
-cmd_vel drives the simulator's robots, a kick goes out armed for a while, ball contact comes back on
+cmd_vel drives the simulator's robots, a kick goes out once with the ball at the kicker, ball contact comes back on
 ball_detected, scenario topics become teleports, simulator errors reach /sim/events, garbage and floods
 do not stop the bridge; and the stack's predictor and catcher receive a ball in the stand-in, which they
 see only through its SSL-Vision and drive only through the bridge."""
@@ -73,12 +73,15 @@ def test_bridge_drives_the_simulator_and_maps_its_answers_back(ros_graph, standi
     probe.spin_for(0.3)
     assert standin.pose(0)[0] == pytest.approx(x_stop, abs=1e-9)
 
-    # a kick is armed for kick_hold_s (0.1 s at 100 Hz: about 10 commands), then off again
+    # a kick is armed for kick_hold_s and goes out in one command once the simulator reports the ball at the
+    # kicker: robot 1 (no contact) never kicks, robot 0 (contact) kicks in exactly one of about 10 commands
     kick.publish(Float64(data=3.0))
-    probe.spin_until(lambda: any(k == (1, 3.0) for k in standin.kicks), 5.0, "the kick at the simulator")
+    kick0 = probe.wait_for_subscribers(contract.KICK.for_robot(0), Float64, timeout_s=20.0)
+    kick0.publish(Float64(data=2.5))
+    probe.spin_until(lambda: any(k == (0, 2.5) for k in standin.kicks), 5.0, "robot 0's kick at the simulator")
     probe.spin_for(0.3)
-    armed = [k for k in standin.kicks if k[0] == 1]
-    assert 3 <= len(armed) <= 25
+    assert [k for k in standin.kicks if k[0] == 0] == [(0, 2.5)]
+    assert not [k for k in standin.kicks if k[0] == 1]
 
     # scenario commands become teleports at the simulator's control port
     set_ball = probe.wait_for_subscribers(contract.SIM_SET_BALL.name, Odometry, timeout_s=20.0)
@@ -176,6 +179,23 @@ def test_bridge_commands_zero_a_stale_velocity_and_hold_a_kick():
     assert [(c.forward_mps, c.kick_speed_mps) for c in later] == [(0.0, 0.0), (0.0, 0.0)]
     with pytest.raises(ValueError, match="not finite"):
         state.set_velocity(0, 11.0, float("nan"), 0.0, 0.0)
+
+
+def test_bridge_commands_send_a_kick_once_when_the_simulator_reports_the_ball_at_the_kicker():
+    # grSim applies each command's kick while the ball still touches the kicker, damping it each time
+    state = ssl_sim.BridgeCommands([0, 1], kick_hold_s=0.1)
+    state.ball_contact(0, True)
+    state.ball_contact(1, False)
+    state.kick(0, 10.0, 4.0)
+    state.kick(1, 10.0, 3.0)
+    kicks = [[c.kick_speed_mps for c in state.commands(10.0 + k * 0.01)] for k in range(5)]
+    assert kicks == [[4.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]
+    state.ball_contact(1, True)  # the ball reaches robot 1 while its kick is armed: it goes out once
+    assert [c.kick_speed_mps for c in state.commands(10.06)] == [0.0, 3.0]
+    assert [c.kick_speed_mps for c in state.commands(10.07)] == [0.0, 0.0]
+    state.kick(1, 11.0, 3.0)
+    state.ball_contact(1, False)  # ... and not at all when the ball never comes within kick_hold_s
+    assert all(c.kick_speed_mps == 0.0 for t in (11.0, 11.05, 11.2) for c in state.commands(t))
 
 
 def test_the_stacks_catcher_receives_a_ball_in_an_external_simulator(ros_graph):

@@ -77,6 +77,7 @@ __all__ = [
     "receive_facing",
     "robot_time_curve",
     "robot_time_to_ball",
+    "robot_time_to_block",
     "robot_time_to_pos",
 ]
 
@@ -572,6 +573,11 @@ class CatchSearch:
                                    np.empty(num_robots, dtype=np.int8))
 
     @property
+    def limits(self) -> RobotLimits:
+        """The robots' limits the search plans with (one per robot)."""
+        return RobotLimits(self._a.copy(), self._vmax.copy())
+
+    @property
     def compiled(self) -> bool:
         """Whether its answers come from the compiled kernels (kernels="background": once they are loaded)."""
         return self._search is not None
@@ -812,3 +818,117 @@ def catch_after_reaction(search: CatchSearch, ball: BallTrajectory, robot_pos_m:
         t_in, t_out = path.time_in_field(search._field, search._margin_m)
         window = (max(t_in - reaction_s, 0.0), t_out - reaction_s) if t_in < math.inf else (math.inf, math.inf)
     return search.run(ahead, robot_pos_m, robot_vel_mps, facing, window_s=window)
+
+
+# --- robotTimeToBlock (beyond the paper) ----------------------------------------------------------
+def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits: RobotLimits, body_radius_m: float,
+                        t_end_s: float, *, reaction_s: float = 0.0, grid_step_s: float = 0.01,
+                        refine_steps: int = 12) -> np.ndarray:
+    """Earliest time (s, from now) each robot stands with its body on the ball's path where the ball is then: an
+    interception without a catch. +inf where none comes before ``t_end_s`` (or the ball's stop).
+
+    robotTimeToBall asks for the dribbler at the ball; a robot's body stops a ball as well, and an opponent
+    beside the lane needs only to step into it: the ball's centre within ``body_radius_m`` (robot radius plus
+    ball radius) of the robot's centre. Block at ``t``: for ``t < reaction_s`` the robot has not reacted and
+    stands where it is (the ball runs into it); from then on it can arrive, at rest, at a point within
+    ``body_radius_m`` of ``ball.position_at(t)`` by ``t`` (the bang-bang of robotTimeToPos, ``_can_reach``, with
+    the budget ``t - reaction_s``, from its present state as ``catch_after_reaction`` plans; at rest, since a
+    robot that crosses the lane at speed is gone when the ball comes). The point tried is the one of that disc
+    nearest to the robot's braking spot (where it comes to rest braking now): exact for a robot at rest
+    (straight bang-bang to the nearest point), an achievable time for a moving one (at most later than its
+    optimum). Grid of ``grid_step_s`` plus the moment the ball's centre reaches the body around the spot
+    (a robot at rest beside the path: that window may be narrower than the grid), the first feasible time
+    refined by ``refine_steps`` bisections.
+
+    >>> ball = BallTrajectory((0.0, 0.0), (3.0, 0.0), v_shoot_mps=3.0)  # along +x
+    >>> limits = RobotLimits(a_max_mps2=4.0, v_max_mps=2.0)
+    >>> t = robot_time_to_block(ball, [(1.0, 0.05), (1.0, 0.5)], [(0.0, 0.0), (0.0, 0.0)], limits, 0.11, 2.0)
+    >>> t.round(3).tolist()  # near the lane it steps towards the ball; 0.5 m beside it, it meets it further on
+    [0.307, 1.099]
+    """
+    p0 = np.asarray(robot_pos_m, dtype=float).reshape(-1, 2)
+    v0 = np.asarray(robot_vel_mps, dtype=float).reshape(-1, 2)
+    if v0.shape != p0.shape or not (np.isfinite(p0).all() and np.isfinite(v0).all()):
+        raise ValueError(f"robot_pos_m {p0.shape} and robot_vel_mps {v0.shape}: (R, 2) each, finite")
+    for name, value in (("body_radius_m", body_radius_m), ("reaction_s", reaction_s)):
+        if not (math.isfinite(value) and value >= 0.0):
+            raise ValueError(f"{name}: must be finite and >= 0, got {value!r}")
+    if not (math.isfinite(grid_step_s) and grid_step_s > 0.0) or math.isnan(t_end_s):
+        raise ValueError(f"grid_step_s must be finite and > 0 and t_end_s a number, got {grid_step_s!r}, {t_end_s!r}")
+    a, vmax = (np.ravel(x).astype(float) for x in _limits_arrays(limits, (len(p0),)))
+    t_end = min(float(t_end_s), ball.stop_time_s)
+    out = np.full(len(p0), math.inf)
+    if not t_end >= 0.0 or not len(p0):
+        return out
+    if t_end / grid_step_s > MAX_GRID_POINTS:
+        raise ValueError(f"block horizon {t_end:.6g} s needs more than {MAX_GRID_POINTS} grid points")
+    grid = np.append(np.arange(0.0, t_end, grid_step_s), t_end)
+    spot = p0 + v0 * np.abs(v0) * (0.5 / a)[:, None]  # where each robot comes to rest braking now
+    entry = _body_entry(ball, spot, body_radius_m)
+    entry[entry > t_end] = math.inf
+    times = np.concatenate([np.broadcast_to(grid, (len(p0), len(grid))), entry[:, None]], axis=1)
+    ok = _blocks(ball, times, p0, v0, spot, a, vmax, body_radius_m, reaction_s)
+    for r in range(len(p0)):
+        hits = np.nonzero(ok[r])[0]
+        if not len(hits):
+            continue
+        first_grid = hits[0] if hits[0] < len(grid) else None
+        t_best = times[r, hits[-1]] if ok[r, -1] else math.inf  # the entry time, when feasible
+        if first_grid is not None and grid[first_grid] < t_best:
+            hi = grid[first_grid]
+            lo = grid[first_grid - 1] if first_grid > 0 else None
+            if lo is not None:
+                for _ in range(refine_steps):  # bisect the first feasible grid step's left edge
+                    mid = 0.5 * (lo + hi)
+                    if _block_at(ball, mid, p0[r], v0[r], spot[r], a[r], vmax[r], body_radius_m, reaction_s):
+                        hi = mid
+                    else:
+                        lo = mid
+            t_best = min(t_best, hi)
+        out[r] = t_best
+    return out
+
+
+def _body_entry(ball: BallTrajectory, spot: np.ndarray, radius_m: float) -> np.ndarray:
+    """Per robot: when the ball's centre first comes within ``radius_m`` of ``spot`` on the ball's first piece
+    (0 when it starts inside; inf when it never does)."""
+    f = ball.floats
+    rel = spot - np.array([f.x_m, f.y_m])
+    along = rel @ np.array([f.ux, f.uy])
+    off = np.abs(rel @ np.array([-f.uy, f.ux]))
+    enter = along - np.sqrt(np.maximum(radius_m * radius_m - off * off, 0.0))
+    out = np.full(len(spot), math.inf)
+    near = (off <= radius_m) & (along + radius_m >= 0.0)
+    for r in np.nonzero(near)[0]:
+        out[r] = 0.0 if enter[r] <= 0.0 else float(ball.time_to_distance(float(enter[r])))
+    return out
+
+
+def _block_at(ball: BallTrajectory, t: float, p0, v0, spot, a: float, vmax: float, radius_m: float,
+              reaction_s: float) -> bool:
+    """``_blocks`` for one robot and one time, in scalar Python (the refinement's few calls)."""
+    bx, by = path_point(ball.rows, t)
+    if t < reaction_s:
+        return math.hypot(bx - p0[0], by - p0[1]) <= radius_m + 1e-9
+    gx, gy = spot[0] - bx, spot[1] - by
+    gap = math.hypot(gx, gy)
+    scale = radius_m / gap if gap > radius_m else 1.0
+    return _can_reach(bx + gx * scale - p0[0], by + gy * scale - p0[1], float(v0[0]), float(v0[1]), t - reaction_s,
+                      float(a), float(vmax))
+
+
+def _blocks(ball: BallTrajectory, times: np.ndarray, p0, v0, spot, a, vmax, radius_m: float,
+            reaction_s: float) -> np.ndarray:
+    """``times`` (R, N): whether robot r blocks the ball at each time (``robot_time_to_block``)."""
+    finite = np.where(np.isfinite(times), times, 0.0)
+    ball_xy = ball.position_at(finite)  # (R, N, 2)
+    to_spot = spot[:, None, :] - ball_xy
+    gap = np.hypot(to_spot[..., 0], to_spot[..., 1])
+    scale = np.where(gap > radius_m, radius_m / np.maximum(gap, 1e-300), 1.0)
+    target = ball_xy + to_spot * scale[..., None]  # the disc's point nearest to the spot (the spot inside it)
+    budget = times - reaction_s
+    d = target - p0[:, None, :]
+    moving = can_reach_in_time(d, np.broadcast_to(v0[:, None, :], d.shape), np.maximum(budget, 0.0),
+                               a[:, None], vmax[:, None])
+    standing = np.hypot(*(ball_xy - p0[:, None, :]).transpose(2, 0, 1)) <= radius_m + 1e-9  # the entry's rounding
+    return np.isfinite(times) & np.where(budget < 0.0, standing, moving)

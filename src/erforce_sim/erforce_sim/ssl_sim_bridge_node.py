@@ -1,10 +1,11 @@
 """ssl_sim_bridge: drives an external SSL simulator (ER-Force's, grSim) with this stack's robot commands.
 
 Every ``1 / rate_hz`` of wall time it sends the newest ``cmd_vel`` (a local velocity), ``kick`` (a kick,
-armed for ``kick_hold_s``; a chip at ``kick_angle`` [deg] when that is above 0: the protocol's kick_speed
+armed for ``kick_hold_s`` and sent in one command once the simulator reports the ball at the kicker:
+ssl_sim.BridgeCommands; a chip at ``kick_angle`` [deg] when that is above 0: the protocol's kick_speed
 and kick_angle, grSim's kickspeedx and kickspeedz) and ``dribbler`` of each robot in ``robot_ids``: with
-``protocol: ssl`` a ``RobotControl`` of the ssl-simulation-protocol to the team's port (10301 blue, 10302 yellow), with
-``protocol: grsim`` a ``grSim_Packet`` to 20011. With ``team: opponents`` it drives the ``opponent_<id>/``
+``protocol: ssl`` a ``RobotControl`` of the ssl-simulation-protocol to the team's port (10301 blue, 10302
+yellow), with ``protocol: grsim`` a ``grSim_Packet`` to 20011. With ``team: opponents`` it drives the ``opponent_<id>/``
 topics: one bridge per colour, as each team drives its own robots. A cmd_vel older than
 ``command_timeout_s`` is sent as zero.
 
@@ -210,6 +211,7 @@ class SslSimBridgeNode(Node):
             pub = self._barrier_pubs.get(robot)
             if pub is None:
                 continue  # a robot of the simulator this bridge does not drive
+            self._state.ball_contact(robot, contact)
             last = self._barrier_sent.get(robot)
             if last is None or last[0] != contact or now - last[1] >= _BARRIER_REPEAT_S:
                 self._barrier_sent[robot] = (contact, now)

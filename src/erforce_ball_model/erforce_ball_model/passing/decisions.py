@@ -20,8 +20,12 @@ question) for every robot on the field, on the ball the kick would make:
   runs to meet the ball. The receive facing is the one the receiver will take: towards its next
   target (``next_targets``) when catch_time.receive_facing allows, else against the ball; the
   receiver's robotTimeToBall runs with the offset pointing that way (the paper's targetpos).
-  ``margin_s`` = opponent - arrival; a pass is safe when the margin is at least
-  ``PassConfig.safe_margin_s``.
+  An opponent also stops the ball with its body: with ``block_radius_m`` (robot radius plus ball
+  radius) its time is the earlier of its robotTimeToBall and its block time
+  (catch_time.robot_time_to_block: its body on the ball's path before the ball is there, before the
+  ball reaches the receiver), so a pass past an opponent standing near the lane is not rated safe.
+  The receiver still needs the real catch. ``margin_s`` = opponent - arrival; a pass is safe when the
+  margin is at least ``PassConfig.safe_margin_s``.
 - A chip (``PassConfig.chip_angle_deg`` > 0; chip_model.ChipTrajectory) is rated the same way, on the chip
   the kick would make: robotTimeToBall takes a chip only where it is at most ``max_catch_height_m`` high,
   so an opponent under its flight cannot take it. It is kicked so that it comes down to that height
@@ -49,9 +53,11 @@ from erforce_ball_model.catch_time import (
     ROBOT_REACTION_S,
     CatchKind,
     CatchSearch,
+    RobotLimits,
     catch_after_reaction,
     contact_offset,
     receive_facing,
+    robot_time_to_block,
 )
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_interfaces.runtime.param_schema import schema_defaults
@@ -134,7 +140,7 @@ class PassOption:
     kick_speed_mps: float
     direction_rad: float  # kick direction in `field`
     receiver_catch_s: float  # the ball at the receiver's dribbler, from the kick; inf: it cannot catch it
-    opponent_catch_s: float  # the earliest opponent's robotTimeToBall, the reaction time included; inf: none can
+    opponent_catch_s: float  # the earliest opponent's robotTimeToBall or block, the reaction time included; inf: none
     first_opponent: int | None  # index into the opponents
     receive_facing_rad: float = math.nan  # the receiver's dribbler direction at the catch (in `field`)
     kick_angle_deg: float = 0.0  # 0: a flat pass; else a chip at this elevation
@@ -182,6 +188,7 @@ def evaluate_passes(
     receiver_search: CatchSearch | None = None,
     from_passer_centre: bool = False,
     chip_params: ChipParams | None = None,
+    block_radius_m: float = 0.0,
 ) -> list[PassOption]:
     """One PassOption per candidate teammate in reach (module docstring).
 
@@ -197,6 +204,8 @@ def evaluate_passes(
     and the opponents, the robots it is judged by: the same numbers, as robotTimeToBall is per robot.
     A pass that is not safe flat is rated as a chip too (``cfg.chip_angle_deg``; ``chip_params`` None: the
     defaults); the option is the chip when that is safe or has the larger margin (``kick_angle_deg``).
+    ``block_radius_m`` > 0: an opponent's body within this distance of the ball's centre stops it
+    (``_block_times``); 0: the opponents' catches only (the paper's rating).
     """
     team_xy, opponents_xy = np.asarray(team_xy, dtype=float), np.asarray(opponents_xy, dtype=float)
     n_team = len(team_xy)
@@ -259,8 +268,11 @@ def evaluate_passes(
         v0 = min(max(kick_speed_for(contact_m, cfg.arrive_speed_mps, params), cfg.min_kick_mps), cfg.max_kick_mps)
         traj = BallTrajectory.of_floats(float(ball[0]), float(ball[1]), float(u[0] * v0), float(u[1] * v0), v0, params)
         receiver_time, opp = rate(traj)
-        arrival_s = float(traj.time_to_distance(contact_m)) if math.isfinite(receiver_time) else math.inf
-        option = _option(j, v0, u, arrival_s, opp, receive_rad, 0.0)
+        arrival_s = float(traj.time_to_distance(contact_m))
+        if block_radius_m > 0.0 and len(opp):  # an opponent's body on the flat ball's path stops it too
+            opp = np.minimum(opp, _block_times(traj, arrival_s, opponents_xy, opponents_vel, search, n_team,
+                                               block_radius_m, cfg.reaction_s))
+        option = _option(j, v0, u, arrival_s if math.isfinite(receiver_time) else math.inf, opp, receive_rad, 0.0)
         if cfg.chip_angle_deg > 0.0 and not option.safe(cfg):
             chip, chip_v0 = _chip_pass(ball, u, contact_m, cfg, params, chip_params)
             receiver_time, opp = rate(chip)
@@ -292,6 +304,15 @@ def _chip_pass(ball: np.ndarray, u: np.ndarray, contact_m: float, cfg: PassConfi
     vxy = v0 * math.cos(a)
     return ChipTrajectory((float(ball[0]), float(ball[1]), 0.0), (float(u[0] * vxy), float(u[1] * vxy),
                                                                   v0 * math.sin(a)), chip_params, params), v0
+
+
+def _block_times(traj: BallTrajectory, arrival_s: float, opponents_xy, opponents_vel, search: CatchSearch,
+                 n_team: int, radius_m: float, reaction_s: float) -> np.ndarray:
+    """Each opponent's block time of the pass (catch_time.robot_time_to_block, with the opponents' limits of
+    ``search``) before the ball reaches the receiver (``arrival_s``); inf: it cannot."""
+    limits = search.limits
+    theirs = RobotLimits(limits.a_max_mps2[n_team:], limits.v_max_mps[n_team:])
+    return robot_time_to_block(traj, opponents_xy, opponents_vel, theirs, radius_m, arrival_s, reaction_s=reaction_s)
 
 
 def press_targets(ball_xy, team_xy: np.ndarray, opponents_xy: np.ndarray, holder: int | None,

@@ -40,7 +40,7 @@ from erforce_ball_model.receiver import (
     wrap_angle,
 )
 from erforce_interfaces.runtime.param_schema import schema_defaults
-from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_interfaces.wire.robot_config import BALL_RADIUS_M, FieldConfig
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
 
@@ -430,7 +430,7 @@ class PassingPlayer:
                                self.poses[n:, :2], self.velocities[n:], self._candidates(holder), self.pass_search,
                                self.model if model is None else model, self.cfg.passing if passing is None else passing,
                                self.dribbler_offset_m, targets, self.cfg.max_receive_angle_rad, self.receiver_search,
-                               from_passer_centre=True)
+                               from_passer_centre=True, block_radius_m=self.robot_radius_m + BALL_RADIUS_M)
 
     def fallback_choice(self, holder: int, now: float) -> PassOption | None:
         """The pass of a holder that has no pass in reach under the model in use (module docstring): None
@@ -469,7 +469,8 @@ class PassingPlayer:
         others = [k for k in range(n) if k not in (holder, j)]
         options = evaluate_passes(self.poses[j, :2], self.poses[:n, :2], self.velocities[:n], self.poses[n:, :2],
                                   self.velocities[n:], others, self.pass_search, self.model, self.cfg.passing,
-                                  self.dribbler_offset_m, receiver_search=self.receiver_search)
+                                  self.dribbler_offset_m, receiver_search=self.receiver_search,
+                                  block_radius_m=self.robot_radius_m + BALL_RADIUS_M)
         best = select_pass(options, self.cfg.passing)
         return None if best is None else best.receiver
 

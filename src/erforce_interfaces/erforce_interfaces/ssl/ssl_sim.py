@@ -427,7 +427,13 @@ class BridgeCommands:
     A velocity older than ``command_timeout_s`` goes out as zero (a silent AI stops its robots, as
     the velocity controller does). A kick stays armed for ``kick_hold_s``: a simulator kicks when
     the ball touches the kicker while the command's kick speed is set, and the contract's ``kick``
-    is one message. Times are any monotonic seconds.
+    is one message. It goes out in one command only, the first one while the simulator reports the
+    ball at the kicker (``ball_contact``): grSim applies every command with a kick speed that finds
+    the ball still at its kicker, each one damping the ball's speed by the kicker's damp factor
+    before setting it (``v = v_kick - 0.2 v_ball``, robot.cpp ``Kicker::kick``), and it takes all
+    commands queued in one physics step, so a kick repeated over a few commands leaves at 0.8 of its
+    speed. Without any contact report from the simulator the kick goes out in every command while
+    armed (nothing tells when it happened). Times are any monotonic seconds.
     """
 
     def __init__(self, robot_ids: Iterable[int], command_timeout_s: float = _BRIDGE["command_timeout_s"],
@@ -443,6 +449,7 @@ class BridgeCommands:
         self._velocity = {i: ((0.0, 0.0, 0.0), never) for i in self.robot_ids}
         self._kick = {i: (0.0, never) for i in self.robot_ids}
         self._kick_angle = dict.fromkeys(self.robot_ids, 0.0)
+        self._contact: dict[int, bool | None] = dict.fromkeys(self.robot_ids)  # None: never reported
         self._dribbler = dict.fromkeys(self.robot_ids, 0.0)
 
     def set_velocity(self, robot_id: int, now_s: float, forward_mps: float, left_mps: float,
@@ -466,6 +473,11 @@ class BridgeCommands:
         RobotCommand(robot_id, dribbler_radps=radps)
         self._dribbler[robot_id] = float(radps)
 
+    def ball_contact(self, robot_id: int, contact: bool) -> None:
+        """The simulator's latest report of whether the ball touches this robot's kicker (its light barrier)."""
+        if robot_id in self._contact:
+            self._contact[robot_id] = bool(contact)
+
     def commands(self, now_s: float) -> list[RobotCommand]:
         out = []
         for i in self.robot_ids:
@@ -473,8 +485,10 @@ class BridgeCommands:
             if now_s - t_velocity > self.command_timeout_s:
                 velocity = (0.0, 0.0, 0.0)
             kick, t_kick = self._kick[i]
-            if now_s - t_kick > self.kick_hold_s:
+            if now_s - t_kick > self.kick_hold_s or self._contact[i] is False:
                 kick = 0.0
+            elif self._contact[i] and kick > 0.0:
+                self._kick[i] = (0.0, t_kick)  # fired: this command is the kick's only one
             out.append(RobotCommand(i, *velocity, kick_speed_mps=kick, dribbler_radps=self._dribbler[i],
                                     kick_angle_deg=self._kick_angle[i] if kick > 0.0 else 0.0))
         return out
