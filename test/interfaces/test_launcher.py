@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from erforce_interfaces.runtime.param_schema import load_schema
@@ -117,6 +117,7 @@ def test_text_without_substitutions_is_literal(text):
     assert parse_substitutions(text) == ([text] if text else [])
 
 
+@settings(deadline=None)  # each example resolves a launch file: its time is the machine's load, not the rule's
 @given(st.from_regex(r"[A-Za-z][A-Za-z0-9_]{0,12}", fullmatch=True), st.text(alphabet="ab _.'\"", max_size=8))
 def test_any_let_value_comes_back_through_var(name, value):
     with tempfile.TemporaryDirectory() as tmp:

@@ -18,6 +18,7 @@ under src/:
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -194,7 +195,8 @@ def test_the_cycle_finder_finds_cycles_and_only_them():
 EVERY_MODULE = {_module_name(p) for p in SRC.glob("*/*/**/*.py")}  # with protoc's *_pb2
 
 
-def _defined_in(path: Path) -> set[str]:
+@functools.cache
+def _defined_in(path: Path) -> frozenset[str]:
     """Every name ``path`` binds anywhere (definitions, assignments, imports): enough to catch a name that a
     module moved away from."""
     tree = ast.parse(path.read_text())
@@ -206,7 +208,7 @@ def _defined_in(path: Path) -> set[str]:
             names.add(node.id)
         elif isinstance(node, ast.alias):
             names.add((node.asname or node.name).split(".")[0])
-    return names
+    return frozenset(names)
 
 
 def _missing(module: str, names: tuple[str, ...]) -> list[str]:
