@@ -101,7 +101,7 @@ def test_an_opponent_beside_the_lane_blocks_the_pass_with_its_body():
     ball's centre comes within robot + ball radius (0.11135 m) of its centre after 1 - sqrt(0.11135^2 - 0.1^2)
     = 0.95101 m. With a reaction time longer than that (0.5 s) it does not move: the ball, still sliding there,
     takes t = (v0 - sqrt(v0^2 - 2 * 2.5 * 0.95101)) / 2.5 to it, and the pass is no longer safe."""
-    cfg = dataclasses.replace(CFG, reaction_s=0.5)
+    cfg = dataclasses.replace(CFG, reaction_s=0.5, chip_angle_deg=0.0)  # the flat pass's rating
     team = np.array([[-0.1, 0.0], [3.0, 0.0]])
     opponents = np.array([[1.0, 0.1]])
     radius = 0.09 + 0.02135

@@ -7,9 +7,12 @@ import math
 
 import pytest
 
+from erforce_ball_model.passing.decisions import PassConfig
+from erforce_ball_model.passing.player import PlayerConfig
 from erforce_sim.in_process.passing_game import GameConfig, PassingGame, summary
 
-SMALL = GameConfig(team_size=3, opponents=1, passes=3)
+FLAT = PlayerConfig(passing=PassConfig(chip_angle_deg=0.0))  # flat passes only: what the two-phase model says
+SMALL = GameConfig(team_size=3, opponents=1, passes=3, player=FLAT)
 
 
 def test_a_seed_repeats_exactly():
@@ -36,12 +39,22 @@ def test_an_opponent_on_the_only_lane_intercepts_and_the_record_says_why():
     """Two of ours 3 m apart with an opponent half-way on the line between them: the only pass is rated
     unsafe (the opponent's catch comes before ours), it is played, and the opponent intercepts it."""
     cfg = GameConfig(team_size=2, opponents=1, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)),
-                     opponent_positions=((-3.0, 0.4),))
+                     opponent_positions=((-3.0, 0.4),), player=FLAT)
     (record,) = PassingGame(cfg, seed=0).play()
     assert not record.rated_safe and record.margin_s < 0.0 and record.first_opponent == 0
     assert record.outcome == "intercepted" and record.caught_by == "opponent_0"
     assert record.actual_catch_s < record.predicted_catch_s
     assert "predicted first opponent opponent_0" in record.line()
+
+
+def test_with_chips_the_pass_over_the_opponent_on_the_only_lane_is_safe_and_completes():
+    """The interception scene above with chips on (the default): the flat pass is not safe, so the holder
+    chips over the opponent (45 deg), rated safe, and the receiver takes the ball once it is low."""
+    cfg = GameConfig(team_size=2, opponents=1, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)),
+                     opponent_positions=((-3.0, 0.4),), true_chip=True)
+    (record,) = PassingGame(cfg, seed=0).play()
+    assert record.kick_angle_deg == pytest.approx(45.0)
+    assert record.rated_safe and record.outcome == "completed" and record.caught_by == "robot_1"
 
 
 def test_the_passing_scenario_writes_the_plot_the_summary_and_a_bag(tmp_path):
@@ -95,7 +108,7 @@ def test_under_a_ball_model_with_no_pass_in_reach_the_ball_still_moves_after_no_
     facing its receiver from the start), and completed."""
     from erforce_ball_model.ball_model import BallModelParams
 
-    cfg = GameConfig(team_size=2, opponents=0, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)))
+    cfg = GameConfig(team_size=2, opponents=0, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)), player=FLAT)
     (plain,) = PassingGame(cfg, seed=0).play()
     notices = set()
     game = PassingGame(cfg, seed=0, on_tick=lambda g: notices.add(g.player.notice))

@@ -822,7 +822,7 @@ def catch_after_reaction(search: CatchSearch, ball: BallTrajectory, robot_pos_m:
 
 # --- robotTimeToBlock (beyond the paper) ----------------------------------------------------------
 def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits: RobotLimits, body_radius_m: float,
-                        t_end_s: float, *, reaction_s: float = 0.0, grid_step_s: float = 0.01,
+                        t_end_s: float, *, reaction_s: float = 0.0, grid_step_s: float = _PREDICTOR["grid_step_s"],
                         refine_steps: int = 12) -> np.ndarray:
     """Earliest time (s, from now) each robot stands with its body on the ball's path where the ball is then: an
     interception without a catch. +inf where none comes before ``t_end_s`` (or the ball's stop).
