@@ -306,16 +306,32 @@ class MotorBoardLoop:
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _finite_rows(active, t, wheels, currents):
+    """Whether the times t and the sensor rows of ``active`` are all finite."""
+    for idx in range(t.shape[0]):
+        if not math.isfinite(t[idx]):
+            return False
+    for k in active:
+        for i in range(wheels.shape[1]):
+            if not (math.isfinite(wheels[k, i]) and math.isfinite(currents[k, i])):
+                return False
+    return True
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _team_tick(active, t, wheels, currents, main, motor, handoff, main_notice, motor_notice):
-    """One sensor tick of the robots ``active`` (times t in their order, sensors in their rows): the main
-    boards, then the motor boards with each robot's main board setpoint of its previous tick. Returns
-    whether any of them noticed something. Each board's kernel runs once for all robots: robots share no
-    state, so board by board is robot by robot."""
+    """One sensor tick of the robots ``active`` (times t in their order, or one time for all; sensors in their
+    rows): the main boards, then the motor boards with each robot's main board setpoint of its previous tick.
+    Returns 1 if any of them noticed something, 0 if not, -1 (changing nothing) for non-finite times or
+    sensors. Each board's kernel runs once for all robots: robots share no state, so board by board is
+    robot by robot."""
+    if not _finite_rows(active, t, wheels, currents):
+        return -1
     prev_sp, prev_t, has_prev, t_row = handoff
     setpoints = main[2][7]
     sp_motor, sp_time = motor[2][0], motor[2][1]
     for idx in range(active.shape[0]):
-        t_row[active[idx]] = t[idx]
+        t_row[active[idx]] = t[idx] if t.shape[0] == active.shape[0] else t[0]
     noticed = main_board_tick(active, t_row, wheels, main, main_notice)
     for k in active:
         if has_prev[k] and prev_t[k] < t_row[k]:
@@ -326,7 +342,7 @@ def _team_tick(active, t, wheels, currents, main, motor, handoff, main_notice, m
         prev_sp[k, :] = setpoints[k]
         prev_t[k] = t_row[k]
         has_prev[k] = True
-    return noticed
+    return 1 if noticed else 0
 
 
 class TeamFirmware:
@@ -362,6 +378,7 @@ class TeamFirmware:
         self.motor_notice = np.zeros(n_robots, dtype=np.int64)
         self.noticed = False  # some robot of the last tick has a notice flag set
         self._all = np.arange(n_robots, dtype=np.int64)
+        self._one_time = np.zeros(1)  # a tick's time when it is one for all robots
         # Load the compiled kernel now (numba's disk cache; a compile after a code change), not at the first
         # sensor tick: a node answers its first lockstep tick in time. tick passes exactly these types
         # (C-contiguous int64 rows, float64 times and sensors) to the compiled function.
@@ -399,15 +416,14 @@ class TeamFirmware:
         """
         if robots is None:
             active = self._all
-            rows_w, rows_i = wheel_speeds_radps, currents_a
         else:
             active = np.asarray(robots, dtype=np.int64)
             if active.ndim != 1 or (active.size and not 0 <= active.min() <= active.max() < self.n_robots):
                 raise ValueError(f"robots: need row indices in [0, {self.n_robots - 1}], got {robots!r}")
             active = np.ascontiguousarray(active)
-            rows_w, rows_i = wheel_speeds_radps[active], currents_a[active]
         if isinstance(t_s, float | int):
-            t = np.full(active.shape, float(t_s))
+            t = self._one_time
+            t[0] = t_s
         else:
             t = np.ascontiguousarray(np.broadcast_to(np.asarray(t_s, dtype=float), active.shape))
         w = np.ascontiguousarray(wheel_speeds_radps, dtype=float)
@@ -415,9 +431,10 @@ class TeamFirmware:
         shape = (self.n_robots, self.num_wheels)
         if w.shape != shape or cur.shape != shape:
             raise ValueError(f"sensors: need {shape} arrays, got {w.shape} and {cur.shape}")
-        if not (np.isfinite(t).all() and np.isfinite(rows_w).all() and np.isfinite(rows_i).all()):
+        noticed = self._kernel(active, t, w, cur, *self._args)
+        if noticed < 0:
             raise ValueError("tick: times, wheel speeds and currents must be finite")
-        self.noticed = self._kernel(active, t, w, cur, *self._args)
+        self.noticed = noticed > 0
         return self.duty
 
     # ------------------------------------------------------------------ status

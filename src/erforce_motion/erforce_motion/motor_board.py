@@ -145,15 +145,15 @@ class ThermalCurrentLimiter:
         # the boxcar: window_samples x wheels per robot (the one big array; none in 'i2t' mode)
         self._ring = np.zeros((n_robots, 0 if mode == "i2t" else self.window_samples, n_wheels))
         self._ring_index = np.zeros(n_robots, dtype=np.int64)
-        self._sum = np.zeros(shape)
-        self._i2 = np.zeros(shape)  # filtered i^2 in 'i2t' mode
-        self.pwm_limits = np.ones(shape)
+        # the running boxcar sum, the filtered i^2 ('i2t' mode) and the PWM limits, in one array
+        self._values = np.zeros((3, *shape))
+        self._sum, self._i2, self.pwm_limits = self._values
+        self.pwm_limits[:] = 1.0
         self._at_full = np.ones(n_robots, dtype=np.bool_)
         self.over_limits = np.zeros(shape, dtype=np.bool_)
         self.params = (float(current_limit_a), self.window_samples, float(pwm_decrement), float(recovery_rate_per_s),
                        mode == "i2t", 1.0 - math.exp(-loop_period_s / i2t_time_constant_s), float(loop_period_s))
-        self.state = (self._ring, self._ring_index, self._sum, self._i2, self.pwm_limits, self._at_full,
-                      self.over_limits)
+        self.state = (self._ring, self._ring_index, self._values, self._at_full, self.over_limits)
         self._row = np.zeros(1, dtype=np.int64)
         self._update = compiled_for(thermal_update, self._row, self.params, self.state, np.zeros((1, n_wheels)),
                                     np.zeros((1, n_wheels)))
@@ -187,7 +187,8 @@ def thermal_update(rows, prm, st, current, last_duty):
     """ThermalCurrentLimiter's update for each robot k in rows: one loop sample of its wheels' currents
     current[k] [A] and the last duties last_duty[k]."""
     limit_a, window_n, pwm_dec, recovery, i2t_mode, i2t_alpha, dt = prm
-    ring, ring_index, ring_sum, i2, pwm_limit, at_full, over = st
+    ring, ring_index, values, at_full, over = st
+    ring_sum, i2, pwm_limit = values[0], values[1], values[2]
     n = current.shape[1]
     for k in rows:
         any_over = False
@@ -283,13 +284,14 @@ class MotorBoard:
         actuator = (self._inverse, float(self._k_lin), self._r_over_v,
                     r.supply_voltage_v / r.motor_resistance_ohm, self._emf_duty_per_radps)
         shape = (n_robots, n)
-        self.duty, self.desired_current_a, self.current_command_a = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+        self.outputs = np.zeros((3, *shape))  # one array: each array a kernel call is passed costs it an unpacking
+        self.duty, self.desired_current_a, self.current_command_a = self.outputs
         self.speed_pid, self.current_pid = PidState(n_robots, n), PidState(n_robots, n)
-        state = (self.duty, self.desired_current_a, self.current_command_a, self.speed_pid.arrays(),
-                 self.current_pid.arrays())
-        # per robot: scratch rows, an integrator hold that is never set, the speed loop's output limits
-        speed_limits = tuple(np.ascontiguousarray(np.tile(speed[0][j], (n_robots, 1))) for j in (3, 4))
-        work = (np.zeros((5, n_robots, n)), np.zeros(shape, dtype=np.bool_), speed_limits)
+        state = (self.outputs, self.speed_pid.arrays(), self.current_pid.arrays())
+        # per robot: 5 scratch rows, then the speed loop's output limits; an integrator hold that is never set
+        scratch = np.zeros((7, n_robots, n))
+        scratch[5], scratch[6] = speed[0][3], speed[0][4]
+        work = (scratch, np.zeros(shape, dtype=np.bool_))
         self.args = (speed, current, self.thermal.params, self.thermal.state, actuator, state, work)
         self._row, self._dt = np.zeros(1, dtype=np.int64), np.zeros(1)
         wheels = np.zeros((1, n))
@@ -355,9 +357,10 @@ def motor_board_step(rows, args, sp, w, current, dt):
 
     Returns False when a robot's speed loop inputs are not finite: that robot goes no further."""
     speed, cur_pid, thermal_prm, thermal, (inverse, k_lin, r_over_v, v_over_r, emf_k), state, work = args
-    duty, i_des, i_cmd, spid, cpid = state
-    zero, i_lo, i_hi, emf, out = work[0][0], work[0][1], work[0][2], work[0][3], work[0][4]
-    hold, (speed_lo, speed_hi) = work[1], work[2]
+    (outputs, spid, cpid), (scratch, hold) = state, work
+    duty, i_des, i_cmd = outputs[0], outputs[1], outputs[2]
+    zero, i_lo, i_hi, emf, out = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
+    speed_lo, speed_hi = scratch[5], scratch[6]
     all_ok = pid_step(rows, speed[0], speed[1], spid, sp, w, dt, zero, speed_lo, speed_hi, hold, out)
     go = rows if all_ok else rows[spid[1][1][rows]]
     n = w.shape[1]
@@ -365,7 +368,7 @@ def motor_board_step(rows, args, sp, w, current, dt):
         for i in range(n):
             i_des[k, i] = out[k, i]
     thermal_update(go, thermal_prm, thermal, current, duty)
-    pwm_limit = thermal[4]
+    pwm_limit = thermal[2][2]
     for k in go:
         for i in range(n):  # the current loop's output limits are the currents the actuator maps onto +-limit
             lim = pwm_limit[k, i]
@@ -390,9 +393,7 @@ def motor_board_step(rows, args, sp, w, current, dt):
 def motor_board_reset(k, args):
     """MotorBoard's reset of robot k: controllers and outputs to rest, the thermal history kept."""
     speed, cur_pid, state, zero = args[0], args[1], args[5], args[6][0][0][k]
-    duty, i_des, i_cmd, spid, cpid = state
+    outputs, spid, cpid = state
     pid_reset(k, speed[0], speed[1], spid, zero, zero, zero, zero, False, False)
     pid_reset(k, cur_pid[0], cur_pid[1], cpid, zero, zero, zero, zero, False, False)
-    duty[k, :] = 0.0
-    i_des[k, :] = 0.0
-    i_cmd[k, :] = 0.0
+    outputs[:, k, :] = 0.0

@@ -260,20 +260,20 @@ class VelocityController:
         self._n = kin.num_wheels
         self.shaper = SetpointShaper(c, robot, n_robots)
         self.pid_state = PidState(n_robots, 3)
-        self.measured_twist, self.shaped_twist = np.zeros((n_robots, 3)), np.zeros((n_robots, 3))
-        self.command_twist = np.zeros((n_robots, 3))  # PID output incl. feedforward
+        self.twists = np.zeros((3, n_robots, 3))  # one array: each array a kernel call is passed costs it an unpacking
+        self.measured_twist, self.shaped_twist, self.command_twist = self.twists  # command: PID output incl. ff
         self.integrator_held = np.zeros(n_robots, dtype=np.bool_)
         self.slip_residual_radps = np.zeros(n_robots)
         prm, flags = pid_tables(c.pid_config())
         use_slip = c.slip_hold_threshold_radps is not None
         loop = (c.feedforward_enabled, float(c.slip_hold_threshold_radps or 0.0), use_slip)
         matrices = tuple(np.ascontiguousarray(m) for m in (kin.wheel_matrix, kin.forward_matrix, kin.slip_projector))
-        state = (self.shaper.twist, self.pid_state.arrays(), self.measured_twist, self.shaped_twist,
-                 self.command_twist, self.integrator_held, self.slip_residual_radps)
-        # per robot: the PID's output limits, feedforward and integrator hold; a twist for the reset
-        limits = (np.ascontiguousarray(np.tile(prm[3], (n_robots, 1))),
-                  np.ascontiguousarray(np.tile(prm[4], (n_robots, 1))))
-        work = (limits, np.zeros((n_robots, 3)), np.zeros((n_robots, 3), dtype=np.bool_), np.zeros(3))
+        state = (self.shaper.twist, self.pid_state.arrays(), self.twists, self.integrator_held,
+                 self.slip_residual_radps)
+        # per robot: the PID's output limits and feedforward, then its integrator hold; a twist for the reset
+        pid_inputs = np.zeros((3, n_robots, 3))
+        pid_inputs[0], pid_inputs[1] = prm[3], prm[4]
+        work = (pid_inputs, np.zeros((n_robots, 3), dtype=np.bool_), np.zeros(3))
         self.args = (matrices, self.shaper.params, self.shaper.force_rows, loop, prm, flags, state, work)
         self._row, self._desired, self._dt = np.zeros(1, dtype=np.int64), np.zeros((1, 3)), np.zeros(1)
         self._hold = np.zeros(1, dtype=np.bool_)
@@ -342,8 +342,10 @@ def velocity_step(rows, args, desired, w, dt, hold, setpoints):
 
     hold[k] freezes the twist integrator (the motor boards are saturated); the slip hold adds to it."""
     (jac, fwd, slip_proj), shaper_prm, force_rows, (ff_on, slip_thr, use_slip), prm, flags, state, work = args
-    shaper, pid, measured, shaped, command, held, slip = state
-    (lo, hi), ff, hold_pid = work[0], work[1], work[2]
+    shaper, pid, twists, held, slip = state
+    measured, shaped, command = twists[0], twists[1], twists[2]
+    (pid_inputs, hold_pid) = work[0], work[1]
+    lo, hi, ff = pid_inputs[0], pid_inputs[1], pid_inputs[2]
     n = w.shape[1]
     for k in rows:
         for a in range(3):
@@ -382,13 +384,13 @@ def velocity_reset(k, args, w):
     """VelocityController's bumpless restart of robot k from the motion of the wheel speeds w."""
     _, fwd, _ = args[0]
     ff_on, prm, flags = args[3][0], args[4], args[5]
-    shaper, pid, measured, shaped, command = args[6][:5]
-    ff, twist = args[7][1][k], args[7][3]
+    shaper, pid, twists = args[6][:3]
+    ff, twist = args[7][0][2][k], args[7][2]
     for a in range(3):
         s = 0.0
         for i in range(w.shape[0]):
             s += fwd[a, i] * w[i]
         twist[a] = s
         ff[a] = s if ff_on else 0.0
-        shaper[k, a] = measured[k, a] = shaped[k, a] = command[k, a] = s
+        shaper[k, a] = twists[0, k, a] = twists[1, k, a] = twists[2, k, a] = s
     pid_reset(k, prm, flags, pid, twist, ff, twist, twist, True, True)
