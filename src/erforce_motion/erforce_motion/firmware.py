@@ -7,7 +7,8 @@ reset when time goes backwards (a restarted simulator).
 
 Written once, for many robots: ``MainBoards`` and ``MotorBoards`` hold the loops of
 ``n_robots`` robots in rows of arrays, and the compiled ``main_board_tick`` /
-``motor_board_tick`` run one robot's tick on them. ``MainBoardLoop`` and ``MotorBoardLoop``
+``motor_board_tick`` run the tick of the robots ``rows`` on them, one call for all (a call
+pays for each array it is passed, so the state lives in few arrays). ``MainBoardLoop`` and ``MotorBoardLoop``
 are one robot (the per-robot nodes), ``TeamFirmware`` is both boards of a team with the
 main board's setpoint reaching the motor boards one tick later, as in the lockstep
 protocol (the team_firmware node and the in-process runner). So the DDS graph, per robot
@@ -56,8 +57,9 @@ def _due(k, ts, period, now, last_run, has_run):
 def main_board_tick(rows, t, w, args, notice):
     """MainBoardLoop's tick of each robot k in rows at time t[k] with wheel speeds w[k]: writes setpoints[k]
     of the robots whose loop runs, and notice[k]; returns whether any notice flag is set."""
-    period, timeout, (command, now, last_run, has_run, feed_first, has_fed, last_feed, setpoints), vc, gate = args
-    due, dt, no_hold = gate
+    period, timeout, (command, times, flags, setpoints), vc, due = args
+    now, last_run, last_feed, dt = times[0], times[1], times[2], times[3]
+    has_run, feed_first, has_fed, no_hold = flags[0], flags[1], flags[2], flags[3]
     n_due = 0
     noticed = False
     for k in rows:
@@ -90,7 +92,8 @@ def main_board_tick(rows, t, w, args, notice):
 def motor_board_tick(rows, t, w, current, args, notice):
     """MotorBoardLoop's tick of each robot k in rows at time t[k] with sensors w[k], current[k]: writes the
     board's duty[k] of the robots whose loop runs, and notice[k]; returns whether any notice flag is set."""
-    period, timeout, (setpoint, setpoint_time, now, last_run, has_run), mb, (due, dt) = args
+    period, timeout, (setpoint, times, has_run), mb, due = args
+    setpoint_time, now, last_run, dt = times[0], times[1], times[2], times[3]
     n_due = 0
     noticed = False
     for k in rows:
@@ -129,15 +132,17 @@ class MainBoards:
         self.controller = VelocityController(robot, config, n_robots)
         n = n_robots
         self.command_twist = np.zeros((n, 3))  # the radio command each robot follows
-        self.now_s = np.full(n, -math.inf)
-        self._last_run, self._has_run = np.zeros(n), np.zeros(n, dtype=np.bool_)
-        self._feed_first, self._has_fed, self._last_feed = (np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_),
-                                                            np.zeros(n))
+        # per robot, in two arrays (each array a kernel call is passed costs it an unpacking): the time now, of
+        # the last run, of the last command, the dt of this run; whether it ran, has a command before its first
+        # tick, has a command, and a twist integrator hold that is never set
+        self._times, self._flags = np.zeros((4, n)), np.zeros((4, n), dtype=np.bool_)
+        self.now_s, self._last_run, self._last_feed = self._times[0], self._times[1], self._times[2]
+        self.now_s[:] = -math.inf
+        self._has_run, self._feed_first, self._has_fed = self._flags[0], self._flags[1], self._flags[2]
         self.setpoints = np.zeros((n, robot.num_wheels))  # the last wheel speed setpoints [rad/s]
         self.args = (self.loop_period_s, self.command_timeout_s,
-                     (self.command_twist, self.now_s, self._last_run, self._has_run, self._feed_first, self._has_fed,
-                      self._last_feed, self.setpoints), self.controller.args,
-                     (np.zeros(n, dtype=np.int64), np.zeros(n), np.zeros(n, dtype=np.bool_)))  # rows due, dt, hold
+                     (self.command_twist, self._times, self._flags, self.setpoints), self.controller.args,
+                     np.zeros(n, dtype=np.int64))  # the rows due
 
     def command(self, robot: int, twist) -> None:
         """A new desired twist [vx, vy, wz] (robot frame) for one robot, received at its current time."""
@@ -189,12 +194,13 @@ class MotorBoards:
         self.board = MotorBoard(config, robot, n_robots=n_robots)
         self.duty = self.board.duty  # the last PWM duties
         self.setpoint = np.zeros((n_robots, robot.num_wheels))  # the setpoint each robot's boards follow
-        self.setpoint_time_s = np.full(n_robots, -math.inf)
-        self.now_s = np.full(n_robots, -math.inf)
-        self._last_run, self._has_run = np.zeros(n_robots), np.zeros(n_robots, dtype=np.bool_)
-        self.args = (self.loop_period_s, self.setpoint_timeout_s,
-                     (self.setpoint, self.setpoint_time_s, self.now_s, self._last_run, self._has_run),
-                     self.board.args, (np.zeros(n_robots, dtype=np.int64), np.zeros(n_robots)))  # rows due, dt
+        # per robot, in one array: the time of the setpoint, now, of the last run, the dt of this run
+        self._times = np.zeros((4, n_robots))
+        self.setpoint_time_s, self.now_s, self._last_run = self._times[0], self._times[1], self._times[2]
+        self._times[:2] = -math.inf
+        self._has_run = np.zeros(n_robots, dtype=np.bool_)
+        self.args = (self.loop_period_s, self.setpoint_timeout_s, (self.setpoint, self._times, self._has_run),
+                     self.board.args, np.zeros(n_robots, dtype=np.int64))  # the rows due
 
     def take_over(self, old: MotorBoards) -> None:
         """Continue where ``old`` left off (new parameters): same setpoints, timing and duties; the controllers
@@ -328,8 +334,8 @@ def _team_tick(active, t, wheels, currents, main, motor, handoff, main_notice, m
     if not _finite_rows(active, t, wheels, currents):
         return -1
     prev_sp, prev_t, has_prev, t_row = handoff
-    setpoints = main[2][7]
-    sp_motor, sp_time = motor[2][0], motor[2][1]
+    setpoints = main[2][3]
+    sp_motor, sp_time = motor[2][0], motor[2][1][0]
     for idx in range(active.shape[0]):
         t_row[active[idx]] = t[idx] if t.shape[0] == active.shape[0] else t[0]
     noticed = main_board_tick(active, t_row, wheels, main, main_notice)
