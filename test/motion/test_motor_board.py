@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from erforce_interfaces.wire.robot_config import RobotConfig
-from erforce_motion.motor_board import MotorBoard, MotorBoardConfig, ThermalCurrentLimiter
+from erforce_motion.motor_board import MotorBoard, MotorBoardConfig, ThermalCurrentLimiter, motor_board_step
 from erforce_motion.plant_model import OmniRobotPlant, WheelPlant
 
 ROBOT = RobotConfig()
@@ -149,6 +149,20 @@ def test_bad_input_raises_and_keeps_thermal_state(args):
     with pytest.raises(ValueError):
         mb.step(*args)
     np.testing.assert_array_equal(mb.status.average_current_a, before)
+
+
+def test_a_robot_with_bad_input_stops_alone_in_a_team_step():
+    """motor_board_step on two robots' rows, robot 1's setpoint NaN: robot 0 steps as a board of its own
+    does, robot 1's outputs and thermal history stay as they were, and the step reports the failure."""
+    team, alone = MotorBoard(robot=ROBOT, n_robots=2), MotorBoard(robot=ROBOT)
+    sp = np.array([[10.0, -5.0, 3.0, 0.0], [math.nan, 0.0, 0.0, 0.0]])
+    w, i = np.zeros((2, 4)), np.full((2, 4), 0.5)
+    rows, dt = np.array([0, 1], dtype=np.int64), np.full(2, 0.001)
+    assert not motor_board_step(rows, team.args, sp, w, i, dt)
+    np.testing.assert_array_equal(team.duty[0], alone.step(sp[0], w[0], i[0], 0.001))
+    np.testing.assert_array_equal(team.duty[1], np.zeros(4))
+    np.testing.assert_array_equal(team.thermal.average_currents_a()[1], np.zeros(4))
+    np.testing.assert_array_equal(team.thermal.average_currents_a()[0], alone.thermal.average_current_a)
 
 
 @pytest.mark.parametrize("kw", [{"speed_kp_a_per_radps": 0.0}, {"current_ki_per_s": -1.0},

@@ -7,7 +7,8 @@ reset when time goes backwards (a restarted simulator).
 
 Written once, for many robots: ``MainBoards`` and ``MotorBoards`` hold the loops of
 ``n_robots`` robots in rows of arrays, and the compiled ``main_board_tick`` /
-``motor_board_tick`` run one robot's tick on them. ``MainBoardLoop`` and ``MotorBoardLoop``
+``motor_board_tick`` run the tick of the robots ``rows`` on them, one call for all (a call
+pays for each array it is passed, so the state lives in few arrays). ``MainBoardLoop`` and ``MotorBoardLoop``
 are one robot (the per-robot nodes), ``TeamFirmware`` is both boards of a team with the
 main board's setpoint reaching the motor boards one tick later, as in the lockstep
 protocol (the team_firmware node and the in-process runner). So the DDS graph, per robot
@@ -53,53 +54,69 @@ def _due(k, ts, period, now, last_run, has_run):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def main_board_tick(k, ts, w, args):
-    """MainBoardLoop's tick of robot k at time ts with wheel speeds w; writes setpoints[k], returns notice flags."""
-    period, timeout, (command, now, last_run, has_run, feed_first, has_fed, last_feed, setpoints), vc = args
-    notice = 0
-    if ts < now[k]:
-        notice |= NOTICE_TIME_BACKWARDS
-        has_fed[k] = False
-        velocity_reset(k, vc, w)
-        command[k, :] = 0.0
-        has_run[k] = False
-    if feed_first[k]:  # a command sent before the robot's first tick counts from it
-        feed_first[k] = False
-        has_fed[k] = True
-        last_feed[k] = ts
-    dt = _due(k, ts, period, now, last_run, has_run)
-    if dt == 0.0:
-        return notice
-    if not has_fed[k] or ts - last_feed[k] > timeout:
-        if command[k, 0] != 0.0 or command[k, 1] != 0.0 or command[k, 2] != 0.0:
-            notice |= NOTICE_COMMAND_TIMEOUT
-        command[k, :] = 0.0
-    velocity_step(k, vc, command[k, 0], command[k, 1], command[k, 2], w, dt, False, setpoints[k])
-    return notice
+def main_board_tick(rows, t, w, args, notice):
+    """MainBoardLoop's tick of each robot k in rows at time t[k] with wheel speeds w[k]: writes setpoints[k]
+    of the robots whose loop runs, and notice[k]; returns whether any notice flag is set."""
+    period, timeout, (command, times, flags, setpoints), vc, due = args
+    now, last_run, last_feed, dt = times[0], times[1], times[2], times[3]
+    has_run, feed_first, has_fed, no_hold = flags[0], flags[1], flags[2], flags[3]
+    n_due = 0
+    noticed = False
+    for k in rows:
+        ts = t[k]
+        notice[k] = 0
+        if ts < now[k]:
+            notice[k] |= NOTICE_TIME_BACKWARDS
+            has_fed[k] = False
+            velocity_reset(k, vc, w[k])
+            command[k, :] = 0.0
+            has_run[k] = False
+        if feed_first[k]:  # a command sent before the robot's first tick counts from it
+            feed_first[k] = False
+            has_fed[k] = True
+            last_feed[k] = ts
+        dt[k] = _due(k, ts, period, now, last_run, has_run)
+        if dt[k] != 0.0:
+            if not has_fed[k] or ts - last_feed[k] > timeout:
+                if command[k, 0] != 0.0 or command[k, 1] != 0.0 or command[k, 2] != 0.0:
+                    notice[k] |= NOTICE_COMMAND_TIMEOUT
+                command[k, :] = 0.0
+            due[n_due] = k
+            n_due += 1
+        noticed = noticed or notice[k] != 0
+    velocity_step(due[:n_due], vc, command, w, dt, no_hold, setpoints)
+    return noticed
 
 
 @numba.njit(cache=True, error_model="numpy")
-def motor_board_tick(k, ts, w, current, args):
-    """MotorBoardLoop's tick of robot k at time ts with sensors w, current; writes the board's duty[k],
-    returns notice flags."""
-    period, timeout, (setpoint, setpoint_time, now, last_run, has_run), mb = args
-    notice = 0
-    if ts < now[k]:
-        notice |= NOTICE_TIME_BACKWARDS
-        motor_board_reset(k, mb)
-        has_run[k] = False
-        setpoint[k, :] = 0.0  # the old time line's setpoint is void
-        setpoint_time[k] = -np.inf
-    dt = _due(k, ts, period, now, last_run, has_run)
-    if dt == 0.0:
-        return notice
-    if ts - setpoint_time[k] > timeout:
-        for i in range(setpoint.shape[1]):
-            if setpoint[k, i] != 0.0:
-                notice |= NOTICE_SETPOINT_TIMEOUT
-        setpoint[k, :] = 0.0
-    motor_board_step(k, mb, setpoint[k], w, current, dt)
-    return notice
+def motor_board_tick(rows, t, w, current, args, notice):
+    """MotorBoardLoop's tick of each robot k in rows at time t[k] with sensors w[k], current[k]: writes the
+    board's duty[k] of the robots whose loop runs, and notice[k]; returns whether any notice flag is set."""
+    period, timeout, (setpoint, times, has_run), mb, due = args
+    setpoint_time, now, last_run, dt = times[0], times[1], times[2], times[3]
+    n_due = 0
+    noticed = False
+    for k in rows:
+        ts = t[k]
+        notice[k] = 0
+        if ts < now[k]:
+            notice[k] |= NOTICE_TIME_BACKWARDS
+            motor_board_reset(k, mb)
+            has_run[k] = False
+            setpoint[k, :] = 0.0  # the old time line's setpoint is void
+            setpoint_time[k] = -np.inf
+        dt[k] = _due(k, ts, period, now, last_run, has_run)
+        if dt[k] != 0.0:
+            if ts - setpoint_time[k] > timeout:
+                for i in range(setpoint.shape[1]):
+                    if setpoint[k, i] != 0.0:
+                        notice[k] |= NOTICE_SETPOINT_TIMEOUT
+                setpoint[k, :] = 0.0
+            due[n_due] = k
+            n_due += 1
+        noticed = noticed or notice[k] != 0
+    motor_board_step(due[:n_due], mb, setpoint, w, current, dt)
+    return noticed
 
 
 class MainBoards:
@@ -115,14 +132,17 @@ class MainBoards:
         self.controller = VelocityController(robot, config, n_robots)
         n = n_robots
         self.command_twist = np.zeros((n, 3))  # the radio command each robot follows
-        self.now_s = np.full(n, -math.inf)
-        self._last_run, self._has_run = np.zeros(n), np.zeros(n, dtype=np.bool_)
-        self._feed_first, self._has_fed, self._last_feed = (np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_),
-                                                            np.zeros(n))
+        # per robot, in two arrays (each array a kernel call is passed costs it an unpacking): the time now, of
+        # the last run, of the last command, the dt of this run; whether it ran, has a command before its first
+        # tick, has a command, and a twist integrator hold that is never set
+        self._times, self._flags = np.zeros((4, n)), np.zeros((4, n), dtype=np.bool_)
+        self.now_s, self._last_run, self._last_feed = self._times[0], self._times[1], self._times[2]
+        self.now_s[:] = -math.inf
+        self._has_run, self._feed_first, self._has_fed = self._flags[0], self._flags[1], self._flags[2]
         self.setpoints = np.zeros((n, robot.num_wheels))  # the last wheel speed setpoints [rad/s]
         self.args = (self.loop_period_s, self.command_timeout_s,
-                     (self.command_twist, self.now_s, self._last_run, self._has_run, self._feed_first, self._has_fed,
-                      self._last_feed, self.setpoints), self.controller.args)
+                     (self.command_twist, self._times, self._flags, self.setpoints), self.controller.args,
+                     np.zeros(n, dtype=np.int64))  # the rows due
 
     def command(self, robot: int, twist) -> None:
         """A new desired twist [vx, vy, wz] (robot frame) for one robot, received at its current time."""
@@ -174,12 +194,13 @@ class MotorBoards:
         self.board = MotorBoard(config, robot, n_robots=n_robots)
         self.duty = self.board.duty  # the last PWM duties
         self.setpoint = np.zeros((n_robots, robot.num_wheels))  # the setpoint each robot's boards follow
-        self.setpoint_time_s = np.full(n_robots, -math.inf)
-        self.now_s = np.full(n_robots, -math.inf)
-        self._last_run, self._has_run = np.zeros(n_robots), np.zeros(n_robots, dtype=np.bool_)
-        self.args = (self.loop_period_s, self.setpoint_timeout_s,
-                     (self.setpoint, self.setpoint_time_s, self.now_s, self._last_run, self._has_run),
-                     self.board.args)
+        # per robot, in one array: the time of the setpoint, now, of the last run, the dt of this run
+        self._times = np.zeros((4, n_robots))
+        self.setpoint_time_s, self.now_s, self._last_run = self._times[0], self._times[1], self._times[2]
+        self._times[:2] = -math.inf
+        self._has_run = np.zeros(n_robots, dtype=np.bool_)
+        self.args = (self.loop_period_s, self.setpoint_timeout_s, (self.setpoint, self._times, self._has_run),
+                     self.board.args, np.zeros(n_robots, dtype=np.int64))  # the rows due
 
     def take_over(self, old: MotorBoards) -> None:
         """Continue where ``old`` left off (new parameters): same setpoints, timing and duties; the controllers
@@ -200,7 +221,9 @@ class MainBoardLoop:
         self.boards = MainBoards(1, robot, config, loop_period_s, command_timeout_s)
         self.robot, self.controller = robot, self.boards.controller
         self.loop_period_s, self.command_timeout_s = self.boards.loop_period_s, self.boards.command_timeout_s
-        self._tick = compiled_for(main_board_tick, 0, 0.0, np.zeros(robot.num_wheels), self.boards.args)
+        self._row, self._t_s, self._notice = np.zeros(1, dtype=np.int64), np.zeros(1), np.zeros(1, dtype=np.int64)
+        self._tick = compiled_for(main_board_tick, self._row, self._t_s, np.zeros((1, robot.num_wheels)),
+                                  self.boards.args, self._notice)
         self.notice: str | None = None  # what the last call noticed (for the node's log)
 
     @property
@@ -225,8 +248,11 @@ class MainBoardLoop:
         if w.shape != (self.robot.num_wheels,) or not (math.isfinite(t_s) and np.isfinite(w).all()):
             raise ValueError(f"tick: need a finite time and {self.robot.num_wheels} finite wheel speeds")
         before_s = float(self.boards.now_s[0])
-        notice = self._tick(0, float(t_s), w, self.boards.args)
+        self._t_s[0] = t_s
         self.notice = None
+        if not self._tick(self._row, self._t_s, w.reshape(1, -1), self.boards.args, self._notice):
+            return self.boards.setpoints[0].copy()
+        notice = self._notice[0]
         if notice & NOTICE_TIME_BACKWARDS:
             self.notice = f"time went backwards ({before_s:.6f} -> {t_s:.6f} s): controller reset"
         if notice & NOTICE_COMMAND_TIMEOUT:
@@ -242,8 +268,10 @@ class MotorBoardLoop:
         self.boards = MotorBoards(1, robot, config, loop_period_s, setpoint_timeout_s)
         self.robot, self.board = robot, self.boards.board
         self.loop_period_s, self.setpoint_timeout_s = self.boards.loop_period_s, self.boards.setpoint_timeout_s
-        zeros = np.zeros(robot.num_wheels)
-        self._tick = compiled_for(motor_board_tick, 0, 0.0, zeros, zeros, self.boards.args)
+        self._row, self._t_s, self._notice = np.zeros(1, dtype=np.int64), np.zeros(1), np.zeros(1, dtype=np.int64)
+        wheels = np.zeros((1, robot.num_wheels))
+        self._tick = compiled_for(motor_board_tick, self._row, self._t_s, wheels, wheels, self.boards.args,
+                                  self._notice)
         self.notice: str | None = None
 
     @property
@@ -270,8 +298,12 @@ class MotorBoardLoop:
                                                      and np.isfinite(i).all()):
             raise ValueError(f"tick: need a finite time and {n} finite wheel speeds and currents")
         before_s = float(self.boards.now_s[0])
-        notice = self._tick(0, float(t_s), w, i, self.boards.args)
+        self._t_s[0] = t_s
         self.notice = None
+        if not self._tick(self._row, self._t_s, w.reshape(1, -1), i.reshape(1, -1), self.boards.args,
+                          self._notice):
+            return self.boards.duty[0].copy()
+        notice = self._notice[0]
         if notice & NOTICE_TIME_BACKWARDS:
             self.notice = f"time went backwards ({before_s:.6f} -> {t_s:.6f} s): motor boards reset"
         if notice & NOTICE_SETPOINT_TIMEOUT:
@@ -280,27 +312,43 @@ class MotorBoardLoop:
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _finite_rows(active, t, wheels, currents):
+    """Whether the times t and the sensor rows of ``active`` are all finite."""
+    for idx in range(t.shape[0]):
+        if not math.isfinite(t[idx]):
+            return False
+    for k in active:
+        for i in range(wheels.shape[1]):
+            if not (math.isfinite(wheels[k, i]) and math.isfinite(currents[k, i])):
+                return False
+    return True
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _team_tick(active, t, wheels, currents, main, motor, handoff, main_notice, motor_notice):
-    """One sensor tick of the robots ``active`` (times t, sensors in their rows): main board, then the motor
-    boards with the main board's setpoint of the robot's previous tick. Returns whether any of them noticed
-    something."""
-    prev_sp, prev_t, has_prev = handoff
-    setpoints = main[2][7]
-    sp_motor, sp_time = motor[2][0], motor[2][1]
-    noticed = False
+    """One sensor tick of the robots ``active`` (times t in their order, or one time for all; sensors in their
+    rows): the main boards, then the motor boards with each robot's main board setpoint of its previous tick.
+    Returns 1 if any of them noticed something, 0 if not, -1 (changing nothing) for non-finite times or
+    sensors. Each board's kernel runs once for all robots: robots share no state, so board by board is
+    robot by robot."""
+    if not _finite_rows(active, t, wheels, currents):
+        return -1
+    prev_sp, prev_t, has_prev, t_row = handoff
+    setpoints = main[2][3]
+    sp_motor, sp_time = motor[2][0], motor[2][1][0]
     for idx in range(active.shape[0]):
-        k = active[idx]
-        ts = t[idx]
-        main_notice[k] = main_board_tick(k, ts, wheels[k], main)
-        if has_prev[k] and prev_t[k] < ts:
+        t_row[active[idx]] = t[idx] if t.shape[0] == active.shape[0] else t[0]
+    noticed = main_board_tick(active, t_row, wheels, main, main_notice)
+    for k in active:
+        if has_prev[k] and prev_t[k] < t_row[k]:
             sp_motor[k, :] = prev_sp[k]
             sp_time[k] = prev_t[k]
-        motor_notice[k] = motor_board_tick(k, ts, wheels[k], currents[k], motor)
+    noticed = motor_board_tick(active, t_row, wheels, currents, motor, motor_notice) or noticed
+    for k in active:
         prev_sp[k, :] = setpoints[k]
-        prev_t[k] = ts
+        prev_t[k] = t_row[k]
         has_prev[k] = True
-        noticed = noticed or main_notice[k] != 0 or motor_notice[k] != 0
-    return noticed
+    return 1 if noticed else 0
 
 
 class TeamFirmware:
@@ -329,11 +377,14 @@ class TeamFirmware:
         self.desired_current_a, self.current_command_a = board.desired_current_a, board.current_command_a
         self.pwm_limit, self.over_limit = board.thermal.pwm_limits, board.thermal.over_limits
         self.window_samples = board.thermal.window_samples
-        self._handoff = (np.zeros((n_robots, self.num_wheels)), np.zeros(n_robots), np.zeros(n_robots, dtype=np.bool_))
+        # the setpoints on their way to the motor boards (setpoint, time, whether there is one), each robot's time
+        self._handoff = (np.zeros((n_robots, self.num_wheels)), np.zeros(n_robots), np.zeros(n_robots, dtype=np.bool_),
+                         np.zeros(n_robots))
         self.main_notice = np.zeros(n_robots, dtype=np.int64)
         self.motor_notice = np.zeros(n_robots, dtype=np.int64)
         self.noticed = False  # some robot of the last tick has a notice flag set
         self._all = np.arange(n_robots, dtype=np.int64)
+        self._one_time = np.zeros(1)  # a tick's time when it is one for all robots
         # Load the compiled kernel now (numba's disk cache; a compile after a code change), not at the first
         # sensor tick: a node answers its first lockstep tick in time. tick passes exactly these types
         # (C-contiguous int64 rows, float64 times and sensors) to the compiled function.
@@ -371,15 +422,14 @@ class TeamFirmware:
         """
         if robots is None:
             active = self._all
-            rows_w, rows_i = wheel_speeds_radps, currents_a
         else:
             active = np.asarray(robots, dtype=np.int64)
             if active.ndim != 1 or (active.size and not 0 <= active.min() <= active.max() < self.n_robots):
                 raise ValueError(f"robots: need row indices in [0, {self.n_robots - 1}], got {robots!r}")
             active = np.ascontiguousarray(active)
-            rows_w, rows_i = wheel_speeds_radps[active], currents_a[active]
         if isinstance(t_s, float | int):
-            t = np.full(active.shape, float(t_s))
+            t = self._one_time
+            t[0] = t_s
         else:
             t = np.ascontiguousarray(np.broadcast_to(np.asarray(t_s, dtype=float), active.shape))
         w = np.ascontiguousarray(wheel_speeds_radps, dtype=float)
@@ -387,9 +437,10 @@ class TeamFirmware:
         shape = (self.n_robots, self.num_wheels)
         if w.shape != shape or cur.shape != shape:
             raise ValueError(f"sensors: need {shape} arrays, got {w.shape} and {cur.shape}")
-        if not (np.isfinite(t).all() and np.isfinite(rows_w).all() and np.isfinite(rows_i).all()):
+        noticed = self._kernel(active, t, w, cur, *self._args)
+        if noticed < 0:
             raise ValueError("tick: times, wheel speeds and currents must be finite")
-        self.noticed = self._kernel(active, t, w, cur, *self._args)
+        self.noticed = noticed > 0
         return self.duty
 
     # ------------------------------------------------------------------ status
@@ -422,5 +473,5 @@ class TeamFirmware:
         MotorBoardLoop.take_over do, with the setpoints on their way to the motor boards."""
         self.main.take_over(old.main)
         self.motor.take_over(old.motor)
-        for mine, theirs in zip(self._handoff, old._handoff, strict=True):
+        for mine, theirs in zip(self._handoff[:3], old._handoff[:3], strict=True):
             mine[:] = theirs

@@ -22,7 +22,7 @@ kept in a ring buffer with a running sum; the history before start counts as zer
 The optional 'i2t' mode replaces the boxcar by a first-order filter of i^2 (time constant
 = winding thermal time constant) compared with I_cont^2; the PWM rule is the same.
 
-Written once, as compiled kernels on row k of (robots, wheels) arrays (``thermal_update``,
+Written once, as compiled kernels on the rows (robots) of (robots, wheels) arrays (``thermal_update``,
 ``motor_board_step``): ``ThermalCurrentLimiter`` and ``MotorBoard`` hold the state of ``n_robots``
 robots, and firmware.py's loops call the same kernels for one robot or a team.
 """
@@ -145,17 +145,18 @@ class ThermalCurrentLimiter:
         # the boxcar: window_samples x wheels per robot (the one big array; none in 'i2t' mode)
         self._ring = np.zeros((n_robots, 0 if mode == "i2t" else self.window_samples, n_wheels))
         self._ring_index = np.zeros(n_robots, dtype=np.int64)
-        self._sum = np.zeros(shape)
-        self._i2 = np.zeros(shape)  # filtered i^2 in 'i2t' mode
-        self.pwm_limits = np.ones(shape)
+        # the running boxcar sum, the filtered i^2 ('i2t' mode) and the PWM limits, in one array
+        self._values = np.zeros((3, *shape))
+        self._sum, self._i2, self.pwm_limits = self._values
+        self.pwm_limits[:] = 1.0
         self._at_full = np.ones(n_robots, dtype=np.bool_)
         self.over_limits = np.zeros(shape, dtype=np.bool_)
         self.params = (float(current_limit_a), self.window_samples, float(pwm_decrement), float(recovery_rate_per_s),
                        mode == "i2t", 1.0 - math.exp(-loop_period_s / i2t_time_constant_s), float(loop_period_s))
-        self.state = (self._ring, self._ring_index, self._sum, self._i2, self.pwm_limits, self._at_full,
-                      self.over_limits)
-        self._update = compiled_for(thermal_update, 0, self.params, self.state, np.zeros(n_wheels),
-                                    np.zeros(n_wheels))
+        self.state = (self._ring, self._ring_index, self._values, self._at_full, self.over_limits)
+        self._row = np.zeros(1, dtype=np.int64)
+        self._update = compiled_for(thermal_update, self._row, self.params, self.state, np.zeros((1, n_wheels)),
+                                    np.zeros((1, n_wheels)))
 
     @property
     def pwm_limit(self) -> np.ndarray:
@@ -175,54 +176,58 @@ class ThermalCurrentLimiter:
 
     def update(self, measured_current_a, last_duty) -> np.ndarray:
         """Feed one loop sample; returns the PWM limit in [0, 1] for this loop run (a view, do not keep)."""
-        self._update(0, self.params, self.state, np.ascontiguousarray(np.abs(measured_current_a), dtype=float),
-                     np.ascontiguousarray(last_duty, dtype=float))
+        self._update(self._row, self.params, self.state,
+                     np.ascontiguousarray(np.abs(measured_current_a), dtype=float).reshape(1, self.n_wheels),
+                     np.ascontiguousarray(last_duty, dtype=float).reshape(1, self.n_wheels))
         return self.pwm_limits[0]
 
 
 @numba.njit(cache=True, error_model="numpy")
-def thermal_update(k, prm, st, current, last_duty):
-    """ThermalCurrentLimiter's update for robot k: one loop sample of the wheels' currents [A]."""
+def thermal_update(rows, prm, st, current, last_duty):
+    """ThermalCurrentLimiter's update for each robot k in rows: one loop sample of its wheels' currents
+    current[k] [A] and the last duties last_duty[k]."""
     limit_a, window_n, pwm_dec, recovery, i2t_mode, i2t_alpha, dt = prm
-    ring, ring_index, ring_sum, i2, pwm_limit, at_full, over = st
-    n = current.shape[0]
-    any_over = False
-    if i2t_mode:
-        for i in range(n):
-            i2[k, i] += i2t_alpha * (current[i] * current[i] - i2[k, i])
-            over[k, i] = i2[k, i] > limit_a * limit_a
-            any_over = any_over or over[k, i]
-    else:
-        j = ring_index[k]
-        for i in range(n):
-            a = abs(current[i])
-            ring_sum[k, i] += a - ring[k, j, i]
-            ring[k, j, i] = a
-        j += 1
-        if j == window_n:  # drop accumulated rounding once per window
-            j = 0
+    ring, ring_index, values, at_full, over = st
+    ring_sum, i2, pwm_limit = values[0], values[1], values[2]
+    n = current.shape[1]
+    for k in rows:
+        any_over = False
+        if i2t_mode:
             for i in range(n):
-                s = 0.0
-                for q in range(window_n):
-                    s += ring[k, q, i]
-                ring_sum[k, i] = s
-        ring_index[k] = j
-        for i in range(n):
-            over[k, i] = ring_sum[k, i] / window_n > limit_a
-            any_over = any_over or over[k, i]
-    if any_over:
-        for i in range(n):
-            if over[k, i]:
-                pwm_limit[k, i] = max(abs(last_duty[i]) - pwm_dec, 0.0)
-            else:
+                i2[k, i] += i2t_alpha * (current[k, i] * current[k, i] - i2[k, i])
+                over[k, i] = i2[k, i] > limit_a * limit_a
+                any_over = any_over or over[k, i]
+        else:
+            j = ring_index[k]
+            for i in range(n):
+                a = abs(current[k, i])
+                ring_sum[k, i] += a - ring[k, j, i]
+                ring[k, j, i] = a
+            j += 1
+            if j == window_n:  # drop accumulated rounding once per window
+                j = 0
+                for i in range(n):
+                    s = 0.0
+                    for q in range(window_n):
+                        s += ring[k, q, i]
+                    ring_sum[k, i] = s
+            ring_index[k] = j
+            for i in range(n):
+                over[k, i] = ring_sum[k, i] / window_n > limit_a
+                any_over = any_over or over[k, i]
+        if any_over:
+            for i in range(n):
+                if over[k, i]:
+                    pwm_limit[k, i] = max(abs(last_duty[k, i]) - pwm_dec, 0.0)
+                else:
+                    pwm_limit[k, i] = min(pwm_limit[k, i] + recovery * dt, 1.0)
+            at_full[k] = False
+        elif not at_full[k]:  # skipped in the common case: nothing to raise
+            full = True
+            for i in range(n):
                 pwm_limit[k, i] = min(pwm_limit[k, i] + recovery * dt, 1.0)
-        at_full[k] = False
-    elif not at_full[k]:  # skipped in the common case: nothing to raise
-        full = True
-        for i in range(n):
-            pwm_limit[k, i] = min(pwm_limit[k, i] + recovery * dt, 1.0)
-            full = full and pwm_limit[k, i] >= 1.0
-        at_full[k] = full
+                full = full and pwm_limit[k, i] >= 1.0
+            at_full[k] = full
 
 
 @dataclass(frozen=True)
@@ -279,13 +284,18 @@ class MotorBoard:
         actuator = (self._inverse, float(self._k_lin), self._r_over_v,
                     r.supply_voltage_v / r.motor_resistance_ohm, self._emf_duty_per_radps)
         shape = (n_robots, n)
-        self.duty, self.desired_current_a, self.current_command_a = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+        self.outputs = np.zeros((3, *shape))  # one array: each array a kernel call is passed costs it an unpacking
+        self.duty, self.desired_current_a, self.current_command_a = self.outputs
         self.speed_pid, self.current_pid = PidState(n_robots, n), PidState(n_robots, n)
-        state = (self.duty, self.desired_current_a, self.current_command_a, self.speed_pid.arrays(),
-                 self.current_pid.arrays())
-        work = (np.zeros((5, n)), np.zeros(n, dtype=np.bool_))  # scratch rows; an integrator hold that is never set
+        state = (self.outputs, self.speed_pid.arrays(), self.current_pid.arrays())
+        # per robot: 5 scratch rows, then the speed loop's output limits; an integrator hold that is never set
+        scratch = np.zeros((7, n_robots, n))
+        scratch[5], scratch[6] = speed[0][3], speed[0][4]
+        work = (scratch, np.zeros(shape, dtype=np.bool_))
         self.args = (speed, current, self.thermal.params, self.thermal.state, actuator, state, work)
-        self._step = compiled_for(motor_board_step, 0, self.args, np.zeros(n), np.zeros(n), np.zeros(n), 1.0)
+        self._row, self._dt = np.zeros(1, dtype=np.int64), np.zeros(1)
+        wheels = np.zeros((1, n))
+        self._step = compiled_for(motor_board_step, self._row, self.args, wheels, wheels, wheels, self._dt)
         self._reset = compiled_for(motor_board_reset, 0, self.args)
 
     def actuator(self, current_command_a, wheel_speed_radps) -> np.ndarray:
@@ -308,7 +318,8 @@ class MotorBoard:
                 f"need {n} values each, got shapes {sp.shape}, {w.shape}, {i_meas.shape}")
         if not np.isfinite(i_meas).all():
             raise ValueError(f"measured_current_a: must be finite, got {i_meas!r}")
-        if not self._step(0, self.args, sp, w, i_meas, float(dt_s)):
+        self._dt[0] = dt_s
+        if not self._step(self._row, self.args, sp[None], w[None], i_meas[None], self._dt):
             raise ValueError(f"speed setpoint and measured speed must be finite, got {sp!r} and {w!r}")
         return self.duty[0].copy()
 
@@ -340,45 +351,49 @@ class MotorBoard:
 
 
 @numba.njit(cache=True, error_model="numpy")
-def motor_board_step(k, args, sp, w, current, dt):
-    """MotorBoard's step for robot k: wheel speed setpoints, speeds w and currents -> duty[k].
+def motor_board_step(rows, args, sp, w, current, dt):
+    """MotorBoard's step for each robot k in rows: wheel speed setpoints sp[k], speeds w[k] and currents
+    current[k] -> duty[k], in dt[k].
 
-    Returns False, changing nothing, when the speed loop's inputs are not finite."""
+    Returns False when a robot's speed loop inputs are not finite: that robot goes no further."""
     speed, cur_pid, thermal_prm, thermal, (inverse, k_lin, r_over_v, v_over_r, emf_k), state, work = args
-    duty, i_des, i_cmd, spid, cpid = state
-    zero, i_lo, i_hi, emf, out = work[0][0], work[0][1], work[0][2], work[0][3], work[0][4]
-    if not pid_step(k, speed[0], speed[1], spid, sp, w, dt, zero, speed[0][3], speed[0][4], work[1], out):
-        return False
-    n = w.shape[0]
-    for i in range(n):
-        i_des[k, i] = out[i]
-    thermal_update(k, thermal_prm, thermal, current, duty[k])
-    pwm_limit = thermal[4]
-    for i in range(n):  # the current loop's output limits are the currents the actuator maps onto +-limit
-        lim = pwm_limit[k, i]
-        if inverse:
-            emf[i] = emf_k * w[i]
-            i_hi[i] = (lim - emf[i]) * v_over_r
-            i_lo[i] = (-lim - emf[i]) * v_over_r
-        else:
-            i_hi[i] = lim / k_lin
-            i_lo[i] = -i_hi[i]
-    pid_step(k, cur_pid[0], cur_pid[1], cpid, i_des[k], current, dt, i_des[k], i_lo, i_hi, work[1], out)
-    for i in range(n):
-        i_cmd[k, i] = out[i]
-        d = r_over_v * out[i] + emf[i] if inverse else k_lin * out[i]
-        lim = pwm_limit[k, i]
-        duty[k, i] = min(max(d, -lim), lim)  # only rounding can leave the range here
-    return True
+    (outputs, spid, cpid), (scratch, hold) = state, work
+    duty, i_des, i_cmd = outputs[0], outputs[1], outputs[2]
+    zero, i_lo, i_hi, emf, out = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
+    speed_lo, speed_hi = scratch[5], scratch[6]
+    all_ok = pid_step(rows, speed[0], speed[1], spid, sp, w, dt, zero, speed_lo, speed_hi, hold, out)
+    go = rows if all_ok else rows[spid[1][1][rows]]
+    n = w.shape[1]
+    for k in go:
+        for i in range(n):
+            i_des[k, i] = out[k, i]
+    thermal_update(go, thermal_prm, thermal, current, duty)
+    pwm_limit = thermal[2][2]
+    for k in go:
+        for i in range(n):  # the current loop's output limits are the currents the actuator maps onto +-limit
+            lim = pwm_limit[k, i]
+            if inverse:
+                emf[k, i] = emf_k * w[k, i]
+                i_hi[k, i] = (lim - emf[k, i]) * v_over_r
+                i_lo[k, i] = (-lim - emf[k, i]) * v_over_r
+            else:
+                i_hi[k, i] = lim / k_lin
+                i_lo[k, i] = -i_hi[k, i]
+    pid_step(go, cur_pid[0], cur_pid[1], cpid, i_des, current, dt, i_des, i_lo, i_hi, hold, out)
+    for k in go:
+        for i in range(n):
+            i_cmd[k, i] = out[k, i]
+            d = r_over_v * out[k, i] + emf[k, i] if inverse else k_lin * out[k, i]
+            lim = pwm_limit[k, i]
+            duty[k, i] = min(max(d, -lim), lim)  # only rounding can leave the range here
+    return all_ok
 
 
 @numba.njit(cache=True, error_model="numpy")
 def motor_board_reset(k, args):
     """MotorBoard's reset of robot k: controllers and outputs to rest, the thermal history kept."""
-    speed, cur_pid, state, zero = args[0], args[1], args[5], args[6][0][0]
-    duty, i_des, i_cmd, spid, cpid = state
+    speed, cur_pid, state, zero = args[0], args[1], args[5], args[6][0][0][k]
+    outputs, spid, cpid = state
     pid_reset(k, speed[0], speed[1], spid, zero, zero, zero, zero, False, False)
     pid_reset(k, cur_pid[0], cur_pid[1], cpid, zero, zero, zero, zero, False, False)
-    duty[k, :] = 0.0
-    i_des[k, :] = 0.0
-    i_cmd[k, :] = 0.0
+    outputs[:, k, :] = 0.0

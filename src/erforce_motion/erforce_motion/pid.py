@@ -22,9 +22,9 @@ so with kp=2, ki=1, dt=0.1 and a constant error 1 the outputs are 2.0, 2.1, 2.2,
 The integrator state I is kept in output units, which makes `reset` bumpless.
 The deadband is the continuous (shifted) kind: e = sign(e_raw) * max(|e_raw| - deadband, 0).
 
-The update is written once, in the compiled ``pid_step``, for row k of a (robots, channels) state:
-the velocity loop, the motor boards and the team firmware call it for their robots, and ``Pid``
-is that same kernel for one row.
+The update is written once, in the compiled ``pid_step``, for the rows (robots) of a (robots, channels)
+state in one call: the velocity loop, the motor boards and the team firmware call it for their robots,
+and ``Pid`` is that same kernel for one row.
 """
 
 from __future__ import annotations
@@ -150,78 +150,87 @@ def pid_tables(config: PidConfig) -> tuple[np.ndarray, np.ndarray]:
 
 
 class PidState:
-    """The state of one PID for ``n_rows`` robots: integrator, derivative filter, previous measurement, and the
-    last step's output u, unsaturated output v and terms p, i, d (for status and saturation flags)."""
+    """The state of one PID for ``n_rows`` robots: integrator, derivative filter, previous measurement, the
+    last step's output u, unsaturated output v and terms p, i, d (for status and saturation flags), and
+    whether each robot's last step was finite (``ok``)."""
 
     def __init__(self, n_rows: int, n_channels: int) -> None:
-        shape = (n_rows, n_channels)
-        self.integrator = np.zeros(shape)
-        self.d_filtered = np.zeros(shape)
-        self.y_prev = np.zeros(shape)
-        self.have_y_prev = np.zeros(n_rows, dtype=np.bool_)
-        self.u, self.v = np.zeros(shape), np.zeros(shape)
-        self.p, self.i, self.d = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+        # two arrays hold it all (a kernel call unpacks each array it is passed), the names are views of them
+        self.values = np.zeros((8, n_rows, n_channels))
+        self.integrator, self.d_filtered, self.y_prev, self.u, self.v, self.p, self.i, self.d = self.values
+        self.flags = np.zeros((2, n_rows), dtype=np.bool_)
+        self.have_y_prev, self.ok = self.flags
 
-    def arrays(self) -> tuple[np.ndarray, ...]:
-        return self.integrator, self.d_filtered, self.y_prev, self.have_y_prev, self.u, self.v, self.p, self.i, self.d
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.values, self.flags
 
 
 @numba.njit(cache=True, error_model="numpy")
-def pid_step(k, prm, flags, st, sp, y, dt, ff, lo, hi, hold, out):
-    """One step of row k (the module docstring's equations), channel by channel; writes u into out.
+def pid_step(rows, prm, flags, st, sp, y, dt, ff, lo, hi, hold, out):
+    """One step of each robot k in ``rows`` (the module docstring's equations), channel by channel; writes u
+    into out[k].
 
-    prm, flags: ``pid_tables``; st: ``PidState.arrays()``; sp, y, ff, lo, hi: per-channel inputs;
-    hold: per-channel flags that freeze the integrator. Returns False, at the first channel whose
-    unsaturated output is not finite (that channel's state unchanged)."""
-    integ, dfilt, yprev, have_y, last_u, last_v, last_p, last_i, last_d = st
+    prm, flags: ``pid_tables``; st: ``PidState.arrays()``; sp, y, ff, lo, hi (robots, channels) inputs, dt
+    per robot; hold: (robots, channels) flags that freeze the integrator. A robot whose unsaturated output
+    is not finite stops at that channel (its state there unchanged) with ok[k] False; returns whether all
+    robots were ok. The state is unpacked here once for all rows: the team's call is one call."""
+    values, flags_k = st
+    integ, dfilt, yprev, last_u = values[0], values[1], values[2], values[3]
+    last_v, last_p, last_i, last_d = values[4], values[5], values[6], values[7]
+    have_y, ok = flags_k[0], flags_k[1]
     use_db, use_d, use_i, back, ilim = flags[0], flags[1], flags[2], flags[3], flags[4]
-    for c in range(out.shape[0]):
-        e = sp[c] - y[c]
-        if use_db:
-            e = np.sign(e) * max(abs(e) - prm[9, c], 0.0)
-        p = prm[0, c] * e
-        i_now = integ[k, c]
-        if use_d:
-            df = dfilt[k, c]
-            if have_y[k]:
-                df = df + (dt / (prm[8, c] + dt)) * ((yprev[k, c] - y[c]) / dt - df)
-            d = prm[2, c] * df
-            v = p + i_now + d + ff[c]
-        else:
-            df = d = 0.0
-            v = p + i_now + ff[c]
-        if not math.isfinite(v):
-            return False
-        u = min(max(v, lo[c]), hi[c])
-        if use_i and not hold[c]:
-            inc = (prm[1, c] * dt) * e
-            if back:
-                new_i = i_now + inc + (prm[7, c] * dt) * (u - v)
+    all_ok = True
+    for k in rows:
+        dt_k = dt[k]
+        ok[k] = True
+        for c in range(out.shape[1]):
+            e = sp[k, c] - y[k, c]
+            if use_db:
+                e = np.sign(e) * max(abs(e) - prm[9, c], 0.0)
+            p = prm[0, c] * e
+            i_now = integ[k, c]
+            if use_d:
+                df = dfilt[k, c]
+                if have_y[k]:
+                    df = df + (dt_k / (prm[8, c] + dt_k)) * ((yprev[k, c] - y[k, c]) / dt_k - df)
+                d = prm[2, c] * df
+                v = p + i_now + d + ff[k, c]
             else:
-                if v != u and (v - u) * inc > 0.0:  # conditional integration: not further into saturation
-                    inc = 0.0
-                new_i = i_now + inc
-            if ilim:
-                new_i = min(max(new_i, prm[5, c]), prm[6, c])
-            integ[k, c] = new_i
-        if use_d:
-            dfilt[k, c] = df
-            yprev[k, c] = y[c]
-        last_u[k, c] = u
-        last_v[k, c] = v
-        last_p[k, c] = p
-        last_i[k, c] = i_now
-        last_d[k, c] = d
-        out[c] = u
-    if use_d:
-        have_y[k] = True
-    return True
+                df = d = 0.0
+                v = p + i_now + ff[k, c]
+            if not math.isfinite(v):
+                ok[k] = all_ok = False
+                break
+            u = min(max(v, lo[k, c]), hi[k, c])
+            if use_i and not hold[k, c]:
+                inc = (prm[1, c] * dt_k) * e
+                if back:
+                    new_i = i_now + inc + (prm[7, c] * dt_k) * (u - v)
+                else:
+                    if v != u and (v - u) * inc > 0.0:  # conditional integration: not further into saturation
+                        inc = 0.0
+                    new_i = i_now + inc
+                if ilim:
+                    new_i = min(max(new_i, prm[5, c]), prm[6, c])
+                integ[k, c] = new_i
+            if use_d:
+                dfilt[k, c] = df
+                yprev[k, c] = y[k, c]
+            last_u[k, c] = u
+            last_v[k, c] = v
+            last_p[k, c] = p
+            last_i[k, c] = i_now
+            last_d[k, c] = d
+            out[k, c] = u
+        if use_d and ok[k]:
+            have_y[k] = True
+    return all_ok
 
 
 @numba.njit(cache=True, error_model="numpy")
 def pid_reset(k, prm, flags, st, hold, ff, y, sp, with_measurement, with_setpoint):
     """Bumpless reset of row k: the next step with the same inputs outputs ``hold`` (see ``Pid.reset``)."""
-    integ, dfilt, yprev, have_y = st[0], st[1], st[2], st[3]
+    integ, dfilt, yprev, have_y = st[0][0], st[0][1], st[0][2], st[1][0]
     for c in range(hold.shape[0]):
         p = 0.0
         if with_measurement and with_setpoint:
@@ -245,10 +254,12 @@ class Pid:
         self._prm, self._flags = pid_tables(config)
         self._state = PidState(1, n)
         self._st = self._state.arrays()
-        self._hold = np.zeros(n, dtype=np.bool_)
-        self._out = np.zeros(n)
-        self._step = compiled_for(pid_step, 0, self._prm, self._flags, self._st, self._out, self._out, 1.0,
-                                  self._out, self._out, self._out, self._hold, self._out)
+        self._row = np.zeros(1, dtype=np.int64)
+        self._dt = np.zeros(1)
+        self._hold = np.zeros((1, n), dtype=np.bool_)
+        row = np.zeros((1, n))
+        self._step = compiled_for(pid_step, self._row, self._prm, self._flags, self._st, row, row, self._dt,
+                                  row, row, row, self._hold, row)
 
     @property
     def n_channels(self) -> int:
@@ -285,15 +296,16 @@ class Pid:
         ff = self._channels(feedforward, "feedforward")
         lo = self._prm[3] if output_min is None else self._channels(output_min, "output_min")
         hi = self._prm[4] if output_max is None else self._channels(output_max, "output_max")
-        hold = self._hold
-        hold[:] = hold_integrator
-        out = np.empty(self._n)
+        self._hold[0] = hold_integrator
+        self._dt[0] = dt_s
+        out = np.empty((1, self._n))
         before = [a.copy() for a in self._st]  # a failing channel leaves the others stepped: undo them
-        if not self._step(0, self._prm, self._flags, self._st, sp, y, float(dt_s), ff, lo, hi, hold, out):
+        if not self._step(self._row, self._prm, self._flags, self._st, sp[None], y[None], self._dt, ff[None],
+                          lo[None], hi[None], self._hold, out):
             for a, b in zip(self._st, before, strict=True):
                 a[:] = b
             raise ValueError("PID: non-finite setpoint, measurement, feedforward or output")
-        return out
+        return out[0]
 
     def reset(self, output_hold=0.0, measurement=None, setpoint=None, feedforward=0.0) -> None:
         """Bumpless reset: the next step with the same setpoint, measurement and feedforward

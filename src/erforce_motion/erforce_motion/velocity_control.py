@@ -9,9 +9,9 @@
 `feedforward_enabled=False` is the paper's current design (the PID alone produces the
 commanded velocity, so it needs its integral); `True` is the paper's "next step": the
 shaped setpoint is passed through and the PID only corrects.
-The shaper and the loop are written once, as compiled kernels on row k of (robots, ...) arrays
-(``shape_step``, ``velocity_step``): ``SetpointShaper`` and ``VelocityController`` hold the state of
-``n_robots`` robots, and firmware.py's loops call the same kernels for one robot or a team.
+The shaper and the loop are written once, as compiled kernels on the rows (robots) of (robots, ...)
+arrays (``shape_step``, ``velocity_step``): ``SetpointShaper`` and ``VelocityController`` hold the state
+of ``n_robots`` robots, and firmware.py's loops call the same kernels for one robot or a team.
 
 Two guards keep the loop honest on a plant with bounded traction (measured on the
 erforce_sim plant, test/sim/test_motion_on_sim*.py):
@@ -158,7 +158,9 @@ class SetpointShaper:
         self.params = (float(config.max_speed_mps), float(config.max_accel_mps2),
                        float(config.max_angular_speed_radps), float(config.max_angular_accel_radps2),
                        float(self.wheel_force_limit_n))
-        self._step = compiled_for(shape_step, 0, self.params, self.force_rows, self.twist, 0.0, 0.0, 0.0, 1.0)
+        self._row, self._target, self._dt = np.zeros(1, dtype=np.int64), np.zeros((1, 3)), np.zeros(1)
+        self._step = compiled_for(shape_step, self._row, self.params, self.force_rows, self.twist, self._target,
+                                  self._dt)
 
     @property
     def state(self) -> tuple[float, float, float]:
@@ -171,13 +173,22 @@ class SetpointShaper:
         self.twist[0] = (vx, vy, wz)
 
     def step(self, vx: float, vy: float, wz: float, dt_s: float) -> tuple[float, float, float]:
-        self._step(0, self.params, self.force_rows, self.twist, float(vx), float(vy), float(wz), float(dt_s))
+        self._target[0] = (vx, vy, wz)
+        self._dt[0] = dt_s
+        self._step(self._row, self.params, self.force_rows, self.twist, self._target, self._dt)
         return self.state
 
 
 @numba.njit(cache=True, error_model="numpy")
-def shape_step(k, prm, force_rows, twist, vx, vy, wz, dt):
-    """SetpointShaper's step for robot k: moves twist[k] toward (vx, vy, wz) within the limits prm."""
+def shape_step(rows, prm, force_rows, twist, target, dt):
+    """SetpointShaper's step for each robot k in rows: moves twist[k] toward target[k] (vx, vy, wz) within the
+    limits prm, in dt[k]."""
+    for k in rows:
+        _shape_row(k, prm, force_rows, twist, target[k, 0], target[k, 1], target[k, 2], dt[k])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _shape_row(k, prm, force_rows, twist, vx, vy, wz, dt):
     v_max, a_max, w_max, aw_max, f_lim = prm
     speed = math.hypot(vx, vy)
     if speed > v_max:
@@ -249,20 +260,26 @@ class VelocityController:
         self._n = kin.num_wheels
         self.shaper = SetpointShaper(c, robot, n_robots)
         self.pid_state = PidState(n_robots, 3)
-        self.measured_twist, self.shaped_twist = np.zeros((n_robots, 3)), np.zeros((n_robots, 3))
-        self.command_twist = np.zeros((n_robots, 3))  # PID output incl. feedforward
+        self.twists = np.zeros((3, n_robots, 3))  # one array: each array a kernel call is passed costs it an unpacking
+        self.measured_twist, self.shaped_twist, self.command_twist = self.twists  # command: PID output incl. ff
         self.integrator_held = np.zeros(n_robots, dtype=np.bool_)
         self.slip_residual_radps = np.zeros(n_robots)
         prm, flags = pid_tables(c.pid_config())
         use_slip = c.slip_hold_threshold_radps is not None
         loop = (c.feedforward_enabled, float(c.slip_hold_threshold_radps or 0.0), use_slip)
         matrices = tuple(np.ascontiguousarray(m) for m in (kin.wheel_matrix, kin.forward_matrix, kin.slip_projector))
-        state = (self.shaper.twist, self.pid_state.arrays(), self.measured_twist, self.shaped_twist,
-                 self.command_twist, self.integrator_held, self.slip_residual_radps)
-        work = (np.zeros((2, 3)), np.zeros(3, dtype=np.bool_))  # feedforward and output; integrator hold
+        state = (self.shaper.twist, self.pid_state.arrays(), self.twists, self.integrator_held,
+                 self.slip_residual_radps)
+        # per robot: the PID's output limits and feedforward, then its integrator hold; a twist for the reset
+        pid_inputs = np.zeros((3, n_robots, 3))
+        pid_inputs[0], pid_inputs[1] = prm[3], prm[4]
+        work = (pid_inputs, np.zeros((n_robots, 3), dtype=np.bool_), np.zeros(3))
         self.args = (matrices, self.shaper.params, self.shaper.force_rows, loop, prm, flags, state, work)
-        self._step = compiled_for(velocity_step, 0, self.args, 0.0, 0.0, 0.0, np.zeros(self._n), 1.0, False,
-                                  np.zeros(self._n))
+        self._row, self._desired, self._dt = np.zeros(1, dtype=np.int64), np.zeros((1, 3)), np.zeros(1)
+        self._hold = np.zeros(1, dtype=np.bool_)
+        wheels = np.zeros((1, self._n))
+        self._step = compiled_for(velocity_step, self._row, self.args, self._desired, wheels, self._dt, self._hold,
+                                  wheels)
         self._reset = compiled_for(velocity_reset, 0, self.args, np.zeros(self._n))
 
     @property
@@ -290,9 +307,12 @@ class VelocityController:
             raise ValueError(f"measured_wheel_speeds_radps: need {self._n} values, got shape {w.shape}")
         if not np.isfinite(w).all():
             raise ValueError(f"measured_wheel_speeds_radps: must be finite, got {w!r}")
-        out = np.empty(self._n)
-        self._step(0, self.args, vx, vy, wz, w, float(dt_s), bool(np.any(wheels_saturated)), out)
-        return out
+        out = np.empty((1, self._n))
+        self._desired[0] = (vx, vy, wz)
+        self._dt[0] = dt_s
+        self._hold[0] = np.any(wheels_saturated)
+        self._step(self._row, self.args, self._desired, w[None], self._dt, self._hold, out)
+        return out[0]
 
     def reset(self, measured_wheel_speeds_radps=None) -> None:
         """Bumpless (re)start from the measured motion (or from rest when None)."""
@@ -316,42 +336,47 @@ class VelocityController:
 
 
 @numba.njit(cache=True, error_model="numpy")
-def velocity_step(k, args, vx, vy, wz, w, dt, hold, setpoints):
-    """VelocityController's step for robot k: desired twist and wheel speeds w -> setpoints [rad/s].
+def velocity_step(rows, args, desired, w, dt, hold, setpoints):
+    """VelocityController's step for each robot k in rows: desired twist[k] and wheel speeds w[k] ->
+    setpoints[k] [rad/s], in dt[k].
 
-    hold freezes the twist integrator (the motor boards are saturated); the slip hold adds to it."""
+    hold[k] freezes the twist integrator (the motor boards are saturated); the slip hold adds to it."""
     (jac, fwd, slip_proj), shaper_prm, force_rows, (ff_on, slip_thr, use_slip), prm, flags, state, work = args
-    shaper, pid, measured, shaped, command, held, slip = state
-    n = w.shape[0]
-    for a in range(3):
-        s = 0.0
-        for i in range(n):
-            s += fwd[a, i] * w[i]
-        measured[k, a] = s
-    shape_step(k, shaper_prm, force_rows, shaper, vx, vy, wz, dt)
-    if use_slip:  # slipping wheels: forward kinematics is not the body's motion, do not integrate it
-        sq = 0.0
-        for i in range(n):
-            r = 0.0
-            for j in range(n):
-                r += slip_proj[i, j] * w[j]
-            sq += r * r
-        slip[k] = math.sqrt(sq)
-        hold = hold or slip[k] > slip_thr
-    held[k] = hold
-    ff, cmd = work[0][0], work[0][1]
-    for a in range(3):
-        shaped[k, a] = shaper[k, a]
-        ff[a] = shaper[k, a] if ff_on else 0.0
-        work[1][a] = hold
-    pid_step(k, prm, flags, pid, shaped[k], measured[k], dt, ff, prm[3], prm[4], work[1], cmd)
-    for a in range(3):
-        command[k, a] = cmd[a]
-    for i in range(n):
-        s = 0.0
+    shaper, pid, twists, held, slip = state
+    measured, shaped, command = twists[0], twists[1], twists[2]
+    (pid_inputs, hold_pid) = work[0], work[1]
+    lo, hi, ff = pid_inputs[0], pid_inputs[1], pid_inputs[2]
+    n = w.shape[1]
+    for k in rows:
         for a in range(3):
-            s += jac[i, a] * cmd[a]
-        setpoints[i] = s
+            s = 0.0
+            for i in range(n):
+                s += fwd[a, i] * w[k, i]
+            measured[k, a] = s
+    shape_step(rows, shaper_prm, force_rows, shaper, desired, dt)
+    for k in rows:
+        hold_k = hold[k]
+        if use_slip:  # slipping wheels: forward kinematics is not the body's motion, do not integrate it
+            sq = 0.0
+            for i in range(n):
+                r = 0.0
+                for j in range(n):
+                    r += slip_proj[i, j] * w[k, j]
+                sq += r * r
+            slip[k] = math.sqrt(sq)
+            hold_k = hold_k or slip[k] > slip_thr
+        held[k] = hold_k
+        for a in range(3):
+            shaped[k, a] = shaper[k, a]
+            ff[k, a] = shaper[k, a] if ff_on else 0.0
+            hold_pid[k, a] = hold_k
+    pid_step(rows, prm, flags, pid, shaped, measured, dt, ff, lo, hi, hold_pid, command)
+    for k in rows:
+        for i in range(n):
+            s = 0.0
+            for a in range(3):
+                s += jac[i, a] * command[k, a]
+            setpoints[k, i] = s
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -359,13 +384,13 @@ def velocity_reset(k, args, w):
     """VelocityController's bumpless restart of robot k from the motion of the wheel speeds w."""
     _, fwd, _ = args[0]
     ff_on, prm, flags = args[3][0], args[4], args[5]
-    shaper, pid, measured, shaped, command = args[6][:5]
-    twist, ff = args[7][0][0], args[7][0][1]
+    shaper, pid, twists = args[6][:3]
+    ff, twist = args[7][0][2][k], args[7][2]
     for a in range(3):
         s = 0.0
         for i in range(w.shape[0]):
             s += fwd[a, i] * w[i]
         twist[a] = s
         ff[a] = s if ff_on else 0.0
-        shaper[k, a] = measured[k, a] = shaped[k, a] = command[k, a] = s
+        shaper[k, a] = twists[0, k, a] = twists[1, k, a] = twists[2, k, a] = s
     pid_reset(k, prm, flags, pid, twist, ff, twist, twist, True, True)
