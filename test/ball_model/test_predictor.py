@@ -67,6 +67,18 @@ def test_a_new_time_line_restarts_the_trackers_and_a_repeated_stamp_is_rejected(
     assert predictor.robot_frame(0, 2.0, 1.0, 0.0, 0.0, restart=True) is not None
 
 
+def test_robots_of_the_old_time_line_get_no_catch_after_the_ball_restarts_it():
+    predictor = BallPredictor(PredictorConfig(num_robots=2, robot_timeout_s=1.0))
+    predictor.robot_frame(0, 1.3, 1.0, 0.0, math.pi)  # the old line; 0.3 s from the new ball's stamp: "fresh" by age
+    predictor.robot_frame(1, 1.3, 1.0, 1.0, math.pi)
+    rolling_frames(predictor, 1.3, -2.0, 2.0, n=2)
+    frame = predictor.ball_frame(1.0, -2.0, 0.0, restart=True)  # the simulator restarted
+    assert frame is not None and frame.catch_robots == []  # no robot of the old line is answered
+    predictor.robot_frame(1, 1.0, 1.0, 1.0, math.pi, restart=True)  # robot_1's own stream on the new line
+    frame = predictor.ball_frame(1.01, -1.98, 0.0)
+    assert frame.catch_robots == [1]
+
+
 def test_vision_outside_the_field_margin_is_rejected():
     warnings = []
     predictor = BallPredictor(PredictorConfig(num_robots=1, vision_reject_margin_m=0.5),

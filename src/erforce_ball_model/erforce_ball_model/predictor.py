@@ -337,6 +337,8 @@ class BallPredictor:
             self._warn("ball_outside", f"rejected vision/ball outside the field: ({x_m:.3f}, {y_m:.3f}) m")
             return None
         if restart:
+            # the robots' states belong to the old line too: none is fresh until its own stream restarts
+            self._robot_states = [(math.nan, 0.0, 0.0, 0.0, 0.0)] * len(self._robot_states)
             self._ball = BallTracker(self.model, cfg.tracker)
             self._chip = ChipDetector(cfg.chip_detector, cfg.chip, self.model)
             if self._shots is not None:

@@ -470,6 +470,7 @@ class PlantNode(Node):
             self._refresh_peers()
             self._pace_origin = (now, 0)
             self._publish_tick()
+            self._confirm_time_line()
             return
         lockstep = self._values["pacing"] == "lockstep"
         for _ in range(_MAX_TICKS_PER_PUMP):
@@ -533,6 +534,14 @@ class PlantNode(Node):
             self._event(f"stop_after_s reached at t={self.world.t_s:.3f} s")
             raise SystemExit(0)
         return False
+
+    def _confirm_time_line(self) -> None:
+        """Send tick 0's sensors and /clock once more at once. After a restart the peers' time rule
+        (stamps.StampFilter) takes the new line only when a second stamp confirms it; the same stamp again
+        counts, and sent now it does not wait for the retry (``_RETRY_S``) or the next /clock period."""
+        self._publish_tick(retry=True)
+        if self._last_clock_ns == 0:
+            self._clock_pub.publish(clock_cdr(0))
 
     def _publish_tick(self, retry: bool = False) -> None:
         t_ns = self._tick * self._period_ns
