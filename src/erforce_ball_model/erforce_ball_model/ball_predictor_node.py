@@ -46,27 +46,31 @@ from erforce_interfaces.runtime.node_support import (
 )
 from erforce_interfaces.runtime.param_schema import load_schema
 from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.clouds import (
+    BallTrack,
+    ball_track_cdr,
+    vision_ball_after_robot,
+    vision_frame_from_msg,
+    vision_leading_balls,
+)
 from erforce_interfaces.wire.conversions import (
     MAX_ABS_VALUE,
-    BallTrack,
     ConversionError,
-    ball_track_cdr,
-    field_from_msg,
     float64_cdr,
     odometry_cdr,
     point_cdr,
     seconds_to_stamp,
+)
+from erforce_interfaces.wire.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.tables import (
+    field_from_msg,
     table_cdr,
     table_from_msg,
     table_msg,
     tracked_robot_row,
     tracked_robots_cdr,
-    vision_ball_after_robot,
-    vision_frame_from_msg,
-    vision_leading_balls,
 )
-from erforce_interfaces.wire.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
-from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
 
 SCHEMA = load_schema("erforce_ball_model", "ball_predictor")
 

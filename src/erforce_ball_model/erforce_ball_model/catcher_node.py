@@ -38,12 +38,12 @@ from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
     ConversionError,
     float64_from_msg,
-    model_in_use_from_msg,
     odometry_from_msg,
     point_from_msg,
     twist_msg,
 )
 from erforce_interfaces.wire.robot_config import FieldConfig, field_from_setting
+from erforce_interfaces.wire.tables import model_in_use_from_msg
 
 SCHEMA = load_schema("erforce_ball_model", "catcher")
 

@@ -36,15 +36,8 @@ from erforce_interfaces.runtime.node_support import (
 )
 from erforce_interfaces.runtime.param_schema import HostSchema, load_schema
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import (
-    ConversionError,
-    catches_from_msg,
-    float64_from_msg,
-    model_in_use_from_msg,
-    odometry_from_msg,
-    tracked_robots_from_msg,
-    twist_msg,
-)
+from erforce_interfaces.wire.conversions import ConversionError, float64_from_msg, odometry_from_msg, twist_msg
+from erforce_interfaces.wire.tables import catches_from_msg, model_in_use_from_msg, tracked_robots_from_msg
 
 # the catcher's parameters under their own names; team_robot_ids is robot_ids and as_team here
 SCHEMA = HostSchema(load_schema("erforce_ball_model", "team_catcher"), {

@@ -32,10 +32,10 @@ from erforce_interfaces.wire.conversions import (
     ConversionError,
     joint_state_cdr,
     joint_state_from_msg,
-    table_cdr,
     wheel_states_from_msg,
 )
 from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.tables import table_cdr
 from erforce_motion.firmware import MotorBoardLoop
 from erforce_motion.motor_board import MotorBoardConfig
 

@@ -42,13 +42,13 @@ from erforce_interfaces.wire.conversions import (
     field_joint_state_cdr,
     field_joint_state_from_msg,
     joint_state_cdr,
-    table_cdr,
     team_joint_state_cdr,
     team_joint_state_from_msg,
     twist_from_msg,
     wheel_states_from_msg,
 )
 from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.tables import table_cdr
 from erforce_motion import motor_boards_node, velocity_controller_node
 from erforce_motion.firmware import TeamFirmware
 

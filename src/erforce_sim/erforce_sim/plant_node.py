@@ -42,6 +42,7 @@ from erforce_interfaces.runtime.node_support import (
 from erforce_interfaces.runtime.param_schema import load_schema
 from erforce_interfaces.ssl.ssl_vision import BallModelFromVision
 from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.clouds import vision_robots_cdr
 from erforce_interfaces.wire.conversions import (
     ConversionError,
     clock_cdr,
@@ -54,12 +55,11 @@ from erforce_interfaces.wire.conversions import (
     odometry_from_msg,
     point_cdr,
     pose2d_cdr,
-    table_cdr,
     team_joint_state_cdr,
     team_joint_state_from_msg,
-    vision_robots_cdr,
 )
 from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_interfaces.wire.tables import table_cdr
 from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras

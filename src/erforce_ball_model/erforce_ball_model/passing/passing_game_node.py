@@ -41,15 +41,17 @@ from erforce_interfaces.runtime.param_schema import HostSchema, fields_for, load
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
     ConversionError,
-    catches_from_msg,
     float64_from_msg,
-    model_in_use_from_msg,
     odometry_from_msg,
     odometry_msg,
+    twist_msg,
+)
+from erforce_interfaces.wire.tables import (
+    catches_from_msg,
+    model_in_use_from_msg,
     table_from_msg,
     table_msg,
     tracked_robots_from_msg,
-    twist_msg,
 )
 
 SCHEMA = HostSchema(load_schema("erforce_ball_model", "passing_game"), {

@@ -42,9 +42,10 @@ from erforce_interfaces.runtime.param_schema import ParamSchema, ParamSpec
 from erforce_interfaces.runtime.rclpy_internals import RCLError, light_node_start, parameter_overrides
 from erforce_interfaces.runtime.standby import wait_for_go
 from erforce_interfaces.wire.contract import CLOCK, VISION_FIELD, Topic, dds_profile_env
-from erforce_interfaces.wire.conversions import ConversionError, field_from_msg
+from erforce_interfaces.wire.conversions import ConversionError
 from erforce_interfaces.wire.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
 from erforce_interfaces.wire.stamps import StampFilter, StampVerdict, stamp_ns
+from erforce_interfaces.wire.tables import field_from_msg
 
 _ARRAY_TYPES = {"int": Parameter.Type.INTEGER_ARRAY, "double": Parameter.Type.DOUBLE_ARRAY,
                 "string": Parameter.Type.STRING_ARRAY, "bool": Parameter.Type.BOOL_ARRAY}

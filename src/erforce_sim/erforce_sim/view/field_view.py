@@ -33,20 +33,11 @@ import numpy as np
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, Walls, ball_speed
 from erforce_ball_model.receiver import team_receiver
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import (
-    BallTrack,
-    ConversionError,
-    ball_track_from_msg,
-    check_catch_ids,
-    field_from_msg,
-    float64_from_msg,
-    model_in_use_from_msg,
-    odometry_from_msg,
-    point_from_msg,
-    table_from_msg,
-)
+from erforce_interfaces.wire.clouds import BallTrack, ball_track_from_msg
+from erforce_interfaces.wire.conversions import ConversionError, float64_from_msg, odometry_from_msg, point_from_msg
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.tables import check_catch_ids, field_from_msg, model_in_use_from_msg, table_from_msg
 
 #: SSL rules: centre circle radius [m] (drawn only).
 CENTRE_CIRCLE_RADIUS_M = 0.5
@@ -311,7 +302,7 @@ class WorldState:
         self._update_speed_model(track.t_s)
 
     def _catch_rows(self, msg: Any) -> np.ndarray:
-        """The /ball/catches table (conversions.table_from_msg). Its CDR bytes up to the values repeat from
+        """The /ball/catches table (tables.table_from_msg). Its CDR bytes up to the values repeat from
         frame to frame while the robots do: once read, a message that starts with the same bytes is read
         as values at the same place, with the same checks on them."""
         header, count = self._catch_layout
