@@ -17,6 +17,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
+from erforce_interfaces.runtime.numba_support import numba
 from erforce_interfaces.wire.robot_config import BALL_WALL_FRICTION, BALL_WALL_RESTITUTION
 from erforce_sim.ball import BallBody
 from erforce_sim.drivetrain import RobotPlant
@@ -255,3 +258,35 @@ def ball_robot(ball: BallBody, rb: RobotPlant, shape: RobotShape, p: ContactPara
     rb.vy -= jy * inv_mr
     rb.w -= (qx * jy - qy * jx) * inv_ir
     return True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def robot_contact_candidates(body, radii, front_x, half_x, half_y, margin, dt, bx, by, reach_b):
+    """World._contact_candidates over the body rows (x, y, theta, cos, sin, vx, vy, w): robots near a wall,
+    robots near the ball (flags) and the robot pairs that may touch within dt. A robot lies inside its circle
+    and behind its flat front face, so the larger of the ball's distances to the two bounds it from below: a
+    ball resting a little ahead of the front face (inside the circle) is no contact."""
+    n = body.shape[0]
+    wall = np.zeros(n, dtype=np.bool_)
+    near = np.zeros(n, dtype=np.bool_)
+    pairs = np.empty((n * (n - 1) // 2, 2), dtype=np.int64)
+    count = 0
+    speeds = np.empty(n)
+    for a in range(n):
+        speeds[a] = math.hypot(body[a, 5], body[a, 6])
+    for a in range(n):
+        xa, ya = body[a, 0], body[a, 1]
+        reach = radii[a] + speeds[a] * dt + margin
+        if abs(xa) + reach >= half_x or abs(ya) + reach >= half_y:
+            wall[a] = True
+        dx, dy = bx - xa, by - ya
+        ahead = body[a, 3] * dx + body[a, 4] * dy - front_x[a]  # ball centre ahead of the front face [m]
+        turn = abs(body[a, 7]) * radii[a] * dt  # how far the face's points move by turning within dt
+        if max(math.hypot(dx, dy) - radii[a], ahead) <= reach - radii[a] + turn + reach_b:
+            near[a] = True
+        for b in range(a + 1, n):
+            if math.hypot(body[b, 0] - xa, body[b, 1] - ya) <= reach + radii[b] + speeds[b] * dt:
+                pairs[count, 0] = a
+                pairs[count, 1] = b
+                count += 1
+    return wall, near, pairs[:count], count > 0 or wall.any() or near.any()

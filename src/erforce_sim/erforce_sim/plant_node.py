@@ -61,9 +61,10 @@ from erforce_interfaces.wire.conversions import (
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_interfaces.wire.tables import table_cdr
 from erforce_sim.ball import BallParams
+from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras
-from erforce_sim.world import PhysicsParams, PlantSetup, build_world
+from erforce_sim.world import PhysicsParams
 
 SCHEMA = load_schema("erforce_sim", "plant")
 
