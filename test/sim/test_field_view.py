@@ -28,10 +28,10 @@ from erforce_interfaces.wire.stamps import StampFilter
 from erforce_interfaces.wire.tables import table_msg
 from erforce_sim.demo.passing_report import GameBag, pass_choice_cdr
 from erforce_sim.in_process.passing_game import GameConfig
+from erforce_sim.view.bag_replay import BagReplay
 from erforce_sim.view.field_view import (
     PATH_MARK_PERIOD_S,
     STAMP_MAX_JUMP_S,
-    BagReplay,
     WorldState,
     decode_frame_bytes,
     view_topic,

@@ -8,7 +8,7 @@ frame to the pages; no message wakes the process (docs/decisions/0025). It reads
 ``/ball/catches`` and ``/ball/track`` where they are on the graph (two topics at the vision rate instead of
 several per robot), best effort, keep-last 1, so it never holds up a publisher, and takes nothing while no
 page is open. It is an observer: its threads run under SCHED_IDLE (``observe_only``). With ``bag`` the page
-can also replay that bag (field_view.BagReplay).
+can also replay that bag (bag_replay.BagReplay).
 
 With ``foxglove_port`` > 0 it also starts a Foxglove WebSocket server (the ``foxglove`` SDK) that forwards
 every topic as it is (CDR, schema encoding ``ros2msg``), plus ``/field_view/scene`` (a SceneUpdate of what
@@ -35,12 +35,12 @@ from erforce_interfaces.runtime.param_schema import load_schema
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.ament_index import find_package_share
 from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_sim.view.bag_replay import BagReplay
 from erforce_sim.view.field_view import (
     BYTES_TYPES,
     CATCH_TABLE_REPLACES,
     TRACK_REPLACES,
     VALUE_TOPICS,
-    BagReplay,
     WorldState,
     view_topic,
 )
