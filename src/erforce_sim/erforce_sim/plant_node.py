@@ -28,13 +28,11 @@ import numpy as np
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock as RclClock
 from rclpy.clock import ClockType
-from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, String
 
 from erforce_interfaces.runtime.lockstep import DutyGate, FieldAnswerRobots
 from erforce_interfaces.runtime.node_support import (
-    NodeParams,
-    ThrottledWarner,
+    SchemaNode,
     contract_publisher,
     contract_subscription,
     run_node,
@@ -114,7 +112,7 @@ def _check_pacing(config):
     return config
 
 
-class PlantNode(Node):
+class PlantNode(SchemaNode):
     @staticmethod
     def warm_up() -> None:
         """For a warm standby (node_support.run_node): the world's kernels load with the first world built
@@ -122,11 +120,8 @@ class PlantNode(Node):
         build_world(PlantSetup())
 
     def __init__(self) -> None:
-        super().__init__("plant")
-        self._warn = ThrottledWarner(self)
+        super().__init__("plant", SCHEMA, _check_pacing)
         self._pump_timer = None
-        self._params = NodeParams(self, SCHEMA, _check_pacing)
-        self._values = self._params.values
         self.setup = setup_from_params(self._params.config)
         self.world = build_world(self.setup)  # refuses bodies off the field with a clear error
         setup = self.setup

@@ -25,12 +25,11 @@ import threading
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
 from erforce_interfaces.runtime.executor import sample_only, take_one
-from erforce_interfaces.runtime.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
+from erforce_interfaces.runtime.node_support import SchemaNode, contract_subscription, run_node
 from erforce_interfaces.runtime.param_schema import load_schema
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.ament_index import find_package_share
@@ -95,12 +94,10 @@ def _take_newest(subscription) -> list[bytes]:
     return [] if taken is None else [taken[0]]
 
 
-class FieldViewNode(Node):
+class FieldViewNode(SchemaNode):
     def __init__(self) -> None:
-        super().__init__("field_view")
-        self._warn = ThrottledWarner(self)
-        self._params = NodeParams(self, SCHEMA, check_config)
-        self._values = v = self._params.values
+        super().__init__("field_view", SCHEMA, check_config)
+        v = self._values
         robot = self._params.config.robot
         looks = dict(current_limit_a=robot.continuous_current_limit_a, robot_radius_m=robot.robot_radius_m,
                      opponent_ids=frozenset(int(i) for i in v["opponent_robot_ids"]),
