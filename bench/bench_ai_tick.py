@@ -63,7 +63,7 @@ def parsers(repeat: int) -> dict[str, float]:
 
     from erforce_ball_model.passing.player import new_poses
     from erforce_interfaces.wire import contract
-    from erforce_interfaces.wire.conversions import (
+    from erforce_interfaces.wire.tables import (
         catches_from_msg,
         table_cdr,
         tracked_robot_row,

@@ -37,7 +37,7 @@ from erforce_ball_model.ball_predictor_node import COMPILED_SEARCH_LOADED
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.tools.testing import RosGraph
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import vision_robots_cdr
+from erforce_interfaces.wire.clouds import vision_robots_cdr
 from erforce_interfaces.wire.robot_config import FieldConfig
 
 NUM_ROBOTS = 22

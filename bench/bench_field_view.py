@@ -35,12 +35,8 @@ from table import bench_main  # bench/table.py: the shared table format
 
 from erforce_interfaces.tools.testing import RosGraph, stop_process
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import (
-    float64_cdr,
-    odometry_cdr,
-    point_cdr,
-    vision_robots_cdr,
-)
+from erforce_interfaces.wire.clouds import vision_robots_cdr
+from erforce_interfaces.wire.conversions import float64_cdr, odometry_cdr, point_cdr
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.view.field_view import WorldState, decode_frame_bytes
 from erforce_sim.view.field_view_node import web_dir

@@ -19,7 +19,8 @@ from erforce_sim.ball import BallState
 from erforce_sim.drivetrain import GRAVITY_MPS2
 from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.kicker import deviation_table
-from erforce_sim.world import PhysicsParams, PlantSetup, RobotSpec, World
+from erforce_sim.plant_setup import PlantSetup
+from erforce_sim.world import PhysicsParams, RobotSpec, World
 
 FIELD = FieldConfig.preset("division_a")
 CONTROL_DT_S = 0.001

@@ -23,17 +23,10 @@ from erforce_ball_model import ball_predictor_node
 from erforce_ball_model.ball_predictor_node import BallPredictorNode
 from erforce_ball_model.receiver import CatcherConfig
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import (
-    ball_track_from_msg,
-    odometry_from_msg,
-    point_from_msg,
-    stamp_to_seconds,
-    table_from_msg,
-    table_msg,
-    tracked_robots_from_msg,
-    vision_robots_cdr,
-)
+from erforce_interfaces.wire.clouds import ball_track_from_msg, vision_robots_cdr
+from erforce_interfaces.wire.conversions import odometry_from_msg, point_from_msg, stamp_to_seconds
 from erforce_interfaces.wire.robot_config import RobotConfig
+from erforce_interfaces.wire.tables import table_from_msg, table_msg, tracked_robots_from_msg
 
 pytestmark = pytest.mark.integration
 

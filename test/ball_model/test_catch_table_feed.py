@@ -1,4 +1,4 @@
-"""/ball/catches as the AI's input: the table read once per message (conversions.catches_from_msg) and fed to
+"""/ball/catches as the AI's input: the table read once per message (tables.catches_from_msg) and fed to
 PassingPlayer and PressingTeam as the per-robot catch_time and catch_point topics fed them."""
 
 import math
@@ -10,17 +10,14 @@ from erforce_ball_model.passing.player import PassingPlayer, PlayerConfig, Press
 from erforce_ball_model.receiver import CatcherConfig
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
-    Catch,
     ConversionError,
-    catches_from_msg,
     float64_cdr,
     float64_from_msg,
     point_cdr,
     point_from_msg,
-    table_cdr,
-    table_msg,
 )
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.tables import Catch, catches_from_msg, table_cdr, table_msg
 
 OURS, THEIRS = contract.OURS.code, contract.OPPONENTS.code
 NEVER = contract.CATCH_TIME_NEVER
@@ -143,10 +140,10 @@ def test_the_table_feeds_the_opponents_team_catcher_what_its_robots_topics_did()
     (1, "robot_id", 1.0e6), (1, "robot_id", 1.0e6 + 1.0), (1, "robot_id", 0.25), (4, "team", 7.0),
 ])
 def test_the_one_pass_reading_accepts_exactly_what_the_checks_accept(row, column, value):
-    """conversions._catches_plain (one pass over the rows, the path every good table takes) against the checks
+    """tables._catches_plain (one pass over the rows, the path every good table takes) against the checks
     one by one on values at and just past each limit, for our team: None exactly where the checks refuse the
     table, else the same catches."""
-    from erforce_interfaces.wire.conversions import _catches_plain, check_catch_ids
+    from erforce_interfaces.wire.tables import _catches_plain, check_catch_ids
 
     table = _with(row, column, value)
     try:

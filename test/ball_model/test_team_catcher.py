@@ -10,7 +10,8 @@ from std_msgs.msg import Float64, Float64MultiArray
 
 from erforce_interfaces.tools.messages import point_msg
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import odometry_msg, table_msg, tracked_robot_row, tracked_robots_cdr
+from erforce_interfaces.wire.conversions import odometry_msg
+from erforce_interfaces.wire.tables import table_msg, tracked_robot_row, tracked_robots_cdr
 
 pytestmark = pytest.mark.integration
 

@@ -1,4 +1,4 @@
-"""/robots/tracked as the AI's poses: the table (conversions.tracked_robots_from_msg) carries what each robot's
+"""/robots/tracked as the AI's poses: the table (tables.tracked_robots_from_msg) carries what each robot's
 odom carried, and passing.player.new_poses feeds each pose once, as the odoms did."""
 
 import math
@@ -8,11 +8,9 @@ import pytest
 
 from erforce_ball_model.passing.player import new_poses
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import (
-    ConversionError,
+from erforce_interfaces.wire.conversions import ConversionError, odometry_cdr, odometry_from_msg
+from erforce_interfaces.wire.tables import (
     TrackedRobot,
-    odometry_cdr,
-    odometry_from_msg,
     table_cdr,
     table_msg,
     tracked_robot_row,
@@ -110,10 +108,10 @@ def test_each_pose_is_fed_once_and_a_new_stamp_is_a_new_pose():
     ("yaw_rad", 1.0e5), ("yaw_rad", -1.0e5 - 1.0), ("yaw_rate_radps", -1.0e5), ("team", THEIRS), ("team", 0.5),
 ])
 def test_the_one_pass_reading_accepts_exactly_what_the_checks_accept(column, value):
-    """conversions._tracked_plain (one pass over the rows, the path every good table takes) against the checks one
+    """tables._tracked_plain (one pass over the rows, the path every good table takes) against the checks one
     by one (_check_tracked) on values at and just past each limit: it answers None exactly where the checks
     refuse, and otherwise the rows as written (the stamp as seconds plus nanoseconds)."""
-    from erforce_interfaces.wire.conversions import _check_tracked, _tracked_plain
+    from erforce_interfaces.wire.tables import _check_tracked, _tracked_plain
 
     table = np.array(_with(1, column, value))
     try:

@@ -9,8 +9,8 @@ import rclpy
 from std_msgs.msg import Float64MultiArray
 
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import table_msg
 from erforce_interfaces.wire.robot_config import FIELD_PRESETS, FieldConfig
+from erforce_interfaces.wire.tables import table_msg
 from erforce_sim.view.field_view import WorldState
 
 DIVISION_A, DIVISION_B = FIELD_PRESETS["division_a"], FIELD_PRESETS["division_b"]

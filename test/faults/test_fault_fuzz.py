@@ -31,7 +31,8 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model.passing.passing_game_node import records_from_msg
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import odometry_msg, stamp_to_seconds, table_msg
+from erforce_interfaces.wire.conversions import odometry_msg, stamp_to_seconds
+from erforce_interfaces.wire.tables import table_msg
 from erforce_sim.demo.demo import LAUNCH_FILE
 
 pytestmark = pytest.mark.integration

@@ -23,12 +23,13 @@ from faults_support import ROBOT_YAML, ClosedLoop
 from nav_msgs.msg import Odometry
 
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import odometry_msg, table_from_msg
+from erforce_interfaces.wire.conversions import odometry_msg
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.tables import table_from_msg
 from erforce_motion.motor_board import MotorBoardConfig
 from erforce_motion.velocity_control import VelocityControlConfig
 from erforce_sim.in_process.runner import InProcessRunner
-from erforce_sim.world import PlantSetup
+from erforce_sim.plant_setup import PlantSetup
 
 STALL_S = 20.0  # in process
 DDS_STALL_S = 8.0  # the average passes 1.3 A after ~5.7 s at ~2.3 A (and sooner with the first pushes' peak)

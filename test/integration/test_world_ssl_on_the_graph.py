@@ -22,7 +22,7 @@ from erforce_interfaces.ssl.ssl_proto import ssl_simulation_robot_control_pb2, s
 from erforce_interfaces.tools.processes import free_udp_port
 from erforce_interfaces.tools.testing import RosGraph
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import model_in_use_from_msg
+from erforce_interfaces.wire.tables import model_in_use_from_msg
 from erforce_sim.demo.demo import LAUNCH_FILE
 
 pytestmark = pytest.mark.integration

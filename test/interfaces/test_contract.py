@@ -20,6 +20,7 @@ from std_msgs.msg import Float64, Float64MultiArray, Header
 from erforce_interfaces.tools import messages as msgs
 from erforce_interfaces.wire import contract as c
 from erforce_interfaces.wire import conversions as conv
+from erforce_interfaces.wire import tables
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 
 REFERENCE = Path(__file__).resolve().parents[2] / "docs" / "reference.md"
@@ -555,8 +556,8 @@ def test_serialized_odometry_refuses_what_the_message_builder_refuses():
 def test_serialized_table_round_trips_through_rclpy(rows, row_label):
     n_cols, table = rows
     labels = [f"c{k}" for k in range(n_cols)]
-    built = conv.table_cdr(table, labels, row_label)
-    assert deserialize_message(built, Float64MultiArray) == conv.table_msg(table, labels, row_label)
+    built = tables.table_cdr(table, labels, row_label)
+    assert deserialize_message(built, Float64MultiArray) == tables.table_msg(table, labels, row_label)
 
 
 @settings(max_examples=200, deadline=None)
@@ -566,26 +567,26 @@ def test_serialized_table_round_trips_through_rclpy(rows, row_label):
 def test_a_table_reads_the_same_from_its_bytes_as_from_the_message(rows, row_label):
     n_cols, table = rows
     labels = [f"c{k}" for k in range(n_cols)]
-    msg = conv.table_msg(np.array(table, dtype=float).reshape(-1, n_cols), labels, row_label)
+    msg = tables.table_msg(np.array(table, dtype=float).reshape(-1, n_cols), labels, row_label)
     expected = np.array(table, dtype=float).reshape(-1, n_cols)
-    for data in (serialize_message(msg), conv.table_cdr(table, labels, row_label)):  # rclpy pads with garbage
-        np.testing.assert_array_equal(conv.table_from_msg(data, labels), expected)
+    for data in (serialize_message(msg), tables.table_cdr(table, labels, row_label)):  # rclpy pads with garbage
+        np.testing.assert_array_equal(tables.table_from_msg(data, labels), expected)
 
 
 def test_a_tables_malformed_bytes_are_refused():
-    data = conv.table_cdr([[1.0, 2.0, 3.0]] * 2, ("a", "b", "c"))
+    data = tables.table_cdr([[1.0, 2.0, 3.0]] * 2, ("a", "b", "c"))
     labels = ("a", "b", "c")
-    np.testing.assert_array_equal(conv.table_from_msg(data, labels), [[1.0, 2.0, 3.0]] * 2)
+    np.testing.assert_array_equal(tables.table_from_msg(data, labels), [[1.0, 2.0, 3.0]] * 2)
     for bad in (data[:-1], data[:10], b"\x01" + data[1:], data + bytes(8), data[:4] + b"\xff\xff\xff\x7f" + data[8:],
                 data[:-8] + struct.pack("<d", math.nan)):
         with pytest.raises(conv.ConversionError):
-            conv.table_from_msg(bad, labels)
+            tables.table_from_msg(bad, labels)
 
 
 def test_serialized_table_refuses_what_the_message_builder_refuses():
     labels = ["a", "b"]
     for bad in ([[1.0, math.nan]], [[math.inf, 0.0]], [[2e9, 0.0]], [[1.0, 2.0, 3.0]], [[1.0]]):
-        for build in (conv.table_msg, conv.table_cdr):
+        for build in (tables.table_msg, tables.table_cdr):
             with pytest.raises(conv.ConversionError):
                 build(bad, labels)
 
@@ -597,11 +598,11 @@ def test_serialized_clock_round_trips_through_rclpy(t_ns):
 
 def test_table_round_trip_and_labels():
     rows = np.array([[1.0, 0.5, 0.0, 1.0], [2.0, 1.0, 1.0, 0.0]])
-    msg = conv.table_msg(rows, c.MOTOR_STATUS_COLUMNS, "wheels")
+    msg = tables.table_msg(rows, c.MOTOR_STATUS_COLUMNS, "wheels")
     assert msg.layout.dim[1].label == "avg_current_a,pwm_limit,saturated,limit_active"
-    np.testing.assert_array_equal(conv.table_from_msg(msg, c.MOTOR_STATUS_COLUMNS), rows)
+    np.testing.assert_array_equal(tables.table_from_msg(msg, c.MOTOR_STATUS_COLUMNS), rows)
     with pytest.raises(conv.ConversionError):
-        conv.table_msg(np.array([[math.nan, 0, 0, 0]]), c.MOTOR_STATUS_COLUMNS)
+        tables.table_msg(np.array([[math.nan, 0, 0, 0]]), c.MOTOR_STATUS_COLUMNS)
 
 
 def test_odometry_round_trip_with_spin():
@@ -692,18 +693,18 @@ def test_the_localhost_profile_uses_udp_alone_and_asks_only_this_computer():
 
 def test_a_table_whose_shape_disagrees_with_its_labels_is_refused():
     """The catcher died on a /ball/model_params table with 4 columns under the right label."""
-    good = conv.table_msg([[-2.5, -0.3, 0.6]] * 3, c.BALL_MODEL_PARAM_LABELS)
-    assert conv.table_from_msg(good, c.BALL_MODEL_PARAM_LABELS, 3).shape == (3, 3)
-    four = conv.table_msg([[-2.5, -0.3, 0.6]] * 3, c.BALL_MODEL_PARAM_LABELS)
+    good = tables.table_msg([[-2.5, -0.3, 0.6]] * 3, c.BALL_MODEL_PARAM_LABELS)
+    assert tables.table_from_msg(good, c.BALL_MODEL_PARAM_LABELS, 3).shape == (3, 3)
+    four = tables.table_msg([[-2.5, -0.3, 0.6]] * 3, c.BALL_MODEL_PARAM_LABELS)
     four.layout.dim[1].size, four.data = 4, [-2.5, -0.3, 0.6, 1.0] * 3
     with pytest.raises(conv.ConversionError, match="4 columns"):
-        conv.table_from_msg(four, c.BALL_MODEL_PARAM_LABELS)
+        tables.table_from_msg(four, c.BALL_MODEL_PARAM_LABELS)
     with pytest.raises(conv.ConversionError, match="1 rows, expected 3"):
-        conv.table_from_msg(conv.table_msg([[-2.5, -0.3, 0.6]], c.BALL_MODEL_PARAM_LABELS),
+        tables.table_from_msg(tables.table_msg([[-2.5, -0.3, 0.6]], c.BALL_MODEL_PARAM_LABELS),
                             c.BALL_MODEL_PARAM_LABELS, 3)
     good.layout.data_offset = 2
     with pytest.raises(conv.ConversionError, match="data_offset"):
-        conv.table_from_msg(good, c.BALL_MODEL_PARAM_LABELS)
+        tables.table_from_msg(good, c.BALL_MODEL_PARAM_LABELS)
 
 
 def test_world_frame_inputs_must_be_in_field_or_unnamed_and_stamps_must_be_times():
@@ -748,17 +749,17 @@ def test_a_saturating_sensor_clips_finite_values_and_still_refuses_non_finite_on
 def test_model_in_use_is_the_first_row_of_the_model_table():
     in_use, fit, std = [-2.5, -0.3, 0.6], [-2.4, -0.31, 0.61], [0.01, 0.002, 0.003]
     labels = c.BALL_MODEL_PARAM_LABELS
-    assert conv.model_in_use_from_msg(conv.table_msg([in_use], labels, "in_use")) == (-2.5, -0.3, 0.6)
-    three = conv.table_msg([in_use, fit, std], labels, "in_use,fit,std_error")
-    assert conv.model_in_use_from_msg(three) == (-2.5, -0.3, 0.6)
-    assert conv.model_in_use_from_msg(serialize_message(three)) == (-2.5, -0.3, 0.6)  # its bytes
+    assert tables.model_in_use_from_msg(tables.table_msg([in_use], labels, "in_use")) == (-2.5, -0.3, 0.6)
+    three = tables.table_msg([in_use, fit, std], labels, "in_use,fit,std_error")
+    assert tables.model_in_use_from_msg(three) == (-2.5, -0.3, 0.6)
+    assert tables.model_in_use_from_msg(serialize_message(three)) == (-2.5, -0.3, 0.6)  # its bytes
     for rows, label in (([fit, std, in_use], "fit,std_error,in_use"), ([in_use, fit], "in_use,fit,std_error")):
-        for msg in (conv.table_msg(rows, labels, label), conv.table_cdr(rows, labels, label)):
+        for msg in (tables.table_msg(rows, labels, label), tables.table_cdr(rows, labels, label)):
             with pytest.raises(conv.ConversionError):
-                conv.model_in_use_from_msg(msg)
-    four_columns = conv.table_msg([[*in_use, 1.0]], (*labels, "extra"), "in_use")
+                tables.model_in_use_from_msg(msg)
+    four_columns = tables.table_msg([[*in_use, 1.0]], (*labels, "extra"), "in_use")
     with pytest.raises(conv.ConversionError, match="columns"):
-        conv.model_in_use_from_msg(four_columns)
+        tables.model_in_use_from_msg(four_columns)
 
 
 @pytest.mark.parametrize(("name", "topic"), [

@@ -24,6 +24,7 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header, String, UInt8MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from erforce_interfaces.tools import message_text as mt
 from erforce_interfaces.tools import topic_tool as tt
 from erforce_interfaces.tools.testing import RosGraph, stop_process
 from erforce_interfaces.wire.contract import QOS_COMMAND
@@ -66,28 +67,28 @@ def _joint_state() -> JointState:
 
 @pytest.mark.parametrize("name", ["std_msgs/msg/String", "std_msgs/String", "/std_msgs/msg/String"])
 def test_type_names_resolve_to_the_generated_class(name):
-    assert tt.get_message_class(name) is String
+    assert mt.get_message_class(name) is String
 
 
 @pytest.mark.parametrize(
     "name", ["String", "nopkg/msg/Foo", "std_msgs/msg/Nope", "std_msgs/srv/String", "a/b/c/d", "std_msgs/", ""]
 )
 def test_bad_type_names_are_tool_errors(name):
-    with pytest.raises(tt.ToolError):
-        tt.get_message_class(name)
+    with pytest.raises(mt.ToolError):
+        mt.get_message_class(name)
 
 
 # ------------------------------------------------------------------------------ message -> text
 
 
 def test_yaml_of_a_message_with_header_and_arrays_is_exact():
-    assert tt.message_to_yaml(_joint_state()) == JOINT_STATE_YAML_OUT
+    assert mt.message_to_yaml(_joint_state()) == JOINT_STATE_YAML_OUT
 
 
 def test_yaml_of_fixed_size_numpy_arrays_is_a_plain_list():
     imu = Imu()
     imu.orientation_covariance = np.arange(9, dtype=np.float64) / 4.0
-    text = tt.message_to_yaml(imu)
+    text = mt.message_to_yaml(imu)
     expected_cov = "orientation_covariance:\n" + "".join(f"- {v}\n" for v in (0.0, 0.25, 0.5, 0.75, 1.0,
                                                                                1.25, 1.5, 1.75, 2.0))
     assert expected_cov in text
@@ -101,28 +102,28 @@ def test_yaml_of_fixed_size_numpy_arrays_is_a_plain_list():
      (-math.inf, "-.inf"), (math.nan, ".nan"), (3.0, "3.0")],
 )
 def test_floats_print_like_python_repr_in_yaml_spelling(value, text):
-    assert tt.message_to_yaml(JointState(position=[value])).split("position:\n- ")[1].split("\n")[0] == text
+    assert mt.message_to_yaml(JointState(position=[value])).split("position:\n- ")[1].split("\n")[0] == text
 
 
 @pytest.mark.parametrize(("data", "line"), [("yes", "data: 'yes'"), ("5", "data: '5'"), ("", "data: ''"),
                                              ("hello 3", "data: hello 3"), ("a: b", "data: 'a: b'")])
 def test_strings_that_yaml_would_misread_are_quoted(data, line):
-    assert tt.message_to_yaml(String(data=data)) == line + "\n"
+    assert mt.message_to_yaml(String(data=data)) == line + "\n"
 
 
 def test_byte_arrays_print_as_integer_lists():
     msg = UInt8MultiArray(data=[1, 2, 255])
-    assert tt.message_to_yaml(msg).endswith("data:\n- 1\n- 2\n- 255\n")
+    assert mt.message_to_yaml(msg).endswith("data:\n- 1\n- 2\n- 255\n")
 
 
 def test_no_arr_no_str_and_truncation_match_ros2_echo():
     js = _joint_state()
-    no_arr = tt.message_to_ordereddict(js, no_arr=True)
+    no_arr = mt.message_to_ordereddict(js, no_arr=True)
     assert no_arr["name"] == "<sequence type: string, length: 2>"
     assert no_arr["velocity"] == "<sequence type: double, length: 0>"
-    assert tt.message_to_ordereddict(Imu(), no_arr=True)["orientation_covariance"] == "<array type: double[9]>"
-    assert tt.message_to_ordereddict(js, no_str=True)["header"]["frame_id"] == "<string length: <9>>"
-    short = tt.message_to_ordereddict(js, truncate_length=1)
+    assert mt.message_to_ordereddict(Imu(), no_arr=True)["orientation_covariance"] == "<array type: double[9]>"
+    assert mt.message_to_ordereddict(js, no_str=True)["header"]["frame_id"] == "<string length: <9>>"
+    short = mt.message_to_ordereddict(js, truncate_length=1)
     assert short["position"] == [1.5, "..."]
     assert short["name"] == ["w...", "..."]
     assert short["header"]["frame_id"] == "b..."
@@ -131,8 +132,8 @@ def test_no_arr_no_str_and_truncation_match_ros2_echo():
 def test_csv_lists_the_leaves_depth_first():
     twist = Twist()
     twist.linear.x, twist.angular.z = 1.0, -0.5
-    assert tt.message_to_csv(twist) == "1.0,0.0,0.0,0.0,0.0,-0.5"
-    assert tt.message_to_csv(_joint_state()) == "12,500,base_link,wheel_0,wheel_1,1.5,-2.0,,0.25,1e-05"
+    assert mt.message_to_csv(twist) == "1.0,0.0,0.0,0.0,0.0,-0.5"
+    assert mt.message_to_csv(_joint_state()) == "12,500,base_link,wheel_0,wheel_1,1.5,-2.0,,0.25,1e-05"
 
 
 @pytest.mark.parametrize(
@@ -140,23 +141,23 @@ def test_csv_lists_the_leaves_depth_first():
     [("data", ["data"]), ("a.b[2].c", ["a", "b", 2, "c"]), ("a.b.2", ["a", "b", 2]), ("name[0]", ["name", 0])],
 )
 def test_field_paths_parse(path, tokens):
-    assert tt.parse_field_path(path) == tokens
+    assert mt.parse_field_path(path) == tokens
 
 
 @pytest.mark.parametrize("path", ["", ".", "a..b", "a[x]", "a[", "a]b", "[0"])
 def test_bad_field_paths_are_tool_errors(path):
-    with pytest.raises(tt.ToolError):
-        tt.parse_field_path(path)
+    with pytest.raises(mt.ToolError):
+        mt.parse_field_path(path)
 
 
 def test_get_field_walks_messages_and_lists():
     js = _joint_state()
-    assert tt.get_field(js, ["header", "stamp", "sec"]) == 12
-    assert tt.get_field(js, ["name", 1]) == "wheel_1"
-    assert tt.get_field(js, ["position", -1]) == -2.0
+    assert mt.get_field(js, ["header", "stamp", "sec"]) == 12
+    assert mt.get_field(js, ["name", 1]) == "wheel_1"
+    assert mt.get_field(js, ["position", -1]) == -2.0
     for bad in (["nope"], ["name", 2], ["header", 0], ["header", "stamp", "sec", "x"]):
-        with pytest.raises(tt.ToolError):
-            tt.get_field(js, bad)
+        with pytest.raises(mt.ToolError):
+            mt.get_field(js, bad)
 
 
 # ------------------------------------------------------------------------------ dict -> message
@@ -164,20 +165,20 @@ def test_get_field_walks_messages_and_lists():
 
 def test_numbers_become_floats_where_the_field_is_float():
     msg = Twist()
-    tt.set_message_fields(msg, {"linear": {"x": 1}, "angular": {"z": -2}})
+    mt.set_message_fields(msg, {"linear": {"x": 1}, "angular": {"z": -2}})
     assert type(msg.linear.x) is float and msg.linear.x == 1.0
     assert msg.angular.z == -2.0 and msg.linear.y == 0.0
 
 
 def test_fields_from_yaml_text_rebuild_the_message():
-    msg = tt.new_message(JointState)
-    tt.set_message_fields(msg, yaml.safe_load(JOINT_STATE_YAML_IN))
+    msg = mt.new_message(JointState)
+    mt.set_message_fields(msg, yaml.safe_load(JOINT_STATE_YAML_IN))
     assert msg == _joint_state()
 
 
 def test_sequences_of_messages_are_built_element_by_element():
     msg = JointTrajectory()
-    tt.set_message_fields(msg, {"joint_names": ["a"], "points": [
+    mt.set_message_fields(msg, {"joint_names": ["a"], "points": [
         {"positions": [1, 2], "time_from_start": {"sec": 3}}, {"effort": [0.5]}]})
     assert [type(p) for p in msg.points] == [JointTrajectoryPoint, JointTrajectoryPoint]
     assert list(msg.points[0].positions) == [1.0, 2.0] and msg.points[0].time_from_start.sec == 3
@@ -201,8 +202,8 @@ def test_sequences_of_messages_are_built_element_by_element():
     ],
 )
 def test_bad_values_name_the_field(cls, values, fragment):
-    with pytest.raises(tt.ToolError, match=re.escape(fragment)):
-        tt.set_message_fields(tt.new_message(cls), values)
+    with pytest.raises(mt.ToolError, match=re.escape(fragment)):
+        mt.set_message_fields(mt.new_message(cls), values)
 
 
 def test_integer_bounds_are_inclusive():
@@ -210,23 +211,23 @@ def test_integer_bounds_are_inclusive():
 
     for cls, ok, bad in ((Int8, (-128, 127), (-129, 128)), (UInt64, (0, 2**64 - 1), (-1, 2**64))):
         for v in ok:
-            msg = tt.new_message(cls)
-            tt.set_message_fields(msg, {"data": v})
+            msg = mt.new_message(cls)
+            mt.set_message_fields(msg, {"data": v})
             assert msg.data == v
         for v in bad:
-            with pytest.raises(tt.ToolError, match="range"):
-                tt.set_message_fields(tt.new_message(cls), {"data": v})
+            with pytest.raises(mt.ToolError, match="range"):
+                mt.set_message_fields(mt.new_message(cls), {"data": v})
 
 
 def test_header_auto_and_stamp_now_return_setters_that_stamp_the_message():
-    msg = tt.new_message(JointState)
-    setters = tt.set_message_fields(msg, {"header": "auto"})
+    msg = mt.new_message(JointState)
+    setters = mt.set_message_fields(msg, {"header": "auto"})
     assert len(setters) == 1
     for set_stamp in setters:
         set_stamp(Time(sec=7, nanosec=9))
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (7, 9)
-    msg = tt.new_message(JointState)
-    (set_stamp,) = tt.set_message_fields(msg, {"header": {"stamp": "now", "frame_id": "f"}})
+    msg = mt.new_message(JointState)
+    (set_stamp,) = mt.set_message_fields(msg, {"header": {"stamp": "now", "frame_id": "f"}})
     set_stamp(Time(sec=3, nanosec=4))
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id) == (3, 4, "f")
 
@@ -241,8 +242,8 @@ _floats = st.lists(st.floats(allow_nan=False, width=64), max_size=5)
 def test_yaml_round_trip_restores_any_joint_state(names, position, effort, sec, nanosec, frame):
     original = JointState(header=Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id=frame),
                           name=names, position=position, effort=effort)
-    rebuilt = tt.new_message(JointState)
-    tt.set_message_fields(rebuilt, yaml.safe_load(tt.message_to_yaml(original)))
+    rebuilt = mt.new_message(JointState)
+    mt.set_message_fields(rebuilt, yaml.safe_load(mt.message_to_yaml(original)))
     assert rebuilt == original
 
 

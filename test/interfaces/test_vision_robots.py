@@ -12,6 +12,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 
+from erforce_interfaces.wire import clouds
 from erforce_interfaces.wire import contract as c
 from erforce_interfaces.wire import conversions as conv
 
@@ -69,28 +70,28 @@ def test_the_topic_and_its_fields_are_in_the_contract():
 
 def test_a_frame_with_its_ball_matches_a_hand_made_layout_and_reads_back():
     assert len(HAND_BALL) == len(HAND) + 48
-    assert conv.vision_robots_cdr(7.25, ROWS, balls=[(0.25, -1.0)]) == HAND_BALL
+    assert clouds.vision_robots_cdr(7.25, ROWS, balls=[(0.25, -1.0)]) == HAND_BALL
     points = np.array([[0.25, -1.0, 0.0, 0.0, 0.0, 0.0], [1.5, -2.0, 0.0, 0.5, 1.0, 3.0],
                        [-4.0, 3.0, 0.0, 4.0 - 2.0 * math.pi, 2.0, 0.0]])
-    assert conv.vision_robots_points_cdr(7.25, points) == HAND_BALL
+    assert clouds.vision_robots_points_cdr(7.25, points) == HAND_BALL
     for form in (HAND_BALL, deserialize_message(HAND_BALL, PointCloud2)):
-        t_s, balls, rows = conv.vision_frame_from_msg(form)
+        t_s, balls, rows = clouds.vision_frame_from_msg(form)
         assert t_s == 7.25 and balls.tolist() == [[0.25, -1.0]] and rows.tolist() == ROWS_READ
-        assert conv.vision_robots_from_msg(form)[1].tolist() == ROWS_READ  # a reader of robots skips the ball
-    t_s, balls, rows = conv.vision_frame_from_msg(conv.vision_robots_cdr(1.0, [], balls=[(-3.0, 2.0)]))
+        assert clouds.vision_robots_from_msg(form)[1].tolist() == ROWS_READ  # a reader of robots skips the ball
+    t_s, balls, rows = clouds.vision_frame_from_msg(clouds.vision_robots_cdr(1.0, [], balls=[(-3.0, 2.0)]))
     assert balls.tolist() == [[-3.0, 2.0]] and rows.shape == (0, 5)
-    assert conv.vision_frame_from_msg(HAND)[1].shape == (0, 2)
+    assert clouds.vision_frame_from_msg(HAND)[1].shape == (0, 2)
     for bad in ((math.nan, 0.0), (0.0, 2e3)):
         with pytest.raises(conv.ConversionError, match="ball: "):
-            conv.vision_robots_cdr(1.0, ROWS, balls=[bad])
+            clouds.vision_robots_cdr(1.0, ROWS, balls=[bad])
         with pytest.raises(conv.ConversionError, match="ball: "):
-            conv.vision_frame_from_msg(cloud(1.0, [(*bad, 0.0, 0.0, 0.0, 0.0)]))
+            clouds.vision_frame_from_msg(cloud(1.0, [(*bad, 0.0, 0.0, 0.0, 0.0)]))
 
 
 def test_bytes_match_a_hand_made_layout_and_read_back():
     assert len(HAND) == 4 + 277
-    assert conv.vision_robots_cdr(7.25, ROWS) == HAND
-    t_s, rows = conv.vision_robots_from_msg(HAND)
+    assert clouds.vision_robots_cdr(7.25, ROWS) == HAND
+    t_s, rows = clouds.vision_robots_from_msg(HAND)
     assert t_s == 7.25 and rows.tolist() == ROWS_READ
     msg = deserialize_message(HAND, PointCloud2)  # rclpy reads our bytes as the cloud we meant
     assert msg == cloud(7.25, [(1.5, -2.0, 0.0, 0.5, 1.0, 3.0), (-4.0, 3.0, 0.0, 4.0 - 2.0 * math.pi, 2.0, 0.0)])
@@ -103,24 +104,24 @@ def test_bytes_match_a_hand_made_layout_and_read_back():
     assert len(reference) == len(HAND)
     assert [b for i, b in enumerate(reference) if i not in padding] == [b for i, b in enumerate(HAND)
                                                                          if i not in padding]
-    assert conv.vision_robots_from_msg(reference)[1].tolist() == ROWS_READ  # garbage padding read too
-    assert conv.vision_robots_from_msg(msg)[1].tolist() == ROWS_READ
+    assert clouds.vision_robots_from_msg(reference)[1].tolist() == ROWS_READ  # garbage padding read too
+    assert clouds.vision_robots_from_msg(msg)[1].tolist() == ROWS_READ
 
 
 def test_points_written_by_a_producer_give_the_same_bytes():
     points = np.array([[1.5, -2.0, 0.0, 0.5, 1.0, 3.0], [-4.0, 3.0, 0.0, 4.0 - 2.0 * math.pi, 2.0, 0.0]])
-    assert conv.vision_robots_points_cdr(7.25, points) == HAND
-    assert conv.vision_robots_points_cdr(7.25, np.empty((0, 6))) == conv.vision_robots_cdr(7.25, [])
-    assert conv.vision_robots_points_cdr(7.25, points[:1], frame_id="") == conv.vision_robots_cdr(7.25, ROWS[:1],
+    assert clouds.vision_robots_points_cdr(7.25, points) == HAND
+    assert clouds.vision_robots_points_cdr(7.25, np.empty((0, 6))) == clouds.vision_robots_cdr(7.25, [])
+    assert clouds.vision_robots_points_cdr(7.25, points[:1], frame_id="") == clouds.vision_robots_cdr(7.25, ROWS[:1],
                                                                                                   frame_id="")
 
 
 def test_an_empty_frame_and_an_unnamed_frame_are_read():
-    t_s, rows = conv.vision_robots_from_msg(conv.vision_robots_cdr(1.5, []))
+    t_s, rows = clouds.vision_robots_from_msg(clouds.vision_robots_cdr(1.5, []))
     assert t_s == 1.5 and rows.shape == (0, 5)
-    data = conv.vision_robots_cdr(2.0, ROWS[:1], frame_id="")
-    assert conv.vision_robots_from_msg(data)[1].tolist() == ROWS_READ[:1]
-    assert conv.vision_robots_from_msg(serialize_message(deserialize_message(data, PointCloud2)))[1].tolist() == \
+    data = clouds.vision_robots_cdr(2.0, ROWS[:1], frame_id="")
+    assert clouds.vision_robots_from_msg(data)[1].tolist() == ROWS_READ[:1]
+    assert clouds.vision_robots_from_msg(serialize_message(deserialize_message(data, PointCloud2)))[1].tolist() == \
         ROWS_READ[:1]
 
 
@@ -131,11 +132,11 @@ _rows = st.lists(st.tuples(st.sampled_from([1.0, 2.0]), st.integers(0, 15).map(f
 @settings(max_examples=150, deadline=None)
 @given(t_s=st.floats(0.0, 2.0**31 - 1.0), rows=_rows)
 def test_built_bytes_round_trip_through_rclpy(t_s, rows):
-    data = conv.vision_robots_cdr(t_s, rows)
+    data = clouds.vision_robots_cdr(t_s, rows)
     msg = deserialize_message(data, PointCloud2)
     expected = [[team, rid, x, y, math.remainder(yaw, 2.0 * math.pi)] for team, rid, x, y, yaw in rows]
     for form in (data, msg, serialize_message(msg)):
-        _, read = conv.vision_robots_from_msg(form)
+        _, read = clouds.vision_robots_from_msg(form)
         assert read.shape == (len(rows), 5)
         np.testing.assert_allclose(read, np.array(expected).reshape(-1, 5), rtol=0, atol=1e-9)
         assert (np.abs(read[:, 4]) <= math.pi).all()
@@ -155,7 +156,7 @@ def test_message_and_bytes_are_read_alike_or_refused_alike(points, sec, nanosec,
     outcomes = []
     for form in (msg, serialize_message(msg)):
         try:
-            t_s, rows = conv.vision_robots_from_msg(form)
+            t_s, rows = clouds.vision_robots_from_msg(form)
             outcomes.append((t_s, rows.tolist()))
             assert np.isfinite(rows).all()
         except conv.ConversionError:
@@ -170,14 +171,14 @@ def test_the_builder_refuses_what_the_reader_refuses():
         row = list(good)
         row[k] = bad
         with pytest.raises(conv.ConversionError, match="robot 1: "):
-            conv.vision_robots_cdr(1.0, [good, row])
+            clouds.vision_robots_cdr(1.0, [good, row])
         point = [row[2], row[3], 0.0, row[4], row[0], row[1]]
         with pytest.raises(conv.ConversionError, match="robot 0: "):
-            conv.vision_robots_from_msg(cloud(1.0, [point]))
+            clouds.vision_robots_from_msg(cloud(1.0, [point]))
     with pytest.raises(conv.ConversionError, match="robot 0: team"):  # a ball is no robot row: balls= takes it
-        conv.vision_robots_cdr(1.0, [(0.0, 0.0, 1.5, -2.0, 0.0)])
+        clouds.vision_robots_cdr(1.0, [(0.0, 0.0, 1.5, -2.0, 0.0)])
     with pytest.raises(conv.ConversionError, match="stamp"):
-        conv.vision_robots_cdr(-1.0, [good])
+        clouds.vision_robots_cdr(-1.0, [good])
 
 
 def test_other_clouds_and_malformed_bytes_are_refused():
@@ -189,18 +190,18 @@ def test_other_clouds_and_malformed_bytes_are_refused():
                 cloud(1.0, [point], frame="map")):
         for form in (msg, serialize_message(msg)):
             with pytest.raises(conv.ConversionError):
-                conv.vision_robots_from_msg(form)
+                clouds.vision_robots_from_msg(form)
     float32 = cloud(1.0, [point])
     float32.fields[5].datatype = PointField.FLOAT32
     with pytest.raises(conv.ConversionError, match="float64"):
-        conv.vision_robots_from_msg(float32)
+        clouds.vision_robots_from_msg(float32)
     for cut in range(len(HAND)):  # every truncation
         with pytest.raises(conv.ConversionError):
-            conv.vision_robots_from_msg(HAND[:cut])
+            clouds.vision_robots_from_msg(HAND[:cut])
     for bad in (b"\x00\x00" + HAND[2:], HAND[:28] + struct.pack("<I", 10**6) + HAND[32:],  # width
                 HAND[:-49] + struct.pack("<d", math.nan) + HAND[-41:]):  # x of the second robot
         with pytest.raises(conv.ConversionError):
-            conv.vision_robots_from_msg(bad)
+            clouds.vision_robots_from_msg(bad)
 
 
 @settings(max_examples=300, deadline=None)
@@ -208,36 +209,36 @@ def test_other_clouds_and_malformed_bytes_are_refused():
 def test_random_bytes_never_raise_anything_but_a_conversion_error(garbage):
     for data in (garbage, b"\x00\x01\x00\x00" + garbage, HAND[:180] + garbage):
         try:
-            conv.vision_robots_from_msg(data)
+            clouds.vision_robots_from_msg(data)
         except conv.ConversionError:
             pass
 
 
 def test_the_leading_ball_is_read_alone_and_a_frame_it_cannot_vouch_for_is_left_to_the_whole_decode():
-    assert conv.vision_leading_balls(HAND_BALL) == (7.25, [(0.25, -1.0)])
-    assert conv.vision_leading_balls(HAND) == (7.25, [])  # robots only
-    two = conv.vision_robots_cdr(3.0, ROWS, balls=[(1.0, 2.0), (-0.5, 0.75)])
-    assert conv.vision_leading_balls(two) == (3.0, [(1.0, 2.0), (-0.5, 0.75)])
+    assert clouds.vision_leading_balls(HAND_BALL) == (7.25, [(0.25, -1.0)])
+    assert clouds.vision_leading_balls(HAND) == (7.25, [])  # robots only
+    two = clouds.vision_robots_cdr(3.0, ROWS, balls=[(1.0, 2.0), (-0.5, 0.75)])
+    assert clouds.vision_leading_balls(two) == (3.0, [(1.0, 2.0), (-0.5, 0.75)])
     # the robots are not read: the ball of a frame with a broken robot (its x NaN, after the ball) is answered;
     # the data starts at file offset 184 (payload offset 180)
     broken_robot = HAND_BALL[:184 + 48] + struct.pack("<d", math.nan) + HAND_BALL[184 + 56:]
-    assert conv.vision_leading_balls(broken_robot) == (7.25, [(0.25, -1.0)])
+    assert clouds.vision_leading_balls(broken_robot) == (7.25, [(0.25, -1.0)])
     with pytest.raises(conv.ConversionError, match="robot 1: x is not finite"):  # the point after the ball
-        conv.vision_frame_from_msg(broken_robot)
+        clouds.vision_frame_from_msg(broken_robot)
     # a ball that fails the checks, a layout other than /vision/robots', a cut message: None
     for x, z, robot_id in ((math.nan, 0.0, 0.0), (2e3, 0.0, 0.0), (0.0, math.inf, 0.0), (0.0, 0.0, 0.5),
                            (0.0, 0.0, -1.0)):
         bad_ball = HAND_BALL[:184] + struct.pack("<6d", x, -1.0, z, 0.0, 0.0, robot_id) + HAND_BALL[232:]
-        assert conv.vision_leading_balls(bad_ball) is None
+        assert clouds.vision_leading_balls(bad_ball) is None
         with pytest.raises(conv.ConversionError):
-            conv.vision_frame_from_msg(bad_ball)
-    assert conv.vision_leading_balls(HAND_BALL[:-49]) is None
+            clouds.vision_frame_from_msg(bad_ball)
+    assert clouds.vision_leading_balls(HAND_BALL[:-49]) is None
     other_fields = serialize_message(cloud(1.0, [(0.25, -1.0, 0.0, 0.0, 0.0, 0.0)], fields=("x", "y", "z", "yaw",
                                                                                              "team", "id")))
-    assert conv.vision_leading_balls(other_fields) is None
+    assert clouds.vision_leading_balls(other_fields) is None
     # another writer's bytes of the same cloud (rclpy's padding) are read as ours
     ours = serialize_message(deserialize_message(HAND_BALL, PointCloud2))
-    assert conv.vision_leading_balls(ours) == (7.25, [(0.25, -1.0)])
+    assert clouds.vision_leading_balls(ours) == (7.25, [(0.25, -1.0)])
 
 
 
@@ -246,9 +247,9 @@ def test_a_ball_after_a_robot_is_told_from_the_team_fields_alone():
     robot = (1.5, -2.0, 0.0, 0.5, 1.0, 3.0)  # x, y, z, yaw, team, robot_id
     for points, after in (([ball, robot], False), ([robot], False), ([ball], False), ([], False),
                           ([robot, ball], True), ([ball, robot, ball], True), ([ball, ball, robot, robot], False)):
-        assert conv.vision_ball_after_robot(serialize_message(cloud(1.0, points))) is after, points
-    assert conv.vision_ball_after_robot(HAND_BALL) is False and conv.vision_ball_after_robot(HAND) is False
-    assert conv.vision_ball_after_robot(HAND_BALL[:-49]) is False  # not the layout: left to the whole decode
+        assert clouds.vision_ball_after_robot(serialize_message(cloud(1.0, points))) is after, points
+    assert clouds.vision_ball_after_robot(HAND_BALL) is False and clouds.vision_ball_after_robot(HAND) is False
+    assert clouds.vision_ball_after_robot(HAND_BALL[:-49]) is False  # not the layout: left to the whole decode
 
 
 # Values at and just past each limit of a point (positions 1e3 m, yaw 1e6 rad, ids 0..1024), and non-finite ones.
@@ -272,9 +273,9 @@ def test_a_ball_point_is_refused_by_the_leading_reader_exactly_when_the_whole_de
         if point[4] != c.VISION_BALL_CODE:
             continue  # no longer a ball: the leading reader stops before it
         data = serialize_message(cloud(1.0, [point]))
-        leading = conv.vision_leading_balls(data)
+        leading = clouds.vision_leading_balls(data)
         try:
-            _t_s, balls, _rows = conv.vision_frame_from_msg(data)
+            _t_s, balls, _rows = clouds.vision_frame_from_msg(data)
         except conv.ConversionError:
             assert leading is None, point
             refused += 1
@@ -288,12 +289,12 @@ def test_a_ball_point_is_refused_by_the_leading_reader_exactly_when_the_whole_de
 def test_the_writer_refuses_a_robot_row_exactly_when_the_reader_refuses_its_point():
     for team, robot_id, x, y, yaw in _one_field_off((1.0, 3.0, 1.5, -2.0, 0.5)):
         try:
-            conv.vision_robots_cdr(1.0, [(team, robot_id, x, y, yaw)])
+            clouds.vision_robots_cdr(1.0, [(team, robot_id, x, y, yaw)])
             written = True
         except conv.ConversionError:
             written = False
         try:
-            conv.vision_robots_from_msg(cloud(1.0, [(x, y, 0.0, yaw, team, robot_id)]))
+            clouds.vision_robots_from_msg(cloud(1.0, [(x, y, 0.0, yaw, team, robot_id)]))
             read = team != c.VISION_BALL_CODE  # a ball point is read as a ball; the writer takes balls apart
         except conv.ConversionError:
             read = False

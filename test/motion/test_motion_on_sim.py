@@ -22,7 +22,7 @@ from erforce_motion.velocity_control import (
     wheel_force_per_accel,
 )
 from erforce_sim.in_process.runner import InProcessRunner
-from erforce_sim.world import PlantSetup
+from erforce_sim.plant_setup import PlantSetup
 
 ROBOT = RobotConfig()
 KIN = OmniKinematics.from_robot_config(ROBOT)

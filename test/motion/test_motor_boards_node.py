@@ -10,10 +10,8 @@ from std_msgs.msg import Float64MultiArray
 
 from erforce_interfaces.tools.messages import joint_state_msg
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import (
-    table_from_msg,
-)
 from erforce_interfaces.wire.robot_config import RobotConfig
+from erforce_interfaces.wire.tables import table_from_msg
 
 pytestmark = pytest.mark.integration
 

@@ -20,7 +20,7 @@ from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import odometry_from_msg, stamp_to_nanoseconds
 from erforce_motion.velocity_control import VelocityControlConfig
 from erforce_sim.in_process.runner import InProcessRunner
-from erforce_sim.world import PlantSetup
+from erforce_sim.plant_setup import PlantSetup
 
 pytestmark = pytest.mark.integration
 

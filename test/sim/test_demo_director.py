@@ -22,10 +22,8 @@ from erforce_interfaces.tools.messages import point_msg
 from erforce_interfaces.tools.processes import spawn_in_session
 from erforce_interfaces.tools.testing import isolated_node, stop_process
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import (
-    nanoseconds_to_stamp,
-    vision_robots_cdr,
-)
+from erforce_interfaces.wire.clouds import vision_robots_cdr
+from erforce_interfaces.wire.conversions import nanoseconds_to_stamp
 from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_sim.demo.demo import RECEIVER, Director
 

@@ -21,23 +21,17 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model.passing.decisions import PassConfig, PassOption
 from erforce_interfaces.wire import contract as c
-from erforce_interfaces.wire.conversions import (
-    BallTrack,
-    ball_track_cdr,
-    float64_cdr,
-    odometry_cdr,
-    odometry_msg,
-    point_cdr,
-    table_msg,
-)
+from erforce_interfaces.wire.clouds import BallTrack, ball_track_cdr
+from erforce_interfaces.wire.conversions import float64_cdr, odometry_cdr, odometry_msg, point_cdr
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_interfaces.wire.stamps import StampFilter
+from erforce_interfaces.wire.tables import table_msg
 from erforce_sim.demo.passing_report import GameBag, pass_choice_cdr
 from erforce_sim.in_process.passing_game import GameConfig
+from erforce_sim.view.bag_replay import BagReplay
 from erforce_sim.view.field_view import (
     PATH_MARK_PERIOD_S,
     STAMP_MAX_JUMP_S,
-    BagReplay,
     WorldState,
     decode_frame_bytes,
     view_topic,

@@ -17,17 +17,11 @@ from std_msgs.msg import Float64, String
 
 from erforce_interfaces.tools.messages import joint_state_msg
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import (
-    odometry_from_msg,
-    odometry_msg,
-    pose2d_from_msg,
-    stamp_to_nanoseconds,
-    vision_frame_from_msg,
-    vision_robots_from_msg,
-)
+from erforce_interfaces.wire.clouds import vision_frame_from_msg, vision_robots_from_msg
+from erforce_interfaces.wire.conversions import odometry_from_msg, odometry_msg, pose2d_from_msg, stamp_to_nanoseconds
 from erforce_motion.velocity_control import VelocityControlConfig
 from erforce_sim.in_process.runner import InProcessRunner
-from erforce_sim.world import PlantSetup
+from erforce_sim.plant_setup import PlantSetup
 
 pytestmark = pytest.mark.integration
 

@@ -7,7 +7,7 @@ import pytest
 
 from erforce_motion.motor_board import MotorBoardConfig
 from erforce_sim.in_process.runner import InProcessRunner
-from erforce_sim.world import PlantSetup
+from erforce_sim.plant_setup import PlantSetup
 
 
 def run_step(period_s: float, command, duration_s: float = 1.2):

@@ -4,9 +4,9 @@ import pytest
 
 from erforce_interfaces.ssl.ssl_vision import BallModelFromVision, decode_wrapper
 from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame, VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, ground_point, quadrant_cameras
-from erforce_sim.world import PlantSetup, build_world
 
 FIELD = FieldConfig.preset("division_b")  # 9 x 6 m, walls 0.3 m outside the lines
 

@@ -21,7 +21,8 @@ from erforce_interfaces.ssl.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
-from erforce_interfaces.wire.conversions import float64_from_msg, vision_frame_from_msg
+from erforce_interfaces.wire.clouds import vision_frame_from_msg
+from erforce_interfaces.wire.conversions import float64_from_msg
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ssl_cameras import open_multicast_sender
 

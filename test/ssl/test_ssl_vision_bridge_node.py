@@ -30,14 +30,9 @@ from erforce_interfaces.ssl.ssl_vision import (
     encode_geometry,
 )
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import (
-    point_from_msg,
-    pose2d_from_msg,
-    table_from_msg,
-    table_msg,
-    vision_frame_from_msg,
-    vision_robots_cdr,
-)
+from erforce_interfaces.wire.clouds import vision_frame_from_msg, vision_robots_cdr
+from erforce_interfaces.wire.conversions import point_from_msg, pose2d_from_msg
+from erforce_interfaces.wire.tables import table_from_msg, table_msg
 from erforce_sim.ssl_cameras import open_multicast_sender
 
 pytestmark = pytest.mark.integration

@@ -22,7 +22,7 @@ from erforce_interfaces.ssl.ssl_vision import (
 )
 from erforce_interfaces.tools.processes import free_udp_port
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import vision_frame_from_msg
+from erforce_interfaces.wire.clouds import vision_frame_from_msg
 
 VISION_EPOCH_S = 1.7e9  # the vision host's clock
 BAD_GEOMETRY = encode_geometry(FieldGeometry(0.0, 6.0, 0.3, 1.0, 0.18))  # a field 0 mm long

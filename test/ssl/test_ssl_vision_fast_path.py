@@ -46,7 +46,7 @@ from erforce_interfaces.ssl.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
-from erforce_interfaces.wire.conversions import vision_frame_from_msg, vision_robots_points_cdr
+from erforce_interfaces.wire.clouds import vision_frame_from_msg, vision_robots_points_cdr
 from erforce_interfaces.wire.robot_config import FieldConfig
 
 FIELD = FieldConfig.preset("division_a")

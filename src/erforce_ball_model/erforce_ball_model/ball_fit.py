@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.figures import finish_figure
 from erforce_ball_model.identification import FitResult, Shot, ShotAccumulator, fit_shots, load_csv
 from erforce_ball_model.tracking import BallTracker, UpdateStatus
 
@@ -245,11 +246,7 @@ def plot(reports: list[FieldReport], path: Path, horizons=HORIZONS_S) -> None:
     ax.set_xlabel("prediction horizon [s]")
     ax.set_ylabel("median prediction error [cm]")
     ax.set_title("Ball prediction error: two-phase vs constant deceleration")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    finish_figure(fig, ax, path, fontsize=7)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -26,7 +26,6 @@ import os
 import threading
 import time
 
-from rclpy.node import Node
 from std_msgs.msg import Bool, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams
@@ -36,8 +35,7 @@ from erforce_ball_model.tracking import TrackerConfig
 from erforce_ball_model.tracking import load_kernels as load_ball_filter_kernels
 from erforce_interfaces.runtime.executor import run_sampled, take_queued
 from erforce_interfaces.runtime.node_support import (
-    NodeParams,
-    ThrottledWarner,
+    SchemaNode,
     check_stamp,
     contract_publisher,
     contract_subscription,
@@ -46,27 +44,31 @@ from erforce_interfaces.runtime.node_support import (
 )
 from erforce_interfaces.runtime.param_schema import load_schema
 from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.clouds import (
+    BallTrack,
+    ball_track_cdr,
+    vision_ball_after_robot,
+    vision_frame_from_msg,
+    vision_leading_balls,
+)
 from erforce_interfaces.wire.conversions import (
     MAX_ABS_VALUE,
-    BallTrack,
     ConversionError,
-    ball_track_cdr,
-    field_from_msg,
     float64_cdr,
     odometry_cdr,
     point_cdr,
     seconds_to_stamp,
+)
+from erforce_interfaces.wire.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
+from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.tables import (
+    field_from_msg,
     table_cdr,
     table_from_msg,
     table_msg,
     tracked_robot_row,
     tracked_robots_cdr,
-    vision_ball_after_robot,
-    vision_frame_from_msg,
-    vision_leading_balls,
 )
-from erforce_interfaces.wire.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
-from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
 
 SCHEMA = load_schema("erforce_ball_model", "ball_predictor")
 
@@ -119,7 +121,7 @@ def build_config(c) -> PredictorConfig:
 COMPILED_SEARCH_LOADED = "catch times from the compiled search from now on"
 
 
-class BallPredictorNode(Node):
+class BallPredictorNode(SchemaNode):
     # A warm standby (node_support.run_node) loads numba, the compiled search and the ball filter's kernel
     # before they are needed: the node it becomes answers with them from its first frame.
     @staticmethod
@@ -130,13 +132,10 @@ class BallPredictorNode(Node):
     def __init__(self, vision_topic: bool = True) -> None:
         """``vision_topic`` False: no ``/vision/robots`` subscription; the process's SSL-Vision receiver hands each
         frame to ``answer_vision`` instead (erforce_ball_model.ssl_ball_predictor)."""
-        super().__init__("ball_predictor")
-        self._warn = ThrottledWarner(self)
+        super().__init__("ball_predictor", SCHEMA, build_config)
         # Frames may come on another thread than the executor's (answer_vision): one frame, parameter change or
         # geometry message at a time.
         self._lock = threading.Lock()
-        self._params = NodeParams(self, SCHEMA, build_config)
-        self._values = self._params.values
         # kernels="background": the first frames are answered by the search's loop as Python (about 1 ms per
         # robot) and numba and the compiled search load in a thread after the first answer: a restarted
         # predictor closes the loop about a second sooner, what the 3 s to heal on a busy machine depends on.

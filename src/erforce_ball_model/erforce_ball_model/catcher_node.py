@@ -19,15 +19,13 @@ input's arrival time, by which its staleness is judged, is the tick that took it
 from __future__ import annotations
 
 from nav_msgs.msg import Odometry
-from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.receiver import CatcherConfig, Receiver
 from erforce_interfaces.runtime.executor import run_sampled, sample_only
 from erforce_interfaces.runtime.node_support import (
-    NodeParams,
-    ThrottledWarner,
+    SchemaNode,
     WorldField,
     contract_publisher,
     contract_subscription,
@@ -39,12 +37,12 @@ from erforce_interfaces.wire.conversions import (
     ConversionError,
     ball_state_from_msg,
     float64_from_msg,
-    model_in_use_from_msg,
     odometry_from_msg,
     point_from_msg,
     twist_msg,
 )
 from erforce_interfaces.wire.robot_config import FieldConfig, field_from_setting
+from erforce_interfaces.wire.tables import model_in_use_from_msg
 
 SCHEMA = load_schema("erforce_ball_model", "catcher")
 
@@ -57,12 +55,9 @@ def build_config(config) -> tuple[CatcherConfig, float, float, FieldConfig | Non
             field_from_setting(config.field))
 
 
-class CatcherNode(Node):
+class CatcherNode(SchemaNode):
     def __init__(self) -> None:
-        super().__init__("catcher")
-        self._warn = ThrottledWarner(self)
-        self._params = NodeParams(self, SCHEMA, build_config)
-        self._values = self._params.values
+        super().__init__("catcher", SCHEMA, build_config)
         team = [int(i) for i in self._values["team_robot_ids"]]
         own_id = contract.robot_id_of_namespace(self.get_namespace())
         if team and own_id not in team:

@@ -80,6 +80,19 @@ def simulate_sphere_shot(
     return frames[keep], np.stack([x_obs + noise[:, 0], noise[:, 1]], axis=-1)[keep], v_true[keep]
 
 
+def finish_figure(fig, ax, path: Path, **legend) -> Path:
+    """Grid, legend (``legend``: its keyword arguments, fontsize 8 unless given), tight layout; the figure saved
+    as a 120 dpi PNG at ``path`` and closed. The figures' and reports' common end."""
+    import matplotlib.pyplot as plt
+
+    ax.grid(alpha=0.3)
+    ax.legend(**{"fontsize": 8, **legend})
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def figure_vt(out: Path) -> Path:
     import matplotlib.pyplot as plt
 
@@ -104,13 +117,7 @@ def figure_vt(out: Path) -> Path:
         f"a_roll={p.a_roll_mps2:.3f}±{fit.a_roll_std:.3f} m/s², c_switch={p.c_switch:.3f}",
         fontsize=9,
     )
-    ax.legend(fontsize=8)
-    ax.grid(alpha=0.3)
-    path = out / "ball_vt.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return finish_figure(fig, ax, out / "ball_vt.png")
 
 
 def fig6_curves(num: int = 1500) -> dict:
@@ -146,13 +153,7 @@ def figure_catch(out: Path) -> Path:
         "a_max 2.0 m/s², v_max 2.0 m/s, facing left, dribbler offset 0.0815 m",
         fontsize=9,
     )
-    ax.legend(fontsize=8, loc="upper left")
-    ax.grid(alpha=0.3)
-    path = out / "robot_vs_ball_time.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return finish_figure(fig, ax, out / "robot_vs_ball_time.png", loc="upper left")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -92,15 +92,8 @@ from erforce_interfaces.ssl.ssl_vision import (
     timeline_jump_text,
 )
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import (
-    ConversionError,
-    clock_cdr,
-    point_cdr,
-    pose2d_cdr,
-    table_cdr,
-    vision_robots_cdr,
-    vision_robots_points_cdr,
-)
+from erforce_interfaces.wire.clouds import vision_robots_cdr, vision_robots_points_cdr
+from erforce_interfaces.wire.conversions import ConversionError, clock_cdr, point_cdr, pose2d_cdr
 from erforce_interfaces.wire.robot_config import (
     WAITING_FOR_GEOMETRY,
     FieldConfig,
@@ -108,6 +101,7 @@ from erforce_interfaces.wire.robot_config import (
     half_turn,
     turned_half,
 )
+from erforce_interfaces.wire.tables import table_cdr
 
 _KIND = contract.VISION_DETECTION_KINDS
 _TEAM_CODES = (contract.OURS.code, contract.OPPONENTS.code)  # by side: 0 ours, 1 the opponents

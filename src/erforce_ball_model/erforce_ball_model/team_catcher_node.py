@@ -18,7 +18,6 @@ timer and seven subscriptions' callbacks per robot. The parameters are the catch
 from __future__ import annotations
 
 from nav_msgs.msg import Odometry
-from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model import catcher_node
@@ -27,8 +26,7 @@ from erforce_ball_model.passing.decisions import PassConfig
 from erforce_ball_model.passing.player import PressingTeam, new_poses
 from erforce_interfaces.runtime.executor import run_sampled, sample_only
 from erforce_interfaces.runtime.node_support import (
-    NodeParams,
-    ThrottledWarner,
+    SchemaNode,
     WorldField,
     contract_publisher,
     contract_subscription,
@@ -39,13 +37,11 @@ from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
     ConversionError,
     ball_state_from_msg,
-    catches_from_msg,
     float64_from_msg,
-    model_in_use_from_msg,
     odometry_from_msg,
-    tracked_robots_from_msg,
     twist_msg,
 )
+from erforce_interfaces.wire.tables import catches_from_msg, model_in_use_from_msg, tracked_robots_from_msg
 
 # the catcher's parameters under their own names; team_robot_ids is robot_ids and as_team here
 SCHEMA = HostSchema(load_schema("erforce_ball_model", "team_catcher"), {
@@ -64,12 +60,9 @@ def build(config):
     return (*catcher_node.build_config(hosted[""]), passing)
 
 
-class TeamCatcherNode(Node):
+class TeamCatcherNode(SchemaNode):
     def __init__(self) -> None:
-        super().__init__("team_catcher")
-        self._warn = ThrottledWarner(self)
-        self._params = NodeParams(self, SCHEMA, build)
-        self._values = self._params.values
+        super().__init__("team_catcher", SCHEMA, build)
         ids = [int(i) for i in self._values["robot_ids"]]
         team = self._side = contract.TEAMS[self._values["team"]]
         self._names = {i: team.namespace(i) for i in ids}

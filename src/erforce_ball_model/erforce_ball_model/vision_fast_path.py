@@ -12,7 +12,7 @@ the points cannot carry; ``PASS_T_CAPTURE_BACK``, ``PASS_CLOCK_JUMP``, ``PASS_TI
 (ssl_vision.CaptureOrder, the one check that a camera's frame is after its newest, in every time source); the
 stamp comes from the time source's mode (ssl_vision.TIME_SOURCES: the vision clock's estimate, ``t_capture`` as
 it is, or the capture timeline).
-The message written is byte for byte what ``conversions.vision_robots_points_cdr`` builds from the same
+The message written is byte for byte what ``clouds.vision_robots_points_cdr`` builds from the same
 points. The kernels it calls from other modules (ssl_vision's clock and timeline, the tracker's) are compiled
 into it, and numba's cache of this module goes by this file alone: a change there needs this file touched
 (or its ``__pycache__`` entries removed) to take effect here.
@@ -70,7 +70,8 @@ from erforce_interfaces.ssl.ssl_vision import (
     timeline_step,
 )
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import MAX_ABS_VALUE, vision_robots_template
+from erforce_interfaces.wire.clouds import vision_robots_template
+from erforce_interfaces.wire.conversions import MAX_ABS_VALUE
 from erforce_interfaces.wire.robot_config import FieldConfig
 
 __all__ = ["PASS_BAD_STAMP", "PASS_CLOCK_JUMP", "PASS_DONE", "PASS_FALLBACK", "PASS_GENERAL", "PASS_TIMELINE_JUMP",

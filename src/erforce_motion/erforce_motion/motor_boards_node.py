@@ -13,13 +13,11 @@ import collections
 import time
 
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 
 from erforce_interfaces.runtime.executor import run_sampled, sample_only
 from erforce_interfaces.runtime.lockstep import SetpointJoin
 from erforce_interfaces.runtime.node_support import (
-    NodeParams,
-    ThrottledWarner,
+    SchemaNode,
     check_stamp,
     contract_publisher,
     contract_subscription,
@@ -32,10 +30,10 @@ from erforce_interfaces.wire.conversions import (
     ConversionError,
     joint_state_cdr,
     joint_state_from_msg,
-    table_cdr,
     wheel_states_from_msg,
 )
 from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.tables import table_cdr
 from erforce_motion.firmware import MotorBoardLoop
 from erforce_motion.motor_board import MotorBoardConfig
 
@@ -56,12 +54,9 @@ def build_loop(config) -> MotorBoardLoop:
     return MotorBoardLoop(robot, board, period_s, config.setpoint_timeout_s)
 
 
-class MotorBoardsNode(Node):
+class MotorBoardsNode(SchemaNode):
     def __init__(self) -> None:
-        super().__init__("motor_boards")
-        self._warn = ThrottledWarner(self)
-        self._params = NodeParams(self, SCHEMA, build_loop)
-        self._values = self._params.values
+        super().__init__("motor_boards", SCHEMA, build_loop)
         self._loop: MotorBoardLoop = self._params.built
         self._join = SetpointJoin(wait=self._values["lockstep_sync"])
         self._pending: collections.deque = collections.deque()  # (stamp_ns, speeds, currents, wall_s)

@@ -27,8 +27,7 @@ from rclpy.node import Node
 
 from erforce_interfaces.runtime.executor import run_sampled
 from erforce_interfaces.runtime.node_support import (
-    NodeParams,
-    ThrottledWarner,
+    SchemaNode,
     check_stamp,
     contract_publisher,
     contract_subscription,
@@ -42,13 +41,13 @@ from erforce_interfaces.wire.conversions import (
     field_joint_state_cdr,
     field_joint_state_from_msg,
     joint_state_cdr,
-    table_cdr,
     team_joint_state_cdr,
     team_joint_state_from_msg,
     twist_from_msg,
     wheel_states_from_msg,
 )
 from erforce_interfaces.wire.stamps import StampFilter, StampVerdict
+from erforce_interfaces.wire.tables import table_cdr
 from erforce_motion import motor_boards_node, velocity_controller_node
 from erforce_motion.firmware import TeamFirmware
 
@@ -135,7 +134,7 @@ class _TeamLink:
         return team_joint_state_cdr(t_ns, ids, wheel_names, effort=duty, team=self.team)
 
 
-class TeamFirmwareNode(Node):
+class TeamFirmwareNode(SchemaNode):
     @staticmethod
     def warm_up() -> None:
         """For a warm standby (node_support.run_node): the firmware's kernels load with the first TeamFirmware
@@ -143,13 +142,10 @@ class TeamFirmwareNode(Node):
         build_loops(SCHEMA.parse(SCHEMA.defaults()))
 
     def __init__(self) -> None:
-        super().__init__("team_firmware")
-        self._warn = ThrottledWarner(self)
+        super().__init__("team_firmware", SCHEMA, build_loops)
         self._links: dict[str, _TeamLink] = {}  # per hosted team (ours first)
         self._field_link: _TeamLink | None = None
         self._firmware: TeamFirmware | None = None
-        self._params = NodeParams(self, SCHEMA, build_loops)
-        self._values = self._params.values
         lockstep = self._values["lockstep_topics"]
         self.team_topics = lockstep != "per_robot"  # no per-robot lockstep topics
         self._apply(self._params.built)

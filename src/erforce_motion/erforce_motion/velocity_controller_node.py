@@ -8,12 +8,10 @@ that tick (see erforce_interfaces.runtime.lockstep). All maths is in erforce_mot
 from __future__ import annotations
 
 from geometry_msgs.msg import Twist
-from rclpy.node import Node
 
 from erforce_interfaces.runtime.executor import run_sampled, sample_only
 from erforce_interfaces.runtime.node_support import (
-    NodeParams,
-    ThrottledWarner,
+    SchemaNode,
     check_stamp,
     contract_publisher,
     contract_subscription,
@@ -49,12 +47,9 @@ def build_loop(config) -> MainBoardLoop:
     return loop
 
 
-class VelocityControllerNode(Node):
+class VelocityControllerNode(SchemaNode):
     def __init__(self) -> None:
-        super().__init__("velocity_controller")
-        self._warn = ThrottledWarner(self)
-        self._params = NodeParams(self, SCHEMA, build_loop)
-        self._values = self._params.values
+        super().__init__("velocity_controller", SCHEMA, build_loop)
         self._loop: MainBoardLoop = self._params.built
         self._setpoint_pub = contract_publisher(self, contract.WHEEL_SETPOINTS)
         self._stamps = StampFilter()

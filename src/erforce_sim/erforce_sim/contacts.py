@@ -17,6 +17,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
+from erforce_interfaces.runtime.numba_support import numba
 from erforce_interfaces.wire.robot_config import BALL_WALL_FRICTION, BALL_WALL_RESTITUTION
 from erforce_sim.ball import BallBody
 from erforce_sim.drivetrain import RobotPlant
@@ -106,6 +109,19 @@ def _restitution(vn: float, e: float) -> float:
     return e if -vn > RESTING_SPEED_MPS else 0.0
 
 
+def _wall_impulse(vx: float, vy: float, w: float, nx: float, ny: float, radius: float, inv_m: float,
+                  inertia: float, restitution: float, friction: float) -> tuple[float, float, float]:
+    """(vx, vy, w) of a round body (ball or robot) after a wall's impulse, the wall's normal (nx, ny) pointing
+    into the field and the body moving into the wall."""
+    vn = vx * nx + vy * ny
+    jn = -(1.0 + _restitution(vn, restitution)) * vn / inv_m
+    tx, ty = -ny, nx
+    # the contact point is at -radius n: its tangential velocity is v.t - radius w
+    vt = vx * tx + vy * ty - radius * w
+    jt = _tangential_impulse(vt, inv_m + radius * radius / inertia, jn, friction)
+    return vx + (jn * nx + jt * tx) * inv_m, vy + (jn * ny + jt * ty) * inv_m, w - radius * jt / inertia
+
+
 def ball_walls(ball: BallBody, half_x: float, half_y: float, p: ContactParams) -> bool:
     """Ball against the four walls. Returns True when a contact was resolved."""
     r = ball.radius
@@ -122,18 +138,10 @@ def ball_walls(ball: BallBody, half_x: float, half_y: float, p: ContactParams) -
         else:
             ball.y = sign * lim
         hit = True
-        vn = ball.vx * nx + ball.vy * ny
-        if vn >= 0.0:
+        if ball.vx * nx + ball.vy * ny >= 0.0:
             continue
-        inv_m = 1.0 / ball.mass
-        jn = -(1.0 + _restitution(vn, p.ball_wall_restitution)) * vn / inv_m
-        tx, ty = -ny, nx
-        # ball contact point is at -r n: its tangential velocity is v.t - r wz
-        vt = ball.vx * tx + ball.vy * ty - r * ball.wz
-        jt = _tangential_impulse(vt, inv_m + r * r / ball.inertia, jn, p.ball_wall_friction)
-        ball.vx += (jn * nx + jt * tx) * inv_m
-        ball.vy += (jn * ny + jt * ty) * inv_m
-        ball.wz -= r * jt / ball.inertia
+        ball.vx, ball.vy, ball.wz = _wall_impulse(ball.vx, ball.vy, ball.wz, nx, ny, r, 1.0 / ball.mass, ball.inertia,
+                                                  p.ball_wall_restitution, p.ball_wall_friction)
         ball.at_rest = False
     return hit
 
@@ -153,18 +161,10 @@ def robot_walls(rb: RobotPlant, radius: float, half_x: float, half_y: float, p: 
         else:
             rb.y = sign * lim
         hit = True
-        vn = rb.vx * nx + rb.vy * ny
-        if vn >= 0.0 or rb.lifted:
+        if rb.vx * nx + rb.vy * ny >= 0.0 or rb.lifted:
             continue
-        inv_m = 1.0 / k.mass_kg
-        jn = -(1.0 + _restitution(vn, p.robot_wall_restitution)) * vn / inv_m
-        tx, ty = -ny, nx
-        # robot contact point at -R n: tangential velocity v.t - R w
-        vt = rb.vx * tx + rb.vy * ty - radius * rb.w
-        jt = _tangential_impulse(vt, inv_m + radius * radius / k.inertia_kgm2, jn, p.robot_wall_friction)
-        rb.vx += (jn * nx + jt * tx) * inv_m
-        rb.vy += (jn * ny + jt * ty) * inv_m
-        rb.w -= radius * jt / k.inertia_kgm2
+        rb.vx, rb.vy, rb.w = _wall_impulse(rb.vx, rb.vy, rb.w, nx, ny, radius, 1.0 / k.mass_kg, k.inertia_kgm2,
+                                           p.robot_wall_restitution, p.robot_wall_friction)
     return hit
 
 
@@ -255,3 +255,35 @@ def ball_robot(ball: BallBody, rb: RobotPlant, shape: RobotShape, p: ContactPara
     rb.vy -= jy * inv_mr
     rb.w -= (qx * jy - qy * jx) * inv_ir
     return True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def robot_contact_candidates(body, radii, front_x, half_x, half_y, margin, dt, bx, by, reach_b):
+    """World._contact_candidates over the body rows (x, y, theta, cos, sin, vx, vy, w): robots near a wall,
+    robots near the ball (flags) and the robot pairs that may touch within dt. A robot lies inside its circle
+    and behind its flat front face, so the larger of the ball's distances to the two bounds it from below: a
+    ball resting a little ahead of the front face (inside the circle) is no contact."""
+    n = body.shape[0]
+    wall = np.zeros(n, dtype=np.bool_)
+    near = np.zeros(n, dtype=np.bool_)
+    pairs = np.empty((n * (n - 1) // 2, 2), dtype=np.int64)
+    count = 0
+    speeds = np.empty(n)
+    for a in range(n):
+        speeds[a] = math.hypot(body[a, 5], body[a, 6])
+    for a in range(n):
+        xa, ya = body[a, 0], body[a, 1]
+        reach = radii[a] + speeds[a] * dt + margin
+        if abs(xa) + reach >= half_x or abs(ya) + reach >= half_y:
+            wall[a] = True
+        dx, dy = bx - xa, by - ya
+        ahead = body[a, 3] * dx + body[a, 4] * dy - front_x[a]  # ball centre ahead of the front face [m]
+        turn = abs(body[a, 7]) * radii[a] * dt  # how far the face's points move by turning within dt
+        if max(math.hypot(dx, dy) - radii[a], ahead) <= reach - radii[a] + turn + reach_b:
+            near[a] = True
+        for b in range(a + 1, n):
+            if math.hypot(body[b, 0] - xa, body[b, 1] - ya) <= reach + radii[b] + speeds[b] * dt:
+                pairs[count, 0] = a
+                pairs[count, 1] = b
+                count += 1
+    return wall, near, pairs[:count], count > 0 or wall.any() or near.any()

@@ -350,3 +350,14 @@ def advance_robots(robots, m, h, factors, consts, num_wheels, sin_a, cos_a, duty
                             b[3], b[4], b[5], b[6], b[7])
         for j in range(8):
             b[j] = out[j]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def thermal_step(temp, i2, resistance, ambient, thermal_r, decay, dt):
+    """RobotPlant.update_temperature for every robot and wheel (the same operations)."""
+    for k in range(temp.shape[0]):
+        for i in range(temp.shape[1]):
+            power_w = resistance[k, 0] * i2[k, i] / dt
+            t_ss = ambient[k, 0] + power_w * thermal_r[k, 0]
+            temp[k, i] = t_ss + (temp[k, i] - t_ss) * decay[k, 0]
+            i2[k, i] = 0.0

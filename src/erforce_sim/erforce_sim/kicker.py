@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from erforce_interfaces.runtime.numba_support import numba
 from erforce_interfaces.wire.robot_config import BALL_RADIUS_M
 
 FLAT_DEVIATION_DEG_AT_3CM = 12.0  # paper Sec. 2.2
@@ -162,3 +163,19 @@ def beam_hit(ball_x_m: float, ball_y_m: float, ball_radius_m: float, beam_x_m: f
         return False
     half_chord = math.sqrt(ball_radius_m * ball_radius_m - dx * dx)
     return abs(ball_y_m) - half_chord <= half_span_m
+
+
+@numba.njit(cache=True, error_model="numpy")
+def beam_hits(body, bx, by, r, beam_x, half_span):
+    """kicker.beam_hit of the ball in every robot's frame (World._ball_in_robot_frame), per robot."""
+    n = body.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        dx, dy = bx - body[i, 0], by - body[i, 1]
+        ct, st = body[i, 3], body[i, 4]
+        px = ct * dx + st * dy
+        py = -st * dx + ct * dy
+        ddx = px - beam_x[i]
+        if abs(ddx) < r:
+            out[i] = abs(py) - math.sqrt(r * r - ddx * ddx) <= half_span[i]
+    return out

@@ -28,13 +28,11 @@ import numpy as np
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock as RclClock
 from rclpy.clock import ClockType
-from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, String
 
 from erforce_interfaces.runtime.lockstep import DutyGate, FieldAnswerRobots
 from erforce_interfaces.runtime.node_support import (
-    NodeParams,
-    ThrottledWarner,
+    SchemaNode,
     contract_publisher,
     contract_subscription,
     run_node,
@@ -43,6 +41,7 @@ from erforce_interfaces.runtime.param_schema import load_schema
 from erforce_interfaces.ssl.ssl_sim import check_kick_angle
 from erforce_interfaces.ssl.ssl_vision import BallModelFromVision
 from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.clouds import vision_robots_cdr
 from erforce_interfaces.wire.conversions import (
     ConversionError,
     clock_cdr,
@@ -55,16 +54,16 @@ from erforce_interfaces.wire.conversions import (
     odometry_from_msg,
     point_cdr,
     pose2d_cdr,
-    table_cdr,
     team_joint_state_cdr,
     team_joint_state_from_msg,
-    vision_robots_cdr,
 )
 from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_interfaces.wire.tables import table_cdr
 from erforce_sim.ball import BallParams
+from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras
-from erforce_sim.world import PhysicsParams, PlantSetup, build_world
+from erforce_sim.world import PhysicsParams
 
 SCHEMA = load_schema("erforce_sim", "plant")
 
@@ -114,7 +113,7 @@ def _check_pacing(config):
     return config
 
 
-class PlantNode(Node):
+class PlantNode(SchemaNode):
     @staticmethod
     def warm_up() -> None:
         """For a warm standby (node_support.run_node): the world's kernels load with the first world built
@@ -122,11 +121,8 @@ class PlantNode(Node):
         build_world(PlantSetup())
 
     def __init__(self) -> None:
-        super().__init__("plant")
-        self._warn = ThrottledWarner(self)
+        super().__init__("plant", SCHEMA, _check_pacing)
         self._pump_timer = None
-        self._params = NodeParams(self, SCHEMA, _check_pacing)
-        self._values = self._params.values
         self.setup = setup_from_params(self._params.config)
         self.world = build_world(self.setup)  # refuses bodies off the field with a clear error
         setup = self.setup

@@ -26,12 +26,10 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock as RclClock
 from rclpy.clock import ClockType
-from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, String
 
 from erforce_interfaces.runtime.node_support import (
-    NodeParams,
-    ThrottledWarner,
+    SchemaNode,
     contract_publisher,
     contract_subscription,
     run_node,
@@ -67,12 +65,10 @@ def local_address_towards(target: tuple[str, int]) -> str:
         return probe.getsockname()[0]
 
 
-class SslSimBridgeNode(Node):
+class SslSimBridgeNode(SchemaNode):
     def __init__(self) -> None:
-        super().__init__("ssl_sim_bridge")
-        self._warn = ThrottledWarner(self)
-        self._params = NodeParams(self, SCHEMA, _check)
-        v = self._values = self._params.values
+        super().__init__("ssl_sim_bridge", SCHEMA, _check)
+        v = self._values
         self._team = v["team_color"]
         whose = contract.TEAMS[v["team"]]  # whose topics: ours (robot_<id>) or the opponents' (opponent_<id>)
         self._grsim = v["protocol"] == "grsim"

@@ -37,12 +37,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from nav_msgs.msg import Odometry
-from rclpy.node import Node
 from std_msgs.msg import Float64
 
 from erforce_interfaces.runtime.node_support import (
-    NodeParams,
-    ThrottledWarner,
+    SchemaNode,
     check_stamp,
     contract_publisher,
     contract_subscription,
@@ -92,12 +90,10 @@ class _Side:
         return None if pose is None else pose[2]
 
 
-class SslSimServerNode(Node):
+class SslSimServerNode(SchemaNode):
     def __init__(self) -> None:
-        super().__init__("ssl_sim_server")
-        self._warn = ThrottledWarner(self)
-        self._params = NodeParams(self, SCHEMA, _check)
-        v = self._values = self._params.values
+        super().__init__("ssl_sim_server", SCHEMA, _check)
+        v = self._values
         self._team = v["team"]
         other = ssl_sim.TEAMS[1 - ssl_sim.TEAMS.index(self._team)]
         self._sides = {self._team: _Side(self._team, contract.OURS, tuple(sorted(set(v["robot_ids"]))))}

@@ -27,15 +27,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from erforce_interfaces.runtime.numba_support import compiled_for, numba
+from erforce_interfaces.runtime.numba_support import compiled_for
 from erforce_interfaces.runtime.param_schema import schema_defaults
-from erforce_interfaces.ssl.ssl_vision import OUR_TEAM_COLOR
-from erforce_interfaces.ssl.ssl_vision import TEAMS as SSL_TEAMS
-from erforce_interfaces.wire.robot_config import FIELD_PRESET, FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallBody, BallParams, BallState
-from erforce_sim.contacts import ContactParams, RobotShape, ball_robot, ball_walls, robot_robot, robot_walls
-from erforce_sim.drivetrain import DriveTrainCoefficients, RobotPlant, advance_robots
-from erforce_sim.kicker import DEFAULT_TILT_COMPLIANCE_RAD_PER_M, KickerPlate
+from erforce_sim.contacts import (
+    ContactParams,
+    RobotShape,
+    ball_robot,
+    ball_walls,
+    robot_contact_candidates,
+    robot_robot,
+    robot_walls,
+)
+from erforce_sim.drivetrain import DriveTrainCoefficients, RobotPlant, advance_robots, thermal_step
+from erforce_sim.kicker import DEFAULT_TILT_COMPLIANCE_RAD_PER_M, KickerPlate, beam_hits
 from erforce_sim.sensors import LightBarrierParams, LightBarrierSignal, VisionFrame, VisionParams, VisionSystem
 
 _PLANT = schema_defaults("erforce_sim", "plant")  # the plant node's defaults
@@ -293,9 +299,9 @@ class World:
         self._barrier_direct = lb_params.latency_s == 0.0 and lb_params.false_flip_prob == 0.0
         self._barrier_values = np.zeros(n_robots, dtype=bool)
         # the compiled contact and beam kernels for the types they are passed (the body rows, float scalars)
-        self._contacts_kernel = compiled_for(_robot_contact_candidates, self._body, self._radii_arr,
+        self._contacts_kernel = compiled_for(robot_contact_candidates, self._body, self._radii_arr,
                                              self._front_x_arr, *(0.0,) * 7)
-        self._beam_kernel = compiled_for(_beam_hits, self._body, 0.0, 0.0, 0.0, self._beam_x_arr, self._beam_half_span)
+        self._beam_kernel = compiled_for(beam_hits, self._body, 0.0, 0.0, 0.0, self._beam_x_arr, self._beam_half_span)
 
     def _load_kernels(self) -> None:
         """Load the compiled kernels now rather than in the first step, for exactly the argument types step
@@ -303,7 +309,7 @@ class World:
         self._advance_robots = compiled_for(
             advance_robots, np.zeros(0, dtype=np.int64), 1, 1e-4, np.zeros((0, 3)), np.zeros((0, 15)),
             self._num_wheels, self._sin_a, self._cos_a, self._duty, self._wheel_w, self._current, self._i2, self._body)
-        self._thermal_step = compiled_for(_thermal_step, self._temp, self._i2, self._resistance, self._ambient,
+        self._thermal_step = compiled_for(thermal_step, self._temp, self._i2, self._resistance, self._ambient,
                                           self._thermal_r, np.ones((0, 1)), 1e-3)
 
     # ------------------------------------------------------------------ basics
@@ -847,165 +853,3 @@ class World:
         return all(np.isfinite(a).all() for a in (self._body, self._wheel_w, self._current, self._temp))
 
 
-# ---------------------------------------------------------------------- a scenario for the plant
-PLATES = ("flat", "curved")
-# The in-process runner's tick, when a PlantSetup names none: 1 kHz. Not the lockstep tick over DDS
-# (lockstep.TICK_PERIOD_S, the plant node's control_period_s), which the node graph pays per message; the plant
-# node always sets its own.
-IN_PROCESS_TICK_PERIOD_S = 0.001
-
-
-@dataclass(frozen=True)
-class PlantSetup:
-    """A scenario for the plant: what is on the field at t = 0 and how the plant ticks."""
-
-    field_preset: str = FIELD_PRESET
-    robot_poses: tuple[tuple[float, float, float], ...] = ((-1.0, 0.0, 0.0),)  # x [m], y [m], yaw [rad]
-    kicker_plates: tuple[str, ...] = ("curved",)  # one per robot, or one for all
-    controlled: tuple[bool, ...] = (True,)  # robots with motor boards; one per robot, or one for all
-    ball: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # x, y [m], vx, vy [m/s], rolling
-    # The second team (ids 0 .. M-1, the other colour), under the same physics and with motion control; in
-    # the world and the runner they come after our robots: index num_robots + j.
-    opponent_poses: tuple[tuple[float, float, float], ...] = ()
-    our_color: str = OUR_TEAM_COLOR  # SSL team colour of our robots (what vision reports them as)
-    control_period_s: float = IN_PROCESS_TICK_PERIOD_S
-    seed: int = _PLANT["seed"]
-    robot: RobotConfig = field(default_factory=RobotConfig)
-    physics: PhysicsParams = field(default_factory=PhysicsParams)
-    vision: VisionParams = field(default_factory=VisionParams)
-    ball_params: BallParams = field(default_factory=BallParams)
-
-    def __post_init__(self) -> None:
-        FieldConfig.preset(self.field_preset)
-        n = len(self.robot_poses)
-        if n < 1:
-            raise ValueError("robot_poses: need at least one robot")
-        for pose in self.robot_poses + self.opponent_poses:
-            if len(pose) != 3 or not all(math.isfinite(v) for v in pose):
-                raise ValueError(f"robot_poses: each pose is 3 finite values (x, y, yaw), got {pose!r}")
-        for name in ("kicker_plates", "controlled"):
-            values = getattr(self, name)
-            if len(values) not in (1, n):
-                raise ValueError(f"{name}: give 1 value or one per robot ({n}), got {len(values)}")
-        for plate in self.kicker_plates:
-            if plate not in PLATES:
-                raise ValueError(f"kicker_plates: each must be one of {PLATES}, got {plate!r}")
-        if self.our_color not in SSL_TEAMS:
-            raise ValueError(f"our_color: must be one of {SSL_TEAMS}, got {self.our_color!r}")
-        if len(self.ball) != 4 or not all(math.isfinite(v) for v in self.ball):
-            raise ValueError(f"ball: 4 finite values (x, y, vx, vy), got {self.ball!r}")
-        if not (math.isfinite(self.control_period_s) and 1e-4 <= self.control_period_s <= 0.05):
-            raise ValueError(f"control_period_s must be in [0.0001, 0.05] s, got {self.control_period_s!r}")
-        period_ns = self.control_period_s * 1e9
-        if abs(period_ns - round(period_ns)) > 1e-3:
-            raise ValueError("control_period_s must be a whole number of nanoseconds")
-
-    @property
-    def num_robots(self) -> int:
-        return len(self.robot_poses)
-
-    @property
-    def num_opponents(self) -> int:
-        return len(self.opponent_poses)
-
-    @property
-    def opponent_color(self) -> str:
-        return SSL_TEAMS[1 - SSL_TEAMS.index(self.our_color)]
-
-    def team_of(self, i: int) -> tuple[bool, int]:
-        """(an opponent?, its id in its team) of world index ``i``: ours first, then the opponents."""
-        if not 0 <= i < self.num_robots + self.num_opponents:
-            raise ValueError(f"robot index must be in [0, {self.num_robots + self.num_opponents - 1}], got {i!r}")
-        return (False, i) if i < self.num_robots else (True, i - self.num_robots)
-
-    @property
-    def period_ns(self) -> int:
-        return round(self.control_period_s * 1e9)
-
-    def plate(self, i: int) -> str:
-        return self.kicker_plates[0 if len(self.kicker_plates) == 1 else i]
-
-    def is_controlled(self, i: int) -> bool:
-        """Robot ``i`` (world index) has motor boards; the opponents always have."""
-        if i >= self.num_robots:
-            return True
-        return bool(self.controlled[0 if len(self.controlled) == 1 else i])
-
-
-def build_world(setup: PlantSetup) -> World:
-    """The World of a scenario; raises ValueError (naming the body) when something is off the field."""
-    specs = [
-        RobotSpec(config=setup.robot, x=x, y=y, theta=yaw, team=setup.our_color, robot_id=i,
-                  kicker_plate=setup.plate(i))
-        for i, (x, y, yaw) in enumerate(setup.robot_poses)
-    ] + [
-        RobotSpec(config=setup.robot, x=x, y=y, theta=yaw, team=setup.opponent_color, robot_id=j,
-                  kicker_plate="curved")
-        for j, (x, y, yaw) in enumerate(setup.opponent_poses)
-    ]
-    world = World(
-        FieldConfig.preset(setup.field_preset), specs, None, physics=setup.physics, ball_params=setup.ball_params,
-        vision=setup.vision, seed=setup.seed,
-    )
-    x, y, vx, vy = setup.ball
-    world.place_ball(x, y, vx, vy)
-    return world
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _robot_contact_candidates(body, radii, front_x, half_x, half_y, margin, dt, bx, by, reach_b):
-    """World._contact_candidates over the body rows (x, y, theta, cos, sin, vx, vy, w): robots near a wall,
-    robots near the ball (flags) and the robot pairs that may touch within dt. A robot lies inside its circle
-    and behind its flat front face, so the larger of the ball's distances to the two bounds it from below: a
-    ball resting a little ahead of the front face (inside the circle) is no contact."""
-    n = body.shape[0]
-    wall = np.zeros(n, dtype=np.bool_)
-    near = np.zeros(n, dtype=np.bool_)
-    pairs = np.empty((n * (n - 1) // 2, 2), dtype=np.int64)
-    count = 0
-    speeds = np.empty(n)
-    for a in range(n):
-        speeds[a] = math.hypot(body[a, 5], body[a, 6])
-    for a in range(n):
-        xa, ya = body[a, 0], body[a, 1]
-        reach = radii[a] + speeds[a] * dt + margin
-        if abs(xa) + reach >= half_x or abs(ya) + reach >= half_y:
-            wall[a] = True
-        dx, dy = bx - xa, by - ya
-        ahead = body[a, 3] * dx + body[a, 4] * dy - front_x[a]  # ball centre ahead of the front face [m]
-        turn = abs(body[a, 7]) * radii[a] * dt  # how far the face's points move by turning within dt
-        if max(math.hypot(dx, dy) - radii[a], ahead) <= reach - radii[a] + turn + reach_b:
-            near[a] = True
-        for b in range(a + 1, n):
-            if math.hypot(body[b, 0] - xa, body[b, 1] - ya) <= reach + radii[b] + speeds[b] * dt:
-                pairs[count, 0] = a
-                pairs[count, 1] = b
-                count += 1
-    return wall, near, pairs[:count], count > 0 or wall.any() or near.any()
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _thermal_step(temp, i2, resistance, ambient, thermal_r, decay, dt):
-    """RobotPlant.update_temperature for every robot and wheel (the same operations)."""
-    for k in range(temp.shape[0]):
-        for i in range(temp.shape[1]):
-            power_w = resistance[k, 0] * i2[k, i] / dt
-            t_ss = ambient[k, 0] + power_w * thermal_r[k, 0]
-            temp[k, i] = t_ss + (temp[k, i] - t_ss) * decay[k, 0]
-            i2[k, i] = 0.0
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _beam_hits(body, bx, by, r, beam_x, half_span):
-    """kicker.beam_hit of the ball in every robot's frame (World._ball_in_robot_frame), per robot."""
-    n = body.shape[0]
-    out = np.zeros(n, dtype=np.bool_)
-    for i in range(n):
-        dx, dy = bx - body[i, 0], by - body[i, 1]
-        ct, st = body[i, 3], body[i, 4]
-        px = ct * dx + st * dy
-        py = -st * dx + ct * dy
-        ddx = px - beam_x[i]
-        if abs(ddx) < r:
-            out[i] = abs(py) - math.sqrt(r * r - ddx * ddx) <= half_span[i]
-    return out

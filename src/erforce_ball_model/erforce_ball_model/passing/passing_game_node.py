@@ -42,14 +42,16 @@ from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
     ConversionError,
     ball_state_from_msg,
-    catches_from_msg,
     float64_from_msg,
-    model_in_use_from_msg,
     odometry_msg,
+    twist_msg,
+)
+from erforce_interfaces.wire.tables import (
+    catches_from_msg,
+    model_in_use_from_msg,
     table_from_msg,
     table_msg,
     tracked_robots_from_msg,
-    twist_msg,
 )
 
 SCHEMA = HostSchema(load_schema("erforce_ball_model", "passing_game"), {

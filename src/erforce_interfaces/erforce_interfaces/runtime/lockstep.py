@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 # The lockstep tick over DDS: the plant's control_period_s and the robot nodes' loop_rate_hz default to
-# it (their schemas' default_from). The in-process runner keeps 1 kHz (world.IN_PROCESS_TICK_PERIOD_S).
+# it (their schemas' default_from). The in-process runner keeps 1 kHz (plant_setup.IN_PROCESS_TICK_PERIOD_S).
 TICK_PERIOD_S = 0.002
 TICK_RATE_HZ = 1.0 / TICK_PERIOD_S
 

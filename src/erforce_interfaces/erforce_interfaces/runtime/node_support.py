@@ -7,7 +7,7 @@ builds its core from the config object once it is set up itself, then ``NodePara
 installs one on-set callback that checks every change against the schema and asks the node's
 build function for the new core: if it refuses (raises ValueError), the change is rejected with
 that reason and the old value stays. A parameter the node cannot apply while running is
-declared read-only in the schema.
+declared read-only in the schema. ``SchemaNode`` is the Node every shell subclasses for this start.
 """
 
 from __future__ import annotations
@@ -42,9 +42,10 @@ from erforce_interfaces.runtime.param_schema import ParamSchema, ParamSpec
 from erforce_interfaces.runtime.rclpy_internals import RCLError, light_node_start, parameter_overrides
 from erforce_interfaces.runtime.standby import wait_for_go
 from erforce_interfaces.wire.contract import CLOCK, VISION_FIELD, Topic, dds_profile_env
-from erforce_interfaces.wire.conversions import ConversionError, field_from_msg
+from erforce_interfaces.wire.conversions import ConversionError
 from erforce_interfaces.wire.robot_config import WAITING_FOR_GEOMETRY, FieldConfig, field_from_setting
 from erforce_interfaces.wire.stamps import StampFilter, StampVerdict, stamp_ns
+from erforce_interfaces.wire.tables import field_from_msg
 
 _ARRAY_TYPES = {"int": Parameter.Type.INTEGER_ARRAY, "double": Parameter.Type.DOUBLE_ARRAY,
                 "string": Parameter.Type.STRING_ARRAY, "bool": Parameter.Type.BOOL_ARRAY}
@@ -267,6 +268,18 @@ class ThrottledWarner:
 #: Starts the warning of the callback guard; the test harness (erforce_interfaces.tools.testing) fails a
 #: test whose node logged it, unless the test declared it expects it.
 CALLBACK_FAULT = "callback fault"
+
+
+class SchemaNode(Node):
+    """A Node whose parameters are its schema's: after ``__init__`` it has ``_params`` (NodeParams, built with
+    ``build``), ``_values`` (the parameter values by name) and ``_warn`` (a ThrottledWarner). The node shells'
+    common start; each sets itself up from ``self._params.built`` and then calls ``self._params.on_change``."""
+
+    def __init__(self, node_name: str, schema: ParamSchema, build: Callable[[Any], Any] | None = None) -> None:
+        super().__init__(node_name)
+        self._warn = ThrottledWarner(self)
+        self._params = NodeParams(self, schema, build)
+        self._values = self._params.values
 
 
 def guard_callbacks(node: Node) -> ThrottledWarner:

@@ -55,9 +55,9 @@ from erforce_interfaces.wire.conversions import (
     seconds_to_stamp,
     stamp_to_nanoseconds,
     stamp_to_seconds,
-    table_from_msg,
 )
 from erforce_interfaces.wire.robot_config import FIELD_PRESET, TEAM_SIZE, FieldConfig, RobotConfig
+from erforce_interfaces.wire.tables import table_from_msg
 from erforce_sim.demo.view_process import start_field_view
 from erforce_sim.in_process.scenes import (
     KICKER,

@@ -35,8 +35,9 @@ from rosbags.typesys import Stores, get_typestore
 from erforce_ball_model.passing.decisions import PassConfig, PassOption
 from erforce_ball_model.passing.passing_game_node import pass_choice_rows
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.conversions import clock_cdr, odometry_cdr, table_cdr
+from erforce_interfaces.wire.conversions import clock_cdr, odometry_cdr
 from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_interfaces.wire.tables import table_cdr
 from erforce_sim.ball import BallParams
 from erforce_sim.in_process.passing_game import GameConfig, PassingGame, PassRecord, plot_passes, summary
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.figures import finish_figure
 from erforce_interfaces.wire.robot_config import RobotConfig
 
 
@@ -63,13 +64,7 @@ def plot_ball_vt(out: Path, results, series) -> Path | None:
     ax.set_xlabel("time since the scene started [s]")
     ax.set_ylabel("ball speed [m/s]")
     ax.set_title(f"Ball v–t: {r.scene.name}", fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    path = out / "ball_vt.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return finish_figure(fig, ax, out / "ball_vt.png")
 
 
 def plot_catch_prediction(out: Path, results, series) -> Path | None:
@@ -89,13 +84,7 @@ def plot_catch_prediction(out: Path, results, series) -> Path | None:
     ax.set_xlabel("simulation time at prediction [s]")
     ax.set_ylabel("absolute catch time [s]")
     ax.set_title("robot_0: catch-time prediction over time vs. the truth", fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    path = out / "catch_prediction.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return finish_figure(fig, ax, out / "catch_prediction.png")
 
 
 def plot_motors(out: Path, series, robot: RobotConfig) -> list[Path]:
@@ -111,12 +100,7 @@ def plot_motors(out: Path, series, robot: RobotConfig) -> list[Path]:
     ax.set_xlabel("simulation time [s]")
     ax.set_ylabel("wheel speed [rad/s]")
     ax.set_title("robot_0 wheel speeds (ground truth)", fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, ncol=n)
-    paths.append(out / "wheel_speeds.png")
-    fig.tight_layout()
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(finish_figure(fig, ax, out / "wheel_speeds.png", ncol=n))
 
     fig, ax = plt.subplots(figsize=(8, 3.5))
     for k in range(n):
@@ -130,12 +114,7 @@ def plot_motors(out: Path, series, robot: RobotConfig) -> list[Path]:
     ax.set_xlabel("simulation time [s]")
     ax.set_ylabel("motor current [A]")
     ax.set_title("robot_0 motor currents and the thermal limit", fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    paths.append(out / "motor_currents.png")
-    fig.tight_layout()
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
+    paths.append(finish_figure(fig, ax, out / "motor_currents.png", fontsize=7, ncol=2))
     return paths
 
 

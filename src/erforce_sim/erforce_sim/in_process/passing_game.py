@@ -53,8 +53,8 @@ from erforce_interfaces.runtime.lockstep import TICK_PERIOD_S
 from erforce_interfaces.runtime.param_schema import schema_defaults
 from erforce_interfaces.wire.robot_config import TEAM_SIZE, FieldConfig, RobotConfig
 from erforce_sim.in_process.runner import InProcessRunner
+from erforce_sim.plant_setup import PlantSetup
 from erforce_sim.sensors import VisionFrame
-from erforce_sim.world import PlantSetup
 
 _PLANT = schema_defaults("erforce_sim", "plant")
 

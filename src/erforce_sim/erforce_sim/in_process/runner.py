@@ -27,8 +27,8 @@ from erforce_interfaces.runtime.param_schema import schema_defaults
 from erforce_motion.firmware import TeamFirmware
 from erforce_motion.motor_board import MotorBoardConfig
 from erforce_motion.velocity_control import VelocityControlConfig
+from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import VisionFrame
-from erforce_sim.world import PlantSetup, build_world
 
 
 class InProcessRunner:

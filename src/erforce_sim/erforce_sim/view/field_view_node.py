@@ -8,7 +8,7 @@ frame to the pages; no message wakes the process (docs/decisions/0025). It reads
 ``/ball/catches`` and ``/ball/track`` where they are on the graph (two topics at the vision rate instead of
 several per robot), best effort, keep-last 1, so it never holds up a publisher, and takes nothing while no
 page is open. It is an observer: its threads run under SCHED_IDLE (``observe_only``). With ``bag`` the page
-can also replay that bag (field_view.BagReplay).
+can also replay that bag (bag_replay.BagReplay).
 
 With ``foxglove_port`` > 0 it also starts a Foxglove WebSocket server (the ``foxglove`` SDK) that forwards
 every topic as it is (CDR, schema encoding ``ros2msg``), plus ``/field_view/scene`` (a SceneUpdate of what
@@ -25,22 +25,21 @@ import threading
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
 from erforce_interfaces.runtime.executor import sample_only, take_one
-from erforce_interfaces.runtime.node_support import NodeParams, ThrottledWarner, contract_subscription, run_node
+from erforce_interfaces.runtime.node_support import SchemaNode, contract_subscription, run_node
 from erforce_interfaces.runtime.param_schema import load_schema
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.ament_index import find_package_share
 from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_sim.view.bag_replay import BagReplay
 from erforce_sim.view.field_view import (
     BYTES_TYPES,
     CATCH_TABLE_REPLACES,
     TRACK_REPLACES,
     VALUE_TOPICS,
-    BagReplay,
     WorldState,
     view_topic,
 )
@@ -95,12 +94,10 @@ def _take_newest(subscription) -> list[bytes]:
     return [] if taken is None else [taken[0]]
 
 
-class FieldViewNode(Node):
+class FieldViewNode(SchemaNode):
     def __init__(self) -> None:
-        super().__init__("field_view")
-        self._warn = ThrottledWarner(self)
-        self._params = NodeParams(self, SCHEMA, check_config)
-        self._values = v = self._params.values
+        super().__init__("field_view", SCHEMA, check_config)
+        v = self._values
         robot = self._params.config.robot
         looks = dict(current_limit_a=robot.continuous_current_limit_a, robot_radius_m=robot.robot_radius_m,
                      opponent_ids=frozenset(int(i) for i in v["opponent_robot_ids"]),

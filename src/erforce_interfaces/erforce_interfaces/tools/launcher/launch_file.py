@@ -43,8 +43,13 @@ from erforce_interfaces.tools.launcher.syntax import (
     Subst,
     SubstitutionError,
     check_substitution,
+    homogeneous_list,
+    launch_bool,
+    launch_equals,
     load_launch_entries,
     parse_substitutions,
+    typed_value,
+    yaml_type_name,
 )
 from erforce_interfaces.wire.ament_index import (
     ament_prefixes,
@@ -558,14 +563,14 @@ class Resolver:
         """Like launch_ros: substituted strings are typed by YAML ('10.0' -> 10.0, 'true' -> True)."""
         raw, line = d.get("value"), _line(d, "value")
         if isinstance(raw, MarkedList):
-            values = [_typed(self._sub(v, scope, f, line)) if isinstance(v, str) else v for v in raw]
-            return _homogeneous(values, f.at(line))
+            values = [typed_value(self._sub(v, scope, f, line)) if isinstance(v, str) else v for v in raw]
+            return homogeneous_list(values, f.at(line))
         if isinstance(raw, str):
-            value = _typed(self._sub(raw, scope, f, line))
-            return _homogeneous(value, f.at(line)) if isinstance(value, list) else value
+            value = typed_value(self._sub(raw, scope, f, line))
+            return homogeneous_list(value, f.at(line)) if isinstance(value, list) else value
         if isinstance(raw, bool | int | float):
             return raw
-        raise LaunchError(f.at(line), f"parameter value must be a scalar or a list, got {_type_name(raw)}")
+        raise LaunchError(f.at(line), f"parameter value must be a scalar or a list, got {yaml_type_name(raw)}")
 
     # ------------------------------------------------------------------ process attributes
     def _process(self, f: _File, d: MarkedDict, scope: Scope, label: str, cmd: list[str]) -> ProcessSpec:
@@ -606,7 +611,7 @@ class Resolver:
         value = d[key]
         if not isinstance(value, str):
             # launch_yaml does no coercion either: ros2 launch rejects the same file
-            raise LaunchError(f.at(_line(d, key)), f"'{key}' must be a string, got {_type_name(value)} "
+            raise LaunchError(f.at(_line(d, key)), f"'{key}' must be a string, got {yaml_type_name(value)} "
                               f"{value!r} (quote it)")
         return value
 
@@ -643,7 +648,7 @@ class Resolver:
         if key not in d:
             return False
         try:
-            return _launch_bool(key, self._str(f, d, key, scope))
+            return launch_bool(key, self._str(f, d, key, scope))
         except SubstitutionError:
             raise LaunchError(f.at(_line(d, key)), f"'{key}' must be true or false, got '{d[key]}'") from None
 
@@ -660,7 +665,7 @@ class Resolver:
                               f"'{key}: {_LITERAL_EXAMPLES[kind]}'; got {value!r}")
         if type(value) is not kind:  # exact: launch_yaml does not coerce (1 is no float, true no int)
             raise LaunchError(f.at(_line(d, key)), f"'{key}' must be a YAML {kind.__name__} (e.g. "
-                              f"{_LITERAL_EXAMPLES[kind]}), got {_type_name(value)} {value!r}")
+                              f"{_LITERAL_EXAMPLES[kind]}), got {yaml_type_name(value)} {value!r}")
         if kind is not bool and not minimum <= value < float("inf"):
             raise LaunchError(f.at(_line(d, key)), f"'{key}' must be a finite number >= {minimum:g}, got {value!r}")
         return value
@@ -713,55 +718,12 @@ class Resolver:
                     "the first include")
             return str(f.path.parent if sub.name == "dirname" else f.path)
         if sub.name in ("equals", "not-equals"):
-            return str(_equals(*args) == (sub.name == "equals")).lower()
+            return str(launch_equals(*args) == (sub.name == "equals")).lower()
         if sub.name in ("not", "and", "or"):
-            values = [_launch_bool(sub.name, a) for a in args]  # all checked first, as launch does
+            values = [launch_bool(sub.name, a) for a in args]  # all checked first, as launch does
             result = not values[0] if sub.name == "not" else (all if sub.name == "and" else any)(values)
             return str(result).lower()
         return self._anon.setdefault(args[0], f"{args[0]}_{uuid.uuid4().hex[:12]}")  # anon
-
-
-def _equals(left: str, right: str) -> bool:
-    """launch's EqualsSubstitution: bool-like pair as booleans, number pair with math.isclose, else as text."""
-    bools = ("true", "false", "1", "0")
-    if left.lower() in bools and right.lower() in bools:
-        return (left.lower() in ("true", "1")) == (right.lower() in ("true", "1"))
-    try:
-        return math.isclose(float(left), float(right))
-    except ValueError:
-        return left == right
-
-
-def _launch_bool(name: str, text: str) -> bool:
-    """launch's coerce_to_type(text, bool): exactly '1'/'0', else whatever YAML 1.1 loads as a bool."""
-    try:
-        value = yaml.safe_load({"1": "true", "0": "false"}.get(text, text))
-    except yaml.YAMLError:  # launch turns a YAML failure into "cannot convert"
-        value = None
-    if not isinstance(value, bool):
-        raise SubstitutionError(f"'$({name})' needs a boolean (true/false, 1/0, yes/no, on/off), got '{text}'")
-    return value
-
-
-def _type_name(value: Any) -> str:
-    return {MarkedDict: "a mapping", MarkedList: "a list", type(None): "nothing"}.get(type(value), type(value).__name__)
-
-
-def _typed(text: str) -> Any:
-    try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError:
-        return text
-    return value if isinstance(value, bool | int | float | str | list) else text
-
-
-def _homogeneous(values: list, where: str) -> list:
-    kinds = {bool if isinstance(v, bool) else type(v) for v in values}
-    if kinds == {int, float}:
-        return [float(v) for v in values]
-    if len(kinds) > 1 or (kinds and not kinds <= {bool, int, float, str}):
-        raise LaunchError(where, "a list parameter needs elements of one type (bool, int, float or string)")
-    return values
 
 
 def _shown(path: Path) -> str:

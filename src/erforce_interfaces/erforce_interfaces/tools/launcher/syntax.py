@@ -1,9 +1,11 @@
-"""Reading a launch file: YAML with each entry's line (for errors that name FILE:LINE) and the
-``$(name arg ...)`` substitution grammar, checked against what ros2 launch on Jazzy accepts."""
+"""Reading a launch file: YAML with each entry's line (for errors that name FILE:LINE), the
+``$(name arg ...)`` substitution grammar and how text becomes a value (booleans, ``equals``, typed parameter
+values and lists), checked against what ros2 launch on Jazzy accepts."""
 
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -222,3 +224,46 @@ def _check_file_substitutions(node: Any, shown: str, line: int) -> None:
                     check_substitution(part)
         except SubstitutionError as exc:
             raise LaunchError(f"{shown}:{line}", f"{exc} (in '{node}')") from None
+
+
+def launch_equals(left: str, right: str) -> bool:
+    """launch's EqualsSubstitution: bool-like pair as booleans, number pair with math.isclose, else as text."""
+    bools = ("true", "false", "1", "0")
+    if left.lower() in bools and right.lower() in bools:
+        return (left.lower() in ("true", "1")) == (right.lower() in ("true", "1"))
+    try:
+        return math.isclose(float(left), float(right))
+    except ValueError:
+        return left == right
+
+
+def launch_bool(name: str, text: str) -> bool:
+    """launch's coerce_to_type(text, bool): exactly '1'/'0', else whatever YAML 1.1 loads as a bool."""
+    try:
+        value = yaml.safe_load({"1": "true", "0": "false"}.get(text, text))
+    except yaml.YAMLError:  # launch turns a YAML failure into "cannot convert"
+        value = None
+    if not isinstance(value, bool):
+        raise SubstitutionError(f"'$({name})' needs a boolean (true/false, 1/0, yes/no, on/off), got '{text}'")
+    return value
+
+
+def yaml_type_name(value: Any) -> str:
+    return {MarkedDict: "a mapping", MarkedList: "a list", type(None): "nothing"}.get(type(value), type(value).__name__)
+
+
+def typed_value(text: str) -> Any:
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+    return value if isinstance(value, bool | int | float | str | list) else text
+
+
+def homogeneous_list(values: list, where: str) -> list:
+    kinds = {bool if isinstance(v, bool) else type(v) for v in values}
+    if kinds == {int, float}:
+        return [float(v) for v in values]
+    if len(kinds) > 1 or (kinds and not kinds <= {bool, int, float, str}):
+        raise LaunchError(where, "a list parameter needs elements of one type (bool, int, float or string)")
+    return values
