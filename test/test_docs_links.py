@@ -68,7 +68,9 @@ def _is_path(word):
         return False  # a file type (`.proto`)
     if word.startswith(("report/", "figures/", "tmp/")):
         return False  # written by a run
-    return word.endswith(SOURCE_SUFFIXES) or ("/" in word and not DOTTED.match(word.replace("/", ".")))
+    if "/msg/" in word or "_msgs/" in word:
+        return False  # a message type
+    return word.endswith(SOURCE_SUFFIXES) or "/" in word
 
 
 @cache
