@@ -49,7 +49,7 @@ def test_the_installed_rclpy_is_the_one_the_private_names_were_checked_against()
 
 
 def test_no_module_but_rclpy_internals_reaches_into_rclpy():
-    fence = SRC / "erforce_interfaces" / "erforce_interfaces" / "rclpy_internals.py"
+    fence = SRC / "erforce_interfaces" / "erforce_interfaces" / "runtime" / "rclpy_internals.py"
     found = [f"{path.relative_to(SRC)}:{n}: {line.strip()}"
              for path in sorted(SRC.rglob("*.py")) if path != fence
              for n, line in enumerate(path.read_text().splitlines(), 1)
