@@ -20,6 +20,10 @@ PACKAGES = ("erforce_interfaces", "erforce_ball_model", "erforce_motion", "erfor
 SOURCE_SUFFIXES = (".py", ".yaml", ".yml", ".md", ".xml", ".json", ".toml", ".proto", ".cfg", ".txt", ".sh")
 # Files the docs name that a run writes or a user brings, not files of the repository.
 NOT_IN_REPO = {"summary.md", "grsim_robot.yaml", "fit.png", "passes.png", "requirements-lock.txt"}
+# Names of other projects the docs quote (sros2, ros2/launch), and a placeholder.
+NOT_OURS = {"KEYSTORE", "create_keystore", "create_enclave", "append_env", "reset_env",
+            "assert_entity_completely_parsed"}
+IDENTIFIER = re.compile(r"[A-Z][A-Z0-9_]{3,}|[a-z][a-z0-9]*(_[a-z0-9]+)+")  # a constant, a parameter, a function
 CODE_SPAN = re.compile(r"`([^`\n]+)`")
 FENCE = re.compile(r"^```[^\n]*\n(.*?)^```", re.S | re.M)
 INDENTED = re.compile(r"^ {4}(\S.*)$", re.M)  # an indented code block's line (the decision records' commands)
@@ -147,6 +151,15 @@ def _resolves_as_module(word):
     return None
 
 
+@cache
+def _source_text():
+    """Everything a name of ours can be spelled in: sources, schemas, launch files, benches, tests, ./run."""
+    paths = [p for d in ("src", "bench", "test") for p in (ROOT / d).rglob("*")
+             if p.is_file() and p.suffix in (".py", ".yaml", ".xml", ".json") and "__pycache__" not in p.parts
+             and p != Path(__file__).resolve()]
+    return "\n".join([p.read_text() for p in paths] + [p.stem for p in paths] + [(ROOT / "run").read_text()])
+
+
 def _console_scripts():
     scripts = set()
     for setup in (ROOT / "src").glob("*/setup.py"):
@@ -191,6 +204,9 @@ def _unresolved(doc):
     for word in _words(inline):
         if not _is_path(word) and DOTTED.match(word) and _resolves_as_module(word) is False:
             missing.append(f"name {word}")
+    for word in set(_words(inline)):  # `clock_jump_s`, `STANDBY_FIRST_S`: a parameter or constant still spelled so
+        if IDENTIFIER.fullmatch(word) and word not in NOT_OURS and word not in _source_text():
+            missing.append(f"identifier {word}")
     for block in blocks:
         for module, names in re.findall(r"^from ([\w.]+) import (.+)$", block, re.M):
             for name in names.split(","):
@@ -218,10 +234,11 @@ def test_the_check_finds_what_is_not_there(tmp_path):
     doc.write_text(
         "`erforce_sim/catcher.py` `erforce_sim/world.py` `erforce_interfaces.tools.docs` "
         "`erforce_interfaces.tools.nodoc` `lockstep.DutyGate` `lockstep.NoGate` [a](missing.md) `.proto`\n"
-        "`World.kick` `World.nokick` `./run demo --world ssl --no-such-option`\n"
+        "`World.kick` `World.nokick` `./run demo --world ssl --no-such-option` `clock_jump_s` `no_such_param_s`\n"
         "```sh\nerforce-launch x\nerforce-nolaunch x\n```\n"
         "```python\nfrom erforce_ball_model.ball_model import BallTrajectory, NoTrajectory\nball.nothing\n```\n")
     assert _unresolved(doc) == [
         "link missing.md", "path erforce_sim/catcher.py", "name erforce_interfaces.tools.nodoc",
-        "name lockstep.NoGate", "name World.nokick", "name erforce_ball_model.ball_model.NoTrajectory",
+        "name lockstep.NoGate", "name World.nokick", "identifier no_such_param_s",
+        "name erforce_ball_model.ball_model.NoTrajectory",
         "option --no-such-option of src/erforce_sim/erforce_sim/demo/demo.py", "command erforce-nolaunch"]
