@@ -361,7 +361,7 @@ def _start_graph(args: argparse.Namespace, cfg: GameConfig, out: Path) -> _Graph
 
     ai_cmd, world_cmd = graph_commands(args, cfg, setup_for(cfg, args.seed))
     outside = world_cmd is not None
-    where = "the stand-in SSL world, apart" if outside else "on the DDS graph"
+    where = "on the stand-in SSL world, apart" if outside else "on the DDS graph"
     print(f"passing game {where}: {cfg.team_size} robots against {cfg.opponents}, {cfg.passes} passes, seed "
           f"{args.seed} (log: {out / 'graph.log'})", flush=True)
     world = lease = None
