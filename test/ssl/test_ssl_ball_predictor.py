@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import rclpy
 
-from erforce_ball_model.ssl_ball_predictor import make_nodes
 from erforce_ball_model.chip_model import ChipTrajectory
+from erforce_ball_model.ssl_ball_predictor import make_nodes
 from erforce_interfaces.ssl.ssl_vision import (
     SSL_VISION_GROUP,
     BallCandidate,
@@ -185,10 +185,10 @@ def test_the_predictor_has_the_worlds_field_before_the_first_frame_it_answers():
 @pytest.mark.parametrize("defend_side", ["negative_x", "positive_x"])
 def test_a_chip_is_in_the_air_on_ball_state_from_one_cameras_frames(defend_side):
     """The geometry gives each camera's position; the bridge hands it with each frame to the predictor (half turned
-    with the field when we defend +x), whose chip detector reconstructs the flight from the curve that one camera
-    sees. Camera 1 at (2, 1.5, 4) m sees a ball kicked at 2 m/s sideways and 3 m/s up from (1, 0.5) m (SSL-Vision's
-    frame; a robot stands in every frame: the bridge passes each), noise-free, 60 frames a second after 0.5 s at rest: /ball/state carries its height, matching the
-    projectile z = 3 t - 9.81 t^2 / 2 within 2 cm, before the first touchdown (0.61 s)."""
+    with the field when we defend +x), whose chip detector reconstructs the flight from the curve one camera sees.
+    Camera 1 at (2, 1.5, 4) m sees a ball kicked at 2 m/s sideways and 3 m/s up from (1, 0.5) m (SSL-Vision's
+    frame; a robot stands in every frame), noise-free, 60 frames a second after 0.5 s at rest: /ball/state carries
+    its height, matching the projectile z = 3 t - 9.81 t^2 / 2 within 2 cm, before the first touchdown (0.61 s)."""
     port = free_udp_port()
     rclpy.init(args=["--ros-args", "-p", f"port:={port}", "-p", "interface:=127.0.0.1", "-p", "time_source:=vision",
                      "-p", "num_robots:=1", "-p", f"defend_side:={defend_side}"])
