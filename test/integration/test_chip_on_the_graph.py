@@ -59,12 +59,12 @@ def test_a_chip_in_the_plant_shows_on_ball_state_in_the_air(director):
         if not recent or recent[-1][0] - recent[0][0] < REST_S:
             return False
         t_end = recent[-1][0]
-        return all(math.hypot(p[0] - START[0], p[1] - START[1]) < 0.02 and math.hypot(v[0], v[1]) < 0.05
+        return all(math.hypot(p[0] - START[0], p[1] - START[1]) < 0.02 and math.hypot(v[0], v[1]) < 0.15
                    for t, p, v, _ in recent if t >= t_end - REST_S)
 
     d.place_ball(*START)
     try:
-        graph.spin_until(still_at_start, 30.0, "the ball at rest at the start on /ball/state")
+        graph.spin_until(still_at_start, 60.0, "the ball at rest at the start on /ball/state")
     except TimeoutError as exc:
         last = [(round(t, 3), *p[:2].round(3), *v[:2].round(3)) for t, p, v, _ in map(odometry_from_msg, states[-5:])]
         raise AssertionError(f"{exc}; the last states (t, x, y, vx, vy): {last}") from None
@@ -83,7 +83,7 @@ def test_a_chip_in_the_plant_shows_on_ball_state_in_the_air(director):
     def in_the_air() -> bool:
         return any(odometry_height(m)[0] > 0.05 for m in states) and any(m.data == "chip" for m in phases)
 
-    graph.spin_until(in_the_air, 20.0, "a chip with z > 0.05 m on /ball/state and phase chip")
+    graph.spin_until(in_the_air, 60.0, "a chip with z > 0.05 m on /ball/state and phase chip")
     t_launch = launched_s()
     assert t_launch is not None, "the plant never flew the ball"
     first = next(m for m in states if odometry_height(m)[0] > 0.05)
