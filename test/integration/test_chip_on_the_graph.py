@@ -89,11 +89,20 @@ def test_a_chip_in_the_plant_shows_on_ball_state_in_the_air(director):
     first = next(m for m in states if odometry_height(m)[0] > 0.05)
     t_seen = odometry_from_msg(first)[0]
     assert t_seen - t_launch < FLIGHT_S, "seen in the air only after the first touchdown"
-    # the height the predictor gives matches the plant's ball at the same stamp within 5 cm (the plant's samples
-    # interpolated: a chord of the parabola over one sample period is off by well under a millimetre)
+    # the heights the predictor gives in the flight against the plant's ball at the same stamps (its samples
+    # interpolated: a chord of the parabola over one sample period is off by well under a millimetre); the first,
+    # from the curve one camera sees at 2.5 mm noise, is the roughest
     series = sorted((odometry_from_msg(m)[0], odometry_height(m)[0]) for m in truth)
-    after = next(k for k, (t, _) in enumerate(series) if t >= t_seen)
-    (t0, z0), (t1, z1) = series[max(after - 1, 0)], series[after]
-    z_true = z0 if t1 == t0 else z0 + (z1 - z0) * (t_seen - t0) / (t1 - t0)
-    assert odometry_height(first)[0] == pytest.approx(z_true, abs=0.05)
+
+    def true_z(t_s: float) -> float:
+        after = next(k for k, (t, _) in enumerate(series) if t >= t_s)
+        (t0, z0), (t1, z1) = series[max(after - 1, 0)], series[after]
+        return z0 if t1 == t0 else z0 + (z1 - z0) * (t_s - t0) / (t1 - t0)
+
+    flight = [(odometry_from_msg(m)[0], odometry_height(m)[0]) for m in states]
+    flight = [(t, z, true_z(t)) for t, z in flight if t_seen <= t < t_launch + FLIGHT_S - 0.02]
+    errors = sorted(abs(z - z_true) for _, z, z_true in flight)
+    text = f"(t, z, true z) in the flight: {[tuple(round(v, 3) for v in row) for row in flight]}"
+    assert errors[0 if len(errors) == 1 else len(errors) // 2] < 0.05, text  # median
+    assert errors[-1] < 0.15, text
     assert "consumer failed" not in launch.output()
