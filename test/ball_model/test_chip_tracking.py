@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from erforce_ball_model.ball_model import BallTrajectory
 from erforce_ball_model.chip_model import ChipTrajectory
-from erforce_ball_model.chip_tracking import ChipDetector, fit_flight
+from erforce_ball_model.chip_tracking import ChipDetector, fit_flight, fit_flight_at_angle
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 
 G = 9.81
@@ -52,6 +52,62 @@ def test_the_flight_fit_is_the_projectile_behind_the_rays():
     assert (fit.x_m, fit.y_m, fit.vx_mps, fit.vy_mps, fit.vz_mps) == pytest.approx((0.0, 0.0, 2.0, 0.0, 3.0),
                                                                                     abs=1e-9)
     assert fit.rss_m2 == pytest.approx(0.0, abs=1e-20)
+
+
+def test_the_flight_at_a_known_angle_is_the_projectile_from_fewer_unknowns():
+    """vx 2, vz 3: tan(angle) = 1.5; one camera, three sightings (six equations, four unknowns)."""
+    rows = np.array([(t, x, y, *c) for t, x, y, c in chip_sightings([0.02, 0.04, 0.06], cameras=CAMERAS[:1])])
+    fit = fit_flight_at_angle(rows, 0.0, None, G, 0.002, tan_angle=1.5)
+    assert (fit.x_m, fit.y_m, fit.vx_mps, fit.vy_mps, fit.vz_mps) == pytest.approx((0.0, 0.0, 2.0, 0.0, 3.0),
+                                                                                    abs=1e-6)
+    assert fit.rss_m2 == pytest.approx(0.0, abs=1e-12) and fit.vz_std_mps > 0.0
+
+
+def low_chip_detector(hint_deg, vx=2.0, vz=0.4):
+    """A low chip (vz 0.4 m/s: 8 mm high at its apex, 82 ms in the air), seen by one camera at 70 Hz from the
+    first frame after the kick, with the kicker's hint (None: none) given at the kick."""
+    detector = ChipDetector()
+    if hint_deg is not None:
+        detector.hint(0.0, hint_deg)
+    detector.start(1.0 / 70.0, before=(0.0, 0.0, 0.0, 0.0, 0.0))
+    for t, x, y, camera in chip_sightings([k / 70.0 for k in range(1, 6)], CAMERAS[:1], vx=vx, vz=vz):
+        detector.add(t, x, y, camera)
+    return detector
+
+
+def test_a_chip_hint_tells_a_chip_too_low_to_see():
+    """Without the hint the low chip's sightings fit a ground ball as well (not a chip by the 5th); with the
+    kicker's angle, atan(0.4 / 2) = 11.3 deg, it is taken at the 4th sighting with its vertical speed."""
+    assert low_chip_detector(None).fit is None
+    detector = low_chip_detector(math.degrees(math.atan2(0.4, 2.0)))
+    assert detector.detected_at_s == pytest.approx(4.0 / 70.0)
+    assert detector.fit.vz_mps == pytest.approx(0.4, abs=0.02)
+    assert detector.hint_angle_deg == pytest.approx(11.31, abs=0.01)
+
+
+def test_a_hint_belongs_only_to_the_motion_just_after_it():
+    detector = ChipDetector()
+    detector.hint(0.0, 45.0)
+    detector.start(0.2, before=None)  # 0.2 s later: another motion (hint_window_s 0.1)
+    assert detector.hint_angle_deg is None
+    detector.hint(0.15, 45.0)  # late news of the current motion's kick
+    assert detector.hint_angle_deg == 45.0
+    with pytest.raises(ValueError, match="angle"):
+        detector.hint(0.3, 90.0)
+    with pytest.raises(ValueError, match="angle"):
+        detector.hint(float("nan"), 10.0)
+
+
+def test_a_flat_hint_does_not_make_a_ground_kick_a_chip():
+    """A ground kick with a flat hint stays a ground ball (the hint raises the evidence a chip needs)."""
+    detector = ChipDetector()
+    detector.hint(0.0, 0.0)
+    detector.start(1.0 / 70.0, before=(0.0, 0.0, 0.0, 0.0, 0.0))
+    ball = BallTrajectory((0.0, 0.0), (3.0, 0.0), 3.0)
+    for k in range(1, 20):
+        x, y = ball.position_at(k / 70.0).tolist()
+        detector.add(k / 70.0, x, y, CAMERAS[0])
+    assert detector.hint_angle_deg == 0.0 and detector.fit is None
 
 
 @settings(max_examples=60, deadline=None)

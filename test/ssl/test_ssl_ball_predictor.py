@@ -11,20 +11,22 @@ import numpy as np
 import pytest
 import rclpy
 
+from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.ssl_ball_predictor import make_nodes
 from erforce_interfaces.ssl.ssl_vision import (
     SSL_VISION_GROUP,
     BallCandidate,
     CameraFrame,
+    CameraPose,
     FieldGeometry,
     RobotSighting,
     encode_frame,
     encode_geometry,
 )
 from erforce_interfaces.wire.clouds import vision_frame_from_msg
-from erforce_interfaces.wire.conversions import float64_from_msg
+from erforce_interfaces.wire.conversions import float64_from_msg, odometry_from_msg, odometry_height
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
-from erforce_sim.ssl_cameras import open_multicast_sender
+from erforce_sim.ssl_cameras import ground_point, open_multicast_sender
 
 # the predictor's defaults (params/ball_predictor.yaml): reaction time, robot limits
 REACTION_S, A_MAX_MPS2, V_MAX_MPS = 0.1, 4.5, 2.5
@@ -147,9 +149,9 @@ def test_the_predictor_has_the_worlds_field_before_the_first_frame_it_answers():
         predictor._predictor._warn = lambda key, text: warnings.append(text)
         answer = predictor.answer_vision
 
-        def sink(data: bytes) -> None:
+        def sink(data: bytes, camera_m) -> None:
             field = predictor._predictor.config.field
-            answer(data)
+            answer(data, camera_m)
             with answered:
                 fields.append(field)
                 answered.notify_all()
@@ -169,6 +171,62 @@ def test_the_predictor_has_the_worlds_field_before_the_first_frame_it_answers():
         assert fields and set(fields) == {FieldConfig.preset("division_a")}
         assert predictor._predictor.robot_states_at(2.0, [0])[0][0] == pytest.approx(5.2, abs=0.01)
         assert warnings == []
+    finally:
+        sender.close()
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+@pytest.mark.parametrize("defend_side", ["negative_x", "positive_x"])
+def test_a_chip_is_in_the_air_on_ball_state_from_one_cameras_frames(defend_side):
+    """The geometry gives each camera's position; the bridge hands it with each frame to the predictor (half turned
+    with the field when we defend +x), whose chip detector reconstructs the flight from the curve one camera sees.
+    Camera 1 at (2, 1.5, 4) m sees a ball kicked at 2 m/s sideways and 3 m/s up from (1, 0.5) m (SSL-Vision's
+    frame; a robot stands in every frame), noise-free, 60 frames a second after 0.5 s at rest: /ball/state carries
+    its height, matching the projectile z = 3 t - 9.81 t^2 / 2 within 2 cm, before the first touchdown (0.61 s)."""
+    port = free_udp_port()
+    rclpy.init(args=["--ros-args", "-p", f"port:={port}", "-p", "interface:=127.0.0.1", "-p", "time_source:=vision",
+                     "-p", "num_robots:=1", "-p", f"defend_side:={defend_side}"])
+    nodes = ()
+    sender = open_multicast_sender("127.0.0.1")
+    try:
+        nodes = bridge, predictor = make_nodes()
+        cameras, states, answered = [], [], threading.Condition()
+        answer = predictor.answer_vision
+
+        def sink(data: bytes, camera_m) -> None:
+            answer(data, camera_m)
+            with answered:
+                cameras.append(camera_m)
+                answered.notify_all()
+
+        bridge._frame_sink = sink
+        predictor._state_pub = Recorder("state", states, threading.Condition())
+        camera = (2.0, 1.5, 4.0)
+        sender.sendto(encode_geometry(FieldGeometry(9.0, 6.0, 0.3, 1.0, 0.18, cameras=(
+            CameraPose(0, -2.0, -1.5, 4.0), CameraPose(1, *camera)))), (SSL_VISION_GROUP, port))
+        t_kick = 1.5
+        chip = ChipTrajectory((1.0, 0.5, 0.0), (0.0, 2.0, 3.0))
+        for k in range(int(0.55 * FPS) + int((t_kick - 1.0) * FPS)):
+            t = 1.0 + k / FPS
+            x, y, z = chip.position_at(max(t - t_kick, 0.0)).tolist()
+            gx, gy = ground_point(x, y, z, camera)
+            with answered:
+                before = len(cameras)
+                sender.sendto(encode_frame(CameraFrame(1, k + 1, t, t + 0.002, (BallCandidate(gx, gy, 0.9),),
+                                                        (RobotSighting("blue", 0, -1.0, -1.0, 0.0, 1.0),))),
+                              (SSL_VISION_GROUP, port))
+                assert answered.wait_for(lambda b=before: len(cameras) > b, 10.0), f"frame {k} not answered"
+        sign = 1.0 if defend_side == "negative_x" else -1.0  # the field frame: SSL-Vision's half turned
+        assert cameras == [pytest.approx((sign * 2.0, sign * 1.5, 4.0), abs=1e-6)] * len(cameras)
+        in_air = [(odometry_from_msg(m)[0], odometry_height(m)[0]) for _, m in states if odometry_height(m)[0] > 0.0]
+        assert in_air, "no state in the air"
+        for t, z in in_air:
+            dt = t - t_kick
+            assert z == pytest.approx(3.0 * dt - 0.5 * 9.81 * dt * dt, abs=0.02)
+        assert in_air[0][0] - t_kick < 2.0 * 3.0 / 9.81
+        assert max(z for _, z in in_air) > 0.2
     finally:
         sender.close()
         for node in nodes:

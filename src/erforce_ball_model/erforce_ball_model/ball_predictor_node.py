@@ -136,6 +136,7 @@ class BallPredictorNode(SchemaNode):
         # Frames may come on another thread than the executor's (answer_vision): one frame, parameter change or
         # geometry message at a time.
         self._lock = threading.Lock()
+        self._camera_m: tuple[float, float, float] | None = None  # the camera of the frame being answered
         # kernels="background": the first frames are answered by the search's loop as Python (about 1 ms per
         # robot) and numba and the compiled search load in a thread after the first answer: a restarted
         # predictor closes the loop about a second sooner, what the 3 s to heal on a busy machine depends on.
@@ -277,11 +278,17 @@ class BallPredictorNode(SchemaNode):
         with self._lock:
             self._vision(msg, self._vision_sub)
 
-    def answer_vision(self, msg: bytes) -> None:
+    def answer_vision(self, msg: bytes, camera_m: tuple[float, float, float] | None = None) -> None:
         """One serialized ``/vision/robots`` frame from a receiver in this process (any thread): answered as one
-        from the topic, its catch outputs published before this returns."""
+        from the topic, its catch outputs published before this returns. ``camera_m``: the position (x, y,
+        height) [m] of the camera that saw the frame's ball, for the chip detector (a topic's frame has none:
+        without it a chipped ball is tracked on the ground)."""
         with self._lock:
-            self._vision(msg, None)
+            self._camera_m = camera_m
+            try:
+                self._vision(msg, None)
+            finally:
+                self._camera_m = None
 
     def _vision(self, msg: bytes, sub) -> None:
         start = time.perf_counter()
@@ -403,7 +410,7 @@ class BallPredictorNode(SchemaNode):
         verdict = check_stamp(self._ball_stamps, round(t_s * 1e9), self._warn, "vision/ball", self)
         if verdict is StampVerdict.DROP:
             return
-        frame = self._predictor.ball_frame(t_s, x, y, restart=verdict is StampVerdict.RESTART)
+        frame = self._predictor.ball_frame(t_s, x, y, restart=verdict is StampVerdict.RESTART, camera_m=self._camera_m)
         if frame is None:
             return
         # Catch times go out first: they are what the robots act on, and each publish costs tens

@@ -46,7 +46,8 @@ import numpy as np
 from erforce_ball_model.ball_model import MAX_SPEED_MPS, BallModelParams, BallTrajectory, ChipParams
 from erforce_ball_model.chip_model import ChipTrajectory
 
-__all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_ground"]
+__all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_flight_at_angle",
+           "fit_ground"]
 
 
 # The launch point (the flat filter's ball before the kick, averaged over the frames it lay there) weighs as
@@ -65,6 +66,13 @@ class ChipDetectorConfig:
     min_vz_mps: float = 0.3
     launch_steps: int = 12  # launch times tried between the old motion's last sighting and the new one's first
     window_s: float = 0.3  # sightings of one kick kept this long
+    # a kick hint (the kicker's own word: it chipped at this angle, or kicked flat) belongs to the motion first seen
+    # this long after it at most
+    hint_window_s: float = 0.1
+    # with a chip hint: the flight at the kicker's angle may explain the sightings worse than the ground by this much
+    # (noise variances) and still be taken (it guards against a hint whose ball did not fly)
+    hint_max_loss: float = 4.0
+    flat_hint_factor: float = 4.0  # with a flat-kick hint a chip needs this many times min_gain
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
@@ -134,6 +142,32 @@ def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, no
     return ChipFit(t_launch_s, x0, y0, vx, vy, vz, math.sqrt(max(vz_var, 0.0)), rss)
 
 
+def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
+                        tan_angle: float, iterations: int = 3) -> ChipFit | None:
+    """As ``fit_flight`` with the launch's elevation known (``vz = tan_angle |v|``, the kicker's angle): four
+    unknowns, as many as a ball on the ground has, so a few sightings suffice. The direction of the ground speed is
+    taken from the previous iteration (the first: the flight's without the known angle), which keeps it linear."""
+    a5, b = _system(rows, t_launch_s, origin_xy, g_mps2, flight=True)
+    theta = np.linalg.lstsq(a5, b, rcond=None)[0]
+    a = a5[:, :4]
+    for _ in range(iterations):
+        speed = math.hypot(theta[2], theta[3])
+        if not 1e-6 < speed <= MAX_SPEED_MPS:
+            return None
+        ux, uy = theta[2] / speed, theta[3] / speed
+        a = a5[:, :4].copy()
+        a[:, 2] += a5[:, 4] * tan_angle * ux
+        a[:, 3] += a5[:, 4] * tan_angle * uy
+        theta, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
+        if rank < 4:
+            return None
+    rss = float(np.sum((a @ theta - b) ** 2))
+    grad = np.array([0.0, 0.0, tan_angle * ux, tan_angle * uy])  # d vz / d theta at the last direction
+    vz_var = float(grad @ np.linalg.pinv(a.T @ a) @ grad) * noise_m**2
+    x0, y0, vx, vy = theta.tolist()
+    return ChipFit(t_launch_s, x0, y0, vx, vy, tan_angle * (ux * vx + uy * vy), math.sqrt(max(vz_var, 0.0)), rss)
+
+
 def fit_ground(rows: np.ndarray, t_start_s: float, origin_xy, ball_params: BallModelParams,
                iterations: int = 3) -> float:
     """The squared residual [m^2] of the best ball kicked on the ground at ``t_start_s`` (from ``origin_xy`` if
@@ -162,6 +196,11 @@ class ChipDetector:
     (``launch_steps`` candidates), the launch point is where the old motion had the ball then. The flight is
     refitted with every sighting until its first touchdown; ``fit`` is the newest fit judged a chip (None while
     the kick is not one), ``detected_at_s`` the time of that judgement.
+
+    A kick hint (``hint``: the kicker says it kicked at a time with an elevation; 0 flat) for the motion first seen
+    within ``hint_window_s`` after it is prior knowledge: with a chip's angle the flight at that angle is fitted as
+    well (four unknowns, as the ground's), taken while the free fit's vertical speed is not yet significant, and
+    the kick is a chip unless the ground explains it clearly better; a flat hint raises the evidence a chip needs.
     """
 
     def __init__(self, config: ChipDetectorConfig | None = None, params: ChipParams | None = None,
@@ -176,6 +215,22 @@ class ChipDetector:
         self.detected_at_s: float | None = None
         self._chip: ChipTrajectory | None = None
         self._handed_over = False
+        self._hint: tuple[float, float] | None = None  # the newest kick hint (t_s, angle_deg)
+        self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
+
+    def hint(self, t_s: float, angle_deg: float) -> None:
+        """The kicker's word: it kicked at ``t_s`` with the elevation ``angle_deg`` (0: flat; a chip in (0, 90)).
+        It belongs to the next motion first seen within ``hint_window_s`` (or the current one, if so seen and not
+        judged a chip yet). Raises ValueError for a non-finite time or an angle outside [0, 90)."""
+        if not (math.isfinite(t_s) and math.isfinite(angle_deg) and 0.0 <= angle_deg < 90.0):
+            raise ValueError(f"kick hint at {t_s!r} s with angle {angle_deg!r} deg: the time must be finite, the "
+                             f"angle in [0, 90)")
+        self._hint = (float(t_s), float(angle_deg))
+        if self.t_start_s is not None and self.fit is None and self._hint_fits(self.t_start_s):
+            self.hint_angle_deg = self._hint[1]
+
+    def _hint_fits(self, t_first_s: float) -> bool:
+        return self._hint is not None and 0.0 <= t_first_s - self._hint[0] <= self.config.hint_window_s
 
     def start(self, t_first_s: float, before: tuple[float, float, float, float, float] | None = None) -> None:
         """A new motion (the flat filter's kick) first seen at ``t_first_s``; ``before``: the old motion's
@@ -184,6 +239,7 @@ class ChipDetector:
         self._rows = [r for r in self._rows if r.t_s >= t_first_s]
         self.t_start_s, self._before = float(t_first_s), before
         self.fit, self.detected_at_s, self._chip, self._handed_over = None, None, None, False
+        self.hint_angle_deg = self._hint[1] if self._hint_fits(self.t_start_s) else None
 
     @property
     def active(self) -> bool:
@@ -224,9 +280,14 @@ class ChipDetector:
         t, x, y, vx, vy = self._before
         return (x + vx * (t_launch_s - t), y + vy * (t_launch_s - t))
 
-    def _best_flight(self, rows: np.ndarray) -> ChipFit | None:
+    def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None) -> ChipFit | None:
+        """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's)."""
         cfg, g = self.config, self.params.g_mps2
-        fits = [fit_flight(rows, t, self._origin(t), g, cfg.noise_m) for t in self._launch_times()]
+        if tan_angle is None:
+            fits = [fit_flight(rows, t, self._origin(t), g, cfg.noise_m) for t in self._launch_times()]
+        else:
+            fits = [fit_flight_at_angle(rows, t, self._origin(t), g, cfg.noise_m, tan_angle)
+                    for t in self._launch_times()]
         fits = [f for f in fits if f is not None]
         return min(fits, key=lambda f: f.rss_m2, default=None)
 
@@ -242,6 +303,9 @@ class ChipDetector:
             if len(first_hop) < len(rows):
                 rows = first_hop
                 fit = self._best_flight(rows) if len(rows) >= cfg.min_sightings else None
+        if self._chip_hinted() and len(rows) >= cfg.min_sightings and (
+                fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
+            fit = self._best_flight(rows, math.tan(math.radians(self.hint_angle_deg)))
         if fit is None or not self._is_chip(fit, rows):
             return
         try:
@@ -257,10 +321,17 @@ class ChipDetector:
         cfg = self.config
         if self.fit is not None:  # judged a chip: refits only need to stay a flight
             return fit.vz_mps > cfg.min_vz_mps
-        if not fit.vz_mps >= max(cfg.min_vz_mps, cfg.vz_sigma * fit.vz_std_mps):
+        hinted = self._chip_hinted()
+        if not fit.vz_mps >= (cfg.min_vz_mps if hinted else max(cfg.min_vz_mps, cfg.vz_sigma * fit.vz_std_mps)):
             return False
         ground = min(fit_ground(rows, t, self._origin(t), self.ball_params) for t in self._launch_times())
-        return (ground - fit.rss_m2) / cfg.noise_m**2 >= cfg.min_gain
+        gain = (ground - fit.rss_m2) / cfg.noise_m**2
+        if hinted:
+            return gain >= -cfg.hint_max_loss
+        return gain >= cfg.min_gain * (cfg.flat_hint_factor if self.hint_angle_deg == 0.0 else 1.0)
+
+    def _chip_hinted(self) -> bool:
+        return self.hint_angle_deg is not None and self.hint_angle_deg > 0.0
 
     @property
     def launch(self) -> ChipTrajectory | None:

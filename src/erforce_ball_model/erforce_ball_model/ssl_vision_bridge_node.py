@@ -163,10 +163,12 @@ def open_multicast_socket(group: str, port: int, interface: str, receive_buffer_
 
 
 class SslVisionBridge(Node):
-    def __init__(self, frame_sink: Callable[[bytes], None] | None = None,
+    def __init__(self, frame_sink: Callable[[bytes, tuple[float, float, float] | None], None] | None = None,
                  geometry_sink: Callable[[FieldConfig, BallModelParams | None], None] | None = None) -> None:
         """``frame_sink``: called on the receive thread with each serialized ``/vision/robots`` frame before it is
-        published (a consumer in this process, erforce_ball_model.ssl_ball_predictor); its CPU time is not
+        published (a consumer in this process, erforce_ball_model.ssl_ball_predictor) and the position (x, y,
+        height) [m, field frame] of the camera that saw it, from the SSL geometry's calibration (None while the
+        geometry has none for it): the chip detector needs it, /vision/robots does not carry it. Its CPU time is not
         counted in the bridge's statistics. ``geometry_sink``: called there with each new SSL geometry's field and
         ball model, before the next frame goes to ``frame_sink`` (a topic's message could come after it)."""
         super().__init__("ssl_vision_bridge")
@@ -179,6 +181,7 @@ class SslVisionBridge(Node):
         self._clock_sent_s = -math.inf  # the timeline's time last published on /clock
         self._lock = threading.Lock()  # parameter changes vs the receive thread
         self._last_geometry = None
+        self._camera_poses: dict[int, tuple[float, float, float]] = {}  # by camera id, SSL-Vision's frame [m]
         self._params = NodeParams(self, SCHEMA, build_config)
         v = self._values = self._params.values
         self.stats: Counter[str] = Counter()
@@ -345,20 +348,27 @@ class SslVisionBridge(Node):
                 return
             self._clock_sent_s = newest
 
-    def _publish_frame(self, data: bytes) -> None:
-        """A camera frame's ``/vision/robots``: to the sink first (its answer is on the latency path), then the
-        topic (tools, bags, a predictor in another process)."""
+    def _publish_frame(self, data: bytes, camera_id: int) -> None:
+        """A camera frame's ``/vision/robots``: to the sink first (its answer is on the latency path), with the
+        position of camera ``camera_id``, then the topic (tools, bags, a predictor in another process)."""
         sink = self._frame_sink
         if sink is not None:
             t0 = time.thread_time_ns()
             try:
-                sink(data)
+                sink(data, self._camera_at(camera_id))
             except Exception as exc:  # the topic still gets the frame
                 if not self.context.ok():
                     raise  # shutting down: the receive loop ends quietly
                 self._warn.warn("sink", f"ssl_vision_bridge: the frame's consumer failed: {exc!r}")
             self._sink_ns += time.thread_time_ns() - t0
         self._robots_pub.publish(data)
+
+    def _camera_at(self, camera_id: int) -> tuple[float, float, float] | None:
+        """Camera ``camera_id``'s position in the field frame (half turned with ``flip``, as the balls are)."""
+        pose = self._camera_poses.get(camera_id)
+        if pose is None or not self._config.flip:
+            return pose
+        return (-pose[0], -pose[1], pose[2])
 
     def _take_sink_ns(self) -> int:
         ns, self._sink_ns = self._sink_ns, 0
@@ -370,7 +380,8 @@ class SslVisionBridge(Node):
         if status == PASS_DONE and n_bytes >= 0 and (not action or action >= BALL_FUSED):
             self.stats["frames"] += 1
             if n_bytes:
-                self._publish_frame(self._frame_pass.message_view[:n_bytes].tobytes())
+                self._publish_frame(self._frame_pass.message_view[:n_bytes].tobytes(),
+                                    int(self._frame_pass.info[I_CAMERA]))
             if action and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
                 self._ball_pub.publish(point_cdr(t_s, (ball_x, ball_y)))
             return
@@ -409,14 +420,15 @@ class SslVisionBridge(Node):
         try:
             n_points = int(info[I_POINTS])
             if status == PASS_GENERAL:
-                self._publish_robots(t_s, fp.robots()[fp.used()].tolist(), [(ball_x, ball_y)] if ball else [])
+                self._publish_robots(t_s, fp.robots()[fp.used()].tolist(), [(ball_x, ball_y)] if ball else [],
+                                     camera_id)
             elif action and ball is None:  # the filter refused the ball written first: the robots alone
                 if n_points > 1:
-                    self._publish_frame(vision_robots_points_cdr(t_s, fp.points[1:n_points]))
+                    self._publish_frame(vision_robots_points_cdr(t_s, fp.points[1:n_points]), camera_id)
             elif n_bytes > 0:
-                self._publish_frame(fp.message_view[:n_bytes].tobytes())
+                self._publish_frame(fp.message_view[:n_bytes].tobytes(), camera_id)
             elif n_points > 0:  # a stamp the pass leaves to the checks of conversions
-                self._publish_frame(vision_robots_points_cdr(t_s, fp.points[:n_points]))
+                self._publish_frame(vision_robots_points_cdr(t_s, fp.points[:n_points]), camera_id)
             if ball is not None and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
                 self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
         except ConversionError as exc:
@@ -505,6 +517,7 @@ class SslVisionBridge(Node):
 
     # ----------------------------------------------------------------- geometry
     def _on_geometry(self, geometry) -> None:
+        self._camera_poses = {c.camera_id: (c.x_m, c.y_m, c.z_m) for c in geometry.cameras if c.z_m > 0.0}
         key = (geometry.length_m, geometry.width_m, geometry.boundary_m, geometry.ball_model)
         if key == self._last_geometry:
             return
@@ -582,9 +595,10 @@ class SslVisionBridge(Node):
                 n = _robot_points(robots, used, self._ours, self._n_ours, self._pose_readers, self._points,
                                   has_ball, ball.x_m if has_ball else 0.0, ball.y_m if has_ball else 0.0)
                 if n >= 0:
-                    self._publish_frame(vision_robots_points_cdr(t_s, self._points[:n]))
+                    self._publish_frame(vision_robots_points_cdr(t_s, self._points[:n]), frame.camera_id)
                 else:
-                    self._publish_robots(t_s, robots[used].tolist(), [(ball.x_m, ball.y_m)] if has_ball else [])
+                    self._publish_robots(t_s, robots[used].tolist(), [(ball.x_m, ball.y_m)] if has_ball else [],
+                                         frame.camera_id)
             if ball is not None and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
                 self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
             if cfg.publish_detections:
@@ -593,7 +607,8 @@ class SslVisionBridge(Node):
         except ConversionError as exc:
             self._drop("unpublishable", f"camera {frame.camera_id}: not published: {exc}")
 
-    def _publish_robots(self, t_s: float, rows: list[list[float]], balls: list[tuple[float, float]]) -> None:
+    def _publish_robots(self, t_s: float, rows: list[list[float]], balls: list[tuple[float, float]],
+                        camera_id: int) -> None:
         """The frame's ``balls`` and robots in one /vision/robots, then each robot's vision_pose that has a reader
         (the general path: it creates publishers and warns)."""
         readers, n_ours = self._pose_readers, self._n_ours
@@ -613,7 +628,7 @@ class SslVisionBridge(Node):
             if readers[side, robot_id] > 0:
                 read.append((pub, x, y, theta))
         if table or balls:
-            self._publish_frame(vision_robots_cdr(t_s, table, balls=balls))
+            self._publish_frame(vision_robots_cdr(t_s, table, balls=balls), camera_id)
         for pub, x, y, theta in read:
             pub.publish(pose2d_cdr(t_s, (x, y, theta)))
 

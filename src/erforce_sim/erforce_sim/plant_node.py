@@ -52,6 +52,7 @@ from erforce_interfaces.wire.conversions import (
     joint_state_from_msg,
     odometry_cdr,
     odometry_from_msg,
+    odometry_height,
     point_cdr,
     pose2d_cdr,
     team_joint_state_cdr,
@@ -59,7 +60,7 @@ from erforce_interfaces.wire.conversions import (
 )
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_interfaces.wire.tables import table_cdr
-from erforce_sim.ball import BallParams
+from erforce_sim.ball import BallParams, BallState
 from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras
@@ -385,13 +386,21 @@ class PlantNode(SchemaNode):
         self.world.set_dribbler(robot, on)
 
     def _on_set_ball(self, msg: Odometry) -> None:
+        """A ball with a height or a vertical speed (pose.position.z, twist.linear.z) is put in the air without spin:
+        a chip as a scenario launches it; else it is placed on the ground, rolling."""
         try:
             _, pose, velocity, _ = odometry_from_msg(msg)
-            self.world.place_ball(pose[0], pose[1], velocity[0], velocity[1])
+            z_m, vz_mps = odometry_height(msg)
+            if z_m == 0.0 and vz_mps == 0.0:
+                self.world.place_ball(pose[0], pose[1], velocity[0], velocity[1])
+            else:
+                self.world.set_ball_state(BallState(pose[0], pose[1], velocity[0], velocity[1], z=z_m, vz=vz_mps))
         except (ConversionError, ValueError) as exc:
             self._warn.warn("set_ball", f"rejected /sim/set_ball: {exc}")
             return
-        self._event(f"ball placed at ({pose[0]:.3f}, {pose[1]:.3f}) with ({velocity[0]:.2f}, {velocity[1]:.2f}) m/s")
+        air = "" if z_m == 0.0 and vz_mps == 0.0 else f" in the air (z {z_m:.3f} m, vz {vz_mps:.2f} m/s)"
+        self._event(f"ball placed at ({pose[0]:.3f}, {pose[1]:.3f}) with ({velocity[0]:.2f}, {velocity[1]:.2f}) m/s"
+                    + air)
 
     def _on_set_robot(self, robot: int, msg: Odometry) -> None:
         try:
@@ -658,7 +667,8 @@ class PlantNode(SchemaNode):
             if readers[2 * n]:  # serialized, as vision: building these messages was an eighth of the plant's time
                 b = world.ball_state()
                 self._truth_ball_pub.publish(
-                    odometry_cdr(t_s, (b.x, b.y, 0.0), (b.vx, b.vy, 0.0), "ball", spin=(b.wx, b.wy, b.wz))
+                    odometry_cdr(t_s, (b.x, b.y, 0.0), (b.vx, b.vy, 0.0), "ball", spin=(b.wx, b.wy, b.wz), z_m=b.z,
+                                 vz_mps=b.vz)
                 )
         for i in due:
             if not (readers[2 * i] or readers[2 * i + 1]):

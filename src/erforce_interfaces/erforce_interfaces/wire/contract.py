@@ -317,10 +317,12 @@ BALL_MODEL_PARAMS = Topic("/ball/model_params", Float64MultiArray, QOS_LATCHED, 
                           "rows fit, std_error of the last online fit once there is one (labelled in layout.dim); "
                           "at start and on every change")
 GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant; while subscribed", "tests, tools only",
-                          "true ball: pose [m], twist.linear [m/s], twist.angular = spin [rad/s], `field`")
+                          "true ball: pose [m] (position.z: height in the air), twist.linear [m/s], twist.angular = "
+                          "spin [rad/s], `field`")
 SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts, passing_game (the referee's "
                      "placement)", "plant",
-                     "place the ball: pose.position [m], twist.linear [m/s], twist.angular spin [rad/s]")
+                     "place the ball: pose.position [m], twist.linear [m/s], twist.angular spin [rad/s]; "
+                     "position.z > 0 or linear.z != 0: in the air without spin (a chip; our plant)")
 VISION_ROBOTS = Topic("/vision/robots", PointCloud2, QOS_SENSOR, "plant (vision), ssl_vision_bridge",
                       "ball_predictor, tools",
                       "one vision frame (the bridge: one camera frame) in one message: its ball and every robot, "

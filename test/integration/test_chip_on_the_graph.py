@@ -1,0 +1,95 @@
+"""A chip in our plant, seen through SSL-Vision, in the air on /ball/state.
+
+The demo graph with vision over real UDP (vision:=ssl, the bridge in the predictor's process): the plant's four
+quadrant cameras project the flying ball onto the ground and send each camera's position in the SSL geometry;
+ssl_ball_predictor hands the predictor each frame with its camera's position, and the chip detector reconstructs
+the flight. The chip is launched by /sim/set_ball with a vertical speed (the plant flies it) from where the ball
+lay still, inside one camera's quadrant: only the curve of its projected path tells the flight.
+"""
+
+import math
+import socket
+
+import pytest
+from nav_msgs.msg import Odometry
+from std_msgs.msg import String
+
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.conversions import odometry_from_msg, odometry_height, odometry_msg
+from erforce_interfaces.wire.robot_config import RobotConfig
+from erforce_sim.demo.demo import LAUNCH_FILE, Director
+
+pytestmark = pytest.mark.integration
+
+START = (1.0, 1.8)  # in the +x +y camera's quadrant, away from the demo's robots
+SPEED_MPS, ANGLE_DEG = 4.0, 60.0  # up at 3.46 m/s: 0.71 s in the air, apex 0.61 m, first touchdown 1.41 m on
+G_MPS2 = 9.81
+REST_S = 0.5
+FLIGHT_S = 2.0 * SPEED_MPS * math.sin(math.radians(ANGLE_DEG)) / G_MPS2
+
+
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture
+def director(ros_graph):
+    launch = ros_graph.start_launch(LAUNCH_FILE, real_time_factor="0.0", output="screen", vision="ssl",
+                                    ssl_vision_port=str(free_udp_port()), ssl_vision_process="predictor")
+    d = Director(ros_graph.probe.node, RobotConfig(), ros_graph.probe.executor,
+                 graph_alive=launch.alive, graph_hint="see the launch output below")
+    assert d.spin_until(d.graph_ready, 120.0, "the graph"), launch.output()[-3000:]
+    yield d, ros_graph, launch
+    d.close()
+
+
+def test_a_chip_in_the_plant_shows_on_ball_state_in_the_air(director):
+    d, graph, launch = director
+    probe = graph.probe
+    states = probe.subscribe(contract.BALL_STATE.name, Odometry, contract.BALL_STATE.qos)
+    phases = probe.subscribe(contract.BALL_PHASE.name, String, contract.BALL_PHASE.qos)
+    truth = probe.subscribe(contract.GROUND_TRUTH_BALL.name, Odometry, contract.GROUND_TRUTH_BALL.qos)
+
+    def still_at_start() -> bool:
+        """The predictor has had the ball lying at START for REST_S (its stamps): the placement, a motion of its
+        own, is over before the kick (a chip detector judges one motion at a time)."""
+        recent = [odometry_from_msg(m) for m in states]
+        if not recent or recent[-1][0] - recent[0][0] < REST_S:
+            return False
+        t_end = recent[-1][0]
+        return all(math.hypot(p[0] - START[0], p[1] - START[1]) < 0.02 and math.hypot(v[0], v[1]) < 0.15
+                   for t, p, v, _ in recent if t >= t_end - REST_S)
+
+    d.place_ball(*START)
+    try:
+        graph.spin_until(still_at_start, 60.0, "the ball at rest at the start on /ball/state")
+    except TimeoutError as exc:
+        last = [(round(t, 3), *p[:2].round(3), *v[:2].round(3)) for t, p, v, _ in map(odometry_from_msg, states[-5:])]
+        raise AssertionError(f"{exc}; the last states (t, x, y, vx, vy): {last}") from None
+    states.clear()
+    phases.clear()
+    truth.clear()
+    v_ground = SPEED_MPS * math.cos(math.radians(ANGLE_DEG))
+    chip = odometry_msg(0.0, (*START, 0.0), (v_ground, 0.0, 0.0))
+    chip.twist.twist.linear.z = SPEED_MPS * math.sin(math.radians(ANGLE_DEG))
+    d.set_ball.publish(chip)
+
+    def launched_s() -> float | None:  # the plant's first tick with the ball in the air (ground truth)
+        up = [odometry_from_msg(m)[0] for m in truth if odometry_height(m)[0] > 0.0]
+        return min(up) if up else None
+
+    def in_the_air() -> bool:
+        return any(odometry_height(m)[0] > 0.05 for m in states) and any(m.data == "chip" for m in phases)
+
+    graph.spin_until(in_the_air, 60.0, "a chip with z > 0.05 m on /ball/state and phase chip")
+    t_launch = launched_s()
+    assert t_launch is not None, "the plant never flew the ball"
+    first = next(m for m in states if odometry_height(m)[0] > 0.05)
+    t_seen = odometry_from_msg(first)[0]
+    assert t_seen - t_launch < FLIGHT_S, "seen in the air only after the first touchdown"
+    # a height the flight can have: between the ground and its apex
+    apex_m = (SPEED_MPS * math.sin(math.radians(ANGLE_DEG))) ** 2 / (2.0 * G_MPS2)
+    assert 0.05 < odometry_height(first)[0] <= apex_m + 0.05
+    assert "consumer failed" not in launch.output()
