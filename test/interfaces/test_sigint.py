@@ -109,42 +109,45 @@ def test_every_node_exits_quietly_with_0_on_sigint(ros_graph, tmp_path, interrup
 
 @pytest.mark.integration
 def test_a_warm_standby_ends_quietly_with_0_on_sigint_sigterm_or_the_launchers_end(ros_graph):
-    """A node started as erforce-launch starts a warm standby (erforce_interfaces.runtime.standby) waits after its
-    imports and warm-up, prints nothing, and ends with 0 on SIGINT (alone or to its group), SIGTERM, or the end
-    of file of its socket (the launcher gone). The nodes with a warm-up (plant, ball_predictor) are among them."""
+    """The spare erforce-launch keeps (erforce_interfaces.runtime.standby, given the scripts of real nodes with a
+    warm-up: plant, ball_predictor, and two without) waits after their imports and warm-ups with no DDS node,
+    prints nothing, and ends with 0 on SIGINT (alone or to its group), SIGTERM, or the end of file of its socket
+    (the launcher gone)."""
     import subprocess
+    import sys
 
     from erforce_interfaces.runtime.standby import READY, STANDBY_FD_ENV
 
     def end_by_eof(proc, sock) -> None:
         sock.close()
 
-    endings = {"velocity_controller": lambda proc, sock: proc.send_signal(signal.SIGINT),
-               "plant": lambda proc, sock: os.killpg(proc.pid, signal.SIGINT),
-               "ball_predictor": lambda proc, sock: proc.send_signal(signal.SIGTERM),
-               "catcher": end_by_eof}
+    endings = {"SIGINT": lambda proc, sock: proc.send_signal(signal.SIGINT),
+               "SIGINT to the group": lambda proc, sock: os.killpg(proc.pid, signal.SIGINT),
+               "SIGTERM": lambda proc, sock: proc.send_signal(signal.SIGTERM),
+               "end of file": end_by_eof}
+    scripts = [ros_graph.probe_executable(exe) for exe in ("velocity_controller", "plant", "ball_predictor", "catcher")]
     started = {}
     try:
-        for exe in endings:  # all at once: each standby's imports cost most of a second of CPU
+        for how in endings:  # all at once: each spare's imports and warm-ups cost a second or two of CPU
             ours, theirs = socket.socketpair()
             env = {**ros_graph.env, STANDBY_FD_ENV: str(theirs.fileno())}
-            proc = subprocess.Popen([ros_graph.probe_executable(exe), "--ros-args", "-r", f"__node:=standby_{exe}"],
+            proc = subprocess.Popen([sys.executable, "-m", "erforce_interfaces.runtime.standby", *scripts],
                                     env=env, pass_fds=(theirs.fileno(),), stdout=subprocess.PIPE,
                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
             theirs.close()
-            ours.settimeout(120.0)
-            started[exe] = (proc, ours)
-        for exe, (_proc, sock) in started.items():
-            assert sock.recv(64) == READY, exe
+            ours.settimeout(180.0)
+            started[how] = (proc, ours)
+        for how, (_proc, sock) in started.items():
+            assert sock.recv(64) == READY, how
         names = {name for name, _ in ros_graph.probe.node.get_node_names_and_namespaces()}
-        assert not any(name.startswith("standby_") for name in names), names  # no participant, no node yet
+        assert not names & {"velocity_controller", "plant", "ball_predictor", "catcher"}, names  # no node yet
         failures = []
-        for exe, (proc, sock) in started.items():
-            endings[exe](proc, sock)
+        for how, (proc, sock) in started.items():
+            endings[how](proc, sock)
             code = proc.wait(30.0)
             out = proc.stdout.read().decode(errors="replace")
             if code != 0 or out:
-                failures.append(f"{exe}: exit code {code}, output:\n{out[-1500:]}")
+                failures.append(f"{how}: exit code {code}, output:\n{out[-1500:]}")
         assert not failures, "\n".join(failures)
     finally:
         for proc, sock in started.values():
