@@ -109,7 +109,7 @@ def parsers(repeat: int) -> dict[str, float]:
 
 
 def evaluate(fields: int) -> dict[str, tuple[float, float, float]]:
-    """evaluate_passes on ``fields`` random fields (11 + 3 robots, moving): median, min and max ms per call."""
+    """evaluate_passes on ``fields`` random fields (11 + 3 robots, moving): median, min and max CPU ms per call."""
     import numpy as np
 
     from erforce_ball_model.ball_model import BallModelParams
@@ -133,9 +133,9 @@ def evaluate(fields: int) -> dict[str, tuple[float, float, float]]:
             kwargs = {"receiver_search": searches[1], "from_passer_centre": True, "block_radius_m": radius}
             if k == 0:
                 evaluate_passes(*args, **kwargs)  # compiles or loads what the first call needs
-            t0 = time.perf_counter()
+            t0 = time.process_time()  # CPU time: the machine may be shared
             evaluate_passes(*args, **kwargs)
-            ms.append((time.perf_counter() - t0) * 1e3)
+            ms.append((time.process_time() - t0) * 1e3)
         out[name] = (statistics.median(ms), min(ms), max(ms))
     return out
 
@@ -170,7 +170,7 @@ def main() -> int:
 
 
 def _print_evaluate(fields: int) -> int:
-    print(f"\nevaluate_passes, one call over {fields} random fields (median, range):")
+    print(f"\nevaluate_passes, one call over {fields} random fields (CPU, median, range):")
     for name, (med, lo, hi) in evaluate(fields).items():
         print(f"  {name:40s} {med:7.3f} ms ({lo:.3f}-{hi:.3f})")
     return 0
