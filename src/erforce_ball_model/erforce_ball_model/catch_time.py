@@ -31,11 +31,11 @@ Each window is searched as the flat ball's interval, with the same guarantee ins
 
 Compiled scalar loops: the search is a few hundred branchy scalar steps per robot, too many small
 array operations as numpy (docs/decisions/0028), so it is compiled by numba (``_kernels``: four entry
-points for fixed float64 signatures, the block time's ``robot_time_to_block`` one of them, cached on disk) on a process's first search, not at import: the
-catcher, which asks ``can_reach`` a few dozen times per tick, runs it as Python without numba. The ball
-enters a kernel as its table of pieces (``BallTrajectory.table``) and moves by ball_model's own closed
-forms compiled into it. ``CatchSearch`` checks a team's limits and allocates once, so the predictor pays
-one compiled call per frame; ``robot_time_to_ball`` is the one-off form.
+points, robot_time_to_block's among them, for fixed float64 signatures, cached on disk) on a process's first
+search, not at import: the catcher, which asks ``can_reach`` a few dozen times per tick, runs it as Python
+without numba. The ball enters a kernel as its table of pieces (``BallTrajectory.table``) and moves by
+ball_model's own closed forms compiled into it. ``CatchSearch`` checks a team's limits and allocates once, so
+the predictor pays one compiled call per frame; ``robot_time_to_ball`` is the one-off form.
 """
 
 from __future__ import annotations
