@@ -9,6 +9,9 @@ on_other_robot / on_ball (perf_counter_ns, summed per seed and divided by the 2 
 records' digest per seed must not change with an optimisation (same decisions for the same inputs).
 Part 2 times the table parsers the two nodes run per vision frame on a 14-row /ball/catches and
 /robots/tracked table (CDR bytes, as the nodes take them), and one rclpy Clock.now.
+Part 3 times one evaluate_passes (the passer's rating: 10 candidates, 3 opponents, the receiver search) over
+random fields, with the opponents' body blocks (block_radius_m, as the player rates) and without.
+``--evaluate-only`` runs part 3 alone.
 """
 
 from __future__ import annotations
@@ -105,12 +108,48 @@ def parsers(repeat: int) -> dict[str, float]:
     return out
 
 
+def evaluate(fields: int) -> dict[str, tuple[float, float, float]]:
+    """evaluate_passes on ``fields`` random fields (11 + 3 robots, moving): median, min and max CPU ms per call."""
+    import numpy as np
+
+    from erforce_ball_model.ball_model import BallModelParams
+    from erforce_ball_model.catch_time import CatchSearch, RobotLimits
+    from erforce_ball_model.passing.decisions import PassConfig, evaluate_passes
+    from erforce_interfaces.wire.robot_config import BALL_RADIUS_M, FieldConfig, RobotConfig
+
+    robot, field, cfg, params = RobotConfig(), FieldConfig.preset("division_b"), PassConfig(), BallModelParams()
+    searches = [CatchSearch(n, RobotLimits(), dribbler_offset_m=robot.dribbler_offset_m, field=field)
+                for n in (14, 4)]
+    rng = np.random.default_rng(0)
+    cases = [(rng.uniform((-4.0, -2.5), (4.0, 2.5), (11, 2)), rng.uniform(-1.0, 1.0, (11, 2)),
+              rng.uniform((-4.0, -2.5), (4.0, 2.5), (3, 2)), rng.uniform(-1.5, 1.5, (3, 2))) for _ in range(fields)]
+    out = {}
+    for name, radius in (("evaluate_passes, catches only", 0.0),
+                         ("evaluate_passes, with body blocks", robot.robot_radius_m + BALL_RADIUS_M)):
+        ms = []
+        for k, (team, team_vel, opp, opp_vel) in enumerate(cases):
+            args = (team[0], team, team_vel, opp, opp_vel, range(1, 11), searches[0], params, cfg,
+                    robot.dribbler_offset_m)
+            kwargs = {"receiver_search": searches[1], "from_passer_centre": True, "block_radius_m": radius}
+            if k == 0:
+                evaluate_passes(*args, **kwargs)  # compiles or loads what the first call needs
+            t0 = time.process_time()  # CPU time: the machine may be shared
+            evaluate_passes(*args, **kwargs)
+            ms.append((time.process_time() - t0) * 1e3)
+        out[name] = (statistics.median(ms), min(ms), max(ms))
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--passes", type=int, default=10)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--fields", type=int, default=200, help="random fields for evaluate_passes (part 3)")
+    ap.add_argument("--evaluate-only", action="store_true", help="part 3 alone")
     args = ap.parse_args()
+    if args.evaluate_only:
+        return _print_evaluate(args.fields)
     per_tick: dict[str, list[float]] = defaultdict(list)
     per_call: dict[str, list[float]] = defaultdict(list)
     for seed in args.seeds:
@@ -127,6 +166,13 @@ def main() -> int:
     print("\nparsers, one call (median of repeats of min-of-5 x 200 calls):")
     for name, us in parsers(args.repeat).items():
         print(f"  {name:40s} {us:7.1f} us")
+    return _print_evaluate(args.fields)
+
+
+def _print_evaluate(fields: int) -> int:
+    print(f"\nevaluate_passes, one call over {fields} random fields (CPU, median, range):")
+    for name, (med, lo, hi) in evaluate(fields).items():
+        print(f"  {name:40s} {med:7.3f} ms ({lo:.3f}-{hi:.3f})")
     return 0
 
 

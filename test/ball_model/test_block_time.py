@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from erforce_ball_model import catch_time
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
 from erforce_ball_model.catch_time import RobotLimits, can_reach, robot_time_to_block
 
@@ -100,3 +101,27 @@ def test_dense_brute_force(seed):
         else:  # achievable, never earlier than the dense reference can make it, and near it
             assert t[r] >= ref - 2e-3
             assert t[r] <= ref + 0.05 or (ref == math.inf and t[r] == math.inf)
+
+
+def test_the_block_search_run_as_python_gives_the_compiled_numbers(monkeypatch):
+    """kernels="background" before numba is in answers with the same loop as Python: equal to the bit, for robots
+    at rest and moving, before and after their reaction, on the lane and beside it; "now" is the compiled one."""
+    rng = np.random.default_rng(11)
+    limits = RobotLimits(a_max_mps2=4.5, v_max_mps=2.5)
+    balls, python = [], []
+    monkeypatch.setattr(catch_time, "kernels_loaded", lambda: False)  # as while the thread still loads
+    monkeypatch.setattr(catch_time, "load_kernels_in_background", lambda: None)
+    for k in range(24):
+        ball = BallTrajectory((0.0, 0.0), (rng.uniform(1.0, 6.0), rng.uniform(-1.0, 1.0)), v_shoot_mps=6.0)
+        p0 = np.stack([rng.uniform(-0.2, 4.0, 5), rng.uniform(-1.0, 1.0, 5)], 1)
+        v0 = rng.uniform(-2.0, 2.0, (5, 2)) * (k % 3 != 0)
+        args = (ball, p0, v0, limits, R_BODY, float(rng.uniform(0.2, 3.0)))
+        reaction = float(rng.choice([0.0, 0.1, 0.3]))
+        balls.append((args, reaction))
+        python.append(robot_time_to_block(*args, reaction_s=reaction, kernels="background"))
+    monkeypatch.undo()
+    for (args, reaction), want in zip(balls, python, strict=True):
+        assert np.array_equal(robot_time_to_block(*args, reaction_s=reaction, kernels="now"), want)
+    assert np.isfinite(np.concatenate(python)).any() and np.isinf(np.concatenate(python)).any()
+    with pytest.raises(ValueError, match="kernels"):
+        robot_time_to_block(*balls[0][0], kernels="later")

@@ -30,12 +30,12 @@ its first window there, so a robot under the flight cannot take the ball while i
 Each window is searched as the flat ball's interval, with the same guarantee inside it.
 
 Compiled scalar loops: the search is a few hundred branchy scalar steps per robot, too many small
-array operations as numpy (docs/decisions/0028), so it is compiled by numba (``_kernels``: three entry
-points for fixed float64 signatures, cached on disk) on a process's first search, not at import: the
-catcher, which asks ``can_reach`` a few dozen times per tick, runs it as Python without numba. The ball
-enters a kernel as its table of pieces (``BallTrajectory.table``) and moves by ball_model's own closed
-forms compiled into it. ``CatchSearch`` checks a team's limits and allocates once, so the predictor pays
-one compiled call per frame; ``robot_time_to_ball`` is the one-off form.
+array operations as numpy (docs/decisions/0028), so it is compiled by numba (``_kernels``: four entry
+points, robot_time_to_block's among them, for fixed float64 signatures, cached on disk) on a process's first
+search, not at import: the catcher, which asks ``can_reach`` a few dozen times per tick, runs it as Python
+without numba. The ball enters a kernel as its table of pieces (``BallTrajectory.table``) and moves by
+ball_model's own closed forms compiled into it. ``CatchSearch`` checks a team's limits and allocates once, so
+the predictor pays one compiled call per frame; ``robot_time_to_ball`` is the one-off form.
 """
 
 from __future__ import annotations
@@ -467,7 +467,7 @@ def _catch_search(path, hx, hy, t_min, t_max, h, stops_inside, m1, m2, rest_tol_
 
 @functools.cache
 def _kernels() -> SimpleNamespace:
-    """The three entry points compiled (or loaded from numba's cache beside this module), on first use.
+    """The four entry points compiled (or loaded from numba's cache beside this module), on first use.
 
     The scalar functions they call are compiled into them (``register_jitable``); the cache is keyed
     on this file, so an edit anywhere here recompiles. ``error_model="numpy"``: x / 0 is inf as in
@@ -476,7 +476,8 @@ def _kernels() -> SimpleNamespace:
     numba_ball_type()  # imports numba; ball_model's closed forms become callable from kernels
     from erforce_interfaces.runtime.numba_support import numba, register_jitable
 
-    for scalar in (_axis_time, _axis_min_accel, _time_to_pos, _can_reach, _may_reach, _feasible):
+    for scalar in (_axis_time, _axis_min_accel, _time_to_pos, _can_reach, _may_reach, _feasible, _body_entry,
+                   _block_at):
         register_jitable(error_model="numpy")(scalar)
     f, vec, mat = numba.float64, numba.float64[::1], numba.float64[:, ::1]
 
@@ -488,6 +489,8 @@ def _kernels() -> SimpleNamespace:
         can_reach_many=jit(numba.void(vec, vec, vec, vec, vec, vec, vec, numba.boolean[::1]), _can_reach_many),
         catch_search=jit(numba.boolean(mat, f, f, f, f, f, numba.boolean, numba.int64, numba.int64, f, f, mat, mat,
                                        vec, vec, vec, vec, numba.int8[::1], mat, mat), _catch_search),
+        block_search=jit(numba.void(mat, f, f, numba.int64, numba.int64, f, f, mat, mat, vec, vec, vec),
+                         _block_search),
     )
 
 
@@ -823,7 +826,7 @@ def catch_after_reaction(search: CatchSearch, ball: BallTrajectory, robot_pos_m:
 # --- robotTimeToBlock (beyond the paper) ----------------------------------------------------------
 def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits: RobotLimits, body_radius_m: float,
                         t_end_s: float, *, reaction_s: float = 0.0, grid_step_s: float = _PREDICTOR["grid_step_s"],
-                        refine_steps: int = 12) -> np.ndarray:
+                        refine_steps: int = 12, kernels: str = "now") -> np.ndarray:
     """Earliest time (s, from now) each robot stands with its body on the ball's path where the ball is then: an
     interception without a catch. +inf where none comes before ``t_end_s`` (or the ball's stop).
 
@@ -838,7 +841,8 @@ def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits
     (straight bang-bang to the nearest point), an achievable time for a moving one (at most later than its
     optimum). Grid of ``grid_step_s`` plus the moment the ball's centre reaches the body around the spot
     (a robot at rest beside the path: that window may be narrower than the grid), the first feasible time
-    refined by ``refine_steps`` bisections.
+    refined by ``refine_steps`` bisections. Compiled as the catch search is (``_kernels``); ``kernels="background"``
+    answers with the same loop as Python until they are loaded (CatchSearch's option of that name).
 
     >>> ball = BallTrajectory((0.0, 0.0), (3.0, 0.0), v_shoot_mps=3.0)  # along +x
     >>> limits = RobotLimits(a_max_mps2=4.0, v_max_mps=2.0)
@@ -855,80 +859,78 @@ def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits
             raise ValueError(f"{name}: must be finite and >= 0, got {value!r}")
     if not (math.isfinite(grid_step_s) and grid_step_s > 0.0) or math.isnan(t_end_s):
         raise ValueError(f"grid_step_s must be finite and > 0 and t_end_s a number, got {grid_step_s!r}, {t_end_s!r}")
-    a, vmax = (np.ravel(x).astype(float) for x in _limits_arrays(limits, (len(p0),)))
+    if kernels not in ("now", "background"):
+        raise ValueError(f"kernels: 'now' or 'background', got {kernels!r}")
+    a, vmax = (_kernel_array(np.ravel(x)) for x in _limits_arrays(limits, (len(p0),)))
     t_end = min(float(t_end_s), ball.stop_time_s)
     out = np.full(len(p0), math.inf)
     if not t_end >= 0.0 or not len(p0):
         return out
     if t_end / grid_step_s > MAX_GRID_POINTS:
         raise ValueError(f"block horizon {t_end:.6g} s needs more than {MAX_GRID_POINTS} grid points")
-    grid = np.append(np.arange(0.0, t_end, grid_step_s), t_end)
-    spot = p0 + v0 * np.abs(v0) * (0.5 / a)[:, None]  # where each robot comes to rest braking now
-    entry = _body_entry(ball, spot, body_radius_m)
-    entry[entry > t_end] = math.inf
-    times = np.concatenate([np.broadcast_to(grid, (len(p0), len(grid))), entry[:, None]], axis=1)
-    ok = _blocks(ball, times, p0, v0, spot, a, vmax, body_radius_m, reaction_s)
-    for r in range(len(p0)):
-        hits = np.nonzero(ok[r])[0]
-        if not len(hits):
-            continue
-        first_grid = hits[0] if hits[0] < len(grid) else None
-        t_best = times[r, hits[-1]] if ok[r, -1] else math.inf  # the entry time, when feasible
-        if first_grid is not None and grid[first_grid] < t_best:
-            hi = grid[first_grid]
-            lo = grid[first_grid - 1] if first_grid > 0 else None
-            if lo is not None:
-                for _ in range(refine_steps):  # bisect the first feasible grid step's left edge
-                    mid = 0.5 * (lo + hi)
-                    if _block_at(ball, mid, p0[r], v0[r], spot[r], a[r], vmax[r], body_radius_m, reaction_s):
-                        hi = mid
-                    else:
-                        lo = mid
-            t_best = min(t_best, hi)
-        out[r] = t_best
+    num = math.ceil(t_end / grid_step_s)  # the grid k h for k < num (np.arange's points), then t_end
+    if kernels == "now" or kernels_loaded():
+        _kernels().block_search(ball.table, t_end, grid_step_s, num, refine_steps, body_radius_m, reaction_s,
+                                _kernel_array(p0), _kernel_array(v0), a, vmax, out)
+    else:  # the same loop as Python (CatchSearch's kernels="background"): slower, the same numbers
+        _block_search(ball.rows, t_end, grid_step_s, num, refine_steps, body_radius_m, reaction_s, p0, v0, a, vmax,
+                      out)
+        load_kernels_in_background()
     return out
 
 
-def _body_entry(ball: BallTrajectory, spot: np.ndarray, radius_m: float) -> np.ndarray:
-    """Per robot: when the ball's centre first comes within ``radius_m`` of ``spot`` on the ball's first piece
-    (0 when it starts inside; inf when it never does)."""
-    f = ball.floats
-    rel = spot - np.array([f.x_m, f.y_m])
-    along = rel @ np.array([f.ux, f.uy])
-    off = np.abs(rel @ np.array([-f.uy, f.ux]))
-    enter = along - np.sqrt(np.maximum(radius_m * radius_m - off * off, 0.0))
-    out = np.full(len(spot), math.inf)
-    near = (off <= radius_m) & (along + radius_m >= 0.0)
-    for r in np.nonzero(near)[0]:
-        out[r] = 0.0 if enter[r] <= 0.0 else float(ball.time_to_distance(float(enter[r])))
-    return out
+def _block_search(path, t_end, h, num, refine_steps, radius_m, reaction_s, pos, vel, a, vmax, out):
+    """robot_time_to_block per robot into ``out`` (inf: none): the body-entry time if the robot blocks then, else
+    the first grid time it blocks at, bisected ``refine_steps`` times against the grid point before it. Grid: k h
+    for k < ``num``, then ``t_end``; a grid time at or after a feasible entry time ends the robot's search."""
+    for r in range(pos.shape[0]):
+        px, py, wx, wy, ra, rv = pos[r, 0], pos[r, 1], vel[r, 0], vel[r, 1], a[r], vmax[r]
+        brake = 0.5 / ra
+        sx, sy = px + wx * abs(wx) * brake, py + wy * abs(wy) * brake  # where it comes to rest braking now
+        s0 = math.sqrt(wx * wx + wy * wy)
+        best = _body_entry(path, sx, sy, radius_m)
+        if not (best <= t_end and _block_at(path, best, px, py, wx, wy, s0, sx, sy, ra, rv, radius_m, reaction_s)):
+            best = math.inf
+        for k in range(num + 1):
+            t = k * h if k < num else t_end
+            if t >= best:
+                break
+            if _block_at(path, t, px, py, wx, wy, s0, sx, sy, ra, rv, radius_m, reaction_s):
+                if k > 0:
+                    lo = (k - 1) * h
+                    for _ in range(refine_steps):  # bisect the first feasible grid step's left edge
+                        mid = 0.5 * (lo + t)
+                        if _block_at(path, mid, px, py, wx, wy, s0, sx, sy, ra, rv, radius_m, reaction_s):
+                            t = mid
+                        else:
+                            lo = mid
+                best = t
+                break
+        out[r] = best
 
 
-def _block_at(ball: BallTrajectory, t: float, p0, v0, spot, a: float, vmax: float, radius_m: float,
-              reaction_s: float) -> bool:
-    """``_blocks`` for one robot and one time, in scalar Python (the refinement's few calls)."""
-    bx, by = path_point(ball.rows, t)
+def _body_entry(path, sx: float, sy: float, radius_m: float) -> float:
+    """When the ball's centre first comes within ``radius_m`` of the spot ``(sx, sy)`` on the ball's first piece
+    (0 when it starts inside; inf when it never does, or only after that piece, e.g. off a wall)."""
+    f = path_piece(path, 0)
+    rx, ry = sx - f.x_m, sy - f.y_m
+    along = rx * f.ux + ry * f.uy
+    off = abs(rx * -f.uy + ry * f.ux)
+    if not (off <= radius_m and along + radius_m >= 0.0):
+        return math.inf
+    enter = along - math.sqrt(max(radius_m * radius_m - off * off, 0.0))
+    return 0.0 if enter <= 0.0 else path[0][0] + ball_time_to_distance(f, enter)
+
+
+def _block_at(path, t, px, py, wx, wy, s0, sx, sy, a, vmax, radius_m, reaction_s) -> bool:
+    """Whether the robot at ``(px, py)`` moving at ``(wx, wy)`` (speed ``s0``; braking spot ``(sx, sy)``) blocks
+    the ball at ``t``: before ``reaction_s`` the ball is within ``radius_m`` of where it stands, from then on it
+    reaches, at rest, the point of the ball's body disc nearest to its spot (``robot_time_to_block``)."""
+    bx, by = path_point(path, t)
     if t < reaction_s:
-        return math.hypot(bx - p0[0], by - p0[1]) <= radius_m + 1e-9
-    gx, gy = spot[0] - bx, spot[1] - by
+        return math.hypot(bx - px, by - py) <= radius_m + 1e-9  # (the entry's rounding)
+    gx, gy = sx - bx, sy - by
     gap = math.hypot(gx, gy)
     scale = radius_m / gap if gap > radius_m else 1.0
-    return _can_reach(bx + gx * scale - p0[0], by + gy * scale - p0[1], float(v0[0]), float(v0[1]), t - reaction_s,
-                      float(a), float(vmax))
-
-
-def _blocks(ball: BallTrajectory, times: np.ndarray, p0, v0, spot, a, vmax, radius_m: float,
-            reaction_s: float) -> np.ndarray:
-    """``times`` (R, N): whether robot r blocks the ball at each time (``robot_time_to_block``)."""
-    finite = np.where(np.isfinite(times), times, 0.0)
-    ball_xy = ball.position_at(finite)  # (R, N, 2)
-    to_spot = spot[:, None, :] - ball_xy
-    gap = np.hypot(to_spot[..., 0], to_spot[..., 1])
-    scale = np.where(gap > radius_m, radius_m / np.maximum(gap, 1e-300), 1.0)
-    target = ball_xy + to_spot * scale[..., None]  # the disc's point nearest to the spot (the spot inside it)
-    budget = times - reaction_s
-    d = target - p0[:, None, :]
-    moving = can_reach_in_time(d, np.broadcast_to(v0[:, None, :], d.shape), np.maximum(budget, 0.0),
-                               a[:, None], vmax[:, None])
-    standing = np.hypot(*(ball_xy - p0[:, None, :]).transpose(2, 0, 1)) <= radius_m + 1e-9  # the entry's rounding
-    return np.isfinite(times) & np.where(budget < 0.0, standing, moving)
+    dx, dy, tau = bx + gx * scale - px, by + gy * scale - py, t - reaction_s
+    return _may_reach(dx, dy, wx, wy, s0, tau, a, vmax) and _can_reach(dx, dy, wx, wy, tau, a, vmax)

@@ -41,6 +41,7 @@ question) for every robot on the field, on the ball the kick would make:
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -306,13 +307,22 @@ def _chip_pass(ball: np.ndarray, u: np.ndarray, contact_m: float, cfg: PassConfi
                                                                   v0 * math.sin(a)), chip_params, params), v0
 
 
+@functools.lru_cache(maxsize=8)
+def _their_limits(search: CatchSearch, n_team: int) -> RobotLimits:
+    """The opponents' limits of ``search`` (robots from ``n_team`` on): fixed for a search, made once (the
+    limits' copy and checks cost more than a compiled block search)."""
+    limits = search.limits
+    return RobotLimits(limits.a_max_mps2[n_team:], limits.v_max_mps[n_team:])
+
+
 def _block_times(traj: BallTrajectory, arrival_s: float, opponents_xy, opponents_vel, search: CatchSearch,
                  n_team: int, radius_m: float, reaction_s: float) -> np.ndarray:
     """Each opponent's block time of the pass (catch_time.robot_time_to_block, with the opponents' limits of
-    ``search``) before the ball reaches the receiver (``arrival_s``); inf: it cannot."""
-    limits = search.limits
-    theirs = RobotLimits(limits.a_max_mps2[n_team:], limits.v_max_mps[n_team:])
-    return robot_time_to_block(traj, opponents_xy, opponents_vel, theirs, radius_m, arrival_s, reaction_s=reaction_s)
+    ``search``) before the ball reaches the receiver (``arrival_s``); inf: it cannot. Compiled when ``search``
+    is (its kernels="background" runs Python until they are loaded)."""
+    theirs = _their_limits(search, n_team)
+    return robot_time_to_block(traj, opponents_xy, opponents_vel, theirs, radius_m, arrival_s, reaction_s=reaction_s,
+                               kernels="now" if search.compiled else "background")
 
 
 def press_targets(ball_xy, team_xy: np.ndarray, opponents_xy: np.ndarray, holder: int | None,
