@@ -16,7 +16,7 @@ import pytest
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
-from erforce_interfaces.ssl.ssl_vision import CaptureTimeline, ClockJump, PaceCheck, VisionClock
+from erforce_interfaces.ssl.vision_time import CaptureTimeline, ClockJump, PaceCheck, VisionClock
 
 PERIOD_S = 1.0 / 60.0
 LATENCY_S = 0.004  # capture to send, world time

@@ -17,15 +17,14 @@ from erforce_interfaces.ssl.ssl_vision import (
     BallModelFromVision,
     CameraFrame,
     CameraPose,
-    ClockJump,
     FieldGeometry,
     RobotSighting,
     SslDecodeError,
-    VisionClock,
     decode_wrapper,
     encode_frame,
     encode_geometry,
 )
+from erforce_interfaces.ssl.vision_time import ClockJump, VisionClock
 
 
 def detection_packet(**frame_fields) -> wrap.SSL_WrapperPacket:

@@ -29,22 +29,24 @@ from erforce_ball_model.vision_fast_path import (
 from erforce_ball_model.vision_tracking import MAX_ROBOT_ID, VisionTracker
 from erforce_interfaces.ssl.ssl_proto import ssl_vision_wrapper_pb2 as wrap
 from erforce_interfaces.ssl.ssl_vision import (
+    BallCandidate,
+    CameraFrame,
+    FieldGeometry,
+    RobotSighting,
+    SslDecodeError,
+    decode_wrapper,
+    encode_frame,
+    encode_geometry,
+)
+from erforce_interfaces.ssl.vision_time import (
     CAPTURE_OLD,
     CAPTURE_RESTART,
     TIME_CAPTURE,
     TIME_ESTIMATE,
-    BallCandidate,
-    CameraFrame,
     CaptureOrder,
     CaptureTimeline,
     ClockJump,
-    FieldGeometry,
-    RobotSighting,
-    SslDecodeError,
     VisionClock,
-    decode_wrapper,
-    encode_frame,
-    encode_geometry,
 )
 from erforce_interfaces.wire.clouds import vision_frame_from_msg, vision_robots_points_cdr
 from erforce_interfaces.wire.robot_config import FieldConfig

@@ -68,11 +68,17 @@ from erforce_interfaces.runtime.node_support import (
 )
 from erforce_interfaces.runtime.param_schema import load_schema
 from erforce_interfaces.ssl.ssl_vision import (
+    DROP_CLASSES,
+    TEAMS,
+    DecodedPacket,
+    DetectionArrays,
+    SslDecodeError,
+    decode_wrapper,
+)
+from erforce_interfaces.ssl.vision_time import (
     CAPTURE_OLD,
     CAPTURE_RESTART,
     CLOCK_CAMERAS,
-    DROP_CLASSES,
-    TEAMS,
     TIME_CAPTURE,
     TIME_ESTIMATE,
     TIME_SOURCES,
@@ -80,15 +86,11 @@ from erforce_interfaces.ssl.ssl_vision import (
     CaptureOrder,
     CaptureTimeline,
     ClockJump,
-    DecodedPacket,
-    DetectionArrays,
     PaceCheck,
-    SslDecodeError,
     VisionClock,
     capture_back_text,
     capture_restart_text,
     clock_jump_text,
-    decode_wrapper,
     timeline_jump_text,
 )
 from erforce_interfaces.wire import contract

@@ -9,11 +9,11 @@ returned) and anything unusual, which the pass hands back before it has changed 
 bridge runs the general path on the datagram, which names the problem) or after (``PASS_GENERAL``: a robot
 the points cannot carry; ``PASS_T_CAPTURE_BACK``, ``PASS_CLOCK_JUMP``, ``PASS_TIMELINE_JUMP``,
 ``PASS_BAD_STAMP``: the frame is refused, ``info`` says why). Every frame passes the cameras' capture order first
-(ssl_vision.CaptureOrder, the one check that a camera's frame is after its newest, in every time source); the
-stamp comes from the time source's mode (ssl_vision.TIME_SOURCES: the vision clock's estimate, ``t_capture`` as
+(vision_time.CaptureOrder, the one check that a camera's frame is after its newest, in every time source); the
+stamp comes from the time source's mode (vision_time.TIME_SOURCES: the vision clock's estimate, ``t_capture`` as
 it is, or the capture timeline).
 The message written is byte for byte what ``clouds.vision_robots_points_cdr`` builds from the same
-points. The kernels it calls from other modules (ssl_vision's clock and timeline, the tracker's) are compiled
+points. The kernels it calls from other modules (vision_time's clock and timeline, the tracker's) are compiled
 into it, and numba's cache of this module goes by this file alone: a change there needs this file touched
 (or its ``__pycache__`` entries removed) to take effect here.
 """
@@ -49,24 +49,26 @@ from erforce_ball_model.vision_tracking import (
 )
 from erforce_interfaces.runtime.numba_support import compiled_for, numba
 from erforce_interfaces.ssl.ssl_vision import (
+    MM,
+    CameraFrame,
+    DecodeLimits,
+    RobotSighting,
+    detection_rows,
+    detection_rows_size,
+    encode_frame,
+)
+from erforce_interfaces.ssl.vision_time import (
     CAPTURE_OLD,
     CAPTURE_RESTART,
-    MM,
     TIME_CAPTURE,
     TIME_ESTIMATE,
     TIME_VISION,
     TIMELINE_BACK,
-    CameraFrame,
     CaptureOrder,
     CaptureTimeline,
-    DecodeLimits,
-    RobotSighting,
     VisionClock,
     capture_step,
     clock_step,
-    detection_rows,
-    detection_rows_size,
-    encode_frame,
     timeline_step,
 )
 from erforce_interfaces.wire import contract

@@ -209,24 +209,10 @@ def evaluate_passes(
     (``_block_times``); 0: the opponents' catches only (the paper's rating).
     """
     team_xy, opponents_xy = np.asarray(team_xy, dtype=float), np.asarray(opponents_xy, dtype=float)
-    n_team = len(team_xy)
-    pos = np.concatenate([team_xy, opponents_xy]).reshape(-1, 2)
-    vel = np.concatenate([np.asarray(team_vel, dtype=float), np.asarray(opponents_vel, dtype=float)]).reshape(-1, 2)
-    if search.num_robots != len(pos):
-        raise ValueError(f"search is for {search.num_robots} robots, the field has {len(pos)}")
-    ball = origin = np.asarray(ball_xy, dtype=float)
-    facing_fixed = np.zeros(len(pos), dtype=bool)
-    facing = np.zeros(len(pos))
     next_targets = {} if next_targets is None else next_targets
-    # a robot that is not finite makes the whole field's search refuse the pass (ValueError): left to it
-    narrow = receiver_search is not None and bool(np.isfinite(pos).all() and np.isfinite(vel).all())
-    if narrow:
-        if receiver_search.num_robots != 1 + len(opponents_xy):
-            raise ValueError(f"receiver_search is for {receiver_search.num_robots} robots, the receiver and the "
-                             f"opponents are {1 + len(opponents_xy)}")
-        # row 0: the receiver's, set per pass; then the opponents
-        sub_pos, sub_vel = np.concatenate([pos[:1], pos[n_team:]]), np.concatenate([vel[:1], vel[n_team:]])
-        sub_fixed, sub_facing = np.zeros(len(sub_pos), dtype=bool), np.zeros(len(sub_pos))
+    robots = _PassRobots.of(team_xy, team_vel, opponents_xy, opponents_vel, search, receiver_search, cfg,
+                            next_targets)
+    ball = origin = np.asarray(ball_xy, dtype=float)
     options = []
     for j in candidates:
         centre = team_xy[j]
@@ -238,54 +224,120 @@ def evaluate_passes(
         distance = math.dist(centre, ball)
         if not cfg.min_distance_m <= distance <= cfg.max_distance_m:
             continue
-        u = (centre - ball) / distance
-        receive_rad = math.atan2(-u[1], -u[0])
-        aim = centre - dribbler_offset_m * u  # the dribbler's centre, facing the ball
-        if j in next_targets:
-            for _ in range(3):  # the facing moves the aim by at most the offset: a fixed point, reached fast
-                receive_rad = receive_facing(u, centre, next_targets[j], max_receive_angle_rad)
-                aim = centre + contact_offset(receive_rad, dribbler_offset_m)
-                if from_passer_centre:  # the kick point turns with the pass: on the line from the centre to aim
-                    ball = origin + dribbler_offset_m * (aim - origin) / math.dist(aim, origin)
-                u = (aim - ball) / math.dist(aim, ball)
-        contact_m = float((aim - ball) @ u)  # ball travel to the receiver's dribbler
-
-        def rate(traj, j=j, receive_rad=receive_rad):
-            """(the receiver's robotTimeToBall, every opponent's), reaction included, on the ball ``traj``."""
-            if narrow:
-                sub_pos[0], sub_vel[0] = pos[j], vel[j]
-                sub_fixed[0], sub_facing[0] = j in next_targets, receive_rad
-                times = _times(catch_after_reaction(receiver_search, traj, sub_pos, sub_vel, cfg.reaction_s,
-                                                    sub_fixed, sub_facing, 0.1), cfg.reaction_s)
-                return times[0], times[1:]
-            facing_fixed[j], facing[j] = j in next_targets, receive_rad
-            try:
-                times = _times(catch_after_reaction(search, traj, pos, vel, cfg.reaction_s, facing_fixed, facing,
-                                                    0.1), cfg.reaction_s)
-            finally:
-                facing_fixed[j] = False
-            return times[j], times[n_team:]
-
-        v0 = min(max(kick_speed_for(contact_m, cfg.arrive_speed_mps, params), cfg.min_kick_mps), cfg.max_kick_mps)
-        traj = BallTrajectory.of_floats(float(ball[0]), float(ball[1]), float(u[0] * v0), float(u[1] * v0), v0, params)
-        receiver_time, opp = rate(traj)
-        arrival_s = float(traj.time_to_distance(contact_m))
-        if block_radius_m > 0.0 and len(opp):  # an opponent's body on the flat ball's path stops it too
-            opp = np.minimum(opp, _block_times(traj, arrival_s, opponents_xy, opponents_vel, search, n_team,
-                                               block_radius_m, cfg.reaction_s))
-        option = _option(j, v0, u, arrival_s if math.isfinite(receiver_time) else math.inf, opp, receive_rad, 0.0)
-        if cfg.chip_angle_deg > 0.0 and not option.safe(cfg):
-            chip, chip_v0 = _chip_pass(ball, u, contact_m, cfg, params, chip_params)
-            receiver_time, opp = rate(chip)
-            track = chip.ground_track()
-            arrival_s = float(track.time_to_distance(contact_m)) if math.isfinite(receiver_time) else math.inf
-            if math.isfinite(arrival_s) and chip.position_at(arrival_s)[2] > chip.params.max_catch_height_m:
-                arrival_s = math.inf  # it would fly over the receiver
-            lob = _option(j, chip_v0, u, arrival_s, opp, receive_rad, cfg.chip_angle_deg)
-            if lob.safe(cfg) or lob.margin_s > option.margin_s:
-                option = lob
-        options.append(option)
+        ball, u, receive_rad, contact_m = _receive_geometry(
+            centre, ball, origin, distance, next_targets[j] if j in next_targets else None, dribbler_offset_m,
+            max_receive_angle_rad, from_passer_centre)
+        options.append(_pass_option(robots, j, ball, u, receive_rad, contact_m, params, cfg, chip_params,
+                                    opponents_xy, opponents_vel, block_radius_m))
     return options
+
+
+@dataclass
+class _PassRobots:
+    """The robots a pass is rated against (teammates first, then the opponents) and the searches that rate it
+    (evaluate_passes); ``narrow``: each pass searches only its receiver and the opponents."""
+
+    pos: np.ndarray
+    vel: np.ndarray
+    n_team: int
+    search: CatchSearch
+    cfg: PassConfig
+    next_targets: Mapping[int, Sequence[float]]
+    facing_fixed: np.ndarray
+    facing: np.ndarray
+    narrow: bool
+    receiver_search: CatchSearch | None = None
+    sub_pos: np.ndarray | None = None
+    sub_vel: np.ndarray | None = None
+    sub_fixed: np.ndarray | None = None
+    sub_facing: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, team_xy: np.ndarray, team_vel, opponents_xy: np.ndarray, opponents_vel, search: CatchSearch,
+           receiver_search: CatchSearch | None, cfg: PassConfig,
+           next_targets: Mapping[int, Sequence[float]]) -> _PassRobots:
+        n_team = len(team_xy)
+        pos = np.concatenate([team_xy, opponents_xy]).reshape(-1, 2)
+        vel = np.concatenate([np.asarray(team_vel, dtype=float),
+                              np.asarray(opponents_vel, dtype=float)]).reshape(-1, 2)
+        if search.num_robots != len(pos):
+            raise ValueError(f"search is for {search.num_robots} robots, the field has {len(pos)}")
+        # a robot that is not finite makes the whole field's search refuse the pass (ValueError): left to it
+        narrow = receiver_search is not None and bool(np.isfinite(pos).all() and np.isfinite(vel).all())
+        robots = cls(pos, vel, n_team, search, cfg, next_targets, np.zeros(len(pos), dtype=bool),
+                     np.zeros(len(pos)), narrow)
+        if narrow:
+            if receiver_search.num_robots != 1 + len(opponents_xy):
+                raise ValueError(f"receiver_search is for {receiver_search.num_robots} robots, the receiver and the "
+                                 f"opponents are {1 + len(opponents_xy)}")
+            # row 0: the receiver's, set per pass; then the opponents
+            robots.receiver_search = receiver_search
+            robots.sub_pos = np.concatenate([pos[:1], pos[n_team:]])
+            robots.sub_vel = np.concatenate([vel[:1], vel[n_team:]])
+            robots.sub_fixed = np.zeros(len(robots.sub_pos), dtype=bool)
+            robots.sub_facing = np.zeros(len(robots.sub_pos))
+        return robots
+
+    def rate(self, traj, j: int, receive_rad: float) -> tuple[float, np.ndarray]:
+        """(the receiver ``j``'s robotTimeToBall, every opponent's), reaction included, on the ball ``traj``."""
+        cfg = self.cfg
+        if self.narrow:
+            self.sub_pos[0], self.sub_vel[0] = self.pos[j], self.vel[j]
+            self.sub_fixed[0], self.sub_facing[0] = j in self.next_targets, receive_rad
+            times = _times(catch_after_reaction(self.receiver_search, traj, self.sub_pos, self.sub_vel,
+                                                cfg.reaction_s, self.sub_fixed, self.sub_facing, 0.1), cfg.reaction_s)
+            return times[0], times[1:]
+        self.facing_fixed[j], self.facing[j] = j in self.next_targets, receive_rad
+        try:
+            times = _times(catch_after_reaction(self.search, traj, self.pos, self.vel, cfg.reaction_s,
+                                                self.facing_fixed, self.facing, 0.1), cfg.reaction_s)
+        finally:
+            self.facing_fixed[j] = False
+        return times[j], times[self.n_team:]
+
+
+def _receive_geometry(centre: np.ndarray, ball: np.ndarray, origin: np.ndarray, distance: float,
+                      next_target: Sequence[float] | None, dribbler_offset_m: float, max_receive_angle_rad: float,
+                      from_passer_centre: bool) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(kick point, pass direction, the receiver's facing, ball travel to its dribbler) of a pass to the robot at
+    ``centre``: facing the ball, or its ``next_target`` within ``max_receive_angle_rad`` (evaluate_passes)."""
+    u = (centre - ball) / distance
+    receive_rad = math.atan2(-u[1], -u[0])
+    aim = centre - dribbler_offset_m * u  # the dribbler's centre, facing the ball
+    if next_target is not None:
+        for _ in range(3):  # the facing moves the aim by at most the offset: a fixed point, reached fast
+            receive_rad = receive_facing(u, centre, next_target, max_receive_angle_rad)
+            aim = centre + contact_offset(receive_rad, dribbler_offset_m)
+            if from_passer_centre:  # the kick point turns with the pass: on the line from the centre to aim
+                ball = origin + dribbler_offset_m * (aim - origin) / math.dist(aim, origin)
+            u = (aim - ball) / math.dist(aim, ball)
+    contact_m = float((aim - ball) @ u)  # ball travel to the receiver's dribbler
+    return ball, u, receive_rad, contact_m
+
+
+def _pass_option(robots: _PassRobots, j: int, ball: np.ndarray, u: np.ndarray, receive_rad: float,
+                 contact_m: float, params: BallModelParams, cfg: PassConfig, chip_params: ChipParams | None,
+                 opponents_xy: np.ndarray, opponents_vel, block_radius_m: float) -> PassOption:
+    """The pass to ``j`` rated flat, and as a chip when that is not safe (evaluate_passes)."""
+    v0 = min(max(kick_speed_for(contact_m, cfg.arrive_speed_mps, params), cfg.min_kick_mps), cfg.max_kick_mps)
+    traj = BallTrajectory.of_floats(float(ball[0]), float(ball[1]), float(u[0] * v0), float(u[1] * v0), v0, params)
+    receiver_time, opp = robots.rate(traj, j, receive_rad)
+    arrival_s = float(traj.time_to_distance(contact_m))
+    if block_radius_m > 0.0 and len(opp):  # an opponent's body on the flat ball's path stops it too
+        opp = np.minimum(opp, _block_times(traj, arrival_s, opponents_xy, opponents_vel, robots.search,
+                                           robots.n_team, block_radius_m, cfg.reaction_s))
+    option = _option(j, v0, u, arrival_s if math.isfinite(receiver_time) else math.inf, opp, receive_rad, 0.0)
+    if cfg.chip_angle_deg > 0.0 and not option.safe(cfg):
+        chip, chip_v0 = _chip_pass(ball, u, contact_m, cfg, params, chip_params)
+        receiver_time, opp = robots.rate(chip, j, receive_rad)
+        track = chip.ground_track()
+        arrival_s = float(track.time_to_distance(contact_m)) if math.isfinite(receiver_time) else math.inf
+        if math.isfinite(arrival_s) and chip.position_at(arrival_s)[2] > chip.params.max_catch_height_m:
+            arrival_s = math.inf  # it would fly over the receiver
+        lob = _option(j, chip_v0, u, arrival_s, opp, receive_rad, cfg.chip_angle_deg)
+        if lob.safe(cfg) or lob.margin_s > option.margin_s:
+            option = lob
+    return option
 
 
 def _option(j: int, v0: float, u: np.ndarray, arrival_s: float, opp: np.ndarray, receive_rad: float,

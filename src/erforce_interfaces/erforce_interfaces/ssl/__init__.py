@@ -1,4 +1,5 @@
-"""The SSL league's protocols as the league defines them: SSL-Vision datagrams (``ssl_vision``), the
+"""The SSL league's protocols as the league defines them: SSL-Vision datagrams (``ssl_vision``) and the time
+of their frames on the receiver (``vision_time``), the
 simulation control and robot protocols of ER-Force's simulator and grSim (``ssl_sim``), log files and
 their replay (``ssl_log``, ``ssl_log_replay``) and our own ``.proto`` definitions (``ssl_proto``).
 
