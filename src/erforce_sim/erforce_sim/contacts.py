@@ -122,21 +122,29 @@ def _wall_impulse(vx: float, vy: float, w: float, nx: float, ny: float, radius: 
     return vx + (jn * nx + jt * tx) * inv_m, vy + (jn * ny + jt * ty) * inv_m, w - radius * jt / inertia
 
 
+def _wall_contacts(x: float, y: float, radius: float, half_x: float, half_y: float):
+    """Each wall a round body at (x, y) overlaps, in turn: the body's position put back inside the walls and
+    the wall's normal (nx, ny) into the field."""
+    for axis in (0, 1):
+        lim = (half_x if axis == 0 else half_y) - radius
+        pos = x if axis == 0 else y
+        if -lim <= pos <= lim:
+            continue
+        sign = 1.0 if pos > lim else -1.0
+        if axis == 0:
+            x = sign * lim
+            yield x, y, -sign, 0.0
+        else:
+            y = sign * lim
+            yield x, y, 0.0, -sign
+
+
 def ball_walls(ball: BallBody, half_x: float, half_y: float, p: ContactParams) -> bool:
     """Ball against the four walls. Returns True when a contact was resolved."""
     r = ball.radius
     hit = False
-    for axis in (0, 1):
-        lim = (half_x if axis == 0 else half_y) - r
-        pos = ball.x if axis == 0 else ball.y
-        if -lim <= pos <= lim:
-            continue
-        sign = 1.0 if pos > lim else -1.0
-        nx, ny = (-sign, 0.0) if axis == 0 else (0.0, -sign)  # normal into the field
-        if axis == 0:
-            ball.x = sign * lim
-        else:
-            ball.y = sign * lim
+    for x, y, nx, ny in _wall_contacts(ball.x, ball.y, r, half_x, half_y):
+        ball.x, ball.y = x, y
         hit = True
         if ball.vx * nx + ball.vy * ny >= 0.0:
             continue
@@ -149,17 +157,8 @@ def ball_walls(ball: BallBody, half_x: float, half_y: float, p: ContactParams) -
 def robot_walls(rb: RobotPlant, radius: float, half_x: float, half_y: float, p: ContactParams) -> bool:
     hit = False
     k = rb.k
-    for axis in (0, 1):
-        lim = (half_x if axis == 0 else half_y) - radius
-        pos = rb.x if axis == 0 else rb.y
-        if -lim <= pos <= lim:
-            continue
-        sign = 1.0 if pos > lim else -1.0
-        nx, ny = (-sign, 0.0) if axis == 0 else (0.0, -sign)
-        if axis == 0:
-            rb.x = sign * lim
-        else:
-            rb.y = sign * lim
+    for x, y, nx, ny in _wall_contacts(rb.x, rb.y, radius, half_x, half_y):
+        rb.x, rb.y = x, y
         hit = True
         if rb.vx * nx + rb.vy * ny >= 0.0 or rb.lifted:
             continue

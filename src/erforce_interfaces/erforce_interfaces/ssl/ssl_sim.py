@@ -37,6 +37,7 @@ from erforce_interfaces.ssl.ssl_proto import (
     ssl_simulation_robot_control_pb2,
     ssl_simulation_robot_feedback_pb2,
 )
+from erforce_interfaces.wire.conversions import finite_within
 from erforce_interfaces.wire.robot_config import half_turn, turned_half
 
 _BRIDGE = schema_defaults("erforce_sim", "ssl_sim_bridge")  # the bridge node's defaults
@@ -96,12 +97,7 @@ def _parse(message, data: bytes, what: str):
 
 def finite_value(what: str, value: float, limit: float) -> float:
     """``value`` as a float; WireError when it is not finite or beyond +-``limit``."""
-    value = float(value)
-    if not math.isfinite(value):
-        raise WireError(f"{what} is not finite ({value!r})")
-    if abs(value) > limit:
-        raise WireError(f"{what} = {value:g} is beyond {limit:g}")
-    return value
+    return finite_within(what, value, limit, WireError)
 
 
 def _count(what: str, items: Sequence) -> None:

@@ -110,42 +110,30 @@ def dds_profile_env(environ: Mapping[str, str] = os.environ) -> dict[str, str]:
     return env
 
 
+def _keep_last(depth: int, reliable: bool = True, latched: bool = False) -> QoSProfile:
+    """A keep-last profile: reliable or best effort, volatile or kept for late joiners (transient local)."""
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )
+
+
 # QoS profiles. Vision behaves like a camera: best effort, newest wins. Commands and the
 # lockstep control loop are reliable: a lost duty message would stall a tick.
-QOS_SENSOR = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=5,
-    reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE,
-)
-QOS_COMMAND = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
-)
-QOS_CONTROL = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=50,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
-)
-QOS_STATE = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
-)
+QOS_SENSOR = _keep_last(5, reliable=False)
+QOS_COMMAND = _keep_last(10)
+QOS_CONTROL = _keep_last(50)
+QOS_STATE = _keep_last(10)
 # Models and geometry, state a late joiner needs at once (the ball model in use): the newest value is kept
 # for it.
-QOS_LATCHED = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+QOS_LATCHED = _keep_last(1, latched=True)
 # /clock: reliable publisher, compatible with rclpy's best-effort clock subscription.
-QOS_CLOCK = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE,
-)
+QOS_CLOCK = _keep_last(1)
 
 # A log of events a late joiner needs whole (each pass as it ends): a tool started after the game did, or one
 # whose discovery a loaded machine held up, still gets every entry.
-QOS_LOG = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+QOS_LOG = _keep_last(1000, latched=True)
 
 QOS_NAMES = {
     id(QOS_SENSOR): "sensor (best effort, keep last 5)",

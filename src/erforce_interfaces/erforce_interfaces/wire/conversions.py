@@ -49,13 +49,18 @@ class ConversionError(ValueError):
     """A message that the cores must not see (non-finite, absurd, or mis-shaped)."""
 
 
-def _finite(name: str, value: float, limit: float = MAX_ABS_VALUE) -> float:
+def finite_within(name: str, value: float, limit: float = MAX_ABS_VALUE,
+                  error: type[ValueError] = ConversionError) -> float:
+    """``value`` as a float; ``error`` when it is not finite or beyond +-``limit``."""
     v = float(value)
     if not math.isfinite(v):
-        raise ConversionError(f"{name} is not finite ({v!r})")
+        raise error(f"{name} is not finite ({v!r})")
     if abs(v) > limit:
-        raise ConversionError(f"{name} = {v!r} exceeds the accepted magnitude {limit:g}")
+        raise error(f"{name} = {v!r} is beyond the accepted magnitude {limit:g}")
     return v
+
+
+_finite = finite_within  # the short name the converters below use
 
 
 def _finite_array(name: str, values: Sequence[float], length: int | None, limit: float) -> np.ndarray:
