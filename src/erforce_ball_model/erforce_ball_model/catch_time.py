@@ -382,6 +382,8 @@ class CatchResult:
 _MOVING, _AT_REST, _NEVER = int(CatchKind.MOVING), int(CatchKind.AT_REST), int(CatchKind.NEVER)
 
 
+# One numba kernel, 81 lines with its docstring: the grid pass, the witness and the refinement share the
+# robot's loop state, and splitting them would pass it through calls in the hot loop.
 def _catch_search(path, hx, hy, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, pos, vel, facing, a,
                   vmax, time_out, kind_out, ball_out, target_out):
     """robotTimeToBall per robot (the module docstring): time, kind, ball position and robot target.
