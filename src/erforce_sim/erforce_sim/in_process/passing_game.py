@@ -21,11 +21,12 @@ as it ends (``PassRecord``, with the true ball path).
 
 Each pass is reported as it ends (``PassRecord``, with the true ball path).
 
-A chipped pass flies over the opponents (passing.decisions.evaluate_passes). The predictor's tracker does not fly a
-chip (it tracks the ball's shadow as a rolling ball); with ``GameConfig.true_chip`` the game hands the AI the
-simulator's true ball while it is in the air, as a chip (its catch table from the predictor's search on it):
-what a chip-tracking predictor would say. The predictor's own chip (``BallFrame.chip``, from cameras it knows the
-position of) is passed on as it is.
+A chipped pass flies over the opponents (passing.decisions.evaluate_passes). The ball reaches the predictor as the
+four quadrant cameras (ssl_cameras) see it, each sighting with its camera's position, and each kick as the kicker's
+word (``BallPredictor.kick_hint``, stamped with the newest frame's capture time), as the graph's predictor gets
+them: its own chip (``BallFrame.chip``) is passed on as it is. With ``GameConfig.true_chip`` the game hands the AI
+the simulator's true ball while it is in the air and the predictor has no chip yet (its catch table from the
+predictor's search on it): a perfect chip tracker, for comparison.
 
     python -m erforce_sim.in_process.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
 
@@ -37,6 +38,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import random
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -55,6 +57,7 @@ from erforce_interfaces.wire.robot_config import TEAM_SIZE, FieldConfig, RobotCo
 from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.plant_setup import PlantSetup
 from erforce_sim.sensors import VisionFrame
+from erforce_sim.ssl_cameras import CAMERA_HEIGHT_M, CAMERA_NOISE_M, ground_point, quadrant_cameras
 
 _PLANT = schema_defaults("erforce_sim", "plant")
 
@@ -79,6 +82,7 @@ class GameConfig:
     team_positions: tuple[tuple[float, float], ...] = TEAM_POSITIONS  # the first team_size play
     opponent_positions: tuple[tuple[float, float], ...] = OPPONENT_POSITIONS
     true_chip: bool = False  # a ball in the air reaches the AI as the simulator's true chip (module docstring)
+    kick_hints: bool = True  # each kick goes to the predictor as the kicker's word (the node's kick_hints)
 
     def __post_init__(self) -> None:
         if not 2 <= self.team_size <= len(self.team_positions):
@@ -140,6 +144,12 @@ class PassingGame:
         self._dribblers = dict.fromkeys(range(self.n_team), False)
         self._path: list[tuple[float, float]] = []  # the true ball path of the pass that rolls
         self._records: list[PassRecord] = []
+        # SSL-Vision's cameras over the field (ssl_cameras.quadrant_cameras, each with its position as the geometry
+        # gives it): the predictor's chip detector needs the camera of each sighting.
+        self._cameras = [(cam, (0.5 * sum(cam.x_range_m), 0.5 * sum(cam.y_range_m), CAMERA_HEIGHT_M))
+                         for cam in quadrant_cameras(self.field)]
+        self._camera_rng = random.Random(seed)
+        self._t_vision_s: float | None = None  # the newest ball frame's capture time: the predictor's clock
 
     @property
     def records(self) -> list[PassRecord]:
@@ -176,7 +186,15 @@ class PassingGame:
                 self.opponents.on_other_robot(i, now, self.poses[i])
         for b in frame.balls[:1]:
             t0 = time.thread_time()
-            answer = self.predictor.ball_frame(t, b.x, b.y)
+            self._t_vision_s = t
+            sightings = self._camera_sightings(b)
+            if sightings:
+                (camera, x, y), others = sightings[0], sightings[1:]
+                answer = self.predictor.ball_frame(t, x, y, camera_m=camera)
+                for camera, x, y in others:
+                    self.predictor.ball_sighting(t, x, y, camera)
+            else:  # outside every camera's area: where the frame has it, for the flat filter only
+                answer = self.predictor.ball_frame(t, b.x, b.y)
             self.frame_costs_s.append(time.thread_time() - t0)
             if answer is None:
                 continue
@@ -202,6 +220,20 @@ class PassingGame:
             opponents.on_ball(now, traj.position_m, traj.velocity_mps)
             if v_shoot is not None:
                 opponents.on_v_shoot(now, v_shoot)
+
+    def _camera_sightings(self, b) -> list[tuple[tuple[float, float, float], float, float]]:
+        """The ball as the quadrant cameras see it (camera position, ground point), the first camera's as the frame
+        has it (on the ground: exactly), each other's with its own noise: a flying ball projects differently in
+        each, which is how the chip detector sees it in the air (as on the graph behind SSL-Vision)."""
+        out = []
+        for cam, camera_m in self._cameras:
+            x, y = ground_point(b.x, b.y, b.z, camera_m)
+            if cam.sees(x, y):
+                if out:
+                    gauss = self._camera_rng.gauss
+                    x, y = x + gauss(0.0, CAMERA_NOISE_M), y + gauss(0.0, CAMERA_NOISE_M)
+                out.append((camera_m, x, y))
+        return out
 
     def _chip_answer(self, answer, now: float):
         """The predictor's chip, when it tracks one, as the ball; with ``true_chip`` the simulator's true ball while it
@@ -267,7 +299,11 @@ class PassingGame:
                 for i, speed in commands.kicks.items():
                     world.set_dribbler(i, False)
                     self._dribblers[i] = False
-                    world.kick(i, speed, armed_for_s=0.1, angle_deg=commands.kick_angles.get(i, 0.0))
+                    angle_deg = commands.kick_angles.get(i, 0.0)
+                    world.kick(i, speed, armed_for_s=0.1, angle_deg=angle_deg)
+                    # the kicker's word, at the predictor's clock (as on the graph)
+                    if cfg.kick_hints and self._t_vision_s is not None:
+                        self.predictor.kick_hint(self._t_vision_s, angle_deg)
                 self._apply(now)
                 twists = {i: np.zeros(3) for i in range(n)}
                 twists.update(commands.twists)
@@ -330,11 +366,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--chip-angle", type=float, default=PassConfig().chip_angle_deg,
                         help="chip passes at this elevation [deg] (0: flat passes only)")
     parser.add_argument("--true-chip", action="store_true",
-                        help="a ball in the air reaches the AI as the simulator's true chip (no chip tracker yet)")
+                        help="a ball in the air reaches the AI as the true chip while the predictor has none")
+    parser.add_argument("--no-kick-hints", action="store_true", help="chips from the cameras alone (no kick hints)")
     args = parser.parse_args(argv)
     player = PlayerConfig(passing=dataclasses.replace(PassConfig(), chip_angle_deg=args.chip_angle))
     cfg = GameConfig(team_size=args.team, opponents=args.opponents, passes=args.passes, player=player,
-                     true_chip=args.true_chip)
+                     true_chip=args.true_chip, kick_hints=not args.no_kick_hints)
     game = PassingGame(cfg, args.seed, on_pass=lambda r: print(r.line(), flush=True))
     wall0 = time.perf_counter()
     records = game.play()
