@@ -57,6 +57,26 @@ def test_with_chips_the_pass_over_the_opponent_on_the_only_lane_is_safe_and_comp
     assert record.rated_safe and record.outcome == "completed" and record.caught_by == "robot_1"
 
 
+@pytest.mark.parametrize("hints", [True, False])
+def test_the_predictor_sees_the_chip_through_the_cameras_and_the_pass_completes(hints):
+    """The chip scene above without the true chip: the predictor's chip detector, fed each camera's projected
+    ball (and the kick as a hint), reports the chip during its flight (0.58 s for 45 deg at 4 m/s and more), and
+    the receiver takes it."""
+    cfg = GameConfig(team_size=2, opponents=1, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)),
+                     opponent_positions=((-3.0, 0.4),), kick_hints=hints)
+    detected = []
+
+    def on_tick(game) -> None:
+        t = game.predictor.chip_detector.detected_at_s
+        if t is not None and t not in detected:
+            detected.append(t)
+
+    (record,) = PassingGame(cfg, seed=0, on_tick=on_tick).play()
+    assert record.kick_angle_deg == pytest.approx(45.0)
+    assert len(detected) == 1 and 0.0 < detected[0] - record.t_kick_s < 0.5
+    assert record.rated_safe and record.outcome == "completed" and record.caught_by == "robot_1"
+
+
 def test_the_passing_scenario_writes_the_plot_the_summary_and_a_bag(tmp_path):
     """``./run demo --scenario passing --in-process``: each pass on the terminal, and report/<time>/ with passes.png,
     summary.md (a row per pass) and a rosbag2/MCAP bag of the ground truth of every robot and the pass events."""
