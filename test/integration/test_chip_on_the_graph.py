@@ -48,12 +48,17 @@ def director(ros_graph):
     d.close()
 
 
+def ball_topics(probe) -> tuple[list, list, list]:
+    """What the probe receives on /ball/state, /ball/phase and the plant's ground truth of the ball."""
+    return (probe.subscribe(contract.BALL_STATE.name, Odometry, contract.BALL_STATE.qos),
+            probe.subscribe(contract.BALL_PHASE.name, String, contract.BALL_PHASE.qos),
+            probe.subscribe(contract.GROUND_TRUTH_BALL.name, Odometry, contract.GROUND_TRUTH_BALL.qos))
+
+
 def test_a_chip_in_the_plant_shows_on_ball_state_in_the_air(director):
     d, graph, launch = director
     probe = graph.probe
-    states = probe.subscribe(contract.BALL_STATE.name, Odometry, contract.BALL_STATE.qos)
-    phases = probe.subscribe(contract.BALL_PHASE.name, String, contract.BALL_PHASE.qos)
-    truth = probe.subscribe(contract.GROUND_TRUTH_BALL.name, Odometry, contract.GROUND_TRUTH_BALL.qos)
+    states, phases, truth = ball_topics(probe)
 
     def still_at_start() -> bool:
         """The predictor has had the ball lying at START for REST_S (its stamps): the placement, a motion of its
@@ -110,9 +115,7 @@ KICKS = 3
 def test_a_chip_kicked_by_a_robot_shows_on_ball_state_within_the_deadline(director):
     d, graph, launch = director
     probe = graph.probe
-    states = probe.subscribe(contract.BALL_STATE.name, Odometry, contract.BALL_STATE.qos)
-    phases = probe.subscribe(contract.BALL_PHASE.name, String, contract.BALL_PHASE.qos)
-    truth = probe.subscribe(contract.GROUND_TRUTH_BALL.name, Odometry, contract.GROUND_TRUTH_BALL.qos)
+    states, phases, truth = ball_topics(probe)
     kick_angle = probe.node.create_publisher(Float64, contract.KICK_ANGLE.for_robot(KICKER), contract.KICK_ANGLE.qos)
     ball = d.ball_at_kicker(KICKER_POSE)
     delays = []
