@@ -26,7 +26,7 @@ import os
 import threading
 import time
 
-from std_msgs.msg import Bool, Float64MultiArray, String
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import RobotLimits, load_kernels
@@ -43,6 +43,7 @@ from erforce_interfaces.runtime.node_support import (
     sample_clock,
 )
 from erforce_interfaces.runtime.param_schema import load_schema
+from erforce_interfaces.ssl.ssl_sim import MAX_KICK_ANGLE_DEG
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.clouds import (
     BallTrack,
@@ -55,6 +56,7 @@ from erforce_interfaces.wire.conversions import (
     MAX_ABS_VALUE,
     ConversionError,
     float64_cdr,
+    float64_from_msg,
     odometry_cdr,
     point_cdr,
     seconds_to_stamp,
@@ -196,6 +198,15 @@ class BallPredictorNode(SchemaNode):
                             else None)
         contract_subscription(self, q.VISION_FIELD, self._on_vision_field)
         contract_subscription(self, q.VISION_BALL_MODEL, self._on_vision_ball_model)
+        # Our kick commands as the kicker's word for the chip detector (kick_hints). A command carries no stamp: the
+        # hint takes the newest vision stamp, the predictor's clock (/clock's time in our world, capture time on
+        # an outside one), which is at or before the kick. The opponents' commands are not ours to see.
+        self._kick_angles_deg = [0.0] * n_ours  # the elevation last commanded per robot (before its kick)
+        self._t_vision_s: float | None = None  # the newest ball frame's stamp
+        for i in range(n_ours):
+            contract_subscription(self, q.KICK_ANGLE, lambda m, i=i: self._on_kick_angle(i, m),
+                                  q.OURS.topic(q.KICK_ANGLE, i))
+            contract_subscription(self, q.KICK, lambda m, i=i: self._on_kick(i, m), q.OURS.topic(q.KICK, i))
         # Everything runs on vision stamps; ROS time only stamps the logs: no wake per /clock.
         self._clock_subs = sample_clock(self)
         model = predictor.model
@@ -272,6 +283,26 @@ class BallPredictorNode(SchemaNode):
             self._publish_model()
             self.get_logger().info(f"ball model from SSL geometry: a_slide {model.a_slide_mps2:g}, a_roll "
                                    f"{model.a_roll_mps2:g}, c_switch {model.c_switch:g}")
+
+    # ------------------------------------------------------------- kick hints
+    def _on_kick_angle(self, robot: int, msg: Float64) -> None:
+        try:
+            self._kick_angles_deg[robot] = float64_from_msg(msg, MAX_KICK_ANGLE_DEG)
+        except ConversionError as exc:
+            self._warn.warn(f"kick_angle{robot}", f"robot_{robot}: rejected kick_angle: {exc}")
+
+    def _on_kick(self, robot: int, msg: Float64) -> None:
+        """A kick commanded: a hint for the chip detector at the newest vision stamp (none before the first frame)."""
+        speed = msg.data
+        if not (self._values["kick_hints"] and math.isfinite(speed) and speed > 0.0):
+            return
+        with self._lock:
+            if self._t_vision_s is None:
+                return
+            try:
+                self._predictor.kick_hint(self._t_vision_s, self._kick_angles_deg[robot])
+            except ValueError as exc:
+                self._warn.warn(f"kick{robot}", f"robot_{robot}: kick not taken as a hint: {exc}")
 
     def _on_vision(self, msg: bytes) -> None:
         """A vision frame and every frame queued behind it: their balls (answered first), then their robots."""
@@ -410,6 +441,7 @@ class BallPredictorNode(SchemaNode):
         verdict = check_stamp(self._ball_stamps, round(t_s * 1e9), self._warn, "vision/ball", self)
         if verdict is StampVerdict.DROP:
             return
+        self._t_vision_s = t_s
         frame = self._predictor.ball_frame(t_s, x, y, restart=verdict is StampVerdict.RESTART, camera_m=self._camera_m)
         if frame is None:
             return

@@ -36,6 +36,7 @@ from erforce_sim.sensors import VisionFrame
 _PLANT = schema_defaults("erforce_sim", "plant")
 
 CAMERA_HEIGHT_M = 4.0
+CAMERA_NOISE_M = 0.0005  # each camera's own noise on what it sees [m]
 
 
 @dataclass(frozen=True)
@@ -78,7 +79,7 @@ class SslCameraSplitter:
     team's colour, as the world has it (PlantSetup.our_color)."""
 
     def __init__(self, cameras: tuple[SimCamera, ...], field: FieldConfig, ball_model: BallModelFromVision | None,
-                 latency_s: float = 0.015, camera_noise_m: float = 0.0005,
+                 latency_s: float = 0.015, camera_noise_m: float = CAMERA_NOISE_M,
                  clock_offset_s: float = 0.0, seed: int = _PLANT["seed"]) -> None:
         self.cameras = cameras
         self.latency_s = latency_s
