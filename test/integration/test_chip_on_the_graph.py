@@ -117,6 +117,10 @@ def test_a_chip_kicked_by_a_robot_shows_on_ball_state_within_the_deadline(direct
     probe = graph.probe
     states, phases, truth = ball_topics(probe)
     kick_angle = probe.node.create_publisher(Float64, contract.KICK_ANGLE.for_robot(KICKER), contract.KICK_ANGLE.qos)
+    # the plant and the predictor must hear the angle before the kick (a command is not kept for a late joiner):
+    # a predictor that missed it takes the kick for a flat one, and a flat hint holds a chip back
+    graph.spin_until(lambda: kick_angle.get_subscription_count() >= 2, 30.0,
+                     "the plant and the predictor on kick_angle")
     ball = d.ball_at_kicker(KICKER_POSE)
     delays = []
     for _ in range(KICKS):
