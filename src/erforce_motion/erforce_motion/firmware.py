@@ -35,6 +35,12 @@ NOTICE_COMMAND_TIMEOUT = 2  # main board: no command for command_timeout_s, stop
 NOTICE_SETPOINT_TIMEOUT = 2  # motor boards: no setpoint for setpoint_timeout_s, stopping the wheels
 
 
+def _robot_count(n_robots: int) -> int:
+    if not isinstance(n_robots, int) or n_robots < 1:
+        raise ValueError(f"n_robots: must be an int >= 1, got {n_robots!r}")
+    return n_robots
+
+
 def _positive(name: str, value: float) -> float:
     if not (math.isfinite(value) and value > 0.0):
         raise ValueError(f"{name} must be finite and > 0, got {value!r}")
@@ -124,9 +130,7 @@ class MainBoards:
 
     def __init__(self, n_robots: int, robot: RobotConfig, config: VelocityControlConfig, loop_period_s: float,
                  command_timeout_s: float) -> None:
-        if not isinstance(n_robots, int) or n_robots < 1:
-            raise ValueError(f"n_robots: must be an int >= 1, got {n_robots!r}")
-        self.n_robots, self.robot = n_robots, robot
+        self.n_robots, self.robot = _robot_count(n_robots), robot
         self.loop_period_s = _positive("loop_period_s", loop_period_s)
         self.command_timeout_s = _positive("command_timeout_s", command_timeout_s)
         self.controller = VelocityController(robot, config, n_robots)
@@ -186,9 +190,7 @@ class MotorBoards:
 
     def __init__(self, n_robots: int, robot: RobotConfig, config: MotorBoardConfig, loop_period_s: float,
                  setpoint_timeout_s: float) -> None:
-        if not isinstance(n_robots, int) or n_robots < 1:
-            raise ValueError(f"n_robots: must be an int >= 1, got {n_robots!r}")
-        self.n_robots, self.robot = n_robots, robot
+        self.n_robots, self.robot = _robot_count(n_robots), robot
         self.loop_period_s = _positive("loop_period_s", loop_period_s)
         self.setpoint_timeout_s = _positive("setpoint_timeout_s", setpoint_timeout_s)
         self.board = MotorBoard(config, robot, n_robots=n_robots)
