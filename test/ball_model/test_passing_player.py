@@ -31,10 +31,11 @@ ARRIVAL_S = 0.4 * V0 / 2.5 + (0.6 * V0 - 1.5) / 0.3
 FLAT_ONLY = PlayerConfig(passing=PassConfig(chip_angle_deg=0.0))
 
 
-def player_with(ours, theirs=(), cfg=None):
-    """A player that has seen every robot at rest at (x, y, yaw) and holds the ball at robot 0 from t = 0."""
+def player_with(ours, theirs=(), cfg=None, trusted=None):
+    """A player that has seen every robot at rest at (x, y, yaw) and holds the ball at robot 0 from t = 0
+    (``trusted``: the model it trusts, as a new game on a new time line keeps it; None: the default)."""
     cfg = PlayerConfig() if cfg is None else cfg
-    p = PassingPlayer(cfg, len(ours), len(theirs), FIELD, OFFSET, ROBOT.robot_radius_m, BallModelParams())
+    p = PassingPlayer(cfg, len(ours), len(theirs), FIELD, OFFSET, ROBOT.robot_radius_m, BallModelParams(), trusted)
     for i, pose in enumerate((*ours, *theirs)):
         p.on_robot(i, 0.0, pose, (0.0, 0.0))
     p.on_ball(0.0, (OFFSET, 0.0), (0.0, 0.0))
@@ -335,6 +336,46 @@ def test_a_pass_completed_under_the_model_in_use_makes_it_the_trusted_one():
     p.on_barrier(1, t_kick + 2.0, True)
     p.check(t_kick + 2.0)
     assert p.records[-1].outcome == "completed" and p.trusted_model == slower
+
+
+def test_a_holder_that_trusts_a_model_with_no_pass_in_reach_either_replans_with_the_nominal_model():
+    """Under SHORT in use and trusted (a pass was completed with it, or a new time line kept it), no pass is in
+    reach under either, not even outside the passing distances: after no_option_wait_s the holder plays the pass
+    planned with the nominal model (BallModelParams(): V0, ARRIVAL_S as derived at the top)."""
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], cfg=FLAT_ONLY, trusted=SHORT)
+    p.on_model(SHORT)
+    for t in np.arange(0.0, 0.99, 0.02):
+        assert not p.tick(float(t)).kicks and p.choice is None, t
+    commands = p.tick(1.0)
+    assert commands.kicks == {0: pytest.approx(V0, abs=1e-3)}
+    assert p.choice[1].receiver_catch_s == pytest.approx(ARRIVAL_S, abs=1e-3)
+    assert "the nominal model (a_slide -2.5, a_roll -0.3 m/s^2, c_switch 0.6) to robot_1" in p.notice
+    assert p.receiver._model == BallModelParams()
+
+
+def test_a_holder_whose_only_other_teammate_is_out_of_reach_passes_back_after_the_wait():
+    """Robot 0 passes to robot 1 (3 m away; robot 2, 4 m away, is later); then robot 2 stands on robot 1's
+    dribbler, where no pass reaches it. A pass goes along the chain, not back to the passer, so robot 1 has no
+    option; after no_option_wait_s it passes back to robot 0, 3 m away, under the model in use: V0 again."""
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi), (0.0, 4.0, 0.0)], cfg=FLAT_ONLY)
+    t_kick, commands = kicked(p)
+    assert commands.kicks == {0: pytest.approx(V0, abs=1e-3)} and p.choice[1].receiver == 1
+    t_caught = t_kick + ARRIVAL_S
+    p.on_barrier(1, t_caught, True)
+    p.check(t_caught)
+    assert p.records[-1].outcome == "completed"
+    p.on_robot(0, t_caught, (0.0, 0.0, 0.0), (0.0, 0.0))
+    p.on_robot(2, t_caught, (3.0 - 0.05, 0.0, 0.0), (0.0, 0.0))
+    p.on_ball(t_caught, (3.0 - OFFSET, 0.0), (0.0, 0.0))
+    for t in np.arange(t_caught, t_caught + 0.99, 0.02):
+        assert not p.tick(float(t)).kicks, t
+    for t in np.arange(t_caught + 1.0, t_caught + 3.0, 0.02):  # it turns to robot 0 first (pi at turn_rate)
+        p.on_robot(1, float(t), (3.0, 0.0, math.pi), (0.0, 0.0))
+        commands = p.tick(float(t))
+        if commands.kicks:
+            break
+    assert commands.kicks == {1: pytest.approx(V0, abs=1e-3)} and p.choice[1].receiver == 0
+    assert "a pass outside the passing distances to robot_0" in p.notice
 
 
 def test_a_holder_whose_teammates_are_all_too_close_passes_outside_the_passing_distances_after_the_wait():

@@ -176,9 +176,10 @@ class PassingGameNode(Node):
         self.get_logger().info(f"passing_game: robot_0 .. robot_{n - 1} pass, {m} opponent(s); the ball starts at "
                                f"robot_{own.start_holder}")
 
-    def _new_player(self, model: BallModelParams | None = None) -> PassingPlayer:
+    def _new_player(self, model: BallModelParams | None = None,
+                    trusted_model: BallModelParams | None = None) -> PassingPlayer:
         player, _field, offset, radius = self._params.built
-        return PassingPlayer(player, self._n, self._m, self._field.field, offset, radius, model)
+        return PassingPlayer(player, self._n, self._m, self._field.field, offset, radius, model, trusted_model)
 
     def _set_config(self, built) -> None:
         player, _field, offset, radius = built
@@ -189,8 +190,8 @@ class PassingGameNode(Node):
 
     def on_clock_restart(self) -> None:
         """A new /clock time line (node_support.guard_clock): a new game, with the predictor's model (transient
-        local: not sent again)."""
-        self._player = self._new_player(self._player.model)
+        local: not sent again) and the model it trusts (a new time line is no evidence against it)."""
+        self._player = self._new_player(self._player.model, self._player.trusted_model)
         self._first_seen, self._waiting_since, self._started, self._reported = None, None, False, 0
         self._fed_stamps = [None] * (self._n + self._m)
         self._dribblers_sent_at = -math.inf

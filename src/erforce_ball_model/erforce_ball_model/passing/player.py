@@ -11,7 +11,8 @@ referee would), and ``tick(now)`` returns every robot's ``Commands`` (twist, kic
   ``aim_tolerance_rad``, at the speed that arrives receivable; without a safe pass it waits
   ``wait_for_safe_s``. It keeps its receiver while it turns (``switch_margin_s``, ``keep_choice_s``).
 - With no pass in reach at all (e.g. a latched ball model that stops every kick short) it waits
-  ``no_option_wait_s`` and falls back (``fallback_choice``) to ``trusted_model``, then to any teammate;
+  ``no_option_wait_s`` and falls back (``fallback_choice``) to ``trusted_model``, then to any teammate, then
+  to the nominal model;
   ``notice`` and ``stalled`` say why, for the caller's throttled warning (docs/decisions/0024).
 - Each teammate's next target is refreshed one teammate per AI tick; the receiver runs receiver.Receiver
   facing it where the angle allows (``receive_facing``) and, once its barrier sees the ball, holds it.
@@ -46,6 +47,10 @@ _DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
 
 ANY_DISTANCE_M = (1e-3, 1e3)  # the passing distances of the last fallback: any teammate
 
+
+
+def _model_text(m: BallModelParams) -> str:
+    return f"a_slide {m.a_slide_mps2:g}, a_roll {m.a_roll_mps2:g} m/s^2, c_switch {m.c_switch:g}"
 
 
 def feed_catches(now: float, catches, on_time, on_point) -> None:
@@ -199,13 +204,15 @@ class PassingPlayer:
     """Our team's decisions in the passing game (module docstring)."""
 
     def __init__(self, cfg: PlayerConfig, n_team: int, n_opponents: int, field_config: FieldConfig,
-                 dribbler_offset_m: float, robot_radius_m: float, model: BallModelParams | None = None) -> None:
+                 dribbler_offset_m: float, robot_radius_m: float, model: BallModelParams | None = None,
+                 trusted_model: BallModelParams | None = None) -> None:
         if n_team < 2 or n_opponents < 0:
             raise ValueError(f"need at least 2 of ours and no negative number of opponents, got {n_team}, "
                              f"{n_opponents}")
         self.n_team, self.n_opp = n_team, n_opponents
         self.model = BallModelParams() if model is None else model
-        self.trusted_model = self.model  # the model the last completed pass was planned with (fallback_choice)
+        # the model the last completed pass was planned with (fallback_choice); a new game keeps the old one's
+        self.trusted_model = self.model if trusted_model is None else trusted_model
         n = n_team + n_opponents
         self.receiver: Receiver | None = None  # our receiver's skill while a pass rolls
         self.configure(cfg, field_config, dribbler_offset_m, robot_radius_m)
@@ -421,13 +428,15 @@ class PassingPlayer:
 
     # -------------------------------------------------------------------- decisions
     def _options(self, holder: int, model: BallModelParams | None = None,
-                 passing: PassConfig | None = None) -> list[PassOption]:
-        """Every pass from ``holder`` under ``model`` and ``passing`` (None: the model in use, the config's), each
-        judged from the pose it is kicked from (the ball at the dribbler turned to it), whatever the yaw now."""
+                 passing: PassConfig | None = None, candidates: list[int] | None = None) -> list[PassOption]:
+        """Every pass from ``holder`` under ``model`` and ``passing`` (None: the model in use, the config's) to
+        ``candidates`` (None: ``_candidates``), each judged from the pose it is kicked from (the ball at the
+        dribbler turned to it), whatever the yaw now."""
         n = self.n_team
         targets = {j: self.poses[k, :2] for j, k in self._next_targets.items()}
+        candidates = self._candidates(holder) if candidates is None else candidates
         return evaluate_passes(self.poses[holder, :2], self.poses[:n, :2], self.velocities[:n],
-                               self.poses[n:, :2], self.velocities[n:], self._candidates(holder), self.pass_search,
+                               self.poses[n:, :2], self.velocities[n:], candidates, self.pass_search,
                                self.model if model is None else model, self.cfg.passing if passing is None else passing,
                                self.dribbler_offset_m, targets, self.cfg.max_receive_angle_rad, self.receiver_search,
                                from_passer_centre=True, block_radius_m=self.robot_radius_m + BALL_RADIUS_M)
@@ -435,32 +444,36 @@ class PassingPlayer:
     def fallback_choice(self, holder: int, now: float) -> PassOption | None:
         """The pass of a holder that has no pass in reach under the model in use (module docstring): None
         for ``no_option_wait_s``; then the best pass under ``trusted_model``, else the best to any teammate
-        whatever its distance (under the model in use when no other is trusted), else None (it holds the ball).
-        Sets ``notice``."""
+        whatever its distance (the one it had the ball from included) under the trusted model, then under the
+        nominal one (``BallModelParams()``: the carpet's), else None (it holds the ball). Sets ``notice``."""
         if self._no_option_since is None:
             self._no_option_since = now
         waited = now - self._no_option_since
         if waited < self.cfg.no_option_wait_s:
             return None
-        m, trusted = self.model, self.trusted_model
-        why = (f"robot_{holder}: no pass in reach for {waited:.1f} s under the ball model in use (a_slide "
-               f"{m.a_slide_mps2:g}, a_roll {m.a_roll_mps2:g} m/s^2, c_switch {m.c_switch:g})")
-        best = None
-        if trusted != m:
-            best = select_pass(self._options(holder, trusted), self.cfg.passing)
-            what = (f"planned with the model of the last completed pass (a_slide {trusted.a_slide_mps2:g}, "
-                    f"a_roll {trusted.a_roll_mps2:g} m/s^2, c_switch {trusted.c_switch:g})")
-        if best is None:
-            anywhere = dataclasses.replace(self.cfg.passing, min_distance_m=ANY_DISTANCE_M[0],
-                                           max_distance_m=ANY_DISTANCE_M[1])
-            best = select_pass(self._options(holder, trusted, anywhere), self.cfg.passing)
-            what = "a pass outside the passing distances" + ("" if trusted == m else " (the trusted model)")
-        if best is None:
-            self.notice = f"{why}, not even outside the passing distances: it holds the ball"
-            return None
-        self.notice = f"{why}: {what} to robot_{best.receiver}"
-        self._choice, self._choice_model = best, trusted
-        return best
+        m = self.model
+        why = (f"robot_{holder}: no pass in reach for {waited:.1f} s under the ball model in use ({_model_text(m)})")
+        anywhere = dataclasses.replace(self.cfg.passing, min_distance_m=ANY_DISTANCE_M[0],
+                                       max_distance_m=ANY_DISTANCE_M[1])
+        everybody = [k for k in range(self.n_team) if k != holder]
+        tried: list[BallModelParams] = []
+        for model, named in ((self.trusted_model, "the model of the last completed pass"),
+                             (BallModelParams(), "the nominal model")):
+            if model in tried:
+                continue
+            tried.append(model)
+            planned = f"planned with {named} ({_model_text(model)})"
+            best, what = None if model == m else select_pass(self._options(holder, model), self.cfg.passing), planned
+            if best is None:
+                best = select_pass(self._options(holder, model, anywhere, everybody), self.cfg.passing)
+                what = "a pass outside the passing distances" + ("" if model == m else f", {planned}")
+            if best is not None:
+                self.notice = f"{why}: {what} to robot_{best.receiver}"
+                self._choice, self._choice_model = best, model
+                return best
+        self.notice = (f"{why}, not even outside the passing distances, nor under the model of the last completed "
+                       f"pass or the nominal model: it holds the ball")
+        return None
 
     def _next_target(self, holder: int, j: int) -> int | None:
         """Where teammate ``j`` would pass on once it has the ball from ``holder`` (select_pass from where it
