@@ -69,9 +69,10 @@ def test_the_passing_game_plays_an_outside_world_through_the_protocols_only(ros_
     ros_graph.spin_until(lambda: bool(records) or not ai.alive() or not world.alive(), 180.0, "the first pass")
     assert records, ai.output()[-3000:] + world.output()[-2000:]
     (record,) = records_from_msg(records[0])
-    assert (record.index, record.passer) == (1, 0) and record.receiver in (1, 2)
-    assert record.rated_safe and record.outcome == "completed" and record.caught_by == f"robot_{record.receiver}"
-    assert record.predicted_catch_s - 0.5 <= record.actual_catch_s <= record.predicted_catch_s + 0.15
+    logs = f"{record}\n{ai.output()[-4000:]}\n{world.output()[-2000:]}"  # what both sides said, when it fails
+    assert (record.index, record.passer) == (1, 0) and record.receiver in (1, 2), logs
+    assert record.rated_safe and record.outcome == "completed" and record.caught_by == f"robot_{record.receiver}", logs
+    assert record.predicted_catch_s - 0.5 <= record.actual_catch_s <= record.predicted_catch_s + 0.15, logs
     assert models and model_in_use_from_msg(models[-1]) == pytest.approx(WORLD_MODEL, abs=1e-6)
 
     probe = ros_graph.probe.node

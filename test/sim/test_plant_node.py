@@ -157,7 +157,10 @@ def test_start_clock_subscribers_holds_the_first_tick_until_time_zero_can_be_see
     ros_graph.probe.spin_until(lambda: not plant.alive() and clocks and
                                stamp_to_nanoseconds(clocks[-1].clock) >= 490_000_000, 30.0,
                                "the plant to run its 0.5 s")
+    # it ended itself quietly (node_support.end_node), once the probe had acknowledged its last /clock
+    assert plant.wait_exit(5.0) == 0 and "FATAL" not in plant.output(), plant.output()
     stamps = [stamp_to_nanoseconds(c.clock) for c in clocks]
+    assert stamps[-1] == 500_000_000  # tick 250 of 2 ms: the last clock was not lost with the process
     # time 0 twice: the same stamp again confirms a new time line to the readers' time rule (stamps.StampFilter)
     assert stamps[0] == stamps[1] == 0 < stamps[2]
 

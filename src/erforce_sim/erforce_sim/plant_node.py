@@ -35,6 +35,7 @@ from erforce_interfaces.runtime.node_support import (
     SchemaNode,
     contract_publisher,
     contract_subscription,
+    end_node,
     run_node,
 )
 from erforce_interfaces.runtime.param_schema import load_schema
@@ -135,6 +136,7 @@ class PlantNode(SchemaNode):
         self._tick = 0
         self._period_ns = self.setup.period_ns
         self._started = False
+        self._ended = False  # end_node was called: no further tick
         self._start_wall = time.monotonic()
         self._peers_seen_at: float | None = None
         self._pace_origin: tuple[float, int] | None = None
@@ -467,6 +469,8 @@ class PlantNode(SchemaNode):
         return time.monotonic() - self._peers_seen_at >= _STARTUP_GRACE_S
 
     def _pump(self) -> None:
+        if self._ended:  # stop_after_s or a broken state: run_node ends the process after this callback
+            return
         now = time.monotonic()
         if not self._started:
             if not self._ready_to_start():
@@ -530,15 +534,18 @@ class PlantNode(SchemaNode):
         self._tick += 1
         if not self.world.all_finite():  # never publish a broken state; stop loudly instead
             self._event("physics produced a non-finite state; stopping", warn=True)
-            raise SystemExit(1)
+            self._ended = True
+            end_node(self, 1)
+            return
         self._publish_tick()
 
     def _finished(self) -> bool:
         stop = self._values["stop_after_s"]
         if stop > 0.0 and self._tick * self._period_ns * 1e-9 >= stop - 1e-12:
             self._event(f"stop_after_s reached at t={self.world.t_s:.3f} s")
-            raise SystemExit(0)
-        return False
+            self._ended = True
+            end_node(self, 0)
+        return self._ended
 
     def _confirm_time_line(self) -> None:
         """Send tick 0's sensors and /clock once more at once. After a restart the peers' time rule

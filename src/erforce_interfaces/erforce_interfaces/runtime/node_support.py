@@ -19,12 +19,15 @@ import os
 import signal
 import sys
 import threading
+import time
 import traceback
+import weakref
 from collections.abc import Callable
 from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.duration import Duration
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import (
     InvalidParameterTypeException,
@@ -413,6 +416,28 @@ def stray_arguments(argv: list[str]) -> list[str]:
     return remove_ros_args(list(argv))[1:]
 
 
+_EXIT_CODES: weakref.WeakKeyDictionary[Node, int] = weakref.WeakKeyDictionary()
+FLUSH_TIMEOUT_S = 2.0  # how long a node that ends itself waits for its subscribers' acknowledgements
+
+
+def end_node(node: Node, code: int = 0) -> None:
+    """End ``run_node``'s loop after the current callback, with exit ``code``: a node that ends itself (the
+    plant's stop_after_s). Raising SystemExit in a callback would end it too, but the executor logs that as
+    a fatal fault, and the last messages could die with the process before a subscriber took them."""
+    _EXIT_CODES[node] = int(code)
+
+
+def flush_publishers(node: Node, timeout_s: float = FLUSH_TIMEOUT_S) -> bool:
+    """Wait until every reliable subscriber acknowledged what ``node`` published, at most ``timeout_s`` in
+    all; False when one did not (a subscriber that is gone or stuck must not hold a node's exit)."""
+    deadline = time.monotonic() + timeout_s
+    acked = True
+    for publisher in node.publishers:
+        left_ns = max(0, int((deadline - time.monotonic()) * 1e9))
+        acked = publisher.wait_for_all_acked(Duration(nanoseconds=left_ns)) and acked
+    return acked
+
+
 def run_node(node_factory: Callable[[], Node | tuple[Node, ...]], args: list[str] | None = None,
              executor_kind: str | None = None) -> int:
     """Standard node main: init, spin on EventsExecutor (erforce_interfaces.runtime.executor.make_executor;
@@ -426,6 +451,8 @@ def run_node(node_factory: Callable[[], Node | tuple[Node, ...]], args: list[str
     step that needs no node, e.g. loading numba kernels); the spare calls the node's main again when it becomes
     the node.
     A main does nothing else before run_node that it would not want done in the spare.
+
+    A node ends itself with ``end_node`` (its code is the exit code).
 
     Returns the process exit code: 0 after Ctrl-C (one SIGINT or several, to the process alone or to
     its process group; see QuietInterrupt) or external shutdown, 1 when the node refused to start
@@ -469,8 +496,13 @@ def run_node(node_factory: Callable[[], Node | tuple[Node, ...]], args: list[str
         # From here a SIGINT only ends the loop: raised inside a callback, KeyboardInterrupt would be reported
         # by the executor as that callback's fault. rclpy's handler shuts the context down; the loop sees it.
         interrupt.raising = False
-        while node.context.ok() and not interrupt.received:
+        while node.context.ok() and not interrupt.received and not any(n in _EXIT_CODES for n in nodes):
             executor.spin_once(timeout_sec=0.5)
+        ended = [_EXIT_CODES[n] for n in nodes if n in _EXIT_CODES]
+        if ended:  # end_node: what the node sent last reaches its subscribers before it goes
+            code = ended[0]
+            for each in nodes:
+                flush_publishers(each)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except SystemExit as exc:  # a node may end itself (e.g. the plant's stop_after_s)
