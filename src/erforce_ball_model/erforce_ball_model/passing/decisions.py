@@ -26,12 +26,13 @@ question) for every robot on the field, on the ball the kick would make:
   ball reaches the receiver), so a pass past an opponent standing near the lane is not rated safe.
   The receiver still needs the real catch. ``margin_s`` = opponent - arrival; a pass is safe when the
   margin is at least ``PassConfig.safe_margin_s``.
-- A chip (``PassConfig.chip_angle_deg`` > 0; chip_model.ChipTrajectory with the predictor's chip model, the
-  one it tracks chips with) is rated the same way, on the chip the kick would make: robotTimeToBall takes a
-  chip only where it is at most ``max_catch_height_m`` high, so an opponent under its flight cannot take it. It is kicked so that it comes down to that height
-  ``chip_land_fraction`` of the way to the receiver (``chip_speed_for``: the first hop's descent, closed
-  form), and the receiver takes it where it arrives, low, after it landed. Per receiver the flat pass is
-  played when it is safe, else the chip when that is safe, else the one with the larger margin.
+- A chip (``PassConfig.chip_angle_deg`` > 0; chip_model.ChipTrajectory with the predictor's chip model, the one
+  it tracks chips with) is rated the same way, on the chip the kick would make: robotTimeToBall takes a chip only
+  where it is at most ``max_catch_height_m`` high, so an opponent under its flight cannot take it. It is kicked
+  so that it comes down to that height ``chip_land_fraction`` of the way to the receiver (``chip_speed_for``: the
+  first hop's descent, closed form), and the receiver takes it where it arrives, low, after it landed. Per
+  receiver the flat pass is played when it is safe, else the chip when that is safe, else the one with the larger
+  margin.
 - ``select_pass``: of the safe passes the one whose catch comes earliest; when none is safe, the
   one with the largest margin (rated unsafe; the caller may still play it).
 - ``press_targets``: where opponents wait while a robot of ours holds the ball: each covers the

@@ -1,10 +1,11 @@
 """Our team's AI in the passing game, one AI tick at a time: the functional core shared by the
 in-process game (erforce_sim.in_process.passing_game) and the ``passing_game`` node.
 
-No rclpy and no access to the physics: ``PassingPlayer`` is fed what a real AI sees, as it arrives
-(tracked robots ``on_robot``, the tracked ball ``on_ball``, catch times and points ``on_catch``, the ball
-model ``on_model`` and chip model ``on_chip_model`` in use (the predictor's), light barriers ``on_barrier``, the opponents' too: how an interception is told, as a
-referee would), and ``tick(now)`` returns every robot's ``Commands`` (twist, kick, dribbler).
+No rclpy and no access to the physics: ``PassingPlayer`` is fed what a real AI sees, as it arrives (tracked
+robots ``on_robot``, the tracked ball ``on_ball``, catch times and points ``on_catch``, the ball model
+``on_model`` and the chip model ``on_chip_model`` in use (the predictor's), light barriers ``on_barrier``, the
+opponents' too: how an interception is told, as a referee would), and ``tick(now)`` returns every robot's
+``Commands`` (twist, kick, dribbler).
 
 - The holder evaluates a pass to every teammate (passing.decisions.evaluate_passes), turns to the earliest safe
   catch (passing.decisions.select_pass) and kicks once it held the ball ``hold_min_s`` and aims within
