@@ -31,7 +31,10 @@ ARRIVAL_S = 0.4 * V0 / 2.5 + (0.6 * V0 - 1.5) / 0.3
 FLAT_ONLY = PlayerConfig(passing=PassConfig(chip_angle_deg=0.0))
 
 
-def player_with(ours, theirs=(), cfg=None, trusted=None, chip_model=ChipParams()):
+CHIP_MODEL = ChipParams()  # the predictor's chip model at its defaults
+
+
+def player_with(ours, theirs=(), cfg=None, trusted=None, chip_model=CHIP_MODEL):
     """A player that has seen every robot at rest at (x, y, yaw) and holds the ball at robot 0 from t = 0
     (``trusted``: the model it trusts, as a new game on a new time line keeps it; None: the default), told the
     chip model in use ``chip_model`` (None: none has come)."""
