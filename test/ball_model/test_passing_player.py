@@ -238,7 +238,7 @@ def test_the_holder_rates_and_its_receiver_takes_a_chip_with_the_chip_model_in_u
     assert unknown.choice[1].kick_angle_deg == 0.0  # no chip model: flat passes only
     p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], [(1.5, 0.0, math.pi)], chip_model=None)
     p.on_chip_model(chip_model)
-    t_kick, commands = kicked(p, t_kick=3.0)
+    _, commands = kicked(p, t_kick=3.0)
     choice = p.choice[1]
     assert commands.kick_angles == {0: 45.0} and choice.safe(PassConfig())
     assert choice.kick_speed_mps == pytest.approx(math.sqrt(2.0) * v, abs=1e-6)
