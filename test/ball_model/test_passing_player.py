@@ -535,3 +535,15 @@ def test_a_holder_that_has_not_kicked_after_stall_warn_s_says_why():
             assert p.stalled is None
     assert p.stalled == ("robot_0 has held the ball 4.1 s without kicking: its pass to robot_1 (safe) is 1.571 rad "
                          "off its yaw (aim_tolerance_rad 0.03)")
+
+
+def test_every_pressing_robot_receives_a_chip_with_the_chip_model_in_use():
+    """The opponents' team: none before a chip model comes, then every receiver has the one in use, a new one
+    replacing it (a ball in the air is predicted with it, receiver.Receiver)."""
+    team = PressingTeam(CatcherConfig(), OFFSET, ROBOT.robot_radius_m, FIELD, (0, 1, 2))
+    assert team.chip_model is None and all(r.chip_model is None for r in team.receivers.values())
+    first, second = ChipParams(max_catch_height_m=0.2), ChipParams(damping_z=0.3)
+    given = PressingTeam(CatcherConfig(), OFFSET, ROBOT.robot_radius_m, FIELD, (0, 1), chip_model=first)
+    assert all(r.chip_model is first for r in given.receivers.values())
+    given.on_chip_model(second)
+    assert given.chip_model is second and all(r.chip_model is second for r in given.receivers.values())
