@@ -112,7 +112,7 @@ def evaluate(fields: int) -> dict[str, tuple[float, float, float]]:
     """evaluate_passes on ``fields`` random fields (11 + 3 robots, moving): median, min and max CPU ms per call."""
     import numpy as np
 
-    from erforce_ball_model.ball_model import BallModelParams
+    from erforce_ball_model.ball_model import BallModelParams, ChipParams
     from erforce_ball_model.catch_time import CatchSearch, RobotLimits
     from erforce_ball_model.passing.decisions import PassConfig, evaluate_passes
     from erforce_interfaces.wire.robot_config import BALL_RADIUS_M, FieldConfig, RobotConfig
@@ -130,7 +130,8 @@ def evaluate(fields: int) -> dict[str, tuple[float, float, float]]:
         for k, (team, team_vel, opp, opp_vel) in enumerate(cases):
             args = (team[0], team, team_vel, opp, opp_vel, range(1, 11), searches[0], params, cfg,
                     robot.dribbler_offset_m)
-            kwargs = {"receiver_search": searches[1], "from_passer_centre": True, "block_radius_m": radius}
+            kwargs = {"receiver_search": searches[1], "from_passer_centre": True, "block_radius_m": radius,
+                      "chip_params": ChipParams()}  # the predictor's chip model at its defaults: chips rated too
             if k == 0:
                 evaluate_passes(*args, **kwargs)  # compiles or loads what the first call needs
             t0 = time.process_time()  # CPU time: the machine may be shared

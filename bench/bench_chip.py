@@ -26,7 +26,7 @@ import time
 import numpy as np
 from table import markdown_table
 
-from erforce_ball_model.ball_model import BallTrajectory
+from erforce_ball_model.ball_model import BallTrajectory, ChipParams
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.chip_tracking import ChipDetectorConfig
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
@@ -53,7 +53,7 @@ def _random_kick(rng: np.random.Generator, chip: bool):
         speed, angle = rng.uniform(1.0, 6.0), math.radians(rng.uniform(30.0, 60.0))
         v_ground = speed * math.cos(angle)
         return ChipTrajectory((x, y, 0.0), (v_ground * math.cos(heading), v_ground * math.sin(heading),
-                                            speed * math.sin(angle)))
+                                            speed * math.sin(angle)), ChipParams())
     speed = rng.uniform(1.0, 6.5)
     return BallTrajectory((x, y), (speed * math.cos(heading), speed * math.sin(heading)), speed)
 

@@ -8,6 +8,7 @@ ball's line, so the 2D problem is 1D).
 
 import gc
 import math
+import re
 import struct
 
 import numpy as np
@@ -434,6 +435,8 @@ BAD_PARAMS = [
     ("field", "division_c"), ("robot_a_max_mps2", 0.0), ("robot_v_max_mps", -2.0), ("grid_step_s", 0.0),
     ("facing_mode", ["sideways"]), ("facing_mode", ["fixed", "fixed", "fixed"]), ("facing_rad", [math.inf]),
     ("num_robots", 5),  # read-only
+    ("chip_damping_z", 1.0), ("chip_damping_xy_first_hop", 1.2), ("chip_min_hop_vz_mps", 0.0),
+    ("chip_max_catch_height_m", -0.1), ("chip_max_catch_height_m", math.nan),
 ]
 
 
@@ -503,6 +506,70 @@ def test_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ros_gra
     probe.spin_until(lambda: late, 10.0, "the latched model")
     assert len(late) == 1
     assert table_from_msg(late[0], contract.BALL_MODEL_PARAM_LABELS)[0] == pytest.approx([-A_SLIDE, -0.5, C_SWITCH])
+
+
+def test_chip_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ros_graph):
+    """/ball/chip_model_params carries ChipParams' fields in contract order: the defaults at start (the plant's ball:
+    restitution 0.566, 1 / 1.4 of the speed kept at the first bounce), then a changed catchable height."""
+    rig = Rig(ros_graph, num_robots=1)
+    probe = ros_graph.probe
+    labels = contract.BALL_CHIP_MODEL_PARAM_LABELS
+    models = probe.subscribe(contract.BALL_CHIP_MODEL_PARAMS.name, Float64MultiArray,
+                             contract.BALL_CHIP_MODEL_PARAMS.qos)
+    probe.spin_until(lambda: models, 10.0, "the chip model in use at start")
+    assert models[-1].layout.dim[0].label == "in_use"
+    defaults = [9.81, 0.566, 1.0 / 1.4, 1.0, 0.05, 0.15]
+    assert table_from_msg(models[-1], labels)[0].tolist() == pytest.approx(defaults, abs=1e-12)
+    assert probe.set_parameter(NODE, "chip_max_catch_height_m", 0.25).successful
+    probe.spin_until(lambda: len(models) >= 2, 10.0, "the changed chip model")
+    assert table_from_msg(models[-1], labels)[0].tolist() == pytest.approx([*defaults[:5], 0.25], abs=1e-12)
+    assert probe.set_parameter(NODE, "a_roll_mps2", -0.4).successful  # not the chip model: not sent again
+    probe.spin_until(lambda: len(rig.model_params) >= 2, 10.0, "the changed ball model")
+    probe.spin_for(0.3)
+    assert len(models) == 2
+
+
+def test_a_bad_kick_angle_is_refused_with_a_throttled_warning_and_its_kick_is_no_hint(ros_graph):
+    """kick_angle outside [0, 90) deg (not finite, negative, 90 or more): a warning naming the robot and the value,
+    throttled; the robot's next kick is no hint to the chip detector (it never sees the angle), and the node
+    answers on with finite outputs only."""
+    rig = Rig(ros_graph, num_robots=1, robot_timeout_s=100.0)
+    probe = ros_graph.probe
+    q = contract
+    angle = probe.wait_for_subscribers(q.KICK_ANGLE.for_robot(0), Float64, timeout_s=10.0, qos=q.KICK_ANGLE.qos)
+    kick = probe.wait_for_subscribers(q.KICK.for_robot(0), Float64, timeout_s=10.0, qos=q.KICK.qos)
+    rig.robot(0, 0.9, -1.0, 0.0, 0.0)
+    rig.ball(1.00, 0.0, 0.0)
+    for k, bad in enumerate((math.nan, -10.0, 90.0, math.inf, 120.0)):
+        text = f"robot_0: rejected kick_angle {bad!r}"
+
+        def warned(bad=bad, text=text) -> bool:  # resent until said (the warning of the one before may hold it)
+            angle.publish(Float64(data=bad))
+            probe.spin_for(0.05)
+            return text in rig.node.output()
+
+        probe.spin_until(warned, 10.0, text)
+        kick.publish(Float64(data=3.0))
+        rig.ball(1.01 + 0.01 * k, 0.0, 0.0)
+    for _ in range(30):
+        angle.publish(Float64(data=-1.0))
+
+    def rejected() -> list[int]:
+        """The count of refused angles each warning line reports (a throttled line says how many so far)."""
+        return [int(n) for n in re.findall(r"rejected kick_angle .*\((\d+) so far\)", rig.node.output())]
+
+    def counted() -> bool:  # one more every 0.1 s until a line reports the burst (the throttle's period is 2 s)
+        angle.publish(Float64(data=-1.0))
+        probe.spin_for(0.1)
+        return max(rejected(), default=0) >= 20
+
+    probe.spin_until(counted, 15.0, "a warning that counts the burst")
+    lines = [line for line in rig.node.output().splitlines() if "rejected kick_angle" in line]
+    assert len(lines) < max(rejected()) / 2, lines  # throttled: far fewer lines than refused angles
+    rig.ball(1.1, 0.0, 0.0)
+    rig.settle()
+    assert "kick not taken as a hint" not in rig.node.output()
+    assert rig.all_finite() and rig.node.alive()
 
 
 @pytest.mark.parametrize("source", ["ssl_geometry", "parameters"])

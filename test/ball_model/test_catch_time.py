@@ -8,7 +8,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from erforce_ball_model import catch_time
-from erforce_ball_model.ball_model import BallTrajectory, Walls
+from erforce_ball_model.ball_model import BallTrajectory, ChipParams, Walls
 from erforce_ball_model.catch_time import (
     MAX_RECEIVE_ANGLE_RAD,
     CatchKind,
@@ -650,7 +650,7 @@ def _random_chip(rng):
     heading = rng.uniform(-0.6, 0.6)
     vxy = speed * math.cos(elevation)
     return ChipTrajectory((*pos, 0.0), (vxy * math.cos(heading), vxy * math.sin(heading),
-                                        speed * math.sin(elevation)))
+                                        speed * math.sin(elevation)), ChipParams())
 
 
 def test_chip_catches_match_the_dense_search_and_are_never_above_the_catch_height():
@@ -696,7 +696,7 @@ def test_a_robot_under_the_flight_takes_the_chip_only_once_it_is_low():
     only where it has come down to max_catch_height_m, which the robot reaches by moving along the track."""
     from erforce_ball_model.chip_model import ChipTrajectory
 
-    chip = ChipTrajectory((-2.0, 0.0, 0.0), (3.0, 0.0, 3.0))  # apex 0.46 m at x = -2 + 0.92
+    chip = ChipTrajectory((-2.0, 0.0, 0.0), (3.0, 0.0, 3.0), ChipParams())  # apex 0.46 m at x = -2 + 0.92
     t_apex = 3.0 / chip.params.g_mps2
     robot = np.array([-2.0 + 3.0 * t_apex + OFFSET, 0.0])
     flat = robot_time_to_ball(BallTrajectory((-2.0, 0.0), (3.0, 0.0), 3.0), robot, (0.0, 0.0), RobotLimits(),
@@ -711,11 +711,11 @@ def test_a_robot_under_the_flight_takes_the_chip_only_once_it_is_low():
 def test_a_chip_over_the_field_line_is_never_caught_and_a_ground_ball_state_is_no_chip():
     from erforce_ball_model.chip_model import ChipTrajectory, flying_ball
 
-    chip = ChipTrajectory((4.0, 0.0, 0.0), (3.0, 0.0, 3.0))  # lands at x = 5.8, beyond the field line 4.5
+    chip = ChipTrajectory((4.0, 0.0, 0.0), (3.0, 0.0, 3.0), ChipParams())  # lands at x = 5.8, beyond the field line 4.5
     res = robot_time_to_ball(chip, [[4.3, 0.0]], [[0.0, 0.0]], RobotLimits(), math.pi, field=DIV_B)
     assert res.kind[0] == CatchKind.NEVER or res.time_s[0] < 0.06  # only just after the kick, before it rises
-    assert flying_ball((1.0, 2.0, 0.0), (1.0, 0.0, 0.0)) is None
-    assert isinstance(flying_ball((1.0, 2.0, 0.1), (1.0, 0.0, -0.5)), ChipTrajectory)
+    assert flying_ball((1.0, 2.0, 0.0), (1.0, 0.0, 0.0), ChipParams()) is None
+    assert isinstance(flying_ball((1.0, 2.0, 0.1), (1.0, 0.0, -0.5), ChipParams()), ChipTrajectory)
 
 
 @settings(max_examples=40, deadline=None)
@@ -725,7 +725,7 @@ def test_random_chips_are_caught_only_where_they_are_low_reachable_and_inside(sp
     from erforce_ball_model.chip_model import ChipTrajectory
 
     e = math.radians(elevation_deg)
-    chip = ChipTrajectory((-1.0, 0.0, 0.0), (speed * math.cos(e), 0.0, speed * math.sin(e)))
+    chip = ChipTrajectory((-1.0, 0.0, 0.0), (speed * math.cos(e), 0.0, speed * math.sin(e)), ChipParams())
     lim = RobotLimits()
     res = robot_time_to_ball(chip, (rx, ry), (0.0, 0.0), lim, facing, field=DIV_B)
     if res.kind == CatchKind.MOVING:

@@ -17,7 +17,7 @@ def test_first_flight_is_the_projectile_by_hand():
     # 5 m/s at 40 deg, heading 30 deg left of +x, from (1, -2) on the carpet
     v, pitch, yaw = 5.0, math.radians(40.0), math.radians(30.0)
     vh, vz = v * math.cos(pitch), v * math.sin(pitch)
-    chip = ChipTrajectory((1.0, -2.0, 0.0), (vh * math.cos(yaw), vh * math.sin(yaw), vz))
+    chip = ChipTrajectory((1.0, -2.0, 0.0), (vh * math.cos(yaw), vh * math.sin(yaw), vz), ChipParams())
     t_flight = 2.0 * vz / G
     assert chip.touchdown_times_s[0] == pytest.approx(t_flight, abs=1e-12)
     np.testing.assert_allclose(chip.touchdown_points_m[0],

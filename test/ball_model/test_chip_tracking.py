@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from erforce_ball_model.ball_model import BallTrajectory
+from erforce_ball_model.ball_model import BallTrajectory, ChipParams
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.chip_tracking import ChipDetector, fit_flight, fit_flight_at_angle
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
@@ -33,7 +33,7 @@ def test_two_cameras_triangulate_the_height():
     # At t = 0.2 s the ball is at x = 0.4 m, z = 3 * 0.2 - 9.81 / 2 * 0.04 = 0.4038 m: the cameras at x = -3 and
     # x = 3 see it at 0.4 + 3.4 * 0.4038 / 3.5962 = 0.78177 m and 3 - 2.6 * 4 / 3.5962 = 0.10801 m.
     assert seen(0.4, 0.0, 0.4038, CAMERAS[0])[0] == pytest.approx(0.78177, abs=1e-5)
-    detector = ChipDetector()
+    detector = ChipDetector(None, ChipParams())
     detector.start(0.05, before=(0.0, 0.0, 0.0, 0.0, 0.0))
     for t, x, y, camera in chip_sightings([0.05, 0.1, 0.15, 0.2]):
         detector.add(t, x, y, camera)
@@ -66,7 +66,7 @@ def test_the_flight_at_a_known_angle_is_the_projectile_from_fewer_unknowns():
 def low_chip_detector(hint_deg, vx=2.0, vz=0.4):
     """A low chip (vz 0.4 m/s: 8 mm high at its apex, 82 ms in the air), seen by one camera at 70 Hz from the
     first frame after the kick, with the kicker's hint (None: none) given at the kick."""
-    detector = ChipDetector()
+    detector = ChipDetector(None, ChipParams())
     if hint_deg is not None:
         detector.hint(0.0, hint_deg)
     detector.start(1.0 / 70.0, before=(0.0, 0.0, 0.0, 0.0, 0.0))
@@ -86,7 +86,7 @@ def test_a_chip_hint_tells_a_chip_too_low_to_see():
 
 
 def test_a_hint_belongs_only_to_the_motion_just_after_it():
-    detector = ChipDetector()
+    detector = ChipDetector(None, ChipParams())
     detector.hint(0.0, 45.0)
     detector.start(0.2, before=None)  # 0.2 s later: another motion (hint_window_s 0.1)
     assert detector.hint_angle_deg is None
@@ -100,7 +100,7 @@ def test_a_hint_belongs_only_to_the_motion_just_after_it():
 
 def test_a_flat_hint_does_not_make_a_ground_kick_a_chip():
     """A ground kick with a flat hint stays a ground ball (the hint raises the evidence a chip needs)."""
-    detector = ChipDetector()
+    detector = ChipDetector(None, ChipParams())
     detector.hint(0.0, 0.0)
     detector.start(1.0 / 70.0, before=(0.0, 0.0, 0.0, 0.0, 0.0))
     ball = BallTrajectory((0.0, 0.0), (3.0, 0.0), 3.0)
@@ -117,7 +117,7 @@ def test_a_flat_hint_does_not_make_a_ground_kick_a_chip():
                         min_size=1, max_size=2))
 def test_a_flat_kick_is_never_a_chip(x, y, heading, speed, t_kick, cameras):
     ball = BallTrajectory((x, y), (speed * math.cos(heading), speed * math.sin(heading)), speed)
-    detector = ChipDetector()
+    detector = ChipDetector(None, ChipParams())
     for k in range(1, 30):  # 70 Hz, from the first frame after the kick
         t = k / 70.0
         if t < t_kick:
@@ -138,7 +138,7 @@ def test_the_predictor_carries_the_chip_and_hands_it_over_to_the_flat_filter():
         assert predictor.ball_frame(k * dt, 0.0, 0.0, camera_m=camera) is not None
     t_kick = 10 * dt - 0.004
     vx, vz = 2.5, 2.5  # 3.54 m/s at 45 deg along +x
-    truth = ChipTrajectory((0.0, 0.0, 0.0), (vx, 0.0, vz))
+    truth = ChipTrajectory((0.0, 0.0, 0.0), (vx, 0.0, vz), ChipParams())
     frames = []
     for k in range(10, 140):
         t = k * dt
@@ -167,7 +167,7 @@ def test_the_predictor_carries_the_chip_and_hands_it_over_to_the_flat_filter():
 
 
 def test_a_bad_sighting_is_refused_by_name():
-    detector = ChipDetector()
+    detector = ChipDetector(None, ChipParams())
     with pytest.raises(ValueError, match="camera"):
         detector.add(0.0, math.nan, 0.0, (0.0, 0.0, 4.0))
     with pytest.raises(ValueError, match="camera"):

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ChipParams
 from erforce_ball_model.catch_time import CatchSearch, RobotLimits
 from erforce_ball_model.passing.decisions import (
     PassConfig,
@@ -181,9 +181,9 @@ def test_the_receiver_and_opponents_search_gives_the_whole_fields_options():
     opp_vel = np.array([[0.0, 0.0], [0.5, 0.0], [-0.3, 0.4]])
     for cfg, targets in itertools.product((CFG, PassConfig(chip_angle_deg=0.0)), ({}, {2: team[1], 5: team[3]})):
         plain = evaluate_passes((0.0, 0.0), team, team_vel, opponents, opp_vel, [1, 2, 3, 4, 5], _search(9), MODEL,
-                                cfg, OFFSET, targets)
+                                cfg, OFFSET, targets, chip_params=ChipParams())
         narrow = evaluate_passes((0.0, 0.0), team, team_vel, opponents, opp_vel, [1, 2, 3, 4, 5], _search(9), MODEL,
-                                 cfg, OFFSET, targets, receiver_search=_search(4))
+                                 cfg, OFFSET, targets, receiver_search=_search(4), chip_params=ChipParams())
         assert [o.receiver for o in plain] == [1, 2, 3, 5]  # 4 is 7.5 m away
         assert narrow == plain
         by = {o.receiver: o for o in plain}
@@ -211,14 +211,17 @@ def test_a_robot_not_finite_is_refused_with_or_without_the_receiver_search():
 def test_a_chip_goes_over_the_opponent_on_the_lane_and_lands_before_the_receiver():
     """The scene above with chips: the flat pass to teammate 1 is unsafe, a 45 deg chip over the opponent at
     (1, 0) is safe. The chip comes down to max_catch_height_m chip_land_fraction of the way to the receiver's
-    dribbler (the projectile's descent), and the receiver's catch is the ball's arrival there, low."""
-    from erforce_ball_model.ball_model import ChipParams
+    dribbler (the projectile's descent), and the receiver's catch is the ball's arrival there, low. Without a
+    chip model (none has come from the predictor) no chip is rated."""
     from erforce_ball_model.chip_model import ChipTrajectory
 
     team = np.array([[-0.1, 0.0], [2.0, 0.0], [0.0, 2.0]])
     opponents = np.array([[1.0, 0.0]])
-    options = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1, 2],
+    unknown = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1, 2],
                               _search(4), MODEL, CFG, OFFSET)
+    assert [o.kick_angle_deg for o in unknown] == [0.0, 0.0] and not unknown[0].safe(CFG)
+    options = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1, 2],
+                              _search(4), MODEL, CFG, OFFSET, chip_params=ChipParams())
     by = {o.receiver: o for o in options}
     o = by[1]
     assert o.kick_angle_deg == 45.0 and o.safe(CFG) and o.direction_rad == pytest.approx(0.0)

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.ball_model import BallModelParams, ChipParams
 from erforce_ball_model.passing.decisions import PassConfig
 from erforce_ball_model.passing.player import HELD_DISTANCE_M, PassingPlayer, PassRecord, PlayerConfig, PressingTeam
 from erforce_ball_model.receiver import CatcherConfig, catch_twist, wrap_angle
@@ -31,11 +31,16 @@ ARRIVAL_S = 0.4 * V0 / 2.5 + (0.6 * V0 - 1.5) / 0.3
 FLAT_ONLY = PlayerConfig(passing=PassConfig(chip_angle_deg=0.0))
 
 
-def player_with(ours, theirs=(), cfg=None, trusted=None):
+CHIP_MODEL = ChipParams()  # the predictor's chip model at its defaults
+
+
+def player_with(ours, theirs=(), cfg=None, trusted=None, chip_model=CHIP_MODEL):
     """A player that has seen every robot at rest at (x, y, yaw) and holds the ball at robot 0 from t = 0
-    (``trusted``: the model it trusts, as a new game on a new time line keeps it; None: the default)."""
+    (``trusted``: the model it trusts, as a new game on a new time line keeps it; None: the default), told the
+    chip model in use ``chip_model`` (None: none has come)."""
     cfg = PlayerConfig() if cfg is None else cfg
-    p = PassingPlayer(cfg, len(ours), len(theirs), FIELD, OFFSET, ROBOT.robot_radius_m, BallModelParams(), trusted)
+    p = PassingPlayer(cfg, len(ours), len(theirs), FIELD, OFFSET, ROBOT.robot_radius_m, BallModelParams(), trusted,
+                      chip_model)
     for i, pose in enumerate((*ours, *theirs)):
         p.on_robot(i, 0.0, pose, (0.0, 0.0))
     p.on_ball(0.0, (OFFSET, 0.0), (0.0, 0.0))
@@ -184,7 +189,6 @@ def test_with_an_opponent_on_the_only_lane_the_holder_chips_over_it_and_the_rece
     # the receiver stands beside the line instead: it goes to a point beyond where the chip comes down
     p.receiver.on_odom(t_kick + 0.12, (3.0, 0.4, math.pi), (0.0, 0.0))
     p.on_ball(t_kick + 0.12, (OFFSET + 0.35, 0.0, 0.27), (v, 0.0, v - 9.81 * 0.12))
-    from erforce_ball_model.ball_model import ChipParams
     from erforce_ball_model.chip_model import ChipTrajectory
     from erforce_ball_model.receiver import choose_target
 
@@ -195,6 +199,54 @@ def test_with_an_opponent_on_the_only_lane_the_holder_chips_over_it_and_the_rece
     t_there = chip.ground_track().time_to_distance(float(target[0] - OFFSET - (OFFSET + 0.35)))
     assert chip.position_at(t_there)[2] <= ChipParams().max_catch_height_m
     assert target[0] - OFFSET >= chip.position_at(chip.time_below_height_s())[0] - 1e-9
+
+
+G_MPS2 = 9.81
+
+
+def test_the_holder_rates_and_its_receiver_takes_a_chip_with_the_chip_model_in_use():
+    """The chip scene above under a chip model that is not the defaults (catchable up to 0.3 m, softer bounces),
+    and before any chip model has come. By hand, 45 deg: the ball travels 2.9185 - 0.0815 = 2.837 m to the
+    receiver's dribbler and comes down through h = 0.3 m at x = 0.55 of that (chip_land_fraction): from
+    x = v (v + sqrt(v^2 - 2 g h)) / g with v the horizontal (= vertical) speed, v^2 = g x^2 / (2 (x - h)), and
+    the kick speed is sqrt(2) v. The catch is the ball's arrival at 2.837 m: each hop lasts 2 vz / g at the
+    horizontal speed it has (vz times damping_z, vxy times damping_xy_first_hop then damping_xy_other_hops at
+    each bounce), the receiver takes it in the hop that crosses 2.837 m, where it is below h."""
+    chip_model = ChipParams(damping_z=0.4, damping_xy_first_hop=0.8, damping_xy_other_hops=0.9,
+                            max_catch_height_m=0.3)
+    contact = 3.0 - 2.0 * OFFSET
+    x = PassConfig().chip_land_fraction * contact
+    h = chip_model.max_catch_height_m
+    v = math.sqrt(G_MPS2 * x * x / (2.0 * (x - h)))
+    travelled, t_s, vxy, vz, bounces = 0.0, 0.0, v, v, 0
+    while True:  # hop by hop to the one that crosses the contact
+        hop_s = 2.0 * vz / G_MPS2
+        if travelled + vxy * hop_s >= contact:
+            t_in = (contact - travelled) / vxy
+            t_s += t_in
+            z_there = vz * t_in - 0.5 * G_MPS2 * t_in**2
+            break
+        travelled, t_s = travelled + vxy * hop_s, t_s + hop_s
+        vxy *= chip_model.damping_xy_first_hop if bounces == 0 else chip_model.damping_xy_other_hops
+        vz *= chip_model.damping_z
+        bounces += 1
+    assert bounces == 3 and vz > chip_model.min_hop_vz_mps  # it comes in on its fourth hop, still hopping
+    assert 0.0 <= z_there <= h
+
+    unknown = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], [(1.5, 0.0, math.pi)], chip_model=None)
+    unknown.tick(0.1)
+    assert unknown.choice[1].kick_angle_deg == 0.0  # no chip model: flat passes only
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)], [(1.5, 0.0, math.pi)], chip_model=None)
+    p.on_chip_model(chip_model)
+    _, commands = kicked(p, t_kick=3.0)
+    choice = p.choice[1]
+    assert commands.kick_angles == {0: 45.0} and choice.safe(PassConfig())
+    assert choice.kick_speed_mps == pytest.approx(math.sqrt(2.0) * v, abs=1e-6)
+    assert choice.receiver_catch_s == pytest.approx(t_s, abs=1e-6)
+    assert p.receiver.chip_model is chip_model  # its receiver predicts the chip with it too
+    other = ChipParams(max_catch_height_m=0.2)
+    p.on_chip_model(other)  # a new one while the ball flies: the receiver takes that
+    assert p.receiver.chip_model is other
 
 
 def test_a_record_goes_over_the_wire_and_back():
@@ -483,3 +535,15 @@ def test_a_holder_that_has_not_kicked_after_stall_warn_s_says_why():
             assert p.stalled is None
     assert p.stalled == ("robot_0 has held the ball 4.1 s without kicking: its pass to robot_1 (safe) is 1.571 rad "
                          "off its yaw (aim_tolerance_rad 0.03)")
+
+
+def test_every_pressing_robot_receives_a_chip_with_the_chip_model_in_use():
+    """The opponents' team: none before a chip model comes, then every receiver has the one in use, a new one
+    replacing it (a ball in the air is predicted with it, receiver.Receiver)."""
+    team = PressingTeam(CatcherConfig(), OFFSET, ROBOT.robot_radius_m, FIELD, (0, 1, 2))
+    assert team.chip_model is None and all(r.chip_model is None for r in team.receivers.values())
+    first, second = ChipParams(max_catch_height_m=0.2), ChipParams(damping_z=0.3)
+    given = PressingTeam(CatcherConfig(), OFFSET, ROBOT.robot_radius_m, FIELD, (0, 1), chip_model=first)
+    assert all(r.chip_model is first for r in given.receivers.values())
+    given.on_chip_model(second)
+    assert given.chip_model is second and all(r.chip_model is second for r in given.receivers.values())

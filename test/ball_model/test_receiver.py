@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ChipParams
 from erforce_ball_model.receiver import (
     CatcherConfig,
     Receiver,
@@ -463,3 +463,33 @@ def test_a_ball_in_the_air_on_ball_state_reaches_the_receiver_as_a_chip_and_the_
         assert (p.tolist(), v.tolist()) == ([1.0, -2.0], [3.0, 0.5])
     _, p, v = ball_state_from_msg(state(0.0, 2.0))  # just kicked upwards
     assert p.tolist() == [1.0, -2.0, 0.0] and v.tolist() == [3.0, 0.5, 2.0]
+
+
+def test_a_chip_is_received_where_the_chip_model_in_use_says_it_is_low():
+    """A ball chipped from (0, 0) at (3, 0, 3) m/s; the robot 3 cm beside its line at x = 1 faces it (no slack,
+    no line tolerance). Its projection (1, 0) puts the dribbler at 1 - 0.0815 = 0.9185 m, where the ball is at
+    t = 0.30617 s, 3 t - 9.81 t^2 / 2 = 0.4587 m high; the robot gets there (0.03 m from rest, a_max 4.5 m/s^2) in
+    2 sqrt(0.03 / 4.5) = 0.163 s. Under a chip model that takes a ball up to 0.5 m that is its target: it drives
+    along field -y (robot frame +y) at sqrt(2 a_max braking_margin d) = sqrt(0.135) m/s. Under the default
+    model (0.15 m) the ball flies over that point and every later one it reaches in time: it holds. Before a chip
+    model has come, the ball is taken where its shadow is, with a notice."""
+    cfg = CatcherConfig(receive_slack_s=0.0, receive_line_tolerance_m=0.0)
+    offset = 0.0815
+
+    def twist(chip_model):
+        receiver = Receiver(cfg, offset)
+        if chip_model is not None:
+            receiver.on_chip_model(chip_model)
+        receiver.on_odom(1.0, (1.0, 0.03, math.pi), (0.0, 0.0), 1.0)
+        receiver.on_ball(1.0, (0.0, 0.0, 0.0), (3.0, 0.0, 3.0))
+        return receiver.tick(1.0), receiver.notice
+
+    t = (1.0 - offset) / 3.0
+    assert 3.0 * t - 4.905 * t * t == pytest.approx(0.4587, abs=1e-4)
+    to_projection = (0.0, math.sqrt(2.0 * cfg.a_max_mps2 * cfg.braking_margin * 0.03), 0.0)
+    high, notice = twist(ChipParams(max_catch_height_m=0.5))
+    assert high == pytest.approx(to_projection, abs=1e-9) and notice is None
+    default, notice = twist(ChipParams())
+    assert np.array_equal(default, np.zeros(3)) and notice is None
+    unknown, notice = twist(None)
+    assert unknown == pytest.approx(to_projection, abs=1e-9) and "no chip model" in notice

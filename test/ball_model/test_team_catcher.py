@@ -135,12 +135,13 @@ def test_with_press_lanes_the_opponents_wait_on_our_passing_lanes_while_we_hold_
 
 
 def test_the_model_in_use_outlives_a_new_clock_time_line_in_every_node_that_predicts_the_ball():
-    """/ball/model_params is transient local: a node gets it once. A new /clock time line (the simulator
-    restarted, the predictor not) starts the node's core afresh; the model in use must go on, not the defaults.
-    In-process: the nodes' callbacks are called directly."""
+    """/ball/model_params and /ball/chip_model_params are transient local: a node gets them once. A new /clock
+    time line (the simulator restarted, the predictor not) starts the node's core afresh; the models in use must go
+    on, not the defaults (the chip model: none). A chip model that is none (damping_z 1: the hops never end) is
+    refused and the one in use kept. In-process: the nodes' callbacks are called directly."""
     import rclpy
 
-    from erforce_ball_model.ball_model import BallModelParams
+    from erforce_ball_model.ball_model import BallModelParams, ChipParams
     from erforce_ball_model.catcher_node import CatcherNode
     from erforce_ball_model.passing.passing_game_node import PassingGameNode
     from erforce_ball_model.team_catcher_node import TeamCatcherNode
@@ -148,6 +149,10 @@ def test_the_model_in_use_outlives_a_new_clock_time_line_in_every_node_that_pred
     model = BallModelParams(-14.0, -0.7, 0.7)
     msg = table_msg([[model.a_slide_mps2, model.a_roll_mps2, model.c_switch]], contract.BALL_MODEL_PARAM_LABELS,
                     contract.BALL_MODEL_PARAM_ROWS[0])
+    chip = ChipParams(damping_z=0.4, max_catch_height_m=0.3)
+    labels = contract.BALL_CHIP_MODEL_PARAM_LABELS
+    chip_msg = table_msg([[getattr(chip, k) for k in labels]], labels, "in_use")
+    bad_chip = table_msg([[9.81, 1.0, 0.7, 1.0, 0.05, 0.15]], labels, "in_use")
     cores = ((CatcherNode, lambda node: node._receiver), (TeamCatcherNode, lambda node: node._team),
              (PassingGameNode, lambda node: node._player))
     rclpy.init(args=["--ros-args", "-r", "__ns:=/robot_0"])  # the catcher runs in a robot's namespace
@@ -155,12 +160,17 @@ def test_the_model_in_use_outlives_a_new_clock_time_line_in_every_node_that_pred
         for node_type, core in cores:
             node = node_type()
             try:
-                assert core(node).model == BallModelParams()
+                assert core(node).model == BallModelParams() and core(node).chip_model is None
                 node._on_model_params(msg)
-                assert core(node).model == model
+                node._on_chip_model_params(chip_msg)
+                assert core(node).model == model and core(node).chip_model == chip
+                node._on_chip_model_params(bad_chip)
+                assert core(node).chip_model == chip
+                assert node._warn.counts.get("chip_model_params") == 1, node_type.__name__
                 before = core(node)
                 node.on_clock_restart()
                 assert core(node) is not before and core(node).model == model, node_type.__name__
+                assert core(node).chip_model == chip, node_type.__name__
             finally:
                 node.destroy_node()
     finally:

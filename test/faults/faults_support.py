@@ -254,7 +254,8 @@ class TopicWatch:
 ECHO_WAIT_S = 0.3  # the longest a burst's echoes are waited for
 #: the columns of the tables a node reads, by topic (else the model's): the fuzz gets past the label check
 TABLE_COLUMNS = {contract.BALL_CATCHES.name: contract.CATCH_TABLE_COLUMNS,
-                 contract.ROBOTS_TRACKED.name: contract.TRACKED_ROBOT_COLUMNS}
+                 contract.ROBOTS_TRACKED.name: contract.TRACKED_ROBOT_COLUMNS,
+                 contract.BALL_CHIP_MODEL_PARAMS.name: contract.BALL_CHIP_MODEL_PARAM_LABELS}
 
 
 def fuzz_topic(probe, watch: TopicWatch, spinner, name: str, topic: contract.Topic, rng) -> None:

@@ -29,6 +29,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
+from erforce_ball_model.ball_model import ChipParams
 from erforce_ball_model.passing.passing_game_node import records_from_msg
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import odometry_msg, stamp_to_seconds
@@ -136,11 +137,11 @@ def test_fuzzed_inputs_crash_neither_the_passing_game_nor_the_pressing_opponents
     spin_until(lambda: any(m.layout.dim and m.layout.dim[0].size for m in choices), 120.0,
                "robot_0 holding the ball with a chosen pass")
     inputs = {node: node_topics(probe, node) for node in GAME_NODES}
-    # passing_game: the ball's three topics, every robot's light barrier, the tracked robots' and the catch table,
-    # /clock, the world's field; the interceptor: the ball's, its robot's barrier, both tables (every pose from the
-    # tracked one), /clock, the world's field
-    assert len(inputs["passing_game"]) == 3 + 4 + 2 + 1 + 1, sorted(inputs["passing_game"])
-    assert len(inputs["opponent_interceptor"]) == 3 + 1 + 2 + 1 + 1, sorted(inputs["opponent_interceptor"])
+    # passing_game: the ball's four topics (state, v_shoot, the ball and chip models), every robot's light barrier,
+    # the tracked robots' and the catch table, /clock, the world's field; the interceptor: the ball's, its robot's
+    # barrier, both tables (every pose from the tracked one), /clock, the world's field
+    assert len(inputs["passing_game"]) == 4 + 4 + 2 + 1 + 1, sorted(inputs["passing_game"])
+    assert len(inputs["opponent_interceptor"]) == 4 + 1 + 2 + 1 + 1, sorted(inputs["opponent_interceptor"])
     assert all(contract.VISION_FIELD.name in inputs[node] for node in GAME_NODES)
     assert all({contract.BALL_CATCHES.name, contract.ROBOTS_TRACKED.name} <= set(inputs[node]) for node in GAME_NODES)
     fuzzed = {name: topic for node in GAME_NODES for name, topic in inputs[node].items()}
@@ -160,6 +161,11 @@ def test_fuzzed_inputs_crash_neither_the_passing_game_nor_the_pressing_opponents
     # stalled the game for good until the holder fell back (PassingPlayer.fallback_choice).
     probe.publisher(contract.BALL_MODEL_PARAMS.name, Float64MultiArray, contract.BALL_MODEL_PARAMS.qos).publish(
         table_msg(np.array([[-100.0, -50.0, 0.6]]), contract.BALL_MODEL_PARAM_LABELS, "in_use"))
+    # likewise a fuzzed chip model that passed its checks: the predictor's (the defaults) back
+    chip, labels = ChipParams(), contract.BALL_CHIP_MODEL_PARAM_LABELS
+    chip_topic = contract.BALL_CHIP_MODEL_PARAMS
+    probe.publisher(chip_topic.name, Float64MultiArray, chip_topic.qos).publish(
+        table_msg(np.array([[getattr(chip, k) for k in labels]]), labels, "in_use"))
 
     last_read = [-math.inf]
 

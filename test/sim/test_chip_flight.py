@@ -138,7 +138,7 @@ def test_the_plant_s_chip_is_the_chip_model_s_with_its_defaults():
     assert ChipParams().damping_z == BallParams().floor_restitution
     assert ChipParams().min_hop_vz_mps == LANDED_VZ_MPS
     w, b = chipped(3.0, 60.0)  # rests ~2.5 m on, before the wall (the model has none)
-    model = ChipTrajectory((b.x, b.y, 0.0), (b.vx, b.vy, b.vz))
+    model = ChipTrajectory((b.x, b.y, 0.0), (b.vx, b.vy, b.vz), ChipParams())
     assert len(model.hops) > 5
     t0 = w.t_s
     for t_touch, point in zip(model.touchdown_times_s[:4], model.touchdown_points_m[:4], strict=True):

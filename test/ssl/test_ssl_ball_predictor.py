@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import rclpy
 
+from erforce_ball_model.ball_model import ChipParams
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.ssl_ball_predictor import make_nodes
 from erforce_interfaces.ssl.ssl_vision import (
@@ -207,7 +208,7 @@ def test_a_chip_is_in_the_air_on_ball_state_from_one_cameras_frames(defend_side)
         sender.sendto(encode_geometry(FieldGeometry(9.0, 6.0, 0.3, 1.0, 0.18, cameras=(
             CameraPose(0, -2.0, -1.5, 4.0), CameraPose(1, *camera)))), (SSL_VISION_GROUP, port))
         t_kick = 1.5
-        chip = ChipTrajectory((1.0, 0.5, 0.0), (0.0, 2.0, 3.0))
+        chip = ChipTrajectory((1.0, 0.5, 0.0), (0.0, 2.0, 3.0), ChipParams())
         for k in range(int(0.55 * FPS) + int((t_kick - 1.0) * FPS)):
             t = 1.0 + k / FPS
             x, y, z = chip.position_at(max(t - t_kick, 0.0)).tolist()

@@ -55,7 +55,12 @@ from erforce_interfaces.wire.robot_config import (
     BALL_A_ROLL_MPS2,
     BALL_A_SLIDE_MPS2,
     BALL_C_SWITCH,
+    BALL_CHIP_DAMPING_XY_FIRST_HOP,
+    BALL_CHIP_DAMPING_XY_OTHER_HOPS,
+    BALL_CHIP_DAMPING_Z,
+    BALL_CHIP_MIN_HOP_VZ_MPS,
     BALL_INERTIA_FACTOR,
+    BALL_MAX_CATCH_HEIGHT_M,
     BALL_RADIUS_M,
     BALL_WALL_FRICTION,
     BALL_WALL_RESTITUTION,
@@ -118,15 +123,16 @@ class ChipParams:
     rolling phase). ``max_catch_height_m``: a robot can take a ball whose centre is at most this high
     (about the robot's height). The SSL geometry's fixed-loss chip model names the same three dampings.
     The defaults are the simulator's ball (erforce_sim.ball: a solid ball chipped without spin, no drag),
-    as BallModelParams' are its carpet; a real field's come from its logs or its geometry packet.
+    as BallModelParams' are its carpet; a real field's come from its logs or its geometry packet. The chip
+    model in use is the ball predictor's (its ``chip_*`` parameters), published on /ball/chip_model_params.
     """
 
     g_mps2: float = 9.81
-    damping_z: float = 0.566
-    damping_xy_first_hop: float = 1.0 / 1.4
-    damping_xy_other_hops: float = 1.0
-    min_hop_vz_mps: float = 0.05
-    max_catch_height_m: float = 0.15
+    damping_z: float = BALL_CHIP_DAMPING_Z
+    damping_xy_first_hop: float = BALL_CHIP_DAMPING_XY_FIRST_HOP
+    damping_xy_other_hops: float = BALL_CHIP_DAMPING_XY_OTHER_HOPS
+    min_hop_vz_mps: float = BALL_CHIP_MIN_HOP_VZ_MPS
+    max_catch_height_m: float = BALL_MAX_CATCH_HEIGHT_M
 
     def __post_init__(self) -> None:
         for name in ("g_mps2", "damping_z", "damping_xy_first_hop", "damping_xy_other_hops", "min_hop_vz_mps",

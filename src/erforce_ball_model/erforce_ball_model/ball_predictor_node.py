@@ -28,7 +28,7 @@ import time
 
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
-from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.ball_model import BallModelParams, ChipParams
 from erforce_ball_model.catch_time import RobotLimits, load_kernels
 from erforce_ball_model.predictor import BallFrame, BallPredictor, FrameTimes, PredictorConfig
 from erforce_ball_model.tracking import TrackerConfig
@@ -56,7 +56,6 @@ from erforce_interfaces.wire.conversions import (
     MAX_ABS_VALUE,
     ConversionError,
     float64_cdr,
-    float64_from_msg,
     odometry_cdr,
     point_cdr,
     seconds_to_stamp,
@@ -88,6 +87,9 @@ def build_config(c) -> PredictorConfig:
     return PredictorConfig(
         num_robots=n + m,
         model=BallModelParams(c.a_slide_mps2, c.a_roll_mps2, c.c_switch),
+        chip=ChipParams(damping_z=c.chip_damping_z, damping_xy_first_hop=c.chip_damping_xy_first_hop,
+                        damping_xy_other_hops=c.chip_damping_xy_other_hops, min_hop_vz_mps=c.chip_min_hop_vz_mps,
+                        max_catch_height_m=c.chip_max_catch_height_m),
         tracker=TrackerConfig(
             position_noise_m=c.position_noise_m,
             accel_noise_psd=c.accel_noise_psd,
@@ -158,6 +160,8 @@ class BallPredictorNode(SchemaNode):
         self._ball_stamps, self._robot_stamps = StampFilter(), [StampFilter() for _ in range(n)]
         self._params_pub = contract_publisher(self, q.BALL_MODEL_PARAMS)
         self._publish_model()
+        self._chip_pub = contract_publisher(self, q.BALL_CHIP_MODEL_PARAMS)
+        self._publish_chip_model()
         self._state_pub = contract_publisher(self, q.BALL_STATE)
         # phase, stop point and the uncertain flag are for tools: sent while they have a reader
         self._tool_readers = [0, 0, 0]
@@ -201,7 +205,8 @@ class BallPredictorNode(SchemaNode):
         # Our kick commands as the kicker's word for the chip detector (kick_hints). A command carries no stamp: the
         # hint takes the newest vision stamp, the predictor's clock (/clock's time in our world, capture time on
         # an outside one), which is at or before the kick. The opponents' commands are not ours to see.
-        self._kick_angles_deg = [0.0] * n_ours  # the elevation last commanded per robot (before its kick)
+        # the elevation last commanded per robot (before its kick); None: the last one was refused (no hint)
+        self._kick_angles_deg: list[float | None] = [0.0] * n_ours
         self._t_vision_s: float | None = None  # the newest ball frame's stamp
         for i in range(n_ours):
             contract_subscription(self, q.KICK_ANGLE, lambda m, i=i: self._on_kick_angle(i, m),
@@ -231,8 +236,11 @@ class BallPredictorNode(SchemaNode):
             if summary:
                 self.get_logger().info(summary)
             self._times = FrameTimes(config.timing_log_every)
+        chip_before = self._predictor.chip_model
         if self._predictor.configure(config):
             self._publish_model()
+        if self._predictor.chip_model != chip_before:
+            self._publish_chip_model()
 
     def _publish_model(self) -> None:
         rows = self._predictor.model_rows()
@@ -241,6 +249,14 @@ class BallPredictorNode(SchemaNode):
                                                ",".join(contract.BALL_MODEL_PARAM_ROWS[:len(rows)])))
         except ConversionError as exc:
             self._warn.warn("model_params", f"model_params not published: {exc}")
+
+    def _publish_chip_model(self) -> None:
+        chip = self._predictor.chip_model
+        try:
+            self._chip_pub.publish(table_msg([[getattr(chip, name) for name in contract.BALL_CHIP_MODEL_PARAM_LABELS]],
+                                             contract.BALL_CHIP_MODEL_PARAM_LABELS, contract.BALL_MODEL_PARAM_ROWS[0]))
+        except ConversionError as exc:
+            self._warn.warn("chip_model_params", f"chip_model_params not published: {exc}")
 
     # ------------------------------------------------------------- SSL geometry
     # The predictor keeps them (also across parameter changes) and uses them while use_vision_geometry.
@@ -286,10 +302,15 @@ class BallPredictorNode(SchemaNode):
 
     # ------------------------------------------------------------- kick hints
     def _on_kick_angle(self, robot: int, msg: Float64) -> None:
-        try:
-            self._kick_angles_deg[robot] = float64_from_msg(msg, MAX_KICK_ANGLE_DEG)
-        except ConversionError as exc:
-            self._warn.warn(f"kick_angle{robot}", f"robot_{robot}: rejected kick_angle: {exc}")
+        """The elevation of the robot's next kick; one outside [0, MAX_KICK_ANGLE_DEG) is refused and the kick
+        after it is no hint (the chip detector judges it from the cameras alone)."""
+        angle = msg.data
+        if not (math.isfinite(angle) and 0.0 <= angle < MAX_KICK_ANGLE_DEG):
+            self._kick_angles_deg[robot] = None
+            self._warn.warn(f"kick_angle{robot}", f"robot_{robot}: rejected kick_angle {angle!r}: an elevation in "
+                            f"[0, {MAX_KICK_ANGLE_DEG:g}) deg, please; its kick is no hint to the chip detector")
+            return
+        self._kick_angles_deg[robot] = float(angle)
 
     def _on_kick(self, robot: int, msg: Float64) -> None:
         """A kick commanded: a hint for the chip detector at the newest vision stamp (none before the first frame)."""
@@ -297,7 +318,7 @@ class BallPredictorNode(SchemaNode):
         if not (self._values["kick_hints"] and math.isfinite(speed) and speed > 0.0):
             return
         with self._lock:
-            if self._t_vision_s is None:
+            if self._t_vision_s is None or self._kick_angles_deg[robot] is None:
                 return
             try:
                 self._predictor.kick_hint(self._t_vision_s, self._kick_angles_deg[robot])

@@ -21,11 +21,12 @@ from __future__ import annotations
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
-from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.ball_model import BallModelParams, ChipParams
 from erforce_ball_model.receiver import CatcherConfig, Receiver
 from erforce_interfaces.runtime.executor import run_sampled, sample_only
 from erforce_interfaces.runtime.node_support import (
     SchemaNode,
+    ThrottledWarner,
     WorldField,
     contract_publisher,
     contract_subscription,
@@ -42,7 +43,7 @@ from erforce_interfaces.wire.conversions import (
     twist_msg,
 )
 from erforce_interfaces.wire.robot_config import FieldConfig, field_from_setting
-from erforce_interfaces.wire.tables import model_in_use_from_msg
+from erforce_interfaces.wire.tables import chip_model_from_msg, model_in_use_from_msg
 
 SCHEMA = load_schema("erforce_ball_model", "catcher")
 
@@ -53,6 +54,16 @@ def build_config(config) -> tuple[CatcherConfig, float, float, FieldConfig | Non
     robot = config.robot
     return (CatcherConfig(**fields_for(CatcherConfig, config)), robot.dribbler_offset_m, robot.robot_radius_m,
             field_from_setting(config.field))
+
+
+def chip_model_of(msg: Float64MultiArray, warn: ThrottledWarner) -> ChipParams | None:
+    """The chip model of a /ball/chip_model_params message; None, with a throttled warning naming it, when it
+    is none (the reader keeps the one it has)."""
+    try:
+        return ChipParams(*chip_model_from_msg(msg))
+    except (ConversionError, ValueError) as exc:
+        warn.warn("chip_model_params", f"rejected {contract.BALL_CHIP_MODEL_PARAMS.name}: {exc}")
+        return None
 
 
 class CatcherNode(SchemaNode):
@@ -81,6 +92,7 @@ class CatcherNode(SchemaNode):
                 (q.BALL_STATE, self._on_ball, True),
                 (q.BALL_V_SHOOT, self._on_v_shoot, True),
                 (q.BALL_MODEL_PARAMS, self._on_model_params, False),
+                (q.BALL_CHIP_MODEL_PARAMS, self._on_chip_model_params, False),
                 (q.BALL_DETECTED, self._on_barrier, False),
             )
         ]
@@ -101,9 +113,12 @@ class CatcherNode(SchemaNode):
 
     def on_clock_restart(self) -> None:
         """A new /clock time line (node_support.guard_clock): the inputs' arrival times are void."""
-        model = self._receiver.model  # the predictor's (transient local: not sent again for a new time line)
+        # the predictor's models (transient local: not sent again for a new time line)
+        model, chip_model = self._receiver.model, self._receiver.chip_model
         self._receiver = self._new_receiver()
         self._receiver.on_model(model)
+        if chip_model is not None:
+            self._receiver.on_chip_model(chip_model)
 
     def _now_s(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
@@ -143,6 +158,11 @@ class CatcherNode(SchemaNode):
             self._receiver.on_model(BallModelParams(*model_in_use_from_msg(msg)))
         except (ConversionError, IndexError, ValueError) as exc:
             self._warn.warn("model_params", f"rejected model_params: {exc}")
+
+    def _on_chip_model_params(self, msg: Float64MultiArray) -> None:
+        chip_model = chip_model_of(msg, self._warn)
+        if chip_model is not None:
+            self._receiver.on_chip_model(chip_model)
 
     def _on_barrier(self, msg: Bool) -> None:
         if self._receiver.on_barrier(msg.data):

@@ -11,7 +11,8 @@ velocity, rolling (the bounces' friction has matched its spin to its speed).
 
 Heights ``z`` are of the ball's centre above where it rests on the carpet (0 on the ground).
 
->>> chip = ChipTrajectory((0.0, 0.0, 0.0), (3.0, 0.0, 3.0))  # 4.24 m/s at 45 deg along +x
+>>> from erforce_ball_model.ball_model import ChipParams
+>>> chip = ChipTrajectory((0.0, 0.0, 0.0), (3.0, 0.0, 3.0), ChipParams())  # 4.24 m/s at 45 deg along +x
 >>> round(chip.apex_height_m, 3), round(float(chip.touchdown_times_s[0]), 3)  # vz^2 / 2g, 2 vz / g
 (0.459, 0.612)
 >>> chip.touchdown_points_m[0].round(3).tolist()
@@ -97,9 +98,8 @@ class ChipTrajectory:
 
     __slots__ = ("_ends", "_hop_rows", "_starts", "_track", "hops", "params", "roll", "roll_start_s")
 
-    def __init__(self, position_m, velocity_mps, params: ChipParams | None = None,
+    def __init__(self, position_m, velocity_mps, params: ChipParams,
                  ball_params: BallModelParams | None = None) -> None:
-        params = ChipParams() if params is None else params
         ball_params = BallModelParams() if ball_params is None else ball_params
         if not isinstance(params, ChipParams) or not isinstance(ball_params, BallModelParams):
             raise ValueError(f"params, ball_params: expected ChipParams and BallModelParams, got "
@@ -270,7 +270,7 @@ def _of_parts(params: ChipParams, hops, roll: BallTrajectory, roll_start_s: floa
     return ball
 
 
-def flying_ball(position_m, velocity_mps, params: ChipParams | None = None,
+def flying_ball(position_m, velocity_mps, params: ChipParams,
                 ball_params: BallModelParams | None = None) -> ChipTrajectory | None:
     """The ball of a state ``(x, y, z)``, ``(vx, vy, vz)`` (as /ball/state carries it: z of the centre above
     its rest, 0 on the ground) as a ChipTrajectory while it is in the air (z > 0 or vz > 0), else None

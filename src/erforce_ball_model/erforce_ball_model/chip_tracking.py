@@ -18,8 +18,8 @@ stands ``vz_sigma`` standard errors above zero and above ``min_vz_mps``, and it 
 (chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
 
 >>> cameras = ((-3.0, 0.0, 4.0), (3.0, 1.0, 4.0))
->>> truth = ChipTrajectory((1.0, 0.5, 0.0), (2.0, 0.0, 2.0))  # kicked at t = 0 from (1, 0.5)
->>> detector = ChipDetector()
+>>> truth = ChipTrajectory((1.0, 0.5, 0.0), (2.0, 0.0, 2.0), ChipParams())  # kicked at t = 0 from (1, 0.5)
+>>> detector = ChipDetector(None, ChipParams())
 >>> detector.start(0.01, before=(0.0, 1.0, 0.5, 0.0, 0.0))  # first seen moving at 0.01 s; at rest before
 >>> for k in range(1, 8):  # 100 Hz, both cameras, no noise
 ...     x, y, z = truth.position_at(0.01 * k)
@@ -203,10 +203,13 @@ class ChipDetector:
     the kick is a chip unless the ground explains it clearly better; a flat hint raises the evidence a chip needs.
     """
 
-    def __init__(self, config: ChipDetectorConfig | None = None, params: ChipParams | None = None,
+    def __init__(self, config: ChipDetectorConfig | None, params: ChipParams,
                  ball_params: BallModelParams | None = None) -> None:
+        """``params``: the chip model in use (the predictor's, predictor.BallPredictor.chip_model)."""
+        if not isinstance(params, ChipParams):
+            raise ValueError(f"params: expected the chip model in use (ChipParams), got {type(params).__name__}")
         self.config = config or ChipDetectorConfig()
-        self.params = params or ChipParams()
+        self.params = params
         self.ball_params = ball_params or BallModelParams()
         self._rows: list[Sighting] = []
         self.t_start_s: float | None = None

@@ -235,6 +235,11 @@ class BallPredictor:
         return old is None or model != model_before
 
     @property
+    def chip_model(self) -> ChipParams:
+        """The chip model in use (``config.chip``): the chip detector's, and what the AI must predict chips with."""
+        return self.config.chip
+
+    @property
     def model(self) -> BallModelParams:
         """The ball model in use (configured, from SSL geometry or identified). Its one state is the ball filter's
         (``BallTracker.params``): the filter's kernel, the trajectories and so the catch search all read it."""

@@ -384,7 +384,7 @@ class Receiver:
         self._catch_point = None  # (t, [x, y])
         self._ball = None  # (t, position, velocity)
         self._height = (0.0, 0.0)  # the ball's (z, vz) with the newest state: in the air when either is > 0
-        self._chip_params = ChipParams()
+        self._chip_model: ChipParams | None = None  # the predictor's chip model (on_chip_model); None: not yet
         self._rest_position = None  # where the ball was last seen at rest
         self._received = False  # caught, and the ball not seen at rest since
         self._v_shoot = None  # (t, m/s)
@@ -470,6 +470,16 @@ class Receiver:
         """The ball model it predicts the ball with (the defaults until ``on_model``)."""
         return self._model
 
+    def on_chip_model(self, params: ChipParams) -> None:
+        """The chip model the predictor uses (/ball/chip_model_params): a ball in the air is predicted with it."""
+        self._chip_model = params
+
+    @property
+    def chip_model(self) -> ChipParams | None:
+        """The chip model it predicts a ball in the air with (None until ``on_chip_model``: such a ball is taken
+        as rolling where its shadow is, with a ``notice``)."""
+        return self._chip_model
+
     def on_barrier(self, detected: bool) -> bool:
         """The light barrier; True on the rising edge (the ball is received)."""
         edge = bool(detected) and not self._holding_ball
@@ -532,8 +542,12 @@ class Receiver:
     def _chip(self, now: float) -> ChipTrajectory | None:
         """The ball in the air (its newest state has a height or rises), else None."""
         (_, position, velocity), (z, vz) = self._ball, self._height
+        if self._chip_model is None:
+            if z > 0.0 or vz > 0.0:
+                self.notice = "the ball is in the air but no chip model has come (/ball/chip_model_params)"
+            return None
         try:
-            return flying_ball((*position, max(z, 0.0)), (*velocity, vz), self._chip_params, self._model)
+            return flying_ball((*position, max(z, 0.0)), (*velocity, vz), self._chip_model, self._model)
         except ValueError as exc:
             self.notice = f"ball state in the air not usable: {exc}"
             return None

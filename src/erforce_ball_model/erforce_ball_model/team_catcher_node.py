@@ -78,7 +78,8 @@ class TeamCatcherNode(SchemaNode):
         self._inputs = [sample_only(contract_subscription(self, topic, callback, raw=raw))
                         for topic, callback, raw in ((q.BALL_STATE, self._on_ball, True),
                                                      (q.BALL_V_SHOOT, self._on_v_shoot, True),
-                                                     (q.BALL_MODEL_PARAMS, self._on_model_params, False))]
+                                                     (q.BALL_MODEL_PARAMS, self._on_model_params, False),
+                                                     (q.BALL_CHIP_MODEL_PARAMS, self._on_chip_model_params, False))]
         tracked_poses = self._values["tracked_poses"]
         for i in ids:
             inputs = ((q.BALL_DETECTED, self._on_barrier, False),)
@@ -112,9 +113,9 @@ class TeamCatcherNode(SchemaNode):
         cfg, offset, radius, _field, passing = self._params.built
         n_other = v["num_other_robots"] if passing is not None else 0
         # the predictor's model (transient local: not sent again for a new time line) goes on
-        model = None if self._team is None else self._team.model
+        model, chip_model = (None, None) if self._team is None else (self._team.model, self._team.chip_model)
         self._team = PressingTeam(cfg, offset, radius, self._field.field, v["robot_ids"], v["as_team"], passing,
-                                  n_other, model)
+                                  n_other, model, chip_model)
         self._other_stamps: list[float | None] = [None] * n_other  # the stamp of each row last fed
         self._own_stamps = dict.fromkeys(int(i) for i in v["robot_ids"])  # likewise, with tracked_poses
 
@@ -138,6 +139,11 @@ class TeamCatcherNode(SchemaNode):
             self._warn.warn("model_params", f"rejected model_params: {exc}")
             return
         self._team.on_model(params)
+
+    def _on_chip_model_params(self, msg: Float64MultiArray) -> None:
+        chip_model = catcher_node.chip_model_of(msg, self._warn)
+        if chip_model is not None:
+            self._team.on_chip_model(chip_model)
 
     def _on_odom(self, robot: int, msg: Odometry | bytes) -> None:
         odom = self._warn.convert(msg, f"{self._names[robot]} odom", odometry_from_msg)

@@ -26,12 +26,13 @@ question) for every robot on the field, on the ball the kick would make:
   ball reaches the receiver), so a pass past an opponent standing near the lane is not rated safe.
   The receiver still needs the real catch. ``margin_s`` = opponent - arrival; a pass is safe when the
   margin is at least ``PassConfig.safe_margin_s``.
-- A chip (``PassConfig.chip_angle_deg`` > 0; chip_model.ChipTrajectory) is rated the same way, on the chip
-  the kick would make: robotTimeToBall takes a chip only where it is at most ``max_catch_height_m`` high,
-  so an opponent under its flight cannot take it. It is kicked so that it comes down to that height
-  ``chip_land_fraction`` of the way to the receiver (``chip_speed_for``: the first hop's descent, closed
-  form), and the receiver takes it where it arrives, low, after it landed. Per receiver the flat pass is
-  played when it is safe, else the chip when that is safe, else the one with the larger margin.
+- A chip (``PassConfig.chip_angle_deg`` > 0; chip_model.ChipTrajectory with the predictor's chip model, the one
+  it tracks chips with) is rated the same way, on the chip the kick would make: robotTimeToBall takes a chip only
+  where it is at most ``max_catch_height_m`` high, so an opponent under its flight cannot take it. It is kicked
+  so that it comes down to that height ``chip_land_fraction`` of the way to the receiver (``chip_speed_for``: the
+  first hop's descent, closed form), and the receiver takes it where it arrives, low, after it landed. Per
+  receiver the flat pass is played when it is safe, else the chip when that is safe, else the one with the larger
+  margin.
 - ``select_pass``: of the safe passes the one whose catch comes earliest; when none is safe, the
   one with the largest margin (rated unsafe; the caller may still play it).
 - ``press_targets``: where opponents wait while a robot of ours holds the ball: each covers the
@@ -203,8 +204,9 @@ def evaluate_passes(
     (catch_time.receive_facing); everybody reacts ``cfg.reaction_s`` late. With ``receiver_search`` (a
     CatchSearch like ``search`` for ``1 + len(opponents_xy)`` robots) each pass searches only the receiver
     and the opponents, the robots it is judged by: the same numbers, as robotTimeToBall is per robot.
-    A pass that is not safe flat is rated as a chip too (``cfg.chip_angle_deg``; ``chip_params`` None: the
-    defaults); the option is the chip when that is safe or has the larger margin (``kick_angle_deg``).
+    A pass that is not safe flat is rated as a chip too (``cfg.chip_angle_deg``), with the chip model in use
+    ``chip_params`` (the predictor's; None: not known, no chip is rated); the option is the chip when that is
+    safe or has the larger margin (``kick_angle_deg``).
     ``block_radius_m`` > 0: an opponent's body within this distance of the ball's centre stops it
     (``_block_times``); 0: the opponents' catches only (the paper's rating).
     """
@@ -327,7 +329,7 @@ def _pass_option(robots: _PassRobots, j: int, ball: np.ndarray, u: np.ndarray, r
         opp = np.minimum(opp, _block_times(traj, arrival_s, opponents_xy, opponents_vel, robots.search,
                                            robots.n_team, block_radius_m, cfg.reaction_s))
     option = _option(j, v0, u, arrival_s if math.isfinite(receiver_time) else math.inf, opp, receive_rad, 0.0)
-    if cfg.chip_angle_deg > 0.0 and not option.safe(cfg):
+    if chip_params is not None and cfg.chip_angle_deg > 0.0 and not option.safe(cfg):
         chip, chip_v0 = _chip_pass(ball, u, contact_m, cfg, params, chip_params)
         receiver_time, opp = robots.rate(chip, j, receive_rad)
         track = chip.ground_track()
@@ -348,9 +350,8 @@ def _option(j: int, v0: float, u: np.ndarray, arrival_s: float, opp: np.ndarray,
 
 
 def _chip_pass(ball: np.ndarray, u: np.ndarray, contact_m: float, cfg: PassConfig, params: BallModelParams,
-               chip_params: ChipParams | None) -> tuple[ChipTrajectory, float]:
+               chip_params: ChipParams) -> tuple[ChipTrajectory, float]:
     """The chip along ``u`` that comes down to the catchable height ``chip_land_fraction`` of ``contact_m`` on."""
-    chip_params = ChipParams() if chip_params is None else chip_params
     v0 = chip_speed_for(cfg.chip_land_fraction * contact_m, cfg.chip_angle_deg, chip_params, cfg.min_kick_mps,
                         cfg.max_kick_mps)
     a = math.radians(cfg.chip_angle_deg)

@@ -1,7 +1,7 @@
 """passing_game: our team's AI for the paper's passing game on the graph (passing.player.PassingPlayer).
 
-It reads what the ball predictor publishes: the tracked ball (``/ball/state``, ``/ball/v_shoot``, the model
-in use), every robot's pose and velocity (its row of ``/robots/tracked``, taken when its stamp changed), our
+It reads what the ball predictor publishes: the tracked ball (``/ball/state``, ``/ball/v_shoot``, the ball and
+chip models in use), every robot's pose and velocity (its row of ``/robots/tracked``, taken when its stamp changed), our
 robots' catch times and points (their rows of ``/ball/catches``), and every robot's light barrier (the
 opponents' tell an interception, as a referee sees it). Each AI tick (``rate_hz``, simulated time) it feeds
 PassingPlayer and publishes our robots' ``cmd_vel``, a ``kick`` when the holder kicks and each ``dribbler``
@@ -24,7 +24,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
 from erforce_ball_model import catcher_node
-from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.ball_model import BallModelParams, ChipParams
 from erforce_ball_model.catch_time import load_kernels
 from erforce_ball_model.passing.decisions import PassConfig, PassOption
 from erforce_ball_model.passing.player import PassingPlayer, PassRecord, PlayerConfig, new_poses
@@ -159,7 +159,8 @@ class PassingGameNode(Node):
         self._inputs = [sample_only(contract_subscription(self, topic, callback, raw=raw))
                         for topic, callback, raw in ((q.BALL_STATE, self._on_ball, True),
                                                      (q.BALL_V_SHOOT, self._on_v_shoot, True),
-                                                     (q.BALL_MODEL_PARAMS, self._on_model_params, False))]
+                                                     (q.BALL_MODEL_PARAMS, self._on_model_params, False),
+                                                     (q.BALL_CHIP_MODEL_PARAMS, self._on_chip_model_params, False))]
         for k, (team, j) in enumerate(self._robots):
             sub = contract_subscription(self, q.BALL_DETECTED, lambda msg, k=k: self._on_barrier(k, msg),
                                         team.topic(q.BALL_DETECTED, j))
@@ -176,10 +177,11 @@ class PassingGameNode(Node):
         self.get_logger().info(f"passing_game: robot_0 .. robot_{n - 1} pass, {m} opponent(s); the ball starts at "
                                f"robot_{own.start_holder}")
 
-    def _new_player(self, model: BallModelParams | None = None,
-                    trusted_model: BallModelParams | None = None) -> PassingPlayer:
+    def _new_player(self, model: BallModelParams | None = None, trusted_model: BallModelParams | None = None,
+                    chip_model: ChipParams | None = None) -> PassingPlayer:
         player, _field, offset, radius = self._params.built
-        return PassingPlayer(player, self._n, self._m, self._field.field, offset, radius, model, trusted_model)
+        return PassingPlayer(player, self._n, self._m, self._field.field, offset, radius, model, trusted_model,
+                             chip_model)
 
     def _set_config(self, built) -> None:
         player, _field, offset, radius = built
@@ -189,9 +191,10 @@ class PassingGameNode(Node):
         self._dribblers_sent_at = -math.inf  # the new speed at the next tick
 
     def on_clock_restart(self) -> None:
-        """A new /clock time line (node_support.guard_clock): a new game, with the predictor's model (transient
+        """A new /clock time line (node_support.guard_clock): a new game, with the predictor's models (transient
         local: not sent again) and the model it trusts (a new time line is no evidence against it)."""
-        self._player = self._new_player(self._player.model, self._player.trusted_model)
+        player = self._player
+        self._player = self._new_player(player.model, player.trusted_model, player.chip_model)
         self._first_seen, self._waiting_since, self._started, self._reported = None, None, False, 0
         self._fed_stamps = [None] * (self._n + self._m)
         self._dribblers_sent_at = -math.inf
@@ -228,6 +231,11 @@ class PassingGameNode(Node):
             self._player.on_model(BallModelParams(*model_in_use_from_msg(msg)))
         except (ConversionError, IndexError, ValueError) as exc:
             self._warn.warn("model_params", f"rejected model_params: {exc}")
+
+    def _on_chip_model_params(self, msg: Float64MultiArray) -> None:
+        chip_model = catcher_node.chip_model_of(msg, self._warn)
+        if chip_model is not None:
+            self._player.on_chip_model(chip_model)
 
     def _on_tracked(self, msg: bytes) -> None:
         rows = self._warn.convert(msg, "/robots/tracked", tracked_robots_from_msg)

@@ -1,10 +1,11 @@
 """Our team's AI in the passing game, one AI tick at a time: the functional core shared by the
 in-process game (erforce_sim.in_process.passing_game) and the ``passing_game`` node.
 
-No rclpy and no access to the physics: ``PassingPlayer`` is fed what a real AI sees, as it arrives
-(tracked robots ``on_robot``, the tracked ball ``on_ball``, catch times and points ``on_catch``, the ball
-model ``on_model``, light barriers ``on_barrier``, the opponents' too: how an interception is told, as a
-referee would), and ``tick(now)`` returns every robot's ``Commands`` (twist, kick, dribbler).
+No rclpy and no access to the physics: ``PassingPlayer`` is fed what a real AI sees, as it arrives (tracked
+robots ``on_robot``, the tracked ball ``on_ball``, catch times and points ``on_catch``, the ball model
+``on_model`` and the chip model ``on_chip_model`` in use (the predictor's), light barriers ``on_barrier``, the
+opponents' too: how an interception is told, as a referee would), and ``tick(now)`` returns every robot's
+``Commands`` (twist, kick, dribbler).
 
 - The holder evaluates a pass to every teammate (passing.decisions.evaluate_passes), turns to the earliest safe
   catch (passing.decisions.select_pass) and kicks once it held the ball ``hold_min_s`` and aims within
@@ -31,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.ball_model import BallModelParams, ChipParams
 from erforce_ball_model.catch_time import MAX_RECEIVE_ANGLE_RAD, CatchSearch, RobotLimits
 from erforce_ball_model.passing.decisions import PassConfig, PassOption, evaluate_passes, press_targets, select_pass
 from erforce_ball_model.receiver import (
@@ -205,7 +206,7 @@ class PassingPlayer:
 
     def __init__(self, cfg: PlayerConfig, n_team: int, n_opponents: int, field_config: FieldConfig,
                  dribbler_offset_m: float, robot_radius_m: float, model: BallModelParams | None = None,
-                 trusted_model: BallModelParams | None = None) -> None:
+                 trusted_model: BallModelParams | None = None, chip_model: ChipParams | None = None) -> None:
         if n_team < 2 or n_opponents < 0:
             raise ValueError(f"need at least 2 of ours and no negative number of opponents, got {n_team}, "
                              f"{n_opponents}")
@@ -213,6 +214,8 @@ class PassingPlayer:
         self.model = BallModelParams() if model is None else model
         # the model the last completed pass was planned with (fallback_choice); a new game keeps the old one's
         self.trusted_model = self.model if trusted_model is None else trusted_model
+        # the predictor's chip model (on_chip_model); None: not known yet, no chip is rated
+        self.chip_model = chip_model
         n = n_team + n_opponents
         self.receiver: Receiver | None = None  # our receiver's skill while a pass rolls
         self.configure(cfg, field_config, dribbler_offset_m, robot_radius_m)
@@ -337,6 +340,12 @@ class PassingPlayer:
         if self.receiver is not None:
             self.receiver.on_model(params)
 
+    def on_chip_model(self, params: ChipParams) -> None:
+        """The chip model in use (the predictor's): passes are rated and chips received with it from now on."""
+        self.chip_model = params
+        if self.receiver is not None:
+            self.receiver.on_chip_model(params)
+
     def on_barrier(self, i: int, now: float, detected: bool) -> None:
         """Robot ``i``'s light barrier (ours first, then the opponents); a rising edge is judged at ``check``."""
         detected = bool(detected)
@@ -439,7 +448,8 @@ class PassingPlayer:
                                self.poses[n:, :2], self.velocities[n:], candidates, self.pass_search,
                                self.model if model is None else model, self.cfg.passing if passing is None else passing,
                                self.dribbler_offset_m, targets, self.cfg.max_receive_angle_rad, self.receiver_search,
-                               from_passer_centre=True, block_radius_m=self.robot_radius_m + BALL_RADIUS_M)
+                               from_passer_centre=True, chip_params=self.chip_model,
+                               block_radius_m=self.robot_radius_m + BALL_RADIUS_M)
 
     def fallback_choice(self, holder: int, now: float) -> PassOption | None:
         """The pass of a holder that has no pass in reach under the model in use (module docstring): None
@@ -483,7 +493,7 @@ class PassingPlayer:
         options = evaluate_passes(self.poses[j, :2], self.poses[:n, :2], self.velocities[:n], self.poses[n:, :2],
                                   self.velocities[n:], others, self.pass_search, self.model, self.cfg.passing,
                                   self.dribbler_offset_m, receiver_search=self.receiver_search,
-                                  block_radius_m=self.robot_radius_m + BALL_RADIUS_M)
+                                  chip_params=self.chip_model, block_radius_m=self.robot_radius_m + BALL_RADIUS_M)
         best = select_pass(options, self.cfg.passing)
         return None if best is None else best.receiver
 
@@ -556,6 +566,8 @@ class PassingPlayer:
         self._dribblers[choice.receiver] = True
         receiver = Receiver(self.cfg.catcher, self.dribbler_offset_m, self.robot_radius_m, self.field)
         receiver.on_model(self._choice_model)
+        if self.chip_model is not None:
+            receiver.on_chip_model(self.chip_model)
         self.receiver = receiver
         self._feed_receiver(choice.receiver, now)
         k = None
@@ -629,7 +641,8 @@ class PressingTeam:
 
     def __init__(self, cfg: CatcherConfig, dribbler_offset_m: float, robot_radius_m: float,
                  field_config: FieldConfig | None, robot_ids, as_team: bool = True,
-                 passing: PassConfig | None = None, n_other: int = 0, model: BallModelParams | None = None) -> None:
+                 passing: PassConfig | None = None, n_other: int = 0, model: BallModelParams | None = None,
+                 chip_model: ChipParams | None = None) -> None:
         ids = [int(i) for i in robot_ids]
         if len(set(ids)) != len(ids):  # none: a game without opponents
             raise ValueError(f"robot_ids: need distinct ids, got {ids}")
@@ -640,6 +653,9 @@ class PressingTeam:
         self.receivers = {i: Receiver(cfg, dribbler_offset_m, robot_radius_m, field_config, robot_id=i,
                                       team_robot_ids=team) for i in ids}
         self.on_model(BallModelParams() if model is None else model)
+        self.chip_model: ChipParams | None = None  # the predictor's (on_chip_model); None: not known yet
+        if chip_model is not None:
+            self.on_chip_model(chip_model)
         self.poses: dict[int, tuple[float, np.ndarray]] = {}  # own robot -> (arrived, [x, y, yaw])
         self.other_poses = np.zeros((n_other, 3))
         self.other_seen = np.zeros(n_other, dtype=bool)
@@ -668,6 +684,12 @@ class PressingTeam:
         self.model = params
         for receiver in self.receivers.values():
             receiver.on_model(params)
+
+    def on_chip_model(self, params: ChipParams) -> None:
+        """The chip model in use (the predictor's): every robot's receiver predicts a ball in the air with it."""
+        self.chip_model = params
+        for receiver in self.receivers.values():
+            receiver.on_chip_model(params)
 
     def on_odom(self, robot: int, now: float, pose, velocity, stamp_s: float | None = None) -> None:
         """Own robot's tracked pose [x, y, yaw] and field velocity [vx, vy] (and yaw rate [rad/s]), measured

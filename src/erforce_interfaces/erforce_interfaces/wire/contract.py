@@ -304,6 +304,12 @@ BALL_MODEL_PARAMS = Topic("/ball/model_params", Float64MultiArray, QOS_LATCHED, 
                           "the two-phase model in use: row in_use of [a_slide_mps2, a_roll_mps2, c_switch], then "
                           "rows fit, std_error of the last online fit once there is one (labelled in layout.dim); "
                           "at start and on every change")
+BALL_CHIP_MODEL_PARAMS = Topic("/ball/chip_model_params", Float64MultiArray, QOS_LATCHED, "ball_predictor",
+                               "passing_game, catcher, team_catcher, tools",
+                               "the chip model in use (a chipped ball's hops): row in_use of "
+                               "BALL_CHIP_MODEL_PARAM_LABELS [g_mps2, damping_z, damping_xy_first_hop, "
+                               "damping_xy_other_hops, min_hop_vz_mps, max_catch_height_m] (labelled in layout.dim); "
+                               "at start and on every change")
 GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant; while subscribed", "tests, tools only",
                           "true ball: pose [m] (position.z: height in the air), twist.linear [m/s], twist.angular = "
                           "spin [rad/s], `field`")
@@ -430,7 +436,8 @@ SIM_SET_STATE = Topic("sim/set_state", Odometry, QOS_COMMAND, "scenario scripts"
 
 TOPICS: tuple[Topic, ...] = (
     CLOCK, VISION_BALL, VISION_ROBOTS, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
-    BALL_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL, SIM_SET_BALL, SIM_EVENTS,
+    BALL_MODEL_PARAMS, BALL_CHIP_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL,
+    SIM_SET_BALL, SIM_EVENTS,
     TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY, FIELD_WHEEL_STATES, FIELD_MOTOR_DUTY,
     BALL_CATCHES, ROBOTS_TRACKED, BALL_TRACK, PASS_CHOICE, PASS_RECORDS,
     CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, KICK_ANGLE, BALL_DETECTED, DRIBBLER,
@@ -441,6 +448,9 @@ MOTOR_STATUS_COLUMNS = ("avg_current_a", "pwm_limit", "saturated", "limit_active
 GROUND_TRUTH_MOTOR_COLUMNS = ("current_a", "winding_temperature_c", "wheel_speed_radps")
 BALL_MODEL_PARAM_LABELS = ("a_slide_mps2", "a_roll_mps2", "c_switch")
 BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
+#: the columns of /ball/chip_model_params: chip_model.ChipParams' fields, in this order (one row, in_use)
+BALL_CHIP_MODEL_PARAM_LABELS = ("g_mps2", "damping_z", "damping_xy_first_hop", "damping_xy_other_hops",
+                                "min_hop_vz_mps", "max_catch_height_m")
 #: the PointField names of /vision/robots, in this order, each one FLOAT64 (at offsets 0, 8, ..). A PointCloud2
 #: rather than a Float64MultiArray table: its header carries the capture stamp and the frame, and viewers
 #: (rviz, Foxglove) draw it as it is.

@@ -1,5 +1,5 @@
-"""The table topics: 2-D tables as std_msgs/Float64MultiArray with labelled columns (/field, the ball model in
-use, /ball/catches, /robots/tracked), as messages and as serialized CDR.
+"""The table topics: 2-D tables as std_msgs/Float64MultiArray with labelled columns (/field, the ball and chip
+models in use, /ball/catches, /robots/tracked), as messages and as serialized CDR.
 
 Errors, limits and the stamp checks are those of ``conversions``.
 """
@@ -15,6 +15,7 @@ import numpy as np
 from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
 from erforce_interfaces.wire.contract import (
+    BALL_CHIP_MODEL_PARAM_LABELS,
     BALL_MODEL_PARAM_LABELS,
     BALL_MODEL_PARAM_ROWS,
     CATCH_TABLE_COLUMNS,
@@ -154,6 +155,16 @@ def model_in_use_from_msg(msg: Float64MultiArray | bytes) -> tuple[float, float,
         raise ConversionError(f"rows labelled {rows}, expected the first of {','.join(BALL_MODEL_PARAM_ROWS)}")
     a_slide, a_roll, c_switch = table[0].tolist()
     return a_slide, a_roll, c_switch
+
+
+def chip_model_from_msg(msg: Float64MultiArray | bytes) -> tuple[float, ...]:
+    """The chip model in use on ``/ball/chip_model_params`` (one row, in_use), as the values of
+    ``BALL_CHIP_MODEL_PARAM_LABELS`` in that order; whether they make a chip model is the reader's check."""
+    table = table_from_msg(msg, BALL_CHIP_MODEL_PARAM_LABELS, 1)
+    rows = _multi_array_parts(msg)[0][0][0]
+    if rows != BALL_MODEL_PARAM_ROWS[0]:
+        raise ConversionError(f"row labelled {rows!r}, expected {BALL_MODEL_PARAM_ROWS[0]!r}")
+    return tuple(table[0].tolist())
 
 
 # ------------------------------------------------------------ /ball/catches

@@ -127,14 +127,16 @@ class PassingGame:
                                                        reaction_s=cfg.passing.reaction_s))
         self._predictor_config = self.predictor.config
         self.player = PassingPlayer(cfg.player, self.n_team, self.n_opp, self.field, self.robot.dribbler_offset_m,
-                                    self.robot.robot_radius_m, self.predictor.model)
+                                    self.robot.robot_radius_m, self.predictor.model,
+                                    chip_model=self.predictor.chip_model)
         self.runner.vision_listeners.append(self._on_frame)
         self.poses = self.player.poses  # tracked, from vision (the opponents' AI reads them too)
         self.velocities = self.player.velocities
         self.opponents = PressingTeam(cfg.catcher, self.robot.dribbler_offset_m, self.robot.robot_radius_m, self.field,
-                                      range(self.n_opp), passing=cfg.passing, n_other=self.n_team)
-        self.opponents.on_model(self.predictor.model)
-        self._model_sent = self.predictor.model  # what the AI was last told the model in use is
+                                      range(self.n_opp), passing=cfg.passing, n_other=self.n_team,
+                                      model=self.predictor.model, chip_model=self.predictor.chip_model)
+        # what the AI was last told the models in use are (the graph's /ball/model_params, /ball/chip_model_params)
+        self._model_sent, self._chip_model_sent = self.predictor.model, self.predictor.chip_model
         self.frame_costs_s: list[float] = []  # CPU of BallPredictor.ball_frame for all robots, per vision frame
         self._facing: tuple[int, float] | None = None  # the receive facing the predictor searches with
         self._dribblers = dict.fromkeys(range(self.n_team), False)
@@ -188,6 +190,11 @@ class PassingGame:
                 self._model_sent = model
                 player.on_model(model)
                 self.opponents.on_model(model)
+            chip_model = self.predictor.chip_model
+            if chip_model is not self._chip_model_sent:
+                self._chip_model_sent = chip_model
+                player.on_chip_model(chip_model)
+                self.opponents.on_chip_model(chip_model)
             for i, ct, point in zip(answer.catch_robots, answer.catch_times_s, answer.catch_points_m, strict=True):
                 if i < self.n_team:
                     player.on_catch(i, now, ct, point)
@@ -211,7 +218,7 @@ class PassingGame:
         if not self.cfg.true_chip:
             return answer
         b = self.world.ball_state()
-        chip = flying_ball((b.x, b.y, b.z), (b.vx, b.vy, b.vz), ball_params=self.predictor.model)
+        chip = flying_ball((b.x, b.y, b.z), (b.vx, b.vy, b.vz), self.predictor.chip_model, self.predictor.model)
         if chip is None:
             return answer
         robots, times, points = self.predictor.catches(now, chip)

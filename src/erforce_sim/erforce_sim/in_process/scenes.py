@@ -217,6 +217,7 @@ class _Predictor:
             num_robots=1, field=field, limits=RobotLimits(a_max_mps2=cfg.a_max_mps2, v_max_mps=cfg.v_max_mps),
             dribbler_offset_m=robot.dribbler_offset_m))
         receiver.on_model(self.predictor.model)
+        receiver.on_chip_model(self.predictor.chip_model)
         self._model_sent = self.predictor.model  # what the receiver was last told the model in use is
         self.predictions: list[tuple[float, float]] = []  # (frame capture time, catch time after it)
         self.barrier_edges: list[float] = []
