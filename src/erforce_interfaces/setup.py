@@ -18,12 +18,12 @@ def write_protos(out_root: Path) -> None:
 
 
 class BuildPyWithProtos(build_py):
-    """build_py: the modules into the build folder, or beside the sources for an editable install (PEP 660),
-    which imports the package from there."""
+    """build_py: the modules into the build folder (after the sources are copied: a stale module beside them
+    does not win), or beside the sources for an editable install (PEP 660), which imports the package there."""
 
     def run(self):
-        write_protos(HERE if self.editable_mode else Path(self.build_lib))
         super().run()
+        write_protos(HERE if self.editable_mode else Path(self.build_lib))
 
 
 class DevelopWithProtos(develop):
