@@ -155,15 +155,15 @@ def _resolves_as_module(word):
 def _source_text():
     """Everything a name of ours can be spelled in: sources, schemas, launch files, benches, tests, ./run."""
     paths = [p for d in ("src", "bench", "test") for p in (ROOT / d).rglob("*")
-             if p.is_file() and p.suffix in (".py", ".yaml", ".xml", ".json") and "__pycache__" not in p.parts
+             if p.is_file() and p.suffix in (".py", ".cfg", ".yaml", ".xml", ".json") and "__pycache__" not in p.parts
              and p != Path(__file__).resolve()]
     return "\n".join([p.read_text() for p in paths] + [p.stem for p in paths] + [(ROOT / "run").read_text()])
 
 
 def _console_scripts():
     scripts = set()
-    for setup in (ROOT / "src").glob("*/setup.py"):
-        scripts |= set(re.findall(r"[\"']([\w-]+)\s*=\s*[\w.]+:\w+", setup.read_text()))
+    for setup in (ROOT / "src").glob("*/setup.cfg"):
+        scripts |= set(re.findall(r"^\s*([\w-]+)\s*=\s*[\w.]+:\w+\s*$", setup.read_text(), re.MULTILINE))
     return scripts
 
 

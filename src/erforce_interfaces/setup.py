@@ -1,37 +1,37 @@
-from glob import glob
+"""The package's build (ament_python): what it declares is in setup.cfg; here only the build steps that
+generate the SSL wire formats' ``*_pb2.py`` modules from the ``.proto`` files (built, not committed, as
+rosidl generates message code)."""
 
-from setuptools import find_packages, setup
+import runpy
+from pathlib import Path
 
-package_name = "erforce_interfaces"
+from setuptools import setup
+from setuptools.command.build_py import build_py
+from setuptools.command.develop import develop
 
-setup(
-    name=package_name,
-    version="0.1.0",
-    packages=find_packages(exclude=["test"]),
-    package_data={package_name: ["params/*.yaml"], "erforce_interfaces.ssl.ssl_proto": ["*.proto"]},
-    data_files=[
-        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
-        ("share/" + package_name, ["package.xml"]),
-        ("share/" + package_name + "/launch", glob("launch/*.yaml")),
-        # the nodes' parameter schemas (param_schema.py): read from the Python package, also in share/ for tools
-        ("share/" + package_name + "/params", glob(package_name + "/params/*.yaml")),
-        ("share/" + package_name + "/config", glob("config/*.yaml") + glob("config/*.xml")),
-    ],
-    install_requires=["setuptools"],
-    zip_safe=True,
-    maintainer="ER-Force stack maintainers",
-    maintainer_email="info@robotics-erlangen.de",
-    description="Wire contract, node runtime, SSL wire formats and developer tools",
-    license="Apache-2.0",
-    entry_points={
-        "console_scripts": [
-            "erforce-launch = erforce_interfaces.tools.launcher:main",
-            "erforce-topic = erforce_interfaces.tools.topic_tool:main",
-            "erforce-record = erforce_interfaces.tools.recording:main",
-            "erforce-realtime = erforce_interfaces.tools.realtime:main",
-            "ssl_log_replay = erforce_interfaces.ssl.ssl_log_replay:main",
-            "talker = erforce_interfaces.runtime.demo_nodes:talker_main",
-            "listener = erforce_interfaces.runtime.demo_nodes:listener_main",
-        ],
-    },
-)
+HERE = Path(__file__).resolve().parent
+
+
+def write_protos(out_root: Path) -> None:
+    """protoc (grpcio-tools) on the .proto files, the modules into the package under ``out_root``."""
+    runpy.run_path(str(HERE / "erforce_interfaces/ssl/ssl_proto/generate.py"))["write_modules"](out_root)
+
+
+class BuildPyWithProtos(build_py):
+    """build_py: the modules into the build folder (after the sources are copied: a stale module beside them
+    does not win), or beside the sources for an editable install (PEP 660), which imports the package there."""
+
+    def run(self):
+        super().run()
+        write_protos(HERE if self.editable_mode else Path(self.build_lib))
+
+
+class DevelopWithProtos(develop):
+    """develop (``colcon build --symlink-install``): the modules beside the sources, which it links."""
+
+    def run(self):
+        write_protos(HERE)
+        super().run()
+
+
+setup(cmdclass={"build_py": BuildPyWithProtos, "develop": DevelopWithProtos})

@@ -1,17 +1,16 @@
 """./run setup registers the four packages in the ament index of .venv as colcon build --symlink-install
-would: what each setup.py says (data_files, console_scripts) is there, the data files as symlinks to the
+would: what each setup.cfg declares (data_files, console_scripts) is there, the data files as symlinks to the
 sources, and ROS 2's own index library and CLI (ament_index_python) find the packages."""
 
 import os
 import re
-import runpy
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-import setuptools
 from ament_index_python.packages import get_package_prefix, get_package_share_directory, get_packages_with_prefixes
+from setuptools.config.setupcfg import read_configuration
 
 from erforce_interfaces.wire import ament_index
 
@@ -20,27 +19,19 @@ PACKAGES = ("erforce_interfaces", "erforce_ball_model", "erforce_motion", "erfor
 PREFIX = Path(sys.prefix)  # the venv ./run setup prepared
 
 
-def setup_arguments(package_dir: Path, monkeypatch) -> dict:
-    """The keyword arguments setup.py passes to setuptools.setup (run with a stand-in, in its folder)."""
-    captured = {}
-    with monkeypatch.context() as m:
-        m.setattr(setuptools, "setup", lambda **kwargs: captured.update(kwargs))
-        m.chdir(package_dir)
-        runpy.run_path("setup.py")
-    return captured
-
-
-def expected_index(package_dir: Path, monkeypatch) -> tuple[dict[Path, Path], set[str]]:
-    """{path in the prefix: source file} of the data files, and the console script names."""
-    args = setup_arguments(package_dir, monkeypatch)
-    files = {Path(dest) / Path(name).name: package_dir / name for dest, names in args["data_files"] for name in names}
-    scripts = {spec.split("=")[0].strip() for spec in args["entry_points"]["console_scripts"]}
+def expected_index(package_dir: Path) -> tuple[dict[Path, Path], set[str]]:
+    """{path in the prefix: source file} of the data files, and the console script names, as the package's
+    setup.cfg declares them (read by setuptools' own parser)."""
+    options = read_configuration(package_dir / "setup.cfg")["options"]
+    files = {Path(dest) / Path(name).name: package_dir / name
+             for dest, names in options["data_files"] for name in names}
+    scripts = {spec.split("=")[0].strip() for spec in options["entry_points"]["console_scripts"]}
     return files, scripts
 
 
 @pytest.mark.parametrize("pkg", PACKAGES)
-def test_the_index_in_the_venv_holds_what_setup_py_installs(pkg, monkeypatch):
-    files, scripts = expected_index(REPO / "src" / pkg, monkeypatch)
+def test_the_index_in_the_venv_holds_what_setup_py_installs(pkg):
+    files, scripts = expected_index(REPO / "src" / pkg)
     assert Path("share/ament_index/resource_index/packages") / pkg in files
     assert any(p.parts[:3] == ("share", pkg, "launch") for p in files) or pkg == "erforce_ball_model"
     for installed, source in files.items():
@@ -108,7 +99,7 @@ def test_registering_again_replaces_what_is_stale(tmp_path, monkeypatch):
         path.parent.mkdir(parents=True)
         path.write_text("stale")
     ament_index.register_package(tmp_path, REPO / "src" / "erforce_motion")
-    files, scripts = expected_index(REPO / "src" / "erforce_motion", monkeypatch)
+    files, scripts = expected_index(REPO / "src" / "erforce_motion")
     assert not stale_launch.exists() and not stale_exe.exists()
     assert {p.relative_to(tmp_path) for p in tmp_path.rglob("*") if not p.is_dir()} == set(files) | {
         Path("lib/erforce_motion") / name for name in scripts}

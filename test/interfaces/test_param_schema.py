@@ -4,12 +4,10 @@ default per quantity across the schemas, the cores and the docs."""
 import dataclasses
 import inspect
 import math
-import os
-import runpy
 from pathlib import Path
 
 import pytest
-import setuptools
+from setuptools.config.setupcfg import read_configuration
 
 from erforce_ball_model.ball_model import BallModelParams
 from erforce_ball_model.catch_time import CatchSearch
@@ -47,17 +45,8 @@ def test_every_schema_loads_and_ships_in_share(package, node):
 
 
 def _setup_kwargs(package: str) -> dict:
-    """The arguments setup.py gives setuptools.setup (run with setup() replaced)."""
-    seen = {}
-    saved, cwd = setuptools.setup, os.getcwd()
-    setuptools.setup = lambda **kw: seen.update(kw)
-    try:
-        os.chdir(ROOT / "src" / package)
-        runpy.run_path("setup.py")
-    finally:
-        setuptools.setup = saved
-        os.chdir(cwd)
-    return seen
+    """What the package's setup.cfg declares for setuptools (read by setuptools' own parser)."""
+    return read_configuration(ROOT / "src" / package / "setup.cfg")["options"]
 
 
 def _schema(body: str) -> ParamSchema:

@@ -215,26 +215,42 @@ class MotorBoards:
             mine[:] = theirs
 
 
-class MainBoardLoop:
+class _OneRobotLoop:
+    """Row 0 of a team's boards, for a per-robot node: the scratch arrays of its compiled tick, the take-over
+    and the tick's notices in words."""
+
+    def __init__(self, boards: MainBoards | MotorBoards, kernel, n_sensor_arrays: int) -> None:
+        self.boards, self.robot = boards, boards.robot
+        self.loop_period_s = boards.loop_period_s
+        self._row, self._t_s, self._notice = np.zeros(1, dtype=np.int64), np.zeros(1), np.zeros(1, dtype=np.int64)
+        sensors = (np.zeros((1, boards.robot.num_wheels)),) * n_sensor_arrays
+        self._tick = compiled_for(kernel, self._row, self._t_s, *sensors, boards.args, self._notice)
+        self.notice: str | None = None  # what the last tick noticed (for the node's log)
+
+    def take_over(self, old: _OneRobotLoop) -> None:
+        """Continue where ``old`` left off (new parameters), as the boards' take_over does."""
+        self.boards.take_over(old.boards)
+
+    def _say(self, before_s: float, t_s: float, reset: str, timeout_flag: int, timeout: str) -> None:
+        """``notice`` for the flags the last tick raised: the boards' ``reset`` text or the ``timeout`` text."""
+        notice = self._notice[0]
+        if notice & NOTICE_TIME_BACKWARDS:
+            self.notice = f"time went backwards ({before_s:.6f} -> {t_s:.6f} s): {reset}"
+        if notice & timeout_flag:
+            self.notice = timeout
+
+
+class MainBoardLoop(_OneRobotLoop):
     """Fig. 2 on one robot's main board (the velocity_controller node): ``MainBoards`` of one robot."""
 
     def __init__(self, robot: RobotConfig, config: VelocityControlConfig, loop_period_s: float,
                  command_timeout_s: float) -> None:
-        self.boards = MainBoards(1, robot, config, loop_period_s, command_timeout_s)
-        self.robot, self.controller = robot, self.boards.controller
-        self.loop_period_s, self.command_timeout_s = self.boards.loop_period_s, self.boards.command_timeout_s
-        self._row, self._t_s, self._notice = np.zeros(1, dtype=np.int64), np.zeros(1), np.zeros(1, dtype=np.int64)
-        self._tick = compiled_for(main_board_tick, self._row, self._t_s, np.zeros((1, robot.num_wheels)),
-                                  self.boards.args, self._notice)
-        self.notice: str | None = None  # what the last call noticed (for the node's log)
+        super().__init__(MainBoards(1, robot, config, loop_period_s, command_timeout_s), main_board_tick, 1)
+        self.controller, self.command_timeout_s = self.boards.controller, self.boards.command_timeout_s
 
     @property
     def setpoints(self) -> np.ndarray:
         return self.boards.setpoints[0]
-
-    def take_over(self, old: MainBoardLoop) -> None:
-        """Continue where ``old`` left off (new parameters): same command, timing and motion, bumpless."""
-        self.boards.take_over(old.boards)
 
     def command(self, twist: np.ndarray) -> None:
         """A new desired twist [vx, vy, wz] (robot frame), received at the current robot time."""
@@ -252,37 +268,23 @@ class MainBoardLoop:
         before_s = float(self.boards.now_s[0])
         self._t_s[0] = t_s
         self.notice = None
-        if not self._tick(self._row, self._t_s, w.reshape(1, -1), self.boards.args, self._notice):
-            return self.boards.setpoints[0].copy()
-        notice = self._notice[0]
-        if notice & NOTICE_TIME_BACKWARDS:
-            self.notice = f"time went backwards ({before_s:.6f} -> {t_s:.6f} s): controller reset"
-        if notice & NOTICE_COMMAND_TIMEOUT:
-            self.notice = f"no command for {self.command_timeout_s:g} s: stopping"
+        if self._tick(self._row, self._t_s, w.reshape(1, -1), self.boards.args, self._notice):
+            self._say(before_s, t_s, "controller reset", NOTICE_COMMAND_TIMEOUT,
+                      f"no command for {self.command_timeout_s:g} s: stopping")
         return self.boards.setpoints[0].copy()
 
 
-class MotorBoardLoop:
+class MotorBoardLoop(_OneRobotLoop):
     """Fig. 3 on one robot's motor boards (the motor_boards node): ``MotorBoards`` of one robot."""
 
     def __init__(self, robot: RobotConfig, config: MotorBoardConfig, loop_period_s: float,
                  setpoint_timeout_s: float) -> None:
-        self.boards = MotorBoards(1, robot, config, loop_period_s, setpoint_timeout_s)
-        self.robot, self.board = robot, self.boards.board
-        self.loop_period_s, self.setpoint_timeout_s = self.boards.loop_period_s, self.boards.setpoint_timeout_s
-        self._row, self._t_s, self._notice = np.zeros(1, dtype=np.int64), np.zeros(1), np.zeros(1, dtype=np.int64)
-        wheels = np.zeros((1, robot.num_wheels))
-        self._tick = compiled_for(motor_board_tick, self._row, self._t_s, wheels, wheels, self.boards.args,
-                                  self._notice)
-        self.notice: str | None = None
+        super().__init__(MotorBoards(1, robot, config, loop_period_s, setpoint_timeout_s), motor_board_tick, 2)
+        self.board, self.setpoint_timeout_s = self.boards.board, self.boards.setpoint_timeout_s
 
     @property
     def duty(self) -> np.ndarray:
         return self.boards.duty[0]
-
-    def take_over(self, old: MotorBoardLoop) -> None:
-        """Continue where ``old`` left off (new parameters): same setpoint, timing and output."""
-        self.boards.take_over(old.boards)
 
     def set_setpoint(self, t_s: float, setpoint_radps: np.ndarray) -> None:
         setpoint_radps = np.asarray(setpoint_radps, dtype=float)
@@ -302,14 +304,9 @@ class MotorBoardLoop:
         before_s = float(self.boards.now_s[0])
         self._t_s[0] = t_s
         self.notice = None
-        if not self._tick(self._row, self._t_s, w.reshape(1, -1), i.reshape(1, -1), self.boards.args,
-                          self._notice):
-            return self.boards.duty[0].copy()
-        notice = self._notice[0]
-        if notice & NOTICE_TIME_BACKWARDS:
-            self.notice = f"time went backwards ({before_s:.6f} -> {t_s:.6f} s): motor boards reset"
-        if notice & NOTICE_SETPOINT_TIMEOUT:
-            self.notice = f"no setpoint for {self.setpoint_timeout_s:g} s: stopping the wheels"
+        if self._tick(self._row, self._t_s, w.reshape(1, -1), i.reshape(1, -1), self.boards.args, self._notice):
+            self._say(before_s, t_s, "motor boards reset", NOTICE_SETPOINT_TIMEOUT,
+                      f"no setpoint for {self.setpoint_timeout_s:g} s: stopping the wheels")
         return self.boards.duty[0].copy()
 
 

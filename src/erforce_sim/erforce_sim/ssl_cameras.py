@@ -74,6 +74,18 @@ def quadrant_cameras(field: FieldConfig, overlap_m: float = 0.5,
     return tuple(cams)
 
 
+def field_geometry(field: FieldConfig, cameras: tuple[SimCamera, ...],
+                   ball_model: BallModelFromVision | None) -> FieldGeometry:
+    """What SSL-Vision's geometry packet says of ``field`` seen by ``cameras``, each above the centre of its
+    rectangle at CAMERA_HEIGHT_M (the goal's size as the league's divisions have it)."""
+    return FieldGeometry(
+        length_m=field.length_m, width_m=field.width_m, boundary_m=field.boundary_m,
+        goal_width_m=1.0 if field.length_m < 10.0 else 1.8, goal_depth_m=0.18, ball_model=ball_model,
+        cameras=tuple(CameraPose(c.camera_id, 0.5 * sum(c.x_range_m), 0.5 * sum(c.y_range_m), CAMERA_HEIGHT_M)
+                      for c in cameras),
+    )
+
+
 class SslCameraSplitter:
     """World vision frames -> per-camera SSL datagrams with release times (world clock); each robot in its
     team's colour, as the world has it (PlantSetup.our_color)."""
@@ -87,12 +99,7 @@ class SslCameraSplitter:
         self.clock_offset_s = clock_offset_s
         self._rng = random.Random(seed)
         self._frame_numbers = [0] * len(cameras)
-        self.geometry = FieldGeometry(
-            length_m=field.length_m, width_m=field.width_m, boundary_m=field.boundary_m,
-            goal_width_m=1.0 if field.length_m < 10.0 else 1.8, goal_depth_m=0.18, ball_model=ball_model,
-            cameras=tuple(CameraPose(c.camera_id, 0.5 * sum(c.x_range_m), 0.5 * sum(c.y_range_m), CAMERA_HEIGHT_M)
-                          for c in cameras),
-        )
+        self.geometry = field_geometry(field, cameras, ball_model)
 
     def geometry_packet(self) -> bytes:
         return encode_geometry(self.geometry)

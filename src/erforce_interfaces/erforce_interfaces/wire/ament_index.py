@@ -9,7 +9,7 @@ folder) and by the launcher (``$(find-pkg-share)``, executables).
 
 Registration (``python -m erforce_interfaces.wire.ament_index PREFIX PACKAGE_DIR...``, run by ``./run setup``):
 what ``colcon build --symlink-install`` puts into an install prefix for an ament_python package, read
-from its setup.py: the ``data_files`` (the index marker, package.xml, launch, config, params) as
+from its setup.py and setup.cfg: the ``data_files`` (the index marker, package.xml, launch, config, params) as
 symlinks to the sources, so edits take effect without reinstalling, and ``lib/<pkg>/<exe>`` for every
 console script.
 """
@@ -119,13 +119,14 @@ class SetupInfo:
 
 
 def read_setup(package_dir: Path) -> SetupInfo:
-    """Run ``package_dir/setup.py`` up to its arguments (no build); its globs are relative to the package."""
+    """Run ``package_dir/setup.py`` up to its configuration, setup.cfg read (no build); the globs are relative
+    to the package."""
     from distutils.core import run_setup  # setuptools' copy
 
     cwd = Path.cwd()
     os.chdir(package_dir)
     try:
-        dist = run_setup("setup.py", stop_after="init")
+        dist = run_setup("setup.py", stop_after="config")
     finally:
         os.chdir(cwd)
     import importlib.metadata

@@ -34,8 +34,6 @@ from erforce_interfaces.ssl.ssl_vision import (
     BallCandidate,
     BallModelFromVision,
     CameraFrame,
-    CameraPose,
-    FieldGeometry,
     RobotSighting,
     encode_frame,
     encode_geometry,
@@ -43,7 +41,7 @@ from erforce_interfaces.ssl.ssl_vision import (
 from erforce_interfaces.wire.robot_config import BALL_A_ROLL_MPS2, BALL_A_SLIDE_MPS2, FIELD_PRESET, FieldConfig
 from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionParams
-from erforce_sim.ssl_cameras import CAMERA_HEIGHT_M, quadrant_cameras
+from erforce_sim.ssl_cameras import field_geometry, quadrant_cameras
 from erforce_sim.world import World
 
 _PLANT = schema_defaults("erforce_sim", "plant")
@@ -119,15 +117,6 @@ def frame_packets(frame, robots, cameras, frame_numbers: list[int], latency_s: f
     return out
 
 
-def geometry_packet(field_config: FieldConfig, cameras, model: BallModelParams) -> bytes:
-    return encode_geometry(FieldGeometry(
-        length_m=field_config.length_m, width_m=field_config.width_m, boundary_m=field_config.boundary_m,
-        goal_width_m=1.0 if field_config.length_m < 10.0 else 1.8, goal_depth_m=0.18,
-        ball_model=BallModelFromVision(model.a_slide_mps2, model.a_roll_mps2, model.c_switch),
-        cameras=tuple(CameraPose(c.camera_id, 0.5 * sum(c.x_range_m), 0.5 * sum(c.y_range_m), CAMERA_HEIGHT_M)
-                      for c in cameras)))
-
-
 def referee_packet(t_s: float, duration_s: float, counter: int) -> bytes:
     ref = ssl_gc_referee_message_pb2.Referee()
     ref.packet_timestamp = int((EPOCH_S + t_s) * 1e6)
@@ -175,7 +164,9 @@ def write_game_log(path: str | Path, config: GameConfig | None = None) -> GameSu
     world = World(field_config, [], ball_params=config.ball, vision=config.vision, seed=config.seed)
     cameras = quadrant_cameras(field_config)
     frame_numbers = [0] * len(cameras)
-    geometry = geometry_packet(field_config, cameras, config.true_model)
+    model = config.true_model
+    vision_model = BallModelFromVision(model.a_slide_mps2, model.a_roll_mps2, model.c_switch)
+    geometry = encode_geometry(field_geometry(field_config, cameras, vision_model))
     kicker = Kicker(config, field_config, rng)
     latency_s = config.vision.latency_s
     shots = 0
