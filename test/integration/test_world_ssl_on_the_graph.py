@@ -34,9 +34,10 @@ WORLD_INSIDE = (contract.GROUND_TRUTH_BALL, contract.GROUND_TRUTH_ODOM, contract
                 contract.WHEEL_STATES, contract.WHEEL_SETPOINTS, contract.MOTOR_DUTY, contract.MOTOR_STATUS,
                 contract.TEAM_WHEEL_STATES, contract.TEAM_MOTOR_DUTY, contract.FIELD_WHEEL_STATES,
                 contract.FIELD_MOTOR_DUTY)
-# The world at a quarter of real time: without CAP_SYS_NICE (a CI runner) the AI cannot outrank the world (erforce-realtime)
-# and shares 2 cores with it at one priority; a starved AI sees a gap of capture times > 2 s, takes it for a new
-# time line and restarts its game. This test is about what crosses the protocols; bench_lockstep measures real time.
+# The world at a quarter of real time: without CAP_SYS_NICE (a CI runner) the AI cannot outrank the world
+# (erforce-realtime) and shares 2 cores with it at one priority; a starved AI sees a gap of capture times > 2 s,
+# takes it for a new time line and restarts its game. This test is about what crosses the protocols;
+# bench_lockstep measures real time.
 TEAMS = {"robot_ids": "[0, 1, 2]", "opponent_ids": "[0]", "field": "division_a", "real_time_factor": "0.25"}
 WORLD_MODEL = (-14.0, -0.7, 0.7)  # a_slide, a_roll [m/s^2], c_switch
 
