@@ -14,8 +14,6 @@ from erforce_ball_model.catch_time import (
     CatchKind,
     CatchSearch,
     RobotLimits,
-    _axis_time,
-    _may_reach,
     can_reach,
     can_reach_in_time,
     catch_after_reaction,
@@ -26,6 +24,7 @@ from erforce_ball_model.catch_time import (
     robot_time_to_ball,
     robot_time_to_pos,
 )
+from erforce_ball_model.catch_time_kernels import _axis_time, _may_reach
 from erforce_interfaces.runtime.numba_support import numba
 from erforce_interfaces.wire.robot_config import FieldConfig
 
