@@ -8,7 +8,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from erforce_ball_model import catch_time
-from erforce_ball_model.ball_model import BallTrajectory, Walls
+from erforce_ball_model.ball_model import BallTrajectory
 from erforce_ball_model.catch_time import (
     MAX_RECEIVE_ANGLE_RAD,
     CatchKind,
@@ -25,6 +25,7 @@ from erforce_ball_model.catch_time import (
     robot_time_to_pos,
 )
 from erforce_ball_model.catch_time_kernels import _axis_time, _may_reach
+from erforce_ball_model.walls import Walls
 from erforce_interfaces.runtime.numba_support import numba
 from erforce_interfaces.wire.robot_config import FieldConfig
 
