@@ -17,7 +17,7 @@ and writes the decelerations in m/s). With ``s0`` the current speed and
 This module is the one home of these closed forms. ``BallFloats`` holds one ball's numbers
 (position, direction, the switch and stop constants, the decelerations) and ``ball_distance``,
 ``ball_speed`` and ``ball_time_to_distance`` answer from them: plain Python on floats, and
-compiled into the numba kernels that call them (catch_time's robotTimeToBall search, the array
+compiled into the numba kernels that call them (catch_time_kernels' robotTimeToBall search, the array
 queries here), which read the ball by name (``ball.stop_time_s``), never by position in an array.
 numba is imported on the first kernel a process needs (``numba_ball_type``), not with this module:
 a node that only asks scalar questions (the catcher) starts without it.

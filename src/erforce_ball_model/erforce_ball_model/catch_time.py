@@ -20,7 +20,7 @@ window at least h wide is never missed, and the returned time is feasible and at
 the moment the ball passes the robot's own braking point, tested exactly (a robot standing on a fast
 ball's path). The crossing is refined by sub-grid passes, which also copes with the discontinuity of f
 the paper mentions. Without a window the paper's fallback holds: robotTimeToPos to the stop point.
-A cheap sound bound (``_may_reach``) skips the exact test where the robot surely cannot make it.
+A cheap sound bound (catch_time_kernels' ``_may_reach``) skips the exact test where the robot surely cannot make it.
 
 Chipped balls (beyond the paper): a ``ChipTrajectory`` (chip_model) can be taken only while its centre is
 at most ``ChipParams.max_catch_height_m`` high. The search runs on its ``ground_track`` (the hops' shadows
