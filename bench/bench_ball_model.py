@@ -33,9 +33,10 @@ import time
 import numpy as np
 from table import bench_main  # bench/table.py: the shared table format
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, Walls, kick_distance
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, kick_distance
 from erforce_ball_model.catch_time import CatchKind, RobotLimits, can_reach_in_time, robot_time_to_ball
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
+from erforce_ball_model.walls import Walls
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ssl_cameras import SslCameraSplitter
 

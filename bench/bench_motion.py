@@ -33,7 +33,8 @@ from erforce_motion.tuning import plot_tuning, run_tuning_experiment
 from erforce_motion.velocity_control import VelocityControlConfig, VelocityController, wheel_force_per_accel
 from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.plant_setup import PlantSetup
-from erforce_sim.world import RobotSpec, World
+from erforce_sim.world import World
+from erforce_sim.world_types import RobotSpec
 
 DT_S = 0.001
 ROBOT = RobotConfig()

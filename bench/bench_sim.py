@@ -20,7 +20,8 @@ from erforce_sim.drivetrain import GRAVITY_MPS2
 from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.kicker import deviation_table
 from erforce_sim.plant_setup import PlantSetup
-from erforce_sim.world import PhysicsParams, RobotSpec, World
+from erforce_sim.world import World
+from erforce_sim.world_types import PhysicsParams, RobotSpec
 
 FIELD = FieldConfig.preset("division_a")
 CONTROL_DT_S = 0.001

@@ -1,4 +1,4 @@
-"""The ball's path off the field wall (ball_model.Walls, BallTrajectory's pieces): hand-computed bounces,
+"""The ball's path off the field wall (walls.Walls, BallTrajectory's pieces): hand-computed bounces,
 brute-force integration of the same dynamics, the simulator's ball on the same field, the predictor's stop point."""
 
 import math
@@ -7,8 +7,9 @@ import pickle
 import numpy as np
 import pytest
 
-from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory, Walls
+from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
+from erforce_ball_model.walls import Walls
 from erforce_interfaces.wire.robot_config import FieldConfig
 
 DIV_B = FieldConfig.preset("division_b")

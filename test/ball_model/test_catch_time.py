@@ -8,14 +8,12 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from erforce_ball_model import catch_time
-from erforce_ball_model.ball_model import BallTrajectory, ChipParams, Walls
+from erforce_ball_model.ball_model import BallTrajectory, ChipParams
 from erforce_ball_model.catch_time import (
     MAX_RECEIVE_ANGLE_RAD,
     CatchKind,
     CatchSearch,
     RobotLimits,
-    _axis_time,
-    _may_reach,
     can_reach,
     can_reach_in_time,
     catch_after_reaction,
@@ -26,6 +24,8 @@ from erforce_ball_model.catch_time import (
     robot_time_to_ball,
     robot_time_to_pos,
 )
+from erforce_ball_model.catch_time_kernels import _axis_time, _may_reach
+from erforce_ball_model.walls import Walls
 from erforce_interfaces.runtime.numba_support import numba
 from erforce_interfaces.wire.robot_config import FieldConfig
 

@@ -80,9 +80,9 @@ def test_the_predictor_core_speaks_the_contract():
 
 
 def test_the_ball_and_wall_have_one_default_for_prediction_and_plant():
-    """The predicted bounce (ball_model.Walls, the predictor's wall_restitution) and the plant's wall contact
+    """The predicted bounce (walls.Walls, the predictor's wall_restitution) and the plant's wall contact
     (erforce_sim.contacts, erforce_sim.ball) take the same restitution, friction, inertia and radius."""
-    from erforce_ball_model.ball_model import Walls
+    from erforce_ball_model.walls import Walls
     from erforce_interfaces.wire import robot_config as rc
     from erforce_sim.ball import BallParams
     from erforce_sim.contacts import ContactParams

@@ -10,7 +10,8 @@ from erforce_ball_model.ball_model import ChipParams
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import LANDED_VZ_MPS, BallParams, BallState
-from erforce_sim.world import RobotSpec, World
+from erforce_sim.world import World
+from erforce_sim.world_types import RobotSpec
 
 G = 9.81
 FIELD = FieldConfig.preset("division_b")

@@ -7,7 +7,8 @@ import pytest
 from scipy.optimize import brentq
 
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
-from erforce_sim.world import PhysicsParams, RobotSpec, World
+from erforce_sim.world import World
+from erforce_sim.world_types import PhysicsParams, RobotSpec
 
 CFG = RobotConfig()
 FIELD = FieldConfig.preset("division_b")

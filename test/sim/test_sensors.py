@@ -8,7 +8,8 @@ import pytest
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.kicker import beam_hit
 from erforce_sim.sensors import LightBarrierParams, VisionParams
-from erforce_sim.world import RobotSpec, World
+from erforce_sim.world import World
+from erforce_sim.world_types import RobotSpec
 
 CFG = RobotConfig()
 FIELD = FieldConfig.preset("division_b")

@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ball import BallState
-from erforce_sim.world import PhysicsParams, RobotSpec, World
+from erforce_sim.world import World
+from erforce_sim.world_types import PhysicsParams, RobotSpec
 
 CFG = RobotConfig()
 FIELD = FieldConfig.preset("division_b")  # walls at |x| <= 4.8, |y| <= 3.3

@@ -17,7 +17,7 @@ and writes the decelerations in m/s). With ``s0`` the current speed and
 This module is the one home of these closed forms. ``BallFloats`` holds one ball's numbers
 (position, direction, the switch and stop constants, the decelerations) and ``ball_distance``,
 ``ball_speed`` and ``ball_time_to_distance`` answer from them: plain Python on floats, and
-compiled into the numba kernels that call them (catch_time's robotTimeToBall search, the array
+compiled into the numba kernels that call them (catch_time_kernels' robotTimeToBall search, the array
 queries here), which read the ball by name (``ball.stop_time_s``), never by position in an array.
 numba is imported on the first kernel a process needs (``numba_ball_type``), not with this module:
 a node that only asks scalar questions (the catcher) starts without it.
@@ -51,6 +51,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from erforce_ball_model.walls import Walls
 from erforce_interfaces.wire.robot_config import (
     BALL_A_ROLL_MPS2,
     BALL_A_SLIDE_MPS2,
@@ -59,17 +60,13 @@ from erforce_interfaces.wire.robot_config import (
     BALL_CHIP_DAMPING_XY_OTHER_HOPS,
     BALL_CHIP_DAMPING_Z,
     BALL_CHIP_MIN_HOP_VZ_MPS,
-    BALL_INERTIA_FACTOR,
     BALL_MAX_CATCH_HEIGHT_M,
-    BALL_RADIUS_M,
-    BALL_WALL_FRICTION,
-    BALL_WALL_RESTITUTION,
     FieldConfig,
 )
 
 __all__ = [
     "MAX_POSITION_M", "MAX_SPEED_MPS", "MAX_WALL_BOUNCES", "PIECE_COLUMNS", "BallFloats", "BallModelParams",
-    "BallPhase", "BallTrajectory", "ChipParams", "Walls", "ball_distance", "ball_floats", "ball_speed",
+    "BallPhase", "BallTrajectory", "ChipParams", "ball_distance", "ball_floats", "ball_speed",
     "ball_time_to_distance", "kick_distance", "load_kernels", "numba_ball_type", "path_piece", "path_point",
 ]
 
@@ -227,83 +224,10 @@ def ball_time_to_distance(ball: BallFloats, d_m: float) -> float:
     return min(t, ball.stop_time_s)
 
 
-# -- the field wall ----------------------------------------------------------------------------------
+# -- the path off the field wall (the walls and their impulse: walls.py) ----------------------------
 # A ball that keeps hitting walls (into a corner) is followed this many bounces; then it ends at the wall.
 MAX_WALL_BOUNCES = 8
 _STILL_MPS = 1e-9  # below this a speed (or a slip) is none: no piece, no bounce
-
-
-@dataclass(frozen=True)
-class Walls:
-    """The field walls as the ball's centre meets them, and how the ball bounces off them.
-
-    The centre stays in ``|x| <= half_x_m``, ``|y| <= half_y_m``: the walls' inner faces (half the field's
-    length and width plus the run-off area, FieldConfig.wall_half_*) less the ball's radius. At a wall the
-    ball gets the impulse of a rigid wall with restitution and Coulomb friction (the simulator's contact
-    model, erforce_sim.contacts): its speed normal to the wall reversed and scaled by ``restitution``
-    (0: it stays at the wall), its speed along the wall cut by ``friction`` times the normal impulse, at most
-    to the sticking value. The impulse acts at the ball's equator and leaves its rolling spin as it was, so
-    the ball leaves the wall sliding on the carpet (``BallTrajectory`` says how it goes on).
-    """
-
-    half_x_m: float
-    half_y_m: float
-    restitution: float = BALL_WALL_RESTITUTION
-    friction: float = BALL_WALL_FRICTION
-    inertia_factor: float = BALL_INERTIA_FACTOR  # I = k m r^2 of the ball: sets the slide after the bounce
-
-    def __post_init__(self) -> None:
-        for name in ("half_x_m", "half_y_m", "restitution", "friction", "inertia_factor"):
-            value = getattr(self, name)
-            if not isinstance(value, _NUMBER) or not math.isfinite(value):
-                raise ValueError(f"Walls.{name}: must be a finite number, got {value!r}")
-            object.__setattr__(self, name, float(value))
-        if min(self.half_x_m, self.half_y_m) <= 0.0:
-            raise ValueError(f"Walls: half extents must be > 0, got {self.half_x_m}, {self.half_y_m}")
-        if not 0.0 <= self.restitution <= 1.0:
-            raise ValueError(f"Walls.restitution: must be in [0, 1], got {self.restitution}")
-        if self.friction < 0.0 or self.inertia_factor <= 0.0:
-            raise ValueError(f"Walls: friction >= 0 and inertia_factor > 0, got {self.friction}, "
-                             f"{self.inertia_factor}")
-
-    @classmethod
-    def of_field(cls, field: FieldConfig, restitution: float = BALL_WALL_RESTITUTION) -> Walls:
-        """The walls of ``field`` (at its run-off area's outer edge) for a ball of the league's size."""
-        if not isinstance(field, FieldConfig):
-            raise ValueError(f"field: expected FieldConfig, got {type(field).__name__}")
-        return _walls_of_field(cls, field, restitution)
-
-    def impulse(self, vx: float, vy: float, nx: float, ny: float) -> tuple[float, float]:
-        """The ball's velocity just after it meets the wall of inward normal ``(nx, ny)`` at ``(vx, vy)``."""
-        vn = vx * nx + vy * ny
-        if vn >= 0.0:
-            return vx, vy
-        jn = -(1.0 + self.restitution) * vn  # per unit mass
-        tx, ty = -ny, nx
-        # sticking would stop the contact point's slip along the wall: 1 / (1/m + r^2/I) per unit mass
-        jt = -(vx * tx + vy * ty) / (1.0 + 1.0 / self.inertia_factor)
-        limit = self.friction * jn
-        jt = max(-limit, min(limit, jt))
-        return vx + jn * nx + jt * tx, vy + jn * ny + jt * ty
-
-
-@functools.lru_cache(maxsize=16)
-def _walls_of_field(cls, field: FieldConfig, restitution: float) -> Walls:
-    """Walls.of_field, built once per field (a predictor asks every frame)."""
-    return cls(field.wall_half_length_m - BALL_RADIUS_M, field.wall_half_width_m - BALL_RADIUS_M, restitution)
-
-
-def _wall_hit(f: BallFloats, walls: Walls) -> tuple[float, float, float] | None:
-    """(distance along the piece, inward normal) of the first wall its line meets going forward, or None."""
-    best = None
-    for p, u, h, axis in ((f.x_m, f.ux, walls.half_x_m, 0), (f.y_m, f.uy, walls.half_y_m, 1)):
-        if abs(u) <= 1e-12:  # along this wall (the bounce leaves exactly 0 there)
-            continue
-        d = max(((h if u > 0.0 else -h) - p) / u, 0.0)
-        if best is None or d < best[0]:
-            n = -1.0 if u > 0.0 else 1.0
-            best = (d, n, 0.0) if axis == 0 else (d, 0.0, n)
-    return best
 
 
 def _slide_off(px, py, vx, vy, sx_spin, sy_spin, nx, ny, walls, a_slide_mps2, a_roll_mps2):
@@ -362,7 +286,7 @@ def _pieces_within(first: BallFloats, walls: Walls, params: BallModelParams) -> 
     t0, f, motion, after = 0.0, first, None, None
     bounces = 0
     while True:
-        hit = _wall_hit(f, walls)
+        hit = walls.first_hit(f.x_m, f.y_m, f.ux, f.uy)
         if hit is None or hit[0] >= f.stop_distance_m:
             pieces.append((t0, f))
             if after is None:

@@ -7,7 +7,7 @@ axes arrive together (the "alpha search" of Purwin & D'Andrea / TIGERs, implemen
 axis the 1D time is closed-form, and an axis already faster than its share keeps its speed, which keeps
 the time monotone in the split. The bisection stops on a certificate bracketing the synchronized time.
 
-Reachability without the search (``_can_reach``): for robotTimeToBall only the sign of
+Reachability without the search (``can_reach``): for robotTimeToBall only the sign of
 ``t_robot(t) - t`` matters. For a budget T each axis needs a minimal acceleration A_i (closed form), and
 the robot makes it iff ``A_x^2 + A_y^2 <= a_max^2``: the exact sign, with no iteration.
 
@@ -20,7 +20,7 @@ window at least h wide is never missed, and the returned time is feasible and at
 the moment the ball passes the robot's own braking point, tested exactly (a robot standing on a fast
 ball's path). The crossing is refined by sub-grid passes, which also copes with the discontinuity of f
 the paper mentions. Without a window the paper's fallback holds: robotTimeToPos to the stop point.
-A cheap sound bound (``_may_reach``) skips the exact test where the robot surely cannot make it.
+A cheap sound bound (catch_time_kernels' ``_may_reach``) skips the exact test where the robot surely cannot make it.
 
 Chipped balls (beyond the paper): a ``ChipTrajectory`` (chip_model) can be taken only while its centre is
 at most ``ChipParams.max_catch_height_m`` high. The search runs on its ``ground_track`` (the hops' shadows
@@ -30,7 +30,7 @@ its first window there, so a robot under the flight cannot take the ball while i
 Each window is searched as the flat ball's interval, with the same guarantee inside it.
 
 Compiled scalar loops: the search is a few hundred branchy scalar steps per robot, too many small
-array operations as numpy (docs/decisions/0028), so it is compiled by numba (``_kernels``: four entry
+array operations as numpy (docs/decisions/0028), so it is compiled by numba (catch_time_kernels: four entry
 points, robot_time_to_block's among them, for fixed float64 signatures, cached on disk) on a process's first
 search, not at import: the catcher, which asks ``can_reach`` a few dozen times per tick, runs it as Python
 without numba. The ball enters a kernel as its table of pieces (``BallTrajectory.table``) and moves by
@@ -40,21 +40,21 @@ the predictor pays one compiled call per frame; ``robot_time_to_ball`` is the on
 
 from __future__ import annotations
 
-import enum
-import functools
 import math
-import threading
 from dataclasses import dataclass
-from types import SimpleNamespace
 
 import numpy as np
 
-from erforce_ball_model.ball_model import (
-    BallTrajectory,
-    ball_time_to_distance,
-    numba_ball_type,
-    path_piece,
-    path_point,
+from erforce_ball_model.ball_model import BallTrajectory
+from erforce_ball_model.catch_time_kernels import (
+    CatchKind,
+    block_search_loop,
+    catch_search_loop,
+    compiled_kernels,
+    kernels_loaded,
+    load_kernels,
+    load_kernels_in_background,
+    reachable,
 )
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_interfaces.runtime.param_schema import schema_defaults
@@ -140,62 +140,6 @@ def _vec2(name: str, value) -> np.ndarray:
     return arr
 
 
-# --- 1D bang-bang ---------------------------------------------------------------------------------
-def _axis_time(d, w, x, rho):
-    """Minimal 1D time to travel ``d`` and stop, starting at speed ``w``: ``x`` is 1/A (may be +inf: no
-    authority on this axis), the speed limit ``V = rho * A`` (rho = v_max / a_max, the same for both
-    axes of the alpha split)."""
-    if d < 0.0:  # mirror so that d >= 0
-        d, w = -d, -w
-    if math.isinf(x):  # no authority on this axis
-        return 0.0 if d == 0.0 and w == 0.0 else math.inf
-    if w > 0.0 and 0.5 * w * w * x > d:
-        d, w = -d, -w  # overshoot: cannot stop before the target, so stop first and come back
-    elif w * x > rho:
-        return max(d / w + 0.5 * w * x, 0.0)  # already faster than the speed share: cruise, then brake
-    root_q = math.sqrt(max(d * x + 0.5 * w * w * x * x, 0.0))
-    return max(-w * x + 2.0 * root_q + max(root_q - rho, 0.0) ** 2 / rho, 0.0)  # (max: subnormal speeds)
-
-
-def _axis_min_accel(d, w, t, rho, two_rho2):
-    """Smallest acceleration A >= 0 for which ``axis_time(d, w, 1/A, rho) <= t`` (its inverse).
-
-    axis_time is increasing in x = 1/A and on each piece a quadratic in x (after squaring the
-    triangle case), so: find the piece from the times at the piece boundaries (overshoot, triangle
-    -> trapezoid, speed share below the current speed), solve its quadratic for A in the
-    cancellation-free form. 0 when the axis needs no motion; +inf when it cannot make it (e.g.
-    ``t`` 0 while moving). ``two_rho2`` is ``2 rho^2`` (hoisted by the caller).
-    """
-    w = math.copysign(1.0, d) * w  # mirror so that d >= 0
-    d = abs(d)
-    w2 = w * w
-    if d == 0.0 and w2 == 0.0:
-        return 0.0  # at rest at the target
-    wpos = w > 0.0
-    iw = 1.0 / w if wpos else 0.0  # read only where w > 0 (plain Python raises on 1 / 0)
-    ds = d + math.sqrt(d * d + w2 * two_rho2)
-    t_over = 2.0 * d * iw if wpos else math.inf  # beyond: cannot stop before the target
-    over = t > t_over
-    trap = t > ds * iw + 2.0 * rho if over else t > min(2.0 * rho - w * (two_rho2 / ds), t_over)
-    tw = t * w
-    if wpos and not over and t > d * iw + 0.5 * rho:  # keeps its speed above the share
-        q = w2 / (2.0 * (tw - d))
-    else:
-        # Root in A of  c A^2 + b A + a2 = 0  (x = 1/A of  a2 x^2 + b x + c = 0, c <= 0).
-        if trap:
-            b, a2, c = d - w * rho, 0.5 * w2, rho * (rho - t)
-        else:
-            b, a2, c = 4.0 * d - 2.0 * tw, w2, -t * t
-        if over:
-            b = -b
-        disc = math.sqrt(max(b * b - 4.0 * a2 * c, 0.0))
-        if b < 0.0:
-            q = 2.0 * a2 / (disc - b)
-        else:  # c == 0 (a zero budget, or the trapezoid's at t = rho): x / 0 and 0 / 0, no root >= 0
-            q = (b + disc) / (-2.0 * c) if c != 0.0 else math.inf
-    return q if q >= 0.0 else math.inf  # no root >= 0: impossible
-
-
 def _limits_arrays(limits: RobotLimits, shape) -> tuple[np.ndarray, np.ndarray]:
     if not isinstance(limits, RobotLimits):
         raise ValueError(f"limits: expected RobotLimits, got {type(limits).__name__}")
@@ -207,58 +151,13 @@ def _limits_arrays(limits: RobotLimits, shape) -> tuple[np.ndarray, np.ndarray]:
     return a, v
 
 
-def _time_to_pos(dx, dy, wx, wy, a, vmax, tol_s):
-    """robotTimeToPos for one robot: the alpha search, bisecting the split until certified.
-
-    The split is parametrized by ``u = tan(alpha / 2)`` in (0, 1) (rational cos/sin, no trig):
-    ``1 / (a cos alpha) = k / (1 - u^2)``, ``1 / (a sin alpha) = k / (2 u)`` with
-    ``k = (1 + u^2) / a``. ``t_x`` grows and ``t_y`` falls with u, so a bracket [lo, hi] of the
-    crossing certifies the synchronized time T*: ``max(t_x(lo), t_y(hi)) <= T* <=
-    min(t_y(lo), t_x(hi))``. Bisection stops when that gap is at most ``tol_s``; the upper end
-    is returned (an achievable time). A robot at rest needs no search: both axes then take
-    ``f(d_i / share_i)`` with the same f, so they arrive together at the split along the line to
-    the target (closed form, exact).
-    """
-    rho = vmax / a
-    if wx == 0.0 and wy == 0.0:
-        return _axis_time(math.sqrt(dx * dx + dy * dy), 0.0, 1.0 / a, rho)
-    eps = 1e-9  # keeps both shares > 0 so both times stay finite
-    lo, hi = eps, 1.0 - eps
-    k = (1.0 + lo * lo) / a
-    tx_lo, ty_lo = _axis_time(dx, wx, k / (1.0 - lo * lo), rho), _axis_time(dy, wy, k / (2.0 * lo), rho)
-    if tx_lo > ty_lo:  # no crossing (y needs nothing): the whole budget to x is optimal
-        return tx_lo
-    k = (1.0 + hi * hi) / a
-    tx_hi, ty_hi = _axis_time(dx, wx, k / (1.0 - hi * hi), rho), _axis_time(dy, wy, k / (2.0 * hi), rho)
-    if tx_hi <= ty_hi:  # likewise for x
-        return ty_hi
-    for _ in range(200):  # the u interval reaches rounding after ~55 halvings; the bound is a guard
-        if min(ty_lo, tx_hi) - max(tx_lo, ty_hi) <= tol_s:
-            break
-        u = 0.5 * (lo + hi)
-        if u <= lo or u >= hi:
-            break
-        k = (1.0 + u * u) / a
-        tx, ty = _axis_time(dx, wx, k / (1.0 - u * u), rho), _axis_time(dy, wy, k / (2.0 * u), rho)
-        if tx <= ty:
-            lo, tx_lo, ty_lo = u, tx, ty
-        else:
-            hi, tx_hi, ty_hi = u, tx, ty
-    return min(ty_lo, tx_hi)
-
-
-def _time_to_pos_many(dx, dy, wx, wy, a, vmax, tol_s, out):
-    for i in range(out.shape[0]):
-        out[i] = _time_to_pos(dx[i], dy[i], wx[i], wy[i], a[i], vmax[i], tol_s)
-
-
 def robot_time_to_pos(robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits,
                       tol_s: float = 1e-7) -> float | np.ndarray:
     """Time (s) for a robot to reach ``target_m`` and stop there (paper: robotTimeToPos).
 
     Arrays broadcast: positions/velocities/targets ``(..., 2)``, limits per robot; one robot and
     one target give a float. The split angle alpha solves ``t_x(alpha) = t_y(alpha)``
-    (``_time_to_pos``). Returns an achievable time (an upper bound) certified to be within
+    (catch_time_kernels). Returns an achievable time (an upper bound) certified to be within
     ``tol_s`` of the synchronized time.
 
     >>> round(robot_time_to_pos((0.0, 0.0), (0.0, 0.0), (2.0, 0.0), RobotLimits(a_max_mps2=2.0, v_max_mps=3.0)), 3)
@@ -275,7 +174,7 @@ def robot_time_to_pos(robot_pos_m, robot_vel_mps, target_m, limits: RobotLimits,
     v0 = np.broadcast_to(v0, (*shape, 2)).reshape(-1, 2)
     a, vmax = (_kernel_array(np.ravel(x)) for x in _limits_arrays(limits, shape))
     out = np.empty(a.shape)
-    _kernels().time_to_pos_many(_kernel_array(d[:, 0]), _kernel_array(d[:, 1]), _kernel_array(v0[:, 0]),
+    compiled_kernels().time_to_pos_many(_kernel_array(d[:, 0]), _kernel_array(d[:, 1]), _kernel_array(v0[:, 0]),
                       _kernel_array(v0[:, 1]), a, vmax, tol_s, out)
     return float(out[0]) if shape == () else out.reshape(shape)
 
@@ -289,7 +188,7 @@ def can_reach_in_time(d_m, w_mps, t_budget_s, a_max_mps2, v_max_mps) -> np.ndarr
     w = np.asarray(w_mps, dtype=float)
     args = np.broadcast_arrays(d[..., 0], d[..., 1], w[..., 0], w[..., 1], t_budget_s, a_max_mps2, v_max_mps)
     out = np.empty(args[0].shape, dtype=bool)
-    _kernels().can_reach_many(*(_kernel_array(x).ravel() for x in args), out.ravel())
+    compiled_kernels().can_reach_many(*(_kernel_array(x).ravel() for x in args), out.ravel())
     return out
 
 
@@ -305,64 +204,8 @@ def can_reach(d_m, w_mps, t_budget_s: float, a_max_mps2: float, v_max_mps: float
     """
     if not t_budget_s >= 0.0:
         return False
-    return _can_reach(float(d_m[0]), float(d_m[1]), float(w_mps[0]), float(w_mps[1]), float(t_budget_s),
+    return reachable(float(d_m[0]), float(d_m[1]), float(w_mps[0]), float(w_mps[1]), float(t_budget_s),
                       float(a_max_mps2), float(v_max_mps))
-
-
-def _can_reach(dx, dy, wx, wy, t, a, vmax):
-    """can_reach_in_time for one case.
-
-    Each axis needs at least the acceleration ``A_i(t)`` (``_axis_min_accel``) and gets
-    ``a cos(alpha)`` resp. ``a sin(alpha)``: some alpha works iff ``A_x^2 + A_y^2 <= a^2``.
-    """
-    rho = vmax / a
-    two_rho2 = 2.0 * rho * rho
-    ax = _axis_min_accel(dx, wx, t, rho, two_rho2)
-    if not ax <= a:
-        return False
-    ay = _axis_min_accel(dy, wy, t, rho, two_rho2)
-    return ax * ax + ay * ay <= a * a  # an absurd need overflows to inf: unreachable, as it should
-
-
-def _can_reach_many(dx, dy, wx, wy, t, a, vmax, out):
-    for i in range(out.shape[0]):
-        out[i] = _can_reach(dx[i], dy[i], wx[i], wy[i], t[i], a[i], vmax[i])
-
-
-def _may_reach(dx, dy, wx, wy, s0, t, a, vmax):
-    """Cheap necessary condition for ``_can_reach``: False only where the robot surely cannot.
-
-    Project the motion on the direction e to the target: the robot covers the distance D along e
-    and ends at rest, its acceleration along e is at most ``a`` (the split keeps |a_vec| <= a)
-    and its speed at most ``vcap = sqrt(v_max^2 + s0^2)`` (an axis moves at most at its share of
-    v_max or at its own initial speed). In 1D, starting at ``w = v0 . e``, the farthest point
-    reachable at rest within t is ``vp t - (vp^2 + (vp - w)^2) / (2a)`` with peak speed
-    ``vp = min((w + a t) / 2, vcap)`` (accelerate, maybe cruise, brake), and no point at all
-    before ``t = s0 / a`` (braking to rest takes that long). Both bounds are sound, so only
-    cost, never correctness, depends on how tight they are.
-    """
-    at = a * t
-    if at < s0 - 1e-9:
-        return False
-    dist = math.sqrt(dx * dx + dy * dy)
-    if dist < 1e-150:  # the squares may have underflowed (hypot is exact but slower)
-        dist = math.hypot(dx, dy)
-    w = (dx * wx + dy * wy) / (dist + 1e-300)  # 0 at the target itself
-    vp = min(0.5 * (w + at), math.sqrt(vmax * vmax + s0 * s0))
-    return dist <= vp * t - (vp * vp + (vp - w) ** 2) * (0.5 / a) + 1e-9
-
-
-def _feasible(path, hx, hy, t, sx, sy, wx, wy, a, vmax):
-    """f(t) <= 0 and the ball inside the field (``|x| <= hx``, ``|y| <= hy``): the robot (start ``sx, sy`` = its
-    centre plus the dribbler offset) reaches the ball of ``path`` (a trajectory's table) at ``t``."""
-    bx, by = path_point(path, t)
-    return abs(bx) <= hx and abs(by) <= hy and _can_reach(bx - sx, by - sy, wx, wy, t, a, vmax)
-
-
-class CatchKind(enum.IntEnum):
-    MOVING = 0  # caught while the ball is still on its way (the first window)
-    AT_REST = 1  # the robot only gets there after the ball stopped inside the field
-    NEVER = 2  # the ball leaves the field first
 
 
 @dataclass(frozen=True, eq=False)
@@ -379,143 +222,7 @@ class CatchResult:
     kind: np.ndarray | CatchKind
 
 
-_MOVING, _AT_REST, _NEVER = int(CatchKind.MOVING), int(CatchKind.AT_REST), int(CatchKind.NEVER)
-
-
-# One numba kernel, 81 lines with its docstring: the grid pass, the witness and the refinement share the
-# robot's loop state, and splitting them would pass it through calls in the hot loop.
-def _catch_search(path, hx, hy, t_min, t_max, h, stops_inside, m1, m2, rest_tol_s, offset_m, pos, vel, facing, a,
-                  vmax, time_out, kind_out, ball_out, target_out):
-    """robotTimeToBall per robot (the module docstring): time, kind, ball position and robot target.
-
-    ``path`` is the ball's trajectory as its table of pieces (ball_model.PIECE_COLUMNS: one piece, or
-    several off the walls), read by ``path_point``; a catch point counts only inside the field
-    (``|x| <= hx``, ``|y| <= hy``; inf: no field). Grid pass: points ``min(t_min + k h, t_max)`` (none
-    when ``t_min > t_max``: the ball is never in the field), the exact test only where ``_may_reach``
-    leaves a chance. Witness: the first moment the ball passes the robot's spot on any piece, if in
-    ``[t_min, t_max]``. Refinement: leftmost feasible sub-point on ``m1`` then ``m2`` sub-grids (``m2``
-    0: one level). No window: robotTimeToPos to the stop point when ``stops_inside``, else never. False
-    (and nothing computed) when an input of a robot is not finite.
-    """
-    for r in range(pos.shape[0]):
-        for v in (pos[r, 0], pos[r, 1], vel[r, 0], vel[r, 1], facing[r]):
-            if not math.isfinite(v):
-                return False
-    num = 0
-    if t_min <= t_max:
-        num = int(math.ceil((t_max - t_min) / h - 1e-9)) + 1  # noqa: RUF046 (int64 in numba, whatever ceil returns)
-    for r in range(pos.shape[0]):
-        ox, oy = offset_m * math.cos(facing[r]), offset_m * math.sin(facing[r])
-        rx, ry = pos[r, 0] + ox, pos[r, 1] + oy  # target - start == ball position - (robot + offset)
-        rwx, rwy, ra, rv = vel[r, 0], vel[r, 1], a[r], vmax[r]
-        s0 = math.sqrt(rwx * rwx + rwy * rwy)
-        right = math.inf  # known feasible
-        left_idx = -1  # the grid point before it, known infeasible (-1: none)
-        for k in range(num):
-            t = min(t_min + k * h, t_max)
-            bx, by = path_point(path, t)
-            if abs(bx) > hx or abs(by) > hy:
-                continue
-            dx, dy = bx - rx, by - ry
-            if _may_reach(dx, dy, rwx, rwy, s0, t, ra, rv) and _can_reach(dx, dy, rwx, rwy, t, ra, rv):
-                right, left_idx = t, k - 1
-                break
-        # Witness: the ball passes the robot's spot (where it comes to rest when it brakes now,
-        # projected on the path). A robot on or near the path has a window there however narrow.
-        brake = 0.5 / ra
-        spot_x, spot_y = rx + rwx * abs(rwx) * brake, ry + rwy * abs(rwy) * brake
-        t_witness = math.inf
-        for i in range(len(path)):
-            piece = path_piece(path, i)
-            along = (spot_x - piece.x_m) * piece.ux + (spot_y - piece.y_m) * piece.uy
-            if along > 0.0:
-                t_pass = path[i][0] + ball_time_to_distance(piece, along)
-                if (t_min <= t_pass <= t_max and t_pass < right and t_pass < t_witness
-                        and _feasible(path, hx, hy, t_pass, rx, ry, rwx, rwy, ra, rv)):
-                    t_witness = t_pass
-        if t_witness < right:
-            right = t_witness
-            left_idx = min(int((t_witness - t_min) / h), num - 1)  # the last grid point before t_witness
-            while left_idx >= 0 and min(t_min + left_idx * h, t_max) >= t_witness:
-                left_idx -= 1
-            while left_idx + 1 < num and min(t_min + (left_idx + 1) * h, t_max) < t_witness:
-                left_idx += 1
-        if right < math.inf and left_idx >= 0:
-            left = min(t_min + left_idx * h, t_max)
-            for m in (m1, m2):
-                if m == 0:
-                    break
-                lo = left
-                for j in range(1, m + 1):  # j == m is ``right`` itself
-                    s = left + (right - left) * (j / m) if j < m else right
-                    if j == m or _feasible(path, hx, hy, s, rx, ry, rwx, rwy, ra, rv):
-                        left, right = lo, s
-                        break
-                    lo = s
-        if right < math.inf:
-            kind = _MOVING
-            bx, by = path_point(path, right)
-        elif stops_inside:
-            kind = _AT_REST
-            bx, by = path_point(path, math.inf)
-            right = _time_to_pos(bx - rx, by - ry, rwx, rwy, ra, rv, rest_tol_s)
-        else:
-            kind, bx, by = _NEVER, math.nan, math.nan
-        time_out[r], kind_out[r] = right, kind
-        ball_out[r, 0], ball_out[r, 1] = bx, by
-        target_out[r, 0], target_out[r, 1] = bx - ox, by - oy
-    return True
-
-
-@functools.cache
-def _kernels() -> SimpleNamespace:
-    """The four entry points compiled (or loaded from numba's cache beside this module), on first use.
-
-    The scalar functions they call are compiled into them (``register_jitable``); the cache is keyed
-    on this file, so an edit anywhere here recompiles. ``error_model="numpy"``: x / 0 is inf as in
-    numpy, not an exception; no fastmath, so the results are the IEEE results numpy gives.
-    """
-    numba_ball_type()  # imports numba; ball_model's closed forms become callable from kernels
-    from erforce_interfaces.runtime.numba_support import numba, register_jitable
-
-    for scalar in (_axis_time, _axis_min_accel, _time_to_pos, _can_reach, _may_reach, _feasible, _body_entry,
-                   _block_at):
-        register_jitable(error_model="numpy")(scalar)
-    f, vec, mat = numba.float64, numba.float64[::1], numba.float64[:, ::1]
-
-    def jit(signature, loop):
-        return numba.njit(signature, cache=True, error_model="numpy")(loop)
-
-    return SimpleNamespace(
-        time_to_pos_many=jit(numba.void(vec, vec, vec, vec, vec, vec, f, vec), _time_to_pos_many),
-        can_reach_many=jit(numba.void(vec, vec, vec, vec, vec, vec, vec, numba.boolean[::1]), _can_reach_many),
-        catch_search=jit(numba.boolean(mat, f, f, f, f, f, numba.boolean, numba.int64, numba.int64, f, f, mat, mat,
-                                       vec, vec, vec, vec, numba.int8[::1], mat, mat), _catch_search),
-        block_search=jit(numba.void(mat, f, f, numba.int64, numba.int64, f, f, mat, mat, vec, vec, vec),
-                         _block_search),
-    )
-
-
-def load_kernels() -> None:
-    """Compile or load the search's kernels now (CatchSearch does, at a node's start), not in its first frame."""
-    _kernels()
-
-
-_background_load: threading.Thread | None = None
-
-
-def kernels_loaded() -> bool:
-    return _kernels.cache_info().currsize > 0
-
-
-def load_kernels_in_background() -> None:
-    """Start loading the kernels in a daemon thread (once). Loading numba and the cached kernels costs a
-    process about a second of CPU; a node restarted after a crash answers meanwhile with the same loops run
-    as Python (CatchSearch with ``kernels="background"`` starts the load after its first answer)."""
-    global _background_load
-    if _background_load is None and not kernels_loaded():
-        _background_load = threading.Thread(target=_kernels, name="catch_time_kernels", daemon=True)
-        _background_load.start()
+_MOVING, _NEVER = int(CatchKind.MOVING), int(CatchKind.NEVER)
 
 
 def _check_field(field: FieldConfig | None, unbounded: bool) -> None:
@@ -573,7 +280,7 @@ class CatchSearch:
         self._load_after_run = False
         self._search = None  # the compiled search, once loaded (kernels="background": the Python loop until then)
         if kernels == "now":
-            self._search = _kernels().catch_search
+            self._search = compiled_kernels().catch_search
         self._result = CatchResult(np.empty(num_robots), np.empty((num_robots, 2)), np.empty((num_robots, 2)),
                                    np.empty(num_robots, dtype=np.int8))
 
@@ -653,13 +360,13 @@ class CatchSearch:
         res = self._result
         search = self._search
         if search is None:
-            search = _catch_search  # the same loop as Python: slower, the same numbers
+            search = catch_search_loop  # the same loop as Python: slower, the same numbers
             if kernels_loaded():
-                search = self._search = _kernels().catch_search
+                search = self._search = compiled_kernels().catch_search
             else:
                 # after this first answer: the thread's load must not delay it (both need the GIL and the CPU)
                 self._load_after_run = True
-        path = ball.rows if search is _catch_search else ball.table
+        path = ball.rows if search is catch_search_loop else ball.table
         if not search(path, hx, hy, t_in, t_max, self._h, stops_inside, self._m1, self._m2,
                              self._rest_tol_s, self._offset_m, _kernel_array(robot_pos_m),
                              _kernel_array(robot_vel_mps), self._facing, self._a, self._vmax, res.time_s, res.kind,
@@ -836,15 +543,16 @@ def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits
     beside the lane needs only to step into it: the ball's centre within ``body_radius_m`` (robot radius plus
     ball radius) of the robot's centre. Block at ``t``: for ``t < reaction_s`` the robot has not reacted and
     stands where it is (the ball runs into it); from then on it can arrive, at rest, at a point within
-    ``body_radius_m`` of ``ball.position_at(t)`` by ``t`` (the bang-bang of robotTimeToPos, ``_can_reach``, with
+    ``body_radius_m`` of ``ball.position_at(t)`` by ``t`` (the bang-bang of robotTimeToPos, ``can_reach``, with
     the budget ``t - reaction_s``, from its present state as ``catch_after_reaction`` plans; at rest, since a
     robot that crosses the lane at speed is gone when the ball comes). The point tried is the one of that disc
     nearest to the robot's braking spot (where it comes to rest braking now): exact for a robot at rest
     (straight bang-bang to the nearest point), an achievable time for a moving one (at most later than its
     optimum). Grid of ``grid_step_s`` plus the moment the ball's centre reaches the body around the spot
     (a robot at rest beside the path: that window may be narrower than the grid), the first feasible time
-    refined by ``refine_steps`` bisections. Compiled as the catch search is (``_kernels``); ``kernels="background"``
-    answers with the same loop as Python until they are loaded (CatchSearch's option of that name).
+    refined by ``refine_steps`` bisections. Compiled as the catch search is (catch_time_kernels);
+    ``kernels="background"`` answers with the same loop as Python until they are loaded (CatchSearch's option of
+    that name).
 
     >>> ball = BallTrajectory((0.0, 0.0), (3.0, 0.0), v_shoot_mps=3.0)  # along +x
     >>> limits = RobotLimits(a_max_mps2=4.0, v_max_mps=2.0)
@@ -872,67 +580,11 @@ def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits
         raise ValueError(f"block horizon {t_end:.6g} s needs more than {MAX_GRID_POINTS} grid points")
     num = math.ceil(t_end / grid_step_s)  # the grid k h for k < num (np.arange's points), then t_end
     if kernels == "now" or kernels_loaded():
-        _kernels().block_search(ball.table, t_end, grid_step_s, num, refine_steps, body_radius_m, reaction_s,
+        compiled_kernels().block_search(ball.table, t_end, grid_step_s, num, refine_steps, body_radius_m, reaction_s,
                                 _kernel_array(p0), _kernel_array(v0), a, vmax, out)
     else:  # the same loop as Python (CatchSearch's kernels="background"): slower, the same numbers
-        _block_search(ball.rows, t_end, grid_step_s, num, refine_steps, body_radius_m, reaction_s, p0, v0, a, vmax,
+        block_search_loop(ball.rows, t_end, grid_step_s, num, refine_steps, body_radius_m, reaction_s, p0, v0, a, vmax,
                       out)
         load_kernels_in_background()
     return out
 
-
-def _block_search(path, t_end, h, num, refine_steps, radius_m, reaction_s, pos, vel, a, vmax, out):
-    """robot_time_to_block per robot into ``out`` (inf: none): the body-entry time if the robot blocks then, else
-    the first grid time it blocks at, bisected ``refine_steps`` times against the grid point before it. Grid: k h
-    for k < ``num``, then ``t_end``; a grid time at or after a feasible entry time ends the robot's search."""
-    for r in range(pos.shape[0]):
-        px, py, wx, wy, ra, rv = pos[r, 0], pos[r, 1], vel[r, 0], vel[r, 1], a[r], vmax[r]
-        brake = 0.5 / ra
-        sx, sy = px + wx * abs(wx) * brake, py + wy * abs(wy) * brake  # where it comes to rest braking now
-        s0 = math.sqrt(wx * wx + wy * wy)
-        best = _body_entry(path, sx, sy, radius_m)
-        if not (best <= t_end and _block_at(path, best, px, py, wx, wy, s0, sx, sy, ra, rv, radius_m, reaction_s)):
-            best = math.inf
-        for k in range(num + 1):
-            t = k * h if k < num else t_end
-            if t >= best:
-                break
-            if _block_at(path, t, px, py, wx, wy, s0, sx, sy, ra, rv, radius_m, reaction_s):
-                if k > 0:
-                    lo = (k - 1) * h
-                    for _ in range(refine_steps):  # bisect the first feasible grid step's left edge
-                        mid = 0.5 * (lo + t)
-                        if _block_at(path, mid, px, py, wx, wy, s0, sx, sy, ra, rv, radius_m, reaction_s):
-                            t = mid
-                        else:
-                            lo = mid
-                best = t
-                break
-        out[r] = best
-
-
-def _body_entry(path, sx: float, sy: float, radius_m: float) -> float:
-    """When the ball's centre first comes within ``radius_m`` of the spot ``(sx, sy)`` on the ball's first piece
-    (0 when it starts inside; inf when it never does, or only after that piece, e.g. off a wall)."""
-    f = path_piece(path, 0)
-    rx, ry = sx - f.x_m, sy - f.y_m
-    along = rx * f.ux + ry * f.uy
-    off = abs(rx * -f.uy + ry * f.ux)
-    if not (off <= radius_m and along + radius_m >= 0.0):
-        return math.inf
-    enter = along - math.sqrt(max(radius_m * radius_m - off * off, 0.0))
-    return 0.0 if enter <= 0.0 else path[0][0] + ball_time_to_distance(f, enter)
-
-
-def _block_at(path, t, px, py, wx, wy, s0, sx, sy, a, vmax, radius_m, reaction_s) -> bool:
-    """Whether the robot at ``(px, py)`` moving at ``(wx, wy)`` (speed ``s0``; braking spot ``(sx, sy)``) blocks
-    the ball at ``t``: before ``reaction_s`` the ball is within ``radius_m`` of where it stands, from then on it
-    reaches, at rest, the point of the ball's body disc nearest to its spot (``robot_time_to_block``)."""
-    bx, by = path_point(path, t)
-    if t < reaction_s:
-        return math.hypot(bx - px, by - py) <= radius_m + 1e-9  # (the entry's rounding)
-    gx, gy = sx - bx, sy - by
-    gap = math.hypot(gx, gy)
-    scale = radius_m / gap if gap > radius_m else 1.0
-    dx, dy, tau = bx + gx * scale - px, by + gy * scale - py, t - reaction_s
-    return _may_reach(dx, dy, wx, wy, s0, tau, a, vmax) and _can_reach(dx, dy, wx, wy, tau, a, vmax)

@@ -40,8 +40,8 @@ from erforce_ball_model.ball_model import (
     BallModelParams,
     BallTrajectory,
     ChipParams,
-    Walls,
 )
+from erforce_ball_model.walls import Walls
 
 __all__ = ["MAX_HOPS", "ChipHop", "ChipTrajectory", "flying_ball"]
 

@@ -45,12 +45,13 @@ from dataclasses import field as _default
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory, ChipParams, Walls
+from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory, ChipParams
 from erforce_ball_model.catch_time import ROBOT_REACTION_S, CatchKind, CatchSearch, RobotLimits, catch_after_reaction
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.chip_tracking import ChipDetector, ChipDetectorConfig
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
+from erforce_ball_model.walls import Walls
 from erforce_interfaces.runtime.param_schema import schema_defaults
 from erforce_interfaces.wire.robot_config import BALL_WALL_RESTITUTION, FieldConfig, RobotConfig
 

@@ -2,6 +2,7 @@
 
 Where each piece is (paper sections of the ER-Force ETDP 2016):
   world.py       World API used by the plant node and the in-process runner
+  world_types.py what a World is built from (RobotSpec, PhysicsParams) and reports (RobotState, ...)
   plant_setup.py a scenario for the plant (PlantSetup) and the World it builds
   drivetrain.py  DC motors, gears, omni wheels with traction limit, robot body, winding temperature (Sec. 4)
   ball.py        ball from sliding/rolling friction; the two-phase model emerges (Sec. 5)

@@ -65,7 +65,7 @@ from erforce_sim.ball import BallParams, BallState
 from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras
-from erforce_sim.world import PhysicsParams
+from erforce_sim.world_types import PhysicsParams
 
 SCHEMA = load_schema("erforce_sim", "plant")
 

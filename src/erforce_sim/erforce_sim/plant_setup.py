@@ -15,7 +15,8 @@ from erforce_interfaces.ssl.ssl_vision import TEAMS as SSL_TEAMS
 from erforce_interfaces.wire.robot_config import FIELD_PRESET, FieldConfig, RobotConfig
 from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionParams
-from erforce_sim.world import PhysicsParams, RobotSpec, World
+from erforce_sim.world import World
+from erforce_sim.world_types import PhysicsParams, RobotSpec
 
 PLATES = ("flat", "curved")
 # The in-process runner's tick, when a PlantSetup names none: 1 kHz. Not the lockstep tick over DDS

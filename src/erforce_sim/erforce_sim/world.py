@@ -23,16 +23,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from erforce_interfaces.runtime.numba_support import compiled_for
 from erforce_interfaces.runtime.param_schema import schema_defaults
-from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ball import BallBody, BallParams, BallState
 from erforce_sim.contacts import (
-    ContactParams,
     RobotShape,
     ball_robot,
     ball_walls,
@@ -41,133 +40,23 @@ from erforce_sim.contacts import (
     robot_walls,
 )
 from erforce_sim.drivetrain import DriveTrainCoefficients, RobotPlant, advance_robots, thermal_step
-from erforce_sim.kicker import DEFAULT_TILT_COMPLIANCE_RAD_PER_M, KickerPlate, beam_hits
+from erforce_sim.kicker import KickerPlate, beam_hits
 from erforce_sim.sensors import LightBarrierParams, LightBarrierSignal, VisionFrame, VisionParams, VisionSystem
+from erforce_sim.world_types import (
+    EnergyBreakdown,
+    KickResult,
+    PhysicsParams,
+    RobotSpec,
+    RobotState,
+    bounded,
+    finite,
+)
 
 _PLANT = schema_defaults("erforce_sim", "plant")  # the plant node's defaults
 
 MAX_BODY_SPEED_MPS = 20.0
 MAX_ROBOT_YAW_RATE_RADPS = 100.0
 MAX_BALL_SPIN_RADPS = 2000.0
-
-
-def _finite(name: str, value: float) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: must be finite, got {value!r}")
-    return v
-
-
-def _bounded(name: str, value: float, limit: float) -> float:
-    v = _finite(name, value)
-    if abs(v) > limit:
-        raise ValueError(f"{name}: |{v}| exceeds the plausible limit {limit}")
-    return v
-
-
-@dataclass(frozen=True)
-class RobotSpec:
-    """One robot to simulate: its description, initial pose, identity and kicker plate."""
-
-    config: RobotConfig = field(default_factory=RobotConfig)
-    x: float = 0.0
-    y: float = 0.0
-    theta: float = 0.0
-    team: str = "yellow"
-    robot_id: int = 0
-    kicker_plate: str = "flat"  # 'flat' | 'curved'
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.config, RobotConfig):
-            raise ValueError(f"RobotSpec.config: must be a RobotConfig, got {type(self.config).__name__}")
-        for name in ("x", "y", "theta"):
-            _finite(f"RobotSpec.{name}", getattr(self, name))
-        if self.team not in ("yellow", "blue"):
-            raise ValueError(f"RobotSpec.team: must be 'yellow' or 'blue', got {self.team!r}")
-        if not isinstance(self.robot_id, int) or self.robot_id < 0:
-            raise ValueError(f"RobotSpec.robot_id: must be an int >= 0, got {self.robot_id!r}")
-        if self.kicker_plate not in ("flat", "curved"):
-            raise ValueError(f"RobotSpec.kicker_plate: must be 'flat' or 'curved', got {self.kicker_plate!r}")
-
-
-@dataclass(frozen=True)
-class PhysicsParams:
-    substep_hz: float = _PLANT["substep_hz"]  # motor/body/ball substep rate (>= 10 kHz; exact-exponential electrics)
-    traction_damping_nspm: float = 300.0  # slip-velocity force law, clipped at mu N
-    coulomb_smoothing_radps: float = 1.0  # motor-shaft speed over which Coulomb friction ramps in
-    contacts: ContactParams = field(default_factory=ContactParams)
-    kick_max_speed_mps: float = 8.0  # kicks above this are clamped (and reported)
-    # default w r / v after a kick; < 0 backspin: -0.4 gives the paper's c_switch 0.6
-    kick_spin_ratio: float = _PLANT["kick_spin_ratio"]
-    kick_tilt_compliance_rad_per_m: float = DEFAULT_TILT_COMPLIANCE_RAD_PER_M  # plunger bending
-    kick_touch_tolerance_m: float = 0.005  # ball surface to front face gap that still counts as touching
-    dribbler_time_constant_s: float = 0.005  # ball velocity relaxes to the bar's velocity when dribbling
-    dribbler_pull_mps2: float = 2.0  # dribbler pulls the touching ball towards the robot
-    wheel_speed_noise_radps: float = 0.0  # motor-board sensor noise (std), default off
-    current_noise_a: float = 0.0
-    max_step_s: float = 0.1
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.substep_hz) and 10000.0 <= self.substep_hz <= 1e6):
-            raise ValueError(f"PhysicsParams.substep_hz: must be in [10000, 1e6], got {self.substep_hz!r}")
-        for name in (
-            "traction_damping_nspm",
-            "coulomb_smoothing_radps",
-            "kick_max_speed_mps",
-            "kick_tilt_compliance_rad_per_m",
-            "kick_touch_tolerance_m",
-            "dribbler_time_constant_s",
-            "max_step_s",
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"PhysicsParams.{name}: must be finite and > 0, got {v!r}")
-        for name in ("wheel_speed_noise_radps", "current_noise_a", "dribbler_pull_mps2"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ValueError(f"PhysicsParams.{name}: must be finite and >= 0, got {v!r}")
-        if not (math.isfinite(self.kick_spin_ratio) and -1.0 <= self.kick_spin_ratio <= 1.0):
-            raise ValueError(f"PhysicsParams.kick_spin_ratio: must be in [-1, 1], got {self.kick_spin_ratio!r}")
-
-
-@dataclass(frozen=True)
-class RobotState:
-    """Ground truth of one robot: pose and velocity in the field frame, drive train per wheel."""
-
-    x: float
-    y: float
-    theta: float
-    vx: float
-    vy: float
-    w: float
-    wheel_speeds_radps: tuple[float, ...]
-    currents_a: tuple[float, ...]
-    winding_temperatures_c: tuple[float, ...]
-
-
-@dataclass(frozen=True)
-class KickResult:
-    fired: bool  # the ball was in the dribbler region and got kicked
-    armed: bool  # not fired yet, waiting for the ball (armed_for_s > 0)
-    speed_mps: float  # kick speed actually used (after clamping)
-    clamped: bool  # the requested speed exceeded kick_max_speed_mps
-    offset_m: float = 0.0  # lateral ball offset on the plate (base_link y), when fired
-    deviation_rad: float = 0.0  # kick direction relative to the robot heading, when fired
-
-
-@dataclass(frozen=True)
-class EnergyBreakdown:
-    bodies_j: float  # robot translation + rotation
-    wheels_j: float  # wheel + reflected rotor rotation
-    magnetic_j: float  # 1/2 L i^2 of all windings
-    ball_j: float  # ball translation + rotation
-
-    @property
-    def total_j(self) -> float:
-        return self.bodies_j + self.wheels_j + self.magnetic_j + self.ball_j
 
 
 @dataclass
@@ -413,16 +302,16 @@ class World:
         centre; the carpet spins it up at the first bounce, erforce_sim.ball).
         """
         i = self._index(i)
-        speed = _finite("kick: speed_mps", speed_mps)
+        speed = finite("kick: speed_mps", speed_mps)
         if speed < 0.0:
             raise ValueError(f"kick: speed_mps must be >= 0, got {speed}")
-        spin = self.physics.kick_spin_ratio if spin_ratio is None else _finite("kick: spin_ratio", spin_ratio)
+        spin = self.physics.kick_spin_ratio if spin_ratio is None else finite("kick: spin_ratio", spin_ratio)
         if not -1.0 <= spin <= 1.0:
             raise ValueError(f"kick: spin_ratio must be in [-1, 1], got {spin}")
-        armed_for = _finite("kick: armed_for_s", armed_for_s)
+        armed_for = finite("kick: armed_for_s", armed_for_s)
         if armed_for < 0.0:
             raise ValueError(f"kick: armed_for_s must be >= 0, got {armed_for}")
-        angle = _finite("kick: angle_deg", angle_deg)
+        angle = finite("kick: angle_deg", angle_deg)
         if not 0.0 <= angle < 90.0:
             raise ValueError(f"kick: angle_deg must be in [0, 90), got {angle}")
         clamped = speed > self.physics.kick_max_speed_mps
@@ -498,11 +387,11 @@ class World:
     ) -> None:
         """Teleport robot i (field frame); wheels roll without slip at the given velocity, currents 0."""
         i = self._index(i)
-        x, y = _finite("place_robot: x", x), _finite("place_robot: y", y)
-        theta = math.remainder(_finite("place_robot: theta", theta), 2.0 * math.pi)
-        vx = _bounded("place_robot: vx", vx, MAX_BODY_SPEED_MPS)
-        vy = _bounded("place_robot: vy", vy, MAX_BODY_SPEED_MPS)
-        w = _bounded("place_robot: w", w, MAX_ROBOT_YAW_RATE_RADPS)
+        x, y = finite("place_robot: x", x), finite("place_robot: y", y)
+        theta = math.remainder(finite("place_robot: theta", theta), 2.0 * math.pi)
+        vx = bounded("place_robot: vx", vx, MAX_BODY_SPEED_MPS)
+        vy = bounded("place_robot: vy", vy, MAX_BODY_SPEED_MPS)
+        w = bounded("place_robot: w", w, MAX_ROBOT_YAW_RATE_RADPS)
         rad = self.specs[i].config.robot_radius_m
         lim_x, lim_y = self._half_x - rad, self._half_y - rad
         if abs(x) > lim_x or abs(y) > lim_y:
@@ -516,21 +405,21 @@ class World:
         self, x: float, y: float, vx: float = 0.0, vy: float = 0.0, spin_ratio: float = 1.0, wz: float = 0.0
     ) -> None:
         """Teleport the ball. spin_ratio = w r / v about the rolling axis: 1 rolls, 0 slides, <0 backspin."""
-        vx = _bounded("place_ball: vx", vx, MAX_BODY_SPEED_MPS)
-        vy = _bounded("place_ball: vy", vy, MAX_BODY_SPEED_MPS)
-        s = _finite("place_ball: spin_ratio", spin_ratio)
+        vx = bounded("place_ball: vx", vx, MAX_BODY_SPEED_MPS)
+        vy = bounded("place_ball: vy", vy, MAX_BODY_SPEED_MPS)
+        s = finite("place_ball: spin_ratio", spin_ratio)
         if not -1.0 <= s <= 1.0:
             raise ValueError(f"place_ball: spin_ratio must be in [-1, 1], got {s}")
         r = self.ball_params.radius_m
         self.set_ball_state(
             BallState(
-                _finite("place_ball: x", x),
-                _finite("place_ball: y", y),
+                finite("place_ball: x", x),
+                finite("place_ball: y", y),
                 vx,
                 vy,
                 -s * vy / r,
                 s * vx / r,
-                _finite("place_ball: wz", wz),
+                finite("place_ball: wz", wz),
             )
         )
 
@@ -545,9 +434,9 @@ class World:
                 f"place_ball: ball at ({state.x:.3f}, {state.y:.3f}) lies outside the field walls; its centre"
                 f" must satisfy |x| <= {lim_x:.3f} and |y| <= {lim_y:.3f} m"
             )
-        _bounded("ball speed", state.speed_mps, MAX_BODY_SPEED_MPS)
+        bounded("ball speed", state.speed_mps, MAX_BODY_SPEED_MPS)
         for name in ("wx", "wy", "wz"):
-            _bounded(f"ball {name}", getattr(state, name), MAX_BALL_SPIN_RADPS)
+            bounded(f"ball {name}", getattr(state, name), MAX_BALL_SPIN_RADPS)
         self._ball.set_state(state)
 
     # ------------------------------------------------------------------ stepping
@@ -568,7 +457,7 @@ class World:
         substep with their contacts. Every body is integrated with the same substep h, and the step is
         split at vision capture times so frames see all bodies at the same instant.
         """
-        dt = _finite("step: dt_s", dt_s)
+        dt = finite("step: dt_s", dt_s)
         if dt <= 0.0:
             raise ValueError(f"step: dt_s must be > 0 (time cannot go backwards), got {dt}")
         if dt > self.physics.max_step_s:

@@ -183,7 +183,7 @@ class RobotConfig:
 
 
 # The ball and the field wall: the one default of each, for the simulator's physics (erforce_sim.ball,
-# erforce_sim.contacts) and the ball model's wall bounce (erforce_ball_model.ball_model.Walls).
+# erforce_sim.contacts) and the ball model's wall bounce (erforce_ball_model.walls.Walls).
 BALL_RADIUS_M = 0.02135  # SSL rules: a standard golf ball, about 43 mm across
 BALL_INERTIA_FACTOR = 0.4  # I = k m r^2: a golf ball is close to a solid sphere (2/5)
 BALL_WALL_RESTITUTION = 0.6  # the ball's speed normal to the wall, off it / onto it

@@ -41,7 +41,8 @@ from erforce_motion.tuning import (
     run_tuning_experiment,
     write_gains_yaml,
 )
-from erforce_sim.world import PhysicsParams, RobotSpec, World
+from erforce_sim.world import World
+from erforce_sim.world_types import PhysicsParams, RobotSpec
 
 MOTOR_BOARDS_NODE_KEY = "/**/motor_boards"  # matches the node in any robot namespace (robot_0, ...)
 

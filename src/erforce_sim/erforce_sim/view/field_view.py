@@ -26,8 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, Walls, ball_speed
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ball_speed
 from erforce_ball_model.receiver import team_receiver
+from erforce_ball_model.walls import Walls
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.clouds import BallTrack, ball_track_from_msg
 from erforce_interfaces.wire.conversions import ConversionError, float64_from_msg, odometry_from_msg, point_from_msg
