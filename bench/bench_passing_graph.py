@@ -29,7 +29,7 @@ def game_config(team: int, opponents: int, passes: int, opponents_at: list[float
     return GameConfig(team_size=team, opponents=opponents, passes=passes, opponent_positions=where)
 
 
-def graph_records(cfg, seed: int, real_time_factor: float) -> list:
+def graph_records(cfg, seed: int, real_time_factor: float, vision: str = "ros") -> list:
     """The game's passes from /pass/records of a graph started here (passing_report's launch command)."""
     import rclpy
     from std_msgs.msg import Float64MultiArray
@@ -42,7 +42,7 @@ def graph_records(cfg, seed: int, real_time_factor: float) -> list:
 
     team, opponents, passes = cfg.team_size, cfg.opponents, cfg.passes
     args = argparse.Namespace(seed=seed, real_time_factor=real_time_factor, world="plant", pacing="lockstep",
-                              vision="ros")
+                              vision=vision)
     cmd, _ = graph_commands(args, cfg, setup_for(cfg, seed))
     lease = DomainLease()
     os.environ["ROS_DOMAIN_ID"] = str(lease.domain_id)
@@ -117,6 +117,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--real-time-factor", type=float, default=0.0, help="0: as fast as lockstep goes")
     parser.add_argument("--opponents-at", type=float, nargs="+", metavar="X Y",
                         help="the opponents' places (x y each) instead of the game's")
+    parser.add_argument("--vision", choices=("ros", "ssl"), default="ros",
+                        help="ssl: the plant's cameras as SSL-Vision through the bridge (the predictor sees chips)")
     parser.add_argument("--in-process", action="store_true", help="the in-process game instead (no DDS)")
     args = parser.parse_args(argv)
     cfg = game_config(args.team, args.opponents, args.passes, args.opponents_at)
@@ -125,8 +127,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.in_process:
             records += in_process_records(cfg, seed)
         else:
-            records += graph_records(cfg, seed, args.real_time_factor)
-    where = "one process" if args.in_process else "the DDS graph, lockstep"
+            records += graph_records(cfg, seed, args.real_time_factor, args.vision)
+    where = "one process" if args.in_process else f"the DDS graph, lockstep, vision {args.vision}"
     at = "" if args.opponents_at is None else f" (opponents at {args.opponents_at})"
     print(f"passing game on {where}: {args.team} v {args.opponents}{at}, seeds {args.seeds}, {args.passes} passes "
           "each")
