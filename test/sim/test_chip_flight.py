@@ -95,6 +95,32 @@ def test_a_running_dribbler_does_not_hold_back_the_kicked_ball():
         paths.append((s.x, s.vx, s.wy))
     assert paths[1] == pytest.approx(paths[0], abs=1e-12)
     assert paths[0][1] == pytest.approx(4.0 - 2.5 * 0.05, abs=1e-9)  # 50 ms sliding at the paper's 2.5 m/s^2
+    # the shot is past the bar: a ball that comes back to it is held again
+    run_for(w, 0.5)
+    assert w.ball_state().x > 0.5
+    w.place_ball(TOUCH_X + 0.5, 0.0, vx=-3.0)
+    run_for(w, 1.0)
+    assert w.ball_in_dribbler(0) and math.hypot(w.ball_state().vx, w.ball_state().vy) < 0.05
+    # a shot with the bar stopped, the ball put back at the bar, the bar started: the robot backs off with the ball
+    w.set_dribbler(0, False)
+    w.place_ball(TOUCH_X, 0.0)
+    assert w.kick(0, 4.0).fired
+    run_for(w, 0.5)
+    w.place_ball(TOUCH_X, 0.0)
+    w.set_dribbler(0, True)
+    w.place_robot(0, -1.0, 0.0, 0.0, vx=-0.5)
+    run_for(w, 0.1)
+    assert w.robot_state(0).x < -1.02 and w.ball_in_dribbler(0)
+
+
+@pytest.mark.parametrize("speed_mps", [1.0, 2.0, 3.0])
+def test_the_running_dribbler_still_holds_a_ball_that_comes_in_and_bounces(speed_mps):
+    # a pass into the robot's front bounces back at ball_robot_restitution (0.4) times its speed, faster than a
+    # held ball ever moves: the bar takes it all the same (only the kicker's own shot leaves it)
+    w = World(FIELD, [RobotSpec(x=-1.0)], BallState(TOUCH_X + 0.5, 0.0, vx=-speed_mps), seed=0)
+    w.set_dribbler(0, True)
+    run_for(w, 1.0)
+    assert w.ball_in_dribbler(0) and math.hypot(w.ball_state().vx, w.ball_state().vy) < 0.05
 
 
 def test_hops_end_and_the_ball_rolls_out_at_the_rolling_deceleration():
