@@ -471,9 +471,18 @@ class World:
             and self._ball.z < self._ball.radius  # a ball in the air passes above the dribbler bar
         )
 
+    def _in_kick_reach(self, i: int, px: float, py: float) -> bool:
+        """The plate's stroke reaches a touching ball and every ball on the carpet the light barrier's beam crosses
+        (the firmware kicks when the beam is broken): else a ball at rest between the two is seen and never kicked."""
+        if self._in_dribbler(i, px, py):
+            return True
+        fx = self._shapes[i].front_x_m
+        return (fx < px < self._beam_x[i] + self._ball.radius and abs(py) <= 0.5 * self.specs[i].config.dribbler_width_m
+                and self._ball.z < self._ball.radius)
+
     def _try_kick(self, i: int, speed: float, spin: float, angle_deg: float = 0.0) -> tuple[float, float] | None:
         px, py = self._ball_in_robot_frame(i)
-        if not self._in_dribbler(i, px, py):
+        if not self._in_kick_reach(i, px, py):
             return None
         rb, ball = self._robots[i], self._ball
         if angle_deg > 0.0:  # the chip plate: along the heading, no plunger tilt, no spin
