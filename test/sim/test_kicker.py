@@ -110,6 +110,18 @@ def test_kick_needs_ball_in_dribbler_and_can_be_armed():
     assert w2.ball_state().vx == 0.0
 
 
+@pytest.mark.parametrize(("gap_mm", "seen_and_kicked"), [(3.0, True), (8.0, True), (14.0, False)])
+def test_the_kicker_reaches_every_ball_the_light_barrier_sees(gap_mm, seen_and_kicked):
+    # The beam lies 12 mm before the face (LightBarrierParams.beam_depth_m): a ball resting with its surface
+    # 3 or 8 mm before the face crosses it, one 14 mm before does not; the firmware kicks on a broken beam, so
+    # the kicker fires exactly when the barrier sees the ball.
+    w = World(FIELD, [RobotSpec()], seed=0)
+    w.place_ball(CFG.dribbler_offset_m + gap_mm * 1e-3, 0.0)
+    w.step(0.001)
+    assert w.light_barrier(0) is seen_and_kicked
+    assert w.kick(0, 3.0).fired is seen_and_kicked
+
+
 def test_kick_spin_sets_switch_ratio():
     w = World(FIELD, [RobotSpec()], physics=PhysicsParams(kick_spin_ratio=-0.4), seed=0)
     w.place_ball(CFG.dribbler_offset_m, 0.0)

@@ -134,6 +134,7 @@ class World:
         self._barriers: list[LightBarrierSignal] = []
         self._beam_x: list[float] = []
         self._dribbler_on: list[bool] = []
+        self._kicked_out: list[bool] = []
         self._armed: list[_Armed | None] = []
         self._clamped_duties: list[int] = []
         n_robots = len(self.specs)
@@ -171,6 +172,10 @@ class World:
         self._barriers.append(LightBarrierSignal(lb_params, lb_rng))
         self._beam_x.append(shape.front_x_m + lb_params.beam_depth_m)
         self._dribbler_on.append(False)
+        # The kicker's own shot leaves the running bar: the bar's grip (a held ball relaxing to the bar's velocity
+        # within dribbler_time_constant_s) does not describe a ball shot past it in a few ms, and took a quarter of
+        # a kick's speed and gave a chip rolling spin. Set at the kick, cleared once the ball is out of reach.
+        self._kicked_out.append(False)
         self._armed.append(None)
         self._clamped_duties.append(0)
 
@@ -264,7 +269,10 @@ class World:
 
     def set_dribbler(self, i: int, on: bool) -> None:
         """Dribbler bar on/off: when on, a ball touching the bar is held (damped and pulled in)."""
-        self._dribbler_on[self._index(i)] = bool(on)
+        i = self._index(i)
+        if on and not self._dribbler_on[i]:
+            self._kicked_out[i] = False  # a bar started anew holds what touches it
+        self._dribbler_on[i] = bool(on)
         self._any_dribbler = any(self._dribbler_on)
 
     def set_lifted(self, i: int, lifted: bool) -> None:
@@ -352,9 +360,18 @@ class World:
             and self._ball.z < self._ball.radius  # a ball in the air passes above the dribbler bar
         )
 
+    def _in_kick_reach(self, i: int, px: float, py: float) -> bool:
+        """The plate's stroke reaches a touching ball and every ball on the carpet the light barrier's beam crosses
+        (the firmware kicks when the beam is broken): else a ball at rest between the two is seen and never kicked."""
+        if self._in_dribbler(i, px, py):
+            return True
+        fx = self._shapes[i].front_x_m
+        return (fx < px < self._beam_x[i] + self._ball.radius and abs(py) <= 0.5 * self.specs[i].config.dribbler_width_m
+                and self._ball.z < self._ball.radius)
+
     def _try_kick(self, i: int, speed: float, spin: float, angle_deg: float = 0.0) -> tuple[float, float] | None:
         px, py = self._ball_in_robot_frame(i)
-        if not self._in_dribbler(i, px, py):
+        if not self._in_kick_reach(i, px, py):
             return None
         rb, ball = self._robots[i], self._ball
         if angle_deg > 0.0:  # the chip plate: along the heading, no plunger tilt, no spin
@@ -373,6 +390,7 @@ class World:
         nvy = rb.vy + rb.w * qx + ky
         jx, jy = ball.mass * (nvx - ball.vx), ball.mass * (nvy - ball.vy)  # impulse on the ball
         ball.launch(nvx, nvy, vz)
+        self._kicked_out[i] = True
         ball.wx = -spin * ky / ball.radius
         ball.wy = spin * kx / ball.radius
         if not rb.lifted:  # recoil
@@ -609,6 +627,9 @@ class World:
                 continue
             px, py = self._ball_in_robot_frame(i)
             if not self._in_dribbler(i, px, py):
+                self._kicked_out[i] = False
+                continue
+            if self._kicked_out[i]:
                 continue
             rb = self._robots[i]
             qx = rb.cos_th * px - rb.sin_th * py
