@@ -11,7 +11,8 @@ every other camera's to ``ball_sighting``, each with the camera's position from 
 
 Rows: the share of chips detected within 0.15 s of the kick; the share of flat kicks ever reported as a chip
 (within 1 s); the error of the first touchdown point the predictor's chip has 0.1 s after the detection
-(median and p90 over the detected chips); the detection delay (median, p90).
+(median and p90 over the detected chips); the detection delay (median, p90); the predictor's time per vision
+frame (ball_frame and ball_sighting for every camera's ball of one capture; mean, p99).
 ``python bench/bench_chip.py [--quick] [--seed N] [--min-gain G] [--kick-hints]`` (``--kick-hints``: the kicker's
 angle reaches the predictor at each kick, BallPredictor.kick_hint; the chips' and the flat kicks' alike).
 """
@@ -76,6 +77,7 @@ def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None, hint_d
     t_kick = REST_S + rng.uniform(0.0, 1.0 / VISION.rate_hz)
     detected_s, touchdown = None, None
     period = 1.0 / VISION.rate_hz
+    cost_s = []  # the predictor's time per vision frame (every camera's ball of the capture)
     for k in range(int((REST_S + RUN_S) * VISION.rate_hz)):
         t = k * period
         if hint_deg is not None and t_kick <= t < t_kick + period:
@@ -84,22 +86,23 @@ def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None, hint_d
         vision.capture(t, (x, y), [], z)
         frame = vision.poll(t + VISION.latency_s)[0]
         packets = sorted(splitter.packets(frame), key=lambda p: p[0])
-        first = True
-        for _, data in packets:
-            det = decode_wrapper(data).detection
-            for bx, by, *_ in det.balls.tolist():
-                camera = cameras[det.camera_id]
-                if first:
-                    answer = predictor.ball_frame(t, bx, by, camera_m=camera)
-                    first = False
-                    if answer is not None and answer.chip is not None and detected_s is None:
-                        detected_s = t
-                    if detected_s is not None and touchdown is None and t >= detected_s + TOUCHDOWN_AFTER_S - 1e-9:
-                        launch = predictor.chip_detector.launch
-                        touchdown = None if launch is None else launch.touchdown_points_m[0]
-                else:
-                    predictor.ball_sighting(t, bx, by, camera)
-    out = {"delay_s": None if detected_s is None else detected_s - t_kick, "touchdown_error_m": None}
+        sightings = [(bx, by, cameras[det.camera_id]) for det in (decode_wrapper(d).detection for _, d in packets)
+                     for bx, by, *_ in det.balls.tolist()]
+        t0 = time.perf_counter()
+        for i, (bx, by, camera) in enumerate(sightings):
+            if i == 0:
+                answer = predictor.ball_frame(t, bx, by, camera_m=camera)
+            else:
+                predictor.ball_sighting(t, bx, by, camera)
+        if sightings:
+            cost_s.append(time.perf_counter() - t0)
+            if answer is not None and answer.chip is not None and detected_s is None:
+                detected_s = t
+            if detected_s is not None and touchdown is None and t >= detected_s + TOUCHDOWN_AFTER_S - 1e-9:
+                launch = predictor.chip_detector.launch
+                touchdown = None if launch is None else launch.touchdown_points_m[0]
+    out = {"delay_s": None if detected_s is None else detected_s - t_kick, "touchdown_error_m": None,
+           "frame_cost_s": cost_s}
     if touchdown is not None and isinstance(ball, ChipTrajectory):
         out["touchdown_error_m"] = float(np.hypot(*(touchdown - ball.touchdown_points_m[0])))
     return out
@@ -132,6 +135,7 @@ def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints
     rest_within = sum(c["delay_s"] is not None and c["delay_s"] <= DETECT_WITHIN_S for c in rest)
     errors = np.array([c["touchdown_error_m"] for c in chips if c["touchdown_error_m"] is not None])
     false_chips = sum(f["delay_s"] is not None for f in flats)
+    cost_us = 1e6 * np.concatenate([k["frame_cost_s"] for k in chips + flats])
     note = f"{n} random kicks, seed {seed}, min_gain {detector.min_gain:g}" + (", kick hints" if hints else "")
     return [
         {"name": "chips detected within 0.15 s of the kick", "value": 100.0 * within / n, "unit": "%",
@@ -151,6 +155,10 @@ def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints
         {"name": "detection delay after the kick, median", "value": float(np.median(delays)), "unit": "s",
          "target": "", "note": f"{len(delays)} detected"},
         {"name": "detection delay after the kick, p90", "value": float(np.percentile(delays, 90)), "unit": "s",
+         "target": "", "note": ""},
+        {"name": "predictor per vision frame (every camera's ball), mean", "value": float(np.mean(cost_us)),
+         "unit": "us", "target": "", "note": f"{len(cost_us)} frames, chips and flat kicks"},
+        {"name": "predictor per vision frame, p99", "value": float(np.percentile(cost_us, 99)), "unit": "us",
          "target": "", "note": ""},
     ]
 
