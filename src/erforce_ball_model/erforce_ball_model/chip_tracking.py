@@ -47,8 +47,10 @@ from erforce_ball_model.ball_model import MAX_SPEED_MPS, BallModelParams, BallTr
 from erforce_ball_model.chip_model import ChipTrajectory
 
 __all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_flight_at_angle",
-           "fit_ground"]
+           "fit_ground", "triangulate_height"]
 
+
+_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
 # The launch point (the flat filter's ball before the kick, averaged over the frames it lay there) weighs as
 # this many sightings' standard errors in one: twice as sure as one sighting.
@@ -61,11 +63,27 @@ class ChipDetectorConfig:
 
     noise_m: float = 0.002  # standard deviation of one sighting per axis (vision noise)
     min_sightings: int = 4
-    min_gain: float = 16.0  # the flight's squared residuals this much below the ground's (noise variances)
-    vz_sigma: float = 3.0
+    min_gain: float = 10.0  # the flight's squared residuals this much below the ground's (noise variances)
+    vz_sigma: float = 0.5
     min_vz_mps: float = 0.3
+    # a flight a chip kicker can launch (the league's 6.5 m/s kick limit, and what a fit of a few noisy sightings
+    # adds to it; a chip kicker's elevation): a fit outside is noise a flight happened to explain, not a chip
+    max_launch_speed_mps: float = 8.0
+    min_elevation_deg: float = 15.0
+    max_elevation_deg: float = 75.0
     launch_steps: int = 12  # launch times tried between the old motion's last sighting and the new one's first
+    # the kick may precede the flat filter's first sighting of the new motion by this much (the filter takes the
+    # first frame after a kick for noise of the old motion when it moved the ball little)
+    launch_lookback_s: float = 0.035
+    launch_refine_steps: int = 6  # golden-section steps refining the best launch time of the grid
+    origin_s: float = 0.1  # the old motion's sightings this long before the kick pin the launch point
     window_s: float = 0.3  # sightings of one kick kept this long
+    # two cameras' sightings this close in time are of one instant: their disagreement is the ball's height
+    pair_dt_s: float = 1e-4
+    # standard deviation of the difference between two cameras' ground points of one ball on the ground (their
+    # own noise and calibration), and how many of them a height must stand above it to be a ball in the air
+    pair_noise_m: float = 0.005
+    height_sigma: float = 5.0
     # a kick hint (the kicker's own word: it chipped at this angle, or kicked flat) belongs to the motion first seen
     # this long after it at most
     hint_window_s: float = 0.1
@@ -105,19 +123,23 @@ class ChipFit(NamedTuple):
     rss_m2: float
 
 
-def _system(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, flight: bool):
+def _system(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, flight: bool,
+            pre_velocity_mps=(0.0, 0.0)):
     """Least-squares rows for (x0, y0, vx, vy[, vz]): each sighting's two ray equations, then the origin (where
-    the ball was at the launch, if known) as one more sighting on the ground."""
-    t = rows[:, 0] - t_launch_s
+    the ball was at the launch, if known) as one more sighting on the ground. A sighting before the launch is of
+    the ball on the ground at ``(x0, y0) + pre_velocity_mps (t - t_launch)`` (the old motion's velocity, known)."""
+    tau = rows[:, 0] - t_launch_s
+    t = np.maximum(tau, 0.0)
+    pre = np.minimum(tau, 0.0)
     gx, gy = rows[:, 1], rows[:, 2]
     n, zero, one = len(t), np.zeros(len(t)), np.ones(len(t))
     cols_x, cols_y = [one, zero, t, zero], [zero, one, zero, t]
-    bx, by = gx, gy
+    bx, by = gx - pre_velocity_mps[0] * pre, gy - pre_velocity_mps[1] * pre
     if flight:
         kx, ky = (gx - rows[:, 3]) / rows[:, 5], (gy - rows[:, 4]) / rows[:, 5]
         cols_x.append(kx * t)
         cols_y.append(ky * t)
-        bx, by = gx + kx * (0.5 * g_mps2) * t * t, gy + ky * (0.5 * g_mps2) * t * t
+        bx, by = bx + kx * (0.5 * g_mps2) * t * t, by + ky * (0.5 * g_mps2) * t * t
     a = np.empty((2 * n, len(cols_x)))
     a[:n], a[n:] = np.stack(cols_x, axis=1), np.stack(cols_y, axis=1)
     b = np.concatenate([bx, by])
@@ -128,11 +150,12 @@ def _system(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, fligh
     return a, b
 
 
-def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float) -> ChipFit | None:
+def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
+               pre_velocity_mps=(0.0, 0.0)) -> ChipFit | None:
     """The flight launched from the ground at ``t_launch_s`` (from ``origin_xy`` if not None) that best explains
-    the sightings ``rows`` (Sighting columns, all after the launch), by least squares on the rays; None when they
-    do not determine it."""
-    a, b = _system(rows, t_launch_s, origin_xy, g_mps2, flight=True)
+    the sightings ``rows`` (Sighting columns; those before the launch: the ball on the ground, see ``_system``), by
+    least squares on the rays; None when they do not determine it."""
+    a, b = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
     theta, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
     if rank < 5:
         return None
@@ -143,11 +166,11 @@ def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, no
 
 
 def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
-                        tan_angle: float, iterations: int = 3) -> ChipFit | None:
+                        tan_angle: float, iterations: int = 3, pre_velocity_mps=(0.0, 0.0)) -> ChipFit | None:
     """As ``fit_flight`` with the launch's elevation known (``vz = tan_angle |v|``, the kicker's angle): four
     unknowns, as many as a ball on the ground has, so a few sightings suffice. The direction of the ground speed is
     taken from the previous iteration (the first: the flight's without the known angle), which keeps it linear."""
-    a5, b = _system(rows, t_launch_s, origin_xy, g_mps2, flight=True)
+    a5, b = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
     theta = np.linalg.lstsq(a5, b, rcond=None)[0]
     a = a5[:, :4]
     for _ in range(iterations):
@@ -169,12 +192,12 @@ def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: 
 
 
 def fit_ground(rows: np.ndarray, t_start_s: float, origin_xy, ball_params: BallModelParams,
-               iterations: int = 3) -> float:
+               iterations: int = 3, pre_velocity_mps=(0.0, 0.0)) -> float:
     """The squared residual [m^2] of the best ball kicked on the ground at ``t_start_s`` (from ``origin_xy`` if
     not None) under the two-phase model ``ball_params``. The model's deceleration along the motion is taken as
     known from the previous iteration's velocity (the first: constant velocity), which keeps the fit linear."""
-    a, b = _system(rows, t_start_s, origin_xy, 0.0, flight=False)
-    n, t = len(rows), rows[:, 0] - t_start_s
+    a, b = _system(rows, t_start_s, origin_xy, 0.0, False, pre_velocity_mps)
+    n, t = len(rows), np.maximum(rows[:, 0] - t_start_s, 0.0)
     known = np.zeros(len(b))
     theta = np.linalg.lstsq(a, b, rcond=None)[0]
     for _ in range(iterations):
@@ -185,6 +208,21 @@ def fit_ground(rows: np.ndarray, t_start_s: float, origin_xy, ball_params: BallM
         known[:n], known[n:2 * n] = theta[2] / speed * along, theta[3] / speed * along
         theta = np.linalg.lstsq(a, b - known, rcond=None)[0]
     return float(np.sum((a @ theta + known - b) ** 2))
+
+
+def triangulate_height(a: Sighting, b: Sighting) -> tuple[float, float]:
+    """The height [m] of a ball two cameras see at once at the ground points ``a`` and ``b``, and the height one
+    metre of disagreement between them makes (its standard error is ``pair_noise_m`` times that).
+
+    Each camera's ray gives the ball at ``G - (G - c) z / cz``; equal for both cameras,
+    ``Ga - Gb = z ((Ga - ca) / caz - (Gb - cb) / cbz) = z k``, solved for ``z`` by least squares. The same
+    camera twice (``k = 0``) gives no height: (0, inf)."""
+    kx = (a.x_m - a.camera_x_m) / a.camera_z_m - (b.x_m - b.camera_x_m) / b.camera_z_m
+    ky = (a.y_m - a.camera_y_m) / a.camera_z_m - (b.y_m - b.camera_y_m) / b.camera_z_m
+    k2 = kx * kx + ky * ky
+    if k2 < 1e-12:
+        return 0.0, math.inf
+    return ((a.x_m - b.x_m) * kx + (a.y_m - b.y_m) * ky) / k2, 1.0 / math.sqrt(k2)
 
 
 class ChipDetector:
@@ -216,6 +254,7 @@ class ChipDetector:
         self._chip: ChipTrajectory | None = None
         self._handed_over = False
         self._hint: tuple[float, float] | None = None  # the newest kick hint (t_s, angle_deg)
+        self._pre_velocity = (0.0, 0.0)  # the old motion's velocity (the ball before the launch)
         self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
 
     def hint(self, t_s: float, angle_deg: float) -> None:
@@ -236,8 +275,10 @@ class ChipDetector:
         """A new motion (the flat filter's kick) first seen at ``t_first_s``; ``before``: the old motion's
         last state (t_s, x_m, y_m, vx_mps, vy_mps), where the ball left from. Sightings from ``t_first_s`` on
         count, those already added included; a chip detected before is forgotten."""
-        self._rows = [r for r in self._rows if r.t_s >= t_first_s]
+        cfg = self.config
+        self._rows = [r for r in self._rows if r.t_s >= t_first_s - cfg.launch_lookback_s - cfg.origin_s]
         self.t_start_s, self._before = float(t_first_s), before
+        self._pre_velocity = self._old_velocity(before)
         self.fit, self.detected_at_s, self._chip, self._handed_over = None, None, None, False
         self.hint_angle_deg = self._hint[1] if self._hint_fits(self.t_start_s) else None
 
@@ -269,41 +310,95 @@ class ChipDetector:
             self._judge(t_s)
         return self.fit
 
+    def _settled(self) -> np.ndarray:
+        """The kick's sightings that are surely of the old motion (before the earliest launch time tried)."""
+        rows = np.array(self._rows, dtype=float).reshape(-1, 6)
+        return rows[rows[:, 0] < self.t_start_s - self.config.launch_lookback_s]
+
+    def _old_velocity(self, before) -> tuple[float, float]:
+        """The old motion's velocity: a straight line through its own sightings (two frames at least), else the
+        flat filter's."""
+        old = self._settled()
+        if len(np.unique(old[:, 0])) >= 2:
+            t = old[:, 0] - old[:, 0].mean()
+            return (float(t @ (old[:, 1] - old[:, 1].mean()) / (t @ t)),
+                    float(t @ (old[:, 2] - old[:, 2].mean()) / (t @ t)))
+        return (0.0, 0.0) if before is None else (float(before[3]), float(before[4]))
+
     def _launch_times(self) -> np.ndarray:
         t_first = self.t_start_s
-        t_from = t_first - 0.02 if self._before is None else min(self._before[0], t_first)
+        t_from = t_first - self.config.launch_lookback_s
+        if self._before is not None:
+            t_from = min(self._before[0], t_from)
         return np.linspace(t_from, t_first, self.config.launch_steps)
 
     def _origin(self, t_launch_s: float):
-        if self._before is None:
+        """The launch point as prior knowledge: the flat filter's, only when the old motion's own sightings are
+        missing (they pin it themselves, and the filter's last state may already hold the kick's first frame)."""
+        if self._before is None or len(self._settled()):
             return None
         t, x, y, vx, vy = self._before
         return (x + vx * (t_launch_s - t), y + vy * (t_launch_s - t))
 
+    def _over_launch_times(self, evaluate):
+        """The best of ``evaluate(t_launch_s) -> (rss, result) | None`` over the launch times: the best of the grid,
+        then a golden-section search between its neighbours (a launch time off by a grid step leaves residuals a
+        wrong model could explain better). (inf, None) when none has a result."""
+        times = self._launch_times()
+        scores = [evaluate(t) for t in times]
+        rss = [math.inf if r is None else r[0] for r in scores]
+        i = int(np.argmin(rss))
+        if not math.isfinite(rss[i]):
+            return math.inf, None
+        best = scores[i]
+        lo, hi = times[max(i - 1, 0)], times[min(i + 1, len(times) - 1)]
+        for _ in range(self.config.launch_refine_steps):
+            t1, t2 = hi - _GOLDEN * (hi - lo), lo + _GOLDEN * (hi - lo)
+            r1, r2 = evaluate(t1), evaluate(t2)
+            s1, s2 = (math.inf if r is None else r[0] for r in (r1, r2))
+            if s1 <= s2:
+                hi = t2
+            else:
+                lo = t1
+            for r in (r1, r2):
+                if r is not None and r[0] < best[0]:
+                    best = r
+        return best
+
     def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None) -> ChipFit | None:
         """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's)."""
-        cfg, g = self.config, self.params.g_mps2
-        if tan_angle is None:
-            fits = [fit_flight(rows, t, self._origin(t), g, cfg.noise_m) for t in self._launch_times()]
-        else:
-            fits = [fit_flight_at_angle(rows, t, self._origin(t), g, cfg.noise_m, tan_angle)
-                    for t in self._launch_times()]
-        fits = [f for f in fits if f is not None]
-        return min(fits, key=lambda f: f.rss_m2, default=None)
+        cfg, g, u = self.config, self.params.g_mps2, self._pre_velocity
+
+        def evaluate(t):
+            if tan_angle is None:
+                fit = fit_flight(rows, t, self._origin(t), g, cfg.noise_m, u)
+            else:
+                fit = fit_flight_at_angle(rows, t, self._origin(t), g, cfg.noise_m, tan_angle, pre_velocity_mps=u)
+            return None if fit is None else (fit.rss_m2, fit)
+
+        return self._over_launch_times(evaluate)[1]
+
+    def _best_ground(self, rows: np.ndarray) -> float:
+        """The squared residual of the best ball kicked on the ground over the launch times."""
+        def evaluate(t):
+            return fit_ground(rows, t, self._origin(t), self.ball_params, pre_velocity_mps=self._pre_velocity), None
+
+        return self._over_launch_times(evaluate)[0]
 
     def _judge(self, t_s: float) -> None:
         cfg, g = self.config, self.params.g_mps2
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
-        if len(rows) < cfg.min_sightings:
+        if self._new_sightings(rows) < cfg.min_sightings:
             return
         fit = self._best_flight(rows)
-        if fit is not None and fit.vz_mps > 0.0:
-            # sightings after the first touchdown belong to the next hop: fit the first flight only
+        if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
+            # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
+            # flight is sure enough to say when it lands)
             first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]
             if len(first_hop) < len(rows):
                 rows = first_hop
-                fit = self._best_flight(rows) if len(rows) >= cfg.min_sightings else None
-        if self._chip_hinted() and len(rows) >= cfg.min_sightings and (
+                fit = self._best_flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
+        if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
                 fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
             fit = self._best_flight(rows, math.tan(math.radians(self.hint_angle_deg)))
         if fit is None or not self._is_chip(fit, rows):
@@ -317,18 +412,48 @@ class ChipDetector:
         if self.detected_at_s is None:
             self.detected_at_s = t_s
 
+    def _new_sightings(self, rows: np.ndarray) -> int:
+        """How many of ``rows`` are of the new motion (from the flat filter's first sighting of it on)."""
+        return int(np.count_nonzero(rows[:, 0] >= self.t_start_s))
+
     def _is_chip(self, fit: ChipFit, rows: np.ndarray) -> bool:
         cfg = self.config
         if self.fit is not None:  # judged a chip: refits only need to stay a flight
             return fit.vz_mps > cfg.min_vz_mps
+        if fit.vz_mps >= cfg.min_vz_mps and self._triangulated(rows, fit.t_launch_s):
+            return True
         hinted = self._chip_hinted()
+        if not hinted and not self._plausible(fit):
+            return False
         if not fit.vz_mps >= (cfg.min_vz_mps if hinted else max(cfg.min_vz_mps, cfg.vz_sigma * fit.vz_std_mps)):
             return False
-        ground = min(fit_ground(rows, t, self._origin(t), self.ball_params) for t in self._launch_times())
+        ground = self._best_ground(rows)
         gain = (ground - fit.rss_m2) / cfg.noise_m**2
         if hinted:
             return gain >= -cfg.hint_max_loss
         return gain >= cfg.min_gain * (cfg.flat_hint_factor if self.hint_angle_deg == 0.0 else 1.0)
+
+    def _plausible(self, fit: ChipFit) -> bool:
+        """A flight a chip kicker launches: not faster than ``max_launch_speed_mps``, its elevation in range."""
+        cfg = self.config
+        v_ground = math.hypot(fit.vx_mps, fit.vy_mps)
+        elevation_deg = math.degrees(math.atan2(fit.vz_mps, v_ground))
+        return (math.hypot(v_ground, fit.vz_mps) <= cfg.max_launch_speed_mps
+                and cfg.min_elevation_deg <= elevation_deg <= cfg.max_elevation_deg)
+
+    def _triangulated(self, rows: np.ndarray, t_launch_s: float) -> bool:
+        """Two cameras saw the flight at one instant at ground points only a ball ``height_sigma`` standard errors
+        above the ground explains."""
+        cfg = self.config
+        rows = rows[rows[:, 0] > t_launch_s]
+        for i in range(len(rows) - 1):
+            for j in range(i + 1, len(rows)):
+                if rows[j, 0] - rows[i, 0] > cfg.pair_dt_s:
+                    break
+                z_m, m_per_m = triangulate_height(Sighting(*rows[i]), Sighting(*rows[j]))
+                if z_m > cfg.height_sigma * cfg.pair_noise_m * m_per_m:
+                    return True
+        return False
 
     def _chip_hinted(self) -> bool:
         return self.hint_angle_deg is not None and self.hint_angle_deg > 0.0
