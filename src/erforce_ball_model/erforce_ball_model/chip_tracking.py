@@ -43,14 +43,21 @@ from typing import NamedTuple
 
 import numpy as np
 
-from erforce_ball_model.ball_model import MAX_SPEED_MPS, BallModelParams, BallTrajectory, ChipParams
+from erforce_ball_model.ball_model import (
+    MAX_SPEED_MPS,
+    BallModelParams,
+    BallTrajectory,
+    ChipParams,
+    kick_distance,
+)
 from erforce_ball_model.chip_model import ChipTrajectory
 
 __all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_flight_at_angle",
            "fit_ground", "triangulate_height"]
 
 
-_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
+# A ground fit's iterations: its deceleration along the motion from the previous iteration's speed.
+GROUND_ITERATIONS = 3
 
 # The launch point (the flat filter's ball before the kick, averaged over the frames it lay there) weighs as
 # this many sightings' standard errors in one: twice as sure as one sighting.
@@ -75,7 +82,7 @@ class ChipDetectorConfig:
     # the kick may precede the flat filter's first sighting of the new motion by this much (the filter takes the
     # first frame after a kick for noise of the old motion when it moved the ball little)
     launch_lookback_s: float = 0.035
-    launch_refine_steps: int = 6  # golden-section steps refining the best launch time of the grid
+    launch_refine_steps: int = 2  # finer grids refining the best launch time of the first
     origin_s: float = 0.1  # the old motion's sightings this long before the kick pin the launch point
     window_s: float = 0.3  # sightings of one kick kept this long
     # two cameras' sightings this close in time are of one instant: their disagreement is the ball's height
@@ -123,31 +130,65 @@ class ChipFit(NamedTuple):
     rss_m2: float
 
 
-def _system(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, flight: bool,
-            pre_velocity_mps=(0.0, 0.0)):
-    """Least-squares rows for (x0, y0, vx, vy[, vz]): each sighting's two ray equations, then the origin (where
-    the ball was at the launch, if known) as one more sighting on the ground. A sighting before the launch is of
-    the ball on the ground at ``(x0, y0) + pre_velocity_mps (t - t_launch)`` (the old motion's velocity, known)."""
-    tau = rows[:, 0] - t_launch_s
-    t = np.maximum(tau, 0.0)
-    pre = np.minimum(tau, 0.0)
-    gx, gy = rows[:, 1], rows[:, 2]
-    n, zero, one = len(t), np.zeros(len(t)), np.ones(len(t))
-    cols_x, cols_y = [one, zero, t, zero], [zero, one, zero, t]
-    bx, by = gx - pre_velocity_mps[0] * pre, gy - pre_velocity_mps[1] * pre
+def _system(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, flight: bool, pre_velocity_mps=(0.0, 0.0)):
+    """Least-squares rows for (x0, y0, vx, vy[, vz]), one system per launch time of ``t_launch_s`` (m of them):
+    each sighting's two ray equations, then the origin (``origin_xy``: (m, 2), where the ball was at each launch, if
+    known) as one more sighting on the ground. A sighting before the launch is of the ball on the ground at
+    ``(x0, y0) + pre_velocity_mps (t - t_launch)`` (the old motion's velocity, known). Returns A (m, 2n[+2], 4|5),
+    b (m, 2n[+2]) and the times since the launch (m, n; 0 before it)."""
+    tau = rows[None, :, 0] - np.asarray(t_launch_s, dtype=float).reshape(-1, 1)
+    t, pre = np.maximum(tau, 0.0), np.minimum(tau, 0.0)
+    (m, n), gx, gy = tau.shape, rows[:, 1], rows[:, 2]
+    a = np.zeros((m, 2 * n + (0 if origin_xy is None else 2), 5 if flight else 4))
+    b = np.empty(a.shape[:2])
+    a[:, :n, 0] = a[:, n:2 * n, 1] = 1.0
+    a[:, :n, 2] = a[:, n:2 * n, 3] = t
+    b[:, :n], b[:, n:2 * n] = gx - pre_velocity_mps[0] * pre, gy - pre_velocity_mps[1] * pre
     if flight:
         kx, ky = (gx - rows[:, 3]) / rows[:, 5], (gy - rows[:, 4]) / rows[:, 5]
-        cols_x.append(kx * t)
-        cols_y.append(ky * t)
-        bx, by = bx + kx * (0.5 * g_mps2) * t * t, by + ky * (0.5 * g_mps2) * t * t
-    a = np.empty((2 * n, len(cols_x)))
-    a[:n], a[n:] = np.stack(cols_x, axis=1), np.stack(cols_y, axis=1)
-    b = np.concatenate([bx, by])
+        a[:, :n, 4], a[:, n:2 * n, 4] = kx * t, ky * t
+        b[:, :n] += kx * (0.5 * g_mps2) * t * t
+        b[:, n:2 * n] += ky * (0.5 * g_mps2) * t * t
     if origin_xy is not None:
-        extra = np.zeros((2, a.shape[1]))
-        extra[0, 0] = extra[1, 1] = ORIGIN_WEIGHT
-        a, b = np.vstack([a, extra]), np.concatenate([b, ORIGIN_WEIGHT * np.asarray(origin_xy, dtype=float)])
-    return a, b
+        a[:, 2 * n, 0] = a[:, 2 * n + 1, 1] = ORIGIN_WEIGHT
+        b[:, 2 * n:] = ORIGIN_WEIGHT * np.asarray(origin_xy, dtype=float).reshape(m, 2)
+    return a, b, t
+
+
+def _solve(a: np.ndarray, b: np.ndarray):
+    """Least squares of small, well-scaled systems (a stack of m) by their normal equations (a few times faster than
+    an SVD): the solutions, ``(A^T A)^-1`` (times the noise variance: a solution's covariance) and which of the m
+    the sightings determine (the others' numbers are meaningless)."""
+    ata = np.einsum("mij,mik->mjk", a, a)
+    ok = np.linalg.cond(ata) < 1e14
+    inv = np.zeros_like(ata)
+    inv[ok] = np.linalg.inv(ata[ok])
+    return np.einsum("mjk,mij,mi->mk", inv, a, b), inv, ok
+
+
+def _flights(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, noise_m: float, pre_velocity_mps):
+    """``fit_flight`` for every launch time of ``t_launch_s``: solutions (m, 5), vz's standard errors, squared
+    residuals (inf where the sightings do not determine it)."""
+    a, b, _ = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
+    theta, inv, ok = _solve(a, b)
+    rss = np.where(ok, np.sum((np.einsum("mij,mj->mi", a, theta) - b) ** 2, axis=1), math.inf)
+    return theta, np.sqrt(np.maximum(inv[:, 4, 4], 0.0)) * noise_m, rss
+
+
+def _grounds(rows: np.ndarray, t_launch_s, origin_xy, ball_params: BallModelParams, iterations: int,
+             pre_velocity_mps) -> np.ndarray:
+    """``fit_ground``'s squared residual for every launch time of ``t_launch_s`` (inf where undetermined)."""
+    a, b, t = _system(rows, t_launch_s, origin_xy, 0.0, False, pre_velocity_mps)
+    theta, inv, ok = _solve(a, b)
+    n, p = len(rows), ball_params
+    known = np.zeros_like(b)
+    for _ in range(iterations):
+        speed = np.hypot(theta[:, 2], theta[:, 3])
+        for j in np.flatnonzero(ok & (speed > 1e-6) & (speed <= MAX_SPEED_MPS)):
+            along = kick_distance(t[j], speed[j], p.a_slide_mps2, p.a_roll_mps2, p.c_switch) - speed[j] * t[j]
+            known[j, :n], known[j, n:2 * n] = theta[j, 2] / speed[j] * along, theta[j, 3] / speed[j] * along
+        theta = np.einsum("mjk,mij,mi->mk", inv, a, b - known)
+    return np.where(ok, np.sum((np.einsum("mij,mj->mi", a, theta) + known - b) ** 2, axis=1), math.inf)
 
 
 def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
@@ -155,14 +196,11 @@ def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, no
     """The flight launched from the ground at ``t_launch_s`` (from ``origin_xy`` if not None) that best explains
     the sightings ``rows`` (Sighting columns; those before the launch: the ball on the ground, see ``_system``), by
     least squares on the rays; None when they do not determine it."""
-    a, b = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
-    theta, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
-    if rank < 5:
+    theta, vz_std, rss = _flights(rows, [t_launch_s], origin_xy, g_mps2, noise_m, pre_velocity_mps)
+    if not math.isfinite(rss[0]):
         return None
-    rss = float(np.sum((a @ theta - b) ** 2))
-    vz_var = float(np.linalg.pinv(a.T @ a)[4, 4]) * noise_m**2
-    x0, y0, vx, vy, vz = theta.tolist()
-    return ChipFit(t_launch_s, x0, y0, vx, vy, vz, math.sqrt(max(vz_var, 0.0)), rss)
+    x0, y0, vx, vy, vz = theta[0].tolist()
+    return ChipFit(float(t_launch_s), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[0]))
 
 
 def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
@@ -170,9 +208,10 @@ def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: 
     """As ``fit_flight`` with the launch's elevation known (``vz = tan_angle |v|``, the kicker's angle): four
     unknowns, as many as a ball on the ground has, so a few sightings suffice. The direction of the ground speed is
     taken from the previous iteration (the first: the flight's without the known angle), which keeps it linear."""
-    a5, b = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
+    a5, b, _ = _system(rows, [t_launch_s], origin_xy, g_mps2, True, pre_velocity_mps)
+    a5, b = a5[0], b[0]
     theta = np.linalg.lstsq(a5, b, rcond=None)[0]
-    a = a5[:, :4]
+    a, inv = a5[:, :4], None
     for _ in range(iterations):
         speed = math.hypot(theta[2], theta[3])
         if not 1e-6 < speed <= MAX_SPEED_MPS:
@@ -181,12 +220,13 @@ def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: 
         a = a5[:, :4].copy()
         a[:, 2] += a5[:, 4] * tan_angle * ux
         a[:, 3] += a5[:, 4] * tan_angle * uy
-        theta, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
-        if rank < 4:
+        theta, inv, ok = _solve(a[None], b[None])
+        if not ok[0]:
             return None
+        theta, inv = theta[0], inv[0]
     rss = float(np.sum((a @ theta - b) ** 2))
     grad = np.array([0.0, 0.0, tan_angle * ux, tan_angle * uy])  # d vz / d theta at the last direction
-    vz_var = float(grad @ np.linalg.pinv(a.T @ a) @ grad) * noise_m**2
+    vz_var = float(grad @ inv @ grad) * noise_m**2
     x0, y0, vx, vy = theta.tolist()
     return ChipFit(t_launch_s, x0, y0, vx, vy, tan_angle * (ux * vx + uy * vy), math.sqrt(max(vz_var, 0.0)), rss)
 
@@ -195,19 +235,9 @@ def fit_ground(rows: np.ndarray, t_start_s: float, origin_xy, ball_params: BallM
                iterations: int = 3, pre_velocity_mps=(0.0, 0.0)) -> float:
     """The squared residual [m^2] of the best ball kicked on the ground at ``t_start_s`` (from ``origin_xy`` if
     not None) under the two-phase model ``ball_params``. The model's deceleration along the motion is taken as
-    known from the previous iteration's velocity (the first: constant velocity), which keeps the fit linear."""
-    a, b = _system(rows, t_start_s, origin_xy, 0.0, False, pre_velocity_mps)
-    n, t = len(rows), np.maximum(rows[:, 0] - t_start_s, 0.0)
-    known = np.zeros(len(b))
-    theta = np.linalg.lstsq(a, b, rcond=None)[0]
-    for _ in range(iterations):
-        speed = math.hypot(theta[2], theta[3])
-        if not 1e-6 < speed <= MAX_SPEED_MPS:
-            break
-        along = BallTrajectory.of_floats(0.0, 0.0, speed, 0.0, speed, ball_params).position_at(t)[:, 0] - speed * t
-        known[:n], known[n:2 * n] = theta[2] / speed * along, theta[3] / speed * along
-        theta = np.linalg.lstsq(a, b - known, rcond=None)[0]
-    return float(np.sum((a @ theta + known - b) ** 2))
+    known from the previous iteration's velocity (the first: constant velocity), which keeps the fit linear. inf when
+    the sightings do not determine it."""
+    return float(_grounds(rows, [t_start_s], origin_xy, ball_params, iterations, pre_velocity_mps)[0])
 
 
 def triangulate_height(a: Sighting, b: Sighting) -> tuple[float, float]:
@@ -255,6 +285,7 @@ class ChipDetector:
         self._handed_over = False
         self._hint: tuple[float, float] | None = None  # the newest kick hint (t_s, angle_deg)
         self._pre_velocity = (0.0, 0.0)  # the old motion's velocity (the ball before the launch)
+        self._origin_seen = False  # the old motion's own sightings pin the launch point
         self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
 
     def hint(self, t_s: float, angle_deg: float) -> None:
@@ -279,6 +310,7 @@ class ChipDetector:
         self._rows = [r for r in self._rows if r.t_s >= t_first_s - cfg.launch_lookback_s - cfg.origin_s]
         self.t_start_s, self._before = float(t_first_s), before
         self._pre_velocity = self._old_velocity(before)
+        self._origin_seen = len(self._settled()) > 0
         self.fit, self.detected_at_s, self._chip, self._handed_over = None, None, None, False
         self.hint_angle_deg = self._hint[1] if self._hint_fits(self.t_start_s) else None
 
@@ -325,65 +357,77 @@ class ChipDetector:
                     float(t @ (old[:, 2] - old[:, 2].mean()) / (t @ t)))
         return (0.0, 0.0) if before is None else (float(before[3]), float(before[4]))
 
-    def _launch_times(self) -> np.ndarray:
+    def _launch_times(self) -> tuple[float, float]:
         t_first = self.t_start_s
         t_from = t_first - self.config.launch_lookback_s
         if self._before is not None:
             t_from = min(self._before[0], t_from)
-        return np.linspace(t_from, t_first, self.config.launch_steps)
+        return t_from, t_first
 
-    def _origin(self, t_launch_s: float):
-        """The launch point as prior knowledge: the flat filter's, only when the old motion's own sightings are
-        missing (they pin it themselves, and the filter's last state may already hold the kick's first frame)."""
-        if self._before is None or len(self._settled()):
+    def _origins(self, t_launch_s: np.ndarray):
+        """The launch points as prior knowledge (m, 2): the flat filter's, only when the old motion's own sightings
+        are missing (they pin it themselves, and the filter's last state may already hold the kick's first
+        frame); else None."""
+        if self._before is None or self._origin_seen:
             return None
         t, x, y, vx, vy = self._before
-        return (x + vx * (t_launch_s - t), y + vy * (t_launch_s - t))
+        dt = np.asarray(t_launch_s, dtype=float) - t
+        return np.stack([x + vx * dt, y + vy * dt], axis=1)
 
-    def _over_launch_times(self, evaluate):
-        """The best of ``evaluate(t_launch_s) -> (rss, result) | None`` over the launch times: the best of the grid,
-        then a golden-section search between its neighbours (a launch time off by a grid step leaves residuals a
-        wrong model could explain better). (inf, None) when none has a result."""
-        times = self._launch_times()
-        scores = [evaluate(t) for t in times]
-        rss = [math.inf if r is None else r[0] for r in scores]
-        i = int(np.argmin(rss))
-        if not math.isfinite(rss[i]):
-            return math.inf, None
-        best = scores[i]
-        lo, hi = times[max(i - 1, 0)], times[min(i + 1, len(times) - 1)]
+    def _over_launch_times(self, evaluate) -> tuple[int, np.ndarray, np.ndarray]:
+        """The launch time minimising ``evaluate(times) -> rss`` (an array; inf: undetermined) over the kick's range:
+        a grid of ``launch_steps``, then ``launch_refine_steps`` finer grids between the best one's neighbours (a
+        launch time off by a grid step leaves residuals a wrong model could explain better). Returns the best index
+        into the last grid evaluated, that grid and its rss."""
+        lo, hi = self._launch_times()
+        times = np.linspace(lo, hi, self.config.launch_steps)
+        rss = evaluate(times)
         for _ in range(self.config.launch_refine_steps):
-            t1, t2 = hi - _GOLDEN * (hi - lo), lo + _GOLDEN * (hi - lo)
-            r1, r2 = evaluate(t1), evaluate(t2)
-            s1, s2 = (math.inf if r is None else r[0] for r in (r1, r2))
-            if s1 <= s2:
-                hi = t2
-            else:
-                lo = t1
-            for r in (r1, r2):
-                if r is not None and r[0] < best[0]:
-                    best = r
-        return best
+            i = int(np.argmin(rss))
+            if not math.isfinite(rss[i]):
+                break
+            finer = np.linspace(times[max(i - 1, 0)], times[min(i + 1, len(times) - 1)], self.config.launch_steps)
+            finer_rss = evaluate(finer)
+            if np.min(finer_rss) <= rss[i]:
+                times, rss = finer, finer_rss
+        return int(np.argmin(rss)), times, rss
 
     def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None) -> ChipFit | None:
         """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's)."""
         cfg, g, u = self.config, self.params.g_mps2, self._pre_velocity
+        if tan_angle is not None:
+            fits = {}
 
-        def evaluate(t):
-            if tan_angle is None:
-                fit = fit_flight(rows, t, self._origin(t), g, cfg.noise_m, u)
-            else:
-                fit = fit_flight_at_angle(rows, t, self._origin(t), g, cfg.noise_m, tan_angle, pre_velocity_mps=u)
-            return None if fit is None else (fit.rss_m2, fit)
+            def evaluate(times):
+                origins = self._origins(times)
+                out = [fit_flight_at_angle(rows, t, None if origins is None else origins[j], g, cfg.noise_m,
+                                           tan_angle, pre_velocity_mps=u) for j, t in enumerate(times)]
+                fits.update({float(t): f for t, f in zip(times, out, strict=True)})
+                return np.array([math.inf if f is None else f.rss_m2 for f in out])
 
-        return self._over_launch_times(evaluate)[1]
+            i, times, rss = self._over_launch_times(evaluate)
+            return fits[float(times[i])] if math.isfinite(rss[i]) else None
+        last = {}
+
+        def evaluate(times):
+            last["fit"] = _flights(rows, times, self._origins(times), g, cfg.noise_m, u)
+            return last["fit"][2]
+
+        i, times, rss = self._over_launch_times(evaluate)
+        if not math.isfinite(rss[i]):
+            return None
+        theta, vz_std, _ = _flights(rows, times[i:i + 1], self._origins(times[i:i + 1]), g, cfg.noise_m, u)
+        x0, y0, vx, vy, vz = theta[0].tolist()
+        return ChipFit(float(times[i]), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[i]))
 
     def _best_ground(self, rows: np.ndarray) -> float:
-        """The squared residual of the best ball kicked on the ground over the launch times."""
-        def evaluate(t):
-            return fit_ground(rows, t, self._origin(t), self.ball_params, pre_velocity_mps=self._pre_velocity), None
+        """The squared residual of the best ball kicked on the ground over the launch times (inf: undetermined)."""
+        def evaluate(times):
+            return _grounds(rows, times, self._origins(times), self.ball_params, GROUND_ITERATIONS,
+                            self._pre_velocity)
 
-        return self._over_launch_times(evaluate)[0]
+        i, _, rss = self._over_launch_times(evaluate)
+        return float(rss[i])
 
     def _judge(self, t_s: float) -> None:
         cfg, g = self.config, self.params.g_mps2
@@ -428,6 +472,8 @@ class ChipDetector:
         if not fit.vz_mps >= (cfg.min_vz_mps if hinted else max(cfg.min_vz_mps, cfg.vz_sigma * fit.vz_std_mps)):
             return False
         ground = self._best_ground(rows)
+        if not math.isfinite(ground):  # the sightings do not determine a ground ball either
+            return False
         gain = (ground - fit.rss_m2) / cfg.noise_m**2
         if hinted:
             return gain >= -cfg.hint_max_loss
