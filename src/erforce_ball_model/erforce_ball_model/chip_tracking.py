@@ -376,9 +376,9 @@ class ChipDetector:
 
     def _over_launch_times(self, evaluate) -> tuple[int, np.ndarray, np.ndarray]:
         """The launch time minimising ``evaluate(times) -> rss`` (an array; inf: undetermined) over the kick's range:
-        a grid of ``launch_steps``, then ``launch_refine_steps`` finer grids between the best one's neighbours (a
-        launch time off by a grid step leaves residuals a wrong model could explain better). Returns the best index
-        into the last grid evaluated, that grid and its rss."""
+        a grid of ``launch_steps``, then ``launch_refine_steps`` finer grids between the best one's neighbours, then
+        the vertex of a parabola (a launch time off by a grid step leaves residuals a wrong model could explain
+        better). Returns the best index into the last times evaluated, those times and their rss."""
         lo, hi = self._launch_times()
         times = np.linspace(lo, hi, self.config.launch_steps)
         rss = evaluate(times)
@@ -390,7 +390,17 @@ class ChipDetector:
             finer_rss = evaluate(finer)
             if np.min(finer_rss) <= rss[i]:
                 times, rss = finer, finer_rss
-        return int(np.argmin(rss)), times, rss
+        i = int(np.argmin(rss))
+        if 0 < i < len(times) - 1 and np.all(np.isfinite(rss[i - 1:i + 2])):
+            # the vertex of the parabola through the best and its neighbours (rss is smooth between sightings)
+            (t0, t1, t2), (r0, r1, r2) = times[i - 1:i + 2], rss[i - 1:i + 2]
+            curvature = (r2 - r1) / (t2 - t1) - (r1 - r0) / (t1 - t0)
+            if curvature > 0.0:
+                vertex = 0.5 * (t0 + t1) - (r1 - r0) / (t1 - t0) * 0.5 * (t2 - t0) / curvature
+                vertex_rss = evaluate(np.array([vertex]))
+                if vertex_rss[0] < rss[i]:
+                    return 0, np.array([vertex]), vertex_rss
+        return i, times, rss
 
     def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None) -> ChipFit | None:
         """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's)."""
