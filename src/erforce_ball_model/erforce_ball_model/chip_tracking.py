@@ -10,11 +10,13 @@ equations linear in the six unknowns ``(x0, y0, vx, vy, z0, vz)``:
 
 so the flight is a linear least-squares fit over the sightings since the kick (every camera's: two
 cameras see a flying ball at two ground points, which only a height explains; one camera sees a curve
-that no rolling ball makes). The same sightings are fitted as a ball on the ground too (constant
-deceleration along its motion, the flat model's slide). A chip is declared when the flight explains the
-sightings better than the ground by ``min_gain`` (in units of the noise variance), its vertical speed
-stands ``vz_sigma`` standard errors above zero and above ``min_vz_mps``, and it rose from the ground
-(``z0`` near 0). Until the first touchdown every new sighting refines the fit; then the chip model
+that no rolling ball makes). The old motion's sightings before the kick are in the fit as the ball on the
+ground there (they pin the launch point); the launch time is searched. The same sightings are fitted as a
+ball on the ground too (the flat model's deceleration along its motion). A chip is declared when two
+cameras at one instant disagree by a height ``height_sigma`` standard errors above the ground
+(``triangulate_height``), or when the flight explains the sightings better than the ground by ``min_gain``
+(in units of the noise variance) and is a flight a chip kicker launches (speed, elevation, ``vz`` above
+zero). Until the first touchdown every new sighting refines the fit; then the chip model
 (chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
 
 >>> cameras = ((-3.0, 0.0, 4.0), (3.0, 1.0, 4.0))
@@ -260,8 +262,9 @@ class ChipDetector:
     trajectory at a time (``chip_at``) from its detection until it rolls (then ``hand_over`` gives its roll to
     the flat model once).
 
-    The launch time is searched between the last sighting of the old motion and the first of the new one
-    (``launch_steps`` candidates), the launch point is where the old motion had the ball then. The flight is
+    The launch time is searched from ``launch_lookback_s`` before the first sighting of the new motion (the flat
+    filter may have taken the kick's first frame for the old motion) to it; the launch point is pinned by the old
+    motion's own sightings (``origin_s`` of them), else by the flat filter's last state (``before``). The flight is
     refitted with every sighting until its first touchdown; ``fit`` is the newest fit judged a chip (None while
     the kick is not one), ``detected_at_s`` the time of that judgement.
 
