@@ -72,7 +72,7 @@ class ChipDetectorConfig:
 
     noise_m: float = 0.002  # standard deviation of one sighting per axis (vision noise)
     min_sightings: int = 4
-    min_gain: float = 10.0  # the flight's squared residuals this much below the ground's (noise variances)
+    min_gain: float = 12.0  # the flight's squared residuals this much below the ground's (noise variances)
     vz_sigma: float = 0.5
     min_vz_mps: float = 0.3
     # a flight a chip kicker can launch (the league's 6.5 m/s kick limit, and what a fit of a few noisy sightings
