@@ -10,11 +10,13 @@ equations linear in the six unknowns ``(x0, y0, vx, vy, z0, vz)``:
 
 so the flight is a linear least-squares fit over the sightings since the kick (every camera's: two
 cameras see a flying ball at two ground points, which only a height explains; one camera sees a curve
-that no rolling ball makes). The same sightings are fitted as a ball on the ground too (constant
-deceleration along its motion, the flat model's slide). A chip is declared when the flight explains the
-sightings better than the ground by ``min_gain`` (in units of the noise variance), its vertical speed
-stands ``vz_sigma`` standard errors above zero and above ``min_vz_mps``, and it rose from the ground
-(``z0`` near 0). Until the first touchdown every new sighting refines the fit; then the chip model
+that no rolling ball makes). The old motion's sightings before the kick are in the fit as the ball on the
+ground there (they pin the launch point); the launch time is searched. The same sightings are fitted as a
+ball on the ground too (the flat model's deceleration along its motion). A chip is declared when two
+cameras at one instant disagree by a height ``height_sigma`` standard errors above the ground
+(``triangulate_height``), or when the flight explains the sightings better than the ground by ``min_gain``
+(in units of the noise variance) and is a flight a chip kicker launches (speed, elevation, ``vz`` above
+zero). Until the first touchdown every new sighting refines the fit; then the chip model
 (chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
 
 >>> cameras = ((-3.0, 0.0, 4.0), (3.0, 1.0, 4.0))
@@ -43,12 +45,21 @@ from typing import NamedTuple
 
 import numpy as np
 
-from erforce_ball_model.ball_model import MAX_SPEED_MPS, BallModelParams, BallTrajectory, ChipParams
+from erforce_ball_model.ball_model import (
+    MAX_SPEED_MPS,
+    BallModelParams,
+    BallTrajectory,
+    ChipParams,
+    kick_distance,
+)
 from erforce_ball_model.chip_model import ChipTrajectory
 
 __all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_flight_at_angle",
-           "fit_ground"]
+           "fit_ground", "triangulate_height"]
 
+
+# A ground fit's iterations: its deceleration along the motion from the previous iteration's speed.
+GROUND_ITERATIONS = 3
 
 # The launch point (the flat filter's ball before the kick, averaged over the frames it lay there) weighs as
 # this many sightings' standard errors in one: twice as sure as one sighting.
@@ -61,11 +72,27 @@ class ChipDetectorConfig:
 
     noise_m: float = 0.002  # standard deviation of one sighting per axis (vision noise)
     min_sightings: int = 4
-    min_gain: float = 16.0  # the flight's squared residuals this much below the ground's (noise variances)
-    vz_sigma: float = 3.0
+    min_gain: float = 12.0  # the flight's squared residuals this much below the ground's (noise variances)
+    vz_sigma: float = 0.5
     min_vz_mps: float = 0.3
+    # a flight a chip kicker can launch (the league's 6.5 m/s kick limit, and what a fit of a few noisy sightings
+    # adds to it; a chip kicker's elevation): a fit outside is noise a flight happened to explain, not a chip
+    max_launch_speed_mps: float = 8.0
+    min_elevation_deg: float = 15.0
+    max_elevation_deg: float = 75.0
     launch_steps: int = 12  # launch times tried between the old motion's last sighting and the new one's first
+    # the kick may precede the flat filter's first sighting of the new motion by this much (the filter takes the
+    # first frame after a kick for noise of the old motion when it moved the ball little)
+    launch_lookback_s: float = 0.035
+    launch_refine_steps: int = 2  # finer grids refining the best launch time of the first
+    origin_s: float = 0.1  # the old motion's sightings this long before the kick pin the launch point
     window_s: float = 0.3  # sightings of one kick kept this long
+    # two cameras' sightings this close in time are of one instant: their disagreement is the ball's height
+    pair_dt_s: float = 1e-4
+    # standard deviation of the difference between two cameras' ground points of one ball on the ground (their
+    # own noise and calibration), and how many of them a height must stand above it to be a ball in the air
+    pair_noise_m: float = 0.005
+    height_sigma: float = 5.0
     # a kick hint (the kicker's own word: it chipped at this angle, or kicked flat) belongs to the motion first seen
     # this long after it at most
     hint_window_s: float = 0.1
@@ -105,51 +132,88 @@ class ChipFit(NamedTuple):
     rss_m2: float
 
 
-def _system(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, flight: bool):
-    """Least-squares rows for (x0, y0, vx, vy[, vz]): each sighting's two ray equations, then the origin (where
-    the ball was at the launch, if known) as one more sighting on the ground."""
-    t = rows[:, 0] - t_launch_s
-    gx, gy = rows[:, 1], rows[:, 2]
-    n, zero, one = len(t), np.zeros(len(t)), np.ones(len(t))
-    cols_x, cols_y = [one, zero, t, zero], [zero, one, zero, t]
-    bx, by = gx, gy
+def _system(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, flight: bool, pre_velocity_mps=(0.0, 0.0)):
+    """Least-squares rows for (x0, y0, vx, vy[, vz]), one system per launch time of ``t_launch_s`` (m of them):
+    each sighting's two ray equations, then the origin (``origin_xy``: (m, 2), where the ball was at each launch, if
+    known) as one more sighting on the ground. A sighting before the launch is of the ball on the ground at
+    ``(x0, y0) + pre_velocity_mps (t - t_launch)`` (the old motion's velocity, known). Returns A (m, 2n[+2], 4|5),
+    b (m, 2n[+2]) and the times since the launch (m, n; 0 before it)."""
+    tau = rows[None, :, 0] - np.asarray(t_launch_s, dtype=float).reshape(-1, 1)
+    t, pre = np.maximum(tau, 0.0), np.minimum(tau, 0.0)
+    (m, n), gx, gy = tau.shape, rows[:, 1], rows[:, 2]
+    a = np.zeros((m, 2 * n + (0 if origin_xy is None else 2), 5 if flight else 4))
+    b = np.empty(a.shape[:2])
+    a[:, :n, 0] = a[:, n:2 * n, 1] = 1.0
+    a[:, :n, 2] = a[:, n:2 * n, 3] = t
+    b[:, :n], b[:, n:2 * n] = gx - pre_velocity_mps[0] * pre, gy - pre_velocity_mps[1] * pre
     if flight:
         kx, ky = (gx - rows[:, 3]) / rows[:, 5], (gy - rows[:, 4]) / rows[:, 5]
-        cols_x.append(kx * t)
-        cols_y.append(ky * t)
-        bx, by = gx + kx * (0.5 * g_mps2) * t * t, gy + ky * (0.5 * g_mps2) * t * t
-    a = np.empty((2 * n, len(cols_x)))
-    a[:n], a[n:] = np.stack(cols_x, axis=1), np.stack(cols_y, axis=1)
-    b = np.concatenate([bx, by])
+        a[:, :n, 4], a[:, n:2 * n, 4] = kx * t, ky * t
+        b[:, :n] += kx * (0.5 * g_mps2) * t * t
+        b[:, n:2 * n] += ky * (0.5 * g_mps2) * t * t
     if origin_xy is not None:
-        extra = np.zeros((2, a.shape[1]))
-        extra[0, 0] = extra[1, 1] = ORIGIN_WEIGHT
-        a, b = np.vstack([a, extra]), np.concatenate([b, ORIGIN_WEIGHT * np.asarray(origin_xy, dtype=float)])
-    return a, b
+        a[:, 2 * n, 0] = a[:, 2 * n + 1, 1] = ORIGIN_WEIGHT
+        b[:, 2 * n:] = ORIGIN_WEIGHT * np.asarray(origin_xy, dtype=float).reshape(m, 2)
+    return a, b, t
 
 
-def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float) -> ChipFit | None:
+def _solve(a: np.ndarray, b: np.ndarray):
+    """Least squares of small, well-scaled systems (a stack of m) by their normal equations (a few times faster than
+    an SVD): the solutions, ``(A^T A)^-1`` (times the noise variance: a solution's covariance) and which of the m
+    the sightings determine (the others' numbers are meaningless)."""
+    ata = np.einsum("mij,mik->mjk", a, a)
+    ok = np.linalg.cond(ata) < 1e14
+    inv = np.zeros_like(ata)
+    inv[ok] = np.linalg.inv(ata[ok])
+    return np.einsum("mjk,mij,mi->mk", inv, a, b), inv, ok
+
+
+def _flights(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, noise_m: float, pre_velocity_mps):
+    """``fit_flight`` for every launch time of ``t_launch_s``: solutions (m, 5), vz's standard errors, squared
+    residuals (inf where the sightings do not determine it)."""
+    a, b, _ = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
+    theta, inv, ok = _solve(a, b)
+    rss = np.where(ok, np.sum((np.einsum("mij,mj->mi", a, theta) - b) ** 2, axis=1), math.inf)
+    return theta, np.sqrt(np.maximum(inv[:, 4, 4], 0.0)) * noise_m, rss
+
+
+def _grounds(rows: np.ndarray, t_launch_s, origin_xy, ball_params: BallModelParams, iterations: int,
+             pre_velocity_mps) -> np.ndarray:
+    """``fit_ground``'s squared residual for every launch time of ``t_launch_s`` (inf where undetermined)."""
+    a, b, t = _system(rows, t_launch_s, origin_xy, 0.0, False, pre_velocity_mps)
+    theta, inv, ok = _solve(a, b)
+    n, p = len(rows), ball_params
+    known = np.zeros_like(b)
+    for _ in range(iterations):
+        speed = np.hypot(theta[:, 2], theta[:, 3])
+        for j in np.flatnonzero(ok & (speed > 1e-6) & (speed <= MAX_SPEED_MPS)):
+            along = kick_distance(t[j], speed[j], p.a_slide_mps2, p.a_roll_mps2, p.c_switch) - speed[j] * t[j]
+            known[j, :n], known[j, n:2 * n] = theta[j, 2] / speed[j] * along, theta[j, 3] / speed[j] * along
+        theta = np.einsum("mjk,mij,mi->mk", inv, a, b - known)
+    return np.where(ok, np.sum((np.einsum("mij,mj->mi", a, theta) + known - b) ** 2, axis=1), math.inf)
+
+
+def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
+               pre_velocity_mps=(0.0, 0.0)) -> ChipFit | None:
     """The flight launched from the ground at ``t_launch_s`` (from ``origin_xy`` if not None) that best explains
-    the sightings ``rows`` (Sighting columns, all after the launch), by least squares on the rays; None when they
-    do not determine it."""
-    a, b = _system(rows, t_launch_s, origin_xy, g_mps2, flight=True)
-    theta, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
-    if rank < 5:
+    the sightings ``rows`` (Sighting columns; those before the launch: the ball on the ground, see ``_system``), by
+    least squares on the rays; None when they do not determine it."""
+    theta, vz_std, rss = _flights(rows, [t_launch_s], origin_xy, g_mps2, noise_m, pre_velocity_mps)
+    if not math.isfinite(rss[0]):
         return None
-    rss = float(np.sum((a @ theta - b) ** 2))
-    vz_var = float(np.linalg.pinv(a.T @ a)[4, 4]) * noise_m**2
-    x0, y0, vx, vy, vz = theta.tolist()
-    return ChipFit(t_launch_s, x0, y0, vx, vy, vz, math.sqrt(max(vz_var, 0.0)), rss)
+    x0, y0, vx, vy, vz = theta[0].tolist()
+    return ChipFit(float(t_launch_s), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[0]))
 
 
 def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
-                        tan_angle: float, iterations: int = 3) -> ChipFit | None:
+                        tan_angle: float, iterations: int = 3, pre_velocity_mps=(0.0, 0.0)) -> ChipFit | None:
     """As ``fit_flight`` with the launch's elevation known (``vz = tan_angle |v|``, the kicker's angle): four
     unknowns, as many as a ball on the ground has, so a few sightings suffice. The direction of the ground speed is
     taken from the previous iteration (the first: the flight's without the known angle), which keeps it linear."""
-    a5, b = _system(rows, t_launch_s, origin_xy, g_mps2, flight=True)
+    a5, b, _ = _system(rows, [t_launch_s], origin_xy, g_mps2, True, pre_velocity_mps)
+    a5, b = a5[0], b[0]
     theta = np.linalg.lstsq(a5, b, rcond=None)[0]
-    a = a5[:, :4]
+    a, inv = a5[:, :4], None
     for _ in range(iterations):
         speed = math.hypot(theta[2], theta[3])
         if not 1e-6 < speed <= MAX_SPEED_MPS:
@@ -158,33 +222,39 @@ def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: 
         a = a5[:, :4].copy()
         a[:, 2] += a5[:, 4] * tan_angle * ux
         a[:, 3] += a5[:, 4] * tan_angle * uy
-        theta, _, rank, _ = np.linalg.lstsq(a, b, rcond=None)
-        if rank < 4:
+        theta, inv, ok = _solve(a[None], b[None])
+        if not ok[0]:
             return None
+        theta, inv = theta[0], inv[0]
     rss = float(np.sum((a @ theta - b) ** 2))
     grad = np.array([0.0, 0.0, tan_angle * ux, tan_angle * uy])  # d vz / d theta at the last direction
-    vz_var = float(grad @ np.linalg.pinv(a.T @ a) @ grad) * noise_m**2
+    vz_var = float(grad @ inv @ grad) * noise_m**2
     x0, y0, vx, vy = theta.tolist()
     return ChipFit(t_launch_s, x0, y0, vx, vy, tan_angle * (ux * vx + uy * vy), math.sqrt(max(vz_var, 0.0)), rss)
 
 
 def fit_ground(rows: np.ndarray, t_start_s: float, origin_xy, ball_params: BallModelParams,
-               iterations: int = 3) -> float:
+               iterations: int = 3, pre_velocity_mps=(0.0, 0.0)) -> float:
     """The squared residual [m^2] of the best ball kicked on the ground at ``t_start_s`` (from ``origin_xy`` if
     not None) under the two-phase model ``ball_params``. The model's deceleration along the motion is taken as
-    known from the previous iteration's velocity (the first: constant velocity), which keeps the fit linear."""
-    a, b = _system(rows, t_start_s, origin_xy, 0.0, flight=False)
-    n, t = len(rows), rows[:, 0] - t_start_s
-    known = np.zeros(len(b))
-    theta = np.linalg.lstsq(a, b, rcond=None)[0]
-    for _ in range(iterations):
-        speed = math.hypot(theta[2], theta[3])
-        if not 1e-6 < speed <= MAX_SPEED_MPS:
-            break
-        along = BallTrajectory.of_floats(0.0, 0.0, speed, 0.0, speed, ball_params).position_at(t)[:, 0] - speed * t
-        known[:n], known[n:2 * n] = theta[2] / speed * along, theta[3] / speed * along
-        theta = np.linalg.lstsq(a, b - known, rcond=None)[0]
-    return float(np.sum((a @ theta + known - b) ** 2))
+    known from the previous iteration's velocity (the first: constant velocity), which keeps the fit linear. inf when
+    the sightings do not determine it."""
+    return float(_grounds(rows, [t_start_s], origin_xy, ball_params, iterations, pre_velocity_mps)[0])
+
+
+def triangulate_height(a: Sighting, b: Sighting) -> tuple[float, float]:
+    """The height [m] of a ball two cameras see at once at the ground points ``a`` and ``b``, and the height one
+    metre of disagreement between them makes (its standard error is ``pair_noise_m`` times that).
+
+    Each camera's ray gives the ball at ``G - (G - c) z / cz``; equal for both cameras,
+    ``Ga - Gb = z ((Ga - ca) / caz - (Gb - cb) / cbz) = z k``, solved for ``z`` by least squares. The same
+    camera twice (``k = 0``) gives no height: (0, inf)."""
+    kx = (a.x_m - a.camera_x_m) / a.camera_z_m - (b.x_m - b.camera_x_m) / b.camera_z_m
+    ky = (a.y_m - a.camera_y_m) / a.camera_z_m - (b.y_m - b.camera_y_m) / b.camera_z_m
+    k2 = kx * kx + ky * ky
+    if k2 < 1e-12:
+        return 0.0, math.inf
+    return ((a.x_m - b.x_m) * kx + (a.y_m - b.y_m) * ky) / k2, 1.0 / math.sqrt(k2)
 
 
 class ChipDetector:
@@ -192,8 +262,9 @@ class ChipDetector:
     trajectory at a time (``chip_at``) from its detection until it rolls (then ``hand_over`` gives its roll to
     the flat model once).
 
-    The launch time is searched between the last sighting of the old motion and the first of the new one
-    (``launch_steps`` candidates), the launch point is where the old motion had the ball then. The flight is
+    The launch time is searched from ``launch_lookback_s`` before the first sighting of the new motion (the flat
+    filter may have taken the kick's first frame for the old motion) to it; the launch point is pinned by the old
+    motion's own sightings (``origin_s`` of them), else by the flat filter's last state (``before``). The flight is
     refitted with every sighting until its first touchdown; ``fit`` is the newest fit judged a chip (None while
     the kick is not one), ``detected_at_s`` the time of that judgement.
 
@@ -219,6 +290,8 @@ class ChipDetector:
         self._chip: ChipTrajectory | None = None
         self._handed_over = False
         self._hint: tuple[float, float] | None = None  # the newest kick hint (t_s, angle_deg)
+        self._pre_velocity = (0.0, 0.0)  # the old motion's velocity (the ball before the launch)
+        self._origin_seen = False  # the old motion's own sightings pin the launch point
         self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
 
     def hint(self, t_s: float, angle_deg: float) -> None:
@@ -239,8 +312,11 @@ class ChipDetector:
         """A new motion (the flat filter's kick) first seen at ``t_first_s``; ``before``: the old motion's
         last state (t_s, x_m, y_m, vx_mps, vy_mps), where the ball left from. Sightings from ``t_first_s`` on
         count, those already added included; a chip detected before is forgotten."""
-        self._rows = [r for r in self._rows if r.t_s >= t_first_s]
+        cfg = self.config
+        self._rows = [r for r in self._rows if r.t_s >= t_first_s - cfg.launch_lookback_s - cfg.origin_s]
         self.t_start_s, self._before = float(t_first_s), before
+        self._pre_velocity = self._old_velocity(before)
+        self._origin_seen = len(self._settled()) > 0
         self.fit, self.detected_at_s, self._chip, self._handed_over = None, None, None, False
         self.hint_angle_deg = self._hint[1] if self._hint_fits(self.t_start_s) else None
 
@@ -272,41 +348,117 @@ class ChipDetector:
             self._judge(t_s)
         return self.fit
 
-    def _launch_times(self) -> np.ndarray:
-        t_first = self.t_start_s
-        t_from = t_first - 0.02 if self._before is None else min(self._before[0], t_first)
-        return np.linspace(t_from, t_first, self.config.launch_steps)
+    def _settled(self) -> np.ndarray:
+        """The kick's sightings that are surely of the old motion (before the earliest launch time tried)."""
+        rows = np.array(self._rows, dtype=float).reshape(-1, 6)
+        return rows[rows[:, 0] < self.t_start_s - self.config.launch_lookback_s]
 
-    def _origin(self, t_launch_s: float):
-        if self._before is None:
+    def _old_velocity(self, before) -> tuple[float, float]:
+        """The old motion's velocity: a straight line through its own sightings (two frames at least), else the
+        flat filter's."""
+        old = self._settled()
+        if len(np.unique(old[:, 0])) >= 2:
+            t = old[:, 0] - old[:, 0].mean()
+            return (float(t @ (old[:, 1] - old[:, 1].mean()) / (t @ t)),
+                    float(t @ (old[:, 2] - old[:, 2].mean()) / (t @ t)))
+        return (0.0, 0.0) if before is None else (float(before[3]), float(before[4]))
+
+    def _launch_times(self) -> tuple[float, float]:
+        t_first = self.t_start_s
+        t_from = t_first - self.config.launch_lookback_s
+        if self._before is not None:
+            t_from = min(self._before[0], t_from)
+        return t_from, t_first
+
+    def _origins(self, t_launch_s: np.ndarray):
+        """The launch points as prior knowledge (m, 2): the flat filter's, only when the old motion's own sightings
+        are missing (they pin it themselves, and the filter's last state may already hold the kick's first
+        frame); else None."""
+        if self._before is None or self._origin_seen:
             return None
         t, x, y, vx, vy = self._before
-        return (x + vx * (t_launch_s - t), y + vy * (t_launch_s - t))
+        dt = np.asarray(t_launch_s, dtype=float) - t
+        return np.stack([x + vx * dt, y + vy * dt], axis=1)
+
+    def _over_launch_times(self, evaluate) -> tuple[int, np.ndarray, np.ndarray]:
+        """The launch time minimising ``evaluate(times) -> rss`` (an array; inf: undetermined) over the kick's range:
+        a grid of ``launch_steps``, then ``launch_refine_steps`` finer grids between the best one's neighbours, then
+        the vertex of a parabola (a launch time off by a grid step leaves residuals a wrong model could explain
+        better). Returns the best index into the last times evaluated, those times and their rss."""
+        lo, hi = self._launch_times()
+        times = np.linspace(lo, hi, self.config.launch_steps)
+        rss = evaluate(times)
+        for _ in range(self.config.launch_refine_steps):
+            i = int(np.argmin(rss))
+            if not math.isfinite(rss[i]):
+                break
+            finer = np.linspace(times[max(i - 1, 0)], times[min(i + 1, len(times) - 1)], self.config.launch_steps)
+            finer_rss = evaluate(finer)
+            if np.min(finer_rss) <= rss[i]:
+                times, rss = finer, finer_rss
+        i = int(np.argmin(rss))
+        if 0 < i < len(times) - 1 and np.all(np.isfinite(rss[i - 1:i + 2])):
+            # the vertex of the parabola through the best and its neighbours (rss is smooth between sightings)
+            (t0, t1, t2), (r0, r1, r2) = times[i - 1:i + 2], rss[i - 1:i + 2]
+            curvature = (r2 - r1) / (t2 - t1) - (r1 - r0) / (t1 - t0)
+            if curvature > 0.0:
+                vertex = 0.5 * (t0 + t1) - (r1 - r0) / (t1 - t0) * 0.5 * (t2 - t0) / curvature
+                vertex_rss = evaluate(np.array([vertex]))
+                if vertex_rss[0] < rss[i]:
+                    return 0, np.array([vertex]), vertex_rss
+        return i, times, rss
 
     def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None) -> ChipFit | None:
         """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's)."""
-        cfg, g = self.config, self.params.g_mps2
-        if tan_angle is None:
-            fits = [fit_flight(rows, t, self._origin(t), g, cfg.noise_m) for t in self._launch_times()]
-        else:
-            fits = [fit_flight_at_angle(rows, t, self._origin(t), g, cfg.noise_m, tan_angle)
-                    for t in self._launch_times()]
-        fits = [f for f in fits if f is not None]
-        return min(fits, key=lambda f: f.rss_m2, default=None)
+        cfg, g, u = self.config, self.params.g_mps2, self._pre_velocity
+        if tan_angle is not None:
+            fits = {}
+
+            def evaluate(times):
+                origins = self._origins(times)
+                out = [fit_flight_at_angle(rows, t, None if origins is None else origins[j], g, cfg.noise_m,
+                                           tan_angle, pre_velocity_mps=u) for j, t in enumerate(times)]
+                fits.update({float(t): f for t, f in zip(times, out, strict=True)})
+                return np.array([math.inf if f is None else f.rss_m2 for f in out])
+
+            i, times, rss = self._over_launch_times(evaluate)
+            return fits[float(times[i])] if math.isfinite(rss[i]) else None
+        last = {}
+
+        def evaluate(times):
+            last["fit"] = _flights(rows, times, self._origins(times), g, cfg.noise_m, u)
+            return last["fit"][2]
+
+        i, times, rss = self._over_launch_times(evaluate)
+        if not math.isfinite(rss[i]):
+            return None
+        theta, vz_std, _ = _flights(rows, times[i:i + 1], self._origins(times[i:i + 1]), g, cfg.noise_m, u)
+        x0, y0, vx, vy, vz = theta[0].tolist()
+        return ChipFit(float(times[i]), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[i]))
+
+    def _best_ground(self, rows: np.ndarray) -> float:
+        """The squared residual of the best ball kicked on the ground over the launch times (inf: undetermined)."""
+        def evaluate(times):
+            return _grounds(rows, times, self._origins(times), self.ball_params, GROUND_ITERATIONS,
+                            self._pre_velocity)
+
+        i, _, rss = self._over_launch_times(evaluate)
+        return float(rss[i])
 
     def _judge(self, t_s: float) -> None:
         cfg, g = self.config, self.params.g_mps2
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
-        if len(rows) < cfg.min_sightings:
+        if self._new_sightings(rows) < cfg.min_sightings:
             return
         fit = self._best_flight(rows)
-        if fit is not None and fit.vz_mps > 0.0:
-            # sightings after the first touchdown belong to the next hop: fit the first flight only
+        if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
+            # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
+            # flight is sure enough to say when it lands)
             first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]
             if len(first_hop) < len(rows):
                 rows = first_hop
-                fit = self._best_flight(rows) if len(rows) >= cfg.min_sightings else None
-        if self._chip_hinted() and len(rows) >= cfg.min_sightings and (
+                fit = self._best_flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
+        if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
                 fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
             fit = self._best_flight(rows, math.tan(math.radians(self.hint_angle_deg)))
         if fit is None or not self._is_chip(fit, rows):
@@ -320,18 +472,50 @@ class ChipDetector:
         if self.detected_at_s is None:
             self.detected_at_s = t_s
 
+    def _new_sightings(self, rows: np.ndarray) -> int:
+        """How many of ``rows`` are of the new motion (from the flat filter's first sighting of it on)."""
+        return int(np.count_nonzero(rows[:, 0] >= self.t_start_s))
+
     def _is_chip(self, fit: ChipFit, rows: np.ndarray) -> bool:
         cfg = self.config
         if self.fit is not None:  # judged a chip: refits only need to stay a flight
             return fit.vz_mps > cfg.min_vz_mps
+        if fit.vz_mps >= cfg.min_vz_mps and self._triangulated(rows, fit.t_launch_s):
+            return True
         hinted = self._chip_hinted()
+        if not hinted and not self._plausible(fit):
+            return False
         if not fit.vz_mps >= (cfg.min_vz_mps if hinted else max(cfg.min_vz_mps, cfg.vz_sigma * fit.vz_std_mps)):
             return False
-        ground = min(fit_ground(rows, t, self._origin(t), self.ball_params) for t in self._launch_times())
+        ground = self._best_ground(rows)
+        if not math.isfinite(ground):  # the sightings do not determine a ground ball either
+            return False
         gain = (ground - fit.rss_m2) / cfg.noise_m**2
         if hinted:
             return gain >= -cfg.hint_max_loss
         return gain >= cfg.min_gain * (cfg.flat_hint_factor if self.hint_angle_deg == 0.0 else 1.0)
+
+    def _plausible(self, fit: ChipFit) -> bool:
+        """A flight a chip kicker launches: not faster than ``max_launch_speed_mps``, its elevation in range."""
+        cfg = self.config
+        v_ground = math.hypot(fit.vx_mps, fit.vy_mps)
+        elevation_deg = math.degrees(math.atan2(fit.vz_mps, v_ground))
+        return (math.hypot(v_ground, fit.vz_mps) <= cfg.max_launch_speed_mps
+                and cfg.min_elevation_deg <= elevation_deg <= cfg.max_elevation_deg)
+
+    def _triangulated(self, rows: np.ndarray, t_launch_s: float) -> bool:
+        """Two cameras saw the flight at one instant at ground points only a ball ``height_sigma`` standard errors
+        above the ground explains."""
+        cfg = self.config
+        rows = rows[rows[:, 0] > t_launch_s]
+        for i in range(len(rows) - 1):
+            for j in range(i + 1, len(rows)):
+                if rows[j, 0] - rows[i, 0] > cfg.pair_dt_s:
+                    break
+                z_m, m_per_m = triangulate_height(Sighting(*rows[i]), Sighting(*rows[j]))
+                if z_m > cfg.height_sigma * cfg.pair_noise_m * m_per_m:
+                    return True
+        return False
 
     def _chip_hinted(self) -> bool:
         return self.hint_angle_deg is not None and self.hint_angle_deg > 0.0
