@@ -177,7 +177,7 @@ def test_a_bad_sighting_is_refused_by_name():
 def test_two_cameras_at_one_instant_give_the_flights_height():
     """A chip (2 m/s along +y, 3 m/s up from (0.5, -0.3)) seen by both cameras: at every instant the height from
     the two ground points is the projectile's, vz t - g t^2 / 2."""
-    truth = ChipTrajectory((0.5, -0.3, 0.0), (0.0, 2.0, 3.0))
+    truth = ChipTrajectory((0.5, -0.3, 0.0), (0.0, 2.0, 3.0), ChipParams())
     for t in (0.01, 0.1, 0.3, 0.55):
         x, y, z = truth.position_at(t).tolist()
         assert z == pytest.approx(3.0 * t - 0.5 * G * t * t, abs=1e-12)
@@ -217,9 +217,9 @@ def feed(detector, sightings, t_first):
 def test_two_cameras_take_a_chip_at_their_first_judgement():
     """Both cameras see the chip: the second frame after the kick holds four new sightings (the least a judgement
     takes), and at 14 ms after the launch the ball is 3 cm up: the cameras disagree by centimetres."""
-    truth = ChipTrajectory((0.0, 0.0, 0.0), (2.0, 0.0, 2.5))
+    truth = ChipTrajectory((0.0, 0.0, 0.0), (2.0, 0.0, 2.5), ChipParams())
     t_kick = 0.004
-    detector = ChipDetector()
+    detector = ChipDetector(None, ChipParams())
     detected = feed(detector, kick_sightings(truth, t_kick, CAMERAS), t_first=1.0 / 70.0)
     assert detected == pytest.approx(2.0 / 70.0)
     assert detector.fit.t_launch_s == pytest.approx(t_kick, abs=5e-4)
@@ -228,8 +228,8 @@ def test_two_cameras_take_a_chip_at_their_first_judgement():
 def test_the_launch_point_is_where_the_ball_lay():
     """The flat filter's last state may already hold the kick's first frame (here 5 mm and 0.35 m/s off): the old
     motion's own sightings at rest pin the launch point, to a fraction of a millimetre without noise."""
-    truth = ChipTrajectory((1.0, 0.5, 0.0), (2.0, 1.0, 2.0))
-    detector = ChipDetector()
+    truth = ChipTrajectory((1.0, 0.5, 0.0), (2.0, 1.0, 2.0), ChipParams())
+    detector = ChipDetector(None, ChipParams())
     sightings = kick_sightings(truth, 0.003, CAMERAS[:1], frames=(-7, 16))
     for t, x, y, camera in sightings:
         if t >= 2.0 / 70.0 and detector.t_start_s is None:
@@ -247,9 +247,9 @@ def test_one_camera_sees_a_chip_within_a_few_frames():
     seen path, as another heading would: the curve gravity bends into it, g 1.5 m / (2 4 m) t^2 sideways, tells it.)"""
     camera = (0.0, 1.5, 4.0)
     v = 3.5 / math.sqrt(2.0)
-    truth = ChipTrajectory((-0.5, 0.0, 0.0), (v, 0.0, v))
+    truth = ChipTrajectory((-0.5, 0.0, 0.0), (v, 0.0, v), ChipParams())
     for seed in range(20):
-        detector = ChipDetector()
+        detector = ChipDetector(None, ChipParams())
         detected = feed(detector, kick_sightings(truth, 0.005, [camera], 0.002, seed, frames=(-7, 20)), 2.0 / 70.0)
         assert detected is not None and detected - 0.005 <= 9.0 / 70.0, seed
 
@@ -263,6 +263,29 @@ def test_noisy_flat_kicks_are_never_chips():
         speed, heading = rng.uniform(1.0, 6.5), rng.uniform(-math.pi, math.pi)
         start = (rng.uniform(-1.0, 1.0), rng.uniform(0.0, 3.0))
         truth = BallTrajectory(start, (speed * math.cos(heading), speed * math.sin(heading)), speed)
-        detector = ChipDetector()
+        detector = ChipDetector(None, ChipParams())
         used = cameras[: 1 + seed % 2]
         assert feed(detector, kick_sightings(truth, 0.006, used, 0.002, seed, frames=(-7, 21)), 2.0 / 70.0) is None
+
+
+def test_a_ball_placed_elsewhere_mid_flight_does_not_carry_the_chip_away():
+    """A chip at (2, 0, 2) m/s from the origin (apex v_z^2 / 2g = 0.204 m at 0.204 s, first touchdown at
+    2 v_z / g = 0.408 s and 0.815 m) is detected; at 0.2 s, still in the air, the ball is placed at rest at (-4, 3) m
+    and both cameras see it there. No flight a chip kicker launches explains those sightings: the chip the detector
+    holds stays the one it saw fly (its height at most the apex, its hops those of the true flight), never one that
+    leaves the field."""
+    truth = ChipTrajectory((0.0, 0.0, 0.0), (2.0, 0.0, 2.0), ChipParams())
+    t_kick, t_placed, placed = 0.004, 0.2, (-4.0, 3.0)
+    sightings = [s for s in kick_sightings(truth, t_kick, CAMERAS, frames=(-7, 70)) if s[0] < t_placed]
+    sightings += [(k / 70.0, *seen(*placed, 0.0, c), c) for k in range(math.ceil(t_placed * 70.0), 70)
+                  for c in CAMERAS]
+    detector = ChipDetector(None, ChipParams())
+    assert feed(detector, [s for s in sightings if s[0] < t_placed], t_first=1.0 / 70.0) is not None
+    for t, x, y, camera in (s for s in sightings if s[0] >= t_placed):
+        detector.add(t, x, y, camera)
+        fit = detector.fit
+        assert math.hypot(fit.vx_mps, fit.vy_mps, fit.vz_mps) <= detector.config.max_launch_speed_mps, t
+        chip = detector.chip_at(t)
+        if chip is not None:  # the flight it saw, as that flight goes on (hops included)
+            assert chip.position_m[2] <= 0.21, t
+            assert chip.position_m.tolist() == pytest.approx(truth.position_at(t - t_kick).tolist(), abs=0.03), t

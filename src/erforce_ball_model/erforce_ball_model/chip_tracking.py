@@ -100,6 +100,9 @@ class ChipDetectorConfig:
     # (noise variances) and still be taken (it guards against a hint whose ball did not fly)
     hint_max_loss: float = 4.0
     flat_hint_factor: float = 4.0  # with a flat-kick hint a chip needs this many times min_gain
+    # a chip's refit explains its sightings to within this many ``noise_m`` (root mean square per axis), or it is not
+    # taken (sightings of a ball no longer in that flight)
+    refit_rms_sigma: float = 10.0
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
@@ -478,8 +481,14 @@ class ChipDetector:
 
     def _is_chip(self, fit: ChipFit, rows: np.ndarray) -> bool:
         cfg = self.config
-        if self.fit is not None:  # judged a chip: refits only need to stay a flight
-            return fit.vz_mps > cfg.min_vz_mps
+        if self.fit is not None:
+            # judged a chip: a refit must stay a flight a chip kicker launches that explains its sightings. Sightings
+            # no flight explains (the ball caught, placed elsewhere) fit a steep flight of tens of m/s whose touchdown
+            # is seconds away: taken, it would keep absorbing sightings and carry the chip far off the field. The
+            # last good fit stays.
+            rms_m = math.sqrt(fit.rss_m2 / (2 * len(rows)))
+            return (fit.vz_mps > cfg.min_vz_mps and self._plausible(fit)
+                    and rms_m <= cfg.refit_rms_sigma * cfg.noise_m)
         if fit.vz_mps >= cfg.min_vz_mps and self._triangulated(rows, fit.t_launch_s):
             return True
         hinted = self._chip_hinted()
