@@ -269,7 +269,9 @@ class ChipDetector:
     filter may have taken the kick's first frame for the old motion) to it; the launch point is pinned by the old
     motion's own sightings (``origin_s`` of them), else by the flat filter's last state (``before``). The flight is
     refitted with every sighting until its first touchdown; ``fit`` is the newest fit judged a chip (None while
-    the kick is not one), ``detected_at_s`` the time of that judgement.
+    the kick is not one), ``detected_at_s`` the time of that judgement. A refit is taken only while it is a flight a
+    chip kicker launches that explains its sightings (``refit_rms_sigma``): a ball caught or placed elsewhere in
+    the air leaves the last good fit in place.
 
     A kick hint (``hint``: the kicker says it kicked at a time with an elevation; 0 flat) for the motion first seen
     within ``hint_window_s`` after it is prior knowledge: with a chip's angle the flight at that angle is fitted as
