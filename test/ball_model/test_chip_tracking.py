@@ -289,3 +289,24 @@ def test_a_ball_placed_elsewhere_mid_flight_does_not_carry_the_chip_away():
         if chip is not None:  # the flight it saw, as that flight goes on (hops included)
             assert chip.position_m[2] <= 0.21, t
             assert chip.position_m.tolist() == pytest.approx(truth.position_at(t - t_kick).tolist(), abs=0.03), t
+
+
+def test_a_ball_placed_elsewhere_just_after_a_hinted_kick_is_no_chip():
+    """The kicker says it chipped at 45 deg; the ball (2, 0, 2) m/s from the origin is seen for one frame after the
+    kick, then lies at rest at (-4, 3) m. A flight at 45 deg from the origin through those ground points needs tens of
+    m/s and misses the sightings by metres: no chip is taken from them, and none the detector ever holds is faster
+    than the launch speed sqrt(2^2 + 2^2) = 2.83 m/s (the true chip, once its own frames explain it)."""
+    truth = ChipTrajectory((0.0, 0.0, 0.0), (2.0, 0.0, 2.0), ChipParams())
+    t_kick, placed = 0.004, (-4.0, 3.0)
+    sightings = kick_sightings(truth, t_kick, CAMERAS, frames=(-7, 2))
+    sightings += [(k / 70.0, *seen(*placed, 0.0, c), c) for k in range(2, 70) for c in CAMERAS[:1]]
+    detector = ChipDetector(None, ChipParams())
+    detector.hint(t_kick, 45.0)
+    for t, x, y, camera in sightings:
+        if t >= 1.0 / 70.0 and detector.t_start_s is None:
+            detector.start(1.0 / 70.0, before=(0.0, 0.0, 0.0, 0.0, 0.0))
+        detector.add(t, x, y, camera)
+        chip = detector.chip_at(t)
+        if chip is not None:
+            assert float(np.linalg.norm(detector.launch.velocity_mps)) <= math.hypot(2.0, 2.0) + 0.01, t
+            assert chip.position_m.tolist() == pytest.approx(truth.position_at(t - t_kick).tolist(), abs=0.03), t
