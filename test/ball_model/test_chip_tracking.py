@@ -266,3 +266,47 @@ def test_noisy_flat_kicks_are_never_chips():
         detector = ChipDetector(None, ChipParams())
         used = cameras[: 1 + seed % 2]
         assert feed(detector, kick_sightings(truth, 0.006, used, 0.002, seed, frames=(-7, 21)), 2.0 / 70.0) is None
+
+
+def test_a_ball_placed_elsewhere_mid_flight_does_not_carry_the_chip_away():
+    """A chip at (2, 0, 2) m/s from the origin (apex v_z^2 / 2g = 0.204 m at 0.204 s, first touchdown at
+    2 v_z / g = 0.408 s and 0.815 m) is detected; at 0.2 s, still in the air, the ball is placed at rest at (-4, 3) m
+    and both cameras see it there. No flight a chip kicker launches explains those sightings: the chip the detector
+    holds stays the one it saw fly (its height at most the apex, its hops those of the true flight), never one that
+    leaves the field."""
+    truth = ChipTrajectory((0.0, 0.0, 0.0), (2.0, 0.0, 2.0), ChipParams())
+    t_kick, t_placed, placed = 0.004, 0.2, (-4.0, 3.0)
+    sightings = [s for s in kick_sightings(truth, t_kick, CAMERAS, frames=(-7, 70)) if s[0] < t_placed]
+    sightings += [(k / 70.0, *seen(*placed, 0.0, c), c) for k in range(math.ceil(t_placed * 70.0), 70)
+                  for c in CAMERAS]
+    detector = ChipDetector(None, ChipParams())
+    assert feed(detector, [s for s in sightings if s[0] < t_placed], t_first=1.0 / 70.0) is not None
+    for t, x, y, camera in (s for s in sightings if s[0] >= t_placed):
+        detector.add(t, x, y, camera)
+        fit = detector.fit
+        assert math.hypot(fit.vx_mps, fit.vy_mps, fit.vz_mps) <= detector.config.max_launch_speed_mps, t
+        chip = detector.chip_at(t)
+        if chip is not None:  # the flight it saw, as that flight goes on (hops included)
+            assert chip.position_m[2] <= 0.21, t
+            assert chip.position_m.tolist() == pytest.approx(truth.position_at(t - t_kick).tolist(), abs=0.03), t
+
+
+def test_a_ball_placed_elsewhere_just_after_a_hinted_kick_is_no_chip():
+    """The kicker says it chipped at 45 deg; the ball (2, 0, 2) m/s from the origin is seen for one frame after the
+    kick, then lies at rest at (-4, 3) m. A flight at 45 deg from the origin through those ground points needs tens of
+    m/s and misses the sightings by metres: no chip is taken from them, and none the detector ever holds is faster
+    than the launch speed sqrt(2^2 + 2^2) = 2.83 m/s (the true chip, once its own frames explain it)."""
+    truth = ChipTrajectory((0.0, 0.0, 0.0), (2.0, 0.0, 2.0), ChipParams())
+    t_kick, placed = 0.004, (-4.0, 3.0)
+    sightings = kick_sightings(truth, t_kick, CAMERAS, frames=(-7, 2))
+    sightings += [(k / 70.0, *seen(*placed, 0.0, c), c) for k in range(2, 70) for c in CAMERAS[:1]]
+    detector = ChipDetector(None, ChipParams())
+    detector.hint(t_kick, 45.0)
+    for t, x, y, camera in sightings:
+        if t >= 1.0 / 70.0 and detector.t_start_s is None:
+            detector.start(1.0 / 70.0, before=(0.0, 0.0, 0.0, 0.0, 0.0))
+        detector.add(t, x, y, camera)
+        chip = detector.chip_at(t)
+        if chip is not None:
+            assert float(np.linalg.norm(detector.launch.velocity_mps)) <= math.hypot(2.0, 2.0) + 0.01, t
+            assert chip.position_m.tolist() == pytest.approx(truth.position_at(t - t_kick).tolist(), abs=0.03), t

@@ -100,6 +100,9 @@ class ChipDetectorConfig:
     # (noise variances) and still be taken (it guards against a hint whose ball did not fly)
     hint_max_loss: float = 4.0
     flat_hint_factor: float = 4.0  # with a flat-kick hint a chip needs this many times min_gain
+    # a fit taken as the chip explains its sightings to within this many ``noise_m`` (root mean square per axis): a
+    # worse one is of sightings of a ball no longer in that flight
+    fit_rms_sigma: float = 10.0
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
@@ -266,7 +269,9 @@ class ChipDetector:
     filter may have taken the kick's first frame for the old motion) to it; the launch point is pinned by the old
     motion's own sightings (``origin_s`` of them), else by the flat filter's last state (``before``). The flight is
     refitted with every sighting until its first touchdown; ``fit`` is the newest fit judged a chip (None while
-    the kick is not one), ``detected_at_s`` the time of that judgement.
+    the kick is not one), ``detected_at_s`` the time of that judgement. A fit is taken only while it explains its
+    sightings (``fit_rms_sigma``), a refit only while it is a flight a chip kicker launches: a ball caught or placed
+    elsewhere in the air leaves the last good fit in place.
 
     A kick hint (``hint``: the kicker says it kicked at a time with an elevation; 0 flat) for the motion first seen
     within ``hint_window_s`` after it is prior knowledge: with a chip's angle the flight at that angle is fitted as
@@ -478,8 +483,13 @@ class ChipDetector:
 
     def _is_chip(self, fit: ChipFit, rows: np.ndarray) -> bool:
         cfg = self.config
-        if self.fit is not None:  # judged a chip: refits only need to stay a flight
-            return fit.vz_mps > cfg.min_vz_mps
+        # Sightings no flight explains (the ball caught, or placed elsewhere while in the air) fit a steep flight of
+        # tens of m/s whose touchdown is seconds away: taken, it would keep absorbing sightings and carry the chip
+        # far off the field. A fit taken as the chip explains its sightings; else the last good fit stays.
+        if math.sqrt(fit.rss_m2 / (2 * len(rows))) > cfg.fit_rms_sigma * cfg.noise_m:
+            return False
+        if self.fit is not None:  # judged a chip: a refit must stay a flight a chip kicker launches
+            return fit.vz_mps > cfg.min_vz_mps and self._plausible(fit)
         if fit.vz_mps >= cfg.min_vz_mps and self._triangulated(rows, fit.t_launch_s):
             return True
         hinted = self._chip_hinted()
