@@ -55,20 +55,24 @@ def ball_topics(probe) -> tuple[list, list, list]:
             probe.subscribe(contract.GROUND_TRUTH_BALL.name, Odometry, contract.GROUND_TRUTH_BALL.qos))
 
 
+def rests_at(states: list, xy, within_m: float) -> bool:
+    """The predictor has had the ball lying within ``within_m`` of ``xy`` for REST_S (its stamps) on ``states``
+    (/ball/state): a chip detector judges one motion at a time, so a placement must be over before a kick."""
+    recent = [odometry_from_msg(m) for m in states]
+    if not recent or recent[-1][0] - recent[0][0] < REST_S:
+        return False
+    t_end = recent[-1][0]
+    return all(math.hypot(p[0] - xy[0], p[1] - xy[1]) < within_m and math.hypot(v[0], v[1]) < 0.15
+               for t, p, v, _ in recent if t >= t_end - REST_S)
+
+
 def test_a_chip_in_the_plant_shows_on_ball_state_in_the_air(director):
     d, graph, launch = director
     probe = graph.probe
     states, phases, truth = ball_topics(probe)
 
-    def still_at_start() -> bool:
-        """The predictor has had the ball lying at START for REST_S (its stamps): the placement, a motion of its
-        own, is over before the kick (a chip detector judges one motion at a time)."""
-        recent = [odometry_from_msg(m) for m in states]
-        if not recent or recent[-1][0] - recent[0][0] < REST_S:
-            return False
-        t_end = recent[-1][0]
-        return all(math.hypot(p[0] - START[0], p[1] - START[1]) < 0.02 and math.hypot(v[0], v[1]) < 0.15
-                   for t, p, v, _ in recent if t >= t_end - REST_S)
+    def still_at_start() -> bool:  # the placement, a motion of its own, is over before the kick
+        return rests_at(states, START, 0.02)
 
     d.place_ball(*START)
     try:
@@ -129,12 +133,7 @@ def test_a_chip_kicked_by_a_robot_shows_on_ball_state_within_the_deadline(direct
         d.place_ball(*ball)
 
         def still() -> bool:
-            recent = [odometry_from_msg(m) for m in states]
-            if not recent or recent[-1][0] - recent[0][0] < REST_S:
-                return False
-            t_end = recent[-1][0]
-            return all(math.hypot(p[0] - ball[0], p[1] - ball[1]) < 0.03 and math.hypot(v[0], v[1]) < 0.15
-                       for t, p, v, _ in recent if t >= t_end - REST_S)
+            return rests_at(states, ball, 0.03)
 
         states.clear()
         graph.spin_until(still, 60.0, "the ball at rest at the kicker on /ball/state")
