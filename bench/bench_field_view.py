@@ -33,7 +33,8 @@ import numpy as np
 from std_msgs.msg import Float64
 from table import bench_main  # bench/table.py: the shared table format
 
-from erforce_interfaces.tools.testing import RosGraph, stop_process
+from erforce_interfaces.tools.processes import stop_process
+from erforce_interfaces.tools.testing import RosGraph
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.clouds import vision_robots_cdr
 from erforce_interfaces.wire.conversions import float64_cdr, odometry_cdr, point_cdr

@@ -10,7 +10,8 @@ import time
 import pytest
 from std_msgs.msg import String
 
-from erforce_interfaces.tools.testing import DomainLease, RosGraph
+from erforce_interfaces.tools.processes import DomainLease
+from erforce_interfaces.tools.testing import RosGraph
 from erforce_interfaces.wire.contract import QOS_COMMAND
 
 pytestmark = pytest.mark.integration
@@ -88,7 +89,7 @@ def test_domain_leases_are_exclusive_across_processes(tmp_path):
     try:
         code = textwrap.dedent(f"""
             from pathlib import Path
-            from erforce_interfaces.tools.testing import DomainLease
+            from erforce_interfaces.tools.processes import DomainLease
             print(DomainLease(Path({str(tmp_path)!r})).domain_id)
         """)
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=30)

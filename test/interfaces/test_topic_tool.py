@@ -26,7 +26,8 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from erforce_interfaces.tools import message_text as mt
 from erforce_interfaces.tools import topic_tool as tt
-from erforce_interfaces.tools.testing import RosGraph, stop_process
+from erforce_interfaces.tools.processes import stop_process
+from erforce_interfaces.tools.testing import RosGraph
 from erforce_interfaces.wire.contract import QOS_COMMAND
 
 TOOL = str(Path(sys.executable).with_name("erforce-topic"))

@@ -19,8 +19,8 @@ from std_msgs.msg import Bool, Float64
 
 from erforce_interfaces.runtime.executor import DirectExecutor
 from erforce_interfaces.tools.messages import point_msg
-from erforce_interfaces.tools.processes import spawn_in_session
-from erforce_interfaces.tools.testing import isolated_node, stop_process
+from erforce_interfaces.tools.processes import spawn_in_session, stop_process
+from erforce_interfaces.tools.testing import isolated_node
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.clouds import vision_robots_cdr
 from erforce_interfaces.wire.conversions import nanoseconds_to_stamp

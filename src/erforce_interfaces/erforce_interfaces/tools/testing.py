@@ -43,7 +43,7 @@ from typing import Any
 
 import yaml
 
-from erforce_interfaces.tools.processes import DomainLease, stop_process, stop_processes  # noqa: F401 (for tests)
+from erforce_interfaces.tools.processes import DomainLease, stop_processes
 
 _TAG_VAR = "ERFORCE_TEST_TAG"
 
