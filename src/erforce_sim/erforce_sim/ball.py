@@ -35,6 +35,8 @@ from dataclasses import dataclass
 from erforce_interfaces.wire.robot_config import (
     BALL_A_ROLL_MPS2,
     BALL_A_SLIDE_MPS2,
+    BALL_CHIP_DAMPING_Z,
+    BALL_CHIP_MIN_HOP_VZ_MPS,
     BALL_INERTIA_FACTOR,
     BALL_RADIUS_M,
 )
@@ -87,7 +89,7 @@ class BallParams:
         return (q + spin_ratio) / (q + 1.0)
 
     # Bounces of a ball in the air (chip kicks): fields like those above, declared here.
-    floor_restitution: float = 0.566  # vertical speed kept at a bounce on the carpet
+    floor_restitution: float = BALL_CHIP_DAMPING_Z  # vertical speed kept at a bounce on the carpet
     floor_friction: float = 0.5  # Coulomb friction of a bounce (enough to stop a 60 deg chip's slip)
 
 
@@ -118,7 +120,7 @@ class BallState:
         return math.hypot(self.vx, self.vy)
 
 
-LANDED_VZ_MPS = 0.05  # a bounce leaving less than this upwards (a 0.1 mm hop) ends the flight
+LANDED_VZ_MPS = BALL_CHIP_MIN_HOP_VZ_MPS  # a bounce leaving less than this upwards (a 0.1 mm hop) ends the flight
 
 
 class BallBody:

@@ -195,8 +195,8 @@ BALL_A_ROLL_MPS2 = -0.3
 BALL_C_SWITCH = 0.6
 # A chipped ball's hops (erforce_ball_model.ball_model.ChipParams): the plant's ball, a solid sphere chipped
 # without spin (no drag), and the ball predictor's chip model until its parameters say otherwise.
-BALL_CHIP_DAMPING_Z = 0.566  # vertical speed off / onto the carpet at a bounce (the plant's floor restitution)
-BALL_CHIP_DAMPING_XY_FIRST_HOP = 1.0 / 1.4  # horizontal speed kept at the first bounce: 1 / (1 + 2/5)
+BALL_CHIP_DAMPING_Z = 0.566  # vertical speed off / onto the carpet at a bounce (the plant's floor_restitution)
+BALL_CHIP_DAMPING_XY_FIRST_HOP = 1.0 / (1.0 + BALL_INERTIA_FACTOR)  # horizontal speed kept at the first bounce
 BALL_CHIP_DAMPING_XY_OTHER_HOPS = 1.0  # ... at the later ones (the ball spins already)
 BALL_CHIP_MIN_HOP_VZ_MPS = 0.05  # a bounce leaving less upwards ends the hops: the ball rolls on
 BALL_MAX_CATCH_HEIGHT_M = 0.15  # a robot takes a ball whose centre is at most this high (about its height)
