@@ -10,7 +10,7 @@ reported per node type: every figure, median, max.
 opponents' interceptor; the plant at normal priority, as the fault tests run it, not under ``chrt --idle``).
 
 erforce-launch keeps one warm standby for all nodes (imports and warm-ups of every node done, waiting to
-become whichever dies: README, "Self-healing"); before each kill the bench waits until it is ready, so each
+become whichever dies: docs/graph.md, "Self-healing"); before each kill the bench waits until it is ready, so each
 figure is a take-over by the standby. ``--no-standby`` measures fresh starts instead (erforce-launch --no-standby).
 
 ``--pause S``: instead of killing, each node is stopped (SIGSTOP) for S seconds and resumed (SIGCONT), as a

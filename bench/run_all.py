@@ -1,9 +1,9 @@
 """Run every benchmark in bench/ and write bench/RESULTS.md (``./run bench [--quick] [--only NAME]``).
 
 Each bench module has ``run(quick) -> rows`` (name, value, unit, target, note). The results
-file starts with the date and the machine, and the README shows it (a generated section,
-kept current by a test). Speed figures are medians measured in one run; the machine is
-shared, so compare ratios within a run rather than absolute numbers across runs. With ``--only``
+file starts with the date and the machine; the README links to it. Speed figures are medians
+measured in one run; the machine is shared, so compare ratios within a run rather than absolute
+numbers across runs. With ``--only``
 the other groups' rows of the existing file stay, and the header names the groups measured anew.
 """
 
@@ -86,10 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.only and RESULTS.exists():
         text = merged(RESULTS.read_text(), lines[0], groups)
     if not args.no_write:
-        from erforce_interfaces.tools import docs
-
         RESULTS.write_text(text)
-        docs.main([str(BENCH_DIR.parent / "README.md")])  # the README shows RESULTS.md
         print(f"[bench] wrote {RESULTS}", file=sys.stderr)
     return 1 if failed else 0
 

@@ -89,7 +89,7 @@ def kill_and_restart_velocity_controller(loop, setpoint_timeout_s):
 # One graph for the robot's own nodes (starting one costs more than a fault): each fault starts from the
 # robot following its circle, as the one before leaves it.
 # The running nodes match the restarted motor boards at their next DDS announcement: every 0.5 s with
-# the stack's profile, which the harness uses (README, "DDS discovery"). With Fast DDS's default of 3 s
+# the stack's profile, which the harness uses (docs/graph.md, "DDS discovery"). With Fast DDS's default of 3 s
 # the robot was not yet following 3 s of sim time after the resume in 2 of 20 runs; with the profile,
 # in none of 34.
 def test_motor_boards_killed_or_interrupted_and_velocity_controller_killed_each_restarted(ros_graph):

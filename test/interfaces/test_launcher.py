@@ -914,7 +914,7 @@ def test_log_output_goes_to_files_and_a_partial_last_line_is_kept(ros_graph, tmp
 @pytest.mark.parametrize("path", LAUNCH_FILES, ids=lambda p: p.name)
 @pytest.mark.parametrize("user_range", [None, "SUBNET"])
 def test_discovery_stays_on_this_computer_unless_the_user_chose_a_range(path, user_range, monkeypatch):
-    """Safe by default (README, "DDS discovery"): every node of every launch file, under erforce-launch
+    """Safe by default (docs/graph.md, "DDS discovery"): every node of every launch file, under erforce-launch
     and (through the files' own set_env) under ros2 launch, discovers only this computer's participants
     unless ROS_AUTOMATIC_DISCOVERY_RANGE is set, as the two-host test sets it."""
     if user_range is None:

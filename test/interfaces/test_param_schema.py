@@ -153,7 +153,7 @@ def test_one_lockstep_tick_for_plant_robot_nodes_and_docs():
     for node in ("velocity_controller", "motor_boards"):
         assert load_schema("erforce_motion", node).default("loop_rate_hz") == pytest.approx(1.0 / tick_s)
     assert f"default ``TICK_PERIOD_S``, {tick_s * 1e3:g} ms" in lockstep.__doc__
-    assert f"Each tick ({tick_s * 1e3:g} ms by" in (ROOT / "README.md").read_text()
+    assert f"Each tick ({tick_s * 1e3:g} ms by" in (ROOT / "docs/graph.md").read_text()
 
 
 def test_anti_windup_choices_are_the_pids():

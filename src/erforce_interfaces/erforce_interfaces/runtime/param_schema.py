@@ -5,7 +5,7 @@ generate_parameter_library: per parameter its ``type``, ``default_value``, ``des
 ``read_only`` and ``validation``. From that one file come the ROS declarations with their
 descriptors (node_support.NodeParams), the checks on start and on every change, the node's
 config object (``ParamSchema.parse``: a frozen object with one attribute per parameter) and
-the README tables (``ParamSchema.markdown``). The schema files ship inside the Python package
+the tables of docs/reference.md (``ParamSchema.markdown``). The schema files ship inside the Python package
 and in ``share/<package>/params``.
 
 Format::

@@ -28,7 +28,7 @@ NODE_SCHEMAS = (
     ("erforce_sim", "ssl_sim_bridge"),
     ("erforce_sim", "ssl_sim_server"),
     ("erforce_sim", "field_view"),
-    # the team hosts: their own parameters; the rest are the per-robot nodes' (README, "A team")
+    # the team hosts: their own parameters; the rest are the per-robot nodes' (docs/launch.md, "A team")
     ("erforce_motion", "team_firmware"),
     ("erforce_ball_model", "team_catcher"),
     # our team's AI on the graph: its own parameters; the receiver's are the catcher's

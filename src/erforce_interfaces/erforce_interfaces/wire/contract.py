@@ -483,7 +483,7 @@ VISION_FIELD_COLUMNS = ("length_m", "width_m", "boundary_m", "goal_width_m", "go
 
 
 def topic_table_markdown() -> str:
-    """The README's topic table, generated from TOPICS (a test keeps the README in sync)."""
+    """The topic table of docs/reference.md, generated from TOPICS (a test keeps the file in sync)."""
     rows = [
         "| topic | type | QoS | publisher → subscribers | units, frame, meaning |",
         "|---|---|---|---|---|",

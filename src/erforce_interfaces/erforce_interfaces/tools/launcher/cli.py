@@ -77,7 +77,7 @@ def _parse_cli(argv: list[str] | None) -> tuple[argparse.Namespace, Path, str, d
                         help="respawn by a fresh start only; by default the respawning nodes of the stack share "
                              f"a warm standby (their imports done, no DDS), started {STANDBY_FIRST_S:g} s after the "
                              f"graph and {STANDBY_AGAIN_S:g} s after each respawn, that becomes whichever of them "
-                             "dies (README, 'Self-healing')")
+                             "dies (docs/graph.md, 'Self-healing')")
     ns = parser.parse_args(argv)
     for value in (ns.sigterm_timeout, ns.sigkill_timeout):
         if not 0.0 <= value < float("inf"):

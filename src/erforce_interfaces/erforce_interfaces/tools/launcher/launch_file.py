@@ -245,8 +245,8 @@ class Resolver:
         self._depth = 0
         self._last_included: Path | None = None  # what Jazzy's $(dirname) says after an include
         self._base_env = dict(os.environ)
-        # Safe by default: discovery stays on this computer unless the user chose a range (README,
-        # "DDS discovery"); the launch files say the same for `ros2 launch`.
+        # Safe by default: discovery stays on this computer unless the user chose a range
+        # (docs/graph.md, "DDS discovery"); the launch files say the same for `ros2 launch`.
         self._base_env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 
     def resolve(self, path: Path, shown: str) -> list[ProcessSpec]:
