@@ -37,6 +37,9 @@ def test_reference_generated_sections_are_current():
         "docs/reference.md is stale: run `./run exec python -m erforce_interfaces.tools.docs`"
     )
     assert c.topic_table_markdown() in text
+    assert docs.ROBOT_YAML.read_text() == docs.robot_yaml_text(), (
+        "config/robot.yaml is stale: run `./run exec python -m erforce_interfaces.tools.docs`"
+    )
 
 
 def test_topic_names_are_valid_and_unique():
@@ -630,7 +633,7 @@ def test_refilled_messages_equal_new_ones():
 
 def test_robot_config_validation_and_yaml(tmp_path):
     cfg = RobotConfig.from_yaml(Path(__file__).resolve().parents[2] / "src/erforce_interfaces/config/robot.yaml")
-    assert cfg == RobotConfig()  # the shipped file and the documented defaults agree
+    assert cfg == RobotConfig()  # the generated file reads back as the defaults it was written from
     assert cfg.num_wheels == 4 and cfg.wheel_names[-1] == "wheel_3"
     assert math.degrees(cfg.wheel_angles_rad[0]) == pytest.approx(60.0)
     with pytest.raises(ValueError, match="at least 3"):
