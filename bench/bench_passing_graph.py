@@ -21,15 +21,32 @@ import time
 from pathlib import Path
 
 
-def game_config(team: int, opponents: int, passes: int, opponents_at: list[float] | None):
+def game_config(team: int, opponents: int, passes: int, opponents_at: list[float] | None, flat_only: bool = False):
+    import dataclasses
+
+    from erforce_ball_model.passing.player import PlayerConfig
     from erforce_sim.in_process.passing_game import OPPONENT_POSITIONS, GameConfig
 
     where = OPPONENT_POSITIONS if opponents_at is None else tuple(zip(opponents_at[::2], opponents_at[1::2],
                                                                       strict=True))
-    return GameConfig(team_size=team, opponents=opponents, passes=passes, opponent_positions=where)
+    player = PlayerConfig()
+    if flat_only:
+        player = dataclasses.replace(player, passing=dataclasses.replace(player.passing, chip_angle_deg=0.0))
+    return GameConfig(team_size=team, opponents=opponents, passes=passes, opponent_positions=where, player=player)
 
 
-def graph_records(cfg, seed: int, real_time_factor: float, vision: str = "ros") -> list:
+def flat_only_params(log_dir: Path) -> Path:
+    """The robot description with the passing game's chips off (chip_angle_deg 0), as the launch's robot_config:
+    one parameter file, the node's own key beside the shared one."""
+    from erforce_interfaces.wire.ament_index import find_package_share
+
+    path = log_dir / "robot_flat_only.yaml"
+    text = (find_package_share("erforce_interfaces") / "config" / "robot.yaml").read_text()
+    path.write_text(text + "\n/**/passing_game:\n  ros__parameters:\n    chip_angle_deg: 0.0\n")
+    return path
+
+
+def graph_records(cfg, seed: int, real_time_factor: float, vision: str = "ros", flat_only: bool = False) -> list:
     """The game's passes from /pass/records of a graph started here (passing_report's launch command)."""
     import rclpy
     from std_msgs.msg import Float64MultiArray
@@ -47,6 +64,8 @@ def graph_records(cfg, seed: int, real_time_factor: float, vision: str = "ros") 
     lease = DomainLease()
     os.environ["ROS_DOMAIN_ID"] = str(lease.domain_id)
     log = Path(tempfile.mkdtemp(prefix="bench_passing_graph_")) / "graph.log"
+    if flat_only:
+        cmd.append(f"robot_config:={flat_only_params(log.parent)}")
     launch = spawn_in_session(cmd, log)
     print(f"graph: {team} v {opponents}, {passes} passes, seed {seed}, domain {lease.domain_id} (log: {log})",
           file=sys.stderr, flush=True)
@@ -120,15 +139,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--vision", choices=("ros", "ssl"), default="ros",
                         help="ssl: the plant's cameras as SSL-Vision through the bridge (the predictor sees chips)")
     parser.add_argument("--in-process", action="store_true", help="the in-process game instead (no DDS)")
+    parser.add_argument("--flat-only", action="store_true",
+                        help="the passing game rates and plays flat passes only (chip_angle_deg 0): the safe share "
+                             "without chips")
     args = parser.parse_args(argv)
-    cfg = game_config(args.team, args.opponents, args.passes, args.opponents_at)
+    cfg = game_config(args.team, args.opponents, args.passes, args.opponents_at, args.flat_only)
     records = []
     for seed in args.seeds:
         if args.in_process:
             records += in_process_records(cfg, seed)
         else:
-            records += graph_records(cfg, seed, args.real_time_factor, args.vision)
+            records += graph_records(cfg, seed, args.real_time_factor, args.vision, args.flat_only)
     where = "one process" if args.in_process else f"the DDS graph, lockstep, vision {args.vision}"
+    where += ", flat passes only" if args.flat_only else ", flat passes and chips"
     at = "" if args.opponents_at is None else f" (opponents at {args.opponents_at})"
     print(f"passing game on {where}: {args.team} v {args.opponents}{at}, seeds {args.seeds}, {args.passes} passes "
           "each")
