@@ -498,3 +498,30 @@ def test_a_chip_is_received_where_the_chip_model_in_use_says_it_is_low():
         assert np.array_equal(default, np.zeros(3)) and notice is None
     unknown, notice = twist(None)
     assert unknown == pytest.approx(to_projection, abs=1e-9) and "no chip model" in notice
+
+
+def test_a_receiver_on_the_line_steps_back_to_where_a_chip_has_settled():
+    """A chip kicked from (0, 0) at (3, 0, 3) m/s; by hand its hops (apexes 0.4587, 0.1470, 0.0471, 0.0151 m) stay
+    below a ball radius (0.02135 m) from hop 2's descent through it on, at x_s = 1.8349 + 0.7418 + 2.1429 *
+    (0.9611 + sqrt(0.9611^2 - 2 g 0.02135)) / g. A receiver facing it with its dribbler on the line 0.3 m before
+    x_s does not stand (the ball would hop off its front there): it goes back along the line to a point where the
+    ball is low for good; one whose dribbler is 0.3 m beyond x_s stands."""
+    g, r = 9.81, ChipParams().max_receive_height_m
+    vz = [3.0 * 0.566**k for k in range(4)]
+    assert [v * v / (2.0 * g) for v in vz] == pytest.approx([0.4587, 0.1470, 0.0471, 0.0151], abs=1e-4)
+    vxy1 = 3.0 / 1.4
+    x2 = 3.0 * 2.0 * vz[0] / g + vxy1 * 2.0 * vz[1] / g
+    assert (round(3.0 * 2.0 * vz[0] / g, 4), round(vxy1 * 2.0 * vz[1] / g, 4)) == (1.8349, 0.7418)
+    x_s = x2 + vxy1 * (vz[2] + math.sqrt(vz[2] ** 2 - 2.0 * g * r)) / g
+    cfg, offset = CatcherConfig(), 0.0815
+    targets = []
+    for dribbler_x in (x_s - 0.3, x_s + 0.3):
+        receiver = Receiver(cfg, offset)
+        receiver.on_chip_model(ChipParams())
+        receiver.on_odom(1.0, (dribbler_x + offset, 0.0, math.pi), (0.0, 0.0), 1.0)
+        receiver.on_ball(1.0, (0.0, 0.0, 0.0), (3.0, 0.0, 3.0))
+        twist = receiver.tick(1.0)
+        targets.append(twist)
+    back, stands = targets
+    assert back[1] == pytest.approx(0.0, abs=1e-9) and back[0] < 0.0  # robot frame -x: away from the ball
+    assert np.array_equal(stands, np.zeros(3))

@@ -303,8 +303,9 @@ def choose_target(
     (None when the predictor has none); when ``committed``, the robot's projection on the ball's line
     if it is within ``cfg.commit_distance_m``; else hold (None).
 
-    ``chip``: the ball is in the air, ``ball`` its ground track (receive_point takes it only where it is low enough
-    to take, ``chip_within_reach``); on its line the robot stays, where the pass was planned to settle.
+    ``chip``: the ball is in the air, ``ball`` its ground track: the robot stays on its line only where the ball
+    comes low enough to take (``chip_within_reach``), else receive_point takes it where it does (a chip that
+    settles behind the receiver: it steps back along the line).
     ``ball`` is the moving ball's trajectory (None when it rests: the velocity of a resting ball is
     vision noise in a random direction, its "line" means nothing). ``committed``: the robot was
     driving to a target for this ball moments ago. Its plan can turn infeasible on the way (it
@@ -319,7 +320,8 @@ def choose_target(
     """
     if ball is not None:
         if on_receive_line(pose, ball.position_m, ball.velocity_mps, dribbler_offset_m, cfg.receive_line_tolerance_m,
-                           facing_rad):
+                           facing_rad) and (chip is None or chip_within_reach(chip, _time_to_dribbler(
+                               pose, ball, dribbler_offset_m, facing_rad), intercepts)):
             return np.asarray(pose[:2], dtype=float)
         target = receive_point(pose[:2], robot_velocity, ball, dribbler_offset_m, cfg, field, robot_radius_m,
                                slack_s=0.0 if committed else None, facing_rad=facing_rad, chip=chip,
@@ -342,6 +344,15 @@ def chip_within_reach(chip: ChipTrajectory, t_s: float, intercepts: bool = False
     if intercepts:
         return bool(chip.position_at(t_s)[2] <= chip.params.max_catch_height_m)
     return t_s >= chip.time_below_height_s(chip.params.max_receive_height_m)
+
+
+def _time_to_dribbler(pose: np.ndarray, track: BallTrajectory, dribbler_offset_m: float,
+                      facing_rad: float | None) -> float:
+    """When the ball on ``track`` (a chip's ground track: straight pieces on one line) reaches the dribbler of the
+    robot at ``pose`` (facing ``facing_rad``, None: as it stands)."""
+    dribbler = pose[:2] + contact_offset(pose[2] if facing_rad is None else facing_rad, dribbler_offset_m)
+    along = float((dribbler - track.position_m) @ track.direction)
+    return float(track.time_to_distance(max(along, 0.0)))
 
 
 def team_receiver(catch_times_s: Mapping[int, float], previous: int | None, switch_margin_s: float) -> int | None:

@@ -84,6 +84,7 @@ class PassConfig:
     press_fraction: float = schema_defaults("erforce_ball_model", "team_catcher")["press_fraction"]
     chip_angle_deg: float = _DEFAULTS["chip_angle_deg"]  # a chip's elevation (the kicker's kick_angle); 0: flat only
     chip_settle_fraction: float = _DEFAULTS["chip_settle_fraction"]  # a chip stays low from this far along the pass
+    chip_step_back_m: float = _DEFAULTS["chip_step_back_m"]  # ... or this far behind the receiver, which steps back
 
     def __post_init__(self) -> None:
         for name in ("arrive_speed_mps", "min_kick_mps", "max_kick_mps", "min_distance_m", "max_distance_m"):
@@ -92,7 +93,7 @@ class PassConfig:
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
         if self.min_kick_mps > self.max_kick_mps or self.min_distance_m > self.max_distance_m:
             raise ValueError("min_kick_mps <= max_kick_mps and min_distance_m <= max_distance_m, please")
-        for name in ("safe_margin_s", "reaction_s"):
+        for name in ("safe_margin_s", "reaction_s", "chip_step_back_m"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
@@ -348,19 +349,35 @@ def _pass_option(robots: _PassRobots, j: int, ball: np.ndarray, u: np.ndarray, r
                                            robots.n_team, block_radius_m, cfg.reaction_s))
     option = _option(j, v0, u, arrival_s if math.isfinite(receiver_time) else math.inf, opp, receive_rad, 0.0)
     if chip_params is not None and cfg.chip_angle_deg > 0.0 and not option.safe(cfg):
-        chip, chip_v0 = _chip_pass(ball, u, contact_m, cfg, params, chip_params)
-        receiver_time, opp = robots.rate(chip, j, receive_rad)
-        track = chip.ground_track()
-        arrival_s = float(track.time_to_distance(contact_m)) if math.isfinite(receiver_time) else math.inf
-        if arrival_s < chip.time_below_height_s(chip_params.max_receive_height_m):
-            arrival_s = math.inf  # it would fly over the receiver or bounce off it
-        if block_radius_m > 0.0 and len(opp):  # where it is low, an opponent's body stops it too
-            opp = np.minimum(opp, _chip_block_times(chip, arrival_s, opponents_xy, opponents_vel, robots.search,
-                                                    robots.n_team, block_radius_m, cfg.reaction_s))
-        lob = _option(j, chip_v0, u, arrival_s, opp, receive_rad, cfg.chip_angle_deg)
-        if lob.safe(cfg) or lob.margin_s > option.margin_s:
-            option = lob
+        # settled before the receiver's dribbler, or behind it where the receiver steps back to take it
+        for settle_m in (cfg.chip_settle_fraction * contact_m, contact_m + 0.5 * cfg.chip_step_back_m,
+                         contact_m + cfg.chip_step_back_m)[:3 if cfg.chip_step_back_m > 0.0 else 1]:
+            lob = _chip_option(robots, j, ball, u, receive_rad, contact_m, settle_m, params, cfg, chip_params,
+                               opponents_xy, opponents_vel, block_radius_m)
+            if lob.safe(cfg) or lob.margin_s > option.margin_s:
+                option = lob
+            if option.safe(cfg):
+                break
     return option
+
+
+def _chip_option(robots: _PassRobots, j: int, ball: np.ndarray, u: np.ndarray, receive_rad: float, contact_m: float,
+                 settle_m: float, params: BallModelParams, cfg: PassConfig, chip_params: ChipParams,
+                 opponents_xy: np.ndarray, opponents_vel, block_radius_m: float) -> PassOption:
+    """The pass to ``j`` as the chip that stays low enough to receive from ``settle_m`` along it on: taken where
+    the receiver stands (its dribbler ``contact_m`` on) when it has settled by then, else where the receiver meets
+    it once it has (robotTimeToBall, receiving: it steps back along the line)."""
+    chip, v0 = _chip_pass(ball, u, settle_m, cfg, params, chip_params)
+    receiver_time, opp = robots.rate(chip, j, receive_rad)
+    arrival_s = math.inf
+    if math.isfinite(receiver_time):
+        arrival_s = float(chip.ground_track().time_to_distance(contact_m))
+        if arrival_s < chip.time_below_height_s(chip_params.max_receive_height_m):
+            arrival_s = receiver_time if settle_m > contact_m else math.inf  # else it would bounce off
+    if block_radius_m > 0.0 and len(opp):  # where it is low, an opponent's body stops it too
+        opp = np.minimum(opp, _chip_block_times(chip, arrival_s, opponents_xy, opponents_vel, robots.search,
+                                                robots.n_team, block_radius_m, cfg.reaction_s))
+    return _option(j, v0, u, arrival_s, opp, receive_rad, cfg.chip_angle_deg)
 
 
 def _option(j: int, v0: float, u: np.ndarray, arrival_s: float, opp: np.ndarray, receive_rad: float,
@@ -370,11 +387,10 @@ def _option(j: int, v0: float, u: np.ndarray, arrival_s: float, opp: np.ndarray,
                       first, receive_rad, angle_deg)
 
 
-def _chip_pass(ball: np.ndarray, u: np.ndarray, contact_m: float, cfg: PassConfig, params: BallModelParams,
+def _chip_pass(ball: np.ndarray, u: np.ndarray, settle_m: float, cfg: PassConfig, params: BallModelParams,
                chip_params: ChipParams) -> tuple[ChipTrajectory, float]:
-    """The chip along ``u`` that stays low enough to receive from ``chip_settle_fraction`` of ``contact_m`` on."""
-    v0 = chip_speed_for(cfg.chip_settle_fraction * contact_m, cfg.chip_angle_deg, chip_params, cfg.min_kick_mps,
-                        cfg.max_kick_mps)
+    """The chip along ``u`` that stays low enough to receive from ``settle_m`` on."""
+    v0 = chip_speed_for(settle_m, cfg.chip_angle_deg, chip_params, cfg.min_kick_mps, cfg.max_kick_mps)
     a = math.radians(cfg.chip_angle_deg)
     vxy = v0 * math.cos(a)
     return ChipTrajectory((float(ball[0]), float(ball[1]), 0.0), (float(u[0] * vxy), float(u[1] * vxy),
