@@ -187,10 +187,9 @@ def test_the_receiver_and_opponents_search_gives_the_whole_fields_options():
         assert [o.receiver for o in plain] == [1, 2, 3, 5]  # 4 is 7.5 m away
         assert narrow == plain
         by = {o.receiver: o for o in plain}
-        if cfg.chip_angle_deg == 0.0:  # the lane to 1 is covered half-way
-            assert by[1].first_opponent == 0 and by[1].margin_s < 0.0
-        else:  # a chip over it, settling behind the receiver (test_a_chip_over_an_opponent_half_way...)
-            assert by[1].kick_angle_deg == cfg.chip_angle_deg and by[1].margin_s > 0.0
+        # the lane to 1 is covered half-way: a chip that settles before the receiver comes down low enough to
+        # stop (0.15 m) about half-way and hits it (test_a_chip_over_an_opponent_half_way... steps back instead)
+        assert by[1].first_opponent == 0 and by[1].margin_s < 0.0
     with pytest.raises(ValueError, match="receiver_search is for 3 robots"):
         evaluate_passes((0.0, 0.0), team, team_vel, opponents, opp_vel, [1], _search(9), MODEL, CFG, OFFSET,
                         receiver_search=_search(3))
@@ -258,15 +257,20 @@ def test_a_chip_goes_over_an_opponent_near_the_passer_and_settles_before_the_rec
 def test_a_chip_over_an_opponent_half_way_settles_behind_the_receiver_which_steps_back():
     """The opponent half-way, at (1, 0.05): the chip that settles before the receiver (``chip_settle_fraction``)
     comes down low enough to stop about half-way and would hit it; the one that settles behind the receiver
-    (half a ``chip_step_back_m``, then a whole one) flies farther. By hand (``_hops_by_hand``): its hops stay
-    below the reception height from a point behind the receiver's dribbler (2 - 0.0815 m) on, at most
-    chip_step_back_m behind; the receiver's catch is where it meets the ball after that, when the ball is low."""
+    (half a ``chip_step_back_m``, then a whole one, here 0.5 m; by default 0: none) flies farther. By hand
+    (``_hops_by_hand``): its hops stay below the reception height from a point behind the receiver's dribbler
+    (2 - 0.0815 m) on, 0.25 or 0.5 m behind; the receiver's catch is where it meets the ball after that, when the
+    ball is low."""
     team = np.array([[-0.1, 0.0], [2.0, 0.0], [0.0, 2.5]])
     opponents = np.array([[1.0, 0.05]])
-    options = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1],
-                              _search(4), MODEL, CFG, OFFSET, chip_params=ChipParams(), block_radius_m=0.11)
-    (o,) = options
-    assert o.kick_angle_deg == 45.0 and o.safe(CFG)
+    cfg = dataclasses.replace(CFG, chip_step_back_m=0.5)
+    (where_it_stands,) = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents),
+                                         [1], _search(4), MODEL, CFG, OFFSET, chip_params=ChipParams(),
+                                         block_radius_m=0.11)
+    assert CFG.chip_step_back_m == 0.0 and not where_it_stands.safe(CFG)
+    (o,) = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1],
+                           _search(4), MODEL, cfg, OFFSET, chip_params=ChipParams(), block_radius_m=0.11)
+    assert o.kick_angle_deg == 45.0 and o.safe(cfg)
     p = ChipParams()
     g, r = p.g_mps2, p.max_receive_height_m
     v = o.kick_speed_mps / math.sqrt(2.0)
@@ -275,8 +279,7 @@ def test_a_chip_over_an_opponent_half_way_settles_behind_the_receiver_which_step
     t_settle = t_k + (vz_k + math.sqrt(vz_k**2 - 2.0 * g * r)) / g
     x_settle = x_k + vxy_k * (t_settle - t_k)
     contact = 2.0 - OFFSET
-    assert x_settle == pytest.approx(contact + 0.5 * CFG.chip_step_back_m, abs=1e-6) or x_settle == pytest.approx(
-        contact + CFG.chip_step_back_m, abs=1e-6)
+    assert x_settle == pytest.approx(contact + 0.25, abs=1e-6) or x_settle == pytest.approx(contact + 0.5, abs=1e-6)
     assert o.receiver_catch_s >= t_settle
     t_c, x_c, vxy_c, _ = [hop for hop in hops if hop[0] <= o.receiver_catch_s][-1]
-    assert contact < x_c + vxy_c * (o.receiver_catch_s - t_c) <= contact + CFG.chip_step_back_m + 1e-9
+    assert contact < x_c + vxy_c * (o.receiver_catch_s - t_c) <= contact + 0.5 + 1e-9
