@@ -4,6 +4,8 @@ and the catch time as planned against the light barrier's.
 
     ./run exec python bench/bench_passing_graph.py --team 3 --opponents 1 --passes 40
     ./run exec python bench/bench_passing_graph.py --team 3 --opponents 1 --passes 40 --in-process
+    ./run exec python bench/bench_passing_graph.py --team 3 --opponents 1 --passes 40 --flat-only  # without chips
+    ./run exec python bench/bench_passing_graph.py --team 3 --opponents 1 --passing chip_step_back_m=0.5
 
 Lockstep pacing: the simulated world waits for the graph, so the game does not depend on the machine's load
 (a loaded machine only takes longer). Rows: each kind of pass and all; "late" is the light barrier minus the
