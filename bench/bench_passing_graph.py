@@ -4,6 +4,8 @@ and the catch time as planned against the light barrier's.
 
     ./run exec python bench/bench_passing_graph.py --team 3 --opponents 1 --passes 40
     ./run exec python bench/bench_passing_graph.py --team 3 --opponents 1 --passes 40 --in-process
+    ./run exec python bench/bench_passing_graph.py --team 3 --opponents 1 --passes 40 --flat-only  # without chips
+    ./run exec python bench/bench_passing_graph.py --team 3 --opponents 1 --passing chip_step_back_m=0.5
 
 Lockstep pacing: the simulated world waits for the graph, so the game does not depend on the machine's load
 (a loaded machine only takes longer). Rows: each kind of pass and all; "late" is the light barrier minus the
@@ -21,15 +23,35 @@ import time
 from pathlib import Path
 
 
-def game_config(team: int, opponents: int, passes: int, opponents_at: list[float] | None):
+def game_config(team: int, opponents: int, passes: int, opponents_at: list[float] | None,
+                passing: dict[str, float] | None = None):
+    """The game; ``passing``: PassConfig fields (passing_game parameters) that are not the defaults."""
+    import dataclasses
+
+    from erforce_ball_model.passing.player import PlayerConfig
     from erforce_sim.in_process.passing_game import OPPONENT_POSITIONS, GameConfig
 
     where = OPPONENT_POSITIONS if opponents_at is None else tuple(zip(opponents_at[::2], opponents_at[1::2],
                                                                       strict=True))
-    return GameConfig(team_size=team, opponents=opponents, passes=passes, opponent_positions=where)
+    player = PlayerConfig()
+    player = dataclasses.replace(player, passing=dataclasses.replace(player.passing, **(passing or {})))
+    return GameConfig(team_size=team, opponents=opponents, passes=passes, opponent_positions=where, player=player)
 
 
-def graph_records(cfg, seed: int, real_time_factor: float, vision: str = "ros") -> list:
+def passing_params_file(log_dir: Path, passing: dict[str, float]) -> Path:
+    """The robot description with the passing game's parameters ``passing`` beside it, as the launch's
+    robot_config: one parameter file, the node's own key beside the shared one."""
+    from erforce_interfaces.wire.ament_index import find_package_share
+
+    path = log_dir / "robot_and_passing.yaml"
+    text = (find_package_share("erforce_interfaces") / "config" / "robot.yaml").read_text()
+    rows = "".join(f"    {name}: {float(value)!r}\n" for name, value in passing.items())
+    path.write_text(text + "\n/**/passing_game:\n  ros__parameters:\n" + rows)
+    return path
+
+
+def graph_records(cfg, seed: int, real_time_factor: float, vision: str = "ros",
+                  passing: dict[str, float] | None = None) -> list:
     """The game's passes from /pass/records of a graph started here (passing_report's launch command)."""
     import rclpy
     from std_msgs.msg import Float64MultiArray
@@ -47,6 +69,8 @@ def graph_records(cfg, seed: int, real_time_factor: float, vision: str = "ros") 
     lease = DomainLease()
     os.environ["ROS_DOMAIN_ID"] = str(lease.domain_id)
     log = Path(tempfile.mkdtemp(prefix="bench_passing_graph_")) / "graph.log"
+    if passing:
+        cmd.append(f"robot_config:={passing_params_file(log.parent, passing)}")
     launch = spawn_in_session(cmd, log)
     print(f"graph: {team} v {opponents}, {passes} passes, seed {seed}, domain {lease.domain_id} (log: {log})",
           file=sys.stderr, flush=True)
@@ -120,15 +144,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--vision", choices=("ros", "ssl"), default="ros",
                         help="ssl: the plant's cameras as SSL-Vision through the bridge (the predictor sees chips)")
     parser.add_argument("--in-process", action="store_true", help="the in-process game instead (no DDS)")
+    parser.add_argument("--flat-only", action="store_true",
+                        help="the passing game rates and plays flat passes only (chip_angle_deg 0): the safe share "
+                             "without chips")
+    parser.add_argument("--passing", nargs="+", default=[], metavar="NAME=VALUE",
+                        help="passing_game parameters (PassConfig fields) that are not the defaults, e.g. "
+                             "chip_step_back_m=0")
     args = parser.parse_args(argv)
-    cfg = game_config(args.team, args.opponents, args.passes, args.opponents_at)
+    passing = {name: float(value) for name, value in (item.split("=", 1) for item in args.passing)}
+    if args.flat_only:
+        passing["chip_angle_deg"] = 0.0
+    cfg = game_config(args.team, args.opponents, args.passes, args.opponents_at, passing)
     records = []
     for seed in args.seeds:
         if args.in_process:
             records += in_process_records(cfg, seed)
         else:
-            records += graph_records(cfg, seed, args.real_time_factor, args.vision)
+            records += graph_records(cfg, seed, args.real_time_factor, args.vision, passing)
     where = "one process" if args.in_process else f"the DDS graph, lockstep, vision {args.vision}"
+    where += ", flat passes only" if args.flat_only else ", flat passes and chips"
+    where += "".join(f", {item}" for item in args.passing)
     at = "" if args.opponents_at is None else f" (opponents at {args.opponents_at})"
     print(f"passing game on {where}: {args.team} v {args.opponents}{at}, seeds {args.seeds}, {args.passes} passes "
           "each")

@@ -437,6 +437,7 @@ BAD_PARAMS = [
     ("num_robots", 5),  # read-only
     ("chip_damping_z", 1.0), ("chip_damping_xy_first_hop", 1.2), ("chip_min_hop_vz_mps", 0.0),
     ("chip_max_catch_height_m", -0.1), ("chip_max_catch_height_m", math.nan),
+    ("chip_max_receive_height_m", -0.01), ("chip_max_receive_height_m", math.inf),
 ]
 
 
@@ -510,7 +511,8 @@ def test_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ros_gra
 
 def test_chip_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ros_graph):
     """/ball/chip_model_params carries ChipParams' fields in contract order: the defaults at start (the plant's ball:
-    restitution 0.566, 1 / 1.4 of the speed kept at the first bounce), then a changed catchable height."""
+    restitution 0.566, 1 / 1.4 of the speed kept at the first bounce, interception height 0.15 m, reception height a
+    ball radius), then a changed interception height, then a changed reception height."""
     rig = Rig(ros_graph, num_robots=1)
     probe = ros_graph.probe
     labels = contract.BALL_CHIP_MODEL_PARAM_LABELS
@@ -518,15 +520,18 @@ def test_chip_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ro
                              contract.BALL_CHIP_MODEL_PARAMS.qos)
     probe.spin_until(lambda: models, 10.0, "the chip model in use at start")
     assert models[-1].layout.dim[0].label == "in_use"
-    defaults = [9.81, 0.566, 1.0 / 1.4, 1.0, 0.05, 0.15]
+    defaults = [9.81, 0.566, 1.0 / 1.4, 1.0, 0.05, 0.15, 0.02135]
     assert table_from_msg(models[-1], labels)[0].tolist() == pytest.approx(defaults, abs=1e-12)
     assert probe.set_parameter(NODE, "chip_max_catch_height_m", 0.25).successful
     probe.spin_until(lambda: len(models) >= 2, 10.0, "the changed chip model")
-    assert table_from_msg(models[-1], labels)[0].tolist() == pytest.approx([*defaults[:5], 0.25], abs=1e-12)
+    assert table_from_msg(models[-1], labels)[0].tolist() == pytest.approx([*defaults[:5], 0.25, 0.02135], abs=1e-12)
+    assert probe.set_parameter(NODE, "chip_max_receive_height_m", 0.03).successful
+    probe.spin_until(lambda: len(models) >= 3, 10.0, "the changed reception height")
+    assert table_from_msg(models[-1], labels)[0].tolist() == pytest.approx([*defaults[:5], 0.25, 0.03], abs=1e-12)
     assert probe.set_parameter(NODE, "a_roll_mps2", -0.4).successful  # not the chip model: not sent again
     probe.spin_until(lambda: len(rig.model_params) >= 2, 10.0, "the changed ball model")
     probe.spin_for(0.3)
-    assert len(models) == 2
+    assert len(models) == 3
 
 
 def test_a_bad_kick_angle_is_refused_with_a_throttled_warning_and_its_kick_is_no_hint(ros_graph):

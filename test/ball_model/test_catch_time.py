@@ -22,6 +22,7 @@ from erforce_ball_model.catch_time import (
     receive_facing,
     robot_time_curve,
     robot_time_to_ball,
+    robot_time_to_block,
     robot_time_to_pos,
 )
 from erforce_ball_model.catch_time_kernels import _axis_time, _may_reach
@@ -737,3 +738,83 @@ def test_random_chips_are_caught_only_where_they_are_low_reachable_and_inside(sp
         assert res.ball_position_m.tolist() == pytest.approx(p[:2].tolist(), abs=1e-9)
     elif res.kind == CatchKind.AT_REST:
         assert res.ball_position_m.tolist() == pytest.approx(chip.stop_point.tolist(), abs=1e-9)
+
+
+def _hops_by_hand(vxy: float, vz: float, params: ChipParams) -> list[tuple[float, float, float, float]]:
+    """(start time, start x, horizontal speed, vertical speed) of each hop of a chip kicked from x = 0 on the ground
+    along +x, written out from ChipParams' definition: each hop lasts 2 vz / g, the bounce keeps damping_z of vz and
+    damping_xy_first_hop, then damping_xy_other_hops, of vxy; a bounce leaving less than min_hop_vz_mps ends them."""
+    hops, t, x, g = [], 0.0, 0.0, params.g_mps2
+    while vz >= params.min_hop_vz_mps:
+        hops.append((t, x, vxy, vz))
+        t, x = t + 2.0 * vz / g, x + vxy * 2.0 * vz / g
+        vxy *= params.damping_xy_first_hop if len(hops) == 1 else params.damping_xy_other_hops
+        vz *= params.damping_z
+    return hops
+
+
+def test_a_receiver_takes_a_chip_once_it_stays_below_the_reception_height_an_interceptor_where_it_is_low():
+    """A chip kicked at 4 m/s, 45 deg (vxy = vz = 2.8284 m/s) with the default model. Its hops by hand: apexes
+    vz_k^2 / 2g = 0.4077, 0.1306, 0.0418, 0.0134 m; the reception height is a ball radius, 0.02135 m, so it stays
+    low enough to take from hop 2's descent through it on, (vz_2 + sqrt(vz_2^2 - 2 g r)) / g after hop 2 starts.
+    A robot at rest facing the ball with its dribbler at the second touchdown point: as an interceptor (its body
+    stops a ball up to 0.15 m, and after the first touchdown the ball never rises that high) it meets the ball
+    before that touchdown; as a receiver the ball hops on over its bar (up to 4.2 cm), so it takes it only after
+    the settle time, where the ball is that low for good. A receiver whose
+    dribbler stands beyond the settle point, on the track, and cannot move takes it as the ball arrives there."""
+    from erforce_ball_model.chip_model import ChipTrajectory
+
+    p = ChipParams()
+    v = 4.0 / math.sqrt(2.0)
+    hops = _hops_by_hand(v, v, p)
+    g, r = p.g_mps2, p.max_receive_height_m
+    apexes = [vz * vz / (2.0 * g) for *_, vz in hops]
+    assert apexes[:4] == pytest.approx([0.4077, 0.1306, 0.0418, 0.0134], abs=1e-4)
+    assert apexes[2] > r > apexes[3]
+    t2, x2, vxy2, vz2 = hops[2]
+    t_settle = t2 + (vz2 + math.sqrt(vz2 * vz2 - 2.0 * g * r)) / g
+    x_settle = x2 + vxy2 * (t_settle - t2)
+    chip = ChipTrajectory((0.0, 0.0, 0.0), (v, 0.0, v), p)
+    assert chip.time_below_height_s(r) == pytest.approx(t_settle, abs=1e-12)
+    at_touchdown = np.array([x2 + OFFSET, 0.0])  # the dribbler at the second touchdown (hop 2's start)
+    lim = RobotLimits()
+    stops = robot_time_to_ball(chip, at_touchdown, (0.0, 0.0), lim, math.pi, field=DIV_B)
+    takes = robot_time_to_ball(chip, at_touchdown, (0.0, 0.0), lim, math.pi, field=DIV_B, receiving=True)
+    assert stops.kind == CatchKind.MOVING and stops.time_s <= t2
+    assert chip.position_at(stops.time_s)[2] <= p.max_catch_height_m
+    assert takes.kind == CatchKind.MOVING and takes.time_s >= t_settle - 1e-9
+    assert chip.position_at(takes.time_s)[2] <= r + 1e-12
+    beyond = x_settle + 0.3
+    t3, x3, vxy3, _ = max(h for h in hops if h[1] <= beyond)  # the hop that crosses it
+    stands = RobotLimits(a_max_mps2=1e-6, v_max_mps=1e-6)
+    waits = robot_time_to_ball(chip, (beyond + OFFSET, 0.0), (0.0, 0.0), stands, math.pi, field=DIV_B,
+                               receiving=True)
+    assert waits.time_s == pytest.approx(t3 + (beyond - x3) / vxy3, abs=1e-4)
+    both = robot_time_to_ball(chip, [at_touchdown, at_touchdown], [(0.0, 0.0)] * 2, lim, math.pi, field=DIV_B,
+                              receiving=[False, True])
+    assert both.time_s.tolist() == pytest.approx([stops.time_s, takes.time_s], abs=1e-12)
+
+
+def test_a_body_blocks_a_chip_only_where_it_is_low_enough():
+    """robot_time_to_block with ``t_start_s``, on the chip above: it is low enough to stop (0.15 m) from
+    a = (v + sqrt(v^2 - 2 g 0.15)) / g on (hop 1 rises to 0.13 m only), 0.167 m before its first touchdown. Two
+    robots standing on the track (body radius 0.11 m): one centred 0.5 m before the touchdown, whose body the ball
+    passes while still high (it flies over); one 0.1 m before it, whose body the ball is inside when it comes low:
+    blocked at a. On the ground track alone (a flat ball's shadow) both would block where the ball's centre first
+    reaches their body."""
+    from erforce_ball_model.chip_model import ChipTrajectory
+
+    p = ChipParams()
+    v = 4.0 / math.sqrt(2.0)
+    chip = ChipTrajectory((0.0, 0.0, 0.0), (v, 0.0, v), p)
+    (_, _), (a, b) = chip.low_windows_s()
+    t_down = 2.0 * v / p.g_mps2
+    assert a == pytest.approx((v + math.sqrt(v * v - 2.0 * p.g_mps2 * p.max_catch_height_m)) / p.g_mps2, abs=1e-12)
+    assert b == math.inf and v * (t_down - a) == pytest.approx(0.167, abs=1e-3)
+    robots = [(v * t_down - 0.5, 0.0), (v * t_down - 0.1, 0.0)]
+    limits = RobotLimits(a_max_mps2=1e-6, v_max_mps=1e-6)  # they stand
+    track = chip.advanced(a).ground_track()
+    blocked = robot_time_to_block(track, robots, [(0.0, 0.0)] * 2, limits, 0.11, t_down, reaction_s=0.1, t_start_s=a)
+    assert blocked[0] == math.inf and blocked[1] == pytest.approx(a, abs=1e-9)
+    shadow = robot_time_to_block(chip.ground_track(), robots, [(0.0, 0.0)] * 2, limits, 0.11, t_down, reaction_s=0.1)
+    assert shadow.tolist() == pytest.approx([(v * t_down - 0.61) / v, (v * t_down - 0.21) / v], abs=1e-9)

@@ -187,10 +187,9 @@ def test_the_receiver_and_opponents_search_gives_the_whole_fields_options():
         assert [o.receiver for o in plain] == [1, 2, 3, 5]  # 4 is 7.5 m away
         assert narrow == plain
         by = {o.receiver: o for o in plain}
-        if cfg.chip_angle_deg == 0.0:  # the lane to 1 is covered
-            assert by[1].first_opponent == 0 and by[1].margin_s < 0.0
-        else:  # a chip over it
-            assert by[1].kick_angle_deg == cfg.chip_angle_deg and by[1].margin_s > 0.0
+        # the lane to 1 is covered half-way: a chip that settles before the receiver comes down low enough to
+        # stop (0.15 m) about half-way and hits it (test_a_chip_over_an_opponent_half_way... steps back instead)
+        assert by[1].first_opponent == 0 and by[1].margin_s < 0.0
     with pytest.raises(ValueError, match="receiver_search is for 3 robots"):
         evaluate_passes((0.0, 0.0), team, team_vel, opponents, opp_vel, [1], _search(9), MODEL, CFG, OFFSET,
                         receiver_search=_search(3))
@@ -208,33 +207,79 @@ def test_a_robot_not_finite_is_refused_with_or_without_the_receiver_search():
                             CFG, OFFSET, **extra)
 
 
-def test_a_chip_goes_over_the_opponent_on_the_lane_and_lands_before_the_receiver():
-    """The scene above with chips: the flat pass to teammate 1 is unsafe, a 45 deg chip over the opponent at
-    (1, 0) is safe. The chip comes down to max_catch_height_m chip_land_fraction of the way to the receiver's
-    dribbler (the projectile's descent), and the receiver's catch is the ball's arrival there, low. Without a
-    chip model (none has come from the predictor) no chip is rated."""
-    from erforce_ball_model.chip_model import ChipTrajectory
+def _hops_by_hand(vxy: float, vz: float, p: ChipParams) -> list[tuple[float, float, float, float]]:
+    """(start time, start distance, horizontal speed, vertical speed) of each hop of a chip kicked from the ground,
+    from ChipParams' definition: a hop lasts 2 vz / g; a bounce keeps damping_z of vz and damping_xy_first_hop,
+    then damping_xy_other_hops, of vxy; one leaving less than min_hop_vz_mps ends them."""
+    hops, t, x = [], 0.0, 0.0
+    while vz >= p.min_hop_vz_mps:
+        hops.append((t, x, vxy, vz))
+        t, x = t + 2.0 * vz / p.g_mps2, x + vxy * 2.0 * vz / p.g_mps2
+        vxy *= p.damping_xy_first_hop if len(hops) == 1 else p.damping_xy_other_hops
+        vz *= p.damping_z
+    return hops
 
+
+def test_a_chip_goes_over_an_opponent_near_the_passer_and_settles_before_the_receiver():
+    """The scene above with the opponent nearer the passer, at (0.4, 0): the flat pass to teammate 1 is unsafe, a
+    45 deg chip over the opponent is safe. By hand (``_hops_by_hand``): the chip stays below the reception height
+    (a ball radius) from chip_settle_fraction of the way to the receiver's dribbler (2 - 0.0815 m) on, the last
+    hop above it coming down through it there; the receiver's catch is the ball's arrival at its dribbler, in the
+    hop that crosses it; over the opponent's body (0.4 +- 0.11 m) the ball is above the interception height.
+    Without a chip model (none has come from the predictor) no chip is rated."""
     team = np.array([[-0.1, 0.0], [2.0, 0.0], [0.0, 2.0]])
-    opponents = np.array([[1.0, 0.0]])
+    opponents = np.array([[0.4, 0.0]])
     unknown = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1, 2],
-                              _search(4), MODEL, CFG, OFFSET)
+                              _search(4), MODEL, CFG, OFFSET, block_radius_m=0.11)
     assert [o.kick_angle_deg for o in unknown] == [0.0, 0.0] and not unknown[0].safe(CFG)
     options = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1, 2],
-                              _search(4), MODEL, CFG, OFFSET, chip_params=ChipParams())
+                              _search(4), MODEL, CFG, OFFSET, chip_params=ChipParams(), block_radius_m=0.11)
     by = {o.receiver: o for o in options}
     o = by[1]
     assert o.kick_angle_deg == 45.0 and o.safe(CFG) and o.direction_rad == pytest.approx(0.0)
     assert by[2].kick_angle_deg == 0.0  # safe flat: no chip
+    p = ChipParams()
+    g, r, h = p.g_mps2, p.max_receive_height_m, p.max_catch_height_m
     v = o.kick_speed_mps / math.sqrt(2.0)
-    g, h = ChipParams().g_mps2, ChipParams().max_catch_height_m
-    x_low = v * (v + math.sqrt(v * v - 2.0 * g * h)) / g  # where the first hop comes down through h
+    hops = _hops_by_hand(v, v, p)
+    _, x_k, vxy_k, vz_k = [hop for hop in hops if hop[3] ** 2 / (2.0 * g) > r][-1]  # the last hop above r
+    x_settle = x_k + vxy_k * (vz_k + math.sqrt(vz_k**2 - 2.0 * g * r)) / g
     contact = 2.0 - OFFSET
-    assert x_low == pytest.approx(CFG.chip_land_fraction * contact, abs=1e-6)
-    chip = ChipTrajectory((0.0, 0.0, 0.0), (v, 0.0, v), ChipParams(), MODEL)
-    p = chip.position_at(o.receiver_catch_s)
-    assert p[0] == pytest.approx(contact, abs=1e-6) and p[2] <= h
-    # over the opponent the ball is too high to take: above h where the opponent's dribbler is (x = 0.9185)
-    t_over = (1.0 - OFFSET) / v
-    assert chip.position_at(t_over)[2] > h
+    assert x_settle == pytest.approx(CFG.chip_settle_fraction * contact, abs=1e-6)
+    t_c, x_c, vxy_c, _ = [hop for hop in hops if hop[1] <= contact][-1]
+    assert o.receiver_catch_s == pytest.approx(t_c + (contact - x_c) / vxy_c, abs=1e-9)
+    for x in (0.4 - 0.11, 0.4 + 0.11):  # over the opponent's body, in the first hop
+        t = x / v
+        assert v * t - 0.5 * g * t * t > h
     assert select_pass(options, CFG).receiver in (1, 2)
+
+
+def test_a_chip_over_an_opponent_half_way_settles_behind_the_receiver_which_steps_back():
+    """The opponent half-way, at (1, 0.05): the chip that settles before the receiver (``chip_settle_fraction``)
+    comes down low enough to stop about half-way and would hit it; the one that settles behind the receiver
+    (half a ``chip_step_back_m``, then a whole one, here 0.5 m; by default 0: none) flies farther. By hand
+    (``_hops_by_hand``): its hops stay below the reception height from a point behind the receiver's dribbler
+    (2 - 0.0815 m) on, 0.25 or 0.5 m behind; the receiver's catch is where it meets the ball after that, when the
+    ball is low."""
+    team = np.array([[-0.1, 0.0], [2.0, 0.0], [0.0, 2.5]])
+    opponents = np.array([[1.0, 0.05]])
+    cfg = dataclasses.replace(CFG, chip_step_back_m=0.5)
+    (where_it_stands,) = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents),
+                                         [1], _search(4), MODEL, CFG, OFFSET, chip_params=ChipParams(),
+                                         block_radius_m=0.11)
+    assert CFG.chip_step_back_m == 0.0 and not where_it_stands.safe(CFG)
+    (o,) = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents, np.zeros_like(opponents), [1],
+                           _search(4), MODEL, cfg, OFFSET, chip_params=ChipParams(), block_radius_m=0.11)
+    assert o.kick_angle_deg == 45.0 and o.safe(cfg)
+    p = ChipParams()
+    g, r = p.g_mps2, p.max_receive_height_m
+    v = o.kick_speed_mps / math.sqrt(2.0)
+    hops = _hops_by_hand(v, v, p)
+    t_k, x_k, vxy_k, vz_k = [hop for hop in hops if hop[3] ** 2 / (2.0 * g) > r][-1]  # the last hop above r
+    t_settle = t_k + (vz_k + math.sqrt(vz_k**2 - 2.0 * g * r)) / g
+    x_settle = x_k + vxy_k * (t_settle - t_k)
+    contact = 2.0 - OFFSET
+    assert x_settle == pytest.approx(contact + 0.25, abs=1e-6) or x_settle == pytest.approx(contact + 0.5, abs=1e-6)
+    assert o.receiver_catch_s >= t_settle
+    t_c, x_c, vxy_c, _ = [hop for hop in hops if hop[0] <= o.receiver_catch_s][-1]
+    assert contact < x_c + vxy_c * (o.receiver_catch_s - t_c) <= contact + 0.5 + 1e-9

@@ -469,15 +469,17 @@ def test_a_chip_is_received_where_the_chip_model_in_use_says_it_is_low():
     """A ball chipped from (0, 0) at (3, 0, 3) m/s; the robot 3 cm beside its line at x = 1 faces it (no slack,
     no line tolerance). Its projection (1, 0) puts the dribbler at 1 - 0.0815 = 0.9185 m, where the ball is at
     t = 0.30617 s, 3 t - 9.81 t^2 / 2 = 0.4587 m high; the robot gets there (0.03 m from rest, a_max 4.5 m/s^2) in
-    2 sqrt(0.03 / 4.5) = 0.163 s. Under a chip model that takes a ball up to 0.5 m that is its target: it drives
-    along field -y (robot frame +y) at sqrt(2 a_max braking_margin d) = sqrt(0.135) m/s. Under the default
-    model (0.15 m) the ball flies over that point and every later one it reaches in time: it holds. Before a chip
-    model has come, the ball is taken where its shadow is, with a notice."""
+    2 sqrt(0.03 / 4.5) = 0.163 s. Under a chip model whose reception height is 0.5 m (above the apex, 9 / 2g =
+    0.4587 m: the ball is never too high to take) that is its target: it drives along field -y (robot frame +y)
+    at sqrt(2 a_max braking_margin d) = sqrt(0.135) m/s; so does an interceptor (its body stops the ball) under an
+    interception height of 0.5 m. Under the default model (0.15 m to stop it, a ball radius to take it) the ball
+    flies over that point and every later one it reaches in time: it holds. Before a chip model has come, the
+    ball is taken where its shadow is, with a notice."""
     cfg = CatcherConfig(receive_slack_s=0.0, receive_line_tolerance_m=0.0)
     offset = 0.0815
 
-    def twist(chip_model):
-        receiver = Receiver(cfg, offset)
+    def twist(chip_model, intercepts=False):
+        receiver = Receiver(cfg, offset, intercepts=intercepts)
         if chip_model is not None:
             receiver.on_chip_model(chip_model)
         receiver.on_odom(1.0, (1.0, 0.03, math.pi), (0.0, 0.0), 1.0)
@@ -487,9 +489,39 @@ def test_a_chip_is_received_where_the_chip_model_in_use_says_it_is_low():
     t = (1.0 - offset) / 3.0
     assert 3.0 * t - 4.905 * t * t == pytest.approx(0.4587, abs=1e-4)
     to_projection = (0.0, math.sqrt(2.0 * cfg.a_max_mps2 * cfg.braking_margin * 0.03), 0.0)
-    high, notice = twist(ChipParams(max_catch_height_m=0.5))
+    high, notice = twist(ChipParams(max_receive_height_m=0.5))
     assert high == pytest.approx(to_projection, abs=1e-9) and notice is None
-    default, notice = twist(ChipParams())
-    assert np.array_equal(default, np.zeros(3)) and notice is None
+    assert np.array_equal(twist(ChipParams(max_catch_height_m=0.5))[0], np.zeros(3))  # a receiver needs it lower
+    assert twist(ChipParams(max_catch_height_m=0.5), intercepts=True)[0] == pytest.approx(to_projection, abs=1e-9)
+    for intercepts in (False, True):
+        default, notice = twist(ChipParams(), intercepts)
+        assert np.array_equal(default, np.zeros(3)) and notice is None
     unknown, notice = twist(None)
     assert unknown == pytest.approx(to_projection, abs=1e-9) and "no chip model" in notice
+
+
+def test_a_receiver_on_the_line_steps_back_to_where_a_chip_has_settled():
+    """A chip kicked from (0, 0) at (3, 0, 3) m/s; by hand its hops (apexes 0.4587, 0.1470, 0.0471, 0.0151 m) stay
+    below a ball radius (0.02135 m) from hop 2's descent through it on, at x_s = 1.8349 + 0.7418 + 2.1429 *
+    (0.9611 + sqrt(0.9611^2 - 2 g 0.02135)) / g. A receiver facing it with its dribbler on the line 0.3 m before
+    x_s does not stand (the ball would hop off its front there): it goes back along the line to a point where the
+    ball is low for good; one whose dribbler is 0.3 m beyond x_s stands."""
+    g, r = 9.81, ChipParams().max_receive_height_m
+    vz = [3.0 * 0.566**k for k in range(4)]
+    assert [v * v / (2.0 * g) for v in vz] == pytest.approx([0.4587, 0.1470, 0.0471, 0.0151], abs=1e-4)
+    vxy1 = 3.0 / 1.4
+    x2 = 3.0 * 2.0 * vz[0] / g + vxy1 * 2.0 * vz[1] / g
+    assert (round(3.0 * 2.0 * vz[0] / g, 4), round(vxy1 * 2.0 * vz[1] / g, 4)) == (1.8349, 0.7418)
+    x_s = x2 + vxy1 * (vz[2] + math.sqrt(vz[2] ** 2 - 2.0 * g * r)) / g
+    cfg, offset = CatcherConfig(), 0.0815
+    targets = []
+    for dribbler_x in (x_s - 0.3, x_s + 0.3):
+        receiver = Receiver(cfg, offset)
+        receiver.on_chip_model(ChipParams())
+        receiver.on_odom(1.0, (dribbler_x + offset, 0.0, math.pi), (0.0, 0.0), 1.0)
+        receiver.on_ball(1.0, (0.0, 0.0, 0.0), (3.0, 0.0, 3.0))
+        twist = receiver.tick(1.0)
+        targets.append(twist)
+    back, stands = targets
+    assert back[1] == pytest.approx(0.0, abs=1e-9) and back[0] < 0.0  # robot frame -x: away from the ball
+    assert np.array_equal(stands, np.zeros(3))

@@ -152,7 +152,7 @@ def test_the_model_in_use_outlives_a_new_clock_time_line_in_every_node_that_pred
     chip = ChipParams(damping_z=0.4, max_catch_height_m=0.3)
     labels = contract.BALL_CHIP_MODEL_PARAM_LABELS
     chip_msg = table_msg([[getattr(chip, k) for k in labels]], labels, "in_use")
-    bad_chip = table_msg([[9.81, 1.0, 0.7, 1.0, 0.05, 0.15]], labels, "in_use")
+    bad_chip = table_msg([[9.81, 1.0, 0.7, 1.0, 0.05, 0.15, 0.02]], labels, "in_use")
     cores = ((CatcherNode, lambda node: node._receiver), (TeamCatcherNode, lambda node: node._team),
              (PassingGameNode, lambda node: node._player))
     rclpy.init(args=["--ros-args", "-r", "__ns:=/robot_0"])  # the catcher runs in a robot's namespace

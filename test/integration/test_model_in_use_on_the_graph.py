@@ -25,6 +25,8 @@ from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Bool, Float64, Float64MultiArray
 
+from erforce_ball_model.ball_model import ChipParams
+from erforce_ball_model.passing.decisions import PassConfig, chip_speed_for
 from erforce_interfaces.tools.messages import float64_msg, point_msg
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
@@ -79,19 +81,22 @@ def test_a_roll_set_on_the_predictor_moves_the_catchers_receive_point(ros_graph)
 
 
 # The chip scene of test_passing_player.py: robot_0 holds the ball at (0, 0) facing +x, robot_1 at (3, 0) faces it,
-# the opponent stands on the lane at (1.5, 0): the flat pass is unsafe, a 45 deg chip over the opponent is safe.
+# the opponent stands on the lane at (1.5, 0): the flat pass is unsafe, a 45 deg chip over the opponent is safe under
+# the chip model below (a ball taken up to 0.11 m: it settles low enough after one hop).
 GAME_POSES = {(contract.OURS, 0): (0.0, 0.0, 0.0), (contract.OURS, 1): (3.0, 0.0, math.pi),
               (contract.OPPONENTS, 0): (1.5, 0.0, math.pi)}
-CHIP_PARAMS = {"chip_max_catch_height_m": 0.3, "chip_damping_z": 0.4}  # not the defaults (0.15 m, 0.566)
+CHIP_PARAMS = {"chip_max_receive_height_m": 0.11, "chip_damping_z": 0.4}  # not the defaults (a ball radius, 0.566)
 G_MPS2 = 9.81
 
 
 def chip_kick_speed(height_m: float) -> float:
-    """The 45 deg chip to robot_1 that comes down through ``height_m`` at chip_land_fraction (0.55) of the ball's
-    way to its dribbler, 3 - 2 x 0.0815 m: x = v (v + sqrt(v^2 - 2 g h)) / g, so v^2 = g x^2 / (2 (x - h)), kicked
-    at sqrt(2) v."""
-    x = 0.55 * (3.0 - 2.0 * RobotConfig().dribbler_offset_m)
-    return math.sqrt(2.0 * G_MPS2 * x * x / (2.0 * (x - height_m)))
+    """The 45 deg chip to robot_1 that stays below ``height_m`` from chip_settle_fraction of the ball's way to its
+    dribbler, 3 - 2 x 0.0815 m, on, when only its first hop rises above it (damping_z 0.4: the second to 0.16 of
+    its apex): x = v (v + sqrt(v^2 - 2 g h)) / g, so v^2 = g x^2 / (2 (x - h)), kicked at sqrt(2) v."""
+    x = PassConfig().chip_settle_fraction * (3.0 - 2.0 * RobotConfig().dribbler_offset_m)
+    v_squared = G_MPS2 * x * x / (2.0 * (x - height_m))
+    assert 0.16 * v_squared / (2.0 * G_MPS2) < height_m
+    return math.sqrt(2.0 * v_squared)
 
 
 def test_the_passing_game_rates_its_chips_with_the_predictors_chip_model(ros_graph):
@@ -110,10 +115,12 @@ def test_the_passing_game_rates_its_chips_with_the_predictors_chip_model(ros_gra
     probe.spin_until(lambda: chip_models, 20.0, "the predictor's chip model")
     (row,) = table_from_msg(chip_models[-1], q.BALL_CHIP_MODEL_PARAM_LABELS)
     model = dict(zip(q.BALL_CHIP_MODEL_PARAM_LABELS, row.tolist(), strict=True))
-    assert (model["max_catch_height_m"], model["damping_z"]) == (0.3, 0.4)
+    assert (model["max_receive_height_m"], model["damping_z"]) == (0.11, 0.4)
     columns = q.PASS_CHOICE_COLUMNS
-    expected = chip_kick_speed(0.3)
-    assert abs(expected - chip_kick_speed(0.15)) > 0.2  # the default model would kick another speed
+    expected = chip_kick_speed(0.11)
+    defaults = chip_speed_for(PassConfig().chip_settle_fraction * (3.0 - 2.0 * RobotConfig().dribbler_offset_m), 45.0,
+                              ChipParams(), 1.0, 6.5)
+    assert abs(expected - defaults) > 0.2  # the default model would kick another speed
 
     def rows():
         return [dict(zip(columns, r.tolist(), strict=True)) for m in choices for r in table_from_msg(m, columns)]

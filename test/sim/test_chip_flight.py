@@ -213,3 +213,25 @@ def test_a_ball_above_the_dribbler_does_not_break_the_light_barrier():
         run_for(w, 0.05)  # 0.3 m up falls 0.012 m in that time
         seen.append(w.light_barrier(0))
     assert seen == [True, False]
+
+
+@pytest.mark.parametrize("speed", [3.5, 4.0, 4.5, 5.0])
+def test_a_standing_receiver_takes_a_chip_once_its_hops_stay_below_a_ball_radius(speed):
+    """ChipParams' reception height is what this plant's robot takes: a robot facing the chip with its dribbler
+    bar running holds the ball when its dribbler stands 5 cm beyond where the model says the hops stay below
+    max_receive_height_m (a ball radius: the beam and the bar sit at a resting ball's centre), and the ball bounces
+    off it when its dribbler stands 10 cm before that point, where the ball still hops higher."""
+    assert ChipParams().max_receive_height_m == BallParams().radius_m
+    a = math.radians(45.0)
+    model = ChipTrajectory((TOUCH_X, 0.0, 0.0), (speed * math.cos(a), 0.0, speed * math.sin(a)), ChipParams())
+    x_settle = float(model.ground_track().position_at(model.time_below_height_s(ChipParams().max_receive_height_m))[0])
+    held = []
+    for dribbler_x in (x_settle + 0.05, x_settle - 0.1):
+        receiver = RobotSpec(x=dribbler_x + RobotConfig().dribbler_offset_m, theta=math.pi, robot_id=1)
+        w = World(FIELD, [RobotSpec(x=-1.0), receiver], BallState(TOUCH_X, 0.0), seed=0)
+        w.set_dribbler(1, True)
+        assert w.kick(0, speed, angle_deg=45.0).fired
+        run_for(w, model.stop_time_s + 1.0)
+        s = w.ball_state()
+        held.append(w.light_barrier(1) and math.hypot(s.vx, s.vy) < 0.05)
+    assert held == [True, False]

@@ -48,10 +48,13 @@ def test_an_opponent_on_the_only_lane_intercepts_and_the_record_says_why():
 
 
 def test_with_chips_the_pass_over_the_opponent_on_the_only_lane_is_safe_and_completes():
-    """The interception scene above with chips on (the default): the flat pass is not safe, so the holder
-    chips over the opponent (45 deg), rated safe, and the receiver takes the ball once it is low."""
+    """The interception scene above with chips on, which may settle behind the receiver (chip_step_back_m): the
+    flat pass is not safe, and a chip that settles before the receiver comes down low enough to stop half-way,
+    so the holder chips over the opponent (45 deg) to settle behind it, rated safe, and the receiver steps back
+    and takes the ball once it is low."""
+    step_back = PlayerConfig(passing=PassConfig(chip_step_back_m=0.5))
     cfg = GameConfig(team_size=2, opponents=1, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)),
-                     opponent_positions=((-3.0, 0.4),), true_chip=True)
+                     opponent_positions=((-3.0, 0.4),), true_chip=True, player=step_back)
     (record,) = PassingGame(cfg, seed=0).play()
     assert record.kick_angle_deg == pytest.approx(45.0)
     assert record.rated_safe and record.outcome == "completed" and record.caught_by == "robot_1"

@@ -61,6 +61,7 @@ from erforce_interfaces.wire.robot_config import (
     BALL_CHIP_DAMPING_Z,
     BALL_CHIP_MIN_HOP_VZ_MPS,
     BALL_MAX_CATCH_HEIGHT_M,
+    BALL_MAX_RECEIVE_HEIGHT_M,
     FieldConfig,
 )
 
@@ -117,8 +118,11 @@ class ChipParams:
     yet: the carpet's friction spins it up, which costs speed; a solid sphere that stops slipping keeps
     1 / (1 + 2/5) of it) and by ``damping_xy_other_hops`` after (it spins already). A bounce that
     leaves less than ``min_hop_vz_mps`` upwards ends the hops: the ball rolls on (two-phase model, in its
-    rolling phase). ``max_catch_height_m``: a robot can take a ball whose centre is at most this high
-    (about the robot's height). The SSL geometry's fixed-loss chip model names the same three dampings.
+    rolling phase). Two heights of the ball's centre: ``max_catch_height_m``, the interception height: a robot
+    stops a ball this low with its body (about the robot's height; an opponent under the flight cannot);
+    ``max_receive_height_m``, the reception height: a robot controls a ball only this low (light barrier and
+    dribbler bar), so a receiver takes a chip once it stays below it (``ChipTrajectory.time_below_height_s``).
+    The SSL geometry's fixed-loss chip model names the same three dampings.
     The defaults are the simulator's ball (erforce_sim.ball: a solid ball chipped without spin, no drag),
     as BallModelParams' are its carpet; a real field's come from its logs or its geometry packet. The chip
     model in use is the ball predictor's (its ``chip_*`` parameters), published on /ball/chip_model_params.
@@ -130,17 +134,20 @@ class ChipParams:
     damping_xy_other_hops: float = BALL_CHIP_DAMPING_XY_OTHER_HOPS
     min_hop_vz_mps: float = BALL_CHIP_MIN_HOP_VZ_MPS
     max_catch_height_m: float = BALL_MAX_CATCH_HEIGHT_M
+    max_receive_height_m: float = BALL_MAX_RECEIVE_HEIGHT_M
 
     def __post_init__(self) -> None:
         for name in ("g_mps2", "damping_z", "damping_xy_first_hop", "damping_xy_other_hops", "min_hop_vz_mps",
-                     "max_catch_height_m"):
+                     "max_catch_height_m", "max_receive_height_m"):
             value = getattr(self, name)
             if not isinstance(value, int | float | np.floating | np.integer) or not math.isfinite(value):
                 raise ValueError(f"ChipParams.{name}: must be a finite number, got {value!r}")
             object.__setattr__(self, name, float(value))
-        if self.g_mps2 <= 0.0 or self.min_hop_vz_mps <= 0.0 or self.max_catch_height_m < 0.0:
-            raise ValueError(f"ChipParams: g_mps2 > 0, min_hop_vz_mps > 0 and max_catch_height_m >= 0, got "
-                             f"{self.g_mps2}, {self.min_hop_vz_mps}, {self.max_catch_height_m}")
+        if (self.g_mps2 <= 0.0 or self.min_hop_vz_mps <= 0.0 or self.max_catch_height_m < 0.0
+                or self.max_receive_height_m < 0.0):
+            raise ValueError(f"ChipParams: g_mps2 > 0, min_hop_vz_mps > 0, max_catch_height_m >= 0 and "
+                             f"max_receive_height_m >= 0, got {self.g_mps2}, {self.min_hop_vz_mps}, "
+                             f"{self.max_catch_height_m}, {self.max_receive_height_m}")
         if not 0.0 <= self.damping_z < 1.0:  # below 1: the hops end
             raise ValueError(f"ChipParams.damping_z: must be in [0, 1), got {self.damping_z}")
         for name in ("damping_xy_first_hop", "damping_xy_other_hops"):

@@ -89,7 +89,8 @@ def build_config(c) -> PredictorConfig:
         model=BallModelParams(c.a_slide_mps2, c.a_roll_mps2, c.c_switch),
         chip=ChipParams(damping_z=c.chip_damping_z, damping_xy_first_hop=c.chip_damping_xy_first_hop,
                         damping_xy_other_hops=c.chip_damping_xy_other_hops, min_hop_vz_mps=c.chip_min_hop_vz_mps,
-                        max_catch_height_m=c.chip_max_catch_height_m),
+                        max_catch_height_m=c.chip_max_catch_height_m,
+                        max_receive_height_m=c.chip_max_receive_height_m),
         tracker=TrackerConfig(
             position_noise_m=c.position_noise_m,
             accel_noise_psd=c.accel_noise_psd,
@@ -108,6 +109,7 @@ def build_config(c) -> PredictorConfig:
         # the opponents face towards the ball: they intercept
         facing_fixed=_ours_then_opponents("facing_mode", [mode == "fixed" for mode in c.facing_mode], n, m, False),
         facing_rad=_ours_then_opponents("facing_rad", list(c.facing_rad), n, m, math.pi),
+        receiving=[True] * n + [False] * m,  # and stop a chip with their body (ChipParams' two heights)
         dribbler_offset_m=c.robot.dribbler_offset_m,
         rest_speed_mps=c.rest_speed_mps,
         grid_step_s=c.grid_step_s,

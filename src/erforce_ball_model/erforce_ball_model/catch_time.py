@@ -22,12 +22,16 @@ ball's path). The crossing is refined by sub-grid passes, which also copes with 
 the paper mentions. Without a window the paper's fallback holds: robotTimeToPos to the stop point.
 A cheap sound bound (catch_time_kernels' ``_may_reach``) skips the exact test where the robot surely cannot make it.
 
-Chipped balls (beyond the paper): a ``ChipTrajectory`` (chip_model) can be taken only while its centre is
-at most ``ChipParams.max_catch_height_m`` high. The search runs on its ``ground_track`` (the hops' shadows
-as straight pieces, then the roll) within each of its ``low_windows_s`` in turn (just after the kick, near
-the touchdowns of hops that rise above the height, and from when it stays below it); a robot's catch is
-its first window there, so a robot under the flight cannot take the ball while it is above the height.
-Each window is searched as the flat ball's interval, with the same guarantee inside it.
+Chipped balls (beyond the paper): a ``ChipTrajectory`` (chip_model) is within a robot's reach only while it is
+low, and how low depends on what the robot does with it (ChipParams). A robot that intercepts stops it with its
+body: the ball's centre at most ``max_catch_height_m`` high, in each of the chip's ``low_windows_s`` (just after
+the kick, near the touchdowns of hops that rise above the height, and from when it stays below it). A robot that
+receives (``receiving``) must take it with its dribbler, under the light barrier's beam: only from when the chip
+stays at most ``max_receive_height_m`` high (``time_below_height_s``); near a touchdown of a higher hop the ball
+bounces up over the bar or off the robot's front. The search runs on the chip's ``ground_track`` (the hops'
+shadows as straight pieces, then the roll) within each window in turn; a robot's catch is its first window there,
+so a robot under the flight cannot take the ball while it is above its height. Each window is searched as the
+flat ball's interval, with the same guarantee inside it.
 
 Compiled scalar loops: the search is a few hundred branchy scalar steps per robot, too many small
 array operations as numpy (docs/decisions/0028), so it is compiled by numba (catch_time_kernels: four entry
@@ -295,38 +299,48 @@ class CatchSearch:
         return self._search is not None
 
     def run(self, ball: BallTrajectory, robot_pos_m: np.ndarray, robot_vel_mps: np.ndarray,
-            facing_rad=0.0, *, window_s: tuple[float, float] | None = None) -> CatchResult:
+            facing_rad=0.0, *, window_s: tuple[float, float] | None = None, receiving=False) -> CatchResult:
         """Catch times of all robots: positions and field-frame velocities (R, 2), facing scalar or (R,).
 
         ``window_s``: the stretch of the ball's path inside the field, when it is not this ball's own first
         one (``catch_after_reaction``: the first stretch of the ball before the reaction time, on this
-        one's clock; a ball that left the field meanwhile is out, even if it comes back off the wall)."""
+        one's clock; a ball that left the field meanwhile is out, even if it comes back off the wall).
+        ``receiving`` (scalar or (R,) bool): a chip is received, not intercepted (module docstring)."""
         if isinstance(ball, ChipTrajectory):
-            return self._run_chip(ball, robot_pos_m, robot_vel_mps, facing_rad, window_s)
+            return self._run_chip(ball, robot_pos_m, robot_vel_mps, facing_rad, window_s, receiving)
         if not isinstance(ball, BallTrajectory) or ball.floats is None:
             raise ValueError("ball: expected a single-ball BallTrajectory or a ChipTrajectory")
         return self._run(ball, robot_pos_m, robot_vel_mps, facing_rad, window_s, None)
 
     def _run_chip(self, chip: ChipTrajectory, robot_pos_m, robot_vel_mps, facing_rad,
-                  window_s: tuple[float, float] | None) -> CatchResult:
+                  window_s: tuple[float, float] | None, receiving) -> CatchResult:
         """The search on the chip's ground track, window by window of its low stretches (module docstring): per
-        robot the first window with a catch on the way, else the last window's answer (at rest, or never)."""
+        robot the first window with a catch on the way, else the last window's answer (at rest, or never); the
+        interceptors' windows and the receivers' one apart."""
+        try:
+            receives = np.broadcast_to(np.asarray(receiving, dtype=bool), (self.num_robots,))
+        except ValueError:
+            raise ValueError(f"receiving: one bool or one per robot ({self.num_robots})") from None
         track = chip.ground_track()
         t_in, t_out = (0.0, math.inf) if self._field is None else (
             track.time_in_field(self._field, self._margin_m) if window_s is None else window_s)
         res = self._result
         best = CatchResult(np.full(self.num_robots, math.inf), np.full((self.num_robots, 2), math.nan),
                            np.full((self.num_robots, 2), math.nan), np.full(self.num_robots, _NEVER, dtype=np.int8))
-        for a, b in chip.low_windows_s():
-            lo, hi = max(a, t_in), min(b, t_out)
-            if lo > min(hi, track.stop_time_s):
+        received = ((chip.time_below_height_s(chip.params.max_receive_height_m), math.inf),)
+        for robots, windows in ((~receives, chip.low_windows_s()), (receives, received)):
+            if not robots.any():
                 continue
-            self._run(track, robot_pos_m, robot_vel_mps, facing_rad, (lo, hi), b == math.inf)
-            now = (best.kind != _MOVING) & ((res.kind == _MOVING) | (b == math.inf))
-            best.time_s[now], best.kind[now] = res.time_s[now], res.kind[now]
-            best.ball_position_m[now], best.robot_target_m[now] = res.ball_position_m[now], res.robot_target_m[now]
-            if (best.kind == _MOVING).all():
-                break
+            for a, b in windows:
+                lo, hi = max(a, t_in), min(b, t_out)
+                if lo > min(hi, track.stop_time_s):
+                    continue
+                self._run(track, robot_pos_m, robot_vel_mps, facing_rad, (lo, hi), b == math.inf)
+                now = robots & (best.kind != _MOVING) & ((res.kind == _MOVING) | (b == math.inf))
+                best.time_s[now], best.kind[now] = res.time_s[now], res.kind[now]
+                best.ball_position_m[now], best.robot_target_m[now] = res.ball_position_m[now], res.robot_target_m[now]
+                if (best.kind[robots] == _MOVING).all():
+                    break
         res.time_s[:], res.kind[:] = best.time_s, best.kind
         res.ball_position_m[:], res.robot_target_m[:] = best.ball_position_m, best.robot_target_m
         return res
@@ -391,8 +405,10 @@ def robot_time_to_ball(
     field_margin_m: float = _PREDICTOR["field_margin_m"],
     grid_step_s: float = _PREDICTOR["grid_step_s"],
     refine_points: int = 128,
+    receiving=False,
 ) -> CatchResult:
-    """Earliest time each robot can touch the ball with its dribbler while facing ``facing_rad``.
+    """Earliest time each robot can touch the ball with its dribbler while facing ``facing_rad``
+    (a chip: ``receiving`` robots once it stays low enough to take, the others where they can stop it).
 
     Robots are vectorized: ``robot_pos_m``/``robot_vel_mps`` of shape (R, 2), ``facing_rad`` scalar
     or (R,), limits per robot; one robot given as (2,) gets a single-robot result (a float time).
@@ -418,7 +434,7 @@ def robot_time_to_ball(
         raise ValueError(f"robot_pos_m {p0.shape} and robot_vel_mps {v0.shape} must both be (R, 2) or (2,)")
     search = CatchSearch(p0.shape[0], limits, dribbler_offset_m=dribbler_offset_m, field=field, unbounded=unbounded,
                          field_margin_m=field_margin_m, grid_step_s=grid_step_s, refine_points=refine_points)
-    res = search.run(ball, p0, v0, facing_rad)
+    res = search.run(ball, p0, v0, facing_rad, receiving=receiving)
     if one:
         return CatchResult(float(res.time_s[0]), res.ball_position_m[0].copy(), res.robot_target_m[0].copy(),
                            CatchKind(int(res.kind[0])))
@@ -506,7 +522,7 @@ def facing_angles(
 
 def catch_after_reaction(search: CatchSearch, ball: BallTrajectory, robot_pos_m: np.ndarray,
                          robot_vel_mps: np.ndarray, reaction_s: float, facing_fixed: np.ndarray,
-                         facing_rad: np.ndarray, rest_speed_mps: float) -> CatchResult:
+                         facing_rad: np.ndarray, rest_speed_mps: float, receiving=False) -> CatchResult:
     """robotTimeToBall for robots that act on this prediction only ``reaction_s`` from now (the predictor's
     question every frame): the ball gets that head start, facing as ``facing_angles``.
 
@@ -515,12 +531,13 @@ def catch_after_reaction(search: CatchSearch, ball: BallTrajectory, robot_pos_m:
     catch in progress into "never"). The times count from the end of the reaction: add ``reaction_s``
     for times from now. The field's stretch searched is the ball's first one from now: a ball that leaves
     the field during the reaction is out, also when it comes back off the wall. The result's arrays are
-    the search's, reused by its next run.
+    the search's, reused by its next run. ``receiving``: which robots receive a chip (CatchSearch.run).
     """
     chip = isinstance(ball, ChipTrajectory)
     if reaction_s <= 0.0:
         return search.run(ball, robot_pos_m, robot_vel_mps, facing_angles(
-            facing_fixed, facing_rad, ball.ground_track() if chip else ball, robot_pos_m, rest_speed_mps))
+            facing_fixed, facing_rad, ball.ground_track() if chip else ball, robot_pos_m, rest_speed_mps),
+            receiving=receiving)
     ahead = ball.advanced(reaction_s)
     facing = facing_angles(facing_fixed, facing_rad, ahead.ground_track() if chip else ahead, robot_pos_m,
                            rest_speed_mps)
@@ -529,13 +546,13 @@ def catch_after_reaction(search: CatchSearch, ball: BallTrajectory, robot_pos_m:
     if search._field is not None and len(path.pieces) > 1:  # off a wall: the stretch is the ball's of now
         t_in, t_out = path.time_in_field(search._field, search._margin_m)
         window = (max(t_in - reaction_s, 0.0), t_out - reaction_s) if t_in < math.inf else (math.inf, math.inf)
-    return search.run(ahead, robot_pos_m, robot_vel_mps, facing, window_s=window)
+    return search.run(ahead, robot_pos_m, robot_vel_mps, facing, window_s=window, receiving=receiving)
 
 
 # --- robotTimeToBlock (beyond the paper) ----------------------------------------------------------
 def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits: RobotLimits, body_radius_m: float,
                         t_end_s: float, *, reaction_s: float = 0.0, grid_step_s: float = _PREDICTOR["grid_step_s"],
-                        refine_steps: int = 12, kernels: str = "now") -> np.ndarray:
+                        refine_steps: int = 12, kernels: str = "now", t_start_s: float = 0.0) -> np.ndarray:
     """Earliest time (s, from now) each robot stands with its body on the ball's path where the ball is then: an
     interception without a catch. +inf where none comes before ``t_end_s`` (or the ball's stop).
 
@@ -552,7 +569,8 @@ def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits
     (a robot at rest beside the path: that window may be narrower than the grid), the first feasible time
     refined by ``refine_steps`` bisections. Compiled as the catch search is (catch_time_kernels);
     ``kernels="background"`` answers with the same loop as Python until they are loaded (CatchSearch's option of
-    that name).
+    that name). ``t_start_s``: ``ball`` is the ball from then on (a chip's stretch low enough to stop, from the
+    chip advanced to it): the block counts only from then, the times and ``t_end_s`` still from now.
 
     >>> ball = BallTrajectory((0.0, 0.0), (3.0, 0.0), v_shoot_mps=3.0)  # along +x
     >>> limits = RobotLimits(a_max_mps2=4.0, v_max_mps=2.0)
@@ -564,7 +582,7 @@ def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits
     v0 = np.asarray(robot_vel_mps, dtype=float).reshape(-1, 2)
     if v0.shape != p0.shape or not (np.isfinite(p0).all() and np.isfinite(v0).all()):
         raise ValueError(f"robot_pos_m {p0.shape} and robot_vel_mps {v0.shape}: (R, 2) each, finite")
-    for name, value in (("body_radius_m", body_radius_m), ("reaction_s", reaction_s)):
+    for name, value in (("body_radius_m", body_radius_m), ("reaction_s", reaction_s), ("t_start_s", t_start_s)):
         if not (math.isfinite(value) and value >= 0.0):
             raise ValueError(f"{name}: must be finite and >= 0, got {value!r}")
     if not (math.isfinite(grid_step_s) and grid_step_s > 0.0) or math.isnan(t_end_s):
@@ -572,7 +590,8 @@ def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits
     if kernels not in ("now", "background"):
         raise ValueError(f"kernels: 'now' or 'background', got {kernels!r}")
     a, vmax = (_kernel_array(np.ravel(x)) for x in _limits_arrays(limits, (len(p0),)))
-    t_end = min(float(t_end_s), ball.stop_time_s)
+    # on the clock of ``ball``: the robots react ``reaction_s - t_start_s`` after its start (< 0: before it)
+    t_end, reaction_s = min(float(t_end_s) - t_start_s, ball.stop_time_s), reaction_s - t_start_s
     out = np.full(len(p0), math.inf)
     if not t_end >= 0.0 or not len(p0):
         return out
@@ -586,5 +605,5 @@ def robot_time_to_block(ball: BallTrajectory, robot_pos_m, robot_vel_mps, limits
         block_search_loop(ball.rows, t_end, grid_step_s, num, refine_steps, body_radius_m, reaction_s, p0, v0, a, vmax,
                       out)
         load_kernels_in_background()
-    return out
+    return out + t_start_s
 

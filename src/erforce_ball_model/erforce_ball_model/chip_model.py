@@ -17,13 +17,16 @@ Heights ``z`` are of the ball's centre above where it rests on the carpet (0 on 
 (0.459, 0.612)
 >>> chip.touchdown_points_m[0].round(3).tolist()
 [1.835, 0.0]
->>> round(chip.time_below_height_s(), 3)  # from then on a robot can take it (ChipParams.max_catch_height_m)
+>>> round(chip.time_below_height_s(), 3)  # from then on a robot's body stops it (ChipParams.max_catch_height_m)
 0.557
 >>> [(round(a, 3), round(b, 3)) for a, b in chip.low_windows_s()]  # when it is low enough: just kicked, then landed
 [(0.0, 0.055), (0.557, inf)]
+>>> round(chip.time_below_height_s(chip.params.max_receive_height_m), 3)  # a dribbler takes it (hops < a radius)
+1.128
 
 Catch times (catch_time.CatchSearch) search the ball's ``ground_track`` (where its shadow is: the hops as
-straight pieces at constant speed, then the roll) only within its ``low_windows_s``.
+straight pieces at constant speed, then the roll) only within its ``low_windows_s``, a receiver's only from
+``time_below_height_s(max_receive_height_m)`` on.
 """
 
 from __future__ import annotations

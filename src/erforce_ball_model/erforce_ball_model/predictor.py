@@ -69,8 +69,9 @@ _NEVER = int(CatchKind.NEVER)
 
 @dataclass(frozen=True, eq=False)
 class PredictorConfig:
-    """Everything the predictor computes with. ``facing_fixed`` / ``facing_rad``: one value for all
-    robots (shape () or (1,)) or one per robot; fixed False faces against the ball's motion."""
+    """Everything the predictor computes with. ``facing_fixed`` / ``facing_rad`` / ``receiving``: one value for
+    all robots (shape () or (1,)) or one per robot; fixed False faces against the ball's motion; ``receiving``
+    False: the robot intercepts a chip with its body rather than receive it (catch_time, ChipParams' heights)."""
 
     num_robots: int = 1
     model: BallModelParams = _default(default_factory=BallModelParams)
@@ -86,6 +87,7 @@ class PredictorConfig:
     reaction_s: float = ROBOT_REACTION_S  # a robot acts on a prediction this much later
     facing_fixed: np.ndarray = _default(default_factory=lambda: np.zeros(1, dtype=bool))
     facing_rad: np.ndarray = _default(default_factory=lambda: np.full(1, math.pi))
+    receiving: np.ndarray = _default(default_factory=lambda: np.ones(1, dtype=bool))
     dribbler_offset_m: float = RobotConfig().dribbler_offset_m
     # a slower filtered ball is reported stopped and faced from the robot
     rest_speed_mps: float = _DEFAULTS["rest_speed_mps"]
@@ -105,7 +107,7 @@ class PredictorConfig:
         n = self.num_robots
         if not (isinstance(n, int) and n >= 1):
             raise ValueError(f"num_robots: must be an int >= 1, got {n!r}")
-        for name, dtype in (("facing_fixed", bool), ("facing_rad", float)):
+        for name, dtype in (("facing_fixed", bool), ("facing_rad", float), ("receiving", bool)):
             values = np.array(getattr(self, name), dtype=dtype).reshape(-1)
             if values.size == 1:
                 values = np.repeat(values, n)
@@ -433,7 +435,7 @@ class BallPredictor:
             return [], [], []
         try:
             catch = catch_after_reaction(self._search, traj, pos, self._robot_vel_mps, cfg.reaction_s,
-                                         cfg.facing_fixed, cfg.facing_rad, cfg.rest_speed_mps)
+                                         cfg.facing_fixed, cfg.facing_rad, cfg.rest_speed_mps, cfg.receiving)
         except ValueError as exc:
             self._warn("catch", f"no catch times for the frame at {t_s:.6f} s: {exc}")
             return [], [], []

@@ -234,11 +234,12 @@ def receive_point(
     slack_s: float | None = None,
     facing_rad: float | None = None,
     chip: ChipTrajectory | None = None,
+    intercepts: bool = False,
 ) -> np.ndarray | None:
     """The nearest place to receive the ball on its line that the robot reaches with time to spare.
 
     ``chip``: the ball is in the air (``ball`` is its ground track): only points where it arrives low enough
-    to take (at most ``max_catch_height_m``) are candidates.
+    to take are candidates (``chip_within_reach``; ``intercepts``: to stop it with the body).
 
     Candidates are robot centre targets with the dribbler on the ball's line, facing the ball (or
     ``facing_rad``: the centre one contact_offset back from the line, line_intercept):
@@ -275,8 +276,8 @@ def receive_point(
             t_ball = float(ball.time_to_distance(float(contact_m[i])))
         if t_ball == math.inf:
             break  # and so do all farther points
-        if chip is not None and chip.position_at(t_ball)[2] > chip.params.max_catch_height_m:
-            continue  # it flies over this point
+        if chip is not None and not chip_within_reach(chip, t_ball, intercepts):
+            continue  # it flies over this point, or hops off the dribbler
         if can_reach(targets[i] - robot_xy, robot_velocity, t_ball - slack, cfg.a_max_mps2, cfg.v_max_mps):
             return targets[i]
     return None
@@ -294,6 +295,7 @@ def choose_target(
     committed: bool = False,
     facing_rad: float | None = None,
     chip: ChipTrajectory | None = None,
+    intercepts: bool = False,
 ) -> np.ndarray | None:
     """Where the robot centre goes (to face the ball, or ``facing_rad`` once it turned), in this order:
     stay when the dribbler is already on the incoming ball's line; the nearest receive point with time
@@ -301,7 +303,9 @@ def choose_target(
     (None when the predictor has none); when ``committed``, the robot's projection on the ball's line
     if it is within ``cfg.commit_distance_m``; else hold (None).
 
-    ``chip``: the ball is in the air, ``ball`` its ground track (receive_point takes it only where it is low).
+    ``chip``: the ball is in the air, ``ball`` its ground track: the robot stays on its line only where the ball
+    comes low enough to take (``chip_within_reach``), else receive_point takes it where it does (a chip that
+    settles behind the receiver: it steps back along the line).
     ``ball`` is the moving ball's trajectory (None when it rests: the velocity of a resting ball is
     vision noise in a random direction, its "line" means nothing). ``committed``: the robot was
     driving to a target for this ball moments ago. Its plan can turn infeasible on the way (it
@@ -316,10 +320,12 @@ def choose_target(
     """
     if ball is not None:
         if on_receive_line(pose, ball.position_m, ball.velocity_mps, dribbler_offset_m, cfg.receive_line_tolerance_m,
-                           facing_rad):
+                           facing_rad) and (chip is None or chip_within_reach(chip, _time_to_dribbler(
+                               pose, ball, dribbler_offset_m, facing_rad), intercepts)):
             return np.asarray(pose[:2], dtype=float)
         target = receive_point(pose[:2], robot_velocity, ball, dribbler_offset_m, cfg, field, robot_radius_m,
-                               slack_s=0.0 if committed else None, facing_rad=facing_rad, chip=chip)
+                               slack_s=0.0 if committed else None, facing_rad=facing_rad, chip=chip,
+                               intercepts=intercepts)
         if target is not None:
             return target
     if catch_point is not None:
@@ -329,6 +335,24 @@ def choose_target(
         if block is not None and math.dist(block, pose[:2]) <= cfg.commit_distance_m:
             return block
     return None
+
+
+def chip_within_reach(chip: ChipTrajectory, t_s: float, intercepts: bool = False) -> bool:
+    """Whether a robot takes the chip at ``t_s``: a receiver once it stays at most ``max_receive_height_m`` high
+    (light barrier and dribbler bar; earlier, near a touchdown, it hops up over the bar or off the robot's front),
+    an interceptor (``intercepts``) where it is at most ``max_catch_height_m`` high (its body stops it)."""
+    if intercepts:
+        return bool(chip.position_at(t_s)[2] <= chip.params.max_catch_height_m)
+    return t_s >= chip.time_below_height_s(chip.params.max_receive_height_m)
+
+
+def _time_to_dribbler(pose: np.ndarray, track: BallTrajectory, dribbler_offset_m: float,
+                      facing_rad: float | None) -> float:
+    """When the ball on ``track`` (a chip's ground track: straight pieces on one line) reaches the dribbler of the
+    robot at ``pose`` (facing ``facing_rad``, None: as it stands)."""
+    dribbler = pose[:2] + contact_offset(pose[2] if facing_rad is None else facing_rad, dribbler_offset_m)
+    along = float((dribbler - track.position_m) @ track.direction)
+    return float(track.time_to_distance(max(along, 0.0)))
 
 
 def team_receiver(catch_times_s: Mapping[int, float], previous: int | None, switch_margin_s: float) -> int | None:
@@ -365,17 +389,21 @@ class Receiver:
     where it passes on (``on_next_target``), facing that target when ``receive_facing`` allows (the
     paper's robotTimeToBall with targetpos; the predictor's search must then face the same way). In a
     team (``team_robot_ids``, its own id among them) it drives only while ``team_receiver`` names it,
-    or nobody can catch the ball by the predictions (then each robot judges alone). ``notice`` says
-    what the last call could not use, for the node's throttled log (None: nothing).
+    or nobody can catch the ball by the predictions (then each robot judges alone). A chip is taken once it
+    stays low enough for the dribbler; with ``intercepts`` (an opponent that only has to stop the ball) where
+    it is low enough for the body (chip_within_reach). ``notice`` says what the last call could not use, for the
+    node's throttled log (None: nothing).
     """
 
     def __init__(self, cfg: CatcherConfig, dribbler_offset_m: float, robot_radius_m: float = 0.0,
-                 field: FieldConfig | None = None, robot_id: int | None = None, team_robot_ids=()) -> None:
+                 field: FieldConfig | None = None, robot_id: int | None = None, team_robot_ids=(),
+                 intercepts: bool = False) -> None:
         team = {int(i) for i in team_robot_ids}
         if team and robot_id not in team:
             raise ValueError(f"team_robot_ids {sorted(team)}: robot {robot_id} is not one of them")
         self.set_config(cfg, dribbler_offset_m, robot_radius_m, field)
         self.robot_id = robot_id
+        self.intercepts = bool(intercepts)
         self._teammates = {i: (-math.inf, CATCH_TIME_NEVER) for i in team - {robot_id}}
         self._receiver: int | None = None  # the team's receiver as this robot last decided
         self._pose = None  # (t, [x, y, yaw], field velocity [vx, vy])
@@ -520,7 +548,8 @@ class Receiver:
         target = choose_target(pose, velocity, ball, self._catch_point[1] if predicted else None,
                                self.dribbler_offset_m, cfg, self.field, self.robot_radius_m,
                                committed=now - self._target_at <= cfg.commit_s,
-                               facing_rad=None if self._next_target is None else facing, chip=chip)
+                               facing_rad=None if self._next_target is None else facing, chip=chip,
+                               intercepts=self.intercepts)
         if target is None:
             return np.zeros(3)
         self._target_at = now

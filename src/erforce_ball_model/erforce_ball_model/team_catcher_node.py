@@ -114,8 +114,9 @@ class TeamCatcherNode(SchemaNode):
         n_other = v["num_other_robots"] if passing is not None else 0
         # the predictor's model (transient local: not sent again for a new time line) goes on
         model, chip_model = (None, None) if self._team is None else (self._team.model, self._team.chip_model)
+        # the opponents stop a chip with their body, as the ball predictor plans their catches
         self._team = PressingTeam(cfg, offset, radius, self._field.field, v["robot_ids"], v["as_team"], passing,
-                                  n_other, model, chip_model)
+                                  n_other, model, chip_model, intercepts=v["team"] == "opponents")
         self._other_stamps: list[float | None] = [None] * n_other  # the stamp of each row last fed
         self._own_stamps = dict.fromkeys(int(i) for i in v["robot_ids"])  # likewise, with tracked_poses
 

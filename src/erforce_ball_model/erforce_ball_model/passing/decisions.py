@@ -27,12 +27,14 @@ question) for every robot on the field, on the ball the kick would make:
   The receiver still needs the real catch. ``margin_s`` = opponent - arrival; a pass is safe when the
   margin is at least ``PassConfig.safe_margin_s``.
 - A chip (``PassConfig.chip_angle_deg`` > 0; chip_model.ChipTrajectory with the predictor's chip model, the one
-  it tracks chips with) is rated the same way, on the chip the kick would make: robotTimeToBall takes a chip only
-  where it is at most ``max_catch_height_m`` high, so an opponent under its flight cannot take it. It is kicked
-  so that it comes down to that height ``chip_land_fraction`` of the way to the receiver (``chip_speed_for``: the
-  first hop's descent, closed form), and the receiver takes it where it arrives, low, after it landed. Per
-  receiver the flat pass is played when it is safe, else the chip when that is safe, else the one with the larger
-  margin.
+  it tracks chips with) is rated the same way, on the chip the kick would make, with ChipParams' two heights: an
+  opponent stops it with its body where it is at most ``max_catch_height_m`` high (robotTimeToBall on its low
+  windows), so one under its flight cannot; the receiver takes it with its dribbler only once it stays at most
+  ``max_receive_height_m`` high (the light barrier's beam), so a chip still hopping at a few centimetres would
+  bounce off it. It is kicked so that it stays that low from ``chip_settle_fraction`` of the way to the
+  receiver on (``chip_speed_for``: the hops in closed form), and is rated only when it has settled by the time
+  it reaches the receiver's dribbler. Per receiver the flat pass is played when it is safe, else the chip when
+  that is safe, else the one with the larger margin.
 - ``select_pass``: of the safe passes the one whose catch comes earliest; when none is safe, the
   one with the largest margin (rated unsafe; the caller may still play it).
 - ``press_targets``: where opponents wait while a robot of ours holds the ball: each covers the
@@ -61,7 +63,7 @@ from erforce_ball_model.catch_time import (
     receive_facing,
     robot_time_to_block,
 )
-from erforce_ball_model.chip_model import ChipTrajectory
+from erforce_ball_model.chip_model import MAX_HOPS, ChipTrajectory
 from erforce_interfaces.runtime.param_schema import schema_defaults
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
@@ -81,7 +83,8 @@ class PassConfig:
     # an opponent waits this far along the lane from the ball to its teammate
     press_fraction: float = schema_defaults("erforce_ball_model", "team_catcher")["press_fraction"]
     chip_angle_deg: float = _DEFAULTS["chip_angle_deg"]  # a chip's elevation (the kicker's kick_angle); 0: flat only
-    chip_land_fraction: float = _DEFAULTS["chip_land_fraction"]  # a chip comes down low this far along the pass
+    chip_settle_fraction: float = _DEFAULTS["chip_settle_fraction"]  # a chip stays low from this far along the pass
+    chip_step_back_m: float = _DEFAULTS["chip_step_back_m"]  # ... or this far behind the receiver, which steps back
 
     def __post_init__(self) -> None:
         for name in ("arrive_speed_mps", "min_kick_mps", "max_kick_mps", "min_distance_m", "max_distance_m"):
@@ -90,7 +93,7 @@ class PassConfig:
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
         if self.min_kick_mps > self.max_kick_mps or self.min_distance_m > self.max_distance_m:
             raise ValueError("min_kick_mps <= max_kick_mps and min_distance_m <= max_distance_m, please")
-        for name in ("safe_margin_s", "reaction_s"):
+        for name in ("safe_margin_s", "reaction_s", "chip_step_back_m"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
@@ -98,8 +101,8 @@ class PassConfig:
             raise ValueError(f"press_fraction must be in [0, 1], got {self.press_fraction!r}")
         if not (math.isfinite(self.chip_angle_deg) and 0.0 <= self.chip_angle_deg < 90.0):
             raise ValueError(f"chip_angle_deg must be in [0, 90), got {self.chip_angle_deg!r}")
-        if not (math.isfinite(self.chip_land_fraction) and 0.0 < self.chip_land_fraction <= 1.0):
-            raise ValueError(f"chip_land_fraction must be in (0, 1], got {self.chip_land_fraction!r}")
+        if not (math.isfinite(self.chip_settle_fraction) and 0.0 < self.chip_settle_fraction <= 1.0):
+            raise ValueError(f"chip_settle_fraction must be in (0, 1], got {self.chip_settle_fraction!r}")
 
 
 def kick_speed_for(distance_m: float, arrive_speed_mps: float, params: BallModelParams) -> float:
@@ -115,25 +118,37 @@ def kick_speed_for(distance_m: float, arrive_speed_mps: float, params: BallModel
     return math.sqrt((va * va + 2.0 * a_r * d) / (c * c + (1.0 - c * c) * a_r / a_s))
 
 
+def chip_settle_distance(speed_mps: float, angle_deg: float, params: ChipParams) -> float:
+    """How far along the carpet a chip kicked from the ground at ``speed_mps`` and ``angle_deg`` travels until it
+    stays at most ``params.max_receive_height_m`` high (chip_model's hops in closed form): hop k leaves at
+    ``vz_k = vz d_z^k`` for ``2 vz_k / g``, horizontally at ``vxy`` then ``vxy d_xy1 d_xy^(k-1)``; the last hop
+    whose apex ``vz_k^2 / 2g`` exceeds h comes down through h ``(vz_k + sqrt(vz_k^2 - 2 g h)) / g`` after it left."""
+    a, g, h = math.radians(angle_deg), params.g_mps2, params.max_receive_height_m
+    vz, vxy, x, settled = speed_mps * math.sin(a), speed_mps * math.cos(a), 0.0, 0.0
+    for hop in range(MAX_HOPS):
+        if vz * vz > 2.0 * g * h:  # this hop rises above h: the ball is low only after its descent through it
+            settled = x + vxy * (vz + math.sqrt(vz * vz - 2.0 * g * h)) / g
+        x += vxy * 2.0 * vz / g
+        vz *= params.damping_z
+        vxy *= params.damping_xy_first_hop if hop == 0 else params.damping_xy_other_hops
+        if vz < params.min_hop_vz_mps:
+            break
+    return settled
+
+
 def chip_speed_for(distance_m: float, angle_deg: float, params: ChipParams, min_mps: float, max_mps: float) -> float:
-    """Kick speed of a chip at ``angle_deg`` whose first hop comes down to ``params.max_catch_height_m`` after
-    ``distance_m`` along the carpet: ``v cos(a) (v sin(a) + sqrt(v^2 sin^2(a) - 2 g h)) / g = d``, increasing
-    in v, solved by bisection within [min_mps, max_mps] (the bound that is nearest when it cannot be met)."""
-    a, g, h = math.radians(angle_deg), params.g_mps2, params.max_catch_height_m
-
-    def reach(v: float) -> float:
-        vz = v * math.sin(a)
-        return v * math.cos(a) * (vz + math.sqrt(max(vz * vz - 2.0 * g * h, 0.0))) / g
-
+    """Kick speed of a chip at ``angle_deg`` that stays at most ``params.max_receive_height_m`` high from
+    ``distance_m`` along the carpet on (``chip_settle_distance``, non-decreasing in the speed): the fastest such
+    within [min_mps, max_mps], by bisection (the bound that is nearest when it cannot be met)."""
     lo, hi = min_mps, max_mps
-    if reach(lo) >= distance_m:
+    if chip_settle_distance(lo, angle_deg, params) >= distance_m:
         return lo
-    if reach(hi) <= distance_m:
+    if chip_settle_distance(hi, angle_deg, params) <= distance_m:
         return hi
     for _ in range(40):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if reach(mid) < distance_m else (lo, mid)
-    return hi
+        lo, hi = (mid, hi) if chip_settle_distance(mid, angle_deg, params) <= distance_m else (lo, mid)
+    return lo
 
 
 @dataclass(frozen=True)
@@ -248,11 +263,13 @@ class _PassRobots:
     facing_fixed: np.ndarray
     facing: np.ndarray
     narrow: bool
+    receiving: np.ndarray | None = None  # teammates receive a chip, the opponents stop it (catch_time)
     receiver_search: CatchSearch | None = None
     sub_pos: np.ndarray | None = None
     sub_vel: np.ndarray | None = None
     sub_fixed: np.ndarray | None = None
     sub_facing: np.ndarray | None = None
+    sub_receiving: np.ndarray | None = None
 
     @classmethod
     def of(cls, team_xy: np.ndarray, team_vel, opponents_xy: np.ndarray, opponents_vel, search: CatchSearch,
@@ -267,7 +284,7 @@ class _PassRobots:
         # a robot that is not finite makes the whole field's search refuse the pass (ValueError): left to it
         narrow = receiver_search is not None and bool(np.isfinite(pos).all() and np.isfinite(vel).all())
         robots = cls(pos, vel, n_team, search, cfg, next_targets, np.zeros(len(pos), dtype=bool),
-                     np.zeros(len(pos)), narrow)
+                     np.zeros(len(pos)), narrow, np.arange(len(pos)) < n_team)
         if narrow:
             if receiver_search.num_robots != 1 + len(opponents_xy):
                 raise ValueError(f"receiver_search is for {receiver_search.num_robots} robots, the receiver and the "
@@ -278,6 +295,7 @@ class _PassRobots:
             robots.sub_vel = np.concatenate([vel[:1], vel[n_team:]])
             robots.sub_fixed = np.zeros(len(robots.sub_pos), dtype=bool)
             robots.sub_facing = np.zeros(len(robots.sub_pos))
+            robots.sub_receiving = np.arange(len(robots.sub_pos)) == 0
         return robots
 
     def rate(self, traj, j: int, receive_rad: float) -> tuple[float, np.ndarray]:
@@ -287,12 +305,13 @@ class _PassRobots:
             self.sub_pos[0], self.sub_vel[0] = self.pos[j], self.vel[j]
             self.sub_fixed[0], self.sub_facing[0] = j in self.next_targets, receive_rad
             times = _times(catch_after_reaction(self.receiver_search, traj, self.sub_pos, self.sub_vel,
-                                                cfg.reaction_s, self.sub_fixed, self.sub_facing, 0.1), cfg.reaction_s)
+                                                cfg.reaction_s, self.sub_fixed, self.sub_facing, 0.1,
+                                                self.sub_receiving), cfg.reaction_s)
             return times[0], times[1:]
         self.facing_fixed[j], self.facing[j] = j in self.next_targets, receive_rad
         try:
             times = _times(catch_after_reaction(self.search, traj, self.pos, self.vel, cfg.reaction_s,
-                                                self.facing_fixed, self.facing, 0.1), cfg.reaction_s)
+                                                self.facing_fixed, self.facing, 0.1, self.receiving), cfg.reaction_s)
         finally:
             self.facing_fixed[j] = False
         return times[j], times[self.n_team:]
@@ -330,16 +349,35 @@ def _pass_option(robots: _PassRobots, j: int, ball: np.ndarray, u: np.ndarray, r
                                            robots.n_team, block_radius_m, cfg.reaction_s))
     option = _option(j, v0, u, arrival_s if math.isfinite(receiver_time) else math.inf, opp, receive_rad, 0.0)
     if chip_params is not None and cfg.chip_angle_deg > 0.0 and not option.safe(cfg):
-        chip, chip_v0 = _chip_pass(ball, u, contact_m, cfg, params, chip_params)
-        receiver_time, opp = robots.rate(chip, j, receive_rad)
-        track = chip.ground_track()
-        arrival_s = float(track.time_to_distance(contact_m)) if math.isfinite(receiver_time) else math.inf
-        if math.isfinite(arrival_s) and chip.position_at(arrival_s)[2] > chip.params.max_catch_height_m:
-            arrival_s = math.inf  # it would fly over the receiver
-        lob = _option(j, chip_v0, u, arrival_s, opp, receive_rad, cfg.chip_angle_deg)
-        if lob.safe(cfg) or lob.margin_s > option.margin_s:
-            option = lob
+        # settled before the receiver's dribbler, or behind it where the receiver steps back to take it
+        for settle_m in (cfg.chip_settle_fraction * contact_m, contact_m + 0.5 * cfg.chip_step_back_m,
+                         contact_m + cfg.chip_step_back_m)[:3 if cfg.chip_step_back_m > 0.0 else 1]:
+            lob = _chip_option(robots, j, ball, u, receive_rad, contact_m, settle_m, params, cfg, chip_params,
+                               opponents_xy, opponents_vel, block_radius_m)
+            if lob.safe(cfg) or lob.margin_s > option.margin_s:
+                option = lob
+            if option.safe(cfg):
+                break
     return option
+
+
+def _chip_option(robots: _PassRobots, j: int, ball: np.ndarray, u: np.ndarray, receive_rad: float, contact_m: float,
+                 settle_m: float, params: BallModelParams, cfg: PassConfig, chip_params: ChipParams,
+                 opponents_xy: np.ndarray, opponents_vel, block_radius_m: float) -> PassOption:
+    """The pass to ``j`` as the chip that stays low enough to receive from ``settle_m`` along it on: taken where
+    the receiver stands (its dribbler ``contact_m`` on) when it has settled by then, else where the receiver meets
+    it once it has (robotTimeToBall, receiving: it steps back along the line)."""
+    chip, v0 = _chip_pass(ball, u, settle_m, cfg, params, chip_params)
+    receiver_time, opp = robots.rate(chip, j, receive_rad)
+    arrival_s = math.inf
+    if math.isfinite(receiver_time):
+        arrival_s = float(chip.ground_track().time_to_distance(contact_m))
+        if arrival_s < chip.time_below_height_s(chip_params.max_receive_height_m):
+            arrival_s = receiver_time if settle_m > contact_m else math.inf  # else it would bounce off
+    if block_radius_m > 0.0 and len(opp):  # where it is low, an opponent's body stops it too
+        opp = np.minimum(opp, _chip_block_times(chip, arrival_s, opponents_xy, opponents_vel, robots.search,
+                                                robots.n_team, block_radius_m, cfg.reaction_s))
+    return _option(j, v0, u, arrival_s, opp, receive_rad, cfg.chip_angle_deg)
 
 
 def _option(j: int, v0: float, u: np.ndarray, arrival_s: float, opp: np.ndarray, receive_rad: float,
@@ -349,11 +387,10 @@ def _option(j: int, v0: float, u: np.ndarray, arrival_s: float, opp: np.ndarray,
                       first, receive_rad, angle_deg)
 
 
-def _chip_pass(ball: np.ndarray, u: np.ndarray, contact_m: float, cfg: PassConfig, params: BallModelParams,
+def _chip_pass(ball: np.ndarray, u: np.ndarray, settle_m: float, cfg: PassConfig, params: BallModelParams,
                chip_params: ChipParams) -> tuple[ChipTrajectory, float]:
-    """The chip along ``u`` that comes down to the catchable height ``chip_land_fraction`` of ``contact_m`` on."""
-    v0 = chip_speed_for(cfg.chip_land_fraction * contact_m, cfg.chip_angle_deg, chip_params, cfg.min_kick_mps,
-                        cfg.max_kick_mps)
+    """The chip along ``u`` that stays low enough to receive from ``settle_m`` on."""
+    v0 = chip_speed_for(settle_m, cfg.chip_angle_deg, chip_params, cfg.min_kick_mps, cfg.max_kick_mps)
     a = math.radians(cfg.chip_angle_deg)
     vxy = v0 * math.cos(a)
     return ChipTrajectory((float(ball[0]), float(ball[1]), 0.0), (float(u[0] * vxy), float(u[1] * vxy),
@@ -376,6 +413,22 @@ def _block_times(traj: BallTrajectory, arrival_s: float, opponents_xy, opponents
     theirs = _their_limits(search, n_team)
     return robot_time_to_block(traj, opponents_xy, opponents_vel, theirs, radius_m, arrival_s, reaction_s=reaction_s,
                                kernels="now" if search.compiled else "background")
+
+
+def _chip_block_times(chip: ChipTrajectory, arrival_s: float, opponents_xy, opponents_vel, search: CatchSearch,
+                      n_team: int, radius_m: float, reaction_s: float) -> np.ndarray:
+    """``_block_times`` of a chip: within each of its windows low enough to stop it (at most
+    ``max_catch_height_m``: ``low_windows_s``) before it reaches the receiver, on its ground track from then."""
+    out = np.full(len(opponents_xy), math.inf)
+    theirs = _their_limits(search, n_team)
+    for a, b in chip.low_windows_s():
+        if a >= min(arrival_s, chip.stop_time_s):
+            break
+        track = (chip.advanced(a) if a > 0.0 else chip).ground_track()
+        out = np.minimum(out, robot_time_to_block(track, opponents_xy, opponents_vel, theirs, radius_m,
+                                                  min(b, arrival_s), reaction_s=reaction_s, t_start_s=a,
+                                                  kernels="now" if search.compiled else "background"))
+    return out
 
 
 def press_targets(ball_xy, team_xy: np.ndarray, opponents_xy: np.ndarray, holder: int | None,

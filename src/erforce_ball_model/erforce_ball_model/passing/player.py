@@ -637,12 +637,13 @@ class PressingTeam:
     (passing.decisions.press_targets: on the lane from the ball to a teammate of the holder), facing the ball. Its
     inputs are fed as they arrive, each with the time it arrived; ``tick(now)`` returns every robot's
     Twist [vx, vy, wz] (robot frame; zeros: hold) and ``notices`` what a robot's receiver could not use.
+    ``intercepts``: its robots only have to stop a chip, with their body (receiver.Receiver), as the opponents do.
     """
 
     def __init__(self, cfg: CatcherConfig, dribbler_offset_m: float, robot_radius_m: float,
                  field_config: FieldConfig | None, robot_ids, as_team: bool = True,
                  passing: PassConfig | None = None, n_other: int = 0, model: BallModelParams | None = None,
-                 chip_model: ChipParams | None = None) -> None:
+                 chip_model: ChipParams | None = None, intercepts: bool = False) -> None:
         ids = [int(i) for i in robot_ids]
         if len(set(ids)) != len(ids):  # none: a game without opponents
             raise ValueError(f"robot_ids: need distinct ids, got {ids}")
@@ -651,7 +652,7 @@ class PressingTeam:
         team = ids if as_team else ()
         self.robot_ids = ids
         self.receivers = {i: Receiver(cfg, dribbler_offset_m, robot_radius_m, field_config, robot_id=i,
-                                      team_robot_ids=team) for i in ids}
+                                      team_robot_ids=team, intercepts=intercepts) for i in ids}
         self.on_model(BallModelParams() if model is None else model)
         self.chip_model: ChipParams | None = None  # the predictor's (on_chip_model); None: not known yet
         if chip_model is not None:

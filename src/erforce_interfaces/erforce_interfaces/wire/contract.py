@@ -308,8 +308,8 @@ BALL_CHIP_MODEL_PARAMS = Topic("/ball/chip_model_params", Float64MultiArray, QOS
                                "passing_game, catcher, team_catcher, tools",
                                "the chip model in use (a chipped ball's hops): row in_use of "
                                "BALL_CHIP_MODEL_PARAM_LABELS [g_mps2, damping_z, damping_xy_first_hop, "
-                               "damping_xy_other_hops, min_hop_vz_mps, max_catch_height_m] (labelled in layout.dim); "
-                               "at start and on every change")
+                               "damping_xy_other_hops, min_hop_vz_mps, max_catch_height_m, max_receive_height_m] "
+                               "(labelled in layout.dim); at start and on every change")
 GROUND_TRUTH_BALL = Topic("/ground_truth/ball", Odometry, QOS_STATE, "plant; while subscribed", "tests, tools only",
                           "true ball: pose [m] (position.z: height in the air), twist.linear [m/s], twist.angular = "
                           "spin [rad/s], `field`")
@@ -450,7 +450,7 @@ BALL_MODEL_PARAM_LABELS = ("a_slide_mps2", "a_roll_mps2", "c_switch")
 BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
 #: the columns of /ball/chip_model_params: chip_model.ChipParams' fields, in this order (one row, in_use)
 BALL_CHIP_MODEL_PARAM_LABELS = ("g_mps2", "damping_z", "damping_xy_first_hop", "damping_xy_other_hops",
-                                "min_hop_vz_mps", "max_catch_height_m")
+                                "min_hop_vz_mps", "max_catch_height_m", "max_receive_height_m")
 #: the PointField names of /vision/robots, in this order, each one FLOAT64 (at offsets 0, 8, ..). A PointCloud2
 #: rather than a Float64MultiArray table: its header carries the capture stamp and the frame, and viewers
 #: (rviz, Foxglove) draw it as it is.

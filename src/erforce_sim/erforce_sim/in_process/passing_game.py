@@ -124,7 +124,8 @@ class PassingGame:
         limits = RobotLimits(cc.a_max_mps2, cc.v_max_mps)
         self.predictor = BallPredictor(PredictorConfig(num_robots=n, field=self.field, limits=limits,
                                                        dribbler_offset_m=self.robot.dribbler_offset_m,
-                                                       reaction_s=cfg.passing.reaction_s))
+                                                       reaction_s=cfg.passing.reaction_s,
+                                                       receiving=[True] * self.n_team + [False] * self.n_opp))
         self._predictor_config = self.predictor.config
         self.player = PassingPlayer(cfg.player, self.n_team, self.n_opp, self.field, self.robot.dribbler_offset_m,
                                     self.robot.robot_radius_m, self.predictor.model,
@@ -134,7 +135,8 @@ class PassingGame:
         self.velocities = self.player.velocities
         self.opponents = PressingTeam(cfg.catcher, self.robot.dribbler_offset_m, self.robot.robot_radius_m, self.field,
                                       range(self.n_opp), passing=cfg.passing, n_other=self.n_team,
-                                      model=self.predictor.model, chip_model=self.predictor.chip_model)
+                                      model=self.predictor.model, chip_model=self.predictor.chip_model,
+                                      intercepts=True)
         # what the AI was last told the models in use are (the graph's /ball/model_params, /ball/chip_model_params)
         self._model_sent, self._chip_model_sent = self.predictor.model, self.predictor.chip_model
         self.frame_costs_s: list[float] = []  # CPU of BallPredictor.ball_frame for all robots, per vision frame
