@@ -144,6 +144,9 @@ class BallFrame:
     catch_points_m: list[tuple[float, float] | None]
     # a chipped ball at t_s, from its detection until it rolls (then the flat filter's trajectory is the ball)
     chip: ChipTrajectory | None = None
+    # the covariance (6, 6) of the chip's (x, y, z, vx, vy, vz) at t_s (ChipDetector.state_covariance_at); None
+    # without a chip or where its fit does not determine one
+    chip_covariance: np.ndarray | None = None
 
     @property
     def z_m(self) -> float:
@@ -154,6 +157,13 @@ class BallFrame:
     def vz_mps(self) -> float:
         """Vertical speed [m/s] (0 on the ground)."""
         return 0.0 if self.chip is None else float(self.chip.velocity_mps[2])
+
+    @property
+    def z_std_m(self) -> float:
+        """The standard error of ``z_m`` [m] (0 on the ground; inf for a chip whose fit does not determine it)."""
+        if self.chip is None:
+            return 0.0
+        return math.inf if self.chip_covariance is None else math.sqrt(max(float(self.chip_covariance[2, 2]), 0.0))
 
     @property
     def stop_point_m(self) -> tuple[float, float]:
@@ -386,8 +396,9 @@ class BallPredictor:
             phase = "stopped"
         else:
             phase = PHASE_NAMES[traj.phase]
+        covariance = None if chip is None else self._chip.state_covariance_at(t_s)
         return BallFrame(t_s, (x_m, y_m), status, traj, phase, bool(ball.uncertain), ball.position_variance_m2,
-                         robots, times, points, chip)
+                         robots, times, points, chip, covariance)
 
     @property
     def chip_detector(self) -> ChipDetector:
