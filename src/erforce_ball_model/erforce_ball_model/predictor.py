@@ -58,7 +58,7 @@ from erforce_interfaces.wire.robot_config import BALL_WALL_RESTITUTION, FieldCon
 _DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
 
 __all__ = ["CATCH_TIME_NEVER", "MODEL_ROWS", "PHASE_NAMES", "BallFrame", "BallPredictor", "FrameTimes",
-           "PredictorConfig"]
+           "PredictorConfig", "chip_covariances"]
 
 CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.wire.contract says the same)
 MODEL_ROWS = ("in_use", "fit", "std_error")  # the rows of model_rows (erforce_interfaces.wire.contract says the same)
@@ -171,6 +171,21 @@ class BallFrame:
         its roll ends)."""
         x, y = (self.trajectory if self.chip is None else self.chip).stop_point.tolist()
         return x, y
+
+
+# the standard error [m, m/s] a chip's state is given when its fit does not determine one: the field's size
+_UNKNOWN_STD = 10.0
+
+
+def chip_covariances(frame: BallFrame) -> tuple[np.ndarray, np.ndarray]:
+    """What /ball/state carries of a chip's uncertainty: the covariance (3, 3) of (x, y, z) and of (vx, vy, vz) at
+    the frame (its ``chip_covariance``; where the fit determines none, the filter's position variance on x and y and
+    ``_UNKNOWN_STD`` squared for the rest: finite, and saying "unknown")."""
+    cov = frame.chip_covariance
+    if cov is None or not np.isfinite(cov).all():
+        unknown = _UNKNOWN_STD**2
+        return np.diag([frame.position_variance_m2, frame.position_variance_m2, unknown]), np.eye(3) * unknown
+    return cov[:3, :3].copy(), cov[3:, 3:].copy()
 
 
 def _ignore(*_args) -> None:
