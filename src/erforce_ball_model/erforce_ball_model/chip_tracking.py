@@ -228,8 +228,8 @@ def flight_covariance(rows: np.ndarray, fit: ChipFit, origin, g_mps2: float, noi
     From one camera the height and the ground distance trade off along the camera's ray: few early sightings leave
     ``vz`` (and with it the height) far less certain than the ground track."""
     origin_xy = None if origin is None else [origin[:2]]
-    a, _, _ = _system(rows, [fit.t_launch_s], origin_xy, g_mps2, True, pre_velocity_mps)
-    a, n = a[0], len(rows)
+    a, b, _ = _system(rows, [fit.t_launch_s], origin_xy, g_mps2, True, pre_velocity_mps)
+    a, b, n = a[0], b[0], len(rows)
     tau = rows[:, 0] - fit.t_launch_s
     post = tau > 0.0
     kx, ky = (rows[:, 1] - rows[:, 3]) / rows[:, 5], (rows[:, 2] - rows[:, 4]) / rows[:, 5]
@@ -241,6 +241,13 @@ def flight_covariance(rows: np.ndarray, fit: ChipFit, origin, g_mps2: float, noi
     jac[n:2 * n, 5] = np.where(post, -(fit.vy_mps + ky * vz_now), -pre_velocity_mps[1])
     if origin is not None:
         jac[2 * n:, 5] = -ORIGIN_WEIGHT * np.asarray(origin[2:4], dtype=float)
+    # a ray residual is the sighting's error times (cz - z) / cz: per unit of the sighting's noise it is the
+    # derivative of where the camera sees the ball
+    z_m = np.where(post, tau * (fit.vz_mps - 0.5 * g_mps2 * tau), 0.0)
+    scale = np.ones(a.shape[0])
+    scale[:n] = scale[n:2 * n] = rows[:, 5] / np.maximum(rows[:, 5] - z_m, 1e-3)
+    jac *= scale[:, None]
+    rss_m2 = float(np.sum((scale * (a @ np.array(fit[1:6]) - b)) ** 2))
     basis = np.eye(6)
     if tan_angle is not None:  # vz follows (vx, vy): the unknowns are (x0, y0, vx, vy, t_launch)
         speed = math.hypot(fit.vx_mps, fit.vy_mps)
@@ -257,7 +264,7 @@ def flight_covariance(rows: np.ndarray, fit: ChipFit, origin, g_mps2: float, noi
         if not np.linalg.cond(jtj) < 1e14:
             return None
     dof = j.shape[0] - j.shape[1]
-    sigma2 = noise_m**2 if dof <= 0 else max(noise_m**2, fit.rss_m2 / dof)
+    sigma2 = noise_m**2 if dof <= 0 else max(noise_m**2, rss_m2 / dof)
     return basis @ np.linalg.inv(jtj) @ basis.T * sigma2
 
 
@@ -284,7 +291,11 @@ def within_kicker_limits(launch: np.ndarray, covariance: np.ndarray, min_elevati
     if kept < 0.01 * len(samples):
         return None
     inside = samples[ok]
-    return inside.mean(axis=0), np.cov(inside, rowvar=False)
+    mean = inside.mean(axis=0)
+    # the limits' own spread is too sure where they disagree with the fit (most of it beyond them: the sightings'
+    # noise, a camera or a model off); the distance they moved the fit counts as an error as well
+    shift = mean - launch
+    return mean, np.cov(inside, rowvar=False) + np.outer(shift, shift)
 
 
 def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
