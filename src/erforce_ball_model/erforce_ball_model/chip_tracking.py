@@ -70,7 +70,7 @@ ORIGIN_WEIGHT = 2.0
 KICK_SPEED_LIMIT_MPS = 6.5
 
 # Fixed standard normal draws (antithetic pairs: their mean is exactly 0) for the flight under the kicker's limits.
-_DRAWS = np.random.default_rng(37).standard_normal((1024, 6))
+_DRAWS = np.random.default_rng(37).standard_normal((256, 6))
 _DRAWS = np.concatenate([_DRAWS, -_DRAWS])
 
 
@@ -274,8 +274,22 @@ def within_kicker_limits(launch: np.ndarray, covariance: np.ndarray, min_elevati
     kicker launched it: the mean and covariance of the fit's Gaussian restricted to the flights a chip kicker
     launches (speed at most ``max_speed_mps``, elevation in range), a uniform prior over them. A fit well inside
     comes back as it is; one that its uncertainty lets out of range moves in (along the camera's ray, where one
-    camera's fit is unsure) and its covariance shrinks to what the limits leave. None when (almost) no flight within
-    the fit's uncertainty is one a kicker launches."""
+    camera's fit is unsure), its covariance the spread the limits leave plus the move. None when (almost) no flight
+    within the fit's uncertainty is one a kicker launches. The Gaussian's part within them is taken from fixed
+    draws (deterministic)."""
+    vx, vy, vz = launch[2:5].tolist()
+    v_ground = math.hypot(vx, vy)
+    speed = math.hypot(v_ground, vz)
+    if speed > 0.0 and v_ground > 0.0:  # linearised: the limits 4 standard errors away or more leave the fit as it is
+        d_speed = np.array([0.0, 0.0, vx / speed, vy / speed, vz / speed, 0.0])
+        d_elevation = np.array([0.0, 0.0, -vz * vx / v_ground, -vz * vy / v_ground, v_ground, 0.0]) / speed**2
+        std_speed = math.sqrt(max(d_speed @ covariance @ d_speed, 0.0))
+        std_elevation_deg = math.degrees(math.sqrt(max(d_elevation @ covariance @ d_elevation, 0.0)))
+        elevation_deg = math.degrees(math.atan2(vz, v_ground))
+        if (speed + 4.0 * std_speed <= max_speed_mps
+                and min_elevation_deg <= elevation_deg - 4.0 * std_elevation_deg
+                and elevation_deg + 4.0 * std_elevation_deg <= max_elevation_deg):
+            return launch, covariance
     try:
         root = np.linalg.cholesky(covariance + 1e-18 * np.eye(6))
     except np.linalg.LinAlgError:
