@@ -121,7 +121,8 @@ def test_a_fit_within_the_kickers_limits_stays_and_one_beyond_them_moves_in():
     mean, cov = within_kicker_limits(fast, wide, 15.0, 75.0)
     assert 2.0 < mean[4] < math.sqrt(6.5**2 - 4.0)
     assert (mean[4] - 7.0) ** 2 < cov[4, 4] < (mean[4] - 7.0) ** 2 + 4.0
-    assert mean[[0, 1, 5]] == pytest.approx(launch[[0, 1, 5]], abs=1e-4)  # the rest barely moves
+    # the rest (uncorrelated with vz here) stays within a third of its standard error (1 mm, 1 ms)
+    assert mean[[0, 1, 5]] == pytest.approx(launch[[0, 1, 5]], abs=3e-4)
     assert within_kicker_limits(np.r_[launch[:4], 30.0, launch[5]], small, 15.0, 75.0) is None
 
 
