@@ -63,6 +63,33 @@ def test_the_flights_covariance_is_the_cameras_noise_through_its_projection():
     assert std[2] / std[4] == pytest.approx(0.3125, rel=0.2) and std[3] / std[4] == pytest.approx(0.075, rel=0.2)
 
 
+def test_at_a_known_elevation_the_flight_has_five_unknowns():
+    # a kick hint's fit (vz = tan(60 deg) |v|): the same projection's Jacobian over (x0, y0, vx, vy, t_launch)
+    tan_angle = math.tan(math.radians(60.0))
+    times = np.r_[0.5 - 0.003 - np.arange(5)[::-1] / 70.0, 0.5 - 0.003 + np.arange(1, 5) / 70.0]
+    cov = flight_covariance(sightings(times), fit_of(LAUNCH), None, G, NOISE_M, tan_angle=tan_angle)
+
+    def seen_at_angle(q, t):
+        x0, y0, vx, vy, t_launch = q
+        return seen((x0, y0, vx, vy, tan_angle * math.hypot(vx, vy), t_launch), t)
+
+    free = np.array([LAUNCH[0], LAUNCH[1], LAUNCH[2], LAUNCH[3], LAUNCH[5]])
+    jac = np.zeros((2 * len(times), 5))
+    for j in range(5):
+        step = np.zeros(5)
+        step[j] = 1e-6
+        hi = np.array([seen_at_angle(free + step, t) for t in times])
+        lo = np.array([seen_at_angle(free - step, t) for t in times])
+        jac[:, j] = ((hi - lo) / 2e-6).T.reshape(-1)
+    expected = NOISE_M**2 * np.linalg.inv(jac.T @ jac)
+    keep = [0, 1, 2, 3, 5]
+    assert cov[np.ix_(keep, keep)] == pytest.approx(expected, rel=1e-5, abs=1e-12)
+    # along +x vz moves with vx alone: var(vz) = tan^2 var(vx); far surer than the free fit's from these frames
+    assert cov[4, 4] == pytest.approx(tan_angle**2 * cov[2, 2], rel=1e-9)
+    free_cov = flight_covariance(sightings(times), fit_of(LAUNCH), None, G, NOISE_M)
+    assert 5.0 * math.sqrt(cov[4, 4]) < math.sqrt(free_cov[4, 4])
+
+
 def test_every_sighting_twice_halves_the_variances():
     # sigma^2 / N: the same sightings from a second camera at the same place double N
     times = np.r_[0.49, 0.495, 0.5 + np.arange(1, 8) / 70.0]
