@@ -180,9 +180,17 @@ _UNKNOWN_STD = 10.0
 def chip_covariances(frame: BallFrame) -> tuple[np.ndarray, np.ndarray]:
     """What /ball/state carries of a chip's uncertainty: the covariance (3, 3) of (x, y, z) and of (vx, vy, vz) at
     the frame (its ``chip_covariance``; where the fit determines none, the filter's position variance on x and y and
-    ``_UNKNOWN_STD`` squared for the rest: finite, and saying "unknown")."""
+    ``_UNKNOWN_STD`` squared for the rest: finite, and saying "unknown").
+
+    >>> frame = BallFrame(0.0, (0.0, 0.0), None, None, "chip", False, 4e-6, [], [], [], None, np.diag([1e-6] * 6))
+    >>> xyz, vxyz = chip_covariances(frame)
+    >>> np.diag(xyz).tolist(), float(vxyz[2, 2])
+    ([1e-06, 1e-06, 1e-06], 1e-06)
+    >>> np.diag(chip_covariances(dataclasses.replace(frame, chip_covariance=None))[0]).tolist()
+    [4e-06, 4e-06, 100.0]
+    """
     cov = frame.chip_covariance
-    if cov is None or not np.isfinite(cov).all():
+    if cov is None or not np.isfinite(cov).all() or (np.diag(cov) < 0.0).any():
         unknown = _UNKNOWN_STD**2
         return np.diag([frame.position_variance_m2, frame.position_variance_m2, unknown]), np.eye(3) * unknown
     return cov[:3, :3].copy(), cov[3:, 3:].copy()
