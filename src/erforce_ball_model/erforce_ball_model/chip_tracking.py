@@ -19,6 +19,11 @@ cameras at one instant disagree by a height ``height_sigma`` standard errors abo
 zero). Until the first touchdown every new sighting refines the fit; then the chip model
 (chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
 
+What is reported of a fit taken: its covariance (``flight_covariance``; from one camera the first height is
+unsure by tens of cm, along the camera's ray), and the flight within the kicker's limits (``within_kicker_limits``:
+the noise that shows a chip early also overstates its height), with the state's covariance at any time
+(``ChipDetector.state_covariance_at``).
+
 >>> cameras = ((-3.0, 0.0, 4.0), (3.0, 1.0, 4.0))
 >>> truth = ChipTrajectory((1.0, 0.5, 0.0), (2.0, 0.0, 2.0), ChipParams())  # kicked at t = 0 from (1, 0.5)
 >>> detector = ChipDetector(None, ChipParams())

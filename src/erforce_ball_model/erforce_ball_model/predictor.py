@@ -14,8 +14,8 @@ configured field is None).
 Chipped balls: given the camera of each sighting (``ball_frame``'s ``camera_m``, other cameras' sightings of
 the same instant through ``ball_sighting``), a chip detector beside the ball filter (chip_tracking.ChipDetector)
 judges each kick the filter sees; a chip it finds is the frame's ``chip`` (chip_model.ChipTrajectory at the
-frame's stamp, with ``z_m`` and ``vz_mps``; phase "chip") until it rolls, when the filter takes the ball over
-from the chip's roll.
+frame's stamp, with ``z_m`` and ``vz_mps``, its state's covariance ``chip_covariance``; phase "chip") until it
+rolls, when the filter takes the ball over from the chip's roll.
 
 The ball_predictor node converts messages and publishes what this object answers; the in-process scenes
 and the bench run the same object, so the catcher is tuned on the code that runs.
