@@ -103,7 +103,13 @@ def test_a_chip_in_the_plant_shows_on_ball_state_in_the_air(director):
     assert t_seen - t_launch < FLIGHT_S, "seen in the air only after the first touchdown"
     # a height the flight can have: between the ground and its apex
     apex_m = (SPEED_MPS * math.sin(math.radians(ANGLE_DEG))) ** 2 / (2.0 * G_MPS2)
-    assert 0.05 < odometry_height(first)[0] <= apex_m + 0.05
+    tau = t_seen - t_launch
+    z_true = SPEED_MPS * math.sin(math.radians(ANGLE_DEG)) * tau - 0.5 * G_MPS2 * tau * tau
+    z_var = first.pose.covariance[14]  # the height's variance (row and column z)
+    seen = f"z {odometry_height(first)[0]:.3f} m (true {z_true:.3f} m), its standard error {math.sqrt(z_var):.3f} m"
+    print(f"the chip on /ball/state {tau:.3f} s after the launch: {seen}")
+    assert 0.05 < odometry_height(first)[0] <= apex_m + 0.05, seen
+    assert 0.0 < z_var < 1.0 and first.twist.covariance[14] > 0.0, seen  # a chip's height comes with its variance
     assert "consumer failed" not in launch.output()
 
 

@@ -72,3 +72,19 @@ def test_a_chipped_balls_height_and_vertical_speed_ride_in_position_z_and_linear
     assert conv.odometry_height(conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0))) == (0.0, 0.0)
     with pytest.raises(conv.ConversionError, match="vz"):
         conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), vz_mps=math.nan)
+
+
+def test_a_chips_covariances_ride_in_rows_and_columns_0_to_2():
+    xyz = np.array([[4e-6, 1e-6, 3e-4], [1e-6, 5e-6, 2e-5], [3e-4, 2e-5, 0.0225]])  # z: 0.15 m standard error
+    vxyz = np.diag([0.01, 0.02, 1.5**2])
+    data = conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), "ball", z_m=0.3, vz_mps=2.0,
+                             position_variance_m2=9.0, xyz_covariance=xyz, vxyz_covariance=vxyz)
+    msg = deserialize_message(data, Odometry)
+    pose, twist = np.reshape(msg.pose.covariance, (6, 6)), np.reshape(msg.twist.covariance, (6, 6))
+    assert pose[2, 2] == 0.0225 and twist[2, 2] == 2.25  # row-major (x, y, z, rot x, rot y, rot z): z at 14
+    assert msg.pose.covariance[14] == 0.0225 and msg.pose.covariance[2] == 3e-4 == msg.pose.covariance[12]
+    assert np.array_equal(pose[:3, :3], xyz) and np.array_equal(twist[:3, :3], vxyz)
+    assert not pose[3:].any() and not pose[:, 3:].any() and not twist[3:].any()
+    for bad in (np.full((3, 3), math.nan), -np.eye(3), np.eye(2)):
+        with pytest.raises(conv.ConversionError, match="pose covariance"):
+            conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), xyz_covariance=bad)

@@ -30,7 +30,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, ChipParams
 from erforce_ball_model.catch_time import RobotLimits, load_kernels
-from erforce_ball_model.predictor import BallFrame, BallPredictor, FrameTimes, PredictorConfig
+from erforce_ball_model.predictor import BallFrame, BallPredictor, FrameTimes, PredictorConfig, chip_covariances
 from erforce_ball_model.tracking import TrackerConfig
 from erforce_ball_model.tracking import load_kernels as load_ball_filter_kernels
 from erforce_interfaces.runtime.executor import run_sampled, take_queued
@@ -507,10 +507,13 @@ class BallPredictorNode(SchemaNode):
         checked) before the first goes out."""
         t_s, f = frame.t_s, frame.trajectory.floats
         x, y, z, vx, vy, vz = f.x_m, f.y_m, 0.0, f.vx_mps, f.vy_mps, 0.0
+        xyz_cov = vxyz_cov = None
         if frame.chip is not None:  # the chip's state (the flat filter follows where the cameras see it)
             (x, y, z), (vx, vy, vz) = frame.chip.position_m.tolist(), frame.chip.velocity_mps.tolist()
+            xyz_cov, vxyz_cov = chip_covariances(frame)
         state = odometry_cdr(t_s, (x, y, 0.0), (vx, vy, 0.0), child_frame_id="ball", z_m=z, vz_mps=vz,
-                             position_variance_m2=frame.position_variance_m2)
+                             position_variance_m2=frame.position_variance_m2, xyz_covariance=xyz_cov,
+                             vxyz_covariance=vxyz_cov)
         stop_point = point_cdr(t_s, frame.stop_point_m)
         v_shoot = float64_cdr(f.v_shoot_mps)
         self._phase_msg.data = frame.phase

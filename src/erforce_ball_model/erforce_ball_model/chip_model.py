@@ -232,6 +232,32 @@ class ChipTrajectory:
             roll, t_roll = self.roll, self.roll_start_s - dt
         return _of_parts(self.params, hops, roll, t_roll)
 
+    def sensitivity_at(self, t_s: float) -> np.ndarray:
+        """How the state ``(x, y, z, vx, vy, vz)`` at ``t_s`` (before the roll) moves with the start state: the
+        (6, 6) derivative, to carry a covariance along the flight. Within a hop the projectile's, ``p += v t``; at
+        each touchdown the bounce's saltation matrix (the dampings, and the touchdown time moving with the height:
+        a ball a little higher lands a little later, ``dT = dz / |vz|``)."""
+        t = BallTrajectory._time(t_s)
+        if not isinstance(t, float) or not 0.0 <= t < self.roll_start_s:
+            raise ValueError(f"t_s: one time in [0, {self.roll_start_s}) (in the air), got {t_s!r}")
+        p, g, out = self.params, self.params.g_mps2, np.eye(6)
+        for k, hop in enumerate(self.hops):
+            tau = min(t - hop.t_start_s, hop.duration_s)
+            flow = np.eye(6)
+            flow[0, 3] = flow[1, 4] = flow[2, 5] = tau
+            out = flow @ out
+            if t < hop.t_start_s + hop.duration_s:
+                return out
+            d_xy = p.damping_xy_first_hop if k == 0 else p.damping_xy_other_hops
+            vz_in = hop.vz_mps - g * hop.duration_s  # < 0: landing
+            reset = np.diag([1.0, 1.0, 1.0, d_xy, d_xy, -p.damping_z])
+            # f+ - R f- over vz-: the bounce's effect of landing dz / |vz| later (the flows before and after it)
+            jump = np.array([(d_xy - 1.0) * hop.vx_mps, (d_xy - 1.0) * hop.vy_mps, -(1.0 + p.damping_z) * vz_in,
+                             0.0, 0.0, -(1.0 + p.damping_z) * g]) / vz_in
+            reset[:, 2] += jump
+            out = reset @ out
+        return out
+
     def _state_at(self, t_s, velocity: bool) -> np.ndarray:
         t = np.asarray(BallTrajectory._time(t_s), dtype=float)
         flat = t.reshape(-1)

@@ -19,6 +19,11 @@ cameras at one instant disagree by a height ``height_sigma`` standard errors abo
 zero). Until the first touchdown every new sighting refines the fit; then the chip model
 (chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
 
+What is reported of a fit taken: its covariance (``flight_covariance``; from one camera the first height is
+unsure by tens of cm, along the camera's ray), and the flight within the kicker's limits (``within_kicker_limits``:
+the noise that shows a chip early also overstates its height), with the state's covariance at any time
+(``ChipDetector.state_covariance_at``).
+
 >>> cameras = ((-3.0, 0.0, 4.0), (3.0, 1.0, 4.0))
 >>> truth = ChipTrajectory((1.0, 0.5, 0.0), (2.0, 0.0, 2.0), ChipParams())  # kicked at t = 0 from (1, 0.5)
 >>> detector = ChipDetector(None, ChipParams())
@@ -55,7 +60,7 @@ from erforce_ball_model.ball_model import (
 from erforce_ball_model.chip_model import ChipTrajectory
 
 __all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_flight_at_angle",
-           "fit_ground", "triangulate_height"]
+           "fit_ground", "flight_covariance", "triangulate_height", "within_kicker_limits"]
 
 
 # A ground fit's iterations: its deceleration along the motion from the previous iteration's speed.
@@ -64,6 +69,14 @@ GROUND_ITERATIONS = 3
 # The launch point (the flat filter's ball before the kick, averaged over the frames it lay there) weighs as
 # this many sightings' standard errors in one: twice as sure as one sighting.
 ORIGIN_WEIGHT = 2.0
+
+
+# The league's limit on a kicked ball's speed [m/s]: with the kicker's elevations, the flights a reported chip can be.
+KICK_SPEED_LIMIT_MPS = 6.5
+
+# Fixed standard normal draws (antithetic pairs: their mean is exactly 0) for the flight under the kicker's limits.
+_DRAWS = np.random.default_rng(37).standard_normal((256, 6))
+_DRAWS = np.concatenate([_DRAWS, -_DRAWS])
 
 
 @dataclass(frozen=True)
@@ -208,6 +221,102 @@ def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, no
     return ChipFit(float(t_launch_s), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[0]))
 
 
+def flight_covariance(rows: np.ndarray, fit: ChipFit, origin, g_mps2: float, noise_m: float,
+                      pre_velocity_mps=(0.0, 0.0), tan_angle: float | None = None) -> np.ndarray | None:
+    """The covariance (6, 6) of a fitted flight's ``(x0, y0, vx, vy, vz, t_launch)`` by Gauss-Newton,
+    ``sigma^2 (J^T J)^-1``: J the derivatives of ``_system``'s ray residuals at the fit, the launch time's column
+    included (the fit searched it); ``sigma`` the larger of ``noise_m`` and the fit's own rms residual per degree
+    of freedom (noise or a model worse than assumed widens it). ``origin``: None, or ``(x, y, vx, vy)``: the launch
+    point prior at ``t_launch`` and how it moves with it. ``tan_angle``: the fit was at a known elevation (``vz =
+    tan_angle |v|``, fit_flight_at_angle), one unknown fewer. None when the sightings do not determine it.
+
+    From one camera the height and the ground distance trade off along the camera's ray: few early sightings leave
+    ``vz`` (and with it the height) far less certain than the ground track."""
+    origin_xy = None if origin is None else [origin[:2]]
+    a, b, _ = _system(rows, [fit.t_launch_s], origin_xy, g_mps2, True, pre_velocity_mps)
+    a, b, n = a[0], b[0], len(rows)
+    tau = rows[:, 0] - fit.t_launch_s
+    post = tau > 0.0
+    kx, ky = (rows[:, 1] - rows[:, 3]) / rows[:, 5], (rows[:, 2] - rows[:, 4]) / rows[:, 5]
+    vz_now = fit.vz_mps - g_mps2 * tau
+    jac = np.zeros((a.shape[0], 6))
+    jac[:, :5] = a
+    # d residual / d t_launch: the flight's projected ground speed after the launch, the old motion's before it
+    jac[:n, 5] = np.where(post, -(fit.vx_mps + kx * vz_now), -pre_velocity_mps[0])
+    jac[n:2 * n, 5] = np.where(post, -(fit.vy_mps + ky * vz_now), -pre_velocity_mps[1])
+    if origin is not None:
+        jac[2 * n:, 5] = -ORIGIN_WEIGHT * np.asarray(origin[2:4], dtype=float)
+    # a ray residual is the sighting's error times (cz - z) / cz: per unit of the sighting's noise it is the
+    # derivative of where the camera sees the ball
+    z_m = np.where(post, tau * (fit.vz_mps - 0.5 * g_mps2 * tau), 0.0)
+    scale = np.ones(a.shape[0])
+    scale[:n] = scale[n:2 * n] = rows[:, 5] / np.maximum(rows[:, 5] - z_m, 1e-3)
+    jac *= scale[:, None]
+    rss_m2 = float(np.sum((scale * (a @ np.array(fit[1:6]) - b)) ** 2))
+    basis = np.eye(6)
+    if tan_angle is not None:  # vz follows (vx, vy): the unknowns are (x0, y0, vx, vy, t_launch)
+        speed = math.hypot(fit.vx_mps, fit.vy_mps)
+        if not speed > 0.0:
+            return None
+        basis = np.delete(basis, 4, axis=1)
+        basis[4, 2:4] = tan_angle * fit.vx_mps / speed, tan_angle * fit.vy_mps / speed
+    j = jac @ basis
+    jtj = j.T @ j
+    if not np.linalg.cond(jtj) < 1e14:  # the launch time not determined by itself: taken as the fit's
+        basis[5] = 0.0
+        j = jac @ basis
+        jtj = j.T @ j + np.diag(np.where(np.any(basis != 0.0, axis=0), 0.0, 1.0))
+        if not np.linalg.cond(jtj) < 1e14:
+            return None
+    dof = j.shape[0] - j.shape[1]
+    sigma2 = noise_m**2 if dof <= 0 else max(noise_m**2, rss_m2 / dof)
+    return basis @ np.linalg.inv(jtj) @ basis.T * sigma2
+
+
+def within_kicker_limits(launch: np.ndarray, covariance: np.ndarray, min_elevation_deg: float,
+                         max_elevation_deg: float, max_speed_mps: float = KICK_SPEED_LIMIT_MPS):
+    """A fitted flight's ``(x0, y0, vx, vy, vz, t_launch)`` and covariance (flight_covariance) given that a
+    kicker launched it: the mean and covariance of the fit's Gaussian restricted to the flights a chip kicker
+    launches (speed at most ``max_speed_mps``, elevation in range), a uniform prior over them. A fit well inside
+    comes back as it is; one that its uncertainty lets out of range moves in (along the camera's ray, where one
+    camera's fit is unsure), its covariance the spread the limits leave plus the move. None when (almost) no flight
+    within the fit's uncertainty is one a kicker launches. The Gaussian's part within them is taken from fixed
+    draws (deterministic)."""
+    vx, vy, vz = launch[2:5].tolist()
+    v_ground = math.hypot(vx, vy)
+    speed = math.hypot(v_ground, vz)
+    if speed > 0.0 and v_ground > 0.0:  # linearised: the limits 4 standard errors away or more leave the fit as it is
+        d_speed = np.array([0.0, 0.0, vx / speed, vy / speed, vz / speed, 0.0])
+        d_elevation = np.array([0.0, 0.0, -vz * vx / v_ground, -vz * vy / v_ground, v_ground, 0.0]) / speed**2
+        std_speed = math.sqrt(max(d_speed @ covariance @ d_speed, 0.0))
+        std_elevation_deg = math.degrees(math.sqrt(max(d_elevation @ covariance @ d_elevation, 0.0)))
+        elevation_deg = math.degrees(math.atan2(vz, v_ground))
+        if (speed + 4.0 * std_speed <= max_speed_mps
+                and min_elevation_deg <= elevation_deg - 4.0 * std_elevation_deg
+                and elevation_deg + 4.0 * std_elevation_deg <= max_elevation_deg):
+            return launch, covariance
+    try:
+        root = np.linalg.cholesky(covariance + 1e-18 * np.eye(6))
+    except np.linalg.LinAlgError:
+        return None
+    samples = launch + _DRAWS @ root.T
+    v_ground = np.hypot(samples[:, 2], samples[:, 3])
+    elevation_deg = np.degrees(np.arctan2(samples[:, 4], v_ground))
+    ok = ((np.hypot(v_ground, samples[:, 4]) <= max_speed_mps) & (elevation_deg >= min_elevation_deg)
+          & (elevation_deg <= max_elevation_deg))
+    kept = int(np.count_nonzero(ok))
+    if kept == len(samples):
+        return launch, covariance
+    if kept < 0.01 * len(samples):
+        return None
+    inside = samples[ok]
+    mean = inside.mean(axis=0)
+    # the limits' own spread is too sure where they disagree with the fit (most of it beyond them: the sightings'
+    # noise, a camera or a model off); the distance they moved the fit counts as an error as well
+    shift = mean - launch
+    return mean, np.cov(inside, rowvar=False) + np.outer(shift, shift)
+
+
 def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
                         tan_angle: float, iterations: int = 3, pre_velocity_mps=(0.0, 0.0)) -> ChipFit | None:
     """As ``fit_flight`` with the launch's elevation known (``vz = tan_angle |v|``, the kicker's angle): four
@@ -298,6 +407,7 @@ class ChipDetector:
         self._pre_velocity = (0.0, 0.0)  # the old motion's velocity (the ball before the launch)
         self._origin_seen = False  # the old motion's own sightings pin the launch point
         self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
+        self._launch_covariance: np.ndarray | None = None  # the reported flight's (launch_covariance)
 
     def hint(self, t_s: float, angle_deg: float) -> None:
         """The kicker's word: it kicked at ``t_s`` with the elevation ``angle_deg`` (0: flat; a chip in (0, 90)).
@@ -463,17 +573,18 @@ class ChipDetector:
             if len(first_hop) < len(rows):
                 rows = first_hop
                 fit = self._best_flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
+        tan_angle = None
         if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
                 fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
-            fit = self._best_flight(rows, math.tan(math.radians(self.hint_angle_deg)))
+            tan_angle = math.tan(math.radians(self.hint_angle_deg))
+            fit = self._best_flight(rows, tan_angle)
         if fit is None or not self._is_chip(fit, rows):
             return
         try:
-            chip = ChipTrajectory((fit.x_m, fit.y_m, 0.0), (fit.vx_mps, fit.vy_mps, fit.vz_mps), self.params,
-                                  self.ball_params)
+            chip, covariance = self._reported_flight(fit, rows, tan_angle)
         except ValueError:
             return
-        self.fit, self._chip = fit, chip
+        self.fit, self._chip, self._launch_covariance = fit, chip, covariance
         if self.detected_at_s is None:
             self.detected_at_s = t_s
 
@@ -544,6 +655,48 @@ class ChipDetector:
         if dt >= chip.roll_start_s:
             return None
         return chip.advanced(max(dt, 0.0))
+
+    def _reported_flight(self, fit: ChipFit, rows: np.ndarray, tan_angle: float | None):
+        """The chip reported of a fit taken, and its launch covariance: the fit's flight_covariance, then the
+        flight within the kicker's limits (within_kicker_limits; the fit's own launch time kept) -- one camera's
+        early fit trades height for ground distance along the ray, and a fit beyond what a kicker launches is the
+        noise's. The fit as it is where nothing of it is within them. Raises ValueError for a flight ChipTrajectory
+        refuses."""
+        origin = None
+        if self._before is not None and not self._origin_seen:  # as _origins: the flat filter's launch point
+            origin = (*self._origins([fit.t_launch_s])[0], self._before[3], self._before[4])
+        covariance = flight_covariance(rows, fit, origin, self.params.g_mps2, self.config.noise_m,
+                                       self._pre_velocity, tan_angle)
+        launch = np.array([fit.x_m, fit.y_m, fit.vx_mps, fit.vy_mps, fit.vz_mps, fit.t_launch_s])
+        if covariance is not None:
+            limited = within_kicker_limits(launch, covariance, self.config.min_elevation_deg,
+                                           self.config.max_elevation_deg)
+            if limited is not None:
+                launch, covariance = limited
+        x0, y0, vx, vy, vz = launch[:5].tolist()
+        return ChipTrajectory((x0, y0, 0.0), (vx, vy, max(vz, 0.0)), self.params, self.ball_params), covariance
+
+    def launch_covariance(self) -> np.ndarray | None:
+        """The covariance (6, 6) of the reported chip's ``(x0, y0, vx, vy, vz, t_launch)``; None while no chip is
+        detected or the sightings do not determine it."""
+        return None if self._chip is None else self._launch_covariance
+
+    def state_covariance_at(self, t_s: float) -> np.ndarray | None:
+        """The covariance (6, 6) of ``(x, y, z, vx, vy, vz)`` of ``chip_at(t_s)``: the fit's (launch_covariance)
+        carried along the flight and its bounces (ChipTrajectory.sensitivity_at; a later launch is the same
+        flight earlier). None when chip_at is None or the fit's covariance is."""
+        chip, cov = self._chip, self.launch_covariance()
+        if chip is None or cov is None:
+            return None
+        dt = max(t_s - self.fit.t_launch_s, 0.0)
+        if dt >= chip.roll_start_s:
+            return None
+        jac = np.zeros((6, 6))
+        # the launch state (x0, y0, 0, vx, vy, vz) from the fit's unknowns, then along the flight
+        jac[:, :5] = chip.sensitivity_at(dt)[:, [0, 1, 3, 4, 5]]
+        (vx, vy, vz) = chip.velocity_at(dt).tolist()
+        jac[:, 5] = -np.array([vx, vy, vz, 0.0, 0.0, -self.params.g_mps2])
+        return jac @ cov @ jac.T
 
     def hand_over(self, t_s: float) -> BallTrajectory | None:
         """Once, when the detected chip rolls at ``t_s``: its roll then, for the flat model to take over."""

@@ -14,8 +14,8 @@ configured field is None).
 Chipped balls: given the camera of each sighting (``ball_frame``'s ``camera_m``, other cameras' sightings of
 the same instant through ``ball_sighting``), a chip detector beside the ball filter (chip_tracking.ChipDetector)
 judges each kick the filter sees; a chip it finds is the frame's ``chip`` (chip_model.ChipTrajectory at the
-frame's stamp, with ``z_m`` and ``vz_mps``; phase "chip") until it rolls, when the filter takes the ball over
-from the chip's roll.
+frame's stamp, with ``z_m`` and ``vz_mps``, its state's covariance ``chip_covariance``; phase "chip") until it
+rolls, when the filter takes the ball over from the chip's roll.
 
 The ball_predictor node converts messages and publishes what this object answers; the in-process scenes
 and the bench run the same object, so the catcher is tuned on the code that runs.
@@ -58,7 +58,7 @@ from erforce_interfaces.wire.robot_config import BALL_WALL_RESTITUTION, FieldCon
 _DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
 
 __all__ = ["CATCH_TIME_NEVER", "MODEL_ROWS", "PHASE_NAMES", "BallFrame", "BallPredictor", "FrameTimes",
-           "PredictorConfig"]
+           "PredictorConfig", "chip_covariances"]
 
 CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.wire.contract says the same)
 MODEL_ROWS = ("in_use", "fit", "std_error")  # the rows of model_rows (erforce_interfaces.wire.contract says the same)
@@ -146,6 +146,9 @@ class BallFrame:
     catch_points_m: list[tuple[float, float] | None]
     # a chipped ball at t_s, from its detection until it rolls (then the flat filter's trajectory is the ball)
     chip: ChipTrajectory | None = None
+    # the covariance (6, 6) of the chip's (x, y, z, vx, vy, vz) at t_s (ChipDetector.state_covariance_at); None
+    # without a chip or where its fit does not determine one
+    chip_covariance: np.ndarray | None = None
 
     @property
     def z_m(self) -> float:
@@ -158,11 +161,41 @@ class BallFrame:
         return 0.0 if self.chip is None else float(self.chip.velocity_mps[2])
 
     @property
+    def z_std_m(self) -> float:
+        """The standard error of ``z_m`` [m] (0 on the ground; inf for a chip whose fit does not determine it)."""
+        if self.chip is None:
+            return 0.0
+        return math.inf if self.chip_covariance is None else math.sqrt(max(float(self.chip_covariance[2, 2]), 0.0))
+
+    @property
     def stop_point_m(self) -> tuple[float, float]:
         """Where the ball comes to rest, inside the field's wall (the trajectory reflects off it; a chip's: where
         its roll ends)."""
         x, y = (self.trajectory if self.chip is None else self.chip).stop_point.tolist()
         return x, y
+
+
+# the standard error [m, m/s] a chip's state is given when its fit does not determine one: the field's size
+_UNKNOWN_STD = 10.0
+
+
+def chip_covariances(frame: BallFrame) -> tuple[np.ndarray, np.ndarray]:
+    """What /ball/state carries of a chip's uncertainty: the covariance (3, 3) of (x, y, z) and of (vx, vy, vz) at
+    the frame (its ``chip_covariance``; where the fit determines none, the filter's position variance on x and y and
+    ``_UNKNOWN_STD`` squared for the rest: finite, and saying "unknown").
+
+    >>> frame = BallFrame(0.0, (0.0, 0.0), None, None, "chip", False, 4e-6, [], [], [], None, np.diag([1e-6] * 6))
+    >>> xyz, vxyz = chip_covariances(frame)
+    >>> np.diag(xyz).tolist(), float(vxyz[2, 2])
+    ([1e-06, 1e-06, 1e-06], 1e-06)
+    >>> np.diag(chip_covariances(dataclasses.replace(frame, chip_covariance=None))[0]).tolist()
+    [4e-06, 4e-06, 100.0]
+    """
+    cov = frame.chip_covariance
+    if cov is None or not np.isfinite(cov).all() or (np.diag(cov) < 0.0).any():
+        unknown = _UNKNOWN_STD**2
+        return np.diag([frame.position_variance_m2, frame.position_variance_m2, unknown]), np.eye(3) * unknown
+    return cov[:3, :3].copy(), cov[3:, 3:].copy()
 
 
 def _ignore(*_args) -> None:
@@ -388,8 +421,9 @@ class BallPredictor:
             phase = "stopped"
         else:
             phase = PHASE_NAMES[traj.phase]
+        covariance = None if chip is None else self._chip.state_covariance_at(t_s)
         return BallFrame(t_s, (x_m, y_m), status, traj, phase, bool(ball.uncertain), ball.position_variance_m2,
-                         robots, times, points, chip)
+                         robots, times, points, chip, covariance)
 
     @property
     def chip_detector(self) -> ChipDetector:

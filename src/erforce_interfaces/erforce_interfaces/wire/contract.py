@@ -290,7 +290,9 @@ VISION_BALL = Topic("/vision/ball", PointStamped, QOS_SENSOR, "plant (vision), s
 BALL_STATE = Topic("/ball/state", Odometry, QOS_STATE, "ball_predictor", "catcher, tools",
                    "filtered ball: pose [m], twist.linear [m/s] in `field`; covariance from the filter; a chipped "
                    "ball in the air: pose.position.z its centre's height above its resting height [m] and "
-                   "twist.linear.z its vertical speed [m/s] (both 0 on the ground)")
+                   "twist.linear.z its vertical speed [m/s] (both 0 on the ground), and the covariances' rows and "
+                   "columns 0-2 those of (x, y, z) and (vx, vy, vz) of the fitted flight (from one camera the "
+                   "height is far less sure than the ground track at first; 100 on a diagonal: not determined)")
 BALL_PHASE = Topic("/ball/phase", String, QOS_STATE, "ball_predictor", "tools",
                    "one of " + ", ".join(BALL_PHASES))
 BALL_STOP_POINT = Topic("/ball/stop_point", PointStamped, QOS_STATE, "ball_predictor", "tools",

@@ -257,9 +257,12 @@ def odometry_msg(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
 
 def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], child_frame_id: str = "",
                  frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
-                 position_variance_m2: float | None = None, z_m: float = 0.0, vz_mps: float = 0.0) -> bytes:
+                 position_variance_m2: float | None = None, z_m: float = 0.0, vz_mps: float = 0.0,
+                 xyz_covariance: np.ndarray | None = None, vxyz_covariance: np.ndarray | None = None) -> bytes:
     """``odometry_msg`` serialized (see the codec below), with the same checks; ``z_m`` and ``vz_mps`` go to
-    pose.position.z and twist.linear.z (/ball/state: a chipped ball's height and vertical speed)."""
+    pose.position.z and twist.linear.z (/ball/state: a chipped ball's height and vertical speed).
+    ``xyz_covariance`` / ``vxyz_covariance`` (3, 3): the covariance of (x, y, z) / (vx, vy, vz), the rows and
+    columns 0-2 of the pose's / twist's covariance (the first replaces ``position_variance_m2``'s diagonal)."""
     x, y, half = _finite("x", pose[0]), _finite("y", pose[1]), 0.5 * _finite("yaw", pose[2], 1.0e6)
     qz, qw = math.sin(half), math.cos(half)  # quaternion_from_yaw's, without a message object
     vx, vy = _finite("vx", velocity[0]), _finite("vy", velocity[1])
@@ -270,10 +273,28 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
         angular = (0.0, 0.0, _finite("wz", velocity[2]))
     variance = 0.0 if position_variance_m2 is None else _finite("position variance", position_variance_m2)
     stamp = _stamp_cdr(_seconds_to_ns(t_s))
+    if xyz_covariance is None and vxyz_covariance is None:
+        pose_cov, twist_cov = (variance, *_ZEROS[:6], variance, *_ZEROS[:28]), _ZEROS
+    else:
+        pose_cov, twist_cov = _covariance_6x6("pose", xyz_covariance, variance), _covariance_6x6(
+            "twist", vxyz_covariance, 0.0)
     # pose (position, orientation), its 6x6 covariance, twist (linear, angular), its covariance
     return _CDR_LE + stamp + _strings_cdr((frame_id, child_frame_id)) + _odometry_doubles.pack(
-        x, y, _finite("z", z_m), 0.0, 0.0, qz, qw, variance, *_ZEROS[:6], variance, *_ZEROS[:28], vx, vy,
-        _finite("vz", vz_mps), *angular, *_ZEROS)
+        x, y, _finite("z", z_m), 0.0, 0.0, qz, qw, *pose_cov, vx, vy, _finite("vz", vz_mps), *angular, *twist_cov)
+
+
+def _covariance_6x6(name: str, linear: np.ndarray | None, planar_variance: float) -> tuple[float, ...]:
+    """A pose's or twist's 6x6 covariance (row-major) with ``linear`` (3, 3) in rows and columns 0-2 (None: x and y
+    with ``planar_variance``); a non-finite or negative variance raises ConversionError."""
+    out = np.zeros((6, 6))
+    if linear is None:
+        out[0, 0] = out[1, 1] = planar_variance
+    else:
+        block = np.asarray(linear, dtype=float)
+        if block.shape != (3, 3) or not np.isfinite(block).all() or (np.diag(block) < 0.0).any():
+            raise ConversionError(f"{name} covariance: a finite (3, 3) with variances >= 0, got {linear!r}")
+        out[:3, :3] = block
+    return tuple(out.reshape(-1).tolist())
 
 
 def odometry_height(msg: Odometry | bytes) -> tuple[float, float]:
