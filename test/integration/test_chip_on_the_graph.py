@@ -172,3 +172,66 @@ def test_a_chip_kicked_by_a_robot_shows_on_ball_state_within_the_deadline(direct
     print(f"chip on /ball/state after the launch [s]: {[round(x, 3) for x in delays]}")
     assert max(delays) < KICK_DEADLINE_S, f"delays {delays} s, deadline {KICK_DEADLINE_S:.3f} s"
     assert "consumer failed" not in launch.output()
+
+
+OVERLAP_START = (1.0, 0.0)  # on the line y = 0, where cameras 1 (+y) and 3 (-y) overlap (|y| <= 0.25 m)
+OVERLAP_SPEED_MPS, OVERLAP_ANGLE_DEG = 3.0, 45.0  # along +x: apex 0.23 m, 0.43 s in the air; both cameras see it
+OVERLAP_FLIGHT_S = 2.0 * OVERLAP_SPEED_MPS * math.sin(math.radians(OVERLAP_ANGLE_DEG)) / G_MPS2
+OVERLAP_CHIPS = 3
+
+
+def truth_height_at(truth: list, t_s: float) -> float:
+    """The plant's true height of the ball at the ground-truth message nearest ``t_s``."""
+    return odometry_height(min(truth, key=lambda m: abs(odometry_from_msg(m)[0] - t_s)))[0]
+
+
+def test_a_chip_where_two_cameras_overlap_shows_with_its_triangulated_height(director):
+    """Launched (/sim/set_ball) along the overlap of two cameras, the chip is seen by both at each capture; their
+    disagreement is its height (two rays), which only the graph's camera points and sightings bring to the
+    predictor: the first state in the air comes early in the flight with a height near the truth's."""
+    d, graph, launch = director
+    probe = graph.probe
+    states, phases, truth = ball_topics(probe)
+    v_ground = OVERLAP_SPEED_MPS * math.cos(math.radians(OVERLAP_ANGLE_DEG))
+    vz = OVERLAP_SPEED_MPS * math.sin(math.radians(OVERLAP_ANGLE_DEG))
+    seen = []
+    for _ in range(OVERLAP_CHIPS):
+        d.place_ball(*OVERLAP_START)
+        states.clear()
+        try:
+            graph.spin_until(lambda: rests_at(states, OVERLAP_START, 0.02), 60.0, "the ball at rest on /ball/state")
+        except TimeoutError as exc:
+            last = [(round(t, 3), *p[:2].round(3), *v[:2].round(3)) for t, p, v, _ in map(odometry_from_msg,
+                                                                                          states[-5:])]
+            raise AssertionError(f"{exc}; the last states (t, x, y, vx, vy): {last}") from None
+        states.clear()
+        phases.clear()
+        truth.clear()
+        chip = odometry_msg(0.0, (*OVERLAP_START, 0.0), (v_ground, 0.0, 0.0))
+        chip.twist.twist.linear.z = vz
+        d.set_ball.publish(chip)
+
+        def launched_s() -> float | None:
+            up = [odometry_from_msg(m)[0] for m in truth if odometry_height(m)[0] > 0.0]
+            return min(up) if up else None
+
+        def seen_s() -> float | None:
+            up = [odometry_from_msg(m)[0] for m in states if odometry_height(m)[0] > 0.05]
+            return min(up) if up and any(m.data == "chip" for m in phases) else None
+
+        def truth_after(dt_s: float) -> bool:
+            t0 = launched_s()
+            return t0 is not None and odometry_from_msg(truth[-1])[0] > t0 + dt_s
+
+        graph.spin_until(lambda: seen_s() is not None or truth_after(1.0), 60.0,
+                         "a chip on /ball/state, or 1 s after the launch")
+        t_launch, t_seen = launched_s(), seen_s()
+        assert t_seen is not None, "the chip never showed on /ball/state in the air"
+        first = next(m for m in states if odometry_from_msg(m)[0] == t_seen)
+        seen.append((t_seen - t_launch, odometry_height(first)[0], truth_height_at(truth, t_seen)))
+        graph.spin_until(lambda: truth_after(OVERLAP_FLIGHT_S + 0.5), 60.0, "the chip landed")
+    print("chip in the overlap: (delay after the launch [s], first height [m], true height then [m]):",
+          [tuple(round(v, 3) for v in s) for s in seen])
+    assert max(s[0] for s in seen) < OVERLAP_FLIGHT_S / 2.0
+    assert all(abs(z - z_true) < 0.05 for _, z, z_true in seen)
+    assert "consumer failed" not in launch.output()

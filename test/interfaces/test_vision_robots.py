@@ -166,14 +166,15 @@ def test_message_and_bytes_are_read_alike_or_refused_alike(points, sec, nanosec,
 
 def test_the_builder_refuses_what_the_reader_refuses():
     good = (1.0, 3.0, 1.5, -2.0, 0.5)
-    for k, bad in ((2, math.nan), (2, math.inf), (3, 2e3), (4, math.nan), (0, 3.0), (1, -1.0), (1, 1.5),
+    for k, bad in ((2, math.nan), (2, math.inf), (3, 2e3), (4, math.nan), (0, 3.0), (0, 5.0), (1, -1.0), (1, 1.5),
                    (1, math.nan)):
         row = list(good)
         row[k] = bad
         with pytest.raises(conv.ConversionError, match="robot 1: "):
             clouds.vision_robots_cdr(1.0, [good, row])
         point = [row[2], row[3], 0.0, row[4], row[0], row[1]]
-        with pytest.raises(conv.ConversionError, match="robot 0: "):
+        # team 3 on the ground is a camera where no camera can be
+        with pytest.raises(conv.ConversionError, match="camera: z" if row[0] == 3.0 else "robot 0: "):
             clouds.vision_robots_from_msg(cloud(1.0, [point]))
     with pytest.raises(conv.ConversionError, match="robot 0: team"):  # a ball is no robot row: balls= takes it
         clouds.vision_robots_cdr(1.0, [(0.0, 0.0, 1.5, -2.0, 0.0)])
@@ -215,30 +216,30 @@ def test_random_bytes_never_raise_anything_but_a_conversion_error(garbage):
 
 
 def test_the_leading_ball_is_read_alone_and_a_frame_it_cannot_vouch_for_is_left_to_the_whole_decode():
-    assert clouds.vision_leading_balls(HAND_BALL) == (7.25, [(0.25, -1.0)])
-    assert clouds.vision_leading_balls(HAND) == (7.25, [])  # robots only
+    assert clouds.vision_leading_points(HAND_BALL) == (7.25, [(0.25, -1.0)], None, [])
+    assert clouds.vision_leading_points(HAND) == (7.25, [], None, [])  # robots only
     two = clouds.vision_robots_cdr(3.0, ROWS, balls=[(1.0, 2.0), (-0.5, 0.75)])
-    assert clouds.vision_leading_balls(two) == (3.0, [(1.0, 2.0), (-0.5, 0.75)])
+    assert clouds.vision_leading_points(two) == (3.0, [(1.0, 2.0), (-0.5, 0.75)], None, [])
     # the robots are not read: the ball of a frame with a broken robot (its x NaN, after the ball) is answered;
     # the data starts at file offset 184 (payload offset 180)
     broken_robot = HAND_BALL[:184 + 48] + struct.pack("<d", math.nan) + HAND_BALL[184 + 56:]
-    assert clouds.vision_leading_balls(broken_robot) == (7.25, [(0.25, -1.0)])
+    assert clouds.vision_leading_points(broken_robot) == (7.25, [(0.25, -1.0)], None, [])
     with pytest.raises(conv.ConversionError, match="robot 1: x is not finite"):  # the point after the ball
         clouds.vision_frame_from_msg(broken_robot)
     # a ball that fails the checks, a layout other than /vision/robots', a cut message: None
     for x, z, robot_id in ((math.nan, 0.0, 0.0), (2e3, 0.0, 0.0), (0.0, math.inf, 0.0), (0.0, 0.0, 0.5),
                            (0.0, 0.0, -1.0)):
         bad_ball = HAND_BALL[:184] + struct.pack("<6d", x, -1.0, z, 0.0, 0.0, robot_id) + HAND_BALL[232:]
-        assert clouds.vision_leading_balls(bad_ball) is None
+        assert clouds.vision_leading_points(bad_ball) is None
         with pytest.raises(conv.ConversionError):
             clouds.vision_frame_from_msg(bad_ball)
-    assert clouds.vision_leading_balls(HAND_BALL[:-49]) is None
+    assert clouds.vision_leading_points(HAND_BALL[:-49]) is None
     other_fields = serialize_message(cloud(1.0, [(0.25, -1.0, 0.0, 0.0, 0.0, 0.0)], fields=("x", "y", "z", "yaw",
                                                                                              "team", "id")))
-    assert clouds.vision_leading_balls(other_fields) is None
+    assert clouds.vision_leading_points(other_fields) is None
     # another writer's bytes of the same cloud (rclpy's padding) are read as ours
     ours = serialize_message(deserialize_message(HAND_BALL, PointCloud2))
-    assert clouds.vision_leading_balls(ours) == (7.25, [(0.25, -1.0)])
+    assert clouds.vision_leading_points(ours) == (7.25, [(0.25, -1.0)], None, [])
 
 
 
@@ -273,14 +274,14 @@ def test_a_ball_point_is_refused_by_the_leading_reader_exactly_when_the_whole_de
         if point[4] != c.VISION_BALL_CODE:
             continue  # no longer a ball: the leading reader stops before it
         data = serialize_message(cloud(1.0, [point]))
-        leading = clouds.vision_leading_balls(data)
+        leading = clouds.vision_leading_points(data)
         try:
             _t_s, balls, _rows = clouds.vision_frame_from_msg(data)
         except conv.ConversionError:
             assert leading is None, point
             refused += 1
         else:
-            assert leading == (1.0, [point[:2]]) and balls.tolist() == [list(point[:2])], point
+            assert leading == (1.0, [point[:2]], None, []) and balls.tolist() == [list(point[:2])], point
     # by hand, the values past the limits: x, y, z each 9 (beyond 1e3 or not finite); yaw 4 (beyond 1e6 or not
     # finite); the id 11 (all but 0, -0, 2, 3, 1e3 and 1024)
     assert refused == 3 * 9 + 4 + 11
@@ -299,3 +300,52 @@ def test_the_writer_refuses_a_robot_row_exactly_when_the_reader_refuses_its_poin
         except conv.ConversionError:
             read = False
         assert written == read, (team, robot_id, x, y, yaw)
+
+
+# The frame of HAND_BALL as camera 3 of the league's Division B quadrant cameras took it: its first point the camera
+# at (2.275, -1.525, 4.0) m (SSL geometry's derived_camera_world_tx/ty/tz 2275, -1525, 4000 mm), team 3, robot_id
+# its id 3; then the ball; then the same camera's sighting at (0.5, -0.75), team 4. Width 5, 240 bytes of data.
+CAMERA_POINT = struct.pack("<6d", 2.275, -1.525, 4.0, 0.0, 3.0, 3.0)
+SIGHTING_POINT = struct.pack("<6d", 0.5, -0.75, 0.0, 0.0, 4.0, 0.0)
+HAND_CAMERA = (HAND[:28] + struct.pack("<I", 5) + HAND[32:176] + struct.pack("<II", 240, 240) + CAMERA_POINT
+               + struct.pack("<6d", 0.25, -1.0, 0.0, 0.0, 0.0, 0.0) + SIGHTING_POINT + HAND[184:])
+
+
+def test_the_camera_and_its_sighting_go_out_and_come_in_as_written_by_hand():
+    assert (c.VISION_CAMERA_CODE, c.VISION_SIGHTING_CODE) == (3.0, 4.0)
+    written = clouds.vision_robots_cdr(7.25, ROWS, balls=[(0.25, -1.0)], camera=(3, 2.275, -1.525, 4.0),
+                                       sightings=[(0.5, -0.75)])
+    assert written == HAND_CAMERA
+    assert clouds.vision_leading_points(HAND_CAMERA) == (7.25, [(0.25, -1.0)], (2.275, -1.525, 4.0), [(0.5, -0.75)])
+    cloud_read = clouds.vision_cloud_from_msg(HAND_CAMERA)
+    assert (cloud_read.t_s, cloud_read.camera_id, cloud_read.camera_m) == (7.25, 3, (2.275, -1.525, 4.0))
+    assert cloud_read.balls.tolist() == [[0.25, -1.0]] and cloud_read.sightings.tolist() == [[0.5, -0.75]]
+    assert cloud_read.robots.tolist() == ROWS_READ  # the camera is no robot
+    t_s, balls, rows = clouds.vision_frame_from_msg(deserialize_message(HAND_CAMERA, PointCloud2))
+    assert (t_s, balls.tolist(), rows.tolist()) == (7.25, [[0.25, -1.0]], ROWS_READ)
+    assert clouds.vision_robots_from_msg(HAND_CAMERA)[1].tolist() == ROWS_READ
+    assert clouds.vision_ball_after_robot(HAND_CAMERA) is False
+    # a frame without a camera is as before: no camera, no sightings
+    plain = clouds.vision_cloud_from_msg(HAND_BALL)
+    assert (plain.camera_id, plain.camera_m, plain.sightings.shape) == (None, None, (0, 2))
+
+
+def test_a_camera_not_above_the_field_two_cameras_or_a_sighting_without_one_are_refused():
+    ball = (0.25, -1.0, 0.0, 0.0, c.VISION_BALL_CODE, 0.0)
+    camera = (2.275, -1.525, 4.0, 0.0, c.VISION_CAMERA_CODE, 3.0)
+    sighting = (0.5, -0.75, 0.0, 0.0, c.VISION_SIGHTING_CODE, 0.0)
+    for points, what in (([(2.275, -1.525, 0.0, 0.0, 3.0, 3.0), ball], "above the field"),
+                         ([(2.275, -1.525, -4.0, 0.0, 3.0, 3.0), ball], "above the field"),
+                         ([camera, camera, ball], "2 camera points"), ([ball, sighting], "without the camera")):
+        data = serialize_message(cloud(1.0, points))
+        with pytest.raises(conv.ConversionError, match=what):
+            clouds.vision_cloud_from_msg(data)
+        assert clouds.vision_leading_points(data) is None
+    with pytest.raises(conv.ConversionError, match="without the camera"):
+        clouds.vision_robots_cdr(1.0, [], balls=[(0.0, 0.0)], sightings=[(0.1, 0.0)])
+    with pytest.raises(conv.ConversionError, match="above the field"):
+        clouds.vision_robots_cdr(1.0, [], balls=[(0.0, 0.0)], camera=(0, 1.0, 1.0, 0.0))
+    # a camera or a sighting after a robot: another writer's order, which the reader takes whole
+    for points in ([(1.5, -2.0, 0.0, 0.5, 1.0, 3.0), camera, ball], [camera, ball, (1.5, -2.0, 0.0, 0.5, 1.0, 3.0),
+                                                                     sighting]):
+        assert clouds.vision_ball_after_robot(serialize_message(cloud(1.0, points))) is True

@@ -24,7 +24,7 @@ from erforce_interfaces.ssl.ssl_vision import (
     encode_frame,
     encode_geometry,
 )
-from erforce_interfaces.wire.clouds import vision_frame_from_msg
+from erforce_interfaces.wire.clouds import vision_cloud_from_msg, vision_frame_from_msg
 from erforce_interfaces.wire.conversions import float64_from_msg, odometry_from_msg, odometry_height
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.ssl_cameras import ground_point, open_multicast_sender
@@ -150,9 +150,9 @@ def test_the_predictor_has_the_worlds_field_before_the_first_frame_it_answers():
         predictor._predictor._warn = lambda key, text: warnings.append(text)
         answer = predictor.answer_vision
 
-        def sink(data: bytes, camera_m) -> None:
+        def sink(data: bytes) -> None:
             field = predictor._predictor.config.field
-            answer(data, camera_m)
+            answer(data)
             with answered:
                 fields.append(field)
                 answered.notify_all()
@@ -181,8 +181,9 @@ def test_the_predictor_has_the_worlds_field_before_the_first_frame_it_answers():
 
 @pytest.mark.parametrize("defend_side", ["negative_x", "positive_x"])
 def test_a_chip_is_in_the_air_on_ball_state_from_one_cameras_frames(defend_side):
-    """The geometry gives each camera's position; the bridge hands it with each frame to the predictor (half turned
-    with the field when we defend +x), whose chip detector reconstructs the flight from the curve one camera sees.
+    """The geometry gives each camera's position; each frame the bridge hands the predictor names its camera
+    (half turned with the field when we defend +x), whose chip detector reconstructs the flight from the curve one
+    camera sees.
     Camera 1 at (2, 1.5, 4) m sees a ball kicked at 2 m/s sideways and 3 m/s up from (1, 0.5) m (SSL-Vision's
     frame; a robot stands in every frame), noise-free, 60 frames a second after 0.5 s at rest: /ball/state carries
     its height, matching the projectile z = 3 t - 9.81 t^2 / 2 within 2 cm, before the first touchdown (0.61 s)."""
@@ -196,10 +197,10 @@ def test_a_chip_is_in_the_air_on_ball_state_from_one_cameras_frames(defend_side)
         cameras, states, answered = [], [], threading.Condition()
         answer = predictor.answer_vision
 
-        def sink(data: bytes, camera_m) -> None:
-            answer(data, camera_m)
+        def sink(data: bytes) -> None:
+            answer(data)
             with answered:
-                cameras.append(camera_m)
+                cameras.append(vision_cloud_from_msg(data).camera_m)
                 answered.notify_all()
 
         bridge._frame_sink = sink

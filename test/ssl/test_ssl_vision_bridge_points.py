@@ -5,7 +5,9 @@ import math
 
 import numpy as np
 
-from erforce_ball_model.ssl_vision_bridge_node import _robot_points
+from erforce_ball_model.vision_fast_path import frame_points
+from erforce_ball_model.vision_fast_path import robot_points as _robot_points
+from erforce_ball_model.vision_tracking import BALL_NONE, BALL_SIGHTING, BALL_UPDATE
 
 # ssl_vision's ROBOT_COLUMNS: team (index in TEAMS: 0 blue, 1 yellow), id, x, y, theta (NaN: none), confidence
 ROBOTS = np.array([
@@ -66,3 +68,32 @@ def test_the_frames_ball_comes_first_as_a_point_of_team_0():
     assert points[0].tolist() == [0.5, 0.0, 0.0, 0.0, 0.0, 0.0]
     for x, y in ((math.nan, 0.0), (0.0, 1.5e3)):  # beyond the message's checks: the general path names it
         assert _robot_points(ROBOTS, USED, 0.0, 11, readers(), points, True, x, y) == -1
+
+
+# Camera 3 of the Division B quadrant cameras as the bridge's camera table has it: known, x, y, z [m], its id.
+CAMERA_3 = np.array([1.0, 2.275, -1.525, 4.0, 3.0])
+UNKNOWN_CAMERA = np.array([0.0, 0.0, 0.0, 0.0, 3.0])
+
+
+def test_the_cameras_point_comes_first_then_the_ball_or_the_cameras_sighting():
+    points = np.full((6, 6), -9.0)
+    assert frame_points(ROBOTS, USED, 0.0, 11, readers(), points, CAMERA_3, BALL_UPDATE, -2.5, 1.25) == 5
+    assert points[:5].tolist() == [[2.275, -1.525, 4.0, 0.0, 3.0, 3.0],
+                                   [-2.5, 1.25, 0.0, 0.0, 0.0, 0.0],
+                                   [0.5, 0.5, 0.0, math.pi, 2.0, 0.0],
+                                   [1.0, -0.5, 0.0, 0.25, 1.0, 2.0],
+                                   [-3.0, 2.0, 0.0, -3.0, 2.0, 7.0]]
+    # another camera's ball of an instant taken: a sighting (team 4), only after the camera's point
+    assert frame_points(ROBOTS, USED[:1], 0.0, 11, readers(), points, CAMERA_3, BALL_SIGHTING, 0.5, -0.75) == 3
+    assert points[:3].tolist() == [[2.275, -1.525, 4.0, 0.0, 3.0, 3.0],
+                                   [0.5, -0.75, 0.0, 0.0, 4.0, 0.0],
+                                   [0.5, 0.5, 0.0, math.pi, 2.0, 0.0]]
+    # an unknown camera: no camera point, and a sighting is dropped (nothing can use it)
+    assert frame_points(ROBOTS, USED[:1], 0.0, 11, readers(), points, UNKNOWN_CAMERA, BALL_SIGHTING, 0.5, 0.0) == 1
+    assert points[0].tolist() == [0.5, 0.5, 0.0, math.pi, 2.0, 0.0]
+    assert frame_points(ROBOTS, USED[:0], 0.0, 11, readers(), points, UNKNOWN_CAMERA, BALL_SIGHTING, 0.5, 0.0) == 0
+    assert frame_points(ROBOTS, USED[:0], 0.0, 11, readers(), points, UNKNOWN_CAMERA, BALL_UPDATE, 0.5, 0.0) == 1
+    assert points[0].tolist() == [0.5, 0.0, 0.0, 0.0, 0.0, 0.0]
+    assert frame_points(ROBOTS, USED[:0], 0.0, 11, readers(), points, CAMERA_3, BALL_NONE, 0.0, 0.0) == 0
+    # the general path as robot_points says
+    assert frame_points(ROBOTS, USED, 0.0, 2, readers(), points, CAMERA_3, BALL_UPDATE, 0.0, 0.0) == -1

@@ -24,9 +24,10 @@ from erforce_ball_model.vision_fast_path import (
     PASS_T_CAPTURE_BACK,
     PASS_TIMELINE_JUMP,
     FramePass,
-    robot_points,
+    camera_table,
+    frame_points,
 )
-from erforce_ball_model.vision_tracking import MAX_ROBOT_ID, VisionTracker
+from erforce_ball_model.vision_tracking import BALL_SIGHTING, BALL_UPDATE, MAX_ROBOT_ID, VisionTracker
 from erforce_interfaces.ssl.ssl_proto import ssl_vision_wrapper_pb2 as wrap
 from erforce_interfaces.ssl.ssl_vision import (
     BallCandidate,
@@ -48,7 +49,8 @@ from erforce_interfaces.ssl.vision_time import (
     ClockJump,
     VisionClock,
 )
-from erforce_interfaces.wire.clouds import vision_frame_from_msg, vision_robots_points_cdr
+from erforce_interfaces.wire import contract
+from erforce_interfaces.wire.clouds import vision_cloud_from_msg, vision_frame_from_msg, vision_robots_points_cdr
 from erforce_interfaces.wire.robot_config import FieldConfig
 
 FIELD = FieldConfig.preset("division_a")
@@ -67,7 +69,11 @@ class Pipeline:
         self.restarts = 0
         self.tracker = VisionTracker(FIELD, model)
         self.readers = np.zeros((2, MAX_ROBOT_ID + 1), np.int64)
-        self.points = np.empty((65, 6))
+        self.points = np.empty((66, 6))
+        # the geometry knows cameras 4-7 (4 m above their rectangles of eventful_stream, where the ball goes), not 0-3
+        self.cameras = camera_table()
+        for cam in range(4, 8):
+            self.cameras[cam, :4] = 1.0, -6.25 + 3.125 * (cam - 4 + 0.5), 2.375, 4.0
 
 
 def general_path(p: Pipeline, data: bytes, t_receive: float):
@@ -99,11 +105,13 @@ def general_path(p: Pipeline, data: bytes, t_receive: float):
     ball, used = p.tracker.frame_indices(frame.camera_id, t_s, frame.balls, frame.robots)
     if not len(used) and ball is None:
         return "nothing", ball
-    has_ball = ball is not None
-    n = robot_points(frame.robots, used, OURS, N_OURS, p.readers, p.points, has_ball,
-                     ball.x_m if has_ball else 0.0, ball.y_m if has_ball else 0.0)
+    action = 0 if ball is None else BALL_SIGHTING if ball.sighting else BALL_UPDATE
+    n = frame_points(frame.robots, used, OURS, N_OURS, p.readers, p.points, p.cameras[frame.camera_id], action,
+                     ball.x_m if action else 0.0, ball.y_m if action else 0.0)
     if n < 0:
-        return ("general", frame.robots[used].tolist(), [(ball.x_m, ball.y_m)] if has_ball else []), ball
+        return ("general", frame.robots[used].tolist(), ball), ball
+    if n == 0:
+        return "nothing", ball
     return vision_robots_points_cdr(t_s, p.points[:n]), ball
 
 
@@ -121,11 +129,13 @@ def compiled_path(p: Pipeline, fp: FramePass, data: bytes, t_receive: float):
     camera_id = int(fp.info[0])
     ball = p.tracker.use_ball(action, camera_id, t_s, ball_x, ball_y) if action else None
     if status == PASS_GENERAL:
-        return ("general", fp.robots()[fp.used()].tolist(), [(ball_x, ball_y)] if ball else []), ball
+        return ("general", fp.robots()[fp.used()].tolist(), ball), ball
     assert status == PASS_DONE
     n_points = int(fp.info[3])
-    if action and ball is None:
-        return (vision_robots_points_cdr(t_s, fp.points[1:n_points]) if n_points > 1 else "nothing"), None
+    if action and ball is None:  # the ball written after the camera's point, if any: the frame without it
+        at = int(n_points > 0 and fp.points[0, 4] == contract.VISION_CAMERA_CODE)
+        points = np.delete(fp.points[:n_points], at, axis=0)
+        return (vision_robots_points_cdr(t_s, points) if n_points > at + 1 else "nothing"), None
     if n_bytes == 0:
         return "nothing", ball
     assert n_bytes > 0
@@ -202,7 +212,7 @@ def eventful_stream(seed: int = 3, duration_s: float = 4.0, step_back_s: float =
 def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(mode):
     general, compiled = Pipeline(mode), Pipeline(mode)
     fp = FramePass(compiled.clock, compiled.tracker, compiled.readers, OURS, N_OURS, compiled.order,
-                   timeline=compiled.timeline)
+                   timeline=compiled.timeline, cameras=compiled.cameras)
     outcomes = set()
     for k, (data, t_receive) in enumerate(eventful_stream(step_back_s=2.0 if mode == TIME_CAPTURE else 0.0)):
         if k == 1500:  # a tool subscribes to one of our robots' vision_pose: its frames take the general path
@@ -214,9 +224,15 @@ def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(
         outcomes.add(want if isinstance(want, str) else "general" if isinstance(want, tuple) else
                      "ball" if want_ball is not None else "robots")
         if isinstance(got, bytes):
-            _t, balls, rows = vision_frame_from_msg(got)
-            assert np.isfinite(balls).all() and np.isfinite(rows).all()
-    assert outcomes == {"bad", "t_capture_back", "jump", "nothing", "general", "ball", "robots"}
+            cloud = vision_cloud_from_msg(got)
+            assert np.isfinite(cloud.balls).all() and np.isfinite(cloud.robots).all()
+            # a camera the geometry knows names itself; its sighting of an instant taken comes only with it
+            camera_id = decode_wrapper(data).detection.camera_id
+            assert cloud.camera_id == (camera_id if camera_id >= 4 else None), k
+            if len(cloud.sightings):
+                outcomes.add("sighting")
+                assert want_ball.sighting and cloud.sightings.tolist() == [[want_ball.x_m, want_ball.y_m]], k
+    assert outcomes == {"bad", "t_capture_back", "jump", "nothing", "general", "ball", "robots", "sighting"}
     # camera 5's restart (and camera 6's step back with the timeline): passed on by the order, once each
     assert general.restarts == compiled.restarts == (1 if mode == TIME_ESTIMATE else 2)
     for name in ("frames", "late_balls", "false_candidates", "switches", "kicks"):

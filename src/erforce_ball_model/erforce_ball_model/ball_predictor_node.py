@@ -3,9 +3,11 @@
 One process serves all robots (and with ``num_opponents`` the opponents, under ``/opponent_<i>/``); the
 per-frame work is predictor.BallPredictor, the same object the in-process scenes and the bench run.
 
-Vision comes in on ``/vision/robots``, one message per frame, the ball first. The ball is read and
-answered before the robots are decoded, and the frames queued behind the one that woke the node have
-their balls answered before any of their robots (docs/decisions/0015). Each ball frame is answered with
+Vision comes in on ``/vision/robots``, one message per frame, the ball first (after the camera that took
+it, where the frame names one: its ball and its sightings of the same ball go to the chip detector with the
+camera's position, docs/decisions/0035). The ball is read and answered before the robots are decoded,
+and the frames queued behind the one that woke the node have their balls answered before any of their robots
+(docs/decisions/0015). Each ball frame is answered with
 the catches first, what the robots act on: ``/ball/catches`` (both teams, one table), then each robot's
 ``catch_time`` and ``catch_point``; then the ball's state, phase, stop point, v_shoot and uncertain flag,
 and ``/ball/track`` for observers. Then the frame's robots, each judged by the time rule on its own,
@@ -47,10 +49,11 @@ from erforce_interfaces.ssl.ssl_sim import MAX_KICK_ANGLE_DEG
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.clouds import (
     BallTrack,
+    LeadingPoints,
     ball_track_cdr,
     vision_ball_after_robot,
-    vision_frame_from_msg,
-    vision_leading_balls,
+    vision_cloud_from_msg,
+    vision_leading_points,
 )
 from erforce_interfaces.wire.conversions import (
     MAX_ABS_VALUE,
@@ -142,7 +145,6 @@ class BallPredictorNode(SchemaNode):
         # Frames may come on another thread than the executor's (answer_vision): one frame, parameter change or
         # geometry message at a time.
         self._lock = threading.Lock()
-        self._camera_m: tuple[float, float, float] | None = None  # the camera of the frame being answered
         # kernels="background": the first frames are answered by the search's loop as Python (about 1 ms per
         # robot) and numba and the compiled search load in a thread after the first answer: a restarted
         # predictor closes the loop about a second sooner, what the 3 s to heal on a busy machine depends on.
@@ -332,17 +334,11 @@ class BallPredictorNode(SchemaNode):
         with self._lock:
             self._vision(msg, self._vision_sub)
 
-    def answer_vision(self, msg: bytes, camera_m: tuple[float, float, float] | None = None) -> None:
+    def answer_vision(self, msg: bytes) -> None:
         """One serialized ``/vision/robots`` frame from a receiver in this process (any thread): answered as one
-        from the topic, its catch outputs published before this returns. ``camera_m``: the position (x, y,
-        height) [m] of the camera that saw the frame's ball, for the chip detector (a topic's frame has none:
-        without it a chipped ball is tracked on the ground)."""
+        from the topic, its catch outputs published before this returns."""
         with self._lock:
-            self._camera_m = camera_m
-            try:
-                self._vision(msg, None)
-            finally:
-                self._camera_m = None
+            self._vision(msg, None)
 
     def _vision(self, msg: bytes, sub) -> None:
         start = time.perf_counter()
@@ -350,51 +346,52 @@ class BallPredictorNode(SchemaNode):
         # decode of 14-22 robots costs about as much as a tenth of the frame's work); a frame not in that form,
         # or whose ball fails the checks, is decoded whole first and refused whole, as before. This frame's
         # balls go first: nothing queued behind it is older.
-        leading = vision_leading_balls(msg)
+        leading = vision_leading_points(msg)
         if leading is not None:
-            self._leading_balls(start, *leading)
+            self._leading_balls(start, leading)
         # Cameras deliver in bursts: a ball frame may wait behind other cameras' robot frames, each of which
         # costs a robot decode, tracking and odom publishes. The frames queued behind this one are taken with it
         # and their leading balls answered, in order, before any robots. That stops at a frame not in the
         # ball-first form or with a ball after its robots (another writer's order): from there each frame is
         # answered in turn, so the ball stream keeps the frames' order.
-        frames = [(msg, None if leading is None else len(leading[1]))]
+        frames = [(msg, None if leading is None else leading)]
         queued = take_queued(sub) if sub is not None else ()
         balls_first = bool(queued) and leading is not None and not vision_ball_after_robot(msg)
         for data, _info in queued:
             answered = None
             if balls_first:
-                leading = vision_leading_balls(data)
+                leading = vision_leading_points(data)
                 balls_first = leading is not None and not vision_ball_after_robot(data)
                 if balls_first:
-                    self._leading_balls(start, *leading)
-                    answered = len(leading[1])
+                    self._leading_balls(start, leading)
+                    answered = leading
             frames.append((data, answered))
         for data, answered in frames:
             self._frame_rest(start, data, answered)
 
-    def _frame_rest(self, start: float, msg: bytes, answered: int | None) -> None:
-        """A frame whose first ``answered`` balls were answered (None: none read yet): the rest of its balls, then
-        its robots."""
+    def _frame_rest(self, start: float, msg: bytes, answered: LeadingPoints | None) -> None:
+        """A frame whose ``answered`` leading points were answered (None: none read yet): the rest of its balls and
+        sightings, then its robots."""
         if answered is None:
-            leading = vision_leading_balls(msg)  # a frame from where the balls stopped going first
-            if leading is not None:
-                self._leading_balls(start, *leading)
-            answered = 0 if leading is None else len(leading[1])
+            answered = vision_leading_points(msg)  # a frame from where the balls stopped going first
+            if answered is not None:
+                self._leading_balls(start, answered)
         try:
-            t_s, balls, rows = vision_frame_from_msg(msg)
+            cloud = vision_cloud_from_msg(msg)
         except ConversionError as exc:
-            key = "ball_invalid" if str(exc).startswith("ball") else "robots"  # each throttled on its own
-            self._warn.warn(key, f"rejected vision/robots: {exc}")
+            key = "ball_invalid" if str(exc).startswith(("ball", "camera", "sighting")) else "robots"
+            self._warn.warn(key, f"rejected vision/robots: {exc}")  # each throttled on its own
             return
-        if len(balls) > answered:  # balls after the robots (another writer's order)
-            self._balls(start, t_s, balls[answered:].tolist())
-        if len(rows):
-            self._robots_frame(t_s, rows)
+        n_balls, n_sightings = (0, 0) if answered is None else (len(answered.balls), len(answered.sightings))
+        if len(cloud.balls) > n_balls or len(cloud.sightings) > n_sightings:  # after the robots (another writer's)
+            self._balls(start, LeadingPoints(cloud.t_s, cloud.balls[n_balls:].tolist(), cloud.camera_m,
+                                             cloud.sightings[n_sightings:].tolist()))
+        if len(cloud.robots):
+            self._robots_frame(cloud.t_s, cloud.robots)
 
-    def _leading_balls(self, start: float, t_s: float, balls: list) -> None:
-        """A frame's leading balls (vision_leading_balls), in order."""
-        if not balls:
+    def _leading_balls(self, start: float, leading: LeadingPoints) -> None:
+        """A frame's leading balls and sightings (vision_leading_points), in order."""
+        if not (leading.balls or leading.sightings):
             return
         # A frame allocates a few hundred objects: a cyclic collection (every few frames; 0.03-1.5 ms) would
         # fall between the vision frame and its catch times in about 1 frame of 25. It is held off until
@@ -402,17 +399,28 @@ class BallPredictorNode(SchemaNode):
         collecting = gc.isenabled()
         gc.disable()
         try:
-            self._balls(start, t_s, balls)
+            self._balls(start, leading)
         finally:
             if collecting:
                 gc.enable()
 
-    def _balls(self, start: float, t_s: float, balls: list) -> None:
+    def _balls(self, start: float, points: LeadingPoints) -> None:
+        """A frame's balls (the ball's stream), then its camera's sightings (the chip detector's only)."""
+        t_s, camera_m = points.t_s, points.camera_m
         try:
-            for x, y in balls:
-                self._ball_frame(start, t_s, x, y)
+            for x, y in points.balls:
+                self._ball_frame(start, t_s, x, y, camera_m)
+            for x, y in points.sightings:
+                self._sighting(t_s, x, y, camera_m)
         finally:
             run_sampled(self._clock_subs)  # after the outputs: not on the latency path
+
+    def _sighting(self, t_s: float, x: float, y: float, camera_m: tuple[float, float, float]) -> None:
+        """Another camera's view of an instant the ball's stream has: the chip detector's (the core judges it)."""
+        try:
+            self._predictor.ball_sighting(t_s, x, y, camera_m)
+        except ValueError as exc:
+            self._warn.warn("sighting", f"a sighting not taken: {exc}")
 
     def _robots_frame(self, t_s: float, rows) -> None:
         t_ns = round(t_s * 1e9)
@@ -460,12 +468,13 @@ class BallPredictorNode(SchemaNode):
         self._odom_pubs[robot].publish(odom)
         return True
 
-    def _ball_frame(self, start: float, t_s: float, x: float, y: float) -> None:
+    def _ball_frame(self, start: float, t_s: float, x: float, y: float,
+                    camera_m: tuple[float, float, float] | None) -> None:
         verdict = check_stamp(self._ball_stamps, round(t_s * 1e9), self._warn, "vision/ball", self)
         if verdict is StampVerdict.DROP:
             return
         self._t_vision_s = t_s
-        frame = self._predictor.ball_frame(t_s, x, y, restart=verdict is StampVerdict.RESTART, camera_m=self._camera_m)
+        frame = self._predictor.ball_frame(t_s, x, y, restart=verdict is StampVerdict.RESTART, camera_m=camera_m)
         if frame is None:
             return
         # Catch times go out first: they are what the robots act on, and each publish costs tens

@@ -221,6 +221,7 @@ class BallPredictor:
         self.last_fit: FitResult | None = None
         self.waiting_frames = 0  # vision dropped while the field was not known (config.field None)
         self._ball: BallTracker | None = None
+        self._t_ball_s: float | None = None  # the newest ball frame's stamp the filter took (held back or not)
         self._search: CatchSearch | None = None
         self._shots: ShotAccumulator | None = None
         self._fitted_shot = None  # the newest shot a fit was started with
@@ -382,6 +383,7 @@ class BallPredictor:
             self._robot_states = [(math.nan, 0.0, 0.0, 0.0, 0.0)] * len(self._robot_states)
             self._ball = BallTracker(self.model, cfg.tracker)
             self._chip = ChipDetector(cfg.chip_detector, cfg.chip, self.model)
+            self._t_ball_s = None
             if self._shots is not None:
                 self._shots = ShotAccumulator(tracker_config=cfg.tracker)
                 self._fitted_shot = None
@@ -398,6 +400,7 @@ class BallPredictor:
         if status == UpdateStatus.REJECTED_INVALID:
             self._warn("ball_invalid", "rejected vision/ball: invalid")
             return None
+        self._t_ball_s = t_s
         chip = None if camera_m is None else self._chip_sighting(t_s, x_m, y_m, camera_m, status, held,
                                                                             before)
         if chip is None and status == UpdateStatus.HELD_BACK and t_s - ball.t_s > cfg.tracker.max_hold_gap_s:
@@ -438,7 +441,12 @@ class BallPredictor:
     def ball_sighting(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float]) -> None:
         """Another camera's sighting of the ball (not the one ``ball_frame`` took, e.g. of the same instant
         from an overlapping camera): for the chip detector only, which sees a ball in the air by the
-        cameras' disagreement. Raises ValueError for non-finite values."""
+        cameras' disagreement. Ignored unless of the ball's time line (at most ``max_gap_s`` before the newest
+        ball frame, not after it) and inside the field. Raises ValueError for non-finite values."""
+        cfg, t_ball_s = self.config, self._t_ball_s
+        if (cfg.field is None or t_ball_s is None or not 0.0 <= t_ball_s - t_s <= cfg.tracker.max_gap_s
+                or not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m)):
+            return
         self._chip.add(t_s, x_m, y_m, camera_m)
 
     def _chip_sighting(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float],

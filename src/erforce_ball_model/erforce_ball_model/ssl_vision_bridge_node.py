@@ -8,7 +8,9 @@ true ball, robot streams). What it drops is named by its class (ssl_vision.DROP_
 warning per class and a counter in the periodic statistics line; the tracker's normal choices with
 overlapping cameras (reflections, an older candidate) are only counted.
 
-A camera frame goes out as one ``/vision/robots`` (what the stack reads), before ``/vision/ball``; that
+A camera frame goes out as one ``/vision/robots`` (what the stack reads), before ``/vision/ball``, with the
+camera's position from the SSL geometry as its first point and, when the tracker took the ball of that instant
+from another camera, this camera's view of it as a sighting (docs/decisions/0035); ``/vision/ball``
 and each robot's ``vision_pose`` are published only while read (a DDS write is a datagram's largest
 cost). The usual datagram goes from its bytes to the message's bytes in one compiled pass (vision_fast_path;
 docs/decisions/0013); anything else takes the general path through the same kernels, which also warns.
@@ -56,10 +58,18 @@ from erforce_ball_model.vision_fast_path import (
     PASS_T_CAPTURE_BACK,
     PASS_TIMELINE_JUMP,
     FramePass,
+    camera_table,
+    frame_points,
 )
 from erforce_ball_model.vision_fast_path import load_kernels as load_pass_kernels
-from erforce_ball_model.vision_fast_path import robot_points as _robot_points
-from erforce_ball_model.vision_tracking import BALL_FUSED, MAX_ROBOT_ID, VisionTracker, load_kernels
+from erforce_ball_model.vision_tracking import (
+    BALL_FUSED,
+    BALL_SIGHTING,
+    MAX_ROBOT_ID,
+    BallObservation,
+    VisionTracker,
+    load_kernels,
+)
 from erforce_interfaces.runtime.node_support import (
     NodeParams,
     ThrottledWarner,
@@ -110,7 +120,7 @@ _TEAM_CODES = (contract.OURS.code, contract.OPPONENTS.code)  # by side: 0 ours, 
 
 SCHEMA = load_schema("erforce_ball_model", "ssl_vision_bridge")
 _OURS_CODE, _OPPONENTS_CODE = float(_TEAM_CODES[0]), float(_TEAM_CODES[1])
-_BALL_CODE = float(contract.VISION_BALL_CODE)
+_CAMERA_CODE = float(contract.VISION_CAMERA_CODE)
 
 
 @dataclass(frozen=True)
@@ -165,14 +175,13 @@ def open_multicast_socket(group: str, port: int, interface: str, receive_buffer_
 
 
 class SslVisionBridge(Node):
-    def __init__(self, frame_sink: Callable[[bytes, tuple[float, float, float] | None], None] | None = None,
+    def __init__(self, frame_sink: Callable[[bytes], None] | None = None,
                  geometry_sink: Callable[[FieldConfig, BallModelParams | None], None] | None = None) -> None:
         """``frame_sink``: called on the receive thread with each serialized ``/vision/robots`` frame before it is
-        published (a consumer in this process, erforce_ball_model.ssl_ball_predictor) and the position (x, y,
-        height) [m, field frame] of the camera that saw it, from the SSL geometry's calibration (None while the
-        geometry has none for it): the chip detector needs it, /vision/robots does not carry it. Its CPU time is not
-        counted in the bridge's statistics. ``geometry_sink``: called there with each new SSL geometry's field and
-        ball model, before the next frame goes to ``frame_sink`` (a topic's message could come after it)."""
+        published (a consumer in this process, erforce_ball_model.ssl_ball_predictor; the frame names its camera).
+        Its CPU time is not counted in the bridge's statistics. ``geometry_sink``: called there with each new SSL
+        geometry's field and ball model, before the next frame goes to ``frame_sink`` (a topic's message could come
+        after it)."""
         super().__init__("ssl_vision_bridge")
         self._warn = ThrottledWarner(self)
         self._frame_sink = frame_sink
@@ -184,6 +193,7 @@ class SslVisionBridge(Node):
         self._lock = threading.Lock()  # parameter changes vs the receive thread
         self._last_geometry = None
         self._camera_poses: dict[int, tuple[float, float, float]] = {}  # by camera id, SSL-Vision's frame [m]
+        self._cameras = camera_table()  # the same in the field frame, as the frames' camera points carry them
         self._params = NodeParams(self, SCHEMA, build_config)
         v = self._values = self._params.values
         self.stats: Counter[str] = Counter()
@@ -253,6 +263,7 @@ class SslVisionBridge(Node):
             elif config.field != old.field and self._last_geometry is None:
                 self._tracker.field = config.field
             self._set_path()
+            self._set_cameras()
             self._time_mode = TIME_SOURCES.index(config.time_source)
             if self._time_mode == TIME_CAPTURE and self._clock_pub is None:
                 self._clock_pub = contract_publisher(self, contract.CLOCK)
@@ -268,7 +279,17 @@ class SslVisionBridge(Node):
     def _bind_pass(self) -> None:
         """The compiled pass on the current clock, tracker and team (at start and after parameter changes)."""
         self._frame_pass = FramePass(self._vision_clock, self._tracker, self._pose_readers, self._ours, self._n_ours,
-                                     self._capture_order, timeline=self._timeline)
+                                     self._capture_order, timeline=self._timeline, cameras=self._cameras)
+
+    def _set_cameras(self) -> None:
+        """The camera table from the geometry's cameras, in the field frame (half turned with ``flip``, as the
+        balls are): in place, the compiled pass reads it."""
+        table = self._cameras
+        table[:, :4] = 0.0
+        sign = -1.0 if self._config.flip else 1.0
+        for camera_id, (x, y, z) in self._camera_poses.items():
+            if camera_id < len(table):
+                table[camera_id, :4] = 1.0, sign * x, sign * y, z
 
     # ------------------------------------------------------------------ receiving
     def _receive_loop(self) -> None:
@@ -350,14 +371,14 @@ class SslVisionBridge(Node):
                 return
             self._clock_sent_s = newest
 
-    def _publish_frame(self, data: bytes, camera_id: int) -> None:
-        """A camera frame's ``/vision/robots``: to the sink first (its answer is on the latency path), with the
-        position of camera ``camera_id``, then the topic (tools, bags, a predictor in another process)."""
+    def _publish_frame(self, data: bytes) -> None:
+        """A camera frame's ``/vision/robots``: to the sink first (its answer is on the latency path), then the
+        topic (tools, bags, a predictor in another process)."""
         sink = self._frame_sink
         if sink is not None:
             t0 = time.thread_time_ns()
             try:
-                sink(data, self._camera_at(camera_id))
+                sink(data)
             except Exception as exc:  # the topic still gets the frame
                 if not self.context.ok():
                     raise  # shutting down: the receive loop ends quietly
@@ -365,12 +386,10 @@ class SslVisionBridge(Node):
             self._sink_ns += time.thread_time_ns() - t0
         self._robots_pub.publish(data)
 
-    def _camera_at(self, camera_id: int) -> tuple[float, float, float] | None:
-        """Camera ``camera_id``'s position in the field frame (half turned with ``flip``, as the balls are)."""
-        pose = self._camera_poses.get(camera_id)
-        if pose is None or not self._config.flip:
-            return pose
-        return (-pose[0], -pose[1], pose[2])
+    def _camera_at(self, camera_id: int) -> tuple[float, float, float, float] | None:
+        """Camera ``camera_id`` as a frame's camera point takes it: (id, x, y, z) in the field frame; None: unknown."""
+        row = self._cameras[camera_id].tolist() if 0 <= camera_id < len(self._cameras) else None
+        return None if row is None or not row[0] else (camera_id, *row[1:4])
 
     def _take_sink_ns(self) -> int:
         ns, self._sink_ns = self._sink_ns, 0
@@ -382,9 +401,8 @@ class SslVisionBridge(Node):
         if status == PASS_DONE and n_bytes >= 0 and (not action or action >= BALL_FUSED):
             self.stats["frames"] += 1
             if n_bytes:
-                self._publish_frame(self._frame_pass.message_view[:n_bytes].tobytes(),
-                                    int(self._frame_pass.info[I_CAMERA]))
-            if action and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
+                self._publish_frame(self._frame_pass.message_view[:n_bytes].tobytes())
+            if action and action != BALL_SIGHTING and self._ball_readers[0]:  # a tool's: after the predictor's
                 self._ball_pub.publish(point_cdr(t_s, (ball_x, ball_y)))
             return
         if status == PASS_FALLBACK:  # nothing changed yet: the general path names the problem
@@ -422,16 +440,17 @@ class SslVisionBridge(Node):
         try:
             n_points = int(info[I_POINTS])
             if status == PASS_GENERAL:
-                self._publish_robots(t_s, fp.robots()[fp.used()].tolist(), [(ball_x, ball_y)] if ball else [],
-                                     camera_id)
-            elif action and ball is None:  # the filter refused the ball written first: the robots alone
-                if n_points > 1:
-                    self._publish_frame(vision_robots_points_cdr(t_s, fp.points[1:n_points]), camera_id)
+                self._publish_robots(t_s, fp.robots()[fp.used()].tolist(), ball, camera_id)
+            elif action and ball is None:  # the filter refused the ball written (after the camera's point, if any)
+                points = fp.points[:n_points]
+                at = int(n_points > 0 and points[0, 4] == _CAMERA_CODE)
+                if n_points > at + 1:  # robots: the frame without its ball
+                    self._publish_frame(vision_robots_points_cdr(t_s, np.delete(points, at, axis=0)))
             elif n_bytes > 0:
-                self._publish_frame(fp.message_view[:n_bytes].tobytes(), camera_id)
+                self._publish_frame(fp.message_view[:n_bytes].tobytes())
             elif n_points > 0:  # a stamp the pass leaves to the checks of conversions
-                self._publish_frame(vision_robots_points_cdr(t_s, fp.points[:n_points]), camera_id)
-            if ball is not None and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
+                self._publish_frame(vision_robots_points_cdr(t_s, fp.points[:n_points]))
+            if ball is not None and not ball.sighting and self._ball_readers[0]:  # a tool's: after the predictor's
                 self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
         except ConversionError as exc:
             self._drop("unpublishable", f"camera {camera_id}: not published: {exc}")
@@ -520,6 +539,7 @@ class SslVisionBridge(Node):
     # ----------------------------------------------------------------- geometry
     def _on_geometry(self, geometry) -> None:
         self._camera_poses = {c.camera_id: (c.x_m, c.y_m, c.z_m) for c in geometry.cameras if c.z_m > 0.0}
+        self._set_cameras()
         key = (geometry.length_m, geometry.width_m, geometry.boundary_m, geometry.ball_model)
         if key == self._last_geometry:
             return
@@ -591,17 +611,17 @@ class SslVisionBridge(Node):
         self.stats["frames"] += 1
         try:
             if len(used) or ball is not None:  # the ball's stamp is the frame's
-                if len(used) >= len(self._points):
-                    self._points = np.empty((len(used) + 1, self._points.shape[1]))
-                has_ball = ball is not None
-                n = _robot_points(robots, used, self._ours, self._n_ours, self._pose_readers, self._points,
-                                  has_ball, ball.x_m if has_ball else 0.0, ball.y_m if has_ball else 0.0)
-                if n >= 0:
-                    self._publish_frame(vision_robots_points_cdr(t_s, self._points[:n]), frame.camera_id)
-                else:
-                    self._publish_robots(t_s, robots[used].tolist(), [(ball.x_m, ball.y_m)] if has_ball else [],
-                                         frame.camera_id)
-            if ball is not None and self._ball_readers[0]:  # a tool's topic: after what the predictor reads
+                if len(used) + 2 > len(self._points):
+                    self._points = np.empty((len(used) + 2, self._points.shape[1]))
+                action = 0 if ball is None else BALL_SIGHTING if ball.sighting else 1
+                n = frame_points(robots, used, self._ours, self._n_ours, self._pose_readers, self._points,
+                                 self._cameras[frame.camera_id], action, ball.x_m if action else 0.0,
+                                 ball.y_m if action else 0.0)
+                if n > 0:
+                    self._publish_frame(vision_robots_points_cdr(t_s, self._points[:n]))
+                elif n < 0:
+                    self._publish_robots(t_s, robots[used].tolist(), ball, frame.camera_id)
+            if ball is not None and not ball.sighting and self._ball_readers[0]:  # a tool's: after the predictor's
                 self._ball_pub.publish(point_cdr(ball.t_s, (ball.x_m, ball.y_m)))
             if cfg.publish_detections:
                 now_s = self._timeline.newest_s if self._time_mode == TIME_CAPTURE else t_receive_s
@@ -609,10 +629,10 @@ class SslVisionBridge(Node):
         except ConversionError as exc:
             self._drop("unpublishable", f"camera {frame.camera_id}: not published: {exc}")
 
-    def _publish_robots(self, t_s: float, rows: list[list[float]], balls: list[tuple[float, float]],
+    def _publish_robots(self, t_s: float, rows: list[list[float]], ball: BallObservation | None,
                         camera_id: int) -> None:
-        """The frame's ``balls`` and robots in one /vision/robots, then each robot's vision_pose that has a reader
-        (the general path: it creates publishers and warns)."""
+        """The frame's camera, ``ball`` (or sighting) and robots in one /vision/robots, then each robot's vision_pose
+        that has a reader (the general path: it creates publishers and warns)."""
         readers, n_ours = self._pose_readers, self._n_ours
         table, read = [], []
         for team, robot_id, x, y, theta, _confidence in rows:
@@ -629,8 +649,11 @@ class SslVisionBridge(Node):
             pub = self._pose_pubs[side][robot_id] or self._pose_publisher(side, robot_id)
             if readers[side, robot_id] > 0:
                 read.append((pub, x, y, theta))
-        if table or balls:
-            self._publish_frame(vision_robots_cdr(t_s, table, balls=balls), camera_id)
+        camera = self._camera_at(camera_id)
+        sightings = [] if ball is None or not ball.sighting or camera is None else [(ball.x_m, ball.y_m)]
+        balls = [] if ball is None or ball.sighting else [(ball.x_m, ball.y_m)]
+        if table or balls or sightings:
+            self._publish_frame(vision_robots_cdr(t_s, table, balls=balls, camera=camera, sightings=sightings))
         for pub, x, y, theta in read:
             pub.publish(pose2d_cdr(t_s, (x, y, theta)))
 

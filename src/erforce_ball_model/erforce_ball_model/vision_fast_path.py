@@ -3,7 +3,8 @@
 The bridge's usual datagram (one camera frame, every detection valid) goes through the same kernels as the
 general path, in one call: ssl_vision's pass over the protobuf bytes, the vision clock, the tracker's ball
 hypotheses, its choice of the ball, the ball filter's usual update (``tracking.ball_step``: the pass returns
-``BALL_FUSED`` + its status) and its robot streams, the message's points and their CDR. What needs Python
+``BALL_FUSED`` + its status) and its robot streams, the message's points (the camera's first, from the bridge's
+camera table, ``camera_table``) and their CDR. What needs Python
 stays outside: a new ball and the ball filter's unusual frames (``VisionTracker.use_ball`` with the action
 returned) and anything unusual, which the pass hands back before it has changed any state (``PASS_FALLBACK``: the
 bridge runs the general path on the datagram, which names the problem) or after (``PASS_GENERAL``: a robot
@@ -27,6 +28,8 @@ import numpy as np
 from erforce_ball_model import tracking
 from erforce_ball_model.vision_tracking import (
     BALL_FUSED,
+    BALL_NONE,
+    BALL_SIGHTING,
     BALL_UPDATE,
     COUNT_FRAMES,
     COUNT_HYPOTHESES,
@@ -77,7 +80,7 @@ from erforce_interfaces.wire.conversions import MAX_ABS_VALUE
 from erforce_interfaces.wire.robot_config import FieldConfig
 
 __all__ = ["PASS_BAD_STAMP", "PASS_CLOCK_JUMP", "PASS_DONE", "PASS_FALLBACK", "PASS_GENERAL", "PASS_TIMELINE_JUMP",
-           "PASS_T_CAPTURE_BACK", "FramePass", "robot_points"]
+           "PASS_T_CAPTURE_BACK", "FramePass", "camera_table", "frame_points", "robot_points"]
 
 (PASS_DONE, PASS_GENERAL, PASS_FALLBACK, PASS_CLOCK_JUMP, PASS_BAD_STAMP, PASS_T_CAPTURE_BACK,
  PASS_TIMELINE_JUMP) = range(7)
@@ -91,6 +94,7 @@ I_CAPTURE_BACK = I_CAPTURE_STEP = I_DEVIATION
 
 _OURS_CODE, _OPPONENTS_CODE = float(contract.OURS.code), float(contract.OPPONENTS.code)
 _BALL_CODE = float(contract.VISION_BALL_CODE)
+_CAMERA_CODE, _SIGHTING_CODE = float(contract.VISION_CAMERA_CODE), float(contract.VISION_SIGHTING_CODE)
 _LIMITS = DecodeLimits()
 _ball_step = tracking.compiled_ball_step()
 ROBOTS_AT = 8 + 4 * _LIMITS.max_balls  # where detection_rows puts the robots' rows
@@ -126,6 +130,34 @@ def robot_points(robots, used, ours, n_ours, pose_readers, points, has_ball, bal
     return first + len(used)
 
 
+def camera_table(limits: DecodeLimits = _LIMITS) -> np.ndarray:
+    """The bridge's cameras as the pass reads them: a row per camera id, (known 1/0, x, y, z [m] in ``field``, id)."""
+    table = np.zeros((limits.max_camera_id + 1, 5))
+    table[:, 4] = np.arange(len(table))
+    return table
+
+
+@numba.njit(cache=True, error_model="numpy")
+def frame_points(robots, used, ours, n_ours, pose_readers, points, camera, ball, ball_x, ball_y):
+    """A camera frame's /vision/robots points: the camera's (its row of ``camera_table`` when known: x, y, z, 0,
+    VISION_CAMERA_CODE, id), then those of ``robot_points`` with the ball's action ``ball`` (BALL_NONE: none;
+    BALL_SIGHTING: a sighting's point, only after a camera's; else the ball's). Their number (0: nothing to send),
+    or -1 as robot_points."""
+    first = 0
+    if camera[0] != 0.0:
+        points[0, 0], points[0, 1], points[0, 2], points[0, 3] = camera[1], camera[2], camera[3], 0.0
+        points[0, 4], points[0, 5] = _CAMERA_CODE, camera[4]
+        first = 1
+    sighting = ball == BALL_SIGHTING
+    has_ball = ball != BALL_NONE and (first == 1 or not sighting)
+    n = robot_points(robots, used, ours, n_ours, pose_readers, points[first:], has_ball, ball_x, ball_y)
+    if n <= 0:
+        return n
+    if has_ball and sighting:
+        points[first, 4] = _SIGHTING_CODE
+    return first + n
+
+
 @numba.njit(cache=True, error_model="numpy")
 def _put_u32(buf, at, value):
     for k in range(4):
@@ -156,7 +188,7 @@ def _message(t_s, points, n_points, head, width_at, sizes_at, message):
 def _frame_pass(data, t_receive, time_mode, rows, limits, last_capture, clock_window, clock_pending, clock_counts,
                 clock_params, timeline_cams, timeline_samples, timeline_glob, hyps, hits, candidates, tracks, used,
                 settings, ball_state, counts, ball_filter, shoot_samples, ball_model, pose_readers, ours_n_ours,
-                points, head, layout, message, info):
+                cameras, points, head, layout, message, info):
     """The datagram ``data`` received at ``t_receive`` (the ROS clock; with TIME_CAPTURE a monotonic wall clock)
     through decoding, capture order, clock, tracker and message (see the module docstring): (status, message
     length or -1, ball action, stamp, ball x, ball y)."""
@@ -214,11 +246,13 @@ def _frame_pass(data, t_receive, time_mode, rows, limits, last_capture, clock_wi
     info[I_USED] = n_used
     if n_used == 0 and action == 0:
         return PASS_DONE, 0, action, t_s, ball_x, ball_y
-    n_points = robot_points(robots, used[:n_used], ours_n_ours[0], ours_n_ours[1], pose_readers, points,
-                            action != 0, ball_x, ball_y)
+    n_points = frame_points(robots, used[:n_used], ours_n_ours[0], ours_n_ours[1], pose_readers, points,
+                            cameras[camera], action, ball_x, ball_y)
     info[I_POINTS] = n_points
     if n_points < 0:
         return PASS_GENERAL, -1, action, t_s, ball_x, ball_y
+    if n_points == 0:  # a sighting without its camera, and no robots
+        return PASS_DONE, 0, action, t_s, ball_x, ball_y
     n_bytes = _message(t_s, points, n_points, head, layout[0], layout[1], message)
     return PASS_DONE, n_bytes, action, t_s, ball_x, ball_y
 
@@ -230,9 +264,10 @@ class FramePass:
 
     def __init__(self, clock: VisionClock, tracker: VisionTracker, pose_readers: np.ndarray, ours: float,
                  n_ours: int, order: CaptureOrder | None = None, limits: DecodeLimits = _LIMITS,
-                 timeline: CaptureTimeline | None = None) -> None:
+                 timeline: CaptureTimeline | None = None, cameras: np.ndarray | None = None) -> None:
         """``order``, ``timeline``: the cameras' capture order and capture timeline the node's general path shares
-        (new ones when None); the order's restart_s is read here, at binding."""
+        (new ones when None); the order's restart_s is read here, at binding. ``cameras``: the node's
+        ``camera_table``, read per frame (None: no camera known)."""
         if (limits.max_balls, limits.max_robots_per_team) != (_LIMITS.max_balls, _LIMITS.max_robots_per_team):
             raise ValueError("FramePass: the rows' layout is compiled for the default counts")
         self.rows = np.empty(detection_rows_size(limits.max_balls, limits.max_robots_per_team))
@@ -256,7 +291,8 @@ class FramePass:
                        tracker.hits, tracker.candidates, tracker.robot_tracks, tracker.used, tracker.settings,
                        tracker.ball_state, tracker.counts, tracker.ball.s, tracker.ball.shoot, tracker.ball.m,
                        pose_readers, np.array([ours, n_ours], float),
-                       self.points, self.head, self.layout, self.message, self.info)
+                       camera_table(limits) if cameras is None else cameras, self.points, self.head, self.layout,
+                       self.message, self.info)
         # the compiled function for exactly these types: no type matching per call
         self._entry = compiled_for(_frame_pass, encode_frame(CameraFrame(0, 0, 0.0, 0.0, (), ())), 0.0,
                                    TIME_ESTIMATE, *self._state)

@@ -12,12 +12,13 @@ previous sighting could have moved. The track moves to a confirmed hypothesis in
 when its ball is lost for ``lost_after_s`` (put down elsewhere) or while it follows a ball in the run-off
 area (the game ball is the one on the field).
 
-Order and robots: a camera frame not after the newest one used is older news; its ball and its robots
-seen later are not used. A robot sighting that the last pose cannot reach at ``max_robot_speed_mps`` is
-held back; two agreeing held-back sightings re-seed the robot; duplicate ids take the nearest. The robot
-streams, the ball hypotheses and the choice of the ball are compiled passes over arrays
-(``frame_arrays``), the same kernels vision_fast_path runs per datagram; outside that pass the ball filter
-is updated through ``use_ball``.
+Order and robots: a camera frame not after the newest one used is older news; its robots seen later are not used,
+and its ball is not the ball's stream: the candidate near the ball taken (``sighting_gate_m``; another camera sees a
+ball in the air elsewhere on the ground) is that camera's sighting, for the chip detector. A robot sighting that the
+last pose cannot reach at ``max_robot_speed_mps`` is held back; two agreeing held-back sightings re-seed the robot;
+duplicate ids take the nearest. The robot streams, the ball hypotheses and the choice of the ball are compiled
+passes over arrays (``frame_arrays``), the same kernels vision_fast_path runs per datagram; outside that pass the
+ball filter is updated through ``use_ball``.
 """
 
 from __future__ import annotations
@@ -39,8 +40,8 @@ from erforce_interfaces.wire.robot_config import FieldConfig
 
 _PREDICTOR = schema_defaults("erforce_ball_model", "ball_predictor")
 
-__all__ = ["BALL_NONE", "BALL_SWITCH", "BALL_UPDATE", "COUNT_FRAMES", "COUNT_HYPOTHESES", "MAX_ROBOT_ID",
-           "SETTING_BALL_GATE", "SETTING_BALL_SPEED", "SETTING_HALF_LENGTH", "SETTING_HALF_WIDTH",
+__all__ = ["BALL_NONE", "BALL_SIGHTING", "BALL_SWITCH", "BALL_UPDATE", "COUNT_FRAMES", "COUNT_HYPOTHESES",
+           "MAX_ROBOT_ID", "SETTING_BALL_GATE", "SETTING_BALL_SPEED", "SETTING_HALF_LENGTH", "SETTING_HALF_WIDTH",
            "SETTING_HYPOTHESIS_TIMEOUT", "SETTING_MAX_X", "SETTING_MAX_Y", "SETTING_MIN_CONFIDENCE",
            "SETTING_ROBOT_GATE", "SETTING_ROBOT_SPEED", "BallObservation", "RobotObservation", "VisionTracker",
            "VisionTrackingConfig", "choose_ball", "load_kernels", "track_robots", "update_hypotheses"]
@@ -67,6 +68,9 @@ class VisionTrackingConfig:
     max_robot_speed_mps: float = 6.0
     robot_gate_m: float = 0.1
     max_hypotheses: int = 16
+    # a camera frame of an instant whose ball is taken (an overlap): its candidate this near the ball taken is that
+    # camera's sighting of it (two cameras 3-4.5 m apart at 4 m see a ball 0.4-0.55 m up this far apart)
+    sighting_gate_m: float = 0.5
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
@@ -81,7 +85,8 @@ class BallObservation(NamedTuple):
     x_m: float
     y_m: float
     camera_id: int
-    status: UpdateStatus
+    status: UpdateStatus  # a sighting: REJECTED_TIME (not after the ball's newest)
+    sighting: bool = False  # another camera's view of an instant the ball's stream has (BALL_SIGHTING)
 
 
 class RobotObservation(NamedTuple):
@@ -166,12 +171,15 @@ def _best_confirmed(hyps, hits, n_hyps, t_s, inside_only, window_s, fresh_s):
 # choice needs it (kept in step with ``VisionTracker.ball``), and its counters.
 (SETTING_MIN_CONFIDENCE, SETTING_MAX_X, SETTING_MAX_Y, SETTING_HALF_LENGTH, SETTING_HALF_WIDTH,
  SETTING_HYPOTHESIS_TIMEOUT, SETTING_BALL_GATE, SETTING_BALL_SPEED, SETTING_MAX_BALL_GATE, SETTING_LOST_AFTER,
- SETTING_MAX_GAP, SETTING_CONFIRM_WINDOW, SETTING_FRESH, SETTING_ROBOT_GATE, SETTING_ROBOT_SPEED) = range(15)
+ SETTING_MAX_GAP, SETTING_CONFIRM_WINDOW, SETTING_FRESH, SETTING_ROBOT_GATE, SETTING_ROBOT_SPEED,
+ SETTING_SIGHTING_GATE) = range(16)
 (_B_USED, _B_T_USED, _B_LAST_X, _B_LAST_Y, _B_INITIALIZED, _B_FILTER_T, _B_X, _B_Y, _B_VX, _B_VY) = range(10)
 COUNT_HYPOTHESES, COUNT_FRAMES, COUNT_LATE_BALLS, COUNT_FALSE_CANDIDATES, COUNT_SWITCHES = range(5)
 BALL_NONE, BALL_UPDATE, BALL_SWITCH = range(3)  # what choose_ball asks of the ball filter
 # the compiled pass fused the ball already (BALL_FUSED + its UpdateStatus: INITIALIZED or ACCEPTED)
 BALL_FUSED = 3
+# not the ball's: another camera's sighting of an instant taken (nothing for the filter; after BALL_FUSED's range)
+BALL_SIGHTING = BALL_FUSED + len(UpdateStatus)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -192,12 +200,24 @@ def _gate_m(p, t_s, t_ref_s):
 @numba.njit(cache=True, error_model="numpy")
 def choose_ball(hyps, hits, t_s, candidates, n_candidates, p, ball, counts):
     """Which of the frame's ``candidates`` (rows x, y, confidence; after update_hypotheses) is the ball (see the
-    module docstring): (BALL_NONE / BALL_UPDATE / BALL_SWITCH (a new filter first), x, y); ``counts`` updated."""
+    module docstring): (BALL_NONE / BALL_UPDATE / BALL_SWITCH (a new filter first) / BALL_SIGHTING, x, y);
+    ``counts`` updated."""
     n_hyps = counts[COUNT_HYPOTHESES]
     if ball[_B_USED] != 0.0 and t_s <= ball[_B_T_USED]:
-        if n_candidates:
-            counts[COUNT_LATE_BALLS] += 1
-        return BALL_NONE, 0.0, 0.0
+        if not n_candidates:
+            return BALL_NONE, 0.0, 0.0
+        counts[COUNT_LATE_BALLS] += 1
+        # another camera's view of the ball taken: near it, allowing for the ball's motion in between
+        radius = min(p[SETTING_SIGHTING_GATE] + p[SETTING_BALL_SPEED] * (ball[_B_T_USED] - t_s),
+                     p[SETTING_MAX_BALL_GATE])
+        chosen, best = -1, np.inf
+        for k in range(n_candidates):
+            d = math.hypot(candidates[k, 0] - ball[_B_LAST_X], candidates[k, 1] - ball[_B_LAST_Y])
+            if d <= radius and d < best:
+                chosen, best = k, d
+        if chosen < 0:
+            return BALL_NONE, 0.0, 0.0
+        return BALL_SIGHTING, candidates[chosen, 0], candidates[chosen, 1]
     if n_candidates == 0:
         return BALL_NONE, 0.0, 0.0
     if ball[_B_USED] != 0.0 and ball[_B_INITIALIZED] != 0.0:
@@ -317,7 +337,7 @@ class VisionTracker:
         self.settings = np.array([cfg.min_confidence, 0.0, 0.0, 0.0, 0.0, cfg.hypothesis_timeout_s, cfg.ball_gate_m,
                                   cfg.max_ball_speed_mps, cfg.max_ball_gate_m, cfg.lost_after_s,
                                   self._tracker_config.max_gap_s, cfg.confirm_window_s, cfg.fresh_s, cfg.robot_gate_m,
-                                  cfg.max_robot_speed_mps])
+                                  cfg.max_robot_speed_mps, cfg.sighting_gate_m])
         self.field = field
         self.ball_state = np.zeros(10)  # the ball filter's as choose_ball reads it (_sync_ball)
         self.counts = np.zeros(5, np.int64)  # hypotheses alive, then the counters below
@@ -414,7 +434,9 @@ class VisionTracker:
 
     def use_ball(self, action: int, camera_id: int, t_s: float, x: float, y: float) -> BallObservation | None:
         """What choose_ball decided, done on the ball filter (a switch: a new ball, no history); the observation,
-        or None when the filter refuses it."""
+        or None when the filter refuses it. A sighting is the observation without the filter."""
+        if action == BALL_SIGHTING:
+            return BallObservation(t_s, x, y, camera_id, UpdateStatus.REJECTED_TIME, True)
         if action >= BALL_FUSED:
             return BallObservation(t_s, x, y, camera_id, UpdateStatus(action - BALL_FUSED))
         if action == BALL_SWITCH:

@@ -22,7 +22,9 @@ from erforce_interfaces.wire.contract import (
     OPPONENTS,
     OURS,
     VISION_BALL_CODE,
+    VISION_CAMERA_CODE,
     VISION_ROBOT_FIELDS,
+    VISION_SIGHTING_CODE,
 )
 from erforce_interfaces.wire.conversions import (
     _CDR_LE,
@@ -40,15 +42,18 @@ from erforce_interfaces.wire.conversions import (
 
 # ------------------------------------------------------------ vision robots
 # /vision/robots: a sensor_msgs/PointCloud2 with one point per robot and one per ball (team VISION_BALL_CODE, yaw
-# and robot_id 0, written first), the float64 fields VISION_ROBOT_FIELDS (x, y, z, yaw, team, robot_id) at offsets
-# 0, 8, .., little endian, height 1. Its layout is constant but for the stamp, the width and the data: the bytes
-# from the fields to point_step are built once and, on the way in, recognised. Rows in and out are (team,
+# and robot_id 0), the float64 fields VISION_ROBOT_FIELDS (x, y, z, yaw, team, robot_id) at offsets 0, 8, ..,
+# little endian, height 1; the leading points (the camera's, VISION_CAMERA_CODE; the balls; the sightings,
+# VISION_SIGHTING_CODE) before the robots. Its layout is constant but for the stamp, the width and the data: the
+# bytes from the fields to point_step are built once and, on the way in, recognised. Rows in and out are (team,
 # robot_id, x, y, yaw): Team.code, the id within the team, the pose in ``field`` [m, rad]; yaw goes out and comes
-# in wrapped to [-pi, pi]. Balls in and out are (x, y) in ``field`` [m].
+# in wrapped to [-pi, pi]. Balls and sightings in and out are (x, y) in ``field`` [m]; a camera (camera_id, x, y,
+# z) in ``field`` [m], z > 0.
 _ROBOT_POINT = struct.Struct(f"<{len(VISION_ROBOT_FIELDS)}d")
 _MAX_CLOUD_POINTS = 1024  # a width beyond this is garbage, not a field of robots
 _TEAM_CODES = (OURS.code, OPPONENTS.code)
-_POINT_CODES = (VISION_BALL_CODE, *_TEAM_CODES)
+_POINT_CODES = (VISION_BALL_CODE, *_TEAM_CODES, VISION_CAMERA_CODE, VISION_SIGHTING_CODE)
+_LEADING_CODES = (VISION_BALL_CODE, VISION_CAMERA_CODE, VISION_SIGHTING_CODE)  # the points before the robots
 _NO_BALLS = np.empty((0, 2))
 _NO_BALLS.flags.writeable = False
 _TWO_PI = 2.0 * math.pi
@@ -58,13 +63,13 @@ _MAX_ABS_YAW = 1.0e6  # [rad] yaw is wrapped on the way out and in; beyond this 
 def _point_is_valid(x: float, y: float, z: float, yaw: float, team: float, robot_id: float,
                     codes: tuple[float, ...] = _POINT_CODES) -> bool:
     """Whether a /vision/robots point (x, y, z, yaw, team, robot_id) passes the reader's checks (False for NaN):
-    x, y, z within MAX_ABS_VALUE, yaw within _MAX_ABS_YAW, a team of ``codes``, an integer id in
-    0.._MAX_CLOUD_POINTS. The one statement of the point check: the writer, the leading-ball reader and
+    x, y, z within MAX_ABS_VALUE (a camera above the field: z > 0), yaw within _MAX_ABS_YAW, a team of ``codes``, an
+    integer id in 0.._MAX_CLOUD_POINTS. The one statement of the point check: the writer, the leading-ball reader and
     ``_robot_rows`` ask it per point (``_robot_rows`` first tests the whole array against ``_ROBOT_POINT_LIMITS``,
     the same limits in array form), and ``_point_error`` names what failed."""
     return (abs(x) <= MAX_ABS_VALUE and abs(y) <= MAX_ABS_VALUE and abs(z) <= MAX_ABS_VALUE
             and abs(yaw) <= _MAX_ABS_YAW and team in codes and 0.0 <= robot_id <= _MAX_CLOUD_POINTS
-            and robot_id == int(robot_id))
+            and robot_id == int(robot_id) and (team != VISION_CAMERA_CODE or z > 0.0))
 
 
 def _float64_fields_cdr(names: Sequence[str]) -> bytes:
@@ -84,26 +89,33 @@ _ROBOT_FIELDS_CDR = _float64_fields_cdr(VISION_ROBOT_FIELDS)
 
 
 def vision_robots_cdr(t_s: float, rows: Sequence[Sequence[float]], frame_id: str = FIELD_FRAME,
-                      balls: Sequence[Sequence[float]] = ()) -> bytes:
-    """A /vision/robots PointCloud2 serialized: the ``balls`` (x, y) first, then ``rows`` of (team, robot_id, x, y,
-    yaw), checked as the reader checks them (finite, positions within MAX_ABS_VALUE, a team code, an integer id)."""
+                      balls: Sequence[Sequence[float]] = (), camera: Sequence[float] | None = None,
+                      sightings: Sequence[Sequence[float]] = ()) -> bytes:
+    """A /vision/robots PointCloud2 serialized: the ``camera`` (camera_id, x, y, z) first where given, the ``balls``
+    (x, y), the ``sightings`` (x, y; only with a camera), then ``rows`` of (team, robot_id, x, y, yaw), checked as
+    the reader checks them (finite, positions within MAX_ABS_VALUE, a team code, an integer id, a camera above the
+    field)."""
+    if sightings and camera is None:
+        raise ConversionError("sightings without the camera that saw them")
+    leading = [] if camera is None else [(camera[1], camera[2], camera[3], 0.0, VISION_CAMERA_CODE, camera[0])]
+    leading += [(x, y, 0.0, 0.0, VISION_BALL_CODE, 0.0) for x, y in balls]
+    leading += [(x, y, 0.0, 0.0, VISION_SIGHTING_CODE, 0.0) for x, y in sightings]
     flat = []
-    for x, y in balls:
-        ball = (x, y, 0.0, 0.0, VISION_BALL_CODE, 0.0)
-        if not _point_is_valid(*ball):
-            _point_error(0, *ball)
-        flat += ball
+    for point in leading:
+        if not _point_is_valid(*point):
+            _point_error(0, *point)
+        flat += point
     for k, (team, robot_id, x, y, yaw) in enumerate(rows):
         if not _point_is_valid(x, y, 0.0, yaw, team, robot_id, _TEAM_CODES):
             _point_error(k, x, y, 0.0, yaw, team, robot_id, _TEAM_CODES)
         flat += (x, y, 0.0, math.remainder(yaw, _TWO_PI), team, robot_id)
-    return _vision_robots_bytes(t_s, len(balls) + len(rows), struct.pack(f"<{len(flat)}d", *flat), frame_id)
+    return _vision_robots_bytes(t_s, len(leading) + len(rows), struct.pack(f"<{len(flat)}d", *flat), frame_id)
 
 
 def vision_robots_points_cdr(t_s: float, points: np.ndarray, frame_id: str = FIELD_FRAME) -> bytes:
     """``vision_robots_cdr`` for points the caller has already written and checked as it checks rows: a
-    float64 array (n, 6) in VISION_ROBOT_FIELDS order, yaw in [-pi, pi], the ball first (a producer's compiled
-    path)."""
+    float64 array (n, 6) in VISION_ROBOT_FIELDS order, yaw in [-pi, pi], the camera, ball and sightings first (a
+    producer's compiled path)."""
     return _vision_robots_bytes(t_s, len(points), points.astype("<f8", copy=False).tobytes(), frame_id)
 
 
@@ -144,13 +156,31 @@ def _stamp_head(t_s: float) -> bytes:
 
 def _point_error(k: int, x, y, z, yaw, team, robot_id, codes: tuple[float, ...] = _POINT_CODES) -> None:
     """Raise the ConversionError that names why point ``k`` fails ``_point_is_valid``."""
-    point = "ball" if team == VISION_BALL_CODE else f"robot {k}"
+    point = _LEADING_NAMES.get(team, f"robot {k}")
     for name, value, limit in (("z", z, MAX_ABS_VALUE), ("x", x, MAX_ABS_VALUE), ("y", y, MAX_ABS_VALUE),
                                ("yaw", yaw, _MAX_ABS_YAW)):
         _finite(f"{point}: {name}", value, limit)
+    if team == VISION_CAMERA_CODE and team in codes and not z > 0.0:
+        raise ConversionError(f"camera: z {z!r} m: a camera is above the field")
     if team not in codes:
         raise ConversionError(f"robot {k}: team {team!r} is none of {codes}")
     raise ConversionError(f"robot {k}: robot_id {robot_id!r} is no id (an integer in 0..{_MAX_CLOUD_POINTS})")
+
+
+_LEADING_NAMES = {VISION_BALL_CODE: "ball", VISION_CAMERA_CODE: "camera", VISION_SIGHTING_CODE: "sighting"}
+
+
+class VisionCloud(NamedTuple):
+    """One /vision/robots frame: its stamp [s], balls (k, 2) and robots (n, 5) as ``vision_frame_from_msg`` has
+    them, the camera that took it (``camera_id``, ``camera_m`` = its position x, y, z [m]; None: not named, its
+    ball is a ground sighting) and that camera's sightings (j, 2) of instants the ball has from another camera."""
+
+    t_s: float
+    balls: np.ndarray
+    robots: np.ndarray
+    camera_id: int | None
+    camera_m: tuple[float, float, float] | None
+    sightings: np.ndarray
 
 
 def vision_robots_from_msg(msg: PointCloud2 | bytes) -> tuple[float, np.ndarray]:
@@ -161,9 +191,15 @@ def vision_robots_from_msg(msg: PointCloud2 | bytes) -> tuple[float, np.ndarray]
 
 def vision_frame_from_msg(msg: PointCloud2 | bytes) -> tuple[float, np.ndarray, np.ndarray]:
     """(stamp [s], balls, robots) of /vision/robots: balls an (k, 2) array of (x, y), robots an (n, 5) array of
-    (team, robot_id, x, y, yaw), yaw in [-pi, pi]. ``msg`` may be serialized (as point_from_msg). A cloud with
-    other fields, a point with a non-finite or huge value, an unknown team or a fractional id is refused as a
-    whole (ConversionError)."""
+    (team, robot_id, x, y, yaw), yaw in [-pi, pi] (``vision_cloud_from_msg`` without the camera)."""
+    cloud = vision_cloud_from_msg(msg)
+    return cloud.t_s, cloud.balls, cloud.robots
+
+
+def vision_cloud_from_msg(msg: PointCloud2 | bytes) -> VisionCloud:
+    """The VisionCloud of a /vision/robots message. ``msg`` may be serialized (as point_from_msg). A cloud with
+    other fields, a point with a non-finite or huge value, an unknown team, a fractional id, a camera not above the
+    field, two cameras or sightings without one is refused as a whole (ConversionError)."""
     if isinstance(msg, bytes | bytearray | memoryview):
         data = bytes(msg)
         t_s, layout, at = _cloud_from_cdr(data)
@@ -175,39 +211,69 @@ def vision_frame_from_msg(msg: PointCloud2 | bytes) -> tuple[float, np.ndarray, 
         _check_robot_cloud(msg.height, msg.width, [(f.name, f.offset, f.datatype, f.count) for f in msg.fields],
                            msg.is_bigendian, msg.point_step, msg.row_step, len(msg.data))
         values = np.frombuffer(bytes(msg.data), "<f8")
-    rows = _robot_rows(values.reshape(-1, len(VISION_ROBOT_FIELDS)))
-    is_ball = rows[:, 0] == VISION_BALL_CODE
-    if not is_ball.any():
-        return t_s, _NO_BALLS, rows
-    return t_s, rows[is_ball][:, 2:4], rows[~is_ball]
+    values = values.reshape(-1, len(VISION_ROBOT_FIELDS))
+    rows = _robot_rows(values)
+    is_robot = rows[:, 0] >= _TEAM_CODES[0]
+    is_robot &= rows[:, 0] <= _TEAM_CODES[1]
+    if is_robot.all():  # the usual frame of our plant: no camera
+        return VisionCloud(t_s, _NO_BALLS, rows, None, None, _NO_BALLS)
+    codes = rows[:, 0]
+    cameras = values[codes == VISION_CAMERA_CODE]
+    if len(cameras) > 1:
+        raise ConversionError(f"{len(cameras)} camera points: a frame is one camera's")
+    sightings = rows[codes == VISION_SIGHTING_CODE][:, 2:4]
+    if len(sightings) and not len(cameras):
+        raise ConversionError("sightings without the camera that saw them")
+    camera_id, camera_m = (None, None) if not len(cameras) else (int(cameras[0, 5]), tuple(cameras[0, :3].tolist()))
+    return VisionCloud(t_s, rows[codes == VISION_BALL_CODE][:, 2:4], rows[is_robot], camera_id, camera_m,
+                       sightings if len(sightings) else _NO_BALLS)
 
 
-def vision_leading_balls(data: bytes) -> tuple[float, list[tuple[float, float]]] | None:
-    """(stamp [s], balls) of a serialized /vision/robots from its leading ball points alone (the ball is written
-    first), read at their fixed offsets without decoding the robots: a reader that answers the ball first
-    decodes the rest afterwards. The cloud's layout must be /vision/robots' and each ball point must pass
-    ``vision_frame_from_msg``'s checks; otherwise None (decode the whole frame: it names the fault). The robot
-    points are not checked here."""
+class LeadingPoints(NamedTuple):
+    """A frame's points before its robots: stamp [s], balls [(x, y)], the camera's position (x, y, z) [m] or None,
+    and its sightings [(x, y)] (see VisionCloud)."""
+
+    t_s: float
+    balls: list[tuple[float, float]]
+    camera_m: tuple[float, float, float] | None
+    sightings: list[tuple[float, float]]
+
+
+def vision_leading_points(data: bytes) -> LeadingPoints | None:
+    """The leading points of a serialized /vision/robots (the camera, the balls and the sightings are written
+    before the robots), read at their fixed offsets without decoding the robots: a reader that answers the ball
+    first decodes the rest afterwards. The cloud's layout must be /vision/robots' and each leading point must pass
+    ``vision_cloud_from_msg``'s checks (one camera at most, sightings only with it); otherwise None (decode the
+    whole frame: it names the fault). The robot points are not checked here."""
     try:
         t_s, layout, at = _cloud_from_cdr(data)
         _check_robot_cloud(*layout)
     except ConversionError:
         return None
-    balls = []
+    balls, sightings, camera = [], [], None
     for k in range(layout[1]):
-        x, y, z, yaw, team, robot_id = _ROBOT_POINT.unpack_from(data, at + k * _ROBOT_POINT.size)
-        if team != VISION_BALL_CODE:
+        x, y, z, _yaw, team, _robot_id = point = _ROBOT_POINT.unpack_from(data, at + k * _ROBOT_POINT.size)
+        if team not in _LEADING_CODES:
             break
-        if not _point_is_valid(x, y, z, yaw, team, robot_id):
+        if not _point_is_valid(*point):
             return None
-        balls.append((x, y))
-    return t_s, balls
+        if team == VISION_BALL_CODE:
+            balls.append((x, y))
+        elif team == VISION_SIGHTING_CODE:
+            sightings.append((x, y))
+        elif camera is None:
+            camera = (x, y, z)
+        else:
+            return None  # two cameras
+    if sightings and camera is None:
+        return None
+    return LeadingPoints(t_s, balls, camera, sightings)
 
 
 def vision_ball_after_robot(data: bytes) -> bool:
-    """Whether a serialized /vision/robots has a ball point after a robot point (another writer's order), read
-    from the points' team fields alone; False when the cloud is not /vision/robots' layout (decoding it names
-    the fault)."""
+    """Whether a serialized /vision/robots has a leading point (a ball, camera or sighting) after a robot point
+    (another writer's order), read from the points' team fields alone; False when the cloud is not /vision/robots'
+    layout (decoding it names the fault)."""
     try:
         _t_s, layout, at = _cloud_from_cdr(data)
         _check_robot_cloud(*layout)
@@ -216,10 +282,10 @@ def vision_ball_after_robot(data: bytes) -> bool:
     step, team_at = _ROBOT_POINT.size, 8 * VISION_ROBOT_FIELDS.index("team")
     robot_seen = False
     for k in range(layout[1]):
-        is_ball = _f64.unpack_from(data, at + k * step + team_at)[0] == VISION_BALL_CODE
-        if is_ball and robot_seen:
+        leading = _f64.unpack_from(data, at + k * step + team_at)[0] in _LEADING_CODES
+        if leading and robot_seen:
             return True
-        robot_seen = robot_seen or not is_ball
+        robot_seen = robot_seen or not leading
     return False
 
 
@@ -290,7 +356,7 @@ def _point_fields_cdr(data: bytes, p: int) -> tuple[list[tuple[str, int, int, in
 
 
 #: per field of a point: the largest magnitude ``_point_is_valid`` accepts (the team and the id are checked further
-#: below: integers, not negative, so the team is one of _POINT_CODES)
+#: below: integers, not negative, so the team is one of _POINT_CODES, which are 0..4; a camera's z separately)
 _ROBOT_POINT_LIMITS = np.array([MAX_ABS_VALUE, MAX_ABS_VALUE, MAX_ABS_VALUE, _MAX_ABS_YAW, max(_POINT_CODES),
                                 _MAX_CLOUD_POINTS])
 
@@ -300,7 +366,8 @@ def _robot_rows(values: np.ndarray) -> np.ndarray:
     codes = values[:, 4:]
     # a few whole-array tests (each false for NaN): ranges, then integer team and id, team and id >= 0
     if not ((np.abs(values) <= _ROBOT_POINT_LIMITS).all() and (codes == np.floor(codes)).all()
-            and (codes >= (VISION_BALL_CODE, 0.0)).all()):
+            and (codes >= (VISION_BALL_CODE, 0.0)).all()
+            and (values[:, 2] > 0.0)[codes[:, 0] == VISION_CAMERA_CODE].all()):
         for k, point in enumerate(values.tolist()):
             if not _point_is_valid(*point):
                 _point_error(k, *point)

@@ -324,8 +324,12 @@ VISION_ROBOTS = Topic("/vision/robots", PointCloud2, QOS_SENSOR, "plant (vision)
                       "one vision frame (the bridge: one camera frame) in one message: its ball and every robot, "
                       "both teams; a point each, fields VISION_ROBOT_FIELDS (float64, little endian, height 1): "
                       "x, y [m] and z = 0 in `field`, yaw [rad] in [-pi, pi], team (Team.code: 1 ours, 2 the "
-                      "opponents; VISION_BALL_CODE 0: the ball, with yaw and robot_id 0, first), robot_id (within "
-                      "the team); stamp = capture time; noisy, delayed, with dropouts")
+                      "opponents; VISION_BALL_CODE 0: the ball, with yaw and robot_id 0), robot_id (within "
+                      "the team); first the camera that took the frame, where known (VISION_CAMERA_CODE 3: x, y, z = "
+                      "its position [m] in `field`, robot_id its camera id), then the ball, then (VISION_SIGHTING_CODE "
+                      "4) the ball as this camera saw it at an instant the ball already has from another camera, "
+                      "then the robots; without a camera point the ball is a ground sighting; stamp = capture time; "
+                      "noisy, delayed, with dropouts")
 VISION_DETECTIONS = Topic("/vision/detections", Float64MultiArray, QOS_SENSOR, "ssl_vision_bridge", "tools",
                           "one message per SSL camera frame, a table with columns VISION_DETECTION_COLUMNS: every "
                           "ball candidate and robot the camera saw, in `field` [m, rad]; age_s = receipt - capture "
@@ -463,6 +467,14 @@ BALL_TRACK_FIELDS = ("x", "y", "z", "vx_mps", "vy_mps", "v_shoot_mps", "seen_x_m
 VISION_DETECTION_COLUMNS = ("camera_id", "age_s", "kind", "robot_id", "x_m", "y_m", "theta_rad", "confidence")
 #: ``team`` of the ball's point in /vision/robots (a frame carries its ball with its robots: one message per frame)
 VISION_BALL_CODE = 0.0
+#: ``team`` of the camera's point in /vision/robots: x, y, z its position in ``field`` [m] (SSL geometry's
+#: calibration), yaw 0, robot_id the camera id; at most one, before the ball. A chip detector reads a ball in the
+#: air from where each camera saw it (docs/decisions/0035).
+VISION_CAMERA_CODE = 3.0
+#: ``team`` of a sighting in /vision/robots: the ball as the frame's camera saw it at an instant whose ball came
+#: from another camera (an overlap) or earlier, for the chip detector only (the ball's own stream stays one point
+#: per instant); only in a frame with a camera point, after the ball's place, yaw and robot_id 0
+VISION_SIGHTING_CODE = 4.0
 #: ``kind`` values of /vision/detections (theta_rad is 0 for balls and robots without orientation)
 VISION_DETECTION_KINDS = {"ball": VISION_BALL_CODE, "ours": OURS.code, "opponent": OPPONENTS.code}
 #: ``team`` is Team.code (1 ours, 2 the opponents); ``robot_id`` counts within the team
