@@ -529,6 +529,27 @@ def test_chip_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ro
     assert len(models) == 2
 
 
+def test_ssl_geometrys_chip_model_becomes_the_chip_model_in_use_and_a_bad_one_is_refused(ros_graph):
+    """/vision/chip_model (SSL geometry's chip_fixed_loss, grSim's 0.42, 0.6, 0.96) replaces the three dampings of
+    /ball/chip_model_params; g, the minimum hop and the catchable height stay the node's. One that makes no chip
+    model (damping_z 1: it would hop for ever) is refused with a warning naming the topic, and the one in use kept."""
+    rig = Rig(ros_graph, num_robots=1)
+    probe = ros_graph.probe
+    labels = contract.BALL_CHIP_MODEL_PARAM_LABELS
+    models = probe.subscribe(contract.BALL_CHIP_MODEL_PARAMS.name, Float64MultiArray,
+                             contract.BALL_CHIP_MODEL_PARAMS.qos)
+    probe.spin_until(lambda: models, 10.0, "the chip model in use at start")
+    geometry = probe.wait_for_subscribers(contract.VISION_CHIP_MODEL.name, Float64MultiArray, timeout_s=20.0,
+                                          qos=contract.VISION_CHIP_MODEL.qos)
+    geometry.publish(table_msg([[0.42, 0.6, 0.96]], contract.VISION_CHIP_MODEL_LABELS, "model"))
+    probe.spin_until(lambda: len(models) >= 2, 10.0, "the geometry's chip model in use")
+    assert table_from_msg(models[-1], labels)[0].tolist() == pytest.approx([9.81, 0.42, 0.6, 0.96, 0.05, 0.15],
+                                                                          abs=1e-12)
+    geometry.publish(table_msg([[1.0, 0.6, 0.96]], contract.VISION_CHIP_MODEL_LABELS, "model"))
+    probe.spin_until(lambda: "rejected SSL geometry's chip model" in rig.node.output(), 10.0, "the refusal")
+    assert len(models) == 2
+
+
 def test_a_bad_kick_angle_is_refused_with_a_throttled_warning_and_its_kick_is_no_hint(ros_graph):
     """kick_angle outside [0, 90) deg (not finite, negative, 90 or more): a warning naming the robot and the value,
     throttled; the robot's next kick is no hint to the chip detector (it never sees the angle), and the node
