@@ -173,7 +173,8 @@ class SslVisionBridge(Node):
         height) [m, field frame] of the camera that saw it, from the SSL geometry's calibration (None while the
         geometry has none for it): the chip detector needs it, /vision/robots does not carry it. Its CPU time is not
         counted in the bridge's statistics. ``geometry_sink``: called there with each new SSL geometry's field, ball
-        model and chip dampings (VISION_CHIP_MODEL_LABELS: value), before the next frame goes to ``frame_sink`` (a topic's message could come after it)."""
+        model and chip dampings (VISION_CHIP_MODEL_LABELS: value), before the next frame goes to ``frame_sink`` (a
+        topic's message could come after it)."""
         super().__init__("ssl_vision_bridge")
         self._warn = ThrottledWarner(self)
         self._frame_sink = frame_sink
