@@ -522,7 +522,8 @@ class SslVisionBridge(Node):
 
     # ----------------------------------------------------------------- geometry
     def _on_geometry(self, geometry) -> None:
-        self._camera_poses = {c.camera_id: (c.x_m, c.y_m, c.z_m) for c in geometry.cameras if c.z_m > 0.0}
+        # by camera id, kept across packets: a source may send each camera's calibration in its own packet (grSim)
+        self._camera_poses.update((c.camera_id, (c.x_m, c.y_m, c.z_m)) for c in geometry.cameras if c.z_m > 0.0)
         key = (geometry.length_m, geometry.width_m, geometry.boundary_m, geometry.ball_model, geometry.chip_model)
         if key == self._last_geometry:
             return
