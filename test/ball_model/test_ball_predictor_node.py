@@ -509,16 +509,21 @@ def test_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ros_gra
     assert table_from_msg(late[0], contract.BALL_MODEL_PARAM_LABELS)[0] == pytest.approx([-A_SLIDE, -0.5, C_SWITCH])
 
 
+def chip_models_rig(ros_graph):
+    """A one-robot predictor and the /ball/chip_model_params it published, once the first has come."""
+    rig = Rig(ros_graph, num_robots=1)
+    models = ros_graph.probe.subscribe(contract.BALL_CHIP_MODEL_PARAMS.name, Float64MultiArray,
+                                       contract.BALL_CHIP_MODEL_PARAMS.qos)
+    ros_graph.probe.spin_until(lambda: models, 10.0, "the chip model in use at start")
+    return rig, models
+
+
 def test_chip_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ros_graph):
     """/ball/chip_model_params carries ChipParams' fields in contract order: the defaults at start (the plant's ball:
     restitution 0.566, 1 / 1.4 of the speed kept at the first bounce, interception height 0.15 m, reception height a
     ball radius), then a changed interception height, then a changed reception height."""
-    rig = Rig(ros_graph, num_robots=1)
-    probe = ros_graph.probe
-    labels = contract.BALL_CHIP_MODEL_PARAM_LABELS
-    models = probe.subscribe(contract.BALL_CHIP_MODEL_PARAMS.name, Float64MultiArray,
-                             contract.BALL_CHIP_MODEL_PARAMS.qos)
-    probe.spin_until(lambda: models, 10.0, "the chip model in use at start")
+    rig, models = chip_models_rig(ros_graph)
+    probe, labels = ros_graph.probe, contract.BALL_CHIP_MODEL_PARAM_LABELS
     assert models[-1].layout.dim[0].label == "in_use"
     defaults = [9.81, 0.566, 1.0 / 1.4, 1.0, 0.05, 0.15, 0.02135]
     assert table_from_msg(models[-1], labels)[0].tolist() == pytest.approx(defaults, abs=1e-12)
@@ -532,6 +537,23 @@ def test_chip_model_in_use_is_latched_at_start_and_follows_a_parameter_change(ro
     probe.spin_until(lambda: len(rig.model_params) >= 2, 10.0, "the changed ball model")
     probe.spin_for(0.3)
     assert len(models) == 3
+
+
+def test_ssl_geometrys_chip_model_becomes_the_chip_model_in_use_and_a_bad_one_is_refused(ros_graph):
+    """/vision/chip_model (SSL geometry's chip_fixed_loss, grSim's 0.42, 0.6, 0.96) replaces the three dampings of
+    /ball/chip_model_params; g, the minimum hop and the two heights stay the node's. One that makes no chip
+    model (damping_z 1: it would hop for ever) is refused with a warning naming the topic, and the one in use kept."""
+    rig, models = chip_models_rig(ros_graph)
+    probe, labels = ros_graph.probe, contract.BALL_CHIP_MODEL_PARAM_LABELS
+    geometry = probe.wait_for_subscribers(contract.VISION_CHIP_MODEL.name, Float64MultiArray, timeout_s=20.0,
+                                          qos=contract.VISION_CHIP_MODEL.qos)
+    geometry.publish(table_msg([[0.42, 0.6, 0.96]], contract.VISION_CHIP_MODEL_LABELS, "model"))
+    probe.spin_until(lambda: len(models) >= 2, 10.0, "the geometry's chip model in use")
+    in_use = [9.81, 0.42, 0.6, 0.96, 0.05, 0.15, 0.02135]
+    assert table_from_msg(models[-1], labels)[0].tolist() == pytest.approx(in_use, abs=1e-12)
+    geometry.publish(table_msg([[1.0, 0.6, 0.96]], contract.VISION_CHIP_MODEL_LABELS, "model"))
+    probe.spin_until(lambda: "rejected SSL geometry's chip model" in rig.node.output(), 10.0, "the refusal")
+    assert len(models) == 2
 
 
 def test_a_bad_kick_angle_is_refused_with_a_throttled_warning_and_its_kick_is_no_hint(ros_graph):

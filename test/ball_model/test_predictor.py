@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 from ballmodel_sim import observe, simulate
 
-from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.ball_model import BallModelParams, ChipParams
 from erforce_ball_model.catch_time import CatchSearch, RobotLimits, catch_after_reaction
+from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.identification import FitResult, ShotAccumulator
 from erforce_ball_model.predictor import CATCH_TIME_NEVER, BallPredictor, FrameTimes, PredictorConfig
 from erforce_interfaces.wire.robot_config import FieldConfig
@@ -235,6 +236,40 @@ def test_ssl_geometry_outlives_parameter_changes_while_use_vision_geometry_is_on
     assert predictor.model == hand
     assert predictor.configure(PredictorConfig(num_robots=1, field=FIELD, model=hand)) is True
     assert (predictor.config.field, predictor.model) == (geometry_field, BallModelParams(-3.5, -0.3, 0.6))
+
+
+def test_ssl_geometry_chip_dampings_become_the_chip_model_in_use():
+    """grSim's chip_fixed_loss (damping_z 0.42, xy 0.6 first hop, 0.96 after) replaces the configured dampings while
+    use_vision_geometry; g, the minimum hop and the catchable height stay the configured ones. A 4 m/s chip at 45 deg
+    (vz = vx = 2.8284 m/s) lands first at 2 vx vz / g = 1.6310 m after 2 vz / g = 0.57664 s whatever the dampings;
+    then it hops at 0.42 vz for 2 (0.42 vz) / g = 0.24219 s and 0.6 vx, so its second touchdown is 1.6310 +
+    0.6 vx 0.24219 = 2.0420 m (under the defaults 0.566 and 1 / 1.4: 1.6310 + 0.32638 * 2.0203 = 2.2904 m)."""
+    configured = ChipParams(max_catch_height_m=0.2, min_hop_vz_mps=0.1)
+    predictor = BallPredictor(PredictorConfig(num_robots=1, field=FIELD, chip=configured))
+    grsim = {"damping_z": 0.42, "damping_xy_first_hop": 0.6, "damping_xy_other_hops": 0.96}
+    assert predictor.set_vision_geometry(chip_dampings=grsim) is False  # the flat model in use did not change
+    assert predictor.chip_model == ChipParams(damping_z=0.42, damping_xy_first_hop=0.6, damping_xy_other_hops=0.96,
+                                              max_catch_height_m=0.2, min_hop_vz_mps=0.1)
+    v = 4.0 / math.sqrt(2.0)
+    chip = ChipTrajectory((0.0, 0.0, 0.0), (v, 0.0, v), predictor.chip_model)
+    assert chip.touchdown_times_s[:2].tolist() == pytest.approx([0.57664, 0.57664 + 0.24219], abs=1e-5)
+    assert chip.touchdown_points_m[:2, 0].tolist() == pytest.approx([1.6310, 2.0420], abs=1e-4)
+    nominal = ChipTrajectory((0.0, 0.0, 0.0), (v, 0.0, v), ChipParams())
+    assert nominal.touchdown_points_m[1, 0] == pytest.approx(2.2904, abs=1e-4)
+
+    # other parameters change: the geometry's dampings stay; turned off: the configured ones; on again: the geometry's
+    predictor.configure(PredictorConfig(num_robots=1, field=FIELD, chip=configured, reaction_s=0.2))
+    assert predictor.chip_model.damping_z == 0.42
+    predictor.configure(PredictorConfig(num_robots=1, field=FIELD, chip=configured, use_vision_geometry=False))
+    assert predictor.chip_model == configured
+    predictor.configure(PredictorConfig(num_robots=1, field=FIELD, chip=configured))
+    assert predictor.chip_model.damping_xy_other_hops == 0.96
+
+    # dampings that make no chip model (a ball that never stops hopping, a name that is none) change nothing
+    for bad in ({**grsim, "damping_z": 1.0}, {**grsim, "damping_xy_first_hop": math.nan}, {"g_mps2": 1.0}):
+        with pytest.raises(ValueError):
+            predictor.set_vision_geometry(chip_dampings=bad)
+        assert predictor.chip_model.damping_z == 0.42 and predictor.chip_model.g_mps2 == 9.81
 
 
 def test_frame_times_summarize_each_full_window_and_a_flush_the_open_one():

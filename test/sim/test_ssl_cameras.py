@@ -2,11 +2,13 @@
 
 import pytest
 
-from erforce_interfaces.ssl.ssl_vision import BallModelFromVision, decode_wrapper
+from erforce_ball_model.ball_model import ChipParams
+from erforce_interfaces.ssl.ssl_vision import BallModelFromVision, ChipModelFromVision, decode_wrapper
 from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_sim.ball import BallParams
 from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame, VisionParams
-from erforce_sim.ssl_cameras import SslCameraSplitter, ground_point, quadrant_cameras
+from erforce_sim.ssl_cameras import SslCameraSplitter, chip_model_of, ground_point, quadrant_cameras
 
 FIELD = FieldConfig.preset("division_b")  # 9 x 6 m, walls 0.3 m outside the lines
 
@@ -62,14 +64,30 @@ def test_a_ball_in_the_air_is_seen_on_the_ground_along_the_camera_ray():
     assert (high[1][0].x_m, high[1][0].y_m) == pytest.approx((2.275 - 1.275 * 8 / 7, 1.525 - 0.6), abs=1e-6)
 
 
-def test_the_geometry_packet_carries_the_field_cameras_and_ball_model():
+def test_the_geometry_packet_carries_the_field_cameras_and_ball_models():
     cams = quadrant_cameras(FIELD)
-    splitter = SslCameraSplitter(cams, FIELD, BallModelFromVision(-2.5, -0.3, 0.6))
+    splitter = SslCameraSplitter(cams, FIELD, BallModelFromVision(-2.5, -0.3, 0.6),
+                                 chip_model=ChipModelFromVision(0.5, 0.7, 0.9))
     geometry = decode_wrapper(splitter.geometry_packet()).geometry
     assert (geometry.length_m, geometry.width_m, geometry.boundary_m) == (9.0, 6.0, 0.3)
     assert geometry.ball_model == BallModelFromVision(-2.5, -0.3, 0.6)
+    assert geometry.chip_model == ChipModelFromVision(0.5, 0.7, 0.9)
     assert [c.camera_id for c in geometry.cameras] == [0, 1, 2, 3]
     assert all(c.z_m == 4.0 for c in geometry.cameras)
+
+
+def test_the_plant_says_its_chip_model_and_it_is_the_chip_models_default():
+    """The simulator's ball bounces with floor_restitution 0.566 and, chipped without spin, keeps 1 / (1 + 0.4) of
+    its horizontal speed at the first bounce (a solid sphere that stops slipping), all of it after: what its
+    geometry packet says, and the predictor's chip defaults (the same ball)."""
+    chip = chip_model_of(BallParams())
+    assert chip == ChipModelFromVision(0.566, 1.0 / 1.4, 1.0)
+    defaults = ChipParams()
+    assert (chip.damping_z, chip.damping_xy_first_hop, chip.damping_xy_other_hops) == pytest.approx(
+        (defaults.damping_z, defaults.damping_xy_first_hop, defaults.damping_xy_other_hops), abs=1e-15)
+    hollow = chip_model_of(BallParams(floor_restitution=0.4, inertia_factor=2.0 / 3.0))  # keeps 1 / (1 + 2/3)
+    assert (hollow.damping_z, hollow.damping_xy_first_hop, hollow.damping_xy_other_hops) == pytest.approx(
+        (0.4, 0.6, 1.0), abs=1e-15)
 
 
 @pytest.mark.parametrize("ours", ["blue", "yellow"])

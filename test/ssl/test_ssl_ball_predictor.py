@@ -179,11 +179,13 @@ def test_the_predictor_has_the_worlds_field_before_the_first_frame_it_answers():
         rclpy.try_shutdown()
 
 
-@pytest.mark.parametrize("defend_side", ["negative_x", "positive_x"])
-def test_a_chip_is_in_the_air_on_ball_state_from_one_cameras_frames(defend_side):
+@pytest.mark.parametrize(("defend_side", "packet_per_camera"), [("negative_x", False), ("positive_x", False),
+                                                                  ("negative_x", True)])
+def test_a_chip_is_in_the_air_on_ball_state_from_one_cameras_frames(defend_side, packet_per_camera):
     """The geometry gives each camera's position; each frame the bridge hands the predictor names its camera
     (half turned with the field when we defend +x), whose chip detector reconstructs the flight from the curve one
-    camera sees.
+    camera sees. The cameras' calibrations come in one geometry packet, or each in its own (as grSim sends them:
+    camera 1's first, so the packet last received does not name it).
     Camera 1 at (2, 1.5, 4) m sees a ball kicked at 2 m/s sideways and 3 m/s up from (1, 0.5) m (SSL-Vision's
     frame; a robot stands in every frame), noise-free, 60 frames a second after 0.5 s at rest: /ball/state carries
     its height, matching the projectile z = 3 t - 9.81 t^2 / 2 within 2 cm, before the first touchdown (0.61 s)."""
@@ -206,8 +208,10 @@ def test_a_chip_is_in_the_air_on_ball_state_from_one_cameras_frames(defend_side)
         bridge._frame_sink = sink
         predictor._state_pub = Recorder("state", states, threading.Condition())
         camera = (2.0, 1.5, 4.0)
-        sender.sendto(encode_geometry(FieldGeometry(9.0, 6.0, 0.3, 1.0, 0.18, cameras=(
-            CameraPose(0, -2.0, -1.5, 4.0), CameraPose(1, *camera)))), (SSL_VISION_GROUP, port))
+        poses = (CameraPose(1, *camera), CameraPose(0, -2.0, -1.5, 4.0))
+        for group in ((pose,) for pose in poses) if packet_per_camera else (poses,):
+            sender.sendto(encode_geometry(FieldGeometry(9.0, 6.0, 0.3, 1.0, 0.18, cameras=group)),
+                          (SSL_VISION_GROUP, port))
         t_kick = 1.5
         chip = ChipTrajectory((1.0, 0.5, 0.0), (0.0, 2.0, 3.0), ChipParams())
         for k in range(int(0.55 * FPS) + int((t_kick - 1.0) * FPS)):

@@ -24,6 +24,7 @@ from erforce_interfaces.ssl.ssl_vision import (
     BallCandidate,
     BallModelFromVision,
     CameraFrame,
+    ChipModelFromVision,
     FieldGeometry,
     RobotSighting,
     encode_frame,
@@ -176,12 +177,16 @@ def test_frames_become_contract_topics_and_bad_datagrams_are_named_between_good_
 def test_geometry_is_latched_and_a_clock_jump_and_a_flood_are_survived(bridge):
     graph, node, sender = bridge
     q = contract
-    geometry = FieldGeometry(12.0, 9.0, 0.3, 1.8, 0.18, ball_model=BallModelFromVision(-3.0, -0.26, 0.64))
+    geometry = FieldGeometry(12.0, 9.0, 0.3, 1.8, 0.18, ball_model=BallModelFromVision(-3.0, -0.26, 0.64),
+                             chip_model=ChipModelFromVision(0.42, 0.6, 0.96))
     sender.send(encode_geometry(geometry))
-    node.wait_for_output(r"SSL geometry: field 12 x 9 m, ball model a_slide -3", timeout_s=10.0)
+    node.wait_for_output(r"SSL geometry: field 12 x 9 m, ball model a_slide -3, a_roll -0.26, k_switch 0.64, chip "
+                         r"model damping_z 0.42, damping_xy_first_hop 0.6, damping_xy_other_hops 0.96", timeout_s=10.0)
     # a reader that joins later still gets them (transient local)
     model = graph.wait_for_message(q.VISION_BALL_MODEL.name, Float64MultiArray, 10.0, qos=q.VISION_BALL_MODEL.qos)
     assert table_from_msg(model, contract.BALL_MODEL_PARAM_LABELS).tolist() == [[-3.0, -0.26, 0.64]]
+    chip = graph.wait_for_message(q.VISION_CHIP_MODEL.name, Float64MultiArray, 10.0, qos=q.VISION_CHIP_MODEL.qos)
+    assert table_from_msg(chip, contract.VISION_CHIP_MODEL_LABELS).tolist() == [[0.42, 0.6, 0.96]]
     field = graph.wait_for_message(q.VISION_FIELD.name, Float64MultiArray, 10.0, qos=q.VISION_FIELD.qos)
     assert table_from_msg(field, contract.VISION_FIELD_COLUMNS).tolist()[0][:3] == [12.0, 9.0, 0.3]
 

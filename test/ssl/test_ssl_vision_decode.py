@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import re
+import struct
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from erforce_interfaces.ssl.ssl_vision import (
     BallModelFromVision,
     CameraFrame,
     CameraPose,
+    ChipModelFromVision,
     FieldGeometry,
     RobotSighting,
     SslDecodeError,
@@ -140,7 +142,7 @@ def test_a_flood_of_bad_balls_leaves_room_to_name_a_bad_robot():
 
 
 GEOMETRY = FieldGeometry(9.0, 6.0, 0.3, 1.0, 0.18, ball_model=BallModelFromVision(-3.0, -0.26, 0.64),
-                         cameras=(CameraPose(0, -2.0, 1.5, 4.0),))
+                         cameras=(CameraPose(0, -2.0, 1.5, 4.0),), chip_model=ChipModelFromVision(0.5, 0.7, 0.9))
 
 
 def test_geometry_round_trip_and_a_bad_ball_model_is_dropped():
@@ -155,6 +157,49 @@ def test_geometry_round_trip_and_a_bad_ball_model_is_dropped():
     packet.geometry.field.field_length = 0
     out = decode_wrapper(packet.SerializeToString())
     assert out.geometry is None and out.problems[-1].kind == "geometry" and "field sizes" in out.problems[-1].text
+
+
+def _varint(value: int) -> bytes:
+    out = bytearray()
+    while True:
+        byte, value = value & 0x7F, value >> 7
+        out.append(byte | (0x80 if value else 0))
+        if not value:
+            return bytes(out)
+
+
+def _submessage(number: int, body: bytes) -> bytes:  # wire type 2: length-delimited
+    return _varint(number << 3 | 2) + _varint(len(body)) + body
+
+
+def test_a_hand_built_geometry_with_grsims_chip_model_decodes_by_the_leagues_field_numbers():
+    """SSL_WrapperPacket.geometry (2) > SSL_GeometryData.field (1): field_length 1, field_width 2, goal_width 3,
+    goal_depth 4, boundary_width 5 (int32 varints, mm); .models (3) > SSL_GeometryModels.chip_fixed_loss (2) >
+    damping_xy_first_hop 1, damping_xy_other_hops 2, damping_z 3 (doubles, wire type 1): grSim's defaults 0.6, 0.96,
+    0.42. No straight_two_phase: the chip model comes alone."""
+    field = b"".join(_varint(n << 3) + _varint(v) for n, v in ((1, 12000), (2, 9000), (3, 1800), (4, 180), (5, 300)))
+    chip = b"".join(_varint(n << 3 | 1) + struct.pack("<d", v) for n, v in ((1, 0.6), (2, 0.96), (3, 0.42)))
+    datagram = _submessage(2, _submessage(1, field) + _submessage(3, _submessage(2, chip)))
+    out = decode_wrapper(datagram)
+    assert out.problems == [] and out.geometry.ball_model is None
+    assert out.geometry.chip_model == ChipModelFromVision(damping_z=0.42, damping_xy_first_hop=0.6,
+                                                          damping_xy_other_hops=0.96)
+    assert (out.geometry.length_m, out.geometry.width_m, out.geometry.boundary_m) == (12.0, 9.0, 0.3)
+    # our encoder writes the same fields: the same geometry back
+    assert decode_wrapper(encode_geometry(out.geometry)).geometry == out.geometry
+
+
+@pytest.mark.parametrize("damping_z, first_hop, other_hops", [(1.0, 0.6, 0.96), (0.42, -0.1, 0.96),
+                                                              (0.42, 0.6, 1.5), (math.nan, 0.6, 0.96)])
+def test_a_chip_model_that_is_none_is_dropped_by_name_and_the_rest_kept(damping_z, first_hop, other_hops):
+    """A ball that keeps its whole vertical speed hops for ever (damping_z < 1); a fraction outside [0, 1] is no
+    damping: the chip model is dropped and named, the field and the two-phase model stay."""
+    packet = wrap.SSL_WrapperPacket.FromString(encode_geometry(GEOMETRY))
+    c = packet.geometry.models.chip_fixed_loss
+    c.damping_z, c.damping_xy_first_hop, c.damping_xy_other_hops = damping_z, first_hop, other_hops
+    out = decode_wrapper(packet.SerializeToString())
+    assert out.geometry.chip_model is None and out.geometry.ball_model == GEOMETRY.ball_model
+    assert [p.kind for p in out.problems] == ["ball_model"] and "chip model dropped" in out.problems[0].text
 
 
 def test_a_datagram_with_detection_and_geometry_gives_both():

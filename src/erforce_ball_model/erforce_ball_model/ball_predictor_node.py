@@ -206,6 +206,7 @@ class BallPredictorNode(SchemaNode):
                             else None)
         contract_subscription(self, q.VISION_FIELD, self._on_vision_field)
         contract_subscription(self, q.VISION_BALL_MODEL, self._on_vision_ball_model)
+        contract_subscription(self, q.VISION_CHIP_MODEL, self._on_vision_chip_model)
         # Our kick commands as the kicker's word for the chip detector (kick_hints). A command carries no stamp: the
         # hint takes the newest vision stamp, the predictor's clock (/clock's time in our world, capture time on
         # an outside one), which is at or before the kick. The opponents' commands are not ours to see.
@@ -276,17 +277,34 @@ class BallPredictorNode(SchemaNode):
             return
         self._geometry(field, None)
 
-    def take_geometry(self, field: FieldConfig, model: BallModelParams | None) -> None:
+    def take_geometry(self, field: FieldConfig, model: BallModelParams | None,
+                      chip_dampings: dict[str, float] | None = None) -> None:
         """SSL geometry from a receiver in this process (any thread), handed over before its next frame."""
         with self._lock:
-            self._geometry(field, model)
+            self._geometry(field, model, chip_dampings)
 
-    def _geometry(self, field: FieldConfig, model: BallModelParams | None) -> None:
-        before = self._predictor.config.field
-        if self._predictor.set_vision_geometry(field=field, model=model):
+    def _geometry(self, field: FieldConfig | None, model: BallModelParams | None,
+                  chip_dampings: dict[str, float] | None = None) -> None:
+        """Hand SSL geometry's parts (None: unchanged) to the predictor; publish and log what it changed."""
+        field_before, chip_before = self._predictor.config.field, self._predictor.chip_model
+        try:
+            model_changed = self._predictor.set_vision_geometry(field=field, model=model, chip_dampings=chip_dampings)
+        except ValueError as exc:
+            self._warn.warn("vision_chip_model", f"rejected SSL geometry's chip model: {exc}")
+            return
+        if model_changed:
             self._publish_model()
+            if model is not None:
+                self.get_logger().info(f"ball model from SSL geometry: a_slide {model.a_slide_mps2:g}, a_roll "
+                                       f"{model.a_roll_mps2:g}, c_switch {model.c_switch:g}")
+        chip = self._predictor.chip_model
+        if chip != chip_before:
+            self._publish_chip_model()
+            self.get_logger().info(f"chip model from SSL geometry: damping_z {chip.damping_z:g}, damping_xy_first_hop "
+                                   f"{chip.damping_xy_first_hop:g}, damping_xy_other_hops "
+                                   f"{chip.damping_xy_other_hops:g}")
         after = self._predictor.config.field
-        if after != before:
+        if after != field_before:
             self.get_logger().info(f"field from SSL geometry: {after.length_m:g} x {after.width_m:g} m")
 
     def _on_vision_ball_model(self, msg: Float64MultiArray) -> None:
@@ -299,10 +317,16 @@ class BallPredictorNode(SchemaNode):
         except (ConversionError, ValueError, IndexError, TypeError) as exc:
             self._warn.warn("vision_model", f"rejected /vision/ball_model: {exc}")
             return
-        if self._predictor.set_vision_geometry(model=model):
-            self._publish_model()
-            self.get_logger().info(f"ball model from SSL geometry: a_slide {model.a_slide_mps2:g}, a_roll "
-                                   f"{model.a_roll_mps2:g}, c_switch {model.c_switch:g}")
+        self._geometry(None, model)
+
+    def _on_vision_chip_model(self, msg: Float64MultiArray) -> None:
+        with self._lock:
+            try:
+                row = table_from_msg(msg, contract.VISION_CHIP_MODEL_LABELS)[0].tolist()
+            except (ConversionError, ValueError, IndexError) as exc:
+                self._warn.warn("vision_chip_model", f"rejected /vision/chip_model: {exc}")
+                return
+            self._geometry(None, None, dict(zip(contract.VISION_CHIP_MODEL_LABELS, row, strict=True)))
 
     # ------------------------------------------------------------- kick hints
     def _on_kick_angle(self, robot: int, msg: Float64) -> None:

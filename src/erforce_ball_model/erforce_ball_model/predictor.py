@@ -39,7 +39,7 @@ from __future__ import annotations
 import concurrent.futures
 import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from dataclasses import field as _default
 
@@ -218,6 +218,7 @@ class BallPredictor:
         self._configured: PredictorConfig | None = None  # as given to configure
         self._vision_field: FieldConfig | None = None  # the newest SSL geometry, kept also while not used
         self._vision_model: BallModelParams | None = None
+        self._vision_chip: dict[str, float] | None = None  # SSL geometry's chip dampings (ChipParams' names)
         self.last_fit: FitResult | None = None
         self.waiting_frames = 0  # vision dropped while the field was not known (config.field None)
         self._ball: BallTracker | None = None
@@ -241,16 +242,17 @@ class BallPredictor:
 
         A changed model replaces the model in use, even an identified one. A changed tracker
         configuration restarts the ball filter (and the shot collection). With
-        ``use_vision_geometry`` the field and model of SSL geometry, once set, take the place of
-        ``config.field`` and ``config.model``.
+        ``use_vision_geometry`` the field and models of SSL geometry, once set, take the place of
+        ``config.field``, ``config.model`` and the dampings of ``config.chip``.
         """
         old = self.config
         if old is not None and config.num_robots != old.num_robots:
             raise ValueError(f"num_robots is fixed at {old.num_robots}, got {config.num_robots}")
         self._configured = config
-        if config.use_vision_geometry and (self._vision_field or self._vision_model):
-            config = dataclasses.replace(config, field=self._vision_field or config.field,
-                                         model=self._vision_model or config.model)
+        if config.use_vision_geometry and (self._vision_field or self._vision_model or self._vision_chip):
+            config = dataclasses.replace(
+                config, field=self._vision_field or config.field, model=self._vision_model or config.model,
+                chip=dataclasses.replace(config.chip, **self._vision_chip) if self._vision_chip else config.chip)
         self.config = config
         model_before = None if self._ball is None else self._ball.params
         model = config.model if old is None or config.model != old.model else model_before
@@ -282,14 +284,24 @@ class BallPredictor:
         (``BallTracker.params``): the filter's kernel, the trajectories and so the catch search all read it."""
         return self._ball.params
 
-    def set_vision_geometry(self, field: FieldConfig | None = None, model: BallModelParams | None = None) -> bool:
-        """The field and/or ball model of SSL geometry (None: that part unchanged). In effect while
-        ``use_vision_geometry`` (also after later ``configure`` calls), kept for when it is turned on;
-        True when the model in use changed."""
+    def set_vision_geometry(self, field: FieldConfig | None = None, model: BallModelParams | None = None,
+                            chip_dampings: Mapping[str, float] | None = None) -> bool:
+        """The field, ball model and/or chip dampings (``damping_z``, ``damping_xy_first_hop``,
+        ``damping_xy_other_hops``: SSL geometry's chip_fixed_loss) of SSL geometry (None: that part unchanged). In
+        effect while ``use_vision_geometry`` (also after later ``configure`` calls), kept for when it is turned on;
+        True when the ball model in use changed (``chip_model`` says the chip model in use). Dampings that make no
+        chip model raise ValueError and change nothing."""
+        if chip_dampings is not None:
+            chip_dampings = dict(chip_dampings)
+            if not set(chip_dampings) <= {"damping_z", "damping_xy_first_hop", "damping_xy_other_hops"}:
+                raise ValueError(f"chip_dampings: damping_z, damping_xy_first_hop, damping_xy_other_hops only, got "
+                                 f"{sorted(chip_dampings)}")
+            dataclasses.replace(self._configured.chip, **chip_dampings)  # ValueError: no chip model
         field, model = field or self._vision_field, model or self._vision_model
-        if (field, model) == (self._vision_field, self._vision_model):
+        chip_dampings = chip_dampings or self._vision_chip
+        if (field, model, chip_dampings) == (self._vision_field, self._vision_model, self._vision_chip):
             return False
-        self._vision_field, self._vision_model = field, model
+        self._vision_field, self._vision_model, self._vision_chip = field, model, chip_dampings
         return self.configure(self._configured)
 
     def close(self) -> None:

@@ -176,12 +176,13 @@ def open_multicast_socket(group: str, port: int, interface: str, receive_buffer_
 
 class SslVisionBridge(Node):
     def __init__(self, frame_sink: Callable[[bytes], None] | None = None,
-                 geometry_sink: Callable[[FieldConfig, BallModelParams | None], None] | None = None) -> None:
+                 geometry_sink: Callable[[FieldConfig, BallModelParams | None, dict[str, float] | None], None]
+                 | None = None) -> None:
         """``frame_sink``: called on the receive thread with each serialized ``/vision/robots`` frame before it is
         published (a consumer in this process, erforce_ball_model.ssl_ball_predictor; the frame names its camera).
         Its CPU time is not counted in the bridge's statistics. ``geometry_sink``: called there with each new SSL
-        geometry's field and ball model, before the next frame goes to ``frame_sink`` (a topic's message could come
-        after it)."""
+        geometry's field, ball model and chip dampings (VISION_CHIP_MODEL_LABELS: value), before the next frame goes
+        to ``frame_sink`` (a topic's message could come after it)."""
         super().__init__("ssl_vision_bridge")
         self._warn = ThrottledWarner(self)
         self._frame_sink = frame_sink
@@ -215,6 +216,7 @@ class SslVisionBridge(Node):
         self._detections_pub = contract_publisher(self, q.VISION_DETECTIONS)
         self._field_pub = contract_publisher(self, q.VISION_FIELD)
         self._model_pub = contract_publisher(self, q.VISION_BALL_MODEL)
+        self._chip_pub = contract_publisher(self, q.VISION_CHIP_MODEL)
         # ours (0) and the opponents (1) by robot id: the pose publisher (None: not created yet), its readers
         # (-1 until created)
         self._pose_pubs: list[list[Any]] = [[None] * (MAX_ROBOT_ID + 1) for _ in range(2)]
@@ -538,9 +540,10 @@ class SslVisionBridge(Node):
 
     # ----------------------------------------------------------------- geometry
     def _on_geometry(self, geometry) -> None:
-        self._camera_poses = {c.camera_id: (c.x_m, c.y_m, c.z_m) for c in geometry.cameras if c.z_m > 0.0}
+        # by camera id, kept across packets: a source may send each camera's calibration in its own packet (grSim)
+        self._camera_poses.update((c.camera_id, (c.x_m, c.y_m, c.z_m)) for c in geometry.cameras if c.z_m > 0.0)
         self._set_cameras()
-        key = (geometry.length_m, geometry.width_m, geometry.boundary_m, geometry.ball_model)
+        key = (geometry.length_m, geometry.width_m, geometry.boundary_m, geometry.ball_model, geometry.chip_model)
         if key == self._last_geometry:
             return
         self._last_geometry = key
@@ -551,14 +554,18 @@ class SslVisionBridge(Node):
                   geometry.goal_depth_m]], contract.VISION_FIELD_COLUMNS, "field"))
             self._tracker.field = field
             self._set_path()
-            model = geometry.ball_model
+            model, params = geometry.ball_model, None
             if model is not None:
                 params = BallModelParams(model.a_slide_mps2, model.a_roll_mps2, model.c_switch)
                 self._model_pub.publish(table_cdr([[params.a_slide_mps2, params.a_roll_mps2, params.c_switch]],
                                                   contract.BALL_MODEL_PARAM_LABELS, "model"))
                 self._tracker.params = params
+            chip = None if geometry.chip_model is None else {
+                name: getattr(geometry.chip_model, name) for name in contract.VISION_CHIP_MODEL_LABELS}
+            if chip is not None:
+                self._chip_pub.publish(table_cdr([list(chip.values())], contract.VISION_CHIP_MODEL_LABELS, "model"))
             if self._geometry_sink is not None:
-                self._geometry_sink(field, None if model is None else params)
+                self._geometry_sink(field, params, chip)
         except (ValueError, ConversionError) as exc:
             self._drop("geometry", f"geometry not used: {exc}")
             return
@@ -566,6 +573,7 @@ class SslVisionBridge(Node):
             f"SSL geometry: field {geometry.length_m:g} x {geometry.width_m:g} m"
             + ("" if model is None else f", ball model a_slide {model.a_slide_mps2:g}, a_roll "
                f"{model.a_roll_mps2:g}, k_switch {model.c_switch:g}")
+            + ("" if chip is None else ", chip model " + ", ".join(f"{k} {v:g}" for k, v in chip.items()))
         )
 
     # ------------------------------------------------------------------- frames

@@ -64,7 +64,7 @@ from erforce_interfaces.wire.tables import table_cdr
 from erforce_sim.ball import BallParams, BallState
 from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
-from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras
+from erforce_sim.ssl_cameras import SslCameraSplitter, chip_model_of, open_multicast_sender, quadrant_cameras
 from erforce_sim.world_types import PhysicsParams
 
 SCHEMA = load_schema("erforce_sim", "plant")
@@ -617,7 +617,7 @@ class PlantNode(SchemaNode):
                                     ball.switch_ratio(self.setup.physics.kick_spin_ratio))
         self._ssl = SslCameraSplitter(
             quadrant_cameras(field), field, model,
-            latency_s=self.setup.vision.latency_s, seed=self.setup.seed,
+            latency_s=self.setup.vision.latency_s, seed=self.setup.seed, chip_model=chip_model_of(ball),
         )
         self._ssl_sock = open_multicast_sender(v["ssl_vision_interface"])
         self._ssl_address = (v["ssl_vision_group"], v["ssl_vision_port"])

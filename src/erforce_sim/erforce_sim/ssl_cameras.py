@@ -25,12 +25,14 @@ from erforce_interfaces.ssl.ssl_vision import (
     BallModelFromVision,
     CameraFrame,
     CameraPose,
+    ChipModelFromVision,
     FieldGeometry,
     RobotSighting,
     encode_frame,
     encode_geometry,
 )
 from erforce_interfaces.wire.robot_config import FieldConfig
+from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionFrame
 
 _PLANT = schema_defaults("erforce_sim", "plant")
@@ -75,15 +77,24 @@ def quadrant_cameras(field: FieldConfig, overlap_m: float = 0.5,
 
 
 def field_geometry(field: FieldConfig, cameras: tuple[SimCamera, ...],
-                   ball_model: BallModelFromVision | None) -> FieldGeometry:
+                   ball_model: BallModelFromVision | None,
+                   chip_model: ChipModelFromVision | None = None) -> FieldGeometry:
     """What SSL-Vision's geometry packet says of ``field`` seen by ``cameras``, each above the centre of its
-    rectangle at CAMERA_HEIGHT_M (the goal's size as the league's divisions have it)."""
+    rectangle at CAMERA_HEIGHT_M (the goal's size as the league's divisions have it), and of the ball."""
     return FieldGeometry(
         length_m=field.length_m, width_m=field.width_m, boundary_m=field.boundary_m,
         goal_width_m=1.0 if field.length_m < 10.0 else 1.8, goal_depth_m=0.18, ball_model=ball_model,
         cameras=tuple(CameraPose(c.camera_id, 0.5 * sum(c.x_range_m), 0.5 * sum(c.y_range_m), CAMERA_HEIGHT_M)
                       for c in cameras),
+        chip_model=chip_model,
     )
+
+
+def chip_model_of(ball: BallParams) -> ChipModelFromVision:
+    """The fixed-loss chip model of the simulator's ball, as its geometry packet says it: the floor's restitution;
+    a ball chipped without spin that stops slipping at its first bounce keeps 1 / (1 + I / (m r^2)) of its
+    horizontal speed, and rolls on from then (1.0)."""
+    return ChipModelFromVision(ball.floor_restitution, 1.0 / (1.0 + ball.inertia_factor), 1.0)
 
 
 class SslCameraSplitter:
@@ -92,14 +103,15 @@ class SslCameraSplitter:
 
     def __init__(self, cameras: tuple[SimCamera, ...], field: FieldConfig, ball_model: BallModelFromVision | None,
                  latency_s: float = 0.015, camera_noise_m: float = CAMERA_NOISE_M,
-                 clock_offset_s: float = 0.0, seed: int = _PLANT["seed"]) -> None:
+                 clock_offset_s: float = 0.0, seed: int = _PLANT["seed"],
+                 chip_model: ChipModelFromVision | None = None) -> None:
         self.cameras = cameras
         self.latency_s = latency_s
         self.camera_noise_m = camera_noise_m
         self.clock_offset_s = clock_offset_s
         self._rng = random.Random(seed)
         self._frame_numbers = [0] * len(cameras)
-        self.geometry = field_geometry(field, cameras, ball_model)
+        self.geometry = field_geometry(field, cameras, ball_model, chip_model)
 
     def geometry_packet(self) -> bytes:
         return encode_geometry(self.geometry)

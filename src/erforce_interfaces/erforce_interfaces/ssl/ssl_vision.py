@@ -151,6 +151,16 @@ class BallModelFromVision:
 
 
 @dataclass(frozen=True)
+class ChipModelFromVision:
+    """``SSL_BallModelChipFixedLoss`` in the names of erforce_ball_model.ChipParams (the fractions of the vertical
+    speed and of the horizontal velocity a chipped ball keeps at each bounce)."""
+
+    damping_z: float
+    damping_xy_first_hop: float
+    damping_xy_other_hops: float
+
+
+@dataclass(frozen=True)
 class CameraPose:
     camera_id: int
     x_m: float
@@ -169,6 +179,7 @@ class FieldGeometry:
     penalty_area_width_m: float | None = None
     ball_model: BallModelFromVision | None = None
     cameras: tuple[CameraPose, ...] = ()
+    chip_model: ChipModelFromVision | None = None
 
 
 class Problem(NamedTuple):
@@ -567,18 +578,7 @@ def _decode_geometry(geo, limits: DecodeLimits, problems: list[Problem]) -> Fiel
     if not (f.field_length > 0 and f.field_width > 0 and all(0 <= s <= limit_mm for s in sizes)):
         problems.append(Problem("geometry", f"geometry dropped: field sizes {sizes} mm out of range"))
         return None
-    model = None
-    if geo.HasField("models") and geo.models.HasField("straight_two_phase"):
-        m = geo.models.straight_two_phase
-        if all(math.isfinite(v) for v in (m.acc_slide, m.acc_roll, m.k_switch)) and (
-            -100.0 <= m.acc_slide < m.acc_roll < 0.0 and 0.0 < m.k_switch <= 1.0
-        ):
-            model = BallModelFromVision(m.acc_slide, m.acc_roll, m.k_switch)
-        else:
-            problems.append(Problem(
-                "ball_model", f"ball model dropped: acc_slide {m.acc_slide!r}, acc_roll {m.acc_roll!r}, k_switch "
-                              f"{m.k_switch!r} (need acc_slide < acc_roll < 0 m/s^2, 0 < k_switch <= 1)"
-            ))
+    model, chip = _decode_models(geo, problems)
     cameras = []
     for calib in geo.calib:
         pos = (calib.derived_camera_world_tx, calib.derived_camera_world_ty, calib.derived_camera_world_tz)
@@ -601,7 +601,38 @@ def _decode_geometry(geo, limits: DecodeLimits, problems: list[Problem]) -> Fiel
         penalty_area_width_m=optional_mm("penalty_area_width"),
         ball_model=model,
         cameras=tuple(cameras),
+        chip_model=chip,
     )
+
+
+def _decode_models(geo, problems: list[Problem]) -> tuple[BallModelFromVision | None, ChipModelFromVision | None]:
+    """The geometry's ball models (each optional); one out of range is dropped and named."""
+    if not geo.HasField("models"):
+        return None, None
+    model = chip = None
+    if geo.models.HasField("straight_two_phase"):
+        m = geo.models.straight_two_phase
+        if all(math.isfinite(v) for v in (m.acc_slide, m.acc_roll, m.k_switch)) and (
+            -100.0 <= m.acc_slide < m.acc_roll < 0.0 and 0.0 < m.k_switch <= 1.0
+        ):
+            model = BallModelFromVision(m.acc_slide, m.acc_roll, m.k_switch)
+        else:
+            problems.append(Problem(
+                "ball_model", f"ball model dropped: acc_slide {m.acc_slide!r}, acc_roll {m.acc_roll!r}, k_switch "
+                              f"{m.k_switch!r} (need acc_slide < acc_roll < 0 m/s^2, 0 < k_switch <= 1)"
+            ))
+    if geo.models.HasField("chip_fixed_loss"):
+        c = geo.models.chip_fixed_loss
+        xy = (c.damping_xy_first_hop, c.damping_xy_other_hops)
+        # damping_z below 1: a ball that kept its whole vertical speed would hop for ever
+        if 0.0 <= c.damping_z < 1.0 and all(0.0 <= v <= 1.0 for v in xy):
+            chip = ChipModelFromVision(c.damping_z, *xy)
+        else:
+            problems.append(Problem(
+                "ball_model", f"chip model dropped: damping_z {c.damping_z!r}, damping_xy_first_hop {xy[0]!r}, "
+                              f"damping_xy_other_hops {xy[1]!r} (need damping_z in [0, 1), the others in [0, 1])"
+            ))
+    return model, chip
 
 
 # ------------------------------------------------------------------------------------ encoding
@@ -627,7 +658,7 @@ def encode_frame(frame: CameraFrame) -> bytes:
 
 
 def encode_geometry(geometry: FieldGeometry, focal_length_px: float = 500.0) -> bytes:
-    """A geometry-only datagram: field size, one calibration per camera (position only) and the ball model."""
+    """A geometry-only datagram: field size, one calibration per camera (position only) and the ball models."""
     packet = wrapper_pb2.SSL_WrapperPacket()
     f = packet.geometry.field
     f.field_length = round(geometry.length_m / MM)
@@ -652,4 +683,9 @@ def encode_geometry(geometry: FieldGeometry, focal_length_px: float = 500.0) -> 
         m.acc_slide = geometry.ball_model.a_slide_mps2
         m.acc_roll = geometry.ball_model.a_roll_mps2
         m.k_switch = geometry.ball_model.c_switch
+    if geometry.chip_model is not None:
+        c = packet.geometry.models.chip_fixed_loss
+        c.damping_xy_first_hop = geometry.chip_model.damping_xy_first_hop
+        c.damping_xy_other_hops = geometry.chip_model.damping_xy_other_hops
+        c.damping_z = geometry.chip_model.damping_z
     return packet.SerializeToString()

@@ -341,6 +341,9 @@ VISION_FIELD = Topic("/vision/field", Float64MultiArray, QOS_LATCHED, "ssl_visio
 VISION_BALL_MODEL = Topic("/vision/ball_model", Float64MultiArray, QOS_LATCHED, "ssl_vision_bridge",
                           "ball_predictor", "SSL geometry's two-phase ball model, one row [a_slide_mps2, "
                           "a_roll_mps2, c_switch]")
+VISION_CHIP_MODEL = Topic("/vision/chip_model", Float64MultiArray, QOS_LATCHED, "ssl_vision_bridge",
+                          "ball_predictor", "SSL geometry's fixed-loss chip model, one row of VISION_CHIP_MODEL_LABELS "
+                          "[damping_z, damping_xy_first_hop, damping_xy_other_hops] (labelled in layout.dim)")
 TEAM_WHEEL_STATES = Topic("/team/wheel_states", JointState, QOS_CONTROL, "plant (motor sensors; lockstep_topics "
                           "team or both)", "team_firmware",
                           "every controlled robot's wheel_states in one message per tick: joint "
@@ -443,7 +446,7 @@ SIM_SET_STATE = Topic("sim/set_state", Odometry, QOS_COMMAND, "scenario scripts"
 TOPICS: tuple[Topic, ...] = (
     CLOCK, VISION_BALL, VISION_ROBOTS, BALL_STATE, BALL_PHASE, BALL_STOP_POINT, BALL_V_SHOOT, BALL_UNCERTAIN,
     BALL_MODEL_PARAMS, BALL_CHIP_MODEL_PARAMS, GROUND_TRUTH_BALL, VISION_DETECTIONS, VISION_FIELD, VISION_BALL_MODEL,
-    SIM_SET_BALL, SIM_EVENTS,
+    VISION_CHIP_MODEL, SIM_SET_BALL, SIM_EVENTS,
     TEAM_WHEEL_STATES, TEAM_MOTOR_DUTY, FIELD_WHEEL_STATES, FIELD_MOTOR_DUTY,
     BALL_CATCHES, ROBOTS_TRACKED, BALL_TRACK, PASS_CHOICE, PASS_RECORDS,
     CMD_VEL, WHEEL_STATES, WHEEL_SETPOINTS, MOTOR_DUTY, MOTOR_STATUS, KICK, KICK_ANGLE, BALL_DETECTED, DRIBBLER,
@@ -457,6 +460,8 @@ BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
 #: the columns of /ball/chip_model_params: chip_model.ChipParams' fields, in this order (one row, in_use)
 BALL_CHIP_MODEL_PARAM_LABELS = ("g_mps2", "damping_z", "damping_xy_first_hop", "damping_xy_other_hops",
                                 "min_hop_vz_mps", "max_catch_height_m", "max_receive_height_m")
+#: the columns of /vision/chip_model: the part of the chip model SSL geometry's chip_fixed_loss gives
+VISION_CHIP_MODEL_LABELS = ("damping_z", "damping_xy_first_hop", "damping_xy_other_hops")
 #: the PointField names of /vision/robots, in this order, each one FLOAT64 (at offsets 0, 8, ..). A PointCloud2
 #: rather than a Float64MultiArray table: its header carries the capture stamp and the frame, and viewers
 #: (rviz, Foxglove) draw it as it is.
