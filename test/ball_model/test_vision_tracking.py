@@ -72,10 +72,11 @@ def frames(duration_s: float, drop_camera: tuple[int, float, float] | None = Non
 
 
 def run(tracker: VisionTracker, stream):
+    """The ball's stream: every observation but another camera's sighting of an instant already taken."""
     used = []
     for _arrival, cam, t, balls in stream:
         ball, _ = tracker.frame(cam, t, balls)
-        if ball is not None:
+        if ball is not None and not ball.sighting:
             used.append(ball)
     return used
 
@@ -133,13 +134,18 @@ def test_a_ball_put_down_elsewhere_is_followed_after_lost_after_s():
     assert tracker.switches == 1
 
 
-def test_two_cameras_at_the_same_instant_give_one_observation():
+def test_two_cameras_at_the_same_instant_give_one_ball_and_one_sighting():
+    """The second camera's ball of an instant taken is no update of the ball's stream, but its own view of that
+    ball (a sighting, for the chip detector) when within sighting_gate_m of it; farther off, nothing."""
     tracker = VisionTracker(FIELD, PARAMS)
     for k in range(4):
         tracker.frame(0, k / 60.0, [(1.0, 1.0, 1.0)])
     a, _ = tracker.frame(0, 0.1, [(1.0, 1.0, 1.0)])
     b, _ = tracker.frame(1, 0.1, [(1.001, 1.0, 1.0)])
-    assert a is not None and a.status == UpdateStatus.ACCEPTED and b is None and tracker.late_balls == 1
+    assert a is not None and a.status == UpdateStatus.ACCEPTED and not a.sighting
+    assert b == (0.1, 1.001, 1.0, 1, UpdateStatus.REJECTED_TIME, True) and tracker.late_balls == 1
+    c, _ = tracker.frame(2, 0.1, [(1.0 + VisionTrackingConfig().sighting_gate_m + 0.01, 1.0, 1.0)])
+    assert c is None and tracker.late_balls == 2
 
 
 def test_22_robots_from_overlapping_cameras_each_get_one_increasing_pose_stream():
