@@ -84,6 +84,9 @@ class ChipDetectorConfig:
     # the kick may precede the flat filter's first sighting of the new motion by this much (the filter takes the
     # first frame after a kick for noise of the old motion when it moved the ball little)
     launch_lookback_s: float = 0.035
+    # a sighting this many ``noise_m`` off the straight line through the sightings before it has moved: the new
+    # motion starts there when the flat filter saw it only later (a slow kick moves the ball a few mm a frame)
+    moved_sigma: float = 5.0
     launch_refine_steps: int = 2  # finer grids refining the best launch time of the first
     origin_s: float = 0.1  # the old motion's sightings this long before the kick pin the launch point
     window_s: float = 0.3  # sightings of one kick kept this long
@@ -208,32 +211,42 @@ def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, no
     return ChipFit(float(t_launch_s), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[0]))
 
 
+def _flights_at_angle(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, noise_m: float, tan_angle: float,
+                      iterations: int, pre_velocity_mps):
+    """``fit_flight_at_angle`` for every launch time of ``t_launch_s``: solutions (m, 5), vz's standard errors,
+    squared residuals (inf where the sightings do not determine it)."""
+    a5, b, _ = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
+    theta = np.einsum("mkn,mn->mk", np.linalg.pinv(a5), b)[:, :4]  # the direction: the free flight's
+    a, inv, ok = a5[:, :, :4], None, np.ones(len(b), dtype=bool)
+    for _ in range(iterations):
+        speed = np.hypot(theta[:, 2], theta[:, 3])
+        ok &= (speed > 1e-6) & (speed <= MAX_SPEED_MPS)
+        u = theta[:, 2:4] / np.where(ok, speed, 1.0)[:, None]
+        a = a5[:, :, :4].copy()
+        a[:, :, 2] += a5[:, :, 4] * (tan_angle * u[:, 0:1])
+        a[:, :, 3] += a5[:, :, 4] * (tan_angle * u[:, 1:2])
+        theta, inv, solved = _solve(a, b)
+        ok &= solved
+    rss = np.where(ok, np.sum((np.einsum("mij,mj->mi", a, theta) - b) ** 2, axis=1), math.inf)
+    grad = np.zeros((len(b), 4))
+    grad[:, 2:] = tan_angle * u  # d vz / d theta at the last direction
+    vz_var = np.einsum("mj,mjk,mk->m", grad, inv, grad) * noise_m**2
+    vz = tan_angle * np.einsum("mj,mj->m", u, theta[:, 2:4])
+    return np.column_stack([theta, vz]), np.sqrt(np.maximum(vz_var, 0.0)), rss
+
+
 def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
                         tan_angle: float, iterations: int = 3, pre_velocity_mps=(0.0, 0.0)) -> ChipFit | None:
     """As ``fit_flight`` with the launch's elevation known (``vz = tan_angle |v|``, the kicker's angle): four
     unknowns, as many as a ball on the ground has, so a few sightings suffice. The direction of the ground speed is
     taken from the previous iteration (the first: the flight's without the known angle), which keeps it linear."""
-    a5, b, _ = _system(rows, [t_launch_s], origin_xy, g_mps2, True, pre_velocity_mps)
-    a5, b = a5[0], b[0]
-    theta = np.linalg.lstsq(a5, b, rcond=None)[0]
-    a, inv = a5[:, :4], None
-    for _ in range(iterations):
-        speed = math.hypot(theta[2], theta[3])
-        if not 1e-6 < speed <= MAX_SPEED_MPS:
-            return None
-        ux, uy = theta[2] / speed, theta[3] / speed
-        a = a5[:, :4].copy()
-        a[:, 2] += a5[:, 4] * tan_angle * ux
-        a[:, 3] += a5[:, 4] * tan_angle * uy
-        theta, inv, ok = _solve(a[None], b[None])
-        if not ok[0]:
-            return None
-        theta, inv = theta[0], inv[0]
-    rss = float(np.sum((a @ theta - b) ** 2))
-    grad = np.array([0.0, 0.0, tan_angle * ux, tan_angle * uy])  # d vz / d theta at the last direction
-    vz_var = float(grad @ inv @ grad) * noise_m**2
-    x0, y0, vx, vy = theta.tolist()
-    return ChipFit(t_launch_s, x0, y0, vx, vy, tan_angle * (ux * vx + uy * vy), math.sqrt(max(vz_var, 0.0)), rss)
+    origins = None if origin_xy is None else [origin_xy]
+    theta, vz_std, rss = _flights_at_angle(rows, [t_launch_s], origins, g_mps2, noise_m, tan_angle, iterations,
+                                           pre_velocity_mps)
+    if not math.isfinite(rss[0]):
+        return None
+    x0, y0, vx, vy, vz = theta[0].tolist()
+    return ChipFit(float(t_launch_s), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[0]))
 
 
 def fit_ground(rows: np.ndarray, t_start_s: float, origin_xy, ball_params: BallModelParams,
@@ -319,11 +332,26 @@ class ChipDetector:
         count, those already added included; a chip detected before is forgotten."""
         cfg = self.config
         self._rows = [r for r in self._rows if r.t_s >= t_first_s - cfg.launch_lookback_s - cfg.origin_s]
-        self.t_start_s, self._before = float(t_first_s), before
+        self.t_start_s, self._before = min(float(t_first_s), self._first_moved(t_first_s)), before
         self._pre_velocity = self._old_velocity(before)
         self._origin_seen = len(self._settled()) > 0
         self.fit, self.detected_at_s, self._chip, self._handed_over = None, None, None, False
         self.hint_angle_deg = self._hint[1] if self._hint_fits(self.t_start_s) else None
+
+    def _first_moved(self, t_first_s: float) -> float:
+        """The time of the first sighting before ``t_first_s`` off the straight line through the sightings before it
+        by ``moved_sigma`` noise (at least three of them): where the kick shows first (inf: none is)."""
+        cfg = self.config
+        rows = np.array(self._rows, dtype=float).reshape(-1, 6)
+        rows = rows[rows[:, 0] < t_first_s]
+        for j in range(3, len(rows)):
+            t, x, y = rows[:j, 0] - rows[:j, 0].mean(), rows[:j, 1], rows[:j, 2]
+            tt = t @ t
+            vx, vy = (t @ (x - x.mean()) / tt, t @ (y - y.mean()) / tt) if tt > 0.0 else (0.0, 0.0)
+            dt = rows[j, 0] - rows[:j, 0].mean()
+            if math.hypot(rows[j, 1] - x.mean() - vx * dt, rows[j, 2] - y.mean() - vy * dt) > cfg.moved_sigma * cfg.noise_m:
+                return float(rows[j, 0])
+        return math.inf
 
     @property
     def active(self) -> bool:
@@ -414,32 +442,34 @@ class ChipDetector:
         return i, times, rss
 
     def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None) -> ChipFit | None:
-        """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's)."""
+        """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's, or a bound of
+        the plausible elevations)."""
         cfg, g, u = self.config, self.params.g_mps2, self._pre_velocity
-        if tan_angle is not None:
-            fits = {}
 
-            def evaluate(times):
-                origins = self._origins(times)
-                out = [fit_flight_at_angle(rows, t, None if origins is None else origins[j], g, cfg.noise_m,
-                                           tan_angle, pre_velocity_mps=u) for j, t in enumerate(times)]
-                fits.update({float(t): f for t, f in zip(times, out, strict=True)})
-                return np.array([math.inf if f is None else f.rss_m2 for f in out])
+        def solutions(times):
+            if tan_angle is None:
+                return _flights(rows, times, self._origins(times), g, cfg.noise_m, u)
+            return _flights_at_angle(rows, times, self._origins(times), g, cfg.noise_m, tan_angle, 3, u)
 
-            i, times, rss = self._over_launch_times(evaluate)
-            return fits[float(times[i])] if math.isfinite(rss[i]) else None
-        last = {}
-
-        def evaluate(times):
-            last["fit"] = _flights(rows, times, self._origins(times), g, cfg.noise_m, u)
-            return last["fit"][2]
-
-        i, times, rss = self._over_launch_times(evaluate)
+        i, times, rss = self._over_launch_times(lambda times: solutions(times)[2])
         if not math.isfinite(rss[i]):
             return None
-        theta, vz_std, _ = _flights(rows, times[i:i + 1], self._origins(times[i:i + 1]), g, cfg.noise_m, u)
+        theta, vz_std, _ = solutions(times[i:i + 1])
         x0, y0, vx, vy, vz = theta[0].tolist()
         return ChipFit(float(times[i]), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[i]))
+
+    def _bounded_flight(self, rows: np.ndarray, fit: ChipFit | None) -> ChipFit | None:
+        """The best flight a chip kicker launches: ``fit`` (the free one) if it is one, else the better of the
+        flights at the bounds of the plausible elevations (the least-squares optimum over the plausible flights lies
+        on their boundary when the free optimum lies outside; a steep or flat free fit of a few noisy sightings is
+        often a true chip's, its height poorly seen)."""
+        if fit is None or self._plausible(fit):
+            return fit
+        cfg = self.config
+        bounded = [self._best_flight(rows, math.tan(math.radians(a)))
+                   for a in (cfg.min_elevation_deg, cfg.max_elevation_deg)]
+        bounded = [f for f in bounded if f is not None and self._plausible(f)]
+        return min(bounded, key=lambda f: f.rss_m2, default=fit)
 
     def _best_ground(self, rows: np.ndarray) -> float:
         """The squared residual of the best ball kicked on the ground over the launch times (inf: undetermined)."""
@@ -455,14 +485,14 @@ class ChipDetector:
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
         if self._new_sightings(rows) < cfg.min_sightings:
             return
-        fit = self._best_flight(rows)
+        fit = self._flight(rows)
         if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
             # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
             # flight is sure enough to say when it lands)
             first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]
             if len(first_hop) < len(rows):
                 rows = first_hop
-                fit = self._best_flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
+                fit = self._flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
         if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
                 fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
             fit = self._best_flight(rows, math.tan(math.radians(self.hint_angle_deg)))
@@ -476,6 +506,11 @@ class ChipDetector:
         self.fit, self._chip = fit, chip
         if self.detected_at_s is None:
             self.detected_at_s = t_s
+
+    def _flight(self, rows: np.ndarray) -> ChipFit | None:
+        """The flight judged: the best one a chip kicker launches (with a chip hint: the best free one)."""
+        fit = self._best_flight(rows)
+        return fit if self._chip_hinted() else self._bounded_flight(rows, fit)
 
     def _new_sightings(self, rows: np.ndarray) -> int:
         """How many of ``rows`` are of the new motion (from the flat filter's first sighting of it on)."""
