@@ -65,6 +65,10 @@ GROUND_ITERATIONS = 3
 # this many sightings' standard errors in one: twice as sure as one sighting.
 ORIGIN_WEIGHT = 2.0
 
+# The old motion's sightings span this long at least before a kick is looked for among them (a velocity from
+# fewer is too noisy to extrapolate).
+MOVED_SPAN_S = 0.05
+
 
 @dataclass(frozen=True)
 class ChipDetectorConfig:
@@ -339,18 +343,25 @@ class ChipDetector:
         self.hint_angle_deg = self._hint[1] if self._hint_fits(self.t_start_s) else None
 
     def _first_moved(self, t_first_s: float) -> float:
-        """The time of the first sighting before ``t_first_s`` off the straight line through the sightings before it
-        by ``moved_sigma`` noise (at least three of them): where the kick shows first (inf: none is)."""
+        """The time of the first sighting before ``t_first_s`` that, with the next frame's, lies off the old motion by
+        ``moved_sigma`` noise: where the kick shows first when the flat filter saw it late (inf: none does). The old
+        motion: the straight line through the sightings before it, once they span ``MOVED_SPAN_S`` (the flat
+        filter's velocity may already hold the kick)."""
         cfg = self.config
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
-        rows = rows[rows[:, 0] < t_first_s]
-        for j in range(3, len(rows)):
-            t, x, y = rows[:j, 0] - rows[:j, 0].mean(), rows[:j, 1], rows[:j, 2]
-            tt = t @ t
-            vx, vy = (t @ (x - x.mean()) / tt, t @ (y - y.mean()) / tt) if tt > 0.0 else (0.0, 0.0)
-            dt = rows[j, 0] - rows[:j, 0].mean()
-            if math.hypot(rows[j, 1] - x.mean() - vx * dt, rows[j, 2] - y.mean() - vy * dt) > cfg.moved_sigma * cfg.noise_m:
-                return float(rows[j, 0])
+        times = np.unique(rows[:, 0])
+        for i in np.flatnonzero(times < t_first_s):
+            j = int(np.searchsorted(rows[:, 0], times[i]))
+            t, x, y = rows[:j, 0], rows[:j, 1], rows[:j, 2]
+            if j < 3 or t[-1] - t[0] < MOVED_SPAN_S:
+                continue
+            tc = t - t.mean()
+            vx, vy = tc @ (x - x.mean()) / (tc @ tc), tc @ (y - y.mean()) / (tc @ tc)
+            later = rows[(rows[:, 0] >= times[i]) & (rows[:, 0] <= times[min(i + 1, len(times) - 1)])]
+            dt = later[:, 0] - t.mean()
+            if np.all(np.hypot(later[:, 1] - x.mean() - vx * dt, later[:, 2] - y.mean() - vy * dt)
+                      > cfg.moved_sigma * cfg.noise_m):
+                return float(times[i])
         return math.inf
 
     @property
