@@ -346,6 +346,7 @@ class ChipDetector:
         self._pre_velocity = (0.0, 0.0)  # the old motion's velocity (the ball before the launch)
         self._origin_seen = False  # the old motion's own sightings pin the launch point
         self._flight_seen: ChipFit | None = None
+        self._ground_rss: tuple[tuple, float] = ((), math.inf)  # the last ground fit: its sightings' key, its rss
         self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
 
     def hint(self, t_s: float, angle_deg: float) -> None:
@@ -373,6 +374,7 @@ class ChipDetector:
         self._origin_seen = len(self._settled()) > 0
         self.fit, self.detected_at_s, self._chip, self._handed_over = None, None, None, False
         self._flight_seen = None  # the newest significant flight fitted to the first hop's sightings
+        self._ground_rss = ((), math.inf)
         self.hint_angle_deg = self._hint[1] if self._hint_fits(self.t_start_s) else None
 
     def _first_moved(self, t_first_s: float) -> float:
@@ -507,23 +509,37 @@ class ChipDetector:
         """The best flight a chip kicker launches: ``fit`` (the free one) if it is one, else the better of the
         flights at the bounds of the plausible elevations (the least-squares optimum over the plausible flights lies
         on their boundary when the free optimum lies outside; a steep or flat free fit of a few noisy sightings is
-        often a true chip's, its height poorly seen)."""
+        often a true chip's, its height poorly seen). Before a detection only when the free fit's gain over the ground
+        reaches the threshold: a bounded fit explains the sightings no better than the free one."""
         if fit is None or self._plausible(fit):
             return fit
         cfg = self.config
+        if self.fit is None and (self._best_ground(rows) - fit.rss_m2) / cfg.noise_m**2 < self._min_gain():
+            return fit
         bounded = [self._best_flight(rows, math.tan(math.radians(a)), hops)
                    for a in (cfg.min_elevation_deg, cfg.max_elevation_deg)]
         bounded = [f for f in bounded if f is not None and self._plausible(f)]
         return min(bounded, key=lambda f: f.rss_m2, default=fit)
 
     def _best_ground(self, rows: np.ndarray) -> float:
-        """The squared residual of the best ball kicked on the ground over the launch times (inf: undetermined)."""
+        """The squared residual of the best ball kicked on the ground over the launch times (inf: undetermined); the
+        last one is kept for the same sightings."""
+        key = (len(rows), float(rows[0, 0]), float(rows[-1, 0]), self.t_start_s)
+        if self._ground_rss[0] == key:
+            return self._ground_rss[1]
+
         def evaluate(times):
             return _grounds(rows, times, self._origins(times), self.ball_params, GROUND_ITERATIONS,
                             self._pre_velocity)
 
         i, _, rss = self._over_launch_times(evaluate)
+        self._ground_rss = (key, float(rss[i]))
         return float(rss[i])
+
+    def _min_gain(self) -> float:
+        """The gain over the ground a chip needs without a chip hint (more after a flat hint)."""
+        cfg = self.config
+        return cfg.min_gain * (cfg.flat_hint_factor if self.hint_angle_deg == 0.0 else 1.0)
 
     def _judge(self, t_s: float) -> None:
         cfg, g = self.config, self.params.g_mps2
@@ -609,7 +625,7 @@ class ChipDetector:
         gain = (ground - fit.rss_m2) / cfg.noise_m**2
         if hinted:
             return gain >= -cfg.hint_max_loss
-        return gain >= cfg.min_gain * (cfg.flat_hint_factor if self.hint_angle_deg == 0.0 else 1.0)
+        return gain >= self._min_gain()
 
     def _plausible(self, fit: ChipFit) -> bool:
         """A flight a chip kicker launches: not faster than ``max_launch_speed_mps``, its elevation in range."""
