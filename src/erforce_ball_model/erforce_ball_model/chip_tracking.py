@@ -69,6 +69,9 @@ ORIGIN_WEIGHT = 2.0
 # fewer is too noisy to extrapolate).
 MOVED_SPAN_S = 0.05
 
+# The flights at the bounds of the plausible elevations are fitted this far inside them.
+BOUND_INSIDE_DEG = 0.5
+
 # A short chip's hops: refits with the hop times of the previous fit's vertical speed.
 HOP_ITERATIONS = 2
 
@@ -516,8 +519,9 @@ class ChipDetector:
         cfg = self.config
         if self.fit is None and (self._best_ground(rows) - fit.rss_m2) / cfg.noise_m**2 < self._min_gain():
             return fit
+        # just inside the bounds: a fit at an angle takes the direction of its previous iteration, a hair off its own
         bounded = [self._best_flight(rows, math.tan(math.radians(a)), hops)
-                   for a in (cfg.min_elevation_deg, cfg.max_elevation_deg)]
+                   for a in (cfg.min_elevation_deg + BOUND_INSIDE_DEG, cfg.max_elevation_deg - BOUND_INSIDE_DEG)]
         bounded = [f for f in bounded if f is not None and self._plausible(f)]
         return min(bounded, key=lambda f: f.rss_m2, default=fit)
 
