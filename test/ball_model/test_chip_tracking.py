@@ -9,12 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from erforce_ball_model import chip_tracking
-from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ChipParams
+from erforce_ball_model.ball_model import BallTrajectory, ChipParams
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.chip_tracking import (
     ChipDetector,
-    HopSchedule,
     Sighting,
     fit_flight,
     fit_flight_at_angle,
@@ -318,56 +316,6 @@ def test_a_ball_placed_elsewhere_just_after_a_hinted_kick_is_no_chip():
         if chip is not None:
             assert float(np.linalg.norm(detector.launch.velocity_mps)) <= math.hypot(2.0, 2.0) + 0.01, t
             assert chip.position_m.tolist() == pytest.approx(truth.position_at(t - t_kick).tolist(), abs=0.03), t
-
-
-def test_a_hop_schedule_is_the_chip_models_bounces():
-    """vz 0.5 m/s: the first hop lasts 2 vz / g = 0.10194 s, the next ones 0.566 times the one before (damping_z);
-    the ground covers 1 m per m/s until the first bounce, then 1 / 1.4 of it per second (damping_xy_first_hop)."""
-    hops = HopSchedule.of(0.5, ChipParams(), BallModelParams())
-    t1 = 2.0 * 0.5 / G
-    assert hops.t_start_s[:3].tolist() == pytest.approx([0.0, t1, t1 * (1.0 + 0.566)], rel=1e-9)
-    assert hops.distance_s[:3].tolist() == pytest.approx([0.0, t1, t1 + 0.566 * t1 / 1.4], rel=1e-9)
-    assert hops.xy_factor[:2].tolist() == pytest.approx([1.0, 1.0 / 1.4], rel=1e-12)
-    assert hops.z_factor[:3].tolist() == pytest.approx([1.0, 0.566, 0.566**2], rel=1e-12)
-
-
-def short_chip_rows(t_end_s, camera=(0.0, 1.5, 4.0)):
-    """A short chip (0.9 m/s along +x, vz 0.5 from (-0.5, 0): 13 mm high, first touchdown at 0.102 s), launched at
-    t = 0 and seen at 70 Hz by one camera beside its path."""
-    truth = ChipTrajectory((-0.5, 0.0, 0.0), (0.9, 0.0, 0.5), ChipParams())
-    return truth, [(t, *seen(*truth.position_at(t).tolist(), camera), camera)
-                   for t in (k / 70.0 for k in range(1, 70)) if t <= t_end_s]
-
-
-def test_a_short_chip_is_fitted_through_its_bounces():
-    """Seen until 0.2 s (two bounces), the flight through its hops is the chip exactly; one flight without the
-    bounces cannot explain the same sightings."""
-    _, sightings = short_chip_rows(0.2)
-    rows = np.array([(t, x, y, *c) for t, x, y, c in sightings])
-    hops = HopSchedule.of(0.5, ChipParams(), BallModelParams())
-    theta, _, rss = chip_tracking._flights(rows, [0.0], [(-0.5, 0.0)], G, 0.002, (0.0, 0.0), hops)
-    assert theta[0].tolist() == pytest.approx([-0.5, 0.0, 0.9, 0.0, 0.5], abs=1e-9)
-    assert rss[0] == pytest.approx(0.0, abs=1e-18)
-    assert chip_tracking._flights(rows, [0.0], [(-0.5, 0.0)], G, 0.002, (0.0, 0.0))[2][0] > 100 * 0.002**2
-
-
-def test_a_short_chip_is_taken_when_its_bounce_is_seen():
-    """Without noise the short chip's first flight alone does not reach min_gain (its height shifts the seen path by
-    at most (0.5 m) 13 mm / 4 m = 1.6 mm sideways); the frame after its first touchdown (0.114 s) does: the bounce
-    cuts its ground speed to 1 / 1.4, which no ground kick does."""
-    truth, sightings = short_chip_rows(0.3)
-    detector = ChipDetector(None, ChipParams())
-    detector.start(1.0 / 70.0, before=(0.0, -0.5, 0.0, 0.0, 0.0))
-    for t, x, y, camera in sightings:
-        detector.add(t, x, y, camera)
-        if detector.fit is not None:
-            break
-    assert truth.touchdown_times_s[0] == pytest.approx(2.0 * 0.5 / G, rel=1e-12)
-    assert 7.0 / 70.0 < truth.touchdown_times_s[0] < 8.0 / 70.0
-    assert detector.detected_at_s == pytest.approx(8.0 / 70.0)
-    # (to the launch-time search's resolution)
-    assert (detector.fit.vx_mps, detector.fit.vy_mps, detector.fit.vz_mps) == pytest.approx((0.9, 0.0, 0.5),
-                                                                                             abs=1e-3)
 
 
 def test_a_kick_the_flat_filter_saw_late_starts_where_the_ball_left():

@@ -72,9 +72,6 @@ MOVED_SPAN_S = 0.05
 # The flights at the bounds of the plausible elevations are fitted this far inside them.
 BOUND_INSIDE_DEG = 0.5
 
-# A short chip's hops: refits with the hop times of the previous fit's vertical speed.
-HOP_ITERATIONS = 2
-
 
 @dataclass(frozen=True)
 class ChipDetectorConfig:
@@ -148,33 +145,12 @@ class ChipFit(NamedTuple):
     rss_m2: float
 
 
-class HopSchedule(NamedTuple):
-    """A chip's hops with a unit horizontal launch speed (chip_model.ChipTrajectory's, for a vertical launch speed
-    assumed known): each hop's start after the launch [s], the ground distance covered by then per m/s of launch
-    speed, its horizontal and its vertical speed per m/s of the launch's; and when it rolls. Within the hops the
-    ray equations stay linear in the launch's (x0, y0, vx, vy, vz)."""
-
-    t_start_s: np.ndarray
-    distance_s: np.ndarray
-    xy_factor: np.ndarray
-    z_factor: np.ndarray
-    roll_start_s: float
-
-    @classmethod
-    def of(cls, vz_mps: float, params: ChipParams, ball_params: BallModelParams) -> HopSchedule:
-        chip = ChipTrajectory((0.0, 0.0, 0.0), (1.0, 0.0, vz_mps), params, ball_params)
-        hops = np.array([(h.t_start_s, h.x_m, h.vx_mps, h.vz_mps / vz_mps) for h in chip.hops]).reshape(-1, 4)
-        return cls(*hops.T, chip.roll_start_s)
-
-
-def _system(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, flight: bool, pre_velocity_mps=(0.0, 0.0),
-            hops: HopSchedule | None = None):
+def _system(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, flight: bool, pre_velocity_mps=(0.0, 0.0)):
     """Least-squares rows for (x0, y0, vx, vy[, vz]), one system per launch time of ``t_launch_s`` (m of them):
     each sighting's two ray equations, then the origin (``origin_xy``: (m, 2), where the ball was at each launch, if
     known) as one more sighting on the ground. A sighting before the launch is of the ball on the ground at
-    ``(x0, y0) + pre_velocity_mps (t - t_launch)`` (the old motion's velocity, known). A flight with ``hops``: the
-    sightings after its first touchdown are of the later hops (their times assumed known). Returns A (m, 2n[+2],
-    4|5), b (m, 2n[+2]) and the times since the launch (m, n; 0 before it)."""
+    ``(x0, y0) + pre_velocity_mps (t - t_launch)`` (the old motion's velocity, known). Returns A (m, 2n[+2], 4|5),
+    b (m, 2n[+2]) and the times since the launch (m, n; 0 before it)."""
     tau = rows[None, :, 0] - np.asarray(t_launch_s, dtype=float).reshape(-1, 1)
     t, pre = np.maximum(tau, 0.0), np.minimum(tau, 0.0)
     (m, n), gx, gy = tau.shape, rows[:, 1], rows[:, 2]
@@ -184,17 +160,10 @@ def _system(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, flight: bool
     a[:, :n, 2] = a[:, n:2 * n, 3] = t
     b[:, :n], b[:, n:2 * n] = gx - pre_velocity_mps[0] * pre, gy - pre_velocity_mps[1] * pre
     if flight:
-        # within a hop since its start dt: ground distance d + f dt per m/s of launch speed, height h vz dt - g dt^2/2
-        distance, height, dt = t, t, t
-        if hops is not None and len(hops.t_start_s) > 1:
-            k = np.searchsorted(hops.t_start_s, t, side="right") - 1
-            dt = t - hops.t_start_s[k]
-            distance, height = hops.distance_s[k] + hops.xy_factor[k] * dt, hops.z_factor[k] * dt
-            a[:, :n, 2] = a[:, n:2 * n, 3] = distance
         kx, ky = (gx - rows[:, 3]) / rows[:, 5], (gy - rows[:, 4]) / rows[:, 5]
-        a[:, :n, 4], a[:, n:2 * n, 4] = kx * height, ky * height
-        b[:, :n] += kx * (0.5 * g_mps2) * dt * dt
-        b[:, n:2 * n] += ky * (0.5 * g_mps2) * dt * dt
+        a[:, :n, 4], a[:, n:2 * n, 4] = kx * t, ky * t
+        b[:, :n] += kx * (0.5 * g_mps2) * t * t
+        b[:, n:2 * n] += ky * (0.5 * g_mps2) * t * t
     if origin_xy is not None:
         a[:, 2 * n, 0] = a[:, 2 * n + 1, 1] = ORIGIN_WEIGHT
         b[:, 2 * n:] = ORIGIN_WEIGHT * np.asarray(origin_xy, dtype=float).reshape(m, 2)
@@ -212,10 +181,10 @@ def _solve(a: np.ndarray, b: np.ndarray):
     return np.einsum("mjk,mij,mi->mk", inv, a, b), inv, ok
 
 
-def _flights(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, noise_m: float, pre_velocity_mps, hops=None):
+def _flights(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, noise_m: float, pre_velocity_mps):
     """``fit_flight`` for every launch time of ``t_launch_s``: solutions (m, 5), vz's standard errors, squared
     residuals (inf where the sightings do not determine it)."""
-    a, b, _ = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps, hops)
+    a, b, _ = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
     theta, inv, ok = _solve(a, b)
     rss = np.where(ok, np.sum((np.einsum("mij,mj->mi", a, theta) - b) ** 2, axis=1), math.inf)
     return theta, np.sqrt(np.maximum(inv[:, 4, 4], 0.0)) * noise_m, rss
@@ -250,10 +219,10 @@ def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, no
 
 
 def _flights_at_angle(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, noise_m: float, tan_angle: float,
-                      iterations: int, pre_velocity_mps, hops=None):
+                      iterations: int, pre_velocity_mps):
     """``fit_flight_at_angle`` for every launch time of ``t_launch_s``: solutions (m, 5), vz's standard errors,
     squared residuals (inf where the sightings do not determine it)."""
-    a5, b, _ = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps, hops)
+    a5, b, _ = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
     theta = np.einsum("mkn,mn->mk", np.linalg.pinv(a5), b)[:, :4]  # the direction: the free flight's
     a, inv, ok = a5[:, :, :4], None, np.ones(len(b), dtype=bool)
     for _ in range(iterations):
@@ -348,7 +317,6 @@ class ChipDetector:
         self._hint: tuple[float, float] | None = None  # the newest kick hint (t_s, angle_deg)
         self._pre_velocity = (0.0, 0.0)  # the old motion's velocity (the ball before the launch)
         self._origin_seen = False  # the old motion's own sightings pin the launch point
-        self._flight_seen: ChipFit | None = None
         self._ground_rss: tuple[tuple, float] = ((), math.inf)  # the last ground fit: its sightings' key, its rss
         self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
 
@@ -376,7 +344,6 @@ class ChipDetector:
         self._pre_velocity = self._old_velocity(before)
         self._origin_seen = len(self._settled()) > 0
         self.fit, self.detected_at_s, self._chip, self._handed_over = None, None, None, False
-        self._flight_seen = None  # the newest significant flight fitted to the first hop's sightings
         self._ground_rss = ((), math.inf)
         self.hint_angle_deg = self._hint[1] if self._hint_fits(self.t_start_s) else None
 
@@ -490,16 +457,15 @@ class ChipDetector:
                     return 0, np.array([vertex]), vertex_rss
         return i, times, rss
 
-    def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None,
-                     hops: HopSchedule | None = None) -> ChipFit | None:
+    def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None) -> ChipFit | None:
         """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's, or a bound of
-        the plausible elevations); with ``hops`` through its later hops."""
+        the plausible elevations)."""
         cfg, g, u = self.config, self.params.g_mps2, self._pre_velocity
 
         def solutions(times):
             if tan_angle is None:
-                return _flights(rows, times, self._origins(times), g, cfg.noise_m, u, hops)
-            return _flights_at_angle(rows, times, self._origins(times), g, cfg.noise_m, tan_angle, 3, u, hops)
+                return _flights(rows, times, self._origins(times), g, cfg.noise_m, u)
+            return _flights_at_angle(rows, times, self._origins(times), g, cfg.noise_m, tan_angle, 3, u)
 
         i, times, rss = self._over_launch_times(lambda times: solutions(times)[2])
         if not math.isfinite(rss[i]):
@@ -508,7 +474,7 @@ class ChipDetector:
         x0, y0, vx, vy, vz = theta[0].tolist()
         return ChipFit(float(times[i]), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[i]))
 
-    def _bounded_flight(self, rows: np.ndarray, fit: ChipFit | None, hops: HopSchedule | None = None) -> ChipFit | None:
+    def _bounded_flight(self, rows: np.ndarray, fit: ChipFit | None) -> ChipFit | None:
         """The best flight a chip kicker launches: ``fit`` (the free one) if it is one, else the better of the
         flights at the bounds of the plausible elevations (the least-squares optimum over the plausible flights lies
         on their boundary when the free optimum lies outside; a steep or flat free fit of a few noisy sightings is
@@ -520,7 +486,7 @@ class ChipDetector:
         if self.fit is None and (self._best_ground(rows) - fit.rss_m2) / cfg.noise_m**2 < self._min_gain():
             return fit
         # just inside the bounds: a fit at an angle takes the direction of its previous iteration, a hair off its own
-        bounded = [self._best_flight(rows, math.tan(math.radians(a)), hops)
+        bounded = [self._best_flight(rows, math.tan(math.radians(a)))
                    for a in (cfg.min_elevation_deg + BOUND_INSIDE_DEG, cfg.max_elevation_deg - BOUND_INSIDE_DEG)]
         bounded = [f for f in bounded if f is not None and self._plausible(f)]
         return min(bounded, key=lambda f: f.rss_m2, default=fit)
@@ -551,12 +517,7 @@ class ChipDetector:
         if self._new_sightings(rows) < cfg.min_sightings:
             return
         fit = self._flight(rows)
-        seed = fit if self._significant(fit) else self._flight_seen
-        if self.fit is None and seed is not None and rows[-1, 0] - seed.t_launch_s > 2.0 * seed.vz_mps / g:
-            # a short chip seen after its first touchdown (the flight fit so far says when): its hops tell it from a
-            # ground kick
-            fit, rows = self._hopping_flight(rows, seed)
-        elif fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
+        if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
             # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
             # flight is sure enough to say when it lands)
             first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]
@@ -566,8 +527,6 @@ class ChipDetector:
         if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
                 fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
             fit = self._best_flight(rows, math.tan(math.radians(self.hint_angle_deg)))
-        if self._significant(fit) and rows[-1, 0] - fit.t_launch_s <= 2.0 * fit.vz_mps / g:
-            self._flight_seen = fit
         if fit is None or not self._is_chip(fit, rows):
             return
         try:
@@ -579,29 +538,10 @@ class ChipDetector:
         if self.detected_at_s is None:
             self.detected_at_s = t_s
 
-    def _flight(self, rows: np.ndarray, hops: HopSchedule | None = None) -> ChipFit | None:
+    def _flight(self, rows: np.ndarray) -> ChipFit | None:
         """The flight judged: the best one a chip kicker launches (with a chip hint: the best free one)."""
-        fit = self._best_flight(rows, None, hops)
-        return fit if self._chip_hinted() else self._bounded_flight(rows, fit, hops)
-
-    def _hopping_flight(self, rows: np.ndarray, fit: ChipFit) -> tuple[ChipFit | None, np.ndarray]:
-        """A short chip's sightings through its first hops (until it rolls): a bounce changes the ground speed by
-        ``damping_xy_first_hop`` and starts a lower flight, which no ground kick does. The hop times are those of the
-        previous fit's vz (``HOP_ITERATIONS`` refits). The fit and the sightings it explains."""
-        cfg, used = self.config, rows
-        for _ in range(HOP_ITERATIONS):
-            hops = HopSchedule.of(fit.vz_mps, self.params, self.ball_params)
-            kept = rows[rows[:, 0] - fit.t_launch_s < hops.roll_start_s]
-            new = self._flight(kept, hops) if self._new_sightings(kept) >= cfg.min_sightings else None
-            if new is None or not new.vz_mps >= cfg.min_vz_mps:
-                break
-            fit, used = new, kept
-        return fit, used
-
-    def _significant(self, fit: ChipFit | None) -> bool:
-        """A flight a chip kicker launches, up at ``min_vz_mps`` at least."""
-        cfg = self.config
-        return fit is not None and fit.vz_mps >= cfg.min_vz_mps and self._plausible(fit)
+        fit = self._best_flight(rows)
+        return fit if self._chip_hinted() else self._bounded_flight(rows, fit)
 
     def _new_sightings(self, rows: np.ndarray) -> int:
         """How many of ``rows`` are of the new motion (from the flat filter's first sighting of it on)."""
