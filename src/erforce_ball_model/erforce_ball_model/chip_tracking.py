@@ -16,8 +16,9 @@ ball on the ground too (the flat model's deceleration along its motion). A chip 
 cameras at one instant disagree by a height ``height_sigma`` standard errors above the ground
 (``triangulate_height``), or when the flight explains the sightings better than the ground by ``min_gain``
 (in units of the noise variance) and is a flight a chip kicker launches (speed, elevation, ``vz`` above
-zero). Until the first touchdown every new sighting refines the fit; then the chip model
-(chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
+zero; a free fit outside gives way to the best flight at the bounds of the elevations). Until the first
+touchdown every new sighting refines the fit; then the chip model (chip_model.ChipTrajectory with
+``ChipParams``) predicts the hops and the hand-over to rolling.
 
 >>> cameras = ((-3.0, 0.0, 4.0), (3.0, 1.0, 4.0))
 >>> truth = ChipTrajectory((1.0, 0.5, 0.0), (2.0, 0.0, 2.0), ChipParams())  # kicked at t = 0 from (1, 0.5)
@@ -286,7 +287,8 @@ class ChipDetector:
     the flat model once).
 
     The launch time is searched from ``launch_lookback_s`` before the first sighting of the new motion (the flat
-    filter may have taken the kick's first frame for the old motion) to it; the launch point is pinned by the old
+    filter may have taken the kick's first frame for the old motion; its own sightings may show the kick earlier
+    than the filter's word, ``moved_sigma``) to it; the launch point is pinned by the old
     motion's own sightings (``origin_s`` of them), else by the flat filter's last state (``before``). The flight is
     refitted with every sighting until its first touchdown; ``fit`` is the newest fit judged a chip (None while
     the kick is not one), ``detected_at_s`` the time of that judgement. A fit is taken only while it explains its
