@@ -481,12 +481,17 @@ class ChipDetector:
         flights at the bounds of the plausible elevations (the least-squares optimum over the plausible flights lies
         on their boundary when the free optimum lies outside; a steep or flat free fit of a few noisy sightings is
         often a true chip's, its height poorly seen). Before a detection only when the free fit's gain over the ground
-        reaches the threshold: a bounded fit explains the sightings no better than the free one."""
+        reaches the threshold: a bounded fit explains the sightings no better than the free one, and the ground at the
+        free fit's launch time no better than the best ground (one fit instead of a search)."""
         if fit is None or self._plausible(fit):
             return fit
         cfg = self.config
-        if self.fit is None and (self._best_ground(rows) - fit.rss_m2) / cfg.noise_m**2 < self._min_gain():
-            return fit
+        if self.fit is None:
+            times = np.array([fit.t_launch_s])
+            ground = _grounds(rows, times, self._origins(times), self.ball_params, GROUND_ITERATIONS,
+                              self._pre_velocity)[0]
+            if (ground - fit.rss_m2) / cfg.noise_m**2 < self._min_gain():
+                return fit
         # just inside the bounds: a fit at an angle takes the direction of its previous iteration, a hair off its own
         bounded = [self._best_flight(rows, math.tan(math.radians(a)))
                    for a in (cfg.min_elevation_deg + BOUND_INSIDE_DEG, cfg.max_elevation_deg - BOUND_INSIDE_DEG)]
