@@ -12,9 +12,10 @@ every other camera's to ``ball_sighting``, each with the camera's position from 
 Rows: the share of chips detected within 0.15 s of the kick (also with the same chips seen without noise: the
 ceiling the cameras' geometry leaves the detector); the share of flat kicks ever reported as a chip
 (within 1 s); the error of the first touchdown point the predictor's chip has 0.1 s after the detection
-(median and p90 over the detected chips); the detection delay (median, p90); the predictor's time per vision
-frame (ball_frame and ball_sighting for every camera's ball of one capture; mean, p99), as the thread's CPU
-time (a shared machine's load does not inflate it).
+(median and p90 over the detected chips); the chips missed within 0.15 s by apex height (with and without
+noise); the detection delay (median, p90); the predictor's time per vision frame (ball_frame and ball_sighting
+for every camera's ball of one capture; mean, p99), as the thread's CPU time (a shared machine's load does not
+inflate it).
 ``python bench/bench_chip.py [--quick] [--seed N] [--min-gain G] [--kick-hints]`` (``--kick-hints``: the kicker's
 angle reaches the predictor at each kick, BallPredictor.kick_hint; the chips' and the flat kicks' alike).
 """
@@ -22,6 +23,7 @@ angle reaches the predictor at each kick, BallPredictor.kick_hint; the chips' an
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import sys
 import time
@@ -46,6 +48,7 @@ TOUCHDOWN_AFTER_S = 0.1
 RUN_S = 1.0  # after the kick
 REST_S = 0.3  # the ball lies still this long before the kick
 LOW_M = 0.05
+APEX_BANDS_M = (0.03, 0.1, 0.2)  # the missed chips are split by their apex height at these
 
 
 def _random_kick(rng: np.random.Generator, chip: bool):
@@ -142,6 +145,9 @@ def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints
     rest = [c for c, is_low in zip(chips, low, strict=True) if not is_low]
     rest_within = sum(c["delay_s"] is not None and c["delay_s"] <= DETECT_WITHIN_S for c in rest)
     errors = np.array([c["touchdown_error_m"] for c in chips if c["touchdown_error_m"] is not None])
+    apex_m = [b.apex_height_m for b in chip_balls]
+    missed = [c["delay_s"] is None or c["delay_s"] > DETECT_WITHIN_S for c in chips]
+    missed_clean = [d is None or d > DETECT_WITHIN_S for d in clean]
     false_chips = sum(f["delay_s"] is not None for f in flats)
     cost_us = 1e6 * np.concatenate([k["frame_cost_s"] for k in chips + flats])
     note = f"{n} random kicks, seed {seed}, min_gain {detector.min_gain:g}" + (", kick hints" if hints else "")
@@ -157,6 +163,10 @@ def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints
         {"name": "chips detected within 0.15 s without noise", "value": 100.0 * sum(
             d is not None and d <= DETECT_WITHIN_S for d in clean) / n, "unit": "%", "target": "",
          "note": "the same chips noise-free: what the cameras' geometry leaves this detector"},
+        {"name": "chips missed within 0.15 s, by apex height", "value": 100.0 * sum(missed) / n, "unit": "%",
+         "target": "", "note": _by_apex(apex_m, missed)},
+        {"name": "... the same chips without noise", "value": 100.0 * sum(missed_clean) / n, "unit": "%",
+         "target": "", "note": _by_apex(apex_m, missed_clean)},
         {"name": "flat kicks reported as a chip", "value": 100.0 * false_chips / n, "unit": "%", "target": "<= 1",
          "note": note},
         {"name": "first touchdown point error 0.1 s after detection, median", "value": float(np.median(errors)),
@@ -172,6 +182,18 @@ def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints
         {"name": "predictor per vision frame, p99", "value": float(np.percentile(cost_us, 99)), "unit": "us",
          "target": "", "note": ""},
     ]
+
+
+def _by_apex(apex_m: list[float], missed: list[bool]) -> str:
+    """Missed / all chips per apex band, e.g. "apex < 3 cm: 9/21, 3-10 cm: ..."."""
+    edges = (0.0, *APEX_BANDS_M, math.inf)
+    parts = []
+    for lo, hi in itertools.pairwise(edges):
+        band = [m for a, m in zip(apex_m, missed, strict=True) if lo <= a < hi]
+        label = f"< {100 * hi:g} cm" if lo == 0.0 else f">= {100 * lo:g} cm" if hi == math.inf else \
+            f"{100 * lo:g}-{100 * hi:g} cm"
+        parts.append(f"{label}: {sum(band)}/{len(band)}")
+    return "missed/all by apex: " + ", ".join(parts)
 
 
 def main(argv: list[str] | None = None) -> int:

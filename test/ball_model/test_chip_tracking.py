@@ -9,9 +9,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from erforce_ball_model import chip_tracking
 from erforce_ball_model.ball_model import BallTrajectory, ChipParams
 from erforce_ball_model.chip_model import ChipTrajectory
-from erforce_ball_model.chip_tracking import ChipDetector, Sighting, fit_flight, fit_flight_at_angle, triangulate_height
+from erforce_ball_model.chip_tracking import (
+    ChipDetector,
+    Sighting,
+    fit_flight,
+    fit_flight_at_angle,
+    triangulate_height,
+)
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 
 G = 9.81
@@ -310,3 +317,55 @@ def test_a_ball_placed_elsewhere_just_after_a_hinted_kick_is_no_chip():
         if chip is not None:
             assert float(np.linalg.norm(detector.launch.velocity_mps)) <= math.hypot(2.0, 2.0) + 0.01, t
             assert chip.position_m.tolist() == pytest.approx(truth.position_at(t - t_kick).tolist(), abs=0.03), t
+
+
+def test_a_kick_the_flat_filter_saw_late_starts_where_the_ball_left():
+    """A flat kick at 2 m/s at t = 3 ms from rest: at 1/70 s the ball is 2 (1/70 - 0.003) - 1.25 (...)^2 = 22.4 mm
+    off, beyond moved_sigma (5) times 2 mm. The flat filter reports the new motion only at 4/70 s; the kick's
+    sightings start at 1/70 s, and the launch time searched ends there."""
+    truth = BallTrajectory((0.3, 0.2), (2.0, 0.0), 2.0)
+    detector = ChipDetector(None, ChipParams())
+    for t, x, y, camera in kick_sightings(truth, 0.003, CAMERAS[:1], frames=(-9, 4)):
+        detector.add(t, x, y, camera)
+    assert truth.position_at(1.0 / 70.0 - 0.003)[0] - 0.3 == pytest.approx(
+        2.0 * (1.0 / 70.0 - 0.003) - 1.25 * (1.0 / 70.0 - 0.003) ** 2, abs=1e-12)
+    detector.start(4.0 / 70.0, before=(3.0 / 70.0, 0.33, 0.2, 1.2, 0.0))
+    assert detector.t_start_s == pytest.approx(1.0 / 70.0)
+    # at rest: no kick before the filter's word
+    rest = ChipDetector(None, ChipParams())
+    for t, x, y, camera in kick_sightings(truth, 1.0, CAMERAS[:1], noise_m=0.002, frames=(-9, 4)):
+        rest.add(t, x, y, camera)
+    rest.start(4.0 / 70.0, before=(3.0 / 70.0, 0.3, 0.2, 0.0, 0.0))
+    assert rest.t_start_s == pytest.approx(4.0 / 70.0)
+
+
+def test_a_flight_steeper_than_a_chip_kicker_launches_is_judged_at_the_bound():
+    """A ball thrown up at 80 deg (1 m/s along +x, vz 5.67 m/s), seen by one camera beside its path without noise:
+    the free flight is exact but no chip kicker launches it (max_elevation_deg 75); the flight judged is the best
+    one at 74.5 deg (BOUND_INSIDE_DEG inside the bound), which explains the sightings worse than the free one and
+    better than a ground kick."""
+    vz = math.tan(math.radians(80.0))
+    detector = ChipDetector(None, ChipParams())
+    detector.start(1.0 / 70.0, before=(0.0, 0.0, 0.0, 0.0, 0.0))
+    for t, x, y, camera in chip_sightings([k / 70.0 for k in range(1, 9)], ((0.0, 1.5, 4.0),), vx=1.0, vz=vz):
+        detector.add(t, x, y, camera)
+    rows = np.array(detector._rows)
+    free = detector._best_flight(rows)
+    assert math.degrees(math.atan2(free.vz_mps, free.vx_mps)) == pytest.approx(80.0, abs=1e-3)
+    judged = detector._flight(rows)
+    v_ground = math.hypot(judged.vx_mps, judged.vy_mps)
+    assert math.degrees(math.atan2(judged.vz_mps, v_ground)) == pytest.approx(74.5, abs=0.05)
+    assert free.rss_m2 < judged.rss_m2 < detector._best_ground(rows)
+
+
+def test_the_batched_fit_at_an_angle_is_each_launch_times_own():
+    """_flights_at_angle over several launch times gives what fit_flight_at_angle gives for each alone."""
+    rng = np.random.default_rng(3)
+    rows = np.array([(t, x + rng.normal(0, 0.002), y + rng.normal(0, 0.002), *c)
+                     for t, x, y, c in chip_sightings([0.02, 0.04, 0.06, 0.08], cameras=CAMERAS[:1])])
+    times = [-0.004, 0.0, 0.003]
+    theta, vz_std, rss = chip_tracking._flights_at_angle(rows, times, None, G, 0.002, 1.5, 3, (0.0, 0.0))
+    for j, t0 in enumerate(times):
+        one = fit_flight_at_angle(rows, t0, None, G, 0.002, tan_angle=1.5)
+        assert theta[j].tolist() == pytest.approx([one.x_m, one.y_m, one.vx_mps, one.vy_mps, one.vz_mps], abs=1e-12)
+        assert (vz_std[j], rss[j]) == pytest.approx((one.vz_std_mps, one.rss_m2), rel=1e-9)

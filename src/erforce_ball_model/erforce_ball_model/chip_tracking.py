@@ -16,8 +16,9 @@ ball on the ground too (the flat model's deceleration along its motion). A chip 
 cameras at one instant disagree by a height ``height_sigma`` standard errors above the ground
 (``triangulate_height``), or when the flight explains the sightings better than the ground by ``min_gain``
 (in units of the noise variance) and is a flight a chip kicker launches (speed, elevation, ``vz`` above
-zero). Until the first touchdown every new sighting refines the fit; then the chip model
-(chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
+zero; a free fit outside gives way to the best flight at the bounds of the elevations). Until the first
+touchdown every new sighting refines the fit; then the chip model (chip_model.ChipTrajectory with
+``ChipParams``) predicts the hops and the hand-over to rolling.
 
 What is reported of a fit taken: its covariance (``flight_covariance``; from one camera the first height is
 unsure by tens of cm, along the camera's ray), and the flight within the kicker's limits (``within_kicker_limits``:
@@ -70,6 +71,13 @@ GROUND_ITERATIONS = 3
 # this many sightings' standard errors in one: twice as sure as one sighting.
 ORIGIN_WEIGHT = 2.0
 
+# The old motion's sightings span this long at least before a kick is looked for among them (a velocity from
+# fewer is too noisy to extrapolate).
+MOVED_SPAN_S = 0.05
+
+# The flights at the bounds of the plausible elevations are fitted this far inside them.
+BOUND_INSIDE_DEG = 0.5
+
 
 # The league's limit on a kicked ball's speed [m/s]: with the kicker's elevations, the flights a reported chip can be.
 KICK_SPEED_LIMIT_MPS = 6.5
@@ -97,6 +105,9 @@ class ChipDetectorConfig:
     # the kick may precede the flat filter's first sighting of the new motion by this much (the filter takes the
     # first frame after a kick for noise of the old motion when it moved the ball little)
     launch_lookback_s: float = 0.035
+    # a sighting this many ``noise_m`` off the straight line through the sightings before it has moved: the new
+    # motion starts there when the flat filter saw it only later (a slow kick moves the ball a few mm a frame)
+    moved_sigma: float = 5.0
     launch_refine_steps: int = 2  # finer grids refining the best launch time of the first
     origin_s: float = 0.1  # the old motion's sightings this long before the kick pin the launch point
     window_s: float = 0.3  # sightings of one kick kept this long
@@ -317,32 +328,42 @@ def within_kicker_limits(launch: np.ndarray, covariance: np.ndarray, min_elevati
     return mean, np.cov(inside, rowvar=False) + np.outer(shift, shift)
 
 
+def _flights_at_angle(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, noise_m: float, tan_angle: float,
+                      iterations: int, pre_velocity_mps):
+    """``fit_flight_at_angle`` for every launch time of ``t_launch_s``: solutions (m, 5), vz's standard errors,
+    squared residuals (inf where the sightings do not determine it)."""
+    a5, b, _ = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
+    theta = np.einsum("mkn,mn->mk", np.linalg.pinv(a5), b)[:, :4]  # the direction: the free flight's
+    a, inv, ok = a5[:, :, :4], None, np.ones(len(b), dtype=bool)
+    for _ in range(iterations):
+        speed = np.hypot(theta[:, 2], theta[:, 3])
+        ok &= (speed > 1e-6) & (speed <= MAX_SPEED_MPS)
+        u = theta[:, 2:4] / np.where(ok, speed, 1.0)[:, None]
+        a = a5[:, :, :4].copy()
+        a[:, :, 2] += a5[:, :, 4] * (tan_angle * u[:, 0:1])
+        a[:, :, 3] += a5[:, :, 4] * (tan_angle * u[:, 1:2])
+        theta, inv, solved = _solve(a, b)
+        ok &= solved
+    rss = np.where(ok, np.sum((np.einsum("mij,mj->mi", a, theta) - b) ** 2, axis=1), math.inf)
+    grad = np.zeros((len(b), 4))
+    grad[:, 2:] = tan_angle * u  # d vz / d theta at the last direction
+    vz_var = np.einsum("mj,mjk,mk->m", grad, inv, grad) * noise_m**2
+    vz = tan_angle * np.einsum("mj,mj->m", u, theta[:, 2:4])
+    return np.column_stack([theta, vz]), np.sqrt(np.maximum(vz_var, 0.0)), rss
+
+
 def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
                         tan_angle: float, iterations: int = 3, pre_velocity_mps=(0.0, 0.0)) -> ChipFit | None:
     """As ``fit_flight`` with the launch's elevation known (``vz = tan_angle |v|``, the kicker's angle): four
     unknowns, as many as a ball on the ground has, so a few sightings suffice. The direction of the ground speed is
     taken from the previous iteration (the first: the flight's without the known angle), which keeps it linear."""
-    a5, b, _ = _system(rows, [t_launch_s], origin_xy, g_mps2, True, pre_velocity_mps)
-    a5, b = a5[0], b[0]
-    theta = np.linalg.lstsq(a5, b, rcond=None)[0]
-    a, inv = a5[:, :4], None
-    for _ in range(iterations):
-        speed = math.hypot(theta[2], theta[3])
-        if not 1e-6 < speed <= MAX_SPEED_MPS:
-            return None
-        ux, uy = theta[2] / speed, theta[3] / speed
-        a = a5[:, :4].copy()
-        a[:, 2] += a5[:, 4] * tan_angle * ux
-        a[:, 3] += a5[:, 4] * tan_angle * uy
-        theta, inv, ok = _solve(a[None], b[None])
-        if not ok[0]:
-            return None
-        theta, inv = theta[0], inv[0]
-    rss = float(np.sum((a @ theta - b) ** 2))
-    grad = np.array([0.0, 0.0, tan_angle * ux, tan_angle * uy])  # d vz / d theta at the last direction
-    vz_var = float(grad @ inv @ grad) * noise_m**2
-    x0, y0, vx, vy = theta.tolist()
-    return ChipFit(t_launch_s, x0, y0, vx, vy, tan_angle * (ux * vx + uy * vy), math.sqrt(max(vz_var, 0.0)), rss)
+    origins = None if origin_xy is None else [origin_xy]
+    theta, vz_std, rss = _flights_at_angle(rows, [t_launch_s], origins, g_mps2, noise_m, tan_angle, iterations,
+                                           pre_velocity_mps)
+    if not math.isfinite(rss[0]):
+        return None
+    x0, y0, vx, vy, vz = theta[0].tolist()
+    return ChipFit(float(t_launch_s), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[0]))
 
 
 def fit_ground(rows: np.ndarray, t_start_s: float, origin_xy, ball_params: BallModelParams,
@@ -375,7 +396,8 @@ class ChipDetector:
     the flat model once).
 
     The launch time is searched from ``launch_lookback_s`` before the first sighting of the new motion (the flat
-    filter may have taken the kick's first frame for the old motion) to it; the launch point is pinned by the old
+    filter may have taken the kick's first frame for the old motion; its own sightings may show the kick earlier
+    than the filter's word, ``moved_sigma``) to it; the launch point is pinned by the old
     motion's own sightings (``origin_s`` of them), else by the flat filter's last state (``before``). The flight is
     refitted with every sighting until its first touchdown; ``fit`` is the newest fit judged a chip (None while
     the kick is not one), ``detected_at_s`` the time of that judgement. A fit is taken only while it explains its
@@ -406,6 +428,7 @@ class ChipDetector:
         self._hint: tuple[float, float] | None = None  # the newest kick hint (t_s, angle_deg)
         self._pre_velocity = (0.0, 0.0)  # the old motion's velocity (the ball before the launch)
         self._origin_seen = False  # the old motion's own sightings pin the launch point
+        self._ground_rss: tuple[tuple, float] = ((), math.inf)  # the last ground fit: its sightings' key, its rss
         self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
         self._launch_covariance: np.ndarray | None = None  # the reported flight's (launch_covariance)
 
@@ -429,11 +452,34 @@ class ChipDetector:
         count, those already added included; a chip detected before is forgotten."""
         cfg = self.config
         self._rows = [r for r in self._rows if r.t_s >= t_first_s - cfg.launch_lookback_s - cfg.origin_s]
-        self.t_start_s, self._before = float(t_first_s), before
+        self.t_start_s, self._before = min(float(t_first_s), self._first_moved(t_first_s)), before
         self._pre_velocity = self._old_velocity(before)
         self._origin_seen = len(self._settled()) > 0
         self.fit, self.detected_at_s, self._chip, self._handed_over = None, None, None, False
+        self._ground_rss = ((), math.inf)
         self.hint_angle_deg = self._hint[1] if self._hint_fits(self.t_start_s) else None
+
+    def _first_moved(self, t_first_s: float) -> float:
+        """The time of the first sighting before ``t_first_s`` that, with the next frame's, lies off the old motion by
+        ``moved_sigma`` noise: where the kick shows first when the flat filter saw it late (inf: none does). The old
+        motion: the straight line through the sightings before it, once they span ``MOVED_SPAN_S`` (the flat
+        filter's velocity may already hold the kick)."""
+        cfg = self.config
+        rows = np.array(self._rows, dtype=float).reshape(-1, 6)
+        times = np.unique(rows[:, 0])
+        for i in np.flatnonzero(times < t_first_s):
+            j = int(np.searchsorted(rows[:, 0], times[i]))
+            t, x, y = rows[:j, 0], rows[:j, 1], rows[:j, 2]
+            if j < 3 or t[-1] - t[0] < MOVED_SPAN_S:
+                continue
+            tc = t - t.mean()
+            vx, vy = tc @ (x - x.mean()) / (tc @ tc), tc @ (y - y.mean()) / (tc @ tc)
+            later = rows[(rows[:, 0] >= times[i]) & (rows[:, 0] <= times[min(i + 1, len(times) - 1)])]
+            dt = later[:, 0] - t.mean()
+            if np.all(np.hypot(later[:, 1] - x.mean() - vx * dt, later[:, 2] - y.mean() - vy * dt)
+                      > cfg.moved_sigma * cfg.noise_m):
+                return float(times[i])
+        return math.inf
 
     @property
     def active(self) -> bool:
@@ -524,55 +570,77 @@ class ChipDetector:
         return i, times, rss
 
     def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None) -> ChipFit | None:
-        """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's)."""
+        """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's, or a bound of
+        the plausible elevations)."""
         cfg, g, u = self.config, self.params.g_mps2, self._pre_velocity
-        if tan_angle is not None:
-            fits = {}
 
-            def evaluate(times):
-                origins = self._origins(times)
-                out = [fit_flight_at_angle(rows, t, None if origins is None else origins[j], g, cfg.noise_m,
-                                           tan_angle, pre_velocity_mps=u) for j, t in enumerate(times)]
-                fits.update({float(t): f for t, f in zip(times, out, strict=True)})
-                return np.array([math.inf if f is None else f.rss_m2 for f in out])
+        def solutions(times):
+            if tan_angle is None:
+                return _flights(rows, times, self._origins(times), g, cfg.noise_m, u)
+            return _flights_at_angle(rows, times, self._origins(times), g, cfg.noise_m, tan_angle, 3, u)
 
-            i, times, rss = self._over_launch_times(evaluate)
-            return fits[float(times[i])] if math.isfinite(rss[i]) else None
-        last = {}
-
-        def evaluate(times):
-            last["fit"] = _flights(rows, times, self._origins(times), g, cfg.noise_m, u)
-            return last["fit"][2]
-
-        i, times, rss = self._over_launch_times(evaluate)
+        i, times, rss = self._over_launch_times(lambda times: solutions(times)[2])
         if not math.isfinite(rss[i]):
             return None
-        theta, vz_std, _ = _flights(rows, times[i:i + 1], self._origins(times[i:i + 1]), g, cfg.noise_m, u)
+        theta, vz_std, _ = solutions(times[i:i + 1])
         x0, y0, vx, vy, vz = theta[0].tolist()
         return ChipFit(float(times[i]), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[i]))
 
+    def _bounded_flight(self, rows: np.ndarray, fit: ChipFit | None) -> ChipFit | None:
+        """The best flight a chip kicker launches: ``fit`` (the free one) if it is one, else the better of the
+        flights at the bounds of the plausible elevations (the least-squares optimum over the plausible flights lies
+        on their boundary when the free optimum lies outside; a steep or flat free fit of a few noisy sightings is
+        often a true chip's, its height poorly seen). Before a detection only when the free fit's gain over the ground
+        reaches the threshold: a bounded fit explains the sightings no better than the free one, and the ground at the
+        free fit's launch time no better than the best ground (one fit instead of a search)."""
+        if fit is None or self._plausible(fit):
+            return fit
+        cfg = self.config
+        if self.fit is None:
+            times = np.array([fit.t_launch_s])
+            ground = _grounds(rows, times, self._origins(times), self.ball_params, GROUND_ITERATIONS,
+                              self._pre_velocity)[0]
+            if (ground - fit.rss_m2) / cfg.noise_m**2 < self._min_gain():
+                return fit
+        # just inside the bounds: a fit at an angle takes the direction of its previous iteration, a hair off its own
+        bounded = [self._best_flight(rows, math.tan(math.radians(a)))
+                   for a in (cfg.min_elevation_deg + BOUND_INSIDE_DEG, cfg.max_elevation_deg - BOUND_INSIDE_DEG)]
+        bounded = [f for f in bounded if f is not None and self._plausible(f)]
+        return min(bounded, key=lambda f: f.rss_m2, default=fit)
+
     def _best_ground(self, rows: np.ndarray) -> float:
-        """The squared residual of the best ball kicked on the ground over the launch times (inf: undetermined)."""
+        """The squared residual of the best ball kicked on the ground over the launch times (inf: undetermined); the
+        last one is kept for the same sightings."""
+        key = (len(rows), float(rows[0, 0]), float(rows[-1, 0]), self.t_start_s)
+        if self._ground_rss[0] == key:
+            return self._ground_rss[1]
+
         def evaluate(times):
             return _grounds(rows, times, self._origins(times), self.ball_params, GROUND_ITERATIONS,
                             self._pre_velocity)
 
         i, _, rss = self._over_launch_times(evaluate)
+        self._ground_rss = (key, float(rss[i]))
         return float(rss[i])
+
+    def _min_gain(self) -> float:
+        """The gain over the ground a chip needs without a chip hint (more after a flat hint)."""
+        cfg = self.config
+        return cfg.min_gain * (cfg.flat_hint_factor if self.hint_angle_deg == 0.0 else 1.0)
 
     def _judge(self, t_s: float) -> None:
         cfg, g = self.config, self.params.g_mps2
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
         if self._new_sightings(rows) < cfg.min_sightings:
             return
-        fit = self._best_flight(rows)
+        fit = self._flight(rows)
         if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
             # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
             # flight is sure enough to say when it lands)
             first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]
             if len(first_hop) < len(rows):
                 rows = first_hop
-                fit = self._best_flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
+                fit = self._flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
         tan_angle = None
         if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
                 fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
@@ -587,6 +655,11 @@ class ChipDetector:
         self.fit, self._chip, self._launch_covariance = fit, chip, covariance
         if self.detected_at_s is None:
             self.detected_at_s = t_s
+
+    def _flight(self, rows: np.ndarray) -> ChipFit | None:
+        """The flight judged: the best one a chip kicker launches (with a chip hint: the best free one)."""
+        fit = self._best_flight(rows)
+        return fit if self._chip_hinted() else self._bounded_flight(rows, fit)
 
     def _new_sightings(self, rows: np.ndarray) -> int:
         """How many of ``rows`` are of the new motion (from the flat filter's first sighting of it on)."""
@@ -614,7 +687,7 @@ class ChipDetector:
         gain = (ground - fit.rss_m2) / cfg.noise_m**2
         if hinted:
             return gain >= -cfg.hint_max_loss
-        return gain >= cfg.min_gain * (cfg.flat_hint_factor if self.hint_angle_deg == 0.0 else 1.0)
+        return gain >= self._min_gain()
 
     def _plausible(self, fit: ChipFit) -> bool:
         """A flight a chip kicker launches: not faster than ``max_launch_speed_mps``, its elevation in range."""
