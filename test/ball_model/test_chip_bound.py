@@ -48,7 +48,7 @@ def test_a_ball_at_rest_is_seen_where_it_lies():
 
 def test_whitening_is_the_inverse_covariance_of_two_cameras_sharing_the_world_noise():
     ball = BallTrajectory((0.0, 0.0), (0.0, 0.0), 0.0)
-    cameras = bound.cameras_of(all_see=True)[:2]
+    cameras = bound.cameras_of(views=4)[:2]
     sightings = bound.kick_sightings(ball, T_KICK_S, cameras)
     w = bound.whitening(sightings, bound.Noise(world_m=0.002, camera_m=0.0005))
     s2, c2 = 0.002**2, 0.0005**2
