@@ -25,6 +25,7 @@ RESULTS = BENCH_DIR / "RESULTS.md"
 MODULES = (
     ("ball model (Sec. 5)", "bench_ball_model"),
     ("chip tracking", "bench_chip"),
+    ("chip detection's ceiling", "bench_chip_bound"),
     ("ball_predictor node", "bench_ball_predictor"),
     ("motion control (Sec. 4)", "bench_motion"),
     ("simulator (Sec. 2-3)", "bench_sim"),
