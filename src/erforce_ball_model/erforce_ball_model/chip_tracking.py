@@ -444,6 +444,7 @@ class ChipDetector:
         self._ground_rss: tuple[tuple, float] = ((), math.inf)  # the last ground fit: its sightings' key, its rss
         self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
         self._launch_covariance: np.ndarray | None = None  # the reported flight's (launch_covariance)
+        self._pending = False  # sightings added without a judgement since the last one (add's ``judge``)
 
     def hint(self, t_s: float, angle_deg: float) -> None:
         """The kicker's word: it kicked at ``t_s`` with the elevation ``angle_deg`` (0: flat; a chip in (0, 90)).
@@ -452,6 +453,7 @@ class ChipDetector:
         if not (math.isfinite(t_s) and math.isfinite(angle_deg) and 0.0 <= angle_deg < 90.0):
             raise ValueError(f"kick hint at {t_s!r} s with angle {angle_deg!r} deg: the time must be finite, the "
                              f"angle in [0, 90)")
+        self.judge_pending()
         self._hint = (float(t_s), float(angle_deg))
         if self.t_start_s is not None and self.fit is None and self._hint_fits(self.t_start_s):
             self.hint_angle_deg = self._hint[1]
@@ -463,6 +465,7 @@ class ChipDetector:
         """A new motion (the flat filter's kick) first seen at ``t_first_s``; ``before``: the old motion's
         last state (t_s, x_m, y_m, vx_mps, vy_mps), where the ball left from. Sightings from ``t_first_s`` on
         count, those already added included; a chip detected before is forgotten."""
+        self.judge_pending()
         cfg = self.config
         self._rows = [r for r in self._rows if r.t_s >= t_first_s - cfg.launch_lookback_s - cfg.origin_s]
         self.t_start_s, self._before = min(float(t_first_s), self._first_moved(t_first_s)), before
@@ -510,17 +513,34 @@ class ChipDetector:
             return self._rows[-1].t_s < self.fit.t_launch_s + self._chip.touchdown_times_s[0]
         return self._rows[-1].t_s - self.t_start_s <= self.config.window_s
 
-    def add(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float]) -> ChipFit | None:
-        """One camera's ball sighting; the chip fit after it (None: no chip so far)."""
+    def add(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float], *,
+            judge: bool = True) -> ChipFit | None:
+        """One camera's ball sighting; the chip fit after it (None: no chip so far). ``judge=False``: more cameras'
+        sightings of this capture may follow; they are judged together once (``judge_pending``, which a sighting of
+        another time calls first), not each on its own (a refit per camera multiplies the cost by the cameras)."""
         if not all(math.isfinite(v) for v in (t_s, x_m, y_m, *camera_m)) or camera_m[2] <= 0.0:
             raise ValueError(f"sighting ({t_s!r}, {x_m!r}, {y_m!r}) from camera {camera_m!r}: must be finite, "
                              f"the camera above the field")
+        if self._rows and t_s != self._rows[-1].t_s:
+            self.judge_pending()
         self._rows.append(Sighting(float(t_s), float(x_m), float(y_m), *map(float, camera_m)))
         if self.t_start_s is None:  # no kick yet: keep a short history only
             self._rows = [r for r in self._rows if t_s - r.t_s <= self.config.window_s]
-        elif self._judging():
-            self._judge(t_s)
+        elif not judge:
+            self._pending = True
+        else:
+            self._pending = False
+            if self._judging():
+                self._judge(t_s)
         return self.fit
+
+    def judge_pending(self) -> None:
+        """Judge the sightings added with ``judge=False`` since the last judgement (the capture of the newest one is
+        complete), as of that capture's time."""
+        if self._pending:
+            self._pending = False
+            if self.t_start_s is not None and self._judging():
+                self._judge(self._rows[-1].t_s)
 
     def _settled(self) -> np.ndarray:
         """The kick's sightings that are surely of the old motion (before the earliest launch time tried)."""

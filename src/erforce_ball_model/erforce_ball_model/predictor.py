@@ -459,7 +459,7 @@ class BallPredictor:
         if (cfg.field is None or t_ball_s is None or not 0.0 <= t_ball_s - t_s <= cfg.tracker.max_gap_s
                 or not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m)):
             return
-        self._chip.add(t_s, x_m, y_m, camera_m)
+        self._chip.add(t_s, x_m, y_m, camera_m, judge=False)  # judged with the capture's others (judge_pending)
 
     def _chip_sighting(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float],
                        status: UpdateStatus, held: tuple[float, float, float] | None,
@@ -468,6 +468,7 @@ class BallPredictor:
         kick's collection unless one is under way; the chip at ``t_s``, or None. When a chip rolls, the flat
         filter takes the ball over from the chip's roll (its hand-over)."""
         detector, ball = self._chip, self._ball
+        detector.judge_pending()  # the previous capture's other cameras: judged before this frame, as they came
         if status == UpdateStatus.MANEUVER and not detector.active:
             detector.start(held[0] if held is not None else t_s, before)
         detector.add(t_s, x_m, y_m, camera_m)
