@@ -68,7 +68,8 @@ from erforce_interfaces.wire.robot_config import (
 __all__ = [
     "MAX_POSITION_M", "MAX_SPEED_MPS", "MAX_WALL_BOUNCES", "PIECE_COLUMNS", "BallFloats", "BallModelParams",
     "BallPhase", "BallTrajectory", "ChipParams", "ball_distance", "ball_floats", "ball_speed",
-    "ball_time_to_distance", "kick_distance", "kick_distances", "load_kernels", "numba_ball_type", "path_piece", "path_point",
+    "ball_time_to_distance", "kick_distance", "kick_distances", "load_kernels", "numba_ball_type", "path_piece",
+    "path_point",
 ]
 
 # Sanity bounds: far beyond any SSL ball (6.5 m/s kick limit, 12 m field), they only catch garbage
