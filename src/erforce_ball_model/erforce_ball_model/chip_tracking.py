@@ -412,8 +412,9 @@ class ChipDetector:
     filter may have taken the kick's first frame for the old motion; its own sightings may show the kick earlier
     than the filter's word, ``moved_sigma``) to it; the launch point is pinned by the old
     motion's own sightings (``origin_s`` of them), else by the flat filter's last state (``before``). The flight is
-    refitted with every sighting until its first touchdown; ``fit`` is the newest fit judged a chip (None while
-    the kick is not one), ``detected_at_s`` the time of that judgement. A fit is taken only while it explains its
+    refitted with every sighting (other cameras' of one capture together: ``add``'s ``judge``) until its first
+    touchdown; ``fit`` is the newest fit judged a chip (None while the kick is not one), ``detected_at_s`` the time
+    of that judgement. A fit is taken only while it explains its
     sightings (``fit_rms_sigma``), a refit only while it is a flight a chip kicker launches: a ball caught or placed
     elsewhere in the air leaves the last good fit in place.
 
