@@ -36,6 +36,21 @@ def test_hand_numbers_3_3_mps_shot_paper_defaults():
     assert math.isinf(SHOT.time_to_distance(8.0))
 
 
+def test_kick_distances_are_each_kicks_distance():
+    """Row i at the kick speed v_i (paper defaults: slide at -2.5 m/s^2 down to 0.6 v, then roll at -0.3 m/s^2):
+    3.3 m/s at 0.528 s has slid 1.39392 m; 1 m/s slides 0.16 s (0.128 m), then rolls from 0.6 m/s; at any time
+    as kick_distance gives it, to the last bit."""
+    p = BallModelParams()
+    tau = np.array([[0.0, 0.528, 2.0], [0.1, 0.5, 20.0]])
+    distances = ball_model.kick_distances(tau, [3.3, 1.0], p.a_slide_mps2, p.a_roll_mps2, p.c_switch)
+    assert distances[0, :2].tolist() == pytest.approx([0.0, 1.39392])
+    assert distances[1, :2].tolist() == pytest.approx([0.1 - 1.25 * 0.01, 0.128 + 0.6 * 0.34 - 0.15 * 0.34**2])
+    assert distances[1, 2] == pytest.approx(0.4 * 1.0 / 2.5 * 0.8 + 0.6**2 / 0.6)  # stopped: slide + roll
+    for i, v in enumerate((3.3, 1.0)):
+        assert distances[i].tolist() == ball_model.kick_distance(tau[i], v, p.a_slide_mps2, p.a_roll_mps2,
+                                                                 p.c_switch).tolist()
+
+
 def test_direction_and_phases():
     ball = BallTrajectory([1.0, 2.0], [0.0, -3.3], 3.3)
     np.testing.assert_allclose(ball.stop_point, [1.0, 2.0 - 7.92792])

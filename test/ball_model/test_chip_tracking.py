@@ -53,6 +53,30 @@ def test_two_cameras_triangulate_the_height():
     assert detector.launch.touchdown_points_m[0].tolist() == pytest.approx([2.0 * 6.0 / G, 0.0], abs=1e-6)
 
 
+def test_a_captures_other_cameras_are_judged_once_with_it(monkeypatch):
+    """Three cameras per capture: sightings added without a judgement (another camera's of the same instant) are
+    judged together when the next capture's first one comes: two judgements per capture instead of three, the same
+    chip, detected as of the same capture."""
+    cameras = (*CAMERAS, (0.0, -3.0, 4.0))
+    judged = []
+    original = ChipDetector._judge
+    monkeypatch.setattr(ChipDetector, "_judge", lambda self, t_s: (judged.append(t_s), original(self, t_s)))
+    detectors = []
+    for deferred in (False, True):
+        judged.clear()
+        detector = ChipDetector(None, ChipParams())
+        detector.start(0.05, before=(0.0, 0.0, 0.0, 0.0, 0.0))
+        for t, x, y, camera in chip_sightings([0.05 + 0.01 * k for k in range(8)], cameras=cameras):
+            detector.add(t, x, y, camera, judge=not deferred or camera == cameras[0])
+        detector.judge_pending()
+        detectors.append((detector, len(judged)))
+    (each, n_each), (once, n_once) = detectors
+    assert (n_each, n_once) == (3 * 8, 2 * 8)
+    assert once.detected_at_s == each.detected_at_s
+    assert once.fit == pytest.approx(each.fit, abs=1e-9)
+    assert once.fit.vz_mps == pytest.approx(3.0, abs=1e-6)
+
+
 def test_the_flight_fit_is_the_projectile_behind_the_rays():
     rows = np.array([(t, x, y, *c) for t, x, y, c in chip_sightings([0.02, 0.06, 0.1], cameras=CAMERAS[:1])])
     fit = fit_flight(rows, 0.0, (0.0, 0.0), G, 0.002)

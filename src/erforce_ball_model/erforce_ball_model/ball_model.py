@@ -68,7 +68,8 @@ from erforce_interfaces.wire.robot_config import (
 __all__ = [
     "MAX_POSITION_M", "MAX_SPEED_MPS", "MAX_WALL_BOUNCES", "PIECE_COLUMNS", "BallFloats", "BallModelParams",
     "BallPhase", "BallTrajectory", "ChipParams", "ball_distance", "ball_floats", "ball_speed",
-    "ball_time_to_distance", "kick_distance", "load_kernels", "numba_ball_type", "path_piece", "path_point",
+    "ball_time_to_distance", "kick_distance", "kick_distances", "load_kernels", "numba_ball_type", "path_piece",
+    "path_point",
 ]
 
 # Sanity bounds: far beyond any SSL ball (6.5 m/s kick limit, 12 m field), they only catch garbage
@@ -420,6 +421,20 @@ def kick_distance(tau_s: np.ndarray, v_shoot_mps: float, a_slide_mps2: float, a_
     ball = ball_floats(0.0, 0.0, float(v_shoot_mps), 0.0, float(v_shoot_mps), float(a_slide_mps2),
                        float(a_roll_mps2), float(c_switch))
     return _many(_distance_many, ball, np.asarray(tau_s, dtype=float))
+
+
+def kick_distances(tau_s: np.ndarray, v_shoot_mps: np.ndarray, a_slide_mps2: float, a_roll_mps2: float,
+                   c_switch: float) -> np.ndarray:
+    """``kick_distance`` of many kicks at once: row i of ``tau_s`` (m, n) for the kick at ``v_shoot_mps[i]``, each row
+    by the compiled kernel (a fit that tries many kicks over a few dozen times each would spend its time in Python's
+    closed form otherwise)."""
+    tau = np.ascontiguousarray(tau_s, dtype=float)
+    out = np.empty(tau.shape)
+    kernel = _array_kernel(_distance_many)
+    for i, v in enumerate(np.asarray(v_shoot_mps, dtype=float).tolist()):
+        kernel(ball_floats(0.0, 0.0, v, 0.0, v, float(a_slide_mps2), float(a_roll_mps2), float(c_switch)), tau[i],
+               out[i])
+    return out
 
 
 def _is_pair(value) -> bool:

@@ -56,7 +56,7 @@ from erforce_ball_model.ball_model import (
     BallModelParams,
     BallTrajectory,
     ChipParams,
-    kick_distance,
+    kick_distances,
 )
 from erforce_ball_model.chip_model import ChipTrajectory
 
@@ -188,11 +188,23 @@ def _solve(a: np.ndarray, b: np.ndarray):
     """Least squares of small, well-scaled systems (a stack of m) by their normal equations (a few times faster than
     an SVD): the solutions, ``(A^T A)^-1`` (times the noise variance: a solution's covariance) and which of the m
     the sightings determine (the others' numbers are meaningless)."""
-    ata = np.einsum("mij,mik->mjk", a, a)
-    ok = np.linalg.cond(ata) < 1e14
+    ata = np.matmul(a.transpose(0, 2, 1), a)
+    eigenvalues = np.linalg.eigvalsh(ata)  # ascending; of a symmetric matrix: its condition number's singular values
+    ok = eigenvalues[:, -1] < 1e14 * eigenvalues[:, 0]
     inv = np.zeros_like(ata)
     inv[ok] = np.linalg.inv(ata[ok])
-    return np.einsum("mjk,mij,mi->mk", inv, a, b), inv, ok
+    return _apply(inv, a, b), inv, ok
+
+
+def _apply(inv: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(A^T A)^-1 A^T b`` for a stack of systems (m, 2n, k) given ``inv``: the least-squares solutions (m, k)."""
+    return np.matmul(inv, np.matmul(b[:, None, :], a).transpose(0, 2, 1))[:, :, 0]
+
+
+def _rss(a: np.ndarray, theta: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The squared residual (m,) of each system of a stack at its solution."""
+    r = np.matmul(a, theta[:, :, None])[:, :, 0] - b
+    return np.einsum("mi,mi->m", r, r)
 
 
 def _flights(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, noise_m: float, pre_velocity_mps):
@@ -200,7 +212,7 @@ def _flights(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, noise_m: fl
     residuals (inf where the sightings do not determine it)."""
     a, b, _ = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
     theta, inv, ok = _solve(a, b)
-    rss = np.where(ok, np.sum((np.einsum("mij,mj->mi", a, theta) - b) ** 2, axis=1), math.inf)
+    rss = np.where(ok, _rss(a, theta, b), math.inf)
     return theta, np.sqrt(np.maximum(inv[:, 4, 4], 0.0)) * noise_m, rss
 
 
@@ -213,11 +225,12 @@ def _grounds(rows: np.ndarray, t_launch_s, origin_xy, ball_params: BallModelPara
     known = np.zeros_like(b)
     for _ in range(iterations):
         speed = np.hypot(theta[:, 2], theta[:, 3])
-        for j in np.flatnonzero(ok & (speed > 1e-6) & (speed <= MAX_SPEED_MPS)):
-            along = kick_distance(t[j], speed[j], p.a_slide_mps2, p.a_roll_mps2, p.c_switch) - speed[j] * t[j]
-            known[j, :n], known[j, n:2 * n] = theta[j, 2] / speed[j] * along, theta[j, 3] / speed[j] * along
-        theta = np.einsum("mjk,mij,mi->mk", inv, a, b - known)
-    return np.where(ok, np.sum((np.einsum("mij,mj->mi", a, theta) + known - b) ** 2, axis=1), math.inf)
+        moving = np.flatnonzero(ok & (speed > 1e-6) & (speed <= MAX_SPEED_MPS))
+        v = speed[moving, None]
+        along = kick_distances(t[moving], v[:, 0], p.a_slide_mps2, p.a_roll_mps2, p.c_switch) - v * t[moving]
+        known[moving, :n], known[moving, n:2 * n] = theta[moving, 2:3] / v * along, theta[moving, 3:4] / v * along
+        theta = _apply(inv, a, b - known)
+    return np.where(ok, _rss(a, theta, b - known), math.inf)
 
 
 def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
@@ -344,7 +357,7 @@ def _flights_at_angle(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, no
         a[:, :, 3] += a5[:, :, 4] * (tan_angle * u[:, 1:2])
         theta, inv, solved = _solve(a, b)
         ok &= solved
-    rss = np.where(ok, np.sum((np.einsum("mij,mj->mi", a, theta) - b) ** 2, axis=1), math.inf)
+    rss = np.where(ok, _rss(a, theta, b), math.inf)
     grad = np.zeros((len(b), 4))
     grad[:, 2:] = tan_angle * u  # d vz / d theta at the last direction
     vz_var = np.einsum("mj,mjk,mk->m", grad, inv, grad) * noise_m**2
@@ -399,8 +412,9 @@ class ChipDetector:
     filter may have taken the kick's first frame for the old motion; its own sightings may show the kick earlier
     than the filter's word, ``moved_sigma``) to it; the launch point is pinned by the old
     motion's own sightings (``origin_s`` of them), else by the flat filter's last state (``before``). The flight is
-    refitted with every sighting until its first touchdown; ``fit`` is the newest fit judged a chip (None while
-    the kick is not one), ``detected_at_s`` the time of that judgement. A fit is taken only while it explains its
+    refitted with every sighting (other cameras' of one capture together: ``add``'s ``judge``) until its first
+    touchdown; ``fit`` is the newest fit judged a chip (None while the kick is not one), ``detected_at_s`` the time
+    of that judgement. A fit is taken only while it explains its
     sightings (``fit_rms_sigma``), a refit only while it is a flight a chip kicker launches: a ball caught or placed
     elsewhere in the air leaves the last good fit in place.
 
@@ -431,6 +445,7 @@ class ChipDetector:
         self._ground_rss: tuple[tuple, float] = ((), math.inf)  # the last ground fit: its sightings' key, its rss
         self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
         self._launch_covariance: np.ndarray | None = None  # the reported flight's (launch_covariance)
+        self._pending = False  # sightings added without a judgement since the last one (add's ``judge``)
 
     def hint(self, t_s: float, angle_deg: float) -> None:
         """The kicker's word: it kicked at ``t_s`` with the elevation ``angle_deg`` (0: flat; a chip in (0, 90)).
@@ -439,6 +454,7 @@ class ChipDetector:
         if not (math.isfinite(t_s) and math.isfinite(angle_deg) and 0.0 <= angle_deg < 90.0):
             raise ValueError(f"kick hint at {t_s!r} s with angle {angle_deg!r} deg: the time must be finite, the "
                              f"angle in [0, 90)")
+        self.judge_pending()
         self._hint = (float(t_s), float(angle_deg))
         if self.t_start_s is not None and self.fit is None and self._hint_fits(self.t_start_s):
             self.hint_angle_deg = self._hint[1]
@@ -450,6 +466,7 @@ class ChipDetector:
         """A new motion (the flat filter's kick) first seen at ``t_first_s``; ``before``: the old motion's
         last state (t_s, x_m, y_m, vx_mps, vy_mps), where the ball left from. Sightings from ``t_first_s`` on
         count, those already added included; a chip detected before is forgotten."""
+        self.judge_pending()
         cfg = self.config
         self._rows = [r for r in self._rows if r.t_s >= t_first_s - cfg.launch_lookback_s - cfg.origin_s]
         self.t_start_s, self._before = min(float(t_first_s), self._first_moved(t_first_s)), before
@@ -497,17 +514,34 @@ class ChipDetector:
             return self._rows[-1].t_s < self.fit.t_launch_s + self._chip.touchdown_times_s[0]
         return self._rows[-1].t_s - self.t_start_s <= self.config.window_s
 
-    def add(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float]) -> ChipFit | None:
-        """One camera's ball sighting; the chip fit after it (None: no chip so far)."""
+    def add(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float], *,
+            judge: bool = True) -> ChipFit | None:
+        """One camera's ball sighting; the chip fit after it (None: no chip so far). ``judge=False``: more cameras'
+        sightings of this capture may follow; they are judged together once (``judge_pending``, which a sighting of
+        another time calls first), not each on its own (a refit per camera multiplies the cost by the cameras)."""
         if not all(math.isfinite(v) for v in (t_s, x_m, y_m, *camera_m)) or camera_m[2] <= 0.0:
             raise ValueError(f"sighting ({t_s!r}, {x_m!r}, {y_m!r}) from camera {camera_m!r}: must be finite, "
                              f"the camera above the field")
+        if self._rows and t_s != self._rows[-1].t_s:
+            self.judge_pending()
         self._rows.append(Sighting(float(t_s), float(x_m), float(y_m), *map(float, camera_m)))
         if self.t_start_s is None:  # no kick yet: keep a short history only
             self._rows = [r for r in self._rows if t_s - r.t_s <= self.config.window_s]
-        elif self._judging():
-            self._judge(t_s)
+        elif not judge:
+            self._pending = True
+        else:
+            self._pending = False
+            if self._judging():
+                self._judge(t_s)
         return self.fit
+
+    def judge_pending(self) -> None:
+        """Judge the sightings added with ``judge=False`` since the last judgement (the capture of the newest one is
+        complete), as of that capture's time."""
+        if self._pending:
+            self._pending = False
+            if self.t_start_s is not None and self._judging():
+                self._judge(self._rows[-1].t_s)
 
     def _settled(self) -> np.ndarray:
         """The kick's sightings that are surely of the old motion (before the earliest launch time tried)."""
@@ -564,9 +598,10 @@ class ChipDetector:
             curvature = (r2 - r1) / (t2 - t1) - (r1 - r0) / (t1 - t0)
             if curvature > 0.0:
                 vertex = 0.5 * (t0 + t1) - (r1 - r0) / (t1 - t0) * 0.5 * (t2 - t0) / curvature
-                vertex_rss = evaluate(np.array([vertex]))
+                vertex_times = np.array([vertex])
+                vertex_rss = evaluate(vertex_times)
                 if vertex_rss[0] < rss[i]:
-                    return 0, np.array([vertex]), vertex_rss
+                    return 0, vertex_times, vertex_rss
         return i, times, rss
 
     def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None) -> ChipFit | None:
@@ -574,17 +609,22 @@ class ChipDetector:
         the plausible elevations)."""
         cfg, g, u = self.config, self.params.g_mps2, self._pre_velocity
 
-        def solutions(times):
-            if tan_angle is None:
-                return _flights(rows, times, self._origins(times), g, cfg.noise_m, u)
-            return _flights_at_angle(rows, times, self._origins(times), g, cfg.noise_m, tan_angle, 3, u)
+        solved = {}  # the solutions of each grid of times evaluated: the best one's are among them
 
-        i, times, rss = self._over_launch_times(lambda times: solutions(times)[2])
+        def rss_at(times):
+            if tan_angle is None:
+                solved[id(times)] = times, _flights(rows, times, self._origins(times), g, cfg.noise_m, u)
+            else:
+                solved[id(times)] = times, _flights_at_angle(rows, times, self._origins(times), g, cfg.noise_m,
+                                                             tan_angle, 3, u)
+            return solved[id(times)][1][2]
+
+        i, times, rss = self._over_launch_times(rss_at)
         if not math.isfinite(rss[i]):
             return None
-        theta, vz_std, _ = solutions(times[i:i + 1])
-        x0, y0, vx, vy, vz = theta[0].tolist()
-        return ChipFit(float(times[i]), x0, y0, vx, vy, vz, float(vz_std[0]), float(rss[i]))
+        theta, vz_std, _ = solved[id(times)][1]
+        x0, y0, vx, vy, vz = theta[i].tolist()
+        return ChipFit(float(times[i]), x0, y0, vx, vy, vz, float(vz_std[i]), float(rss[i]))
 
     def _bounded_flight(self, rows: np.ndarray, fit: ChipFit | None) -> ChipFit | None:
         """The best flight a chip kicker launches: ``fit`` (the free one) if it is one, else the better of the

@@ -453,13 +453,14 @@ class BallPredictor:
     def ball_sighting(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float]) -> None:
         """Another camera's sighting of the ball (not the one ``ball_frame`` took, e.g. of the same instant
         from an overlapping camera): for the chip detector only, which sees a ball in the air by the
-        cameras' disagreement. Ignored unless of the ball's time line (at most ``max_gap_s`` before the newest
-        ball frame, not after it) and inside the field. Raises ValueError for non-finite values."""
+        cameras' disagreement; judged with the capture's other sightings when the next ball frame comes (a chip
+        they show is that frame's, as before). Ignored unless of the ball's time line (at most ``max_gap_s`` before
+        the newest ball frame, not after it) and inside the field. Raises ValueError for non-finite values."""
         cfg, t_ball_s = self.config, self._t_ball_s
         if (cfg.field is None or t_ball_s is None or not 0.0 <= t_ball_s - t_s <= cfg.tracker.max_gap_s
                 or not cfg.field.contains(x_m, y_m, cfg.vision_reject_margin_m)):
             return
-        self._chip.add(t_s, x_m, y_m, camera_m)
+        self._chip.add(t_s, x_m, y_m, camera_m, judge=False)  # judged with the capture's others (judge_pending)
 
     def _chip_sighting(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float],
                        status: UpdateStatus, held: tuple[float, float, float] | None,
@@ -468,6 +469,7 @@ class BallPredictor:
         kick's collection unless one is under way; the chip at ``t_s``, or None. When a chip rolls, the flat
         filter takes the ball over from the chip's roll (its hand-over)."""
         detector, ball = self._chip, self._ball
+        detector.judge_pending()  # the previous capture's other cameras: judged before this frame, as they came
         if status == UpdateStatus.MANEUVER and not detector.active:
             detector.start(held[0] if held is not None else t_s, before)
         detector.add(t_s, x_m, y_m, camera_m)
