@@ -263,7 +263,7 @@ STOP_TARGET_PCT = {0.1: "<= 10", 0.25: "<= 2"}  # issue #33's targets, the same 
 
 
 # the stand-in world's SSL cameras (their one default), and a noisier field's vision
-STAND_IN_NOISE_M = inspect.signature(SslCameraSplitter).parameters["camera_noise_m"].default
+STAND_IN_NOISE_M = inspect.signature(SslCameraSplitter).parameters["realism"].default.ball_noise_m
 KICK_NOISES_M = (STAND_IN_NOISE_M, 0.002)
 
 

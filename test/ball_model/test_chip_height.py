@@ -163,12 +163,12 @@ def first_reported_height(seed: int):
     into the predictor; the first frame with phase chip and z above 5 cm: (z, true z, z's standard error)."""
     from erforce_interfaces.ssl.ssl_vision import decode_wrapper
     from erforce_sim.sensors import VisionParams, VisionSystem
-    from erforce_sim.ssl_cameras import CAMERA_NOISE_M, SslCameraSplitter, quadrant_cameras
+    from erforce_sim.ssl_cameras import SslCameraSplitter, quadrant_cameras
 
     rng = np.random.default_rng(seed)
     vision_params = VisionParams()
     vision = VisionSystem(vision_params, rng)
-    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, camera_noise_m=CAMERA_NOISE_M, seed=seed)
+    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, seed=seed)
     cameras = {c.camera_id: (c.x_m, c.y_m, c.z_m) for c in splitter.geometry.cameras}
     predictor = BallPredictor(PredictorConfig(num_robots=1, field=FIELD))
     period = 1.0 / vision_params.rate_hz

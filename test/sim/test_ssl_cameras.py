@@ -8,7 +8,7 @@ from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ball import BallParams
 from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame, VisionParams
-from erforce_sim.ssl_cameras import SslCameraSplitter, chip_model_of, ground_point, quadrant_cameras
+from erforce_sim.ssl_cameras import BENCH_CAMERAS, SslCameraSplitter, chip_model_of, ground_point, quadrant_cameras
 
 FIELD = FieldConfig.preset("division_b")  # 9 x 6 m, walls 0.3 m outside the lines
 
@@ -27,7 +27,7 @@ def test_four_quadrants_overlap_across_the_axes_and_cover_up_to_the_walls():
 def test_each_camera_sends_what_it_sees_with_its_own_latency():
     cams = quadrant_cameras(FIELD, extra_latencies_s=(0.0, 0.002, 0.001, 0.003))
     splitter = SslCameraSplitter(cams, FIELD, BallModelFromVision(-2.5, -0.3, 0.6), latency_s=0.015,
-                                 camera_noise_m=0.0, clock_offset_s=1000.0)
+                                 realism=BENCH_CAMERAS.noise_free(), clock_offset_s=1000.0)
     frame = VisionFrame(1, 2.0, 2.015, (BallDetection(0.1, 1.0),),
                         (RobotDetection("blue", 0, -2.0, 1.0, 0.5), RobotDetection("blue", 1, 2.0, -1.0, -0.5)))
     packets = splitter.packets(frame)
@@ -50,7 +50,7 @@ def test_a_ball_in_the_air_is_seen_on_the_ground_along_the_camera_ray():
     with pytest.raises(ValueError, match="camera height"):
         ground_point(1.0, 0.5, 4.0, (0.0, 0.0, 4.0))
     # division B quadrants: camera 0 above (-2.275, 1.525), camera 1 above (2.275, 1.525), both 4 m up
-    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, camera_noise_m=0.0)
+    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, realism=BENCH_CAMERAS.noise_free())
     low = [decode_wrapper(d).frame.balls for _, d in splitter.packets(
         VisionFrame(1, 2.0, 2.015, (BallDetection(0.0, 1.0, 0.1),), ()))]
     # 0.1 m up: scaled by 4 / 3.9 from each camera: x = -+2.275 / 39, y = 1.525 - 0.525 * 40 / 39
@@ -99,7 +99,7 @@ def test_each_team_goes_out_in_its_colour_with_its_own_ids(ours):
                        our_color=ours, vision=VisionParams(robot_dropout_prob=0.0, ball_dropout_prob=0.0))
     world = build_world(setup)
     world.step(0.05)
-    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, camera_noise_m=0.0)
+    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, realism=BENCH_CAMERAS.noise_free())
     seen = set()
     for frame in world.poll_vision():
         for _, data in splitter.packets(frame):

@@ -28,7 +28,7 @@ from erforce_interfaces.tools.processes import DomainLease
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.sensors import BallDetection as TrueBall
 from erforce_sim.sensors import VisionFrame
-from erforce_sim.ssl_cameras import SslCameraSplitter, open_multicast_sender, quadrant_cameras
+from erforce_sim.ssl_cameras import BENCH_CAMERAS, SslCameraSplitter, open_multicast_sender, quadrant_cameras
 
 FPS = 60.0
 
@@ -203,7 +203,7 @@ def test_the_predictor_takes_every_cameras_ball_with_the_cameras_position(defend
 def in_process_and_graph_frames(chip: ChipTrajectory, t_kick: float, seconds: float):
     """The quadrant cameras' datagrams of ``chip`` (noise-free) per capture at 60 Hz: the geometry first."""
     field = FieldConfig.preset("division_b")
-    splitter = SslCameraSplitter(quadrant_cameras(field), field, None, camera_noise_m=0.0)
+    splitter = SslCameraSplitter(quadrant_cameras(field), field, None, realism=BENCH_CAMERAS.noise_free())
     captures = []
     for k in range(int(seconds * FPS)):
         t = 1.0 + k / FPS

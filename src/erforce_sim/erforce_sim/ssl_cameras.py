@@ -10,13 +10,19 @@ goes out as its own packet every ``geometry_period_s``, as SSL-Vision does.
 A ball in the air (a chip) is where its camera's ray through it meets the ground, as SSL-Vision, which
 takes every ball to lie on the field, reports it (``ground_point``): further from the camera than it is,
 each camera by its own position, so the cameras of an overlap disagree about a flying ball.
+
+How the cameras err is a ``CameraRealism``: ``BENCH_CAMERAS`` (the default: the world's frame with its noise and
+dropouts shared by every camera, 0.5 mm more per camera, a 0.5 m overlap) or ``ERFORCE_REALISTIC`` (ER-Force's
+simulator's "Realistic" preset: SSL-Vision's one detection per camera, each with its own noise and its own missed
+balls, a 1 m overlap past each axis, and each camera projecting from 0.1 m off where the geometry says it is).
 """
 
 from __future__ import annotations
 
+import math
 import random
 import socket
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from erforce_interfaces.runtime.param_schema import schema_defaults
 from erforce_interfaces.ssl.ssl_vision import (
@@ -33,12 +39,91 @@ from erforce_interfaces.ssl.ssl_vision import (
 )
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ball import BallParams
-from erforce_sim.sensors import VisionFrame
+from erforce_sim.sensors import VisionFrame, VisionParams
 
 _PLANT = schema_defaults("erforce_sim", "plant")
 
 CAMERA_HEIGHT_M = 4.0
 CAMERA_NOISE_M = 0.0005  # each camera's own noise on what it sees [m]
+QUADRANT_OVERLAP_M = 0.5  # the width of the band across each axis two quadrant cameras both see [m]
+# ER-Force's simulator moves every camera it reports by one fixed vector: (0.3, 0.7, 0.05) normalised in its own
+# axes, which are vision's turned by 90 deg (vision x = its y, vision y = -its x): (0.7, -0.3, 0.05) here
+_ERFORCE_ERROR_AXES = (0.7, -0.3, 0.05)
+CAMERA_POSITION_ERROR_DIRECTION = tuple(c / math.hypot(*_ERFORCE_ERROR_AXES) for c in _ERFORCE_ERROR_AXES)
+
+
+@dataclass(frozen=True)
+class CameraRealism:
+    """How the simulated SSL-Vision cameras err. SSL-Vision runs one detection per camera, so in a per-camera model
+    (``shared_world_noise`` False) each camera's ball carries its own noise and is missed on its own, and the world's
+    frame the cameras take is noise-free (``world_vision``); in the shared model the world's frame already carries its
+    noise and dropouts (VisionSystem), the same for every camera, and each camera adds its own on top.
+
+    ``overlap_m``: the width of the band across each field axis that two quadrant cameras both see (grSim's and
+    ER-Force's overlap is how far past the axis a camera sees: half of it). ``position_error_m``: the camera that
+    projects the ball stands this far off the position the geometry reports, along
+    ``CAMERA_POSITION_ERROR_DIRECTION``, every camera by the same vector, fixed for the run (ER-Force: reported =
+    true + error); a ball on the ground is unaffected, a flying one lands on other rays than the geometry's.
+    ``object_offset_m``: each camera reports every object this far off, away from the field's centre towards the
+    camera's ground point (ER-Force's ``object_position_offset``), so two cameras disagree about a ball at rest."""
+
+    name: str
+    shared_world_noise: bool
+    ball_noise_m: float  # each camera's own, per axis
+    robot_noise_m: float
+    missing_ball_prob: float  # each camera on its own, per frame
+    missing_robot_prob: float
+    overlap_m: float
+    position_error_m: float
+    object_offset_m: float
+
+    def __post_init__(self) -> None:
+        limits = {"ball_noise_m": 0.1, "robot_noise_m": 0.1, "missing_ball_prob": 1.0, "missing_robot_prob": 1.0,
+                  "overlap_m": 5.0, "position_error_m": 1.0, "object_offset_m": 0.5}
+        for name, hi in limits.items():
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and 0.0 <= value <= hi):
+                raise ValueError(f"CameraRealism.{name}: must be finite in [0, {hi}], got {value!r}")
+
+    def world_vision(self, params: VisionParams) -> VisionParams:
+        """The world's vision to take the cameras' frames from: ``params`` for the shared model; for the per-camera
+        one without position noise and dropouts (each camera adds its own; the orientation noise stays shared)."""
+        if self.shared_world_noise:
+            return params
+        return replace(params, position_noise_m=0.0, ball_dropout_prob=0.0, robot_dropout_prob=0.0)
+
+    def noise_free(self) -> CameraRealism:
+        """The same cameras without random errors (no noise, nothing missed); their fixed errors stay."""
+        return replace(self, ball_noise_m=0.0, robot_noise_m=0.0, missing_ball_prob=0.0, missing_robot_prob=0.0)
+
+    def projecting_camera(self, pose: CameraPose) -> tuple[float, float, float]:
+        """Where the camera the geometry reports at ``pose`` stands when it projects the ball."""
+        e = self.position_error_m
+        dx, dy, dz = CAMERA_POSITION_ERROR_DIRECTION
+        return pose.x_m - e * dx, pose.y_m - e * dy, pose.z_m - e * dz
+
+    def object_offset(self, camera_m: tuple[float, float, float]) -> tuple[float, float]:
+        """What the camera at ``camera_m`` adds to every object's position: ``object_offset_m`` along its ground
+        point's direction from the field's centre (less for a camera nearer the centre than that)."""
+        cx, cy, _ = camera_m
+        r = math.hypot(cx, cy)
+        if self.object_offset_m == 0.0 or r == 0.0:
+            return 0.0, 0.0
+        k = min(self.object_offset_m / r, 1.0)
+        return k * cx, k * cy
+
+
+# today's model: the world's 2 mm (VisionParams) shared by the cameras, 0.5 mm each, 2 % of frames without the ball
+BENCH_CAMERAS = CameraRealism("bench", shared_world_noise=True, ball_noise_m=CAMERA_NOISE_M,
+                              robot_noise_m=CAMERA_NOISE_M, missing_ball_prob=0.0, missing_robot_prob=0.0,
+                              overlap_m=QUADRANT_OVERLAP_M, position_error_m=0.0, object_offset_m=0.0)
+# ER-Force's simulator, preset "Realistic" (robotics-erlangen/framework config/simulator-realism/Realistic.txt):
+# stddev_ball_p 0.0014, stddev_robot_p 0.0013, missing_ball_detections 0.05, missing_robot_detections 0.02,
+# camera_overlap 1 (past each axis), camera_position_error 0.1, object_position_offset 0.02
+ERFORCE_REALISTIC = CameraRealism("erforce", shared_world_noise=False, ball_noise_m=0.0014, robot_noise_m=0.0013,
+                                  missing_ball_prob=0.05, missing_robot_prob=0.02, overlap_m=2.0 * 1.0,
+                                  position_error_m=0.1, object_offset_m=0.02)
+CAMERA_MODELS = {m.name: m for m in (BENCH_CAMERAS, ERFORCE_REALISTIC)}
 
 
 @dataclass(frozen=True)
@@ -64,7 +149,7 @@ def ground_point(x_m: float, y_m: float, z_m: float, camera_m: tuple[float, floa
     return cx + (x_m - cx) * s, cy + (y_m - cy) * s
 
 
-def quadrant_cameras(field: FieldConfig, overlap_m: float = 0.5,
+def quadrant_cameras(field: FieldConfig, overlap_m: float = QUADRANT_OVERLAP_M,
                      extra_latencies_s: tuple[float, ...] = (0.0, 0.002, 0.001, 0.003)) -> tuple[SimCamera, ...]:
     """Four cameras, one per quadrant of the area inside the walls, overlapping by ``overlap_m`` across the axes."""
     hx, hy, h = field.wall_half_length_m, field.wall_half_width_m, 0.5 * overlap_m
@@ -99,41 +184,58 @@ def chip_model_of(ball: BallParams) -> ChipModelFromVision:
 
 class SslCameraSplitter:
     """World vision frames -> per-camera SSL datagrams with release times (world clock); each robot in its
-    team's colour, as the world has it (PlantSetup.our_color)."""
+    team's colour, as the world has it (PlantSetup.our_color). ``realism``: how each camera errs (the frames
+    should come from ``realism.world_vision``'s VisionSystem); ``cameras`` are the field's rectangles, each
+    seeing the ground points its projecting camera gives."""
 
     def __init__(self, cameras: tuple[SimCamera, ...], field: FieldConfig, ball_model: BallModelFromVision | None,
-                 latency_s: float = 0.015, camera_noise_m: float = CAMERA_NOISE_M,
+                 latency_s: float = 0.015, realism: CameraRealism = BENCH_CAMERAS,
                  clock_offset_s: float = 0.0, seed: int = _PLANT["seed"],
                  chip_model: ChipModelFromVision | None = None) -> None:
         self.cameras = cameras
         self.latency_s = latency_s
-        self.camera_noise_m = camera_noise_m
+        self.realism = realism
         self.clock_offset_s = clock_offset_s
         self._rng = random.Random(seed)
         self._frame_numbers = [0] * len(cameras)
         self.geometry = field_geometry(field, cameras, ball_model, chip_model)
+        self.projecting_cameras = tuple(realism.projecting_camera(pose) for pose in self.geometry.cameras)
+        self._offsets = tuple(realism.object_offset(c) for c in self.projecting_cameras)
+
+    @classmethod
+    def quadrants(cls, field: FieldConfig, ball_model: BallModelFromVision | None,
+                  realism: CameraRealism = BENCH_CAMERAS, **kwargs) -> SslCameraSplitter:
+        """Four quadrant cameras overlapping as ``realism`` says."""
+        return cls(quadrant_cameras(field, realism.overlap_m), field, ball_model, realism=realism, **kwargs)
 
     def geometry_packet(self) -> bytes:
         return encode_geometry(self.geometry)
 
+    def _missed(self, prob: float) -> bool:
+        return prob > 0.0 and self._rng.random() < prob  # no draw at 0: the shared model's noise stays as it was
+
     def packets(self, frame: VisionFrame) -> list[tuple[float, bytes]]:
         """(release time, datagram) per camera for one world frame; the world frame's latency is the base."""
         out = []
-        gauss, noise = self._rng.gauss, self.camera_noise_m
+        r, gauss = self.realism, self._rng.gauss
         t_capture = frame.t_capture_s + self.clock_offset_s
-        for k, (cam, pose) in enumerate(zip(self.cameras, self.geometry.cameras, strict=True)):
-            seen = (ground_point(b.x, b.y, b.z, (pose.x_m, pose.y_m, pose.z_m)) for b in frame.balls)
-            balls = tuple(
-                BallCandidate(x + gauss(0.0, noise), y + gauss(0.0, noise), 0.9) for x, y in seen if cam.sees(x, y)
-            )
+        for k, (cam, projector) in enumerate(zip(self.cameras, self.projecting_cameras, strict=True)):
+            ox, oy = self._offsets[k]
+            balls = []
+            for b in frame.balls:
+                x, y = ground_point(b.x, b.y, b.z, projector)
+                if cam.sees(x, y) and not self._missed(r.missing_ball_prob):
+                    balls.append(BallCandidate(x + gauss(0.0, r.ball_noise_m) + ox,
+                                               y + gauss(0.0, r.ball_noise_m) + oy, 0.9))
             robots = tuple(
-                RobotSighting(r.team, r.robot_id, r.x + gauss(0.0, noise), r.y + gauss(0.0, noise), r.theta, 1.0)
-                for r in frame.robots if cam.sees(r.x, r.y)
+                RobotSighting(d.team, d.robot_id, d.x + gauss(0.0, r.robot_noise_m) + ox,
+                              d.y + gauss(0.0, r.robot_noise_m) + oy, d.theta, 1.0)
+                for d in frame.robots if cam.sees(d.x, d.y) and not self._missed(r.missing_robot_prob)
             )
             self._frame_numbers[k] += 1
             release = frame.t_capture_s + self.latency_s + cam.extra_latency_s
             packet = CameraFrame(cam.camera_id, self._frame_numbers[k], t_capture,
-                                 release + self.clock_offset_s, balls, robots)
+                                 release + self.clock_offset_s, tuple(balls), robots)
             out.append((release, encode_frame(packet)))
         return out
 
