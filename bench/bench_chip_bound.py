@@ -18,11 +18,15 @@ best share of chips any detector can find within the window at 1 % false chips p
 Caveat: the issue's 1 % is over random flat kicks, not over each chip's nearest one; a detector may spend its budget
 unevenly, so the figure is a ceiling against the nearest alternative, not an exact bound on the averaged budget.
 
-Variants: the bench's four quadrant cameras (4 m high, 0.5 m overlap) with the bench's noise, with 1 mm world
-noise and with the total noise independent per camera (as separate images have it); the ball seen by the two
-cameras nearest to it in every frame (two views), with the world's noise shared as the simulator has it and
-independent.
-``python bench/bench_chip_bound.py [--quick] [--seed N]``
+Variants, ``--cameras bench`` (BENCH_CAMERAS): the bench's four quadrant cameras (4 m high, 0.5 m overlap) with the
+bench's noise, with 1 mm world noise and with the total noise independent per camera (as separate images have it);
+the ball seen by the two cameras nearest to it in every frame (two views), with the world's noise shared as the
+simulator has it and independent. ``--cameras erforce`` (ERFORCE_REALISTIC: 1.4 mm per camera on its own, 1 m
+overlap past each axis, each camera projecting from 0.1 m off where the geometry says): as modelled, without the
+position error, and with the bench's 0.5 m overlap. The chip's sightings come from the projecting cameras; a ground
+kick is where it is for any camera. A camera's fixed offset of every object (``object_offset_m``) is in the chip's
+and the ground kick's sightings alike and cancels; missed detections are left out as the bench's dropouts are.
+``python bench/bench_chip_bound.py [--quick] [--seed N] [--cameras bench|erforce]``
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import argparse
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from bench_chip import DETECT_WITHIN_S, FIELD, REST_S, VISION, _random_kick, _truth_at
@@ -41,7 +45,15 @@ from table import markdown_table
 
 from erforce_ball_model.ball_model import BallModelParams, kick_distance
 from erforce_ball_model.chip_tracking import ChipDetectorConfig
-from erforce_sim.ssl_cameras import CAMERA_NOISE_M, field_geometry, ground_point, quadrant_cameras
+from erforce_sim.ssl_cameras import (
+    BENCH_CAMERAS,
+    CAMERA_MODELS,
+    ERFORCE_REALISTIC,
+    CameraRealism,
+    field_geometry,
+    ground_point,
+    quadrant_cameras,
+)
 
 FLAT_SPEED_MPS = (1.0, 6.5)  # bench_chip's flat kicks: the ground kicks a detector must not take for chips
 ALPHA = 0.01
@@ -63,16 +75,22 @@ class Sightings:
 @dataclass(frozen=True)
 class Noise:
     world_m: float = VISION.position_noise_m  # on the ball, before the projection: shared by the cameras of a frame
-    camera_m: float = CAMERA_NOISE_M  # each camera's own
+    camera_m: float = BENCH_CAMERAS.ball_noise_m  # each camera's own
     independent: bool = False  # True: each sighting has the total noise on its own (separate images)
 
 
-def cameras_of(height_m: float | None = None, views: int | None = None):
-    """The bench's quadrant cameras as (position, sees(x, y)) pairs; ``height_m`` replaces their height; with
-    ``views`` each ground point is seen by that many cameras, the nearest to it, instead of by the quadrants'."""
-    sim = quadrant_cameras(FIELD)
+def noise_of(cameras: CameraRealism) -> Noise:
+    """The sightings' noise under ``cameras``: the world's shared by the cameras of a frame, or each camera's own."""
+    return Noise(world_m=VISION.position_noise_m if cameras.shared_world_noise else 0.0, camera_m=cameras.ball_noise_m)
+
+
+def cameras_of(cameras: CameraRealism = BENCH_CAMERAS, height_m: float | None = None, views: int | None = None):
+    """The quadrant cameras of ``cameras`` as (projecting position, sees(x, y)) pairs; ``height_m`` replaces their
+    height; with ``views`` each ground point is seen by that many cameras, the nearest to it, instead of by the
+    quadrants'."""
+    sim = quadrant_cameras(FIELD, cameras.overlap_m)
     poses = field_geometry(FIELD, sim, None).cameras
-    positions = [(p.x_m, p.y_m, p.z_m if height_m is None else height_m) for p in poses]
+    positions = [(x, y, z if height_m is None else height_m) for x, y, z in map(cameras.projecting_camera, poses)]
 
     def nearest(position):
         def sees(x: float, y: float) -> bool:
@@ -238,20 +256,30 @@ def rows_of(label: str, r: dict) -> list[dict]:
     ]
 
 
-VARIANTS = (
-    ("quadrant cameras, 2 mm + 0.5 mm", {}, Noise()),
-    ("quadrant cameras, 1 mm + 0.5 mm", {}, Noise(world_m=0.001)),
-    ("quadrant cameras, 2.06 mm independent", {}, Noise(independent=True)),
-    ("two nearest cameras, 2 mm shared + 0.5 mm", {"views": 2}, Noise()),
-    ("two nearest cameras, 2.06 mm independent", {"views": 2}, Noise(independent=True)),
-)
+_ERFORCE_AT_BENCH_OVERLAP = replace(ERFORCE_REALISTIC, overlap_m=BENCH_CAMERAS.overlap_m)
+VARIANTS = {  # per camera model: (label, cameras, cameras_of's other arguments, noise)
+    BENCH_CAMERAS.name: (
+        ("quadrant cameras, 2 mm + 0.5 mm", BENCH_CAMERAS, {}, noise_of(BENCH_CAMERAS)),
+        ("quadrant cameras, 1 mm + 0.5 mm", BENCH_CAMERAS, {}, Noise(world_m=0.001)),
+        ("quadrant cameras, 2.06 mm independent", BENCH_CAMERAS, {}, Noise(independent=True)),
+        ("two nearest cameras, 2 mm shared + 0.5 mm", BENCH_CAMERAS, {"views": 2}, Noise()),
+        ("two nearest cameras, 2.06 mm independent", BENCH_CAMERAS, {"views": 2}, Noise(independent=True)),
+    ),
+    ERFORCE_REALISTIC.name: (
+        ("erforce cameras, 1.4 mm each", ERFORCE_REALISTIC, {}, noise_of(ERFORCE_REALISTIC)),
+        ("erforce cameras without the position error", replace(ERFORCE_REALISTIC, position_error_m=0.0), {},
+         noise_of(ERFORCE_REALISTIC)),
+        ("erforce cameras at the bench's 0.5 m overlap", _ERFORCE_AT_BENCH_OVERLAP, {},
+         noise_of(_ERFORCE_AT_BENCH_OVERLAP)),
+    ),
+}
 
 
-def run(quick: bool = False, seed: int = 1) -> list[dict]:
+def run(quick: bool = False, seed: int = 1, cameras: CameraRealism = BENCH_CAMERAS) -> list[dict]:
     kicks = chips(100 if quick else 500, seed)
     rows = []
-    for label, camera_args, noise in VARIANTS:
-        rows += rows_of(label, d2_of(kicks, cameras_of(**camera_args), noise))
+    for label, model, camera_args, noise in VARIANTS[cameras.name]:
+        rows += rows_of(label, d2_of(kicks, cameras_of(model, **camera_args), noise))
     return rows
 
 
@@ -259,10 +287,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="100 chips instead of 500")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--cameras", choices=sorted(CAMERA_MODELS), default=BENCH_CAMERAS.name,
+                        help="how the simulated cameras err (erforce_sim.ssl_cameras.CAMERA_MODELS)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
-    print("\n".join(markdown_table(run(args.quick, args.seed))))
-    print(f"\n(seed {args.seed}; total {time.perf_counter() - t0:.1f} s)")
+    print("\n".join(markdown_table(run(args.quick, args.seed, CAMERA_MODELS[args.cameras]))))
+    print(f"\n(seed {args.seed}, cameras {args.cameras}; total {time.perf_counter() - t0:.1f} s)")
     return 0
 
 

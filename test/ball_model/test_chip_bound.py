@@ -19,7 +19,7 @@ T_KICK_S = 0.3 + 0.004
 
 def _one_camera(height_m: float | None = None):
     """The first quadrant camera, seeing everything: one sighting per frame."""
-    position, _ = bound.cameras_of(height_m)[0]
+    position, _ = bound.cameras_of(height_m=height_m)[0]
     return [(position, lambda x, y: True)]
 
 

@@ -1,14 +1,27 @@
-"""The plant's SSL-Vision cameras: which camera sees what, stamps and latencies, geometry."""
+"""The plant's SSL-Vision cameras: which camera sees what, stamps and latencies, geometry, how each camera errs."""
 
+import math
+from dataclasses import replace
+
+import numpy as np
 import pytest
+from scipy.stats import binom, chi2
 
 from erforce_ball_model.ball_model import ChipParams
 from erforce_interfaces.ssl.ssl_vision import BallModelFromVision, ChipModelFromVision, decode_wrapper
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ball import BallParams
 from erforce_sim.plant_setup import PlantSetup, build_world
-from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame, VisionParams
-from erforce_sim.ssl_cameras import BENCH_CAMERAS, SslCameraSplitter, chip_model_of, ground_point, quadrant_cameras
+from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame, VisionParams, VisionSystem
+from erforce_sim.ssl_cameras import (
+    BENCH_CAMERAS,
+    CAMERA_MODELS,
+    ERFORCE_REALISTIC,
+    SslCameraSplitter,
+    chip_model_of,
+    ground_point,
+    quadrant_cameras,
+)
 
 FIELD = FieldConfig.preset("division_b")  # 9 x 6 m, walls 0.3 m outside the lines
 
@@ -105,3 +118,135 @@ def test_each_team_goes_out_in_its_colour_with_its_own_ids(ours):
         for _, data in splitter.packets(frame):
             seen |= {(r.team, r.robot_id, round(r.x_m), round(r.y_m)) for r in decode_wrapper(data).frame.robots}
     assert seen == {(ours, 0, -2, 1), (ours, 1, 2, -1), (theirs, 0, -2, -1)}
+
+
+# Camera realism: the bench's shared model and ER-Force's "Realistic" per-camera model (ssl_cameras.CameraRealism)
+
+BALL_IN_OVERLAP = (0.0, 1.5)  # seen by the upper two cameras (0: x < h, 1: x > -h) in both models, by no other
+# what ER-Force's simulator's Realistic preset (config/simulator-realism/Realistic.txt) and its source say
+ERF_BALL_NOISE_M, ERF_MISSING_BALL, ERF_OVERLAP_PAST_AXIS_M, ERF_POSITION_ERROR_M, ERF_OFFSET_M = (
+    0.0014, 0.05, 1.0, 0.1, 0.02)
+ERF_ERROR_VISION_AXES = (0.7, -0.3, 0.05)  # their (0.3, 0.7, 0.05) in vision's axes (x = their y, y = -their x)
+
+
+def _erforce_offset(camera_xy: tuple[float, float]) -> tuple[float, float]:
+    """ER-Force's per-camera offset of every object: 2 cm along the projecting camera's direction from the centre."""
+    r = math.hypot(*camera_xy)
+    return ERF_OFFSET_M * camera_xy[0] / r, ERF_OFFSET_M * camera_xy[1] / r
+
+
+def _projecting_xy(nominal: tuple[float, float]) -> tuple[float, float]:
+    norm = math.sqrt(sum(c * c for c in ERF_ERROR_VISION_AXES))
+    return (nominal[0] - ERF_POSITION_ERROR_M * ERF_ERROR_VISION_AXES[0] / norm,
+            nominal[1] - ERF_POSITION_ERROR_M * ERF_ERROR_VISION_AXES[1] / norm)
+
+
+def _ball_errors(cameras, frames: int, seed: int = 3) -> dict[int, dict[int, tuple[float, float]]]:
+    """Per camera, per frame: (x, y) of what it reports of a ball at rest at BALL_IN_OVERLAP minus the truth, through
+    the world's vision the model asks for (VisionSystem) and the splitter, as the plant and the bench run them."""
+    params = cameras.world_vision(VisionParams())
+    vision = VisionSystem(params, np.random.default_rng(seed))
+    splitter = SslCameraSplitter.quadrants(FIELD, None, cameras, seed=seed)
+    out: dict[int, dict[int, tuple[float, float]]] = {k: {} for k in range(4)}
+    for k in range(frames):
+        t = k / params.rate_hz
+        vision.capture(t, BALL_IN_OVERLAP, [])
+        for frame in vision.poll(t + params.latency_s):
+            for _, data in splitter.packets(frame):
+                f = decode_wrapper(data).frame
+                for b in f.balls:
+                    out[f.camera_id][k] = (b.x_m - BALL_IN_OVERLAP[0], b.y_m - BALL_IN_OVERLAP[1])
+    return out
+
+
+def test_the_presets_are_the_cited_figures():
+    assert (ERFORCE_REALISTIC.ball_noise_m, ERFORCE_REALISTIC.robot_noise_m) == (ERF_BALL_NOISE_M, 0.0013)
+    assert (ERFORCE_REALISTIC.missing_ball_prob, ERFORCE_REALISTIC.missing_robot_prob) == (ERF_MISSING_BALL, 0.02)
+    assert ERFORCE_REALISTIC.overlap_m == 2.0 * ERF_OVERLAP_PAST_AXIS_M  # a band 1 m either side of each axis
+    assert (ERFORCE_REALISTIC.position_error_m, ERFORCE_REALISTIC.object_offset_m) == (0.1, ERF_OFFSET_M)
+    assert not ERFORCE_REALISTIC.shared_world_noise
+    # today's: the world's 2 mm and 2 % dropouts (VisionParams) shared, 0.5 mm per camera, 0.5 m overlap
+    assert BENCH_CAMERAS.shared_world_noise and (BENCH_CAMERAS.ball_noise_m, BENCH_CAMERAS.overlap_m) == (0.0005, 0.5)
+    assert (BENCH_CAMERAS.missing_ball_prob, BENCH_CAMERAS.position_error_m, BENCH_CAMERAS.object_offset_m) == (0, 0, 0)
+    assert BENCH_CAMERAS.world_vision(VisionParams()) == VisionParams()
+    world = ERFORCE_REALISTIC.world_vision(VisionParams())
+    assert (world.position_noise_m, world.ball_dropout_prob, world.robot_dropout_prob) == (0.0, 0.0, 0.0)
+    assert CAMERA_MODELS == {"bench": BENCH_CAMERAS, "erforce": ERFORCE_REALISTIC}
+    with pytest.raises(ValueError, match="missing_ball_prob"):
+        replace(ERFORCE_REALISTIC, missing_ball_prob=1.5)
+    with pytest.raises(ValueError, match="ball_noise_m"):
+        replace(ERFORCE_REALISTIC, ball_noise_m=-0.001)
+
+
+def test_two_cameras_err_independently_on_one_ball_in_erforces_model_and_together_in_the_benchs():
+    """Sample correlation of the two cameras' x errors over the frames both saw the ball: for independent errors its
+    standard deviation is 1 / sqrt(n), so |r| < 4 / sqrt(n) (a false alarm about 6e-5); the bench's shared 2 mm
+    against 0.5 mm each correlate them by 4 / (4 + 0.25) = 0.94."""
+    for cameras, independent in ((ERFORCE_REALISTIC, True), (BENCH_CAMERAS, False)):
+        errors = _ball_errors(cameras, 3000)
+        both = sorted(set(errors[0]) & set(errors[1]))
+        assert not errors[2] and not errors[3]
+        n = len(both)
+        r = float(np.corrcoef([errors[0][k][0] for k in both], [errors[1][k][0] for k in both])[0, 1])
+        if independent:
+            assert abs(r) < 4.0 / math.sqrt(n), (n, r)
+        else:
+            assert abs(r - 4.0 / 4.25) < 4.0 * (1.0 - (4.0 / 4.25) ** 2) / math.sqrt(n), (n, r)
+
+
+@pytest.mark.parametrize("cameras", ["bench", "erforce"])
+def test_each_cameras_noise_is_its_models_figure(cameras):
+    """Each camera's errors about their known mean (ER-Force: the camera's 2 cm offset; the bench: none): the sum of
+    squares over sigma^2 is chi-square with 2 n degrees of freedom (x and y), inside its 1e-4 tails."""
+    model = CAMERA_MODELS[cameras]
+    errors = _ball_errors(model, 2000)
+    if cameras == "bench":
+        sigma, means = math.hypot(0.002, 0.0005), {0: (0.0, 0.0), 1: (0.0, 0.0)}
+    else:
+        sigma = ERF_BALL_NOISE_M
+        means = {k: _erforce_offset(_projecting_xy((x, 1.525))) for k, x in ((0, -2.275), (1, 2.275))}
+    for k in (0, 1):
+        e = np.array(list(errors[k].values())) - means[k]
+        dof = e.size
+        s = float(np.sum(e**2)) / sigma**2
+        assert chi2.ppf(1e-4, dof) < s < chi2.isf(1e-4, dof), (k, dof, s / dof)
+
+
+def test_each_camera_misses_the_ball_on_its_own_in_erforces_model():
+    """Each camera loses the ball in 5 % of the frames (binomial, inside the 1e-4 tails), both at once in 0.25 %;
+    the bench's 2 % dropouts are the world's: its two cameras lose the ball together, never one alone."""
+    n = 4000
+    errors = _ball_errors(ERFORCE_REALISTIC, n)
+    for k in (0, 1):
+        missed = n - len(errors[k])
+        assert binom.ppf(1e-4, n, ERF_MISSING_BALL) <= missed <= binom.isf(1e-4, n, ERF_MISSING_BALL), (k, missed)
+    both = n - len(set(errors[0]) | set(errors[1]))
+    assert binom.ppf(1e-4, n, ERF_MISSING_BALL**2) <= both <= binom.isf(1e-4, n, ERF_MISSING_BALL**2), both
+    bench = _ball_errors(BENCH_CAMERAS, n)
+    assert set(bench[0]) == set(bench[1]) and binom.ppf(1e-4, n, 0.02) <= n - len(bench[0]) <= binom.isf(1e-4, n, 0.02)
+
+
+def test_a_flying_ball_is_projected_from_the_displaced_camera_while_the_geometry_reports_the_nominal_one():
+    """ER-Force reports each camera 0.1 m off where it projects from. Camera 1 is reported above (2.275, 1.525) at
+    4 m; it projects from (2.275, 1.525, 4) - 0.1 (0.7, -0.3, 0.05) / |(0.7, -0.3, 0.05)|. A ball at (1, 1) 0.5 m
+    up lands on its ray at c + (p - c) cz / (cz - 0.5), plus the camera's 2 cm offset; on the ground the ball is
+    where it is (plus the offset), whichever camera projects it."""
+    model = ERFORCE_REALISTIC.noise_free()
+    splitter = SslCameraSplitter.quadrants(FIELD, None, model)
+    geometry = decode_wrapper(splitter.geometry_packet()).geometry
+    assert [(c.x_m, c.y_m, c.z_m) for c in geometry.cameras][1] == pytest.approx((2.275, 1.525, 4.0), abs=1e-9)
+    norm = math.sqrt(0.7**2 + 0.3**2 + 0.05**2)
+    cx, cy = _projecting_xy((2.275, 1.525))
+    cz = 4.0 - 0.1 * 0.05 / norm
+    assert (cx, cy, cz) == pytest.approx((2.275 - 0.07 / norm, 1.525 + 0.03 / norm, 4.0 - 0.005 / norm), abs=1e-12)
+    ox, oy = _erforce_offset((cx, cy))
+    s = cz / (cz - 0.5)
+    flying = decode_wrapper(splitter.packets(VisionFrame(1, 2.0, 2.015, (BallDetection(1.0, 1.0, 0.5),), ()))[1][1])
+    (ball,) = flying.frame.balls
+    assert (ball.x_m, ball.y_m) == pytest.approx((cx + (1.0 - cx) * s + ox, cy + (1.0 - cy) * s + oy), abs=1e-6)
+    # the geometry's camera would have put it ~1.4 cm elsewhere: the error a predictor trusting it makes
+    nominal = ground_point(1.0, 1.0, 0.5, (2.275, 1.525, 4.0))
+    assert 0.005 < math.hypot(ball.x_m - ox - nominal[0], ball.y_m - oy - nominal[1]) < 0.03
+    ground = decode_wrapper(splitter.packets(VisionFrame(2, 2.1, 2.115, (BallDetection(1.0, 1.0, 0.0),), ()))[1][1])
+    (ball,) = ground.frame.balls
+    assert (ball.x_m, ball.y_m) == pytest.approx((1.0 + ox, 1.0 + oy), abs=1e-6)

@@ -128,10 +128,19 @@ CAMERA_MODELS = {m.name: m for m in (BENCH_CAMERAS, ERFORCE_REALISTIC)}
 
 @dataclass(frozen=True)
 class SimCamera:
+    """A camera seeing the ground points in a rectangle, standing above ``nadir_m`` (None: the rectangle's centre)."""
+
     camera_id: int
     x_range_m: tuple[float, float]
     y_range_m: tuple[float, float]
     extra_latency_s: float
+    nadir_m: tuple[float, float] | None = None
+
+    @property
+    def nadir_xy_m(self) -> tuple[float, float]:
+        if self.nadir_m is not None:
+            return self.nadir_m
+        return 0.5 * sum(self.x_range_m), 0.5 * sum(self.y_range_m)
 
     def sees(self, x: float, y: float) -> bool:
         return self.x_range_m[0] <= x <= self.x_range_m[1] and self.y_range_m[0] <= y <= self.y_range_m[1]
@@ -151,26 +160,32 @@ def ground_point(x_m: float, y_m: float, z_m: float, camera_m: tuple[float, floa
 
 def quadrant_cameras(field: FieldConfig, overlap_m: float = QUADRANT_OVERLAP_M,
                      extra_latencies_s: tuple[float, ...] = (0.0, 0.002, 0.001, 0.003)) -> tuple[SimCamera, ...]:
-    """Four cameras, one per quadrant of the area inside the walls, overlapping by ``overlap_m`` across the axes."""
-    hx, hy, h = field.wall_half_length_m, field.wall_half_width_m, 0.5 * overlap_m
-    xs = ((-hx, h), (-h, hx))
-    ys = ((-h, hy), (-hy, h))
+    """Four cameras, one per quadrant of the area inside the walls, overlapping by ``overlap_m`` across the axes;
+    each stands above the centre of its rectangle at QUADRANT_OVERLAP_M whatever ``overlap_m`` (a wider overlap
+    widens what a camera reports, not where it hangs)."""
+    hx, hy = field.wall_half_length_m, field.wall_half_width_m
+
+    def rectangles(overlap: float):
+        h = 0.5 * overlap
+        xs = ((-hx, h), (-h, hx))
+        ys = ((-h, hy), (-hy, h))
+        return [(x, y) for y in ys for x in xs]
+
     cams = []
-    for i, (yr, xr) in enumerate((y, x) for y in ys for x in xs):
-        cams.append(SimCamera(i, xr, yr, extra_latencies_s[i % len(extra_latencies_s)]))
+    for i, ((xr, yr), (mx, my)) in enumerate(zip(rectangles(overlap_m), rectangles(QUADRANT_OVERLAP_M), strict=True)):
+        cams.append(SimCamera(i, xr, yr, extra_latencies_s[i % len(extra_latencies_s)], (0.5 * sum(mx), 0.5 * sum(my))))
     return tuple(cams)
 
 
 def field_geometry(field: FieldConfig, cameras: tuple[SimCamera, ...],
                    ball_model: BallModelFromVision | None,
                    chip_model: ChipModelFromVision | None = None) -> FieldGeometry:
-    """What SSL-Vision's geometry packet says of ``field`` seen by ``cameras``, each above the centre of its
-    rectangle at CAMERA_HEIGHT_M (the goal's size as the league's divisions have it), and of the ball."""
+    """What SSL-Vision's geometry packet says of ``field`` seen by ``cameras``, each above its nadir at
+    CAMERA_HEIGHT_M (the goal's size as the league's divisions have it), and of the ball."""
     return FieldGeometry(
         length_m=field.length_m, width_m=field.width_m, boundary_m=field.boundary_m,
         goal_width_m=1.0 if field.length_m < 10.0 else 1.8, goal_depth_m=0.18, ball_model=ball_model,
-        cameras=tuple(CameraPose(c.camera_id, 0.5 * sum(c.x_range_m), 0.5 * sum(c.y_range_m), CAMERA_HEIGHT_M)
-                      for c in cameras),
+        cameras=tuple(CameraPose(c.camera_id, *c.nadir_xy_m, CAMERA_HEIGHT_M) for c in cameras),
         chip_model=chip_model,
     )
 
