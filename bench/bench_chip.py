@@ -19,7 +19,8 @@ ceiling the cameras' geometry leaves the detector); the share of flat kicks ever
 noise); the detection delay (median, p90); the predictor's time per vision frame (ball_frame and ball_sighting
 for every camera's ball of one capture; mean, p99), as the thread's CPU time (a shared machine's load does not
 inflate it).
-``python bench/bench_chip.py [--quick] [--seed N] [--cameras bench|erforce] [--min-gain G] [--kick-hints]``
+``python bench/bench_chip.py [--quick] [--seed N] [--cameras bench|erforce] [--without ERROR ...] [--min-gain G]
+[--kick-hints]`` (``--without position_error`` / ``object_offset``: the camera model without that fixed error)
 (``--kick-hints``: the kicker's angle reaches the predictor at each kick, BallPredictor.kick_hint; the chips'
 and the flat kicks' alike).
 """
@@ -31,6 +32,7 @@ import itertools
 import math
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 from table import markdown_table
@@ -53,6 +55,17 @@ RUN_S = 1.0  # after the kick
 REST_S = 0.3  # the ball lies still this long before the kick
 LOW_M = 0.05
 APEX_BANDS_M = (0.03, 0.1, 0.2)  # the missed chips are split by their apex height at these
+
+
+FIXED_ERRORS = ("position_error", "object_offset")  # CameraRealism's fixed errors a run may leave out (--without)
+
+
+def camera_model(name: str, without: tuple[str, ...] = ()) -> CameraRealism:
+    """The camera model ``name`` (ssl_cameras.CAMERA_MODELS) without the fixed errors ``without``, named so."""
+    model = CAMERA_MODELS[name]
+    if not without:
+        return model
+    return replace(model, name=f"{name} without {' and '.join(without)}", **{f"{e}_m": 0.0 for e in without})
 
 
 def _random_kick(rng: np.random.Generator, chip: bool):
@@ -213,12 +226,14 @@ def main(argv: list[str] | None = None) -> int:
                         "earlier detection against more flat kicks taken for chips)")
     parser.add_argument("--cameras", choices=sorted(CAMERA_MODELS), default=BENCH_CAMERAS.name,
                         help="how the simulated cameras err (erforce_sim.ssl_cameras.CAMERA_MODELS)")
+    parser.add_argument("--without", nargs="+", choices=FIXED_ERRORS, default=(),
+                        help="leave these fixed errors out of the camera model")
     parser.add_argument("--kick-hints", action="store_true", help="the kicker tells the predictor each kick's "
                         "angle (0 flat) at the kick (BallPredictor.kick_hint)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     print("\n".join(markdown_table(run(args.quick, args.seed, args.min_gain, args.kick_hints,
-                                        CAMERA_MODELS[args.cameras]))))
+                                        camera_model(args.cameras, tuple(args.without))))))
     print(f"\n(total {time.perf_counter() - t0:.1f} s)")
     return 0
 
