@@ -19,6 +19,7 @@ from erforce_sim.ssl_cameras import (
     ERFORCE_REALISTIC,
     SslCameraSplitter,
     chip_model_of,
+    field_geometry,
     ground_point,
     quadrant_cameras,
 )
@@ -35,6 +36,17 @@ def test_four_quadrants_overlap_across_the_axes_and_cover_up_to_the_walls():
     for corner in ((4.8, 3.3), (-4.8, 3.3), (4.8, -3.3), (-4.8, -3.3)):
         assert sum(c.sees(*corner) for c in cams) == 1
     assert not any(c.sees(4.81, 0.0) for c in cams)
+
+
+def test_a_wider_overlap_widens_what_a_camera_sees_not_where_it_hangs():
+    """ER-Force's 1 m past each axis is a 2 m band: at x = 0.9 two cameras, at 1.1 one; the cameras stay above
+    (+-2.275, +-1.525), the centres of the quadrants at the 0.5 m overlap ((4.8 - 0.25) / 2, (3.3 - 0.25) / 2)."""
+    cams = quadrant_cameras(FIELD, overlap_m=2.0)
+    assert sum(c.sees(0.9, 2.0) for c in cams) == 2 and sum(c.sees(1.1, 2.0) for c in cams) == 1
+    assert sum(c.sees(0.9, 0.9) for c in cams) == 4
+    poses = field_geometry(FIELD, cams, None).cameras
+    assert [v for p in poses for v in (p.x_m, p.y_m)] == pytest.approx(
+        [-2.275, 1.525, 2.275, 1.525, -2.275, -1.525, 2.275, -1.525], abs=1e-12)
 
 
 def test_each_camera_sends_what_it_sees_with_its_own_latency():
