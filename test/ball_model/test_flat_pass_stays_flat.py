@@ -1,12 +1,12 @@
 """A flat pass on an outside world stays a ball on the ground: the kick hint ends what came before the kick.
 
 The scene, written from what grSim does (its robot.cpp, and the kicks measured from its vision): a pass rolls into
-the passer's front and stops there, 0.11 m from the robot's centre (a 0.09 m robot and a ball radius); the passer
-turns with the ball held at its front (the ball hits the front 0.098 m from the centre and springs back to where
-the dribbler holds it), its yaw rate rising to 3 rad/s within 0.05 s; then it kicks flat. grSim sets
-a flat-kicked ball's velocity to the commanded speed along the robot's heading with no vertical part, and the ball
-then follows the two-phase model its SSL geometry announces (a_slide -14, a_roll -0.7 m/s^2, c_switch 0.7). One
-camera at grSim's (-3, 2.25, 4) m, 60 Hz, without noise (grSim's vision adds none).
+the passer's front 0.098 m from the robot's centre and springs back to 0.11 m (about a 0.09 m robot and a ball
+radius), where the dribbler holds it; the passer turns with the ball held at its front, its yaw rate rising to
+3 rad/s within 0.05 s; then it kicks flat. grSim sets a flat-kicked ball's velocity to the commanded speed along the
+robot's heading with no vertical part, and the ball then follows the two-phase model its SSL geometry announces
+(a_slide -14, a_roll -0.7 m/s^2, c_switch 0.7). One camera at grSim's (-3, 2.25, 4) m, 60 Hz, without noise
+(grSim's vision adds none).
 """
 
 import math
@@ -70,14 +70,13 @@ def test_a_flat_kick_after_the_ball_was_carried_round_a_turning_passer_is_no_chi
     its own, with the hint, and no frame of it reports a chip; the flat filter follows the kick (2.76 m/s along the
     heading, and after 0.65 s at the speed the two-phase model gives: 0.7 of the kick, less 0.7 m/s^2 rolling)."""
     pred = predictor()
-    before, kicked, t_hint, kick, _ = held_then_kicked()
+    before, kicked, t_hint, kick, t_kick = held_then_kicked()
     for t, x, y in before:
         pred.ball_frame(t, x, y, camera_m=CAMERA_M)
     pred.kick_hint(t_hint, 0.0)
     frames = [pred.ball_frame(t, x, y, camera_m=CAMERA_M) for t, x, y in kicked]
     assert all(f is not None and f.chip is None and f.phase != "chip" for f in frames)
     assert pred.chip_detector.hint_angle_deg == 0.0
-    before, kicked, t_hint, kick, t_kick = held_then_kicked()
     last = frames[-1].trajectory
     speed = float(np.hypot(*last.velocity_mps))
     t_roll = 0.3 * KICK_MPS / 14.0
