@@ -450,12 +450,18 @@ class ChipDetector:
     def hint(self, t_s: float, angle_deg: float) -> None:
         """The kicker's word: it kicked at ``t_s`` with the elevation ``angle_deg`` (0: flat; a chip in (0, 90)).
         It belongs to the next motion first seen within ``hint_window_s`` (or the current one, if so seen and not
-        judged a chip yet). Raises ValueError for a non-finite time or an angle outside [0, 90)."""
+        judged a chip yet). A motion first seen before ``t_s`` is not that kick (the kicker held the ball then):
+        its collection ends, with any chip found in it, so that the kick starts its own (a ball carried round a
+        turning robot's front can pass for a steep chip, and while that "chip" hops a kick would count as its
+        bounce). Raises ValueError for a non-finite time or an angle outside [0, 90)."""
         if not (math.isfinite(t_s) and math.isfinite(angle_deg) and 0.0 <= angle_deg < 90.0):
             raise ValueError(f"kick hint at {t_s!r} s with angle {angle_deg!r} deg: the time must be finite, the "
                              f"angle in [0, 90)")
         self.judge_pending()
         self._hint = (float(t_s), float(angle_deg))
+        if self.t_start_s is not None and self.t_start_s < t_s:
+            self.t_start_s, self.fit, self.detected_at_s, self._chip = None, None, None, None
+            self.hint_angle_deg = None
         if self.t_start_s is not None and self.fit is None and self._hint_fits(self.t_start_s):
             self.hint_angle_deg = self._hint[1]
 
