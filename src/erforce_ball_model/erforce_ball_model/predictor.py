@@ -53,7 +53,12 @@ from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_sh
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
 from erforce_ball_model.walls import Walls
 from erforce_interfaces.runtime.param_schema import schema_defaults
-from erforce_interfaces.wire.robot_config import BALL_WALL_RESTITUTION, FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import (
+    BALL_CHIP_DAMPING_NAMES,
+    BALL_WALL_RESTITUTION,
+    FieldConfig,
+    RobotConfig,
+)
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
 
@@ -286,15 +291,14 @@ class BallPredictor:
 
     def set_vision_geometry(self, field: FieldConfig | None = None, model: BallModelParams | None = None,
                             chip_dampings: Mapping[str, float] | None = None) -> bool:
-        """The field, ball model and/or chip dampings (``damping_z``, ``damping_xy_first_hop``,
-        ``damping_xy_other_hops``: SSL geometry's chip_fixed_loss) of SSL geometry (None: that part unchanged). In
-        effect while ``use_vision_geometry`` (also after later ``configure`` calls), kept for when it is turned on;
-        True when the ball model in use changed (``chip_model`` says the chip model in use). Dampings that make no
-        chip model raise ValueError and change nothing."""
+        """The field, ball model and/or chip dampings (``BALL_CHIP_DAMPING_NAMES``: SSL geometry's chip_fixed_loss)
+        of SSL geometry (None: that part unchanged). In effect while ``use_vision_geometry`` (also after later
+        ``configure`` calls), kept for when it is turned on; True when the ball model in use changed (``chip_model``
+        says the chip model in use). Dampings that make no chip model raise ValueError and change nothing."""
         if chip_dampings is not None:
             chip_dampings = dict(chip_dampings)
-            if not set(chip_dampings) <= {"damping_z", "damping_xy_first_hop", "damping_xy_other_hops"}:
-                raise ValueError(f"chip_dampings: damping_z, damping_xy_first_hop, damping_xy_other_hops only, got "
+            if not set(chip_dampings) <= set(BALL_CHIP_DAMPING_NAMES):
+                raise ValueError(f"chip_dampings: {', '.join(BALL_CHIP_DAMPING_NAMES)} only, got "
                                  f"{sorted(chip_dampings)}")
             dataclasses.replace(self._configured.chip, **chip_dampings)  # ValueError: no chip model
         field, model = field or self._vision_field, model or self._vision_model

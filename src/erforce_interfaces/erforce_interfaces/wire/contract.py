@@ -43,6 +43,7 @@ from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_interfaces.wire.ament_index import find_package_share
+from erforce_interfaces.wire.robot_config import BALL_CHIP_DAMPING_NAMES
 
 FIELD_FRAME = "field"
 ROBOT_NAMESPACE_PREFIX = "robot_"
@@ -461,7 +462,7 @@ BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
 BALL_CHIP_MODEL_PARAM_LABELS = ("g_mps2", "damping_z", "damping_xy_first_hop", "damping_xy_other_hops",
                                 "min_hop_vz_mps", "max_catch_height_m", "max_receive_height_m")
 #: the columns of /vision/chip_model: the part of the chip model SSL geometry's chip_fixed_loss gives
-VISION_CHIP_MODEL_LABELS = ("damping_z", "damping_xy_first_hop", "damping_xy_other_hops")
+VISION_CHIP_MODEL_LABELS = BALL_CHIP_DAMPING_NAMES
 #: the PointField names of /vision/robots, in this order, each one FLOAT64 (at offsets 0, 8, ..). A PointCloud2
 #: rather than a Float64MultiArray table: its header carries the capture stamp and the frame, and viewers
 #: (rviz, Foxglove) draw it as it is.
