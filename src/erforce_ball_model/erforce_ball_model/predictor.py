@@ -145,7 +145,9 @@ class BallFrame:
     trajectory: BallTrajectory  # the ball at t_s
     phase: str  # unknown (first frame) | sliding | rolling | stopped | chip
     uncertain: bool
+    # the ball filter's variance of x and of y [m^2], of vx and of vy [(m/s)^2] at t_s
     position_variance_m2: float
+    velocity_variance_m2ps2: float
     catch_robots: list[int]
     catch_times_s: list[float]
     catch_points_m: list[tuple[float, float] | None]
@@ -189,7 +191,7 @@ def chip_covariances(frame: BallFrame) -> tuple[np.ndarray, np.ndarray]:
     the frame (its ``chip_covariance``; where the fit determines none, the filter's position variance on x and y and
     ``_UNKNOWN_STD`` squared for the rest: finite, and saying "unknown").
 
-    >>> frame = BallFrame(0.0, (0.0, 0.0), None, None, "chip", False, 4e-6, [], [], [], None, np.diag([1e-6] * 6))
+    >>> frame = BallFrame(0.0, (0.0, 0.0), None, None, "chip", False, 4e-6, 0.01, [], [], [], None, np.diag([1e-6] * 6))
     >>> xyz, vxyz = chip_covariances(frame)
     >>> np.diag(xyz).tolist(), float(vxyz[2, 2])
     ([1e-06, 1e-06, 1e-06], 1e-06)
@@ -441,7 +443,7 @@ class BallPredictor:
         else:
             phase = PHASE_NAMES[traj.phase]
         covariance = None if chip is None else self._chip.state_covariance_at(t_s)
-        return BallFrame(t_s, (x_m, y_m), status, traj, phase, bool(ball.uncertain), ball.position_variance_m2,
+        return BallFrame(t_s, (x_m, y_m), status, traj, phase, bool(ball.uncertain), *ball.variances_at(t_s),
                          robots, times, points, chip, covariance)
 
     @property

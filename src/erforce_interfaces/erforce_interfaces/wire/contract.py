@@ -289,7 +289,8 @@ VISION_BALL = Topic("/vision/ball", PointStamped, QOS_SENSOR, "plant (vision), s
                     "tools", "ball centre in `field` [m], stamp = capture time; noisy, delayed, with dropouts; the "
                     "same balls as /vision/robots")
 BALL_STATE = Topic("/ball/state", Odometry, QOS_STATE, "ball_predictor", "catcher, tools",
-                   "filtered ball: pose [m], twist.linear [m/s] in `field`; covariance from the filter; a chipped "
+                   "filtered ball: pose [m], twist.linear [m/s] in `field`; covariance from the filter (its "
+                   "variance of x, y on the pose's diagonal, of vx, vy on the twist's); a chipped "
                    "ball in the air: pose.position.z its centre's height above its resting height [m] and "
                    "twist.linear.z its vertical speed [m/s] (both 0 on the ground), and the covariances' rows and "
                    "columns 0-2 those of (x, y, z) and (vx, vy, vz) of the fitted flight (from one camera the "
