@@ -233,6 +233,30 @@ def test_rolling_ball_state_stop_point_and_phases_match_the_closed_form(ros_grap
     assert rig.all_finite()
 
 
+def test_a_flat_balls_state_carries_the_filters_variances_on_both_covariance_diagonals(ros_graph):
+    """A ball at rest, 12 frames at 60 Hz, the first more than max_gap_s (1 s) after the handshake: the filter
+    starts over there, x with variance r = position_noise_m^2 (4e-6 m^2), v with 1 (m/s)^2. The second frame is one
+    constant-velocity Kalman step of dt = 1/60 s (q = accel_noise_psd 0.05): predicted a = r + dt^2 + q dt^3 / 3,
+    b = dt + q dt^2 / 2, c = 1 + q dt, then var_x = a r / (a + r), var_v = c - b^2 / (a + r); each frame after it
+    knows the velocity better. Only x, y (pose) and vx, vy (twist) have variances; the rest is 0."""
+    rig = Rig(ros_graph, num_robots=1, position_noise_m=0.002, accel_noise_psd=0.05)
+    dt, r, q = 1.0 / 60.0, 0.002**2, 0.05
+    for k in range(12):
+        rig.ball(0.6 + k * dt, 0.5, -0.2)
+    pose_var, twist_var = [], []
+    for msg in rig.state:
+        pose, twist = np.reshape(msg.pose.covariance, (6, 6)), np.reshape(msg.twist.covariance, (6, 6))
+        assert np.count_nonzero(pose - np.diag(np.diag(pose))) == np.count_nonzero(twist - np.diag(np.diag(twist))) == 0
+        assert pose[0, 0] == pose[1, 1] and twist[0, 0] == twist[1, 1] and not pose[2:].any() and not twist[2:].any()
+        pose_var.append(pose[0, 0])
+        twist_var.append(twist[0, 0])
+    dt = stamp_to_seconds(rig.state[1].header.stamp) - stamp_to_seconds(rig.state[0].header.stamp)  # in whole ns
+    a, b, c = r + dt**2 + q * dt**3 / 3.0, dt + q * dt**2 / 2.0, 1.0 + q * dt
+    assert (pose_var[0], twist_var[0]) == pytest.approx((r, 1.0), rel=1e-12)
+    assert (pose_var[1], twist_var[1]) == pytest.approx((a * r / (a + r), c - b * b / (a + r)), rel=1e-9)
+    assert (np.diff(twist_var[1:]) < 0.0).all()
+
+
 def test_the_published_stop_point_lies_inside_the_field_wall(ros_graph):
     """Kicked at 3 m/s straight at the +x wall of Division B (4.5 + 0.3 m less the ball's radius 21.35 mm), which
     the straight model passes by 2.8 m: with wall_restitution 0 the ball stays where it meets the wall."""

@@ -79,6 +79,27 @@ def test_the_predictor_core_speaks_the_contract():
     assert set(predictor.PHASE_NAMES.values()) | {"unknown", predictor.PHASE_CHIP} == set(contract.BALL_PHASES)
 
 
+def test_the_chip_dampings_from_ssl_geometry_are_named_once():
+    """/vision/chip_model's columns, the SSL decoder's chip_fixed_loss and what the predictor takes from SSL
+    geometry are the same ChipParams fields: each of them alone is taken, any other ChipParams field refused."""
+    from erforce_ball_model.ball_model import ChipParams
+    from erforce_ball_model.predictor import BallPredictor
+    from erforce_interfaces.ssl.ssl_vision import ChipModelFromVision
+    from erforce_interfaces.wire import contract
+
+    labels = contract.VISION_CHIP_MODEL_LABELS
+    assert tuple(f.name for f in dataclasses.fields(ChipModelFromVision)) == labels
+    chip_fields = {f.name for f in dataclasses.fields(ChipParams)}
+    assert set(labels) < chip_fields
+    predictor = BallPredictor(PredictorConfig(num_robots=1))
+    for name in labels:
+        predictor.set_vision_geometry(chip_dampings={name: 0.5})
+        assert getattr(predictor.chip_model, name) == 0.5
+    for name in sorted(chip_fields - set(labels)):
+        with pytest.raises(ValueError, match="only"):
+            predictor.set_vision_geometry(chip_dampings={name: 0.5})
+
+
 def test_the_ball_and_wall_have_one_default_for_prediction_and_plant():
     """The predicted bounce (walls.Walls, the predictor's wall_restitution) and the plant's wall contact
     (erforce_sim.contacts, erforce_sim.ball) take the same restitution, friction, inertia and radius."""

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.linalg
 from ballmodel_sim import observe, simulate
 
 from erforce_ball_model.ball_model import BallModelParams, ChipParams
@@ -12,6 +13,7 @@ from erforce_ball_model.catch_time import CatchSearch, RobotLimits, catch_after_
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.identification import FitResult, ShotAccumulator
 from erforce_ball_model.predictor import CATCH_TIME_NEVER, BallPredictor, FrameTimes, PredictorConfig
+from erforce_ball_model.tracking import UpdateStatus
 from erforce_interfaces.wire.robot_config import FieldConfig
 
 FIELD = FieldConfig.preset("division_b")
@@ -304,3 +306,55 @@ def test_with_the_field_from_the_world_nothing_is_judged_until_its_geometry_arri
     assert warnings == ["robot_0: rejected robot pose outside the field: (5.200, 0.000) m"]
     with pytest.raises(ValueError, match="needs use_vision_geometry"):
         PredictorConfig(field=None, use_vision_geometry=False)
+
+
+
+def _cv_step(p: np.ndarray, dt_s: float, q: float) -> np.ndarray:
+    """The textbook constant-velocity prediction of one axis' covariance: F P F^T + Q with F = [[1, dt], [0, 1]]
+    and white acceleration noise Q = q [[dt^3 / 3, dt^2 / 2], [dt^2 / 2, dt]]."""
+    f = np.array([[1.0, dt_s], [0.0, 1.0]])
+    return f @ p @ f.T + q * np.array([[dt_s**3 / 3.0, dt_s**2 / 2.0], [dt_s**2 / 2.0, dt_s]])
+
+
+def _cv_covariances(dts_s, r_m2: float, q: float, velocity_prior_m2ps2: float) -> list[np.ndarray]:
+    """One axis' covariance of (x, v) after each frame of that Kalman filter measuring x with variance r (gain K =
+    P H^T / (H P H^T + r), P <- (I - K H) P, H = [1, 0]); the first frame sets x (variance r), v has the prior."""
+    out = [np.diag([r_m2, velocity_prior_m2ps2])]
+    h = np.array([[1.0, 0.0]])
+    for dt in dts_s:
+        p = _cv_step(out[-1], dt, q)
+        k = p @ h.T / (h @ p @ h.T + r_m2)
+        out.append((np.eye(2) - k @ h) @ p)
+    return out
+
+
+def test_a_flat_balls_variances_are_the_constant_velocity_kalman_filters():
+    """A ball at rest seen without noise at 60 Hz: the filter (r = VISION_NOISE_M^2 = 4e-6 m^2, q = accel_noise_psd
+    0.05) starts from x with variance r and v with 1 (m/s)^2, then each frame is the textbook CV step. By hand after
+    the second frame: predicted a = r + dt^2 + q dt^3 / 3, b = dt + q dt^2 / 2, c = 1 + q dt, corrected var_v = c -
+    b^2 / (a + r) = 0.02828 (m/s)^2: nearly two positions differenced, 2 r / dt^2 = 0.0288. After 5 s the
+    variances are the steady state of the discrete Riccati equation. A frame held back (an outlier 0.3 m off) is
+    answered with the covariance predicted to its stamp, as its state is."""
+    predictor = BallPredictor(PredictorConfig(num_robots=1, field=FIELD))
+    tracker = predictor.config.tracker
+    r, q, dt = tracker.position_noise_m**2, tracker.accel_noise_psd, 1.0 / 60.0
+    assert (r, q) == (4e-6, 0.05)
+    frames = [predictor.ball_frame(k * dt, 0.5, -0.2) for k in range(300)]
+    got = np.array([(f.position_variance_m2, f.velocity_variance_m2ps2) for f in frames])
+    assert got[0].tolist() == [r, 1.0]
+    a, b, c = r + dt**2 + q * dt**3 / 3.0, dt + q * dt**2 / 2.0, 1.0 + q * dt
+    assert got[1, 1] == pytest.approx(c - b * b / (a + r), rel=1e-9)
+    assert got[1, 1] == pytest.approx(0.02828, abs=1e-5) == pytest.approx(2.0 * r / dt**2, rel=0.02)
+    expected = _cv_covariances([dt] * 299, r, q, 1.0)
+    np.testing.assert_allclose(got, [(p[0, 0], p[1, 1]) for p in expected], rtol=1e-9)
+
+    f, h = np.array([[1.0, dt], [0.0, 1.0]]), np.array([[1.0], [0.0]])
+    prior = scipy.linalg.solve_discrete_are(f.T, h, _cv_step(np.zeros((2, 2)), dt, q), np.array([[r]]))
+    steady = prior - prior[:, :1] @ prior[:1, :] / (prior[0, 0] + r)
+    np.testing.assert_allclose(got[-1], np.diag(steady), rtol=1e-6)
+
+    held = predictor.ball_frame(300 * dt, 0.8, -0.2)
+    assert held.status == UpdateStatus.HELD_BACK
+    predicted = _cv_step(expected[-1], dt, q)
+    assert (held.position_variance_m2, held.velocity_variance_m2ps2) == pytest.approx(
+        (predicted[0, 0], predicted[1, 1]), rel=1e-9)

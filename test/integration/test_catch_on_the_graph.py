@@ -65,12 +65,21 @@ def test_the_light_barrier_fires_on_the_catch_and_only_then(director):
     director.wait_sim(1.0)  # robot_0 idle, ball at rest far away: the beam stays clear
     assert len(director.barrier_edges) == edges_before
     result = director.play(scene("kick 3.0 m/s straight"))
-    assert result.caught and len(director.barrier_edges) == edges_before + 1
-    # Around the edge the true ball touches robot_0's dribbler. The edge time is known to one
-    # /clock period (10 ms) and ground truth comes every 10 ms, so look within +-20 ms.
-    near = [b for b in director.series.ball_truth if abs(b[0] - result.actual_s) <= 0.02]
-    robot = [r for r in director.series.robot_truth if abs(r[0] - result.actual_s) <= 0.02]
+    assert result.caught, "the light barrier did not fire"
+    assert len(director.barrier_edges) == edges_before + 1
+    # Around the edge the true ball touches robot_0's dribbler. The edge lies between the plant's newest time sent
+    # before it and its oldest after it (Director.barrier_edge_bounds_s: one /clock or ground-truth period when
+    # none was missed), and ground truth comes every 10 ms: look from 20 ms before to 20 ms after, each ball
+    # sample against robot_0's sample nearest in time.
+    lower_s, upper_s = director.barrier_edge_bounds_s[edges_before]
+    near = [b for b in director.series.ball_truth if lower_s - 0.02 <= b[0] <= upper_s + 0.02]
+    robot = director.series.robot_truth
     assert near and robot
-    _, rx, ry, *_ = robot[-1]
-    closest = min(((b[1] - rx) ** 2 + (b[2] - ry) ** 2) ** 0.5 for b in near)
-    assert closest == pytest.approx(RobotConfig().dribbler_offset_m, abs=0.02)
+
+    def distance_to_robot(b):
+        _, rx, ry, *_ = min(robot, key=lambda r: abs(r[0] - b[0]))
+        return ((b[1] - rx) ** 2 + (b[2] - ry) ** 2) ** 0.5
+
+    distances = [(round(b[0], 3), round(distance_to_robot(b), 4)) for b in near]
+    assert min(d for _, d in distances) == pytest.approx(RobotConfig().dribbler_offset_m, abs=0.02), (
+        f"edge within [{lower_s:.3f}, {upper_s:.3f}] s; ball (t, distance to robot_0's centre): {distances}")

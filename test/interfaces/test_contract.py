@@ -536,9 +536,10 @@ _small = st.floats(-1e3, 1e3)
 @settings(max_examples=200, deadline=None)
 @given(t_s=st.floats(0.0, 2.0**31 - 1.0), pose=st.tuples(_small, _small, st.floats(-1e6, 1e6)),
        velocity=st.tuples(_small, _small, _small), spin=st.none() | st.tuples(*[st.floats(-1e5, 1e5)] * 3),
-       variance=st.none() | _small, child=_ros_text, frame=_ros_text)
-def test_serialized_odometry_round_trips_through_rclpy(t_s, pose, velocity, spin, variance, child, frame):
-    kwargs = dict(child_frame_id=child, frame_id=frame, spin=spin, position_variance_m2=variance)
+       variance=st.none() | _small, v_variance=st.none() | _small, child=_ros_text, frame=_ros_text)
+def test_serialized_odometry_round_trips_through_rclpy(t_s, pose, velocity, spin, variance, v_variance, child, frame):
+    kwargs = dict(child_frame_id=child, frame_id=frame, spin=spin, position_variance_m2=variance,
+                  velocity_variance_m2ps2=v_variance)
     expected = conv.odometry_msg(t_s, pose, velocity, **kwargs)
     assert deserialize_message(conv.odometry_cdr(t_s, pose, velocity, **kwargs), Odometry) == expected
 
@@ -547,7 +548,8 @@ def test_serialized_odometry_refuses_what_the_message_builder_refuses():
     good = dict(t_s=1.0, pose=(0.0, 0.0, 0.0), velocity=(0.0, 0.0, 0.0))
     for bad in (math.nan, math.inf, 2e3):
         for change in (dict(pose=(bad, 0.0, 0.0)), dict(velocity=(0.0, bad, 0.0)), dict(velocity=(0.0, 0.0, bad)),
-                       dict(spin=(0.0, 0.0, bad * 1e3)), dict(position_variance_m2=bad), dict(t_s=-bad)):
+                       dict(spin=(0.0, 0.0, bad * 1e3)), dict(position_variance_m2=bad),
+                       dict(velocity_variance_m2ps2=bad), dict(t_s=-bad)):
             for build in (conv.odometry_msg, conv.odometry_cdr):
                 with pytest.raises(conv.ConversionError):
                     build(**{**good, **change})

@@ -74,11 +74,25 @@ def test_a_chipped_balls_height_and_vertical_speed_ride_in_position_z_and_linear
         conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), vz_mps=math.nan)
 
 
+def test_a_flat_balls_variances_ride_on_the_pose_and_twist_diagonals():
+    """/ball/state of a ball on the ground: the filter's variance of x and y at pose.covariance 0 and 7 (row-major
+    (x, y, z, rot x, rot y, rot z)), of vx and vy at twist.covariance 0 and 7; a message refilled says the new ones."""
+    data = conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), "ball", position_variance_m2=4e-6,
+                             velocity_variance_m2ps2=0.0283)
+    msg = deserialize_message(data, Odometry)
+    assert np.array_equal(np.reshape(msg.pose.covariance, (6, 6)), np.diag([4e-6, 4e-6, 0.0, 0.0, 0.0, 0.0]))
+    assert np.array_equal(np.reshape(msg.twist.covariance, (6, 6)), np.diag([0.0283, 0.0283, 0.0, 0.0, 0.0, 0.0]))
+    assert conv.odometry_msg(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), "ball", out=msg) == deserialize_message(
+        conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), "ball"), Odometry)
+    assert not any(msg.twist.covariance)
+
+
 def test_a_chips_covariances_ride_in_rows_and_columns_0_to_2():
     xyz = np.array([[4e-6, 1e-6, 3e-4], [1e-6, 5e-6, 2e-5], [3e-4, 2e-5, 0.0225]])  # z: 0.15 m standard error
     vxyz = np.diag([0.01, 0.02, 1.5**2])
     data = conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), "ball", z_m=0.3, vz_mps=2.0,
-                             position_variance_m2=9.0, xyz_covariance=xyz, vxyz_covariance=vxyz)
+                             position_variance_m2=9.0, xyz_covariance=xyz, vxyz_covariance=vxyz,
+                             velocity_variance_m2ps2=7.0)
     msg = deserialize_message(data, Odometry)
     pose, twist = np.reshape(msg.pose.covariance, (6, 6)), np.reshape(msg.twist.covariance, (6, 6))
     assert pose[2, 2] == 0.0225 and twist[2, 2] == 2.25  # row-major (x, y, z, rot x, rot y, rot z): z at 14

@@ -2,6 +2,7 @@
 default per quantity across the schemas, the cores and the docs."""
 
 import dataclasses
+import importlib
 import inspect
 import math
 from pathlib import Path
@@ -18,6 +19,7 @@ from erforce_interfaces.runtime.param_schema import (
     HostSchema,
     ParamSchema,
     ParamSpec,
+    check_finite_fields,
     fields_for,
     load_schema,
     robot_param_specs,
@@ -112,6 +114,51 @@ def test_fields_for_refuses_a_core_option_the_node_does_not_declare():
     with pytest.raises(TypeError, match="Core.added_later"):
         fields_for(Core, s.parse(s.defaults()))
     assert fields_for(Core, s.parse(s.defaults()), added_later=5.0) == {"gain": 3.0, "added_later": 5.0}
+
+
+def test_check_finite_fields_names_the_first_field_out_of_its_bound():
+    @dataclasses.dataclass
+    class Core:
+        gain: object = 1.0
+        offset: object = 0
+
+    check_finite_fields(Core(), ("gain", "offset"), 0.0)
+    check_finite_fields(Core(offset=-2.0), ("gain",), 0.0, lower_open=True)
+    for core, lower_open, match in (
+            (Core(), True, r"Core\.offset: must be finite and > 0, got 0$"),
+            (Core(offset=-1e-12), False, r"Core\.offset: must be finite and >= 0"),
+            (Core(gain=math.nan, offset=-1.0), False, r"Core\.gain: .* got nan$"),
+            (Core(gain=math.inf), False, r"Core\.gain: .* got inf$"),
+            (Core(gain="1.0"), False, r"Core\.gain: .* got '1\.0'$")):  # a number's text is no number
+        with pytest.raises(ValueError, match=match):
+            check_finite_fields(core, ("gain", "offset"), 0.0, lower_open=lower_open)
+    check_finite_fields(Core(gain=90.0), ("gain",), 0.0, 90.0)
+    with pytest.raises(ValueError, match=r"Core\.gain: must be finite and in \[0, 90\), got 90\.0$"):
+        check_finite_fields(Core(gain=90.0), ("gain",), 0.0, 90.0, upper_open=True)
+    with pytest.raises(ValueError, match=r"Core\.offset: must be finite and in \(0, 1\], got 0$"):
+        check_finite_fields(Core(), ("offset",), 0.0, 1.0, lower_open=True)
+
+
+@pytest.mark.parametrize(("core", "field", "good", "bad"), [
+    ("erforce_ball_model.passing.player:PlayerConfig", "hold_min_s", 0.0, -0.01),
+    ("erforce_ball_model.passing.player:PlayerConfig", "turn_rate_radps", 1e-9, 0.0),
+    ("erforce_ball_model.passing.decisions:PassConfig", "arrive_speed_mps", 1e-9, 0.0),
+    ("erforce_ball_model.passing.decisions:PassConfig", "chip_step_back_m", 0.0, math.nan),
+    ("erforce_sim.world_types:PhysicsParams", "max_step_s", 1e-9, 0.0),
+    ("erforce_sim.world_types:PhysicsParams", "dribbler_pull_mps2", 0.0, -1.0),
+    ("erforce_sim.world_types:PhysicsParams", "kick_spin_ratio", -1.0, 1.01),
+    ("erforce_sim.world_types:PhysicsParams", "substep_hz", 1e6, 9999.0),
+    ("erforce_ball_model.passing.player:PlayerConfig", "max_receive_angle_rad", 0.0, 0.5 * math.pi),
+    ("erforce_ball_model.passing.decisions:PassConfig", "chip_angle_deg", 0.0, 90.0),
+    ("erforce_ball_model.passing.decisions:PassConfig", "chip_settle_fraction", 1.0, 0.0),
+    ("erforce_ball_model.passing.decisions:PassConfig", "press_fraction", 1.0, math.nan),
+])
+def test_core_configs_refuse_a_field_out_of_bound_naming_it(core, field, good, bad):
+    module, _, name = core.partition(":")
+    cls = getattr(importlib.import_module(module), name)
+    cls(**{field: good})  # at the bound (just above it, for an open one): taken
+    with pytest.raises(ValueError, match=rf"^{name}\.{field}: must be finite"):
+        cls(**{field: bad})
 
 
 # ------------------------------------------------------------------ one default per quantity

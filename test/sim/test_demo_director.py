@@ -23,7 +23,7 @@ from erforce_interfaces.tools.processes import spawn_in_session, stop_process
 from erforce_interfaces.tools.testing import isolated_node
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.clouds import vision_robots_cdr
-from erforce_interfaces.wire.conversions import nanoseconds_to_stamp
+from erforce_interfaces.wire.conversions import nanoseconds_to_stamp, odometry_msg
 from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_sim.demo.demo import RECEIVER, Director
 
@@ -78,6 +78,57 @@ def test_a_late_pump_replays_in_send_order():
         assert director.series.predictions == [(pytest.approx(1.015), 0.5)]
         assert len(director.series.catch_time_latency_s) == 1
         assert 0.0 < director.series.catch_time_latency_s[0] <= director.series.catch_point_latency_s[0]
+
+
+def test_a_light_barrier_edge_gets_the_plant_time_sent_around_it_in_whatever_order_it_is_taken():
+    """The plant sends a tick's /clock, then its light barriers, then its ground truth (stamped with the tick), from
+    one thread. Delivery keeps no order across topics, and a loaded reader misses messages a shallow writer (/clock
+    keeps one) replaced: an edge taken before the clock sent ahead of it, after clocks sent behind it, or with that
+    clock missed still gets the newest simulated time sent before it, and the oldest sent after it as its bound,
+    once every stamped stream has brought a message sent after it. The DDS source timestamps here are given."""
+    ms = 1_000_000
+
+    def clock(director, t_ms, sent):
+        director._on_clock(Clock(clock=nanoseconds_to_stamp(t_ms * ms)), {"source_timestamp": sent})
+
+    def ball_truth(director, t_ms, sent):
+        director._on_ball_truth(odometry_msg(t_ms * 1e-3, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), "ball"),
+                                {"source_timestamp": sent})
+
+    def edge(director, sent):
+        director._on_barrier(RECEIVER, Bool(data=True), {"source_timestamp": sent})
+        director._on_barrier(RECEIVER, Bool(data=False), {"source_timestamp": sent + 1})
+
+    with director_and_publishers() as (director, _pubs):
+        clock(director, 990, 100)
+        edge(director, 205)  # sent in the tick at 1.000 s, its clock not taken yet
+        director.pump()
+        assert not director.edges_settled()
+        clock(director, 1000, 200)
+        clock(director, 1010, 300)
+        director.pump()
+        clock(director, 1020, 400)
+        clock(director, 1030, 500)
+        edge(director, 405)  # sent in the tick at 1.020 s, taken after the clock of 1.030 s
+        director.pump()
+        assert director.edges_settled()
+        assert director.barrier_edges == pytest.approx([1.000, 1.020])
+        assert [pytest.approx(bounds) for bounds in [(1.000, 1.010), (1.020, 1.030)]] == director.barrier_edge_bounds_s
+
+        ball_truth(director, 1035, 550)
+        clock(director, 1040, 600)  # the clocks of 1.050 and 1.060 s missed
+        edge(director, 805)  # sent in the tick at 1.060 s, after the ball's truth of 1.055 s
+        ball_truth(director, 1055, 750)
+        director.pump()
+        assert not director.edges_settled()  # the truth and the clock sent after it may still come
+        ball_truth(director, 1060, 810)
+        director.pump()
+        assert not director.edges_settled()
+        clock(director, 1070, 900)
+        director.pump()
+        assert director.edges_settled()
+        assert director.barrier_edges[-1] == pytest.approx(1.055)
+        assert director.barrier_edge_bounds_s[-1] == pytest.approx((1.055, 1.060))
 
 
 def test_with_ssl_arrivals_a_frame_published_after_its_catch_outputs_still_counts():

@@ -546,7 +546,7 @@ class BallPredictorNode(SchemaNode):
             xyz_cov, vxyz_cov = chip_covariances(frame)
         state = odometry_cdr(t_s, (x, y, 0.0), (vx, vy, 0.0), child_frame_id="ball", z_m=z, vz_mps=vz,
                              position_variance_m2=frame.position_variance_m2, xyz_covariance=xyz_cov,
-                             vxyz_covariance=vxyz_cov)
+                             velocity_variance_m2ps2=frame.velocity_variance_m2ps2, vxyz_covariance=vxyz_cov)
         stop_point = point_cdr(t_s, frame.stop_point_m)
         v_shoot = float64_cdr(f.v_shoot_mps)
         self._phase_msg.data = frame.phase

@@ -53,7 +53,12 @@ from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_sh
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
 from erforce_ball_model.walls import Walls
 from erforce_interfaces.runtime.param_schema import schema_defaults
-from erforce_interfaces.wire.robot_config import BALL_WALL_RESTITUTION, FieldConfig, RobotConfig
+from erforce_interfaces.wire.robot_config import (
+    BALL_CHIP_DAMPING_NAMES,
+    BALL_WALL_RESTITUTION,
+    FieldConfig,
+    RobotConfig,
+)
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
 
@@ -140,7 +145,9 @@ class BallFrame:
     trajectory: BallTrajectory  # the ball at t_s
     phase: str  # unknown (first frame) | sliding | rolling | stopped | chip
     uncertain: bool
+    # the ball filter's variance of x and of y [m^2], of vx and of vy [(m/s)^2] at t_s
     position_variance_m2: float
+    velocity_variance_m2ps2: float
     catch_robots: list[int]
     catch_times_s: list[float]
     catch_points_m: list[tuple[float, float] | None]
@@ -184,7 +191,7 @@ def chip_covariances(frame: BallFrame) -> tuple[np.ndarray, np.ndarray]:
     the frame (its ``chip_covariance``; where the fit determines none, the filter's position variance on x and y and
     ``_UNKNOWN_STD`` squared for the rest: finite, and saying "unknown").
 
-    >>> frame = BallFrame(0.0, (0.0, 0.0), None, None, "chip", False, 4e-6, [], [], [], None, np.diag([1e-6] * 6))
+    >>> frame = BallFrame(0.0, (0.0, 0.0), None, None, "chip", False, 4e-6, 0.01, [], [], [], None, np.diag([1e-6] * 6))
     >>> xyz, vxyz = chip_covariances(frame)
     >>> np.diag(xyz).tolist(), float(vxyz[2, 2])
     ([1e-06, 1e-06, 1e-06], 1e-06)
@@ -286,15 +293,14 @@ class BallPredictor:
 
     def set_vision_geometry(self, field: FieldConfig | None = None, model: BallModelParams | None = None,
                             chip_dampings: Mapping[str, float] | None = None) -> bool:
-        """The field, ball model and/or chip dampings (``damping_z``, ``damping_xy_first_hop``,
-        ``damping_xy_other_hops``: SSL geometry's chip_fixed_loss) of SSL geometry (None: that part unchanged). In
-        effect while ``use_vision_geometry`` (also after later ``configure`` calls), kept for when it is turned on;
-        True when the ball model in use changed (``chip_model`` says the chip model in use). Dampings that make no
-        chip model raise ValueError and change nothing."""
+        """The field, ball model and/or chip dampings (``BALL_CHIP_DAMPING_NAMES``: SSL geometry's chip_fixed_loss)
+        of SSL geometry (None: that part unchanged). In effect while ``use_vision_geometry`` (also after later
+        ``configure`` calls), kept for when it is turned on; True when the ball model in use changed (``chip_model``
+        says the chip model in use). Dampings that make no chip model raise ValueError and change nothing."""
         if chip_dampings is not None:
             chip_dampings = dict(chip_dampings)
-            if not set(chip_dampings) <= {"damping_z", "damping_xy_first_hop", "damping_xy_other_hops"}:
-                raise ValueError(f"chip_dampings: damping_z, damping_xy_first_hop, damping_xy_other_hops only, got "
+            if not set(chip_dampings) <= set(BALL_CHIP_DAMPING_NAMES):
+                raise ValueError(f"chip_dampings: {', '.join(BALL_CHIP_DAMPING_NAMES)} only, got "
                                  f"{sorted(chip_dampings)}")
             dataclasses.replace(self._configured.chip, **chip_dampings)  # ValueError: no chip model
         field, model = field or self._vision_field, model or self._vision_model
@@ -437,7 +443,7 @@ class BallPredictor:
         else:
             phase = PHASE_NAMES[traj.phase]
         covariance = None if chip is None else self._chip.state_covariance_at(t_s)
-        return BallFrame(t_s, (x_m, y_m), status, traj, phase, bool(ball.uncertain), ball.position_variance_m2,
+        return BallFrame(t_s, (x_m, y_m), status, traj, phase, bool(ball.uncertain), *ball.variances_at(t_s),
                          robots, times, points, chip, covariance)
 
     @property

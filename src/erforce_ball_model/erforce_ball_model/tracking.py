@@ -372,6 +372,13 @@ class BallTracker:
     def position_variance_m2(self) -> float:
         return float(self.s[S_VAR_POS])
 
+    def variances_at(self, t_s: float) -> tuple[float, float]:
+        """The filter's variance of each position coordinate [m^2] and of each velocity component [(m/s)^2] at
+        ``t_s`` (not before the newest fused frame): its covariance predicted there, as ``trajectory`` is."""
+        dt = t_s - self.s[S_T]
+        var_pos, _, var_vel = self.kf.predicted(dt)[1] if dt > 0.0 else self.kf.cov
+        return float(var_pos), float(var_vel)
+
     @property
     def _held(self) -> tuple[float, float, float] | None:
         return tuple(self.s[S_HELD_T:S_HELD_Y + 1].tolist()) if self.s[S_HELD] else None

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.runtime.param_schema import check_finite_fields, schema_defaults
 from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_sim.contacts import ContactParams
 from erforce_sim.kicker import DEFAULT_TILT_COMPLIANCE_RAD_PER_M
@@ -80,26 +80,12 @@ class PhysicsParams:
     max_step_s: float = 0.1
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.substep_hz) and 10000.0 <= self.substep_hz <= 1e6):
-            raise ValueError(f"PhysicsParams.substep_hz: must be in [10000, 1e6], got {self.substep_hz!r}")
-        for name in (
-            "traction_damping_nspm",
-            "coulomb_smoothing_radps",
-            "kick_max_speed_mps",
-            "kick_tilt_compliance_rad_per_m",
-            "kick_touch_tolerance_m",
-            "dribbler_time_constant_s",
-            "max_step_s",
-        ):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"PhysicsParams.{name}: must be finite and > 0, got {v!r}")
-        for name in ("wheel_speed_noise_radps", "current_noise_a", "dribbler_pull_mps2"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ValueError(f"PhysicsParams.{name}: must be finite and >= 0, got {v!r}")
-        if not (math.isfinite(self.kick_spin_ratio) and -1.0 <= self.kick_spin_ratio <= 1.0):
-            raise ValueError(f"PhysicsParams.kick_spin_ratio: must be in [-1, 1], got {self.kick_spin_ratio!r}")
+        check_finite_fields(self, ("substep_hz",), 10000.0, 1e6)
+        check_finite_fields(self, ("traction_damping_nspm", "coulomb_smoothing_radps", "kick_max_speed_mps",
+                                   "kick_tilt_compliance_rad_per_m", "kick_touch_tolerance_m",
+                                   "dribbler_time_constant_s", "max_step_s"), 0.0, lower_open=True)
+        check_finite_fields(self, ("wheel_speed_noise_radps", "current_noise_a", "dribbler_pull_mps2"), 0.0)
+        check_finite_fields(self, ("kick_spin_ratio",), -1.0, 1.0)
 
 
 @dataclass(frozen=True)

@@ -64,7 +64,7 @@ from erforce_ball_model.catch_time import (
     robot_time_to_block,
 )
 from erforce_ball_model.chip_model import MAX_HOPS, ChipTrajectory
-from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.runtime.param_schema import check_finite_fields, schema_defaults
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
 
@@ -87,22 +87,14 @@ class PassConfig:
     chip_step_back_m: float = _DEFAULTS["chip_step_back_m"]  # ... or this far behind the receiver, which steps back
 
     def __post_init__(self) -> None:
-        for name in ("arrive_speed_mps", "min_kick_mps", "max_kick_mps", "min_distance_m", "max_distance_m"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        check_finite_fields(self, ("arrive_speed_mps", "min_kick_mps", "max_kick_mps", "min_distance_m",
+                                   "max_distance_m"), 0.0, lower_open=True)
         if self.min_kick_mps > self.max_kick_mps or self.min_distance_m > self.max_distance_m:
             raise ValueError("min_kick_mps <= max_kick_mps and min_distance_m <= max_distance_m, please")
-        for name in ("safe_margin_s", "reaction_s", "chip_step_back_m"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
-        if not 0.0 <= self.press_fraction <= 1.0:
-            raise ValueError(f"press_fraction must be in [0, 1], got {self.press_fraction!r}")
-        if not (math.isfinite(self.chip_angle_deg) and 0.0 <= self.chip_angle_deg < 90.0):
-            raise ValueError(f"chip_angle_deg must be in [0, 90), got {self.chip_angle_deg!r}")
-        if not (math.isfinite(self.chip_settle_fraction) and 0.0 < self.chip_settle_fraction <= 1.0):
-            raise ValueError(f"chip_settle_fraction must be in (0, 1], got {self.chip_settle_fraction!r}")
+        check_finite_fields(self, ("safe_margin_s", "reaction_s", "chip_step_back_m"), 0.0)
+        check_finite_fields(self, ("press_fraction",), 0.0, 1.0)
+        check_finite_fields(self, ("chip_angle_deg",), 0.0, 90.0, upper_open=True)
+        check_finite_fields(self, ("chip_settle_fraction",), 0.0, 1.0, lower_open=True)
 
 
 def kick_speed_for(distance_m: float, arrive_speed_mps: float, params: BallModelParams) -> float:

@@ -41,7 +41,7 @@ from erforce_ball_model.receiver import (
     catch_twist,
     wrap_angle,
 )
-from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.runtime.param_schema import check_finite_fields, schema_defaults
 from erforce_interfaces.wire.robot_config import BALL_RADIUS_M, FieldConfig
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
@@ -105,18 +105,11 @@ class PlayerConfig:
     catcher: CatcherConfig = field(default_factory=CatcherConfig)
 
     def __post_init__(self) -> None:
-        for name in ("hold_min_s", "aim_tolerance_rad", "wait_for_safe_s", "switch_margin_s", "keep_choice_s",
-                     "stall_warn_s", "rest_speed_mps", "rest_for_s", "drop_after_s", "passer_blind_s",
-                     "no_option_wait_s"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
-        for name in ("turn_rate_radps", "pass_timeout_s"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
-        if not (math.isfinite(self.max_receive_angle_rad) and 0.0 <= self.max_receive_angle_rad < 0.5 * math.pi):
-            raise ValueError(f"max_receive_angle_rad must be in [0, pi/2), got {self.max_receive_angle_rad!r}")
+        check_finite_fields(self, ("hold_min_s", "aim_tolerance_rad", "wait_for_safe_s", "switch_margin_s",
+                                   "keep_choice_s", "stall_warn_s", "rest_speed_mps", "rest_for_s", "drop_after_s",
+                                   "passer_blind_s", "no_option_wait_s"), 0.0)
+        check_finite_fields(self, ("turn_rate_radps", "pass_timeout_s"), 0.0, lower_open=True)
+        check_finite_fields(self, ("max_receive_angle_rad",), 0.0, 0.5 * math.pi, upper_open=True)
 
 
 @dataclass(frozen=True)

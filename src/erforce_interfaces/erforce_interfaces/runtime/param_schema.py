@@ -356,6 +356,20 @@ def fields_for(cls: type, config: Any, **given: Any) -> dict[str, Any]:
     return out
 
 
+def check_finite_fields(config: Any, names: Iterable[str], lower: float, upper: float = math.inf, *,
+                        lower_open: bool = False, upper_open: bool = False) -> None:
+    """A ValueError naming ``<class>.<field>`` for the first of ``config``'s fields ``names`` that is not a finite
+    number from ``lower`` to ``upper`` (either end left out when open, as a schema's ``gt<>`` / ``lt<>``): the check
+    a core config makes of its own fields, as it is also built without a node's schema."""
+    for name in names:
+        v = getattr(config, name)
+        if not (isinstance(v, int | float) and math.isfinite(v) and (v > lower if lower_open else v >= lower)
+                and (v < upper if upper_open else v <= upper)):
+            bound = (f"{'>' if lower_open else '>='} {lower:g}" if upper == math.inf else
+                     f"in {'(' if lower_open else '['}{lower:g}, {upper:g}{')' if upper_open else ']'}")
+            raise ValueError(f"{type(config).__name__}.{name}: must be finite and {bound}, got {v!r}")
+
+
 def _schema_text(package: str, node: str) -> str:
     return (importlib.resources.files(package) / "params" / f"{node}.yaml").read_text()
 

@@ -43,6 +43,7 @@ from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_interfaces.wire.ament_index import find_package_share
+from erforce_interfaces.wire.robot_config import BALL_CHIP_DAMPING_NAMES
 
 FIELD_FRAME = "field"
 ROBOT_NAMESPACE_PREFIX = "robot_"
@@ -288,7 +289,8 @@ VISION_BALL = Topic("/vision/ball", PointStamped, QOS_SENSOR, "plant (vision), s
                     "tools", "ball centre in `field` [m], stamp = capture time; noisy, delayed, with dropouts; the "
                     "same balls as /vision/robots")
 BALL_STATE = Topic("/ball/state", Odometry, QOS_STATE, "ball_predictor", "catcher, tools",
-                   "filtered ball: pose [m], twist.linear [m/s] in `field`; covariance from the filter; a chipped "
+                   "filtered ball: pose [m], twist.linear [m/s] in `field`; covariance from the filter (its "
+                   "variance of x, y on the pose's diagonal, of vx, vy on the twist's); a chipped "
                    "ball in the air: pose.position.z its centre's height above its resting height [m] and "
                    "twist.linear.z its vertical speed [m/s] (both 0 on the ground), and the covariances' rows and "
                    "columns 0-2 those of (x, y, z) and (vx, vy, vz) of the fitted flight (from one camera the "
@@ -461,7 +463,7 @@ BALL_MODEL_PARAM_ROWS = ("in_use", "fit", "std_error")
 BALL_CHIP_MODEL_PARAM_LABELS = ("g_mps2", "damping_z", "damping_xy_first_hop", "damping_xy_other_hops",
                                 "min_hop_vz_mps", "max_catch_height_m", "max_receive_height_m")
 #: the columns of /vision/chip_model: the part of the chip model SSL geometry's chip_fixed_loss gives
-VISION_CHIP_MODEL_LABELS = ("damping_z", "damping_xy_first_hop", "damping_xy_other_hops")
+VISION_CHIP_MODEL_LABELS = BALL_CHIP_DAMPING_NAMES
 #: the PointField names of /vision/robots, in this order, each one FLOAT64 (at offsets 0, 8, ..). A PointCloud2
 #: rather than a Float64MultiArray table: its header carries the capture stamp and the frame, and viewers
 #: (rviz, Foxglove) draw it as it is.

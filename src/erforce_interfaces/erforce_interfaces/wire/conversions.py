@@ -220,10 +220,13 @@ def twist_msg(twist: Sequence[float]) -> Twist:
 # ---------------------------------------------------------------- odometry
 def odometry_msg(t_s: float, pose: Sequence[float], velocity: Sequence[float], child_frame_id: str = "",
                  frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
-                 position_variance_m2: float | None = None, out: Odometry | None = None) -> Odometry:
+                 position_variance_m2: float | None = None, out: Odometry | None = None,
+                 velocity_variance_m2ps2: float | None = None) -> Odometry:
     """Planar odometry: pose [x, y, yaw], velocity [vx, vy, wz] in the field frame.
 
     ``spin`` (a ball's angular velocity [wx, wy, wz]) replaces twist.angular when given.
+    ``position_variance_m2`` / ``velocity_variance_m2ps2``: the variance of x and of y / of vx and of vy, on the
+    pose's / twist's covariance diagonal (None: 0 there, as the rest of both covariances).
     ``out``: refill this message instead of building one (publishers that send every tick; a
     message from this function was refilled completely, but one that raised is half-filled).
     """
@@ -248,21 +251,24 @@ def odometry_msg(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     else:
         angular.x = angular.y = 0.0
         angular.z = _finite("wz", velocity[2])
-    cov = msg.pose.covariance
-    cov.fill(0.0)
-    if position_variance_m2 is not None:
-        cov[0] = cov[7] = _finite("position variance", position_variance_m2)
+    for cov, variance, name in ((msg.pose.covariance, position_variance_m2, "position variance"),
+                                (msg.twist.covariance, velocity_variance_m2ps2, "velocity variance")):
+        cov.fill(0.0)
+        if variance is not None:
+            cov[0] = cov[7] = _finite(name, variance)
     return msg
 
 
 def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], child_frame_id: str = "",
                  frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
                  position_variance_m2: float | None = None, z_m: float = 0.0, vz_mps: float = 0.0,
-                 xyz_covariance: np.ndarray | None = None, vxyz_covariance: np.ndarray | None = None) -> bytes:
+                 xyz_covariance: np.ndarray | None = None, vxyz_covariance: np.ndarray | None = None,
+                 velocity_variance_m2ps2: float | None = None) -> bytes:
     """``odometry_msg`` serialized (see the codec below), with the same checks; ``z_m`` and ``vz_mps`` go to
     pose.position.z and twist.linear.z (/ball/state: a chipped ball's height and vertical speed).
     ``xyz_covariance`` / ``vxyz_covariance`` (3, 3): the covariance of (x, y, z) / (vx, vy, vz), the rows and
-    columns 0-2 of the pose's / twist's covariance (the first replaces ``position_variance_m2``'s diagonal)."""
+    columns 0-2 of the pose's / twist's covariance (each replaces ``position_variance_m2``'s /
+    ``velocity_variance_m2ps2``'s diagonal)."""
     x, y, half = _finite("x", pose[0]), _finite("y", pose[1]), 0.5 * _finite("yaw", pose[2], 1.0e6)
     qz, qw = math.sin(half), math.cos(half)  # quaternion_from_yaw's, without a message object
     vx, vy = _finite("vx", velocity[0]), _finite("vy", velocity[1])
@@ -272,12 +278,14 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     else:
         angular = (0.0, 0.0, _finite("wz", velocity[2]))
     variance = 0.0 if position_variance_m2 is None else _finite("position variance", position_variance_m2)
+    v_variance = 0.0 if velocity_variance_m2ps2 is None else _finite("velocity variance", velocity_variance_m2ps2)
     stamp = _stamp_cdr(_seconds_to_ns(t_s))
     if xyz_covariance is None and vxyz_covariance is None:
-        pose_cov, twist_cov = (variance, *_ZEROS[:6], variance, *_ZEROS[:28]), _ZEROS
+        pose_cov = (variance, *_ZEROS[:6], variance, *_ZEROS[:28])
+        twist_cov = (v_variance, *_ZEROS[:6], v_variance, *_ZEROS[:28])
     else:
         pose_cov, twist_cov = _covariance_6x6("pose", xyz_covariance, variance), _covariance_6x6(
-            "twist", vxyz_covariance, 0.0)
+            "twist", vxyz_covariance, v_variance)
     # pose (position, orientation), its 6x6 covariance, twist (linear, angular), its covariance
     return _CDR_LE + stamp + _strings_cdr((frame_id, child_frame_id)) + _odometry_doubles.pack(
         x, y, _finite("z", z_m), 0.0, 0.0, qz, qw, *pose_cov, vx, vy, _finite("vz", vz_mps), *angular, *twist_cov)

@@ -199,6 +199,9 @@ BALL_CHIP_DAMPING_Z = 0.566  # vertical speed off / onto the carpet at a bounce 
 BALL_CHIP_DAMPING_XY_FIRST_HOP = 1.0 / (1.0 + BALL_INERTIA_FACTOR)  # horizontal speed kept at the first bounce
 BALL_CHIP_DAMPING_XY_OTHER_HOPS = 1.0  # ... at the later ones (the ball spins already)
 BALL_CHIP_MIN_HOP_VZ_MPS = 0.05  # a bounce leaving less upwards ends the hops: the ball rolls on
+# The chip model's part that SSL geometry's chip_fixed_loss gives (ChipParams' field names; the columns of
+# /vision/chip_model): the only dampings the world may replace.
+BALL_CHIP_DAMPING_NAMES = ("damping_z", "damping_xy_first_hop", "damping_xy_other_hops")
 # Two heights of a ball's centre above its rest: a robot's body stops a ball up to about its own height (SSL: at
 # most 0.15 m; the plant's robot_height_m), the interception height; but it controls a ball only as high as its
 # light barrier's beam and dribbler bar reach, which sit at a resting ball's centre (the plant's World): a ball

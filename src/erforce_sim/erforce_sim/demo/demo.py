@@ -23,6 +23,7 @@ summary.md (see erforce_sim.demo.report).
 from __future__ import annotations
 
 import argparse
+import bisect
 import math
 import os
 import socket
@@ -125,6 +126,12 @@ class Series:
     catch_point_latency_s: list = field(default_factory=list)
 
 
+def _truth_row(msg: Odometry) -> tuple:
+    """A robot's ground truth as Series keeps it: t, x, y, yaw, vx, vy, w."""
+    t, pose, vel, _ = odometry_from_msg(msg)
+    return (t, *pose, *vel)
+
+
 class Director:
     """The scenario player: places bodies, kicks, watches; its node spins on ``executor``.
 
@@ -153,8 +160,15 @@ class Director:
         self.receivers = (RECEIVER, *list(TEAMMATE_POSES)[: receivers - 1])
         self.sim_ns = -1
         self.series = Series()
-        self.barrier_edges: list[float] = []  # rising edges of any receiver's light barrier
+        # Rising edges of any receiver's light barrier, in simulated time: each the newest time the plant had sent
+        # before it (its /clock or ground truth), and (that, the oldest it sent after) in barrier_edge_bounds_s.
+        self.barrier_edges: list[float] = []
+        self.barrier_edge_bounds_s: list[tuple[float, float]] = []
         self.edge_robots: list[int] = []  # whose, per edge
+        self._edges_sent_ns: list[int] = []  # each edge's DDS source timestamp
+        self._unsettled_edges: list[int] = []
+        # per stamped plant stream: the source timestamps and simulated times [ns] of its newest messages
+        self._plant_times: dict[str, tuple[list[int], list[int]]] = {}
         self._barrier = dict.fromkeys(self.receivers, False)
         self.events: list[str] = []
         self.commanded: set[int] = set()  # receivers whose catcher has sent a cmd_vel
@@ -173,12 +187,12 @@ class Director:
         feed(q.CATCH_POINT, self._on_catch_point, RECEIVER)
         self._teammate_catch_time: dict[int, float] = {}
         for r in self.receivers:
-            feed(q.BALL_DETECTED, lambda m, r=r: self._on_barrier(r, m), r)
+            feed(q.BALL_DETECTED, lambda m, info, r=r: self._on_barrier(r, m, info), r)
             feed(q.CMD_VEL, lambda _m, r=r: self.commanded.add(r), r)
             if r != RECEIVER:
                 self.series.teammate_predictions[r] = []
                 self.series.teammate_truth[r] = []
-                feed(q.GROUND_TRUTH_ODOM, lambda m, r=r: self._on_robot_truth(m, self.series.teammate_truth[r]), r)
+                feed(q.GROUND_TRUTH_ODOM, lambda m, r=r: self.series.teammate_truth[r].append(_truth_row(m)), r)
                 feed(q.CATCH_TIME, lambda m, r=r: self._on_teammate_catch_time(r, m), r)
                 feed(q.CATCH_POINT, lambda m, r=r: self._on_teammate_catch_point(r, m), r)
         # robot_0's velocity controller answers (500 Hz: dropped once seen, see pump)
@@ -211,6 +225,7 @@ class Director:
     def pump(self) -> int:
         """Run the listeners for everything that arrived, oldest sent first; returns how many."""
         ran = run_sampled(self._feeds)
+        self._settle_edges()
         if self.setpoints_seen and self._setpoints_feed is not None:
             self._feeds.remove(self._setpoints_feed)
             self.node.destroy_subscription(self._setpoints_feed)
@@ -238,17 +253,62 @@ class Director:
         return (self.sim_ns > 0 and bool(self.series.ball_state) and self.commanded == set(self.receivers)
                 and self.setpoints_seen)
 
-    # ------------------------------------------------------------ listeners
-    def _on_clock(self, msg: Clock) -> None:
-        self.sim_ns = stamp_to_nanoseconds(msg.clock)
+    # ---------------------------------------------------- light barrier edges
+    # A Bool carries no stamp, and the plant sends it from the thread that sends /clock and ground truth; so an
+    # edge happened after the newest of those sent before it and by the oldest sent after it (DDS source
+    # timestamps: the plant's clock at each send). Delivery across topics keeps no order, and a loaded reader
+    # can miss messages of a shallow writer (/clock keeps one), so the time this observer took the edge says
+    # nothing: an edge settles once every stamped stream has brought a message sent after it.
+    _PLANT_TIMES_KEPT = 4096
 
-    def _on_ball_truth(self, msg: Odometry) -> None:
+    def _note_plant_time(self, stream: str, sent_ns: int, sim_ns: int) -> None:
+        sent, sim = self._plant_times.setdefault(stream, ([], []))
+        sent.append(sent_ns)  # one writer's messages arrive in the order it sent them
+        sim.append(sim_ns)
+        if len(sent) > 2 * self._PLANT_TIMES_KEPT:
+            del sent[: -self._PLANT_TIMES_KEPT], sim[: -self._PLANT_TIMES_KEPT]
+
+    def _edge_bounds_ns(self, edge_sent_ns: int) -> tuple[int, int] | None:
+        """(newest simulated time sent before the edge, oldest sent after it), or None until every stream that
+        flows has sent one after it."""
+        lower, upper = -1, None
+        for sent, sim in self._plant_times.values():
+            k = bisect.bisect_right(sent, edge_sent_ns)
+            if k == len(sent):
+                return None
+            lower = max(lower, sim[k - 1]) if k else lower
+            upper = sim[k] if upper is None else min(upper, sim[k])
+        return None if upper is None else (lower, upper)
+
+    def _settle_edges(self) -> None:
+        still = []
+        for k in self._unsettled_edges:
+            bounds = self._edge_bounds_ns(self._edges_sent_ns[k])
+            if bounds is None:
+                still.append(k)
+                continue
+            lower_ns = bounds[0] if bounds[0] >= 0 else bounds[1]
+            self.barrier_edges[k] = lower_ns * 1e-9
+            self.barrier_edge_bounds_s[k] = (lower_ns * 1e-9, bounds[1] * 1e-9)
+        self._unsettled_edges = still
+
+    def edges_settled(self) -> bool:
+        """Every light barrier edge has its simulated time (see ``barrier_edges``)."""
+        return not self._unsettled_edges
+
+    # ------------------------------------------------------------ listeners
+    def _on_clock(self, msg: Clock, info) -> None:
+        self.sim_ns = stamp_to_nanoseconds(msg.clock)
+        self._note_plant_time("clock", info["source_timestamp"], self.sim_ns)
+
+    def _on_ball_truth(self, msg: Odometry, info) -> None:
         t, pose, vel, _ = odometry_from_msg(msg)
         self.series.ball_truth.append((t, pose[0], pose[1], vel[0], vel[1]))
+        self._note_plant_time("ball", info["source_timestamp"], stamp_to_nanoseconds(msg.header.stamp))
 
-    def _on_robot_truth(self, msg: Odometry, rows: list | None = None) -> None:
-        t, pose, vel, _ = odometry_from_msg(msg)
-        (self.series.robot_truth if rows is None else rows).append((t, *pose, *vel))
+    def _on_robot_truth(self, msg: Odometry, info) -> None:
+        self.series.robot_truth.append(_truth_row(msg))
+        self._note_plant_time("robot", info["source_timestamp"], stamp_to_nanoseconds(msg.header.stamp))
 
     def _on_motors(self, msg: Float64MultiArray) -> None:
         table = table_from_msg(msg, contract.GROUND_TRUTH_MOTOR_COLUMNS)
@@ -319,10 +379,13 @@ class Director:
     def _on_setpoints(self, _msg) -> None:
         self.setpoints_seen = True
 
-    def _on_barrier(self, robot: int, msg: Bool) -> None:
+    def _on_barrier(self, robot: int, msg: Bool, info) -> None:
         if msg.data and not self._barrier[robot]:
-            self.barrier_edges.append(self.sim_s)
+            self.barrier_edges.append(self.sim_s)  # until it settles
+            self.barrier_edge_bounds_s.append((self.sim_s, math.inf))
             self.edge_robots.append(robot)
+            self._edges_sent_ns.append(info["source_timestamp"])
+            self._unsettled_edges.append(len(self.barrier_edges) - 1)
         self._barrier[robot] = bool(msg.data)
 
     # ------------------------------------------------------------- actions
@@ -396,6 +459,7 @@ class Director:
         end = t_start + scene.timeout_s
         self.spin_until(lambda: len(self.barrier_edges) > n_edges or self.sim_s >= end,
                         60.0 + 20 * scene.timeout_s, "the catch")
+        self.spin_until(self.edges_settled, 10.0, "the plant's times around the light barrier's edge")
         actual = self.barrier_edges[n_edges] if len(self.barrier_edges) > n_edges else None
         by = self.edge_robots[n_edges] if actual is not None else None
         # This observer may lag a flat-out graph: take in the predictions up to the one compared.
