@@ -491,7 +491,8 @@ class ChipDetector:
         flight at that angle is fitted with the commanded ground speed as one more equation, weighed by
         ``kick_speed_std_ratio`` (fit_flight_at_angle), from ``hint_min_sightings`` new sightings on, and kept
         while the free flight does not explain the sightings better by ``HINT_CONTRADICTED``. A chip hint that the
-        ground explains better than its flight by ``HINT_CONTRADICTED`` is dropped, a chip taken on it withdrawn."""
+        cameras contradict (that free flight, or the ground better than the hinted flight by as much: a ball that did
+        not fly) is dropped, a chip taken on it withdrawn: the kick is judged from the cameras alone."""
         if not (math.isfinite(t_s) and math.isfinite(angle_deg) and 0.0 <= angle_deg < 90.0):
             raise ValueError(f"kick hint at {t_s!r} s with angle {angle_deg!r} deg: the time must be finite, the "
                              f"angle in [0, 90)")
@@ -720,6 +721,10 @@ class ChipDetector:
         if self._new_sightings(rows) < (cfg.min_sightings if prior is None else cfg.hint_min_sightings):
             return
         commanded = None if prior is None else self._commanded_flight(rows, prior)
+        if commanded is not None and commanded[0] is None:  # the cameras contradict the command
+            self._drop_hint()
+            self._judge(t_s)  # from the cameras alone
+            return
         if commanded is not None:
             fit, rows = commanded
             tan_angle = math.tan(math.radians(self.hint_angle_deg))
@@ -740,7 +745,9 @@ class ChipDetector:
                     fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
                 tan_angle = math.tan(math.radians(self.hint_angle_deg))
                 fit = self._best_flight(rows, tan_angle)
-        if fit is not None and self._chip_hinted() and self._hint_contradicted(fit, rows):
+        if fit is not None and self._chip_hinted() and self._ground_contradicts(fit, rows):
+            self._drop_hint()
+            self._judge(t_s)
             return
         if fit is None or not self._is_chip(fit, rows):
             return
@@ -762,8 +769,8 @@ class ChipDetector:
 
     def _commanded_flight(self, rows: np.ndarray, prior: tuple[float, float]):
         """The flight at the hint's angle with its commanded speed as a prior, fitted to the sightings of its first
-        flight, and those sightings; None when the cameras contradict it (the free flight explains them better by
-        ``HINT_CONTRADICTED``) or it is not determined: then the kick is judged as with the angle alone."""
+        flight, and those sightings; (None, sightings) when the cameras contradict it (the free flight explains them
+        better by ``HINT_CONTRADICTED``); None when it is not determined (then judged as with the angle alone)."""
         cfg, g = self.config, self.params.g_mps2
         tan_angle = math.tan(math.radians(self.hint_angle_deg))
         fit = self._best_flight(rows, tan_angle, prior)
@@ -777,19 +784,19 @@ class ChipDetector:
                 return None
         free = self._best_flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
         if free is not None and (fit.rss_m2 - free.rss_m2) / cfg.noise_m**2 > HINT_CONTRADICTED:
-            return None
+            return None, rows
         return fit, rows
 
-    def _hint_contradicted(self, fit: ChipFit, rows: np.ndarray) -> bool:
+    def _ground_contradicts(self, fit: ChipFit, rows: np.ndarray) -> bool:
         """The ground explains the sightings better than the hinted flight ``fit`` by ``HINT_CONTRADICTED``: the
-        ball did not fly (a flat ball, which one camera's first frames may not tell from the chip). The hint is
-        dropped (the kick is judged from the cameras alone from now on) and a chip taken on it withdrawn."""
-        ground = self._best_ground(rows)
-        if not (ground - fit.rss_m2) / self.config.noise_m**2 < -HINT_CONTRADICTED:
-            return False
+        ball did not fly (a flat ball, which one camera's first frames may not tell from the chip)."""
+        return (self._best_ground(rows) - fit.rss_m2) / self.config.noise_m**2 < -HINT_CONTRADICTED
+
+    def _drop_hint(self) -> None:
+        """The cameras contradict the kick's hint: it is dropped (the kick is judged from the cameras alone from now
+        on) and a chip taken on it withdrawn."""
         self.hint_angle_deg = self.hint_speed_mps = None
         self.fit = self._chip = self._launch_covariance = self.detected_at_s = None
-        return True
 
     def _flight(self, rows: np.ndarray) -> ChipFit | None:
         """The flight judged: the best one a chip kicker launches (with a chip hint: the best free one)."""
