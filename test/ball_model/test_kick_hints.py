@@ -146,3 +146,23 @@ def test_a_bad_commanded_speed_is_refused_by_name():
     for bad in (0.0, -1.0, math.nan, math.inf):
         with pytest.raises(ValueError, match="speed"):
             predictor.kick_hint(0.0, 45.0, bad)
+
+
+def test_the_commanded_speed_adds_to_the_flights_information():
+    """The covariance of a commanded flight (flight_covariance with the speed prior): the command is one more
+    measurement of the ground speed u . v with variance s^2, so that speed's variance is the scalar Kalman update of
+    the sightings' own, var s^2 / (var + s^2) (noise-free sightings and an exact command: both fits' sigma is the
+    noise)."""
+    from erforce_ball_model.chip_tracking import fit_flight_at_angle, flight_covariance
+
+    camera = (2.0, 1.0, 4.0)
+    v = 2.0
+    rows = np.array([(t, *seen(v * max(t, 0.0), 0.0, max(v * t - 0.5 * G * t * t, 0.0), camera), *camera)
+                     for t in (-0.03, -0.015, 0.012, 0.026, 0.04)])  # at rest at the origin, launched at 0
+    fit = fit_flight_at_angle(rows, 0.0, None, G, NOISE_M, 1.0, speed_prior=(v, 0.2))
+    assert (fit.vx_mps, fit.vz_mps) == pytest.approx((v, v), abs=1e-9)
+    alone = flight_covariance(rows, fit, None, G, NOISE_M, tan_angle=1.0)
+    commanded = flight_covariance(rows, fit, None, G, NOISE_M, tan_angle=1.0, speed_prior=(v, 0.2))
+    var = alone[2, 2]  # the ground speed along +x
+    assert commanded[2, 2] == pytest.approx(var * 0.04 / (var + 0.04), rel=1e-9)
+    assert var > 1e-4  # the sightings alone leave it unsure enough for the command to count
