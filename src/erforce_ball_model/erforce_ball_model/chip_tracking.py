@@ -782,15 +782,26 @@ class ChipDetector:
             fit = self._best_flight(rows, tan_angle, prior)
             if fit is None:
                 return None
-        free = self._best_flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
+        free = None
+        if self._new_sightings(rows) >= cfg.min_sightings:  # once a chip is taken: launched when the commanded one
+            free = self._best_flight(rows) if self.fit is None else fit_flight(
+                rows, fit.t_launch_s, self._origins([fit.t_launch_s]), g, cfg.noise_m, self._pre_velocity)
         if free is not None and (fit.rss_m2 - free.rss_m2) / cfg.noise_m**2 > HINT_CONTRADICTED:
             return None, rows
         return fit, rows
 
     def _ground_contradicts(self, fit: ChipFit, rows: np.ndarray) -> bool:
         """The ground explains the sightings better than the hinted flight ``fit`` by ``HINT_CONTRADICTED``: the
-        ball did not fly (a flat ball, which one camera's first frames may not tell from the chip)."""
-        return (self._best_ground(rows) - fit.rss_m2) / self.config.noise_m**2 < -HINT_CONTRADICTED
+        ball did not fly (a flat ball, which one camera's first frames may not tell from the chip). Once a chip is
+        taken, the best ground kick of one batch (the launch times' first grid and the flight's), not a search: it is
+        checked every frame."""
+        if self.fit is None:
+            ground = self._best_ground(rows)  # the judgement's own (kept for _is_chip)
+        else:
+            times = np.append(np.linspace(*self._launch_times(), self.config.launch_steps), fit.t_launch_s)
+            ground = float(np.min(_grounds(rows, times, self._origins(times), self.ball_params, GROUND_ITERATIONS,
+                                           self._pre_velocity)))
+        return (ground - fit.rss_m2) / self.config.noise_m**2 < -HINT_CONTRADICTED
 
     def _drop_hint(self) -> None:
         """The cameras contradict the kick's hint: it is dropped (the kick is judged from the cameras alone from now
