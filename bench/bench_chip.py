@@ -20,9 +20,10 @@ noise); the detection delay (median, p90); the predictor's time per vision frame
 for every camera's ball of one capture; mean, p99), as the thread's CPU time (a shared machine's load does not
 inflate it).
 ``python bench/bench_chip.py [--quick] [--seed N] [--cameras bench|erforce] [--without ERROR ...] [--min-gain G]
-[--kick-hints]`` (``--without position_error`` / ``object_offset``: the camera model without that fixed error)
-(``--kick-hints``: the kicker's angle reaches the predictor at each kick, BallPredictor.kick_hint; the chips'
-and the flat kicks' alike).
+[--kick-hints [--hint-speed-error R]]`` (``--without position_error`` / ``object_offset``: the camera model without
+that fixed error) (``--kick-hints``: the kicker's angle reaches the predictor at each kick, BallPredictor.kick_hint;
+the chips' and the flat kicks' alike; ``--hint-speed-error R``: the hint carries the commanded speed too, the true
+launch speed times ``1 + R z``, z standard normal per kick: 0 is a kicker that meets its command).
 """
 
 from __future__ import annotations
@@ -88,11 +89,13 @@ def _truth_at(ball, t_s: float) -> tuple[float, float, float]:
 
 
 def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None, hint_deg: float | None = None,
-             noise_free: bool = False, cameras: CameraRealism = BENCH_CAMERAS) -> dict:
+             noise_free: bool = False, cameras: CameraRealism = BENCH_CAMERAS,
+             hint_speed_mps: float | None = None) -> dict:
     """One kick through cameras and predictor: when a chip was first reported (from the kick) and the first
-    touchdown point the predictor had ``TOUCHDOWN_AFTER_S`` after that. ``hint_deg``: the kicker's word (its
-    angle, 0 flat) goes to the predictor at the kick's time, before the first frame after it. ``noise_free``:
-    neither the world's vision nor the cameras add noise or drop a ball (the cameras' fixed errors stay)."""
+    touchdown point the predictor had then and ``TOUCHDOWN_AFTER_S`` after that. ``hint_deg``: the kicker's word
+    (its angle, 0 flat; ``hint_speed_mps`` its commanded speed) goes to the predictor at the kick's time, before the
+    first frame after it. ``noise_free``: neither the world's vision nor the cameras add noise or drop a ball (the
+    cameras' fixed errors stay)."""
     rng = np.random.default_rng(seed)
     vision = VisionSystem(NOISE_FREE_VISION if noise_free else cameras.world_vision(VISION), rng)
     splitter = SslCameraSplitter.quadrants(FIELD, None, cameras.noise_free() if noise_free else cameras, seed=seed)
@@ -101,13 +104,13 @@ def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None, hint_d
     config = PredictorConfig(num_robots=1, field=FIELD, chip_detector=detector or ChipDetectorConfig())
     predictor = BallPredictor(config)
     t_kick = REST_S + rng.uniform(0.0, 1.0 / VISION.rate_hz)
-    detected_s, touchdown = None, None
+    detected_s, touchdown, first_touchdown = None, None, None
     period = 1.0 / VISION.rate_hz
     cost_s = []  # the predictor's CPU time per vision frame (every camera's ball of the capture)
     for k in range(int((REST_S + RUN_S) * VISION.rate_hz)):
         t = k * period
         if hint_deg is not None and t_kick <= t < t_kick + period:
-            predictor.kick_hint(t_kick, hint_deg)
+            predictor.kick_hint(t_kick, hint_deg, hint_speed_mps)
         x, y, z = _truth_at(ball, t - t_kick)
         vision.capture(t, (x, y), [], z)
         frame = vision.poll(t + VISION.latency_s)[0]
@@ -124,13 +127,16 @@ def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None, hint_d
             cost_s.append(time.thread_time() - t0)
             if answer is not None and answer.chip is not None and detected_s is None:
                 detected_s = t
+                first_touchdown = predictor.chip_detector.launch.touchdown_points_m[0]
             if detected_s is not None and touchdown is None and t >= detected_s + TOUCHDOWN_AFTER_S - 1e-9:
                 launch = predictor.chip_detector.launch
                 touchdown = None if launch is None else launch.touchdown_points_m[0]
     out = {"delay_s": None if detected_s is None else detected_s - t_kick, "touchdown_error_m": None,
-           "frame_cost_s": cost_s}
-    if touchdown is not None and isinstance(ball, ChipTrajectory):
-        out["touchdown_error_m"] = float(np.hypot(*(touchdown - ball.touchdown_points_m[0])))
+           "first_touchdown_error_m": None, "frame_cost_s": cost_s}
+    if isinstance(ball, ChipTrajectory):
+        for key, point in (("touchdown_error_m", touchdown), ("first_touchdown_error_m", first_touchdown)):
+            if point is not None:
+                out[key] = float(np.hypot(*(point - ball.touchdown_points_m[0])))
     return out
 
 
@@ -143,19 +149,30 @@ def _hint(ball, hints: bool) -> float | None:
     return 0.0
 
 
+def _commanded(balls: list, error: float | None, seed: int) -> list[float | None]:
+    """The speed each kick was commanded at (None: the hint carries none): its launch speed times 1 + error z."""
+    if error is None:
+        return [None] * len(balls)
+    z = np.random.default_rng(seed + 7_000_000).standard_normal(len(balls))
+    return [float(np.linalg.norm(b.velocity_mps)) * (1.0 + error * zk) for b, zk in zip(balls, z, strict=True)]
+
+
 def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints: bool = False,
-        cameras: CameraRealism = BENCH_CAMERAS) -> list[dict]:
+        cameras: CameraRealism = BENCH_CAMERAS, hint_speed_error: float | None = None) -> list[dict]:
     n = 100 if quick else 500
     detector = ChipDetectorConfig() if min_gain is None else ChipDetectorConfig(min_gain=min_gain)
     rng = np.random.default_rng(seed)
     chip_balls = [_random_kick(rng, True) for _ in range(n)]
     flat_balls = [_random_kick(rng, False) for _ in range(n)]
-    chips = [run_kick(b, seed * 100_000 + k, detector, _hint(b, hints), cameras=cameras)
-             for k, b in enumerate(chip_balls)]
-    flats = [run_kick(b, seed * 100_000 + n + k, detector, _hint(b, hints), cameras=cameras)
-             for k, b in enumerate(flat_balls)]
-    clean = [run_kick(b, seed * 100_000 + k, detector, _hint(b, hints), noise_free=True, cameras=cameras)["delay_s"]
-             for k, b in enumerate(chip_balls)]
+    chip_speeds = _commanded(chip_balls, hint_speed_error if hints else None, seed)
+    flat_speeds = _commanded(flat_balls, hint_speed_error if hints else None, seed + 1)
+    chips = [run_kick(b, seed * 100_000 + k, detector, _hint(b, hints), cameras=cameras, hint_speed_mps=v)
+             for k, (b, v) in enumerate(zip(chip_balls, chip_speeds, strict=True))]
+    flats = [run_kick(b, seed * 100_000 + n + k, detector, _hint(b, hints), cameras=cameras, hint_speed_mps=v)
+             for k, (b, v) in enumerate(zip(flat_balls, flat_speeds, strict=True))]
+    clean = [run_kick(b, seed * 100_000 + k, detector, _hint(b, hints), noise_free=True, cameras=cameras,
+                      hint_speed_mps=v)["delay_s"]
+             for k, (b, v) in enumerate(zip(chip_balls, chip_speeds, strict=True))]
     delays = np.array([c["delay_s"] for c in chips if c["delay_s"] is not None])
     within = np.sum(delays <= DETECT_WITHIN_S) if len(delays) else 0
     # a chip whose ball is below LOW_M by DETECT_WITHIN_S: its projected path differs from a ground ball's by about
@@ -165,6 +182,7 @@ def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints
     rest = [c for c, is_low in zip(chips, low, strict=True) if not is_low]
     rest_within = sum(c["delay_s"] is not None and c["delay_s"] <= DETECT_WITHIN_S for c in rest)
     errors = np.array([c["touchdown_error_m"] for c in chips if c["touchdown_error_m"] is not None])
+    first_errors = np.array([c["first_touchdown_error_m"] for c in chips if c["first_touchdown_error_m"] is not None])
     apex_m = [b.apex_height_m for b in chip_balls]
     missed = [c["delay_s"] is None or c["delay_s"] > DETECT_WITHIN_S for c in chips]
     missed_clean = [d is None or d > DETECT_WITHIN_S for d in clean]
@@ -172,6 +190,8 @@ def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints
     cost_us = 1e6 * np.concatenate([k["frame_cost_s"] for k in chips + flats])
     note = f"{n} random kicks, seed {seed}, cameras {cameras.name}, min_gain {detector.min_gain:g}" + (
         ", kick hints" if hints else "")
+    if hints and hint_speed_error is not None:
+        note += f" with the commanded speed (off by {hint_speed_error:g} sd)"
     return [
         {"name": "chips detected within 0.15 s of the kick", "value": 100.0 * within / n, "unit": "%",
          "target": ">= 95", "note": note},
@@ -191,6 +211,10 @@ def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints
          "target": "", "note": _by_apex(apex_m, missed_clean)},
         {"name": "flat kicks reported as a chip", "value": 100.0 * false_chips / n, "unit": "%", "target": "<= 1",
          "note": note},
+        {"name": "first touchdown point error at detection, median", "value": float(np.median(first_errors)),
+         "unit": "m", "target": "", "note": f"{len(first_errors)} chips"},
+        {"name": "first touchdown point error at detection, p90", "value": float(np.percentile(first_errors, 90)),
+         "unit": "m", "target": "", "note": ""},
         {"name": "first touchdown point error 0.1 s after detection, median", "value": float(np.median(errors)),
          "unit": "m", "target": "<= 0.15", "note": f"{len(errors)} chips"},
         {"name": "first touchdown point error 0.1 s after detection, p90",
@@ -230,10 +254,13 @@ def main(argv: list[str] | None = None) -> int:
                         help="leave these fixed errors out of the camera model")
     parser.add_argument("--kick-hints", action="store_true", help="the kicker tells the predictor each kick's "
                         "angle (0 flat) at the kick (BallPredictor.kick_hint)")
+    parser.add_argument("--hint-speed-error", type=float, default=None, metavar="R", help="with --kick-hints: the "
+                        "hint carries the commanded speed, the launch speed times 1 + R z (z standard normal)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     print("\n".join(markdown_table(run(args.quick, args.seed, args.min_gain, args.kick_hints,
-                                        camera_model(args.cameras, tuple(args.without))))))
+                                        camera_model(args.cameras, tuple(args.without)),
+                                        args.hint_speed_error))))
     print(f"\n(total {time.perf_counter() - t0:.1f} s)")
     return 0
 

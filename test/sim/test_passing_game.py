@@ -138,3 +138,22 @@ def test_a_model_the_predictor_takes_mid_game_reaches_the_ai_at_its_next_answer(
     game.predictor.set_vision_geometry(model=model)
     game._on_frame(VisionFrame(0, 1.0, 1.02, (BallDetection(0.5, 0.2),), ()))
     assert game.player.model is model and all(r.model is model for r in receivers)
+
+
+def test_through_the_cameras_the_predictor_finds_our_chip_itself():
+    """The scene above with the ball seen through the quadrant cameras and our kicks as hints (GameConfig.cameras),
+    no true chip: the predictor reports the chip in the air from its own detector (a frame with a chip, the hint's
+    angle and speed), and the chip over the opponent completes."""
+    step_back = PlayerConfig(passing=PassConfig(chip_step_back_m=0.5))
+    cfg = GameConfig(team_size=2, opponents=1, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)),
+                     opponent_positions=((-3.0, 0.4),), cameras=True, player=step_back)
+    game = PassingGame(cfg, seed=0)
+    chips = []
+    game.runner.vision_listeners.append(lambda frame: chips.append(game.predictor.chip_detector.launch))
+    (record,) = game.play()
+    assert record.kick_angle_deg == pytest.approx(45.0)
+    launch = next(c for c in chips if c is not None)
+    vx, vy, vz = launch.velocity_mps.tolist()
+    assert math.degrees(math.atan2(vz, math.hypot(vx, vy))) == pytest.approx(45.0, abs=1.0)
+    assert game.predictor.chip_detector.hint_speed_mps == pytest.approx(record.kick_speed_mps, rel=1e-9)
+    assert record.rated_safe and record.outcome == "completed" and record.caught_by == "robot_1"

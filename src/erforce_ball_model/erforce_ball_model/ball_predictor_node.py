@@ -32,6 +32,7 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, ChipParams
 from erforce_ball_model.catch_time import RobotLimits, load_kernels
+from erforce_ball_model.chip_tracking import ChipDetectorConfig
 from erforce_ball_model.predictor import BallFrame, BallPredictor, FrameTimes, PredictorConfig, chip_covariances
 from erforce_ball_model.tracking import TrackerConfig
 from erforce_ball_model.tracking import load_kernels as load_ball_filter_kernels
@@ -122,6 +123,7 @@ def build_config(c) -> PredictorConfig:
         ident_max_std=(c.ident_max_std_a_slide_mps2, c.ident_max_std_a_roll_mps2, c.ident_max_std_c_switch),
         timing_log_every=c.timing_log_every,
         use_vision_geometry=c.use_vision_geometry,
+        chip_detector=ChipDetectorConfig(kick_speed_std_ratio=c.kick_speed_std_ratio),
     )
 
 
@@ -341,7 +343,8 @@ class BallPredictorNode(SchemaNode):
         self._kick_angles_deg[robot] = float(angle)
 
     def _on_kick(self, robot: int, msg: Float64) -> None:
-        """A kick commanded: a hint for the chip detector at the newest vision stamp (none before the first frame)."""
+        """A kick commanded: a hint for the chip detector at the newest vision stamp (none before the first frame),
+        with the commanded speed (weighed by ``kick_speed_std_ratio``)."""
         speed = msg.data
         if not (self._values["kick_hints"] and math.isfinite(speed) and speed > 0.0):
             return
@@ -349,7 +352,7 @@ class BallPredictorNode(SchemaNode):
             if self._t_vision_s is None or self._kick_angles_deg[robot] is None:
                 return
             try:
-                self._predictor.kick_hint(self._t_vision_s, self._kick_angles_deg[robot])
+                self._predictor.kick_hint(self._t_vision_s, self._kick_angles_deg[robot], speed)
             except ValueError as exc:
                 self._warn.warn(f"kick{robot}", f"robot_{robot}: kick not taken as a hint: {exc}")
 

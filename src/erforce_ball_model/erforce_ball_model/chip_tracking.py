@@ -59,10 +59,18 @@ from erforce_ball_model.ball_model import (
     kick_distances,
 )
 from erforce_ball_model.chip_model import ChipTrajectory
+from erforce_interfaces.runtime.param_schema import schema_defaults
 
 __all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_flight_at_angle",
            "fit_ground", "flight_covariance", "triangulate_height", "within_kicker_limits"]
 
+
+_DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
+
+# The cameras contradict a chip hint when another model explains the sightings better than the hinted flight by this
+# much (noise variances; chi-square with 2 degrees of freedom at 1 %): the free flight (the commanded speed and angle
+# give way to it) or the ground (the ball did not fly: the hint is dropped).
+HINT_CONTRADICTED = 9.21
 
 # A ground fit's iterations: its deceleration along the motion from the previous iteration's speed.
 GROUND_ITERATIONS = 3
@@ -124,6 +132,11 @@ class ChipDetectorConfig:
     # (noise variances) and still be taken (it guards against a hint whose ball did not fly)
     hint_max_loss: float = 4.0
     flat_hint_factor: float = 4.0  # with a flat-kick hint a chip needs this many times min_gain
+    # how far a kick's launch speed strays from the commanded one (a kick hint's speed): one standard deviation as a
+    # share of the command; it weighs the command against what the cameras see
+    kick_speed_std_ratio: float = _DEFAULTS["kick_speed_std_ratio"]
+    # with a chip hint that carries the speed the flight is known up to its direction: this many new sightings judge
+    hint_min_sightings: int = 2
     # a fit taken as the chip explains its sightings to within this many ``noise_m`` (root mean square per axis): a
     # worse one is of sightings of a ball no longer in that flight
     fit_rms_sigma: float = 10.0
@@ -246,13 +259,15 @@ def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, no
 
 
 def flight_covariance(rows: np.ndarray, fit: ChipFit, origin, g_mps2: float, noise_m: float,
-                      pre_velocity_mps=(0.0, 0.0), tan_angle: float | None = None) -> np.ndarray | None:
+                      pre_velocity_mps=(0.0, 0.0), tan_angle: float | None = None,
+                      speed_prior: tuple[float, float] | None = None) -> np.ndarray | None:
     """The covariance (6, 6) of a fitted flight's ``(x0, y0, vx, vy, vz, t_launch)`` by Gauss-Newton,
     ``sigma^2 (J^T J)^-1``: J the derivatives of ``_system``'s ray residuals at the fit, the launch time's column
     included (the fit searched it); ``sigma`` the larger of ``noise_m`` and the fit's own rms residual per degree
     of freedom (noise or a model worse than assumed widens it). ``origin``: None, or ``(x, y, vx, vy)``: the launch
     point prior at ``t_launch`` and how it moves with it. ``tan_angle``: the fit was at a known elevation (``vz =
-    tan_angle |v|``, fit_flight_at_angle), one unknown fewer. None when the sightings do not determine it.
+    tan_angle |v|``, fit_flight_at_angle), one unknown fewer; ``speed_prior``: ``(v_mps, std_mps)``, with the
+    commanded ground speed as one more equation. None when the sightings do not determine it.
 
     From one camera the height and the ground distance trade off along the camera's ray: few early sightings leave
     ``vz`` (and with it the height) far less certain than the ground track."""
@@ -277,6 +292,13 @@ def flight_covariance(rows: np.ndarray, fit: ChipFit, origin, g_mps2: float, noi
     scale[:n] = scale[n:2 * n] = rows[:, 5] / np.maximum(rows[:, 5] - z_m, 1e-3)
     jac *= scale[:, None]
     rss_m2 = float(np.sum((scale * (a @ np.array(fit[1:6]) - b)) ** 2))
+    v_ground = math.hypot(fit.vx_mps, fit.vy_mps)
+    if speed_prior is not None and v_ground > 0.0:  # the commanded ground speed: one more equation
+        weight = noise_m / speed_prior[1]
+        prior_row = np.zeros((1, 6))
+        prior_row[0, 2:4] = weight * fit.vx_mps / v_ground, weight * fit.vy_mps / v_ground
+        jac = np.concatenate([jac, prior_row])
+        rss_m2 += (weight * (v_ground - speed_prior[0])) ** 2
     basis = np.eye(6)
     if tan_angle is not None:  # vz follows (vx, vy): the unknowns are (x0, y0, vx, vy, t_launch)
         speed = math.hypot(fit.vx_mps, fit.vy_mps)
@@ -342,11 +364,16 @@ def within_kicker_limits(launch: np.ndarray, covariance: np.ndarray, min_elevati
 
 
 def _flights_at_angle(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, noise_m: float, tan_angle: float,
-                      iterations: int, pre_velocity_mps):
+                      iterations: int, pre_velocity_mps, speed_prior=None):
     """``fit_flight_at_angle`` for every launch time of ``t_launch_s``: solutions (m, 5), vz's standard errors,
-    squared residuals (inf where the sightings do not determine it)."""
+    squared residuals (inf where the sightings do not determine it). ``speed_prior``: None, or ``(v_mps, weight)``:
+    the ground speed is ``v_mps`` as one more equation of this weight (``noise_m`` over the prior's standard
+    deviation: its squared residual counts in noise variances as a sighting's does)."""
     a5, b, _ = _system(rows, t_launch_s, origin_xy, g_mps2, True, pre_velocity_mps)
     theta = np.einsum("mkn,mn->mk", np.linalg.pinv(a5), b)[:, :4]  # the direction: the free flight's
+    if speed_prior is not None:  # a last row, along the direction of the previous iteration
+        a5 = np.concatenate([a5, np.zeros((len(b), 1, 5))], axis=1)
+        b = np.concatenate([b, np.full((len(b), 1), speed_prior[1] * speed_prior[0])], axis=1)
     a, inv, ok = a5[:, :, :4], None, np.ones(len(b), dtype=bool)
     for _ in range(iterations):
         speed = np.hypot(theta[:, 2], theta[:, 3])
@@ -355,6 +382,8 @@ def _flights_at_angle(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, no
         a = a5[:, :, :4].copy()
         a[:, :, 2] += a5[:, :, 4] * (tan_angle * u[:, 0:1])
         a[:, :, 3] += a5[:, :, 4] * (tan_angle * u[:, 1:2])
+        if speed_prior is not None:
+            a[:, -1, 2:4] = speed_prior[1] * u
         theta, inv, solved = _solve(a, b)
         ok &= solved
     rss = np.where(ok, _rss(a, theta, b), math.inf)
@@ -366,13 +395,17 @@ def _flights_at_angle(rows: np.ndarray, t_launch_s, origin_xy, g_mps2: float, no
 
 
 def fit_flight_at_angle(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
-                        tan_angle: float, iterations: int = 3, pre_velocity_mps=(0.0, 0.0)) -> ChipFit | None:
+                        tan_angle: float, iterations: int = 3, pre_velocity_mps=(0.0, 0.0),
+                        speed_prior: tuple[float, float] | None = None) -> ChipFit | None:
     """As ``fit_flight`` with the launch's elevation known (``vz = tan_angle |v|``, the kicker's angle): four
     unknowns, as many as a ball on the ground has, so a few sightings suffice. The direction of the ground speed is
-    taken from the previous iteration (the first: the flight's without the known angle), which keeps it linear."""
+    taken from the previous iteration (the first: the flight's without the known angle), which keeps it linear.
+    ``speed_prior``: ``(v_mps, std_mps)``, the ground speed commanded and how far kicks stray from it, weighed
+    against the sightings (the squared residual includes its term)."""
     origins = None if origin_xy is None else [origin_xy]
+    prior = None if speed_prior is None else (speed_prior[0], noise_m / speed_prior[1])
     theta, vz_std, rss = _flights_at_angle(rows, [t_launch_s], origins, g_mps2, noise_m, tan_angle, iterations,
-                                           pre_velocity_mps)
+                                           pre_velocity_mps, prior)
     if not math.isfinite(rss[0]):
         return None
     x0, y0, vx, vy, vz = theta[0].tolist()
@@ -439,31 +472,42 @@ class ChipDetector:
         self.detected_at_s: float | None = None
         self._chip: ChipTrajectory | None = None
         self._handed_over = False
-        self._hint: tuple[float, float] | None = None  # the newest kick hint (t_s, angle_deg)
+        self._hint: tuple[float, float, float | None] | None = None  # the newest kick hint (t_s, angle_deg, speed)
         self._pre_velocity = (0.0, 0.0)  # the old motion's velocity (the ball before the launch)
         self._origin_seen = False  # the old motion's own sightings pin the launch point
         self._ground_rss: tuple[tuple, float] = ((), math.inf)  # the last ground fit: its sightings' key, its rss
         self.hint_angle_deg: float | None = None  # the hint that belongs to the current kick
+        self.hint_speed_mps: float | None = None  # its commanded speed (None: not known)
         self._launch_covariance: np.ndarray | None = None  # the reported flight's (launch_covariance)
         self._pending = False  # sightings added without a judgement since the last one (add's ``judge``)
 
-    def hint(self, t_s: float, angle_deg: float) -> None:
-        """The kicker's word: it kicked at ``t_s`` with the elevation ``angle_deg`` (0: flat; a chip in (0, 90)).
-        It belongs to the next motion first seen within ``hint_window_s`` (or the current one, if so seen and not
-        judged a chip yet). A motion first seen before ``t_s`` is not that kick (the kicker held the ball then):
-        its collection ends, with any chip found in it, so that the kick starts its own (a ball carried round a
-        turning robot's front can pass for a steep chip, and while that "chip" hops a kick would count as its
-        bounce). Raises ValueError for a non-finite time or an angle outside [0, 90)."""
+    def hint(self, t_s: float, angle_deg: float, speed_mps: float | None = None) -> None:
+        """The kicker's word: it kicked at ``t_s`` with the elevation ``angle_deg`` (0: flat; a chip in (0, 90))
+        and the launch speed ``speed_mps`` commanded (None: not known). It belongs to the next motion first seen
+        within ``hint_window_s`` (or the current one, if so seen and not judged a chip yet). A motion first seen before
+        ``t_s`` is not that kick (the kicker held the ball then): its collection ends, with any chip found in it, so
+        that the kick starts its own (a ball carried round a turning robot's front can pass for a steep chip, and
+        while that "chip" hops a kick would count as its bounce). Raises ValueError for a non-finite time, an angle
+        outside [0, 90) or a speed that is not finite and > 0.
+
+        A chip hint with its speed is the launch up to its direction (the launch point is where the ball lay): the
+        flight at that angle is fitted with the commanded ground speed as one more equation, weighed by
+        ``kick_speed_std_ratio`` (fit_flight_at_angle), from ``hint_min_sightings`` new sightings on, and kept
+        while the free flight does not explain the sightings better by ``HINT_CONTRADICTED``. A chip hint that the
+        cameras contradict (that free flight, or the ground better than the hinted flight by as much: a ball that did
+        not fly) is dropped, a chip taken on it withdrawn: the kick is judged from the cameras alone."""
         if not (math.isfinite(t_s) and math.isfinite(angle_deg) and 0.0 <= angle_deg < 90.0):
             raise ValueError(f"kick hint at {t_s!r} s with angle {angle_deg!r} deg: the time must be finite, the "
                              f"angle in [0, 90)")
+        if speed_mps is not None and not (math.isfinite(speed_mps) and speed_mps > 0.0):
+            raise ValueError(f"kick hint at {t_s!r} s with speed {speed_mps!r} m/s: the speed must be finite, > 0")
         self.judge_pending()
-        self._hint = (float(t_s), float(angle_deg))
+        self._hint = (float(t_s), float(angle_deg), None if speed_mps is None else float(speed_mps))
         if self.t_start_s is not None and self.t_start_s < t_s:
             self.t_start_s, self.fit, self.detected_at_s, self._chip = None, None, None, None
-            self.hint_angle_deg = None
+            self.hint_angle_deg, self.hint_speed_mps, self._launch_covariance = None, None, None
         if self.t_start_s is not None and self.fit is None and self._hint_fits(self.t_start_s):
-            self.hint_angle_deg = self._hint[1]
+            self.hint_angle_deg, self.hint_speed_mps = self._hint[1:]
 
     def _hint_fits(self, t_first_s: float) -> bool:
         return self._hint is not None and 0.0 <= t_first_s - self._hint[0] <= self.config.hint_window_s
@@ -480,7 +524,7 @@ class ChipDetector:
         self._origin_seen = len(self._settled()) > 0
         self.fit, self.detected_at_s, self._chip, self._handed_over = None, None, None, False
         self._ground_rss = ((), math.inf)
-        self.hint_angle_deg = self._hint[1] if self._hint_fits(self.t_start_s) else None
+        self.hint_angle_deg, self.hint_speed_mps = self._hint[1:] if self._hint_fits(self.t_start_s) else (None, None)
 
     def _first_moved(self, t_first_s: float) -> float:
         """The time of the first sighting before ``t_first_s`` that, with the next frame's, lies off the old motion by
@@ -610,10 +654,12 @@ class ChipDetector:
                     return 0, vertex_times, vertex_rss
         return i, times, rss
 
-    def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None) -> ChipFit | None:
+    def _best_flight(self, rows: np.ndarray, tan_angle: float | None = None,
+                     speed_prior: tuple[float, float] | None = None) -> ChipFit | None:
         """The best flight over the launch times: free, or at the elevation ``tan_angle`` (a hint's, or a bound of
-        the plausible elevations)."""
+        the plausible elevations; ``speed_prior``: with a hint's commanded speed, fit_flight_at_angle)."""
         cfg, g, u = self.config, self.params.g_mps2, self._pre_velocity
+        prior = None if speed_prior is None else (speed_prior[0], cfg.noise_m / speed_prior[1])
 
         solved = {}  # the solutions of each grid of times evaluated: the best one's are among them
 
@@ -622,7 +668,7 @@ class ChipDetector:
                 solved[id(times)] = times, _flights(rows, times, self._origins(times), g, cfg.noise_m, u)
             else:
                 solved[id(times)] = times, _flights_at_angle(rows, times, self._origins(times), g, cfg.noise_m,
-                                                             tan_angle, 3, u)
+                                                             tan_angle, 3, u, prior)
             return solved[id(times)][1][2]
 
         i, times, rss = self._over_launch_times(rss_at)
@@ -677,30 +723,97 @@ class ChipDetector:
     def _judge(self, t_s: float) -> None:
         cfg, g = self.config, self.params.g_mps2
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
-        if self._new_sightings(rows) < cfg.min_sightings:
+        prior = self._speed_prior()
+        if self._new_sightings(rows) < (cfg.min_sightings if prior is None else cfg.hint_min_sightings):
             return
-        fit = self._flight(rows)
-        if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
-            # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
-            # flight is sure enough to say when it lands)
-            first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]
-            if len(first_hop) < len(rows):
-                rows = first_hop
-                fit = self._flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
-        tan_angle = None
-        if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
-                fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
+        commanded = None if prior is None else self._commanded_flight(rows, prior)
+        if commanded is not None and commanded[0] is None:  # the cameras contradict the command
+            self._drop_hint()
+            self._judge(t_s)  # from the cameras alone
+            return
+        if commanded is not None:
+            fit, rows = commanded
             tan_angle = math.tan(math.radians(self.hint_angle_deg))
-            fit = self._best_flight(rows, tan_angle)
+        else:
+            prior = None
+            if self._new_sightings(rows) < cfg.min_sightings:
+                return
+            fit = self._flight(rows)
+            if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
+                # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
+                # flight is sure enough to say when it lands)
+                first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]
+                if len(first_hop) < len(rows):
+                    rows = first_hop
+                    fit = self._flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
+            tan_angle = None
+            if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
+                    fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
+                tan_angle = math.tan(math.radians(self.hint_angle_deg))
+                fit = self._best_flight(rows, tan_angle)
+        if fit is not None and self._chip_hinted() and self._ground_contradicts(fit, rows):
+            self._drop_hint()
+            self._judge(t_s)
+            return
         if fit is None or not self._is_chip(fit, rows):
             return
         try:
-            chip, covariance = self._reported_flight(fit, rows, tan_angle)
+            chip, covariance = self._reported_flight(fit, rows, tan_angle, prior)
         except ValueError:
             return
         self.fit, self._chip, self._launch_covariance = fit, chip, covariance
         if self.detected_at_s is None:
             self.detected_at_s = t_s
+
+    def _speed_prior(self) -> tuple[float, float] | None:
+        """A chip hint's commanded ground speed and its standard deviation (``kick_speed_std_ratio``); None without
+        a chip hint or its speed."""
+        if not self._chip_hinted() or self.hint_speed_mps is None:
+            return None
+        v_ground = self.hint_speed_mps * math.cos(math.radians(self.hint_angle_deg))
+        return v_ground, self.config.kick_speed_std_ratio * v_ground
+
+    def _commanded_flight(self, rows: np.ndarray, prior: tuple[float, float]):
+        """The flight at the hint's angle with its commanded speed as a prior, fitted to the sightings of its first
+        flight, and those sightings; (None, sightings) when the cameras contradict it (the free flight explains them
+        better by ``HINT_CONTRADICTED``); None when it is not determined (then judged as with the angle alone)."""
+        cfg, g = self.config, self.params.g_mps2
+        tan_angle = math.tan(math.radians(self.hint_angle_deg))
+        fit = self._best_flight(rows, tan_angle, prior)
+        if fit is None or not fit.vz_mps > 0.0:
+            return None
+        first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]  # the next hop's are not this flight's
+        if len(first_hop) < len(rows) and self._new_sightings(first_hop) >= cfg.hint_min_sightings:
+            rows = first_hop
+            fit = self._best_flight(rows, tan_angle, prior)
+            if fit is None:
+                return None
+        free = None
+        if self._new_sightings(rows) >= cfg.min_sightings:  # once a chip is taken: launched when the commanded one
+            free = self._best_flight(rows) if self.fit is None else fit_flight(
+                rows, fit.t_launch_s, self._origins([fit.t_launch_s]), g, cfg.noise_m, self._pre_velocity)
+        if free is not None and (fit.rss_m2 - free.rss_m2) / cfg.noise_m**2 > HINT_CONTRADICTED:
+            return None, rows
+        return fit, rows
+
+    def _ground_contradicts(self, fit: ChipFit, rows: np.ndarray) -> bool:
+        """The ground explains the sightings better than the hinted flight ``fit`` by ``HINT_CONTRADICTED``: the
+        ball did not fly (a flat ball, which one camera's first frames may not tell from the chip). Once a chip is
+        taken, the best ground kick of one batch (the launch times' first grid and the flight's), not a search: it is
+        checked every frame."""
+        if self.fit is None:
+            ground = self._best_ground(rows)  # the judgement's own (kept for _is_chip)
+        else:
+            times = np.append(np.linspace(*self._launch_times(), self.config.launch_steps), fit.t_launch_s)
+            ground = float(np.min(_grounds(rows, times, self._origins(times), self.ball_params, GROUND_ITERATIONS,
+                                           self._pre_velocity)))
+        return (ground - fit.rss_m2) / self.config.noise_m**2 < -HINT_CONTRADICTED
+
+    def _drop_hint(self) -> None:
+        """The cameras contradict the kick's hint: it is dropped (the kick is judged from the cameras alone from now
+        on) and a chip taken on it withdrawn."""
+        self.hint_angle_deg = self.hint_speed_mps = None
+        self.fit = self._chip = self._launch_covariance = self.detected_at_s = None
 
     def _flight(self, rows: np.ndarray) -> ChipFit | None:
         """The flight judged: the best one a chip kicker launches (with a chip hint: the best free one)."""
@@ -775,7 +888,8 @@ class ChipDetector:
             return None
         return chip.advanced(max(dt, 0.0))
 
-    def _reported_flight(self, fit: ChipFit, rows: np.ndarray, tan_angle: float | None):
+    def _reported_flight(self, fit: ChipFit, rows: np.ndarray, tan_angle: float | None,
+                         speed_prior: tuple[float, float] | None = None):
         """The chip reported of a fit taken, and its launch covariance: the fit's flight_covariance, then the
         flight within the kicker's limits (within_kicker_limits; the fit's own launch time kept) -- one camera's
         early fit trades height for ground distance along the ray, and a fit beyond what a kicker launches is the
@@ -785,7 +899,7 @@ class ChipDetector:
         if self._before is not None and not self._origin_seen:  # as _origins: the flat filter's launch point
             origin = (*self._origins([fit.t_launch_s])[0], self._before[3], self._before[4])
         covariance = flight_covariance(rows, fit, origin, self.params.g_mps2, self.config.noise_m,
-                                       self._pre_velocity, tan_angle)
+                                       self._pre_velocity, tan_angle, speed_prior)
         launch = np.array([fit.x_m, fit.y_m, fit.vx_mps, fit.vy_mps, fit.vz_mps, fit.t_launch_s])
         if covariance is not None:
             limited = within_kicker_limits(launch, covariance, self.config.min_elevation_deg,

@@ -451,10 +451,11 @@ class BallPredictor:
         """The chip detector beside the ball filter (its kick's fit, the chip as launched: ``launch``)."""
         return self._chip
 
-    def kick_hint(self, t_s: float, angle_deg: float) -> None:
-        """A robot's kicker kicked at ``t_s`` with the elevation ``angle_deg`` (0: flat, else a chip): prior knowledge
-        for the chip detector about the next kick it sees (ChipDetector.hint). Raises ValueError for bad values."""
-        self._chip.hint(t_s, angle_deg)
+    def kick_hint(self, t_s: float, angle_deg: float, speed_mps: float | None = None) -> None:
+        """A robot's kicker kicked at ``t_s`` with the elevation ``angle_deg`` (0: flat, else a chip) and the
+        commanded launch speed ``speed_mps`` (None: not known): prior knowledge for the chip detector about the next
+        kick it sees (ChipDetector.hint). Raises ValueError for bad values."""
+        self._chip.hint(t_s, angle_deg, speed_mps)
 
     def ball_sighting(self, t_s: float, x_m: float, y_m: float, camera_m: tuple[float, float, float]) -> None:
         """Another camera's sighting of the ball (not the one ``ball_frame`` took, e.g. of the same instant

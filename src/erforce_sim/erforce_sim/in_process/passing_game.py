@@ -25,7 +25,10 @@ A chipped pass flies over the opponents (passing.decisions.evaluate_passes). The
 chip (it tracks the ball's shadow as a rolling ball); with ``GameConfig.true_chip`` the game hands the AI the
 simulator's true ball while it is in the air, as a chip (its catch table from the predictor's search on it):
 what a chip-tracking predictor would say. The predictor's own chip (``BallFrame.chip``, from cameras it knows the
-position of) is passed on as it is.
+position of) is passed on as it is. With ``GameConfig.cameras`` the predictor sees the ball as the quadrant cameras of
+the SSL world do (each camera's projection of a ball in the air; the first camera's as the ball frame, the others' as
+sightings) and our kicks as hints (their angle and commanded speed at the newest vision stamp, as the predictor node
+takes them): it finds chips itself, as on the graph with SSL vision.
 
     python -m erforce_sim.in_process.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
 
@@ -55,6 +58,7 @@ from erforce_interfaces.wire.robot_config import TEAM_SIZE, FieldConfig, RobotCo
 from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.plant_setup import PlantSetup
 from erforce_sim.sensors import VisionFrame
+from erforce_sim.ssl_cameras import field_geometry, ground_point, quadrant_cameras
 
 _PLANT = schema_defaults("erforce_sim", "plant")
 
@@ -79,6 +83,8 @@ class GameConfig:
     team_positions: tuple[tuple[float, float], ...] = TEAM_POSITIONS  # the first team_size play
     opponent_positions: tuple[tuple[float, float], ...] = OPPONENT_POSITIONS
     true_chip: bool = False  # a ball in the air reaches the AI as the simulator's true chip (module docstring)
+    cameras: bool = False  # the predictor sees the ball through the quadrant cameras, our kicks as hints (docstring)
+    hint_speed: bool = True  # with cameras: the kick hints carry the commanded speed
 
     def __post_init__(self) -> None:
         if not 2 <= self.team_size <= len(self.team_positions):
@@ -140,6 +146,12 @@ class PassingGame:
         # what the AI was last told the models in use are (the graph's /ball/model_params, /ball/chip_model_params)
         self._model_sent, self._chip_model_sent = self.predictor.model, self.predictor.chip_model
         self.frame_costs_s: list[float] = []  # CPU of BallPredictor.ball_frame for all robots, per vision frame
+        # the quadrant cameras (cfg.cameras) in the order their frames arrive, each with its position
+        cameras = quadrant_cameras(self.field)
+        poses = field_geometry(self.field, cameras, None).cameras
+        self._cameras = sorted(((c, (p.x_m, p.y_m, p.z_m)) for c, p in zip(cameras, poses, strict=True)),
+                               key=lambda cp: cp[0].extra_latency_s) if cfg.cameras else []
+        self._t_vision_s: float | None = None  # the newest ball frame's stamp (a kick hint's)
         self._facing: tuple[int, float] | None = None  # the receive facing the predictor searches with
         self._dribblers = dict.fromkeys(range(self.n_team), False)
         self._path: list[tuple[float, float]] = []  # the true ball path of the pass that rolls
@@ -180,7 +192,7 @@ class PassingGame:
                 self.opponents.on_other_robot(i, now, self.poses[i])
         for b in frame.balls[:1]:
             t0 = time.thread_time()
-            answer = self.predictor.ball_frame(t, b.x, b.y)
+            answer = self._ball_frame(t, b)
             self.frame_costs_s.append(time.thread_time() - t0)
             if answer is None:
                 continue
@@ -211,6 +223,23 @@ class PassingGame:
             opponents.on_ball(now, traj.position_m, traj.velocity_mps)
             if v_shoot is not None:
                 opponents.on_v_shoot(now, v_shoot)
+
+    def _ball_frame(self, t: float, b):
+        """The predictor's answer to the ball: as the world's vision has it, or (cfg.cameras) as each camera that sees
+        it projects it (None when none does)."""
+        if not self._cameras:
+            return self.predictor.ball_frame(t, b.x, b.y)
+        answer, first = None, True
+        for camera, position in self._cameras:
+            x, y = ground_point(b.x, b.y, b.z, position)
+            if not camera.sees(x, y):
+                continue
+            if first:
+                answer, first = self.predictor.ball_frame(t, x, y, camera_m=position), False
+                self._t_vision_s = t
+            else:
+                self.predictor.ball_sighting(t, x, y, position)
+        return answer
 
     def _chip_answer(self, answer, now: float):
         """The predictor's chip, when it tracks one, as the ball; with ``true_chip`` the simulator's true ball while it
@@ -276,7 +305,10 @@ class PassingGame:
                 for i, speed in commands.kicks.items():
                     world.set_dribbler(i, False)
                     self._dribblers[i] = False
-                    world.kick(i, speed, armed_for_s=0.1, angle_deg=commands.kick_angles.get(i, 0.0))
+                    angle = commands.kick_angles.get(i, 0.0)
+                    world.kick(i, speed, armed_for_s=0.1, angle_deg=angle)
+                    if self._cameras and self._t_vision_s is not None and speed > 0.0:
+                        self.predictor.kick_hint(self._t_vision_s, angle, speed if cfg.hint_speed else None)
                 self._apply(now)
                 twists = {i: np.zeros(3) for i in range(n)}
                 twists.update(commands.twists)
