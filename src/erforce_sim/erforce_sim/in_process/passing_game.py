@@ -21,11 +21,13 @@ as it ends (``PassRecord``, with the true ball path).
 
 Each pass is reported as it ends (``PassRecord``, with the true ball path).
 
-A chipped pass flies over the opponents (passing.decisions.evaluate_passes). The predictor's tracker does not fly a
-chip (it tracks the ball's shadow as a rolling ball); with ``GameConfig.true_chip`` the game hands the AI the
-simulator's true ball while it is in the air, as a chip (its catch table from the predictor's search on it):
-what a chip-tracking predictor would say. The predictor's own chip (``BallFrame.chip``, from cameras it knows the
-position of) is passed on as it is.
+Vision reaches the predictor as the plant's ``vision:=ros`` frames bring it to the graph's: the ball as the camera
+that takes it sees it, with that camera's position, the other cameras' views as sightings (camera_views), and each
+kick's elevation as a kick hint, as the ball_predictor node takes the kick commands. A chipped pass flies over the
+opponents (passing.decisions.evaluate_passes); the predictor's chip (``BallFrame.chip``) is passed on as it is.
+With ``GameConfig.true_chip`` the game hands the AI the simulator's true ball while it is in the air and the
+predictor has no chip, as a chip (its catch table from the predictor's search on it): what a perfect chip tracker
+would say.
 
     python -m erforce_sim.in_process.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
 
@@ -52,6 +54,7 @@ from erforce_ball_model.receiver import CatcherConfig
 from erforce_interfaces.runtime.lockstep import TICK_PERIOD_S
 from erforce_interfaces.runtime.param_schema import schema_defaults
 from erforce_interfaces.wire.robot_config import TEAM_SIZE, FieldConfig, RobotConfig
+from erforce_sim.camera_views import CameraViews
 from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.plant_setup import PlantSetup
 from erforce_sim.sensors import VisionFrame
@@ -130,6 +133,8 @@ class PassingGame:
         self.player = PassingPlayer(cfg.player, self.n_team, self.n_opp, self.field, self.robot.dribbler_offset_m,
                                     self.robot.robot_radius_m, self.predictor.model,
                                     chip_model=self.predictor.chip_model)
+        self.cameras = CameraViews(self.field, seed=seed)  # the plant's vision:=ros cameras
+        self._t_vision_s: float | None = None  # the newest vision stamp: a kick's hint goes at it, as on the graph
         self.runner.vision_listeners.append(self._on_frame)
         self.poses = self.player.poses  # tracked, from vision (the opponents' AI reads them too)
         self.velocities = self.player.velocities
@@ -178,9 +183,13 @@ class PassingGame:
                 self.opponents.on_odom(i - self.n_team, now, self.poses[i], self.velocities[i])
             else:
                 self.opponents.on_other_robot(i, now, self.poses[i])
-        for b in frame.balls[:1]:
+        self._t_vision_s = t
+        views = self.cameras.ball_views(frame.balls[0]) if frame.balls else []
+        for b in views[:1]:
             t0 = time.thread_time()
-            answer = self.predictor.ball_frame(t, b.x, b.y)
+            answer = self.predictor.ball_frame(t, b.x_m, b.y_m, camera_m=b.camera[1:])
+            for other in views[1:]:
+                self.predictor.ball_sighting(t, other.x_m, other.y_m, other.camera[1:])
             self.frame_costs_s.append(time.thread_time() - t0)
             if answer is None:
                 continue
@@ -276,7 +285,10 @@ class PassingGame:
                 for i, speed in commands.kicks.items():
                     world.set_dribbler(i, False)
                     self._dribblers[i] = False
-                    world.kick(i, speed, armed_for_s=0.1, angle_deg=commands.kick_angles.get(i, 0.0))
+                    angle_deg = commands.kick_angles.get(i, 0.0)
+                    world.kick(i, speed, armed_for_s=0.1, angle_deg=angle_deg)
+                    if self._t_vision_s is not None:
+                        self.predictor.kick_hint(self._t_vision_s, angle_deg)
                 self._apply(now)
                 twists = {i: np.zeros(3) for i in range(n)}
                 twists.update(commands.twists)
@@ -339,7 +351,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--chip-angle", type=float, default=PassConfig().chip_angle_deg,
                         help="chip passes at this elevation [deg] (0: flat passes only)")
     parser.add_argument("--true-chip", action="store_true",
-                        help="a ball in the air reaches the AI as the simulator's true chip (no chip tracker yet)")
+                        help="a ball in the air reaches the AI as the simulator's true chip while the predictor has "
+                             "none")
     args = parser.parse_args(argv)
     player = PlayerConfig(passing=dataclasses.replace(PassConfig(), chip_angle_deg=args.chip_angle))
     cfg = GameConfig(team_size=args.team, opponents=args.opponents, passes=args.passes, player=player,
