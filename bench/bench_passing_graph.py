@@ -103,12 +103,12 @@ def graph_records(cfg, seed: int, real_time_factor: float, vision: str = "ros",
     return records[:passes]
 
 
-def in_process_records(cfg, seed: int, vision: str = "ros", hint_speed: bool = True) -> list:
+def in_process_records(cfg, seed: int, hint_speed: bool = True) -> list:
     import dataclasses
 
     from erforce_sim.in_process.passing_game import PassingGame
 
-    cfg = dataclasses.replace(cfg, cameras=vision == "ssl", hint_speed=hint_speed)
+    cfg = dataclasses.replace(cfg, hint_speed=hint_speed)
     game = PassingGame(cfg, seed, on_pass=lambda r: print(r.line(), file=sys.stderr, flush=True))
     return game.play()
 
@@ -146,10 +146,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="the opponents' places (x y each) instead of the game's")
     parser.add_argument("--vision", choices=("ros", "ssl"), default="ros",
                         help="ssl: the plant's cameras as SSL-Vision through the bridge (the predictor sees chips)")
-    parser.add_argument("--in-process", action="store_true", help="the in-process game instead (no DDS; with "
-                        "--vision ssl its predictor sees the quadrant cameras and our kicks as hints)")
+    parser.add_argument("--in-process", action="store_true", help="the in-process game instead (no DDS; its "
+                        "predictor sees the plant's vision:=ros cameras and our kicks as hints)")
     parser.add_argument("--hint-without-speed", action="store_true",
-                        help="in process, --vision ssl: the kick hints carry the angle only")
+                        help="in process: the kick hints carry the angle only")
     parser.add_argument("--flat-only", action="store_true",
                         help="the passing game rates and plays flat passes only (chip_angle_deg 0): the safe share "
                              "without chips")
@@ -164,10 +164,10 @@ def main(argv: list[str] | None = None) -> int:
     records = []
     for seed in args.seeds:
         if args.in_process:
-            records += in_process_records(cfg, seed, args.vision, not args.hint_without_speed)
+            records += in_process_records(cfg, seed, not args.hint_without_speed)
         else:
             records += graph_records(cfg, seed, args.real_time_factor, args.vision, passing)
-    where = (f"one process, vision {args.vision}" + (", hints without speed" if args.hint_without_speed else "")
+    where = ("one process" + (", hints without speed" if args.hint_without_speed else "")
              if args.in_process else f"the DDS graph, lockstep, vision {args.vision}")
     where += ", flat passes only" if args.flat_only else ", flat passes and chips"
     where += "".join(f", {item}" for item in args.passing)

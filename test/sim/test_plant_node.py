@@ -17,7 +17,7 @@ from std_msgs.msg import Float64, String
 
 from erforce_interfaces.tools.messages import joint_state_msg
 from erforce_interfaces.wire import contract
-from erforce_interfaces.wire.clouds import vision_frame_from_msg, vision_robots_from_msg
+from erforce_interfaces.wire.clouds import vision_cloud_from_msg, vision_robots_from_msg
 from erforce_interfaces.wire.conversions import odometry_from_msg, odometry_msg, pose2d_from_msg, stamp_to_nanoseconds
 from erforce_motion.velocity_control import VelocityControlConfig
 from erforce_sim.in_process.runner import InProcessRunner
@@ -129,9 +129,14 @@ def test_clock_is_published_and_monotonic_and_vision_sends_each_frames_ball_and_
     # the opponent's own vision_pose, which has a reader here, carries the same pose at the same stamp
     ros_graph.probe.spin_until(lambda: len(robots) >= 10 and len(poses) >= 10, 30.0, "10 vision frames")
     frames = {t_s: rows for t_s, rows in map(vision_robots_from_msg, robots)}
-    for _, balls, _ in map(vision_frame_from_msg, robots):  # the ball at rest where the test put it, first
-        assert balls.tolist() == [pytest.approx([2.0, 2.0], abs=0.02)]  # 10 sigma of the 2 mm position noise
-    assert all(struct.unpack_from("<d", bytes(msg.data), 32)[0] == contract.VISION_BALL_CODE for msg in robots)
+    for cloud in map(vision_cloud_from_msg, robots):  # the ball at rest where the test put it, after its camera
+        assert cloud.balls.tolist() == [pytest.approx([2.0, 2.0], abs=0.02)]  # 10 sigma of the 2 mm position noise
+        # division B's +x +y quadrant (x, y > -0.25 m) alone sees it: its camera 4 m above the rectangle's middle
+        assert (cloud.camera_id, cloud.camera_m) == (1, pytest.approx((2.275, 1.525, 4.0), abs=1e-12))
+        assert not len(cloud.sightings)
+    # the camera's point first, then the ball's (team at byte 32 of each 48-byte point)
+    assert all(struct.unpack_from("<d40xd", bytes(msg.data), 32)
+               == (contract.VISION_CAMERA_CODE, contract.VISION_BALL_CODE) for msg in robots)
     for rows in frames.values():
         assert rows[:, :2].tolist() == [[1.0, 0.0], [2.0, 0.0]]
         assert rows[:, 2:].tolist() == [pytest.approx([0.5, -1.0, 0.25], abs=0.06),  # 6 sigma of the yaw noise
@@ -140,6 +145,32 @@ def test_clock_is_published_and_monotonic_and_vision_sends_each_frames_ball_and_
     assert len(same) >= 5
     for rows, pose in same:
         assert rows[1, 2:].tolist() == pytest.approx(pose.tolist(), abs=1e-12)
+
+
+def test_a_ball_two_cameras_see_comes_from_the_first_and_as_the_seconds_sighting(ros_graph):
+    """At (0, 1) the ball lies where division B's upper quadrants overlap (|x| <= 0.25 m): camera 0, whose SSL frames
+    come first, takes the ball into the frame with the robots; camera 1's view follows in a frame of its own, at
+    the same stamp, as a sighting after its camera's point."""
+    q = contract
+    robots = ros_graph.subscribe(q.VISION_ROBOTS.name, PointCloud2, q.VISION_ROBOTS.qos)
+    start_plant(ros_graph, controlled=[False], pacing="realtime", real_time_factor=1.0, stop_after_s=5.0,
+                ball=[0.0, 1.0, 0.0, 0.0], vision_dropout=0.0)
+    ros_graph.probe.spin_until(lambda: len(robots) >= 20, 30.0, "20 vision frames")
+    clouds = [vision_cloud_from_msg(msg) for msg in robots]
+    by_stamp = {}
+    for cloud in clouds:
+        by_stamp.setdefault(cloud.t_s, []).append(cloud)
+    both = [frames for frames in by_stamp.values() if len(frames) == 2]
+    assert len(both) >= 5
+    for ball, other in both:
+        assert (ball.camera_id, ball.camera_m) == (0, pytest.approx((-2.275, 1.525, 4.0), abs=1e-12))
+        assert ball.balls.tolist() == [pytest.approx([0.0, 1.0], abs=0.02)] and not len(ball.sightings)
+        assert ball.robots[:, :2].tolist() == [[1.0, 0.0]]
+        assert (other.camera_id, other.camera_m) == (1, pytest.approx((2.275, 1.525, 4.0), abs=1e-12))
+        assert not len(other.balls) and not len(other.robots)
+        # the same world frame's ball (its 2 mm noise shared), each camera's own 0.5 mm on top: 10 sigma apart
+        assert other.sightings.tolist() == [pytest.approx(ball.balls[0].tolist(), abs=0.01)]
+    assert all(len(frames) <= 2 for frames in by_stamp.values())
 
 
 def test_start_clock_subscribers_holds_the_first_tick_until_time_zero_can_be_seen(ros_graph):

@@ -62,6 +62,7 @@ from erforce_interfaces.wire.conversions import (
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_interfaces.wire.tables import table_cdr
 from erforce_sim.ball import BallParams, BallState
+from erforce_sim.camera_views import CameraViews
 from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
 from erforce_sim.ssl_cameras import SslCameraSplitter, chip_model_of, open_multicast_sender, quadrant_cameras
@@ -154,7 +155,7 @@ class PlantNode(SchemaNode):
         self._create_world_topics()
         self._create_robot_topics()
         self._create_lockstep_topics()
-        self._setup_ssl_vision()
+        self._setup_vision()
         self._apply_params(self._params.config)
         self._params.on_change(self._apply_params)
         # Who answers is a graph query (slow): refreshed 5 times a second, not every tick.
@@ -603,20 +604,23 @@ class PlantNode(SchemaNode):
             self._last_truth_ns[due] = t_ns
             self._publish_truth(t_ns * 1e-9, due.tolist())
 
-    def _setup_ssl_vision(self) -> None:
+    def _setup_vision(self) -> None:
+        """The cameras of both vision outputs, one layout: the ROS frames' camera views, the SSL-Vision packets."""
         v = self._values
+        field = FieldConfig.preset(self.setup.field_preset)
+        cameras = quadrant_cameras(field)
         self._ros_vision = v["vision_output"] in ("ros", "both")
+        self._camera_views = CameraViews(field, cameras, seed=self.setup.seed) if self._ros_vision else None
         self._ssl = None
         if v["vision_output"] == "ros":
             return
-        field = FieldConfig.preset(self.setup.field_preset)
         # The geometry's two-phase model is the plant's own ball physics in the paper's terms (ball.py):
         # decelerations mu g, and c_switch from the kick's backspin.
         ball = self.world.ball_params
         model = BallModelFromVision(-ball.a_slide_mps2, -ball.a_roll_mps2,
                                     ball.switch_ratio(self.setup.physics.kick_spin_ratio))
         self._ssl = SslCameraSplitter(
-            quadrant_cameras(field), field, model,
+            cameras, field, model,
             latency_s=self.setup.vision.latency_s, seed=self.setup.seed, chip_model=chip_model_of(ball),
         )
         self._ssl_sock = open_multicast_sender(v["ssl_vision_interface"])
@@ -644,12 +648,14 @@ class PlantNode(SchemaNode):
                 self._send_ssl(data)
 
     def _publish_vision(self, frame) -> None:
+        """A world frame on /vision/robots (serialized, as the ball predictor takes it): the ball as the camera that
+        takes it sees it, after that camera's point, with every robot; then each other camera that sees the ball
+        its own frame with its point and its view as a sighting (camera_views; docs/decisions/0035)."""
         if not self._ros_vision:
             return
-        # serialized, as the ball predictor takes them (conversions' codec); the frame's balls and robots in one
-        # /vision/robots, what the ball predictor reads
         t = frame.t_capture_s
-        balls = [(ball.x, ball.y) for ball in frame.balls]
+        views = self._camera_views.ball_views(frame.balls[0]) if frame.balls else []
+        balls = [(view.x_m, view.y_m) for view in views[:1]]
         if self._vision_ball_readers[0]:
             for xy in balls:
                 self._vision_ball_pub.publish(point_cdr(t, xy))
@@ -662,7 +668,11 @@ class PlantNode(SchemaNode):
             rows.append((team.code, j, det.x, det.y, det.theta))
             if self._vision_pose_readers[i]:
                 read.append((i, det))
-        self._vision_robots_pub.publish(vision_robots_cdr(t, rows, balls=balls))
+        self._vision_robots_pub.publish(vision_robots_cdr(t, rows, balls=balls,
+                                                          camera=views[0].camera if views else None))
+        for view in views[1:]:
+            self._vision_robots_pub.publish(vision_robots_cdr(t, (), camera=view.camera,
+                                                              sightings=[(view.x_m, view.y_m)]))
         for i, det in read:
             self._pubs[i]["vision"].publish(pose2d_cdr(t, (det.x, det.y, det.theta)))
 

@@ -215,7 +215,7 @@ def vision_cloud_from_msg(msg: PointCloud2 | bytes) -> VisionCloud:
     rows = _robot_rows(values)
     is_robot = rows[:, 0] >= _TEAM_CODES[0]
     is_robot &= rows[:, 0] <= _TEAM_CODES[1]
-    if is_robot.all():  # the usual frame of our plant: no camera
+    if is_robot.all():  # robots alone: no camera, no ball
         return VisionCloud(t_s, _NO_BALLS, rows, None, None, _NO_BALLS)
     codes = rows[:, 0]
     cameras = values[codes == VISION_CAMERA_CODE]

@@ -323,7 +323,9 @@ SIM_SET_BALL = Topic("/sim/set_ball", Odometry, QOS_COMMAND, "scenario scripts, 
                      "position.z > 0 or linear.z != 0: in the air without spin (a chip; our plant)")
 VISION_ROBOTS = Topic("/vision/robots", PointCloud2, QOS_SENSOR, "plant (vision), ssl_vision_bridge",
                       "ball_predictor, tools",
-                      "one vision frame (the bridge: one camera frame) in one message: its ball and every robot, "
+                      "one vision frame in one message (the bridge: one camera frame; the plant: a world frame with "
+                      "its ball as the camera taking it sees it, then a frame of each other camera seeing the "
+                      "ball, its view as a sighting): its ball and every robot, "
                       "both teams; a point each, fields VISION_ROBOT_FIELDS (float64, little endian, height 1): "
                       "x, y [m] and z = 0 in `field`, yaw [rad] in [-pi, pi], team (Team.code: 1 ours, 2 the "
                       "opponents; VISION_BALL_CODE 0: the ball, with yaw and robot_id 0), robot_id (within "

@@ -372,7 +372,7 @@ class Director:
         sent_ns = info["source_timestamp"] if self.vision_sent_ns_of is None else self.vision_sent_ns_of(stamp_ns)
         if sent_ns is None:
             return
-        self.series.vision_sent_ns[stamp_ns] = sent_ns
+        self.series.vision_sent_ns.setdefault(stamp_ns, sent_ns)  # the ball's frame; other cameras' follow it
         if len(self.series.vision_sent_ns) > 1000:
             self.series.vision_sent_ns.pop(next(iter(self.series.vision_sent_ns)))
 

@@ -21,14 +21,13 @@ as it ends (``PassRecord``, with the true ball path).
 
 Each pass is reported as it ends (``PassRecord``, with the true ball path).
 
-A chipped pass flies over the opponents (passing.decisions.evaluate_passes). The predictor's tracker does not fly a
-chip (it tracks the ball's shadow as a rolling ball); with ``GameConfig.true_chip`` the game hands the AI the
-simulator's true ball while it is in the air, as a chip (its catch table from the predictor's search on it):
-what a chip-tracking predictor would say. The predictor's own chip (``BallFrame.chip``, from cameras it knows the
-position of) is passed on as it is. With ``GameConfig.cameras`` the predictor sees the ball as the quadrant cameras of
-the SSL world do (each camera's projection of a ball in the air; the first camera's as the ball frame, the others' as
-sightings) and our kicks as hints (their angle and commanded speed at the newest vision stamp, as the predictor node
-takes them): it finds chips itself, as on the graph with SSL vision.
+Vision reaches the predictor as the plant's ``vision:=ros`` frames bring it to the graph's: the ball as the camera
+that takes it sees it, with that camera's position, the other cameras' views as sightings (camera_views), and each
+kick's elevation and commanded speed as a kick hint, as the ball_predictor node takes the kick commands. A chipped
+pass flies over the opponents (passing.decisions.evaluate_passes); the predictor's chip (``BallFrame.chip``) is
+passed on as it is. With ``GameConfig.true_chip`` the game hands the AI the simulator's true ball while it is in the
+air and the predictor has no chip, as a chip (its catch table from the predictor's search on it): what a perfect
+chip tracker would say.
 
     python -m erforce_sim.in_process.passing_game --team 11 --opponents 3 --passes 20 --seed 1 --plot passes.png
 
@@ -55,10 +54,10 @@ from erforce_ball_model.receiver import CatcherConfig
 from erforce_interfaces.runtime.lockstep import TICK_PERIOD_S
 from erforce_interfaces.runtime.param_schema import schema_defaults
 from erforce_interfaces.wire.robot_config import TEAM_SIZE, FieldConfig, RobotConfig
+from erforce_sim.camera_views import CameraViews
 from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.plant_setup import PlantSetup
 from erforce_sim.sensors import VisionFrame
-from erforce_sim.ssl_cameras import field_geometry, ground_point, quadrant_cameras
 
 _PLANT = schema_defaults("erforce_sim", "plant")
 
@@ -83,8 +82,7 @@ class GameConfig:
     team_positions: tuple[tuple[float, float], ...] = TEAM_POSITIONS  # the first team_size play
     opponent_positions: tuple[tuple[float, float], ...] = OPPONENT_POSITIONS
     true_chip: bool = False  # a ball in the air reaches the AI as the simulator's true chip (module docstring)
-    cameras: bool = False  # the predictor sees the ball through the quadrant cameras, our kicks as hints (docstring)
-    hint_speed: bool = True  # with cameras: the kick hints carry the commanded speed
+    hint_speed: bool = True  # the kick hints carry the commanded speed, as the predictor node's do
 
     def __post_init__(self) -> None:
         if not 2 <= self.team_size <= len(self.team_positions):
@@ -136,6 +134,8 @@ class PassingGame:
         self.player = PassingPlayer(cfg.player, self.n_team, self.n_opp, self.field, self.robot.dribbler_offset_m,
                                     self.robot.robot_radius_m, self.predictor.model,
                                     chip_model=self.predictor.chip_model)
+        self.cameras = CameraViews(self.field, seed=seed)  # the plant's vision:=ros cameras
+        self._t_vision_s: float | None = None  # the newest vision stamp: a kick's hint goes at it, as on the graph
         self.runner.vision_listeners.append(self._on_frame)
         self.poses = self.player.poses  # tracked, from vision (the opponents' AI reads them too)
         self.velocities = self.player.velocities
@@ -146,12 +146,6 @@ class PassingGame:
         # what the AI was last told the models in use are (the graph's /ball/model_params, /ball/chip_model_params)
         self._model_sent, self._chip_model_sent = self.predictor.model, self.predictor.chip_model
         self.frame_costs_s: list[float] = []  # CPU of BallPredictor.ball_frame for all robots, per vision frame
-        # the quadrant cameras (cfg.cameras) in the order their frames arrive, each with its position
-        cameras = quadrant_cameras(self.field)
-        poses = field_geometry(self.field, cameras, None).cameras
-        self._cameras = sorted(((c, (p.x_m, p.y_m, p.z_m)) for c, p in zip(cameras, poses, strict=True)),
-                               key=lambda cp: cp[0].extra_latency_s) if cfg.cameras else []
-        self._t_vision_s: float | None = None  # the newest ball frame's stamp (a kick hint's)
         self._facing: tuple[int, float] | None = None  # the receive facing the predictor searches with
         self._dribblers = dict.fromkeys(range(self.n_team), False)
         self._path: list[tuple[float, float]] = []  # the true ball path of the pass that rolls
@@ -190,9 +184,13 @@ class PassingGame:
                 self.opponents.on_odom(i - self.n_team, now, self.poses[i], self.velocities[i])
             else:
                 self.opponents.on_other_robot(i, now, self.poses[i])
-        for b in frame.balls[:1]:
+        self._t_vision_s = t
+        views = self.cameras.ball_views(frame.balls[0]) if frame.balls else []
+        for b in views[:1]:
             t0 = time.thread_time()
-            answer = self._ball_frame(t, b)
+            answer = self.predictor.ball_frame(t, b.x_m, b.y_m, camera_m=b.camera[1:])
+            for other in views[1:]:
+                self.predictor.ball_sighting(t, other.x_m, other.y_m, other.camera[1:])
             self.frame_costs_s.append(time.thread_time() - t0)
             if answer is None:
                 continue
@@ -223,23 +221,6 @@ class PassingGame:
             opponents.on_ball(now, traj.position_m, traj.velocity_mps)
             if v_shoot is not None:
                 opponents.on_v_shoot(now, v_shoot)
-
-    def _ball_frame(self, t: float, b):
-        """The predictor's answer to the ball: as the world's vision has it, or (cfg.cameras) as each camera that sees
-        it projects it (None when none does)."""
-        if not self._cameras:
-            return self.predictor.ball_frame(t, b.x, b.y)
-        answer, first = None, True
-        for camera, position in self._cameras:
-            x, y = ground_point(b.x, b.y, b.z, position)
-            if not camera.sees(x, y):
-                continue
-            if first:
-                answer, first = self.predictor.ball_frame(t, x, y, camera_m=position), False
-                self._t_vision_s = t
-            else:
-                self.predictor.ball_sighting(t, x, y, position)
-        return answer
 
     def _chip_answer(self, answer, now: float):
         """The predictor's chip, when it tracks one, as the ball; with ``true_chip`` the simulator's true ball while it
@@ -305,10 +286,10 @@ class PassingGame:
                 for i, speed in commands.kicks.items():
                     world.set_dribbler(i, False)
                     self._dribblers[i] = False
-                    angle = commands.kick_angles.get(i, 0.0)
-                    world.kick(i, speed, armed_for_s=0.1, angle_deg=angle)
-                    if self._cameras and self._t_vision_s is not None and speed > 0.0:
-                        self.predictor.kick_hint(self._t_vision_s, angle, speed if cfg.hint_speed else None)
+                    angle_deg = commands.kick_angles.get(i, 0.0)
+                    world.kick(i, speed, armed_for_s=0.1, angle_deg=angle_deg)
+                    if self._t_vision_s is not None and speed > 0.0:
+                        self.predictor.kick_hint(self._t_vision_s, angle_deg, speed if cfg.hint_speed else None)
                 self._apply(now)
                 twists = {i: np.zeros(3) for i in range(n)}
                 twists.update(commands.twists)
@@ -371,7 +352,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--chip-angle", type=float, default=PassConfig().chip_angle_deg,
                         help="chip passes at this elevation [deg] (0: flat passes only)")
     parser.add_argument("--true-chip", action="store_true",
-                        help="a ball in the air reaches the AI as the simulator's true chip (no chip tracker yet)")
+                        help="a ball in the air reaches the AI as the simulator's true chip while the predictor has "
+                             "none")
     args = parser.parse_args(argv)
     player = PlayerConfig(passing=dataclasses.replace(PassConfig(), chip_angle_deg=args.chip_angle))
     cfg = GameConfig(team_size=args.team, opponents=args.opponents, passes=args.passes, player=player,
