@@ -142,8 +142,8 @@ def test_a_model_the_predictor_takes_mid_game_reaches_the_ai_at_its_next_answer(
 
 def test_through_the_cameras_the_predictor_finds_our_chip_itself():
     """The scene above with the ball seen through the plant's cameras and our kicks as hints (as in every in-process
-    game), no true chip: the predictor reports the chip in the air from its own detector (a frame with a chip, the hint's
-    angle and speed), and the chip over the opponent completes."""
+    game), no true chip: the predictor reports the chip in the air from its own detector (a frame with a chip, the
+    hint's angle and speed), and the chip over the opponent completes."""
     step_back = PlayerConfig(passing=PassConfig(chip_step_back_m=0.5))
     cfg = GameConfig(team_size=2, opponents=1, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)),
                      opponent_positions=((-3.0, 0.4),), player=step_back)
