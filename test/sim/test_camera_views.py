@@ -7,7 +7,7 @@ import pytest
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.camera_views import BallView, CameraViews
 from erforce_sim.sensors import BallDetection
-from erforce_sim.ssl_cameras import SslCameraSplitter, quadrant_cameras
+from erforce_sim.ssl_cameras import BENCH_CAMERAS, SslCameraSplitter, quadrant_cameras
 
 FIELD = FieldConfig.preset("division_b")  # 9 x 6 m, walls 0.3 m outside the lines: inside the walls 9.6 x 6.6 m
 # quadrants overlapping 0.25 m across each axis; each camera 4 m above the middle of its rectangle:
@@ -44,7 +44,7 @@ def test_a_ball_in_the_air_is_seen_along_each_cameras_ray_and_the_cameras_disagr
 
 
 def test_the_same_cameras_as_the_ssl_geometry_and_its_views():
-    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, camera_noise_m=0.0)
+    splitter = SslCameraSplitter(quadrant_cameras(FIELD), FIELD, None, realism=BENCH_CAMERAS.noise_free())
     poses = {(p.camera_id, p.x_m, p.y_m, p.z_m) for p in splitter.geometry.cameras}
     assert poses == set(CAMERA.values())
 
