@@ -110,6 +110,9 @@ class ChipDetectorConfig:
     moved_sigma: float = 5.0
     launch_refine_steps: int = 2  # finer grids refining the best launch time of the first
     origin_s: float = 0.1  # the old motion's sightings this long before the kick pin the launch point
+    # a ball slower than this over ``origin_s`` lies at rest: its sightings ``moved_sigma`` off start a kick the flat
+    # filter has not reported (it takes a slow kick's first frames within its gate)
+    rest_speed_mps: float = 0.1
     window_s: float = 0.3  # sightings of one kick kept this long
     # two cameras' sightings this close in time are of one instant: their disagreement is the ball's height
     pair_dt_s: float = 1e-4
@@ -478,25 +481,46 @@ class ChipDetector:
 
     def _first_moved(self, t_first_s: float) -> float:
         """The time of the first sighting before ``t_first_s`` that, with the next frame's, lies off the old motion by
-        ``moved_sigma`` noise: where the kick shows first when the flat filter saw it late (inf: none does). The old
-        motion: the straight line through the sightings before it, once they span ``MOVED_SPAN_S`` (the flat
-        filter's velocity may already hold the kick)."""
-        cfg = self.config
+        ``moved_sigma`` noise: where the kick shows first when the flat filter saw it late (inf: none does)."""
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
         times = np.unique(rows[:, 0])
         for i in np.flatnonzero(times < t_first_s):
-            j = int(np.searchsorted(rows[:, 0], times[i]))
-            t, x, y = rows[:j, 0], rows[:j, 1], rows[:j, 2]
-            if j < 3 or t[-1] - t[0] < MOVED_SPAN_S:
-                continue
-            tc = t - t.mean()
-            vx, vy = tc @ (x - x.mean()) / (tc @ tc), tc @ (y - y.mean()) / (tc @ tc)
-            later = rows[(rows[:, 0] >= times[i]) & (rows[:, 0] <= times[min(i + 1, len(times) - 1)])]
-            dt = later[:, 0] - t.mean()
-            if np.all(np.hypot(later[:, 1] - x.mean() - vx * dt, later[:, 2] - y.mean() - vy * dt)
-                      > cfg.moved_sigma * cfg.noise_m):
+            if self._moved_at(rows, times, int(i)):
                 return float(times[i])
         return math.inf
+
+    def _moved_at(self, rows: np.ndarray, times: np.ndarray, i: int, max_speed_mps: float = math.inf) -> bool:
+        """A sighting of ``times[i]`` and one of the next frame lie ``moved_sigma`` noise off the old motion: the
+        straight line through the sightings before them, once these span ``MOVED_SPAN_S`` (the flat filter's velocity
+        may already hold the kick), and only if it is no faster than ``max_speed_mps``."""
+        cfg = self.config
+        j = int(np.searchsorted(rows[:, 0], times[i]))
+        t, x, y = rows[:j, 0], rows[:j, 1], rows[:j, 2]
+        if j < 3 or t[-1] - t[0] < MOVED_SPAN_S:
+            return False
+        tc = t - t.mean()
+        vx, vy = tc @ (x - x.mean()) / (tc @ tc), tc @ (y - y.mean()) / (tc @ tc)
+        if math.hypot(vx, vy) > max_speed_mps:
+            return False
+        for k in {i, min(i + 1, len(times) - 1)}:  # each frame: one camera's sighting off suffices (in an overlap
+            later = rows[rows[:, 0] == times[k]]  # a flying ball's motion can hide along one camera's ray)
+            dt = later[:, 0] - t.mean()
+            if not np.any(np.hypot(later[:, 1] - x.mean() - vx * dt, later[:, 2] - y.mean() - vy * dt)
+                          > cfg.moved_sigma * cfg.noise_m):
+                return False
+        return True
+
+    def _self_start(self) -> None:
+        """Starts a kick the flat filter has not reported: a ball at rest (its sightings over ``origin_s`` slower than
+        ``rest_speed_mps``) whose last two frames lie ``moved_sigma`` noise off it. A slow kick, a slow chip's
+        projected path above all, can move on within the filter's gate for its whole flight."""
+        cfg = self.config
+        t_now = self._rows[-1].t_s
+        recent = [r for r in self._rows if t_now - r.t_s <= cfg.origin_s + MOVED_SPAN_S]
+        rows = np.array(recent, dtype=float).reshape(-1, 6)
+        times = np.unique(rows[:, 0])
+        if len(times) >= 4 and self._moved_at(rows, times, len(times) - 2, cfg.rest_speed_mps):
+            self.start(float(times[-2]))
 
     @property
     def active(self) -> bool:
@@ -525,14 +549,11 @@ class ChipDetector:
         if self._rows and t_s != self._rows[-1].t_s:
             self.judge_pending()
         self._rows.append(Sighting(float(t_s), float(x_m), float(y_m), *map(float, camera_m)))
-        if self.t_start_s is None:  # no kick yet: keep a short history only
+        if not self.active:  # no kick under way: keep a short history only
             self._rows = [r for r in self._rows if t_s - r.t_s <= self.config.window_s]
-        elif not judge:
-            self._pending = True
-        else:
-            self._pending = False
-            if self._judging():
-                self._judge(t_s)
+        self._pending = not judge
+        if judge:
+            self._judge_newest()
         return self.fit
 
     def judge_pending(self) -> None:
@@ -540,8 +561,15 @@ class ChipDetector:
         complete), as of that capture's time."""
         if self._pending:
             self._pending = False
-            if self.t_start_s is not None and self._judging():
-                self._judge(self._rows[-1].t_s)
+            self._judge_newest()
+
+    def _judge_newest(self) -> None:
+        """The newest capture's judgement: a kick the flat filter missed starts (``_self_start``), a kick's sightings
+        are judged."""
+        if not self.active:
+            self._self_start()
+        if self.active and self._judging():
+            self._judge(self._rows[-1].t_s)
 
     def _settled(self) -> np.ndarray:
         """The kick's sightings that are surely of the old motion (before the earliest launch time tried)."""
