@@ -45,6 +45,7 @@ No rclpy import.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -78,6 +79,15 @@ MOVED_SPAN_S = 0.05
 # The flights at the bounds of the plausible elevations are fitted this far inside them.
 BOUND_INSIDE_DEG = 0.5
 
+
+# A chip landed within its sightings is fitted through its first bounce (``fit_hop_flight``) at these first-touchdown
+# times after the launch [s] (its vz = g T / 2; finer steps move its touchdown by less than a frame's noise), from
+# tables of a chip at unit ground speed over the times since the launch (linear between steps of HOP_TAU_STEP_S: a
+# parabola's chord is off by g step^2 / 8, 1e-6 m).
+HOP_T1_S = np.arange(0.03, 0.4001, 0.002)
+HOP_TAU_STEP_S = 0.001
+HOP_TAU_MAX_S = 0.5
+HOP_COARSE = 4  # the first search takes every HOP_COARSE-th touchdown time, the second the neighbours of the best
 
 # The league's limit on a kicked ball's speed [m/s]: with the kicker's elevations, the flights a reported chip can be.
 KICK_SPEED_LIMIT_MPS = 6.5
@@ -234,6 +244,58 @@ def _grounds(rows: np.ndarray, t_launch_s, origin_xy, ball_params: BallModelPara
         known[moving, :n], known[moving, n:2 * n] = theta[moving, 2:3] / v * along, theta[moving, 3:4] / v * along
         theta = _apply(inv, a, b - known)
     return np.where(ok, _rss(a, theta, b - known), math.inf)
+
+
+@functools.lru_cache(maxsize=4)
+def hop_tables(params: ChipParams, ball_params: BallModelParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each first-touchdown time of ``HOP_T1_S``: a chip launched from the ground at unit ground speed with the vz
+    that lands it then (chip_model.ChipTrajectory under ``params``), its ground distance [m per m/s] and height [m] at
+    the times ``0, HOP_TAU_STEP_S, ... HOP_TAU_MAX_S`` since the launch (k, j each), and when it rolls (k,). Its ground
+    track scales with the launch's ground speed until it rolls (the roll's deceleration does not)."""
+    tau = np.arange(0.0, HOP_TAU_MAX_S + 0.5 * HOP_TAU_STEP_S, HOP_TAU_STEP_S)
+    chips = [ChipTrajectory((0.0, 0.0, 0.0), (1.0, 0.0, 0.5 * params.g_mps2 * t1), params, ball_params)
+             for t1 in HOP_T1_S]
+    track = np.array([chip.position_at(tau) for chip in chips])
+    return track[:, :, 0], track[:, :, 2], np.array([chip.roll_start_s for chip in chips])
+
+
+def _hop_system(rows: np.ndarray, t_launch_s: np.ndarray, hop: np.ndarray, tables, origin_xy, pre_velocity_mps):
+    """``_system``'s rows for (x0, y0, vx, vy) of a chip launched at ``t_launch_s`` (m,) that first lands ``HOP_T1_S[hop]``
+    (m,) later, through its bounces (``hop_tables``): the ground track ``p0 + v D(t)`` seen from the camera at height
+    ``H(t)`` gives ``p0 + v D + (G - c) H / cz = G``, linear in the four unknowns."""
+    a, b, t = _system(rows, t_launch_s, origin_xy, 0.0, False, pre_velocity_mps)
+    distance, height, _ = tables
+    index = t / HOP_TAU_STEP_S
+    j = np.minimum(index.astype(int), distance.shape[1] - 2)
+    f, k = index - j, np.asarray(hop).reshape(-1, 1)
+    d = distance[k, j] * (1.0 - f) + distance[k, j + 1] * f
+    h = height[k, j] * (1.0 - f) + height[k, j + 1] * f
+    n = len(rows)
+    a[:, :n, 2] = a[:, n:2 * n, 3] = d
+    b[:, :n] -= (rows[:, 1] - rows[:, 3]) / rows[:, 5] * h
+    b[:, n:2 * n] -= (rows[:, 2] - rows[:, 4]) / rows[:, 5] * h
+    return a, b
+
+
+def _hop_flights(rows: np.ndarray, t_launch_s, hop, tables, origin_xy, pre_velocity_mps):
+    """The chips through their bounces of ``_hop_system``: solutions (m, 4), squared residuals (inf: undetermined)."""
+    a, b = _hop_system(rows, np.asarray(t_launch_s, dtype=float), np.asarray(hop), tables, origin_xy,
+                       pre_velocity_mps)
+    theta, _, ok = _solve(a, b)
+    return theta, np.where(ok, _rss(a, theta, b), math.inf)
+
+
+def fit_hop_flight(rows: np.ndarray, t_launch_s: float, hop: int, tables, origin_xy, g_mps2: float,
+                   pre_velocity_mps=(0.0, 0.0)) -> ChipFit | None:
+    """The chip launched at ``t_launch_s`` that first lands ``HOP_T1_S[hop]`` later (its vz: g T / 2) and bounces as
+    the chip model says (``tables``: hop_tables) that best explains the sightings ``rows``, by least squares on the
+    rays (as ``fit_flight``); its vz is given, so ``vz_std_mps`` is 0. None when the sightings do not determine it."""
+    origins = None if origin_xy is None else [origin_xy]
+    theta, rss = _hop_flights(rows, [t_launch_s], [hop], tables, origins, pre_velocity_mps)
+    if not math.isfinite(rss[0]):
+        return None
+    x0, y0, vx, vy = theta[0].tolist()
+    return ChipFit(float(t_launch_s), x0, y0, vx, vy, 0.5 * g_mps2 * float(HOP_T1_S[hop]), 0.0, float(rss[0]))
 
 
 def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
@@ -654,6 +716,38 @@ class ChipDetector:
         x0, y0, vx, vy, vz = theta[i].tolist()
         return ChipFit(float(times[i]), x0, y0, vx, vy, vz, float(vz_std[i]), float(rss[i]))
 
+    def _hop_flight(self, rows: np.ndarray) -> ChipFit | None:
+        """The best chip through its first bounce (``fit_hop_flight``) over the launch times and the first-touchdown
+        times that land it within the sightings and leave it hopping until the last one (a flight landing later is
+        the free flight's): a grid of both, then the finer launch times and the touchdown times next to the best.
+        None when no such chip is determined."""
+        cfg, u = self.config, self._pre_velocity
+        tables = hop_tables(self.params, self.ball_params)
+        lo, hi = self._launch_times()
+        t_last = float(rows[-1, 0])
+        hops = np.flatnonzero((HOP_T1_S < t_last - lo) & (tables[2] > t_last - hi))
+        if len(hops) == 0:
+            return None
+
+        def evaluate(times, ks):
+            tt, kk = np.repeat(times, len(ks)), np.tile(ks, len(times))
+            theta, rss = _hop_flights(rows, tt, kk, tables, self._origins(tt), u)
+            i = int(np.argmin(rss))
+            return tt[i], kk[i], theta[i], rss[i], times, i // len(ks)
+
+        t, k, theta, rss, times, i = evaluate(np.linspace(lo, hi, cfg.launch_steps), hops[::HOP_COARSE])
+        step = HOP_COARSE
+        while math.isfinite(rss) and step > 1:  # finer launch times and the touchdown times next to the best
+            step //= 2
+            finer = np.linspace(times[max(i - 1, 0)], times[min(i + 1, len(times) - 1)], cfg.launch_steps)
+            best = evaluate(finer, hops[(hops >= k - 2 * step) & (hops <= k + 2 * step)])
+            if best[3] <= rss:
+                t, k, theta, rss, times, i = best
+        if not math.isfinite(rss):
+            return None
+        x0, y0, vx, vy = theta.tolist()
+        return ChipFit(float(t), x0, y0, vx, vy, 0.5 * self.params.g_mps2 * float(HOP_T1_S[k]), 0.0, float(rss))
+
     def _bounded_flight(self, rows: np.ndarray, fit: ChipFit | None) -> ChipFit | None:
         """The best flight a chip kicker launches: ``fit`` (the free one) if it is one, else the better of the
         flights at the bounds of the plausible elevations (the least-squares optimum over the plausible flights lies
@@ -701,6 +795,7 @@ class ChipDetector:
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
         if self._new_sightings(rows) < cfg.min_sightings:
             return
+        all_rows = rows
         fit = self._flight(rows)
         if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
             # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
@@ -715,7 +810,9 @@ class ChipDetector:
             tan_angle = math.tan(math.radians(self.hint_angle_deg))
             fit = self._best_flight(rows, tan_angle)
         if fit is None or not self._is_chip(fit, rows):
-            return
+            fit, rows = self._landed_chip(all_rows)
+            if fit is None:
+                return
         try:
             chip, covariance = self._reported_flight(fit, rows, tan_angle)
         except ValueError:
@@ -723,6 +820,17 @@ class ChipDetector:
         self.fit, self._chip, self._launch_covariance = fit, chip, covariance
         if self.detected_at_s is None:
             self.detected_at_s = t_s
+
+    def _landed_chip(self, rows: np.ndarray) -> tuple[ChipFit | None, np.ndarray]:
+        """Before a detection without a chip hint: a chip through its first bounce (``_hop_flight``) that is one by the
+        free flight's test, and the sightings of its first flight (what its report is fitted on); else None. The
+        bounce takes a share of the ground speed at once and starts a lower flight, which no ground kick does."""
+        if self.fit is not None or self._chip_hinted():
+            return None, rows
+        hop = self._hop_flight(rows)
+        if hop is None or not self._is_chip(hop, rows):
+            return None, rows
+        return hop, rows[rows[:, 0] - hop.t_launch_s < 2.0 * hop.vz_mps / self.params.g_mps2]
 
     def _flight(self, rows: np.ndarray) -> ChipFit | None:
         """The flight judged: the best one a chip kicker launches (with a chip hint: the best free one)."""
