@@ -718,9 +718,9 @@ class ChipDetector:
 
     def _hop_flight(self, rows: np.ndarray) -> ChipFit | None:
         """The best chip through its first bounce (``fit_hop_flight``) over the launch times and the first-touchdown
-        times that land it within the sightings and leave it hopping until the last one (a flight landing later is
-        the free flight's): a grid of both, then the finer launch times and the touchdown times next to the best.
-        None when no such chip is determined."""
+        times that land it before the last sighting and leave it hopping until then (a flight landing later is the
+        free flight's): a grid of both, then finer launch times and the touchdown times next to the best. None when
+        no such chip is determined."""
         cfg, u = self.config, self._pre_velocity
         tables = hop_tables(self.params, self.ball_params)
         lo, hi = self._launch_times()
@@ -732,6 +732,7 @@ class ChipDetector:
         def evaluate(times, ks):
             tt, kk = np.repeat(times, len(ks)), np.tile(ks, len(times))
             theta, rss = _hop_flights(rows, tt, kk, tables, self._origins(tt), u)
+            rss[HOP_T1_S[kk] >= t_last - tt] = math.inf  # not landed by the last sighting: the free flight's
             i = int(np.argmin(rss))
             return tt[i], kk[i], theta[i], rss[i], times, i // len(ks)
 
