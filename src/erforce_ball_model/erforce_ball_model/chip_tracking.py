@@ -87,7 +87,6 @@ BOUND_INSIDE_DEG = 0.5
 HOP_T1_S = np.arange(0.03, 0.4001, 0.002)
 HOP_TAU_STEP_S = 0.001
 HOP_TAU_MAX_S = 0.5
-HOP_COARSE = 4  # the first search takes every HOP_COARSE-th touchdown time, the second the neighbours of the best
 
 # The league's limit on a kicked ball's speed [m/s]: with the kicker's elevations, the flights a reported chip can be.
 KICK_SPEED_LIMIT_MPS = 6.5
@@ -736,12 +735,12 @@ class ChipDetector:
             i = int(np.argmin(rss))
             return tt[i], kk[i], theta[i], rss[i], times, i // len(ks)
 
-        t, k, theta, rss, times, i = evaluate(np.linspace(lo, hi, cfg.launch_steps), hops[::HOP_COARSE])
-        step = HOP_COARSE
-        while math.isfinite(rss) and step > 1:  # finer launch times and the touchdown times next to the best
-            step //= 2
+        t, k, theta, rss, times, i = evaluate(np.linspace(lo, hi, cfg.launch_steps), hops)
+        for _ in range(cfg.launch_refine_steps):  # finer launch times, the touchdown times next to the best
+            if not math.isfinite(rss):
+                break
             finer = np.linspace(times[max(i - 1, 0)], times[min(i + 1, len(times) - 1)], cfg.launch_steps)
-            best = evaluate(finer, hops[(hops >= k - 2 * step) & (hops <= k + 2 * step)])
+            best = evaluate(finer, hops)
             if best[3] <= rss:
                 t, k, theta, rss, times, i = best
         if not math.isfinite(rss):
@@ -792,46 +791,55 @@ class ChipDetector:
         return cfg.min_gain * (cfg.flat_hint_factor if self.hint_angle_deg == 0.0 else 1.0)
 
     def _judge(self, t_s: float) -> None:
-        cfg, g = self.config, self.params.g_mps2
+        cfg = self.config
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
         if self._new_sightings(rows) < cfg.min_sightings:
             return
-        all_rows = rows
         fit = self._flight(rows)
-        if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
-            # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
-            # flight is sure enough to say when it lands)
-            first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]
-            if len(first_hop) < len(rows):
-                rows = first_hop
-                fit = self._flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
+        landed = self._landed_chip(rows, fit)
         tan_angle = None
-        if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
-                fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
-            tan_angle = math.tan(math.radians(self.hint_angle_deg))
-            fit = self._best_flight(rows, tan_angle)
-        if fit is None or not self._is_chip(fit, rows):
-            fit, rows = self._landed_chip(all_rows)
-            if fit is None:
+        if landed is not None:  # the sightings are of a chip that bounced: judged as that, on all of them
+            fit = landed
+            if not self._is_chip(fit, rows):
+                return
+            rows = self._first_flight(rows, fit)
+        else:
+            if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
+                # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
+                # flight is sure enough to say when it lands)
+                first_hop = self._first_flight(rows, fit)
+                if len(first_hop) < len(rows):
+                    rows = first_hop
+                    fit = self._flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
+            if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
+                    fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
+                tan_angle = math.tan(math.radians(self.hint_angle_deg))
+                fit = self._best_flight(rows, tan_angle)
+            if fit is None or not self._is_chip(fit, rows):
                 return
         try:
-            chip, covariance = self._reported_flight(fit, rows, tan_angle)
+            chip, covariance = self._reported_flight(fit, rows, tan_angle, landed is not None)
         except ValueError:
             return
         self.fit, self._chip, self._launch_covariance = fit, chip, covariance
         if self.detected_at_s is None:
             self.detected_at_s = t_s
 
-    def _landed_chip(self, rows: np.ndarray) -> tuple[ChipFit | None, np.ndarray]:
-        """Before a detection without a chip hint: a chip through its first bounce (``_hop_flight``) that is one by the
-        free flight's test, and the sightings of its first flight (what its report is fitted on); else None. The
-        bounce takes a share of the ground speed at once and starts a lower flight, which no ground kick does."""
+    def _first_flight(self, rows: np.ndarray, fit: ChipFit) -> np.ndarray:
+        """The sightings of ``fit``'s first flight (before its first touchdown)."""
+        return rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / self.params.g_mps2]
+
+    def _landed_chip(self, rows: np.ndarray, fit: ChipFit | None) -> ChipFit | None:
+        """Before a detection without a chip hint: the chip through its first bounce (``_hop_flight``) when it
+        explains the sightings better than the free flight ``fit`` (None: it does not, or none landed within them).
+        The bounce takes a share of the ground speed at once and starts a lower flight, which no ground kick does
+        and a free flight through the sightings after it mistakes for a steep or slow one."""
         if self.fit is not None or self._chip_hinted():
-            return None, rows
+            return None
         hop = self._hop_flight(rows)
-        if hop is None or not self._is_chip(hop, rows):
-            return None, rows
-        return hop, rows[rows[:, 0] - hop.t_launch_s < 2.0 * hop.vz_mps / self.params.g_mps2]
+        if hop is None or (fit is not None and fit.rss_m2 <= hop.rss_m2):
+            return None
+        return hop
 
     def _flight(self, rows: np.ndarray) -> ChipFit | None:
         """The flight judged: the best one a chip kicker launches (with a chip hint: the best free one)."""
@@ -906,19 +914,20 @@ class ChipDetector:
             return None
         return chip.advanced(max(dt, 0.0))
 
-    def _reported_flight(self, fit: ChipFit, rows: np.ndarray, tan_angle: float | None):
+    def _reported_flight(self, fit: ChipFit, rows: np.ndarray, tan_angle: float | None, landed: bool = False):
         """The chip reported of a fit taken, and its launch covariance: the fit's flight_covariance, then the
         flight within the kicker's limits (within_kicker_limits; the fit's own launch time kept) -- one camera's
         early fit trades height for ground distance along the ray, and a fit beyond what a kicker launches is the
-        noise's. The fit as it is where nothing of it is within them. Raises ValueError for a flight ChipTrajectory
-        refuses."""
+        noise's. The fit as it is where nothing of it is within them, and for a chip fitted through its bounce
+        (``landed``: its touchdown pins vz; the covariance of its first flight's sightings alone overstates that).
+        Raises ValueError for a flight ChipTrajectory refuses."""
         origin = None
         if self._before is not None and not self._origin_seen:  # as _origins: the flat filter's launch point
             origin = (*self._origins([fit.t_launch_s])[0], self._before[3], self._before[4])
         covariance = flight_covariance(rows, fit, origin, self.params.g_mps2, self.config.noise_m,
                                        self._pre_velocity, tan_angle)
         launch = np.array([fit.x_m, fit.y_m, fit.vx_mps, fit.vy_mps, fit.vz_mps, fit.t_launch_s])
-        if covariance is not None:
+        if covariance is not None and not landed:
             limited = within_kicker_limits(launch, covariance, self.config.min_elevation_deg,
                                            self.config.max_elevation_deg)
             if limited is not None:
