@@ -87,6 +87,8 @@ BOUND_INSIDE_DEG = 0.5
 HOP_T1_S = np.arange(0.03, 0.4001, 0.002)
 HOP_TAU_STEP_S = 0.001
 HOP_TAU_MAX_S = 0.5
+HOP_COARSE = 2  # the first search takes every other touchdown time, then the best's neighbours
+HOP_LAUNCH_STEPS = 7  # launch times per search (the free flight's grid is finer: the hop fit runs on fewer)
 
 # The league's limit on a kicked ball's speed [m/s]: with the kicker's elevations, the flights a reported chip can be.
 KICK_SPEED_LIMIT_MPS = 6.5
@@ -258,30 +260,41 @@ def hop_tables(params: ChipParams, ball_params: BallModelParams) -> tuple[np.nda
     return track[:, :, 0], track[:, :, 2], np.array([chip.roll_start_s for chip in chips])
 
 
-def _hop_system(rows: np.ndarray, t_launch_s: np.ndarray, hop: np.ndarray, tables, origin_xy, pre_velocity_mps):
-    """``_system``'s rows for (x0, y0, vx, vy) of a chip launched at ``t_launch_s`` (m,) that first lands ``HOP_T1_S[hop]``
-    (m,) later, through its bounces (``hop_tables``): the ground track ``p0 + v D(t)`` seen from the camera at height
-    ``H(t)`` gives ``p0 + v D + (G - c) H / cz = G``, linear in the four unknowns."""
-    a, b, t = _system(rows, t_launch_s, origin_xy, 0.0, False, pre_velocity_mps)
+def _hop_flights(rows: np.ndarray, t_launch_s, hop, tables, origin_xy, pre_velocity_mps):
+    """Least squares for (x0, y0, vx, vy) of a chip launched at ``t_launch_s`` (m,) that first lands ``HOP_T1_S[hop]``
+    (m,) later, through its bounces (``hop_tables``): its ground track ``p0 + v D(t)`` seen from the camera at height
+    ``H(t)`` gives ``p0 + v D + (G - c) H / cz = G`` per sighting, linear in the four unknowns (before the launch the
+    ball on the ground as in ``_system``; the origin, if given, as one more sighting). x and y share the normal
+    matrix ``[[n, sum D], [sum D, sum D^2]]``: solved in closed form, all m at once. Solutions (m, 4), squared
+    residuals (m,; inf where undetermined)."""
+    t_launch_s = np.asarray(t_launch_s, dtype=float)
+    tau = rows[None, :, 0] - t_launch_s.reshape(-1, 1)
     distance, height, _ = tables
-    index = t / HOP_TAU_STEP_S
+    index = np.maximum(tau, 0.0) / HOP_TAU_STEP_S
     j = np.minimum(index.astype(int), distance.shape[1] - 2)
     f, k = index - j, np.asarray(hop).reshape(-1, 1)
     d = distance[k, j] * (1.0 - f) + distance[k, j + 1] * f
     h = height[k, j] * (1.0 - f) + height[k, j + 1] * f
-    n = len(rows)
-    a[:, :n, 2] = a[:, n:2 * n, 3] = d
-    b[:, :n] -= (rows[:, 1] - rows[:, 3]) / rows[:, 5] * h
-    b[:, n:2 * n] -= (rows[:, 2] - rows[:, 4]) / rows[:, 5] * h
-    return a, b
-
-
-def _hop_flights(rows: np.ndarray, t_launch_s, hop, tables, origin_xy, pre_velocity_mps):
-    """The chips through their bounces of ``_hop_system``: solutions (m, 4), squared residuals (inf: undetermined)."""
-    a, b = _hop_system(rows, np.asarray(t_launch_s, dtype=float), np.asarray(hop), tables, origin_xy,
-                       pre_velocity_mps)
-    theta, _, ok = _solve(a, b)
-    return theta, np.where(ok, _rss(a, theta, b), math.inf)
+    pre = np.minimum(tau, 0.0)
+    ref = rows[0, 1:3]  # sums of small numbers: no cancellation in the squared residual
+    s0, s1, s2 = np.full(len(t_launch_s), float(len(rows))), d.sum(axis=1), (d * d).sum(axis=1)
+    if origin_xy is not None:
+        s0 = s0 + ORIGIN_WEIGHT**2
+    det = s0 * s2 - s1 * s1
+    ok = det > 1e-12 * np.maximum(s0 * s2, 1e-300)
+    det = np.where(ok, det, 1.0)
+    theta, rss = np.zeros((len(t_launch_s), 4)), np.zeros(len(t_launch_s))
+    for axis in (0, 1):
+        b = (rows[:, 1 + axis] - ref[axis]) - pre_velocity_mps[axis] * pre \
+            - (rows[:, 1 + axis] - rows[:, 3 + axis]) / rows[:, 5] * h
+        b0, b1, bb = b.sum(axis=1), (d * b).sum(axis=1), (b * b).sum(axis=1)
+        if origin_xy is not None:
+            o = np.asarray(origin_xy, dtype=float).reshape(-1, 2)[:, axis] - ref[axis]
+            b0, bb = b0 + ORIGIN_WEIGHT**2 * o, bb + ORIGIN_WEIGHT**2 * o * o
+        p0, v = (s2 * b0 - s1 * b1) / det, (s0 * b1 - s1 * b0) / det
+        theta[:, axis], theta[:, 2 + axis] = p0 + ref[axis], v
+        rss += bb - p0 * b0 - v * b1
+    return theta, np.where(ok, np.maximum(rss, 0.0), math.inf)
 
 
 def fit_hop_flight(rows: np.ndarray, t_launch_s: float, hop: int, tables, origin_xy, g_mps2: float,
@@ -735,12 +748,12 @@ class ChipDetector:
             i = int(np.argmin(rss))
             return tt[i], kk[i], theta[i], rss[i], times, i // len(ks)
 
-        t, k, theta, rss, times, i = evaluate(np.linspace(lo, hi, cfg.launch_steps), hops)
-        for _ in range(cfg.launch_refine_steps):  # finer launch times, the touchdown times next to the best
+        t, k, theta, rss, times, i = evaluate(np.linspace(lo, hi, HOP_LAUNCH_STEPS), hops[::HOP_COARSE])
+        for near in (HOP_COARSE + 1, 1):  # finer launch times, the touchdown times next to the best
             if not math.isfinite(rss):
                 break
-            finer = np.linspace(times[max(i - 1, 0)], times[min(i + 1, len(times) - 1)], cfg.launch_steps)
-            best = evaluate(finer, hops)
+            finer = np.linspace(times[max(i - 1, 0)], times[min(i + 1, len(times) - 1)], HOP_LAUNCH_STEPS)
+            best = evaluate(finer, hops[np.abs(hops - k) <= near])
             if best[3] <= rss:
                 t, k, theta, rss, times, i = best
         if not math.isfinite(rss):
