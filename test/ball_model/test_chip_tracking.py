@@ -474,8 +474,8 @@ def test_the_hop_fit_lands_and_bounces_the_chip_as_computed_by_hand():
 
 def test_a_slow_kick_the_flat_filter_missed_starts_from_the_sightings():
     """A ball at rest, then a chip at 0.8 m/s ground speed (vz 0.7 m/s: 2.5 cm high) seen by one camera beside it
-    that the flat filter never reports (no ``start``): the sightings 5 noise (10 mm) off the resting ball start the kick, and it is taken as a
-    chip within 0.15 s. A ball at rest with 2 mm of noise starts nothing."""
+    that the flat filter never reports (no ``start``): the sightings 5 noise (10 mm) off the resting ball start the
+    kick, and it is taken as a chip within 0.15 s. A ball at rest with 2 mm of noise starts nothing."""
     truth = ChipTrajectory((0.5, 0.3, 0.0), (0.8, 0.0, 0.7), ChipParams())
     detector = ChipDetector(None, ChipParams())
     for t, x, y, camera in kick_sightings(truth, 0.004, [(0.5, -2.0, 4.0)], frames=(-10, 12)):

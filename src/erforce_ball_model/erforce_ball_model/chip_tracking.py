@@ -733,7 +733,7 @@ class ChipDetector:
         times that land it before the last sighting and leave it hopping until then (a flight landing later is the
         free flight's): a grid of both, then finer launch times and the touchdown times next to the best. None when
         no such chip is determined."""
-        cfg, u = self.config, self._pre_velocity
+        u = self._pre_velocity
         tables = hop_tables(self.params, self.ball_params)
         lo, hi = self._launch_times()
         t_last = float(rows[-1, 0])
