@@ -16,9 +16,13 @@ ball on the ground too (the flat model's deceleration along its motion). A chip 
 cameras at one instant disagree by a height ``height_sigma`` standard errors above the ground
 (``triangulate_height``), or when the flight explains the sightings better than the ground by ``min_gain``
 (in units of the noise variance) and is a flight a chip kicker launches (speed, elevation, ``vz`` above
-zero; a free fit outside gives way to the best flight at the bounds of the elevations). Until the first
-touchdown every new sighting refines the fit; then the chip model (chip_model.ChipTrajectory with
-``ChipParams``) predicts the hops and the hand-over to rolling.
+zero; a free fit outside gives way to the best flight at the bounds of the elevations). A short chip that
+lands within its sightings is fitted through its first bounce as well (``fit_hop_flight``: the chip model's hops
+at a searched touchdown time, four linear unknowns) and judged by the same test when that explains them better:
+the bounce cuts the ground speed at once where a ground kick slows steadily. A kick the flat filter does not
+report (a slow one stays within its gate) starts from the sightings: a ball at rest that moves off by
+``moved_sigma`` noise. Until the first touchdown every new sighting refines the fit; then the chip model
+(chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
 
 What is reported of a fit taken: its covariance (``flight_covariance``; from one camera the first height is
 unsure by tens of cm, along the camera's ray), and the flight within the kicker's limits (``within_kicker_limits``:
@@ -62,7 +66,8 @@ from erforce_ball_model.ball_model import (
 from erforce_ball_model.chip_model import ChipTrajectory
 
 __all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_flight_at_angle",
-           "fit_ground", "flight_covariance", "triangulate_height", "within_kicker_limits"]
+           "fit_ground", "fit_hop_flight", "flight_covariance", "hop_tables", "triangulate_height",
+           "within_kicker_limits"]
 
 
 # A ground fit's iterations: its deceleration along the motion from the previous iteration's speed.
@@ -485,6 +490,8 @@ class ChipDetector:
     trajectory at a time (``chip_at``) from its detection until it rolls (then ``hand_over`` gives its roll to
     the flat model once).
 
+    A kick starts with ``start`` (the flat filter's new motion) or, when the filter reports none, from the
+    sightings: a ball at rest (slower than ``rest_speed_mps``) whose last two frames lie ``moved_sigma`` noise off.
     The launch time is searched from ``launch_lookback_s`` before the first sighting of the new motion (the flat
     filter may have taken the kick's first frame for the old motion; its own sightings may show the kick earlier
     than the filter's word, ``moved_sigma``) to it; the launch point is pinned by the old
