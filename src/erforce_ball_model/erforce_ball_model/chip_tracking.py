@@ -811,32 +811,34 @@ class ChipDetector:
         return cfg.min_gain * (cfg.flat_hint_factor if self.hint_angle_deg == 0.0 else 1.0)
 
     def _judge(self, t_s: float) -> None:
-        cfg = self.config
+        cfg, g = self.config, self.params.g_mps2
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
         if self._new_sightings(rows) < cfg.min_sightings:
             return
-        fit = self._flight(rows)
-        landed = self._landed_chip(rows, fit)
+        all_rows = rows
+        fit = free = self._flight(rows)
+        if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
+            # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
+            # flight is sure enough to say when it lands)
+            first_hop = self._first_flight(rows, fit)
+            if len(first_hop) < len(rows):
+                rows = first_hop
+                fit = self._flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
         tan_angle = None
-        if landed is not None:  # the sightings are of a chip that bounced: judged as that, on all of them
-            fit = landed
-            if not self._is_chip(fit, rows):
-                return
-            rows = self._first_flight(rows, fit)
-        else:
-            if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
-                # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
-                # flight is sure enough to say when it lands)
-                first_hop = self._first_flight(rows, fit)
-                if len(first_hop) < len(rows):
-                    rows = first_hop
-                    fit = self._flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
-            if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
-                    fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
-                tan_angle = math.tan(math.radians(self.hint_angle_deg))
-                fit = self._best_flight(rows, tan_angle)
-            if fit is None or not self._is_chip(fit, rows):
-                return
+        if self._chip_hinted() and self._new_sightings(rows) >= cfg.min_sightings and (
+                fit is None or fit.vz_mps < cfg.vz_sigma * fit.vz_std_mps):  # the free fit says too little yet
+            tan_angle = math.tan(math.radians(self.hint_angle_deg))
+            fit = self._best_flight(rows, tan_angle)
+        if fit is None or not self._is_chip(fit, rows):
+            fit = None
+        landed = None
+        if fit is None or all_rows[-1, 0] - fit.t_launch_s >= 2.0 * fit.vz_mps / g:
+            # no chip in the air through the sightings: one that bounced within them, if that explains them better
+            landed = self._landed_chip(all_rows, free)
+        if landed is not None:
+            fit, rows = landed, self._first_flight(all_rows, landed)
+        if fit is None:
+            return
         try:
             chip, covariance = self._reported_flight(fit, rows, tan_angle, landed is not None)
         except ValueError:
@@ -851,13 +853,14 @@ class ChipDetector:
 
     def _landed_chip(self, rows: np.ndarray, fit: ChipFit | None) -> ChipFit | None:
         """Before a detection without a chip hint: the chip through its first bounce (``_hop_flight``) when it
-        explains the sightings better than the free flight ``fit`` (None: it does not, or none landed within them).
-        The bounce takes a share of the ground speed at once and starts a lower flight, which no ground kick does
-        and a free flight through the sightings after it mistakes for a steep or slow one."""
+        explains the sightings better than the free flight ``fit`` and is a chip by the same test (None: not). The
+        bounce takes a share of the ground speed at once and starts a lower flight, which no ground kick does and a
+        free flight through the sightings after it mistakes for a steep or slow one. Asked only when no chip stays
+        in the air through the sightings: a high chip's early sightings fit a short hop by chance now and then."""
         if self.fit is not None or self._chip_hinted():
             return None
         hop = self._hop_flight(rows)
-        if hop is None or (fit is not None and fit.rss_m2 <= hop.rss_m2):
+        if hop is None or (fit is not None and fit.rss_m2 <= hop.rss_m2) or not self._is_chip(hop, rows):
             return None
         return hop
 
