@@ -420,9 +420,10 @@ def short_sightings(position_at, frames=range(-8, 11)):
 
 
 def test_a_short_chip_is_taken_through_its_first_bounce(monkeypatch):
-    """The short chip from one camera beside it: before it lands the free flight's vz is not yet sure; at the first
-    frame after its touchdown (0.105 s) the bounce (a step down in ground speed, a lower flight) tells it, fitted
-    with the launch at 0, vz 0.4905 and the touchdown at x = 0.65. Without the fit through the bounce the same
+    """The short chip from one camera beside it: before it lands the free flight's vz is not yet sure; within three
+    frames after its touchdown (0.1336 s) the bounce (a step down in ground speed, a lower flight) tells it, fitted
+    with the launch at 0, vz 0.4905 and the touchdown at x = 0.65 (to 0.04 m/s and 1 cm: taken early, the fitted
+    bounce is held HOP_SEEN_AFTER_S before the last sighting). Without the fit through the bounce the same
     sightings are not taken (the free flight through them is no flight a chip kicker launches)."""
     def run():
         detector = ChipDetector(None, SHORT_PARAMS)
@@ -433,10 +434,10 @@ def test_a_short_chip_is_taken_through_its_first_bounce(monkeypatch):
         return detector
 
     detector = run()
-    assert detector.detected_at_s == pytest.approx(0.005 + 7.0 / 70.0)
+    assert SHORT_T1 < detector.detected_at_s <= 0.005 + 9.0 / 70.0  # within the third frame after the bounce
     assert detector.fit.t_launch_s == pytest.approx(0.0, abs=1e-3)
-    assert detector.fit.vz_mps == pytest.approx(SHORT_VZ, abs=0.01)
-    assert detector.launch.touchdown_points_m[0].tolist() == pytest.approx([0.65, 0.3], abs=0.005)
+    assert detector.fit.vz_mps == pytest.approx(SHORT_VZ, abs=0.04)
+    assert detector.launch.touchdown_points_m[0].tolist() == pytest.approx([0.65, 0.3], abs=0.01)
     monkeypatch.setattr(ChipDetector, "_landed_chip", lambda self, rows, fit: None)
     assert run().detected_at_s is None
 

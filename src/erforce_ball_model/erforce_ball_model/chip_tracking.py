@@ -92,6 +92,9 @@ BOUND_INSIDE_DEG = 0.5
 HOP_T1_S = np.arange(0.03, 0.4001, 0.002)
 HOP_TAU_STEP_S = 0.001
 HOP_TAU_MAX_S = 0.5
+# A bounce is fitted once sightings this long after it are in [s] (two frames): a touchdown fitted just before the
+# last sighting bends a high chip's early path as well, its time moving on with every new sighting.
+HOP_SEEN_AFTER_S = 0.025
 HOP_COARSE = 2  # the first search takes every other touchdown time, then the best's neighbours
 HOP_LAUNCH_STEPS = 7  # launch times per search (the free flight's grid is finer: the hop fit runs on fewer)
 
@@ -737,8 +740,8 @@ class ChipDetector:
 
     def _hop_flight(self, rows: np.ndarray) -> ChipFit | None:
         """The best chip through its first bounce (``fit_hop_flight``) over the launch times and the first-touchdown
-        times that land it before the last sighting and leave it hopping until then (a flight landing later is the
-        free flight's): a grid of both, then finer launch times and the touchdown times next to the best. None when
+        times that land it ``HOP_SEEN_AFTER_S`` before the last sighting and leave it hopping until then (a flight
+        landing later is the free flight's): a grid of both, then finer launch times and the touchdown times next to the best. None when
         no such chip is determined."""
         u = self._pre_velocity
         tables = hop_tables(self.params, self.ball_params)
@@ -751,7 +754,7 @@ class ChipDetector:
         def evaluate(times, ks):
             tt, kk = np.repeat(times, len(ks)), np.tile(ks, len(times))
             theta, rss = _hop_flights(rows, tt, kk, tables, self._origins(tt), u)
-            rss[HOP_T1_S[kk] >= t_last - tt] = math.inf  # not landed by the last sighting: the free flight's
+            rss[HOP_T1_S[kk] > t_last - tt - HOP_SEEN_AFTER_S] = math.inf  # landed later: the free flight's
             i = int(np.argmin(rss))
             return tt[i], kk[i], theta[i], rss[i], times, i // len(ks)
 
