@@ -741,8 +741,8 @@ class ChipDetector:
     def _hop_flight(self, rows: np.ndarray) -> ChipFit | None:
         """The best chip through its first bounce (``fit_hop_flight``) over the launch times and the first-touchdown
         times that land it ``HOP_SEEN_AFTER_S`` before the last sighting and leave it hopping until then (a flight
-        landing later is the free flight's): a grid of both, then finer launch times and the touchdown times next to the best. None when
-        no such chip is determined."""
+        landing later is the free flight's): a grid of both, then finer launch times and the touchdown times next to
+        the best. None when no such chip is determined."""
         u = self._pre_velocity
         tables = hop_tables(self.params, self.ball_params)
         lo, hi = self._launch_times()
