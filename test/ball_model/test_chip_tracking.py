@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from erforce_ball_model import chip_tracking
-from erforce_ball_model.ball_model import BallTrajectory, ChipParams
+from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ChipParams
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.chip_tracking import (
     ChipDetector,
@@ -393,3 +393,98 @@ def test_the_batched_fit_at_an_angle_is_each_launch_times_own():
         one = fit_flight_at_angle(rows, t0, None, G, 0.002, tan_angle=1.5)
         assert theta[j].tolist() == pytest.approx([one.x_m, one.y_m, one.vx_mps, one.vy_mps, one.vz_mps], abs=1e-12)
         assert (vz_std[j], rss[j]) == pytest.approx((one.vz_std_mps, one.rss_m2), rel=1e-9)
+
+
+# A short chip, written out by hand: launched at t = 0 from (0.5, 0.3) along +x at 1.5 m/s with vz = g * 0.1 / 2 =
+# 0.4905 m/s (18 deg up), it lands at T1 = 2 vz / g = 0.1 s at x = 0.65 m; the bounce keeps 5/7 of the ground speed
+# (1.071429 m/s) and 0.566 of vz (0.277623 m/s), so the second hop lasts 2 * 0.277623 / 9.81 = 0.0566 s.
+SHORT_PARAMS = ChipParams(damping_z=0.566, damping_xy_first_hop=5.0 / 7.0, damping_xy_other_hops=1.0)
+SHORT_V, SHORT_VZ, SHORT_T1 = 1.5, 0.4905, 0.1
+SHORT_CAMERA = (0.5, -2.0, 4.0)  # beside the kick
+
+
+def short_chip_at(t):
+    """The short chip's (x, y, z) at ``t`` (at rest before 0), through its second hop."""
+    if t <= 0.0:
+        return 0.5, 0.3, 0.0
+    if t <= SHORT_T1:
+        return 0.5 + SHORT_V * t, 0.3, SHORT_VZ * t - 0.5 * G * t * t
+    d = t - SHORT_T1
+    assert d <= 2.0 * 0.566 * SHORT_VZ / G
+    return 0.65 + d * SHORT_V * 5.0 / 7.0, 0.3, 0.566 * SHORT_VZ * d - 0.5 * G * d * d
+
+
+def short_sightings(position_at, frames=range(-8, 11)):
+    """Noise-free 70 Hz frames (at 5 ms + k / 70 s) of one camera."""
+    return [(0.005 + k / 70.0, *seen(*position_at(0.005 + k / 70.0), SHORT_CAMERA)) for k in frames]
+
+
+def test_a_short_chip_is_taken_through_its_first_bounce(monkeypatch):
+    """The short chip from one camera beside it: before it lands the free flight's vz is not yet sure; within three
+    frames after its touchdown (0.1336 s) the bounce (a step down in ground speed, a lower flight) tells it, fitted
+    with the launch at 0, vz 0.4905 and the touchdown at x = 0.65 (to 0.04 m/s and 1 cm: taken early, the fitted
+    bounce is held HOP_SEEN_AFTER_S before the last sighting). Without the fit through the bounce the same
+    sightings are not taken (the free flight through them is no flight a chip kicker launches)."""
+    def run():
+        detector = ChipDetector(None, SHORT_PARAMS)
+        for t, x, y in short_sightings(short_chip_at):
+            if t > 0.0 and detector.t_start_s is None:
+                detector.start(t, before=(t - 1.0 / 70.0, 0.5, 0.3, 0.0, 0.0))
+            detector.add(t, x, y, SHORT_CAMERA)
+        return detector
+
+    detector = run()
+    assert SHORT_T1 < detector.detected_at_s <= 0.005 + 9.0 / 70.0  # within the third frame after the bounce
+    assert detector.fit.t_launch_s == pytest.approx(0.0, abs=1e-3)
+    assert detector.fit.vz_mps == pytest.approx(SHORT_VZ, abs=0.04)
+    assert detector.launch.touchdown_points_m[0].tolist() == pytest.approx([0.65, 0.3], abs=0.01)
+    monkeypatch.setattr(ChipDetector, "_landed_chip", lambda self, rows, fit: None)
+    assert run().detected_at_s is None
+
+
+def test_a_flat_kick_as_fast_as_the_short_chip_is_no_chip():
+    """A ground kick from the short chip's point at its ground speed (1.5 m/s), the same camera, 0.3 s: no chip (its
+    speed falls steadily, 2.5 m/s^2 while it slides, where the chip's drops by 2/7 at once)."""
+    truth = BallTrajectory((0.5, 0.3), (SHORT_V, 0.0), SHORT_V)
+    detector = ChipDetector(None, SHORT_PARAMS)
+    for t, x, y in short_sightings(lambda t: (*truth.position_at(max(t, 0.0)).tolist(), 0.0), range(-8, 22)):
+        if t > 0.0 and detector.t_start_s is None:
+            detector.start(t, before=(t - 1.0 / 70.0, 0.5, 0.3, 0.0, 0.0))
+        detector.add(t, x, y, SHORT_CAMERA)
+        assert detector.fit is None
+
+
+def test_the_hop_fit_lands_and_bounces_the_chip_as_computed_by_hand():
+    """The fit through the bounce at the true launch time and touchdown time: the launch, the touchdown point
+    (0.65, 0.3) and the velocity after the bounce (1.5 * 5/7, 0, 0.566 * 0.4905 = 0.277623) to 1e-5 (the hop tables
+    are linear between ms steps: a parabola's chord is off by g (1 ms)^2 / 8 = 1.2e-6 m)."""
+    rows = np.array([(t, x, y, *SHORT_CAMERA) for t, x, y in short_sightings(short_chip_at)])
+    tables = chip_tracking.hop_tables(SHORT_PARAMS, BallModelParams())
+    hop = int(np.argmin(np.abs(chip_tracking.HOP_T1_S - SHORT_T1)))
+    assert chip_tracking.HOP_T1_S[hop] == pytest.approx(SHORT_T1, abs=1e-12)
+    fit = chip_tracking.fit_hop_flight(rows, 0.0, hop, tables, None, G)
+    assert [fit.x_m, fit.y_m, fit.vx_mps, fit.vy_mps, fit.vz_mps] == pytest.approx([0.5, 0.3, 1.5, 0.0, SHORT_VZ],
+                                                                                   abs=1e-5)
+    chip = ChipTrajectory((fit.x_m, fit.y_m, 0.0), (fit.vx_mps, fit.vy_mps, fit.vz_mps), SHORT_PARAMS)
+    assert chip.touchdown_times_s[0] == pytest.approx(SHORT_T1, abs=1e-9)
+    assert chip.touchdown_points_m[0].tolist() == pytest.approx([0.65, 0.3], abs=1e-5)
+    assert chip.velocity_at(SHORT_T1 + 1e-9).tolist() == pytest.approx([1.0714286, 0.0, 0.277623 - G * 1e-9],
+                                                                       abs=1e-5)
+    assert fit.rss_m2 < 1e-10
+
+
+def test_a_slow_kick_the_flat_filter_missed_starts_from_the_sightings():
+    """A ball at rest, then a chip at 0.8 m/s ground speed (vz 0.7 m/s: 2.5 cm high) seen by one camera beside it
+    that the flat filter never reports (no ``start``): the sightings 5 noise (10 mm) off the resting ball start the
+    kick, and it is taken as a chip within 0.15 s. A ball at rest with 2 mm of noise starts nothing."""
+    truth = ChipTrajectory((0.5, 0.3, 0.0), (0.8, 0.0, 0.7), ChipParams())
+    detector = ChipDetector(None, ChipParams())
+    for t, x, y, camera in kick_sightings(truth, 0.004, [(0.5, -2.0, 4.0)], frames=(-10, 12)):
+        detector.add(t, x, y, camera)
+    assert 0.004 < detector.t_start_s <= 3.0 / 70.0  # 8 mm, 20 mm, 31 mm from where it lay at 1, 2, 3 / 70 s
+    assert detector.detected_at_s is not None and detector.detected_at_s - 0.004 <= 0.15
+    assert detector.fit.vz_mps == pytest.approx(0.7, abs=0.02)
+    rest = ChipDetector(None, ChipParams())
+    for t, x, y, camera in kick_sightings(truth, 10.0, CAMERAS, noise_m=0.002, seed=3, frames=(-10, 60)):
+        rest.add(t, x, y, camera)
+    assert rest.t_start_s is None and rest.fit is None

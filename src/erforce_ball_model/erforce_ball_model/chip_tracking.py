@@ -16,9 +16,13 @@ ball on the ground too (the flat model's deceleration along its motion). A chip 
 cameras at one instant disagree by a height ``height_sigma`` standard errors above the ground
 (``triangulate_height``), or when the flight explains the sightings better than the ground by ``min_gain``
 (in units of the noise variance) and is a flight a chip kicker launches (speed, elevation, ``vz`` above
-zero; a free fit outside gives way to the best flight at the bounds of the elevations). Until the first
-touchdown every new sighting refines the fit; then the chip model (chip_model.ChipTrajectory with
-``ChipParams``) predicts the hops and the hand-over to rolling.
+zero; a free fit outside gives way to the best flight at the bounds of the elevations). A short chip that
+lands within its sightings is fitted through its first bounce as well (``fit_hop_flight``: the chip model's hops
+at a searched touchdown time, four linear unknowns) and judged by the same test when that explains them better:
+the bounce cuts the ground speed at once where a ground kick slows steadily. A kick the flat filter does not
+report (a slow one stays within its gate) starts from the sightings: a ball at rest that moves off by
+``moved_sigma`` noise. Until the first touchdown every new sighting refines the fit; then the chip model
+(chip_model.ChipTrajectory with ``ChipParams``) predicts the hops and the hand-over to rolling.
 
 What is reported of a fit taken: its covariance (``flight_covariance``; from one camera the first height is
 unsure by tens of cm, along the camera's ray), and the flight within the kicker's limits (``within_kicker_limits``:
@@ -45,6 +49,7 @@ No rclpy import.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -62,7 +67,8 @@ from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_interfaces.runtime.param_schema import schema_defaults
 
 __all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_flight_at_angle",
-           "fit_ground", "flight_covariance", "triangulate_height", "within_kicker_limits"]
+           "fit_ground", "fit_hop_flight", "flight_covariance", "hop_tables", "triangulate_height",
+           "within_kicker_limits"]
 
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "ball_predictor")
@@ -86,6 +92,19 @@ MOVED_SPAN_S = 0.05
 # The flights at the bounds of the plausible elevations are fitted this far inside them.
 BOUND_INSIDE_DEG = 0.5
 
+
+# A chip landed within its sightings is fitted through its first bounce (``fit_hop_flight``) at these first-touchdown
+# times after the launch [s] (its vz = g T / 2; finer steps move its touchdown by less than a frame's noise), from
+# tables of a chip at unit ground speed over the times since the launch (linear between steps of HOP_TAU_STEP_S: a
+# parabola's chord is off by g step^2 / 8, 1e-6 m).
+HOP_T1_S = np.arange(0.03, 0.4001, 0.002)
+HOP_TAU_STEP_S = 0.001
+HOP_TAU_MAX_S = 0.5
+# A bounce is fitted once sightings this long after it are in [s] (two frames): a touchdown fitted just before the
+# last sighting bends a high chip's early path as well, its time moving on with every new sighting.
+HOP_SEEN_AFTER_S = 0.025
+HOP_COARSE = 2  # the first search takes every other touchdown time, then the best's neighbours
+HOP_LAUNCH_STEPS = 7  # launch times per search (the free flight's grid is finer: the hop fit runs on fewer)
 
 # The league's limit on a kicked ball's speed [m/s]: with the kicker's elevations, the flights a reported chip can be.
 KICK_SPEED_LIMIT_MPS = 6.5
@@ -118,6 +137,9 @@ class ChipDetectorConfig:
     moved_sigma: float = 5.0
     launch_refine_steps: int = 2  # finer grids refining the best launch time of the first
     origin_s: float = 0.1  # the old motion's sightings this long before the kick pin the launch point
+    # a ball slower than this over ``origin_s`` lies at rest: its sightings ``moved_sigma`` off start a kick the flat
+    # filter has not reported (it takes a slow kick's first frames within its gate)
+    rest_speed_mps: float = 0.1
     window_s: float = 0.3  # sightings of one kick kept this long
     # two cameras' sightings this close in time are of one instant: their disagreement is the ball's height
     pair_dt_s: float = 1e-4
@@ -244,6 +266,69 @@ def _grounds(rows: np.ndarray, t_launch_s, origin_xy, ball_params: BallModelPara
         known[moving, :n], known[moving, n:2 * n] = theta[moving, 2:3] / v * along, theta[moving, 3:4] / v * along
         theta = _apply(inv, a, b - known)
     return np.where(ok, _rss(a, theta, b - known), math.inf)
+
+
+@functools.lru_cache(maxsize=4)
+def hop_tables(params: ChipParams, ball_params: BallModelParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each first-touchdown time of ``HOP_T1_S``: a chip launched from the ground at unit ground speed with the vz
+    that lands it then (chip_model.ChipTrajectory under ``params``), its ground distance [m per m/s] and height [m] at
+    the times ``0, HOP_TAU_STEP_S, ... HOP_TAU_MAX_S`` since the launch (k, j each), and when it rolls (k,). Its ground
+    track scales with the launch's ground speed until it rolls (the roll's deceleration does not)."""
+    tau = np.arange(0.0, HOP_TAU_MAX_S + 0.5 * HOP_TAU_STEP_S, HOP_TAU_STEP_S)
+    chips = [ChipTrajectory((0.0, 0.0, 0.0), (1.0, 0.0, 0.5 * params.g_mps2 * t1), params, ball_params)
+             for t1 in HOP_T1_S]
+    track = np.array([chip.position_at(tau) for chip in chips])
+    return track[:, :, 0], track[:, :, 2], np.array([chip.roll_start_s for chip in chips])
+
+
+def _hop_flights(rows: np.ndarray, t_launch_s, hop, tables, origin_xy, pre_velocity_mps):
+    """Least squares for (x0, y0, vx, vy) of a chip launched at ``t_launch_s`` (m,) that first lands ``HOP_T1_S[hop]``
+    (m,) later, through its bounces (``hop_tables``): its ground track ``p0 + v D(t)`` seen from the camera at height
+    ``H(t)`` gives ``p0 + v D + (G - c) H / cz = G`` per sighting, linear in the four unknowns (before the launch the
+    ball on the ground as in ``_system``; the origin, if given, as one more sighting). x and y share the normal
+    matrix ``[[n, sum D], [sum D, sum D^2]]``: solved in closed form, all m at once. Solutions (m, 4), squared
+    residuals (m,; inf where undetermined)."""
+    t_launch_s = np.asarray(t_launch_s, dtype=float)
+    tau = rows[None, :, 0] - t_launch_s.reshape(-1, 1)
+    distance, height, _ = tables
+    index = np.maximum(tau, 0.0) / HOP_TAU_STEP_S
+    j = np.minimum(index.astype(int), distance.shape[1] - 2)
+    f, k = index - j, np.asarray(hop).reshape(-1, 1)
+    d = distance[k, j] * (1.0 - f) + distance[k, j + 1] * f
+    h = height[k, j] * (1.0 - f) + height[k, j + 1] * f
+    pre = np.minimum(tau, 0.0)
+    ref = rows[0, 1:3]  # sums of small numbers: no cancellation in the squared residual
+    s0, s1, s2 = np.full(len(t_launch_s), float(len(rows))), d.sum(axis=1), (d * d).sum(axis=1)
+    if origin_xy is not None:
+        s0 = s0 + ORIGIN_WEIGHT**2
+    det = s0 * s2 - s1 * s1
+    ok = det > 1e-12 * np.maximum(s0 * s2, 1e-300)
+    det = np.where(ok, det, 1.0)
+    theta, rss = np.zeros((len(t_launch_s), 4)), np.zeros(len(t_launch_s))
+    for axis in (0, 1):
+        b = (rows[:, 1 + axis] - ref[axis]) - pre_velocity_mps[axis] * pre \
+            - (rows[:, 1 + axis] - rows[:, 3 + axis]) / rows[:, 5] * h
+        b0, b1, bb = b.sum(axis=1), (d * b).sum(axis=1), (b * b).sum(axis=1)
+        if origin_xy is not None:
+            o = np.asarray(origin_xy, dtype=float).reshape(-1, 2)[:, axis] - ref[axis]
+            b0, bb = b0 + ORIGIN_WEIGHT**2 * o, bb + ORIGIN_WEIGHT**2 * o * o
+        p0, v = (s2 * b0 - s1 * b1) / det, (s0 * b1 - s1 * b0) / det
+        theta[:, axis], theta[:, 2 + axis] = p0 + ref[axis], v
+        rss += bb - p0 * b0 - v * b1
+    return theta, np.where(ok, np.maximum(rss, 0.0), math.inf)
+
+
+def fit_hop_flight(rows: np.ndarray, t_launch_s: float, hop: int, tables, origin_xy, g_mps2: float,
+                   pre_velocity_mps=(0.0, 0.0)) -> ChipFit | None:
+    """The chip launched at ``t_launch_s`` that first lands ``HOP_T1_S[hop]`` later (its vz: g T / 2) and bounces as
+    the chip model says (``tables``: hop_tables) that best explains the sightings ``rows``, by least squares on the
+    rays (as ``fit_flight``); its vz is given, so ``vz_std_mps`` is 0. None when the sightings do not determine it."""
+    origins = None if origin_xy is None else [origin_xy]
+    theta, rss = _hop_flights(rows, [t_launch_s], [hop], tables, origins, pre_velocity_mps)
+    if not math.isfinite(rss[0]):
+        return None
+    x0, y0, vx, vy = theta[0].tolist()
+    return ChipFit(float(t_launch_s), x0, y0, vx, vy, 0.5 * g_mps2 * float(HOP_T1_S[hop]), 0.0, float(rss[0]))
 
 
 def fit_flight(rows: np.ndarray, t_launch_s: float, origin_xy, g_mps2: float, noise_m: float,
@@ -441,6 +526,8 @@ class ChipDetector:
     trajectory at a time (``chip_at``) from its detection until it rolls (then ``hand_over`` gives its roll to
     the flat model once).
 
+    A kick starts with ``start`` (the flat filter's new motion) or, when the filter reports none, from the
+    sightings: a ball at rest (slower than ``rest_speed_mps``) whose last two frames lie ``moved_sigma`` noise off.
     The launch time is searched from ``launch_lookback_s`` before the first sighting of the new motion (the flat
     filter may have taken the kick's first frame for the old motion; its own sightings may show the kick earlier
     than the filter's word, ``moved_sigma``) to it; the launch point is pinned by the old
@@ -528,25 +615,46 @@ class ChipDetector:
 
     def _first_moved(self, t_first_s: float) -> float:
         """The time of the first sighting before ``t_first_s`` that, with the next frame's, lies off the old motion by
-        ``moved_sigma`` noise: where the kick shows first when the flat filter saw it late (inf: none does). The old
-        motion: the straight line through the sightings before it, once they span ``MOVED_SPAN_S`` (the flat
-        filter's velocity may already hold the kick)."""
-        cfg = self.config
+        ``moved_sigma`` noise: where the kick shows first when the flat filter saw it late (inf: none does)."""
         rows = np.array(self._rows, dtype=float).reshape(-1, 6)
         times = np.unique(rows[:, 0])
         for i in np.flatnonzero(times < t_first_s):
-            j = int(np.searchsorted(rows[:, 0], times[i]))
-            t, x, y = rows[:j, 0], rows[:j, 1], rows[:j, 2]
-            if j < 3 or t[-1] - t[0] < MOVED_SPAN_S:
-                continue
-            tc = t - t.mean()
-            vx, vy = tc @ (x - x.mean()) / (tc @ tc), tc @ (y - y.mean()) / (tc @ tc)
-            later = rows[(rows[:, 0] >= times[i]) & (rows[:, 0] <= times[min(i + 1, len(times) - 1)])]
-            dt = later[:, 0] - t.mean()
-            if np.all(np.hypot(later[:, 1] - x.mean() - vx * dt, later[:, 2] - y.mean() - vy * dt)
-                      > cfg.moved_sigma * cfg.noise_m):
+            if self._moved_at(rows, times, int(i)):
                 return float(times[i])
         return math.inf
+
+    def _moved_at(self, rows: np.ndarray, times: np.ndarray, i: int, max_speed_mps: float = math.inf) -> bool:
+        """A sighting of ``times[i]`` and one of the next frame lie ``moved_sigma`` noise off the old motion: the
+        straight line through the sightings before them, once these span ``MOVED_SPAN_S`` (the flat filter's velocity
+        may already hold the kick), and only if it is no faster than ``max_speed_mps``."""
+        cfg = self.config
+        j = int(np.searchsorted(rows[:, 0], times[i]))
+        t, x, y = rows[:j, 0], rows[:j, 1], rows[:j, 2]
+        if j < 3 or t[-1] - t[0] < MOVED_SPAN_S:
+            return False
+        tc = t - t.mean()
+        vx, vy = tc @ (x - x.mean()) / (tc @ tc), tc @ (y - y.mean()) / (tc @ tc)
+        if math.hypot(vx, vy) > max_speed_mps:
+            return False
+        for k in {i, min(i + 1, len(times) - 1)}:  # each frame: one camera's sighting off suffices (in an overlap
+            later = rows[rows[:, 0] == times[k]]  # a flying ball's motion can hide along one camera's ray)
+            dt = later[:, 0] - t.mean()
+            if not np.any(np.hypot(later[:, 1] - x.mean() - vx * dt, later[:, 2] - y.mean() - vy * dt)
+                          > cfg.moved_sigma * cfg.noise_m):
+                return False
+        return True
+
+    def _self_start(self) -> None:
+        """Starts a kick the flat filter has not reported: a ball at rest (its sightings over ``origin_s`` slower than
+        ``rest_speed_mps``) whose last two frames lie ``moved_sigma`` noise off it. A slow kick, a slow chip's
+        projected path above all, can move on within the filter's gate for its whole flight."""
+        cfg = self.config
+        t_now = self._rows[-1].t_s
+        recent = [r for r in self._rows if t_now - r.t_s <= cfg.origin_s + MOVED_SPAN_S]
+        rows = np.array(recent, dtype=float).reshape(-1, 6)
+        times = np.unique(rows[:, 0])
+        if len(times) >= 4 and self._moved_at(rows, times, len(times) - 2, cfg.rest_speed_mps):
+            self.start(float(times[-2]))
 
     @property
     def active(self) -> bool:
@@ -575,14 +683,11 @@ class ChipDetector:
         if self._rows and t_s != self._rows[-1].t_s:
             self.judge_pending()
         self._rows.append(Sighting(float(t_s), float(x_m), float(y_m), *map(float, camera_m)))
-        if self.t_start_s is None:  # no kick yet: keep a short history only
+        if not self.active:  # no kick under way: keep a short history only
             self._rows = [r for r in self._rows if t_s - r.t_s <= self.config.window_s]
-        elif not judge:
-            self._pending = True
-        else:
-            self._pending = False
-            if self._judging():
-                self._judge(t_s)
+        self._pending = not judge
+        if judge:
+            self._judge_newest()
         return self.fit
 
     def judge_pending(self) -> None:
@@ -590,8 +695,15 @@ class ChipDetector:
         complete), as of that capture's time."""
         if self._pending:
             self._pending = False
-            if self.t_start_s is not None and self._judging():
-                self._judge(self._rows[-1].t_s)
+            self._judge_newest()
+
+    def _judge_newest(self) -> None:
+        """The newest capture's judgement: a kick the flat filter missed starts (``_self_start``), a kick's sightings
+        are judged."""
+        if not self.active:
+            self._self_start()
+        if self.active and self._judging():
+            self._judge(self._rows[-1].t_s)
 
     def _settled(self) -> np.ndarray:
         """The kick's sightings that are surely of the old motion (before the earliest launch time tried)."""
@@ -678,6 +790,39 @@ class ChipDetector:
         x0, y0, vx, vy, vz = theta[i].tolist()
         return ChipFit(float(times[i]), x0, y0, vx, vy, vz, float(vz_std[i]), float(rss[i]))
 
+    def _hop_flight(self, rows: np.ndarray) -> ChipFit | None:
+        """The best chip through its first bounce (``fit_hop_flight``) over the launch times and the first-touchdown
+        times that land it ``HOP_SEEN_AFTER_S`` before the last sighting and leave it hopping until then (a flight
+        landing later is the free flight's): a grid of both, then finer launch times and the touchdown times next to
+        the best. None when no such chip is determined."""
+        u = self._pre_velocity
+        tables = hop_tables(self.params, self.ball_params)
+        lo, hi = self._launch_times()
+        t_last = float(rows[-1, 0])
+        hops = np.flatnonzero((HOP_T1_S < t_last - lo) & (tables[2] > t_last - hi))
+        if len(hops) == 0:
+            return None
+
+        def evaluate(times, ks):
+            tt, kk = np.repeat(times, len(ks)), np.tile(ks, len(times))
+            theta, rss = _hop_flights(rows, tt, kk, tables, self._origins(tt), u)
+            rss[HOP_T1_S[kk] > t_last - tt - HOP_SEEN_AFTER_S] = math.inf  # landed later: the free flight's
+            i = int(np.argmin(rss))
+            return tt[i], kk[i], theta[i], rss[i], times, i // len(ks)
+
+        t, k, theta, rss, times, i = evaluate(np.linspace(lo, hi, HOP_LAUNCH_STEPS), hops[::HOP_COARSE])
+        for near in (HOP_COARSE + 1, 1):  # finer launch times, the touchdown times next to the best
+            if not math.isfinite(rss):
+                break
+            finer = np.linspace(times[max(i - 1, 0)], times[min(i + 1, len(times) - 1)], HOP_LAUNCH_STEPS)
+            best = evaluate(finer, hops[np.abs(hops - k) <= near])
+            if best[3] <= rss:
+                t, k, theta, rss, times, i = best
+        if not math.isfinite(rss):
+            return None
+        x0, y0, vx, vy = theta.tolist()
+        return ChipFit(float(t), x0, y0, vx, vy, 0.5 * self.params.g_mps2 * float(HOP_T1_S[k]), 0.0, float(rss))
+
     def _bounded_flight(self, rows: np.ndarray, fit: ChipFit | None) -> ChipFit | None:
         """The best flight a chip kicker launches: ``fit`` (the free one) if it is one, else the better of the
         flights at the bounds of the plausible elevations (the least-squares optimum over the plausible flights lies
@@ -731,6 +876,7 @@ class ChipDetector:
             self._drop_hint()
             self._judge(t_s)  # from the cameras alone
             return
+        all_rows, free = rows, None
         if commanded is not None:
             fit, rows = commanded
             tan_angle = math.tan(math.radians(self.hint_angle_deg))
@@ -738,11 +884,11 @@ class ChipDetector:
             prior = None
             if self._new_sightings(rows) < cfg.min_sightings:
                 return
-            fit = self._flight(rows)
+            fit = free = self._flight(rows)
             if fit is not None and fit.vz_mps > cfg.vz_sigma * fit.vz_std_mps:
                 # sightings after the first touchdown belong to the next hop: fit the first flight only (once the
                 # flight is sure enough to say when it lands)
-                first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]
+                first_hop = self._first_flight(rows, fit)
                 if len(first_hop) < len(rows):
                     rows = first_hop
                     fit = self._flight(rows) if self._new_sightings(rows) >= cfg.min_sightings else None
@@ -756,9 +902,17 @@ class ChipDetector:
             self._judge(t_s)
             return
         if fit is None or not self._is_chip(fit, rows):
+            fit = None
+        landed = None
+        if commanded is None and (fit is None or all_rows[-1, 0] - fit.t_launch_s >= 2.0 * fit.vz_mps / g):
+            # no chip in the air through the sightings: one that bounced within them, if that explains them better
+            landed = self._landed_chip(all_rows, free)
+        if landed is not None:
+            fit, rows = landed, self._first_flight(all_rows, landed)
+        if fit is None:
             return
         try:
-            chip, covariance = self._reported_flight(fit, rows, tan_angle, prior)
+            chip, covariance = self._reported_flight(fit, rows, tan_angle, prior, landed is not None)
         except ValueError:
             return
         self.fit, self._chip, self._launch_covariance = fit, chip, covariance
@@ -782,7 +936,7 @@ class ChipDetector:
         fit = self._best_flight(rows, tan_angle, prior)
         if fit is None or not fit.vz_mps > 0.0:
             return None
-        first_hop = rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / g]  # the next hop's are not this flight's
+        first_hop = self._first_flight(rows, fit)  # the next hop's are not this flight's
         if len(first_hop) < len(rows) and self._new_sightings(first_hop) >= cfg.hint_min_sightings:
             rows = first_hop
             fit = self._best_flight(rows, tan_angle, prior)
@@ -814,6 +968,23 @@ class ChipDetector:
         on) and a chip taken on it withdrawn."""
         self.hint_angle_deg = self.hint_speed_mps = None
         self.fit = self._chip = self._launch_covariance = self.detected_at_s = None
+
+    def _first_flight(self, rows: np.ndarray, fit: ChipFit) -> np.ndarray:
+        """The sightings of ``fit``'s first flight (before its first touchdown)."""
+        return rows[rows[:, 0] - fit.t_launch_s < 2.0 * fit.vz_mps / self.params.g_mps2]
+
+    def _landed_chip(self, rows: np.ndarray, fit: ChipFit | None) -> ChipFit | None:
+        """Before a detection without a chip hint: the chip through its first bounce (``_hop_flight``) when it
+        explains the sightings better than the free flight ``fit`` and is a chip by the same test (None: not). The
+        bounce takes a share of the ground speed at once and starts a lower flight, which no ground kick does and a
+        free flight through the sightings after it mistakes for a steep or slow one. Asked only when no chip stays
+        in the air through the sightings: a high chip's early sightings fit a short hop by chance now and then."""
+        if self.fit is not None or self._chip_hinted():
+            return None
+        hop = self._hop_flight(rows)
+        if hop is None or (fit is not None and fit.rss_m2 <= hop.rss_m2) or not self._is_chip(hop, rows):
+            return None
+        return hop
 
     def _flight(self, rows: np.ndarray) -> ChipFit | None:
         """The flight judged: the best one a chip kicker launches (with a chip hint: the best free one)."""
@@ -889,19 +1060,20 @@ class ChipDetector:
         return chip.advanced(max(dt, 0.0))
 
     def _reported_flight(self, fit: ChipFit, rows: np.ndarray, tan_angle: float | None,
-                         speed_prior: tuple[float, float] | None = None):
+                         speed_prior: tuple[float, float] | None = None, landed: bool = False):
         """The chip reported of a fit taken, and its launch covariance: the fit's flight_covariance, then the
         flight within the kicker's limits (within_kicker_limits; the fit's own launch time kept) -- one camera's
         early fit trades height for ground distance along the ray, and a fit beyond what a kicker launches is the
-        noise's. The fit as it is where nothing of it is within them. Raises ValueError for a flight ChipTrajectory
-        refuses."""
+        noise's. The fit as it is where nothing of it is within them, and for a chip fitted through its bounce
+        (``landed``: its touchdown pins vz; the covariance of its first flight's sightings alone overstates that).
+        Raises ValueError for a flight ChipTrajectory refuses."""
         origin = None
         if self._before is not None and not self._origin_seen:  # as _origins: the flat filter's launch point
             origin = (*self._origins([fit.t_launch_s])[0], self._before[3], self._before[4])
         covariance = flight_covariance(rows, fit, origin, self.params.g_mps2, self.config.noise_m,
                                        self._pre_velocity, tan_angle, speed_prior)
         launch = np.array([fit.x_m, fit.y_m, fit.vx_mps, fit.vy_mps, fit.vz_mps, fit.t_launch_s])
-        if covariance is not None:
+        if covariance is not None and not landed:
             limited = within_kicker_limits(launch, covariance, self.config.min_elevation_deg,
                                            self.config.max_elevation_deg)
             if limited is not None:
