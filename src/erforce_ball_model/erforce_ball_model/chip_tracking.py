@@ -137,9 +137,10 @@ class ChipDetectorConfig:
     moved_sigma: float = 5.0
     launch_refine_steps: int = 2  # finer grids refining the best launch time of the first
     origin_s: float = 0.1  # the old motion's sightings this long before the kick pin the launch point
-    # a ball slower than this over ``origin_s`` lies at rest: its sightings ``moved_sigma`` off start a kick the flat
-    # filter has not reported (it takes a slow kick's first frames within its gate)
-    rest_speed_mps: float = 0.1
+    # a ball slower than this over ``origin_s`` lies at rest (the predictor's stopped ball): its sightings
+    # ``moved_sigma`` off start a kick the flat filter has not reported (it takes a slow kick's first frames within
+    # its gate)
+    rest_speed_mps: float = _DEFAULTS["rest_speed_mps"]
     window_s: float = 0.3  # sightings of one kick kept this long
     # two cameras' sightings this close in time are of one instant: their disagreement is the ball's height
     pair_dt_s: float = 1e-4
