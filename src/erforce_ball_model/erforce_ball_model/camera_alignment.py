@@ -1,0 +1,163 @@
+"""Per-camera systematic offsets of SSL-Vision, estimated online from what two cameras see at one capture.
+
+A calibrated camera still reports every object a few cm off (ER-Force's simulator's "Realistic" preset: 2 cm along
+the camera's direction from the field's centre); in an overlap two cameras then disagree about a ball at rest, and
+a chip detector that reads the disagreement as parallax takes flat kicks for chips. SSL-Vision reports a robot
+where its marker height's projection lies, the same rule for every camera, so two cameras' positions of one robot
+at one capture differ only by their offsets and noise: ``d = p_a - p_b = o_a - o_b + e``. A ball lying still is
+the same; a ball that may be in the air is not (its two projections differ by its height's parallax), so a ball
+feeds the estimate only while each camera has seen it at rest for ``rest_window_s``.
+
+The offsets are only defined up to a common shift: the estimate is the least-squares one with zero mean over the
+cameras that were paired (``o = L^+ r``, L the graph Laplacian weighted by each pair's sample count, r each
+camera's summed differences). Its covariance per axis is ``s^2 L^+`` with s the differences' standard deviation
+estimated from the residuals: ``uncertainty_m``. Each pair keeps at most ``max_samples`` (older samples are scaled
+down), so the estimate follows a calibration that changes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+BALL_KEY = ("ball",)
+
+
+@dataclass
+class _Pair:
+    n: float = 0.0
+    sum_m: np.ndarray = field(default_factory=lambda: np.zeros(2))  # sum of p_a - p_b (a < b)
+    sum_sq_m2: float = 0.0  # sum of |p_a - p_b|^2 (both axes)
+
+
+class CameraAlignment:
+    """Online estimate of each camera's offset from pairs of sightings at one capture; ``correct`` removes it.
+
+    ``frame`` takes one camera frame (its capture time, its robots and balls); pairs with the newest frame of every
+    other camera within ``max_capture_gap_s``. A robot pairs when its motion over the two captures' gap (from the
+    camera's previous sighting) is below ``max_motion_m``; a pair whose difference is further than
+    ``max_disagreement_m`` from the pair's mean so far (a wrong id, a reflection) is left out."""
+
+    def __init__(self, max_capture_gap_s: float = 0.004, max_motion_m: float = 0.002, rest_window_s: float = 0.2,
+                 rest_radius_m: float = 0.005, max_disagreement_m: float = 0.1, max_samples: float = 5000.0) -> None:
+        for name, value in (("max_capture_gap_s", max_capture_gap_s), ("max_motion_m", max_motion_m),
+                            ("rest_window_s", rest_window_s), ("rest_radius_m", rest_radius_m),
+                            ("max_disagreement_m", max_disagreement_m), ("max_samples", max_samples)):
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"CameraAlignment.{name}: must be finite and > 0, got {value!r}")
+        self.max_capture_gap_s = max_capture_gap_s
+        self.max_motion_m = max_motion_m
+        self.rest_window_s = rest_window_s
+        self.rest_radius_m = rest_radius_m
+        self.max_disagreement_m = max_disagreement_m
+        self.max_samples = max_samples
+        self._newest: dict[int, tuple[float, dict[tuple, tuple[float, float, float]]]] = {}
+        self._balls: dict[int, deque[tuple[float, float, float]]] = {}
+        self._pairs: dict[tuple[int, int], _Pair] = {}
+        self._solution: tuple[dict[int, int], np.ndarray, np.ndarray] | None = None
+
+    # ------------------------------------------------------------------ input
+    def frame(self, camera_id: int, t_capture_s: float, robots=(), balls=()) -> None:
+        """One camera frame: ``robots`` as (team, robot_id, x_m, y_m), ``balls`` as (x_m, y_m), as the camera
+        reported them. Only a frame with one ball lets the ball pair (several: which is which is unknown)."""
+        seen: dict[tuple, tuple[float, float, float]] = {}  # x, y, speed
+        previous = self._newest.get(camera_id)
+        for team, robot_id, x, y in robots:
+            key = (int(team), int(robot_id))
+            if previous is not None and key in previous[1] and t_capture_s > previous[0]:
+                px, py, _ = previous[1][key]
+                speed = math.hypot(x - px, y - py) / (t_capture_s - previous[0])
+            else:
+                speed = math.inf  # unknown motion: pairs only at the same capture
+            seen[key] = (float(x), float(y), speed)
+        balls = list(balls)
+        history = self._balls.setdefault(camera_id, deque())
+        if len(balls) == 1:
+            history.append((t_capture_s, float(balls[0][0]), float(balls[0][1])))
+            while history and history[0][0] < t_capture_s - self.rest_window_s:
+                history.popleft()
+            if self._ball_at_rest(history, t_capture_s):
+                seen[BALL_KEY] = (history[-1][1], history[-1][2], 0.0)
+        else:
+            history.clear()
+        for other, (t_other, other_seen) in self._newest.items():
+            gap_s = abs(t_capture_s - t_other)
+            if other == camera_id or gap_s > self.max_capture_gap_s:
+                continue
+            for key, (x, y, speed) in seen.items():
+                if key in other_seen and (gap_s == 0.0 or speed * gap_s <= self.max_motion_m):
+                    ox, oy = other_seen[key][:2]
+                    self._add(camera_id, other, x - ox, y - oy)
+        self._newest[camera_id] = (t_capture_s, seen)
+
+    def _ball_at_rest(self, history: deque, t_s: float) -> bool:
+        """Still, within ``rest_radius_m`` of its newest sighting, for at least ``rest_window_s``: a ball in the air
+        moves in every camera's view (its height changes by g t^2 / 2 about its apex)."""
+        if len(history) < 3 or t_s - history[0][0] < self.rest_window_s * 0.999:
+            return False
+        _, x, y = history[-1]
+        return all(math.hypot(hx - x, hy - y) <= self.rest_radius_m for _, hx, hy in history)
+
+    def _add(self, a: int, b: int, dx: float, dy: float) -> None:
+        if a > b:
+            a, b, dx, dy = b, a, -dx, -dy
+        pair = self._pairs.setdefault((a, b), _Pair())
+        d = np.array([dx, dy])
+        if pair.n > 0 and np.hypot(*(d - pair.sum_m / pair.n)) > self.max_disagreement_m:
+            return
+        if pair.n + 1.0 > self.max_samples:  # a window of about max_samples: older samples weigh less
+            k = (self.max_samples - 1.0) / pair.n
+            pair.n, pair.sum_m, pair.sum_sq_m2 = pair.n * k, pair.sum_m * k, pair.sum_sq_m2 * k
+        pair.n += 1.0
+        pair.sum_m = pair.sum_m + d
+        pair.sum_sq_m2 += dx * dx + dy * dy
+        self._solution = None
+
+    # ----------------------------------------------------------------- output
+    def _solve(self) -> tuple[dict[int, int], np.ndarray, np.ndarray]:
+        if self._solution is None:
+            ids = sorted({c for pair in self._pairs for c in pair})
+            index = {c: i for i, c in enumerate(ids)}
+            lap = np.zeros((len(ids), len(ids)))
+            r = np.zeros((len(ids), 2))
+            sq, dof = 0.0, 0.0
+            for (a, b), p in self._pairs.items():
+                i, j = index[a], index[b]
+                lap[i, i] += p.n
+                lap[j, j] += p.n
+                lap[i, j] -= p.n
+                lap[j, i] -= p.n
+                r[i] += p.sum_m
+                r[j] -= p.sum_m
+                sq += p.sum_sq_m2 - float(p.sum_m @ p.sum_m) / p.n  # residuals about the pair's mean, both axes
+                dof += 2.0 * (p.n - 1.0)
+            lap_pinv = np.linalg.pinv(lap) if ids else lap
+            offsets = lap_pinv @ r
+            var_m2 = sq / dof if dof > 0.0 else math.inf  # per axis, of one difference
+            self._solution = (index, offsets, np.sqrt(np.maximum(np.diag(lap_pinv), 0.0) * var_m2))
+        return self._solution
+
+    def offset_m(self, camera_id: int) -> tuple[float, float]:
+        """The camera's estimated offset (zero mean over the paired cameras); (0, 0) for a camera never paired."""
+        index, offsets, _ = self._solve()
+        i = index.get(camera_id)
+        return (0.0, 0.0) if i is None else (float(offsets[i, 0]), float(offsets[i, 1]))
+
+    def uncertainty_m(self, camera_id: int) -> float:
+        """The estimate's standard deviation per axis (inf for a camera never paired or too few samples)."""
+        index, _, std = self._solve()
+        i = index.get(camera_id)
+        return math.inf if i is None or not math.isfinite(std[i]) else float(std[i])
+
+    def samples(self, camera_a: int, camera_b: int) -> float:
+        """How many differences (after down-weighting old ones) the pair holds."""
+        pair = self._pairs.get((min(camera_a, camera_b), max(camera_a, camera_b)))
+        return 0.0 if pair is None else pair.n
+
+    def correct(self, camera_id: int, x_m: float, y_m: float) -> tuple[float, float]:
+        """What the camera reports at (x_m, y_m) without its estimated offset."""
+        ox, oy = self.offset_m(camera_id)
+        return x_m - ox, y_m - oy
