@@ -6,7 +6,7 @@ a chip detector that reads the disagreement as parallax takes flat kicks for chi
 where its marker height's projection lies, the same rule for every camera, so two cameras' positions of one robot
 at one capture differ only by their offsets and noise: ``d = p_a - p_b = o_a - o_b + e``. A ball lying still is
 the same; a ball that may be in the air is not (its two projections differ by its height's parallax), so a ball
-feeds the estimate only while each camera has seen it at rest for ``rest_window_s``.
+feeds the estimate only with a sighting after which each camera saw it still for ``rest_s``.
 
 The offsets are only defined up to a common shift: the estimate is the least-squares one with zero mean over the
 cameras that were paired (``o = L^+ r``, L the graph Laplacian weighted by each pair's sample count, r each
@@ -41,20 +41,20 @@ class CameraAlignment:
     camera's previous sighting) is below ``max_motion_m``; a pair whose difference is further than
     ``max_disagreement_m`` from the pair's mean so far (a wrong id, a reflection) is left out."""
 
-    def __init__(self, max_capture_gap_s: float = 0.004, max_motion_m: float = 0.002, rest_window_s: float = 0.2,
+    def __init__(self, max_capture_gap_s: float = 0.004, max_motion_m: float = 0.002, rest_s: float = 0.15,
                  rest_radius_m: float = 0.005, max_disagreement_m: float = 0.1, max_samples: float = 5000.0) -> None:
         for name, value in (("max_capture_gap_s", max_capture_gap_s), ("max_motion_m", max_motion_m),
-                            ("rest_window_s", rest_window_s), ("rest_radius_m", rest_radius_m),
+                            ("rest_s", rest_s), ("rest_radius_m", rest_radius_m),
                             ("max_disagreement_m", max_disagreement_m), ("max_samples", max_samples)):
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"CameraAlignment.{name}: must be finite and > 0, got {value!r}")
         self.max_capture_gap_s = max_capture_gap_s
         self.max_motion_m = max_motion_m
-        self.rest_window_s = rest_window_s
+        self.rest_s = rest_s
         self.rest_radius_m = rest_radius_m
         self.max_disagreement_m = max_disagreement_m
         self.max_samples = max_samples
-        self._newest: dict[int, tuple[float, dict[tuple, tuple[float, float, float]]]] = {}
+        self._newest: dict[int, dict[tuple, tuple[float, float, float, float]]] = {}
         self._balls: dict[int, deque[tuple[float, float, float]]] = {}
         self._pairs: dict[tuple[int, int], _Pair] = {}
         self._solution: tuple[dict[int, int], np.ndarray, np.ndarray] | None = None
@@ -63,43 +63,47 @@ class CameraAlignment:
     def frame(self, camera_id: int, t_capture_s: float, robots=(), balls=()) -> None:
         """One camera frame: ``robots`` as (team, robot_id, x_m, y_m), ``balls`` as (x_m, y_m), as the camera
         reported them. Only a frame with one ball lets the ball pair (several: which is which is unknown)."""
-        seen: dict[tuple, tuple[float, float, float]] = {}  # x, y, speed
+        seen: dict[tuple, tuple[float, float, float, float]] = {}  # x, y, speed, the sighting's capture time
         previous = self._newest.get(camera_id)
         for team, robot_id, x, y in robots:
             key = (int(team), int(robot_id))
-            if previous is not None and key in previous[1] and t_capture_s > previous[0]:
-                px, py, _ = previous[1][key]
-                speed = math.hypot(x - px, y - py) / (t_capture_s - previous[0])
+            if previous is not None and key in previous and t_capture_s > previous[key][3]:
+                px, py, _, pt = previous[key]
+                speed = math.hypot(x - px, y - py) / (t_capture_s - pt)
             else:
                 speed = math.inf  # unknown motion: pairs only at the same capture
-            seen[key] = (float(x), float(y), speed)
-        balls = list(balls)
-        history = self._balls.setdefault(camera_id, deque())
-        if len(balls) == 1:
-            history.append((t_capture_s, float(balls[0][0]), float(balls[0][1])))
-            while history and history[0][0] < t_capture_s - self.rest_window_s:
-                history.popleft()
-            if self._ball_at_rest(history, t_capture_s):
-                seen[BALL_KEY] = (history[-1][1], history[-1][2], 0.0)
-        else:
-            history.clear()
-        for other, (t_other, other_seen) in self._newest.items():
-            gap_s = abs(t_capture_s - t_other)
-            if other == camera_id or gap_s > self.max_capture_gap_s:
+            seen[key] = (float(x), float(y), speed, t_capture_s)
+        resting = self._resting_ball(camera_id, t_capture_s, list(balls))
+        if resting is not None:
+            seen[BALL_KEY] = resting
+        for other, other_seen in self._newest.items():
+            if other == camera_id:
                 continue
-            for key, (x, y, speed) in seen.items():
-                if key in other_seen and (gap_s == 0.0 or speed * gap_s <= self.max_motion_m):
-                    ox, oy = other_seen[key][:2]
-                    self._add(camera_id, other, x - ox, y - oy)
-        self._newest[camera_id] = (t_capture_s, seen)
+            for key, (x, y, speed, t_s) in seen.items():
+                match = other_seen.get(key)
+                if match is None:
+                    continue
+                gap_s = abs(t_s - match[3])
+                if gap_s == 0.0 or (gap_s <= self.max_capture_gap_s and speed * gap_s <= self.max_motion_m):
+                    self._add(camera_id, other, x - match[0], y - match[1])
+        self._newest[camera_id] = seen
 
-    def _ball_at_rest(self, history: deque, t_s: float) -> bool:
-        """Still, within ``rest_radius_m`` of its newest sighting, for at least ``rest_window_s``: a ball in the air
-        moves in every camera's view (its height changes by g t^2 / 2 about its apex)."""
-        if len(history) < 3 or t_s - history[0][0] < self.rest_window_s * 0.999:
-            return False
-        _, x, y = history[-1]
-        return all(math.hypot(hx - x, hy - y) <= self.rest_radius_m for _, hx, hy in history)
+    def _resting_ball(self, camera_id: int, t_s: float, balls: list) -> tuple[float, float, float, float] | None:
+        """The camera's newest ball sighting at least ``rest_s`` old after which the ball stayed within
+        ``rest_radius_m`` of it, if any. A ball in the air cannot: over any ``rest_s`` its height leaves the first
+        one's by at least g rest_s^2 / 8 (2.8 cm at 0.15 s, the apex in the middle), which a camera 4 m high sees
+        at 1.5 m from below it as 1 cm; in an overlap at least one of the two cameras is that far."""
+        history = self._balls.setdefault(camera_id, deque())
+        if len(balls) != 1:
+            history.clear()
+            return None
+        history.append((t_s, float(balls[0][0]), float(balls[0][1])))
+        while len(history) > 1 and history[1][0] <= t_s - self.rest_s:
+            history.popleft()  # history[0]: the newest sighting at least rest_s old
+        t0, x0, y0 = history[0]
+        if t0 > t_s - self.rest_s or any(math.hypot(x - x0, y - y0) > self.rest_radius_m for _, x, y in history):
+            return None
+        return x0, y0, 0.0, t0
 
     def _add(self, a: int, b: int, dx: float, dy: float) -> None:
         if a > b:
