@@ -140,7 +140,7 @@ class CameraAlignment:
                 dof += 2.0 * (p.n - 1.0)
             lap_pinv = np.linalg.pinv(lap) if ids else lap
             offsets = lap_pinv @ r
-            var_m2 = sq / dof if dof > 0.0 else math.inf  # per axis, of one difference
+            var_m2 = max(sq, 0.0) / dof if dof > 0.0 else math.inf  # per axis, of one difference (>= 0: rounding)
             self._solution = (index, offsets, np.sqrt(np.maximum(np.diag(lap_pinv), 0.0) * var_m2))
         return self._solution
 
