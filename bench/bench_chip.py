@@ -11,6 +11,9 @@ world's 2 mm noise and 2 % dropouts shared by the cameras, 0.5 mm each, 0.5 m ov
 1 m overlap past each axis, cameras projecting 0.1 m off the geometry's positions, 2 cm offset per camera).
 Per capture, in the order the cameras send, the first camera's ball goes to ``BallPredictor.ball_frame`` (the
 bridge's ball) and every other camera's to ``ball_sighting``, each with the camera's position from the geometry.
+With ``--align`` five robots stand in the cameras' overlaps (seen through the same cameras, with their robot noise
+and misses) and every camera's ball goes through ``camera_alignment.CameraAlignment`` first, learnt per kick from
+nothing (the robots and the ball at rest before the kick): each camera's offset off its balls (docs/decisions/0038).
 
 Rows: the share of chips detected within 0.15 s of the kick (also with the same chips seen without noise: the
 ceiling the cameras' geometry leaves the detector); the share of flat kicks ever reported as a chip
