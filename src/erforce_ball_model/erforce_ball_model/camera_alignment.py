@@ -11,7 +11,8 @@ feeds the estimate only with a sighting after which each camera saw it still for
 The offsets are only defined up to a common shift: the estimate is the least-squares one with zero mean over the
 cameras that were paired (``o = L^+ r``, L the graph Laplacian weighted by each pair's sample count, r each
 camera's summed differences). Its covariance per axis is ``s^2 L^+`` with s the differences' standard deviation
-estimated from the residuals: ``uncertainty_m``. Each pair keeps at most ``max_samples`` (older samples are scaled
+estimated from the residuals: ``uncertainty_m``; it is solved again once the differences taken since grow by
+RESOLVE_SHARE of all. Each pair keeps at most ``max_samples`` (older samples are scaled
 down), so the estimate follows a calibration that changes.
 """
 
@@ -19,17 +20,19 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 BALL_KEY = ("ball",)
+RESOLVE_SHARE = 0.01  # solve again once the new differences are this share of all (a pseudo-inverse per frame costs)
 
 
 @dataclass
 class _Pair:
     n: float = 0.0
-    sum_m: np.ndarray = field(default_factory=lambda: np.zeros(2))  # sum of p_a - p_b (a < b)
+    sum_x_m: float = 0.0  # sums of p_a - p_b (a < b)
+    sum_y_m: float = 0.0
     sum_sq_m2: float = 0.0  # sum of |p_a - p_b|^2 (both axes)
 
 
@@ -58,6 +61,8 @@ class CameraAlignment:
         self._balls: dict[int, deque[tuple[float, float, float]]] = {}
         self._pairs: dict[tuple[int, int], _Pair] = {}
         self._solution: tuple[dict[int, int], np.ndarray, np.ndarray] | None = None
+        self._samples = 0.0  # all differences held (after down-weighting old ones)
+        self._new_samples = 0  # since the last solution
 
     # ------------------------------------------------------------------ input
     def frame(self, camera_id: int, t_capture_s: float, robots=(), balls=()) -> None:
@@ -109,20 +114,27 @@ class CameraAlignment:
         if a > b:
             a, b, dx, dy = b, a, -dx, -dy
         pair = self._pairs.setdefault((a, b), _Pair())
-        d = np.array([dx, dy])
-        if pair.n > 0 and np.hypot(*(d - pair.sum_m / pair.n)) > self.max_disagreement_m:
+        n = pair.n
+        if n > 0 and math.hypot(dx - pair.sum_x_m / n, dy - pair.sum_y_m / n) > self.max_disagreement_m:
             return
-        if pair.n + 1.0 > self.max_samples:  # a window of about max_samples: older samples weigh less
-            k = (self.max_samples - 1.0) / pair.n
-            pair.n, pair.sum_m, pair.sum_sq_m2 = pair.n * k, pair.sum_m * k, pair.sum_sq_m2 * k
+        if n + 1.0 > self.max_samples:  # a window of about max_samples: older samples weigh less
+            k = (self.max_samples - 1.0) / n
+            self._samples -= n - n * k
+            pair.n, pair.sum_x_m, pair.sum_y_m, pair.sum_sq_m2 = n * k, pair.sum_x_m * k, pair.sum_y_m * k, \
+                pair.sum_sq_m2 * k
         pair.n += 1.0
-        pair.sum_m = pair.sum_m + d
+        pair.sum_x_m += dx
+        pair.sum_y_m += dy
         pair.sum_sq_m2 += dx * dx + dy * dy
-        self._solution = None
+        self._new_samples += 1
+        self._samples += 1.0
+        if self._new_samples >= max(1.0, RESOLVE_SHARE * self._samples):
+            self._solution = None
 
     # ----------------------------------------------------------------- output
     def _solve(self) -> tuple[dict[int, int], np.ndarray, np.ndarray]:
         if self._solution is None:
+            self._new_samples = 0
             ids = sorted({c for pair in self._pairs for c in pair})
             index = {c: i for i, c in enumerate(ids)}
             lap = np.zeros((len(ids), len(ids)))
@@ -134,9 +146,9 @@ class CameraAlignment:
                 lap[j, j] += p.n
                 lap[i, j] -= p.n
                 lap[j, i] -= p.n
-                r[i] += p.sum_m
-                r[j] -= p.sum_m
-                sq += p.sum_sq_m2 - float(p.sum_m @ p.sum_m) / p.n  # residuals about the pair's mean, both axes
+                r[i] += p.sum_x_m, p.sum_y_m
+                r[j] -= p.sum_x_m, p.sum_y_m
+                sq += p.sum_sq_m2 - (p.sum_x_m**2 + p.sum_y_m**2) / p.n  # residuals about the pair's mean, both axes
                 dof += 2.0 * (p.n - 1.0)
             lap_pinv = np.linalg.pinv(lap) if ids else lap
             offsets = lap_pinv @ r
