@@ -11,6 +11,9 @@ world's 2 mm noise and 2 % dropouts shared by the cameras, 0.5 mm each, 0.5 m ov
 1 m overlap past each axis, cameras projecting 0.1 m off the geometry's positions, 2 cm offset per camera).
 Per capture, in the order the cameras send, the first camera's ball goes to ``BallPredictor.ball_frame`` (the
 bridge's ball) and every other camera's to ``ball_sighting``, each with the camera's position from the geometry.
+With ``--align`` five robots stand in the cameras' overlaps (seen through the same cameras, with their robot noise
+and misses) and every camera's ball goes through ``camera_alignment.CameraAlignment`` first, learnt per kick from
+nothing (the robots and the ball at rest before the kick): each camera's offset off its balls (docs/decisions/0038).
 
 Rows: the share of chips detected within 0.15 s of the kick (also with the same chips seen without noise: the
 ceiling the cameras' geometry leaves the detector); the share of flat kicks ever reported as a chip
@@ -20,10 +23,12 @@ noise); the detection delay (median, p90); the predictor's time per vision frame
 for every camera's ball of one capture; mean, p99), as the thread's CPU time (a shared machine's load does not
 inflate it).
 ``python bench/bench_chip.py [--quick] [--seed N] [--cameras bench|erforce] [--without ERROR ...] [--min-gain G]
-[--kick-hints [--hint-speed-error R]]`` (``--without position_error`` / ``object_offset``: the camera model without
-that fixed error) (``--kick-hints``: the kicker's angle reaches the predictor at each kick, BallPredictor.kick_hint;
-the chips' and the flat kicks' alike; ``--hint-speed-error R``: the hint carries the commanded speed too, the true
-launch speed times ``1 + R z``, z standard normal per kick: 0 is a kicker that meets its command).
+[--kick-hints [--hint-speed-error R]] [--align]`` (``--without position_error`` / ``object_offset``: the camera model
+without that fixed error) (``--kick-hints``: the kicker's angle reaches the predictor at each kick,
+BallPredictor.kick_hint; the chips' and the flat kicks' alike; ``--hint-speed-error R``: the hint carries the
+commanded speed too, the true launch speed times ``1 + R z``, z standard normal per kick: 0 is a kicker that meets
+its command) (``--align``: robots stand in the overlaps and each camera's offset, estimated from what the cameras
+see, is taken off its balls).
 """
 
 from __future__ import annotations
@@ -39,6 +44,7 @@ import numpy as np
 from table import markdown_table
 
 from erforce_ball_model.ball_model import BallTrajectory, ChipParams
+from erforce_ball_model.camera_alignment import CameraAlignment
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.chip_tracking import ChipDetectorConfig
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
@@ -58,6 +64,10 @@ LOW_M = 0.05
 APEX_BANDS_M = (0.03, 0.1, 0.2)  # the missed chips are split by their apex height at these
 
 
+# with --align: robots standing where two cameras (four at the centre) see them, within both presets' bands, as
+# on a real field, where the robots are what the cameras of an overlap both see most of the time
+STANDING_ROBOTS = (("blue", 0, 0.1, 2.0, 0.0), ("blue", 1, -0.1, -2.0, 0.0), ("yellow", 0, 3.0, -0.1, 0.0),
+                   ("yellow", 1, -3.0, 0.1, 0.0), ("yellow", 2, 0.15, -0.15, 0.0))
 FIXED_ERRORS = ("position_error", "object_offset")  # CameraRealism's fixed errors a run may leave out (--without)
 
 
@@ -90,12 +100,14 @@ def _truth_at(ball, t_s: float) -> tuple[float, float, float]:
 
 def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None, hint_deg: float | None = None,
              noise_free: bool = False, cameras: CameraRealism = BENCH_CAMERAS,
-             hint_speed_mps: float | None = None) -> dict:
+             hint_speed_mps: float | None = None, align: bool = False) -> dict:
     """One kick through cameras and predictor: when a chip was first reported (from the kick) and the first
     touchdown point the predictor had then and ``TOUCHDOWN_AFTER_S`` after that. ``hint_deg``: the kicker's word
     (its angle, 0 flat; ``hint_speed_mps`` its commanded speed) goes to the predictor at the kick's time, before the
     first frame after it. ``noise_free``: neither the world's vision nor the cameras add noise or drop a ball (the
-    cameras' fixed errors stay)."""
+    cameras' fixed errors stay). ``align``: STANDING_ROBOTS stand on the field and every camera's ball goes through
+    a CameraAlignment fed with what the cameras see (robots, the ball at rest), learning from nothing at the first
+    frame."""
     rng = np.random.default_rng(seed)
     vision = VisionSystem(NOISE_FREE_VISION if noise_free else cameras.world_vision(VISION), rng)
     splitter = SslCameraSplitter.quadrants(FIELD, None, cameras.noise_free() if noise_free else cameras, seed=seed)
@@ -103,6 +115,8 @@ def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None, hint_d
     poses = {c.camera_id: (c.x_m, c.y_m, c.z_m) for c in splitter.geometry.cameras}
     config = PredictorConfig(num_robots=1, field=FIELD, chip_detector=detector or ChipDetectorConfig())
     predictor = BallPredictor(config)
+    alignment = CameraAlignment() if align else None
+    robots = list(STANDING_ROBOTS) if align else []
     t_kick = REST_S + rng.uniform(0.0, 1.0 / VISION.rate_hz)
     detected_s, touchdown, first_touchdown = None, None, None
     period = 1.0 / VISION.rate_hz
@@ -112,11 +126,18 @@ def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None, hint_d
         if hint_deg is not None and t_kick <= t < t_kick + period:
             predictor.kick_hint(t_kick, hint_deg, hint_speed_mps)
         x, y, z = _truth_at(ball, t - t_kick)
-        vision.capture(t, (x, y), [], z)
+        vision.capture(t, (x, y), robots, z)
         frame = vision.poll(t + VISION.latency_s)[0]
         packets = sorted(splitter.packets(frame), key=lambda p: p[0])
-        sightings = [(bx, by, poses[det.camera_id]) for det in (decode_wrapper(d).detection for _, d in packets)
-                     for bx, by, *_ in det.balls.tolist()]
+        detections = [decode_wrapper(d).detection for _, d in packets]
+        if alignment is not None:
+            for det in detections:
+                alignment.frame(det.camera_id, det.t_capture_s, [r[:4] for r in det.robots.tolist()],
+                                [b[:2] for b in det.balls.tolist()])
+            sightings = [(*alignment.correct(det.camera_id, bx, by), poses[det.camera_id]) for det in detections
+                         for bx, by, *_ in det.balls.tolist()]
+        else:
+            sightings = [(bx, by, poses[det.camera_id]) for det in detections for bx, by, *_ in det.balls.tolist()]
         t0 = time.thread_time()
         for i, (bx, by, camera) in enumerate(sightings):
             if i == 0:
@@ -158,7 +179,8 @@ def _commanded(balls: list, error: float | None, seed: int) -> list[float | None
 
 
 def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints: bool = False,
-        cameras: CameraRealism = BENCH_CAMERAS, hint_speed_error: float | None = None) -> list[dict]:
+        cameras: CameraRealism = BENCH_CAMERAS, hint_speed_error: float | None = None,
+        align: bool = False) -> list[dict]:
     n = 100 if quick else 500
     detector = ChipDetectorConfig() if min_gain is None else ChipDetectorConfig(min_gain=min_gain)
     rng = np.random.default_rng(seed)
@@ -166,12 +188,12 @@ def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints
     flat_balls = [_random_kick(rng, False) for _ in range(n)]
     chip_speeds = _commanded(chip_balls, hint_speed_error if hints else None, seed)
     flat_speeds = _commanded(flat_balls, hint_speed_error if hints else None, seed + 1)
-    chips = [run_kick(b, seed * 100_000 + k, detector, _hint(b, hints), cameras=cameras, hint_speed_mps=v)
-             for k, (b, v) in enumerate(zip(chip_balls, chip_speeds, strict=True))]
-    flats = [run_kick(b, seed * 100_000 + n + k, detector, _hint(b, hints), cameras=cameras, hint_speed_mps=v)
-             for k, (b, v) in enumerate(zip(flat_balls, flat_speeds, strict=True))]
+    chips = [run_kick(b, seed * 100_000 + k, detector, _hint(b, hints), cameras=cameras, hint_speed_mps=v,
+                      align=align) for k, (b, v) in enumerate(zip(chip_balls, chip_speeds, strict=True))]
+    flats = [run_kick(b, seed * 100_000 + n + k, detector, _hint(b, hints), cameras=cameras, hint_speed_mps=v,
+                      align=align) for k, (b, v) in enumerate(zip(flat_balls, flat_speeds, strict=True))]
     clean = [run_kick(b, seed * 100_000 + k, detector, _hint(b, hints), noise_free=True, cameras=cameras,
-                      hint_speed_mps=v)["delay_s"]
+                      hint_speed_mps=v, align=align)["delay_s"]
              for k, (b, v) in enumerate(zip(chip_balls, chip_speeds, strict=True))]
     delays = np.array([c["delay_s"] for c in chips if c["delay_s"] is not None])
     within = np.sum(delays <= DETECT_WITHIN_S) if len(delays) else 0
@@ -189,7 +211,7 @@ def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints
     false_chips = sum(f["delay_s"] is not None for f in flats)
     cost_us = 1e6 * np.concatenate([k["frame_cost_s"] for k in chips + flats])
     note = f"{n} random kicks, seed {seed}, cameras {cameras.name}, min_gain {detector.min_gain:g}" + (
-        ", kick hints" if hints else "")
+        ", kick hints" if hints else "") + (", camera alignment" if align else "")
     if hints and hint_speed_error is not None:
         note += f" with the commanded speed (off by {hint_speed_error:g} sd)"
     return [
@@ -256,11 +278,13 @@ def main(argv: list[str] | None = None) -> int:
                         "angle (0 flat) at the kick (BallPredictor.kick_hint)")
     parser.add_argument("--hint-speed-error", type=float, default=None, metavar="R", help="with --kick-hints: the "
                         "hint carries the commanded speed, the launch speed times 1 + R z (z standard normal)")
+    parser.add_argument("--align", action="store_true", help="robots stand in the overlaps and each camera's "
+                        "offset, estimated from them (CameraAlignment), is taken off its balls")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     print("\n".join(markdown_table(run(args.quick, args.seed, args.min_gain, args.kick_hints,
                                         camera_model(args.cameras, tuple(args.without)),
-                                        args.hint_speed_error))))
+                                        args.hint_speed_error, args.align))))
     print(f"\n(total {time.perf_counter() - t0:.1f} s)")
     return 0
 

@@ -1,7 +1,8 @@
 """ssl_vision_bridge names and counts each class of vision input it drops (ssl_vision.DROP_CLASSES): a camera's
 frame whose t_capture is not after its newest one (per camera), a frame's ball candidates beyond 32 (its robots
 are kept), garbage, a rejected geometry; each with its own throttled warning, so one class never hides another.
-In-process on the compiled pass and on the general path, and over UDP loopback with the periodic statistics."""
+In-process on the compiled pass and on the general path, and over UDP loopback with the periodic statistics.
+With camera_alignment the general path takes each camera's estimated offset off its balls."""
 
 from __future__ import annotations
 
@@ -200,3 +201,26 @@ def test_drops_over_udp_are_named_and_counted_in_the_statistics(ros_graph):
         assert node.alive()
     finally:
         sock.close()
+
+
+def test_camera_alignment_takes_each_cameras_offset_off_its_balls():
+    """camera_alignment:=true: two cameras report the same robots 2 cm apart along x (camera 0 at -1 cm, camera 1
+    at +1 cm); a ball at rest at (0.1, 0.5) that both see comes out of the bridge at 0.1 from either camera, where
+    the raw reports say 0.09 and 0.11. The offsets the bridge learnt are each camera's, less their mean."""
+    with recording_bridge(True, "camera_alignment:=true") as (node, published, warnings):
+        assert not node._fast
+        offsets = {0: -0.01, 1: 0.01}
+        robots = [("blue", 0, 0.2, 1.0), ("blue", 1, -0.3, -1.0), ("yellow", 2, 0.0, 2.0)]
+        t = 0.0
+        for k in range(60):
+            t = k / 70.0
+            for camera, dx in offsets.items():
+                seen = [RobotSighting(team, rid, x + dx, y, 0.0, 1.0) for team, rid, x, y in robots]
+                node.handle_batch([frame(camera, t, [BallCandidate(0.1 + dx, 0.5, 0.9)], seen)], 1000.0 + t + 0.005)
+        for camera, dx in offsets.items():
+            assert node._alignment.offset_m(camera) == pytest.approx((dx, 0.0), abs=2e-4)  # SSL's 1 mm steps
+        balls = [vision_frame_from_msg(data)[1] for data in published[-2:]]
+        assert all(len(b) for b in balls)
+        for b in balls:
+            assert b[0][0] == pytest.approx(0.1, abs=2e-4) and b[0][1] == pytest.approx(0.5, abs=2e-4)
+        assert not warnings

@@ -40,6 +40,7 @@ import numpy as np
 from rclpy.node import Node
 
 from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.camera_alignment import CameraAlignment
 from erforce_ball_model.vision_fast_path import (
     I_CAMERA,
     I_CAPTURE_BACK,
@@ -133,6 +134,7 @@ class BridgeConfig:
     clock_jump_s: float
     clock_period_s: float
     publish_detections: bool
+    camera_alignment: bool
 
 
 def build_config(c) -> BridgeConfig:
@@ -151,6 +153,7 @@ def build_config(c) -> BridgeConfig:
         clock_jump_s=c.clock_jump_s,
         clock_period_s=c.clock_period_s,
         publish_detections=c.publish_detections,
+        camera_alignment=c.camera_alignment,
     )
 
 
@@ -264,6 +267,10 @@ class SslVisionBridge(Node):
                 self._tracker = VisionTracker(config.field)
             elif config.field != old.field and self._last_geometry is None:
                 self._tracker.field = config.field
+            if not config.camera_alignment:
+                self._alignment = None
+            elif old is None or not old.camera_alignment:
+                self._alignment = CameraAlignment()
             self._set_path()
             self._set_cameras()
             self._time_mode = TIME_SOURCES.index(config.time_source)
@@ -273,10 +280,10 @@ class SslVisionBridge(Node):
                 self._bind_pass()
 
     def _set_path(self) -> None:
-        """The compiled pass takes the usual configuration; a flipped field, the detections topic and the wait for
-        geometry take the general path."""
+        """The compiled pass takes the usual configuration; a flipped field, the detections topic, the camera
+        alignment and the wait for geometry take the general path."""
         cfg = self._config
-        self._fast = not (cfg.flip or cfg.publish_detections or self._tracker.field is None)
+        self._fast = not (cfg.flip or cfg.publish_detections or cfg.camera_alignment or self._tracker.field is None)
 
     def _bind_pass(self) -> None:
         """The compiled pass on the current clock, tracker and team (at start and after parameter changes)."""
@@ -498,8 +505,19 @@ class SslVisionBridge(Node):
             f"median {ms[len(ms) // 2] * 1e-6:.3f} ms, p99 {ms[int(0.99 * (len(ms) - 1))] * 1e-6:.3f} ms; "
             f"since the first period: {self._cpu_p99_text()}; dropped by class: {by_class}; tracker: "
             f"{tracker.late_balls} late balls, {tracker.false_candidates} false candidates, {tracker.switches} ball "
-            "switches"
+            "switches" + self._alignment_text()
         )
+
+    def _alignment_text(self) -> str:
+        if self._alignment is None:
+            return ""
+        parts = []
+        for camera_id in sorted(self._camera_poses):
+            ox, oy = self._alignment.offset_m(camera_id)
+            sd = self._alignment.uncertainty_m(camera_id)
+            parts.append(f"{camera_id} ({1e3 * ox:.1f}, {1e3 * oy:.1f}) +- {1e3 * sd:.1f}" if math.isfinite(sd)
+                         else f"{camera_id} not paired")
+        return "; camera offsets [mm]: " + (", ".join(parts) or "no cameras")
 
     def _check_pace(self) -> None:
         """Say when a camera's clock is not paced to ours (time_source estimate: see PaceCheck)."""
@@ -615,6 +633,8 @@ class SslVisionBridge(Node):
             balls, robots = balls.copy(), robots.copy()
             balls[:, 0], balls[:, 1] = half_turn(balls[:, 0], balls[:, 1])
             robots[:, 2], robots[:, 3], robots[:, 4] = half_turn(robots[:, 2], robots[:, 3], robots[:, 4])
+        if self._alignment is not None:
+            balls = self._aligned(frame.camera_id, frame.t_capture_s, balls, robots)
         ball, used = self._tracker.frame_indices(frame.camera_id, t_s, balls, robots)
         self.stats["frames"] += 1
         try:
@@ -636,6 +656,18 @@ class SslVisionBridge(Node):
                 self._publish_detections(cfg, frame.camera_id, now_s - t_s, balls.tolist(), robots.tolist())
         except ConversionError as exc:
             self._drop("unpublishable", f"camera {frame.camera_id}: not published: {exc}")
+
+    def _aligned(self, camera_id: int, t_capture_s: float, balls: np.ndarray, robots: np.ndarray) -> np.ndarray:
+        """The camera's robots and balls (field frame) feed the alignment, on the vision host's capture clock (one
+        for all cameras); its balls come back without the camera's estimated offset."""
+        self._alignment.frame(camera_id, t_capture_s, robots[:, :4].tolist(), balls[:, :2].tolist())
+        if not len(balls):
+            return balls
+        ox, oy = self._alignment.offset_m(camera_id)
+        balls = balls.copy()
+        balls[:, 0] -= ox
+        balls[:, 1] -= oy
+        return balls
 
     def _publish_robots(self, t_s: float, rows: list[list[float]], ball: BallObservation | None,
                         camera_id: int) -> None:
