@@ -48,6 +48,7 @@ from erforce_ball_model.camera_alignment import CameraAlignment
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.chip_tracking import ChipDetectorConfig
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
+from erforce_ball_model.tracking import TrackerConfig
 from erforce_interfaces.ssl.ssl_vision import decode_wrapper
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.sensors import VisionParams, VisionSystem
@@ -113,7 +114,10 @@ def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None, hint_d
     splitter = SslCameraSplitter.quadrants(FIELD, None, cameras.noise_free() if noise_free else cameras, seed=seed)
     # the predictor knows each camera where the geometry reports it
     poses = {c.camera_id: (c.x_m, c.y_m, c.z_m) for c in splitter.geometry.cameras}
-    config = PredictorConfig(num_robots=1, field=FIELD, chip_detector=detector or ChipDetectorConfig())
+    # the predictor is told the cameras' noise, as a field's position_noise_m would be set to its vision's
+    noise_m = cameras.sighting_noise_m(VISION)
+    config = PredictorConfig(num_robots=1, field=FIELD, tracker=TrackerConfig(position_noise_m=noise_m),
+                             chip_detector=replace(detector or ChipDetectorConfig(), noise_m=noise_m))
     predictor = BallPredictor(config)
     alignment = CameraAlignment() if align else None
     robots = list(STANDING_ROBOTS) if align else []

@@ -65,6 +65,7 @@ from erforce_ball_model.ball_model import (
 )
 from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_interfaces.runtime.param_schema import schema_defaults
+from erforce_interfaces.wire.robot_config import VISION_NOISE_M
 
 __all__ = ["ChipDetector", "ChipDetectorConfig", "ChipFit", "Sighting", "fit_flight", "fit_flight_at_angle",
            "fit_ground", "fit_hop_flight", "flight_covariance", "hop_tables", "triangulate_height",
@@ -118,7 +119,7 @@ _DRAWS = np.concatenate([_DRAWS, -_DRAWS])
 class ChipDetectorConfig:
     """When a kick's sightings are a chip, and how long they are collected."""
 
-    noise_m: float = 0.002  # standard deviation of one sighting per axis (vision noise)
+    noise_m: float = VISION_NOISE_M  # standard deviation of one sighting per axis (the predictor's position_noise_m)
     min_sightings: int = 4
     min_gain: float = 12.0  # the flight's squared residuals this much below the ground's (noise variances)
     vz_sigma: float = 0.5

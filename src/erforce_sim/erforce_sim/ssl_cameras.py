@@ -85,6 +85,12 @@ class CameraRealism:
             if not (isinstance(value, int | float) and math.isfinite(value) and 0.0 <= value <= hi):
                 raise ValueError(f"CameraRealism.{name}: must be finite in [0, {hi}], got {value!r}")
 
+    def sighting_noise_m(self, params: VisionParams) -> float:
+        """The standard deviation per axis of one camera's ball on the ground, the world's vision ``params`` taken:
+        the world's and the camera's own together in the shared model, the camera's own in the per-camera one."""
+        own = self.ball_noise_m
+        return math.hypot(params.position_noise_m, own) if self.shared_world_noise else own
+
     def world_vision(self, params: VisionParams) -> VisionParams:
         """The world's vision to take the cameras' frames from: ``params`` for the shared model; for the per-camera
         one without position noise and dropouts (each camera adds its own; the orientation noise stays shared)."""
