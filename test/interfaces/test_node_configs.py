@@ -27,6 +27,9 @@ def test_every_node_builds_from_its_defaults():
     assert setup.num_robots == 1 and setup.control_period_s == 0.002
     predictor = ball_predictor_node.build_config(config(ball_predictor_node))
     assert predictor.num_robots == 11 and predictor.facing_fixed.shape == (11,)
+    # one vision noise: the flat filter's and the chip detector's
+    quieter = ball_predictor_node.build_config(config(ball_predictor_node, position_noise_m=0.0014))
+    assert quieter.tracker.position_noise_m == quieter.chip_detector.noise_m == 0.0014
     catcher, dribbler_m, radius_m, field = catcher_node.build_config(config(catcher_node))
     assert catcher == CatcherConfig() and (dribbler_m, radius_m, field.length_m) == (0.0815, 0.09, 9.0)
     view = field_view_node.check_config(config(field_view_node))

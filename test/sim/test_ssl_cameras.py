@@ -262,3 +262,9 @@ def test_a_flying_ball_is_projected_from_the_displaced_camera_while_the_geometry
     ground = decode_wrapper(splitter.packets(VisionFrame(2, 2.1, 2.115, (BallDetection(1.0, 1.0, 0.0),), ()))[1][1])
     (ball,) = ground.frame.balls
     assert (ball.x_m, ball.y_m) == pytest.approx((1.0 + ox, 1.0 + oy), abs=1e-6)
+
+
+def test_a_sightings_noise_is_the_world_and_the_camera_together_or_the_camera_alone():
+    # shared: sqrt(2^2 + 0.5^2) mm = 2.0616 mm; per camera: the camera's own 1.4 mm
+    assert BENCH_CAMERAS.sighting_noise_m(VisionParams()) == pytest.approx(0.0020616, abs=1e-7)
+    assert ERFORCE_REALISTIC.sighting_noise_m(VisionParams()) == ERF_BALL_NOISE_M
