@@ -82,6 +82,15 @@ def rests_at(states: list, xy, within_m: float) -> bool:
                for t, p, v, _ in recent if t >= t_end - REST_S)
 
 
+def spin_until_or_show(graph, states: list, condition, timeout_s: float, what: str) -> None:
+    """graph.spin_until, failing with the last five states on /ball/state (``states``) when it times out."""
+    try:
+        graph.spin_until(condition, timeout_s, what)
+    except TimeoutError as exc:
+        last = [(round(t, 3), *p[:2].round(3), *v[:2].round(3)) for t, p, v, _ in map(odometry_from_msg, states[-5:])]
+        raise AssertionError(f"{exc}; the last states (t, x, y, vx, vy): {last}") from None
+
+
 def test_a_chip_in_the_plant_shows_on_ball_state_in_the_air(director):
     d, graph, launch = director
     probe = graph.probe
@@ -91,11 +100,7 @@ def test_a_chip_in_the_plant_shows_on_ball_state_in_the_air(director):
         return rests_at(states, START, 0.02)
 
     d.place_ball(*START)
-    try:
-        graph.spin_until(still_at_start, 60.0, "the ball at rest at the start on /ball/state")
-    except TimeoutError as exc:
-        last = [(round(t, 3), *p[:2].round(3), *v[:2].round(3)) for t, p, v, _ in map(odometry_from_msg, states[-5:])]
-        raise AssertionError(f"{exc}; the last states (t, x, y, vx, vy): {last}") from None
+    spin_until_or_show(graph, states, still_at_start, 60.0, "the ball at rest at the start on /ball/state")
     states.clear()
     phases.clear()
     truth.clear()
@@ -162,12 +167,9 @@ def kicked_ball(d, graph, topics, kick_angle, pose, speed_mps: float, angle_deg:
 
     graph.spin_until(placed, 60.0, "the ball placed at the kicker (ground truth)")
     states.clear()
-    try:
-        # a wall-time deadline: on a loaded machine the lockstep graph can take a minute for the half second
-        graph.spin_until(lambda: rests_at(states, ball, 0.03), 120.0, "the ball at rest at the kicker on /ball/state")
-    except TimeoutError as exc:
-        last = [(round(t, 3), *p[:2].round(3), *v[:2].round(3)) for t, p, v, _ in map(odometry_from_msg, states[-5:])]
-        raise AssertionError(f"{exc}; the last states (t, x, y, vx, vy): {last}") from None
+    # a wall-time deadline: on a loaded machine the lockstep graph can take a minute for the half second
+    spin_until_or_show(graph, states, lambda: rests_at(states, ball, 0.03), 120.0,
+                       "the ball at rest at the kicker on /ball/state")
     states.clear()
     phases.clear()
     truth.clear()
