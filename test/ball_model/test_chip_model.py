@@ -171,3 +171,31 @@ def test_advanced_is_the_same_ball_later():
         assert later.time_below_height_s(0.1) == pytest.approx(max(chip.time_below_height_s(0.1) - dt, 0.0))
         copy = pickle.loads(pickle.dumps(later))  # its hops so far stay counted
         np.testing.assert_array_equal(copy.position_at(t), later.position_at(t))
+
+
+def test_a_state_after_the_first_bounce_damps_its_next_bounce_as_a_later_one():
+    # 4 m/s vertical and along +x (test_bounces_by_hand): rebuilt 0.05 s after the first touchdown from its state,
+    # the second bounce keeps damping_xy_other_hops (0.95) of vx2 = 0.75 * 4, not damping_xy_first_hop (0.75)
+    launched = ChipTrajectory((0.0, 0.0, 0.0), (4.0, 0.0, 4.0), P)
+    t1, t_state = 8.0 / G, 8.0 / G + 0.05
+    vz2, vx2 = 0.566 * 4.0, 0.75 * 4.0
+    state = (launched.position_at(t_state), launched.velocity_at(t_state))
+    np.testing.assert_allclose(state[1], [vx2, 0.0, vz2 - G * 0.05], atol=1e-12)
+    rebuilt = ChipTrajectory(*state, P, bounced=True)
+    t2_after = t1 + 2.0 * vz2 / G - t_state  # the second touchdown, from the state's time
+    assert rebuilt.touchdown_times_s[0] == pytest.approx(t2_after, abs=1e-12)
+    np.testing.assert_allclose(rebuilt.velocity_at(t2_after + 1e-9)[0], 0.95 * vx2, atol=1e-12)
+    t = np.linspace(0.0, 6.0, 601)
+    np.testing.assert_allclose(rebuilt.position_at(t), launched.position_at(t + t_state), atol=1e-9)
+    assert rebuilt.bounced and not launched.bounced
+    assert not launched.advanced(t1 - 0.01).bounced and launched.advanced(t_state).bounced
+    assert pickle.loads(pickle.dumps(launched.advanced(t_state))).bounced
+    # taken as a fresh kick, it would damp by 0.75 again
+    fresh = ChipTrajectory(*state, P)
+    np.testing.assert_allclose(fresh.velocity_at(t2_after + 1e-9)[0], 0.75 * vx2, atol=1e-12)
+    # the carried covariance's bounce (sensitivity_at) uses the same damping: a change of vx at the state
+    eps = 1e-6
+    nudged = ChipTrajectory(state[0], state[1] + np.array([eps, 0.0, 0.0]), P, bounced=True)
+    t_after = t2_after + 0.02
+    derivative = (nudged.velocity_at(t_after)[0] - rebuilt.velocity_at(t_after)[0]) / eps
+    assert rebuilt.sensitivity_at(t_after)[3, 3] == pytest.approx(0.95, abs=1e-6) == pytest.approx(derivative)

@@ -188,8 +188,13 @@ def test_the_predictor_carries_the_chip_and_hands_it_over_to_the_flat_filter():
     assert predictor.chip_detector.launch.touchdown_points_m[0].tolist() == pytest.approx([1.274, 0.0], abs=0.02)
     # after the hops the chip rolls: no chip any more, the flat filter rolls on from the chip's roll
     launch, t_launch = predictor.chip_detector.launch, predictor.chip_detector.fit.t_launch_s
+    # "chip" until the first touchdown (2 vz / g after the launch), "hopping" from it until the roll
+    t_down = t_launch + launch.touchdown_times_s[0]
+    in_air = [f for f in chips if f.t_s < t_launch + launch.roll_start_s]
+    assert {f.phase for f in in_air if f.t_s < t_down} == {"chip"}
+    assert {f.phase for f in in_air if f.t_s > t_down} == {"hopping"}
     after = [f for f in frames if f is not None and f.t_s > t_launch + launch.roll_start_s]
-    assert after and all(f.chip is None and f.phase != "chip" and f.z_m == 0.0 for f in after)
+    assert after and all(f.chip is None and f.phase not in ("chip", "hopping") and f.z_m == 0.0 for f in after)
     handed = after[0]
     roll = launch.roll.advanced(handed.t_s - t_launch - launch.roll_start_s)
     assert handed.trajectory.position_m.tolist() == pytest.approx(roll.position_m.tolist(), abs=1e-9)

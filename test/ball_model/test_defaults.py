@@ -71,12 +71,13 @@ def test_the_predictor_core_defaults_are_the_nodes_parameter_defaults():
 
 
 def test_the_predictor_core_speaks_the_contract():
-    from erforce_ball_model import predictor
+    from erforce_ball_model import chip_model, predictor
     from erforce_interfaces.wire import contract
 
     assert predictor.CATCH_TIME_NEVER == contract.CATCH_TIME_NEVER
     assert predictor.MODEL_ROWS == contract.BALL_MODEL_PARAM_ROWS
-    assert set(predictor.PHASE_NAMES.values()) | {"unknown", predictor.PHASE_CHIP} == set(contract.BALL_PHASES)
+    assert (set(predictor.PHASE_NAMES.values()) | {"unknown", chip_model.PHASE_CHIP, chip_model.PHASE_HOPPING}
+            == set(contract.BALL_PHASES))
 
 
 def test_the_chip_dampings_from_ssl_geometry_are_named_once():

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ChipParams
+from erforce_ball_model.chip_model import ChipTrajectory
 from erforce_ball_model.receiver import (
     CatcherConfig,
     Receiver,
@@ -525,3 +526,22 @@ def test_a_receiver_on_the_line_steps_back_to_where_a_chip_has_settled():
     back, stands = targets
     assert back[1] == pytest.approx(0.0, abs=1e-9) and back[0] < 0.0  # robot frame -x: away from the ball
     assert np.array_equal(stands, np.zeros(3))
+
+
+def test_a_chip_after_its_first_bounce_is_rebuilt_as_one_that_has_bounced():
+    """/ball/state of a chip 0.05 s after its first touchdown (4 m/s up and along +x under the default model):
+    with /ball/phase "hopping" the receiver's chip is the launched one later (its next bounce damps by
+    damping_xy_other_hops), with "chip" (a stale phase) it would damp by damping_xy_first_hop again."""
+    params = ChipParams()
+    launched = ChipTrajectory((0.0, 0.0, 0.0), (4.0, 0.0, 4.0), params)
+    t_state = launched.touchdown_times_s[0] + 0.05
+    position, velocity = launched.position_at(t_state), launched.velocity_at(t_state)
+    t = np.linspace(0.0, 3.0, 301)
+    for phase, same in (("hopping", True), ("chip", False)):
+        receiver = Receiver(CatcherConfig(), 0.0815)
+        receiver.on_chip_model(params)
+        receiver.on_ball_phase(phase)
+        receiver.on_ball(1.0, position, velocity)
+        chip = receiver._chip(1.0)
+        gap_m = np.abs(chip.position_at(t) - launched.position_at(t + t_state)).max()
+        assert (gap_m < 1e-9) == same, (phase, gap_m)

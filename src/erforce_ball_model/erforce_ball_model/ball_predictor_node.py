@@ -170,7 +170,7 @@ class BallPredictorNode(SchemaNode):
         self._chip_pub = contract_publisher(self, q.BALL_CHIP_MODEL_PARAMS)
         self._publish_chip_model()
         self._state_pub = contract_publisher(self, q.BALL_STATE)
-        # phase, stop point and the uncertain flag are for tools: sent while they have a reader
+        # phase, stop point and the uncertain flag: sent while they have a reader
         self._tool_readers = [0, 0, 0]
         self._phase_pub = contract_publisher(self, q.BALL_PHASE, readers=(self._tool_readers, 0))
         self._stop_pub = contract_publisher(self, q.BALL_STOP_POINT, readers=(self._tool_readers, 1))
@@ -556,9 +556,9 @@ class BallPredictorNode(SchemaNode):
         self._phase_msg.data = frame.phase
         self._uncertain_msg.data = frame.uncertain
         phase_readers, stop_readers, uncertain_readers = self._tool_readers
-        self._state_pub.publish(state)
-        if phase_readers:
+        if phase_readers:  # before the state: a receiver rebuilding a chip from it reads both
             self._phase_pub.publish(self._phase_msg)
+        self._state_pub.publish(state)
         if stop_readers:
             self._stop_pub.publish(stop_point)
         self._v_shoot_pub.publish(v_shoot)

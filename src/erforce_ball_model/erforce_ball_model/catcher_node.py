@@ -19,7 +19,7 @@ input's arrival time, by which its staleness is judged, is the tick that took it
 from __future__ import annotations
 
 from nav_msgs.msg import Odometry
-from std_msgs.msg import Bool, Float64, Float64MultiArray
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model.ball_model import BallModelParams, ChipParams
 from erforce_ball_model.receiver import CatcherConfig, Receiver
@@ -90,6 +90,7 @@ class CatcherNode(SchemaNode):
                 (q.CATCH_TIME, self._on_catch_time, True),
                 (q.CATCH_POINT, self._on_catch_point, True),
                 (q.BALL_STATE, self._on_ball, True),
+                (q.BALL_PHASE, self._on_phase, False),
                 (q.BALL_V_SHOOT, self._on_v_shoot, True),
                 (q.BALL_MODEL_PARAMS, self._on_model_params, False),
                 (q.BALL_CHIP_MODEL_PARAMS, self._on_chip_model_params, False),
@@ -147,6 +148,9 @@ class CatcherNode(SchemaNode):
         ball = self._warn.convert(msg, "ball state", ball_state_from_msg)
         if ball is not None:
             self._receiver.on_ball(self._now_s(), ball[1], ball[2])
+
+    def _on_phase(self, msg: String) -> None:
+        self._receiver.on_ball_phase(msg.data)
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
         v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)

@@ -46,7 +46,11 @@ from erforce_ball_model.ball_model import (
 )
 from erforce_ball_model.walls import Walls
 
-__all__ = ["MAX_HOPS", "ChipHop", "ChipTrajectory", "flying_ball"]
+__all__ = ["MAX_HOPS", "PHASE_CHIP", "PHASE_HOPPING", "ChipHop", "ChipTrajectory", "flying_ball"]
+
+# /ball/phase of a chipped ball from its detection until its first touchdown, then until it rolls
+# (erforce_interfaces.wire.contract.BALL_PHASES says the same)
+PHASE_CHIP, PHASE_HOPPING = "chip", "hopping"
 
 # A ball still hopping after this many bounces (dampings near 1) rolls on from there.
 MAX_HOPS = 100
@@ -66,8 +70,10 @@ class ChipHop(NamedTuple):
     duration_s: float
 
 
-def _hops(x, y, z, vx, vy, vz, p: ChipParams) -> tuple[tuple[ChipHop, ...], tuple[float, float, float, float, float]]:
-    """The flights of a ball at ``(x, y, z)`` with ``(vx, vy, vz)`` and where it rolls from: (t, x, y, vx, vy)."""
+def _hops(x, y, z, vx, vy, vz, p: ChipParams,
+          bounced: bool = False) -> tuple[tuple[ChipHop, ...], tuple[float, float, float, float, float]]:
+    """The flights of a ball at ``(x, y, z)`` with ``(vx, vy, vz)`` and where it rolls from: (t, x, y, vx, vy);
+    ``bounced``: it has touched down since the kick (its next bounce damps as a later one)."""
     g, hops, t = p.g_mps2, [], 0.0
     if z <= 0.0 and vz < p.min_hop_vz_mps:  # on the ground, not leaving it: no flight
         return (), (0.0, x, y, vx, vy)
@@ -75,7 +81,7 @@ def _hops(x, y, z, vx, vy, vz, p: ChipParams) -> tuple[tuple[ChipHop, ...], tupl
         v_land = math.sqrt(vz * vz + 2.0 * g * z)  # vertical speed at touchdown (downwards)
         duration = (vz + v_land) / g
         hops.append(ChipHop(t, x, y, z, vx, vy, vz, duration))
-        damping = p.damping_xy_first_hop if len(hops) == 1 else p.damping_xy_other_hops
+        damping = p.damping_xy_first_hop if len(hops) == 1 and not bounced else p.damping_xy_other_hops
         t, x, y = t + duration, x + vx * duration, y + vy * duration
         z, vx, vy, vz = 0.0, vx * damping, vy * damping, v_land * p.damping_z
         if vz < p.min_hop_vz_mps or len(hops) >= MAX_HOPS:
@@ -99,10 +105,10 @@ class ChipTrajectory:
     for vectors); a time at or after the hand-over asks the roll.
     """
 
-    __slots__ = ("_ends", "_hop_rows", "_starts", "_track", "hops", "params", "roll", "roll_start_s")
+    __slots__ = ("_ends", "_hop_rows", "_starts", "_track", "bounced", "hops", "params", "roll", "roll_start_s")
 
     def __init__(self, position_m, velocity_mps, params: ChipParams,
-                 ball_params: BallModelParams | None = None) -> None:
+                 ball_params: BallModelParams | None = None, bounced: bool = False) -> None:
         ball_params = BallModelParams() if ball_params is None else ball_params
         if not isinstance(params, ChipParams) or not isinstance(ball_params, BallModelParams):
             raise ValueError(f"params, ball_params: expected ChipParams and BallModelParams, got "
@@ -113,10 +119,11 @@ class ChipTrajectory:
             raise ValueError(f"position_m: height z must be >= 0 (the carpet), got {z}")
         if max(abs(x), abs(y), z) > MAX_POSITION_M or math.sqrt(vx * vx + vy * vy + vz * vz) > MAX_SPEED_MPS:
             raise ValueError(f"position_m / velocity_mps: beyond {MAX_POSITION_M} m or {MAX_SPEED_MPS} m/s")
-        hops, (t_roll, rx, ry, rvx, rvy) = _hops(x, y, z, vx, vy, vz, params)
+        hops, (t_roll, rx, ry, rvx, rvy) = _hops(x, y, z, vx, vy, vz, params, bool(bounced))
         # rolling from the start: kicked at speed / c_switch, the fastest kick that rolls at this speed
         v_shoot = min(math.hypot(rvx, rvy) / ball_params.c_switch, MAX_SPEED_MPS)
-        _init(self, params, hops, BallTrajectory.of_floats(rx, ry, rvx, rvy, v_shoot, ball_params), t_roll)
+        _init(self, params, hops, BallTrajectory.of_floats(rx, ry, rvx, rvy, v_shoot, ball_params), t_roll,
+              bool(bounced))
 
     def __setattr__(self, name, value):
         raise AttributeError(f"ChipTrajectory is immutable (cannot set {name})")
@@ -125,11 +132,11 @@ class ChipTrajectory:
         raise AttributeError(f"ChipTrajectory is immutable (cannot delete {name})")
 
     def __reduce__(self):
-        return _of_parts, (self.params, self.hops, self.roll, self.roll_start_s)
+        return _of_parts, (self.params, self.hops, self.roll, self.roll_start_s, self.bounced)
 
     def __repr__(self) -> str:
         return (f"ChipTrajectory(position_m={self.position_m.tolist()!r}, velocity_mps={self.velocity_mps.tolist()!r}, "
-                f"params={self.params!r}, ball_params={self.roll.params!r})")
+                f"params={self.params!r}, ball_params={self.roll.params!r}, bounced={self.bounced!r})")
 
     # -- properties -------------------------------------------------------------------------------
     @property
@@ -220,7 +227,7 @@ class ChipTrajectory:
         if not isinstance(dt, float):
             raise ValueError(f"dt_s: one number, got {dt_s!r}")
         if dt >= self.roll_start_s:
-            hops, roll, t_roll = (), self.roll.advanced(dt - self.roll_start_s), 0.0
+            hops, roll, t_roll, i = (), self.roll.advanced(dt - self.roll_start_s), 0.0, len(self.hops)
         else:
             i = int(np.searchsorted(self._starts, dt, side="right")) - 1
             h = self.hops[i]
@@ -230,7 +237,7 @@ class ChipTrajectory:
                           h.duration_s - tau)
             hops = (now, *(k._replace(t_start_s=k.t_start_s - dt) for k in self.hops[i + 1:]))
             roll, t_roll = self.roll, self.roll_start_s - dt
-        return _of_parts(self.params, hops, roll, t_roll)
+        return _of_parts(self.params, hops, roll, t_roll, self.bounced or i > 0)
 
     def sensitivity_at(self, t_s: float) -> np.ndarray:
         """How the state ``(x, y, z, vx, vy, vz)`` at ``t_s`` (before the roll) moves with the start state: the
@@ -248,7 +255,7 @@ class ChipTrajectory:
             out = flow @ out
             if t < hop.t_start_s + hop.duration_s:
                 return out
-            d_xy = p.damping_xy_first_hop if k == 0 else p.damping_xy_other_hops
+            d_xy = p.damping_xy_first_hop if k == 0 and not self.bounced else p.damping_xy_other_hops
             vz_in = hop.vz_mps - g * hop.duration_s  # < 0: landing
             reset = np.diag([1.0, 1.0, 1.0, d_xy, d_xy, -p.damping_z])
             # f+ - R f- over vz-: the bounce's effect of landing dz / |vz| later (the flows before and after it)
@@ -280,8 +287,9 @@ class ChipTrajectory:
 
 
 def _init(ball: ChipTrajectory, params: ChipParams, hops: tuple[ChipHop, ...], roll: BallTrajectory,
-          roll_start_s: float) -> None:
+          roll_start_s: float, bounced: bool) -> None:
     init = object.__setattr__
+    init(ball, "bounced", bounced)
     init(ball, "params", params)
     init(ball, "hops", tuple(ChipHop(*h) for h in hops))
     init(ball, "roll_start_s", roll_start_s)
@@ -292,22 +300,24 @@ def _init(ball: ChipTrajectory, params: ChipParams, hops: tuple[ChipHop, ...], r
     init(ball, "_track", None)
 
 
-def _of_parts(params: ChipParams, hops, roll: BallTrajectory, roll_start_s: float) -> ChipTrajectory:
+def _of_parts(params: ChipParams, hops, roll: BallTrajectory, roll_start_s: float,
+              bounced: bool) -> ChipTrajectory:
     """A chip of given hops and roll (``advanced``, unpickling)."""
     ball = object.__new__(ChipTrajectory)
-    _init(ball, params, hops, roll, roll_start_s)
+    _init(ball, params, hops, roll, roll_start_s, bounced)
     return ball
 
 
-def flying_ball(position_m, velocity_mps, params: ChipParams,
-                ball_params: BallModelParams | None = None) -> ChipTrajectory | None:
+def flying_ball(position_m, velocity_mps, params: ChipParams, ball_params: BallModelParams | None = None,
+                bounced: bool = False) -> ChipTrajectory | None:
     """The ball of a state ``(x, y, z)``, ``(vx, vy, vz)`` (as /ball/state carries it: z of the centre above
     its rest, 0 on the ground) as a ChipTrajectory while it is in the air (z > 0 or vz > 0), else None
-    (a ball on the ground: the flat model's). The one conversion of a ball state to a chip."""
+    (a ball on the ground: the flat model's). ``bounced``: it has touched down since the kick (/ball/phase
+    "hopping"), so its next bounce damps as a later one. The one conversion of a ball state to a chip."""
     z, vz = float(position_m[2]), float(velocity_mps[2])
     if not (z > 0.0 or vz > 0.0):
         return None
-    return ChipTrajectory(position_m, velocity_mps, params, ball_params)
+    return ChipTrajectory(position_m, velocity_mps, params, ball_params, bounced)
 
 
 def _flight_floats(hop: ChipHop) -> BallFloats:

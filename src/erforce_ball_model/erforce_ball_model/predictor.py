@@ -14,8 +14,8 @@ configured field is None).
 Chipped balls: given the camera of each sighting (``ball_frame``'s ``camera_m``, other cameras' sightings of
 the same instant through ``ball_sighting``), a chip detector beside the ball filter (chip_tracking.ChipDetector)
 judges each kick the filter sees; a chip it finds is the frame's ``chip`` (chip_model.ChipTrajectory at the
-frame's stamp, with ``z_m`` and ``vz_mps``, its state's covariance ``chip_covariance``; phase "chip") until it
-rolls, when the filter takes the ball over from the chip's roll.
+frame's stamp, with ``z_m`` and ``vz_mps``, its state's covariance ``chip_covariance``; phase "chip", "hopping"
+after its first touchdown) until it rolls, when the filter takes the ball over from the chip's roll.
 
 The ball_predictor node converts messages and publishes what this object answers; the in-process scenes
 and the bench run the same object, so the catcher is tuned on the code that runs.
@@ -47,7 +47,7 @@ import numpy as np
 
 from erforce_ball_model.ball_model import BallModelParams, BallPhase, BallTrajectory, ChipParams
 from erforce_ball_model.catch_time import ROBOT_REACTION_S, CatchKind, CatchSearch, RobotLimits, catch_after_reaction
-from erforce_ball_model.chip_model import ChipTrajectory
+from erforce_ball_model.chip_model import PHASE_CHIP, PHASE_HOPPING, ChipTrajectory
 from erforce_ball_model.chip_tracking import ChipDetector, ChipDetectorConfig
 from erforce_ball_model.identification import FitResult, ShotAccumulator, fit_shots
 from erforce_ball_model.tracking import BallTracker, RobotTracker, TrackerConfig, UpdateStatus
@@ -68,7 +68,6 @@ __all__ = ["CATCH_TIME_NEVER", "MODEL_ROWS", "PHASE_NAMES", "BallFrame", "BallPr
 CATCH_TIME_NEVER = -1.0  # the catch time that means "no catch" (erforce_interfaces.wire.contract says the same)
 MODEL_ROWS = ("in_use", "fit", "std_error")  # the rows of model_rows (erforce_interfaces.wire.contract says the same)
 PHASE_NAMES = {BallPhase.SLIDING: "sliding", BallPhase.ROLLING: "rolling", BallPhase.STOPPED: "stopped"}
-PHASE_CHIP = "chip"  # a chipped ball from its detection until it rolls (erforce_interfaces.wire.contract.BALL_PHASES)
 _NEVER = int(CatchKind.NEVER)
 
 
@@ -143,7 +142,7 @@ class BallFrame:
     xy_m: tuple[float, float]  # the observation
     status: UpdateStatus
     trajectory: BallTrajectory  # the ball at t_s
-    phase: str  # unknown (first frame) | sliding | rolling | stopped | chip
+    phase: str  # unknown (first frame) | sliding | rolling | stopped | chip | hopping
     uncertain: bool
     # the ball filter's variance of x and of y [m^2], of vx and of vy [(m/s)^2] at t_s
     position_variance_m2: float
@@ -435,7 +434,7 @@ class BallPredictor:
         robots, times, points = self._catches(t_s, traj if chip is None else chip)
         f = traj.floats
         if chip is not None:
-            phase = PHASE_CHIP
+            phase = PHASE_HOPPING if chip.bounced else PHASE_CHIP
         elif status == UpdateStatus.INITIALIZED:
             phase = "unknown"
         elif f.speed_mps <= cfg.rest_speed_mps:

@@ -37,7 +37,7 @@ from erforce_ball_model.catch_time import (
     contact_offset,
     receive_facing,
 )
-from erforce_ball_model.chip_model import ChipTrajectory, flying_ball
+from erforce_ball_model.chip_model import PHASE_HOPPING, ChipTrajectory, flying_ball
 from erforce_interfaces.runtime.param_schema import schema_defaults
 from erforce_interfaces.wire.robot_config import FieldConfig
 
@@ -413,6 +413,7 @@ class Receiver:
         self._ball = None  # (t, position, velocity)
         self._height = (0.0, 0.0)  # the ball's (z, vz) with the newest state: in the air when either is > 0
         self._chip_model: ChipParams | None = None  # the predictor's chip model (on_chip_model); None: not yet
+        self._bounced = False  # the ball in the air has touched down since the kick (on_ball_phase)
         self._rest_position = None  # where the ball was last seen at rest
         self._received = False  # caught, and the ball not seen at rest since
         self._v_shoot = None  # (t, m/s)
@@ -471,6 +472,11 @@ class Receiver:
 
     def on_v_shoot(self, now: float, v_shoot_mps: float) -> None:
         self._v_shoot = (now, float(v_shoot_mps))
+
+    def on_ball_phase(self, phase: str) -> None:
+        """The predictor's phase (/ball/phase): "hopping" says a ball in the air has bounced since the kick, so
+        its next bounce damps as a later one (chip_model.flying_ball)."""
+        self._bounced = phase == PHASE_HOPPING
 
     def on_next_target(self, point, max_receive_angle_rad: float = MAX_RECEIVE_ANGLE_RAD) -> None:
         """Where this robot passes the ball on once it has it ([x, y] in ``field``; None: nowhere known), and
@@ -576,7 +582,8 @@ class Receiver:
                 self.notice = "the ball is in the air but no chip model has come (/ball/chip_model_params)"
             return None
         try:
-            return flying_ball((*position, max(z, 0.0)), (*velocity, vz), self._chip_model, self._model)
+            return flying_ball((*position, max(z, 0.0)), (*velocity, vz), self._chip_model, self._model,
+                               self._bounced)
         except ValueError as exc:
             self.notice = f"ball state in the air not usable: {exc}"
             return None

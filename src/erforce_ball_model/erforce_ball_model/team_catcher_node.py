@@ -18,7 +18,7 @@ timer and seven subscriptions' callbacks per robot. The parameters are the catch
 from __future__ import annotations
 
 from nav_msgs.msg import Odometry
-from std_msgs.msg import Bool, Float64, Float64MultiArray
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model import catcher_node
 from erforce_ball_model.ball_model import BallModelParams
@@ -77,6 +77,7 @@ class TeamCatcherNode(SchemaNode):
         # the frequent inputs serialized, as in the catcher: only the newest of each is decoded
         self._inputs = [sample_only(contract_subscription(self, topic, callback, raw=raw))
                         for topic, callback, raw in ((q.BALL_STATE, self._on_ball, True),
+                                                     (q.BALL_PHASE, self._on_phase, False),
                                                      (q.BALL_V_SHOOT, self._on_v_shoot, True),
                                                      (q.BALL_MODEL_PARAMS, self._on_model_params, False),
                                                      (q.BALL_CHIP_MODEL_PARAMS, self._on_chip_model_params, False))]
@@ -127,6 +128,9 @@ class TeamCatcherNode(SchemaNode):
         ball = self._warn.convert(msg, "ball state", ball_state_from_msg)
         if ball is not None:
             self._team.on_ball(self._batch_now, ball[1], ball[2])
+
+    def _on_phase(self, msg: String) -> None:
+        self._team.on_ball_phase(msg.data)
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
         v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)

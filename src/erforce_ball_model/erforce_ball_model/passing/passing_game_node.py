@@ -21,7 +21,7 @@ import math
 import numpy as np
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from std_msgs.msg import Bool, Float64, Float64MultiArray
+from std_msgs.msg import Bool, Float64, Float64MultiArray, String
 
 from erforce_ball_model import catcher_node
 from erforce_ball_model.ball_model import BallModelParams, ChipParams
@@ -158,6 +158,7 @@ class PassingGameNode(Node):
         self._reported = 0
         self._inputs = [sample_only(contract_subscription(self, topic, callback, raw=raw))
                         for topic, callback, raw in ((q.BALL_STATE, self._on_ball, True),
+                                                     (q.BALL_PHASE, self._on_phase, False),
                                                      (q.BALL_V_SHOOT, self._on_v_shoot, True),
                                                      (q.BALL_MODEL_PARAMS, self._on_model_params, False),
                                                      (q.BALL_CHIP_MODEL_PARAMS, self._on_chip_model_params, False))]
@@ -222,6 +223,9 @@ class PassingGameNode(Node):
         ball = self._warn.convert(msg, "ball state", ball_state_from_msg)
         if ball is not None:
             self._player.on_ball(self._batch_now, ball[1], ball[2], self._v_shoot)
+
+    def _on_phase(self, msg: String) -> None:
+        self._player.on_ball_phase(msg.data)
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
         self._v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)

@@ -219,6 +219,7 @@ class PassingPlayer:
         self.seen = np.zeros(n, dtype=bool)
         self.ball_xy = np.zeros(2)
         self.ball_velocity = np.zeros(2)
+        self.ball_phase = "unknown"  # /ball/phase (on_ball_phase)
         self.barriers = np.zeros(n, dtype=bool)
         self.records: list[PassRecord] = []
         self.resets = 0  # balls asked back after a loss, an interception or a drop
@@ -309,6 +310,12 @@ class PassingPlayer:
             self.receiver.on_ball(now, position, velocity)
             if v_shoot_mps is not None:
                 self.receiver.on_v_shoot(now, v_shoot_mps)
+
+    def on_ball_phase(self, phase: str) -> None:
+        """The predictor's /ball/phase (Receiver.on_ball_phase)."""
+        self.ball_phase = phase
+        if self.receiver is not None:
+            self.receiver.on_ball_phase(phase)
 
     def on_catch(self, i: int, now: float, catch_time_s: float, catch_point=None) -> None:
         """The predictor's catch time (CATCH_TIME_NEVER: never) and, when given, point for our robot ``i``."""
@@ -561,6 +568,7 @@ class PassingPlayer:
         receiver.on_model(self._choice_model)
         if self.chip_model is not None:
             receiver.on_chip_model(self.chip_model)
+        receiver.on_ball_phase(self.ball_phase)
         self.receiver = receiver
         self._feed_receiver(choice.receiver, now)
         k = None
@@ -672,6 +680,11 @@ class PressingTeam:
     def on_v_shoot(self, now: float, v_shoot_mps: float) -> None:
         for receiver in self.receivers.values():
             receiver.on_v_shoot(now, v_shoot_mps)
+
+    def on_ball_phase(self, phase: str) -> None:
+        """The predictor's /ball/phase (Receiver.on_ball_phase)."""
+        for receiver in self.receivers.values():
+            receiver.on_ball_phase(phase)
 
     def on_model(self, params: BallModelParams) -> None:
         """The ball model in use (the predictor's): every robot's receiver predicts with it."""

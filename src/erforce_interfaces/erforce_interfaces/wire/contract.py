@@ -53,9 +53,10 @@ BASE_LINK = "base_link"
 #: Published on ``catch_time`` when no catch is possible before the ball leaves the field.
 CATCH_TIME_NEVER = -1.0
 
-#: Values of ``/ball/phase`` ("chip": a chipped ball from its detection until it rolls; last, so that the
-#: indices /ball/track carries stay those of the flat phases).
-BALL_PHASES = ("unknown", "sliding", "rolling", "stopped", "chip")
+#: Values of ``/ball/phase`` ("chip": a chipped ball from its detection until its first touchdown, "hopping": after
+#: it until it rolls, so that a receiver rebuilding the chip from /ball/state damps its next bounce as a later one;
+#: last, so that the indices /ball/track carries stay those of the flat phases).
+BALL_PHASES = ("unknown", "sliding", "rolling", "stopped", "chip", "hopping")
 
 # DDS participant settings (config/fastdds_profile.xml): announce every 0.5 s, so that a node that
 # (re)starts is matched within about a second. Fast DDS 2 (Jazzy) reads the first variable, 3 the second.
@@ -295,8 +296,8 @@ BALL_STATE = Topic("/ball/state", Odometry, QOS_STATE, "ball_predictor", "catche
                    "twist.linear.z its vertical speed [m/s] (both 0 on the ground), and the covariances' rows and "
                    "columns 0-2 those of (x, y, z) and (vx, vy, vz) of the fitted flight (from one camera the "
                    "height is far less sure than the ground track at first; 100 on a diagonal: not determined)")
-BALL_PHASE = Topic("/ball/phase", String, QOS_STATE, "ball_predictor", "tools",
-                   "one of " + ", ".join(BALL_PHASES))
+BALL_PHASE = Topic("/ball/phase", String, QOS_STATE, "ball_predictor", "catcher, team_catcher, passing_game, tools",
+                   "one of " + ", ".join(BALL_PHASES) + "; each frame's before its /ball/state")
 BALL_STOP_POINT = Topic("/ball/stop_point", PointStamped, QOS_STATE, "ball_predictor", "tools",
                         "where the two-phase model says the ball comes to rest [m], `field` (a chip: where it "
                         "rolls out after its hops)")

@@ -211,6 +211,8 @@ class PassingGame:
                 if i < self.n_team:
                     player.on_catch(i, now, ct, point)
             v_shoot = None if chip else traj.floats.v_shoot_mps
+            player.on_ball_phase(answer.phase)  # as /ball/phase, before /ball/state
+            self.opponents.on_ball_phase(answer.phase)
             player.on_ball(now, traj.position_m, traj.velocity_mps, v_shoot)
             opponents = self.opponents
             for i, ct, point in zip(answer.catch_robots, answer.catch_times_s, answer.catch_points_m, strict=True):
