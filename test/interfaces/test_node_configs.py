@@ -30,6 +30,9 @@ def test_every_node_builds_from_its_defaults():
     # one vision noise: the flat filter's and the chip detector's
     quieter = ball_predictor_node.build_config(config(ball_predictor_node, position_noise_m=0.0014))
     assert quieter.tracker.position_noise_m == quieter.chip_detector.noise_m == 0.0014
+    # one rest speed: the catch times' and the chip detector's (a kick starts from a ball slower than it)
+    slower = ball_predictor_node.build_config(config(ball_predictor_node, rest_speed_mps=0.3))
+    assert slower.rest_speed_mps == slower.chip_detector.rest_speed_mps == 0.3
     catcher, dribbler_m, radius_m, field = catcher_node.build_config(config(catcher_node))
     assert catcher == CatcherConfig() and (dribbler_m, radius_m, field.length_m) == (0.0815, 0.09, 9.0)
     view = field_view_node.check_config(config(field_view_node))

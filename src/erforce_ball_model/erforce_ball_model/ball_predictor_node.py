@@ -123,8 +123,9 @@ def build_config(c) -> PredictorConfig:
         ident_max_std=(c.ident_max_std_a_slide_mps2, c.ident_max_std_a_roll_mps2, c.ident_max_std_c_switch),
         timing_log_every=c.timing_log_every,
         use_vision_geometry=c.use_vision_geometry,
-        # the chip detector weighs its sightings by the same vision noise as the flat filter
-        chip_detector=ChipDetectorConfig(noise_m=c.position_noise_m, kick_speed_std_ratio=c.kick_speed_std_ratio),
+        # the chip detector weighs its sightings by the same vision noise and takes the same rest speed
+        chip_detector=ChipDetectorConfig(noise_m=c.position_noise_m, kick_speed_std_ratio=c.kick_speed_std_ratio,
+                                         rest_speed_mps=c.rest_speed_mps),
     )
 
 
