@@ -252,3 +252,20 @@ def test_a_stale_pose_does_not_turn_global_velocities(ros_graph):
     client = Client(robot_port, control_port)
     drive(ros_graph, client, msg.SerializeToString(), lambda: cmd, 20.0, "cmd_vel from a global velocity")
     assert (cmd[-1].linear.x, cmd[-1].linear.y) == pytest.approx((1.0, 0.0))
+
+
+def test_a_bad_value_refuses_that_part_of_that_robots_command_alone():
+    nan = float("nan")
+    reqs = [ssl_sim.MoveRequest(0, "local", (nan, 0.0, 0.0), 4.0, 45.0, 0.0),  # no move; its chip still kicks
+            ssl_sim.MoveRequest(1, "global", (1.0, 0.0, 1e6), 0.0, 0.0, 0.0),  # 1e6 rad/s: no move
+            ssl_sim.MoveRequest(2, "local", (0.5, 0.0, 0.0), 0.0, 0.0, nan),  # its dribbler off, it moves
+            ssl_sim.MoveRequest(3, "local", (0.5, 0.25, 1.0), 0.0, 0.0, 0.0)]
+    actions, errors = ssl_sim.plan_robot_control(reqs, [0, 1, 2, 3], {1: 0.0}.get, dribbler=True)
+    assert [a.twist for a in actions] == [None, None, (0.5, 0.0, 0.0), (0.5, 0.25, 1.0)]
+    assert (actions[0].kick_speed_mps, actions[0].kick_angle_deg) == (4.0, 45.0)
+    assert actions[2].dribbler_radps == 0.0
+    assert sorted(e.message for e in errors) == [
+        "robot 0 local velocity = nan is not finite: no move",
+        f"robot 1 global velocity = 1e+06 is outside [-{ssl_sim.MAX_ANGULAR_RADPS:g}, {ssl_sim.MAX_ANGULAR_RADPS:g}]: "
+        "no move",
+        "robot 2 dribbler_speed = nan is not finite: dribbler off"]

@@ -245,13 +245,30 @@ def test_referee_stage_time_is_sint64_and_the_newer_fields_have_their_numbers():
     (b"\x0a\x02\x10\x01", "required"),  # a RobotCommand without its id
     (b"\x0a\x05\x08", "not a valid"),  # length beyond the datagram
     (b"\xff\xff\xff", "not a valid"),
-    (b"\x0a" + length(b"\x08\x01\x1d" + bytes.fromhex("0000c07f")), "not finite"),  # kick_speed NaN
-    (b"\x0a" + length(b"\x08\x01\x1d" + bytes.fromhex("0000c842")), "beyond"),  # kick_speed 100 m/s
     (b"".join(b"\x0a\x02\x08" + bytes([i]) for i in range(40)), "at most"),
 ])
 def test_bad_robot_control_is_refused_with_the_reason(data, reason):
     with pytest.raises(WireError, match=reason):
         ssl_sim.decode_robot_control(data)
+
+
+def test_one_robots_bad_kick_refuses_that_kick_alone():
+    """RobotCommand: id = 1 (varint), kick_speed = 3 and kick_angle = 4 (float32, little endian). Robot 1 asks a
+    NaN kick speed, robot 2 a 95 deg chip, robot 3 a 100 m/s kick, robot 4 a good 4 m/s 45 deg chip: the packet
+    decodes, and each bad kick is refused for its robot alone, naming the field."""
+    def command(robot, speed_hex, angle_hex=None):
+        body = b"\x08" + bytes([robot]) + b"\x1d" + bytes.fromhex(speed_hex)
+        return b"\x0a" + length(body + (b"\x25" + bytes.fromhex(angle_hex) if angle_hex else b""))
+    data = (command(1, "0000c07f") + command(2, "00008040", "0000be42") + command(3, "0000c842")
+            + command(4, "00008040", "00003442"))  # NaN; 4.0, 95.0; 100.0; 4.0, 45.0
+    requests = ssl_sim.decode_robot_control(data)
+    assert [r.robot_id for r in requests] == [1, 2, 3, 4]
+    assert requests[3].kick_speed_mps == 4.0 and requests[3].kick_angle_deg == 45.0
+    actions, errors = ssl_sim.plan_robot_control(requests, [1, 2, 3, 4], {}.get)
+    assert [(a.kick_speed_mps, a.kick_angle_deg) for a in actions] == [(0.0, 0.0)] * 3 + [(4.0, 45.0)]
+    assert sorted(e.message.split(":")[0].split(" = ")[0] for e in errors) == [
+        "robot 1 kick_speed", "robot 2", "robot 3 kick_speed"]
+    assert all(e.code == ssl_sim.ERROR_INVALID and "no kick" in e.message for e in errors)
 
 
 def test_commands_refuse_non_finite_values():

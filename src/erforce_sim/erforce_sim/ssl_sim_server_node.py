@@ -13,8 +13,10 @@ teams' commands as ER-Force's simulator and grSim do. How commands enter the sta
 - A kick speed becomes ``robot_<id>/kick`` while it is set (the plant keeps each kick armed for 0.1 s; it
   is repeated every ``kick_repeat_s``), its ``kick_angle`` ``robot_<id>/kick_angle`` first whenever it
   changes: 0 a flat kick, in (0, 90) deg a chip, which the plant flies (``World.kick``'s ``angle_deg``:
-  the speed is the ball's, in 3D, as the protocol's ``kick_speed``). An angle outside [0, 90) is refused
-  with an error and does not kick.
+  the speed is the ball's, in 3D, as the protocol's ``kick_speed``). An angle outside [0, 90) or a speed
+  not finite, negative or beyond the kicker's is refused with an error and does not kick; a velocity or
+  dribbler speed not finite or out of range refuses that robot's move or dribbler alone
+  (ssl_sim.plan_robot_control): the other robots of the packet act.
 - The dribbler speed becomes ``robot_<id>/dribbler`` (rad/s) when it changes and every second.
 - Each RobotControl is answered with a RobotControlResponse: every served robot's dribbler ball
   contact (the plant's light barrier, ``ball_detected``) and the errors of that packet.

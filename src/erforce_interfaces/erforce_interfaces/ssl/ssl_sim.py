@@ -278,7 +278,8 @@ def decode_simulator_response(data: bytes) -> tuple[str, ...]:
 class MoveRequest:
     """One robot's command as a simulator receives it. ``kind``: local | global | wheel | none;
     ``velocity``: (forward, left, angular) for local, (vx, vy, angular) for global, the four wheel
-    speeds (front right, back right, back left, front left) for wheel."""
+    speeds (front right, back right, back left, front left) for wheel. The values are as sent: a value that is
+    not finite or out of range is refused for its robot alone (plan_robot_control)."""
 
     robot_id: int
     kind: str
@@ -294,31 +295,35 @@ def decode_robot_control(data: bytes) -> list[MoveRequest]:
     requests = []
     for cmd in msg.robot_commands:
         robot_id = _robot_id("RobotCommand", cmd.id)
-        what = f"robot {robot_id}"
         kind = cmd.move_command.WhichOneof("command") if cmd.HasField("move_command") else None
         if kind == "local_velocity":
             m = cmd.move_command.local_velocity
-            values, kind, limits = (m.forward, m.left, m.angular), "local", (MAX_LINEAR_MPS,) * 2
+            values, kind = (m.forward, m.left, m.angular), "local"
         elif kind == "global_velocity":
             m = cmd.move_command.global_velocity
-            values, kind, limits = (m.x, m.y, m.angular), "global", (MAX_LINEAR_MPS,) * 2
+            values, kind = (m.x, m.y, m.angular), "global"
         elif kind == "wheel_velocity":
             m = cmd.move_command.wheel_velocity
-            values = (m.front_right, m.back_right, m.back_left, m.front_left)
-            kind, limits = "wheel", (MAX_LINEAR_MPS,) * 4
+            values, kind = (m.front_right, m.back_right, m.back_left, m.front_left), "wheel"
         else:
-            values, kind, limits = (), "none", ()
-        limits = limits + (MAX_ANGULAR_RADPS,) * (len(values) - len(limits))
-        velocity = tuple(finite_value(f"{what} {kind} velocity", v, lim) for v, lim in zip(values, limits, strict=True))
-        kick = finite_value(f"{what} kick_speed", cmd.kick_speed, MAX_KICK_MPS)
-        if kick < 0.0:
-            raise WireError(f"{what} kick_speed = {kick:g} is negative")
-        requests.append(MoveRequest(
-            robot_id, kind, velocity, kick,
-            finite_value(f"{what} kick_angle", cmd.kick_angle, 90.0),
-            finite_value(f"{what} dribbler_speed", cmd.dribbler_speed, MAX_DRIBBLER_RPM),
-        ))
+            values, kind = (), "none"
+        requests.append(MoveRequest(robot_id, kind, tuple(float(v) for v in values), float(cmd.kick_speed),
+                                    float(cmd.kick_angle), float(cmd.dribbler_speed)))
     return requests
+
+
+def _move_limits(kind: str, n: int) -> tuple[float, ...]:
+    linear = 4 if kind == "wheel" else 2
+    return (MAX_LINEAR_MPS,) * min(linear, n) + (MAX_ANGULAR_RADPS,) * max(n - linear, 0)
+
+
+def _refused(what: str, value: float, limit: float, low: float = -math.inf) -> str | None:
+    """Why one command value is refused (not finite, beyond ``limit`` in magnitude, below ``low``), or None."""
+    if not math.isfinite(value):
+        return f"{what} = {value!r} is not finite"
+    if abs(value) > limit or value < low:
+        return f"{what} = {value:g} is outside [{max(low, -limit):g}, {limit:g}]"
+    return None
 
 
 def local_from_global(vx_mps: float, vy_mps: float, yaw_rad: float) -> tuple[float, float]:
@@ -508,7 +513,9 @@ def plan_robot_control(requests: Iterable[MoveRequest], robot_ids: Iterable[int]
 
     ``yaw_of(robot_id)`` gives a robot's heading [rad] (or None when unknown) for global velocities.
     Unsupported features (wheel velocities, a dribbler when ``dribbler`` is False) give
-    one SimError each per packet, as the protocol recommends, and the rest of the command still acts.
+    one SimError each per packet, as the protocol recommends, and the rest of the command still acts. A value
+    not finite or out of range refuses that part of that robot's command (its move, its kick, its dribbler)
+    with an ERROR_INVALID naming it; the other robots' commands act.
     """
     served = set(robot_ids)
     actions: list[RobotAction] = []
@@ -518,8 +525,13 @@ def plan_robot_control(requests: Iterable[MoveRequest], robot_ids: Iterable[int]
             errors.setdefault(f"robot{r.robot_id}", SimError(
                 ERROR_UNKNOWN_ROBOT, f"robot {r.robot_id} is not simulated here (robots {sorted(served)})"))
             continue
-        twist = None
-        if r.kind == "local":
+        twist, what = None, f"robot {r.robot_id}"
+        bad = next(filter(None, (_refused(f"{what} {r.kind} velocity", v, lim)
+                                 for v, lim in zip(r.velocity, _move_limits(r.kind, len(r.velocity)), strict=True))),
+                   None)
+        if bad is not None:
+            errors.setdefault(f"move{r.robot_id}", SimError(ERROR_INVALID, f"{bad}: no move"))
+        elif r.kind == "local":
             twist = r.velocity
         elif r.kind == "global":
             yaw = yaw_of(r.robot_id)
@@ -532,12 +544,19 @@ def plan_robot_control(requests: Iterable[MoveRequest], robot_ids: Iterable[int]
             errors.setdefault("wheel", SimError(
                 ERROR_UNSUPPORTED, "wheel velocities are not supported: send local or global velocities"))
         kick, angle = r.kick_speed_mps, r.kick_angle_deg if r.kick_speed_mps > 0.0 else 0.0
-        if not 0.0 <= angle < MAX_KICK_ANGLE_DEG:
-            errors.setdefault(f"angle{r.robot_id}", SimError(
-                ERROR_INVALID, f"robot {r.robot_id}: kick_angle {angle:g} deg is not in [0, 90): no kick"))
+        bad = _refused(f"{what} kick_speed", kick, MAX_KICK_MPS, 0.0)
+        if bad is None and not (math.isfinite(angle) and 0.0 <= angle < MAX_KICK_ANGLE_DEG):
+            bad = f"{what}: kick_angle {angle:g} deg is not in [0, 90)"
+        if bad is not None:
+            errors.setdefault(f"kick{r.robot_id}", SimError(ERROR_INVALID, f"{bad}: no kick"))
             kick, angle = 0.0, 0.0
-        if r.dribbler_rpm != 0.0 and not dribbler:
+        dribbler_rpm = r.dribbler_rpm
+        bad = _refused(f"{what} dribbler_speed", dribbler_rpm, MAX_DRIBBLER_RPM)
+        if bad is not None:
+            errors.setdefault(f"dribbler{r.robot_id}", SimError(ERROR_INVALID, f"{bad}: dribbler off"))
+            dribbler_rpm = 0.0
+        elif dribbler_rpm != 0.0 and not dribbler:
             errors.setdefault("dribbler", SimError(ERROR_UNSUPPORTED, "this simulator has no dribbler motor"))
-        actions.append(RobotAction(r.robot_id, twist, kick, r.dribbler_rpm / RPM_PER_RADPS if dribbler else 0.0,
+        actions.append(RobotAction(r.robot_id, twist, kick, dribbler_rpm / RPM_PER_RADPS if dribbler else 0.0,
                                    angle))
     return actions, list(errors.values())
