@@ -612,11 +612,13 @@ def test_the_catch_point_facing_the_target_is_offset_by_the_dribbler_distance_to
 
 
 # --- robotTimeToBall on chipped balls: brute force ----------------------------------------------
-def _dense_first_chip_catch(chip, p0, v0, lim, facing, field, step=1e-3):
-    """Reference for a chip: the first time on a dense grid at which the ball is low enough (its centre at most
-    max_catch_height_m), inside the field and reached by the alpha-search time alone; refined by bisection
-    against the previous grid point (not feasible). Returns (time, width of that window on the grid)."""
+def _dense_first_chip_catch(chip, p0, v0, lim, facing, field, step=1e-3, receiving=False):
+    """Reference for a chip: the first time on a dense grid at which the ball is low enough (an interceptor: its
+    centre at most max_catch_height_m; a receiver: from when it stays at most max_receive_height_m), inside the
+    field and reached by the alpha-search time alone; refined by bisection against the previous grid point (not
+    feasible). Returns (time, width of that window on the grid)."""
     track = chip.ground_track()
+    t_settled = chip.time_below_height_s(chip.params.max_receive_height_m)
     t_end = min(track.stop_time_s, track.time_in_field(field)[1])
     grid = np.append(np.arange(0.0, t_end, step), t_end)
     off = OFFSET * np.array([math.cos(facing), math.sin(facing)])
@@ -624,7 +626,7 @@ def _dense_first_chip_catch(chip, p0, v0, lim, facing, field, step=1e-3):
     def feasible(t):
         p = chip.position_at(t)
         inside = (np.abs(p[..., 0]) <= field.half_length_m) & (np.abs(p[..., 1]) <= field.half_width_m)
-        low = p[..., 2] <= chip.params.max_catch_height_m
+        low = np.asarray(t) >= t_settled if receiving else p[..., 2] <= chip.params.max_catch_height_m
         return low & inside & (robot_time_to_pos(p0, v0, p[..., :2] - off, lim) <= t)
 
     ok = feasible(grid)
@@ -654,9 +656,11 @@ def _random_chip(rng):
                                         speed * math.sin(elevation)), ChipParams())
 
 
-def test_chip_catches_match_the_dense_search_and_are_never_above_the_catch_height():
+@pytest.mark.parametrize("receiving", [False, True])
+def test_chip_catches_match_the_dense_search_and_are_never_above_the_catch_height(receiving):
     """The flat case's guarantees on chips: a window of the reference at least 2 h wide is found, no earlier than
-    its start and at most 1 ms later; every catch found is reachable, inside the field and with the ball low."""
+    its start and at most 1 ms later; every catch found is reachable, inside the field and with the ball low (an
+    interceptor: below max_catch_height_m; a receiver: once it stays below max_receive_height_m)."""
     rng = np.random.default_rng(37)
     checked = wide = under = 0
     for _ in range(10):
@@ -669,14 +673,17 @@ def test_chip_catches_match_the_dense_search_and_are_never_above_the_catch_heigh
         vels = rng.normal(0, 0.5, (n, 2))
         facing = rng.uniform(0, 2 * math.pi, n)
         lim = RobotLimits(3.5, 2.5)
-        res = robot_time_to_ball(chip, robots, vels, lim, facing, field=DIV_B)
+        res = robot_time_to_ball(chip, robots, vels, lim, facing, field=DIV_B, receiving=receiving)
         t_low = chip.time_below_height_s()
+        t_settled = chip.time_below_height_s(chip.params.max_receive_height_m)
         for r in range(n):
-            t_ref, width = _dense_first_chip_catch(chip, robots[r], vels[r], lim, facing[r], DIV_B)
+            t_ref, width = _dense_first_chip_catch(chip, robots[r], vels[r], lim, facing[r], DIV_B,
+                                                   receiving=receiving)
             checked += 1
             if res.kind[r] == CatchKind.MOVING:
                 t = float(res.time_s[r])
                 assert chip.position_at(t)[2] <= chip.params.max_catch_height_m + 1e-9
+                assert not receiving or t >= t_settled - 1e-9
                 off = OFFSET * np.array([math.cos(facing[r]), math.sin(facing[r])])
                 tgt = chip.position_at(t)[:2] - off
                 assert float(robot_time_to_pos(robots[r], vels[r], tgt, lim)) <= t + 1e-5
