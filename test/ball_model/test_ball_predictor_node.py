@@ -462,6 +462,7 @@ BAD_PARAMS = [
     ("chip_damping_z", 1.0), ("chip_damping_xy_first_hop", 1.2), ("chip_min_hop_vz_mps", 0.0),
     ("chip_max_catch_height_m", -0.1), ("chip_max_catch_height_m", math.nan),
     ("chip_max_receive_height_m", -0.01), ("chip_max_receive_height_m", math.inf),
+    ("chip_max_receive_height_m", 0.9), ("chip_max_catch_height_m", 0.01),  # reception above interception
 ]
 
 

@@ -150,6 +150,8 @@ def test_bad_input_and_immutability():
         ChipParams(damping_z=1.0)
     with pytest.raises(ValueError, match="g_mps2"):
         ChipParams(g_mps2=0.0)
+    with pytest.raises(ValueError, match="max_receive_height_m: must be <= max_catch_height_m"):
+        ChipParams(max_catch_height_m=0.1, max_receive_height_m=0.12)  # a ball it can take, it can stop
     chip = ChipTrajectory((0.0, 0.0, 0.0), (3.0, 0.0, 3.0), P)
     with pytest.raises(ValueError, match="t_s"):
         chip.position_at(-1.0)

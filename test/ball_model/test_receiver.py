@@ -490,7 +490,7 @@ def test_a_chip_is_received_where_the_chip_model_in_use_says_it_is_low():
     t = (1.0 - offset) / 3.0
     assert 3.0 * t - 4.905 * t * t == pytest.approx(0.4587, abs=1e-4)
     to_projection = (0.0, math.sqrt(2.0 * cfg.a_max_mps2 * cfg.braking_margin * 0.03), 0.0)
-    high, notice = twist(ChipParams(max_receive_height_m=0.5))
+    high, notice = twist(ChipParams(max_catch_height_m=0.5, max_receive_height_m=0.5))
     assert high == pytest.approx(to_projection, abs=1e-9) and notice is None
     assert np.array_equal(twist(ChipParams(max_catch_height_m=0.5))[0], np.zeros(3))  # a receiver needs it lower
     assert twist(ChipParams(max_catch_height_m=0.5), intercepts=True)[0] == pytest.approx(to_projection, abs=1e-9)

@@ -149,6 +149,9 @@ class ChipParams:
             raise ValueError(f"ChipParams: g_mps2 > 0, min_hop_vz_mps > 0, max_catch_height_m >= 0 and "
                              f"max_receive_height_m >= 0, got {self.g_mps2}, {self.min_hop_vz_mps}, "
                              f"{self.max_catch_height_m}, {self.max_receive_height_m}")
+        if self.max_receive_height_m > self.max_catch_height_m:  # what a robot can take, it can stop
+            raise ValueError(f"ChipParams.max_receive_height_m: must be <= max_catch_height_m "
+                             f"({self.max_catch_height_m}), got {self.max_receive_height_m}")
         if not 0.0 <= self.damping_z < 1.0:  # below 1: the hops end
             raise ValueError(f"ChipParams.damping_z: must be in [0, 1), got {self.damping_z}")
         for name in ("damping_xy_first_hop", "damping_xy_other_hops"):
