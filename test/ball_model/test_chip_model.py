@@ -201,3 +201,22 @@ def test_a_state_after_the_first_bounce_damps_its_next_bounce_as_a_later_one():
     t_after = t2_after + 0.02
     derivative = (nudged.velocity_at(t_after)[0] - rebuilt.velocity_at(t_after)[0]) / eps
     assert rebuilt.sensitivity_at(t_after)[3, 3] == pytest.approx(0.95, abs=1e-6) == pytest.approx(derivative)
+
+
+def test_the_settle_distance_by_hand():
+    # 4 m/s up and along the carpet (45 deg) under P: flights leave at vz = 4 * 0.566^k (k = 0..3; the 5th
+    # bounce leaves 0.41 < 0.45 m/s); the 4th's apex 0.7253^2 / 2g = 0.0268 m is the last above a ball radius,
+    # so the ball settles when it comes down through h in that flight
+    from erforce_ball_model.chip_model import chip_settle_distance
+
+    h = P.max_receive_height_m
+    vz = [4.0 * 0.566**k for k in range(4)]
+    vxy = [4.0, 4.0 * 0.75, 4.0 * 0.75 * 0.95, 4.0 * 0.75 * 0.95**2]
+    assert vz[3] ** 2 / (2.0 * G) > h > (0.566 * vz[3]) ** 2 / (2.0 * G)
+    tau = (vz[3] + math.sqrt(vz[3] ** 2 - 2.0 * G * h)) / G
+    by_hand = sum(v * 2.0 * w / G for v, w in zip(vxy[:3], vz[:3], strict=True)) + vxy[3] * tau
+    assert chip_settle_distance(4.0 * math.sqrt(2.0), 45.0, P) == pytest.approx(by_hand, abs=1e-12)
+    chip = ChipTrajectory((0.0, 0.0, 0.0), (4.0, 0.0, 4.0), P)
+    t = chip.time_below_height_s(h)
+    assert chip.position_at(t).tolist() == pytest.approx([by_hand, 0.0, h], abs=1e-12)
+    assert chip_settle_distance(0.1, 45.0, P) == 0.0  # never above a ball radius

@@ -62,6 +62,7 @@ from erforce_interfaces.wire.robot_config import (
     BALL_CHIP_MIN_HOP_VZ_MPS,
     BALL_MAX_CATCH_HEIGHT_M,
     BALL_MAX_RECEIVE_HEIGHT_M,
+    GRAVITY_MPS2,
     FieldConfig,
 )
 
@@ -129,7 +130,7 @@ class ChipParams:
     model in use is the ball predictor's (its ``chip_*`` parameters), published on /ball/chip_model_params.
     """
 
-    g_mps2: float = 9.81
+    g_mps2: float = GRAVITY_MPS2
     damping_z: float = BALL_CHIP_DAMPING_Z
     damping_xy_first_hop: float = BALL_CHIP_DAMPING_XY_FIRST_HOP
     damping_xy_other_hops: float = BALL_CHIP_DAMPING_XY_OTHER_HOPS

@@ -46,7 +46,8 @@ from erforce_ball_model.ball_model import (
 )
 from erforce_ball_model.walls import Walls
 
-__all__ = ["MAX_HOPS", "PHASE_CHIP", "PHASE_HOPPING", "ChipHop", "ChipTrajectory", "flying_ball"]
+__all__ = ["MAX_HOPS", "PHASE_CHIP", "PHASE_HOPPING", "ChipHop", "ChipTrajectory", "chip_settle_distance",
+           "flying_ball"]
 
 # /ball/phase of a chipped ball from its detection until its first touchdown, then until it rolls
 # (erforce_interfaces.wire.contract.BALL_PHASES says the same)
@@ -172,11 +173,7 @@ class ChipTrajectory:
         h = self.params.max_catch_height_m if height_m is None else height_m
         if not isinstance(h, _NUMBER) or not math.isfinite(h) or h < 0.0:
             raise ValueError(f"height_m: must be a finite number >= 0, got {height_m!r}")
-        g = self.params.g_mps2
-        for hop in reversed(self.hops):
-            if _apex(hop, g) > h:  # the last flight above h: it comes down through h
-                return hop.t_start_s + (hop.vz_mps + math.sqrt(hop.vz_mps**2 + 2.0 * g * (hop.z_m - h))) / g
-        return 0.0
+        return _settled(self.hops, h, self.params.g_mps2)[0]
 
     def low_windows_s(self, height_m: float | None = None) -> tuple[tuple[float, float], ...]:
         """The stretches of time ``(start, end)``, in order, in which the ball's centre is at most ``height_m``
@@ -326,6 +323,25 @@ def _flight_floats(hop: ChipHop) -> BallFloats:
     ux, uy = (hop.vx_mps / speed, hop.vy_mps / speed) if speed > 0.0 else (0.0, 0.0)
     return BallFloats(hop.x_m, hop.y_m, hop.vx_mps, hop.vy_mps, ux, uy, speed, speed, speed, 0.0, 0.0,
                       hop.duration_s, speed * hop.duration_s, 0.0, 0.0)
+
+
+def _settled(hops: tuple[ChipHop, ...], h: float, g: float) -> tuple[float, float]:
+    """When the ball comes down through ``h`` for the last time, and how far along the carpet it has flown then
+    (0, 0: never above it)."""
+    for hop in reversed(hops):
+        if _apex(hop, g) > h:  # the last flight above h: it comes down through h
+            tau = (hop.vz_mps + math.sqrt(hop.vz_mps**2 + 2.0 * g * (hop.z_m - h))) / g
+            return hop.t_start_s + tau, math.hypot(hop.x_m + hop.vx_mps * tau, hop.y_m + hop.vy_mps * tau)
+    return 0.0, 0.0
+
+
+def chip_settle_distance(speed_mps: float, angle_deg: float, params: ChipParams) -> float:
+    """How far along the carpet a chip kicked from the ground at ``speed_mps`` and ``angle_deg`` flies until it
+    stays at most ``params.max_receive_height_m`` high: ``ChipTrajectory.time_below_height_s``'s point, without
+    building the trajectory (a pass's kick speed is searched with it)."""
+    a = math.radians(angle_deg)
+    hops, _ = _hops(0.0, 0.0, 0.0, speed_mps * math.cos(a), 0.0, speed_mps * math.sin(a), params)
+    return _settled(hops, params.max_receive_height_m, params.g_mps2)[1]
 
 
 def _apex(hop: ChipHop, g: float) -> float:

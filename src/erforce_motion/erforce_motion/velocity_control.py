@@ -35,13 +35,11 @@ import numpy as np
 
 from erforce_interfaces.runtime.numba_support import compiled_for, numba
 from erforce_interfaces.runtime.param_schema import schema_defaults
-from erforce_interfaces.wire.robot_config import RobotConfig
+from erforce_interfaces.wire.robot_config import GRAVITY_MPS2, RobotConfig
 from erforce_motion.kinematics import OmniKinematics
 from erforce_motion.pid import DEFAULT_ANTI_WINDUP, AntiWindup, PidConfig, PidState, pid_reset, pid_step, pid_tables
 
 _DEFAULTS = schema_defaults("erforce_motion", "velocity_controller")
-
-GRAVITY_MPS2 = 9.81
 
 
 @dataclass(frozen=True)

@@ -39,8 +39,8 @@ from erforce_interfaces.wire.robot_config import (
     BALL_CHIP_MIN_HOP_VZ_MPS,
     BALL_INERTIA_FACTOR,
     BALL_RADIUS_M,
+    GRAVITY_MPS2,
 )
-from erforce_sim.drivetrain import GRAVITY_MPS2
 
 
 def _check_positive(name: str, value: float) -> None:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from erforce_interfaces.runtime.numba_support import numba
-from erforce_interfaces.wire.robot_config import BALL_WALL_FRICTION, BALL_WALL_RESTITUTION
+from erforce_interfaces.wire.robot_config import BALL_WALL_FRICTION, BALL_WALL_RESTITUTION, ROBOT_HEIGHT_M
 from erforce_sim.ball import BallBody
 from erforce_sim.drivetrain import RobotPlant
 
@@ -37,7 +37,7 @@ class ContactParams:
     robot_wall_friction: float = 0.3
     robot_robot_restitution: float = 0.2
     robot_robot_friction: float = 0.3
-    robot_height_m: float = 0.15  # a ball whose lowest point is higher flies over a robot (SSL: at most 0.15 m)
+    robot_height_m: float = ROBOT_HEIGHT_M  # a ball whose lowest point is higher flies over a robot
 
     def __post_init__(self) -> None:
         for name in self.__dataclass_fields__:

@@ -35,9 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from erforce_interfaces.runtime.numba_support import numba
-from erforce_interfaces.wire.robot_config import RobotConfig
-
-GRAVITY_MPS2 = 9.81
+from erforce_interfaces.wire.robot_config import GRAVITY_MPS2, RobotConfig
 
 
 @dataclass(frozen=True)

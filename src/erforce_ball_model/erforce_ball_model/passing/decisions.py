@@ -63,8 +63,9 @@ from erforce_ball_model.catch_time import (
     receive_facing,
     robot_time_to_block,
 )
-from erforce_ball_model.chip_model import MAX_HOPS, ChipTrajectory
+from erforce_ball_model.chip_model import ChipTrajectory, chip_settle_distance
 from erforce_interfaces.runtime.param_schema import check_finite_fields, schema_defaults
+from erforce_interfaces.wire.robot_config import SSL_MAX_KICK_MPS
 
 _DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
 
@@ -73,7 +74,7 @@ _DEFAULTS = schema_defaults("erforce_ball_model", "passing_game")
 class PassConfig:
     arrive_speed_mps: float = _DEFAULTS["arrive_speed_mps"]  # ball speed at the receiver's dribbler
     min_kick_mps: float = _DEFAULTS["min_kick_mps"]
-    max_kick_mps: float = _DEFAULTS["max_kick_mps"]  # the SSL rule's limit
+    max_kick_mps: float = SSL_MAX_KICK_MPS
     # a safe pass: every opponent's catch comes this much after the receiver's
     safe_margin_s: float = _DEFAULTS["safe_margin_s"]
     min_distance_m: float = _DEFAULTS["min_distance_m"]  # no pass to a teammate closer than this to the ball
@@ -108,24 +109,6 @@ def kick_speed_for(distance_m: float, arrive_speed_mps: float, params: BallModel
     if va >= c * v0:  # still sliding on arrival
         return v0
     return math.sqrt((va * va + 2.0 * a_r * d) / (c * c + (1.0 - c * c) * a_r / a_s))
-
-
-def chip_settle_distance(speed_mps: float, angle_deg: float, params: ChipParams) -> float:
-    """How far along the carpet a chip kicked from the ground at ``speed_mps`` and ``angle_deg`` travels until it
-    stays at most ``params.max_receive_height_m`` high (chip_model's hops in closed form): hop k leaves at
-    ``vz_k = vz d_z^k`` for ``2 vz_k / g``, horizontally at ``vxy`` then ``vxy d_xy1 d_xy^(k-1)``; the last hop
-    whose apex ``vz_k^2 / 2g`` exceeds h comes down through h ``(vz_k + sqrt(vz_k^2 - 2 g h)) / g`` after it left."""
-    a, g, h = math.radians(angle_deg), params.g_mps2, params.max_receive_height_m
-    vz, vxy, x, settled = speed_mps * math.sin(a), speed_mps * math.cos(a), 0.0, 0.0
-    for hop in range(MAX_HOPS):
-        if vz * vz > 2.0 * g * h:  # this hop rises above h: the ball is low only after its descent through it
-            settled = x + vxy * (vz + math.sqrt(vz * vz - 2.0 * g * h)) / g
-        x += vxy * 2.0 * vz / g
-        vz *= params.damping_z
-        vxy *= params.damping_xy_first_hop if hop == 0 else params.damping_xy_other_hops
-        if vz < params.min_hop_vz_mps:
-            break
-    return settled
 
 
 def chip_speed_for(distance_m: float, angle_deg: float, params: ChipParams, min_mps: float, max_mps: float) -> float:

@@ -184,6 +184,9 @@ class RobotConfig:
 
 # The ball and the field wall: the one default of each, for the simulator's physics (erforce_sim.ball,
 # erforce_sim.contacts) and the ball model's wall bounce (erforce_ball_model.walls.Walls).
+GRAVITY_MPS2 = 9.81  # the field's gravity: the plant's wheels and ball, the motion loop's tilt, the chip model
+ROBOT_HEIGHT_M = 0.15  # SSL rules: a robot is at most 0.15 m high (a ball higher flies over it)
+SSL_MAX_KICK_MPS = 6.5  # SSL rules: the ball's speed after a kick
 BALL_RADIUS_M = 0.02135  # SSL rules: a standard golf ball, about 43 mm across
 BALL_INERTIA_FACTOR = 0.4  # I = k m r^2: a golf ball is close to a solid sphere (2/5)
 BALL_WALL_RESTITUTION = 0.6  # the ball's speed normal to the wall, off it / onto it
@@ -206,7 +209,7 @@ BALL_CHIP_DAMPING_NAMES = ("damping_z", "damping_xy_first_hop", "damping_xy_othe
 # most 0.15 m; the plant's robot_height_m), the interception height; but it controls a ball only as high as its
 # light barrier's beam and dribbler bar reach, which sit at a resting ball's centre (the plant's World): a ball
 # whose centre is one radius higher passes above both, the reception height.
-BALL_MAX_CATCH_HEIGHT_M = 0.15
+BALL_MAX_CATCH_HEIGHT_M = ROBOT_HEIGHT_M
 BALL_MAX_RECEIVE_HEIGHT_M = BALL_RADIUS_M
 # SSL-Vision's position noise (standard deviation): what the plant adds and what the ball filter expects.
 VISION_NOISE_M = 0.002
