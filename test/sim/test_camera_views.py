@@ -106,7 +106,8 @@ def test_both_outputs_show_one_draw_of_the_cameras():
         ssl = {}
         for _, data in splitter.packets(frame, detections):
             f = decode_wrapper(data).frame
-            ssl.update({f.camera_id: (b.x_m, b.y_m) for b in f.balls})
+            for b in f.balls:
+                ssl[f.camera_id] = (b.x_m, b.y_m)
         ros = {v.camera[0]: (v.x_m, v.y_m) for v in views.frame_views(frame, detections).balls}
         assert ros.keys() == ssl.keys()
         assert [ros[c] for c in ssl] == [pytest.approx(ssl[c], abs=1e-6) for c in ssl]  # the SSL wire's float mm

@@ -176,8 +176,8 @@ def _ball_errors(cameras, frames: int, seed: int = 3, path: str = "ssl") -> dict
             if views is not None:
                 seen = [(v.camera[0], v.x_m, v.y_m) for v in views.frame_views(frame).balls]
             else:
-                seen = [(f.camera_id, b.x_m, b.y_m) for f in (decode_wrapper(d).frame for _, d in splitter.packets(frame))
-                        for b in f.balls]
+                frames = [decode_wrapper(data).frame for _, data in splitter.packets(frame)]
+                seen = [(f.camera_id, b.x_m, b.y_m) for f in frames for b in f.balls]
             for camera_id, x, y in seen:
                 out[camera_id][k] = (x - BALL_IN_OVERLAP[0], y - BALL_IN_OVERLAP[1])
     return out

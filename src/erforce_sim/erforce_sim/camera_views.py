@@ -53,8 +53,8 @@ class CameraViews:
         r = rig.realism
         if r.object_offset_m > 0.0:
             raise ValueError(f"CameraViews: camera model {r.name!r} has a per-camera object offset "
-                             f"({r.object_offset_m:g} m) that only the SSL bridge's camera alignment takes off; the ROS "
-                             "vision has no alignment: use a model without it, or the SSL vision")
+                             f"({r.object_offset_m:g} m) that only the SSL bridge's camera alignment takes off; the "
+                             "ROS vision has no alignment: use a model without it, or the SSL vision")
         self.rig = rig
         by_latency = sorted(range(len(rig.cameras)), key=lambda k: rig.cameras[k].extra_latency_s)  # stable: by id
         self._order = tuple(by_latency)

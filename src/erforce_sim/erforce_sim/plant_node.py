@@ -97,7 +97,8 @@ def setup_from_params(config) -> PlantSetup:
     if cameras.object_offset_m > 0.0 and config.vision_output != "ssl":
         raise ValueError(f"camera_model {cameras.name!r}: its per-camera object offset ({cameras.object_offset_m:g} m) "
                          "is taken off only by the SSL bridge's camera_alignment; vision_output "
-                         f"{config.vision_output!r} has no alignment stage: use vision_output ssl or camera_model bench")
+                         f"{config.vision_output!r} has no alignment stage: use vision_output ssl or camera_model "
+                         "bench")
     return PlantSetup(
         field_preset=config.field,
         robot_poses=poses("robot_poses"),
