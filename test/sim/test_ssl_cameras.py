@@ -286,3 +286,13 @@ def test_a_sightings_noise_is_the_world_and_the_camera_together_or_the_camera_al
     # shared: sqrt(2^2 + 0.5^2) mm = 2.0616 mm; per camera: the camera's own 1.4 mm
     assert BENCH_CAMERAS.sighting_noise_m(VisionParams()) == pytest.approx(0.0020616, abs=1e-7)
     assert ERFORCE_REALISTIC.sighting_noise_m(VisionParams()) == ERF_BALL_NOISE_M
+
+
+def test_a_camera_model_without_its_fixed_errors_keeps_its_noise_and_says_so():
+    offset_free = ERFORCE_REALISTIC.without("object_offset")
+    assert offset_free == replace(ERFORCE_REALISTIC, name="erforce without object_offset", object_offset_m=0.0)
+    both = ERFORCE_REALISTIC.without("position_error", "object_offset")
+    assert (both.position_error_m, both.object_offset_m, both.ball_noise_m) == (0.0, 0.0, ERF_BALL_NOISE_M)
+    assert ERFORCE_REALISTIC.without() is ERFORCE_REALISTIC
+    with pytest.raises(ValueError, match="'noise'"):
+        ERFORCE_REALISTIC.without("noise")

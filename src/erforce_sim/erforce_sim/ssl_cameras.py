@@ -50,6 +50,7 @@ QUADRANT_OVERLAP_M = 0.5  # the width of the band across each axis two quadrant 
 # axes, which are vision's turned by 90 deg (vision x = its y, vision y = -its x): (0.7, -0.3, 0.05) here
 _ERFORCE_ERROR_AXES = (0.7, -0.3, 0.05)
 CAMERA_POSITION_ERROR_DIRECTION = tuple(c / math.hypot(*_ERFORCE_ERROR_AXES) for c in _ERFORCE_ERROR_AXES)
+FIXED_ERRORS = ("position_error", "object_offset")  # CameraRealism's fixed errors, each a field <name>_m
 
 
 @dataclass(frozen=True)
@@ -97,6 +98,17 @@ class CameraRealism:
         if self.shared_world_noise:
             return params
         return replace(params, position_noise_m=0.0, ball_dropout_prob=0.0, robot_dropout_prob=0.0)
+
+    def without(self, *fixed_errors: str) -> CameraRealism:
+        """The same cameras without the fixed errors named (``FIXED_ERRORS``: position_error, object_offset), named
+        so: what a field whose calibration took those off would show."""
+        unknown = set(fixed_errors) - set(FIXED_ERRORS)
+        if unknown:
+            raise ValueError(f"CameraRealism.without: {sorted(unknown)} not among {FIXED_ERRORS}")
+        if not fixed_errors:
+            return self
+        return replace(self, name=f"{self.name} without {' and '.join(fixed_errors)}",
+                       **{f"{e}_m": 0.0 for e in fixed_errors})
 
     def noise_free(self) -> CameraRealism:
         """The same cameras without random errors (no noise, nothing missed); their fixed errors stay."""
