@@ -15,6 +15,8 @@ How the cameras err is a ``CameraRealism``: ``BENCH_CAMERAS`` (the default: the 
 dropouts shared by every camera, 0.5 mm more per camera, a 0.5 m overlap) or ``ERFORCE_REALISTIC`` (ER-Force's
 simulator's "Realistic" preset: SSL-Vision's one detection per camera, each with its own noise and its own missed
 balls, a 1 m overlap past each axis, and each camera projecting from 0.1 m off where the geometry says it is).
+What each camera reports of a world frame is a ``CameraRig``'s (``detect``): the SSL packets here and the plant's
+ROS vision (camera_views) take it from there, so a preset means the same on both.
 """
 
 from __future__ import annotations
