@@ -158,3 +158,18 @@ def test_through_the_cameras_the_predictor_finds_our_chip_itself():
     assert math.degrees(math.atan2(vz, math.hypot(vx, vy))) == pytest.approx(45.0, abs=1.0)
     assert hint_speed_mps == pytest.approx(record.kick_speed_mps, rel=1e-9)
     assert record.rated_safe and record.outcome == "completed" and record.caught_by == "robot_1"
+
+
+def test_the_games_cameras_are_the_configs_camera_model():
+    """GameConfig.cameras reaches the world's vision and the cameras the predictor sees through (the plant's
+    vision:=ros ones): ER-Force's without the object offset draws its noise per camera, on a 2 m band; with the
+    offset the ROS vision refuses it, as the plant does."""
+    from erforce_sim.ssl_cameras import BENCH_CAMERAS, ERFORCE_REALISTIC
+
+    assert PassingGame(SMALL).cameras.rig.realism is BENCH_CAMERAS
+    erforce = ERFORCE_REALISTIC.without("object_offset")
+    game = PassingGame(dataclasses.replace(SMALL, cameras=erforce), seed=2)
+    assert game.cameras.rig.realism is erforce and game.world.vision.params.position_noise_m == 0.0
+    assert game.cameras.rig.cameras[0].x_range_m[1] == pytest.approx(1.0)  # 1 m past the axis
+    with pytest.raises(ValueError, match="object offset"):
+        PassingGame(dataclasses.replace(SMALL, cameras=ERFORCE_REALISTIC))
