@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from erforce_interfaces.runtime.param_schema import schema_defaults
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.sensors import RobotDetection, VisionFrame
-from erforce_sim.ssl_cameras import BENCH_CAMERAS, CameraDetections, CameraRealism, CameraRig
+from erforce_sim.ssl_cameras import PLANT_CAMERAS, CameraDetections, CameraRealism, CameraRig
 
 _PLANT = schema_defaults("erforce_sim", "plant")
 
@@ -60,7 +60,7 @@ class CameraViews:
         self._order = tuple(by_latency)
 
     @classmethod
-    def quadrants(cls, field: FieldConfig, realism: CameraRealism = BENCH_CAMERAS,
+    def quadrants(cls, field: FieldConfig, realism: CameraRealism = PLANT_CAMERAS,
                   seed: int = _PLANT["seed"]) -> CameraViews:
         """The plant's four quadrant cameras as ``realism`` makes them err."""
         return cls(CameraRig.quadrants(field, realism, seed=seed))

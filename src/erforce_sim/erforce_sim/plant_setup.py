@@ -15,7 +15,7 @@ from erforce_interfaces.ssl.ssl_vision import TEAMS as SSL_TEAMS
 from erforce_interfaces.wire.robot_config import FIELD_PRESET, FieldConfig, RobotConfig
 from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionParams
-from erforce_sim.ssl_cameras import CAMERA_MODELS, CameraRealism
+from erforce_sim.ssl_cameras import PLANT_CAMERAS, CameraRealism
 from erforce_sim.world import World
 from erforce_sim.world_types import PhysicsParams, RobotSpec
 
@@ -47,7 +47,7 @@ class PlantSetup:
     vision: VisionParams = field(default_factory=VisionParams)
     # how the cameras err (ssl_cameras.CameraRealism); a per-camera model takes the world's frames without the
     # position noise and dropouts of ``vision`` (CameraRealism.world_vision) and draws its own per camera
-    cameras: CameraRealism = CAMERA_MODELS[_PLANT["camera_model"]]
+    cameras: CameraRealism = PLANT_CAMERAS
     ball_params: BallParams = field(default_factory=BallParams)
 
     def __post_init__(self) -> None:

@@ -144,6 +144,7 @@ ERFORCE_REALISTIC = CameraRealism("erforce", shared_world_noise=False, ball_nois
                                   missing_ball_prob=0.05, missing_robot_prob=0.02, overlap_m=2.0 * 1.0,
                                   position_error_m=0.1, object_offset_m=0.02)
 CAMERA_MODELS = {m.name: m for m in (BENCH_CAMERAS, ERFORCE_REALISTIC)}
+PLANT_CAMERAS = CAMERA_MODELS[_PLANT["camera_model"]]  # the plant's cameras unless its camera_model says otherwise
 
 
 @dataclass(frozen=True)
@@ -227,7 +228,7 @@ class CameraRig:
     seeing the ground points its projecting camera gives; the geometry reports them at their nominal places
     (``reported_cameras``), the projection uses where they stand (``projecting_cameras``). Seeded: runs repeat."""
 
-    def __init__(self, cameras: tuple[SimCamera, ...], field: FieldConfig, realism: CameraRealism = BENCH_CAMERAS,
+    def __init__(self, cameras: tuple[SimCamera, ...], field: FieldConfig, realism: CameraRealism = PLANT_CAMERAS,
                  seed: int = _PLANT["seed"], ball_model: BallModelFromVision | None = None,
                  chip_model: ChipModelFromVision | None = None) -> None:
         self.cameras = cameras
@@ -239,7 +240,7 @@ class CameraRig:
         self._offsets = tuple(realism.object_offset(c) for c in self.projecting_cameras)
 
     @classmethod
-    def quadrants(cls, field: FieldConfig, realism: CameraRealism = BENCH_CAMERAS, **kwargs) -> CameraRig:
+    def quadrants(cls, field: FieldConfig, realism: CameraRealism = PLANT_CAMERAS, **kwargs) -> CameraRig:
         """Four quadrant cameras overlapping as ``realism`` says."""
         return cls(quadrant_cameras(field, realism.overlap_m), field, realism, **kwargs)
 
