@@ -22,10 +22,14 @@ import tempfile
 import time
 from pathlib import Path
 
+from erforce_sim.plant_setup import PlantSetup
+from erforce_sim.ssl_cameras import CAMERA_MODELS, FIXED_ERRORS
+
 
 def game_config(team: int, opponents: int, passes: int, opponents_at: list[float] | None,
-                passing: dict[str, float] | None = None):
-    """The game; ``passing``: PassConfig fields (passing_game parameters) that are not the defaults."""
+                passing: dict[str, float] | None = None, cameras=None):
+    """The game; ``passing``: PassConfig fields (passing_game parameters) that are not the defaults; ``cameras``: a
+    CameraRealism (None: the plant's default)."""
     import dataclasses
 
     from erforce_ball_model.passing.player import PlayerConfig
@@ -35,7 +39,9 @@ def game_config(team: int, opponents: int, passes: int, opponents_at: list[float
                                                                       strict=True))
     player = PlayerConfig()
     player = dataclasses.replace(player, passing=dataclasses.replace(player.passing, **(passing or {})))
-    return GameConfig(team_size=team, opponents=opponents, passes=passes, opponent_positions=where, player=player)
+    more = {} if cameras is None else {"cameras": cameras}
+    return GameConfig(team_size=team, opponents=opponents, passes=passes, opponent_positions=where, player=player,
+                      **more)
 
 
 def passing_params_file(log_dir: Path, passing: dict[str, float]) -> Path:
@@ -153,6 +159,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--flat-only", action="store_true",
                         help="the passing game rates and plays flat passes only (chip_angle_deg 0): the safe share "
                              "without chips")
+    parser.add_argument("--cameras", choices=sorted(CAMERA_MODELS), default=None,
+                        help="in process: how the cameras err (erforce_sim.ssl_cameras.CAMERA_MODELS; the plant's "
+                             "camera_model; default its default)")
+    parser.add_argument("--without", nargs="+", choices=FIXED_ERRORS, default=[],
+                        help="in process: the camera model without these fixed errors (the ROS vision takes no "
+                             "object_offset)")
     parser.add_argument("--passing", nargs="+", default=[], metavar="NAME=VALUE",
                         help="passing_game parameters (PassConfig fields) that are not the defaults, e.g. "
                              "chip_step_back_m=0")
@@ -160,7 +172,12 @@ def main(argv: list[str] | None = None) -> int:
     passing = {name: float(value) for name, value in (item.split("=", 1) for item in args.passing)}
     if args.flat_only:
         passing["chip_angle_deg"] = 0.0
-    cfg = game_config(args.team, args.opponents, args.passes, args.opponents_at, passing)
+    if (args.cameras or args.without) and not args.in_process:
+        parser.error("--cameras and --without are for --in-process (on the graph: the plant's camera_model)")
+    cameras = None
+    if args.cameras or args.without:
+        cameras = CAMERA_MODELS[args.cameras or PlantSetup.cameras.name].without(*args.without)
+    cfg = game_config(args.team, args.opponents, args.passes, args.opponents_at, passing, cameras)
     records = []
     for seed in args.seeds:
         if args.in_process:
@@ -171,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
              if args.in_process else f"the DDS graph, lockstep, vision {args.vision}")
     where += ", flat passes only" if args.flat_only else ", flat passes and chips"
     where += "".join(f", {item}" for item in args.passing)
+    where += f", {cameras.name} cameras" if cameras is not None else ""
     at = "" if args.opponents_at is None else f" (opponents at {args.opponents_at})"
     print(f"passing game on {where}: {args.team} v {args.opponents}{at}, seeds {args.seeds}, {args.passes} passes "
           "each")

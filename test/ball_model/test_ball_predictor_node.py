@@ -830,3 +830,38 @@ def test_queued_frames_have_every_leading_ball_answered_before_their_robots(monk
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def test_a_robots_odom_carries_its_filters_variances_not_an_exact_states_zeros():
+    """Two poses 0.02 s apart through the node (in-process): the CV filters' covariances by hand. Position (vision's
+    sigma 2 mm, r = 4e-6 m^2, white acceleration q = 1 (m/s^2)^2/Hz): after the first frame P = diag(r, 1); predicted
+    a = r + dt^2 + q dt^3 / 3, b = dt + q dt^2 / 2, c = 1 + q dt; corrected a r / (a + r), c - b^2 / (a + r). Heading
+    the same with r = 1e-4 rad^2, q = 200 (rad/s^2)^2/Hz. Each on its diagonal, x and y alike; z, roll, pitch 0."""
+    from rclpy.serialization import deserialize_message
+
+    dt, r, q, r_h, q_h = 0.02, 0.002**2, 1.0, 0.01**2, 200.0
+
+    def corrected(r, q):
+        a, b, c = r + dt**2 + q * dt**3 / 3.0, dt + q * dt**2 / 2.0, 1.0 + q * dt
+        return a * r / (a + r), c - b * b / (a + r)
+
+    (var_pos, var_vel), (var_yaw, var_rate) = corrected(r, q), corrected(r_h, q_h)
+    assert (var_pos, var_vel) == pytest.approx((3.9610e-6, 0.026396), rel=1e-4)  # the numbers, for a reader
+    rclpy.init()
+    node = None
+    try:
+        node = BallPredictorNode()
+        sent = []
+        node._odom_readers[0] = 1
+        node._odom_pubs[0].publish = sent.append
+        for k in range(2):
+            node._on_vision(vision_robots_cdr(1.0 + k * dt, [(contract.OURS.code, 0, 0.5 + 0.01 * k, 1.0, 0.3)]))
+        msg = deserialize_message(sent[-1], Odometry)
+        pose, twist = np.array(msg.pose.covariance).reshape(6, 6), np.array(msg.twist.covariance).reshape(6, 6)
+        assert np.diag(pose) == pytest.approx([var_pos, var_pos, 0.0, 0.0, 0.0, var_yaw], rel=1e-9)
+        assert np.diag(twist) == pytest.approx([var_vel, var_vel, 0.0, 0.0, 0.0, var_rate], rel=1e-9)
+        assert np.count_nonzero(pose - np.diag(np.diag(pose))) == np.count_nonzero(twist - np.diag(np.diag(twist))) == 0
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.shutdown()

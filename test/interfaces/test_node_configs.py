@@ -9,6 +9,8 @@ from erforce_ball_model import ball_predictor_node, catcher_node
 from erforce_ball_model.receiver import CatcherConfig
 from erforce_motion import motor_boards_node, velocity_controller_node
 from erforce_sim import plant_node
+from erforce_sim.plant_setup import build_world
+from erforce_sim.ssl_cameras import BENCH_CAMERAS, CAMERA_MODELS, ERFORCE_REALISTIC
 from erforce_sim.view import field_view_node
 
 
@@ -81,3 +83,25 @@ def test_the_opponents_come_after_our_robots_and_face_the_ball():
     assert plant_node.setup_from_params(config(plant_node)).our_color == "blue"  # as the SSL bridge's default
     with pytest.raises(ValueError, match="realtime pacing needs real_time_factor > 0"):
         plant_node._check_pacing(config(plant_node, pacing="realtime", real_time_factor=0.0))
+
+
+def test_the_plants_camera_model_reaches_its_world_and_combinations_it_cannot_apply_are_refused():
+    """camera_model picks the CameraRealism of both vision outputs: erforce takes the world's frames without the
+    shared noise and dropouts (each camera draws its own), so vision_noise_m and vision_dropout, the bench cameras'
+    shared figures, may not claim another value; its per-camera offset only the SSL bridge's alignment takes off, so
+    it needs vision_output ssl. The schema's choices are ssl_cameras.CAMERA_MODELS."""
+    assert plant_node.setup_from_params(config(plant_node)).cameras is BENCH_CAMERAS
+    setup = plant_node.setup_from_params(config(plant_node, camera_model="erforce", vision_output="ssl"))
+    assert setup.cameras is ERFORCE_REALISTIC
+    vision = build_world(setup).vision.params
+    assert (vision.position_noise_m, vision.ball_dropout_prob, vision.robot_dropout_prob) == (0.0, 0.0, 0.0)
+    assert vision.orientation_noise_rad == 0.01  # shared by the cameras in both models
+    with pytest.raises(ValueError, match=r"camera_model 'erforce'.*vision_output 'ros' has no alignment stage"):
+        plant_node.setup_from_params(config(plant_node, camera_model="erforce"))
+    with pytest.raises(ValueError, match=r"camera_model 'erforce'.*vision_output 'both'"):
+        plant_node.setup_from_params(config(plant_node, camera_model="erforce", vision_output="both"))
+    for name, value in (("vision_noise_m", 0.001), ("vision_dropout", 0.0)):
+        with pytest.raises(ValueError, match=rf"{name}: camera_model 'erforce' draws its noise and misses per camera"):
+            plant_node.setup_from_params(config(plant_node, camera_model="erforce", vision_output="ssl",
+                                                **{name: value}))
+    assert plant_node.SCHEMA.by_name["camera_model"].one_of == tuple(sorted(CAMERA_MODELS))

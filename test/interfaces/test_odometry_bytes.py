@@ -102,3 +102,15 @@ def test_a_chips_covariances_ride_in_rows_and_columns_0_to_2():
     for bad in (np.full((3, 3), math.nan), -np.eye(3), np.eye(2)):
         with pytest.raises(conv.ConversionError, match="pose covariance"):
             conv.odometry_cdr(2.0, (1.0, -0.5, 0.0), (3.0, 0.0, 0.0), xyz_covariance=bad)
+
+
+def test_a_robots_yaw_and_yaw_rate_variances_ride_last_on_each_diagonal():
+    data = conv.odometry_cdr(2.0, (1.0, -0.5, 0.3), (0.2, 0.0, 1.0), "robot_0/base_link", position_variance_m2=4e-6,
+                             velocity_variance_m2ps2=0.03, yaw_variance_rad2=9e-5, yaw_rate_variance_rad2ps2=1.8)
+    msg = deserialize_message(data, Odometry)
+    assert (msg.pose.covariance[0], msg.pose.covariance[7], msg.pose.covariance[35]) == (4e-6, 4e-6, 9e-5)
+    assert (msg.twist.covariance[0], msg.twist.covariance[7], msg.twist.covariance[35]) == (0.03, 0.03, 1.8)
+    assert np.count_nonzero(msg.pose.covariance) == np.count_nonzero(msg.twist.covariance) == 3
+    for bad in (-1e-6, math.nan, math.inf):
+        with pytest.raises(conv.ConversionError, match="yaw rate variance"):
+            conv.odometry_cdr(2.0, (1.0, -0.5, 0.3), (0.2, 0.0, 1.0), yaw_rate_variance_rad2ps2=bad)

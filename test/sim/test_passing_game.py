@@ -148,12 +148,28 @@ def test_through_the_cameras_the_predictor_finds_our_chip_itself():
     cfg = GameConfig(team_size=2, opponents=1, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)),
                      opponent_positions=((-3.0, 0.4),), player=step_back)
     game = PassingGame(cfg, seed=0)
-    chips = []
-    game.runner.vision_listeners.append(lambda frame: chips.append(game.predictor.chip_detector.launch))
+    chips = []  # per vision frame: the detector's launch and the hint's speed it holds
+    detector = game.predictor.chip_detector
+    game.runner.vision_listeners.append(lambda frame: chips.append((detector.launch, detector.hint_speed_mps)))
     (record,) = game.play()
     assert record.kick_angle_deg == pytest.approx(45.0)
-    launch = next(c for c in chips if c is not None)
+    launch, hint_speed_mps = next(c for c in chips if c[0] is not None)  # the frame the chip is first reported
     vx, vy, vz = launch.velocity_mps.tolist()
     assert math.degrees(math.atan2(vz, math.hypot(vx, vy))) == pytest.approx(45.0, abs=1.0)
-    assert game.predictor.chip_detector.hint_speed_mps == pytest.approx(record.kick_speed_mps, rel=1e-9)
+    assert hint_speed_mps == pytest.approx(record.kick_speed_mps, rel=1e-9)
     assert record.rated_safe and record.outcome == "completed" and record.caught_by == "robot_1"
+
+
+def test_the_games_cameras_are_the_configs_camera_model():
+    """GameConfig.cameras reaches the world's vision and the cameras the predictor sees through (the plant's
+    vision:=ros ones): ER-Force's without the object offset draws its noise per camera, on a 2 m band; with the
+    offset the ROS vision refuses it, as the plant does."""
+    from erforce_sim.ssl_cameras import BENCH_CAMERAS, ERFORCE_REALISTIC
+
+    assert PassingGame(SMALL).cameras.rig.realism is BENCH_CAMERAS
+    erforce = ERFORCE_REALISTIC.without("object_offset")
+    game = PassingGame(dataclasses.replace(SMALL, cameras=erforce), seed=2)
+    assert game.cameras.rig.realism is erforce and game.world.vision.params.position_noise_m == 0.0
+    assert game.cameras.rig.cameras[0].x_range_m[1] == pytest.approx(1.0)  # 1 m past the axis
+    with pytest.raises(ValueError, match="object offset"):
+        PassingGame(dataclasses.replace(SMALL, cameras=ERFORCE_REALISTIC))

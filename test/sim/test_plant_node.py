@@ -280,6 +280,41 @@ def test_plant_refuses_to_start_with_a_body_off_the_field(ros_graph):
     assert "outside the field walls" in plant.output()
 
 
+def test_plant_refuses_a_camera_model_its_ros_vision_cannot_apply(ros_graph):
+    plant = start_plant(ros_graph, camera_model="erforce")  # vision_output ros: no camera alignment on that path
+    assert plant.wait_exit(30.0) == 1
+    assert "camera_model 'erforce': its per-camera object offset (0.02 m)" in plant.output()
+
+
+def test_camera_model_reaches_the_cameras_of_both_outputs():
+    """In-process: the node's one CameraRig errs as camera_model says, its quadrants overlap by the preset's band, the
+    SSL output encodes that rig's detections and the world's frames carry no shared noise (each camera draws its own);
+    by default the bench's rig feeds the ROS views."""
+    import rclpy
+
+    from erforce_interfaces.wire.robot_config import FieldConfig
+    from erforce_sim.plant_node import PlantNode
+    from erforce_sim.ssl_cameras import BENCH_CAMERAS, ERFORCE_REALISTIC, quadrant_cameras
+
+    field = FieldConfig.preset(PlantSetup().field_preset)
+    for params, realism in ((["-p", "camera_model:=erforce", "-p", "vision_output:=ssl"], ERFORCE_REALISTIC),
+                            ([], BENCH_CAMERAS)):
+        rclpy.init(args=["--ros-args", "-p", "ssl_vision_interface:=127.0.0.1", *params])
+        node = None
+        try:
+            node = PlantNode()
+            assert node._rig.realism is realism and node._rig.cameras == quadrant_cameras(field, realism.overlap_m)
+            assert node.world.vision.params.position_noise_m == (0.0 if realism is ERFORCE_REALISTIC else 0.002)
+            if realism is ERFORCE_REALISTIC:
+                assert node._ssl.rig is node._rig and node._camera_views is None
+            else:
+                assert node._camera_views.rig is node._rig and node._ssl is None
+        finally:
+            if node is not None:
+                node.destroy_node()
+            rclpy.shutdown()
+
+
 def test_pacing_changes_take_effect_at_runtime(ros_graph):
     plant = start_plant(ros_graph, controlled=[False], real_time_factor=0.0)
     clocks = ros_graph.subscribe("/clock", Clock, contract.QOS_CLOCK)

@@ -11,6 +11,7 @@ from erforce_ball_model.ball_model import ChipParams
 from erforce_interfaces.ssl.ssl_vision import BallModelFromVision, ChipModelFromVision, decode_wrapper
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.ball import BallParams
+from erforce_sim.camera_views import CameraViews
 from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import BallDetection, RobotDetection, VisionFrame, VisionParams, VisionSystem
 from erforce_sim.ssl_cameras import (
@@ -139,6 +140,12 @@ BALL_IN_OVERLAP = (0.0, 1.5)  # seen by the upper two cameras (0: x < h, 1: x > 
 ERF_BALL_NOISE_M, ERF_MISSING_BALL, ERF_OVERLAP_PAST_AXIS_M, ERF_POSITION_ERROR_M, ERF_OFFSET_M = (
     0.0014, 0.05, 1.0, 0.1, 0.02)
 ERF_ERROR_VISION_AXES = (0.7, -0.3, 0.05)  # their (0.3, 0.7, 0.05) in vision's axes (x = their y, y = -their x)
+# the plant's ROS vision takes no object offset (camera_views): ER-Force's preset without it, on both paths
+ERFORCE_NO_OFFSET = replace(ERFORCE_REALISTIC, name="erforce without offset", object_offset_m=0.0)
+MODELS = {**CAMERA_MODELS, ERFORCE_NO_OFFSET.name: ERFORCE_NO_OFFSET}
+# (vision path, camera model): the SSL splitter's packets, decoded, and the plant's ROS views (camera_views)
+PATHS_AND_MODELS = [("ssl", "bench"), ("ssl", "erforce"), ("ssl", ERFORCE_NO_OFFSET.name), ("ros", "bench"),
+                    ("ros", ERFORCE_NO_OFFSET.name)]
 
 
 def _erforce_offset(camera_xy: tuple[float, float]) -> tuple[float, float]:
@@ -153,21 +160,26 @@ def _projecting_xy(nominal: tuple[float, float]) -> tuple[float, float]:
             nominal[1] - ERF_POSITION_ERROR_M * ERF_ERROR_VISION_AXES[1] / norm)
 
 
-def _ball_errors(cameras, frames: int, seed: int = 3) -> dict[int, dict[int, tuple[float, float]]]:
+def _ball_errors(cameras, frames: int, seed: int = 3, path: str = "ssl") -> dict[int, dict[int, tuple[float, float]]]:
     """Per camera, per frame: (x, y) of what it reports of a ball at rest at BALL_IN_OVERLAP minus the truth, through
-    the world's vision the model asks for (VisionSystem) and the splitter, as the plant and the bench run them."""
+    the world's vision the model asks for (VisionSystem) and the splitter (``path`` ssl) or the ROS path's camera
+    views (ros), as the plant and the bench run them."""
     params = cameras.world_vision(VisionParams())
     vision = VisionSystem(params, np.random.default_rng(seed))
     splitter = SslCameraSplitter.quadrants(FIELD, None, cameras, seed=seed)
+    views = CameraViews.quadrants(FIELD, cameras, seed=seed) if path == "ros" else None
     out: dict[int, dict[int, tuple[float, float]]] = {k: {} for k in range(4)}
     for k in range(frames):
         t = k / params.rate_hz
         vision.capture(t, BALL_IN_OVERLAP, [])
         for frame in vision.poll(t + params.latency_s):
-            for _, data in splitter.packets(frame):
-                f = decode_wrapper(data).frame
-                for b in f.balls:
-                    out[f.camera_id][k] = (b.x_m - BALL_IN_OVERLAP[0], b.y_m - BALL_IN_OVERLAP[1])
+            if views is not None:
+                seen = [(v.camera[0], v.x_m, v.y_m) for v in views.frame_views(frame).balls]
+            else:
+                frames = [decode_wrapper(data).frame for _, data in splitter.packets(frame)]
+                seen = [(f.camera_id, b.x_m, b.y_m) for f in frames for b in f.balls]
+            for camera_id, x, y in seen:
+                out[camera_id][k] = (x - BALL_IN_OVERLAP[0], y - BALL_IN_OVERLAP[1])
     return out
 
 
@@ -206,14 +218,18 @@ def test_two_cameras_err_independently_on_one_ball_in_erforces_model_and_togethe
             assert abs(r - 4.0 / 4.25) < 4.0 * (1.0 - (4.0 / 4.25) ** 2) / math.sqrt(n), (n, r)
 
 
-@pytest.mark.parametrize("cameras", ["bench", "erforce"])
-def test_each_cameras_noise_is_its_models_figure(cameras):
-    """Each camera's errors about their known mean (ER-Force: the camera's 2 cm offset; the bench: none): the sum of
-    squares over sigma^2 is chi-square with 2 n degrees of freedom (x and y), inside its 1e-4 tails."""
-    model = CAMERA_MODELS[cameras]
-    errors = _ball_errors(model, 2000)
+@pytest.mark.parametrize(("path", "cameras"), PATHS_AND_MODELS)
+def test_each_cameras_noise_is_its_models_figure(path, cameras):
+    """Each camera's errors about their known mean (ER-Force: the camera's 2 cm offset; the bench and ER-Force's
+    without it: none): the sum of squares over sigma^2 is chi-square with 2 n degrees of freedom (x and y), inside
+    its 1e-4 tails; the same on the SSL path and the plant's ROS path."""
+    model = MODELS[cameras]
+    errors = _ball_errors(model, 2000, path=path)
+    assert not errors[2] and not errors[3]
     if cameras == "bench":
         sigma, means = math.hypot(0.002, 0.0005), {0: (0.0, 0.0), 1: (0.0, 0.0)}
+    elif cameras == ERFORCE_NO_OFFSET.name:
+        sigma, means = ERF_BALL_NOISE_M, {0: (0.0, 0.0), 1: (0.0, 0.0)}
     else:
         sigma = ERF_BALL_NOISE_M
         means = {k: _erforce_offset(_projecting_xy((x, 1.525))) for k, x in ((0, -2.275), (1, 2.275))}
@@ -224,17 +240,19 @@ def test_each_cameras_noise_is_its_models_figure(cameras):
         assert chi2.ppf(1e-4, dof) < s < chi2.isf(1e-4, dof), (k, dof, s / dof)
 
 
-def test_each_camera_misses_the_ball_on_its_own_in_erforces_model():
+@pytest.mark.parametrize(("path", "erforce"), [("ssl", ERFORCE_REALISTIC), ("ros", ERFORCE_NO_OFFSET)])
+def test_each_camera_misses_the_ball_on_its_own_in_erforces_model(path, erforce):
     """Each camera loses the ball in 5 % of the frames (binomial, inside the 1e-4 tails), both at once in 0.25 %;
-    the bench's 2 % dropouts are the world's: its two cameras lose the ball together, never one alone."""
+    the bench's 2 % dropouts are the world's: its two cameras lose the ball together, never one alone. The same on
+    the SSL path and the plant's ROS path."""
     n = 4000
-    errors = _ball_errors(ERFORCE_REALISTIC, n)
+    errors = _ball_errors(erforce, n, path=path)
     for k in (0, 1):
         missed = n - len(errors[k])
         assert binom.ppf(1e-4, n, ERF_MISSING_BALL) <= missed <= binom.isf(1e-4, n, ERF_MISSING_BALL), (k, missed)
     both = n - len(set(errors[0]) | set(errors[1]))
     assert binom.ppf(1e-4, n, ERF_MISSING_BALL**2) <= both <= binom.isf(1e-4, n, ERF_MISSING_BALL**2), both
-    bench = _ball_errors(BENCH_CAMERAS, n)
+    bench = _ball_errors(BENCH_CAMERAS, n, path=path)
     assert set(bench[0]) == set(bench[1]) and binom.ppf(1e-4, n, 0.02) <= n - len(bench[0]) <= binom.isf(1e-4, n, 0.02)
 
 
@@ -268,3 +286,13 @@ def test_a_sightings_noise_is_the_world_and_the_camera_together_or_the_camera_al
     # shared: sqrt(2^2 + 0.5^2) mm = 2.0616 mm; per camera: the camera's own 1.4 mm
     assert BENCH_CAMERAS.sighting_noise_m(VisionParams()) == pytest.approx(0.0020616, abs=1e-7)
     assert ERFORCE_REALISTIC.sighting_noise_m(VisionParams()) == ERF_BALL_NOISE_M
+
+
+def test_a_camera_model_without_its_fixed_errors_keeps_its_noise_and_says_so():
+    offset_free = ERFORCE_REALISTIC.without("object_offset")
+    assert offset_free == replace(ERFORCE_REALISTIC, name="erforce without object_offset", object_offset_m=0.0)
+    both = ERFORCE_REALISTIC.without("position_error", "object_offset")
+    assert (both.position_error_m, both.object_offset_m, both.ball_noise_m) == (0.0, 0.0, ERF_BALL_NOISE_M)
+    assert ERFORCE_REALISTIC.without() is ERFORCE_REALISTIC
+    with pytest.raises(ValueError, match="'noise'"):
+        ERFORCE_REALISTIC.without("noise")

@@ -486,10 +486,12 @@ class BallPredictorNode(SchemaNode):
         if not self._odom_readers[robot]:
             return True
         vel = tracker.velocity_mps
+        var_pos, var_vel, var_yaw, var_rate = tracker.variances  # the filter's, not an exact state's zeros
         try:
             odom = odometry_cdr(
                 t_s, (*tracker.position_m, tracker.heading_rad), (vel[0], vel[1], tracker.angular_velocity_radps),
-                child_frame_id=self._robots[robot][0].frame(self._robots[robot][1]),
+                child_frame_id=self._robots[robot][0].frame(self._robots[robot][1]), position_variance_m2=var_pos,
+                velocity_variance_m2ps2=var_vel, yaw_variance_rad2=var_yaw, yaw_rate_variance_rad2ps2=var_rate,
             )
         except ConversionError as exc:
             self._warn.warn(f"odom{robot}", f"{self._names[robot]}: odom not published: {exc}")

@@ -544,3 +544,14 @@ class RobotTracker:
     @property
     def angular_velocity_radps(self) -> float | None:
         return self.heading.state[2] if self._has_heading else None
+
+    @property
+    def variances(self) -> tuple[float, float, float | None, float | None]:
+        """The filters' variance of each position coordinate [m^2], of each velocity component [(m/s)^2], of the
+        heading [rad^2] and of the yaw rate [(rad/s)^2] (the last two None without a heading), at the newest
+        frame."""
+        var_pos, _, var_vel = self.kf.cov
+        if not self._has_heading:
+            return var_pos, var_vel, None, None
+        var_heading, _, var_rate = self.heading.cov
+        return var_pos, var_vel, var_heading, var_rate

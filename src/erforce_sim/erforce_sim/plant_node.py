@@ -65,10 +65,11 @@ from erforce_sim.ball import BallParams, BallState
 from erforce_sim.camera_views import CameraViews
 from erforce_sim.plant_setup import PlantSetup, build_world
 from erforce_sim.sensors import VisionParams
-from erforce_sim.ssl_cameras import SslCameraSplitter, chip_model_of, open_multicast_sender, quadrant_cameras
+from erforce_sim.ssl_cameras import CAMERA_MODELS, CameraRig, SslCameraSplitter, chip_model_of, open_multicast_sender
 from erforce_sim.world_types import PhysicsParams
 
 SCHEMA = load_schema("erforce_sim", "plant")
+_SHARED_VISION = ("vision_noise_m", "vision_dropout")  # the bench cameras' shared noise and dropouts
 
 _GEOMETRY_PERIOD_S = 1.0  # SSL-Vision repeats its geometry; late joiners get it within this
 _MAX_TICKS_PER_PUMP = 50  # keep the executor responsive when nobody gates the ticks
@@ -86,6 +87,18 @@ def setup_from_params(config) -> PlantSetup:
             raise ValueError(f"{name}: need x, y, yaw per robot, got {len(values)} values")
         return tuple(tuple(values[i : i + 3]) for i in range(0, len(values), 3))
 
+    cameras = CAMERA_MODELS[config.camera_model]
+    if not cameras.shared_world_noise:
+        for name in _SHARED_VISION:
+            if getattr(config, name) != SCHEMA.default(name):
+                raise ValueError(f"{name}: camera_model {cameras.name!r} draws its noise and misses per camera; "
+                                 f"{name} is the shared cameras' (bench) and must keep its default "
+                                 f"{SCHEMA.default(name)!r}, got {getattr(config, name)!r}")
+    if cameras.object_offset_m > 0.0 and config.vision_output != "ssl":
+        raise ValueError(f"camera_model {cameras.name!r}: its per-camera object offset ({cameras.object_offset_m:g} m) "
+                         "is taken off only by the SSL bridge's camera_alignment; vision_output "
+                         f"{config.vision_output!r} has no alignment stage: use vision_output ssl or camera_model "
+                         "bench")
     return PlantSetup(
         field_preset=config.field,
         robot_poses=poses("robot_poses"),
@@ -106,6 +119,7 @@ def setup_from_params(config) -> PlantSetup:
             ball_dropout_prob=config.vision_dropout,
             robot_dropout_prob=config.vision_dropout,
         ),
+        cameras=cameras,
     )
 
 
@@ -589,11 +603,14 @@ class PlantNode(SchemaNode):
             self._last_clock_ns = t_ns
             self._clock_pub.publish(clock_cdr(t_ns))
         self._gate.open(t_ns, now, self._peers)
-        frames = world.poll_vision()
-        for frame in frames:
-            self._publish_vision(frame)
+        for frame in world.poll_vision():
+            detections = self._rig.detect(frame)  # one draw of the cameras for both outputs
+            if self._camera_views is not None:
+                self._publish_vision(frame, detections)
+            if self._ssl is not None:
+                self._ssl_queue.extend(self._ssl.packets(frame, detections))
         if self._ssl is not None:
-            self._publish_ssl_vision(frames)
+            self._publish_ssl_vision()
         detected = world.light_barriers()
         changed = self._all_robots if t_ns % 100_000_000 == 0 else np.flatnonzero(detected != self._barrier_state)
         for i in changed.tolist():
@@ -605,24 +622,22 @@ class PlantNode(SchemaNode):
             self._publish_truth(t_ns * 1e-9, due.tolist())
 
     def _setup_vision(self) -> None:
-        """The cameras of both vision outputs, one layout: the ROS frames' camera views, the SSL-Vision packets."""
+        """The cameras of both vision outputs, one CameraRig (camera_model): the ROS frames' camera views, the
+        SSL-Vision packets."""
         v = self._values
         field = FieldConfig.preset(self.setup.field_preset)
-        cameras = quadrant_cameras(field)
-        self._ros_vision = v["vision_output"] in ("ros", "both")
-        self._camera_views = CameraViews(field, cameras, seed=self.setup.seed) if self._ros_vision else None
-        self._ssl = None
-        if v["vision_output"] == "ros":
-            return
         # The geometry's two-phase model is the plant's own ball physics in the paper's terms (ball.py):
         # decelerations mu g, and c_switch from the kick's backspin.
         ball = self.world.ball_params
         model = BallModelFromVision(-ball.a_slide_mps2, -ball.a_roll_mps2,
                                     ball.switch_ratio(self.setup.physics.kick_spin_ratio))
-        self._ssl = SslCameraSplitter(
-            cameras, field, model,
-            latency_s=self.setup.vision.latency_s, seed=self.setup.seed, chip_model=chip_model_of(ball),
-        )
+        self._rig = CameraRig.quadrants(field, self.setup.cameras, seed=self.setup.seed, ball_model=model,
+                                        chip_model=chip_model_of(ball))
+        self._camera_views = CameraViews(self._rig) if v["vision_output"] in ("ros", "both") else None
+        self._ssl = None
+        if v["vision_output"] == "ros":
+            return
+        self._ssl = SslCameraSplitter.on_rig(self._rig, self.setup.vision.latency_s)
         self._ssl_sock = open_multicast_sender(v["ssl_vision_interface"])
         self._ssl_address = (v["ssl_vision_group"], v["ssl_vision_port"])
         self._ssl_queue: list[tuple[float, bytes]] = []
@@ -634,35 +649,33 @@ class PlantNode(SchemaNode):
         except OSError as exc:  # a full socket buffer or no route: this frame is lost, as on a network
             self._warn.warn("ssl_send", f"SSL-Vision packet not sent: {exc}")
 
-    def _publish_ssl_vision(self, frames) -> None:
+    def _publish_ssl_vision(self) -> None:
+        """The geometry when due and the queued camera packets whose release time has come."""
         t = self.world.t_s
         if t - self._ssl_geometry_t >= _GEOMETRY_PERIOD_S:
             self._ssl_geometry_t = t
             self._send_ssl(self._ssl.geometry_packet())
-        for frame in frames:
-            self._ssl_queue.extend(self._ssl.packets(frame))
         due = [p for p in self._ssl_queue if p[0] <= t + 1e-9]
         if due:
             self._ssl_queue = [p for p in self._ssl_queue if p[0] > t + 1e-9]
             for _release, data in sorted(due, key=lambda p: p[0]):
                 self._send_ssl(data)
 
-    def _publish_vision(self, frame) -> None:
+    def _publish_vision(self, frame, detections) -> None:
         """A world frame on /vision/robots (serialized, as the ball predictor takes it): the ball as the camera that
         takes it sees it, after that camera's point, with every robot; then each other camera that sees the ball
         its own frame with its point and its view as a sighting (camera_views; docs/decisions/0035)."""
-        if not self._ros_vision:
-            return
         t = frame.t_capture_s
-        views = self._camera_views.ball_views(frame.balls[0]) if frame.balls else []
+        seen = self._camera_views.frame_views(frame, detections)
+        views = seen.balls
         balls = [(view.x_m, view.y_m) for view in views[:1]]
         if self._vision_ball_readers[0]:
             for xy in balls:
                 self._vision_ball_pub.publish(point_cdr(t, xy))
-        if not (frame.robots or balls):
+        if not (seen.robots or balls):
             return
         rows, read = [], []
-        for det in frame.robots:
+        for det in seen.robots:
             i = self._vision_index[det.team, det.robot_id]
             team, j = self._robots[i]
             rows.append((team.code, j, det.x, det.y, det.theta))

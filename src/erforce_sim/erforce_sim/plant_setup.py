@@ -15,6 +15,7 @@ from erforce_interfaces.ssl.ssl_vision import TEAMS as SSL_TEAMS
 from erforce_interfaces.wire.robot_config import FIELD_PRESET, FieldConfig, RobotConfig
 from erforce_sim.ball import BallParams
 from erforce_sim.sensors import VisionParams
+from erforce_sim.ssl_cameras import PLANT_CAMERAS, CameraRealism
 from erforce_sim.world import World
 from erforce_sim.world_types import PhysicsParams, RobotSpec
 
@@ -23,6 +24,7 @@ PLATES = ("flat", "curved")
 # (lockstep.TICK_PERIOD_S, the plant node's control_period_s), which the node graph pays per message; the plant
 # node always sets its own.
 IN_PROCESS_TICK_PERIOD_S = 0.001
+_PLANT = schema_defaults("erforce_sim", "plant")
 
 
 @dataclass(frozen=True)
@@ -39,10 +41,13 @@ class PlantSetup:
     opponent_poses: tuple[tuple[float, float, float], ...] = ()
     our_color: str = OUR_TEAM_COLOR  # SSL team colour of our robots (what vision reports them as)
     control_period_s: float = IN_PROCESS_TICK_PERIOD_S
-    seed: int = schema_defaults("erforce_sim", "plant")["seed"]
+    seed: int = _PLANT["seed"]
     robot: RobotConfig = field(default_factory=RobotConfig)
     physics: PhysicsParams = field(default_factory=PhysicsParams)
     vision: VisionParams = field(default_factory=VisionParams)
+    # how the cameras err (ssl_cameras.CameraRealism); a per-camera model takes the world's frames without the
+    # position noise and dropouts of ``vision`` (CameraRealism.world_vision) and draws its own per camera
+    cameras: CameraRealism = PLANT_CAMERAS
     ball_params: BallParams = field(default_factory=BallParams)
 
     def __post_init__(self) -> None:
@@ -115,7 +120,7 @@ def build_world(setup: PlantSetup) -> World:
     ]
     world = World(
         FieldConfig.preset(setup.field_preset), specs, None, physics=setup.physics, ball_params=setup.ball_params,
-        vision=setup.vision, seed=setup.seed,
+        vision=setup.cameras.world_vision(setup.vision), seed=setup.seed,
     )
     x, y, vx, vy = setup.ball
     world.place_ball(x, y, vx, vy)

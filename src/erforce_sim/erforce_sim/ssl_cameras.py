@@ -15,6 +15,8 @@ How the cameras err is a ``CameraRealism``: ``BENCH_CAMERAS`` (the default: the 
 dropouts shared by every camera, 0.5 mm more per camera, a 0.5 m overlap) or ``ERFORCE_REALISTIC`` (ER-Force's
 simulator's "Realistic" preset: SSL-Vision's one detection per camera, each with its own noise and its own missed
 balls, a 1 m overlap past each axis, and each camera projecting from 0.1 m off where the geometry says it is).
+What each camera reports of a world frame is a ``CameraRig``'s (``detect``): the SSL packets here and the plant's
+ROS vision (camera_views) take it from there, so a preset means the same on both.
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ QUADRANT_OVERLAP_M = 0.5  # the width of the band across each axis two quadrant 
 # axes, which are vision's turned by 90 deg (vision x = its y, vision y = -its x): (0.7, -0.3, 0.05) here
 _ERFORCE_ERROR_AXES = (0.7, -0.3, 0.05)
 CAMERA_POSITION_ERROR_DIRECTION = tuple(c / math.hypot(*_ERFORCE_ERROR_AXES) for c in _ERFORCE_ERROR_AXES)
+FIXED_ERRORS = ("position_error", "object_offset")  # CameraRealism's fixed errors, each a field <name>_m
 
 
 @dataclass(frozen=True)
@@ -98,6 +101,17 @@ class CameraRealism:
             return params
         return replace(params, position_noise_m=0.0, ball_dropout_prob=0.0, robot_dropout_prob=0.0)
 
+    def without(self, *fixed_errors: str) -> CameraRealism:
+        """The same cameras without the fixed errors named (``FIXED_ERRORS``: position_error, object_offset), named
+        so: what a field whose calibration took those off would show."""
+        unknown = set(fixed_errors) - set(FIXED_ERRORS)
+        if unknown:
+            raise ValueError(f"CameraRealism.without: {sorted(unknown)} not among {FIXED_ERRORS}")
+        if not fixed_errors:
+            return self
+        return replace(self, name=f"{self.name} without {' and '.join(fixed_errors)}",
+                       **{f"{e}_m": 0.0 for e in fixed_errors})
+
     def noise_free(self) -> CameraRealism:
         """The same cameras without random errors (no noise, nothing missed); their fixed errors stay."""
         return replace(self, ball_noise_m=0.0, robot_noise_m=0.0, missing_ball_prob=0.0, missing_robot_prob=0.0)
@@ -130,6 +144,7 @@ ERFORCE_REALISTIC = CameraRealism("erforce", shared_world_noise=False, ball_nois
                                   missing_ball_prob=0.05, missing_robot_prob=0.02, overlap_m=2.0 * 1.0,
                                   position_error_m=0.1, object_offset_m=0.02)
 CAMERA_MODELS = {m.name: m for m in (BENCH_CAMERAS, ERFORCE_REALISTIC)}
+PLANT_CAMERAS = CAMERA_MODELS[_PLANT["camera_model"]]  # the plant's cameras unless its camera_model says otherwise
 
 
 @dataclass(frozen=True)
@@ -203,25 +218,86 @@ def chip_model_of(ball: BallParams) -> ChipModelFromVision:
     return ChipModelFromVision(ball.floor_restitution, 1.0 / (1.0 + ball.inertia_factor), 1.0)
 
 
+CameraDetections = tuple[tuple[BallCandidate, ...], tuple[RobotSighting, ...]]  # one camera's balls and robots
+
+
+class CameraRig:
+    """The simulated cameras as ``realism`` makes them err, and what each reports of a world frame (``detect``): the
+    one model of both vision outputs (the SSL-Vision packets, SslCameraSplitter; the plant's ROS frames,
+    camera_views.CameraViews), so a preset means the same on either. ``cameras`` are the field's rectangles, each
+    seeing the ground points its projecting camera gives; the geometry reports them at their nominal places
+    (``reported_cameras``), the projection uses where they stand (``projecting_cameras``). Seeded: runs repeat."""
+
+    def __init__(self, cameras: tuple[SimCamera, ...], field: FieldConfig, realism: CameraRealism = PLANT_CAMERAS,
+                 seed: int = _PLANT["seed"], ball_model: BallModelFromVision | None = None,
+                 chip_model: ChipModelFromVision | None = None) -> None:
+        self.cameras = cameras
+        self.realism = realism
+        self._rng = random.Random(seed)
+        self.geometry = field_geometry(field, cameras, ball_model, chip_model)
+        self.reported_cameras = tuple((p.camera_id, p.x_m, p.y_m, p.z_m) for p in self.geometry.cameras)
+        self.projecting_cameras = tuple(realism.projecting_camera(pose) for pose in self.geometry.cameras)
+        self._offsets = tuple(realism.object_offset(c) for c in self.projecting_cameras)
+
+    @classmethod
+    def quadrants(cls, field: FieldConfig, realism: CameraRealism = PLANT_CAMERAS, **kwargs) -> CameraRig:
+        """Four quadrant cameras overlapping as ``realism`` says."""
+        return cls(quadrant_cameras(field, realism.overlap_m), field, realism, **kwargs)
+
+    def _missed(self, prob: float) -> bool:
+        return prob > 0.0 and self._rng.random() < prob  # no draw at 0: the shared model's noise stays as it was
+
+    def detect(self, frame: VisionFrame) -> tuple[CameraDetections, ...]:
+        """Each camera's (balls, robots) of ``frame``, in the order of ``cameras``: a ball where the projecting
+        camera's ray through it meets the ground, when that point is in the camera's rectangle and the ball below
+        the camera; a robot when it stands in the rectangle; each unless missed, with the camera's own noise per
+        axis and its object offset."""
+        out = []
+        r, gauss = self.realism, self._rng.gauss
+        for cam, projector, (ox, oy) in zip(self.cameras, self.projecting_cameras, self._offsets, strict=True):
+            balls = []
+            for b in frame.balls:
+                if b.z >= projector[2]:  # as high as the camera: not in its image
+                    continue
+                x, y = ground_point(b.x, b.y, b.z, projector)
+                if cam.sees(x, y) and not self._missed(r.missing_ball_prob):
+                    balls.append(BallCandidate(x + gauss(0.0, r.ball_noise_m) + ox,
+                                               y + gauss(0.0, r.ball_noise_m) + oy, 0.9))
+            robots = tuple(
+                RobotSighting(d.team, d.robot_id, d.x + gauss(0.0, r.robot_noise_m) + ox,
+                              d.y + gauss(0.0, r.robot_noise_m) + oy, d.theta, 1.0)
+                for d in frame.robots if cam.sees(d.x, d.y) and not self._missed(r.missing_robot_prob)
+            )
+            out.append((tuple(balls), robots))
+        return tuple(out)
+
+
 class SslCameraSplitter:
     """World vision frames -> per-camera SSL datagrams with release times (world clock); each robot in its
-    team's colour, as the world has it (PlantSetup.our_color). ``realism``: how each camera errs (the frames
-    should come from ``realism.world_vision``'s VisionSystem); ``cameras`` are the field's rectangles, each
-    seeing the ground points its projecting camera gives."""
+    team's colour, as the world has it (PlantSetup.our_color). What each camera sees is a CameraRig's, built
+    from ``cameras``, ``field``, ``realism`` and ``seed`` (or shared with the ROS output: ``on_rig``); the frames
+    should come from ``realism.world_vision``'s VisionSystem."""
 
     def __init__(self, cameras: tuple[SimCamera, ...], field: FieldConfig, ball_model: BallModelFromVision | None,
                  latency_s: float = 0.015, realism: CameraRealism = BENCH_CAMERAS,
                  clock_offset_s: float = 0.0, seed: int = _PLANT["seed"],
                  chip_model: ChipModelFromVision | None = None) -> None:
-        self.cameras = cameras
+        self._take(CameraRig(cameras, field, realism, seed, ball_model, chip_model), latency_s, clock_offset_s)
+
+    @classmethod
+    def on_rig(cls, rig: CameraRig, latency_s: float, clock_offset_s: float = 0.0) -> SslCameraSplitter:
+        """The packets of ``rig``'s cameras (its geometry, its detections)."""
+        splitter = cls.__new__(cls)
+        splitter._take(rig, latency_s, clock_offset_s)
+        return splitter
+
+    def _take(self, rig: CameraRig, latency_s: float, clock_offset_s: float) -> None:
+        self.rig = rig
+        self.cameras, self.realism = rig.cameras, rig.realism
+        self.geometry, self.projecting_cameras = rig.geometry, rig.projecting_cameras
         self.latency_s = latency_s
-        self.realism = realism
         self.clock_offset_s = clock_offset_s
-        self._rng = random.Random(seed)
-        self._frame_numbers = [0] * len(cameras)
-        self.geometry = field_geometry(field, cameras, ball_model, chip_model)
-        self.projecting_cameras = tuple(realism.projecting_camera(pose) for pose in self.geometry.cameras)
-        self._offsets = tuple(realism.object_offset(c) for c in self.projecting_cameras)
+        self._frame_numbers = [0] * len(self.cameras)
 
     @classmethod
     def quadrants(cls, field: FieldConfig, ball_model: BallModelFromVision | None,
@@ -232,31 +308,18 @@ class SslCameraSplitter:
     def geometry_packet(self) -> bytes:
         return encode_geometry(self.geometry)
 
-    def _missed(self, prob: float) -> bool:
-        return prob > 0.0 and self._rng.random() < prob  # no draw at 0: the shared model's noise stays as it was
-
-    def packets(self, frame: VisionFrame) -> list[tuple[float, bytes]]:
-        """(release time, datagram) per camera for one world frame; the world frame's latency is the base."""
+    def packets(self, frame: VisionFrame,
+                detections: tuple[CameraDetections, ...] | None = None) -> list[tuple[float, bytes]]:
+        """(release time, datagram) per camera for one world frame; the world frame's latency is the base.
+        ``detections``: the rig's of this frame when another output took them already (``rig.detect``)."""
         out = []
-        r, gauss = self.realism, self._rng.gauss
+        detections = self.rig.detect(frame) if detections is None else detections
         t_capture = frame.t_capture_s + self.clock_offset_s
-        for k, (cam, projector) in enumerate(zip(self.cameras, self.projecting_cameras, strict=True)):
-            ox, oy = self._offsets[k]
-            balls = []
-            for b in frame.balls:
-                x, y = ground_point(b.x, b.y, b.z, projector)
-                if cam.sees(x, y) and not self._missed(r.missing_ball_prob):
-                    balls.append(BallCandidate(x + gauss(0.0, r.ball_noise_m) + ox,
-                                               y + gauss(0.0, r.ball_noise_m) + oy, 0.9))
-            robots = tuple(
-                RobotSighting(d.team, d.robot_id, d.x + gauss(0.0, r.robot_noise_m) + ox,
-                              d.y + gauss(0.0, r.robot_noise_m) + oy, d.theta, 1.0)
-                for d in frame.robots if cam.sees(d.x, d.y) and not self._missed(r.missing_robot_prob)
-            )
+        for k, (cam, (balls, robots)) in enumerate(zip(self.cameras, detections, strict=True)):
             self._frame_numbers[k] += 1
             release = frame.t_capture_s + self.latency_s + cam.extra_latency_s
             packet = CameraFrame(cam.camera_id, self._frame_numbers[k], t_capture,
-                                 release + self.clock_offset_s, tuple(balls), robots)
+                                 release + self.clock_offset_s, balls, robots)
             out.append((release, encode_frame(packet)))
         return out
 

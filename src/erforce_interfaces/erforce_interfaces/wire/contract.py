@@ -433,7 +433,9 @@ VISION_POSE = Topic("vision_pose", PoseStamped, QOS_SENSOR, "plant (vision), ssl
                     "per-robot tools", "robot pose in `field` [m, rad]; stamp = capture time; noisy, delayed, with "
                     "dropouts; the same poses as /vision/robots")
 ODOM = Topic("odom", Odometry, QOS_STATE, "ball_predictor (tracker)", "catcher",
-             "filtered robot pose and velocity in `field`, child frame `robot_<id>/base_link`")
+             "filtered robot pose and velocity in `field`, child frame `robot_<id>/base_link`; covariances: the "
+             "filter's variances of x and y, yaw / vx and vy, the yaw rate (its position-velocity terms have no "
+             "place here)")
 CATCH_TIME = Topic("catch_time", Float64, QOS_STATE, "ball_predictor (while subscribed)", "catcher",
                    f"seconds from the ball state's stamp until this robot can first catch the ball; "
                    f"{CATCH_TIME_NEVER:g} = never (ball leaves the field first)")
@@ -441,7 +443,7 @@ CATCH_POINT = Topic("catch_point", PointStamped, QOS_STATE, "ball_predictor (whi
                     "where the robot centre should be at the catch [m], `field`")
 GROUND_TRUTH_ODOM = Topic("ground_truth/odom", Odometry, QOS_STATE, "plant; each while subscribed",
                           "tests, tools only",
-                          "true robot pose and velocity in `field`")
+                          "true robot pose and velocity in `field` (the simulator's state: zero covariance)")
 GROUND_TRUTH_MOTORS = Topic("ground_truth/motors", Float64MultiArray, QOS_STATE, "plant; each while subscribed",
                             "tests, tools only",
                             "rows = wheels, columns = [current_a, winding_temperature_c, wheel_speed_radps]")

@@ -263,12 +263,14 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
                  frame_id: str = FIELD_FRAME, spin: Sequence[float] | None = None,
                  position_variance_m2: float | None = None, z_m: float = 0.0, vz_mps: float = 0.0,
                  xyz_covariance: np.ndarray | None = None, vxyz_covariance: np.ndarray | None = None,
-                 velocity_variance_m2ps2: float | None = None) -> bytes:
+                 velocity_variance_m2ps2: float | None = None, yaw_variance_rad2: float | None = None,
+                 yaw_rate_variance_rad2ps2: float | None = None) -> bytes:
     """``odometry_msg`` serialized (see the codec below), with the same checks; ``z_m`` and ``vz_mps`` go to
     pose.position.z and twist.linear.z (/ball/state: a chipped ball's height and vertical speed).
     ``xyz_covariance`` / ``vxyz_covariance`` (3, 3): the covariance of (x, y, z) / (vx, vy, vz), the rows and
     columns 0-2 of the pose's / twist's covariance (each replaces ``position_variance_m2``'s /
-    ``velocity_variance_m2ps2``'s diagonal)."""
+    ``velocity_variance_m2ps2``'s diagonal). ``yaw_variance_rad2`` / ``yaw_rate_variance_rad2ps2``: the last
+    diagonal element of the pose's / twist's covariance (None: 0)."""
     x, y, half = _finite("x", pose[0]), _finite("y", pose[1]), 0.5 * _finite("yaw", pose[2], 1.0e6)
     qz, qw = math.sin(half), math.cos(half)  # quaternion_from_yaw's, without a message object
     vx, vy = _finite("vx", velocity[0]), _finite("vy", velocity[1])
@@ -286,9 +288,21 @@ def odometry_cdr(t_s: float, pose: Sequence[float], velocity: Sequence[float], c
     else:
         pose_cov, twist_cov = _covariance_6x6("pose", xyz_covariance, variance), _covariance_6x6(
             "twist", vxyz_covariance, v_variance)
+    if yaw_variance_rad2 is not None:
+        pose_cov = (*pose_cov[:35], _variance("yaw variance", yaw_variance_rad2))
+    if yaw_rate_variance_rad2ps2 is not None:
+        twist_cov = (*twist_cov[:35], _variance("yaw rate variance", yaw_rate_variance_rad2ps2))
     # pose (position, orientation), its 6x6 covariance, twist (linear, angular), its covariance
     return _CDR_LE + stamp + _strings_cdr((frame_id, child_frame_id)) + _odometry_doubles.pack(
         x, y, _finite("z", z_m), 0.0, 0.0, qz, qw, *pose_cov, vx, vy, _finite("vz", vz_mps), *angular, *twist_cov)
+
+
+def _variance(name: str, value: float) -> float:
+    """``value`` as a variance: finite and >= 0, else ConversionError naming it."""
+    value = _finite(name, value)
+    if value < 0.0:
+        raise ConversionError(f"{name}: must be >= 0, got {value!r}")
+    return value
 
 
 def _covariance_6x6(name: str, linear: np.ndarray | None, planar_variance: float) -> tuple[float, ...]:

@@ -22,7 +22,8 @@ as it ends (``PassRecord``, with the true ball path).
 Each pass is reported as it ends (``PassRecord``, with the true ball path).
 
 Vision reaches the predictor as the plant's ``vision:=ros`` frames bring it to the graph's: the ball as the camera
-that takes it sees it, with that camera's position, the other cameras' views as sightings (camera_views), and each
+that takes it sees it, with that camera's position, the other cameras' views as sightings, each robot as the first
+camera that reports it (camera_views, the cameras as ``GameConfig.cameras`` makes them err), and each
 kick's elevation and commanded speed as a kick hint, as the ball_predictor node takes the kick commands. A chipped
 pass flies over the opponents (passing.decisions.evaluate_passes); the predictor's chip (``BallFrame.chip``) is
 passed on as it is. With ``GameConfig.true_chip`` the game hands the AI the simulator's true ball while it is in the
@@ -58,6 +59,7 @@ from erforce_sim.camera_views import CameraViews
 from erforce_sim.in_process.runner import InProcessRunner
 from erforce_sim.plant_setup import PlantSetup
 from erforce_sim.sensors import VisionFrame
+from erforce_sim.ssl_cameras import CameraRealism
 
 _PLANT = schema_defaults("erforce_sim", "plant")
 
@@ -83,6 +85,7 @@ class GameConfig:
     opponent_positions: tuple[tuple[float, float], ...] = OPPONENT_POSITIONS
     true_chip: bool = False  # a ball in the air reaches the AI as the simulator's true chip (module docstring)
     hint_speed: bool = True  # the kick hints carry the commanded speed, as the predictor node's do
+    cameras: CameraRealism = PlantSetup.cameras  # how the cameras err: the plant's camera_model (no object offset)
 
     def __post_init__(self) -> None:
         if not 2 <= self.team_size <= len(self.team_positions):
@@ -107,7 +110,7 @@ def setup_for(cfg: GameConfig, seed: int) -> PlantSetup:
     poses = tuple((x, y, math.atan2(ball[1] - y, ball[0] - x) if (x, y) != ball else 0.0) for x, y in team)
     opps = tuple((x, y, math.atan2(ball[1] - y, ball[0] - x)) for x, y in cfg.opponent_positions[:cfg.opponents])
     return PlantSetup(field_preset=cfg.field_preset, robot_poses=poses, controlled=(True,), opponent_poses=opps,
-                      control_period_s=cfg.control_period_s, seed=seed)
+                      control_period_s=cfg.control_period_s, seed=seed, cameras=cfg.cameras)
 
 
 class PassingGame:
@@ -134,7 +137,7 @@ class PassingGame:
         self.player = PassingPlayer(cfg.player, self.n_team, self.n_opp, self.field, self.robot.dribbler_offset_m,
                                     self.robot.robot_radius_m, self.predictor.model,
                                     chip_model=self.predictor.chip_model)
-        self.cameras = CameraViews(self.field, seed=seed)  # the plant's vision:=ros cameras
+        self.cameras = CameraViews.quadrants(self.field, cfg.cameras, seed=seed)  # the plant's vision:=ros cameras
         self._t_vision_s: float | None = None  # the newest vision stamp: a kick's hint goes at it, as on the graph
         self.runner.vision_listeners.append(self._on_frame)
         self.poses = self.player.poses  # tracked, from vision (the opponents' AI reads them too)
@@ -174,7 +177,8 @@ class PassingGame:
     def _on_frame(self, frame: VisionFrame) -> None:
         now, t = frame.t_release_s, frame.t_capture_s
         player = self.player
-        for r in frame.robots:
+        seen = self.cameras.frame_views(frame)
+        for r in seen.robots:
             i = self._index(r.team, r.robot_id)
             tracker = self.predictor.robot_frame(i, t, r.x, r.y, r.theta)
             if tracker is None:
@@ -185,7 +189,7 @@ class PassingGame:
             else:
                 self.opponents.on_other_robot(i, now, self.poses[i])
         self._t_vision_s = t
-        views = self.cameras.ball_views(frame.balls[0]) if frame.balls else []
+        views = seen.balls
         for b in views[:1]:
             t0 = time.thread_time()
             answer = self.predictor.ball_frame(t, b.x_m, b.y_m, camera_m=b.camera[1:])
