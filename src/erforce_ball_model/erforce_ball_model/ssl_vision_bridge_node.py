@@ -280,15 +280,16 @@ class SslVisionBridge(Node):
                 self._bind_pass()
 
     def _set_path(self) -> None:
-        """The compiled pass takes the usual configuration; a flipped field, the detections topic, the camera
-        alignment and the wait for geometry take the general path."""
+        """The compiled pass takes the usual configuration (with or without the camera alignment); a flipped field,
+        the detections topic and the wait for geometry take the general path."""
         cfg = self._config
-        self._fast = not (cfg.flip or cfg.publish_detections or cfg.camera_alignment or self._tracker.field is None)
+        self._fast = not (cfg.flip or cfg.publish_detections or self._tracker.field is None)
 
     def _bind_pass(self) -> None:
         """The compiled pass on the current clock, tracker and team (at start and after parameter changes)."""
         self._frame_pass = FramePass(self._vision_clock, self._tracker, self._pose_readers, self._ours, self._n_ours,
-                                     self._capture_order, timeline=self._timeline, cameras=self._cameras)
+                                     self._capture_order, timeline=self._timeline, cameras=self._cameras,
+                                     alignment=self._alignment)
 
     def _set_cameras(self) -> None:
         """The camera table from the geometry's cameras, in the field frame (half turned with ``flip``, as the
@@ -407,6 +408,8 @@ class SslVisionBridge(Node):
     def _pass_datagram(self, data: bytes, t_receive_s: float) -> None:
         """A datagram through the compiled pass: the usual frame is one call and one publish."""
         status, n_bytes, action, t_s, ball_x, ball_y = self._frame_pass.run(data, t_receive_s, self._time_mode)
+        if self._alignment is not None:  # the pass fed it (CameraAlignment.take)
+            self._alignment.refresh()
         if status == PASS_DONE and n_bytes >= 0 and (not action or action >= BALL_FUSED):
             self.stats["frames"] += 1
             if n_bytes:
@@ -633,8 +636,8 @@ class SslVisionBridge(Node):
             balls, robots = balls.copy(), robots.copy()
             balls[:, 0], balls[:, 1] = half_turn(balls[:, 0], balls[:, 1])
             robots[:, 2], robots[:, 3], robots[:, 4] = half_turn(robots[:, 2], robots[:, 3], robots[:, 4])
-        if self._alignment is not None:
-            balls = self._aligned(frame.camera_id, frame.t_capture_s, balls, robots)
+        if self._alignment is not None:  # on the vision host's capture clock (one for all cameras)
+            balls, robots = self._alignment.take(frame.camera_id, frame.t_capture_s, balls, robots)
         ball, used = self._tracker.frame_indices(frame.camera_id, t_s, balls, robots)
         self.stats["frames"] += 1
         try:
@@ -656,18 +659,6 @@ class SslVisionBridge(Node):
                 self._publish_detections(cfg, frame.camera_id, now_s - t_s, balls.tolist(), robots.tolist())
         except ConversionError as exc:
             self._drop("unpublishable", f"camera {frame.camera_id}: not published: {exc}")
-
-    def _aligned(self, camera_id: int, t_capture_s: float, balls: np.ndarray, robots: np.ndarray) -> np.ndarray:
-        """The camera's robots and balls (field frame) feed the alignment, on the vision host's capture clock (one
-        for all cameras); its balls come back without the camera's estimated offset."""
-        self._alignment.frame(camera_id, t_capture_s, robots[:, :4].tolist(), balls[:, :2].tolist())
-        if not len(balls):
-            return balls
-        ox, oy = self._alignment.offset_m(camera_id)
-        balls = balls.copy()
-        balls[:, 0] -= ox
-        balls[:, 1] -= oy
-        return balls
 
     def _publish_robots(self, t_s: float, rows: list[list[float]], ball: BallObservation | None,
                         camera_id: int) -> None:
