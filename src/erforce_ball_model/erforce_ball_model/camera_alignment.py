@@ -108,25 +108,31 @@ def alignment_frame(newest, history, cams, pairs, totals, settings, camera, t_s,
     (team 0/1, robot_id, x, y, ...), ``balls`` as its BALL_COLUMNS (x, y, ...), as the camera reported them, at its
     capture time ``t_s``. Each thing seen pairs with the newest frame of every other camera: at the same capture, or
     within max_capture_gap_s when the camera saw it move less than max_motion_m over the gap (from its previous
-    sighting). ``newest[camera]``: the things of its newest frame (x, y, speed, the sighting's time; NaN: not seen)."""
+    sighting); an id the frame reports twice does not pair. ``newest[camera]``: the things of its newest frame (x, y,
+    speed, the sighting's time; NaN: not seen)."""
     seen = np.full((newest.shape[1], 4), np.nan)
     previous = newest[camera]
-    keys = np.empty(newest.shape[1], np.int64)
-    n_keys = 0
+    times_seen = np.zeros(newest.shape[1], np.int64)
     ids = (newest.shape[1] - 1) // 2
     for k in range(len(robots)):
         team, robot_id, x, y = robots[k, 0], robots[k, 1], robots[k, 2], robots[k, 3]
         if not ((team == 0.0 or team == 1.0) and 0.0 <= robot_id < ids and np.isfinite(x) and np.isfinite(y)):
             continue
         key = int(team) * ids + int(robot_id)
-        if seen[key, 3] != seen[key, 3]:  # a duplicate id: the later row, as a camera's newest sighting
-            keys[n_keys] = key
-            n_keys += 1
+        times_seen[key] += 1
         t_previous = previous[key, 3]
         speed = np.inf  # unknown motion: pairs only at the same capture
         if t_s > t_previous:  # False for NaN: not in the camera's previous frame
             speed = math.hypot(x - previous[key, 0], y - previous[key, 1]) / (t_s - t_previous)
         seen[key, 0], seen[key, 1], seen[key, 2], seen[key, 3] = x, y, speed, t_s
+    keys = np.empty(newest.shape[1], np.int64)
+    n_keys = 0
+    for key in range(len(seen) - 1):
+        if times_seen[key] == 1:
+            keys[n_keys] = key
+            n_keys += 1
+        elif times_seen[key] > 1:  # one id twice: which is which is unknown, as with several balls
+            seen[key] = np.nan
     if _resting_ball(history, cams, settings, camera, t_s, balls, seen[len(seen) - 1]):
         keys[n_keys] = len(seen) - 1
         n_keys += 1
