@@ -9,7 +9,9 @@ A reader process subscribes to what the stack reads of the bridge (the ball pred
 one message per camera frame with its ball and both teams), or with ``--readers all`` also to /vision/ball and
 the 22 robots' own vision_pose topics, or with ``--readers none`` to nothing: the bridge publishes
 /vision/ball and a robot's vision_pose only while the topic has a reader.
-``python bench/bench_ssl_vision.py [--quick] [--readers ours|all|none]``
+Each path of the bridge in its own run (``--paths``): the compiled pass without the camera alignment, with it (the
+default), and the general path with it (``defend_side: positive_x`` takes it: the half turn is the general path's).
+``python bench/bench_ssl_vision.py [--quick] [--readers ours|all|none] [--paths fast aligned general]``
 """
 
 from __future__ import annotations
@@ -151,13 +153,30 @@ def send_load(port: int, duration_s: float) -> int:
     return sent + 1
 
 
-def run(quick: bool = False, readers: str = "ours") -> list[dict]:
+# the bridge's paths: (what the table calls it, the parameters that take it)
+PATHS = {
+    "fast": ("compiled pass, no camera alignment", {"camera_alignment": False}),
+    "aligned": ("compiled pass with the camera alignment", {}),
+    "general": ("general path with the camera alignment", {"defend_side": "positive_x"}),
+}
+
+
+def run(quick: bool = False, readers: str = "ours", paths: tuple[str, ...] = tuple(PATHS)) -> list[dict]:
+    rows = []
+    for path in paths:
+        label, params = PATHS[path]
+        for row in run_path(quick, readers, params):
+            rows.append({**row, "name": f"{label}: {row['name']}"})
+    return rows
+
+
+def run_path(quick: bool, readers: str, params: dict) -> list[dict]:
     duration_s = 5.0 if quick else 20.0
     port = find_port()
     with RosGraph() as graph:
         node = graph.start_node("erforce_ball_model", "ssl_vision_bridge", params={
             "port": port, "interface": "127.0.0.1", "field": "division_a", "stats_period_s": 1.0,
-            "team_color": "blue", "num_robots": 11})
+            "team_color": "blue", "num_robots": 11, **params})
         node.wait_for_output(r"ssl_vision_bridge: 224\.5\.23\.2", timeout_s=60.0)
         topics = reader_topics(readers)
         reader = graph.start([sys.executable, "-c", READER, *topics], name="vision_reader") if topics else None
@@ -199,9 +218,10 @@ def run(quick: bool = False, readers: str = "ours") -> list[dict]:
 def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--readers", choices=("ours", "all", "none"), default="ours")
+    parser.add_argument("--paths", nargs="+", choices=tuple(PATHS), default=list(PATHS))
     args, rest = parser.parse_known_args()
     sys.argv[1:] = rest
-    return bench_main(lambda quick=False: run(quick, args.readers), __doc__.splitlines()[0])
+    return bench_main(lambda quick=False: run(quick, args.readers, tuple(args.paths)), __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

@@ -43,7 +43,7 @@ TOTAL_SAMPLES, TOTAL_NEW, TOTAL_STALE = range(3)
 CAM_FRAMES, CAM_HEAD, CAM_COUNT = range(3)  # per camera: frames fed, its ball history's ring (first, length)
 PAIR_N, PAIR_SUM_X, PAIR_SUM_Y, PAIR_SUM_SQ = range(4)  # per pair a < b: count, sums of p_a - p_b, of |p_a - p_b|^2
 
-__all__ = ["CameraAlignment", "alignment_frame", "correct_rows", "load_kernels"]
+__all__ = ["CameraAlignment", "alignment_frame", "correct_rows", "load_kernels", "solve"]
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -103,13 +103,100 @@ def _resting_ball(history, cams, settings, camera, t_s, balls, out):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def alignment_frame(newest, history, cams, pairs, totals, settings, camera, t_s, robots, balls):
+def _inverse_spd(a):
+    """The inverse of the symmetric positive definite ``a`` (Cholesky; a few cameras)."""
+    m = len(a)
+    low = np.zeros((m, m))
+    for i in range(m):
+        for j in range(i + 1):
+            acc = a[i, j]
+            for k in range(j):
+                acc -= low[i, k] * low[j, k]
+            low[i, j] = math.sqrt(acc) if i == j else acc / low[j, j]
+    inv = np.zeros((m, m))
+    for col in range(m):  # solve low low^T x = e_col
+        y = np.zeros(m)
+        for i in range(m):
+            acc = 1.0 if i == col else 0.0
+            for k in range(i):
+                acc -= low[i, k] * y[k]
+            y[i] = acc / low[i, i]
+        for i in range(m - 1, -1, -1):
+            acc = y[i]
+            for k in range(i + 1, m):
+                acc -= low[k, i] * inv[k, col]
+            inv[i, col] = acc / low[i, i]
+    return inv
+
+
+@numba.njit(cache=True, error_model="numpy")
+def solve(pairs, totals, offsets, std_m):
+    """The least-squares offsets with zero mean over each set of cameras that share differences, ``o = L^+ r``, and
+    their standard deviations ``sqrt(s^2 diag L^+)`` into ``offsets`` and ``std_m`` (0 and inf for a camera never
+    paired). For a connected set of m cameras ``L^+ = (L + 1 1^T / m)^-1 - 1 1^T / m``; as r sums to zero over the
+    set, ``o = (L + 1 1^T / m)^-1 r``."""
+    totals[TOTAL_NEW] = totals[TOTAL_STALE] = 0.0
+    n_cams = len(pairs)
+    n = np.zeros((n_cams, n_cams))
+    r = np.zeros((n_cams, 2))
+    sq, dof = 0.0, 0.0
+    for a in range(n_cams):
+        for b in range(a + 1, n_cams):
+            w = pairs[a, b, PAIR_N]
+            if w > 0.0:
+                n[a, b] = n[b, a] = w
+                sx, sy = pairs[a, b, PAIR_SUM_X], pairs[a, b, PAIR_SUM_Y]
+                r[a, 0] += sx
+                r[a, 1] += sy
+                r[b, 0] -= sx
+                r[b, 1] -= sy
+                sq += pairs[a, b, PAIR_SUM_SQ] - (sx * sx + sy * sy) / w  # about the pair's mean, both axes
+                dof += 2.0 * (w - 1.0)
+    var_m2 = max(sq, 0.0) / dof if dof > 0.0 else np.inf  # per axis, of one difference (>= 0: rounding)
+    offsets[:] = 0.0
+    std_m[:] = np.inf
+    component = np.full(n_cams, -1, np.int64)
+    members = np.empty(n_cams, np.int64)
+    for start in range(n_cams):
+        if component[start] >= 0 or not (n[start] > 0.0).any():
+            continue
+        component[start] = start
+        members[0], m, seen = start, 1, 0
+        while seen < m:  # the cameras connected to start
+            c = members[seen]
+            seen += 1
+            for other in range(n_cams):
+                if n[c, other] > 0.0 and component[other] < 0:
+                    component[other] = start
+                    members[m] = other
+                    m += 1
+        a = np.empty((m, m))
+        for i in range(m):
+            for j in range(m):
+                a[i, j] = 1.0 / m - n[members[i], members[j]]
+            for j in range(m):
+                if j != i:
+                    a[i, i] += n[members[i], members[j]]
+        inv = _inverse_spd(a)
+        for i in range(m):
+            ox, oy = 0.0, 0.0
+            for j in range(m):
+                ox += inv[i, j] * r[members[j], 0]
+                oy += inv[i, j] * r[members[j], 1]
+            offsets[members[i], 0], offsets[members[i], 1] = ox, oy
+            std = math.sqrt(max(inv[i, i] - 1.0 / m, 0.0) * var_m2)
+            std_m[members[i]] = std if np.isfinite(std) else np.inf
+
+
+@numba.njit(cache=True, error_model="numpy")
+def alignment_frame(newest, history, cams, pairs, totals, settings, offsets, std_m, camera, t_s, robots, balls):
     """One camera frame into the estimate's arrays (``CameraAlignment``'s): ``robots`` as ssl_vision's ROBOT_COLUMNS
     (team 0/1, robot_id, x, y, ...), ``balls`` as its BALL_COLUMNS (x, y, ...), as the camera reported them, at its
     capture time ``t_s``. Each thing seen pairs with the newest frame of every other camera: at the same capture, or
     within max_capture_gap_s when the camera saw it move less than max_motion_m over the gap (from its previous
     sighting); an id the frame reports twice does not pair. ``newest[camera]``: the things of its newest frame (x, y,
-    speed, the sighting's time; NaN: not seen)."""
+    speed, the sighting's time; NaN: not seen). Once the differences taken since the last solution are
+    RESOLVE_SHARE of all, ``solve`` again (``offsets``, ``std_m``)."""
     seen = np.full((newest.shape[1], 4), np.nan)
     previous = newest[camera]
     times_seen = np.zeros(newest.shape[1], np.int64)
@@ -150,6 +237,8 @@ def alignment_frame(newest, history, cams, pairs, totals, settings, camera, t_s,
                      seen[key, 1] - newest[other, key, 1])
     newest[camera] = seen
     cams[camera, CAM_FRAMES] += 1
+    if totals[TOTAL_STALE]:
+        solve(pairs, totals, offsets, std_m)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -172,7 +261,8 @@ class CameraAlignment:
     camera's previous sighting) is below ``max_motion_m``; a pair whose difference is further than
     ``max_disagreement_m`` from the pair's mean so far (a wrong id, a reflection) is left out. Camera ids and robot
     ids as SSL-Vision can report them (DecodeLimits). ``offsets`` (per camera id: x, y [m]) is what ``correct``
-    and the bridge's compiled pass take off; ``refresh`` brings it up to date (``frame`` does)."""
+    and the bridge's compiled pass take off, solved again after a frame once the new differences are RESOLVE_SHARE
+    of all."""
 
     def __init__(self, max_capture_gap_s: float = 0.004, max_motion_m: float = 0.002, rest_s: float = 0.15,
                  rest_radius_m: float = 0.005, max_disagreement_m: float = 0.1, max_samples: float = 5000.0) -> None:
@@ -199,7 +289,7 @@ class CameraAlignment:
 
     def state(self) -> tuple:
         """The arrays ``alignment_frame`` takes before the camera (for a compiled caller)."""
-        return self.newest, self.history, self.cams, self.pairs, self.totals, self.settings
+        return self.newest, self.history, self.cams, self.pairs, self.totals, self.settings, self.offsets, self.std_m
 
     # ------------------------------------------------------------------ input
     def frame(self, camera_id: int, t_capture_s: float, robots=(), balls=()) -> None:
@@ -207,11 +297,9 @@ class CameraAlignment:
         reported them. Only a frame with one ball lets the ball pair (several: which is which is unknown)."""
         self.frame_rows(camera_id, t_capture_s, np.array(robots, float).reshape(-1, 4),
                         np.array(balls, float).reshape(-1, 2))
-        self.refresh()
 
     def frame_rows(self, camera_id: int, t_capture_s: float, robots: np.ndarray, balls: np.ndarray) -> None:
-        """``frame`` for ssl_vision's rows (ROBOT_COLUMNS, BALL_COLUMNS: their first columns are read), without the
-        refresh; the estimate is as the bridge's compiled pass leaves it."""
+        """``frame`` for ssl_vision's rows (ROBOT_COLUMNS, BALL_COLUMNS: their first columns are read)."""
         if not 0 <= camera_id < N_CAMERAS:
             raise ValueError(f"CameraAlignment: camera_id {camera_id} beyond 0..{N_CAMERAS - 1}")
         alignment_frame(*self.state(), camera_id, float(t_capture_s), np.ascontiguousarray(robots, float),
@@ -219,48 +307,19 @@ class CameraAlignment:
 
     def take(self, camera_id: int, t_capture_s: float, balls: np.ndarray, robots: np.ndarray) -> tuple:
         """A camera frame's rows (field frame, the vision host's capture clock) fed in, and returned (copies) without
-        the camera's offset as estimated before them, as the bridge's compiled pass does; then the refresh."""
+        the camera's estimated offset, as the bridge's compiled pass does."""
         self.frame_rows(camera_id, t_capture_s, robots, balls)
         balls, robots = np.array(balls, float), np.array(robots, float)
         correct_rows(self.offsets, camera_id, balls, robots)
-        self.refresh()
         return balls, robots
 
     # ----------------------------------------------------------------- output
-    def refresh(self) -> None:
-        """Solve again if the differences taken since the last solution are RESOLVE_SHARE of all."""
-        if not self.totals[TOTAL_STALE]:
-            return
-        self.totals[TOTAL_NEW] = self.totals[TOTAL_STALE] = 0.0
-        held = self.pairs[:, :, PAIR_N] > 0.0
-        ids = np.flatnonzero(held.any(axis=0) | held.any(axis=1))
-        sub = self.pairs[np.ix_(ids, ids)]
-        n = sub[:, :, PAIR_N]
-        lap = np.diag(n.sum(axis=0) + n.sum(axis=1)) - n - n.T
-        r = np.stack([sub[:, :, PAIR_SUM_X].sum(axis=1) - sub[:, :, PAIR_SUM_X].sum(axis=0),
-                      sub[:, :, PAIR_SUM_Y].sum(axis=1) - sub[:, :, PAIR_SUM_Y].sum(axis=0)], axis=1)
-        nz = n > 0.0
-        # residuals about each pair's mean, both axes; 2 (n - 1) degrees of freedom per pair
-        sq = float(np.sum(sub[:, :, PAIR_SUM_SQ][nz] - (sub[:, :, PAIR_SUM_X][nz] ** 2
-                                                        + sub[:, :, PAIR_SUM_Y][nz] ** 2) / n[nz]))
-        dof = float(np.sum(2.0 * (n[nz] - 1.0)))
-        lap_pinv = np.linalg.pinv(lap)
-        var_m2 = max(sq, 0.0) / dof if dof > 0.0 else math.inf  # per axis, of one difference (>= 0: rounding)
-        self.offsets[:] = 0.0
-        self.offsets[ids] = lap_pinv @ r
-        self.std_m[:] = np.inf
-        with np.errstate(invalid="ignore"):
-            self.std_m[ids] = np.sqrt(np.maximum(np.diag(lap_pinv), 0.0) * var_m2)
-        self.std_m[~np.isfinite(self.std_m)] = np.inf
-
     def offset_m(self, camera_id: int) -> tuple[float, float]:
         """The camera's estimated offset (zero mean over the paired cameras); (0, 0) for a camera never paired."""
-        self.refresh()
         return (0.0, 0.0) if not 0 <= camera_id < N_CAMERAS else tuple(self.offsets[camera_id].tolist())
 
     def uncertainty_m(self, camera_id: int) -> float:
         """The estimate's standard deviation per axis (inf for a camera never paired or too few samples)."""
-        self.refresh()
         return math.inf if not 0 <= camera_id < N_CAMERAS else float(self.std_m[camera_id])
 
     def samples(self, camera_a: int, camera_b: int) -> float:

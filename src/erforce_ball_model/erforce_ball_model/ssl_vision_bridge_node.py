@@ -408,8 +408,6 @@ class SslVisionBridge(Node):
     def _pass_datagram(self, data: bytes, t_receive_s: float) -> None:
         """A datagram through the compiled pass: the usual frame is one call and one publish."""
         status, n_bytes, action, t_s, ball_x, ball_y = self._frame_pass.run(data, t_receive_s, self._time_mode)
-        if self._alignment is not None:  # the pass fed it (CameraAlignment.take)
-            self._alignment.refresh()
         if status == PASS_DONE and n_bytes >= 0 and (not action or action >= BALL_FUSED):
             self.stats["frames"] += 1
             if n_bytes:

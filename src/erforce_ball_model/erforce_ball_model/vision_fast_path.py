@@ -191,7 +191,7 @@ def _frame_pass(data, t_receive, time_mode, rows, limits, last_capture, clock_wi
                 clock_params, timeline_cams, timeline_samples, timeline_glob, hyps, hits, candidates, tracks, used,
                 settings, ball_state, counts, ball_filter, shoot_samples, ball_model, pose_readers, ours_n_ours,
                 cameras, points, head, layout, message, info, align, align_newest, align_history, align_cams,
-                align_pairs, align_totals, align_settings, align_offsets):
+                align_pairs, align_totals, align_settings, align_offsets, align_std):
     """The datagram ``data`` received at ``t_receive`` (the ROS clock; with TIME_CAPTURE a monotonic wall clock)
     through decoding, capture order, clock, camera alignment (``align``: the frame feeds the estimate, then the
     camera's offset is taken off its balls and robots), tracker and message (see the module docstring): (status,
@@ -229,8 +229,8 @@ def _frame_pass(data, t_receive, time_mode, rows, limits, last_capture, clock_wi
     balls = rows[8:8 + 4 * n_balls].reshape(n_balls, 4)
     robots = rows[ROBOTS_AT:ROBOTS_AT + 6 * n_robots].reshape(n_robots, 6)
     if align:  # CameraAlignment.take, on the vision host's capture clock
-        alignment_frame(align_newest, align_history, align_cams, align_pairs, align_totals, align_settings, camera,
-                        rows[1], robots, balls)
+        alignment_frame(align_newest, align_history, align_cams, align_pairs, align_totals, align_settings,
+                        align_offsets, align_std, camera, rows[1], robots, balls)
         correct_rows(align_offsets, camera, balls, robots)
     # VisionTracker.frame_indices
     counts[COUNT_FRAMES] += 1
@@ -277,7 +277,7 @@ class FramePass:
         """``order``, ``timeline``: the cameras' capture order and capture timeline the node's general path shares
         (new ones when None); the order's restart_s is read here, at binding. ``cameras``: the node's
         ``camera_table``, read per frame (None: no camera known). ``alignment``: the node's camera alignment (None:
-        none), fed by the pass; after each run the caller calls its ``refresh``, as ``CameraAlignment.take`` does."""
+        none), fed and applied by the pass as ``CameraAlignment.take`` does."""
         if (limits.max_balls, limits.max_robots_per_team) != (_LIMITS.max_balls, _LIMITS.max_robots_per_team):
             raise ValueError("FramePass: the rows' layout is compiled for the default counts")
         self.rows = np.empty(detection_rows_size(limits.max_balls, limits.max_robots_per_team))
@@ -304,7 +304,7 @@ class FramePass:
                        tracker.ball_state, tracker.counts, tracker.ball.s, tracker.ball.shoot, tracker.ball.m,
                        pose_readers, np.array([ours, n_ours], float),
                        camera_table(limits) if cameras is None else cameras, self.points, self.head, self.layout,
-                       self.message, self.info, alignment is not None, *learning.state(), learning.offsets)
+                       self.message, self.info, alignment is not None, *learning.state())
         # the compiled function for exactly these types: no type matching per call
         self._entry = compiled_for(_frame_pass, encode_frame(CameraFrame(0, 0, 0.0, 0.0, (), ())), 0.0,
                                    TIME_ESTIMATE, *self._state)
