@@ -3,9 +3,10 @@
 A receive thread drains the socket in batches (at most ``max_batch`` per round; the kernel buffer
 ``receive_buffer_bytes`` absorbs bursts meanwhile); a round that finds more than ``flood_batch``
 datagrams keeps each camera's newest frame and says so. Each datagram goes through
-erforce_interfaces.ssl.ssl_vision (decoding, checks, capture order, vision clock) and vision_tracking (the
-true ball, robot streams). What it drops is named by its class (ssl_vision.DROP_CLASSES): a throttled
-warning per class and a counter in the periodic statistics line; the tracker's normal choices with
+erforce_interfaces.ssl.ssl_vision (decoding, checks, capture order, vision clock), camera_alignment (each camera's
+offset, learnt from what two cameras see and taken off what the camera reports; ``camera_alignment``) and
+vision_tracking (the true ball, robot streams). What it drops is named by its class (ssl_vision.DROP_CLASSES): a
+throttled warning per class and a counter in the periodic statistics line; the tracker's normal choices with
 overlapping cameras (reflections, an older candidate) are only counted.
 
 A camera frame goes out as one ``/vision/robots`` (what the stack reads), before ``/vision/ball``, with the

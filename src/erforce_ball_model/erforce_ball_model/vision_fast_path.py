@@ -1,10 +1,11 @@
 """One compiled pass from an SSL-Vision datagram's bytes to the bytes of its /vision/robots message.
 
 The bridge's usual datagram (one camera frame, every detection valid) goes through the same kernels as the
-general path, in one call: ssl_vision's pass over the protobuf bytes, the vision clock, the tracker's ball
-hypotheses, its choice of the ball, the ball filter's usual update (``tracking.ball_step``: the pass returns
-``BALL_FUSED`` + its status) and its robot streams, the message's points (the camera's first, from the bridge's
-camera table, ``camera_table``) and their CDR. What needs Python
+general path, in one call: ssl_vision's pass over the protobuf bytes, the vision clock, the camera alignment
+(camera_alignment's kernels: the frame feeds the estimate, the camera's offset comes off its balls and robots),
+the tracker's ball hypotheses, its choice of the ball, the ball filter's usual update (``tracking.ball_step``: the
+pass returns ``BALL_FUSED`` + its status) and its robot streams, the message's points (the camera's first, from
+the bridge's camera table, ``camera_table``) and their CDR. What needs Python
 stays outside: a new ball and the ball filter's unusual frames (``VisionTracker.use_ball`` with the action
 returned) and anything unusual, which the pass hands back before it has changed any state (``PASS_FALLBACK``: the
 bridge runs the general path on the datagram, which names the problem) or after (``PASS_GENERAL``: a robot
@@ -14,9 +15,9 @@ the points cannot carry; ``PASS_T_CAPTURE_BACK``, ``PASS_CLOCK_JUMP``, ``PASS_TI
 stamp comes from the time source's mode (vision_time.TIME_SOURCES: the vision clock's estimate, ``t_capture`` as
 it is, or the capture timeline).
 The message written is byte for byte what ``clouds.vision_robots_points_cdr`` builds from the same
-points. The kernels it calls from other modules (vision_time's clock and timeline, the tracker's) are compiled
-into it, and numba's cache of this module goes by this file alone: a change there needs this file touched
-(or its ``__pycache__`` entries removed) to take effect here.
+points. The kernels it calls from other modules (vision_time's clock and timeline, the tracker's, the camera
+alignment's) are compiled into it, and numba's cache of this module goes by this file alone: a change there needs
+this file touched (or its ``__pycache__`` entries removed) to take effect here.
 """
 
 from __future__ import annotations
@@ -296,7 +297,6 @@ class FramePass:
             raise ValueError("FramePass: the tracker's buffers are smaller than a frame's detections")
         self.tracker = tracker
         timeline = timeline or CaptureTimeline()
-        self.alignment = alignment
         learning = alignment or CameraAlignment()  # arrays of the right types, not read without an alignment
         self._state = (self.rows, self.limits, self.order.last_s, clock.window, clock.pending, clock.counts,
                        clock.params, timeline.cams, timeline.samples, timeline.glob, tracker.hyps,
