@@ -9,11 +9,11 @@ the same; a ball that may be in the air is not (its two projections differ by it
 feeds the estimate only with a sighting after which each camera saw it still for ``rest_s``.
 
 The offsets are only defined up to a common shift: the estimate is the least-squares one with zero mean over the
-cameras that were paired (``o = L^+ r``, L the graph Laplacian weighted by each pair's sample count, r each
-camera's summed differences). Its covariance per axis is ``s^2 L^+`` with s the differences' standard deviation
-estimated from the residuals: ``uncertainty_m``; it is solved again once the differences taken since grow by
-RESOLVE_SHARE of all. Each pair keeps at most ``max_samples`` (older samples are scaled
-down), so the estimate follows a calibration that changes.
+cameras that were paired, within each set that shares differences (``o = L^+ r``, L the graph Laplacian weighted by
+each pair's sample count, r each camera's summed differences). Its covariance per axis is ``s^2 L^+`` with s the
+differences' standard deviation estimated from the residuals: ``uncertainty_m``; it is solved again once the
+differences taken since grow by RESOLVE_SHARE of all. Each pair keeps at most ``max_samples`` (older samples are
+scaled down), so the estimate follows a calibration that changes.
 
 What a frame feeds is a compiled kernel over arrays (``alignment_frame``), the one the bridge's compiled pass
 (vision_fast_path) runs per datagram and ``CameraAlignment.frame`` runs for everyone else, so the bridge's two
@@ -30,11 +30,10 @@ import numpy as np
 from erforce_interfaces.runtime.numba_support import numba
 from erforce_interfaces.ssl.ssl_vision import DecodeLimits
 
-RESOLVE_SHARE = 0.01  # solve again once the new differences are this share of all (a pseudo-inverse per frame costs)
+RESOLVE_SHARE = 0.01  # solve again once the new differences are this share of all (a solve per frame costs)
 N_CAMERAS = DecodeLimits().max_camera_id + 1  # camera ids SSL-Vision can report
 IDS_PER_TEAM = DecodeLimits().max_robot_id + 1
 N_KEYS = 2 * IDS_PER_TEAM + 1  # what two cameras can both see: a robot by team (0, 1) and id, then the ball
-BALL_KEY = N_KEYS - 1
 HISTORY = 64  # ball sightings a camera keeps for the rest test (0.15 s at up to ~400 Hz)
 # settings
 SET_GAP, SET_MOTION, SET_REST, SET_REST_RADIUS, SET_DISAGREEMENT, SET_MAX_SAMPLES, SET_RESOLVE_SHARE = range(7)
