@@ -9,7 +9,9 @@ A reader process subscribes to what the stack reads of the bridge (the ball pred
 one message per camera frame with its ball and both teams), or with ``--readers all`` also to /vision/ball and
 the 22 robots' own vision_pose topics, or with ``--readers none`` to nothing: the bridge publishes
 /vision/ball and a robot's vision_pose only while the topic has a reader.
-``python bench/bench_ssl_vision.py [--quick] [--readers ours|all|none]``
+Each path of the bridge in its own run (``--paths``): the compiled pass without the camera alignment, with it (the
+default), and the general path with it (``defend_side: positive_x`` takes it: the half turn is the general path's).
+``python bench/bench_ssl_vision.py [--quick] [--readers ours|all|none] [--paths fast aligned general]``
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
 from table import bench_main
 
 from erforce_interfaces.ssl.ssl_vision import (
@@ -114,24 +117,20 @@ def find_port() -> int:
         return probe.getsockname()[1]
 
 
-def send_load(port: int, duration_s: float) -> int:
+VISION_EPOCH_S = 1.7e9  # the vision host's clock: Unix time
+GEOMETRY = FieldGeometry(FIELD.length_m, FIELD.width_m, FIELD.boundary_m, 1.8, 0.18,
+                         ball_model=BallModelFromVision(-2.5, -0.3, 0.6))
+
+
+def camera_frames(duration_s: float):
+    """(send time [s], datagram) of every camera frame, in sending order."""
     rng = random.Random(7)
     centres = [(rng.uniform(-5.0, 5.0), rng.uniform(-3.8, 3.8)) for _ in range(22)]
-    sock = open_multicast_sender("127.0.0.1")
     cams = cameras()
     phases = [rng.uniform(0.0, 1.0 / RATE_HZ) for _ in cams]
     frame_numbers = [0] * len(cams)
     schedule = sorted((phases[i] + k / RATE_HZ, i) for i in range(len(cams)) for k in range(int(duration_s * RATE_HZ)))
-    geometry = FieldGeometry(FIELD.length_m, FIELD.width_m, FIELD.boundary_m, 1.8, 0.18,
-                             ball_model=BallModelFromVision(-2.5, -0.3, 0.6))
-    sock.sendto(encode_geometry(geometry), (GROUP, port))
-    sent = 1
-    start = time.perf_counter()
-    vision_epoch = 1.7e9  # the vision host's clock: Unix time
     for t, i in schedule:
-        delay = start + t - time.perf_counter()
-        if delay > 0:
-            time.sleep(delay)
         cam, (x0, x1), (y0, y1) = cams[i]
         ball, robots = world(t, centres)
         balls = []
@@ -142,22 +141,83 @@ def send_load(port: int, duration_s: float) -> int:
         seen = tuple(RobotSighting(team, rid, x, y, math.remainder(th, 2 * math.pi), 1.0)
                      for team, rid, x, y, th in robots if x0 <= x <= x1 and y0 <= y <= y1)
         frame_numbers[i] += 1
-        packet = CameraFrame(cam, frame_numbers[i], vision_epoch + t, vision_epoch + t + 0.004, tuple(balls), seen)
-        sock.sendto(encode_frame(packet), (GROUP, port))
+        packet = CameraFrame(cam, frame_numbers[i], VISION_EPOCH_S + t, VISION_EPOCH_S + t + 0.004, tuple(balls), seen)
+        yield t, encode_frame(packet)
+
+
+def send_load(port: int, duration_s: float) -> int:
+    sock = open_multicast_sender("127.0.0.1")
+    sock.sendto(encode_geometry(GEOMETRY), (GROUP, port))
+    sent = 1
+    start = time.perf_counter()
+    for t, data in camera_frames(duration_s):
+        delay = start + t - time.perf_counter()
+        if delay > 0:
+            time.sleep(delay)
+        sock.sendto(data, (GROUP, port))
         sent += 1
     time.sleep(1.2)  # one more statistics period, then a last datagram to trigger the line
-    sock.sendto(encode_geometry(geometry), (GROUP, port))
+    sock.sendto(encode_geometry(GEOMETRY), (GROUP, port))
     sock.close()
     return sent + 1
 
 
-def run(quick: bool = False, readers: str = "ours") -> list[dict]:
+# the bridge's paths: (what the table calls it, the parameters that take it)
+PATHS = {
+    "fast": ("compiled pass, no camera alignment", {"camera_alignment": False}),
+    "aligned": ("compiled pass with the camera alignment", {}),
+    "general": ("general path with the camera alignment", {"defend_side": "positive_x"}),
+}
+
+
+def pass_cost(duration_s: float, align: bool) -> list[int]:
+    """Thread CPU time [ns] of the compiled pass alone (no socket, no publish) per datagram of the same load."""
+    from erforce_ball_model.camera_alignment import CameraAlignment
+    from erforce_ball_model.vision_fast_path import FramePass, load_kernels
+    from erforce_ball_model.vision_tracking import MAX_ROBOT_ID, VisionTracker
+    from erforce_interfaces.ssl.vision_time import TIME_ESTIMATE, VisionClock
+
+    load_kernels()
+    tracker = VisionTracker(FIELD)
+    frame_pass = FramePass(VisionClock(), tracker, np.zeros((2, MAX_ROBOT_ID + 1), np.int64), 0.0, 11,
+                           alignment=CameraAlignment() if align else None)
+    cost_ns = []
+    clock = time.thread_time_ns
+    for t, data in camera_frames(duration_s):
+        t0 = clock()
+        frame_pass.run(data, VISION_EPOCH_S + t + 0.005, TIME_ESTIMATE)
+        cost_ns.append(clock() - t0)
+    return cost_ns
+
+
+def pass_rows(duration_s: float) -> list[dict]:
+    rows = []
+    for align in (False, True):
+        cost_us = np.sort(pass_cost(duration_s, align)) * 1e-3
+        p99_us = cost_us[int(0.99 * (len(cost_us) - 1))]
+        rows.append({"name": f"compiled pass alone, {'with' if align else 'no'} camera alignment: CPU per datagram, "
+                             "median", "unit": "us", "value": cost_us[len(cost_us) // 2], "target": "-",
+                     "note": f"mean {cost_us.mean():.1f} us, p99 {p99_us:.1f} us over {len(cost_us)} datagrams in "
+                             "this process (decode, clock, alignment, tracker, message bytes; no socket, no publish)"})
+    return rows
+
+
+def run(quick: bool = False, readers: str = "ours", paths: tuple[str, ...] = tuple(PATHS)) -> list[dict]:
+    rows = pass_rows(5.0 if quick else 20.0)
+    for path in paths:
+        label, params = PATHS[path]
+        for row in run_path(quick, readers, params):
+            rows.append({**row, "name": f"{label}: {row['name']}"})
+    return rows
+
+
+def run_path(quick: bool, readers: str, params: dict) -> list[dict]:
     duration_s = 5.0 if quick else 20.0
     port = find_port()
     with RosGraph() as graph:
         node = graph.start_node("erforce_ball_model", "ssl_vision_bridge", params={
             "port": port, "interface": "127.0.0.1", "field": "division_a", "stats_period_s": 1.0,
-            "team_color": "blue", "num_robots": 11})
+            "team_color": "blue", "num_robots": 11, **params})
         node.wait_for_output(r"ssl_vision_bridge: 224\.5\.23\.2", timeout_s=60.0)
         topics = reader_topics(readers)
         reader = graph.start([sys.executable, "-c", READER, *topics], name="vision_reader") if topics else None
@@ -199,9 +259,10 @@ def run(quick: bool = False, readers: str = "ours") -> list[dict]:
 def main() -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument("--readers", choices=("ours", "all", "none"), default="ours")
+    parser.add_argument("--paths", nargs="+", choices=tuple(PATHS), default=list(PATHS))
     args, rest = parser.parse_known_args()
     sys.argv[1:] = rest
-    return bench_main(lambda quick=False: run(quick, args.readers), __doc__.splitlines()[0])
+    return bench_main(lambda quick=False: run(quick, args.readers, tuple(args.paths)), __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

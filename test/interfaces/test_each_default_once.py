@@ -61,8 +61,8 @@ def same_value(found: Any, default: Any) -> bool:
     return False
 
 
-def schema_defaults() -> list[Default]:
-    """Every scalar (numeric or string) default of every node schema."""
+def schema_defaults(bools: bool = False) -> list[Default]:
+    """Every scalar (numeric or string; with ``bools`` boolean too) default of every node schema."""
     out = []
     for path in sorted(SRC.glob("*/*/params/*.yaml")):
         rel = path.relative_to(ROOT)
@@ -81,7 +81,7 @@ def schema_defaults() -> list[Default]:
                 module, _, attribute = home.partition(":")
                 value = getattr(__import__(module, fromlist=[attribute]), attribute)
                 out.append(Default(node.value, key.value, value, f"{rel}:{line}", home))
-    return [d for d in out if isinstance(d.value, int | float | str) and not isinstance(d.value, bool)]
+    return [d for d in out if isinstance(d.value, int | float | str) and (bools or not isinstance(d.value, bool))]
 
 
 # ------------------------------------------------------------------ bindings in Python
@@ -210,6 +210,7 @@ MIRRORED_KNOBS = {
     ("demo", "robot_a_max_mps2"): ("ball_predictor", "robot_a_max_mps2"),
     ("demo", "robot_v_max_mps"): ("ball_predictor", "robot_v_max_mps"),
     ("demo", "ssl_vision_port"): ("plant", "ssl_vision_port"),
+    ("demo", "camera_alignment"): ("ssl_vision_bridge", "camera_alignment"),
     ("receiver", "robot_a_max_mps2"): ("catcher", "a_max_mps2"),
     ("receiver", "robot_v_max_mps"): ("catcher", "v_max_mps"),
     ("receiver", "field"): ("catcher", "field"),
@@ -239,6 +240,7 @@ MIRRORED_KNOBS = {
     ("team_sim", "team_color"): ("plant", "team_color"),
     ("team_sim", "ssl_vision_port"): ("plant", "ssl_vision_port"),
     ("team_sim", "predictor_timing_log_every"): ("ball_predictor", "timing_log_every"),
+    ("team_sim", "camera_alignment"): ("ssl_vision_bridge", "camera_alignment"),
 }
 
 
@@ -302,12 +304,14 @@ def test_each_schema_default_is_written_once():
 
 
 def test_a_launch_knob_defaults_to_the_parameter_it_mirrors():
-    by_node = {(d.node, d.name): d for d in schema_defaults()}
+    by_node = {(d.node, d.name): d for d in schema_defaults(bools=True)}
     args = {(_launch_name(p), name): (value, f"{p.relative_to(ROOT)}:{line}")
             for p in launch_files() for name, value, line, _, is_arg in yaml_bindings(p) if is_arg}
     for (launch, arg), (node, param) in MIRRORED_KNOBS.items():
         assert (launch, arg) in args, f"{launch}.launch.yaml has no argument {arg}: drop it from MIRRORED_KNOBS"
         value, where = args[launch, arg]
         default = by_node[node, param]
-        assert same_value(value, default.value), \
+        mirrored = yaml.safe_load(str(value)) is default.value if isinstance(default.value, bool) else \
+            same_value(value, default.value)
+        assert mirrored, \
             f"{where}: {arg} defaults to {value!r}, {node}.{param} to {default.value!r} ({default.where})"

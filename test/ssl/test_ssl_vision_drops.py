@@ -2,7 +2,7 @@
 frame whose t_capture is not after its newest one (per camera), a frame's ball candidates beyond 32 (its robots
 are kept), garbage, a rejected geometry; each with its own throttled warning, so one class never hides another.
 In-process on the compiled pass and on the general path, and over UDP loopback with the periodic statistics.
-With camera_alignment the general path takes each camera's estimated offset off its balls."""
+With camera_alignment (the default) both paths take each camera's estimated offset off its balls and robots."""
 
 from __future__ import annotations
 
@@ -203,12 +203,14 @@ def test_drops_over_udp_are_named_and_counted_in_the_statistics(ros_graph):
         sock.close()
 
 
-def test_camera_alignment_takes_each_cameras_offset_off_its_balls():
-    """camera_alignment:=true: two cameras report the same robots 2 cm apart along x (camera 0 at -1 cm, camera 1
-    at +1 cm); a ball at rest at (0.1, 0.5) that both see comes out of the bridge at 0.1 from either camera, where
-    the raw reports say 0.09 and 0.11. The offsets the bridge learnt are each camera's, less their mean."""
-    with recording_bridge(True, "camera_alignment:=true") as (node, published, warnings):
-        assert not node._fast
+@pytest.mark.parametrize("general_path", [False, True])
+def test_camera_alignment_takes_each_cameras_offset_off_its_balls_and_robots(general_path):
+    """camera_alignment (default true), on the compiled pass and on the general path: two cameras report the same
+    robots 2 cm apart along x (camera 0 at -1 cm, camera 1 at +1 cm); a ball at rest at (0.1, 0.5) that both see
+    comes out of the bridge at 0.1 from either camera, where the raw reports say 0.09 and 0.11, and so do the
+    robots, at their true places. The offsets the bridge learnt are each camera's, less their mean."""
+    with recording_bridge(general_path) as (node, published, warnings):
+        assert node._alignment is not None and node._fast == (not general_path)
         offsets = {0: -0.01, 1: 0.01}
         robots = [("blue", 0, 0.2, 1.0), ("blue", 1, -0.3, -1.0), ("yellow", 2, 0.0, 2.0)]
         t = 0.0
@@ -223,4 +225,9 @@ def test_camera_alignment_takes_each_cameras_offset_off_its_balls():
         assert all(len(b) for b in balls)
         for b in balls:
             assert b[0][0] == pytest.approx(0.1, abs=2e-4) and b[0][1] == pytest.approx(0.5, abs=2e-4)
+        for data in published[-2:]:
+            rows = vision_frame_from_msg(data)[2]
+            assert sorted(rows[:, 1].tolist()) == [0.0, 1.0, 2.0]
+            for _team, rid, x, y in robots:
+                assert rows[rows[:, 1] == rid, 2:4].tolist()[0] == pytest.approx([x, y], abs=2e-4)
         assert not warnings

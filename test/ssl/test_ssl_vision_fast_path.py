@@ -1,8 +1,9 @@
 """erforce_ball_model.vision_fast_path: the compiled pass from a datagram's bytes to /vision/robots' bytes agrees
 with the general path (decode_wrapper, VisionClock, VisionTracker.frame_indices, the points,
-vision_robots_points_cdr) on every datagram of a long, eventful stream, byte for byte; and it hands back,
-untouched, whatever it does not take (garbage, truncations, absurd counts, NaN and huge coordinates), never
-crashing or writing non-finite values."""
+vision_robots_points_cdr) on every datagram of a long, eventful stream, byte for byte, with the camera alignment
+(cameras with known offsets) and without; and it hands back, untouched, whatever it does not take (garbage,
+truncations, absurd counts, NaN and huge coordinates), never crashing or writing non-finite values. With cameras
+that agree, the alignment moves what the bridge publishes by no more than its estimate's uncertainty."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from erforce_ball_model.ball_model import BallModelParams
+from erforce_ball_model.camera_alignment import CameraAlignment
 from erforce_ball_model.vision_fast_path import (
     PASS_BAD_STAMP,
     PASS_CLOCK_JUMP,
@@ -61,8 +63,9 @@ class Pipeline:
     """A clock, a capture order, a capture timeline and a tracker as the bridge holds them, with pose reader counts
     by side and id; stamps from the time source ``mode``."""
 
-    def __init__(self, mode: int = TIME_ESTIMATE, model: BallModelParams | None = None) -> None:
+    def __init__(self, mode: int = TIME_ESTIMATE, model: BallModelParams | None = None, align: bool = False) -> None:
         self.mode = mode
+        self.alignment = CameraAlignment() if align else None
         self.clock = VisionClock()
         self.timeline = CaptureTimeline(self.clock.jump_s)
         self.order = CaptureOrder(self.clock.jump_s)
@@ -102,14 +105,17 @@ def general_path(p: Pipeline, data: bytes, t_receive: float):
         return ("t_capture_back" if exc.kind == "t_capture_back" else "jump"), None
     if not (math.isfinite(t_s) and t_s >= 0.0):
         return "stamp", None
-    ball, used = p.tracker.frame_indices(frame.camera_id, t_s, frame.balls, frame.robots)
+    balls, robots = frame.balls, frame.robots
+    if p.alignment is not None:
+        balls, robots = p.alignment.take(frame.camera_id, frame.t_capture_s, balls, robots)
+    ball, used = p.tracker.frame_indices(frame.camera_id, t_s, balls, robots)
     if not len(used) and ball is None:
         return "nothing", ball
     action = 0 if ball is None else BALL_SIGHTING if ball.sighting else BALL_UPDATE
-    n = frame_points(frame.robots, used, OURS, N_OURS, p.readers, p.points, p.cameras[frame.camera_id], action,
+    n = frame_points(robots, used, OURS, N_OURS, p.readers, p.points, p.cameras[frame.camera_id], action,
                      ball.x_m if action else 0.0, ball.y_m if action else 0.0)
     if n < 0:
-        return ("general", frame.robots[used].tolist(), ball), ball
+        return ("general", robots[used].tolist(), ball), ball
     if n == 0:
         return "nothing", ball
     return vision_robots_points_cdr(t_s, p.points[:n]), ball
@@ -142,16 +148,19 @@ def compiled_path(p: Pipeline, fp: FramePass, data: bytes, t_receive: float):
     return fp.message_view[:n_bytes].tobytes(), ball
 
 
-def eventful_stream(seed: int = 3, duration_s: float = 4.0, step_back_s: float = 0.0) -> list[tuple[bytes, float]]:
+def eventful_stream(seed: int = 3, duration_s: float = 4.0, step_back_s: float = 0.0, offsets_m=None,
+                    robot_noise_m: float = 0.0, camera_phase_s: float = 0.0017) -> list[tuple[bytes, float]]:
     """(datagram, receive time) of 8 cameras at 75 Hz: 22 robots, the ball kicked, out into the run-off area and
     put down elsewhere, reflections, robots without orientation or beyond our ids, duplicate ids, a camera's
     clock jumping forward, another's starting again, frames out of order, the same frame twice, a frame with more
     ball candidates than a frame keeps, garbage and a geometry packet; with ``step_back_s`` camera 6's clock goes
-    back by that much for 0.5 s (t_capture and t_sent)."""
+    back by that much for 0.5 s (t_capture and t_sent). ``offsets_m``: by camera, (x, y) it adds to everything it
+    reports; ``robot_noise_m``: each camera's Gaussian noise on its robots; camera k captures ``k camera_phase_s``
+    after camera 0."""
     rng = random.Random(seed)
     centres = [(rng.uniform(-5.0, 5.0), rng.uniform(-3.8, 3.8)) for _ in range(22)]
     out = []
-    events = sorted((cam * 0.0017 + k / 75.0, cam) for cam in range(8) for k in range(int(duration_s * 75)))
+    events = sorted((cam * camera_phase_s + k / 75.0, cam) for cam in range(8) for k in range(int(duration_s * 75)))
     for n, (t, cam) in enumerate(events):
         col, row = cam % 4, cam // 4
         x0, y0 = -6.25 + col * 3.125 - 0.3, -4.75 + row * 4.75 - 0.3
@@ -176,6 +185,8 @@ def eventful_stream(seed: int = 3, duration_s: float = 4.0, step_back_s: float =
             x, y = cx + 0.5 * math.cos(t + k), cy + 0.5 * math.sin(t + k)
             if x0 <= x <= x1 and y0 <= y <= y1:
                 theta = None if (n + k) % 41 == 0 else math.remainder(t + k, 2 * math.pi)
+                if robot_noise_m:
+                    x, y = x + rng.gauss(0.0, robot_noise_m), y + rng.gauss(0.0, robot_noise_m)
                 robots.append(RobotSighting(team, rid, x, y, theta, 1.0))
         if n % 29 == 0:
             robots.append(RobotSighting("blue", 12 + n % 5, 0.1, 0.2, 0.3, 1.0))  # beyond num_robots
@@ -184,6 +195,10 @@ def eventful_stream(seed: int = 3, duration_s: float = 4.0, step_back_s: float =
             robots.append(r._replace(x_m=r.x_m + 0.05))  # a duplicate id
         if n % 211 == 0:  # more candidates than a frame keeps: the first 32 count, the robots too
             balls += [BallCandidate(rng.uniform(x0, x1), rng.uniform(y0, y1), 0.3) for _ in range(40)]
+        if offsets_m is not None:
+            ox, oy = offsets_m[cam]
+            balls = [b._replace(x_m=b.x_m + ox, y_m=b.y_m + oy) for b in balls]
+            robots = [r._replace(x_m=r.x_m + ox, y_m=r.y_m + oy) for r in robots]
         t_capture = 100.0 + t
         t_sent = t_capture + 0.004
         if cam == 2 and 1.5 <= t < 2.5:
@@ -208,13 +223,29 @@ def eventful_stream(seed: int = 3, duration_s: float = 4.0, step_back_s: float =
     return out
 
 
-@pytest.mark.parametrize("mode", [TIME_ESTIMATE, TIME_CAPTURE])
-def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(mode):
-    general, compiled = Pipeline(mode), Pipeline(mode)
-    fp = FramePass(compiled.clock, compiled.tracker, compiled.readers, OURS, N_OURS, compiled.order,
-                   timeline=compiled.timeline, cameras=compiled.cameras)
+# each camera's offset: 1-3 cm in every direction (a calibration's error), zero mean over the eight
+CAMERA_OFFSETS_M = {cam: (0.02 * math.cos(0.8 * cam) + 0.01 * (cam % 2), 0.02 * math.sin(0.8 * cam) - 0.01)
+                    for cam in range(8)}
+_MEAN_OFFSET_M = np.mean(list(CAMERA_OFFSETS_M.values()), axis=0)
+CAMERA_OFFSETS_M = {cam: (o[0] - _MEAN_OFFSET_M[0], o[1] - _MEAN_OFFSET_M[1]) for cam, o in CAMERA_OFFSETS_M.items()}
+
+
+def bound_pass(p: Pipeline) -> FramePass:
+    return FramePass(p.clock, p.tracker, p.readers, OURS, N_OURS, p.order, timeline=p.timeline, cameras=p.cameras,
+                     alignment=p.alignment)
+
+
+@pytest.mark.parametrize(("mode", "align"), [(TIME_ESTIMATE, False), (TIME_CAPTURE, False), (TIME_ESTIMATE, True),
+                                             (TIME_CAPTURE, True)])
+def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(mode, align):
+    """With ``align`` the cameras report everything off by CAMERA_OFFSETS_M: both paths learn the same offsets (the
+    same arrays at the end, close to the true ones) and publish the same corrected bytes."""
+    general, compiled = Pipeline(mode, align=align), Pipeline(mode, align=align)
+    fp = bound_pass(compiled)
     outcomes = set()
-    for k, (data, t_receive) in enumerate(eventful_stream(step_back_s=2.0 if mode == TIME_CAPTURE else 0.0)):
+    stream = eventful_stream(step_back_s=2.0 if mode == TIME_CAPTURE else 0.0,
+                             offsets_m=CAMERA_OFFSETS_M if align else None)
+    for k, (data, t_receive) in enumerate(stream):
         if k == 1500:  # a tool subscribes to one of our robots' vision_pose: its frames take the general path
             general.readers[0, 4] = compiled.readers[0, 4] = 1
         want, want_ball = general_path(general, data, t_receive)
@@ -243,6 +274,49 @@ def test_the_pass_gives_the_general_paths_bytes_and_balls_on_an_eventful_stream(
     else:  # camera 5's restart; camera 6's clock back and forward again: each confirmed
         assert general.timeline.jumps_confirmed == compiled.timeline.jumps_confirmed == 3
         assert np.array_equal(general.timeline.cams, compiled.timeline.cams, equal_nan=True)
+    if align:
+        for a, b in zip(general.alignment.state(), compiled.alignment.state(), strict=True):
+            assert np.array_equal(a, b, equal_nan=True)
+        assert np.array_equal(general.alignment.offsets, compiled.alignment.offsets)
+        # only differences are observable, within each set of cameras that share robots: the stream's are 0-1, 2-3
+        # and 4-5-6-7; SSL's 1 mm steps, robots moving up to 0.85 mm between two cameras' captures
+        paired = [(a, b) for a in range(8) for b in range(a + 1, 8) if compiled.alignment.samples(a, b) > 50]
+        assert paired == [(0, 1), (2, 3), (4, 5), (5, 6), (6, 7)]
+        for a, b in paired:
+            want = np.subtract(CAMERA_OFFSETS_M[a], CAMERA_OFFSETS_M[b])
+            got = np.subtract(compiled.alignment.offset_m(a), compiled.alignment.offset_m(b))
+            assert np.all(np.abs(got - want) <= 2e-3), (a, b, got, want)
+
+
+def test_with_cameras_that_agree_the_alignment_moves_what_is_published_by_no_more_than_its_uncertainty():
+    """No offsets (our plant, grSim: every camera at one capture), each camera's robots with ER-Force's 1.3 mm noise:
+    every robot and ball the aligned pass publishes lies within 4 standard deviations of the estimate (its stated
+    uncertainty per axis for that camera) of what the pass without the alignment publishes from the same datagrams,
+    with the same robots, once 0.2 s of captures are in (before, the stated uncertainty rests on a dozen
+    differences' spread); at the end every camera's offset is within 4 of its standard deviations of zero."""
+    raw, aligned = Pipeline(), Pipeline(align=True)
+    passes = [bound_pass(p) for p in (raw, aligned)]
+    compared = 0
+    for data, t_receive in eventful_stream(robot_noise_m=0.0013, camera_phase_s=0.0):
+        got = [compiled_path(p, fp, data, t_receive)[0] for p, fp in zip((raw, aligned), passes, strict=True)]
+        if not isinstance(got[0], bytes):
+            assert type(got[1]) is type(got[0])
+            continue
+        clouds = [vision_cloud_from_msg(g) for g in got]
+        sd_m = aligned.alignment.uncertainty_m(decode_wrapper(data).detection.camera_id)  # of the offset taken off
+        if t_receive < 1.7e9 + 0.2:
+            continue
+        assert np.array_equal(clouds[0].robots[:, :2], clouds[1].robots[:, :2])  # the same robots
+        for a, b in ((clouds[0].robots[:, 2:4], clouds[1].robots[:, 2:4]), (clouds[0].balls, clouds[1].balls),
+                     (clouds[0].sightings, clouds[1].sightings)):
+            assert a.shape == b.shape
+            moved_m = np.abs(a - b).max(initial=0.0)
+            assert moved_m <= 4.0 * sd_m, (moved_m, sd_m)  # sd_m inf: a pair of one difference
+        compared += 1
+    assert compared > 1500
+    for cam in range(8):
+        sd_m = aligned.alignment.uncertainty_m(cam)
+        assert sd_m < 3e-4 and np.all(np.abs(aligned.alignment.offset_m(cam)) <= 4.0 * sd_m), cam
 
 
 def kick_stream(v0_mps: float, a_slide: float, a_roll: float, c_switch: float, seed: int = 4):
@@ -303,8 +377,9 @@ def _detection(balls, robots, t_capture=100.0, camera_id=2) -> bytes:
 
 
 floats = st.floats(allow_nan=True, allow_infinity=True, width=32)
-fresh = Pipeline()
-fresh_pass = FramePass(fresh.clock, fresh.tracker, fresh.readers, OURS, N_OURS, fresh.order)
+fresh = Pipeline(align=True)
+fresh_pass = FramePass(fresh.clock, fresh.tracker, fresh.readers, OURS, N_OURS, fresh.order,
+                       alignment=fresh.alignment)
 
 
 @settings(max_examples=300, deadline=None)
@@ -324,11 +399,11 @@ def test_fuzz_what_the_pass_takes_is_valid_and_the_rest_is_handed_back_untouched
     edited[edit[0] % len(edited)] = edit[1]
     for chunk in (data, data[: cut % (len(data) + 1)], bytes(edited)):
         before = [a.copy() for a in (fresh.order.last_s, fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps,
-                                     fresh.tracker.counts, fresh.tracker.robot_tracks)]
+                                     fresh.tracker.counts, fresh.tracker.robot_tracks, *fresh.alignment.state())]
         status, n_bytes, action, t_s, ball_x, ball_y = fresh_pass.run(chunk, 1.7e9, TIME_ESTIMATE)
         if status == PASS_FALLBACK:  # nothing changed; the general path names the problem or drops a detection
             after = (fresh.order.last_s, fresh.clock.window, fresh.clock.counts, fresh.tracker.hyps,
-                     fresh.tracker.counts, fresh.tracker.robot_tracks)
+                     fresh.tracker.counts, fresh.tracker.robot_tracks, *fresh.alignment.state())
             assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(before, after, strict=True))
             try:
                 packet = decode_wrapper(chunk)
@@ -343,7 +418,7 @@ def test_fuzz_what_the_pass_takes_is_valid_and_the_rest_is_handed_back_untouched
         # what the pass took, the runtime parses as a detection frame whose every detection is valid
         packet = decode_wrapper(chunk)
         assert packet.problems == [] and packet.detection is not None
-        assert np.isfinite(fresh_pass.robots()[:, 2:4]).all()
+        assert np.isfinite(fresh_pass.robots()[:, 2:4]).all() and np.isfinite(fresh.alignment.offsets).all()
         if status in (PASS_T_CAPTURE_BACK, PASS_CLOCK_JUMP, PASS_BAD_STAMP):
             continue
         assert math.isfinite(t_s) and math.isfinite(ball_x) and math.isfinite(ball_y)

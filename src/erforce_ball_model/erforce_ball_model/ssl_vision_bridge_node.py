@@ -3,9 +3,10 @@
 A receive thread drains the socket in batches (at most ``max_batch`` per round; the kernel buffer
 ``receive_buffer_bytes`` absorbs bursts meanwhile); a round that finds more than ``flood_batch``
 datagrams keeps each camera's newest frame and says so. Each datagram goes through
-erforce_interfaces.ssl.ssl_vision (decoding, checks, capture order, vision clock) and vision_tracking (the
-true ball, robot streams). What it drops is named by its class (ssl_vision.DROP_CLASSES): a throttled
-warning per class and a counter in the periodic statistics line; the tracker's normal choices with
+erforce_interfaces.ssl.ssl_vision (decoding, checks, capture order, vision clock), camera_alignment (each camera's
+offset, learnt from what two cameras see and taken off what the camera reports; ``camera_alignment``) and
+vision_tracking (the true ball, robot streams). What it drops is named by its class (ssl_vision.DROP_CLASSES): a
+throttled warning per class and a counter in the periodic statistics line; the tracker's normal choices with
 overlapping cameras (reflections, an older candidate) are only counted.
 
 A camera frame goes out as one ``/vision/robots`` (what the stack reads), before ``/vision/ball``, with the
@@ -280,15 +281,16 @@ class SslVisionBridge(Node):
                 self._bind_pass()
 
     def _set_path(self) -> None:
-        """The compiled pass takes the usual configuration; a flipped field, the detections topic, the camera
-        alignment and the wait for geometry take the general path."""
+        """The compiled pass takes the usual configuration (with or without the camera alignment); a flipped field,
+        the detections topic and the wait for geometry take the general path."""
         cfg = self._config
-        self._fast = not (cfg.flip or cfg.publish_detections or cfg.camera_alignment or self._tracker.field is None)
+        self._fast = not (cfg.flip or cfg.publish_detections or self._tracker.field is None)
 
     def _bind_pass(self) -> None:
         """The compiled pass on the current clock, tracker and team (at start and after parameter changes)."""
         self._frame_pass = FramePass(self._vision_clock, self._tracker, self._pose_readers, self._ours, self._n_ours,
-                                     self._capture_order, timeline=self._timeline, cameras=self._cameras)
+                                     self._capture_order, timeline=self._timeline, cameras=self._cameras,
+                                     alignment=self._alignment)
 
     def _set_cameras(self) -> None:
         """The camera table from the geometry's cameras, in the field frame (half turned with ``flip``, as the
@@ -633,8 +635,8 @@ class SslVisionBridge(Node):
             balls, robots = balls.copy(), robots.copy()
             balls[:, 0], balls[:, 1] = half_turn(balls[:, 0], balls[:, 1])
             robots[:, 2], robots[:, 3], robots[:, 4] = half_turn(robots[:, 2], robots[:, 3], robots[:, 4])
-        if self._alignment is not None:
-            balls = self._aligned(frame.camera_id, frame.t_capture_s, balls, robots)
+        if self._alignment is not None:  # on the vision host's capture clock (one for all cameras)
+            balls, robots = self._alignment.take(frame.camera_id, frame.t_capture_s, balls, robots)
         ball, used = self._tracker.frame_indices(frame.camera_id, t_s, balls, robots)
         self.stats["frames"] += 1
         try:
@@ -656,18 +658,6 @@ class SslVisionBridge(Node):
                 self._publish_detections(cfg, frame.camera_id, now_s - t_s, balls.tolist(), robots.tolist())
         except ConversionError as exc:
             self._drop("unpublishable", f"camera {frame.camera_id}: not published: {exc}")
-
-    def _aligned(self, camera_id: int, t_capture_s: float, balls: np.ndarray, robots: np.ndarray) -> np.ndarray:
-        """The camera's robots and balls (field frame) feed the alignment, on the vision host's capture clock (one
-        for all cameras); its balls come back without the camera's estimated offset."""
-        self._alignment.frame(camera_id, t_capture_s, robots[:, :4].tolist(), balls[:, :2].tolist())
-        if not len(balls):
-            return balls
-        ox, oy = self._alignment.offset_m(camera_id)
-        balls = balls.copy()
-        balls[:, 0] -= ox
-        balls[:, 1] -= oy
-        return balls
 
     def _publish_robots(self, t_s: float, rows: list[list[float]], ball: BallObservation | None,
                         camera_id: int) -> None:

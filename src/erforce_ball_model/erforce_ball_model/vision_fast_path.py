@@ -1,10 +1,11 @@
 """One compiled pass from an SSL-Vision datagram's bytes to the bytes of its /vision/robots message.
 
 The bridge's usual datagram (one camera frame, every detection valid) goes through the same kernels as the
-general path, in one call: ssl_vision's pass over the protobuf bytes, the vision clock, the tracker's ball
-hypotheses, its choice of the ball, the ball filter's usual update (``tracking.ball_step``: the pass returns
-``BALL_FUSED`` + its status) and its robot streams, the message's points (the camera's first, from the bridge's
-camera table, ``camera_table``) and their CDR. What needs Python
+general path, in one call: ssl_vision's pass over the protobuf bytes, the vision clock, the camera alignment
+(camera_alignment's kernels: the frame feeds the estimate, the camera's offset comes off its balls and robots),
+the tracker's ball hypotheses, its choice of the ball, the ball filter's usual update (``tracking.ball_step``: the
+pass returns ``BALL_FUSED`` + its status) and its robot streams, the message's points (the camera's first, from
+the bridge's camera table, ``camera_table``) and their CDR. What needs Python
 stays outside: a new ball and the ball filter's unusual frames (``VisionTracker.use_ball`` with the action
 returned) and anything unusual, which the pass hands back before it has changed any state (``PASS_FALLBACK``: the
 bridge runs the general path on the datagram, which names the problem) or after (``PASS_GENERAL``: a robot
@@ -14,9 +15,9 @@ the points cannot carry; ``PASS_T_CAPTURE_BACK``, ``PASS_CLOCK_JUMP``, ``PASS_TI
 stamp comes from the time source's mode (vision_time.TIME_SOURCES: the vision clock's estimate, ``t_capture`` as
 it is, or the capture timeline).
 The message written is byte for byte what ``clouds.vision_robots_points_cdr`` builds from the same
-points. The kernels it calls from other modules (vision_time's clock and timeline, the tracker's) are compiled
-into it, and numba's cache of this module goes by this file alone: a change there needs this file touched
-(or its ``__pycache__`` entries removed) to take effect here.
+points. The kernels it calls from other modules (vision_time's clock and timeline, the tracker's, the camera
+alignment's) are compiled into it, and numba's cache of this module goes by this file alone: a change there needs
+this file touched (or its ``__pycache__`` entries removed) to take effect here.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ import math
 import numpy as np
 
 from erforce_ball_model import tracking
+from erforce_ball_model.camera_alignment import CameraAlignment, alignment_frame, correct_rows
+from erforce_ball_model.camera_alignment import load_kernels as load_alignment_kernels
 from erforce_ball_model.vision_tracking import (
     BALL_FUSED,
     BALL_NONE,
@@ -188,10 +191,12 @@ def _message(t_s, points, n_points, head, width_at, sizes_at, message):
 def _frame_pass(data, t_receive, time_mode, rows, limits, last_capture, clock_window, clock_pending, clock_counts,
                 clock_params, timeline_cams, timeline_samples, timeline_glob, hyps, hits, candidates, tracks, used,
                 settings, ball_state, counts, ball_filter, shoot_samples, ball_model, pose_readers, ours_n_ours,
-                cameras, points, head, layout, message, info):
+                cameras, points, head, layout, message, info, align, align_newest, align_history, align_cams,
+                align_pairs, align_totals, align_settings, align_offsets, align_std):
     """The datagram ``data`` received at ``t_receive`` (the ROS clock; with TIME_CAPTURE a monotonic wall clock)
-    through decoding, capture order, clock, tracker and message (see the module docstring): (status, message
-    length or -1, ball action, stamp, ball x, ball y)."""
+    through decoding, capture order, clock, camera alignment (``align``: the frame feeds the estimate, then the
+    camera's offset is taken off its balls and robots), tracker and message (see the module docstring): (status,
+    message length or -1, ball action, stamp, ball x, ball y)."""
     max_balls, max_robots = int(limits[0]), int(limits[1])
     status, n_balls, n_robots, n_rejected, geometry = detection_rows(
         data, rows, max_balls, max_robots, limits[2], limits[3], limits[4], limits[5])
@@ -222,9 +227,14 @@ def _frame_pass(data, t_receive, time_mode, rows, limits, last_capture, clock_wi
     if not (np.isfinite(t_s) and t_s >= 0.0):
         info[I_STAMP] = t_s
         return PASS_BAD_STAMP, -1, 0, 0.0, 0.0, 0.0
+    balls = rows[8:8 + 4 * n_balls].reshape(n_balls, 4)
+    robots = rows[ROBOTS_AT:ROBOTS_AT + 6 * n_robots].reshape(n_robots, 6)
+    if align:  # CameraAlignment.take, on the vision host's capture clock
+        alignment_frame(align_newest, align_history, align_cams, align_pairs, align_totals, align_settings,
+                        align_offsets, align_std, camera, rows[1], robots, balls)
+        correct_rows(align_offsets, camera, balls, robots)
     # VisionTracker.frame_indices
     counts[COUNT_FRAMES] += 1
-    balls = rows[8:8 + 4 * n_balls].reshape(n_balls, 4)
     p = settings
     n_hyps, n_candidates = update_hypotheses(
         hyps, hits, counts[COUNT_HYPOTHESES], t_s, balls, p[SETTING_MIN_CONFIDENCE], p[SETTING_MAX_X],
@@ -239,7 +249,6 @@ def _frame_pass(data, t_receive, time_mode, rows, limits, last_capture, clock_wi
         if status == 0 or status == 1:  # UpdateStatus.INITIALIZED, ACCEPTED
             note_ball_taken(ball_state, t_s, ball_x, ball_y, ball_filter)
             action = BALL_FUSED + status
-    robots = rows[ROBOTS_AT:ROBOTS_AT + 6 * n_robots].reshape(n_robots, 6)
     n_used = 0
     if n_robots:
         n_used = track_robots(robots, t_s, tracks, p[SETTING_ROBOT_GATE], p[SETTING_ROBOT_SPEED], MAX_ROBOT_ID, used)
@@ -264,10 +273,12 @@ class FramePass:
 
     def __init__(self, clock: VisionClock, tracker: VisionTracker, pose_readers: np.ndarray, ours: float,
                  n_ours: int, order: CaptureOrder | None = None, limits: DecodeLimits = _LIMITS,
-                 timeline: CaptureTimeline | None = None, cameras: np.ndarray | None = None) -> None:
+                 timeline: CaptureTimeline | None = None, cameras: np.ndarray | None = None,
+                 alignment: CameraAlignment | None = None) -> None:
         """``order``, ``timeline``: the cameras' capture order and capture timeline the node's general path shares
         (new ones when None); the order's restart_s is read here, at binding. ``cameras``: the node's
-        ``camera_table``, read per frame (None: no camera known)."""
+        ``camera_table``, read per frame (None: no camera known). ``alignment``: the node's camera alignment (None:
+        none), fed and applied by the pass as ``CameraAlignment.take`` does."""
         if (limits.max_balls, limits.max_robots_per_team) != (_LIMITS.max_balls, _LIMITS.max_robots_per_team):
             raise ValueError("FramePass: the rows' layout is compiled for the default counts")
         self.rows = np.empty(detection_rows_size(limits.max_balls, limits.max_robots_per_team))
@@ -286,13 +297,14 @@ class FramePass:
             raise ValueError("FramePass: the tracker's buffers are smaller than a frame's detections")
         self.tracker = tracker
         timeline = timeline or CaptureTimeline()
+        learning = alignment or CameraAlignment()  # arrays of the right types, not read without an alignment
         self._state = (self.rows, self.limits, self.order.last_s, clock.window, clock.pending, clock.counts,
                        clock.params, timeline.cams, timeline.samples, timeline.glob, tracker.hyps,
                        tracker.hits, tracker.candidates, tracker.robot_tracks, tracker.used, tracker.settings,
                        tracker.ball_state, tracker.counts, tracker.ball.s, tracker.ball.shoot, tracker.ball.m,
                        pose_readers, np.array([ours, n_ours], float),
                        camera_table(limits) if cameras is None else cameras, self.points, self.head, self.layout,
-                       self.message, self.info)
+                       self.message, self.info, alignment is not None, *learning.state())
         # the compiled function for exactly these types: no type matching per call
         self._entry = compiled_for(_frame_pass, encode_frame(CameraFrame(0, 0, 0.0, 0.0, (), ())), 0.0,
                                    TIME_ESTIMATE, *self._state)
@@ -311,10 +323,12 @@ class FramePass:
 
 
 def load_kernels() -> None:
-    """Compile (or load from numba's cache) the pass at a node's start."""
+    """Compile (or load from numba's cache) the pass at a node's start, with and without the camera alignment."""
     tracking.load_kernels()
-    frame_pass = FramePass(VisionClock(), VisionTracker(FieldConfig.preset("division_b")),
-                           np.zeros((2, MAX_ROBOT_ID + 1), np.int64), 0.0, 11)
-    data = encode_frame(CameraFrame(0, 1, 1.0, 1.0, (), (RobotSighting("blue", 0, 0.0, 0.0, 0.0, 1.0),)))
-    for mode in (TIME_ESTIMATE, TIME_CAPTURE):
-        frame_pass.run(data, 1.0 + mode, mode)
+    load_alignment_kernels()
+    for alignment in (None, CameraAlignment()):
+        frame_pass = FramePass(VisionClock(), VisionTracker(FieldConfig.preset("division_b")),
+                               np.zeros((2, MAX_ROBOT_ID + 1), np.int64), 0.0, 11, alignment=alignment)
+        data = encode_frame(CameraFrame(0, 1, 1.0, 1.0, (), (RobotSighting("blue", 0, 0.0, 0.0, 0.0, 1.0),)))
+        for mode in (TIME_ESTIMATE, TIME_CAPTURE):
+            frame_pass.run(data, 1.0 + mode, mode)
