@@ -42,7 +42,7 @@ def test_bytes_match_a_hand_made_layout_and_read_back():
 
 @pytest.mark.parametrize("change", [
     dict(fields=FIELD_NAMES[:-1] + ("certain",)),  # another layout
-    dict(point=(1.5, -2.0, 0.0, 3.0, -0.25, 4.5, 1.51, -2.02, 5.0, 1.0)),  # no such phase
+    dict(point=(1.5, -2.0, 0.0, 3.0, -0.25, 4.5, 1.51, -2.02, 6.0, 1.0)),  # no such phase
     dict(point=(1.5, -2.0, 0.0, 3.0, -0.25, 4.5, 1.51, -2.02, 2.5, 1.0)),
     dict(point=(1.5, -2.0, 0.0, 3.0, -0.25, 4.5, 1.51, -2.02, 2.0, 0.5)),  # uncertain is 1 or 0
     dict(point=(float("nan"), -2.0, 0.0, 3.0, -0.25, 4.5, 1.51, -2.02, 2.0, 1.0)),

@@ -286,7 +286,16 @@ def test_global_to_local_rotates_into_the_robot_frame():
 
 
 # ------------------------------------------------------------------------------------------ fuzz
-DECODERS = [ssl_sim.decode_robot_control, ssl_sim.decode_robot_control_response, ssl_sim.decode_grsim_robots_status,
+def _planned_robot_control(data: bytes) -> list:
+    """What a simulator does with a RobotControl: decoded as sent, then each robot's values checked (a value not
+    finite or out of range refuses that part of that robot's command, plan_robot_control)."""
+    requests = ssl_sim.decode_robot_control(data)
+    actions, _errors = ssl_sim.plan_robot_control(requests, range(ssl_sim.MAX_ROBOT_ID + 1), lambda _i: 0.0,
+                                                  dribbler=True)
+    return actions
+
+
+DECODERS = [_planned_robot_control, ssl_sim.decode_robot_control_response, ssl_sim.decode_grsim_robots_status,
             ssl_sim.decode_simulator_command, ssl_sim.decode_simulator_response]
 
 
@@ -322,7 +331,7 @@ def test_fuzz_robot_control_with_any_numbers_is_finite_or_refused(rows):
         v = cmd.move_command.global_velocity
         v.x, v.y, v.angular = a, b, c
     try:
-        out = ssl_sim.decode_robot_control(msg.SerializeToString())
+        out = _planned_robot_control(msg.SerializeToString())
     except WireError:
         return
     assert _all_finite(out) and all(r.robot_id <= ssl_sim.MAX_ROBOT_ID for r in out)
