@@ -288,8 +288,8 @@ def test_a_chip_over_an_opponent_half_way_settles_behind_the_receiver_which_step
 def test_a_chip_is_rated_with_a_clearance_over_an_opponent_under_its_descent():
     """grSim's chip model (its geometry's fixed-loss dampings 0.42 / 0.6 / 0.96) and an opponent that cannot move
     (limits near zero: it stops the ball only where the ball runs into its body) on the lane at (1.45, 0); the
-    receiver at (2.5, 0). The 45 deg chip that settles at chip_settle_fraction of the way to the receiver's dribbler
-    (2.5 - 0.0815 m) leaves at 4.161 m/s, 2.942 m/s each way. By hand: it lands 2 * 2.942^2 / 9.81 = 1.765 m out,
+    receiver at (2.5, 0). The 45 deg chip that settles at 0.9 of the way to the receiver's dribbler (2.5 - 0.0815 m;
+    chip_settle_fraction) leaves at 4.161 m/s, 2.942 m/s each way. By hand: it lands 2 * 2.942^2 / 9.81 = 1.765 m out,
     past the opponent's body (1.45 +- 0.11 m), so the lowest it is over that body is where it leaves it, at 1.56 m
     (0.530 s): 2.942 * 0.530 - 9.81 / 2 * 0.530^2 = 0.181 m, above the interception height (0.15 m) but not above it
     plus the clearance (0.05 m). So the chip is safe without the clearance and unsafe with it, as grSim's 0.167 m
@@ -301,7 +301,7 @@ def test_a_chip_is_rated_with_a_clearance_over_an_opponent_under_its_descent():
     search = CatchSearch(4, limits, dribbler_offset_m=OFFSET, unbounded=True)
     rated = {}
     for clearance_m in (0.0, CFG.chip_clearance_m):
-        cfg = dataclasses.replace(CFG, chip_clearance_m=clearance_m)
+        cfg = dataclasses.replace(CFG, chip_settle_fraction=0.9, chip_clearance_m=clearance_m)
         (rated[clearance_m],) = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents,
                                                 np.zeros_like(opponents), [1], search, MODEL, cfg, OFFSET,
                                                 chip_params=grsim, block_radius_m=0.11)
