@@ -91,8 +91,6 @@ class CatcherConfig:
     disengage_after_rest_s: float = _DEFAULTS["disengage_after_rest_s"]
     commit_s: float = _DEFAULTS["commit_s"]
     team_switch_margin_s: float = _DEFAULTS["team_switch_margin_s"]
-    # A receiver takes a chip where its predicted hops stay below the reception height and this (chip_within_reach).
-    chip_max_hop_m: float = _DEFAULTS["chip_max_hop_m"]
 
     def __post_init__(self) -> None:
         for name in ("a_max_mps2", "v_max_mps", "w_max_radps", "heading_gain_per_s", "arrive_tolerance_m"):
@@ -108,7 +106,7 @@ class CatcherConfig:
         if not (math.isfinite(self.receive_line_tolerance_m) and self.receive_line_tolerance_m >= 0.0):
             raise ValueError(f"receive_line_tolerance_m must be finite and >= 0, got {self.receive_line_tolerance_m!r}")
         for name in ("receive_slack_s", "commit_distance_m", "min_ball_speed_mps", "engage_distance_m",
-                     "disengage_after_rest_s", "commit_s", "team_switch_margin_s", "chip_max_hop_m"):
+                     "disengage_after_rest_s", "commit_s", "team_switch_margin_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
@@ -278,7 +276,7 @@ def receive_point(
             t_ball = float(ball.time_to_distance(float(contact_m[i])))
         if t_ball == math.inf:
             break  # and so do all farther points
-        if chip is not None and not chip_within_reach(chip, t_ball, intercepts, cfg.chip_max_hop_m):
+        if chip is not None and not chip_within_reach(chip, t_ball, intercepts):
             continue  # it flies over this point, or hops off the dribbler
         if can_reach(targets[i] - robot_xy, robot_velocity, t_ball - slack, cfg.a_max_mps2, cfg.v_max_mps):
             return targets[i]
@@ -323,7 +321,7 @@ def choose_target(
     if ball is not None:
         if on_receive_line(pose, ball.position_m, ball.velocity_mps, dribbler_offset_m, cfg.receive_line_tolerance_m,
                            facing_rad) and (chip is None or chip_within_reach(chip, _time_to_dribbler(
-                               pose, ball, dribbler_offset_m, facing_rad), intercepts, cfg.chip_max_hop_m)):
+                               pose, ball, dribbler_offset_m, facing_rad), intercepts)):
             return np.asarray(pose[:2], dtype=float)
         target = receive_point(pose[:2], robot_velocity, ball, dribbler_offset_m, cfg, field, robot_radius_m,
                                slack_s=0.0 if committed else None, facing_rad=facing_rad, chip=chip,
@@ -339,18 +337,13 @@ def choose_target(
     return None
 
 
-def chip_within_reach(chip: ChipTrajectory, t_s: float, intercepts: bool = False,
-                      max_hop_m: float | None = None) -> bool:
+def chip_within_reach(chip: ChipTrajectory, t_s: float, intercepts: bool = False) -> bool:
     """Whether a robot takes the chip at ``t_s``: a receiver once it stays at most ``max_receive_height_m`` high
-    (light barrier and dribbler bar; earlier, near a touchdown, it hops up over the bar or off the robot's front)
-    and, given ``max_hop_m`` (CatcherConfig.chip_max_hop_m), at most that high (its hops are small: a real ball
-    bounces higher than its model, and the shadow of a hopping ball strays from its line); an interceptor
-    (``intercepts``) where it is at most ``max_catch_height_m`` high (its body stops it)."""
+    (light barrier and dribbler bar; earlier, near a touchdown, it hops up over the bar or off the robot's front),
+    an interceptor (``intercepts``) where it is at most ``max_catch_height_m`` high (its body stops it)."""
     if intercepts:
         return bool(chip.position_at(t_s)[2] <= chip.params.max_catch_height_m)
-    height_m = chip.params.max_receive_height_m if max_hop_m is None else min(chip.params.max_receive_height_m,
-                                                                              max_hop_m)
-    return t_s >= chip.time_below_height_s(height_m)
+    return t_s >= chip.time_below_height_s(chip.params.max_receive_height_m)
 
 
 def _time_to_dribbler(pose: np.ndarray, track: BallTrajectory, dribbler_offset_m: float,
