@@ -468,12 +468,13 @@ def test_a_ball_kicked_by_a_turning_robot_leaves_to_the_side_it_turns_to():
     assert launch_direction(1.0, 0.0, (0.0, 0.0), 2.8, 0.102) == pytest.approx(1.0)  # at rest: its heading
 
 
-def test_a_turning_holder_kicks_when_the_ball_would_leave_along_its_pass_not_when_it_faces_it():
+def test_a_holder_still_turning_does_not_kick_though_it_faces_its_pass():
     """The pass of the first scene (robot 1 at (3, 0), straight along +x at V0 = 3.008 m/s). Robot 0 faces it
     exactly but still turns at +2 rad/s: over the command's lead (command_lead_s 0.04 s, the pose being fresh) it
     turns 0.08 rad on, and the ball leaves a further atan2(2 * 0.0815, 3.008) = 0.0541 rad to that side, 0.134 rad
-    off the pass (aim_tolerance_rad 0.03): no kick. Facing -0.134 rad, turning the same way, the ball leaves
-    along the pass: the kick."""
+    off the pass (aim_tolerance_rad 0.03): no kick. Facing -0.134 rad, the ball would leave along the pass if it
+    turned on, but not if it stopped as it kicks: no kick either. Facing -0.005 rad and turning at 0.2 rad/s, the
+    ball leaves between -0.005 and -0.005 + 0.008 + atan2(0.2 * 0.0815, 3.008) = 0.0084 rad: the kick."""
     lead_s = CatcherConfig().command_lead_s
     off = 2.0 * lead_s + math.atan2(2.0 * OFFSET, V0)
     assert off == pytest.approx(0.1341, abs=1e-4)
@@ -481,7 +482,10 @@ def test_a_turning_holder_kicks_when_the_ball_would_leave_along_its_pass_not_whe
     p.on_robot(0, 0.5, (0.0, 0.0, 0.0), (0.0, 0.0, 2.0), stamp_s=0.5)
     assert not p.tick(0.5).kicks
     p.on_robot(0, 0.52, (0.0, 0.0, -off), (0.0, 0.0, 2.0), stamp_s=0.52)
-    assert p.tick(0.52).kicks == {0: pytest.approx(V0, abs=1e-3)}
+    assert not p.tick(0.52).kicks
+    assert -0.005 + 0.2 * lead_s + math.atan2(0.2 * OFFSET, V0) == pytest.approx(0.0084, abs=1e-4)
+    p.on_robot(0, 0.54, (0.0, 0.0, -0.005), (0.0, 0.0, 0.2), stamp_s=0.54)
+    assert p.tick(0.54).kicks == {0: pytest.approx(V0, abs=1e-3)}
 
 
 def turning_kick(p, deadline_s, dt_s=0.02, before_tick=None):

@@ -416,14 +416,17 @@ class PassingPlayer:
     def _aim(self, h: int, choice: PassOption, now: float) -> tuple[np.ndarray, float, bool]:
         """The holder's pose as its next command finds it ([x, y] and its heading predicted over the loop's delay)
         with the heading gain for that delay (receiver.heading_loop, as a receiver turns), and whether a kick now
-        leaves along the pass within ``aim_tolerance_rad`` (``launch_direction``: a ball kicked while the robot
-        turns leaves to the side it turns to)."""
+        leaves along the pass within ``aim_tolerance_rad``. The ball leaves between the heading measured now (a robot
+        that stops turning as it kicks) and ``launch_direction`` from the heading predicted over the delay (one that
+        turns on): both must lie within the tolerance, so a robot still turning fast does not kick."""
         cc = self.cfg.catcher
         yaw_rate = float(self.yaw_rates[h])
         heading, gain = heading_loop(float(self.poses[h, 2]), yaw_rate, pose_delay_s(now, self.pose_stamps[h], cc), cc)
         ground = choice.kick_speed_mps * math.cos(math.radians(choice.kick_angle_deg))
         leaves = launch_direction(heading, yaw_rate, self.velocities[h], ground, self.dribbler_offset_m)
-        aimed = abs(wrap_angle(choice.direction_rad - leaves)) <= self.cfg.aim_tolerance_rad
+        tolerance = self.cfg.aim_tolerance_rad
+        aimed = (abs(wrap_angle(choice.direction_rad - leaves)) <= tolerance
+                 and abs(wrap_angle(choice.direction_rad - float(self.poses[h, 2]))) <= tolerance)
         return np.array([self.poses[h, 0], self.poses[h, 1], heading]), gain, aimed
 
     def check(self, now: float) -> None:
