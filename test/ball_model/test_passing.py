@@ -283,3 +283,36 @@ def test_a_chip_over_an_opponent_half_way_settles_behind_the_receiver_which_step
     assert o.receiver_catch_s >= t_settle
     t_c, x_c, vxy_c, _ = [hop for hop in hops if hop[0] <= o.receiver_catch_s][-1]
     assert contact < x_c + vxy_c * (o.receiver_catch_s - t_c) <= contact + 0.5 + 1e-9
+
+
+def test_a_chip_is_rated_with_a_clearance_over_an_opponent_under_its_descent():
+    """grSim's chip model (its geometry's fixed-loss dampings 0.42 / 0.6 / 0.96) and an opponent that cannot move
+    (limits near zero: it stops the ball only where the ball runs into its body) on the lane at (1.45, 0); the
+    receiver at (2.5, 0). The 45 deg chip that settles at 0.9 of the way to the receiver's dribbler (2.5 - 0.0815 m;
+    chip_settle_fraction) leaves at 4.161 m/s, 2.942 m/s each way. By hand: it lands 2 * 2.942^2 / 9.81 = 1.765 m out,
+    past the opponent's body (1.45 +- 0.11 m), so the lowest it is over that body is where it leaves it, at 1.56 m
+    (0.530 s): 2.942 * 0.530 - 9.81 / 2 * 0.530^2 = 0.181 m, above the interception height (0.15 m) but not above it
+    plus the clearance (0.05 m). So the chip is safe without the clearance and unsafe with it, as grSim's 0.167 m
+    robots make it."""
+    grsim = dataclasses.replace(ChipParams(), damping_z=0.42, damping_xy_first_hop=0.6, damping_xy_other_hops=0.96)
+    team = np.array([[-0.1, 0.0], [2.5, 0.0], [0.0, 2.5]])
+    opponents = np.array([[1.45, 0.0]])
+    limits = RobotLimits(np.array([4.5, 4.5, 4.5, 1e-6]), np.array([2.5, 2.5, 2.5, 1e-6]))
+    search = CatchSearch(4, limits, dribbler_offset_m=OFFSET, unbounded=True)
+    rated = {}
+    for clearance_m in (0.0, CFG.chip_clearance_m):
+        cfg = dataclasses.replace(CFG, chip_settle_fraction=0.9, chip_clearance_m=clearance_m)
+        (rated[clearance_m],) = evaluate_passes((0.0, 0.0), team, np.zeros_like(team), opponents,
+                                                np.zeros_like(opponents), [1], search, MODEL, cfg, OFFSET,
+                                                chip_params=grsim, block_radius_m=0.11)
+    without, with_clearance = rated[0.0], rated[CFG.chip_clearance_m]
+    assert CFG.chip_clearance_m == 0.05
+    assert without.kick_angle_deg == with_clearance.kick_angle_deg == 45.0
+    assert without.kick_speed_mps == pytest.approx(4.161, abs=1e-3) == with_clearance.kick_speed_mps
+    v = without.kick_speed_mps / math.sqrt(2.0)
+    assert 2.0 * v * v / grsim.g_mps2 == pytest.approx(1.765, abs=1e-3)
+    t = (1.45 + 0.11) / v
+    height_m = v * t - 0.5 * grsim.g_mps2 * t * t
+    assert t == pytest.approx(0.530, abs=1e-3) and height_m == pytest.approx(0.181, abs=1e-3)
+    assert grsim.max_catch_height_m < height_m < grsim.max_catch_height_m + CFG.chip_clearance_m
+    assert without.safe(CFG) and not with_clearance.safe(CFG)

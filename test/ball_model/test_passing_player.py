@@ -8,7 +8,14 @@ import pytest
 
 from erforce_ball_model.ball_model import BallModelParams, ChipParams
 from erforce_ball_model.passing.decisions import PassConfig
-from erforce_ball_model.passing.player import HELD_DISTANCE_M, PassingPlayer, PassRecord, PlayerConfig, PressingTeam
+from erforce_ball_model.passing.player import (
+    HELD_DISTANCE_M,
+    PassingPlayer,
+    PassRecord,
+    PlayerConfig,
+    PressingTeam,
+    launch_direction,
+)
 from erforce_ball_model.receiver import CatcherConfig, catch_twist, wrap_angle
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 
@@ -447,6 +454,38 @@ def test_a_holder_whose_teammates_are_all_too_close_passes_outside_the_passing_d
     commands = p.tick(1.98)
     assert commands.kicks == {0: pytest.approx(math.sqrt(1.5**2 + 5.0 * (0.5 - 2.0 * OFFSET)), abs=1e-3)}
     assert "no pass in reach for 1.0 s" in p.notice and "a pass outside the passing distances to robot_1" in p.notice
+
+
+def test_a_ball_kicked_by_a_turning_robot_leaves_to_the_side_it_turns_to():
+    """The ball on the dribbler moves with the robot's front: sideways at yaw rate times the dribbler offset. By
+    hand: 2.8 m/s along a heading of 0 from a robot turning at +2 rad/s with the dribbler 0.102 m ahead leaves
+    along atan2(0.204, 2.8) = 4.167 deg; the robot's own 0.5 m/s along -y takes it back to atan2(-0.296, 2.8)."""
+    assert math.degrees(launch_direction(0.0, 2.0, (0.0, 0.0), 2.8, 0.102)) == pytest.approx(4.1670, abs=1e-4)
+    assert math.degrees(launch_direction(0.0, 2.0, (0.0, -0.5), 2.8, 0.102)) == pytest.approx(-6.0346, abs=1e-4)
+    # a heading of 90 deg turns all of it: the sideways part points along -x
+    assert launch_direction(0.5 * math.pi, 2.0, (0.0, 0.0), 2.8, 0.102) == pytest.approx(
+        0.5 * math.pi + math.atan2(0.204, 2.8))
+    assert launch_direction(1.0, 0.0, (0.0, 0.0), 2.8, 0.102) == pytest.approx(1.0)  # at rest: its heading
+
+
+def test_a_holder_still_turning_does_not_kick_though_it_faces_its_pass():
+    """The pass of the first scene (robot 1 at (3, 0), straight along +x at V0 = 3.008 m/s). Robot 0 faces it
+    exactly but still turns at +2 rad/s: over the command's lead (command_lead_s 0.04 s, the pose being fresh) it
+    turns 0.08 rad on, and the ball leaves a further atan2(2 * 0.0815, 3.008) = 0.0541 rad to that side, 0.134 rad
+    off the pass (aim_tolerance_rad 0.03): no kick. Facing -0.134 rad, the ball would leave along the pass if it
+    turned on, but not if it stopped as it kicks: no kick either. Facing -0.005 rad and turning at 0.2 rad/s, the
+    ball leaves between -0.005 and -0.005 + 0.008 + atan2(0.2 * 0.0815, 3.008) = 0.0084 rad: the kick."""
+    lead_s = CatcherConfig().command_lead_s
+    off = 2.0 * lead_s + math.atan2(2.0 * OFFSET, V0)
+    assert off == pytest.approx(0.1341, abs=1e-4)
+    p = player_with([(0.0, 0.0, 0.0), (3.0, 0.0, math.pi)])
+    p.on_robot(0, 0.5, (0.0, 0.0, 0.0), (0.0, 0.0, 2.0), stamp_s=0.5)
+    assert not p.tick(0.5).kicks
+    p.on_robot(0, 0.52, (0.0, 0.0, -off), (0.0, 0.0, 2.0), stamp_s=0.52)
+    assert not p.tick(0.52).kicks
+    assert -0.005 + 0.2 * lead_s + math.atan2(0.2 * OFFSET, V0) == pytest.approx(0.0084, abs=1e-4)
+    p.on_robot(0, 0.54, (0.0, 0.0, -0.005), (0.0, 0.0, 0.2), stamp_s=0.54)
+    assert p.tick(0.54).kicks == {0: pytest.approx(V0, abs=1e-3)}
 
 
 def turning_kick(p, deadline_s, dt_s=0.02, before_tick=None):

@@ -148,12 +148,12 @@ def test_through_the_cameras_the_predictor_finds_our_chip_itself():
     cfg = GameConfig(team_size=2, opponents=1, passes=1, team_positions=((-4.5, 0.0), (-1.5, 0.0)),
                      opponent_positions=((-3.0, 0.4),), player=step_back)
     game = PassingGame(cfg, seed=0)
-    chips = []  # per vision frame: the detector's launch and the hint's speed it holds
-    detector = game.predictor.chip_detector
-    game.runner.vision_listeners.append(lambda frame: chips.append((detector.launch, detector.hint_speed_mps)))
+    chips = []  # (the detector's launch, the hint's speed it used) at each frame
+    game.runner.vision_listeners.append(lambda frame: chips.append((game.predictor.chip_detector.launch,
+                                                                    game.predictor.chip_detector.hint_speed_mps)))
     (record,) = game.play()
     assert record.kick_angle_deg == pytest.approx(45.0)
-    launch, hint_speed_mps = next(c for c in chips if c[0] is not None)  # the frame the chip is first reported
+    launch, hint_speed_mps = next(c for c in chips if c[0] is not None)
     vx, vy, vz = launch.velocity_mps.tolist()
     assert math.degrees(math.atan2(vz, math.hypot(vx, vy))) == pytest.approx(45.0, abs=1.0)
     assert hint_speed_mps == pytest.approx(record.kick_speed_mps, rel=1e-9)

@@ -28,9 +28,11 @@ question) for every robot on the field, on the ball the kick would make:
   margin is at least ``PassConfig.safe_margin_s``.
 - A chip (``PassConfig.chip_angle_deg`` > 0; chip_model.ChipTrajectory with the predictor's chip model, the one
   it tracks chips with) is rated the same way, on the chip the kick would make, with ChipParams' two heights: an
-  opponent stops it with its body where it is at most ``max_catch_height_m`` high (robotTimeToBall on its low
-  windows), so one under its flight cannot; the receiver takes it with its dribbler only once it stays at most
-  ``max_receive_height_m`` high (the light barrier's beam), so a chip still hopping at a few centimetres would
+  opponent stops it with its body where it is at most ``max_catch_height_m`` plus ``chip_clearance_m`` high
+  (robotTimeToBall on its low windows), so one under its flight cannot; the clearance is the plan's margin over
+  the interception height (a body taller than the league's 0.15 m, as grSim's 0.167 m; a ball that slows in the
+  air comes down lower than the fixed-loss model says); the receiver takes it with its dribbler only once it stays
+  at most ``max_receive_height_m`` high (the light barrier's beam), so a chip still hopping at a few centimetres would
   bounce off it. It is kicked so that it stays that low from ``chip_settle_fraction`` of the way to the
   receiver on (``chip_speed_for``: the hops in closed form), and is rated only when it has settled by the time
   it reaches the receiver's dribbler. Per receiver the flat pass is played when it is safe, else the chip when
@@ -44,6 +46,7 @@ question) for every robot on the field, on the ball the kick would make:
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Mapping, Sequence
@@ -86,13 +89,15 @@ class PassConfig:
     chip_angle_deg: float = _DEFAULTS["chip_angle_deg"]  # a chip's elevation (the kicker's kick_angle); 0: flat only
     chip_settle_fraction: float = _DEFAULTS["chip_settle_fraction"]  # a chip stays low from this far along the pass
     chip_step_back_m: float = _DEFAULTS["chip_step_back_m"]  # ... or this far behind the receiver, which steps back
+    # a chip is rated as if the opponents stood this much taller than the interception height (max_catch_height_m)
+    chip_clearance_m: float = _DEFAULTS["chip_clearance_m"]
 
     def __post_init__(self) -> None:
         check_finite_fields(self, ("arrive_speed_mps", "min_kick_mps", "max_kick_mps", "min_distance_m",
                                    "max_distance_m"), 0.0, lower_open=True)
         if self.min_kick_mps > self.max_kick_mps or self.min_distance_m > self.max_distance_m:
             raise ValueError("min_kick_mps <= max_kick_mps and min_distance_m <= max_distance_m, please")
-        check_finite_fields(self, ("safe_margin_s", "reaction_s", "chip_step_back_m"), 0.0)
+        check_finite_fields(self, ("safe_margin_s", "reaction_s", "chip_step_back_m", "chip_clearance_m"), 0.0)
         check_finite_fields(self, ("press_fraction",), 0.0, 1.0)
         check_finite_fields(self, ("chip_angle_deg",), 0.0, 90.0, upper_open=True)
         check_finite_fields(self, ("chip_settle_fraction",), 0.0, 1.0, lower_open=True)
@@ -342,7 +347,8 @@ def _chip_option(robots: _PassRobots, j: int, ball: np.ndarray, u: np.ndarray, r
     """The pass to ``j`` as the chip that stays low enough to receive from ``settle_m`` along it on: taken where
     the receiver stands (its dribbler ``contact_m`` on) when it has settled by then, else where the receiver meets
     it once it has (robotTimeToBall, receiving: it steps back along the line)."""
-    chip, v0 = _chip_pass(ball, u, settle_m, cfg, params, chip_params)
+    over = dataclasses.replace(chip_params, max_catch_height_m=chip_params.max_catch_height_m + cfg.chip_clearance_m)
+    chip, v0 = _chip_pass(ball, u, settle_m, cfg, params, over)  # the same flight; the opponents stand taller
     receiver_time, opp = robots.rate(chip, j, receive_rad)
     arrival_s = math.inf
     if math.isfinite(receiver_time):
