@@ -5,15 +5,17 @@ direction): a chip at 1-6 m/s and 30-60 deg, or a flat kick at 1-6.5 m/s. The ba
 closed form (chip_model.ChipTrajectory, ball_model.BallTrajectory; the simulator flies a chip to within 1 mm
 of it). The world's vision (erforce_sim.sensors.VisionSystem: 70 Hz) takes each frame and the four quadrant
 cameras (erforce_sim.ssl_cameras, 4 m high) project the ball onto the ground as SSL-Vision does and encode the
-SSL datagrams, which are decoded again. How the cameras err is ``--cameras``: ``bench`` (BENCH_CAMERAS: the
-world's 2 mm noise and 2 % dropouts shared by the cameras, 0.5 mm each, 0.5 m overlap) or ``erforce``
-(ERFORCE_REALISTIC, ER-Force's simulator's "Realistic" preset: 1.4 mm and 5 % missed balls per camera on its own,
-1 m overlap past each axis, cameras projecting 0.1 m off the geometry's positions, 2 cm offset per camera).
+SSL datagrams, which are decoded again. How the cameras err is ``--cameras``: ``erforce`` (the default;
+ERFORCE_REALISTIC, ER-Force's simulator's "Realistic" preset, a league team's documented model of SSL-Vision: one
+detection per camera, 1.4 mm and 5 % missed balls per camera on its own, 1 m overlap past each axis, cameras
+projecting 0.1 m off the geometry's positions, 2 cm offset per camera) or ``bench`` (BENCH_CAMERAS, our older
+model: the world's 2 mm noise and 2 % dropouts shared by the cameras, 0.5 mm each, 0.5 m overlap).
 Per capture, in the order the cameras send, the first camera's ball goes to ``BallPredictor.ball_frame`` (the
 bridge's ball) and every other camera's to ``ball_sighting``, each with the camera's position from the geometry.
-With ``--align`` five robots stand in the cameras' overlaps (seen through the same cameras, with their robot noise
-and misses) and every camera's ball goes through ``camera_alignment.CameraAlignment`` first, learnt per kick from
-nothing (the robots and the ball at rest before the kick): each camera's offset off its balls (docs/decisions/0038).
+By default (``--no-align`` leaves it out) five robots stand in the cameras' overlaps (seen through the same cameras,
+with their robot noise and misses) and every camera's ball goes through ``camera_alignment.CameraAlignment`` first,
+learnt per kick from nothing (the robots and the ball at rest before the kick): each camera's offset off its balls,
+as the bridge's ``camera_alignment`` does on a field (docs/decisions/0038).
 
 Rows: the share of chips detected within 0.15 s of the kick (also with the same chips seen without noise: the
 ceiling the cameras' geometry leaves the detector); the share of flat kicks ever reported as a chip
@@ -22,13 +24,12 @@ ceiling the cameras' geometry leaves the detector); the share of flat kicks ever
 noise); the detection delay (median, p90); the predictor's time per vision frame (ball_frame and ball_sighting
 for every camera's ball of one capture; mean, p99), as the thread's CPU time (a shared machine's load does not
 inflate it).
-``python bench/bench_chip.py [--quick] [--seed N] [--cameras bench|erforce] [--without ERROR ...] [--min-gain G]
-[--kick-hints [--hint-speed-error R]] [--align]`` (``--without position_error`` / ``object_offset``: the camera model
+``python bench/bench_chip.py [--quick] [--seed N] [--cameras erforce|bench] [--without ERROR ...] [--min-gain G]
+[--kick-hints [--hint-speed-error R]] [--no-align]`` (``--without position_error`` / ``object_offset``: the camera model
 without that fixed error) (``--kick-hints``: the kicker's angle reaches the predictor at each kick,
 BallPredictor.kick_hint; the chips' and the flat kicks' alike; ``--hint-speed-error R``: the hint carries the
 commanded speed too, the true launch speed times ``1 + R z``, z standard normal per kick: 0 is a kicker that meets
-its command) (``--align``: robots stand in the overlaps and each camera's offset, estimated from what the cameras
-see, is taken off its balls).
+its command) (``--no-align``: no robots, each camera's balls as it reports them).
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ from erforce_ball_model.tracking import TrackerConfig
 from erforce_interfaces.ssl.ssl_vision import decode_wrapper
 from erforce_interfaces.wire.robot_config import FieldConfig
 from erforce_sim.sensors import VisionParams, VisionSystem
-from erforce_sim.ssl_cameras import BENCH_CAMERAS, CAMERA_MODELS, CameraRealism, SslCameraSplitter
+from erforce_sim.ssl_cameras import CAMERA_MODELS, ERFORCE_REALISTIC, CameraRealism, SslCameraSplitter
 
 FIELD = FieldConfig.preset("division_b")
 VISION = VisionParams()
@@ -65,8 +66,8 @@ LOW_M = 0.05
 APEX_BANDS_M = (0.03, 0.1, 0.2)  # the missed chips are split by their apex height at these
 
 
-# with --align: robots standing where two cameras (four at the centre) see them, within both presets' bands, as
-# on a real field, where the robots are what the cameras of an overlap both see most of the time
+# with the alignment (the default): robots standing where two cameras (four at the centre) see them, within both
+# presets' bands, as on a real field, where the robots are what the cameras of an overlap both see most of the time
 STANDING_ROBOTS = (("blue", 0, 0.1, 2.0, 0.0), ("blue", 1, -0.1, -2.0, 0.0), ("yellow", 0, 3.0, -0.1, 0.0),
                    ("yellow", 1, -3.0, 0.1, 0.0), ("yellow", 2, 0.15, -0.15, 0.0))
 FIXED_ERRORS = ("position_error", "object_offset")  # CameraRealism's fixed errors a run may leave out (--without)
@@ -100,8 +101,8 @@ def _truth_at(ball, t_s: float) -> tuple[float, float, float]:
 
 
 def run_kick(ball, seed: int, detector: ChipDetectorConfig | None = None, hint_deg: float | None = None,
-             noise_free: bool = False, cameras: CameraRealism = BENCH_CAMERAS,
-             hint_speed_mps: float | None = None, align: bool = False) -> dict:
+             noise_free: bool = False, cameras: CameraRealism = ERFORCE_REALISTIC,
+             hint_speed_mps: float | None = None, align: bool = True) -> dict:
     """One kick through cameras and predictor: when a chip was first reported (from the kick) and the first
     touchdown point the predictor had then and ``TOUCHDOWN_AFTER_S`` after that. ``hint_deg``: the kicker's word
     (its angle, 0 flat; ``hint_speed_mps`` its commanded speed) goes to the predictor at the kick's time, before the
@@ -183,8 +184,8 @@ def _commanded(balls: list, error: float | None, seed: int) -> list[float | None
 
 
 def run(quick: bool = False, seed: int = 1, min_gain: float | None = None, hints: bool = False,
-        cameras: CameraRealism = BENCH_CAMERAS, hint_speed_error: float | None = None,
-        align: bool = False) -> list[dict]:
+        cameras: CameraRealism = ERFORCE_REALISTIC, hint_speed_error: float | None = None,
+        align: bool = True) -> list[dict]:
     n = 100 if quick else 500
     detector = ChipDetectorConfig() if min_gain is None else ChipDetectorConfig(min_gain=min_gain)
     rng = np.random.default_rng(seed)
@@ -274,16 +275,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--min-gain", type=float, default=None, help="ChipDetectorConfig.min_gain (a trade-off: "
                         "earlier detection against more flat kicks taken for chips)")
-    parser.add_argument("--cameras", choices=sorted(CAMERA_MODELS), default=BENCH_CAMERAS.name,
-                        help="how the simulated cameras err (erforce_sim.ssl_cameras.CAMERA_MODELS)")
+    parser.add_argument("--cameras", choices=sorted(CAMERA_MODELS), default=ERFORCE_REALISTIC.name,
+                        help="how the simulated cameras err (erforce_sim.ssl_cameras.CAMERA_MODELS; erforce: one "
+                        "detection per camera, as SSL-Vision)")
     parser.add_argument("--without", nargs="+", choices=FIXED_ERRORS, default=(),
                         help="leave these fixed errors out of the camera model")
     parser.add_argument("--kick-hints", action="store_true", help="the kicker tells the predictor each kick's "
                         "angle (0 flat) at the kick (BallPredictor.kick_hint)")
     parser.add_argument("--hint-speed-error", type=float, default=None, metavar="R", help="with --kick-hints: the "
                         "hint carries the commanded speed, the launch speed times 1 + R z (z standard normal)")
-    parser.add_argument("--align", action="store_true", help="robots stand in the overlaps and each camera's "
-                        "offset, estimated from them (CameraAlignment), is taken off its balls")
+    parser.add_argument("--align", action=argparse.BooleanOptionalAction, default=True, help="robots stand in the "
+                        "overlaps and each camera's offset, estimated from them (CameraAlignment), is taken off its "
+                        "balls (--no-align: each camera's balls as it reports them)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     print("\n".join(markdown_table(run(args.quick, args.seed, args.min_gain, args.kick_hints,
