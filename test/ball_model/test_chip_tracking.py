@@ -488,3 +488,22 @@ def test_a_slow_kick_the_flat_filter_missed_starts_from_the_sightings():
     for t, x, y, camera in kick_sightings(truth, 10.0, CAMERAS, noise_m=0.002, seed=3, frames=(-10, 60)):
         rest.add(t, x, y, camera)
     assert rest.t_start_s is None and rest.fit is None
+
+
+def test_a_start_the_ball_did_not_follow_does_not_hold_the_next_kick():
+    """A ball at rest whose sightings stray 15 mm for two frames (7.5 noise: a start from the sightings), then lie
+    where they were: once the sightings since that start span 0.1 s at rest it is forgotten, and a chip kicked 0.13 s
+    after it (2.8 m/s, 45 deg, one camera beside it) starts its own kick and is taken within 0.15 s. Held, that start
+    would have kept the chip's sightings in its own collection until 0.17 s."""
+    truth = ChipTrajectory((0.5, 0.3, 0.0), (2.0, 0.0, 2.0), ChipParams())
+    camera = (0.5, -2.0, 4.0)
+    detector = ChipDetector(None, ChipParams())
+    starts = []
+    for t, x, y, cam in kick_sightings(truth, 0.004, [camera], frames=(-20, 12)):
+        stray = 0.015 if -9.5 / 70.0 < t < -7.5 / 70.0 else 0.0
+        detector.add(t, x + stray, y, cam)
+        if detector.t_start_s is not None and detector.t_start_s not in starts:
+            starts.append(detector.t_start_s)
+    assert starts[0] == pytest.approx(-9.0 / 70.0)  # the stray start
+    assert 0.004 < detector.t_start_s <= 2.0 / 70.0
+    assert detector.detected_at_s is not None and detector.detected_at_s - 0.004 <= 0.15

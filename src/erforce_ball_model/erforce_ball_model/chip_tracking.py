@@ -658,6 +658,21 @@ class ChipDetector:
         if len(times) >= 4 and self._moved_at(rows, times, len(times) - 2, cfg.rest_speed_mps):
             self.start(float(times[-2]))
 
+    def _still_at_rest(self) -> bool:
+        """The kick's sightings since its start span ``origin_s`` and their last ``origin_s`` lie on a line slower than
+        ``rest_speed_mps``: the ball stayed at rest, the start was noise (a ball at rest whose sightings strayed
+        ``moved_sigma`` by chance). Left in place, such a collection would hold a real kick soon after it (the flat
+        filter's kick starts none while one is under way) until ``window_s`` ends."""
+        cfg, t_now = self.config, self._rows[-1].t_s
+        if t_now - self.t_start_s < cfg.origin_s:
+            return False
+        rows = np.array([r for r in self._rows if t_now - r.t_s <= cfg.origin_s], dtype=float)
+        tc = rows[:, 0] - rows[:, 0].mean()
+        if not tc @ tc > 0.0:
+            return False
+        vx, vy = tc @ rows[:, 1] / (tc @ tc), tc @ rows[:, 2] / (tc @ tc)
+        return math.hypot(vx, vy) < cfg.rest_speed_mps
+
     @property
     def active(self) -> bool:
         """Busy with a kick: judging its sightings, or its chip is still hopping (a new motion the flat filter sees
@@ -702,6 +717,8 @@ class ChipDetector:
     def _judge_newest(self) -> None:
         """The newest capture's judgement: a kick the flat filter missed starts (``_self_start``), a kick's sightings
         are judged."""
+        if self.active and self._chip is None and self._still_at_rest():
+            self.t_start_s = None  # the ball did not follow that start (noise): a kick after it starts anew
         if not self.active:
             self._self_start()
         if self.active and self._judging():
