@@ -18,15 +18,16 @@ best share of chips any detector can find within the window at 1 % false chips p
 Caveat: the issue's 1 % is over random flat kicks, not over each chip's nearest one; a detector may spend its budget
 unevenly, so the figure is a ceiling against the nearest alternative, not an exact bound on the averaged budget.
 
-Variants, ``--cameras bench`` (BENCH_CAMERAS): the bench's four quadrant cameras (4 m high, 0.5 m overlap) with the
-bench's noise, with 1 mm world noise and with the total noise independent per camera (as separate images have it);
-the ball seen by the two cameras nearest to it in every frame (two views), with the world's noise shared as the
-simulator has it and independent. ``--cameras erforce`` (ERFORCE_REALISTIC: 1.4 mm per camera on its own, 1 m
-overlap past each axis, each camera projecting from 0.1 m off where the geometry says): as modelled, without the
-position error, and with the bench's 0.5 m overlap. The chip's sightings come from the projecting cameras; a ground
-kick is where it is for any camera. A camera's fixed offset of every object (``object_offset_m``) is in the chip's
-and the ground kick's sightings alike and cancels; missed detections are left out as the bench's dropouts are.
-``python bench/bench_chip_bound.py [--quick] [--seed N] [--cameras bench|erforce]``
+Variants, ``--cameras erforce`` (the default, as bench_chip's; ERFORCE_REALISTIC: 1.4 mm per camera on its own,
+1 m overlap past each axis, each camera projecting from 0.1 m off where the geometry says): as modelled, without the
+position error, and with the bench's 0.5 m overlap. ``--cameras bench`` (BENCH_CAMERAS, our older model): the four
+quadrant cameras (4 m high, 0.5 m overlap) with the bench's noise, with 1 mm world noise and with the total noise
+independent per camera (as separate images have it); the ball seen by the two cameras nearest to it in every frame
+(two views), with the world's noise shared as the simulator has it and independent. The chip's sightings come from
+the projecting cameras; a ground kick is where it is for any camera. A camera's fixed offset of every object
+(``object_offset_m``) is in the chip's and the ground kick's sightings alike and cancels; missed detections are left
+out as the bench's dropouts are.
+``python bench/bench_chip_bound.py [--quick] [--seed N] [--cameras erforce|bench]``
 """
 
 from __future__ import annotations
@@ -275,7 +276,7 @@ VARIANTS = {  # per camera model: (label, cameras, cameras_of's other arguments,
 }
 
 
-def run(quick: bool = False, seed: int = 1, cameras: CameraRealism = BENCH_CAMERAS) -> list[dict]:
+def run(quick: bool = False, seed: int = 1, cameras: CameraRealism = ERFORCE_REALISTIC) -> list[dict]:
     kicks = chips(100 if quick else 500, seed)
     rows = []
     for label, model, camera_args, noise in VARIANTS[cameras.name]:
@@ -287,7 +288,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="100 chips instead of 500")
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--cameras", choices=sorted(CAMERA_MODELS), default=BENCH_CAMERAS.name,
+    parser.add_argument("--cameras", choices=sorted(CAMERA_MODELS), default=ERFORCE_REALISTIC.name,
                         help="how the simulated cameras err (erforce_sim.ssl_cameras.CAMERA_MODELS)")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()

@@ -1,5 +1,5 @@
 """What the predictor reports of a chip's height: the fitted flight's covariance, the flight within the kicker's
-limits, and the first height of a chip seen by one camera (chip_tracking.flight_covariance, within_kicker_limits,
+limits, and the first height of a chip seen by one camera (chip_fits.flight_covariance, within_kicker_limits,
 ChipTrajectory.sensitivity_at, BallFrame.chip_covariance)."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from erforce_ball_model.ball_model import ChipParams
+from erforce_ball_model.chip_fits import ChipFit, flight_covariance, within_kicker_limits
 from erforce_ball_model.chip_model import ChipTrajectory
-from erforce_ball_model.chip_tracking import ChipFit, flight_covariance, within_kicker_limits
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 from erforce_interfaces.wire.robot_config import FieldConfig
 

@@ -1,4 +1,4 @@
-"""Chip detection and reconstruction (chip_tracking) and the predictor's chip (BallFrame.chip, the hand-over)."""
+"""Chip detection and reconstruction (chip_tracking, chip_fits); the predictor's chip (BallFrame.chip, hand-over)."""
 
 from __future__ import annotations
 
@@ -9,16 +9,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from erforce_ball_model import chip_tracking
+from erforce_ball_model import chip_fits
 from erforce_ball_model.ball_model import BallModelParams, BallTrajectory, ChipParams
+from erforce_ball_model.chip_fits import Sighting, fit_flight, fit_flight_at_angle, triangulate_height
 from erforce_ball_model.chip_model import ChipTrajectory
-from erforce_ball_model.chip_tracking import (
-    ChipDetector,
-    Sighting,
-    fit_flight,
-    fit_flight_at_angle,
-    triangulate_height,
-)
+from erforce_ball_model.chip_tracking import ChipDetector
 from erforce_ball_model.predictor import BallPredictor, PredictorConfig
 
 G = 9.81
@@ -393,7 +388,7 @@ def test_the_batched_fit_at_an_angle_is_each_launch_times_own():
     rows = np.array([(t, x + rng.normal(0, 0.002), y + rng.normal(0, 0.002), *c)
                      for t, x, y, c in chip_sightings([0.02, 0.04, 0.06, 0.08], cameras=CAMERAS[:1])])
     times = [-0.004, 0.0, 0.003]
-    theta, vz_std, rss = chip_tracking._flights_at_angle(rows, times, None, G, 0.002, 1.5, 3, (0.0, 0.0))
+    theta, vz_std, rss = chip_fits.flights_at_angle(rows, times, None, G, 0.002, 1.5, 3, (0.0, 0.0))
     for j, t0 in enumerate(times):
         one = fit_flight_at_angle(rows, t0, None, G, 0.002, tan_angle=1.5)
         assert theta[j].tolist() == pytest.approx([one.x_m, one.y_m, one.vx_mps, one.vy_mps, one.vz_mps], abs=1e-12)
@@ -464,10 +459,10 @@ def test_the_hop_fit_lands_and_bounces_the_chip_as_computed_by_hand():
     (0.65, 0.3) and the velocity after the bounce (1.5 * 5/7, 0, 0.566 * 0.4905 = 0.277623) to 1e-5 (the hop tables
     are linear between ms steps: a parabola's chord is off by g (1 ms)^2 / 8 = 1.2e-6 m)."""
     rows = np.array([(t, x, y, *SHORT_CAMERA) for t, x, y in short_sightings(short_chip_at)])
-    tables = chip_tracking.hop_tables(SHORT_PARAMS, BallModelParams())
-    hop = int(np.argmin(np.abs(chip_tracking.HOP_T1_S - SHORT_T1)))
-    assert chip_tracking.HOP_T1_S[hop] == pytest.approx(SHORT_T1, abs=1e-12)
-    fit = chip_tracking.fit_hop_flight(rows, 0.0, hop, tables, None, G)
+    tables = chip_fits.hop_tables(SHORT_PARAMS, BallModelParams())
+    hop = int(np.argmin(np.abs(chip_fits.HOP_T1_S - SHORT_T1)))
+    assert chip_fits.HOP_T1_S[hop] == pytest.approx(SHORT_T1, abs=1e-12)
+    fit = chip_fits.fit_hop_flight(rows, 0.0, hop, tables, None, G)
     assert [fit.x_m, fit.y_m, fit.vx_mps, fit.vy_mps, fit.vz_mps] == pytest.approx([0.5, 0.3, 1.5, 0.0, SHORT_VZ],
                                                                                    abs=1e-5)
     chip = ChipTrajectory((fit.x_m, fit.y_m, 0.0), (fit.vx_mps, fit.vy_mps, fit.vz_mps), SHORT_PARAMS)
@@ -493,3 +488,22 @@ def test_a_slow_kick_the_flat_filter_missed_starts_from_the_sightings():
     for t, x, y, camera in kick_sightings(truth, 10.0, CAMERAS, noise_m=0.002, seed=3, frames=(-10, 60)):
         rest.add(t, x, y, camera)
     assert rest.t_start_s is None and rest.fit is None
+
+
+def test_a_start_the_ball_did_not_follow_does_not_hold_the_next_kick():
+    """A ball at rest whose sightings stray 15 mm for two frames (7.5 noise: a start from the sightings), then lie
+    where they were: once the sightings since that start span 0.1 s at rest it is forgotten, and a chip kicked 0.13 s
+    after it (2.8 m/s, 45 deg, one camera beside it) starts its own kick and is taken within 0.15 s. Held, that start
+    would have kept the chip's sightings in its own collection until 0.17 s."""
+    truth = ChipTrajectory((0.5, 0.3, 0.0), (2.0, 0.0, 2.0), ChipParams())
+    camera = (0.5, -2.0, 4.0)
+    detector = ChipDetector(None, ChipParams())
+    starts = []
+    for t, x, y, cam in kick_sightings(truth, 0.004, [camera], frames=(-20, 12)):
+        stray = 0.015 if -9.5 / 70.0 < t < -7.5 / 70.0 else 0.0
+        detector.add(t, x + stray, y, cam)
+        if detector.t_start_s is not None and detector.t_start_s not in starts:
+            starts.append(detector.t_start_s)
+    assert starts[0] == pytest.approx(-9.0 / 70.0)  # the stray start
+    assert 0.004 < detector.t_start_s <= 2.0 / 70.0
+    assert detector.detected_at_s is not None and detector.detected_at_s - 0.004 <= 0.15

@@ -153,7 +153,7 @@ def test_the_commanded_speed_adds_to_the_flights_information():
     measurement of the ground speed u . v with variance s^2, so that speed's variance is the scalar Kalman update of
     the sightings' own, var s^2 / (var + s^2) (noise-free sightings and an exact command: both fits' sigma is the
     noise)."""
-    from erforce_ball_model.chip_tracking import fit_flight_at_angle, flight_covariance
+    from erforce_ball_model.chip_fits import fit_flight_at_angle, flight_covariance
 
     camera = (2.0, 1.0, 4.0)
     v = 2.0
