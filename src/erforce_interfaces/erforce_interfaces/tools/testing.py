@@ -1,7 +1,8 @@
 """Test harness for integration tests over real DDS: isolated domains, node processes, probes.
 
 Use it as a pytest plugin (``pytest_plugins = ["erforce_interfaces.tools.testing"]`` in a
-conftest.py) and take the ``ros_graph`` fixture (or ``module_ros_graph``, one graph for a module's tests)::
+conftest.py) and take the ``ros_graph`` fixture (or ``module_ros_graph`` / ``class_ros_graph``, one graph for
+a module's or a class's tests)::
 
     def test_talker(ros_graph):
         ros_graph.start_node("erforce_interfaces", "talker", params={"rate_hz": 50.0})
@@ -509,11 +510,8 @@ if pytest is not None:
             pytest.fail("a node dropped a message in its callback guard (a bug, or bad input the test does not "
                         "declare with ros_graph.expect_callback_faults):\n" + "\n".join(faults[:20]), pytrace=False)
 
-    @pytest.fixture(scope="module")
-    def module_ros_graph(tmp_path_factory, request) -> Iterator[RosGraph]:
-        """One ``ros_graph`` for every test of a module that takes it, for tests that share one started graph
-        (it costs seconds to tens of seconds to start) and leave it as the next test can use it. Logs are
-        shown when a test of the module failed; undeclared callback faults fail the module's last test."""
+    def _shared_ros_graph(tmp_path_factory, request, fixture: str) -> Iterator[RosGraph]:
+        """One ``ros_graph`` for the tests of a wider scope (``fixture`` names it in the messages)."""
         graph = RosGraph(workdir=tmp_path_factory.mktemp("graph"))
         failed_before = request.session.testsfailed
         try:
@@ -526,8 +524,21 @@ if pytest is not None:
         faults = graph.unexpected_callback_faults()
         if faults and not failed:
             pytest.fail("a node dropped a message in its callback guard (a bug, or bad input the tests do not "
-                        "declare with module_ros_graph.expect_callback_faults):\n" + "\n".join(faults[:20]),
+                        f"declare with {fixture}.expect_callback_faults):\n" + "\n".join(faults[:20]),
                         pytrace=False)
+
+    @pytest.fixture(scope="module")
+    def module_ros_graph(tmp_path_factory, request) -> Iterator[RosGraph]:
+        """One ``ros_graph`` for every test of a module that takes it, for tests that share one started graph
+        (it costs seconds to tens of seconds to start) and leave it as the next test can use it. Logs are
+        shown when a test of the module failed; undeclared callback faults fail the module's last test."""
+        yield from _shared_ros_graph(tmp_path_factory, request, "module_ros_graph")
+
+    @pytest.fixture(scope="class")
+    def class_ros_graph(tmp_path_factory, request) -> Iterator[RosGraph]:
+        """``module_ros_graph`` for the tests of one class: a module whose tests need two different graphs
+        groups them in two classes, and only one graph runs at a time (the first closes after its class)."""
+        yield from _shared_ros_graph(tmp_path_factory, request, "class_ros_graph")
 
     @pytest.hookimpl(tryfirst=True, hookwrapper=True)
     def pytest_runtest_makereport(item, call):
