@@ -100,13 +100,18 @@ def rests_at(states: list, xy, within_m: float) -> bool:
                for t, p, v, _ in recent if t >= t_end - REST_S)
 
 
-def spin_until_or_show(graph, states: list, condition, timeout_s: float, what: str) -> None:
-    """graph.spin_until, failing with the last five states on /ball/state (``states``) when it times out."""
+def spin_until_or_show(d, graph, states: list, condition, timeout_s: float, what: str) -> None:
+    """graph.spin_until, failing with the last five states on /ball/state (``states``) and the newest ground truth
+    of the ball and of robot_0 (the Director ``d``'s) when it times out."""
     try:
         graph.spin_until(condition, timeout_s, what)
     except TimeoutError as exc:
         last = [(round(t, 3), *p[:2].round(3), *v[:2].round(3)) for t, p, v, _ in map(odometry_from_msg, states[-5:])]
-        raise AssertionError(f"{exc}; the last states (t, x, y, vx, vy): {last}") from None
+        d.pump()
+        truth = [tuple(round(float(x), 3) for x in rows[-1]) if rows else None
+                 for rows in (d.series.ball_truth, d.series.robot_truth)]
+        raise AssertionError(f"{exc}; the last states (t, x, y, vx, vy): {last}; the newest ground truth of the ball "
+                             f"(t, x, y, vx, vy) {truth[0]}, of robot_0 (t, x, y, yaw, vx, vy, w) {truth[1]}") from None
 
 
 KICKER_POSE = (0.4, 1.6, 0.0)  # in the +x +y quadrant, kicking along +x
@@ -134,7 +139,7 @@ def kicked_ball(d, graph, topics, kick_angle, pose, speed_mps: float, angle_deg:
     place_ball_at_rest(d, graph, truth, ball)
     states.clear()
     # a wall-time deadline: on a loaded machine the lockstep graph can take a minute for the half second
-    spin_until_or_show(graph, states, lambda: rests_at(states, ball, 0.03), 120.0,
+    spin_until_or_show(d, graph, states, lambda: rests_at(states, ball, 0.03), 120.0,
                        "the ball at rest at the kicker on /ball/state")
     states.clear()
     phases.clear()
@@ -207,7 +212,8 @@ class TestOnSslVision:
     """The demo graph with SSL-Vision from the plant's cameras, the bridge in the predictor's process."""
 
     @pytest.fixture(scope="class")
-    def demo(self, class_ros_graph):
+    @classmethod
+    def demo(cls, class_ros_graph):
         yield from demo_for_the_class(class_ros_graph, vision="ssl", ssl_vision_port=str(free_udp_port()),
                                       ssl_vision_process="predictor")
 
@@ -219,7 +225,7 @@ class TestOnSslVision:
 
         place_ball_at_rest(d, graph, truth, START)
         states.clear()
-        spin_until_or_show(graph, states, still_at_start, 60.0, "the ball at rest at the start on /ball/state")
+        spin_until_or_show(d, graph, states, still_at_start, 60.0, "the ball at rest at the start on /ball/state")
         states.clear()
         phases.clear()
         truth.clear()
@@ -269,7 +275,7 @@ class TestOnSslVision:
         for _ in range(OVERLAP_CHIPS):
             place_ball_at_rest(d, graph, truth, OVERLAP_START)
             states.clear()
-            spin_until_or_show(graph, states, lambda: rests_at(states, OVERLAP_START, 0.02), 60.0,
+            spin_until_or_show(d, graph, states, lambda: rests_at(states, OVERLAP_START, 0.02), 60.0,
                                "the ball at rest on /ball/state")
             states.clear()
             phases.clear()
@@ -308,7 +314,8 @@ class TestOnThePlantsRosVision:
     """The demo graph with the plant's own vision topics (vision:=ros)."""
 
     @pytest.fixture(scope="class")
-    def demo(self, class_ros_graph):
+    @classmethod
+    def demo(cls, class_ros_graph):
         yield from demo_for_the_class(class_ros_graph, vision="ros")
 
     def test_a_kicked_chip_shows_on_ball_state_within_the_deadline(self, director):
