@@ -24,7 +24,7 @@ from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import odometry_from_msg, odometry_height, odometry_msg
 from erforce_interfaces.wire.robot_config import RobotConfig
 from erforce_sim.demo.demo import LAUNCH_FILE, Director
-from erforce_sim.in_process.scenes import KICKER
+from erforce_sim.in_process.scenes import KICKER, RECEIVER
 
 pytestmark = pytest.mark.integration
 
@@ -33,6 +33,7 @@ SPEED_MPS, ANGLE_DEG = 4.0, 60.0  # up at 3.46 m/s: 0.71 s in the air, apex 0.61
 G_MPS2 = 9.81
 REST_S = 0.5
 FLIGHT_S = 2.0 * SPEED_MPS * math.sin(math.radians(ANGLE_DEG)) / G_MPS2
+RECEIVER_ASIDE = (-0.5, 0.3, math.pi)  # robot_0's start in demo.launch.yaml: behind every kick of this module
 
 
 def free_udp_port() -> int:
@@ -74,9 +75,11 @@ def ball_topics(probe) -> tuple[list, list, list]:
 
 
 def place_ball_at_rest(d, graph, truth: list, xy) -> None:
-    """Put the ball at ``xy`` at rest, sent again until the plant's ground truth (``truth``) shows it there: a
-    placement published before the plant's subscription matched is lost (a command is not kept for a late
-    joiner)."""
+    """Put robot_0 aside (its catcher may have chased the last ball to where this one goes, or still hold it), then
+    the ball at ``xy`` at rest, sent again until the plant's ground truth (``truth``) shows it there: a placement
+    published before the plant's subscription matched is lost (a command is not kept for a late joiner)."""
+    d.place_robot(RECEIVER, RECEIVER_ASIDE)
+    d.wait_sim(0.02)
     truth.clear()
     d.place_ball(*xy)
 
