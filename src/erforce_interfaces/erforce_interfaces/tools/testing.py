@@ -356,6 +356,23 @@ class RosGraph:
         self.close()
 
 
+def hold_the_lockstep(graph: RosGraph, robots: Sequence[str] = ("robot_0",), wait_s: float = 10.0) -> None:
+    """Make a launched lockstep graph wait for a starved node instead of taking it for dead, for tests that kill
+    none and expect the deterministic run: each robot's motor_boards waits up to ``wait_s`` of wall time for its
+    velocity controller's setpoint (``setpoint_wait_s``, 0.05 s by default) and the plant twice that for the
+    boards (``lockstep_timeout_s``, 2 s). Past those the boards go on with an old setpoint and stop the wheels
+    0.1 s of robot time later, and the plant drives a silent board's robot with zero duty: on a loaded machine,
+    where the demo's simulated world runs at SCHED_IDLE, the catching robot then stood still or turned off the
+    ball's line."""
+    for robot in robots:
+        result = graph.probe.set_parameter(f"/{robot}/motor_boards", "setpoint_wait_s", wait_s, timeout_s=60.0)
+        if not result.successful:
+            raise RuntimeError(f"/{robot}/motor_boards refused setpoint_wait_s {wait_s}: {result.reason}")
+    result = graph.probe.set_parameter("/plant", "lockstep_timeout_s", 2.0 * wait_s, timeout_s=60.0)
+    if not result.successful:
+        raise RuntimeError(f"/plant refused lockstep_timeout_s {2.0 * wait_s}: {result.reason}")
+
+
 class _Probe:
     def __init__(self, domain_id: int) -> None:
         import rclpy
