@@ -74,24 +74,6 @@ def ball_topics(probe) -> tuple[list, list, list]:
             probe.subscribe(contract.GROUND_TRUTH_BALL.name, Odometry, contract.GROUND_TRUTH_BALL.qos))
 
 
-def place_ball_at_rest(d, graph, truth: list, xy) -> None:
-    """Put robot_0 aside (its catcher may have chased the last ball to where this one goes, or still hold it), then
-    the ball at ``xy`` at rest, sent again until the plant's ground truth (``truth``) shows it there: a placement
-    published before the plant's subscription matched is lost (a command is not kept for a late joiner)."""
-    d.place_robot(RECEIVER, RECEIVER_ASIDE)
-    d.wait_sim(0.02)
-    truth.clear()
-    d.place_ball(*xy)
-
-    def placed() -> bool:
-        if truth and math.dist(odometry_from_msg(truth[-1])[1][:2], xy) < 0.01:
-            return True
-        d.place_ball(*xy)
-        return False
-
-    graph.spin_until(placed, 60.0, f"the ball placed at {xy} (ground truth)")
-
-
 def rests_at(states: list, xy, within_m: float) -> bool:
     """The predictor has had the ball lying within ``within_m`` of ``xy`` for REST_S (its stamps) on ``states``
     (/ball/state): a chip detector judges one motion at a time, so a placement must be over before a kick."""
@@ -117,6 +99,32 @@ def spin_until_or_show(d, graph, states: list, condition, timeout_s: float, what
                              f"(t, x, y, vx, vy) {truth[0]}, of robot_0 (t, x, y, yaw, vx, vy, w) {truth[1]}") from None
 
 
+def place_ball_at_rest(d, graph, topics, xy, within_m: float) -> None:
+    """Put robot_0 aside (its catcher may have chased the last ball to where this one goes, or still hold it), then
+    the ball at ``xy``, sent again until the plant's ground truth shows it there (a placement published before
+    the plant's subscription matched is lost: a command is not kept for a late joiner), and wait until the
+    predictor has it at rest there (rests_at); ``topics`` (ball_topics') are emptied after."""
+    states, _, truth = topics
+    d.place_robot(RECEIVER, RECEIVER_ASIDE)
+    d.wait_sim(0.02)
+    truth.clear()
+    d.place_ball(*xy)
+
+    def placed() -> bool:
+        if truth and math.dist(odometry_from_msg(truth[-1])[1][:2], xy) < 0.01:
+            return True
+        d.place_ball(*xy)
+        return False
+
+    graph.spin_until(placed, 60.0, f"the ball placed at {xy} (ground truth)")
+    states.clear()
+    # a wall-time deadline: on a loaded machine the lockstep graph can take a minute for the half second
+    spin_until_or_show(d, graph, states, lambda: rests_at(states, xy, within_m), 120.0,
+                       f"the ball at rest at {xy} on /ball/state")
+    for received in topics:
+        received.clear()
+
+
 KICKER_POSE = (0.4, 1.6, 0.0)  # in the +x +y quadrant, kicking along +x
 KICK_SPEED_MPS, KICK_ANGLE_DEG = 4.0, 45.0  # up at 2.83 m/s: 0.58 s in the air, first touchdown 1.63 m on
 KICK_FLIGHT_S = 2.0 * KICK_SPEED_MPS * math.sin(math.radians(KICK_ANGLE_DEG)) / G_MPS2
@@ -139,14 +147,7 @@ def kicked_ball(d, graph, topics, kick_angle, pose, speed_mps: float, angle_deg:
     ball = d.ball_at_kicker(pose)
     d.place_robot(KICKER, pose)
     d.wait_sim(0.3)
-    place_ball_at_rest(d, graph, truth, ball)
-    states.clear()
-    # a wall-time deadline: on a loaded machine the lockstep graph can take a minute for the half second
-    spin_until_or_show(d, graph, states, lambda: rests_at(states, ball, 0.03), 120.0,
-                       "the ball at rest at the kicker on /ball/state")
-    states.clear()
-    phases.clear()
-    truth.clear()
+    place_ball_at_rest(d, graph, topics, ball, 0.03)
     kick_angle.publish(Float64(data=angle_deg))
     d.kick.publish(Float64(data=speed_mps))
 
@@ -221,17 +222,9 @@ class TestOnSslVision:
                                       ssl_vision_process="predictor")
 
     def test_a_chip_in_the_plant_shows_on_ball_state_in_the_air(self, director):
-        d, graph, launch, (states, phases, truth) = director
-
-        def still_at_start() -> bool:  # the placement, a motion of its own, is over before the kick
-            return rests_at(states, START, 0.02)
-
-        place_ball_at_rest(d, graph, truth, START)
-        states.clear()
-        spin_until_or_show(d, graph, states, still_at_start, 60.0, "the ball at rest at the start on /ball/state")
-        states.clear()
-        phases.clear()
-        truth.clear()
+        d, graph, launch, topics = director
+        states, phases, truth = topics
+        place_ball_at_rest(d, graph, topics, START, 0.02)  # the placement, a motion of its own, is over before the kick
         v_ground = SPEED_MPS * math.cos(math.radians(ANGLE_DEG))
         chip = odometry_msg(0.0, (*START, 0.0), (v_ground, 0.0, 0.0))
         chip.twist.twist.linear.z = SPEED_MPS * math.sin(math.radians(ANGLE_DEG))
@@ -271,18 +264,13 @@ class TestOnSslVision:
         """Launched (/sim/set_ball) along the overlap of two cameras, the chip is seen by both at each capture;
         their disagreement is its height (two rays), which only the graph's camera points and sightings bring to
         the predictor: the first state in the air comes early in the flight with a height near the truth's."""
-        d, graph, launch, (states, phases, truth) = director
+        d, graph, launch, topics = director
+        states, phases, truth = topics
         v_ground = OVERLAP_SPEED_MPS * math.cos(math.radians(OVERLAP_ANGLE_DEG))
         vz = OVERLAP_SPEED_MPS * math.sin(math.radians(OVERLAP_ANGLE_DEG))
         seen = []
         for _ in range(OVERLAP_CHIPS):
-            place_ball_at_rest(d, graph, truth, OVERLAP_START)
-            states.clear()
-            spin_until_or_show(d, graph, states, lambda: rests_at(states, OVERLAP_START, 0.02), 60.0,
-                               "the ball at rest on /ball/state")
-            states.clear()
-            phases.clear()
-            truth.clear()
+            place_ball_at_rest(d, graph, topics, OVERLAP_START, 0.02)
             chip = odometry_msg(0.0, (*OVERLAP_START, 0.0), (v_ground, 0.0, 0.0))
             chip.twist.twist.linear.z = vz
             d.set_ball.publish(chip)
