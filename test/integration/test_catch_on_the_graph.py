@@ -9,8 +9,11 @@ planned point while the robot settles (the receiver is already on the ball's lin
 """
 
 
+import math
+
 import pytest
 
+from erforce_interfaces.tools.testing import hold_the_lockstep
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.demo.demo import LAUNCH_FILE, Director
 from erforce_sim.in_process.scenes import default_scenes
@@ -29,6 +32,7 @@ def director(module_ros_graph):
     d = Director(ros_graph.probe.node, RobotConfig(), ros_graph.probe.executor,
                  graph_alive=launch.alive, graph_hint="see the launch output below")
     assert d.spin_until(d.graph_ready, 120.0, "the graph"), launch.output()[-3000:]
+    hold_the_lockstep(ros_graph)  # the claims are about the deterministic run, on a loaded machine too
     yield d
     d.close()
 
@@ -43,6 +47,14 @@ def went_straight(director, result, tolerance_m=0.03) -> bool:
     return bool(path) and max(abs(b[2]) for b in path) <= tolerance_m
 
 
+def launched_s(director, result) -> float:
+    """The kick's launch in the plant's time: its first ground truth of the ball faster than 0.5 m/s after the scene
+    started (a flat-out lockstep plant takes the kick command a while after the director sent it at t_start_s,
+    longer on a loaded machine)."""
+    return next(t for t, _x, _y, vx, vy in director.series.ball_truth
+                if t >= result.t_start_s and math.hypot(vx, vy) > 0.5)
+
+
 @pytest.mark.parametrize("kick", ["kick 5.0 m/s straight", "kick 6.5 m/s straight"])
 def test_a_kicked_ball_is_predicted_and_caught(director, kick):
     for _ in range(3):  # the claim is about a ball that left straight; a rare off-line kick is replayed
@@ -55,7 +67,7 @@ def test_a_kicked_ball_is_predicted_and_caught(director, kick):
     assert result.predicted_s is not None, "no catch predicted 0.3 s before the contact"
     assert abs(result.predicted_s - result.actual_s) <= PREDICTION_TOLERANCE_S
     # the contact is where physics says: a 5-6.5 m/s ball covers the 3.8 m in well under 1.2 s
-    assert 0.4 < result.actual_s - result.t_start_s < 1.2
+    assert 0.4 < result.actual_s - launched_s(director, result) < 1.2
 
 
 def test_the_light_barrier_fires_on_the_catch_and_only_then(director):

@@ -9,6 +9,7 @@ import socket
 
 import pytest
 
+from erforce_interfaces.tools.testing import hold_the_lockstep
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.demo.demo import LAUNCH_FILE, Director
 from erforce_sim.in_process.scenes import default_scenes
@@ -28,6 +29,7 @@ def director(ros_graph, request):
     d = Director(ros_graph.probe.node, RobotConfig(), ros_graph.probe.executor,
                  graph_alive=launch.alive, graph_hint="see the launch output below")
     assert d.spin_until(d.graph_ready, 120.0, "the graph"), launch.output()[-3000:]
+    hold_the_lockstep(ros_graph)
     yield d, launch, request.param
     d.close()
 

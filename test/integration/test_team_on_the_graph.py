@@ -14,6 +14,7 @@ import pytest
 from geometry_msgs.msg import Twist
 from std_msgs.msg import Float64
 
+from erforce_interfaces.tools.testing import hold_the_lockstep
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.robot_config import FieldConfig, RobotConfig
 from erforce_sim.demo.demo import LAUNCH_FILE, Director
@@ -31,6 +32,7 @@ def director(ros_graph):
     d = Director(ros_graph.probe.node, RobotConfig(), ros_graph.probe.executor, graph_alive=launch.alive,
                  graph_hint="see the launch output below", receivers=2)
     assert d.spin_until(d.graph_ready, 150.0, "the graph"), launch.output()[-3000:]
+    hold_the_lockstep(ros_graph, ("robot_0", "robot_2"))
     yield d
     d.close()
 

@@ -1,7 +1,8 @@
 """Test harness for integration tests over real DDS: isolated domains, node processes, probes.
 
 Use it as a pytest plugin (``pytest_plugins = ["erforce_interfaces.tools.testing"]`` in a
-conftest.py) and take the ``ros_graph`` fixture (or ``module_ros_graph``, one graph for a module's tests)::
+conftest.py) and take the ``ros_graph`` fixture (or ``module_ros_graph`` / ``class_ros_graph``, one graph for
+a module's or a class's tests)::
 
     def test_talker(ros_graph):
         ros_graph.start_node("erforce_interfaces", "talker", params={"rate_hz": 50.0})
@@ -355,6 +356,23 @@ class RosGraph:
         self.close()
 
 
+def hold_the_lockstep(graph: RosGraph, robots: Sequence[str] = ("robot_0",), wait_s: float = 10.0) -> None:
+    """Make a launched lockstep graph wait for a starved node instead of taking it for dead, for tests that kill
+    none and expect the deterministic run: each robot's motor_boards waits up to ``wait_s`` of wall time for its
+    velocity controller's setpoint (``setpoint_wait_s``, 0.05 s by default) and the plant twice that for the
+    boards (``lockstep_timeout_s``, 2 s). Past those the boards go on with an old setpoint and stop the wheels
+    0.1 s of robot time later, and the plant drives a silent board's robot with zero duty: on a loaded machine,
+    where the demo's simulated world runs at SCHED_IDLE, the catching robot then stood still or turned off the
+    ball's line."""
+    for robot in robots:
+        result = graph.probe.set_parameter(f"/{robot}/motor_boards", "setpoint_wait_s", wait_s, timeout_s=60.0)
+        if not result.successful:
+            raise RuntimeError(f"/{robot}/motor_boards refused setpoint_wait_s {wait_s}: {result.reason}")
+    result = graph.probe.set_parameter("/plant", "lockstep_timeout_s", 2.0 * wait_s, timeout_s=60.0)
+    if not result.successful:
+        raise RuntimeError(f"/plant refused lockstep_timeout_s {2.0 * wait_s}: {result.reason}")
+
+
 class _Probe:
     def __init__(self, domain_id: int) -> None:
         import rclpy
@@ -509,11 +527,8 @@ if pytest is not None:
             pytest.fail("a node dropped a message in its callback guard (a bug, or bad input the test does not "
                         "declare with ros_graph.expect_callback_faults):\n" + "\n".join(faults[:20]), pytrace=False)
 
-    @pytest.fixture(scope="module")
-    def module_ros_graph(tmp_path_factory, request) -> Iterator[RosGraph]:
-        """One ``ros_graph`` for every test of a module that takes it, for tests that share one started graph
-        (it costs seconds to tens of seconds to start) and leave it as the next test can use it. Logs are
-        shown when a test of the module failed; undeclared callback faults fail the module's last test."""
+    def _shared_ros_graph(tmp_path_factory, request, fixture: str) -> Iterator[RosGraph]:
+        """One ``ros_graph`` for the tests of a wider scope (``fixture`` names it in the messages)."""
         graph = RosGraph(workdir=tmp_path_factory.mktemp("graph"))
         failed_before = request.session.testsfailed
         try:
@@ -526,8 +541,21 @@ if pytest is not None:
         faults = graph.unexpected_callback_faults()
         if faults and not failed:
             pytest.fail("a node dropped a message in its callback guard (a bug, or bad input the tests do not "
-                        "declare with module_ros_graph.expect_callback_faults):\n" + "\n".join(faults[:20]),
+                        f"declare with {fixture}.expect_callback_faults):\n" + "\n".join(faults[:20]),
                         pytrace=False)
+
+    @pytest.fixture(scope="module")
+    def module_ros_graph(tmp_path_factory, request) -> Iterator[RosGraph]:
+        """One ``ros_graph`` for every test of a module that takes it, for tests that share one started graph
+        (it costs seconds to tens of seconds to start) and leave it as the next test can use it. Logs are
+        shown when a test of the module failed; undeclared callback faults fail the module's last test."""
+        yield from _shared_ros_graph(tmp_path_factory, request, "module_ros_graph")
+
+    @pytest.fixture(scope="class")
+    def class_ros_graph(tmp_path_factory, request) -> Iterator[RosGraph]:
+        """``module_ros_graph`` for the tests of one class: a module whose tests need two different graphs
+        groups them in two classes, and only one graph runs at a time (the first closes after its class)."""
+        yield from _shared_ros_graph(tmp_path_factory, request, "class_ros_graph")
 
     @pytest.hookimpl(tryfirst=True, hookwrapper=True)
     def pytest_runtest_makereport(item, call):
