@@ -37,6 +37,7 @@ import numpy as np
 
 from erforce_ball_model.ball_model import MAX_SPEED_MPS, BallModelParams, ChipParams, kick_distances
 from erforce_ball_model.chip_model import ChipTrajectory
+from erforce_interfaces.wire.robot_config import SSL_MAX_KICK_MPS
 
 __all__ = ["ChipFit", "Sighting", "fit_flight", "fit_flight_at_angle", "fit_ground", "fit_hop_flight",
            "flight_covariance", "flights", "flights_at_angle", "grounds", "hop_flights", "hop_tables",
@@ -58,7 +59,7 @@ HOP_TAU_STEP_S = 0.001
 HOP_TAU_MAX_S = 0.5
 
 # The league's limit on a kicked ball's speed [m/s]: with the kicker's elevations, the flights a reported chip can be.
-KICK_SPEED_LIMIT_MPS = 6.5
+KICK_SPEED_LIMIT_MPS = SSL_MAX_KICK_MPS
 
 # Fixed standard normal draws (antithetic pairs: their mean is exactly 0) for the flight under the kicker's limits.
 _DRAWS = np.random.default_rng(37).standard_normal((256, 6))
