@@ -184,7 +184,8 @@ def _unknown_options(lines):
                 source += (ROOT / "bench/table.py").read_text()
             command = re.sub(r"\"[^\"]*\"", "", line.split("#")[0])  # not a quoted launch argument's options
             for option in re.findall(r"(?<![\w-])--[a-z][\w-]*", command):
-                if f'"{option}"' not in source:
+                negated = option.startswith("--no-") and "BooleanOptionalAction" in source  # argparse's --no-X
+                if f'"{option}"' not in source and not (negated and f'"--{option[5:]}"' in source):
                     missing.append(f"option {option} of {program or found.group(1)}")
     return missing
 
