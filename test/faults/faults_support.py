@@ -22,7 +22,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
-from std_msgs.msg import Bool, Float64, Float64MultiArray, Header, MultiArrayDimension
+from std_msgs.msg import Bool, Float64, Float64MultiArray, Header, MultiArrayDimension, String
 
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import odometry_from_msg, odometry_msg, stamp_to_seconds
@@ -166,6 +166,8 @@ def bad_message(msg_type, rng, columns: tuple[str, ...] = contract.BALL_MODEL_PA
         return Float64(data=_bad(rng))
     if msg_type is Bool:
         return Bool(data=bool(rng.integers(2)))
+    if msg_type is String:  # /ball/phase: a phase, none, or garbage
+        return String(data=str(rng.choice([*contract.BALL_PHASES, "", "HOPPING", "chip\x00", "x" * 10_000])))
     if msg_type is Clock:
         return Clock(clock=_stamp(rng))
     if msg_type is Float64MultiArray:  # a labelled table: right or wrong labels and sizes, bad values

@@ -137,11 +137,11 @@ def test_fuzzed_inputs_crash_neither_the_passing_game_nor_the_pressing_opponents
     spin_until(lambda: any(m.layout.dim and m.layout.dim[0].size for m in choices), 120.0,
                "robot_0 holding the ball with a chosen pass")
     inputs = {node: node_topics(probe, node) for node in GAME_NODES}
-    # passing_game: the ball's four topics (state, v_shoot, the ball and chip models), every robot's light barrier,
-    # the tracked robots' and the catch table, /clock, the world's field; the interceptor: the ball's, its robot's
-    # barrier, both tables (every pose from the tracked one), /clock, the world's field
-    assert len(inputs["passing_game"]) == 4 + 4 + 2 + 1 + 1, sorted(inputs["passing_game"])
-    assert len(inputs["opponent_interceptor"]) == 4 + 1 + 2 + 1 + 1, sorted(inputs["opponent_interceptor"])
+    # passing_game: the ball's five topics (state, phase, v_shoot, the ball and chip models), every robot's light
+    # barrier, the tracked robots' and the catch table, /clock, the world's field; the interceptor: the ball's, its
+    # robot's barrier, both tables (every pose from the tracked one), /clock, the world's field
+    assert len(inputs["passing_game"]) == 5 + 4 + 2 + 1 + 1, sorted(inputs["passing_game"])
+    assert len(inputs["opponent_interceptor"]) == 5 + 1 + 2 + 1 + 1, sorted(inputs["opponent_interceptor"])
     assert all(contract.VISION_FIELD.name in inputs[node] for node in GAME_NODES)
     assert all({contract.BALL_CATCHES.name, contract.ROBOTS_TRACKED.name} <= set(inputs[node]) for node in GAME_NODES)
     fuzzed = {name: topic for node in GAME_NODES for name, topic in inputs[node].items()}

@@ -36,6 +36,7 @@ from erforce_interfaces.runtime.param_schema import fields_for, load_schema
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
     ConversionError,
+    ball_phase_from_msg,
     ball_state_from_msg,
     float64_from_msg,
     odometry_from_msg,
@@ -150,7 +151,9 @@ class CatcherNode(SchemaNode):
             self._receiver.on_ball(self._now_s(), ball[1], ball[2])
 
     def _on_phase(self, msg: String) -> None:
-        self._receiver.on_ball_phase(msg.data)
+        phase = self._warn.convert(msg, "phase", ball_phase_from_msg)
+        if phase is not None:
+            self._receiver.on_ball_phase(phase)
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
         v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)

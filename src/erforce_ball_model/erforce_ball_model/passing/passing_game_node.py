@@ -41,6 +41,7 @@ from erforce_interfaces.runtime.param_schema import HostSchema, fields_for, load
 from erforce_interfaces.wire import contract
 from erforce_interfaces.wire.conversions import (
     ConversionError,
+    ball_phase_from_msg,
     ball_state_from_msg,
     float64_from_msg,
     odometry_msg,
@@ -225,7 +226,9 @@ class PassingGameNode(Node):
             self._player.on_ball(self._batch_now, ball[1], ball[2], self._v_shoot)
 
     def _on_phase(self, msg: String) -> None:
-        self._player.on_ball_phase(msg.data)
+        phase = self._warn.convert(msg, "phase", ball_phase_from_msg)
+        if phase is not None:
+            self._player.on_ball_phase(phase)
 
     def _on_v_shoot(self, msg: Float64 | bytes) -> None:
         self._v_shoot = self._warn.convert(msg, "v_shoot", float64_from_msg)

@@ -31,6 +31,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from erforce_interfaces.wire.contract import (
+    BALL_PHASES,
     FIELD_FRAME,
     OPPONENTS,
     OURS,
@@ -820,6 +821,13 @@ def _joint_value_arrays(data: bytes, p: int) -> list[np.ndarray]:
 def float64_cdr(value: float, limit: float = MAX_ABS_VALUE) -> bytes:
     """A Float64 serialized, checked as ``tools.messages.float64_msg`` checks it."""
     return _CDR_LE + _f64.pack(_finite("data", value, limit))
+
+
+def ball_phase_from_msg(msg) -> str:
+    """The phase a /ball/phase String names (one of contract.BALL_PHASES)."""
+    if msg.data not in BALL_PHASES:
+        raise ConversionError(f"phase {msg.data[:40]!r} is none of {', '.join(BALL_PHASES)}")
+    return msg.data
 
 
 def float64_from_msg(msg: Float64 | bytes, limit: float = MAX_ABS_VALUE) -> float:
