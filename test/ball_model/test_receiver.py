@@ -545,3 +545,14 @@ def test_a_chip_after_its_first_bounce_is_rebuilt_as_one_that_has_bounced():
         chip = receiver._chip(1.0)
         gap_m = np.abs(chip.position_at(t) - launched.position_at(t + t_state)).max()
         assert (gap_m < 1e-9) == same, (phase, gap_m)
+
+
+def test_a_phase_that_is_none_is_refused_by_name():
+    from std_msgs.msg import String
+
+    from erforce_interfaces.wire.conversions import ConversionError, ball_phase_from_msg
+
+    assert ball_phase_from_msg(String(data="hopping")) == "hopping"
+    for bad in ("", "HOPPING", "x" * 10_000):
+        with pytest.raises(ConversionError, match="is none of unknown, sliding, rolling, stopped, chip, hopping"):
+            ball_phase_from_msg(String(data=bad))
