@@ -158,7 +158,9 @@ def test_fuzzed_inputs_crash_neither_the_passing_game_nor_the_pressing_opponents
         assert launch.alive(), launch.output()[-3000:]
     # The model is latched and published on change only: a fuzzed model that passes the checks stays in use. The
     # last one leaves no pass in reach (every kick rests within 0.29 m: a_slide -100, a_roll -50 m/s^2), which
-    # stalled the game for good until the holder fell back (PassingPlayer.fallback_choice).
+    # stalled the game for good until the holder fell back (PassingPlayer.fallback_choice). A chip flies its hops
+    # whatever the carpet, so the game plays flat passes only for this.
+    assert probe.set_parameter("/passing_game", "chip_angle_deg", 0.0).successful
     probe.publisher(contract.BALL_MODEL_PARAMS.name, Float64MultiArray, contract.BALL_MODEL_PARAMS.qos).publish(
         table_msg(np.array([[-100.0, -50.0, 0.6]]), contract.BALL_MODEL_PARAM_LABELS, "in_use"))
     # likewise a fuzzed chip model that passed its checks: the predictor's (the defaults) back
