@@ -87,6 +87,17 @@ HOP_COARSE = 2  # the first search takes every other touchdown time, then the be
 HOP_LAUNCH_STEPS = 7  # launch times per search (the free flight's grid is finer: the hop fit runs on fewer)
 
 
+def _line_velocity(rows: np.ndarray) -> tuple[float, float] | None:
+    """The velocity of the least-squares line through sightings (rows of t, x, y, ...); None under two times."""
+    if len(rows) < 2:
+        return None
+    t = rows[:, 0] - rows[:, 0].mean()
+    tt = t @ t
+    if not tt > 0.0:
+        return None
+    return float(t @ (rows[:, 1] - rows[:, 1].mean()) / tt), float(t @ (rows[:, 2] - rows[:, 2].mean()) / tt)
+
+
 @dataclass(frozen=True)
 class ChipDetectorConfig:
     """When a kick's sightings are a chip, and how long they are collected."""
@@ -287,12 +298,8 @@ class ChipDetector:
         cfg, t_now = self.config, self._rows[-1].t_s
         if t_now - self.t_start_s < cfg.origin_s:
             return False
-        rows = np.array([r for r in self._rows if t_now - r.t_s <= cfg.origin_s], dtype=float)
-        tc = rows[:, 0] - rows[:, 0].mean()
-        if not tc @ tc > 0.0:
-            return False
-        vx, vy = tc @ rows[:, 1] / (tc @ tc), tc @ rows[:, 2] / (tc @ tc)
-        return math.hypot(vx, vy) < cfg.rest_speed_mps
+        velocity = _line_velocity(np.array([r for r in self._rows if t_now - r.t_s <= cfg.origin_s], dtype=float))
+        return velocity is not None and math.hypot(*velocity) < cfg.rest_speed_mps
 
     @property
     def active(self) -> bool:
@@ -353,11 +360,9 @@ class ChipDetector:
     def _old_velocity(self, before) -> tuple[float, float]:
         """The old motion's velocity: a straight line through its own sightings (two frames at least), else the
         flat filter's."""
-        old = self._settled()
-        if len(np.unique(old[:, 0])) >= 2:
-            t = old[:, 0] - old[:, 0].mean()
-            return (float(t @ (old[:, 1] - old[:, 1].mean()) / (t @ t)),
-                    float(t @ (old[:, 2] - old[:, 2].mean()) / (t @ t)))
+        velocity = _line_velocity(self._settled())
+        if velocity is not None:
+            return velocity
         return (0.0, 0.0) if before is None else (float(before[3]), float(before[4]))
 
     def _launch_times(self) -> tuple[float, float]:
